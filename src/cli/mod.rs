@@ -1,0 +1,33 @@
+//! Argument parsing and the dispatch to each command.
+
+mod static_force;
+
+use clap::{Parser, Subcommand};
+
+/// Identify, diagnose and control hysteretic tap-water McKibben muscles.
+///
+/// Every command works on CSV data (columns `t`, `pressure`, `displacement`
+/// by default; see `data/README.md`) and, given no data file, on the shipped
+/// default experiment. Add `--json` for machine-readable output on stdout.
+#[derive(Debug, Parser)]
+#[command(
+    name = "mckibben",
+    version,
+    propagate_version = true,
+    max_term_width = 100
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    Static(static_force::Args),
+}
+
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Static(args) => static_force::run(args),
+    }
+}

@@ -1,0 +1,86 @@
+//! Experiment data: the in-memory [`Trace`], CSV input and output, and the
+//! signal generators of the thesis' appendix A.
+
+pub mod atomic;
+
+pub use atomic::write_atomic;
+
+use serde::{Deserialize, Serialize};
+
+/// One recorded (or simulated) experiment: a uniform time base, the model's
+/// input and output columns, and any other columns the file carried.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Trace {
+    /// Where the trace came from (a file path or a generator name), for messages.
+    pub source: String,
+    /// Time in seconds, strictly increasing and uniform (see [`Trace::dt`]).
+    pub t: Vec<f64>,
+    /// Name of the input column (default `pressure`, MPa).
+    pub input_name: String,
+    /// The model input, one value per sample.
+    pub input: Vec<f64>,
+    /// Name of the output column (default `displacement`, mm).
+    pub output_name: String,
+    /// The measured output, one value per sample.
+    pub output: Vec<f64>,
+    /// Further columns (`valve_in`, `valve_out`, `load_kg`, `reference`, ...), in file order.
+    pub extra: Vec<(String, Vec<f64>)>,
+}
+
+impl Trace {
+    /// A trace on the uniform time base `t(k) = k·dt`.
+    pub fn uniform(source: impl Into<String>, dt: f64, input: Vec<f64>, output: Vec<f64>) -> Self {
+        assert_eq!(input.len(), output.len(), "input and output lengths differ");
+        let t = (0..input.len()).map(|k| k as f64 * dt).collect();
+        Trace {
+            source: source.into(),
+            t,
+            input_name: "pressure".into(),
+            input,
+            output_name: "displacement".into(),
+            output,
+            extra: Vec::new(),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// The sample time: the mean step of the (uniform) time base.
+    pub fn dt(&self) -> f64 {
+        match self.t.len() {
+            0 | 1 => f64::NAN,
+            n => (self.t[n - 1] - self.t[0]) / (n - 1) as f64,
+        }
+    }
+
+    /// A further column by name, if the trace carries it.
+    pub fn column(&self, name: &str) -> Option<&[f64]> {
+        self.extra
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| v.as_slice())
+    }
+
+    /// The samples `range` of this trace, every column cut alike.
+    pub fn slice(&self, range: std::ops::Range<usize>) -> Trace {
+        Trace {
+            source: self.source.clone(),
+            t: self.t[range.clone()].to_vec(),
+            input_name: self.input_name.clone(),
+            input: self.input[range.clone()].to_vec(),
+            output_name: self.output_name.clone(),
+            output: self.output[range.clone()].to_vec(),
+            extra: self
+                .extra
+                .iter()
+                .map(|(n, v)| (n.clone(), v[range.clone()].to_vec()))
+                .collect(),
+        }
+    }
+}

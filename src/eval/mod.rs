@@ -1,0 +1,70 @@
+//! Batch evaluation: the fitness (SSE) of a whole population of candidate
+//! parameter vectors on one or more experiments.
+//!
+//! Population layout: row-major `N × d`, each row a canonical parameter
+//! vector of the problem's [`Family`] (see [`Family::params`]). Rows are
+//! converted to `f32` the same way on every backend, so that backends agree.
+
+pub mod cpu;
+
+use crate::model::{Experiment, Family};
+
+/// What is scored: a model family against one or more experiments (e.g. two
+/// loads), each in deviation coordinates.
+#[derive(Debug, Clone)]
+pub struct Problem {
+    pub family: Family,
+    pub experiments: Vec<Experiment>,
+}
+
+impl Problem {
+    pub fn new(family: Family, experiments: Vec<Experiment>) -> Self {
+        Problem {
+            family,
+            experiments,
+        }
+    }
+
+    /// Total samples over all experiments.
+    pub fn samples(&self) -> usize {
+        self.experiments.iter().map(|e| e.len()).sum()
+    }
+}
+
+/// SSE of every candidate: per experiment and summed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scores {
+    /// `per_experiment[e][i]`: SSE of candidate `i` on experiment `e`.
+    pub per_experiment: Vec<Vec<f32>>,
+    /// Sum over experiments, in experiment order, in `f32`; `+∞` if any diverged.
+    pub total: Vec<f32>,
+}
+
+impl Scores {
+    /// Builds the totals from per-experiment scores.
+    pub fn from_per_experiment(per_experiment: Vec<Vec<f32>>) -> Scores {
+        let n = per_experiment.first().map_or(0, |v| v.len());
+        let total = (0..n)
+            .map(|i| per_experiment.iter().fold(0.0f32, |acc, e| acc + e[i]))
+            .collect();
+        Scores {
+            per_experiment,
+            total,
+        }
+    }
+}
+
+/// Scores populations. Implementations keep their resources (threads,
+/// device, buffers) across calls, so one evaluator serves a whole run.
+pub trait Evaluator {
+    /// Backend and device, for the user ("cpu, 2 threads", "gpu: NVIDIA H100").
+    fn describe(&self) -> String;
+
+    /// Scores `population` (row-major `N × problem.family.dim()`).
+    fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores>;
+}
+
+/// Converts a row-major `f64` population to the `f32` rows every backend scores.
+pub fn to_f32(population: &[f64]) -> Vec<f32> {
+    population.iter().map(|&v| v as f32).collect()
+}

@@ -1,0 +1,212 @@
+//! ARX least squares, as MATLAB's `arx` with the thesis' conventions.
+//!
+//! Model, with `a` signs as eq. 12 writes them:
+//! `y(k) = Σ_{i=1..na} a_i·y(k−i) + Σ_{j=1..nb} b_j·u(k−nk−j+1)`.
+//! Orders (1, 1, 1) give eq. 12: `y(k) = a·y(k−1) + b·u(k−1)`.
+
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+use thiserror::Error;
+
+use super::fit::{fit_percent, rmse};
+use crate::data::Trace;
+use crate::model::experiment::halves;
+
+/// Orders of an ARX model: poles `na`, zeros+1 `nb`, input delay `nk`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ArxOrders {
+    pub na: usize,
+    pub nb: usize,
+    pub nk: usize,
+}
+
+impl Default for ArxOrders {
+    /// One pole, one zero, one sample of delay: the thesis' choice (§4.3.1).
+    fn default() -> Self {
+        ArxOrders {
+            na: 1,
+            nb: 1,
+            nk: 1,
+        }
+    }
+}
+
+impl ArxOrders {
+    /// Samples of history a prediction needs.
+    pub fn lag(&self) -> usize {
+        self.na.max(self.nk + self.nb.saturating_sub(1))
+    }
+}
+
+#[derive(Debug, Error, PartialEq)]
+pub enum IdentError {
+    #[error("ARX orders need na ≥ 0, nb ≥ 1 (got na={na}, nb={nb}, nk={nk})")]
+    Orders { na: usize, nb: usize, nk: usize },
+    #[error(
+        "{data}: {len} samples are too few for ARX orders (na={na}, nb={nb}, nk={nk}); need at least {need}"
+    )]
+    TooShort {
+        data: String,
+        len: usize,
+        need: usize,
+        na: usize,
+        nb: usize,
+        nk: usize,
+    },
+    #[error(
+        "{data}: the input `{column}` is constant over the estimation half, so nothing about the dynamics can be learnt from it"
+    )]
+    ConstantInput { data: String, column: String },
+    #[error(
+        "{data}: the least-squares problem is singular (regressors are linearly dependent); try lower orders"
+    )]
+    Singular { data: String },
+}
+
+/// An identified ARX model in deviation coordinates.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Arx {
+    pub orders: ArxOrders,
+    /// Output coefficients `a_1..a_na`.
+    pub a: Vec<f64>,
+    /// Input coefficients `b_1..b_nb`.
+    pub b: Vec<f64>,
+}
+
+impl Arx {
+    /// Least squares on deviation data `u`, `y` (means already removed).
+    pub fn estimate(
+        source: &str,
+        u: &[f64],
+        y: &[f64],
+        orders: ArxOrders,
+    ) -> Result<Arx, IdentError> {
+        let ArxOrders { na, nb, nk } = orders;
+        if nb == 0 {
+            return Err(IdentError::Orders { na, nb, nk });
+        }
+        let lag = orders.lag();
+        let cols = na + nb;
+        let need = lag + cols + 1;
+        if y.len() < need {
+            return Err(IdentError::TooShort {
+                data: source.into(),
+                len: y.len(),
+                need,
+                na,
+                nb,
+                nk,
+            });
+        }
+        let rows = y.len() - lag;
+        let phi = DMatrix::from_fn(rows, cols, |r, c| {
+            let k = r + lag;
+            if c < na {
+                y[k - 1 - c]
+            } else {
+                u[k - nk - (c - na)]
+            }
+        });
+        let target = DVector::from_fn(rows, |r, _| y[r + lag]);
+        let svd = phi.svd(true, true);
+        let smax = svd.singular_values.max();
+        let smin = svd.singular_values.min();
+        if !(smin > smax * 1e-10) {
+            return Err(IdentError::Singular {
+                data: source.into(),
+            });
+        }
+        let theta = svd
+            .solve(&target, smax * 1e-12)
+            .map_err(|_| IdentError::Singular {
+                data: source.into(),
+            })?;
+        Ok(Arx {
+            orders,
+            a: theta.as_slice()[..na].to_vec(),
+            b: theta.as_slice()[na..].to_vec(),
+        })
+    }
+
+    /// Free-run simulation on input `u`, the first `lag` outputs taken from
+    /// `y_init` (measured), as MATLAB's `compare` with measured initial values.
+    pub fn simulate(&self, u: &[f64], y_init: &[f64]) -> Vec<f64> {
+        let ArxOrders { na, nb, nk } = self.orders;
+        let lag = self.orders.lag().min(u.len());
+        let mut y: Vec<f64> = y_init[..lag].to_vec();
+        for k in lag..u.len() {
+            let mut v = 0.0;
+            for i in 0..na {
+                v += self.a[i] * y[k - 1 - i];
+            }
+            for j in 0..nb {
+                v += self.b[j] * u[k - nk - j];
+            }
+            y.push(v);
+        }
+        y
+    }
+
+    /// Static gain `Σb / (1 − Σa)`.
+    pub fn dc_gain(&self) -> f64 {
+        self.b.iter().sum::<f64>() / (1.0 - self.a.iter().sum::<f64>())
+    }
+}
+
+/// The thesis' identification: means of the estimation half removed, ARX on
+/// the first half, free-run fit on the second.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Identification {
+    pub source: String,
+    pub arx: Arx,
+    pub input_mean: f64,
+    pub output_mean: f64,
+    pub samples: usize,
+    pub dt: f64,
+    /// Fit % (MATLAB `compare`) of the free-run simulation on the estimation half.
+    pub estimation_fit_percent: f64,
+    /// Fit % on the validation half: the number the thesis reports.
+    pub validation_fit_percent: f64,
+    pub validation_rmse: f64,
+}
+
+pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, IdentError> {
+    let (est, val) = halves(trace.len());
+    let est_len = est.len();
+    let input_mean = trace.input[est.clone()].iter().sum::<f64>() / est_len.max(1) as f64;
+    let output_mean = trace.output[est.clone()].iter().sum::<f64>() / est_len.max(1) as f64;
+    let u: Vec<f64> = trace.input.iter().map(|p| p - input_mean).collect();
+    let y: Vec<f64> = trace.output.iter().map(|l| l - output_mean).collect();
+    if est_len > 0 && u[est.clone()].iter().all(|&v| v == u[est.start]) {
+        return Err(IdentError::ConstantInput {
+            data: trace.source.clone(),
+            column: trace.input_name.clone(),
+        });
+    }
+    let arx = Arx::estimate(&trace.source, &u[est.clone()], &y[est.clone()], orders)?;
+    if val.len() <= orders.lag() {
+        let need = 2 * (orders.lag() + orders.na + orders.nb + 1);
+        let ArxOrders { na, nb, nk } = orders;
+        return Err(IdentError::TooShort {
+            data: trace.source.clone(),
+            len: trace.len(),
+            need,
+            na,
+            nb,
+            nk,
+        });
+    }
+    let sim_est = arx.simulate(&u[est.clone()], &y[est.clone()]);
+    let sim_val = arx.simulate(&u[val.clone()], &y[val.clone()]);
+    Ok(Identification {
+        source: trace.source.clone(),
+        arx,
+        input_mean,
+        output_mean,
+        samples: trace.len(),
+        dt: trace.dt(),
+        estimation_fit_percent: fit_percent(&y[est], &sim_est),
+        validation_fit_percent: fit_percent(&y[val.clone()], &sim_val),
+        validation_rmse: rmse(&y[val], &sim_val),
+    })
+}

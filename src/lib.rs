@@ -1,0 +1,16 @@
+//! `mckibben`: identification, diagnosis and control of hysteretic tap-water
+//! McKibben artificial muscles.
+//!
+//! Data flows one way (see `docs/ARCHITECTURE.md`):
+//!
+//! ```text
+//! CSV / twin -> data::Trace -> ident (ARX) -> model (family, bounds)
+//!     -> optim (GA, MFA, PSO, DE) <-> eval::Evaluator (CPU | GPU)
+//!     -> fitted model -> report / diagnose / control
+//! ```
+
+pub mod data;
+pub mod eval;
+pub mod ident;
+pub mod model;
+pub mod report;

@@ -1,0 +1,183 @@
+//! Model families and their canonical parameter vectors.
+//!
+//! Every family has one fixed layout that the CPU simulation, the WGSL shaders
+//! and the optimizers share. The hysteresis parameters come first in the
+//! thesis' order, then the Bouc-Wen exponent `n`, then the linear part
+//! `a, b` and the intercept `c` (see `docs/ARCHITECTURE.md`, "the intercept").
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
+
+/// A dynamic model family of the thesis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Family {
+    /// First-order ARX, eq. 12 plus an intercept: x(k) = a·x(k−1) + b·u(k−1) + c.
+    Linear,
+    /// Eq. 13 with the classic Bouc-Wen state (eq. 20, corrected).
+    Classic,
+    /// Eq. 13 with the generalized (Song & Der Kiureghian) state (eq. 23, corrected).
+    Generalized,
+}
+
+/// Name, symbol and meaning of one parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ParamInfo {
+    /// ASCII name used in flags, JSON and CSV headers.
+    pub name: &'static str,
+    /// Symbol as the thesis writes it.
+    pub symbol: &'static str,
+    pub meaning: &'static str,
+}
+
+const fn p(name: &'static str, symbol: &'static str, meaning: &'static str) -> ParamInfo {
+    ParamInfo {
+        name,
+        symbol,
+        meaning,
+    }
+}
+
+const LINEAR: [ParamInfo; 3] = [
+    p("a", "a", "pole of the linear part"),
+    p(
+        "b",
+        "b",
+        "input gain of the linear part (output units per input unit)",
+    ),
+    p(
+        "c",
+        "c",
+        "intercept: the offset that mean removal leaves (output units)",
+    ),
+];
+
+const CLASSIC: [ParamInfo; 8] = [
+    p("A", "A", "Bouc-Wen stiffness of the hysteretic state"),
+    p(
+        "alpha",
+        "α",
+        "share of the linear feedback, 1 − α goes to the hysteretic state",
+    ),
+    p("beta", "β", "Bouc-Wen loop-shape parameter"),
+    p("gamma", "γ", "Bouc-Wen loop-shape parameter"),
+    p("n", "n", "Bouc-Wen exponent (1 in the thesis)"),
+    LINEAR[0],
+    LINEAR[1],
+    LINEAR[2],
+];
+
+const GENERALIZED: [ParamInfo; 12] = [
+    p("A", "A", "Bouc-Wen stiffness of the hysteretic state"),
+    p(
+        "alpha",
+        "α",
+        "share of the linear feedback, 1 − α goes to the hysteretic state",
+    ),
+    p("beta1", "β1", "weight of sgn(Δ·w)"),
+    p("beta2", "β2", "weight of sgn(Δ·x)"),
+    p("beta3", "β3", "weight of sgn(x·w)"),
+    p("beta4", "β4", "weight of sgn(Δ)"),
+    p("beta5", "β5", "weight of sgn(w)"),
+    p("beta6", "β6", "weight of sgn(x)"),
+    p("n", "n", "Bouc-Wen exponent (1 in the thesis)"),
+    LINEAR[0],
+    LINEAR[1],
+    LINEAR[2],
+];
+
+impl Family {
+    pub const ALL: [Family; 3] = [Family::Linear, Family::Classic, Family::Generalized];
+
+    /// The canonical parameter vector's entries, in order.
+    pub fn params(self) -> &'static [ParamInfo] {
+        match self {
+            Family::Linear => &LINEAR,
+            Family::Classic => &CLASSIC,
+            Family::Generalized => &GENERALIZED,
+        }
+    }
+
+    /// Length of the canonical parameter vector.
+    pub fn dim(self) -> usize {
+        self.params().len()
+    }
+
+    /// Position of a parameter in the canonical vector.
+    pub fn index_of(self, name: &str) -> Option<usize> {
+        self.params().iter().position(|p| p.name == name)
+    }
+
+    /// Positions of the linear part `a`, `b`, `c` (the last three entries).
+    pub fn linear_indices(self) -> [usize; 3] {
+        let d = self.dim();
+        [d - 3, d - 2, d - 1]
+    }
+
+    /// Position of the Bouc-Wen exponent `n`, if the family has one.
+    pub fn exponent_index(self) -> Option<usize> {
+        self.index_of("n")
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::Linear => "linear",
+            Family::Classic => "classic",
+            Family::Generalized => "generalized",
+        }
+    }
+}
+
+impl fmt::Display for Family {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Family {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "linear" | "arx" => Ok(Family::Linear),
+            "classic" => Ok(Family::Classic),
+            "generalized" | "generalised" => Ok(Family::Generalized),
+            other => Err(format!(
+                "unknown model family `{other}`: expected linear, classic or generalized"
+            )),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layouts_end_with_the_linear_part() {
+        for f in Family::ALL {
+            let names: Vec<_> = f
+                .linear_indices()
+                .iter()
+                .map(|&i| f.params()[i].name)
+                .collect();
+            assert_eq!(names, ["a", "b", "c"], "{f}");
+        }
+        assert_eq!(Family::Classic.exponent_index(), Some(4));
+        assert_eq!(Family::Generalized.exponent_index(), Some(8));
+        assert_eq!(Family::Linear.exponent_index(), None);
+    }
+
+    #[test]
+    fn names_round_trip() {
+        for f in Family::ALL {
+            assert_eq!(f.name().parse::<Family>().unwrap(), f);
+        }
+        assert!(
+            "bogus"
+                .parse::<Family>()
+                .unwrap_err()
+                .contains("linear, classic or generalized")
+        );
+    }
+}

@@ -1,0 +1,59 @@
+//! A fitted model: what `fit` writes and `simulate`, `diagnose` and
+//! `control` read.
+
+use serde::{Deserialize, Serialize};
+
+use super::family::Family;
+use super::sim::{Simulation, simulate};
+use crate::data::Trace;
+
+/// A model with its parameters and the coordinates it was fitted in.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FittedModel {
+    pub family: Family,
+    /// Canonical parameter vector (see [`Family::params`]).
+    pub params: Vec<f64>,
+    /// Input mean removed before fitting (`ū`, input units).
+    pub input_mean: f64,
+    /// Output mean removed before fitting (`ȳ`, output units).
+    pub output_mean: f64,
+    /// Sample time the model was fitted at (s).
+    pub dt: f64,
+    pub input_name: String,
+    pub output_name: String,
+}
+
+impl FittedModel {
+    /// Parameters by name, in canonical order.
+    pub fn named_params(&self) -> Vec<(&'static str, f64)> {
+        self.family
+            .params()
+            .iter()
+            .map(|p| p.name)
+            .zip(self.params.iter().copied())
+            .collect()
+    }
+
+    /// Free-run simulation on an input in absolute units, starting from the
+    /// absolute output `y0`; returns the output in absolute units and the
+    /// simulation in deviation coordinates.
+    pub fn simulate_absolute(&self, input: &[f64], y0: f64) -> (Vec<f64>, Simulation) {
+        let theta: Vec<f32> = self.params.iter().map(|&v| v as f32).collect();
+        let u: Vec<f32> = input
+            .iter()
+            .map(|&p| (p - self.input_mean) as f32)
+            .collect();
+        let sim = simulate(self.family, &theta, &u, (y0 - self.output_mean) as f32);
+        let y = sim.x.iter().map(|&x| x as f64 + self.output_mean).collect();
+        (y, sim)
+    }
+
+    /// Simulates on a trace's input, from its first measured output.
+    pub fn simulate_trace(&self, trace: &Trace) -> Vec<f64> {
+        self.simulate_absolute(
+            &trace.input,
+            trace.output.first().copied().unwrap_or(self.output_mean),
+        )
+        .0
+    }
+}

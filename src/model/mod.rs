@@ -1,0 +1,18 @@
+//! The muscle models: the static force model (eq. 1–9), the identified linear
+//! model (eq. 12) and the two Bouc-Wen hysteresis families (eq. 13–25, as
+//! corrected in `docs/ARCHITECTURE.md`), with their parameter vectors, names,
+//! bounds and the thesis presets.
+
+pub mod bounds;
+pub mod experiment;
+pub mod family;
+pub mod fitted;
+pub mod presets;
+pub mod sim;
+pub mod static_force;
+
+pub use bounds::{Flow, LinearPrior, SearchSpace};
+pub use experiment::Experiment;
+pub use family::{Family, ParamInfo};
+pub use fitted::FittedModel;
+pub use sim::{DIVERGENCE_BOUND, Simulation, simulate, sse};

@@ -1,0 +1,311 @@
+//! The reference simulation of every family, in `f32`.
+//!
+//! This file is the single source of truth for the model equations. The
+//! batched CPU evaluator calls the same step functions, and the WGSL shaders
+//! in `shaders/` spell the same operations in the same order, which the tests
+//! check bit for bit on lavapipe. So: no `mul_add`, and every sum is written
+//! with explicit parentheses in the order the shaders use.
+//!
+//! Deviation coordinates (`docs/ARCHITECTURE.md`): the input `u` and the
+//! measured output `y` have had the estimation means removed. The simulation
+//! starts from the measured `x(0) = y(0)` and `w(0) = 0`, runs free (it never
+//! sees the measured output again) and is scored by
+//! `SSE = Σ_{k≥1} (x(k) − y(k))²`.
+
+use super::family::Family;
+
+/// A simulated state whose magnitude exceeds this bound (in the units of the
+/// data) counts as diverged, and so does any non-finite state: the candidate's
+/// SSE is then `+∞`. Displacements of a muscle are tens of millimetres; a state
+/// of a million is an explosion, not a fit.
+pub const DIVERGENCE_BOUND: f32 = 1.0e6;
+
+/// `|v|^e` for `v ≥ 0`, with `0^e = 0` for `e > 0` and `v^0 = 1` exactly, so
+/// that the free-exponent formula reproduces the `n = 1` one bit for bit.
+#[inline(always)]
+pub fn abs_pow(v: f32, e: f32) -> f32 {
+    if e == 0.0 {
+        1.0
+    } else if v == 0.0 {
+        0.0
+    } else {
+        v.powf(e)
+    }
+}
+
+/// `sgn` with `sgn(0) = 0`, as WGSL's `sign`.
+#[inline(always)]
+pub fn sgn(v: f32) -> f32 {
+    if v > 0.0 {
+        1.0
+    } else if v < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+/// The linear part of eq. 13 with intercept:
+/// `x(k) = a·[α·x(k−1) + (1−α)·w(k−1)] + b·u(k−1) + c`.
+/// The linear family is the case α = 1, w = 0 (eq. 12 plus `c`).
+#[inline(always)]
+pub fn linear_part(
+    a: f32,
+    alpha: f32,
+    b: f32,
+    c: f32,
+    x_prev: f32,
+    w_prev: f32,
+    u_prev: f32,
+) -> f32 {
+    ((a * ((alpha * x_prev) + ((1.0 - alpha) * w_prev))) + (b * u_prev)) + c
+}
+
+/// Classic Bouc-Wen state update (eq. 20 with the factor `w` restored):
+/// `w(k) = w(k−1) + A·Δ − β·|Δ|·|w|^(n−1)·w − γ·Δ·|w|^n`, `w = w(k−1)`.
+#[inline(always)]
+pub fn classic_w(big_a: f32, beta: f32, gamma: f32, n: f32, w_prev: f32, delta: f32) -> f32 {
+    let aw = w_prev.abs();
+    let pw = abs_pow(aw, n - 1.0);
+    ((w_prev + (big_a * delta)) - ((beta * delta.abs()) * (pw * w_prev)))
+        - ((gamma * delta) * (pw * aw))
+}
+
+/// Generalized Bouc-Wen state update (eq. 23 with `w(k−1)` on the right):
+/// `w(k) = w(k−1) + Δ·[A − |w(k−1)|^n·Ψ(k)]`.
+///
+/// `Ψ = β1·sgn(Δ·w) + β2·sgn(Δ·x) + β3·sgn(x·w) + β4·sgn(Δ) + β5·sgn(w) + β6·sgn(x)`,
+/// where the sign of a product is taken as the product of signs (the same
+/// number, but immune to underflow of the product).
+#[inline(always)]
+pub fn generalized_w(big_a: f32, betas: &[f32; 6], n: f32, w_prev: f32, x: f32, delta: f32) -> f32 {
+    let sd = sgn(delta);
+    let sw = sgn(w_prev);
+    let sx = sgn(x);
+    let psi = (((((betas[0] * (sd * sw)) + (betas[1] * (sd * sx))) + (betas[2] * (sx * sw)))
+        + (betas[3] * sd))
+        + (betas[4] * sw))
+        + (betas[5] * sx);
+    let aw = w_prev.abs();
+    let pwn = abs_pow(aw, n - 1.0) * aw;
+    w_prev + (delta * (big_a - (pwn * psi)))
+}
+
+/// True while a state is finite and within [`DIVERGENCE_BOUND`].
+#[inline(always)]
+pub fn in_bounds(v: f32) -> bool {
+    v.abs() <= DIVERGENCE_BOUND
+}
+
+/// One family's parameters unpacked from the canonical vector, ready for the
+/// inner loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Stepper {
+    Linear {
+        a: f32,
+        b: f32,
+        c: f32,
+    },
+    Classic {
+        big_a: f32,
+        alpha: f32,
+        beta: f32,
+        gamma: f32,
+        n: f32,
+        a: f32,
+        b: f32,
+        c: f32,
+    },
+    Generalized {
+        big_a: f32,
+        alpha: f32,
+        betas: [f32; 6],
+        n: f32,
+        a: f32,
+        b: f32,
+        c: f32,
+    },
+}
+
+impl Stepper {
+    /// Unpacks a canonical parameter vector of `family` (see [`Family::params`]).
+    pub fn new(family: Family, theta: &[f32]) -> Self {
+        assert_eq!(
+            theta.len(),
+            family.dim(),
+            "{family} takes {} parameters",
+            family.dim()
+        );
+        match family {
+            Family::Linear => Stepper::Linear {
+                a: theta[0],
+                b: theta[1],
+                c: theta[2],
+            },
+            Family::Classic => Stepper::Classic {
+                big_a: theta[0],
+                alpha: theta[1],
+                beta: theta[2],
+                gamma: theta[3],
+                n: theta[4],
+                a: theta[5],
+                b: theta[6],
+                c: theta[7],
+            },
+            Family::Generalized => Stepper::Generalized {
+                big_a: theta[0],
+                alpha: theta[1],
+                betas: [theta[2], theta[3], theta[4], theta[5], theta[6], theta[7]],
+                n: theta[8],
+                a: theta[9],
+                b: theta[10],
+                c: theta[11],
+            },
+        }
+    }
+
+    /// Advances one sample: from `(x(k−1), w(k−1))` and `u(k−1)` to `(x(k), w(k))`.
+    #[inline(always)]
+    pub fn step(&self, x_prev: f32, w_prev: f32, u_prev: f32) -> (f32, f32) {
+        match *self {
+            Stepper::Linear { a, b, c } => (((a * x_prev) + (b * u_prev)) + c, 0.0),
+            Stepper::Classic {
+                big_a,
+                alpha,
+                beta,
+                gamma,
+                n,
+                a,
+                b,
+                c,
+            } => {
+                let x = linear_part(a, alpha, b, c, x_prev, w_prev, u_prev);
+                (x, classic_w(big_a, beta, gamma, n, w_prev, x - x_prev))
+            }
+            Stepper::Generalized {
+                big_a,
+                alpha,
+                ref betas,
+                n,
+                a,
+                b,
+                c,
+            } => {
+                let x = linear_part(a, alpha, b, c, x_prev, w_prev, u_prev);
+                (x, generalized_w(big_a, betas, n, w_prev, x, x - x_prev))
+            }
+        }
+    }
+}
+
+/// A free-run simulation: the output and hysteretic state at every sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Simulation {
+    pub x: Vec<f32>,
+    pub w: Vec<f32>,
+    /// First sample whose state left [`DIVERGENCE_BOUND`] or became non-finite.
+    pub diverged_at: Option<usize>,
+}
+
+/// Simulates `family` with parameters `theta` on input `u` from `x(0) = x0`,
+/// `w(0) = 0`. The whole trace is produced even after divergence, so that a
+/// plot shows where it happened.
+pub fn simulate(family: Family, theta: &[f32], u: &[f32], x0: f32) -> Simulation {
+    let stepper = Stepper::new(family, theta);
+    let mut x = Vec::with_capacity(u.len());
+    let mut w = Vec::with_capacity(u.len());
+    let mut diverged_at = None;
+    if u.is_empty() {
+        return Simulation { x, w, diverged_at };
+    }
+    x.push(x0);
+    w.push(0.0);
+    for k in 1..u.len() {
+        let (xk, wk) = stepper.step(x[k - 1], w[k - 1], u[k - 1]);
+        if diverged_at.is_none() && !(in_bounds(xk) && in_bounds(wk)) {
+            diverged_at = Some(k);
+        }
+        x.push(xk);
+        w.push(wk);
+    }
+    Simulation { x, w, diverged_at }
+}
+
+/// The fitness of eq. 29 as a cost: `Σ_{k≥1} (x(k) − y(k))²` accumulated in
+/// `f32` in sample order, or `+∞` if the simulation diverged.
+pub fn sse(family: Family, theta: &[f32], u: &[f32], y: &[f32]) -> f32 {
+    assert_eq!(u.len(), y.len(), "input and output lengths differ");
+    if u.is_empty() {
+        return 0.0;
+    }
+    let stepper = Stepper::new(family, theta);
+    let (mut x, mut w) = (y[0], 0.0f32);
+    let mut acc = 0.0f32;
+    for k in 1..u.len() {
+        (x, w) = stepper.step(x, w, u[k - 1]);
+        if !(in_bounds(x) && in_bounds(w)) {
+            return f32::INFINITY;
+        }
+        let e = x - y[k];
+        acc += e * e;
+    }
+    acc
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn linear_step_is_eq_12_plus_intercept() {
+        let s = Stepper::new(Family::Linear, &[0.5, 2.0, 1.0]);
+        assert_eq!(s.step(4.0, 123.0, 3.0), (0.5 * 4.0 + 2.0 * 3.0 + 1.0, 0.0));
+    }
+
+    #[test]
+    fn classic_with_alpha_one_is_linear() {
+        let u: Vec<f32> = (0..200).map(|k| ((k / 20) % 2) as f32).collect();
+        let lin = simulate(Family::Linear, &[0.9, 2.0, 0.1], &u, 0.5);
+        let cl = simulate(
+            Family::Classic,
+            &[0.9, 1.0, 0.1, 0.05, 1.0, 0.9, 2.0, 0.1],
+            &u,
+            0.5,
+        );
+        assert_eq!(lin.x, cl.x);
+    }
+
+    #[test]
+    fn free_exponent_at_one_equals_the_n_one_formula() {
+        // n = 1 exactly through abs_pow must not change a single bit.
+        for &(w, d) in &[(0.0f32, 0.3f32), (0.7, -0.2), (-1.3, 0.05), (2.0, 0.0)] {
+            let explicit = ((w + 0.9 * d) - (0.2 * d.abs()) * w) - (0.1 * d) * w.abs();
+            assert_eq!(classic_w(0.9, 0.2, 0.1, 1.0, w, d), explicit);
+        }
+    }
+
+    #[test]
+    fn divergence_gives_infinite_sse() {
+        let u = vec![1.0f32; 100];
+        let y = vec![0.0f32; 100];
+        // An unstable pole explodes past the bound.
+        assert_eq!(sse(Family::Linear, &[1.5, 1.0, 0.0], &u, &y), f32::INFINITY);
+        let sim = simulate(Family::Linear, &[1.5, 1.0, 0.0], &u, 0.0);
+        assert!(sim.diverged_at.is_some());
+        assert!(sse(Family::Linear, &[0.5, 1.0, 0.0], &u, &y).is_finite());
+    }
+
+    #[test]
+    fn sse_matches_simulation_residual() {
+        let u: Vec<f32> = (0..300).map(|k| (k as f32 * 0.05).sin()).collect();
+        let theta = [0.9f32, 0.6, 0.05, -0.02, 1.0, 0.95, 1.5, 0.01];
+        let y: Vec<f32> = (0..300).map(|k| (k as f32 * 0.04).cos()).collect();
+        let sim = simulate(Family::Classic, &theta, &u, y[0]);
+        let mut acc = 0.0f32;
+        for k in 1..u.len() {
+            let e = sim.x[k] - y[k];
+            acc += e * e;
+        }
+        assert_eq!(sse(Family::Classic, &theta, &u, &y), acc);
+    }
+}
