@@ -13,4 +13,5 @@ pub mod data;
 pub mod eval;
 pub mod ident;
 pub mod model;
+pub mod optim;
 pub mod report;
