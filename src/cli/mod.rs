@@ -1,5 +1,8 @@
 //! Argument parsing and the dispatch to each command.
 
+// Shared data flags; `identify` uses them once the integrator wires it.
+#[allow(dead_code)]
+mod common;
 mod static_force;
 
 use clap::{Parser, Subcommand};
