@@ -3,6 +3,7 @@
 mod common;
 mod identify;
 mod static_force;
+mod twin;
 
 use clap::{Parser, Subcommand};
 
@@ -27,11 +28,13 @@ pub struct Cli {
 pub enum Command {
     Identify(identify::Args),
     Static(static_force::Args),
+    Twin(twin::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Identify(args) => identify::run(args),
         Command::Static(args) => static_force::run(args),
+        Command::Twin(args) => twin::run(args),
     }
 }
