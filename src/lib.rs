@@ -15,3 +15,4 @@ pub mod ident;
 pub mod model;
 pub mod optim;
 pub mod report;
+pub mod twin;

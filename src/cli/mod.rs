@@ -1,6 +1,10 @@
 //! Argument parsing and the dispatch to each command.
 
+mod common;
+mod identify;
+mod simulate;
 mod static_force;
+mod twin;
 
 use clap::{Parser, Subcommand};
 
@@ -23,11 +27,17 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    Identify(identify::Args),
+    Simulate(simulate::Args),
     Static(static_force::Args),
+    Twin(twin::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Identify(args) => identify::run(args),
+        Command::Simulate(args) => simulate::run(args),
         Command::Static(args) => static_force::run(args),
+        Command::Twin(args) => twin::run(args),
     }
 }
