@@ -1,33 +1,233 @@
-//! The CPU reference evaluator.
+//! The CPU evaluator: the reference numbers, computed fast.
+//!
+//! Candidates are advanced [`LANES`] at a time, side by side, each lane in its
+//! own slot of plain `f32` arrays, so that the compiler turns the inner loop
+//! into SIMD instructions (a naive one-candidate loop runs about ten times
+//! slower, `docs/PERFORMANCE.md`). Every lane calls the very step functions of
+//! [`crate::model::sim`] (the single source of truth), in the same order and
+//! without fused multiply-adds, so each lane's SSE is bit-identical to
+//! [`crate::model::sse`] for that candidate.
+//!
+//! Divergence: `sse` stops at the first out-of-bounds state and returns `+∞`.
+//! A batch cannot stop one lane, so each lane carries a mask that latches at
+//! the first out-of-bounds state; a latched lane's SSE is `+∞` whatever it
+//! accumulated afterwards. The batch stops early once every lane has latched.
+//!
+//! Batches are spread over threads with rayon. Each batch is computed by one
+//! thread from its own inputs only, so results do not depend on the number of
+//! threads.
+
+use rayon::prelude::*;
 
 use super::{Evaluator, Problem, Scores, to_f32};
-use crate::model::sse;
+use crate::model::Family;
+use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear_step};
 
-/// Scores each candidate with the reference simulation, one after another.
+/// Candidates advanced side by side in one batch: 16 `f32` fill one AVX-512
+/// register or two AVX2 registers.
+pub const LANES: usize = 16;
+
+/// How often (in samples) a batch checks whether every lane has diverged.
+const DIVERGENCE_CHECK: usize = 128;
+
+/// The batched, multi-threaded CPU evaluator.
 #[derive(Debug, Default)]
 pub struct CpuEvaluator;
 
+impl CpuEvaluator {
+    pub fn new() -> Self {
+        CpuEvaluator
+    }
+}
+
 impl Evaluator for CpuEvaluator {
     fn describe(&self) -> String {
-        "cpu".into()
+        format!(
+            "cpu ({LANES}-lane batches on {} threads)",
+            rayon::current_num_threads()
+        )
     }
 
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {
+        let rows = to_f32(population);
         let d = problem.family.dim();
         anyhow::ensure!(
-            population.len() % d == 0,
-            "population length is not a multiple of {d}"
+            rows.len() % d == 0,
+            "population length {} is not a multiple of the {} model's {d} parameters",
+            rows.len(),
+            problem.family
         );
-        let rows = to_f32(population);
-        let per_experiment = problem
-            .experiments
-            .iter()
-            .map(|e| {
-                rows.chunks_exact(d)
-                    .map(|theta| sse(problem.family, theta, &e.u, &e.y))
-                    .collect()
-            })
-            .collect();
-        Ok(Scores::from_per_experiment(per_experiment))
+        Ok(score_rows(problem, &rows))
     }
+}
+
+/// Scores `f32` rows (row-major `N × d`) on every experiment of `problem`.
+pub fn score_rows(problem: &Problem, rows: &[f32]) -> Scores {
+    let family = problem.family;
+    let d = family.dim();
+    let n = rows.len() / d;
+    let batches: Vec<Vec<[f32; LANES]>> = rows
+        .par_chunks(LANES * d)
+        .map(|chunk| {
+            let params = transpose(chunk, d);
+            problem
+                .experiments
+                .iter()
+                .map(|e| batch_sse(family, &params, &e.u, &e.y))
+                .collect()
+        })
+        .collect();
+    let per_experiment = (0..problem.experiments.len())
+        .map(|e| {
+            batches
+                .iter()
+                .flat_map(|b| b[e])
+                .take(n)
+                .collect::<Vec<f32>>()
+        })
+        .collect();
+    Scores::from_per_experiment(per_experiment)
+}
+
+/// `params[j][l]`: parameter `j` of lane `l`. A short last batch is padded
+/// with copies of its first row; the padding lanes' scores are dropped.
+fn transpose(chunk: &[f32], d: usize) -> Vec<[f32; LANES]> {
+    let mut params = vec![[0.0f32; LANES]; d];
+    let used = chunk.len() / d;
+    for l in 0..LANES {
+        let row = if l < used { l } else { 0 };
+        for (j, p) in params.iter_mut().enumerate() {
+            p[l] = chunk[row * d + j];
+        }
+    }
+    params
+}
+
+/// The SSE of every lane of one batch on one experiment, as [`crate::model::sse`].
+fn batch_sse(family: Family, params: &[[f32; LANES]], u: &[f32], y: &[f32]) -> [f32; LANES] {
+    assert_eq!(u.len(), y.len(), "input and output lengths differ");
+    if u.is_empty() {
+        return [0.0; LANES];
+    }
+    let n_is_one = |j: usize| params[j].iter().all(|&n| n == 1.0);
+    match family {
+        Family::Linear => linear_batch(params.try_into().expect("3 parameters"), u, y),
+        Family::Classic => {
+            let p = params.try_into().expect("8 parameters");
+            if n_is_one(4) {
+                classic_batch::<true>(p, u, y)
+            } else {
+                classic_batch::<false>(p, u, y)
+            }
+        }
+        Family::Generalized => {
+            let p = params.try_into().expect("12 parameters");
+            if n_is_one(8) {
+                generalized_batch::<true>(p, u, y)
+            } else {
+                generalized_batch::<false>(p, u, y)
+            }
+        }
+    }
+}
+
+/// Lanes whose mask latched score `+∞`.
+#[inline(always)]
+fn finish(acc: [f32; LANES], ok: [bool; LANES]) -> [f32; LANES] {
+    std::array::from_fn(|l| if ok[l] { acc[l] } else { f32::INFINITY })
+}
+
+/// Runs `block` over the samples `1..len` in blocks of [`DIVERGENCE_CHECK`];
+/// `block` returns whether any lane is still in bounds, and the run stops
+/// once none is.
+#[inline(always)]
+fn run_blocks(len: usize, mut block: impl FnMut(std::ops::Range<usize>) -> bool) {
+    let mut k = 1;
+    while k < len {
+        let end = (k + DIVERGENCE_CHECK).min(len);
+        if !block(k..end) {
+            return;
+        }
+        k = end;
+    }
+}
+
+#[inline(never)]
+fn linear_batch(p: &[[f32; LANES]; 3], u: &[f32], y: &[f32]) -> [f32; LANES] {
+    let [a, b, c] = p;
+    let mut x = [y[0]; LANES];
+    let mut acc = [0.0f32; LANES];
+    let mut ok = [true; LANES];
+    run_blocks(u.len(), |ks| {
+        for k in ks {
+            let (up, yk) = (u[k - 1], y[k]);
+            for l in 0..LANES {
+                let xn = linear_step(a[l], b[l], c[l], x[l], up);
+                // w ≡ 0 is always in bounds.
+                ok[l] &= in_bounds(xn);
+                let e = xn - yk;
+                acc[l] += e * e;
+                x[l] = xn;
+            }
+        }
+        ok.iter().any(|&o| o)
+    });
+    finish(acc, ok)
+}
+
+#[inline(never)]
+fn classic_batch<const N_ONE: bool>(p: &[[f32; LANES]; 8], u: &[f32], y: &[f32]) -> [f32; LANES] {
+    let [big_a, alpha, beta, gamma, n, a, b, c] = p;
+    let mut x = [y[0]; LANES];
+    let mut w = [0.0f32; LANES];
+    let mut acc = [0.0f32; LANES];
+    let mut ok = [true; LANES];
+    run_blocks(u.len(), |ks| {
+        for k in ks {
+            let (up, yk) = (u[k - 1], y[k]);
+            for l in 0..LANES {
+                let nl = if N_ONE { 1.0 } else { n[l] };
+                let xn = linear_part(a[l], alpha[l], b[l], c[l], x[l], w[l], up);
+                let wn = classic_w(big_a[l], beta[l], gamma[l], nl, w[l], xn - x[l]);
+                ok[l] &= in_bounds(xn) & in_bounds(wn);
+                let e = xn - yk;
+                acc[l] += e * e;
+                x[l] = xn;
+                w[l] = wn;
+            }
+        }
+        ok.iter().any(|&o| o)
+    });
+    finish(acc, ok)
+}
+
+#[inline(never)]
+fn generalized_batch<const N_ONE: bool>(
+    p: &[[f32; LANES]; 12],
+    u: &[f32],
+    y: &[f32],
+) -> [f32; LANES] {
+    let [big_a, alpha, b1, b2, b3, b4, b5, b6, n, a, b, c] = p;
+    let mut x = [y[0]; LANES];
+    let mut w = [0.0f32; LANES];
+    let mut acc = [0.0f32; LANES];
+    let mut ok = [true; LANES];
+    run_blocks(u.len(), |ks| {
+        for k in ks {
+            let (up, yk) = (u[k - 1], y[k]);
+            for l in 0..LANES {
+                let nl = if N_ONE { 1.0 } else { n[l] };
+                let betas = [b1[l], b2[l], b3[l], b4[l], b5[l], b6[l]];
+                let xn = linear_part(a[l], alpha[l], b[l], c[l], x[l], w[l], up);
+                let wn = generalized_w(big_a[l], &betas, nl, w[l], xn, xn - x[l]);
+                ok[l] &= in_bounds(xn) & in_bounds(wn);
+                let e = xn - yk;
+                acc[l] += e * e;
+                x[l] = xn;
+                w[l] = wn;
+            }
+        }
+        ok.iter().any(|&o| o)
+    });
+    finish(acc, ok)
 }
