@@ -32,20 +32,34 @@ const DIVERGENCE_CHECK: usize = 128;
 
 /// The batched, multi-threaded CPU evaluator.
 #[derive(Debug, Default)]
-pub struct CpuEvaluator;
+pub struct CpuEvaluator {
+    /// Why the CPU was chosen, when `--backend auto` chose it.
+    note: Option<String>,
+}
 
 impl CpuEvaluator {
     pub fn new() -> Self {
-        CpuEvaluator
+        CpuEvaluator::default()
+    }
+
+    /// A CPU evaluator that says why it was chosen (in [`Evaluator::describe`]).
+    pub fn with_note(note: impl Into<String>) -> Self {
+        CpuEvaluator {
+            note: Some(note.into()),
+        }
     }
 }
 
 impl Evaluator for CpuEvaluator {
     fn describe(&self) -> String {
-        format!(
+        let base = format!(
             "cpu ({LANES}-lane batches on {} threads)",
             rayon::current_num_threads()
-        )
+        );
+        match &self.note {
+            Some(note) => format!("{base}; {note}"),
+            None => base,
+        }
     }
 
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {
