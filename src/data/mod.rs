@@ -2,6 +2,7 @@
 //! signal generators of the thesis' appendix A.
 
 pub mod atomic;
+pub mod csv;
 
 pub use atomic::write_atomic;
 
