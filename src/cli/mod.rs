@@ -1,5 +1,6 @@
 //! Argument parsing and the dispatch to each command.
 
+mod bench;
 mod common;
 mod identify;
 mod static_force;
@@ -25,12 +26,14 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    Bench(bench::Args),
     Identify(identify::Args),
     Static(static_force::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Bench(args) => bench::run(args),
         Command::Identify(args) => identify::run(args),
         Command::Static(args) => static_force::run(args),
     }

@@ -23,9 +23,13 @@ use super::{Evaluator, Problem, Scores, to_f32};
 use crate::model::Family;
 use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear_step};
 
-/// Candidates advanced side by side in one batch: 16 `f32` fill one AVX-512
-/// register or two AVX2 registers.
-pub const LANES: usize = 16;
+/// Candidates advanced side by side in one batch. One step of one candidate
+/// is a chain of about ten dependent operations (x → Δ → w → next x), so a
+/// single vector of 16 lanes waits on latency; 32 lanes (two AVX-512 or four
+/// AVX2 registers per quantity) keep independent chains in flight: 1.8× the
+/// throughput of 16 lanes here, while 64 lanes gain little more
+/// (`docs/PERFORMANCE.md`).
+pub const LANES: usize = 32;
 
 /// How often (in samples) a batch checks whether every lane has diverged.
 const DIVERGENCE_CHECK: usize = 128;
@@ -117,8 +121,44 @@ fn transpose(chunk: &[f32], d: usize) -> Vec<[f32; LANES]> {
     params
 }
 
-/// The SSE of every lane of one batch on one experiment, as [`crate::model::sse`].
+/// The SSE of every lane of one batch on one experiment, as [`crate::model::sse`],
+/// compiled for the widest vector unit the CPU has (chosen at run time; the
+/// arithmetic is the same IEEE `f32` on each, and Rust never fuses a·b + c,
+/// so the bits do not depend on the choice).
 fn batch_sse(family: Family, params: &[[f32; LANES]], u: &[f32], y: &[f32]) -> [f32; LANES] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F.
+            return unsafe { batch_sse_avx512(family, params, u, y) };
+        }
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2.
+            return unsafe { batch_sse_avx2(family, params, u, y) };
+        }
+    }
+    batch_sse_portable(family, params, u, y)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn batch_sse_avx512(family: Family, params: &[[f32; LANES]], u: &[f32], y: &[f32]) -> [f32; LANES] {
+    batch_sse_portable(family, params, u, y)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn batch_sse_avx2(family: Family, params: &[[f32; LANES]], u: &[f32], y: &[f32]) -> [f32; LANES] {
+    batch_sse_portable(family, params, u, y)
+}
+
+#[inline(always)]
+fn batch_sse_portable(
+    family: Family,
+    params: &[[f32; LANES]],
+    u: &[f32],
+    y: &[f32],
+) -> [f32; LANES] {
     assert_eq!(u.len(), y.len(), "input and output lengths differ");
     if u.is_empty() {
         return [0.0; LANES];
@@ -151,29 +191,27 @@ fn finish(acc: [f32; LANES], ok: [bool; LANES]) -> [f32; LANES] {
     std::array::from_fn(|l| if ok[l] { acc[l] } else { f32::INFINITY })
 }
 
-/// Runs `block` over the samples `1..len` in blocks of [`DIVERGENCE_CHECK`];
-/// `block` returns whether any lane is still in bounds, and the run stops
-/// once none is.
+/// True while some lane is in bounds.
 #[inline(always)]
-fn run_blocks(len: usize, mut block: impl FnMut(std::ops::Range<usize>) -> bool) {
-    let mut k = 1;
-    while k < len {
-        let end = (k + DIVERGENCE_CHECK).min(len);
-        if !block(k..end) {
-            return;
-        }
-        k = end;
+fn any_ok(ok: &[bool; LANES]) -> bool {
+    let mut any = false;
+    for &o in ok {
+        any |= o;
     }
+    any
 }
 
-#[inline(never)]
+#[inline(always)]
 fn linear_batch(p: &[[f32; LANES]; 3], u: &[f32], y: &[f32]) -> [f32; LANES] {
     let [a, b, c] = p;
     let mut x = [y[0]; LANES];
     let mut acc = [0.0f32; LANES];
     let mut ok = [true; LANES];
-    run_blocks(u.len(), |ks| {
-        for k in ks {
+    // Blocks of DIVERGENCE_CHECK samples; stop once every lane has diverged.
+    let mut start = 1;
+    while start < u.len() {
+        let end = (start + DIVERGENCE_CHECK).min(u.len());
+        for k in start..end {
             let (up, yk) = (u[k - 1], y[k]);
             for l in 0..LANES {
                 let xn = linear_step(a[l], b[l], c[l], x[l], up);
@@ -184,20 +222,26 @@ fn linear_batch(p: &[[f32; LANES]; 3], u: &[f32], y: &[f32]) -> [f32; LANES] {
                 x[l] = xn;
             }
         }
-        ok.iter().any(|&o| o)
-    });
+        if !any_ok(&ok) {
+            break;
+        }
+        start = end;
+    }
     finish(acc, ok)
 }
 
-#[inline(never)]
+#[inline(always)]
 fn classic_batch<const N_ONE: bool>(p: &[[f32; LANES]; 8], u: &[f32], y: &[f32]) -> [f32; LANES] {
     let [big_a, alpha, beta, gamma, n, a, b, c] = p;
     let mut x = [y[0]; LANES];
     let mut w = [0.0f32; LANES];
     let mut acc = [0.0f32; LANES];
     let mut ok = [true; LANES];
-    run_blocks(u.len(), |ks| {
-        for k in ks {
+    // Blocks of DIVERGENCE_CHECK samples; stop once every lane has diverged.
+    let mut start = 1;
+    while start < u.len() {
+        let end = (start + DIVERGENCE_CHECK).min(u.len());
+        for k in start..end {
             let (up, yk) = (u[k - 1], y[k]);
             for l in 0..LANES {
                 let nl = if N_ONE { 1.0 } else { n[l] };
@@ -210,12 +254,15 @@ fn classic_batch<const N_ONE: bool>(p: &[[f32; LANES]; 8], u: &[f32], y: &[f32])
                 w[l] = wn;
             }
         }
-        ok.iter().any(|&o| o)
-    });
+        if !any_ok(&ok) {
+            break;
+        }
+        start = end;
+    }
     finish(acc, ok)
 }
 
-#[inline(never)]
+#[inline(always)]
 fn generalized_batch<const N_ONE: bool>(
     p: &[[f32; LANES]; 12],
     u: &[f32],
@@ -226,8 +273,11 @@ fn generalized_batch<const N_ONE: bool>(
     let mut w = [0.0f32; LANES];
     let mut acc = [0.0f32; LANES];
     let mut ok = [true; LANES];
-    run_blocks(u.len(), |ks| {
-        for k in ks {
+    // Blocks of DIVERGENCE_CHECK samples; stop once every lane has diverged.
+    let mut start = 1;
+    while start < u.len() {
+        let end = (start + DIVERGENCE_CHECK).min(u.len());
+        for k in start..end {
             let (up, yk) = (u[k - 1], y[k]);
             for l in 0..LANES {
                 let nl = if N_ONE { 1.0 } else { n[l] };
@@ -241,7 +291,10 @@ fn generalized_batch<const N_ONE: bool>(
                 w[l] = wn;
             }
         }
-        ok.iter().any(|&o| o)
-    });
+        if !any_ok(&ok) {
+            break;
+        }
+        start = end;
+    }
     finish(acc, ok)
 }

@@ -5,6 +5,7 @@
 //! vector of the problem's [`Family`] (see [`Family::params`]). Rows are
 //! converted to `f32` the same way on every backend, so that backends agree.
 
+pub mod agreement;
 pub mod cpu;
 pub mod gpu;
 pub mod workload;
