@@ -298,3 +298,54 @@ fn generalized_batch<const N_ONE: bool>(
     }
     finish(acc, ok)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::workload::{mixed_population, search_space, stair_experiment};
+    use crate::model::sse;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    /// Every compiled variant the CPU can run gives `model::sse`'s bits
+    /// (the evaluator tests only see the one this CPU picks).
+    #[test]
+    fn every_instruction_set_variant_is_bit_identical() {
+        let exp = stair_experiment(700, 21);
+        for (family, free_n) in [
+            (Family::Linear, false),
+            (Family::Classic, false),
+            (Family::Classic, true),
+            (Family::Generalized, false),
+            (Family::Generalized, true),
+        ] {
+            let d = family.dim();
+            let space = search_space(family, &exp, free_n);
+            let pop = mixed_population(&space, LANES, &mut ChaCha8Rng::seed_from_u64(2));
+            let rows = to_f32(&pop);
+            let params = transpose(&rows, d);
+            let want: Vec<u32> = rows
+                .chunks_exact(d)
+                .map(|t| sse(family, t, &exp.u, &exp.y).to_bits())
+                .collect();
+            let bits = |s: [f32; LANES]| s.map(f32::to_bits).to_vec();
+            assert_eq!(
+                bits(batch_sse_portable(family, &params, &exp.u, &exp.y)),
+                want
+            );
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU has AVX2.
+                    let got = unsafe { batch_sse_avx2(family, &params, &exp.u, &exp.y) };
+                    assert_eq!(bits(got), want, "{family} avx2");
+                }
+                if std::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the CPU has AVX-512F.
+                    let got = unsafe { batch_sse_avx512(family, &params, &exp.u, &exp.y) };
+                    assert_eq!(bits(got), want, "{family} avx512");
+                }
+            }
+        }
+    }
+}
