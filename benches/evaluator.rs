@@ -43,7 +43,7 @@ fn cpu(c: &mut Criterion) {
 fn gpu(c: &mut Criterion) {
     match GpuEvaluator::open(Default::default()) {
         Ok(mut g) => {
-            eprintln!("gpu: {}", g.describe());
+            eprintln!("{}", g.describe());
             throughput(c, "gpu", &mut g);
         }
         Err(e) => eprintln!("SKIP gpu benchmarks: {e:#}"),

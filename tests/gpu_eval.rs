@@ -5,10 +5,12 @@
 //! With no adapter these tests fail when `CI=true` (CI must run them) and
 //! otherwise print a loud SKIP message and return.
 
+use mckibben::data::csv::{ReadOptions, read_traces};
 use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::eval::gpu::{GpuEvaluator, GpuOptions};
 use mckibben::eval::workload::{mixed_population, search_space, stair_experiment};
 use mckibben::eval::{Evaluator, Problem, Scores};
+use mckibben::model::experiment::halves;
 use mckibben::model::{Experiment, Family};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -54,8 +56,20 @@ fn assert_bit_identical(got: &Scores, want: &Scores, what: &str) {
     assert_eq!(got.total.len(), want.total.len(), "{what}: totals");
 }
 
-/// The realistic trace of these tests: 4000 samples of the stair workload.
+/// The realistic trace of these tests: the shipped default experiment
+/// (`data/stair_4.5kg.csv`, means of its first half removed, as the thesis),
+/// or 4000 samples of the synthetic stair workload where it is not shipped.
 fn trace() -> Experiment {
+    let shipped = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/stair_4.5kg.csv");
+    if shipped.is_file() {
+        let traces = read_traces(&shipped, &ReadOptions::default()).expect("shipped data reads");
+        let t = &traces[0];
+        return Experiment::with_means_of(t, halves(t.len()).0);
+    }
+    eprintln!(
+        "note: {} is not shipped; using the synthetic stair",
+        shipped.display()
+    );
     stair_experiment(4000, 42)
 }
 
