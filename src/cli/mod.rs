@@ -3,7 +3,9 @@
 mod bench;
 mod common;
 mod identify;
+mod simulate;
 mod static_force;
+mod twin;
 
 use clap::{Parser, Subcommand};
 
@@ -28,13 +30,17 @@ pub struct Cli {
 pub enum Command {
     Bench(bench::Args),
     Identify(identify::Args),
+    Simulate(simulate::Args),
     Static(static_force::Args),
+    Twin(twin::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Bench(args) => bench::run(args),
         Command::Identify(args) => identify::run(args),
+        Command::Simulate(args) => simulate::run(args),
         Command::Static(args) => static_force::run(args),
+        Command::Twin(args) => twin::run(args),
     }
 }

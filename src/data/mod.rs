@@ -3,6 +3,7 @@
 
 pub mod atomic;
 pub mod csv;
+pub mod signals;
 
 pub use atomic::write_atomic;
 
