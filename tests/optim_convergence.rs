@@ -32,7 +32,7 @@ fn ratio(family: Family, algo: Algorithm, settings: &AlgoSettings) -> f64 {
     let problem = Problem::new(family, vec![s.estimation.clone()]);
     let mut runner = Runner::new(algo, settings, s.space(), RunSettings::new(N, G, 42)).unwrap();
     let out = runner
-        .run(&problem, &mut CpuEvaluator, &mut [], None, None)
+        .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
         .unwrap();
     assert_eq!(out.evaluations, (N * G) as u64);
     let r = out.sse / s.true_sse();

@@ -40,7 +40,7 @@ fn run(algo: Algorithm, threads: usize) -> Vec<GenerationRecord> {
         .unwrap();
     pool.install(|| {
         let mut r = Runner::new(algo, &settings(), s.space(), RunSettings::new(64, 12, 9)).unwrap();
-        r.run(&problem, &mut CpuEvaluator, &mut [], None, None)
+        r.run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
             .unwrap();
         fingerprint(&r)
     })
@@ -73,9 +73,9 @@ fn different_seeds_differ() {
         RunSettings::new(32, 3, 2),
     )
     .unwrap();
-    a.run(&problem, &mut CpuEvaluator, &mut [], None, None)
+    a.run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
         .unwrap();
-    b.run(&problem, &mut CpuEvaluator, &mut [], None, None)
+    b.run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
         .unwrap();
     assert_ne!(fingerprint(&a), fingerprint(&b));
 }
@@ -88,20 +88,20 @@ fn checkpoint_resume_gives_the_identical_result() {
         let run_settings = RunSettings::new(40, 10, 5);
         let mut straight = Runner::new(algo, &settings(), s.space(), run_settings.clone()).unwrap();
         let full = straight
-            .run(&problem, &mut CpuEvaluator, &mut [], None, None)
+            .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
             .unwrap();
 
         let path = dir.path().join(format!("{algo}.json"));
         let mut first = Runner::new(algo, &settings(), s.space(), run_settings).unwrap();
         for _ in 0..4 {
-            first.step(&problem, &mut CpuEvaluator).unwrap();
+            first.step(&problem, &mut CpuEvaluator::new()).unwrap();
         }
         first.save(&path).unwrap();
         drop(first);
         let mut resumed = Runner::load(&path).unwrap();
         assert_eq!(resumed.generation(), 4);
         let out = resumed
-            .run(&problem, &mut CpuEvaluator, &mut [], None, None)
+            .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
             .unwrap();
         assert_eq!(out.params, full.params, "{algo}");
         assert_eq!(out.sse, full.sse, "{algo}");

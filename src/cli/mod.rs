@@ -2,6 +2,8 @@
 
 mod bench;
 mod common;
+mod compare;
+mod fit;
 mod identify;
 mod simulate;
 mod static_force;
@@ -29,6 +31,8 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     Bench(bench::Args),
+    Compare(compare::Args),
+    Fit(fit::Args),
     Identify(identify::Args),
     Simulate(simulate::Args),
     Static(static_force::Args),
@@ -38,6 +42,8 @@ pub enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Bench(args) => bench::run(args),
+        Command::Compare(args) => compare::run(args),
+        Command::Fit(args) => fit::run(args),
         Command::Identify(args) => identify::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Static(args) => static_force::run(args),

@@ -150,8 +150,15 @@ mod tests {
             // (a little more: the noisy start shifts the hysteretic state for
             // good). Generalized: its sgn terms make the free run from the
             // noisy start flip signs, so the truth sits further from the floor.
-            let ceiling = if family == Family::Classic { 0.005 } else { 2.0 };
-            assert!((0.0015..ceiling).contains(&per_sample), "{family}: {per_sample}");
+            let ceiling = if family == Family::Classic {
+                0.005
+            } else {
+                2.0
+            };
+            assert!(
+                (0.0015..ceiling).contains(&per_sample),
+                "{family}: {per_sample}"
+            );
             // The intercept matters: the deviation-coordinate c is far from 0.
             let ic = family.linear_indices()[2];
             assert!(s.truth[ic].abs() > 0.5, "{family}: c = {}", s.truth[ic]);
