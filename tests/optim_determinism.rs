@@ -118,3 +118,41 @@ fn a_damaged_checkpoint_is_a_clear_error() {
     let err = Runner::load(&path).unwrap_err().to_string();
     assert!(err.contains("not a mckibben checkpoint"), "{err}");
 }
+
+/// The same run scored on the GPU backend (lavapipe here): bit-identical on
+/// lavapipe, which never fuses multiply-adds (docs/ARCHITECTURE.md); on a
+/// hardware GPU, which may, the final SSE agrees to 1e-3. Skipped with a
+/// note when no Vulkan adapter is present.
+#[test]
+fn cpu_and_gpu_backends_give_the_same_run() {
+    use mckibben::eval::Evaluator;
+    use mckibben::eval::gpu::GpuEvaluator;
+    let mut gpu = match GpuEvaluator::open(Default::default()) {
+        Ok(g) => g,
+        Err(e) => {
+            eprintln!("skipped: no GPU adapter ({e})");
+            return;
+        }
+    };
+    let software = gpu.describe().contains("llvmpipe");
+    let (s, problem) = setup();
+    for algo in [Algorithm::De, Algorithm::Mfa] {
+        let run = RunSettings::new(48, 6, 13);
+        let mut on_cpu = Runner::new(algo, &settings(), s.space(), run.clone()).unwrap();
+        let mut on_gpu = Runner::new(algo, &settings(), s.space(), run).unwrap();
+        let a = on_cpu
+            .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
+            .unwrap();
+        let b = on_gpu.run(&problem, &mut gpu, &mut [], None, None).unwrap();
+        if software {
+            assert_eq!(fingerprint(&on_cpu), fingerprint(&on_gpu), "{algo}");
+        } else {
+            assert!(
+                (a.sse - b.sse).abs() <= 1e-3 * a.sse,
+                "{algo}: {} vs {}",
+                a.sse,
+                b.sse
+            );
+        }
+    }
+}
