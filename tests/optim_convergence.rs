@@ -114,3 +114,34 @@ fn generalized_mfa_fixed() {
     let f = Family::Generalized;
     assert!(ratio(f, Algorithm::Mfa, &fixed_mfa(f)) <= 1.05);
 }
+
+/// The thesis-faithful GA (proportional crossover, Table 5 settings) at the
+/// same budget: ignored because it misses (docs/RESULTS.md).
+#[test]
+#[ignore = "thesis-faithful GA misses; measured ratio in docs/RESULTS.md"]
+fn classic_ga_thesis_settings() {
+    assert!(ratio(Family::Classic, Algorithm::Ga, &settings(Family::Classic)) <= 1.02);
+}
+
+/// The thesis-faithful MFA (all-pairs, Table 9, code schedules): at N = 1e4
+/// the all-pairs move is impractical, so this runs N = 1000 for G = 200.
+#[test]
+#[ignore = "thesis-faithful MFA misses; measured ratio in docs/RESULTS.md"]
+fn classic_mfa_thesis_settings_n1000() {
+    let family = Family::Classic;
+    let s = Synthetic::new(family, LEN, NOISE_MM, 11);
+    let problem = Problem::new(family, vec![s.estimation.clone()]);
+    let mut runner = Runner::new(
+        Algorithm::Mfa,
+        &settings(family),
+        s.space(),
+        RunSettings::new(1000, G, 42),
+    )
+    .unwrap();
+    let out = runner
+        .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
+        .unwrap();
+    let r = out.sse / s.true_sse();
+    eprintln!("classic mfa (thesis, N = 1000): ratio {r:.4}");
+    assert!(r <= 1.02);
+}

@@ -48,7 +48,7 @@ pub struct Args {
     /// The thesis' population sizes (Table 21).
     #[arg(long, value_delimiter = ',', default_value = "10,20,30")]
     thesis_sizes: Vec<usize>,
-    /// Large population sizes to add to Table 21 (empty: none).
+    /// Large population sizes to add to Table 21 (`--sizes 0`: none).
     #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
     sizes: Vec<usize>,
     /// Generations for Table 21 (the thesis used 30).
@@ -222,12 +222,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.budget_pop >= 4 && args.budget_gens >= 1,
         "--budget-pop must be at least 4 and --budget-gens at least 1"
     );
-    if let Some(&n) = args
+    let sizes: Vec<usize> = args
         .thesis_sizes
         .iter()
         .chain(&args.sizes)
-        .find(|&&n| n < 4)
-    {
+        .copied()
+        .filter(|&n| n != 0)
+        .collect();
+    if let Some(&n) = sizes.iter().find(|&&n| n < 4) {
         anyhow::bail!("population sizes must be at least 4 (DE needs 4), got {n}");
     }
     let trace = one_trace(args.data.load()?)?;
@@ -244,7 +246,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<anyhow::Result<_>>()?;
 
     let mut table21 = Vec::new();
-    for &n in args.thesis_sizes.iter().chain(&args.sizes) {
+    for &n in &sizes {
         for task in &tasks {
             for algo in Algorithm::ALL {
                 let mut s = thesis_settings(task.family);

@@ -117,7 +117,8 @@ pub struct Args {
     #[arg(long)]
     pso_scalar_social: bool,
     /// Save the run state to FILE every 10 s and at the end; if FILE exists,
-    /// resume from it (its settings win) to the identical result.
+    /// resume from it to the identical result (N, G, seed and algorithm
+    /// settings come from the checkpoint, stopping rules from this command).
     #[arg(long, value_name = "FILE")]
     checkpoint: Option<PathBuf>,
     /// Folder for the model, history and figures.
@@ -250,7 +251,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let task = Task::new(&trace, family, flow, None, args.free_n)?;
     let mut runner = match &args.checkpoint {
         Some(path) if path.exists() => {
-            let r = Runner::load(path)?;
+            let mut r = Runner::load(path)?;
+            // Stopping rules come from this command line; N, G, the seed and
+            // the algorithm settings from the checkpoint.
+            r.settings.target_sse = args.target_sse;
+            r.settings.time_budget_s = args.time_budget;
+            r.settings.stall_generations = args.stall;
             anyhow::ensure!(
                 r.space.family == family,
                 "checkpoint {} is a {} fit, not {family}: pass --model {}",
@@ -259,7 +265,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 r.space.family
             );
             eprintln!(
-                "mckibben: note: resuming {} at generation {} of {} from {} (its settings win)",
+                "mckibben: note: resuming {} at generation {} of {} from {} (its N, G, seed and settings win)",
                 r.algorithm(),
                 r.generation(),
                 r.settings.generations,
