@@ -10,7 +10,7 @@ use anyhow::Context;
 use serde::Serialize;
 
 use super::common::{ColumnArgs, DataArgs};
-use super::fit::one_trace;
+use super::fit::{DEFAULT_GENS, DEFAULT_POP, one_trace};
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend, Evaluator};
 use mckibben::ident::fit_percent;
@@ -308,8 +308,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
 
-    // The flows and the cross-load check use the default fit (DE, N 2000, G 150).
-    let (n, g) = (2000, 150);
+    // The flows and the cross-load check use the default fit.
+    let (n, g) = (DEFAULT_POP, DEFAULT_GENS);
     let mut flows = Vec::new();
     let mut fitted = Vec::new();
     for task in &tasks {
@@ -419,27 +419,29 @@ fn opt(v: Option<f64>, digits: usize) -> String {
 fn markdown(r: &Report, args: &Args) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# Optimizer comparison on {} [{}]\n", r.data, r.backend);
-    let _ = writeln!(
-        s,
-        "## Table 21 redone (G = {}, seed 1, thesis settings; `mfa*`: 10 brightest attractors above N = {})\n",
-        args.gens, args.mfa_all_pairs_max
-    );
-    let _ = writeln!(
-        s,
-        "| N | algorithm | model | total (s) | per generation (s) | SSE (estimation) | validation fit % |\n|---:|---|---|---:|---:|---:|---:|"
-    );
-    for row in &r.table21 {
+    if !r.table21.is_empty() {
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {:.3} | {:.4} | {} | {} |",
-            row.population,
-            row.algo,
-            row.model,
-            row.seconds,
-            row.seconds_per_generation,
-            opt(row.sse, 3),
-            opt(row.val_fit_percent, 2)
+            "## Table 21 redone (G = {}, seed 1, thesis settings; `mfa*`: 10 brightest attractors above N = {})\n",
+            args.gens, args.mfa_all_pairs_max
         );
+        let _ = writeln!(
+            s,
+            "| N | algorithm | model | total (s) | per generation (s) | SSE (estimation) | validation fit % |\n|---:|---|---|---:|---:|---:|---:|"
+        );
+        for row in &r.table21 {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {:.3} | {:.4} | {} | {} |",
+                row.population,
+                row.algo,
+                row.model,
+                row.seconds,
+                row.seconds_per_generation,
+                opt(row.sse, 3),
+                opt(row.val_fit_percent, 2)
+            );
+        }
     }
     if !r.budget.is_empty() {
         let _ = writeln!(
@@ -469,7 +471,7 @@ fn markdown(r: &Report, args: &Args) -> String {
     }
     let _ = writeln!(
         s,
-        "\n## Flows (DE, N = 2000, G = 150, seed 1)\n\n| model | flow | SSE | validation fit % | validation RMSE |\n|---|---|---:|---:|---:|"
+        "\n## Flows (DE, N = {DEFAULT_POP}, G = {DEFAULT_GENS}, seed 1)\n\n| model | flow | SSE | validation fit % | validation RMSE |\n|---|---|---:|---:|---:|"
     );
     for f in &r.flows {
         let _ = writeln!(

@@ -29,9 +29,10 @@ use mckibben::report::{Figure, Panel, Series};
 /// the hysteretic model's `a`, `b`, and removing means leaves an offset);
 /// `--thesis-flow` fixes `a`, `b` at the ARX estimate with no intercept.
 ///
-/// Default: differential evolution, N = 2000, G = 150 (3e5 evaluations; on the
-/// shipped 4000-sample stair it reaches the noise floor in about half of
-/// that, and takes seconds on two CPU cores).
+/// Default: differential evolution, N = 4000, G = 200 (8e5 evaluations, about
+/// 2 s on two CPU cores for the shipped 4000-sample stair). Larger budgets
+/// still lower the SSE a little there (docs/RESULTS.md); raise --pop and
+/// --gens when time allows.
 ///
 /// Writes to --out: model.json (read by `simulate`), result.json,
 /// history.csv / history.json (best SSE, best parameters, mean and spread
@@ -58,10 +59,10 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "de")]
     algo: Algorithm,
     /// Population size N (the thesis used 10–30).
-    #[arg(long, default_value_t = 2000)]
+    #[arg(long, default_value_t = DEFAULT_POP)]
     pop: usize,
     /// Generations G (the thesis used 30).
-    #[arg(long, default_value_t = 150)]
+    #[arg(long, default_value_t = DEFAULT_GENS)]
     gens: usize,
     /// Seed of the run's random generator: same seed, same result.
     #[arg(long, default_value_t = 1)]
@@ -128,6 +129,11 @@ pub struct Args {
     #[arg(long)]
     json: bool,
 }
+
+/// Default population and generations of `fit` (and of the flow and
+/// cross-load fits of `compare`).
+pub const DEFAULT_POP: usize = 4000;
+pub const DEFAULT_GENS: usize = 200;
 
 /// The hysteretic families `fit` can fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
