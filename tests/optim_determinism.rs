@@ -156,3 +156,50 @@ fn cpu_and_gpu_backends_give_the_same_run() {
         }
     }
 }
+
+/// Ctrl-C raises the interrupt flag: the loop finishes the current
+/// generation, stops with `Interrupted` and writes the best so far to the
+/// checkpoint, from which the run resumes to the uninterrupted result.
+#[test]
+fn an_interrupt_stops_cleanly_with_the_best_so_far_saved() {
+    use mckibben::optim::{Observer, StopReason};
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    struct InterruptAt<'a>(usize, &'a AtomicBool);
+    impl Observer for InterruptAt<'_> {
+        fn generation(&mut self, r: &GenerationRecord, _: &RunSettings) {
+            if r.generation == self.0 {
+                self.1.store(true, Ordering::SeqCst);
+            }
+        }
+    }
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("ck.json");
+    let (s, problem) = setup();
+    let run = RunSettings::new(40, 9, 8);
+    let flag = AtomicBool::new(false);
+    let mut r = Runner::new(Algorithm::Pso, &settings(), s.space(), run.clone()).unwrap();
+    let out = r
+        .run(
+            &problem,
+            &mut CpuEvaluator::new(),
+            &mut [&mut InterruptAt(3, &flag)],
+            Some(&flag),
+            Some(&path),
+        )
+        .unwrap();
+    assert_eq!(out.stop, StopReason::Interrupted);
+    assert_eq!(out.generations, 3);
+    assert!(out.sse.is_finite() && !out.params.is_empty());
+    let mut resumed = Runner::load(&path).unwrap();
+    assert_eq!(resumed.best().unwrap().1, out.sse);
+    let done = resumed
+        .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
+        .unwrap();
+    let mut straight = Runner::new(Algorithm::Pso, &settings(), s.space(), run).unwrap();
+    let full = straight
+        .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
+        .unwrap();
+    assert_eq!((done.params, done.sse), (full.params, full.sse));
+}

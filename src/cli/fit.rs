@@ -114,6 +114,10 @@ pub struct Args {
     /// MFA: with --mfa-attractors, the K brightest instead of K at random.
     #[arg(long)]
     mfa_brightest: bool,
+    /// DE: share of the population x_pbest is drawn from (0.1; smaller is
+    /// greedier, see docs/RESULTS.md).
+    #[arg(long, default_value_t = 0.1)]
+    de_p_best: f64,
     /// PSO: one random number for the social term (appendix code).
     #[arg(long)]
     pso_scalar_social: bool,
@@ -208,6 +212,12 @@ impl Args {
             s.mfa.attractors = Attractors::Brightest;
         }
         s.pso.scalar_social = self.pso_scalar_social;
+        anyhow::ensure!(
+            self.de_p_best > 0.0 && self.de_p_best <= 1.0,
+            "--de-p-best must be in (0, 1] (got {})",
+            self.de_p_best
+        );
+        s.de.p_best = self.de_p_best;
         Ok(s)
     }
 }
