@@ -70,9 +70,17 @@ impl Task {
         Problem::new(self.family, vec![self.estimation.clone()])
     }
 
-    /// Free run on the validation half from its first measured sample.
+    /// Validation scores: a free run over the whole trace from its first
+    /// sample, scored on the second half only. (Starting afresh at the
+    /// validation half with `w = 0` would throw away the hysteretic state,
+    /// which the model never forgets: `w` integrates the motion, so a wrong
+    /// start offsets the output for good and even the true parameters would
+    /// score badly.)
     pub fn validate(&self, params: &[f64]) -> Validation {
-        score(self.family, params, &self.validation)
+        let mut whole = self.estimation.clone();
+        whole.u.extend_from_slice(&self.validation.u);
+        whole.y.extend_from_slice(&self.validation.y);
+        score_tail(self.family, params, &whole, self.estimation.len())
     }
 
     /// The fitted model in the estimation half's coordinates.
@@ -93,7 +101,17 @@ impl Task {
 /// coordinates; differences are in output units). A diverged run scores
 /// infinite RMSE and −∞ fit.
 pub fn score(family: Family, params: &[f64], experiment: &Experiment) -> Validation {
-    if params.is_empty() || experiment.is_empty() {
+    score_tail(family, params, experiment, 0)
+}
+
+/// As [`score`], but the samples before `from` only warm the state up.
+pub fn score_tail(
+    family: Family,
+    params: &[f64],
+    experiment: &Experiment,
+    from: usize,
+) -> Validation {
+    if params.is_empty() || experiment.len() <= from {
         return Validation {
             rmse: f64::INFINITY,
             fit_percent: f64::NEG_INFINITY,
@@ -107,8 +125,8 @@ pub fn score(family: Family, params: &[f64], experiment: &Experiment) -> Validat
             fit_percent: f64::NEG_INFINITY,
         };
     }
-    let y: Vec<f64> = experiment.y.iter().map(|&v| v as f64).collect();
-    let x: Vec<f64> = sim.x.iter().map(|&v| v as f64).collect();
+    let y: Vec<f64> = experiment.y[from..].iter().map(|&v| v as f64).collect();
+    let x: Vec<f64> = sim.x[from..].iter().map(|&v| v as f64).collect();
     Validation {
         rmse: rmse(&y, &x),
         fit_percent: fit_percent(&y, &x),
