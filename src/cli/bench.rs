@@ -140,7 +140,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if !args.json {
             let a = &row.agreement;
             println!(
-                "{:>10}  {:>12.3e}  {:>11.3e}  {:>10.4}  {}, top-10 {}, max rel diff {:.2e}, {} finiteness mismatches",
+                "{:>10}  {:>12.3e}  {:>11.3e}  {:>10.3e}  {}, top-10 {}, max rel diff {:.2e}, {} finiteness mismatches",
                 n,
                 row.candidate_samples_per_s,
                 row.evals_per_s,
