@@ -269,7 +269,7 @@ impl GpuEvaluator {
     }
 
     fn binding_limit(&self) -> u64 {
-        let device = self.limits.max_storage_buffer_binding_size as u64;
+        let device = self.limits.max_storage_buffer_binding_size;
         self.options
             .max_binding_bytes
             .map_or(device, |cap| cap.min(device))
