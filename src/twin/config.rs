@@ -129,12 +129,14 @@ impl Default for MuscleParams {
 /// so each slider's break-away force grows with pressure (Tondu & Lopez 2000).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FrictionParams {
-    /// Total break-away force at zero gauge pressure (N). Assumption: 3 N.
+    /// Total break-away force at zero gauge pressure (N), the rubber and
+    /// threads rubbing under the load alone. Assumption: 5 N.
     pub break_force_n: f64,
     /// Increase of the total break-away force per MPa (N/MPa). Assumption:
-    /// 60 N/MPa, i.e. 27 N at 0.4 MPa, about 7 % of the pressure force at
-    /// rest there, within the 5–15 % force hysteresis of braided muscles
-    /// reported by Tondu & Lopez (2000).
+    /// 100 N/MPa, i.e. 45 N at 0.4 MPa, about 12 % of the pressure force
+    /// there, within the 5–15 % force hysteresis Tondu & Lopez (2000) report
+    /// for braided muscles. It opens a loop about 5 mm wide at mid pressure
+    /// (≈ 12 % of the stroke), see docs/TWIN.md.
     pub break_force_per_mpa: f64,
     /// Pre-sliding deflection of each element (m): element `i` slips after
     /// this travel. Assumption: 0.2, 0.6, 1.5 and 3 mm, spread so the loop
@@ -145,8 +147,8 @@ pub struct FrictionParams {
 impl Default for FrictionParams {
     fn default() -> Self {
         FrictionParams {
-            break_force_n: 3.0,
-            break_force_per_mpa: 60.0,
+            break_force_n: 5.0,
+            break_force_per_mpa: 100.0,
             slip_deflection_m: vec![0.2e-3, 0.6e-3, 1.5e-3, 3e-3],
         }
     }
