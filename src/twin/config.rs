@@ -75,6 +75,15 @@ pub struct HydraulicParams {
     /// effective moduli of 10–700 MPa for hoses); it lowers the effective
     /// bulk modulus of the water column from 2.2 GPa to about 50 MPa.
     pub hose_compliance_m3_per_pa: f64,
+    /// Bore area of the muscle's inlet fitting (m²). Assumption: 8 mm², a
+    /// 3.2 mm bore, the size of the barbed fittings on 10–15 mm muscles; at
+    /// 100 ml/s it drops about 60 kPa, so the muscle's pressure lags the
+    /// manifold's (where the sensor is) by about 0.2 s, see docs/TWIN.md.
+    pub inlet_area_m2: f64,
+    /// Discharge coefficient of the inlet fitting, 0.61 (as the valves).
+    pub inlet_discharge_coefficient: f64,
+    /// Laminar threshold of the inlet's flow law (Pa), as the valves': 2 kPa.
+    pub laminar_dp_pa: f64,
 }
 
 impl Default for HydraulicParams {
@@ -87,6 +96,9 @@ impl Default for HydraulicParams {
             bulk_modulus_water: 2.2e9,
             hose_volume_m3,
             hose_compliance_m3_per_pa: hose_volume_m3 / 50e6,
+            inlet_area_m2: 8e-6,
+            inlet_discharge_coefficient: 0.61,
+            laminar_dp_pa: 2e3,
         }
     }
 }
