@@ -29,8 +29,8 @@ pub struct ValveParams {
     pub spool_tau_s: f64,
     /// Orifice area at full opening (m²). Assumption: 30 mm², a 6.2 mm bore
     /// (a 3/8" tap-water solenoid-class valve); with it the stair's steps
-    /// settle within their 1 s and the ARX pole at 10 ms is 0.988 (thesis:
-    /// 0.9618), see docs/TWIN.md.
+    /// settle within their 1 s (the thesis' stair, figure 3, shows settled
+    /// levels), see docs/TWIN.md.
     pub area_max_m2: f64,
     /// Discharge coefficient of the orifice, 0.61 (sharp-edged orifice;
     /// Merritt, *Hydraulic Control Systems*, 1967, §3.2).
@@ -77,8 +77,9 @@ pub struct HydraulicParams {
     pub hose_compliance_m3_per_pa: f64,
     /// Bore area of the muscle's inlet fitting (m²). Assumption: 8 mm², a
     /// 3.2 mm bore, the size of the barbed fittings on 10–15 mm muscles; at
-    /// 100 ml/s it drops about 60 kPa, so the muscle's pressure lags the
-    /// manifold's (where the sensor is) by about 0.2 s, see docs/TWIN.md.
+    /// 50 ml/s it drops about 50 kPa, so the muscle's pressure lags the
+    /// manifold's (where the sensor is): a 1 V stair step reaches 63 % of its
+    /// displacement in about 0.3 s, see docs/TWIN.md.
     pub inlet_area_m2: f64,
     /// Discharge coefficient of the inlet fitting, 0.61 (as the valves).
     pub inlet_discharge_coefficient: f64,
@@ -348,9 +349,10 @@ pub struct TwinConfig {
     /// the rig). The issue fixes 10 ms.
     pub sample_time_s: f64,
     /// Integration substeps per sample. 200 (50 µs): the stiffest mode is the
-    /// load on the water column, ω ≈ 2.8e3 rad/s when the hose compliance is
-    /// switched off (see docs/TWIN.md), and symplectic Euler needs ω·h < 2;
-    /// 50 µs gives ω·h ≈ 0.14 in that worst case.
+    /// load on the water in the muscle, `ω = A/√(m·V/β)` ≈ 7.3e3 rad/s under
+    /// 4.5 kg (docs/TWIN.md), and symplectic Euler needs ω·h < 2; 50 µs gives
+    /// ω·h ≈ 0.37. The pressures are solved implicitly, so the orifices'
+    /// microsecond time constants do not limit the step.
     pub substeps: usize,
     pub valve: ValveParams,
     pub hydraulics: HydraulicParams,
