@@ -2,6 +2,7 @@
 
 mod common;
 mod identify;
+mod simulate;
 mod static_force;
 mod twin;
 
@@ -27,6 +28,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     Identify(identify::Args),
+    Simulate(simulate::Args),
     Static(static_force::Args),
     Twin(twin::Args),
 }
@@ -34,6 +36,7 @@ pub enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Identify(args) => identify::run(args),
+        Command::Simulate(args) => simulate::run(args),
         Command::Static(args) => static_force::run(args),
         Command::Twin(args) => twin::run(args),
     }
