@@ -1,5 +1,6 @@
 //! Argument parsing and the dispatch to each command.
 
+mod bench;
 mod common;
 mod identify;
 mod simulate;
@@ -27,6 +28,7 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    Bench(bench::Args),
     Identify(identify::Args),
     Simulate(simulate::Args),
     Static(static_force::Args),
@@ -35,6 +37,7 @@ pub enum Command {
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Bench(args) => bench::run(args),
         Command::Identify(args) => identify::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Static(args) => static_force::run(args),
