@@ -289,4 +289,37 @@ fn cli_lists_effects_and_rejects_unknown_ones() {
         "{err}"
     );
     assert!(!out.exists());
+    let heavy = std::process::Command::new(exe)
+        .args(["twin", "--load", "40", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!heavy.status.success());
+    assert!(String::from_utf8_lossy(&heavy.stderr).contains("--load 40"));
+    assert!(!out.exists());
+}
+
+/// The command of data/README.md, through the binary, gives the shipped bytes.
+#[test]
+fn cli_regenerates_the_shipped_stair() {
+    let exe = env!("CARGO_BIN_EXE_mckibben");
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("stair.csv");
+    let status = std::process::Command::new(exe)
+        .args([
+            "twin",
+            "--experiment",
+            "stair",
+            "--load",
+            "4.5",
+            "--seed",
+            "1",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(status.status.success());
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+    assert!(std::fs::read(&out).unwrap() == std::fs::read(shipped).unwrap());
 }

@@ -211,9 +211,9 @@ impl RunSpec {
 
     /// Runs the experiment; an error names a bad load, frequency or effect.
     pub fn run(&self) -> Result<Trace, String> {
-        if !(self.load_kg.is_finite() && self.load_kg > 0.0 && self.load_kg <= 20.0) {
+        if !(self.load_kg.is_finite() && self.load_kg > 0.0 && self.load_kg <= 15.0) {
             return Err(format!(
-                "--load {}: expected a mass in kg between 0 and 20 (thesis: 4.5 or 7)",
+                "--load {}: expected a mass in kg above 0 and at most 15 (thesis: 4.5 or 7)",
                 self.load_kg
             ));
         }

@@ -97,11 +97,24 @@ impl Rig {
     /// The rig at rest: load hanging, chamber at atmospheric pressure, input
     /// valve commanded shut (0 V) and output valve open (10 V). `seed` seeds
     /// the sensor noise (`ChaCha8Rng`); nothing else is random.
+    ///
+    /// Panics unless `load_kg` is positive and light enough that the rubber's
+    /// stretch leaves the braid short of straight (about 19 kg with the
+    /// default muscle); [`experiment::RunSpec::run`] checks this for the CLI.
     pub fn new(config: &TwinConfig, load_kg: f64, seed: u64) -> Rig {
         let full = config.valve.full_scale_v;
+        let muscle = Muscle::new(&config.muscle, load_kg, &config.effects);
+        assert!(
+            load_kg.is_finite() && load_kg > 0.0,
+            "twin: load must be a positive mass in kg (got {load_kg})"
+        );
+        assert!(
+            muscle.rest_length() < config.muscle.braid.thread_length,
+            "twin: a {load_kg} kg load stretches the muscle past its thread length"
+        );
         Rig {
             config: config.clone(),
-            muscle: Muscle::new(&config.muscle, load_kg, &config.effects),
+            muscle,
             load: Load {
                 mass_kg: load_kg,
                 x: 0.0,
