@@ -101,11 +101,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !args.json {
         println!("backend: {}", evaluator.describe());
         println!(
-            "{} model, {} samples in {} experiment(s), n {}",
+            "{} model, {} samples in {} experiment(s){}",
             args.model,
             problem.samples(),
             problem.experiments.len(),
-            if args.free_n { "free" } else { "= 1" }
+            match (args.model, args.free_n) {
+                (Family::Linear, _) => "",
+                (_, true) => ", n free",
+                (_, false) => ", n = 1",
+            }
         );
         println!(
             "{:>10}  {:>12}  {:>11}  {:>10}  agreement with the CPU path",
