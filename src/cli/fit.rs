@@ -490,8 +490,8 @@ fn print_report(o: &Output, task: &Task) {
         show(o.val_rmse)
     );
     println!(
-        "  {} evaluations in {} generations, {:.2} s [{}], stopped: {:?}",
-        o.evaluations, o.generations, o.seconds, o.backend, o.stop
+        "  {} evaluations in {} generations, {:.2} s, stopped: {:?}",
+        o.evaluations, o.generations, o.seconds, o.stop
     );
     println!(
         "  wrote model.json, result.json, history.csv/json and figures to {}",
