@@ -302,6 +302,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )?
         }
     };
+    if runner.algorithm() == Algorithm::Mfa
+        && runner.settings.population > 2000
+        && args.mfa_attractors.is_none()
+        && !args.json
+    {
+        eprintln!(
+            "mckibben: note: the MFA's all-pairs move is O(N²·d): N = {} takes seconds per \
+             generation; --mfa-attractors 10 --mfa-brightest makes it O(N·10·d)",
+            runner.settings.population
+        );
+    }
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     let interrupt = Arc::new(AtomicBool::new(false));
