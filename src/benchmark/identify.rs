@@ -81,29 +81,21 @@ pub struct IdentifySettings {
     pub f_min: f64,
     pub f_max: f64,
     pub cr: f64,
-    /// Search box `[m, c, k, α, β·γ, β·δ]`; ν = 1 in the population stage.
-    pub lower: [f64; 6],
-    pub upper: [f64; 6],
     pub lm_iterations: usize,
     pub seed: u64,
 }
 
 impl Default for IdentifySettings {
-    /// A box one to two orders of magnitude wide around plausible values of a
-    /// lab oscillator (kg, N·s/m, N/m, 1/m); it holds the PDF's Table 1 values
-    /// well inside, without being centred on them.
     fn default() -> Self {
         IdentifySettings {
             search_samples: 1024,
             search_upsample: 5,
             refine_samples: 2 * super::PERIOD,
-            population: 100,
-            generations: 500,
+            population: 60,
+            generations: 200,
             f_min: 0.5,
             f_max: 1.0,
             cr: 0.9,
-            lower: [0.2, 0.0, 0.0, 0.0, 0.0, -1.0e4],
-            upper: [20.0, 200.0, 2.0e5, 2.0e5, 1.0e4, 1.0e4],
             lm_iterations: 15,
             seed: 7,
         }
@@ -175,7 +167,8 @@ pub fn identify(
     settings: &IdentifySettings,
     scorer: &mut dyn BatchScorer,
 ) -> anyhow::Result<Identified> {
-    let (best, best_sse, evaluations) = differential_evolution(settings, scorer)?;
+    let (lower, upper) = search_box(rec, period)?;
+    let (best, best_sse, evaluations) = differential_evolution(settings, &lower, &upper, scorer)?;
     let keep = match settings.refine_samples {
         0 => rec.y.len(),
         n => n.min(rec.y.len()),
@@ -231,14 +224,105 @@ impl SearchTrace {
     }
 }
 
+/// The population stage's coordinates `[m, c, ω0, ρ, β·γ, β·δ]` to
+/// parameters: ω0 = √((k + α)/m) is the small-amplitude natural frequency
+/// (rad/s) and ρ = α/(k + α) the hysteretic share of the stiffness.
+///
+/// Why: the oscillator is lightly damped (ζ ≈ 1 %), so the output error is a
+/// narrow dip in ω0, about ζ wide; in `[m, k, α]` that dip is a thin curved
+/// sheet, and a population search settles in the broad false minimum that
+/// trades a wrong frequency for large damping. With ω0 an axis, bounded by
+/// the best linear approximation ([`bla`]), the dip is easy to find.
+pub fn search_to_params(v: &[f64]) -> Params {
+    let (m, c, w0, rho) = (v[0], v[1], v[2], v[3]);
+    let big_k = m * w0 * w0;
+    Params::from_slice(&[m, c, (1.0 - rho) * big_k, rho * big_k, v[4], v[5], 1.0])
+}
+
+/// The best linear approximation of a periodic record: `m·ÿ + c·ẏ + K·y = u`
+/// fitted in the frequency domain (Levy's linear least squares,
+/// `Σ_k |U_k − (K − m·ω_k² + j·c·ω_k)·Y_k|²`) on the DFT lines of the
+/// last full period where the input has power. Returns `(m, c, K)`.
+pub fn bla(rec: &Record, period: usize) -> Option<(f64, f64, f64)> {
+    let periods = rec.u.len() / period;
+    if periods == 0 {
+        return None;
+    }
+    // Steady state: the last period (the transient from rest has decayed).
+    let off = (periods - 1) * period;
+    let u = &rec.u[off..off + period];
+    let y = &rec.y[off..off + period];
+    let n = period as f64;
+    let dft = |x: &[f64], k: usize| -> (f64, f64) {
+        let (mut re, mut im) = (0.0, 0.0);
+        for (i, &v) in x.iter().enumerate() {
+            let ang = -2.0 * std::f64::consts::PI * ((k * i) % period) as f64 / n;
+            re += v * ang.cos();
+            im += v * ang.sin();
+        }
+        (re, im)
+    };
+    let spectrum: Vec<(usize, (f64, f64))> = (1..period / 2).map(|k| (k, dft(u, k))).collect();
+    let peak = spectrum
+        .iter()
+        .map(|(_, (a, b))| a * a + b * b)
+        .fold(0.0, f64::max);
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = nalgebra::Vector3::<f64>::zeros();
+    for (k, (ur, ui)) in spectrum {
+        if ur * ur + ui * ui < 1e-6 * peak {
+            continue;
+        }
+        let w = 2.0 * std::f64::consts::PI * FS * k as f64 / n;
+        let (yr, yi) = dft(y, k);
+        // (K − m·w² + j·c·w)(yr + j·yi): real and imaginary rows in (K, m, c).
+        let rows = [
+            ([yr, -w * w * yr, -w * yi], ur),
+            ([yi, -w * w * yi, w * yr], ui),
+        ];
+        for (a, b) in rows {
+            let a = nalgebra::Vector3::from(a);
+            ata += a * a.transpose();
+            atb += a * b;
+        }
+    }
+    let x = ata.lu().solve(&atb)?;
+    let (big_k, m, c) = (x[0], x[1], x[2]);
+    (m > 0.0 && big_k > 0.0).then_some((m, c.max(0.0), big_k))
+}
+
+/// The population stage's box around the best linear approximation: mass
+/// and ω0 within a factor 2 and 1.25 of it, damping up to twice its (which
+/// includes the hysteretic dissipation), ρ anywhere in (0, 1), and β·γ,
+/// |β·δ| up to [`BETA_STROKES`] / max|y|: beyond that the loop would
+/// saturate within a small part of the measured stroke (friction-like).
+/// Bound on β·γ·max|y| and |β·δ|·max|y| in the population stage.
+pub const BETA_STROKES: f64 = 5.0;
+
+pub fn search_box(rec: &Record, period: usize) -> anyhow::Result<([f64; 6], [f64; 6])> {
+    let (m, c, big_k) = bla(rec, period).ok_or_else(|| {
+        anyhow::anyhow!("no best linear approximation: the record needs one full, excited period")
+    })?;
+    let w0 = (big_k / m).sqrt();
+    let y_max = rec.y.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    anyhow::ensure!(y_max > 0.0, "the training output is identically zero");
+    let b = BETA_STROKES / y_max;
+    Ok((
+        [0.5 * m, 0.0, 0.8 * w0, 0.01, 0.0, -b],
+        [2.0 * m, 2.0 * c + 1e-9, 1.25 * w0, 0.99, b, b],
+    ))
+}
+
 fn to_params(v: &[f64]) -> Params {
-    Params::from_slice(&[v[0], v[1], v[2], v[3], v[4], v[5], 1.0])
+    search_to_params(v)
 }
 
 /// DE/rand/1/bin with bounce-back to the box. Returns the best vector, its
 /// SSE and the number of evaluations.
 fn differential_evolution(
     s: &IdentifySettings,
+    lower: &[f64; 6],
+    upper: &[f64; 6],
     scorer: &mut dyn BatchScorer,
 ) -> anyhow::Result<(Params, f64, usize)> {
     let d = 6;
@@ -246,9 +330,7 @@ fn differential_evolution(
     let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
     let mut pop: Vec<[f64; 6]> = (0..np)
         .map(|_| {
-            std::array::from_fn(|j| {
-                s.lower[j] + rng.random_range(0.0..1.0) * (s.upper[j] - s.lower[j])
-            })
+            std::array::from_fn(|j| lower[j] + rng.random_range(0.0..1.0) * (upper[j] - lower[j]))
         })
         .collect();
     let rows = |pop: &[[f64; 6]]| -> Vec<f32> {
@@ -274,10 +356,10 @@ fn differential_evolution(
                 std::array::from_fn(|j| {
                     if j == jr || rng.random_range(0.0..1.0) < s.cr {
                         let v = pop[a][j] + f * (pop[b][j] - pop[c][j]);
-                        if v < s.lower[j] {
-                            s.lower[j] + rng.random_range(0.0..1.0) * (pop[i][j] - s.lower[j])
-                        } else if v > s.upper[j] {
-                            s.upper[j] - rng.random_range(0.0..1.0) * (s.upper[j] - pop[i][j])
+                        if v < lower[j] {
+                            lower[j] + rng.random_range(0.0..1.0) * (pop[i][j] - lower[j])
+                        } else if v > upper[j] {
+                            upper[j] - rng.random_range(0.0..1.0) * (upper[j] - pop[i][j])
                         } else {
                             v
                         }

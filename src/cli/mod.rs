@@ -1,5 +1,6 @@
 //! Argument parsing and the dispatch to each command.
 
+mod benchmark;
 mod static_force;
 
 use clap::{Parser, Subcommand};
@@ -24,10 +25,12 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     Static(static_force::Args),
+    Benchmark(benchmark::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Static(args) => static_force::run(args),
+        Command::Benchmark(args) => benchmark::run(args),
     }
 }
