@@ -11,18 +11,22 @@
 //!    benchmark pipeline (band-limited upsampling, Newmark, `decimate`), with
 //!    ν freed (ν ≥ 1).
 //!
-//! The population stage is a small differential evolution (DE/rand/1/bin)
-//! kept local to this module until the project's ask/tell optimizers
-//! (`crate::optim`) land; it is then to be replaced by `optim`'s DE driven
-//! through [`BatchScorer`].
+//! The population stage is the project's differential evolution
+//! ([`crate::optim::de`]) in ask/tell form, scoring each generation in one
+//! batch through [`BatchScorer`]. (The project's `eval::Evaluator` is keyed
+//! to the muscle families and their 750 Hz experiments; this family scores on
+//! an upsampled input with a stride, so it has its own batch path: the `f32`
+//! twin on rayon or the shader on wgpu.)
 
 use nalgebra::{DMatrix, DVector};
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use super::boucwen::{Params, sse_f32};
 use super::{FS, Record, UPSAMPLE, resample};
+use crate::optim::de::{De, DeSettings};
+use crate::optim::{Bounds, Optimizer, argmin};
 
 /// Scores a population of canonical `f32` vectors (row-major `N × 7`).
 pub trait BatchScorer {
@@ -76,11 +80,6 @@ pub struct IdentifySettings {
     pub refine_samples: usize,
     pub population: usize,
     pub generations: usize,
-    /// DE mutation factor, dithered per generation in `[f_min, f_max]`, and
-    /// crossover rate (Storn & Price's usual range 0.5–1 and 0.9).
-    pub f_min: f64,
-    pub f_max: f64,
-    pub cr: f64,
     pub lm_iterations: usize,
     pub seed: u64,
 }
@@ -93,9 +92,6 @@ impl Default for IdentifySettings {
             refine_samples: 2 * super::PERIOD,
             population: 60,
             generations: 200,
-            f_min: 0.5,
-            f_max: 1.0,
-            cr: 0.9,
             lm_iterations: 15,
             seed: 7,
         }
@@ -168,7 +164,7 @@ pub fn identify(
     scorer: &mut dyn BatchScorer,
 ) -> anyhow::Result<Identified> {
     let (lower, upper) = search_box(rec, period)?;
-    let (best, best_sse, evaluations) = differential_evolution(settings, &lower, &upper, scorer)?;
+    let (best, best_sse, evaluations) = population_search(settings, &lower, &upper, scorer)?;
     let keep = match settings.refine_samples {
         0 => rec.y.len(),
         n => n.min(rec.y.len()),
@@ -313,81 +309,52 @@ pub fn search_box(rec: &Record, period: usize) -> anyhow::Result<([f64; 6], [f64
     ))
 }
 
-fn to_params(v: &[f64]) -> Params {
-    search_to_params(v)
-}
-
-/// DE/rand/1/bin with bounce-back to the box. Returns the best vector, its
-/// SSE and the number of evaluations.
-fn differential_evolution(
+/// The population stage: the project's differential evolution
+/// ([`crate::optim::de::De`], jDE-adapted current-to-pbest/1/bin) asked and
+/// told generation by generation, every generation scored in one batch.
+/// Returns the best vector, its SSE and the number of evaluations.
+fn population_search(
     s: &IdentifySettings,
     lower: &[f64; 6],
     upper: &[f64; 6],
     scorer: &mut dyn BatchScorer,
 ) -> anyhow::Result<(Params, f64, usize)> {
-    let d = 6;
-    let np = s.population.max(5);
-    let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
-    let mut pop: Vec<[f64; 6]> = (0..np)
-        .map(|_| {
-            std::array::from_fn(|j| lower[j] + rng.random_range(0.0..1.0) * (upper[j] - lower[j]))
-        })
-        .collect();
-    let rows = |pop: &[[f64; 6]]| -> Vec<f32> {
-        pop.iter()
-            .flat_map(|x| to_params(x).to_vec().map(|v| v as f32))
-            .collect()
+    let bounds = Bounds {
+        lower: lower.to_vec(),
+        upper: upper.to_vec(),
+        names: SEARCH_NAMES.iter().map(|n| n.to_string()).collect(),
     };
-    let key = |v: f32| if v.is_nan() { f32::INFINITY } else { v };
-    let mut fit: Vec<f32> = scorer.scores(&rows(&pop))?.into_iter().map(key).collect();
-    let mut evaluations = np;
-    for _ in 0..s.generations {
-        let f = s.f_min + rng.random_range(0.0..1.0) * (s.f_max - s.f_min);
-        let trials: Vec<[f64; 6]> = (0..np)
-            .map(|i| {
-                let mut pick = || loop {
-                    let r = rng.random_range(0..np);
-                    if r != i {
-                        break r;
-                    }
-                };
-                let (a, b, c) = (pick(), pick(), pick());
-                let jr = rng.random_range(0..d);
-                std::array::from_fn(|j| {
-                    if j == jr || rng.random_range(0.0..1.0) < s.cr {
-                        let v = pop[a][j] + f * (pop[b][j] - pop[c][j]);
-                        if v < lower[j] {
-                            lower[j] + rng.random_range(0.0..1.0) * (pop[i][j] - lower[j])
-                        } else if v > upper[j] {
-                            upper[j] - rng.random_range(0.0..1.0) * (upper[j] - pop[i][j])
-                        } else {
-                            v
-                        }
-                    } else {
-                        pop[i][j]
-                    }
-                })
-            })
+    let mut de = De::new(DeSettings::default(), bounds, s.population.max(4));
+    let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
+    let mut best: Option<(f32, Vec<f64>)> = None;
+    let mut evaluations = 0;
+    for _ in 0..=s.generations {
+        let rows = de.ask(&mut rng);
+        let params: Vec<f32> = rows
+            .chunks(6)
+            .flat_map(|x| search_to_params(x).to_vec().map(|v| v as f32))
             .collect();
-        let tf = scorer.scores(&rows(&trials))?;
-        evaluations += np;
-        for i in 0..np {
-            let t = key(tf[i]);
-            if t <= fit[i] {
-                pop[i] = trials[i];
-                fit[i] = t;
-            }
+        let costs: Vec<f32> = scorer
+            .scores(&params)?
+            .into_iter()
+            .map(|v| if v.is_nan() { f32::INFINITY } else { v })
+            .collect();
+        evaluations += costs.len();
+        if let Some(i) = argmin(&costs)
+            && best.as_ref().is_none_or(|(b, _)| costs[i] < *b)
+        {
+            best = Some((costs[i], rows[i * 6..(i + 1) * 6].to_vec()));
         }
+        de.tell(&costs);
     }
-    let best = (0..np)
-        .min_by(|&a, &b| fit[a].total_cmp(&fit[b]))
-        .expect("non-empty population");
-    anyhow::ensure!(
-        fit[best].is_finite(),
-        "the population search found no candidate whose simulation stays bounded"
-    );
-    Ok((to_params(&pop[best]), fit[best] as f64, evaluations))
+    let Some((sse, x)) = best else {
+        anyhow::bail!("the population search found no candidate whose simulation stays bounded");
+    };
+    Ok((search_to_params(&x), sse as f64, evaluations))
 }
+
+/// Names of the population stage's coordinates (see [`search_to_params`]).
+pub const SEARCH_NAMES: [&str; 6] = ["m", "c", "omega0", "rho", "beta_gamma", "beta_delta"];
 
 /// Levenberg–Marquardt on the residuals of [`Training::simulate`], forward
 /// differences, Marquardt's diagonal scaling; ν kept ≥ 1. Returns the

@@ -1,7 +1,12 @@
 //! Argument parsing and the dispatch to each command.
 
+mod bench;
 mod benchmark;
+mod common;
+mod identify;
+mod simulate;
 mod static_force;
+mod twin;
 
 use clap::{Parser, Subcommand};
 
@@ -24,13 +29,21 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    Bench(bench::Args),
+    Identify(identify::Args),
+    Simulate(simulate::Args),
     Static(static_force::Args),
+    Twin(twin::Args),
     Benchmark(benchmark::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Bench(args) => bench::run(args),
+        Command::Identify(args) => identify::run(args),
+        Command::Simulate(args) => simulate::run(args),
         Command::Static(args) => static_force::run(args),
+        Command::Twin(args) => twin::run(args),
         Command::Benchmark(args) => benchmark::run(args),
     }
 }
