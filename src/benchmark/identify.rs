@@ -92,7 +92,7 @@ impl Default for IdentifySettings {
             refine_samples: 2 * super::PERIOD,
             population: 60,
             generations: 200,
-            lm_iterations: 15,
+            lm_iterations: 30,
             seed: 7,
         }
     }
@@ -405,10 +405,26 @@ fn levenberg_marquardt(
             for j in 0..7 {
                 a[(j, j)] += lambda * jtj[(j, j)].max(1e-30);
             }
-            let Some(delta) = a.lu().solve(&(-&jtr)) else {
+            let Some(mut delta) = a.clone().lu().solve(&(-&jtr)) else {
                 lambda *= 10.0;
                 continue;
             };
+            // Active set: at ν = 1 with the step pointing below, hold ν and
+            // solve for the others (projecting a coupled step would spoil it).
+            if x[6] <= 1.0 && delta[6] < 0.0 {
+                let mut b = -&jtr;
+                for j in 0..7 {
+                    a[(6, j)] = 0.0;
+                    a[(j, 6)] = 0.0;
+                }
+                a[(6, 6)] = 1.0;
+                b[6] = 0.0;
+                let Some(d) = a.lu().solve(&b) else {
+                    lambda *= 10.0;
+                    continue;
+                };
+                delta = d;
+            }
             let mut xn = x;
             for j in 0..7 {
                 xn[j] += delta[j];
