@@ -1,6 +1,7 @@
 //! Argument parsing and the dispatch to each command.
 
 mod bench;
+mod benchmark;
 mod common;
 mod compare;
 mod fit;
@@ -37,6 +38,7 @@ pub enum Command {
     Simulate(simulate::Args),
     Static(static_force::Args),
     Twin(twin::Args),
+    Benchmark(benchmark::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -48,5 +50,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Simulate(args) => simulate::run(args),
         Command::Static(args) => static_force::run(args),
         Command::Twin(args) => twin::run(args),
+        Command::Benchmark(args) => benchmark::run(args),
     }
 }
