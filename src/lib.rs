@@ -10,6 +10,7 @@
 //! ```
 
 pub mod data;
+pub mod diagnose;
 pub mod eval;
 pub mod ident;
 pub mod model;
