@@ -34,7 +34,10 @@ use crate::model::{Experiment, Family, Flow, LinearPrior, SearchSpace};
 pub struct Settings {
     /// Seeds per fit (the spread over them is the acceptance rule's yardstick).
     pub seeds: usize,
-    /// Population and generations of the baseline fit (from scratch).
+    /// Seeds, population and generations of the baseline fit (from scratch:
+    /// more seeds, since a from-scratch fit can end in a poor basin and the
+    /// best of the seeds on the estimation part is kept).
+    pub baseline_seeds: usize,
     pub baseline_population: usize,
     pub baseline_generations: usize,
     /// Population and generations of each candidate fit (warm-started from
@@ -59,6 +62,7 @@ impl Default for Settings {
     fn default() -> Self {
         Settings {
             seeds: 3,
+            baseline_seeds: 4,
             baseline_population: 40,
             baseline_generations: 300,
             population: 24,
@@ -209,7 +213,20 @@ impl Data {
     /// (thesis hull, `a`, `b`, `c` around the ARX estimate) plus each
     /// effect's box.
     pub fn space(&self, model: &Augmented) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let base = SearchSpace::around(model.family, None, self.prior, Flow::Joint, false);
+        let mut base = SearchSpace::around(model.family, None, self.prior, Flow::Joint, false);
+        // Least squares on hysteretic data underestimates the input gain: the
+        // hysteretic model's `b` relates to the ARX static gain
+        // `G = b_ARX/(1 − a_ARX)` through `1 − a·α`, not `1 − a`. Widen the
+        // box to reach `G` itself.
+        let ib = model.family.linear_indices()[1];
+        let g = self.prior.b / (1.0 - self.prior.a).abs().max(1e-3);
+        if g.abs() > base.upper[ib].abs().max(base.lower[ib].abs()) {
+            if g > 0.0 {
+                base.upper[ib] = g;
+            } else {
+                base.lower[ib] = g;
+            }
+        }
         let mid: Vec<f64> = base
             .lower
             .iter()
@@ -265,6 +282,21 @@ pub fn fit_candidate(
     let np = population.max(6);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let base_dim = model.family.dim();
+    // From scratch, one member is the ARX model (α at its largest, no
+    // hysteresis), so the fit starts no worse than least squares.
+    let arx_like: Vec<f64> = {
+        let (mut v, _, _) = data.space(model);
+        if model.family != Family::Linear {
+            v[1] = hi[1];
+            v[2] = 0.0f64.clamp(lo[2], hi[2]);
+            v[3] = 0.0f64.clamp(lo[3], hi[3]);
+        }
+        let [ia, ib, ic] = model.family.linear_indices();
+        v[ia] = data.prior.a.clamp(lo[ia], hi[ia]);
+        v[ib] = data.prior.b.clamp(lo[ib], hi[ib]);
+        v[ic] = 0.0f64.clamp(lo[ic], hi[ic]);
+        v
+    };
     let mut pop: Vec<Vec<f64>> = (0..np)
         .map(|i| {
             (0..d)
@@ -273,6 +305,7 @@ pub fn fit_candidate(
                         Uniform::new_inclusive(lo[j], hi[j]).map_or(lo[j], |u| u.sample(&mut rng));
                     match start {
                         Some(s) if i == 0 => s[j],
+                        None if i == 0 => arx_like[j],
                         // Baseline parameters near the start, effect parameters anywhere.
                         Some(s) if j < base_dim => {
                             let sd = 0.02 * (hi[j] - lo[j]);
@@ -351,11 +384,15 @@ pub fn fit_seeds(
     settings: &Settings,
     salt: u64,
 ) -> SeededFit {
-    let (pop, gens) = match start {
-        None => (settings.baseline_population, settings.baseline_generations),
-        Some(_) => (settings.population, settings.generations),
+    let (seeds, pop, gens) = match start {
+        None => (
+            settings.baseline_seeds,
+            settings.baseline_population,
+            settings.baseline_generations,
+        ),
+        Some(_) => (settings.seeds, settings.population, settings.generations),
     };
-    let fits: Vec<Fit> = (0..settings.seeds.max(1) as u64)
+    let fits: Vec<Fit> = (0..seeds.max(1) as u64)
         .map(|i| {
             fit_candidate(
                 data,
