@@ -1,6 +1,9 @@
 //! Argument parsing and the dispatch to each command.
 
+mod common;
+mod identify;
 mod static_force;
+mod twin;
 
 use clap::{Parser, Subcommand};
 
@@ -23,11 +26,15 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    Identify(identify::Args),
     Static(static_force::Args),
+    Twin(twin::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Identify(args) => identify::run(args),
         Command::Static(args) => static_force::run(args),
+        Command::Twin(args) => twin::run(args),
     }
 }
