@@ -17,7 +17,10 @@ fn rig_trace(len: usize) -> Trace {
         let target = levels[(k / 60) % levels.len()];
         p[k] = 0.6 * p[k - 1] + 0.4 * target;
     }
-    let mut theta: Vec<f32> = thesis_params(Family::Classic).iter().map(|&v| v as f32).collect();
+    let mut theta: Vec<f32> = thesis_params(Family::Classic)
+        .iter()
+        .map(|&v| v as f32)
+        .collect();
     theta[7] = 0.5;
     let u: Vec<f32> = p.iter().map(|&v| v as f32).collect();
     let x = simulate(Family::Classic, &theta, &u, 0.0).x;
@@ -59,7 +62,10 @@ fn explore() {
         eprintln!("{} {:?} {:?}", c.name, t.elapsed(), o);
         outs.push(o);
     }
-    eprintln!("{}", mckibben::diagnose::selftest::table(&outs, &Effect::ALL));
+    eprintln!(
+        "{}",
+        mckibben::diagnose::selftest::table(&outs, &Effect::ALL)
+    );
 }
 
 #[test]
@@ -74,7 +80,13 @@ fn explore_budget() {
         let t = std::time::Instant::now();
         for seed in 0..3 {
             let f = mckibben::diagnose::select::fit_candidate(&data, &model, None, seed, pop, gens);
-            eprintln!("{pop}x{gens} seed {seed}: val {:.4} est {:.2} {:?} {:?}", f.val_rmse, f.est_sse, t.elapsed(), f.params);
+            eprintln!(
+                "{pop}x{gens} seed {seed}: val {:.4} est {:.2} {:?} {:?}",
+                f.val_rmse,
+                f.est_sse,
+                t.elapsed(),
+                f.params
+            );
         }
     }
 }
@@ -90,21 +102,47 @@ fn explore_truth() {
     let mut th = nom.params.clone();
     let delta = data.whole[0].y_mean - nom.data.whole[0].y_mean;
     th[7] += (th[5] * th[1] - 1.0) * delta;
-    eprintln!("delta {delta} du {}", data.whole[0].u_mean - nom.data.whole[0].u_mean);
-    eprintln!("truth est {} val {}", data.est_sse(&model, &th), data.val_rmse(&model, &th));
+    eprintln!(
+        "delta {delta} du {}",
+        data.whole[0].u_mean - nom.data.whole[0].u_mean
+    );
+    eprintln!(
+        "truth est {} val {}",
+        data.est_sse(&model, &th),
+        data.val_rmse(&model, &th)
+    );
     let r = &data.val_residuals(&model, &th)[0];
     let pred = &data.predict(&model, &th)[0];
-    let e: Vec<f64> = (0..540).map(|k| data.whole[0].y[k] as f64 - pred[k] as f64).collect();
+    let e: Vec<f64> = (0..540)
+        .map(|k| data.whole[0].y[k] as f64 - pred[k] as f64)
+        .collect();
     eprintln!("est resid head {:?}", &e[..12]);
-    eprintln!("est rms {}", (e.iter().map(|v| v * v).sum::<f64>() / 540.0).sqrt());
+    eprintln!(
+        "est rms {}",
+        (e.iter().map(|v| v * v).sum::<f64>() / 540.0).sqrt()
+    );
     eprintln!("val resid head {:?}", &r[..5]);
     let t32: Vec<f32> = nom.params.iter().map(|&v| v as f32).collect();
     let clean = model.simulate(&t32, 0, &nom.data.ctx[0], &nom.data.whole[0]);
-    let mism: Vec<f64> = (0..1080).map(|k| (clean[k] as f64 + nom.data.whole[0].y_mean) - (pred[k] as f64 + data.whole[0].y_mean)).collect();
+    let mism: Vec<f64> = (0..1080)
+        .map(|k| {
+            (clean[k] as f64 + nom.data.whole[0].y_mean) - (pred[k] as f64 + data.whole[0].y_mean)
+        })
+        .collect();
     eprintln!("mismatch head {:?}", &mism[..8]);
-    eprintln!("mismatch rms est {} val {}", (mism[..540].iter().map(|v| v*v).sum::<f64>()/540.0).sqrt(), (mism[540..].iter().map(|v| v*v).sum::<f64>()/540.0).sqrt());
-    let nz: Vec<f64> = (0..1080).map(|k| traces[0].output[k] - (clean[k] as f64 + nom.data.whole[0].y_mean)).collect();
-    eprintln!("noise rms est {} val {}", (nz[..540].iter().map(|v| v*v).sum::<f64>()/540.0).sqrt(), (nz[540..].iter().map(|v| v*v).sum::<f64>()/540.0).sqrt());
+    eprintln!(
+        "mismatch rms est {} val {}",
+        (mism[..540].iter().map(|v| v * v).sum::<f64>() / 540.0).sqrt(),
+        (mism[540..].iter().map(|v| v * v).sum::<f64>() / 540.0).sqrt()
+    );
+    let nz: Vec<f64> = (0..1080)
+        .map(|k| traces[0].output[k] - (clean[k] as f64 + nom.data.whole[0].y_mean))
+        .collect();
+    eprintln!(
+        "noise rms est {} val {}",
+        (nz[..540].iter().map(|v| v * v).sum::<f64>() / 540.0).sqrt(),
+        (nz[540..].iter().map(|v| v * v).sum::<f64>() / 540.0).sqrt()
+    );
     let (_, lo, hi) = data.space(&model);
     eprintln!("lo {lo:?}\nhi {hi:?}\nth {th:?}");
 }

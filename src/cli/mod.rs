@@ -1,6 +1,7 @@
 //! Argument parsing and the dispatch to each command.
 
 mod common;
+mod diagnose;
 mod identify;
 mod static_force;
 mod twin;
@@ -26,6 +27,7 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    Diagnose(diagnose::Args),
     Identify(identify::Args),
     Static(static_force::Args),
     Twin(twin::Args),
@@ -33,6 +35,7 @@ pub enum Command {
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Diagnose(args) => diagnose::run(args),
         Command::Identify(args) => identify::run(args),
         Command::Static(args) => static_force::run(args),
         Command::Twin(args) => twin::run(args),

@@ -417,13 +417,13 @@ pub fn fit_seeds(
     }
 }
 
+/// Sample standard deviation of the finite values (a seed whose fit diverges
+/// on the validation part is not a spread, it is a failed fit: it is left
+/// out here and shows as `inf` in the seed list).
 fn std_dev(v: &[f64]) -> f64 {
-    if v.len() < 2 || v.iter().any(|x| !x.is_finite()) {
-        return if v.iter().all(|x| x.is_finite()) {
-            0.0
-        } else {
-            f64::INFINITY
-        };
+    let v: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.len() < 2 {
+        return 0.0;
     }
     let m = v.iter().sum::<f64>() / v.len() as f64;
     (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
@@ -503,20 +503,25 @@ pub fn select(data: &Data, family: Family, effects: &[Effect], settings: &Settin
         }
         let salt = 100 * (round as u64 + 1);
         let current = fit_seeds(data, &current_model, Some(&current_params), settings, salt);
-        let (r0, s0) = (current.best.val_rmse, current.spread);
+        // The refit gives the seed spread of "no new effect"; the yardstick
+        // is the model as accepted.
+        let (r0, s0) = (final_fit.val_rmse, current.spread);
         let mut candidates: Vec<Candidate> = remaining
             .iter()
             .enumerate()
             .map(|(i, &effect)| {
                 let model = current_model.with(effect);
                 let (neutral, _, _) = data.space(&model);
-                let mut start = current.best.params.clone();
-                start.extend_from_slice(&neutral[current.best.params.len()..]);
+                let mut start = current_params.clone();
+                start.extend_from_slice(&neutral[current_params.len()..]);
                 let fit = fit_seeds(data, &model, Some(&start), settings, salt + 1 + i as u64);
                 let r1 = fit.best.val_rmse;
                 let k = effect.dim(data.datasets()) as f64;
-                let delta_bic = n * (r1 * r1 / (r0 * r0)).ln() + k * n.ln();
-                let relative = (r0 - r1) / r0;
+                let (delta_bic, relative) = if r1.is_finite() {
+                    (n * (r1 * r1 / (r0 * r0)).ln() + k * n.ln(), (r0 - r1) / r0)
+                } else {
+                    (f64::INFINITY, f64::NEG_INFINITY)
+                };
                 let spread = (s0 * s0 + fit.spread * fit.spread).sqrt();
                 let spread_ratio = if spread > 0.0 {
                     (r0 - r1) / spread
@@ -550,7 +555,10 @@ pub fn select(data: &Data, family: Family, effects: &[Effect], settings: &Settin
                         100.0 * settings.min_relative
                     ));
                 }
-                let reason = if passes {
+                let reason = if !r1.is_finite() {
+                    "the best fit on the estimation part diverges on the validation part"
+                        .to_string()
+                } else if passes {
                     format!(
                         "improves validation RMSE by {:.1} % ({:.1}× the seed spread, ΔBIC {:.0})",
                         100.0 * relative,
