@@ -146,3 +146,19 @@ fn explore_truth() {
     let (_, lo, hi) = data.space(&model);
     eprintln!("lo {lo:?}\nhi {hi:?}\nth {th:?}");
 }
+
+#[test]
+#[ignore = "exploration: baseline budget on a CSV named by DG_CSV"]
+fn explore_budget_csv() {
+    let path = std::env::var("DG_CSV").unwrap();
+    let traces = mckibben::data::csv::read_traces(std::path::Path::new(&path), &Default::default()).unwrap();
+    let data = mckibben::diagnose::Data::new(&traces).unwrap();
+    let model = mckibben::diagnose::Augmented::new(Family::Classic, vec![], 1);
+    for (pop, gens) in [(40, 300), (60, 600), (40, 1000)] {
+        let t = std::time::Instant::now();
+        for seed in 0..4 {
+            let f = mckibben::diagnose::select::fit_candidate(&data, &model, None, seed, pop, gens);
+            eprintln!("{pop}x{gens} seed {seed}: val {:.4} est {:.2} {:?}", f.val_rmse, f.est_sse, t.elapsed());
+        }
+    }
+}

@@ -42,7 +42,7 @@ pub struct Args {
     /// Seeds per candidate fit; their spread is the yardstick of the acceptance rule.
     #[arg(long, default_value_t = Settings::default().seeds)]
     seeds: usize,
-    /// Generations of each candidate fit (population 24); the baseline gets
+    /// Generations of each candidate fit (population 30); the baseline gets
     /// 300 generations of 40 with 4 seeds. Fewer is faster and less certain.
     #[arg(long, default_value_t = Settings::default().generations)]
     generations: usize,

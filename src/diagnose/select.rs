@@ -65,8 +65,8 @@ impl Default for Settings {
             baseline_seeds: 4,
             baseline_population: 40,
             baseline_generations: 300,
-            population: 24,
-            generations: 80,
+            population: 30,
+            generations: 150,
             max_effects: 3,
             spread_factor: 3.0,
             bic_threshold: -10.0,
@@ -259,7 +259,7 @@ pub struct SeededFit {
     pub best: Fit,
     /// Validation RMSE of every seed.
     pub seed_val_rmse: Vec<f64>,
-    /// Their sample standard deviation.
+    /// Their spread: `1.4826·MAD`, a robust standard deviation.
     pub spread: f64,
 }
 
@@ -267,7 +267,7 @@ pub struct SeededFit {
 /// `start` is `None`, else warm-started (`start` is then a member of the
 /// initial population, so the fit never ends worse than it started).
 ///
-/// The search itself is a small differential evolution (DE/current-to-best/1/bin,
+/// The search itself is a small differential evolution (DE/current-to-pbest/1/bin,
 /// dithered F, CR 0.9) standing in for `optim`'s DE until it lands.
 pub fn fit_candidate(
     data: &Data,
@@ -307,8 +307,10 @@ pub fn fit_candidate(
                         Some(s) if i == 0 => s[j],
                         None if i == 0 => arx_like[j],
                         // Baseline parameters near the start, effect parameters anywhere.
+                        // Half the members close, half farther (the baseline
+                        // compensated for the missing effect and must move).
                         Some(s) if j < base_dim => {
-                            let sd = 0.02 * (hi[j] - lo[j]);
+                            let sd = if i % 2 == 0 { 0.1 } else { 0.02 } * (hi[j] - lo[j]);
                             let v = s[j] + Normal::new(0.0, sd).map_or(0.0, |n| n.sample(&mut rng));
                             v.clamp(lo[j], hi[j])
                         }
@@ -325,11 +327,16 @@ pub fn fit_candidate(
     let mut cost: Vec<f64> = pop.par_iter().map(score).collect();
     let mut order: Vec<usize> = (0..np).collect();
     for _ in 0..generations {
-        let best = (0..np)
-            .min_by(|&a, &b| cost[a].total_cmp(&cost[b]))
-            .unwrap_or(0);
+        // current-to-pbest (JADE): each member moves toward a random one of
+        // the best 20 %, which keeps the population from collapsing onto the
+        // warm start before the effect's parameter has been explored.
+        let mut ranked: Vec<usize> = (0..np).collect();
+        ranked.sort_by(|&a, &b| cost[a].total_cmp(&cost[b]));
+        // From scratch, plain current-to-best converges in the budget.
+        let top = if start.is_some() { (np / 5).max(2) } else { 1 };
         let trials: Vec<Vec<f64>> = (0..np)
             .map(|i| {
+                let best = ranked[Uniform::new(0, top).map_or(0, |u| u.sample(&mut rng))];
                 order.shuffle(&mut rng);
                 let mut pick = order.iter().copied().filter(|&j| j != i);
                 let (r1, r2) = (pick.next().unwrap_or(i), pick.next().unwrap_or(i));
@@ -417,16 +424,35 @@ pub fn fit_seeds(
     }
 }
 
-/// Sample standard deviation of the finite values (a seed whose fit diverges
-/// on the validation part is not a spread, it is a failed fit: it is left
-/// out here and shows as `inf` in the seed list).
+/// The seed-to-seed spread: a robust standard deviation, `1.4826·MAD` of the
+/// seeds' validation RMSEs (non-finite ones count as +∞). A seed stuck in a
+/// poor basin is a failed fit, not spread, and the median ignores it while
+/// seeds that agree give a small spread.
 fn std_dev(v: &[f64]) -> f64 {
-    let v: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
     if v.len() < 2 {
         return 0.0;
     }
-    let m = v.iter().sum::<f64>() / v.len() as f64;
-    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
+    let median = |x: &mut Vec<f64>| {
+        x.sort_by(f64::total_cmp);
+        let m = x.len() / 2;
+        if x.len() % 2 == 0 {
+            0.5 * (x[m - 1] + x[m])
+        } else {
+            x[m]
+        }
+    };
+    let mut w: Vec<f64> = v
+        .iter()
+        .map(|&x| if x.is_nan() { f64::INFINITY } else { x })
+        .collect();
+    let med = median(&mut w);
+    let mut dev: Vec<f64> = w.iter().map(|x| (x - med).abs()).collect();
+    let mad = median(&mut dev);
+    if mad.is_finite() {
+        1.4826 * mad
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// Share of the baseline's gap above the noise floor that `rmse` closes, in
