@@ -162,3 +162,20 @@ fn explore_budget_csv() {
         }
     }
 }
+
+#[test]
+#[ignore = "exploration: saturation"]
+fn explore_saturation() {
+    let nom = nominal();
+    let c = case_of(&nom, "saturation (small)");
+    let traces = mckibben::diagnose::selftest::synthesize(&nom, &c, 7);
+    let data = mckibben::diagnose::Data::new(&traces).unwrap();
+    let model = mckibben::diagnose::Augmented::new(Family::Classic, vec![Effect::Saturation], 1);
+    let mut th = nom.params.clone();
+    let delta = data.whole[0].y_mean - nom.data.whole[0].y_mean;
+    th[7] += (th[5] * th[1] - 1.0) * delta;
+    th.push(c.effects[0].1[0]);
+    eprintln!("truth est {} val {} ctx {:?}", data.est_sse(&model, &th), data.val_rmse(&model, &th), data.ctx[0]);
+    let (_, lo, hi) = data.space(&model);
+    eprintln!("lo {lo:?}\nhi {hi:?}\nth {th:?}");
+}

@@ -261,14 +261,15 @@ pub fn effect_box(
             (vec![0.0], vec![lo], vec![ctx.input_min.max(0.0) + 0.6 * ru])
         }
         Effect::Saturation => {
-            // Beyond the data by a whole range: the bound never binds there,
-            // so the box edge is the neutral value.
+            // An end stop sits near the largest output recorded: the box is
+            // from 40 % of the range below it to 5 % beyond it, where a model
+            // that follows the data never reaches it (the neutral edge).
             if ctx.drives_up {
-                let far = ctx.output_max + ry;
-                (vec![far], vec![ctx.output_min + 0.3 * ry], vec![far])
+                let far = ctx.output_max + 0.05 * ry;
+                (vec![far], vec![ctx.output_max - 0.4 * ry], vec![far])
             } else {
-                let far = ctx.output_min - ry;
-                (vec![far], vec![far], vec![ctx.output_max - 0.3 * ry])
+                let far = ctx.output_min - 0.05 * ry;
+                (vec![far], vec![far], vec![ctx.output_min + 0.4 * ry])
             }
         }
         Effect::Asymmetry => (vec![0.0], vec![-0.5], vec![0.5]),

@@ -86,8 +86,8 @@ pub fn cases(nominal: &Nominal, effects: &[Effect]) -> Vec<Case> {
             Effect::Asymmetry => vec![f(0.1, 0.25)],
             Effect::Inertia => vec![f(0.4, 0.7)],
             Effect::Backlash => vec![f(0.08, 0.2) * ru],
-            Effect::Creep => vec![0.995, f(0.2, 0.5) * ry / ru],
-            Effect::Rate => vec![f(1.0, 3.0) / v],
+            Effect::Creep => vec![0.995, f(0.2, 0.35) * ry / ru],
+            Effect::Rate => vec![f(0.3, 0.8) / v],
             Effect::Load => vec![f(0.1, 0.25)],
         }
     };
