@@ -11,7 +11,8 @@ fn bin() -> Command {
 /// A small stair experiment from the classic model with an end stop at 30 mm.
 fn write_csv(path: &Path, rows: usize, constant_input: bool) {
     let mut s = String::from("t,pressure,displacement\n");
-    let (mut p, mut x, mut w) = (0.0f64, 0.0f64, 0.0f64);
+    let p0 = if constant_input { 0.2 } else { 0.0 };
+    let (mut p, mut x, mut w) = (p0, 0.0f64, 0.0f64);
     for k in 0..rows {
         let level = if constant_input {
             0.2
@@ -38,7 +39,11 @@ fn json_follows_the_contract() {
         .arg(&csv)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     for k in ["model", "params", "val_rmse", "val_fit_percent"] {
         assert!(!v["baseline"][k].is_null(), "baseline.{k}");
@@ -51,12 +56,18 @@ fn json_follows_the_contract() {
     let bands = v["where"]["input_band"].as_array().unwrap();
     assert!(!bands.is_empty());
     let total: f64 = bands.iter().map(|b| b["share"].as_f64().unwrap()).sum();
-    assert!((total - 1.0).abs() < 1e-6, "input bands share all the energy: {total}");
+    assert!(
+        (total - 1.0).abs() < 1e-6,
+        "input bands share all the energy: {total}"
+    );
     for b in bands {
         assert!(b["lo"].is_number() && b["hi"].is_number());
     }
     for k in ["transient", "settled"] {
-        assert!(v["where"]["after_step"][k].is_number(), "where.after_step.{k}");
+        assert!(
+            v["where"]["after_step"][k].is_number(),
+            "where.after_step.{k}"
+        );
     }
     let cands = v["candidates"].as_array().unwrap();
     assert_eq!(cands.len(), 3, "one entry per effect tried");
@@ -76,8 +87,13 @@ fn json_follows_the_contract() {
         .filter(|c| c["accepted"] == true)
         .map(|c| c["effect"].as_str().unwrap())
         .collect();
-    assert_eq!(verdict, accepted, "accepted candidates come first, in verdict order");
-    assert!(v["final"]["val_rmse"].as_f64().unwrap() <= v["baseline"]["val_rmse"].as_f64().unwrap());
+    assert_eq!(
+        verdict, accepted,
+        "accepted candidates come first, in verdict order"
+    );
+    assert!(
+        v["final"]["val_rmse"].as_f64().unwrap() <= v["baseline"]["val_rmse"].as_f64().unwrap()
+    );
     assert!(v["final"]["gap_closed"].is_number());
 }
 
@@ -106,6 +122,9 @@ fn undiagnosable_data_gives_clear_errors() {
     assert!(err.contains("length"), "names the missing column: {err}");
 
     let err = error_of(&["diagnose", "--effects", "friction"], &ok);
-    assert!(err.contains("unknown effect") && err.contains("backlash"), "{err}");
+    assert!(
+        err.contains("unknown effect") && err.contains("backlash"),
+        "{err}"
+    );
     assert!(!err.contains("panicked"), "{err}");
 }

@@ -3,11 +3,14 @@
 //! and repeat on the remainder (forward selection).
 //!
 //! **Acceptance rule.** Let `R0` be the validation RMSE of the current model
-//! (refitted with the same seeds and budget as the candidates, so refitting
-//! alone is not mistaken for an effect), `R1` the candidate's, `s0`, `s1` the
-//! standard deviations of the validation RMSE over the seeds, `N` the
-//! validation samples and `k` the candidate's extra parameters. A candidate is
-//! accepted only if all three hold:
+//! and `R1` the candidate's (each fit keeps the seed with the lowest
+//! estimation SSE among those that stay finite on validation); `s0`, `s1` the
+//! seed-to-seed spreads of the validation RMSE (`s0` from refitting the
+//! current model with the candidates' seeds and budget, so refitting alone is
+//! not mistaken for an effect; spread = 1.4826·MAD over the seeds, a robust
+//! standard deviation, so one seed stuck in a poor basin does not veto what
+//! the others agree on); `N` the validation samples and `k` the candidate's
+//! extra parameters. A candidate is accepted only if all three hold:
 //! 1. `R0 − R1 > 3·√(s0² + s1²)`: the improvement is clearly beyond seed-to-seed spread;
 //! 2. `ΔBIC = N·ln(R1²/R0²) + k·ln N < −10`: it pays for its parameters
 //!    ("very strong" evidence on the Kass–Raftery scale);
@@ -255,7 +258,7 @@ pub struct Fit {
 /// The fits of one model over several seeds.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SeededFit {
-    /// The seed with the lowest estimation SSE.
+    /// The seed with the lowest estimation SSE (among those finite on validation).
     pub best: Fit,
     /// Validation RMSE of every seed.
     pub seed_val_rmse: Vec<f64>,
@@ -413,8 +416,13 @@ pub fn fit_seeds(
         .collect();
     let seed_val_rmse: Vec<f64> = fits.iter().map(|f| f.val_rmse).collect();
     let spread = std_dev(&seed_val_rmse);
+    // The seed with the lowest estimation SSE among those that stay finite on
+    // the validation part: a fit that diverges there is not a model (the
+    // validation part is used for nothing else in this choice).
+    let any_finite = fits.iter().any(|f| f.val_rmse.is_finite());
     let best = fits
         .into_iter()
+        .filter(|f| f.val_rmse.is_finite() || !any_finite)
         .min_by(|a, b| a.est_sse.total_cmp(&b.est_sse))
         .expect("at least one seed");
     SeededFit {
