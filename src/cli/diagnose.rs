@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use mckibben::diagnose::report::{to_json, to_text, write_figures};
-use mckibben::diagnose::selftest::{Nominal, cases, run_case, table};
+use mckibben::diagnose::selftest::{Nominal, cases, run_case, table, twin_check};
 use mckibben::diagnose::{Effect, Settings, diagnose};
 use mckibben::model::Family;
 
@@ -59,7 +59,8 @@ pub struct Args {
     /// Instead of diagnosing DATA, check the diagnosis itself: generate data
     /// from the nominal model fitted to DATA with one effect withheld (each
     /// effect at two sizes, plus a control and a two-effect case), diagnose
-    /// each, and print the confusion table.
+    /// each, and print the confusion table; then the twin check (one twin
+    /// effect on vs off, gap attributed vs gap that disappears).
     #[arg(long)]
     self_test: bool,
 }
@@ -138,6 +139,10 @@ fn self_test(
         )?);
     }
     let passed = outcomes.iter().filter(|o| o.pass).count();
+    if !args.json {
+        eprintln!("self-test: twin check ...");
+    }
+    let twin = twin_check(args.baseline, effects, settings)?;
     if args.json {
         println!(
             "{}",
@@ -145,6 +150,7 @@ fn self_test(
                 "nominal": { "model": args.baseline.name(), "params": nominal.params, "data": trace.source },
                 "cases": outcomes,
                 "passed": passed,
+                "twin_check": twin,
                 "total": outcomes.len(),
             }))?
         );
@@ -155,6 +161,31 @@ fn self_test(
         );
         print!("{}", table(&outcomes, effects));
         println!("{passed} of {} cases pass", outcomes.len());
+        println!("\nTwin check (stair, 4.5 kg): one twin effect on vs all off; gap energy in mm²");
+        println!(
+            "{:<12} {:>9} {:>9} {:>11} {:>11} {:>7}  {:<24} result",
+            "twin effect", "RMSE on", "RMSE off", "attributed", "disappears", "ratio", "named (on)"
+        );
+        for t in &twin {
+            let named: Vec<_> = t.verdict_on.iter().map(|e| e.name()).collect();
+            println!(
+                "{:<12} {:>9.4} {:>9.4} {:>11.4} {:>11.4} {:>7.2}  {:<24} {}",
+                t.twin_effect,
+                t.baseline_on,
+                t.baseline_off,
+                t.attributed,
+                t.disappears,
+                t.ratio,
+                if named.is_empty() {
+                    "none".to_string()
+                } else {
+                    named.join("+")
+                },
+                if t.pass { "pass" } else { "fail" }
+            );
+        }
+        let held = twin.iter().filter(|t| t.pass).count();
+        println!("{held} of {} twin effects within 20 %", twin.len());
     }
     Ok(())
 }
