@@ -109,6 +109,17 @@ pub fn diagnose(
     let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
     let floor = r#where::noise_floor(&refs);
     let selection = select::select(&data, family, effects, settings);
+    anyhow::ensure!(
+        selection.baseline.best.val_rmse.is_finite(),
+        "the {family} baseline fitted on the estimation half diverges on the validation half \
+         for every seed ({}), so there is no gap to diagnose; try fewer datasets at a time, \
+         more --seeds, or the other --baseline",
+        traces
+            .iter()
+            .map(|t| t.source.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
 
     let base_model = &selection.baseline_model;
     let base = &selection.baseline.best;
