@@ -179,8 +179,13 @@ pub fn to_text(d: &Diagnosis) -> String {
         &w.after_step.transient,
     );
     row(&mut o, "settled", &w.after_step.settled);
+    // For frequency bands the second share is of the periodogram's bins.
     for b in &w.frequency {
-        row(&mut o, &format!("{:.3}–{:.3} Hz", b.lo, b.hi), &b.share);
+        row(
+            &mut o,
+            &format!("{:.3}–{:.3} Hz (bins)", b.lo, b.hi),
+            &b.share,
+        );
     }
     if w.dataset.len() > 1 {
         for ds in &w.dataset {
