@@ -508,7 +508,8 @@ impl Augmented {
                 z = (rho * z) + (((1.0 - rho) * kappa) * ui);
                 yk += z;
             }
-            if !(in_bounds(x) && in_bounds(w) && in_bounds(yk)) || !sink(k, yk) {
+            let finite = in_bounds(x) && in_bounds(w) && in_bounds(yk);
+            if !finite || !sink(k, yk) {
                 return false;
             }
         }

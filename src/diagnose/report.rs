@@ -20,10 +20,7 @@ pub fn candidate_list(d: &Diagnosis) -> Vec<(&Candidate, bool, usize)> {
     for (r, round) in d.selection.rounds.iter().enumerate() {
         for c in &round.candidates {
             let accepted = round.accepted == Some(c.effect);
-            let keep = match seen.get(c.effect.name()) {
-                Some((_, true, _)) => false,
-                _ => true,
-            };
+            let keep = !matches!(seen.get(c.effect.name()), Some((_, true, _)));
             if keep {
                 seen.insert(c.effect.name(), (c, accepted, r + 1));
             }

@@ -468,7 +468,7 @@ fn std_dev(v: &[f64]) -> f64 {
 /// already at the floor.
 pub fn gap_closed(baseline_rmse: f64, rmse: f64, floor: f64) -> f64 {
     let gap = baseline_rmse.powi(2) - floor.powi(2);
-    if !(gap > 0.0) || !rmse.is_finite() {
+    if gap.is_nan() || gap <= 0.0 || !rmse.is_finite() {
         return 0.0;
     }
     (baseline_rmse.powi(2) - rmse.powi(2)) / gap

@@ -228,7 +228,7 @@ fn frequency_bands(segments: &[Segment]) -> Vec<Band> {
         return Vec::new();
     };
     let (n, dt) = (longest.residual.len(), longest.dt);
-    if n < 8 || !(dt > 0.0) {
+    if n < 8 || dt.is_nan() || dt <= 0.0 {
         return Vec::new();
     }
     let (f_lo, f_hi) = (1.0 / (n as f64 * dt), 0.5 / dt);
