@@ -128,3 +128,40 @@ fn undiagnosable_data_gives_clear_errors() {
     );
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// The Cavatappi muscle (psi, mm, 1 kHz in blocks with gaps) read through
+/// `--resample`: the diagnosis runs and finds the end stop at 100 g
+/// (docs/DIAGNOSIS.md). Skipped when the external data are absent.
+#[test]
+fn cavatappi_100g_is_diagnosed_after_resampling() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/external/cavatappi_muscle/sample1_100g.csv");
+    if !path.is_file() {
+        eprintln!("SKIP: {} is absent", path.display());
+        return;
+    }
+    let out = bin()
+        .args([
+            "diagnose",
+            "--json",
+            "--time",
+            "t_s",
+            "--input",
+            "pressure_psi",
+        ])
+        .args(["--output", "disp_mm", "--resample", "0.01"])
+        .args(["--effects", "saturation,creep", "--seeds", "2"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let base = v["baseline"]["val_rmse"].as_f64().unwrap();
+    let last = v["final"]["val_rmse"].as_f64().unwrap();
+    assert!(last < base, "{v}");
+    assert_eq!(v["verdict"][0], "saturation", "{}", v["verdict"]);
+}
