@@ -11,6 +11,7 @@
 
 pub mod benchmark;
 pub mod data;
+pub mod diagnose;
 pub mod eval;
 pub mod ident;
 pub mod model;
