@@ -9,6 +9,7 @@
 //!     -> fitted model -> report / diagnose / control
 //! ```
 
+pub mod control;
 pub mod data;
 pub mod eval;
 pub mod ident;

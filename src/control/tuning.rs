@@ -1,0 +1,1 @@
+//! Gain tuning with the project's optimizers (to come).
