@@ -103,6 +103,7 @@ pub fn run_episode(
     let mut u = episode.u0;
     let mut violations = 0usize;
     let mut max_step_us = 0.0f64;
+    let mut total_us = 0.0f64;
     for (k, r) in reference.iter().enumerate() {
         let m = plant.step(u);
         if !(m.displacement_mm.is_finite() && m.pressure_mpa.is_finite()) {
@@ -111,7 +112,9 @@ pub fn run_episode(
         }
         let start = Instant::now();
         let next = controller.command(m, &reference[k..]);
-        max_step_us = max_step_us.max(start.elapsed().as_secs_f64() * 1e6);
+        let us = start.elapsed().as_secs_f64() * 1e6;
+        max_step_us = max_step_us.max(us);
+        total_us += us;
         if episode.limits.violated(next, u) {
             violations += 1;
         }
@@ -134,5 +137,6 @@ pub fn run_episode(
     out.metrics.diverged |= diverged || out.t.len() < n;
     out.metrics.constraint_violations = violations;
     out.metrics.max_step_time_us = max_step_us;
+    out.metrics.mean_step_time_us = total_us / out.t.len().max(1) as f64;
     out
 }

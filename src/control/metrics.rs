@@ -17,6 +17,8 @@ pub struct Metrics {
     pub constraint_violations: usize,
     /// Longest time one controller step took (µs), wall clock.
     pub max_step_time_us: f64,
+    /// Mean time of one controller step (µs), wall clock.
+    pub mean_step_time_us: f64,
     /// A measurement became non-finite, or the error exceeded
     /// [`DIVERGENCE_FACTOR`] times the reference amplitude.
     pub diverged: bool,
@@ -60,6 +62,7 @@ impl Metrics {
             effort_travel_v_per_s: travel / span,
             constraint_violations: 0,
             max_step_time_us: 0.0,
+            mean_step_time_us: 0.0,
             diverged: !(all_max <= DIVERGENCE_FACTOR * amplitude),
         }
     }
