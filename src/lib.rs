@@ -15,3 +15,4 @@ pub mod eval;
 pub mod ident;
 pub mod model;
 pub mod report;
+pub mod twin;

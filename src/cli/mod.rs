@@ -1,5 +1,7 @@
 //! Argument parsing and the dispatch to each command.
 
+mod common;
+mod identify;
 mod static_force;
 
 use clap::{Parser, Subcommand};
@@ -23,11 +25,13 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    Identify(identify::Args),
     Static(static_force::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Identify(args) => identify::run(args),
         Command::Static(args) => static_force::run(args),
     }
 }

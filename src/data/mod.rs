@@ -2,6 +2,8 @@
 //! signal generators of the thesis' appendix A.
 
 pub mod atomic;
+pub mod csv;
+pub mod signals;
 
 pub use atomic::write_atomic;
 

@@ -1,0 +1,231 @@
+//! Arguments shared by the commands that read experiment data: which file,
+//! which columns, and what to do with a non-uniform time base. One loader
+//! serves both the one-file form ([`DataArgs`]) and the many-file form
+//! ([`MultiDataArgs`]).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+
+use mckibben::data::Trace;
+use mckibben::data::csv::{Gaps, ReadOptions, read_traces_with_notes};
+
+/// The shipped default experiment, relative to the repository root.
+pub const DEFAULT_DATA: &str = "data/stair_4.5kg.csv";
+
+/// Column and time-base flags; flattened into [`DataArgs`] and [`MultiDataArgs`].
+#[derive(Debug, Clone, clap::Args)]
+pub struct ColumnArgs {
+    /// Column holding the model input (the muscle pressure, MPa, in the
+    /// shipped data). Any numeric column works, e.g. `--input valve_in`.
+    #[arg(long, value_name = "COL", default_value = "pressure")]
+    pub input: String,
+    /// Column holding the measured output (the displacement, mm, in the
+    /// shipped data).
+    #[arg(long, value_name = "COL", default_value = "displacement")]
+    pub output: String,
+    /// Column holding the time in seconds. It must increase on every row.
+    #[arg(long, value_name = "COL", default_value = "t")]
+    pub time: String,
+    /// The models are discrete-time and need a uniform time base (every step
+    /// within 10% of the median step); a file that is not is an error naming
+    /// the first bad row. With this flag every column is instead linearly
+    /// interpolated onto t0 + k·DT (DT in seconds, e.g. 0.01 for 100 Hz);
+    /// gaps become straight lines.
+    #[arg(long, value_name = "DT", value_parser = positive_seconds, allow_negative_numbers = true)]
+    pub resample: Option<f64>,
+    /// Instead of failing on a non-uniform time base, cut the file at every
+    /// gap (a step over 1.5 median steps) and use each piece as its own
+    /// experiment. Pieces under 20 samples are dropped with a note.
+    #[arg(long, conflicts_with = "resample")]
+    pub split_gaps: bool,
+}
+
+/// One data file (for `identify`, `simulate`, ...).
+#[derive(Debug, Clone, clap::Args)]
+pub struct DataArgs {
+    /// Experiment CSV: a header row (after any `#` comment lines) naming the
+    /// columns, one row per sample. Without it, the shipped
+    /// data/stair_4.5kg.csv is used.
+    #[arg(value_name = "DATA")]
+    pub data: Option<PathBuf>,
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+}
+
+/// Zero or more data files (for `diagnose`).
+#[derive(Debug, Clone, clap::Args)]
+pub struct MultiDataArgs {
+    /// Experiment CSV files, each with a header row (after any `#` comment
+    /// lines) naming the columns, one row per sample. Without any, the
+    /// shipped data/stair_4.5kg.csv is used.
+    #[arg(value_name = "DATA")]
+    pub data: Vec<PathBuf>,
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+}
+
+impl DataArgs {
+    /// The traces of the file (several with `--split-gaps`).
+    pub fn load(&self) -> anyhow::Result<Vec<Trace>> {
+        self.columns.load(self.data.as_slice())
+    }
+}
+
+impl MultiDataArgs {
+    /// The traces of all files, in the order given.
+    pub fn load(&self) -> anyhow::Result<Vec<Trace>> {
+        self.columns.load(&self.data)
+    }
+}
+
+impl ColumnArgs {
+    /// The reading options these flags ask for.
+    pub fn options(&self) -> ReadOptions {
+        ReadOptions {
+            time: self.time.clone(),
+            input: self.input.clone(),
+            output: self.output.clone(),
+            gaps: match (self.resample, self.split_gaps) {
+                (Some(dt), _) => Gaps::Resample(dt),
+                (None, true) => Gaps::Split,
+                (None, false) => Gaps::Reject,
+            },
+        }
+    }
+
+    /// Reads `paths` (the default file when empty), printing any notes to
+    /// stderr so that `--json` output on stdout stays clean.
+    pub fn load(&self, paths: &[PathBuf]) -> anyhow::Result<Vec<Trace>> {
+        let default;
+        let paths = if paths.is_empty() {
+            default = [default_data()?];
+            &default[..]
+        } else {
+            paths
+        };
+        let opts = self.options();
+        let mut traces = Vec::new();
+        for path in paths {
+            let (mut read, notes) = read_traces_with_notes(path, &opts)?;
+            for note in notes {
+                eprintln!("mckibben: note: {note}");
+            }
+            traces.append(&mut read);
+        }
+        Ok(traces)
+    }
+}
+
+/// The default data file: `data/stair_4.5kg.csv` under the current folder,
+/// else under the source tree this binary was built from.
+pub fn default_data() -> anyhow::Result<PathBuf> {
+    let candidates = [
+        PathBuf::from(DEFAULT_DATA),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_DATA),
+    ];
+    first_existing(&candidates)
+}
+
+fn first_existing(candidates: &[PathBuf]) -> anyhow::Result<PathBuf> {
+    candidates
+        .iter()
+        .find(|p| p.is_file())
+        .cloned()
+        .with_context(|| {
+            let looked: Vec<String> = candidates.iter().map(|p| p.display().to_string()).collect();
+            format!(
+                "no DATA file given, and the default {DEFAULT_DATA} is missing (looked for {}); \
+                 pass a CSV file, or regenerate the default with the command in data/README.md",
+                looked.join(" and ")
+            )
+        })
+}
+
+/// Parses a step in seconds that must be positive and finite.
+fn positive_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!(
+            "\"{s}\" is not a positive number of seconds (e.g. 0.01 for 100 Hz)"
+        )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Debug, Parser)]
+    struct One {
+        #[command(flatten)]
+        data: DataArgs,
+    }
+
+    #[derive(Debug, Parser)]
+    struct Many {
+        #[command(flatten)]
+        data: MultiDataArgs,
+    }
+
+    #[test]
+    fn flags_map_to_read_options() {
+        let one = One::try_parse_from(["x", "f.csv", "--input", "valve_in", "--resample", "0.01"])
+            .unwrap();
+        assert_eq!(one.data.data, Some(PathBuf::from("f.csv")));
+        let o = one.data.columns.options();
+        assert_eq!(
+            (o.input.as_str(), o.output.as_str(), o.time.as_str()),
+            ("valve_in", "displacement", "t")
+        );
+        assert_eq!(o.gaps, Gaps::Resample(0.01));
+        let many = Many::try_parse_from(["x", "a.csv", "b.csv", "--split-gaps"]).unwrap();
+        assert_eq!(many.data.data.len(), 2);
+        assert_eq!(many.data.columns.options().gaps, Gaps::Split);
+        assert_eq!(
+            One::try_parse_from(["x"]).unwrap().data.columns.options(),
+            ReadOptions::default()
+        );
+    }
+
+    #[test]
+    fn bad_flags_are_refused_by_name() {
+        let e = One::try_parse_from(["x", "--resample", "0.01", "--split-gaps"]).unwrap_err();
+        assert!(e.to_string().contains("--split-gaps"), "{e}");
+        let e = One::try_parse_from(["x", "--resample", "-1"]).unwrap_err();
+        assert!(
+            e.to_string().contains("not a positive number of seconds"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn loads_every_file_in_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.csv");
+        let b = dir.path().join("b.csv");
+        std::fs::write(&a, "t,pressure,displacement\n0,1,2\n1,3,4\n").unwrap();
+        std::fs::write(&b, "# b\nt,pressure,displacement\n0,5,6\n1,7,8\n2,9,10\n").unwrap();
+        let many = Many::try_parse_from(["x", b.to_str().unwrap(), a.to_str().unwrap()]).unwrap();
+        let traces = many.data.load().unwrap();
+        assert_eq!((traces[0].len(), traces[1].len()), (3, 2));
+        let one = One::try_parse_from(["x", a.to_str().unwrap(), "--output", "nope"]).unwrap();
+        let e = one.data.load().unwrap_err().to_string();
+        assert!(
+            e.contains("a.csv: line 1: no output column \"nope\""),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn missing_default_says_how_to_regenerate() {
+        let e = first_existing(&[PathBuf::from("no/such/stair.csv")])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("no/such/stair.csv") && e.contains("data/README.md"),
+            "{e}"
+        );
+    }
+}

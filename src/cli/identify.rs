@@ -1,0 +1,143 @@
+//! `mckibben identify`: the thesis' linear identification (§4.3).
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use serde::Serialize;
+
+use super::common::DataArgs;
+use mckibben::data::write_atomic;
+use mckibben::ident::ArxOrders;
+use mckibben::ident::arx::{Identification, identify};
+use mckibben::model::{Family, FittedModel};
+
+/// Identify a linear ARX model from a recorded experiment, as the thesis does
+/// with MATLAB's System Identification Toolbox (§4.3): the means of the
+/// estimation half are removed, the model is estimated on the first half by
+/// least squares and validated on the second half by free-run simulation.
+/// The fit is MATLAB `compare`'s: 100·(1 − ‖y − ŷ‖ / ‖y − mean(y)‖).
+///
+/// With the default orders (na = nb = nk = 1) this is eq. 12,
+/// `l(k) = a·l(k−1) + b·p(k−1)`; the thesis found a = 0.9618, b = 24.9366.
+///
+/// Examples:
+///   mckibben identify                       # the shipped 4.5 kg stair experiment
+///   mckibben identify run.csv --input p_bar --output x_mm --na 2 --nb 2
+///   mckibben identify --out model.json --json
+#[derive(Debug, clap::Args)]
+#[command(verbatim_doc_comment)]
+pub struct Args {
+    #[command(flatten)]
+    data: DataArgs,
+    /// Number of poles (past outputs).
+    #[arg(long, default_value_t = 1)]
+    na: usize,
+    /// Number of input coefficients.
+    #[arg(long, default_value_t = 1)]
+    nb: usize,
+    /// Input delay in samples.
+    #[arg(long, default_value_t = 1)]
+    nk: usize,
+    /// Write the identified model as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// Print JSON on stdout instead of a report.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Serialize)]
+struct Output<'a> {
+    #[serde(flatten)]
+    identification: &'a Identification,
+    /// The first-order model in the form `fit` and `simulate` read, when the orders are (1, 1, 1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    model: Option<FittedModel>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let orders = ArxOrders {
+        na: args.na,
+        nb: args.nb,
+        nk: args.nk,
+    };
+    anyhow::ensure!(args.nb >= 1, "--nb must be at least 1");
+    let traces = args.data.load()?;
+    let mut outputs = Vec::new();
+    for trace in &traces {
+        let id = identify(trace, orders)?;
+        let model = (orders == ArxOrders::default()).then(|| FittedModel {
+            family: Family::Linear,
+            params: vec![id.arx.a[0], id.arx.b[0], 0.0],
+            input_mean: id.input_mean,
+            output_mean: id.output_mean,
+            dt: id.dt,
+            input_name: trace.input_name.clone(),
+            output_name: trace.output_name.clone(),
+        });
+        outputs.push((id, model));
+    }
+    let json: Vec<Output> = outputs
+        .iter()
+        .map(|(id, model)| Output {
+            identification: id,
+            model: model.clone(),
+        })
+        .collect();
+    let text = if json.len() == 1 {
+        serde_json::to_string_pretty(&json[0])?
+    } else {
+        serde_json::to_string_pretty(&json)?
+    };
+    if let Some(path) = &args.out {
+        write_atomic(path, text.as_bytes())
+            .with_context(|| format!("cannot write --out {}", path.display()))?;
+    }
+    if args.json {
+        println!("{text}");
+        return Ok(());
+    }
+    for (id, _) in &outputs {
+        print_report(id);
+    }
+    if let Some(path) = &args.out {
+        println!("model written to {}", path.display());
+    }
+    Ok(())
+}
+
+fn print_report(id: &Identification) {
+    let o = id.arx.orders;
+    println!(
+        "ARX identification of {} ({} samples, dt = {} s)",
+        id.source, id.samples, id.dt
+    );
+    println!(
+        "  orders        na = {}, nb = {}, nk = {}",
+        o.na, o.nb, o.nk
+    );
+    println!(
+        "  means removed input {:.6}, output {:.6} (estimation half)",
+        id.input_mean, id.output_mean
+    );
+    for (i, a) in id.arx.a.iter().enumerate() {
+        println!("  a{}            {a:.6}", i + 1);
+    }
+    for (j, b) in id.arx.b.iter().enumerate() {
+        println!("  b{}            {b:.6}", j + 1);
+    }
+    if o == ArxOrders::default() {
+        println!(
+            "  model         l(k) = {:.4}·l(k−1) + {:.4}·p(k−1)   (eq. 12; thesis: 0.9618, 24.9366)",
+            id.arx.a[0], id.arx.b[0]
+        );
+    }
+    println!(
+        "  fit, estimation half   {:.2} %",
+        id.estimation_fit_percent
+    );
+    println!(
+        "  fit, validation half   {:.2} %   (RMSE {:.4})",
+        id.validation_fit_percent, id.validation_rmse
+    );
+}

@@ -1,0 +1,843 @@
+//! Reading and writing experiment CSV files (DESIGN.md §3).
+//!
+//! A file has one header row, optionally preceded by `#` comment lines; blank
+//! lines are skipped. One column is the time (s), one the model input and one
+//! the output; every other numeric column is carried along in
+//! [`Trace::extra`]. Every malformed value is an error naming the file, the
+//! 1-based line number and the column, so a user can open the file at the
+//! right place.
+//!
+//! The models are discrete-time, so the time base must be uniform:
+//! every step within [`UNIFORM_TOLERANCE`] of the median step. Recorded data
+//! that is not (a logger that dropped samples, a paused recording) is
+//! rejected unless the user asks to resample it ([`Gaps::Resample`]) or to
+//! split it at the gaps ([`Gaps::Split`]).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use super::{Trace, write_atomic};
+
+/// How far one time step may stray from the median step and still count as
+/// uniform: 10 %. This admits timer jitter and times printed with few
+/// digits (a 1 kHz logger writing milliseconds with 4 decimals is exact to
+/// 5 %), and rejects a dropped sample (a step of 2·dt).
+pub const UNIFORM_TOLERANCE: f64 = 0.10;
+
+/// With [`Gaps::Split`], a step longer than this many median steps ends a
+/// segment: at 1.5·dt at least one sample is missing.
+pub const GAP_FACTOR: f64 = 1.5;
+
+/// With [`Gaps::Split`], segments with fewer samples than this are dropped
+/// (with a note): too short to estimate and validate anything on.
+pub const MIN_SEGMENT: usize = 20;
+
+/// What to do when the time base is not uniform.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Gaps {
+    /// Report the first bad row as an error (the default: nothing is
+    /// changed behind the user's back).
+    Reject,
+    /// Interpolate every column linearly onto `t0 + k·dt`, `dt` in seconds.
+    /// A gap becomes a straight line between its two ends.
+    Resample(f64),
+    /// Cut the file at every step longer than [`GAP_FACTOR`] median steps,
+    /// one trace per segment. Each segment must itself be uniform; segments
+    /// shorter than [`MIN_SEGMENT`] samples are dropped.
+    Split,
+}
+
+/// Which columns to read and how to treat the time base.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReadOptions {
+    /// Time column (seconds).
+    pub time: String,
+    /// Model input column (default `pressure`, MPa).
+    pub input: String,
+    /// Model output column (default `displacement`, mm).
+    pub output: String,
+    pub gaps: Gaps,
+}
+
+impl Default for ReadOptions {
+    /// The column names of DESIGN.md §3: `t`, `pressure`, `displacement`.
+    fn default() -> Self {
+        ReadOptions {
+            time: "t".into(),
+            input: "pressure".into(),
+            output: "displacement".into(),
+            gaps: Gaps::Reject,
+        }
+    }
+}
+
+/// Everything that can be wrong with a data file. Messages follow the
+/// `file: line N, column "c": what` pattern.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}: line {line}: {message}", path.display())]
+    Parse {
+        path: PathBuf,
+        line: u64,
+        message: String,
+    },
+    #[error("{}: the file is empty (expected a header row such as `t,pressure,displacement`)", path.display())]
+    Empty { path: PathBuf },
+    #[error("{}: line {line}: a header row but {rows} data rows; a time step needs at least 2", path.display())]
+    TooFewRows {
+        path: PathBuf,
+        line: u64,
+        rows: usize,
+    },
+    #[error(
+        "{}: line {line}: no {role} column \"{column}\"; the file has columns {}; choose another with {flag} COL",
+        path.display(), quoted(available)
+    )]
+    MissingColumn {
+        path: PathBuf,
+        line: u64,
+        role: &'static str,
+        column: String,
+        available: Vec<String>,
+        flag: &'static str,
+    },
+    #[error("{}: line {line}: column \"{column}\" appears twice in the header", path.display())]
+    DuplicateColumn {
+        path: PathBuf,
+        line: u64,
+        column: String,
+    },
+    #[error("{}: line {line}: {found} fields, but the header on line {header_line} has {expected}", path.display())]
+    Ragged {
+        path: PathBuf,
+        line: u64,
+        found: usize,
+        expected: usize,
+        header_line: u64,
+    },
+    #[error("{}: line {line}, column \"{column}\": \"{value}\" is not a number", path.display())]
+    NotANumber {
+        path: PathBuf,
+        line: u64,
+        column: String,
+        value: String,
+    },
+    #[error("{}: line {line}, column \"{column}\": \"{value}\" is not finite", path.display())]
+    NotFinite {
+        path: PathBuf,
+        line: u64,
+        column: String,
+        value: String,
+    },
+    #[error(
+        "{}: line {line}, column \"{column}\": time {value} does not increase (previous row: {previous})",
+        path.display()
+    )]
+    NotIncreasing {
+        path: PathBuf,
+        line: u64,
+        column: String,
+        value: f64,
+        previous: f64,
+    },
+    #[error(
+        "{}: line {line}, column \"{column}\": non-uniform time base: step {step} s, expected {expected} s (±{}%); pass --resample DT to interpolate onto a uniform step, or --split-gaps to cut the file at gaps",
+        path.display(), UNIFORM_TOLERANCE * 100.0
+    )]
+    NonUniform {
+        path: PathBuf,
+        line: u64,
+        column: String,
+        step: f64,
+        expected: f64,
+    },
+    #[error("{}: {message}", path.display())]
+    Unusable { path: PathBuf, message: String },
+    #[error("{}: {message}", path.display())]
+    BadTrace { path: PathBuf, message: String },
+}
+
+fn quoted(names: &[String]) -> String {
+    let q: Vec<String> = names.iter().map(|n| format!("\"{n}\"")).collect();
+    q.join(", ")
+}
+
+/// Reads the traces in `path`: one, or with [`Gaps::Split`] one per segment.
+/// Notes (dropped segments, ignored text columns) are discarded; use
+/// [`read_traces_with_notes`] to show them.
+pub fn read_traces(path: &Path, opts: &ReadOptions) -> Result<Vec<Trace>, DataError> {
+    read_traces_with_notes(path, opts).map(|(traces, _)| traces)
+}
+
+/// As [`read_traces`], and also the notes a user should see: segments
+/// dropped as too short, text columns left out.
+pub fn read_traces_with_notes(
+    path: &Path,
+    opts: &ReadOptions,
+) -> Result<(Vec<Trace>, Vec<String>), DataError> {
+    let bytes = std::fs::read(path).map_err(|source| DataError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse(path, &bytes, opts)
+}
+
+/// The trimmed fields of one CSV line (quotes allowed, as RFC 4180).
+fn split_fields(text: &str) -> Result<csv::StringRecord, csv::Error> {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let mut record = csv::StringRecord::new();
+    reader.read_record(&mut record)?;
+    Ok(record)
+}
+
+/// One data row: its line in the file and its trimmed cells.
+struct Row {
+    line: u64,
+    cells: csv::StringRecord,
+}
+
+fn parse(
+    path: &Path,
+    bytes: &[u8],
+    opts: &ReadOptions,
+) -> Result<(Vec<Trace>, Vec<String>), DataError> {
+    let p = || path.to_path_buf();
+    // Lines are numbered here rather than by the `csv` reader, which does not
+    // count comment and blank lines; one record per line.
+    let mut header: Option<(u64, Vec<String>)> = None;
+    let mut rows = Vec::new();
+    for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line = i as u64 + 1;
+        let text = std::str::from_utf8(raw).map_err(|_| DataError::Parse {
+            path: p(),
+            line,
+            message: "not UTF-8 text".into(),
+        })?;
+        let text = text.trim_start_matches('\u{feff}').trim();
+        if text.is_empty() || text.starts_with('#') {
+            continue;
+        }
+        let cells = split_fields(text).map_err(|e| DataError::Parse {
+            path: p(),
+            line,
+            message: e.to_string(),
+        })?;
+        match &header {
+            None => header = Some((line, cells.iter().map(String::from).collect())),
+            Some((header_line, names)) => {
+                if cells.len() != names.len() {
+                    return Err(DataError::Ragged {
+                        path: p(),
+                        line,
+                        found: cells.len(),
+                        expected: names.len(),
+                        header_line: *header_line,
+                    });
+                }
+                rows.push(Row { line, cells });
+            }
+        }
+    }
+    let (header_line, names) = header.ok_or_else(|| DataError::Empty { path: p() })?;
+    for (i, n) in names.iter().enumerate() {
+        if names[..i].contains(n) {
+            return Err(DataError::DuplicateColumn {
+                path: p(),
+                line: header_line,
+                column: n.clone(),
+            });
+        }
+    }
+    let find = |column: &str, role, flag| {
+        names
+            .iter()
+            .position(|n| n == column)
+            .ok_or_else(|| DataError::MissingColumn {
+                path: p(),
+                line: header_line,
+                role,
+                column: column.into(),
+                available: names.clone(),
+                flag,
+            })
+    };
+    let it = find(&opts.time, "time", "--time")?;
+    let ii = find(&opts.input, "input", "--input")?;
+    let io = find(&opts.output, "output", "--output")?;
+    if rows.len() < 2 {
+        return Err(DataError::TooFewRows {
+            path: p(),
+            line: header_line,
+            rows: rows.len(),
+        });
+    }
+
+    let mut notes = Vec::new();
+    let column = |c: usize| -> Result<Vec<f64>, DataError> {
+        Ok(numeric_column(path, &rows, c, &names[c], true)?.unwrap_or_default())
+    };
+    let (t, input, output) = (column(it)?, column(ii)?, column(io)?);
+    let mut extra = Vec::new();
+    for (c, name) in names.iter().enumerate() {
+        if c == it || c == ii || c == io {
+            continue;
+        }
+        match numeric_column(path, &rows, c, name, false)? {
+            Some(v) => extra.push((name.clone(), v)),
+            None => notes.push(format!(
+                "{}: column \"{name}\" holds no numbers; left out",
+                path.display()
+            )),
+        }
+    }
+
+    for k in 1..t.len() {
+        if t[k] <= t[k - 1] {
+            return Err(DataError::NotIncreasing {
+                path: p(),
+                line: rows[k].line,
+                column: opts.time.clone(),
+                value: t[k],
+                previous: t[k - 1],
+            });
+        }
+    }
+
+    let trace = Trace {
+        source: path.display().to_string(),
+        t,
+        input_name: opts.input.clone(),
+        input,
+        output_name: opts.output.clone(),
+        output,
+        extra,
+    };
+    let lines: Vec<u64> = rows.iter().map(|r| r.line).collect();
+    let traces = match opts.gaps {
+        Gaps::Reject => {
+            check_uniform(path, &opts.time, &trace.t, &lines, median_step(&trace.t))?;
+            vec![trace]
+        }
+        Gaps::Resample(dt) => vec![resample(path, &trace, dt)?],
+        Gaps::Split => split(path, &opts.time, trace, &lines, &mut notes)?,
+    };
+    Ok((traces, notes))
+}
+
+/// Parses column `c` of every row, erring at the first bad cell. A column
+/// that is not `required` (not selected) and holds no number at all is a text
+/// column: `Ok(None)`, left out of the trace.
+fn numeric_column(
+    path: &Path,
+    rows: &[Row],
+    c: usize,
+    name: &str,
+    required: bool,
+) -> Result<Option<Vec<f64>>, DataError> {
+    let mut values = Vec::with_capacity(rows.len());
+    let mut first_bad = None;
+    for row in rows {
+        let cell = &row.cells[c];
+        match cell.parse::<f64>() {
+            Ok(v) if v.is_finite() => values.push(v),
+            Ok(_) => {
+                return Err(DataError::NotFinite {
+                    path: path.to_path_buf(),
+                    line: row.line,
+                    column: name.into(),
+                    value: cell.into(),
+                });
+            }
+            Err(_) => {
+                first_bad.get_or_insert((row.line, cell.to_string()));
+            }
+        }
+    }
+    match first_bad {
+        None => Ok(Some(values)),
+        Some(_) if values.is_empty() && !required => Ok(None),
+        Some((line, value)) => Err(DataError::NotANumber {
+            path: path.to_path_buf(),
+            line,
+            column: name.into(),
+            value,
+        }),
+    }
+}
+
+/// The median time step: robust to a few gaps.
+fn median_step(t: &[f64]) -> f64 {
+    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if steps.is_empty() {
+        return f64::NAN;
+    }
+    steps.sort_by(f64::total_cmp);
+    steps[steps.len() / 2]
+}
+
+/// Errors at the first step outside [`UNIFORM_TOLERANCE`] of `expected`.
+fn check_uniform(
+    path: &Path,
+    column: &str,
+    t: &[f64],
+    lines: &[u64],
+    expected: f64,
+) -> Result<(), DataError> {
+    for k in 1..t.len() {
+        let step = t[k] - t[k - 1];
+        if (step - expected).abs() > UNIFORM_TOLERANCE * expected {
+            return Err(DataError::NonUniform {
+                path: path.to_path_buf(),
+                line: lines[k],
+                column: column.into(),
+                step,
+                expected,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Linear interpolation of every column onto `t0 + k·dt`.
+fn resample(path: &Path, trace: &Trace, dt: f64) -> Result<Trace, DataError> {
+    let unusable = |message: String| DataError::Unusable {
+        path: path.to_path_buf(),
+        message,
+    };
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(unusable(format!(
+            "--resample {dt}: the step must be a positive number of seconds"
+        )));
+    }
+    let t0 = trace.t[0];
+    let span = trace.t[trace.len() - 1] - t0;
+    // The small slack keeps the last sample when span/dt is an integer up
+    // to rounding.
+    let n = (span / dt + 1e-9).floor() as usize + 1;
+    if n < 2 {
+        return Err(unusable(format!(
+            "--resample {dt}: the file spans only {span} s, less than one step"
+        )));
+    }
+    let grid: Vec<f64> = (0..n).map(|k| t0 + k as f64 * dt).collect();
+    // For each grid time: the interval [j, j+1] holding it and the weight of j+1.
+    let mut at = Vec::with_capacity(n);
+    let mut j = 0;
+    for &tg in &grid {
+        while j + 2 < trace.len() && trace.t[j + 1] <= tg {
+            j += 1;
+        }
+        let w = ((tg - trace.t[j]) / (trace.t[j + 1] - trace.t[j])).clamp(0.0, 1.0);
+        at.push((j, w));
+    }
+    let interp = |v: &[f64]| -> Vec<f64> {
+        at.iter()
+            .map(|&(j, w)| v[j] + w * (v[j + 1] - v[j]))
+            .collect()
+    };
+    Ok(Trace {
+        source: trace.source.clone(),
+        input_name: trace.input_name.clone(),
+        input: interp(&trace.input),
+        output_name: trace.output_name.clone(),
+        output: interp(&trace.output),
+        extra: trace
+            .extra
+            .iter()
+            .map(|(name, v)| (name.clone(), interp(v)))
+            .collect(),
+        t: grid,
+    })
+}
+
+/// Cuts the trace at every gap (a step over [`GAP_FACTOR`] median steps).
+fn split(
+    path: &Path,
+    column: &str,
+    trace: Trace,
+    lines: &[u64],
+    notes: &mut Vec<String>,
+) -> Result<Vec<Trace>, DataError> {
+    let dt = median_step(&trace.t);
+    let mut bounds = vec![0];
+    for k in 1..trace.len() {
+        if trace.t[k] - trace.t[k - 1] > GAP_FACTOR * dt {
+            bounds.push(k);
+        }
+    }
+    bounds.push(trace.len());
+    let segments = bounds.len() - 1;
+    let mut out = Vec::new();
+    let mut dropped = 0;
+    for (s, w) in bounds.windows(2).enumerate() {
+        let (a, b) = (w[0], w[1]);
+        if b - a < MIN_SEGMENT {
+            dropped += 1;
+            continue;
+        }
+        check_uniform(path, column, &trace.t[a..b], &lines[a..b], dt)?;
+        let mut seg = trace.slice(a..b);
+        if segments > 1 {
+            seg.source = format!("{}[{}]", trace.source, s + 1);
+        }
+        out.push(seg);
+    }
+    if dropped > 0 {
+        notes.push(format!(
+            "{}: {dropped} of {segments} segments shorter than {MIN_SEGMENT} samples dropped",
+            path.display()
+        ));
+    }
+    if out.is_empty() {
+        return Err(DataError::Unusable {
+            path: path.to_path_buf(),
+            message: format!(
+                "--split-gaps: all {segments} segments are shorter than {MIN_SEGMENT} samples"
+            ),
+        });
+    }
+    Ok(out)
+}
+
+/// Writes `trace` as CSV: header `t,<input_name>,<output_name>,<extra...>`,
+/// values in Rust's shortest round-trip form, so the same trace always gives
+/// the same bytes and reads back bit for bit. Atomic.
+pub fn write_trace(path: &Path, trace: &Trace) -> Result<(), DataError> {
+    write_trace_with_comments(path, trace, &[])
+}
+
+/// As [`write_trace`], with `# ` comment lines first (for example the
+/// command that made the file).
+pub fn write_trace_with_comments(
+    path: &Path,
+    trace: &Trace,
+    comments: &[String],
+) -> Result<(), DataError> {
+    let bad = |message: String| DataError::BadTrace {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut columns: Vec<(&str, &[f64])> = vec![
+        ("t", &trace.t),
+        (&trace.input_name, &trace.input),
+        (&trace.output_name, &trace.output),
+    ];
+    columns.extend(trace.extra.iter().map(|(n, v)| (n.as_str(), v.as_slice())));
+    let mut out = String::new();
+    for c in comments {
+        for l in c.lines() {
+            let _ = writeln!(out, "# {l}");
+        }
+    }
+    let header_line = out.lines().count() as u64 + 1;
+    for (i, (name, values)) in columns.iter().enumerate() {
+        if name.is_empty() || name.contains([',', '"', '\n', '\r']) || *name != name.trim() {
+            return Err(bad(format!(
+                "column name \"{name}\" cannot be written (empty, padded, or holds a comma, quote or newline)"
+            )));
+        }
+        if values.len() != trace.len() {
+            return Err(bad(format!(
+                "column \"{name}\" has {} values but the time base has {}",
+                values.len(),
+                trace.len()
+            )));
+        }
+        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+            return Err(DataError::NotFinite {
+                path: path.to_path_buf(),
+                line: header_line + 1 + k as u64,
+                column: name.to_string(),
+                value: values[k].to_string(),
+            });
+        }
+        out.push_str(if i == 0 { "" } else { "," });
+        out.push_str(name);
+    }
+    out.push('\n');
+    for k in 0..trace.len() {
+        for (i, (_, values)) in columns.iter().enumerate() {
+            if i > 0 {
+                out.push(',');
+            }
+            let _ = write!(out, "{}", values[k]);
+        }
+        out.push('\n');
+    }
+    write_atomic(path, out.as_bytes()).map_err(|source| DataError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn read(text: &str, gaps: Gaps) -> Result<(Vec<Trace>, Vec<String>), DataError> {
+        let opts = ReadOptions {
+            gaps,
+            ..ReadOptions::default()
+        };
+        parse(Path::new("x.csv"), text.as_bytes(), &opts)
+    }
+
+    fn err(text: &str) -> String {
+        read(text, Gaps::Reject).unwrap_err().to_string()
+    }
+
+    /// `n` rows at `dt`, pressure = k, displacement = 2k.
+    fn uniform_text(n: usize, dt: f64) -> String {
+        let mut s = String::from("t,pressure,displacement\n");
+        for k in 0..n {
+            s += &format!("{},{},{}\n", k as f64 * dt, k, 2 * k);
+        }
+        s
+    }
+
+    #[test]
+    fn reads_comments_blank_lines_and_extra_columns() {
+        let text = "\u{feff}# made by a test\n#second\r\n\n\"t\", valve_in ,pressure,displacement,label\n\
+                    0,1,0.1,5,a\n \n0.5,2,0.2,6,b\n1.0,3,0.3,7,c";
+        let (traces, notes) = read(text, Gaps::Reject).unwrap();
+        let tr = &traces[0];
+        assert_eq!(tr.t, [0.0, 0.5, 1.0]);
+        assert_eq!(tr.input, [0.1, 0.2, 0.3]);
+        assert_eq!(tr.output, [5.0, 6.0, 7.0]);
+        assert_eq!(tr.extra, [("valve_in".to_string(), vec![1.0, 2.0, 3.0])]);
+        assert_eq!(tr.source, "x.csv");
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].contains("\"label\""));
+        let msg = err("# a\n\nt,pressure,displacement\n\n0,1,2\r\n\n# b\n1,x,3\n");
+        assert!(
+            msg.starts_with("x.csv: line 8, column \"pressure\""),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn selects_columns_by_name() {
+        let text = "time,a,b\n0,1,2\n1,3,4\n";
+        let opts = ReadOptions {
+            time: "time".into(),
+            input: "b".into(),
+            output: "a".into(),
+            gaps: Gaps::Reject,
+        };
+        let tr = &parse(Path::new("y.csv"), text.as_bytes(), &opts).unwrap().0[0];
+        assert_eq!(
+            (tr.input_name.as_str(), tr.output_name.as_str()),
+            ("b", "a")
+        );
+        assert_eq!(
+            (tr.input.clone(), tr.output.clone()),
+            (vec![2.0, 4.0], vec![1.0, 3.0])
+        );
+    }
+
+    #[test]
+    fn every_malformed_input_names_file_line_and_column() {
+        let cases: &[(&str, &[&str])] = &[
+            (
+                "# c\nt,pressure,disp\n0,1,2\n1,1,2\n",
+                &[
+                    "x.csv: line 2",
+                    "no output column \"displacement\"",
+                    "\"t\", \"pressure\", \"disp\"",
+                    "--output COL",
+                ],
+            ),
+            (
+                "t,pressure,displacement\n0,1,2\n1,abc,2\n",
+                &["x.csv: line 3, column \"pressure\": \"abc\" is not a number"],
+            ),
+            (
+                "t,pressure,displacement\n0,1,2\n1,2,\n",
+                &["x.csv: line 3, column \"displacement\": \"\" is not a number"],
+            ),
+            (
+                "t,pressure,displacement\n0,1,2\n1,2,NaN\n",
+                &["x.csv: line 3, column \"displacement\": \"NaN\" is not finite"],
+            ),
+            (
+                "t,pressure,displacement,load_kg\n0,1,2,3\n1,1,2,inf\n",
+                &["x.csv: line 3, column \"load_kg\": \"inf\" is not finite"],
+            ),
+            (
+                "t,pressure,displacement,load_kg\n0,1,2,3\n1,1,2,x\n",
+                &["x.csv: line 3, column \"load_kg\": \"x\" is not a number"],
+            ),
+            ("", &["x.csv: the file is empty"]),
+            ("# only a comment\n\n", &["x.csv: the file is empty"]),
+            (
+                "# c\nt,pressure,displacement\n",
+                &["x.csv: line 2: a header row but 0 data rows"],
+            ),
+            (
+                "t,pressure,displacement\n0,1,2\n1,2\n",
+                &["x.csv: line 3: 2 fields, but the header on line 1 has 3"],
+            ),
+            (
+                "t,pressure,displacement\n0,1,2\n1,1,2\n1,1,2\n",
+                &["x.csv: line 4, column \"t\": time 1 does not increase (previous row: 1)"],
+            ),
+            (
+                "t,pressure,displacement\n0,1,2\n1,1,2\n2,1,2\n5,1,2\n6,1,2\n",
+                &[
+                    "x.csv: line 5, column \"t\": non-uniform time base: step 3 s, expected 1 s",
+                    "--resample DT",
+                    "--split-gaps",
+                ],
+            ),
+            (
+                "t,t,displacement\n0,1,2\n",
+                &["x.csv: line 1: column \"t\" appears twice"],
+            ),
+        ];
+        for (text, wanted) in cases {
+            let msg = err(text);
+            for w in *wanted {
+                assert!(msg.contains(w), "input {text:?}\nmessage {msg}\nlacks {w}");
+            }
+        }
+    }
+
+    #[test]
+    fn jitter_within_tolerance_is_uniform() {
+        let text = "t,pressure,displacement\n0,0,0\n0.0105,1,1\n0.0198,2,2\n0.03,3,3\n0.04,4,4\n";
+        assert_eq!(read(text, Gaps::Reject).unwrap().0[0].len(), 5);
+        let text = "t,pressure,displacement\n0,0,0\n0.0115,1,1\n0.02,2,2\n0.03,3,3\n";
+        assert!(err(text).contains("line 3"));
+    }
+
+    #[test]
+    fn resample_interpolates_every_column_onto_the_grid() {
+        // A gap between t = 2 and t = 4; values linear in t, so interpolation is exact.
+        let text = "t,pressure,displacement,valve_in\n0,0,0,0\n1,1,10,5\n2,2,20,10\n4,4,40,20\n5,5,50,25\n";
+        let tr = &read(text, Gaps::Resample(0.5)).unwrap().0[0];
+        let want: Vec<f64> = (0..=10).map(|k| k as f64 * 0.5).collect();
+        assert_eq!(tr.t, want);
+        assert_eq!(tr.input, want);
+        let ten: Vec<f64> = want.iter().map(|v| v * 10.0).collect();
+        assert_eq!(tr.output, ten);
+        assert_eq!(tr.column("valve_in").unwrap()[9], 22.5);
+        assert!(read(text, Gaps::Resample(0.0)).is_err());
+        assert!(
+            read(text, Gaps::Resample(10.0))
+                .unwrap_err()
+                .to_string()
+                .contains("less than one step")
+        );
+    }
+
+    #[test]
+    fn split_cuts_at_gaps_and_drops_short_segments() {
+        // 30 samples, a gap, 5 samples (dropped), a gap, 25 samples.
+        let mut s = String::from("t,pressure,displacement\n");
+        let times = (0..30)
+            .map(|k| k as f64)
+            .chain((0..5).map(|k| 100.0 + k as f64))
+            .chain((0..25).map(|k| 200.0 + k as f64));
+        for (k, t) in times.enumerate() {
+            s += &format!("{t},{k},0\n");
+        }
+        let (traces, notes) = read(&s, Gaps::Split).unwrap();
+        assert_eq!(traces.len(), 2);
+        assert_eq!((traces[0].len(), traces[1].len()), (30, 25));
+        assert_eq!(
+            (traces[0].source.as_str(), traces[1].source.as_str()),
+            ("x.csv[1]", "x.csv[3]")
+        );
+        assert_eq!((traces[1].t[0], traces[1].input[0]), (200.0, 35.0));
+        assert_eq!(
+            notes,
+            ["x.csv: 1 of 3 segments shorter than 20 samples dropped"]
+        );
+        // No gap: one trace under the file's own name.
+        let one = read(&uniform_text(30, 0.01), Gaps::Split).unwrap().0;
+        assert_eq!((one.len(), one[0].source.as_str()), (1, "x.csv"));
+        // A segment that is non-uniform inside is still an error.
+        let mut bad = uniform_text(30, 1.0);
+        bad += "29.7,0,0\n";
+        let bad = bad.replace("29,29,58\n", "29.3,29,58\n");
+        assert!(
+            read(&bad, Gaps::Split)
+                .unwrap_err()
+                .to_string()
+                .contains("non-uniform")
+        );
+        // Nothing long enough: an error.
+        let short = read(&uniform_text(5, 1.0), Gaps::Split)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            short.contains("all 1 segments are shorter than 20"),
+            "{short}"
+        );
+    }
+
+    #[test]
+    fn write_then_read_round_trips_bit_for_bit() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("out/trace.csv");
+        let mut tr = Trace::uniform(
+            "gen",
+            0.01,
+            vec![0.1, 1.0 / 3.0, -2.5e-7],
+            vec![1e12, 0.0, -0.0],
+        );
+        tr.extra
+            .push(("valve_in".into(), vec![f64::MIN_POSITIVE, 7.0, 0.3]));
+        write_trace_with_comments(&p, &tr, &["mckibben simulate\nsecond line".into()]).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        assert!(bytes.starts_with(
+            b"# mckibben simulate\n# second line\nt,pressure,displacement,valve_in\n0,0.1,"
+        ));
+        let back = &read_traces(&p, &ReadOptions::default()).unwrap()[0];
+        assert_eq!(
+            (&back.t, &back.input, &back.output, &back.extra),
+            (&tr.t, &tr.input, &tr.output, &tr.extra)
+        );
+        write_trace_with_comments(&p, &tr, &["mckibben simulate\nsecond line".into()]).unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), bytes, "same trace, same bytes");
+    }
+
+    #[test]
+    fn writing_refuses_what_could_not_be_read_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.csv");
+        let tr = Trace::uniform("gen", 1.0, vec![0.0, f64::NAN], vec![0.0, 1.0]);
+        let msg = write_trace(&p, &tr).unwrap_err().to_string();
+        assert!(
+            msg.contains("line 3, column \"pressure\": \"NaN\" is not finite"),
+            "{msg}"
+        );
+        let mut tr = Trace::uniform("gen", 1.0, vec![0.0, 1.0], vec![0.0, 1.0]);
+        tr.extra.push(("a,b".into(), vec![0.0, 0.0]));
+        assert!(write_trace(&p, &tr).is_err());
+        tr.extra[0] = ("short".into(), vec![0.0]);
+        assert!(
+            write_trace(&p, &tr)
+                .unwrap_err()
+                .to_string()
+                .contains("\"short\" has 1 values")
+        );
+        assert!(!p.exists());
+    }
+
+    #[test]
+    fn missing_file_names_the_path() {
+        let msg = read_traces(Path::new("no/such.csv"), &ReadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(msg.starts_with("no/such.csv: "), "{msg}");
+    }
+}

@@ -1,0 +1,360 @@
+//! The twin's settings: one struct per physical part, every parameter named
+//! with its unit, value and where the value comes from; and the switches
+//! (`Effects`) that scale or remove each non-ideal effect.
+//!
+//! The thesis gives almost no rig data (tap water, two proportional valves
+//! driven 0–10 V, a dSPACE DS1104, loads of 4.5 and 7 kg, displacements of
+//! 20–40 mm in the PI runs). Everything else is an engineering assumption,
+//! said so in each doc comment and collected in `docs/TWIN.md`.
+
+use serde::{Deserialize, Serialize};
+
+use crate::model::static_force::Braid;
+
+/// Standard gravity (m/s²).
+pub const GRAVITY: f64 = 9.80665;
+
+/// The two proportional valves (input: supply → muscle; output: muscle → drain).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ValveParams {
+    /// Full-scale command (V). Thesis §4.3.1: 0–10 V.
+    pub full_scale_v: f64,
+    /// Dead band (V): below this command the spool overlap keeps the valve
+    /// shut. Assumption: 0.8 V, i.e. 8 % of the stroke, within the 5–20 %
+    /// overlap typical of low-cost proportional valves.
+    pub deadband_v: f64,
+    /// Time constant of the spool's first-order lag (s). Assumption: 30 ms,
+    /// the order of the −90° bandwidth (5–10 Hz) of small direct-acting
+    /// proportional valves.
+    pub spool_tau_s: f64,
+    /// Orifice area at full opening (m²). Assumption: 12 mm², a 3.9 mm bore;
+    /// chosen so the stair's steps settle in about 1 s, as the thesis' pole
+    /// 0.9618 suggests (docs/TWIN.md).
+    pub area_max_m2: f64,
+    /// Discharge coefficient of the orifice, 0.61 (sharp-edged orifice;
+    /// Merritt, *Hydraulic Control Systems*, 1967, §3.2).
+    pub discharge_coefficient: f64,
+    /// Pressure drop (Pa) below which the flow is taken as laminar (linear in
+    /// the drop) so that the flow law has a finite slope at zero drop.
+    /// Assumption: 2 kPa; it only rounds the corner of `√Δp`.
+    pub laminar_dp_pa: f64,
+}
+
+impl Default for ValveParams {
+    fn default() -> Self {
+        ValveParams {
+            full_scale_v: 10.0,
+            deadband_v: 0.8,
+            spool_tau_s: 0.03,
+            area_max_m2: 12e-6,
+            discharge_coefficient: 0.61,
+            laminar_dp_pa: 2e3,
+        }
+    }
+}
+
+/// The water path: supply, drain, hose volume and compliance.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct HydraulicParams {
+    /// Tap supply, gauge (Pa). Thesis: tap water; municipal mains deliver
+    /// 0.3–0.5 MPa gauge. Assumption: 0.4 MPa.
+    pub supply_pa: f64,
+    /// Drain pressure, gauge (Pa): open to atmosphere, 0.
+    pub drain_pa: f64,
+    /// Water density (kg/m³) at 20 °C: 998.
+    pub density: f64,
+    /// Bulk modulus of water (Pa) at 20 °C: 2.2 GPa.
+    pub bulk_modulus_water: f64,
+    /// Volume of the hose between the valves and the muscle (m³).
+    /// Assumption: 1.5 m of 8 mm bore hose, 75 ml.
+    pub hose_volume_m3: f64,
+    /// Compliance of the hose wall and bladder (m³/Pa), the volume they take
+    /// up per pascal. Assumption: hose volume / 50 MPa, the effective bulk
+    /// modulus of a water-filled reinforced PVC hose (Merritt §3.5 gives
+    /// effective moduli of 10–700 MPa for hoses); it lowers the effective
+    /// bulk modulus of the water column from 2.2 GPa to about 50 MPa.
+    pub hose_compliance_m3_per_pa: f64,
+}
+
+impl Default for HydraulicParams {
+    fn default() -> Self {
+        let hose_volume_m3 = 1.5 * std::f64::consts::PI * 0.004 * 0.004;
+        HydraulicParams {
+            supply_pa: 0.4e6,
+            drain_pa: 0.0,
+            density: 998.0,
+            bulk_modulus_water: 2.2e9,
+            hose_volume_m3,
+            hose_compliance_m3_per_pa: hose_volume_m3 / 50e6,
+        }
+    }
+}
+
+/// The muscle: braid geometry (eq. 1–9) and rubber elasticity.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MuscleParams {
+    /// The braid: `crate::model::static_force::Braid::default()` (b = 0.35 m,
+    /// n = 3, t_k = 1.5 mm), the project's one description of the muscle.
+    pub braid: Braid,
+    /// Braid angle at the rubber's natural length, no load, no pressure (rad).
+    /// Assumption: 20°, which puts the natural length at 0.329 m and the
+    /// diameter at 12.7 mm, the size of the Kobayashi–Ito tap-water muscles.
+    pub natural_angle_rad: f64,
+    /// Axial stiffness of the rubber tube (N/m): its elastic force is
+    /// `k·(L − L_nat)`, a tension when stretched. Assumption: 5 kN/m, chosen
+    /// so the muscle contracts about 45 mm at 0.4 MPa under 4.5 kg, which
+    /// covers the thesis' 20–40 mm PI reference with margin.
+    pub rubber_stiffness_n_per_m: f64,
+    /// Viscous damping of the rubber and the water in the braid (N·s/m).
+    /// Assumption: 100 N·s/m (damping ratio ≈ 0.3 of the load on the rubber).
+    pub damping_n_s_per_m: f64,
+}
+
+impl Default for MuscleParams {
+    fn default() -> Self {
+        MuscleParams {
+            braid: Braid::default(),
+            natural_angle_rad: 20f64.to_radians(),
+            rubber_stiffness_n_per_m: 5e3,
+            damping_n_s_per_m: 100.0,
+        }
+    }
+}
+
+/// Braid friction as Maxwell-slip elements (Lazan 1968; Vo-Minh et al. 2011
+/// for McKibben muscles): springs in parallel, each in series with a Coulomb
+/// slider. The sum gives rate-independent hysteresis with a smooth
+/// pre-sliding transition. The threads are pressed together by the bladder,
+/// so each slider's break-away force grows with pressure (Tondu & Lopez 2000).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FrictionParams {
+    /// Total break-away force at zero gauge pressure (N). Assumption: 3 N.
+    pub break_force_n: f64,
+    /// Increase of the total break-away force per MPa (N/MPa). Assumption:
+    /// 40 N/MPa, i.e. 19 N at 0.4 MPa, about 7 % of the pressure force there,
+    /// within the 5–15 % hysteresis of braided muscles reported by Tondu & Lopez.
+    pub break_force_per_mpa: f64,
+    /// Pre-sliding deflection of each element (m): element `i` slips after
+    /// this travel. Assumption: 0.2, 0.6, 1.5 and 3 mm, spread so the loop
+    /// corners are rounded like the thesis' figure 4.
+    pub slip_deflection_m: Vec<f64>,
+}
+
+impl Default for FrictionParams {
+    fn default() -> Self {
+        FrictionParams {
+            break_force_n: 3.0,
+            break_force_per_mpa: 40.0,
+            slip_deflection_m: vec![0.2e-3, 0.6e-3, 1.5e-3, 3e-3],
+        }
+    }
+}
+
+/// The hanging load's travel limits.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EndStopParams {
+    /// Lowest position: contraction (m, negative = extension) at which the
+    /// load lands on its support. Assumption: −5 mm.
+    pub min_contraction_m: f64,
+    /// Highest position: contraction (m) at which the load hits the upper
+    /// bracket. Assumption: 48 mm.
+    pub max_contraction_m: f64,
+    /// Contact stiffness (N/m). Assumption: 2 MN/m (a rubber-padded stop).
+    pub stiffness_n_per_m: f64,
+    /// Contact damping (N·s/m). Assumption: 2 kN·s/m, near critical for 4.5 kg.
+    pub damping_n_s_per_m: f64,
+}
+
+impl Default for EndStopParams {
+    fn default() -> Self {
+        EndStopParams {
+            min_contraction_m: -5e-3,
+            max_contraction_m: 48e-3,
+            stiffness_n_per_m: 2e6,
+            damping_n_s_per_m: 2e3,
+        }
+    }
+}
+
+/// Displacement and pressure sensors, read by the DS1104's ADC.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SensorParams {
+    /// Displacement noise, standard deviation (mm). Assumption: 0.03 mm, a
+    /// linear potentiometer read over a 0.5 m cable.
+    pub displacement_noise_mm: f64,
+    /// Displacement quantization step (mm): a 100 mm range on the DS1104's
+    /// 12-bit parallel ADC channels, 100/4096 mm.
+    pub displacement_step_mm: f64,
+    /// Pressure noise, standard deviation (MPa). Assumption: 0.002 MPa,
+    /// 0.2 % of a 1 MPa transducer's span.
+    pub pressure_noise_mpa: f64,
+    /// Pressure quantization step (MPa): a 1 MPa transducer on a 12-bit
+    /// channel, 1/4096 MPa.
+    pub pressure_step_mpa: f64,
+}
+
+impl Default for SensorParams {
+    fn default() -> Self {
+        SensorParams {
+            displacement_noise_mm: 0.03,
+            displacement_step_mm: 100.0 / 4096.0,
+            pressure_noise_mpa: 0.002,
+            pressure_step_mpa: 1.0 / 4096.0,
+        }
+    }
+}
+
+/// The names accepted by `--effect NAME=VALUE`, in the order `--help` lists them.
+pub const EFFECT_NAMES: [&str; 8] = [
+    "friction",
+    "deadband",
+    "spool_lag",
+    "compliance",
+    "endstop",
+    "noise",
+    "quantization",
+    "thickness",
+];
+
+/// One non-ideal effect: a scale on its nominal size (1 = as documented,
+/// 0 = size zero but still computed) or removed from the model altogether
+/// (the code path skipped). A scale of 0 must give exactly the trace of the
+/// removed effect; `tests/twin.rs` checks that for every effect.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Effect {
+    pub scale: f64,
+    pub present: bool,
+}
+
+impl Default for Effect {
+    fn default() -> Self {
+        Effect {
+            scale: 1.0,
+            present: true,
+        }
+    }
+}
+
+impl Effect {
+    /// The scale if the effect is in the model, `None` if removed.
+    pub fn active(&self) -> Option<f64> {
+        self.present.then_some(self.scale)
+    }
+}
+
+/// The switches of every non-ideal effect.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Effects {
+    /// Braid friction: scales the break-away forces of the Maxwell-slip elements.
+    pub friction: Effect,
+    /// Valve dead band: scales its width.
+    pub deadband: Effect,
+    /// Valve spool lag: scales its time constant.
+    pub spool_lag: Effect,
+    /// Hose and bladder compliance: scales it (0 leaves water's own bulk modulus).
+    pub compliance: Effect,
+    /// End stops: scale their contact stiffness and damping.
+    pub endstop: Effect,
+    /// Sensor noise: scales both standard deviations.
+    pub noise: Effect,
+    /// Sensor quantization: scales both steps.
+    pub quantization: Effect,
+    /// Wall thickness t_k of eq. 8–9: scales it (0 gives the ideal eq. 7).
+    pub thickness: Effect,
+}
+
+impl Effects {
+    fn get_mut(&mut self, name: &str) -> Option<&mut Effect> {
+        Some(match name {
+            "friction" => &mut self.friction,
+            "deadband" => &mut self.deadband,
+            "spool_lag" => &mut self.spool_lag,
+            "compliance" => &mut self.compliance,
+            "endstop" => &mut self.endstop,
+            "noise" => &mut self.noise,
+            "quantization" => &mut self.quantization,
+            "thickness" => &mut self.thickness,
+            _ => return None,
+        })
+    }
+
+    /// Sets the scale of effect `name`; an error names the unknown effect
+    /// and lists the known ones, or rejects a negative or non-finite scale.
+    pub fn set(&mut self, name: &str, scale: f64) -> Result<(), String> {
+        if !scale.is_finite() || scale < 0.0 {
+            return Err(format!(
+                "effect {name}: scale must be a finite number ≥ 0 (got {scale})"
+            ));
+        }
+        let e = self.get_mut(name).ok_or_else(|| {
+            format!(
+                "unknown effect `{name}`; known: {}",
+                EFFECT_NAMES.join(", ")
+            )
+        })?;
+        e.scale = scale;
+        Ok(())
+    }
+
+    /// Removes effect `name` from the model (its code path is skipped).
+    pub fn remove(&mut self, name: &str) -> Result<(), String> {
+        let e = self.get_mut(name).ok_or_else(|| {
+            format!(
+                "unknown effect `{name}`; known: {}",
+                EFFECT_NAMES.join(", ")
+            )
+        })?;
+        e.present = false;
+        Ok(())
+    }
+
+    /// Parses `NAME=VALUE` as given to `--effect`.
+    pub fn apply_arg(&mut self, arg: &str) -> Result<(), String> {
+        let (name, value) = arg
+            .split_once('=')
+            .ok_or_else(|| format!("--effect {arg}: expected NAME=VALUE, e.g. friction=0"))?;
+        let scale: f64 = value
+            .trim()
+            .parse()
+            .map_err(|_| format!("--effect {arg}: `{value}` is not a number"))?;
+        self.set(name.trim(), scale)
+    }
+}
+
+/// Everything the twin needs besides the load and the seed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TwinConfig {
+    /// Sample time of the controller board (s). The thesis runs its Simulink
+    /// model on a DS1104 and prints no sample time; 10 ms is assumed (the
+    /// thesis' pole 0.9618 then means a 0.26 s time constant, plausible for
+    /// the rig). The issue fixes 10 ms.
+    pub sample_time_s: f64,
+    /// Integration substeps per sample. 200 (50 µs): the stiffest mode is the
+    /// load on the water column, ω ≈ 2.8e3 rad/s when the hose compliance is
+    /// switched off (see docs/TWIN.md), and symplectic Euler needs ω·h < 2;
+    /// 50 µs gives ω·h ≈ 0.14 in that worst case.
+    pub substeps: usize,
+    pub valve: ValveParams,
+    pub hydraulics: HydraulicParams,
+    pub muscle: MuscleParams,
+    pub friction: FrictionParams,
+    pub endstop: EndStopParams,
+    pub sensors: SensorParams,
+    pub effects: Effects,
+}
+
+impl Default for TwinConfig {
+    fn default() -> Self {
+        TwinConfig {
+            sample_time_s: 0.01,
+            substeps: 200,
+            valve: ValveParams::default(),
+            hydraulics: HydraulicParams::default(),
+            muscle: MuscleParams::default(),
+            friction: FrictionParams::default(),
+            endstop: EndStopParams::default(),
+            sensors: SensorParams::default(),
+            effects: Effects::default(),
+        }
+    }
+}

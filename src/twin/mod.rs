@@ -1,0 +1,224 @@
+//! The rig twin: a physically based simulator of the thesis' tap-water
+//! McKibben rig (chapters 3, 4.2, 6.1), the stand-in for the real rig.
+//!
+//! Parts, one module each: [`valve`] (two proportional valves, dead band,
+//! spool lag, orifice flow), [`chamber`] (water pressure with bulk modulus
+//! and hose compliance), [`muscle`] (eq. 1–9 geometry and force, rubber
+//! elasticity), [`friction`] (Maxwell-slip braid friction), [`load`] (the
+//! hanging mass and its end stops), [`sensors`] (noise and quantization),
+//! [`experiment`] (the stair, sine and multisine runs), [`config`] (every
+//! parameter and the effect switches).
+//!
+//! Units at the interface: valve commands in volts (0–10), pressure in MPa
+//! gauge, displacement in mm, contraction positive, measured from the rest
+//! length at zero gauge pressure with the load hanging.
+//!
+//! ```
+//! use mckibben::twin::{Rig, TwinConfig};
+//! let mut rig = Rig::new(&TwinConfig::default(), 4.5, 1);
+//! let s = rig.step(10.0);
+//! assert!((s.t - rig.dt()).abs() < 1e-12 && s.valve_out == 0.0);
+//! ```
+
+pub mod chamber;
+pub mod config;
+pub mod experiment;
+pub mod friction;
+pub mod load;
+pub mod muscle;
+pub mod sensors;
+pub mod valve;
+
+pub use config::{EFFECT_NAMES, Effect, Effects, TwinConfig};
+pub use experiment::{Experiment, run};
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use chamber::PressureStep;
+use config::GRAVITY;
+use friction::MaxwellSlip;
+use load::Load;
+use muscle::Muscle;
+use valve::Valve;
+
+/// One sample as the controller board sees it: the valve commands held from
+/// this instant and the sensors' readings at it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Sample {
+    /// Time (s).
+    pub t: f64,
+    /// Input-valve command (V, 0–10, after clamping).
+    pub valve_in: f64,
+    /// Output-valve command, `10 − valve_in` (V).
+    pub valve_out: f64,
+    /// Measured chamber pressure (MPa gauge), with sensor noise and quantization.
+    pub pressure_mpa: f64,
+    /// Measured displacement (mm, contraction positive), with noise and quantization.
+    pub displacement_mm: f64,
+}
+
+/// The true (noise-free) state, for tests and diagnostics.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TrueState {
+    pub t: f64,
+    /// Chamber pressure (Pa gauge).
+    pub pressure_pa: f64,
+    /// Contraction (m).
+    pub contraction_m: f64,
+    /// Contraction rate (m/s).
+    pub velocity_m_s: f64,
+    /// Muscle length (m).
+    pub length_m: f64,
+}
+
+/// The simulated rig under one load, advanced one sample at a time.
+#[derive(Debug, Clone)]
+pub struct Rig {
+    config: TwinConfig,
+    muscle: Muscle,
+    load: Load,
+    friction: MaxwellSlip,
+    valve_in: Valve,
+    valve_out: Valve,
+    pressure_pa: f64,
+    command_v: f64,
+    steps: u64,
+    rng: ChaCha8Rng,
+}
+
+impl Rig {
+    /// The rig at rest: load hanging, chamber at atmospheric pressure, input
+    /// valve commanded shut (0 V) and output valve open (10 V). `seed` seeds
+    /// the sensor noise (`ChaCha8Rng`); nothing else is random.
+    pub fn new(config: &TwinConfig, load_kg: f64, seed: u64) -> Rig {
+        let full = config.valve.full_scale_v;
+        Rig {
+            config: config.clone(),
+            muscle: Muscle::new(&config.muscle, load_kg, &config.effects),
+            load: Load {
+                mass_kg: load_kg,
+                x: 0.0,
+                v: 0.0,
+            },
+            friction: MaxwellSlip::new(&config.friction),
+            valve_in: Valve::at(0.0),
+            valve_out: Valve::at(full),
+            pressure_pa: config.hydraulics.drain_pa,
+            command_v: 0.0,
+            steps: 0,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+        }
+    }
+
+    /// The sample time (s).
+    pub fn dt(&self) -> f64 {
+        self.config.sample_time_s
+    }
+
+    /// The configuration the rig runs with.
+    pub fn config(&self) -> &TwinConfig {
+        &self.config
+    }
+
+    /// The hanging load (kg).
+    pub fn load_kg(&self) -> f64 {
+        self.load.mass_kg
+    }
+
+    /// The muscle model under this load.
+    pub fn muscle(&self) -> &Muscle {
+        &self.muscle
+    }
+
+    /// Time now (s).
+    pub fn time(&self) -> f64 {
+        self.steps as f64 * self.config.sample_time_s
+    }
+
+    /// The true state now.
+    pub fn true_state(&self) -> TrueState {
+        TrueState {
+            t: self.time(),
+            pressure_pa: self.pressure_pa,
+            contraction_m: self.load.x,
+            velocity_m_s: self.load.v,
+            length_m: self.muscle.length(self.load.x),
+        }
+    }
+
+    /// Reads the sensors now (one noise draw per sensor: pressure, then displacement).
+    pub fn measure(&mut self) -> Sample {
+        let cfg = &self.config;
+        let pressure_mpa =
+            sensors::pressure_mpa(self.pressure_pa, &cfg.sensors, &mut self.rng, &cfg.effects);
+        let displacement_mm =
+            sensors::displacement_mm(self.load.x, &cfg.sensors, &mut self.rng, &cfg.effects);
+        Sample {
+            t: self.time(),
+            valve_in: self.command_v,
+            valve_out: cfg.valve.full_scale_v - self.command_v,
+            pressure_mpa,
+            displacement_mm,
+        }
+    }
+
+    /// Holds the input-valve command `valve_in_volts` (clamped to 0–10 V; the
+    /// output valve gets `10 − u`) for one sample period, then reads the
+    /// sensors: the returned sample is at the end of the period.
+    pub fn step(&mut self, valve_in_volts: f64) -> Sample {
+        self.advance(valve_in_volts);
+        self.measure()
+    }
+
+    /// Holds the command for one sample period without reading the sensors.
+    pub fn advance(&mut self, valve_in_volts: f64) {
+        let full = self.config.valve.full_scale_v;
+        let u = if valve_in_volts.is_nan() {
+            0.0
+        } else {
+            valve_in_volts.clamp(0.0, full)
+        };
+        self.command_v = u;
+        let n = self.config.substeps.max(1);
+        let h = self.config.sample_time_s / n as f64;
+        for _ in 0..n {
+            self.substep(u, full - u, h);
+        }
+        self.steps += 1;
+    }
+
+    /// One integration substep of length `h`: spools, then the load
+    /// (forces at the current pressure), then the pressure implicitly with
+    /// the load's new velocity.
+    fn substep(&mut self, u_in: f64, u_out: f64, h: f64) {
+        let cfg = &self.config;
+        let fx = &cfg.effects;
+        self.valve_in.advance(u_in, h, &cfg.valve, fx);
+        self.valve_out.advance(u_out, h, &cfg.valve, fx);
+
+        let x = self.load.x;
+        let p = self.pressure_pa;
+        let weight = self.load.mass_kg * GRAVITY;
+        let spring = self.muscle.pressure_force(p, x) + self.muscle.rubber_tension(x) - weight;
+        let friction = self.friction.current_force(p, &cfg.friction, fx);
+        let stop = load::stop_force(x, self.load.v, &cfg.endstop, fx);
+        let damping = -cfg.muscle.damping_n_s_per_m * self.load.v;
+        let dx = self.load.advance(spring + friction + stop + damping, h);
+        self.friction.slide(dx, fx);
+
+        let x = self.load.x;
+        self.pressure_pa = PressureStep {
+            p,
+            dt: h,
+            capacitance: chamber::capacitance(self.muscle.volume(x), &cfg.hydraulics, fx),
+            open_in: self.valve_in.opening(&cfg.valve, fx),
+            open_out: self.valve_out.opening(&cfg.valve, fx),
+            volume_rate: self.muscle.effective_area(x) * self.load.v,
+            valve: &cfg.valve,
+            hydraulics: &cfg.hydraulics,
+        }
+        .solve();
+    }
+}
