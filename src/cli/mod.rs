@@ -1,6 +1,7 @@
 //! Argument parsing and the dispatch to each command.
 
 mod common;
+mod control;
 mod identify;
 mod static_force;
 
@@ -25,12 +26,14 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    Control(control::Args),
     Identify(identify::Args),
     Static(static_force::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Control(args) => control::run(args),
         Command::Identify(args) => identify::run(args),
         Command::Static(args) => static_force::run(args),
     }

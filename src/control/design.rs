@@ -194,3 +194,39 @@ pub fn fit_one_step(trace: &Trace) -> anyhow::Result<OneStepFit> {
         one_step_rmse_mm: rmse,
     })
 }
+
+/// Identifies a [`ControlModel`] from an open-loop record that carries the
+/// input valve voltage (`valve_in` column) besides pressure and displacement
+/// (e.g. the twin's stair): the one-step displacement fit and the valve model.
+pub fn identify(trace: &Trace) -> anyhow::Result<(ControlModel, OneStepFit)> {
+    let valve = trace.column("valve_in").ok_or_else(|| {
+        anyhow::anyhow!(
+            "{}: no `valve_in` column; the valve → pressure model needs the input valve voltage",
+            trace.source
+        )
+    })?;
+    let fit = fit_one_step(trace)?;
+    let valve = ValveModel::identify(&trace.source, valve, &trace.input)?;
+    Ok((
+        ControlModel {
+            displacement: fit.model.clone(),
+            valve,
+        },
+        fit,
+    ))
+}
+
+/// The model with every hysteresis parameter (`A`, `α`, the `β`s, `γ`; not
+/// `n` nor the linear part) multiplied by `factor`, `α` kept within [0, 1]:
+/// the robustness runs' "±20 % error in the hysteresis parameters".
+pub fn scale_hysteresis(model: &FittedModel, factor: f64) -> FittedModel {
+    let mut out = model.clone();
+    let hyst = out.family.dim().saturating_sub(4); // before n, a, b, c
+    for (i, v) in out.params.iter_mut().enumerate().take(hyst) {
+        *v *= factor;
+        if out.family.params()[i].name == "alpha" {
+            *v = v.clamp(0.0, 1.0);
+        }
+    }
+    out
+}

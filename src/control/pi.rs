@@ -2,14 +2,22 @@
 //! with anti-windup at the valve limits.
 //!
 //! Units: the gains map millimetres of error to volts of input valve command,
-//! as in the thesis' Simulink loop (Table 22): `Kp` in V/mm, `Ki` in V/(mm·s),
-//! `Kd` in V·s/mm.
+//! as in the thesis' loop (Table 22): `Kp` in V/mm, `Ki` in V/(mm·s), `Kd` in
+//! V·s/mm.
+//!
+//! Table 22's `Ki = 0.05` is read per sample, `u = Kp·e + Ki·Σe` (5 V/(mm·s)
+//! at 10 ms), as the twin's own sine experiment does
+//! (`twin::experiment::ThesisPi`): read per second, the integral action would
+//! be a hundred times too slow for the precise 1 rad/s tracking of figure 27.
 
 use serde::{Deserialize, Serialize};
 
 use super::closed_loop::Controller;
 use super::limits::ValveLimits;
 use super::plant::Measurement;
+
+/// The sample time of the thesis' loop (s), which Table 22's `Ki` is per.
+pub const THESIS_SAMPLE_TIME_S: f64 = 0.01;
 
 /// PID gains.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -23,11 +31,12 @@ pub struct PiGains {
 }
 
 impl Default for PiGains {
-    /// Table 22 (the thesis' gains, 4.5 kg): Kp 0.06875, Ki 0.05, Kd 0.
+    /// Table 22 (the thesis' gains, 4.5 kg): Kp 0.06875 V/mm, Ki 0.05 V/mm
+    /// per 10 ms sample (5 V/(mm·s)), Kd 0.
     fn default() -> Self {
         PiGains {
             kp: 0.06875,
-            ki: 0.05,
+            ki: 0.05 / THESIS_SAMPLE_TIME_S,
             kd: 0.0,
         }
     }
@@ -124,9 +133,9 @@ mod tests {
             prev = u;
         }
         assert_eq!(prev, 10.0);
-        // Saturated from the first sample on (Kp·100 mm already exceeds the
-        // range): the integrator never moved. Without anti-windup it would
-        // hold 5 + 0.05·100·100 = 505 V.
+        // Saturated from the first sample on (the slew limit holds the
+        // command back): the integrator never moved. Without anti-windup it
+        // would hold 5 + 0.05·100·10 000 V.
         assert_eq!(pi.integral(), 5.0);
         // The reference comes back below the output: the command leaves the
         // limit within a few samples instead of unwinding for seconds.
@@ -146,10 +155,10 @@ mod tests {
     fn integrates_error_with_table_22_gains() {
         let mut pi = Pi::new(PiGains::default(), ValveLimits::default(), 0.01, "pi");
         pi.reset(5.0);
-        // A constant 1 mm error: P gives Kp, the integrator adds Ki·dt per sample.
+        // A constant 1 mm error: P gives Kp, the integrator adds 0.05 V per sample.
         let u1 = pi.command(meas(29.0), &[30.0]);
         assert!((u1 - (5.0 + 0.06875)).abs() < 1e-12);
         let u2 = pi.command(meas(29.0), &[30.0]);
-        assert!((u2 - (5.0 + 0.05 * 0.01 + 0.06875)).abs() < 1e-12);
+        assert!((u2 - (5.0 + 0.05 + 0.06875)).abs() < 1e-12);
     }
 }

@@ -109,3 +109,18 @@ impl Plant for StandIn {
         }
     }
 }
+
+/// The rig twin is the plant of record.
+impl Plant for crate::twin::Rig {
+    fn dt(&self) -> f64 {
+        crate::twin::Rig::dt(self)
+    }
+
+    fn step(&mut self, valve_in_volts: f64) -> Measurement {
+        let s = crate::twin::Rig::step(self, valve_in_volts);
+        Measurement {
+            pressure_mpa: s.pressure_mpa,
+            displacement_mm: s.displacement_mm,
+        }
+    }
+}
