@@ -4,6 +4,7 @@ mod common;
 mod control;
 mod identify;
 mod static_force;
+mod twin;
 
 use clap::{Parser, Subcommand};
 
@@ -29,6 +30,7 @@ pub enum Command {
     Control(control::Args),
     Identify(identify::Args),
     Static(static_force::Args),
+    Twin(twin::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
@@ -36,5 +38,6 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Control(args) => control::run(args),
         Command::Identify(args) => identify::run(args),
         Command::Static(args) => static_force::run(args),
+        Command::Twin(args) => twin::run(args),
     }
 }

@@ -27,9 +27,10 @@ pub struct ValveParams {
     /// the order of the −90° bandwidth (5–10 Hz) of small direct-acting
     /// proportional valves.
     pub spool_tau_s: f64,
-    /// Orifice area at full opening (m²). Assumption: 12 mm², a 3.9 mm bore;
-    /// chosen so the stair's steps settle in about 1 s, as the thesis' pole
-    /// 0.9618 suggests (docs/TWIN.md).
+    /// Orifice area at full opening (m²). Assumption: 30 mm², a 6.2 mm bore
+    /// (a 3/8" tap-water solenoid-class valve); with it the stair's steps
+    /// settle within their 1 s and the ARX pole at 10 ms is 0.988 (thesis:
+    /// 0.9618), see docs/TWIN.md.
     pub area_max_m2: f64,
     /// Discharge coefficient of the orifice, 0.61 (sharp-edged orifice;
     /// Merritt, *Hydraulic Control Systems*, 1967, §3.2).
@@ -46,7 +47,7 @@ impl Default for ValveParams {
             full_scale_v: 10.0,
             deadband_v: 0.8,
             spool_tau_s: 0.03,
-            area_max_m2: 12e-6,
+            area_max_m2: 30e-6,
             discharge_coefficient: 0.61,
             laminar_dp_pa: 2e3,
         }
@@ -101,9 +102,9 @@ pub struct MuscleParams {
     /// diameter at 12.7 mm, the size of the Kobayashi–Ito tap-water muscles.
     pub natural_angle_rad: f64,
     /// Axial stiffness of the rubber tube (N/m): its elastic force is
-    /// `k·(L − L_nat)`, a tension when stretched. Assumption: 5 kN/m, chosen
-    /// so the muscle contracts about 45 mm at 0.4 MPa under 4.5 kg, which
-    /// covers the thesis' 20–40 mm PI reference with margin.
+    /// `k·(L − L_nat)`, a tension when stretched. Assumption: 9 kN/m, chosen
+    /// so the muscle contracts about 43 mm at the full 0.4 MPa under 4.5 kg,
+    /// which covers the thesis' 20–40 mm PI reference (§6.2.2).
     pub rubber_stiffness_n_per_m: f64,
     /// Viscous damping of the rubber and the water in the braid (N·s/m).
     /// Assumption: 100 N·s/m (damping ratio ≈ 0.3 of the load on the rubber).
@@ -115,7 +116,7 @@ impl Default for MuscleParams {
         MuscleParams {
             braid: Braid::default(),
             natural_angle_rad: 20f64.to_radians(),
-            rubber_stiffness_n_per_m: 5e3,
+            rubber_stiffness_n_per_m: 9e3,
             damping_n_s_per_m: 100.0,
         }
     }
@@ -131,8 +132,9 @@ pub struct FrictionParams {
     /// Total break-away force at zero gauge pressure (N). Assumption: 3 N.
     pub break_force_n: f64,
     /// Increase of the total break-away force per MPa (N/MPa). Assumption:
-    /// 40 N/MPa, i.e. 19 N at 0.4 MPa, about 7 % of the pressure force there,
-    /// within the 5–15 % hysteresis of braided muscles reported by Tondu & Lopez.
+    /// 60 N/MPa, i.e. 27 N at 0.4 MPa, about 7 % of the pressure force at
+    /// rest there, within the 5–15 % force hysteresis of braided muscles
+    /// reported by Tondu & Lopez (2000).
     pub break_force_per_mpa: f64,
     /// Pre-sliding deflection of each element (m): element `i` slips after
     /// this travel. Assumption: 0.2, 0.6, 1.5 and 3 mm, spread so the loop
@@ -144,7 +146,7 @@ impl Default for FrictionParams {
     fn default() -> Self {
         FrictionParams {
             break_force_n: 3.0,
-            break_force_per_mpa: 40.0,
+            break_force_per_mpa: 60.0,
             slip_deflection_m: vec![0.2e-3, 0.6e-3, 1.5e-3, 3e-3],
         }
     }
@@ -157,7 +159,8 @@ pub struct EndStopParams {
     /// load lands on its support. Assumption: −5 mm.
     pub min_contraction_m: f64,
     /// Highest position: contraction (m) at which the load hits the upper
-    /// bracket. Assumption: 48 mm.
+    /// bracket. Assumption: 50 mm, just above the 43 mm the muscle reaches
+    /// at full supply under 4.5 kg, so the nominal runs do not touch it.
     pub max_contraction_m: f64,
     /// Contact stiffness (N/m). Assumption: 2 MN/m (a rubber-padded stop).
     pub stiffness_n_per_m: f64,
@@ -169,7 +172,7 @@ impl Default for EndStopParams {
     fn default() -> Self {
         EndStopParams {
             min_contraction_m: -5e-3,
-            max_contraction_m: 48e-3,
+            max_contraction_m: 50e-3,
             stiffness_n_per_m: 2e6,
             damping_n_s_per_m: 2e3,
         }
@@ -182,24 +185,25 @@ pub struct SensorParams {
     /// Displacement noise, standard deviation (mm). Assumption: 0.03 mm, a
     /// linear potentiometer read over a 0.5 m cable.
     pub displacement_noise_mm: f64,
-    /// Displacement quantization step (mm): a 100 mm range on the DS1104's
-    /// 12-bit parallel ADC channels, 100/4096 mm.
-    pub displacement_step_mm: f64,
+    /// Displacement resolution (ADC counts per mm): a 100 mm sensor on one
+    /// of the DS1104's 12-bit ADC channels gives 4096/100 ≈ 41 counts/mm;
+    /// 40 is used, so the recorded values are short decimals (0.025 mm steps).
+    pub displacement_counts_per_mm: f64,
     /// Pressure noise, standard deviation (MPa). Assumption: 0.002 MPa,
     /// 0.2 % of a 1 MPa transducer's span.
     pub pressure_noise_mpa: f64,
-    /// Pressure quantization step (MPa): a 1 MPa transducer on a 12-bit
-    /// channel, 1/4096 MPa.
-    pub pressure_step_mpa: f64,
+    /// Pressure resolution (counts per MPa): a 0–1 MPa transducer on a
+    /// 12-bit channel, 4096 counts/MPa; 4000 is used (0.25 kPa steps).
+    pub pressure_counts_per_mpa: f64,
 }
 
 impl Default for SensorParams {
     fn default() -> Self {
         SensorParams {
             displacement_noise_mm: 0.03,
-            displacement_step_mm: 100.0 / 4096.0,
+            displacement_counts_per_mm: 40.0,
             pressure_noise_mpa: 0.002,
-            pressure_step_mpa: 1.0 / 4096.0,
+            pressure_counts_per_mpa: 4000.0,
         }
     }
 }
@@ -257,7 +261,7 @@ pub struct Effects {
     pub endstop: Effect,
     /// Sensor noise: scales both standard deviations.
     pub noise: Effect,
-    /// Sensor quantization: scales both steps.
+    /// Sensor quantization: scales both steps (divides the counts per unit).
     pub quantization: Effect,
     /// Wall thickness t_k of eq. 8–9: scales it (0 gives the ideal eq. 7).
     pub thickness: Effect,

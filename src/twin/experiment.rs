@@ -120,3 +120,100 @@ fn open_loop(rig: &mut Rig, command: &[f64], rows: &mut Vec<Sample>) {
         rig.advance(u);
     }
 }
+
+/// The experiment kinds of `mckibben twin --experiment`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Stair,
+    Sine,
+    Multisine,
+}
+
+impl Kind {
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Kind::Stair => "stair",
+            Kind::Sine => "sine",
+            Kind::Multisine => "multisine",
+        }
+    }
+}
+
+/// Everything that decides a twin run, as given on the command line; the
+/// CLI and the tests that regenerate the shipped files both go through it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunSpec {
+    pub kind: Kind,
+    /// Hanging load (kg).
+    pub load_kg: f64,
+    /// Seed of the sensor noise (and the multisine's phases).
+    pub seed: u64,
+    /// ω of the sine reference (rad/s).
+    pub freq_rad_s: f64,
+    /// `--effect NAME=VALUE` settings, in the order given.
+    pub effects: Vec<String>,
+}
+
+impl RunSpec {
+    /// The default configuration with this spec's effect settings applied.
+    pub fn config(&self) -> Result<TwinConfig, String> {
+        let mut config = TwinConfig::default();
+        for e in &self.effects {
+            config.effects.apply_arg(e)?;
+        }
+        Ok(config)
+    }
+
+    /// The experiment with the thesis' settings (appendix A.1).
+    pub fn experiment(&self) -> Experiment {
+        match self.kind {
+            Kind::Stair => Experiment::Stair(Stair::default()),
+            Kind::Sine => Experiment::Sine(
+                SineReference {
+                    omega_rad_s: self.freq_rad_s,
+                    ..SineReference::default()
+                },
+                ThesisPi::default(),
+            ),
+            Kind::Multisine => Experiment::Multisine(Multisine::default()),
+        }
+    }
+
+    /// The command that reproduces this run (without `--out`), written as
+    /// the CSV's comment line.
+    pub fn command(&self) -> String {
+        let mut c = format!(
+            "mckibben twin --experiment {} --load {} --seed {}",
+            self.kind.as_str(),
+            self.load_kg,
+            self.seed
+        );
+        if self.kind == Kind::Sine {
+            c.push_str(&format!(" --freq {}", self.freq_rad_s));
+        }
+        for e in &self.effects {
+            c.push_str(&format!(" --effect {e}"));
+        }
+        c
+    }
+
+    /// Runs the experiment; an error names a bad load, frequency or effect.
+    pub fn run(&self) -> Result<Trace, String> {
+        if !(self.load_kg.is_finite() && self.load_kg > 0.0 && self.load_kg <= 20.0) {
+            return Err(format!(
+                "--load {}: expected a mass in kg between 0 and 20 (thesis: 4.5 or 7)",
+                self.load_kg
+            ));
+        }
+        if self.kind == Kind::Sine && !(self.freq_rad_s.is_finite() && self.freq_rad_s > 0.0) {
+            return Err(format!(
+                "--freq {}: expected a positive angular frequency in rad/s (thesis: 1, 2, 3)",
+                self.freq_rad_s
+            ));
+        }
+        let config = self.config()?;
+        let mut trace = run(&config, self.load_kg, self.seed, &self.experiment());
+        trace.source = self.command();
+        Ok(trace)
+    }
+}

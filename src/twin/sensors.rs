@@ -7,8 +7,10 @@ use rand_distr::{Distribution, StandardNormal};
 use super::config::{Effects, SensorParams};
 
 /// Adds noise of standard deviation `sigma` (one draw from `rng`, unless the
-/// noise is removed from the model) and quantizes to `step`.
-fn read(value: f64, sigma: f64, step: f64, rng: &mut ChaCha8Rng, fx: &Effects) -> f64 {
+/// noise is removed from the model) and rounds to `counts` per unit. The
+/// division by the count rate (not multiplication by a step) keeps recorded
+/// values short decimals; `+ 0.0` turns a rounded −0 into 0.
+fn read(value: f64, sigma: f64, counts: f64, rng: &mut ChaCha8Rng, fx: &Effects) -> f64 {
     let noisy = match fx.noise.active() {
         Some(scale) => {
             let z: f64 = StandardNormal.sample(rng);
@@ -17,7 +19,10 @@ fn read(value: f64, sigma: f64, step: f64, rng: &mut ChaCha8Rng, fx: &Effects) -
         None => value,
     };
     match fx.quantization.active() {
-        Some(scale) if scale * step > 0.0 => (noisy / (scale * step)).round() * (scale * step),
+        Some(scale) if scale > 0.0 => {
+            let c = counts / scale;
+            (noisy * c).round() / c + 0.0
+        }
         _ => noisy,
     }
 }
@@ -27,7 +32,7 @@ pub fn displacement_mm(x_m: f64, p: &SensorParams, rng: &mut ChaCha8Rng, fx: &Ef
     read(
         x_m * 1e3,
         p.displacement_noise_mm,
-        p.displacement_step_mm,
+        p.displacement_counts_per_mm,
         rng,
         fx,
     )
@@ -38,7 +43,7 @@ pub fn pressure_mpa(p_pa: f64, p: &SensorParams, rng: &mut ChaCha8Rng, fx: &Effe
     read(
         p_pa * 1e-6,
         p.pressure_noise_mpa,
-        p.pressure_step_mpa,
+        p.pressure_counts_per_mpa,
         rng,
         fx,
     )
