@@ -2,7 +2,7 @@
 //! first-order valve → pressure lag): PI anti-windup, MPC constraints, and
 //! MPC against the thesis' PI at 3 rad/s. Short episodes, deterministic.
 
-use mckibben::control::design::fit_one_step;
+use mckibben::control::design::{self, fit_predictive};
 use mckibben::control::{
     ControlModel, Episode, Mpc, MpcSettings, Pi, PiGains, Plant, StandIn, ValveLimits, ValveModel,
     run_episode,
@@ -36,12 +36,9 @@ fn record(seconds: f64, seed: u64) -> (Vec<f64>, Trace) {
 }
 
 fn control_model() -> ControlModel {
-    let (valve, trace) = record(60.0, 7);
-    let fit = fit_one_step(&trace).unwrap();
-    ControlModel {
-        displacement: fit.model,
-        valve: ValveModel::identify("stand-in", &valve, &trace.input).unwrap(),
-    }
+    let (valve, mut trace) = record(60.0, 7);
+    trace.extra.push(("valve_in".into(), valve));
+    design::identify(&trace, (0.0, 10.0), 30).unwrap().0
 }
 
 #[test]

@@ -12,7 +12,9 @@ use mckibben::control::{
     ControlModel, Controller, Episode, EpisodeResult, Mpc, MpcSettings, Pi, PiGains, ValveLimits,
     run_episode,
 };
-use mckibben::data::signals::Stair;
+use mckibben::data::Trace;
+use mckibben::data::csv::write_trace;
+use mckibben::data::signals::{Multisine, Stair};
 use mckibben::report::{Figure, Panel, Series};
 use mckibben::twin::{self, Rig, TwinConfig};
 
@@ -42,6 +44,11 @@ pub struct Args {
     /// Load (kg) at which the MPC's model is identified (the thesis designed at 4.5 kg).
     #[arg(long, default_value_t = 4.5)]
     design_load: f64,
+    /// Open-loop twin experiment the MPC's model is identified from: the
+    /// identification stair of A.1.1, or a 120 s multisine (5 ± 4 V,
+    /// 0.02–1 Hz), which excites the dynamics the 1–3 rad/s references need.
+    #[arg(long, value_enum, default_value = "multisine")]
+    design_experiment: DesignExperiment,
     /// Also run the MPC with its hysteresis parameters (A, α, β, γ) scaled by
     /// these factors, to test robustness to model error (e.g. 0.8,1.2).
     #[arg(long, value_delimiter = ',')]
@@ -61,15 +68,27 @@ pub struct Args {
     /// MPC prediction horizon (samples of 10 ms).
     #[arg(long, default_value_t = MpcSettings::default().horizon)]
     horizon: usize,
+    /// MPC weight on valve moves (per V²) against tracking error (per mm²).
+    #[arg(long, default_value_t = MpcSettings::default().r_move)]
+    r_move: f64,
     /// Seed of the twin's sensor noise and of the tuning optimizer.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Write one SVG per run (reference vs displacement, valve, error) into this folder.
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
+    /// Write one CSV per run (t, reference, displacement, pressure, valve_in) into this folder.
+    #[arg(long, value_name = "DIR")]
+    csv: Option<PathBuf>,
     /// Print JSON (one object per run) instead of a table.
     #[arg(long)]
     json: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum DesignExperiment {
+    Stair,
+    Multisine,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -102,7 +121,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(!args.freq.is_empty(), "--freq needs at least one frequency");
     anyhow::ensure!(!args.load.is_empty(), "--load needs at least one load");
     for &w in &args.freq {
-        anyhow::ensure!(w > 0.0 && w.is_finite(), "--freq: {w} is not a positive frequency (rad/s)");
+        anyhow::ensure!(
+            w > 0.0 && w.is_finite(),
+            "--freq: {w} is not a positive frequency (rad/s)"
+        );
     }
     for &m in args.load.iter().chain([args.design_load].iter()) {
         anyhow::ensure!(
@@ -111,26 +133,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     for &s in &args.hysteresis_scale {
-        anyhow::ensure!(s > 0.0 && s.is_finite(), "--hysteresis-scale: {s} must be positive");
+        anyhow::ensure!(
+            s > 0.0 && s.is_finite(),
+            "--hysteresis-scale: {s} must be positive"
+        );
     }
     anyhow::ensure!(args.horizon >= 2, "--horizon must be at least 2 samples");
     let config = TwinConfig::default();
 
     // The MPC's model: identified on the twin's stair at the design load.
     let model = if args.controller.contains(&Kind::Mpc) {
-        let stair = twin::run(
-            &config,
-            args.design_load,
-            args.seed,
-            &twin::Experiment::Stair(Stair::default()),
-        );
-        let (model, fit) = design::identify(&stair).context("identifying the MPC's model")?;
+        let experiment = match args.design_experiment {
+            DesignExperiment::Stair => twin::Experiment::Stair(Stair::default()),
+            DesignExperiment::Multisine => twin::Experiment::Multisine(Multisine {
+                duration_s: 120.0,
+                ..Multisine::default()
+            }),
+        };
+        let record = twin::run(&config, args.design_load, args.seed, &experiment);
+        let (model, fit) = design::identify(&record, design::OPERATING_BAND_V, args.horizon)
+            .context("identifying the MPC's model")?;
         if !args.json {
             eprintln!(
-                "MPC model from the twin's stair at {} kg: {} (one-step RMSE {:.3} mm), valve: p(k+1) = {:.4}·p + {:.5}·v + {:.5}",
+                "MPC model from the twin's {} at {} kg: {} ({}-step prediction RMSE {:.3} mm), valve: p(k+1) = {:.4}·p + {:.5}·v + {:.5}",
+                experiment.name(),
                 args.design_load,
                 fmt_params(&model.displacement),
-                fit.one_step_rmse_mm,
+                fit.horizon,
+                fit.rmse_mm,
                 model.valve.pole,
                 model.valve.gain,
                 model.valve.offset
@@ -183,7 +213,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut runs = Vec::new();
     for &kind in &args.controller {
         let scales: Vec<f64> = if kind == Kind::Mpc {
-            std::iter::once(1.0).chain(args.hysteresis_scale.iter().copied()).collect()
+            std::iter::once(1.0)
+                .chain(args.hysteresis_scale.iter().copied())
+                .collect()
         } else {
             vec![1.0]
         };
@@ -211,6 +243,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                             };
                             let settings = MpcSettings {
                                 horizon: args.horizon,
+                                r_move: args.r_move,
                                 ..MpcSettings::default()
                             };
                             let label = if scale == 1.0 {
@@ -246,18 +279,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 
     if let Some(dir) = &args.plot {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating --plot {}", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating --plot {}", dir.display()))?;
         for (kind, scale, load, w, result) in &runs {
-            let name = match kind {
-                Kind::Pi => "pi",
-                Kind::PiTuned => "pi_tuned",
-                Kind::Mpc => "mpc",
-            };
-            let suffix = if *scale == 1.0 { String::new() } else { format!("_h{scale}") };
-            let path = dir.join(format!("control_{name}{suffix}_{load}kg_{w}rad.svg"));
+            let path = dir.join(format!("{}.svg", run_name(*kind, *scale, *load, *w)));
             figure(result, *load, *w)
                 .save(&path)
                 .with_context(|| format!("writing --plot {}", path.display()))?;
+        }
+    }
+
+    if let Some(dir) = &args.csv {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("creating --csv {}", dir.display()))?;
+        for (kind, scale, load, w, r) in &runs {
+            let path = dir.join(format!("{}.csv", run_name(*kind, *scale, *load, *w)));
+            let mut trace = Trace::uniform(
+                format!("control {}", r.controller),
+                0.01,
+                r.pressure.clone(),
+                r.displacement.clone(),
+            );
+            trace.t = r.t.clone();
+            trace.extra.push(("valve_in".into(), r.valve.clone()));
+            trace.extra.push(("reference".into(), r.reference.clone()));
+            trace.extra.push(("load_kg".into(), vec![*load; r.t.len()]));
+            write_trace(&path, &trace)
+                .with_context(|| format!("writing --csv {}", path.display()))?;
         }
     }
 
@@ -267,7 +315,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     println!(
         "{:<22} {:>6} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>5} {:>4}",
-        "controller", "ω", "kg", "RMS mm", "max mm", "u rms V", "u V/s", "max µs", "mean µs", "viol", "div"
+        "controller",
+        "ω",
+        "kg",
+        "RMS mm",
+        "max mm",
+        "u rms V",
+        "u V/s",
+        "max µs",
+        "mean µs",
+        "viol",
+        "div"
     );
     for r in &rows {
         println!(
@@ -285,8 +343,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if r.diverged { "yes" } else { "no" }
         );
     }
-    println!("steady state: the last 10 s of a 20 s sine after 10 s settling at 30 mm; sample time 10 ms");
+    println!(
+        "steady state: the last 10 s of a 20 s sine after 10 s settling at 30 mm; sample time 10 ms"
+    );
     Ok(())
+}
+
+/// File stem of one run: `control_<controller>[_h<scale>]_<load>kg_<ω>rad`.
+fn run_name(kind: Kind, scale: f64, load: f64, w: f64) -> String {
+    let name = match kind {
+        Kind::Pi => "pi",
+        Kind::PiTuned => "pi_tuned",
+        Kind::Mpc => "mpc",
+    };
+    let suffix = if scale == 1.0 {
+        String::new()
+    } else {
+        format!("_h{scale}")
+    };
+    format!("control_{name}{suffix}_{load}kg_{w}rad")
 }
 
 fn fmt_params(m: &mckibben::model::FittedModel) -> String {
@@ -299,19 +374,34 @@ fn fmt_params(m: &mckibben::model::FittedModel) -> String {
 
 /// The thesis' figures 27–32: reference and displacement, valve voltage, error.
 fn figure(r: &EpisodeResult, load: f64, w: f64) -> Figure {
-    let err: Vec<f64> = r.reference.iter().zip(&r.displacement).map(|(a, b)| a - b).collect();
+    let err: Vec<f64> = r
+        .reference
+        .iter()
+        .zip(&r.displacement)
+        .map(|(a, b)| a - b)
+        .collect();
     Figure::new(format!("{}: {load} kg, {w} rad/s", r.controller))
         .with(
             Panel::new("Reference and displacement", "t (s)", "displacement (mm)")
                 .with(Series::line("reference", r.t.clone(), r.reference.clone()))
-                .with(Series::line("displacement", r.t.clone(), r.displacement.clone())),
+                .with(Series::line(
+                    "displacement",
+                    r.t.clone(),
+                    r.displacement.clone(),
+                )),
         )
         .with(
-            Panel::new("Input valve voltage", "t (s)", "u (V)")
-                .with(Series::line("valve_in", r.t.clone(), r.valve.clone())),
+            Panel::new("Input valve voltage", "t (s)", "u (V)").with(Series::line(
+                "valve_in",
+                r.t.clone(),
+                r.valve.clone(),
+            )),
         )
         .with(
-            Panel::new("Tracking error r − y", "t (s)", "error (mm)")
-                .with(Series::line("error", r.t.clone(), err)),
+            Panel::new("Tracking error r − y", "t (s)", "error (mm)").with(Series::line(
+                "error",
+                r.t.clone(),
+                err,
+            )),
         )
 }

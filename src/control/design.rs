@@ -3,13 +3,12 @@
 //!
 //! - the displacement model of eq. 13 (pressure → displacement, ARX linear
 //!   part plus a Bouc-Wen state), as a [`FittedModel`]: either the one
-//!   `mckibben fit` wrote, or the control-oriented fit of [`fit_one_step`];
+//!   `mckibben fit` wrote, or the control-oriented fit of [`fit_predictive`];
 //! - a first-order valve → pressure model, [`ValveModel`], by least squares.
 
 use serde::{Deserialize, Serialize};
 
 use crate::data::Trace;
-use crate::ident::{Arx, ArxOrders};
 use crate::model::sim::{classic_w, generalized_w};
 use crate::model::{Family, FittedModel};
 
@@ -28,20 +27,49 @@ pub struct ValveModel {
 impl ValveModel {
     /// Least squares on a record of valve voltages and measured pressures.
     pub fn identify(source: &str, valve: &[f64], pressure: &[f64]) -> anyhow::Result<ValveModel> {
+        Self::identify_in_band(
+            source,
+            valve,
+            pressure,
+            (f64::NEG_INFINITY, f64::INFINITY),
+            1,
+        )
+    }
+
+    /// As [`ValveModel::identify`], from prediction windows that start
+    /// with the valve voltage in `band` only, fitted for predictions up to
+    /// `horizon` samples ahead (the MPC's use; see [`fit_predictive`]). The
+    /// valves' flow law makes the static map an S-curve (dead band at the
+    /// bottom, supply pressure at the top): a straight line fitted over the
+    /// whole stair averages the flat ends into a slow, weak model, so a
+    /// controller that works in the middle should fit the middle.
+    pub fn identify_in_band(
+        source: &str,
+        valve: &[f64],
+        pressure: &[f64],
+        band: (f64, f64),
+        horizon: usize,
+    ) -> anyhow::Result<ValveModel> {
         anyhow::ensure!(
             valve.len() == pressure.len() && valve.len() > 10,
             "{source}: need equally long valve and pressure records of more than 10 samples"
         );
-        let mv = valve.iter().sum::<f64>() / valve.len() as f64;
-        let mp = pressure.iter().sum::<f64>() / pressure.len() as f64;
-        let u: Vec<f64> = valve.iter().map(|v| v - mv).collect();
-        let y: Vec<f64> = pressure.iter().map(|p| p - mp).collect();
-        let arx = Arx::estimate(source, &u, &y, ArxOrders::default())?;
-        let (pole, gain) = (arx.a[0], arx.b[0]);
+        let starts: Vec<usize> = (0..valve.len() - 1)
+            .filter(|&k| band.0 <= valve[k] && valve[k] <= band.1 && k % STRIDE == 0)
+            .collect();
+        anyhow::ensure!(
+            starts.len() > 10,
+            "{source}: only {} samples with the valve in {:?} V",
+            starts.len() * STRIDE,
+            band
+        );
+        let zeros = vec![0.0; valve.len()];
+        let (pole, th, _) = predictive_ls(pressure, valve, &zeros, &starts, horizon)
+            .ok_or_else(|| anyhow::anyhow!("{source}: valve model least squares failed"))?;
         Ok(ValveModel {
             pole,
-            gain,
-            offset: mp * (1.0 - pole) - gain * mv,
+            gain: th[0],
+            offset: th[2],
         })
     }
 
@@ -105,37 +133,128 @@ impl Unpacked {
     }
 }
 
-/// Result of the control-oriented fit, with its one-step error.
+/// Result of the control-oriented fit, with its prediction error.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct OneStepFit {
+pub struct PredictiveFit {
     pub model: FittedModel,
-    /// RMS one-step prediction error of the displacement (mm).
-    pub one_step_rmse_mm: f64,
+    /// RMS error of the displacement predicted 1 to `horizon` samples ahead
+    /// from measured states (mm).
+    pub rmse_mm: f64,
+    pub horizon: usize,
+}
+
+/// Pole candidates of the predictive fits (per 10 ms sample).
+const POLES: [f64; 14] = [
+    0.7, 0.8, 0.85, 0.9, 0.92, 0.94, 0.95, 0.96, 0.97, 0.975, 0.98, 0.985, 0.99, 0.995,
+];
+
+/// Every `STRIDE`-th sample starts a prediction window (keeps the fit fast;
+/// the windows still overlap).
+const STRIDE: usize = 3;
+
+/// Least squares for `θ` (3 entries) in `target ≈ θ·r` from accumulated
+/// normal equations; returns `θ` and the residual sum of squares.
+/// A regressor that is identically zero (the valve model has one input)
+/// gets a tiny ridge so that its coefficient comes out 0.
+fn solve3(ata: &[[f64; 3]; 3], atb: &[f64; 3], btb: f64) -> Option<([f64; 3], f64)> {
+    let m = nalgebra::Matrix3::from_fn(|i, j| ata[i][j] + if i == j { 1e-12 } else { 0.0 });
+    let v = nalgebra::Vector3::from_fn(|i, _| atb[i]);
+    let th = m.lu().solve(&v)?;
+    let sse = btb - 2.0 * th.dot(&v) + (m * th).dot(&th);
+    Some(([th[0], th[1], th[2]], sse.max(0.0)))
+}
+
+/// Fits `y(k+1) = ρ·y(k) + θ0·s(k) + θ1·q(k) + θ2` for the `horizon`-step
+/// predictions from measured `y(k)`, for every pole `ρ` of [`POLES`]:
+/// with `ρ` fixed, each prediction is linear in `θ`, so least squares over
+/// all windows gives `θ`; the pole with the smallest error wins.
+/// Returns `(ρ, θ, rms error)`.
+fn predictive_ls(
+    y: &[f64],
+    s: &[f64],
+    q: &[f64],
+    starts: &[usize],
+    horizon: usize,
+) -> Option<(f64, [f64; 3], f64)> {
+    let mut best: Option<(f64, [f64; 3], f64)> = None;
+    for &rho in &POLES {
+        let mut ata = [[0.0; 3]; 3];
+        let mut atb = [0.0; 3];
+        let (mut btb, mut count) = (0.0, 0usize);
+        for &k in starts {
+            let mut r = [0.0f64; 3];
+            let mut decay = 1.0;
+            for h in 1..=horizon {
+                if k + h >= y.len() {
+                    break;
+                }
+                r = [
+                    rho * r[0] + s[k + h - 1],
+                    rho * r[1] + q[k + h - 1],
+                    rho * r[2] + 1.0,
+                ];
+                decay *= rho;
+                let t = y[k + h] - decay * y[k];
+                for i in 0..3 {
+                    for j in 0..3 {
+                        ata[i][j] += r[i] * r[j];
+                    }
+                    atb[i] += r[i] * t;
+                }
+                btb += t * t;
+                count += 1;
+            }
+        }
+        if let Some((th, sse)) = solve3(&ata, &atb, btb) {
+            let rms = (sse / count.max(1) as f64).sqrt();
+            if best.as_ref().is_none_or(|b| rms < b.2) {
+                best = Some((rho, th, rms));
+            }
+        }
+    }
+    best
 }
 
 /// Control-oriented identification of the classic model (n = 1) from a
 /// record of pressure and displacement.
 ///
-/// The MPC tracks the Bouc-Wen state from the *measured* displacement, so
-/// what it needs is a good one-step predictor. With `w` computed from the
-/// measured displacement, eq. 13 is linear in `(a·α, a·(1−α), b, c)`; least
-/// squares gives them for each `(β, γ)` on a grid, and the grid point with
-/// the smallest one-step error wins. `A` is fixed at 1: for n = 1 it only
-/// rescales `w`, which `a·(1−α)` absorbs. Grid points whose hysteretic weight
-/// `a·(1−α)` comes out negative (a reversed loop) are discarded.
-pub fn fit_one_step(trace: &Trace) -> anyhow::Result<OneStepFit> {
+/// The MPC predicts the displacement up to `horizon` samples ahead from the
+/// measured state, with the Bouc-Wen state tracked from the *measured*
+/// displacement. So the model is fitted for exactly that: with `w` computed
+/// from the measured displacement and the pole `a·α` fixed, every
+/// prediction of eq. 13 is linear in `(a·(1−α), b, c)`; least squares over
+/// all prediction windows gives them, for each pole on a grid and each
+/// `(β, γ)` on a grid, and the smallest prediction error wins. `A` is fixed
+/// at 1: for n = 1 it only rescales `w`, which `a·(1−α)` absorbs. Shapes
+/// whose hysteretic weight `a·(1−α)` comes out negative (a reversed loop)
+/// are discarded. A one-step fit is not enough: with noisy pressure and a
+/// load with inertia it returns a near-integrator that predicts one sample
+/// well and thirty badly.
+pub fn fit_predictive(
+    trace: &Trace,
+    use_row: &[bool],
+    horizon: usize,
+) -> anyhow::Result<PredictiveFit> {
     let n = trace.len();
-    anyhow::ensure!(n > 50, "{}: too few samples ({n}) for a fit", trace.source);
+    let starts: Vec<usize> = (0..n.saturating_sub(1))
+        .filter(|&k| use_row[k] && k % STRIDE == 0)
+        .collect();
+    anyhow::ensure!(
+        starts.len() > 20,
+        "{}: too few samples ({}) in the operating band for a fit",
+        trace.source,
+        starts.len() * STRIDE
+    );
     let mu = trace.input.iter().sum::<f64>() / n as f64;
     let my = trace.output.iter().sum::<f64>() / n as f64;
     let u: Vec<f64> = trace.input.iter().map(|p| p - mu).collect();
     let x: Vec<f64> = trace.output.iter().map(|l| l - my).collect();
     let levels = [0.0, 0.001, 0.003, 0.01, 0.03, 0.1, 0.3, 1.0];
     let mut best: Option<(f64, Vec<f64>)> = None;
-    for &s in &levels {
-        for &d in &levels {
-            // s = β + γ (loop saturation), d = β − γ (loop fatness).
-            let (beta, gamma) = ((s + d) / 2.0, (s - d) / 2.0);
+    for &sum in &levels {
+        for &diff in &levels {
+            // sum = β + γ (loop saturation), diff = β − γ (loop fatness).
+            let (beta, gamma) = ((sum + diff) / 2.0, (sum - diff) / 2.0);
             let probe = FittedModel {
                 family: Family::Classic,
                 params: vec![1.0, 0.5, beta, gamma, 1.0, 0.9, 1.0, 0.0],
@@ -150,28 +269,15 @@ pub fn fit_one_step(trace: &Trace) -> anyhow::Result<OneStepFit> {
             for k in 1..n {
                 w[k] = un.advance_w(w[k - 1], x[k - 1], x[k]);
             }
-            let rows = n - 1;
-            let phi = nalgebra::DMatrix::from_fn(rows, 4, |r, c| match c {
-                0 => x[r],
-                1 => w[r],
-                2 => u[r],
-                _ => 1.0,
-            });
-            let target = nalgebra::DVector::from_fn(rows, |r, _| x[r + 1]);
-            let Ok(th) = phi.clone().svd(true, true).solve(&target, 1e-10) else {
+            let Some((rho, th, rms)) = predictive_ls(&x, &w, &u, &starts, horizon) else {
                 continue;
             };
-            let a = th[0] + th[1];
-            if !(th[1] >= 0.0 && a > 0.0) {
+            let a = rho + th[0];
+            if !(th[0] >= 0.0 && a > 0.0) {
                 continue;
             }
-            let resid = &phi * &th - &target;
-            let rmse = (resid.norm_squared() / rows as f64).sqrt();
-            if best.as_ref().is_none_or(|(r, _)| rmse < *r) {
-                best = Some((
-                    rmse,
-                    vec![1.0, th[0] / a, beta, gamma, 1.0, a, th[2], th[3]],
-                ));
+            if best.as_ref().is_none_or(|(r, _)| rms < *r) {
+                best = Some((rms, vec![1.0, rho / a, beta, gamma, 1.0, a, th[1], th[2]]));
             }
         }
     }
@@ -181,7 +287,7 @@ pub fn fit_one_step(trace: &Trace) -> anyhow::Result<OneStepFit> {
             trace.source
         )
     })?;
-    Ok(OneStepFit {
+    Ok(PredictiveFit {
         model: FittedModel {
             family: Family::Classic,
             params,
@@ -191,22 +297,35 @@ pub fn fit_one_step(trace: &Trace) -> anyhow::Result<OneStepFit> {
             input_name: trace.input_name.clone(),
             output_name: trace.output_name.clone(),
         },
-        one_step_rmse_mm: rmse,
+        rmse_mm: rmse,
+        horizon,
     })
 }
+
+/// The valve band the sine references of §6.2 need on the twin (20–40 mm sit
+/// between about 4 and 7 V on its stair), with a volt of margin each side.
+pub const OPERATING_BAND_V: (f64, f64) = (3.0, 8.0);
 
 /// Identifies a [`ControlModel`] from an open-loop record that carries the
 /// input valve voltage (`valve_in` column) besides pressure and displacement
 /// (e.g. the twin's stair): the one-step displacement fit and the valve model.
-pub fn identify(trace: &Trace) -> anyhow::Result<(ControlModel, OneStepFit)> {
+///
+/// Both are fitted on the samples with the valve in `band` (V): the
+/// operating range of the controller (see [`ValveModel::identify_in_band`]).
+pub fn identify(
+    trace: &Trace,
+    band: (f64, f64),
+    horizon: usize,
+) -> anyhow::Result<(ControlModel, PredictiveFit)> {
     let valve = trace.column("valve_in").ok_or_else(|| {
         anyhow::anyhow!(
             "{}: no `valve_in` column; the valve → pressure model needs the input valve voltage",
             trace.source
         )
     })?;
-    let fit = fit_one_step(trace)?;
-    let valve = ValveModel::identify(&trace.source, valve, &trace.input)?;
+    let use_row: Vec<bool> = valve.iter().map(|&v| band.0 <= v && v <= band.1).collect();
+    let fit = fit_predictive(trace, &use_row, horizon)?;
+    let valve = ValveModel::identify_in_band(&trace.source, valve, &trace.input, band, horizon)?;
     Ok((
         ControlModel {
             displacement: fit.model.clone(),

@@ -55,7 +55,7 @@ impl Default for MpcSettings {
         MpcSettings {
             horizon: 30,
             q_error: 1.0,
-            r_move: 0.1,
+            r_move: 3.0,
             disturbance_pole: 0.9,
             passes: 1,
         }

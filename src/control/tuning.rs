@@ -52,12 +52,16 @@ pub fn pi_cost(gains: PiGains, episodes: &TuningEpisodes, config: &TwinConfig) -
     let mut count = 0usize;
     for &load in &episodes.loads_kg {
         for &w in &episodes.freqs_rad_s {
-            let ep = Episode::short(w, episodes.warmup_s, episodes.duration_s, episodes.steady_from_s);
+            let ep = Episode::short(
+                w,
+                episodes.warmup_s,
+                episodes.duration_s,
+                episodes.steady_from_s,
+            );
             let mut rig = Rig::new(config, load, episodes.seed);
             let mut pi = Pi::new(gains, ValveLimits::default(), rig.dt(), "pi");
             let m = run_episode(&mut rig, &mut pi, &ep).metrics;
-            let cost = if m.diverged || m.constraint_violations > 0 || !m.rms_error_mm.is_finite()
-            {
+            let cost = if m.diverged || m.constraint_violations > 0 || !m.rms_error_mm.is_finite() {
                 FAILED_COST
             } else {
                 m.rms_error_mm
