@@ -53,14 +53,12 @@ fn valve_model_recovers_the_first_order_lag() {
 }
 
 #[test]
-fn one_step_fit_predicts_the_stand_in() {
+fn predictive_fit_predicts_the_stand_in() {
     let (_, trace) = record(60.0, 3);
-    let fit = fit_one_step(&trace).unwrap();
-    assert!(
-        fit.one_step_rmse_mm < 0.05,
-        "one-step RMSE {} mm",
-        fit.one_step_rmse_mm
-    );
+    let fit = fit_predictive(&trace, &vec![true; trace.len()], 30).unwrap();
+    // The stand-in is the classic model itself, but its exact hysteresis
+    // shape is on the fit's grid only approximately.
+    assert!(fit.rmse_mm < 0.5, "30-step RMSE {} mm", fit.rmse_mm);
 }
 
 #[test]

@@ -54,7 +54,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     hysteresis_scale: Vec<f64>,
     /// PI(D) gains `kp,ki,kd` (V/mm, V/(mm·s), V·s/mm) for pi-tuned, instead of tuning now.
-    #[arg(long, value_delimiter = ',', num_args = 3, value_name = "KP,KI,KD")]
+    #[arg(long, value_delimiter = ',', value_name = "KP,KI,KD")]
     tuned_gains: Option<Vec<f64>>,
     /// Optimizer for the gain tuning: ga, mfa, pso or de.
     #[arg(long, default_value = "de")]
@@ -139,6 +139,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     anyhow::ensure!(args.horizon >= 2, "--horizon must be at least 2 samples");
+    if let Some(g) = &args.tuned_gains {
+        anyhow::ensure!(
+            g.len() == 3 && g.iter().all(|v| v.is_finite()),
+            "--tuned-gains takes three numbers kp,ki,kd (got {g:?})"
+        );
+    }
     let config = TwinConfig::default();
 
     // The MPC's model: identified on the twin's stair at the design load.
