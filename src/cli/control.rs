@@ -108,6 +108,7 @@ struct Row {
     max_error_mm: f64,
     max_step_time_us: f64,
     mean_step_time_us: f64,
+    max_step_cpu_us: f64,
     constraint_violations: usize,
     effort_rms_v: f64,
     effort_travel_v_per_s: f64,
@@ -271,6 +272,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         max_error_mm: m.max_error_mm,
                         max_step_time_us: m.max_step_time_us,
                         mean_step_time_us: m.mean_step_time_us,
+                        max_step_cpu_us: m.max_step_cpu_us,
                         constraint_violations: m.constraint_violations,
                         effort_rms_v: m.effort_rms_v,
                         effort_travel_v_per_s: m.effort_travel_v_per_s,
@@ -320,7 +322,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "{:<22} {:>6} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>5} {:>4}",
+        "{:<22} {:>6} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>5} {:>4}",
         "controller",
         "ω",
         "kg",
@@ -329,13 +331,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "u rms V",
         "u V/s",
         "max µs",
+        "cpu µs",
         "mean µs",
         "viol",
         "div"
     );
     for r in &rows {
         println!(
-            "{:<22} {:>6} {:>6} {:>9.3} {:>9.3} {:>9.3} {:>9.2} {:>9.0} {:>9.1} {:>5} {:>4}",
+            "{:<22} {:>6} {:>6} {:>9.3} {:>9.3} {:>9.3} {:>9.2} {:>9.0} {:>9.0} {:>9.1} {:>5} {:>4}",
             r.controller,
             r.freq_rad_s,
             r.load_kg,
@@ -344,6 +347,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             r.effort_rms_v,
             r.effort_travel_v_per_s,
             r.max_step_time_us,
+            r.max_step_cpu_us,
             r.mean_step_time_us,
             r.constraint_violations,
             if r.diverged { "yes" } else { "no" }

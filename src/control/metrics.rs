@@ -17,6 +17,10 @@ pub struct Metrics {
     pub constraint_violations: usize,
     /// Longest time one controller step took (µs), wall clock.
     pub max_step_time_us: f64,
+    /// Longest CPU time of one controller step (µs): the thread's own CPU
+    /// time, without the waits for a core that a loaded machine adds to the
+    /// wall clock (NaN where the platform has no thread clock).
+    pub max_step_cpu_us: f64,
     /// Mean time of one controller step (µs), wall clock.
     pub mean_step_time_us: f64,
     /// A measurement became non-finite, or the steady-state error exceeded
@@ -62,6 +66,7 @@ impl Metrics {
             constraint_violations: 0,
             max_step_time_us: 0.0,
             mean_step_time_us: 0.0,
+            max_step_cpu_us: 0.0,
             diverged: !(max <= DIVERGENCE_FACTOR * amplitude),
         }
     }
