@@ -14,5 +14,6 @@ pub mod data;
 pub mod eval;
 pub mod ident;
 pub mod model;
+pub mod optim;
 pub mod report;
 pub mod twin;

@@ -1,8 +1,10 @@
 //! Argument parsing and the dispatch to each command.
 
+mod bench;
 mod common;
 mod control;
 mod identify;
+mod simulate;
 mod static_force;
 mod twin;
 
@@ -27,16 +29,20 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    Bench(bench::Args),
     Control(control::Args),
     Identify(identify::Args),
+    Simulate(simulate::Args),
     Static(static_force::Args),
     Twin(twin::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Bench(args) => bench::run(args),
         Command::Control(args) => control::run(args),
         Command::Identify(args) => identify::run(args),
+        Command::Simulate(args) => simulate::run(args),
         Command::Static(args) => static_force::run(args),
         Command::Twin(args) => twin::run(args),
     }

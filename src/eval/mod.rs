@@ -5,7 +5,10 @@
 //! vector of the problem's [`Family`] (see [`Family::params`]). Rows are
 //! converted to `f32` the same way on every backend, so that backends agree.
 
+pub mod agreement;
 pub mod cpu;
+pub mod gpu;
+pub mod workload;
 
 use crate::model::{Experiment, Family};
 
@@ -60,6 +63,11 @@ pub trait Evaluator {
     /// Backend and device, for the user ("cpu, 2 threads", "gpu: NVIDIA H100").
     fn describe(&self) -> String;
 
+    /// The GPU adapter that scores (name, kind, driver); `None` on the CPU.
+    fn adapter(&self) -> Option<String> {
+        None
+    }
+
     /// Scores `population` (row-major `N × problem.family.dim()`).
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores>;
 }
@@ -67,4 +75,56 @@ pub trait Evaluator {
 /// Converts a row-major `f64` population to the `f32` rows every backend scores.
 pub fn to_f32(population: &[f64]) -> Vec<f32> {
     population.iter().map(|&v| v as f32).collect()
+}
+
+/// Where populations are scored (`--backend`).
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    clap::ValueEnum,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Backend {
+    /// A real GPU (discrete or integrated adapter) if there is one, else the
+    /// CPU: a CPU adapter such as lavapipe is slower than the batched CPU path.
+    #[default]
+    Auto,
+    /// The batched, multi-threaded CPU evaluator.
+    Cpu,
+    /// The best adapter present, lavapipe included; an error if there is none.
+    Gpu,
+}
+
+/// Opens the evaluator `backend` asks for. It prints nothing: the caller
+/// reports [`Evaluator::describe`], which names the backend and adapter (and,
+/// for `auto` falling back to the CPU, why).
+pub fn open(backend: Backend) -> anyhow::Result<Box<dyn Evaluator>> {
+    match backend {
+        Backend::Cpu => Ok(Box::new(cpu::CpuEvaluator::new())),
+        Backend::Gpu => Ok(Box::new(gpu::GpuEvaluator::open(Default::default())?)),
+        Backend::Auto => {
+            let best = gpu::adapters().into_iter().next();
+            match best {
+                Some(adapter) if gpu::is_hardware(&adapter.get_info()) => Ok(Box::new(
+                    gpu::GpuEvaluator::with_adapter(adapter, Default::default())?,
+                )),
+                other => {
+                    let why = match other {
+                        Some(a) => format!(
+                            "no hardware GPU; {} is slower than the CPU path",
+                            gpu::describe_adapter(&a.get_info())
+                        ),
+                        None => "no GPU adapter found".to_string(),
+                    };
+                    Ok(Box::new(cpu::CpuEvaluator::with_note(why)))
+                }
+            }
+        }
+    }
 }

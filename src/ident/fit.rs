@@ -47,3 +47,32 @@ mod tests {
         assert!((rmse(&y, &[2.0, 3.0, 4.0, 5.0]) - 1.0).abs() < 1e-12);
     }
 }
+
+/// Area enclosed by the input–output path `(u(k), y(k))`, closed back to its
+/// start (shoelace formula, absolute value). A rate-independent hysteresis
+/// traversed by a stair up and down encloses a loop of non-zero area; a
+/// static or linear-and-slow map encloses (almost) none.
+pub fn loop_area(u: &[f64], y: &[f64]) -> f64 {
+    let n = u.len().min(y.len());
+    if n < 3 {
+        return 0.0;
+    }
+    let twice: f64 = (0..n)
+        .map(|k| {
+            let j = (k + 1) % n;
+            u[k] * y[j] - u[j] * y[k]
+        })
+        .sum();
+    0.5 * twice.abs()
+}
+
+#[cfg(test)]
+mod loop_tests {
+    use super::loop_area;
+
+    #[test]
+    fn unit_square_and_a_line() {
+        assert_eq!(loop_area(&[0.0, 1.0, 1.0, 0.0], &[0.0, 0.0, 1.0, 1.0]), 1.0);
+        assert_eq!(loop_area(&[0.0, 1.0, 2.0, 1.0], &[0.0, 1.0, 2.0, 1.0]), 0.0);
+    }
+}

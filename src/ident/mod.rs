@@ -4,4 +4,4 @@ pub mod arx;
 pub mod fit;
 
 pub use arx::{Arx, ArxOrders};
-pub use fit::{fit_percent, rmse};
+pub use fit::{fit_percent, loop_area, rmse};

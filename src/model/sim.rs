@@ -61,6 +61,12 @@ pub fn linear_part(
     ((a * ((alpha * x_prev) + ((1.0 - alpha) * w_prev))) + (b * u_prev)) + c
 }
 
+/// The linear family's step (eq. 12 plus intercept): `x(k) = a·x(k−1) + b·u(k−1) + c`.
+#[inline(always)]
+pub fn linear_step(a: f32, b: f32, c: f32, x_prev: f32, u_prev: f32) -> f32 {
+    ((a * x_prev) + (b * u_prev)) + c
+}
+
 /// Classic Bouc-Wen state update (eq. 20 with the factor `w` restored):
 /// `w(k) = w(k−1) + A·Δ − β·|Δ|·|w|^(n−1)·w − γ·Δ·|w|^n`, `w = w(k−1)`.
 #[inline(always)]
@@ -168,7 +174,7 @@ impl Stepper {
     #[inline(always)]
     pub fn step(&self, x_prev: f32, w_prev: f32, u_prev: f32) -> (f32, f32) {
         match *self {
-            Stepper::Linear { a, b, c } => (((a * x_prev) + (b * u_prev)) + c, 0.0),
+            Stepper::Linear { a, b, c } => (linear_step(a, b, c, x_prev, u_prev), 0.0),
             Stepper::Classic {
                 big_a,
                 alpha,

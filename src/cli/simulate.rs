@@ -1,0 +1,292 @@
+//! `mckibben simulate`: run a model on a generated or recorded input.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use serde::Serialize;
+
+use mckibben::data::Trace;
+use mckibben::data::csv::{ReadOptions, read_traces, write_trace_with_comments};
+use mckibben::data::signals::Stair;
+use mckibben::ident::loop_area;
+use mckibben::model::presets::thesis_params;
+use mckibben::model::{Family, FittedModel};
+use mckibben::report::{Figure, Panel, Series};
+
+/// Pressure per volt of valve command used to turn the generated valve
+/// signals into a pressure input: the tap supply (0.5 MPa) over the valve's
+/// 10 V full scale. A nominal static map, for synthetic inputs only.
+const MPA_PER_VOLT: f64 = 0.05;
+
+/// Simulate a model free-run on an input and write the trace.
+///
+/// The model input is the muscle pressure (MPa). `--input stair` is the
+/// identification staircase of appendix A.1.1 (valve 0–10 V, turned into
+/// pressure by a nominal 0.05 MPa/V); `--input sine` a pressure sine
+/// 0.25 + 0.2·sin(ω t) MPa; any other value is a CSV file whose input column
+/// is used (and whose first output sample starts the simulation).
+///
+/// Parameters come from `--preset thesis` (tables 1 and 2 with eq. 12's a, b;
+/// the default), a model file written by `identify` or `fit` (`--from`), and
+/// `--params NAME=VALUE,...` overrides (names as `mckibben simulate --list`
+/// shows). Without a model file the simulation runs in deviation coordinates:
+/// input mean of the first half removed, output starting at 0.
+///
+/// Examples:
+///   mckibben simulate --model classic --input stair --out classic.csv
+///   mckibben simulate --model generalized --input sine --freq 3 --plot gen.svg
+///   mckibben simulate --from out/fit/model.json --input data/stair_7kg.csv --out check.csv
+#[derive(Debug, clap::Args)]
+#[command(verbatim_doc_comment)]
+pub struct Args {
+    /// Model family.
+    #[arg(long, default_value = "classic")]
+    model: Family,
+    /// Parameter preset.
+    #[arg(long, value_enum, default_value = "thesis")]
+    preset: Preset,
+    /// A model JSON written by `identify --out` or `fit` (sets family, parameters and offsets).
+    #[arg(long, value_name = "MODEL.json", conflicts_with = "model")]
+    from: Option<PathBuf>,
+    /// Override parameters, e.g. `--params alpha=0.8,beta=0.01`.
+    #[arg(long, value_delimiter = ',', value_name = "NAME=VALUE")]
+    params: Vec<String>,
+    /// The input: `stair`, `sine` or a CSV file.
+    #[arg(long, default_value = "stair")]
+    input: String,
+    /// Angular frequency of `--input sine` (rad/s).
+    #[arg(long, default_value_t = 1.0)]
+    freq: f64,
+    /// Sample time of generated inputs (s).
+    #[arg(long, default_value_t = 0.01)]
+    dt: f64,
+    /// With a CSV `--input`: the column holding the model input.
+    #[arg(long, value_name = "COL", default_value = "pressure")]
+    input_col: String,
+    /// With a CSV `--input`: the column whose first value starts the simulation.
+    #[arg(long, value_name = "COL", default_value = "displacement")]
+    output_col: String,
+    /// Write the simulated trace (t, pressure, displacement, w) to this CSV file.
+    #[arg(long, value_name = "FILE.csv")]
+    out: Option<PathBuf>,
+    /// Draw the trace and the hysteresis loop to this SVG file.
+    #[arg(long, value_name = "FILE.svg")]
+    plot: Option<PathBuf>,
+    /// List the family's parameter names and exit.
+    #[arg(long)]
+    list: bool,
+    /// Print JSON on stdout instead of a summary.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Preset {
+    /// Tables 1 (classic) and 2 (generalized) with eq. 12's a, b and no intercept.
+    Thesis,
+}
+
+#[derive(Debug, Serialize)]
+struct Summary {
+    model: Family,
+    params: serde_json::Map<String, serde_json::Value>,
+    input: String,
+    samples: usize,
+    dt: f64,
+    diverged_at: Option<usize>,
+    output_min: f64,
+    output_max: f64,
+    loop_area: f64,
+    out: Option<PathBuf>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut model = match &args.from {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read --from {}", path.display()))?;
+            read_model(&text).with_context(|| {
+                format!(
+                    "{} is not a model file written by identify or fit",
+                    path.display()
+                )
+            })?
+        }
+        None => FittedModel {
+            family: args.model,
+            params: thesis_params(args.model),
+            input_mean: f64::NAN,
+            output_mean: 0.0,
+            dt: args.dt,
+            input_name: "pressure".into(),
+            output_name: "displacement".into(),
+        },
+    };
+    if args.list {
+        for p in model.family.params() {
+            println!("{:<8} {:<4} {}", p.name, p.symbol, p.meaning);
+        }
+        return Ok(());
+    }
+    for assignment in &args.params {
+        let (name, value) = assignment
+            .split_once('=')
+            .with_context(|| format!("--params: `{assignment}` is not NAME=VALUE"))?;
+        let i = model.family.index_of(name.trim()).with_context(|| {
+            let names: Vec<_> = model.family.params().iter().map(|p| p.name).collect();
+            format!(
+                "--params: {} has no parameter `{name}`; it has {}",
+                model.family,
+                names.join(", ")
+            )
+        })?;
+        model.params[i] = value
+            .trim()
+            .parse()
+            .with_context(|| format!("--params: `{value}` is not a number"))?;
+    }
+    anyhow::ensure!(
+        args.dt > 0.0 && args.dt.is_finite(),
+        "--dt must be a positive number of seconds"
+    );
+    let (mut trace, y0) = input_trace(&args)?;
+    if model.input_mean.is_nan() {
+        let half = (trace.len() / 2).max(1);
+        model.input_mean = trace.input[..half].iter().sum::<f64>() / half as f64;
+    }
+    let y0 = y0.unwrap_or(model.output_mean);
+    let (y, sim) = model.simulate_absolute(&trace.input, y0);
+    trace.output = y;
+    trace.output_name = model.output_name.clone();
+    trace
+        .extra
+        .push(("w".into(), sim.w.iter().map(|&w| w as f64).collect()));
+    if let Some(path) = &args.out {
+        let comment = format!(
+            "simulated by mckibben simulate: {} model, input {}",
+            model.family, args.input
+        );
+        write_trace_with_comments(path, &trace, &[comment])?;
+    }
+    if let Some(path) = &args.plot {
+        figure(&trace, model.family).save(path)?;
+    }
+    let finite: Vec<f64> = trace
+        .output
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .collect();
+    let summary = Summary {
+        model: model.family,
+        params: model
+            .named_params()
+            .into_iter()
+            .map(|(n, v)| (n.to_string(), v.into()))
+            .collect(),
+        input: args.input.clone(),
+        samples: trace.len(),
+        dt: trace.dt(),
+        diverged_at: sim.diverged_at,
+        output_min: finite.iter().copied().fold(f64::INFINITY, f64::min),
+        output_max: finite.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        loop_area: loop_area(&trace.input, &trace.output),
+        out: args.out.clone(),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+        return Ok(());
+    }
+    println!(
+        "Simulated the {} model on `{}`: {} samples, dt = {} s",
+        summary.model, summary.input, summary.samples, summary.dt
+    );
+    for (name, value) in model.named_params() {
+        println!("  {name:<8} {value}");
+    }
+    match summary.diverged_at {
+        Some(k) => println!("  DIVERGED at sample {k} (state beyond ±1e6 or not finite)"),
+        None => println!(
+            "  output range {:.3} .. {:.3}, loop area {:.4}",
+            summary.output_min, summary.output_max, summary.loop_area
+        ),
+    }
+    if let Some(p) = &args.out {
+        println!("  trace written to {}", p.display());
+    }
+    if let Some(p) = &args.plot {
+        println!("  figure written to {}", p.display());
+    }
+    Ok(())
+}
+
+/// A model file: `fit`'s `FittedModel`, or `identify --out`'s `{ "model": FittedModel, ... }`.
+fn read_model(text: &str) -> anyhow::Result<FittedModel> {
+    let value: serde_json::Value = serde_json::from_str(text)?;
+    let inner = value.get("model").cloned().unwrap_or(value);
+    Ok(serde_json::from_value(inner)?)
+}
+
+/// The input trace and, for a file, its first measured output.
+fn input_trace(args: &Args) -> anyhow::Result<(Trace, Option<f64>)> {
+    match args.input.as_str() {
+        "stair" => {
+            let valve = Stair::default().generate(args.dt);
+            let p = valve.iter().map(|v| v * MPA_PER_VOLT).collect();
+            let mut trace = Trace::uniform("stair", args.dt, p, vec![0.0; valve.len()]);
+            trace.extra.push(("valve_in".into(), valve));
+            Ok((trace, None))
+        }
+        "sine" => {
+            anyhow::ensure!(args.freq > 0.0, "--freq must be positive (rad/s)");
+            let n = (40.0 / args.dt).round() as usize;
+            let p = (0..n)
+                .map(|k| 0.25 + 0.2 * (args.freq * k as f64 * args.dt).sin())
+                .collect();
+            Ok((Trace::uniform("sine", args.dt, p, vec![0.0; n]), None))
+        }
+        file => {
+            let path = PathBuf::from(file);
+            if !path.exists() {
+                bail!("--input: `{file}` is neither `stair`, `sine` nor an existing CSV file");
+            }
+            let opts = ReadOptions {
+                input: args.input_col.clone(),
+                output: args.output_col.clone(),
+                ..ReadOptions::default()
+            };
+            let mut traces = read_traces(&path, &opts)?;
+            anyhow::ensure!(
+                traces.len() == 1,
+                "{file}: --split-gaps gave {} pieces; simulate one file piece at a time",
+                traces.len()
+            );
+            let trace = traces.remove(0);
+            let y0 = trace.output.first().copied();
+            Ok((trace, y0))
+        }
+    }
+}
+
+fn figure(trace: &Trace, family: Family) -> Figure {
+    Figure::new(format!("{family} model, simulated"))
+        .with(
+            Panel::new("input", "t (s)", &trace.input_name).with(Series::line(
+                &trace.input_name,
+                trace.t.clone(),
+                trace.input.clone(),
+            )),
+        )
+        .with(
+            Panel::new("output", "t (s)", &trace.output_name).with(Series::line(
+                "simulated",
+                trace.t.clone(),
+                trace.output.clone(),
+            )),
+        )
+        .with(
+            Panel::new("hysteresis loop", &trace.input_name, &trace.output_name).with(
+                Series::line("simulated", trace.input.clone(), trace.output.clone()),
+            ),
+        )
+}

@@ -1,0 +1,472 @@
+//! The GPU evaluator: one WGSL invocation per candidate (wgpu).
+//!
+//! The device, the pipelines and the buffers are made once and reused for
+//! every call; buffers grow geometrically; the experiments' samples are
+//! uploaded once per distinct problem; each call records every chunk's
+//! dispatch and the copy to the read-back buffer in one command buffer, so
+//! there is one submit and one read-back per call. A grid past the device's
+//! per-dimension workgroup limit (65535) folds into 2-D, and a population
+//! whose parameters exceed the storage binding limit is split into chunks,
+//! each bound at its own offset of the same buffers.
+//!
+//! The shaders (`shaders/prologue.wgsl` + one file per family) spell the
+//! operations of `src/model/sim.rs` in the same order. On an unfused f32
+//! implementation (Mesa's lavapipe) the `n = 1` scores are bit-identical to
+//! the CPU's; a real GPU may fuse `a·b + c` into an fma, so there compare
+//! within a tolerance and compare rankings (`mckibben bench` reports both).
+
+use std::collections::HashMap;
+
+use anyhow::{Context, bail};
+
+use super::{Evaluator, Problem, Scores, to_f32};
+use crate::model::Family;
+
+/// Invocations per workgroup; the shaders' `@workgroup_size`.
+const WORKGROUP: u32 = 64;
+
+const PROLOGUE: &str = include_str!("../../shaders/prologue.wgsl");
+
+fn family_source(family: Family) -> &'static str {
+    match family {
+        Family::Linear => include_str!("../../shaders/linear.wgsl"),
+        Family::Classic => include_str!("../../shaders/classic.wgsl"),
+        Family::Generalized => include_str!("../../shaders/generalized.wgsl"),
+    }
+}
+
+/// The complete WGSL of one pipeline: the `N_ONE` switch, the prologue and
+/// the family's file.
+pub fn shader_source(family: Family, n_one: bool) -> String {
+    format!(
+        "const N_ONE: bool = {n_one};\n{PROLOGUE}\n{}",
+        family_source(family)
+    )
+}
+
+/// Which adapters `open` considers: the native GPU APIs (Vulkan on Linux,
+/// where lavapipe lives too; Metal; DX12), never the GL fallback.
+const BACKENDS: wgpu::Backends = wgpu::Backends::PRIMARY;
+
+/// An adapter's name, kind and driver, for the user.
+pub fn describe_adapter(info: &wgpu::AdapterInfo) -> String {
+    let driver = [info.driver.as_str(), info.driver_info.as_str()]
+        .iter()
+        .filter(|s| !s.is_empty())
+        .copied()
+        .collect::<Vec<_>>()
+        .join(" ");
+    format!(
+        "{} ({:?}, {:?}{}{})",
+        info.name,
+        info.backend,
+        info.device_type,
+        if driver.is_empty() { "" } else { ", " },
+        driver
+    )
+}
+
+/// True for a real GPU: a discrete or integrated adapter (not lavapipe).
+pub fn is_hardware(info: &wgpu::AdapterInfo) -> bool {
+    matches!(
+        info.device_type,
+        wgpu::DeviceType::DiscreteGpu | wgpu::DeviceType::IntegratedGpu
+    )
+}
+
+/// The adapters present, best first: discrete, integrated, virtual, CPU.
+pub fn adapters() -> Vec<wgpu::Adapter> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: BACKENDS,
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let mut found = pollster::block_on(instance.enumerate_adapters(BACKENDS));
+    let rank = |a: &wgpu::Adapter| match a.get_info().device_type {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Cpu => 3,
+        wgpu::DeviceType::Other => 4,
+    };
+    found.sort_by_key(rank);
+    found
+}
+
+/// Limits a test may lower to exercise chunking and 2-D dispatch cheaply.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct GpuOptions {
+    /// Cap on one storage binding's size in bytes (default: the device's).
+    pub max_binding_bytes: Option<u64>,
+    /// Cap on workgroups per grid dimension (default: the device's, 65535).
+    pub max_groups_per_dim: Option<u32>,
+}
+
+/// A storage or uniform buffer that is replaced by one twice as large when
+/// a call needs more.
+struct Grown {
+    buffer: Option<wgpu::Buffer>,
+    usage: wgpu::BufferUsages,
+    label: &'static str,
+}
+
+impl Grown {
+    fn new(label: &'static str, usage: wgpu::BufferUsages) -> Self {
+        Grown {
+            buffer: None,
+            usage,
+            label,
+        }
+    }
+
+    /// A buffer of at least `bytes` (rounded up to 256 and grown by doubling).
+    fn at_least(&mut self, device: &wgpu::Device, bytes: u64) -> &wgpu::Buffer {
+        let bytes = bytes.max(256).next_multiple_of(256);
+        let small = self.buffer.as_ref().is_none_or(|b| b.size() < bytes);
+        if small {
+            let old = self.buffer.as_ref().map_or(0, |b| b.size());
+            let size = bytes.max(old.saturating_mul(2));
+            self.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(self.label),
+                size,
+                usage: self.usage,
+                mapped_at_creation: false,
+            }));
+        }
+        self.buffer.as_ref().expect("just made")
+    }
+}
+
+/// The experiments last uploaded, to skip the upload when a call scores the
+/// same problem again (every generation of a run).
+#[derive(PartialEq)]
+struct Uploaded {
+    u: Vec<Vec<f32>>,
+    y: Vec<Vec<f32>>,
+}
+
+/// Scores populations on a wgpu device.
+pub struct GpuEvaluator {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    info: wgpu::AdapterInfo,
+    limits: wgpu::Limits,
+    options: GpuOptions,
+    pipelines: HashMap<(Family, bool), wgpu::ComputePipeline>,
+    params: Grown,
+    samples: Grown,
+    spans: Grown,
+    configs: Grown,
+    out: Grown,
+    readback: Grown,
+    uploaded: Option<Uploaded>,
+}
+
+impl GpuEvaluator {
+    /// Opens the best adapter present (see [`adapters`]); an error, not a
+    /// panic, when there is none.
+    pub fn open(options: GpuOptions) -> anyhow::Result<Self> {
+        let adapter = adapters().into_iter().next().context(
+            "no GPU adapter found (Vulkan, Metal or DX12): install a driver \
+             (on Debian, `mesa-vulkan-drivers` and `libvulkan1` give the lavapipe CPU \
+             adapter) or use `--backend cpu`",
+        )?;
+        Self::with_adapter(adapter, options)
+    }
+
+    /// Opens `adapter` with the largest limits it offers.
+    pub fn with_adapter(adapter: wgpu::Adapter, options: GpuOptions) -> anyhow::Result<Self> {
+        let info = adapter.get_info();
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("mckibben evaluator"),
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .with_context(|| format!("cannot open a device on {}", describe_adapter(&info)))?;
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        Ok(GpuEvaluator {
+            device,
+            queue,
+            info,
+            limits,
+            options,
+            pipelines: HashMap::new(),
+            params: Grown::new("parameters", storage),
+            samples: Grown::new("samples", storage),
+            spans: Grown::new("spans", storage),
+            configs: Grown::new(
+                "configs",
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            out: Grown::new(
+                "sse",
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: Grown::new(
+                "read-back",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            uploaded: None,
+        })
+    }
+
+    /// The adapter scoring.
+    pub fn adapter_info(&self) -> &wgpu::AdapterInfo {
+        &self.info
+    }
+
+    fn pipeline(&mut self, family: Family, n_one: bool) -> &wgpu::ComputePipeline {
+        let device = &self.device;
+        self.pipelines.entry((family, n_one)).or_insert_with(|| {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(family.name()),
+                source: wgpu::ShaderSource::Wgsl(shader_source(family, n_one).into()),
+            });
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(family.name()),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        })
+    }
+
+    /// Uploads the experiments' samples unless they are the ones on the device.
+    fn upload_samples(&mut self, problem: &Problem) -> anyhow::Result<()> {
+        let wanted = Uploaded {
+            u: problem.experiments.iter().map(|e| e.u.clone()).collect(),
+            y: problem.experiments.iter().map(|e| e.y.clone()).collect(),
+        };
+        if self.uploaded.as_ref() == Some(&wanted) {
+            return Ok(());
+        }
+        let mut packed: Vec<[f32; 2]> = Vec::with_capacity(problem.samples());
+        let mut spans: Vec<[u32; 2]> = Vec::new();
+        for e in &problem.experiments {
+            anyhow::ensure!(
+                e.u.len() == e.y.len(),
+                "experiment `{}`: input and output lengths differ",
+                e.name
+            );
+            spans.push([packed.len() as u32, e.len() as u32]);
+            packed.extend(e.u.iter().zip(&e.y).map(|(&u, &y)| [u, y]));
+        }
+        let bytes: &[u8] = bytemuck::cast_slice(&packed);
+        anyhow::ensure!(
+            (bytes.len() as u64) <= self.binding_limit(),
+            "the experiments' {} samples exceed the device's storage binding limit",
+            packed.len()
+        );
+        let buf = self.samples.at_least(&self.device, bytes.len() as u64);
+        self.queue.write_buffer(buf, 0, bytes);
+        let buf = self.spans.at_least(&self.device, (spans.len() * 8) as u64);
+        self.queue
+            .write_buffer(buf, 0, bytemuck::cast_slice(&spans));
+        self.uploaded = Some(wanted);
+        Ok(())
+    }
+
+    fn binding_limit(&self) -> u64 {
+        let device = self.limits.max_storage_buffer_binding_size as u64;
+        self.options
+            .max_binding_bytes
+            .map_or(device, |cap| cap.min(device))
+    }
+
+    fn groups_per_dim(&self) -> u32 {
+        let device = self.limits.max_compute_workgroups_per_dimension;
+        self.options
+            .max_groups_per_dim
+            .map_or(device, |cap| cap.min(device))
+    }
+
+    /// Candidates per chunk: as many as the parameter and output bindings and
+    /// a 2-D grid allow, a multiple of the workgroup size (so every chunk's
+    /// offsets meet the 256-byte binding alignment).
+    fn chunk_len(&self, dim: usize, experiments: usize) -> anyhow::Result<usize> {
+        let per_candidate = (dim.max(experiments) * 4) as u64;
+        let by_binding = self.binding_limit() / per_candidate;
+        let g = self.groups_per_dim() as u64;
+        let by_grid = g * g * WORKGROUP as u64;
+        let len = by_binding.min(by_grid) / WORKGROUP as u64 * WORKGROUP as u64;
+        if len == 0 {
+            bail!("the device's storage binding limit cannot hold one workgroup of candidates");
+        }
+        Ok(len as usize)
+    }
+}
+
+/// `size` bytes of `buffer` from `offset`, as a binding.
+fn range(buffer: &wgpu::Buffer, offset: u64, size: u64) -> wgpu::BindingResource<'_> {
+    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+        buffer,
+        offset,
+        size: std::num::NonZeroU64::new(size),
+    })
+}
+
+/// The uniform block of `shaders/prologue.wgsl`, one per chunk at a 256-byte stride.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Config {
+    count: u32,
+    experiments: u32,
+    row_width: u32,
+    zero_bits: u32,
+}
+
+const CONFIG_STRIDE: u64 = 256;
+
+impl Evaluator for GpuEvaluator {
+    fn describe(&self) -> String {
+        format!("gpu: {}", describe_adapter(&self.info))
+    }
+
+    fn adapter(&self) -> Option<String> {
+        Some(describe_adapter(&self.info))
+    }
+
+    fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {
+        let family = problem.family;
+        let d = family.dim();
+        anyhow::ensure!(
+            population.len() % d == 0,
+            "population length {} is not a multiple of the {family} model's {d} parameters",
+            population.len()
+        );
+        let n = population.len() / d;
+        let n_exp = problem.experiments.len();
+        if n == 0 || n_exp == 0 {
+            return Ok(Scores::from_per_experiment(vec![Vec::new(); n_exp]));
+        }
+        let rows = to_f32(population);
+        let n_one = match family.exponent_index() {
+            Some(ni) => rows.chunks_exact(d).all(|r| r[ni] == 1.0),
+            None => true,
+        };
+        self.upload_samples(problem)?;
+        let chunk = self.chunk_len(d, n_exp)?;
+        let chunks: Vec<(usize, usize)> = (0..n)
+            .step_by(chunk)
+            .map(|s| (s, chunk.min(n - s)))
+            .collect();
+        let param_bytes = (rows.len() * 4) as u64;
+        let out_bytes = (n * n_exp * 4) as u64;
+        if param_bytes > self.limits.max_buffer_size || out_bytes > self.limits.max_buffer_size {
+            bail!(
+                "a population of {n} {family} candidates exceeds the device's buffer size \
+                 limit ({} bytes); score it in parts",
+                self.limits.max_buffer_size
+            );
+        }
+
+        let groups_per_dim = self.groups_per_dim() as usize;
+        let mut configs = Vec::with_capacity(chunks.len() * CONFIG_STRIDE as usize / 4);
+        let mut grids = Vec::with_capacity(chunks.len());
+        for &(_, len) in &chunks {
+            let groups = len.div_ceil(WORKGROUP as usize);
+            let gx = groups.min(groups_per_dim);
+            let gy = groups.div_ceil(gx);
+            grids.push((gx as u32, gy as u32));
+            let cfg = Config {
+                count: len as u32,
+                experiments: n_exp as u32,
+                row_width: gx as u32 * WORKGROUP,
+                zero_bits: 0,
+            };
+            configs.extend_from_slice(bytemuck::bytes_of(&cfg));
+            configs.resize(configs.len().next_multiple_of(CONFIG_STRIDE as usize), 0u8);
+        }
+
+        self.pipeline(family, n_one);
+        let device = &self.device;
+        let params = self.params.at_least(device, param_bytes);
+        self.queue
+            .write_buffer(params, 0, bytemuck::cast_slice(&rows));
+        let cfg_buf = self.configs.at_least(device, configs.len() as u64);
+        self.queue.write_buffer(cfg_buf, 0, &configs);
+        let out = self.out.at_least(device, out_bytes);
+        let readback = self.readback.at_least(device, out_bytes);
+        let samples = self.samples.buffer.as_ref().expect("uploaded");
+        let spans = self.spans.buffer.as_ref().expect("uploaded");
+        let pipeline = &self.pipelines[&(family, n_one)];
+        let layout = pipeline.get_bind_group_layout(0);
+
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            for (c, (&(start, len), &(gx, gy))) in chunks.iter().zip(&grids).enumerate() {
+                let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("chunk"),
+                    layout: &layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: range(
+                                cfg_buf,
+                                c as u64 * CONFIG_STRIDE,
+                                std::mem::size_of::<Config>() as u64,
+                            ),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: range(params, (start * d * 4) as u64, (len * d * 4) as u64),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: samples.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: spans.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: range(
+                                out,
+                                (start * n_exp * 4) as u64,
+                                (len * n_exp * 4) as u64,
+                            ),
+                        },
+                    ],
+                });
+                pass.set_bind_group(0, &group, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+        }
+        encoder.copy_buffer_to_buffer(out, 0, readback, 0, out_bytes);
+        self.queue.submit([encoder.finish()]);
+
+        let slice = readback.slice(..out_bytes);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .context("waiting for the GPU")?;
+        rx.recv()
+            .context("the GPU read-back was dropped")?
+            .context("mapping the GPU read-back")?;
+        let flat: Vec<f32> = {
+            let view = slice
+                .get_mapped_range()
+                .context("reading the GPU read-back")?;
+            bytemuck::cast_slice(&view).to_vec()
+        };
+        readback.unmap();
+
+        // Chunk c holds [e][i] for its own candidates at start * n_exp.
+        let mut per_experiment = vec![Vec::with_capacity(n); n_exp];
+        for &(start, len) in &chunks {
+            let block = &flat[start * n_exp..(start + len) * n_exp];
+            for (e, scores) in per_experiment.iter_mut().enumerate() {
+                scores.extend_from_slice(&block[e * len..(e + 1) * len]);
+            }
+        }
+        Ok(Scores::from_per_experiment(per_experiment))
+    }
+}

@@ -1,0 +1,98 @@
+//! Reproducible evaluator workloads: a stair experiment when no data file is
+//! given, and random populations drawn from the default search box. The
+//! benchmark (`mckibben bench`, `benches/evaluator.rs`) and the evaluator
+//! tests use them, so that what is timed is what is tested.
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::data::Trace;
+use crate::model::presets::{THESIS_A, THESIS_B, thesis_params};
+use crate::model::{Experiment, Family, Flow, LinearPrior, SearchSpace, simulate};
+
+/// Sample time of the synthetic stair (the thesis' rig logs at 10 Hz).
+pub const STAIR_DT: f64 = 0.1;
+
+/// A stair experiment of `samples` samples: pressure steps (MPa) held for a
+/// random 20–80 samples each, and the displacement (mm) the thesis' classic
+/// model (Table 1 with eq. 12) produces from them, plus 0.05 mm of uniform
+/// noise. Deviation coordinates over the whole trace. Deterministic in `seed`.
+pub fn stair_experiment(samples: usize, seed: u64) -> Experiment {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut input = Vec::with_capacity(samples);
+    while input.len() < samples {
+        let level: f64 = rng.random_range(0.0..0.4);
+        let hold: usize = rng.random_range(20..80);
+        input.extend(std::iter::repeat_n(level, hold));
+    }
+    input.truncate(samples);
+    let u_mean = input.iter().sum::<f64>() / samples.max(1) as f64;
+    let u: Vec<f32> = input.iter().map(|&p| (p - u_mean) as f32).collect();
+    let theta: Vec<f32> = thesis_params(Family::Classic)
+        .iter()
+        .map(|&v| v as f32)
+        .collect();
+    let sim = simulate(Family::Classic, &theta, &u, 0.0);
+    let output: Vec<f64> = sim
+        .x
+        .iter()
+        .map(|&x| 30.0 + x as f64 + rng.random_range(-0.05..0.05))
+        .collect();
+    let trace = Trace::uniform(format!("stair(seed {seed})"), STAIR_DT, input, output);
+    Experiment::with_means_of(&trace, 0..samples)
+}
+
+/// The default search box of `family` for `experiment` (thesis hull, `n = 1`
+/// unless `free_n`, joint flow around the thesis' ARX estimate). Its `a` range
+/// reaches past 1, so a uniform draw includes diverging candidates.
+pub fn search_space(family: Family, experiment: &Experiment, free_n: bool) -> SearchSpace {
+    let max_abs = |v: &[f32], mean: f64| {
+        v.iter()
+            .map(|&x| (x as f64 + mean).abs())
+            .fold(0.0, f64::max)
+    };
+    let prior = LinearPrior {
+        a: THESIS_A,
+        b: THESIS_B,
+        max_abs_input: max_abs(&experiment.u, experiment.u_mean),
+        max_abs_output: max_abs(&experiment.y, experiment.y_mean),
+    };
+    SearchSpace::around(family, None, prior, Flow::Joint, free_n)
+}
+
+/// `count` candidates drawn uniformly from `space`, row-major.
+pub fn random_population(space: &SearchSpace, count: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let mut rows = Vec::with_capacity(count * space.dim());
+    for _ in 0..count {
+        for (&lo, &hi) in space.lower.iter().zip(&space.upper) {
+            rows.push(if lo < hi {
+                rng.random_range(lo..hi)
+            } else {
+                lo
+            });
+        }
+    }
+    rows
+}
+
+/// `count` candidates: even rows uniform over `space` (for the generalized
+/// model nearly all of them diverge), odd rows uniform within ±5 % of the box
+/// width around the thesis' preset of the family (clamped to the box; nearly
+/// all finite). A population an optimizer sees mid-run has both kinds.
+pub fn mixed_population(space: &SearchSpace, count: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let center = thesis_params(space.family);
+    let mut rows = Vec::with_capacity(count * space.dim());
+    for i in 0..count {
+        for (j, (&lo, &hi)) in space.lower.iter().zip(&space.upper).enumerate() {
+            rows.push(if lo == hi {
+                lo
+            } else if i % 2 == 0 {
+                rng.random_range(lo..hi)
+            } else {
+                let half = 0.05 * (hi - lo);
+                (center[j] + rng.random_range(-half..half)).clamp(lo, hi)
+            });
+        }
+    }
+    rows
+}

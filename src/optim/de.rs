@@ -1,0 +1,226 @@
+//! Differential evolution: the modern baseline none of the thesis' methods
+//! is.
+//!
+//! Default variant: *current-to-pbest/1/bin* mutation (Zhang & Sanderson,
+//! JADE, 2009, without the archive), `v = x_i + F·(x_pbest − x_i) + F·(x_r1 − x_r2)`
+//! with `x_pbest` drawn from the best `p·N`, binomial crossover, greedy
+//! one-to-one selection, and the self-adaptation of `F` and `CR` of jDE
+//! (Brest et al., 2006: each individual carries its own `F`, `CR`; with
+//! probability 0.1 a trial redraws `F ∈ [0.1, 1]`, resp. `CR ∈ [0, 1]`, and
+//! keeps them if the trial wins). A coordinate that leaves the box is put
+//! half-way between the parent and the bound it crossed (JADE's repair), so
+//! the boundary is reachable but not over-sampled. `DE/rand/1/bin` (Storn &
+//! Price, 1997) is selectable.
+
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use super::{Bounds, Optimizer};
+
+/// The mutation strategy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Strategy {
+    /// `v = x_r0 + F·(x_r1 − x_r2)`: slow, robust exploration.
+    Rand1,
+    /// `v = x_i + F·(x_pbest − x_i) + F·(x_r1 − x_r2)`: greedier, converges
+    /// in tens of generations on this problem.
+    CurrentToPbest1,
+}
+
+/// DE settings (stated, not from the thesis: it has no DE).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DeSettings {
+    pub strategy: Strategy,
+    /// Share of the population `x_pbest` is drawn from (JADE: 0.05–0.2).
+    pub p_best: f64,
+    /// Initial `F` and `CR` of every individual (jDE: 0.5, 0.9).
+    pub f_init: f64,
+    pub cr_init: f64,
+    /// Probabilities of redrawing `F` and `CR` per trial (jDE: 0.1, 0.1).
+    pub tau_f: f64,
+    pub tau_cr: f64,
+}
+
+impl Default for DeSettings {
+    fn default() -> Self {
+        DeSettings {
+            strategy: Strategy::CurrentToPbest1,
+            p_best: 0.1,
+            f_init: 0.5,
+            cr_init: 0.9,
+            tau_f: 0.1,
+            tau_cr: 0.1,
+        }
+    }
+}
+
+/// DE state between generations.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct De {
+    pub settings: DeSettings,
+    bounds: Bounds,
+    n: usize,
+    pop: Vec<f64>,
+    #[serde(with = "super::inf_serde")]
+    costs: Vec<f32>,
+    f: Vec<f64>,
+    cr: Vec<f64>,
+    /// Trials last asked for, with the `F`, `CR` they were made with.
+    trials: Vec<f64>,
+    trial_f: Vec<f64>,
+    trial_cr: Vec<f64>,
+}
+
+impl De {
+    pub fn new(settings: DeSettings, bounds: Bounds, n: usize) -> De {
+        assert!(
+            n >= 4,
+            "differential evolution needs at least 4 individuals"
+        );
+        De {
+            f: vec![settings.f_init; n],
+            cr: vec![settings.cr_init; n],
+            settings,
+            bounds,
+            n,
+            pop: Vec::new(),
+            costs: Vec::new(),
+            trials: Vec::new(),
+            trial_f: Vec::new(),
+            trial_cr: Vec::new(),
+        }
+    }
+
+    fn make_trials(&mut self, rng: &mut ChaCha8Rng) {
+        let (n, d) = (self.n, self.bounds.dim());
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| super::cost_order(self.costs[a], self.costs[b]).then(a.cmp(&b)));
+        let top = ((self.settings.p_best * n as f64).round() as usize).clamp(1, n);
+        self.trials.clear();
+        self.trial_f.clear();
+        self.trial_cr.clear();
+        for i in 0..n {
+            let f = if rng.random::<f64>() < self.settings.tau_f {
+                0.1 + 0.9 * rng.random::<f64>()
+            } else {
+                self.f[i]
+            };
+            let cr = if rng.random::<f64>() < self.settings.tau_cr {
+                rng.random::<f64>()
+            } else {
+                self.cr[i]
+            };
+            let pick = |rng: &mut ChaCha8Rng, not: &[usize]| loop {
+                let r = rng.random_range(0..n);
+                if !not.contains(&r) {
+                    break r;
+                }
+            };
+            let r1 = pick(rng, &[i]);
+            let r2 = pick(rng, &[i, r1]);
+            let x = |k: usize, j: usize| self.pop[k * d + j];
+            let base: Vec<f64> = match self.settings.strategy {
+                Strategy::Rand1 => {
+                    let r0 = pick(rng, &[i, r1, r2]);
+                    (0..d)
+                        .map(|j| x(r0, j) + f * (x(r1, j) - x(r2, j)))
+                        .collect()
+                }
+                Strategy::CurrentToPbest1 => {
+                    let pb = order[rng.random_range(0..top)];
+                    (0..d)
+                        .map(|j| x(i, j) + f * (x(pb, j) - x(i, j)) + f * (x(r1, j) - x(r2, j)))
+                        .collect()
+                }
+            };
+            let jrand = rng.random_range(0..d);
+            for (j, &vj) in base.iter().enumerate() {
+                let parent = x(i, j);
+                let mut t = if j == jrand || rng.random::<f64>() < cr {
+                    vj
+                } else {
+                    parent
+                };
+                if t < self.bounds.lower[j] {
+                    t = 0.5 * (self.bounds.lower[j] + parent);
+                } else if t > self.bounds.upper[j] {
+                    t = 0.5 * (self.bounds.upper[j] + parent);
+                }
+                self.trials.push(t);
+            }
+            self.trial_f.push(f);
+            self.trial_cr.push(cr);
+        }
+    }
+}
+
+impl Optimizer for De {
+    fn name(&self) -> &'static str {
+        "de"
+    }
+
+    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        if self.costs.len() == self.n {
+            self.make_trials(rng);
+            self.trials.clone()
+        } else {
+            self.pop = (0..self.n).flat_map(|_| self.bounds.uniform(rng)).collect();
+            self.pop.clone()
+        }
+    }
+
+    fn tell(&mut self, costs: &[f32]) {
+        assert_eq!(costs.len(), self.n, "one cost per individual");
+        if self.costs.len() != self.n {
+            self.costs = costs.to_vec();
+            return;
+        }
+        let d = self.bounds.dim();
+        for (i, &c) in costs.iter().enumerate() {
+            if super::cost_order(c, self.costs[i]).is_le() && c.is_finite() {
+                self.costs[i] = c;
+                self.pop[i * d..(i + 1) * d].copy_from_slice(&self.trials[i * d..(i + 1) * d]);
+                self.f[i] = self.trial_f[i];
+                self.cr[i] = self.trial_cr[i];
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    fn sphere(rows: &[f64], d: usize) -> Vec<f32> {
+        rows.chunks(d)
+            .map(|r| r.iter().map(|v| (v - 0.3) * (v - 0.3)).sum::<f64>() as f32)
+            .collect()
+    }
+
+    #[test]
+    fn trials_stay_in_the_box_and_selection_never_worsens() {
+        let bounds = Bounds {
+            lower: vec![-1.0; 3],
+            upper: vec![1.0; 3],
+            names: vec!["x".into(), "y".into(), "z".into()],
+        };
+        let mut de = De::new(DeSettings::default(), bounds.clone(), 20);
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut best = f32::INFINITY;
+        for _ in 0..60 {
+            let rows = de.ask(&mut rng);
+            assert!(rows.chunks(3).all(|r| {
+                let mut c = r.to_vec();
+                !bounds.clamp(&mut c)
+            }));
+            de.tell(&sphere(&rows, 3));
+            let now = de.costs.iter().copied().fold(f32::INFINITY, f32::min);
+            assert!(now <= best);
+            best = now;
+        }
+        assert!(best < 1e-6, "{best}");
+    }
+}

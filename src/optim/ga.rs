@@ -1,0 +1,362 @@
+//! The thesis' genetic algorithm (§5.2.1, Algorithm 1, appendix A.2.1).
+//!
+//! Each generation: the population is scored, fit = 1/SSE (eq. 29),
+//! normalised (eq. 30); pairs of parents are drawn by roulette until the
+//! mating pool holds N children; each gene of each child mutates with
+//! probability `P_mut` by `±m_m` of its value; children that leave the box
+//! are clamped back and their fit is penalised. The children replace the
+//! parents (no elitism, as in the thesis, unless `elitism > 0`); the run loop
+//! always reports the best individual ever seen.
+//!
+//! Appendix bugs fixed (see `docs/ARCHITECTURE.md`): the code's fit is
+//! `−1/SSE` and is then normalised by its (negative) sum, and the penalty
+//! `−1/SSE⁵` *rewards* a clamped individual whose SSE is below 1; here fit is
+//! positive and the penalty `min(1/SSE, 1/SSE^q)` never rewards. The second
+//! parent's roulette in `getMatingPartners` drops the first parent but then
+//! indexes the shortened list as if it were the full one, and can step past
+//! its end (`second + 1`); here the second parent is drawn from the others
+//! with the right indices.
+
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use super::{Bounds, Optimizer};
+
+/// How two parents make two children (§5.2.1.5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Crossover {
+    /// Each child takes the first `x` genes of one parent and the rest of the
+    /// other, `x` uniform in `1..=d`.
+    Random,
+    /// Each gene comes from the fitter parent with probability
+    /// `fit(p1) / (fit(p1) + fit(p2))`.
+    Weighted,
+    /// Each gene is, with probability `1 − P_cross` (the appendix code's
+    /// `rand > p_crossover`), the fit-weighted mean of the parents' genes;
+    /// otherwise the child keeps its own parent's gene. The only strategy
+    /// that creates new gene values, and the thesis' best (§5.4.2.1).
+    #[default]
+    Proportional,
+}
+
+/// How large a mutation is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Mutation {
+    /// Exactly `±m_m` of the gene's value (§5.2.1.6): steps of fixed
+    /// relative size, so the GA cannot refine a gene below `m_m`.
+    Fixed,
+    /// A relative change drawn uniformly in `[−m_m, m_m]`: the same reach,
+    /// but arbitrarily small steps too.
+    Uniform,
+}
+
+/// GA settings; defaults are the thesis' (tables 5 and 13: `P_cross = 0.5`,
+/// `P_mut = 0.1`, `m_m = 0.05`, proportional crossover as in A.2.1.1).
+/// Population size and generations belong to the run (`N = 30` / `20`,
+/// `G = 30` in the thesis).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GaSettings {
+    pub crossover: Crossover,
+    pub p_cross: f64,
+    pub p_mut: f64,
+    /// Mutation magnitude `m_m`: a mutated gene becomes `g·(1 ± m_m)`.
+    pub m_mut: f64,
+    pub mutation: Mutation,
+    /// Exponent `q` of the bounds penalty: a clamped child's fit is
+    /// `min(1/SSE, 1/SSE^q)` (the appendix code's `SSE⁵`).
+    pub penalty_exponent: f64,
+    /// Best individuals copied unchanged into the next generation (0 in the thesis).
+    pub elitism: usize,
+}
+
+impl Default for GaSettings {
+    fn default() -> Self {
+        GaSettings {
+            crossover: Crossover::Proportional,
+            p_cross: 0.5,
+            p_mut: 0.1,
+            m_mut: 0.05,
+            mutation: Mutation::Fixed,
+            penalty_exponent: 5.0,
+            elitism: 0,
+        }
+    }
+}
+
+/// GA state between generations.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Ga {
+    pub settings: GaSettings,
+    bounds: Bounds,
+    n: usize,
+    /// The population last asked for, row-major.
+    pop: Vec<f64>,
+    /// Which rows were clamped into the box (penalised).
+    clamped: Vec<bool>,
+    /// Their costs, once told.
+    #[serde(with = "super::inf_serde")]
+    costs: Vec<f32>,
+}
+
+impl Ga {
+    pub fn new(settings: GaSettings, bounds: Bounds, n: usize) -> Ga {
+        assert!(n >= 2, "the GA needs at least two individuals");
+        Ga {
+            settings,
+            bounds,
+            n,
+            pop: Vec::new(),
+            clamped: Vec::new(),
+            costs: Vec::new(),
+        }
+    }
+
+    /// Fit of every individual: `1/SSE`, penalised when clamped, 0 when diverged.
+    fn fitness(&self) -> Vec<f64> {
+        self.costs
+            .iter()
+            .zip(&self.clamped)
+            .map(|(&c, &clamped)| {
+                if !c.is_finite() {
+                    return 0.0;
+                }
+                let sse = (c as f64).max(f64::MIN_POSITIVE);
+                let fit = (1.0 / sse).min(f64::MAX);
+                if clamped {
+                    fit.min(sse.powf(-self.settings.penalty_exponent))
+                } else {
+                    fit
+                }
+            })
+            .collect()
+    }
+
+    fn offspring(&self, rng: &mut ChaCha8Rng) -> (Vec<f64>, Vec<bool>) {
+        let d = self.bounds.dim();
+        let fit = self.fitness();
+        let roulette = Roulette::new(&fit);
+        let mut pop = Vec::with_capacity(self.n * d);
+        let mut clamped = Vec::with_capacity(self.n);
+        let elite = self.settings.elitism.min(self.n);
+        if elite > 0 {
+            let mut order: Vec<usize> = (0..self.n).collect();
+            order.sort_by(|&a, &b| super::cost_order(self.costs[a], self.costs[b]).then(a.cmp(&b)));
+            for &i in &order[..elite] {
+                pop.extend_from_slice(&self.pop[i * d..(i + 1) * d]);
+                clamped.push(self.clamped[i]);
+            }
+        }
+        while clamped.len() < self.n {
+            let (i1, i2) = roulette.pair(rng);
+            let p1 = &self.pop[i1 * d..(i1 + 1) * d];
+            let p2 = &self.pop[i2 * d..(i2 + 1) * d];
+            let (f1, f2) = (fit[i1], fit[i2]);
+            // Share of the first parent; parents of zero fit count equally.
+            let pv1 = if f1 + f2 > 0.0 { f1 / (f1 + f2) } else { 0.5 };
+            let (mut c1, mut c2) = (p1.to_vec(), p2.to_vec());
+            match self.settings.crossover {
+                Crossover::Random => {
+                    let x = rng.random_range(1..=d);
+                    c1[x..].copy_from_slice(&p2[x..]);
+                    let x = rng.random_range(1..=d);
+                    c2[x..].copy_from_slice(&p1[x..]);
+                }
+                Crossover::Weighted => {
+                    let (better, worse, inp) = if f1 >= f2 {
+                        (p1, p2, pv1)
+                    } else {
+                        (p2, p1, 1.0 - pv1)
+                    };
+                    for child in [&mut c1, &mut c2] {
+                        for j in 0..d {
+                            child[j] = if rng.random::<f64>() < inp {
+                                better[j]
+                            } else {
+                                worse[j]
+                            };
+                        }
+                    }
+                }
+                Crossover::Proportional => {
+                    for child in [&mut c1, &mut c2] {
+                        for j in 0..d {
+                            if rng.random::<f64>() > self.settings.p_cross {
+                                child[j] = pv1 * p1[j] + (1.0 - pv1) * p2[j];
+                            }
+                        }
+                    }
+                }
+            }
+            for mut child in [c1, c2] {
+                if clamped.len() == self.n {
+                    break;
+                }
+                for g in child.iter_mut() {
+                    if rng.random::<f64>() < self.settings.p_mut {
+                        let change = match self.settings.mutation {
+                            Mutation::Fixed if rng.random::<f64>() < 0.5 => self.settings.m_mut,
+                            Mutation::Fixed => -self.settings.m_mut,
+                            Mutation::Uniform => {
+                                self.settings.m_mut * (2.0 * rng.random::<f64>() - 1.0)
+                            }
+                        };
+                        *g *= 1.0 + change;
+                    }
+                }
+                clamped.push(self.bounds.clamp(&mut child));
+                pop.extend_from_slice(&child);
+            }
+        }
+        (pop, clamped)
+    }
+}
+
+impl Optimizer for Ga {
+    fn name(&self) -> &'static str {
+        "ga"
+    }
+
+    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        if self.costs.len() == self.n {
+            let (pop, clamped) = self.offspring(rng);
+            self.pop = pop;
+            self.clamped = clamped;
+        } else {
+            self.pop = (0..self.n).flat_map(|_| self.bounds.uniform(rng)).collect();
+            self.clamped = vec![false; self.n];
+        }
+        self.costs.clear();
+        self.pop.clone()
+    }
+
+    fn tell(&mut self, costs: &[f32]) {
+        assert_eq!(costs.len(), self.n, "one cost per individual");
+        self.costs = costs.to_vec();
+    }
+}
+
+/// Roulette-wheel selection on non-negative weights (eq. 30), by binary
+/// search on the cumulative sums; all-zero weights select uniformly.
+struct Roulette {
+    cumulative: Vec<f64>,
+    weights: Vec<f64>,
+}
+
+impl Roulette {
+    fn new(weights: &[f64]) -> Roulette {
+        let mut acc = 0.0;
+        let cumulative = weights
+            .iter()
+            .map(|&w| {
+                acc += w;
+                acc
+            })
+            .collect();
+        Roulette {
+            cumulative,
+            weights: weights.to_vec(),
+        }
+    }
+
+    fn total(&self) -> f64 {
+        self.cumulative.last().copied().unwrap_or(0.0)
+    }
+
+    /// First index whose cumulative sum exceeds `t`, skipping zero weights.
+    fn find(&self, t: f64) -> usize {
+        let i = self.cumulative.partition_point(|&c| c <= t);
+        let i = i.min(self.cumulative.len() - 1);
+        // Rounding can land on a zero-weight entry at the end: step back.
+        (0..=i).rev().find(|&k| self.weights[k] > 0.0).unwrap_or(i)
+    }
+
+    /// Two distinct parents: the first by roulette over all, the second by
+    /// roulette over the others (the appendix' `getMatingPartners`, fixed).
+    fn pair(&self, rng: &mut ChaCha8Rng) -> (usize, usize) {
+        let n = self.weights.len();
+        let total = self.total();
+        if !(total > 0.0 && total.is_finite()) {
+            let a = rng.random_range(0..n);
+            let b = (a + rng.random_range(1..n)) % n;
+            return (a, b);
+        }
+        let first = self.find(rng.random::<f64>() * total);
+        let rest = total - self.weights[first];
+        let second = if rest > 0.0 {
+            let t = rng.random::<f64>() * rest;
+            let before = self.cumulative[first] - self.weights[first];
+            let s = if t < before {
+                self.find(t)
+            } else {
+                self.find(t + self.weights[first])
+            };
+            if s == first {
+                // Only reachable through rounding at the boundary.
+                (first + 1..n)
+                    .chain(0..first)
+                    .find(|&k| self.weights[k] > 0.0)
+                    .unwrap_or((first + 1) % n)
+            } else {
+                s
+            }
+        } else {
+            (first + rng.random_range(1..n)) % n
+        };
+        (first, second)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn roulette_picks_distinct_parents_in_proportion() {
+        let r = Roulette::new(&[0.0, 1.0, 3.0, 0.0]);
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let mut count = [0usize; 4];
+        for _ in 0..4000 {
+            let (a, b) = r.pair(&mut rng);
+            assert_ne!(a, b);
+            assert!(r.weights[a] > 0.0 && r.weights[b] > 0.0);
+            count[a] += 1;
+        }
+        // First parent: index 2 three times as often as index 1.
+        let ratio = count[2] as f64 / count[1] as f64;
+        assert!((2.6..3.4).contains(&ratio), "{count:?}");
+    }
+
+    #[test]
+    fn a_single_positive_weight_still_gives_two_parents() {
+        let r = Roulette::new(&[0.0, 0.0, 5.0]);
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        for _ in 0..100 {
+            let (a, b) = r.pair(&mut rng);
+            assert_eq!(a, 2);
+            assert_ne!(b, 2);
+        }
+    }
+
+    #[test]
+    fn penalty_never_rewards_a_clamped_child() {
+        let bounds = Bounds {
+            lower: vec![0.0],
+            upper: vec![1.0],
+            names: vec!["x".into()],
+        };
+        let mut ga = Ga::new(GaSettings::default(), bounds, 4);
+        ga.pop = vec![0.5; 4];
+        ga.clamped = vec![false, true, false, true];
+        ga.costs = vec![0.5, 0.5, 4.0, 4.0];
+        let fit = ga.fitness();
+        assert_eq!(fit[0], 2.0);
+        assert_eq!(fit[1], 2.0, "SSE < 1: the thesis' SSE⁵ would reward");
+        assert!(fit[3] < fit[2]);
+        ga.costs[2] = f32::INFINITY;
+        assert_eq!(ga.fitness()[2], 0.0);
+    }
+}

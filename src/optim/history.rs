@@ -1,0 +1,209 @@
+//! What a run records each generation, as CSV, JSON and figures (the
+//! thesis' parameter trends, figures 9–24, and a convergence curve).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::data::write_atomic;
+use crate::model::Family;
+use crate::report::{Figure, Panel, Series};
+
+/// One generation of a run. Costs are SSE on the estimation data; `None`
+/// stands for "no finite value" (JSON has no infinity).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct GenerationRecord {
+    /// 1-based: the number of populations evaluated so far.
+    pub generation: usize,
+    /// Candidates evaluated so far.
+    pub evaluations: u64,
+    /// Wall-clock seconds since the run started (the only field that is not
+    /// a function of the seed).
+    pub seconds: f64,
+    /// Lowest SSE ever seen.
+    pub best_sse: Option<f64>,
+    /// Lowest SSE in this generation's population.
+    pub generation_best_sse: Option<f64>,
+    /// Mean and standard deviation of the finite SSEs of this population.
+    pub mean_sse: Option<f64>,
+    pub std_sse: Option<f64>,
+    /// Candidates of this population whose simulation diverged (SSE = +∞).
+    pub diverged: usize,
+    /// Canonical parameter vector of the best ever (empty before any finite SSE).
+    pub best_params: Vec<f64>,
+}
+
+impl GenerationRecord {
+    /// Summary statistics of a population's costs: (best, mean, std, diverged),
+    /// over finite values only, so a diverged candidate never poisons them.
+    pub fn stats(costs: &[f32]) -> (Option<f64>, Option<f64>, Option<f64>, usize) {
+        let finite: Vec<f64> = costs
+            .iter()
+            .filter(|c| c.is_finite())
+            .map(|&c| c as f64)
+            .collect();
+        let diverged = costs.len() - finite.len();
+        if finite.is_empty() {
+            return (None, None, None, diverged);
+        }
+        let n = finite.len() as f64;
+        let best = finite.iter().copied().fold(f64::INFINITY, f64::min);
+        let mean = finite.iter().sum::<f64>() / n;
+        let var = finite.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+        (Some(best), Some(mean), Some(var.sqrt()), diverged)
+    }
+}
+
+/// The records of a run, in order.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct History {
+    pub family: Option<Family>,
+    pub records: Vec<GenerationRecord>,
+}
+
+impl History {
+    pub fn new(family: Family) -> History {
+        History {
+            family: Some(family),
+            records: Vec::new(),
+        }
+    }
+
+    fn param_names(&self) -> Vec<&'static str> {
+        self.family
+            .map(|f| f.params().iter().map(|p| p.name).collect())
+            .unwrap_or_default()
+    }
+
+    /// CSV: one row per generation, the best parameters as named columns.
+    pub fn to_csv(&self) -> String {
+        let names = self.param_names();
+        let mut s = String::from(
+            "generation,evaluations,seconds,best_sse,generation_best_sse,mean_sse,std_sse,diverged",
+        );
+        for n in &names {
+            let _ = write!(s, ",{n}");
+        }
+        s.push('\n');
+        let opt = |v: Option<f64>| v.map(|v| format!("{v:e}")).unwrap_or_else(|| "inf".into());
+        for r in &self.records {
+            let _ = write!(
+                s,
+                "{},{},{:.3},{},{},{},{},{}",
+                r.generation,
+                r.evaluations,
+                r.seconds,
+                opt(r.best_sse),
+                opt(r.generation_best_sse),
+                opt(r.mean_sse),
+                opt(r.std_sse),
+                r.diverged
+            );
+            for i in 0..names.len() {
+                match r.best_params.get(i) {
+                    Some(v) => {
+                        let _ = write!(s, ",{v:e}");
+                    }
+                    None => s.push(','),
+                }
+            }
+            s.push('\n');
+        }
+        s
+    }
+
+    /// Writes `history.csv` and `history.json` into `dir`.
+    pub fn save(&self, dir: &Path) -> anyhow::Result<()> {
+        let write = |name: &str, bytes: &[u8]| {
+            let path = dir.join(name);
+            write_atomic(&path, bytes)
+                .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+        };
+        write("history.csv", self.to_csv().as_bytes())?;
+        write(
+            "history.json",
+            serde_json::to_string_pretty(self)?.as_bytes(),
+        )
+    }
+
+    /// Best-so-far parameters over generations, one panel per free
+    /// parameter (the thesis' figures 9–11, 13, 15, 17–19, 22, 24).
+    /// `free` lists the canonical indices that were searched.
+    pub fn trends_figure(&self, title: &str, free: &[usize]) -> Figure {
+        let names = self.param_names();
+        let mut fig = Figure::new(title);
+        fig.panel_height = 200;
+        for &i in free {
+            let (x, y): (Vec<f64>, Vec<f64>) = self
+                .records
+                .iter()
+                .filter_map(|r| r.best_params.get(i).map(|&v| (r.generation as f64, v)))
+                .unzip();
+            let name = names.get(i).copied().unwrap_or("?");
+            fig = fig.with(Panel::new(name, "generation", name).with(Series::line("best", x, y)));
+        }
+        fig
+    }
+
+    /// Best-ever, generation-best and mean SSE over generations, log scale.
+    pub fn convergence_figure(&self, title: &str) -> Figure {
+        let g: Vec<f64> = self.records.iter().map(|r| r.generation as f64).collect();
+        let col = |f: fn(&GenerationRecord) -> Option<f64>| -> Vec<f64> {
+            self.records
+                .iter()
+                .map(|r| f(r).unwrap_or(f64::NAN))
+                .collect()
+        };
+        Figure::new(title).with(
+            Panel::new("convergence", "generation", "SSE (estimation)")
+                .with(Series::line("best ever", g.clone(), col(|r| r.best_sse)))
+                .with(Series::line(
+                    "generation best",
+                    g.clone(),
+                    col(|r| r.generation_best_sse),
+                ))
+                .with(Series::line("population mean", g, col(|r| r.mean_sse)))
+                .log_y(),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn statistics_skip_diverged_candidates() {
+        let (best, mean, std, div) = GenerationRecord::stats(&[1.0, f32::INFINITY, 3.0, f32::NAN]);
+        assert_eq!((best, mean, std, div), (Some(1.0), Some(2.0), Some(1.0), 2));
+        assert_eq!(
+            GenerationRecord::stats(&[f32::INFINITY]),
+            (None, None, None, 1)
+        );
+    }
+
+    #[test]
+    fn csv_has_named_parameter_columns() {
+        let mut h = History::new(Family::Linear);
+        h.records.push(GenerationRecord {
+            generation: 1,
+            evaluations: 10,
+            seconds: 0.5,
+            best_sse: Some(2.0),
+            generation_best_sse: Some(2.0),
+            mean_sse: None,
+            std_sse: None,
+            diverged: 10,
+            best_params: vec![0.9, 1.0, 0.0],
+        });
+        let csv = h.to_csv();
+        let mut lines = csv.lines();
+        assert!(lines.next().unwrap().ends_with("diverged,a,b,c"));
+        let row = lines.next().unwrap();
+        assert!(
+            row.starts_with("1,10,0.500,2e0,2e0,inf,inf,10,9e-1"),
+            "{row}"
+        );
+    }
+}

@@ -1,0 +1,282 @@
+//! The thesis' modified firefly algorithm (§5.3.1–5.3.2, Algorithm 2,
+//! appendix A.2.2), after Zaman & Sikder.
+//!
+//! Each generation `k` every firefly `i` moves, in index order `j`, towards
+//! every *brighter* firefly `j` (lower SSE; a diverged firefly is never
+//! brighter): `n_i ← n_i + Λ_ij·(n_j − n_i) + ρ·v`, `v ~ N(0, 1)^d`, then
+//! clamped into the box (eq. 35, as the appendix code does it: the walk is
+//! part of each attraction, so the brightest firefly stays put). The
+//! attractiveness is `Λ_ij = Λ0·e^(−σ·r)` (code) or `Λ0·e^(−σ·r²)` (eq. 32),
+//! with the schedules of eq. 36–38: `Λ0` from `a` to `b` (code) or to `a − b`
+//! (eq. 36), `σ(k) = 2·7^(−k/G)`, `ρ(k) = 0.1·e^(−4.8k/G)`.
+//!
+//! Parallel and deterministic: the fireflies move in parallel (rayon), each
+//! against a snapshot of the others' positions taken at the start of the
+//! generation (the appendix code moves them in place one after another, so a
+//! later firefly sees earlier ones already moved), and each with its own
+//! random stream derived from the run's generator, so the result does not
+//! depend on the thread count. The all-pairs move is `O(N²·d)` per
+//! generation; `max_attractors` caps it at `O(N·K·d)` by moving each firefly
+//! towards `K` brighter fireflies (drawn at random, or the `K` brightest)
+//! instead of all of them.
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::{Bounds, Optimizer};
+
+/// Where `Λ0` ends (eq. 36 and the appendix code disagree).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Lambda0Schedule {
+    /// Appendix A.2.2.1: `Λ0(k) = a − (a − b)·(1 − k)/(1 − G)`, from `a` to `b`.
+    Code,
+    /// Eq. 36: `Λ0(k) = a − b·(1 − k)/(1 − G)`, from `a` to `a − b`.
+    Equation,
+}
+
+/// How attractiveness decays with distance (eq. 32 and the code disagree).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Distance {
+    /// Appendix A.2.2: `e^(−σ·r)`.
+    Linear,
+    /// Eq. 32: `e^(−σ·r²)`.
+    Squared,
+}
+
+/// The units distances and the random walk are measured in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Scale {
+    /// The parameters' own units, as the thesis (whose box is about 1 wide
+    /// in every coordinate).
+    Raw,
+    /// Each coordinate in units of its box width: distances are taken on the
+    /// normalised box and the walk of coordinate `j` is `ρ·(U_j − L_j)·v_j`.
+    /// Needed when widths differ by orders of magnitude (the joint flow's
+    /// intercept spans tens of millimetres, `a` a few tenths).
+    Box,
+}
+
+/// MFA settings; defaults are the thesis' (tables 9 and 17: `a = 1.1`,
+/// `b = 0.3`; appendix A.2.2 for the schedule forms).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MfaSettings {
+    /// Start of the `Λ0` schedule.
+    pub a: f64,
+    /// End (code) or drop (eq. 36) of the `Λ0` schedule.
+    pub b: f64,
+    pub lambda0: Lambda0Schedule,
+    pub distance: Distance,
+    pub scale: Scale,
+    /// Move each firefly towards at most this many brighter ones (`None`:
+    /// all of them, as the thesis).
+    pub max_attractors: Option<usize>,
+    /// Which brighter fireflies when capped.
+    pub attractors: Attractors,
+}
+
+/// Which brighter fireflies a capped firefly moves towards.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "kebab-case")]
+pub enum Attractors {
+    /// Drawn uniformly among all brighter ones.
+    Random,
+    /// The brightest of the swarm, dimmest first so the brightest acts last.
+    Brightest,
+}
+
+impl Default for MfaSettings {
+    fn default() -> Self {
+        MfaSettings {
+            a: 1.1,
+            b: 0.3,
+            lambda0: Lambda0Schedule::Code,
+            distance: Distance::Linear,
+            scale: Scale::Raw,
+            max_attractors: None,
+            attractors: Attractors::Random,
+        }
+    }
+}
+
+impl MfaSettings {
+    /// `(Λ0, σ, ρ)` at generation `k` of `g` (eq. 36–38 / A.2.2.1).
+    pub fn schedule(&self, k: usize, g: usize) -> (f64, f64, f64) {
+        let (k, g) = (k as f64, g.max(2) as f64);
+        let frac = (1.0 - k) / (1.0 - g);
+        let lambda0 = match self.lambda0 {
+            Lambda0Schedule::Code => self.a - (self.a - self.b) * frac,
+            Lambda0Schedule::Equation => self.a - self.b * frac,
+        };
+        let sigma = 2.0 * 7f64.powf(-k / g);
+        let rho = 0.1 * (-4.8 * k / g).exp();
+        (lambda0, sigma, rho)
+    }
+}
+
+/// MFA state between generations.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Mfa {
+    pub settings: MfaSettings,
+    bounds: Bounds,
+    n: usize,
+    /// Planned generations `G` (the schedules run from 1 to `G`).
+    generations: usize,
+    /// Moves made so far (`k` of the next move is `moves + 1`).
+    moves: usize,
+    pos: Vec<f64>,
+    #[serde(with = "super::inf_serde")]
+    costs: Vec<f32>,
+}
+
+impl Mfa {
+    pub fn new(settings: MfaSettings, bounds: Bounds, n: usize, generations: usize) -> Mfa {
+        assert!(n >= 1, "the MFA needs at least one firefly");
+        Mfa {
+            settings,
+            bounds,
+            n,
+            generations,
+            moves: 0,
+            pos: Vec::new(),
+            costs: Vec::new(),
+        }
+    }
+
+    fn step(&mut self, rng: &mut ChaCha8Rng) {
+        let d = self.bounds.dim();
+        self.moves += 1;
+        let (lambda0, sigma, rho) = self.settings.schedule(self.moves, self.generations);
+        let inv_w: Vec<f64> = (0..d)
+            .map(|j| match self.settings.scale {
+                Scale::Raw => 1.0,
+                Scale::Box => 1.0 / self.bounds.width(j).max(f64::MIN_POSITIVE),
+            })
+            .collect();
+        let walk: Vec<f64> = (0..d)
+            .map(|j| match self.settings.scale {
+                Scale::Raw => rho,
+                Scale::Box => rho * self.bounds.width(j),
+            })
+            .collect();
+        // Brightness ranking, for drawing brighter attractors when capped.
+        let mut order: Vec<usize> = (0..self.n).collect();
+        order.sort_by(|&a, &b| super::cost_order(self.costs[a], self.costs[b]).then(a.cmp(&b)));
+        let mut rank = vec![0usize; self.n];
+        for (r, &i) in order.iter().enumerate() {
+            rank[i] = r;
+        }
+        let base: [u8; 32] = rng.random();
+        let snapshot = &self.pos;
+        let costs = &self.costs;
+        let settings = &self.settings;
+        let bounds = &self.bounds;
+        let mut next = snapshot.clone();
+        next.par_chunks_mut(d).enumerate().for_each(|(i, x)| {
+            let mut frng = ChaCha8Rng::from_seed(base);
+            frng.set_stream(i as u64);
+            let attract = |x: &mut [f64], j: usize, frng: &mut ChaCha8Rng| {
+                let nj = &snapshot[j * d..(j + 1) * d];
+                let r2: f64 = (0..d).map(|t| ((nj[t] - x[t]) * inv_w[t]).powi(2)).sum();
+                let decay = match settings.distance {
+                    Distance::Linear => r2.sqrt(),
+                    Distance::Squared => r2,
+                };
+                let lambda = lambda0 * (-sigma * decay).exp();
+                for t in 0..d {
+                    let v: f64 = frng.sample(StandardNormal);
+                    x[t] += lambda * (nj[t] - x[t]) + walk[t] * v;
+                }
+                bounds.clamp(x);
+            };
+            let ci = costs[i];
+            match settings.max_attractors {
+                None => {
+                    for j in 0..snapshot.len() / d {
+                        if super::cost_order(costs[j], ci).is_lt() && costs[j].is_finite() {
+                            attract(x, j, &mut frng);
+                        }
+                    }
+                }
+                Some(k) => {
+                    let brighter = rank[i];
+                    for m in 0..k.min(brighter) {
+                        let j = match settings.attractors {
+                            Attractors::Random => order[frng.random_range(0..brighter)],
+                            Attractors::Brightest => order[k.min(brighter) - 1 - m],
+                        };
+                        if costs[j].is_finite() && super::cost_order(costs[j], ci).is_lt() {
+                            attract(x, j, &mut frng);
+                        }
+                    }
+                }
+            }
+        });
+        self.pos = next;
+    }
+}
+
+impl Optimizer for Mfa {
+    fn name(&self) -> &'static str {
+        "mfa"
+    }
+
+    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        if self.costs.len() == self.n {
+            self.step(rng);
+        } else {
+            self.pos = (0..self.n).flat_map(|_| self.bounds.uniform(rng)).collect();
+        }
+        self.costs.clear();
+        self.pos.clone()
+    }
+
+    fn tell(&mut self, costs: &[f32]) {
+        assert_eq!(costs.len(), self.n, "one cost per firefly");
+        self.costs = costs.to_vec();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schedules_match_the_code_and_eq_36() {
+        let code = MfaSettings::default();
+        let (l1, s1, r1) = code.schedule(1, 30);
+        assert!((l1 - 1.1).abs() < 1e-12);
+        assert!((s1 - 2.0 * 7f64.powf(-1.0 / 30.0)).abs() < 1e-12);
+        assert!((r1 - 0.1 * (-4.8f64 / 30.0).exp()).abs() < 1e-12);
+        assert!((code.schedule(30, 30).0 - 0.3).abs() < 1e-12);
+        let eq = MfaSettings {
+            lambda0: Lambda0Schedule::Equation,
+            ..code
+        };
+        assert!((eq.schedule(30, 30).0 - 0.8).abs() < 1e-12);
+    }
+
+    #[test]
+    fn the_brightest_firefly_stays_and_others_move_towards_it() {
+        let bounds = Bounds {
+            lower: vec![-10.0, -10.0],
+            upper: vec![10.0, 10.0],
+            names: vec!["x".into(), "y".into()],
+        };
+        let mut mfa = Mfa::new(MfaSettings::default(), bounds, 3, 30);
+        mfa.pos = vec![0.0, 0.0, 0.5, 0.5, -0.5, 0.5];
+        mfa.costs = vec![1.0, 2.0, f32::INFINITY];
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let next = mfa.ask(&mut rng);
+        assert_eq!(&next[..2], &[0.0, 0.0]);
+        let dist = |p: &[f64]| (p[0] * p[0] + p[1] * p[1]).sqrt();
+        assert!(dist(&next[2..4]) < dist(&[0.5, 0.5]));
+        // A diverged firefly is pulled by both brighter ones.
+        assert!(dist(&next[4..6]) < dist(&[-0.5, 0.5]));
+    }
+}

@@ -1,0 +1,226 @@
+//! The thesis' particle swarm optimization (§5.3.3, Algorithm 3, appendix
+//! A.2.3).
+//!
+//! After each evaluation the particles update their personal best and the
+//! swarm's global best, then move: `v ← w·v + c1·r1∘(pbest − x) + c2·r2∘(gbest − x)`
+//! (eq. 39), `|v_j| ≤ Vmax_j`, `x ← x + v` (eq. 40), clamped into the box. The
+//! inertia falls linearly, `w(k) = a − (a − b)·k/G` (§5.3.3.4).
+//!
+//! Appendix bugs fixed (see `docs/ARCHITECTURE.md`): the code clamps
+//! `speed(j)` — the j-th entry of the whole speed *matrix* — instead of
+//! `speed(i,j)`, and only from above; here every particle's every velocity
+//! component is clamped to `[−Vmax_j, Vmax_j]`. The code draws a vector of
+//! randoms for the cognitive term but one scalar for the social term; by
+//! default both are per-dimension (eq. 39 as usually read), and
+//! `scalar_social` restores the code's choice.
+
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use super::{Bounds, Optimizer};
+use crate::model::Family;
+
+/// PSO settings; defaults are Table 11 (classic); [`PsoSettings::thesis`]
+/// gives Table 19 for the generalized model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PsoSettings {
+    /// Inertia at the start (`a`).
+    pub w_start: f64,
+    /// Inertia at the end (`b`).
+    pub w_end: f64,
+    /// Cognitive (personal best) acceleration `c1`.
+    pub c1: f64,
+    /// Social (global best) acceleration `c2`.
+    pub c2: f64,
+    /// Velocity limit in the parameters' units (Table 11: 20, Table 19: 0.1).
+    pub vmax: f64,
+    /// Further limit as a fraction of each coordinate's box width, so that a
+    /// coordinate much narrower or wider than the thesis' (about 1) gets a
+    /// proportionate limit. 1.0: a particle never jumps more than the box.
+    pub vmax_fraction: f64,
+    /// The appendix code's single random number for the social term.
+    pub scalar_social: bool,
+}
+
+impl Default for PsoSettings {
+    fn default() -> Self {
+        PsoSettings {
+            w_start: 1.1,
+            w_end: 0.3,
+            c1: 2.0,
+            c2: 2.0,
+            vmax: 20.0,
+            vmax_fraction: 1.0,
+            scalar_social: false,
+        }
+    }
+}
+
+impl PsoSettings {
+    /// Table 11 (classic: inertia 1.1 → 0.3, Vmax 20) or Table 19
+    /// (generalized: inertia 2.1 → 0.6, Vmax 0.1); `c1 = c2 = 2` in both.
+    pub fn thesis(family: Family) -> PsoSettings {
+        match family {
+            Family::Generalized => PsoSettings {
+                w_start: 2.1,
+                w_end: 0.6,
+                vmax: 0.1,
+                ..PsoSettings::default()
+            },
+            _ => PsoSettings::default(),
+        }
+    }
+
+    /// Inertia at move `k` of `g`.
+    pub fn inertia(&self, k: usize, g: usize) -> f64 {
+        self.w_start - (self.w_start - self.w_end) * k as f64 / g.max(1) as f64
+    }
+}
+
+/// PSO state between iterations.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Pso {
+    pub settings: PsoSettings,
+    bounds: Bounds,
+    n: usize,
+    generations: usize,
+    moves: usize,
+    vmax: Vec<f64>,
+    pos: Vec<f64>,
+    vel: Vec<f64>,
+    pbest: Vec<f64>,
+    #[serde(with = "super::inf_serde")]
+    pbest_cost: Vec<f32>,
+    gbest: Vec<f64>,
+    #[serde(with = "super::inf_serde::one")]
+    gbest_cost: f32,
+    told: bool,
+}
+
+impl Pso {
+    pub fn new(settings: PsoSettings, bounds: Bounds, n: usize, generations: usize) -> Pso {
+        assert!(n >= 1, "the PSO needs at least one particle");
+        let vmax = (0..bounds.dim())
+            .map(|j| settings.vmax.min(settings.vmax_fraction * bounds.width(j)))
+            .collect();
+        Pso {
+            settings,
+            n,
+            generations,
+            moves: 0,
+            vmax,
+            pos: Vec::new(),
+            vel: Vec::new(),
+            pbest: Vec::new(),
+            pbest_cost: vec![f32::INFINITY; n],
+            gbest: bounds.lower.clone(),
+            gbest_cost: f32::INFINITY,
+            told: false,
+            bounds,
+        }
+    }
+
+    fn step(&mut self, rng: &mut ChaCha8Rng) {
+        let d = self.bounds.dim();
+        self.moves += 1;
+        let w = self.settings.inertia(self.moves, self.generations);
+        let (c1, c2) = (self.settings.c1, self.settings.c2);
+        for i in 0..self.n {
+            let r2_scalar: f64 = if self.settings.scalar_social {
+                rng.random()
+            } else {
+                0.0
+            };
+            let row = i * d..(i + 1) * d;
+            let (x, v) = (&mut self.pos[row.clone()], &mut self.vel[row.clone()]);
+            let pb = &self.pbest[row];
+            for j in 0..d {
+                let r1: f64 = rng.random();
+                let r2: f64 = if self.settings.scalar_social {
+                    r2_scalar
+                } else {
+                    rng.random()
+                };
+                let vj = w * v[j] + c1 * r1 * (pb[j] - x[j]) + c2 * r2 * (self.gbest[j] - x[j]);
+                v[j] = vj.clamp(-self.vmax[j], self.vmax[j]);
+                x[j] += v[j];
+            }
+            self.bounds.clamp(x);
+        }
+    }
+}
+
+impl Optimizer for Pso {
+    fn name(&self) -> &'static str {
+        "pso"
+    }
+
+    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        if self.told {
+            self.step(rng);
+        } else if self.pos.is_empty() {
+            let d = self.bounds.dim();
+            self.pos = (0..self.n).flat_map(|_| self.bounds.uniform(rng)).collect();
+            self.vel = (0..self.n * d)
+                .map(|k| self.vmax[k % d] * (2.0 * rng.random::<f64>() - 1.0))
+                .collect();
+            self.pbest = self.pos.clone();
+        }
+        self.told = false;
+        self.pos.clone()
+    }
+
+    fn tell(&mut self, costs: &[f32]) {
+        assert_eq!(costs.len(), self.n, "one cost per particle");
+        let d = self.bounds.dim();
+        for (i, &c) in costs.iter().enumerate() {
+            if super::cost_order(c, self.pbest_cost[i]).is_lt() {
+                self.pbest_cost[i] = c;
+                self.pbest[i * d..(i + 1) * d].copy_from_slice(&self.pos[i * d..(i + 1) * d]);
+            }
+            if super::cost_order(c, self.gbest_cost).is_lt() {
+                self.gbest_cost = c;
+                self.gbest = self.pos[i * d..(i + 1) * d].to_vec();
+            }
+        }
+        self.told = true;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    #[test]
+    fn thesis_presets_and_inertia() {
+        let g = PsoSettings::thesis(Family::Generalized);
+        assert_eq!((g.w_start, g.w_end, g.vmax), (2.1, 0.6, 0.1));
+        let c = PsoSettings::thesis(Family::Classic);
+        assert!((c.inertia(30, 30) - 0.3).abs() < 1e-12);
+        assert!((c.inertia(15, 30) - 0.7).abs() < 1e-12);
+    }
+
+    #[test]
+    fn every_velocity_component_is_clamped_both_ways() {
+        let bounds = Bounds {
+            lower: vec![-100.0; 3],
+            upper: vec![100.0; 3],
+            names: vec!["x".into(), "y".into(), "z".into()],
+        };
+        let settings = PsoSettings {
+            vmax: 0.5,
+            ..PsoSettings::default()
+        };
+        let mut pso = Pso::new(settings, bounds, 4, 10);
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        let x0 = pso.ask(&mut rng);
+        // The first particle is far better: everyone is pulled hard towards it.
+        pso.tell(&[0.0, 9.0, 9.0, f32::INFINITY]);
+        let x1 = pso.ask(&mut rng);
+        for (a, b) in x0.iter().zip(&x1) {
+            assert!((a - b).abs() <= 0.5 + 1e-12, "{a} -> {b}");
+        }
+    }
+}

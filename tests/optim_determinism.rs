@@ -1,0 +1,120 @@
+//! Same seed, same result: with any rayon thread count, and across a
+//! checkpoint and resume (the JSON round trip of the whole run state).
+
+use mckibben::eval::{Problem, cpu::CpuEvaluator};
+use mckibben::model::Family;
+use mckibben::optim::history::GenerationRecord;
+use mckibben::optim::synthetic::Synthetic;
+use mckibben::optim::{AlgoSettings, Algorithm, RunSettings, Runner};
+
+fn setup() -> (Synthetic, Problem) {
+    let s = Synthetic::new(Family::Classic, 300, 0.05, 3);
+    let p = Problem::new(Family::Classic, vec![s.estimation.clone()]);
+    (s, p)
+}
+
+/// History without the wall-clock column.
+fn fingerprint(r: &Runner) -> Vec<GenerationRecord> {
+    r.history
+        .records
+        .iter()
+        .map(|g| GenerationRecord {
+            seconds: 0.0,
+            ..g.clone()
+        })
+        .collect()
+}
+
+fn settings() -> AlgoSettings {
+    let mut s = AlgoSettings::default();
+    // Exercise the parallel all-pairs firefly move.
+    s.mfa.max_attractors = None;
+    s
+}
+
+fn run(algo: Algorithm, threads: usize) -> Vec<GenerationRecord> {
+    let (s, problem) = setup();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        let mut r = Runner::new(algo, &settings(), s.space(), RunSettings::new(64, 12, 9)).unwrap();
+        r.run(&problem, &mut CpuEvaluator, &mut [], None, None)
+            .unwrap();
+        fingerprint(&r)
+    })
+}
+
+#[test]
+fn thread_count_does_not_change_the_result() {
+    for algo in Algorithm::ALL {
+        let one = run(algo, 1);
+        assert_eq!(one.len(), 12);
+        assert!(one.last().unwrap().best_sse.is_some(), "{algo}");
+        assert_eq!(one, run(algo, 3), "{algo}");
+    }
+}
+
+#[test]
+fn different_seeds_differ() {
+    let (s, problem) = setup();
+    let mut a = Runner::new(
+        Algorithm::De,
+        &settings(),
+        s.space(),
+        RunSettings::new(32, 3, 1),
+    )
+    .unwrap();
+    let mut b = Runner::new(
+        Algorithm::De,
+        &settings(),
+        s.space(),
+        RunSettings::new(32, 3, 2),
+    )
+    .unwrap();
+    a.run(&problem, &mut CpuEvaluator, &mut [], None, None)
+        .unwrap();
+    b.run(&problem, &mut CpuEvaluator, &mut [], None, None)
+        .unwrap();
+    assert_ne!(fingerprint(&a), fingerprint(&b));
+}
+
+#[test]
+fn checkpoint_resume_gives_the_identical_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let (s, problem) = setup();
+    for algo in Algorithm::ALL {
+        let run_settings = RunSettings::new(40, 10, 5);
+        let mut straight = Runner::new(algo, &settings(), s.space(), run_settings.clone()).unwrap();
+        let full = straight
+            .run(&problem, &mut CpuEvaluator, &mut [], None, None)
+            .unwrap();
+
+        let path = dir.path().join(format!("{algo}.json"));
+        let mut first = Runner::new(algo, &settings(), s.space(), run_settings).unwrap();
+        for _ in 0..4 {
+            first.step(&problem, &mut CpuEvaluator).unwrap();
+        }
+        first.save(&path).unwrap();
+        drop(first);
+        let mut resumed = Runner::load(&path).unwrap();
+        assert_eq!(resumed.generation(), 4);
+        let out = resumed
+            .run(&problem, &mut CpuEvaluator, &mut [], None, None)
+            .unwrap();
+        assert_eq!(out.params, full.params, "{algo}");
+        assert_eq!(out.sse, full.sse, "{algo}");
+        assert_eq!(out.evaluations, full.evaluations, "{algo}");
+        assert_eq!(fingerprint(&resumed), fingerprint(&straight), "{algo}");
+    }
+}
+
+#[test]
+fn a_damaged_checkpoint_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.json");
+    std::fs::write(&path, b"{\"settings\": 3}").unwrap();
+    let err = Runner::load(&path).unwrap_err().to_string();
+    assert!(err.contains("not a mckibben checkpoint"), "{err}");
+}
