@@ -196,7 +196,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 )?;
                 if !args.json {
                     eprintln!(
-                        "tuned PI ({} pop {} gens {}, {} episodes, {:.1} s): kp {:.5} ki {:.5} kd {:.5}, mean RMS {:.3} mm (thesis gains {:.3} mm)",
+                        "tuned PI ({} pop {} gens {}, {} gain vectors × every frequency and load, {:.1} s): kp {:.5} ki {:.5} kd {:.5}, mean RMS {:.3} mm (thesis gains {:.3} mm)",
                         args.algo,
                         args.pop,
                         args.gens,

@@ -349,3 +349,46 @@ pub fn scale_hysteresis(model: &FittedModel, factor: f64) -> FittedModel {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scaling_touches_only_the_hysteresis_and_keeps_alpha_a_share() {
+        let family = Family::Classic;
+        let model = FittedModel {
+            family,
+            params: vec![1.0, 0.9, 0.1, -0.05, 1.0, 0.95, 2.0, 0.3],
+            input_mean: 0.2,
+            output_mean: 30.0,
+            dt: 0.01,
+            input_name: "pressure".into(),
+            output_name: "displacement".into(),
+        };
+        let up = scale_hysteresis(&model, 1.2);
+        assert_eq!(up.params[..4], [1.2, 1.0, 0.1 * 1.2, -0.05 * 1.2]);
+        assert_eq!(up.params[4..], model.params[4..]);
+        let down = scale_hysteresis(&model, 0.8);
+        assert!((down.params[1] - 0.72).abs() < 1e-12);
+    }
+
+    #[test]
+    fn valve_model_is_exact_on_its_own_data() {
+        let truth = ValveModel {
+            pole: 0.9,
+            gain: 0.004,
+            offset: 0.002,
+        };
+        let valve: Vec<f64> = (0..400)
+            .map(|k| 5.0 + 3.0 * ((k / 37) % 3) as f64 - 3.0)
+            .collect();
+        let mut p = vec![0.1];
+        for k in 0..399 {
+            p.push(truth.step(p[k], valve[k]));
+        }
+        let fit = ValveModel::identify_in_band("t", &valve, &p, (0.0, 10.0), 10).unwrap();
+        assert_eq!(fit.pole, 0.9);
+        assert!((fit.gain - 0.004).abs() < 1e-9 && (fit.offset - 0.002).abs() < 1e-9);
+    }
+}
