@@ -49,6 +49,12 @@ pub struct Args {
     /// 0.02–1 Hz), which excites the dynamics the 1–3 rad/s references need.
     #[arg(long, value_enum, default_value = "multisine")]
     design_experiment: DesignExperiment,
+    /// Use this displacement model (pressure → displacement, a model JSON
+    /// written by `identify --out` or `fit`) in the MPC instead of the
+    /// control-oriented fit; the valve → pressure model is still identified
+    /// from the design experiment.
+    #[arg(long, value_name = "MODEL.json")]
+    from: Option<PathBuf>,
     /// Also run the MPC with its hysteresis parameters (A, α, β, γ) scaled by
     /// these factors, to test robustness to model error (e.g. 0.8,1.2).
     #[arg(long, value_delimiter = ',')]
@@ -158,16 +164,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }),
         };
         let record = twin::run(&config, args.design_load, args.seed, &experiment);
-        let (model, fit) = design::identify(&record, design::OPERATING_BAND_V, args.horizon)
+        let (mut model, fit) = design::identify(&record, design::OPERATING_BAND_V, args.horizon)
             .context("identifying the MPC's model")?;
+        if let Some(path) = &args.from {
+            let m = read_model(path)?;
+            anyhow::ensure!(
+                (m.dt - 0.01).abs() < 1e-9,
+                "--from {}: the model was fitted at a {} s sample time; the loop runs at 0.01 s",
+                path.display(),
+                m.dt
+            );
+            model.displacement = m;
+        }
         if !args.json {
+            let origin = match &args.from {
+                Some(path) => format!("from {}", path.display()),
+                None => format!("{}-step prediction RMSE {:.3} mm", fit.horizon, fit.rmse_mm),
+            };
             eprintln!(
-                "MPC model from the twin's {} at {} kg: {} ({}-step prediction RMSE {:.3} mm), valve: p(k+1) = {:.4}·p + {:.5}·v + {:.5}",
+                "MPC model from the twin's {} at {} kg: {} ({origin}), valve: p(k+1) = {:.4}·p + {:.5}·v + {:.5}",
                 experiment.name(),
                 args.design_load,
                 fmt_params(&model.displacement),
-                fit.horizon,
-                fit.rmse_mm,
                 model.valve.pole,
                 model.valve.gain,
                 model.valve.offset
@@ -372,6 +390,22 @@ fn run_name(kind: Kind, scale: f64, load: f64, w: f64) -> String {
         format!("_h{scale}")
     };
     format!("control_{name}{suffix}_{load}kg_{w}rad")
+}
+
+/// A model file written by `identify --out` or `fit` (the model itself, or an
+/// object with a `model` field).
+fn read_model(path: &std::path::Path) -> anyhow::Result<mckibben::model::FittedModel> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read --from {}", path.display()))?;
+    let value: serde_json::Value = serde_json::from_str(&text)
+        .with_context(|| format!("--from {}: not JSON", path.display()))?;
+    let inner = value.get("model").cloned().unwrap_or(value);
+    serde_json::from_value(inner).with_context(|| {
+        format!(
+            "--from {}: not a model file written by identify or fit",
+            path.display()
+        )
+    })
 }
 
 fn fmt_params(m: &mckibben::model::FittedModel) -> String {
