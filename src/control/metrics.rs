@@ -67,7 +67,8 @@ impl Metrics {
             max_step_time_us: 0.0,
             mean_step_time_us: 0.0,
             max_step_cpu_us: 0.0,
-            diverged: !(max <= DIVERGENCE_FACTOR * amplitude),
+            // NaN (no steady samples, or a non-finite error) counts as diverged.
+            diverged: max.is_nan() || max > DIVERGENCE_FACTOR * amplitude,
         }
     }
 }

@@ -101,9 +101,9 @@ impl Mpc {
         let mut gp = vec![vec![0.0; n]; n + 1];
         let mut gx = vec![vec![0.0; n]; n + 2];
         for j in 0..n {
-            for i in 0..n {
-                gp[j + 1][i] =
-                    model.valve.pole * gp[j][i] + if i == j { model.valve.gain } else { 0.0 };
+            let (done, rest) = gp.split_at_mut(j + 1);
+            for (i, (next, prev)) in rest[0].iter_mut().zip(&done[j]).enumerate() {
+                *next = model.valve.pole * prev + if i == j { model.valve.gain } else { 0.0 };
             }
         }
         for j in 0..=n {
