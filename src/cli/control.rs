@@ -32,8 +32,9 @@ use mckibben::twin::{self, Rig, TwinConfig};
 /// Example: `mckibben control --controller pi,mpc --freq 3 --load 4.5,7 --plot figs/`
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Controllers to run (comma-separated): pi, pi-tuned, mpc.
-    #[arg(long, value_delimiter = ',', default_value = "pi,pi-tuned,mpc")]
+    /// Controllers to run (comma-separated): pi, pi-tuned, mpc. `pi-tuned`
+    /// without `--tuned-gains` runs the tuning first (minutes on 2 cores).
+    #[arg(long, value_delimiter = ',', default_value = "pi,mpc")]
     controller: Vec<Kind>,
     /// Reference frequencies ω (rad/s), comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
@@ -204,6 +205,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 kd: g[2],
             },
             None => {
+                if !args.json {
+                    eprintln!(
+                        "tuning the PID gains: {} × {} gain vectors, each on {} episodes ...",
+                        args.pop,
+                        args.gens,
+                        TuningEpisodes::default().freqs_rad_s.len()
+                            * TuningEpisodes::default().loads_kg.len()
+                    );
+                }
                 let t = tuning::tune_pi(
                     &args.algo,
                     args.pop,
