@@ -9,8 +9,10 @@
 //!     -> fitted model -> report / diagnose / control
 //! ```
 
+pub mod benchmark;
 pub mod control;
 pub mod data;
+pub mod diagnose;
 pub mod eval;
 pub mod ident;
 pub mod model;

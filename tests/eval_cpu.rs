@@ -71,11 +71,8 @@ fn several_experiments_score_separately_and_sum() {
     let want = reference(&both, &pop);
     assert_bit_identical(&scores.per_experiment[0], &want[0], "first");
     assert_bit_identical(&scores.per_experiment[1], &want[1], "second");
-    for i in 0..40 {
-        assert_eq!(
-            scores.total[i].to_bits(),
-            (want[0][i] + want[1][i]).to_bits()
-        );
+    for (i, total) in scores.total.iter().enumerate() {
+        assert_eq!(total.to_bits(), (want[0][i] + want[1][i]).to_bits());
     }
 }
 

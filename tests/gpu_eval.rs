@@ -118,6 +118,7 @@ fn chunks_and_a_folded_2d_grid_give_the_cpu_values() {
     let Some(mut g) = gpu(GpuOptions {
         max_binding_bytes: Some(128 * 12 * 4),
         max_groups_per_dim: Some(2),
+        ..Default::default()
     }) else {
         return;
     };
@@ -129,6 +130,25 @@ fn chunks_and_a_folded_2d_grid_give_the_cpu_values() {
         let got = g.evaluate(&problem, &pop).unwrap();
         assert_bit_identical(&got, &cpu(&problem, &pop), family.name());
     }
+}
+
+#[test]
+fn a_population_past_the_buffer_limit_is_scored_in_parts() {
+    // Buffers of at most 300 generalized candidates, chunks of 128: 1000
+    // candidates in parts of 256, 256, 256 and 232, one submit each.
+    let Some(mut g) = gpu(GpuOptions {
+        max_binding_bytes: Some(128 * 12 * 4),
+        max_buffer_bytes: Some(300 * 12 * 4),
+        ..Default::default()
+    }) else {
+        return;
+    };
+    let exp = stair_experiment(300, 14);
+    let space = search_space(Family::Generalized, &exp, false);
+    let pop = mixed_population(&space, 1000, &mut ChaCha8Rng::seed_from_u64(15));
+    let problem = Problem::new(Family::Generalized, vec![exp, stair_experiment(100, 16)]);
+    let got = g.evaluate(&problem, &pop).unwrap();
+    assert_bit_identical(&got, &cpu(&problem, &pop), "parts");
 }
 
 #[test]

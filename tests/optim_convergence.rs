@@ -3,9 +3,9 @@
 //! each optimizer at N = 1e4 reaches an SSE within 2 % (classic) or 5 %
 //! (generalized) of the true parameters' SSE. CPU backend, fixed seeds.
 //!
-//! Generalized: the thesis' PSO passes; DE, the fixed GA and the fixed MFA
-//! miss at this budget (ignored tests, measured ratios in their attribute
-//! and in docs/RESULTS.md). Budgets: G = 200 generations (2e6 evaluations) for every run. DE and
+//! Generalized: the thesis' PSO and DE with p = 0.02 pass; the fixed GA and
+//! the fixed MFA miss at this budget (ignored tests, measured ratios in
+//! their attribute and in docs/RESULTS.md). Budgets: G = 200 generations (2e6 evaluations) for every run. DE and
 //! PSO pass with their defaults (the thesis' PSO settings, Table 11/19).
 //! The thesis-faithful GA and MFA do not (docs/RESULTS.md gives by how
 //! much); they are tested with the documented settings that fix them:
@@ -32,7 +32,7 @@ fn ratio(family: Family, algo: Algorithm, settings: &AlgoSettings) -> f64 {
     let problem = Problem::new(family, vec![s.estimation.clone()]);
     let mut runner = Runner::new(algo, settings, s.space(), RunSettings::new(N, G, 42)).unwrap();
     let out = runner
-        .run(&problem, &mut CpuEvaluator, &mut [], None, None)
+        .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
         .unwrap();
     assert_eq!(out.evaluations, (N * G) as u64);
     let r = out.sse / s.true_sse();
@@ -88,11 +88,15 @@ fn classic_mfa_fixed() {
     assert!(ratio(Family::Classic, Algorithm::Mfa, &fixed_mfa(Family::Classic)) <= 1.02);
 }
 
+/// DE's default share p = 0.1 of pbest candidates misses here (ratio 2.49:
+/// stuck in a basin); a greedier p = 0.02 (still 200 candidates at N = 1e4)
+/// passes. Documented in docs/RESULTS.md.
 #[test]
-#[ignore = "misses at this budget (measured: DE 2.49x, GA 44.7x, MFA 44.0x the true SSE); see docs/RESULTS.md"]
-fn generalized_de() {
+fn generalized_de_greedier_pbest() {
     let f = Family::Generalized;
-    assert!(ratio(f, Algorithm::De, &settings(f)) <= 1.05);
+    let mut s = settings(f);
+    s.de.p_best = 0.02;
+    assert!(ratio(f, Algorithm::De, &s) <= 1.05);
 }
 
 #[test]
@@ -102,15 +106,46 @@ fn generalized_pso_thesis_settings() {
 }
 
 #[test]
-#[ignore = "misses at this budget (measured: DE 2.49x, GA 44.7x, MFA 44.0x the true SSE); see docs/RESULTS.md"]
+#[ignore = "misses at this budget (measured: GA 44.7x, MFA 44.0x the true SSE); see docs/RESULTS.md"]
 fn generalized_ga_proportional_fixed() {
     let f = Family::Generalized;
     assert!(ratio(f, Algorithm::Ga, &fixed_ga(f)) <= 1.05);
 }
 
 #[test]
-#[ignore = "misses at this budget (measured: DE 2.49x, GA 44.7x, MFA 44.0x the true SSE); see docs/RESULTS.md"]
+#[ignore = "misses at this budget (measured: GA 44.7x, MFA 44.0x the true SSE); see docs/RESULTS.md"]
 fn generalized_mfa_fixed() {
     let f = Family::Generalized;
     assert!(ratio(f, Algorithm::Mfa, &fixed_mfa(f)) <= 1.05);
+}
+
+/// The thesis-faithful GA (proportional crossover, Table 5 settings) at the
+/// same budget: ignored because it misses (docs/RESULTS.md).
+#[test]
+#[ignore = "thesis-faithful GA misses; measured ratio in docs/RESULTS.md"]
+fn classic_ga_thesis_settings() {
+    assert!(ratio(Family::Classic, Algorithm::Ga, &settings(Family::Classic)) <= 1.02);
+}
+
+/// The thesis-faithful MFA (all-pairs, Table 9, code schedules): at N = 1e4
+/// the all-pairs move is impractical, so this runs N = 1000 for G = 200.
+#[test]
+#[ignore = "thesis-faithful MFA misses; measured ratio in docs/RESULTS.md"]
+fn classic_mfa_thesis_settings_n1000() {
+    let family = Family::Classic;
+    let s = Synthetic::new(family, LEN, NOISE_MM, 11);
+    let problem = Problem::new(family, vec![s.estimation.clone()]);
+    let mut runner = Runner::new(
+        Algorithm::Mfa,
+        &settings(family),
+        s.space(),
+        RunSettings::new(1000, G, 42),
+    )
+    .unwrap();
+    let out = runner
+        .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
+        .unwrap();
+    let r = out.sse / s.true_sse();
+    eprintln!("classic mfa (thesis, N = 1000): ratio {r:.4}");
+    assert!(r <= 1.02);
 }

@@ -101,11 +101,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !args.json {
         println!("backend: {}", evaluator.describe());
         println!(
-            "{} model, {} samples in {} experiment(s), n {}",
+            "{} model, {} samples in {} experiment(s){}",
             args.model,
             problem.samples(),
             problem.experiments.len(),
-            if args.free_n { "free" } else { "= 1" }
+            match (args.model, args.free_n) {
+                (Family::Linear, _) => "",
+                (_, true) => ", n free",
+                (_, false) => ", n = 1",
+            }
         );
         println!(
             "{:>10}  {:>12}  {:>11}  {:>10}  agreement with the CPU path",
@@ -140,7 +144,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if !args.json {
             let a = &row.agreement;
             println!(
-                "{:>10}  {:>12.3e}  {:>11.3e}  {:>10.4}  {}, top-10 {}, max rel diff {:.2e}, {} finiteness mismatches",
+                "{:>10}  {:>12.3e}  {:>11.3e}  {:>10.3e}  {}, top-10 {}, max rel diff {:.2e}, {} finiteness mismatches",
                 n,
                 row.candidate_samples_per_s,
                 row.evals_per_s,

@@ -1,8 +1,12 @@
 //! Argument parsing and the dispatch to each command.
 
 mod bench;
+mod benchmark;
 mod common;
+mod compare;
 mod control;
+mod diagnose;
+mod fit;
 mod identify;
 mod simulate;
 mod static_force;
@@ -29,21 +33,29 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    Bench(bench::Args),
     Control(control::Args),
+    Fit(fit::Args),
+    Compare(compare::Args),
     Identify(identify::Args),
     Simulate(simulate::Args),
-    Static(static_force::Args),
+    Diagnose(diagnose::Args),
     Twin(twin::Args),
+    Bench(bench::Args),
+    Benchmark(benchmark::Args),
+    Static(static_force::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Bench(args) => bench::run(args),
         Command::Control(args) => control::run(args),
+        Command::Fit(args) => fit::run(args),
+        Command::Compare(args) => compare::run(args),
         Command::Identify(args) => identify::run(args),
         Command::Simulate(args) => simulate::run(args),
-        Command::Static(args) => static_force::run(args),
+        Command::Diagnose(args) => diagnose::run(args),
         Command::Twin(args) => twin::run(args),
+        Command::Bench(args) => bench::run(args),
+        Command::Benchmark(args) => benchmark::run(args),
+        Command::Static(args) => static_force::run(args),
     }
 }

@@ -7,7 +7,8 @@
 //! there is one submit and one read-back per call. A grid past the device's
 //! per-dimension workgroup limit (65535) folds into 2-D, and a population
 //! whose parameters exceed the storage binding limit is split into chunks,
-//! each bound at its own offset of the same buffers.
+//! each bound at its own offset of the same buffers (a population past even
+//! the device's buffer size limit is scored in parts, one submit each).
 //!
 //! The shaders (`shaders/prologue.wgsl` + one file per family) spell the
 //! operations of `src/model/sim.rs` in the same order. On an unfused f32
@@ -99,6 +100,8 @@ pub struct GpuOptions {
     pub max_binding_bytes: Option<u64>,
     /// Cap on workgroups per grid dimension (default: the device's, 65535).
     pub max_groups_per_dim: Option<u32>,
+    /// Cap on one buffer's size in bytes (default: the device's).
+    pub max_buffer_bytes: Option<u64>,
 }
 
 /// A storage or uniform buffer that is replaced by one twice as large when
@@ -118,13 +121,15 @@ impl Grown {
         }
     }
 
-    /// A buffer of at least `bytes` (rounded up to 256 and grown by doubling).
+    /// A buffer of at least `bytes` (rounded up to 256 and grown by
+    /// doubling, but never past the device's buffer size limit).
     fn at_least(&mut self, device: &wgpu::Device, bytes: u64) -> &wgpu::Buffer {
         let bytes = bytes.max(256).next_multiple_of(256);
         let small = self.buffer.as_ref().is_none_or(|b| b.size() < bytes);
         if small {
             let old = self.buffer.as_ref().map_or(0, |b| b.size());
-            let size = bytes.max(old.saturating_mul(2));
+            let max = device.limits().max_buffer_size.max(bytes);
+            let size = bytes.max(old.saturating_mul(2)).min(max);
             self.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(self.label),
                 size,
@@ -269,9 +274,16 @@ impl GpuEvaluator {
     }
 
     fn binding_limit(&self) -> u64 {
-        let device = self.limits.max_storage_buffer_binding_size as u64;
+        let device = self.limits.max_storage_buffer_binding_size;
         self.options
             .max_binding_bytes
+            .map_or(device, |cap| cap.min(device))
+    }
+
+    fn buffer_limit(&self) -> u64 {
+        let device = self.limits.max_buffer_size;
+        self.options
+            .max_buffer_bytes
             .map_or(device, |cap| cap.min(device))
     }
 
@@ -347,20 +359,52 @@ impl Evaluator for GpuEvaluator {
             None => true,
         };
         self.upload_samples(problem)?;
+        // A population whose parameters or scores exceed one buffer is scored
+        // in parts, one submit each (every part but the last a whole number
+        // of chunks).
         let chunk = self.chunk_len(d, n_exp)?;
+        let by_buffer = (self.buffer_limit() / (4 * d.max(n_exp)) as u64) as usize;
+        let part = if by_buffer >= n {
+            n
+        } else {
+            by_buffer / chunk * chunk
+        };
+        anyhow::ensure!(
+            part > 0,
+            "the device's buffer size limit ({} bytes) cannot hold one chunk of candidates",
+            self.buffer_limit()
+        );
+        let mut per_experiment = vec![Vec::with_capacity(n); n_exp];
+        for rows in rows.chunks(part * d) {
+            let scores = self.score_part(problem, rows, n_one, chunk)?;
+            for (all, part) in per_experiment.iter_mut().zip(scores) {
+                all.extend(part);
+            }
+        }
+        Ok(Scores::from_per_experiment(per_experiment))
+    }
+}
+
+impl GpuEvaluator {
+    /// Scores `rows` (that fit in one buffer) in chunks of `chunk` candidates,
+    /// with one submit and one read-back: `[experiment][candidate]`.
+    fn score_part(
+        &mut self,
+        problem: &Problem,
+        rows: &[f32],
+        n_one: bool,
+        chunk: usize,
+    ) -> anyhow::Result<Vec<Vec<f32>>> {
+        let family = problem.family;
+        let d = family.dim();
+        let n = rows.len() / d;
+        let n_exp = problem.experiments.len();
         let chunks: Vec<(usize, usize)> = (0..n)
             .step_by(chunk)
             .map(|s| (s, chunk.min(n - s)))
             .collect();
         let param_bytes = (rows.len() * 4) as u64;
         let out_bytes = (n * n_exp * 4) as u64;
-        if param_bytes > self.limits.max_buffer_size || out_bytes > self.limits.max_buffer_size {
-            bail!(
-                "a population of {n} {family} candidates exceeds the device's buffer size \
-                 limit ({} bytes); score it in parts",
-                self.limits.max_buffer_size
-            );
-        }
 
         let groups_per_dim = self.groups_per_dim() as usize;
         let mut configs = Vec::with_capacity(chunks.len() * CONFIG_STRIDE as usize / 4);
@@ -384,7 +428,7 @@ impl Evaluator for GpuEvaluator {
         let device = &self.device;
         let params = self.params.at_least(device, param_bytes);
         self.queue
-            .write_buffer(params, 0, bytemuck::cast_slice(&rows));
+            .write_buffer(params, 0, bytemuck::cast_slice(rows));
         let cfg_buf = self.configs.at_least(device, configs.len() as u64);
         self.queue.write_buffer(cfg_buf, 0, &configs);
         let out = self.out.at_least(device, out_bytes);
@@ -467,6 +511,6 @@ impl Evaluator for GpuEvaluator {
                 scores.extend_from_slice(&block[e * len..(e + 1) * len]);
             }
         }
-        Ok(Scores::from_per_experiment(per_experiment))
+        Ok(per_experiment)
     }
 }

@@ -101,10 +101,11 @@ pub enum Backend {
     Gpu,
 }
 
-/// Opens the evaluator `backend` asks for. It prints nothing: the caller
+/// Opens the evaluator `backend` asks for (`Send`, so a run may move it to a
+/// worker thread). It prints nothing: the caller
 /// reports [`Evaluator::describe`], which names the backend and adapter (and,
 /// for `auto` falling back to the CPU, why).
-pub fn open(backend: Backend) -> anyhow::Result<Box<dyn Evaluator>> {
+pub fn open(backend: Backend) -> anyhow::Result<Box<dyn Evaluator + Send>> {
     match backend {
         Backend::Cpu => Ok(Box::new(cpu::CpuEvaluator::new())),
         Backend::Gpu => Ok(Box::new(gpu::GpuEvaluator::open(Default::default())?)),

@@ -359,4 +359,35 @@ mod tests {
         ga.costs[2] = f32::INFINITY;
         assert_eq!(ga.fitness()[2], 0.0);
     }
+
+    #[test]
+    fn random_and_weighted_crossover_only_swap_genes() {
+        // §5.4.2.1: without mutation these strategies never leave the
+        // initial population's gene values; proportional does.
+        let bounds = Bounds {
+            lower: vec![0.0; 3],
+            upper: vec![1.0; 3],
+            names: vec!["x".into(), "y".into(), "z".into()],
+        };
+        for (crossover, closed) in [
+            (Crossover::Random, true),
+            (Crossover::Weighted, true),
+            (Crossover::Proportional, false),
+        ] {
+            let settings = GaSettings {
+                crossover,
+                p_mut: 0.0,
+                ..GaSettings::default()
+            };
+            let mut ga = Ga::new(settings, bounds.clone(), 8);
+            let mut rng = ChaCha8Rng::seed_from_u64(6);
+            let first = ga.ask(&mut rng);
+            ga.tell(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, f32::INFINITY]);
+            let next = ga.ask(&mut rng);
+            let inherited = next
+                .chunks(3)
+                .all(|child| (0..3).all(|j| first.chunks(3).any(|parent| parent[j] == child[j])));
+            assert_eq!(inherited, closed, "{crossover:?}");
+        }
+    }
 }

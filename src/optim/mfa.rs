@@ -197,8 +197,8 @@ impl Mfa {
             let ci = costs[i];
             match settings.max_attractors {
                 None => {
-                    for j in 0..snapshot.len() / d {
-                        if super::cost_order(costs[j], ci).is_lt() && costs[j].is_finite() {
+                    for (j, &cj) in costs.iter().enumerate() {
+                        if super::cost_order(cj, ci).is_lt() && cj.is_finite() {
                             attract(x, j, &mut frng);
                         }
                     }

@@ -19,6 +19,7 @@ pub mod mfa;
 pub mod pso;
 pub mod run;
 pub mod synthetic;
+pub mod task;
 
 use std::cmp::Ordering;
 use std::fmt;

@@ -1,102 +1,139 @@
-//! The water in the muscle chamber and the hose: the pressure rises with the
-//! net inflow and falls as the chamber grows,
-//! `C·dp/dt = Q_in(p_s − p) − Q_out(p − p_d) − A(x)·ẋ`,
-//! with the capacitance `C = V/β_water + C_hose` (water's bulk modulus plus
-//! the hose and bladder compliance).
+//! The water path, two nodes joined by the muscle's inlet fitting:
 //!
-//! Even with the compliance the capacitance is tiny next to the orifice
-//! conductances, so the pressure is stiff: each substep solves the update
-//! implicitly (backward Euler in `p`, a monotone scalar equation) with a
-//! safeguarded Newton iteration.
+//! - the *manifold* between the two valves, where the pressure sensor sits,
+//!   with the hose: `C_v·dp_v/dt = Q_in(p_s − p_v) − Q_out(p_v − p_d) − Q_f(p_v − p_m)`;
+//! - the *muscle chamber*: `C_m·dp_m/dt = Q_f(p_v − p_m) − A(x)·ẋ`,
+//!
+//! with capacitances `C = V/β_water (+ C_hose at the manifold)`. The inlet
+//! fitting `Q_f` is a restriction of its own: at the 100–200 ml/s the valves
+//! pass, a few-millimetre bore drops tens of kPa, so the muscle's pressure
+//! (which makes the force) lags the measured one. That lag is the slow pole
+//! the thesis' ARX model sees between measured pressure and displacement.
+//!
+//! The capacitances are tiny next to the orifice conductances (time constants
+//! of micro- to milliseconds), so each substep solves both pressures
+//! implicitly (backward Euler, a 2×2 monotone system) with Newton's method.
 
-use super::config::{Effects, HydraulicParams, ValveParams};
-use super::valve::{orifice_conductance, orifice_flow};
+use super::config::{Effects, HydraulicParams};
+use super::valve::Orifice;
 
-/// Capacitance `dV/dp` of the water column (m³/Pa) for a chamber volume `v_chamber`.
-pub fn capacitance(v_chamber: f64, h: &HydraulicParams, fx: &Effects) -> f64 {
-    let water = (v_chamber + h.hose_volume_m3) / h.bulk_modulus_water;
+/// Capacitance `dV/dp` of the manifold node (m³/Pa): the hose's water plus,
+/// unless switched off, the hose wall's compliance.
+pub fn manifold_capacitance(h: &HydraulicParams, fx: &Effects) -> f64 {
+    let water = h.hose_volume_m3 / h.bulk_modulus_water;
     match fx.compliance.active() {
         Some(scale) => water + scale * h.hose_compliance_m3_per_pa,
         None => water,
     }
 }
 
+/// Capacitance of the water in the muscle chamber of volume `v` (m³/Pa).
+/// The chamber's real compliance, its change of volume with length, is in
+/// the mechanics (`A(x)·ẋ`), not here.
+pub fn chamber_capacitance(v: f64, h: &HydraulicParams) -> f64 {
+    v / h.bulk_modulus_water
+}
+
+/// The muscle's inlet fitting as an orifice.
+pub fn inlet(h: &HydraulicParams) -> Orifice {
+    Orifice {
+        area_m2: h.inlet_area_m2,
+        discharge_coefficient: h.inlet_discharge_coefficient,
+        laminar_dp_pa: h.laminar_dp_pa,
+    }
+}
+
 /// Inputs of one pressure update.
 pub struct PressureStep<'a> {
-    pub p: f64,
+    /// Manifold and chamber pressures at the start of the step (Pa gauge).
+    pub p_manifold: f64,
+    pub p_chamber: f64,
     pub dt: f64,
-    pub capacitance: f64,
-    /// Open fractions of the input and output valves.
-    pub open_in: f64,
-    pub open_out: f64,
+    pub cap_manifold: f64,
+    pub cap_chamber: f64,
+    pub valve_in: Orifice,
+    pub valve_out: Orifice,
     /// Volume rate taken by the moving chamber, `A(x)·ẋ` (m³/s).
     pub volume_rate: f64,
-    pub valve: &'a ValveParams,
     pub hydraulics: &'a HydraulicParams,
 }
 
 impl PressureStep<'_> {
-    /// `g(q) = C(q − p)/h − Q_in + Q_out + A·ẋ`, increasing in `q`, and its slope.
-    fn residual(&self, q: f64) -> (f64, f64) {
+    /// Residuals of the two node equations at `(pv, pm)` and their Jacobian
+    /// `[[j11, j12], [j21, j22]]` (an M-matrix: positive diagonal, both
+    /// off-diagonals `−G_f`).
+    fn residual(&self, pv: f64, pm: f64) -> ([f64; 2], [f64; 3]) {
         let h = self.hydraulics;
         let rho = h.density;
-        let q_in = orifice_flow(self.open_in, h.supply_pa - q, self.valve, rho);
-        let q_out = orifice_flow(self.open_out, q - h.drain_pa, self.valve, rho);
-        let g = self.capacitance * (q - self.p) / self.dt - q_in + q_out + self.volume_rate;
-        let dg = self.capacitance / self.dt
-            + orifice_conductance(self.open_in, h.supply_pa - q, self.valve, rho)
-            + orifice_conductance(self.open_out, q - h.drain_pa, self.valve, rho);
-        (g, dg)
+        let fit = inlet(h);
+        let (din, dout, df) = (h.supply_pa - pv, pv - h.drain_pa, pv - pm);
+        let qf = fit.flow(df, rho);
+        let r1 = self.cap_manifold * (pv - self.p_manifold) / self.dt
+            - self.valve_in.flow(din, rho)
+            + self.valve_out.flow(dout, rho)
+            + qf;
+        let r2 = self.cap_chamber * (pm - self.p_chamber) / self.dt - qf + self.volume_rate;
+        let gf = fit.conductance(df, rho);
+        let j11 = self.cap_manifold / self.dt
+            + self.valve_in.conductance(din, rho)
+            + self.valve_out.conductance(dout, rho)
+            + gf;
+        let j22 = self.cap_chamber / self.dt + gf;
+        ([r1, r2], [j11, gf, j22])
     }
 
-    /// The pressure at the end of the step: the root of `g`, bracketed by
-    /// doubling a window around `p`, then Newton steps that fall back to
-    /// bisection when they leave the bracket. Converges to 1e-4 Pa.
-    pub fn solve(&self) -> f64 {
-        let (g0, _) = self.residual(self.p);
-        if g0 == 0.0 {
-            return self.p;
-        }
-        let dir = if g0 > 0.0 { -1.0 } else { 1.0 };
-        let mut width = 1e3;
-        let (mut lo, mut hi) = (self.p, self.p);
-        loop {
-            let q = self.p + dir * width;
-            let (g, _) = self.residual(q);
-            if (g > 0.0) != (g0 > 0.0) || width > 1e9 {
-                if dir > 0.0 {
-                    hi = q;
-                } else {
-                    lo = q;
-                }
+    /// Both pressures at the end of the step, `(manifold, chamber)`: Newton
+    /// from the start values, each step limited to 50 kPa so the `√Δp` kinks
+    /// cannot throw it far; stops when the update is below 1 mPa.
+    pub fn solve(&self) -> (f64, f64) {
+        let (mut pv, mut pm) = (self.p_manifold, self.p_chamber);
+        for _ in 0..50 {
+            let ([r1, r2], [j11, gf, j22]) = self.residual(pv, pm);
+            // [j11 −gf; −gf j22]·[dv; dm] = −[r1; r2]
+            let det = j11 * j22 - gf * gf;
+            let dv = -(r1 * j22 + gf * r2) / det;
+            let dm = -(j11 * r2 + gf * r1) / det;
+            let big = dv.abs().max(dm.abs());
+            let cut = if big > 5e4 { 5e4 / big } else { 1.0 };
+            pv += cut * dv;
+            pm += cut * dm;
+            if big * cut < 1e-3 {
                 break;
             }
-            if dir > 0.0 {
-                lo = q;
-            } else {
-                hi = q;
-            }
-            width *= 2.0;
         }
-        let mut q = 0.5 * (lo + hi);
-        for _ in 0..60 {
-            let (g, dg) = self.residual(q);
-            if g > 0.0 {
-                hi = q;
-            } else {
-                lo = q;
+        (pv, pm)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::twin::config::ValveParams;
+
+    #[test]
+    fn steady_state_balances_the_valves() {
+        // Both valves half open, chamber still: the manifold settles where
+        // the two equal orifices split the supply, p_s/2, and the chamber
+        // follows it.
+        let h = HydraulicParams::default();
+        let v = ValveParams::default();
+        let fx = Effects::default();
+        let (mut pv, mut pm) = (0.0, 0.0);
+        for _ in 0..20000 {
+            (pv, pm) = PressureStep {
+                p_manifold: pv,
+                p_chamber: pm,
+                dt: 5e-5,
+                cap_manifold: manifold_capacitance(&h, &fx),
+                cap_chamber: chamber_capacitance(20e-6, &h),
+                valve_in: v.orifice(0.5),
+                valve_out: v.orifice(0.5),
+                volume_rate: 0.0,
+                hydraulics: &h,
             }
-            let newton = q - g / dg;
-            let next = if newton > lo && newton < hi {
-                newton
-            } else {
-                0.5 * (lo + hi)
-            };
-            if (next - q).abs() < 1e-4 {
-                return next;
-            }
-            q = next;
+            .solve();
         }
-        q
+        assert!((pv - h.supply_pa / 2.0).abs() < 1.0, "{pv}");
+        assert!((pm - pv).abs() < 1.0, "{pm}");
     }
 }

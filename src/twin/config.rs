@@ -29,8 +29,8 @@ pub struct ValveParams {
     pub spool_tau_s: f64,
     /// Orifice area at full opening (m²). Assumption: 30 mm², a 6.2 mm bore
     /// (a 3/8" tap-water solenoid-class valve); with it the stair's steps
-    /// settle within their 1 s and the ARX pole at 10 ms is 0.988 (thesis:
-    /// 0.9618), see docs/TWIN.md.
+    /// settle within their 1 s (the thesis' stair, figure 3, shows settled
+    /// levels), see docs/TWIN.md.
     pub area_max_m2: f64,
     /// Discharge coefficient of the orifice, 0.61 (sharp-edged orifice;
     /// Merritt, *Hydraulic Control Systems*, 1967, §3.2).
@@ -75,6 +75,16 @@ pub struct HydraulicParams {
     /// effective moduli of 10–700 MPa for hoses); it lowers the effective
     /// bulk modulus of the water column from 2.2 GPa to about 50 MPa.
     pub hose_compliance_m3_per_pa: f64,
+    /// Bore area of the muscle's inlet fitting (m²). Assumption: 8 mm², a
+    /// 3.2 mm bore, the size of the barbed fittings on 10–15 mm muscles; at
+    /// 50 ml/s it drops about 50 kPa, so the muscle's pressure lags the
+    /// manifold's (where the sensor is): a 1 V stair step reaches 63 % of its
+    /// displacement in about 0.3 s, see docs/TWIN.md.
+    pub inlet_area_m2: f64,
+    /// Discharge coefficient of the inlet fitting, 0.61 (as the valves).
+    pub inlet_discharge_coefficient: f64,
+    /// Laminar threshold of the inlet's flow law (Pa), as the valves': 2 kPa.
+    pub laminar_dp_pa: f64,
 }
 
 impl Default for HydraulicParams {
@@ -87,6 +97,9 @@ impl Default for HydraulicParams {
             bulk_modulus_water: 2.2e9,
             hose_volume_m3,
             hose_compliance_m3_per_pa: hose_volume_m3 / 50e6,
+            inlet_area_m2: 8e-6,
+            inlet_discharge_coefficient: 0.61,
+            laminar_dp_pa: 2e3,
         }
     }
 }
@@ -129,12 +142,14 @@ impl Default for MuscleParams {
 /// so each slider's break-away force grows with pressure (Tondu & Lopez 2000).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FrictionParams {
-    /// Total break-away force at zero gauge pressure (N). Assumption: 3 N.
+    /// Total break-away force at zero gauge pressure (N), the rubber and
+    /// threads rubbing under the load alone. Assumption: 5 N.
     pub break_force_n: f64,
     /// Increase of the total break-away force per MPa (N/MPa). Assumption:
-    /// 60 N/MPa, i.e. 27 N at 0.4 MPa, about 7 % of the pressure force at
-    /// rest there, within the 5–15 % force hysteresis of braided muscles
-    /// reported by Tondu & Lopez (2000).
+    /// 100 N/MPa, i.e. 45 N at 0.4 MPa, about 12 % of the pressure force
+    /// there, within the 5–15 % force hysteresis Tondu & Lopez (2000) report
+    /// for braided muscles. It opens a loop about 5 mm wide at mid pressure
+    /// (≈ 12 % of the stroke), see docs/TWIN.md.
     pub break_force_per_mpa: f64,
     /// Pre-sliding deflection of each element (m): element `i` slips after
     /// this travel. Assumption: 0.2, 0.6, 1.5 and 3 mm, spread so the loop
@@ -145,8 +160,8 @@ pub struct FrictionParams {
 impl Default for FrictionParams {
     fn default() -> Self {
         FrictionParams {
-            break_force_n: 3.0,
-            break_force_per_mpa: 60.0,
+            break_force_n: 5.0,
+            break_force_per_mpa: 100.0,
             slip_deflection_m: vec![0.2e-3, 0.6e-3, 1.5e-3, 3e-3],
         }
     }
@@ -334,9 +349,10 @@ pub struct TwinConfig {
     /// the rig). The issue fixes 10 ms.
     pub sample_time_s: f64,
     /// Integration substeps per sample. 200 (50 µs): the stiffest mode is the
-    /// load on the water column, ω ≈ 2.8e3 rad/s when the hose compliance is
-    /// switched off (see docs/TWIN.md), and symplectic Euler needs ω·h < 2;
-    /// 50 µs gives ω·h ≈ 0.14 in that worst case.
+    /// load on the water in the muscle, `ω = A/√(m·V/β)` ≈ 7.3e3 rad/s under
+    /// 4.5 kg (docs/TWIN.md), and symplectic Euler needs ω·h < 2; 50 µs gives
+    /// ω·h ≈ 0.37. The pressures are solved implicitly, so the orifices'
+    /// microsecond time constants do not limit the step.
     pub substeps: usize,
     pub valve: ValveParams,
     pub hydraulics: HydraulicParams,

@@ -63,8 +63,10 @@ pub struct Sample {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TrueState {
     pub t: f64,
-    /// Chamber pressure (Pa gauge).
+    /// Manifold pressure, where the sensor sits (Pa gauge).
     pub pressure_pa: f64,
+    /// Pressure inside the muscle (Pa gauge), behind the inlet fitting.
+    pub chamber_pressure_pa: f64,
     /// Contraction (m).
     pub contraction_m: f64,
     /// Contraction rate (m/s).
@@ -82,7 +84,10 @@ pub struct Rig {
     friction: MaxwellSlip,
     valve_in: Valve,
     valve_out: Valve,
-    pressure_pa: f64,
+    /// Manifold pressure (Pa gauge), the sensor's.
+    manifold_pa: f64,
+    /// Muscle chamber pressure (Pa gauge), the force's.
+    chamber_pa: f64,
     command_v: f64,
     steps: u64,
     rng: ChaCha8Rng,
@@ -92,11 +97,24 @@ impl Rig {
     /// The rig at rest: load hanging, chamber at atmospheric pressure, input
     /// valve commanded shut (0 V) and output valve open (10 V). `seed` seeds
     /// the sensor noise (`ChaCha8Rng`); nothing else is random.
+    ///
+    /// Panics unless `load_kg` is positive and light enough that the rubber's
+    /// stretch leaves the braid short of straight (about 19 kg with the
+    /// default muscle); [`experiment::RunSpec::run`] checks this for the CLI.
     pub fn new(config: &TwinConfig, load_kg: f64, seed: u64) -> Rig {
         let full = config.valve.full_scale_v;
+        let muscle = Muscle::new(&config.muscle, load_kg, &config.effects);
+        assert!(
+            load_kg.is_finite() && load_kg > 0.0,
+            "twin: load must be a positive mass in kg (got {load_kg})"
+        );
+        assert!(
+            muscle.rest_length() < config.muscle.braid.thread_length,
+            "twin: a {load_kg} kg load stretches the muscle past its thread length"
+        );
         Rig {
             config: config.clone(),
-            muscle: Muscle::new(&config.muscle, load_kg, &config.effects),
+            muscle,
             load: Load {
                 mass_kg: load_kg,
                 x: 0.0,
@@ -105,7 +123,8 @@ impl Rig {
             friction: MaxwellSlip::new(&config.friction),
             valve_in: Valve::at(0.0),
             valve_out: Valve::at(full),
-            pressure_pa: config.hydraulics.drain_pa,
+            manifold_pa: config.hydraulics.drain_pa,
+            chamber_pa: config.hydraulics.drain_pa,
             command_v: 0.0,
             steps: 0,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -141,7 +160,8 @@ impl Rig {
     pub fn true_state(&self) -> TrueState {
         TrueState {
             t: self.time(),
-            pressure_pa: self.pressure_pa,
+            pressure_pa: self.manifold_pa,
+            chamber_pressure_pa: self.chamber_pa,
             contraction_m: self.load.x,
             velocity_m_s: self.load.v,
             length_m: self.muscle.length(self.load.x),
@@ -152,7 +172,7 @@ impl Rig {
     pub fn measure(&mut self) -> Sample {
         let cfg = &self.config;
         let pressure_mpa =
-            sensors::pressure_mpa(self.pressure_pa, &cfg.sensors, &mut self.rng, &cfg.effects);
+            sensors::pressure_mpa(self.manifold_pa, &cfg.sensors, &mut self.rng, &cfg.effects);
         let displacement_mm =
             sensors::displacement_mm(self.load.x, &cfg.sensors, &mut self.rng, &cfg.effects);
         Sample {
@@ -190,8 +210,8 @@ impl Rig {
     }
 
     /// One integration substep of length `h`: spools, then the load
-    /// (forces at the current pressure), then the pressure implicitly with
-    /// the load's new velocity.
+    /// (forces at the current chamber pressure), then both pressures
+    /// implicitly with the load's new velocity.
     fn substep(&mut self, u_in: f64, u_out: f64, h: f64) {
         let cfg = &self.config;
         let fx = &cfg.effects;
@@ -199,7 +219,7 @@ impl Rig {
         self.valve_out.advance(u_out, h, &cfg.valve, fx);
 
         let x = self.load.x;
-        let p = self.pressure_pa;
+        let p = self.chamber_pa;
         let weight = self.load.mass_kg * GRAVITY;
         let spring = self.muscle.pressure_force(p, x) + self.muscle.rubber_tension(x) - weight;
         let friction = self.friction.current_force(p, &cfg.friction, fx);
@@ -209,14 +229,16 @@ impl Rig {
         self.friction.slide(dx, fx);
 
         let x = self.load.x;
-        self.pressure_pa = PressureStep {
-            p,
+        let vfx = &cfg.valve;
+        (self.manifold_pa, self.chamber_pa) = PressureStep {
+            p_manifold: self.manifold_pa,
+            p_chamber: p,
             dt: h,
-            capacitance: chamber::capacitance(self.muscle.volume(x), &cfg.hydraulics, fx),
-            open_in: self.valve_in.opening(&cfg.valve, fx),
-            open_out: self.valve_out.opening(&cfg.valve, fx),
+            cap_manifold: chamber::manifold_capacitance(&cfg.hydraulics, fx),
+            cap_chamber: chamber::chamber_capacitance(self.muscle.volume(x), &cfg.hydraulics),
+            valve_in: vfx.orifice(self.valve_in.opening(vfx, fx)),
+            valve_out: vfx.orifice(self.valve_out.opening(vfx, fx)),
             volume_rate: self.muscle.effective_area(x) * self.load.v,
-            valve: &cfg.valve,
             hydraulics: &cfg.hydraulics,
         }
         .solve();

@@ -49,29 +49,52 @@ impl Valve {
     }
 }
 
-/// Orifice flow (m³/s) from the high to the low side through `opening` (0–1)
-/// for a pressure drop `dp` (Pa, may be negative: then the flow reverses).
-/// Turbulent `√Δp` law, linear below `laminar_dp_pa` (matched in value at the
-/// junction) so the slope stays finite.
-pub fn orifice_flow(opening: f64, dp: f64, p: &ValveParams, density: f64) -> f64 {
-    let k = p.discharge_coefficient * p.area_max_m2 * opening * (2.0 / density).sqrt();
-    let a = dp.abs();
-    let mag = if a < p.laminar_dp_pa {
-        k * a / p.laminar_dp_pa.sqrt()
-    } else {
-        k * a.sqrt()
-    };
-    mag.copysign(dp)
+/// A sharp-edged orifice: turbulent `Q = C_d·A·√(2|Δp|/ρ)·sgn Δp`, linear
+/// below `laminar_dp_pa` (matched in value at the junction) so the slope
+/// stays finite at zero drop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Orifice {
+    pub area_m2: f64,
+    pub discharge_coefficient: f64,
+    pub laminar_dp_pa: f64,
 }
 
-/// Slope `dQ/d(dp)` of [`orifice_flow`], for the implicit pressure update.
-pub fn orifice_conductance(opening: f64, dp: f64, p: &ValveParams, density: f64) -> f64 {
-    let k = p.discharge_coefficient * p.area_max_m2 * opening * (2.0 / density).sqrt();
-    let a = dp.abs();
-    if a < p.laminar_dp_pa {
-        k / p.laminar_dp_pa.sqrt()
-    } else {
-        0.5 * k / a.sqrt()
+impl Orifice {
+    fn k(&self, density: f64) -> f64 {
+        self.discharge_coefficient * self.area_m2 * (2.0 / density).sqrt()
+    }
+
+    /// Flow (m³/s) from the high to the low side for a drop `dp` (Pa; a
+    /// negative drop reverses the flow).
+    pub fn flow(&self, dp: f64, density: f64) -> f64 {
+        let a = dp.abs();
+        let mag = if a < self.laminar_dp_pa {
+            self.k(density) * a / self.laminar_dp_pa.sqrt()
+        } else {
+            self.k(density) * a.sqrt()
+        };
+        mag.copysign(dp)
+    }
+
+    /// Slope `dQ/d(dp)` of [`Orifice::flow`], for the implicit pressure update.
+    pub fn conductance(&self, dp: f64, density: f64) -> f64 {
+        let a = dp.abs();
+        if a < self.laminar_dp_pa {
+            self.k(density) / self.laminar_dp_pa.sqrt()
+        } else {
+            0.5 * self.k(density) / a.sqrt()
+        }
+    }
+}
+
+impl ValveParams {
+    /// The valve's orifice at open fraction `opening` (0–1).
+    pub fn orifice(&self, opening: f64) -> Orifice {
+        Orifice {
+            area_m2: self.area_max_m2 * opening,
+            discharge_coefficient: self.discharge_coefficient,
+            laminar_dp_pa: self.laminar_dp_pa,
+        }
     }
 }
 
@@ -82,14 +105,16 @@ mod tests {
     #[test]
     fn flow_is_continuous_and_odd() {
         let p = ValveParams::default();
-        let below = orifice_flow(1.0, p.laminar_dp_pa * (1.0 - 1e-12), &p, 998.0);
-        let above = orifice_flow(1.0, p.laminar_dp_pa, &p, 998.0);
+        let o = p.orifice(1.0);
+        let below = o.flow(p.laminar_dp_pa * (1.0 - 1e-12), 998.0);
+        let above = o.flow(p.laminar_dp_pa, 998.0);
         assert!((below - above).abs() < 1e-12);
-        assert_eq!(
-            orifice_flow(0.5, -3e5, &p, 998.0),
-            -orifice_flow(0.5, 3e5, &p, 998.0)
-        );
-        assert_eq!(orifice_flow(0.5, 0.0, &p, 998.0), 0.0);
+        let half = p.orifice(0.5);
+        assert_eq!(half.flow(-3e5, 998.0), -half.flow(3e5, 998.0));
+        assert_eq!(half.flow(0.0, 998.0), 0.0);
+        let h = 1e-3;
+        let slope = (half.flow(3e5 + h, 998.0) - half.flow(3e5 - h, 998.0)) / (2.0 * h);
+        assert!((slope - half.conductance(3e5, 998.0)).abs() < 1e-6 * slope);
     }
 
     #[test]

@@ -1,0 +1,208 @@
+//! Validation on the Bouc-Wen nonlinear system identification benchmark
+//! (Noël & Schoukens, "Hysteretic benchmark with a dynamic nonlinearity",
+//! nonlinearbenchmark.org): real, public test data with published results.
+//!
+//! * [`boucwen`]: the benchmark's oscillator, its Newmark integration in `f64`
+//!   and the `f32` twin of `shaders/boucwen_oscillator.wgsl`;
+//! * [`resample`]: the 750 Hz ↔ 15 kHz conversions the PDF prescribes;
+//! * [`generator`]: benchmark-like training data from the published system,
+//!   so that tests run without the external files;
+//! * [`identify`]: population search on the batch evaluator, then a
+//!   Levenberg–Marquardt refinement in `f64`;
+//! * [`gpu`]: the shader's batch evaluator on wgpu.
+//!
+//! The data files are read from `../shared/data/external/boucwen_benchmark`
+//! and never copied into the repository.
+
+pub mod boucwen;
+pub mod generator;
+pub mod gpu;
+pub mod identify;
+pub mod resample;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, bail};
+
+pub use boucwen::{FS, Params, UPSAMPLE};
+
+/// Samples per period of the benchmark's multisines (PDF §4–5).
+pub const PERIOD: usize = 8192;
+
+/// Where the external benchmark files live, relative to the repository root.
+pub const DEFAULT_DATA_DIR: &str = "../shared/data/external/boucwen_benchmark";
+
+/// The published simulation RMSE on the multisine test set (metres), as the
+/// data README quotes them, best first.
+pub const PUBLISHED: [(&str, f64); 8] = [
+    ("gr-SS-NN", 7.53e-6),
+    ("SS-NN, improved initialisation", 8.91e-6),
+    ("PNLSS (2018)", 1.34e-5),
+    ("Koopman input-affine", 1.43e-5),
+    ("PNLSS (2017)", 1.87e-5),
+    ("SS-NN", 2.65e-5),
+    ("dynoNet", 4.52e-5),
+    ("NFIR", 1.63e-4),
+];
+
+/// One benchmark record at 750 Hz: force `u` (N) and displacement `y` (m).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Record {
+    pub u: Vec<f64>,
+    pub y: Vec<f64>,
+}
+
+/// Reads a benchmark CSV: `#` comment lines, a header with columns `u_N` and
+/// `y_m`, then numbers. Errors name the file, row and column.
+pub fn read_record(path: &Path) -> anyhow::Result<Record> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim_start().starts_with('#') && !l.trim().is_empty());
+    let Some((hrow, header)) = lines.next() else {
+        bail!(
+            "{}: no header row (expected columns u_N,y_m)",
+            path.display()
+        );
+    };
+    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
+    let find = |name: &str| {
+        cols.iter().position(|c| *c == name).with_context(|| {
+            format!(
+                "{}:{}: no column `{name}` in header `{header}`",
+                path.display(),
+                hrow + 1
+            )
+        })
+    };
+    let (iu, iy) = (find("u_N")?, find("y_m")?);
+    let mut rec = Record {
+        u: Vec::new(),
+        y: Vec::new(),
+    };
+    for (row, line) in lines {
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let get = |i: usize, name: &str| -> anyhow::Result<f64> {
+            let s = fields.get(i).with_context(|| {
+                format!("{}:{}: missing column `{name}`", path.display(), row + 1)
+            })?;
+            let v: f64 = s.parse().with_context(|| {
+                format!(
+                    "{}:{}: column `{name}`: `{s}` is not a number",
+                    path.display(),
+                    row + 1
+                )
+            })?;
+            anyhow::ensure!(
+                v.is_finite(),
+                "{}:{}: column `{name}` is not finite",
+                path.display(),
+                row + 1
+            );
+            Ok(v)
+        };
+        rec.u.push(get(iu, "u_N")?);
+        rec.y.push(get(iy, "y_m")?);
+    }
+    anyhow::ensure!(!rec.u.is_empty(), "{}: no data rows", path.display());
+    Ok(rec)
+}
+
+/// The three benchmark files.
+#[derive(Debug, Clone)]
+pub struct BenchmarkData {
+    pub train: Record,
+    pub test_multisine: Record,
+    pub test_sinesweep: Record,
+}
+
+impl BenchmarkData {
+    /// Loads `train_multisine.csv`, `test_multisine.csv`, `test_sinesweep.csv`
+    /// from `dir`.
+    pub fn load(dir: &Path) -> anyhow::Result<BenchmarkData> {
+        anyhow::ensure!(
+            dir.is_dir(),
+            "Bouc-Wen benchmark data not found: {} is not a directory (it holds \
+             train_multisine.csv, test_multisine.csv, test_sinesweep.csv; see \
+             ../shared/data/external/README.md, or pass --data DIR)",
+            dir.display()
+        );
+        Ok(BenchmarkData {
+            train: read_record(&dir.join("train_multisine.csv"))?,
+            test_multisine: read_record(&dir.join("test_multisine.csv"))?,
+            test_sinesweep: read_record(&dir.join("test_sinesweep.csv"))?,
+        })
+    }
+}
+
+/// The default data directory: [`DEFAULT_DATA_DIR`] relative to the
+/// repository root (where `Cargo.toml` was built from), else to the current
+/// directory.
+pub fn default_data_dir() -> PathBuf {
+    let from_root = Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_DATA_DIR);
+    if from_root.is_dir() {
+        from_root
+    } else {
+        PathBuf::from(DEFAULT_DATA_DIR)
+    }
+}
+
+/// Simulates `periods` periods of the periodic input whose one period (at
+/// 750 Hz) is `u_period`, from rest, the way the PDF's example does: upsample
+/// to 15 kHz, integrate one extra period so that the decimation filter's
+/// edge falls outside, decimate, drop the extra period. Returns
+/// `periods · u_period.len()` samples at 750 Hz, or `None` if it diverged.
+pub fn simulate_periodic(p: &Params, u_period: &[f64], periods: usize) -> Option<Vec<f64>> {
+    let one = resample::upsample(u_period, UPSAMPLE, true);
+    let u: Vec<f64> = (0..periods + 1).flat_map(|_| one.iter().copied()).collect();
+    let y = boucwen::simulate_f64(p, &u, 1.0 / (FS * UPSAMPLE as f64))?;
+    let mut y = resample::decimate(&y);
+    y.truncate(periods * u_period.len());
+    Some(y)
+}
+
+/// Simulates a non-periodic input from rest (the sine sweep): upsample (zero
+/// outside the record), integrate, decimate. `None` if it diverged.
+pub fn simulate_transient(p: &Params, u: &[f64]) -> Option<Vec<f64>> {
+    let up = resample::upsample(u, UPSAMPLE, false);
+    let y = boucwen::simulate_f64(p, &up, 1.0 / (FS * UPSAMPLE as f64))?;
+    Some(resample::decimate(&y))
+}
+
+/// Periods simulated before the scored one on the multisine test set. The
+/// linear modes decay with ζ·ω0 ≈ 2.5 s⁻¹ (PDF Table 2) and a period lasts
+/// 10.9 s, so one period already brings the transient below 1e-11 of the
+/// response (PDF Fig. 2b); two leave no doubt.
+pub const STEADY_STATE_PERIODS: usize = 2;
+
+/// Root-mean-square of the difference (PDF eq. 6).
+pub fn rmse(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    (a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>() / a.len() as f64).sqrt()
+}
+
+/// Simulation RMSE on the multisine test set: the test input is one
+/// steady-state period, so the model runs [`STEADY_STATE_PERIODS`] + 1
+/// periods of it from rest and the last period is scored.
+pub fn test_multisine_rmse(p: &Params, test: &Record) -> Option<f64> {
+    let n = test.u.len();
+    let y = simulate_periodic(p, &test.u, STEADY_STATE_PERIODS + 1)?;
+    Some(rmse(&y[STEADY_STATE_PERIODS * n..], &test.y))
+}
+
+/// Simulation RMSE on the sine-sweep test set, simulated from rest as it was
+/// recorded.
+pub fn test_sinesweep_rmse(p: &Params, test: &Record) -> Option<f64> {
+    let y = simulate_transient(p, &test.u)?;
+    Some(rmse(&y, &test.y))
+}
+
+/// True when `u` repeats with period `n` (to rounding of the file's digits).
+pub fn is_periodic(u: &[f64], n: usize) -> bool {
+    n > 0
+        && u.len() >= n
+        && u.len() % n == 0
+        && (n..u.len()).all(|i| (u[i] - u[i - n]).abs() <= 1e-9 * (1.0 + u[i - n].abs()))
+}

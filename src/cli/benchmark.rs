@@ -1,0 +1,153 @@
+//! `mckibben benchmark`: validation on public benchmarks with published results.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use mckibben::benchmark::identify::{
+    BatchScorer, CpuScorer, IdentifySettings, SearchTrace, identify,
+};
+use mckibben::benchmark::{
+    BenchmarkData, PERIOD, PUBLISHED, boucwen::PARAM_NAMES, default_data_dir, gpu,
+    test_multisine_rmse, test_sinesweep_rmse,
+};
+
+/// Validate the identification on a public benchmark with published results.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    #[command(subcommand)]
+    which: Which,
+}
+
+#[derive(Debug, clap::Subcommand)]
+enum Which {
+    Boucwen(BoucwenArgs),
+}
+
+/// The Bouc-Wen benchmark (Noël & Schoukens 2016): identify the oscillator
+/// from the training multisine (population search + Levenberg–Marquardt),
+/// then report the simulation RMSE (metres) on the official multisine and
+/// sine-sweep test sets beside the published results.
+///
+/// Example: `mckibben benchmark boucwen --json`
+#[derive(Debug, clap::Args)]
+struct BoucwenArgs {
+    /// Folder with train_multisine.csv, test_multisine.csv and
+    /// test_sinesweep.csv [default: ../shared/data/external/boucwen_benchmark
+    /// relative to the repository root, else to the current directory].
+    #[arg(long, value_name = "DIR")]
+    data: Option<PathBuf>,
+    /// Backend of the population stage: `cpu` (the f32 twin, all threads) or
+    /// `gpu` (the WGSL shader on the first Vulkan adapter; lavapipe is slower
+    /// than the CPU path on a machine without a GPU).
+    #[arg(long, value_enum, default_value = "cpu")]
+    backend: Backend,
+    /// Seed of the population search.
+    #[arg(long, default_value_t = IdentifySettings::default().seed)]
+    seed: u64,
+    /// Population size of the search.
+    #[arg(long, default_value_t = IdentifySettings::default().population)]
+    population: usize,
+    /// Generations of the search.
+    #[arg(long, default_value_t = IdentifySettings::default().generations)]
+    generations: usize,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Backend {
+    Cpu,
+    Gpu,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    test_multisine_rmse_m: f64,
+    test_sinesweep_rmse_m: f64,
+    params: serde_json::Map<String, serde_json::Value>,
+    train_rmse_m: f64,
+    seconds: f64,
+    evaluations: usize,
+    backend: String,
+    simulation: &'static str,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    match args.which {
+        Which::Boucwen(a) => boucwen(a),
+    }
+}
+
+fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
+    let start = Instant::now();
+    let dir = args.data.clone().unwrap_or_else(default_data_dir);
+    let data = BenchmarkData::load(&dir)?;
+    anyhow::ensure!(args.population >= 5, "--population must be at least 5");
+    let settings = IdentifySettings {
+        seed: args.seed,
+        population: args.population,
+        generations: args.generations,
+        ..IdentifySettings::default()
+    };
+    let trace = SearchTrace::new(&data.train, PERIOD, &settings);
+    let mut scorer: Box<dyn BatchScorer> = match args.backend {
+        Backend::Cpu => Box::new(CpuScorer::new(trace)),
+        Backend::Gpu => Box::new(gpu::GpuOscillator::new(
+            gpu::AdapterChoice::PreferHardware,
+            &trace.u,
+            &trace.y,
+            trace.stride,
+            trace.h,
+        )?),
+    };
+    let id = identify(&data.train, PERIOD, &settings, scorer.as_mut())?;
+    let ms = test_multisine_rmse(&id.params, &data.test_multisine)
+        .ok_or_else(|| anyhow::anyhow!("the identified model diverges on the multisine test"))?;
+    let sw = test_sinesweep_rmse(&id.params, &data.test_sinesweep)
+        .ok_or_else(|| anyhow::anyhow!("the identified model diverges on the sine sweep"))?;
+    let seconds = start.elapsed().as_secs_f64();
+    let params = PARAM_NAMES
+        .iter()
+        .zip(id.params.to_vec())
+        .map(|(n, v)| (n.to_string(), serde_json::json!(v)))
+        .collect();
+    let report = Report {
+        test_multisine_rmse_m: ms,
+        test_sinesweep_rmse_m: sw,
+        params,
+        train_rmse_m: id.train_rmse,
+        seconds,
+        evaluations: id.evaluations,
+        backend: id.scorer.clone(),
+        simulation: "free-run simulation from the test input only (no measured output used)",
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "Bouc-Wen benchmark (data: {}), identified in {seconds:.1} s ({} evaluations, {})",
+        dir.display(),
+        id.evaluations,
+        id.scorer
+    );
+    println!("parameters (β·γ and β·δ: β, γ, δ are not separately identifiable):");
+    for (n, v) in PARAM_NAMES.iter().zip(id.params.to_vec()) {
+        println!("  {n:<11} {v:>14.6e}");
+    }
+    println!("training RMSE (refined part): {:.3e} m", id.train_rmse);
+    println!();
+    println!(
+        "{:<34} {:>14} {:>14}",
+        "model", "multisine (m)", "sine sweep (m)"
+    );
+    println!("{:<34} {:>14.3e} {:>14.3e}", "mckibben (this run)", ms, sw);
+    for (name, v) in PUBLISHED {
+        println!("{name:<34} {v:>14.3e} {:>14}", "—");
+    }
+    println!("(simulation RMSE, PDF eq. 6; published values as quoted in the data README)");
+    Ok(())
+}

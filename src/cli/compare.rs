@@ -1,0 +1,507 @@
+//! `mckibben compare`: the thesis' Table 21 redone, what large populations
+//! buy, the thesis' methods against the baseline at equal budgets over many
+//! seeds, the two flows, and the cross-load check of §4.10.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use serde::Serialize;
+
+use super::common::{ColumnArgs, DataArgs};
+use super::fit::{DEFAULT_GENS, DEFAULT_POP, one_trace};
+use mckibben::data::{Trace, write_atomic};
+use mckibben::eval::{self, Backend, Evaluator};
+use mckibben::ident::fit_percent;
+use mckibben::model::{Family, Flow};
+use mckibben::optim::ga::Mutation;
+use mckibben::optim::mfa::{Attractors, Distance, Scale};
+use mckibben::optim::pso::PsoSettings;
+use mckibben::optim::task::Task;
+use mckibben::optim::{AlgoSettings, Algorithm, RunSettings, Runner};
+
+/// Compare the optimizers on one experiment (the shipped 4.5 kg stair by
+/// default), as Markdown tables (and JSON with --json):
+///
+/// 1. the thesis' Table 21: every algorithm × both models × N = 10, 20, 30
+///    at G = 30, with total and per-generation time, final SSE and
+///    validation fit %; then the same at N = 1e3, 1e4, 1e5 (--sizes);
+/// 2. equal evaluation budgets over --seeds seeds (median, min, max): the
+///    thesis-faithful GA, MFA, PSO, the documented fixes of GA and MFA, and
+///    differential evolution;
+/// 3. the joint flow (a, b, c fitted) against the thesis' flow (a, b at the
+///    ARX estimate, no intercept);
+/// 4. the cross-load check (§4.10): fitted on this data, scored on --cross
+///    (default: data/stair_7kg.csv beside the default data), and back.
+///
+/// The MFA's all-pairs move costs O(N²·d) per generation; above
+/// --mfa-all-pairs-max fireflies it moves towards the 10 brightest only
+/// (marked `mfa*`).
+///
+/// Example: mckibben compare --sizes 1000,10000 --seeds 10
+#[derive(Debug, clap::Args)]
+#[command(verbatim_doc_comment)]
+pub struct Args {
+    #[command(flatten)]
+    data: DataArgs,
+    /// The thesis' population sizes (Table 21).
+    #[arg(long, value_delimiter = ',', default_value = "10,20,30")]
+    thesis_sizes: Vec<usize>,
+    /// Large population sizes to add to Table 21 (`--sizes 0`: none).
+    #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
+    sizes: Vec<usize>,
+    /// Generations for Table 21 (the thesis used 30).
+    #[arg(long, default_value_t = 30)]
+    gens: usize,
+    /// Seeds for the equal-budget table (0: skip it).
+    #[arg(long, default_value_t = 10)]
+    seeds: u64,
+    /// Population and generations of the equal-budget table.
+    #[arg(long, default_value_t = 500)]
+    budget_pop: usize,
+    #[arg(long, default_value_t = 100)]
+    budget_gens: usize,
+    /// Largest N at which the MFA moves every firefly towards all brighter ones.
+    #[arg(long, default_value_t = 2000)]
+    mfa_all_pairs_max: usize,
+    /// Second experiment for the cross-load check.
+    #[arg(long, value_name = "FILE")]
+    cross: Option<PathBuf>,
+    /// Where populations are scored (see `fit --help`).
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: Backend,
+    /// Folder for compare.md and compare.json.
+    #[arg(long, value_name = "DIR", default_value = "out/compare")]
+    out: PathBuf,
+    /// Print JSON on stdout instead of Markdown.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Debug, Clone, Serialize)]
+struct Row {
+    model: Family,
+    algo: String,
+    population: usize,
+    generations: usize,
+    evaluations: u64,
+    seconds: f64,
+    seconds_per_generation: f64,
+    sse: Option<f64>,
+    val_fit_percent: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+struct Spread {
+    model: Family,
+    variant: String,
+    seeds: u64,
+    evaluations: u64,
+    sse_median: Option<f64>,
+    sse_min: Option<f64>,
+    sse_max: Option<f64>,
+    fit_median: Option<f64>,
+    fit_min: Option<f64>,
+    fit_max: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+struct FlowRow {
+    model: Family,
+    flow: Flow,
+    sse: Option<f64>,
+    val_fit_percent: Option<f64>,
+    val_rmse: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+struct CrossRow {
+    model: Family,
+    fitted_on: String,
+    scored_on: String,
+    fit_percent: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    data: String,
+    backend: String,
+    table21: Vec<Row>,
+    budget: Vec<Spread>,
+    flows: Vec<FlowRow>,
+    cross_load: Vec<CrossRow>,
+}
+
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+/// The thesis' settings for `family` (PSO: Table 11 / 19).
+fn thesis_settings(family: Family) -> AlgoSettings {
+    AlgoSettings {
+        pso: PsoSettings::thesis(family),
+        ..AlgoSettings::default()
+    }
+}
+
+/// The documented fixes (docs/RESULTS.md): GA with 10 % elitism, uniform
+/// mutation, P_mut 0.3; MFA towards the 10 brightest, r², box units.
+fn fixed_settings(family: Family, n: usize) -> AlgoSettings {
+    let mut s = thesis_settings(family);
+    s.ga.elitism = n / 10;
+    s.ga.mutation = Mutation::Uniform;
+    s.ga.p_mut = 0.3;
+    s.mfa.max_attractors = Some(10);
+    s.mfa.attractors = Attractors::Brightest;
+    s.mfa.distance = Distance::Squared;
+    s.mfa.scale = Scale::Box;
+    s
+}
+
+struct Fitter<'a> {
+    evaluator: &'a mut dyn Evaluator,
+}
+
+impl Fitter<'_> {
+    fn run(
+        &mut self,
+        task: &Task,
+        algo: Algorithm,
+        settings: &AlgoSettings,
+        n: usize,
+        g: usize,
+        seed: u64,
+    ) -> anyhow::Result<(Row, Vec<f64>)> {
+        let mut runner = Runner::new(
+            algo,
+            settings,
+            task.space.clone(),
+            RunSettings::new(n, g, seed),
+        )?;
+        let problem = task.problem();
+        let t = Instant::now();
+        let out = runner.run(&problem, self.evaluator, &mut [], None, None)?;
+        let seconds = t.elapsed().as_secs_f64();
+        let val = task.validate(&out.params);
+        Ok((
+            Row {
+                model: task.family,
+                algo: algo.name().into(),
+                population: n,
+                generations: out.generations,
+                evaluations: out.evaluations,
+                seconds,
+                seconds_per_generation: seconds / out.generations.max(1) as f64,
+                sse: finite(out.sse),
+                val_fit_percent: finite(val.fit_percent),
+            },
+            out.params,
+        ))
+    }
+}
+
+fn median_min_max(mut v: Vec<f64>) -> (Option<f64>, Option<f64>, Option<f64>) {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return (None, None, None);
+    }
+    v.sort_by(f64::total_cmp);
+    let m = v.len();
+    let median = if m % 2 == 1 {
+        v[m / 2]
+    } else {
+        0.5 * (v[m / 2 - 1] + v[m / 2])
+    };
+    (Some(median), Some(v[0]), Some(v[m - 1]))
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(args.gens >= 1, "--gens must be at least 1");
+    anyhow::ensure!(
+        args.budget_pop >= 4 && args.budget_gens >= 1,
+        "--budget-pop must be at least 4 and --budget-gens at least 1"
+    );
+    let sizes: Vec<usize> = args
+        .thesis_sizes
+        .iter()
+        .chain(&args.sizes)
+        .copied()
+        .filter(|&n| n != 0)
+        .collect();
+    if let Some(&n) = sizes.iter().find(|&&n| n < 4) {
+        anyhow::bail!("population sizes must be at least 4 (DE needs 4), got {n}");
+    }
+    let trace = one_trace(args.data.load()?)?;
+    let mut evaluator = eval::open(args.backend)?;
+    let backend = evaluator.describe();
+    eprintln!("comparing on {} [{backend}]", trace.source);
+    let mut fitter = Fitter {
+        evaluator: evaluator.as_mut(),
+    };
+    let models = [Family::Classic, Family::Generalized];
+    let tasks: Vec<Task> = models
+        .iter()
+        .map(|&f| Task::new(&trace, f, Flow::Joint, None, false))
+        .collect::<anyhow::Result<_>>()?;
+
+    let mut table21 = Vec::new();
+    for &n in &sizes {
+        for task in &tasks {
+            for algo in Algorithm::ALL {
+                let mut s = thesis_settings(task.family);
+                let capped = algo == Algorithm::Mfa && n > args.mfa_all_pairs_max;
+                if capped {
+                    s.mfa.max_attractors = Some(10);
+                    s.mfa.attractors = Attractors::Brightest;
+                }
+                eprintln!("table 21: {} {algo} N = {n}", task.family);
+                let (mut row, _) = fitter.run(task, algo, &s, n, args.gens, 1)?;
+                if capped {
+                    row.algo = "mfa*".into();
+                }
+                table21.push(row);
+            }
+        }
+    }
+
+    let mut budget = Vec::new();
+    if args.seeds > 0 {
+        let (n, g) = (args.budget_pop, args.budget_gens);
+        for task in &tasks {
+            let thesis = thesis_settings(task.family);
+            let fixed = fixed_settings(task.family, n);
+            let variants = [
+                ("ga (thesis, proportional)", Algorithm::Ga, &thesis),
+                ("ga (fixed)", Algorithm::Ga, &fixed),
+                ("mfa (thesis)", Algorithm::Mfa, &thesis),
+                ("mfa (fixed)", Algorithm::Mfa, &fixed),
+                ("pso (thesis)", Algorithm::Pso, &thesis),
+                ("de (baseline)", Algorithm::De, &thesis),
+            ];
+            for (name, algo, settings) in variants {
+                eprintln!("budget: {} {name}, {} seeds", task.family, args.seeds);
+                let mut sse = Vec::new();
+                let mut fit = Vec::new();
+                let mut evaluations = 0;
+                for seed in 1..=args.seeds {
+                    let (row, _) = fitter.run(task, algo, settings, n, g, seed)?;
+                    sse.push(row.sse.unwrap_or(f64::INFINITY));
+                    fit.push(row.val_fit_percent.unwrap_or(f64::NEG_INFINITY));
+                    evaluations = row.evaluations;
+                }
+                let (sse_median, sse_min, sse_max) = median_min_max(sse);
+                let (fit_median, fit_min, fit_max) = median_min_max(fit);
+                budget.push(Spread {
+                    model: task.family,
+                    variant: name.into(),
+                    seeds: args.seeds,
+                    evaluations,
+                    sse_median,
+                    sse_min,
+                    sse_max,
+                    fit_median,
+                    fit_min,
+                    fit_max,
+                });
+            }
+        }
+    }
+
+    // The flows and the cross-load check use the default fit.
+    let (n, g) = (DEFAULT_POP, DEFAULT_GENS);
+    let mut flows = Vec::new();
+    let mut fitted = Vec::new();
+    for task in &tasks {
+        for flow in [Flow::Joint, Flow::Thesis] {
+            let t = Task::new(&trace, task.family, flow, None, false)?;
+            eprintln!("flows: {} {flow:?}", task.family);
+            let (row, params) =
+                fitter.run(&t, Algorithm::De, &thesis_settings(t.family), n, g, 1)?;
+            let val = t.validate(&params);
+            flows.push(FlowRow {
+                model: t.family,
+                flow,
+                sse: row.sse,
+                val_fit_percent: row.val_fit_percent,
+                val_rmse: finite(val.rmse),
+            });
+            if flow == Flow::Joint {
+                fitted.push(t.model(&params));
+            }
+        }
+    }
+
+    let mut cross_load = Vec::new();
+    if let Some(other) = cross_trace(&args)? {
+        let other_tasks: Vec<Task> = models
+            .iter()
+            .map(|&f| Task::new(&other, f, Flow::Joint, None, false))
+            .collect::<anyhow::Result<_>>()?;
+        for (k, task) in other_tasks.iter().enumerate() {
+            eprintln!("cross-load: {}", task.family);
+            let (_, params) =
+                fitter.run(task, Algorithm::De, &thesis_settings(task.family), n, g, 1)?;
+            let back = task.model(&params);
+            let score = |m: &mckibben::model::FittedModel, on: &Trace| {
+                finite(fit_percent(&on.output, &m.simulate_trace(on)))
+            };
+            for (model, from, on) in [
+                (&fitted[k], &trace, &other),
+                (&back, &other, &trace),
+                (&fitted[k], &trace, &trace),
+                (&back, &other, &other),
+            ] {
+                cross_load.push(CrossRow {
+                    model: task.family,
+                    fitted_on: from.source.clone(),
+                    scored_on: on.source.clone(),
+                    fit_percent: score(model, on),
+                });
+            }
+        }
+    }
+
+    let report = Report {
+        data: trace.source.clone(),
+        backend,
+        table21,
+        budget,
+        flows,
+        cross_load,
+    };
+    let md = markdown(&report, &args);
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create --out {}", args.out.display()))?;
+    let json = serde_json::to_string_pretty(&report)?;
+    write_atomic(&args.out.join("compare.json"), json.as_bytes())
+        .with_context(|| format!("cannot write into {}", args.out.display()))?;
+    write_atomic(&args.out.join("compare.md"), md.as_bytes())
+        .with_context(|| format!("cannot write into {}", args.out.display()))?;
+    if args.json {
+        println!("{json}");
+    } else {
+        print!("{md}");
+    }
+    Ok(())
+}
+
+/// The second experiment: --cross, or the 7 kg stair beside the default data.
+fn cross_trace(args: &Args) -> anyhow::Result<Option<Trace>> {
+    let path = match (&args.cross, &args.data.data) {
+        (Some(p), _) => p.clone(),
+        (None, None) => {
+            let default = super::common::default_data()?;
+            let sibling = default.with_file_name("stair_7kg.csv");
+            if !sibling.is_file() {
+                eprintln!(
+                    "mckibben: note: no {} for the cross-load check",
+                    sibling.display()
+                );
+                return Ok(None);
+            }
+            sibling
+        }
+        (None, Some(_)) => return Ok(None),
+    };
+    let cols: &ColumnArgs = &args.data.columns;
+    let other = DataArgs {
+        data: Some(path),
+        columns: cols.clone(),
+    };
+    Ok(Some(one_trace(other.load()?)?))
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or("diverged".into(), |v| format!("{v:.digits$}"))
+}
+
+fn markdown(r: &Report, args: &Args) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Optimizer comparison on {} [{}]\n", r.data, r.backend);
+    if !r.table21.is_empty() {
+        let _ = writeln!(
+            s,
+            "## Table 21 redone (G = {}, seed 1, thesis settings; `mfa*`: 10 brightest attractors above N = {})\n",
+            args.gens, args.mfa_all_pairs_max
+        );
+        let _ = writeln!(
+            s,
+            "| N | algorithm | model | total (s) | per generation (s) | SSE (estimation) | validation fit % |\n|---:|---|---|---:|---:|---:|---:|"
+        );
+        for row in &r.table21 {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {:.3} | {:.4} | {} | {} |",
+                row.population,
+                row.algo,
+                row.model,
+                row.seconds,
+                row.seconds_per_generation,
+                opt(row.sse, 3),
+                opt(row.val_fit_percent, 2)
+            );
+        }
+    }
+    if !r.budget.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n## Equal budgets (N = {}, G = {}), seeds 1..={}: median [min, max]\n",
+            args.budget_pop, args.budget_gens, args.seeds
+        );
+        let _ = writeln!(
+            s,
+            "| model | variant | evaluations | SSE | validation fit % |\n|---|---|---:|---|---|"
+        );
+        for b in &r.budget {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} [{}, {}] | {} [{}, {}] |",
+                b.model,
+                b.variant,
+                b.evaluations,
+                opt(b.sse_median, 3),
+                opt(b.sse_min, 3),
+                opt(b.sse_max, 3),
+                opt(b.fit_median, 2),
+                opt(b.fit_min, 2),
+                opt(b.fit_max, 2)
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\n## Flows (DE, N = {DEFAULT_POP}, G = {DEFAULT_GENS}, seed 1)\n\n| model | flow | SSE | validation fit % | validation RMSE |\n|---|---|---:|---:|---:|"
+    );
+    for f in &r.flows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} |",
+            f.model,
+            match f.flow {
+                Flow::Joint => "joint (a, b, c fitted)",
+                Flow::Thesis => "thesis (a, b = ARX, c = 0)",
+            },
+            opt(f.sse, 3),
+            opt(f.val_fit_percent, 2),
+            opt(f.val_rmse, 4)
+        );
+    }
+    if !r.cross_load.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n## Cross-load check (§4.10; DE, joint flow; fit % over the whole trace)\n\n| model | fitted on | scored on | fit % |\n|---|---|---|---:|"
+        );
+        for c in &r.cross_load {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} |",
+                c.model,
+                c.fitted_on,
+                c.scored_on,
+                opt(c.fit_percent, 2)
+            );
+        }
+    }
+    s
+}

@@ -1,0 +1,676 @@
+//! The effects catalogue (`DESIGN.md` §5): parametric additions to the
+//! nominal (baseline) model, in the units of the data.
+//!
+//! An [`Augmented`] model is a baseline [`Family`] plus a list of effects. Its
+//! parameter vector is the baseline's canonical vector followed by each
+//! effect's parameters in list order. The step reuses the model equations of
+//! [`crate::model::sim`] (`linear_part`, `classic_w`, `generalized_w`) and only
+//! changes what goes into them or what comes out of them, so that every effect
+//! at its neutral value reproduces the baseline simulation bit for bit (the
+//! tests check it): a neutral effect adds `+0`, multiplies by `1`, or never
+//! binds.
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::Serialize;
+
+use crate::model::Experiment;
+use crate::model::Family;
+use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part};
+
+/// One unmodelled effect of the catalogue. The names are the ones `DESIGN.md`
+/// §5 fixes; flags, JSON and reports use them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Effect {
+    /// Input transport delay: `u(k−1−d)` replaces `u(k−1)`; `d ≥ 0` samples,
+    /// fractional `d` interpolates linearly between neighbouring samples.
+    Delay,
+    /// Threshold `p0` (absolute input units) below which the muscle does not
+    /// respond: `p_eff = max(p − p0, 0)`.
+    Deadzone,
+    /// End stop: the output cannot pass `l_max` (absolute output units) in the
+    /// direction the input drives it (hard bound).
+    Saturation,
+    /// Loading and unloading differ: the input gain is `b·(1+ε)` on the rising
+    /// branch and `b·(1−ε)` on the falling one, i.e. `b_up`, `b_down`.
+    Asymmetry,
+    /// An extra pole (load mass, hose compliance): `x(k) += a2·(x(k−1) − x(k−2))`,
+    /// a second-order linear part with the same static gain.
+    Inertia,
+    /// Play of width `r` (input units) on the input (braid stick–slip).
+    Backlash,
+    /// A slow first-order state added to the output:
+    /// `z(k) = ρ·z(k−1) + (1−ρ)·κ·u(k−1)`, `ŷ = x + z`; `κ` is its static
+    /// gain (output per input unit), `ρ` its pole.
+    Creep,
+    /// Rate-dependent hysteresis: the Bouc-Wen stiffness grows with the input
+    /// rate, `A_eff = A·(1 + η·|u(k−1) − u(k−2)|/dt)`, so the loop widens with
+    /// rate; `η` in seconds per input unit.
+    Rate,
+    /// Parameters that depend on the hanging load: the input gain of dataset
+    /// `e ≥ 1` is `b·(1 + g_e)` (dataset 0 is the reference). Needs several datasets.
+    Load,
+}
+
+/// Name and meaning of one effect parameter.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EffectParam {
+    pub name: String,
+    pub meaning: &'static str,
+}
+
+impl Effect {
+    /// The whole catalogue, in `DESIGN.md` order.
+    pub const ALL: [Effect; 9] = [
+        Effect::Delay,
+        Effect::Deadzone,
+        Effect::Saturation,
+        Effect::Asymmetry,
+        Effect::Inertia,
+        Effect::Backlash,
+        Effect::Creep,
+        Effect::Rate,
+        Effect::Load,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Effect::Delay => "delay",
+            Effect::Deadzone => "deadzone",
+            Effect::Saturation => "saturation",
+            Effect::Asymmetry => "asymmetry",
+            Effect::Inertia => "inertia",
+            Effect::Backlash => "backlash",
+            Effect::Creep => "creep",
+            Effect::Rate => "rate",
+            Effect::Load => "load",
+        }
+    }
+
+    /// Whether the effect can be fitted on `datasets` datasets (`load` needs two).
+    pub fn applicable(self, datasets: usize) -> bool {
+        self != Effect::Load || datasets >= 2
+    }
+
+    /// Parameters of the effect for `datasets` datasets, in vector order.
+    pub fn params(self, datasets: usize) -> Vec<EffectParam> {
+        let p = |name: &str, meaning| EffectParam {
+            name: name.into(),
+            meaning,
+        };
+        match self {
+            Effect::Delay => vec![p("d", "input delay (samples)")],
+            Effect::Deadzone => vec![p("p0", "input threshold (absolute input units)")],
+            Effect::Saturation => vec![p("l_max", "output end stop (absolute output units)")],
+            Effect::Asymmetry => vec![p(
+                "eps",
+                "gain asymmetry: b_up = b·(1+eps), b_down = b·(1−eps)",
+            )],
+            Effect::Inertia => vec![p("a2", "weight of x(k−1) − x(k−2): the extra pole")],
+            Effect::Backlash => vec![p("r", "play width (input units)")],
+            Effect::Creep => vec![
+                p("rho", "pole of the slow state (close to 1)"),
+                p(
+                    "kappa",
+                    "static gain of the slow state (output per input unit)",
+                ),
+            ],
+            Effect::Rate => vec![p("eta", "growth of A with input rate (s per input unit)")],
+            Effect::Load => (1..datasets.max(1))
+                .map(|e| EffectParam {
+                    name: format!("g{e}"),
+                    meaning: "relative input gain of this dataset against dataset 0",
+                })
+                .collect(),
+        }
+    }
+
+    pub fn dim(self, datasets: usize) -> usize {
+        self.params(datasets).len()
+    }
+
+    /// Index (within the effect's parameters) of the one that measures its
+    /// size, which the self-test recovers.
+    pub fn primary(self) -> usize {
+        match self {
+            Effect::Creep => 1,
+            _ => 0,
+        }
+    }
+
+    /// The residual signature that points to this effect, for the report.
+    pub fn signature(self) -> &'static str {
+        match self {
+            Effect::Delay => {
+                "residual–input cross-correlation peaks at a positive lag; energy right after each input step"
+            }
+            Effect::Deadzone => "residual energy concentrated in the lowest input band",
+            Effect::Saturation => "residual energy concentrated in the highest input band",
+            Effect::Asymmetry => "rising and falling branches carry unequal residual energy",
+            Effect::Inertia => {
+                "energy in the transient after steps (overshoot or sluggish rise), mid frequencies"
+            }
+            Effect::Backlash => "residual right after input reversals; loop too narrow",
+            Effect::Creep => "low-frequency residual that drifts while the input is steady",
+            Effect::Rate => {
+                "residual grows with input rate: rising/falling branches, high frequencies"
+            }
+            Effect::Load => "one dataset (load) carries most of the residual energy",
+        }
+    }
+}
+
+impl fmt::Display for Effect {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Effect {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Effect::ALL
+            .iter()
+            .copied()
+            .find(|e| e.name() == s.trim().to_ascii_lowercase())
+            .ok_or_else(|| {
+                let names: Vec<_> = Effect::ALL.iter().map(|e| e.name()).collect();
+                format!("unknown effect `{s}`: expected one of {}", names.join(", "))
+            })
+    }
+}
+
+/// What an effect needs to know about one dataset: its deviation offsets,
+/// sample time, and the scales the parameter bounds derive from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Context {
+    /// Input mean `ū` removed from the data (absolute = deviation + `ū`).
+    pub u_mean: f64,
+    /// Output mean `ȳ` removed from the data.
+    pub y_mean: f64,
+    pub dt: f64,
+    /// Input move (input units) that switches the loading/unloading branch:
+    /// 2 % of the input range, so that sensor noise does not flip it.
+    pub branch_tol: f64,
+    /// Whether a rising input drives the output up (sign of the baseline's `b`):
+    /// the side the saturation bound sits on.
+    pub drives_up: bool,
+    /// Absolute input and output ranges of the data.
+    pub input_min: f64,
+    pub input_max: f64,
+    pub output_min: f64,
+    pub output_max: f64,
+    /// Largest input change in one sample (input units).
+    pub max_step: f64,
+}
+
+impl Context {
+    /// The context of an experiment (deviation coordinates with its means).
+    pub fn of(exp: &Experiment, drives_up: bool) -> Context {
+        let fold = |v: &[f32], m: f64| {
+            v.iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+                    (lo.min(x as f64 + m), hi.max(x as f64 + m))
+                })
+        };
+        let (input_min, input_max) = fold(&exp.u, exp.u_mean);
+        let (output_min, output_max) = fold(&exp.y, exp.y_mean);
+        let max_step = exp
+            .u
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs() as f64)
+            .fold(0.0, f64::max);
+        Context {
+            u_mean: exp.u_mean,
+            y_mean: exp.y_mean,
+            dt: exp.dt,
+            branch_tol: 0.02 * (input_max - input_min),
+            drives_up,
+            input_min,
+            input_max,
+            output_min,
+            output_max,
+            max_step,
+        }
+    }
+
+    fn input_range(&self) -> f64 {
+        (self.input_max - self.input_min).max(f64::MIN_POSITIVE)
+    }
+
+    fn output_range(&self) -> f64 {
+        (self.output_max - self.output_min).max(f64::MIN_POSITIVE)
+    }
+}
+
+/// Neutral value and search bounds of each parameter of `effect`, from the
+/// context of the first dataset. The neutral value always lies in the box (an
+/// augmented fit can always fall back on the baseline).
+pub fn effect_box(
+    effect: Effect,
+    ctx: &Context,
+    datasets: usize,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let (ru, ry) = (ctx.input_range(), ctx.output_range());
+    match effect {
+        Effect::Delay => (vec![0.0], vec![0.0], vec![30.0]),
+        Effect::Deadzone => {
+            let lo = ctx.input_min.min(0.0);
+            (vec![0.0], vec![lo], vec![ctx.input_min.max(0.0) + 0.6 * ru])
+        }
+        Effect::Saturation => {
+            // An end stop sits near the largest output recorded: the box is
+            // from 40 % of the range below it to 5 % beyond it, where a model
+            // that follows the data never reaches it (the neutral edge).
+            if ctx.drives_up {
+                let far = ctx.output_max + 0.05 * ry;
+                (vec![far], vec![ctx.output_max - 0.4 * ry], vec![far])
+            } else {
+                let far = ctx.output_min - 0.05 * ry;
+                (vec![far], vec![far], vec![ctx.output_min + 0.4 * ry])
+            }
+        }
+        Effect::Asymmetry => (vec![0.0], vec![-0.5], vec![0.5]),
+        Effect::Inertia => (vec![0.0], vec![-0.5], vec![0.9]),
+        Effect::Backlash => (vec![0.0], vec![0.0], vec![0.5 * ru]),
+        Effect::Creep => {
+            let g = 2.0 * ry / ru;
+            (vec![0.995, 0.0], vec![0.98, -g], vec![0.9995, g])
+        }
+        Effect::Rate => {
+            let v = (ctx.max_step / ctx.dt).max(f64::MIN_POSITIVE);
+            (vec![0.0], vec![-0.9 / v], vec![10.0 / v])
+        }
+        Effect::Load => {
+            let k = effect.dim(datasets);
+            (vec![0.0; k], vec![-0.5; k], vec![0.5; k])
+        }
+    }
+}
+
+/// A baseline family plus effects: the model a candidate of the diagnosis is.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Augmented {
+    pub family: Family,
+    pub effects: Vec<Effect>,
+    /// Number of datasets scored together (the `load` effect has one gain per
+    /// dataset after the first).
+    pub datasets: usize,
+}
+
+/// The effect parameters of one step, unpacked; `None` = effect absent.
+#[derive(Debug, Clone, Copy, Default)]
+struct Mods {
+    delay: Option<f32>,
+    deadzone: Option<f32>,
+    saturation: Option<f32>,
+    asymmetry: Option<f32>,
+    inertia: Option<f32>,
+    backlash: Option<f32>,
+    creep: Option<(f32, f32)>,
+    rate: Option<f32>,
+    load: Option<f32>,
+}
+
+impl Augmented {
+    pub fn new(family: Family, effects: Vec<Effect>, datasets: usize) -> Self {
+        Augmented {
+            family,
+            effects,
+            datasets,
+        }
+    }
+
+    pub fn dim(&self) -> usize {
+        self.family.dim()
+            + self
+                .effects
+                .iter()
+                .map(|e| e.dim(self.datasets))
+                .sum::<usize>()
+    }
+
+    /// Where `effect`'s parameters start in the vector, if it is present.
+    pub fn offset_of(&self, effect: Effect) -> Option<usize> {
+        let mut at = self.family.dim();
+        for &e in &self.effects {
+            if e == effect {
+                return Some(at);
+            }
+            at += e.dim(self.datasets);
+        }
+        None
+    }
+
+    /// All parameter names, baseline first.
+    pub fn param_names(&self) -> Vec<String> {
+        let mut names: Vec<String> = self.family.params().iter().map(|p| p.name.into()).collect();
+        for &e in &self.effects {
+            names.extend(
+                e.params(self.datasets)
+                    .into_iter()
+                    .map(|p| format!("{e}.{}", p.name)),
+            );
+        }
+        names
+    }
+
+    /// This model with one more effect.
+    pub fn with(&self, effect: Effect) -> Augmented {
+        let mut effects = self.effects.clone();
+        effects.push(effect);
+        Augmented::new(self.family, effects, self.datasets)
+    }
+
+    fn mods(&self, theta: &[f32], dataset: usize) -> Mods {
+        let mut m = Mods::default();
+        let mut at = self.family.dim();
+        for &e in &self.effects {
+            let v = &theta[at..at + e.dim(self.datasets)];
+            match e {
+                Effect::Delay => m.delay = Some(v[0].max(0.0)),
+                Effect::Deadzone => m.deadzone = Some(v[0]),
+                Effect::Saturation => m.saturation = Some(v[0]),
+                Effect::Asymmetry => m.asymmetry = Some(v[0]),
+                Effect::Inertia => m.inertia = Some(v[0]),
+                Effect::Backlash => m.backlash = Some(v[0].max(0.0)),
+                Effect::Creep => m.creep = Some((v[0], v[1])),
+                Effect::Rate => m.rate = Some(v[0]),
+                Effect::Load => m.load = (dataset >= 1).then(|| v[dataset - 1]),
+            }
+            at += e.dim(self.datasets);
+        }
+        m
+    }
+
+    /// Runs the model on dataset `dataset` (input `u`, deviation coordinates)
+    /// from the measured `y0`, calling `sink(k, ŷ(k))` for `k ≥ 1`. Returns
+    /// false (and stops) as soon as a state leaves the divergence bound or
+    /// `sink` returns false.
+    fn run(
+        &self,
+        theta: &[f32],
+        dataset: usize,
+        ctx: &Context,
+        u: &[f32],
+        y0: f32,
+        mut sink: impl FnMut(usize, f32) -> bool,
+    ) -> bool {
+        assert_eq!(
+            theta.len(),
+            self.dim(),
+            "augmented model takes {} parameters",
+            self.dim()
+        );
+        let m = self.mods(theta, dataset);
+        let fam = self.family;
+        let [ia, ib, ic] = fam.linear_indices();
+        let (a, b, c) = (theta[ia], theta[ib], theta[ic]);
+        let (big_a, alpha) = match fam {
+            Family::Linear => (0.0, 1.0),
+            _ => (theta[0], theta[1]),
+        };
+        let n = fam.exponent_index().map_or(1.0, |i| theta[i]);
+        let u_mean = ctx.u_mean as f32;
+        let sat_bound = m.saturation.map(|l| l - ctx.y_mean as f32);
+        let branch_tol = ctx.branch_tol as f32;
+        let dt = ctx.dt as f32;
+
+        let (mut x, mut w) = (y0, 0.0f32);
+        let mut x_prev2 = y0;
+        let mut play: Option<f32> = None;
+        let (mut dir, mut extreme) = (0.0f32, u.first().copied().unwrap_or(0.0));
+        let mut z = 0.0f32;
+        for k in 1..u.len() {
+            // Input chain: delay, deadzone, play, branch gain, load gain.
+            let raw = u[k - 1];
+            let mut ui = match m.delay {
+                Some(d) => {
+                    let s = (k - 1) as f32 - d;
+                    if s <= 0.0 {
+                        u[0]
+                    } else {
+                        let i = s.floor();
+                        let f = s - i;
+                        let i = i as usize;
+                        if f == 0.0 {
+                            u[i]
+                        } else {
+                            u[i] + (f * (u[i + 1] - u[i]))
+                        }
+                    }
+                }
+                None => raw,
+            };
+            if let Some(p0) = m.deadzone {
+                ui = (ui - p0).max(-u_mean);
+            }
+            if let Some(r) = m.backlash {
+                let half = 0.5 * r;
+                let prev = play.unwrap_or(ui);
+                let v = (ui + half).min((ui - half).max(prev));
+                play = Some(v);
+                ui = v;
+            }
+            if let Some(eps) = m.asymmetry {
+                if dir >= 0.0 {
+                    extreme = extreme.max(raw);
+                    if raw < extreme - branch_tol {
+                        (dir, extreme) = (-1.0, raw);
+                    } else if raw > u[0] + branch_tol {
+                        dir = 1.0;
+                    }
+                } else {
+                    extreme = extreme.min(raw);
+                    if raw > extreme + branch_tol {
+                        (dir, extreme) = (1.0, raw);
+                    }
+                }
+                ui += (dir * eps) * (ui + u_mean);
+            }
+            if let Some(g) = m.load {
+                ui *= 1.0 + g;
+            }
+            // Model step: the equations of `model::sim`.
+            let mut xk = linear_part(a, alpha, b, c, x, w, ui);
+            if let Some(a2) = m.inertia {
+                xk += a2 * (x - x_prev2);
+            }
+            if let Some(bound) = sat_bound {
+                if ctx.drives_up {
+                    xk = xk.min(bound);
+                } else {
+                    xk = xk.max(bound);
+                }
+            }
+            let delta = xk - x;
+            let a_eff = match m.rate {
+                Some(eta) => {
+                    let prev = if k >= 2 { u[k - 2] } else { u[0] };
+                    big_a * (1.0 + (eta * ((raw - prev).abs() / dt)))
+                }
+                None => big_a,
+            };
+            let wk = match fam {
+                Family::Linear => 0.0,
+                Family::Classic => classic_w(a_eff, theta[2], theta[3], n, w, delta),
+                Family::Generalized => {
+                    let betas = [theta[2], theta[3], theta[4], theta[5], theta[6], theta[7]];
+                    generalized_w(a_eff, &betas, n, w, xk, delta)
+                }
+            };
+            x_prev2 = x;
+            (x, w) = (xk, wk);
+            let mut yk = x;
+            if let Some((rho, kappa)) = m.creep {
+                z = (rho * z) + (((1.0 - rho) * kappa) * ui);
+                yk += z;
+            }
+            let finite = in_bounds(x) && in_bounds(w) && in_bounds(yk);
+            if !finite || !sink(k, yk) {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Free-run prediction `ŷ` on dataset `dataset` (deviation coordinates),
+    /// `ŷ(0) = y(0)`; non-finite from the first diverged sample on.
+    pub fn simulate(
+        &self,
+        theta: &[f32],
+        dataset: usize,
+        ctx: &Context,
+        exp: &Experiment,
+    ) -> Vec<f32> {
+        let y0 = exp.y.first().copied().unwrap_or(0.0);
+        let mut out = vec![f32::NAN; exp.len()];
+        if let Some(first) = out.first_mut() {
+            *first = y0;
+        }
+        self.run(theta, dataset, ctx, &exp.u, y0, |k, v| {
+            out[k] = v;
+            true
+        });
+        out
+    }
+
+    /// `Σ_{k≥1} (ŷ(k) − y(k))²` in `f32`, `+∞` if the simulation diverged.
+    pub fn sse(&self, theta: &[f32], dataset: usize, ctx: &Context, exp: &Experiment) -> f32 {
+        if exp.is_empty() {
+            return 0.0;
+        }
+        let mut acc = 0.0f32;
+        let ok = self.run(theta, dataset, ctx, &exp.u, exp.y[0], |k, v| {
+            let e = v - exp.y[k];
+            acc += e * e;
+            true
+        });
+        if ok && acc.is_finite() {
+            acc
+        } else {
+            f32::INFINITY
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{presets::thesis_params, simulate, sse};
+
+    fn experiment() -> Experiment {
+        // A stair up and down in MPa with a little ripple, gauge pressure ≥ 0.
+        let p: Vec<f64> = (0..600)
+            .map(|k| {
+                let level = [0.1, 0.2, 0.3, 0.4, 0.3, 0.2][(k / 100) % 6];
+                level + 0.003 * ((k as f64) * 0.7).sin()
+            })
+            .collect();
+        let y: Vec<f64> = p.iter().map(|&v| 40.0 * v + 1.0).collect();
+        let trace = crate::data::Trace::uniform("stair", 0.1, p, y);
+        Experiment::with_means_of(&trace, 0..300)
+    }
+
+    fn neutral_vector(model: &Augmented, base: &[f64], ctx: &Context) -> Vec<f32> {
+        let mut theta: Vec<f64> = base.to_vec();
+        for &e in &model.effects {
+            theta.extend(effect_box(e, ctx, model.datasets).0);
+        }
+        theta.iter().map(|&v| v as f32).collect()
+    }
+
+    #[test]
+    fn every_effect_at_its_neutral_value_is_exactly_the_baseline() {
+        for fam in [Family::Classic, Family::Generalized, Family::Linear] {
+            let mut base = thesis_params(fam);
+            let ic = fam.linear_indices()[2];
+            base[ic] = 0.3;
+            let base32: Vec<f32> = base.iter().map(|&v| v as f32).collect();
+            // Data the baseline explains (the saturation's neutral bound lies
+            // a whole output range beyond the data).
+            let mut exp = experiment();
+            exp.y = simulate(fam, &base32, &exp.u, 0.5).x;
+            let ctx = Context::of(&exp, true);
+            let reference = simulate(fam, &base32, &exp.u, exp.y[0]);
+            let ref_sse = sse(fam, &base32, &exp.u, &exp.y);
+            for effect in Effect::ALL {
+                for datasets in [1, 3] {
+                    let model = Augmented::new(fam, vec![effect], datasets);
+                    let theta = neutral_vector(&model, &base, &ctx);
+                    let got = model.simulate(&theta, 0, &ctx, &exp);
+                    assert_eq!(got, reference.x, "{fam} + {effect}");
+                    assert_eq!(
+                        model.sse(&theta, 0, &ctx, &exp),
+                        ref_sse,
+                        "{fam} + {effect}"
+                    );
+                    // Also for the other datasets (the load gains are per dataset).
+                    let got = model.simulate(&theta, datasets - 1, &ctx, &exp);
+                    assert_eq!(got, reference.x, "{fam} + {effect}, last dataset");
+                }
+            }
+            // All effects at once, neutral, are still the baseline.
+            let model = Augmented::new(fam, Effect::ALL.to_vec(), 2);
+            let theta = neutral_vector(&model, &base, &ctx);
+            assert_eq!(
+                model.simulate(&theta, 1, &ctx, &exp),
+                reference.x,
+                "{fam} + all"
+            );
+        }
+    }
+
+    #[test]
+    fn each_effect_away_from_neutral_changes_the_output() {
+        let exp = experiment();
+        let ctx = Context::of(&exp, true);
+        let fam = Family::Classic;
+        let base = thesis_params(fam);
+        let base32: Vec<f32> = base.iter().map(|&v| v as f32).collect();
+        let reference = simulate(fam, &base32, &exp.u, exp.y[0]).x;
+        for effect in Effect::ALL {
+            let model = Augmented::new(fam, vec![effect], 2);
+            let (neutral, lo, hi) = effect_box(effect, &ctx, 2);
+            let mut theta = neutral_vector(&model, &base, &ctx);
+            let at = model.offset_of(effect).unwrap();
+            let i = effect.primary();
+            // Halfway from neutral to the far edge of the box.
+            let edge = if hi[i] - neutral[i] > neutral[i] - lo[i] {
+                hi[i]
+            } else {
+                lo[i]
+            };
+            theta[at + i] = (0.5 * (neutral[i] + edge)) as f32;
+            let got = model.simulate(&theta, 1, &ctx, &exp);
+            let diff: f32 = got.iter().zip(&reference).map(|(a, b)| (a - b).abs()).sum();
+            assert!(diff > 1e-2, "{effect} changed nothing (Σ|Δ| = {diff})");
+        }
+    }
+
+    #[test]
+    fn delay_of_whole_samples_shifts_the_input() {
+        let exp = experiment();
+        let ctx = Context::of(&exp, true);
+        let fam = Family::Linear;
+        let model = Augmented::new(fam, vec![Effect::Delay], 1);
+        let theta = [0.9f32, 2.0, 0.1, 3.0];
+        let got = model.simulate(&theta, 0, &ctx, &exp);
+        // The same model on the input shifted by three samples (u(0) held).
+        let mut shifted = vec![exp.u[0]; 3];
+        shifted.extend_from_slice(&exp.u[..exp.len() - 3]);
+        let reference = simulate(fam, &[0.9, 2.0, 0.1], &shifted, exp.y[0]);
+        assert_eq!(got, reference.x);
+    }
+
+    #[test]
+    fn names_round_trip_and_unknown_names_are_listed() {
+        for e in Effect::ALL {
+            assert_eq!(e.name().parse::<Effect>().unwrap(), e);
+        }
+        let err = "friction".parse::<Effect>().unwrap_err();
+        assert!(err.contains("delay") && err.contains("load"), "{err}");
+    }
+}

@@ -1,0 +1,190 @@
+//! Diagnosis of the sim-to-real gap: where the fitted model misses
+//! ([`r#where`]), which unmodelled effect of the catalogue explains it
+//! ([`effects`], [`select`]), and how far the model gets with it, relative to
+//! a noise-floor estimate. [`selftest`] checks the whole chain on data with a
+//! withheld effect; [`report`] turns a [`Diagnosis`] into text, JSON and figures.
+
+pub mod effects;
+pub mod report;
+pub mod select;
+pub mod selftest;
+pub mod r#where;
+
+use serde::Serialize;
+
+pub use effects::{Augmented, Effect};
+pub use select::{Data, Selection, Settings};
+
+use crate::data::Trace;
+use crate::ident::fit_percent;
+use crate::model::Family;
+
+/// Validation RMSE and fit % of one model along the way.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Step {
+    /// Effects of the model (empty: the baseline).
+    pub effects: Vec<Effect>,
+    pub val_rmse: f64,
+    pub val_fit_percent: f64,
+    /// Share of the baseline's gap above the noise floor closed (residual energy).
+    pub gap_closed: f64,
+}
+
+/// Everything the diagnosis found.
+#[derive(Debug, Clone, Serialize)]
+pub struct Diagnosis {
+    pub family: Family,
+    pub datasets: Vec<String>,
+    pub noise_floor_rmse: f64,
+    /// Where the baseline misses.
+    pub r#where: r#where::Where,
+    pub selection: Selection,
+    /// Baseline, then the model after each accepted effect.
+    pub steps: Vec<Step>,
+    /// Validation predictions `(t, input, measured, baseline, final)` per dataset (absolute units).
+    #[serde(skip)]
+    pub curves: Vec<Curves>,
+}
+
+/// Validation-part curves of one dataset, for figures.
+#[derive(Debug, Clone)]
+pub struct Curves {
+    pub name: String,
+    pub t: Vec<f64>,
+    pub input: Vec<f64>,
+    pub measured: Vec<f64>,
+    pub baseline: Vec<f64>,
+    pub last: Vec<f64>,
+}
+
+impl Diagnosis {
+    pub fn baseline(&self) -> &Step {
+        &self.steps[0]
+    }
+
+    pub fn last(&self) -> &Step {
+        self.steps.last().expect("at least the baseline")
+    }
+}
+
+fn fit_of(data: &Data, model: &Augmented, theta: &[f64]) -> f64 {
+    let r = data.val_residuals(model, theta);
+    let y: Vec<f64> = data
+        .whole
+        .iter()
+        .zip(&data.val_start)
+        .flat_map(|(w, &s)| w.y[s..].iter().map(|&v| v as f64))
+        .collect();
+    let flat: Vec<f64> = r.iter().flatten().copied().collect();
+    let y_hat: Vec<f64> = y.iter().zip(&flat).map(|(a, e)| a - e).collect();
+    fit_percent(&y, &y_hat)
+}
+
+/// How long after an input step the baseline is still in its transient:
+/// three time constants of the pole `a` (95 % settled), at least one sample.
+fn settle_samples(a: f64, len: usize) -> usize {
+    let a = a.clamp(1e-6, 1.0 - 1e-9);
+    ((3.0 / -a.ln()).ceil() as usize).clamp(1, (len / 4).max(1))
+}
+
+/// Runs the whole diagnosis on `traces` (estimation first half, validation
+/// second half of each).
+pub fn diagnose(
+    traces: &[Trace],
+    family: Family,
+    effects: &[Effect],
+    settings: &Settings,
+) -> anyhow::Result<Diagnosis> {
+    anyhow::ensure!(
+        family != Family::Linear,
+        "the baseline must be a hysteresis model: classic or generalized"
+    );
+    let data = Data::new(traces)?;
+    let outputs: Vec<Vec<f64>> = data
+        .whole
+        .iter()
+        .zip(&data.val_start)
+        .map(|(w, &s)| w.y[s..].iter().map(|&v| v as f64).collect())
+        .collect();
+    let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
+    let floor = r#where::noise_floor(&refs);
+    let selection = select::select(&data, family, effects, settings);
+    anyhow::ensure!(
+        selection.baseline.best.val_rmse.is_finite(),
+        "the {family} baseline fitted on the estimation half diverges on the validation half \
+         for every seed ({}), so there is no gap to diagnose; try fewer datasets at a time, \
+         more --seeds, or the other --baseline",
+        traces
+            .iter()
+            .map(|t| t.source.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+
+    let base_model = &selection.baseline_model;
+    let base = &selection.baseline.best;
+    let mut steps = vec![Step {
+        effects: Vec::new(),
+        val_rmse: base.val_rmse,
+        val_fit_percent: fit_of(&data, base_model, &base.params),
+        gap_closed: 0.0,
+    }];
+    for round in &selection.rounds {
+        if let Some(c) = round
+            .candidates
+            .iter()
+            .find(|c| Some(c.effect) == round.accepted)
+        {
+            steps.push(Step {
+                effects: c.model.effects.clone(),
+                val_rmse: c.fit.best.val_rmse,
+                val_fit_percent: fit_of(&data, &c.model, &c.fit.best.params),
+                gap_closed: select::gap_closed(base.val_rmse, c.fit.best.val_rmse, floor),
+            });
+        }
+    }
+
+    let ia = family.linear_indices()[0];
+    let residuals = data.val_residuals(base_model, &base.params);
+    let segments: Vec<r#where::Segment> = traces
+        .iter()
+        .zip(&data.val_start)
+        .zip(residuals)
+        .map(|((t, &s), r)| r#where::Segment {
+            name: t.source.clone(),
+            dt: t.dt(),
+            input: t.input[s..].to_vec(),
+            residual: r,
+        })
+        .collect();
+    let min_len = segments.iter().map(|s| s.residual.len()).min().unwrap_or(0);
+    let place = r#where::analyse(&segments, settle_samples(base.params[ia], min_len));
+
+    let base_pred = data.predict(base_model, &base.params);
+    let last_pred = data.predict(&selection.final_model, &selection.final_fit.params);
+    let curves = traces
+        .iter()
+        .enumerate()
+        .map(|(i, t)| {
+            let s = data.val_start[i];
+            let ym = data.whole[i].y_mean;
+            Curves {
+                name: t.source.clone(),
+                t: t.t[s..].to_vec(),
+                input: t.input[s..].to_vec(),
+                measured: t.output[s..].to_vec(),
+                baseline: base_pred[i][s..].iter().map(|&v| v as f64 + ym).collect(),
+                last: last_pred[i][s..].iter().map(|&v| v as f64 + ym).collect(),
+            }
+        })
+        .collect();
+    Ok(Diagnosis {
+        family,
+        datasets: traces.iter().map(|t| t.source.clone()).collect(),
+        noise_floor_rmse: floor,
+        r#where: place,
+        selection,
+        steps,
+        curves,
+    })
+}

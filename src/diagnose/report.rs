@@ -1,0 +1,360 @@
+//! A [`Diagnosis`] for people (text), scripts (JSON) and eyes (SVG figures).
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde_json::{Value, json};
+
+use super::effects::Effect;
+use super::select::{Candidate, gap_closed};
+use super::r#where::{Band, Share};
+use super::{Diagnosis, Step};
+use crate::report::{Figure, Panel, Series};
+
+/// One entry per effect scored: from the round it was accepted in, else from
+/// the last round it was scored in. Accepted effects first (in the order
+/// accepted), then the rest by validation RMSE.
+pub fn candidate_list(d: &Diagnosis) -> Vec<(&Candidate, bool, usize)> {
+    let mut seen: BTreeMap<&'static str, (&Candidate, bool, usize)> = BTreeMap::new();
+    for (r, round) in d.selection.rounds.iter().enumerate() {
+        for c in &round.candidates {
+            let accepted = round.accepted == Some(c.effect);
+            let keep = !matches!(seen.get(c.effect.name()), Some((_, true, _)));
+            if keep {
+                seen.insert(c.effect.name(), (c, accepted, r + 1));
+            }
+        }
+    }
+    let mut list: Vec<_> = seen.into_values().collect();
+    let pos = |e: Effect| d.selection.verdict.iter().position(|v| *v == e);
+    list.sort_by(|a, b| match (pos(a.0.effect), pos(b.0.effect)) {
+        (Some(x), Some(y)) => x.cmp(&y),
+        (Some(_), None) => std::cmp::Ordering::Less,
+        (None, Some(_)) => std::cmp::Ordering::Greater,
+        (None, None) => a.0.fit.best.val_rmse.total_cmp(&b.0.fit.best.val_rmse),
+    });
+    list
+}
+
+fn named(names: &[String], values: &[f64]) -> Value {
+    let map: serde_json::Map<String, Value> = names
+        .iter()
+        .zip(values)
+        .map(|(n, v)| (n.clone(), json!(v)))
+        .collect();
+    Value::Object(map)
+}
+
+fn band_json(b: &Band) -> Value {
+    json!({"lo": b.lo, "hi": b.hi, "share": b.share.energy, "sample_share": b.share.samples})
+}
+
+/// The `--json` document (the contract of issue 6, plus details).
+pub fn to_json(d: &Diagnosis) -> Value {
+    let sel = &d.selection;
+    let base = d.baseline();
+    let w = &d.r#where;
+    let floor = d.noise_floor_rmse;
+    let candidates: Vec<Value> = candidate_list(d)
+        .into_iter()
+        .map(|(c, accepted, round)| {
+            let names: Vec<String> = c.effect_params.iter().map(|(n, _)| n.clone()).collect();
+            let values: Vec<f64> = c.effect_params.iter().map(|(_, v)| *v).collect();
+            json!({
+                "effect": c.effect.name(),
+                "params": named(&names, &values),
+                "val_rmse": c.fit.best.val_rmse,
+                "gap_closed": gap_closed(base.val_rmse, c.fit.best.val_rmse, floor),
+                "accepted": accepted,
+                "round": round,
+                "seed_val_rmse": c.fit.seed_val_rmse,
+                "delta_bic": c.delta_bic,
+                "relative_improvement": c.relative,
+                "reason": c.reason,
+                "signature": c.effect.signature(),
+            })
+        })
+        .collect();
+    let share = |s: &Share| json!(s.energy);
+    let last = d.last();
+    json!({
+        "baseline": {
+            "model": d.family.name(),
+            "params": named(&sel.baseline_model.param_names(), &sel.baseline.best.params),
+            "val_rmse": base.val_rmse,
+            "val_fit_percent": base.val_fit_percent,
+            "seed_val_rmse": sel.baseline.seed_val_rmse,
+        },
+        "datasets": d.datasets,
+        "noise_floor_rmse": floor,
+        "noise_floor_method": "median |second difference of the measured validation output| / (0.6745·√6)",
+        "where": {
+            "rmse": w.rmse,
+            "branch": {"rising": share(&w.branch.rising), "falling": share(&w.branch.falling), "steady": share(&w.branch.steady)},
+            "branch_sample_share": {"rising": w.branch.rising.samples, "falling": w.branch.falling.samples, "steady": w.branch.steady.samples},
+            "input_band": w.input_band.iter().map(band_json).collect::<Vec<_>>(),
+            "after_step": {"transient": share(&w.after_step.transient), "settled": share(&w.after_step.settled)},
+            "after_step_sample_share": {"transient": w.after_step.transient.samples, "settled": w.after_step.settled.samples},
+            "settle_samples": w.after_step.settle_samples,
+            "frequency_hz": w.frequency.iter().map(band_json).collect::<Vec<_>>(),
+            "dataset": w.dataset,
+            "whiteness": w.whiteness,
+            "cross_correlation": w.cross_correlation,
+        },
+        "candidates": candidates,
+        "verdict": sel.verdict.iter().map(|e| e.name()).collect::<Vec<_>>(),
+        "steps": d.steps,
+        "final": {
+            "model": sel.final_model.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
+            "params": named(&sel.final_model.param_names(), &sel.final_fit.params),
+            "val_rmse": last.val_rmse,
+            "val_fit_percent": last.val_fit_percent,
+            "gap_closed": last.gap_closed,
+        },
+        "rule": "accept iff R0−R1 > 3·√(s0²+s1²) (seed spread), ΔBIC = N·ln(R1²/R0²) + k·ln N < −10, and (R0−R1)/R0 ≥ 2 %",
+    })
+}
+
+fn pct(v: f64) -> String {
+    format!("{:5.1} %", 100.0 * v)
+}
+
+fn step_name(s: &Step) -> String {
+    if s.effects.is_empty() {
+        "baseline".into()
+    } else {
+        format!("+ {}", s.effects.last().map_or("", |e| e.name()))
+    }
+}
+
+/// The readable report.
+pub fn to_text(d: &Diagnosis) -> String {
+    let mut o = String::new();
+    let w = &d.r#where;
+    let base = d.baseline();
+    let _ = writeln!(
+        o,
+        "Diagnosis of the sim-to-real gap ({} baseline) on {}",
+        d.family,
+        d.datasets.join(", ")
+    );
+    let _ = writeln!(
+        o,
+        "Baseline: validation RMSE {:.4}, fit {:.1} %; noise floor ≈ {:.4} (from second differences of the measured output)",
+        base.val_rmse, base.val_fit_percent, d.noise_floor_rmse
+    );
+    let _ = writeln!(
+        o,
+        "\nWHERE the baseline misses (share of residual energy vs share of samples):"
+    );
+    let row = |o: &mut String, name: &str, s: &Share| {
+        let flag = if s.energy > 1.5 * s.samples && s.energy > 0.1 {
+            "  <-- over-represented"
+        } else {
+            ""
+        };
+        let _ = writeln!(
+            o,
+            "  {name:<28} energy {}   samples {}{flag}",
+            pct(s.energy),
+            pct(s.samples)
+        );
+    };
+    row(&mut o, "input rising", &w.branch.rising);
+    row(&mut o, "input falling", &w.branch.falling);
+    row(&mut o, "input steady", &w.branch.steady);
+    for b in &w.input_band {
+        row(&mut o, &format!("input {:.4}–{:.4}", b.lo, b.hi), &b.share);
+    }
+    row(
+        &mut o,
+        &format!(
+            "transient (≤{} samples after step)",
+            w.after_step.settle_samples
+        ),
+        &w.after_step.transient,
+    );
+    row(&mut o, "settled", &w.after_step.settled);
+    // For frequency bands the second share is of the periodogram's bins.
+    for b in &w.frequency {
+        row(
+            &mut o,
+            &format!("{:.3}–{:.3} Hz (bins)", b.lo, b.hi),
+            &b.share,
+        );
+    }
+    if w.dataset.len() > 1 {
+        for ds in &w.dataset {
+            row(&mut o, &ds.name, &ds.share);
+        }
+    }
+    let test = |o: &mut String, name: &str, c: &super::r#where::Correlation| {
+        let _ = writeln!(
+            o,
+            "  {name}: {} ({} of {} lags outside ±{:.3}; peak {:.3} at lag {})",
+            if c.passes { "passes" } else { "FAILS" },
+            c.outside,
+            c.values.len(),
+            c.bound,
+            c.peak,
+            c.peak_lag
+        );
+    };
+    test(&mut o, "residual whiteness (99 %)", &w.whiteness);
+    test(
+        &mut o,
+        "residual–input independence (99 %)",
+        &w.cross_correlation,
+    );
+
+    let _ = writeln!(
+        o,
+        "\nWHICH effect (validation RMSE; accepted = passes all three rules):"
+    );
+    for (c, accepted, round) in candidate_list(d) {
+        let params: Vec<String> = c
+            .effect_params
+            .iter()
+            .map(|(n, v)| format!("{n}={v:.4}"))
+            .collect();
+        let _ = writeln!(
+            o,
+            "  {:<2} {:<10} RMSE {:.4}  gap closed {}  [{}]  round {round}: {}",
+            if accepted { "✔" } else { " " },
+            c.effect.name(),
+            c.fit.best.val_rmse,
+            pct(gap_closed(
+                base.val_rmse,
+                c.fit.best.val_rmse,
+                d.noise_floor_rmse
+            )),
+            params.join(", "),
+            c.reason
+        );
+        let _ = writeln!(o, "     signature: {}", c.effect.signature());
+    }
+    let _ = writeln!(o, "\nHOW FAR:");
+    for s in &d.steps {
+        let _ = writeln!(
+            o,
+            "  {:<14} val RMSE {:.4}  fit {:5.1} %  gap closed {}",
+            step_name(s),
+            s.val_rmse,
+            s.val_fit_percent,
+            pct(s.gap_closed)
+        );
+    }
+    if d.selection.verdict.is_empty() {
+        let _ = writeln!(
+            o,
+            "\nVerdict: none of the catalogued effects explains the remaining gap."
+        );
+    } else {
+        let names: Vec<_> = d.selection.verdict.iter().map(|e| e.name()).collect();
+        let _ = writeln!(
+            o,
+            "\nVerdict: {} (closes {} of the gap above the noise floor).",
+            names.join(", then "),
+            pct(d.last().gap_closed).trim()
+        );
+    }
+    o
+}
+
+/// Writes the figures into `dir`; returns their paths.
+pub fn write_figures(d: &Diagnosis, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow::anyhow!("cannot create --report directory {}: {e}", dir.display()))?;
+    let mut out = Vec::new();
+    let mut save = |name: &str, fig: Figure| -> anyhow::Result<()> {
+        let p = dir.join(name);
+        fig.save(&p)?;
+        out.push(p);
+        Ok(())
+    };
+    let mut time = Figure::new("Validation residual over time");
+    let mut lp = Figure::new("Residual over the hysteresis loop");
+    let mut out_panel = Panel::new("output vs input", "input", "output");
+    let mut res_panel = Panel::new("residual vs input", "input", "residual");
+    let final_label = if d.selection.verdict.is_empty() {
+        "baseline (no effect accepted)".to_string()
+    } else {
+        let names: Vec<_> = d.selection.verdict.iter().map(|e| e.name()).collect();
+        format!("with {}", names.join(" + "))
+    };
+    for c in &d.curves {
+        let rb: Vec<f64> = c
+            .measured
+            .iter()
+            .zip(&c.baseline)
+            .map(|(m, b)| m - b)
+            .collect();
+        let rl: Vec<f64> = c.measured.iter().zip(&c.last).map(|(m, b)| m - b).collect();
+        time = time.with(
+            Panel::new(c.name.clone(), "time (s)", "measured − simulated")
+                .with(Series::line("baseline", c.t.clone(), rb.clone()))
+                .with(Series::line(final_label.clone(), c.t.clone(), rl)),
+        );
+        out_panel.series.push(Series::line(
+            format!("{} measured", c.name),
+            c.input.clone(),
+            c.measured.clone(),
+        ));
+        out_panel.series.push(Series::line(
+            format!("{} baseline", c.name),
+            c.input.clone(),
+            c.baseline.clone(),
+        ));
+        res_panel.series.push(Series::points(
+            format!("{} baseline residual", c.name),
+            c.input.clone(),
+            rb,
+        ));
+    }
+    save("diagnose_residual.svg", time)?;
+    lp = lp.with(out_panel).with(res_panel);
+    save("diagnose_loop.svg", lp)?;
+
+    let w = &d.r#where;
+    let pair = |title: &str, xlabel: &str, x: Vec<f64>, shares: Vec<Share>| {
+        Panel::new(title, xlabel, "share")
+            .with(Series::line(
+                "residual energy",
+                x.clone(),
+                shares.iter().map(|s| s.energy).collect(),
+            ))
+            .with(Series::line(
+                "samples",
+                x,
+                shares.iter().map(|s| s.samples).collect(),
+            ))
+    };
+    let fig = Figure::new("Where the residual energy lies")
+        .with(pair(
+            "branch: 0 rising, 1 falling, 2 steady; 3 transient, 4 settled",
+            "class",
+            (0..5).map(f64::from).collect(),
+            vec![
+                w.branch.rising,
+                w.branch.falling,
+                w.branch.steady,
+                w.after_step.transient,
+                w.after_step.settled,
+            ],
+        ))
+        .with(pair(
+            "input level (quintile bands, centre)",
+            "input",
+            w.input_band.iter().map(|b| 0.5 * (b.lo + b.hi)).collect(),
+            w.input_band.iter().map(|b| b.share).collect(),
+        ))
+        .with(pair(
+            "frequency band (geometric centre)",
+            "frequency (Hz)",
+            w.frequency.iter().map(|b| (b.lo * b.hi).sqrt()).collect(),
+            w.frequency.iter().map(|b| b.share).collect(),
+        ));
+    save("diagnose_breakdown.svg", fig)?;
+    Ok(out)
+}

@@ -1,0 +1,152 @@
+//! One identification task on one recorded trace, as `fit` and `compare`
+//! run it: the thesis' split (§4.3.1: estimate on the first half, validate
+//! on the second), the ARX prior for the bounds, the search box of the
+//! chosen flow, and the validation score of a fitted vector.
+
+use crate::data::Trace;
+use crate::eval::Problem;
+use crate::ident::{ArxOrders, arx::identify, fit_percent, rmse};
+use crate::model::presets::ThesisBounds;
+use crate::model::{Experiment, Family, FittedModel, Flow, LinearPrior, SearchSpace, simulate};
+
+/// Everything a fit on one trace needs.
+#[derive(Debug, Clone)]
+pub struct Task {
+    pub family: Family,
+    pub flow: Flow,
+    pub estimation: Experiment,
+    pub validation: Experiment,
+    pub prior: LinearPrior,
+    pub space: SearchSpace,
+    pub input_name: String,
+    pub output_name: String,
+}
+
+/// Validation scores of a parameter vector (output units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Validation {
+    pub rmse: f64,
+    /// MATLAB `compare` fit, percent.
+    pub fit_percent: f64,
+}
+
+impl Task {
+    /// Splits `trace`, identifies the ARX prior on the estimation half and
+    /// builds the box: `hysteresis` bounds (the hull of the thesis' tables
+    /// when `None`), `n` fixed at 1 unless `free_n`, the linear part per `flow`.
+    pub fn new(
+        trace: &Trace,
+        family: Family,
+        flow: Flow,
+        hysteresis: Option<&ThesisBounds>,
+        free_n: bool,
+    ) -> anyhow::Result<Task> {
+        anyhow::ensure!(
+            family != Family::Linear,
+            "the linear model is fitted by least squares: use `mckibben identify`"
+        );
+        let id = identify(trace, ArxOrders::default())?;
+        let prior = LinearPrior {
+            a: id.arx.a[0],
+            b: id.arx.b[0],
+            max_abs_input: trace.input.iter().fold(0.0, |m, v| m.max(v.abs())),
+            max_abs_output: trace.output.iter().fold(0.0, |m, v| m.max(v.abs())),
+        };
+        let (estimation, validation) = Experiment::split_halves(trace);
+        Ok(Task {
+            family,
+            flow,
+            space: SearchSpace::around(family, hysteresis, prior, flow, free_n),
+            estimation,
+            validation,
+            prior,
+            input_name: trace.input_name.clone(),
+            output_name: trace.output_name.clone(),
+        })
+    }
+
+    /// The estimation problem the optimizer scores.
+    pub fn problem(&self) -> Problem {
+        Problem::new(self.family, vec![self.estimation.clone()])
+    }
+
+    /// Validation scores: a free run over the whole trace from its first
+    /// sample, scored on the second half only. (Starting afresh at the
+    /// validation half with `w = 0` would throw away the hysteretic state,
+    /// which the model never forgets: `w` integrates the motion, so a wrong
+    /// start offsets the output for good and even the true parameters would
+    /// score badly.)
+    pub fn validate(&self, params: &[f64]) -> Validation {
+        let mut whole = self.estimation.clone();
+        whole.u.extend_from_slice(&self.validation.u);
+        whole.y.extend_from_slice(&self.validation.y);
+        score_tail(self.family, params, &whole, self.estimation.len())
+    }
+
+    /// The fitted model in the estimation half's coordinates.
+    pub fn model(&self, params: &[f64]) -> FittedModel {
+        FittedModel {
+            family: self.family,
+            params: params.to_vec(),
+            input_mean: self.estimation.u_mean,
+            output_mean: self.estimation.y_mean,
+            dt: self.estimation.dt,
+            input_name: self.input_name.clone(),
+            output_name: self.output_name.clone(),
+        }
+    }
+}
+
+/// RMSE and fit % of a free run of `params` on `experiment` (deviation
+/// coordinates; differences are in output units). A diverged run scores
+/// infinite RMSE and −∞ fit.
+pub fn score(family: Family, params: &[f64], experiment: &Experiment) -> Validation {
+    score_tail(family, params, experiment, 0)
+}
+
+/// As [`score`], but the samples before `from` only warm the state up.
+pub fn score_tail(
+    family: Family,
+    params: &[f64],
+    experiment: &Experiment,
+    from: usize,
+) -> Validation {
+    if params.is_empty() || experiment.len() <= from {
+        return Validation {
+            rmse: f64::INFINITY,
+            fit_percent: f64::NEG_INFINITY,
+        };
+    }
+    let theta: Vec<f32> = params.iter().map(|&v| v as f32).collect();
+    let sim = simulate(family, &theta, &experiment.u, experiment.y[0]);
+    if sim.diverged_at.is_some() {
+        return Validation {
+            rmse: f64::INFINITY,
+            fit_percent: f64::NEG_INFINITY,
+        };
+    }
+    let y: Vec<f64> = experiment.y[from..].iter().map(|&v| v as f64).collect();
+    let x: Vec<f64> = sim.x[from..].iter().map(|&v| v as f64).collect();
+    Validation {
+        rmse: rmse(&y, &x),
+        fit_percent: fit_percent(&y, &x),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::optim::synthetic::Synthetic;
+
+    #[test]
+    fn the_truth_validates_near_the_noise() {
+        let s = Synthetic::new(Family::Classic, 600, 0.05, 1);
+        let task = Task::new(&s.trace, Family::Classic, Flow::Joint, None, false).unwrap();
+        assert!(task.space.contains(&s.truth));
+        let v = task.validate(&s.truth);
+        assert!(v.rmse < 0.2 && v.fit_percent > 95.0, "{v:?}");
+        let thesis = Task::new(&s.trace, Family::Classic, Flow::Thesis, None, false).unwrap();
+        assert_eq!(thesis.space.free(), vec![0, 1, 2, 3]);
+        assert!(Task::new(&s.trace, Family::Linear, Flow::Joint, None, false).is_err());
+    }
+}

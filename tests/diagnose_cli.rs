@@ -1,0 +1,167 @@
+//! `mckibben diagnose` as a user runs it: the JSON contract on a small trace,
+//! and clear errors for data it cannot diagnose.
+
+use std::path::Path;
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_mckibben"))
+}
+
+/// A small stair experiment from the classic model with an end stop at 30 mm.
+fn write_csv(path: &Path, rows: usize, constant_input: bool) {
+    let mut s = String::from("t,pressure,displacement\n");
+    let p0 = if constant_input { 0.2 } else { 0.0 };
+    let (mut p, mut x, mut w) = (p0, 0.0f64, 0.0f64);
+    for k in 0..rows {
+        let level = if constant_input {
+            0.2
+        } else {
+            [0.05, 0.2, 0.35, 0.5, 0.3, 0.1][(k / 50) % 6]
+        };
+        s.push_str(&format!("{:.3},{p:.5},{x:.4}\n", k as f64 * 0.1));
+        let xn = (0.93 * (0.6 * x + 0.4 * w) + 18.0 * p - 1.0).min(30.0);
+        w += 0.9 * (xn - x) - 0.002 * (xn - x).abs() * w;
+        x = xn;
+        p = 0.6 * p + 0.4 * level;
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+#[test]
+fn json_follows_the_contract() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("stair.csv");
+    write_csv(&csv, 600, false);
+    let out = bin()
+        .args(["diagnose", "--json", "--seeds", "2", "--generations", "30"])
+        .args(["--effects", "delay,saturation,creep"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for k in ["model", "params", "val_rmse", "val_fit_percent"] {
+        assert!(!v["baseline"][k].is_null(), "baseline.{k}");
+    }
+    assert_eq!(v["baseline"]["model"], "classic");
+    assert!(v["noise_floor_rmse"].as_f64().unwrap() >= 0.0);
+    for k in ["rising", "falling", "steady"] {
+        assert!(v["where"]["branch"][k].is_number(), "where.branch.{k}");
+    }
+    let bands = v["where"]["input_band"].as_array().unwrap();
+    assert!(!bands.is_empty());
+    let total: f64 = bands.iter().map(|b| b["share"].as_f64().unwrap()).sum();
+    assert!(
+        (total - 1.0).abs() < 1e-6,
+        "input bands share all the energy: {total}"
+    );
+    for b in bands {
+        assert!(b["lo"].is_number() && b["hi"].is_number());
+    }
+    for k in ["transient", "settled"] {
+        assert!(
+            v["where"]["after_step"][k].is_number(),
+            "where.after_step.{k}"
+        );
+    }
+    let cands = v["candidates"].as_array().unwrap();
+    assert_eq!(cands.len(), 3, "one entry per effect tried");
+    for c in cands {
+        for k in ["effect", "params", "val_rmse", "gap_closed", "accepted"] {
+            assert!(!c[k].is_null(), "candidates[].{k}");
+        }
+    }
+    let verdict: Vec<&str> = v["verdict"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e.as_str().unwrap())
+        .collect();
+    let accepted: Vec<&str> = cands
+        .iter()
+        .filter(|c| c["accepted"] == true)
+        .map(|c| c["effect"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        verdict, accepted,
+        "accepted candidates come first, in verdict order"
+    );
+    assert!(
+        v["final"]["val_rmse"].as_f64().unwrap() <= v["baseline"]["val_rmse"].as_f64().unwrap()
+    );
+    assert!(v["final"]["gap_closed"].is_number());
+}
+
+fn error_of(args: &[&str], csv: &Path) -> String {
+    let out = bin().args(args).arg(csv).output().unwrap();
+    assert!(!out.status.success(), "expected failure for {args:?}");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn undiagnosable_data_gives_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let short = dir.path().join("short.csv");
+    write_csv(&short, 30, false);
+    let err = error_of(&["diagnose"], &short);
+    assert!(err.contains("too few to split"), "{err}");
+
+    let flat = dir.path().join("flat.csv");
+    write_csv(&flat, 300, true);
+    let err = error_of(&["diagnose"], &flat);
+    assert!(err.contains("constant"), "{err}");
+
+    let ok = dir.path().join("ok.csv");
+    write_csv(&ok, 300, false);
+    let err = error_of(&["diagnose", "--output", "length"], &ok);
+    assert!(err.contains("length"), "names the missing column: {err}");
+
+    let err = error_of(&["diagnose", "--effects", "friction"], &ok);
+    assert!(
+        err.contains("unknown effect") && err.contains("backlash"),
+        "{err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+/// The Cavatappi muscle (psi, mm, 1 kHz in blocks with gaps) read through
+/// `--resample`: the diagnosis runs and finds the end stop at 100 g
+/// (docs/DIAGNOSIS.md). Skipped when the external data are absent.
+#[test]
+fn cavatappi_100g_is_diagnosed_after_resampling() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data/external/cavatappi_muscle/sample1_100g.csv");
+    if !path.is_file() {
+        eprintln!("SKIP: {} is absent", path.display());
+        return;
+    }
+    let out = bin()
+        .args([
+            "diagnose",
+            "--json",
+            "--time",
+            "t_s",
+            "--input",
+            "pressure_psi",
+        ])
+        .args(["--output", "disp_mm", "--resample", "0.01"])
+        .args(["--effects", "saturation,creep", "--seeds", "2"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let base = v["baseline"]["val_rmse"].as_f64().unwrap();
+    let last = v["final"]["val_rmse"].as_f64().unwrap();
+    assert!(last < base, "{v}");
+    assert_eq!(v["verdict"][0], "saturation", "{}", v["verdict"]);
+}

@@ -1,0 +1,97 @@
+//! The withheld-effect check on a small synthetic rig trace: a
+//! representative subset of the self-test cases (the full table is
+//! `mckibben diagnose --self-test`).
+
+use std::sync::OnceLock;
+
+use mckibben::data::Trace;
+use mckibben::diagnose::selftest::{Case, Nominal, cases, run_case};
+use mckibben::diagnose::{Effect, Settings};
+use mckibben::model::presets::thesis_params;
+use mckibben::model::{Family, simulate};
+
+/// A stair of gauge pressures up and down (MPa), the valve smoothing each
+/// step with a pole of 0.6, and the thesis' classic model's response (mm).
+fn rig_trace(len: usize) -> Trace {
+    let levels = [0.05, 0.2, 0.35, 0.5, 0.3, 0.1, 0.25, 0.45, 0.15];
+    let mut p = vec![levels[0]; len];
+    for k in 1..len {
+        let target = levels[(k / 60) % levels.len()];
+        p[k] = 0.6 * p[k - 1] + 0.4 * target;
+    }
+    let mut theta: Vec<f32> = thesis_params(Family::Classic)
+        .iter()
+        .map(|&v| v as f32)
+        .collect();
+    theta[7] = 0.5;
+    let u: Vec<f32> = p.iter().map(|&v| v as f32).collect();
+    let x = simulate(Family::Classic, &theta, &u, 0.0).x;
+    Trace::uniform("rig", 0.1, p, x.iter().map(|&v| v as f64).collect())
+}
+
+fn fast() -> Settings {
+    Settings {
+        seeds: 2,
+        baseline_population: 30,
+        baseline_generations: 150,
+        population: 30,
+        generations: 150,
+        ..Settings::default()
+    }
+}
+
+/// The nominal model, fitted once for all tests of this file.
+fn nominal() -> &'static Nominal {
+    static NOMINAL: OnceLock<Nominal> = OnceLock::new();
+    NOMINAL.get_or_init(|| Nominal::fit(&rig_trace(1080), Family::Classic, &fast()).unwrap())
+}
+
+fn case_of(nominal: &Nominal, name: &str) -> Case {
+    cases(nominal, &Effect::ALL)
+        .into_iter()
+        .find(|c| c.name == name)
+        .unwrap_or_else(|| panic!("no case {name}"))
+}
+
+fn check(name: &str) {
+    let nom = nominal();
+    let case = case_of(nom, name);
+    let o = run_case(nom, &case, &Effect::ALL, &fast(), 7).unwrap();
+    assert!(o.pass, "{name}: {o:?}");
+}
+
+#[test]
+fn control_names_nothing() {
+    let nom = nominal();
+    let o = run_case(nom, &case_of(nom, "control"), &Effect::ALL, &fast(), 7).unwrap();
+    assert!(o.named.is_empty(), "{o:?}");
+    // The baseline reaches the noise it was generated with.
+    assert!(o.baseline_rmse < 1.2 * o.noise_floor, "{o:?}");
+}
+
+#[test]
+fn a_withheld_delay_is_named_first_sized_and_closes_the_gap() {
+    check("delay (large)");
+}
+
+#[test]
+fn a_withheld_end_stop_is_named_first_sized_and_closes_the_gap() {
+    check("saturation (small)");
+}
+
+#[test]
+fn a_load_dependent_gain_is_found_across_two_datasets() {
+    check("load (small)");
+}
+
+#[test]
+fn two_withheld_effects_are_both_named() {
+    let nom = nominal();
+    let case = case_of(nom, "delay + saturation");
+    let o = run_case(nom, &case, &Effect::ALL, &fast(), 7).unwrap();
+    assert!(
+        o.named.contains(&Effect::Delay) && o.named.contains(&Effect::Saturation),
+        "{o:?}"
+    );
+    assert!(o.gap_closed > 0.5, "{o:?}");
+}

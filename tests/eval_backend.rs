@@ -1,0 +1,44 @@
+//! `--backend` resolution: what `eval::open` returns for each choice.
+
+use mckibben::eval::{Backend, open};
+
+#[test]
+fn cpu_backend_has_no_adapter() {
+    let e = open(Backend::Cpu).unwrap();
+    assert!(e.adapter().is_none());
+    assert!(e.describe().starts_with("cpu"), "{}", e.describe());
+}
+
+#[test]
+fn auto_never_picks_a_cpu_adapter() {
+    // lavapipe (device type Cpu) is slower than the batched CPU path.
+    let e = open(Backend::Auto).unwrap();
+    match e.adapter() {
+        None => assert!(e.describe().starts_with("cpu"), "{}", e.describe()),
+        Some(a) => assert!(
+            a.contains("DiscreteGpu") || a.contains("IntegratedGpu"),
+            "auto chose {a}"
+        ),
+    }
+}
+
+#[test]
+fn gpu_backend_names_its_adapter_or_explains_why_not() {
+    match open(Backend::Gpu) {
+        Ok(e) => {
+            let a = e.adapter().expect("a GPU evaluator names its adapter");
+            assert!(e.describe().contains(&a));
+        }
+        Err(err) => {
+            let msg = format!("{err:#}");
+            assert!(
+                msg.contains("no GPU adapter") && msg.contains("--backend cpu"),
+                "{msg}"
+            );
+            assert!(
+                std::env::var("CI").as_deref() != Ok("true"),
+                "CI=true but no GPU adapter: {msg}"
+            );
+        }
+    }
+}

@@ -1,0 +1,205 @@
+//! `mckibben fit` and `mckibben compare` end to end on a small synthetic
+//! CSV: the documented JSON keys and files, checkpoint resume, and clear
+//! errors for bad flags and bad data.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use mckibben::data::csv::write_trace;
+use mckibben::model::Family;
+use mckibben::optim::synthetic::Synthetic;
+
+fn mckibben(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mckibben"))
+        .args(args)
+        .current_dir(dir)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap()
+}
+
+fn data(dir: &Path) -> String {
+    let s = Synthetic::new(Family::Classic, 400, 0.05, 21);
+    let path = dir.join("synthetic.csv");
+    write_trace(&path, &s.trace).unwrap();
+    path.display().to_string()
+}
+
+fn json(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn fit_writes_the_documented_json_and_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let out = mckibben(
+        &[
+            "fit",
+            &csv,
+            "--algo",
+            "pso",
+            "--pop",
+            "40",
+            "--gens",
+            "5",
+            "--seed",
+            "3",
+            "--backend",
+            "cpu",
+            "--out",
+            "fitdir",
+            "--json",
+        ],
+        dir.path(),
+    );
+    let v = json(&out);
+    for key in [
+        "model",
+        "algo",
+        "params",
+        "sse",
+        "val_rmse",
+        "val_fit_percent",
+        "evaluations",
+        "seconds",
+        "backend",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key} in {v}");
+    }
+    assert_eq!(v["model"], "classic");
+    assert_eq!(v["algo"], "pso");
+    assert_eq!(v["evaluations"], 200);
+    assert_eq!(v["params"].as_object().unwrap().len(), 8);
+    for f in [
+        "model.json",
+        "result.json",
+        "history.csv",
+        "history.json",
+        "trends.svg",
+        "convergence.svg",
+        "loop.svg",
+        "trace.svg",
+    ] {
+        assert!(dir.path().join("fitdir").join(f).is_file(), "{f}");
+    }
+    let history = std::fs::read_to_string(dir.path().join("fitdir/history.csv")).unwrap();
+    assert_eq!(history.lines().count(), 6);
+}
+
+#[test]
+fn fit_resumes_from_a_checkpoint_to_the_same_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let base = [
+        "fit",
+        &csv,
+        "--algo",
+        "de",
+        "--pop",
+        "30",
+        "--seed",
+        "4",
+        "--backend",
+        "cpu",
+        "--json",
+    ];
+    let full = json(&mckibben(
+        &[&base[..], &["--gens", "8"]].concat(),
+        dir.path(),
+    ));
+    // A run cut short by its time budget, then resumed without one.
+    let first = [
+        &base[..],
+        &[
+            "--gens",
+            "8",
+            "--checkpoint",
+            "ck.json",
+            "--time-budget",
+            "0",
+        ],
+    ]
+    .concat();
+    let part = json(&mckibben(&first, dir.path()));
+    assert!(part["generations"].as_u64().unwrap() < 8);
+    let resumed = json(&mckibben(
+        &[&base[..], &["--gens", "8", "--checkpoint", "ck.json"]].concat(),
+        dir.path(),
+    ));
+    assert_eq!(resumed["generations"], 8);
+    assert_eq!(resumed["params"], full["params"]);
+    assert_eq!(resumed["sse"], full["sse"]);
+}
+
+#[test]
+fn bad_flags_and_bad_data_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let cases: [(&[&str], &str); 4] = [
+        (&["fit", "missing.csv"], "missing.csv"),
+        (&["fit", &csv, "--algo", "cmaes"], "cmaes"),
+        (
+            &["fit", &csv, "--pop", "2", "--backend", "cpu"],
+            "at least 4",
+        ),
+        (
+            &["fit", &csv, "--p-mut", "1.5", "--backend", "cpu"],
+            "--p-mut",
+        ),
+    ];
+    for (args, needle) in cases {
+        let out = mckibben(args, dir.path());
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+    std::fs::write(
+        dir.path().join("bad.csv"),
+        "t,pressure,displacement\n0,0.1,1\n0.1,x,2\n",
+    )
+    .unwrap();
+    let out = mckibben(&["fit", "bad.csv"], dir.path());
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.csv") && err.contains("pressure"), "{err}");
+}
+
+#[test]
+fn compare_writes_markdown_and_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let out = mckibben(
+        &[
+            "compare",
+            &csv,
+            "--thesis-sizes",
+            "10",
+            "--sizes",
+            "0",
+            "--gens",
+            "3",
+            "--seeds",
+            "2",
+            "--budget-pop",
+            "8",
+            "--budget-gens",
+            "3",
+            "--backend",
+            "cpu",
+            "--json",
+        ],
+        dir.path(),
+    );
+    let v = json(&out);
+    assert_eq!(v["table21"].as_array().unwrap().len(), 8);
+    assert_eq!(v["budget"].as_array().unwrap().len(), 12);
+    assert_eq!(v["flows"].as_array().unwrap().len(), 4);
+    let md = std::fs::read_to_string(dir.path().join("out/compare/compare.md")).unwrap();
+    assert!(md.contains("Table 21") && md.contains("Equal budgets"));
+}
