@@ -10,6 +10,7 @@
 //! ```
 
 pub mod benchmark;
+pub mod control;
 pub mod data;
 pub mod diagnose;
 pub mod eval;

@@ -4,8 +4,9 @@ mod bench;
 mod benchmark;
 mod common;
 mod compare;
-mod fit;
+mod control;
 mod diagnose;
+mod fit;
 mod identify;
 mod simulate;
 mod static_force;
@@ -32,6 +33,7 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    Control(control::Args),
     Fit(fit::Args),
     Compare(compare::Args),
     Identify(identify::Args),
@@ -45,6 +47,7 @@ pub enum Command {
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Control(args) => control::run(args),
         Command::Fit(args) => fit::run(args),
         Command::Compare(args) => compare::run(args),
         Command::Identify(args) => identify::run(args),

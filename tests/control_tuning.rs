@@ -1,0 +1,31 @@
+//! Gain tuning with the project's optimizers on short twin episodes: the
+//! result is a pure function of the seed, and the reported cost is the cost
+//! of the reported gains.
+
+use mckibben::control::tuning::{TuningEpisodes, pi_cost, tune_pi};
+use mckibben::twin::TwinConfig;
+
+fn episodes() -> TuningEpisodes {
+    TuningEpisodes {
+        freqs_rad_s: vec![3.0],
+        loads_kg: vec![4.5],
+        warmup_s: 2.0,
+        duration_s: 3.0,
+        steady_from_s: 1.0,
+        seed: 1,
+    }
+}
+
+#[test]
+fn tuning_is_deterministic_and_reports_its_own_cost() {
+    let config = TwinConfig::default();
+    let eps = episodes();
+    let a = tune_pi("pso", 6, 2, 9, &eps, &config).unwrap();
+    let b = tune_pi("pso", 6, 2, 9, &eps, &config).unwrap();
+    assert_eq!(a.gains, b.gains);
+    assert_eq!(a.cost, b.cost);
+    assert_eq!(a.evaluations, 12);
+    assert_eq!(a.cost, pi_cost(a.gains, &eps, &config));
+    assert!(a.best_per_generation.windows(2).all(|w| w[1] <= w[0]));
+    assert!(tune_pi("nope", 6, 2, 9, &eps, &config).is_err());
+}
