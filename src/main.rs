@@ -8,6 +8,8 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
+    restore_default_sigpipe();
+    ensure_runtime_dir();
     let args = cli::Cli::parse();
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
@@ -19,4 +21,36 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// `mckibben fit | head` should end quietly when `head` closes the pipe, as
+/// other command-line tools do, rather than panic in `println!`.
+fn restore_default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: called first thing in `main`, before any thread exists;
+    // restores the default disposition that Rust's runtime replaced.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
+/// The Vulkan loader, probed by `--backend auto|gpu`, prints an error when
+/// `XDG_RUNTIME_DIR` is unset although nothing is wrong; give it a private
+/// folder so that the user sees only messages that matter.
+fn ensure_runtime_dir() {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_some_and(|d| std::path::Path::new(&d).is_dir()) {
+        return;
+    }
+    let dir = std::env::temp_dir().join("mckibben-runtime");
+    if std::fs::create_dir_all(&dir).is_err() {
+        return;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        let _ = std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700));
+    }
+    // SAFETY: called in `main` before any thread exists, so nothing reads the
+    // environment concurrently.
+    unsafe { std::env::set_var("XDG_RUNTIME_DIR", dir) };
 }

@@ -33,26 +33,42 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    Control(control::Args),
+    #[command(about = "Fit a Bouc-Wen hysteresis model with GA, MFA, PSO or DE (the main job)")]
     Fit(fit::Args),
+    #[command(
+        about = "Compare the optimizers: the thesis' Table 21 redone, large populations, cross-load"
+    )]
     Compare(compare::Args),
+    #[command(about = "Identify a linear ARX model (thesis §4.3): a, b and validation fit %")]
     Identify(identify::Args),
+    #[command(about = "Simulate a model on a stair, a sine or a recorded input")]
     Simulate(simulate::Args),
+    #[command(
+        about = "Diagnose the sim-to-real gap: where the model misses, which effect, how far it shrinks"
+    )]
     Diagnose(diagnose::Args),
+    #[command(
+        about = "Close the loop on the rig twin: thesis PI, tuned PI and MPC at 1, 2, 3 rad/s"
+    )]
+    Control(control::Args),
+    #[command(about = "Run an experiment on the rig twin and write the recording as CSV")]
     Twin(twin::Args),
+    #[command(about = "Time the batch evaluator on the CPU and GPU and check that they agree")]
     Bench(bench::Args),
+    #[command(about = "Validate on a public benchmark with published results (Bouc-Wen)")]
     Benchmark(benchmark::Args),
+    #[command(about = "The static force model (eq. 7 and 9) against braid angle or muscle length")]
     Static(static_force::Args),
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
-        Command::Control(args) => control::run(args),
         Command::Fit(args) => fit::run(args),
         Command::Compare(args) => compare::run(args),
         Command::Identify(args) => identify::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Diagnose(args) => diagnose::run(args),
+        Command::Control(args) => control::run(args),
         Command::Twin(args) => twin::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Benchmark(args) => benchmark::run(args),
