@@ -168,7 +168,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let (mut model, fit) = design::identify(&record, design::OPERATING_BAND_V, args.horizon)
             .context("identifying the MPC's model")?;
         if let Some(path) = &args.from {
-            let m = read_model(path)?;
+            let m = mckibben::model::FittedModel::load(path)
+                .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
             anyhow::ensure!(
                 (m.dt - 0.01).abs() < 1e-9,
                 "--from {}: the model was fitted at a {} s sample time; the loop runs at 0.01 s",
@@ -400,22 +401,6 @@ fn run_name(kind: Kind, scale: f64, load: f64, w: f64) -> String {
         format!("_h{scale}")
     };
     format!("control_{name}{suffix}_{load}kg_{w}rad")
-}
-
-/// A model file written by `identify --out` or `fit` (the model itself, or an
-/// object with a `model` field).
-fn read_model(path: &std::path::Path) -> anyhow::Result<mckibben::model::FittedModel> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read --from {}", path.display()))?;
-    let value: serde_json::Value = serde_json::from_str(&text)
-        .with_context(|| format!("--from {}: not JSON", path.display()))?;
-    let inner = value.get("model").cloned().unwrap_or(value);
-    serde_json::from_value(inner).with_context(|| {
-        format!(
-            "--from {}: not a model file written by identify or fit",
-            path.display()
-        )
-    })
 }
 
 fn fmt_params(m: &mckibben::model::FittedModel) -> String {

@@ -102,16 +102,7 @@ struct Summary {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut model = match &args.from {
-        Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .with_context(|| format!("cannot read --from {}", path.display()))?;
-            read_model(&text).with_context(|| {
-                format!(
-                    "{} is not a model file written by identify or fit",
-                    path.display()
-                )
-            })?
-        }
+        Some(path) => FittedModel::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?,
         None => FittedModel {
             family: args.model,
             params: thesis_params(args.model),
@@ -218,13 +209,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("  figure written to {}", p.display());
     }
     Ok(())
-}
-
-/// A model file: `fit`'s `FittedModel`, or `identify --out`'s `{ "model": FittedModel, ... }`.
-fn read_model(text: &str) -> anyhow::Result<FittedModel> {
-    let value: serde_json::Value = serde_json::from_str(text)?;
-    let inner = value.get("model").cloned().unwrap_or(value);
-    Ok(serde_json::from_value(inner)?)
 }
 
 /// The input trace and, for a file, its first measured output.

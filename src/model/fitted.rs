@@ -1,6 +1,9 @@
 //! A fitted model: what `fit` writes and `simulate`, `diagnose` and
 //! `control` read.
 
+use std::path::Path;
+
+use anyhow::Context;
 use serde::{Deserialize, Serialize};
 
 use super::family::Family;
@@ -24,6 +27,22 @@ pub struct FittedModel {
 }
 
 impl FittedModel {
+    /// Reads a model file written by `fit` (the model itself) or by
+    /// `identify --out` (an object whose `model` field holds it).
+    pub fn load(path: &Path) -> anyhow::Result<FittedModel> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let value: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+        let inner = value.get("model").cloned().unwrap_or(value);
+        serde_json::from_value(inner).with_context(|| {
+            format!(
+                "{}: not a model file written by identify or fit",
+                path.display()
+            )
+        })
+    }
+
     /// Parameters by name, in canonical order.
     pub fn named_params(&self) -> Vec<(&'static str, f64)> {
         self.family
