@@ -105,8 +105,23 @@ fn generalized_pso_thesis_settings() {
     assert!(ratio(f, Algorithm::Pso, &settings(f)) <= 1.05);
 }
 
+/// The generalized model's landscape has a wide basin at ~44× the true SSE
+/// (sgn terms of the other sign, `c` of the wrong sign) where the classic
+/// fix settles. Michalewicz's non-uniform mutation reaches the whole box
+/// early and shrinks to nothing by generation G; with the best 2 % kept it
+/// passes (measured 0.237 here; 5 of seeds 42, 1–5 pass, docs/RESULTS.md).
 #[test]
-#[ignore = "misses at this budget (measured: GA 44.7x, MFA 44.0x the true SSE); see docs/RESULTS.md"]
+fn generalized_ga_proportional_nonuniform() {
+    let f = Family::Generalized;
+    let mut s = settings(f);
+    s.ga.elitism = N / 50;
+    s.ga.mutation = Mutation::NonUniform;
+    s.ga.p_mut = 0.3;
+    assert!(ratio(f, Algorithm::Ga, &s) <= 1.05);
+}
+
+#[test]
+#[ignore = "the classic fix misses on the generalized model (measured 44.7x); see docs/RESULTS.md"]
 fn generalized_ga_proportional_fixed() {
     let f = Family::Generalized;
     assert!(ratio(f, Algorithm::Ga, &fixed_ga(f)) <= 1.05);

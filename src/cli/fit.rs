@@ -95,7 +95,10 @@ pub struct Args {
     /// GA: mutation probability P_mut (thesis 0.1).
     #[arg(long, default_value_t = 0.1)]
     p_mut: f64,
-    /// GA: fixed ±m_m mutation (thesis) or uniform in [−m_m, m_m].
+    /// GA: fixed ±m_m mutation (thesis), uniform in [−m_m, m_m], or
+    /// non-uniform (Michalewicz: towards a bound, reach shrinking from the
+    /// whole box to 0 over the generations; fits the generalized model with
+    /// --elitism N/50 --p-mut 0.3, docs/RESULTS.md).
     #[arg(long, value_enum, default_value = "fixed")]
     mutation: Mutation,
     /// MFA: Λ0 schedule from a to b (appendix code) or to a − b (eq. 36).
