@@ -51,8 +51,9 @@ pub enum Mutation {
     /// A relative change drawn uniformly in `[−m_m, m_m]`: the same reach,
     /// but arbitrarily small steps too.
     Uniform,
-    /// Michalewicz's non-uniform mutation (Michalewicz, *Genetic Algorithms
-    /// + Data Structures = Evolution Programs*, 1996, §6.2; `m_m` unused):
+    /// Michalewicz's non-uniform mutation (Michalewicz, *Genetic
+    /// Algorithms + Data Structures = Evolution Programs*, 1996, §6.2;
+    /// `m_m` unused):
     /// the gene moves towards the upper or the lower bound (even odds) by
     /// `Δ(k, y) = y·(1 − r^((1 − k/G)^b))`, `y` its distance to that bound,
     /// `r` uniform in [0, 1], `b` = [`NON_UNIFORM_B`]. Early it can reach
