@@ -3,9 +3,10 @@
 //! each optimizer at N = 1e4 reaches an SSE within 2 % (classic) or 5 %
 //! (generalized) of the true parameters' SSE. CPU backend, fixed seeds.
 //!
-//! Generalized: the thesis' PSO and DE with p = 0.02 pass; the fixed GA and
-//! the fixed MFA miss at this budget (ignored tests, measured ratios in
-//! their attribute and in docs/RESULTS.md). Budgets: G = 200 generations (2e6 evaluations) for every run. DE and
+//! Generalized: the thesis' PSO and DE with p = 0.02 pass; the classic fixes
+//! of GA and MFA miss (ignored tests, ~44×), and two further documented
+//! settings pass: the GA with Michalewicz's non-uniform mutation and 2 %
+//! elitism, the MFA following the 3 brightest with ρ0 = 0.2. Budgets: G = 200 generations (2e6 evaluations) for every run. DE and
 //! PSO pass with their defaults (the thesis' PSO settings, Table 11/19).
 //! The thesis-faithful GA and MFA do not (docs/RESULTS.md gives by how
 //! much); they are tested with the documented settings that fix them:
@@ -105,15 +106,44 @@ fn generalized_pso_thesis_settings() {
     assert!(ratio(f, Algorithm::Pso, &settings(f)) <= 1.05);
 }
 
+/// The generalized model's landscape has a wide basin at ~44× the true SSE
+/// (sgn terms of the other sign, `c` of the wrong sign) where the classic
+/// fix settles. Michalewicz's non-uniform mutation reaches the whole box
+/// early and shrinks to nothing by generation G; with the best 2 % kept it
+/// passes (measured 0.237 here; 5 of seeds 42, 1–5 pass, docs/RESULTS.md).
 #[test]
-#[ignore = "misses at this budget (measured: GA 44.7x, MFA 44.0x the true SSE); see docs/RESULTS.md"]
+fn generalized_ga_proportional_nonuniform() {
+    let f = Family::Generalized;
+    let mut s = settings(f);
+    s.ga.elitism = N / 50;
+    s.ga.mutation = Mutation::NonUniform;
+    s.ga.p_mut = 0.3;
+    assert!(ratio(f, Algorithm::Ga, &s) <= 1.05);
+}
+
+#[test]
+#[ignore = "the classic fix misses on the generalized model (measured 44.7x); see docs/RESULTS.md"]
 fn generalized_ga_proportional_fixed() {
     let f = Family::Generalized;
     assert!(ratio(f, Algorithm::Ga, &fixed_ga(f)) <= 1.05);
 }
 
+/// The classic fix settles in the same ~44× basin: the swarm is a local
+/// search around its 10 brightest. Following only the 3 brightest, with a
+/// walk twice eq. 38's (ρ0 = 0.2 box widths, decaying as e^(−4.8k/G)),
+/// passes here (measured 0.214; seed-sensitive: 3 of seeds 42, 1–5 pass,
+/// docs/RESULTS.md).
 #[test]
-#[ignore = "misses at this budget (measured: GA 44.7x, MFA 44.0x the true SSE); see docs/RESULTS.md"]
+fn generalized_mfa_three_brightest_wider_walk() {
+    let f = Family::Generalized;
+    let mut s = fixed_mfa(f);
+    s.mfa.max_attractors = Some(3);
+    s.mfa.rho0 = 0.2;
+    assert!(ratio(f, Algorithm::Mfa, &s) <= 1.05);
+}
+
+#[test]
+#[ignore = "the classic fix misses on the generalized model (measured 44.0x); see docs/RESULTS.md"]
 fn generalized_mfa_fixed() {
     let f = Family::Generalized;
     assert!(ratio(f, Algorithm::Mfa, &fixed_mfa(f)) <= 1.05);

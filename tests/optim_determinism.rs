@@ -29,6 +29,9 @@ fn settings() -> AlgoSettings {
     let mut s = AlgoSettings::default();
     // Exercise the parallel all-pairs firefly move.
     s.mfa.max_attractors = None;
+    // The GA's non-uniform mutation depends on the generation counter,
+    // which the checkpoint must carry.
+    s.ga.mutation = mckibben::optim::ga::Mutation::NonUniform;
     s
 }
 

@@ -95,7 +95,10 @@ pub struct Args {
     /// GA: mutation probability P_mut (thesis 0.1).
     #[arg(long, default_value_t = 0.1)]
     p_mut: f64,
-    /// GA: fixed ±m_m mutation (thesis) or uniform in [−m_m, m_m].
+    /// GA: fixed ±m_m mutation (thesis), uniform in [−m_m, m_m], or
+    /// non-uniform (Michalewicz: towards a bound, reach shrinking from the
+    /// whole box to 0 over the generations; fits the generalized model with
+    /// --elitism N/50 --p-mut 0.3, docs/RESULTS.md).
     #[arg(long, value_enum, default_value = "fixed")]
     mutation: Mutation,
     /// MFA: Λ0 schedule from a to b (appendix code) or to a − b (eq. 36).
@@ -114,6 +117,11 @@ pub struct Args {
     /// MFA: with --mfa-attractors, the K brightest instead of K at random.
     #[arg(long)]
     mfa_brightest: bool,
+    /// MFA: start ρ0 of the random walk ρ(k) = ρ0·e^(−4.8k/G) (eq. 38:
+    /// 0.1). 0.2 with --mfa-attractors 3 --mfa-brightest --mfa-distance
+    /// squared --mfa-scale box fits the generalized model (docs/RESULTS.md).
+    #[arg(long, default_value_t = 0.1, value_name = "RHO0")]
+    mfa_rho0: f64,
     /// DE: share of the population x_pbest is drawn from (0.1; smaller is
     /// greedier, see docs/RESULTS.md).
     #[arg(long, default_value_t = 0.1)]
@@ -208,6 +216,12 @@ impl Args {
         s.mfa.distance = self.mfa_distance;
         s.mfa.scale = self.mfa_scale;
         s.mfa.max_attractors = self.mfa_attractors;
+        anyhow::ensure!(
+            self.mfa_rho0.is_finite() && self.mfa_rho0 >= 0.0,
+            "--mfa-rho0 must be a finite step size ≥ 0 (got {})",
+            self.mfa_rho0
+        );
+        s.mfa.rho0 = self.mfa_rho0;
         if self.mfa_brightest {
             s.mfa.attractors = Attractors::Brightest;
         }

@@ -51,7 +51,21 @@ pub enum Mutation {
     /// A relative change drawn uniformly in `[−m_m, m_m]`: the same reach,
     /// but arbitrarily small steps too.
     Uniform,
+    /// Michalewicz's non-uniform mutation (Michalewicz, *Genetic
+    /// Algorithms + Data Structures = Evolution Programs*, 1996, §6.2;
+    /// `m_m` unused):
+    /// the gene moves towards the upper or the lower bound (even odds) by
+    /// `Δ(k, y) = y·(1 − r^((1 − k/G)^b))`, `y` its distance to that bound,
+    /// `r` uniform in [0, 1], `b` = [`NON_UNIFORM_B`]. Early it can reach
+    /// anywhere in the box — a gene near 0 is not stuck, as it is under a
+    /// change relative to its own value — and the reach shrinks to 0 by
+    /// generation `G`, so the same operator explores and then refines.
+    NonUniform,
 }
+
+/// Michalewicz's "degree of dependency on the iteration number" `b` of the
+/// non-uniform mutation (his suggested value, 1996 §6.2).
+pub const NON_UNIFORM_B: f64 = 5.0;
 
 /// GA settings; defaults are the thesis' (tables 5 and 13: `P_cross = 0.5`,
 /// `P_mut = 0.1`, `m_m = 0.05`, proportional crossover as in A.2.1.1).
@@ -92,6 +106,12 @@ pub struct Ga {
     pub settings: GaSettings,
     bounds: Bounds,
     n: usize,
+    /// Planned generations `G` (the non-uniform mutation's horizon).
+    #[serde(default)]
+    generations: usize,
+    /// Offspring generations made so far (`k` of the next is `moves + 1`).
+    #[serde(default)]
+    moves: usize,
     /// The population last asked for, row-major.
     pop: Vec<f64>,
     /// Which rows were clamped into the box (penalised).
@@ -102,12 +122,14 @@ pub struct Ga {
 }
 
 impl Ga {
-    pub fn new(settings: GaSettings, bounds: Bounds, n: usize) -> Ga {
+    pub fn new(settings: GaSettings, bounds: Bounds, n: usize, generations: usize) -> Ga {
         assert!(n >= 2, "the GA needs at least two individuals");
         Ga {
             settings,
             bounds,
             n,
+            generations,
+            moves: 0,
             pop: Vec::new(),
             clamped: Vec::new(),
             costs: Vec::new(),
@@ -137,6 +159,11 @@ impl Ga {
     fn offspring(&self, rng: &mut ChaCha8Rng) -> (Vec<f64>, Vec<bool>) {
         let d = self.bounds.dim();
         let fit = self.fitness();
+        // Remaining share of the run, for the non-uniform mutation's reach.
+        let k = (self.moves + 1) as f64;
+        let reach = (1.0 - k / self.generations.max(1) as f64)
+            .max(0.0)
+            .powf(NON_UNIFORM_B);
         let roulette = Roulette::new(&fit);
         let mut pop = Vec::with_capacity(self.n * d);
         let mut clamped = Vec::with_capacity(self.n);
@@ -194,16 +221,24 @@ impl Ga {
                 if clamped.len() == self.n {
                     break;
                 }
-                for g in child.iter_mut() {
-                    if rng.random::<f64>() < self.settings.p_mut {
-                        let change = match self.settings.mutation {
-                            Mutation::Fixed if rng.random::<f64>() < 0.5 => self.settings.m_mut,
-                            Mutation::Fixed => -self.settings.m_mut,
-                            Mutation::Uniform => {
-                                self.settings.m_mut * (2.0 * rng.random::<f64>() - 1.0)
+                for (j, g) in child.iter_mut().enumerate() {
+                    if rng.random::<f64>() >= self.settings.p_mut {
+                        continue;
+                    }
+                    let m = self.settings.m_mut;
+                    match self.settings.mutation {
+                        Mutation::Fixed => {
+                            *g *= 1.0 + if rng.random::<f64>() < 0.5 { m } else { -m }
+                        }
+                        Mutation::Uniform => *g *= 1.0 + m * (2.0 * rng.random::<f64>() - 1.0),
+                        Mutation::NonUniform => {
+                            let shrink = 1.0 - rng.random::<f64>().powf(reach);
+                            if rng.random::<f64>() < 0.5 {
+                                *g += (self.bounds.upper[j] - *g).max(0.0) * shrink;
+                            } else {
+                                *g -= (*g - self.bounds.lower[j]).max(0.0) * shrink;
                             }
-                        };
-                        *g *= 1.0 + change;
+                        }
                     }
                 }
                 clamped.push(self.bounds.clamp(&mut child));
@@ -222,6 +257,7 @@ impl Optimizer for Ga {
     fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
         if self.costs.len() == self.n {
             let (pop, clamped) = self.offspring(rng);
+            self.moves += 1;
             self.pop = pop;
             self.clamped = clamped;
         } else {
@@ -348,7 +384,7 @@ mod tests {
             upper: vec![1.0],
             names: vec!["x".into()],
         };
-        let mut ga = Ga::new(GaSettings::default(), bounds, 4);
+        let mut ga = Ga::new(GaSettings::default(), bounds, 4, 30);
         ga.pop = vec![0.5; 4];
         ga.clamped = vec![false, true, false, true];
         ga.costs = vec![0.5, 0.5, 4.0, 4.0];
@@ -379,7 +415,7 @@ mod tests {
                 p_mut: 0.0,
                 ..GaSettings::default()
             };
-            let mut ga = Ga::new(settings, bounds.clone(), 8);
+            let mut ga = Ga::new(settings, bounds.clone(), 8, 30);
             let mut rng = ChaCha8Rng::seed_from_u64(6);
             let first = ga.ask(&mut rng);
             ga.tell(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, f32::INFINITY]);
@@ -389,5 +425,34 @@ mod tests {
                 .all(|child| (0..3).all(|j| first.chunks(3).any(|parent| parent[j] == child[j])));
             assert_eq!(inherited, closed, "{crossover:?}");
         }
+    }
+
+    #[test]
+    fn non_uniform_mutation_stays_in_the_box_and_narrows_over_the_run() {
+        let bounds = Bounds {
+            lower: vec![0.0],
+            upper: vec![10.0],
+            names: vec!["x".into()],
+        };
+        let settings = GaSettings {
+            p_mut: 1.0,
+            mutation: Mutation::NonUniform,
+            ..GaSettings::default()
+        };
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let mut spread = |moves: usize| {
+            let mut ga = Ga::new(settings.clone(), bounds.clone(), 200, 10);
+            ga.pop = vec![5.0; 200];
+            ga.clamped = vec![false; 200];
+            ga.costs = vec![1.0; 200];
+            ga.moves = moves;
+            let (pop, clamped) = ga.offspring(&mut rng);
+            assert!(pop.iter().all(|x| (0.0..=10.0).contains(x)));
+            assert!(clamped.iter().all(|&c| !c), "never leaves the box");
+            pop.iter().fold(0.0f64, |m, x| m.max((x - 5.0).abs()))
+        };
+        // Generation 1 of 10 reaches most of the box; generation 9 hardly moves.
+        assert!(spread(0) > 3.0);
+        assert!(spread(8) < 0.01);
     }
 }

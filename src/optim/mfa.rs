@@ -78,6 +78,14 @@ pub struct MfaSettings {
     pub max_attractors: Option<usize>,
     /// Which brighter fireflies when capped.
     pub attractors: Attractors,
+    /// Start `ρ0` of the random walk's schedule `ρ(k) = ρ0·e^(−4.8k/G)`
+    /// (eq. 38: 0.1).
+    #[serde(default = "default_rho0")]
+    pub rho0: f64,
+}
+
+fn default_rho0() -> f64 {
+    0.1
 }
 
 /// Which brighter fireflies a capped firefly moves towards.
@@ -100,6 +108,7 @@ impl Default for MfaSettings {
             scale: Scale::Raw,
             max_attractors: None,
             attractors: Attractors::Random,
+            rho0: default_rho0(),
         }
     }
 }
@@ -114,7 +123,7 @@ impl MfaSettings {
             Lambda0Schedule::Equation => self.a - self.b * frac,
         };
         let sigma = 2.0 * 7f64.powf(-k / g);
-        let rho = 0.1 * (-4.8 * k / g).exp();
+        let rho = self.rho0 * (-4.8 * k / g).exp();
         (lambda0, sigma, rho)
     }
 }
@@ -259,6 +268,11 @@ mod tests {
             ..code
         };
         assert!((eq.schedule(30, 30).0 - 0.8).abs() < 1e-12);
+        let wide = MfaSettings {
+            rho0: 0.2,
+            ..MfaSettings::default()
+        };
+        assert!((wide.schedule(7, 30).2 - 2.0 * code.schedule(7, 30).2).abs() < 1e-15);
     }
 
     #[test]

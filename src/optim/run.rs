@@ -68,7 +68,7 @@ impl AnyOptimizer {
     pub fn new(algo: Algorithm, s: &AlgoSettings, bounds: Bounds, run: &RunSettings) -> Self {
         let (n, g) = (run.population, run.generations);
         match algo {
-            Algorithm::Ga => AnyOptimizer::Ga(Ga::new(s.ga.clone(), bounds, n)),
+            Algorithm::Ga => AnyOptimizer::Ga(Ga::new(s.ga.clone(), bounds, n, g)),
             Algorithm::Mfa => AnyOptimizer::Mfa(Mfa::new(s.mfa.clone(), bounds, n, g)),
             Algorithm::Pso => AnyOptimizer::Pso(Pso::new(s.pso.clone(), bounds, n, g)),
             Algorithm::De => AnyOptimizer::De(De::new(s.de.clone(), bounds, n)),
