@@ -150,7 +150,7 @@ fn cavatappi_100g_is_diagnosed_after_resampling() {
             "pressure_psi",
         ])
         .args(["--output", "disp_mm", "--resample", "0.01"])
-        .args(["--effects", "saturation,creep", "--seeds", "2"])
+        .args(["--effects", "saturation,creep", "--seeds", "3"])
         .arg(&path)
         .output()
         .unwrap();

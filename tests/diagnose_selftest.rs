@@ -32,10 +32,6 @@ fn rig_trace(len: usize) -> Trace {
 fn fast() -> Settings {
     Settings {
         seeds: 2,
-        baseline_population: 30,
-        baseline_generations: 150,
-        population: 30,
-        generations: 150,
         ..Settings::default()
     }
 }

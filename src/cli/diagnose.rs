@@ -43,7 +43,7 @@ pub struct Args {
     #[arg(long, default_value_t = Settings::default().seeds)]
     seeds: usize,
     /// Generations of each candidate fit (population 30); the baseline gets
-    /// 300 generations of 40 with 4 seeds. Fewer is faster and less certain.
+    /// 600 generations of 40 with 6 seeds. Fewer is faster and less certain.
     #[arg(long, default_value_t = Settings::default().generations)]
     generations: usize,
     /// Evaluation backend. The effect models are scored on the CPU (rayon),
