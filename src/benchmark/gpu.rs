@@ -244,24 +244,6 @@ impl GpuOscillator {
         let bytes = (n * 4) as u64;
         enc.copy_buffer_to_buffer(out, 0, read, 0, bytes);
         self.queue.submit([enc.finish()]);
-        let slice = read.slice(..bytes);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .context("waiting for the GPU")?;
-        rx.recv()
-            .context("map callback dropped")?
-            .context("mapping the result buffer")?;
-        let result = {
-            let view = slice
-                .get_mapped_range()
-                .map_err(|e| anyhow!("reading the result buffer: {e:?}"))?;
-            bytemuck::cast_slice::<u8, f32>(&view).to_vec()
-        };
-        read.unmap();
-        Ok(result)
+        crate::eval::gpu::read_back_f32(&self.device, read, bytes)
     }
 }

@@ -311,6 +311,35 @@ impl GpuEvaluator {
 }
 
 /// `size` bytes of `buffer` from `offset`, as a binding.
+/// Maps the first `bytes` of a `MAP_READ` buffer after the work that fills
+/// it was submitted, waits for the GPU, and copies them out as `f32`.
+/// Shared by every pipeline of the project: one read-back per call.
+pub fn read_back_f32(
+    device: &wgpu::Device,
+    readback: &wgpu::Buffer,
+    bytes: u64,
+) -> anyhow::Result<Vec<f32>> {
+    let slice = readback.slice(..bytes);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .context("waiting for the GPU")?;
+    rx.recv()
+        .context("the GPU read-back was dropped")?
+        .context("mapping the GPU read-back")?;
+    let values = {
+        let view = slice
+            .get_mapped_range()
+            .context("reading the GPU read-back")?;
+        bytemuck::cast_slice(&view).to_vec()
+    };
+    readback.unmap();
+    Ok(values)
+}
+
 fn range(buffer: &wgpu::Buffer, offset: u64, size: u64) -> wgpu::BindingResource<'_> {
     wgpu::BindingResource::Buffer(wgpu::BufferBinding {
         buffer,
@@ -484,24 +513,7 @@ impl GpuEvaluator {
         encoder.copy_buffer_to_buffer(out, 0, readback, 0, out_bytes);
         self.queue.submit([encoder.finish()]);
 
-        let slice = readback.slice(..out_bytes);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .context("waiting for the GPU")?;
-        rx.recv()
-            .context("the GPU read-back was dropped")?
-            .context("mapping the GPU read-back")?;
-        let flat: Vec<f32> = {
-            let view = slice
-                .get_mapped_range()
-                .context("reading the GPU read-back")?;
-            bytemuck::cast_slice(&view).to_vec()
-        };
-        readback.unmap();
+        let flat = read_back_f32(&self.device, readback, out_bytes)?;
 
         // Chunk c holds [e][i] for its own candidates at start * n_exp.
         let mut per_experiment = vec![Vec::with_capacity(n); n_exp];
