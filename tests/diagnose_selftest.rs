@@ -5,7 +5,7 @@
 use std::sync::OnceLock;
 
 use mckibben::data::Trace;
-use mckibben::diagnose::selftest::{Case, Nominal, cases, run_case};
+use mckibben::diagnose::selftest::{Case, MARKS, Nominal, cases, mark, noise_sigma, run_case};
 use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::presets::thesis_params;
 use mckibben::model::{Family, simulate};
@@ -90,4 +90,41 @@ fn two_withheld_effects_are_both_named() {
         "{o:?}"
     );
     assert!(o.gap_closed > 0.5, "{o:?}");
+}
+
+#[test]
+fn every_case_leaves_the_mark_it_was_calibrated_to() {
+    let nom = nominal();
+    let sigma = noise_sigma(nom);
+    let all = cases(nom, &Effect::ALL);
+    for e in Effect::ALL {
+        let marks: Vec<f64> = MARKS
+            .iter()
+            .map(|(k, label)| {
+                let case = all
+                    .iter()
+                    .find(|c| c.name == format!("{e} ({label})"))
+                    .unwrap();
+                let m = mark(nom, &case.effects);
+                // The target, or short of it only where the effect's box ends.
+                assert!(
+                    m <= 1.01 * k * sigma,
+                    "{}: mark {m} above {}",
+                    case.name,
+                    k * sigma
+                );
+                m
+            })
+            .collect();
+        assert!(
+            marks[0] >= 0.9 * MARKS[0].0 * sigma,
+            "{e} (small): mark {} is not {}",
+            marks[0],
+            MARKS[0].0 * sigma
+        );
+        assert!(
+            marks[1] > marks[0],
+            "{e}: the large case leaves no larger mark: {marks:?}"
+        );
+    }
 }

@@ -43,7 +43,7 @@ pub struct Args {
     #[arg(long, default_value_t = Settings::default().seeds)]
     seeds: usize,
     /// Generations of each candidate fit (population 30); the baseline gets
-    /// 600 generations of 40 with 6 seeds. Fewer is faster and less certain.
+    /// 600 generations of 40 with 12 seeds. Fewer is faster and less certain.
     #[arg(long, default_value_t = Settings::default().generations)]
     generations: usize,
     /// Evaluation backend. The effect models are scored on the CPU (rayon),
@@ -163,14 +163,22 @@ fn self_test(
         println!("{passed} of {} cases pass", outcomes.len());
         println!("\nTwin check (stair, 4.5 kg): one twin effect on vs all off; gap energy in mm²");
         println!(
-            "{:<12} {:>9} {:>9} {:>11} {:>11} {:>7}  {:<24} result",
-            "twin effect", "RMSE on", "RMSE off", "attributed", "disappears", "ratio", "named (on)"
+            "{:<12} {:<9} {:>9} {:>9} {:>11} {:>11} {:>7}  {:<24} result",
+            "twin effect",
+            "input",
+            "RMSE on",
+            "RMSE off",
+            "attributed",
+            "disappears",
+            "ratio",
+            "named (on)"
         );
         for t in &twin {
             let named: Vec<_> = t.verdict_on.iter().map(|e| e.name()).collect();
             println!(
-                "{:<12} {:>9.4} {:>9.4} {:>11.4} {:>11.4} {:>7.2}  {:<24} {}",
+                "{:<12} {:<9} {:>9.4} {:>9.4} {:>11.4} {:>11.4} {:>7.2}  {:<24} {}",
                 t.twin_effect,
+                t.input,
                 t.baseline_on,
                 t.baseline_off,
                 t.attributed,

@@ -50,7 +50,7 @@ pub enum Effect {
     /// rate; `η` in seconds per input unit.
     Rate,
     /// Parameters that depend on the hanging load: the input gain of dataset
-    /// `e ≥ 1` is `b·(1 + g_e)` (dataset 0 is the reference). Needs several datasets.
+    /// `e ≥ 1` is `b·(1 + g_e)` on the absolute input (dataset 0 is the reference). Needs several datasets.
     Load,
 }
 
@@ -471,7 +471,8 @@ impl Augmented {
                 ui += (dir * eps) * (ui + u_mean);
             }
             if let Some(g) = m.load {
-                ui *= 1.0 + g;
+                // The gain acts on the absolute input, as the asymmetry's does.
+                ui += g * (ui + u_mean);
             }
             // Model step: the equations of `model::sim`.
             let mut xk = linear_part(a, alpha, b, c, x, w, ui);

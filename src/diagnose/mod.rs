@@ -108,7 +108,7 @@ pub fn diagnose(
         .collect();
     let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
     let floor = r#where::noise_floor(&refs);
-    let selection = select::select(&data, family, effects, settings);
+    let selection = select::select(&data, family, effects, settings, floor);
     anyhow::ensure!(
         selection.baseline.best.val_rmse.is_finite(),
         "the {family} baseline fitted on the estimation half diverges on the validation half \

@@ -112,7 +112,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "val_fit_percent": last.val_fit_percent,
             "gap_closed": last.gap_closed,
         },
-        "rule": "accept iff R0−R1 > 3·√(s0²+s1²) (seed spread), ΔBIC = N·ln(R1²/R0²) + k·ln N < −10, and (R0−R1)/R0 ≥ 2 %",
+        "rule": "accept iff R0−R1 > 3·√(s0²+s1²) (seed spread), ΔBIC = N·ln(R1²/R0²) + k·ln N < −10, (R0−R1)/R0 ≥ 2 %, and R0 > 1.1·noise floor; a candidate's gain that the model without it reaches from the candidate's parameters is not credited to it (ablation)",
     })
 }
 
@@ -210,8 +210,21 @@ pub fn to_text(d: &Diagnosis) -> String {
 
     let _ = writeln!(
         o,
-        "\nWHICH effect (validation RMSE; accepted = passes all three rules):"
+        "\nWHICH effect (validation RMSE; accepted = passes all four rules):"
     );
+    for (i, r) in d.selection.rounds.iter().enumerate() {
+        for f in &r.rebased {
+            let _ = writeln!(
+                o,
+                "  round {}: a candidate's parameters led the model without it to a better \
+                 estimation fit (SSE {:.1}, validation RMSE {:.4}); it became the current \
+                 model and the round was judged again from it",
+                i + 1,
+                f.best.est_sse,
+                f.best.val_rmse
+            );
+        }
+    }
     for (c, accepted, round) in candidate_list(d) {
         let params: Vec<String> = c
             .effect_params

@@ -11,7 +11,7 @@ use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
 use super::effects::{Augmented, Context, Effect};
-use super::select::{Data, Settings, fit_seeds};
+use super::select::{Data, Settings, Start, fit_seeds};
 use super::{Diagnosis, diagnose};
 use crate::data::Trace;
 use crate::model::Family;
@@ -33,7 +33,7 @@ impl Nominal {
     pub fn fit(trace: &Trace, family: Family, settings: &Settings) -> anyhow::Result<Nominal> {
         let data = Data::new(std::slice::from_ref(trace))?;
         let model = Augmented::new(family, Vec::new(), 1);
-        let fit = fit_seeds(&data, &model, None, settings, 0);
+        let fit = fit_seeds(&data, &model, Start::Scratch, settings, 0);
         let pred = data.predict(&model, &fit.best.params);
         let ym = data.whole[0].y_mean;
         let output = pred[0].iter().map(|&v| v as f64 + ym).collect();
@@ -67,9 +67,15 @@ pub struct Case {
     pub effects: Vec<(Effect, Vec<f64>)>,
 }
 
-/// The standard cases: every effect at a small and a large magnitude, scaled
-/// to the nominal data; the control; `delay` with `saturation`.
-pub fn cases(nominal: &Nominal, effects: &[Effect]) -> Vec<Case> {
+/// The marks the two sizes of every effect leave on the nominal output: the
+/// RMS change of the nominal model's response, in units of the added noise.
+pub const MARKS: [(f64, &str); 2] = [(6.0, "small"), (15.0, "large")];
+
+/// The effect's parameters at `t ∈ [0, 1]` along its size, from neutral
+/// (`t = 0`) to the far edge of its search box (`t = 1`), in the direction a
+/// physical rig shows (a positive delay, dead zone, asymmetry, play, extra
+/// pole; an end stop below the peak; a creep with the muscle's gain sign).
+fn along(nominal: &Nominal, e: Effect, t: f64) -> Vec<f64> {
     let c = nominal.ctx();
     let ru = c.input_max - c.input_min;
     let (omin, omax) = nominal.output_range();
@@ -77,38 +83,95 @@ pub fn cases(nominal: &Nominal, effects: &[Effect]) -> Vec<Case> {
     let v = (c.max_step / c.dt).max(f64::MIN_POSITIVE);
     let peak = if c.drives_up { omax } else { omin };
     let toward = if c.drives_up { -1.0 } else { 1.0 };
-    let size = |e: Effect, big: bool| -> Vec<f64> {
-        let f = |small: f64, large: f64| if big { large } else { small };
-        match e {
-            Effect::Delay => vec![f(3.0, 8.0)],
-            Effect::Deadzone => vec![c.input_min.max(0.0) + f(0.15, 0.3) * ru],
-            Effect::Saturation => vec![peak + toward * f(0.1, 0.25) * ry],
-            Effect::Asymmetry => vec![f(0.1, 0.25)],
-            Effect::Inertia => vec![f(0.4, 0.7)],
-            Effect::Backlash => vec![f(0.08, 0.2) * ru],
-            Effect::Creep => vec![0.995, f(0.2, 0.35) * ry / ru],
-            Effect::Rate => vec![f(0.3, 0.8) / v],
-            Effect::Load => vec![f(0.1, 0.25)],
-        }
+    match e {
+        Effect::Delay => vec![30.0 * t],
+        Effect::Deadzone => vec![c.input_min.max(0.0) + 0.6 * ru * t],
+        Effect::Saturation => vec![peak + toward * 0.4 * ry * t],
+        Effect::Asymmetry => vec![0.5 * t],
+        Effect::Inertia => vec![0.9 * t],
+        Effect::Backlash => vec![0.5 * ru * t],
+        Effect::Creep => vec![0.995, -toward * 2.0 * ry / ru * t],
+        Effect::Rate => vec![10.0 / v * t],
+        Effect::Load => vec![0.5 * t],
+    }
+}
+
+/// The mark `effects` leave on the nominal output: the RMS of the change of
+/// the response over every dataset, less its mean (a constant offset is
+/// absorbed by the intercept `c`, so it is no mark); `+∞` if the model with
+/// them diverges.
+pub fn mark(nominal: &Nominal, effects: &[(Effect, Vec<f64>)]) -> f64 {
+    let case = Case {
+        name: String::new(),
+        effects: effects.to_vec(),
     };
+    let (model, theta) = case_model(nominal, &case);
+    let whole = &nominal.data.whole[0];
+    let change: Vec<f64> = (0..model.datasets)
+        .flat_map(|i| {
+            let y = model.simulate(&theta, i, nominal.ctx(), whole);
+            y.iter()
+                .zip(&nominal.output)
+                .map(|(&v, &o)| v as f64 + whole.y_mean - o)
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let n = change.len().max(1) as f64;
+    let mean = change.iter().sum::<f64>() / n;
+    let rms = (change.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    if rms.is_finite() { rms } else { f64::INFINITY }
+}
+
+/// The largest size of `e` whose mark on the nominal output is at most
+/// `target` (bisection along [`along`]; the box's edge if even that leaves a
+/// smaller mark).
+fn calibrate(nominal: &Nominal, e: Effect, target: f64) -> Vec<f64> {
+    let at = |t: f64| along(nominal, e, t);
+    if mark(nominal, &[(e, at(1.0))]) <= target {
+        return at(1.0);
+    }
+    let (mut lo, mut hi) = (0.0, 1.0);
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if mark(nominal, &[(e, at(mid))]) < target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    // The lower end: the mark can jump where the effect starts or stops
+    // binding, and a case must not be larger than asked for.
+    at(lo)
+}
+
+/// The standard cases: every effect at two sizes calibrated to the mark it
+/// leaves on the nominal output ([`MARKS`] × the noise), so that every case
+/// is equally visible above the noise whatever the effect's units; the
+/// control; `delay` with `saturation` (both at the small size).
+pub fn cases(nominal: &Nominal, effects: &[Effect]) -> Vec<Case> {
+    let sigma = noise_sigma(nominal);
     let mut out = vec![Case {
         name: "control".into(),
         effects: Vec::new(),
     }];
     for &e in effects {
-        for (big, label) in [(false, "small"), (true, "large")] {
+        for (k, label) in MARKS {
             out.push(Case {
                 name: format!("{e} ({label})"),
-                effects: vec![(e, size(e, big))],
+                effects: vec![(e, calibrate(nominal, e, k * sigma))],
             });
         }
     }
     if effects.contains(&Effect::Delay) && effects.contains(&Effect::Saturation) {
+        let small = MARKS[0].0 * sigma;
         out.push(Case {
             name: "delay + saturation".into(),
             effects: vec![
-                (Effect::Delay, size(Effect::Delay, false)),
-                (Effect::Saturation, size(Effect::Saturation, false)),
+                (Effect::Delay, calibrate(nominal, Effect::Delay, small)),
+                (
+                    Effect::Saturation,
+                    calibrate(nominal, Effect::Saturation, small),
+                ),
             ],
         });
     }
@@ -122,10 +185,9 @@ pub fn noise_sigma(nominal: &Nominal) -> f64 {
     0.005 * (hi - lo)
 }
 
-/// The traces of a case: the nominal input, the nominal model with the case's
-/// effects, plus white noise (seeded). The `load` effect needs two datasets:
-/// the second is the same input under a different load.
-pub fn synthesize(nominal: &Nominal, case: &Case, seed: u64) -> Vec<Trace> {
+/// The model a case's data come from and its parameters: the nominal model
+/// with the case's effects (two datasets, two loads, with `load`).
+fn case_model(nominal: &Nominal, case: &Case) -> (Augmented, Vec<f32>) {
     let datasets = if case.effects.iter().any(|(e, _)| *e == Effect::Load) {
         2
     } else {
@@ -136,11 +198,21 @@ pub fn synthesize(nominal: &Nominal, case: &Case, seed: u64) -> Vec<Trace> {
         case.effects.iter().map(|(e, _)| *e).collect(),
         datasets,
     );
-    let mut theta = nominal.params.clone();
-    for (_, p) in &case.effects {
-        theta.extend_from_slice(p);
-    }
-    let theta32: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
+    let theta = nominal
+        .params
+        .iter()
+        .chain(case.effects.iter().flat_map(|(_, p)| p))
+        .map(|&v| v as f32)
+        .collect();
+    (model, theta)
+}
+
+/// The traces of a case: the nominal input, the nominal model with the case's
+/// effects, plus white noise (seeded). The `load` effect needs two datasets:
+/// the second is the same input under a different load.
+pub fn synthesize(nominal: &Nominal, case: &Case, seed: u64) -> Vec<Trace> {
+    let (model, theta32) = case_model(nominal, case);
+    let datasets = model.datasets;
     let whole = &nominal.data.whole[0];
     let sigma = noise_sigma(nominal);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -391,6 +463,8 @@ pub fn table(outcomes: &[Outcome], effects: &[Effect]) -> String {
 pub struct TwinOutcome {
     /// The twin's effect name (`mckibben twin --effect`).
     pub twin_effect: String,
+    /// The column diagnosed as the model input.
+    pub input: String,
     pub verdict_on: Vec<Effect>,
     pub verdict_off: Vec<Effect>,
     /// Baseline validation RMSE with the effect on and off.
@@ -406,45 +480,111 @@ pub struct TwinOutcome {
     pub pass: bool,
 }
 
-/// The twin effects checked: the ones that leave a mark on a stair.
-pub const TWIN_EFFECTS: [&str; 4] = ["friction", "deadband", "spool_lag", "compliance"];
+/// One twin effect the check switches, and the input it is diagnosed from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwinCase {
+    /// `mckibben twin --effect` name.
+    pub effect: &'static str,
+    /// Input column: the effect must act between it and the displacement.
+    pub input: &'static str,
+}
 
-/// Runs the twin's stair (4.5 kg, seed 1) with every non-ideal effect of
-/// [`TWIN_EFFECTS`] off except one, and with all off, diagnoses both and
-/// compares the gap attributed with the gap that disappears.
+/// The twin effects checked. The braid's friction and the wall thickness act
+/// between the measured pressure and the displacement; the valves' dead band
+/// and spool lag act before the pressure sensor, so they are invisible from
+/// the pressure and are diagnosed from the valve command, the input they act
+/// on. The hose compliance sits at the sensor's node and changes nothing
+/// between either input and the displacement at this sample time (TWIN.md).
+pub const TWIN_CASES: [TwinCase; 4] = [
+    TwinCase {
+        effect: "friction",
+        input: "pressure",
+    },
+    TwinCase {
+        effect: "thickness",
+        input: "pressure",
+    },
+    TwinCase {
+        effect: "deadband",
+        input: "valve_in",
+    },
+    TwinCase {
+        effect: "spool_lag",
+        input: "valve_in",
+    },
+];
+
+/// The twin's switchable effects that the check turns off (all but the one
+/// under test); noise and quantization stay on.
+const TWIN_SWITCHED: [&str; 6] = [
+    "friction",
+    "thickness",
+    "deadband",
+    "spool_lag",
+    "compliance",
+    "endstop",
+];
+
+/// Runs the twin's stair (4.5 kg, seed 1) with every switched effect off
+/// except the one of each [`TwinCase`], and with all off, diagnoses both
+/// from the case's input and compares the gap attributed with the gap that
+/// disappears.
 pub fn twin_check(
     family: Family,
     effects: &[Effect],
     settings: &Settings,
 ) -> anyhow::Result<Vec<TwinOutcome>> {
     use crate::twin::experiment::{Kind, RunSpec};
-    let run = |keep: Option<&str>| -> anyhow::Result<Trace> {
+    let run = |keep: Option<&str>, input: &str| -> anyhow::Result<Trace> {
         let spec = RunSpec {
             kind: Kind::Stair,
             load_kg: 4.5,
             seed: 1,
             freq_rad_s: 1.0,
-            effects: TWIN_EFFECTS
+            effects: TWIN_SWITCHED
                 .iter()
-                .chain(&["endstop"])
                 .filter(|e| Some(**e) != keep)
                 .map(|e| format!("{e}=0"))
                 .collect(),
         };
-        spec.run().map_err(|e| anyhow::anyhow!("twin: {e}"))
+        let mut trace = spec.run().map_err(|e| anyhow::anyhow!("twin: {e}"))?;
+        if input != trace.input_name {
+            let (_, column) = trace
+                .extra
+                .iter()
+                .find(|(name, _)| name == input)
+                .ok_or_else(|| anyhow::anyhow!("twin: no column `{input}`"))?;
+            trace.input = column.clone();
+            trace.input_name = input.to_string();
+        }
+        Ok(trace)
     };
     let explained = |d: &Diagnosis| d.baseline().val_rmse.powi(2) - d.last().val_rmse.powi(2);
-    let off = diagnose(&[run(None)?], family, effects, settings)?;
+    let mut off: Vec<(&str, Diagnosis)> = Vec::new();
     let mut out = Vec::new();
-    for name in TWIN_EFFECTS {
-        let on = diagnose(&[run(Some(name))?], family, effects, settings)?;
-        let attributed = explained(&on) - explained(&off);
+    for case in TWIN_CASES {
+        if !off.iter().any(|(input, _)| *input == case.input) {
+            let d = diagnose(&[run(None, case.input)?], family, effects, settings)?;
+            off.push((case.input, d));
+        }
+        let (_, off) = off
+            .iter()
+            .find(|(input, _)| *input == case.input)
+            .expect("diagnosed above");
+        let on = diagnose(
+            &[run(Some(case.effect), case.input)?],
+            family,
+            effects,
+            settings,
+        )?;
+        let attributed = explained(&on) - explained(off);
         let disappears = on.baseline().val_rmse.powi(2) - off.baseline().val_rmse.powi(2);
         let ratio = attributed / disappears;
         let pass =
             (ratio - 1.0).abs() <= 0.2 && disappears >= 0.05 * on.baseline().val_rmse.powi(2);
         out.push(TwinOutcome {
-            twin_effect: name.into(),
+            twin_effect: case.effect.into(),
+            input: case.input.into(),
             verdict_on: on.selection.verdict.clone(),
             verdict_off: off.selection.verdict.clone(),
             baseline_on: on.baseline().val_rmse,
