@@ -20,8 +20,10 @@ use super::common::MultiDataArgs;
 /// residual–input tests), WHICH effect of the catalogue (delay, deadzone,
 /// saturation, asymmetry, inertia, backlash, creep, rate, load) explains it —
 /// each fitted as an addition to the baseline with several seeds and accepted
-/// only if it beats the seed-to-seed spread and pays for its parameters —
-/// and HOW FAR the validation error falls, against a noise-floor estimate.
+/// only if it beats the seed-to-seed spread, pays for its parameters, is
+/// not a better refit of the model without it, and the model still misses
+/// by more than the noise — and HOW FAR the validation error falls, against
+/// a noise-floor estimate.
 /// "None of the catalogued effects explains the remaining gap" is a valid answer.
 ///
 /// Example: `mckibben diagnose data/stair_4.5kg.csv --report out/`
