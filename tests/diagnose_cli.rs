@@ -39,12 +39,7 @@ fn json_follows_the_contract() {
         .arg(&csv)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = json_of(&out);
     for k in ["model", "params", "val_rmse", "val_fit_percent"] {
         assert!(!v["baseline"][k].is_null(), "baseline.{k}");
     }
@@ -95,6 +90,16 @@ fn json_follows_the_contract() {
         v["final"]["val_rmse"].as_f64().unwrap() <= v["baseline"]["val_rmse"].as_f64().unwrap()
     );
     assert!(v["final"]["gap_closed"].is_number());
+}
+
+/// The JSON a successful run printed (the run's stderr if it failed).
+fn json_of(out: &std::process::Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
 }
 
 fn error_of(args: &[&str], csv: &Path) -> String {
@@ -154,12 +159,7 @@ fn cavatappi_100g_is_diagnosed_after_resampling() {
         .arg(&path)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = json_of(&out);
     let base = v["baseline"]["val_rmse"].as_f64().unwrap();
     let last = v["final"]["val_rmse"].as_f64().unwrap();
     assert!(last < base, "{v}");
