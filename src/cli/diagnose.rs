@@ -48,6 +48,12 @@ pub struct Args {
     /// 600 generations of 40 with 12 seeds. Fewer is faster and less certain.
     #[arg(long, default_value_t = Settings::default().generations)]
     generations: usize,
+    /// Extra seeds of each first-round candidate fitted from scratch (the
+    /// baseline's budget, through the multi-step-ahead prediction error
+    /// first): they find a model with the effect that a warm start from a
+    /// baseline which compensates the effect cannot reach. 0 is faster.
+    #[arg(long, default_value_t = Settings::default().scratch_seeds)]
+    scratch_seeds: usize,
     /// Evaluation backend. The effect models are scored on the CPU (rayon),
     /// which is what `auto` picks; `gpu` is refused.
     #[arg(long, default_value = "auto", value_parser = ["auto", "cpu", "gpu"])]
@@ -94,6 +100,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let settings = Settings {
         seeds: args.seeds,
         generations: args.generations,
+        scratch_seeds: args.scratch_seeds,
         seed: args.seed,
         ..Settings::default()
     };

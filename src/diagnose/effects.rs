@@ -388,7 +388,10 @@ impl Augmented {
     /// Runs the model on dataset `dataset` (input `u`, deviation coordinates)
     /// from the measured `y0`, calling `sink(k, ŷ(k))` for `k ≥ 1`. Returns
     /// false (and stops) as soon as a state leaves the divergence bound or
-    /// `sink` returns false.
+    /// `sink` returns false. With `restart = Some((y, h))` the output state
+    /// is set back to the measured `y(k)` (less the creep state) after every
+    /// `h`-th sample, the other states running on: the `h`-step-ahead
+    /// predictor of [`Augmented::sse_ahead`].
     fn run(
         &self,
         theta: &[f32],
@@ -396,6 +399,7 @@ impl Augmented {
         ctx: &Context,
         u: &[f32],
         y0: f32,
+        restart: Option<(&[f32], usize)>,
         mut sink: impl FnMut(usize, f32) -> bool,
     ) -> bool {
         assert_eq!(
@@ -513,6 +517,11 @@ impl Augmented {
             if !finite || !sink(k, yk) {
                 return false;
             }
+            if let Some((y, h)) = restart {
+                if k % h == 0 {
+                    x = y[k] - z;
+                }
+            }
         }
         true
     }
@@ -531,20 +540,50 @@ impl Augmented {
         if let Some(first) = out.first_mut() {
             *first = y0;
         }
-        self.run(theta, dataset, ctx, &exp.u, y0, |k, v| {
+        self.run(theta, dataset, ctx, &exp.u, y0, None, |k, v| {
             out[k] = v;
             true
         });
         out
     }
 
-    /// `Σ_{k≥1} (ŷ(k) − y(k))²` in `f32`, `+∞` if the simulation diverged.
+    /// `Σ_{k≥1} (ŷ(k) − y(k))²` of the free run in `f32`, `+∞` if the
+    /// simulation diverged.
     pub fn sse(&self, theta: &[f32], dataset: usize, ctx: &Context, exp: &Experiment) -> f32 {
+        self.sse_restarted(theta, dataset, ctx, exp, None)
+    }
+
+    /// The same sum for the `horizon`-step-ahead prediction: the output
+    /// state restarts from the measurement every `horizon` samples (the
+    /// Bouc-Wen, creep and play states run on). MATLAB's `Focus`
+    /// "prediction" against "simulation": errors cannot pile up through a
+    /// slow pole for longer than the horizon, so the cost surface has no
+    /// needle along the pole and the static gain, which the free run has.
+    pub fn sse_ahead(
+        &self,
+        theta: &[f32],
+        dataset: usize,
+        ctx: &Context,
+        exp: &Experiment,
+        horizon: usize,
+    ) -> f32 {
+        self.sse_restarted(theta, dataset, ctx, exp, Some(horizon.max(1)))
+    }
+
+    fn sse_restarted(
+        &self,
+        theta: &[f32],
+        dataset: usize,
+        ctx: &Context,
+        exp: &Experiment,
+        horizon: Option<usize>,
+    ) -> f32 {
         if exp.is_empty() {
             return 0.0;
         }
         let mut acc = 0.0f32;
-        let ok = self.run(theta, dataset, ctx, &exp.u, exp.y[0], |k, v| {
+        let restart = horizon.map(|h| (exp.y.as_slice(), h));
+        let ok = self.run(theta, dataset, ctx, &exp.u, exp.y[0], restart, |k, v| {
             let e = v - exp.y[k];
             acc += e * e;
             true
@@ -664,6 +703,42 @@ mod tests {
         shifted.extend_from_slice(&exp.u[..exp.len() - 3]);
         let reference = simulate(fam, &[0.9, 2.0, 0.1], &shifted, exp.y[0]);
         assert_eq!(got, reference.x);
+    }
+
+    #[test]
+    fn one_step_ahead_prediction_error_is_the_equation_error() {
+        // For the linear family, the 1-step-ahead predictor restarts from
+        // every measurement: ŷ(k) = a·y(k−1) + b·u(k−1) + c.
+        let exp = experiment();
+        let ctx = Context::of(&exp, true);
+        let model = Augmented::new(Family::Linear, Vec::new(), 1);
+        let (a, b, c) = (0.8f32, 30.0f32, 0.2f32);
+        let want: f32 = (1..exp.len())
+            .map(|k| {
+                let e = ((a * exp.y[k - 1]) + (b * exp.u[k - 1])) + c - exp.y[k];
+                e * e
+            })
+            .sum();
+        let got = model.sse_ahead(&[a, b, c], 0, &ctx, &exp, 1);
+        assert!((got - want).abs() <= 1e-4 * want, "{got} vs {want}");
+        // Far from the data's own model, the free run piles its error up
+        // through the pole; the short horizon does not.
+        assert!(got < model.sse(&[a, b, c], 0, &ctx, &exp));
+    }
+
+    #[test]
+    fn a_horizon_past_the_data_is_the_free_run() {
+        let exp = experiment();
+        let ctx = Context::of(&exp, true);
+        let model = Augmented::new(Family::Classic, vec![Effect::Creep, Effect::Inertia], 1);
+        let mut theta: Vec<f32> = thesis_params(Family::Classic)
+            .iter()
+            .map(|&v| v as f32)
+            .collect();
+        theta.extend([0.99, 5.0, 0.3]);
+        let free = model.sse(&theta, 0, &ctx, &exp);
+        assert_eq!(model.sse_ahead(&theta, 0, &ctx, &exp, exp.len()), free);
+        assert_ne!(model.sse_ahead(&theta, 0, &ctx, &exp, 10), free);
     }
 
     #[test]
