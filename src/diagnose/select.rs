@@ -195,24 +195,27 @@ impl Data {
 
     /// Estimation SSE of `theta` (summed over datasets, `+∞` if any diverged).
     pub fn est_sse(&self, model: &Augmented, theta: &[f64]) -> f64 {
-        let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
-        self.est
-            .iter()
-            .zip(&self.ctx)
-            .enumerate()
-            .map(|(i, (e, c))| model.sse(&t, i, c, e) as f64)
-            .sum()
+        self.est_sum(theta, |t, i, c, e| model.sse(t, i, c, e))
     }
 
     /// Estimation SSE of the `horizon`-step-ahead prediction (see
     /// [`Augmented::sse_ahead`]).
     pub fn est_sse_ahead(&self, model: &Augmented, theta: &[f64], horizon: usize) -> f64 {
+        self.est_sum(theta, |t, i, c, e| model.sse_ahead(t, i, c, e, horizon))
+    }
+
+    /// `cost(θ, dataset, context, estimation part)` summed over the datasets.
+    fn est_sum(
+        &self,
+        theta: &[f64],
+        cost: impl Fn(&[f32], usize, &Context, &Experiment) -> f32,
+    ) -> f64 {
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
         self.est
             .iter()
             .zip(&self.ctx)
             .enumerate()
-            .map(|(i, (e, c))| model.sse_ahead(&t, i, c, e, horizon) as f64)
+            .map(|(i, (e, c))| cost(&t, i, c, e) as f64)
             .sum()
     }
 
@@ -574,6 +577,37 @@ pub fn fit_seeds(
     settings: &Settings,
     salt: u64,
 ) -> SeededFit {
+    summarize(seed_fits(data, model, start, settings, salt))
+}
+
+/// [`fit_seeds`] with the fits from scratch `scratch` ([`scratch_fits`])
+/// among the seeds: the first round's fits. A from-scratch baseline fitted
+/// to data with an unmodelled effect ends where it compensates the effect
+/// best, often far from where the model with the effect fits (on the
+/// self-test's `asymmetry (large)` case the baseline's β is 0.34 against the
+/// true 0.0002), and a warm start cannot walk back; a search from scratch
+/// can.
+fn fit_seeds_with(
+    data: &Data,
+    model: &Augmented,
+    start: Start<'_>,
+    settings: &Settings,
+    salt: u64,
+    scratch: &[Fit],
+) -> SeededFit {
+    let mut fits = seed_fits(data, model, start, settings, salt);
+    fits.extend_from_slice(scratch);
+    summarize(fits)
+}
+
+/// The fits of [`fit_seeds`], one per seed.
+fn seed_fits(
+    data: &Data,
+    model: &Augmented,
+    start: Start<'_>,
+    settings: &Settings,
+    salt: u64,
+) -> Vec<Fit> {
     let (seeds, pop, gens) = match start {
         Start::Scratch | Start::Ahead { .. } => (
             settings.baseline_seeds,
@@ -582,51 +616,12 @@ pub fn fit_seeds(
         ),
         Start::Warm { .. } => (settings.seeds, settings.population, settings.generations),
     };
-    let fits = (0..seeds.max(1) as u64)
-        .map(|i| {
-            fit_candidate(
-                data,
-                model,
-                start,
-                settings.seed + 1000 * salt + i,
-                pop,
-                gens,
-            )
-        })
-        .collect();
-    summarize(fits)
-}
-
-/// A first-round fit: `settings.seeds` warm-started fits from the baseline
-/// plus the fits from scratch `scratch` ([`scratch_fits`]). A from-scratch
-/// baseline fitted to data with an unmodelled effect ends where it
-/// compensates the effect best, often far from where the model with the
-/// effect fits (on the self-test's `asymmetry (large)` case the baseline's β
-/// is 0.34 against the true 0.0002), and a warm start cannot walk back; a
-/// search from scratch can.
-fn fit_first_round(
-    data: &Data,
-    model: &Augmented,
-    warm: Start<'_>,
-    settings: &Settings,
-    salt: u64,
-    scratch: &[Fit],
-) -> SeededFit {
-    let mut fits: Vec<Fit> = (0..settings.seeds.max(1) as u64)
+    (0..seeds.max(1) as u64)
         .map(|i| {
             let seed = settings.seed + 1000 * salt + i;
-            fit_candidate(
-                data,
-                model,
-                warm,
-                seed,
-                settings.population,
-                settings.generations,
-            )
+            fit_candidate(data, model, start, seed, pop, gens)
         })
-        .collect();
-    fits.extend_from_slice(scratch);
-    summarize(fits)
+        .collect()
 }
 
 /// `settings.scratch_seeds` fits of `model` from scratch through the
@@ -946,11 +941,8 @@ pub fn select(
         } else {
             Vec::new()
         };
-        let current = if first_round {
-            fit_first_round(data, &current_model, refit, settings, salt, &scratch[0])
-        } else {
-            fit_seeds(data, &current_model, refit, settings, salt)
-        };
+        let scratch_of = |i: usize| scratch.get(i).map_or(&[][..], Vec::as_slice);
+        let current = fit_seeds_with(data, &current_model, refit, settings, salt, scratch_of(0));
         // The refit gives the seed spread of "no new effect"; the yardstick
         // is the model as accepted.
         let mut yardstick = Yardstick {
@@ -975,11 +967,8 @@ pub fn select(
                         new_from: current_params.len(),
                     };
                     let salt = salt + 1 + i as u64;
-                    let fit = if first_round {
-                        fit_first_round(data, &model, start, settings, salt, &scratch[i + 1])
-                    } else {
-                        fit_seeds(data, &model, start, settings, salt)
-                    };
+                    let fit =
+                        fit_seeds_with(data, &model, start, settings, salt, scratch_of(i + 1));
                     (effect, model, fit)
                 })
                 .collect();
