@@ -18,7 +18,7 @@
 //! an upsampled input with a stride, so it has its own batch path: the `f32`
 //! twin on rayon or the shader on wgpu.)
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DVector;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -26,6 +26,7 @@ use rayon::prelude::*;
 use super::boucwen::{Params, sse_f32};
 use super::{FS, Record, UPSAMPLE, resample};
 use crate::optim::de::{De, DeSettings};
+use crate::optim::lm::{self, LmError, LmSettings};
 use crate::optim::{Bounds, Optimizer, argmin};
 
 /// Scores a population of canonical `f32` vectors (row-major `N × 7`).
@@ -356,100 +357,36 @@ fn population_search(
 /// Names of the population stage's coordinates (see [`search_to_params`]).
 pub const SEARCH_NAMES: [&str; 6] = ["m", "c", "omega0", "rho", "beta_gamma", "beta_delta"];
 
-/// Levenberg–Marquardt on the residuals of [`Training::simulate`], forward
-/// differences, Marquardt's diagonal scaling; ν kept ≥ 1. Returns the
-/// parameters, their SSE and the iterations taken.
+/// Levenberg–Marquardt ([`crate::optim::lm`]) on the residuals of
+/// [`Training::simulate`] with ν freed (ν ≥ 1). Returns the parameters,
+/// their SSE and the iterations taken.
 fn levenberg_marquardt(
     t: &Training,
     start: Params,
     max_iter: usize,
 ) -> anyhow::Result<(Params, f64, usize)> {
-    let mut x = start.to_vec();
-    let project = |v: &mut [f64; 7]| {
-        v[6] = v[6].max(1.0);
-        v[0] = v[0].max(1e-6);
+    let inf = f64::INFINITY;
+    let mut lower = [-inf; 7];
+    (lower[0], lower[6]) = (1e-6, 1.0);
+    // Every coordinate's scale is about its size, except ν, which starts at 1.
+    let mut floor = [1e-3; 7];
+    floor[6] = 1.0;
+    let settings = LmSettings {
+        max_iterations: max_iter,
+        ..LmSettings::default()
     };
-    let Some(mut r) = t.residuals(&Params::from_slice(&x)) else {
-        anyhow::bail!("the population stage's best candidate diverges on the whole record");
-    };
-    let mut sse = r.norm_squared();
-    let mut lambda = 1e-3;
-    let mut iters = 0;
-    for _ in 0..max_iter {
-        iters += 1;
-        // Scale per parameter: forward-difference step relative to its size.
-        let steps: Vec<f64> = (0..7)
-            .map(|j| 1e-6 * x[j].abs().max(if j == 6 { 1.0 } else { 1e-3 }))
-            .collect();
-        let cols: Vec<Option<DVector<f64>>> = (0..7)
-            .into_par_iter()
-            .map(|j| {
-                let mut xp = x;
-                xp[j] += steps[j];
-                t.residuals(&Params::from_slice(&xp))
-                    .map(|rp| (rp - &r) / steps[j])
-            })
-            .collect();
-        let mut jac = DMatrix::<f64>::zeros(r.len(), 7);
-        for (j, col) in cols.into_iter().enumerate() {
-            let Some(col) = col else {
-                anyhow::bail!("a finite-difference probe diverged during refinement");
-            };
-            jac.set_column(j, &col);
+    let out = lm::levenberg_marquardt(
+        |x| t.residuals(&Params::from_slice(x)),
+        &start.to_vec(),
+        (&lower, &[inf; 7]),
+        &floor,
+        &settings,
+    )
+    .map_err(|e| match e {
+        LmError::StartDiverges => {
+            anyhow::anyhow!("the population stage's best candidate diverges on the whole record")
         }
-        let jtj = jac.transpose() * &jac;
-        let jtr = jac.transpose() * &r;
-        let mut improved = false;
-        for _ in 0..12 {
-            let mut a = jtj.clone();
-            for j in 0..7 {
-                a[(j, j)] += lambda * jtj[(j, j)].max(1e-30);
-            }
-            let Some(mut delta) = a.clone().lu().solve(&(-&jtr)) else {
-                lambda *= 10.0;
-                continue;
-            };
-            // Active set: at ν = 1 with the step pointing below, hold ν and
-            // solve for the others (projecting a coupled step would spoil it).
-            if x[6] <= 1.0 && delta[6] < 0.0 {
-                let mut b = -&jtr;
-                for j in 0..7 {
-                    a[(6, j)] = 0.0;
-                    a[(j, 6)] = 0.0;
-                }
-                a[(6, 6)] = 1.0;
-                b[6] = 0.0;
-                let Some(d) = a.lu().solve(&b) else {
-                    lambda *= 10.0;
-                    continue;
-                };
-                delta = d;
-            }
-            let mut xn = x;
-            for j in 0..7 {
-                xn[j] += delta[j];
-            }
-            project(&mut xn);
-            if let Some(rn) = t.residuals(&Params::from_slice(&xn)) {
-                let sn = rn.norm_squared();
-                if sn < sse {
-                    let rel = (sse - sn) / sse;
-                    x = xn;
-                    r = rn;
-                    sse = sn;
-                    lambda = (lambda / 3.0).max(1e-12);
-                    improved = true;
-                    if rel < 1e-12 {
-                        return Ok((Params::from_slice(&x), sse, iters));
-                    }
-                    break;
-                }
-            }
-            lambda *= 4.0;
-        }
-        if !improved {
-            break;
-        }
-    }
-    Ok((Params::from_slice(&x), sse, iters))
+        LmError::ProbeDiverges => anyhow::anyhow!("{e}"),
+    })?;
+    Ok((Params::from_slice(&out.x), out.sse, out.iterations))
 }

@@ -15,6 +15,7 @@
 pub mod de;
 pub mod ga;
 pub mod history;
+pub mod lm;
 pub mod mfa;
 pub mod pso;
 pub mod run;
