@@ -476,7 +476,8 @@ pub fn fit_candidate(
 /// in α moves the SSE 1000-fold on the default data), along which
 /// differential evolution creeps while Gauss–Newton steps follow it.
 /// Forward differences in the `f32` simulation: steps of 1e-4 of the
-/// coordinate (at least 1e-2 of its box width) stay well above its rounding.
+/// coordinate's size (taken as at least 1 % of its box width, so that a
+/// coordinate near zero is still probed) stay well above its rounding.
 fn polish(
     data: &Data,
     model: &Augmented,
