@@ -11,6 +11,8 @@
 //!
 //! The thesis' three methods (chapter 5, appendix A.2) are [`ga`], [`mfa`]
 //! and [`pso`]; [`de`] is the modern baseline they are compared against.
+//! [`lm`] is not a population method: it polishes one point by
+//! Levenberg–Marquardt after a search.
 
 pub mod de;
 pub mod ga;
