@@ -13,7 +13,7 @@
 //!
 //! linear in the virtual input `v`; here `u = p − ū` is the pressure, itself
 //! driven by the valve voltage through the identified first-order
-//! [`ValveModel`]. So the predicted displacement is affine in the valve
+//! [`ValveModel`](super::design::ValveModel). So the predicted displacement is affine in the valve
 //! voltages of the horizon, and tracking the planned reference under the
 //! valve range and the slew limit is a small dense QP, solved by `clarabel`
 //! at every sample. The valve voltage is the QP's variable, so the inversion

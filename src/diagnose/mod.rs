@@ -1,5 +1,5 @@
 //! Diagnosis of the sim-to-real gap: where the fitted model misses
-//! ([`r#where`]), which unmodelled effect of the catalogue explains it
+//! ([`where`](where/index.html)), which unmodelled effect of the catalogue explains it
 //! ([`effects`], [`select`]), and how far the model gets with it, relative to
 //! a noise-floor estimate. [`selftest`] checks the whole chain on data with a
 //! withheld effect; [`report`] turns a [`Diagnosis`] into text, JSON and figures.
