@@ -45,7 +45,9 @@ pub struct Args {
     #[arg(long, default_value_t = Settings::default().seeds)]
     seeds: usize,
     /// Generations of each candidate fit (population 30); the baseline gets
-    /// 600 generations of 40 with 12 seeds. Fewer is faster and less certain.
+    /// 600 generations of 40 with 12 seeds. Every fit then ends with a
+    /// Levenberg–Marquardt polish of its best point. Fewer is faster and
+    /// less certain.
     #[arg(long, default_value_t = Settings::default().generations)]
     generations: usize,
     /// Extra seeds of each first-round candidate fitted from scratch (the
