@@ -394,10 +394,8 @@ pub fn fit_candidate(
     let d = lo.len();
     let np = population.max(6);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let sse = |p: &[f64]| {
-        let s = data.est_sse(model, p);
-        if s.is_nan() { f64::INFINITY } else { s }
-    };
+    // Never NaN: a diverged simulation scores +∞.
+    let sse = |p: &[f64]| data.est_sse(model, p);
     let (initial, p_best, generations) = match start {
         Start::Scratch => (
             scratch_rows(data, model, (&neutral, &lo, &hi), np, &mut rng),
@@ -406,10 +404,7 @@ pub fn fit_candidate(
         ),
         Start::Ahead { horizon } => {
             let rows = scratch_rows(data, model, (&neutral, &lo, &hi), np, &mut rng);
-            let ahead = |p: &[f64]| {
-                let s = data.est_sse_ahead(model, p, horizon);
-                if s.is_nan() { f64::INFINITY } else { s }
-            };
+            let ahead = |p: &[f64]| data.est_sse_ahead(model, p, horizon);
             let first = generations / 2;
             let (best, _) = evolve(
                 (lo.clone(), hi.clone()),

@@ -549,12 +549,10 @@ pub fn twin_check(
         };
         let mut trace = spec.run().map_err(|e| anyhow::anyhow!("twin: {e}"))?;
         if input != trace.input_name {
-            let (_, column) = trace
-                .extra
-                .iter()
-                .find(|(name, _)| name == input)
+            let column = trace
+                .column(input)
                 .ok_or_else(|| anyhow::anyhow!("twin: no column `{input}`"))?;
-            trace.input = column.clone();
+            trace.input = column.to_vec();
             trace.input_name = input.to_string();
         }
         Ok(trace)
@@ -563,14 +561,16 @@ pub fn twin_check(
     let mut off: Vec<(&str, Diagnosis)> = Vec::new();
     let mut out = Vec::new();
     for case in TWIN_CASES {
-        if !off.iter().any(|(input, _)| *input == case.input) {
-            let d = diagnose(&[run(None, case.input)?], family, effects, settings)?;
-            off.push((case.input, d));
-        }
-        let (_, off) = off
-            .iter()
-            .find(|(input, _)| *input == case.input)
-            .expect("diagnosed above");
+        // The all-off diagnosis, once per input.
+        let at = match off.iter().position(|(input, _)| *input == case.input) {
+            Some(at) => at,
+            None => {
+                let d = diagnose(&[run(None, case.input)?], family, effects, settings)?;
+                off.push((case.input, d));
+                off.len() - 1
+            }
+        };
+        let off = &off[at].1;
         let on = diagnose(
             &[run(Some(case.effect), case.input)?],
             family,
