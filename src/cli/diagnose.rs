@@ -22,8 +22,9 @@ use super::common::MultiDataArgs;
 /// each fitted as an addition to the baseline with several seeds and accepted
 /// only if it beats the seed-to-seed spread, pays for its parameters, is
 /// not a better refit of the model without it, and the model still misses
-/// by more than the noise — and HOW FAR the validation error falls, against
-/// a noise-floor estimate.
+/// by more than the noise — HOW FAR the validation error falls, against
+/// a noise-floor estimate, and HOW SURE each named effect's size is (a 95 %
+/// profile-likelihood interval).
 /// "None of the catalogued effects explains the remaining gap" is a valid answer.
 ///
 /// Example: `mckibben diagnose data/stair_4.5kg.csv --report out/`

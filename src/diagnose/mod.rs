@@ -5,6 +5,7 @@
 //! withheld effect; [`report`] turns a [`Diagnosis`] into text, JSON and figures.
 
 pub mod effects;
+pub mod interval;
 pub mod report;
 pub mod select;
 pub mod selftest;
@@ -41,6 +42,8 @@ pub struct Diagnosis {
     pub selection: Selection,
     /// Baseline, then the model after each accepted effect.
     pub steps: Vec<Step>,
+    /// How well the data pin each accepted effect's size in the final model.
+    pub size_intervals: Vec<interval::SizeInterval>,
     /// Validation predictions `(t, input, measured, baseline, final)` per dataset (absolute units).
     #[serde(skip)]
     pub curves: Vec<Curves>,
@@ -129,20 +132,39 @@ pub fn diagnose(
         val_fit_percent: fit_of(&data, base_model, &base.params),
         gap_closed: 0.0,
     }];
-    for round in &selection.rounds {
+    for (r, round) in selection.rounds.iter().enumerate() {
         if let Some(c) = round
             .candidates
             .iter()
             .find(|c| Some(c.effect) == round.accepted)
         {
+            // The next round may have found a better fit of this model.
+            let fit = selection
+                .rounds
+                .get(r + 1)
+                .and_then(|next| next.rebased.last())
+                .map_or(&c.fit.best, |f| &f.best);
             steps.push(Step {
                 effects: c.model.effects.clone(),
-                val_rmse: c.fit.best.val_rmse,
-                val_fit_percent: fit_of(&data, &c.model, &c.fit.best.params),
-                gap_closed: select::gap_closed(base.val_rmse, c.fit.best.val_rmse, floor),
+                val_rmse: fit.val_rmse,
+                val_fit_percent: fit_of(&data, &c.model, &fit.params),
+                gap_closed: select::gap_closed(base.val_rmse, fit.val_rmse, floor),
             });
         }
     }
+
+    let size_intervals = selection
+        .verdict
+        .iter()
+        .map(|&e| {
+            interval::size_interval(
+                &data,
+                &selection.final_model,
+                &selection.final_fit.params,
+                e,
+            )
+        })
+        .collect();
 
     let ia = family.linear_indices()[0];
     let residuals = data.val_residuals(base_model, &base.params);
@@ -185,6 +207,7 @@ pub fn diagnose(
         r#where: place,
         selection,
         steps,
+        size_intervals,
         curves,
     })
 }

@@ -111,6 +111,7 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "val_rmse": last.val_rmse,
             "val_fit_percent": last.val_fit_percent,
             "gap_closed": last.gap_closed,
+            "size_intervals": d.size_intervals,
         },
         "rule": "accept iff R0−R1 > 3·√(s0²+s1²) (seed spread), ΔBIC = N·ln(R1²/R0²) + k·ln N < −10, (R0−R1)/R0 ≥ 2 %, and R0 > 1.1·noise floor; a candidate's gain that the model without it reaches from the candidate's parameters is not credited to it (ablation)",
     })
@@ -216,9 +217,9 @@ pub fn to_text(d: &Diagnosis) -> String {
         for f in &r.rebased {
             let _ = writeln!(
                 o,
-                "  round {}: a candidate's parameters led the model without it to a better \
-                 estimation fit (SSE {:.1}, validation RMSE {:.4}); it became the current \
-                 model and the round was judged again from it",
+                "  round {}: a refit of the current model (from its own seeds or from a \
+                 candidate's parameters) reached a better estimation fit (SSE {:.1}, validation \
+                 RMSE {:.4}); it became the current model and the round was judged from it",
                 i + 1,
                 f.best.est_sse,
                 f.best.val_rmse
@@ -257,6 +258,27 @@ pub fn to_text(d: &Diagnosis) -> String {
             s.val_fit_percent,
             pct(s.gap_closed)
         );
+    }
+    if !d.size_intervals.is_empty() {
+        let _ = writeln!(
+            o,
+            "\nHOW SURE (95 % profile-likelihood interval of each named effect's size in the final model;\n  it assumes white residuals and describes only the basin the fit ended in, so it is too\n  narrow when the whiteness test fails or the search missed a better basin):"
+        );
+        for s in &d.size_intervals {
+            let edge = |at: bool| if at { " (box edge: not bounded)" } else { "" };
+            let _ = writeln!(
+                o,
+                "  {:<10} {} = {:.4}  [{:.4}{}, {:.4}{}]  (±{:.4})",
+                s.effect.name(),
+                s.param,
+                s.value,
+                s.lo,
+                edge(s.lo_at_edge),
+                s.hi,
+                edge(s.hi_at_edge),
+                0.5 * (s.hi - s.lo)
+            );
+        }
     }
     if d.selection.verdict.is_empty() {
         let _ = writeln!(

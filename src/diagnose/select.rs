@@ -473,7 +473,7 @@ pub fn fit_candidate(
 /// Forward differences in the `f32` simulation: steps of 1e-4 of the
 /// coordinate's size (taken as at least 1 % of its box width, so that a
 /// coordinate near zero is still probed) stay well above its rounding.
-fn polish(
+pub(super) fn polish(
     data: &Data,
     model: &Augmented,
     best: Vec<f64>,
@@ -498,6 +498,69 @@ fn polish(
         }
         // The search's best sits where a probe step diverges: keep it.
         Err(_) => (best, est_sse),
+    }
+}
+
+/// Nodes of the size profile on each side of neutral: the box's edge times
+/// `2^-k`, `k < PROFILE_NODES`.
+const PROFILE_NODES: i32 = 6;
+
+/// The profile of a candidate's new effect along its size: from the best fit,
+/// the effect's primary parameter (index `at`) is stepped away from neutral
+/// toward each edge of its box over a geometric ladder ([`PROFILE_NODES`]
+/// nodes a side, so that small sizes are probed as finely as large ones),
+/// the rest polished at each node from the node before; the best node is
+/// then polished with everything free, and kept if it beats the fit on the
+/// estimation part. Why: when the current model has absorbed part of an
+/// effect, the fits warm-started from it find the effect small, and the
+/// model with the effect at its true size lies along a valley in which the
+/// rest of the model must move back with it: measured on the self-test's
+/// `inertia (small)` case, Levenberg–Marquardt from the true parameters ends
+/// at an estimation SSE of 101.7 with the extra pole 0.6 % off, while every
+/// seed's fit ended above 109 with it half as large.
+fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> Fit {
+    let (neutral, lo, hi) = data.space(model);
+    let centre = if fit.params[at] >= lo[at] && fit.params[at] <= hi[at] {
+        neutral[at].clamp(lo[at], hi[at])
+    } else {
+        return fit;
+    };
+    let mut best = fit.clone();
+    for edge in [lo[at], hi[at]] {
+        if edge == centre {
+            continue;
+        }
+        let mut start = fit.params.clone();
+        for k in (0..PROFILE_NODES).rev() {
+            let v = centre + (edge - centre) * 0.5f64.powi(k);
+            let (mut l, mut h) = (lo.clone(), hi.clone());
+            start[at] = v;
+            (l[at], h[at]) = (v, v);
+            let sse = data.est_sse(model, &start);
+            let (node, node_sse) = polish(data, model, start, sse, (&l, &h));
+            if node_sse < best.est_sse {
+                best = Fit {
+                    params: node.clone(),
+                    est_sse: node_sse,
+                    val_rmse: f64::NAN,
+                };
+            }
+            start = node;
+        }
+    }
+    if best.est_sse >= fit.est_sse {
+        return fit;
+    }
+    let (params, est_sse) = polish(data, model, best.params, best.est_sse, (&lo, &hi));
+    let val_rmse = data.val_rmse(model, &params);
+    if val_rmse.is_finite() {
+        Fit {
+            params,
+            est_sse,
+            val_rmse,
+        }
+    } else {
+        fit
     }
 }
 
@@ -829,9 +892,10 @@ fn judge_all(
 pub struct Round {
     /// The current model refitted with the candidates' budget.
     pub current: SeededFit,
-    /// Refits of the current model (without the new effect) started from a
-    /// passing candidate's parameters that beat it on the estimation part
-    /// and replaced it, in order; the candidates are judged against the last.
+    /// Fits of the current model (without the new effect) that beat it on
+    /// the estimation part and replaced it, in order: `current` itself when
+    /// its seeds found a better fit, then refits started from a passing
+    /// candidate's parameters; the candidates are judged against the last.
     pub rebased: Vec<SeededFit>,
     /// Candidates by validation RMSE, best first.
     pub candidates: Vec<Candidate>,
@@ -999,16 +1063,30 @@ pub fn select(
         };
         let scratch_of = |i: usize| scratch.get(i).map_or(&[][..], Vec::as_slice);
         let current = fit_seeds_with(data, &current_model, refit, settings, salt, scratch_of(0));
-        // The refit gives the seed spread of "no new effect"; the yardstick
-        // is the model as accepted.
+        let mut rebased: Vec<SeededFit> = Vec::new();
+        // The refit gives the seed spread of "no new effect". Its seeds (and
+        // in the first round its fits from scratch) may also reach a better
+        // estimation fit of the current model than the one accepted: then
+        // that is the current model, as after an ablation below. Measured on
+        // the self-test's `inertia (small)` case: the second round's refit
+        // of baseline + inertia reached an estimation SSE of 104.8 against
+        // the accepted candidate's 109.5.
+        if current.best.est_sse < final_fit.est_sse && current.best.val_rmse.is_finite() {
+            current_params = current.best.params.clone();
+            final_fit = current.best.clone();
+            if first_round {
+                baseline = current.clone();
+            }
+            rebased.push(current.clone());
+        }
         let mut yardstick = Yardstick {
             r0: final_fit.val_rmse,
             s0: current.spread,
             floor,
         };
-        let mut rebased: Vec<SeededFit> = Vec::new();
+        let mut ablations = 0;
         let candidates = loop {
-            let salt = salt + 10 * rebased.len() as u64;
+            let salt = salt + 10 * ablations as u64;
             let fits: Vec<(Effect, Augmented, SeededFit)> = remaining
                 .iter()
                 .enumerate()
@@ -1023,8 +1101,10 @@ pub fn select(
                         new_from: current_params.len(),
                     };
                     let salt = salt + 1 + i as u64;
-                    let fit =
+                    let mut fit =
                         fit_seeds_with(data, &model, start, settings, salt, scratch_of(i + 1));
+                    let at = current_params.len() + effect.primary();
+                    fit.best = profile(data, &model, fit.best, at);
                     (effect, model, fit)
                 })
                 .collect();
@@ -1032,7 +1112,7 @@ pub fn select(
             let Some(best) = candidates.iter().find(|c| c.passes) else {
                 break candidates;
             };
-            if rebased.len() >= MAX_REBASES {
+            if ablations >= MAX_REBASES {
                 break candidates;
             }
             let ablated = fit_seeds(
@@ -1061,6 +1141,7 @@ pub fn select(
                 floor,
             };
             rebased.push(ablated);
+            ablations += 1;
         };
         let accepted = candidates.iter().find(|c| c.passes).map(|c| c.effect);
         if let Some(c) = candidates.iter().find(|c| c.passes) {

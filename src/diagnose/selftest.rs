@@ -267,6 +267,8 @@ pub struct Outcome {
     pub size_true: Option<f64>,
     pub size_found: Option<f64>,
     pub size_error: Option<f64>,
+    /// The diagnosis' 95 % profile interval of the size, in the same units.
+    pub size_interval: Option<(f64, f64)>,
     pub baseline_rmse: f64,
     pub final_rmse: f64,
     pub noise_floor: f64,
@@ -282,6 +284,7 @@ pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> Outcome {
     let named = d.selection.verdict.clone();
     let mut notes = Vec::new();
     let (mut size_true, mut size_found, mut size_error) = (None, None, None);
+    let mut size_interval = None;
     let gap = d.last().gap_closed;
     match truth.len() {
         0 => {
@@ -299,20 +302,22 @@ pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> Outcome {
             }
             let st = size_of(nominal, *e, p);
             size_true = Some(st);
-            // The recovered parameters: from the round the effect was accepted in.
-            let found = d
-                .selection
-                .rounds
-                .iter()
-                .filter(|r| r.accepted == Some(*e))
-                .flat_map(|r| r.candidates.iter().filter(|c| c.effect == *e))
-                .next();
-            if let Some(c) = found {
-                let at = c.model.offset_of(*e).expect("effect in model");
-                let sf = size_of(nominal, *e, &c.fit.best.params[at..]);
+            // The recovered parameters: the diagnosis' final model's.
+            let sel = &d.selection;
+            if let Some(at) = sel.final_model.offset_of(*e) {
+                let sf = size_of(nominal, *e, &sel.final_fit.params[at..]);
                 let err = (sf - st).abs() / st.abs();
                 size_found = Some(sf);
                 size_error = Some(err);
+                size_interval = d.size_intervals.iter().find(|s| s.effect == *e).map(|s| {
+                    let mut p = sel.final_fit.params[at..].to_vec();
+                    let mut ends = [s.lo, s.hi].map(|v| {
+                        p[e.primary()] = v;
+                        size_of(nominal, *e, &p)
+                    });
+                    ends.sort_by(f64::total_cmp);
+                    (ends[0], ends[1])
+                });
                 if err > 0.2 {
                     notes.push(format!("size off by {:.0} %", 100.0 * err));
                 }
@@ -329,6 +334,7 @@ pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> Outcome {
         size_true,
         size_found,
         size_error,
+        size_interval,
         baseline_rmse: d.baseline().val_rmse,
         final_rmse: d.last().val_rmse,
         noise_floor: d.noise_floor_rmse,
@@ -360,6 +366,7 @@ pub fn run_case(
             size_true: None,
             size_found: None,
             size_error: None,
+            size_interval: None,
             baseline_rmse: f64::NAN,
             final_rmse: f64::NAN,
             noise_floor: f64::NAN,
@@ -424,15 +431,15 @@ pub fn table(outcomes: &[Outcome], effects: &[Effect]) -> String {
     let _ = writeln!(o);
     let _ = writeln!(
         o,
-        "{:<24} {:<22} {:>10} {:>10} {:>7} {:>8} {:>8} {:>7}  result",
-        "case", "named", "size true", "found", "error", "RMSE 0", "RMSE 1", "gap"
+        "{:<24} {:<22} {:>10} {:>10} {:>7} {:>8} {:>8} {:>8} {:>7}  result",
+        "case", "named", "size true", "found", "error", "95% ±", "RMSE 0", "RMSE 1", "gap"
     );
     for r in outcomes {
         let named: Vec<_> = r.named.iter().map(|e| e.name()).collect();
         let f = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
         let _ = writeln!(
             o,
-            "{:<24} {:<22} {:>10} {:>10} {:>7} {:>8.4} {:>8.4} {:>6.0}%  {}",
+            "{:<24} {:<22} {:>10} {:>10} {:>7} {:>8} {:>8.4} {:>8.4} {:>6.0}%  {}",
             r.case,
             if named.is_empty() {
                 "none".to_string()
@@ -443,6 +450,16 @@ pub fn table(outcomes: &[Outcome], effects: &[Effect]) -> String {
             f(r.size_found),
             r.size_error
                 .map_or("—".to_string(), |e| format!("{:.1}%", 100.0 * e)),
+            // Half the interval's width relative to the size found, `*` when
+            // the true size lies outside it.
+            match (r.size_interval, r.size_found, r.size_true) {
+                (Some((lo, hi)), Some(f), Some(t)) => format!(
+                    "{:.0}%{}",
+                    50.0 * (hi - lo) / f.abs(),
+                    if t < lo || t > hi { "*" } else { "" }
+                ),
+                _ => "—".to_string(),
+            },
             r.baseline_rmse,
             r.final_rmse,
             100.0 * r.gap_closed,
