@@ -15,7 +15,7 @@
 use serde::Serialize;
 
 use super::effects::{Augmented, Effect};
-use super::select::{Data, polish};
+use super::select::{Data, polish_held};
 
 /// `χ²` with one degree of freedom, 95 % quantile.
 const CHI2_1_95: f64 = 3.841;
@@ -50,14 +50,7 @@ pub fn size_interval(
     let sigma2 = sse0 / (n.saturating_sub(theta.len()).max(1)) as f64;
     let limit = sse0 + CHI2_1_95 * sigma2;
     // The profile at `v`: every other parameter polished from `start`.
-    let profile = |v: f64, start: &[f64]| -> (Vec<f64>, f64) {
-        let (mut l, mut h) = (lo.clone(), hi.clone());
-        (l[at], h[at]) = (v, v);
-        let mut p = start.to_vec();
-        p[at] = v;
-        let sse = data.est_sse(model, &p);
-        polish(data, model, p, sse, (&l, &h))
-    };
+    let profile = |v: f64, start: &[f64]| polish_held(data, model, start, (at, v), (&lo, &hi));
     let value = theta[at];
     let first_step = 0.05 * value.abs().max(1e-2 * (hi[at] - lo[at]));
     let bound = |edge: f64| -> (f64, bool) {
@@ -128,6 +121,7 @@ fn bisect(
 mod tests {
     use super::*;
     use crate::data::Trace;
+    use crate::diagnose::select::polish;
     use crate::model::Family;
     use crate::model::presets::thesis_params;
     use crate::model::simulate;

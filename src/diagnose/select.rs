@@ -520,12 +520,8 @@ const PROFILE_NODES: i32 = 6;
 /// seed's fit ended above 109 with it half as large.
 fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> Fit {
     let (neutral, lo, hi) = data.space(model);
-    let centre = if fit.params[at] >= lo[at] && fit.params[at] <= hi[at] {
-        neutral[at].clamp(lo[at], hi[at])
-    } else {
-        return fit;
-    };
-    let mut best = fit.clone();
+    let centre = neutral[at].clamp(lo[at], hi[at]);
+    let (mut best, mut best_sse) = (fit.params.clone(), fit.est_sse);
     for edge in [lo[at], hi[at]] {
         if edge == centre {
             continue;
@@ -533,25 +529,17 @@ fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> Fit {
         let mut start = fit.params.clone();
         for k in (0..PROFILE_NODES).rev() {
             let v = centre + (edge - centre) * 0.5f64.powi(k);
-            let (mut l, mut h) = (lo.clone(), hi.clone());
-            start[at] = v;
-            (l[at], h[at]) = (v, v);
-            let sse = data.est_sse(model, &start);
-            let (node, node_sse) = polish(data, model, start, sse, (&l, &h));
-            if node_sse < best.est_sse {
-                best = Fit {
-                    params: node.clone(),
-                    est_sse: node_sse,
-                    val_rmse: f64::NAN,
-                };
+            let (node, node_sse) = polish_held(data, model, &start, (at, v), (&lo, &hi));
+            if node_sse < best_sse {
+                (best, best_sse) = (node.clone(), node_sse);
             }
             start = node;
         }
     }
-    if best.est_sse >= fit.est_sse {
+    if best_sse >= fit.est_sse {
         return fit;
     }
-    let (params, est_sse) = polish(data, model, best.params, best.est_sse, (&lo, &hi));
+    let (params, est_sse) = polish(data, model, best, best_sse, (&lo, &hi));
     let val_rmse = data.val_rmse(model, &params);
     if val_rmse.is_finite() {
         Fit {
@@ -562,6 +550,23 @@ fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> Fit {
     } else {
         fit
     }
+}
+
+/// [`polish`] from `start` with coordinate `at` held at `v`: one point of
+/// the profile along that coordinate.
+pub(super) fn polish_held(
+    data: &Data,
+    model: &Augmented,
+    start: &[f64],
+    (at, v): (usize, f64),
+    (lo, hi): (&[f64], &[f64]),
+) -> (Vec<f64>, f64) {
+    let (mut l, mut h) = (lo.to_vec(), hi.to_vec());
+    (l[at], h[at]) = (v, v);
+    let mut p = start.to_vec();
+    p[at] = v;
+    let sse = data.est_sse(model, &p);
+    polish(data, model, p, sse, (&l, &h))
 }
 
 /// The initial population of a from-scratch fit: one member at the ARX

@@ -198,20 +198,20 @@ mod tests {
         ]))
     }
 
+    /// Rosenbrock from (−1.2, 1) with `x ≤ x_max`, 200 iterations at most.
+    fn descend(x_max: f64) -> LmOutcome {
+        let inf = f64::INFINITY;
+        let settings = LmSettings {
+            max_iterations: 200,
+            ..LmSettings::default()
+        };
+        let bounds: (&[f64], &[f64]) = (&[-inf, -inf], &[x_max, inf]);
+        levenberg_marquardt(rosenbrock, &[-1.2, 1.0], bounds, &[1.0, 1.0], &settings).unwrap()
+    }
+
     #[test]
     fn follows_a_curved_valley_to_its_minimum() {
-        let inf = f64::INFINITY;
-        let out = levenberg_marquardt(
-            rosenbrock,
-            &[-1.2, 1.0],
-            (&[-inf, -inf], &[inf, inf]),
-            &[1.0, 1.0],
-            &LmSettings {
-                max_iterations: 200,
-                ..LmSettings::default()
-            },
-        )
-        .unwrap();
+        let out = descend(f64::INFINITY);
         assert!((out.x[0] - 1.0).abs() < 1e-5, "{:?}", out);
         assert!((out.x[1] - 1.0).abs() < 1e-5, "{:?}", out);
         assert!(out.sse < 1e-10);
@@ -221,18 +221,7 @@ mod tests {
     fn a_bound_that_cuts_the_valley_holds_and_the_rest_moves_on() {
         // The unconstrained minimum (1, 1) lies outside x ≤ 0.5: the best in
         // the box is x = 0.5 on its bound with y = x² = 0.25.
-        let inf = f64::INFINITY;
-        let out = levenberg_marquardt(
-            rosenbrock,
-            &[-1.2, 1.0],
-            (&[-inf, -inf], &[0.5, inf]),
-            &[1.0, 1.0],
-            &LmSettings {
-                max_iterations: 200,
-                ..LmSettings::default()
-            },
-        )
-        .unwrap();
+        let out = descend(0.5);
         assert_eq!(out.x[0], 0.5);
         assert!((out.x[1] - 0.25).abs() < 1e-6, "{:?}", out);
     }
