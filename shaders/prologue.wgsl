@@ -1,12 +1,14 @@
-// Shared by every model family's shader (concatenated in front of the family's
-// file at pipeline creation, see src/eval/gpu.rs). One invocation scores one
-// candidate on every experiment.
+// Shared by every model family's shader. A pipeline's source is, in order
+// (src/eval/gpu.rs `shader_source`): the switches `const N_ONE: bool` (true:
+// the n = 1 specialisation, bit-exact; false: the free exponent, `pow`
+// within the device's accuracy) and `const RESIDUALS: bool` (write every
+// error instead of one sum), this prologue, the family's file (its `Theta`,
+// `load_theta` and `step`) and driver.wgsl (the one scoring loop). One
+// invocation scores one candidate on every experiment.
 //
 // The helpers spell the operations of src/model/sim.rs in the same order with
 // the same parentheses, so that an unfused f32 implementation (lavapipe) gives
-// the CPU's bits. The family file is preceded by `const N_ONE: bool = ...;`:
-// true selects the n = 1 specialisation (bit-exact), false the free-exponent
-// one (`pow`, within the device's `pow` accuracy).
+// the CPU's bits.
 
 struct Config {
     // Candidates in this dispatch (one chunk of the population).
@@ -17,6 +19,13 @@ struct Config {
     row_width: u32,
     // 0, unknown to the shader compiler: see `rounded`.
     zero_bits: u32,
+    // Restart the output state from the measurement after every `horizon`-th
+    // sample (the multi-step-ahead prediction); 0: never (the free run).
+    horizon: u32,
+    // Errors per candidate in RESIDUALS mode: Σ over experiments of (length − 1).
+    residual_len: u32,
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> cfg: Config;
@@ -26,8 +35,10 @@ struct Config {
 @group(0) @binding(2) var<storage, read> samples: array<vec2<f32>>;
 // (first sample, length) of each experiment in `samples`.
 @group(0) @binding(3) var<storage, read> spans: array<vec2<u32>>;
-// SSE of candidate i on experiment e at e * count + i.
-@group(0) @binding(4) var<storage, read_write> sse_out: array<f32>;
+// SSE of candidate i on experiment e at e * count + i; in RESIDUALS mode the
+// error of candidate i at sample k ≥ 1 of experiment e at
+// i * residual_len + (first sample of e) − e + k − 1.
+@group(0) @binding(4) var<storage, read_write> out: array<f32>;
 
 // A product that is then added to something, kept as its own rounded value.
 // Shader compilers may fuse `a * b + c` into one fma, and may reassociate
@@ -81,6 +92,13 @@ fn linear_step(a: f32, b: f32, c: f32, x_prev: f32, u_prev: f32) -> f32 {
 // sim.rs `linear_part`.
 fn linear_part(a: f32, alpha: f32, b: f32, c: f32, x_prev: f32, w_prev: f32, u_prev: f32) -> f32 {
     return (rounded(a * (rounded(alpha * x_prev) + rounded((1.0 - alpha) * w_prev))) + rounded(b * u_prev)) + c;
+}
+
+// The state every family advances: the output x and the Bouc-Wen state w
+// (0 for the linear family).
+struct State {
+    x: f32,
+    w: f32,
 }
 
 // The candidate of this invocation in the (possibly 2-D) grid.

@@ -11,7 +11,7 @@ use mckibben::eval::gpu::{GpuEvaluator, GpuOptions};
 use mckibben::eval::workload::{mixed_population, search_space, stair_experiment};
 use mckibben::eval::{Evaluator, Problem, Scores};
 use mckibben::model::experiment::halves;
-use mckibben::model::{Experiment, Family};
+use mckibben::model::{Experiment, Family, Measure};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -91,6 +91,69 @@ fn n_one_scores_are_bit_identical_to_the_cpu_and_agree_on_divergence() {
             diverged > 0 && diverged < want.total.len(),
             "{family}: the population must mix finite and diverged candidates ({diverged} diverged)"
         );
+    }
+}
+
+#[test]
+fn prediction_scores_are_bit_identical_to_the_cpu() {
+    let Some(mut g) = gpu(GpuOptions::default()) else {
+        return;
+    };
+    let exp = trace();
+    for family in Family::ALL {
+        let space = search_space(family, &exp, false);
+        let pop = mixed_population(&space, 256, &mut ChaCha8Rng::seed_from_u64(21));
+        for horizon in [1, 23, 500, exp.len() - 1] {
+            let problem = Problem::new(family, vec![exp.clone(), stair_experiment(700, 2)])
+                .with_measure(Measure::Ahead { horizon });
+            let want = cpu(&problem, &pop);
+            let got = g.evaluate(&problem, &pop).unwrap();
+            assert_bit_identical(&got, &want, &format!("{family}, horizon {horizon}"));
+        }
+    }
+}
+
+#[test]
+fn residuals_are_bit_identical_to_the_cpu_with_the_same_divergence_set() {
+    let Some(mut g) = gpu(GpuOptions::default()) else {
+        return;
+    };
+    let (e1, e2) = (stair_experiment(900, 31), stair_experiment(400, 32));
+    for family in Family::ALL {
+        let space = search_space(family, &e1, false);
+        let pop = mixed_population(&space, 70, &mut ChaCha8Rng::seed_from_u64(33));
+        for measure in [Measure::FreeRun, Measure::Ahead { horizon: 40 }] {
+            let problem = Problem::new(family, vec![e1.clone(), e2.clone()]).with_measure(measure);
+            let want = CpuEvaluator::new().residuals(&problem, &pop).unwrap();
+            let got = g.residuals(&problem, &pop).unwrap();
+            let what = format!("{family}, {measure}");
+            assert_eq!(got.len(), want.len(), "{what}");
+            if measure == Measure::FreeRun {
+                assert!(
+                    want.iter().any(Option::is_none),
+                    "{what}: no diverged candidate"
+                );
+            }
+            assert!(
+                want.iter().any(Option::is_some),
+                "{what}: no finite candidate"
+            );
+            for (i, (a, b)) in got.iter().zip(&want).enumerate() {
+                let bits = |r: &Option<Vec<f32>>| {
+                    r.as_ref()
+                        .map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+                };
+                assert_eq!(bits(a), bits(b), "{what}: candidate {i}");
+            }
+            // The sum of squares of the residuals is the score.
+            let scores = cpu(&problem, &pop);
+            for (r, s) in want.iter().zip(&scores.total) {
+                if let Some(r) = r {
+                    assert!(s.is_finite());
+                    assert_eq!(r.len(), 899 + 399);
+                }
+            }
+        }
     }
 }
 

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 
 use super::{Evaluator, Problem, Scores, to_f32};
 use crate::model::Family;
+use crate::model::residuals;
 use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear_step};
 
 /// Candidates advanced side by side in one batch. One step of one candidate
@@ -77,11 +78,40 @@ impl Evaluator for CpuEvaluator {
         );
         Ok(score_rows(problem, &rows))
     }
+
+    /// One candidate per task through the reference simulation: a polish
+    /// asks for a handful of candidates, too few to fill a batch.
+    fn residuals(
+        &mut self,
+        problem: &Problem,
+        population: &[f64],
+    ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
+        let rows = to_f32(population);
+        let d = problem.family.dim();
+        anyhow::ensure!(
+            rows.len() % d == 0,
+            "population length {} is not a multiple of the {} model's {d} parameters",
+            rows.len(),
+            problem.family
+        );
+        Ok(rows
+            .par_chunks(d)
+            .map(|theta| {
+                let mut all = Vec::with_capacity(problem.samples());
+                for e in &problem.experiments {
+                    let r = residuals(problem.family, theta, &e.u, &e.y, problem.measure)?;
+                    all.extend(r);
+                }
+                Some(all)
+            })
+            .collect())
+    }
 }
 
 /// Scores `f32` rows (row-major `N × d`) on every experiment of `problem`.
 pub fn score_rows(problem: &Problem, rows: &[f32]) -> Scores {
     let family = problem.family;
+    let every = problem.measure.restart_every();
     let d = family.dim();
     let n = rows.len() / d;
     let batches: Vec<Vec<[f32; LANES]>> = rows
@@ -91,7 +121,7 @@ pub fn score_rows(problem: &Problem, rows: &[f32]) -> Scores {
             problem
                 .experiments
                 .iter()
-                .map(|e| batch_sse(family, &params, &e.u, &e.y))
+                .map(|e| batch_sse(family, &params, &e.u, &e.y, every))
                 .collect()
         })
         .collect();
@@ -121,35 +151,54 @@ fn transpose(chunk: &[f32], d: usize) -> Vec<[f32; LANES]> {
     params
 }
 
-/// The SSE of every lane of one batch on one experiment, as [`crate::model::sse`],
-/// compiled for the widest vector unit the CPU has (chosen at run time; the
-/// arithmetic is the same IEEE `f32` on each, and Rust never fuses a·b + c,
-/// so the bits do not depend on the choice).
-fn batch_sse(family: Family, params: &[[f32; LANES]], u: &[f32], y: &[f32]) -> [f32; LANES] {
+/// The SSE of every lane of one batch on one experiment, as
+/// [`crate::model::measured_sse`] with restarts after every `every`-th
+/// sample, compiled for the widest vector unit the CPU has (chosen at run
+/// time; the arithmetic is the same IEEE `f32` on each, and Rust never fuses
+/// a·b + c, so the bits do not depend on the choice).
+fn batch_sse(
+    family: Family,
+    params: &[[f32; LANES]],
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+) -> [f32; LANES] {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx512f") {
             // SAFETY: the CPU has AVX-512F.
-            return unsafe { batch_sse_avx512(family, params, u, y) };
+            return unsafe { batch_sse_avx512(family, params, u, y, every) };
         }
         if std::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2.
-            return unsafe { batch_sse_avx2(family, params, u, y) };
+            return unsafe { batch_sse_avx2(family, params, u, y, every) };
         }
     }
-    batch_sse_portable(family, params, u, y)
+    batch_sse_portable(family, params, u, y, every)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-fn batch_sse_avx512(family: Family, params: &[[f32; LANES]], u: &[f32], y: &[f32]) -> [f32; LANES] {
-    batch_sse_portable(family, params, u, y)
+fn batch_sse_avx512(
+    family: Family,
+    params: &[[f32; LANES]],
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+) -> [f32; LANES] {
+    batch_sse_portable(family, params, u, y, every)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn batch_sse_avx2(family: Family, params: &[[f32; LANES]], u: &[f32], y: &[f32]) -> [f32; LANES] {
-    batch_sse_portable(family, params, u, y)
+fn batch_sse_avx2(
+    family: Family,
+    params: &[[f32; LANES]],
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+) -> [f32; LANES] {
+    batch_sse_portable(family, params, u, y, every)
 }
 
 #[inline(always)]
@@ -158,6 +207,7 @@ fn batch_sse_portable(
     params: &[[f32; LANES]],
     u: &[f32],
     y: &[f32],
+    every: usize,
 ) -> [f32; LANES] {
     assert_eq!(u.len(), y.len(), "input and output lengths differ");
     if u.is_empty() {
@@ -165,29 +215,106 @@ fn batch_sse_portable(
     }
     let n_is_one = |j: usize| params[j].iter().all(|&n| n == 1.0);
     match family {
-        Family::Linear => linear_batch(params.try_into().expect("3 parameters"), u, y),
+        Family::Linear => lanes_sse(&LinearLanes(params.try_into().expect("3")), u, y, every),
         Family::Classic => {
             let p = params.try_into().expect("8 parameters");
             if n_is_one(4) {
-                classic_batch::<true>(p, u, y)
+                lanes_sse(&ClassicLanes::<true>(p), u, y, every)
             } else {
-                classic_batch::<false>(p, u, y)
+                lanes_sse(&ClassicLanes::<false>(p), u, y, every)
             }
         }
         Family::Generalized => {
             let p = params.try_into().expect("12 parameters");
             if n_is_one(8) {
-                generalized_batch::<true>(p, u, y)
+                lanes_sse(&GeneralizedLanes::<true>(p), u, y, every)
             } else {
-                generalized_batch::<false>(p, u, y)
+                lanes_sse(&GeneralizedLanes::<false>(p), u, y, every)
             }
         }
     }
 }
 
-/// Lanes whose mask latched score `+∞`.
+/// One family's parameters for a batch of [`LANES`] candidates: the step of
+/// lane `l`, from `(x(k−1), w(k−1))` and `u(k−1)` to `(x(k), w(k))`, calling
+/// the equations of [`crate::model::sim`].
+trait LaneModel {
+    fn step(&self, l: usize, x: f32, w: f32, u_prev: f32) -> (f32, f32);
+}
+
+struct LinearLanes<'a>(&'a [[f32; LANES]; 3]);
+
+impl LaneModel for LinearLanes<'_> {
+    #[inline(always)]
+    fn step(&self, l: usize, x: f32, _w: f32, u_prev: f32) -> (f32, f32) {
+        let [a, b, c] = self.0;
+        (linear_step(a[l], b[l], c[l], x, u_prev), 0.0)
+    }
+}
+
+/// `N_ONE`: every lane has `n = 1` (the common case, compiled without `powf`).
+struct ClassicLanes<'a, const N_ONE: bool>(&'a [[f32; LANES]; 8]);
+
+impl<const N_ONE: bool> LaneModel for ClassicLanes<'_, N_ONE> {
+    #[inline(always)]
+    fn step(&self, l: usize, x: f32, w: f32, u_prev: f32) -> (f32, f32) {
+        let [big_a, alpha, beta, gamma, n, a, b, c] = self.0;
+        let nl = if N_ONE { 1.0 } else { n[l] };
+        let xn = linear_part(a[l], alpha[l], b[l], c[l], x, w, u_prev);
+        (xn, classic_w(big_a[l], beta[l], gamma[l], nl, w, xn - x))
+    }
+}
+
+struct GeneralizedLanes<'a, const N_ONE: bool>(&'a [[f32; LANES]; 12]);
+
+impl<const N_ONE: bool> LaneModel for GeneralizedLanes<'_, N_ONE> {
+    #[inline(always)]
+    fn step(&self, l: usize, x: f32, w: f32, u_prev: f32) -> (f32, f32) {
+        let [big_a, alpha, b1, b2, b3, b4, b5, b6, n, a, b, c] = self.0;
+        let nl = if N_ONE { 1.0 } else { n[l] };
+        let betas = [b1[l], b2[l], b3[l], b4[l], b5[l], b6[l]];
+        let xn = linear_part(a[l], alpha[l], b[l], c[l], x, w, u_prev);
+        (xn, generalized_w(big_a[l], &betas, nl, w, xn, xn - x))
+    }
+}
+
+/// The one scoring loop of every family: all lanes advance sample by sample,
+/// each accumulating its squared error; the output state restarts from the
+/// measurement after every `every`-th sample. A lane whose state leaves the
+/// bounds latches its mask and scores `+∞`; the loop stops once every lane
+/// has. Blocks end at divergence checks and at restarts, so that neither
+/// costs a test per sample.
 #[inline(always)]
-fn finish(acc: [f32; LANES], ok: [bool; LANES]) -> [f32; LANES] {
+fn lanes_sse<M: LaneModel>(m: &M, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+    let mut x = [y[0]; LANES];
+    let mut w = [0.0f32; LANES];
+    let mut acc = [0.0f32; LANES];
+    let mut ok = [true; LANES];
+    let mut start = 1;
+    while start < u.len() {
+        let next_restart = start.div_ceil(every).saturating_mul(every);
+        let end = (start + DIVERGENCE_CHECK)
+            .min(u.len())
+            .min(next_restart.saturating_add(1));
+        for k in start..end {
+            let (up, yk) = (u[k - 1], y[k]);
+            for l in 0..LANES {
+                let (xn, wn) = m.step(l, x[l], w[l], up);
+                ok[l] &= in_bounds(xn) & in_bounds(wn);
+                let e = xn - yk;
+                acc[l] += e * e;
+                x[l] = xn;
+                w[l] = wn;
+            }
+        }
+        if end - 1 == next_restart {
+            x = [y[end - 1]; LANES];
+        }
+        if !any_ok(&ok) {
+            break;
+        }
+        start = end;
+    }
     std::array::from_fn(|l| if ok[l] { acc[l] } else { f32::INFINITY })
 }
 
@@ -201,117 +328,26 @@ fn any_ok(ok: &[bool; LANES]) -> bool {
     any
 }
 
-#[inline(always)]
-fn linear_batch(p: &[[f32; LANES]; 3], u: &[f32], y: &[f32]) -> [f32; LANES] {
-    let [a, b, c] = p;
-    let mut x = [y[0]; LANES];
-    let mut acc = [0.0f32; LANES];
-    let mut ok = [true; LANES];
-    // Blocks of DIVERGENCE_CHECK samples; stop once every lane has diverged.
-    let mut start = 1;
-    while start < u.len() {
-        let end = (start + DIVERGENCE_CHECK).min(u.len());
-        for k in start..end {
-            let (up, yk) = (u[k - 1], y[k]);
-            for l in 0..LANES {
-                let xn = linear_step(a[l], b[l], c[l], x[l], up);
-                // w ≡ 0 is always in bounds.
-                ok[l] &= in_bounds(xn);
-                let e = xn - yk;
-                acc[l] += e * e;
-                x[l] = xn;
-            }
-        }
-        if !any_ok(&ok) {
-            break;
-        }
-        start = end;
-    }
-    finish(acc, ok)
-}
-
-#[inline(always)]
-fn classic_batch<const N_ONE: bool>(p: &[[f32; LANES]; 8], u: &[f32], y: &[f32]) -> [f32; LANES] {
-    let [big_a, alpha, beta, gamma, n, a, b, c] = p;
-    let mut x = [y[0]; LANES];
-    let mut w = [0.0f32; LANES];
-    let mut acc = [0.0f32; LANES];
-    let mut ok = [true; LANES];
-    // Blocks of DIVERGENCE_CHECK samples; stop once every lane has diverged.
-    let mut start = 1;
-    while start < u.len() {
-        let end = (start + DIVERGENCE_CHECK).min(u.len());
-        for k in start..end {
-            let (up, yk) = (u[k - 1], y[k]);
-            for l in 0..LANES {
-                let nl = if N_ONE { 1.0 } else { n[l] };
-                let xn = linear_part(a[l], alpha[l], b[l], c[l], x[l], w[l], up);
-                let wn = classic_w(big_a[l], beta[l], gamma[l], nl, w[l], xn - x[l]);
-                ok[l] &= in_bounds(xn) & in_bounds(wn);
-                let e = xn - yk;
-                acc[l] += e * e;
-                x[l] = xn;
-                w[l] = wn;
-            }
-        }
-        if !any_ok(&ok) {
-            break;
-        }
-        start = end;
-    }
-    finish(acc, ok)
-}
-
-#[inline(always)]
-fn generalized_batch<const N_ONE: bool>(
-    p: &[[f32; LANES]; 12],
-    u: &[f32],
-    y: &[f32],
-) -> [f32; LANES] {
-    let [big_a, alpha, b1, b2, b3, b4, b5, b6, n, a, b, c] = p;
-    let mut x = [y[0]; LANES];
-    let mut w = [0.0f32; LANES];
-    let mut acc = [0.0f32; LANES];
-    let mut ok = [true; LANES];
-    // Blocks of DIVERGENCE_CHECK samples; stop once every lane has diverged.
-    let mut start = 1;
-    while start < u.len() {
-        let end = (start + DIVERGENCE_CHECK).min(u.len());
-        for k in start..end {
-            let (up, yk) = (u[k - 1], y[k]);
-            for l in 0..LANES {
-                let nl = if N_ONE { 1.0 } else { n[l] };
-                let betas = [b1[l], b2[l], b3[l], b4[l], b5[l], b6[l]];
-                let xn = linear_part(a[l], alpha[l], b[l], c[l], x[l], w[l], up);
-                let wn = generalized_w(big_a[l], &betas, nl, w[l], xn, xn - x[l]);
-                ok[l] &= in_bounds(xn) & in_bounds(wn);
-                let e = xn - yk;
-                acc[l] += e * e;
-                x[l] = xn;
-                w[l] = wn;
-            }
-        }
-        if !any_ok(&ok) {
-            break;
-        }
-        start = end;
-    }
-    finish(acc, ok)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::eval::workload::{mixed_population, search_space, stair_experiment};
-    use crate::model::sse;
+    use crate::model::{Measure, measured_sse};
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 
-    /// Every compiled variant the CPU can run gives `model::sse`'s bits
-    /// (the evaluator tests only see the one this CPU picks).
+    /// Every compiled variant the CPU can run gives the reference's bits
+    /// under every measure (the evaluator tests only see the variant this
+    /// CPU picks).
     #[test]
     fn every_instruction_set_variant_is_bit_identical() {
         let exp = stair_experiment(700, 21);
+        let measures = [
+            Measure::FreeRun,
+            Measure::Ahead { horizon: 1 },
+            Measure::Ahead { horizon: 37 },
+            Measure::Ahead { horizon: 128 },
+        ];
         for (family, free_n) in [
             (Family::Linear, false),
             (Family::Classic, false),
@@ -324,26 +360,29 @@ mod tests {
             let pop = mixed_population(&space, LANES, &mut ChaCha8Rng::seed_from_u64(2));
             let rows = to_f32(&pop);
             let params = transpose(&rows, d);
-            let want: Vec<u32> = rows
-                .chunks_exact(d)
-                .map(|t| sse(family, t, &exp.u, &exp.y).to_bits())
-                .collect();
-            let bits = |s: [f32; LANES]| s.map(f32::to_bits).to_vec();
-            assert_eq!(
-                bits(batch_sse_portable(family, &params, &exp.u, &exp.y)),
-                want
-            );
-            #[cfg(target_arch = "x86_64")]
-            {
-                if std::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the CPU has AVX2.
-                    let got = unsafe { batch_sse_avx2(family, &params, &exp.u, &exp.y) };
-                    assert_eq!(bits(got), want, "{family} avx2");
-                }
-                if std::is_x86_feature_detected!("avx512f") {
-                    // SAFETY: the CPU has AVX-512F.
-                    let got = unsafe { batch_sse_avx512(family, &params, &exp.u, &exp.y) };
-                    assert_eq!(bits(got), want, "{family} avx512");
+            for measure in measures {
+                let every = measure.restart_every();
+                let want: Vec<u32> = rows
+                    .chunks_exact(d)
+                    .map(|t| measured_sse(family, t, &exp.u, &exp.y, measure).to_bits())
+                    .collect();
+                let bits = |s: [f32; LANES]| s.map(f32::to_bits).to_vec();
+                let what = format!("{family}, {measure}");
+                let got = batch_sse_portable(family, &params, &exp.u, &exp.y, every);
+                assert_eq!(bits(got), want, "{what}");
+                #[cfg(target_arch = "x86_64")]
+                {
+                    if std::is_x86_feature_detected!("avx2") {
+                        // SAFETY: the CPU has AVX2.
+                        let got = unsafe { batch_sse_avx2(family, &params, &exp.u, &exp.y, every) };
+                        assert_eq!(bits(got), want, "{what} avx2");
+                    }
+                    if std::is_x86_feature_detected!("avx512f") {
+                        // SAFETY: the CPU has AVX-512F.
+                        let got =
+                            unsafe { batch_sse_avx512(family, &params, &exp.u, &exp.y, every) };
+                        assert_eq!(bits(got), want, "{what} avx512");
+                    }
                 }
             }
         }

@@ -10,8 +10,9 @@
 //! each bound at its own offset of the same buffers (a population past even
 //! the device's buffer size limit is scored in parts, one submit each).
 //!
-//! The shaders (`shaders/prologue.wgsl` + one file per family) spell the
-//! operations of `src/model/sim.rs` in the same order. On an unfused f32
+//! The shaders (`shaders/prologue.wgsl`, one file per family and
+//! `shaders/driver.wgsl`) spell the operations of `src/model/sim.rs` in the
+//! same order. On an unfused f32
 //! implementation (Mesa's lavapipe) the `n = 1` scores are bit-identical to
 //! the CPU's; a real GPU may fuse `a·b + c` into an fma, so there compare
 //! within a tolerance and compare rankings (`mckibben bench` reports both).
@@ -27,6 +28,7 @@ use crate::model::Family;
 const WORKGROUP: u32 = 64;
 
 const PROLOGUE: &str = include_str!("../../shaders/prologue.wgsl");
+const DRIVER: &str = include_str!("../../shaders/driver.wgsl");
 
 fn family_source(family: Family) -> &'static str {
     match family {
@@ -36,11 +38,19 @@ fn family_source(family: Family) -> &'static str {
     }
 }
 
-/// The complete WGSL of one pipeline: the `N_ONE` switch, the prologue and
-/// the family's file.
-pub fn shader_source(family: Family, n_one: bool) -> String {
+/// What a pipeline writes: one SSE per candidate and experiment, or every
+/// error (the residuals a Levenberg–Marquardt polish differentiates).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum Output {
+    Sse,
+    Residuals,
+}
+
+/// The complete WGSL of one pipeline: the `N_ONE` and `RESIDUALS` switches,
+/// the prologue, the family's file and the scoring loop.
+pub fn shader_source(family: Family, n_one: bool, residuals: bool) -> String {
     format!(
-        "const N_ONE: bool = {n_one};\n{PROLOGUE}\n{}",
+        "const N_ONE: bool = {n_one};\nconst RESIDUALS: bool = {residuals};\n{PROLOGUE}\n{}\n{DRIVER}",
         family_source(family)
     )
 }
@@ -156,7 +166,7 @@ pub struct GpuEvaluator {
     info: wgpu::AdapterInfo,
     limits: wgpu::Limits,
     options: GpuOptions,
-    pipelines: HashMap<(Family, bool), wgpu::ComputePipeline>,
+    pipelines: HashMap<(Family, bool, Output), wgpu::ComputePipeline>,
     params: Grown,
     samples: Grown,
     spans: Grown,
@@ -220,22 +230,27 @@ impl GpuEvaluator {
         &self.info
     }
 
-    fn pipeline(&mut self, family: Family, n_one: bool) -> &wgpu::ComputePipeline {
+    fn pipeline(&mut self, family: Family, n_one: bool, output: Output) -> &wgpu::ComputePipeline {
         let device = &self.device;
-        self.pipelines.entry((family, n_one)).or_insert_with(|| {
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(family.name()),
-                source: wgpu::ShaderSource::Wgsl(shader_source(family, n_one).into()),
-            });
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(family.name()),
-                layout: None,
-                module: &module,
-                entry_point: Some("main"),
-                compilation_options: Default::default(),
-                cache: None,
+        self.pipelines
+            .entry((family, n_one, output))
+            .or_insert_with(|| {
+                let residuals = output == Output::Residuals;
+                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some(family.name()),
+                    source: wgpu::ShaderSource::Wgsl(
+                        shader_source(family, n_one, residuals).into(),
+                    ),
+                });
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(family.name()),
+                    layout: None,
+                    module: &module,
+                    entry_point: Some("main"),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
             })
-        })
     }
 
     /// Uploads the experiments' samples unless they are the ones on the device.
@@ -295,10 +310,11 @@ impl GpuEvaluator {
     }
 
     /// Candidates per chunk: as many as the parameter and output bindings and
-    /// a 2-D grid allow, a multiple of the workgroup size (so every chunk's
-    /// offsets meet the 256-byte binding alignment).
-    fn chunk_len(&self, dim: usize, experiments: usize) -> anyhow::Result<usize> {
-        let per_candidate = (dim.max(experiments) * 4) as u64;
+    /// a 2-D grid allow (`outputs` values written per candidate), a multiple
+    /// of the workgroup size (so every chunk's offsets meet the 256-byte
+    /// binding alignment).
+    fn chunk_len(&self, dim: usize, outputs: usize) -> anyhow::Result<usize> {
+        let per_candidate = (dim.max(outputs) * 4) as u64;
         let by_binding = self.binding_limit() / per_candidate;
         let g = self.groups_per_dim() as u64;
         let by_grid = g * g * WORKGROUP as u64;
@@ -356,6 +372,9 @@ struct Config {
     experiments: u32,
     row_width: u32,
     zero_bits: u32,
+    horizon: u32,
+    residual_len: u32,
+    pad: [u32; 2],
 }
 
 const CONFIG_STRIDE: u64 = 256;
@@ -370,6 +389,49 @@ impl Evaluator for GpuEvaluator {
     }
 
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {
+        let n_exp = problem.experiments.len();
+        let flat = self.run(problem, population, Output::Sse)?;
+        let n = flat.len() / n_exp.max(1);
+        // `run` returns [candidate][experiment]; scores are [experiment][candidate].
+        let per_experiment = (0..n_exp)
+            .map(|e| (0..n).map(|i| flat[i * n_exp + e]).collect())
+            .collect();
+        Ok(Scores::from_per_experiment(per_experiment))
+    }
+
+    fn residuals(
+        &mut self,
+        problem: &Problem,
+        population: &[f64],
+    ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
+        let r = residual_len(problem);
+        let flat = self.run(problem, population, Output::Residuals)?;
+        Ok(flat
+            .chunks(r.max(1))
+            .take(population.len() / problem.family.dim())
+            .map(|row| row.iter().all(|v| v.is_finite()).then(|| row.to_vec()))
+            .collect())
+    }
+}
+
+/// Errors per candidate: `k ≥ 1` of every experiment.
+fn residual_len(problem: &Problem) -> usize {
+    problem
+        .experiments
+        .iter()
+        .map(|e| e.len().saturating_sub(1))
+        .sum()
+}
+
+impl GpuEvaluator {
+    /// Scores `population` writing `output`: per candidate, its SSE on every
+    /// experiment or its residuals, candidate-major.
+    fn run(
+        &mut self,
+        problem: &Problem,
+        population: &[f64],
+        output: Output,
+    ) -> anyhow::Result<Vec<f32>> {
         let family = problem.family;
         let d = family.dim();
         anyhow::ensure!(
@@ -379,8 +441,12 @@ impl Evaluator for GpuEvaluator {
         );
         let n = population.len() / d;
         let n_exp = problem.experiments.len();
-        if n == 0 || n_exp == 0 {
-            return Ok(Scores::from_per_experiment(vec![Vec::new(); n_exp]));
+        let per_candidate = match output {
+            Output::Sse => n_exp,
+            Output::Residuals => residual_len(problem),
+        };
+        if n == 0 || n_exp == 0 || per_candidate == 0 {
+            return Ok(vec![0.0; n * per_candidate]);
         }
         let rows = to_f32(population);
         let n_one = match family.exponent_index() {
@@ -388,11 +454,11 @@ impl Evaluator for GpuEvaluator {
             None => true,
         };
         self.upload_samples(problem)?;
-        // A population whose parameters or scores exceed one buffer is scored
+        // A population whose parameters or outputs exceed one buffer is scored
         // in parts, one submit each (every part but the last a whole number
         // of chunks).
-        let chunk = self.chunk_len(d, n_exp)?;
-        let by_buffer = (self.buffer_limit() / (4 * d.max(n_exp)) as u64) as usize;
+        let chunk = self.chunk_len(d, per_candidate)?;
+        let by_buffer = (self.buffer_limit() / (4 * d.max(per_candidate)) as u64) as usize;
         let part = if by_buffer >= n {
             n
         } else {
@@ -403,37 +469,67 @@ impl Evaluator for GpuEvaluator {
             "the device's buffer size limit ({} bytes) cannot hold one chunk of candidates",
             self.buffer_limit()
         );
-        let mut per_experiment = vec![Vec::with_capacity(n); n_exp];
+        let pass = Pass {
+            n_one,
+            output,
+            per_candidate,
+            horizon: horizon_of(problem),
+            chunk,
+        };
+        let mut flat = Vec::with_capacity(n * per_candidate);
         for rows in rows.chunks(part * d) {
-            let scores = self.score_part(problem, rows, n_one, chunk)?;
-            for (all, part) in per_experiment.iter_mut().zip(scores) {
-                all.extend(part);
-            }
+            flat.extend(self.score_part(problem, rows, &pass)?);
         }
-        Ok(Scores::from_per_experiment(per_experiment))
+        Ok(flat)
     }
 }
 
+/// The shader's `cfg.horizon`: samples between restarts, 0 for never (a
+/// horizon at or past the longest experiment never restarts either).
+fn horizon_of(problem: &Problem) -> u32 {
+    let longest = problem
+        .experiments
+        .iter()
+        .map(|e| e.len())
+        .max()
+        .unwrap_or(0);
+    match problem.measure.restart_every() {
+        h if h >= longest => 0,
+        h => h as u32,
+    }
+}
+
+/// How one call's chunks are dispatched.
+struct Pass {
+    n_one: bool,
+    output: Output,
+    /// Values written per candidate.
+    per_candidate: usize,
+    horizon: u32,
+    /// Candidates per chunk.
+    chunk: usize,
+}
+
 impl GpuEvaluator {
-    /// Scores `rows` (that fit in one buffer) in chunks of `chunk` candidates,
-    /// with one submit and one read-back: `[experiment][candidate]`.
+    /// Scores `rows` (that fit in one buffer) in chunks, with one submit and
+    /// one read-back: `pass.per_candidate` values per candidate, candidate-major.
     fn score_part(
         &mut self,
         problem: &Problem,
         rows: &[f32],
-        n_one: bool,
-        chunk: usize,
-    ) -> anyhow::Result<Vec<Vec<f32>>> {
+        pass: &Pass,
+    ) -> anyhow::Result<Vec<f32>> {
         let family = problem.family;
         let d = family.dim();
         let n = rows.len() / d;
         let n_exp = problem.experiments.len();
+        let per = pass.per_candidate;
         let chunks: Vec<(usize, usize)> = (0..n)
-            .step_by(chunk)
-            .map(|s| (s, chunk.min(n - s)))
+            .step_by(pass.chunk)
+            .map(|s| (s, pass.chunk.min(n - s)))
             .collect();
         let param_bytes = (rows.len() * 4) as u64;
-        let out_bytes = (n * n_exp * 4) as u64;
+        let out_bytes = (n * per * 4) as u64;
 
         let groups_per_dim = self.groups_per_dim() as usize;
         let mut configs = Vec::with_capacity(chunks.len() * CONFIG_STRIDE as usize / 4);
@@ -448,12 +544,15 @@ impl GpuEvaluator {
                 experiments: n_exp as u32,
                 row_width: gx as u32 * WORKGROUP,
                 zero_bits: 0,
+                horizon: pass.horizon,
+                residual_len: residual_len(problem) as u32,
+                pad: [0; 2],
             };
             configs.extend_from_slice(bytemuck::bytes_of(&cfg));
             configs.resize(configs.len().next_multiple_of(CONFIG_STRIDE as usize), 0u8);
         }
 
-        self.pipeline(family, n_one);
+        self.pipeline(family, pass.n_one, pass.output);
         let device = &self.device;
         let params = self.params.at_least(device, param_bytes);
         self.queue
@@ -464,13 +563,13 @@ impl GpuEvaluator {
         let readback = self.readback.at_least(device, out_bytes);
         let samples = self.samples.buffer.as_ref().expect("uploaded");
         let spans = self.spans.buffer.as_ref().expect("uploaded");
-        let pipeline = &self.pipelines[&(family, n_one)];
+        let pipeline = &self.pipelines[&(family, pass.n_one, pass.output)];
         let layout = pipeline.get_bind_group_layout(0);
 
         let mut encoder = device.create_command_encoder(&Default::default());
         {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(pipeline);
+            let mut compute = encoder.begin_compute_pass(&Default::default());
+            compute.set_pipeline(pipeline);
             for (c, (&(start, len), &(gx, gy))) in chunks.iter().zip(&grids).enumerate() {
                 let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("chunk"),
@@ -498,31 +597,31 @@ impl GpuEvaluator {
                         },
                         wgpu::BindGroupEntry {
                             binding: 4,
-                            resource: range(
-                                out,
-                                (start * n_exp * 4) as u64,
-                                (len * n_exp * 4) as u64,
-                            ),
+                            resource: range(out, (start * per * 4) as u64, (len * per * 4) as u64),
                         },
                     ],
                 });
-                pass.set_bind_group(0, &group, &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
+                compute.set_bind_group(0, &group, &[]);
+                compute.dispatch_workgroups(gx, gy, 1);
             }
         }
         encoder.copy_buffer_to_buffer(out, 0, readback, 0, out_bytes);
         self.queue.submit([encoder.finish()]);
 
         let flat = read_back_f32(&self.device, readback, out_bytes)?;
-
-        // Chunk c holds [e][i] for its own candidates at start * n_exp.
-        let mut per_experiment = vec![Vec::with_capacity(n); n_exp];
+        if pass.output == Output::Residuals {
+            return Ok(flat);
+        }
+        // Chunk c holds [e][i] for its own candidates at start · n_exp.
+        let mut by_candidate = vec![0.0f32; n * n_exp];
         for &(start, len) in &chunks {
             let block = &flat[start * n_exp..(start + len) * n_exp];
-            for (e, scores) in per_experiment.iter_mut().enumerate() {
-                scores.extend_from_slice(&block[e * len..(e + 1) * len]);
+            for e in 0..n_exp {
+                for i in 0..len {
+                    by_candidate[(start + i) * n_exp + e] = block[e * len + i];
+                }
             }
         }
-        Ok(per_experiment)
+        Ok(by_candidate)
     }
 }

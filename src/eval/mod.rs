@@ -10,22 +10,32 @@ pub mod cpu;
 pub mod gpu;
 pub mod workload;
 
-use crate::model::{Experiment, Family};
+use crate::model::{Experiment, Family, Measure};
 
 /// What is scored: a model family against one or more experiments (e.g. two
-/// loads), each in deviation coordinates.
+/// loads), each in deviation coordinates, under a measure (the free run's
+/// error, or a multi-step-ahead prediction's).
 #[derive(Debug, Clone)]
 pub struct Problem {
     pub family: Family,
     pub experiments: Vec<Experiment>,
+    pub measure: Measure,
 }
 
 impl Problem {
+    /// The free-run problem (the thesis' fitness, eq. 29).
     pub fn new(family: Family, experiments: Vec<Experiment>) -> Self {
         Problem {
             family,
             experiments,
+            measure: Measure::FreeRun,
         }
+    }
+
+    /// The same problem under another measure.
+    pub fn with_measure(mut self, measure: Measure) -> Self {
+        self.measure = measure;
+        self
     }
 
     /// Total samples over all experiments.
@@ -70,6 +80,17 @@ pub trait Evaluator {
 
     /// Scores `population` (row-major `N × problem.family.dim()`).
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores>;
+
+    /// The errors `x(k) − y(k)` of every candidate under the problem's
+    /// measure, `k ≥ 1` of each experiment in turn (what a
+    /// Levenberg–Marquardt polish differentiates); `None` for a candidate
+    /// whose simulation diverged. Bit-identical across backends where the
+    /// scores are.
+    fn residuals(
+        &mut self,
+        problem: &Problem,
+        population: &[f64],
+    ) -> anyhow::Result<Vec<Option<Vec<f32>>>>;
 }
 
 /// Converts a row-major `f64` population to the `f32` rows every backend scores.

@@ -15,4 +15,4 @@ pub use bounds::{Flow, LinearPrior, SearchSpace};
 pub use experiment::Experiment;
 pub use family::{Family, ParamInfo};
 pub use fitted::FittedModel;
-pub use sim::{DIVERGENCE_BOUND, Simulation, simulate, sse};
+pub use sim::{DIVERGENCE_BOUND, Measure, Simulation, measured_sse, residuals, simulate, sse};

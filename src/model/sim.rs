@@ -12,6 +12,8 @@
 //! sees the measured output again) and is scored by
 //! `SSE = Σ_{k≥1} (x(k) − y(k))²`.
 
+use serde::{Deserialize, Serialize};
+
 use super::family::Family;
 
 /// A simulated state whose magnitude exceeds this bound (in the units of the
@@ -237,25 +239,104 @@ pub fn simulate(family: Family, theta: &[f32], u: &[f32], x0: f32) -> Simulation
     Simulation { x, w, diverged_at }
 }
 
-/// The fitness of eq. 29 as a cost: `Σ_{k≥1} (x(k) − y(k))²` accumulated in
-/// `f32` in sample order, or `+∞` if the simulation diverged.
-pub fn sse(family: Family, theta: &[f32], u: &[f32], y: &[f32]) -> f32 {
+/// What a score sums: the error of the free run (the thesis' fitness, eq. 29)
+/// or of the `h`-step-ahead prediction.
+///
+/// The `h`-step-ahead predictor is the free run with its output state set
+/// back to the measurement after every `h`-th sample (the Bouc-Wen state runs
+/// on: it is never measured). Its error cannot pile up through a slow pole for
+/// longer than `h` samples, so its cost surface has no needle along the pole
+/// and the static gain where the free run's has one (Ribeiro, Tiels,
+/// Umenberger, Schön and Aguirre, "On the smoothness of nonlinear system
+/// identification", Automatica 2020: the Lipschitz constant of a simulation
+/// error can grow exponentially with the simulated length; short predictions
+/// restore smoothness). `h = 1` is the equation error; `h` past the data is
+/// the free run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Measure {
+    /// `Σ_{k≥1} (x(k) − y(k))²` of the free run.
+    #[default]
+    FreeRun,
+    /// The same sum with the output state restarted from `y(k)` after every
+    /// `horizon`-th sample (`horizon ≥ 1`).
+    Ahead { horizon: usize },
+}
+
+impl Measure {
+    /// Samples between restarts (`usize::MAX`: never).
+    pub fn restart_every(self) -> usize {
+        match self {
+            Measure::FreeRun => usize::MAX,
+            Measure::Ahead { horizon } => horizon.max(1),
+        }
+    }
+}
+
+impl std::fmt::Display for Measure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Measure::FreeRun => f.write_str("free run"),
+            Measure::Ahead { horizon } => write!(f, "{horizon}-step-ahead prediction"),
+        }
+    }
+}
+
+/// Runs `family` over the data under `measure`, calling `sink(k, x(k) − y(k))`
+/// for every `k ≥ 1`; returns false at the first out-of-bounds state (the
+/// candidate diverged). The single definition of what every backend scores.
+fn run_scored(
+    family: Family,
+    theta: &[f32],
+    u: &[f32],
+    y: &[f32],
+    measure: Measure,
+    mut sink: impl FnMut(usize, f32),
+) -> bool {
     assert_eq!(u.len(), y.len(), "input and output lengths differ");
     if u.is_empty() {
-        return 0.0;
+        return true;
     }
     let stepper = Stepper::new(family, theta);
+    let every = measure.restart_every();
     let (mut x, mut w) = (y[0], 0.0f32);
-    let mut acc = 0.0f32;
     for k in 1..u.len() {
         (x, w) = stepper.step(x, w, u[k - 1]);
         if !(in_bounds(x) && in_bounds(w)) {
-            return f32::INFINITY;
+            return false;
         }
-        let e = x - y[k];
-        acc += e * e;
+        sink(k, x - y[k]);
+        if k % every == 0 {
+            x = y[k];
+        }
     }
-    acc
+    true
+}
+
+/// The fitness of eq. 29 as a cost: `Σ_{k≥1} (x(k) − y(k))²` accumulated in
+/// `f32` in sample order, or `+∞` if the simulation diverged.
+pub fn sse(family: Family, theta: &[f32], u: &[f32], y: &[f32]) -> f32 {
+    measured_sse(family, theta, u, y, Measure::FreeRun)
+}
+
+/// The sum of squared errors under `measure`, `+∞` if the simulation diverged.
+pub fn measured_sse(family: Family, theta: &[f32], u: &[f32], y: &[f32], measure: Measure) -> f32 {
+    let mut acc = 0.0f32;
+    let ok = run_scored(family, theta, u, y, measure, |_, e| acc += e * e);
+    if ok { acc } else { f32::INFINITY }
+}
+
+/// The errors `x(k) − y(k)`, `k ≥ 1`, under `measure` (what a
+/// Levenberg–Marquardt polish differentiates); `None` if the simulation diverged.
+pub fn residuals(
+    family: Family,
+    theta: &[f32],
+    u: &[f32],
+    y: &[f32],
+    measure: Measure,
+) -> Option<Vec<f32>> {
+    let mut r = Vec::with_capacity(u.len().saturating_sub(1));
+    run_scored(family, theta, u, y, measure, |_, e| r.push(e)).then_some(r)
 }
 
 #[cfg(test)]
@@ -299,6 +380,39 @@ mod tests {
         let sim = simulate(Family::Linear, &[1.5, 1.0, 0.0], &u, 0.0);
         assert!(sim.diverged_at.is_some());
         assert!(sse(Family::Linear, &[0.5, 1.0, 0.0], &u, &y).is_finite());
+    }
+
+    #[test]
+    fn prediction_restarts_the_output_from_the_measurement() {
+        let u: Vec<f32> = (0..300).map(|k| ((k / 25) % 3) as f32 * 0.1).collect();
+        let y: Vec<f32> = (0..300).map(|k| (k as f32 * 0.03).sin()).collect();
+        let theta = [0.9f32, 0.6, 0.05, -0.02, 1.0, 0.95, 1.5, 0.01];
+        let fam = Family::Classic;
+        // A horizon past the data is the free run.
+        let free = sse(fam, &theta, &u, &y);
+        assert_eq!(
+            measured_sse(fam, &theta, &u, &y, Measure::Ahead { horizon: 300 }),
+            free
+        );
+        // One step ahead: every x(k) starts from the measured y(k − 1), the
+        // Bouc-Wen state from its own run.
+        let r = residuals(fam, &theta, &u, &y, Measure::Ahead { horizon: 1 }).unwrap();
+        let stepper = Stepper::new(fam, &theta);
+        let mut w = 0.0;
+        for k in 1..u.len() {
+            let (x, wn) = stepper.step(y[k - 1], w, u[k - 1]);
+            assert_eq!(r[k - 1], x - y[k], "sample {k}");
+            w = wn;
+        }
+        let ahead = measured_sse(fam, &theta, &u, &y, Measure::Ahead { horizon: 10 });
+        assert_eq!(
+            ahead,
+            residuals(fam, &theta, &u, &y, Measure::Ahead { horizon: 10 })
+                .unwrap()
+                .iter()
+                .fold(0.0f32, |acc, e| acc + e * e)
+        );
+        assert_ne!(ahead, free);
     }
 
     #[test]
