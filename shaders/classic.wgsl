@@ -1,6 +1,6 @@
-// Classic Bouc-Wen family: θ = [A, α, β, γ, n, a, b, c].
+// Classic Bouc-Wen family: θ = [A, α, β, γ, n, a, b, c, x0].
 
-const DIM: u32 = 8u;
+const DIM: u32 = 9u;
 
 struct Theta {
     big_a: f32,
@@ -11,6 +11,7 @@ struct Theta {
     a: f32,
     b: f32,
     c: f32,
+    x0: f32,
 }
 
 fn load_theta(p: u32) -> Theta {
@@ -19,7 +20,7 @@ fn load_theta(p: u32) -> Theta {
         n = params[p + 4u];
     }
     return Theta(params[p], params[p + 1u], params[p + 2u], params[p + 3u], n,
-        params[p + 5u], params[p + 6u], params[p + 7u]);
+        params[p + 5u], params[p + 6u], params[p + 7u], params[p + 8u]);
 }
 
 // sim.rs `classic_w`.
@@ -34,4 +35,10 @@ fn classic_w(big_a: f32, beta: f32, gamma: f32, n: f32, w_prev: f32, delta: f32)
 fn step(th: Theta, s: State, u_prev: f32) -> State {
     let xn = linear_part(th.a, th.alpha, th.b, th.c, s.x, s.w, u_prev);
     return State(xn, classic_w(th.big_a, th.beta, th.gamma, th.n, s.w, xn - s.x));
+}
+
+// sim.rs `Stepper::restart` (`restart_w`): the Bouc-Wen state takes the
+// jump's elastic part.
+fn restart(th: Theta, s: State, y: f32) -> State {
+    return State(y, s.w + rounded(th.big_a * (y - s.x)));
 }

@@ -1,8 +1,7 @@
 // The one scoring loop of every family (src/model/sim.rs `run_scored`; the
-// family's file before this one defines `Theta`, `load_theta` and `step`).
-// The output state restarts from the measurement after every
-// `cfg.horizon`-th sample (never for 0, the free run); the Bouc-Wen state
-// runs on.
+// family's file before this one defines `Theta`, `load_theta`, `step` and
+// `restart`). The state restarts from the measurement after every
+// `cfg.horizon`-th sample (never for 0, the free run).
 
 // Scores candidate `i` (chunk-local) on experiment `e`: its SSE, or +inf from
 // the first out-of-bounds state. In RESIDUALS mode the errors are written to
@@ -14,9 +13,10 @@ fn score(i: u32, e: u32) -> f32 {
     }
     let th = load_theta(i * DIM);
     let r0 = i * cfg.residual_len + span.x - e;
-    var s = State(samples[span.x].y, 0.0);
+    // sim.rs `Stepper::start`.
+    var s = State(samples[span.x].y + th.x0, 0.0);
     var acc = 0.0;
-    var restart = cfg.horizon;
+    var next_restart = cfg.horizon;
     for (var k = 1u; k < span.y; k = k + 1u) {
         s = step(th, s, samples[span.x + k - 1u].x);
         if (!(in_bounds(s.x) && in_bounds(s.w))) {
@@ -34,9 +34,9 @@ fn score(i: u32, e: u32) -> f32 {
         } else {
             acc = acc + rounded(err * err);
         }
-        if (k == restart) {
-            s.x = yk;
-            restart = restart + cfg.horizon;
+        if (k == next_restart) {
+            s = restart(th, s, yk);
+            next_restart = next_restart + cfg.horizon;
         }
     }
     return acc;

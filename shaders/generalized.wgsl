@@ -1,6 +1,6 @@
-// Generalized Bouc-Wen family: θ = [A, α, β1..β6, n, a, b, c].
+// Generalized Bouc-Wen family: θ = [A, α, β1..β6, n, a, b, c, x0].
 
-const DIM: u32 = 12u;
+const DIM: u32 = 13u;
 
 struct Theta {
     big_a: f32,
@@ -15,6 +15,7 @@ struct Theta {
     a: f32,
     b: f32,
     c: f32,
+    x0: f32,
 }
 
 fn load_theta(p: u32) -> Theta {
@@ -24,7 +25,7 @@ fn load_theta(p: u32) -> Theta {
     }
     return Theta(params[p], params[p + 1u], params[p + 2u], params[p + 3u], params[p + 4u],
         params[p + 5u], params[p + 6u], params[p + 7u], n, params[p + 9u], params[p + 10u],
-        params[p + 11u]);
+        params[p + 11u], params[p + 12u]);
 }
 
 // sim.rs `generalized_w`; the sign of a product is the product of signs.
@@ -43,4 +44,10 @@ fn generalized_w(th: Theta, w_prev: f32, x: f32, delta: f32) -> f32 {
 fn step(th: Theta, s: State, u_prev: f32) -> State {
     let xn = linear_part(th.a, th.alpha, th.b, th.c, s.x, s.w, u_prev);
     return State(xn, generalized_w(th, s.w, xn, xn - s.x));
+}
+
+// sim.rs `Stepper::restart` (`restart_w`): the Bouc-Wen state takes the
+// jump's elastic part.
+fn restart(th: Theta, s: State, y: f32) -> State {
+    return State(y, s.w + rounded(th.big_a * (y - s.x)));
 }

@@ -3,7 +3,7 @@
 // the n = 1 specialisation, bit-exact; false: the free exponent, `pow`
 // within the device's accuracy) and `const RESIDUALS: bool` (write every
 // error instead of one sum), this prologue, the family's file (its `Theta`,
-// `load_theta` and `step`) and driver.wgsl (the one scoring loop). One
+// `load_theta`, `step` and `restart`) and driver.wgsl (the one scoring loop). One
 // invocation scores one candidate on every experiment.
 //
 // The helpers spell the operations of src/model/sim.rs in the same order with

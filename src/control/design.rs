@@ -340,7 +340,7 @@ pub fn identify(
 /// the robustness runs' "±20 % error in the hysteresis parameters".
 pub fn scale_hysteresis(model: &FittedModel, factor: f64) -> FittedModel {
     let mut out = model.clone();
-    let hyst = out.family.dim().saturating_sub(4); // before n, a, b, c
+    let hyst = out.family.dim().saturating_sub(5); // before n, a, b, c, x0
     for (i, v) in out.params.iter_mut().enumerate().take(hyst) {
         *v *= factor;
         if out.family.params()[i].name == "alpha" {

@@ -9,8 +9,7 @@ use serde::{Deserialize, Serialize};
 use super::closed_loop::{Episode, run_episode};
 use super::limits::ValveLimits;
 use super::pi::{Pi, PiGains};
-use crate::optim::run::AlgoSettings;
-use crate::optim::{Algorithm, AnyOptimizer, Bounds, Optimizer, RunSettings};
+use crate::optim::{AlgoSettings, Algorithm, AnyOptimizer, Bounds, Optimizer};
 use crate::twin::{Rig, TwinConfig};
 
 /// The episodes a gain vector is scored on.
@@ -140,8 +139,7 @@ pub fn tune_pi(
         "tuning needs --pop ≥ 4 and --gens ≥ 1"
     );
     let start = std::time::Instant::now();
-    let run = RunSettings::new(pop, gens, seed);
-    let mut opt = AnyOptimizer::new(algorithm, &AlgoSettings::default(), gain_bounds(), &run);
+    let mut opt = AnyOptimizer::new(algorithm, &AlgoSettings::default(), gain_bounds(), pop, gens);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut best: Option<(Vec<f64>, f64)> = None;
     let mut evaluations = 0;

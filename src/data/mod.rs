@@ -29,6 +29,17 @@ pub struct Trace {
     pub extra: Vec<(String, Vec<f64>)>,
 }
 
+/// `max − min` of finite values (0 for none).
+pub fn range(v: &[f64]) -> f64 {
+    let (lo, hi) = v
+        .iter()
+        .filter(|x| x.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
+    if hi >= lo { hi - lo } else { 0.0 }
+}
+
 impl Trace {
     /// A trace on the uniform time base `t(k) = k·dt`.
     pub fn uniform(source: impl Into<String>, dt: f64, input: Vec<f64>, output: Vec<f64>) -> Self {

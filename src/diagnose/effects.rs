@@ -422,8 +422,8 @@ impl Augmented {
         let branch_tol = ctx.branch_tol as f32;
         let dt = ctx.dt as f32;
 
-        let (mut x, mut w) = (y0, 0.0f32);
-        let mut x_prev2 = y0;
+        let (mut x, mut w) = (y0 + theta[fam.start_index()], 0.0f32);
+        let mut x_prev2 = x;
         let mut play: Option<f32> = None;
         let (mut dir, mut extreme) = (0.0f32, u.first().copied().unwrap_or(0.0));
         let mut z = 0.0f32;
@@ -696,12 +696,12 @@ mod tests {
         let ctx = Context::of(&exp, true);
         let fam = Family::Linear;
         let model = Augmented::new(fam, vec![Effect::Delay], 1);
-        let theta = [0.9f32, 2.0, 0.1, 3.0];
+        let theta = [0.9f32, 2.0, 0.1, 0.0, 3.0];
         let got = model.simulate(&theta, 0, &ctx, &exp);
         // The same model on the input shifted by three samples (u(0) held).
         let mut shifted = vec![exp.u[0]; 3];
         shifted.extend_from_slice(&exp.u[..exp.len() - 3]);
-        let reference = simulate(fam, &[0.9, 2.0, 0.1], &shifted, exp.y[0]);
+        let reference = simulate(fam, &[0.9, 2.0, 0.1, 0.0], &shifted, exp.y[0]);
         assert_eq!(got, reference.x);
     }
 
@@ -719,11 +719,11 @@ mod tests {
                 e * e
             })
             .sum();
-        let got = model.sse_ahead(&[a, b, c], 0, &ctx, &exp, 1);
+        let got = model.sse_ahead(&[a, b, c, 0.0], 0, &ctx, &exp, 1);
         assert!((got - want).abs() <= 1e-4 * want, "{got} vs {want}");
         // Far from the data's own model, the free run piles its error up
         // through the pole; the short horizon does not.
-        assert!(got < model.sse(&[a, b, c], 0, &ctx, &exp));
+        assert!(got < model.sse(&[a, b, c, 0.0], 0, &ctx, &exp));
     }
 
     #[test]

@@ -168,6 +168,12 @@ impl Data {
                 .iter()
                 .map(|t| max_abs(&t.output))
                 .fold(0.0, f64::max),
+            output_range: crate::data::range(
+                &traces
+                    .iter()
+                    .flat_map(|t| t.output.iter().copied())
+                    .collect::<Vec<_>>(),
+            ),
         };
         let ctx = whole
             .iter()
@@ -485,6 +491,7 @@ pub(super) fn polish(
         max_iterations: 30,
         rel_step: 1e-4,
         tolerance: 1e-9,
+        central: false,
     };
     let residuals = |p: &[f64]| data.est_residuals(model, p);
     match lm::levenberg_marquardt(residuals, &best, (lo, hi), &floor, &settings) {

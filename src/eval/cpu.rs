@@ -22,7 +22,9 @@ use rayon::prelude::*;
 use super::{Evaluator, Problem, Scores, to_f32};
 use crate::model::Family;
 use crate::model::residuals;
-use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear_step};
+use crate::model::sim::{
+    classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w,
+};
 
 /// Candidates advanced side by side in one batch. One step of one candidate
 /// is a chain of about ten dependent operations (x → Δ → w → next x), so a
@@ -215,9 +217,9 @@ fn batch_sse_portable(
     }
     let n_is_one = |j: usize| params[j].iter().all(|&n| n == 1.0);
     match family {
-        Family::Linear => lanes_sse(&LinearLanes(params.try_into().expect("3")), u, y, every),
+        Family::Linear => lanes_sse(&LinearLanes(params.try_into().expect("4")), u, y, every),
         Family::Classic => {
-            let p = params.try_into().expect("8 parameters");
+            let p = params.try_into().expect("9 parameters");
             if n_is_one(4) {
                 lanes_sse(&ClassicLanes::<true>(p), u, y, every)
             } else {
@@ -225,7 +227,7 @@ fn batch_sse_portable(
             }
         }
         Family::Generalized => {
-            let p = params.try_into().expect("12 parameters");
+            let p = params.try_into().expect("13 parameters");
             if n_is_one(8) {
                 lanes_sse(&GeneralizedLanes::<true>(p), u, y, every)
             } else {
@@ -239,42 +241,78 @@ fn batch_sse_portable(
 /// lane `l`, from `(x(k−1), w(k−1))` and `u(k−1)` to `(x(k), w(k))`, calling
 /// the equations of [`crate::model::sim`].
 trait LaneModel {
+    /// The start offset `x₀` of lane `l` ([`crate::model::sim::Stepper::start`]).
+    fn start(&self, l: usize) -> f32;
+
     fn step(&self, l: usize, x: f32, w: f32, u_prev: f32) -> (f32, f32);
+
+    /// [`crate::model::sim::Stepper::restart`] of lane `l` to the measurement `y`.
+    fn restart(&self, l: usize, x: f32, w: f32, y: f32) -> (f32, f32);
 }
 
-struct LinearLanes<'a>(&'a [[f32; LANES]; 3]);
+struct LinearLanes<'a>(&'a [[f32; LANES]; 4]);
 
 impl LaneModel for LinearLanes<'_> {
     #[inline(always)]
+    fn start(&self, l: usize) -> f32 {
+        self.0[3][l]
+    }
+
+    #[inline(always)]
     fn step(&self, l: usize, x: f32, _w: f32, u_prev: f32) -> (f32, f32) {
-        let [a, b, c] = self.0;
+        let [a, b, c, _] = self.0;
         (linear_step(a[l], b[l], c[l], x, u_prev), 0.0)
+    }
+
+    #[inline(always)]
+    fn restart(&self, _l: usize, _x: f32, _w: f32, y: f32) -> (f32, f32) {
+        (y, 0.0)
     }
 }
 
 /// `N_ONE`: every lane has `n = 1` (the common case, compiled without `powf`).
-struct ClassicLanes<'a, const N_ONE: bool>(&'a [[f32; LANES]; 8]);
+struct ClassicLanes<'a, const N_ONE: bool>(&'a [[f32; LANES]; 9]);
 
 impl<const N_ONE: bool> LaneModel for ClassicLanes<'_, N_ONE> {
     #[inline(always)]
+    fn start(&self, l: usize) -> f32 {
+        self.0[8][l]
+    }
+
+    #[inline(always)]
     fn step(&self, l: usize, x: f32, w: f32, u_prev: f32) -> (f32, f32) {
-        let [big_a, alpha, beta, gamma, n, a, b, c] = self.0;
+        let [big_a, alpha, beta, gamma, n, a, b, c, _] = self.0;
         let nl = if N_ONE { 1.0 } else { n[l] };
         let xn = linear_part(a[l], alpha[l], b[l], c[l], x, w, u_prev);
         (xn, classic_w(big_a[l], beta[l], gamma[l], nl, w, xn - x))
     }
+
+    #[inline(always)]
+    fn restart(&self, l: usize, x: f32, w: f32, y: f32) -> (f32, f32) {
+        (y, restart_w(self.0[0][l], w, x, y))
+    }
 }
 
-struct GeneralizedLanes<'a, const N_ONE: bool>(&'a [[f32; LANES]; 12]);
+struct GeneralizedLanes<'a, const N_ONE: bool>(&'a [[f32; LANES]; 13]);
 
 impl<const N_ONE: bool> LaneModel for GeneralizedLanes<'_, N_ONE> {
     #[inline(always)]
+    fn start(&self, l: usize) -> f32 {
+        self.0[12][l]
+    }
+
+    #[inline(always)]
     fn step(&self, l: usize, x: f32, w: f32, u_prev: f32) -> (f32, f32) {
-        let [big_a, alpha, b1, b2, b3, b4, b5, b6, n, a, b, c] = self.0;
+        let [big_a, alpha, b1, b2, b3, b4, b5, b6, n, a, b, c, _] = self.0;
         let nl = if N_ONE { 1.0 } else { n[l] };
         let betas = [b1[l], b2[l], b3[l], b4[l], b5[l], b6[l]];
         let xn = linear_part(a[l], alpha[l], b[l], c[l], x, w, u_prev);
         (xn, generalized_w(big_a[l], &betas, nl, w, xn, xn - x))
+    }
+
+    #[inline(always)]
+    fn restart(&self, l: usize, x: f32, w: f32, y: f32) -> (f32, f32) {
+        (y, restart_w(self.0[0][l], w, x, y))
     }
 }
 
@@ -286,7 +324,7 @@ impl<const N_ONE: bool> LaneModel for GeneralizedLanes<'_, N_ONE> {
 /// costs a test per sample.
 #[inline(always)]
 fn lanes_sse<M: LaneModel>(m: &M, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
-    let mut x = [y[0]; LANES];
+    let mut x: [f32; LANES] = std::array::from_fn(|l| y[0] + m.start(l));
     let mut w = [0.0f32; LANES];
     let mut acc = [0.0f32; LANES];
     let mut ok = [true; LANES];
@@ -308,7 +346,10 @@ fn lanes_sse<M: LaneModel>(m: &M, u: &[f32], y: &[f32], every: usize) -> [f32; L
             }
         }
         if end - 1 == next_restart {
-            x = [y[end - 1]; LANES];
+            let yk = y[end - 1];
+            for l in 0..LANES {
+                (x[l], w[l]) = m.restart(l, x[l], w[l], yk);
+            }
         }
         if !any_ok(&ok) {
             break;

@@ -3,7 +3,8 @@
 //! Every family has one fixed layout that the CPU simulation, the WGSL shaders
 //! and the optimizers share. The hysteresis parameters come first in the
 //! thesis' order, then the Bouc-Wen exponent `n`, then the linear part
-//! `a, b` and the intercept `c` (see `docs/ARCHITECTURE.md`, "the intercept").
+//! `a, b`, the intercept `c` (see `docs/ARCHITECTURE.md`, "the intercept")
+//! and the start offset `x0` ("the initial state").
 
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -39,7 +40,14 @@ const fn p(name: &'static str, symbol: &'static str, meaning: &'static str) -> P
     }
 }
 
-const LINEAR: [ParamInfo; 3] = [
+/// The start offset, last in every layout.
+const START: ParamInfo = p(
+    "x0",
+    "x₀",
+    "start of the free run less the first measured output (output units): that sample's noise",
+);
+
+const LINEAR: [ParamInfo; 4] = [
     p("a", "a", "pole of the linear part"),
     p(
         "b",
@@ -51,9 +59,10 @@ const LINEAR: [ParamInfo; 3] = [
         "c",
         "intercept: the offset that mean removal leaves (output units)",
     ),
+    START,
 ];
 
-const CLASSIC: [ParamInfo; 8] = [
+const CLASSIC: [ParamInfo; 9] = [
     p("A", "A", "Bouc-Wen stiffness of the hysteretic state"),
     p(
         "alpha",
@@ -66,9 +75,10 @@ const CLASSIC: [ParamInfo; 8] = [
     LINEAR[0],
     LINEAR[1],
     LINEAR[2],
+    START,
 ];
 
-const GENERALIZED: [ParamInfo; 12] = [
+const GENERALIZED: [ParamInfo; 13] = [
     p("A", "A", "Bouc-Wen stiffness of the hysteretic state"),
     p(
         "alpha",
@@ -85,6 +95,7 @@ const GENERALIZED: [ParamInfo; 12] = [
     LINEAR[0],
     LINEAR[1],
     LINEAR[2],
+    START,
 ];
 
 impl Family {
@@ -109,10 +120,15 @@ impl Family {
         self.params().iter().position(|p| p.name == name)
     }
 
-    /// Positions of the linear part `a`, `b`, `c` (the last three entries).
+    /// Positions of the linear part `a`, `b`, `c` (before the start offset).
     pub fn linear_indices(self) -> [usize; 3] {
         let d = self.dim();
-        [d - 3, d - 2, d - 1]
+        [d - 4, d - 3, d - 2]
+    }
+
+    /// Position of the start offset `x0` (the last entry).
+    pub fn start_index(self) -> usize {
+        self.dim() - 1
     }
 
     /// Position of the Bouc-Wen exponent `n`, if the family has one.
@@ -162,6 +178,7 @@ mod tests {
                 .map(|&i| f.params()[i].name)
                 .collect();
             assert_eq!(names, ["a", "b", "c"], "{f}");
+            assert_eq!(f.params()[f.start_index()].name, "x0", "{f}");
         }
         assert_eq!(Family::Classic.exponent_index(), Some(4));
         assert_eq!(Family::Generalized.exponent_index(), Some(8));

@@ -9,17 +9,17 @@ pub const THESIS_A: f64 = 0.9618;
 pub const THESIS_B: f64 = 24.9366;
 
 /// The thesis' trial-and-error parameters (Table 1 classic, Table 2
-/// generalized) with the linear part of eq. 12 and no intercept, as a
-/// canonical vector of `family`.
+/// generalized) with the linear part of eq. 12, no intercept and no start
+/// offset, as a canonical vector of `family`.
 pub fn thesis_params(family: Family) -> Vec<f64> {
     match family {
-        Family::Linear => vec![THESIS_A, THESIS_B, 0.0],
+        Family::Linear => vec![THESIS_A, THESIS_B, 0.0, 0.0],
         // Table 1: α 0.5, A 0.9, β 0.002, γ −0.001, n 1.
-        Family::Classic => vec![0.9, 0.5, 0.002, -0.001, 1.0, THESIS_A, THESIS_B, 0.0],
+        Family::Classic => vec![0.9, 0.5, 0.002, -0.001, 1.0, THESIS_A, THESIS_B, 0.0, 0.0],
         // Table 2: α 0.9, A 1, n 1, β1..β6 = 0.01, 0.005, 0.1, −0.01, −0.1, 0.001.
         Family::Generalized => {
             vec![
-                1.0, 0.9, 0.01, 0.005, 0.1, -0.01, -0.1, 0.001, 1.0, THESIS_A, THESIS_B, 0.0,
+                1.0, 0.9, 0.01, 0.005, 0.1, -0.01, -0.1, 0.001, 1.0, THESIS_A, THESIS_B, 0.0, 0.0,
             ]
         }
     }
@@ -120,7 +120,7 @@ mod tests {
         for f in [Family::Classic, Family::Generalized] {
             for r in [ThesisRun::Ga, ThesisRun::Mfa, ThesisRun::Pso] {
                 let b = thesis_bounds(f, r).unwrap();
-                assert_eq!(b.lower.len(), f.dim() - 4, "{f} {r:?}");
+                assert_eq!(b.lower.len(), f.dim() - 5, "{f} {r:?}");
                 assert!(
                     b.lower.iter().zip(&b.upper).all(|(l, u)| l < u),
                     "{f} {r:?}"

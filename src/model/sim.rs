@@ -113,6 +113,7 @@ pub enum Stepper {
         a: f32,
         b: f32,
         c: f32,
+        x0: f32,
     },
     Classic {
         big_a: f32,
@@ -123,6 +124,7 @@ pub enum Stepper {
         a: f32,
         b: f32,
         c: f32,
+        x0: f32,
     },
     Generalized {
         big_a: f32,
@@ -132,6 +134,7 @@ pub enum Stepper {
         a: f32,
         b: f32,
         c: f32,
+        x0: f32,
     },
 }
 
@@ -149,6 +152,7 @@ impl Stepper {
                 a: theta[0],
                 b: theta[1],
                 c: theta[2],
+                x0: theta[3],
             },
             Family::Classic => Stepper::Classic {
                 big_a: theta[0],
@@ -159,6 +163,7 @@ impl Stepper {
                 a: theta[5],
                 b: theta[6],
                 c: theta[7],
+                x0: theta[8],
             },
             Family::Generalized => Stepper::Generalized {
                 big_a: theta[0],
@@ -168,42 +173,89 @@ impl Stepper {
                 a: theta[9],
                 b: theta[10],
                 c: theta[11],
+                x0: theta[12],
             },
         }
+    }
+
+    /// The state a free run starts in from the first measured output `y0`:
+    /// `(y0 + x₀, 0)`.
+    #[inline(always)]
+    pub fn start(&self, y0: f32) -> (f32, f32) {
+        let x0 = match *self {
+            Stepper::Linear { x0, .. }
+            | Stepper::Classic { x0, .. }
+            | Stepper::Generalized { x0, .. } => x0,
+        };
+        (y0 + x0, 0.0)
     }
 
     /// Advances one sample: from `(x(k−1), w(k−1))` and `u(k−1)` to `(x(k), w(k))`.
     #[inline(always)]
     pub fn step(&self, x_prev: f32, w_prev: f32, u_prev: f32) -> (f32, f32) {
+        let x = match *self {
+            Stepper::Linear { a, b, c, .. } => linear_step(a, b, c, x_prev, u_prev),
+            Stepper::Classic {
+                alpha, a, b, c, ..
+            }
+            | Stepper::Generalized {
+                alpha, a, b, c, ..
+            } => linear_part(a, alpha, b, c, x_prev, w_prev, u_prev),
+        };
+        (x, self.hysteresis(w_prev, x, x - x_prev))
+    }
+
+    /// The Bouc-Wen state after the output moved by `delta` to `x` (0 for
+    /// the linear family).
+    #[inline(always)]
+    pub fn hysteresis(&self, w_prev: f32, x: f32, delta: f32) -> f32 {
         match *self {
-            Stepper::Linear { a, b, c } => (linear_step(a, b, c, x_prev, u_prev), 0.0),
+            Stepper::Linear { .. } => 0.0,
             Stepper::Classic {
                 big_a,
-                alpha,
                 beta,
                 gamma,
                 n,
-                a,
-                b,
-                c,
-            } => {
-                let x = linear_part(a, alpha, b, c, x_prev, w_prev, u_prev);
-                (x, classic_w(big_a, beta, gamma, n, w_prev, x - x_prev))
-            }
+                ..
+            } => classic_w(big_a, beta, gamma, n, w_prev, delta),
             Stepper::Generalized {
                 big_a,
-                alpha,
                 ref betas,
                 n,
-                a,
-                b,
-                c,
-            } => {
-                let x = linear_part(a, alpha, b, c, x_prev, w_prev, u_prev);
-                (x, generalized_w(big_a, betas, n, w_prev, x, x - x_prev))
+                ..
+            } => generalized_w(big_a, betas, n, w_prev, x, delta),
+        }
+    }
+
+    /// A restart of the prediction: the output state is set to the
+    /// measurement `y`, and the Bouc-Wen state takes the jump's elastic part,
+    /// `w + A·(y − x)`.
+    ///
+    /// Why not leave `w` alone: it would integrate the simulated motion only,
+    /// drift from the measured motion by the sum of all jumps, and push the
+    /// output away through `a·(1 − α)·w` (measured on a generated classic
+    /// case, 0.07 mm noise: the true model's 28-step-ahead SSE was 3·10⁵
+    /// times its free-run SSE). Why not the whole Bouc-Wen step: a jump is
+    /// mostly measurement noise, and the loop terms `β·|Δ|`, `γ·Δ` rectify
+    /// noise into a bias (there 20 times the free-run SSE); the elastic part
+    /// is linear in the jump, so zero-mean noise leaves no bias (there 1.9
+    /// times).
+    #[inline(always)]
+    pub fn restart(&self, x: f32, w: f32, y: f32) -> (f32, f32) {
+        match *self {
+            Stepper::Linear { .. } => (y, 0.0),
+            Stepper::Classic { big_a, .. } | Stepper::Generalized { big_a, .. } => {
+                (y, restart_w(big_a, w, x, y))
             }
         }
     }
+}
+
+/// The Bouc-Wen state after a restart from `x` to the measurement `y`:
+/// `w + A·(y − x)` ([`Stepper::restart`]).
+#[inline(always)]
+pub fn restart_w(big_a: f32, w: f32, x: f32, y: f32) -> f32 {
+    w + (big_a * (y - x))
 }
 
 /// A free-run simulation: the output and hysteretic state at every sample.
@@ -215,10 +267,10 @@ pub struct Simulation {
     pub diverged_at: Option<usize>,
 }
 
-/// Simulates `family` with parameters `theta` on input `u` from `x(0) = x0`,
-/// `w(0) = 0`. The whole trace is produced even after divergence, so that a
-/// plot shows where it happened.
-pub fn simulate(family: Family, theta: &[f32], u: &[f32], x0: f32) -> Simulation {
+/// Simulates `family` with parameters `theta` on input `u` from the first
+/// measured output `y0` (the state [`Stepper::start`]). The whole trace is
+/// produced even after divergence, so that a plot shows where it happened.
+pub fn simulate(family: Family, theta: &[f32], u: &[f32], y0: f32) -> Simulation {
     let stepper = Stepper::new(family, theta);
     let mut x = Vec::with_capacity(u.len());
     let mut w = Vec::with_capacity(u.len());
@@ -226,8 +278,9 @@ pub fn simulate(family: Family, theta: &[f32], u: &[f32], x0: f32) -> Simulation
     if u.is_empty() {
         return Simulation { x, w, diverged_at };
     }
+    let (x0, w0) = stepper.start(y0);
     x.push(x0);
-    w.push(0.0);
+    w.push(w0);
     for k in 1..u.len() {
         let (xk, wk) = stepper.step(x[k - 1], w[k - 1], u[k - 1]);
         if diverged_at.is_none() && !(in_bounds(xk) && in_bounds(wk)) {
@@ -243,8 +296,9 @@ pub fn simulate(family: Family, theta: &[f32], u: &[f32], x0: f32) -> Simulation
 /// or of the `h`-step-ahead prediction.
 ///
 /// The `h`-step-ahead predictor is the free run with its output state set
-/// back to the measurement after every `h`-th sample (the Bouc-Wen state runs
-/// on: it is never measured). Its error cannot pile up through a slow pole for
+/// back to the measurement after every `h`-th sample (the Bouc-Wen state,
+/// never measured, follows that jump as it follows any motion of the
+/// output: [`Stepper::restart`]). Its error cannot pile up through a slow pole for
 /// longer than `h` samples, so its cost surface has no needle along the pole
 /// and the static gain where the free run's has one (Ribeiro, Tiels,
 /// Umenberger, Schön and Aguirre, "On the smoothness of nonlinear system
@@ -299,7 +353,7 @@ fn run_scored(
     }
     let stepper = Stepper::new(family, theta);
     let every = measure.restart_every();
-    let (mut x, mut w) = (y[0], 0.0f32);
+    let (mut x, mut w) = stepper.start(y[0]);
     for k in 1..u.len() {
         (x, w) = stepper.step(x, w, u[k - 1]);
         if !(in_bounds(x) && in_bounds(w)) {
@@ -307,7 +361,7 @@ fn run_scored(
         }
         sink(k, x - y[k]);
         if k % every == 0 {
-            x = y[k];
+            (x, w) = stepper.restart(x, w, y[k]);
         }
     }
     true
@@ -345,17 +399,17 @@ mod tests {
 
     #[test]
     fn linear_step_is_eq_12_plus_intercept() {
-        let s = Stepper::new(Family::Linear, &[0.5, 2.0, 1.0]);
+        let s = Stepper::new(Family::Linear, &[0.5, 2.0, 1.0, 0.0]);
         assert_eq!(s.step(4.0, 123.0, 3.0), (0.5 * 4.0 + 2.0 * 3.0 + 1.0, 0.0));
     }
 
     #[test]
     fn classic_with_alpha_one_is_linear() {
         let u: Vec<f32> = (0..200).map(|k| ((k / 20) % 2) as f32).collect();
-        let lin = simulate(Family::Linear, &[0.9, 2.0, 0.1], &u, 0.5);
+        let lin = simulate(Family::Linear, &[0.9, 2.0, 0.1, 0.0], &u, 0.5);
         let cl = simulate(
             Family::Classic,
-            &[0.9, 1.0, 0.1, 0.05, 1.0, 0.9, 2.0, 0.1],
+            &[0.9, 1.0, 0.1, 0.05, 1.0, 0.9, 2.0, 0.1, 0.0],
             &u,
             0.5,
         );
@@ -376,17 +430,17 @@ mod tests {
         let u = vec![1.0f32; 100];
         let y = vec![0.0f32; 100];
         // An unstable pole explodes past the bound.
-        assert_eq!(sse(Family::Linear, &[1.5, 1.0, 0.0], &u, &y), f32::INFINITY);
-        let sim = simulate(Family::Linear, &[1.5, 1.0, 0.0], &u, 0.0);
+        assert_eq!(sse(Family::Linear, &[1.5, 1.0, 0.0, 0.0], &u, &y), f32::INFINITY);
+        let sim = simulate(Family::Linear, &[1.5, 1.0, 0.0, 0.0], &u, 0.0);
         assert!(sim.diverged_at.is_some());
-        assert!(sse(Family::Linear, &[0.5, 1.0, 0.0], &u, &y).is_finite());
+        assert!(sse(Family::Linear, &[0.5, 1.0, 0.0, 0.0], &u, &y).is_finite());
     }
 
     #[test]
     fn prediction_restarts_the_output_from_the_measurement() {
         let u: Vec<f32> = (0..300).map(|k| ((k / 25) % 3) as f32 * 0.1).collect();
         let y: Vec<f32> = (0..300).map(|k| (k as f32 * 0.03).sin()).collect();
-        let theta = [0.9f32, 0.6, 0.05, -0.02, 1.0, 0.95, 1.5, 0.01];
+        let theta = [0.9f32, 0.6, 0.05, -0.02, 1.0, 0.95, 1.5, 0.01, 0.0];
         let fam = Family::Classic;
         // A horizon past the data is the free run.
         let free = sse(fam, &theta, &u, &y);
@@ -395,14 +449,15 @@ mod tests {
             free
         );
         // One step ahead: every x(k) starts from the measured y(k − 1), the
-        // Bouc-Wen state from its own run.
+        // Bouc-Wen state from its own run moved by the elastic part of the
+        // jump to the measurement.
         let r = residuals(fam, &theta, &u, &y, Measure::Ahead { horizon: 1 }).unwrap();
         let stepper = Stepper::new(fam, &theta);
         let mut w = 0.0;
         for k in 1..u.len() {
             let (x, wn) = stepper.step(y[k - 1], w, u[k - 1]);
             assert_eq!(r[k - 1], x - y[k], "sample {k}");
-            w = wn;
+            w = wn + theta[0] * (y[k] - x);
         }
         let ahead = measured_sse(fam, &theta, &u, &y, Measure::Ahead { horizon: 10 });
         assert_eq!(
@@ -418,7 +473,7 @@ mod tests {
     #[test]
     fn sse_matches_simulation_residual() {
         let u: Vec<f32> = (0..300).map(|k| (k as f32 * 0.05).sin()).collect();
-        let theta = [0.9f32, 0.6, 0.05, -0.02, 1.0, 0.95, 1.5, 0.01];
+        let theta = [0.9f32, 0.6, 0.05, -0.02, 1.0, 0.95, 1.5, 0.01, 0.0];
         let y: Vec<f32> = (0..300).map(|k| (k as f32 * 0.04).cos()).collect();
         let sim = simulate(Family::Classic, &theta, &u, y[0]);
         let mut acc = 0.0f32;
