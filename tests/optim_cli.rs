@@ -40,21 +40,8 @@ fn fit_writes_the_documented_json_and_files() {
     let csv = data(dir.path());
     let out = mckibben(
         &[
-            "fit",
-            &csv,
-            "--algo",
-            "pso",
-            "--pop",
-            "40",
-            "--gens",
-            "5",
-            "--seed",
-            "3",
-            "--backend",
-            "cpu",
-            "--out",
-            "fitdir",
-            "--json",
+            "fit", &csv, "--algo", "pso", "--pop", "40", "--gens", "5", "--seed", "3", "--backend",
+            "cpu", "--out", "fitdir", "--json",
         ],
         dir.path(),
     );
@@ -69,13 +56,26 @@ fn fit_writes_the_documented_json_and_files() {
         "evaluations",
         "seconds",
         "backend",
+        "stages",
+        "on_edge",
+        "stop",
     ] {
         assert!(v.get(key).is_some(), "missing {key} in {v}");
     }
     assert_eq!(v["model"], "classic");
     assert_eq!(v["algo"], "pso");
-    assert_eq!(v["evaluations"], 200);
-    assert_eq!(v["params"].as_object().unwrap().len(), 8);
+    // a, b, c, x0, A, α, β, γ, n.
+    assert_eq!(v["params"].as_object().unwrap().len(), 9);
+    let stages: Vec<&str> = v["stages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["stage"].as_str().unwrap())
+        .collect();
+    assert_eq!(stages, ["global", "free-run", "polish"]);
+    // The global stage: 40 × 5 on the prediction error.
+    assert_eq!(v["stages"][0]["evaluations"], 200);
+    assert_eq!(v["stop"], "completed");
     for f in [
         "model.json",
         "result.json",
@@ -89,7 +89,22 @@ fn fit_writes_the_documented_json_and_files() {
         assert!(dir.path().join("fitdir").join(f).is_file(), "{f}");
     }
     let history = std::fs::read_to_string(dir.path().join("fitdir/history.csv")).unwrap();
-    assert_eq!(history.lines().count(), 6);
+    assert!(history.lines().nth(1).unwrap().contains(",global,"), "{history}");
+    assert!(history.contains(",polish,"), "{history}");
+
+    // The thesis' flow: one stage on the free run, N × G evaluations, a and
+    // b held at the ARX estimate.
+    let thesis = json(&mckibben(
+        &[
+            "fit", &csv, "--thesis-flow", "--algo", "ga", "--pop", "10", "--gens", "3", "--backend",
+            "cpu", "--out", "thesis", "--json",
+        ],
+        dir.path(),
+    ));
+    assert_eq!(thesis["evaluations"], 30);
+    assert_eq!(thesis["stages"].as_array().unwrap().len(), 1);
+    assert_eq!(thesis["stages"][0]["measure"], "free-run");
+    assert_eq!(thesis["flow"], "thesis");
 }
 
 #[test]
@@ -132,7 +147,7 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
         &[&base[..], &["--gens", "8", "--checkpoint", "ck.json"]].concat(),
         dir.path(),
     ));
-    assert_eq!(resumed["generations"], 8);
+    assert_eq!(resumed["generations"], full["generations"]);
     assert_eq!(resumed["params"], full["params"]);
     assert_eq!(resumed["sse"], full["sse"]);
 }
@@ -141,7 +156,7 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 5] = [
         (&["fit", "missing.csv"], "missing.csv"),
         (&["fit", &csv, "--algo", "cmaes"], "cmaes"),
         (
@@ -151,6 +166,10 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         (
             &["fit", &csv, "--p-mut", "1.5", "--backend", "cpu"],
             "--p-mut",
+        ),
+        (
+            &["fit", &csv, "--pop", "8", "--islands", "4", "--backend", "cpu"],
+            "islands",
         ),
     ];
     for (args, needle) in cases {
@@ -168,6 +187,22 @@ fn bad_flags_and_bad_data_are_clear_errors() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("bad.csv") && err.contains("pressure"), "{err}");
+
+    // Values whose squares overflow the f32 simulation: an error naming the
+    // column and its range, and no model written.
+    let mut rows = String::from("t,pressure,displacement\n");
+    for k in 0..200 {
+        let _ = std::fmt::Write::write_fmt(
+            &mut rows,
+            format_args!("{},{},{}\n", k as f64 * 0.01, 0.1 + 0.001 * k as f64, 1e19 * (k % 7) as f64),
+        );
+    }
+    std::fs::write(dir.path().join("huge.csv"), rows).unwrap();
+    let out = mckibben(&["fit", "huge.csv", "--backend", "cpu", "--out", "huge"], dir.path());
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("`displacement`") && err.contains("6e19"), "{err}");
+    assert!(!dir.path().join("huge/model.json").exists());
 }
 
 #[test]
@@ -198,8 +233,9 @@ fn compare_writes_markdown_and_json() {
     );
     let v = json(&out);
     assert_eq!(v["table21"].as_array().unwrap().len(), 8);
-    assert_eq!(v["budget"].as_array().unwrap().len(), 12);
+    // Six thesis-flow variants and four staged fits, per model.
+    assert_eq!(v["budget"].as_array().unwrap().len(), 20);
     assert_eq!(v["flows"].as_array().unwrap().len(), 4);
     let md = std::fs::read_to_string(dir.path().join("out/compare/compare.md")).unwrap();
-    assert!(md.contains("Table 21") && md.contains("Equal budgets"));
+    assert!(md.contains("Table 21") && md.contains("Equal population budgets"));
 }

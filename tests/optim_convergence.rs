@@ -1,181 +1,64 @@
-//! Issue 5, first "done when": on data simulated from a known model in
-//! absolute units (so the intercept matters) plus 0.05 mm Gaussian noise,
-//! each optimizer at N = 1e4 reaches an SSE within 2 % (classic) or 5 %
-//! (generalized) of the true parameters' SSE. CPU backend, fixed seeds.
+//! The default staged fit reaches the noise floor on generated cases with a
+//! known truth (issue 15, point 3): the validation RMSE within 5 % of the
+//! truth's own, whatever the algorithm of the global stage.
 //!
-//! Generalized: the thesis' PSO and DE with p = 0.02 pass; the classic fixes
-//! of GA and MFA miss (ignored tests, ~44×), and two further documented
-//! settings pass: the GA with Michalewicz's non-uniform mutation and 2 %
-//! elitism, the MFA following the 3 brightest with ρ0 = 0.2. Budgets: G = 200 generations (2e6 evaluations) for every run. DE and
-//! PSO pass with their defaults (the thesis' PSO settings, Table 11/19).
-//! The thesis-faithful GA and MFA do not (docs/RESULTS.md gives by how
-//! much); they are tested with the documented settings that fix them:
-//! GA with 10 % elitism, uniform mutation magnitude and P_mut = 0.3; MFA
-//! moving towards the 10 brightest fireflies, eq. 32's r² and distances in
-//! box units.
+//! The cases come from `optim::cases` (truths across the thesis' boxes, slow
+//! poles, negative γ, stair / multisine / mixed inputs, 0.02–0.1 mm noise).
+//! A cheap subset runs in CI; the full 20-case matrix per family is ignored
+//! (`cargo test --release --test optim_convergence -- --ignored
+//! --nocapture`), and its results are in docs/RESULTS.md.
 
-use mckibben::eval::{Problem, cpu::CpuEvaluator};
+use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::model::Family;
-use mckibben::optim::ga::Mutation;
-use mckibben::optim::mfa::{Attractors, Distance, Scale};
-use mckibben::optim::pso::PsoSettings;
-use mckibben::optim::synthetic::Synthetic;
-use mckibben::optim::{AlgoSettings, Algorithm, RunSettings, Runner};
+use mckibben::optim::Algorithm;
+use mckibben::optim::cases::{Case, matrix};
+use mckibben::optim::engine::StopRules;
+use mckibben::optim::engine::model::{GENERATIONS, POPULATION, engine_settings, fit_task, staged_plan};
 
-const LEN: usize = 600;
-const NOISE_MM: f64 = 0.05;
-const N: usize = 10_000;
-const G: usize = 200;
-
-/// Fitted SSE over the true parameters' SSE.
-fn ratio(family: Family, algo: Algorithm, settings: &AlgoSettings) -> f64 {
-    let s = Synthetic::new(family, LEN, NOISE_MM, 11);
-    let problem = Problem::new(family, vec![s.estimation.clone()]);
-    let mut runner = Runner::new(algo, settings, s.space(), RunSettings::new(N, G, 42)).unwrap();
-    let out = runner
-        .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
-        .unwrap();
-    assert_eq!(out.evaluations, (N * G) as u64);
-    let r = out.sse / s.true_sse();
-    eprintln!(
-        "{family} {algo}: SSE {:.5}, true {:.5}, ratio {r:.4}",
-        out.sse,
-        s.true_sse()
-    );
+/// The fit's validation RMSE over the truth's, with the default plan.
+fn ratio(case: &Case, algo: Algorithm) -> f64 {
+    let task = case.task();
+    let plan = staged_plan(&task, algo, engine_settings(POPULATION), POPULATION, GENERATIONS);
+    let (_, out) = fit_task(&task, plan, 1, StopRules::default(), &mut CpuEvaluator::new()).unwrap();
+    let r = task.validate(&out.params).rmse / case.truth_validation.rmse;
+    eprintln!("{:36} {algo}: validation RMSE ratio {r:.4}", case.name());
     r
 }
 
-fn settings(family: Family) -> AlgoSettings {
-    AlgoSettings {
-        pso: PsoSettings::thesis(family),
-        ..AlgoSettings::default()
+/// Cases within 5 % of the truth, out of `count`, for `algo`.
+fn passes(family: Family, count: usize, algo: Algorithm) -> usize {
+    matrix(family, count, 1000)
+        .into_iter()
+        .map(Case::generate)
+        .filter(|c| ratio(c, algo) <= 1.05)
+        .count()
+}
+
+/// The first three classic cases of the matrix (a stair, a slow multisine,
+/// a mixed input), every algorithm.
+#[test]
+fn classic_subset_reaches_the_noise_floor_with_every_algorithm() {
+    for algo in Algorithm::ALL {
+        assert_eq!(passes(Family::Classic, 3, algo), 3, "{algo}");
     }
 }
 
-fn fixed_ga(family: Family) -> AlgoSettings {
-    let mut s = settings(family);
-    s.ga.elitism = N / 10;
-    s.ga.mutation = Mutation::Uniform;
-    s.ga.p_mut = 0.3;
-    s
-}
-
-fn fixed_mfa(family: Family) -> AlgoSettings {
-    let mut s = settings(family);
-    s.mfa.max_attractors = Some(10);
-    s.mfa.attractors = Attractors::Brightest;
-    s.mfa.distance = Distance::Squared;
-    s.mfa.scale = Scale::Box;
-    s
+#[test]
+#[ignore = "full matrix: about 3 minutes an algorithm; results in docs/RESULTS.md"]
+fn classic_matrix_reaches_the_noise_floor_in_19_of_20() {
+    for algo in Algorithm::ALL {
+        let n = passes(Family::Classic, 20, algo);
+        eprintln!("classic {algo}: {n}/20");
+        assert!(n >= 19, "classic {algo}: {n}/20");
+    }
 }
 
 #[test]
-fn classic_de() {
-    assert!(ratio(Family::Classic, Algorithm::De, &settings(Family::Classic)) <= 1.02);
-}
-
-#[test]
-fn classic_pso_thesis_settings() {
-    assert!(ratio(Family::Classic, Algorithm::Pso, &settings(Family::Classic)) <= 1.02);
-}
-
-#[test]
-fn classic_ga_proportional_fixed() {
-    assert!(ratio(Family::Classic, Algorithm::Ga, &fixed_ga(Family::Classic)) <= 1.02);
-}
-
-#[test]
-fn classic_mfa_fixed() {
-    assert!(ratio(Family::Classic, Algorithm::Mfa, &fixed_mfa(Family::Classic)) <= 1.02);
-}
-
-/// DE's default share p = 0.1 of pbest candidates misses here (ratio 2.49:
-/// stuck in a basin); a greedier p = 0.02 (still 200 candidates at N = 1e4)
-/// passes. Documented in docs/RESULTS.md.
-#[test]
-fn generalized_de_greedier_pbest() {
-    let f = Family::Generalized;
-    let mut s = settings(f);
-    s.de.p_best = 0.02;
-    assert!(ratio(f, Algorithm::De, &s) <= 1.05);
-}
-
-#[test]
-fn generalized_pso_thesis_settings() {
-    let f = Family::Generalized;
-    assert!(ratio(f, Algorithm::Pso, &settings(f)) <= 1.05);
-}
-
-/// The generalized model's landscape has a wide basin at ~44× the true SSE
-/// (sgn terms of the other sign, `c` of the wrong sign) where the classic
-/// fix settles. Michalewicz's non-uniform mutation reaches the whole box
-/// early and shrinks to nothing by generation G; with the best 2 % kept it
-/// passes (measured 0.237 here; 5 of seeds 42, 1–5 pass, docs/RESULTS.md).
-#[test]
-fn generalized_ga_proportional_nonuniform() {
-    let f = Family::Generalized;
-    let mut s = settings(f);
-    s.ga.elitism = N / 50;
-    s.ga.mutation = Mutation::NonUniform;
-    s.ga.p_mut = 0.3;
-    assert!(ratio(f, Algorithm::Ga, &s) <= 1.05);
-}
-
-#[test]
-#[ignore = "the classic fix misses on the generalized model (measured 44.7x); see docs/RESULTS.md"]
-fn generalized_ga_proportional_fixed() {
-    let f = Family::Generalized;
-    assert!(ratio(f, Algorithm::Ga, &fixed_ga(f)) <= 1.05);
-}
-
-/// The classic fix settles in the same ~44× basin: the swarm is a local
-/// search around its 10 brightest. Following only the 3 brightest, with a
-/// walk twice eq. 38's (ρ0 = 0.2 box widths, decaying as e^(−4.8k/G)),
-/// passes here (measured 0.214; seed-sensitive: 3 of seeds 42, 1–5 pass,
-/// docs/RESULTS.md).
-#[test]
-fn generalized_mfa_three_brightest_wider_walk() {
-    let f = Family::Generalized;
-    let mut s = fixed_mfa(f);
-    s.mfa.max_attractors = Some(3);
-    s.mfa.rho0 = 0.2;
-    assert!(ratio(f, Algorithm::Mfa, &s) <= 1.05);
-}
-
-#[test]
-#[ignore = "the classic fix misses on the generalized model (measured 44.0x); see docs/RESULTS.md"]
-fn generalized_mfa_fixed() {
-    let f = Family::Generalized;
-    assert!(ratio(f, Algorithm::Mfa, &fixed_mfa(f)) <= 1.05);
-}
-
-/// The thesis-faithful GA (proportional crossover, Table 5 settings) at the
-/// same budget: ignored because it misses (docs/RESULTS.md).
-#[test]
-#[ignore = "thesis-faithful GA misses; measured ratio in docs/RESULTS.md"]
-fn classic_ga_thesis_settings() {
-    assert!(ratio(Family::Classic, Algorithm::Ga, &settings(Family::Classic)) <= 1.02);
-}
-
-/// The thesis-faithful MFA (all-pairs, Table 9, code schedules): at N = 1e4
-/// the all-pairs move is impractical, so this runs N = 1000 for G = 200.
-#[test]
-#[ignore = "thesis-faithful MFA misses; measured ratio in docs/RESULTS.md"]
-fn classic_mfa_thesis_settings_n1000() {
-    let family = Family::Classic;
-    let s = Synthetic::new(family, LEN, NOISE_MM, 11);
-    let problem = Problem::new(family, vec![s.estimation.clone()]);
-    let mut runner = Runner::new(
-        Algorithm::Mfa,
-        &settings(family),
-        s.space(),
-        RunSettings::new(1000, G, 42),
-    )
-    .unwrap();
-    let out = runner
-        .run(&problem, &mut CpuEvaluator::new(), &mut [], None, None)
-        .unwrap();
-    let r = out.sse / s.true_sse();
-    eprintln!("classic mfa (thesis, N = 1000): ratio {r:.4}");
-    assert!(r <= 1.02);
+#[ignore = "full matrix: about 5 minutes an algorithm; falls short today (docs/RESULTS.md)"]
+fn generalized_matrix_reaches_the_noise_floor_in_19_of_20() {
+    for algo in Algorithm::ALL {
+        let n = passes(Family::Generalized, 20, algo);
+        eprintln!("generalized {algo}: {n}/20");
+        assert!(n >= 19, "generalized {algo}: {n}/20");
+    }
 }

@@ -10,16 +10,18 @@ use anyhow::Context;
 use serde::Serialize;
 
 use super::common::{ColumnArgs, DataArgs};
-use super::fit::{DEFAULT_GENS, DEFAULT_POP, one_trace};
+use super::fit::{MFA_ALL_PAIRS_MAX, one_trace};
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend, Evaluator};
 use mckibben::ident::fit_percent;
 use mckibben::model::{Family, Flow};
-use mckibben::optim::ga::Mutation;
-use mckibben::optim::mfa::{Attractors, Distance, Scale};
-use mckibben::optim::pso::PsoSettings;
+use mckibben::optim::mfa::Attractors;
+use mckibben::optim::engine::model::{
+    GENERATIONS, POPULATION, engine_settings, fit_task, staged_plan, thesis_settings,
+};
+use mckibben::optim::engine::{Plan, StopRules};
 use mckibben::optim::task::Task;
-use mckibben::optim::{AlgoSettings, Algorithm, RunSettings, Runner};
+use mckibben::optim::{AlgoSettings, Algorithm};
 
 /// Compare the optimizers on one experiment (the shipped 4.5 kg stair by
 /// default), as Markdown tables (and JSON with --json):
@@ -27,13 +29,15 @@ use mckibben::optim::{AlgoSettings, Algorithm, RunSettings, Runner};
 /// 1. the thesis' Table 21: every algorithm × both models × N = 10, 20, 30
 ///    at G = 30, with total and per-generation time, final SSE and
 ///    validation fit %; then the same at N = 1e3, 1e4, 1e5 (--sizes);
-/// 2. equal evaluation budgets over --seeds seeds (median, min, max): the
+/// 2. equal population budgets over --seeds seeds (median, min, max): the
 ///    thesis-faithful GA, MFA, PSO, the documented fixes of GA and MFA, and
-///    differential evolution;
-/// 3. the joint flow (a, b, c fitted) against the thesis' flow (a, b at the
-///    ARX estimate, no intercept);
-/// 4. the cross-load check (§4.10): fitted on this data, scored on --cross
-///    (default: data/stair_7kg.csv beside the default data), and back.
+///    differential evolution, each one search on the free run as the thesis
+///    does; then the staged fit of `mckibben fit` with each update rule;
+/// 3. the joint flow (a, b, c, x0 fitted; staged fit) against the thesis'
+///    flow (a, b at the ARX estimate, no intercept; same staged fit);
+/// 4. the cross-load check (§4.10): fitted on this data with the default
+///    staged fit, scored on --cross (default: data/stair_7kg.csv beside the
+///    default data), and back.
 ///
 /// The MFA's all-pairs move costs O(N²·d) per generation; above
 /// --mfa-all-pairs-max fireflies it moves towards the 10 brightest only
@@ -63,7 +67,7 @@ pub struct Args {
     #[arg(long, default_value_t = 100)]
     budget_gens: usize,
     /// Largest N at which the MFA moves every firefly towards all brighter ones.
-    #[arg(long, default_value_t = 2000)]
+    #[arg(long, default_value_t = MFA_ALL_PAIRS_MAX)]
     mfa_all_pairs_max: usize,
     /// Second experiment for the cross-load check.
     #[arg(long, value_name = "FILE")]
@@ -137,26 +141,15 @@ fn finite(v: f64) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
-/// The thesis' settings for `family` (PSO: Table 11 / 19).
-fn thesis_settings(family: Family) -> AlgoSettings {
-    AlgoSettings {
-        pso: PsoSettings::thesis(family),
-        ..AlgoSettings::default()
-    }
-}
-
 /// The documented fixes (docs/RESULTS.md): GA with 10 % elitism, uniform
 /// mutation, P_mut 0.3; MFA towards the 10 brightest, r², box units.
 fn fixed_settings(family: Family, n: usize) -> AlgoSettings {
-    let mut s = thesis_settings(family);
-    s.ga.elitism = n / 10;
-    s.ga.mutation = Mutation::Uniform;
-    s.ga.p_mut = 0.3;
-    s.mfa.max_attractors = Some(10);
-    s.mfa.attractors = Attractors::Brightest;
-    s.mfa.distance = Distance::Squared;
-    s.mfa.scale = Scale::Box;
-    s
+    let engine = engine_settings(n);
+    AlgoSettings {
+        ga: engine.ga,
+        mfa: engine.mfa,
+        ..thesis_settings(family)
+    }
 }
 
 struct Fitter<'a> {
@@ -164,31 +157,18 @@ struct Fitter<'a> {
 }
 
 impl Fitter<'_> {
-    fn run(
-        &mut self,
-        task: &Task,
-        algo: Algorithm,
-        settings: &AlgoSettings,
-        n: usize,
-        g: usize,
-        seed: u64,
-    ) -> anyhow::Result<(Row, Vec<f64>)> {
-        let mut runner = Runner::new(
-            algo,
-            settings,
-            task.space.clone(),
-            RunSettings::new(n, g, seed),
-        )?;
-        let problem = task.problem();
+    /// One fit of `task` with `plan`, seeded by `seed`.
+    fn run(&mut self, task: &Task, plan: Plan, algo: &str, seed: u64) -> anyhow::Result<(Row, Vec<f64>)> {
+        let population = plan.global.as_ref().map_or(0, |g| g.population);
         let t = Instant::now();
-        let out = runner.run(&problem, self.evaluator, &mut [], None, None)?;
+        let (_, out) = fit_task(task, plan, seed, StopRules::default(), self.evaluator)?;
         let seconds = t.elapsed().as_secs_f64();
         let val = task.validate(&out.params);
         Ok((
             Row {
                 model: task.family,
-                algo: algo.name().into(),
-                population: n,
+                algo: algo.into(),
+                population,
                 generations: out.generations,
                 evaluations: out.evaluations,
                 seconds,
@@ -198,6 +178,25 @@ impl Fitter<'_> {
             },
             out.params,
         ))
+    }
+
+    /// The thesis' flow: one search with `algo` on the free run.
+    fn thesis(
+        &mut self,
+        task: &Task,
+        algo: Algorithm,
+        settings: &AlgoSettings,
+        n: usize,
+        g: usize,
+        seed: u64,
+    ) -> anyhow::Result<(Row, Vec<f64>)> {
+        self.run(task, Plan::thesis(algo, settings.clone(), n, g), algo.name(), seed)
+    }
+
+    /// The staged fit of `mckibben fit` with `algo`.
+    fn staged(&mut self, task: &Task, algo: Algorithm, n: usize, g: usize, seed: u64) -> anyhow::Result<(Row, Vec<f64>)> {
+        let plan = staged_plan(task, algo, engine_settings(n), n, g);
+        self.run(task, plan, algo.name(), seed)
     }
 }
 
@@ -256,7 +255,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     s.mfa.attractors = Attractors::Brightest;
                 }
                 eprintln!("table 21: {} {algo} N = {n}", task.family);
-                let (mut row, _) = fitter.run(task, algo, &s, n, args.gens, 1)?;
+                let (mut row, _) = fitter.thesis(task, algo, &s, n, args.gens, 1)?;
                 if capped {
                     row.algo = "mfa*".into();
                 }
@@ -272,12 +271,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let thesis = thesis_settings(task.family);
             let fixed = fixed_settings(task.family, n);
             let variants = [
-                ("ga (thesis, proportional)", Algorithm::Ga, &thesis),
-                ("ga (fixed)", Algorithm::Ga, &fixed),
-                ("mfa (thesis)", Algorithm::Mfa, &thesis),
-                ("mfa (fixed)", Algorithm::Mfa, &fixed),
-                ("pso (thesis)", Algorithm::Pso, &thesis),
-                ("de (baseline)", Algorithm::De, &thesis),
+                ("ga (thesis, proportional)", Algorithm::Ga, Some(&thesis)),
+                ("ga (fixed)", Algorithm::Ga, Some(&fixed)),
+                ("mfa (thesis)", Algorithm::Mfa, Some(&thesis)),
+                ("mfa (fixed)", Algorithm::Mfa, Some(&fixed)),
+                ("pso (thesis)", Algorithm::Pso, Some(&thesis)),
+                ("de (baseline)", Algorithm::De, Some(&thesis)),
+                ("staged fit, ga", Algorithm::Ga, None),
+                ("staged fit, mfa", Algorithm::Mfa, None),
+                ("staged fit, pso", Algorithm::Pso, None),
+                ("staged fit, de", Algorithm::De, None),
             ];
             for (name, algo, settings) in variants {
                 eprintln!("budget: {} {name}, {} seeds", task.family, args.seeds);
@@ -285,7 +288,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 let mut fit = Vec::new();
                 let mut evaluations = 0;
                 for seed in 1..=args.seeds {
-                    let (row, _) = fitter.run(task, algo, settings, n, g, seed)?;
+                    let (row, _) = match settings {
+                        Some(s) => fitter.thesis(task, algo, s, n, g, seed)?,
+                        None => fitter.staged(task, algo, n, g, seed)?,
+                    };
                     sse.push(row.sse.unwrap_or(f64::INFINITY));
                     fit.push(row.val_fit_percent.unwrap_or(f64::NEG_INFINITY));
                     evaluations = row.evaluations;
@@ -309,15 +315,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 
     // The flows and the cross-load check use the default fit.
-    let (n, g) = (DEFAULT_POP, DEFAULT_GENS);
+    let (n, g) = (POPULATION, GENERATIONS);
     let mut flows = Vec::new();
     let mut fitted = Vec::new();
     for task in &tasks {
         for flow in [Flow::Joint, Flow::Thesis] {
             let t = Task::new(&trace, task.family, flow, None, false)?;
             eprintln!("flows: {} {flow:?}", task.family);
-            let (row, params) =
-                fitter.run(&t, Algorithm::De, &thesis_settings(t.family), n, g, 1)?;
+            let (row, params) = fitter.staged(&t, Algorithm::De, n, g, 1)?;
             let val = t.validate(&params);
             flows.push(FlowRow {
                 model: t.family,
@@ -340,8 +345,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .collect::<anyhow::Result<_>>()?;
         for (k, task) in other_tasks.iter().enumerate() {
             eprintln!("cross-load: {}", task.family);
-            let (_, params) =
-                fitter.run(task, Algorithm::De, &thesis_settings(task.family), n, g, 1)?;
+            let (_, params) = fitter.staged(task, Algorithm::De, n, g, 1)?;
             let back = task.model(&params);
             let score = |m: &mckibben::model::FittedModel, on: &Trace| {
                 finite(fit_percent(&on.output, &m.simulate_trace(on)))
@@ -446,7 +450,7 @@ fn markdown(r: &Report, args: &Args) -> String {
     if !r.budget.is_empty() {
         let _ = writeln!(
             s,
-            "\n## Equal budgets (N = {}, G = {}), seeds 1..={}: median [min, max]\n",
+            "\n## Equal population budgets (N = {}, G = {}), seeds 1..={}: median [min, max]\n\nThe staged fits add a free-run stage (N/5 for G/4) and a polish to the same global stage.\n",
             args.budget_pop, args.budget_gens, args.seeds
         );
         let _ = writeln!(
@@ -471,7 +475,7 @@ fn markdown(r: &Report, args: &Args) -> String {
     }
     let _ = writeln!(
         s,
-        "\n## Flows (DE, N = {DEFAULT_POP}, G = {DEFAULT_GENS}, seed 1)\n\n| model | flow | SSE | validation fit % | validation RMSE |\n|---|---|---:|---:|---:|"
+        "\n## Flows (staged fit, DE, N = {POPULATION}, G = {GENERATIONS}, seed 1)\n\n| model | flow | SSE | validation fit % | validation RMSE |\n|---|---|---:|---:|---:|"
     );
     for f in &r.flows {
         let _ = writeln!(
@@ -479,7 +483,7 @@ fn markdown(r: &Report, args: &Args) -> String {
             "| {} | {} | {} | {} | {} |",
             f.model,
             match f.flow {
-                Flow::Joint => "joint (a, b, c fitted)",
+                Flow::Joint => "joint (a, b, c, x0 fitted)",
                 Flow::Thesis => "thesis (a, b = ARX, c = 0)",
             },
             opt(f.sse, 3),
@@ -490,7 +494,7 @@ fn markdown(r: &Report, args: &Args) -> String {
     if !r.cross_load.is_empty() {
         let _ = writeln!(
             s,
-            "\n## Cross-load check (§4.10; DE, joint flow; fit % over the whole trace)\n\n| model | fitted on | scored on | fit % |\n|---|---|---|---:|"
+            "\n## Cross-load check (§4.10; staged fit, DE, joint flow; fit % over the whole trace)\n\n| model | fitted on | scored on | fit % |\n|---|---|---|---:|"
         );
         for c in &r.cross_load {
             let _ = writeln!(

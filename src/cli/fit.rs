@@ -1,5 +1,6 @@
-//! `mckibben fit`: identify a hysteresis model's parameters with one of the
-//! thesis' optimizers (GA, MFA, PSO) or the differential-evolution baseline.
+//! `mckibben fit`: identify a hysteresis model's parameters with the staged
+//! fitting engine (a population search by GA, MFA, PSO or DE, a free-run
+//! stage and a Levenberg–Marquardt polish), or with the thesis' flow.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -12,40 +13,52 @@ use super::common::DataArgs;
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::model::{Family, Flow, simulate};
+use mckibben::optim::engine::model::{
+    GENERATIONS, ModelObjective, POPULATION, engine_settings, staged_plan, thesis_settings,
+};
+use mckibben::optim::engine::{
+    Engine, Observer, Outcome, Plan, Space, StageSummary, StopReason, StopRules,
+};
 use mckibben::optim::ga::{Crossover, Mutation};
 use mckibben::optim::history::GenerationRecord;
 use mckibben::optim::mfa::{Attractors, Distance, Lambda0Schedule, Scale};
-use mckibben::optim::pso::PsoSettings;
 use mckibben::optim::task::Task;
-use mckibben::optim::{AlgoSettings, Algorithm, Observer, RunOutcome, RunSettings, Runner};
+use mckibben::optim::{AlgoSettings, Algorithm};
 use mckibben::report::{Figure, Panel, Series};
 
 /// Fit a Bouc-Wen hysteresis model (eq. 13 with the classic or generalized
 /// state) to a recorded experiment. The first half of the data is used for
 /// estimation, the second half for validation, as in the thesis (§4.3.1).
 ///
-/// By default `a`, `b` and the intercept `c` are fitted together with the
-/// hysteresis parameters (least squares on hysteretic data does not return
-/// the hysteretic model's `a`, `b`, and removing means leaves an offset);
-/// `--thesis-flow` fixes `a`, `b` at the ARX estimate with no intercept.
+/// The fit runs in three stages (docs/ARCHITECTURE.md, "fitting engine"):
+///   1. global: a population search (--algo) on the h-step-ahead prediction
+///      error, h about a third of the data's time constant, in 4 islands;
+///   2. free run: differential evolution on the free-run error from the
+///      global stage's best members (N/5 for G/4 generations);
+///   3. polish: Levenberg–Marquardt on the free-run residuals from the best
+///      8 distinct members.
+/// The free-run error of a slow hysteretic model is a needle that a
+/// population search alone stalls beside; the prediction error is smooth
+/// around it. Default N = 1000, G = 300: under 2 s on two CPU cores for the
+/// shipped 4000-sample stair (docs/PERFORMANCE.md).
 ///
-/// Default: differential evolution, N = 4000, G = 200 (8e5 evaluations, about
-/// 2 s on two CPU cores for the shipped 4000-sample stair). Larger budgets
-/// still lower the SSE a little there (docs/RESULTS.md); raise --pop and
-/// --gens when time allows.
+/// `a`, `b`, the intercept `c` and the start offset `x0` are fitted with the
+/// hysteresis parameters. `--thesis-flow` redoes the thesis instead: `a`, `b`
+/// fixed at the ARX estimate, no intercept, one population search on the
+/// free run with the thesis' settings (chapter 5), as in its Table 21.
 ///
 /// Writes to --out: model.json (read by `simulate`), result.json,
-/// history.csv / history.json (best SSE, best parameters, mean and spread
-/// of the population, diverged count per generation), and figures:
-/// trends.svg (parameters over generations, the thesis' figs 9–24),
-/// convergence.svg, loop.svg (displacement against pressure, fitted over
-/// measured) and trace.svg. Ctrl-C stops after the current generation and
-/// still writes the best so far.
+/// history.csv / history.json (per generation and polish start: stage,
+/// horizon, best SSE, best parameters, population mean and spread, diverged
+/// count), and figures: trends.svg (parameters over generations, the
+/// thesis' figs 9–24), convergence.svg, loop.svg (displacement against
+/// pressure, fitted over measured) and trace.svg. Ctrl-C stops after the
+/// current generation and still writes the best so far.
 ///
 /// Examples:
 ///   mckibben fit
-///   mckibben fit run.csv --model generalized --algo pso --pop 10000 --gens 200
-///   mckibben fit --algo ga --crossover weighted --thesis-flow --pop 30 --gens 30
+///   mckibben fit run.csv --model generalized --algo pso --pop 10000
+///   mckibben fit --thesis-flow --algo ga --crossover weighted --pop 30 --gens 30
 ///   mckibben fit --checkpoint fit.ckpt.json   # resumes if the file exists
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
@@ -55,82 +68,93 @@ pub struct Args {
     /// Hysteresis model: classic (A, α, β, γ) or generalized (A, α, β1..β6).
     #[arg(long, value_enum, default_value = "classic")]
     model: ModelArg,
-    /// Optimizer: ga, mfa, pso (the thesis') or de (baseline).
+    /// Update rule of the population search: ga, mfa, pso (the thesis') or
+    /// de. It changes the time a fit takes, not where it ends.
     #[arg(long, value_enum, default_value = "de")]
     algo: Algorithm,
-    /// Population size N (the thesis used 10–30).
-    #[arg(long, default_value_t = DEFAULT_POP)]
+    /// Population size N of the global stage (the thesis used 10–30).
+    #[arg(long, default_value_t = POPULATION)]
     pop: usize,
-    /// Generations G (the thesis used 30).
-    #[arg(long, default_value_t = DEFAULT_GENS)]
+    /// Generations G of the global stage: populations evaluated, the
+    /// initial one included (the thesis used 30).
+    #[arg(long, default_value_t = GENERATIONS)]
     gens: usize,
-    /// Seed of the run's random generator: same seed, same result.
+    /// Seed of the run's random generator: same seed, same result on any
+    /// backend and thread count.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Where populations are scored: auto (a hardware GPU if present, else
     /// the CPU), cpu, or gpu (any adapter, lavapipe included).
     #[arg(long, value_enum, default_value = "auto")]
     backend: Backend,
-    /// GA crossover (§5.2.1.5).
-    #[arg(long, value_enum, default_value = "proportional")]
-    crossover: Crossover,
-    /// The thesis' flow: a and b fixed at the ARX estimate, no intercept.
+    /// The thesis' flow: a and b fixed at the ARX estimate, no intercept or
+    /// start offset, one population search on the free run with the
+    /// thesis' algorithm settings (the flags below still override them).
     #[arg(long)]
     thesis_flow: bool,
+    /// Independent sub-populations of the staged fit's population stages.
+    #[arg(long, value_name = "K", conflicts_with = "thesis_flow")]
+    islands: Option<usize>,
+    /// Prediction horizon of the global stage in samples (default: a third
+    /// of the ARX time constant).
+    #[arg(long, value_name = "SAMPLES", conflicts_with = "thesis_flow")]
+    horizon: Option<usize>,
     /// Also fit the Bouc-Wen exponent n in [1, 3] (fixed at 1 in the thesis).
     #[arg(long)]
     free_n: bool,
-    /// Stop once the estimation SSE is at or below this.
+    /// Stop once the estimation SSE (free run) is at or below this.
     #[arg(long, value_name = "SSE")]
     target_sse: Option<f64>,
     /// Stop after this many seconds (the result then depends on the machine).
     #[arg(long, value_name = "SECONDS")]
     time_budget: Option<f64>,
-    /// Stop when the best SSE has not improved for this many generations.
+    /// End a population stage when its best has not improved for this many
+    /// generations.
     #[arg(long, value_name = "GENS")]
     stall: Option<usize>,
-    /// GA: best individuals kept unchanged (0 in the thesis).
-    #[arg(long, default_value_t = 0)]
-    elitism: usize,
-    /// GA: mutation probability P_mut (thesis 0.1).
-    #[arg(long, default_value_t = 0.1)]
-    p_mut: f64,
-    /// GA: fixed ±m_m mutation (thesis), uniform in [−m_m, m_m], or
-    /// non-uniform (Michalewicz: towards a bound, reach shrinking from the
-    /// whole box to 0 over the generations; fits the generalized model with
-    /// --elitism N/50 --p-mut 0.3, docs/RESULTS.md).
-    #[arg(long, value_enum, default_value = "fixed")]
-    mutation: Mutation,
+    /// GA crossover (§5.2.1.5; default proportional).
+    #[arg(long, value_enum)]
+    crossover: Option<Crossover>,
+    /// GA: best individuals kept unchanged (thesis 0; staged fit N/10).
+    #[arg(long)]
+    elitism: Option<usize>,
+    /// GA: mutation probability P_mut (thesis 0.1; staged fit 0.3).
+    #[arg(long)]
+    p_mut: Option<f64>,
+    /// GA: fixed ±m_m mutation (thesis), uniform in [−m_m, m_m] (staged
+    /// fit), or non-uniform (Michalewicz: towards a bound, reach shrinking
+    /// over the generations).
+    #[arg(long, value_enum)]
+    mutation: Option<Mutation>,
     /// MFA: Λ0 schedule from a to b (appendix code) or to a − b (eq. 36).
-    #[arg(long, value_enum, default_value = "code")]
-    mfa_lambda0: Lambda0Schedule,
-    /// MFA: attractiveness e^(−σr) (code) or e^(−σr²) (eq. 32).
-    #[arg(long, value_enum, default_value = "linear")]
-    mfa_distance: Distance,
-    /// MFA: distances and walk in raw units (thesis) or box widths.
-    #[arg(long, value_enum, default_value = "raw")]
-    mfa_scale: Scale,
-    /// MFA: move towards at most K brighter fireflies (all in the thesis;
-    /// the all-pairs move costs O(N²·d) per generation).
+    #[arg(long, value_enum)]
+    mfa_lambda0: Option<Lambda0Schedule>,
+    /// MFA: attractiveness e^(−σr) (thesis' code) or e^(−σr²) (eq. 32;
+    /// staged fit).
+    #[arg(long, value_enum)]
+    mfa_distance: Option<Distance>,
+    /// MFA: distances and walk in raw units (thesis) or box widths (staged fit).
+    #[arg(long, value_enum)]
+    mfa_scale: Option<Scale>,
+    /// MFA: move towards at most K brighter fireflies (thesis: all of them,
+    /// O(N²·d) a generation; staged fit: the 10 brightest). 0 means all.
     #[arg(long, value_name = "K")]
     mfa_attractors: Option<usize>,
     /// MFA: with --mfa-attractors, the K brightest instead of K at random.
     #[arg(long)]
     mfa_brightest: bool,
-    /// MFA: start ρ0 of the random walk ρ(k) = ρ0·e^(−4.8k/G) (eq. 38:
-    /// 0.1). 0.2 with --mfa-attractors 3 --mfa-brightest --mfa-distance
-    /// squared --mfa-scale box fits the generalized model (docs/RESULTS.md).
-    #[arg(long, default_value_t = 0.1, value_name = "RHO0")]
-    mfa_rho0: f64,
+    /// MFA: start ρ0 of the random walk ρ(k) = ρ0·e^(−4.8k/G) (eq. 38: 0.1).
+    #[arg(long, value_name = "RHO0")]
+    mfa_rho0: Option<f64>,
     /// DE: share of the population x_pbest is drawn from (0.1; smaller is
-    /// greedier, see docs/RESULTS.md).
-    #[arg(long, default_value_t = 0.1)]
-    de_p_best: f64,
+    /// greedier).
+    #[arg(long)]
+    de_p_best: Option<f64>,
     /// PSO: one random number for the social term (appendix code).
     #[arg(long)]
     pso_scalar_social: bool,
     /// Save the run state to FILE every 10 s and at the end; if FILE exists,
-    /// resume from it to the identical result (N, G, seed and algorithm
+    /// resume from it to the identical result (the plan, N, G, seed and
     /// settings come from the checkpoint, stopping rules from this command).
     #[arg(long, value_name = "FILE")]
     checkpoint: Option<PathBuf>,
@@ -142,10 +166,10 @@ pub struct Args {
     json: bool,
 }
 
-/// Default population and generations of `fit` (and of the flow and
-/// cross-load fits of `compare`).
-pub const DEFAULT_POP: usize = 4000;
-pub const DEFAULT_GENS: usize = 200;
+/// Above this population the MFA's all-pairs move takes over a second a
+/// generation on two cores (measured: docs/PERFORMANCE.md), so the thesis'
+/// flow moves each firefly towards the 10 brightest unless told otherwise.
+pub const MFA_ALL_PAIRS_MAX: usize = 2000;
 
 /// The hysteretic families `fit` can fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -169,6 +193,7 @@ struct Output {
     model: Family,
     algo: Algorithm,
     params: serde_json::Map<String, serde_json::Value>,
+    /// Estimation SSE of the free run.
     sse: Option<f64>,
     val_rmse: Option<f64>,
     val_fit_percent: Option<f64>,
@@ -179,9 +204,18 @@ struct Output {
     flow: Flow,
     seed: u64,
     population: usize,
-    stop: mckibben::optim::StopReason,
+    stop: StopReason,
+    stages: Vec<StageSummary>,
+    /// Parameters that ended on a bound of the search box.
+    on_edge: Vec<Edge>,
     data: String,
     out: PathBuf,
+}
+
+#[derive(Debug, Serialize)]
+struct Edge {
+    param: String,
+    bound: &'static str,
 }
 
 /// The longest of the traces (several come from `--split-gaps`).
@@ -198,41 +232,106 @@ pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
 }
 
 impl Args {
+    /// The base settings (the thesis' or the staged fit's) with the flags
+    /// given on the command line laid over them.
     fn algo_settings(&self, family: Family) -> anyhow::Result<AlgoSettings> {
-        anyhow::ensure!(
-            (0.0..=1.0).contains(&self.p_mut),
-            "--p-mut must be a probability in [0, 1] (got {})",
-            self.p_mut
-        );
-        let mut s = AlgoSettings {
-            pso: PsoSettings::thesis(family),
-            ..AlgoSettings::default()
+        let mut s = if self.thesis_flow {
+            thesis_settings(family)
+        } else {
+            engine_settings(self.pop)
         };
-        s.ga.crossover = self.crossover;
-        s.ga.elitism = self.elitism;
-        s.ga.p_mut = self.p_mut;
-        s.ga.mutation = self.mutation;
-        s.mfa.lambda0 = self.mfa_lambda0;
-        s.mfa.distance = self.mfa_distance;
-        s.mfa.scale = self.mfa_scale;
-        s.mfa.max_attractors = self.mfa_attractors;
-        anyhow::ensure!(
-            self.mfa_rho0.is_finite() && self.mfa_rho0 >= 0.0,
-            "--mfa-rho0 must be a finite step size ≥ 0 (got {})",
-            self.mfa_rho0
-        );
-        s.mfa.rho0 = self.mfa_rho0;
+        if let Some(p) = self.p_mut {
+            anyhow::ensure!(
+                (0.0..=1.0).contains(&p),
+                "--p-mut must be a probability in [0, 1] (got {p})"
+            );
+            s.ga.p_mut = p;
+        }
+        if let Some(c) = self.crossover {
+            s.ga.crossover = c;
+        }
+        if let Some(e) = self.elitism {
+            anyhow::ensure!(e < self.pop, "--elitism must be below --pop (got {e})");
+            s.ga.elitism = e;
+        }
+        if let Some(m) = self.mutation {
+            s.ga.mutation = m;
+        }
+        if let Some(l) = self.mfa_lambda0 {
+            s.mfa.lambda0 = l;
+        }
+        if let Some(d) = self.mfa_distance {
+            s.mfa.distance = d;
+        }
+        if let Some(sc) = self.mfa_scale {
+            s.mfa.scale = sc;
+        }
+        if let Some(k) = self.mfa_attractors {
+            s.mfa.max_attractors = (k > 0).then_some(k);
+        } else if self.thesis_flow && self.algo == Algorithm::Mfa && self.pop > MFA_ALL_PAIRS_MAX {
+            s.mfa.max_attractors = Some(10);
+            s.mfa.attractors = Attractors::Brightest;
+            if !self.json {
+                eprintln!(
+                    "mckibben: note: the MFA's all-pairs move is O(N²·d) and takes over a second a \
+                     generation above N = {MFA_ALL_PAIRS_MAX}; moving each firefly towards the 10 \
+                     brightest instead (--mfa-attractors 0 for all pairs)"
+                );
+            }
+        }
         if self.mfa_brightest {
             s.mfa.attractors = Attractors::Brightest;
         }
-        s.pso.scalar_social = self.pso_scalar_social;
-        anyhow::ensure!(
-            self.de_p_best > 0.0 && self.de_p_best <= 1.0,
-            "--de-p-best must be in (0, 1] (got {})",
-            self.de_p_best
-        );
-        s.de.p_best = self.de_p_best;
+        if let Some(r) = self.mfa_rho0 {
+            anyhow::ensure!(
+                r.is_finite() && r >= 0.0,
+                "--mfa-rho0 must be a finite step size ≥ 0 (got {r})"
+            );
+            s.mfa.rho0 = r;
+        }
+        if self.pso_scalar_social {
+            s.pso.scalar_social = true;
+        }
+        if let Some(p) = self.de_p_best {
+            anyhow::ensure!(
+                p > 0.0 && p <= 1.0,
+                "--de-p-best must be in (0, 1] (got {p})"
+            );
+            s.de.p_best = p;
+        }
         Ok(s)
+    }
+
+    /// The plan of a fresh fit.
+    fn plan(&self, task: &Task) -> anyhow::Result<Plan> {
+        let settings = self.algo_settings(task.family)?;
+        if self.thesis_flow {
+            return Ok(Plan::thesis(self.algo, settings, self.pop, self.gens));
+        }
+        let mut plan = staged_plan(task, self.algo, settings, self.pop, self.gens);
+        if let Some(global) = plan.global.as_mut() {
+            if let Some(k) = self.islands {
+                anyhow::ensure!(k >= 1, "--islands must be at least 1");
+                global.islands = k;
+            }
+            if let Some(h) = self.horizon {
+                anyhow::ensure!(h >= 1, "--horizon must be at least 1 sample");
+                global.measure = mckibben::model::Measure::Ahead { horizon: h };
+            }
+        }
+        Ok(plan)
+    }
+
+    fn stops(&self) -> anyhow::Result<StopRules> {
+        if let Some(t) = self.time_budget {
+            anyhow::ensure!(t >= 0.0, "--time-budget must be at least 0 seconds (got {t})");
+        }
+        Ok(StopRules {
+            target_sse: self.target_sse,
+            time_budget_s: self.time_budget,
+            stall_generations: self.stall,
+            stall_tolerance: 0.0,
+        })
     }
 }
 
@@ -262,12 +361,46 @@ impl Progress {
 }
 
 impl Observer for Progress {
-    fn generation(&mut self, r: &GenerationRecord, _: &RunSettings) {
+    fn record(&mut self, r: &GenerationRecord, _: usize) {
         self.0.set_position(r.generation as u64);
-        let best = r.best_sse.map_or("-".into(), |b| format!("{b:.4e}"));
-        self.0
-            .set_message(format!("best SSE {best}, {} diverged", r.diverged));
+        let best = r.stage_best.map_or("-".into(), |b| format!("{b:.4e}"));
+        let measure = match r.measure {
+            mckibben::model::Measure::FreeRun => "free run".to_string(),
+            mckibben::model::Measure::Ahead { horizon } => format!("{horizon}-step"),
+        };
+        self.0.set_message(format!(
+            "{} ({measure}) best {best}, {} diverged",
+            r.stage.name(),
+            r.diverged
+        ));
     }
+}
+
+/// The engine to run: resumed from `checkpoint` when that file exists (its
+/// plan, seed and settings win; the stop rules are this command's), else fresh.
+fn engine_for(args: &Args, task: &Task, quiet: bool) -> anyhow::Result<Engine> {
+    let space = Space::from(&task.space);
+    if let Some(path) = args.checkpoint.as_deref().filter(|p| p.exists()) {
+        let mut engine = Engine::load(path)?;
+        anyhow::ensure!(
+            engine.space.names == space.names,
+            "checkpoint {} fits the parameters {:?}, not those of a {} model: pass the --model it was made with",
+            path.display(),
+            engine.space.names,
+            task.family
+        );
+        engine.stops = args.stops()?;
+        if !quiet {
+            eprintln!(
+                "mckibben: note: resuming at generation {} of {} from {} (its plan, N, G, seed and settings win)",
+                engine.generation(),
+                engine.plan.generations(),
+                path.display()
+            );
+        }
+        return Ok(engine);
+    }
+    Engine::new(args.plan(task)?, space, args.seed, args.stops()?)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -278,55 +411,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         Flow::Joint
     };
-    let task = Task::new(&trace, family, flow, None, args.free_n)?;
-    let mut runner = match &args.checkpoint {
-        Some(path) if path.exists() => {
-            let mut r = Runner::load(path)?;
-            // Stopping rules come from this command line; N, G, the seed and
-            // the algorithm settings from the checkpoint.
-            r.settings.target_sse = args.target_sse;
-            r.settings.time_budget_s = args.time_budget;
-            r.settings.stall_generations = args.stall;
-            anyhow::ensure!(
-                r.space.family == family,
-                "checkpoint {} is a {} fit, not {family}: pass --model {}",
-                path.display(),
-                r.space.family,
-                r.space.family
-            );
-            eprintln!(
-                "mckibben: note: resuming {} at generation {} of {} from {} (its N, G, seed and settings win)",
-                r.algorithm(),
-                r.generation(),
-                r.settings.generations,
-                path.display()
-            );
-            r
-        }
-        _ => {
-            let mut settings = RunSettings::new(args.pop, args.gens, args.seed);
-            settings.target_sse = args.target_sse;
-            settings.time_budget_s = args.time_budget;
-            settings.stall_generations = args.stall;
-            Runner::new(
-                args.algo,
-                &args.algo_settings(family)?,
-                task.space.clone(),
-                settings,
-            )?
-        }
-    };
-    if runner.algorithm() == Algorithm::Mfa
-        && runner.settings.population > 2000
-        && args.mfa_attractors.is_none()
-        && !args.json
-    {
-        eprintln!(
-            "mckibben: note: the MFA's all-pairs move is O(N²·d): N = {} takes seconds per \
-             generation; --mfa-attractors 10 --mfa-brightest makes it O(N·10·d)",
-            runner.settings.population
-        );
-    }
+    let task = Task::new(&trace, family, flow, None, args.free_n)
+        .with_context(|| format!("cannot fit {}", trace.source))?;
+    let mut engine = engine_for(&args, &task, args.json)?;
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     let interrupt = Arc::new(AtomicBool::new(false));
@@ -336,32 +423,47 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // only means Ctrl-C kills instead of stopping cleanly.
         let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
     }
+    let global = engine.plan.global.clone();
+    let (algo, population, generations) = global
+        .as_ref()
+        .map_or((Algorithm::De, 0, 0), |g| (g.algorithm, g.population, g.generations));
     if !args.json {
+        let stages: Vec<&str> = engine.stages().iter().map(|s| s.name()).collect();
         eprintln!(
-            "fitting {family} with {} (N = {}, G = {}, seed {}) on {} [{}]",
-            runner.algorithm(),
-            runner.settings.population,
-            runner.settings.generations,
-            runner.settings.seed,
+            "fitting {family} with {algo} (N = {population}, G = {generations}, seed {}; stages {}) on {} [{}]",
+            engine.seed,
+            stages.join(" → "),
             trace.source,
             backend
         );
     }
-    let mut progress = Progress::new(runner.settings.generations, args.json);
-    let problem = task.problem();
-    let outcome = runner.run(
-        &problem,
-        evaluator.as_mut(),
+    let mut progress = Progress::new(engine.plan.generations(), args.json);
+    let mut objective = ModelObjective::new(evaluator.as_mut(), task.problem());
+    let outcome = engine.run(
+        &mut objective,
         &mut [&mut progress],
         Some(&interrupt),
         args.checkpoint.as_deref(),
     )?;
     progress.finish();
-    let output = write_results(&args.out, &task, &runner, &outcome, &trace, &backend)?;
+    let output = write_results(&args.out, &task, &engine, &outcome, &trace, &backend)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&output)?);
     } else {
         print_report(&output, &task);
+    }
+    if outcome.params.is_empty() && outcome.evaluations == 0 {
+        eprintln!(
+            "mckibben: note: stopped ({:?}) before any candidate was scored; no model was written",
+            outcome.stop
+        );
+    } else {
+        anyhow::ensure!(
+            !outcome.params.is_empty(),
+            "every candidate diverged: no model was written (the history is in {}); \
+             check the data's units and columns",
+            args.out.display()
+        );
     }
     Ok(())
 }
@@ -369,8 +471,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn write_results(
     out: &Path,
     task: &Task,
-    runner: &Runner,
-    outcome: &RunOutcome,
+    engine: &Engine,
+    outcome: &Outcome,
     trace: &Trace,
     backend: &str,
 ) -> anyhow::Result<Output> {
@@ -385,10 +487,21 @@ fn write_results(
         .zip(&outcome.params)
         .map(|(p, &v)| (p.name.to_string(), serde_json::json!(v)))
         .collect();
+    let on_edge: Vec<Edge> = if found {
+        engine
+            .space
+            .on_edge(&outcome.params)
+            .into_iter()
+            .map(|(param, bound)| Edge { param, bound })
+            .collect()
+    } else {
+        Vec::new()
+    };
     let finite = |v: f64| v.is_finite().then_some(v);
+    let global = engine.plan.global.as_ref();
     let output = Output {
         model: task.family,
-        algo: runner.algorithm(),
+        algo: global.map_or(Algorithm::De, |g| g.algorithm),
         params,
         sse: finite(outcome.sse),
         val_rmse: val.and_then(|v| finite(v.rmse)),
@@ -398,9 +511,11 @@ fn write_results(
         seconds: outcome.seconds,
         backend: backend.to_string(),
         flow: task.flow,
-        seed: runner.settings.seed,
-        population: runner.settings.population,
+        seed: engine.seed,
+        population: global.map_or(0, |g| g.population),
         stop: outcome.stop,
+        stages: outcome.stages.clone(),
+        on_edge,
         data: trace.source.clone(),
         out: out.to_path_buf(),
     };
@@ -412,13 +527,13 @@ fn write_results(
         "result.json",
         serde_json::to_string_pretty(&output)?.as_bytes(),
     )?;
-    runner.history.save(out)?;
-    let title = format!("{} {} fit", runner.algorithm(), task.family);
-    runner
+    engine.history.save(out)?;
+    let title = format!("{} {} fit", output.algo, task.family);
+    engine
         .history
-        .trends_figure(&format!("{title}: best parameters"), &runner.space.free())
+        .trends_figure(&format!("{title}: best parameters"), &engine.space.free())
         .save(&out.join("trends.svg"))?;
-    runner
+    engine
         .history
         .convergence_figure(&format!("{title}: convergence"))
         .save(&out.join("convergence.svg"))?;
@@ -514,12 +629,33 @@ fn print_report(o: &Output, task: &Task) {
         show(o.val_fit_percent),
         show(o.val_rmse)
     );
+    for s in &o.stages {
+        println!(
+            "  stage {:<9} {:>4} steps, {:>9} evaluations, {:>7.2} s, best {:.4e} ({}), ended: {:?}",
+            s.stage.name(),
+            s.steps,
+            s.evaluations,
+            s.seconds,
+            s.best_cost,
+            s.measure,
+            s.ended
+        );
+    }
     println!(
         "  {} evaluations in {} generations, {:.2} s, stopped: {:?}",
         o.evaluations, o.generations, o.seconds, o.stop
     );
-    println!(
-        "  wrote model.json, result.json, history.csv/json and figures to {}",
-        o.out.display()
-    );
+    for e in &o.on_edge {
+        eprintln!(
+            "mckibben: warning: {} ended on the {} bound of its search box: the box stopped it, \
+             not the data",
+            e.param, e.bound
+        );
+    }
+    if o.sse.is_some() {
+        println!(
+            "  wrote model.json, result.json, history.csv/json and figures to {}",
+            o.out.display()
+        );
+    }
 }

@@ -103,15 +103,7 @@ impl De {
     /// the initial population, the rest drawn uniformly. A known model in
     /// the start means the best member never ends worse than it.
     pub fn with_initial(mut self, rows: &[f64]) -> De {
-        let d = self.bounds.dim();
-        assert!(
-            rows.len() % d.max(1) == 0 && rows.len() / d.max(1) <= self.n,
-            "initial rows: whole rows, at most one per individual"
-        );
         self.initial = rows.to_vec();
-        for r in self.initial.chunks_mut(d.max(1)) {
-            self.bounds.clamp(r);
-        }
         self
     }
 
@@ -188,11 +180,7 @@ impl Optimizer for De {
             self.make_trials(rng);
             self.trials.clone()
         } else {
-            let d = self.bounds.dim().max(1);
-            let given = self.initial.len() / d;
-            self.pop = self.initial.clone();
-            self.pop
-                .extend((given..self.n).flat_map(|_| self.bounds.uniform(rng)));
+            self.pop = super::first_population(&self.bounds, self.n, &self.initial, rng);
             self.pop.clone()
         }
     }
@@ -212,6 +200,10 @@ impl Optimizer for De {
                 self.cr[i] = self.trial_cr[i];
             }
         }
+    }
+
+    fn members(&self) -> (Vec<f64>, Vec<f32>) {
+        (self.pop.clone(), self.costs.clone())
     }
 }
 

@@ -119,6 +119,9 @@ pub struct Ga {
     /// Their costs, once told.
     #[serde(with = "super::inf_serde")]
     costs: Vec<f32>,
+    /// Rows that replace the first uniform draws of the initial population.
+    #[serde(default)]
+    initial: Vec<f64>,
 }
 
 impl Ga {
@@ -133,7 +136,15 @@ impl Ga {
             pop: Vec::new(),
             clamped: Vec::new(),
             costs: Vec::new(),
+            initial: Vec::new(),
         }
+    }
+
+    /// Starts the search from `rows` (row-major, clamped into the box): the
+    /// first members of the initial population, the rest drawn uniformly.
+    pub fn with_initial(mut self, rows: &[f64]) -> Ga {
+        self.initial = rows.to_vec();
+        self
     }
 
     /// Fit of every individual: `1/SSE`, penalised when clamped, 0 when diverged.
@@ -261,7 +272,7 @@ impl Optimizer for Ga {
             self.pop = pop;
             self.clamped = clamped;
         } else {
-            self.pop = (0..self.n).flat_map(|_| self.bounds.uniform(rng)).collect();
+            self.pop = super::first_population(&self.bounds, self.n, &self.initial, rng);
             self.clamped = vec![false; self.n];
         }
         self.costs.clear();
@@ -271,6 +282,14 @@ impl Optimizer for Ga {
     fn tell(&mut self, costs: &[f32]) {
         assert_eq!(costs.len(), self.n, "one cost per individual");
         self.costs = costs.to_vec();
+    }
+
+    fn members(&self) -> (Vec<f64>, Vec<f32>) {
+        if self.costs.len() == self.n {
+            (self.pop.clone(), self.costs.clone())
+        } else {
+            (Vec::new(), Vec::new())
+        }
     }
 }
 

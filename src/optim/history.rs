@@ -6,31 +6,40 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use super::engine::Stage;
 use crate::data::write_atomic;
-use crate::model::Family;
+use crate::model::Measure;
 use crate::report::{Figure, Panel, Series};
 
-/// One generation of a run. Costs are SSE on the estimation data; `None`
-/// stands for "no finite value" (JSON has no infinity).
+/// One generation of a population stage, or one start of the polish. Costs
+/// are on the estimation data; `None` stands for "no finite value" (JSON has
+/// no infinity).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct GenerationRecord {
-    /// 1-based: the number of populations evaluated so far.
+    /// 1-based: the number of records so far.
     pub generation: usize,
+    pub stage: Stage,
+    /// What this stage's costs measure.
+    pub measure: Measure,
     /// Candidates evaluated so far.
     pub evaluations: u64,
     /// Wall-clock seconds since the run started (the only field that is not
     /// a function of the seed).
     pub seconds: f64,
-    /// Lowest SSE ever seen.
+    /// Lowest free-run SSE ever seen (none while the global stage searches
+    /// the prediction error).
     pub best_sse: Option<f64>,
-    /// Lowest SSE in this generation's population.
+    /// Lowest cost of this stage so far, under its measure.
+    pub stage_best: Option<f64>,
+    /// Lowest cost in this generation's population (none for a polish).
     pub generation_best_sse: Option<f64>,
     /// Mean and standard deviation of the finite SSEs of this population.
     pub mean_sse: Option<f64>,
     pub std_sse: Option<f64>,
     /// Candidates of this population whose simulation diverged (SSE = +∞).
     pub diverged: usize,
-    /// Canonical parameter vector of the best ever (empty before any finite SSE).
+    /// Canonical parameter vector of the stage's best so far (empty before
+    /// any finite cost).
     pub best_params: Vec<f64>,
 }
 
@@ -55,32 +64,31 @@ impl GenerationRecord {
     }
 }
 
-/// The records of a run, in order.
+/// The records of a fit, in order.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct History {
-    pub family: Option<Family>,
+    /// Names of the canonical parameters.
+    pub names: Vec<String>,
     pub records: Vec<GenerationRecord>,
 }
 
 impl History {
-    pub fn new(family: Family) -> History {
+    pub fn new(names: Vec<String>) -> History {
         History {
-            family: Some(family),
+            names,
             records: Vec::new(),
         }
     }
 
-    fn param_names(&self) -> Vec<&'static str> {
-        self.family
-            .map(|f| f.params().iter().map(|p| p.name).collect())
-            .unwrap_or_default()
+    fn param_names(&self) -> Vec<&str> {
+        self.names.iter().map(String::as_str).collect()
     }
 
     /// CSV: one row per generation, the best parameters as named columns.
     pub fn to_csv(&self) -> String {
         let names = self.param_names();
         let mut s = String::from(
-            "generation,evaluations,seconds,best_sse,generation_best_sse,mean_sse,std_sse,diverged",
+            "generation,stage,horizon,evaluations,seconds,best_sse,stage_best,generation_best_sse,mean_sse,std_sse,diverged",
         );
         for n in &names {
             let _ = write!(s, ",{n}");
@@ -88,13 +96,19 @@ impl History {
         s.push('\n');
         let opt = |v: Option<f64>| v.map(|v| format!("{v:e}")).unwrap_or_else(|| "inf".into());
         for r in &self.records {
+            let horizon = match r.measure {
+                Measure::FreeRun => String::new(),
+                Measure::Ahead { horizon } => horizon.to_string(),
+            };
             let _ = write!(
                 s,
-                "{},{},{:.3},{},{},{},{},{}",
+                "{},{},{horizon},{},{:.3},{},{},{},{},{},{}",
                 r.generation,
+                r.stage.name(),
                 r.evaluations,
                 r.seconds,
                 opt(r.best_sse),
+                opt(r.stage_best),
                 opt(r.generation_best_sse),
                 opt(r.mean_sse),
                 opt(r.std_sse),
@@ -127,7 +141,7 @@ impl History {
         )
     }
 
-    /// Best-so-far parameters over generations, one panel per free
+    /// Best-so-far parameters over the fit, one panel per free
     /// parameter (the thesis' figures 9–11, 13, 15, 17–19, 22, 24).
     /// `free` lists the canonical indices that were searched.
     pub fn trends_figure(&self, title: &str, free: &[usize]) -> Figure {
@@ -141,12 +155,14 @@ impl History {
                 .filter_map(|r| r.best_params.get(i).map(|&v| (r.generation as f64, v)))
                 .unzip();
             let name = names.get(i).copied().unwrap_or("?");
-            fig = fig.with(Panel::new(name, "generation", name).with(Series::line("best", x, y)));
+            fig = fig.with(Panel::new(name, "generation", name).with(Series::line("stage best", x, y)));
         }
         fig
     }
 
-    /// Best-ever, generation-best and mean SSE over generations, log scale.
+    /// Each stage's best, the best free-run SSE, the generation best and the
+    /// population mean over the fit, log scale (the global stage's costs are
+    /// its prediction error, the others' the free-run SSE).
     pub fn convergence_figure(&self, title: &str) -> Figure {
         let g: Vec<f64> = self.records.iter().map(|r| r.generation as f64).collect();
         let col = |f: fn(&GenerationRecord) -> Option<f64>| -> Vec<f64> {
@@ -157,7 +173,8 @@ impl History {
         };
         Figure::new(title).with(
             Panel::new("convergence", "generation", "SSE (estimation)")
-                .with(Series::line("best ever", g.clone(), col(|r| r.best_sse)))
+                .with(Series::line("best free run", g.clone(), col(|r| r.best_sse)))
+                .with(Series::line("stage best", g.clone(), col(|r| r.stage_best)))
                 .with(Series::line(
                     "generation best",
                     g.clone(),
@@ -185,12 +202,15 @@ mod tests {
 
     #[test]
     fn csv_has_named_parameter_columns() {
-        let mut h = History::new(Family::Linear);
+        let mut h = History::new(vec!["a".into(), "b".into(), "c".into()]);
         h.records.push(GenerationRecord {
             generation: 1,
+            stage: Stage::Global,
+            measure: Measure::Ahead { horizon: 7 },
             evaluations: 10,
             seconds: 0.5,
-            best_sse: Some(2.0),
+            best_sse: None,
+            stage_best: Some(2.0),
             generation_best_sse: Some(2.0),
             mean_sse: None,
             std_sse: None,
@@ -202,7 +222,7 @@ mod tests {
         assert!(lines.next().unwrap().ends_with("diverged,a,b,c"));
         let row = lines.next().unwrap();
         assert!(
-            row.starts_with("1,10,0.500,2e0,2e0,inf,inf,10,9e-1"),
+            row.starts_with("1,global,7,10,0.500,inf,2e0,2e0,inf,inf,10,9e-1"),
             "{row}"
         );
     }

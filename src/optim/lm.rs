@@ -28,6 +28,8 @@ pub struct LmSettings {
     pub rel_step: f64,
     /// Stop when an accepted step lowers the SSE by less than this fraction.
     pub tolerance: f64,
+    /// Central differences (twice the probes) instead of forward ones.
+    pub central: bool,
 }
 
 impl Default for LmSettings {
@@ -36,6 +38,7 @@ impl Default for LmSettings {
             max_iterations: 30,
             rel_step: 1e-6,
             tolerance: 1e-12,
+            central: false,
         }
     }
 }
@@ -69,18 +72,54 @@ impl std::fmt::Display for LmError {
 
 impl std::error::Error for LmError {}
 
+/// Residual vectors of a batch of points, `None` where the model diverges:
+/// what the polish asks for, one batch per Jacobian and one per group of
+/// trial steps, so that a batch evaluator (a GPU) scores them in one call.
+pub type BatchResiduals<'a> =
+    dyn FnMut(&[Vec<f64>]) -> anyhow::Result<Vec<Option<DVector<f64>>>> + 'a;
+
+/// Trial steps (λ, 4λ, 16λ, …) scored per batch: most iterations accept the
+/// first, so a larger group wastes simulations on the CPU; a smaller one
+/// costs a GPU round trip per failed trial.
+const TRIALS_PER_BATCH: usize = 4;
+
+/// Trial steps at most per iteration before the polish gives up.
+const MAX_TRIALS: usize = 12;
+
 /// Minimises `Σ r(x)²` from `start` inside `lower ≤ x ≤ upper` (infinite
-/// bounds allowed). `residuals` returns `None` where the model diverges;
-/// `step_floor[j]` is coordinate `j`'s typical scale, so that a coordinate
-/// near zero still gets a probe step the residuals feel. The SSE never rises:
-/// the outcome is the start when no step improves it.
+/// bounds allowed), scoring one point at a time with `residuals` (the
+/// Jacobian's columns in parallel). See [`levenberg_marquardt_batched`].
 pub fn levenberg_marquardt(
     residuals: impl Fn(&[f64]) -> Option<DVector<f64>> + Sync,
+    start: &[f64],
+    bounds: (&[f64], &[f64]),
+    step_floor: &[f64],
+    settings: &LmSettings,
+) -> Result<LmOutcome, LmError> {
+    let mut batch = |points: &[Vec<f64>]| -> anyhow::Result<Vec<Option<DVector<f64>>>> {
+        Ok(points.par_iter().map(|p| residuals(p)).collect())
+    };
+    levenberg_marquardt_batched(&mut batch, start, bounds, step_floor, settings, None)
+        .map_err(|e| e.downcast::<LmError>().expect("a point-wise scorer cannot fail"))
+}
+
+/// Minimises `Σ r(x)²` from `start` inside `lower ≤ x ≤ upper` (infinite
+/// bounds allowed). `residuals` scores a batch of points, `None` where the
+/// model diverges; `step_floor[j]` is coordinate `j`'s typical scale, so that
+/// a coordinate near zero still gets a probe step the residuals feel. The
+/// SSE never rises: the outcome is the start when no step improves it.
+/// `interrupt` stops after the current iteration with the best so far.
+///
+/// Errors: [`LmError`] (inside the `anyhow::Error`) when the start or a
+/// probe diverges, or the scorer's own error.
+pub fn levenberg_marquardt_batched(
+    residuals: &mut BatchResiduals<'_>,
     start: &[f64],
     (lower, upper): (&[f64], &[f64]),
     step_floor: &[f64],
     settings: &LmSettings,
-) -> Result<LmOutcome, LmError> {
+    interrupt: Option<&std::sync::atomic::AtomicBool>,
+) -> anyhow::Result<LmOutcome> {
     let d = start.len();
     let clamp = |v: &mut [f64]| {
         for j in 0..d {
@@ -89,45 +128,90 @@ pub fn levenberg_marquardt(
     };
     let mut x = start.to_vec();
     clamp(&mut x);
-    let mut r = residuals(&x).ok_or(LmError::StartDiverges)?;
+    let mut r = residuals(std::slice::from_ref(&x))?
+        .pop()
+        .flatten()
+        .ok_or(LmError::StartDiverges)?;
     let mut sse = r.norm_squared();
     let mut lambda = 1e-3;
     let mut iterations = 0;
     for _ in 0..settings.max_iterations {
+        if interrupt.is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst)) {
+            break;
+        }
         iterations += 1;
-        let cols: Vec<Option<DVector<f64>>> = (0..d)
-            .into_par_iter()
+        let steps: Vec<f64> = (0..d)
             .map(|j| {
-                let mut h = settings.rel_step * x[j].abs().max(step_floor[j]);
+                let h = settings.rel_step * x[j].abs().max(step_floor[j]);
                 // Probe inward from an upper bound.
-                if x[j] + h > upper[j] {
-                    h = -h;
-                }
-                let mut xp = x.clone();
-                xp[j] += h;
-                residuals(&xp).map(|rp| (rp - &r) / h)
+                if x[j] + h > upper[j] { -h } else { h }
             })
             .collect();
+        // Central differences where both probes stay in the box: the
+        // truncation error of a forward difference is first order in the
+        // step, and in a flat valley it bends the Gauss–Newton step.
+        let back: Vec<bool> = (0..d)
+            .map(|j| settings.central && x[j] - steps[j] >= lower[j] && x[j] + steps[j] <= upper[j])
+            .collect();
+        let mut probes: Vec<Vec<f64>> = (0..d)
+            .map(|j| {
+                let mut xp = x.clone();
+                xp[j] += steps[j];
+                xp
+            })
+            .collect();
+        probes.extend((0..d).filter(|&j| back[j]).map(|j| {
+            let mut xp = x.clone();
+            xp[j] -= steps[j];
+            xp
+        }));
+        let mut cols = residuals(&probes)?.into_iter();
+        let forward: Vec<Option<DVector<f64>>> = cols.by_ref().take(d).collect();
         let mut jac = DMatrix::<f64>::zeros(r.len(), d);
-        for (j, col) in cols.into_iter().enumerate() {
-            jac.set_column(j, &col.ok_or(LmError::ProbeDiverges)?);
+        for (j, col) in forward.into_iter().enumerate() {
+            let col = col.ok_or(LmError::ProbeDiverges)?;
+            if back[j] {
+                let minus = cols.next().flatten().ok_or(LmError::ProbeDiverges)?;
+                jac.set_column(j, &((col - minus) / (2.0 * steps[j])));
+            } else {
+                jac.set_column(j, &((col - &r) / steps[j]));
+            }
         }
         let jtj = jac.transpose() * &jac;
         let jtr = jac.transpose() * &r;
+        // The trial steps in the order a sequential search tries them: λ
+        // times 10 after a singular solve, times 4 after a step that does not
+        // lower the SSE; the first that lowers it is taken.
         let mut improved = false;
-        for _ in 0..12 {
-            let Some(delta) = bounded_step(&jtj, &jtr, lambda, &x, (lower, upper)) else {
-                lambda *= 10.0;
-                continue;
+        let mut tried = 0;
+        while tried < MAX_TRIALS && !improved {
+            let mut trials: Vec<(Vec<f64>, f64)> = Vec::new();
+            while trials.len() < TRIALS_PER_BATCH && tried < MAX_TRIALS {
+                tried += 1;
+                match bounded_step(&jtj, &jtr, lambda, &x, (lower, upper)) {
+                    None => lambda *= 10.0,
+                    Some(delta) => {
+                        let mut xn: Vec<f64> =
+                            x.iter().zip(delta.iter()).map(|(a, b)| a + b).collect();
+                        clamp(&mut xn);
+                        trials.push((xn, lambda));
+                        lambda *= 4.0;
+                    }
+                }
+            }
+            let points: Vec<Vec<f64>> = trials.iter().map(|(p, _)| p.clone()).collect();
+            let scored = if points.is_empty() {
+                Vec::new()
+            } else {
+                residuals(&points)?
             };
-            let mut xn: Vec<f64> = x.iter().zip(delta.iter()).map(|(a, b)| a + b).collect();
-            clamp(&mut xn);
-            if let Some(rn) = residuals(&xn) {
+            for ((xn, lam), rn) in trials.into_iter().zip(scored) {
+                let Some(rn) = rn else { continue };
                 let sn = rn.norm_squared();
                 if sn < sse {
                     let rel = (sse - sn) / sse;
                     (x, r, sse) = (xn, rn, sn);
-                    lambda = (lambda / 3.0).max(1e-12);
+                    lambda = (lam / 3.0).max(1e-12);
                     improved = true;
                     if rel < settings.tolerance {
                         return Ok(LmOutcome { x, sse, iterations });
@@ -135,7 +219,6 @@ pub fn levenberg_marquardt(
                     break;
                 }
             }
-            lambda *= 4.0;
         }
         if !improved {
             break;

@@ -141,6 +141,9 @@ pub struct Mfa {
     pos: Vec<f64>,
     #[serde(with = "super::inf_serde")]
     costs: Vec<f32>,
+    /// Rows that replace the first uniform draws of the initial swarm.
+    #[serde(default)]
+    initial: Vec<f64>,
 }
 
 impl Mfa {
@@ -154,7 +157,15 @@ impl Mfa {
             moves: 0,
             pos: Vec::new(),
             costs: Vec::new(),
+            initial: Vec::new(),
         }
+    }
+
+    /// Starts the search from `rows` (row-major, clamped into the box): the
+    /// first fireflies of the initial swarm, the rest drawn uniformly.
+    pub fn with_initial(mut self, rows: &[f64]) -> Mfa {
+        self.initial = rows.to_vec();
+        self
     }
 
     fn step(&mut self, rng: &mut ChaCha8Rng) {
@@ -239,7 +250,7 @@ impl Optimizer for Mfa {
         if self.costs.len() == self.n {
             self.step(rng);
         } else {
-            self.pos = (0..self.n).flat_map(|_| self.bounds.uniform(rng)).collect();
+            self.pos = super::first_population(&self.bounds, self.n, &self.initial, rng);
         }
         self.costs.clear();
         self.pos.clone()
@@ -248,6 +259,14 @@ impl Optimizer for Mfa {
     fn tell(&mut self, costs: &[f32]) {
         assert_eq!(costs.len(), self.n, "one cost per firefly");
         self.costs = costs.to_vec();
+    }
+
+    fn members(&self) -> (Vec<f64>, Vec<f32>) {
+        if self.costs.len() == self.n {
+            (self.pos.clone(), self.costs.clone())
+        } else {
+            (Vec::new(), Vec::new())
+        }
     }
 }
 

@@ -1,12 +1,12 @@
-//! Population optimizers in ask/tell form, and the run loop that drives them
-//! against a batch [`Evaluator`](crate::eval::Evaluator).
+//! Population optimizers in ask/tell form, and the fitting [`engine`] that
+//! drives them against a batch [`Evaluator`](crate::eval::Evaluator).
 //!
 //! An optimizer never sees the model: it is handed a box (the free
 //! coordinates of a [`SearchSpace`]), *asks* for a population of points in
 //! it and is *told* their costs (SSE, lower is better, `+∞` for a diverged
-//! candidate). The [`run`] module owns everything around that: seeding,
+//! candidate). The [`engine`] owns everything around that: stages, seeding,
 //! stopping, history, checkpoints, Ctrl-C. Every random draw comes from the
-//! `ChaCha8Rng` the run loop passes in, so a run is a pure function of its
+//! `ChaCha8Rng` the engine passes in, so a run is a pure function of its
 //! seed, whatever the thread count or backend.
 //!
 //! The thesis' three methods (chapter 5, appendix A.2) are [`ga`], [`mfa`]
@@ -14,13 +14,15 @@
 //! [`lm`] is not a population method: it polishes one point by
 //! Levenberg–Marquardt after a search.
 
+pub mod cases;
 pub mod de;
+pub mod engine;
 pub mod ga;
 pub mod history;
 pub mod lm;
 pub mod mfa;
 pub mod pso;
-pub mod run;
+
 pub mod synthetic;
 pub mod task;
 
@@ -34,7 +36,7 @@ use serde::{Deserialize, Serialize};
 use crate::model::SearchSpace;
 
 pub use history::{GenerationRecord, History};
-pub use run::{AlgoSettings, Observer, RunOutcome, RunSettings, Runner, StopReason};
+
 
 /// The box an optimizer searches: bounds of the free coordinates only
 /// (parameters with `lower == upper` in the [`SearchSpace`] are held fixed by
@@ -103,6 +105,33 @@ pub trait Optimizer {
 
     /// The costs of the rows of the last `ask`, in order.
     fn tell(&mut self, costs: &[f32]);
+
+    /// The members whose costs drive the next move (row-major) and those
+    /// costs: what a later stage of a fit starts from. Empty before the first
+    /// `tell`.
+    fn members(&self) -> (Vec<f64>, Vec<f32>);
+}
+
+/// The smallest population every algorithm accepts: differential evolution
+/// draws three partners distinct from the individual itself.
+pub const MIN_POPULATION: usize = 4;
+
+/// The first population of an optimizer: the given `initial` rows (clamped
+/// into the box; a warm start from known models), then uniform draws (eq. 26).
+pub(crate) fn first_population(
+    bounds: &Bounds,
+    n: usize,
+    initial: &[f64],
+    rng: &mut ChaCha8Rng,
+) -> Vec<f64> {
+    let d = bounds.dim().max(1);
+    let mut pop: Vec<f64> = initial[..initial.len().min(n * d)].to_vec();
+    for row in pop.chunks_mut(d) {
+        bounds.clamp(row);
+    }
+    let given = pop.len() / d;
+    pop.extend((given..n).flat_map(|_| bounds.uniform(rng)));
+    pop
 }
 
 /// Total order on costs for minimisation: `+∞` and NaN last, never
@@ -175,7 +204,38 @@ pub enum AnyOptimizer {
     De(de::De),
 }
 
+/// The algorithm settings of every optimizer, for building one by name.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct AlgoSettings {
+    pub ga: ga::GaSettings,
+    pub mfa: mfa::MfaSettings,
+    pub pso: pso::PsoSettings,
+    pub de: de::DeSettings,
+}
+
 impl AnyOptimizer {
+    /// A fresh optimizer of `algo` over `bounds` with `n` individuals and
+    /// `g` planned generations (the GA's, MFA's and PSO's schedules run over them).
+    pub fn new(algo: Algorithm, s: &AlgoSettings, bounds: Bounds, n: usize, g: usize) -> Self {
+        match algo {
+            Algorithm::Ga => AnyOptimizer::Ga(ga::Ga::new(s.ga.clone(), bounds, n, g)),
+            Algorithm::Mfa => AnyOptimizer::Mfa(mfa::Mfa::new(s.mfa.clone(), bounds, n, g)),
+            Algorithm::Pso => AnyOptimizer::Pso(pso::Pso::new(s.pso.clone(), bounds, n, g)),
+            Algorithm::De => AnyOptimizer::De(de::De::new(s.de.clone(), bounds, n)),
+        }
+    }
+
+    /// Starts the search from `rows` (free coordinates, row-major): the first
+    /// members of the initial population, the rest drawn uniformly.
+    pub fn with_initial(self, rows: &[f64]) -> Self {
+        match self {
+            AnyOptimizer::Ga(o) => AnyOptimizer::Ga(o.with_initial(rows)),
+            AnyOptimizer::Mfa(o) => AnyOptimizer::Mfa(o.with_initial(rows)),
+            AnyOptimizer::Pso(o) => AnyOptimizer::Pso(o.with_initial(rows)),
+            AnyOptimizer::De(o) => AnyOptimizer::De(o.with_initial(rows)),
+        }
+    }
+
     pub fn algorithm(&self) -> Algorithm {
         match self {
             AnyOptimizer::Ga(_) => Algorithm::Ga,
@@ -204,6 +264,14 @@ impl Optimizer for AnyOptimizer {
     }
     fn tell(&mut self, costs: &[f32]) {
         self.inner().tell(costs)
+    }
+    fn members(&self) -> (Vec<f64>, Vec<f32>) {
+        match self {
+            AnyOptimizer::Ga(o) => o.members(),
+            AnyOptimizer::Mfa(o) => o.members(),
+            AnyOptimizer::Pso(o) => o.members(),
+            AnyOptimizer::De(o) => o.members(),
+        }
     }
 }
 
@@ -254,6 +322,19 @@ pub(crate) mod inf_serde {
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f32>, D::Error> {
         let v = Vec::<Option<f32>>::deserialize(d)?;
         Ok(v.into_iter().map(|c| c.unwrap_or(f32::INFINITY)).collect())
+    }
+
+    /// The same for a single `f64` cost.
+    pub mod one_f64 {
+        use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+        pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+            v.is_finite().then_some(*v).serialize(s)
+        }
+
+        pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+            Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+        }
     }
 
     /// The same for a single cost.

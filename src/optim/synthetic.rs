@@ -30,13 +30,13 @@ pub struct Synthetic {
 /// True parameters in absolute units: canonical layout with `c` the
 /// absolute-units intercept. Classic: A = 0.8, α = 0.6, β = 0.05, γ = 0.02;
 /// generalized: A = 0.9, α = 0.7, β = [0.05, 0.02, 0.03, −0.02, 0.01, 0.02];
-/// a = 0.95, b = 20 mm/MPa, c = 1 mm, n = 1 for both.
+/// a = 0.95, b = 20 mm/MPa, c = 1 mm, n = 1 for both, no start offset.
 pub fn truth_absolute(family: Family) -> Vec<f64> {
     match family {
-        Family::Linear => vec![0.95, 20.0, 1.0],
-        Family::Classic => vec![0.8, 0.6, 0.05, 0.02, 1.0, 0.95, 20.0, 1.0],
+        Family::Linear => vec![0.95, 20.0, 1.0, 0.0],
+        Family::Classic => vec![0.8, 0.6, 0.05, 0.02, 1.0, 0.95, 20.0, 1.0, 0.0],
         Family::Generalized => vec![
-            0.9, 0.7, 0.05, 0.02, 0.03, -0.02, 0.01, 0.02, 1.0, 0.95, 20.0, 1.0,
+            0.9, 0.7, 0.05, 0.02, 0.03, -0.02, 0.01, 0.02, 1.0, 0.95, 20.0, 1.0, 0.0,
         ],
     }
 }
@@ -113,6 +113,7 @@ impl Synthetic {
             b: id.arx.b[0],
             max_abs_input: trace.input.iter().fold(0.0, |m, v| m.max(v.abs())),
             max_abs_output: trace.output.iter().fold(0.0, |m, v| m.max(v.abs())),
+            output_range: crate::data::range(&trace.output),
         };
         Synthetic {
             family,

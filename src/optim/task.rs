@@ -45,12 +45,14 @@ impl Task {
             family != Family::Linear,
             "the linear model is fitted by least squares: use `mckibben identify`"
         );
+        check_f32_range(trace)?;
         let id = identify(trace, ArxOrders::default())?;
         let prior = LinearPrior {
             a: id.arx.a[0],
             b: id.arx.b[0],
             max_abs_input: trace.input.iter().fold(0.0, |m, v| m.max(v.abs())),
             max_abs_output: trace.output.iter().fold(0.0, |m, v| m.max(v.abs())),
+            output_range: crate::data::range(&trace.output),
         };
         let (estimation, validation) = Experiment::split_halves(trace);
         Ok(Task {
@@ -95,6 +97,31 @@ impl Task {
             output_name: self.output_name.clone(),
         }
     }
+}
+
+/// Refuses a trace whose values would overflow the `f32` arithmetic of the
+/// simulation: the estimation SSE sums squared output deviations over every
+/// sample, so each column's deviation from its mean, times √(samples), must
+/// stay well inside `√f32::MAX` (10⁻³ of it: room for candidates far off).
+/// Without this check such data "diverges" for every candidate.
+pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
+    let limit = (f32::MAX as f64).sqrt() * 1e-3 / (trace.len().max(1) as f64).sqrt();
+    for (name, column) in [(&trace.input_name, &trace.input), (&trace.output_name, &trace.output)] {
+        let mean = column.iter().sum::<f64>() / column.len().max(1) as f64;
+        let (lo, hi) = column
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let reach = (hi - mean).abs().max((lo - mean).abs());
+        anyhow::ensure!(
+            reach <= limit,
+            "column `{name}` of {} spans [{lo:e}, {hi:e}]: over {} samples its squared \
+             errors overflow the f32 arithmetic of the simulation (deviations from the mean \
+             must stay below {limit:.3e}); rescale the column (for example Pa to MPa, or m to mm)",
+            trace.source,
+            trace.len()
+        );
+    }
+    Ok(())
 }
 
 /// RMSE and fit % of a free run of `params` on `experiment` (deviation

@@ -1,0 +1,905 @@
+//! The fitting engine: the one run loop every command fits parameters with
+//! (`fit`, `compare`, `diagnose`, `benchmark boucwen`, the PID tuning).
+//!
+//! A fit is a [`Plan`] — a global population search, a free-run stage and a
+//! Levenberg–Marquardt polish, each optional (see [`plan`] for why) — run
+//! over an [`Objective`] that scores whole populations at once (the batch
+//! evaluator, on the CPU or a GPU). The engine owns what every fit needs
+//! around the update rules:
+//!
+//! - **Stopping**: each population stage ends after its generations `G`
+//!   (populations evaluated, the initial one included) or when it stalls; the
+//!   whole fit stops at a target SSE, a time budget or Ctrl-C, keeping the
+//!   best so far.
+//! - **Costs**: NaN and ±∞ rank as +∞ (a diverged candidate), never
+//!   poisoning selection or statistics.
+//! - **History**: one record per generation and per polish start.
+//! - **Checkpoints**: an [`Engine`] holds everything its future depends on —
+//!   the stage, the optimizer's state, the random generator's position, the
+//!   history, the best so far — and nothing else, so a checkpoint resumes to
+//!   the bit-identical result. (A polish interrupted half-way is redone from
+//!   its start: it is deterministic and short.)
+//!
+//! Every random draw comes from the engine's `ChaCha8Rng`, seeded by the
+//! run's seed, so a fit is a pure function of its seed whatever the thread
+//! count or backend.
+
+pub mod model;
+pub mod plan;
+pub mod space;
+
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use nalgebra::DVector;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+
+use super::history::{GenerationRecord, History};
+use super::lm::{self, LmError, LmSettings};
+use super::{AnyOptimizer, Optimizer, argmin, cost_order};
+use crate::data::write_atomic;
+use crate::model::Measure;
+
+pub use plan::{FreeRun, Global, Plan, Polish};
+pub use space::Space;
+
+/// What a fit minimises: the costs of whole populations at once.
+pub trait Objective {
+    /// What scores, for the user ("cpu (32-lane batches on 2 threads)").
+    fn describe(&self) -> String;
+
+    /// The cost of every row (row-major canonical vectors) under `measure`;
+    /// lower is better, NaN and ±∞ for a diverged candidate. An objective
+    /// with a single measure ignores it.
+    fn costs(&mut self, rows: &[f64], measure: Measure) -> anyhow::Result<Vec<f32>>;
+
+    /// The residuals of every row under `measure`, `None` where it
+    /// diverges: what the polish differentiates. Only least-squares
+    /// objectives have them.
+    fn residuals(
+        &mut self,
+        rows: &[f64],
+        measure: Measure,
+    ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
+        let _ = (rows, measure);
+        anyhow::bail!(
+            "{} is not a least-squares objective, so a fit of it cannot end with a polish",
+            self.describe()
+        )
+    }
+}
+
+/// When the whole fit stops early (each stage's own length is in the [`Plan`]).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct StopRules {
+    /// Stop once the best free-run SSE is at or below this.
+    pub target_sse: Option<f64>,
+    /// Stop after this many seconds of wall-clock time (makes the result
+    /// depend on the machine; off by default).
+    pub time_budget_s: Option<f64>,
+    /// End a population stage when its best cost has not improved by more
+    /// than `stall_tolerance` (relative) for this many generations.
+    pub stall_generations: Option<usize>,
+    pub stall_tolerance: f64,
+}
+
+/// A stage of a fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stage {
+    Global,
+    FreeRun,
+    Polish,
+}
+
+impl Stage {
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Global => "global",
+            Stage::FreeRun => "free-run",
+            Stage::Polish => "polish",
+        }
+    }
+}
+
+/// Why the fit ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StopReason {
+    /// Every stage of the plan ran.
+    Completed,
+    TargetSse,
+    TimeBudget,
+    /// The stop flag was raised (Ctrl-C).
+    Interrupted,
+}
+
+/// Why a stage ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum StageEnd {
+    Generations,
+    Stalled,
+    /// The polish ran every start.
+    Polished,
+}
+
+/// What one stage did.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StageSummary {
+    pub stage: Stage,
+    pub measure: Measure,
+    /// Generations (population stages) or starts (polish).
+    pub steps: usize,
+    pub evaluations: u64,
+    pub seconds: f64,
+    /// The stage's best cost under its measure.
+    #[serde(with = "super::inf_serde::one_f64")]
+    pub best_cost: f64,
+    pub ended: StageEnd,
+}
+
+/// The result of a fit.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Outcome {
+    /// Canonical parameter vector of the best candidate (empty if every
+    /// candidate diverged).
+    pub params: Vec<f64>,
+    /// Its free-run SSE (`+∞` if every candidate diverged).
+    pub sse: f64,
+    pub evaluations: u64,
+    /// Generations of the population stages.
+    pub generations: usize,
+    pub seconds: f64,
+    pub stop: StopReason,
+    pub stages: Vec<StageSummary>,
+}
+
+/// Sees every record as it is made (progress bars, logs).
+pub trait Observer {
+    /// `planned` is the plan's number of generations.
+    fn record(&mut self, record: &GenerationRecord, planned: usize);
+}
+
+/// A `ChaCha8Rng`'s position, as plain serialisable numbers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct RngState {
+    seed: [u8; 32],
+    stream: u64,
+    /// The word position (`u128`, as a decimal string for JSON).
+    word_pos: String,
+}
+
+impl RngState {
+    fn of(rng: &ChaCha8Rng) -> RngState {
+        RngState {
+            seed: rng.get_seed(),
+            stream: rng.get_stream(),
+            word_pos: rng.get_word_pos().to_string(),
+        }
+    }
+
+    fn restore(&self) -> anyhow::Result<ChaCha8Rng> {
+        let mut rng = ChaCha8Rng::from_seed(self.seed);
+        rng.set_stream(self.stream);
+        rng.set_word_pos(self.word_pos.parse()?);
+        Ok(rng)
+    }
+}
+
+/// The members of one island and their costs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Members {
+    rows: Vec<f64>,
+    #[serde(with = "super::inf_serde")]
+    costs: Vec<f32>,
+}
+
+impl Members {
+    /// Row indices, best first (ties by index).
+    fn order(&self) -> Vec<usize> {
+        let mut order: Vec<usize> = (0..self.costs.len()).collect();
+        order.sort_by(|&a, &b| cost_order(self.costs[a], self.costs[b]).then(a.cmp(&b)));
+        order
+    }
+
+    /// The `count` best rows, best first.
+    fn best(&self, count: usize, nf: usize) -> Vec<f64> {
+        self.order()
+            .iter()
+            .take(count)
+            .flat_map(|&i| self.rows[i * nf..(i + 1) * nf].to_vec())
+            .collect()
+    }
+}
+
+/// A candidate and its cost.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct Scored {
+    /// Canonical parameters.
+    params: Vec<f64>,
+    cost: f64,
+}
+
+/// A fit in progress (serialisable: a checkpoint is this value as JSON).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Engine {
+    pub plan: Plan,
+    pub space: Space,
+    pub seed: u64,
+    pub stops: StopRules,
+    /// Free-coordinate rows the first stage starts from.
+    initial: Vec<f64>,
+    /// Index of the current stage in [`Engine::stages`].
+    cursor: usize,
+    /// The islands of the population stage in progress (empty between stages).
+    optimizers: Vec<AnyOptimizer>,
+    /// Generations of the current stage so far.
+    stage_steps: usize,
+    stage_start_evaluations: u64,
+    stage_start_seconds: f64,
+    stage_best: Option<Scored>,
+    rng: RngState,
+    pub history: History,
+    /// The members each island of the last population stage ended with
+    /// (free coordinates) and their costs under its measure.
+    carried: Vec<Members>,
+    /// The islands of every population stage so far, the latest stage's
+    /// first: the polish's pool of starts.
+    pool: Vec<Members>,
+    /// Lowest free-run SSE seen.
+    best: Option<Scored>,
+    evaluations: u64,
+    /// Seconds spent before the last resume.
+    seconds_before: f64,
+    summaries: Vec<StageSummary>,
+    #[serde(skip)]
+    started: Option<Instant>,
+}
+
+impl Engine {
+    /// A fit of `plan` over `space`.
+    pub fn new(plan: Plan, space: Space, seed: u64, stops: StopRules) -> anyhow::Result<Engine> {
+        anyhow::ensure!(
+            !space.free().is_empty(),
+            "the search space has no free parameter (every lower bound equals its upper bound)"
+        );
+        if let Some(g) = &plan.global {
+            anyhow::ensure!(
+                g.population >= super::MIN_POPULATION,
+                "{} needs a population of at least {} (got {})",
+                g.algorithm,
+                super::MIN_POPULATION,
+                g.population
+            );
+            anyhow::ensure!(g.generations >= 1, "need at least one generation");
+            anyhow::ensure!(
+                g.islands >= 1 && g.population / g.islands >= super::MIN_POPULATION,
+                "{} islands of a population of {} leave fewer than {} individuals an island",
+                g.islands,
+                g.population,
+                super::MIN_POPULATION
+            );
+        }
+        if let Some(f) = &plan.free_run {
+            anyhow::ensure!(
+                f.population / plan.islands() >= super::MIN_POPULATION && f.generations >= 1,
+                "the free-run stage needs at least {} individuals an island and one generation",
+                super::MIN_POPULATION
+            );
+        }
+        anyhow::ensure!(
+            plan.global.is_some() || plan.free_run.is_some() || plan.polish.is_some(),
+            "the plan has no stage"
+        );
+        let rng = ChaCha8Rng::seed_from_u64(seed);
+        Ok(Engine {
+            history: History::new(space.names.clone()),
+            plan,
+            space,
+            seed,
+            stops,
+            initial: Vec::new(),
+            cursor: 0,
+            optimizers: Vec::new(),
+            stage_steps: 0,
+            stage_start_evaluations: 0,
+            stage_start_seconds: 0.0,
+            stage_best: None,
+            rng: RngState::of(&rng),
+            carried: Vec::new(),
+            pool: Vec::new(),
+            best: None,
+            evaluations: 0,
+            seconds_before: 0.0,
+            summaries: Vec::new(),
+            started: None,
+        })
+    }
+
+    /// Starts the first stage from these canonical rows (a warm start from
+    /// known models): the first members of the first population, or the
+    /// polish's starts when the plan is a polish alone. Clamped into the box.
+    pub fn with_initial(mut self, canonical: &[f64]) -> Engine {
+        let mut rows = self.space.project(canonical);
+        let bounds = self.space.bounds();
+        for row in rows.chunks_mut(bounds.dim().max(1)) {
+            bounds.clamp(row);
+        }
+        self.initial = rows;
+        self
+    }
+
+    /// The stages of the plan, in order.
+    pub fn stages(&self) -> Vec<Stage> {
+        let mut v = Vec::new();
+        if self.plan.global.is_some() {
+            v.push(Stage::Global);
+        }
+        if self.plan.free_run.is_some() {
+            v.push(Stage::FreeRun);
+        }
+        if self.plan.polish.is_some() {
+            v.push(Stage::Polish);
+        }
+        v
+    }
+
+    /// The stage in progress, `None` once every stage ran.
+    pub fn stage(&self) -> Option<Stage> {
+        self.stages().get(self.cursor).copied()
+    }
+
+    /// Generations of the population stages so far.
+    pub fn generation(&self) -> usize {
+        self.history
+            .records
+            .iter()
+            .filter(|r| r.stage != Stage::Polish)
+            .count()
+    }
+
+    /// Best free-run SSE so far and its canonical parameters.
+    pub fn best(&self) -> Option<(&[f64], f64)> {
+        self.best.as_ref().map(|b| (b.params.as_slice(), b.cost))
+    }
+
+    fn elapsed(&self) -> f64 {
+        self.seconds_before + self.started.map_or(0.0, |t| t.elapsed().as_secs_f64())
+    }
+
+    /// What island `i` of `stage` minimises: with a horizon ladder, the
+    /// global stage's horizon times 4^i, the free run once that reaches the
+    /// longest experiment.
+    fn island_measure(&self, stage: Stage, i: usize) -> Measure {
+        match (stage, &self.plan.global, self.measure(stage)) {
+            (Stage::Global, Some(g), Measure::Ahead { horizon }) if g.ladder => {
+                let h = horizon.saturating_mul(4usize.saturating_pow(i as u32));
+                if h >= g.longest {
+                    Measure::FreeRun
+                } else {
+                    Measure::Ahead { horizon: h }
+                }
+            }
+            (_, _, m) => m,
+        }
+    }
+
+    fn measure(&self, stage: Stage) -> Measure {
+        match (stage, &self.plan.global) {
+            (Stage::Global, Some(g)) => g.measure,
+            _ => Measure::FreeRun,
+        }
+    }
+
+    /// Runs until every stage ran or a stop rule holds. `interrupt` (Ctrl-C)
+    /// stops cleanly after the current generation or polish iteration;
+    /// `checkpoint` is rewritten every ten seconds and when the fit stops.
+    pub fn run(
+        &mut self,
+        objective: &mut dyn Objective,
+        observers: &mut [&mut dyn Observer],
+        interrupt: Option<&AtomicBool>,
+        checkpoint: Option<&Path>,
+    ) -> anyhow::Result<Outcome> {
+        const CHECKPOINT_EVERY_S: f64 = 10.0;
+        self.started.get_or_insert_with(Instant::now);
+        let planned = self.plan.generations();
+        let mut last_save = Instant::now();
+        // The best of a polish cut short: not part of the state (see `polish`).
+        let mut interim: Option<Scored> = None;
+        let stop = loop {
+            if let Some(reason) = self.should_stop(interrupt) {
+                break reason;
+            }
+            let Some(stage) = self.stage() else {
+                break StopReason::Completed;
+            };
+            let before = self.history.records.len();
+            match stage {
+                Stage::Global | Stage::FreeRun => self.step_population(objective, stage)?,
+                Stage::Polish => interim = self.polish(objective, interrupt)?,
+            }
+            for record in &self.history.records[before..] {
+                for o in observers.iter_mut() {
+                    o.record(record, planned);
+                }
+            }
+            if let Some(path) = checkpoint
+                && last_save.elapsed().as_secs_f64() >= CHECKPOINT_EVERY_S
+            {
+                self.save(path)?;
+                last_save = Instant::now();
+            }
+        };
+        if let Some(path) = checkpoint {
+            self.save(path)?;
+        }
+        let mut best = self.best.clone();
+        if stop != StopReason::Completed {
+            for candidate in [interim, self.best_so_far(objective)?].into_iter().flatten() {
+                if best.as_ref().is_none_or(|b| candidate.cost < b.cost) {
+                    best = Some(candidate);
+                }
+            }
+        }
+        Ok(Outcome {
+            params: best.as_ref().map_or(Vec::new(), |b| b.params.clone()),
+            sse: best.as_ref().map_or(f64::INFINITY, |b| b.cost),
+            evaluations: self.evaluations,
+            generations: self.generation(),
+            seconds: self.elapsed(),
+            stop,
+            stages: self.summaries.clone(),
+        })
+    }
+
+    /// Whether the whole fit should stop now, and why.
+    fn should_stop(&self, interrupt: Option<&AtomicBool>) -> Option<StopReason> {
+        if interrupt.is_some_and(|f| f.load(Ordering::SeqCst)) {
+            return Some(StopReason::Interrupted);
+        }
+        if let (Some(t), Some(b)) = (self.stops.target_sse, &self.best)
+            && b.cost <= t
+        {
+            return Some(StopReason::TargetSse);
+        }
+        if self.stops.time_budget_s.is_some_and(|t| self.elapsed() >= t) {
+            return Some(StopReason::TimeBudget);
+        }
+        None
+    }
+
+    /// Scores `rows` (free coordinates) under `measure`, counting the
+    /// evaluations: their canonical rows and costs, NaN and −∞ made +∞.
+    fn score(
+        &mut self,
+        objective: &mut dyn Objective,
+        rows: &[f64],
+        measure: Measure,
+    ) -> anyhow::Result<(Vec<f64>, Vec<f32>)> {
+        let scored = self.costs_of(objective, rows, measure)?;
+        self.evaluations += scored.1.len() as u64;
+        Ok(scored)
+    }
+
+    /// [`Engine::score`] without touching the state.
+    fn costs_of(
+        &self,
+        objective: &mut dyn Objective,
+        rows: &[f64],
+        measure: Measure,
+    ) -> anyhow::Result<(Vec<f64>, Vec<f32>)> {
+        let canonical = self.space.embed(rows);
+        let n = canonical.len() / self.space.dim();
+        let costs: Vec<f32> = objective
+            .costs(&canonical, measure)?
+            .into_iter()
+            .map(|c| if c.is_nan() || c < 0.0 && c.is_infinite() { f32::INFINITY } else { c })
+            .collect();
+        anyhow::ensure!(
+            costs.len() == n,
+            "{} returned {} costs for {n} candidates",
+            objective.describe(),
+            costs.len()
+        );
+        Ok((canonical, costs))
+    }
+
+    /// Keeps the lowest of `costs` as the best free-run candidate.
+    fn offer_best(&mut self, canonical: &[f64], costs: &[f32]) {
+        let d = self.space.dim();
+        if let Some(i) = argmin(costs)
+            && self.best.as_ref().is_none_or(|b| (costs[i] as f64) < b.cost)
+        {
+            self.best = Some(Scored {
+                params: canonical[i * d..(i + 1) * d].to_vec(),
+                cost: costs[i] as f64,
+            });
+        }
+    }
+
+    /// The islands of a population stage: the global stage's start from
+    /// the initial rows (the first island) and uniform draws; each island of
+    /// the free-run stage from the best members of the same island before.
+    fn begin(&mut self, stage: Stage) -> Vec<AnyOptimizer> {
+        let bounds = self.space.bounds();
+        let nf = bounds.dim();
+        self.stage_steps = 0;
+        self.stage_best = None;
+        self.stage_start_evaluations = self.evaluations;
+        self.stage_start_seconds = self.elapsed();
+        let islands = self.plan.islands();
+        match stage {
+            Stage::Global => {
+                let g = self.plan.global.as_ref().expect("a global stage");
+                (0..islands)
+                    .map(|i| {
+                        let opt = AnyOptimizer::new(
+                            g.algorithm,
+                            &g.settings,
+                            bounds.clone(),
+                            g.population / islands,
+                            g.generations,
+                        );
+                        if i == 0 { opt.with_initial(&self.initial) } else { opt }
+                    })
+                    .collect()
+            }
+            _ => {
+                let f = self.plan.free_run.as_ref().expect("a free-run stage");
+                let n = f.population / islands;
+                (0..islands)
+                    .map(|i| {
+                        let start = match self.carried.get(i) {
+                            Some(m) => m.best(n, nf),
+                            None if i == 0 => self.initial.clone(),
+                            None => Vec::new(),
+                        };
+                        AnyOptimizer::new(
+                            super::Algorithm::De,
+                            &Default::default(),
+                            bounds.clone(),
+                            n,
+                            f.generations,
+                        )
+                        .with_initial(&start)
+                    })
+                    .collect()
+            }
+        }
+    }
+
+    /// One generation of a population stage: every island asks, the rows
+    /// are scored (in one batch when every island has the same measure),
+    /// every island is told its own. The first island's costs rank the
+    /// stage's best and fill the record: the others may measure other horizons.
+    fn step_population(&mut self, objective: &mut dyn Objective, stage: Stage) -> anyhow::Result<()> {
+        if self.optimizers.is_empty() {
+            self.optimizers = self.begin(stage);
+        }
+        let measures: Vec<Measure> = (0..self.optimizers.len())
+            .map(|i| self.island_measure(stage, i))
+            .collect();
+        let measure = measures[0];
+        let mut rng = self.rng.restore()?;
+        let asked: Vec<Vec<f64>> = self.optimizers.iter_mut().map(|o| o.ask(&mut rng)).collect();
+        self.rng = RngState::of(&rng);
+        let scored: Vec<(Vec<f64>, Vec<f32>)> = if measures.iter().all(|&m| m == measure) {
+            let (canonical, costs) = self.score(objective, &asked.concat(), measure)?;
+            let d = self.space.dim();
+            let nf = self.space.free().len();
+            let mut at = 0;
+            asked
+                .iter()
+                .map(|rows| {
+                    let n = rows.len() / nf;
+                    let part = (canonical[at * d..(at + n) * d].to_vec(), costs[at..at + n].to_vec());
+                    at += n;
+                    part
+                })
+                .collect()
+        } else {
+            asked
+                .iter()
+                .zip(&measures)
+                .map(|(rows, &m)| self.score(objective, rows, m))
+                .collect::<anyhow::Result<_>>()?
+        };
+        for (opt, (_, costs)) in self.optimizers.iter_mut().zip(&scored) {
+            opt.tell(costs);
+        }
+        for ((canonical, costs), &m) in scored.iter().zip(&measures) {
+            if m == Measure::FreeRun {
+                self.offer_best(canonical, costs);
+            }
+        }
+        let d = self.space.dim();
+        let (canonical, costs) = if measures.iter().all(|&m| m == measure) {
+            (
+                scored.iter().flat_map(|s| s.0.clone()).collect::<Vec<_>>(),
+                scored.iter().flat_map(|s| s.1.clone()).collect::<Vec<_>>(),
+            )
+        } else {
+            scored[0].clone()
+        };
+        if let Some(i) = argmin(&costs)
+            && self.stage_best.as_ref().is_none_or(|b| (costs[i] as f64) < b.cost)
+        {
+            self.stage_best = Some(Scored {
+                params: canonical[i * d..(i + 1) * d].to_vec(),
+                cost: costs[i] as f64,
+            });
+        }
+        self.stage_steps += 1;
+        self.record(stage, measure, Some(&costs));
+        let length = match stage {
+            Stage::Global => self.plan.global.as_ref().map_or(0, |g| g.generations),
+            _ => self.plan.free_run.as_ref().map_or(0, |f| f.generations),
+        };
+        if self.stage_steps >= length {
+            self.end_stage(stage, StageEnd::Generations);
+        } else if self.stalled(stage) {
+            self.end_stage(stage, StageEnd::Stalled);
+        }
+        Ok(())
+    }
+
+    /// Whether the current stage's best has not improved by more than the
+    /// stall tolerance over the last `stall_generations` generations.
+    fn stalled(&self, stage: Stage) -> bool {
+        let Some(w) = self.stops.stall_generations else {
+            return false;
+        };
+        let bests: Vec<f64> = self
+            .history
+            .records
+            .iter()
+            .rev()
+            .take_while(|r| r.stage == stage)
+            .map(|r| r.stage_best.unwrap_or(f64::INFINITY))
+            .collect();
+        if bests.len() <= w {
+            return false;
+        }
+        let (now, then) = (bests[0], bests[w]);
+        then.is_finite() && now >= then * (1.0 - self.stops.stall_tolerance)
+    }
+
+    /// Appends the history record of the generation (`costs`) or polish
+    /// start (`None`) just made.
+    fn record(&mut self, stage: Stage, measure: Measure, costs: Option<&[f32]>) {
+        let (gbest, mean, std, diverged) = costs.map_or((None, None, None, 0), |c| {
+            GenerationRecord::stats(c)
+        });
+        let leader = self.stage_best.as_ref().or(self.best.as_ref());
+        let record = GenerationRecord {
+            generation: self.history.records.len() + 1,
+            stage,
+            measure,
+            evaluations: self.evaluations,
+            seconds: self.elapsed(),
+            best_sse: self.best.as_ref().map(|b| b.cost),
+            stage_best: self.stage_best.as_ref().map(|b| b.cost),
+            generation_best_sse: gbest,
+            mean_sse: mean,
+            std_sse: std,
+            diverged,
+            best_params: leader.map_or(Vec::new(), |b| b.params.clone()),
+        };
+        self.history.records.push(record);
+    }
+
+    /// Ends the current stage: hands its members on and moves to the next.
+    fn end_stage(&mut self, stage: Stage, ended: StageEnd) {
+        if !self.optimizers.is_empty() {
+            self.carried = std::mem::take(&mut self.optimizers)
+                .iter()
+                .map(|o| {
+                    let (rows, costs) = o.members();
+                    Members { rows, costs }
+                })
+                .collect();
+            self.pool.splice(0..0, self.carried.iter().cloned());
+        }
+        self.summaries.push(StageSummary {
+            stage,
+            measure: self.measure(stage),
+            steps: self.stage_steps,
+            evaluations: self.evaluations - self.stage_start_evaluations,
+            seconds: self.elapsed() - self.stage_start_seconds,
+            best_cost: self.stage_best.as_ref().map_or(f64::INFINITY, |b| b.cost),
+            ended,
+        });
+        self.cursor += 1;
+    }
+
+    /// The polish: Levenberg–Marquardt on the free-run residuals from the
+    /// best distinct members of the population stages (or from the initial
+    /// rows when there was none), the best result kept.
+    ///
+    /// Cut short by `interrupt`, it leaves the state as it found it (a
+    /// resumed fit redoes it whole, as an uninterrupted one did) and returns
+    /// the best it polished so far.
+    fn polish(
+        &mut self,
+        objective: &mut dyn Objective,
+        interrupt: Option<&AtomicBool>,
+    ) -> anyhow::Result<Option<Scored>> {
+        let p = self.plan.polish.clone().expect("a polish stage");
+        let before = (
+            self.best.clone(),
+            self.history.records.len(),
+            self.evaluations,
+        );
+        self.stage_steps = 0;
+        self.stage_best = None;
+        self.stage_start_evaluations = self.evaluations;
+        self.stage_start_seconds = self.elapsed();
+        let space = self.space.clone();
+        let bounds = space.bounds();
+        let nf = bounds.dim();
+        // The islands' best first (the free-run stage's, then the global
+        // stage's), then their second best, and so on: each island's basin
+        // gets a start before any gets two. The global stage's best matter
+        // when the model cannot fit the data exactly: there the free-run
+        // stage can drift from a good basin of the prediction error into a
+        // degenerate one (measured on the shipped stair: towards the
+        // linear model, A → 0), which continuation from the prediction's
+        // optimum avoids.
+        let pool = if self.pool.is_empty() {
+            self.initial.clone()
+        } else {
+            let orders: Vec<Vec<usize>> = self.pool.iter().map(Members::order).collect();
+            let deepest = orders.iter().map(Vec::len).max().unwrap_or(0);
+            let snf = nf;
+            (0..deepest)
+                .flat_map(|r| {
+                    self.pool
+                        .iter()
+                        .zip(&orders)
+                        .filter_map(move |(m, o)| o.get(r).map(|&i| &m.rows[i * snf..(i + 1) * snf]))
+                })
+                .flatten()
+                .copied()
+                .collect()
+        };
+        let mut starts: Vec<Vec<f64>> = Vec::new();
+        for row in pool.chunks_exact(nf) {
+            if starts.len() == p.starts {
+                break;
+            }
+            let distinct = starts.iter().all(|s| {
+                (0..nf).any(|j| (s[j] - row[j]).abs() > plan::DISTINCT * bounds.width(j))
+            });
+            if distinct {
+                starts.push(row.to_vec());
+            }
+        }
+        let floor: Vec<f64> = (0..nf).map(|j| p.step_floor * bounds.width(j)).collect();
+        let settings = LmSettings {
+            max_iterations: p.iterations,
+            rel_step: p.rel_step,
+            tolerance: p.tolerance,
+            central: p.central,
+        };
+        let cut = || interrupt.is_some_and(|f| f.load(Ordering::SeqCst));
+        // The horizons a start is polished through: from the global stage's
+        // up by factors of four, then the free run.
+        let mut measures = Vec::new();
+        if let (true, Some(Measure::Ahead { horizon })) =
+            (p.continuation, self.plan.global.as_ref().map(|g| g.measure))
+        {
+            let mut h = horizon.max(1);
+            while h < p.longest {
+                measures.push(Measure::Ahead { horizon: h });
+                h *= 4;
+            }
+        }
+        measures.push(Measure::FreeRun);
+        for start in starts {
+            if cut() {
+                break;
+            }
+            let mut x = start;
+            for &measure in &measures {
+                let mut evaluations = 0u64;
+                let mut residuals = |points: &[Vec<f64>]| {
+                    evaluations += points.len() as u64;
+                    objective.residuals(&space.embed(&points.concat()), measure)
+                };
+                let out = lm::levenberg_marquardt_batched(
+                    &mut residuals,
+                    &x,
+                    (&bounds.lower, &bounds.upper),
+                    &floor,
+                    &settings,
+                    interrupt,
+                );
+                self.evaluations += evaluations;
+                match out {
+                    Ok(out) => x = out.x,
+                    // A start whose simulation or a probe's diverges keeps
+                    // its place: the search's value is still a candidate.
+                    Err(e) if e.downcast_ref::<LmError>().is_some() => {}
+                    Err(e) => return Err(e),
+                }
+            }
+            // Scored as every other candidate, so that it compares in the
+            // same arithmetic.
+            let rows = self.space.project(&space.embed(&x));
+            let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
+            if costs[0].is_finite()
+                && self
+                    .stage_best
+                    .as_ref()
+                    .is_none_or(|b| (costs[0] as f64) < b.cost)
+            {
+                self.stage_best = Some(Scored {
+                    params: canonical.clone(),
+                    cost: costs[0] as f64,
+                });
+            }
+            self.offer_best(&canonical, &costs);
+            self.stage_steps += 1;
+            self.record(Stage::Polish, Measure::FreeRun, None);
+        }
+        if cut() {
+            let partial = self.stage_best.take();
+            (self.best, _, self.evaluations) = before.clone();
+            self.history.records.truncate(before.1);
+            return Ok(partial);
+        }
+        self.end_stage(Stage::Polish, StageEnd::Polished);
+        Ok(None)
+    }
+
+    /// The best candidate known when the fit stops early, scored on the free
+    /// run (the global stage may search another measure): the best free-run
+    /// candidate so far, or else the best of the members in hand. It leaves
+    /// the state untouched, so that a checkpoint resumes to the result of an
+    /// uninterrupted fit.
+    fn best_so_far(&self, objective: &mut dyn Objective) -> anyhow::Result<Option<Scored>> {
+        if self.best.is_some() {
+            return Ok(None);
+        }
+        let members: Vec<f64> = if self.optimizers.is_empty() {
+            self.carried.iter().flat_map(|m| m.rows.clone()).collect()
+        } else {
+            self.optimizers.iter().flat_map(|o| o.members().0).collect()
+        };
+        if members.is_empty() {
+            return Ok(None);
+        }
+        let (canonical, costs) = self.costs_of(objective, &members, Measure::FreeRun)?;
+        let d = self.space.dim();
+        Ok(argmin(&costs).map(|i| Scored {
+            params: canonical[i * d..(i + 1) * d].to_vec(),
+            cost: costs[i] as f64,
+        }))
+    }
+
+    /// Writes the checkpoint (JSON) atomically.
+    pub fn save(&mut self, path: &Path) -> anyhow::Result<()> {
+        self.seconds_before = self.elapsed();
+        self.started = Some(Instant::now());
+        let json = serde_json::to_vec(self)?;
+        write_atomic(path, &json)
+            .map_err(|e| anyhow::anyhow!("cannot write checkpoint {}: {e}", path.display()))
+    }
+
+    /// Reads a checkpoint written by [`Engine::save`].
+    pub fn load(path: &Path) -> anyhow::Result<Engine> {
+        let bytes = std::fs::read(path)
+            .map_err(|e| anyhow::anyhow!("cannot read checkpoint {}: {e}", path.display()))?;
+        serde_json::from_slice(&bytes).map_err(|e| {
+            anyhow::anyhow!(
+                "{} is not a mckibben checkpoint (or a damaged one): {e}",
+                path.display()
+            )
+        })
+    }
+}
