@@ -39,7 +39,7 @@ use mckibben::twin::TwinConfig;
 ///   mckibben control --controller pi,mpc --freq 3 --load 4.5,7 --plot figs/
 ///   mckibben control --controller pi,pi-tuned,ff-pid,mpc --tuned-gains 2.2164,65.528,0.0219 --robustness --json
 ///   mckibben control --controller mpc --freq 3 --plant "cmd:mckibben twin serve --load 4.5" --log logs/
-///   mckibben control --controller pi --plant udp:192.168.1.20:9000 --deadline 10 --design-data rig_multisine.csv
+///   mckibben control --controller pi --plant udp:192.168.1.20:9000 --deadline 20 --design-data rig_multisine.csv
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -108,9 +108,9 @@ pub struct Args {
     /// The plant: `twin` (in process), `cmd:COMMAND` or `udp:HOST:PORT`.
     #[arg(long, default_value = "twin", value_name = "SPEC")]
     plant: String,
-    /// Deadline of each sample on an external plant (ms): the measurement is
-    /// due this long after the command before it.
-    #[arg(long, default_value_t = 10.0, value_name = "MS")]
+    /// Deadline of each sample on an external plant (ms): a measurement is
+    /// due this long after the one before it (one 10 ms sample plus jitter).
+    #[arg(long, default_value_t = 15.0, value_name = "MS")]
     deadline: f64,
     /// Missing measurements in a row after which the run stops (valve closed).
     #[arg(long, default_value_t = 10)]

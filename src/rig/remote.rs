@@ -2,7 +2,7 @@
 //! rig over a [`Link`], with a deadline on every sample.
 //!
 //! - The measurement that closes sample `k − 1` is due within the deadline
-//!   after the command for it was sent. If it is **missing** then, the
+//!   after the previous one arrived. If it is **missing** then, the
 //!   command in force is held over sample `k` (sent again as `U k`) and the
 //!   controller is told; after `max_missing` in a row the rig counts as
 //!   silent. A measurement that comes after its sample was held is **late**:
@@ -27,8 +27,8 @@ use crate::control::{ControlLoop, Controller, Episode, EpisodeResult, Measuremen
 /// How strict the loop is with the rig.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RemoteSettings {
-    /// Time a measurement may take after the command before it (the
-    /// sample's deadline).
+    /// Time a measurement may take after the one before it arrived (the
+    /// sample's deadline): the sample time plus the jitter allowed.
     pub deadline: Duration,
     /// Missing measurements in a row after which the run stops.
     pub max_missing: usize,
@@ -156,14 +156,20 @@ pub fn run_remote(
             volts: first.volts,
         },
     )?;
-    let mut sent_at = Instant::now();
+    // Each measurement is due `deadline` after the one before it arrived
+    // (or after the first command, or after the last deadline that passed):
+    // on the rig's own rhythm, whatever the controller's compute time.
+    let mut anchor = Instant::now();
     let mut result = Ok(());
     while !lp.done() {
         let k = lp.next_sample();
-        let left = settings.deadline.saturating_sub(sent_at.elapsed());
+        let left = settings.deadline.saturating_sub(anchor.elapsed());
         // The samples this wait settles: (sample, measurement or None).
         let settled: Vec<(usize, Option<Measurement>)> = match link.recv(Some(left)) {
-            Received::Timeout => vec![(k, None)],
+            Received::Timeout => {
+                anchor = Instant::now();
+                vec![(k, None)]
+            }
             Received::Closed(why) => {
                 result = Err(RigError::Closed {
                     link: link.describe(),
@@ -188,6 +194,7 @@ pub fn run_remote(
                 }
                 // Samples the rig skipped were missing; their commands held.
                 Ok(Accepted::Use(j, m)) => {
+                    anchor = Instant::now();
                     (k..j).map(|i| (i, None)).chain([(j, Some(m))]).collect()
                 }
             },
@@ -254,7 +261,6 @@ pub fn run_remote(
                 result = Err(e);
                 break;
             }
-            sent_at = Instant::now();
         }
     }
     match result {
