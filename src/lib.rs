@@ -18,4 +18,5 @@ pub mod ident;
 pub mod model;
 pub mod optim;
 pub mod report;
+pub mod rig;
 pub mod twin;

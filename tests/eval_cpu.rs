@@ -96,11 +96,12 @@ fn results_do_not_depend_on_the_thread_count() {
 fn short_traces_and_bad_lengths() {
     let exp = stair_experiment(1, 5);
     let problem = Problem::new(Family::Classic, vec![exp]);
-    let pop = vec![0.5; 8 * 3];
+    let d = Family::Classic.dim();
+    let pop = vec![0.5; d * 3];
     let scores = CpuEvaluator::new().evaluate(&problem, &pop).unwrap();
     assert_eq!(scores.total, vec![0.0; 3]);
     let err = CpuEvaluator::new()
-        .evaluate(&problem, &pop[..7])
+        .evaluate(&problem, &pop[..d - 1])
         .unwrap_err();
     assert!(err.to_string().contains("multiple"), "{err}");
 }

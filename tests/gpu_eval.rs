@@ -219,13 +219,13 @@ fn more_than_65535_workgroups_fold_into_a_2d_dispatch() {
     let Some(mut g) = gpu(GpuOptions::default()) else {
         return;
     };
-    // 65536 · 64 + 5 linear candidates on a 3-sample trace: cheap to score,
+    // 65536 · 64 + 5 linear candidates [a, b, c, x0] on a 3-sample trace: cheap to score,
     // and past the per-dimension workgroup limit.
     let n = 65_536 * 64 + 5;
     let exp = stair_experiment(3, 6);
-    let mut pop = Vec::with_capacity(n * 3);
+    let mut pop = Vec::with_capacity(n * 4);
     for i in 0..n {
-        pop.extend_from_slice(&[0.5 + (i % 1000) as f64 * 1e-4, (i % 977) as f64, 0.25]);
+        pop.extend_from_slice(&[0.5 + (i % 1000) as f64 * 1e-4, (i % 977) as f64, 0.25, 0.0]);
     }
     let problem = Problem::new(Family::Linear, vec![exp]);
     let got = g.evaluate(&problem, &pop).unwrap();

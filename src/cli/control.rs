@@ -1,133 +1,184 @@
-//! `mckibben control`: closed-loop sine tracking on the rig twin with the
-//! thesis' PI, the optimizer-tuned PI and the MPC (chapter 6).
+//! `mckibben control`: closed-loop sine tracking (chapter 6) on the rig twin
+//! in process, or on a rig behind the line protocol.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use anyhow::Context;
-use serde::Serialize;
 
-use mckibben::control::design::{self, scale_hysteresis};
+use mckibben::control::design::OPERATING_BAND_V;
+use mckibben::control::figures;
+use mckibben::control::sweep::{self, Design, Ingredients, Kind, Run, RunSpec, Shape};
+use mckibben::control::table::{self, RobustRow, Row};
 use mckibben::control::tuning::{self, TuningEpisodes};
-use mckibben::control::{
-    ControlModel, Controller, Episode, EpisodeResult, Mpc, MpcSettings, Pi, PiGains, ValveLimits,
-    run_episode,
-};
+use mckibben::control::{MpcSettings, PiGains, ValveLimits};
 use mckibben::data::Trace;
-use mckibben::data::csv::write_trace;
-use mckibben::data::signals::{Multisine, Stair};
-use mckibben::report::{Figure, Panel, Series};
-use mckibben::twin::{self, Rig, TwinConfig};
+use mckibben::data::csv::{ReadOptions, read_traces, write_trace};
+use mckibben::rig::{self, ChildLink, Link, RemoteSettings, RunLog, UdpLink};
+use mckibben::twin::TwinConfig;
 
-/// Track the sine reference of appendix A.1.2 (30 mm bias, 10 mm amplitude)
-/// on the rig twin, closing the loop on the input valve voltage (0–10 V, the
-/// output valve at 10 − u) every 10 ms, and report the steady-state RMS and
-/// maximum tracking error (the last 10 s of a 20 s sine, after 10 s of
-/// settling at 30 mm), the valve effort and the controller's step time.
+/// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
+/// closing the loop on the input valve voltage (0–10 V, slew 0.25 V per
+/// sample; the output valve at 10 − u), and report the steady-state RMS and
+/// maximum tracking error (the last 10 s of a 20 s sine after 10 s settling
+/// at 30 mm), the valve effort and each controller step's time.
 ///
-/// Controllers: `pi` — the thesis' gains (Table 22) with anti-windup;
-/// `pi-tuned` — PI(D) gains chosen by an optimizer on short episodes over
-/// every frequency and load; `mpc` — a QP-based MPC on a model identified
-/// from the twin's stair at the design load (never the twin's internals).
+/// Controllers: `pi` — the thesis' gains (Table 22); `pi-tuned` — PID gains
+/// tuned by an optimizer on every frequency and load; `ff-pid` — the tuned
+/// PID plus the inverse of the identified model as feedforward; `mpc` — a QP
+/// MPC whose model (valve map, eq. 13 with its Bouc-Wen loop) is identified
+/// from an open-loop record, never read from the twin.
 ///
-/// Example: `mckibben control --controller pi,mpc --freq 3 --load 4.5,7 --plot figs/`
+/// The plant is the in-process twin unless `--plant` names a rig speaking the
+/// line protocol (docs/RIG_PROTOCOL.md): `cmd:COMMAND` runs COMMAND and talks
+/// to its stdin/stdout, `udp:HOST:PORT` sends datagrams. Each sample has a
+/// deadline; a missing measurement holds the last command; a malformed or
+/// stale line ends the run with an error and the valve closed.
+///
+/// Examples:
+///   mckibben control --controller pi,mpc --freq 3 --load 4.5,7 --plot figs/
+///   mckibben control --controller pi,pi-tuned,ff-pid,mpc --tuned-gains 2.2164,65.528,0.0219 --robustness --json
+///   mckibben control --controller mpc --freq 3 --plant "cmd:mckibben twin serve --load 4.5" --log logs/
+///   mckibben control --controller pi --plant udp:192.168.1.20:9000 --deadline 20 --design-data rig_multisine.csv
 #[derive(Debug, clap::Args)]
+#[command(verbatim_doc_comment)]
 pub struct Args {
-    /// Controllers to run (comma-separated): pi, pi-tuned, mpc. `pi-tuned`
-    /// without `--tuned-gains` runs the tuning first (minutes on 2 cores).
-    #[arg(long, value_delimiter = ',', default_value = "pi,mpc")]
-    controller: Vec<Kind>,
+    /// Controllers (comma-separated): pi, pi-tuned, ff-pid, mpc. Without
+    /// `--tuned-gains`, `pi-tuned` and `ff-pid` tune first (minutes on 2 cores).
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "pi,mpc")]
+    controller: Vec<KindArg>,
     /// Reference frequencies ω (rad/s), comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
     freq: Vec<f64>,
-    /// Hanging loads (kg), comma-separated.
+    /// Loads (kg) of the in-process twin, comma-separated (ignored with --plant).
     #[arg(long, value_delimiter = ',', default_value = "4.5,7")]
     load: Vec<f64>,
-    /// Load (kg) at which the MPC's model is identified (the thesis designed at 4.5 kg).
+    /// Load (kg) at which the model is identified on the twin.
     #[arg(long, default_value_t = 4.5)]
     design_load: f64,
-    /// Open-loop twin experiment the MPC's model is identified from: the
-    /// identification stair of A.1.1, or a 120 s multisine (5 ± 4 V,
-    /// 0.02–1 Hz), which excites the dynamics the 1–3 rad/s references need.
-    #[arg(long, value_enum, default_value = "multisine")]
-    design_experiment: DesignExperiment,
-    /// Use this displacement model (pressure → displacement, a model JSON
-    /// written by `identify --out` or `fit`) in the MPC instead of the
-    /// control-oriented fit; the valve → pressure model is still identified
-    /// from the design experiment.
+    /// Identify the model from this open-loop record (CSV with valve_in,
+    /// pressure, displacement; e.g. a multisine recorded on the rig) instead
+    /// of the twin's design multisine. Its second half validates the model.
+    #[arg(long, value_name = "FILE.csv")]
+    design_data: Option<PathBuf>,
+    /// Replace the identified displacement model by this one (a model JSON
+    /// written by `fit` or `identify --out`; classic or linear family).
     #[arg(long, value_name = "MODEL.json")]
     from: Option<PathBuf>,
-    /// Also run the MPC with its hysteresis parameters (A, α, β, γ) scaled by
-    /// these factors, to test robustness to model error (e.g. 0.8,1.2).
+    /// Also run the model-based controllers with the model's hysteresis
+    /// scaled by these factors (e.g. 0.8,1.2).
     #[arg(long, value_delimiter = ',')]
     hysteresis_scale: Vec<f64>,
-    /// PI(D) gains `kp,ki,kd` (V/mm, V/(mm·s), V·s/mm) for pi-tuned, instead of tuning now.
+    /// Add the robustness table: for ff-pid and mpc at each --freq, the
+    /// hysteresis ×0.8 and ×1.2 and the load 30 % below and above the design
+    /// load, each against the nominal run.
+    #[arg(long)]
+    robustness: bool,
+    /// PID gains `kp,ki,kd` (V/mm, V/(mm·s), V·s/mm) for pi-tuned and ff-pid.
     #[arg(long, value_delimiter = ',', value_name = "KP,KI,KD")]
     tuned_gains: Option<Vec<f64>>,
-    /// Optimizer for the gain tuning: ga, mfa, pso or de.
+    /// Optimizer of the gain tuning: ga, mfa, pso or de.
     #[arg(long, default_value = "de")]
     algo: String,
-    /// Population size of the gain tuning.
-    #[arg(long, default_value_t = 16)]
+    /// Population of the gain tuning.
+    #[arg(long, default_value_t = 24)]
     pop: usize,
     /// Generations of the gain tuning.
-    #[arg(long, default_value_t = 12)]
+    #[arg(long, default_value_t = 30)]
     gens: usize,
-    /// MPC prediction horizon (samples of 10 ms).
+    /// MPC horizon (samples).
     #[arg(long, default_value_t = MpcSettings::default().horizon)]
     horizon: usize,
     /// MPC weight on valve moves (per V²) against tracking error (per mm²).
     #[arg(long, default_value_t = MpcSettings::default().r_move)]
     r_move: f64,
-    /// Seed of the twin's sensor noise and of the tuning optimizer.
+    /// Seconds of regulation at 30 mm before the sine.
+    #[arg(long, default_value_t = Shape::thesis().warmup_s)]
+    warmup: f64,
+    /// Seconds of sine.
+    #[arg(long, default_value_t = Shape::thesis().duration_s)]
+    duration: f64,
+    /// Scoring starts this many seconds into the sine.
+    #[arg(long, default_value_t = Shape::thesis().steady_from_s)]
+    steady_from: f64,
+    /// Seed of the twin's sensor noise (design record: this seed; its
+    /// validation record: seed + 1) and of the tuning.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Write one SVG per run (reference vs displacement, valve, error) into this folder.
+    /// The plant: `twin` (in process), `cmd:COMMAND` or `udp:HOST:PORT`.
+    #[arg(long, default_value = "twin", value_name = "SPEC")]
+    plant: String,
+    /// Deadline of each sample on an external plant (ms): a measurement is
+    /// due this long after the one before it (one 10 ms sample plus jitter).
+    #[arg(long, default_value_t = 15.0, value_name = "MS")]
+    deadline: f64,
+    /// Missing measurements in a row after which the run stops (valve closed).
+    #[arg(long, default_value_t = 10)]
+    max_missing: usize,
+    /// Write each external run's log into this folder as it goes.
+    #[arg(long, value_name = "DIR")]
+    log: Option<PathBuf>,
+    /// Write SVG figures (tracking, valve command, error per run; the
+    /// model's loop and prediction error) into this folder.
     #[arg(long, value_name = "DIR")]
     plot: Option<PathBuf>,
-    /// Write one CSV per run (t, reference, displacement, pressure, valve_in) into this folder.
+    /// Write one CSV per run (t, reference, displacement, pressure, valve_in).
     #[arg(long, value_name = "DIR")]
     csv: Option<PathBuf>,
-    /// Print JSON (one object per run) instead of a table.
+    /// Print JSON (design, tuning, runs, robustness) instead of tables.
     #[arg(long)]
     json: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum DesignExperiment {
-    Stair,
-    Multisine,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum Kind {
+enum KindArg {
     Pi,
     PiTuned,
+    FfPid,
     Mpc,
 }
 
-/// One run, as `--json` prints it.
-#[derive(Debug, Serialize)]
-struct Row {
-    controller: String,
-    freq_rad_s: f64,
-    load_kg: f64,
-    rms_error_mm: f64,
-    max_error_mm: f64,
-    max_step_time_us: f64,
-    mean_step_time_us: f64,
-    max_step_cpu_us: f64,
-    constraint_violations: usize,
-    effort_rms_v: f64,
-    effort_travel_v_per_s: f64,
-    diverged: bool,
-    /// Hysteresis parameters of the MPC's model scaled by this factor (1: as identified).
-    hysteresis_scale: f64,
-    solver_failures: usize,
+impl From<KindArg> for Kind {
+    fn from(k: KindArg) -> Kind {
+        match k {
+            KindArg::Pi => Kind::Pi,
+            KindArg::PiTuned => Kind::PiTuned,
+            KindArg::FfPid => Kind::FfPid,
+            KindArg::Mpc => Kind::Mpc,
+        }
+    }
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(!args.freq.is_empty(), "--freq needs at least one frequency");
-    anyhow::ensure!(!args.load.is_empty(), "--load needs at least one load");
+enum Plant {
+    Twin,
+    Command(String),
+    Udp(std::net::SocketAddr),
+}
+
+fn parse_plant(spec: &str) -> anyhow::Result<Plant> {
+    if spec == "twin" {
+        Ok(Plant::Twin)
+    } else if let Some(cmd) = spec.strip_prefix("cmd:") {
+        anyhow::ensure!(!cmd.trim().is_empty(), "--plant cmd: needs a command");
+        Ok(Plant::Command(cmd.to_string()))
+    } else if let Some(addr) = spec.strip_prefix("udp:") {
+        use std::net::ToSocketAddrs;
+        let a = addr
+            .to_socket_addrs()
+            .with_context(|| format!("--plant udp:{addr}: not a HOST:PORT"))?
+            .next()
+            .ok_or_else(|| anyhow::anyhow!("--plant udp:{addr}: no address"))?;
+        Ok(Plant::Udp(a))
+    } else {
+        anyhow::bail!("--plant `{spec}`: expected twin, cmd:COMMAND or udp:HOST:PORT")
+    }
+}
+
+fn check_args(args: &Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !args.freq.is_empty() && !args.load.is_empty(),
+        "--freq and --load need values"
+    );
     for &w in &args.freq {
         anyhow::ensure!(
             w > 0.0 && w.is_finite(),
@@ -147,211 +198,334 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     anyhow::ensure!(args.horizon >= 2, "--horizon must be at least 2 samples");
+    anyhow::ensure!(args.r_move > 0.0, "--r-move must be positive");
+    anyhow::ensure!(args.deadline > 0.0, "--deadline must be positive (ms)");
+    anyhow::ensure!(args.max_missing >= 1, "--max-missing must be at least 1");
+    anyhow::ensure!(
+        args.warmup >= 0.0
+            && args.duration > 0.0
+            && (0.0..args.duration).contains(&args.steady_from),
+        "--warmup ≥ 0, --duration > 0 and 0 ≤ --steady-from < --duration"
+    );
     if let Some(g) = &args.tuned_gains {
         anyhow::ensure!(
-            g.len() == 3 && g.iter().all(|v| v.is_finite()),
-            "--tuned-gains takes three numbers kp,ki,kd (got {g:?})"
+            g.len() == 3 && g.iter().all(|v| v.is_finite() && *v >= 0.0),
+            "--tuned-gains takes three non-negative numbers kp,ki,kd (got {g:?})"
         );
     }
+    Ok(())
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    check_args(&args)?;
+    let plant = parse_plant(&args.plant)?;
+    let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
     let config = TwinConfig::default();
-
-    // The MPC's model: identified on the twin's stair at the design load.
-    let model = if args.controller.contains(&Kind::Mpc) {
-        let experiment = match args.design_experiment {
-            DesignExperiment::Stair => twin::Experiment::Stair(Stair::default()),
-            DesignExperiment::Multisine => twin::Experiment::Multisine(Multisine {
-                duration_s: 120.0,
-                ..Multisine::default()
-            }),
-        };
-        let record = twin::run(&config, args.design_load, args.seed, &experiment);
-        let (mut model, fit) = design::identify(&record, design::OPERATING_BAND_V, args.horizon)
-            .context("identifying the MPC's model")?;
-        if let Some(path) = &args.from {
-            let m = mckibben::model::FittedModel::load(path)
-                .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
-            anyhow::ensure!(
-                (m.dt - 0.01).abs() < 1e-9,
-                "--from {}: the model was fitted at a {} s sample time; the loop runs at 0.01 s",
-                path.display(),
-                m.dt
-            );
-            model.displacement = m;
-        }
+    let say = |s: String| {
         if !args.json {
-            let origin = match &args.from {
-                Some(path) => format!("from {}", path.display()),
-                None => format!("{}-step prediction RMSE {:.3} mm", fit.horizon, fit.rmse_mm),
-            };
-            eprintln!(
-                "MPC model from the twin's {} at {} kg: {} ({origin}), valve: p(k+1) = {:.4}·p + {:.5}·v + {:.5}",
-                experiment.name(),
-                args.design_load,
-                fmt_params(&model.displacement),
-                model.valve.pole,
-                model.valve.gain,
-                model.valve.offset
-            );
+            eprintln!("{s}");
         }
-        Some(model)
+    };
+    let design = if kinds.iter().any(|k| k.needs_model()) || args.robustness {
+        let d = make_design(&args, &config)?;
+        say(describe_design(&d));
+        Some(d)
     } else {
         None
     };
-
-    let tuned = if args.controller.contains(&Kind::PiTuned) {
-        Some(match &args.tuned_gains {
-            Some(g) => PiGains {
-                kp: g[0],
-                ki: g[1],
-                kd: g[2],
-            },
-            None => {
-                if !args.json {
-                    eprintln!(
-                        "tuning the PID gains: {} × {} gain vectors, each on {} episodes ...",
-                        args.pop,
-                        args.gens,
-                        TuningEpisodes::default().freqs_rad_s.len()
-                            * TuningEpisodes::default().loads_kg.len()
-                    );
-                }
-                let t = tuning::tune_pi(
-                    &args.algo,
-                    args.pop,
-                    args.gens,
-                    args.seed,
-                    &TuningEpisodes::default(),
-                    &config,
-                )?;
-                if !args.json {
-                    eprintln!(
-                        "tuned PI ({} pop {} gens {}, {} gain vectors × every frequency and load, {:.1} s): kp {:.5} ki {:.5} kd {:.5}, mean RMS {:.3} mm (thesis gains {:.3} mm)",
-                        args.algo,
-                        args.pop,
-                        args.gens,
-                        t.evaluations,
-                        t.seconds,
-                        t.gains.kp,
-                        t.gains.ki,
-                        t.gains.kd,
-                        t.cost,
-                        t.baseline_cost
-                    );
-                }
-                t.gains
-            }
-        })
-    } else {
-        None
+    let (gains, tuned) = tune(&args, &kinds, &config, &say)?;
+    let ing = Ingredients {
+        model: design.as_ref().map(|d| d.model.clone()),
+        gains,
+        mpc: MpcSettings {
+            horizon: args.horizon,
+            r_move: args.r_move,
+            ..MpcSettings::default()
+        },
+        limits: ValveLimits::default(),
     };
-
+    let shape = Shape {
+        warmup_s: args.warmup,
+        duration_s: args.duration,
+        steady_from_s: args.steady_from,
+    };
     let mut rows = Vec::new();
-    let mut runs = Vec::new();
-    for &kind in &args.controller {
-        let scales: Vec<f64> = if kind == Kind::Mpc {
-            std::iter::once(1.0)
-                .chain(args.hysteresis_scale.iter().copied())
-                .collect()
-        } else {
-            vec![1.0]
-        };
-        for &scale in &scales {
-            for &load in &args.load {
-                for &w in &args.freq {
-                    let mut rig = Rig::new(&config, load, args.seed);
-                    let ep = Episode::thesis(w);
-                    let dt = rig.dt();
-                    let (result, failures) = match kind {
-                        Kind::Pi => {
-                            let mut c = Pi::new(PiGains::default(), ep.limits, dt, "pi");
-                            (run_episode(&mut rig, &mut c, &ep), 0)
-                        }
-                        Kind::PiTuned => {
-                            let g = tuned.expect("tuned gains were set above");
-                            let mut c = Pi::new(g, ep.limits, dt, "pi-tuned");
-                            (run_episode(&mut rig, &mut c, &ep), 0)
-                        }
-                        Kind::Mpc => {
-                            let base = model.as_ref().expect("model identified above");
-                            let m = ControlModel {
-                                displacement: scale_hysteresis(&base.displacement, scale),
-                                valve: base.valve,
-                            };
-                            let settings = MpcSettings {
-                                horizon: args.horizon,
-                                r_move: args.r_move,
-                                ..MpcSettings::default()
-                            };
-                            let label = if scale == 1.0 {
-                                "mpc".to_string()
-                            } else {
-                                format!("mpc (hysteresis ×{scale})")
-                            };
-                            let mut c = Mpc::new(&m, settings, ValveLimits::default(), label);
-                            let r = run_episode(&mut rig, &mut c as &mut dyn Controller, &ep);
-                            (r, c.solver_failures)
-                        }
+    let mut runs: Vec<Run> = Vec::new();
+    match &plant {
+        Plant::Twin => {
+            let specs = sweep::plan(&kinds, &args.freq, &args.load, &args.hysteresis_scale);
+            for (i, spec) in specs.iter().enumerate() {
+                say(format!(
+                    "[{}/{}] {} at {} rad/s, {} kg",
+                    i + 1,
+                    specs.len(),
+                    sweep::run_label(spec.kind, spec.hysteresis_scale),
+                    spec.freq_rad_s,
+                    spec.load_kg
+                ));
+                let run = sweep::run_on_twin(spec, &ing, &config, args.seed, &shape)?;
+                rows.push(Row::of(&run, "twin", Some(spec.load_kg), 0));
+                runs.push(run);
+            }
+        }
+        external => {
+            for &kind in &kinds {
+                for &freq in &args.freq {
+                    let spec = RunSpec {
+                        kind,
+                        freq_rad_s: freq,
+                        load_kg: f64::NAN,
+                        hysteresis_scale: 1.0,
                     };
-                    let m = &result.metrics;
-                    rows.push(Row {
-                        controller: result.controller.clone(),
-                        freq_rad_s: w,
-                        load_kg: load,
-                        rms_error_mm: m.rms_error_mm,
-                        max_error_mm: m.max_error_mm,
-                        max_step_time_us: m.max_step_time_us,
-                        mean_step_time_us: m.mean_step_time_us,
-                        max_step_cpu_us: m.max_step_cpu_us,
-                        constraint_violations: m.constraint_violations,
-                        effort_rms_v: m.effort_rms_v,
-                        effort_travel_v_per_s: m.effort_travel_v_per_s,
-                        diverged: m.diverged,
-                        hysteresis_scale: scale,
-                        solver_failures: failures,
-                    });
-                    runs.push((kind, scale, load, w, result));
+                    say(format!(
+                        "{} at {freq} rad/s on {}",
+                        kind.label(),
+                        args.plant
+                    ));
+                    let (run, late) = run_external(&args, external, &spec, &ing, &shape)?;
+                    rows.push(Row::of(&run, &args.plant, None, late));
+                    runs.push(run);
                 }
             }
         }
     }
-
+    let robust = if args.robustness {
+        let (kinds, freqs) = (&kinds, &args.freq);
+        table::robustness(
+            kinds,
+            freqs,
+            args.design_load,
+            &ing,
+            &config,
+            args.seed,
+            &shape,
+            &say,
+        )?
+    } else {
+        Vec::new()
+    };
     if let Some(dir) = &args.plot {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("creating --plot {}", dir.display()))?;
-        for (kind, scale, load, w, result) in &runs {
-            let path = dir.join(format!("{}.svg", run_name(*kind, *scale, *load, *w)));
-            figure(result, *load, *w)
-                .save(&path)
-                .with_context(|| format!("writing --plot {}", path.display()))?;
-        }
+        plots(dir, &runs, design.as_ref())?;
     }
-
     if let Some(dir) = &args.csv {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("creating --csv {}", dir.display()))?;
-        for (kind, scale, load, w, r) in &runs {
-            let path = dir.join(format!("{}.csv", run_name(*kind, *scale, *load, *w)));
-            let mut trace = Trace::uniform(
-                format!("control {}", r.controller),
-                0.01,
-                r.pressure.clone(),
-                r.displacement.clone(),
-            );
-            trace.t = r.t.clone();
-            trace.extra.push(("valve_in".into(), r.valve.clone()));
-            trace.extra.push(("reference".into(), r.reference.clone()));
-            trace.extra.push(("load_kg".into(), vec![*load; r.t.len()]));
-            write_trace(&path, &trace)
-                .with_context(|| format!("writing --csv {}", path.display()))?;
-        }
+        csvs(dir, &runs)?;
     }
-
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&rows)?);
-        return Ok(());
+        let out = serde_json::json!({
+            "design": design.as_ref().map(design_json),
+            "tuned": tuned,
+            "runs": rows,
+            "robustness": robust,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        print_tables(&rows, &robust);
     }
+    Ok(())
+}
+
+fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
+    let twin_check = Some((config, args.design_load, args.seed));
+    let mut design = match &args.design_data {
+        Some(path) => {
+            let traces = read_traces(path, &ReadOptions::default())
+                .map_err(|e| anyhow::anyhow!("--design-data: {e}"))?;
+            let trace = traces
+                .into_iter()
+                .next()
+                .ok_or_else(|| anyhow::anyhow!("--design-data {}: no samples", path.display()))?;
+            let half = trace.len() / 2;
+            let (est, val) = (trace.slice(0..half), trace.slice(half..trace.len()));
+            sweep::design_from(&est, &val, args.horizon, None)
+                .with_context(|| format!("identifying the model from {}", path.display()))?
+        }
+        None => {
+            let (record, validation) = sweep::twin_records(config, args.design_load, args.seed);
+            sweep::design_from(&record, &validation, args.horizon, twin_check)
+                .context("identifying the model on the twin")?
+        }
+    };
+    if let Some(path) = &args.from {
+        let m = mckibben::model::FittedModel::load(path)
+            .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+        let mut model = design.model.clone();
+        model.displacement = m;
+        model.curvature = 0.0;
+        let (_, validation) = sweep::twin_records(config, args.design_load, args.seed);
+        design = sweep::finish_design(
+            model,
+            format!("{}", path.display()),
+            &validation,
+            args.horizon,
+            twin_check,
+        )
+        .with_context(|| format!("--from {}", path.display()))?;
+    }
+    Ok(design)
+}
+
+fn describe_design(d: &Design) -> String {
+    let params: Vec<String> = d
+        .model
+        .displacement
+        .named_params()
+        .iter()
+        .map(|(n, v)| format!("{n} {v:.4}"))
+        .collect();
+    let mut s = format!(
+        "model ({}): {}, b2 {:.3}; valve pole {:.3}\n  {}-step prediction RMSE on the validation record: {:.3} mm (pressure measured), {:.3} mm (from the valve)",
+        d.source,
+        params.join(", "),
+        d.model.curvature,
+        d.model.valve.pole,
+        d.prediction.horizon,
+        d.prediction.rmse_mm,
+        d.prediction.end_to_end_rmse_mm
+    );
+    if let Some(l) = &d.loop_check {
+        s += &format!(
+            "\n  loop on a slow {:.0}–{:.0} V triangle: twin {:.2} MPa·mm, {:.2} mm wide; model {:.2} MPa·mm, {:.2} mm wide (RMS gap {:.2} mm)",
+            OPERATING_BAND_V.0,
+            OPERATING_BAND_V.1,
+            l.plant.area_mpa_mm,
+            l.plant.width_mm,
+            l.model.area_mpa_mm,
+            l.model.width_mm,
+            l.rmse_mm
+        );
+    }
+    s
+}
+
+fn design_json(d: &Design) -> serde_json::Value {
+    serde_json::json!({
+        "source": d.source,
+        "model": d.model,
+        "prediction": d.prediction,
+        "loop_check": d.loop_check.as_ref().map(|l| serde_json::json!({
+            "plant": l.plant, "model": l.model, "rmse_mm": l.rmse_mm,
+        })),
+    })
+}
+
+fn tune(
+    args: &Args,
+    kinds: &[Kind],
+    config: &TwinConfig,
+    say: &dyn Fn(String),
+) -> anyhow::Result<(Option<PiGains>, Option<serde_json::Value>)> {
+    if !kinds.iter().any(|k| k.needs_gains()) {
+        return Ok((None, None));
+    }
+    if let Some(g) = &args.tuned_gains {
+        let gains = PiGains {
+            kp: g[0],
+            ki: g[1],
+            kd: g[2],
+        };
+        return Ok((
+            Some(gains),
+            Some(serde_json::json!({ "gains": gains, "given": true })),
+        ));
+    }
+    let episodes = TuningEpisodes::default();
+    say(format!(
+        "tuning the PID: {} × {} gain vectors ({}), each on {} episodes ...",
+        args.pop,
+        args.gens,
+        args.algo,
+        episodes.freqs_rad_s.len() * episodes.loads_kg.len()
+    ));
+    let t = tuning::tune_pi(
+        &args.algo, args.pop, args.gens, args.seed, &episodes, config,
+    )?;
+    let edges = tuning::gains_on_edges(&t.gains);
+    say(format!(
+        "tuned PID ({:.0} s): kp {:.5} ki {:.5} kd {:.5}, mean RMS {:.3} mm (thesis gains {:.3} mm); on the box's edges: {}",
+        t.seconds,
+        t.gains.kp,
+        t.gains.ki,
+        t.gains.kd,
+        t.cost,
+        t.baseline_cost,
+        if edges.is_empty() {
+            "none".to_string()
+        } else {
+            edges.join(", ")
+        }
+    ));
+    Ok((
+        Some(t.gains),
+        Some(serde_json::json!({ "tuning": t, "on_edges": edges })),
+    ))
+}
+
+fn run_external(
+    args: &Args,
+    plant: &Plant,
+    spec: &RunSpec,
+    ing: &Ingredients,
+    shape: &Shape,
+) -> anyhow::Result<(Run, usize)> {
+    let mut link: Box<dyn Link> = match plant {
+        Plant::Command(cmd) => Box::new(
+            ChildLink::spawn(cmd).with_context(|| format!("--plant: cannot start `{cmd}`"))?,
+        ),
+        Plant::Udp(addr) => {
+            Box::new(UdpLink::connect(*addr).with_context(|| format!("--plant udp:{addr}"))?)
+        }
+        Plant::Twin => unreachable!("in-process runs do not come here"),
+    };
+    let settings = RemoteSettings {
+        deadline: Duration::from_secs_f64(args.deadline / 1000.0),
+        max_missing: args.max_missing,
+        connect_timeout: Duration::from_secs(10),
+    };
+    let dt = rig::connect(link.as_mut(), &settings)?;
+    let mut controller = sweep::build(spec.kind, spec.hysteresis_scale, ing, dt)?;
+    let mut log = match &args.log {
+        Some(dir) => {
+            let path = dir.join(format!("{}_{}rad.csv", spec.kind.label(), spec.freq_rad_s));
+            RunLog::create(
+                &path,
+                &[
+                    format!(
+                        "mckibben control --controller {} --freq {} --plant {}",
+                        spec.kind.label(),
+                        spec.freq_rad_s,
+                        args.plant
+                    ),
+                    format!(
+                        "rig {} (dt {dt} s), deadline {} ms",
+                        link.describe(),
+                        args.deadline
+                    ),
+                ],
+            )
+            .with_context(|| format!("--log {}", path.display()))?
+        }
+        None => RunLog::none(),
+    };
+    let episode = shape.episode(spec.freq_rad_s);
+    let remote = rig::run_remote(
+        link.as_mut(),
+        dt,
+        controller.as_mut(),
+        &episode,
+        &settings,
+        &mut log,
+    )?;
+    let run = Run {
+        spec: *spec,
+        result: remote.result,
+        stats: controller.stats(),
+    };
+    Ok((run, remote.late))
+}
+
+fn print_tables(rows: &[Row], robust: &[RobustRow]) {
     println!(
-        "{:<22} {:>6} {:>6} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>5} {:>4}",
+        "{:<24} {:>5} {:>5} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8} {:>8} {:>4} {:>4} {:>4}",
         "controller",
         "ω",
         "kg",
@@ -363,14 +537,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "cpu µs",
         "mean µs",
         "viol",
+        "miss",
         "div"
     );
-    for r in &rows {
+    for r in rows {
+        let load = r.load_kg.map_or("rig".to_string(), |l| l.to_string());
         println!(
-            "{:<22} {:>6} {:>6} {:>9.3} {:>9.3} {:>9.3} {:>9.2} {:>9.0} {:>9.0} {:>9.1} {:>5} {:>4}",
+            "{:<24} {:>5} {:>5} {:>8.3} {:>8.3} {:>8.3} {:>7.2} {:>8.0} {:>8.0} {:>8.1} {:>4} {:>4} {:>4}",
             r.controller,
             r.freq_rad_s,
-            r.load_kg,
+            load,
             r.rms_error_mm,
             r.max_error_mm,
             r.effort_rms_v,
@@ -379,68 +555,64 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             r.max_step_cpu_us,
             r.mean_step_time_us,
             r.constraint_violations,
+            r.missing_measurements,
             if r.diverged { "yes" } else { "no" }
         );
     }
-    println!(
-        "steady state: the last 10 s of a 20 s sine after 10 s settling at 30 mm; sample time 10 ms"
-    );
+    if !robust.is_empty() {
+        println!(
+            "\n{:<8} {:<18} {:>5} {:>6} {:>8} {:>10} {:>4}",
+            "", "perturbation", "ω", "kg", "RMS mm", "× nominal", "viol"
+        );
+        for r in robust {
+            println!(
+                "{:<8} {:<18} {:>5} {:>6.3} {:>8.3} {:>10.2} {:>4}",
+                r.controller,
+                r.perturbation,
+                r.freq_rad_s,
+                r.load_kg,
+                r.rms_error_mm,
+                r.ratio,
+                r.constraint_violations
+            );
+        }
+    }
+}
+
+fn csvs(dir: &Path, runs: &[Run]) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating --csv {}", dir.display()))?;
+    for run in runs {
+        let r = &run.result;
+        // The plant's sample time, as the run's time base carries it.
+        let dt = r.t.get(1).zip(r.t.first()).map_or(f64::NAN, |(b, a)| b - a);
+        let path = dir.join(format!("{}.csv", figures::stem(run)));
+        let mut trace = Trace::uniform(
+            format!("control {}", r.controller),
+            dt,
+            r.pressure.clone(),
+            r.displacement.clone(),
+        );
+        trace.t = r.t.clone();
+        trace.extra.push(("valve_in".into(), r.valve.clone()));
+        trace.extra.push(("reference".into(), r.reference.clone()));
+        write_trace(&path, &trace).with_context(|| format!("writing --csv {}", path.display()))?;
+    }
     Ok(())
 }
 
-/// File stem of one run: `control_<controller>[_h<scale>]_<load>kg_<ω>rad`.
-fn run_name(kind: Kind, scale: f64, load: f64, w: f64) -> String {
-    let name = match kind {
-        Kind::Pi => "pi",
-        Kind::PiTuned => "pi_tuned",
-        Kind::Mpc => "mpc",
-    };
-    let suffix = if scale == 1.0 {
-        String::new()
-    } else {
-        format!("_h{scale}")
-    };
-    format!("control_{name}{suffix}_{load}kg_{w}rad")
-}
-
-fn fmt_params(m: &mckibben::model::FittedModel) -> String {
-    m.named_params()
+fn plots(dir: &Path, runs: &[Run], design: Option<&Design>) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating --plot {}", dir.display()))?;
+    let mut figs: Vec<(String, mckibben::report::Figure)> = runs
         .iter()
-        .map(|(n, v)| format!("{n} {v:.4}"))
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-/// The thesis' figures 27–32: reference and displacement, valve voltage, error.
-fn figure(r: &EpisodeResult, load: f64, w: f64) -> Figure {
-    let err: Vec<f64> = r
-        .reference
-        .iter()
-        .zip(&r.displacement)
-        .map(|(a, b)| a - b)
+        .map(|r| (format!("{}.svg", figures::stem(r)), figures::run_figure(r)))
         .collect();
-    Figure::new(format!("{}: {load} kg, {w} rad/s", r.controller))
-        .with(
-            Panel::new("Reference and displacement", "t (s)", "displacement (mm)")
-                .with(Series::line("reference", r.t.clone(), r.reference.clone()))
-                .with(Series::line(
-                    "displacement",
-                    r.t.clone(),
-                    r.displacement.clone(),
-                )),
-        )
-        .with(
-            Panel::new("Input valve voltage", "t (s)", "u (V)").with(Series::line(
-                "valve_in",
-                r.t.clone(),
-                r.valve.clone(),
-            )),
-        )
-        .with(
-            Panel::new("Tracking error r − y", "t (s)", "error (mm)").with(Series::line(
-                "error",
-                r.t.clone(),
-                err,
-            )),
-        )
+    if let Some(d) = design {
+        figs.push(("control_model.svg".into(), figures::design_figure(d)));
+    }
+    for (name, fig) in figs {
+        let path = dir.join(name);
+        fig.save(&path)
+            .with_context(|| format!("writing --plot {}", path.display()))?;
+    }
+    Ok(())
 }

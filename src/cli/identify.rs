@@ -68,7 +68,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let id = identify(trace, orders)?;
         let model = (orders == ArxOrders::default()).then(|| FittedModel {
             family: Family::Linear,
-            params: vec![id.arx.a[0], id.arx.b[0], 0.0],
+            params: vec![id.arx.a[0], id.arx.b[0], 0.0, 0.0],
             input_mean: id.input_mean,
             output_mean: id.output_mean,
             dt: id.dt,

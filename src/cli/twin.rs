@@ -22,13 +22,23 @@ use mckibben::twin::experiment::{Kind, RunSpec};
 /// r(t) = 30 + 10·sin(ω t) mm for 40 s; `multisine` — 5 ± 4 V, 8 sines
 /// 0.02–1 Hz with phases from the seed, 40 s.
 ///
+/// `mckibben twin serve` plays the rig over the line protocol instead
+/// (see `mckibben help twin serve`).
+///
 /// Examples:
 ///   mckibben twin --experiment stair --load 4.5 --seed 1 --out data/stair_4.5kg.csv
 ///   mckibben twin --experiment sine --freq 3 --load 7 --out sine.csv
 ///   mckibben twin --experiment stair --effect friction=0 --effect noise=0 --out ideal.csv
+///   mckibben twin serve --load 4.5 --udp 127.0.0.1:9000 --realtime
 #[derive(Debug, clap::Args)]
-#[command(verbatim_doc_comment)]
+#[command(
+    verbatim_doc_comment,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
 pub struct Args {
+    #[command(subcommand)]
+    command: Option<TwinCommand>,
     /// Which experiment to run.
     #[arg(long, value_enum, default_value = "stair")]
     experiment: ExperimentArg,
@@ -54,8 +64,8 @@ pub struct Args {
     #[arg(long = "effect", value_name = "NAME=VALUE", verbatim_doc_comment)]
     effects: Vec<String>,
     /// Write the CSV here (atomically).
-    #[arg(long, value_name = "FILE.csv")]
-    out: PathBuf,
+    #[arg(long, value_name = "FILE.csv", required = true)]
+    out: Option<PathBuf>,
     /// Also draw the run to this SVG file: pressure and displacement against
     /// time (thesis figure 3) and displacement against pressure (figure 4).
     #[arg(long, value_name = "FILE.svg")]
@@ -69,7 +79,124 @@ enum ExperimentArg {
     Multisine,
 }
 
+#[derive(Debug, clap::Subcommand)]
+enum TwinCommand {
+    #[command(about = "Play the rig over the line protocol (stdin/stdout or UDP) for a controller")]
+    Serve(ServeArgs),
+}
+
+/// Play the rig for a controller over the line protocol of
+/// docs/RIG_PROTOCOL.md: on stdin/stdout (so that `mckibben control --plant
+/// "cmd:mckibben twin serve ..."` runs it as a child process) or on a UDP
+/// port. Each HELLO starts a session on a fresh twin (same load, same seed),
+/// at rest until the first command. Lockstep by default — the twin advances
+/// a sample when its command arrives, as fast as the controller goes, with
+/// the numbers of an in-process run; with --realtime it keeps wall-clock
+/// time, sends each measurement at its tick and holds the last command when
+/// the next one is late. Session reports go to stderr.
+///
+/// Faults (--fault, repeatable) test a controller's handling of a bad rig:
+///   drop@K        never send measurement K
+///   delay@K=MS    send measurement K MS milliseconds late
+///   garble@K      send a malformed line instead of measurement K
+///   stale@K       send measurement K with the time stamp of sample K−10
+///   repeat@K      send measurement K−1 again instead of K
+///
+/// Examples:
+///   mckibben twin serve --load 4.5 --seed 1
+///   mckibben twin serve --load 7 --udp 127.0.0.1:9000 --realtime
+///   mckibben control --controller mpc --freq 3 --plant "cmd:mckibben twin serve --fault drop@500"
+#[derive(Debug, clap::Args)]
+#[command(verbatim_doc_comment)]
+pub struct ServeArgs {
+    /// Hanging load in kg.
+    #[arg(long, default_value_t = 4.5)]
+    load: f64,
+    /// Seed of the sensor noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Scale a non-ideal effect (as `mckibben twin --effect`). Repeatable.
+    #[arg(long = "effect", value_name = "NAME=VALUE")]
+    effects: Vec<String>,
+    /// Keep wall-clock time (one sample every dt) instead of lockstep.
+    #[arg(long)]
+    realtime: bool,
+    /// Serve on this UDP address (HOST:PORT; port 0 picks a free one, printed
+    /// on stderr) instead of stdin/stdout.
+    #[arg(long, value_name = "HOST:PORT")]
+    udp: Option<String>,
+    /// Inject a fault into the measurements (see above). Repeatable.
+    #[arg(long = "fault", value_name = "KIND@K[=MS]")]
+    faults: Vec<String>,
+    /// End a session that receives nothing for this many seconds.
+    #[arg(long, default_value_t = 10.0, value_name = "S")]
+    idle_timeout: f64,
+}
+
+fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    use mckibben::rig::{Link, StdioLink, UdpLink};
+    use mckibben::twin::serve::{Fault, Pace, ServeSettings};
+    let faults = args
+        .faults
+        .iter()
+        .map(|f| {
+            f.parse::<Fault>()
+                .map_err(|e| anyhow::anyhow!("--fault {e}"))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    anyhow::ensure!(
+        args.idle_timeout > 0.0 && args.idle_timeout.is_finite(),
+        "--idle-timeout must be a positive number of seconds"
+    );
+    let probe = RunSpec {
+        kind: Kind::Stair,
+        load_kg: args.load,
+        seed: args.seed,
+        freq_rad_s: 1.0,
+        effects: args.effects.clone(),
+    };
+    // Checks the load and the effects as `twin` does.
+    let config = probe.config().map_err(anyhow::Error::msg)?;
+    probe.check_load().map_err(anyhow::Error::msg)?;
+    let settings = ServeSettings {
+        config,
+        load_kg: args.load,
+        seed: args.seed,
+        pace: if args.realtime {
+            Pace::RealTime
+        } else {
+            Pace::Lockstep
+        },
+        faults,
+        idle_timeout: std::time::Duration::from_secs_f64(args.idle_timeout),
+    };
+    let mut link: Box<dyn Link> = match &args.udp {
+        Some(addr) => {
+            use std::net::ToSocketAddrs;
+            let a = addr
+                .to_socket_addrs()
+                .with_context(|| format!("--udp {addr}: not a HOST:PORT"))?
+                .next()
+                .ok_or_else(|| anyhow::anyhow!("--udp {addr}: no address"))?;
+            let link = UdpLink::serve(a).with_context(|| format!("--udp {addr}: cannot bind"))?;
+            eprintln!("twin serve: listening on udp {}", link.local_addr()?);
+            Box::new(link)
+        }
+        None => Box::new(StdioLink::new()),
+    };
+    mckibben::twin::serve::serve(link.as_mut(), &settings, |r| {
+        eprintln!(
+            "twin serve: session ended after {} samples ({}); late commands: {}",
+            r.samples, r.end, r.late_commands
+        )
+    })
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(TwinCommand::Serve(s)) = args.command {
+        return serve(s);
+    }
+    let out = args.out.clone().expect("clap requires --out");
     let spec = RunSpec {
         kind: match args.experiment {
             ExperimentArg::Stair => Kind::Stair,
@@ -82,10 +209,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         effects: args.effects.clone(),
     };
     let trace = spec.run().map_err(anyhow::Error::msg)?;
-    spec.write_csv(&args.out, &trace)?;
+    spec.write_csv(&out, &trace)?;
     println!(
         "{}: {} samples, dt = {} s ({})",
-        args.out.display(),
+        out.display(),
         trace.len(),
         trace.dt(),
         spec.command()

@@ -1,14 +1,13 @@
 //! One closed-loop episode: a controller drives a plant to follow the sine
 //! reference of appendix A.1.2, at the plant's sample time.
 
-use std::time::Instant;
-
 use serde::{Deserialize, Serialize};
 
 use super::limits::ValveLimits;
 use super::metrics::Metrics;
 use super::plant::{Measurement, Plant};
 use super::reference::SineReference;
+use super::runtime::{ControlLoop, StepTime};
 
 /// A feedback law on the input valve voltage.
 pub trait Controller {
@@ -21,6 +20,14 @@ pub trait Controller {
     /// `reference[j]` r `j` samples ahead (known in advance: the sine is
     /// planned). A controller may read as far ahead as it likes.
     fn command(&mut self, m: Measurement, reference: &[f64]) -> f64;
+    /// A sample passed without a measurement and `held` (the command in
+    /// force) was held over it; a controller with a model moves its
+    /// estimate on. The default does nothing.
+    fn missed(&mut self, _held: f64) {}
+    /// The solver's counters over the episode, for controllers with one.
+    fn stats(&self) -> Option<super::mpc::MpcStats> {
+        None
+    }
 }
 
 /// How an episode runs and which part of it is scored.
@@ -56,6 +63,15 @@ impl Episode {
         }
     }
 
+    /// The reference at each sample and the time of each sample (time 0 is
+    /// the start of the sine) for a plant sampled every `dt` seconds.
+    pub fn schedule(&self, dt: f64) -> (Vec<f64>, Vec<f64>) {
+        let n_warm = (self.warmup_s / dt).round() as usize;
+        let n = n_warm + (self.duration_s / dt).round() as usize;
+        let times: Vec<f64> = (0..n).map(|k| (k as f64 - n_warm as f64) * dt).collect();
+        (times.iter().map(|&t| self.reference.at(t)).collect(), times)
+    }
+
     /// A short episode for tests and tuning.
     pub fn short(omega: f64, warmup_s: f64, duration_s: f64, steady_from_s: f64) -> Self {
         Episode {
@@ -67,7 +83,8 @@ impl Episode {
     }
 }
 
-/// Everything an episode recorded; time 0 is the start of the sine.
+/// Everything an episode recorded; time 0 is the start of the sine. A
+/// missing measurement is recorded as NaN.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EpisodeResult {
     pub controller: String,
@@ -76,94 +93,129 @@ pub struct EpisodeResult {
     pub displacement: Vec<f64>,
     pub pressure: Vec<f64>,
     pub valve: Vec<f64>,
+    /// Wall-clock and CPU time of each controller step (µs).
+    pub step_wall_us: Vec<f64>,
+    pub step_cpu_us: Vec<f64>,
     pub metrics: Metrics,
 }
 
-/// Runs `controller` on `plant` for one episode.
+/// Runs `controller` on `plant` for one episode, through the same
+/// [`ControlLoop`] a rig drives over a link.
 pub fn run_episode(
     plant: &mut dyn Plant,
     controller: &mut dyn Controller,
     episode: &Episode,
 ) -> EpisodeResult {
     let dt = plant.dt();
-    let n_warm = (episode.warmup_s / dt).round() as usize;
-    let n = n_warm + (episode.duration_s / dt).round() as usize;
-    let time = |k: usize| (k as f64 - n_warm as f64) * dt;
-    let reference: Vec<f64> = (0..n).map(|k| episode.reference.at(time(k))).collect();
-    let mut out = EpisodeResult {
-        controller: controller.name().to_string(),
-        t: Vec::with_capacity(n),
-        reference: Vec::with_capacity(n),
-        displacement: Vec::with_capacity(n),
-        pressure: Vec::with_capacity(n),
-        valve: Vec::with_capacity(n),
-        metrics: Metrics::default(),
-    };
-    controller.reset(episode.u0);
-    let mut u = episode.u0;
-    let mut violations = 0usize;
-    let mut max_step_us = 0.0f64;
-    let mut total_us = 0.0f64;
-    let mut max_cpu_us = 0.0f64;
-    for (k, r) in reference.iter().enumerate() {
+    let (reference, times) = episode.schedule(dt);
+    let n = reference.len();
+    let mut lp = ControlLoop::new(controller, reference.clone(), episode.limits, episode.u0);
+    let mut record = Recorder::new(lp.name(), n);
+    let mut u = lp.first().volts;
+    for k in 0..n {
         let m = plant.step(u);
         if !(m.displacement_mm.is_finite() && m.pressure_mpa.is_finite()) {
-            out.metrics.diverged = true;
+            record.diverged = true;
             break;
         }
-        let (start, cpu_start) = (Instant::now(), thread_cpu_s());
-        let next = controller.command(m, &reference[k..]);
-        let us = start.elapsed().as_secs_f64() * 1e6;
-        max_step_us = max_step_us.max(us);
-        max_cpu_us = max_cpu_us.max((thread_cpu_s() - cpu_start) * 1e6);
-        total_us += us;
-        if episode.limits.violated(next, u) {
-            violations += 1;
-        }
+        let next = lp.step(Some(m)).volts;
+        record.push(
+            times[k],
+            reference[k],
+            Some(m),
+            u,
+            next,
+            lp.last_time,
+            &episode.limits,
+        );
         u = next;
-        out.t.push(time(k));
-        out.reference.push(*r);
-        out.displacement.push(m.displacement_mm);
-        out.pressure.push(m.pressure_mpa);
-        out.valve.push(u);
     }
-    let diverged = out.metrics.diverged;
-    out.metrics = Metrics::of(
-        &out.t,
-        &out.reference,
-        &out.displacement,
-        &out.valve,
-        episode.steady_from_s,
-        episode.reference.amplitude_mm,
-    );
-    out.metrics.diverged |= diverged || out.t.len() < n;
-    out.metrics.constraint_violations = violations;
-    out.metrics.max_step_time_us = max_step_us;
-    out.metrics.mean_step_time_us = total_us / out.t.len().max(1) as f64;
-    out.metrics.max_step_cpu_us = max_cpu_us;
-    out
+    record.finish(episode)
 }
 
-/// CPU time consumed by the calling thread (s). Unlike wall-clock time it
-/// leaves out the time the thread waited for a core, which on a shared
-/// machine can dwarf the computation itself.
-#[cfg(unix)]
-fn thread_cpu_s() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant
-    // every Linux and BSD libc defines.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc == 0 {
-        ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
-    } else {
-        f64::NAN
-    }
+/// Collects an episode sample by sample (in-process or over a link).
+#[derive(Debug, Clone)]
+pub struct Recorder {
+    out: EpisodeResult,
+    violations: usize,
+    missing: usize,
+    /// The plant's measurement became non-finite.
+    pub diverged: bool,
+    expected: usize,
 }
 
-#[cfg(not(unix))]
-fn thread_cpu_s() -> f64 {
-    f64::NAN
+impl Recorder {
+    pub fn new(controller: &str, samples: usize) -> Self {
+        let v = || Vec::with_capacity(samples);
+        Recorder {
+            out: EpisodeResult {
+                controller: controller.to_string(),
+                t: v(),
+                reference: v(),
+                displacement: v(),
+                pressure: v(),
+                valve: v(),
+                step_wall_us: v(),
+                step_cpu_us: v(),
+                metrics: Metrics::default(),
+            },
+            violations: 0,
+            missing: 0,
+            diverged: false,
+            expected: samples,
+        }
+    }
+
+    /// One sample: its time and reference, its measurement (`None` if
+    /// missing), the command in force before it and the one computed from
+    /// it, and the step's time.
+    #[allow(clippy::too_many_arguments)]
+    pub fn push(
+        &mut self,
+        t: f64,
+        reference: f64,
+        m: Option<Measurement>,
+        prev: f64,
+        next: f64,
+        time: StepTime,
+        limits: &ValveLimits,
+    ) {
+        if limits.violated(next, prev) {
+            self.violations += 1;
+        }
+        if m.is_none() {
+            self.missing += 1;
+        }
+        let o = &mut self.out;
+        o.t.push(t);
+        o.reference.push(reference);
+        o.displacement
+            .push(m.map_or(f64::NAN, |m| m.displacement_mm));
+        o.pressure.push(m.map_or(f64::NAN, |m| m.pressure_mpa));
+        o.valve.push(next);
+        o.step_wall_us.push(time.wall_us);
+        o.step_cpu_us.push(time.cpu_us);
+    }
+
+    /// The episode with its metrics.
+    pub fn finish(mut self, episode: &Episode) -> EpisodeResult {
+        let o = &mut self.out;
+        let mut m = Metrics::of(
+            &o.t,
+            &o.reference,
+            &o.displacement,
+            &o.valve,
+            episode.steady_from_s,
+            episode.reference.amplitude_mm,
+        );
+        m.diverged |= self.diverged || o.t.len() < self.expected;
+        m.constraint_violations = self.violations;
+        m.missing_measurements = self.missing;
+        let steps = o.step_wall_us.len().max(1) as f64;
+        m.max_step_time_us = o.step_wall_us.iter().fold(0.0, |a, &b| a.max(b));
+        m.mean_step_time_us = o.step_wall_us.iter().sum::<f64>() / steps;
+        m.max_step_cpu_us = o.step_cpu_us.iter().fold(0.0, |a, &b| a.max(b));
+        o.metrics = m;
+        self.out
+    }
 }

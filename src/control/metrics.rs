@@ -15,6 +15,9 @@ pub struct Metrics {
     pub effort_travel_v_per_s: f64,
     /// Samples whose command broke the valve range or the slew limit.
     pub constraint_violations: usize,
+    /// Samples whose measurement was missing (a rig over a link); the
+    /// command in force was held and the sample is left out of the errors.
+    pub missing_measurements: usize,
     /// Longest time one controller step took (µs), wall clock.
     pub max_step_time_us: f64,
     /// Longest CPU time of one controller step (µs): the thread's own CPU
@@ -46,13 +49,17 @@ impl Metrics {
             .iter()
             .position(|&t| t >= steady_from - 1e-9)
             .unwrap_or(t.len());
-        let err: Vec<f64> = (first..t.len()).map(|k| reference[k] - y[k]).collect();
+        let err: Vec<f64> = (first..t.len())
+            .filter(|&k| !y[k].is_nan())
+            .map(|k| reference[k] - y[k])
+            .collect();
         let n = err.len() as f64;
         let rms = (err.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
         let max = err.iter().fold(f64::NAN, |m, e| m.max(e.abs()));
         let us = &u[first..];
-        let mean_u = us.iter().sum::<f64>() / n;
-        let effort_rms = (us.iter().map(|v| (v - mean_u).powi(2)).sum::<f64>() / n).sqrt();
+        let n_u = us.len() as f64;
+        let mean_u = us.iter().sum::<f64>() / n_u;
+        let effort_rms = (us.iter().map(|v| (v - mean_u).powi(2)).sum::<f64>() / n_u).sqrt();
         let travel: f64 = us.windows(2).map(|w| (w[1] - w[0]).abs()).sum();
         let span = match (t.get(first), t.last()) {
             (Some(a), Some(b)) if b > a => b - a,
@@ -64,6 +71,7 @@ impl Metrics {
             effort_rms_v: effort_rms,
             effort_travel_v_per_s: travel / span,
             constraint_violations: 0,
+            missing_measurements: 0,
             max_step_time_us: 0.0,
             mean_step_time_us: 0.0,
             max_step_cpu_us: 0.0,

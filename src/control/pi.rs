@@ -78,6 +78,33 @@ impl Pi {
     pub fn integral(&self) -> f64 {
         self.integral
     }
+
+    /// Moves the integrator by `dv` volts (a feedforward taking over part of
+    /// the command, without a bump).
+    pub fn shift_integral(&mut self, dv: f64) {
+        self.integral += dv;
+    }
+
+    /// The law with a feedforward `ff` (V) added to the command: `u = ff +
+    /// I + Kp·e + Kd·ė`, clamped to the limits, with the anti-windup of the
+    /// plain PI and the integrator kept where `ff + I` is a valve voltage.
+    pub fn command_with(&mut self, m: Measurement, reference: f64, ff: f64) -> f64 {
+        let e = reference - m.displacement_mm;
+        let de = self.prev_error.map_or(0.0, |p| (e - p) / self.dt);
+        self.prev_error = Some(e);
+        let raw = ff + self.integral + self.gains.kp * e + self.gains.kd * de;
+        let u = self.limits.clamp(raw, self.prev_u);
+        let pushing_up = raw > u && e * self.gains.ki > 0.0;
+        let pushing_down = raw < u && e * self.gains.ki < 0.0;
+        if !(pushing_up || pushing_down) {
+            self.integral += self.gains.ki * e * self.dt;
+            self.integral = self
+                .integral
+                .clamp(self.limits.min_v - ff, self.limits.max_v - ff);
+        }
+        self.prev_u = u;
+        u
+    }
 }
 
 impl Controller for Pi {
@@ -93,19 +120,7 @@ impl Controller for Pi {
     }
 
     fn command(&mut self, m: Measurement, reference: &[f64]) -> f64 {
-        let e = reference[0] - m.displacement_mm;
-        let de = self.prev_error.map_or(0.0, |p| (e - p) / self.dt);
-        self.prev_error = Some(e);
-        let raw = self.integral + self.gains.kp * e + self.gains.kd * de;
-        let u = self.limits.clamp(raw, self.prev_u);
-        let pushing_up = raw > u && e * self.gains.ki > 0.0;
-        let pushing_down = raw < u && e * self.gains.ki < 0.0;
-        if !(pushing_up || pushing_down) {
-            self.integral += self.gains.ki * e * self.dt;
-            self.integral = self.integral.clamp(self.limits.min_v, self.limits.max_v);
-        }
-        self.prev_u = u;
-        u
+        self.command_with(m, reference[0], 0.0)
     }
 }
 

@@ -35,12 +35,24 @@ impl FittedModel {
         let value: serde_json::Value =
             serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
         let inner = value.get("model").cloned().unwrap_or(value);
-        serde_json::from_value(inner).with_context(|| {
+        let model: FittedModel = serde_json::from_value(inner).with_context(|| {
             format!(
                 "{}: not a model file written by identify or fit",
                 path.display()
             )
-        })
+        })?;
+        let names: Vec<&str> = model.family.params().iter().map(|p| p.name).collect();
+        anyhow::ensure!(
+            model.params.len() == names.len(),
+            "{}: a {} model has {} parameters ({}), the file has {}; a model written \
+             before the start offset x0 was added needs it appended (0 keeps its behaviour)",
+            path.display(),
+            model.family,
+            names.len(),
+            names.join(", "),
+            model.params.len()
+        );
+        Ok(model)
     }
 
     /// Parameters by name, in canonical order.

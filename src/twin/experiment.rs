@@ -209,14 +209,20 @@ impl RunSpec {
         write_trace_with_comments(path, trace, &self.comments())
     }
 
-    /// Runs the experiment; an error names a bad load, frequency or effect.
-    pub fn run(&self) -> Result<Trace, String> {
+    /// Checks the load: a mass in kg above 0 and at most 15.
+    pub fn check_load(&self) -> Result<(), String> {
         if !(self.load_kg.is_finite() && self.load_kg > 0.0 && self.load_kg <= 15.0) {
             return Err(format!(
                 "--load {}: expected a mass in kg above 0 and at most 15 (thesis: 4.5 or 7)",
                 self.load_kg
             ));
         }
+        Ok(())
+    }
+
+    /// Runs the experiment; an error names a bad load, frequency or effect.
+    pub fn run(&self) -> Result<Trace, String> {
+        self.check_load()?;
         if self.kind == Kind::Sine && !(self.freq_rad_s.is_finite() && self.freq_rad_s > 0.0) {
             return Err(format!(
                 "--freq {}: expected a positive angular frequency in rad/s (thesis: 1, 2, 3)",

@@ -1,0 +1,284 @@
+//! The experiments of `mckibben control`: the controllers, designed and
+//! built, run over frequencies and loads on the in-process twin, and the
+//! robustness runs. The command line only parses and calls these.
+
+use serde::{Deserialize, Serialize};
+
+use super::closed_loop::{Controller, Episode, EpisodeResult, run_episode};
+use super::design::{self, OPERATING_BAND_V, PredictionReport, scale_hysteresis};
+use super::feedforward::FeedforwardPid;
+use super::limits::ValveLimits;
+use super::model::ControlModel;
+use super::mpc::{Mpc, MpcSettings, MpcStats};
+use super::pi::{Pi, PiGains};
+use super::validation::{self, LoopCheck};
+use crate::data::Trace;
+use crate::twin::{self, Rig, TwinConfig};
+
+/// The controllers `mckibben control` knows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Kind {
+    /// The thesis' PI (Table 22).
+    Pi,
+    /// The optimizer-tuned PID.
+    PiTuned,
+    /// Inverse-hysteresis feedforward plus the tuned PID.
+    FfPid,
+    /// The MPC.
+    Mpc,
+}
+
+impl Kind {
+    pub fn label(self) -> &'static str {
+        match self {
+            Kind::Pi => "pi",
+            Kind::PiTuned => "pi-tuned",
+            Kind::FfPid => "ff-pid",
+            Kind::Mpc => "mpc",
+        }
+    }
+
+    /// Whether the controller needs the identified model.
+    pub fn needs_model(self) -> bool {
+        matches!(self, Kind::FfPid | Kind::Mpc)
+    }
+
+    /// Whether it needs the tuned gains.
+    pub fn needs_gains(self) -> bool {
+        matches!(self, Kind::PiTuned | Kind::FfPid)
+    }
+}
+
+/// The model a design produced, with how well it predicts and whether it
+/// has the plant's loop.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Design {
+    pub model: ControlModel,
+    /// Where the model came from.
+    pub source: String,
+    /// Prediction errors on a second record (the validation record).
+    pub prediction: PredictionReport,
+    /// The model's loop against the twin's (at the design load).
+    pub loop_check: Option<LoopCheck>,
+}
+
+/// Length of the loop check's valve cycle (s): slow enough to be
+/// quasi-static for the rig's 0.2–0.3 s lag.
+pub const LOOP_CYCLE_S: f64 = 40.0;
+
+/// Identifies the model from `record` (an open-loop record with a
+/// `valve_in` column), validates its predictions on `validation` and, given
+/// a twin, its loop on a slow triangle at `load`.
+pub fn design_from(
+    record: &Trace,
+    validation: &Trace,
+    horizon: usize,
+    twin: Option<(&TwinConfig, f64, u64)>,
+) -> anyhow::Result<Design> {
+    let model = design::identify(record, OPERATING_BAND_V, horizon)?;
+    finish_design(model, record.source.clone(), validation, horizon, twin)
+}
+
+/// Validates `model` (see [`design_from`]).
+pub fn finish_design(
+    model: ControlModel,
+    source: String,
+    validation: &Trace,
+    horizon: usize,
+    twin: Option<(&TwinConfig, f64, u64)>,
+) -> anyhow::Result<Design> {
+    let prediction = design::prediction_report(&model, validation, OPERATING_BAND_V, horizon)?;
+    let loop_check = match twin {
+        Some((config, load, seed)) => {
+            let mut rig = Rig::new(config, load, seed);
+            let dt = rig.dt();
+            let valve = validation::triangle(OPERATING_BAND_V, LOOP_CYCLE_S, dt);
+            let (p, x) = validation::record(&mut rig, &valve);
+            let cycle = (LOOP_CYCLE_S / dt).round() as usize;
+            Some(validation::check_loop(&model, &p, &x, cycle)?)
+        }
+        None => None,
+    };
+    Ok(Design {
+        model,
+        source,
+        prediction,
+        loop_check,
+    })
+}
+
+/// The design multisine run on the twin at `load` (seed `seed`) and its
+/// validation twin (seed `seed + 1`).
+pub fn twin_records(config: &TwinConfig, load: f64, seed: u64) -> (Trace, Trace) {
+    let experiment = twin::Experiment::Multisine(design::design_multisine());
+    (
+        twin::run(config, load, seed, &experiment),
+        twin::run(config, load, seed + 1, &experiment),
+    )
+}
+
+/// What a controller is built from.
+#[derive(Debug, Clone)]
+pub struct Ingredients {
+    pub model: Option<ControlModel>,
+    pub gains: Option<PiGains>,
+    pub mpc: MpcSettings,
+    pub limits: ValveLimits,
+}
+
+/// A controller ready for an episode on a plant sampled every `dt` s, its
+/// model's hysteresis scaled by `scale` (1: as identified).
+pub fn build(
+    kind: Kind,
+    scale: f64,
+    ing: &Ingredients,
+    dt: f64,
+) -> anyhow::Result<Box<dyn Controller>> {
+    let model = || -> anyhow::Result<ControlModel> {
+        let m = ing
+            .model
+            .as_ref()
+            .ok_or_else(|| anyhow::anyhow!("{} needs the identified model", kind.label()))?;
+        anyhow::ensure!(
+            (m.displacement.dt - dt).abs() < 1e-9,
+            "the model was identified at a {} s sample time; the plant samples every {dt} s",
+            m.displacement.dt
+        );
+        Ok(scale_hysteresis(m, scale))
+    };
+    let gains = || {
+        ing.gains
+            .ok_or_else(|| anyhow::anyhow!("{} needs the tuned gains", kind.label()))
+    };
+    let label = run_label(kind, scale);
+    Ok(match kind {
+        Kind::Pi => Box::new(Pi::new(PiGains::default(), ing.limits, dt, label)),
+        Kind::PiTuned => Box::new(Pi::new(gains()?, ing.limits, dt, label)),
+        Kind::FfPid => Box::new(FeedforwardPid::new(
+            Pi::new(gains()?, ing.limits, dt, "pid"),
+            &model()?,
+            label,
+        )?),
+        Kind::Mpc => Box::new(Mpc::new(&model()?, ing.mpc, ing.limits, label)?),
+    })
+}
+
+/// `mpc` or `mpc (hysteresis ×0.8)`.
+pub fn run_label(kind: Kind, scale: f64) -> String {
+    if scale == 1.0 {
+        kind.label().to_string()
+    } else {
+        format!("{} (hysteresis ×{scale})", kind.label())
+    }
+}
+
+/// One run of the table.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RunSpec {
+    pub kind: Kind,
+    pub freq_rad_s: f64,
+    pub load_kg: f64,
+    /// The model's hysteresis scaled by this (1: as identified).
+    pub hysteresis_scale: f64,
+}
+
+/// The runs for `kinds` over `freqs` × `loads`, then every model-based
+/// kind again with each hysteresis scale in `scales`.
+pub fn plan(kinds: &[Kind], freqs: &[f64], loads: &[f64], scales: &[f64]) -> Vec<RunSpec> {
+    let mut runs = Vec::new();
+    for &kind in kinds {
+        let kind_scales: Vec<f64> = if kind.needs_model() {
+            std::iter::once(1.0).chain(scales.iter().copied()).collect()
+        } else {
+            vec![1.0]
+        };
+        for &hysteresis_scale in &kind_scales {
+            for &load_kg in loads {
+                for &freq_rad_s in freqs {
+                    runs.push(RunSpec {
+                        kind,
+                        freq_rad_s,
+                        load_kg,
+                        hysteresis_scale,
+                    });
+                }
+            }
+        }
+    }
+    runs
+}
+
+/// The shape of every episode (see [`Episode`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Shape {
+    pub warmup_s: f64,
+    pub duration_s: f64,
+    pub steady_from_s: f64,
+}
+
+impl Shape {
+    /// The thesis' episode: 10 s settling, 20 s of sine, the last 10 s scored.
+    pub fn thesis() -> Shape {
+        let e = Episode::thesis(1.0);
+        Shape {
+            warmup_s: e.warmup_s,
+            duration_s: e.duration_s,
+            steady_from_s: e.steady_from_s,
+        }
+    }
+
+    pub fn episode(&self, omega: f64) -> Episode {
+        Episode::short(omega, self.warmup_s, self.duration_s, self.steady_from_s)
+    }
+}
+
+/// A finished run.
+#[derive(Debug, Clone)]
+pub struct Run {
+    pub spec: RunSpec,
+    pub result: EpisodeResult,
+    pub stats: Option<MpcStats>,
+}
+
+/// Runs `spec` on a fresh in-process twin (sensor-noise seed `seed`).
+pub fn run_on_twin(
+    spec: &RunSpec,
+    ing: &Ingredients,
+    config: &TwinConfig,
+    seed: u64,
+    shape: &Shape,
+) -> anyhow::Result<Run> {
+    let mut rig = Rig::new(config, spec.load_kg, seed);
+    let mut controller = build(spec.kind, spec.hysteresis_scale, ing, rig.dt())?;
+    let result = run_episode(
+        &mut rig,
+        controller.as_mut(),
+        &shape.episode(spec.freq_rad_s),
+    );
+    Ok(Run {
+        spec: *spec,
+        result,
+        stats: controller.stats(),
+    })
+}
+
+/// The robustness runs of a model-based `kind` at `freq`: the hysteresis
+/// ×0.8 and ×1.2 at the design load, and the load 30 % below and above it,
+/// each with its ratio to the nominal run (the model as identified, at the
+/// design load).
+pub fn robustness_specs(kind: Kind, freq: f64, design_load: f64) -> Vec<(String, RunSpec)> {
+    let spec = |load_kg, hysteresis_scale| RunSpec {
+        kind,
+        freq_rad_s: freq,
+        load_kg,
+        hysteresis_scale,
+    };
+    vec![
+        ("nominal".into(), spec(design_load, 1.0)),
+        ("hysteresis ×0.8".into(), spec(design_load, 0.8)),
+        ("hysteresis ×1.2".into(), spec(design_load, 1.2)),
+        ("load ×0.7".into(), spec(design_load * 0.7, 1.0)),
+        ("load ×1.3".into(), spec(design_load * 1.3, 1.0)),
+    ]
+}

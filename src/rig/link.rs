@@ -1,0 +1,299 @@
+//! Transports that carry the protocol's lines: the stdin/stdout of a child
+//! process, the process's own stdin/stdout, and UDP datagrams (one line
+//! each). A serial device is reached through a child process that bridges
+//! it, e.g. `socat - /dev/ttyUSB0,b115200,raw,echo=0`.
+//!
+//! Reads that wait are done by a reader thread feeding a channel, so that
+//! every transport offers the same `recv` with a timeout.
+
+use std::io::{self, BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, UdpSocket};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::time::Duration;
+
+use super::protocol::MAX_LINE;
+
+/// What a wait for a line brought.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Received {
+    /// One line, without its line break (maybe malformed: the caller parses).
+    Line(String),
+    /// Nothing arrived in time.
+    Timeout,
+    /// The other side is gone (end of stream, or the reason it broke).
+    Closed(String),
+}
+
+/// A two-way line transport.
+pub trait Link {
+    /// Sends one line (a line break is added).
+    fn send(&mut self, line: &str) -> io::Result<()>;
+    /// Waits up to `timeout` (`None`: for ever) for the next line.
+    fn recv(&mut self, timeout: Option<Duration>) -> Received;
+    /// What the link is connected to, for messages.
+    fn describe(&self) -> String;
+    /// A session on the link has ended (a rig's end may accept a new peer).
+    fn end_session(&mut self) {}
+}
+
+/// Reads lines of at most [`MAX_LINE`] bytes from `reader` into a channel
+/// until the stream ends. A longer line is passed on cut at the limit (plus
+/// one byte), so that the parser reports it as too long.
+fn spawn_reader(reader: impl Read + Send + 'static) -> Receiver<Received> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut reader = BufReader::new(reader);
+        loop {
+            let mut buf = Vec::new();
+            let limit = (MAX_LINE + 1) as u64;
+            let msg = match (&mut reader).take(limit).read_until(b'\n', &mut buf) {
+                Ok(0) => Received::Closed("end of stream".into()),
+                Ok(_) => {
+                    if buf.last() == Some(&b'\n') {
+                        buf.pop();
+                    } else if buf.len() as u64 == limit {
+                        // Skip the rest of the over-long line.
+                        let mut rest = Vec::new();
+                        let _ = reader.read_until(b'\n', &mut rest);
+                    }
+                    if buf.last() == Some(&b'\r') {
+                        buf.pop();
+                    }
+                    Received::Line(String::from_utf8_lossy(&buf).into_owned())
+                }
+                Err(e) => Received::Closed(e.to_string()),
+            };
+            let end = matches!(msg, Received::Closed(_));
+            if tx.send(msg).is_err() || end {
+                return;
+            }
+        }
+    });
+    rx
+}
+
+fn wait(rx: &Receiver<Received>, timeout: Option<Duration>) -> Received {
+    match timeout {
+        None => rx
+            .recv()
+            .unwrap_or_else(|_| Received::Closed("reader stopped".into())),
+        Some(t) => match rx.recv_timeout(t) {
+            Ok(m) => m,
+            Err(RecvTimeoutError::Timeout) => Received::Timeout,
+            Err(RecvTimeoutError::Disconnected) => Received::Closed("reader stopped".into()),
+        },
+    }
+}
+
+/// A rig behind a child process's stdin and stdout (its stderr is passed
+/// through). Dropping the link closes the child's stdin and reaps it.
+pub struct ChildLink {
+    command: String,
+    child: Child,
+    stdin: Option<ChildStdin>,
+    rx: Receiver<Received>,
+}
+
+impl ChildLink {
+    /// Starts `command` with `sh -c`.
+    pub fn spawn(command: &str) -> io::Result<ChildLink> {
+        let mut child = Command::new("sh")
+            .arg("-c")
+            .arg(command)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()?;
+        let stdout = child.stdout.take().expect("piped stdout");
+        let stdin = child.stdin.take();
+        Ok(ChildLink {
+            command: command.to_string(),
+            child,
+            stdin,
+            rx: spawn_reader(stdout),
+        })
+    }
+}
+
+impl Link for ChildLink {
+    fn send(&mut self, line: &str) -> io::Result<()> {
+        let stdin = self
+            .stdin
+            .as_mut()
+            .ok_or_else(|| io::Error::other("stdin closed"))?;
+        stdin.write_all(line.as_bytes())?;
+        stdin.write_all(b"\n")?;
+        stdin.flush()
+    }
+
+    fn recv(&mut self, timeout: Option<Duration>) -> Received {
+        wait(&self.rx, timeout)
+    }
+
+    fn describe(&self) -> String {
+        format!("`{}`", self.command)
+    }
+}
+
+impl Drop for ChildLink {
+    fn drop(&mut self) {
+        self.stdin = None;
+        // Give the rig a moment to end by itself after STOP, then make sure.
+        for _ in 0..100 {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// This process's own stdin and stdout (a rig served to the process that
+/// started it).
+pub struct StdioLink {
+    rx: Receiver<Received>,
+}
+
+impl StdioLink {
+    pub fn new() -> StdioLink {
+        StdioLink {
+            rx: spawn_reader(io::stdin()),
+        }
+    }
+}
+
+impl Default for StdioLink {
+    fn default() -> Self {
+        StdioLink::new()
+    }
+}
+
+impl Link for StdioLink {
+    fn send(&mut self, line: &str) -> io::Result<()> {
+        let mut out = io::stdout().lock();
+        out.write_all(line.as_bytes())?;
+        out.write_all(b"\n")?;
+        out.flush()
+    }
+
+    fn recv(&mut self, timeout: Option<Duration>) -> Received {
+        wait(&self.rx, timeout)
+    }
+
+    fn describe(&self) -> String {
+        "stdin/stdout".into()
+    }
+}
+
+/// UDP: one line per datagram. The controller's end sends to a fixed peer;
+/// the rig's end answers whoever sent the last `HELLO` ([`UdpLink::serve`]).
+pub struct UdpLink {
+    socket: UdpSocket,
+    peer: Option<SocketAddr>,
+    /// The rig's end: adopt the sender of a datagram as the peer.
+    serving: bool,
+}
+
+impl UdpLink {
+    /// The controller's end: an ephemeral local port talking to `peer`.
+    pub fn connect(peer: SocketAddr) -> io::Result<UdpLink> {
+        let local: SocketAddr = if peer.is_ipv4() {
+            "0.0.0.0:0".parse().expect("address")
+        } else {
+            "[::]:0".parse().expect("address")
+        };
+        let socket = UdpSocket::bind(local)?;
+        socket.connect(peer)?;
+        Ok(UdpLink {
+            socket,
+            peer: Some(peer),
+            serving: false,
+        })
+    }
+
+    /// The rig's end, bound to `addr`.
+    pub fn serve(addr: SocketAddr) -> io::Result<UdpLink> {
+        Ok(UdpLink {
+            socket: UdpSocket::bind(addr)?,
+            peer: None,
+            serving: true,
+        })
+    }
+
+    /// The bound local address (to learn an ephemeral port).
+    pub fn local_addr(&self) -> io::Result<SocketAddr> {
+        self.socket.local_addr()
+    }
+}
+
+impl Link for UdpLink {
+    fn send(&mut self, line: &str) -> io::Result<()> {
+        let peer = self
+            .peer
+            .ok_or_else(|| io::Error::other("no peer has spoken yet"))?;
+        self.socket.send_to(line.as_bytes(), peer).map(|_| ())
+    }
+
+    fn recv(&mut self, timeout: Option<Duration>) -> Received {
+        let mut buf = vec![0u8; MAX_LINE + 2];
+        // A zero timeout means "block" to the socket API.
+        let timeout = timeout.map(|t| t.max(Duration::from_micros(1)));
+        if let Err(e) = self.socket.set_read_timeout(timeout) {
+            return Received::Closed(e.to_string());
+        }
+        loop {
+            match self.socket.recv_from(&mut buf) {
+                Ok((n, from)) => {
+                    match self.peer {
+                        Some(p) if p != from => continue,
+                        Some(_) => {}
+                        None => self.peer = Some(from),
+                    }
+                    let mut text = &buf[..n];
+                    while let Some((&last, rest)) = text.split_last() {
+                        if last == b'\n' || last == b'\r' {
+                            text = rest;
+                        } else {
+                            break;
+                        }
+                    }
+                    return Received::Line(String::from_utf8_lossy(text).into_owned());
+                }
+                Err(e)
+                    if e.kind() == io::ErrorKind::WouldBlock
+                        || e.kind() == io::ErrorKind::TimedOut =>
+                {
+                    return Received::Timeout;
+                }
+                // A previous datagram was refused by the peer (ICMP): the
+                // rig is not there (yet); report it as silence.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {
+                    return Received::Timeout;
+                }
+                Err(e) => return Received::Closed(e.to_string()),
+            }
+        }
+    }
+
+    /// The rig's end forgets its peer: the next `HELLO`'s sender becomes it.
+    fn end_session(&mut self) {
+        if self.serving {
+            self.peer = None;
+        }
+    }
+
+    fn describe(&self) -> String {
+        match self.peer {
+            Some(p) => format!("udp {p}"),
+            None => format!(
+                "udp {}",
+                self.socket
+                    .local_addr()
+                    .map_or("?".into(), |a| a.to_string())
+            ),
+        }
+    }
+}

@@ -1,0 +1,265 @@
+//! The line protocol between a controller and a rig (docs/RIG_PROTOCOL.md).
+//!
+//! One message per line, ASCII, fields separated by single spaces, numbers
+//! in decimal (written with Rust's shortest round-trip form, so a value
+//! crosses the link unchanged):
+//!
+//! ```text
+//! controller → rig                      rig → controller
+//! HELLO 1                               READY 1 <dt s>
+//! U <k> <volts>                         M <k> <t s> <pressure MPa> <displacement mm>
+//! STOP                                  BYE <samples>
+//!                                       ERR <text>
+//! ```
+//!
+//! `U k v` holds the input valve at `v` volts over sample `k`; `M k …` is
+//! the measurement that closes sample `k − 1`, taken at `t = k·dt` after the
+//! run started. `STOP` closes the input valve (0 V; the output valve opens
+//! and the muscle drains) and ends the run.
+
+use std::fmt;
+
+/// Version of the protocol this build speaks.
+pub const VERSION: u32 = 1;
+
+/// Longest line accepted (bytes); a longer one is malformed.
+pub const MAX_LINE: usize = 4096;
+
+/// A message from the controller to the rig.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ToRig {
+    Hello { version: u32 },
+    Command { k: u64, volts: f64 },
+    Stop,
+}
+
+/// A message from the rig to the controller.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FromRig {
+    Ready {
+        version: u32,
+        dt: f64,
+    },
+    Measurement {
+        k: u64,
+        t: f64,
+        pressure_mpa: f64,
+        displacement_mm: f64,
+    },
+    Bye {
+        samples: u64,
+    },
+    Error(String),
+}
+
+impl fmt::Display for ToRig {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ToRig::Hello { version } => write!(f, "HELLO {version}"),
+            ToRig::Command { k, volts } => write!(f, "U {k} {volts}"),
+            ToRig::Stop => f.write_str("STOP"),
+        }
+    }
+}
+
+impl fmt::Display for FromRig {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FromRig::Ready { version, dt } => write!(f, "READY {version} {dt}"),
+            FromRig::Measurement {
+                k,
+                t,
+                pressure_mpa,
+                displacement_mm,
+            } => write!(f, "M {k} {t} {pressure_mpa} {displacement_mm}"),
+            FromRig::Bye { samples } => write!(f, "BYE {samples}"),
+            FromRig::Error(text) => write!(f, "ERR {text}"),
+        }
+    }
+}
+
+/// Why a line is malformed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Malformed(pub String);
+
+impl fmt::Display for Malformed {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// The fields of `line` after its keyword, checked for count.
+fn fields<'a>(line: &'a str, keyword: &str, names: &[&str]) -> Result<Vec<&'a str>, Malformed> {
+    let got: Vec<&str> = line.split_ascii_whitespace().skip(1).collect();
+    if got.len() != names.len() {
+        return Err(Malformed(format!(
+            "`{keyword}` takes {} field(s) ({}), got {}",
+            names.len(),
+            names.join(" "),
+            got.len()
+        )));
+    }
+    Ok(got)
+}
+
+fn number(field: &str, name: &str) -> Result<f64, Malformed> {
+    match field.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(Malformed(format!(
+            "{name} `{field}` is not a finite number"
+        ))),
+    }
+}
+
+fn index(field: &str, name: &str) -> Result<u64, Malformed> {
+    field.parse::<u64>().map_err(|_| {
+        Malformed(format!(
+            "{name} `{field}` is not a sample index (0, 1, 2, …)"
+        ))
+    })
+}
+
+fn check_ascii(line: &str) -> Result<(), Malformed> {
+    if line.len() > MAX_LINE {
+        return Err(Malformed(format!("longer than {MAX_LINE} bytes")));
+    }
+    if !line.is_ascii() || line.chars().any(|c| c.is_ascii_control() && c != '\t') {
+        return Err(Malformed("not a line of printable ASCII".into()));
+    }
+    Ok(())
+}
+
+impl FromRig {
+    /// Parses one line (without its line break).
+    pub fn parse(line: &str) -> Result<FromRig, Malformed> {
+        check_ascii(line)?;
+        match line.split_ascii_whitespace().next() {
+            Some("READY") => {
+                let f = fields(line, "READY", &["version", "dt"])?;
+                let version = index(f[0], "version")? as u32;
+                let dt = number(f[1], "dt")?;
+                if dt <= 0.0 {
+                    return Err(Malformed(format!("dt `{}` is not positive", f[1])));
+                }
+                Ok(FromRig::Ready { version, dt })
+            }
+            Some("M") => {
+                let f = fields(line, "M", &["k", "t", "pressure_mpa", "displacement_mm"])?;
+                Ok(FromRig::Measurement {
+                    k: index(f[0], "k")?,
+                    t: number(f[1], "t")?,
+                    pressure_mpa: number(f[2], "pressure_mpa")?,
+                    displacement_mm: number(f[3], "displacement_mm")?,
+                })
+            }
+            Some("BYE") => {
+                let f = fields(line, "BYE", &["samples"])?;
+                Ok(FromRig::Bye {
+                    samples: index(f[0], "samples")?,
+                })
+            }
+            Some("ERR") => Ok(FromRig::Error(
+                line.trim_start()
+                    .strip_prefix("ERR")
+                    .unwrap_or("")
+                    .trim()
+                    .to_string(),
+            )),
+            Some(other) => Err(Malformed(format!(
+                "unknown message `{other}` (expected READY, M, BYE or ERR)"
+            ))),
+            None => Err(Malformed("empty line".into())),
+        }
+    }
+}
+
+impl ToRig {
+    /// Parses one line (without its line break).
+    pub fn parse(line: &str) -> Result<ToRig, Malformed> {
+        check_ascii(line)?;
+        match line.split_ascii_whitespace().next() {
+            Some("HELLO") => {
+                let f = fields(line, "HELLO", &["version"])?;
+                Ok(ToRig::Hello {
+                    version: index(f[0], "version")? as u32,
+                })
+            }
+            Some("U") => {
+                let f = fields(line, "U", &["k", "volts"])?;
+                Ok(ToRig::Command {
+                    k: index(f[0], "k")?,
+                    volts: number(f[1], "volts")?,
+                })
+            }
+            Some("STOP") => {
+                fields(line, "STOP", &[])?;
+                Ok(ToRig::Stop)
+            }
+            Some(other) => Err(Malformed(format!(
+                "unknown message `{other}` (expected HELLO, U or STOP)"
+            ))),
+            None => Err(Malformed("empty line".into())),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_message_round_trips() {
+        let to = [
+            ToRig::Hello { version: 1 },
+            ToRig::Command {
+                k: 17,
+                volts: 5.123456789012345,
+            },
+            ToRig::Stop,
+        ];
+        for m in to {
+            assert_eq!(ToRig::parse(&m.to_string()).unwrap(), m);
+        }
+        let from = [
+            FromRig::Ready {
+                version: 1,
+                dt: 0.01,
+            },
+            FromRig::Measurement {
+                k: 3,
+                t: 0.03,
+                pressure_mpa: 0.1985,
+                displacement_mm: 24.475,
+            },
+            FromRig::Bye { samples: 3000 },
+            FromRig::Error("unsupported version 2".into()),
+        ];
+        for m in from {
+            assert_eq!(FromRig::parse(&m.to_string()).unwrap(), m);
+        }
+    }
+
+    #[test]
+    fn malformed_lines_say_what_is_wrong() {
+        let cases = [
+            ("M 3 0.03 abc 24.4", "pressure_mpa `abc`"),
+            ("M 3 0.03 0.2", "takes 4 field(s)"),
+            ("M -1 0.03 0.2 24", "k `-1`"),
+            ("M 3 0.03 NaN 24", "not a finite number"),
+            ("X 1", "unknown message `X`"),
+            ("", "empty line"),
+            ("M 3 0.03 0.2 24\u{7}", "printable ASCII"),
+        ];
+        for (line, why) in cases {
+            let err = FromRig::parse(line).unwrap_err().0;
+            assert!(err.contains(why), "{line:?}: {err}");
+        }
+        assert!(ToRig::parse("U 1 inf").is_err());
+        assert!(
+            FromRig::parse(&"M ".repeat(3000))
+                .unwrap_err()
+                .0
+                .contains("longer")
+        );
+    }
+}

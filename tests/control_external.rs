@@ -1,0 +1,227 @@
+//! The loop against a rig in another process: `mckibben control --plant`
+//! talking the line protocol to `mckibben twin serve`, over its stdin/stdout
+//! and over UDP. The same run gives the same numbers as in process; a
+//! missing measurement holds the command, a late one is set aside, and a
+//! malformed or stale line ends the run with an error and the valve closed.
+//! (The deadlines here are generous so that a loaded machine cannot make a
+//! measurement miss one by accident; the faults are injected by the rig.)
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Output, Stdio};
+
+use serde_json::Value;
+
+const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
+/// A short episode: 2 s settling, 4 s of 3 rad/s sine scored from 2 s.
+const SHORT: [&str; 8] = [
+    "--freq",
+    "3",
+    "--warmup",
+    "2",
+    "--duration",
+    "4",
+    "--steady-from",
+    "2",
+];
+
+fn control(extra: &[&str]) -> Output {
+    Command::new(BIN)
+        .arg("control")
+        .args(SHORT)
+        .args(extra)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("run mckibben")
+}
+
+fn runs(out: &Output) -> Vec<Value> {
+    assert!(
+        out.status.success(),
+        "control failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    v["runs"].as_array().unwrap().clone()
+}
+
+fn serve_cmd(args: &str) -> String {
+    format!("cmd:{BIN} twin serve --load 4.5 --seed 1 {args}")
+}
+
+/// The numbers a run must reproduce exactly.
+fn numbers(run: &Value) -> Vec<(String, Value)> {
+    [
+        "controller",
+        "rms_error_mm",
+        "max_error_mm",
+        "effort_rms_v",
+        "effort_travel_v_per_s",
+        "constraint_violations",
+        "missing_measurements",
+    ]
+    .iter()
+    .map(|k| (k.to_string(), run[*k].clone()))
+    .collect()
+}
+
+#[test]
+fn pi_and_mpc_give_the_same_numbers_in_process_over_stdio_and_over_udp() {
+    let local = runs(&control(&[
+        "--controller",
+        "pi,mpc",
+        "--load",
+        "4.5",
+        "--json",
+    ]));
+    let piped = runs(&control(&[
+        "--controller",
+        "pi,mpc",
+        "--json",
+        "--deadline",
+        "5000",
+        "--plant",
+        &serve_cmd(""),
+    ]));
+    assert_eq!(local.len(), 2);
+    for (a, b) in local.iter().zip(&piped) {
+        assert_eq!(numbers(a), numbers(b));
+    }
+    assert!(
+        local[1]["rms_error_mm"].as_f64().unwrap() < local[0]["rms_error_mm"].as_f64().unwrap()
+    );
+
+    // UDP: the twin serves on a free port and prints it.
+    let mut server = Command::new(BIN)
+        .args([
+            "twin",
+            "serve",
+            "--load",
+            "4.5",
+            "--seed",
+            "1",
+            "--udp",
+            "127.0.0.1:0",
+        ])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    let mut stderr = BufReader::new(server.stderr.take().unwrap());
+    stderr.read_line(&mut first).unwrap();
+    // Keep draining the server's reports, so that its stderr stays open.
+    let drain = std::thread::spawn(move || std::io::read_to_string(stderr).unwrap_or_default());
+    let addr = first.trim().rsplit(' ').next().unwrap().to_string();
+    assert!(first.contains("listening on udp"), "{first}");
+    let udp = runs(&control(&[
+        "--controller",
+        "pi,mpc",
+        "--json",
+        "--deadline",
+        "5000",
+        "--plant",
+        &format!("udp:{addr}"),
+    ]));
+    server.kill().unwrap();
+    let _ = server.wait();
+    let reports = drain.join().unwrap();
+    assert_eq!(
+        reports
+            .matches("session ended after 600 samples (STOP")
+            .count(),
+        2,
+        "{reports}"
+    );
+    for (a, b) in local.iter().zip(&udp) {
+        assert_eq!(numbers(a), numbers(b));
+    }
+}
+
+#[test]
+fn a_missing_measurement_holds_and_a_late_one_is_set_aside() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().to_str().unwrap();
+    let out = control(&[
+        "--controller",
+        "pi",
+        "--json",
+        "--deadline",
+        "1000",
+        "--log",
+        log,
+        "--plant",
+        &serve_cmd("--fault drop@100 --fault delay@200=1500"),
+    ]);
+    let run = &runs(&out)[0];
+    assert_eq!(run["missing_measurements"], 2);
+    assert_eq!(run["late_measurements"], 1);
+    assert_eq!(run["constraint_violations"], 0);
+    let text = std::fs::read_to_string(dir.path().join("pi_3rad.csv")).unwrap();
+    assert!(text.contains("# sample 100: no measurement within 1000 ms; held"));
+    assert!(text.contains("# sample 200: late measurement set aside"));
+    assert!(text.trim_end().ends_with("# run complete; STOP sent"));
+}
+
+fn failing(fault: &str, expect: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let out = control(&[
+        "--controller",
+        "pi",
+        "--deadline",
+        "5000",
+        "--log",
+        dir.path().to_str().unwrap(),
+        "--plant",
+        &serve_cmd(&format!("--fault {fault}")),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{fault}: the run should fail");
+    for e in expect {
+        assert!(err.contains(e), "{fault}: `{e}` not in\n{err}");
+    }
+    // The rig saw the valve closed, and so does the log.
+    assert!(err.contains("input valve closed (0 V)"), "{err}");
+    let log = std::fs::read_to_string(dir.path().join("pi_3rad.csv")).unwrap();
+    assert!(
+        log.trim_end().ends_with("# valve closed: U 100 0, STOP"),
+        "{log}"
+    );
+}
+
+#[test]
+fn a_malformed_line_ends_the_run_with_the_valve_closed() {
+    failing(
+        "garble@100",
+        &["line 101", "pressure_mpa `0.2O` is not a finite number"],
+    );
+}
+
+#[test]
+fn a_stale_line_ends_the_run_with_the_valve_closed() {
+    failing("stale@100", &["stale measurement: its time stamp"]);
+    failing(
+        "repeat@100",
+        &["stale measurement: sample 99 was already used"],
+    );
+}
+
+#[test]
+fn a_silent_rig_is_reported() {
+    let out = control(&[
+        "--controller",
+        "pi",
+        "--deadline",
+        "50",
+        "--max-missing",
+        "3",
+        "--plant",
+        "cmd:read hello; echo READY 1 0.01; sleep 10",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("no measurement for 3 samples in a row"),
+        "{err}"
+    );
+}
