@@ -9,19 +9,35 @@ use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::Algorithm;
 use mckibben::optim::engine::StopRules;
-use mckibben::optim::engine::model::{GENERATIONS, POPULATION, engine_settings, fit_task, staged_plan};
+use mckibben::optim::engine::model::{
+    GENERATIONS, POPULATION, engine_settings, fit_task, staged_plan,
+};
 use mckibben::optim::task::Task;
 
 fn default_fit(c: &mut Criterion) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/stair_4.5kg.csv");
-    let (traces, _) = read_traces_with_notes(&path, &ReadOptions::default()).expect("the shipped stair");
+    let (traces, _) =
+        read_traces_with_notes(&path, &ReadOptions::default()).expect("the shipped stair");
     let task = Task::new(&traces[0], Family::Classic, Flow::Joint, None, false).unwrap();
     let mut group = c.benchmark_group("fit_default");
     group.sample_size(10);
     group.bench_function("classic de stair_4.5kg", |b| {
         b.iter(|| {
-            let plan = staged_plan(&task, Algorithm::De, engine_settings(POPULATION), POPULATION, GENERATIONS);
-            fit_task(&task, plan, 1, StopRules::default(), &mut CpuEvaluator::new()).unwrap()
+            let plan = staged_plan(
+                &task,
+                Algorithm::De,
+                engine_settings(POPULATION),
+                POPULATION,
+                GENERATIONS,
+            );
+            fit_task(
+                &task,
+                plan,
+                1,
+                StopRules::default(),
+                &mut CpuEvaluator::new(),
+            )
+            .unwrap()
         })
     });
     group.finish();

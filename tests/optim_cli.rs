@@ -40,8 +40,21 @@ fn fit_writes_the_documented_json_and_files() {
     let csv = data(dir.path());
     let out = mckibben(
         &[
-            "fit", &csv, "--algo", "pso", "--pop", "40", "--gens", "5", "--seed", "3", "--backend",
-            "cpu", "--out", "fitdir", "--json",
+            "fit",
+            &csv,
+            "--algo",
+            "pso",
+            "--pop",
+            "40",
+            "--gens",
+            "5",
+            "--seed",
+            "3",
+            "--backend",
+            "cpu",
+            "--out",
+            "fitdir",
+            "--json",
         ],
         dir.path(),
     );
@@ -89,15 +102,30 @@ fn fit_writes_the_documented_json_and_files() {
         assert!(dir.path().join("fitdir").join(f).is_file(), "{f}");
     }
     let history = std::fs::read_to_string(dir.path().join("fitdir/history.csv")).unwrap();
-    assert!(history.lines().nth(1).unwrap().contains(",global,"), "{history}");
+    assert!(
+        history.lines().nth(1).unwrap().contains(",global,"),
+        "{history}"
+    );
     assert!(history.contains(",polish,"), "{history}");
 
     // The thesis' flow: one stage on the free run, N × G evaluations, a and
     // b held at the ARX estimate.
     let thesis = json(&mckibben(
         &[
-            "fit", &csv, "--thesis-flow", "--algo", "ga", "--pop", "10", "--gens", "3", "--backend",
-            "cpu", "--out", "thesis", "--json",
+            "fit",
+            &csv,
+            "--thesis-flow",
+            "--algo",
+            "ga",
+            "--pop",
+            "10",
+            "--gens",
+            "3",
+            "--backend",
+            "cpu",
+            "--out",
+            "thesis",
+            "--json",
         ],
         dir.path(),
     ));
@@ -168,7 +196,16 @@ fn bad_flags_and_bad_data_are_clear_errors() {
             "--p-mut",
         ),
         (
-            &["fit", &csv, "--pop", "8", "--islands", "4", "--backend", "cpu"],
+            &[
+                "fit",
+                &csv,
+                "--pop",
+                "8",
+                "--islands",
+                "4",
+                "--backend",
+                "cpu",
+            ],
             "islands",
         ),
     ];
@@ -194,14 +231,25 @@ fn bad_flags_and_bad_data_are_clear_errors() {
     for k in 0..200 {
         let _ = std::fmt::Write::write_fmt(
             &mut rows,
-            format_args!("{},{},{}\n", k as f64 * 0.01, 0.1 + 0.001 * k as f64, 1e19 * (k % 7) as f64),
+            format_args!(
+                "{},{},{}\n",
+                k as f64 * 0.01,
+                0.1 + 0.001 * k as f64,
+                1e19 * (k % 7) as f64
+            ),
         );
     }
     std::fs::write(dir.path().join("huge.csv"), rows).unwrap();
-    let out = mckibben(&["fit", "huge.csv", "--backend", "cpu", "--out", "huge"], dir.path());
+    let out = mckibben(
+        &["fit", "huge.csv", "--backend", "cpu", "--out", "huge"],
+        dir.path(),
+    );
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("`displacement`") && err.contains("6e19"), "{err}");
+    assert!(
+        err.contains("`displacement`") && err.contains("6e19"),
+        "{err}"
+    );
     assert!(!dir.path().join("huge/model.json").exists());
 }
 

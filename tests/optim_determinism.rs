@@ -8,7 +8,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use mckibben::eval::{Evaluator, Problem, cpu::CpuEvaluator};
 use mckibben::model::Family;
 use mckibben::optim::engine::model::{ModelObjective, default_plan, engine_settings};
-use mckibben::optim::engine::{Engine, Observer, Outcome, Plan, Space, Stage, StopReason, StopRules};
+use mckibben::optim::engine::{
+    Engine, Observer, Outcome, Plan, Space, Stage, StopReason, StopRules,
+};
 use mckibben::optim::history::GenerationRecord;
 use mckibben::optim::synthetic::Synthetic;
 use mckibben::optim::{AlgoSettings, Algorithm};
@@ -38,7 +40,13 @@ fn plan(algo: Algorithm) -> Plan {
 
 fn engine(algo: Algorithm, seed: u64) -> Engine {
     let (s, _) = setup();
-    Engine::new(plan(algo), Space::from(&s.space()), seed, StopRules::default()).unwrap()
+    Engine::new(
+        plan(algo),
+        Space::from(&s.space()),
+        seed,
+        StopRules::default(),
+    )
+    .unwrap()
 }
 
 fn fit(engine: &mut Engine, evaluator: &mut dyn Evaluator) -> Outcome {
@@ -76,8 +84,14 @@ fn thread_count_does_not_change_the_result() {
     for algo in Algorithm::ALL {
         let (history, params) = run_with_threads(algo, 1);
         // 12 global and 3 free-run generations, then the polish starts.
-        assert_eq!(history.iter().filter(|r| r.stage == Stage::Global).count(), 12);
-        assert_eq!(history.iter().filter(|r| r.stage == Stage::FreeRun).count(), 3);
+        assert_eq!(
+            history.iter().filter(|r| r.stage == Stage::Global).count(),
+            12
+        );
+        assert_eq!(
+            history.iter().filter(|r| r.stage == Stage::FreeRun).count(),
+            3
+        );
         assert!(history.iter().any(|r| r.stage == Stage::Polish), "{algo}");
         assert!(!params.is_empty(), "{algo}");
         assert_eq!((history, params), run_with_threads(algo, 3), "{algo}");
@@ -131,14 +145,21 @@ fn an_interrupt_in_any_stage_resumes_to_the_identical_result() {
                 )
                 .unwrap();
             assert_eq!(cut.stop, StopReason::Interrupted, "{algo} at {at}");
-            assert!(cut.sse.is_finite() && !cut.params.is_empty(), "{algo} at {at}");
+            assert!(
+                cut.sse.is_finite() && !cut.params.is_empty(),
+                "{algo} at {at}"
+            );
             drop(first);
             let mut resumed = Engine::load(&path).unwrap();
             let out = fit(&mut resumed, &mut CpuEvaluator::new());
             assert_eq!(out.params, full.params, "{algo} at {at}");
             assert_eq!(out.sse, full.sse, "{algo} at {at}");
             assert_eq!(out.evaluations, full.evaluations, "{algo} at {at}");
-            assert_eq!(fingerprint(&resumed), fingerprint(&straight), "{algo} at {at}");
+            assert_eq!(
+                fingerprint(&resumed),
+                fingerprint(&straight),
+                "{algo} at {at}"
+            );
         }
     }
 }

@@ -15,11 +15,11 @@ use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend, Evaluator};
 use mckibben::ident::fit_percent;
 use mckibben::model::{Family, Flow};
-use mckibben::optim::mfa::Attractors;
 use mckibben::optim::engine::model::{
     GENERATIONS, POPULATION, engine_settings, fit_task, staged_plan, thesis_settings,
 };
 use mckibben::optim::engine::{Plan, StopRules};
+use mckibben::optim::mfa::Attractors;
 use mckibben::optim::task::Task;
 use mckibben::optim::{AlgoSettings, Algorithm};
 
@@ -158,7 +158,13 @@ struct Fitter<'a> {
 
 impl Fitter<'_> {
     /// One fit of `task` with `plan`, seeded by `seed`.
-    fn run(&mut self, task: &Task, plan: Plan, algo: &str, seed: u64) -> anyhow::Result<(Row, Vec<f64>)> {
+    fn run(
+        &mut self,
+        task: &Task,
+        plan: Plan,
+        algo: &str,
+        seed: u64,
+    ) -> anyhow::Result<(Row, Vec<f64>)> {
         let population = plan.global.as_ref().map_or(0, |g| g.population);
         let t = Instant::now();
         let (_, out) = fit_task(task, plan, seed, StopRules::default(), self.evaluator)?;
@@ -190,11 +196,23 @@ impl Fitter<'_> {
         g: usize,
         seed: u64,
     ) -> anyhow::Result<(Row, Vec<f64>)> {
-        self.run(task, Plan::thesis(algo, settings.clone(), n, g), algo.name(), seed)
+        self.run(
+            task,
+            Plan::thesis(algo, settings.clone(), n, g),
+            algo.name(),
+            seed,
+        )
     }
 
     /// The staged fit of `mckibben fit` with `algo`.
-    fn staged(&mut self, task: &Task, algo: Algorithm, n: usize, g: usize, seed: u64) -> anyhow::Result<(Row, Vec<f64>)> {
+    fn staged(
+        &mut self,
+        task: &Task,
+        algo: Algorithm,
+        n: usize,
+        g: usize,
+        seed: u64,
+    ) -> anyhow::Result<(Row, Vec<f64>)> {
         let plan = staged_plan(task, algo, engine_settings(n), n, g);
         self.run(task, plan, algo.name(), seed)
     }

@@ -324,7 +324,10 @@ impl Args {
 
     fn stops(&self) -> anyhow::Result<StopRules> {
         if let Some(t) = self.time_budget {
-            anyhow::ensure!(t >= 0.0, "--time-budget must be at least 0 seconds (got {t})");
+            anyhow::ensure!(
+                t >= 0.0,
+                "--time-budget must be at least 0 seconds (got {t})"
+            );
         }
         Ok(StopRules {
             target_sse: self.target_sse,
@@ -424,9 +427,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
     }
     let global = engine.plan.global.clone();
-    let (algo, population, generations) = global
-        .as_ref()
-        .map_or((Algorithm::De, 0, 0), |g| (g.algorithm, g.population, g.generations));
+    let (algo, population, generations) = global.as_ref().map_or((Algorithm::De, 0, 0), |g| {
+        (g.algorithm, g.population, g.generations)
+    });
     if !args.json {
         let stages: Vec<&str> = engine.stages().iter().map(|s| s.name()).collect();
         eprintln!(

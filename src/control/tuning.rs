@@ -157,7 +157,13 @@ pub fn tune_pi(
         "tuning needs --pop ≥ 4 and --gens ≥ 1"
     );
     let start = std::time::Instant::now();
-    let mut opt = AnyOptimizer::new(algorithm, &AlgoSettings::default(), gain_bounds(), pop, gens);
+    let mut opt = AnyOptimizer::new(
+        algorithm,
+        &AlgoSettings::default(),
+        gain_bounds(),
+        pop,
+        gens,
+    );
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut best: Option<(Vec<f64>, f64)> = None;
     let mut evaluations = 0;

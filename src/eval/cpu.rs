@@ -22,9 +22,7 @@ use rayon::prelude::*;
 use super::{Evaluator, Problem, Scores, to_f32};
 use crate::model::Family;
 use crate::model::residuals;
-use crate::model::sim::{
-    classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w,
-};
+use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w};
 
 /// Candidates advanced side by side in one batch. One step of one candidate
 /// is a chain of about ten dependent operations (x → Δ → w → next x), so a

@@ -56,7 +56,9 @@ pub fn search_space(family: Family, experiment: &Experiment, free_n: bool) -> Se
         b: THESIS_B,
         max_abs_input: max_abs(&experiment.u, experiment.u_mean),
         max_abs_output: max_abs(&experiment.y, experiment.y_mean),
-        output_range: crate::data::range(&experiment.y.iter().map(|&v| v as f64).collect::<Vec<_>>()),
+        output_range: crate::data::range(
+            &experiment.y.iter().map(|&v| v as f64).collect::<Vec<_>>(),
+        ),
     };
     SearchSpace::around(family, None, prior, Flow::Joint, free_n)
 }

@@ -195,12 +195,10 @@ impl Stepper {
     pub fn step(&self, x_prev: f32, w_prev: f32, u_prev: f32) -> (f32, f32) {
         let x = match *self {
             Stepper::Linear { a, b, c, .. } => linear_step(a, b, c, x_prev, u_prev),
-            Stepper::Classic {
-                alpha, a, b, c, ..
+            Stepper::Classic { alpha, a, b, c, .. }
+            | Stepper::Generalized { alpha, a, b, c, .. } => {
+                linear_part(a, alpha, b, c, x_prev, w_prev, u_prev)
             }
-            | Stepper::Generalized {
-                alpha, a, b, c, ..
-            } => linear_part(a, alpha, b, c, x_prev, w_prev, u_prev),
         };
         (x, self.hysteresis(w_prev, x, x - x_prev))
     }
@@ -430,7 +428,10 @@ mod tests {
         let u = vec![1.0f32; 100];
         let y = vec![0.0f32; 100];
         // An unstable pole explodes past the bound.
-        assert_eq!(sse(Family::Linear, &[1.5, 1.0, 0.0, 0.0], &u, &y), f32::INFINITY);
+        assert_eq!(
+            sse(Family::Linear, &[1.5, 1.0, 0.0, 0.0], &u, &y),
+            f32::INFINITY
+        );
         let sim = simulate(Family::Linear, &[1.5, 1.0, 0.0, 0.0], &u, 0.0);
         assert!(sim.diverged_at.is_some());
         assert!(sse(Family::Linear, &[0.5, 1.0, 0.0, 0.0], &u, &y).is_finite());

@@ -260,12 +260,7 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
             x + y_mean + noise * e
         })
         .collect();
-    let name = format!(
-        "{} {} case #{}",
-        family,
-        spec.excitation.name(),
-        spec.seed
-    );
+    let name = format!("{} {} case #{}", family, spec.excitation.name(), spec.seed);
     let trace = Trace::uniform(name, CASE_DT, p, l);
     let task = Task::new(&trace, family, Flow::Joint, None, false).ok()?;
     // The noise moves the output mean a little (by about noise/√N): keep
@@ -385,7 +380,11 @@ mod tests {
                     spec.noise_mm
                 );
                 let range = case.trace.output.iter().fold(0.0f64, |m, &v| m.max(v))
-                    - case.trace.output.iter().fold(f64::INFINITY, |m, &v| m.min(v));
+                    - case
+                        .trace
+                        .output
+                        .iter()
+                        .fold(f64::INFINITY, |m, &v| m.min(v));
                 assert!(range > 4.0, "{}: output range {range}", case.name());
             }
         }

@@ -155,7 +155,11 @@ impl History {
                 .filter_map(|r| r.best_params.get(i).map(|&v| (r.generation as f64, v)))
                 .unzip();
             let name = names.get(i).copied().unwrap_or("?");
-            fig = fig.with(Panel::new(name, "generation", name).with(Series::line("stage best", x, y)));
+            fig = fig.with(Panel::new(name, "generation", name).with(Series::line(
+                "stage best",
+                x,
+                y,
+            )));
         }
         fig
     }
@@ -173,7 +177,11 @@ impl History {
         };
         Figure::new(title).with(
             Panel::new("convergence", "generation", "SSE (estimation)")
-                .with(Series::line("best free run", g.clone(), col(|r| r.best_sse)))
+                .with(Series::line(
+                    "best free run",
+                    g.clone(),
+                    col(|r| r.best_sse),
+                ))
                 .with(Series::line("stage best", g.clone(), col(|r| r.stage_best)))
                 .with(Series::line(
                     "generation best",

@@ -99,8 +99,12 @@ pub fn levenberg_marquardt(
     let mut batch = |points: &[Vec<f64>]| -> anyhow::Result<Vec<Option<DVector<f64>>>> {
         Ok(points.par_iter().map(|p| residuals(p)).collect())
     };
-    levenberg_marquardt_batched(&mut batch, start, bounds, step_floor, settings, None)
-        .map_err(|e| e.downcast::<LmError>().expect("a point-wise scorer cannot fail"))
+    levenberg_marquardt_batched(&mut batch, start, bounds, step_floor, settings, None).map_err(
+        |e| {
+            e.downcast::<LmError>()
+                .expect("a point-wise scorer cannot fail")
+        },
+    )
 }
 
 /// Minimises `Σ r(x)²` from `start` inside `lower ≤ x ≤ upper` (infinite

@@ -37,7 +37,6 @@ use crate::model::SearchSpace;
 
 pub use history::{GenerationRecord, History};
 
-
 /// The box an optimizer searches: bounds of the free coordinates only
 /// (parameters with `lower == upper` in the [`SearchSpace`] are held fixed by
 /// the run loop and never shown to the optimizer).

@@ -106,11 +106,16 @@ impl Task {
 /// Without this check such data "diverges" for every candidate.
 pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
     let limit = (f32::MAX as f64).sqrt() * 1e-3 / (trace.len().max(1) as f64).sqrt();
-    for (name, column) in [(&trace.input_name, &trace.input), (&trace.output_name, &trace.output)] {
+    for (name, column) in [
+        (&trace.input_name, &trace.input),
+        (&trace.output_name, &trace.output),
+    ] {
         let mean = column.iter().sum::<f64>() / column.len().max(1) as f64;
         let (lo, hi) = column
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
         let reach = (hi - mean).abs().max((lo - mean).abs());
         anyhow::ensure!(
             reach <= limit,

@@ -440,7 +440,10 @@ impl Engine {
         }
         let mut best = self.best.clone();
         if stop != StopReason::Completed {
-            for candidate in [interim, self.best_so_far(objective)?].into_iter().flatten() {
+            for candidate in [interim, self.best_so_far(objective)?]
+                .into_iter()
+                .flatten()
+            {
                 if best.as_ref().is_none_or(|b| candidate.cost < b.cost) {
                     best = Some(candidate);
                 }
@@ -467,7 +470,11 @@ impl Engine {
         {
             return Some(StopReason::TargetSse);
         }
-        if self.stops.time_budget_s.is_some_and(|t| self.elapsed() >= t) {
+        if self
+            .stops
+            .time_budget_s
+            .is_some_and(|t| self.elapsed() >= t)
+        {
             return Some(StopReason::TimeBudget);
         }
         None
@@ -498,7 +505,13 @@ impl Engine {
         let costs: Vec<f32> = objective
             .costs(&canonical, measure)?
             .into_iter()
-            .map(|c| if c.is_nan() || c < 0.0 && c.is_infinite() { f32::INFINITY } else { c })
+            .map(|c| {
+                if c.is_nan() || c < 0.0 && c.is_infinite() {
+                    f32::INFINITY
+                } else {
+                    c
+                }
+            })
             .collect();
         anyhow::ensure!(
             costs.len() == n,
@@ -513,7 +526,10 @@ impl Engine {
     fn offer_best(&mut self, canonical: &[f64], costs: &[f32]) {
         let d = self.space.dim();
         if let Some(i) = argmin(costs)
-            && self.best.as_ref().is_none_or(|b| (costs[i] as f64) < b.cost)
+            && self
+                .best
+                .as_ref()
+                .is_none_or(|b| (costs[i] as f64) < b.cost)
         {
             self.best = Some(Scored {
                 params: canonical[i * d..(i + 1) * d].to_vec(),
@@ -545,7 +561,11 @@ impl Engine {
                             g.population / islands,
                             g.generations,
                         );
-                        if i == 0 { opt.with_initial(&self.initial) } else { opt }
+                        if i == 0 {
+                            opt.with_initial(&self.initial)
+                        } else {
+                            opt
+                        }
                     })
                     .collect()
             }
@@ -577,7 +597,11 @@ impl Engine {
     /// are scored (in one batch when every island has the same measure),
     /// every island is told its own. The first island's costs rank the
     /// stage's best and fill the record: the others may measure other horizons.
-    fn step_population(&mut self, objective: &mut dyn Objective, stage: Stage) -> anyhow::Result<()> {
+    fn step_population(
+        &mut self,
+        objective: &mut dyn Objective,
+        stage: Stage,
+    ) -> anyhow::Result<()> {
         if self.optimizers.is_empty() {
             self.optimizers = self.begin(stage);
         }
@@ -586,7 +610,11 @@ impl Engine {
             .collect();
         let measure = measures[0];
         let mut rng = self.rng.restore()?;
-        let asked: Vec<Vec<f64>> = self.optimizers.iter_mut().map(|o| o.ask(&mut rng)).collect();
+        let asked: Vec<Vec<f64>> = self
+            .optimizers
+            .iter_mut()
+            .map(|o| o.ask(&mut rng))
+            .collect();
         self.rng = RngState::of(&rng);
         let scored: Vec<(Vec<f64>, Vec<f32>)> = if measures.iter().all(|&m| m == measure) {
             let (canonical, costs) = self.score(objective, &asked.concat(), measure)?;
@@ -597,7 +625,10 @@ impl Engine {
                 .iter()
                 .map(|rows| {
                     let n = rows.len() / nf;
-                    let part = (canonical[at * d..(at + n) * d].to_vec(), costs[at..at + n].to_vec());
+                    let part = (
+                        canonical[at * d..(at + n) * d].to_vec(),
+                        costs[at..at + n].to_vec(),
+                    );
                     at += n;
                     part
                 })
@@ -627,7 +658,10 @@ impl Engine {
             scored[0].clone()
         };
         if let Some(i) = argmin(&costs)
-            && self.stage_best.as_ref().is_none_or(|b| (costs[i] as f64) < b.cost)
+            && self
+                .stage_best
+                .as_ref()
+                .is_none_or(|b| (costs[i] as f64) < b.cost)
         {
             self.stage_best = Some(Scored {
                 params: canonical[i * d..(i + 1) * d].to_vec(),
@@ -672,9 +706,8 @@ impl Engine {
     /// Appends the history record of the generation (`costs`) or polish
     /// start (`None`) just made.
     fn record(&mut self, stage: Stage, measure: Measure, costs: Option<&[f32]>) {
-        let (gbest, mean, std, diverged) = costs.map_or((None, None, None, 0), |c| {
-            GenerationRecord::stats(c)
-        });
+        let (gbest, mean, std, diverged) =
+            costs.map_or((None, None, None, 0), |c| GenerationRecord::stats(c));
         let leader = self.stage_best.as_ref().or(self.best.as_ref());
         let record = GenerationRecord {
             generation: self.history.records.len() + 1,
@@ -758,10 +791,9 @@ impl Engine {
             let snf = nf;
             (0..deepest)
                 .flat_map(|r| {
-                    self.pool
-                        .iter()
-                        .zip(&orders)
-                        .filter_map(move |(m, o)| o.get(r).map(|&i| &m.rows[i * snf..(i + 1) * snf]))
+                    self.pool.iter().zip(&orders).filter_map(move |(m, o)| {
+                        o.get(r).map(|&i| &m.rows[i * snf..(i + 1) * snf])
+                    })
                 })
                 .flatten()
                 .copied()
@@ -772,9 +804,9 @@ impl Engine {
             if starts.len() == p.starts {
                 break;
             }
-            let distinct = starts.iter().all(|s| {
-                (0..nf).any(|j| (s[j] - row[j]).abs() > plan::DISTINCT * bounds.width(j))
-            });
+            let distinct = starts
+                .iter()
+                .all(|s| (0..nf).any(|j| (s[j] - row[j]).abs() > plan::DISTINCT * bounds.width(j)));
             if distinct {
                 starts.push(row.to_vec());
             }

@@ -7,10 +7,10 @@ use super::plan::{FreeRun, Global, Plan, Polish};
 use super::{Engine, Objective, Outcome, Space, StopRules};
 use crate::eval::{Evaluator, Problem};
 use crate::model::{Family, Measure};
-use crate::optim::task::Task;
 use crate::optim::ga::{GaSettings, Mutation};
 use crate::optim::mfa::{Attractors, Distance, MfaSettings, Scale};
 use crate::optim::pso::PsoSettings;
+use crate::optim::task::Task;
 use crate::optim::{AlgoSettings, Algorithm};
 
 /// A model family's fit to experiments, scored by a batch evaluator.
@@ -141,7 +141,13 @@ pub fn thesis_settings(family: Family) -> AlgoSettings {
 /// The engine's default plan for `task` with `algorithm` and `settings`,
 /// `n × g`, its horizon from the task's ARX pole and its polish's
 /// continuation up to the estimation data's length.
-pub fn staged_plan(task: &Task, algorithm: Algorithm, settings: AlgoSettings, n: usize, g: usize) -> Plan {
+pub fn staged_plan(
+    task: &Task,
+    algorithm: Algorithm,
+    settings: AlgoSettings,
+    n: usize,
+    g: usize,
+) -> Plan {
     let longest = task.estimation.len();
     let mut plan = default_plan(algorithm, n, g, horizon(task.prior.a, longest), longest);
     if let Some(global) = plan.global.as_mut() {

@@ -43,14 +43,8 @@ impl Space {
     pub fn bounds(&self) -> Bounds {
         let free = self.free();
         Bounds {
-            lower: free
-                .iter()
-                .map(|&i| self.lower[i])
-                .collect(),
-            upper: free
-                .iter()
-                .map(|&i| self.upper[i])
-                .collect(),
+            lower: free.iter().map(|&i| self.lower[i]).collect(),
+            upper: free.iter().map(|&i| self.upper[i]).collect(),
             names: free.iter().map(|&i| self.names[i].clone()).collect(),
         }
     }
@@ -76,9 +70,7 @@ impl Space {
         let free = self.free();
         canonical
             .chunks_exact(self.dim().max(1))
-            .flat_map(|row| {
-                free.iter().map(|&i| row[i]).collect::<Vec<_>>()
-            })
+            .flat_map(|row| free.iter().map(|&i| row[i]).collect::<Vec<_>>())
             .collect()
     }
 
