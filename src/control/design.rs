@@ -300,22 +300,7 @@ mod tests {
 
     #[test]
     fn scaling_keeps_the_pole_and_scales_the_loop() {
-        let model = ControlModel {
-            displacement: FittedModel {
-                family: Family::Classic,
-                params: vec![1.0, 1.07, 0.1, 0.6, 1.0, 0.87, 7.5, 0.05, 0.0],
-                input_mean: 0.2,
-                output_mean: 25.0,
-                dt: 0.01,
-                input_name: "pressure".into(),
-                output_name: "displacement".into(),
-            },
-            curvature: -9.0,
-            valve: ValveModel {
-                pole: 0.92,
-                map: (0..11).map(|i| 0.004 * i as f64).collect(),
-            },
-        };
+        let model = super::super::model::example_model();
         let base = Predictor::new(&model).unwrap();
         for f in [0.8, 1.2] {
             let s = Predictor::new(&scale_hysteresis(&model, f)).unwrap();

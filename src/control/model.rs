@@ -175,6 +175,27 @@ impl Predictor {
     }
 }
 
+/// A classic control model with a hysteresis loop and a valve map, for tests.
+#[cfg(test)]
+pub(crate) fn example_model() -> ControlModel {
+    ControlModel {
+        displacement: FittedModel {
+            family: Family::Classic,
+            params: vec![1.0, 1.07, 0.1, 0.6, 1.0, 0.87, 7.5, 0.05, 0.0],
+            input_mean: 0.2,
+            output_mean: 25.0,
+            dt: 0.01,
+            input_name: "pressure".into(),
+            output_name: "displacement".into(),
+        },
+        curvature: -9.0,
+        valve: ValveModel {
+            pole: 0.92,
+            map: (0..11).map(|i| 0.004 * i as f64 - 0.01).collect(),
+        },
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -199,22 +220,7 @@ mod tests {
 
     #[test]
     fn jacobian_matches_finite_differences() {
-        let model = ControlModel {
-            displacement: FittedModel {
-                family: Family::Classic,
-                params: vec![1.0, 1.07, 0.1, 0.6, 1.0, 0.87, 7.5, 0.05, 0.0],
-                input_mean: 0.2,
-                output_mean: 25.0,
-                dt: 0.01,
-                input_name: "pressure".into(),
-                output_name: "displacement".into(),
-            },
-            curvature: -9.0,
-            valve: ValveModel {
-                pole: 0.92,
-                map: (0..11).map(|i| 0.004 * i as f64 - 0.01).collect(),
-            },
-        };
+        let model = example_model();
         let pr = Predictor::new(&model).unwrap();
         let s = State {
             p: 0.25,

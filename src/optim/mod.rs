@@ -2,7 +2,7 @@
 //! drives them against a batch [`Evaluator`](crate::eval::Evaluator).
 //!
 //! An optimizer never sees the model: it is handed a box (the free
-//! coordinates of a [`SearchSpace`]), *asks* for a population of points in
+//! coordinates of a [`SearchSpace`](crate::model::SearchSpace)), *asks* for a population of points in
 //! it and is *told* their costs (SSE, lower is better, `+∞` for a diverged
 //! candidate). The [`engine`] owns everything around that: stages, seeding,
 //! stopping, history, checkpoints, Ctrl-C. Every random draw comes from the
@@ -33,13 +33,11 @@ use std::str::FromStr;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::model::SearchSpace;
-
 pub use history::{GenerationRecord, History};
 
 /// The box an optimizer searches: bounds of the free coordinates only
-/// (parameters with `lower == upper` in the [`SearchSpace`] are held fixed by
-/// the run loop and never shown to the optimizer).
+/// (parameters with `lower == upper` in the [`engine::Space`] are held fixed by
+/// the engine and never shown to the optimizer).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Bounds {
     pub lower: Vec<f64>,
@@ -49,17 +47,6 @@ pub struct Bounds {
 }
 
 impl Bounds {
-    /// The free coordinates of `space`.
-    pub fn of(space: &SearchSpace) -> Bounds {
-        let free = space.free();
-        let params = space.family.params();
-        Bounds {
-            lower: free.iter().map(|&i| space.lower[i]).collect(),
-            upper: free.iter().map(|&i| space.upper[i]).collect(),
-            names: free.iter().map(|&i| params[i].name.to_string()).collect(),
-        }
-    }
-
     pub fn dim(&self) -> usize {
         self.lower.len()
     }

@@ -74,15 +74,6 @@ impl Space {
             .collect()
     }
 
-    /// Whether `theta` lies in the box.
-    pub fn contains(&self, theta: &[f64]) -> bool {
-        theta.len() == self.dim()
-            && theta
-                .iter()
-                .zip(self.lower.iter().zip(&self.upper))
-                .all(|(v, (l, u))| l <= v && v <= u)
-    }
-
     /// The free coordinates of `theta` that sit on a bound of the box,
     /// with the bound (`"lower"` or `"upper"`): a fit that ends there was
     /// stopped by the box, not by the data.
