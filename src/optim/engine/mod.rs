@@ -196,6 +196,8 @@ struct Members {
     rows: Vec<f64>,
     #[serde(with = "super::inf_serde")]
     costs: Vec<f32>,
+    /// What the costs measure.
+    measure: Measure,
 }
 
 impl Members {
@@ -373,12 +375,12 @@ impl Engine {
 
     /// What island `i` of `stage` minimises: with a horizon ladder, the
     /// global stage's horizon times 4^i, the free run once that reaches the
-    /// longest experiment.
+    /// longest experiment, and the free run on the last island.
     fn island_measure(&self, stage: Stage, i: usize) -> Measure {
         match (stage, &self.plan.global, self.measure(stage)) {
             (Stage::Global, Some(g), Measure::Ahead { horizon }) if g.ladder => {
                 let h = horizon.saturating_mul(4usize.saturating_pow(i as u32));
-                if h >= g.longest {
+                if h >= g.longest || (i > 0 && i + 1 == g.islands) {
                     Measure::FreeRun
                 } else {
                     Measure::Ahead { horizon: h }
@@ -539,9 +541,14 @@ impl Engine {
     }
 
     /// The islands of a population stage: the global stage's start from
-    /// the initial rows (the first island) and uniform draws; each island of
-    /// the free-run stage from the best members of the same island before.
-    fn begin(&mut self, stage: Stage) -> Vec<AnyOptimizer> {
+    /// the initial rows (the first island) and [`Space::draw`]; each island
+    /// of the free-run stage from the best members of the same island
+    /// before, ranked on the free run.
+    fn begin(
+        &mut self,
+        objective: &mut dyn Objective,
+        stage: Stage,
+    ) -> anyhow::Result<Vec<AnyOptimizer>> {
         let bounds = self.space.bounds();
         let nf = bounds.dim();
         self.stage_steps = 0;
@@ -551,28 +558,35 @@ impl Engine {
         let islands = self.plan.islands();
         match stage {
             Stage::Global => {
-                let g = self.plan.global.as_ref().expect("a global stage");
-                (0..islands)
+                let g = self.plan.global.clone().expect("a global stage");
+                let n = g.population / islands;
+                let mut rng = self.rng.restore()?;
+                let optimizers = (0..islands)
                     .map(|i| {
-                        let opt = AnyOptimizer::new(
+                        let mut rows = if i == 0 {
+                            self.initial[..self.initial.len().min(n * nf)].to_vec()
+                        } else {
+                            Vec::new()
+                        };
+                        rows.extend(self.space.draw(n - rows.len() / nf, &mut rng));
+                        AnyOptimizer::new(
                             g.algorithm,
                             &g.settings,
                             bounds.clone(),
-                            g.population / islands,
+                            n,
                             g.generations,
-                        );
-                        if i == 0 {
-                            opt.with_initial(&self.initial)
-                        } else {
-                            opt
-                        }
+                        )
+                        .with_initial(&rows)
                     })
-                    .collect()
+                    .collect();
+                self.rng = RngState::of(&rng);
+                Ok(optimizers)
             }
             _ => {
-                let f = self.plan.free_run.as_ref().expect("a free-run stage");
+                let f = self.plan.free_run.clone().expect("a free-run stage");
                 let n = f.population / islands;
-                (0..islands)
+                self.rescore_pool(objective)?;
+                Ok((0..islands)
                     .map(|i| {
                         let start = match self.carried.get(i) {
                             Some(m) => m.best(n, nf),
@@ -588,9 +602,36 @@ impl Engine {
                         )
                         .with_initial(&start)
                     })
-                    .collect()
+                    .collect())
             }
         }
+    }
+
+    /// Re-scores on the free run the islands in the pool (and in hand) that
+    /// another measure ranked, so that whatever starts from them ranks them
+    /// as the simulator does: on data the model cannot fit exactly, the
+    /// prediction error's best can lie in another basin than the free run's
+    /// (measured on the shipped stair: the linear model, A → 0, ranks first
+    /// on the 23-step prediction, while the hysteretic members the same
+    /// population holds have a free-run SSE a quarter of its).
+    fn rescore_pool(&mut self, objective: &mut dyn Objective) -> anyhow::Result<()> {
+        for i in 0..self.pool.len() {
+            if self.pool[i].measure == Measure::FreeRun {
+                continue;
+            }
+            let rows = std::mem::take(&mut self.pool[i].rows);
+            let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
+            self.offer_best(&canonical, &costs);
+            self.pool[i] = Members {
+                rows,
+                costs,
+                measure: Measure::FreeRun,
+            };
+        }
+        // The islands just ended are the pool's first entries.
+        let fresh = self.carried.len().min(self.pool.len());
+        self.carried = self.pool[..fresh].to_vec();
+        Ok(())
     }
 
     /// One generation of a population stage: every island asks, the rows
@@ -603,7 +644,7 @@ impl Engine {
         stage: Stage,
     ) -> anyhow::Result<()> {
         if self.optimizers.is_empty() {
-            self.optimizers = self.begin(stage);
+            self.optimizers = self.begin(objective, stage)?;
         }
         let measures: Vec<Measure> = (0..self.optimizers.len())
             .map(|i| self.island_measure(stage, i))
@@ -729,11 +770,19 @@ impl Engine {
     /// Ends the current stage: hands its members on and moves to the next.
     fn end_stage(&mut self, stage: Stage, ended: StageEnd) {
         if !self.optimizers.is_empty() {
+            let measures: Vec<Measure> = (0..self.optimizers.len())
+                .map(|i| self.island_measure(stage, i))
+                .collect();
             self.carried = std::mem::take(&mut self.optimizers)
                 .iter()
-                .map(|o| {
+                .zip(measures)
+                .map(|(o, measure)| {
                     let (rows, costs) = o.members();
-                    Members { rows, costs }
+                    Members {
+                        rows,
+                        costs,
+                        measure,
+                    }
                 })
                 .collect();
             self.pool.splice(0..0, self.carried.iter().cloned());
@@ -763,6 +812,7 @@ impl Engine {
         interrupt: Option<&AtomicBool>,
     ) -> anyhow::Result<Option<Scored>> {
         let p = self.plan.polish.clone().expect("a polish stage");
+        self.rescore_pool(objective)?;
         let before = (
             self.best.clone(),
             self.history.records.len(),
@@ -775,40 +825,45 @@ impl Engine {
         let space = self.space.clone();
         let bounds = space.bounds();
         let nf = bounds.dim();
-        // The islands' best first (the free-run stage's, then the global
-        // stage's), then their second best, and so on: each island's basin
-        // gets a start before any gets two. The global stage's best matter
-        // when the model cannot fit the data exactly: there the free-run
-        // stage can drift from a good basin of the prediction error into a
-        // degenerate one (measured on the shipped stair: towards the
-        // linear model, A → 0), which continuation from the prediction's
-        // optimum avoids.
-        let pool = if self.pool.is_empty() {
-            self.initial.clone()
+        // The islands' best on the free run first (the free-run stage's,
+        // then the global stage's members re-scored), then their second
+        // best, and so on: each island's basin gets a start before any gets
+        // two. The global stage's members matter when the model cannot fit
+        // the data exactly: there the free-run stage can drift from a good
+        // basin into a degenerate one (measured on the shipped stair:
+        // towards the linear model, A → 0), which continuation from the
+        // global stage's members avoids.
+        let ranked: Vec<(&[f64], f32)> = if self.pool.is_empty() {
+            self.initial
+                .chunks_exact(nf)
+                .map(|row| (row, f32::INFINITY))
+                .collect()
         } else {
             let orders: Vec<Vec<usize>> = self.pool.iter().map(Members::order).collect();
             let deepest = orders.iter().map(Vec::len).max().unwrap_or(0);
-            let snf = nf;
             (0..deepest)
                 .flat_map(|r| {
                     self.pool.iter().zip(&orders).filter_map(move |(m, o)| {
-                        o.get(r).map(|&i| &m.rows[i * snf..(i + 1) * snf])
+                        o.get(r)
+                            .map(|&i| (&m.rows[i * nf..(i + 1) * nf], m.costs[i]))
                     })
                 })
-                .flatten()
-                .copied()
                 .collect()
         };
-        let mut starts: Vec<Vec<f64>> = Vec::new();
-        for row in pool.chunks_exact(nf) {
+        // A start is new when its parameters differ from every start's and
+        // its free-run SSE does too: members that differ only in parameters
+        // the output does not feel (β and γ when A = 0) are one model.
+        let mut starts: Vec<(Vec<f64>, f32)> = Vec::new();
+        for (row, cost) in ranked {
             if starts.len() == p.starts {
                 break;
             }
-            let distinct = starts
-                .iter()
-                .all(|s| (0..nf).any(|j| (s[j] - row[j]).abs() > plan::DISTINCT * bounds.width(j)));
+            let distinct = starts.iter().all(|(s, c)| {
+                (0..nf).any(|j| (s[j] - row[j]).abs() > plan::DISTINCT * bounds.width(j))
+                    && !((cost - c).abs() <= plan::DISTINCT as f32 * c.abs())
+            });
             if distinct {
-                starts.push(row.to_vec());
+                starts.push((row.to_vec(), cost));
             }
         }
         let floor: Vec<f64> = (0..nf).map(|j| p.step_floor * bounds.width(j)).collect();
@@ -832,7 +887,7 @@ impl Engine {
             }
         }
         measures.push(Measure::FreeRun);
-        for start in starts {
+        for (start, _) in starts {
             if cut() {
                 break;
             }

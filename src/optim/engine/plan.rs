@@ -54,9 +54,12 @@ pub struct Global {
     /// judges them on the free run.
     pub islands: usize,
     /// Island `i` measures the horizon `h·4^i` (the free run once that
-    /// reaches `longest`) instead of all measuring `h`: on data the model
-    /// cannot fit exactly, short- and long-horizon optima lie in different
-    /// basins, and the free run judges them all.
+    /// reaches `longest`), and the last island of several the free run,
+    /// instead of all measuring `h`: on data the model cannot fit exactly,
+    /// short- and long-horizon optima lie in different basins, and the free
+    /// run judges them all. (Measured on the shipped stair: the 23-step
+    /// prediction ranks the linear model, A → 0, first; without a free-run
+    /// island 3 of 6 DE seeds ended there, 86.4 %, with one none did.)
     pub ladder: bool,
     /// The longest experiment (samples).
     pub longest: usize,
@@ -122,6 +125,12 @@ impl Default for Polish {
 impl Plan {
     /// The thesis' flow: one population search on the free run (chapter 5).
     pub fn thesis(algorithm: Algorithm, settings: AlgoSettings, n: usize, g: usize) -> Plan {
+        Plan::search(algorithm, settings, n, g)
+    }
+
+    /// A population search alone, on one island, for objectives with one
+    /// measure and no residuals (the PID tuning, the benchmark's search).
+    pub fn search(algorithm: Algorithm, settings: AlgoSettings, n: usize, g: usize) -> Plan {
         Plan {
             global: Some(Global {
                 algorithm,
