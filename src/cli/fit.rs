@@ -441,7 +441,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let mut progress = Progress::new(engine.plan.generations(), args.json);
-    let mut objective = ModelObjective::new(evaluator.as_mut(), task.problem());
+    let mut objective = ModelObjective::for_task(evaluator.as_mut(), &task);
     let outcome = engine.run(
         &mut objective,
         &mut [&mut progress],

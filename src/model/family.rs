@@ -136,6 +136,23 @@ impl Family {
         self.index_of("n")
     }
 
+    /// Whether the Bouc-Wen loop of `theta` stays bounded under every input.
+    /// Classic: `β + γ ≥ 0` (for A > 0; n = 1 or not), the condition of
+    /// Ikhouane, Mañosa and Rodellar ("Dynamic properties of the hysteretic
+    /// Bouc-Wen model", Systems & Control Letters 56, 2007) under which `w`
+    /// cannot grow past `(A/(β+γ))^(1/n)`; with `β + γ < 0` it grows without
+    /// bound once the motion keeps one direction long enough. Without a loop
+    /// (`A = 0`) nothing grows. The generalized model's sign terms admit
+    /// truths outside any such simple condition (the generated cases draw
+    /// them), so it is always admitted here and checked by simulation
+    /// instead ([`crate::optim::task::Task::stress`]).
+    pub fn loop_bounded(self, theta: &[f64]) -> bool {
+        match self {
+            Family::Classic => theta[0] == 0.0 || theta[2] + theta[3] >= 0.0,
+            Family::Linear | Family::Generalized => true,
+        }
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Family::Linear => "linear",
@@ -183,6 +200,18 @@ mod tests {
         assert_eq!(Family::Classic.exponent_index(), Some(4));
         assert_eq!(Family::Generalized.exponent_index(), Some(8));
         assert_eq!(Family::Linear.exponent_index(), None);
+    }
+
+    #[test]
+    fn the_classic_loop_is_bounded_when_beta_plus_gamma_is_not_negative() {
+        // A, α, β, γ, n, a, b, c, x0.
+        let theta =
+            |big_a: f64, beta: f64, gamma: f64| [big_a, 0.5, beta, gamma, 1.0, 0.9, 1.0, 0.0, 0.0];
+        assert!(Family::Classic.loop_bounded(&theta(1.0, 0.1, -0.09)));
+        assert!(Family::Classic.loop_bounded(&theta(1.0, 0.0, 0.0)));
+        assert!(!Family::Classic.loop_bounded(&theta(1.0, 0.08, -0.29)));
+        assert!(Family::Classic.loop_bounded(&theta(0.0, 0.08, -0.29)));
+        assert!(Family::Generalized.loop_bounded(&[0.0; 13]));
     }
 
     #[test]

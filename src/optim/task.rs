@@ -9,6 +9,10 @@ use crate::ident::{ArxOrders, arx::identify, fit_percent, rmse};
 use crate::model::presets::ThesisBounds;
 use crate::model::{Experiment, Family, FittedModel, Flow, LinearPrior, SearchSpace, simulate};
 
+/// How far beyond the estimation output's largest deviation a bounded model
+/// may go on the whole record's input ([`Task::stress`]).
+pub const STRESS_FACTOR: f64 = 10.0;
+
 /// Everything a fit on one trace needs.
 #[derive(Debug, Clone)]
 pub struct Task {
@@ -70,6 +74,36 @@ impl Task {
     /// The estimation problem the optimizer scores.
     pub fn problem(&self) -> Problem {
         Problem::new(self.family, vec![self.estimation.clone()])
+    }
+
+    /// The check that a candidate stays bounded on every input of the
+    /// trace: the whole record's input (estimation and validation halves)
+    /// with the measured output replaced by its first sample and zeros, so
+    /// that a candidate's free-run "SSE" on it is the energy of its own
+    /// output, and the largest energy a bounded model may have.
+    ///
+    /// Why: a model fitted to one half can be unstable on the other. On the
+    /// Cavatappi muscle (../shared/data/external, 300 g and 500 g) the
+    /// estimation optimum has β + γ < 0, which lets `w` grow without bound
+    /// once the input leaves the estimation half's range: the fit wrote a
+    /// model that diverged on its own validation half. The check uses the
+    /// validation half's input, never its output; the bound is ten times
+    /// the estimation output's largest deviation, on every sample.
+    pub fn stress(&self) -> (Problem, f64) {
+        let mut whole = self.estimation.clone();
+        whole.u.extend_from_slice(&self.validation.u);
+        let start = whole.y.first().copied().unwrap_or(0.0);
+        whole.y = vec![0.0; whole.u.len()];
+        if let Some(first) = whole.y.first_mut() {
+            *first = start;
+        }
+        let largest = self
+            .estimation
+            .y
+            .iter()
+            .fold(0.0f64, |m, &v| m.max((v as f64).abs()));
+        let bound = whole.u.len() as f64 * (STRESS_FACTOR * largest).powi(2);
+        (Problem::new(self.family, vec![whole]), bound)
     }
 
     /// Validation scores: a free run over the whole trace from its first

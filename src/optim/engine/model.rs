@@ -6,7 +6,7 @@ use nalgebra::DVector;
 use super::plan::{FreeRun, Global, Plan, Polish};
 use super::{Engine, Objective, Outcome, Space, StopRules};
 use crate::eval::{Evaluator, Problem};
-use crate::model::{Family, Measure};
+use crate::model::{Family, Flow, Measure};
 use crate::optim::ga::{GaSettings, Mutation};
 use crate::optim::mfa::{Attractors, Distance, MfaSettings, Scale};
 use crate::optim::pso::PsoSettings;
@@ -17,12 +17,58 @@ use crate::optim::{AlgoSettings, Algorithm};
 pub struct ModelObjective<'a> {
     evaluator: &'a mut dyn Evaluator,
     problem: Problem,
+    /// A problem whose free-run cost a candidate must keep at or below the
+    /// bound, or it scores +∞ on the free run ([`Task::stress`]); a
+    /// candidate whose loop is unbounded ([`Family::loop_bounded`]) too.
+    stress: Option<(Problem, f64)>,
 }
 
 impl<'a> ModelObjective<'a> {
     /// Scores `problem` (whatever its measure: each call sets its own).
     pub fn new(evaluator: &'a mut dyn Evaluator, problem: Problem) -> Self {
-        ModelObjective { evaluator, problem }
+        ModelObjective {
+            evaluator,
+            problem,
+            stress: None,
+        }
+    }
+
+    /// Scores `task`'s estimation problem, and rejects on the free run every
+    /// candidate that leaves the task's stress bound: what `fit` writes must
+    /// stay bounded on the whole record's input. The thesis' flow is the
+    /// thesis' experiment and runs without the check.
+    pub fn for_task(evaluator: &'a mut dyn Evaluator, task: &Task) -> Self {
+        ModelObjective {
+            stress: (task.flow != Flow::Thesis).then(|| task.stress()),
+            ..ModelObjective::new(evaluator, task.problem())
+        }
+    }
+
+    /// Which rows have a bounded loop and stay within the stress bound (all,
+    /// without a stress problem). Only rows with `finite` true are checked:
+    /// the rest are rejected anyway.
+    fn bounded(&mut self, rows: &[f64], finite: &[bool]) -> anyhow::Result<Vec<bool>> {
+        let Some((problem, bound)) = &self.stress else {
+            return Ok(vec![true; finite.len()]);
+        };
+        let d = rows.len() / finite.len().max(1);
+        let family = problem.family;
+        let picked: Vec<usize> = (0..finite.len())
+            .filter(|&i| finite[i] && family.loop_bounded(&rows[i * d..(i + 1) * d]))
+            .collect();
+        let subset: Vec<f64> = picked
+            .iter()
+            .flat_map(|&i| rows[i * d..(i + 1) * d].iter().copied())
+            .collect();
+        let mut ok = vec![false; finite.len()];
+        if picked.is_empty() {
+            return Ok(ok);
+        }
+        let energy = self.evaluator.evaluate(problem, &subset)?.total;
+        for (&i, &e) in picked.iter().zip(&energy) {
+            ok[i] = (e as f64) <= *bound;
+        }
+        Ok(ok)
     }
 }
 
@@ -33,7 +79,17 @@ impl Objective for ModelObjective<'_> {
 
     fn costs(&mut self, rows: &[f64], measure: Measure) -> anyhow::Result<Vec<f32>> {
         self.problem.measure = measure;
-        Ok(self.evaluator.evaluate(&self.problem, rows)?.total)
+        let mut costs = self.evaluator.evaluate(&self.problem, rows)?.total;
+        if measure == Measure::FreeRun && self.stress.is_some() {
+            let finite: Vec<bool> = costs.iter().map(|c| c.is_finite()).collect();
+            let bounded = self.bounded(rows, &finite)?;
+            for (c, ok) in costs.iter_mut().zip(bounded) {
+                if !ok {
+                    *c = f32::INFINITY;
+                }
+            }
+        }
+        Ok(costs)
     }
 
     fn residuals(
@@ -42,12 +98,22 @@ impl Objective for ModelObjective<'_> {
         measure: Measure,
     ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
         self.problem.measure = measure;
-        Ok(self
+        let mut residuals: Vec<Option<DVector<f64>>> = self
             .evaluator
             .residuals(&self.problem, rows)?
             .into_iter()
             .map(|r| r.map(|r| DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64))))
-            .collect())
+            .collect();
+        if measure == Measure::FreeRun && self.stress.is_some() {
+            let finite: Vec<bool> = residuals.iter().map(Option::is_some).collect();
+            let bounded = self.bounded(rows, &finite)?;
+            for (r, ok) in residuals.iter_mut().zip(bounded) {
+                if !ok {
+                    *r = None;
+                }
+            }
+        }
+        Ok(residuals)
     }
 }
 
@@ -166,7 +232,43 @@ pub fn fit_task(
     evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<(Engine, Outcome)> {
     let mut engine = Engine::new(plan, Space::from(&task.space), seed, stops)?;
-    let mut objective = ModelObjective::new(evaluator, task.problem());
+    let mut objective = ModelObjective::for_task(evaluator, task);
     let outcome = engine.run(&mut objective, &mut [], None, None)?;
     Ok((engine, outcome))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::cpu::CpuEvaluator;
+    use crate::optim::cases::{Case, CaseSpec, matrix};
+
+    #[test]
+    fn a_task_objective_rejects_unbounded_loops_on_the_free_run_only() {
+        let spec = CaseSpec {
+            samples: 2000,
+            ..matrix(Family::Classic, 1, 5)[0]
+        };
+        let case = Case::generate(spec);
+        let task = case.task();
+        let mut unbounded = case.truth.clone();
+        // β + γ < 0: the loop grows without bound.
+        unbounded[3] = -unbounded[2] - 0.05;
+        let rows: Vec<f64> = case.truth.iter().chain(&unbounded).copied().collect();
+        let mut cpu = CpuEvaluator::new();
+        let mut objective = ModelObjective::for_task(&mut cpu, &task);
+        let free = objective.costs(&rows, Measure::FreeRun).unwrap();
+        assert!(free[0].is_finite() && free[1] == f32::INFINITY, "{free:?}");
+        let residuals = objective.residuals(&rows, Measure::FreeRun).unwrap();
+        assert!(residuals[0].is_some() && residuals[1].is_none());
+        let ahead = Measure::Ahead { horizon: 10 };
+        let checked = objective.costs(&rows, ahead).unwrap();
+        // The plain objective scores what it simulates; the check only
+        // touches the free run.
+        let mut cpu = CpuEvaluator::new();
+        let mut plain = ModelObjective::new(&mut cpu, task.problem());
+        let bits = |c: Vec<f32>| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(plain.costs(&rows, ahead).unwrap()), bits(checked));
+        assert_eq!(plain.costs(&rows, Measure::FreeRun).unwrap()[0], free[0]);
+    }
 }
