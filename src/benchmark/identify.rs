@@ -11,23 +11,22 @@
 //!    benchmark pipeline (band-limited upsampling, Newmark, `decimate`), with
 //!    ν freed (ν ≥ 1).
 //!
-//! The population stage is the project's differential evolution
-//! ([`crate::optim::de`]) in ask/tell form, scoring each generation in one
+//! The population stage runs on the fitting engine ([`crate::optim::engine`])
+//! with the project's differential evolution, scoring each generation in one
 //! batch through [`BatchScorer`]. (The project's `eval::Evaluator` is keyed
 //! to the muscle families and their 750 Hz experiments; this family scores on
 //! an upsampled input with a stride, so it has its own batch path: the `f32`
 //! twin on rayon or the shader on wgpu.)
 
 use nalgebra::DVector;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use super::boucwen::{Params, sse_f32};
 use super::{FS, Record, UPSAMPLE, resample};
-use crate::optim::de::{De, DeSettings};
+use crate::model::Measure;
+use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
 use crate::optim::lm::{self, LmError, LmSettings};
-use crate::optim::{Bounds, Optimizer, argmin};
+use crate::optim::{AlgoSettings, Algorithm, MIN_POPULATION};
 
 /// Scores a population of canonical `f32` vectors (row-major `N × 7`).
 pub trait BatchScorer {
@@ -310,48 +309,61 @@ pub fn search_box(rec: &Record, period: usize) -> anyhow::Result<([f64; 6], [f64
     ))
 }
 
-/// The population stage: the project's differential evolution
-/// ([`crate::optim::de::De`], jDE-adapted current-to-pbest/1/bin) asked and
-/// told generation by generation, every generation scored in one batch.
-/// Returns the best vector, its SSE and the number of evaluations.
+/// The population stage's cost, as the fitting engine sees it: rows of
+/// search coordinates ([`search_to_params`]) scored by a [`BatchScorer`].
+struct SearchObjective<'a> {
+    scorer: &'a mut dyn BatchScorer,
+}
+
+impl Objective for SearchObjective<'_> {
+    fn describe(&self) -> String {
+        self.scorer.describe()
+    }
+
+    /// One measure only: the SSE on the [`SearchTrace`].
+    fn costs(&mut self, rows: &[f64], _: Measure) -> anyhow::Result<Vec<f32>> {
+        let params: Vec<f32> = rows
+            .chunks(SEARCH_NAMES.len())
+            .flat_map(|x| search_to_params(x).to_vec().map(|v| v as f32))
+            .collect();
+        self.scorer.scores(&params)
+    }
+}
+
+/// The population stage: the fitting engine's population search with the
+/// project's differential evolution ([`crate::optim::de::De`], jDE-adapted
+/// current-to-pbest/1/bin), every generation scored in one batch. (The
+/// refinement is no engine polish: it fits other coordinates, ν freed, with
+/// the exact `f64` pipeline rather than the scorer.) Returns the best
+/// vector, its SSE and the number of evaluations.
 fn population_search(
     s: &IdentifySettings,
     lower: &[f64; 6],
     upper: &[f64; 6],
     scorer: &mut dyn BatchScorer,
 ) -> anyhow::Result<(Params, f64, usize)> {
-    let bounds = Bounds {
-        lower: lower.to_vec(),
-        upper: upper.to_vec(),
-        names: SEARCH_NAMES.iter().map(|n| n.to_string()).collect(),
-    };
-    let mut de = De::new(DeSettings::default(), bounds, s.population.max(4));
-    let mut rng = ChaCha8Rng::seed_from_u64(s.seed);
-    let mut best: Option<(f32, Vec<f64>)> = None;
-    let mut evaluations = 0;
-    for _ in 0..=s.generations {
-        let rows = de.ask(&mut rng);
-        let params: Vec<f32> = rows
-            .chunks(6)
-            .flat_map(|x| search_to_params(x).to_vec().map(|v| v as f32))
-            .collect();
-        let costs: Vec<f32> = scorer
-            .scores(&params)?
-            .into_iter()
-            .map(|v| if v.is_nan() { f32::INFINITY } else { v })
-            .collect();
-        evaluations += costs.len();
-        if let Some(i) = argmin(&costs)
-            && best.as_ref().is_none_or(|(b, _)| costs[i] < *b)
-        {
-            best = Some((costs[i], rows[i * 6..(i + 1) * 6].to_vec()));
-        }
-        de.tell(&costs);
-    }
-    let Some((sse, x)) = best else {
-        anyhow::bail!("the population search found no candidate whose simulation stays bounded");
-    };
-    Ok((search_to_params(&x), sse as f64, evaluations))
+    let space = Space::new(
+        lower.to_vec(),
+        upper.to_vec(),
+        SEARCH_NAMES.iter().map(|n| n.to_string()).collect(),
+    );
+    let plan = Plan::search(
+        Algorithm::De,
+        AlgoSettings::default(),
+        s.population.max(MIN_POPULATION),
+        s.generations.max(1),
+    );
+    let mut engine = Engine::new(plan, space, s.seed, StopRules::default())?;
+    let outcome = engine.run(&mut SearchObjective { scorer }, &mut [], None, None)?;
+    anyhow::ensure!(
+        !outcome.params.is_empty(),
+        "the population search found no candidate whose simulation stays bounded"
+    );
+    Ok((
+        search_to_params(&outcome.params),
+        outcome.sse,
+        outcome.evaluations as usize,
+    ))
 }
 
 /// Names of the population stage's coordinates (see [`search_to_params`]).

@@ -9,7 +9,9 @@ use serde::{Deserialize, Serialize};
 use super::closed_loop::{Episode, run_episode};
 use super::limits::ValveLimits;
 use super::pi::{Pi, PiGains};
-use crate::optim::{AlgoSettings, Algorithm, AnyOptimizer, Bounds, Optimizer};
+use crate::model::Measure;
+use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
+use crate::optim::{AlgoSettings, Algorithm, Bounds, MIN_POPULATION};
 use crate::twin::{Rig, TwinConfig};
 
 /// The episodes a gain vector is scored on.
@@ -104,7 +106,7 @@ pub struct Tuned {
     /// Gain vectors scored.
     pub evaluations: usize,
     pub seconds: f64,
-    /// Best cost after each generation.
+    /// Best cost after each generation (as the engine ranks it, in `f32`).
     pub best_per_generation: Vec<f64>,
 }
 
@@ -137,9 +139,30 @@ pub fn gains_on_edges(gains: &PiGains) -> Vec<String> {
         .collect()
 }
 
-/// Tunes the PID gains with one of the project's optimizers (ask/tell):
-/// every generation's population is scored on all `episodes` in parallel,
-/// the best gains ever seen are returned. Deterministic for a seed.
+/// The closed-loop cost of gain vectors, as the fitting engine sees it.
+struct GainObjective<'a> {
+    episodes: &'a TuningEpisodes,
+    config: &'a TwinConfig,
+}
+
+impl Objective for GainObjective<'_> {
+    fn describe(&self) -> String {
+        "closed-loop episodes on the rig twin".into()
+    }
+
+    /// One measure only: the mean RMS error of [`pi_costs`].
+    fn costs(&mut self, rows: &[f64], _: Measure) -> anyhow::Result<Vec<f32>> {
+        Ok(pi_costs(rows, self.episodes, self.config)
+            .into_iter()
+            .map(|c| c as f32)
+            .collect())
+    }
+}
+
+/// Tunes the PID gains on the fitting engine: a population search with
+/// `algo`'s default settings (the global stage alone: the cost is no sum of
+/// squares to polish), every generation scored on all `episodes` in
+/// parallel. Deterministic for a seed.
 pub fn tune_pi(
     algo: &str,
     pop: usize,
@@ -148,50 +171,41 @@ pub fn tune_pi(
     episodes: &TuningEpisodes,
     config: &TwinConfig,
 ) -> anyhow::Result<Tuned> {
-    use rand::SeedableRng;
     let algorithm: Algorithm = algo
         .parse()
         .map_err(|e: String| anyhow::anyhow!("--algo: {e}"))?;
     anyhow::ensure!(
-        pop >= 4 && gens >= 1,
-        "tuning needs --pop ≥ 4 and --gens ≥ 1"
+        pop >= MIN_POPULATION && gens >= 1,
+        "tuning needs --pop ≥ {MIN_POPULATION} and --gens ≥ 1"
     );
     let start = std::time::Instant::now();
-    let mut opt = AnyOptimizer::new(
-        algorithm,
-        &AlgoSettings::default(),
-        gain_bounds(),
-        pop,
-        gens,
+    let bounds = gain_bounds();
+    let space = Space::new(bounds.lower, bounds.upper, bounds.names);
+    let plan = Plan::search(algorithm, AlgoSettings::default(), pop, gens);
+    let mut engine = Engine::new(plan, space, seed, StopRules::default())?;
+    let mut objective = GainObjective { episodes, config };
+    let outcome = engine.run(&mut objective, &mut [], None, None)?;
+    anyhow::ensure!(
+        !outcome.params.is_empty(),
+        "tuning scored no candidate with a finite cost"
     );
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let mut best: Option<(Vec<f64>, f64)> = None;
-    let mut evaluations = 0;
-    let mut history = Vec::with_capacity(gens);
-    for _ in 0..gens {
-        let population = opt.ask(&mut rng);
-        let costs = pi_costs(&population, episodes, config);
-        evaluations += costs.len();
-        for (row, &c) in population.chunks(3).zip(&costs) {
-            if best.as_ref().is_none_or(|(_, b)| c < *b) {
-                best = Some((row.to_vec(), c));
-            }
-        }
-        history.push(best.as_ref().map_or(f64::INFINITY, |b| b.1));
-        let costs32: Vec<f32> = costs.iter().map(|&c| c as f32).collect();
-        opt.tell(&costs32);
-    }
-    let (g, cost) = best.ok_or_else(|| anyhow::anyhow!("tuning scored no candidate"))?;
+    let gains = PiGains {
+        kp: outcome.params[0],
+        ki: outcome.params[1],
+        kd: outcome.params[2],
+    };
     Ok(Tuned {
-        gains: PiGains {
-            kp: g[0],
-            ki: g[1],
-            kd: g[2],
-        },
-        cost,
+        gains,
+        // In f64, as the episodes compute it (the engine ranks in f32).
+        cost: pi_cost(gains, episodes, config),
         baseline_cost: pi_cost(PiGains::default(), episodes, config),
-        evaluations,
+        evaluations: outcome.evaluations as usize,
         seconds: start.elapsed().as_secs_f64(),
-        best_per_generation: history,
+        best_per_generation: engine
+            .history
+            .records
+            .iter()
+            .map(|r| r.best_sse.unwrap_or(f64::INFINITY))
+            .collect(),
     })
 }
