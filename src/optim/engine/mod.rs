@@ -226,6 +226,19 @@ struct Scored {
     cost: f64,
 }
 
+/// Replaces `slot` by the lowest finite of `costs` (rows of `d` canonical
+/// parameters) when it is lower than the slot's.
+fn keep_lowest(slot: &mut Option<Scored>, canonical: &[f64], costs: &[f32], d: usize) {
+    if let Some(i) = argmin(costs)
+        && slot.as_ref().is_none_or(|b| (costs[i] as f64) < b.cost)
+    {
+        *slot = Some(Scored {
+            params: canonical[i * d..(i + 1) * d].to_vec(),
+            cost: costs[i] as f64,
+        });
+    }
+}
+
 /// A fit in progress (serialisable: a checkpoint is this value as JSON).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Engine {
@@ -526,18 +539,7 @@ impl Engine {
 
     /// Keeps the lowest of `costs` as the best free-run candidate.
     fn offer_best(&mut self, canonical: &[f64], costs: &[f32]) {
-        let d = self.space.dim();
-        if let Some(i) = argmin(costs)
-            && self
-                .best
-                .as_ref()
-                .is_none_or(|b| (costs[i] as f64) < b.cost)
-        {
-            self.best = Some(Scored {
-                params: canonical[i * d..(i + 1) * d].to_vec(),
-                cost: costs[i] as f64,
-            });
-        }
+        keep_lowest(&mut self.best, canonical, costs, self.space.dim());
     }
 
     /// The islands of a population stage: the global stage's start from
@@ -698,17 +700,7 @@ impl Engine {
         } else {
             scored[0].clone()
         };
-        if let Some(i) = argmin(&costs)
-            && self
-                .stage_best
-                .as_ref()
-                .is_none_or(|b| (costs[i] as f64) < b.cost)
-        {
-            self.stage_best = Some(Scored {
-                params: canonical[i * d..(i + 1) * d].to_vec(),
-                cost: costs[i] as f64,
-            });
-        }
+        keep_lowest(&mut self.stage_best, &canonical, &costs, d);
         self.stage_steps += 1;
         self.record(stage, measure, Some(&costs));
         let length = match stage {
@@ -919,17 +911,7 @@ impl Engine {
             // same arithmetic.
             let rows = self.space.project(&space.embed(&x));
             let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
-            if costs[0].is_finite()
-                && self
-                    .stage_best
-                    .as_ref()
-                    .is_none_or(|b| (costs[0] as f64) < b.cost)
-            {
-                self.stage_best = Some(Scored {
-                    params: canonical.clone(),
-                    cost: costs[0] as f64,
-                });
-            }
+            keep_lowest(&mut self.stage_best, &canonical, &costs, canonical.len());
             self.offer_best(&canonical, &costs);
             self.stage_steps += 1;
             self.record(Stage::Polish, Measure::FreeRun, None);
