@@ -15,7 +15,8 @@
 use serde::Serialize;
 
 use super::effects::{Augmented, Effect};
-use super::select::{Data, polish_held};
+use super::fitting::polish_held;
+use super::select::Data;
 
 /// `χ²` with one degree of freedom, 95 % quantile.
 const CHI2_1_95: f64 = 3.841;
@@ -42,7 +43,7 @@ pub fn size_interval(
     model: &Augmented,
     theta: &[f64],
     effect: Effect,
-) -> SizeInterval {
+) -> anyhow::Result<SizeInterval> {
     let at = model.offset_of(effect).expect("effect in model") + effect.primary();
     let (_, lo, hi) = data.space(model);
     let sse0 = data.est_sse(model, theta);
@@ -53,10 +54,10 @@ pub fn size_interval(
     let profile = |v: f64, start: &[f64]| polish_held(data, model, start, (at, v), (&lo, &hi));
     let value = theta[at];
     let first_step = 0.05 * value.abs().max(1e-2 * (hi[at] - lo[at]));
-    let bound = |edge: f64| -> (f64, bool) {
+    let bound = |edge: f64| -> anyhow::Result<(f64, bool)> {
         let dir = (edge - value).signum();
         if dir == 0.0 {
-            return (edge, true);
+            return Ok((edge, true));
         }
         // Out from the estimate in doubling steps until the profile leaves
         // the limit (each node started from the one before: the rest of the
@@ -66,24 +67,24 @@ pub fn size_interval(
         loop {
             let v = value + dir * step;
             if (v - edge) * dir >= 0.0 {
-                let (_, sse) = profile(edge, &start);
+                let (_, sse) = profile(edge, &start)?;
                 if sse <= limit {
-                    return (edge, true);
+                    return Ok((edge, true));
                 }
-                return (bisect(inside, edge, &start, &profile, limit), false);
+                return Ok((bisect(inside, edge, &start, &profile, limit)?, false));
             }
-            let (p, sse) = profile(v, &start);
+            let (p, sse) = profile(v, &start)?;
             if sse > limit {
-                return (bisect(inside, v, &start, &profile, limit), false);
+                return Ok((bisect(inside, v, &start, &profile, limit)?, false));
             }
             inside = v;
             start = p;
             step *= 2.0;
         }
     };
-    let (lo_v, lo_at_edge) = bound(lo[at]);
-    let (hi_v, hi_at_edge) = bound(hi[at]);
-    SizeInterval {
+    let (lo_v, lo_at_edge) = bound(lo[at])?;
+    let (hi_v, hi_at_edge) = bound(hi[at])?;
+    Ok(SizeInterval {
         effect,
         param: model.param_names()[at].clone(),
         value,
@@ -91,7 +92,7 @@ pub fn size_interval(
         hi: hi_v,
         lo_at_edge,
         hi_at_edge,
-    }
+    })
 }
 
 /// The crossing of the profile with `limit` between `inside` (within it) and
@@ -100,13 +101,13 @@ fn bisect(
     mut inside: f64,
     mut outside: f64,
     start: &[f64],
-    profile: &impl Fn(f64, &[f64]) -> (Vec<f64>, f64),
+    profile: &impl Fn(f64, &[f64]) -> anyhow::Result<(Vec<f64>, f64)>,
     limit: f64,
-) -> f64 {
+) -> anyhow::Result<f64> {
     let mut start = start.to_vec();
     for _ in 0..6 {
         let mid = 0.5 * (inside + outside);
-        let (p, sse) = profile(mid, &start);
+        let (p, sse) = profile(mid, &start)?;
         if sse <= limit {
             inside = mid;
             start = p;
@@ -114,14 +115,14 @@ fn bisect(
             outside = mid;
         }
     }
-    0.5 * (inside + outside)
+    Ok(0.5 * (inside + outside))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::data::Trace;
-    use crate::diagnose::select::polish;
+    use crate::diagnose::fitting::polish;
     use crate::model::Family;
     use crate::model::presets::thesis_params;
     use crate::model::simulate;
@@ -155,7 +156,7 @@ mod tests {
             .map(|(v, (l, h))| v.clamp(*l, *h))
             .collect();
         let sse = clean.est_sse(&base, &start);
-        let (mut truth, _) = polish(&clean, &base, start, sse, (&lo, &hi));
+        let (mut truth, _) = polish(&clean, &base, start, sse, (&lo, &hi)).unwrap();
         truth.push(eps);
         let model = base.with(Effect::Asymmetry);
         let theta: Vec<f32> = truth.iter().map(|&v| v as f32).collect();
@@ -169,7 +170,7 @@ mod tests {
         let data = Data::new(&[Trace::uniform("stair", 0.1, p, y)]).expect("valid stair");
         let (_, lo, hi) = data.space(&model);
         let sse = data.est_sse(&model, &truth);
-        let (fit, _) = polish(&data, &model, truth, sse, (&lo, &hi));
+        let (fit, _) = polish(&data, &model, truth, sse, (&lo, &hi)).unwrap();
         (data, model, fit)
     }
 
@@ -177,7 +178,7 @@ mod tests {
     fn the_interval_holds_the_truth_and_widens_with_the_noise() {
         let eps = 0.1;
         let (data, model, fit) = asymmetric_stair(eps, 0.05);
-        let quiet = size_interval(&data, &model, &fit, Effect::Asymmetry);
+        let quiet = size_interval(&data, &model, &fit, Effect::Asymmetry).unwrap();
         assert!(quiet.lo <= eps && eps <= quiet.hi, "{quiet:?}");
         assert!(
             quiet.lo < quiet.value && quiet.value < quiet.hi,
@@ -187,7 +188,7 @@ mod tests {
         // Four times the noise: the interval scales with σ for a parameter
         // the data pin (the profile is near-parabolic at this size).
         let (data, model, fit) = asymmetric_stair(eps, 0.2);
-        let loud = size_interval(&data, &model, &fit, Effect::Asymmetry);
+        let loud = size_interval(&data, &model, &fit, Effect::Asymmetry).unwrap();
         assert!(loud.lo <= eps && eps <= loud.hi, "{loud:?}");
         let ratio = (loud.hi - loud.lo) / (quiet.hi - quiet.lo);
         assert!(

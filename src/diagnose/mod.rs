@@ -1,10 +1,11 @@
 //! Diagnosis of the sim-to-real gap: where the fitted model misses
 //! ([`where`](where/index.html)), which unmodelled effect of the catalogue explains it
-//! ([`effects`], [`select`]), and how far the model gets with it, relative to
+//! ([`effects`], [`select`], fitted by [`fitting`]), and how far the model gets with it, relative to
 //! a noise-floor estimate. [`selftest`] checks the whole chain on data with a
 //! withheld effect; [`report`] turns a [`Diagnosis`] into text, JSON and figures.
 
 pub mod effects;
+pub mod fitting;
 pub mod interval;
 pub mod report;
 pub mod select;
@@ -111,7 +112,7 @@ pub fn diagnose(
         .collect();
     let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
     let floor = r#where::noise_floor(&refs);
-    let selection = select::select(&data, family, effects, settings, floor);
+    let selection = select::select(&data, family, effects, settings, floor)?;
     anyhow::ensure!(
         selection.baseline.best.val_rmse.is_finite(),
         "the {family} baseline fitted on the estimation half diverges on the validation half \
@@ -164,7 +165,7 @@ pub fn diagnose(
                 e,
             )
         })
-        .collect();
+        .collect::<anyhow::Result<_>>()?;
 
     let ia = family.linear_indices()[0];
     let residuals = data.val_residuals(base_model, &base.params);

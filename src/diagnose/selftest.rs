@@ -11,7 +11,8 @@ use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
 use super::effects::{Augmented, Context, Effect};
-use super::select::{Data, Settings, Start, fit_seeds};
+use super::fitting::{Start, fit_seeds};
+use super::select::{Data, Settings};
 use super::{Diagnosis, diagnose};
 use crate::data::Trace;
 use crate::model::Family;
@@ -33,7 +34,7 @@ impl Nominal {
     pub fn fit(trace: &Trace, family: Family, settings: &Settings) -> anyhow::Result<Nominal> {
         let data = Data::new(std::slice::from_ref(trace))?;
         let model = Augmented::new(family, Vec::new(), 1);
-        let fit = fit_seeds(&data, &model, Start::Scratch, settings, 0);
+        let fit = fit_seeds(&data, &model, Start::Scratch, settings, 0)?;
         let pred = data.predict(&model, &fit.best.params);
         let ym = data.whole[0].y_mean;
         let output = pred[0].iter().map(|&v| v as f64 + ym).collect();
