@@ -9,11 +9,12 @@
 //!
 //! The models are discrete-time, so the time base must be uniform:
 //! every step within [`UNIFORM_TOLERANCE`] of the median step. Recorded data
-//! that is not (a logger that dropped samples, a paused recording) is
-//! rejected unless the user asks to resample it ([`Gaps::Resample`]) or to
-//! split it at the gaps ([`Gaps::Split`]).
+//! that is not (a logger that dropped samples, a paused recording, a logger
+//! glitch that sends the clock back) is rejected unless the user asks to
+//! resample it ([`Gaps::Resample`], gaps only) or to split it at the gaps
+//! and backward jumps ([`Gaps::Split`]).
 
-use std::fmt::Write as _;
+use std::fmt::{self, Write as _};
 use std::path::{Path, PathBuf};
 
 use super::{Trace, write_atomic};
@@ -41,9 +42,11 @@ pub enum Gaps {
     /// Interpolate every column linearly onto `t0 + k·dt`, `dt` in seconds.
     /// A gap becomes a straight line between its two ends.
     Resample(f64),
-    /// Cut the file at every step longer than [`GAP_FACTOR`] median steps,
-    /// one trace per segment. Each segment must itself be uniform; segments
-    /// shorter than [`MIN_SEGMENT`] samples are dropped.
+    /// Cut the file at every step longer than [`GAP_FACTOR`] median steps
+    /// and at every step where time runs back or stands still, one trace
+    /// per segment, each cut reported in a note. Each segment must itself
+    /// be uniform; segments shorter than [`MIN_SEGMENT`] samples are
+    /// dropped, with a note.
     Split,
 }
 
@@ -135,8 +138,8 @@ pub enum DataError {
         value: String,
     },
     #[error(
-        "{}: line {line}, column \"{column}\": time {value} does not increase (previous row: {previous})",
-        path.display()
+        "{}: line {line}, column \"{column}\": time {value} does not increase (previous row: {previous}){}; {hint}",
+        path.display(), runs_back(*value, *previous)
     )]
     NotIncreasing {
         path: PathBuf,
@@ -144,6 +147,8 @@ pub enum DataError {
         column: String,
         value: f64,
         previous: f64,
+        /// What the user can do, which depends on the flags given.
+        hint: &'static str,
     },
     #[error(
         "{}: line {line}, column \"{column}\": non-uniform time base: step {step} s, expected {expected} s (±{}%); pass --resample DT to interpolate onto a uniform step, or --split-gaps to cut the file at gaps",
@@ -162,20 +167,37 @@ pub enum DataError {
     BadTrace { path: PathBuf, message: String },
 }
 
+/// ": it runs back by D s" when `value` is below `previous`: a 1 s jump back
+/// in a 1 kHz file reads more clearly than two nearby times.
+fn runs_back(value: f64, previous: f64) -> String {
+    if value < previous {
+        format!(": it runs back by {} s", rounded(previous - value))
+    } else {
+        String::new()
+    }
+}
+
+/// `x` to 6 significant digits, so that a difference of two times prints as
+/// 1.02 rather than 1.0199999999999996.
+fn rounded(x: f64) -> f64 {
+    format!("{x:.5e}").parse().unwrap_or(x)
+}
+
 fn quoted(names: &[String]) -> String {
     let q: Vec<String> = names.iter().map(|n| format!("\"{n}\"")).collect();
     q.join(", ")
 }
 
 /// Reads the traces in `path`: one, or with [`Gaps::Split`] one per segment.
-/// Notes (dropped segments, ignored text columns) are discarded; use
+/// Notes (cuts, dropped segments, ignored text columns) are discarded; use
 /// [`read_traces_with_notes`] to show them.
 pub fn read_traces(path: &Path, opts: &ReadOptions) -> Result<Vec<Trace>, DataError> {
     read_traces_with_notes(path, opts).map(|(traces, _)| traces)
 }
 
-/// As [`read_traces`], and also the notes a user should see: segments
-/// dropped as too short, text columns left out.
+/// As [`read_traces`], and also the notes a user should see: where
+/// [`Gaps::Split`] cut the file and why, segments dropped as too short, text
+/// columns left out.
 pub fn read_traces_with_notes(
     path: &Path,
     opts: &ReadOptions,
@@ -303,15 +325,27 @@ fn parse(
         }
     }
 
-    for k in 1..t.len() {
-        if t[k] <= t[k - 1] {
-            return Err(DataError::NotIncreasing {
-                path: p(),
-                line: rows[k].line,
-                column: opts.time.clone(),
-                value: t[k],
-                previous: t[k - 1],
-            });
+    // Time that runs back or stands still is never interpolated over or
+    // reordered: only `--split-gaps` accepts it, by cutting the file there.
+    let hint = match opts.gaps {
+        Gaps::Split => None,
+        Gaps::Reject => Some("pass --split-gaps to cut the file there"),
+        Gaps::Resample(_) => Some(
+            "--resample cannot interpolate across it; pass --split-gaps instead to cut the file there",
+        ),
+    };
+    if let Some(hint) = hint {
+        for k in 1..t.len() {
+            if t[k] <= t[k - 1] {
+                return Err(DataError::NotIncreasing {
+                    path: p(),
+                    line: rows[k].line,
+                    column: opts.time.clone(),
+                    value: t[k],
+                    previous: t[k - 1],
+                    hint,
+                });
+            }
         }
     }
 
@@ -377,9 +411,14 @@ fn numeric_column(
     }
 }
 
-/// The median time step: robust to a few gaps.
+/// The median time step: robust to a few gaps. Only forward steps count,
+/// so that with [`Gaps::Split`] repeated times cannot drag it to zero.
 fn median_step(t: &[f64]) -> f64 {
-    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    let mut steps: Vec<f64> = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .filter(|&s| s > 0.0)
+        .collect();
     if steps.is_empty() {
         return f64::NAN;
     }
@@ -462,7 +501,33 @@ fn resample(path: &Path, trace: &Trace, dt: f64) -> Result<Trace, DataError> {
     })
 }
 
-/// Cuts the trace at every gap (a step over [`GAP_FACTOR`] median steps).
+/// Why [`Gaps::Split`] cut between two rows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Jump {
+    /// A step over [`GAP_FACTOR`] median steps (s): samples are missing.
+    Gap(f64),
+    /// Time went back by this many seconds (a logger glitch, a clock reset).
+    Back(f64),
+    /// The same time twice.
+    Stall,
+}
+
+impl fmt::Display for Jump {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Jump::Gap(step) => write!(f, "gap of {} s", rounded(step)),
+            Jump::Back(d) => write!(f, "time runs back by {} s", rounded(d)),
+            Jump::Stall => write!(f, "time does not advance"),
+        }
+    }
+}
+
+/// Cuts the trace at every gap (a step over [`GAP_FACTOR`] median steps) and
+/// at every step where time runs back or stands still, so that each piece
+/// has an increasing time base of its own. Pieces are never merged or
+/// reordered: after a jump back they may overlap earlier times, and each
+/// stays a separate experiment. Every cut and every dropped piece is a note
+/// naming its line, so the user can find it in the file.
 fn split(
     path: &Path,
     column: &str,
@@ -472,19 +537,50 @@ fn split(
 ) -> Result<Vec<Trace>, DataError> {
     let dt = median_step(&trace.t);
     let mut bounds = vec![0];
+    let mut jumps = Vec::new();
     for k in 1..trace.len() {
-        if trace.t[k] - trace.t[k - 1] > GAP_FACTOR * dt {
-            bounds.push(k);
-        }
+        let step = trace.t[k] - trace.t[k - 1];
+        let jump = if step < 0.0 {
+            Jump::Back(-step)
+        } else if step == 0.0 {
+            Jump::Stall
+        } else if step > GAP_FACTOR * dt {
+            Jump::Gap(step)
+        } else {
+            continue;
+        };
+        bounds.push(k);
+        jumps.push(jump);
     }
     bounds.push(trace.len());
     let segments = bounds.len() - 1;
     let mut out = Vec::new();
-    let mut dropped = 0;
     for (s, w) in bounds.windows(2).enumerate() {
         let (a, b) = (w[0], w[1]);
+        if s > 0 {
+            notes.push(format!(
+                "{}: line {}: --split-gaps cut here: {} (from {} s on line {} to {} s); piece [{}] starts here",
+                path.display(),
+                lines[a],
+                jumps[s - 1],
+                trace.t[a - 1],
+                lines[a - 1],
+                trace.t[a],
+                s + 1
+            ));
+        }
         if b - a < MIN_SEGMENT {
-            dropped += 1;
+            let at = if b - a == 1 {
+                format!("line {}", lines[a])
+            } else {
+                format!("lines {} to {}", lines[a], lines[b - 1])
+            };
+            notes.push(format!(
+                "{}: {at}: --split-gaps dropped piece [{}]: {} samples, fewer than {MIN_SEGMENT}",
+                path.display(),
+                s + 1,
+                b - a
+            ));
             continue;
         }
         check_uniform(path, column, &trace.t[a..b], &lines[a..b], dt)?;
@@ -493,12 +589,6 @@ fn split(
             seg.source = format!("{}[{}]", trace.source, s + 1);
         }
         out.push(seg);
-    }
-    if dropped > 0 {
-        notes.push(format!(
-            "{}: {dropped} of {segments} segments shorter than {MIN_SEGMENT} samples dropped",
-            path.display()
-        ));
     }
     if out.is_empty() {
         return Err(DataError::Unusable {
@@ -763,7 +853,11 @@ mod tests {
         assert_eq!((traces[1].t[0], traces[1].input[0]), (200.0, 35.0));
         assert_eq!(
             notes,
-            ["x.csv: 1 of 3 segments shorter than 20 samples dropped"]
+            [
+                "x.csv: line 32: --split-gaps cut here: gap of 71 s (from 29 s on line 31 to 100 s); piece [2] starts here",
+                "x.csv: lines 32 to 36: --split-gaps dropped piece [2]: 5 samples, fewer than 20",
+                "x.csv: line 37: --split-gaps cut here: gap of 96 s (from 104 s on line 36 to 200 s); piece [3] starts here",
+            ]
         );
         // No gap: one trace under the file's own name.
         let one = read(&uniform_text(30, 0.01), Gaps::Split).unwrap().0;
@@ -786,6 +880,102 @@ mod tests {
             short.contains("all 1 segments are shorter than 20"),
             "{short}"
         );
+    }
+
+    /// 100 Hz from t = 10 s after a comment line (row k on line k + 3); at
+    /// row `back` a logger glitch sends the clock back by 1.02 s, and it
+    /// ticks on from there.
+    fn runs_back_text(n: usize, back: usize) -> String {
+        let mut s = String::from("# logger\nt,pressure,displacement\n");
+        for k in 0..n {
+            let t = 10.0 + k as f64 * 0.01 - if k >= back { 1.03 } else { 0.0 };
+            s += &format!("{t:.2},{k},0\n");
+        }
+        s
+    }
+
+    #[test]
+    fn split_cuts_where_time_runs_back_and_says_where() {
+        let text = runs_back_text(150, 100);
+        let (traces, notes) = read(&text, Gaps::Split).unwrap();
+        assert_eq!(
+            (traces.len(), traces[0].len(), traces[1].len()),
+            (2, 100, 50)
+        );
+        assert_eq!(
+            (traces[0].source.as_str(), traces[1].source.as_str()),
+            ("x.csv[1]", "x.csv[2]")
+        );
+        // Each piece keeps its own rows in file order; the second overlaps
+        // the first in time and is neither merged with it nor sorted.
+        assert_eq!((traces[0].t[0], traces[0].t[99]), (10.0, 10.99));
+        assert_eq!((traces[1].t[0], traces[1].input[0]), (9.97, 100.0));
+        for tr in &traces {
+            assert!((tr.dt() - 0.01).abs() < 1e-9, "{}: {}", tr.source, tr.dt());
+        }
+        assert_eq!(
+            notes,
+            [
+                "x.csv: line 103: --split-gaps cut here: time runs back by 1.02 s (from 10.99 s on line 102 to 9.97 s); piece [2] starts here"
+            ]
+        );
+
+        // Without --split-gaps: the same line, what happened, and the way out.
+        let msg = err(&text);
+        assert_eq!(
+            msg,
+            "x.csv: line 103, column \"t\": time 9.97 does not increase (previous row: 10.99): it runs back by 1.02 s; pass --split-gaps to cut the file there"
+        );
+        // --resample does not interpolate over it either.
+        let msg = read(&text, Gaps::Resample(0.01)).unwrap_err().to_string();
+        assert!(
+            msg.starts_with("x.csv: line 103, column \"t\": time 9.97 does not increase"),
+            "{msg}"
+        );
+        assert!(
+            msg.contains("--resample cannot interpolate across it; pass --split-gaps instead"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn split_drops_a_short_piece_before_a_jump_back_with_a_note() {
+        // The clock runs back after 5 rows: those 5 are too few to keep.
+        let (traces, notes) = read(&runs_back_text(40, 5), Gaps::Split).unwrap();
+        assert_eq!(traces.len(), 1);
+        assert_eq!(
+            (traces[0].source.as_str(), traces[0].len()),
+            ("x.csv[2]", 35)
+        );
+        assert_eq!(traces[0].t[0], 9.02);
+        assert_eq!(
+            notes,
+            [
+                "x.csv: lines 3 to 7: --split-gaps dropped piece [1]: 5 samples, fewer than 20",
+                "x.csv: line 8: --split-gaps cut here: time runs back by 1.02 s (from 10.04 s on line 7 to 9.02 s); piece [2] starts here",
+            ]
+        );
+    }
+
+    #[test]
+    fn split_cuts_where_time_stands_still() {
+        // Row 30 repeats the time of row 29 (a logger writing one sample twice).
+        let mut text = uniform_text(30, 1.0);
+        for k in 29..60 {
+            text += &format!("{k},{k},0\n");
+        }
+        let (traces, notes) = read(&text, Gaps::Split).unwrap();
+        assert_eq!((traces[0].len(), traces[1].len()), (30, 31));
+        assert_eq!(traces[1].t[0], 29.0);
+        assert_eq!(
+            notes,
+            [
+                "x.csv: line 32: --split-gaps cut here: time does not advance (from 29 s on line 31 to 29 s); piece [2] starts here"
+            ]
+        );
+        assert!(err(&text).ends_with(
+            "line 32, column \"t\": time 29 does not increase (previous row: 29); pass --split-gaps to cut the file there"
+        ));
     }
 
     #[test]
