@@ -151,7 +151,7 @@ pub enum DataError {
         hint: &'static str,
     },
     #[error(
-        "{}: line {line}, column \"{column}\": non-uniform time base: step {step} s, expected {expected} s (±{}%); pass --resample DT to interpolate onto a uniform step, or --split-gaps to cut the file at gaps",
+        "{}: line {line}, column \"{column}\": non-uniform time base: step {step} s, expected {expected} s (±{}%); {hint}",
         path.display(), UNIFORM_TOLERANCE * 100.0
     )]
     NonUniform {
@@ -160,6 +160,8 @@ pub enum DataError {
         column: String,
         step: f64,
         expected: f64,
+        /// What the user can do, which depends on the flags given.
+        hint: &'static str,
     },
     #[error("{}: {message}", path.display())]
     Unusable { path: PathBuf, message: String },
@@ -361,7 +363,15 @@ fn parse(
     let lines: Vec<u64> = rows.iter().map(|r| r.line).collect();
     let traces = match opts.gaps {
         Gaps::Reject => {
-            check_uniform(path, &opts.time, &trace.t, &lines, median_step(&trace.t))?;
+            let hint = "pass --resample DT to interpolate onto a uniform step, or --split-gaps to cut the file at gaps";
+            check_uniform(
+                path,
+                &opts.time,
+                &trace.t,
+                &lines,
+                median_step(&trace.t),
+                hint,
+            )?;
             vec![trace]
         }
         Gaps::Resample(dt) => vec![resample(path, &trace, dt)?],
@@ -433,6 +443,7 @@ fn check_uniform(
     t: &[f64],
     lines: &[u64],
     expected: f64,
+    hint: &'static str,
 ) -> Result<(), DataError> {
     for k in 1..t.len() {
         let step = t[k] - t[k - 1];
@@ -443,6 +454,7 @@ fn check_uniform(
                 column: column.into(),
                 step,
                 expected,
+                hint,
             });
         }
     }
@@ -583,7 +595,9 @@ fn split(
             ));
             continue;
         }
-        check_uniform(path, column, &trace.t[a..b], &lines[a..b], dt)?;
+        // Suggesting --split-gaps here would send the user round in a circle.
+        let hint = "--split-gaps cuts only where a step is over 1.5 median steps or time runs back or stands still; pass --resample DT instead to interpolate onto a uniform step";
+        check_uniform(path, column, &trace.t[a..b], &lines[a..b], dt, hint)?;
         let mut seg = trace.slice(a..b);
         if segments > 1 {
             seg.source = format!("{}[{}]", trace.source, s + 1);
@@ -866,11 +880,11 @@ mod tests {
         let mut bad = uniform_text(30, 1.0);
         bad += "29.7,0,0\n";
         let bad = bad.replace("29,29,58\n", "29.3,29,58\n");
+        let msg = read(&bad, Gaps::Split).unwrap_err().to_string();
         assert!(
-            read(&bad, Gaps::Split)
-                .unwrap_err()
-                .to_string()
-                .contains("non-uniform")
+            msg.starts_with("x.csv: line 31, column \"t\": non-uniform time base: step 1.3")
+                && msg.ends_with("--split-gaps cuts only where a step is over 1.5 median steps or time runs back or stands still; pass --resample DT instead to interpolate onto a uniform step"),
+            "{msg}"
         );
         // Nothing long enough: an error.
         let short = read(&uniform_text(5, 1.0), Gaps::Split)
