@@ -1,9 +1,11 @@
 //! CSV reading through the public library API, on files in a temporary
 //! folder: every malformed file gives an error naming file, line and column
 //! (never a panic); resampling and splitting behave as documented; real
-//! jittery recordings from ../shared load when present.
+//! jittery recordings from ../shared load when present. One test runs
+//! `mckibben identify` on a file whose clock runs back, as a user would.
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
 use mckibben::data::Trace;
 use mckibben::data::csv::{
@@ -57,7 +59,11 @@ fn malformed_files_name_file_line_and_column() {
         (
             "backwards.csv",
             format!("{head}0,0,0\n0.01,0,0\n0.02,0,0\n0.015,0,0\n"),
-            vec!["line 6, column \"t\": time 0.015 does not increase (previous row: 0.02)"],
+            vec![
+                "line 6, column \"t\": time 0.015 does not increase (previous row: 0.02)",
+                "it runs back by 0.005 s",
+                "pass --split-gaps",
+            ],
         ),
         (
             "gap.csv",
@@ -126,13 +132,114 @@ fn split_gives_one_trace_per_segment() {
     let dir = tempfile::tempdir().unwrap();
     let path = gappy(dir.path());
     let (traces, notes) = read_traces_with_notes(&path, &opts(Gaps::Split)).unwrap();
-    assert!(notes.is_empty(), "{notes:?}");
+    assert_eq!(
+        notes,
+        [format!(
+            "{}: line 32: --split-gaps cut here: gap of 0.21 s (from 0.29 s on line 31 to 0.5 s); piece [2] starts here",
+            path.display()
+        )]
+    );
     assert_eq!(traces.len(), 2);
     assert_eq!(traces[0].source, format!("{}[1]", path.display()));
     assert_eq!(traces[1].source, format!("{}[2]", path.display()));
     assert_eq!((traces[0].len(), traces[1].len()), (30, 30));
     assert_eq!(traces[1].t[0], 0.5);
     assert_eq!(traces[1].column("valve_in").unwrap()[0], -0.5);
+}
+
+/// A logger's file: a comment line, then 100 Hz from t = 50 s (row k on line
+/// k + 3) with a first-order response to a stair input; at row 200 a glitch
+/// sends the clock back by 1.02 s and it ticks on from there for 150 rows.
+fn clock_runs_back(dir: &Path) -> PathBuf {
+    let mut text = String::from("# logger v2\nt,pressure,displacement\n");
+    let mut x = 0.0;
+    for k in 0..350 {
+        let t = 50.0 + k as f64 * 0.01 - if k >= 200 { 1.03 } else { 0.0 };
+        let p = [0.1, 0.4, 0.2, 0.5, 0.3][(k / 25) % 5];
+        text += &format!("{t:.2},{p},{x:.6}\n");
+        x = 0.9 * x + 2.0 * p;
+    }
+    file(dir, "glitch.csv", &text)
+}
+
+#[test]
+fn split_cuts_where_the_clock_runs_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = clock_runs_back(dir.path());
+    let (traces, notes) = read_traces_with_notes(&path, &opts(Gaps::Split)).unwrap();
+    assert_eq!(traces.len(), 2);
+    assert_eq!((traces[0].len(), traces[1].len()), (200, 150));
+    assert_eq!((traces[0].t[0], traces[1].t[0]), (50.0, 50.97));
+    assert_eq!(traces[1].source, format!("{}[2]", path.display()));
+    assert_eq!(
+        notes,
+        [format!(
+            "{}: line 203: --split-gaps cut here: time runs back by 1.02 s (from 51.99 s on line 202 to 50.97 s); piece [2] starts here",
+            path.display()
+        )]
+    );
+
+    // Without --split-gaps, and with --resample: an error at that line.
+    for gaps in [Gaps::Reject, Gaps::Resample(0.01)] {
+        let msg = read_traces(&path, &opts(gaps)).unwrap_err().to_string();
+        assert!(
+            msg.starts_with(&format!(
+                "{}: line 203, column \"t\": time 50.97 does not increase (previous row: 51.99): it runs back by 1.02 s; ",
+                path.display()
+            )),
+            "{gaps:?}: {msg}"
+        );
+        assert!(msg.contains("--split-gaps"), "{gaps:?}: {msg}");
+    }
+}
+
+#[test]
+fn identify_with_split_gaps_uses_both_sides_of_a_clock_glitch() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = clock_runs_back(dir.path());
+    let run = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_mckibben"))
+            .arg("identify")
+            .arg(&path)
+            .args(extra)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--split-gaps", "--json"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "mckibben: note: {}: line 203: --split-gaps cut here: time runs back by 1.02 s",
+            path.display()
+        )),
+        "{stderr}"
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let pieces = json.as_array().expect("one identification per piece");
+    let sources: Vec<&str> = pieces
+        .iter()
+        .map(|p| p["source"].as_str().unwrap())
+        .collect();
+    let want = [1, 2].map(|k| format!("{}[{k}]", path.display()));
+    assert_eq!(sources, want);
+    assert_eq!(
+        pieces
+            .iter()
+            .map(|p| p["samples"].as_u64().unwrap())
+            .collect::<Vec<_>>(),
+        [200, 150]
+    );
+
+    let out = run(&[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("line 203, column \"t\"") && stderr.contains("pass --split-gaps"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("panicked"), "{stderr}");
 }
 
 #[test]
