@@ -24,19 +24,24 @@ pub struct ColumnArgs {
     /// shipped data).
     #[arg(long, value_name = "COL", default_value = "displacement")]
     pub output: String,
-    /// Column holding the time in seconds. It must increase on every row.
+    /// Column holding the time in seconds. It must increase on every row
+    /// (with --split-gaps the file is cut where it does not).
     #[arg(long, value_name = "COL", default_value = "t")]
     pub time: String,
     /// The models are discrete-time and need a uniform time base (every step
     /// within 10% of the median step); a file that is not is an error naming
     /// the first bad row. With this flag every column is instead linearly
     /// interpolated onto t0 + k·DT (DT in seconds, e.g. 0.01 for 100 Hz);
-    /// gaps become straight lines.
+    /// gaps become straight lines. Time that runs back or repeats is still
+    /// an error (never interpolated over): see --split-gaps.
     #[arg(long, value_name = "DT", value_parser = positive_seconds, allow_negative_numbers = true)]
     pub resample: Option<f64>,
     /// Instead of failing on a non-uniform time base, cut the file at every
-    /// gap (a step over 1.5 median steps) and use each piece as its own
-    /// experiment. Pieces under 20 samples are dropped with a note.
+    /// gap (a step over 1.5 median steps) and at every backward jump of the
+    /// time column (time that runs back or repeats, e.g. a logger glitch),
+    /// and use each piece as its own experiment (FILE[1], FILE[2], ...).
+    /// Each cut is noted on stderr with its line and times; pieces under 20
+    /// samples are dropped with a note. Pieces are never merged or sorted.
     #[arg(long, conflicts_with = "resample")]
     pub split_gaps: bool,
 }

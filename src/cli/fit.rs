@@ -223,7 +223,7 @@ pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
     anyhow::ensure!(!traces.is_empty(), "the data file holds no samples");
     if traces.len() > 1 {
         eprintln!(
-            "mckibben: note: {} pieces after splitting at gaps; fitting the longest",
+            "mckibben: note: {} pieces after --split-gaps; fitting the longest",
             traces.len()
         );
     }
