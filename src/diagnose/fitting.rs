@@ -13,8 +13,9 @@ use rand_distr::{Distribution, Normal, Uniform};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::data::Data;
 use super::effects::Augmented;
-use super::select::{Data, Settings};
+use super::select::Settings;
 use crate::model::{Family, Measure};
 use crate::optim::engine::{Engine, Objective, Plan, Polish, Space, StopRules};
 use crate::optim::{AlgoSettings, Algorithm};

@@ -14,9 +14,9 @@
 
 use serde::Serialize;
 
+use super::data::Data;
 use super::effects::{Augmented, Effect};
 use super::fitting::polish_held;
-use super::select::Data;
 
 /// `χ²` with one degree of freedom, 95 % quantile.
 const CHI2_1_95: f64 = 3.841;

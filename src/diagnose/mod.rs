@@ -1,9 +1,12 @@
 //! Diagnosis of the sim-to-real gap: where the fitted model misses
 //! ([`where`](where/index.html)), which unmodelled effect of the catalogue explains it
-//! ([`effects`], [`select`], fitted by [`fitting`]), and how far the model gets with it, relative to
-//! a noise-floor estimate. [`selftest`] checks the whole chain on data with a
+//! ([`effects`], chosen by [`select`] under [`accept`]'s rule, each model
+//! fitted by [`fitting`] on the halves of [`data`]), and how far the model
+//! gets with it, relative to a noise-floor estimate. [`selftest`] checks the whole chain on data with a
 //! withheld effect; [`report`] turns a [`Diagnosis`] into text, JSON and figures.
 
+pub mod accept;
+pub mod data;
 pub mod effects;
 pub mod fitting;
 pub mod interval;
@@ -14,8 +17,9 @@ pub mod r#where;
 
 use serde::Serialize;
 
+pub use data::Data;
 pub use effects::{Augmented, Effect};
-pub use select::{Data, Selection, Settings};
+pub use select::{Selection, Settings};
 
 use crate::data::Trace;
 use crate::ident::fit_percent;
@@ -149,7 +153,7 @@ pub fn diagnose(
                 effects: c.model.effects.clone(),
                 val_rmse: fit.val_rmse,
                 val_fit_percent: fit_of(&data, &c.model, &fit.params),
-                gap_closed: select::gap_closed(base.val_rmse, fit.val_rmse, floor),
+                gap_closed: accept::gap_closed(base.val_rmse, fit.val_rmse, floor),
             });
         }
     }

@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{Value, json};
 
+use super::accept::{Candidate, gap_closed};
 use super::effects::Effect;
-use super::select::{Candidate, gap_closed};
 use super::r#where::{Band, Share};
 use super::{Diagnosis, Step};
 use crate::report::{Figure, Panel, Series};

@@ -10,9 +10,10 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
+use super::data::Data;
 use super::effects::{Augmented, Context, Effect};
 use super::fitting::{Start, fit_seeds};
-use super::select::{Data, Settings};
+use super::select::Settings;
 use super::{Diagnosis, diagnose};
 use crate::data::Trace;
 use crate::model::Family;

@@ -1,0 +1,292 @@
+//! Whether an effect earns its place: the acceptance rule of the forward
+//! selection ([`select`](super::select)).
+//!
+//! **Acceptance rule.** Let `R0` be the validation RMSE of the current model
+//! and `R1` the candidate's (each fit keeps the seed with the lowest
+//! estimation SSE among those that stay finite on validation); `s0`, `s1` the
+//! seed-to-seed spreads of the validation RMSE (`s0` from refitting the
+//! current model with the candidates' seeds and budget, so refitting alone is
+//! not mistaken for an effect; spread = 1.4826·MAD over the seeds that reach
+//! the best estimation fit, a robust standard deviation of fits the
+//! estimation data cannot tell apart); `N` the validation samples, `k` the
+//! candidate's extra parameters and `F` the noise-floor estimate. A candidate
+//! is accepted only if all four hold:
+//! 1. `R0 − R1 > 3·√(s0² + s1²)`: the improvement is clearly beyond seed-to-seed spread;
+//! 2. `ΔBIC = N·ln(R1²/R0²) + k·ln N < −10`: it pays for its parameters
+//!    ("very strong" evidence on the Kass–Raftery scale);
+//! 3. `(R0 − R1)/R0 ≥ 2 %`: an improvement a user would notice;
+//! 4. `R0 > 1.1·F`: there is a gap left to explain (the floor estimate is
+//!    good to about 10 %).
+//!
+//! Of the candidates that pass, the one with the lowest validation RMSE is
+//! accepted; the next round starts from it.
+
+use serde::Serialize;
+
+use super::effects::{Augmented, Effect};
+use super::fitting::SeededFit;
+use super::select::Settings;
+
+/// Share of the baseline's gap above the noise floor that `rmse` closes, in
+/// residual energy: `(R_b² − R²) / (R_b² − F²)`; 0 when the baseline is
+/// already at the floor.
+pub fn gap_closed(baseline_rmse: f64, rmse: f64, floor: f64) -> f64 {
+    let gap = baseline_rmse.powi(2) - floor.powi(2);
+    if gap.is_nan() || gap <= 0.0 || !rmse.is_finite() {
+        return 0.0;
+    }
+    (baseline_rmse.powi(2) - rmse.powi(2)) / gap
+}
+
+/// One candidate of one round.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Candidate {
+    pub effect: Effect,
+    /// The model the candidate is (current effects plus this one).
+    pub model: Augmented,
+    pub fit: SeededFit,
+    /// The candidate's own parameters, by name.
+    pub effect_params: Vec<(String, f64)>,
+    /// ΔBIC against the current model on the validation part.
+    pub delta_bic: f64,
+    /// Relative improvement of the validation RMSE against the current model.
+    pub relative: f64,
+    /// Improvement in units of the combined seed spread.
+    pub spread_ratio: f64,
+    pub passes: bool,
+    /// Why it passes or fails, in words.
+    pub reason: String,
+}
+
+/// What a candidate is judged against: the current model's validation RMSE
+/// `r0` and seed spread `s0`, and the noise-floor estimate.
+#[derive(Debug, Clone, Copy)]
+pub struct Yardstick {
+    pub r0: f64,
+    pub s0: f64,
+    pub floor: f64,
+}
+
+/// Judges every candidate fit against the yardstick, best
+/// validation RMSE first.
+pub fn judge_all(
+    fits: &[(Effect, Augmented, SeededFit)],
+    yardstick: Yardstick,
+    n: f64,
+    settings: &Settings,
+) -> Vec<Candidate> {
+    let mut candidates: Vec<Candidate> = fits
+        .iter()
+        .map(|(e, m, f)| Candidate::judge(*e, m.clone(), f.clone(), yardstick, n, settings))
+        .collect();
+    candidates.sort_by(|a, b| a.fit.best.val_rmse.total_cmp(&b.fit.best.val_rmse));
+    candidates
+}
+
+impl Candidate {
+    /// Scores `fit` of `model` (the current model plus `effect`) against the
+    /// current model's validation RMSE `r0` and seed spread `s0` by the
+    /// acceptance rule; `n` validation samples.
+    pub fn judge(
+        effect: Effect,
+        model: Augmented,
+        fit: SeededFit,
+        Yardstick { r0, s0, floor }: Yardstick,
+        n: f64,
+        settings: &Settings,
+    ) -> Candidate {
+        let datasets = model.datasets;
+        let r1 = fit.best.val_rmse;
+        let k = effect.dim(datasets) as f64;
+        let (delta_bic, relative) = if r1.is_finite() {
+            (n * (r1 * r1 / (r0 * r0)).ln() + k * n.ln(), (r0 - r1) / r0)
+        } else {
+            (f64::INFINITY, f64::NEG_INFINITY)
+        };
+        let spread = (s0 * s0 + fit.spread * fit.spread).sqrt();
+        let spread_ratio = if spread > 0.0 {
+            (r0 - r1) / spread
+        } else if r1 < r0 {
+            f64::INFINITY
+        } else {
+            0.0
+        };
+        let rule1 = r0 - r1 > settings.spread_factor * spread;
+        let rule2 = delta_bic < settings.bic_threshold;
+        let rule3 = relative >= settings.min_relative;
+        let rule4 = r0 > settings.floor_margin * floor;
+        let passes = rule1 && rule2 && rule3 && rule4 && r1.is_finite();
+        let mut why = Vec::new();
+        if !rule1 {
+            why.push(format!(
+                "improvement {:.3} is within {}× the seed spread {:.3}",
+                r0 - r1,
+                settings.spread_factor,
+                spread
+            ));
+        }
+        if !rule2 {
+            why.push(format!(
+                "ΔBIC {delta_bic:.1} does not pay for {k} parameter(s)"
+            ));
+        }
+        if !rule3 {
+            why.push(format!(
+                "relative improvement {:.1} % is below {:.1} %",
+                100.0 * relative,
+                100.0 * settings.min_relative
+            ));
+        }
+        if !rule4 {
+            why.push(format!(
+                "the current model ({r0:.3}) is within {:.0} % of the noise floor {floor:.3}",
+                100.0 * (settings.floor_margin - 1.0)
+            ));
+        }
+        let reason = if !r1.is_finite() {
+            "the best fit on the estimation part diverges on the validation part".to_string()
+        } else if passes {
+            format!(
+                "improves validation RMSE by {:.1} % ({:.1}× the seed spread, ΔBIC {:.0})",
+                100.0 * relative,
+                spread_ratio,
+                delta_bic
+            )
+        } else {
+            why.join("; ")
+        };
+        let at = model.offset_of(effect).expect("effect in model");
+        let effect_params = effect
+            .params(datasets)
+            .into_iter()
+            .zip(&fit.best.params[at..])
+            .map(|(p, &v)| (p.name, v))
+            .collect();
+        Candidate {
+            effect,
+            model,
+            fit,
+            effect_params,
+            delta_bic,
+            relative,
+            spread_ratio,
+            passes,
+            reason,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::diagnose::fitting::Fit;
+    use crate::model::Family;
+
+    /// A candidate with a delay reaching validation RMSE `r1` with seed
+    /// spread `s1`, judged against `r0`, `s0` and the floor with `n`
+    /// validation samples under the default rule.
+    fn judged(r1: f64, s1: f64, (r0, s0, floor): (f64, f64, f64), n: f64) -> Candidate {
+        let model = Augmented::new(Family::Classic, vec![Effect::Delay], 1);
+        let fit = SeededFit {
+            best: Fit {
+                params: vec![0.5; model.dim()],
+                est_sse: 1.0,
+                val_rmse: r1,
+            },
+            seed_val_rmse: vec![r1],
+            spread: s1,
+        };
+        let yardstick = Yardstick { r0, s0, floor };
+        Candidate::judge(
+            Effect::Delay,
+            model,
+            fit,
+            yardstick,
+            n,
+            &Settings::default(),
+        )
+    }
+
+    #[test]
+    fn a_clear_cheap_noticeable_gain_above_the_floor_passes() {
+        let c = judged(0.8, 0.01, (1.0, 0.01, 0.1), 2000.0);
+        assert!(c.passes, "{}", c.reason);
+        let bic = 2000.0 * (0.64f64).ln() + 2000f64.ln();
+        assert!((c.delta_bic - bic).abs() < 1e-9, "{}", c.delta_bic);
+        assert!((c.relative - 0.2).abs() < 1e-12);
+        assert!((c.spread_ratio - 0.2 / 2e-4f64.sqrt()).abs() < 1e-9);
+        assert_eq!(c.effect_params, vec![("d".to_string(), 0.5)]);
+    }
+
+    #[test]
+    fn each_rule_alone_can_refuse_and_says_why() {
+        // 1: a gain within three seed spreads.
+        let c = judged(0.8, 0.1, (1.0, 0.1, 0.1), 2000.0);
+        assert!(
+            !c.passes && c.reason.contains("seed spread"),
+            "{}",
+            c.reason
+        );
+        assert!(!c.reason.contains("ΔBIC") && !c.reason.contains("relative"));
+        // 2: too few samples to pay for a parameter (ΔBIC = +1.8).
+        let c = judged(0.97, 0.001, (1.0, 0.001, 0.1), 20.0);
+        assert!(!c.passes && c.reason.starts_with("ΔBIC"), "{}", c.reason);
+        // 3: a real but unnoticeable gain of 1 %.
+        let c = judged(0.99, 1e-4, (1.0, 1e-4, 0.1), 1e5);
+        assert!(
+            !c.passes && c.reason.starts_with("relative improvement 1.0 %"),
+            "{}",
+            c.reason
+        );
+        // 4: the current model is already within 10 % of the noise floor.
+        let c = judged(0.8, 0.01, (1.0, 0.01, 0.95), 2000.0);
+        assert!(
+            !c.passes && c.reason.contains("of the noise floor"),
+            "{}",
+            c.reason
+        );
+    }
+
+    #[test]
+    fn a_candidate_that_diverges_on_validation_never_passes() {
+        let c = judged(f64::INFINITY, 0.0, (1.0, 0.0, 0.1), 2000.0);
+        assert!(!c.passes);
+        assert!(c.reason.contains("diverges"), "{}", c.reason);
+    }
+
+    #[test]
+    fn candidates_are_ranked_by_validation_rmse() {
+        let model = Augmented::new(Family::Classic, vec![Effect::Delay], 1);
+        let fit = |r: f64| SeededFit {
+            best: Fit {
+                params: vec![0.5; model.dim()],
+                est_sse: 1.0,
+                val_rmse: r,
+            },
+            seed_val_rmse: vec![r],
+            spread: 0.0,
+        };
+        let fits = vec![
+            (Effect::Delay, model.clone(), fit(0.9)),
+            (Effect::Delay, model.clone(), fit(f64::INFINITY)),
+            (Effect::Delay, model.clone(), fit(0.7)),
+        ];
+        let yardstick = Yardstick {
+            r0: 1.0,
+            s0: 0.0,
+            floor: 0.1,
+        };
+        let ranked = judge_all(&fits, yardstick, 2000.0, &Settings::default());
+        let order: Vec<f64> = ranked.iter().map(|c| c.fit.best.val_rmse).collect();
+        assert_eq!(order, vec![0.7, 0.9, f64::INFINITY]);
+    }
+
+    #[test]
+    fn the_gap_closed_is_a_share_of_the_energy_above_the_floor() {
+        assert_eq!(gap_closed(2.0, 1.0, 1.0), 1.0);
+        assert!((gap_closed(2.0, 1.5, 1.0) - (4.0 - 2.25) / 3.0).abs() < 1e-12);
+        // At the floor there is no gap to close; a diverged model closes none.
+        assert_eq!(gap_closed(1.0, 0.5, 1.0), 0.0);
+        assert_eq!(gap_closed(2.0, f64::INFINITY, 1.0), 0.0);
+    }
+}
