@@ -1,5 +1,9 @@
 //! The Bouc-Wen benchmark family: integration, identification on generated
 //! data, the official files when present, and the shader's bit-exactness.
+//! The last two need ../shared and lavapipe: they skip locally without them
+//! and fail under `CI=true` (`common`).
+
+mod common;
 
 use mckibben::benchmark::boucwen::{Params, simulate_f64, sse_f32};
 use mckibben::benchmark::generator::{GeneratorSettings, generate};
@@ -129,14 +133,9 @@ fn identifies_the_published_system_from_generated_data() {
 
 #[test]
 fn pipeline_reproduces_the_official_test_data() {
-    let dir = default_data_dir();
-    if !dir.is_dir() {
-        eprintln!(
-            "SKIPPED: Bouc-Wen benchmark files not found at {} (see ../shared/data/external/README.md)",
-            dir.display()
-        );
+    let Some(dir) = common::require_path(default_data_dir()) else {
         return;
-    }
+    };
     let data = BenchmarkData::load(&dir).unwrap();
     let truth = Params::benchmark();
     // With the published parameters our upsampling, Newmark and decimation
@@ -157,25 +156,22 @@ fn pipeline_reproduces_the_official_test_data() {
     assert_eq!(t.simulate(&truth).unwrap().len(), data.train.y.len());
 }
 
+/// The lavapipe oscillator, or `None` after the shared skip-or-fail rule.
+#[track_caller]
 fn gpu_or_skip() -> Option<GpuOscillator> {
-    None.or_else(|| {
-        let g = generate(&Params::benchmark(), &small_settings()).unwrap();
-        let settings = IdentifySettings {
-            search_samples: 300,
-            ..IdentifySettings::default()
-        };
-        let tr = SearchTrace::new(&g.record, 1024, &settings);
-        match GpuOscillator::new(AdapterChoice::Lavapipe, &tr.u, &tr.y, tr.stride, tr.h) {
-            Ok(gpu) => Some(gpu),
-            Err(e) => {
-                if std::env::var("CI").is_ok_and(|v| v == "true") {
-                    panic!("CI=true but no lavapipe adapter: {e}");
-                }
-                eprintln!("SKIPPED (no Vulkan CPU adapter): {e}");
-                None
-            }
-        }
-    })
+    let g = generate(&Params::benchmark(), &small_settings()).unwrap();
+    let settings = IdentifySettings {
+        search_samples: 300,
+        ..IdentifySettings::default()
+    };
+    let tr = SearchTrace::new(&g.record, 1024, &settings);
+    common::require_gpu(GpuOscillator::new(
+        AdapterChoice::Lavapipe,
+        &tr.u,
+        &tr.y,
+        tr.stride,
+        tr.h,
+    ))
 }
 
 #[test]

@@ -1,8 +1,11 @@
 //! CSV reading through the public library API, on files in a temporary
 //! folder: every malformed file gives an error naming file, line and column
 //! (never a panic); resampling and splitting behave as documented; real
-//! jittery recordings from ../shared load when present. One test runs
-//! `mckibben identify` on a file whose clock runs back, as a user would.
+//! jittery recordings from ../shared load (skipped locally without them,
+//! a failure under `CI=true`). One test runs `mckibben identify` on a file
+//! whose clock runs back, as a user would.
+
+mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -263,15 +266,9 @@ fn written_traces_read_back_identically() {
 
 #[test]
 fn cavatappi_recordings_load_split_or_resampled() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/external/cavatappi_muscle/sample1_100g.csv");
-    if !path.is_file() {
-        eprintln!(
-            "SKIPPED: {} is absent (external data lives beside the repository)",
-            path.display()
-        );
+    let Some(path) = common::require_external("cavatappi_muscle/sample1_100g.csv") else {
         return;
-    }
+    };
     let columns = ReadOptions {
         time: "t_s".into(),
         input: "pressure_psi".into(),

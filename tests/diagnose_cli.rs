@@ -1,6 +1,8 @@
 //! `mckibben diagnose` as a user runs it: the JSON contract on a small trace,
 //! and clear errors for data it cannot diagnose.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -136,15 +138,13 @@ fn undiagnosable_data_gives_clear_errors() {
 
 /// The Cavatappi muscle (psi, mm, 1 kHz in blocks with gaps) read through
 /// `--resample`: the diagnosis runs and finds the end stop at 100 g
-/// (docs/DIAGNOSIS.md). Skipped when the external data are absent.
+/// (docs/DIAGNOSIS.md). Skipped locally when the external data are
+/// absent; fails then under `CI=true` (`common::require_external`).
 #[test]
 fn cavatappi_100g_is_diagnosed_after_resampling() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/external/cavatappi_muscle/sample1_100g.csv");
-    if !path.is_file() {
-        eprintln!("SKIP: {} is absent", path.display());
+    let Some(path) = common::require_external("cavatappi_muscle/sample1_100g.csv") else {
         return;
-    }
+    };
     let out = bin()
         .args([
             "diagnose",

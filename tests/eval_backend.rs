@@ -1,5 +1,7 @@
 //! `--backend` resolution: what `eval::open` returns for each choice.
 
+mod common;
+
 use mckibben::eval::{Backend, open};
 
 #[test]
@@ -35,10 +37,9 @@ fn gpu_backend_names_its_adapter_or_explains_why_not() {
                 msg.contains("no GPU adapter") && msg.contains("--backend cpu"),
                 "{msg}"
             );
-            assert!(
-                std::env::var("CI").as_deref() != Ok("true"),
-                "CI=true but no GPU adapter: {msg}"
-            );
+            // The explanation is right; the GPU half of the test still needs
+            // an adapter, so this skips locally and fails under CI=true.
+            common::skip_or_fail(&format!("no GPU adapter: {msg}"));
         }
     }
 }

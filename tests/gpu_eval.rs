@@ -3,7 +3,9 @@
 //! chunking, 2-D dispatch and several experiments in one dispatch.
 //!
 //! With no adapter these tests fail when `CI=true` (CI must run them) and
-//! otherwise print a loud SKIP message and return.
+//! otherwise print a loud SKIP message and return (`common::require_gpu`).
+
+mod common;
 
 use mckibben::data::csv::{ReadOptions, read_traces};
 use mckibben::eval::cpu::CpuEvaluator;
@@ -15,17 +17,10 @@ use mckibben::model::{Experiment, Family, Measure};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+/// The evaluator, or `None` after the shared skip-or-fail rule.
+#[track_caller]
 fn gpu(options: GpuOptions) -> Option<GpuEvaluator> {
-    match GpuEvaluator::open(options) {
-        Ok(g) => Some(g),
-        Err(e) if std::env::var("CI").as_deref() == Ok("true") => {
-            panic!("CI=true but no usable GPU adapter: {e:#}")
-        }
-        Err(e) => {
-            eprintln!("\n********\n*** SKIP: no GPU adapter, GPU test not run: {e:#}\n********\n");
-            None
-        }
-    }
+    common::require_gpu(GpuEvaluator::open(options))
 }
 
 fn cpu(problem: &Problem, pop: &[f64]) -> Scores {

@@ -1,17 +1,20 @@
 //! The wgpu smoke test: a tiny compute shader (`shaders/smoke.wgsl`) run on
 //! whatever adapter exists, proving the GPU stack (loader, driver, wgpu,
 //! naga) works. With no adapter it fails when `CI=true` and otherwise prints
-//! a loud SKIP message.
+//! a loud SKIP message (`common::require_gpu`).
+
+mod common;
 
 use mckibben::eval::gpu::{adapters, describe_adapter};
 
 #[test]
 fn a_compute_shader_runs_on_the_adapter() {
-    let Some(adapter) = adapters().into_iter().next() else {
-        if std::env::var("CI").as_deref() == Ok("true") {
-            panic!("CI=true but no Vulkan adapter: install mesa-vulkan-drivers and libvulkan1");
-        }
-        eprintln!("\n********\n*** SKIP: no GPU adapter, wgpu smoke test not run\n********\n");
+    let Some(adapter) = common::require_gpu(
+        adapters()
+            .into_iter()
+            .next()
+            .ok_or("none found (install mesa-vulkan-drivers and libvulkan1)"),
+    ) else {
         return;
     };
     eprintln!("adapter: {}", describe_adapter(&adapter.get_info()));

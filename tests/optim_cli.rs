@@ -2,6 +2,8 @@
 //! CSV: the documented JSON keys and files, checkpoint resume, and clear
 //! errors for bad flags and bad data.
 
+mod common;
+
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -291,24 +293,13 @@ fn compare_writes_markdown_and_json() {
 /// On the real Cavatappi muscle at 300 g (data nobody here produced) the
 /// estimation half's best classic model used to have β + γ < 0 and diverge
 /// on the validation half; `fit` now only writes models that stay bounded
-/// on the whole record's input. Skipped when the external data are absent.
+/// on the whole record's input. Skipped locally when the external data are
+/// absent; fails then under `CI=true` (`common::require_external`).
 #[test]
 fn fit_of_the_real_muscle_stays_bounded_on_validation() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/external/cavatappi_muscle/sample1_300g.csv");
-    if !path.is_file() {
-        assert_ne!(
-            std::env::var("CI").as_deref(),
-            Ok("true"),
-            "{} is absent under CI=true",
-            path.display()
-        );
-        eprintln!(
-            "SKIPPED: {} is absent (external data lives beside the repository)",
-            path.display()
-        );
+    let Some(path) = common::require_external("cavatappi_muscle/sample1_300g.csv") else {
         return;
-    }
+    };
     let dir = tempfile::tempdir().unwrap();
     let file = path.display().to_string();
     let out = mckibben(

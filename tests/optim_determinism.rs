@@ -3,6 +3,8 @@
 //! round trip of the whole engine) — for the whole staged fit: the global
 //! stage on the prediction error, the free-run stage and the polish.
 
+mod common;
+
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use mckibben::eval::{Evaluator, Problem, cpu::CpuEvaluator};
@@ -176,20 +178,12 @@ fn a_damaged_checkpoint_is_a_clear_error() {
 /// The whole staged fit scored on the GPU backend: bit-identical on
 /// lavapipe, which never fuses multiply-adds (docs/ARCHITECTURE.md); on a
 /// hardware GPU, which may, the final SSE agrees to 1e-3. Without a Vulkan
-/// adapter it skips with a note, and fails under `CI=true`.
+/// adapter it skips with a banner, and fails under `CI=true`.
 #[test]
 fn cpu_and_gpu_backends_give_the_same_staged_fit() {
     use mckibben::eval::gpu::GpuEvaluator;
-    let mut gpu = match GpuEvaluator::open(Default::default()) {
-        Ok(g) => g,
-        Err(e) => {
-            assert!(
-                std::env::var("CI").as_deref() != Ok("true"),
-                "CI=true but no GPU adapter: {e}"
-            );
-            eprintln!("skipped: no GPU adapter ({e})");
-            return;
-        }
+    let Some(mut gpu) = common::require_gpu(GpuEvaluator::open(Default::default())) else {
+        return;
     };
     let software = gpu.describe().contains("llvmpipe");
     for algo in [Algorithm::De, Algorithm::Mfa] {

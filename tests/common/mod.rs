@@ -1,0 +1,83 @@
+//! What the integration tests share: one rule for a test that needs
+//! something a checkout may lack — a GPU adapter, or the external data in
+//! `../shared` beside the repository.
+//!
+//! Run locally without it, such a test prints a loud SKIP banner to stderr
+//! and returns (it passes: a developer without a GPU or without the data can
+//! still run the suite). Under `CI=true` it fails instead: CI installs
+//! lavapipe (`.ci/run`) and clones `../shared` beside the repository, so a
+//! missing adapter or file there is a broken set-up that must not pass as a
+//! green test.
+//!
+//! Each test file includes this with `mod common;`.
+
+// Every test binary compiles its own copy of this module and uses only the
+// helpers it needs; the others would each warn as dead code.
+#![allow(dead_code)]
+
+use std::fmt::Display;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Whether the tests run under CI (`CI=true`), where nothing may be skipped.
+pub fn under_ci() -> bool {
+    std::env::var("CI").as_deref() == Ok("true")
+}
+
+/// A requirement of the calling test is missing (`reason` says which):
+/// panics under `CI=true`, otherwise prints a SKIP banner to stderr. The
+/// caller returns after it.
+#[track_caller]
+pub fn skip_or_fail(reason: &str) {
+    if under_ci() {
+        panic!("CI=true, so this test must run, but {reason}");
+    }
+    // Straight to the process's stderr: the test harness captures what
+    // `eprintln!` writes and shows it only for failing tests, which would
+    // hide the banner of a test that passes by skipping.
+    let _ = writeln!(
+        std::io::stderr().lock(),
+        "\n********\n*** SKIP: {reason}\n*** (the test returns without checking anything; \
+         under CI=true it fails)\n********\n"
+    );
+}
+
+/// The value of `opened` (a GPU evaluator, a device, an adapter: whatever
+/// needs an adapter), or `None` after [`skip_or_fail`] with its error.
+#[track_caller]
+pub fn require_gpu<T, E: Display>(opened: Result<T, E>) -> Option<T> {
+    match opened {
+        Ok(v) => Some(v),
+        Err(e) => {
+            skip_or_fail(&format!("no usable GPU adapter: {e:#}"));
+            None
+        }
+    }
+}
+
+/// The external data folder: `../shared/data/external` beside the
+/// repository (see its README.md there).
+pub fn external_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/external")
+}
+
+/// `path` when it exists, or `None` after [`skip_or_fail`].
+#[track_caller]
+pub fn require_path(path: PathBuf) -> Option<PathBuf> {
+    if path.exists() {
+        return Some(path);
+    }
+    skip_or_fail(&format!(
+        "{} is absent (the external data live in ../shared beside the repository; \
+         see ../shared/data/external/README.md)",
+        path.display()
+    ));
+    None
+}
+
+/// The file or folder `relative` under [`external_dir`], or `None` after
+/// [`skip_or_fail`].
+#[track_caller]
+pub fn require_external(relative: &str) -> Option<PathBuf> {
+    require_path(external_dir().join(relative))
+}
