@@ -1,5 +1,5 @@
 //! The reference of appendix A.1.2: `r(t) = bias + amplitude·sin(ω·t)`
-//! (the appendix's code omits `t` inside `sin`; DESIGN.md errata).
+//! (the appendix's code omits `t` inside `sin`, an erratum of the thesis).
 
 use serde::{Deserialize, Serialize};
 

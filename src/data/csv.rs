@@ -1,4 +1,4 @@
-//! Reading and writing experiment CSV files (DESIGN.md §3).
+//! Reading and writing experiment CSV files (the format: README.md, "Data format").
 //!
 //! A file has one header row, optionally preceded by `#` comment lines; blank
 //! lines are skipped. One column is the time (s), one the model input and one
@@ -63,7 +63,8 @@ pub struct ReadOptions {
 }
 
 impl Default for ReadOptions {
-    /// The column names of DESIGN.md §3: `t`, `pressure`, `displacement`.
+    /// The default column names, those of the shipped data: `t`, `pressure`,
+    /// `displacement`.
     fn default() -> Self {
         ReadOptions {
             time: "t".into(),

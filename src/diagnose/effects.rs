@@ -1,4 +1,4 @@
-//! The effects catalogue (`DESIGN.md` §5): parametric additions to the
+//! The effects catalogue (docs/DIAGNOSIS.md): parametric additions to the
 //! nominal (baseline) model, in the units of the data.
 //!
 //! An [`Augmented`] model is a baseline [`Family`] plus a list of effects. Its
@@ -19,8 +19,8 @@ use crate::model::Experiment;
 use crate::model::Family;
 use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part};
 
-/// One unmodelled effect of the catalogue. The names are the ones `DESIGN.md`
-/// §5 fixes; flags, JSON and reports use them.
+/// One unmodelled effect of the catalogue. Flags, JSON and reports use these
+/// names, so they are part of the interface.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Effect {
@@ -62,7 +62,7 @@ pub struct EffectParam {
 }
 
 impl Effect {
-    /// The whole catalogue, in `DESIGN.md` order.
+    /// The whole catalogue, in the order reports list it.
     pub const ALL: [Effect; 9] = [
         Effect::Delay,
         Effect::Deadzone,

@@ -3,7 +3,8 @@
 //! polish, the size profile, and the statistics over seeds.
 //!
 //! Every search and every polish runs on the fitting engine
-//! ([`crate::optim::engine`]) over [`EffectObjective`]; what is the
+//! ([`crate::optim::engine`]) over one objective, the scalar effect
+//! simulator scored in parallel over the candidates; what is the
 //! diagnosis' own is where each search starts and what it minimises.
 
 use nalgebra::DVector;

@@ -1,5 +1,5 @@
 //! Diagnosis of the sim-to-real gap: where the fitted model misses
-//! ([`where`](where/index.html)), which unmodelled effect of the catalogue explains it
+//! ([`locate`]), which unmodelled effect of the catalogue explains it
 //! ([`effects`], chosen by [`select`] under [`accept`]'s rule, each model
 //! fitted by [`fitting`] on the halves of [`data`]), and how far the model
 //! gets with it, relative to a noise-floor estimate. [`selftest`] checks the whole chain on data with a
@@ -10,10 +10,10 @@ pub mod data;
 pub mod effects;
 pub mod fitting;
 pub mod interval;
+pub mod locate;
 pub mod report;
 pub mod select;
 pub mod selftest;
-pub mod r#where;
 
 use serde::Serialize;
 
@@ -43,7 +43,7 @@ pub struct Diagnosis {
     pub datasets: Vec<String>,
     pub noise_floor_rmse: f64,
     /// Where the baseline misses.
-    pub r#where: r#where::Where,
+    pub locate: locate::Where,
     pub selection: Selection,
     /// Baseline, then the model after each accepted effect.
     pub steps: Vec<Step>,
@@ -115,7 +115,7 @@ pub fn diagnose(
         .map(|(w, &s)| w.y[s..].iter().map(|&v| v as f64).collect())
         .collect();
     let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
-    let floor = r#where::noise_floor(&refs);
+    let floor = locate::noise_floor(&refs);
     let selection = select::select(&data, family, effects, settings, floor)?;
     anyhow::ensure!(
         selection.baseline.best.val_rmse.is_finite(),
@@ -173,11 +173,11 @@ pub fn diagnose(
 
     let ia = family.linear_indices()[0];
     let residuals = data.val_residuals(base_model, &base.params);
-    let segments: Vec<r#where::Segment> = traces
+    let segments: Vec<locate::Segment> = traces
         .iter()
         .zip(&data.val_start)
         .zip(residuals)
-        .map(|((t, &s), r)| r#where::Segment {
+        .map(|((t, &s), r)| locate::Segment {
             name: t.source.clone(),
             dt: t.dt(),
             input: t.input[s..].to_vec(),
@@ -185,7 +185,7 @@ pub fn diagnose(
         })
         .collect();
     let min_len = segments.iter().map(|s| s.residual.len()).min().unwrap_or(0);
-    let place = r#where::analyse(&segments, settle_samples(base.params[ia], min_len));
+    let place = locate::analyse(&segments, settle_samples(base.params[ia], min_len));
 
     let base_pred = data.predict(base_model, &base.params);
     let last_pred = data.predict(&selection.final_model, &selection.final_fit.params);
@@ -209,7 +209,7 @@ pub fn diagnose(
         family,
         datasets: traces.iter().map(|t| t.source.clone()).collect(),
         noise_floor_rmse: floor,
-        r#where: place,
+        locate: place,
         selection,
         steps,
         size_intervals,

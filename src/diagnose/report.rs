@@ -8,7 +8,7 @@ use serde_json::{Value, json};
 
 use super::accept::{Candidate, gap_closed};
 use super::effects::Effect;
-use super::r#where::{Band, Share};
+use super::locate::{Band, Share};
 use super::{Diagnosis, Step};
 use crate::report::{Figure, Panel, Series};
 
@@ -54,7 +54,7 @@ fn band_json(b: &Band) -> Value {
 pub fn to_json(d: &Diagnosis) -> Value {
     let sel = &d.selection;
     let base = d.baseline();
-    let w = &d.r#where;
+    let w = &d.locate;
     let floor = d.noise_floor_rmse;
     let candidates: Vec<Value> = candidate_list(d)
         .into_iter()
@@ -132,7 +132,7 @@ fn step_name(s: &Step) -> String {
 /// The readable report.
 pub fn to_text(d: &Diagnosis) -> String {
     let mut o = String::new();
-    let w = &d.r#where;
+    let w = &d.locate;
     let base = d.baseline();
     let _ = writeln!(
         o,
@@ -190,7 +190,7 @@ pub fn to_text(d: &Diagnosis) -> String {
             row(&mut o, &ds.name, &ds.share);
         }
     }
-    let test = |o: &mut String, name: &str, c: &super::r#where::Correlation| {
+    let test = |o: &mut String, name: &str, c: &super::locate::Correlation| {
         let _ = writeln!(
             o,
             "  {name}: {} ({} of {} lags outside ±{:.3}; peak {:.3} at lag {})",
@@ -351,7 +351,7 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> anyhow::Result<Vec<PathBuf>> 
     lp = lp.with(out_panel).with(res_panel);
     save("diagnose_loop.svg", lp)?;
 
-    let w = &d.r#where;
+    let w = &d.locate;
     let pair = |title: &str, xlabel: &str, x: Vec<f64>, shares: Vec<Share>| {
         Panel::new(title, xlabel, "share")
             .with(Series::line(

@@ -3,7 +3,7 @@
 //! Candidates are advanced [`LANES`] at a time, side by side, each lane in its
 //! own slot of plain `f32` arrays, so that the compiler turns the inner loop
 //! into SIMD instructions (a naive one-candidate loop runs about ten times
-//! slower, DESIGN.md §4), compiled for AVX-512 or AVX2 where the CPU has them. Every lane calls the very step functions of
+//! slower), compiled for AVX-512 or AVX2 where the CPU has them. Every lane calls the very step functions of
 //! [`crate::model::sim`] (the single source of truth), in the same order and
 //! without fused multiply-adds, so each lane's SSE is bit-identical to
 //! [`crate::model::sse`] for that candidate.
