@@ -152,7 +152,7 @@ impl Data {
             .then(|| DVector::from_vec(r))
     }
 
-    /// The prediction horizon of [`Start::Ahead`]: a third of the ARX time
+    /// The prediction horizon of [`Start::Ahead`](super::fitting::Start::Ahead): a third of the ARX time
     /// constant `1/(1 − a)` in samples, so that the output error cannot pile
     /// up through the slow pole, yet the prediction depends on the dynamics
     /// rather than on the last measurement alone (measured on the self-test

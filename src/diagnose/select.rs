@@ -28,7 +28,7 @@ pub struct Settings {
     pub generations: usize,
     /// From-scratch seeds of each first-round candidate, on top of its warm
     /// seeds (baseline population and generations, through the
-    /// multi-step-ahead predictor first; see [`Start::Ahead`](super::fitting::Start::Ahead)).
+    /// multi-step-ahead predictor first; see [`Start::Ahead`]).
     pub scratch_seeds: usize,
     /// At most this many effects are named.
     pub max_effects: usize,
