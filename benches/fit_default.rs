@@ -9,9 +9,7 @@ use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::Algorithm;
 use mckibben::optim::engine::StopRules;
-use mckibben::optim::engine::model::{
-    GENERATIONS, POPULATION, engine_settings, fit_task, staged_plan,
-};
+use mckibben::optim::engine::model::{GENERATIONS, POPULATION, fit_task, staged_plan};
 use mckibben::optim::task::Task;
 
 fn default_fit(c: &mut Criterion) {
@@ -25,8 +23,7 @@ fn default_fit(c: &mut Criterion) {
         b.iter(|| {
             let plan = staged_plan(
                 &task,
-                Algorithm::De,
-                engine_settings(POPULATION),
+                Algorithm::De.staged_settings(POPULATION),
                 POPULATION,
                 GENERATIONS,
             );

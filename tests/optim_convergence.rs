@@ -13,17 +13,14 @@ use mckibben::model::Family;
 use mckibben::optim::Algorithm;
 use mckibben::optim::cases::{Case, matrix};
 use mckibben::optim::engine::StopRules;
-use mckibben::optim::engine::model::{
-    GENERATIONS, POPULATION, engine_settings, fit_task, staged_plan,
-};
+use mckibben::optim::engine::model::{GENERATIONS, POPULATION, fit_task, staged_plan};
 
 /// The fit's validation RMSE over the truth's, with the default plan.
 fn ratio(case: &Case, algo: Algorithm) -> f64 {
     let task = case.task();
     let plan = staged_plan(
         &task,
-        algo,
-        engine_settings(POPULATION),
+        algo.staged_settings(POPULATION),
         POPULATION,
         GENERATIONS,
     );

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use mckibben::eval::{Evaluator, Problem, cpu::CpuEvaluator};
 use mckibben::model::Family;
-use mckibben::optim::engine::model::{ModelObjective, default_plan, engine_settings};
+use mckibben::optim::engine::model::{ModelObjective, default_plan};
 use mckibben::optim::engine::{
     Engine, Observer, Outcome, Plan, Space, Stage, StopReason, StopRules,
 };
@@ -26,14 +26,15 @@ fn setup() -> (Synthetic, Problem) {
 /// A small staged plan: 64 × 12 on the 6-step prediction, a free-run stage
 /// of 16 × 3, a polish of two starts.
 fn plan(algo: Algorithm) -> Plan {
-    let mut settings: AlgoSettings = engine_settings(64);
-    // Exercise the parallel all-pairs firefly move.
-    settings.mfa.max_attractors = None;
-    // The GA's non-uniform mutation depends on the generation counter,
-    // which the checkpoint must carry.
-    settings.ga.mutation = mckibben::optim::ga::Mutation::NonUniform;
     let mut plan = default_plan(algo, 64, 12, 6, 300);
-    plan.global.as_mut().unwrap().settings = settings;
+    match &mut plan.global.as_mut().unwrap().settings {
+        // Exercise the parallel all-pairs firefly move.
+        AlgoSettings::Mfa(mfa) => mfa.max_attractors = None,
+        // The GA's non-uniform mutation depends on the generation counter,
+        // which the checkpoint must carry.
+        AlgoSettings::Ga(ga) => ga.mutation = mckibben::optim::ga::Mutation::NonUniform,
+        _ => {}
+    }
     let polish = plan.polish.as_mut().unwrap();
     polish.starts = 2;
     polish.iterations = 4;

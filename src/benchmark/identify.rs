@@ -26,7 +26,7 @@ use super::{FS, Record, UPSAMPLE, resample};
 use crate::model::Measure;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
 use crate::optim::lm::{self, LmError, LmSettings};
-use crate::optim::{AlgoSettings, Algorithm, MIN_POPULATION};
+use crate::optim::{Algorithm, MIN_POPULATION};
 
 /// Scores a population of canonical `f32` vectors (row-major `N × 7`).
 pub trait BatchScorer {
@@ -348,8 +348,7 @@ fn population_search(
         SEARCH_NAMES.iter().map(|n| n.to_string()).collect(),
     );
     let plan = Plan::search(
-        Algorithm::De,
-        AlgoSettings::default(),
+        Algorithm::De.default_settings(),
         s.population.max(MIN_POPULATION),
         s.generations.max(1),
     );

@@ -13,9 +13,7 @@ use super::common::DataArgs;
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::model::{Family, Flow, simulate};
-use mckibben::optim::engine::model::{
-    GENERATIONS, ModelObjective, POPULATION, engine_settings, staged_plan, thesis_settings,
-};
+use mckibben::optim::engine::model::{GENERATIONS, ModelObjective, POPULATION, staged_plan};
 use mckibben::optim::engine::{
     Engine, Observer, Outcome, Plan, Space, StageSummary, StopReason, StopRules,
 };
@@ -236,68 +234,83 @@ impl Args {
     /// given on the command line laid over them.
     fn algo_settings(&self, family: Family) -> anyhow::Result<AlgoSettings> {
         let mut s = if self.thesis_flow {
-            thesis_settings(family)
+            self.algo.thesis_settings(family)
         } else {
-            engine_settings(self.pop)
+            self.algo.staged_settings(self.pop)
         };
+        // Every flag is checked whatever the algorithm; each only acts on its own.
         if let Some(p) = self.p_mut {
             anyhow::ensure!(
                 (0.0..=1.0).contains(&p),
                 "--p-mut must be a probability in [0, 1] (got {p})"
             );
-            s.ga.p_mut = p;
-        }
-        if let Some(c) = self.crossover {
-            s.ga.crossover = c;
         }
         if let Some(e) = self.elitism {
             anyhow::ensure!(e < self.pop, "--elitism must be below --pop (got {e})");
-            s.ga.elitism = e;
-        }
-        if let Some(m) = self.mutation {
-            s.ga.mutation = m;
-        }
-        if let Some(l) = self.mfa_lambda0 {
-            s.mfa.lambda0 = l;
-        }
-        if let Some(d) = self.mfa_distance {
-            s.mfa.distance = d;
-        }
-        if let Some(sc) = self.mfa_scale {
-            s.mfa.scale = sc;
-        }
-        if let Some(k) = self.mfa_attractors {
-            s.mfa.max_attractors = (k > 0).then_some(k);
-        } else if self.thesis_flow && self.algo == Algorithm::Mfa && self.pop > MFA_ALL_PAIRS_MAX {
-            s.mfa.max_attractors = Some(10);
-            s.mfa.attractors = Attractors::Brightest;
-            if !self.json {
-                eprintln!(
-                    "mckibben: note: the MFA's all-pairs move is O(N²·d) and takes over a second a \
-                     generation above N = {MFA_ALL_PAIRS_MAX}; moving each firefly towards the 10 \
-                     brightest instead (--mfa-attractors 0 for all pairs)"
-                );
-            }
-        }
-        if self.mfa_brightest {
-            s.mfa.attractors = Attractors::Brightest;
         }
         if let Some(r) = self.mfa_rho0 {
             anyhow::ensure!(
                 r.is_finite() && r >= 0.0,
                 "--mfa-rho0 must be a finite step size ≥ 0 (got {r})"
             );
-            s.mfa.rho0 = r;
-        }
-        if self.pso_scalar_social {
-            s.pso.scalar_social = true;
         }
         if let Some(p) = self.de_p_best {
             anyhow::ensure!(
                 p > 0.0 && p <= 1.0,
                 "--de-p-best must be in (0, 1] (got {p})"
             );
-            s.de.p_best = p;
+        }
+        if let AlgoSettings::Ga(ga) = &mut s {
+            if let Some(p) = self.p_mut {
+                ga.p_mut = p;
+            }
+            if let Some(c) = self.crossover {
+                ga.crossover = c;
+            }
+            if let Some(e) = self.elitism {
+                ga.elitism = e;
+            }
+            if let Some(m) = self.mutation {
+                ga.mutation = m;
+            }
+        }
+        if let AlgoSettings::Mfa(mfa) = &mut s {
+            if let Some(l) = self.mfa_lambda0 {
+                mfa.lambda0 = l;
+            }
+            if let Some(d) = self.mfa_distance {
+                mfa.distance = d;
+            }
+            if let Some(sc) = self.mfa_scale {
+                mfa.scale = sc;
+            }
+            if let Some(k) = self.mfa_attractors {
+                mfa.max_attractors = (k > 0).then_some(k);
+            } else if self.thesis_flow && self.pop > MFA_ALL_PAIRS_MAX {
+                mfa.max_attractors = Some(10);
+                mfa.attractors = Attractors::Brightest;
+                if !self.json {
+                    eprintln!(
+                        "mckibben: note: the MFA's all-pairs move is O(N²·d) and takes over a second a \
+                         generation above N = {MFA_ALL_PAIRS_MAX}; moving each firefly towards the 10 \
+                         brightest instead (--mfa-attractors 0 for all pairs)"
+                    );
+                }
+            }
+            if self.mfa_brightest {
+                mfa.attractors = Attractors::Brightest;
+            }
+            if let Some(r) = self.mfa_rho0 {
+                mfa.rho0 = r;
+            }
+        }
+        if let AlgoSettings::Pso(pso) = &mut s
+            && self.pso_scalar_social
+        {
+            pso.scalar_social = true;
+        }
+        if let (AlgoSettings::De(de), Some(p)) = (&mut s, self.de_p_best) {
+            de.p_best = p;
         }
         Ok(s)
     }
@@ -306,9 +319,9 @@ impl Args {
     fn plan(&self, task: &Task) -> anyhow::Result<Plan> {
         let settings = self.algo_settings(task.family)?;
         if self.thesis_flow {
-            return Ok(Plan::thesis(self.algo, settings, self.pop, self.gens));
+            return Ok(Plan::thesis(settings, self.pop, self.gens));
         }
-        let mut plan = staged_plan(task, self.algo, settings, self.pop, self.gens);
+        let mut plan = staged_plan(task, settings, self.pop, self.gens);
         if let Some(global) = plan.global.as_mut() {
             if let Some(k) = self.islands {
                 anyhow::ensure!(k >= 1, "--islands must be at least 1");
@@ -428,7 +441,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let global = engine.plan.global.clone();
     let (algo, population, generations) = global.as_ref().map_or((Algorithm::De, 0, 0), |g| {
-        (g.algorithm, g.population, g.generations)
+        (g.algorithm(), g.population, g.generations)
     });
     if !args.json {
         let stages: Vec<&str> = engine.stages().iter().map(|s| s.name()).collect();
@@ -504,7 +517,7 @@ fn write_results(
     let global = engine.plan.global.as_ref();
     let output = Output {
         model: task.family,
-        algo: global.map_or(Algorithm::De, |g| g.algorithm),
+        algo: global.map_or(Algorithm::De, |g| g.algorithm()),
         params,
         sse: finite(outcome.sse),
         val_rmse: val.and_then(|v| finite(v.rmse)),

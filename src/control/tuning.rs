@@ -11,7 +11,7 @@ use super::limits::ValveLimits;
 use super::pi::{Pi, PiGains};
 use crate::model::Measure;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
-use crate::optim::{AlgoSettings, Algorithm, Bounds, MIN_POPULATION};
+use crate::optim::{Algorithm, Bounds, MIN_POPULATION};
 use crate::twin::{Rig, TwinConfig};
 
 /// The episodes a gain vector is scored on.
@@ -181,7 +181,7 @@ pub fn tune_pi(
     let start = std::time::Instant::now();
     let bounds = gain_bounds();
     let space = Space::new(bounds.lower, bounds.upper, bounds.names);
-    let plan = Plan::search(algorithm, AlgoSettings::default(), pop, gens);
+    let plan = Plan::search(algorithm.default_settings(), pop, gens);
     let mut engine = Engine::new(plan, space, seed, StopRules::default())?;
     let mut objective = GainObjective { episodes, config };
     let outcome = engine.run(&mut objective, &mut [], None, None)?;

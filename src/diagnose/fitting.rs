@@ -18,8 +18,9 @@ use super::data::Data;
 use super::effects::Augmented;
 use super::select::Settings;
 use crate::model::{Family, Measure};
+use crate::optim::AlgoSettings;
+use crate::optim::de::DeSettings;
 use crate::optim::engine::{Engine, Objective, Plan, Polish, Space, StopRules};
-use crate::optim::{AlgoSettings, Algorithm};
 
 /// What a search of the diagnosis minimises on the estimation part.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -96,9 +97,11 @@ fn evolve(
     p_best: f64,
     rng: &mut ChaCha8Rng,
 ) -> anyhow::Result<(Vec<f64>, f64)> {
-    let mut settings = AlgoSettings::default();
-    settings.de.p_best = p_best;
-    let plan = Plan::search(Algorithm::De, settings, population, generations + 1);
+    let settings = AlgoSettings::De(DeSettings {
+        p_best,
+        ..DeSettings::default()
+    });
+    let plan = Plan::search(settings, population, generations + 1);
     let mut engine = Engine::new(plan, space_of(lo, hi), rng.random(), StopRules::default())?
         .with_initial(initial);
     let mut objective = EffectObjective {

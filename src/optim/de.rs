@@ -29,7 +29,9 @@ pub enum Strategy {
     CurrentToPbest1,
 }
 
-/// DE settings (stated, not from the thesis: it has no DE).
+/// DE settings; the thesis has no DE, so the defaults are its papers': jDE's
+/// `F = 0.5`, `CR = 0.9`, `τ = 0.1` (Brest et al., 2006) and JADE's
+/// `p = 0.1` (Zhang & Sanderson, 2009).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DeSettings {
     pub strategy: Strategy,
@@ -77,8 +79,14 @@ pub struct De {
     initial: Vec<f64>,
 }
 
-impl De {
-    pub fn new(settings: DeSettings, bounds: Bounds, n: usize) -> De {
+impl Optimizer for De {
+    type Settings = DeSettings;
+
+    const HELP: &'static str =
+        "Differential evolution (jDE-adapted current-to-pbest/1/bin), the baseline";
+
+    /// `generations` is unused: jDE adapts `F` and `CR` without a schedule.
+    fn new(settings: DeSettings, bounds: Bounds, n: usize, _generations: usize) -> De {
         assert!(
             n >= 4,
             "differential evolution needs at least 4 individuals"
@@ -98,15 +106,46 @@ impl De {
         }
     }
 
-    /// Starts the search from `rows` (row-major, at most `n` rows of
-    /// `bounds.dim()`, clamped into the box): they are the first members of
-    /// the initial population, the rest drawn uniformly. A known model in
-    /// the start means the best member never ends worse than it.
-    pub fn with_initial(mut self, rows: &[f64]) -> De {
+    /// A known model in the start means the best member never ends worse
+    /// than it (selection is greedy).
+    fn with_initial(mut self, rows: &[f64]) -> De {
         self.initial = rows.to_vec();
         self
     }
 
+    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        if self.costs.len() == self.n {
+            self.make_trials(rng);
+            self.trials.clone()
+        } else {
+            self.pop = super::first_population(&self.bounds, self.n, &self.initial, rng);
+            self.pop.clone()
+        }
+    }
+
+    fn tell(&mut self, costs: &[f32]) {
+        assert_eq!(costs.len(), self.n, "one cost per individual");
+        if self.costs.len() != self.n {
+            self.costs = costs.to_vec();
+            return;
+        }
+        let d = self.bounds.dim();
+        for (i, &c) in costs.iter().enumerate() {
+            if super::cost_order(c, self.costs[i]).is_le() && c.is_finite() {
+                self.costs[i] = c;
+                self.pop[i * d..(i + 1) * d].copy_from_slice(&self.trials[i * d..(i + 1) * d]);
+                self.f[i] = self.trial_f[i];
+                self.cr[i] = self.trial_cr[i];
+            }
+        }
+    }
+
+    fn members(&self) -> (Vec<f64>, Vec<f32>) {
+        (self.pop.clone(), self.costs.clone())
+    }
+}
+
+impl De {
     fn make_trials(&mut self, rng: &mut ChaCha8Rng) {
         let (n, d) = (self.n, self.bounds.dim());
         let mut order: Vec<usize> = (0..n).collect();
@@ -170,43 +209,6 @@ impl De {
     }
 }
 
-impl Optimizer for De {
-    fn name(&self) -> &'static str {
-        "de"
-    }
-
-    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        if self.costs.len() == self.n {
-            self.make_trials(rng);
-            self.trials.clone()
-        } else {
-            self.pop = super::first_population(&self.bounds, self.n, &self.initial, rng);
-            self.pop.clone()
-        }
-    }
-
-    fn tell(&mut self, costs: &[f32]) {
-        assert_eq!(costs.len(), self.n, "one cost per individual");
-        if self.costs.len() != self.n {
-            self.costs = costs.to_vec();
-            return;
-        }
-        let d = self.bounds.dim();
-        for (i, &c) in costs.iter().enumerate() {
-            if super::cost_order(c, self.costs[i]).is_le() && c.is_finite() {
-                self.costs[i] = c;
-                self.pop[i * d..(i + 1) * d].copy_from_slice(&self.trials[i * d..(i + 1) * d]);
-                self.f[i] = self.trial_f[i];
-                self.cr[i] = self.trial_cr[i];
-            }
-        }
-    }
-
-    fn members(&self) -> (Vec<f64>, Vec<f32>) {
-        (self.pop.clone(), self.costs.clone())
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -225,7 +227,7 @@ mod tests {
             upper: vec![1.0; 3],
             names: vec!["x".into(), "y".into(), "z".into()],
         };
-        let mut de = De::new(DeSettings::default(), bounds.clone(), 20);
+        let mut de = De::new(DeSettings::default(), bounds.clone(), 20, 60);
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         let mut best = f32::INFINITY;
         for _ in 0..60 {
@@ -250,7 +252,7 @@ mod tests {
             names: vec!["x".into(), "y".into()],
         };
         let mut de =
-            De::new(DeSettings::default(), bounds, 10).with_initial(&[0.3, 0.3, 5.0, -0.5]);
+            De::new(DeSettings::default(), bounds, 10, 6).with_initial(&[0.3, 0.3, 5.0, -0.5]);
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let rows = de.ask(&mut rng);
         assert_eq!(rows.len(), 20);

@@ -125,28 +125,6 @@ pub struct Ga {
 }
 
 impl Ga {
-    pub fn new(settings: GaSettings, bounds: Bounds, n: usize, generations: usize) -> Ga {
-        assert!(n >= 2, "the GA needs at least two individuals");
-        Ga {
-            settings,
-            bounds,
-            n,
-            generations,
-            moves: 0,
-            pop: Vec::new(),
-            clamped: Vec::new(),
-            costs: Vec::new(),
-            initial: Vec::new(),
-        }
-    }
-
-    /// Starts the search from `rows` (row-major, clamped into the box): the
-    /// first members of the initial population, the rest drawn uniformly.
-    pub fn with_initial(mut self, rows: &[f64]) -> Ga {
-        self.initial = rows.to_vec();
-        self
-    }
-
     /// Fit of every individual: `1/SSE`, penalised when clamped, 0 when diverged.
     fn fitness(&self) -> Vec<f64> {
         self.costs
@@ -261,8 +239,40 @@ impl Ga {
 }
 
 impl Optimizer for Ga {
-    fn name(&self) -> &'static str {
-        "ga"
+    type Settings = GaSettings;
+
+    const HELP: &'static str = "Genetic algorithm (§5.2.1, A.2.1)";
+
+    fn new(settings: GaSettings, bounds: Bounds, n: usize, generations: usize) -> Ga {
+        assert!(n >= 2, "the GA needs at least two individuals");
+        Ga {
+            settings,
+            bounds,
+            n,
+            generations,
+            moves: 0,
+            pop: Vec::new(),
+            clamped: Vec::new(),
+            costs: Vec::new(),
+            initial: Vec::new(),
+        }
+    }
+
+    /// The staged fit keeps its best tenth and mutates by uniform relative
+    /// steps with `P_mut = 0.3`: with the thesis' settings the GA misses the
+    /// basin of the generated cases.
+    fn staged_settings(n: usize) -> GaSettings {
+        GaSettings {
+            elitism: (n / 10).max(1),
+            mutation: Mutation::Uniform,
+            p_mut: 0.3,
+            ..GaSettings::default()
+        }
+    }
+
+    fn with_initial(mut self, rows: &[f64]) -> Ga {
+        self.initial = rows.to_vec();
+        self
     }
 
     fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {

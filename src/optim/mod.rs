@@ -31,7 +31,10 @@ use std::fmt;
 use std::str::FromStr;
 
 use rand_chacha::ChaCha8Rng;
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
+
+use crate::model::Family;
 
 pub use history::{GenerationRecord, History};
 
@@ -76,14 +79,41 @@ impl Bounds {
     }
 }
 
-/// An ask/tell population optimizer.
+/// A population algorithm in ask/tell form, as its own file implements it,
+/// with its settings; its line in this module's `registry!` makes it
+/// selectable.
 ///
 /// The run loop calls `ask`, scores every row, then `tell`s the costs in row
 /// order. Costs are sanitised before `tell`: NaN becomes `+∞`, so an
 /// optimizer only has to treat `+∞` as "worst".
-pub trait Optimizer {
-    /// Short name (`ga`, `mfa`, `pso`, `de`).
-    fn name(&self) -> &'static str;
+pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
+    /// Its settings; `Default` is what its paper states.
+    type Settings: Clone + Default + PartialEq + fmt::Debug + Serialize + DeserializeOwned;
+
+    /// One line on it, for `--algo`'s help.
+    const HELP: &'static str;
+
+    /// A fresh search over `bounds` with `n` individuals a generation and
+    /// `generations` planned (the horizon of schedules that run over the
+    /// search).
+    fn new(settings: Self::Settings, bounds: Bounds, n: usize, generations: usize) -> Self;
+
+    /// The settings of the thesis' flow and of Table 21 (chapter 5): the
+    /// paper's unless the thesis states others for `family`.
+    fn thesis_settings(_family: Family) -> Self::Settings {
+        Self::Settings::default()
+    }
+
+    /// The settings of the staged fit's global stage with `n` individuals:
+    /// the paper's unless they were measured to miss the basin there
+    /// (docs/RESULTS.md, "known truth").
+    fn staged_settings(_n: usize) -> Self::Settings {
+        Self::Settings::default()
+    }
+
+    /// Starts the search from `rows` (row-major, clamped into the box): the
+    /// first members of the initial population, the rest drawn uniformly.
+    fn with_initial(self, rows: &[f64]) -> Self;
 
     /// The next population to evaluate: row-major, `rows × bounds.dim()`,
     /// every row inside the box.
@@ -137,31 +167,137 @@ pub fn argmin(costs: &[f32]) -> Option<usize> {
         .map(|(i, _)| i)
 }
 
-/// Which algorithm; parses from the `--algo` names.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
-#[serde(rename_all = "lowercase")]
-pub enum Algorithm {
-    /// Genetic algorithm (§5.2.1, A.2.1).
-    Ga,
-    /// Modified firefly algorithm (§5.3.2, A.2.2).
-    Mfa,
-    /// Particle swarm optimization (§5.3.3, A.2.3).
-    Pso,
-    /// Differential evolution (jDE-adapted current-to-pbest/1/bin), the baseline.
-    De,
+/// Generates from the one list of algorithms below everything that names
+/// them: [`Algorithm`] (the `--algo` value, with its help), [`AlgoSettings`]
+/// and [`AnyOptimizer`]. An entry is the variant, the name (`--algo`, the
+/// JSON output's `algo`, the checkpoint's tag) and the [`Optimizer`].
+macro_rules! registry {
+    ($($variant:ident = $name:literal => $optimizer:ty,)+) => {
+        /// Which algorithm; parses from the `--algo` names.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+        pub enum Algorithm {
+            $(#[serde(rename = $name)] $variant,)+
+        }
+
+        impl Algorithm {
+            /// Every algorithm, in the registry's order.
+            pub const ALL: [Algorithm; [$($name),+].len()] = [$(Algorithm::$variant),+];
+
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Algorithm::$variant => $name,)+
+                }
+            }
+
+            /// One line on it ([`Optimizer::HELP`]).
+            pub fn help(self) -> &'static str {
+                match self {
+                    $(Algorithm::$variant => <$optimizer as Optimizer>::HELP,)+
+                }
+            }
+
+            /// Its paper's settings.
+            pub fn default_settings(self) -> AlgoSettings {
+                match self {
+                    $(Algorithm::$variant => AlgoSettings::$variant(Default::default()),)+
+                }
+            }
+
+            /// Its settings in the thesis' flow ([`Optimizer::thesis_settings`]).
+            pub fn thesis_settings(self, family: Family) -> AlgoSettings {
+                match self {
+                    $(Algorithm::$variant => {
+                        AlgoSettings::$variant(<$optimizer as Optimizer>::thesis_settings(family))
+                    })+
+                }
+            }
+
+            /// Its settings in the staged fit ([`Optimizer::staged_settings`]).
+            pub fn staged_settings(self, n: usize) -> AlgoSettings {
+                match self {
+                    $(Algorithm::$variant => {
+                        AlgoSettings::$variant(<$optimizer as Optimizer>::staged_settings(n))
+                    })+
+                }
+            }
+        }
+
+        /// One algorithm and its settings (tagged by its name when serialised).
+        #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+        #[serde(tag = "algo")]
+        pub enum AlgoSettings {
+            $(#[serde(rename = $name)] $variant(<$optimizer as Optimizer>::Settings),)+
+        }
+
+        impl AlgoSettings {
+            pub fn algorithm(&self) -> Algorithm {
+                match self {
+                    $(AlgoSettings::$variant(_) => Algorithm::$variant,)+
+                }
+            }
+        }
+
+        /// Any of the optimizers, as one serialisable value (what a checkpoint stores).
+        #[derive(Debug, Clone, Serialize, Deserialize)]
+        #[serde(tag = "algo")]
+        pub enum AnyOptimizer {
+            $(#[serde(rename = $name)] $variant($optimizer),)+
+        }
+
+        impl AnyOptimizer {
+            /// A fresh optimizer of `settings`' algorithm over `bounds` with
+            /// `n` individuals and `g` planned generations.
+            pub fn new(settings: &AlgoSettings, bounds: Bounds, n: usize, g: usize) -> Self {
+                match settings {
+                    $(AlgoSettings::$variant(s) => {
+                        AnyOptimizer::$variant(<$optimizer as Optimizer>::new(s.clone(), bounds, n, g))
+                    })+
+                }
+            }
+
+            pub fn algorithm(&self) -> Algorithm {
+                match self {
+                    $(AnyOptimizer::$variant(_) => Algorithm::$variant,)+
+                }
+            }
+
+            /// See [`Optimizer::with_initial`].
+            pub fn with_initial(self, rows: &[f64]) -> Self {
+                match self {
+                    $(AnyOptimizer::$variant(o) => AnyOptimizer::$variant(o.with_initial(rows)),)+
+                }
+            }
+
+            /// See [`Optimizer::ask`].
+            pub fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+                match self {
+                    $(AnyOptimizer::$variant(o) => o.ask(rng),)+
+                }
+            }
+
+            /// See [`Optimizer::tell`].
+            pub fn tell(&mut self, costs: &[f32]) {
+                match self {
+                    $(AnyOptimizer::$variant(o) => o.tell(costs),)+
+                }
+            }
+
+            /// See [`Optimizer::members`].
+            pub fn members(&self) -> (Vec<f64>, Vec<f32>) {
+                match self {
+                    $(AnyOptimizer::$variant(o) => o.members(),)+
+                }
+            }
+        }
+    };
 }
 
-impl Algorithm {
-    pub const ALL: [Algorithm; 4] = [Algorithm::Ga, Algorithm::Mfa, Algorithm::Pso, Algorithm::De];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Algorithm::Ga => "ga",
-            Algorithm::Mfa => "mfa",
-            Algorithm::Pso => "pso",
-            Algorithm::De => "de",
-        }
-    }
+// The registry: adding an algorithm is its file (an [`Optimizer`]) and a line here.
+registry! {
+    Ga = "ga" => ga::Ga,
+    Mfa = "mfa" => mfa::Mfa,
+    Pso = "pso" => pso::Pso,
+    De = "de" => de::De,
 }
 
 impl fmt::Display for Algorithm {
@@ -176,88 +312,25 @@ impl FromStr for Algorithm {
         Algorithm::ALL
             .into_iter()
             .find(|a| a.name() == s.to_ascii_lowercase())
-            .ok_or_else(|| format!("unknown algorithm `{s}`: expected ga, mfa, pso or de"))
+            .ok_or_else(|| {
+                let names: Vec<&str> = Algorithm::ALL.iter().map(|a| a.name()).collect();
+                let (last, rest) = names.split_last().expect("a registered algorithm");
+                format!(
+                    "unknown algorithm `{s}`: expected {} or {last}",
+                    rest.join(", ")
+                )
+            })
     }
 }
 
-/// Any of the optimizers, as one serialisable value (what a checkpoint stores).
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(tag = "algo", rename_all = "lowercase")]
-pub enum AnyOptimizer {
-    Ga(ga::Ga),
-    Mfa(mfa::Mfa),
-    Pso(pso::Pso),
-    De(de::De),
-}
-
-/// The algorithm settings of every optimizer, for building one by name.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct AlgoSettings {
-    pub ga: ga::GaSettings,
-    pub mfa: mfa::MfaSettings,
-    pub pso: pso::PsoSettings,
-    pub de: de::DeSettings,
-}
-
-impl AnyOptimizer {
-    /// A fresh optimizer of `algo` over `bounds` with `n` individuals and
-    /// `g` planned generations (the GA's, MFA's and PSO's schedules run over them).
-    pub fn new(algo: Algorithm, s: &AlgoSettings, bounds: Bounds, n: usize, g: usize) -> Self {
-        match algo {
-            Algorithm::Ga => AnyOptimizer::Ga(ga::Ga::new(s.ga.clone(), bounds, n, g)),
-            Algorithm::Mfa => AnyOptimizer::Mfa(mfa::Mfa::new(s.mfa.clone(), bounds, n, g)),
-            Algorithm::Pso => AnyOptimizer::Pso(pso::Pso::new(s.pso.clone(), bounds, n, g)),
-            Algorithm::De => AnyOptimizer::De(de::De::new(s.de.clone(), bounds, n)),
-        }
+/// `--algo`'s values and their help, from the registry.
+impl clap::ValueEnum for Algorithm {
+    fn value_variants<'a>() -> &'a [Self] {
+        &Algorithm::ALL
     }
 
-    /// Starts the search from `rows` (free coordinates, row-major): the first
-    /// members of the initial population, the rest drawn uniformly.
-    pub fn with_initial(self, rows: &[f64]) -> Self {
-        match self {
-            AnyOptimizer::Ga(o) => AnyOptimizer::Ga(o.with_initial(rows)),
-            AnyOptimizer::Mfa(o) => AnyOptimizer::Mfa(o.with_initial(rows)),
-            AnyOptimizer::Pso(o) => AnyOptimizer::Pso(o.with_initial(rows)),
-            AnyOptimizer::De(o) => AnyOptimizer::De(o.with_initial(rows)),
-        }
-    }
-
-    pub fn algorithm(&self) -> Algorithm {
-        match self {
-            AnyOptimizer::Ga(_) => Algorithm::Ga,
-            AnyOptimizer::Mfa(_) => Algorithm::Mfa,
-            AnyOptimizer::Pso(_) => Algorithm::Pso,
-            AnyOptimizer::De(_) => Algorithm::De,
-        }
-    }
-
-    fn inner(&mut self) -> &mut dyn Optimizer {
-        match self {
-            AnyOptimizer::Ga(o) => o,
-            AnyOptimizer::Mfa(o) => o,
-            AnyOptimizer::Pso(o) => o,
-            AnyOptimizer::De(o) => o,
-        }
-    }
-}
-
-impl Optimizer for AnyOptimizer {
-    fn name(&self) -> &'static str {
-        self.algorithm().name()
-    }
-    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        self.inner().ask(rng)
-    }
-    fn tell(&mut self, costs: &[f32]) {
-        self.inner().tell(costs)
-    }
-    fn members(&self) -> (Vec<f64>, Vec<f32>) {
-        match self {
-            AnyOptimizer::Ga(o) => o.members(),
-            AnyOptimizer::Mfa(o) => o.members(),
-            AnyOptimizer::Pso(o) => o.members(),
-            AnyOptimizer::De(o) => o.members(),
-        }
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(clap::builder::PossibleValue::new(self.name()).help(self.help()))
     }
 }
 

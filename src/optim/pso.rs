@@ -121,8 +121,12 @@ pub struct Pso {
     initial: Vec<f64>,
 }
 
-impl Pso {
-    pub fn new(settings: PsoSettings, bounds: Bounds, n: usize, generations: usize) -> Pso {
+impl Optimizer for Pso {
+    type Settings = PsoSettings;
+
+    const HELP: &'static str = "Particle swarm optimization (§5.3.3, A.2.3)";
+
+    fn new(settings: PsoSettings, bounds: Bounds, n: usize, generations: usize) -> Pso {
         assert!(n >= 1, "the PSO needs at least one particle");
         let vmax = (0..bounds.dim())
             .map(|j| settings.vmax.min(settings.vmax_fraction * bounds.width(j)))
@@ -145,46 +149,20 @@ impl Pso {
         }
     }
 
-    /// Starts the search from `rows` (row-major, clamped into the box): the
-    /// first particles of the initial swarm, the rest drawn uniformly.
-    pub fn with_initial(mut self, rows: &[f64]) -> Pso {
+    /// Table 19 for the generalized model, Table 11 otherwise.
+    fn thesis_settings(family: Family) -> PsoSettings {
+        PsoSettings::thesis(family)
+    }
+
+    /// The staged fit uses Clerc and Kennedy's constriction
+    /// ([`PsoSettings::constriction`]).
+    fn staged_settings(_n: usize) -> PsoSettings {
+        PsoSettings::constriction()
+    }
+
+    fn with_initial(mut self, rows: &[f64]) -> Pso {
         self.initial = rows.to_vec();
         self
-    }
-
-    fn step(&mut self, rng: &mut ChaCha8Rng) {
-        let d = self.bounds.dim();
-        self.moves += 1;
-        let w = self.settings.inertia(self.moves, self.generations);
-        let (c1, c2) = (self.settings.c1, self.settings.c2);
-        for i in 0..self.n {
-            let r2_scalar: f64 = if self.settings.scalar_social {
-                rng.random()
-            } else {
-                0.0
-            };
-            let row = i * d..(i + 1) * d;
-            let (x, v) = (&mut self.pos[row.clone()], &mut self.vel[row.clone()]);
-            let pb = &self.pbest[row];
-            for j in 0..d {
-                let r1: f64 = rng.random();
-                let r2: f64 = if self.settings.scalar_social {
-                    r2_scalar
-                } else {
-                    rng.random()
-                };
-                let vj = w * v[j] + c1 * r1 * (pb[j] - x[j]) + c2 * r2 * (self.gbest[j] - x[j]);
-                v[j] = vj.clamp(-self.vmax[j], self.vmax[j]);
-                x[j] += v[j];
-            }
-            self.bounds.clamp(x);
-        }
-    }
-}
-
-impl Optimizer for Pso {
-    fn name(&self) -> &'static str {
-        "pso"
     }
 
     fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
@@ -224,6 +202,37 @@ impl Optimizer for Pso {
             (Vec::new(), Vec::new())
         } else {
             (self.pbest.clone(), self.pbest_cost.clone())
+        }
+    }
+}
+
+impl Pso {
+    fn step(&mut self, rng: &mut ChaCha8Rng) {
+        let d = self.bounds.dim();
+        self.moves += 1;
+        let w = self.settings.inertia(self.moves, self.generations);
+        let (c1, c2) = (self.settings.c1, self.settings.c2);
+        for i in 0..self.n {
+            let r2_scalar: f64 = if self.settings.scalar_social {
+                rng.random()
+            } else {
+                0.0
+            };
+            let row = i * d..(i + 1) * d;
+            let (x, v) = (&mut self.pos[row.clone()], &mut self.vel[row.clone()]);
+            let pb = &self.pbest[row];
+            for j in 0..d {
+                let r1: f64 = rng.random();
+                let r2: f64 = if self.settings.scalar_social {
+                    r2_scalar
+                } else {
+                    rng.random()
+                };
+                let vj = w * v[j] + c1 * r1 * (pb[j] - x[j]) + c2 * r2 * (self.gbest[j] - x[j]);
+                v[j] = vj.clamp(-self.vmax[j], self.vmax[j]);
+                x[j] += v[j];
+            }
+            self.bounds.clamp(x);
         }
     }
 }

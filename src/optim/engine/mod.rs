@@ -39,7 +39,7 @@ use serde::{Deserialize, Serialize};
 
 use super::history::{GenerationRecord, History};
 use super::lm::{self, LmError, LmSettings};
-use super::{AnyOptimizer, Optimizer, argmin, cost_order};
+use super::{AnyOptimizer, argmin, cost_order};
 use crate::data::write_atomic;
 use crate::model::Measure;
 
@@ -286,7 +286,7 @@ impl Engine {
             anyhow::ensure!(
                 g.population >= super::MIN_POPULATION,
                 "{} needs a population of at least {} (got {})",
-                g.algorithm,
+                g.algorithm(),
                 super::MIN_POPULATION,
                 g.population
             );
@@ -571,14 +571,8 @@ impl Engine {
                             Vec::new()
                         };
                         rows.extend(self.space.draw(n - rows.len() / nf, &mut rng));
-                        AnyOptimizer::new(
-                            g.algorithm,
-                            &g.settings,
-                            bounds.clone(),
-                            n,
-                            g.generations,
-                        )
-                        .with_initial(&rows)
+                        AnyOptimizer::new(&g.settings, bounds.clone(), n, g.generations)
+                            .with_initial(&rows)
                     })
                     .collect();
                 self.rng = RngState::of(&rng);
@@ -596,8 +590,7 @@ impl Engine {
                             None => Vec::new(),
                         };
                         AnyOptimizer::new(
-                            super::Algorithm::De,
-                            &Default::default(),
+                            &super::Algorithm::De.default_settings(),
                             bounds.clone(),
                             n,
                             f.generations,

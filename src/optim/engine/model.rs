@@ -6,10 +6,7 @@ use nalgebra::DVector;
 use super::plan::{FreeRun, Global, Plan, Polish};
 use super::{Engine, Objective, Outcome, Space, StopRules};
 use crate::eval::{Evaluator, Problem};
-use crate::model::{Family, Flow, Measure};
-use crate::optim::ga::{GaSettings, Mutation};
-use crate::optim::mfa::{Attractors, Distance, MfaSettings, Scale};
-use crate::optim::pso::PsoSettings;
+use crate::model::{Flow, Measure};
 use crate::optim::task::Task;
 use crate::optim::{AlgoSettings, Algorithm};
 
@@ -135,7 +132,7 @@ pub const ISLANDS: usize = 4;
 pub const GENERATIONS: usize = 300;
 
 /// The engine's default plan for a muscle model: the global stage with
-/// `algorithm` (its [`engine_settings`]) on the `horizon`-step-ahead
+/// `algorithm` (its [`Algorithm::staged_settings`]) on the `horizon`-step-ahead
 /// prediction, `n × g`; a free-run stage of a fifth of the population for a
 /// quarter of the generations; the default polish, with continuation up to
 /// `longest` samples (the longest experiment).
@@ -150,8 +147,7 @@ pub fn default_plan(
     let islands = (n / crate::optim::MIN_POPULATION).clamp(1, ISLANDS);
     Plan {
         global: Some(Global {
-            algorithm,
-            settings: engine_settings(n),
+            settings: algorithm.staged_settings(n),
             population: n,
             generations: g,
             measure: Measure::Ahead { horizon },
@@ -170,52 +166,18 @@ pub fn default_plan(
     }
 }
 
-/// The algorithm settings of the engine's global stage, where the thesis'
-/// own miss the basin (docs/RESULTS.md, "known truth"): the GA keeps its best
-/// tenth and mutates by uniform relative steps (P_mut 0.3); the MFA moves
-/// each firefly towards the 10 brightest with e^(−σr²) (eq. 32) in box
-/// units; PSO uses Clerc and Kennedy's constriction; DE its defaults.
-pub fn engine_settings(n: usize) -> AlgoSettings {
-    AlgoSettings {
-        ga: GaSettings {
-            elitism: (n / 10).max(1),
-            mutation: Mutation::Uniform,
-            p_mut: 0.3,
-            ..GaSettings::default()
-        },
-        mfa: MfaSettings {
-            max_attractors: Some(10),
-            attractors: Attractors::Brightest,
-            distance: Distance::Squared,
-            scale: Scale::Box,
-            ..MfaSettings::default()
-        },
-        pso: PsoSettings::constriction(),
-        de: Default::default(),
-    }
-}
-
-/// The thesis' algorithm settings for `family` (chapter 5; PSO from Table 11
-/// or 19), which `--thesis-flow` and Table 21 run.
-pub fn thesis_settings(family: Family) -> AlgoSettings {
-    AlgoSettings {
-        pso: PsoSettings::thesis(family),
-        ..AlgoSettings::default()
-    }
-}
-
-/// The engine's default plan for `task` with `algorithm` and `settings`,
-/// `n × g`, its horizon from the task's ARX pole and its polish's
-/// continuation up to the estimation data's length.
-pub fn staged_plan(
-    task: &Task,
-    algorithm: Algorithm,
-    settings: AlgoSettings,
-    n: usize,
-    g: usize,
-) -> Plan {
+/// The engine's default plan for `task` with `settings`' algorithm and
+/// those settings, `n × g`, its horizon from the task's ARX pole and its
+/// polish's continuation up to the estimation data's length.
+pub fn staged_plan(task: &Task, settings: AlgoSettings, n: usize, g: usize) -> Plan {
     let longest = task.estimation.len();
-    let mut plan = default_plan(algorithm, n, g, horizon(task.prior.a, longest), longest);
+    let mut plan = default_plan(
+        settings.algorithm(),
+        n,
+        g,
+        horizon(task.prior.a, longest),
+        longest,
+    );
     if let Some(global) = plan.global.as_mut() {
         global.settings = settings;
     }
@@ -241,6 +203,7 @@ pub fn fit_task(
 mod tests {
     use super::*;
     use crate::eval::cpu::CpuEvaluator;
+    use crate::model::Family;
     use crate::optim::cases::{Case, CaseSpec, matrix};
 
     #[test]

@@ -39,7 +39,7 @@ pub struct Plan {
 /// The population search that finds the basin.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Global {
-    pub algorithm: Algorithm,
+    /// The algorithm and its settings.
     pub settings: AlgoSettings,
     /// Individuals per generation (`N`).
     pub population: usize,
@@ -128,18 +128,23 @@ impl Default for Polish {
     }
 }
 
+impl Global {
+    pub fn algorithm(&self) -> Algorithm {
+        self.settings.algorithm()
+    }
+}
+
 impl Plan {
     /// The thesis' flow: one population search on the free run (chapter 5).
-    pub fn thesis(algorithm: Algorithm, settings: AlgoSettings, n: usize, g: usize) -> Plan {
-        Plan::search(algorithm, settings, n, g)
+    pub fn thesis(settings: AlgoSettings, n: usize, g: usize) -> Plan {
+        Plan::search(settings, n, g)
     }
 
     /// A population search alone, on one island, for objectives with one
     /// measure and no residuals (the PID tuning, the benchmark's search).
-    pub fn search(algorithm: Algorithm, settings: AlgoSettings, n: usize, g: usize) -> Plan {
+    pub fn search(settings: AlgoSettings, n: usize, g: usize) -> Plan {
         Plan {
             global: Some(Global {
-                algorithm,
                 settings,
                 population: n,
                 generations: g,
