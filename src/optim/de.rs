@@ -73,10 +73,6 @@ pub struct De {
     trials: Vec<f64>,
     trial_f: Vec<f64>,
     trial_cr: Vec<f64>,
-    /// Rows (row-major) that replace the first uniform draws of the initial
-    /// population: a warm start from a known model.
-    #[serde(default)]
-    initial: Vec<f64>,
 }
 
 impl Optimizer for De {
@@ -102,30 +98,25 @@ impl Optimizer for De {
             trials: Vec::new(),
             trial_f: Vec::new(),
             trial_cr: Vec::new(),
-            initial: Vec::new(),
         }
     }
 
-    /// A known model in the start means the best member never ends worse
+    /// A known model among `initial` means the best member never ends worse
     /// than it (selection is greedy).
-    fn with_initial(mut self, rows: &[f64]) -> De {
-        self.initial = rows.to_vec();
-        self
+    fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
+        self.pop = super::first_population(&self.bounds, self.n, initial, rng);
+        self.pop.clone()
     }
 
-    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        if self.costs.len() == self.n {
-            self.make_trials(rng);
-            self.trials.clone()
-        } else {
-            self.pop = super::first_population(&self.bounds, self.n, &self.initial, rng);
-            self.pop.clone()
-        }
+    /// One trial an individual.
+    fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        self.make_trials(rng);
+        self.trials.clone()
     }
 
     fn tell(&mut self, costs: &[f32]) {
-        assert_eq!(costs.len(), self.n, "one cost per individual");
-        if self.costs.len() != self.n {
+        // The first population's costs: nothing to select against yet.
+        if self.costs.is_empty() {
             self.costs = costs.to_vec();
             return;
         }
@@ -230,8 +221,8 @@ mod tests {
         let mut de = De::new(DeSettings::default(), bounds.clone(), 20, 60);
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         let mut best = f32::INFINITY;
+        let mut rows = de.init(&[], &mut rng);
         for _ in 0..60 {
-            let rows = de.ask(&mut rng);
             assert!(rows.chunks(3).all(|r| {
                 let mut c = r.to_vec();
                 !bounds.clamp(&mut c)
@@ -240,6 +231,7 @@ mod tests {
             let now = de.costs.iter().copied().fold(f32::INFINITY, f32::min);
             assert!(now <= best);
             best = now;
+            rows = de.next(&mut rng);
         }
         assert!(best < 1e-6, "{best}");
     }
@@ -251,17 +243,16 @@ mod tests {
             upper: vec![1.0; 2],
             names: vec!["x".into(), "y".into()],
         };
-        let mut de =
-            De::new(DeSettings::default(), bounds, 10, 6).with_initial(&[0.3, 0.3, 5.0, -0.5]);
+        let mut de = De::new(DeSettings::default(), bounds, 10, 6);
         let mut rng = ChaCha8Rng::seed_from_u64(1);
-        let rows = de.ask(&mut rng);
+        let rows = de.init(&[0.3, 0.3, 5.0, -0.5], &mut rng);
         assert_eq!(rows.len(), 20);
         assert_eq!(&rows[..4], &[0.3, 0.3, 1.0, -0.5]);
         // The warm start is the optimum: the best cost is 0 from the start
         // and greedy selection keeps it.
         de.tell(&sphere(&rows, 2));
         for _ in 0..5 {
-            let rows = de.ask(&mut rng);
+            let rows = de.next(&mut rng);
             de.tell(&sphere(&rows, 2));
         }
         assert_eq!(de.costs.iter().copied().fold(f32::INFINITY, f32::min), 0.0);

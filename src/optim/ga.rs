@@ -119,9 +119,6 @@ pub struct Ga {
     /// Their costs, once told.
     #[serde(with = "super::inf_serde")]
     costs: Vec<f32>,
-    /// Rows that replace the first uniform draws of the initial population.
-    #[serde(default)]
-    initial: Vec<f64>,
 }
 
 impl Ga {
@@ -254,7 +251,6 @@ impl Optimizer for Ga {
             pop: Vec::new(),
             clamped: Vec::new(),
             costs: Vec::new(),
-            initial: Vec::new(),
         }
     }
 
@@ -270,36 +266,26 @@ impl Optimizer for Ga {
         }
     }
 
-    fn with_initial(mut self, rows: &[f64]) -> Ga {
-        self.initial = rows.to_vec();
-        self
+    fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
+        self.pop = super::first_population(&self.bounds, self.n, initial, rng);
+        self.clamped = vec![false; self.n];
+        self.pop.clone()
     }
 
-    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        if self.costs.len() == self.n {
-            let (pop, clamped) = self.offspring(rng);
-            self.moves += 1;
-            self.pop = pop;
-            self.clamped = clamped;
-        } else {
-            self.pop = super::first_population(&self.bounds, self.n, &self.initial, rng);
-            self.clamped = vec![false; self.n];
-        }
-        self.costs.clear();
+    fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        let (pop, clamped) = self.offspring(rng);
+        self.moves += 1;
+        self.pop = pop;
+        self.clamped = clamped;
         self.pop.clone()
     }
 
     fn tell(&mut self, costs: &[f32]) {
-        assert_eq!(costs.len(), self.n, "one cost per individual");
         self.costs = costs.to_vec();
     }
 
     fn members(&self) -> (Vec<f64>, Vec<f32>) {
-        if self.costs.len() == self.n {
-            (self.pop.clone(), self.costs.clone())
-        } else {
-            (Vec::new(), Vec::new())
-        }
+        (self.pop.clone(), self.costs.clone())
     }
 }
 
@@ -446,9 +432,9 @@ mod tests {
             };
             let mut ga = Ga::new(settings, bounds.clone(), 8, 30);
             let mut rng = ChaCha8Rng::seed_from_u64(6);
-            let first = ga.ask(&mut rng);
+            let first = ga.init(&[], &mut rng);
             ga.tell(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, f32::INFINITY]);
-            let next = ga.ask(&mut rng);
+            let next = ga.next(&mut rng);
             let inherited = next
                 .chunks(3)
                 .all(|child| (0..3).all(|j| first.chunks(3).any(|parent| parent[j] == child[j])));

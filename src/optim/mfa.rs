@@ -141,9 +141,6 @@ pub struct Mfa {
     pos: Vec<f64>,
     #[serde(with = "super::inf_serde")]
     costs: Vec<f32>,
-    /// Rows that replace the first uniform draws of the initial swarm.
-    #[serde(default)]
-    initial: Vec<f64>,
 }
 
 impl Mfa {
@@ -235,7 +232,6 @@ impl Optimizer for Mfa {
             moves: 0,
             pos: Vec::new(),
             costs: Vec::new(),
-            initial: Vec::new(),
         }
     }
 
@@ -253,32 +249,22 @@ impl Optimizer for Mfa {
         }
     }
 
-    fn with_initial(mut self, rows: &[f64]) -> Mfa {
-        self.initial = rows.to_vec();
-        self
+    fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
+        self.pos = super::first_population(&self.bounds, self.n, initial, rng);
+        self.pos.clone()
     }
 
-    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        if self.costs.len() == self.n {
-            self.step(rng);
-        } else {
-            self.pos = super::first_population(&self.bounds, self.n, &self.initial, rng);
-        }
-        self.costs.clear();
+    fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        self.step(rng);
         self.pos.clone()
     }
 
     fn tell(&mut self, costs: &[f32]) {
-        assert_eq!(costs.len(), self.n, "one cost per firefly");
         self.costs = costs.to_vec();
     }
 
     fn members(&self) -> (Vec<f64>, Vec<f32>) {
-        if self.costs.len() == self.n {
-            (self.pos.clone(), self.costs.clone())
-        } else {
-            (Vec::new(), Vec::new())
-        }
+        (self.pos.clone(), self.costs.clone())
     }
 }
 
@@ -317,7 +303,7 @@ mod tests {
         mfa.pos = vec![0.0, 0.0, 0.5, 0.5, -0.5, 0.5];
         mfa.costs = vec![1.0, 2.0, f32::INFINITY];
         let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let next = mfa.ask(&mut rng);
+        let next = mfa.next(&mut rng);
         assert_eq!(&next[..2], &[0.0, 0.0]);
         let dist = |p: &[f64]| (p[0] * p[0] + p[1] * p[1]).sqrt();
         assert!(dist(&next[2..4]) < dist(&[0.5, 0.5]));

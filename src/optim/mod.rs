@@ -79,13 +79,13 @@ impl Bounds {
     }
 }
 
-/// A population algorithm in ask/tell form, as its own file implements it,
-/// with its settings; its line in this module's `registry!` makes it
-/// selectable.
+/// A population algorithm, as its own file implements it, with its
+/// settings; its line in this module's `registry!` makes it selectable.
 ///
-/// The run loop calls `ask`, scores every row, then `tell`s the costs in row
-/// order. Costs are sanitised before `tell`: NaN becomes `+∞`, so an
-/// optimizer only has to treat `+∞` as "worst".
+/// It is driven through [`AskTell`], which keeps the phases: `init` once,
+/// then `tell` and `next` in turn, each `tell` with one cost per row of the
+/// population just returned. Costs are sanitised before `tell`: NaN becomes
+/// `+∞`, so an optimizer only has to treat `+∞` as "worst".
 pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
     /// Its settings; `Default` is what its paper states.
     type Settings: Clone + Default + PartialEq + fmt::Debug + Serialize + DeserializeOwned;
@@ -111,21 +111,122 @@ pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
         Self::Settings::default()
     }
 
-    /// Starts the search from `rows` (row-major, clamped into the box): the
-    /// first members of the initial population, the rest drawn uniformly.
-    fn with_initial(self, rows: &[f64]) -> Self;
+    /// The first population: `initial` rows (row-major; a warm start) and
+    /// uniform draws for the rest, as [`first_population`] makes it.
+    /// Row-major, `n × bounds.dim()`, every row inside the box.
+    fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64>;
 
-    /// The next population to evaluate: row-major, `rows × bounds.dim()`,
-    /// every row inside the box.
-    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64>;
+    /// The next population, from the costs told of the last one.
+    fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64>;
 
-    /// The costs of the rows of the last `ask`, in order.
+    /// The costs of the rows of the population last returned, in order.
     fn tell(&mut self, costs: &[f32]);
 
     /// The members whose costs drive the next move (row-major) and those
-    /// costs: what a later stage of a fit starts from. Empty before the first
+    /// costs: what a later stage of a fit starts from. Only asked after a
     /// `tell`.
     fn members(&self) -> (Vec<f64>, Vec<f32>);
+}
+
+/// Where a search stands between `ask` and `tell`.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+enum Phase {
+    /// Nothing asked yet; the first population starts with these rows.
+    Fresh { initial: Vec<f64> },
+    /// A population was asked for and awaits its costs.
+    Asked,
+    /// The costs of the last population were told.
+    Told,
+}
+
+/// An `ask` or `tell` out of turn.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PhaseError {
+    #[error("{0}: asked for a population while the last one awaits its costs")]
+    AskedTwice(Algorithm),
+    #[error("{0}: told costs with no population asked for")]
+    NothingAsked(Algorithm),
+    #[error("{algorithm}: told {got} costs for a population of {want}")]
+    WrongLength {
+        algorithm: Algorithm,
+        got: usize,
+        want: usize,
+    },
+}
+
+/// A search by any registered algorithm in explicit phases: `ask` and `tell`
+/// alternate, starting with `ask`. A call out of turn is an error and
+/// changes nothing (a second `ask` used to restart the GA and the MFA
+/// silently).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct AskTell {
+    /// Individuals a generation: the costs each `tell` brings.
+    n: usize,
+    phase: Phase,
+    optimizer: AnyOptimizer,
+}
+
+impl AskTell {
+    /// A search by `settings`' algorithm over `bounds` with `n` individuals
+    /// a generation and `generations` planned, whose first population starts
+    /// with the `initial` rows (row-major, clamped into the box; may be empty).
+    pub fn new(
+        settings: &AlgoSettings,
+        bounds: Bounds,
+        n: usize,
+        generations: usize,
+        initial: &[f64],
+    ) -> AskTell {
+        AskTell {
+            n,
+            phase: Phase::Fresh {
+                initial: initial.to_vec(),
+            },
+            optimizer: AnyOptimizer::new(settings, bounds, n, generations),
+        }
+    }
+
+    pub fn algorithm(&self) -> Algorithm {
+        self.optimizer.algorithm()
+    }
+
+    /// The next population to evaluate: row-major, `n × bounds.dim()`, every
+    /// row inside the box.
+    pub fn ask(&mut self, rng: &mut ChaCha8Rng) -> Result<Vec<f64>, PhaseError> {
+        let rows = match &self.phase {
+            Phase::Fresh { initial } => self.optimizer.init(initial, rng),
+            Phase::Told => self.optimizer.next(rng),
+            Phase::Asked => return Err(PhaseError::AskedTwice(self.algorithm())),
+        };
+        self.phase = Phase::Asked;
+        Ok(rows)
+    }
+
+    /// The costs of the rows last asked for, in order.
+    pub fn tell(&mut self, costs: &[f32]) -> Result<(), PhaseError> {
+        if !matches!(self.phase, Phase::Asked) {
+            return Err(PhaseError::NothingAsked(self.algorithm()));
+        }
+        if costs.len() != self.n {
+            return Err(PhaseError::WrongLength {
+                algorithm: self.algorithm(),
+                got: costs.len(),
+                want: self.n,
+            });
+        }
+        self.optimizer.tell(costs);
+        self.phase = Phase::Told;
+        Ok(())
+    }
+
+    /// [`Optimizer::members`] after a `tell`; empty otherwise.
+    pub fn members(&self) -> (Vec<f64>, Vec<f32>) {
+        match self.phase {
+            Phase::Told => self.optimizer.members(),
+            _ => (Vec::new(), Vec::new()),
+        }
+    }
 }
 
 /// The smallest population every algorithm accepts: differential evolution
@@ -169,7 +270,7 @@ pub fn argmin(costs: &[f32]) -> Option<usize> {
 
 /// Generates from the one list of algorithms below everything that names
 /// them: [`Algorithm`] (the `--algo` value, with its help), [`AlgoSettings`]
-/// and [`AnyOptimizer`]. An entry is the variant, the name (`--algo`, the
+/// and `AnyOptimizer` (the state [`AskTell`] drives). An entry is the variant, the name (`--algo`, the
 /// JSON output's `algo`, the checkpoint's tag) and the [`Optimizer`].
 macro_rules! registry {
     ($($variant:ident = $name:literal => $optimizer:ty,)+) => {
@@ -240,14 +341,14 @@ macro_rules! registry {
         /// Any of the optimizers, as one serialisable value (what a checkpoint stores).
         #[derive(Debug, Clone, Serialize, Deserialize)]
         #[serde(tag = "algo")]
-        pub enum AnyOptimizer {
+        enum AnyOptimizer {
             $(#[serde(rename = $name)] $variant($optimizer),)+
         }
 
         impl AnyOptimizer {
             /// A fresh optimizer of `settings`' algorithm over `bounds` with
             /// `n` individuals and `g` planned generations.
-            pub fn new(settings: &AlgoSettings, bounds: Bounds, n: usize, g: usize) -> Self {
+            fn new(settings: &AlgoSettings, bounds: Bounds, n: usize, g: usize) -> Self {
                 match settings {
                     $(AlgoSettings::$variant(s) => {
                         AnyOptimizer::$variant(<$optimizer as Optimizer>::new(s.clone(), bounds, n, g))
@@ -255,35 +356,31 @@ macro_rules! registry {
                 }
             }
 
-            pub fn algorithm(&self) -> Algorithm {
+            fn algorithm(&self) -> Algorithm {
                 match self {
                     $(AnyOptimizer::$variant(_) => Algorithm::$variant,)+
                 }
             }
 
-            /// See [`Optimizer::with_initial`].
-            pub fn with_initial(self, rows: &[f64]) -> Self {
+            fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
                 match self {
-                    $(AnyOptimizer::$variant(o) => AnyOptimizer::$variant(o.with_initial(rows)),)+
+                    $(AnyOptimizer::$variant(o) => o.init(initial, rng),)+
                 }
             }
 
-            /// See [`Optimizer::ask`].
-            pub fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+            fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
                 match self {
-                    $(AnyOptimizer::$variant(o) => o.ask(rng),)+
+                    $(AnyOptimizer::$variant(o) => o.next(rng),)+
                 }
             }
 
-            /// See [`Optimizer::tell`].
-            pub fn tell(&mut self, costs: &[f32]) {
+            fn tell(&mut self, costs: &[f32]) {
                 match self {
                     $(AnyOptimizer::$variant(o) => o.tell(costs),)+
                 }
             }
 
-            /// See [`Optimizer::members`].
-            pub fn members(&self) -> (Vec<f64>, Vec<f32>) {
+            fn members(&self) -> (Vec<f64>, Vec<f32>) {
                 match self {
                     $(AnyOptimizer::$variant(o) => o.members(),)+
                 }
@@ -337,6 +434,7 @@ impl clap::ValueEnum for Algorithm {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::SeedableRng;
 
     #[test]
     fn infinite_and_nan_costs_sort_last() {
@@ -359,6 +457,71 @@ mod tests {
                 .unwrap_err()
                 .contains("ga, mfa")
         );
+    }
+
+    const N: usize = 8;
+
+    /// A search of 8 over a 3-d box by every registered algorithm.
+    fn every_algorithm() -> impl Iterator<Item = AskTell> {
+        let bounds = Bounds {
+            lower: vec![-1.0; 3],
+            upper: vec![1.0; 3],
+            names: vec!["x".into(), "y".into(), "z".into()],
+        };
+        Algorithm::ALL
+            .into_iter()
+            .map(move |a| AskTell::new(&a.default_settings(), bounds.clone(), N, 10, &[]))
+    }
+
+    fn sphere(rows: &[f64]) -> Vec<f32> {
+        rows.chunks(3)
+            .map(|r| r.iter().map(|v| v * v).sum::<f64>() as f32)
+            .collect()
+    }
+
+    #[test]
+    fn asking_twice_is_an_error_for_every_algorithm_and_changes_nothing() {
+        for (mut refused, mut plain) in every_algorithm().zip(every_algorithm()) {
+            let algo = refused.algorithm();
+            let (mut r1, mut r2) = (ChaCha8Rng::seed_from_u64(3), ChaCha8Rng::seed_from_u64(3));
+            for _ in 0..3 {
+                let rows = refused.ask(&mut r1).unwrap();
+                assert_eq!(refused.ask(&mut r1), Err(PhaseError::AskedTwice(algo)));
+                // The refused ask neither restarted the search nor drew from
+                // the generator: the two searches stay the same.
+                assert_eq!(rows, plain.ask(&mut r2).unwrap(), "{algo}");
+                refused.tell(&sphere(&rows)).unwrap();
+                plain.tell(&sphere(&rows)).unwrap();
+            }
+            assert_eq!(refused.members(), plain.members(), "{algo}");
+        }
+    }
+
+    #[test]
+    fn telling_out_of_turn_or_the_wrong_number_of_costs_is_an_error() {
+        let mut rng = ChaCha8Rng::seed_from_u64(4);
+        for mut search in every_algorithm() {
+            let algo = search.algorithm();
+            assert_eq!(search.tell(&[1.0; N]), Err(PhaseError::NothingAsked(algo)));
+            let rows = search.ask(&mut rng).unwrap();
+            for wrong in [N - 1, N + 1] {
+                assert_eq!(
+                    search.tell(&vec![1.0; wrong]),
+                    Err(PhaseError::WrongLength {
+                        algorithm: algo,
+                        got: wrong,
+                        want: N
+                    })
+                );
+            }
+            assert!(search.members().0.is_empty(), "{algo}: nothing told yet");
+            search.tell(&sphere(&rows)).unwrap();
+            assert_eq!(
+                search.tell(&sphere(&rows)),
+                Err(PhaseError::NothingAsked(algo))
+            );
+            assert_eq!(search.members().1.len(), N, "{algo}");
+        }
     }
 }
 

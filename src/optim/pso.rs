@@ -115,10 +115,6 @@ pub struct Pso {
     gbest: Vec<f64>,
     #[serde(with = "super::inf_serde::one")]
     gbest_cost: f32,
-    told: bool,
-    /// Rows that replace the first uniform draws of the initial swarm.
-    #[serde(default)]
-    initial: Vec<f64>,
 }
 
 impl Optimizer for Pso {
@@ -143,8 +139,6 @@ impl Optimizer for Pso {
             pbest_cost: vec![f32::INFINITY; n],
             gbest: bounds.lower.clone(),
             gbest_cost: f32::INFINITY,
-            told: false,
-            initial: Vec::new(),
             bounds,
         }
     }
@@ -160,28 +154,23 @@ impl Optimizer for Pso {
         PsoSettings::constriction()
     }
 
-    fn with_initial(mut self, rows: &[f64]) -> Pso {
-        self.initial = rows.to_vec();
-        self
+    /// The first swarm, with velocities uniform in `[−Vmax_j, Vmax_j]`.
+    fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
+        let d = self.bounds.dim();
+        self.pos = super::first_population(&self.bounds, self.n, initial, rng);
+        self.vel = (0..self.n * d)
+            .map(|k| self.vmax[k % d] * (2.0 * rng.random::<f64>() - 1.0))
+            .collect();
+        self.pbest = self.pos.clone();
+        self.pos.clone()
     }
 
-    fn ask(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        if self.told {
-            self.step(rng);
-        } else if self.pos.is_empty() {
-            let d = self.bounds.dim();
-            self.pos = super::first_population(&self.bounds, self.n, &self.initial, rng);
-            self.vel = (0..self.n * d)
-                .map(|k| self.vmax[k % d] * (2.0 * rng.random::<f64>() - 1.0))
-                .collect();
-            self.pbest = self.pos.clone();
-        }
-        self.told = false;
+    fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        self.step(rng);
         self.pos.clone()
     }
 
     fn tell(&mut self, costs: &[f32]) {
-        assert_eq!(costs.len(), self.n, "one cost per particle");
         let d = self.bounds.dim();
         for (i, &c) in costs.iter().enumerate() {
             if super::cost_order(c, self.pbest_cost[i]).is_lt() {
@@ -193,16 +182,11 @@ impl Optimizer for Pso {
                 self.gbest = self.pos[i * d..(i + 1) * d].to_vec();
             }
         }
-        self.told = true;
     }
 
     /// The particles' personal bests: the best each has found.
     fn members(&self) -> (Vec<f64>, Vec<f32>) {
-        if self.pbest.is_empty() {
-            (Vec::new(), Vec::new())
-        } else {
-            (self.pbest.clone(), self.pbest_cost.clone())
-        }
+        (self.pbest.clone(), self.pbest_cost.clone())
     }
 }
 
@@ -264,10 +248,10 @@ mod tests {
         };
         let mut pso = Pso::new(settings, bounds, 4, 10);
         let mut rng = ChaCha8Rng::seed_from_u64(4);
-        let x0 = pso.ask(&mut rng);
+        let x0 = pso.init(&[], &mut rng);
         // The first particle is far better: everyone is pulled hard towards it.
         pso.tell(&[0.0, 9.0, 9.0, f32::INFINITY]);
-        let x1 = pso.ask(&mut rng);
+        let x1 = pso.next(&mut rng);
         for (a, b) in x0.iter().zip(&x1) {
             assert!((a - b).abs() <= 0.5 + 1e-12, "{a} -> {b}");
         }

@@ -39,7 +39,7 @@ use serde::{Deserialize, Serialize};
 
 use super::history::{GenerationRecord, History};
 use super::lm::{self, LmError, LmSettings};
-use super::{AnyOptimizer, argmin, cost_order};
+use super::{AskTell, argmin, cost_order};
 use crate::data::write_atomic;
 use crate::model::Measure;
 
@@ -251,7 +251,7 @@ pub struct Engine {
     /// Index of the current stage in [`Engine::stages`].
     cursor: usize,
     /// The islands of the population stage in progress (empty between stages).
-    optimizers: Vec<AnyOptimizer>,
+    optimizers: Vec<AskTell>,
     /// Generations of the current stage so far.
     stage_steps: usize,
     stage_start_evaluations: u64,
@@ -550,7 +550,7 @@ impl Engine {
         &mut self,
         objective: &mut dyn Objective,
         stage: Stage,
-    ) -> anyhow::Result<Vec<AnyOptimizer>> {
+    ) -> anyhow::Result<Vec<AskTell>> {
         let bounds = self.space.bounds();
         let nf = bounds.dim();
         self.stage_steps = 0;
@@ -571,8 +571,7 @@ impl Engine {
                             Vec::new()
                         };
                         rows.extend(self.space.draw(n - rows.len() / nf, &mut rng));
-                        AnyOptimizer::new(&g.settings, bounds.clone(), n, g.generations)
-                            .with_initial(&rows)
+                        AskTell::new(&g.settings, bounds.clone(), n, g.generations, &rows)
                     })
                     .collect();
                 self.rng = RngState::of(&rng);
@@ -589,13 +588,13 @@ impl Engine {
                             None if i == 0 => self.initial.clone(),
                             None => Vec::new(),
                         };
-                        AnyOptimizer::new(
+                        AskTell::new(
                             &super::Algorithm::De.default_settings(),
                             bounds.clone(),
                             n,
                             f.generations,
+                            &start,
                         )
-                        .with_initial(&start)
                     })
                     .collect())
             }
@@ -650,7 +649,7 @@ impl Engine {
             .optimizers
             .iter_mut()
             .map(|o| o.ask(&mut rng))
-            .collect();
+            .collect::<Result<_, _>>()?;
         self.rng = RngState::of(&rng);
         let scored: Vec<(Vec<f64>, Vec<f32>)> = if measures.iter().all(|&m| m == measure) {
             let (canonical, costs) = self.score(objective, &asked.concat(), measure)?;
@@ -677,7 +676,7 @@ impl Engine {
                 .collect::<anyhow::Result<_>>()?
         };
         for (opt, (_, costs)) in self.optimizers.iter_mut().zip(&scored) {
-            opt.tell(costs);
+            opt.tell(costs)?;
         }
         for ((canonical, costs), &m) in scored.iter().zip(&measures) {
             if m == Measure::FreeRun {
