@@ -186,12 +186,26 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 6] = [
         (&["fit", "missing.csv"], "missing.csv"),
         (&["fit", &csv, "--algo", "cmaes"], "cmaes"),
+        // Each algorithm's own minimum, named with the flag.
         (
             &["fit", &csv, "--pop", "2", "--backend", "cpu"],
-            "at least 4",
+            "--pop must be at least 4 for --algo de",
+        ),
+        (
+            &[
+                "fit",
+                &csv,
+                "--algo",
+                "ga",
+                "--pop",
+                "1",
+                "--backend",
+                "cpu",
+            ],
+            "--pop must be at least 2 for --algo ga",
         ),
         (
             &["fit", &csv, "--p-mut", "1.5", "--backend", "cpu"],

@@ -24,9 +24,9 @@ use rayon::prelude::*;
 use super::boucwen::{Params, sse_f32};
 use super::{FS, Record, UPSAMPLE, resample};
 use crate::model::Measure;
+use crate::optim::Algorithm;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
 use crate::optim::lm::{self, LmError, LmSettings};
-use crate::optim::{Algorithm, MIN_POPULATION};
 
 /// Scores a population of canonical `f32` vectors (row-major `N × 7`).
 pub trait BatchScorer {
@@ -349,7 +349,7 @@ fn population_search(
     );
     let plan = Plan::search(
         Algorithm::De.default_settings(),
-        s.population.max(MIN_POPULATION),
+        s.population,
         s.generations.max(1),
     );
     let mut engine = Engine::new(plan, space, s.seed, StopRules::default())?;

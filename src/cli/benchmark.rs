@@ -12,6 +12,7 @@ use mckibben::benchmark::{
     BenchmarkData, PERIOD, PUBLISHED, boucwen::PARAM_NAMES, default_data_dir, gpu,
     test_multisine_rmse, test_sinesweep_rmse,
 };
+use mckibben::optim::Algorithm;
 
 /// Validate the identification on a public benchmark with published results.
 #[derive(Debug, clap::Args)]
@@ -85,7 +86,12 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
     let start = Instant::now();
     let dir = args.data.clone().unwrap_or_else(default_data_dir);
     let data = BenchmarkData::load(&dir)?;
-    anyhow::ensure!(args.population >= 5, "--population must be at least 5");
+    let min = Algorithm::De.min_population();
+    anyhow::ensure!(
+        args.population >= min,
+        "--population must be at least {min}, the minimum of its differential evolution (got {})",
+        args.population
+    );
     let settings = IdentifySettings {
         seed: args.seed,
         population: args.population,

@@ -228,10 +228,18 @@ fn median_min_max(mut v: Vec<f64>) -> (Option<f64>, Option<f64>, Option<f64>) {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.gens >= 1, "--gens must be at least 1");
+    // Every algorithm runs at every size: the largest minimum rules.
+    let (needy, min) = Algorithm::ALL
+        .into_iter()
+        .map(|a| (a, a.min_population()))
+        .max_by_key(|&(_, m)| m)
+        .expect("a registered algorithm");
     anyhow::ensure!(
-        args.budget_pop >= 4 && args.budget_gens >= 1,
-        "--budget-pop must be at least 4 and --budget-gens at least 1"
+        args.budget_pop >= min,
+        "--budget-pop must be at least {min} ({needy} needs {min}; got {})",
+        args.budget_pop
     );
+    anyhow::ensure!(args.budget_gens >= 1, "--budget-gens must be at least 1");
     let sizes: Vec<usize> = args
         .thesis_sizes
         .iter()
@@ -239,8 +247,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .copied()
         .filter(|&n| n != 0)
         .collect();
-    if let Some(&n) = sizes.iter().find(|&&n| n < 4) {
-        anyhow::bail!("population sizes must be at least 4 (DE needs 4), got {n}");
+    if let Some(&n) = sizes.iter().find(|&&n| n < min) {
+        anyhow::bail!(
+            "--thesis-sizes and --sizes must be at least {min} ({needy} needs {min}), got {n}"
+        );
     }
     let trace = one_trace(args.data.load()?)?;
     let mut evaluator = eval::open(args.backend)?;

@@ -317,6 +317,13 @@ impl Args {
 
     /// The plan of a fresh fit.
     fn plan(&self, task: &Task) -> anyhow::Result<Plan> {
+        let min = self.algo.min_population();
+        anyhow::ensure!(
+            self.pop >= min,
+            "--pop must be at least {min} for --algo {} (got {})",
+            self.algo,
+            self.pop
+        );
         let settings = self.algo_settings(task.family)?;
         if self.thesis_flow {
             return Ok(Plan::thesis(settings, self.pop, self.gens));
@@ -325,6 +332,13 @@ impl Args {
         if let Some(global) = plan.global.as_mut() {
             if let Some(k) = self.islands {
                 anyhow::ensure!(k >= 1, "--islands must be at least 1");
+                anyhow::ensure!(
+                    self.pop / k >= min,
+                    "--islands {k} leaves {} individuals an island of --pop {}; --algo {} needs at least {min}",
+                    self.pop / k,
+                    self.pop,
+                    self.algo
+                );
                 global.islands = k;
             }
             if let Some(h) = self.horizon {

@@ -11,7 +11,7 @@ use super::limits::ValveLimits;
 use super::pi::{Pi, PiGains};
 use crate::model::Measure;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
-use crate::optim::{Algorithm, Bounds, MIN_POPULATION};
+use crate::optim::{Algorithm, Bounds};
 use crate::twin::{Rig, TwinConfig};
 
 /// The episodes a gain vector is scored on.
@@ -174,10 +174,12 @@ pub fn tune_pi(
     let algorithm: Algorithm = algo
         .parse()
         .map_err(|e: String| anyhow::anyhow!("--algo: {e}"))?;
+    let min = algorithm.min_population();
     anyhow::ensure!(
-        pop >= MIN_POPULATION && gens >= 1,
-        "tuning needs --pop ≥ {MIN_POPULATION} and --gens ≥ 1"
+        pop >= min,
+        "tuning needs --pop ≥ {min} for --algo {algorithm} (got {pop})"
     );
+    anyhow::ensure!(gens >= 1, "tuning needs --gens ≥ 1");
     let start = std::time::Instant::now();
     let bounds = gain_bounds();
     let space = Space::new(bounds.lower, bounds.upper, bounds.names);

@@ -81,12 +81,13 @@ impl Optimizer for De {
     const HELP: &'static str =
         "Differential evolution (jDE-adapted current-to-pbest/1/bin), the baseline";
 
+    /// rand/1 draws three partners distinct from the individual
+    /// (current-to-pbest/1 two): one minimum for both strategies, so that a
+    /// population valid for one is valid for the other.
+    const MIN_POPULATION: usize = 4;
+
     /// `generations` is unused: jDE adapts `F` and `CR` without a schedule.
     fn new(settings: DeSettings, bounds: Bounds, n: usize, _generations: usize) -> De {
-        assert!(
-            n >= 4,
-            "differential evolution needs at least 4 individuals"
-        );
         De {
             f: vec![settings.f_init; n],
             cr: vec![settings.cr_init; n],
@@ -234,6 +235,27 @@ mod tests {
             rows = de.next(&mut rng);
         }
         assert!(best < 1e-6, "{best}");
+    }
+
+    #[test]
+    fn rand1_runs_at_the_minimum_population() {
+        let bounds = Bounds {
+            lower: vec![-1.0; 2],
+            upper: vec![1.0; 2],
+            names: vec!["x".into(), "y".into()],
+        };
+        let settings = DeSettings {
+            strategy: Strategy::Rand1,
+            ..DeSettings::default()
+        };
+        let mut de = De::new(settings, bounds, De::MIN_POPULATION, 5);
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let mut rows = de.init(&[], &mut rng);
+        for _ in 0..5 {
+            de.tell(&sphere(&rows, 2));
+            rows = de.next(&mut rng);
+        }
+        assert_eq!(rows.len(), 2 * De::MIN_POPULATION);
     }
 
     #[test]

@@ -240,8 +240,10 @@ impl Optimizer for Ga {
 
     const HELP: &'static str = "Genetic algorithm (§5.2.1, A.2.1)";
 
+    /// Every child has two distinct parents.
+    const MIN_POPULATION: usize = 2;
+
     fn new(settings: GaSettings, bounds: Bounds, n: usize, generations: usize) -> Ga {
-        assert!(n >= 2, "the GA needs at least two individuals");
         Ga {
             settings,
             bounds,

@@ -222,8 +222,11 @@ impl Optimizer for Mfa {
 
     const HELP: &'static str = "Modified firefly algorithm (§5.3.2, A.2.2)";
 
+    /// A firefly moves only towards a brighter one (the walk is part of
+    /// each attraction): alone, it would never move.
+    const MIN_POPULATION: usize = 2;
+
     fn new(settings: MfaSettings, bounds: Bounds, n: usize, generations: usize) -> Mfa {
-        assert!(n >= 1, "the MFA needs at least one firefly");
         Mfa {
             settings,
             bounds,

@@ -93,9 +93,14 @@ pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
     /// One line on it, for `--algo`'s help.
     const HELP: &'static str;
 
-    /// A fresh search over `bounds` with `n` individuals a generation and
-    /// `generations` planned (the horizon of schedules that run over the
-    /// search).
+    /// The smallest population it searches with, whatever its settings: the
+    /// one rule on population sizes, stated in each algorithm's file. The
+    /// engine refuses a smaller island, the commands a smaller `--pop`.
+    const MIN_POPULATION: usize;
+
+    /// A fresh search over `bounds` with `n ≥ MIN_POPULATION` individuals a
+    /// generation and `generations` planned (the horizon of schedules that
+    /// run over the search).
     fn new(settings: Self::Settings, bounds: Bounds, n: usize, generations: usize) -> Self;
 
     /// The settings of the thesis' flow and of Table 21 (chapter 5): the
@@ -169,8 +174,9 @@ pub struct AskTell {
 
 impl AskTell {
     /// A search by `settings`' algorithm over `bounds` with `n` individuals
-    /// a generation and `generations` planned, whose first population starts
-    /// with the `initial` rows (row-major, clamped into the box; may be empty).
+    /// a generation (at least [`Algorithm::min_population`]) and
+    /// `generations` planned, whose first population starts with the
+    /// `initial` rows (row-major, clamped into the box; may be empty).
     pub fn new(
         settings: &AlgoSettings,
         bounds: Bounds,
@@ -178,6 +184,12 @@ impl AskTell {
         generations: usize,
         initial: &[f64],
     ) -> AskTell {
+        let min = settings.algorithm().min_population();
+        assert!(
+            n >= min,
+            "{} needs a population of at least {min} (got {n})",
+            settings.algorithm()
+        );
         AskTell {
             n,
             phase: Phase::Fresh {
@@ -228,10 +240,6 @@ impl AskTell {
         }
     }
 }
-
-/// The smallest population every algorithm accepts: differential evolution
-/// draws three partners distinct from the individual itself.
-pub const MIN_POPULATION: usize = 4;
 
 /// The first population of an optimizer: the given `initial` rows (clamped
 /// into the box; a warm start from known models), then uniform draws (eq. 26).
@@ -294,6 +302,13 @@ macro_rules! registry {
             pub fn help(self) -> &'static str {
                 match self {
                     $(Algorithm::$variant => <$optimizer as Optimizer>::HELP,)+
+                }
+            }
+
+            /// Its smallest population ([`Optimizer::MIN_POPULATION`]).
+            pub fn min_population(self) -> usize {
+                match self {
+                    $(Algorithm::$variant => <$optimizer as Optimizer>::MIN_POPULATION,)+
                 }
             }
 
@@ -461,22 +476,49 @@ mod tests {
 
     const N: usize = 8;
 
-    /// A search of 8 over a 3-d box by every registered algorithm.
-    fn every_algorithm() -> impl Iterator<Item = AskTell> {
-        let bounds = Bounds {
+    fn cube() -> Bounds {
+        Bounds {
             lower: vec![-1.0; 3],
             upper: vec![1.0; 3],
             names: vec!["x".into(), "y".into(), "z".into()],
-        };
+        }
+    }
+
+    /// A search of 8 over a 3-d box by every registered algorithm.
+    fn every_algorithm() -> impl Iterator<Item = AskTell> {
         Algorithm::ALL
             .into_iter()
-            .map(move |a| AskTell::new(&a.default_settings(), bounds.clone(), N, 10, &[]))
+            .map(|a| AskTell::new(&a.default_settings(), cube(), N, 10, &[]))
     }
 
     fn sphere(rows: &[f64]) -> Vec<f32> {
         rows.chunks(3)
             .map(|r| r.iter().map(|v| v * v).sum::<f64>() as f32)
             .collect()
+    }
+
+    /// The minimum each algorithm states is enough for each of its presets.
+    #[test]
+    fn every_algorithm_runs_at_its_minimum_population() {
+        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        for algo in Algorithm::ALL {
+            let n = algo.min_population();
+            for settings in [
+                algo.default_settings(),
+                algo.thesis_settings(Family::Generalized),
+                algo.staged_settings(n),
+            ] {
+                let mut search = AskTell::new(&settings, cube(), n, 5, &[]);
+                for _ in 0..5 {
+                    let rows = search.ask(&mut rng).unwrap();
+                    assert_eq!(rows.len(), n * 3, "{algo}");
+                    for row in rows.chunks(3) {
+                        assert!(!cube().clamp(&mut row.to_vec()), "{algo}: {row:?}");
+                    }
+                    search.tell(&sphere(&rows)).unwrap();
+                }
+            }
+        }
     }
 
     #[test]

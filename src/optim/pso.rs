@@ -122,8 +122,11 @@ impl Optimizer for Pso {
 
     const HELP: &'static str = "Particle swarm optimization (§5.3.3, A.2.3)";
 
+    /// A lone particle still moves: by its inertia and towards its own best,
+    /// which is the swarm's.
+    const MIN_POPULATION: usize = 1;
+
     fn new(settings: PsoSettings, bounds: Bounds, n: usize, generations: usize) -> Pso {
-        assert!(n >= 1, "the PSO needs at least one particle");
         let vmax = (0..bounds.dim())
             .map(|j| settings.vmax.min(settings.vmax_fraction * bounds.width(j)))
             .collect();

@@ -283,27 +283,28 @@ impl Engine {
             "the search space has no free parameter (every lower bound equals its upper bound)"
         );
         if let Some(g) = &plan.global {
+            let min = g.algorithm().min_population();
             anyhow::ensure!(
-                g.population >= super::MIN_POPULATION,
-                "{} needs a population of at least {} (got {})",
+                g.population >= min,
+                "{} needs a population of at least {min} (got {})",
                 g.algorithm(),
-                super::MIN_POPULATION,
                 g.population
             );
             anyhow::ensure!(g.generations >= 1, "need at least one generation");
             anyhow::ensure!(
-                g.islands >= 1 && g.population / g.islands >= super::MIN_POPULATION,
-                "{} islands of a population of {} leave fewer than {} individuals an island",
+                g.islands >= 1 && g.population / g.islands >= min,
+                "{} islands of a population of {} leave fewer than {min} individuals an island ({}'s minimum)",
                 g.islands,
                 g.population,
-                super::MIN_POPULATION
+                g.algorithm()
             );
         }
         if let Some(f) = &plan.free_run {
+            let min = FreeRun::ALGORITHM.min_population();
             anyhow::ensure!(
-                f.population / plan.islands() >= super::MIN_POPULATION && f.generations >= 1,
-                "the free-run stage needs at least {} individuals an island and one generation",
-                super::MIN_POPULATION
+                f.population / plan.islands() >= min && f.generations >= 1,
+                "the free-run stage ({}) needs at least {min} individuals an island and one generation",
+                FreeRun::ALGORITHM
             );
         }
         anyhow::ensure!(
@@ -589,7 +590,7 @@ impl Engine {
                             None => Vec::new(),
                         };
                         AskTell::new(
-                            &super::Algorithm::De.default_settings(),
+                            &FreeRun::ALGORITHM.default_settings(),
                             bounds.clone(),
                             n,
                             f.generations,

@@ -128,6 +128,11 @@ pub fn horizon(arx_pole: f64, shortest: usize) -> usize {
 pub const POPULATION: usize = 1000;
 /// Default islands (fewer when the population is too small for four).
 pub const ISLANDS: usize = 4;
+/// The fewest individuals an island of the default plan holds, unless its
+/// algorithm needs more ([`Algorithm::min_population`]): a choice of the
+/// plan, so that a small population is split into fewer islands rather than
+/// into handfuls.
+pub const ISLAND_MIN: usize = 4;
 /// Default generations of the global stage.
 pub const GENERATIONS: usize = 300;
 
@@ -143,8 +148,8 @@ pub fn default_plan(
     horizon: usize,
     longest: usize,
 ) -> Plan {
-    // Small populations get fewer islands, each at least the minimum.
-    let islands = (n / crate::optim::MIN_POPULATION).clamp(1, ISLANDS);
+    let per_island = ISLAND_MIN.max(algorithm.min_population());
+    let islands = (n / per_island).clamp(1, ISLANDS);
     Plan {
         global: Some(Global {
             settings: algorithm.staged_settings(n),
@@ -156,7 +161,7 @@ pub fn default_plan(
             longest,
         }),
         free_run: Some(FreeRun {
-            population: (n / 5).max(crate::optim::MIN_POPULATION * islands),
+            population: (n / 5).max(FreeRun::ALGORITHM.min_population() * islands),
             generations: (g / 4).max(1),
         }),
         polish: Some(Polish {

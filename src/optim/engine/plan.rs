@@ -74,6 +74,11 @@ pub struct FreeRun {
     pub generations: usize,
 }
 
+impl FreeRun {
+    /// The free-run stage's algorithm, with its paper's settings.
+    pub const ALGORITHM: Algorithm = Algorithm::De;
+}
+
 /// Levenberg–Marquardt from the best distinct members.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Polish {
