@@ -117,7 +117,7 @@ pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
     }
 
     /// The first population: `initial` rows (row-major; a warm start) and
-    /// uniform draws for the rest, as [`first_population`] makes it.
+    /// uniform draws for the rest, as `first_population` makes it.
     /// Row-major, `n × bounds.dim()`, every row inside the box.
     fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64>;
 
@@ -404,7 +404,8 @@ macro_rules! registry {
     };
 }
 
-// The registry: adding an algorithm is its file (an [`Optimizer`]) and a line here.
+// The registry: adding an algorithm is its file (an `Optimizer`, declared by
+// `pub mod` above) and a line here.
 registry! {
     Ga = "ga" => ga::Ga,
     Mfa = "mfa" => mfa::Mfa,
