@@ -14,7 +14,7 @@ use mckibben::optim::engine::{
     StopRules,
 };
 use mckibben::optim::history::GenerationRecord;
-use mckibben::optim::{AlgoSettings, Algorithm};
+use mckibben::optim::Algorithm;
 
 const DIM: usize = 3;
 
@@ -29,7 +29,7 @@ fn space() -> Space {
 
 /// A DE search of `n` individuals over `g` generations, on one island.
 fn plan(n: usize, g: usize) -> Plan {
-    Plan::search(Algorithm::De, AlgoSettings::default(), n, g)
+    Plan::search(Algorithm::De.default_settings(), n, g)
 }
 
 fn sphere(row: &[f64]) -> f64 {
