@@ -9,12 +9,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use mckibben::model::Measure;
+use mckibben::optim::Algorithm;
 use mckibben::optim::engine::{
     Engine, FreeRun, Objective, Observer, Outcome, Plan, Space, Stage, StageEnd, StopReason,
     StopRules,
 };
 use mckibben::optim::history::GenerationRecord;
-use mckibben::optim::Algorithm;
 
 const DIM: usize = 3;
 

@@ -163,7 +163,9 @@ pub fn simulate_f64(p: &Params, u: &[f64], h: f64) -> Option<Vec<f64>> {
             let dg = 1.0 - f_v * dv_ds - f_z * gc * h;
             let step = g / dg;
             s -= step;
-            if !(step.abs() > 1e-13 * (1.0 + s.abs())) {
+            // A NaN step ends the iteration too.
+            let moving = step.abs() > 1e-13 * (1.0 + s.abs());
+            if !moving {
                 break;
             }
         }
@@ -254,7 +256,7 @@ pub fn sse_f32(theta: &[f32], u: &[f32], y_meas: &[f32], stride: usize, h: f32) 
             let f_z = (-(nu * pz)) * ((bg * v1.abs()) + ((bd * v1) * sgn32(z1)));
             let g = s - f;
             let dg = (1.0 - (f_v * sc.dv_ds)) - (f_z * sc.half_h);
-            s = s - (g / dg);
+            s -= g / dg;
         }
         acc = (rhs - (sc.half_h * s)) / sc.meff;
         v = vp + (sc.half_h * acc);
@@ -262,11 +264,13 @@ pub fn sse_f32(theta: &[f32], u: &[f32], y_meas: &[f32], stride: usize, h: f32) 
         z = zp + (sc.half_h * s);
         zd = s;
         if i % stride == 0 {
-            if !(y.abs() <= DIVERGENCE_BOUND) {
+            // NaN counts as diverged.
+            let bounded = y.abs() <= DIVERGENCE_BOUND;
+            if !bounded {
                 return f32::INFINITY;
             }
             let d = y - y_meas[i / stride];
-            sse = sse + (d * d);
+            sse += d * d;
         }
     }
     if sse.is_finite() { sse } else { f32::INFINITY }

@@ -35,6 +35,7 @@ use mckibben::report::{Figure, Panel, Series};
 ///      global stage's best members (N/5 for G/4 generations);
 ///   3. polish: Levenberg–Marquardt on the free-run residuals from the best
 ///      8 distinct members.
+///
 /// The free-run error of a slow hysteretic model is a needle that a
 /// population search alone stalls beside; the prediction error is smooth
 /// around it. Default N = 1000, G = 300: under 2 s on two CPU cores for the

@@ -392,6 +392,7 @@ impl Augmented {
     /// is set back to the measured `y(k)` (less the creep state) after every
     /// `h`-th sample, the other states running on: the `h`-step-ahead
     /// predictor of [`Augmented::sse_ahead`].
+    #[allow(clippy::too_many_arguments)] // the simulation's inputs, one each
     fn run(
         &self,
         theta: &[f32],

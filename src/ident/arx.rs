@@ -111,7 +111,9 @@ impl Arx {
         let svd = phi.svd(true, true);
         let smax = svd.singular_values.max();
         let smin = svd.singular_values.min();
-        if !(smin > smax * 1e-10) {
+        // NaN singular values count as singular.
+        let conditioned = smin > smax * 1e-10;
+        if !conditioned {
             return Err(IdentError::Singular {
                 data: source.into(),
             });

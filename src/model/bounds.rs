@@ -85,8 +85,8 @@ impl SearchSpace {
             }
             Flow::Joint => {
                 let s = (1.0 - prior.a).abs().max(1e-3);
-                lower[ia] = (prior.a - 10.0 * s).min(0.8).max(0.0);
-                upper[ia] = (prior.a + 3.0 * s).max(1.05).min(1.2);
+                lower[ia] = (prior.a - 10.0 * s).clamp(0.0, 0.8);
+                upper[ia] = (prior.a + 3.0 * s).clamp(1.05, 1.2);
                 let (b1, b2) = (prior.b / 5.0, prior.b * 5.0);
                 (lower[ib], upper[ib]) = (b1.min(b2), b1.max(b2));
                 let cmax = prior.b.abs() * prior.max_abs_input + prior.max_abs_output;

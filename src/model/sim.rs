@@ -478,8 +478,8 @@ mod tests {
         let y: Vec<f32> = (0..300).map(|k| (k as f32 * 0.04).cos()).collect();
         let sim = simulate(Family::Classic, &theta, &u, y[0]);
         let mut acc = 0.0f32;
-        for k in 1..u.len() {
-            let e = sim.x[k] - y[k];
+        for (x, y) in sim.x.iter().zip(&y).skip(1) {
+            let e = x - y;
             acc += e * e;
         }
         assert_eq!(sse(Family::Classic, &theta, &u, &y), acc);

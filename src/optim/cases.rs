@@ -212,7 +212,9 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
     };
     let swing = rng.random_range(10.0..40.0);
     let r0 = range(&first);
-    if !(r0 > 1e-6) {
+    // A flat (or NaN) response cannot be scaled to a swing.
+    let moves = r0 > 1e-6;
+    if !moves {
         return None;
     }
     theta[ib] *= swing / r0;
@@ -276,7 +278,7 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
         return None;
     }
     let truth_validation = task.validate(&theta);
-    truth_validation.rmse.is_finite().then(|| Case {
+    truth_validation.rmse.is_finite().then_some(Case {
         spec,
         trace,
         truth: theta,

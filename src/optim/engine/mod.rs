@@ -733,7 +733,7 @@ impl Engine {
     /// start (`None`) just made.
     fn record(&mut self, stage: Stage, measure: Measure, costs: Option<&[f32]>) {
         let (gbest, mean, std, diverged) =
-            costs.map_or((None, None, None, 0), |c| GenerationRecord::stats(c));
+            costs.map_or((None, None, None, 0), GenerationRecord::stats);
         let leader = self.stage_best.as_ref().or(self.best.as_ref());
         let record = GenerationRecord {
             generation: self.history.records.len() + 1,
@@ -844,8 +844,10 @@ impl Engine {
                 break;
             }
             let distinct = starts.iter().all(|(s, c)| {
+                // Two infinite costs are not the same model.
+                let same_cost = (cost - c).abs() <= plan::DISTINCT as f32 * c.abs();
                 (0..nf).any(|j| (s[j] - row[j]).abs() > plan::DISTINCT * bounds.width(j))
-                    && !((cost - c).abs() <= plan::DISTINCT as f32 * c.abs())
+                    && !same_cost
             });
             if distinct {
                 starts.push((row.to_vec(), cost));
