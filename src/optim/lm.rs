@@ -7,9 +7,10 @@
 //! use the residuals' Jacobian, so a few dozen iterations from the search's
 //! best reach what thousands of generations would not.
 //!
-//! Jacobian by forward differences (columns in parallel), Marquardt's
-//! diagonal scaling (Marquardt 1963, "An algorithm for least-squares
-//! estimation of nonlinear parameters", SIAM J. Appl. Math. 11(2)), λ
+//! Jacobian by forward or central differences (`LmSettings::central`;
+//! columns in parallel), Marquardt's diagonal scaling (Marquardt 1963, "An
+//! algorithm for least-squares estimation of nonlinear parameters", SIAM J.
+//! Appl. Math. 11(2)), λ
 //! divided by 3 after a successful step and multiplied by 4 after a failed
 //! one. Bounds by an active set: a coordinate on its bound whose step points
 //! out of the box is held there and the step solved for the others
