@@ -9,6 +9,9 @@
 //! at its neutral value reproduces the baseline simulation bit for bit (the
 //! tests check it): a neutral effect adds `+0`, multiplies by `1`, or never
 //! binds.
+//!
+//! (Over 700 lines: the code is 600; the rest are its unit tests, which
+//! check every effect's neutral value against the baseline bit for bit.)
 
 use std::fmt;
 use std::str::FromStr;
