@@ -60,6 +60,11 @@ pub struct Global {
     /// run judges them all. (Measured on the shipped stair: the 23-step
     /// prediction ranks the linear model, A → 0, first; without a free-run
     /// island 3 of 6 DE seeds ended there, 86.4 %, with one none did.)
+    /// The free-run island searches with [`FreeRun::ALGORITHM`] whatever
+    /// the stage's algorithm: it is the island that finds the free run's
+    /// basin, and the answer should not depend on `--algo` (measured on
+    /// the shipped stair, 6 seeds each: with their own rule on that island
+    /// PSO ended in the linear model in 4, MFA in 1; with DE there, 2 and 0).
     pub ladder: bool,
     /// The longest experiment (samples).
     pub longest: usize,

@@ -35,7 +35,13 @@ impl Engine {
                             Vec::new()
                         };
                         rows.extend(self.space.draw(n - rows.len() / nf, &mut rng));
-                        AskTell::new(&g.settings, bounds.clone(), n, g.generations, &rows)
+                        let free_run_island = g.ladder && i > 0 && i + 1 == islands;
+                        let settings = if free_run_island {
+                            FreeRun::ALGORITHM.default_settings()
+                        } else {
+                            g.settings.clone()
+                        };
+                        AskTell::new(&settings, bounds.clone(), n, g.generations, &rows)
                     })
                     .collect();
                 self.rng = RngState::of(&rng);
