@@ -5,14 +5,12 @@
 
 mod common;
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 
 use mckibben::eval::{Evaluator, Problem, cpu::CpuEvaluator};
 use mckibben::model::Family;
 use mckibben::optim::engine::model::{ModelObjective, default_plan};
-use mckibben::optim::engine::{
-    Engine, Observer, Outcome, Plan, Space, Stage, StopReason, StopRules,
-};
+use mckibben::optim::engine::{Engine, Outcome, Plan, Space, Stage, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 use mckibben::optim::synthetic::Synthetic;
 use mckibben::optim::{AlgoSettings, Algorithm};
@@ -110,17 +108,6 @@ fn different_seeds_differ() {
     assert_ne!(fingerprint(&a), fingerprint(&b));
 }
 
-/// Raises the stop flag when the record of `at` (1-based, any stage) is made.
-struct InterruptAt<'a>(usize, &'a AtomicBool);
-
-impl Observer for InterruptAt<'_> {
-    fn record(&mut self, r: &GenerationRecord, _: usize) {
-        if r.generation == self.0 {
-            self.1.store(true, Ordering::SeqCst);
-        }
-    }
-}
-
 /// Ctrl-C raises the flag: the engine finishes the current generation (or
 /// polish start), stops with `Interrupted`, keeps the best so far and
 /// writes the checkpoint, from which the fit resumes to the uninterrupted
@@ -142,7 +129,7 @@ fn an_interrupt_in_any_stage_resumes_to_the_identical_result() {
             let cut = first
                 .run(
                     &mut objective,
-                    &mut [&mut InterruptAt(at, &flag)],
+                    &mut [&mut common::InterruptAt(at, &flag)],
                     Some(&flag),
                     Some(&path),
                 )

@@ -5,16 +5,16 @@
 //! backends) is in `optim_determinism.rs`; here each rule is checked alone
 //! against a cost whose behaviour is known exactly.
 
+mod common;
+
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use mckibben::model::Measure;
 use mckibben::optim::Algorithm;
 use mckibben::optim::engine::{
-    Engine, FreeRun, Objective, Observer, Outcome, Plan, Space, Stage, StageEnd, StopReason,
-    StopRules,
+    Engine, FreeRun, Objective, Outcome, Plan, Space, Stage, StageEnd, StopReason, StopRules,
 };
-use mckibben::optim::history::GenerationRecord;
 
 const DIM: usize = 3;
 
@@ -314,17 +314,6 @@ fn an_interrupt_raised_before_the_run_stops_it_before_any_evaluation() {
     );
 }
 
-/// Raises the stop flag when the record of generation `at` is made.
-struct InterruptAt<'a>(usize, &'a AtomicBool);
-
-impl Observer for InterruptAt<'_> {
-    fn record(&mut self, r: &GenerationRecord, _: usize) {
-        if r.generation == self.0 {
-            self.1.store(true, Ordering::SeqCst);
-        }
-    }
-}
-
 /// Ctrl-C during the search: the current generation finishes, and the fit
 /// reports the lowest cost of every candidate scored so far, with its row.
 #[test]
@@ -336,7 +325,7 @@ fn an_interrupt_during_the_search_keeps_the_best_candidate_scored_so_far() {
     let out = engine
         .run(
             &mut objective,
-            &mut [&mut InterruptAt(AT, &flag)],
+            &mut [&mut common::InterruptAt(AT, &flag)],
             Some(&flag),
             None,
         )

@@ -9,7 +9,8 @@
 //! missing adapter or file there is a broken set-up that must not pass as a
 //! green test.
 //!
-//! Each test file includes this with `mod common;`.
+//! It also holds [`InterruptAt`], the observer the engine tests press
+//! Ctrl-C with. Each test file includes this with `mod common;`.
 
 // Every test binary compiles its own copy of this module and uses only the
 // helpers it needs; the others would each warn as dead code.
@@ -80,4 +81,16 @@ pub fn require_path(path: PathBuf) -> Option<PathBuf> {
 #[track_caller]
 pub fn require_external(relative: &str) -> Option<PathBuf> {
     require_path(external_dir().join(relative))
+}
+
+/// An engine observer that raises the stop flag (Ctrl-C) when the history
+/// record numbered `.0` (1-based, any stage) is made.
+pub struct InterruptAt<'a>(pub usize, pub &'a std::sync::atomic::AtomicBool);
+
+impl mckibben::optim::engine::Observer for InterruptAt<'_> {
+    fn record(&mut self, r: &mckibben::optim::history::GenerationRecord, _: usize) {
+        if r.generation == self.0 {
+            self.1.store(true, std::sync::atomic::Ordering::SeqCst);
+        }
+    }
 }
