@@ -1,7 +1,5 @@
 // Classic Bouc-Wen family: θ = [A, α, β, γ, n, a, b, c, x0].
 
-const DIM: u32 = 9u;
-
 struct Theta {
     big_a: f32,
     alpha: f32,
@@ -31,14 +29,17 @@ fn classic_w(big_a: f32, beta: f32, gamma: f32, n: f32, w_prev: f32, delta: f32)
         - rounded((gamma * delta) * (pw * aw));
 }
 
-// sim.rs `Stepper::step` for the classic family.
-fn step(th: Theta, s: State, u_prev: f32) -> State {
-    let xn = linear_part(th.a, th.alpha, th.b, th.c, s.x, s.w, u_prev);
-    return State(xn, classic_w(th.big_a, th.beta, th.gamma, th.n, s.w, xn - s.x));
+// sim.rs `Stepper::step`'s linear part for the classic family.
+fn linear(th: Theta, s: State, u_prev: f32) -> f32 {
+    return linear_part(th.a, th.alpha, th.b, th.c, s.x, s.w, u_prev);
 }
 
-// sim.rs `Stepper::restart` (`restart_w`): the Bouc-Wen state takes the
-// jump's elastic part.
-fn restart(th: Theta, s: State, y: f32) -> State {
-    return State(y, s.w + rounded(th.big_a * (y - s.x)));
+// A: the stiffness a restart's elastic part and the rate effect scale.
+fn stiffness(th: Theta) -> f32 {
+    return th.big_a;
+}
+
+// sim.rs `Stepper::hysteresis`, with the stiffness `big_a`.
+fn hysteresis(th: Theta, big_a: f32, w_prev: f32, x: f32, delta: f32) -> f32 {
+    return classic_w(big_a, th.beta, th.gamma, th.n, w_prev, delta);
 }

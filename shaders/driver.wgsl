@@ -1,7 +1,19 @@
-// The one scoring loop of every family (src/model/sim.rs `run_scored`; the
-// family's file before this one defines `Theta`, `load_theta`, `step` and
-// `restart`). The state restarts from the measurement after every
-// `cfg.horizon`-th sample (never for 0, the free run).
+// The scoring loop of every plain family (src/model/sim.rs `run_scored`; the
+// family's file before this one defines `Theta`, `load_theta`, `linear`,
+// `stiffness` and `hysteresis`). The state restarts from the measurement
+// after every `cfg.horizon`-th sample (never for 0, the free run).
+
+// sim.rs `Stepper::step`.
+fn step(th: Theta, s: State, u_prev: f32) -> State {
+    let xn = linear(th, s, u_prev);
+    return State(xn, hysteresis(th, stiffness(th), s.w, xn, xn - s.x));
+}
+
+// sim.rs `Stepper::restart` (`restart_w`): the Bouc-Wen state takes the
+// jump's elastic part (for the linear family, `0 + 0`).
+fn restart(th: Theta, s: State, y: f32) -> State {
+    return State(y, s.w + rounded(stiffness(th) * (y - s.x)));
+}
 
 // Scores candidate `i` (chunk-local) on experiment `e`: its SSE, or +inf from
 // the first out-of-bounds state. In RESIDUALS mode the errors are written to
@@ -11,7 +23,7 @@ fn score(i: u32, e: u32) -> f32 {
     if (span.y == 0u) {
         return 0.0;
     }
-    let th = load_theta(i * DIM);
+    let th = load_theta(i * STRIDE);
     let r0 = i * cfg.residual_len + span.x - e;
     // sim.rs `Stepper::start`.
     var s = State(samples[span.x].y + th.x0, 0.0);
@@ -40,18 +52,4 @@ fn score(i: u32, e: u32) -> f32 {
         }
     }
     return acc;
-}
-
-@compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = candidate(gid);
-    if (i >= cfg.count) {
-        return;
-    }
-    for (var e = 0u; e < cfg.experiments; e = e + 1u) {
-        let sse = score(i, e);
-        if (!RESIDUALS) {
-            out[e * cfg.count + i] = sse;
-        }
-    }
 }

@@ -1,7 +1,5 @@
 // Generalized Bouc-Wen family: θ = [A, α, β1..β6, n, a, b, c, x0].
 
-const DIM: u32 = 13u;
-
 struct Theta {
     big_a: f32,
     alpha: f32,
@@ -29,7 +27,7 @@ fn load_theta(p: u32) -> Theta {
 }
 
 // sim.rs `generalized_w`; the sign of a product is the product of signs.
-fn generalized_w(th: Theta, w_prev: f32, x: f32, delta: f32) -> f32 {
+fn generalized_w(th: Theta, big_a: f32, w_prev: f32, x: f32, delta: f32) -> f32 {
     let sd = sgn(delta);
     let sw = sgn(w_prev);
     let sx = sgn(x);
@@ -37,17 +35,20 @@ fn generalized_w(th: Theta, w_prev: f32, x: f32, delta: f32) -> f32 {
         + rounded(th.b4 * sd)) + rounded(th.b5 * sw)) + rounded(th.b6 * sx));
     let aw = abs(w_prev);
     let pwn = abs_pow(aw, th.n - 1.0) * aw;
-    return w_prev + rounded(delta * (th.big_a - rounded(pwn * psi)));
+    return w_prev + rounded(delta * (big_a - rounded(pwn * psi)));
 }
 
-// sim.rs `Stepper::step` for the generalized family.
-fn step(th: Theta, s: State, u_prev: f32) -> State {
-    let xn = linear_part(th.a, th.alpha, th.b, th.c, s.x, s.w, u_prev);
-    return State(xn, generalized_w(th, s.w, xn, xn - s.x));
+// sim.rs `Stepper::step`'s linear part for the generalized family.
+fn linear(th: Theta, s: State, u_prev: f32) -> f32 {
+    return linear_part(th.a, th.alpha, th.b, th.c, s.x, s.w, u_prev);
 }
 
-// sim.rs `Stepper::restart` (`restart_w`): the Bouc-Wen state takes the
-// jump's elastic part.
-fn restart(th: Theta, s: State, y: f32) -> State {
-    return State(y, s.w + rounded(th.big_a * (y - s.x)));
+// A: the stiffness a restart's elastic part and the rate effect scale.
+fn stiffness(th: Theta) -> f32 {
+    return th.big_a;
+}
+
+// sim.rs `Stepper::hysteresis`, with the stiffness `big_a`.
+fn hysteresis(th: Theta, big_a: f32, w_prev: f32, x: f32, delta: f32) -> f32 {
+    return generalized_w(th, big_a, w_prev, x, delta);
 }

@@ -1,10 +1,15 @@
-// Shared by every model family's shader. A pipeline's source is, in order
-// (src/eval/gpu.rs `shader_source`): the switches `const N_ONE: bool` (true:
-// the n = 1 specialisation, bit-exact; false: the free exponent, `pow`
-// within the device's accuracy) and `const RESIDUALS: bool` (write every
-// error instead of one sum), this prologue, the family's file (its `Theta`,
-// `load_theta`, `step` and `restart`) and driver.wgsl (the one scoring loop). One
-// invocation scores one candidate on every experiment.
+// Shared by every model's shader. A pipeline's source is, in order
+// (src/eval/gpu.rs `shader_source`): a header generated from the model
+// description (the switches `const N_ONE: bool` — true: the n = 1
+// specialisation, bit-exact; false: the free exponent, `pow` within the
+// device's accuracy — and `const RESIDUALS: bool` — write every error
+// instead of one sum —, `const STRIDE: u32`, the parameters per candidate,
+// and for effect stages which are present, where their parameters sit and
+// each experiment's constants), this prologue, the family's file (its
+// `Theta`, `load_theta`, `linear`, `stiffness` and `hysteresis`), the
+// scoring loop (driver.wgsl for a plain family, effects.wgsl with effect
+// stages) and entry.wgsl. One invocation scores one candidate on every
+// experiment.
 //
 // The helpers spell the operations of src/model/sim.rs in the same order with
 // the same parentheses, so that an unfused f32 implementation (lavapipe) gives
@@ -29,7 +34,7 @@ struct Config {
 }
 
 @group(0) @binding(0) var<uniform> cfg: Config;
-// Row-major candidates, `DIM` f32 each (DIM is set by the family file).
+// Row-major candidates, `STRIDE` f32 each (set by the pipeline's header).
 @group(0) @binding(1) var<storage, read> params: array<f32>;
 // Samples (u(k), y(k)) of every experiment, one after the other.
 @group(0) @binding(2) var<storage, read> samples: array<vec2<f32>>;

@@ -7,7 +7,7 @@
 
 pub mod accept;
 pub mod data;
-pub mod effects;
+pub use crate::model::effects;
 pub mod fitting;
 pub mod interval;
 pub mod locate;

@@ -19,7 +19,7 @@
 
 use rayon::prelude::*;
 
-use super::{Evaluator, Problem, Scores, to_f32};
+use super::{Evaluator, Problem, Scores, effects, to_f32};
 use crate::model::Family;
 use crate::model::residuals;
 use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w};
@@ -69,13 +69,7 @@ impl Evaluator for CpuEvaluator {
 
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {
         let rows = to_f32(population);
-        let d = problem.family.dim();
-        anyhow::ensure!(
-            rows.len() % d == 0,
-            "population length {} is not a multiple of the {} model's {d} parameters",
-            rows.len(),
-            problem.family
-        );
+        check_rows(problem, &rows)?;
         Ok(score_rows(problem, &rows))
     }
 
@@ -87,19 +81,18 @@ impl Evaluator for CpuEvaluator {
         population: &[f64],
     ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
         let rows = to_f32(population);
-        let d = problem.family.dim();
-        anyhow::ensure!(
-            rows.len() % d == 0,
-            "population length {} is not a multiple of the {} model's {d} parameters",
-            rows.len(),
-            problem.family
-        );
+        check_rows(problem, &rows)?;
+        let model = problem.model();
         Ok(rows
-            .par_chunks(d)
+            .par_chunks(problem.dim())
             .map(|theta| {
                 let mut all = Vec::with_capacity(problem.samples());
-                for e in &problem.experiments {
-                    let r = residuals(problem.family, theta, &e.u, &e.y, problem.measure)?;
+                for (i, e) in problem.experiments.iter().enumerate() {
+                    let r = if problem.effects.is_empty() {
+                        residuals(problem.family, theta, &e.u, &e.y, problem.measure)?
+                    } else {
+                        model.residuals(theta, i, &problem.contexts[i], e, problem.measure)?
+                    };
                     all.extend(r);
                 }
                 Some(all)
@@ -108,15 +101,31 @@ impl Evaluator for CpuEvaluator {
     }
 }
 
+/// A population must be whole rows of the problem's parameters.
+fn check_rows(problem: &Problem, rows: &[f32]) -> anyhow::Result<()> {
+    let d = problem.dim();
+    anyhow::ensure!(
+        rows.len() % d == 0,
+        "population length {} is not a multiple of the {} model's {d} parameters",
+        rows.len(),
+        problem.family
+    );
+    Ok(())
+}
+
 /// Scores `f32` rows (row-major `N × d`) on every experiment of `problem`.
 pub fn score_rows(problem: &Problem, rows: &[f32]) -> Scores {
     let family = problem.family;
     let every = problem.measure.restart_every();
-    let d = family.dim();
+    let d = problem.dim();
     let n = rows.len() / d;
+    let model = problem.model();
     let batches: Vec<Vec<[f32; LANES]>> = rows
         .par_chunks(LANES * d)
         .map(|chunk| {
+            if !problem.effects.is_empty() {
+                return effects::batch_sse(problem, &model, chunk);
+            }
             let params = transpose(chunk, d);
             problem
                 .experiments

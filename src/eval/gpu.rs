@@ -23,12 +23,15 @@ use anyhow::{Context, bail};
 
 use super::{Evaluator, Problem, Scores, to_f32};
 use crate::model::Family;
+use crate::model::effects::{Context as EffectContext, Effect};
 
 /// Invocations per workgroup; the shaders' `@workgroup_size`.
 const WORKGROUP: u32 = 64;
 
 const PROLOGUE: &str = include_str!("../../shaders/prologue.wgsl");
 const DRIVER: &str = include_str!("../../shaders/driver.wgsl");
+const EFFECTS: &str = include_str!("../../shaders/effects.wgsl");
+const ENTRY: &str = include_str!("../../shaders/entry.wgsl");
 
 fn family_source(family: Family) -> &'static str {
     match family {
@@ -46,13 +49,70 @@ enum Output {
     Residuals,
 }
 
-/// The complete WGSL of one pipeline: the `N_ONE` and `RESIDUALS` switches,
-/// the prologue, the family's file and the scoring loop.
-pub fn shader_source(family: Family, n_one: bool, residuals: bool) -> String {
+/// The complete WGSL of the pipeline that scores `problem`'s model: a
+/// header generated from the model description, the prologue, the family's
+/// file, the scoring loop (the plain family's, or the one with effect
+/// stages) and the entry point.
+pub fn shader_source(problem: &Problem, n_one: bool, residuals: bool) -> String {
+    let mut header = format!(
+        "const N_ONE: bool = {n_one};\nconst RESIDUALS: bool = {residuals};\n\
+         const STRIDE: u32 = {}u;\n",
+        problem.dim()
+    );
+    let driver = if problem.effects.is_empty() {
+        DRIVER
+    } else {
+        header.push_str(&effects_header(problem));
+        EFFECTS
+    };
     format!(
-        "const N_ONE: bool = {n_one};\nconst RESIDUALS: bool = {residuals};\n{PROLOGUE}\n{}\n{DRIVER}",
-        family_source(family)
+        "{header}{PROLOGUE}\n{}\n{driver}\n{ENTRY}",
+        family_source(problem.family)
     )
+}
+
+/// The constants of `shaders/effects.wgsl`: which effects are present,
+/// where their parameters start in a row, and each experiment's constants
+/// as [`crate::model::effects::Augmented::prepare`] rounds them to `f32`
+/// (written in Rust's shortest round-trip form, which the WGSL compiler
+/// reads back to the same bits).
+fn effects_header(problem: &Problem) -> String {
+    let model = problem.model();
+    let mut h = String::new();
+    for effect in Effect::ALL {
+        let name = effect.name().to_ascii_uppercase();
+        let at = model.offset_of(effect);
+        h.push_str(&format!(
+            "const HAS_{name}: bool = {};\nconst AT_{name}: u32 = {}u;\n",
+            at.is_some(),
+            at.unwrap_or(0)
+        ));
+    }
+    let n = problem.contexts.len();
+    let array = |name: &str, ty: &str, values: Vec<String>| {
+        format!(
+            "var<private> {name}: array<{ty}, {n}> = array<{ty}, {n}>({});\n",
+            values.join(", ")
+        )
+    };
+    let float = |f: &dyn Fn(&EffectContext) -> f32| {
+        problem
+            .contexts
+            .iter()
+            .map(|c| format!("{:?}f", f(c)))
+            .collect::<Vec<_>>()
+    };
+    h.push_str(&array("U_MEAN", "f32", float(&|c| c.u_mean as f32)));
+    h.push_str(&array("Y_MEAN", "f32", float(&|c| c.y_mean as f32)));
+    h.push_str(&array("BRANCH_TOL", "f32", float(&|c| c.branch_tol as f32)));
+    h.push_str(&array("INV_DT", "f32", float(&|c| (1.0 / c.dt) as f32)));
+    let up = problem
+        .contexts
+        .iter()
+        .map(|c| c.drives_up.to_string())
+        .collect();
+    h.push_str(&array("DRIVES_UP", "bool", up));
+    h
 }
 
 /// Which adapters `open` considers: the native GPU APIs (Vulkan on Linux,
@@ -166,7 +226,8 @@ pub struct GpuEvaluator {
     info: wgpu::AdapterInfo,
     limits: wgpu::Limits,
     options: GpuOptions,
-    pipelines: HashMap<(Family, bool, Output), wgpu::ComputePipeline>,
+    /// Compiled pipelines by their WGSL source.
+    pipelines: HashMap<String, wgpu::ComputePipeline>,
     params: Grown,
     samples: Grown,
     spans: Grown,
@@ -230,27 +291,22 @@ impl GpuEvaluator {
         &self.info
     }
 
-    fn pipeline(&mut self, family: Family, n_one: bool, output: Output) -> &wgpu::ComputePipeline {
+    fn pipeline(&mut self, source: String, label: &str) -> &wgpu::ComputePipeline {
         let device = &self.device;
-        self.pipelines
-            .entry((family, n_one, output))
-            .or_insert_with(|| {
-                let residuals = output == Output::Residuals;
-                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                    label: Some(family.name()),
-                    source: wgpu::ShaderSource::Wgsl(
-                        shader_source(family, n_one, residuals).into(),
-                    ),
-                });
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(family.name()),
-                    layout: None,
-                    module: &module,
-                    entry_point: Some("main"),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
+        self.pipelines.entry(source).or_insert_with_key(|source| {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(source.as_str().into()),
+            });
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
             })
+        })
     }
 
     /// Uploads the experiments' samples unless they are the ones on the device.
@@ -408,7 +464,7 @@ impl Evaluator for GpuEvaluator {
         let flat = self.run(problem, population, Output::Residuals)?;
         Ok(flat
             .chunks(r.max(1))
-            .take(population.len() / problem.family.dim())
+            .take(population.len() / problem.dim())
             .map(|row| row.iter().all(|v| v.is_finite()).then(|| row.to_vec()))
             .collect())
     }
@@ -433,7 +489,7 @@ impl GpuEvaluator {
         output: Output,
     ) -> anyhow::Result<Vec<f32>> {
         let family = problem.family;
-        let d = family.dim();
+        let d = problem.dim();
         anyhow::ensure!(
             population.len() % d == 0,
             "population length {} is not a multiple of the {family} model's {d} parameters",
@@ -519,8 +575,7 @@ impl GpuEvaluator {
         rows: &[f32],
         pass: &Pass,
     ) -> anyhow::Result<Vec<f32>> {
-        let family = problem.family;
-        let d = family.dim();
+        let d = problem.dim();
         let n = rows.len() / d;
         let n_exp = problem.experiments.len();
         let per = pass.per_candidate;
@@ -552,7 +607,8 @@ impl GpuEvaluator {
             configs.resize(configs.len().next_multiple_of(CONFIG_STRIDE as usize), 0u8);
         }
 
-        self.pipeline(family, pass.n_one, pass.output);
+        let source = shader_source(problem, pass.n_one, pass.output == Output::Residuals);
+        self.pipeline(source.clone(), problem.family.name());
         let device = &self.device;
         let params = self.params.at_least(device, param_bytes);
         self.queue
@@ -563,7 +619,7 @@ impl GpuEvaluator {
         let readback = self.readback.at_least(device, out_bytes);
         let samples = self.samples.buffer.as_ref().expect("uploaded");
         let spans = self.spans.buffer.as_ref().expect("uploaded");
-        let pipeline = &self.pipelines[&(family, pass.n_one, pass.output)];
+        let pipeline = &self.pipelines[&source];
         let layout = pipeline.get_bind_group_layout(0);
 
         let mut encoder = device.create_command_encoder(&Default::default());

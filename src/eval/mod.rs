@@ -7,17 +7,28 @@
 
 pub mod agreement;
 pub mod cpu;
+pub mod effects;
 pub mod gpu;
 pub mod workload;
 
+use crate::model::effects::{Augmented, Context, Effect};
 use crate::model::{Experiment, Family, Measure};
 
 /// What is scored: a model family against one or more experiments (e.g. two
 /// loads), each in deviation coordinates, under a measure (the free run's
 /// error, or a multi-step-ahead prediction's).
+///
+/// The model is a description: a baseline family and an ordered chain of
+/// effect stages ([`crate::model::effects`], empty for the plain family),
+/// from which every backend builds its batch kernel. Effects need each
+/// experiment's constants (its [`Context`]); experiment `e` is dataset `e`
+/// of the effects (the `load` effect's gain per dataset).
 #[derive(Debug, Clone)]
 pub struct Problem {
     pub family: Family,
+    pub effects: Vec<Effect>,
+    /// One per experiment when there are effects; empty otherwise.
+    pub contexts: Vec<Context>,
     pub experiments: Vec<Experiment>,
     pub measure: Measure,
 }
@@ -27,8 +38,37 @@ impl Problem {
     pub fn new(family: Family, experiments: Vec<Experiment>) -> Self {
         Problem {
             family,
+            effects: Vec::new(),
+            contexts: Vec::new(),
             experiments,
             measure: Measure::FreeRun,
+        }
+    }
+
+    /// The same problem with effect stages after the family, `contexts`
+    /// holding each experiment's constants.
+    pub fn with_effects(mut self, effects: Vec<Effect>, contexts: Vec<Context>) -> Self {
+        assert_eq!(
+            contexts.len(),
+            self.experiments.len(),
+            "one effect context per experiment"
+        );
+        self.effects = effects;
+        self.contexts = contexts;
+        self
+    }
+
+    /// The model scored: the family and its effect stages.
+    pub fn model(&self) -> Augmented {
+        Augmented::new(self.family, self.effects.clone(), self.experiments.len())
+    }
+
+    /// Parameters per candidate.
+    pub fn dim(&self) -> usize {
+        if self.effects.is_empty() {
+            self.family.dim()
+        } else {
+            self.model().dim()
         }
     }
 
@@ -78,7 +118,7 @@ pub trait Evaluator {
         None
     }
 
-    /// Scores `population` (row-major `N × problem.family.dim()`).
+    /// Scores `population` (row-major `N × problem.dim()`).
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores>;
 
     /// The errors `x(k) − y(k)` of every candidate under the problem's

@@ -4,6 +4,7 @@
 //! bounds and the thesis presets.
 
 pub mod bounds;
+pub mod effects;
 pub mod experiment;
 pub mod family;
 pub mod fitted;

@@ -20,7 +20,8 @@ use serde::Serialize;
 
 use crate::model::Experiment;
 use crate::model::Family;
-use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part};
+use crate::model::Measure;
+use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w};
 
 /// One unmodelled effect of the catalogue. Flags, JSON and reports use these
 /// names, so they are part of the interface.
@@ -303,20 +304,6 @@ pub struct Augmented {
     pub datasets: usize,
 }
 
-/// The effect parameters of one step, unpacked; `None` = effect absent.
-#[derive(Debug, Clone, Copy, Default)]
-struct Mods {
-    delay: Option<f32>,
-    deadzone: Option<f32>,
-    saturation: Option<f32>,
-    asymmetry: Option<f32>,
-    inertia: Option<f32>,
-    backlash: Option<f32>,
-    creep: Option<(f32, f32)>,
-    rate: Option<f32>,
-    load: Option<f32>,
-}
-
 impl Augmented {
     pub fn new(family: Family, effects: Vec<Effect>, datasets: usize) -> Self {
         Augmented {
@@ -366,35 +353,275 @@ impl Augmented {
         effects.push(effect);
         Augmented::new(self.family, effects, self.datasets)
     }
+}
 
-    fn mods(&self, theta: &[f32], dataset: usize) -> Mods {
-        let mut m = Mods::default();
-        let mut at = self.family.dim();
+/// One candidate's augmented model on one dataset, unpacked for the inner
+/// loop: the baseline's parameters, each present effect's parameters and
+/// the dataset's constants.
+///
+/// [`Prepared::step`] is the one definition of the augmented step: the
+/// scalar simulation below, the CPU batch path ([`crate::eval::cpu`]) and the
+/// WGSL shader (`shaders/effects.wgsl`, spelled with the same operations in
+/// the same order) all follow it. Minima and maxima are written as
+/// comparisons, and the input rate is multiplied by `1/dt`, so that no
+/// operation depends on how a platform treats signed zeros or divides.
+#[derive(Debug, Clone, Copy)]
+pub struct Prepared {
+    family: Family,
+    a: f32,
+    alpha: f32,
+    b: f32,
+    c: f32,
+    x0: f32,
+    big_a: f32,
+    n: f32,
+    /// β, γ (classic) or β₁..β₆ (generalized).
+    betas: [f32; 6],
+    delay: Option<f32>,
+    deadzone: Option<f32>,
+    /// The end stop in deviation coordinates.
+    saturation: Option<f32>,
+    asymmetry: Option<f32>,
+    inertia: Option<f32>,
+    backlash: Option<f32>,
+    creep: Option<(f32, f32)>,
+    rate: Option<f32>,
+    load: Option<f32>,
+    u_mean: f32,
+    branch_tol: f32,
+    inv_dt: f32,
+    drives_up: bool,
+}
+
+/// The states an augmented model carries from sample to sample: the
+/// baseline's output `x` and Bouc-Wen state `w`, and the effects' own.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct EffectState {
+    pub x: f32,
+    pub w: f32,
+    /// `x(k−2)`, for the inertia's extra pole.
+    x_prev2: f32,
+    /// The play's output (backlash), `None` before the first sample.
+    play: Option<f32>,
+    /// Branch of the asymmetry: +1 loading, −1 unloading, 0 not yet moved.
+    dir: f32,
+    /// The input's extreme on the current branch.
+    extreme: f32,
+    /// The creep's slow state.
+    pub z: f32,
+}
+
+/// `a` if it is the larger (ties and NaN: `b`), spelled as in the shader.
+#[inline(always)]
+fn larger(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// `a` if it is the smaller (ties and NaN: `b`), spelled as in the shader.
+#[inline(always)]
+fn smaller(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+impl Prepared {
+    /// The state at the first sample, from the first measured output `y0`
+    /// and the first input `u0` ([`crate::model::sim::Stepper::start`]).
+    #[inline(always)]
+    pub fn start(&self, y0: f32, u0: f32) -> EffectState {
+        let x = y0 + self.x0;
+        EffectState {
+            x,
+            x_prev2: x,
+            extreme: u0,
+            ..EffectState::default()
+        }
+    }
+
+    /// Advances one sample, `k ≥ 1`, on the input `u`; returns the predicted
+    /// output `ŷ(k)`.
+    #[inline(always)]
+    pub fn step(&self, s: &mut EffectState, k: usize, u: &[f32]) -> f32 {
+        // Input side: delay, deadzone, play, branch gain, load gain.
+        let raw = u[k - 1];
+        let mut ui = match self.delay {
+            Some(d) => {
+                let at = (k - 1) as f32 - d;
+                if at <= 0.0 {
+                    u[0]
+                } else {
+                    let i = at.floor();
+                    let f = at - i;
+                    let i = i as usize;
+                    if f == 0.0 {
+                        u[i]
+                    } else {
+                        u[i] + (f * (u[i + 1] - u[i]))
+                    }
+                }
+            }
+            None => raw,
+        };
+        if let Some(p0) = self.deadzone {
+            ui = larger(ui - p0, -self.u_mean);
+        }
+        if let Some(r) = self.backlash {
+            let half = 0.5 * r;
+            let prev = s.play.unwrap_or(ui);
+            let v = smaller(ui + half, larger(ui - half, prev));
+            s.play = Some(v);
+            ui = v;
+        }
+        if let Some(eps) = self.asymmetry {
+            if s.dir >= 0.0 {
+                s.extreme = larger(raw, s.extreme);
+                if raw < s.extreme - self.branch_tol {
+                    (s.dir, s.extreme) = (-1.0, raw);
+                } else if raw > u[0] + self.branch_tol {
+                    s.dir = 1.0;
+                }
+            } else {
+                s.extreme = smaller(raw, s.extreme);
+                if raw > s.extreme + self.branch_tol {
+                    (s.dir, s.extreme) = (1.0, raw);
+                }
+            }
+            ui += (s.dir * eps) * (ui + self.u_mean);
+        }
+        if let Some(g) = self.load {
+            // The gain acts on the absolute input, as the asymmetry's does.
+            ui += g * (ui + self.u_mean);
+        }
+        // State: the baseline's equations (`model::sim`), the extra pole and
+        // the end stop.
+        let x = s.x;
+        let mut xk = match self.family {
+            Family::Linear => linear_step(self.a, self.b, self.c, x, ui),
+            _ => linear_part(self.a, self.alpha, self.b, self.c, x, s.w, ui),
+        };
+        if let Some(a2) = self.inertia {
+            xk += a2 * (x - s.x_prev2);
+        }
+        if let Some(bound) = self.saturation {
+            xk = if self.drives_up {
+                smaller(xk, bound)
+            } else {
+                larger(xk, bound)
+            };
+        }
+        let delta = xk - x;
+        let a_eff = match self.rate {
+            Some(eta) => {
+                let prev = if k >= 2 { u[k - 2] } else { u[0] };
+                self.big_a * (1.0 + (eta * ((raw - prev).abs() * self.inv_dt)))
+            }
+            None => self.big_a,
+        };
+        s.w = match self.family {
+            Family::Linear => 0.0,
+            Family::Classic => classic_w(a_eff, self.betas[0], self.betas[1], self.n, s.w, delta),
+            Family::Generalized => generalized_w(a_eff, &self.betas, self.n, s.w, xk, delta),
+        };
+        s.x_prev2 = x;
+        s.x = xk;
+        // Output side: the creep's slow state.
+        match self.creep {
+            Some((rho, kappa)) => {
+                s.z = (rho * s.z) + (((1.0 - rho) * kappa) * ui);
+                xk + s.z
+            }
+            None => xk,
+        }
+    }
+
+    /// Whether the states after a step that predicted `y_hat` are in bounds.
+    #[inline(always)]
+    pub fn in_bounds(s: &EffectState, y_hat: f32) -> bool {
+        in_bounds(s.x) && in_bounds(s.w) && in_bounds(y_hat)
+    }
+
+    /// A restart of the prediction to the measurement `y`: the output state
+    /// takes `y` less the creep, and the Bouc-Wen state the jump's elastic
+    /// part, as the baseline's ([`crate::model::sim::Stepper::restart`]);
+    /// the effects' own states run on.
+    #[inline(always)]
+    pub fn restart(&self, s: &mut EffectState, y: f32) {
+        let x = y - s.z;
+        s.w = restart_w(self.big_a, s.w, s.x, x);
+        s.x = x;
+    }
+}
+
+impl Augmented {
+    /// Unpacks `theta` for dataset `dataset` with its context.
+    pub fn prepare(&self, theta: &[f32], dataset: usize, ctx: &Context) -> Prepared {
+        assert_eq!(
+            theta.len(),
+            self.dim(),
+            "augmented model takes {} parameters",
+            self.dim()
+        );
+        let fam = self.family;
+        let [ia, ib, ic] = fam.linear_indices();
+        let mut p = Prepared {
+            family: fam,
+            a: theta[ia],
+            b: theta[ib],
+            c: theta[ic],
+            x0: theta[fam.start_index()],
+            alpha: 1.0,
+            n: fam.exponent_index().map_or(1.0, |i| theta[i]),
+            u_mean: ctx.u_mean as f32,
+            branch_tol: ctx.branch_tol as f32,
+            inv_dt: (1.0 / ctx.dt) as f32,
+            drives_up: ctx.drives_up,
+            big_a: 0.0,
+            betas: [0.0; 6],
+            delay: None,
+            deadzone: None,
+            saturation: None,
+            asymmetry: None,
+            inertia: None,
+            backlash: None,
+            creep: None,
+            rate: None,
+            load: None,
+        };
+        match fam {
+            Family::Linear => {}
+            Family::Classic => {
+                (p.big_a, p.alpha) = (theta[0], theta[1]);
+                p.betas[..2].copy_from_slice(&theta[2..4]);
+            }
+            Family::Generalized => {
+                (p.big_a, p.alpha) = (theta[0], theta[1]);
+                p.betas.copy_from_slice(&theta[2..8]);
+            }
+        }
+        let mut at = fam.dim();
         for &e in &self.effects {
             let v = &theta[at..at + e.dim(self.datasets)];
             match e {
-                Effect::Delay => m.delay = Some(v[0].max(0.0)),
-                Effect::Deadzone => m.deadzone = Some(v[0]),
-                Effect::Saturation => m.saturation = Some(v[0]),
-                Effect::Asymmetry => m.asymmetry = Some(v[0]),
-                Effect::Inertia => m.inertia = Some(v[0]),
-                Effect::Backlash => m.backlash = Some(v[0].max(0.0)),
-                Effect::Creep => m.creep = Some((v[0], v[1])),
-                Effect::Rate => m.rate = Some(v[0]),
-                Effect::Load => m.load = (dataset >= 1).then(|| v[dataset - 1]),
+                Effect::Delay => p.delay = Some(larger(v[0], 0.0)),
+                Effect::Deadzone => p.deadzone = Some(v[0]),
+                Effect::Saturation => p.saturation = Some(v[0] - ctx.y_mean as f32),
+                Effect::Asymmetry => p.asymmetry = Some(v[0]),
+                Effect::Inertia => p.inertia = Some(v[0]),
+                Effect::Backlash => p.backlash = Some(larger(v[0], 0.0)),
+                Effect::Creep => p.creep = Some((v[0], v[1])),
+                Effect::Rate => p.rate = Some(v[0]),
+                Effect::Load => p.load = (dataset >= 1).then(|| v[dataset - 1]),
             }
             at += e.dim(self.datasets);
         }
-        m
+        p
     }
 
-    /// Runs the model on dataset `dataset` (input `u`, deviation coordinates)
-    /// from the measured `y0`, calling `sink(k, ŷ(k))` for `k ≥ 1`. Returns
-    /// false (and stops) as soon as a state leaves the divergence bound or
-    /// `sink` returns false. With `restart = Some((y, h))` the output state
-    /// is set back to the measured `y(k)` (less the creep state) after every
-    /// `h`-th sample, the other states running on: the `h`-step-ahead
-    /// predictor of [`Augmented::sse_ahead`].
+    /// Runs the model on dataset `dataset` (input `u`, deviation
+    /// coordinates) from the measured `y0`, calling `sink(k, ŷ(k))` for
+    /// `k ≥ 1`; returns false (and stops) at the first state out of bounds.
+    /// With `restart = Some((y, h))` the prediction restarts from the
+    /// measured `y(k)` after every `h`-th sample ([`Prepared::restart`]):
+    /// the `h`-step-ahead predictor of [`Augmented::sse_ahead`].
     #[allow(clippy::too_many_arguments)] // the simulation's inputs, one each
     fn run(
         &self,
@@ -404,126 +631,19 @@ impl Augmented {
         u: &[f32],
         y0: f32,
         restart: Option<(&[f32], usize)>,
-        mut sink: impl FnMut(usize, f32) -> bool,
+        mut sink: impl FnMut(usize, f32),
     ) -> bool {
-        assert_eq!(
-            theta.len(),
-            self.dim(),
-            "augmented model takes {} parameters",
-            self.dim()
-        );
-        let m = self.mods(theta, dataset);
-        let fam = self.family;
-        let [ia, ib, ic] = fam.linear_indices();
-        let (a, b, c) = (theta[ia], theta[ib], theta[ic]);
-        let (big_a, alpha) = match fam {
-            Family::Linear => (0.0, 1.0),
-            _ => (theta[0], theta[1]),
-        };
-        let n = fam.exponent_index().map_or(1.0, |i| theta[i]);
-        let u_mean = ctx.u_mean as f32;
-        let sat_bound = m.saturation.map(|l| l - ctx.y_mean as f32);
-        let branch_tol = ctx.branch_tol as f32;
-        let dt = ctx.dt as f32;
-
-        let (mut x, mut w) = (y0 + theta[fam.start_index()], 0.0f32);
-        let mut x_prev2 = x;
-        let mut play: Option<f32> = None;
-        let (mut dir, mut extreme) = (0.0f32, u.first().copied().unwrap_or(0.0));
-        let mut z = 0.0f32;
+        let p = self.prepare(theta, dataset, ctx);
+        let mut s = p.start(y0, u.first().copied().unwrap_or(0.0));
         for k in 1..u.len() {
-            // Input chain: delay, deadzone, play, branch gain, load gain.
-            let raw = u[k - 1];
-            let mut ui = match m.delay {
-                Some(d) => {
-                    let s = (k - 1) as f32 - d;
-                    if s <= 0.0 {
-                        u[0]
-                    } else {
-                        let i = s.floor();
-                        let f = s - i;
-                        let i = i as usize;
-                        if f == 0.0 {
-                            u[i]
-                        } else {
-                            u[i] + (f * (u[i + 1] - u[i]))
-                        }
-                    }
-                }
-                None => raw,
-            };
-            if let Some(p0) = m.deadzone {
-                ui = (ui - p0).max(-u_mean);
-            }
-            if let Some(r) = m.backlash {
-                let half = 0.5 * r;
-                let prev = play.unwrap_or(ui);
-                let v = (ui + half).min((ui - half).max(prev));
-                play = Some(v);
-                ui = v;
-            }
-            if let Some(eps) = m.asymmetry {
-                if dir >= 0.0 {
-                    extreme = extreme.max(raw);
-                    if raw < extreme - branch_tol {
-                        (dir, extreme) = (-1.0, raw);
-                    } else if raw > u[0] + branch_tol {
-                        dir = 1.0;
-                    }
-                } else {
-                    extreme = extreme.min(raw);
-                    if raw > extreme + branch_tol {
-                        (dir, extreme) = (1.0, raw);
-                    }
-                }
-                ui += (dir * eps) * (ui + u_mean);
-            }
-            if let Some(g) = m.load {
-                // The gain acts on the absolute input, as the asymmetry's does.
-                ui += g * (ui + u_mean);
-            }
-            // Model step: the equations of `model::sim`.
-            let mut xk = linear_part(a, alpha, b, c, x, w, ui);
-            if let Some(a2) = m.inertia {
-                xk += a2 * (x - x_prev2);
-            }
-            if let Some(bound) = sat_bound {
-                if ctx.drives_up {
-                    xk = xk.min(bound);
-                } else {
-                    xk = xk.max(bound);
-                }
-            }
-            let delta = xk - x;
-            let a_eff = match m.rate {
-                Some(eta) => {
-                    let prev = if k >= 2 { u[k - 2] } else { u[0] };
-                    big_a * (1.0 + (eta * ((raw - prev).abs() / dt)))
-                }
-                None => big_a,
-            };
-            let wk = match fam {
-                Family::Linear => 0.0,
-                Family::Classic => classic_w(a_eff, theta[2], theta[3], n, w, delta),
-                Family::Generalized => {
-                    let betas = [theta[2], theta[3], theta[4], theta[5], theta[6], theta[7]];
-                    generalized_w(a_eff, &betas, n, w, xk, delta)
-                }
-            };
-            x_prev2 = x;
-            (x, w) = (xk, wk);
-            let mut yk = x;
-            if let Some((rho, kappa)) = m.creep {
-                z = (rho * z) + (((1.0 - rho) * kappa) * ui);
-                yk += z;
-            }
-            let finite = in_bounds(x) && in_bounds(w) && in_bounds(yk);
-            if !finite || !sink(k, yk) {
+            let yk = p.step(&mut s, k, u);
+            if !Prepared::in_bounds(&s, yk) {
                 return false;
             }
+            sink(k, yk);
             if let Some((y, h)) = restart {
                 if k % h == 0 {
-                    x = y[k] - z;
+                    p.restart(&mut s, y[k]);
                 }
             }
         }
@@ -544,25 +664,22 @@ impl Augmented {
         if let Some(first) = out.first_mut() {
             *first = y0;
         }
-        self.run(theta, dataset, ctx, &exp.u, y0, None, |k, v| {
-            out[k] = v;
-            true
-        });
+        self.run(theta, dataset, ctx, &exp.u, y0, None, |k, v| out[k] = v);
         out
     }
 
     /// `Σ_{k≥1} (ŷ(k) − y(k))²` of the free run in `f32`, `+∞` if the
     /// simulation diverged.
     pub fn sse(&self, theta: &[f32], dataset: usize, ctx: &Context, exp: &Experiment) -> f32 {
-        self.sse_restarted(theta, dataset, ctx, exp, None)
+        self.measured_sse(theta, dataset, ctx, exp, Measure::FreeRun)
     }
 
     /// The same sum for the `horizon`-step-ahead prediction: the output
     /// state restarts from the measurement every `horizon` samples (the
-    /// Bouc-Wen, creep and play states run on). MATLAB's `Focus`
-    /// "prediction" against "simulation": errors cannot pile up through a
-    /// slow pole for longer than the horizon, so the cost surface has no
-    /// needle along the pole and the static gain, which the free run has.
+    /// effects' states run on). MATLAB's `Focus` "prediction" against
+    /// "simulation": errors cannot pile up through a slow pole for longer
+    /// than the horizon, so the cost surface has no needle along the pole
+    /// and the static gain, which the free run has.
     pub fn sse_ahead(
         &self,
         theta: &[f32],
@@ -571,39 +688,58 @@ impl Augmented {
         exp: &Experiment,
         horizon: usize,
     ) -> f32 {
-        self.sse_restarted(theta, dataset, ctx, exp, Some(horizon.max(1)))
+        let measure = Measure::Ahead {
+            horizon: horizon.max(1),
+        };
+        self.measured_sse(theta, dataset, ctx, exp, measure)
     }
 
-    fn sse_restarted(
+    /// The sum of squared errors under `measure`, `+∞` if the simulation
+    /// diverged: what every backend's batch path reproduces bit for bit.
+    pub fn measured_sse(
         &self,
         theta: &[f32],
         dataset: usize,
         ctx: &Context,
         exp: &Experiment,
-        horizon: Option<usize>,
+        measure: Measure,
     ) -> f32 {
         if exp.is_empty() {
             return 0.0;
         }
         let mut acc = 0.0f32;
-        let restart = horizon.map(|h| (exp.y.as_slice(), h));
+        let restart = Some((exp.y.as_slice(), measure.restart_every()));
         let ok = self.run(theta, dataset, ctx, &exp.u, exp.y[0], restart, |k, v| {
             let e = v - exp.y[k];
             acc += e * e;
-            true
         });
-        if ok && acc.is_finite() {
-            acc
-        } else {
-            f32::INFINITY
-        }
+        if ok { acc } else { f32::INFINITY }
+    }
+
+    /// The errors `ŷ(k) − y(k)`, `k ≥ 1`, under `measure`; `None` if the
+    /// simulation diverged.
+    pub fn residuals(
+        &self,
+        theta: &[f32],
+        dataset: usize,
+        ctx: &Context,
+        exp: &Experiment,
+        measure: Measure,
+    ) -> Option<Vec<f32>> {
+        let mut r = Vec::with_capacity(exp.len().saturating_sub(1));
+        let restart = Some((exp.y.as_slice(), measure.restart_every()));
+        let y0 = exp.y.first().copied().unwrap_or(0.0);
+        self.run(theta, dataset, ctx, &exp.u, y0, restart, |k, v| {
+            r.push(v - exp.y[k])
+        })
+        .then_some(r)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{presets::thesis_params, simulate, sse};
+    use crate::model::{measured_sse, presets::thesis_params, simulate, sse};
 
     fn experiment() -> Experiment {
         // A stair up and down in MPa with a little ripple, gauge pressure ≥ 0.
@@ -651,6 +787,15 @@ mod tests {
                         ref_sse,
                         "{fam} + {effect}"
                     );
+                    // The prediction restarts as the baseline's does.
+                    for horizon in [1, 7] {
+                        let measure = Measure::Ahead { horizon };
+                        assert_eq!(
+                            model.measured_sse(&theta, 0, &ctx, &exp, measure).to_bits(),
+                            measured_sse(fam, &base32, &exp.u, &exp.y, measure).to_bits(),
+                            "{fam} + {effect}, {measure}"
+                        );
+                    }
                     // Also for the other datasets (the load gains are per dataset).
                     let got = model.simulate(&theta, datasets - 1, &ctx, &exp);
                     assert_eq!(got, reference.x, "{fam} + {effect}, last dataset");

@@ -1,0 +1,103 @@
+//! The CPU batch path of a model with effect stages (the diagnosis'
+//! augmented models): [`LANES`] candidates advance side by side, each lane
+//! calling the one augmented step, [`Prepared::step`], so that every lane's
+//! SSE is bit-identical to [`Augmented::measured_sse`] for that candidate.
+//! Divergence latches per lane as in [`super::cpu`].
+
+use super::Problem;
+use super::cpu::LANES;
+use crate::model::effects::{Augmented, EffectState, Prepared};
+
+/// How often (in samples) a batch checks whether every lane has diverged.
+const DIVERGENCE_CHECK: usize = 128;
+
+/// The SSE of every lane of one batch (`chunk`: up to [`LANES`] rows of
+/// `model`'s parameters; a short batch is padded with its first row, whose
+/// copies' scores the caller drops) on each experiment of `problem`.
+pub fn batch_sse(problem: &Problem, model: &Augmented, chunk: &[f32]) -> Vec<[f32; LANES]> {
+    let d = model.dim();
+    let used = chunk.len() / d;
+    let every = problem.measure.restart_every();
+    problem
+        .experiments
+        .iter()
+        .zip(&problem.contexts)
+        .enumerate()
+        .map(|(e, (exp, ctx))| {
+            let lanes: [Prepared; LANES] = std::array::from_fn(|l| {
+                let row = if l < used { l } else { 0 };
+                model.prepare(&chunk[row * d..(row + 1) * d], e, ctx)
+            });
+            lanes_sse(&lanes, &exp.u, &exp.y, every)
+        })
+        .collect()
+}
+
+/// Compiled for the widest vector unit the CPU has (chosen at run time; the
+/// arithmetic is the same IEEE `f32` on each, so the bits do not depend on
+/// the choice).
+fn lanes_sse(p: &[Prepared; LANES], u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F.
+            return unsafe { lanes_sse_avx512(p, u, y, every) };
+        }
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2.
+            return unsafe { lanes_sse_avx2(p, u, y, every) };
+        }
+    }
+    lanes_sse_portable(p, u, y, every)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn lanes_sse_avx512(p: &[Prepared; LANES], u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+    lanes_sse_portable(p, u, y, every)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn lanes_sse_avx2(p: &[Prepared; LANES], u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+    lanes_sse_portable(p, u, y, every)
+}
+
+/// The scoring loop of [`super::cpu`]'s `lanes_sse` over the augmented step:
+/// blocks end at divergence checks and at restarts.
+#[inline(always)]
+fn lanes_sse_portable(p: &[Prepared; LANES], u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+    assert_eq!(u.len(), y.len(), "input and output lengths differ");
+    if u.is_empty() {
+        return [0.0; LANES];
+    }
+    let mut s: [EffectState; LANES] = std::array::from_fn(|l| p[l].start(y[0], u[0]));
+    let mut acc = [0.0f32; LANES];
+    let mut ok = [true; LANES];
+    let mut start = 1;
+    while start < u.len() {
+        let next_restart = start.div_ceil(every).saturating_mul(every);
+        let end = (start + DIVERGENCE_CHECK)
+            .min(u.len())
+            .min(next_restart.saturating_add(1));
+        for (k, &yk) in y.iter().enumerate().take(end).skip(start) {
+            for l in 0..LANES {
+                let predicted = p[l].step(&mut s[l], k, u);
+                ok[l] &= Prepared::in_bounds(&s[l], predicted);
+                let e = predicted - yk;
+                acc[l] += e * e;
+            }
+        }
+        if end - 1 == next_restart {
+            let yk = y[end - 1];
+            for l in 0..LANES {
+                p[l].restart(&mut s[l], yk);
+            }
+        }
+        if !ok.iter().any(|&o| o) {
+            break;
+        }
+        start = end;
+    }
+    std::array::from_fn(|l| if ok[l] { acc[l] } else { f32::INFINITY })
+}

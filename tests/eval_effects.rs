@@ -1,0 +1,147 @@
+//! Every model with effect stages scores the same on every path: the CPU
+//! batch path and (on lavapipe) the WGSL kernel give the bits of the
+//! scalar augmented simulation, for every family × effect, several effects
+//! in a chain, the free run and the multi-step-ahead prediction, scores and
+//! residuals.
+//!
+//! The GPU half needs an adapter: without one it fails when `CI=true` and
+//! otherwise prints a loud SKIP message and returns (`common::require_gpu`).
+
+mod common;
+
+use mckibben::eval::cpu::{CpuEvaluator, LANES};
+use mckibben::eval::gpu::{GpuEvaluator, GpuOptions};
+use mckibben::eval::workload::{mixed_population, search_space, stair_experiment};
+use mckibben::eval::{Evaluator, Problem};
+use mckibben::model::effects::{Augmented, Context, Effect, effect_box};
+use mckibben::model::{Experiment, Family, Measure};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Two experiments (datasets) in the first one's coordinates.
+fn experiments() -> Vec<Experiment> {
+    let a = stair_experiment(900, 5);
+    let mut b = stair_experiment(700, 6);
+    b.u_mean = a.u_mean;
+    b.y_mean = a.y_mean;
+    vec![a, b]
+}
+
+/// A population of the augmented model: baselines drawn as the evaluator
+/// tests draw them (finite and diverging candidates mixed), each effect's
+/// parameters uniformly in its box, the first row of each effect neutral.
+fn population(model: &Augmented, ctx: &Context, count: usize, seed: u64) -> Vec<f64> {
+    let exps = experiments();
+    let space = search_space(model.family, &exps[0], false);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let base = mixed_population(&space, count, &mut rng);
+    let d0 = model.family.dim();
+    let mut rows = Vec::with_capacity(count * model.dim());
+    for (i, b) in base.chunks_exact(d0).enumerate() {
+        rows.extend_from_slice(b);
+        for &e in &model.effects {
+            let (neutral, lo, hi) = effect_box(e, ctx, model.datasets);
+            for j in 0..neutral.len() {
+                rows.push(if i == 0 {
+                    neutral[j]
+                } else {
+                    rng.random_range(lo[j]..=hi[j])
+                });
+            }
+        }
+    }
+    rows
+}
+
+/// The models checked: each effect alone on each family, and two chains.
+fn models() -> Vec<Augmented> {
+    let mut all = Vec::new();
+    for family in Family::ALL {
+        for e in Effect::ALL {
+            all.push(Augmented::new(family, vec![e], 2));
+        }
+        all.push(Augmented::new(family, Effect::ALL.to_vec(), 2));
+    }
+    all.push(Augmented::new(
+        Family::Classic,
+        vec![Effect::Creep, Effect::Delay, Effect::Saturation],
+        2,
+    ));
+    all
+}
+
+fn problem_of(model: &Augmented, measure: Measure) -> (Problem, Vec<Context>) {
+    let exps = experiments();
+    let contexts: Vec<Context> = exps.iter().map(|e| Context::of(e, true)).collect();
+    let problem = Problem::new(model.family, exps)
+        .with_measure(measure)
+        .with_effects(model.effects.clone(), contexts.clone());
+    (problem, contexts)
+}
+
+const MEASURES: [Measure; 2] = [Measure::FreeRun, Measure::Ahead { horizon: 13 }];
+
+fn bits(v: &[f32]) -> Vec<u32> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+#[test]
+fn cpu_batches_give_the_scalar_simulations_bits() {
+    for model in models() {
+        for measure in MEASURES {
+            let (problem, contexts) = problem_of(&model, measure);
+            let pop = population(&model, &contexts[0], 2 * LANES + 5, 3);
+            let scores = CpuEvaluator::new().evaluate(&problem, &pop).unwrap();
+            let d = model.dim();
+            for (e, exp) in problem.experiments.iter().enumerate() {
+                let want: Vec<f32> = pop
+                    .chunks_exact(d)
+                    .map(|row| {
+                        let t: Vec<f32> = row.iter().map(|&v| v as f32).collect();
+                        model.measured_sse(&t, e, &contexts[e], exp, measure)
+                    })
+                    .collect();
+                let what = format!(
+                    "{} + {:?}, {measure}, experiment {e}",
+                    model.family, model.effects
+                );
+                assert_eq!(bits(&scores.per_experiment[e]), bits(&want), "{what}");
+                assert!(want.iter().any(|v| v.is_finite()), "{what}: all diverged");
+            }
+        }
+    }
+}
+
+#[test]
+fn gpu_kernels_give_the_cpu_bits() {
+    let Some(mut gpu) = common::require_gpu(GpuEvaluator::open(GpuOptions::default())) else {
+        return;
+    };
+    let mut cpu = CpuEvaluator::new();
+    for model in models() {
+        for measure in MEASURES {
+            let (problem, contexts) = problem_of(&model, measure);
+            let pop = population(&model, &contexts[0], 70, 4);
+            let what = format!("{} + {:?}, {measure}", model.family, model.effects);
+            let want = cpu.evaluate(&problem, &pop).unwrap();
+            let got = gpu.evaluate(&problem, &pop).unwrap();
+            for e in 0..problem.experiments.len() {
+                assert_eq!(
+                    bits(&got.per_experiment[e]),
+                    bits(&want.per_experiment[e]),
+                    "{what}, experiment {e}"
+                );
+            }
+            let few = &pop[..5 * model.dim()];
+            let want = cpu.residuals(&problem, few).unwrap();
+            let got = gpu.residuals(&problem, few).unwrap();
+            for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert_eq!(
+                    g.as_deref().map(bits),
+                    w.as_deref().map(bits),
+                    "{what}: residuals of candidate {i}"
+                );
+            }
+        }
+    }
+}
