@@ -8,6 +8,7 @@ use anyhow::Context;
 use mckibben::diagnose::report::{to_json, to_text, write_figures};
 use mckibben::diagnose::selftest::{Nominal, cases, run_case, table, twin_check};
 use mckibben::diagnose::{Effect, Settings, diagnose};
+use mckibben::eval::Backend;
 use mckibben::model::Family;
 
 use super::common::MultiDataArgs;
@@ -57,10 +58,14 @@ pub struct Args {
     /// baseline which compensates the effect cannot reach. 0 is faster.
     #[arg(long, default_value_t = Settings::default().scratch_seeds)]
     scratch_seeds: usize,
-    /// Evaluation backend. The effect models are scored on the CPU (rayon),
-    /// which is what `auto` picks; `gpu` is refused.
-    #[arg(long, default_value = "auto", value_parser = ["auto", "cpu", "gpu"])]
-    backend: String,
+    /// Where the searches score their populations: `cpu` (the batched,
+    /// multi-threaded CPU path), `gpu` (the WGSL kernels on the best adapter,
+    /// lavapipe included: the same numbers, bit for bit, where the adapter
+    /// does not fuse multiply-adds) or `auto` (a hardware GPU if there is
+    /// one, else the CPU). The CPU is the default: the diagnosis' populations
+    /// (30–40 candidates) are too small to fill a GPU.
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    backend: Backend,
     /// Print JSON instead of the report.
     #[arg(long)]
     json: bool,
@@ -90,10 +95,6 @@ fn parse_effect(s: &str) -> Result<Effect, String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        args.backend != "gpu",
-        "--backend gpu: the effect models have no GPU shader; use --backend cpu or auto"
-    );
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
     let effects = if args.effects.is_empty() {
         Effect::ALL.to_vec()
@@ -105,6 +106,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         generations: args.generations,
         scratch_seeds: args.scratch_seeds,
         seed: args.seed,
+        backend: args.backend,
         ..Settings::default()
     };
     let traces = args.data.load()?;

@@ -2,16 +2,21 @@
 //! halves in shared coordinates, the costs of a model on them, and the box
 //! its parameters are searched in.
 
+use std::sync::{Arc, Mutex};
+
 use nalgebra::DVector;
 
 use super::effects::{Augmented, Context, effect_box};
 use crate::data::Trace;
+use crate::eval::cpu::CpuEvaluator;
+use crate::eval::{Evaluator, Problem};
 use crate::ident::arx::{Arx, ArxOrders};
 use crate::model::experiment::halves;
-use crate::model::{Experiment, Family, Flow, LinearPrior, SearchSpace};
+use crate::model::{Experiment, Family, Flow, LinearPrior, Measure, SearchSpace};
 
 /// The data of a diagnosis: every dataset in the deviation coordinates of the
-/// first one's estimation half, the estimation part, and where validation starts.
+/// first one's estimation half, the estimation part, and where validation
+/// starts; and the evaluator its searches score populations on.
 #[derive(Debug, Clone)]
 pub struct Data {
     pub whole: Vec<Experiment>,
@@ -21,6 +26,21 @@ pub struct Data {
     pub ctx: Vec<Context>,
     /// ARX estimate on the first dataset's estimation half (bounds of the linear part).
     pub prior: LinearPrior,
+    scorer: Scorer,
+}
+
+/// The evaluator a diagnosis scores populations on, shared by the clones of
+/// its data (the searches run one after the other).
+#[derive(Clone)]
+struct Scorer(Arc<Mutex<Box<dyn Evaluator + Send>>>);
+
+impl std::fmt::Debug for Scorer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0.lock() {
+            Ok(e) => f.write_str(&e.describe()),
+            Err(_) => f.write_str("(evaluator poisoned)"),
+        }
+    }
 }
 
 impl Data {
@@ -96,7 +116,71 @@ impl Data {
             val_start,
             ctx,
             prior,
+            scorer: Scorer(Arc::new(Mutex::new(Box::new(CpuEvaluator::new())))),
         })
+    }
+
+    /// The same data scored on `evaluator` (the CPU batch path by default).
+    pub fn scored_on(mut self, evaluator: Box<dyn Evaluator + Send>) -> Data {
+        self.scorer = Scorer(Arc::new(Mutex::new(evaluator)));
+        self
+    }
+
+    /// The backend and device the searches score on.
+    pub fn describe_scorer(&self) -> String {
+        format!("{:?}", self.scorer)
+    }
+
+    /// The estimation part under `measure` as the evaluator's problem: the
+    /// model description (family and effect stages) and every dataset.
+    pub fn est_problem(&self, model: &Augmented, measure: Measure) -> Problem {
+        Problem::new(model.family, self.est.clone())
+            .with_measure(measure)
+            .with_effects(model.effects.clone(), self.ctx.clone())
+    }
+
+    fn with_evaluator<T>(
+        &self,
+        job: impl FnOnce(&mut dyn Evaluator) -> anyhow::Result<T>,
+    ) -> anyhow::Result<T> {
+        let mut evaluator = self
+            .scorer
+            .0
+            .lock()
+            .map_err(|_| anyhow::anyhow!("the evaluator failed in an earlier call"))?;
+        job(evaluator.as_mut())
+    }
+
+    /// The estimation cost under `measure` of every row of `rows`
+    /// (row-major, canonical), summed over the datasets in `f64` as
+    /// [`Data::est_sse`] sums: the same numbers, scored as one batch.
+    pub fn est_costs(
+        &self,
+        model: &Augmented,
+        rows: &[f64],
+        measure: Measure,
+    ) -> anyhow::Result<Vec<f64>> {
+        let problem = self.est_problem(model, measure);
+        let scores = self.with_evaluator(|e| e.evaluate(&problem, rows))?;
+        let n = scores.total.len();
+        Ok((0..n)
+            .map(|i| scores.per_experiment.iter().map(|s| s[i] as f64).sum())
+            .collect())
+    }
+
+    /// The free-run residuals of [`Data::est_residuals`] for every row, as
+    /// one batch.
+    pub fn est_residuals_of(
+        &self,
+        model: &Augmented,
+        rows: &[f64],
+    ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
+        let problem = self.est_problem(model, Measure::FreeRun);
+        let all = self.with_evaluator(|e| e.residuals(&problem, rows))?;
+        Ok(all
+            .into_iter()
+            .map(|r| r.map(|r| DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64))))
+            .collect())
     }
 
     pub fn datasets(&self) -> usize {

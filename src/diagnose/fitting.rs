@@ -11,7 +11,6 @@ use nalgebra::DVector;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal, Uniform};
-use rayon::prelude::*;
 use serde::Serialize;
 
 use super::data::Data;
@@ -31,7 +30,8 @@ enum Scoring {
 }
 
 /// An augmented model's fit to the estimation part of the data, scored in
-/// parallel over the candidates by the scalar effect simulator.
+/// batches on the data's evaluator (the model description's kernel: the CPU
+/// batch path or WGSL).
 ///
 /// It scores every measure the engine asks for as its own `scoring` (the
 /// engine's contract for an objective with a single measure): each search
@@ -46,21 +46,19 @@ struct EffectObjective<'a> {
 impl Objective for EffectObjective<'_> {
     fn describe(&self) -> String {
         format!(
-            "the diagnosis' {} model (cpu, {} threads)",
+            "the diagnosis' {} model ({})",
             self.model.family,
-            rayon::current_num_threads()
+            self.data.describe_scorer()
         )
     }
 
     fn costs(&mut self, rows: &[f64], _: Measure) -> anyhow::Result<Vec<f32>> {
-        let d = self.model.dim().max(1);
-        Ok(rows
-            .par_chunks(d)
-            .map(|p| match self.scoring {
-                Scoring::FreeRun => self.data.est_sse(self.model, p),
-                Scoring::Ahead(h) => self.data.est_sse_ahead(self.model, p, h),
-            } as f32)
-            .collect())
+        let measure = match self.scoring {
+            Scoring::FreeRun => Measure::FreeRun,
+            Scoring::Ahead(horizon) => Measure::Ahead { horizon },
+        };
+        let costs = self.data.est_costs(self.model, rows, measure)?;
+        Ok(costs.into_iter().map(|c| c as f32).collect())
     }
 
     fn residuals(&mut self, rows: &[f64], _: Measure) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
@@ -68,11 +66,7 @@ impl Objective for EffectObjective<'_> {
             self.scoring == Scoring::FreeRun,
             "the diagnosis polishes on the free run only"
         );
-        let d = self.model.dim().max(1);
-        Ok(rows
-            .par_chunks(d)
-            .map(|p| self.data.est_residuals(self.model, p))
-            .collect())
+        self.data.est_residuals_of(self.model, rows)
     }
 }
 

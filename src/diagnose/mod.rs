@@ -107,7 +107,7 @@ pub fn diagnose(
         family != Family::Linear,
         "the baseline must be a hysteresis model: classic or generalized"
     );
-    let data = Data::new(traces)?;
+    let data = Data::new(traces)?.scored_on(crate::eval::open(settings.backend)?);
     let outputs: Vec<Vec<f64>> = data
         .whole
         .iter()

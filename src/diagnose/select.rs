@@ -9,6 +9,7 @@ use super::accept::{Candidate, Yardstick, judge_all};
 use super::data::Data;
 use super::effects::{Augmented, Effect};
 use super::fitting::{Fit, SeededFit, Start, fit_seeds, fit_seeds_with, profile, scratch_fits};
+use crate::eval::Backend;
 use crate::model::Family;
 
 /// Budget and rule settings of a diagnosis.
@@ -44,6 +45,9 @@ pub struct Settings {
     pub floor_margin: f64,
     /// Base seed; seed `i` of a fit uses `seed + i`.
     pub seed: u64,
+    /// Where the searches score their populations (the same numbers on
+    /// every backend that is bit-exact, lavapipe included).
+    pub backend: Backend,
 }
 
 impl Default for Settings {
@@ -68,6 +72,7 @@ impl Default for Settings {
             min_relative: 0.02,
             floor_margin: 1.1,
             seed: 1,
+            backend: Backend::Cpu,
         }
     }
 }

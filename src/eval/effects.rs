@@ -1,12 +1,13 @@
 //! The CPU batch path of a model with effect stages (the diagnosis'
-//! augmented models): [`LANES`] candidates advance side by side, each lane
-//! calling the one augmented step, [`Prepared::step`], so that every lane's
-//! SSE is bit-identical to [`Augmented::measured_sse`] for that candidate.
+//! augmented models): [`LANES`] candidates advance side by side through the
+//! one augmented step, [`Prepared::step`] (whose stages are loops over the
+//! lanes that compile to vector instructions), so that every lane's SSE is
+//! bit-identical to [`Augmented::measured_sse`] for that candidate.
 //! Divergence latches per lane as in [`super::cpu`].
 
 use super::Problem;
 use super::cpu::LANES;
-use crate::model::effects::{Augmented, EffectState, Prepared};
+use crate::model::effects::{Augmented, Prepared};
 
 /// How often (in samples) a batch checks whether every lane has diverged.
 const DIVERGENCE_CHECK: usize = 128;
@@ -17,6 +18,10 @@ const DIVERGENCE_CHECK: usize = 128;
 pub fn batch_sse(problem: &Problem, model: &Augmented, chunk: &[f32]) -> Vec<[f32; LANES]> {
     let d = model.dim();
     let used = chunk.len() / d;
+    let mut rows = chunk.to_vec();
+    for _ in used..LANES {
+        rows.extend_from_slice(&chunk[..d]);
+    }
     let every = problem.measure.restart_every();
     problem
         .experiments
@@ -24,10 +29,7 @@ pub fn batch_sse(problem: &Problem, model: &Augmented, chunk: &[f32]) -> Vec<[f3
         .zip(&problem.contexts)
         .enumerate()
         .map(|(e, (exp, ctx))| {
-            let lanes: [Prepared; LANES] = std::array::from_fn(|l| {
-                let row = if l < used { l } else { 0 };
-                model.prepare(&chunk[row * d..(row + 1) * d], e, ctx)
-            });
+            let lanes: Prepared<LANES> = model.prepare(&rows, e, ctx);
             lanes_sse(&lanes, &exp.u, &exp.y, every)
         })
         .collect()
@@ -36,7 +38,7 @@ pub fn batch_sse(problem: &Problem, model: &Augmented, chunk: &[f32]) -> Vec<[f3
 /// Compiled for the widest vector unit the CPU has (chosen at run time; the
 /// arithmetic is the same IEEE `f32` on each, so the bits do not depend on
 /// the choice).
-fn lanes_sse(p: &[Prepared; LANES], u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+fn lanes_sse(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx512f") {
@@ -53,25 +55,25 @@ fn lanes_sse(p: &[Prepared; LANES], u: &[f32], y: &[f32], every: usize) -> [f32;
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-fn lanes_sse_avx512(p: &[Prepared; LANES], u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+fn lanes_sse_avx512(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
     lanes_sse_portable(p, u, y, every)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn lanes_sse_avx2(p: &[Prepared; LANES], u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+fn lanes_sse_avx2(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
     lanes_sse_portable(p, u, y, every)
 }
 
 /// The scoring loop of [`super::cpu`]'s `lanes_sse` over the augmented step:
 /// blocks end at divergence checks and at restarts.
 #[inline(always)]
-fn lanes_sse_portable(p: &[Prepared; LANES], u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+fn lanes_sse_portable(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
     assert_eq!(u.len(), y.len(), "input and output lengths differ");
     if u.is_empty() {
         return [0.0; LANES];
     }
-    let mut s: [EffectState; LANES] = std::array::from_fn(|l| p[l].start(y[0], u[0]));
+    let mut s = p.start(y[0], u[0]);
     let mut acc = [0.0f32; LANES];
     let mut ok = [true; LANES];
     let mut start = 1;
@@ -81,18 +83,15 @@ fn lanes_sse_portable(p: &[Prepared; LANES], u: &[f32], y: &[f32], every: usize)
             .min(u.len())
             .min(next_restart.saturating_add(1));
         for (k, &yk) in y.iter().enumerate().take(end).skip(start) {
+            let predicted = p.step(&mut s, k, u);
             for l in 0..LANES {
-                let predicted = p[l].step(&mut s[l], k, u);
-                ok[l] &= Prepared::in_bounds(&s[l], predicted);
-                let e = predicted - yk;
+                ok[l] &= Prepared::in_bounds(&s, l, predicted[l]);
+                let e = predicted[l] - yk;
                 acc[l] += e * e;
             }
         }
         if end - 1 == next_restart {
-            let yk = y[end - 1];
-            for l in 0..LANES {
-                p[l].restart(&mut s[l], yk);
-            }
+            p.restart(&mut s, y[end - 1]);
         }
         if !ok.iter().any(|&o| o) {
             break;

@@ -355,60 +355,69 @@ impl Augmented {
     }
 }
 
-/// One candidate's augmented model on one dataset, unpacked for the inner
-/// loop: the baseline's parameters, each present effect's parameters and
-/// the dataset's constants.
+/// `L` candidates' augmented model on one dataset, unpacked for the inner
+/// loop, lane `l` in slot `l` of every array: the baseline's parameters,
+/// each present effect's parameters and the dataset's constants. `L = 1`
+/// is the scalar simulation; the CPU batch path ([`crate::eval::effects`])
+/// runs [`crate::eval::cpu::LANES`] side by side.
 ///
-/// [`Prepared::step`] is the one definition of the augmented step: the
-/// scalar simulation below, the CPU batch path ([`crate::eval::cpu`]) and the
-/// WGSL shader (`shaders/effects.wgsl`, spelled with the same operations in
-/// the same order) all follow it. Minima and maxima are written as
-/// comparisons, and the input rate is multiplied by `1/dt`, so that no
-/// operation depends on how a platform treats signed zeros or divides.
-#[derive(Debug, Clone, Copy)]
-pub struct Prepared {
+/// [`Prepared::step`] is the one definition of the augmented step: both
+/// follow it, and the WGSL kernel (`shaders/effects.wgsl`) spells the same
+/// operations in the same order. Each stage is a loop over the lanes under a
+/// test that is the same for every lane (which effects are present), so the
+/// compiler turns the loops into vector instructions. Minima and maxima are
+/// written as comparisons, and the input rate is multiplied by `1/dt`, so
+/// that no operation depends on how a platform treats signed zeros or
+/// divides.
+#[derive(Debug, Clone)]
+pub struct Prepared<const L: usize> {
     family: Family,
-    a: f32,
-    alpha: f32,
-    b: f32,
-    c: f32,
-    x0: f32,
-    big_a: f32,
-    n: f32,
+    /// Every lane has `n = 1` (compiled without `powf`, as the plain path).
+    n_one: bool,
+    a: [f32; L],
+    alpha: [f32; L],
+    b: [f32; L],
+    c: [f32; L],
+    x0: [f32; L],
+    big_a: [f32; L],
+    n: [f32; L],
     /// β, γ (classic) or β₁..β₆ (generalized).
-    betas: [f32; 6],
-    delay: Option<f32>,
-    deadzone: Option<f32>,
+    betas: [[f32; L]; 6],
+    delay: Option<[f32; L]>,
+    deadzone: Option<[f32; L]>,
     /// The end stop in deviation coordinates.
-    saturation: Option<f32>,
-    asymmetry: Option<f32>,
-    inertia: Option<f32>,
-    backlash: Option<f32>,
-    creep: Option<(f32, f32)>,
-    rate: Option<f32>,
-    load: Option<f32>,
+    saturation: Option<[f32; L]>,
+    asymmetry: Option<[f32; L]>,
+    inertia: Option<[f32; L]>,
+    backlash: Option<[f32; L]>,
+    creep: Option<([f32; L], [f32; L])>,
+    rate: Option<[f32; L]>,
+    load: Option<[f32; L]>,
     u_mean: f32,
     branch_tol: f32,
     inv_dt: f32,
     drives_up: bool,
 }
 
-/// The states an augmented model carries from sample to sample: the
-/// baseline's output `x` and Bouc-Wen state `w`, and the effects' own.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct EffectState {
-    pub x: f32,
-    pub w: f32,
+/// The states an augmented model carries from sample to sample, per lane:
+/// the baseline's output `x` and Bouc-Wen state `w`, and the effects' own.
+#[derive(Debug, Clone)]
+pub struct EffectState<const L: usize> {
+    pub x: [f32; L],
+    pub w: [f32; L],
     /// `x(k−2)`, for the inertia's extra pole.
-    x_prev2: f32,
-    /// The play's output (backlash), `None` before the first sample.
-    play: Option<f32>,
+    x_prev2: [f32; L],
+    /// The play's output (backlash), from the first step on.
+    play: [f32; L],
+    /// The creep's slow state.
+    z: [f32; L],
+    /// Whether a step was taken (the play starts at the first input).
+    started: bool,
     /// Branch of the asymmetry: +1 loading, −1 unloading, 0 not yet moved.
+    /// It follows the measured input only, so it is the same in every lane.
     dir: f32,
     /// The input's extreme on the current branch.
     extreme: f32,
-    /// The creep's slow state.
-    pub z: f32,
 }
 
 /// `a` if it is the larger (ties and NaN: `b`), spelled as in the shader.
@@ -423,55 +432,70 @@ fn smaller(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
-impl Prepared {
+/// The input `d ≥ 0` samples before `u(k−1)`, linearly interpolated between
+/// neighbouring samples (`u(0)` before the start).
+#[inline(always)]
+fn delayed(u: &[f32], k: usize, d: f32) -> f32 {
+    let at = (k - 1) as f32 - d;
+    if at <= 0.0 {
+        return u[0];
+    }
+    let i = at.floor();
+    let f = at - i;
+    let i = i as usize;
+    if f == 0.0 {
+        u[i]
+    } else {
+        u[i] + (f * (u[i + 1] - u[i]))
+    }
+}
+
+impl<const L: usize> Prepared<L> {
     /// The state at the first sample, from the first measured output `y0`
     /// and the first input `u0` ([`crate::model::sim::Stepper::start`]).
     #[inline(always)]
-    pub fn start(&self, y0: f32, u0: f32) -> EffectState {
-        let x = y0 + self.x0;
+    pub fn start(&self, y0: f32, u0: f32) -> EffectState<L> {
+        let x = std::array::from_fn(|l| y0 + self.x0[l]);
         EffectState {
             x,
+            w: [0.0; L],
             x_prev2: x,
+            play: [0.0; L],
+            z: [0.0; L],
+            started: false,
+            dir: 0.0,
             extreme: u0,
-            ..EffectState::default()
         }
     }
 
     /// Advances one sample, `k ≥ 1`, on the input `u`; returns the predicted
-    /// output `ŷ(k)`.
+    /// output `ŷ(k)` of every lane.
     #[inline(always)]
-    pub fn step(&self, s: &mut EffectState, k: usize, u: &[f32]) -> f32 {
+    pub fn step(&self, s: &mut EffectState<L>, k: usize, u: &[f32]) -> [f32; L] {
         // Input side: delay, deadzone, play, branch gain, load gain.
         let raw = u[k - 1];
-        let mut ui = match self.delay {
-            Some(d) => {
-                let at = (k - 1) as f32 - d;
-                if at <= 0.0 {
-                    u[0]
-                } else {
-                    let i = at.floor();
-                    let f = at - i;
-                    let i = i as usize;
-                    if f == 0.0 {
-                        u[i]
-                    } else {
-                        u[i] + (f * (u[i + 1] - u[i]))
-                    }
-                }
+        let mut ui = [raw; L];
+        if let Some(d) = &self.delay {
+            for l in 0..L {
+                ui[l] = delayed(u, k, d[l]);
             }
-            None => raw,
-        };
-        if let Some(p0) = self.deadzone {
-            ui = larger(ui - p0, -self.u_mean);
         }
-        if let Some(r) = self.backlash {
-            let half = 0.5 * r;
-            let prev = s.play.unwrap_or(ui);
-            let v = smaller(ui + half, larger(ui - half, prev));
-            s.play = Some(v);
-            ui = v;
+        if let Some(p0) = &self.deadzone {
+            for l in 0..L {
+                ui[l] = larger(ui[l] - p0[l], -self.u_mean);
+            }
         }
-        if let Some(eps) = self.asymmetry {
+        if let Some(r) = &self.backlash {
+            for l in 0..L {
+                let half = 0.5 * r[l];
+                let prev = if s.started { s.play[l] } else { ui[l] };
+                let v = smaller(ui[l] + half, larger(ui[l] - half, prev));
+                s.play[l] = v;
+                ui[l] = v;
+            }
+        }
+        s.started = true;
+        if let Some(eps) = &self.asymmetry {
             if s.dir >= 0.0 {
                 s.extreme = larger(raw, s.extreme);
                 if raw < s.extreme - self.branch_tol {
@@ -485,58 +509,115 @@ impl Prepared {
                     (s.dir, s.extreme) = (1.0, raw);
                 }
             }
-            ui += (s.dir * eps) * (ui + self.u_mean);
+            for l in 0..L {
+                ui[l] += (s.dir * eps[l]) * (ui[l] + self.u_mean);
+            }
         }
-        if let Some(g) = self.load {
+        if let Some(g) = &self.load {
             // The gain acts on the absolute input, as the asymmetry's does.
-            ui += g * (ui + self.u_mean);
+            for l in 0..L {
+                ui[l] += g[l] * (ui[l] + self.u_mean);
+            }
         }
         // State: the baseline's equations (`model::sim`), the extra pole and
         // the end stop.
-        let x = s.x;
-        let mut xk = match self.family {
-            Family::Linear => linear_step(self.a, self.b, self.c, x, ui),
-            _ => linear_part(self.a, self.alpha, self.b, self.c, x, s.w, ui),
-        };
-        if let Some(a2) = self.inertia {
-            xk += a2 * (x - s.x_prev2);
-        }
-        if let Some(bound) = self.saturation {
-            xk = if self.drives_up {
-                smaller(xk, bound)
-            } else {
-                larger(xk, bound)
-            };
-        }
-        let delta = xk - x;
-        let a_eff = match self.rate {
-            Some(eta) => {
-                let prev = if k >= 2 { u[k - 2] } else { u[0] };
-                self.big_a * (1.0 + (eta * ((raw - prev).abs() * self.inv_dt)))
+        let mut xk = [0.0f32; L];
+        match self.family {
+            Family::Linear => {
+                for l in 0..L {
+                    xk[l] = linear_step(self.a[l], self.b[l], self.c[l], s.x[l], ui[l]);
+                }
             }
-            None => self.big_a,
-        };
-        s.w = match self.family {
-            Family::Linear => 0.0,
-            Family::Classic => classic_w(a_eff, self.betas[0], self.betas[1], self.n, s.w, delta),
-            Family::Generalized => generalized_w(a_eff, &self.betas, self.n, s.w, xk, delta),
-        };
-        s.x_prev2 = x;
+            _ => {
+                for l in 0..L {
+                    xk[l] = linear_part(
+                        self.a[l],
+                        self.alpha[l],
+                        self.b[l],
+                        self.c[l],
+                        s.x[l],
+                        s.w[l],
+                        ui[l],
+                    );
+                }
+            }
+        }
+        if let Some(a2) = &self.inertia {
+            for l in 0..L {
+                xk[l] += a2[l] * (s.x[l] - s.x_prev2[l]);
+            }
+        }
+        if let Some(bound) = &self.saturation {
+            if self.drives_up {
+                for l in 0..L {
+                    xk[l] = smaller(xk[l], bound[l]);
+                }
+            } else {
+                for l in 0..L {
+                    xk[l] = larger(xk[l], bound[l]);
+                }
+            }
+        }
+        let mut a_eff = self.big_a;
+        if let Some(eta) = &self.rate {
+            let prev = if k >= 2 { u[k - 2] } else { u[0] };
+            let rate = (raw - prev).abs() * self.inv_dt;
+            for l in 0..L {
+                a_eff[l] = self.big_a[l] * (1.0 + (eta[l] * rate));
+            }
+        }
+        self.hysteresis(s, &xk, &a_eff);
+        s.x_prev2 = s.x;
         s.x = xk;
         // Output side: the creep's slow state.
-        match self.creep {
+        match &self.creep {
             Some((rho, kappa)) => {
-                s.z = (rho * s.z) + (((1.0 - rho) * kappa) * ui);
-                xk + s.z
+                let mut y = xk;
+                for l in 0..L {
+                    s.z[l] = (rho[l] * s.z[l]) + (((1.0 - rho[l]) * kappa[l]) * ui[l]);
+                    y[l] += s.z[l];
+                }
+                y
             }
             None => xk,
         }
     }
 
-    /// Whether the states after a step that predicted `y_hat` are in bounds.
+    /// The Bouc-Wen state of every lane after the output moved from `s.x` to
+    /// `xk` under the stiffness `a_eff` ([`crate::model::sim::Stepper::hysteresis`]).
     #[inline(always)]
-    pub fn in_bounds(s: &EffectState, y_hat: f32) -> bool {
-        in_bounds(s.x) && in_bounds(s.w) && in_bounds(y_hat)
+    fn hysteresis(&self, s: &mut EffectState<L>, xk: &[f32; L], a_eff: &[f32; L]) {
+        let bt = &self.betas;
+        match (self.family, self.n_one) {
+            (Family::Linear, _) => s.w = [0.0; L],
+            (Family::Classic, true) => {
+                for l in 0..L {
+                    let delta = xk[l] - s.x[l];
+                    s.w[l] = classic_w(a_eff[l], bt[0][l], bt[1][l], 1.0, s.w[l], delta);
+                }
+            }
+            (Family::Classic, false) => {
+                for l in 0..L {
+                    let delta = xk[l] - s.x[l];
+                    s.w[l] = classic_w(a_eff[l], bt[0][l], bt[1][l], self.n[l], s.w[l], delta);
+                }
+            }
+            (Family::Generalized, n_one) => {
+                for l in 0..L {
+                    let betas = [bt[0][l], bt[1][l], bt[2][l], bt[3][l], bt[4][l], bt[5][l]];
+                    let n = if n_one { 1.0 } else { self.n[l] };
+                    let delta = xk[l] - s.x[l];
+                    s.w[l] = generalized_w(a_eff[l], &betas, n, s.w[l], xk[l], delta);
+                }
+            }
+        }
+    }
+
+    /// Whether lane `l`'s states after a step that predicted `y_hat` are in
+    /// bounds.
+    #[inline(always)]
+    pub fn in_bounds(s: &EffectState<L>, l: usize, y_hat: f32) -> bool {
+        in_bounds(s.x[l]) & in_bounds(s.w[l]) & in_bounds(y_hat)
     }
 
     /// A restart of the prediction to the measurement `y`: the output state
@@ -544,38 +625,55 @@ impl Prepared {
     /// part, as the baseline's ([`crate::model::sim::Stepper::restart`]);
     /// the effects' own states run on.
     #[inline(always)]
-    pub fn restart(&self, s: &mut EffectState, y: f32) {
-        let x = y - s.z;
-        s.w = restart_w(self.big_a, s.w, s.x, x);
-        s.x = x;
+    pub fn restart(&self, s: &mut EffectState<L>, y: f32) {
+        for l in 0..L {
+            let x = y - s.z[l];
+            s.w[l] = restart_w(self.big_a[l], s.w[l], s.x[l], x);
+            s.x[l] = x;
+        }
     }
 }
 
 impl Augmented {
-    /// Unpacks `theta` for dataset `dataset` with its context.
-    pub fn prepare(&self, theta: &[f32], dataset: usize, ctx: &Context) -> Prepared {
+    /// Unpacks `L` rows of parameters (`rows`: row-major, `L × dim`) for
+    /// dataset `dataset` with its context.
+    pub fn prepare<const L: usize>(
+        &self,
+        rows: &[f32],
+        dataset: usize,
+        ctx: &Context,
+    ) -> Prepared<L> {
+        let d = self.dim();
         assert_eq!(
-            theta.len(),
-            self.dim(),
-            "augmented model takes {} parameters",
-            self.dim()
+            rows.len(),
+            L * d,
+            "augmented model takes {d} parameters per candidate"
         );
+        let col = |j: usize| -> [f32; L] { std::array::from_fn(|l| rows[l * d + j]) };
         let fam = self.family;
         let [ia, ib, ic] = fam.linear_indices();
+        let n = fam.exponent_index().map_or([1.0; L], col);
+        let (big_a, alpha, betas) = match fam {
+            Family::Linear => ([0.0; L], [1.0; L], [[0.0; L]; 6]),
+            Family::Classic => {
+                let mut betas = [[0.0; L]; 6];
+                betas[0] = col(2);
+                betas[1] = col(3);
+                (col(0), col(1), betas)
+            }
+            Family::Generalized => (col(0), col(1), std::array::from_fn(|j| col(2 + j))),
+        };
         let mut p = Prepared {
             family: fam,
-            a: theta[ia],
-            b: theta[ib],
-            c: theta[ic],
-            x0: theta[fam.start_index()],
-            alpha: 1.0,
-            n: fam.exponent_index().map_or(1.0, |i| theta[i]),
-            u_mean: ctx.u_mean as f32,
-            branch_tol: ctx.branch_tol as f32,
-            inv_dt: (1.0 / ctx.dt) as f32,
-            drives_up: ctx.drives_up,
-            big_a: 0.0,
-            betas: [0.0; 6],
+            n_one: n.iter().all(|&v| v == 1.0),
+            a: col(ia),
+            alpha,
+            b: col(ib),
+            c: col(ic),
+            x0: col(fam.start_index()),
+            big_a,
+            n,
+            betas,
             delay: None,
             deadzone: None,
             saturation: None,
@@ -585,33 +683,30 @@ impl Augmented {
             creep: None,
             rate: None,
             load: None,
+            u_mean: ctx.u_mean as f32,
+            branch_tol: ctx.branch_tol as f32,
+            inv_dt: (1.0 / ctx.dt) as f32,
+            drives_up: ctx.drives_up,
         };
-        match fam {
-            Family::Linear => {}
-            Family::Classic => {
-                (p.big_a, p.alpha) = (theta[0], theta[1]);
-                p.betas[..2].copy_from_slice(&theta[2..4]);
-            }
-            Family::Generalized => {
-                (p.big_a, p.alpha) = (theta[0], theta[1]);
-                p.betas.copy_from_slice(&theta[2..8]);
-            }
-        }
+        let y_mean = ctx.y_mean as f32;
         let mut at = fam.dim();
         for &e in &self.effects {
-            let v = &theta[at..at + e.dim(self.datasets)];
+            let dim = e.dim(self.datasets);
+            // The load effect of a single dataset has no parameter.
+            let v = if dim > 0 { col(at) } else { [0.0; L] };
+            let non_negative = v.map(|x| larger(x, 0.0));
             match e {
-                Effect::Delay => p.delay = Some(larger(v[0], 0.0)),
-                Effect::Deadzone => p.deadzone = Some(v[0]),
-                Effect::Saturation => p.saturation = Some(v[0] - ctx.y_mean as f32),
-                Effect::Asymmetry => p.asymmetry = Some(v[0]),
-                Effect::Inertia => p.inertia = Some(v[0]),
-                Effect::Backlash => p.backlash = Some(larger(v[0], 0.0)),
-                Effect::Creep => p.creep = Some((v[0], v[1])),
-                Effect::Rate => p.rate = Some(v[0]),
-                Effect::Load => p.load = (dataset >= 1).then(|| v[dataset - 1]),
+                Effect::Delay => p.delay = Some(non_negative),
+                Effect::Deadzone => p.deadzone = Some(v),
+                Effect::Saturation => p.saturation = Some(v.map(|l| l - y_mean)),
+                Effect::Asymmetry => p.asymmetry = Some(v),
+                Effect::Inertia => p.inertia = Some(v),
+                Effect::Backlash => p.backlash = Some(non_negative),
+                Effect::Creep => p.creep = Some((v, col(at + 1))),
+                Effect::Rate => p.rate = Some(v),
+                Effect::Load => p.load = (dataset >= 1).then(|| col(at + dataset - 1)),
             }
-            at += e.dim(self.datasets);
+            at += dim;
         }
         p
     }
@@ -633,11 +728,11 @@ impl Augmented {
         restart: Option<(&[f32], usize)>,
         mut sink: impl FnMut(usize, f32),
     ) -> bool {
-        let p = self.prepare(theta, dataset, ctx);
+        let p: Prepared<1> = self.prepare(theta, dataset, ctx);
         let mut s = p.start(y0, u.first().copied().unwrap_or(0.0));
         for k in 1..u.len() {
-            let yk = p.step(&mut s, k, u);
-            if !Prepared::in_bounds(&s, yk) {
+            let [yk] = p.step(&mut s, k, u);
+            if !Prepared::in_bounds(&s, 0, yk) {
                 return false;
             }
             sink(k, yk);
