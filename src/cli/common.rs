@@ -46,6 +46,19 @@ pub struct ColumnArgs {
     pub split_gaps: bool,
 }
 
+/// The longest of the traces (several come from `--split-gaps`).
+pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
+    anyhow::ensure!(!traces.is_empty(), "the data file holds no samples");
+    if traces.len() > 1 {
+        eprintln!(
+            "mckibben: note: {} pieces after --split-gaps; fitting the longest",
+            traces.len()
+        );
+    }
+    traces.sort_by_key(|t| std::cmp::Reverse(t.len()));
+    Ok(traces.swap_remove(0))
+}
+
 /// One data file (for `identify`, `simulate`, ...).
 #[derive(Debug, Clone, clap::Args)]
 pub struct DataArgs {

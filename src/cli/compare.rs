@@ -9,14 +9,14 @@ use std::time::Instant;
 use anyhow::Context;
 use serde::Serialize;
 
-use super::common::{ColumnArgs, DataArgs};
-use super::fit::{MFA_ALL_PAIRS_MAX, one_trace};
+use super::common::{ColumnArgs, DataArgs, one_trace};
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend, Evaluator};
 use mckibben::ident::fit_percent;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::engine::model::{GENERATIONS, POPULATION, fit_task, staged_plan};
 use mckibben::optim::engine::{Plan, StopRules};
+use mckibben::optim::mfa::ALL_PAIRS_MAX as MFA_ALL_PAIRS_MAX;
 use mckibben::optim::mfa::Attractors;
 use mckibben::optim::task::Task;
 use mckibben::optim::{AlgoSettings, Algorithm};

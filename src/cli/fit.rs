@@ -9,20 +9,19 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use anyhow::Context;
 use serde::Serialize;
 
-use super::common::DataArgs;
+use super::common::{DataArgs, one_trace};
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend};
-use mckibben::model::{Family, Flow, simulate};
-use mckibben::optim::engine::model::{GENERATIONS, ModelObjective, POPULATION, staged_plan};
-use mckibben::optim::engine::{
-    Engine, Observer, Outcome, Plan, Space, StageSummary, StopReason, StopRules,
-};
+use mckibben::model::{Family, Flow};
+use mckibben::optim::Algorithm;
+use mckibben::optim::engine::model::{GENERATIONS, ModelObjective, POPULATION};
+use mckibben::optim::engine::{Engine, Observer, Outcome, StageSummary, StopReason, StopRules};
+use mckibben::optim::fit::{FitSettings, Overrides};
 use mckibben::optim::ga::{Crossover, Mutation};
 use mckibben::optim::history::GenerationRecord;
-use mckibben::optim::mfa::{Attractors, Distance, Lambda0Schedule, Scale};
+use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 use mckibben::optim::task::Task;
-use mckibben::optim::{AlgoSettings, Algorithm};
-use mckibben::report::{Figure, Panel, Series};
+use mckibben::report::fit_figures;
 
 /// Fit a Bouc-Wen hysteresis model (eq. 13 with the classic or generalized
 /// state) to a recorded experiment. The first half of the data is used for
@@ -165,11 +164,6 @@ pub struct Args {
     json: bool,
 }
 
-/// Above this population the MFA's all-pairs move takes over a second a
-/// generation on two cores (measured: docs/PERFORMANCE.md), so the thesis'
-/// flow moves each firefly towards the 10 brightest unless told otherwise.
-pub const MFA_ALL_PAIRS_MAX: usize = 2000;
-
 /// The hysteretic families `fit` can fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ModelArg {
@@ -217,152 +211,38 @@ struct Edge {
     bound: &'static str,
 }
 
-/// The longest of the traces (several come from `--split-gaps`).
-pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
-    anyhow::ensure!(!traces.is_empty(), "the data file holds no samples");
-    if traces.len() > 1 {
-        eprintln!(
-            "mckibben: note: {} pieces after --split-gaps; fitting the longest",
-            traces.len()
-        );
-    }
-    traces.sort_by_key(|t| std::cmp::Reverse(t.len()));
-    Ok(traces.swap_remove(0))
-}
-
 impl Args {
-    /// The base settings (the thesis' or the staged fit's) with the flags
-    /// given on the command line laid over them.
-    fn algo_settings(&self, family: Family) -> anyhow::Result<AlgoSettings> {
-        let mut s = if self.thesis_flow {
-            self.algo.thesis_settings(family)
-        } else {
-            self.algo.staged_settings(self.pop)
-        };
-        // Every flag is checked whatever the algorithm; each only acts on its own.
-        if let Some(p) = self.p_mut {
-            anyhow::ensure!(
-                (0.0..=1.0).contains(&p),
-                "--p-mut must be a probability in [0, 1] (got {p})"
-            );
+    /// The fit the flags ask for.
+    fn settings(&self) -> FitSettings {
+        FitSettings {
+            algo: self.algo,
+            pop: self.pop,
+            gens: self.gens,
+            seed: self.seed,
+            thesis_flow: self.thesis_flow,
+            islands: self.islands,
+            horizon: self.horizon,
+            overrides: Overrides {
+                crossover: self.crossover,
+                elitism: self.elitism,
+                p_mut: self.p_mut,
+                mutation: self.mutation,
+                mfa_lambda0: self.mfa_lambda0,
+                mfa_distance: self.mfa_distance,
+                mfa_scale: self.mfa_scale,
+                mfa_attractors: self.mfa_attractors,
+                mfa_brightest: self.mfa_brightest,
+                mfa_rho0: self.mfa_rho0,
+                de_p_best: self.de_p_best,
+                pso_scalar_social: self.pso_scalar_social,
+            },
+            stops: StopRules {
+                target_sse: self.target_sse,
+                time_budget_s: self.time_budget,
+                stall_generations: self.stall,
+                stall_tolerance: 0.0,
+            },
         }
-        if let Some(e) = self.elitism {
-            anyhow::ensure!(e < self.pop, "--elitism must be below --pop (got {e})");
-        }
-        if let Some(r) = self.mfa_rho0 {
-            anyhow::ensure!(
-                r.is_finite() && r >= 0.0,
-                "--mfa-rho0 must be a finite step size ≥ 0 (got {r})"
-            );
-        }
-        if let Some(p) = self.de_p_best {
-            anyhow::ensure!(
-                p > 0.0 && p <= 1.0,
-                "--de-p-best must be in (0, 1] (got {p})"
-            );
-        }
-        if let AlgoSettings::Ga(ga) = &mut s {
-            if let Some(p) = self.p_mut {
-                ga.p_mut = p;
-            }
-            if let Some(c) = self.crossover {
-                ga.crossover = c;
-            }
-            if let Some(e) = self.elitism {
-                ga.elitism = e;
-            }
-            if let Some(m) = self.mutation {
-                ga.mutation = m;
-            }
-        }
-        if let AlgoSettings::Mfa(mfa) = &mut s {
-            if let Some(l) = self.mfa_lambda0 {
-                mfa.lambda0 = l;
-            }
-            if let Some(d) = self.mfa_distance {
-                mfa.distance = d;
-            }
-            if let Some(sc) = self.mfa_scale {
-                mfa.scale = sc;
-            }
-            if let Some(k) = self.mfa_attractors {
-                mfa.max_attractors = (k > 0).then_some(k);
-            } else if self.thesis_flow && self.pop > MFA_ALL_PAIRS_MAX {
-                mfa.max_attractors = Some(10);
-                mfa.attractors = Attractors::Brightest;
-                if !self.json {
-                    eprintln!(
-                        "mckibben: note: the MFA's all-pairs move is O(N²·d) and takes over a second a \
-                         generation above N = {MFA_ALL_PAIRS_MAX}; moving each firefly towards the 10 \
-                         brightest instead (--mfa-attractors 0 for all pairs)"
-                    );
-                }
-            }
-            if self.mfa_brightest {
-                mfa.attractors = Attractors::Brightest;
-            }
-            if let Some(r) = self.mfa_rho0 {
-                mfa.rho0 = r;
-            }
-        }
-        if let AlgoSettings::Pso(pso) = &mut s
-            && self.pso_scalar_social
-        {
-            pso.scalar_social = true;
-        }
-        if let (AlgoSettings::De(de), Some(p)) = (&mut s, self.de_p_best) {
-            de.p_best = p;
-        }
-        Ok(s)
-    }
-
-    /// The plan of a fresh fit.
-    fn plan(&self, task: &Task) -> anyhow::Result<Plan> {
-        let min = self.algo.min_population();
-        anyhow::ensure!(
-            self.pop >= min,
-            "--pop must be at least {min} for --algo {} (got {})",
-            self.algo,
-            self.pop
-        );
-        let settings = self.algo_settings(task.family)?;
-        if self.thesis_flow {
-            return Ok(Plan::thesis(settings, self.pop, self.gens));
-        }
-        let mut plan = staged_plan(task, settings, self.pop, self.gens);
-        if let Some(global) = plan.global.as_mut() {
-            if let Some(k) = self.islands {
-                anyhow::ensure!(k >= 1, "--islands must be at least 1");
-                anyhow::ensure!(
-                    self.pop / k >= min,
-                    "--islands {k} leaves {} individuals an island of --pop {}; --algo {} needs at least {min}",
-                    self.pop / k,
-                    self.pop,
-                    self.algo
-                );
-                global.islands = k;
-            }
-            if let Some(h) = self.horizon {
-                anyhow::ensure!(h >= 1, "--horizon must be at least 1 sample");
-                global.measure = mckibben::model::Measure::Ahead { horizon: h };
-            }
-        }
-        Ok(plan)
-    }
-
-    fn stops(&self) -> anyhow::Result<StopRules> {
-        if let Some(t) = self.time_budget {
-            anyhow::ensure!(
-                t >= 0.0,
-                "--time-budget must be at least 0 seconds (got {t})"
-            );
-        }
-        Ok(StopRules {
-            target_sse: self.target_sse,
-            time_budget_s: self.time_budget,
-            stall_generations: self.stall,
-            stall_tolerance: 0.0,
-        })
     }
 }
 
@@ -407,33 +287,6 @@ impl Observer for Progress {
     }
 }
 
-/// The engine to run: resumed from `checkpoint` when that file exists (its
-/// plan, seed and settings win; the stop rules are this command's), else fresh.
-fn engine_for(args: &Args, task: &Task, quiet: bool) -> anyhow::Result<Engine> {
-    let space = Space::from(&task.space);
-    if let Some(path) = args.checkpoint.as_deref().filter(|p| p.exists()) {
-        let mut engine = Engine::load(path)?;
-        anyhow::ensure!(
-            engine.space.names == space.names,
-            "checkpoint {} fits the parameters {:?}, not those of a {} model: pass the --model it was made with",
-            path.display(),
-            engine.space.names,
-            task.family
-        );
-        engine.stops = args.stops()?;
-        if !quiet {
-            eprintln!(
-                "mckibben: note: resuming at generation {} of {} from {} (its plan, N, G, seed and settings win)",
-                engine.generation(),
-                engine.plan.generations(),
-                path.display()
-            );
-        }
-        return Ok(engine);
-    }
-    Engine::new(args.plan(task)?, space, args.seed, args.stops()?)
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     let family: Family = args.model.into();
     let trace = one_trace(args.data.load()?)?;
@@ -444,7 +297,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let task = Task::new(&trace, family, flow, None, args.free_n)
         .with_context(|| format!("cannot fit {}", trace.source))?;
-    let mut engine = engine_for(&args, &task, args.json)?;
+    let note = |s: String| {
+        if !args.json {
+            eprintln!("mckibben: note: {s}");
+        }
+    };
+    let mut engine = args
+        .settings()
+        .start(&task, args.checkpoint.as_deref(), &note)?;
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     let interrupt = Arc::new(AtomicBool::new(false));
@@ -574,63 +434,11 @@ fn write_results(
             "model.json",
             serde_json::to_string_pretty(&model)?.as_bytes(),
         )?;
-        let (loop_fig, trace_fig) = fit_figures(task, &outcome.params, trace, &title);
+        let (loop_fig, trace_fig) = fit_figures(&model, trace, &title);
         loop_fig.save(&out.join("loop.svg"))?;
         trace_fig.save(&out.join("trace.svg"))?;
     }
     Ok(output)
-}
-
-/// The hysteresis loop (displacement against pressure, figs 12, 14, 16,
-/// 20, 21, 23) and the time trace, fitted over measured, on the whole trace
-/// in absolute units (free run from the first sample).
-pub fn fit_figures(task: &Task, params: &[f64], trace: &Trace, title: &str) -> (Figure, Figure) {
-    let model = task.model(params);
-    let theta: Vec<f32> = params.iter().map(|&v| v as f32).collect();
-    let u: Vec<f32> = trace
-        .input
-        .iter()
-        .map(|&p| (p - model.input_mean) as f32)
-        .collect();
-    let x0 = (trace.output[0] - model.output_mean) as f32;
-    let sim = simulate(task.family, &theta, &u, x0);
-    let fitted: Vec<f64> = sim
-        .x
-        .iter()
-        .map(|&x| x as f64 + model.output_mean)
-        .collect();
-    let (xin, xout) = (
-        format!("{} (input)", trace.input_name),
-        format!("{} (output)", trace.output_name),
-    );
-    let loop_fig = Figure::new(format!("{title}: hysteresis loop")).with(
-        Panel::new("output against input", xin.clone(), xout.clone())
-            .with(Series::points(
-                "measured",
-                trace.input.clone(),
-                trace.output.clone(),
-            ))
-            .with(Series::line("fitted", trace.input.clone(), fitted.clone())),
-    );
-    let half = trace.t.get(trace.len() / 2).copied().unwrap_or(0.0);
-    let trace_fig = Figure::new(format!(
-        "{title}: free run (estimation before t = {half:.1} s, validation after)"
-    ))
-    .with(
-        Panel::new("output", "t (s)", xout)
-            .with(Series::line(
-                "measured",
-                trace.t.clone(),
-                trace.output.clone(),
-            ))
-            .with(Series::line("fitted", trace.t.clone(), fitted)),
-    )
-    .with(Panel::new("input", "t (s)", xin).with(Series::line(
-        "input",
-        trace.t.clone(),
-        trace.input.clone(),
-    )));
-    (loop_fig, trace_fig)
 }
 
 fn print_report(o: &Output, task: &Task) {

@@ -28,6 +28,16 @@ use serde::{Deserialize, Serialize};
 
 use super::{Bounds, Optimizer};
 
+/// Above this population the all-pairs move takes over a second a
+/// generation on two cores (measured: docs/PERFORMANCE.md), so the thesis'
+/// flow and Table 21 move each firefly towards the [`BRIGHTEST`] brightest
+/// instead, unless told otherwise.
+pub const ALL_PAIRS_MAX: usize = 2000;
+
+/// The attractors of a capped move: the staged fit's, and the thesis' flow's
+/// above [`ALL_PAIRS_MAX`] fireflies.
+pub const BRIGHTEST: usize = 10;
+
 /// Where `Λ0` ends (eq. 36 and the appendix code disagree).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "kebab-case")]
@@ -114,6 +124,13 @@ impl Default for MfaSettings {
 }
 
 impl MfaSettings {
+    /// Moves each firefly towards the [`BRIGHTEST`] brightest only:
+    /// `O(N·K·d)` a generation with `K` = [`BRIGHTEST`] instead of `O(N²·d)`.
+    pub fn towards_brightest(&mut self) {
+        self.max_attractors = Some(BRIGHTEST);
+        self.attractors = Attractors::Brightest;
+    }
+
     /// `(Λ0, σ, ρ)` at generation `k` of `g` (eq. 36–38 / A.2.2.1).
     pub fn schedule(&self, k: usize, g: usize) -> (f64, f64, f64) {
         let (k, g) = (k as f64, g.max(2) as f64);
@@ -244,7 +261,7 @@ impl Optimizer for Mfa {
     /// `O(N²·d)` at the staged fit's populations.
     fn staged_settings(_n: usize) -> MfaSettings {
         MfaSettings {
-            max_attractors: Some(10),
+            max_attractors: Some(BRIGHTEST),
             attractors: Attractors::Brightest,
             distance: Distance::Squared,
             scale: Scale::Box,

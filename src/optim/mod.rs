@@ -17,6 +17,7 @@
 pub mod cases;
 pub mod de;
 pub mod engine;
+pub mod fit;
 pub mod ga;
 pub mod history;
 pub mod lm;
