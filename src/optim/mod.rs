@@ -15,6 +15,7 @@
 //! Levenberg–Marquardt after a search.
 
 pub mod cases;
+pub mod compare;
 pub mod de;
 pub mod engine;
 pub mod fit;

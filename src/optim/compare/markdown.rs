@@ -1,0 +1,103 @@
+//! The comparison's report as Markdown (`compare.md`).
+
+use std::fmt::Write as _;
+
+use super::{Report, Settings};
+use crate::model::Flow;
+use crate::optim::engine::model::{GENERATIONS, POPULATION};
+
+/// `v` with `digits` decimals, or `diverged`.
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or("diverged".into(), |v| format!("{v:.digits$}"))
+}
+
+/// The report as Markdown tables, headed by the settings that made it.
+pub fn markdown(r: &Report, settings: &Settings) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Optimizer comparison on {} [{}]\n", r.data, r.backend);
+    if !r.table21.is_empty() {
+        let _ = writeln!(
+            s,
+            "## Table 21 redone (G = {}, seed 1, thesis settings; `mfa*`: 10 brightest attractors above N = {})\n",
+            settings.gens, settings.mfa_all_pairs_max
+        );
+        let _ = writeln!(
+            s,
+            "| N | algorithm | model | total (s) | per generation (s) | SSE (estimation) | validation fit % |\n|---:|---|---|---:|---:|---:|---:|"
+        );
+        for row in &r.table21 {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {:.3} | {:.4} | {} | {} |",
+                row.population,
+                row.algo,
+                row.model,
+                row.seconds,
+                row.seconds_per_generation,
+                opt(row.sse, 3),
+                opt(row.val_fit_percent, 2)
+            );
+        }
+    }
+    if !r.budget.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n## Equal population budgets (N = {}, G = {}), seeds 1..={}: median [min, max]\n\nThe staged fits add a free-run stage (N/5 for G/4) and a polish to the same global stage.\n",
+            settings.budget_pop, settings.budget_gens, settings.seeds
+        );
+        let _ = writeln!(
+            s,
+            "| model | variant | evaluations | SSE | validation fit % |\n|---|---|---:|---|---|"
+        );
+        for b in &r.budget {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} [{}, {}] | {} [{}, {}] |",
+                b.model,
+                b.variant,
+                b.evaluations,
+                opt(b.sse_median, 3),
+                opt(b.sse_min, 3),
+                opt(b.sse_max, 3),
+                opt(b.fit_median, 2),
+                opt(b.fit_min, 2),
+                opt(b.fit_max, 2)
+            );
+        }
+    }
+    let _ = writeln!(
+        s,
+        "\n## Flows (staged fit, DE, N = {POPULATION}, G = {GENERATIONS}, seed 1)\n\n| model | flow | SSE | validation fit % | validation RMSE |\n|---|---|---:|---:|---:|"
+    );
+    for f in &r.flows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} |",
+            f.model,
+            match f.flow {
+                Flow::Joint => "joint (a, b, c, x0 fitted)",
+                Flow::Thesis => "thesis (a, b = ARX, c = 0)",
+            },
+            opt(f.sse, 3),
+            opt(f.val_fit_percent, 2),
+            opt(f.val_rmse, 4)
+        );
+    }
+    if !r.cross_load.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n## Cross-load check (§4.10; staged fit, DE, joint flow; fit % over the whole trace)\n\n| model | fitted on | scored on | fit % |\n|---|---|---|---:|"
+        );
+        for c in &r.cross_load {
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} |",
+                c.model,
+                c.fitted_on,
+                c.scored_on,
+                opt(c.fit_percent, 2)
+            );
+        }
+    }
+    s
+}
