@@ -249,26 +249,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         duration_s: args.duration,
         steady_from_s: args.steady_from,
     };
-    let mut rows = Vec::new();
-    let mut runs: Vec<Run> = Vec::new();
-    match &plant {
-        Plant::Twin => {
-            let specs = sweep::plan(&kinds, &args.freq, &args.load, &args.hysteresis_scale);
-            for (i, spec) in specs.iter().enumerate() {
-                say(format!(
-                    "[{}/{}] {} at {} rad/s, {} kg",
-                    i + 1,
-                    specs.len(),
-                    sweep::run_label(spec.kind, spec.hysteresis_scale),
-                    spec.freq_rad_s,
-                    spec.load_kg
-                ));
-                let run = sweep::run_on_twin(spec, &ing, &config, args.seed, &shape)?;
-                rows.push(Row::of(&run, "twin", Some(spec.load_kg), 0));
-                runs.push(run);
-            }
-        }
+    let (rows, runs) = match &plant {
+        Plant::Twin => table::on_twin(
+            &kinds,
+            &args.freq,
+            &args.load,
+            &args.hysteresis_scale,
+            &ing,
+            &config,
+            args.seed,
+            &shape,
+            &say,
+        )?,
         external => {
+            let mut rows = Vec::new();
+            let mut runs = Vec::new();
             for &kind in &kinds {
                 for &freq in &args.freq {
                     let spec = RunSpec {
@@ -287,8 +282,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     runs.push(run);
                 }
             }
+            (rows, runs)
         }
-    }
+    };
     let robust = if args.robustness {
         let (kinds, freqs) = (&kinds, &args.freq);
         table::robustness(
@@ -325,8 +321,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
-    let twin_check = Some((config, args.design_load, args.seed));
-    let mut design = match &args.design_data {
+    let design = match &args.design_data {
         Some(path) => {
             let traces = read_traces(path, &ReadOptions::default())
                 .map_err(|e| anyhow::anyhow!("--design-data: {e}"))?;
@@ -334,34 +329,27 @@ fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
                 .into_iter()
                 .next()
                 .ok_or_else(|| anyhow::anyhow!("--design-data {}: no samples", path.display()))?;
-            let half = trace.len() / 2;
-            let (est, val) = (trace.slice(0..half), trace.slice(half..trace.len()));
-            sweep::design_from(&est, &val, args.horizon, None)
+            sweep::design_from_record(&trace, args.horizon)
                 .with_context(|| format!("identifying the model from {}", path.display()))?
         }
-        None => {
-            let (record, validation) = sweep::twin_records(config, args.design_load, args.seed);
-            sweep::design_from(&record, &validation, args.horizon, twin_check)
-                .context("identifying the model on the twin")?
-        }
+        None => sweep::design_on_twin(config, args.design_load, args.seed, args.horizon)
+            .context("identifying the model on the twin")?,
     };
-    if let Some(path) = &args.from {
-        let m = mckibben::model::FittedModel::load(path)
-            .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
-        let mut model = design.model.clone();
-        model.displacement = m;
-        model.curvature = 0.0;
-        let (_, validation) = sweep::twin_records(config, args.design_load, args.seed);
-        design = sweep::finish_design(
-            model,
-            format!("{}", path.display()),
-            &validation,
-            args.horizon,
-            twin_check,
-        )
-        .with_context(|| format!("--from {}", path.display()))?;
-    }
-    Ok(design)
+    let Some(path) = &args.from else {
+        return Ok(design);
+    };
+    let m =
+        mckibben::model::FittedModel::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+    sweep::with_displacement(
+        &design,
+        m,
+        format!("{}", path.display()),
+        config,
+        args.design_load,
+        args.seed,
+        args.horizon,
+    )
+    .with_context(|| format!("--from {}", path.display()))
 }
 
 fn describe_design(d: &Design) -> String {
@@ -479,7 +467,7 @@ fn run_external(
     let settings = RemoteSettings {
         deadline: Duration::from_secs_f64(args.deadline / 1000.0),
         max_missing: args.max_missing,
-        connect_timeout: Duration::from_secs(10),
+        connect_timeout: RemoteSettings::CONNECT_TIMEOUT,
     };
     let dt = rig::connect(link.as_mut(), &settings)?;
     let mut controller = sweep::build(spec.kind, spec.hysteresis_scale, ing, dt)?;

@@ -13,6 +13,7 @@ use super::mpc::{Mpc, MpcSettings, MpcStats};
 use super::pi::{Pi, PiGains};
 use super::validation::{self, LoopCheck};
 use crate::data::Trace;
+use crate::model::FittedModel;
 use crate::twin::{self, Rig, TwinConfig};
 
 /// The controllers `mckibben control` knows.
@@ -106,6 +107,53 @@ pub fn finish_design(
         prediction,
         loop_check,
     })
+}
+
+/// The design from an open-loop record of the plant (a `valve_in`
+/// column): identified on its first half, validated on its second.
+pub fn design_from_record(record: &Trace, horizon: usize) -> anyhow::Result<Design> {
+    let half = record.len() / 2;
+    let (est, val) = (record.slice(0..half), record.slice(half..record.len()));
+    design_from(&est, &val, horizon, None)
+}
+
+/// The design on the twin at `load`: identified on the design multisine
+/// (seed `seed`), validated on another run of it (seed `seed + 1`), its
+/// loop checked against the twin's.
+pub fn design_on_twin(
+    config: &TwinConfig,
+    load: f64,
+    seed: u64,
+    horizon: usize,
+) -> anyhow::Result<Design> {
+    let (record, validation) = twin_records(config, load, seed);
+    design_from(&record, &validation, horizon, Some((config, load, seed)))
+}
+
+/// `design` with its displacement model replaced by `displacement` (a
+/// model fitted elsewhere, named `source`), validated on the twin at `load`
+/// as [`design_on_twin`] does. The valve map stays; the curvature `b2` goes,
+/// since it belonged to the replaced displacement model.
+pub fn with_displacement(
+    design: &Design,
+    displacement: FittedModel,
+    source: String,
+    config: &TwinConfig,
+    load: f64,
+    seed: u64,
+    horizon: usize,
+) -> anyhow::Result<Design> {
+    let mut model = design.model.clone();
+    model.displacement = displacement;
+    model.curvature = 0.0;
+    let (_, validation) = twin_records(config, load, seed);
+    finish_design(
+        model,
+        source,
+        &validation,
+        horizon,
+        Some((config, load, seed)),
+    )
 }
 
 /// The design multisine run on the twin at `load` (seed `seed`) and its

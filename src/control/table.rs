@@ -60,6 +60,40 @@ impl Row {
     }
 }
 
+/// The runs of `kinds` over `freqs` × `loads` and the hysteresis `scales`
+/// ([`sweep::plan`]), each on a fresh in-process twin, with their rows;
+/// `progress` hears of each run before it starts.
+#[allow(clippy::too_many_arguments)]
+pub fn on_twin(
+    kinds: &[Kind],
+    freqs: &[f64],
+    loads: &[f64],
+    scales: &[f64],
+    ing: &Ingredients,
+    config: &TwinConfig,
+    seed: u64,
+    shape: &Shape,
+    progress: &dyn Fn(String),
+) -> anyhow::Result<(Vec<Row>, Vec<Run>)> {
+    let specs = sweep::plan(kinds, freqs, loads, scales);
+    let mut rows = Vec::new();
+    let mut runs = Vec::new();
+    for (i, spec) in specs.iter().enumerate() {
+        progress(format!(
+            "[{}/{}] {} at {} rad/s, {} kg",
+            i + 1,
+            specs.len(),
+            sweep::run_label(spec.kind, spec.hysteresis_scale),
+            spec.freq_rad_s,
+            spec.load_kg
+        ));
+        let run = sweep::run_on_twin(spec, ing, config, seed, shape)?;
+        rows.push(Row::of(&run, "twin", Some(spec.load_kg), 0));
+        runs.push(run);
+    }
+    Ok((rows, runs))
+}
+
 /// One robustness run.
 #[derive(Debug, Clone, Serialize)]
 pub struct RobustRow {

@@ -36,6 +36,13 @@ pub struct RemoteSettings {
     pub connect_timeout: Duration,
 }
 
+impl RemoteSettings {
+    /// The time `mckibben control` gives a rig to answer `HELLO`: a rig
+    /// behind `cmd:` is a process that must start first, so this is seconds,
+    /// not a sample.
+    pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(10);
+}
+
 /// Why a run on a rig stopped early.
 #[derive(Debug, Error)]
 pub enum RigError {
