@@ -72,17 +72,14 @@ pub struct FitSettings {
 impl FitSettings {
     /// The base settings (the thesis' or the staged fit's) with the
     /// overrides laid over them; `note` hears of a rule applied unasked.
-    pub fn algo_settings(
-        &self,
-        family: Family,
-        note: &dyn Fn(String),
-    ) -> anyhow::Result<AlgoSettings> {
+    fn algo_settings(&self, family: Family, note: &dyn Fn(String)) -> anyhow::Result<AlgoSettings> {
         let o = &self.overrides;
         let mut s = if self.thesis_flow {
             self.algo.thesis_settings(family)
         } else {
             self.algo.staged_settings(self.pop)
         };
+        // Every override is checked whatever the algorithm; each only acts on its own.
         if let Some(p) = o.p_mut {
             anyhow::ensure!(
                 (0.0..=1.0).contains(&p),
@@ -159,7 +156,7 @@ impl FitSettings {
     }
 
     /// The plan of a fresh fit of `task`.
-    pub fn plan(&self, task: &Task, note: &dyn Fn(String)) -> anyhow::Result<Plan> {
+    fn plan(&self, task: &Task, note: &dyn Fn(String)) -> anyhow::Result<Plan> {
         let min = self.algo.min_population();
         anyhow::ensure!(
             self.pop >= min,
@@ -193,7 +190,7 @@ impl FitSettings {
     }
 
     /// The stop rules, checked.
-    pub fn stops(&self) -> anyhow::Result<StopRules> {
+    fn stops(&self) -> anyhow::Result<StopRules> {
         if let Some(t) = self.stops.time_budget_s {
             anyhow::ensure!(
                 t >= 0.0,
