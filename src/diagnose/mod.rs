@@ -12,8 +12,10 @@ pub mod fitting;
 pub mod interval;
 pub mod locate;
 pub mod report;
+pub mod ridge;
 pub mod select;
 pub mod selftest;
+pub mod spectrum;
 
 use serde::Serialize;
 
