@@ -2,12 +2,15 @@
 //! ([`locate`]), which unmodelled effect of the catalogue explains it
 //! ([`effects`], chosen by [`select`] under [`accept`]'s rule, each model
 //! fitted by [`fitting`] on the halves of [`data`]), and how far the model
-//! gets with it, relative to a noise-floor estimate. [`selftest`] checks the whole chain on data with a
-//! withheld effect; [`report`] turns a [`Diagnosis`] into text, JSON and figures.
+//! gets with it, relative to a noise-floor estimate; how much of the gap is
+//! explainable at all ([`explainable`], a [`ridge`] model of the residual)
+//! and where the residual's spectrum peaks ([`spectrum`]). [`selftest`]
+//! checks the whole chain on data with a withheld effect; [`report`] turns a [`Diagnosis`] into text, JSON and figures.
 
 pub mod accept;
 pub mod data;
 pub use crate::model::effects;
+pub mod explainable;
 pub mod fitting;
 pub mod interval;
 pub mod locate;
@@ -51,6 +54,13 @@ pub struct Diagnosis {
     pub steps: Vec<Step>,
     /// How well the data pin each accepted effect's size in the final model.
     pub size_intervals: Vec<interval::SizeInterval>,
+    /// How much of the baseline's gap a flexible model of its residual
+    /// closes, each named effect's share of that, and the verdict.
+    pub explainable: explainable::Explainable,
+    /// Welch spectra (and peaks) of the validation residual of the baseline
+    /// and of the final model; `None` where the validation part is too short.
+    pub spectrum: Option<spectrum::Spectrum>,
+    pub final_spectrum: Option<spectrum::Spectrum>,
     /// Validation predictions `(t, input, measured, baseline, final)` per dataset (absolute units).
     #[serde(skip)]
     pub curves: Vec<Curves>,
@@ -174,22 +184,54 @@ pub fn diagnose(
         .collect::<anyhow::Result<_>>()?;
 
     let ia = family.linear_indices()[0];
-    let residuals = data.val_residuals(base_model, &base.params);
-    let segments: Vec<locate::Segment> = traces
-        .iter()
-        .zip(&data.val_start)
-        .zip(residuals)
-        .map(|((t, &s), r)| locate::Segment {
-            name: t.source.clone(),
-            dt: t.dt(),
-            input: t.input[s..].to_vec(),
-            residual: r,
-        })
-        .collect();
+    let segments_of = |residuals: Vec<Vec<f64>>| -> Vec<locate::Segment> {
+        traces
+            .iter()
+            .zip(&data.val_start)
+            .zip(residuals)
+            .map(|((t, &s), r)| locate::Segment {
+                name: t.source.clone(),
+                dt: t.dt(),
+                input: t.input[s..].to_vec(),
+                residual: r,
+            })
+            .collect()
+    };
+    let segments = segments_of(data.val_residuals(base_model, &base.params));
+    let final_segments =
+        segments_of(data.val_residuals(&selection.final_model, &selection.final_fit.params));
     let min_len = segments.iter().map(|s| s.residual.len()).min().unwrap_or(0);
-    let place = locate::analyse(&segments, settle_samples(base.params[ia], min_len));
+    let settle = settle_samples(base.params[ia], min_len);
+    let place = locate::analyse(&segments, settle);
+    let spectrum = residual_spectrum(&segments);
+    let final_spectrum = residual_spectrum(&final_segments);
 
     let base_pred = data.predict(base_model, &base.params);
+    let as_f64 = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<f64>>();
+    let (pred, meas): (Vec<_>, Vec<_>) = base_pred
+        .iter()
+        .zip(&data.whole)
+        .map(|(p, w)| (as_f64(p), as_f64(&w.y)))
+        .unzip();
+    let signals: Vec<explainable::Signals> = traces
+        .iter()
+        .enumerate()
+        .map(|(i, t)| explainable::Signals {
+            input: &t.input,
+            prediction: &pred[i],
+            measured: &meas[i],
+            val_start: data.val_start[i],
+        })
+        .collect();
+    let bound = explainable::bound(&signals, floor, &ridge::RidgeSettings::default())?;
+    let remaining = explainable::signature(
+        &locate::analyse(&final_segments, settle),
+        final_spectrum
+            .as_ref()
+            .and_then(|s| s.peaks.first().copied()),
+    );
+    let explainable = explainable::judge(bound, &steps, remaining);
+
     let last_pred = data.predict(&selection.final_model, &selection.final_fit.params);
     let curves = traces
         .iter()
@@ -215,6 +257,21 @@ pub fn diagnose(
         selection,
         steps,
         size_intervals,
+        explainable,
+        spectrum,
+        final_spectrum,
         curves,
     })
+}
+
+/// Welch spectrum of the residual of `segments`, those sampled at the first
+/// one's rate (within 1 %) averaged together.
+fn residual_spectrum(segments: &[locate::Segment]) -> Option<spectrum::Spectrum> {
+    let dt = segments.first()?.dt;
+    let series: Vec<&[f64]> = segments
+        .iter()
+        .filter(|s| (s.dt - dt).abs() <= 0.01 * dt)
+        .map(|s| s.residual.as_slice())
+        .collect();
+    spectrum::welch(&series, dt, &spectrum::Settings::default())
 }

@@ -8,7 +8,9 @@ use serde_json::{Value, json};
 
 use super::accept::{Candidate, gap_closed};
 use super::effects::Effect;
+use super::explainable::Signature;
 use super::locate::{Band, Share};
+use super::spectrum::{Peak, Spectrum};
 use super::{Diagnosis, Step};
 use crate::report::{Figure, Panel, Series};
 
@@ -78,6 +80,8 @@ pub fn to_json(d: &Diagnosis) -> Value {
         .collect();
     let share = |s: &Share| json!(s.energy);
     let last = d.last();
+    let x = &d.explainable;
+    let peaks = |s: &Option<Spectrum>| s.as_ref().map_or(json!([]), |s| json!(s.peaks));
     json!({
         "baseline": {
             "model": d.family.name(),
@@ -112,6 +116,27 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "val_fit_percent": last.val_fit_percent,
             "gap_closed": last.gap_closed,
             "size_intervals": d.size_intervals,
+        },
+        "explainable": {
+            "bound_rmse": x.bound.bound_rmse,
+            "baseline_rmse": x.bound.baseline_rmse,
+            "gap_closable": x.bound.gap_closable,
+            "lambda": x.bound.lambda,
+            "features": x.bound.features,
+            "groups": x.bound.groups,
+            "effect_shares": x.effect_shares.iter().map(|e| (e.effect.name().to_string(), json!(e.share))).collect::<serde_json::Map<_, _>>(),
+            "effect_gap_closed": x.effect_shares.iter().map(|e| (e.effect.name().to_string(), json!(e.gap_closed))).collect::<serde_json::Map<_, _>>(),
+            "catalogue_share": x.catalogue_share,
+            "not_explained": x.not_explained,
+            "signature": x.signature,
+            "method": "ridge regression of the baseline's residual on groups of features (lags, Laguerre and low-pass filters, rate and branch of the input, lags and level terms of the baseline's prediction; never the measured output), groups added forward and the penalty chosen by 5-fold blocked CV on the estimation half, scored on the validation half",
+        },
+        "spectrum": {
+            "segment": d.spectrum.as_ref().map(|s| s.segment),
+            "segments": d.spectrum.as_ref().map(|s| s.segments),
+            "bin_hz": d.spectrum.as_ref().and_then(|s| s.hz.get(1)),
+            "peaks": peaks(&d.spectrum),
+            "final_peaks": peaks(&d.final_spectrum),
         },
         "rule": "accept iff R0−R1 > 3·√(s0²+s1²) (seed spread), ΔBIC = N·ln(R1²/R0²) + k·ln N < −10, (R0−R1)/R0 ≥ 2 %, and R0 > 1.1·noise floor; a candidate's gain that the model without it reaches from the candidate's parameters is not credited to it (ablation)",
     })
@@ -280,6 +305,8 @@ pub fn to_text(d: &Diagnosis) -> String {
             );
         }
     }
+    explainable_text(&mut o, d);
+    spectrum_text(&mut o, d);
     if d.selection.verdict.is_empty() {
         let _ = writeln!(
             o,
@@ -294,7 +321,140 @@ pub fn to_text(d: &Diagnosis) -> String {
             pct(d.last().gap_closed).trim()
         );
     }
+    let x = &d.explainable;
+    if x.not_explained {
+        let _ = writeln!(
+            o,
+            "Not explained by the catalogue: a flexible model of the signals closes {} of the gap, \
+             the named effects {} of that.",
+            pct(x.bound.gap_closable).trim(),
+            pct(x.catalogue_share.unwrap_or(0.0)).trim()
+        );
+        if let Some(sig) = &x.signature {
+            let _ = writeln!(o, "  What is left lies {}.", signature_text(sig));
+        }
+    }
     o
+}
+
+fn peak_text(p: &Peak) -> String {
+    format!(
+        "a peak at {:.2} Hz ({:.1}× its flanks, {} of the residual energy)",
+        p.hz,
+        p.prominence,
+        pct(p.energy_share).trim()
+    )
+}
+
+/// The signature of the residual the catalogue leaves, in words.
+fn signature_text(s: &Signature) -> String {
+    let on = |sh: &Share| {
+        format!(
+            "{} of the energy on {} of the samples",
+            pct(sh.energy).trim(),
+            pct(sh.samples).trim()
+        )
+    };
+    let mut parts = vec![
+        format!(
+            "at input {:.4}–{:.4} ({})",
+            s.level.lo,
+            s.level.hi,
+            on(&s.level.share)
+        ),
+        format!("on the {} branch ({})", s.branch, on(&s.branch_share)),
+        format!(
+            "at {:.3}–{:.3} Hz ({} of the energy)",
+            s.band.lo,
+            s.band.hi,
+            pct(s.band.share.energy).trim()
+        ),
+    ];
+    if let Some(p) = &s.peak {
+        parts.push(format!("with {}", peak_text(p)));
+    }
+    parts.join(", ")
+}
+
+fn explainable_text(o: &mut String, d: &Diagnosis) {
+    let x = &d.explainable;
+    let b = &x.bound;
+    let _ = writeln!(
+        o,
+        "\nHOW MUCH is explainable at all (ridge model of the baseline's residual from lags and filters\n  \
+         of the input, its rate and branch and the baseline's prediction, never the measured output;\n  \
+         groups of features chosen and λ = {:.0e} by blocked cross-validation on the estimation half):\n  \
+         signals used: {}",
+        b.lambda,
+        if b.groups.is_empty() {
+            "none (only a constant)".to_string()
+        } else {
+            b.groups.join(", ")
+        }
+    );
+    let _ = writeln!(
+        o,
+        "  validation RMSE {:.4} → {:.4}: a flexible model closes {} of the gap above the noise floor",
+        b.baseline_rmse,
+        b.bound_rmse,
+        pct(b.gap_closable)
+    );
+    let of_bound = |v: Option<f64>| {
+        v.map_or("— (the bound is too small to share out)".into(), |v| {
+            format!("{} of the explainable", pct(v))
+        })
+    };
+    for e in &x.effect_shares {
+        let _ = writeln!(
+            o,
+            "  {:<12} closes {} of the gap = {}",
+            e.effect.name(),
+            pct(e.gap_closed),
+            of_bound(e.share)
+        );
+    }
+    let _ = writeln!(
+        o,
+        "  {:<12} closes {} of the gap = {}{}",
+        "all named",
+        pct(d.last().gap_closed),
+        of_bound(x.catalogue_share),
+        if x.catalogue_share.is_some_and(|s| s > 1.0) {
+            " (above 100 %: the effects reach what the regression cannot)"
+        } else {
+            ""
+        }
+    );
+}
+
+fn spectrum_text(o: &mut String, d: &Diagnosis) {
+    let Some(s) = &d.spectrum else {
+        let _ = writeln!(
+            o,
+            "\nSPECTRUM: the validation part is too short for a Welch spectrum."
+        );
+        return;
+    };
+    let _ = writeln!(
+        o,
+        "\nSPECTRUM of the validation residual (Welch: {} Hann segments of {} samples, {:.3} Hz bins;\n  \
+         a peak stands ≥ 4× above both flanks):",
+        s.segments,
+        s.segment,
+        s.hz.get(1).copied().unwrap_or(f64::NAN)
+    );
+    for (name, spec) in [
+        ("baseline", &d.spectrum),
+        ("final model", &d.final_spectrum),
+    ] {
+        let peaks = spec.as_ref().map_or(&[][..], |s| s.peaks.as_slice());
+        if peaks.is_empty() {
+            let _ = writeln!(o, "  {name:<12} no peak");
+        }
+        for p in peaks {
+            let _ = writeln!(o, "  {name:<12} {}", peak_text(p));
+        }
+    }
 }
 
 /// Writes the figures into `dir`; returns their paths.
@@ -391,5 +551,39 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> anyhow::Result<Vec<PathBuf>> 
             w.frequency.iter().map(|b| b.share).collect(),
         ));
     save("diagnose_breakdown.svg", fig)?;
+
+    if let Some(base) = &d.spectrum {
+        let mut panel = Panel::new(
+            "Welch spectrum of the validation residual (peaks marked)",
+            "frequency (Hz)",
+            "power density",
+        )
+        .log_y();
+        for (name, spec) in [
+            ("baseline", Some(base)),
+            (final_label.as_str(), d.final_spectrum.as_ref()),
+        ] {
+            let Some(spec) = spec else { continue };
+            panel.series.push(Series::line(
+                name,
+                spec.hz[1..].to_vec(),
+                spec.power[1..].to_vec(),
+            ));
+            if !spec.peaks.is_empty() {
+                let at = |hz: f64| {
+                    spec.power[((hz / spec.hz[1]).round() as usize).min(spec.power.len() - 1)]
+                };
+                panel.series.push(Series::points(
+                    format!("{name}: peaks"),
+                    spec.peaks.iter().map(|p| p.hz).collect(),
+                    spec.peaks.iter().map(|p| at(p.hz)).collect(),
+                ));
+            }
+        }
+        save(
+            "diagnose_spectrum.svg",
+            Figure::new("Residual spectrum").with(panel),
+        )?;
+    }
     Ok(out)
 }

@@ -35,12 +35,16 @@ impl Default for RidgeSettings {
     }
 }
 
-/// A fitted ridge model: `ŷ = c + Σ_j w_j·(x_j − m_j)/s_j`.
+/// A fitted ridge model on some columns of the rows:
+/// `ŷ = c + Σ_j w_j·(x_j − m_j)/s_j`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Ridge {
     pub lambda: f64,
     /// Mean cross-validated squared error at `lambda`.
     pub cv_mse: f64,
+    /// The columns used (non-constant ones of those asked for), their
+    /// means, scales and weights.
+    cols: Vec<usize>,
     mean: Vec<f64>,
     scale: Vec<f64>,
     intercept: f64,
@@ -48,7 +52,7 @@ pub struct Ridge {
 }
 
 /// Column means and standard deviations of `rows` (a constant column gets
-/// scale 0 and is left out of the fit).
+/// scale 0 and is left out of every fit).
 fn moments(rows: &[Vec<f64>], p: usize) -> (Vec<f64>, Vec<f64>) {
     let n = rows.len().max(1) as f64;
     let mut mean = vec![0.0; p];
@@ -80,8 +84,8 @@ fn moments(rows: &[Vec<f64>], p: usize) -> (Vec<f64>, Vec<f64>) {
     (mean, scale)
 }
 
-/// Gram matrix `ZᵀZ` and `Zᵀt` of the standardised rows `Z` (with a leading
-/// 1 for the intercept), accumulated over `range`.
+/// Gram matrix `ZᵀZ` and `Zᵀt` of the standardised rows `Z` (every column,
+/// with a leading 1 for the intercept), accumulated over `range`.
 fn gram(
     x: &[Vec<f64>],
     t: &[f64],
@@ -89,18 +93,14 @@ fn gram(
     mean: &[f64],
     scale: &[f64],
 ) -> (DMatrix<f64>, DVector<f64>) {
-    let q = 1 + scale.iter().filter(|&&s| s > 0.0).count();
+    let q = 1 + mean.len();
     let mut g = DMatrix::zeros(q, q);
     let mut b = DVector::zeros(q);
     let mut z = vec![0.0; q];
     for k in range {
         z[0] = 1.0;
-        let mut j = 1;
-        for ((v, m), s) in x[k].iter().zip(mean).zip(scale) {
-            if *s > 0.0 {
-                z[j] = (v - m) / s;
-                j += 1;
-            }
+        for (j, ((v, m), s)) in x[k].iter().zip(mean).zip(scale).enumerate() {
+            z[j + 1] = if *s > 0.0 { (v - m) / s } else { 0.0 };
         }
         for a in 0..q {
             b[a] += z[a] * t[k];
@@ -117,32 +117,48 @@ fn gram(
     (g, b)
 }
 
-/// Solves `(G + λ·n·D)w = b`, `D` the identity except for the intercept.
-fn solve(g: &DMatrix<f64>, b: &DVector<f64>, lambda: f64, n: usize) -> Option<DVector<f64>> {
-    let mut a = g.clone();
-    for j in 1..a.nrows() {
-        a[(j, j)] += lambda * n as f64;
-    }
-    a.cholesky().map(|c| c.solve(b))
+/// Solves `(G + λ·n·D)w = b` on the Gram indices `idx` (0, the intercept,
+/// first and unpenalised).
+fn solve(
+    g: &DMatrix<f64>,
+    b: &DVector<f64>,
+    idx: &[usize],
+    lambda: f64,
+    n: usize,
+) -> Option<DVector<f64>> {
+    let q = idx.len();
+    let a = DMatrix::from_fn(q, q, |i, j| {
+        g[(idx[i], idx[j])]
+            + if i == j && i > 0 {
+                lambda * n as f64
+            } else {
+                0.0
+            }
+    });
+    let rhs = DVector::from_fn(q, |i, _| b[idx[i]]);
+    a.cholesky().map(|c| c.solve(&rhs))
 }
 
-fn predict_z(w: &DVector<f64>, row: &[f64], mean: &[f64], scale: &[f64]) -> f64 {
-    let mut acc = w[0];
-    let mut j = 1;
-    for ((v, m), s) in row.iter().zip(mean).zip(scale) {
-        if *s > 0.0 {
-            acc += w[j] * (v - m) / s;
-            j += 1;
-        }
-    }
-    acc
+/// A regression problem prepared for fits on any subset of its columns:
+/// the Gram matrices of all rows and of each held-out block are computed
+/// once, and a subset's are their submatrices.
+pub struct Problem<'a> {
+    x: &'a [Vec<f64>],
+    t: &'a [f64],
+    settings: &'a RidgeSettings,
+    mean: Vec<f64>,
+    scale: Vec<f64>,
+    all: (DMatrix<f64>, DVector<f64>),
+    held: Vec<(std::ops::Range<usize>, DMatrix<f64>, DVector<f64>)>,
 }
 
-impl Ridge {
-    /// Fits `t ≈ f(x)` on the rows of `x` (in time order), the penalty
-    /// chosen by blocked cross-validation over `settings.lambdas`: the one
-    /// with the lowest mean squared error on the held-out blocks.
-    pub fn fit(x: &[Vec<f64>], t: &[f64], settings: &RidgeSettings) -> anyhow::Result<Ridge> {
+impl<'a> Problem<'a> {
+    /// `x`: rows in time order; `t`: the targets.
+    pub fn new(
+        x: &'a [Vec<f64>],
+        t: &'a [f64],
+        settings: &'a RidgeSettings,
+    ) -> anyhow::Result<Problem<'a>> {
         let n = x.len();
         anyhow::ensure!(n == t.len(), "ridge: {n} rows but {} targets", t.len());
         let folds = settings.folds.max(2);
@@ -150,26 +166,66 @@ impl Ridge {
             n >= 2 * folds,
             "ridge: {n} rows are too few for {folds} folds"
         );
-        let p = x.first().map_or(0, Vec::len);
-        let (mean, scale) = moments(x, p);
-        let (g_all, b_all) = gram(x, t, 0..n, &mean, &scale);
-        let bounds: Vec<usize> = (0..=folds).map(|f| f * n / folds).collect();
-        let held: Vec<_> = bounds
-            .windows(2)
-            .map(|w| (w[0]..w[1], gram(x, t, w[0]..w[1], &mean, &scale)))
+        let (mean, scale) = moments(x, x.first().map_or(0, Vec::len));
+        let all = gram(x, t, 0..n, &mean, &scale);
+        let held = (0..folds)
+            .map(|f| {
+                let range = f * n / folds..(f + 1) * n / folds;
+                let (g, b) = gram(x, t, range.clone(), &mean, &scale);
+                (range, g, b)
+            })
             .collect();
+        Ok(Problem {
+            x,
+            t,
+            settings,
+            mean,
+            scale,
+            all,
+            held,
+        })
+    }
+
+    /// Mean squared error of the mean alone, the yardstick of any fit.
+    pub fn null_mse(&self) -> f64 {
+        let n = self.t.len() as f64;
+        let m = self.t.iter().sum::<f64>() / n;
+        self.t.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n
+    }
+
+    /// Fits on the columns `cols`, the penalty chosen by blocked
+    /// cross-validation over the settings' grid: the one with the lowest
+    /// mean squared error on the held-out blocks. `None` if no penalty
+    /// gives a finite fit.
+    pub fn fit(&self, cols: &[usize]) -> Option<Ridge> {
+        let cols: Vec<usize> = cols
+            .iter()
+            .copied()
+            .filter(|&j| self.scale[j] > 0.0)
+            .collect();
+        let idx: Vec<usize> = std::iter::once(0)
+            .chain(cols.iter().map(|j| j + 1))
+            .collect();
+        let n = self.t.len();
+        let (g_all, b_all) = &self.all;
         let mut best: Option<(f64, f64)> = None;
-        for &lambda in &settings.lambdas {
+        for &lambda in &self.settings.lambdas {
             let mut sse = 0.0;
-            for (range, (g_f, b_f)) in &held {
-                let n_train = n - range.len();
-                let Some(w) = solve(&(&g_all - g_f), &(&b_all - b_f), lambda, n_train) else {
+            for (range, g_f, b_f) in &self.held {
+                let Some(w) = solve(
+                    &(g_all - g_f),
+                    &(b_all - b_f),
+                    &idx,
+                    lambda,
+                    n - range.len(),
+                ) else {
                     sse = f64::INFINITY;
                     break;
                 };
+                let fit = self.ridge(&cols, &w, lambda, 0.0);
                 sse += range
                     .clone()
-                    .map(|k| (t[k] - predict_z(&w, &x[k], &mean, &scale)).powi(2))
+                    .map(|k| (self.t[k] - fit.predict(&self.x[k])).powi(2))
                     .sum::<f64>();
             }
             let mse = sse / n as f64;
@@ -177,30 +233,43 @@ impl Ridge {
                 best = Some((lambda, mse));
             }
         }
-        let (lambda, cv_mse) =
-            best.ok_or_else(|| anyhow::anyhow!("ridge: no penalty gives a finite fit"))?;
-        let w = solve(&g_all, &b_all, lambda, n)
-            .ok_or_else(|| anyhow::anyhow!("ridge: the final fit is singular"))?;
-        Ok(Ridge {
+        let (lambda, cv_mse) = best?;
+        let w = solve(g_all, b_all, &idx, lambda, n)?;
+        Some(self.ridge(&cols, &w, lambda, cv_mse))
+    }
+
+    fn ridge(&self, cols: &[usize], w: &DVector<f64>, lambda: f64, cv_mse: f64) -> Ridge {
+        Ridge {
             lambda,
             cv_mse,
-            mean,
-            scale,
+            cols: cols.to_vec(),
+            mean: cols.iter().map(|&j| self.mean[j]).collect(),
+            scale: cols.iter().map(|&j| self.scale[j]).collect(),
             intercept: w[0],
             weights: w.iter().skip(1).copied().collect(),
-        })
+        }
+    }
+}
+
+impl Ridge {
+    /// Fits on every column of `x` (see [`Problem::fit`]).
+    pub fn fit(x: &[Vec<f64>], t: &[f64], settings: &RidgeSettings) -> anyhow::Result<Ridge> {
+        let p = x.first().map_or(0, Vec::len);
+        Problem::new(x, t, settings)?
+            .fit(&(0..p).collect::<Vec<_>>())
+            .ok_or_else(|| anyhow::anyhow!("ridge: no penalty gives a finite fit"))
     }
 
     pub fn predict(&self, row: &[f64]) -> f64 {
-        let mut acc = self.intercept;
-        let mut j = 0;
-        for ((v, m), s) in row.iter().zip(&self.mean).zip(&self.scale) {
-            if *s > 0.0 {
-                acc += self.weights[j] * (v - m) / s;
-                j += 1;
-            }
-        }
-        acc
+        self.intercept
+            + self
+                .cols
+                .iter()
+                .zip(&self.mean)
+                .zip(&self.scale)
+                .zip(&self.weights)
+                .map(|(((&j, m), s), w)| w * (row[j] - m) / s)
+                .sum::<f64>()
     }
 }
 

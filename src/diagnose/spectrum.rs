@@ -13,10 +13,12 @@
 //!
 //! **A peak** is a bin that is the largest within ±2 bins (the Hann window's
 //! main lobe) and stands at least [`Settings::min_prominence`] times above
-//! the median of *each* flank (bins 3 to 8 away on either side, the lower
-//! one cut short at bin 1). Asking for
-//! both flanks is what keeps a steep slope from counting: a drift's spectrum
-//! falls with frequency, so its lower flank always stands above any bin.
+//! the background there: the medians of its two flanks (bins 3 to 8 away on
+//! either side, the lower one cut short at bin 1) interpolated in log power,
+//! i.e. their geometric mean. A resonance on the falling slope of a step
+//! response's spectrum stands above that line; a drift's spectrum (power
+//! falling as 1/f² into a flat noise floor) is convex in log power, so the
+//! line lies above it and no bin of it counts.
 
 use serde::Serialize;
 
@@ -32,7 +34,7 @@ const MIN_LOWER_FLANK: usize = 2;
 /// Settings of the peak detection.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Settings {
-    /// A peak stands this many times above the median of either flank.
+    /// A peak stands this many times above its flanks' background.
     /// Each averaged bin is about the true density times `χ²_ν/ν` with
     /// `ν ≈ 2·K ≥ 14` (`K` segments); a bin of white noise four times its
     /// flanks' median has a chance of about 1e-6, so none of the few hundred
@@ -61,7 +63,7 @@ pub struct Peak {
     /// Frequency (Hz), refined between bins by a parabola through the log
     /// power of the peak bin and its neighbours.
     pub hz: f64,
-    /// Power of the peak bin over the higher of its two flanks' medians.
+    /// Power of the peak bin over the geometric mean of its two flanks' medians.
     pub prominence: f64,
     /// Share of the residual's (detrended) energy in the peak's lobe above the flanks.
     pub energy_share: f64,
@@ -147,7 +149,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// shortest series is too short for [`MIN_SEGMENTS`] segments of 32 samples.
 pub fn welch(series: &[&[f64]], dt: f64, settings: &Settings) -> Option<Spectrum> {
     let shortest = series.iter().map(|s| s.len()).min()?;
-    if !(dt > 0.0) {
+    if dt.is_nan() || dt <= 0.0 {
         return None;
     }
     // K half-overlapping segments of length L span (K + 1)·L/2 samples.
@@ -213,7 +215,9 @@ fn peaks(power: &[f64], bin_hz: f64, settings: &Settings) -> Vec<Peak> {
         }
         let left = median(power[(j - LOBE).saturating_sub(FLANK).max(1)..j - LOBE].to_vec());
         let right = median(power[j + LOBE + 1..=j + LOBE + FLANK].to_vec());
-        let floor = left.max(right);
+        // The background under the peak: the flanks' medians interpolated
+        // in log power, i.e. their geometric mean.
+        let floor = (left * right).sqrt();
         let prominence = if floor > 0.0 {
             power[j] / floor
         } else {
