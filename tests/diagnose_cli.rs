@@ -92,6 +92,16 @@ fn json_follows_the_contract() {
         v["final"]["val_rmse"].as_f64().unwrap() <= v["baseline"]["val_rmse"].as_f64().unwrap()
     );
     assert!(v["final"]["gap_closed"].is_number());
+    let x = &v["explainable"];
+    for k in ["bound_rmse", "gap_closable", "baseline_rmse"] {
+        assert!(x[k].is_number(), "explainable.{k}");
+    }
+    assert!(x["effect_shares"].is_object() && x["not_explained"].is_boolean());
+    for e in &verdict {
+        assert!(x["effect_shares"].get(*e).is_some(), "share of {e}");
+    }
+    assert!(v["spectrum"]["peaks"].is_array());
+    assert!(v["spectrum"]["final_peaks"].is_array());
 }
 
 /// The JSON a successful run printed (the run's stderr if it failed).

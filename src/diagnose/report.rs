@@ -438,7 +438,7 @@ fn spectrum_text(o: &mut String, d: &Diagnosis) {
     let _ = writeln!(
         o,
         "\nSPECTRUM of the validation residual (Welch: {} Hann segments of {} samples, {:.3} Hz bins;\n  \
-         a peak stands ≥ 4× above both flanks):",
+         a peak stands ≥ 4× above the background of its flanks):",
         s.segments,
         s.segment,
         s.hz.get(1).copied().unwrap_or(f64::NAN)
