@@ -41,11 +41,6 @@ pub struct Signals<'a> {
     pub input: &'a [f64],
     /// The baseline's free-run prediction from the first sample.
     pub prediction: &'a [f64],
-    /// Its sensitivities `∂ŷ/∂θ_j` to the baseline's parameters, one series
-    /// per parameter (every dataset the same number): the catalogue's
-    /// effects are fitted jointly with the baseline, so the flexible model
-    /// may move the baseline too, to first order.
-    pub sensitivities: &'a [Vec<f64>],
     /// The measured output, in the prediction's coordinates.
     pub measured: &'a [f64],
     /// First validation sample.
@@ -142,9 +137,8 @@ fn laguerre(x: &[f64], tau: f64, order: usize) -> Vec<Vec<f64>> {
 /// The feature groups, in the order [`features`] lays them out: the
 /// selection in [`bound`] adds whole groups, so that one kind of signal
 /// that does not generalise does not force a large penalty on the rest.
-fn groups(datasets: usize, params: usize) -> Vec<(&'static str, usize)> {
+fn groups(datasets: usize) -> Vec<(&'static str, usize)> {
     let mut g = vec![
-        ("baseline refit", params),
         ("input lags", LAGS + 1),
         ("input, fast filters", LAGUERRE_ORDER),
         ("input, mid filters", LAGUERRE_ORDER),
@@ -198,8 +192,7 @@ fn features(s: &Signals, dataset: usize, datasets: usize, sc: &Scales) -> Vec<Ve
     let y = s.prediction;
     (0..n)
         .map(|k| {
-            let mut row: Vec<f64> = s.sensitivities.iter().map(|d| d[k]).collect();
-            row.extend((0..=LAGS).map(|j| lag(&u, k, j)));
+            let mut row: Vec<f64> = (0..=LAGS).map(|j| lag(&u, k, j)).collect();
             row.extend(banks.iter().map(|b| b[k]));
             row.extend([du[k], abs_du[k], rate_memory[0][k], rate_memory[1][k]]);
             let d = branch[k];
@@ -226,8 +219,7 @@ fn features(s: &Signals, dataset: usize, datasets: usize, sc: &Scales) -> Vec<Ve
 const MIN_GROUP_GAIN: f64 = 0.01;
 
 /// Forward selection of whole groups (Hastie, Tibshirani & Friedman, *The
-/// Elements of Statistical Learning*, §3.3): from the baseline's refit (the
-/// first group of `layout`), add
+/// Elements of Statistical Learning*, §3.3): from the intercept alone, add
 /// the group whose ridge fit (penalty by blocked cross-validation) has the
 /// lowest cross-validated error, while it improves by [`MIN_GROUP_GAIN`].
 fn select_groups(
@@ -240,14 +232,9 @@ fn select_groups(
         ranges.push((name, at..at + len));
         at += len;
     }
-    // The baseline's refit is always in: the catalogue's effects are fitted
-    // jointly with the baseline, and alone it gains nothing (the baseline is
-    // already fitted on these rows), so forward selection would never add it.
-    let (refit, others) = ranges.split_first()?;
-    let mut cols: Vec<usize> = refit.1.clone().collect();
-    let mut chosen = vec![refit.0];
+    let mut cols: Vec<usize> = Vec::new();
+    let mut chosen = Vec::new();
     let mut best = problem.fit(&cols)?;
-    let ranges = others;
     loop {
         let trial = ranges
             .iter()
@@ -312,12 +299,7 @@ pub fn bound(sets: &[Signals], floor: f64, settings: &RidgeSettings) -> anyhow::
         }
     }
     anyhow::ensure!(!r_val.is_empty(), "no validation samples");
-    let params = sets[0].sensitivities.len();
-    anyhow::ensure!(
-        sets.iter().all(|s| s.sensitivities.len() == params),
-        "every dataset needs the same sensitivities"
-    );
-    let layout = groups(sets.len(), params);
+    let layout = groups(sets.len());
     debug_assert_eq!(
         layout.iter().map(|g| g.1).sum::<usize>(),
         x_est.first().map_or(0, Vec::len)
@@ -501,7 +483,6 @@ mod tests {
         let s = Signals {
             input: u,
             prediction: &prediction,
-            sensitivities: &[],
             measured: &measured,
             val_start: N / 2,
         };

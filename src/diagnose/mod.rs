@@ -5,7 +5,8 @@
 //! gets with it, relative to a noise-floor estimate; how much of the gap is
 //! explainable at all ([`explainable`], a [`ridge`] model of the residual)
 //! and where the residual's spectrum peaks ([`spectrum`]). [`selftest`]
-//! checks the whole chain on data with a withheld effect; [`report`] turns a [`Diagnosis`] into text, JSON and figures.
+//! checks the whole chain on data with a withheld effect; [`report`] turns
+//! a [`Diagnosis`] into text, JSON and figures.
 
 pub mod accept;
 pub mod data;
@@ -213,14 +214,12 @@ pub fn diagnose(
         .zip(&data.whole)
         .map(|(p, w)| (as_f64(p), as_f64(&w.y)))
         .unzip();
-    let sens = sensitivities(&data, base_model, &base.params, &pred);
     let signals: Vec<explainable::Signals> = traces
         .iter()
         .enumerate()
         .map(|(i, t)| explainable::Signals {
             input: &t.input,
             prediction: &pred[i],
-            sensitivities: &sens[i],
             measured: &meas[i],
             val_start: data.val_start[i],
         })
@@ -276,33 +275,4 @@ fn residual_spectrum(segments: &[locate::Segment]) -> Option<spectrum::Spectrum>
         .map(|s| s.residual.as_slice())
         .collect();
     spectrum::welch(&series, dt, &spectrum::Settings::default())
-}
-
-/// `∂ŷ/∂θ_j` of the free-run prediction `pred` per dataset and parameter, by
-/// forward differences (steps of 1e-3 of each coordinate's size, the size at
-/// least 1 % of its box width: far above the `f32` simulation's rounding).
-/// A column whose perturbed run diverges is left out (all zeros).
-fn sensitivities(
-    data: &Data,
-    model: &Augmented,
-    theta: &[f64],
-    pred: &[Vec<f64>],
-) -> Vec<Vec<Vec<f64>>> {
-    let (_, lo, hi) = data.space(model);
-    let mut out: Vec<Vec<Vec<f64>>> = pred.iter().map(|_| Vec::new()).collect();
-    for j in 0..theta.len() {
-        let h = 1e-3 * theta[j].abs().max(0.01 * (hi[j] - lo[j]));
-        let mut moved = theta.to_vec();
-        moved[j] += h;
-        let runs = data.predict(model, &moved);
-        let finite = runs.iter().flatten().all(|v| v.is_finite());
-        for ((o, run), base) in out.iter_mut().zip(&runs).zip(pred) {
-            o.push(if finite {
-                run.iter().zip(base).map(|(&a, b)| (a as f64 - b) / h).collect()
-            } else {
-                vec![0.0; base.len()]
-            });
-        }
-    }
-    out
 }

@@ -387,7 +387,7 @@ fn explainable_text(o: &mut String, d: &Diagnosis) {
          signals used: {}",
         b.lambda,
         if b.groups.is_empty() {
-            "none (only a constant)".to_string()
+            "none (a constant only)".to_string()
         } else {
             b.groups.join(", ")
         }
