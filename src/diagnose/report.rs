@@ -321,6 +321,13 @@ pub fn to_text(d: &Diagnosis) -> String {
             pct(d.last().gap_closed).trim()
         );
     }
+    if let Some(p) = d.final_spectrum.as_ref().and_then(|s| s.peaks.first()) {
+        let _ = writeln!(
+            o,
+            "The final model's residual still has {}: a periodic component none of the named effects reproduces.",
+            peak_text(p)
+        );
+    }
     let x = &d.explainable;
     if x.not_explained {
         let _ = writeln!(
@@ -339,7 +346,7 @@ pub fn to_text(d: &Diagnosis) -> String {
 
 fn peak_text(p: &Peak) -> String {
     format!(
-        "a peak at {:.2} Hz ({:.1}× its flanks, {} of the residual energy)",
+        "a peak at {:.2} Hz ({:.1}× its flanks' background, {} of the residual energy)",
         p.hz,
         p.prominence,
         pct(p.energy_share).trim()

@@ -252,14 +252,6 @@ impl<'a> Problem<'a> {
 }
 
 impl Ridge {
-    /// Fits on every column of `x` (see [`Problem::fit`]).
-    pub fn fit(x: &[Vec<f64>], t: &[f64], settings: &RidgeSettings) -> anyhow::Result<Ridge> {
-        let p = x.first().map_or(0, Vec::len);
-        Problem::new(x, t, settings)?
-            .fit(&(0..p).collect::<Vec<_>>())
-            .ok_or_else(|| anyhow::anyhow!("ridge: no penalty gives a finite fit"))
-    }
-
     pub fn predict(&self, row: &[f64]) -> f64 {
         self.intercept
             + self
@@ -279,6 +271,16 @@ mod tests {
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
+
+    /// A fit on every column of `x`.
+    fn fit_all(x: &[Vec<f64>], t: &[f64]) -> Ridge {
+        let settings = RidgeSettings::default();
+        let p = x[0].len();
+        Problem::new(x, t, &settings)
+            .unwrap()
+            .fit(&(0..p).collect::<Vec<_>>())
+            .unwrap()
+    }
 
     fn draws(n: usize, seed: u64) -> Vec<f64> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -300,7 +302,7 @@ mod tests {
             .iter()
             .map(|r| 4.0 + r.iter().zip(&w).map(|(a, b)| a * b).sum::<f64>())
             .collect();
-        let fit = Ridge::fit(&x, &t, &RidgeSettings::default()).unwrap();
+        let fit = fit_all(&x, &t);
         assert!(fit.lambda <= 1e-4, "λ {}", fit.lambda);
         let probe = [0.3, -1.0, 2.0, 5.0, 0.1, 0.0];
         let want = 4.0 + probe.iter().zip(&w).map(|(a, b)| a * b).sum::<f64>();
@@ -315,7 +317,7 @@ mod tests {
     fn a_target_unrelated_to_the_features_gets_a_large_penalty() {
         let x = rows(400, 20, 2);
         let t = draws(400, 3);
-        let fit = Ridge::fit(&x, &t, &RidgeSettings::default()).unwrap();
+        let fit = fit_all(&x, &t);
         assert!(fit.lambda >= 1.0, "λ {}", fit.lambda);
         // Predictions shrink to about the mean.
         let mean = t.iter().sum::<f64>() / t.len() as f64;
@@ -333,7 +335,7 @@ mod tests {
             .map(|r| vec![r[0], 2.0 * r[0], 7.0, r[1]])
             .collect();
         let t: Vec<f64> = x.iter().map(|r| r[0] + r[3]).collect();
-        let fit = Ridge::fit(&x, &t, &RidgeSettings::default()).unwrap();
+        let fit = fit_all(&x, &t);
         let got = fit.predict(&[1.0, 2.0, 7.0, 1.0]);
         assert!((got - 2.0).abs() < 1e-2, "{got}");
     }
