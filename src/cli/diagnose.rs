@@ -24,8 +24,12 @@ use super::common::MultiDataArgs;
 /// only if it beats the seed-to-seed spread, pays for its parameters, is
 /// not a better refit of the model without it, and the model still misses
 /// by more than the noise — HOW FAR the validation error falls, against
-/// a noise-floor estimate, and HOW SURE each named effect's size is (a 95 %
-/// profile-likelihood interval).
+/// a noise-floor estimate, HOW SURE each named effect's size is (a 95 %
+/// profile-likelihood interval), HOW MUCH of the gap is explainable at all
+/// (a ridge model of the residual from the input's lags, filters, rate and
+/// branch, each named effect reported as a share of it; "not explained by
+/// the catalogue" when it is large and the effects close little of it), and
+/// the residual's spectrum with its peaks (e.g. a load ringing after steps).
 /// "None of the catalogued effects explains the remaining gap" is a valid answer.
 ///
 /// Example: `mckibben diagnose data/stair_4.5kg.csv --report out/`
@@ -69,7 +73,8 @@ pub struct Args {
     /// Print JSON instead of the report.
     #[arg(long)]
     json: bool,
-    /// Write the figures (residual over time, over the hysteresis loop, breakdowns) to this folder.
+    /// Write the figures (residual over time, over the hysteresis loop,
+    /// breakdowns, residual spectrum) to this folder.
     #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,
     /// Instead of diagnosing DATA, check the diagnosis itself: generate data

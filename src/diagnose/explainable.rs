@@ -23,9 +23,10 @@
 //! estimate, not a theorem: an effect whose mark lies outside the span of the
 //! features (a hard nonlinearity deep in the state) can close more, and so
 //! can a physical effect refitted jointly with the baseline when the record
-//! is short (measured on the Cavatappi files: 2.5–5× more); a share above
-//! 100 % says just that. The groups of features and the penalty are chosen
-//! by blocked cross-validation on the estimation half ([`ridge`](super::ridge)).
+//! is short (measured on the Cavatappi files: 2.5–5× more; see
+//! docs/DIAGNOSIS.md); a share above 100 % says just that. The groups of
+//! features and the penalty are chosen by blocked cross-validation on the
+//! estimation half ([`ridge`](super::ridge)).
 
 use serde::Serialize;
 
