@@ -8,7 +8,7 @@ use serde_json::{Value, json};
 
 use super::accept::{Candidate, gap_closed};
 use super::effects::Effect;
-use super::explainable::Signature;
+use super::explainable::{EffectShare, Signature};
 use super::locate::{Band, Share};
 use super::spectrum::{Peak, Spectrum};
 use super::{Diagnosis, Step};
@@ -81,6 +81,14 @@ pub fn to_json(d: &Diagnosis) -> Value {
     let share = |s: &Share| json!(s.energy);
     let last = d.last();
     let x = &d.explainable;
+    let by_effect = |f: fn(&EffectShare) -> Value| -> Value {
+        let map: serde_json::Map<String, Value> = x
+            .effect_shares
+            .iter()
+            .map(|e| (e.effect.name().to_string(), f(e)))
+            .collect();
+        Value::Object(map)
+    };
     let peaks = |s: &Option<Spectrum>| s.as_ref().map_or(json!([]), |s| json!(s.peaks));
     json!({
         "baseline": {
@@ -124,8 +132,8 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "lambda": x.bound.lambda,
             "features": x.bound.features,
             "groups": x.bound.groups,
-            "effect_shares": x.effect_shares.iter().map(|e| (e.effect.name().to_string(), json!(e.share))).collect::<serde_json::Map<_, _>>(),
-            "effect_gap_closed": x.effect_shares.iter().map(|e| (e.effect.name().to_string(), json!(e.gap_closed))).collect::<serde_json::Map<_, _>>(),
+            "effect_shares": by_effect(|e| json!(e.share)),
+            "effect_gap_closed": by_effect(|e| json!(e.gap_closed)),
             "catalogue_share": x.catalogue_share,
             "not_explained": x.not_explained,
             "signature": x.signature,
