@@ -3,9 +3,9 @@
 //! polish, the size profile, and the statistics over seeds.
 //!
 //! Every search and every polish runs on the fitting engine
-//! ([`crate::optim::engine`]) over one objective, the scalar effect
-//! simulator scored in parallel over the candidates; what is the
-//! diagnosis' own is where each search starts and what it minimises.
+//! ([`crate::optim::engine`]) over one objective, the model description
+//! scored in batches on the data's evaluator; what is the diagnosis' own is
+//! where each search starts and what it minimises.
 
 use nalgebra::DVector;
 use rand::{RngExt, SeedableRng};

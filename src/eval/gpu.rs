@@ -10,9 +10,11 @@
 //! each bound at its own offset of the same buffers (a population past even
 //! the device's buffer size limit is scored in parts, one submit each).
 //!
-//! The shaders (`shaders/prologue.wgsl`, one file per family and
-//! `shaders/driver.wgsl`) spell the operations of `src/model/sim.rs` in the
-//! same order. On an unfused f32
+//! A pipeline's WGSL is assembled from the model description
+//! ([`shader_source`]: a generated header, `shaders/prologue.wgsl`, one file
+//! per family, `driver.wgsl` or, with effect stages, `effects.wgsl`, and
+//! `entry.wgsl`); it spells the operations of `src/model/sim.rs` and
+//! `src/model/effects.rs` in the same order. On an unfused f32
 //! implementation (Mesa's lavapipe) the `n = 1` scores are bit-identical to
 //! the CPU's; a real GPU may fuse `a·b + c` into an fma, so there compare
 //! within a tolerance and compare rankings (`mckibben bench` reports both).
