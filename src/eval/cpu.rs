@@ -35,6 +35,21 @@ pub const LANES: usize = 32;
 /// How often (in samples) a batch checks whether every lane has diverged.
 const DIVERGENCE_CHECK: usize = 128;
 
+/// The block of samples a batch advances from `start` (of `len`, restarts
+/// after every `every`-th sample): `start..end`, ending at the next
+/// divergence check or just after the next restart sample, and whether the
+/// block's last sample is one after which the state restarts. The one
+/// schedule of every batch loop, so that neither check costs a test per
+/// sample.
+#[inline(always)]
+pub(super) fn block(start: usize, len: usize, every: usize) -> (usize, bool) {
+    let next_restart = start.div_ceil(every).saturating_mul(every);
+    let end = (start + DIVERGENCE_CHECK)
+        .min(len)
+        .min(next_restart.saturating_add(1));
+    (end, end - 1 == next_restart)
+}
+
 /// The batched, multi-threaded CPU evaluator.
 #[derive(Debug, Default)]
 pub struct CpuEvaluator {
@@ -337,10 +352,7 @@ fn lanes_sse<M: LaneModel>(m: &M, u: &[f32], y: &[f32], every: usize) -> [f32; L
     let mut ok = [true; LANES];
     let mut start = 1;
     while start < u.len() {
-        let next_restart = start.div_ceil(every).saturating_mul(every);
-        let end = (start + DIVERGENCE_CHECK)
-            .min(u.len())
-            .min(next_restart.saturating_add(1));
+        let (end, restarts) = block(start, u.len(), every);
         for k in start..end {
             let (up, yk) = (u[k - 1], y[k]);
             for l in 0..LANES {
@@ -352,7 +364,7 @@ fn lanes_sse<M: LaneModel>(m: &M, u: &[f32], y: &[f32], every: usize) -> [f32; L
                 w[l] = wn;
             }
         }
-        if end - 1 == next_restart {
+        if restarts {
             let yk = y[end - 1];
             for l in 0..LANES {
                 (x[l], w[l]) = m.restart(l, x[l], w[l], yk);

@@ -6,11 +6,8 @@
 //! Divergence latches per lane as in [`super::cpu`].
 
 use super::Problem;
-use super::cpu::LANES;
+use super::cpu::{LANES, block};
 use crate::model::effects::{Augmented, Prepared};
-
-/// How often (in samples) a batch checks whether every lane has diverged.
-const DIVERGENCE_CHECK: usize = 128;
 
 /// The SSE of every lane of one batch (`chunk`: up to [`LANES`] rows of
 /// `model`'s parameters; a short batch is padded with its first row, whose
@@ -65,8 +62,8 @@ fn lanes_sse_avx2(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f
     lanes_sse_portable(p, u, y, every)
 }
 
-/// The scoring loop of [`super::cpu`]'s `lanes_sse` over the augmented step:
-/// blocks end at divergence checks and at restarts.
+/// The scoring loop of [`super::cpu`]'s `lanes_sse` over the augmented step,
+/// on the same schedule ([`block`]).
 #[inline(always)]
 fn lanes_sse_portable(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
     assert_eq!(u.len(), y.len(), "input and output lengths differ");
@@ -78,10 +75,7 @@ fn lanes_sse_portable(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -
     let mut ok = [true; LANES];
     let mut start = 1;
     while start < u.len() {
-        let next_restart = start.div_ceil(every).saturating_mul(every);
-        let end = (start + DIVERGENCE_CHECK)
-            .min(u.len())
-            .min(next_restart.saturating_add(1));
+        let (end, restarts) = block(start, u.len(), every);
         for (k, &yk) in y.iter().enumerate().take(end).skip(start) {
             let predicted = p.step(&mut s, k, u);
             for l in 0..LANES {
@@ -90,7 +84,7 @@ fn lanes_sse_portable(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -
                 acc[l] += e * e;
             }
         }
-        if end - 1 == next_restart {
+        if restarts {
             p.restart(&mut s, y[end - 1]);
         }
         if !ok.iter().any(|&o| o) {
