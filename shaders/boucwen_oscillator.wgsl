@@ -1,49 +1,27 @@
 // The Bouc-Wen benchmark oscillator (Noël & Schoukens 2016), one invocation
 // per candidate: Newmark integration from rest on the upsampled input, scored
-// against the measured displacement at every `stride`-th integration step.
+// against the measured displacement at every `SCORE_EVERY`-th integration
+// step.
+//
+// It follows a header (src/eval/gpu/mod.rs `oscillator_source`: `STRIDE`,
+// the 7 parameters per candidate; `SCORE_EVERY`; `NEWTON_ITERS`; the step
+// sizes `H`, `HALF_H`, `QUARTER_HH`) and shaders/prologue.wgsl, whose
+// bindings it uses with one trace: samples[i] = (u at integration step i,
+// the measured displacement where i is a multiple of SCORE_EVERY, else 0),
+// spans[0] = (0, integration steps); out[i] = the SSE of candidate i.
 //
 // This is the twin of `sse_f32` in src/benchmark/boucwen.rs: the same
-// operations in the same order, every sum parenthesised, nothing fused, so
-// that lavapipe returns the same bits. Candidate layout (7 floats):
-// [m, c, k, alpha, beta*gamma, beta*delta, nu].
-
-struct Dims {
-    n_cand: u32,
-    n_out: u32,
-    stride: u32,
-    row_width: u32, // invocations per row of the 2-D dispatch
-    h: f32,
-    bound: f32,
-    newton_iters: u32,
-    _pad: u32,
-}
-
-@group(0) @binding(0) var<uniform> dims: Dims;
-@group(0) @binding(1) var<storage, read> params: array<f32>;
-@group(0) @binding(2) var<storage, read> u: array<f32>;
-@group(0) @binding(3) var<storage, read> y_meas: array<f32>;
-@group(0) @binding(4) var<storage, read_write> sse_out: array<f32>;
-
-// |v|^e for v >= 0 with v^0 = 1 and 0^e = 0 (as model::sim::abs_pow).
-fn abs_pow(v: f32, e: f32) -> f32 {
-    if (e == 0.0) {
-        return 1.0;
-    }
-    if (v == 0.0) {
-        return 0.0;
-    }
-    return pow(v, e);
-}
-
-const INF_BITS: u32 = 0x7f800000u;
+// operations in the same order, every sum parenthesised, every product that
+// is then added kept apart with `rounded` (no fma), so that lavapipe returns
+// the same bits. Candidate layout: [m, c, k, alpha, beta*gamma, beta*delta, nu].
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let idx = gid.y * dims.row_width + gid.x;
-    if (idx >= dims.n_cand) {
+    let idx = candidate(gid);
+    if (idx >= cfg.count) {
         return;
     }
-    let base = idx * 7u;
+    let base = idx * STRIDE;
     let m = params[base];
     let c = params[base + 1u];
     let k = params[base + 2u];
@@ -52,63 +30,57 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let bd = params[base + 5u];
     let nu = params[base + 6u];
 
-    let h = dims.h;
-    let half_h = 0.5 * h;
-    let quarter_hh = 0.25 * (h * h);
-    let meff = (m + (c * half_h)) + (k * quarter_hh);
-    let dv_ds = -((half_h * half_h) / meff);
+    let meff = (m + rounded(c * HALF_H)) + rounded(k * QUARTER_HH);
+    let dv_ds = -((HALF_H * HALF_H) / meff);
     let num1 = nu - 1.0;
 
     var y = 0.0;
     var v = 0.0;
     var z = 0.0;
     var zd = 0.0;
-    var acc = (((u[0] - (c * v)) - (k * y)) - z) / m;
-    let d0 = y - y_meas[0];
+    var acc = (((samples[0].x - rounded(c * v)) - rounded(k * y)) - z) / m;
+    let d0 = y - samples[0].y;
     var sse = d0 * d0;
-    let last = (dims.n_out - 1u) * dims.stride;
-    var next_scored = dims.stride;
-    var j = 1u;
+    let last = spans[0].y - 1u;
     for (var i = 1u; i <= last; i = i + 1u) {
-        let u1 = u[i];
-        let vp = v + (half_h * acc);
-        let yp = (y + (h * v)) + (quarter_hh * acc);
-        let zp = z + (half_h * zd);
-        let rhs = ((u1 - (c * vp)) - (k * yp)) - zp;
+        let u1 = samples[i].x;
+        let vp = v + rounded(HALF_H * acc);
+        let yp = (y + rounded(H * v)) + rounded(QUARTER_HH * acc);
+        let zp = z + rounded(HALF_H * zd);
+        let rhs = ((u1 - rounded(c * vp)) - rounded(k * yp)) - zp;
         var s = 0.0;
-        for (var it = 0u; it < dims.newton_iters; it = it + 1u) {
-            let a1 = (rhs - (half_h * s)) / meff;
-            let v1 = vp + (half_h * a1);
-            let z1 = zp + (half_h * s);
+        for (var it = 0u; it < NEWTON_ITERS; it = it + 1u) {
+            let a1 = (rhs - rounded(HALF_H * s)) / meff;
+            let v1 = vp + rounded(HALF_H * a1);
+            let z1 = zp + rounded(HALF_H * s);
             let az = abs(z1);
             let pz = abs_pow(az, num1);
-            let f = ((alpha * v1) - ((bg * abs(v1)) * (pz * z1))) - ((bd * v1) * (pz * az));
-            let f_v = (alpha - ((bg * sign(v1)) * (pz * z1))) - (bd * (pz * az));
-            let f_z = (-(nu * pz)) * ((bg * abs(v1)) + ((bd * v1) * sign(z1)));
+            let f = (rounded(alpha * v1) - rounded((bg * abs(v1)) * rounded(pz * z1)))
+                - rounded((bd * v1) * rounded(pz * az));
+            let f_v = (alpha - rounded((bg * sgn(v1)) * rounded(pz * z1))) - rounded(bd * rounded(pz * az));
+            let f_z = (-(nu * pz)) * (rounded(bg * abs(v1)) + rounded((bd * v1) * sgn(z1)));
             let g = s - f;
-            let dg = (1.0 - (f_v * dv_ds)) - (f_z * half_h);
+            let dg = (1.0 - rounded(f_v * dv_ds)) - rounded(f_z * HALF_H);
             s = s - (g / dg);
         }
-        acc = (rhs - (half_h * s)) / meff;
-        v = vp + (half_h * acc);
-        y = yp + (quarter_hh * acc);
-        z = zp + (half_h * s);
+        acc = (rhs - rounded(HALF_H * s)) / meff;
+        v = vp + rounded(HALF_H * acc);
+        y = yp + rounded(QUARTER_HH * acc);
+        z = zp + rounded(HALF_H * s);
         zd = s;
-        if (i == next_scored) {
-            if (!(abs(y) <= dims.bound)) {
-                sse_out[idx] = bitcast<f32>(INF_BITS);
+        if (i % SCORE_EVERY == 0u) {
+            if (!in_bounds(y)) {
+                out[idx] = infinity();
                 return;
             }
-            let d = y - y_meas[j];
-            sse = sse + (d * d);
-            j = j + 1u;
-            next_scored = next_scored + dims.stride;
+            let d = y - samples[i].y;
+            sse = sse + rounded(d * d);
         }
     }
     // sse - sse is 0 for finite values and NaN for an infinite one.
     if (!((sse - sse) == 0.0)) {
-        sse_out[idx] = bitcast<f32>(INF_BITS);
+        out[idx] = infinity();
         return;
     }
-    sse_out[idx] = sse;
+    out[idx] = sse;
 }

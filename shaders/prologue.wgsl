@@ -1,5 +1,7 @@
-// Shared by every model's shader. A pipeline's source is, in order
-// (src/eval/gpu.rs `shader_source`): a header generated from the model
+// Shared by every shader of the project (the benchmark oscillator's too, after
+// its own header: src/eval/gpu/mod.rs `oscillator_source`). A muscle model's
+// pipeline source is, in order
+// (src/eval/gpu/mod.rs `shader_source`): a header generated from the model
 // description (the switches `const N_ONE: bool` — true: the n = 1
 // specialisation, bit-exact; false: the free exponent, `pow` within the
 // device's accuracy — and `const RESIDUALS: bool` — write every error

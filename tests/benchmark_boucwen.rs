@@ -7,14 +7,14 @@ mod common;
 
 use mckibben::benchmark::boucwen::{Params, simulate_f64, sse_f32};
 use mckibben::benchmark::generator::{GeneratorSettings, generate};
-use mckibben::benchmark::gpu::{AdapterChoice, GpuOscillator};
-use mckibben::benchmark::identify::{
-    BatchScorer, CpuScorer, IdentifySettings, SearchTrace, Training, identify,
-};
+use mckibben::benchmark::identify::{IdentifySettings, Training, identify, search_trace};
 use mckibben::benchmark::{
     BenchmarkData, FS, PERIOD, Record, UPSAMPLE, default_data_dir, rmse, simulate_periodic,
     test_multisine_rmse, test_sinesweep_rmse,
 };
+use mckibben::eval::Evaluator;
+use mckibben::eval::cpu::CpuEvaluator;
+use mckibben::eval::gpu::GpuOptions;
 
 fn small_settings() -> GeneratorSettings {
     GeneratorSettings {
@@ -61,7 +61,7 @@ fn f32_twin_tracks_the_f64_reference() {
         search_upsample: UPSAMPLE,
         ..IdentifySettings::default()
     };
-    let trace = SearchTrace::new(rec, 1024, &settings);
+    let trace = search_trace(rec, 1024, &settings);
     // Score the f32 twin against the f64 simulation's undecimated samples.
     let u15: Vec<f64> = trace.u.iter().map(|&v| v as f64).collect();
     let y15 = simulate_f64(&p, &u15, 1.0 / (FS * UPSAMPLE as f64)).unwrap();
@@ -91,8 +91,7 @@ fn identifies_the_published_system_from_generated_data() {
         refine_samples: 0,
         ..IdentifySettings::default()
     };
-    let mut scorer = CpuScorer::new(SearchTrace::new(&g.record, 1024, &settings));
-    let id = identify(&g.record, 1024, &settings, &mut scorer).unwrap();
+    let id = identify(&g.record, 1024, &settings, &mut CpuEvaluator::new()).unwrap();
     // 2.7 s of data with the benchmark's noise pin every parameter to a few
     // per cent (β·γ and β·δ: β, γ, δ separately are not identifiable).
     let p = id.params;
@@ -156,27 +155,14 @@ fn pipeline_reproduces_the_official_test_data() {
     assert_eq!(t.simulate(&truth).unwrap().len(), data.train.y.len());
 }
 
-/// The lavapipe oscillator, or `None` after the shared skip-or-fail rule.
-#[track_caller]
-fn gpu_or_skip() -> Option<GpuOscillator> {
-    let g = generate(&Params::benchmark(), &small_settings()).unwrap();
-    let settings = IdentifySettings {
-        search_samples: 300,
-        ..IdentifySettings::default()
-    };
-    let tr = SearchTrace::new(&g.record, 1024, &settings);
-    common::require_gpu(GpuOscillator::new(
-        AdapterChoice::Lavapipe,
-        &tr.u,
-        &tr.y,
-        tr.stride,
-        tr.h,
-    ))
-}
-
 #[test]
 fn shader_matches_the_cpu_twin_bit_for_bit_on_lavapipe() {
-    let Some(mut gpu) = gpu_or_skip() else {
+    // One workgroup per chunk: the 71 candidates take two chunks.
+    let options = GpuOptions {
+        max_groups_per_dim: Some(1),
+        ..GpuOptions::default()
+    };
+    let Some(mut gpu) = common::require_lavapipe(options) else {
         return;
     };
     let g = generate(&Params::benchmark(), &small_settings()).unwrap();
@@ -184,8 +170,7 @@ fn shader_matches_the_cpu_twin_bit_for_bit_on_lavapipe() {
         search_samples: 300,
         ..IdentifySettings::default()
     };
-    let trace = SearchTrace::new(&g.record, 1024, &settings);
-    let mut cpu = CpuScorer::new(trace);
+    let trace = search_trace(&g.record, 1024, &settings);
     // The truth, perturbations, and an unstable candidate (ν ≠ 1
     // is left out: WGSL's pow is not specified to the last bit).
     let truth = Params::benchmark().to_vec().map(|v| v as f32);
@@ -200,9 +185,11 @@ fn shader_matches_the_cpu_twin_bit_for_bit_on_lavapipe() {
     let mut wild = truth;
     wild[2] = -1.0e7; // negative stiffness: the response grows exponentially
     pop.extend_from_slice(&wild);
-    let a = cpu.scores(&pop).unwrap();
-    let b = gpu.evaluate(&pop).unwrap();
-    assert!(gpu.is_cpu_device());
+    let pop: Vec<f64> = pop.into_iter().map(f64::from).collect();
+    let a = CpuEvaluator::new()
+        .evaluate_oscillator(&trace, &pop)
+        .unwrap();
+    let b = gpu.evaluate_oscillator(&trace, &pop).unwrap();
     assert!(a[..70].iter().all(|v| v.is_finite()));
     assert_eq!(a[70], f32::INFINITY);
     for (i, (x, y)) in a.iter().zip(&b).enumerate() {

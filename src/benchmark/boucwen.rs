@@ -41,7 +41,10 @@ pub const UPSAMPLE: usize = 20;
 pub const NEWTON_ITERS_F32: usize = 4;
 
 /// Parameter names of the canonical vector, in order.
-pub const PARAM_NAMES: [&str; 7] = ["m", "c", "k", "alpha", "beta_gamma", "beta_delta", "nu"];
+pub const PARAM_NAMES: [&str; DIM] = ["m", "c", "k", "alpha", "beta_gamma", "beta_delta", "nu"];
+
+/// Parameters of the canonical vector.
+pub const DIM: usize = 7;
 
 /// Physical parameters, reparametrised: `bg = β·γ`, `bd = β·δ`.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -182,31 +185,25 @@ pub fn simulate_f64(p: &Params, u: &[f64], h: f64) -> Option<Vec<f64>> {
     Some(out)
 }
 
-/// Integrator constants shared by the `f32` twin and the shader, derived from
-/// the step `h` with the same operations in both.
+/// The integrator's step sizes in `f32`, derived from the step `h`: the
+/// `f32` twin computes them here and the shader's pipeline header carries
+/// these very values (`eval::gpu::oscillator_source`), so both start from
+/// the same bits.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct StepConsts {
-    h: f32,
-    half_h: f32,
-    quarter_hh: f32,
-    meff: f32,
-    dv_ds: f32,
+pub struct StepSizes {
+    pub h: f32,
+    /// `a·h = c·h` (Newmark a = c = 1/2).
+    pub half_h: f32,
+    /// `b·h²` (Newmark b = 1/4).
+    pub quarter_hh: f32,
 }
 
-impl StepConsts {
-    #[inline(always)]
-    fn new(m: f32, c: f32, k: f32, h: f32) -> StepConsts {
-        // Newmark a = 1/2, b = 1/4, c = 1/2 (so 1 − a = 1/2 − b = ... exact in f32).
-        let half_h = 0.5 * h;
-        let quarter_hh = 0.25 * (h * h);
-        let meff = (m + (c * half_h)) + (k * quarter_hh);
-        let dv_ds = -((half_h * half_h) / meff);
-        StepConsts {
+impl StepSizes {
+    pub fn new(h: f32) -> StepSizes {
+        StepSizes {
             h,
-            half_h,
-            quarter_hh,
-            meff,
-            dv_ds,
+            half_h: 0.5 * h,
+            quarter_hh: 0.25 * (h * h),
         }
     }
 }
@@ -231,7 +228,13 @@ pub fn sse_f32(theta: &[f32], u: &[f32], y_meas: &[f32], stride: usize, h: f32) 
         u.len() > (n_out - 1) * stride,
         "input too short for the scored samples"
     );
-    let sc = StepConsts::new(m, c, k, h);
+    let StepSizes {
+        h,
+        half_h,
+        quarter_hh,
+    } = StepSizes::new(h);
+    let meff = (m + (c * half_h)) + (k * quarter_hh);
+    let dv_ds = -((half_h * half_h) / meff);
     let num1 = nu - 1.0;
     let (mut y, mut v, mut z, mut zd) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
     let mut acc = (((u[0] - (c * v)) - (k * y)) - z) / m;
@@ -240,28 +243,28 @@ pub fn sse_f32(theta: &[f32], u: &[f32], y_meas: &[f32], stride: usize, h: f32) 
     let last = (n_out - 1) * stride;
     for i in 1..=last {
         let u1 = u[i];
-        let vp = v + (sc.half_h * acc);
-        let yp = (y + (sc.h * v)) + (sc.quarter_hh * acc);
-        let zp = z + (sc.half_h * zd);
+        let vp = v + (half_h * acc);
+        let yp = (y + (h * v)) + (quarter_hh * acc);
+        let zp = z + (half_h * zd);
         let rhs = ((u1 - (c * vp)) - (k * yp)) - zp;
         let mut s = 0.0f32;
         for _ in 0..NEWTON_ITERS_F32 {
-            let a1 = (rhs - (sc.half_h * s)) / sc.meff;
-            let v1 = vp + (sc.half_h * a1);
-            let z1 = zp + (sc.half_h * s);
+            let a1 = (rhs - (half_h * s)) / meff;
+            let v1 = vp + (half_h * a1);
+            let z1 = zp + (half_h * s);
             let az = z1.abs();
             let pz = abs_pow(az, num1);
             let f = ((alpha * v1) - ((bg * v1.abs()) * (pz * z1))) - ((bd * v1) * (pz * az));
             let f_v = (alpha - ((bg * sgn32(v1)) * (pz * z1))) - (bd * (pz * az));
             let f_z = (-(nu * pz)) * ((bg * v1.abs()) + ((bd * v1) * sgn32(z1)));
             let g = s - f;
-            let dg = (1.0 - (f_v * sc.dv_ds)) - (f_z * sc.half_h);
+            let dg = (1.0 - (f_v * dv_ds)) - (f_z * half_h);
             s -= g / dg;
         }
-        acc = (rhs - (sc.half_h * s)) / sc.meff;
-        v = vp + (sc.half_h * acc);
-        y = yp + (sc.quarter_hh * acc);
-        z = zp + (sc.half_h * s);
+        acc = (rhs - (half_h * s)) / meff;
+        v = vp + (half_h * acc);
+        y = yp + (quarter_hh * acc);
+        z = zp + (half_h * s);
         zd = s;
         if i % stride == 0 {
             // NaN counts as diverged.

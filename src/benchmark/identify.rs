@@ -1,8 +1,8 @@
 //! Identification of the benchmark oscillator from a training multisine:
 //!
 //! 1. **Population search** over a wide box, on a prefix of the record,
-//!    scored by the batch evaluator (the `f32` twin, one candidate per rayon
-//!    task, or the WGSL shader). It scores the integrated displacement at the
+//!    scored by the project's batch evaluator ([`Evaluator::evaluate_oscillator`]:
+//!    the `f32` twin, one candidate per rayon task, or the WGSL shader). It scores the integrated displacement at the
 //!    750 Hz instants without the decimation filter — whose gain is within
 //!    1e-3 of one in the 5–150 Hz band — and integrates at 5 × 750 Hz
 //!    instead of 20 ×, where Newmark's period error at 150 Hz, (ω·h)²/12,
@@ -13,61 +13,18 @@
 //!
 //! The population stage runs on the fitting engine ([`crate::optim::engine`])
 //! with the project's differential evolution, scoring each generation in one
-//! batch through [`BatchScorer`]. (The project's `eval::Evaluator` is keyed
-//! to the muscle families and their 750 Hz experiments; this family scores on
-//! an upsampled input with a stride, so it has its own batch path: the `f32`
-//! twin on rayon or the shader on wgpu.)
+//! batch.
 
 use nalgebra::DVector;
-use rayon::prelude::*;
 
-use super::boucwen::{Params, sse_f32};
+use super::boucwen::Params;
 use super::{FS, Record, UPSAMPLE, resample};
+use crate::eval::Evaluator;
+use crate::eval::oscillator::OscillatorProblem;
 use crate::model::Measure;
 use crate::optim::Algorithm;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
 use crate::optim::lm::{self, LmError, LmSettings};
-
-/// Scores a population of canonical `f32` vectors (row-major `N × 7`).
-pub trait BatchScorer {
-    fn describe(&self) -> String;
-    fn scores(&mut self, population: &[f32]) -> anyhow::Result<Vec<f32>>;
-}
-
-/// The CPU batch scorer: the `f32` twin, candidates in parallel.
-pub struct CpuScorer {
-    trace: SearchTrace,
-}
-
-impl CpuScorer {
-    pub fn new(trace: SearchTrace) -> CpuScorer {
-        CpuScorer { trace }
-    }
-}
-
-impl BatchScorer for CpuScorer {
-    fn describe(&self) -> String {
-        format!("cpu, {} threads", rayon::current_num_threads())
-    }
-    fn scores(&mut self, population: &[f32]) -> anyhow::Result<Vec<f32>> {
-        Ok(population
-            .par_chunks(7)
-            .map(|th| {
-                let t = &self.trace;
-                sse_f32(th, &t.u, &t.y, t.stride, t.h)
-            })
-            .collect())
-    }
-}
-
-impl BatchScorer for super::gpu::GpuOscillator {
-    fn describe(&self) -> String {
-        super::gpu::GpuOscillator::describe(self)
-    }
-    fn scores(&mut self, population: &[f32]) -> anyhow::Result<Vec<f32>> {
-        self.evaluate(population)
-    }
-}
 
 /// Settings of the identification.
 #[derive(Debug, Clone, PartialEq)]
@@ -155,16 +112,18 @@ impl Training {
 }
 
 /// Identifies the oscillator from `rec` (one multisine, `period` samples per
-/// period). `scorer` scores the population stage on the [`SearchTrace`]
-/// built from the same record and settings.
+/// period). `evaluator` scores the population stage on the
+/// [`search_trace`] of the same record and settings.
 pub fn identify(
     rec: &Record,
     period: usize,
     settings: &IdentifySettings,
-    scorer: &mut dyn BatchScorer,
+    evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<Identified> {
     let (lower, upper) = search_box(rec, period)?;
-    let (best, best_sse, evaluations) = population_search(settings, &lower, &upper, scorer)?;
+    let trace = search_trace(rec, period, settings);
+    let (best, best_sse, evaluations) =
+        population_search(settings, &lower, &upper, &trace, evaluator)?;
     let keep = match settings.refine_samples {
         0 => rec.y.len(),
         n => n.min(rec.y.len()),
@@ -183,40 +142,29 @@ pub fn identify(
         train_rmse: (train_sse / keep as f64).sqrt(),
         evaluations,
         lm_iterations,
-        scorer: scorer.describe(),
+        scorer: evaluator.describe(),
     })
 }
 
-/// The population stage's trace, in `f32`: the input on its integration
-/// grid (`stride` steps per 750 Hz sample, step `h`) and the measured output.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SearchTrace {
-    pub u: Vec<f32>,
-    pub y: Vec<f32>,
-    pub stride: usize,
-    pub h: f32,
-}
-
-impl SearchTrace {
-    /// The first `s.search_samples` samples of `rec` (one multisine with
-    /// `period` samples per period), upsampled by `s.search_upsample`.
-    pub fn new(rec: &Record, period: usize, s: &IdentifySettings) -> SearchTrace {
-        let n = s.search_samples.min(rec.y.len()).max(1);
-        let stride = s.search_upsample.max(1);
-        let periodic = super::is_periodic(&rec.u, period);
-        let up = if periodic {
-            resample::upsample(&rec.u[..period], stride, true)
-        } else {
-            resample::upsample(&rec.u, stride, false)
-        };
-        let len = (n - 1) * stride + 1;
-        let u: Vec<f32> = (0..len).map(|i| up[i % up.len()] as f32).collect();
-        SearchTrace {
-            u,
-            y: rec.y[..n].iter().map(|&v| v as f32).collect(),
-            stride,
-            h: (1.0 / (FS * stride as f64)) as f32,
-        }
+/// The population stage's trace, in `f32`: the first `s.search_samples`
+/// samples of `rec` (one multisine with `period` samples per period), the
+/// input upsampled by `s.search_upsample` onto its integration grid.
+pub fn search_trace(rec: &Record, period: usize, s: &IdentifySettings) -> OscillatorProblem {
+    let n = s.search_samples.min(rec.y.len()).max(1);
+    let stride = s.search_upsample.max(1);
+    let periodic = super::is_periodic(&rec.u, period);
+    let up = if periodic {
+        resample::upsample(&rec.u[..period], stride, true)
+    } else {
+        resample::upsample(&rec.u, stride, false)
+    };
+    let len = (n - 1) * stride + 1;
+    let u: Vec<f32> = (0..len).map(|i| up[i % up.len()] as f32).collect();
+    OscillatorProblem {
+        u,
+        y: rec.y[..n].iter().map(|&v| v as f32).collect(),
+        stride,
+        h: (1.0 / (FS * stride as f64)) as f32,
     }
 }
 
@@ -310,23 +258,25 @@ pub fn search_box(rec: &Record, period: usize) -> anyhow::Result<([f64; 6], [f64
 }
 
 /// The population stage's cost, as the fitting engine sees it: rows of
-/// search coordinates ([`search_to_params`]) scored by a [`BatchScorer`].
+/// search coordinates ([`search_to_params`]) scored as oscillators on the
+/// search trace.
 struct SearchObjective<'a> {
-    scorer: &'a mut dyn BatchScorer,
+    evaluator: &'a mut dyn Evaluator,
+    problem: &'a OscillatorProblem,
 }
 
 impl Objective for SearchObjective<'_> {
     fn describe(&self) -> String {
-        self.scorer.describe()
+        self.evaluator.describe()
     }
 
-    /// One measure only: the SSE on the [`SearchTrace`].
+    /// One measure only: the SSE on the search trace.
     fn costs(&mut self, rows: &[f64], _: Measure) -> anyhow::Result<Vec<f32>> {
-        let params: Vec<f32> = rows
+        let params: Vec<f64> = rows
             .chunks(SEARCH_NAMES.len())
-            .flat_map(|x| search_to_params(x).to_vec().map(|v| v as f32))
+            .flat_map(|x| search_to_params(x).to_vec())
             .collect();
-        self.scorer.scores(&params)
+        self.evaluator.evaluate_oscillator(self.problem, &params)
     }
 }
 
@@ -334,13 +284,14 @@ impl Objective for SearchObjective<'_> {
 /// project's differential evolution ([`crate::optim::de::De`], jDE-adapted
 /// current-to-pbest/1/bin), every generation scored in one batch. (The
 /// refinement is no engine polish: it fits other coordinates, ν freed, with
-/// the exact `f64` pipeline rather than the scorer.) Returns the best
+/// the exact `f64` pipeline rather than the evaluator.) Returns the best
 /// vector, its SSE and the number of evaluations.
 fn population_search(
     s: &IdentifySettings,
     lower: &[f64; 6],
     upper: &[f64; 6],
-    scorer: &mut dyn BatchScorer,
+    problem: &OscillatorProblem,
+    evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<(Params, f64, usize)> {
     let space = Space::new(
         lower.to_vec(),
@@ -353,7 +304,12 @@ fn population_search(
         s.generations.max(1),
     );
     let mut engine = Engine::new(plan, space, s.seed, StopRules::default())?;
-    let outcome = engine.run(&mut SearchObjective { scorer }, &mut [], None, None)?;
+    let outcome = engine.run(
+        &mut SearchObjective { evaluator, problem },
+        &mut [],
+        None,
+        None,
+    )?;
     anyhow::ensure!(
         !outcome.params.is_empty(),
         "the population search found no candidate whose simulation stays bounded"

@@ -7,16 +7,15 @@
 //! * [`resample`]: the 750 Hz ↔ 15 kHz conversions the PDF prescribes;
 //! * [`generator`]: benchmark-like training data from the published system,
 //!   so that tests run without the external files;
-//! * [`identify`]: population search on the batch evaluator, then a
-//!   Levenberg–Marquardt refinement in `f64`;
-//! * [`gpu`]: the shader's batch evaluator on wgpu.
+//! * [`identify`]: population search on the project's batch evaluator
+//!   ([`crate::eval::oscillator`]), then a Levenberg–Marquardt refinement in
+//!   `f64`.
 //!
 //! The data files are read from `../shared/data/external/boucwen_benchmark`
 //! and never copied into the repository.
 
 pub mod boucwen;
 pub mod generator;
-pub mod gpu;
 pub mod identify;
 pub mod resample;
 

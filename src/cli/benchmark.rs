@@ -5,13 +5,12 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use mckibben::benchmark::identify::{
-    BatchScorer, CpuScorer, IdentifySettings, SearchTrace, identify,
-};
+use mckibben::benchmark::identify::{IdentifySettings, identify};
 use mckibben::benchmark::{
-    BenchmarkData, PERIOD, PUBLISHED, boucwen::PARAM_NAMES, default_data_dir, gpu,
-    test_multisine_rmse, test_sinesweep_rmse,
+    BenchmarkData, PERIOD, PUBLISHED, boucwen::PARAM_NAMES, default_data_dir, test_multisine_rmse,
+    test_sinesweep_rmse,
 };
+use mckibben::eval::{self, Backend};
 use mckibben::optim::Algorithm;
 
 /// Validate the identification on a public benchmark with published results.
@@ -39,10 +38,12 @@ struct BoucwenArgs {
     /// relative to the repository root, else to the current directory].
     #[arg(long, value_name = "DIR")]
     data: Option<PathBuf>,
-    /// Backend of the population stage: `cpu` (the f32 twin, all threads) or
-    /// `gpu` (the WGSL shader on the first Vulkan adapter; lavapipe is slower
-    /// than the CPU path on a machine without a GPU).
-    #[arg(long, value_enum, default_value = "cpu")]
+    /// Where the population stage is scored: auto (a hardware GPU if
+    /// present, else the CPU's f32 twin on all threads), cpu, or gpu (the
+    /// WGSL shader on any adapter, lavapipe included, which is slower than
+    /// the CPU path). The same seed gives the same result on the CPU and on
+    /// lavapipe.
+    #[arg(long, value_enum, default_value = "auto")]
     backend: Backend,
     /// Seed of the population search.
     #[arg(long, default_value_t = IdentifySettings::default().seed)]
@@ -56,12 +57,6 @@ struct BoucwenArgs {
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
-}
-
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-enum Backend {
-    Cpu,
-    Gpu,
 }
 
 #[derive(Debug, Serialize)]
@@ -98,18 +93,8 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
         generations: args.generations,
         ..IdentifySettings::default()
     };
-    let trace = SearchTrace::new(&data.train, PERIOD, &settings);
-    let mut scorer: Box<dyn BatchScorer> = match args.backend {
-        Backend::Cpu => Box::new(CpuScorer::new(trace)),
-        Backend::Gpu => Box::new(gpu::GpuOscillator::new(
-            gpu::AdapterChoice::PreferHardware,
-            &trace.u,
-            &trace.y,
-            trace.stride,
-            trace.h,
-        )?),
-    };
-    let id = identify(&data.train, PERIOD, &settings, scorer.as_mut())?;
+    let mut evaluator = eval::open(args.backend)?;
+    let id = identify(&data.train, PERIOD, &settings, evaluator.as_mut())?;
     let ms = test_multisine_rmse(&id.params, &data.test_multisine)
         .ok_or_else(|| anyhow::anyhow!("the identified model diverges on the multisine test"))?;
     let sw = test_sinesweep_rmse(&id.params, &data.test_sinesweep)

@@ -9,10 +9,12 @@ pub mod agreement;
 pub mod cpu;
 pub mod effects;
 pub mod gpu;
+pub mod oscillator;
 pub mod workload;
 
 use crate::model::effects::{Augmented, Context, Effect};
 use crate::model::{Experiment, Family, Measure};
+use oscillator::OscillatorProblem;
 
 /// What is scored: a model family against one or more experiments (e.g. two
 /// loads), each in deviation coordinates, under a measure (the free run's
@@ -131,6 +133,16 @@ pub trait Evaluator {
         problem: &Problem,
         population: &[f64],
     ) -> anyhow::Result<Vec<Option<Vec<f32>>>>;
+
+    /// The SSE of every candidate of the benchmark oscillator
+    /// (`population` row-major, [`crate::benchmark::boucwen`]'s canonical
+    /// vectors), `+∞` where its simulation diverged. Bit-identical across
+    /// backends where the muscle models' scores are.
+    fn evaluate_oscillator(
+        &mut self,
+        problem: &OscillatorProblem,
+        population: &[f64],
+    ) -> anyhow::Result<Vec<f32>>;
 }
 
 /// Converts a row-major `f64` population to the `f32` rows every backend scores.

@@ -56,6 +56,26 @@ pub fn require_gpu<T, E: Display>(opened: Result<T, E>) -> Option<T> {
     }
 }
 
+/// A GPU evaluator on lavapipe (Mesa's CPU Vulkan adapter, where the shaders
+/// must give the CPU's bits), with `options`; `None` after [`skip_or_fail`]
+/// when there is none.
+#[track_caller]
+pub fn require_lavapipe(
+    options: mckibben::eval::gpu::GpuOptions,
+) -> Option<mckibben::eval::gpu::GpuEvaluator> {
+    use mckibben::eval::gpu::{GpuEvaluator, adapters};
+    let lavapipe = adapters()
+        .into_iter()
+        .find(|a| a.get_info().device_type == wgpu::DeviceType::Cpu);
+    match lavapipe {
+        Some(adapter) => require_gpu(GpuEvaluator::with_adapter(adapter, options)),
+        None => {
+            skip_or_fail("no CPU Vulkan adapter (lavapipe)");
+            None
+        }
+    }
+}
+
 /// The external data folder: `../shared/data/external` beside the
 /// repository (see its README.md there).
 pub fn external_dir() -> PathBuf {

@@ -1,0 +1,280 @@
+//! The GPU evaluator: one WGSL invocation per candidate (wgpu), run by the
+//! project's one wgpu host ([`host`]: adapters, device, pipelines, buffers,
+//! chunked dispatch).
+//!
+//! A pipeline's WGSL is assembled from the model description
+//! ([`shader_source`]: a generated header, `shaders/prologue.wgsl`, one file
+//! per family, `driver.wgsl` or, with effect stages, `effects.wgsl`, and
+//! `entry.wgsl`); it spells the operations of `src/model/sim.rs` and
+//! `src/model/effects.rs` in the same order. On an unfused f32
+//! implementation (Mesa's lavapipe) the `n = 1` scores are bit-identical to
+//! the CPU's; a real GPU may fuse `a·b + c` into an fma, so there compare
+//! within a tolerance and compare rankings (`mckibben bench` reports both).
+
+mod host;
+
+use anyhow::Context;
+
+pub use host::{GpuOptions, adapters, describe_adapter, is_hardware};
+use host::{Host, Kernel, Output};
+
+use super::oscillator::{self, OscillatorProblem};
+use super::{Evaluator, Problem, Scores, to_f32};
+use crate::benchmark::boucwen;
+use crate::model::Family;
+use crate::model::effects::{Context as EffectContext, Effect};
+
+const PROLOGUE: &str = include_str!("../../../shaders/prologue.wgsl");
+const DRIVER: &str = include_str!("../../../shaders/driver.wgsl");
+const EFFECTS: &str = include_str!("../../../shaders/effects.wgsl");
+const ENTRY: &str = include_str!("../../../shaders/entry.wgsl");
+const OSCILLATOR: &str = include_str!("../../../shaders/boucwen_oscillator.wgsl");
+
+fn family_source(family: Family) -> &'static str {
+    match family {
+        Family::Linear => include_str!("../../../shaders/linear.wgsl"),
+        Family::Classic => include_str!("../../../shaders/classic.wgsl"),
+        Family::Generalized => include_str!("../../../shaders/generalized.wgsl"),
+    }
+}
+
+/// The complete WGSL of the pipeline that scores `problem`'s model: a
+/// header generated from the model description, the prologue, the family's
+/// file, the scoring loop (the plain family's, or the one with effect
+/// stages) and the entry point.
+pub fn shader_source(problem: &Problem, n_one: bool, residuals: bool) -> String {
+    let mut header = format!(
+        "const N_ONE: bool = {n_one};\nconst RESIDUALS: bool = {residuals};\n\
+         const STRIDE: u32 = {}u;\n",
+        problem.dim()
+    );
+    let driver = if problem.effects.is_empty() {
+        DRIVER
+    } else {
+        header.push_str(&effects_header(problem));
+        EFFECTS
+    };
+    format!(
+        "{header}{PROLOGUE}\n{}\n{driver}\n{ENTRY}",
+        family_source(problem.family)
+    )
+}
+
+/// The constants of `shaders/effects.wgsl`: which effects are present,
+/// where their parameters start in a row, and each experiment's constants
+/// as [`crate::model::effects::Augmented::prepare`] rounds them to `f32`
+/// (written in Rust's shortest round-trip form, which the WGSL compiler
+/// reads back to the same bits).
+fn effects_header(problem: &Problem) -> String {
+    let model = problem.model();
+    let mut h = String::new();
+    for effect in Effect::ALL {
+        let name = effect.name().to_ascii_uppercase();
+        let at = model.offset_of(effect);
+        h.push_str(&format!(
+            "const HAS_{name}: bool = {};\nconst AT_{name}: u32 = {}u;\n",
+            at.is_some(),
+            at.unwrap_or(0)
+        ));
+    }
+    let n = problem.contexts.len();
+    let array = |name: &str, ty: &str, values: Vec<String>| {
+        format!(
+            "var<private> {name}: array<{ty}, {n}> = array<{ty}, {n}>({});\n",
+            values.join(", ")
+        )
+    };
+    let float = |f: &dyn Fn(&EffectContext) -> f32| {
+        problem
+            .contexts
+            .iter()
+            .map(|c| format!("{:?}f", f(c)))
+            .collect::<Vec<_>>()
+    };
+    h.push_str(&array("U_MEAN", "f32", float(&|c| c.u_mean as f32)));
+    h.push_str(&array("Y_MEAN", "f32", float(&|c| c.y_mean as f32)));
+    h.push_str(&array("BRANCH_TOL", "f32", float(&|c| c.branch_tol as f32)));
+    h.push_str(&array("INV_DT", "f32", float(&|c| (1.0 / c.dt) as f32)));
+    let up = problem
+        .contexts
+        .iter()
+        .map(|c| c.drives_up.to_string())
+        .collect();
+    h.push_str(&array("DRIVES_UP", "bool", up));
+    h
+}
+
+/// The WGSL of the benchmark oscillator's pipeline: a header with the
+/// integrator's step sizes (as [`boucwen::StepSizes`] rounds them for the
+/// `f32` twin, written in Rust's shortest round-trip form), the prologue,
+/// and `shaders/boucwen_oscillator.wgsl`.
+pub fn oscillator_source(problem: &OscillatorProblem) -> String {
+    let step = boucwen::StepSizes::new(problem.h);
+    format!(
+        "const STRIDE: u32 = {}u;\nconst SCORE_EVERY: u32 = {}u;\n\
+         const NEWTON_ITERS: u32 = {}u;\nconst H: f32 = {:?}f;\n\
+         const HALF_H: f32 = {:?}f;\nconst QUARTER_HH: f32 = {:?}f;\n{PROLOGUE}\n{OSCILLATOR}",
+        boucwen::DIM,
+        problem.stride,
+        boucwen::NEWTON_ITERS_F32,
+        step.h,
+        step.half_h,
+        step.quarter_hh,
+    )
+}
+
+/// Scores populations on a wgpu device.
+pub struct GpuEvaluator {
+    host: Host,
+}
+
+impl GpuEvaluator {
+    /// Opens the best adapter present (see [`adapters`]); an error, not a
+    /// panic, when there is none.
+    pub fn open(options: GpuOptions) -> anyhow::Result<Self> {
+        let adapter = adapters().into_iter().next().context(
+            "no GPU adapter found (Vulkan, Metal or DX12): install a driver \
+             (on Debian, `mesa-vulkan-drivers` and `libvulkan1` give the lavapipe CPU \
+             adapter) or use `--backend cpu`",
+        )?;
+        Self::with_adapter(adapter, options)
+    }
+
+    /// Opens `adapter` with the largest limits it offers.
+    pub fn with_adapter(adapter: wgpu::Adapter, options: GpuOptions) -> anyhow::Result<Self> {
+        Ok(GpuEvaluator {
+            host: Host::open(adapter, options)?,
+        })
+    }
+
+    /// The adapter scoring.
+    pub fn adapter_info(&self) -> &wgpu::AdapterInfo {
+        &self.host.info
+    }
+
+    /// Scores `population` writing `output`: per candidate, its SSE on every
+    /// experiment or its residuals, candidate-major.
+    fn run(
+        &mut self,
+        problem: &Problem,
+        population: &[f64],
+        output: Output,
+    ) -> anyhow::Result<Vec<f32>> {
+        let family = problem.family;
+        let d = problem.dim();
+        anyhow::ensure!(
+            population.len() % d == 0,
+            "population length {} is not a multiple of the {family} model's {d} parameters",
+            population.len()
+        );
+        if population.is_empty() || problem.experiments.is_empty() {
+            return Ok(Vec::new());
+        }
+        let rows = to_f32(population);
+        let n_one = match family.exponent_index() {
+            Some(ni) => rows.chunks_exact(d).all(|r| r[ni] == 1.0),
+            None => true,
+        };
+        let mut samples: Vec<[f32; 2]> = Vec::with_capacity(problem.samples());
+        let mut spans: Vec<[u32; 2]> = Vec::new();
+        for e in &problem.experiments {
+            anyhow::ensure!(
+                e.u.len() == e.y.len(),
+                "experiment `{}`: input and output lengths differ",
+                e.name
+            );
+            spans.push([samples.len() as u32, e.len() as u32]);
+            samples.extend(e.u.iter().zip(&e.y).map(|(&u, &y)| [u, y]));
+        }
+        self.host.upload(samples, spans)?;
+        let kernel = Kernel {
+            source: shader_source(problem, n_one, output == Output::Residuals),
+            label: family.name(),
+            dim: d,
+            traces: problem.experiments.len(),
+            horizon: horizon_of(problem),
+            output,
+            residual_len: residual_len(problem),
+        };
+        self.host.dispatch(&kernel, &rows)
+    }
+}
+
+impl Evaluator for GpuEvaluator {
+    fn describe(&self) -> String {
+        format!("gpu: {}", describe_adapter(&self.host.info))
+    }
+
+    fn adapter(&self) -> Option<String> {
+        Some(describe_adapter(&self.host.info))
+    }
+
+    fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {
+        let n_exp = problem.experiments.len();
+        let flat = self.run(problem, population, Output::Sse)?;
+        let n = population.len() / problem.dim();
+        // `run` returns [candidate][experiment]; scores are [experiment][candidate].
+        let per_experiment = (0..n_exp)
+            .map(|e| (0..n).map(|i| flat[i * n_exp + e]).collect())
+            .collect();
+        Ok(Scores::from_per_experiment(per_experiment))
+    }
+
+    fn residuals(
+        &mut self,
+        problem: &Problem,
+        population: &[f64],
+    ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
+        let r = residual_len(problem);
+        let flat = self.run(problem, population, Output::Residuals)?;
+        Ok(flat
+            .chunks(r.max(1))
+            .take(population.len() / problem.dim())
+            .map(|row| row.iter().all(|v| v.is_finite()).then(|| row.to_vec()))
+            .collect())
+    }
+
+    fn evaluate_oscillator(
+        &mut self,
+        problem: &OscillatorProblem,
+        population: &[f64],
+    ) -> anyhow::Result<Vec<f32>> {
+        let rows = oscillator::rows(problem, population)?;
+        let (samples, spans) = problem.samples();
+        self.host.upload(samples, spans)?;
+        let kernel = Kernel {
+            source: oscillator_source(problem),
+            label: "boucwen oscillator",
+            dim: boucwen::DIM,
+            traces: 1,
+            horizon: 0,
+            output: Output::Sse,
+            residual_len: 0,
+        };
+        self.host.dispatch(&kernel, &rows)
+    }
+}
+
+/// Errors per candidate: `k ≥ 1` of every experiment.
+fn residual_len(problem: &Problem) -> usize {
+    problem
+        .experiments
+        .iter()
+        .map(|e| e.len().saturating_sub(1))
+        .sum()
+}
+
+/// The shader's `cfg.horizon`: samples between restarts, 0 for never (a
+/// horizon at or past the longest experiment never restarts either).
+fn horizon_of(problem: &Problem) -> u32 {
+    let longest = problem
+        .experiments
+        .iter()
+        .map(|e| e.len())
+        .max()
+        .unwrap_or(0);
+    match problem.measure.restart_every() {
+        h if h >= longest => 0,
+        h => h as u32,
+    }
+}
