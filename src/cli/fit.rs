@@ -37,8 +37,9 @@ use mckibben::report::fit_figures;
 ///
 /// The free-run error of a slow hysteretic model is a needle that a
 /// population search alone stalls beside; the prediction error is smooth
-/// around it. Default N = 1000, G = 300: under 2 s on two CPU cores for the
-/// shipped 4000-sample stair (docs/PERFORMANCE.md).
+/// around it. Default N = 1000, G = 300, sized for the ≤ 2 s target on two
+/// CPU cores with the shipped 4000-sample stair (timings:
+/// docs/PERFORMANCE.md, "The default fit").
 ///
 /// `a`, `b`, the intercept `c` and the start offset `x0` are fitted with the
 /// hysteresis parameters. `--thesis-flow` redoes the thesis instead: `a`, `b`

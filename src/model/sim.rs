@@ -231,13 +231,11 @@ impl Stepper {
     ///
     /// Why not leave `w` alone: it would integrate the simulated motion only,
     /// drift from the measured motion by the sum of all jumps, and push the
-    /// output away through `a·(1 − α)·w` (measured on a generated classic
-    /// case, 0.07 mm noise: the true model's 28-step-ahead SSE was 3·10⁵
-    /// times its free-run SSE). Why not the whole Bouc-Wen step: a jump is
-    /// mostly measurement noise, and the loop terms `β·|Δ|`, `γ·Δ` rectify
-    /// noise into a bias (there 20 times the free-run SSE); the elastic part
-    /// is linear in the jump, so zero-mean noise leaves no bias (there 1.9
-    /// times).
+    /// output away through `a·(1 − α)·w`. Why not the whole Bouc-Wen step: a
+    /// jump is mostly measurement noise, and the loop terms `β·|Δ|`, `γ·Δ`
+    /// rectify noise into a bias; the elastic part is linear in the jump, so
+    /// zero-mean noise leaves no bias. The three rules measured against each
+    /// other: docs/ARCHITECTURE.md, "Restart = elastic step".
     #[inline(always)]
     pub fn restart(&self, x: f32, w: f32, y: f32) -> (f32, f32) {
         match *self {

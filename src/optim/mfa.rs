@@ -28,10 +28,10 @@ use serde::{Deserialize, Serialize};
 
 use super::{Bounds, Optimizer};
 
-/// Above this population the all-pairs move takes over a second a
-/// generation on two cores (measured: docs/PERFORMANCE.md), so the thesis'
-/// flow and Table 21 move each firefly towards the [`BRIGHTEST`] brightest
-/// instead, unless told otherwise.
+/// Above this population the all-pairs move, `O(N²·d)` a generation, stops
+/// being practical (timed: docs/RESULTS.md, "3. Equal budgets over 10
+/// seeds"), so the thesis' flow and Table 21 move each firefly towards the
+/// [`BRIGHTEST`] brightest instead, unless told otherwise.
 pub const ALL_PAIRS_MAX: usize = 2000;
 
 /// The attractors of a capped move: the staged fit's, and the thesis' flow's
@@ -257,8 +257,9 @@ impl Optimizer for Mfa {
 
     /// The staged fit moves each firefly towards the 10 brightest with
     /// `e^(−σr²)` (eq. 32) in box units: with the thesis' settings the MFA
-    /// misses the basin of the generated cases, and its all-pairs move is
-    /// `O(N²·d)` at the staged fit's populations.
+    /// misses the basin of the generated cases (docs/RESULTS.md, "1. Known
+    /// truth"), and its all-pairs move is `O(N²·d)` at the staged fit's
+    /// populations.
     fn staged_settings(_n: usize) -> MfaSettings {
         MfaSettings {
             max_attractors: Some(BRIGHTEST),

@@ -164,8 +164,8 @@ pub enum PhaseError {
 
 /// A search by any registered algorithm in explicit phases: `ask` and `tell`
 /// alternate, starting with `ask`. A call out of turn is an error and
-/// changes nothing (a second `ask` used to restart the GA and the MFA
-/// silently).
+/// changes nothing, so that a stray second `ask` cannot restart a search
+/// silently (docs/ARCHITECTURE.md, "Adding an optimizer").
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct AskTell {
     /// Individuals a generation: the costs each `tell` brings.

@@ -77,9 +77,10 @@ impl PsoSettings {
     /// explosion, stability, and convergence in a multidimensional complex
     /// space", IEEE TEC 2002): χ = 0.7298 on velocity, χ·φ/2 = 1.49618 on
     /// each pull, with velocity capped at half the box. The thesis' decaying
-    /// inertia from 1.1 diverges for most of its schedule; on the generated
-    /// cases (docs/RESULTS.md) these reached the noise floor in 20 of 20
-    /// where the thesis' reached it in fewer.
+    /// inertia from 1.1 diverges for most of its schedule; the constriction
+    /// keeps the swarm convergent by construction (measured on the generated
+    /// cases: docs/ARCHITECTURE.md, "PSO in the staged fit uses Clerc and
+    /// Kennedy's constriction").
     pub fn constriction() -> PsoSettings {
         PsoSettings {
             w_start: 0.7298,

@@ -82,13 +82,14 @@ impl Task {
     /// that a candidate's free-run "SSE" on it is the energy of its own
     /// output, and the largest energy a bounded model may have.
     ///
-    /// Why: a model fitted to one half can be unstable on the other. On the
-    /// Cavatappi muscle (../shared/data/external, 300 g and 500 g) the
-    /// estimation optimum has β + γ < 0, which lets `w` grow without bound
-    /// once the input leaves the estimation half's range: the fit wrote a
-    /// model that diverged on its own validation half. The check uses the
-    /// validation half's input, never its output; the bound is ten times
-    /// the estimation output's largest deviation, on every sample.
+    /// Why: a model fitted to one half can be unstable on the other. An
+    /// estimation optimum with β + γ < 0 lets `w` grow without bound once
+    /// the input leaves the estimation half's range, and the fit then writes
+    /// a model that diverges on its own validation half (as it did on the
+    /// Cavatappi muscle: docs/RESULTS.md, "Real data: the Cavatappi
+    /// muscle"). The check uses the validation half's input, never its
+    /// output; the bound is ten times the estimation output's largest
+    /// deviation, on every sample.
     pub fn stress(&self) -> (Problem, f64) {
         let mut whole = self.estimation.clone();
         whole.u.extend_from_slice(&self.validation.u);

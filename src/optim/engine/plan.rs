@@ -2,8 +2,9 @@
 //! floor.
 //!
 //! **Why three stages.** The free-run error of a slow hysteretic model is a
-//! needle: moving the pole or the static gain by 1 % raises it a thousandfold
-//! (measured on the shipped stair), and its roughness grows with the
+//! needle along the pole and the static gain (measured: docs/ARCHITECTURE.md,
+//! "Decisions of the fitting engine"), because an error in either piles up
+//! through the slow pole, and its roughness grows with the
 //! simulated length (Ribeiro, Tiels, Umenberger, Schön and Aguirre, "On the
 //! smoothness of nonlinear system identification", Automatica 2020), so a
 //! population search on it stalls beside the needle at any population size.
@@ -57,14 +58,14 @@ pub struct Global {
     /// reaches `longest`), and the last island of several the free run,
     /// instead of all measuring `h`: on data the model cannot fit exactly,
     /// short- and long-horizon optima lie in different basins, and the free
-    /// run judges them all. (Measured on the shipped stair: the 23-step
-    /// prediction ranks the linear model, A → 0, first; without a free-run
-    /// island 3 of 6 DE seeds ended there, 86.4 %, with one none did.)
+    /// run judges them all (on the shipped stair the short horizon ranks
+    /// the linear model, A → 0, first: docs/ARCHITECTURE.md, "Where the
+    /// model cannot fit exactly, the free run judges every basin").
     /// The free-run island searches with [`FreeRun::ALGORITHM`] whatever
     /// the stage's algorithm: it is the island that finds the free run's
-    /// basin, and the answer should not depend on `--algo` (measured on
-    /// the shipped stair, 6 seeds each: with their own rule on that island
-    /// PSO ended in the linear model in 4, MFA in 1; with DE there, 2 and 0).
+    /// basin, and the answer should not depend on `--algo` (PSO's and MFA's
+    /// own rules there end in the linear model more often: same section,
+    /// and docs/RESULTS.md, "The shipped stair").
     pub ladder: bool,
     /// The longest experiment (samples).
     pub longest: usize,
@@ -113,17 +114,16 @@ pub struct Polish {
 pub const DISTINCT: f64 = 1e-3;
 
 impl Default for Polish {
-    /// Measured on the generated cases (docs/RESULTS.md): eight starts with
-    /// continuation reach the noise floor where five on the free run alone
-    /// stop in the flat valleys of slow multisine cases. Central differences
-    /// with a probe step of 1e-3: a forward difference's error grows with
-    /// the valley's curvature, and Levenberg–Marquardt stopped where the
-    /// biased gradient vanished (on the shipped stair, six DE seeds ended at
-    /// estimation SSE 2 890–2 920 with forward differences of 3e-3 and at
-    /// 2 770–2 780 in five of six with central ones of 1e-3; classic matrix
-    /// 16/20 → 18/20). A step of 1e-3 stays above the `f32` simulation's
-    /// rounding in a central difference, whose own error is second order
-    /// (1e-4 gave Jacobians of noise on the loop-shape parameters).
+    /// Several starts with continuation through the horizons, because from
+    /// the free run alone a start stops in the flat valleys of slow
+    /// multisine cases. Central differences with a probe step of 1e-3: a
+    /// forward difference's error grows with the valley's curvature, and
+    /// Levenberg–Marquardt stops where the biased gradient vanishes. A step
+    /// of 1e-3 stays above the `f32` simulation's rounding in a central
+    /// difference, whose own error is second order; a smaller one drowns
+    /// the loop-shape parameters' columns in rounding. Measured:
+    /// docs/ARCHITECTURE.md, "Decisions of the fitting engine" (the bullets
+    /// on the three stages and on central differences).
     fn default() -> Self {
         Polish {
             starts: 8,

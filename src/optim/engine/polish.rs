@@ -39,9 +39,10 @@ impl Engine {
         // best, and so on: each island's basin gets a start before any gets
         // two. The global stage's members matter when the model cannot fit
         // the data exactly: there the free-run stage can drift from a good
-        // basin into a degenerate one (measured on the shipped stair:
-        // towards the linear model, A → 0), which continuation from the
-        // global stage's members avoids.
+        // basin into a degenerate one (towards the linear model, A → 0, on
+        // the shipped stair: docs/ARCHITECTURE.md, "Decisions of the fitting
+        // engine"), which continuation from the global stage's members
+        // avoids.
         let ranked: Vec<(&[f64], f32)> = if self.pool.is_empty() {
             self.initial
                 .chunks_exact(nf)

@@ -75,9 +75,9 @@ impl Engine {
     /// another measure ranked, so that whatever starts from them ranks them
     /// as the simulator does: on data the model cannot fit exactly, the
     /// prediction error's best can lie in another basin than the free run's
-    /// (measured on the shipped stair: the linear model, A → 0, ranks first
-    /// on the 23-step prediction, while the hysteretic members the same
-    /// population holds have a free-run SSE a quarter of its).
+    /// (on the shipped stair the prediction ranks the linear model, A → 0,
+    /// first and the free run a hysteretic one: docs/ARCHITECTURE.md, "Where
+    /// the model cannot fit exactly, the free run judges every basin").
     pub(super) fn rescore_pool(&mut self, objective: &mut dyn Objective) -> anyhow::Result<()> {
         for i in 0..self.pool.len() {
             if self.pool[i].measure == Measure::FreeRun {

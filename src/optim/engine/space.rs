@@ -11,10 +11,10 @@ use crate::model::SearchSpace;
 /// equal is held there and never shown to the optimizers.
 ///
 /// The optimizers see the free coordinates as they are. A log scale for the
-/// loop-shape parameters (β, γ are often 10⁻³ in a box of ±0.5) was tried
-/// as coordinates and measured worse on the generated cases
-/// (docs/RESULTS.md); what helps is drawing half the first population's
-/// values of those parameters log-uniformly ([`Space::draw`]).
+/// loop-shape parameters (β, γ are often 10⁻³ in a box of ±0.5) as
+/// coordinates does worse (docs/ARCHITECTURE.md, "Half the first population
+/// draws β, γ log-uniformly"); what helps is drawing half the first
+/// population's values of those parameters log-uniformly ([`Space::draw`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Space {
     pub lower: Vec<f64>,
@@ -52,9 +52,10 @@ impl Space {
     /// that every other row draws the coordinates marked as spanning decades
     /// log-uniformly in magnitude over four decades below the box's larger
     /// edge (either sign where the box has both). A uniform draw almost never
-    /// visits the sliver near zero where a muscle's β and γ often lie (the
-    /// shipped stair's hysteretic optimum has |β| < 10⁻³ in a box of ±0.5),
-    /// and neither do the differences of uniform draws that DE steps by.
+    /// visits the sliver near zero where a muscle's β and γ often lie (as
+    /// the shipped stair's hysteretic fits do: docs/RESULTS.md, "The shipped
+    /// stair"), and neither do the differences of uniform draws that DE
+    /// steps by.
     pub fn draw(&self, count: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
         let free = self.free();
         let mut rows = Vec::with_capacity(count * free.len());
