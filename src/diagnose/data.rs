@@ -239,11 +239,9 @@ impl Data {
     /// The prediction horizon of [`Start::Ahead`](super::fitting::Start::Ahead): a third of the ARX time
     /// constant `1/(1 − a)` in samples, so that the output error cannot pile
     /// up through the slow pole, yet the prediction depends on the dynamics
-    /// rather than on the last measurement alone (measured on the self-test
-    /// of `data/stair_4.5kg.csv`, τ = 69 samples: horizons of 10, 20 and 40
-    /// brought 2, 4 and 1 of 8 from-scratch fits of the true model of the
-    /// `asymmetry (large)` and `load (small)` cases within 10× the true
-    /// model's estimation SSE, the plain free-run search none).
+    /// rather than on the last measurement alone (shorter and longer
+    /// horizons measured on the self-test: docs/DIAGNOSIS.md, the budget's
+    /// "in the first round" item).
     pub fn horizon(&self) -> usize {
         let tau = 1.0 / (1.0 - self.prior.a).max(1e-3);
         let shortest = self.est.iter().map(|e| e.len()).min().unwrap_or(8);

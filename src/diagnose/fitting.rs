@@ -141,11 +141,9 @@ pub enum Start<'a> {
     /// other half on the free run, started around the first stage's best.
     /// The free-run cost of a slow, hysteretic model is a needle along the
     /// pole and the static gain that differential evolution rarely finds
-    /// from scratch; the prediction error's is not. Measured on the
-    /// self-test's `asymmetry (large)` case (default data): plain
-    /// from-scratch fits of the true model ended at 50× the true model's
-    /// estimation SSE in 7 of 7 seeds, even at 100 × 1500; with a horizon
-    /// of 20 samples 3 of 4 ended at 1.9–7×.
+    /// from scratch; the prediction error's is not (measured on the
+    /// self-test: docs/DIAGNOSIS.md, the budget's "in the first round"
+    /// item).
     Ahead { horizon: usize },
     /// From a known model: `params` is the current model with the new
     /// effect's parameters (from `new_from` on) at their neutral values; the
@@ -157,10 +155,10 @@ pub enum Start<'a> {
 ///
 /// The search is differential evolution on the fitting engine (the update
 /// rule `mckibben fit --algo de` uses). From scratch with the narrow
-/// `p_best = 0.02` that helped on hard problems (measured on
-/// data/stair_4.5kg.csv, 6 seeds of 40 × 600: 2 leave the linear model's
-/// plateau with 0.02 or 0.05, none with 0.1);
-/// one member is the ARX model, so the fit starts no worse than least squares.
+/// `p_best = 0.02`, greedier than DE's default, so that more seeds leave the
+/// linear model's plateau (measured: docs/DIAGNOSIS.md, the budget's
+/// "baseline" item); one member is the ARX model, so the fit starts no
+/// worse than least squares.
 ///
 /// Warm-started in two stages. First the new effect's parameters alone, the
 /// rest held at the start (a search in one or two dimensions that rarely
@@ -253,9 +251,10 @@ pub fn fit_candidate(
 
 /// Levenberg–Marquardt from the search's best on the free-run residuals;
 /// the polished point is kept only if its estimation SSE is lower. The
-/// free-run cost of a slow, hysteretic model is a narrow curved valley (1 %
-/// in α moves the SSE 1000-fold on the default data), along which
-/// differential evolution creeps while Gauss–Newton steps follow it.
+/// free-run cost of a slow, hysteretic model is a narrow curved valley
+/// along its pole and static gain (measured: docs/DIAGNOSIS.md, the
+/// budget's "every fit ends with a Levenberg–Marquardt polish" item), along
+/// which differential evolution creeps while Gauss–Newton steps follow it.
 /// Forward differences in the `f32` simulation: steps of 1e-4 of the
 /// coordinate's size (taken as at least 1 % of its box width, so that a
 /// coordinate near zero is still probed) stay well above its rounding. The
@@ -316,10 +315,9 @@ const PROFILE_NODES: i32 = 6;
 /// estimation part. Why: when the current model has absorbed part of an
 /// effect, the fits warm-started from it find the effect small, and the
 /// model with the effect at its true size lies along a valley in which the
-/// rest of the model must move back with it: measured on the self-test's
-/// `inertia (small)` case, Levenberg–Marquardt from the true parameters ends
-/// at an estimation SSE of 101.7 with the extra pole 0.6 % off, while every
-/// seed's fit ended above 109 with it half as large.
+/// rest of the model must move back with it (measured on the self-test:
+/// docs/DIAGNOSIS.md, the budget's "profiled along the new effect's size"
+/// item).
 pub(super) fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> anyhow::Result<Fit> {
     let (neutral, lo, hi) = data.space(model);
     let centre = neutral[at].clamp(lo[at], hi[at]);
@@ -376,11 +374,9 @@ pub(super) fn polish_held(
 /// the box, except that every other member draws the loop-shape parameters
 /// (β, γ or β1…β6) log-uniformly in magnitude over four decades: fits of the
 /// muscle often need them near zero, a sliver of the box that a uniform draw
-/// and DE's differences of uniform draws rarely visit. Measured with 6 seeds
-/// of 40 × 600 on data/stair_4.5kg.csv: 1 seed left the linear model's
-/// plateau (A = 0) with uniform draws, 2 with these; on the self-test's
-/// control case (4 seeds) none with uniform draws, all four with these at
-/// p_best = 0.1.
+/// and DE's differences of uniform draws rarely visit; more seeds then leave
+/// the linear model's plateau (A = 0) (measured: docs/DIAGNOSIS.md, the
+/// budget's "baseline" item).
 fn scratch_rows(
     data: &Data,
     model: &Augmented,
@@ -471,10 +467,10 @@ pub fn fit_seeds(
 /// [`fit_seeds`] with the fits from scratch `scratch` ([`scratch_fits`])
 /// among the seeds: the first round's fits. A from-scratch baseline fitted
 /// to data with an unmodelled effect ends where it compensates the effect
-/// best, often far from where the model with the effect fits (on the
-/// self-test's `asymmetry (large)` case the baseline's β is 0.34 against the
-/// true 0.0002), and a warm start cannot walk back; a search from scratch
-/// can.
+/// best, often far from where the model with the effect fits (as on the
+/// self-test's `asymmetry (large)` case: docs/DIAGNOSIS.md, the budget's
+/// "in the first round" item), and a warm start cannot walk back; a search
+/// from scratch can.
 pub(super) fn fit_seeds_with(
     data: &Data,
     model: &Augmented,

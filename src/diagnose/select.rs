@@ -54,9 +54,9 @@ impl Default for Settings {
     /// Sized so that `mckibben diagnose` on the default data (a few thousand
     /// samples) finishes in seconds on two cores. The baseline gets 12 seeds
     /// because a from-scratch fit of the classic model to the twin's stair
-    /// is multimodal: measured on `data/stair_4.5kg.csv`, 2 of 6 seeds of
-    /// 40 × 600 leave the linear model's plateau (`A = 0`) for the better
-    /// basins (estimation SSE 3000–3600 against 10752).
+    /// is multimodal: most seeds stay on the linear model's plateau
+    /// (`A = 0`), and the best of many reaches a better basin (measured:
+    /// docs/DIAGNOSIS.md, the budget's "baseline" item).
     fn default() -> Self {
         Settings {
             seeds: 3,
@@ -168,10 +168,9 @@ pub fn select(
         // The refit gives the seed spread of "no new effect". Its seeds (and
         // in the first round its fits from scratch) may also reach a better
         // estimation fit of the current model than the one accepted: then
-        // that is the current model, as after an ablation below. Measured on
-        // the self-test's `inertia (small)` case: the second round's refit
-        // of baseline + inertia reached an estimation SSE of 104.8 against
-        // the accepted candidate's 109.5.
+        // that is the current model, as after an ablation below (it happens
+        // on the self-test: docs/DIAGNOSIS.md, "Which: the effects
+        // catalogue", the paragraph after "Ablation").
         if current.best.est_sse < final_fit.est_sse && current.best.val_rmse.is_finite() {
             current_params = current.best.params.clone();
             final_fit = current.best.clone();
