@@ -11,8 +11,9 @@
 //! A one-step (equation-error) fit returns a near-integrator on this rig, and
 //! a fit that fed `w` from the measured displacement inside the window would
 //! see the future: with `β = γ = 0`, `w` *is* the displacement, and such a
-//! fit turns the multi-step predictor back into a one-step one (the previous
-//! version of this module did, and chose a linear model for that reason).
+//! fit turns the multi-step predictor back into a one-step one, so it
+//! chooses a linear model (docs/CONTROL.md, "The model, identified from
+//! data").
 
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
@@ -274,8 +275,8 @@ pub fn identify(trace: &Trace, band: (f64, f64), horizon: usize) -> anyhow::Resu
 /// `A`, `β`, `γ` and the weight of `w`, `a·(1−α)`, multiplied by `factor`,
 /// the linear part (`a·α`, `b`, `b₂`, `c`) held. The saturated loop's height
 /// `a·(1−α)·A/(β+γ)` scales by `factor`, its slope after a reversal by
-/// `factor²`. (Scaling `α` itself, as the previous version did, moves the
-/// pole `a·α`: that tests the linear part, not the hysteresis.)
+/// `factor²`. (Scaling `α` itself would move the pole `a·α`: that tests the
+/// linear part, not the hysteresis; docs/CONTROL.md, "Robustness".)
 pub fn scale_hysteresis(model: &ControlModel, factor: f64) -> ControlModel {
     let mut out = model.clone();
     let d = &mut out.displacement;

@@ -17,14 +17,15 @@
 //! offset-free tracking (Pannocchia & Rawlings, "Disturbance models for
 //! offset-free model-predictive control", AIChE J. 49(2), 2003).
 //!
-//! The disturbances enter the model's equations, not its output: an output
-//! offset (`y = x + d`) was tried and tracked worse at every gain (0.10–0.15
-//! mm RMS at 3 rad/s against 0.077 mm), because a state disturbance acts
-//! like integral action inside the loop's dynamics.
+//! The disturbances enter the model's equations, not its output: a state
+//! disturbance acts like integral action inside the loop's dynamics, and an
+//! output offset (`y = x + d`) tracks worse at every gain (measured on the
+//! twin: docs/CONTROL.md, "3 rad/s against the tuned PID").
 //!
-//! Why these gains (`MpcSettings::default`, measured on the twin): the
-//! displacement is trusted (`Lx = 1`, its noise is 0.03 mm); the pressure is
-//! mostly predicted (`Lp = 0.2`), because the displacement model multiplies
+//! Why these gains (`MpcSettings::default`, measured on the twin:
+//! docs/CONTROL.md, "3 rad/s against the tuned PID"): the displacement is
+//! trusted (`Lx = 1`, its noise is 0.03 mm); the pressure is mostly
+//! predicted (`Lp = 0.2`), because the displacement model multiplies
 //! a pressure error by `b/(1 − π)` ≈ 90 mm/MPa over a horizon, so the raw
 //! 2 kPa sensor noise would move the plan by 0.2 mm; and the pressure
 //! disturbance is off (`Ldp = 0`) for the same reason, the displacement

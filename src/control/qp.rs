@@ -13,9 +13,9 @@
 //! still yields a command within the limits; and the previous plan shifted
 //! by one sample is feasible for the new problem and nearly optimal, so most
 //! samples need one or two iterations — each a solve with `H⁻¹`, which is
-//! formed once per sample. An interior-point method (the previous version
-//! used `clarabel`) cannot start from the old solution and walks the same
-//! central path every sample.
+//! formed once per sample. An interior-point method cannot start from the
+//! old solution and walks the same central path every sample (the two
+//! compared: docs/CONTROL.md, "Real time").
 
 /// One of the problem's inequality constraints, by the index it bounds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

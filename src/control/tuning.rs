@@ -111,11 +111,10 @@ pub struct Tuned {
 }
 
 /// The box the gains are searched in: `Kp ∈ [0, 10]` V/mm, `Ki ∈ [0, 500]`
-/// V/(mm·s), `Kd ∈ [0, 0.1]` V·s/mm. The first box (`[0, 1] × [0, 20] ×
-/// [0, 0.02]`) stopped DE and PSO at its edges `Kp = 1`, `Ki = 20`; on the
-/// twin, 3 rad/s tracking gets worse again past about `Kp = 3`, `Ki = 80`
-/// (the slew limit and the sensor noise), so this box holds the optimum
-/// inside it with room on every side.
+/// V/(mm·s), `Kd ∈ [0, 0.1]` V·s/mm: wide enough to hold the optimum with
+/// room on every side, since larger gains track worse again (the slew limit
+/// and the sensor noise) and a narrower box stops the search at its edges
+/// (measured on the twin: docs/CONTROL.md, "The controllers", `pi-tuned`).
 pub fn gain_bounds() -> Bounds {
     Bounds {
         lower: vec![0.0, 0.0, 0.0],

@@ -9,9 +9,9 @@
 //! at every volt of the 0–10 V range and increasing. The map is not a straight
 //! line because the rig's two valves set the pressure by the ratio of their
 //! openings: dead band at the bottom, the supply pressure at the top, an S in
-//! between (docs/TWIN.md). On the twin its slope at 7 V is two thirds of that
-//! at 5 V, which a linear model would absorb as a gain error at the top of
-//! every sine.
+//! between (docs/TWIN.md). On the twin its slope falls markedly from 5 V to
+//! 7 V (docs/CONTROL.md, "The controllers", `mpc`), which a linear model
+//! would absorb as a gain error at the top of every sine.
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
