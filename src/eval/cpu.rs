@@ -2,8 +2,9 @@
 //!
 //! Candidates are advanced [`LANES`] at a time, side by side, each lane in its
 //! own slot of plain `f32` arrays, so that the compiler turns the inner loop
-//! into SIMD instructions (a naive one-candidate loop runs about ten times
-//! slower), compiled for AVX-512 or AVX2 where the CPU has them. Every lane calls the very step functions of
+//! into SIMD instructions, compiled for AVX-512 or AVX2 where the CPU has
+//! them: one candidate at a time would leave the vector unit idle. Every
+//! lane calls the very step functions of
 //! [`crate::model::sim`] (the single source of truth), in the same order and
 //! without fused multiply-adds, so each lane's SSE is bit-identical to
 //! [`crate::model::sse`] for that candidate.
@@ -28,9 +29,9 @@ use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear
 /// Candidates advanced side by side in one batch. One step of one candidate
 /// is a chain of about ten dependent operations (x → Δ → w → next x), so a
 /// single vector of 16 lanes waits on latency; 32 lanes (two AVX-512 or four
-/// AVX2 registers per quantity) keep independent chains in flight: 1.8× the
-/// throughput of 16 lanes here, while 64 lanes gain little more
-/// (`docs/PERFORMANCE.md`).
+/// AVX2 registers per quantity) keep independent chains in flight, while 64
+/// lanes gain little more (measured: the table of lanes per batch in
+/// docs/PERFORMANCE.md).
 pub const LANES: usize = 32;
 
 /// How often (in samples) a batch checks whether every lane has diverged.

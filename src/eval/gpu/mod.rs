@@ -1,5 +1,5 @@
 //! The GPU evaluator: one WGSL invocation per candidate (wgpu), run by the
-//! project's one wgpu host ([`host`]: adapters, device, pipelines, buffers,
+//! project's one wgpu host (`host.rs`: adapters, device, pipelines, buffers,
 //! chunked dispatch).
 //!
 //! A pipeline's WGSL is assembled from the model description
