@@ -109,9 +109,10 @@ pub struct Args {
     #[arg(long, default_value = "twin", value_name = "SPEC")]
     plant: String,
     /// Deadline of each sample on an external plant (ms): a measurement is
-    /// due this long after the one before it (one 10 ms sample plus jitter).
-    #[arg(long, default_value_t = 15.0, value_name = "MS")]
-    deadline: f64,
+    /// due this long after the one before it [default: 1.5 samples of the
+    /// rig's sample time, i.e. one sample plus jitter; 15 ms at 10 ms].
+    #[arg(long, value_name = "MS")]
+    deadline: Option<f64>,
     /// Missing measurements in a row after which the run stops (valve closed).
     #[arg(long, default_value_t = 10)]
     max_missing: usize,
@@ -199,7 +200,12 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
     }
     anyhow::ensure!(args.horizon >= 2, "--horizon must be at least 2 samples");
     anyhow::ensure!(args.r_move > 0.0, "--r-move must be positive");
-    anyhow::ensure!(args.deadline > 0.0, "--deadline must be positive (ms)");
+    if let Some(ms) = args.deadline {
+        anyhow::ensure!(
+            ms > 0.0 && ms.is_finite(),
+            "--deadline must be a positive number of milliseconds (got {ms})"
+        );
+    }
     anyhow::ensure!(args.max_missing >= 1, "--max-missing must be at least 1");
     anyhow::ensure!(
         args.warmup >= 0.0
@@ -464,12 +470,14 @@ fn run_external(
         }
         Plant::Twin => unreachable!("in-process runs do not come here"),
     };
+    let dt = rig::connect(link.as_mut(), RemoteSettings::CONNECT_TIMEOUT)?;
     let settings = RemoteSettings {
-        deadline: Duration::from_secs_f64(args.deadline / 1000.0),
+        deadline: args.deadline.map_or_else(
+            || RemoteSettings::default_deadline(dt),
+            |ms| Duration::from_secs_f64(ms / 1000.0),
+        ),
         max_missing: args.max_missing,
-        connect_timeout: RemoteSettings::CONNECT_TIMEOUT,
     };
-    let dt = rig::connect(link.as_mut(), &settings)?;
     let mut controller = sweep::build(spec.kind, spec.hysteresis_scale, ing, dt)?;
     let mut log = match &args.log {
         Some(dir) => {
@@ -484,9 +492,9 @@ fn run_external(
                         args.plant
                     ),
                     format!(
-                        "rig {} (dt {dt} s), deadline {} ms",
+                        "rig {} (dt {dt} s), deadline {:.1} ms",
                         link.describe(),
-                        args.deadline
+                        settings.deadline.as_secs_f64() * 1000.0
                     ),
                 ],
             )

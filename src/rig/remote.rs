@@ -32,8 +32,6 @@ pub struct RemoteSettings {
     pub deadline: Duration,
     /// Missing measurements in a row after which the run stops.
     pub max_missing: usize,
-    /// Time the rig may take to answer `HELLO` (a process starting up).
-    pub connect_timeout: Duration,
 }
 
 impl RemoteSettings {
@@ -41,6 +39,13 @@ impl RemoteSettings {
     /// behind `cmd:` is a process that must start first, so this is seconds,
     /// not a sample.
     pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(10);
+
+    /// The deadline a rig with sample time `dt` (s) gets unless the user
+    /// sets one: one sample plus half a sample of jitter, so that it scales
+    /// with the rig (15 ms at the thesis' 10 ms).
+    pub fn default_deadline(dt: f64) -> Duration {
+        Duration::from_secs_f64(1.5 * dt)
+    }
 }
 
 /// Why a run on a rig stopped early.
@@ -95,14 +100,15 @@ fn send(link: &mut dyn Link, msg: ToRig) -> Result<(), RigError> {
     })
 }
 
-/// `HELLO` / `READY`: returns the rig's sample time.
-pub fn connect(link: &mut dyn Link, settings: &RemoteSettings) -> Result<f64, RigError> {
+/// `HELLO` / `READY`, waiting `timeout` for the answer: returns the rig's
+/// sample time.
+pub fn connect(link: &mut dyn Link, timeout: Duration) -> Result<f64, RigError> {
     let fail = |link: &dyn Link, why: String| RigError::Handshake {
         link: link.describe(),
         why,
     };
     send(link, ToRig::Hello { version: VERSION })?;
-    match link.recv(Some(settings.connect_timeout)) {
+    match link.recv(Some(timeout)) {
         Received::Line(line) => match FromRig::parse(&line) {
             Ok(FromRig::Ready { version, dt }) if version == VERSION => Ok(dt),
             Ok(FromRig::Ready { version, .. }) => Err(fail(
@@ -118,10 +124,7 @@ pub fn connect(link: &mut dyn Link, settings: &RemoteSettings) -> Result<f64, Ri
         },
         Received::Timeout => Err(fail(
             link,
-            format!(
-                "no READY within {:.1} s of HELLO",
-                settings.connect_timeout.as_secs_f64()
-            ),
+            format!("no READY within {:.1} s of HELLO", timeout.as_secs_f64()),
         )),
         Received::Closed(why) => Err(fail(link, format!("closed before READY: {why}"))),
     }
@@ -378,5 +381,18 @@ impl Session {
                 why: format!("expected a measurement `M k t pressure displacement`, got `{other}`"),
             }),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_deadline_is_one_and_a_half_samples_of_the_rig() {
+        let close = |got: Duration, want_ms: f64| (got.as_secs_f64() * 1e3 - want_ms).abs() < 1e-6;
+        assert!(close(RemoteSettings::default_deadline(0.01), 15.0));
+        assert!(close(RemoteSettings::default_deadline(0.1), 150.0));
+        assert!(close(RemoteSettings::default_deadline(0.001), 1.5));
     }
 }
