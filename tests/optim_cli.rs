@@ -186,7 +186,7 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["fit", "missing.csv"], "missing.csv"),
         (&["fit", &csv, "--algo", "cmaes"], "cmaes"),
         // Each algorithm's own minimum, named with the flag.
@@ -210,6 +210,19 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         (
             &["fit", &csv, "--p-mut", "1.5", "--backend", "cpu"],
             "--p-mut",
+        ),
+        (
+            &[
+                "fit",
+                &csv,
+                "--algo",
+                "pso",
+                "--p-mut",
+                "0.3",
+                "--backend",
+                "cpu",
+            ],
+            "--p-mut tunes --algo ga, but this fit runs --algo pso",
         ),
         (
             &[

@@ -46,6 +46,31 @@ pub struct Overrides {
     pub pso_scalar_social: bool,
 }
 
+impl Overrides {
+    /// The algorithm-specific flags given, each with the algorithm it tunes.
+    fn given(&self) -> Vec<(&'static str, Algorithm)> {
+        use Algorithm::{De, Ga, Mfa, Pso};
+        [
+            (self.crossover.is_some(), "--crossover", Ga),
+            (self.elitism.is_some(), "--elitism", Ga),
+            (self.p_mut.is_some(), "--p-mut", Ga),
+            (self.mutation.is_some(), "--mutation", Ga),
+            (self.mfa_lambda0.is_some(), "--mfa-lambda0", Mfa),
+            (self.mfa_distance.is_some(), "--mfa-distance", Mfa),
+            (self.mfa_scale.is_some(), "--mfa-scale", Mfa),
+            (self.mfa_attractors.is_some(), "--mfa-attractors", Mfa),
+            (self.mfa_brightest, "--mfa-brightest", Mfa),
+            (self.mfa_rho0.is_some(), "--mfa-rho0", Mfa),
+            (self.de_p_best.is_some(), "--de-p-best", De),
+            (self.pso_scalar_social, "--pso-scalar-social", Pso),
+        ]
+        .into_iter()
+        .filter(|(given, _, _)| *given)
+        .map(|(_, flag, algo)| (flag, algo))
+        .collect()
+    }
+}
+
 /// What a fresh fit runs: the algorithm, its size and seed, the flow, the
 /// staged fit's knobs and the stop rules.
 #[derive(Debug, Clone, PartialEq)]
@@ -99,6 +124,15 @@ impl FitSettings {
             anyhow::ensure!(
                 p > 0.0 && p <= 1.0,
                 "--de-p-best must be in (0, 1] (got {p})"
+            );
+        }
+        // A flag of another algorithm would be ignored: say so rather than
+        // run something other than what the user asked for.
+        if let Some((flag, algo)) = o.given().into_iter().find(|&(_, a)| a != self.algo) {
+            anyhow::bail!(
+                "{flag} tunes --algo {algo}, but this fit runs --algo {}: drop {flag} \
+                 or add --algo {algo}",
+                self.algo
             );
         }
         if let AlgoSettings::Ga(ga) = &mut s {
@@ -271,6 +305,26 @@ mod tests {
                 .to_string()
                 .starts_with("--time-budget")
         );
+    }
+
+    #[test]
+    fn a_flag_of_another_algorithm_is_an_error_that_names_both() {
+        let mut s = settings(Algorithm::Pso, 40);
+        s.overrides.p_mut = Some(0.3);
+        let e = s.algo_settings(Family::Classic, &|_| ()).unwrap_err();
+        let e = e.to_string();
+        assert!(e.starts_with("--p-mut tunes --algo ga"), "{e}");
+        assert!(e.contains("runs --algo pso"), "{e}");
+        let mut s = settings(Algorithm::Ga, 40);
+        s.overrides.p_mut = Some(0.3);
+        s.overrides.mfa_brightest = true;
+        let e = s.algo_settings(Family::Classic, &|_| ()).unwrap_err();
+        assert!(e.to_string().starts_with("--mfa-brightest"), "{e}");
+        s.overrides.mfa_brightest = false;
+        let Ok(AlgoSettings::Ga(ga)) = s.algo_settings(Family::Classic, &|_| ()) else {
+            panic!("a GA with its own flag");
+        };
+        assert_eq!(ga.p_mut, 0.3);
     }
 
     #[test]
