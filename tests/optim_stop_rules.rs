@@ -126,6 +126,13 @@ fn a_target_sse_stops_the_fit_at_the_first_generation_that_reaches_it() {
     assert!(bests[bests.len() - 2] > TARGET && bests[bests.len() - 1] <= TARGET);
     // Only the generations that ran were scored.
     assert_eq!(objective.calls, out.generations);
+    // The stage it cut short is reported with what it did.
+    assert_eq!(out.stages.len(), 1, "{:?}", out.stages);
+    let stage = &out.stages[0];
+    assert_eq!(stage.ended, StageEnd::CutShort);
+    assert_eq!(stage.steps, out.generations);
+    assert_eq!(stage.evaluations, out.evaluations);
+    assert_eq!(stage.best_cost, out.sse);
 }
 
 #[test]

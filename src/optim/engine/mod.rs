@@ -126,6 +126,9 @@ pub enum StageEnd {
     Stalled,
     /// The polish ran every start.
     Polished,
+    /// A stop rule of the whole fit ended this population stage early
+    /// (`Outcome::stop` says which).
+    CutShort,
 }
 
 /// What one stage did.
@@ -466,6 +469,17 @@ impl Engine {
                 }
             }
         }
+        // A population stage a stop rule cut short is reported too, but not
+        // kept in the state: a resumed fit goes on with it. (A polish cut
+        // short is not: its steps are rolled back, to be redone on resume,
+        // and only its best point is kept, in `interim`.)
+        let mut stages = self.summaries.clone();
+        if let Some(stage) = self.stage()
+            && stage != Stage::Polish
+            && !self.optimizers.is_empty()
+        {
+            stages.push(self.summary(stage, StageEnd::CutShort));
+        }
         Ok(Outcome {
             params: best.as_ref().map_or(Vec::new(), |b| b.params.clone()),
             sse: best.as_ref().map_or(f64::INFINITY, |b| b.cost),
@@ -473,7 +487,7 @@ impl Engine {
             generations: self.generation(),
             seconds: self.elapsed(),
             stop,
-            stages: self.summaries.clone(),
+            stages,
         })
     }
 
@@ -587,7 +601,14 @@ impl Engine {
                 .collect();
             self.pool.splice(0..0, self.carried.iter().cloned());
         }
-        self.summaries.push(StageSummary {
+        let summary = self.summary(stage, ended);
+        self.summaries.push(summary);
+        self.cursor += 1;
+    }
+
+    /// What the current stage, `stage`, has done so far.
+    fn summary(&self, stage: Stage, ended: StageEnd) -> StageSummary {
+        StageSummary {
             stage,
             measure: self.measure(stage),
             steps: self.stage_steps,
@@ -595,8 +616,7 @@ impl Engine {
             seconds: self.elapsed() - self.stage_start_seconds,
             best_cost: self.stage_best.as_ref().map_or(f64::INFINITY, |b| b.cost),
             ended,
-        });
-        self.cursor += 1;
+        }
     }
 
     /// The best candidate known when the fit stops early, scored on the free
