@@ -175,3 +175,27 @@ fn cavatappi_100g_is_diagnosed_after_resampling() {
     assert!(last < base, "{v}");
     assert_eq!(v["verdict"][0], "saturation", "{}", v["verdict"]);
 }
+
+/// The Cavatappi 500 g file: every seed's baseline used to diverge on the
+/// validation half (an unbounded loop, β + γ < 0, fitted to the estimation
+/// half); the diagnosis now fits bounded loops only, so it gets a baseline
+/// whose validation error is finite and can diagnose the file.
+#[test]
+fn cavatappi_500g_gets_a_stable_baseline() {
+    let Some(path) = common::require_external("cavatappi_muscle/sample1_500g.csv") else {
+        return;
+    };
+    let out = bin()
+        .args(["diagnose", "--json", "--time", "t_s"])
+        .args(["--input", "pressure_psi", "--output", "disp_mm"])
+        .args(["--resample", "0.01", "--effects", "creep"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    let v = json_of(&out);
+    let base = v["baseline"]["val_rmse"].as_f64().unwrap();
+    assert!(base.is_finite() && base > 0.0, "{v}");
+    let p = &v["baseline"]["params"];
+    let (beta, gamma) = (p["beta"].as_f64().unwrap(), p["gamma"].as_f64().unwrap());
+    assert!(beta + gamma >= 0.0, "an unbounded loop: {p}");
+}

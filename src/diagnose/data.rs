@@ -151,6 +151,18 @@ impl Data {
         job(evaluator.as_mut())
     }
 
+    /// Whether the diagnosis fits `theta` at all: only models whose loop is
+    /// bounded ([`Family::loop_bounded`]), every other costs `+∞` under
+    /// every measure. Why: a model fitted to one half with an unbounded loop
+    /// (`β + γ < 0`) lets `w` run away once the input leaves the estimation
+    /// half's range, and then diverges on its own validation half, leaving
+    /// no gap to diagnose (as every seed did on the Cavatappi 500 g file:
+    /// docs/DIAGNOSIS.md, "Real data: the Cavatappi muscle"). `fit` applies
+    /// the same rule (`optim::engine::ModelObjective::for_task`).
+    pub fn admits(model: &Augmented, theta: &[f64]) -> bool {
+        model.family.loop_bounded(theta)
+    }
+
     /// The estimation cost under `measure` of every row of `rows`
     /// (row-major, canonical), summed over the datasets in `f64` as
     /// [`Data::est_sse`] sums: the same numbers, scored as one batch.
@@ -162,9 +174,14 @@ impl Data {
     ) -> anyhow::Result<Vec<f64>> {
         let problem = self.est_problem(model, measure);
         let scores = self.with_evaluator(|e| e.evaluate(&problem, rows))?;
-        let n = scores.total.len();
-        Ok((0..n)
-            .map(|i| scores.per_experiment.iter().map(|s| s[i] as f64).sum())
+        let d = model.dim();
+        Ok(rows
+            .chunks_exact(d)
+            .enumerate()
+            .map(|(i, theta)| match Data::admits(model, theta) {
+                true => scores.per_experiment.iter().map(|s| s[i] as f64).sum(),
+                false => f64::INFINITY,
+            })
             .collect())
     }
 
@@ -179,7 +196,11 @@ impl Data {
         let all = self.with_evaluator(|e| e.residuals(&problem, rows))?;
         Ok(all
             .into_iter()
-            .map(|r| r.map(|r| DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64))))
+            .zip(rows.chunks_exact(model.dim()))
+            .map(|(r, theta)| {
+                let r = r.filter(|_| Data::admits(model, theta))?;
+                Some(DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64)))
+            })
             .collect())
     }
 
@@ -198,21 +219,28 @@ impl Data {
 
     /// Estimation SSE of `theta` (summed over datasets, `+∞` if any diverged).
     pub fn est_sse(&self, model: &Augmented, theta: &[f64]) -> f64 {
-        self.est_sum(theta, |t, i, c, e| model.sse(t, i, c, e))
+        self.est_sum(model, theta, |t, i, c, e| model.sse(t, i, c, e))
     }
 
     /// Estimation SSE of the `horizon`-step-ahead prediction (see
     /// [`Augmented::sse_ahead`]).
     pub fn est_sse_ahead(&self, model: &Augmented, theta: &[f64], horizon: usize) -> f64 {
-        self.est_sum(theta, |t, i, c, e| model.sse_ahead(t, i, c, e, horizon))
+        self.est_sum(model, theta, |t, i, c, e| {
+            model.sse_ahead(t, i, c, e, horizon)
+        })
     }
 
-    /// `cost(θ, dataset, context, estimation part)` summed over the datasets.
+    /// `cost(θ, dataset, context, estimation part)` summed over the datasets
+    /// (`+∞` for a model the diagnosis does not admit).
     fn est_sum(
         &self,
+        model: &Augmented,
         theta: &[f64],
         cost: impl Fn(&[f32], usize, &Context, &Experiment) -> f32,
     ) -> f64 {
+        if !Data::admits(model, theta) {
+            return f64::INFINITY;
+        }
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
         self.est
             .iter()
@@ -223,8 +251,12 @@ impl Data {
     }
 
     /// Free-run residuals `ŷ − y` of the estimation part, every dataset from
-    /// its second sample on; `None` if the simulation diverged.
+    /// its second sample on; `None` if the simulation diverged or the model
+    /// is not admitted ([`Data::admits`]).
     pub fn est_residuals(&self, model: &Augmented, theta: &[f64]) -> Option<DVector<f64>> {
+        if !Data::admits(model, theta) {
+            return None;
+        }
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
         let mut r = Vec::with_capacity(self.est.iter().map(|e| e.len()).sum());
         for (i, (e, c)) in self.est.iter().zip(&self.ctx).enumerate() {

@@ -628,6 +628,28 @@ mod tests {
     }
 
     #[test]
+    fn only_bounded_loops_are_admitted_under_every_measure() {
+        let data = stair_data();
+        let model = Augmented::new(Family::Classic, Vec::new(), 1);
+        let bounded = thesis_params(Family::Classic);
+        // β + γ < 0 with A > 0: w grows without bound.
+        let mut unbounded = bounded.clone();
+        unbounded[3] = -2.0 * unbounded[2];
+        let rows: Vec<f64> = bounded.iter().chain(&unbounded).copied().collect();
+        for measure in [Measure::FreeRun, Measure::Ahead { horizon: 5 }] {
+            let costs = data.est_costs(&model, &rows, measure).unwrap();
+            assert!(costs[0].is_finite(), "{measure:?}: {costs:?}");
+            assert_eq!(costs[1], f64::INFINITY, "{measure:?}");
+        }
+        assert!(data.est_sse(&model, &bounded).is_finite());
+        assert_eq!(data.est_sse(&model, &unbounded), f64::INFINITY);
+        assert_eq!(data.est_sse_ahead(&model, &unbounded, 5), f64::INFINITY);
+        assert!(data.est_residuals(&model, &unbounded).is_none());
+        let batch = data.est_residuals_of(&model, &rows).unwrap();
+        assert!(batch[0].is_some() && batch[1].is_none());
+    }
+
+    #[test]
     fn the_polish_walks_back_along_the_slow_poles_valley() {
         let data = stair_data();
         let model = Augmented::new(Family::Classic, Vec::new(), 1);
