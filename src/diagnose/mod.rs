@@ -4,11 +4,13 @@
 //! fitted by [`fitting`] on the halves of [`data`]), and how far the model
 //! gets with it, relative to a noise-floor estimate; how much of the gap is
 //! explainable at all ([`explainable`], a [`ridge`] model of the residual)
-//! and where the residual's spectrum peaks ([`spectrum`]). [`selftest`]
-//! checks the whole chain on data with a withheld effect; [`report`] turns
-//! a [`Diagnosis`] into text, JSON and figures.
+//! and where the residual's spectrum peaks ([`spectrum`]). [`blind`] checks
+//! the whole chain on data from a generator with its own equations for
+//! every effect, [`selftest`] on data made with the catalogue's own;
+//! [`report`] turns a [`Diagnosis`] into text, JSON and figures.
 
 pub mod accept;
+pub mod blind;
 pub mod data;
 pub use crate::model::effects;
 pub mod explainable;

@@ -1,0 +1,852 @@
+//! The independent self-test's data generator: its own `f64` simulation of
+//! the classic Bouc-Wen model and its own realisations of every physical
+//! effect (docs/DIAGNOSIS.md, "The independent self-test").
+//!
+//! Why a second implementation: data made by adding the catalogue's own
+//! equations to the nominal model can be matched exactly by the catalogue,
+//! so a self-test built on them cannot see an effect realised any other way.
+//! This file therefore never calls into `model::effects`, `diagnose::effects`
+//! or `model::sim`; the model's mathematics is copied from `model::sim`'s
+//! documentation (eq. 13 with the classic state of eq. 20, deviation
+//! coordinates, free run from `x(0) = y(0) + x₀`, `w(0) = 0`), in `f64`.
+//! Every realisation has one size whose value 0 reproduces the nominal
+//! output exactly (it adds `+0`, multiplies by `1` or never binds).
+
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use serde::Serialize;
+
+use crate::data::Trace;
+
+/// The nominal classic model in the coordinates it was fitted in.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Plant {
+    pub big_a: f64,
+    pub alpha: f64,
+    pub beta: f64,
+    pub gamma: f64,
+    pub n: f64,
+    pub a: f64,
+    pub b: f64,
+    pub c: f64,
+    pub x0: f64,
+    /// Input and output means removed before fitting (absolute = deviation + mean).
+    pub u_mean: f64,
+    pub y_mean: f64,
+    pub dt: f64,
+}
+
+impl Plant {
+    /// From the classic model's canonical vector `[A, α, β, γ, n, a, b, c, x₀]`.
+    pub fn classic(theta: &[f64], u_mean: f64, y_mean: f64, dt: f64) -> Plant {
+        assert_eq!(theta.len(), 9, "the classic model takes 9 parameters");
+        Plant {
+            big_a: theta[0],
+            alpha: theta[1],
+            beta: theta[2],
+            gamma: theta[3],
+            n: theta[4],
+            a: theta[5],
+            b: theta[6],
+            c: theta[7],
+            x0: theta[8],
+            u_mean,
+            y_mean,
+            dt,
+        }
+    }
+
+    /// Whether a rising input drives the output up (the side an end stop sits on).
+    pub fn drives_up(&self) -> bool {
+        self.b >= 0.0
+    }
+
+    /// `w(k) = w + A·Δ − β·|Δ|·|w|^(n−1)·w − γ·Δ·|w|^n`.
+    fn bouc_wen(&self, big_a: f64, w: f64, delta: f64) -> f64 {
+        // |w|^(n−1)·w and |w|^n, with n = 1 taken exactly.
+        let (wn1w, wn) = if self.n == 1.0 {
+            (w, w.abs())
+        } else if w == 0.0 {
+            (0.0, 0.0)
+        } else {
+            let p = w.abs().powf(self.n - 1.0);
+            (p * w, p * w.abs())
+        };
+        w + big_a * delta - self.beta * delta.abs() * wn1w - self.gamma * delta * wn
+    }
+}
+
+/// A physical effect of the list (the rows of the confusion table).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Physical {
+    Lag,
+    Inertia,
+    Asymmetry,
+    EndStop,
+    Creep,
+    Threshold,
+    Rate,
+    Backlash,
+    Load,
+}
+
+impl Physical {
+    pub fn name(self) -> &'static str {
+        match self {
+            Physical::Lag => "lag",
+            Physical::Inertia => "inertia",
+            Physical::Asymmetry => "asymmetry",
+            Physical::EndStop => "end stop",
+            Physical::Creep => "creep",
+            Physical::Threshold => "threshold",
+            Physical::Rate => "rate",
+            Physical::Backlash => "backlash",
+            Physical::Load => "load",
+        }
+    }
+}
+
+/// One way a physical effect is realised. Each has one size, 0 neutral.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Realisation {
+    /// The input `d` samples late (linear interpolation): size `d` (samples).
+    PureDelay,
+    /// The input through `v(k) = ρ·v(k−1) + (1−ρ)·p(k)`: size its mean delay
+    /// `τ = ρ/(1−ρ)` (samples).
+    InputLag,
+    /// The measured output through the same first-order lag: size `τ` (samples).
+    OutputLag,
+    /// A load the muscle drives through a first-order lag, `q(k) = ρ·q(k−1)
+    /// + (1−ρ)·x(k)`, with the Bouc-Wen state driven by the load's motion
+    /// `Δq`: an extra real pole inside the loop; size the pole `ρ`.
+    ExtraPole,
+    /// The measured output through an underdamped second-order mode (unit
+    /// static gain, damping 0.1): size its natural period (samples).
+    LoadMode,
+    /// Input gain `1 + ε` on the rising branch, `1 − ε` on the falling one
+    /// (absolute input, the branch switching after a 2 %-of-range reversal):
+    /// size `ε`.
+    GainAsymmetry,
+    /// The chamber fills at once but drains through a first-order lag (the
+    /// input follows a rising command at once, a falling one with time
+    /// constant `τ`): size `τ` (samples).
+    DrainLag,
+    /// The muscle's state stops at the end stop (the Bouc-Wen state sees the
+    /// stopped motion): size the stop's distance below the nominal peak.
+    StateClip,
+    /// Only the measured output is clipped (a stop after the sensor's
+    /// linkage; the state runs on): size as [`StateClip`](Self::StateClip).
+    OutputClip,
+    /// A smooth stop on the state: identity up to a knee, then
+    /// `knee + h·tanh((x − knee)/h)` (`h` 5 % of the output range): size the
+    /// knee's distance below the nominal peak.
+    SoftLimit,
+    /// `z(k) = ρ·z(k−1) + (1−ρ)·κ·u(k−1)` added to the output, ρ = 0.995:
+    /// size `κ` (output per input unit).
+    CreepInput,
+    /// `z(k) = ρ·z(k−1) + (1−ρ)·κ·x(k)` added to the output (driven by the
+    /// muscle's own displacement, not the pressure), ρ = 0.995: size `κ`.
+    CreepOutput,
+    /// Two input-driven creep states, ρ = 0.99 and 0.999, half the gain
+    /// each: size the total gain `κ` (output per input unit).
+    CreepTwo,
+    /// The muscle does not respond to the first `p0` above the input's
+    /// lowest level: size `p0` (input units).
+    DeadZone,
+    /// Contraction starts when the input rises above `p_on = p_lo + s` and
+    /// releases when it falls below `p_off = p_lo + s/2`; while released the
+    /// muscle sees the lowest level: size `s` (input units).
+    HystereticThreshold,
+    /// The Bouc-Wen stiffness grows with the smoothed input rate:
+    /// `v(k) = ½·v(k−1) + ½·|p(k−1) − p(k−2)|/dt`, `A·(1 + η·v)`: size `η`.
+    ViscousRate,
+    /// A play operator of width `r` on the input: size `r` (input units).
+    Play,
+    /// A second dataset (another load) whose input gain is `1 + g` on the
+    /// absolute input: size `g`.
+    LoadGain,
+}
+
+impl Realisation {
+    /// Every realisation, grouped by physical effect.
+    pub const ALL: [Realisation; 18] = [
+        Realisation::PureDelay,
+        Realisation::InputLag,
+        Realisation::OutputLag,
+        Realisation::ExtraPole,
+        Realisation::LoadMode,
+        Realisation::GainAsymmetry,
+        Realisation::DrainLag,
+        Realisation::StateClip,
+        Realisation::OutputClip,
+        Realisation::SoftLimit,
+        Realisation::CreepInput,
+        Realisation::CreepOutput,
+        Realisation::CreepTwo,
+        Realisation::DeadZone,
+        Realisation::HystereticThreshold,
+        Realisation::ViscousRate,
+        Realisation::Play,
+        Realisation::LoadGain,
+    ];
+
+    pub fn physical(self) -> Physical {
+        use Realisation::*;
+        match self {
+            PureDelay | InputLag | OutputLag => Physical::Lag,
+            ExtraPole | LoadMode => Physical::Inertia,
+            GainAsymmetry | DrainLag => Physical::Asymmetry,
+            StateClip | OutputClip | SoftLimit => Physical::EndStop,
+            CreepInput | CreepOutput | CreepTwo => Physical::Creep,
+            DeadZone | HystereticThreshold => Physical::Threshold,
+            ViscousRate => Physical::Rate,
+            Play => Physical::Backlash,
+            LoadGain => Physical::Load,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        use Realisation::*;
+        match self {
+            PureDelay => "pure delay",
+            InputLag => "input lag",
+            OutputLag => "output lag",
+            ExtraPole => "extra real pole",
+            LoadMode => "underdamped load",
+            GainAsymmetry => "in gain",
+            DrainLag => "in time constant",
+            StateClip => "state clip",
+            OutputClip => "output clip",
+            SoftLimit => "soft limit",
+            CreepInput => "input-driven",
+            CreepOutput => "output-driven",
+            CreepTwo => "two time constants",
+            DeadZone => "dead zone",
+            HystereticThreshold => "hysteretic",
+            ViscousRate => "viscous",
+            Play => "play",
+            LoadGain => "input gain",
+        }
+    }
+
+    /// `physical: realisation`, the confusion table's row label.
+    pub fn label(self) -> String {
+        format!("{}: {}", self.physical().name(), self.name())
+    }
+
+    /// Datasets the realisation needs (a load needs a second one).
+    pub fn datasets(self) -> usize {
+        if self == Realisation::LoadGain { 2 } else { 1 }
+    }
+
+    /// The far end of the size's range on `exc`: where calibration stops if
+    /// even there the mark is smaller than asked for.
+    fn max_size(self, exc: &Excitation, ry: f64) -> f64 {
+        use Realisation::*;
+        let ru = exc.input_range();
+        match self {
+            PureDelay | InputLag | OutputLag | DrainLag => 30.0,
+            ExtraPole => 0.9,
+            LoadMode => 60.0,
+            GainAsymmetry | LoadGain => 0.5,
+            StateClip | OutputClip | SoftLimit => 0.4 * ry,
+            CreepInput | CreepTwo => 2.0 * ry / ru,
+            CreepOutput => 2.0,
+            DeadZone | HystereticThreshold => 0.6 * ru,
+            ViscousRate => 10.0 / exc.max_rate().max(f64::MIN_POSITIVE),
+            Play => 0.5 * ru,
+        }
+    }
+}
+
+/// An input signal the cases are generated on, with the state the free run
+/// starts from.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Excitation {
+    pub name: String,
+    pub dt: f64,
+    /// Absolute input.
+    pub input: Vec<f64>,
+    /// `x(0)` in the plant's deviation coordinates (`w(0) = 0`).
+    pub x_start: f64,
+    /// The data's trace for the stair (its time column and names kept).
+    #[serde(skip)]
+    pub template: Option<Trace>,
+}
+
+impl Excitation {
+    /// The data's own input, started where the nominal model starts on it.
+    pub fn stair(trace: &Trace, plant: &Plant) -> Excitation {
+        Excitation {
+            name: "stair".into(),
+            dt: trace.dt(),
+            input: trace.input.clone(),
+            x_start: trace.output[0] - plant.y_mean + plant.x0,
+            template: Some(trace.clone()),
+        }
+    }
+
+    /// A multisine of `len` samples within `[lo, hi]`: 8 sines log-spaced
+    /// from 2 periods per record to 3 Hz (or 0.3 × the sample rate if that is
+    /// lower), equal amplitudes, phases drawn from `rng`. Started at the
+    /// nominal equilibrium of its first input with `w = 0` (a constant input
+    /// leaves `w` at 0, so the diagnosis' `w(0) = 0` is right).
+    pub fn multisine(
+        len: usize,
+        dt: f64,
+        (lo, hi): (f64, f64),
+        plant: &Plant,
+        rng: &mut ChaCha8Rng,
+    ) -> Excitation {
+        let f_lo = 2.0 / (len as f64 * dt);
+        let f_hi = 3.0f64.min(0.3 / dt).max(2.0 * f_lo);
+        let k = 8;
+        let sines: Vec<(f64, f64)> = (0..k)
+            .map(|i| {
+                let f = f_lo * (f_hi / f_lo).powf(i as f64 / (k - 1) as f64);
+                (f, rng.random_range(0.0..std::f64::consts::TAU))
+            })
+            .collect();
+        let raw: Vec<f64> = (0..len)
+            .map(|j| {
+                let t = j as f64 * dt;
+                sines
+                    .iter()
+                    .map(|(f, ph)| (std::f64::consts::TAU * f * t + ph).sin())
+                    .sum()
+            })
+            .collect();
+        let (rmin, rmax) = extremes(&raw);
+        let input: Vec<f64> = raw
+            .iter()
+            .map(|v| lo + (hi - lo) * (v - rmin) / (rmax - rmin))
+            .collect();
+        let u0 = input[0] - plant.u_mean;
+        let x_start = (plant.b * u0 + plant.c) / (1.0 - plant.a * plant.alpha);
+        Excitation {
+            name: "multisine".into(),
+            dt,
+            input,
+            x_start,
+            template: None,
+        }
+    }
+
+    fn input_range(&self) -> f64 {
+        let (lo, hi) = extremes(&self.input);
+        (hi - lo).max(f64::MIN_POSITIVE)
+    }
+
+    fn input_min(&self) -> f64 {
+        extremes(&self.input).0
+    }
+
+    /// Largest input rate (input units per second).
+    fn max_rate(&self) -> f64 {
+        self.input
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0.0, f64::max)
+            / self.dt
+    }
+}
+
+fn extremes(v: &[f64]) -> (f64, f64) {
+    v.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        })
+}
+
+/// Constants a realisation needs besides its size: from the excitation and
+/// the nominal output on it.
+#[derive(Debug, Clone, Copy)]
+struct Scales {
+    p_lo: f64,
+    /// The nominal output's peak on the side the input drives it to
+    /// (deviation coordinates), and the output range.
+    peak: f64,
+    ry: f64,
+    branch_tol: f64,
+    drives_up: bool,
+}
+
+/// The states the realisations carry from sample to sample.
+#[derive(Debug, Clone, Default)]
+struct States {
+    lag_in: f64,
+    drain: f64,
+    play: f64,
+    engaged: bool,
+    dir: f64,
+    extreme: f64,
+    rate: f64,
+    out_lag: f64,
+    mode: [f64; 2],
+    creep: [f64; 2],
+}
+
+/// The plant's output (absolute) on `exc`'s input with `effects` at their
+/// sizes, for dataset `dataset` (only [`Realisation::LoadGain`] tells the
+/// datasets apart).
+pub fn simulate(
+    plant: &Plant,
+    exc: &Excitation,
+    effects: &[(Realisation, f64)],
+    dataset: usize,
+) -> Vec<f64> {
+    let mut y = deviation(plant, exc, effects, dataset);
+    for v in &mut y {
+        *v += plant.y_mean;
+    }
+    y
+}
+
+/// [`simulate`] in the plant's deviation coordinates.
+fn deviation(
+    plant: &Plant,
+    exc: &Excitation,
+    effects: &[(Realisation, f64)],
+    dataset: usize,
+) -> Vec<f64> {
+    // The nominal output's extremes in the same coordinates as the state,
+    // so that an end stop at the peak (size 0) never binds.
+    let (omin, omax) = if effects.is_empty() {
+        (0.0, 0.0)
+    } else {
+        extremes(&deviation(plant, exc, &[], 0))
+    };
+    let sc = Scales {
+        p_lo: exc.input_min(),
+        peak: if plant.drives_up() { omax } else { omin },
+        ry: omax - omin,
+        branch_tol: 0.02 * exc.input_range(),
+        drives_up: plant.drives_up(),
+    };
+    run(plant, exc, effects, dataset, &sc)
+}
+
+fn run(
+    plant: &Plant,
+    exc: &Excitation,
+    effects: &[(Realisation, f64)],
+    dataset: usize,
+    sc: &Scales,
+) -> Vec<f64> {
+    use Realisation::*;
+    let size = |r: Realisation| effects.iter().find(|(e, _)| *e == r).map(|&(_, s)| s);
+    let p = &exc.input;
+    let n = p.len();
+    let mut out = Vec::with_capacity(n);
+    if n == 0 {
+        return out;
+    }
+    let toward = if sc.drives_up { 1.0 } else { -1.0 };
+    // The stop's level and the smooth stop's knee, in deviation coordinates.
+    let stop = |s: f64| sc.peak - toward * s;
+    let soft_h = 0.05 * sc.ry;
+    let mut st = States {
+        lag_in: p[0],
+        drain: p[0],
+        extreme: p[0],
+        ..States::default()
+    };
+    let (mut x, mut w) = (exc.x_start, 0.0);
+    let mut q = x;
+    st.out_lag = x;
+    st.mode = [x, x];
+    out.push(x);
+    for k in 1..n {
+        let raw = p[k - 1];
+        // Input side, in the order the air meets them: transport delay,
+        // valve/chamber lags, the muscle's threshold, the braid's play, the
+        // branch gain, the load's gain.
+        let mut pe = raw;
+        if let Some(d) = size(PureDelay) {
+            let at = (k - 1) as f64 - d;
+            pe = if at <= 0.0 {
+                p[0]
+            } else {
+                let i = at.floor() as usize;
+                let f = at - at.floor();
+                if f == 0.0 {
+                    p[i]
+                } else {
+                    p[i] * (1.0 - f) + p[i + 1] * f
+                }
+            };
+        }
+        if let Some(tau) = size(InputLag) {
+            let rho = tau / (1.0 + tau);
+            st.lag_in = rho * st.lag_in + (1.0 - rho) * pe;
+            pe = st.lag_in;
+        }
+        if let Some(tau) = size(DrainLag) {
+            st.drain = if pe >= st.drain {
+                pe
+            } else {
+                let rho = tau / (1.0 + tau);
+                rho * st.drain + (1.0 - rho) * pe
+            };
+            pe = st.drain;
+        }
+        if let Some(p0) = size(DeadZone) {
+            pe -= (pe - sc.p_lo).clamp(0.0, p0);
+        }
+        if let Some(s) = size(HystereticThreshold) {
+            if pe > sc.p_lo + s {
+                st.engaged = true;
+            } else if pe < sc.p_lo + 0.5 * s {
+                st.engaged = false;
+            }
+            if !st.engaged {
+                pe = pe.min(sc.p_lo);
+            }
+        }
+        if let Some(r) = size(Play) {
+            let prev = if k == 1 { pe } else { st.play };
+            st.play = prev.clamp(pe - 0.5 * r, pe + 0.5 * r);
+            pe = st.play;
+        }
+        if let Some(eps) = size(GainAsymmetry) {
+            // The branch follows the raw input: rising until it falls
+            // `branch_tol` below its running maximum, and vice versa.
+            if st.dir >= 0.0 {
+                st.extreme = st.extreme.max(raw);
+                if raw < st.extreme - sc.branch_tol {
+                    st.dir = -1.0;
+                    st.extreme = raw;
+                } else if raw > p[0] + sc.branch_tol {
+                    st.dir = 1.0;
+                }
+            } else {
+                st.extreme = st.extreme.min(raw);
+                if raw > st.extreme + sc.branch_tol {
+                    st.dir = 1.0;
+                    st.extreme = raw;
+                }
+            }
+            pe *= 1.0 + st.dir * eps;
+        }
+        if let Some(g) = size(LoadGain) {
+            if dataset >= 1 {
+                pe *= 1.0 + g;
+            }
+        }
+        let u = pe - plant.u_mean;
+        // The muscle: eq. 13's linear part on its own state.
+        let mut xk = plant.a * (plant.alpha * x + (1.0 - plant.alpha) * w) + plant.b * u + plant.c;
+        if let Some(s) = size(StateClip) {
+            let l = stop(s);
+            xk = if sc.drives_up { xk.min(l) } else { xk.max(l) };
+        }
+        if let Some(s) = size(SoftLimit) {
+            let knee = stop(s);
+            let over = toward * (xk - knee);
+            if over > 0.0 {
+                xk = knee + toward * soft_h * (over / soft_h).tanh();
+            }
+        }
+        // The Bouc-Wen state follows the motion it sees: the muscle's, or
+        // the load's behind an extra pole.
+        let mut big_a = plant.big_a;
+        if let Some(eta) = size(ViscousRate) {
+            let prev = if k >= 2 { p[k - 2] } else { p[0] };
+            st.rate = 0.5 * st.rate + 0.5 * (raw - prev).abs() / plant.dt;
+            big_a *= 1.0 + eta * st.rate;
+        }
+        let qk = match size(ExtraPole) {
+            Some(rho) => rho * q + (1.0 - rho) * xk,
+            None => xk,
+        };
+        w = plant.bouc_wen(big_a, w, qk - q);
+        x = xk;
+        q = qk;
+        // Output side: what the sensor sees.
+        let mut y = qk;
+        if let Some(tau) = size(OutputLag) {
+            let rho = tau / (1.0 + tau);
+            st.out_lag = rho * st.out_lag + (1.0 - rho) * y;
+            y = st.out_lag;
+        }
+        if let Some(period) = size(LoadMode) {
+            y = mode(&mut st.mode, y, period);
+        }
+        if let Some(kappa) = size(CreepInput) {
+            st.creep[0] = 0.995 * st.creep[0] + 0.005 * kappa * u;
+            y += st.creep[0];
+        }
+        if let Some(kappa) = size(CreepOutput) {
+            st.creep[0] = 0.995 * st.creep[0] + 0.005 * kappa * xk;
+            y += st.creep[0];
+        }
+        if let Some(kappa) = size(CreepTwo) {
+            st.creep[0] = 0.99 * st.creep[0] + 0.01 * 0.5 * kappa * u;
+            st.creep[1] = 0.999 * st.creep[1] + 0.001 * 0.5 * kappa * u;
+            y += st.creep[0] + st.creep[1];
+        }
+        if let Some(s) = size(OutputClip) {
+            let l = stop(s);
+            y = if sc.drives_up { y.min(l) } else { y.max(l) };
+        }
+        out.push(y);
+    }
+    out
+}
+
+/// One step of the underdamped mode of natural period `period` samples and
+/// damping 0.1, unit static gain: `y(k) = 2r·cos θ·y(k−1) − r²·y(k−2) +
+/// (1 − 2r·cos θ + r²)·x(k)`, `r = e^(−ζω)`, `θ = ω·√(1−ζ²)`, `ω = 2π/period`.
+/// `period = 0` (an infinitely stiff load) passes `x` through.
+fn mode(s: &mut [f64; 2], x: f64, period: f64) -> f64 {
+    if period == 0.0 {
+        *s = [x, s[0]];
+        return x;
+    }
+    let zeta = 0.1;
+    let omega = std::f64::consts::TAU / period;
+    let r = (-zeta * omega).exp();
+    let c = 2.0 * r * (omega * (1.0 - zeta * zeta).sqrt()).cos();
+    let y = c * s[0] - r * r * s[1] + (1.0 - c + r * r) * x;
+    *s = [y, s[0]];
+    y
+}
+
+/// The mark effects leave on the nominal output: the RMS of the change over
+/// every dataset, less its mean (an offset is absorbed by the intercept);
+/// `+∞` if it is not finite.
+pub fn mark(plant: &Plant, exc: &Excitation, effects: &[(Realisation, f64)]) -> f64 {
+    let nominal = simulate(plant, exc, &[], 0);
+    let datasets = effects.iter().map(|(r, _)| r.datasets()).max().unwrap_or(1);
+    let change: Vec<f64> = (0..datasets)
+        .flat_map(|i| {
+            simulate(plant, exc, effects, i)
+                .into_iter()
+                .zip(&nominal)
+                .map(|(v, o)| v - o)
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let m = change.len().max(1) as f64;
+    let mean = change.iter().sum::<f64>() / m;
+    let rms = (change.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / m).sqrt();
+    if rms.is_finite() { rms } else { f64::INFINITY }
+}
+
+/// Standard deviation of the added noise: 0.5 % of the nominal output's
+/// range on the excitation (as the catalogue self-test's).
+pub fn noise_sigma(plant: &Plant, exc: &Excitation) -> f64 {
+    let (lo, hi) = extremes(&simulate(plant, exc, &[], 0));
+    0.005 * (hi - lo)
+}
+
+/// The largest size of `r` whose mark is at most `target` (bisection from 0
+/// to the far end of its range; that end if even it leaves a smaller mark).
+/// The lower end of the last bracket: a mark can jump where an effect starts
+/// to bind, and a case must not be larger than asked for.
+pub fn calibrate(plant: &Plant, exc: &Excitation, r: Realisation, target: f64) -> f64 {
+    let (lo_y, hi_y) = extremes(&simulate(plant, exc, &[], 0));
+    let top = r.max_size(exc, hi_y - lo_y);
+    if mark(plant, exc, &[(r, top)]) <= target {
+        return top;
+    }
+    let (mut lo, mut hi) = (0.0, top);
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if mark(plant, exc, &[(r, mid)]) < target {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// The traces of a case: the plant with `effects` on `exc`, plus white
+/// noise of `sigma` drawn from `rng`, the first sample left clean (the free
+/// run starts from it; a noisy start would blur every case alike). One
+/// trace per dataset the effects need.
+pub fn traces(
+    plant: &Plant,
+    exc: &Excitation,
+    effects: &[(Realisation, f64)],
+    sigma: f64,
+    name: &str,
+    rng: &mut ChaCha8Rng,
+) -> Vec<Trace> {
+    let datasets = effects.iter().map(|(r, _)| r.datasets()).max().unwrap_or(1);
+    let noise = Normal::new(0.0, sigma).expect("finite sigma");
+    (0..datasets)
+        .map(|i| {
+            let y: Vec<f64> = simulate(plant, exc, effects, i)
+                .into_iter()
+                .enumerate()
+                .map(|(k, v)| if k == 0 { v } else { v + noise.sample(rng) })
+                .collect();
+            let source = format!("blind {name}#{i}");
+            match &exc.template {
+                Some(t) => {
+                    let mut t = t.clone();
+                    t.source = source;
+                    t.output = y;
+                    t
+                }
+                None => Trace::uniform(source, exc.dt, exc.input.clone(), y),
+            }
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+
+    /// The thesis-like classic plant on a stair through a valve (as the
+    /// catalogue self-test's rig trace), in its own deviation coordinates.
+    fn plant_and_stair() -> (Plant, Excitation) {
+        let levels = [0.05, 0.2, 0.35, 0.5, 0.3, 0.1, 0.25, 0.45, 0.15];
+        let mut p = vec![levels[0]; 1080];
+        for k in 1..p.len() {
+            p[k] = 0.6 * p[k - 1] + 0.4 * levels[(k / 60) % levels.len()];
+        }
+        let plant = Plant::classic(
+            &[0.9, 0.6, 0.05, 0.02, 1.0, 0.95, 20.0, 0.1, 0.0],
+            0.27,
+            5.0,
+            0.1,
+        );
+        let exc = Excitation {
+            name: "stair".into(),
+            dt: 0.1,
+            input: p,
+            x_start: 0.0,
+            template: None,
+        };
+        (plant, exc)
+    }
+
+    fn excitations() -> (Plant, Vec<Excitation>) {
+        let (plant, stair) = plant_and_stair();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let ms = Excitation::multisine(1080, 0.1, (0.05, 0.5), &plant, &mut rng);
+        (plant, vec![stair, ms])
+    }
+
+    #[test]
+    fn every_realisation_at_size_zero_is_exactly_the_nominal_output() {
+        let (plant, excs) = excitations();
+        for exc in &excs {
+            let nominal = simulate(&plant, exc, &[], 0);
+            for r in Realisation::ALL {
+                for i in 0..r.datasets() {
+                    let y = simulate(&plant, exc, &[(r, 0.0)], i);
+                    assert_eq!(y, nominal, "{} on {}", r.label(), exc.name);
+                }
+            }
+            // All at once, too.
+            let all: Vec<_> = Realisation::ALL.iter().map(|&r| (r, 0.0)).collect();
+            assert_eq!(simulate(&plant, exc, &all, 1), nominal);
+        }
+    }
+
+    #[test]
+    fn every_realisation_changes_the_output_at_a_nonzero_size() {
+        let (plant, excs) = excitations();
+        for exc in &excs {
+            for r in Realisation::ALL {
+                let s = calibrate(&plant, exc, r, 3.0 * noise_sigma(&plant, exc));
+                assert!(s > 0.0, "{} on {}", r.label(), exc.name);
+                assert!(mark(&plant, exc, &[(r, s)]) > 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn sizes_are_calibrated_to_the_mark() {
+        let (plant, excs) = excitations();
+        for exc in &excs {
+            let sigma = noise_sigma(&plant, exc);
+            for r in Realisation::ALL {
+                let (lo, hi) = extremes(&simulate(&plant, exc, &[], 0));
+                let top = r.max_size(exc, hi - lo);
+                for k in [6.0, 15.0] {
+                    let s = calibrate(&plant, exc, r, k * sigma);
+                    let m = mark(&plant, exc, &[(r, s)]);
+                    assert!(
+                        m <= k * sigma * 1.0001,
+                        "{}: {m} > {}",
+                        r.label(),
+                        k * sigma
+                    );
+                    // At the target; or short of it at the range's end, or
+                    // where the mark jumps past it (a stair level crossing a
+                    // threshold): just above the size it is over the target.
+                    let jumps = mark(&plant, exc, &[(r, s + 1e-9 * top)]) > k * sigma;
+                    assert!(
+                        m >= 0.9 * k * sigma || s == top || jumps,
+                        "{} on {}: mark {m} for target {}",
+                        r.label(),
+                        exc.name,
+                        k * sigma
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_generator_is_deterministic_for_a_seed() {
+        let (plant, stair) = plant_and_stair();
+        let make = |seed| {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let ms = Excitation::multisine(500, 0.1, (0.0, 1.0), &plant, &mut rng);
+            let mut out = traces(
+                &plant,
+                &ms,
+                &[(Realisation::Play, 0.05)],
+                0.1,
+                "x",
+                &mut rng,
+            );
+            out.extend(traces(
+                &plant,
+                &stair,
+                &[(Realisation::LoadGain, 0.1)],
+                0.1,
+                "y",
+                &mut rng,
+            ));
+            out.into_iter()
+                .map(|t| (t.input, t.output))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(make(5), make(5));
+        assert_ne!(make(5), make(6));
+    }
+
+    #[test]
+    fn the_plant_is_the_fitted_model_of_model_sim() {
+        // The same mathematics as the reference simulation, in f64: within
+        // f32 rounding of it (this test may call `model::sim`; the generator
+        // does not).
+        let (plant, exc) = plant_and_stair();
+        let theta: Vec<f32> = [0.9, 0.6, 0.05, 0.02, 1.0, 0.95, 20.0, 0.1, 0.0]
+            .iter()
+            .map(|&v| v as f32)
+            .collect();
+        let u: Vec<f32> = exc.input.iter().map(|&v| (v - 0.27) as f32).collect();
+        let reference = crate::model::simulate(crate::model::Family::Classic, &theta, &u, 0.0).x;
+        let ours = simulate(&plant, &exc, &[], 0);
+        for (k, (r, o)) in reference.iter().zip(&ours).enumerate() {
+            let o = o - 5.0;
+            assert!(
+                (*r as f64 - o).abs() < 1e-3 * (1.0 + o.abs()),
+                "{k}: {r} {o}"
+            );
+        }
+    }
+}

@@ -1,0 +1,503 @@
+//! The independent self-test (issue 17, point 3): cases made by a generator
+//! with its own equations ([`generator`]), which never calls into the
+//! catalogue, so the diagnosis cannot pass it by matching its own equations.
+//!
+//! Every physical effect in two or three realisations, on two excitations
+//! (the data's own input and a multisine with rate content), at two sizes
+//! calibrated to the mark they leave on the nominal output (6 σ and 15 σ,
+//! σ the noise); a control on each excitation; two pairs. Each case is
+//! diagnosed blind and judged:
+//!
+//! - a single effect: the first effect named is one the physical effect
+//!   counts as ([`accepted`]), at least 80 % of the gap is closed, and the
+//!   size is within 20 % wherever it is identifiable: the catalogue has a
+//!   parameter that means the realisation's size ([`found_size`]) and the
+//!   diagnosis' 95 % profile interval of it is within ±20 %; otherwise the
+//!   size is reported and the reason it is not judged;
+//! - the control: nothing named;
+//! - a pair: both physical effects named.
+
+pub mod generator;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
+
+use self::generator::{Excitation, Physical, Plant, Realisation};
+use super::selftest::{MARKS, Nominal};
+use super::{Diagnosis, Effect, Settings, diagnose};
+use crate::model::Family;
+
+/// The catalogue names that count as naming a physical effect.
+///
+/// - lag: `delay` or `inertia`. A first-order lag is between the two: at
+///   low frequencies it is a delay of its mean delay, and it is an extra
+///   real pole, which is what `inertia` adds; a pure delay named `inertia`
+///   is the same approximation the other way round.
+/// - inertia: `inertia` only. A delay has no overshoot and no ringing, so
+///   naming it for a load mode would be a wrong physical reading.
+/// - every other effect: its catalogue namesake (end stop: `saturation`,
+///   threshold: `deadzone`). A hysteretic threshold is not accepted as
+///   `backlash`: play moves the whole input, a threshold only its bottom.
+pub fn accepted(p: Physical) -> &'static [Effect] {
+    match p {
+        Physical::Lag => &[Effect::Delay, Effect::Inertia],
+        Physical::Inertia => &[Effect::Inertia],
+        Physical::Asymmetry => &[Effect::Asymmetry],
+        Physical::EndStop => &[Effect::Saturation],
+        Physical::Creep => &[Effect::Creep],
+        Physical::Threshold => &[Effect::Deadzone],
+        Physical::Rate => &[Effect::Rate],
+        Physical::Backlash => &[Effect::Backlash],
+        Physical::Load => &[Effect::Load],
+    }
+}
+
+/// Why a realisation's size has no counterpart in the catalogue, or `None`
+/// where [`found_size`] maps the catalogue's parameter onto it.
+pub fn not_comparable(r: Realisation) -> Option<&'static str> {
+    use Realisation::*;
+    match r {
+        LoadMode => Some("a lightly damped mode has two parameters, inertia's pole one"),
+        DrainLag => Some("a drain time constant is no gain ratio (asymmetry's eps)"),
+        SoftLimit => Some("a smooth knee has no hard stop level"),
+        CreepOutput => Some("creep's kappa is per input unit, this creep's per output unit"),
+        HystereticThreshold => Some("an on/off pair is no single dead-zone width"),
+        _ => None,
+    }
+}
+
+/// The realisation's size implied by the catalogue's fitted parameters of
+/// effect `e` (`params` from the effect's offset on), `None` where they do
+/// not mean the same thing. `peak` is the nominal output's peak on the
+/// case's excitation (absolute), on the side the input drives it to.
+///
+/// A lag's size is its mean delay in samples: `delay`'s `d` is one, and an
+/// extra pole `a2` delays by `a2/(1 − a2)` (a moment match, not an identity).
+pub fn found_size(r: Realisation, e: Effect, params: &[f64], peak: f64, up: bool) -> Option<f64> {
+    use Realisation::*;
+    if not_comparable(r).is_some() {
+        return None;
+    }
+    match (r, e) {
+        (PureDelay | InputLag | OutputLag, Effect::Delay) => Some(params[0]),
+        (PureDelay | InputLag | OutputLag, Effect::Inertia) => Some(params[0] / (1.0 - params[0])),
+        (ExtraPole, Effect::Inertia) => Some(params[0]),
+        (GainAsymmetry, Effect::Asymmetry) => Some(params[0]),
+        (StateClip | OutputClip, Effect::Saturation) => Some(if up {
+            peak - params[0]
+        } else {
+            params[0] - peak
+        }),
+        (CreepInput | CreepTwo, Effect::Creep) => Some(params[1]),
+        (DeadZone, Effect::Deadzone) => Some(params[0]),
+        (ViscousRate, Effect::Rate) => Some(params[0]),
+        (Play, Effect::Backlash) => Some(params[0]),
+        (LoadGain, Effect::Load) => Some(params[0]),
+        _ => None,
+    }
+}
+
+/// The nominal model as the generator's plant, the two excitations and
+/// their noise levels.
+#[derive(Debug, Clone)]
+pub struct Setup {
+    pub plant: Plant,
+    pub excitations: Vec<Excitation>,
+    /// Noise σ on each excitation (0.5 % of its nominal output range).
+    pub sigmas: Vec<f64>,
+    /// The nominal output's peak on each excitation (absolute), on the side
+    /// the input drives it to.
+    pub peaks: Vec<f64>,
+}
+
+impl Setup {
+    /// The plant from the nominal model fitted to the data, the data's
+    /// input and a multisine over the data's input range and length (its
+    /// phases drawn from `seed`).
+    pub fn new(nominal: &Nominal, seed: u64) -> anyhow::Result<Setup> {
+        anyhow::ensure!(
+            nominal.family == Family::Classic,
+            "the independent self-test's generator implements the classic model only \
+             (--baseline classic); `--self-test=catalogue` checks the generalized one"
+        );
+        let w = &nominal.data.whole[0];
+        let trace = &nominal.trace;
+        let plant = Plant::classic(&nominal.params, w.u_mean, w.y_mean, trace.dt());
+        let (lo, hi) = trace
+            .input
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let excitations = vec![
+            Excitation::stair(trace, &plant),
+            Excitation::multisine(trace.len(), trace.dt(), (lo, hi), &plant, &mut rng),
+        ];
+        let sigmas = excitations
+            .iter()
+            .map(|e| generator::noise_sigma(&plant, e))
+            .collect();
+        let peaks = excitations
+            .iter()
+            .map(|e| {
+                let y = generator::simulate(&plant, e, &[], 0);
+                let f = if plant.drives_up() {
+                    f64::max
+                } else {
+                    f64::min
+                };
+                y.into_iter().reduce(f).unwrap_or(0.0)
+            })
+            .collect();
+        Ok(Setup {
+            plant,
+            excitations,
+            sigmas,
+            peaks,
+        })
+    }
+}
+
+/// One case of the independent self-test.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BlindCase {
+    pub name: String,
+    /// Index into [`Setup::excitations`].
+    pub excitation: usize,
+    /// `small` or `large` (empty for the control).
+    pub size_label: String,
+    pub effects: Vec<(Realisation, f64)>,
+    /// Seed of the case's noise.
+    pub seed: u64,
+}
+
+/// Every case: on each excitation the control and every realisation at the
+/// two sizes of [`MARKS`]; then two pairs on the data's input, each effect
+/// at its small size. Case `i`'s noise is drawn from `seed + 1 + i`, so a
+/// case keeps its data when others are filtered out.
+pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
+    let mut out = Vec::new();
+    let mut push = |name: String, excitation: usize, size_label: &str, effects| {
+        let seed = seed + 1 + out.len() as u64;
+        out.push(BlindCase {
+            name,
+            excitation,
+            size_label: size_label.into(),
+            effects,
+            seed,
+        });
+    };
+    let size = |r: Realisation, i: usize, k: f64| {
+        generator::calibrate(&setup.plant, &setup.excitations[i], r, k * setup.sigmas[i])
+    };
+    for (i, exc) in setup.excitations.iter().enumerate() {
+        push(format!("control ({})", exc.name), i, "", Vec::new());
+        for r in Realisation::ALL {
+            for (k, label) in MARKS {
+                push(
+                    format!("{} ({}, {label})", r.label(), exc.name),
+                    i,
+                    label,
+                    vec![(r, size(r, i, k))],
+                );
+            }
+        }
+    }
+    let small = MARKS[0].0;
+    for (a, b) in PAIRS {
+        push(
+            format!("{} + {} (stair, small)", a.label(), b.label()),
+            0,
+            "small",
+            vec![(a, size(a, 0, small)), (b, size(b, 0, small))],
+        );
+    }
+    out
+}
+
+/// The two pairs: realisations unlike the catalogue's equations, one on the
+/// input side and one on the output side each.
+pub const PAIRS: [(Realisation, Realisation); 2] = [
+    (Realisation::InputLag, Realisation::OutputClip),
+    (Realisation::DeadZone, Realisation::CreepTwo),
+];
+
+/// How a case's size was judged.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(rename_all = "kebab-case", tag = "status", content = "why")]
+pub enum SizeCheck {
+    /// Compared with the truth (within 20 % to pass).
+    Judged,
+    /// The catalogue's parameter does not mean the realisation's size.
+    NotComparable(String),
+    /// The data do not pin it: the diagnosis' 95 % profile interval is
+    /// wider than ±20 % or reaches the search box's edge.
+    NotIdentifiable(String),
+    /// No accepted effect was named first, so there is no size to compare.
+    NotNamed,
+    /// A control or a pair.
+    NotApplicable,
+}
+
+/// The outcome of one case.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BlindOutcome {
+    pub case: String,
+    /// `physical: realisation` of each effect in the case.
+    pub truth: Vec<String>,
+    pub excitation: String,
+    pub size_label: String,
+    pub named: Vec<Effect>,
+    pub size_true: Option<f64>,
+    pub size_found: Option<f64>,
+    pub size_error: Option<f64>,
+    /// The 95 % profile interval of the size found, in the same units.
+    pub size_interval: Option<(f64, f64)>,
+    pub size_check: SizeCheck,
+    pub baseline_rmse: f64,
+    pub final_rmse: f64,
+    pub noise_floor: f64,
+    pub gap_closed: f64,
+    pub pass: bool,
+    pub note: String,
+}
+
+/// Generates a case's traces (noise from the case's own seed).
+pub fn synthesize(setup: &Setup, case: &BlindCase) -> Vec<crate::data::Trace> {
+    let mut rng = ChaCha8Rng::seed_from_u64(case.seed);
+    generator::traces(
+        &setup.plant,
+        &setup.excitations[case.excitation],
+        &case.effects,
+        setup.sigmas[case.excitation],
+        &case.name,
+        &mut rng,
+    )
+}
+
+/// Generates, diagnoses blind and judges one case.
+pub fn run_case(
+    setup: &Setup,
+    case: &BlindCase,
+    effects: &[Effect],
+    settings: &Settings,
+) -> anyhow::Result<BlindOutcome> {
+    let traces = synthesize(setup, case);
+    let d = diagnose(&traces, Family::Classic, effects, settings)?;
+    Ok(judge(setup, case, &d))
+}
+
+/// Judges a diagnosis of a case by the rules of the module's documentation.
+pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
+    let named = d.selection.verdict.clone();
+    let gap = d.last().gap_closed;
+    let mut notes = Vec::new();
+    let (mut size_true, mut size_found, mut size_error, mut size_interval) =
+        (None, None, None, None);
+    let mut size_check = SizeCheck::NotApplicable;
+    match case.effects.as_slice() {
+        [] => {
+            if !named.is_empty() {
+                notes.push("control: named an effect".to_string());
+            }
+        }
+        [(r, s)] => {
+            size_true = Some(*s);
+            let ok = accepted(r.physical());
+            match named.first() {
+                Some(e) if ok.contains(e) => {
+                    size_check = size_of(
+                        setup,
+                        case,
+                        d,
+                        *r,
+                        *e,
+                        *s,
+                        &mut size_found,
+                        &mut size_interval,
+                    );
+                    if let Some(f) = size_found {
+                        size_error = Some((f - s).abs() / s.abs());
+                    }
+                    if size_check == SizeCheck::Judged && size_error.is_some_and(|e| e > 0.2) {
+                        notes.push(format!(
+                            "size off by {:.0} %",
+                            100.0 * size_error.unwrap_or(0.0)
+                        ));
+                    }
+                }
+                first => {
+                    size_check = SizeCheck::NotNamed;
+                    notes.push(format!(
+                        "named {} first, wanted {}",
+                        first.map_or("nothing", |e| e.name()),
+                        ok.iter().map(|e| e.name()).collect::<Vec<_>>().join(" or ")
+                    ));
+                }
+            }
+            if gap < 0.8 {
+                notes.push(format!("closed only {:.0} % of the gap", 100.0 * gap));
+            }
+        }
+        pair => {
+            for (r, _) in pair {
+                if !accepted(r.physical()).iter().any(|e| named.contains(e)) {
+                    notes.push(format!("{} not named", r.physical().name()));
+                }
+            }
+        }
+    }
+    BlindOutcome {
+        case: case.name.clone(),
+        truth: case.effects.iter().map(|(r, _)| r.label()).collect(),
+        excitation: setup.excitations[case.excitation].name.clone(),
+        size_label: case.size_label.clone(),
+        named,
+        size_true,
+        size_found,
+        size_error,
+        size_interval,
+        size_check,
+        baseline_rmse: d.baseline().val_rmse,
+        final_rmse: d.last().val_rmse,
+        noise_floor: d.noise_floor_rmse,
+        gap_closed: gap,
+        pass: notes.is_empty(),
+        note: notes.join("; "),
+    }
+}
+
+/// The size the diagnosis found for realisation `r` named as `e`, its
+/// interval, and whether it can be judged.
+#[allow(clippy::too_many_arguments)]
+fn size_of(
+    setup: &Setup,
+    case: &BlindCase,
+    d: &Diagnosis,
+    r: Realisation,
+    e: Effect,
+    truth: f64,
+    found: &mut Option<f64>,
+    interval: &mut Option<(f64, f64)>,
+) -> SizeCheck {
+    if let Some(why) = not_comparable(r) {
+        return SizeCheck::NotComparable(why.into());
+    }
+    let sel = &d.selection;
+    let Some(at) = sel.final_model.offset_of(e) else {
+        return SizeCheck::NotNamed;
+    };
+    let peak = setup.peaks[case.excitation];
+    let up = setup.plant.drives_up();
+    let params = &sel.final_fit.params[at..];
+    let Some(f) = found_size(r, e, params, peak, up) else {
+        return SizeCheck::NotComparable(format!("{e}'s parameter does not mean {}", r.name()));
+    };
+    *found = Some(f);
+    let Some(iv) = d.size_intervals.iter().find(|s| s.effect == e) else {
+        return SizeCheck::NotIdentifiable("no profile interval".into());
+    };
+    let mut p = params.to_vec();
+    let mut ends = [iv.lo, iv.hi].map(|v| {
+        p[e.primary()] = v;
+        found_size(r, e, &p, peak, up).unwrap_or(f64::NAN)
+    });
+    ends.sort_by(f64::total_cmp);
+    *interval = Some((ends[0], ends[1]));
+    let half = 0.5 * (ends[1] - ends[0]) / f.abs().max(f64::MIN_POSITIVE);
+    if iv.lo_at_edge || iv.hi_at_edge || !(half <= 0.2) {
+        let edge = if iv.lo_at_edge || iv.hi_at_edge {
+            ", reaching the box's edge"
+        } else {
+            ""
+        };
+        return SizeCheck::NotIdentifiable(format!(
+            "95 % interval ±{:.0} %{edge} (truth {truth:.4})",
+            100.0 * half
+        ));
+    }
+    SizeCheck::Judged
+}
+
+/// Rows (`physical: realisation`, `control`) × columns (the first effect
+/// named, or `none`) of the single-effect cases and the controls, summed
+/// over excitations and sizes.
+pub fn confusion(outcomes: &[BlindOutcome]) -> Vec<(String, Vec<usize>)> {
+    let mut rows: Vec<(String, Vec<usize>)> = Vec::new();
+    let cols = Effect::ALL.len() + 1;
+    for o in outcomes.iter().filter(|o| o.truth.len() <= 1) {
+        let label = o.truth.first().cloned().unwrap_or_else(|| "control".into());
+        let ci = o
+            .named
+            .first()
+            .and_then(|e| Effect::ALL.iter().position(|x| x == e))
+            .unwrap_or(cols - 1);
+        match rows.iter_mut().find(|(l, _)| *l == label) {
+            Some((_, v)) => v[ci] += 1,
+            None => {
+                let mut v = vec![0; cols];
+                v[ci] += 1;
+                rows.push((label, v));
+            }
+        }
+    }
+    rows
+}
+
+/// The confusion table and one line per case, as text.
+pub fn table(outcomes: &[BlindOutcome]) -> String {
+    use std::fmt::Write as _;
+    let mut o = String::new();
+    let _ = write!(o, "{:<32}", "true \\ named first");
+    for e in Effect::ALL {
+        let _ = write!(o, " {:>5}", &e.name()[..e.name().len().min(5)]);
+    }
+    let _ = writeln!(o, "  none");
+    for (label, counts) in confusion(outcomes) {
+        let _ = write!(o, "{label:<32}");
+        for n in counts {
+            let _ = write!(o, " {n:>5}");
+        }
+        let _ = writeln!(o);
+    }
+    let _ = writeln!(o);
+    let _ = writeln!(
+        o,
+        "{:<58} {:<24} {:>9} {:>9} {:>6} {:>6} {:>6}  result",
+        "case", "named", "size true", "found", "error", "gap", "×floor"
+    );
+    for r in outcomes {
+        let named: Vec<_> = r.named.iter().map(|e| e.name()).collect();
+        let f = |v: Option<f64>| v.map_or("—".to_string(), |x| format!("{x:.4}"));
+        let size_note = match &r.size_check {
+            SizeCheck::NotComparable(why) => format!(" [size not comparable: {why}]"),
+            SizeCheck::NotIdentifiable(why) => format!(" [size not identifiable: {why}]"),
+            _ => String::new(),
+        };
+        let _ = writeln!(
+            o,
+            "{:<58} {:<24} {:>9} {:>9} {:>6} {:>5.0}% {:>6.2}  {}{}",
+            r.case,
+            if named.is_empty() {
+                "none".to_string()
+            } else {
+                named.join("+")
+            },
+            f(r.size_true),
+            f(r.size_found),
+            r.size_error
+                .map_or("—".to_string(), |e| format!("{:.0}%", 100.0 * e)),
+            100.0 * r.gap_closed,
+            r.baseline_rmse / r.noise_floor,
+            if r.pass {
+                "pass".to_string()
+            } else {
+                format!("FAIL: {}", r.note)
+            },
+            size_note
+        );
+    }
+    o
+}
