@@ -128,3 +128,49 @@ fn every_case_leaves_the_mark_it_was_calibrated_to() {
         );
     }
 }
+
+/// The independent self-test's harness on a handful of its cases (the full
+/// table is `mckibben diagnose --self-test`): its generator shares no code
+/// with the catalogue.
+mod independent {
+    use super::{fast, nominal};
+    use mckibben::diagnose::Effect;
+    use mckibben::diagnose::blind::{BlindCase, Setup, cases, run_case};
+
+    fn case(setup: &Setup, name: &str) -> BlindCase {
+        cases(setup, 1)
+            .into_iter()
+            .find(|c| c.name == name)
+            .unwrap_or_else(|| panic!("no case {name}"))
+    }
+
+    #[test]
+    fn the_cases_cover_every_realisation_on_both_excitations() {
+        let setup = Setup::new(nominal(), 1).unwrap();
+        let all = cases(&setup, 1);
+        // 18 realisations × 2 sizes × 2 excitations, 2 controls, 2 pairs.
+        assert_eq!(all.len(), 76);
+        assert_eq!(setup.excitations[1].input.len(), nominal().trace.len());
+    }
+
+    #[test]
+    fn the_control_names_nothing_and_a_pure_delay_is_named_a_lag() {
+        let setup = Setup::new(nominal(), 1).unwrap();
+        let o = run_case(
+            &setup,
+            &case(&setup, "control (stair)"),
+            &Effect::ALL,
+            &fast(),
+        )
+        .unwrap();
+        assert!(o.pass && o.named.is_empty(), "{o:?}");
+        let o = run_case(
+            &setup,
+            &case(&setup, "lag: pure delay (stair, large)"),
+            &Effect::ALL,
+            &fast(),
+        )
+        .unwrap();
+        assert!(o.pass, "{o:?}");
+    }
+}
