@@ -308,16 +308,7 @@ pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
             let ok = accepted(r.physical());
             match named.first() {
                 Some(e) if ok.contains(e) => {
-                    size_check = size_of(
-                        setup,
-                        case,
-                        d,
-                        *r,
-                        *e,
-                        *s,
-                        &mut size_found,
-                        &mut size_interval,
-                    );
+                    (size_check, size_found, size_interval) = size_of(setup, case, d, (*r, *e), *s);
                     if let Some(f) = size_found {
                         size_error = Some((f - s).abs() / s.abs());
                     }
@@ -371,13 +362,23 @@ pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
 
 /// The size the diagnosis found for realisation `r` named as `e`, its
 /// interval, and whether it can be judged.
-#[allow(clippy::too_many_arguments)]
 fn size_of(
     setup: &Setup,
     case: &BlindCase,
     d: &Diagnosis,
-    r: Realisation,
-    e: Effect,
+    (r, e): (Realisation, Effect),
+    truth: f64,
+) -> (SizeCheck, Option<f64>, Option<(f64, f64)>) {
+    let (mut found, mut interval) = (None, None);
+    let check = size_check(setup, case, d, (r, e), truth, &mut found, &mut interval);
+    (check, found, interval)
+}
+
+fn size_check(
+    setup: &Setup,
+    case: &BlindCase,
+    d: &Diagnosis,
+    (r, e): (Realisation, Effect),
     truth: f64,
     found: &mut Option<f64>,
     interval: &mut Option<(f64, f64)>,
@@ -407,7 +408,8 @@ fn size_of(
     ends.sort_by(f64::total_cmp);
     *interval = Some((ends[0], ends[1]));
     let half = 0.5 * (ends[1] - ends[0]) / f.abs().max(f64::MIN_POSITIVE);
-    if iv.lo_at_edge || iv.hi_at_edge || !(half <= 0.2) {
+    // A NaN width (an end that maps to nothing) is not identifiable either.
+    if iv.lo_at_edge || iv.hi_at_edge || half.is_nan() || half > 0.2 {
         let edge = if iv.lo_at_edge || iv.hi_at_edge {
             ", reaching the box's edge"
         } else {
