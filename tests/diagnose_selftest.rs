@@ -166,7 +166,7 @@ mod independent {
         assert!(o.pass && o.named.is_empty(), "{o:?}");
         let o = run_case(
             &setup,
-            &case(&setup, "lag: pure delay (stair, large)"),
+            &case(&setup, "lag: pure delay (large on stair)"),
             &Effect::ALL,
             &fast(),
         )

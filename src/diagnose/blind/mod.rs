@@ -197,7 +197,7 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
         for r in Realisation::ALL {
             for (k, label) in MARKS {
                 push(
-                    format!("{} ({}, {label})", r.label(), exc.name),
+                    format!("{} ({label} on {})", r.label(), exc.name),
                     i,
                     label,
                     vec![(r, size(r, i, k))],
@@ -208,7 +208,7 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
     let small = MARKS[0].0;
     for (a, b) in PAIRS {
         push(
-            format!("{} + {} (stair, small)", a.label(), b.label()),
+            format!("{} + {} (small on stair)", a.label(), b.label()),
             0,
             "small",
             vec![(a, size(a, 0, small)), (b, size(b, 0, small))],
