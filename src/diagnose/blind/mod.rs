@@ -67,14 +67,27 @@ pub fn not_comparable(r: Realisation) -> Option<&'static str> {
     }
 }
 
+/// Where a case sits, for reading the catalogue's absolute levels as sizes:
+/// the nominal output's peak on the case's excitation (absolute), on the
+/// side the input drives it to, whether that side is up, and the
+/// excitation's lowest input.
+#[derive(Debug, Clone, Copy)]
+pub struct Frame {
+    pub peak: f64,
+    pub up: bool,
+    pub p_lo: f64,
+}
+
 /// The realisation's size implied by the catalogue's fitted parameters of
 /// effect `e` (`params` from the effect's offset on), `None` where they do
-/// not mean the same thing. `peak` is the nominal output's peak on the
-/// case's excitation (absolute), on the side the input drives it to.
+/// not mean the same thing.
 ///
 /// A lag's size is its mean delay in samples: `delay`'s `d` is one, and an
 /// extra pole `a2` delays by `a2/(1 − a2)` (a moment match, not an identity).
-pub fn found_size(r: Realisation, e: Effect, params: &[f64], peak: f64, up: bool) -> Option<f64> {
+/// The catalogue's dead zone `max(p − p0, 0)` is this one's
+/// `p_lo + max(p − p_lo − s, 0)` with `p0 = p_lo + s` (the offset `p_lo`
+/// goes into the intercept), so its size is `p0 − p_lo`.
+pub fn found_size(r: Realisation, e: Effect, params: &[f64], at: Frame) -> Option<f64> {
     use Realisation::*;
     if not_comparable(r).is_some() {
         return None;
@@ -84,13 +97,13 @@ pub fn found_size(r: Realisation, e: Effect, params: &[f64], peak: f64, up: bool
         (PureDelay | InputLag | OutputLag, Effect::Inertia) => Some(params[0] / (1.0 - params[0])),
         (ExtraPole, Effect::Inertia) => Some(params[0]),
         (GainAsymmetry, Effect::Asymmetry) => Some(params[0]),
-        (StateClip | OutputClip, Effect::Saturation) => Some(if up {
-            peak - params[0]
+        (StateClip | OutputClip, Effect::Saturation) => Some(if at.up {
+            at.peak - params[0]
         } else {
-            params[0] - peak
+            params[0] - at.peak
         }),
         (CreepInput | CreepTwo, Effect::Creep) => Some(params[1]),
-        (DeadZone, Effect::Deadzone) => Some(params[0]),
+        (DeadZone, Effect::Deadzone) => Some(params[0] - at.p_lo),
         (ViscousRate, Effect::Rate) => Some(params[0]),
         (Play, Effect::Backlash) => Some(params[0]),
         (LoadGain, Effect::Load) => Some(params[0]),
@@ -387,13 +400,17 @@ fn size_check(
         return SizeCheck::NotComparable(why.into());
     }
     let sel = &d.selection;
-    let Some(at) = sel.final_model.offset_of(e) else {
+    let Some(offset) = sel.final_model.offset_of(e) else {
         return SizeCheck::NotNamed;
     };
-    let peak = setup.peaks[case.excitation];
-    let up = setup.plant.drives_up();
-    let params = &sel.final_fit.params[at..];
-    let Some(f) = found_size(r, e, params, peak, up) else {
+    let exc = &setup.excitations[case.excitation];
+    let frame = Frame {
+        peak: setup.peaks[case.excitation],
+        up: setup.plant.drives_up(),
+        p_lo: exc.input.iter().copied().fold(f64::INFINITY, f64::min),
+    };
+    let params = &sel.final_fit.params[offset..];
+    let Some(f) = found_size(r, e, params, frame) else {
         return SizeCheck::NotComparable(format!("{e}'s parameter does not mean {}", r.name()));
     };
     *found = Some(f);
@@ -403,7 +420,7 @@ fn size_check(
     let mut p = params.to_vec();
     let mut ends = [iv.lo, iv.hi].map(|v| {
         p[e.primary()] = v;
-        found_size(r, e, &p, peak, up).unwrap_or(f64::NAN)
+        found_size(r, e, &p, frame).unwrap_or(f64::NAN)
     });
     ends.sort_by(f64::total_cmp);
     *interval = Some((ends[0], ends[1]));
