@@ -95,7 +95,12 @@ pub struct Args {
     self_test: Option<SelfTest>,
     /// With --self-test: run only the cases whose name contains one of
     /// these strings (comma-separated, e.g. `stair,control`).
-    #[arg(long, value_delimiter = ',', value_name = "TEXT")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "TEXT",
+        requires = "self_test"
+    )]
     cases: Vec<String>,
 }
 
