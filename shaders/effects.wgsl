@@ -39,9 +39,14 @@ fn score(i: u32, e: u32) -> f32 {
     let u_mean = U_MEAN[e];
     let tol = BRANCH_TOL[e];
     // effects.rs `Augmented::prepare`.
-    var delay = 0.0;
+    // The delay in whole samples and the fraction of a sample beyond them.
+    var whole = 0u;
+    var frac = 0.0;
     if (HAS_DELAY) {
-        delay = larger(params[p + AT_DELAY], 0.0);
+        let d = larger(params[p + AT_DELAY], 0.0);
+        let fl = floor(d);
+        whole = u32(fl);
+        frac = d - fl;
     }
     var p0 = 0.0;
     if (HAS_DEADZONE) {
@@ -84,6 +89,7 @@ fn score(i: u32, e: u32) -> f32 {
     let u0 = input(span, 0u);
     var x = samples[span.x].y + th.x0;
     var w = 0.0;
+    var before = u0;
     var x_prev2 = x;
     var play = 0.0;
     var has_play = false;
@@ -97,19 +103,19 @@ fn score(i: u32, e: u32) -> f32 {
         let raw = input(span, k - 1u);
         var ui = raw;
         if (HAS_DELAY) {
-            let at = f32(k - 1u) - delay;
-            if (at <= 0.0) {
-                ui = u0;
+            // effects.rs `delayed`: u(j) moved by `frac` toward u(j−1), the
+            // u(j) of the sample before.
+            var j = 0u;
+            if (k - 1u > whole) {
+                j = k - 1u - whole;
+            }
+            let now = input(span, j);
+            let moved = now + rounded(frac * (before - now));
+            before = now;
+            if (frac == 0.0) {
+                ui = now;
             } else {
-                let fi = floor(at);
-                let f = at - fi;
-                let j = u32(fi);
-                let uj = input(span, j);
-                if (f == 0.0) {
-                    ui = uj;
-                } else {
-                    ui = uj + rounded(f * (input(span, j + 1u) - uj));
-                }
+                ui = moved;
             }
         }
         if (HAS_DEADZONE) {

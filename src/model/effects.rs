@@ -388,7 +388,9 @@ pub struct Prepared<const L: usize> {
     n: [f32; L],
     /// β, γ (classic) or β₁..β₆ (generalized).
     betas: [[f32; L]; 6],
-    delay: Option<[f32; L]>,
+    /// The delay split into whole samples and the fraction of the sample
+    /// before them, once per candidate rather than once per sample.
+    delay: Option<([usize; L], [f32; L])>,
     deadzone: Option<[f32; L]>,
     /// The end stop in deviation coordinates.
     saturation: Option<[f32; L]>,
@@ -410,6 +412,9 @@ pub struct Prepared<const L: usize> {
 pub struct EffectState<const L: usize> {
     pub x: [f32; L],
     pub w: [f32; L],
+    /// The delayed input of the sample before, `u(j−1)` for the delay's
+    /// interpolation.
+    delayed: [f32; L],
     /// `x(k−2)`, for the inertia's extra pole.
     x_prev2: [f32; L],
     /// The play's output (backlash), from the first step on.
@@ -437,22 +442,31 @@ fn smaller(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
-/// The input `d ≥ 0` samples before `u(k−1)`, linearly interpolated between
-/// neighbouring samples (`u(0)` before the start).
+/// A delay of `d ≥ 0` samples as whole samples and the fraction of a sample
+/// beyond them (`d − ⌊d⌋`, exact in `f32`).
 #[inline(always)]
-fn delayed(u: &[f32], k: usize, d: f32) -> f32 {
-    let at = (k - 1) as f32 - d;
-    if at <= 0.0 {
-        return u[0];
-    }
-    let i = at.floor();
-    let f = at - i;
-    let i = i as usize;
-    if f == 0.0 {
-        u[i]
-    } else {
-        u[i] + (f * (u[i + 1] - u[i]))
-    }
+fn split_delay(d: f32) -> (usize, f32) {
+    let whole = d.floor();
+    (whole as usize, d - whole)
+}
+
+/// The input `whole + frac` samples before `u(last)`, `last = k − 1`
+/// (`u(0)` before the start): `u(j)` moved by `frac` of the way to
+/// `u(j−1)`, `j = last − whole`. `before` is `u(j−1)`: the lane's `u(j)` of
+/// the sample before (the delay is fixed), which `*before` takes now. The
+/// move is computed in every lane and the result selected, so that the lanes
+/// become one vector gather without a branch on `frac` (which differs from
+/// lane to lane).
+#[inline(always)]
+fn delayed(past: &[f32], last: usize, whole: usize, frac: f32, before: &mut f32) -> f32 {
+    assert!(last < past.len(), "sample {last} is past the input");
+    // SAFETY: the index is at most `last`, which is in `past` (asserted
+    // above). Unchecked, because a bounds check per lane keeps the loads
+    // scalar and branchy.
+    let now = unsafe { *past.get_unchecked(last.saturating_sub(whole)) };
+    let moved = now + (frac * (*before - now));
+    *before = now;
+    if frac == 0.0 { now } else { moved }
 }
 
 impl<const L: usize> Prepared<L> {
@@ -464,6 +478,7 @@ impl<const L: usize> Prepared<L> {
         EffectState {
             x,
             w: [0.0; L],
+            delayed: [u0; L],
             x_prev2: x,
             play: [0.0; L],
             z: [0.0; L],
@@ -477,30 +492,12 @@ impl<const L: usize> Prepared<L> {
     /// output `ŷ(k)` of every lane.
     #[inline(always)]
     pub fn step(&self, s: &mut EffectState<L>, k: usize, u: &[f32]) -> [f32; L] {
-        // Input side: delay, deadzone, play, branch gain, load gain.
+        // Input side: delay, deadzone, play, branch gain, load gain. The
+        // branch follows the measured input only (the same in every lane);
+        // then one loop over the lanes for the whole stage, so that the input
+        // stays in registers from stage to stage.
         let raw = u[k - 1];
-        let mut ui = [raw; L];
-        if let Some(d) = &self.delay {
-            for l in 0..L {
-                ui[l] = delayed(u, k, d[l]);
-            }
-        }
-        if let Some(p0) = &self.deadzone {
-            for l in 0..L {
-                ui[l] = larger(ui[l] - p0[l], -self.u_mean);
-            }
-        }
-        if let Some(r) = &self.backlash {
-            for l in 0..L {
-                let half = 0.5 * r[l];
-                let prev = if s.started { s.play[l] } else { ui[l] };
-                let v = smaller(ui[l] + half, larger(ui[l] - half, prev));
-                s.play[l] = v;
-                ui[l] = v;
-            }
-        }
-        s.started = true;
-        if let Some(eps) = &self.asymmetry {
+        if self.asymmetry.is_some() {
             if s.dir >= 0.0 {
                 s.extreme = larger(raw, s.extreme);
                 if raw < s.extreme - self.branch_tol {
@@ -514,54 +511,67 @@ impl<const L: usize> Prepared<L> {
                     (s.dir, s.extreme) = (1.0, raw);
                 }
             }
+        }
+        let started = s.started;
+        s.started = true;
+        let mut ui = [raw; L];
+        if let Some((whole, frac)) = &self.delay {
             for l in 0..L {
-                ui[l] += (s.dir * eps[l]) * (ui[l] + self.u_mean);
+                ui[l] = delayed(u, k - 1, whole[l], frac[l], &mut s.delayed[l]);
             }
         }
-        if let Some(g) = &self.load {
-            // The gain acts on the absolute input, as the asymmetry's does.
-            for l in 0..L {
-                ui[l] += g[l] * (ui[l] + self.u_mean);
+        for l in 0..L {
+            let mut v = ui[l];
+            if let Some(p0) = &self.deadzone {
+                v = larger(v - p0[l], -self.u_mean);
             }
+            if let Some(r) = &self.backlash {
+                let half = 0.5 * r[l];
+                let prev = if started { s.play[l] } else { v };
+                v = smaller(v + half, larger(v - half, prev));
+                s.play[l] = v;
+            }
+            if let Some(eps) = &self.asymmetry {
+                v += (s.dir * eps[l]) * (v + self.u_mean);
+            }
+            if let Some(g) = &self.load {
+                // The gain acts on the absolute input, as the asymmetry's does.
+                v += g[l] * (v + self.u_mean);
+            }
+            ui[l] = v;
         }
         // State: the baseline's equations (`model::sim`), the extra pole and
         // the end stop.
+        // One loop over the lanes for the whole state stage, so that the
+        // new output stays in registers from the linear part to the end
+        // stop (stage loops of their own spilled it between them).
+        let linear = self.family == Family::Linear;
         let mut xk = [0.0f32; L];
-        match self.family {
-            Family::Linear => {
-                for l in 0..L {
-                    xk[l] = linear_step(self.a[l], self.b[l], self.c[l], s.x[l], ui[l]);
-                }
-            }
-            _ => {
-                for l in 0..L {
-                    xk[l] = linear_part(
-                        self.a[l],
-                        self.alpha[l],
-                        self.b[l],
-                        self.c[l],
-                        s.x[l],
-                        s.w[l],
-                        ui[l],
-                    );
-                }
-            }
-        }
-        if let Some(a2) = &self.inertia {
-            for l in 0..L {
-                xk[l] += a2[l] * (s.x[l] - s.x_prev2[l]);
-            }
-        }
-        if let Some(bound) = &self.saturation {
-            if self.drives_up {
-                for l in 0..L {
-                    xk[l] = smaller(xk[l], bound[l]);
-                }
+        for l in 0..L {
+            let mut x = if linear {
+                linear_step(self.a[l], self.b[l], self.c[l], s.x[l], ui[l])
             } else {
-                for l in 0..L {
-                    xk[l] = larger(xk[l], bound[l]);
-                }
+                linear_part(
+                    self.a[l],
+                    self.alpha[l],
+                    self.b[l],
+                    self.c[l],
+                    s.x[l],
+                    s.w[l],
+                    ui[l],
+                )
+            };
+            if let Some(a2) = &self.inertia {
+                x += a2[l] * (s.x[l] - s.x_prev2[l]);
             }
+            if let Some(bound) = &self.saturation {
+                x = if self.drives_up {
+                    smaller(x, bound[l])
+                } else {
+                    larger(x, bound[l])
+                };
+            }
+            xk[l] = x;
         }
         let mut a_eff = self.big_a;
         if let Some(eta) = &self.rate {
@@ -701,7 +711,10 @@ impl Augmented {
             let v = if dim > 0 { col(at) } else { [0.0; L] };
             let non_negative = v.map(|x| larger(x, 0.0));
             match e {
-                Effect::Delay => p.delay = Some(non_negative),
+                Effect::Delay => {
+                    let split = non_negative.map(split_delay);
+                    p.delay = Some((split.map(|s| s.0), split.map(|s| s.1)));
+                }
                 Effect::Deadzone => p.deadzone = Some(v),
                 Effect::Saturation => p.saturation = Some(v.map(|l| l - y_mean)),
                 Effect::Asymmetry => p.asymmetry = Some(v),
