@@ -4,7 +4,8 @@
 // rounded, minima and maxima as comparisons). The generated header says
 // which effects are present (`HAS_*`), where their parameters start in the
 // candidate's row (`AT_*`) and each experiment's constants (`U_MEAN`,
-// `Y_MEAN`, `BRANCH_TOL`, `INV_DT`, `DRIVES_UP`, indexed by experiment).
+// `Y_MEAN`, `BRANCH_TOL`, `INV_DT`, `DRIVES_UP`, `KNEE_*`, `REST`, indexed by
+// experiment).
 
 // effects.rs `larger`: `a` if it is the larger, else `b`.
 fn larger(a: f32, b: f32) -> f32 {
@@ -20,6 +21,39 @@ fn smaller(a: f32, b: f32) -> f32 {
         return a;
     }
     return b;
+}
+
+// effects.rs `soft_stop`.
+fn soft_stop(x: f32, bound: f32, e: u32) -> f32 {
+    let h = KNEE_H[e];
+    var into = (bound + h) - x;
+    if (DRIVES_UP[e]) {
+        into = x - (bound - h);
+    }
+    let bend = rounded(rounded(into * into) * KNEE_INV_4H[e]);
+    var bent = x + bend;
+    if (DRIVES_UP[e]) {
+        bent = x - bend;
+    }
+    if (into <= 0.0) {
+        return x;
+    } else if (into >= KNEE_2H[e]) {
+        return bound;
+    }
+    return bent;
+}
+
+// effects.rs: the end stop on the side the input drives the output.
+fn clip(x: f32, bound: f32, e: u32) -> f32 {
+    if (DRIVES_UP[e]) {
+        return smaller(x, bound);
+    }
+    return larger(x, bound);
+}
+
+// One step of a first-order lag of pole `rho` from `prev` toward `v`.
+fn lag(rho: f32, prev: f32, v: f32) -> f32 {
+    return rounded(rho * prev) + rounded((1.0 - rho) * v);
 }
 
 fn input(span: vec2<u32>, k: u32) -> f32 {
@@ -84,6 +118,56 @@ fn score(i: u32, e: u32) -> f32 {
     if (has_load) {
         g = params[p + AT_LOAD + e - 1u];
     }
+    var rho_in = 0.0;
+    if (HAS_DELAY_INPUT_LAG) {
+        rho_in = params[p + AT_DELAY_INPUT_LAG];
+    }
+    var rho_out = 0.0;
+    if (HAS_DELAY_OUTPUT_LAG) {
+        rho_out = params[p + AT_DELAY_OUTPUT_LAG];
+    }
+    var a1 = 0.0;
+    var a2m = 0.0;
+    var mode_gain = 0.0;
+    if (HAS_INERTIA_MODE) {
+        a1 = params[p + AT_INERTIA_MODE];
+        a2m = params[p + AT_INERTIA_MODE + 1u];
+        mode_gain = (1.0 - a1) + a2m;
+    }
+    var rho_drain = 0.0;
+    if (HAS_ASYMMETRY_DRAIN) {
+        rho_drain = params[p + AT_ASYMMETRY_DRAIN];
+    }
+    var clip_bound = 0.0;
+    if (HAS_SATURATION_OUTPUT) {
+        clip_bound = params[p + AT_SATURATION_OUTPUT] - Y_MEAN[e];
+    }
+    var soft_bound = 0.0;
+    if (HAS_SATURATION_SOFT) {
+        soft_bound = params[p + AT_SATURATION_SOFT] - Y_MEAN[e];
+    }
+    var rho_zo = 0.0;
+    var kappa_zo = 0.0;
+    if (HAS_CREEP_OUTPUT) {
+        rho_zo = params[p + AT_CREEP_OUTPUT];
+        kappa_zo = params[p + AT_CREEP_OUTPUT + 1u];
+    }
+    var rho_f = 0.0;
+    var kappa_f = 0.0;
+    var rho_s = 0.0;
+    var kappa_s = 0.0;
+    if (HAS_CREEP_TWO_POLE) {
+        rho_f = params[p + AT_CREEP_TWO_POLE];
+        kappa_f = params[p + AT_CREEP_TWO_POLE + 1u];
+        rho_s = params[p + AT_CREEP_TWO_POLE + 2u];
+        kappa_s = params[p + AT_CREEP_TWO_POLE + 3u];
+    }
+    var p_on = 0.0;
+    var p_off = 0.0;
+    if (HAS_DEADZONE_ON_OFF) {
+        p_on = params[p + AT_DEADZONE_ON_OFF] - u_mean;
+        p_off = p_on - params[p + AT_DEADZONE_ON_OFF + 1u];
+    }
     let big_a = stiffness(th);
     // effects.rs `Prepared::start`.
     let u0 = input(span, 0u);
@@ -92,14 +176,24 @@ fn score(i: u32, e: u32) -> f32 {
     var before = u0;
     var x_prev2 = x;
     var play = 0.0;
-    var has_play = false;
+    var started = false;
     var dir = 0.0;
     var extreme = u0;
     var z = 0.0;
+    var lag_in = 0.0;
+    var drain = 0.0;
+    var lag_out = x;
+    var mode1 = x;
+    var mode2 = x;
+    var z_out = 0.0;
+    var z_fast = 0.0;
+    var z_slow = 0.0;
+    var on = 0.0;
     var acc = 0.0;
     var next_restart = cfg.horizon;
     for (var k = 1u; k < span.y; k = k + 1u) {
-        // Input side: delay, deadzone, play, branch gain, load gain.
+        // Input side: delay, input lag, on/off threshold, deadzone, play,
+        // branch gain, load gain, drain lag (effects.rs `Prepared::step`).
         let raw = input(span, k - 1u);
         var ui = raw;
         if (HAS_DELAY) {
@@ -118,18 +212,35 @@ fn score(i: u32, e: u32) -> f32 {
                 ui = moved;
             }
         }
+        if (HAS_DELAY_INPUT_LAG) {
+            var prev = ui;
+            if (started) {
+                prev = lag_in;
+            }
+            ui = lag(rho_in, prev, ui);
+            lag_in = ui;
+        }
+        if (HAS_DEADZONE_ON_OFF) {
+            if (ui > p_on) {
+                on = 1.0;
+            } else if (ui < p_off) {
+                on = 0.0;
+            }
+            if (!(on > 0.0)) {
+                ui = REST[e];
+            }
+        }
         if (HAS_DEADZONE) {
             ui = larger(ui - p0, -u_mean);
         }
         if (HAS_BACKLASH) {
             let half = rounded(0.5 * play_width);
             var prev = ui;
-            if (has_play) {
+            if (started) {
                 prev = play;
             }
             let v = smaller(ui + half, larger(ui - half, prev));
             play = v;
-            has_play = true;
             ui = v;
         }
         if (HAS_ASYMMETRY) {
@@ -153,17 +264,34 @@ fn score(i: u32, e: u32) -> f32 {
         if (has_load) {
             ui = ui + rounded(g * (ui + u_mean));
         }
+        if (HAS_ASYMMETRY_DRAIN) {
+            var prev = ui;
+            if (started) {
+                prev = drain;
+            }
+            var slow = ui > prev;
+            var r = -rho_drain;
+            if (rho_drain >= 0.0) {
+                slow = ui < prev;
+                r = rho_drain;
+            }
+            let lagged = lag(r, prev, ui);
+            if (slow) {
+                ui = lagged;
+            }
+            drain = ui;
+        }
+        started = true;
         // State: the family's equations, the extra pole and the end stop.
         var xk = linear(th, State(x, w), ui);
         if (HAS_INERTIA) {
             xk = xk + rounded(a2 * (x - x_prev2));
         }
         if (HAS_SATURATION) {
-            if (DRIVES_UP[e]) {
-                xk = smaller(xk, bound);
-            } else {
-                xk = larger(xk, bound);
-            }
+            xk = clip(xk, bound, e);
+        }
+        if (HAS_SATURATION_SOFT) {
+            xk = soft_stop(xk, soft_bound, e);
         }
         let delta = xk - x;
         var a_eff = big_a;
@@ -177,11 +305,35 @@ fn score(i: u32, e: u32) -> f32 {
         w = hysteresis(th, a_eff, w, xk, delta);
         x_prev2 = x;
         x = xk;
-        // Output side: the creep's slow state.
+        // Output side: the creeps' slow states, the load mode, the output
+        // clip and the output lag.
         var yk = xk;
         if (HAS_CREEP) {
             z = rounded(rho * z) + rounded(rounded((1.0 - rho) * kappa) * ui);
-            yk = xk + z;
+            yk = yk + z;
+        }
+        if (HAS_CREEP_OUTPUT) {
+            z_out = rounded(rho_zo * z_out) + rounded(rounded((1.0 - rho_zo) * kappa_zo) * xk);
+            yk = yk + z_out;
+        }
+        if (HAS_CREEP_TWO_POLE) {
+            z_fast = rounded(rho_f * z_fast) + rounded(rounded((1.0 - rho_f) * kappa_f) * ui);
+            z_slow = rounded(rho_s * z_slow) + rounded(rounded((1.0 - rho_s) * kappa_s) * ui);
+            yk = yk + z_fast;
+            yk = yk + z_slow;
+        }
+        if (HAS_INERTIA_MODE) {
+            let q = (rounded(a1 * mode1) - rounded(a2m * mode2)) + rounded(mode_gain * yk);
+            mode2 = mode1;
+            mode1 = q;
+            yk = q;
+        }
+        if (HAS_SATURATION_OUTPUT) {
+            yk = clip(yk, clip_bound, e);
+        }
+        if (HAS_DELAY_OUTPUT_LAG) {
+            yk = lag(rho_out, lag_out, yk);
+            lag_out = yk;
         }
         if (!(in_bounds(x) && in_bounds(w) && in_bounds(yk))) {
             if (RESIDUALS) {
@@ -200,9 +352,12 @@ fn score(i: u32, e: u32) -> f32 {
         }
         // effects.rs `Prepared::restart`.
         if (k == next_restart) {
-            let xr = measured - z;
+            let xr = (((measured - z) - z_out) - z_fast) - z_slow;
             w = w + rounded(big_a * (xr - x));
             x = xr;
+            lag_out = measured;
+            mode1 = measured;
+            mode2 = measured;
             next_restart = next_restart + cfg.horizon;
         }
     }

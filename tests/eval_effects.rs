@@ -29,7 +29,9 @@ fn experiments() -> Vec<Experiment> {
 
 /// A population of the augmented model: baselines drawn as the evaluator
 /// tests draw them (finite and diverging candidates mixed), each effect's
-/// parameters uniformly in its box, the first row of each effect neutral.
+/// parameters uniformly in its box, the first two rows' effects neutral (the
+/// second's baseline is near the preset, so one candidate stays finite
+/// however many effects the model has).
 fn population(model: &Augmented, ctx: &Context, count: usize, seed: u64) -> Vec<f64> {
     let exps = experiments();
     let space = search_space(model.family, &exps[0], false);
@@ -42,7 +44,7 @@ fn population(model: &Augmented, ctx: &Context, count: usize, seed: u64) -> Vec<
         for &e in &model.effects {
             let (neutral, lo, hi) = effect_box(e, ctx, model.datasets);
             for j in 0..neutral.len() {
-                rows.push(if i == 0 {
+                rows.push(if i <= 1 {
                     neutral[j]
                 } else {
                     rng.random_range(lo[j]..=hi[j])

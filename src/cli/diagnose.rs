@@ -20,7 +20,9 @@ use super::common::MultiDataArgs;
 /// WHERE the free-run residual on the second half lies (input branch, input
 /// level, transient or settled, frequency, dataset; whiteness and
 /// residual–input tests), WHICH effect of the catalogue (delay, deadzone,
-/// saturation, asymmetry, inertia, backlash, creep, rate, load) explains it —
+/// saturation, asymmetry, inertia, backlash, creep, rate, load), in which
+/// realisation (e.g. `delay:input-lag`, a first-order lag on the input;
+/// `inertia:mode`, a ringing load), explains it —
 /// each fitted as an addition to the baseline with several seeds and accepted
 /// only if it beats the seed-to-seed spread, pays for its parameters, is
 /// not a better refit of the model without it, and the model still misses
@@ -41,8 +43,12 @@ pub struct Args {
     /// Baseline model family.
     #[arg(long, default_value = "classic", value_parser = parse_family)]
     baseline: Family,
-    /// Effects to try, comma-separated (default: the whole catalogue; `load`
-    /// only applies with several DATA files, e.g. one per hanging load).
+    /// Effects to try, comma-separated (default: the whole catalogue, every
+    /// realisation: delay, delay:input-lag, delay:output-lag, deadzone,
+    /// deadzone:on-off, saturation, saturation:output, saturation:soft,
+    /// asymmetry, asymmetry:drain, inertia, inertia:mode, backlash, creep,
+    /// creep:output, creep:two-pole, rate, load; `load` only applies with
+    /// several DATA files, e.g. one per hanging load).
     #[arg(long, value_delimiter = ',', value_parser = parse_effect)]
     effects: Vec<Effect>,
     /// Seed of every random draw (fits are reproducible for a given seed).

@@ -30,13 +30,30 @@ pub struct Data {
 }
 
 /// The evaluator a diagnosis scores populations on, shared by the clones of
-/// its data (the searches run one after the other).
+/// its data: a device behind a lock (searches on it take turns), or the CPU
+/// path, of which every search takes a copy (so searches run side by side).
 #[derive(Clone)]
-struct Scorer(Arc<Mutex<Box<dyn Evaluator + Send>>>);
+enum Scorer {
+    Shared(Arc<Mutex<Box<dyn Evaluator + Send>>>),
+    Cpu(CpuEvaluator),
+}
+
+impl Scorer {
+    fn of(evaluator: Box<dyn Evaluator + Send>) -> Scorer {
+        match evaluator.as_cpu() {
+            Some(cpu) => Scorer::Cpu(cpu.clone()),
+            None => Scorer::Shared(Arc::new(Mutex::new(evaluator))),
+        }
+    }
+}
 
 impl std::fmt::Debug for Scorer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self.0.lock() {
+        let shared = match self {
+            Scorer::Cpu(cpu) => return f.write_str(&cpu.describe()),
+            Scorer::Shared(shared) => shared,
+        };
+        match shared.lock() {
             Ok(e) => f.write_str(&e.describe()),
             Err(_) => f.write_str("(evaluator poisoned)"),
         }
@@ -116,13 +133,13 @@ impl Data {
             val_start,
             ctx,
             prior,
-            scorer: Scorer(Arc::new(Mutex::new(Box::new(CpuEvaluator::new())))),
+            scorer: Scorer::Cpu(CpuEvaluator::new()),
         })
     }
 
     /// The same data scored on `evaluator` (the CPU batch path by default).
     pub fn scored_on(mut self, evaluator: Box<dyn Evaluator + Send>) -> Data {
-        self.scorer = Scorer(Arc::new(Mutex::new(evaluator)));
+        self.scorer = Scorer::of(evaluator);
         self
     }
 
@@ -143,9 +160,11 @@ impl Data {
         &self,
         job: impl FnOnce(&mut dyn Evaluator) -> anyhow::Result<T>,
     ) -> anyhow::Result<T> {
-        let mut evaluator = self
-            .scorer
-            .0
+        let shared = match &self.scorer {
+            Scorer::Cpu(cpu) => return job(&mut cpu.clone()),
+            Scorer::Shared(shared) => shared,
+        };
+        let mut evaluator = shared
             .lock()
             .map_err(|_| anyhow::anyhow!("the evaluator failed in an earlier call"))?;
         job(evaluator.as_mut())

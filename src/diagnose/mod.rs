@@ -49,6 +49,8 @@ pub struct Step {
 pub struct Diagnosis {
     pub family: Family,
     pub datasets: Vec<String>,
+    /// Sample time of the first dataset (s), for sizes in time.
+    pub dt: f64,
     pub noise_floor_rmse: f64,
     /// Where the baseline misses.
     pub locate: locate::Where,
@@ -255,6 +257,7 @@ pub fn diagnose(
     Ok(Diagnosis {
         family,
         datasets: traces.iter().map(|t| t.source.clone()).collect(),
+        dt: data.ctx[0].dt,
         noise_floor_rmse: floor,
         locate: place,
         selection,

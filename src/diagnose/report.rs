@@ -65,6 +65,9 @@ pub fn to_json(d: &Diagnosis) -> Value {
             let values: Vec<f64> = c.effect_params.iter().map(|(_, v)| *v).collect();
             json!({
                 "effect": c.effect.name(),
+                "physical": c.effect.physical().name(),
+                "realisation": c.effect.realisation(),
+                "size": c.effect.size_text(&values, d.dt),
                 "params": named(&names, &values),
                 "val_rmse": c.fit.best.val_rmse,
                 "gap_closed": gap_closed(base.val_rmse, c.fit.best.val_rmse, floor),
@@ -267,7 +270,7 @@ pub fn to_text(d: &Diagnosis) -> String {
             .collect();
         let _ = writeln!(
             o,
-            "  {:<2} {:<10} RMSE {:.4}  gap closed {}  [{}]  round {round}: {}",
+            "  {:<2} {:<17} RMSE {:.4}  gap closed {}  [{}]  round {round}: {}",
             if accepted { "✔" } else { " " },
             c.effect.name(),
             c.fit.best.val_rmse,
@@ -279,7 +282,16 @@ pub fn to_text(d: &Diagnosis) -> String {
             params.join(", "),
             c.reason
         );
-        let _ = writeln!(o, "     signature: {}", c.effect.signature());
+        let values: Vec<f64> = c.effect_params.iter().map(|(_, v)| *v).collect();
+        let size = c.effect.size_text(&values, d.dt);
+        let _ = writeln!(
+            o,
+            "     {}: {}{}; signature: {}",
+            c.effect.physical(),
+            c.effect.realisation(),
+            size.map_or(String::new(), |s| format!(", {s}")),
+            c.effect.signature()
+        );
     }
     let _ = writeln!(o, "\nHOW FAR:");
     for s in &d.steps {
@@ -321,7 +333,12 @@ pub fn to_text(d: &Diagnosis) -> String {
             "\nVerdict: none of the catalogued effects explains the remaining gap."
         );
     } else {
-        let names: Vec<_> = d.selection.verdict.iter().map(|e| e.name()).collect();
+        let names: Vec<_> = d
+            .selection
+            .verdict
+            .iter()
+            .map(|e| format!("{} ({})", e.physical(), e.realisation()))
+            .collect();
         let _ = writeln!(
             o,
             "\nVerdict: {} (closes {} of the gap above the noise floor).",

@@ -7,6 +7,8 @@ use serde::Serialize;
 
 use super::accept::{Candidate, Yardstick, judge_all};
 use super::data::Data;
+use rayon::prelude::*;
+
 use super::effects::{Augmented, Effect};
 use super::fitting::{Fit, SeededFit, Start, fit_seeds, fit_seeds_with, profile, scratch_fits};
 use crate::eval::Backend;
@@ -33,6 +35,12 @@ pub struct Settings {
     pub scratch_seeds: usize,
     /// At most this many effects are named.
     pub max_effects: usize,
+    /// The other realisations of a physical effect (e.g. `delay:input-lag`
+    /// beside `delay`) are fitted in a round only for the physical effects
+    /// whose first realisation fitted best on validation, this many of them:
+    /// a round costs the first realisations' fits plus a few, not the whole
+    /// catalogue's twice over.
+    pub realisation_top: usize,
     /// Rule 1: improvement must exceed this many seed standard deviations.
     pub spread_factor: f64,
     /// Rule 2: ΔBIC must be below this.
@@ -67,6 +75,7 @@ impl Default for Settings {
             generations: 300,
             scratch_seeds: 4,
             max_effects: 3,
+            realisation_top: 2,
             spread_factor: 3.0,
             bic_threshold: -10.0,
             min_relative: 0.02,
@@ -139,31 +148,54 @@ pub fn select(
         let remaining: Vec<Effect> = effects
             .iter()
             .copied()
-            .filter(|e| !current_model.effects.contains(e) && e.applicable(data.datasets()))
+            // One realisation of each physical effect at a time.
+            .filter(|e| {
+                !current_model
+                    .effects
+                    .iter()
+                    .any(|m| m.physical() == e.physical())
+                    && e.applicable(data.datasets())
+            })
             .collect();
         if remaining.is_empty() {
             break;
         }
         let remaining_models: Vec<Augmented> =
             remaining.iter().map(|&e| current_model.with(e)).collect();
+        // Two levels: the first realisation of every physical effect (or a
+        // realisation asked for without it) always; the others only for the
+        // physical effects whose first realisation fits best
+        // (`Settings::realisation_top`).
+        let first_level: Vec<bool> = remaining
+            .iter()
+            .map(|e| e.physical() == *e || !remaining.contains(&e.physical()))
+            .collect();
         let salt = 100 * (round as u64 + 1);
         let refit = Start::Warm {
             params: &current_params,
             new_from: current_params.len(),
         };
-        // The first round adds fits from scratch, computed once per model.
+        // The first round adds fits from scratch, computed once per model
+        // (slot 0 the current model's, slot i + 1 the i-th candidate's), the
+        // other realisations' only when they are fitted.
         let first_round = current_model.effects.is_empty();
-        let scratch: Vec<Vec<Fit>> = if first_round {
-            std::iter::once(&current_model)
+        let scratch_salt = |slot: usize| salt + 50 + slot as u64;
+        // Every fit has its own seed, so fits run side by side give the
+        // same numbers as one after the other.
+        let mut scratch: Vec<Vec<Fit>> = vec![Vec::new(); remaining.len() + 1];
+        if first_round {
+            let models: Vec<&Augmented> = std::iter::once(&current_model)
                 .chain(&remaining_models)
-                .enumerate()
-                .map(|(i, m)| scratch_fits(data, m, settings, salt + 50 + i as u64))
-                .collect::<anyhow::Result<_>>()?
-        } else {
-            Vec::new()
-        };
-        let scratch_of = |i: usize| scratch.get(i).map_or(&[][..], Vec::as_slice);
-        let current = fit_seeds_with(data, &current_model, refit, settings, salt, scratch_of(0))?;
+                .collect();
+            scratch = (0..models.len())
+                .into_par_iter()
+                .map(|slot| match slot == 0 || first_level[slot - 1] {
+                    true => scratch_fits(data, models[slot], settings, scratch_salt(slot)),
+                    false => Ok(Vec::new()),
+                })
+                .collect::<anyhow::Result<_>>()?;
+        }
+        let current = fit_seeds_with(data, &current_model, refit, settings, salt, &scratch[0])?;
         let mut rebased: Vec<SeededFit> = Vec::new();
         // The refit gives the seed spread of "no new effect". Its seeds (and
         // in the first round its fits from scratch) may also reach a better
@@ -187,12 +219,9 @@ pub fn select(
         let mut ablations = 0;
         let candidates = loop {
             let salt = salt + 10 * ablations as u64;
-            let fits: Vec<(Effect, Augmented, SeededFit)> = remaining
-                .iter()
-                .enumerate()
-                .zip(&remaining_models)
-                .map(|((i, &effect), model)| {
-                    let model = model.clone();
+            let fit_one =
+                |i: usize, scratch: &[Fit]| -> anyhow::Result<(Effect, Augmented, SeededFit)> {
+                    let (effect, model) = (remaining[i], remaining_models[i].clone());
                     let (neutral, _, _) = data.space(&model);
                     let mut start = current_params.clone();
                     start.extend_from_slice(&neutral[current_params.len()..]);
@@ -201,13 +230,52 @@ pub fn select(
                         new_from: current_params.len(),
                     };
                     let salt = salt + 1 + i as u64;
-                    let mut fit =
-                        fit_seeds_with(data, &model, start, settings, salt, scratch_of(i + 1))?;
+                    let mut fit = fit_seeds_with(data, &model, start, settings, salt, scratch)?;
                     let at = current_params.len() + effect.primary();
                     fit.best = profile(data, &model, fit.best, at)?;
                     Ok((effect, model, fit))
-                })
+                };
+            let mut fits: Vec<_> = (0..remaining.len())
+                .into_par_iter()
+                .filter(|&i| first_level[i])
+                .map(|i| fit_one(i, &scratch[i + 1]))
                 .collect::<anyhow::Result<_>>()?;
+            let mut ranked: Vec<(f64, Effect)> = fits
+                .iter()
+                .map(|(e, _, f)| (f.best.val_rmse, e.physical()))
+                .collect();
+            ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let top: Vec<Effect> = ranked
+                .iter()
+                .take(settings.realisation_top)
+                .map(|r| r.1)
+                .collect();
+            let others: Vec<usize> = (0..remaining.len())
+                .filter(|&i| !first_level[i] && top.contains(&remaining[i].physical()))
+                .collect();
+            if first_round {
+                let fresh: Vec<(usize, Vec<Fit>)> = others
+                    .par_iter()
+                    .filter(|&&i| scratch[i + 1].is_empty())
+                    .map(|&i| {
+                        let fits = scratch_fits(
+                            data,
+                            &remaining_models[i],
+                            settings,
+                            scratch_salt(i + 1),
+                        )?;
+                        Ok((i, fits))
+                    })
+                    .collect::<anyhow::Result<_>>()?;
+                for (i, fits) in fresh {
+                    scratch[i + 1] = fits;
+                }
+            }
+            let more: Vec<_> = others
+                .par_iter()
+                .map(|&i| fit_one(i, &scratch[i + 1]))
+                .collect::<anyhow::Result<_>>()?;
+            fits.extend(more);
             let candidates = judge_all(&fits, yardstick, n, settings);
             let Some(best) = candidates.iter().find(|c| c.passes) else {
                 break candidates;

@@ -52,8 +52,9 @@ pub(super) fn block(start: usize, len: usize, every: usize) -> (usize, bool) {
     (end, end - 1 == next_restart)
 }
 
-/// The batched, multi-threaded CPU evaluator.
-#[derive(Debug, Default)]
+/// The batched, multi-threaded CPU evaluator. It holds no device and no
+/// buffers, so copies of it score side by side.
+#[derive(Debug, Default, Clone)]
 pub struct CpuEvaluator {
     /// Why the CPU was chosen, when `--backend auto` chose it.
     note: Option<String>,
@@ -73,6 +74,10 @@ impl CpuEvaluator {
 }
 
 impl Evaluator for CpuEvaluator {
+    fn as_cpu(&self) -> Option<&CpuEvaluator> {
+        Some(self)
+    }
+
     fn describe(&self) -> String {
         let base = format!(
             "cpu ({LANES}-lane batches on {} threads)",

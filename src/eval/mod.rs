@@ -115,6 +115,12 @@ pub trait Evaluator {
     /// Backend and device, for the user ("cpu, 2 threads", "gpu: NVIDIA H100").
     fn describe(&self) -> String;
 
+    /// The CPU evaluator, which can be copied to score from several threads
+    /// at once; `None` for a backend that holds a device.
+    fn as_cpu(&self) -> Option<&cpu::CpuEvaluator> {
+        None
+    }
+
     /// The GPU adapter that scores (name, kind, driver); `None` on the CPU.
     fn adapter(&self) -> Option<String> {
         None

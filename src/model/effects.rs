@@ -30,8 +30,7 @@ use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear
 
 /// One unmodelled effect of the catalogue. Flags, JSON and reports use these
 /// names, so they are part of the interface.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Effect {
     /// Input transport delay: `u(k−1−d)` replaces `u(k−1)`; `d ≥ 0` samples,
     /// fractional `d` interpolates linearly between neighbouring samples.
@@ -61,6 +60,39 @@ pub enum Effect {
     /// Parameters that depend on the hanging load: the input gain of dataset
     /// `e ≥ 1` is `b·(1 + g_e)` on the absolute input (dataset 0 is the reference). Needs several datasets.
     Load,
+    // Other realisations of the same physical effects (docs/DIAGNOSIS.md,
+    // "Realisations"): each is named for its physical effect
+    // ([`Effect::physical`]) and says how it is realised.
+    /// Lag as a first-order lag on the input, `v = ρ·v + (1−ρ)·p` (pressure
+    /// reaching the muscle through the hose); mean delay `ρ/(1−ρ)` samples.
+    InputLag,
+    /// Lag as a first-order lag on the measured output, `ŷ ← ρ·ŷ(k−1) +
+    /// (1−ρ)·ŷ` (a slow sensor).
+    OutputLag,
+    /// Inertia as a second-order mode of the hanging load on the output,
+    /// `q = a1·q(k−1) − a2·q(k−2) + (1 − a1 + a2)·ŷ`, unit static gain:
+    /// underdamped (ringing) when `a1² < 4·a2`, with pole radius `√a2` and
+    /// angle `acos(a1/(2√a2))` per sample.
+    LoadMode,
+    /// Asymmetry in time constant: the input passes at once on one branch
+    /// and through a first-order lag `|ρ|` on the other (`ρ > 0`: drains
+    /// slower than it fills; `ρ < 0`: fills slower).
+    DrainLag,
+    /// End stop on the measured output only (the state runs on).
+    OutputClip,
+    /// End stop as a smooth knee: a quadratic blend into `l_max` over a
+    /// fixed half-width of 2.5 % of the output range on each side.
+    SoftStop,
+    /// Creep driven by the muscle's output: `z = ρ·z + (1−ρ)·κ·x`,
+    /// `ŷ = x + z`; `κ` per output unit.
+    OutputCreep,
+    /// Creep with two time constants: two input-driven slow states, a
+    /// faster and a slower one, each with its own gain.
+    TwoPoleCreep,
+    /// Hysteretic threshold: the muscle starts to contract when the input
+    /// passes `p_on` and lets go below `p_off = p_on − gap`; while off it
+    /// rests where the lowest input recorded leaves it (it sees that input).
+    OnOffThreshold,
 }
 
 /// Name and meaning of one effect parameter.
@@ -72,7 +104,29 @@ pub struct EffectParam {
 
 impl Effect {
     /// The whole catalogue, in the order reports list it.
-    pub const ALL: [Effect; 9] = [
+    pub const ALL: [Effect; 18] = [
+        Effect::Delay,
+        Effect::Deadzone,
+        Effect::Saturation,
+        Effect::Asymmetry,
+        Effect::Inertia,
+        Effect::Backlash,
+        Effect::Creep,
+        Effect::Rate,
+        Effect::Load,
+        Effect::InputLag,
+        Effect::OutputLag,
+        Effect::LoadMode,
+        Effect::DrainLag,
+        Effect::OutputClip,
+        Effect::SoftStop,
+        Effect::OutputCreep,
+        Effect::TwoPoleCreep,
+        Effect::OnOffThreshold,
+    ];
+
+    /// The physical effects: the catalogue's first realisation of each.
+    pub const PHYSICAL: [Effect; 9] = [
         Effect::Delay,
         Effect::Deadzone,
         Effect::Saturation,
@@ -83,6 +137,94 @@ impl Effect {
         Effect::Rate,
         Effect::Load,
     ];
+
+    /// The physical effect this realises (`DESIGN.md` §5's names): the
+    /// first realisation of each is the physical effect itself.
+    pub fn physical(self) -> Effect {
+        match self {
+            Effect::InputLag | Effect::OutputLag => Effect::Delay,
+            Effect::LoadMode => Effect::Inertia,
+            Effect::DrainLag => Effect::Asymmetry,
+            Effect::OutputClip | Effect::SoftStop => Effect::Saturation,
+            Effect::OutputCreep | Effect::TwoPoleCreep => Effect::Creep,
+            Effect::OnOffThreshold => Effect::Deadzone,
+            e => e,
+        }
+    }
+
+    /// How the physical effect is realised, for reports.
+    pub fn realisation(self) -> &'static str {
+        match self {
+            Effect::Delay => "pure delay",
+            Effect::Deadzone => "input dead zone",
+            Effect::Saturation => "state clip",
+            Effect::Asymmetry => "in gain",
+            Effect::Inertia => "extra real pole",
+            Effect::Backlash => "play on the input",
+            Effect::Creep => "driven by the input",
+            Effect::Rate => "stiffness grows with input rate",
+            Effect::Load => "input gain per dataset",
+            Effect::InputLag => "first-order lag on the input",
+            Effect::OutputLag => "first-order lag on the output",
+            Effect::LoadMode => "second-order load mode",
+            Effect::DrainLag => "in time constant (fill vs drain)",
+            Effect::OutputClip => "output clip",
+            Effect::SoftStop => "soft limit",
+            Effect::OutputCreep => "driven by the output",
+            Effect::TwoPoleCreep => "two time constants",
+            Effect::OnOffThreshold => "hysteretic threshold (on/off)",
+        }
+    }
+
+    /// The realisation's size in words a person reads, where its parameters
+    /// do not say it directly (`params`: the effect's own, `dt` the sample
+    /// time): a lag's time constant, a mode's frequency and damping.
+    pub fn size_text(self, params: &[f64], dt: f64) -> Option<String> {
+        let samples = |rho: f64| {
+            let tau = rho / (1.0 - rho);
+            format!("{tau:.1} samples ({:.0} ms)", 1000.0 * tau * dt)
+        };
+        match self {
+            Effect::Delay => Some(format!(
+                "{:.1} samples ({:.0} ms)",
+                params[0],
+                1000.0 * params[0] * dt
+            )),
+            Effect::InputLag | Effect::OutputLag => {
+                Some(format!("time constant {}", samples(params[0])))
+            }
+            Effect::DrainLag => Some(format!(
+                "{} time constant {}",
+                if params[0] >= 0.0 { "drain" } else { "fill" },
+                samples(params[0].abs())
+            )),
+            Effect::LoadMode => {
+                let (a1, a2) = (params[0], params[1]);
+                if a2 > 0.0 && a1 * a1 < 4.0 * a2 {
+                    let r = a2.sqrt();
+                    let theta = (a1 / (2.0 * r)).acos();
+                    let zeta = -r.ln() / (r.ln().powi(2) + theta * theta).sqrt();
+                    Some(format!(
+                        "rings at {:.2} Hz, damping ratio {zeta:.2}",
+                        theta / (2.0 * std::f64::consts::PI * dt)
+                    ))
+                } else {
+                    let root = (a1 * a1 - 4.0 * a2).max(0.0).sqrt();
+                    Some(format!(
+                        "no ringing: real poles {:.3} and {:.3}",
+                        0.5 * (a1 + root),
+                        0.5 * (a1 - root)
+                    ))
+                }
+            }
+            _ => None,
+        }
+    }
+
+    /// The name as a WGSL identifier (`shaders/effects.wgsl`'s `HAS_*`).
+    pub fn ident(self) -> String {
+        self.name().replace([':', '-'], "_").to_ascii_uppercase()
+    }
 
     pub fn name(self) -> &'static str {
         match self {
@@ -95,6 +237,15 @@ impl Effect {
             Effect::Creep => "creep",
             Effect::Rate => "rate",
             Effect::Load => "load",
+            Effect::InputLag => "delay:input-lag",
+            Effect::OutputLag => "delay:output-lag",
+            Effect::LoadMode => "inertia:mode",
+            Effect::DrainLag => "asymmetry:drain",
+            Effect::OutputClip => "saturation:output",
+            Effect::SoftStop => "saturation:soft",
+            Effect::OutputCreep => "creep:output",
+            Effect::TwoPoleCreep => "creep:two-pole",
+            Effect::OnOffThreshold => "deadzone:on-off",
         }
     }
 
@@ -133,6 +284,43 @@ impl Effect {
                     meaning: "relative input gain of this dataset against dataset 0",
                 })
                 .collect(),
+            Effect::InputLag | Effect::OutputLag => {
+                vec![p("rho", "pole of the lag (mean delay rho/(1−rho) samples)")]
+            }
+            Effect::LoadMode => vec![
+                p("a1", "first coefficient of the mode: 2·r·cos θ"),
+                p(
+                    "a2",
+                    "second coefficient of the mode: r², the pole radius squared",
+                ),
+            ],
+            Effect::DrainLag => vec![p(
+                "rho",
+                "pole of the slow branch: > 0 drains slower, < 0 fills slower",
+            )],
+            Effect::OutputClip | Effect::SoftStop => {
+                vec![p("l_max", "output end stop (absolute output units)")]
+            }
+            Effect::OutputCreep => vec![
+                p("rho", "pole of the slow state (close to 1)"),
+                p("kappa", "static gain of the slow state (per output unit)"),
+            ],
+            Effect::TwoPoleCreep => vec![
+                p("rho_fast", "pole of the faster slow state"),
+                p("kappa_fast", "its static gain (output per input unit)"),
+                p("rho_slow", "pole of the slower slow state"),
+                p("kappa_slow", "its static gain (output per input unit)"),
+            ],
+            Effect::OnOffThreshold => vec![
+                p(
+                    "p_on",
+                    "input above which the muscle contracts (absolute input units)",
+                ),
+                p(
+                    "gap",
+                    "p_on − p_off, the input it lets go below (input units)",
+                ),
+            ],
         }
     }
 
@@ -144,7 +332,8 @@ impl Effect {
     /// size, which the self-test recovers.
     pub fn primary(self) -> usize {
         match self {
-            Effect::Creep => 1,
+            Effect::Creep | Effect::OutputCreep | Effect::LoadMode => 1,
+            Effect::TwoPoleCreep => 3,
             _ => 0,
         }
     }
@@ -167,7 +356,28 @@ impl Effect {
                 "residual grows with input rate: rising/falling branches, high frequencies"
             }
             Effect::Load => "one dataset (load) carries most of the residual energy",
+            Effect::InputLag | Effect::OutputLag => {
+                "residual–input cross-correlation over a spread of positive lags; rounded steps"
+            }
+            Effect::LoadMode => "a peak in the residual spectrum: ringing after each input step",
+            Effect::DrainLag => "falling branches carry more residual energy, later in the step",
+            Effect::OutputClip | Effect::SoftStop => {
+                "residual energy concentrated in the highest input band"
+            }
+            Effect::OutputCreep | Effect::TwoPoleCreep => {
+                "low-frequency residual that drifts while the input is steady"
+            }
+            Effect::OnOffThreshold => {
+                "residual in the lowest input band, unlike on rising and falling branches"
+            }
         }
+    }
+}
+
+/// Serialized as its name (`delay`, `delay:input-lag`, ...).
+impl Serialize for Effect {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.serialize_str(self.name())
     }
 }
 
@@ -252,6 +462,20 @@ impl Context {
     fn output_range(&self) -> f64 {
         (self.output_max - self.output_min).max(f64::MIN_POSITIVE)
     }
+
+    /// The soft end stop's knee in `f32`: its half-width `h` (2.5 % of the
+    /// output range), `2h`, and `1/(4h)`; computed here once, so that no
+    /// backend divides.
+    pub fn knee(&self) -> [f32; 3] {
+        let h = 0.025 * self.output_range();
+        [h as f32, (2.0 * h) as f32, (0.25 / h) as f32]
+    }
+
+    /// The input a muscle whose threshold is off rests at: the lowest input
+    /// recorded, in deviation coordinates.
+    pub fn rest_input(&self) -> f32 {
+        (self.input_min - self.u_mean) as f32
+    }
 }
 
 /// Neutral value and search bounds of each parameter of `effect`, from the
@@ -295,6 +519,31 @@ pub fn effect_box(
         Effect::Load => {
             let k = effect.dim(datasets);
             (vec![0.0; k], vec![-0.5; k], vec![0.5; k])
+        }
+        // A pole of 0.97 is a mean delay of about 32 samples, the pure
+        // delay's 30.
+        Effect::InputLag | Effect::OutputLag => (vec![0.0], vec![0.0], vec![0.97]),
+        // Every stable mode lies in a2 < 1, |a1| < 1 + a2.
+        Effect::LoadMode => (vec![0.0, 0.0], vec![-1.9, 0.0], vec![1.98, 0.98]),
+        Effect::DrainLag => (vec![0.0], vec![-0.97], vec![0.97]),
+        Effect::OutputClip | Effect::SoftStop => effect_box(Effect::Saturation, ctx, datasets),
+        Effect::OutputCreep => (vec![0.995, 0.0], vec![0.98, -0.5], vec![0.9995, 0.5]),
+        Effect::TwoPoleCreep => {
+            let g = 2.0 * ry / ru;
+            (
+                vec![0.98, 0.0, 0.999, 0.0],
+                vec![0.9, -g, 0.995, -g],
+                vec![0.995, g, 0.9999, g],
+            )
+        }
+        Effect::OnOffThreshold => {
+            // Neutral: on below every input, so the muscle is always on.
+            let never = ctx.input_min.min(0.0) - 0.05 * ru;
+            (
+                vec![never, 0.0],
+                vec![never, 0.0],
+                vec![ctx.input_min.max(0.0) + 0.6 * ru, 0.3 * ru],
+            )
         }
     }
 }
@@ -390,7 +639,7 @@ pub struct Prepared<const L: usize> {
     betas: [[f32; L]; 6],
     /// The delay split into whole samples and the fraction of the sample
     /// before them, once per candidate rather than once per sample.
-    delay: Option<([usize; L], [f32; L])>,
+    delay: Option<([i32; L], [f32; L])>,
     deadzone: Option<[f32; L]>,
     /// The end stop in deviation coordinates.
     saturation: Option<[f32; L]>,
@@ -400,6 +649,23 @@ pub struct Prepared<const L: usize> {
     creep: Option<([f32; L], [f32; L])>,
     rate: Option<[f32; L]>,
     load: Option<[f32; L]>,
+    input_lag: Option<[f32; L]>,
+    output_lag: Option<[f32; L]>,
+    /// The load mode's `a1`, `a2` and its input weight `(1 − a1) + a2`.
+    mode: Option<([f32; L], [f32; L], [f32; L])>,
+    drain_lag: Option<[f32; L]>,
+    /// The output clip's bound in deviation coordinates.
+    output_clip: Option<[f32; L]>,
+    /// The soft stop's bound in deviation coordinates.
+    soft_stop: Option<[f32; L]>,
+    output_creep: Option<([f32; L], [f32; L])>,
+    two_pole_creep: Option<[[f32; L]; 4]>,
+    /// The hysteretic threshold's `p_on` and `p_off` in deviation
+    /// coordinates.
+    on_off: Option<([f32; L], [f32; L])>,
+    /// [`Context::knee`] and [`Context::rest_input`].
+    knee: [f32; 3],
+    rest: f32,
     u_mean: f32,
     branch_tol: f32,
     inv_dt: f32,
@@ -421,7 +687,21 @@ pub struct EffectState<const L: usize> {
     play: [f32; L],
     /// The creep's slow state.
     z: [f32; L],
-    /// Whether a step was taken (the play starts at the first input).
+    /// The input lag's, the drain lag's and the output lag's states.
+    lag_in: [f32; L],
+    drain: [f32; L],
+    lag_out: [f32; L],
+    /// The load mode's output at the two samples before.
+    mode1: [f32; L],
+    mode2: [f32; L],
+    /// The output-driven creep's and the two-pole creep's slow states.
+    z_out: [f32; L],
+    z_fast: [f32; L],
+    z_slow: [f32; L],
+    /// 1 while the hysteretic threshold is on, else 0.
+    on: [f32; L],
+    /// Whether a step was taken (the play and the lags start at the first
+    /// input).
     started: bool,
     /// Branch of the asymmetry: +1 loading, −1 unloading, 0 not yet moved.
     /// It follows the measured input only, so it is the same in every lane.
@@ -442,31 +722,57 @@ fn smaller(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
+/// The soft end stop: `x` blended into `bound` over `bound ∓ h` by a
+/// quadratic whose slope runs from 1 to 0 (`knee` = [`Context::knee`]),
+/// `bound` beyond; `x` itself short of the knee.
+#[inline(always)]
+fn soft_stop(x: f32, bound: f32, knee: [f32; 3], drives_up: bool) -> f32 {
+    let [h, two_h, inv_4h] = knee;
+    // How far into the knee x is, in the direction the input drives it.
+    let into = if drives_up {
+        x - (bound - h)
+    } else {
+        (bound + h) - x
+    };
+    let bend = (into * into) * inv_4h;
+    let bent = if drives_up { x - bend } else { x + bend };
+    if into <= 0.0 {
+        x
+    } else if into >= two_h {
+        bound
+    } else {
+        bent
+    }
+}
+
 /// A delay of `d ≥ 0` samples as whole samples and the fraction of a sample
 /// beyond them (`d − ⌊d⌋`, exact in `f32`).
 #[inline(always)]
-fn split_delay(d: f32) -> (usize, f32) {
+fn split_delay(d: f32) -> (i32, f32) {
     let whole = d.floor();
-    (whole as usize, d - whole)
+    (whole as i32, d - whole)
 }
 
 /// The input `whole + frac` samples before `u(last)`, `last = k − 1`
 /// (`u(0)` before the start): `u(j)` moved by `frac` of the way to
-/// `u(j−1)`, `j = last − whole`. `before` is `u(j−1)`: the lane's `u(j)` of
-/// the sample before (the delay is fixed), which `*before` takes now. The
-/// move is computed in every lane and the result selected, so that the lanes
-/// become one vector gather without a branch on `frac` (which differs from
-/// lane to lane).
+/// `before = u(j−1)`, `j = last − whole`, and `u(j)`, which is the next
+/// sample's `before` (the delay is fixed). The move is computed in every
+/// lane and the result selected, so that the lanes become one vector gather
+/// without a branch on `frac` (which differs from lane to lane).
 #[inline(always)]
-fn delayed(past: &[f32], last: usize, whole: usize, frac: f32, before: &mut f32) -> f32 {
-    assert!(last < past.len(), "sample {last} is past the input");
-    // SAFETY: the index is at most `last`, which is in `past` (asserted
+fn delayed(past: &[f32], last: i32, whole: i32, frac: f32, before: f32) -> (f32, f32) {
+    assert!(
+        last >= 0 && (last as usize) < past.len(),
+        "sample {last} is past the input"
+    );
+    // SAFETY: the index is in 0..=last, which is in `past` (asserted
     // above). Unchecked, because a bounds check per lane keeps the loads
-    // scalar and branchy.
-    let now = unsafe { *past.get_unchecked(last.saturating_sub(whole)) };
-    let moved = now + (frac * (*before - now));
-    *before = now;
-    if frac == 0.0 { now } else { moved }
+    // scalar and branchy; 32-bit indices, because then one vector gathers 16
+    // lanes and is stored whole (two half-vector stores read back as one
+    // vector stall the next loop's load).
+    let now = unsafe { *past.get_unchecked((last - whole).max(0) as usize) };
+    let moved = now + (frac * (before - now));
+    (if frac == 0.0 { now } else { moved }, now)
 }
 
 impl<const L: usize> Prepared<L> {
@@ -482,6 +788,15 @@ impl<const L: usize> Prepared<L> {
             x_prev2: x,
             play: [0.0; L],
             z: [0.0; L],
+            lag_in: [0.0; L],
+            drain: [0.0; L],
+            lag_out: x,
+            mode1: x,
+            mode2: x,
+            z_out: [0.0; L],
+            z_fast: [0.0; L],
+            z_slow: [0.0; L],
+            on: [0.0; L],
             started: false,
             dir: 0.0,
             extreme: u0,
@@ -492,10 +807,10 @@ impl<const L: usize> Prepared<L> {
     /// output `ŷ(k)` of every lane.
     #[inline(always)]
     pub fn step(&self, s: &mut EffectState<L>, k: usize, u: &[f32]) -> [f32; L] {
-        // Input side: delay, deadzone, play, branch gain, load gain. The
-        // branch follows the measured input only (the same in every lane);
-        // then one loop over the lanes for the whole stage, so that the input
-        // stays in registers from stage to stage.
+        // Input side: delay, input lag, on/off threshold, then dead zone,
+        // play, branch gain and load gain in one loop over the lanes (so the
+        // input stays in registers between them), then the drain lag. The
+        // branch follows the measured input only (the same in every lane).
         let raw = u[k - 1];
         if self.asymmetry.is_some() {
             if s.dir >= 0.0 {
@@ -516,9 +831,33 @@ impl<const L: usize> Prepared<L> {
         s.started = true;
         let mut ui = [raw; L];
         if let Some((whole, frac)) = &self.delay {
+            let before = s.delayed;
+            let last = i32::try_from(k - 1).expect("an input of under 2³¹ samples");
             for l in 0..L {
-                ui[l] = delayed(u, k - 1, whole[l], frac[l], &mut s.delayed[l]);
+                (ui[l], s.delayed[l]) = delayed(u, last, whole[l], frac[l], before[l]);
             }
+        }
+        // The realisations beyond the physical effects' first each have a
+        // loop of their own: a lane loop with more stages in it than the
+        // first realisations' four no longer compiled to vector code.
+        if let Some(rho) = &self.input_lag {
+            let prev = if started { s.lag_in } else { ui };
+            for l in 0..L {
+                ui[l] = (rho[l] * prev[l]) + ((1.0 - rho[l]) * ui[l]);
+            }
+            s.lag_in = ui;
+        }
+        if let Some((on, off)) = &self.on_off {
+            // Copies in locals: a select between a lane's input and a field
+            // of `self` compiled to a select of addresses, one lane at a time.
+            let (mut state, rest) = (s.on, self.rest);
+            for l in 0..L {
+                // On above p_on, off below p_off, as it was in between.
+                let kept = if ui[l] < off[l] { 0.0 } else { state[l] };
+                state[l] = if ui[l] > on[l] { 1.0 } else { kept };
+                ui[l] = if state[l] > 0.0 { ui[l] } else { rest };
+            }
+            s.on = state;
         }
         for l in 0..L {
             let mut v = ui[l];
@@ -539,6 +878,18 @@ impl<const L: usize> Prepared<L> {
                 v += g[l] * (v + self.u_mean);
             }
             ui[l] = v;
+        }
+        if let Some(rho) = &self.drain_lag {
+            for l in 0..L {
+                // The slow branch follows through the lag; the other passes.
+                let v = ui[l];
+                let prev = if started { s.drain[l] } else { v };
+                let slow = if rho[l] >= 0.0 { v < prev } else { v > prev };
+                let r = if rho[l] >= 0.0 { rho[l] } else { -rho[l] };
+                let lagged = (r * prev) + ((1.0 - r) * v);
+                ui[l] = if slow { lagged } else { v };
+                s.drain[l] = ui[l];
+            }
         }
         // State: the baseline's equations (`model::sim`), the extra pole and
         // the end stop.
@@ -573,6 +924,11 @@ impl<const L: usize> Prepared<L> {
             }
             xk[l] = x;
         }
+        if let Some(bound) = &self.soft_stop {
+            for l in 0..L {
+                xk[l] = soft_stop(xk[l], bound[l], self.knee, self.drives_up);
+            }
+        }
         let mut a_eff = self.big_a;
         if let Some(eta) = &self.rate {
             let prev = if k >= 2 { u[k - 2] } else { u[0] };
@@ -584,18 +940,53 @@ impl<const L: usize> Prepared<L> {
         self.hysteresis(s, &xk, &a_eff);
         s.x_prev2 = s.x;
         s.x = xk;
-        // Output side: the creep's slow state.
-        match &self.creep {
-            Some((rho, kappa)) => {
-                let mut y = xk;
-                for l in 0..L {
-                    s.z[l] = (rho[l] * s.z[l]) + (((1.0 - rho[l]) * kappa[l]) * ui[l]);
-                    y[l] += s.z[l];
-                }
-                y
+        // Output side: the creeps' slow states, the load mode, the output
+        // clip and the output lag, a loop each.
+        let mut y = xk;
+        if let Some((rho, kappa)) = &self.creep {
+            for l in 0..L {
+                s.z[l] = (rho[l] * s.z[l]) + (((1.0 - rho[l]) * kappa[l]) * ui[l]);
+                y[l] += s.z[l];
             }
-            None => xk,
         }
+        if let Some((rho, kappa)) = &self.output_creep {
+            for l in 0..L {
+                s.z_out[l] = (rho[l] * s.z_out[l]) + (((1.0 - rho[l]) * kappa[l]) * xk[l]);
+                y[l] += s.z_out[l];
+            }
+        }
+        if let Some([rf, kf, rs, ks]) = &self.two_pole_creep {
+            for l in 0..L {
+                s.z_fast[l] = (rf[l] * s.z_fast[l]) + (((1.0 - rf[l]) * kf[l]) * ui[l]);
+                s.z_slow[l] = (rs[l] * s.z_slow[l]) + (((1.0 - rs[l]) * ks[l]) * ui[l]);
+                y[l] += s.z_fast[l];
+                y[l] += s.z_slow[l];
+            }
+        }
+        if let Some((a1, a2, gain)) = &self.mode {
+            for l in 0..L {
+                let q = ((a1[l] * s.mode1[l]) - (a2[l] * s.mode2[l])) + (gain[l] * y[l]);
+                s.mode2[l] = s.mode1[l];
+                s.mode1[l] = q;
+                y[l] = q;
+            }
+        }
+        if let Some(bound) = &self.output_clip {
+            for l in 0..L {
+                y[l] = if self.drives_up {
+                    smaller(y[l], bound[l])
+                } else {
+                    larger(y[l], bound[l])
+                };
+            }
+        }
+        if let Some(rho) = &self.output_lag {
+            for l in 0..L {
+                y[l] = (rho[l] * s.lag_out[l]) + ((1.0 - rho[l]) * y[l]);
+                s.lag_out[l] = y[l];
+            }
+        }
+        y
     }
 
     /// The Bouc-Wen state of every lane after the output moved from `s.x` to
@@ -636,15 +1027,19 @@ impl<const L: usize> Prepared<L> {
     }
 
     /// A restart of the prediction to the measurement `y`: the output state
-    /// takes `y` less the creep, and the Bouc-Wen state the jump's elastic
+    /// takes `y` less the creeps, and the Bouc-Wen state the jump's elastic
     /// part, as the baseline's ([`crate::model::sim::Stepper::restart`]);
-    /// the effects' own states run on.
+    /// the load mode and the output lag restart at `y`; the other effects'
+    /// states run on.
     #[inline(always)]
     pub fn restart(&self, s: &mut EffectState<L>, y: f32) {
         for l in 0..L {
-            let x = y - s.z[l];
+            let x = (((y - s.z[l]) - s.z_out[l]) - s.z_fast[l]) - s.z_slow[l];
             s.w[l] = restart_w(self.big_a[l], s.w[l], s.x[l], x);
             s.x[l] = x;
+            s.lag_out[l] = y;
+            s.mode1[l] = y;
+            s.mode2[l] = y;
         }
     }
 }
@@ -698,6 +1093,17 @@ impl Augmented {
             creep: None,
             rate: None,
             load: None,
+            input_lag: None,
+            output_lag: None,
+            mode: None,
+            drain_lag: None,
+            output_clip: None,
+            soft_stop: None,
+            output_creep: None,
+            two_pole_creep: None,
+            on_off: None,
+            knee: ctx.knee(),
+            rest: ctx.rest_input(),
             u_mean: ctx.u_mean as f32,
             branch_tol: ctx.branch_tol as f32,
             inv_dt: (1.0 / ctx.dt) as f32,
@@ -723,6 +1129,25 @@ impl Augmented {
                 Effect::Creep => p.creep = Some((v, col(at + 1))),
                 Effect::Rate => p.rate = Some(v),
                 Effect::Load => p.load = (dataset >= 1).then(|| col(at + dataset - 1)),
+                Effect::InputLag => p.input_lag = Some(v),
+                Effect::OutputLag => p.output_lag = Some(v),
+                Effect::LoadMode => {
+                    let a2 = col(at + 1);
+                    let gain = std::array::from_fn(|l| (1.0 - v[l]) + a2[l]);
+                    p.mode = Some((v, a2, gain));
+                }
+                Effect::DrainLag => p.drain_lag = Some(v),
+                Effect::OutputClip => p.output_clip = Some(v.map(|l| l - y_mean)),
+                Effect::SoftStop => p.soft_stop = Some(v.map(|l| l - y_mean)),
+                Effect::OutputCreep => p.output_creep = Some((v, col(at + 1))),
+                Effect::TwoPoleCreep => {
+                    p.two_pole_creep = Some([v, col(at + 1), col(at + 2), col(at + 3)]);
+                }
+                Effect::OnOffThreshold => {
+                    let on = v.map(|x| x - p.u_mean);
+                    let gap = col(at + 1);
+                    p.on_off = Some((on, std::array::from_fn(|l| on[l] - gap[l])));
+                }
             }
             at += dim;
         }

@@ -39,6 +39,9 @@ use crate::model::Family;
 /// - every other effect: its catalogue namesake (end stop: `saturation`,
 ///   threshold: `deadzone`). A hysteretic threshold is not accepted as
 ///   `backlash`: play moves the whole input, a threshold only its bottom.
+///
+/// The names are physical effects ([`Effect::PHYSICAL`]): any realisation
+/// of an accepted physical effect counts ([`Effect::physical`]).
 pub fn accepted(p: Physical) -> &'static [Effect] {
     match p {
         Physical::Lag => &[Effect::Delay, Effect::Inertia],
@@ -58,10 +61,8 @@ pub fn accepted(p: Physical) -> &'static [Effect] {
 pub fn not_comparable(r: Realisation) -> Option<&'static str> {
     use Realisation::*;
     match r {
-        LoadMode => Some("a lightly damped mode has two parameters, inertia's pole one"),
-        DrainLag => Some("a drain time constant is no gain ratio (asymmetry's eps)"),
+        LoadMode => Some("a lightly damped mode has two parameters (period, damping)"),
         SoftLimit => Some("a smooth knee has no hard stop level"),
-        CreepOutput => Some("creep's kappa is per input unit, this creep's per output unit"),
         HystereticThreshold => Some("an on/off pair is no single dead-zone width"),
         _ => None,
     }
@@ -86,7 +87,9 @@ pub struct Frame {
 /// extra pole `a2` delays by `a2/(1 − a2)` (a moment match, not an identity).
 /// The catalogue's dead zone `max(p − p0, 0)` is this one's
 /// `p_lo + max(p − p_lo − s, 0)` with `p0 = p_lo + s` (the offset `p_lo`
-/// goes into the intercept), so its size is `p0 − p_lo`.
+/// goes into the intercept), so its size is `p0 − p_lo`. A first-order lag
+/// of pole `ρ` delays by `ρ/(1 − ρ)` samples, as a time constant does in
+/// samples; the drain lag's size is that of its slow branch.
 pub fn found_size(r: Realisation, e: Effect, params: &[f64], at: Frame) -> Option<f64> {
     use Realisation::*;
     if not_comparable(r).is_some() {
@@ -94,15 +97,21 @@ pub fn found_size(r: Realisation, e: Effect, params: &[f64], at: Frame) -> Optio
     }
     match (r, e) {
         (PureDelay | InputLag | OutputLag, Effect::Delay) => Some(params[0]),
-        (PureDelay | InputLag | OutputLag, Effect::Inertia) => Some(params[0] / (1.0 - params[0])),
+        (
+            PureDelay | InputLag | OutputLag,
+            Effect::Inertia | Effect::InputLag | Effect::OutputLag,
+        ) => Some(params[0] / (1.0 - params[0])),
+        (DrainLag, Effect::DrainLag) => Some(params[0] / (1.0 - params[0])),
         (ExtraPole, Effect::Inertia) => Some(params[0]),
         (GainAsymmetry, Effect::Asymmetry) => Some(params[0]),
-        (StateClip | OutputClip, Effect::Saturation) => Some(if at.up {
+        (StateClip | OutputClip, Effect::Saturation | Effect::OutputClip) => Some(if at.up {
             at.peak - params[0]
         } else {
             params[0] - at.peak
         }),
         (CreepInput | CreepTwo, Effect::Creep) => Some(params[1]),
+        (CreepInput | CreepTwo, Effect::TwoPoleCreep) => Some(params[1] + params[3]),
+        (CreepOutput, Effect::OutputCreep) => Some(params[1]),
         (DeadZone, Effect::Deadzone) => Some(params[0] - at.p_lo),
         (ViscousRate, Effect::Rate) => Some(params[0]),
         (Play, Effect::Backlash) => Some(params[0]),
@@ -320,7 +329,7 @@ pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
             size_true = Some(*s);
             let ok = accepted(r.physical());
             match named.first() {
-                Some(e) if ok.contains(e) => {
+                Some(e) if ok.contains(&e.physical()) => {
                     (size_check, size_found, size_interval) = size_of(setup, case, d, (*r, *e), *s);
                     if let Some(f) = size_found {
                         size_error = Some((f - s).abs() / s.abs());
@@ -347,7 +356,8 @@ pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
         }
         pair => {
             for (r, _) in pair {
-                if !accepted(r.physical()).iter().any(|e| named.contains(e)) {
+                let physical = accepted(r.physical());
+                if !named.iter().any(|e| physical.contains(&e.physical())) {
                     notes.push(format!("{} not named", r.physical().name()));
                 }
             }
@@ -445,13 +455,13 @@ fn size_check(
 /// over excitations and sizes.
 pub fn confusion(outcomes: &[BlindOutcome]) -> Vec<(String, Vec<usize>)> {
     let mut rows: Vec<(String, Vec<usize>)> = Vec::new();
-    let cols = Effect::ALL.len() + 1;
+    let cols = Effect::PHYSICAL.len() + 1;
     for o in outcomes.iter().filter(|o| o.truth.len() <= 1) {
         let label = o.truth.first().cloned().unwrap_or_else(|| "control".into());
         let ci = o
             .named
             .first()
-            .and_then(|e| Effect::ALL.iter().position(|x| x == e))
+            .and_then(|e| Effect::PHYSICAL.iter().position(|&x| x == e.physical()))
             .unwrap_or(cols - 1);
         match rows.iter_mut().find(|(l, _)| *l == label) {
             Some((_, v)) => v[ci] += 1,
@@ -470,7 +480,7 @@ pub fn table(outcomes: &[BlindOutcome]) -> String {
     use std::fmt::Write as _;
     let mut o = String::new();
     let _ = write!(o, "{:<32}", "true \\ named first");
-    for e in Effect::ALL {
+    for e in Effect::PHYSICAL {
         let _ = write!(o, " {:>5}", &e.name()[..e.name().len().min(5)]);
     }
     let _ = writeln!(o, "  none");

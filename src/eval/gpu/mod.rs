@@ -69,7 +69,7 @@ fn effects_header(problem: &Problem) -> String {
     let model = problem.model();
     let mut h = String::new();
     for effect in Effect::ALL {
-        let name = effect.name().to_ascii_uppercase();
+        let name = effect.ident();
         let at = model.offset_of(effect);
         h.push_str(&format!(
             "const HAS_{name}: bool = {};\nconst AT_{name}: u32 = {}u;\n",
@@ -95,6 +95,10 @@ fn effects_header(problem: &Problem) -> String {
     h.push_str(&array("Y_MEAN", "f32", float(&|c| c.y_mean as f32)));
     h.push_str(&array("BRANCH_TOL", "f32", float(&|c| c.branch_tol as f32)));
     h.push_str(&array("INV_DT", "f32", float(&|c| (1.0 / c.dt) as f32)));
+    h.push_str(&array("KNEE_H", "f32", float(&|c| c.knee()[0])));
+    h.push_str(&array("KNEE_2H", "f32", float(&|c| c.knee()[1])));
+    h.push_str(&array("KNEE_INV_4H", "f32", float(&|c| c.knee()[2])));
+    h.push_str(&array("REST", "f32", float(&|c| c.rest_input())));
     let up = problem
         .contexts
         .iter()
