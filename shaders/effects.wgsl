@@ -1,4 +1,4 @@
-// The scoring loop of a family with effect stages: src/model/effects.rs
+// The scoring loop of a family with effect stages: src/model/effects/step.rs
 // `Prepared::step` and `Prepared::restart`, spelled with the same
 // operations in the same order (every product that is then added kept
 // rounded, minima and maxima as comparisons). The generated header says
@@ -7,7 +7,7 @@
 // `Y_MEAN`, `BRANCH_TOL`, `INV_DT`, `DRIVES_UP`, `KNEE_*`, `REST`, indexed by
 // experiment).
 
-// effects.rs `larger`: `a` if it is the larger, else `b`.
+// step.rs `larger`: `a` if it is the larger, else `b`.
 fn larger(a: f32, b: f32) -> f32 {
     if (a > b) {
         return a;
@@ -15,7 +15,7 @@ fn larger(a: f32, b: f32) -> f32 {
     return b;
 }
 
-// effects.rs `smaller`: `a` if it is the smaller, else `b`.
+// step.rs `smaller`: `a` if it is the smaller, else `b`.
 fn smaller(a: f32, b: f32) -> f32 {
     if (a < b) {
         return a;
@@ -23,7 +23,7 @@ fn smaller(a: f32, b: f32) -> f32 {
     return b;
 }
 
-// effects.rs `soft_stop`.
+// step.rs `soft_stop`.
 fn soft_stop(x: f32, bound: f32, e: u32) -> f32 {
     let h = KNEE_H[e];
     var into = (bound + h) - x;
@@ -43,7 +43,7 @@ fn soft_stop(x: f32, bound: f32, e: u32) -> f32 {
     return bent;
 }
 
-// effects.rs: the end stop on the side the input drives the output.
+// step.rs: the end stop on the side the input drives the output.
 fn clip(x: f32, bound: f32, e: u32) -> f32 {
     if (DRIVES_UP[e]) {
         return smaller(x, bound);
@@ -72,7 +72,7 @@ fn score(i: u32, e: u32) -> f32 {
     let r0 = i * cfg.residual_len + span.x - e;
     let u_mean = U_MEAN[e];
     let tol = BRANCH_TOL[e];
-    // effects.rs `Augmented::prepare`.
+    // step.rs `Augmented::prepare`.
     // The delay in whole samples and the fraction of a sample beyond them.
     var whole = 0u;
     var frac = 0.0;
@@ -169,7 +169,7 @@ fn score(i: u32, e: u32) -> f32 {
         p_off = p_on - params[p + AT_DEADZONE_ON_OFF + 1u];
     }
     let big_a = stiffness(th);
-    // effects.rs `Prepared::start`.
+    // step.rs `Prepared::start`.
     let u0 = input(span, 0u);
     var x = samples[span.x].y + th.x0;
     var w = 0.0;
@@ -193,11 +193,11 @@ fn score(i: u32, e: u32) -> f32 {
     var next_restart = cfg.horizon;
     for (var k = 1u; k < span.y; k = k + 1u) {
         // Input side: delay, input lag, on/off threshold, deadzone, play,
-        // branch gain, load gain, drain lag (effects.rs `Prepared::step`).
+        // branch gain, load gain, drain lag (step.rs `Prepared::step`).
         let raw = input(span, k - 1u);
         var ui = raw;
         if (HAS_DELAY) {
-            // effects.rs `delayed`: u(j) moved by `frac` toward u(j−1), the
+            // step.rs `delayed`: u(j) moved by `frac` toward u(j−1), the
             // u(j) of the sample before.
             var j = 0u;
             if (k - 1u > whole) {
@@ -350,7 +350,7 @@ fn score(i: u32, e: u32) -> f32 {
         } else {
             acc = acc + rounded(err * err);
         }
-        // effects.rs `Prepared::restart`.
+        // step.rs `Prepared::restart`.
         if (k == next_restart) {
             let xr = (((measured - z) - z_out) - z_fast) - z_slow;
             w = w + rounded(big_a * (xr - x));

@@ -6,7 +6,7 @@
 //! ([`shader_source`]: a generated header, `shaders/prologue.wgsl`, one file
 //! per family, `driver.wgsl` or, with effect stages, `effects.wgsl`, and
 //! `entry.wgsl`); it spells the operations of `src/model/sim.rs` and
-//! `src/model/effects.rs` in the same order. On an unfused f32
+//! `src/model/effects/step.rs` in the same order. On an unfused f32
 //! implementation (Mesa's lavapipe) the `n = 1` scores are bit-identical to
 //! the CPU's; a real GPU may fuse `a·b + c` into an fma, so there compare
 //! within a tolerance and compare rankings (`mckibben bench` reports both).
