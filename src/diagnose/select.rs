@@ -3,12 +3,11 @@
 //! and repeat on the remainder (forward selection).
 //! The acceptance rule is [`accept`](super::accept)'s.
 
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::accept::{Candidate, Yardstick, judge_all};
 use super::data::Data;
-use rayon::prelude::*;
-
 use super::effects::{Augmented, Effect};
 use super::fitting::{Fit, SeededFit, Start, fit_seeds, fit_seeds_with, profile, scratch_fits};
 use crate::eval::Backend;
@@ -189,9 +188,12 @@ pub fn select(
                 .collect();
             scratch = (0..models.len())
                 .into_par_iter()
-                .map(|slot| match slot == 0 || first_level[slot - 1] {
-                    true => scratch_fits(data, models[slot], settings, scratch_salt(slot)),
-                    false => Ok(Vec::new()),
+                .map(|slot| {
+                    if slot == 0 || first_level[slot - 1] {
+                        scratch_fits(data, models[slot], settings, scratch_salt(slot))
+                    } else {
+                        Ok(Vec::new())
+                    }
                 })
                 .collect::<anyhow::Result<_>>()?;
         }
