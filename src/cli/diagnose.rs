@@ -294,7 +294,8 @@ fn independent_self_test(
             .into_iter()
             .map(|(row, counts)| serde_json::json!({ "truth": row, "first_named": counts }))
             .collect();
-        let columns: Vec<&str> = Effect::ALL
+        // The columns are physical effects: any realisation counts.
+        let columns: Vec<&str> = Effect::PHYSICAL
             .iter()
             .map(|e| e.name())
             .chain(["none"])
