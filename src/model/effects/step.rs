@@ -72,7 +72,12 @@ pub struct Prepared<const L: usize> {
 
 /// The states an augmented model carries from sample to sample, per lane:
 /// the baseline's output `x` and Bouc-Wen state `w`, and the effects' own.
+/// Laid out in order and aligned to a cache line, so that every lane array
+/// starts on one (the arrays come first, 128 bytes each at `L = 32`): a
+/// vector load of an array that straddles two lines costs two (measured:
+/// docs/PERFORMANCE.md).
 #[derive(Debug, Clone)]
+#[repr(C, align(64))]
 pub struct EffectState<const L: usize> {
     pub x: [f32; L],
     pub w: [f32; L],
