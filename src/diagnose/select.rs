@@ -161,13 +161,13 @@ pub fn select(
         }
         let remaining_models: Vec<Augmented> =
             remaining.iter().map(|&e| current_model.with(e)).collect();
-        // Two levels: the first realisation of every physical effect (or a
-        // realisation asked for without it) always; the others only for the
+        // Two levels: the realisations always tried (or asked for without
+        // their physical effect's first), then the others only for the
         // physical effects whose first realisation fits best
         // (`Settings::realisation_top`).
         let first_level: Vec<bool> = remaining
             .iter()
-            .map(|e| e.physical() == *e || !remaining.contains(&e.physical()))
+            .map(|e| e.always_tried() || !remaining.contains(&e.physical()))
             .collect();
         let salt = 100 * (round as u64 + 1);
         let refit = Start::Warm {
@@ -244,6 +244,7 @@ pub fn select(
                 .collect::<anyhow::Result<_>>()?;
             let mut ranked: Vec<(f64, Effect)> = fits
                 .iter()
+                .filter(|(e, _, _)| e.physical() == *e)
                 .map(|(e, _, f)| (f.best.val_rmse, e.physical()))
                 .collect();
             ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
