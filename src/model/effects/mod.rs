@@ -125,18 +125,9 @@ impl Effect {
         Effect::OnOffThreshold,
     ];
 
-    /// The physical effects: the catalogue's first realisation of each.
-    pub const PHYSICAL: [Effect; 9] = [
-        Effect::Delay,
-        Effect::Deadzone,
-        Effect::Saturation,
-        Effect::Asymmetry,
-        Effect::Inertia,
-        Effect::Backlash,
-        Effect::Creep,
-        Effect::Rate,
-        Effect::Load,
-    ];
+    /// The physical effects: the catalogue's first realisation of each, the
+    /// first nine of [`Effect::ALL`].
+    pub const PHYSICAL: &'static [Effect] = Effect::ALL.split_at(9).0;
 
     /// The physical effect this realises (`DESIGN.md` §5's names): the
     /// first realisation of each is the physical effect itself.
@@ -775,6 +766,20 @@ mod tests {
         let free = model.sse(&theta, 0, &ctx, &exp);
         assert_eq!(model.sse_ahead(&theta, 0, &ctx, &exp, exp.len()), free);
         assert_ne!(model.sse_ahead(&theta, 0, &ctx, &exp, 10), free);
+    }
+
+    #[test]
+    fn the_physical_effects_are_the_first_realisations_and_every_one_has_one() {
+        for e in Effect::PHYSICAL {
+            assert_eq!(e.physical(), *e, "{e}");
+        }
+        for e in Effect::ALL {
+            assert!(Effect::PHYSICAL.contains(&e.physical()), "{e}");
+        }
+        assert_eq!(
+            Effect::ALL.iter().filter(|e| e.physical() == **e).count(),
+            Effect::PHYSICAL.len()
+        );
     }
 
     #[test]
