@@ -199,3 +199,29 @@ fn cavatappi_500g_gets_a_stable_baseline() {
     let (beta, gamma) = (p["beta"].as_f64().unwrap(), p["gamma"].as_f64().unwrap());
     assert!(beta + gamma >= 0.0, "an unbounded loop: {p}");
 }
+
+/// An effect outside the catalogue (a sensor's cross-talk, from the
+/// independent generator, on the shipped stair's input): the diagnosis says
+/// "not explained by the catalogue" and names nothing. On a record as short
+/// as the small traces above the ridge bound is too weak to say so
+/// (docs/DIAGNOSIS.md), hence the shipped data.
+#[test]
+fn an_effect_outside_the_catalogue_is_not_explained_rather_than_misnamed() {
+    let out = bin()
+        .args(["diagnose", "--self-test", "--json"])
+        .args([
+            "--cases",
+            "cross-talk (small on stair),cross-talk (large on stair)",
+        ])
+        .output()
+        .unwrap();
+    let v = json_of(&out);
+    let cases = v["cases"].as_array().unwrap();
+    assert_eq!(cases.len(), 2, "{v}");
+    for c in cases {
+        assert_eq!(c["not_explained"], true, "{c}");
+        assert!(c["gap_closable"].as_f64().unwrap() >= 0.3, "{c}");
+        assert_eq!(c["named"].as_array().unwrap().len(), 0, "{c}");
+        assert_eq!(c["pass"], true, "{c}");
+    }
+}

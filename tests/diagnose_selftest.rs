@@ -153,8 +153,9 @@ mod independent {
     fn the_cases_cover_every_realisation_on_both_excitations() {
         let setup = Setup::new(nominal(), 1).unwrap();
         let all = cases(&setup, 1);
-        // 18 realisations × 2 sizes × 2 excitations, 2 controls, 2 pairs.
-        assert_eq!(all.len(), 76);
+        // 18 catalogued realisations × 2 sizes × 2 excitations, 2 controls,
+        // 2 pairs, and the cross-talk outside the catalogue × 2 × 2.
+        assert_eq!(all.len(), 80);
         assert_eq!(setup.excitations[1].input.len(), nominal().trace.len());
     }
 

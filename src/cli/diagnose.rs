@@ -90,7 +90,9 @@ pub struct Args {
     /// never the catalogue's, realises every physical effect in two or
     /// three ways (e.g. lag as a pure delay, an input lag, an output lag) on
     /// DATA's input and on a multisine, at two sizes, plus a control on each
-    /// and two pairs (76 cases, classic baseline only); prints the
+    /// and two pairs, and an effect outside the catalogue (a sensor's
+    /// cross-talk), which must be called "not explained by the catalogue"
+    /// (80 cases, classic baseline only); prints the
     /// confusion table and each case's verdict. `--self-test=catalogue`: the
     /// older check whose data are the catalogue's own effect equations
     /// (every effect at two sizes, a control, a two-effect case), then the

@@ -90,6 +90,20 @@ impl Diagnosis {
     pub fn last(&self) -> &Step {
         self.steps.last().expect("at least the baseline")
     }
+
+    /// The effects the diagnosis names as causes: the accepted ones, unless
+    /// the verdict is "not explained by the catalogue". Then what the
+    /// signals demonstrably explain is mostly something else, and effects
+    /// that close a small part of it are fits, not causes: naming them
+    /// would be a wrong name (they stay in the final model and in
+    /// `selection.verdict`, the order they were accepted in).
+    pub fn named(&self) -> &[Effect] {
+        if self.explainable.not_explained {
+            &[]
+        } else {
+            &self.selection.verdict
+        }
+    }
 }
 
 fn fit_of(data: &Data, model: &Augmented, theta: &[f64]) -> f64 {

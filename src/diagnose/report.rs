@@ -118,7 +118,14 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "cross_correlation": w.cross_correlation,
         },
         "candidates": candidates,
-        "verdict": sel.verdict.iter().map(|e| e.name()).collect::<Vec<_>>(),
+        "verdict": d.named().iter().map(|e| e.name()).collect::<Vec<_>>(),
+        "verdict_kind": if x.not_explained {
+            "not-explained"
+        } else if sel.verdict.is_empty() {
+            "none"
+        } else {
+            "named"
+        },
         "steps": d.steps,
         "final": {
             "model": sel.final_model.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
@@ -327,7 +334,27 @@ pub fn to_text(d: &Diagnosis) -> String {
     }
     explainable_text(&mut o, d);
     spectrum_text(&mut o, d);
-    if d.selection.verdict.is_empty() {
+    let x = &d.explainable;
+    if x.not_explained {
+        let _ = writeln!(
+            o,
+            "\nVerdict: not explained by the catalogue. A flexible model of the signals closes {} \
+             of the gap; the catalogue's best model closes {} of that.",
+            pct(x.bound.gap_closable).trim(),
+            pct(x.catalogue_share.unwrap_or(0.0)).trim()
+        );
+        if !d.selection.verdict.is_empty() {
+            let fitted: Vec<_> = d.selection.verdict.iter().map(|e| e.name()).collect();
+            let _ = writeln!(
+                o,
+                "  Its effects ({}) are fits to part of the gap, not its cause: none is named.",
+                fitted.join(", ")
+            );
+        }
+        if let Some(sig) = &x.signature {
+            let _ = writeln!(o, "  What is left lies {}.", signature_text(sig));
+        }
+    } else if d.selection.verdict.is_empty() {
         let _ = writeln!(
             o,
             "\nVerdict: none of the catalogued effects explains the remaining gap."
@@ -352,19 +379,6 @@ pub fn to_text(d: &Diagnosis) -> String {
             "The final model's residual still has {}: a periodic component none of the named effects reproduces.",
             peak_text(p)
         );
-    }
-    let x = &d.explainable;
-    if x.not_explained {
-        let _ = writeln!(
-            o,
-            "Not explained by the catalogue: a flexible model of the signals closes {} of the gap, \
-             the named effects {} of that.",
-            pct(x.bound.gap_closable).trim(),
-            pct(x.catalogue_share.unwrap_or(0.0)).trim()
-        );
-        if let Some(sig) = &x.signature {
-            let _ = writeln!(o, "  What is left lies {}.", signature_text(sig));
-        }
     }
     o
 }

@@ -288,7 +288,7 @@ pub struct Outcome {
 /// Judges a diagnosis of a case.
 pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> Outcome {
     let truth: Vec<Effect> = case.effects.iter().map(|(e, _)| *e).collect();
-    let named = d.selection.verdict.clone();
+    let named = d.named().to_vec();
     let mut notes = Vec::new();
     let (mut size_true, mut size_found, mut size_error) = (None, None, None);
     let mut size_interval = None;
@@ -615,8 +615,8 @@ pub fn twin_check(
         out.push(TwinOutcome {
             twin_effect: case.effect.into(),
             input: case.input.into(),
-            verdict_on: on.selection.verdict.clone(),
-            verdict_off: off.selection.verdict.clone(),
+            verdict_on: on.named().to_vec(),
+            verdict_off: off.named().to_vec(),
             baseline_on: on.baseline().val_rmse,
             baseline_off: off.baseline().val_rmse,
             attributed,

@@ -95,6 +95,9 @@ pub enum Physical {
     Rate,
     Backlash,
     Load,
+    /// No catalogued effect: the check that the diagnosis says "not
+    /// explained by the catalogue" instead of a wrong name.
+    Outside,
 }
 
 impl Physical {
@@ -109,6 +112,7 @@ impl Physical {
             Physical::Rate => "rate",
             Physical::Backlash => "backlash",
             Physical::Load => "load",
+            Physical::Outside => "outside the catalogue",
         }
     }
 }
@@ -173,11 +177,17 @@ pub enum Realisation {
     /// A second dataset (another load) whose input gain is `1 + g` on the
     /// absolute input: size `g`.
     LoadGain,
+    /// The displacement sensor picks up the valve's pressure transients
+    /// (electrical cross-talk): `κ·(p(k−1) − v(k))` added to the measured
+    /// output, `v` the input through a first-order lag of 3 samples, i.e. a
+    /// high-pass of the input. No catalogued effect has a lead: size `κ`
+    /// (output per input unit).
+    CrossTalk,
 }
 
 impl Realisation {
     /// Every realisation, grouped by physical effect.
-    pub const ALL: [Realisation; 18] = [
+    pub const ALL: [Realisation; 19] = [
         Realisation::PureDelay,
         Realisation::InputLag,
         Realisation::OutputLag,
@@ -196,6 +206,7 @@ impl Realisation {
         Realisation::ViscousRate,
         Realisation::Play,
         Realisation::LoadGain,
+        Realisation::CrossTalk,
     ];
 
     pub fn physical(self) -> Physical {
@@ -210,6 +221,7 @@ impl Realisation {
             ViscousRate => Physical::Rate,
             Play => Physical::Backlash,
             LoadGain => Physical::Load,
+            CrossTalk => Physical::Outside,
         }
     }
 
@@ -234,6 +246,7 @@ impl Realisation {
             ViscousRate => "viscous",
             Play => "play",
             LoadGain => "input gain",
+            CrossTalk => "sensor cross-talk",
         }
     }
 
@@ -258,7 +271,7 @@ impl Realisation {
             LoadMode => 60.0,
             GainAsymmetry | LoadGain => 0.5,
             StateClip | OutputClip | SoftLimit => 0.4 * ry,
-            CreepInput | CreepTwo => 2.0 * ry / ru,
+            CreepInput | CreepTwo | CrossTalk => 2.0 * ry / ru,
             CreepOutput => 2.0,
             DeadZone | HystereticThreshold => 0.6 * ru,
             ViscousRate => 10.0 / exc.max_rate().max(f64::MIN_POSITIVE),
@@ -392,6 +405,7 @@ struct States {
     out_lag: f64,
     mode: [f64; 2],
     creep: [f64; 2],
+    cross_talk: f64,
 }
 
 /// The plant's output (absolute) on `exc`'s input with `effects` at their
@@ -456,6 +470,7 @@ fn run(
     let mut st = States {
         lag_in: p[0],
         drain: p[0],
+        cross_talk: p[0],
         extreme: p[0],
         ..States::default()
     };
@@ -596,6 +611,10 @@ fn run(
         if let Some(s) = size(OutputClip) {
             let l = stop(s);
             y = if sc.drives_up { y.min(l) } else { y.max(l) };
+        }
+        if let Some(kappa) = size(CrossTalk) {
+            st.cross_talk = 0.75 * st.cross_talk + 0.25 * raw;
+            y += kappa * (raw - st.cross_talk);
         }
         out.push(y);
     }

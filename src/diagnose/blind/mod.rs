@@ -5,7 +5,8 @@
 //! Every physical effect in two or three realisations, on two excitations
 //! (the data's own input and a multisine with rate content), at two sizes
 //! calibrated to the mark they leave on the nominal output (6 σ and 15 σ,
-//! σ the noise); a control on each excitation; two pairs. Each case is
+//! σ the noise); a control on each excitation; two pairs; and a sensor's
+//! cross-talk, which no catalogued effect realises. Each case is
 //! diagnosed blind and judged:
 //!
 //! - a single effect: the first effect named is one the physical effect
@@ -15,7 +16,9 @@
 //!   diagnosis' 95 % profile interval of it is within ±20 %; otherwise the
 //!   size is reported and the reason it is not judged;
 //! - the control: nothing named;
-//! - a pair: both physical effects named.
+//! - a pair: both physical effects named;
+//! - an effect outside the catalogue (a sensor's cross-talk): the verdict
+//!   "not explained by the catalogue", hence no name.
 
 pub mod generator;
 
@@ -53,6 +56,7 @@ pub fn accepted(p: Physical) -> &'static [Effect] {
         Physical::Rate => &[Effect::Rate],
         Physical::Backlash => &[Effect::Backlash],
         Physical::Load => &[Effect::Load],
+        Physical::Outside => &[],
     }
 }
 
@@ -195,9 +199,10 @@ pub struct BlindCase {
     pub seed: u64,
 }
 
-/// Every case: on each excitation the control and every realisation at the
-/// two sizes of [`MARKS`]; then two pairs on the data's input, each effect
-/// at its small size. Case `i`'s noise is drawn from `seed + 1 + i`, so a
+/// Every case: on each excitation the control and every catalogued
+/// realisation at the two sizes of [`MARKS`]; then two pairs on the data's
+/// input, each effect at its small size; then the cross-talk outside the
+/// catalogue on each excitation at both sizes. Case `i`'s noise is drawn from `seed + 1 + i`, so a
 /// case keeps its data when others are filtered out.
 pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
     let mut out = Vec::new();
@@ -216,7 +221,10 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
     };
     for (i, exc) in setup.excitations.iter().enumerate() {
         push(format!("control ({})", exc.name), i, "", Vec::new());
-        for r in Realisation::ALL {
+        for r in Realisation::ALL
+            .into_iter()
+            .filter(|r| r.physical() != Physical::Outside)
+        {
             for (k, label) in MARKS {
                 push(
                     format!("{} ({label} on {})", r.label(), exc.name),
@@ -235,6 +243,18 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
             "small",
             vec![(a, size(a, 0, small)), (b, size(b, 0, small))],
         );
+    }
+    // Last, so that the other cases keep the seeds they had before it.
+    let r = Realisation::CrossTalk;
+    for (i, exc) in setup.excitations.iter().enumerate() {
+        for (k, label) in MARKS {
+            push(
+                format!("{} ({label} on {})", r.label(), exc.name),
+                i,
+                label,
+                vec![(r, size(r, i, k))],
+            );
+        }
     }
     out
 }
@@ -282,6 +302,10 @@ pub struct BlindOutcome {
     pub final_rmse: f64,
     pub noise_floor: f64,
     pub gap_closed: f64,
+    /// The explainable bound's share of the gap, and whether the diagnosis
+    /// said "not explained by the catalogue".
+    pub gap_closable: f64,
+    pub not_explained: bool,
     pub pass: bool,
     pub note: String,
 }
@@ -313,7 +337,7 @@ pub fn run_case(
 
 /// Judges a diagnosis of a case by the rules of the module's documentation.
 pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
-    let named = d.selection.verdict.clone();
+    let named = d.named().to_vec();
     let gap = d.last().gap_closed;
     let mut notes = Vec::new();
     let (mut size_true, mut size_found, mut size_error, mut size_interval) =
@@ -323,6 +347,14 @@ pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
         [] => {
             if !named.is_empty() {
                 notes.push("control: named an effect".to_string());
+            }
+        }
+        [(r, _)] if r.physical() == Physical::Outside => {
+            if !d.explainable.not_explained {
+                notes.push(format!(
+                    "wanted \"not explained by the catalogue\", named {}",
+                    names_or_nothing(&named)
+                ));
             }
         }
         [(r, s)] => {
@@ -378,8 +410,22 @@ pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
         final_rmse: d.last().val_rmse,
         noise_floor: d.noise_floor_rmse,
         gap_closed: gap,
+        gap_closable: d.explainable.bound.gap_closable,
+        not_explained: d.explainable.not_explained,
         pass: notes.is_empty(),
         note: notes.join("; "),
+    }
+}
+
+fn names_or_nothing(named: &[Effect]) -> String {
+    if named.is_empty() {
+        "nothing".into()
+    } else {
+        named
+            .iter()
+            .map(|e| e.name())
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 }
 
