@@ -72,9 +72,14 @@ fn models() -> Vec<Augmented> {
     all
 }
 
-fn problem_of(model: &Augmented, measure: Measure) -> (Problem, Vec<Context>) {
+/// The two directions an input can drive the output: the stair muscle
+/// extends (`drives_up`), the Cavatappi muscle contracts; the end stops
+/// differ between them.
+const DIRECTIONS: [bool; 2] = [true, false];
+
+fn problem_of(model: &Augmented, measure: Measure, drives_up: bool) -> (Problem, Vec<Context>) {
     let exps = experiments();
-    let contexts: Vec<Context> = exps.iter().map(|e| Context::of(e, true)).collect();
+    let contexts: Vec<Context> = exps.iter().map(|e| Context::of(e, drives_up)).collect();
     let problem = Problem::new(model.family, exps)
         .with_measure(measure)
         .with_effects(model.effects.clone(), contexts.clone());
@@ -90,8 +95,11 @@ fn bits(v: &[f32]) -> Vec<u32> {
 #[test]
 fn cpu_batches_give_the_scalar_simulations_bits() {
     for model in models() {
-        for measure in MEASURES {
-            let (problem, contexts) = problem_of(&model, measure);
+        for (measure, up) in MEASURES
+            .into_iter()
+            .flat_map(|m| DIRECTIONS.map(|up| (m, up)))
+        {
+            let (problem, contexts) = problem_of(&model, measure, up);
             let pop = population(&model, &contexts[0], 2 * LANES + 5, 3);
             let scores = CpuEvaluator::new().evaluate(&problem, &pop).unwrap();
             let d = model.dim();
@@ -104,7 +112,7 @@ fn cpu_batches_give_the_scalar_simulations_bits() {
                     })
                     .collect();
                 let what = format!(
-                    "{} + {:?}, {measure}, experiment {e}",
+                    "{} + {:?}, {measure}, drives up {up}, experiment {e}",
                     model.family, model.effects
                 );
                 assert_eq!(bits(&scores.per_experiment[e]), bits(&want), "{what}");
@@ -121,10 +129,16 @@ fn gpu_kernels_give_the_cpu_bits() {
     };
     let mut cpu = CpuEvaluator::new();
     for model in models() {
-        for measure in MEASURES {
-            let (problem, contexts) = problem_of(&model, measure);
+        for (measure, up) in MEASURES
+            .into_iter()
+            .flat_map(|m| DIRECTIONS.map(|up| (m, up)))
+        {
+            let (problem, contexts) = problem_of(&model, measure, up);
             let pop = population(&model, &contexts[0], 70, 4);
-            let what = format!("{} + {:?}, {measure}", model.family, model.effects);
+            let what = format!(
+                "{} + {:?}, {measure}, drives up {up}",
+                model.family, model.effects
+            );
             let want = cpu.evaluate(&problem, &pop).unwrap();
             let got = gpu.evaluate(&problem, &pop).unwrap();
             for e in 0..problem.experiments.len() {

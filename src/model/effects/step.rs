@@ -39,7 +39,7 @@ pub struct Prepared<const L: usize> {
     /// before them, once per candidate rather than once per sample.
     delay: Option<([i32; L], [f32; L])>,
     deadzone: Option<[f32; L]>,
-    /// The end stop in deviation coordinates.
+    /// The end stop in deviation coordinates, times [`Prepared::toward`].
     saturation: Option<[f32; L]>,
     asymmetry: Option<[f32; L]>,
     inertia: Option<[f32; L]>,
@@ -52,9 +52,10 @@ pub struct Prepared<const L: usize> {
     /// The load mode's `a1`, `a2` and its input weight `(1 − a1) + a2`.
     mode: Option<([f32; L], [f32; L], [f32; L])>,
     drain_lag: Option<[f32; L]>,
-    /// The output clip's bound in deviation coordinates.
+    /// The output clip's bound in deviation coordinates, times
+    /// [`Prepared::toward`].
     output_clip: Option<[f32; L]>,
-    /// The soft stop's bound in deviation coordinates.
+    /// The soft stop's bound in deviation coordinates, times [`Prepared::toward`].
     soft_stop: Option<[f32; L]>,
     output_creep: Option<([f32; L], [f32; L])>,
     two_pole_creep: Option<[[f32; L]; 4]>,
@@ -125,20 +126,19 @@ fn smaller(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
-/// The soft end stop: `x` blended into `bound` over `bound ∓ h` by a
-/// quadratic whose slope runs from 1 to 0 (`knee` = [`Context::knee`]),
-/// `bound` beyond; `x` itself short of the knee.
+/// The soft end stop on an output that the input drives up: `x` blended
+/// into `bound` over `bound − h` by a quadratic whose slope runs from 1 to 0
+/// (`knee` = [`Context::knee`]), `bound` beyond; `x` itself short of the
+/// knee. A stop below is this one on `−x` and `−bound`, negated: the same
+/// bits as writing it out (negation is exact, and `(b + h) − x` is
+/// `−x − (−b − h)`).
 #[inline(always)]
-fn soft_stop(x: f32, bound: f32, knee: [f32; 3], drives_up: bool) -> f32 {
+fn soft_stop(x: f32, bound: f32, knee: [f32; 3]) -> f32 {
     let [h, two_h, inv_4h] = knee;
-    // How far into the knee x is, in the direction the input drives it.
-    let into = if drives_up {
-        x - (bound - h)
-    } else {
-        (bound + h) - x
-    };
+    // How far into the knee x is.
+    let into = x - (bound - h);
     let bend = (into * into) * inv_4h;
-    let bent = if drives_up { x - bend } else { x + bend };
+    let bent = x - bend;
     if into <= 0.0 {
         x
     } else if into >= two_h {
@@ -179,6 +179,18 @@ fn delayed(past: &[f32], last: i32, whole: i32, frac: f32, before: f32) -> (f32,
 }
 
 impl<const L: usize> Prepared<L> {
+    /// +1 where the input drives the output up, −1 where down. The end
+    /// stops are stored times it and applied as `toward · min(toward · x,
+    /// bound)`: `max(x, b)` is `−min(−x, −b)` bit for bit (negation is
+    /// exact, and ties and NaN pick the bound either way), so each stop is
+    /// one lane loop with no branch on the direction (with a branch, the
+    /// output clip's loop ran at a third of the plain model's speed;
+    /// docs/PERFORMANCE.md).
+    #[inline(always)]
+    fn toward(&self) -> f32 {
+        if self.drives_up { 1.0 } else { -1.0 }
+    }
+
     /// The state at the first sample, from the first measured output `y0`
     /// and the first input `u0` ([`crate::model::sim::Stepper::start`]).
     #[inline(always)]
@@ -300,6 +312,7 @@ impl<const L: usize> Prepared<L> {
         // new output stays in registers from the linear part to the end
         // stop (stage loops of their own spilled it between them).
         let linear = self.family == Family::Linear;
+        let toward = self.toward();
         let mut xk = [0.0f32; L];
         for l in 0..L {
             let mut x = if linear {
@@ -319,17 +332,14 @@ impl<const L: usize> Prepared<L> {
                 x += a2[l] * (s.x[l] - s.x_prev2[l]);
             }
             if let Some(bound) = &self.saturation {
-                x = if self.drives_up {
-                    smaller(x, bound[l])
-                } else {
-                    larger(x, bound[l])
-                };
+                x = toward * smaller(toward * x, bound[l]);
             }
             xk[l] = x;
         }
         if let Some(bound) = &self.soft_stop {
+            let (knee, toward) = (self.knee, self.toward());
             for l in 0..L {
-                xk[l] = soft_stop(xk[l], bound[l], self.knee, self.drives_up);
+                xk[l] = toward * soft_stop(toward * xk[l], bound[l], knee);
             }
         }
         let mut a_eff = self.big_a;
@@ -375,12 +385,9 @@ impl<const L: usize> Prepared<L> {
             }
         }
         if let Some(bound) = &self.output_clip {
+            let toward = self.toward();
             for l in 0..L {
-                y[l] = if self.drives_up {
-                    smaller(y[l], bound[l])
-                } else {
-                    larger(y[l], bound[l])
-                };
+                y[l] = toward * smaller(toward * y[l], bound[l]);
             }
         }
         if let Some(rho) = &self.output_lag {
@@ -513,6 +520,7 @@ impl Augmented {
             drives_up: ctx.drives_up,
         };
         let y_mean = ctx.y_mean as f32;
+        let toward = p.toward();
         let mut at = fam.dim();
         for &e in &self.effects {
             let dim = e.dim(self.datasets);
@@ -525,7 +533,7 @@ impl Augmented {
                     p.delay = Some((split.map(|s| s.0), split.map(|s| s.1)));
                 }
                 Effect::Deadzone => p.deadzone = Some(v),
-                Effect::Saturation => p.saturation = Some(v.map(|l| l - y_mean)),
+                Effect::Saturation => p.saturation = Some(v.map(|l| toward * (l - y_mean))),
                 Effect::Asymmetry => p.asymmetry = Some(v),
                 Effect::Inertia => p.inertia = Some(v),
                 Effect::Backlash => p.backlash = Some(non_negative),
@@ -540,8 +548,8 @@ impl Augmented {
                     p.mode = Some((v, a2, gain));
                 }
                 Effect::DrainLag => p.drain_lag = Some(v),
-                Effect::OutputClip => p.output_clip = Some(v.map(|l| l - y_mean)),
-                Effect::SoftStop => p.soft_stop = Some(v.map(|l| l - y_mean)),
+                Effect::OutputClip => p.output_clip = Some(v.map(|l| toward * (l - y_mean))),
+                Effect::SoftStop => p.soft_stop = Some(v.map(|l| toward * (l - y_mean))),
                 Effect::OutputCreep => p.output_creep = Some((v, col(at + 1))),
                 Effect::TwoPoleCreep => {
                     p.two_pole_creep = Some([v, col(at + 1), col(at + 2), col(at + 3)]);
