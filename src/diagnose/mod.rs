@@ -249,7 +249,7 @@ pub fn diagnose(
             .as_ref()
             .and_then(|s| s.peaks.first().copied()),
     );
-    let explainable = explainable::judge(bound, &steps, remaining);
+    let explainable = explainable::judge(bound, &steps, remaining, settings.floor_margin);
 
     let last_pred = data.predict(&selection.final_model, &selection.final_fit.params);
     let curves = traces

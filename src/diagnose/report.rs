@@ -336,12 +336,17 @@ pub fn to_text(d: &Diagnosis) -> String {
     spectrum_text(&mut o, d);
     let x = &d.explainable;
     if x.not_explained {
+        let closed = d.last().gap_closed;
         let _ = writeln!(
             o,
             "\nVerdict: not explained by the catalogue. A flexible model of the signals closes {} \
-             of the gap; the catalogue's best model closes {} of that.",
+             of the gap above the noise floor and leaves {}; the catalogue's best model closes {} \
+             ({} of the flexible model's) and leaves {}.",
             pct(x.bound.gap_closable).trim(),
-            pct(x.catalogue_share.unwrap_or(0.0)).trim()
+            pct(1.0 - x.bound.gap_closable).trim(),
+            pct(closed).trim(),
+            pct(x.catalogue_share.unwrap_or(0.0)).trim(),
+            pct(1.0 - closed).trim()
         );
         if !d.selection.verdict.is_empty() {
             let fitted: Vec<_> = d.selection.verdict.iter().map(|e| e.name()).collect();
