@@ -34,12 +34,6 @@ pub struct Settings {
     pub scratch_seeds: usize,
     /// At most this many effects are named.
     pub max_effects: usize,
-    /// The other realisations of a physical effect (e.g. `delay:input-lag`
-    /// beside `delay`) are fitted in a round only for the physical effects
-    /// whose first realisation fitted best on validation, this many of them:
-    /// a round costs the first realisations' fits plus a few, not the whole
-    /// catalogue's twice over.
-    pub realisation_top: usize,
     /// Rule 1: improvement must exceed this many seed standard deviations.
     pub spread_factor: f64,
     /// Rule 2: ΔBIC must be below this.
@@ -74,7 +68,6 @@ impl Default for Settings {
             generations: 300,
             scratch_seeds: 4,
             max_effects: 3,
-            realisation_top: 2,
             spread_factor: 3.0,
             bic_threshold: -10.0,
             min_relative: 0.02,
@@ -161,22 +154,13 @@ pub fn select(
         }
         let remaining_models: Vec<Augmented> =
             remaining.iter().map(|&e| current_model.with(e)).collect();
-        // Two levels: the realisations always tried (or asked for without
-        // their physical effect's first), then the others only for the
-        // physical effects whose first realisation fits best
-        // (`Settings::realisation_top`).
-        let first_level: Vec<bool> = remaining
-            .iter()
-            .map(|e| e.always_tried() || !remaining.contains(&e.physical()))
-            .collect();
         let salt = 100 * (round as u64 + 1);
         let refit = Start::Warm {
             params: &current_params,
             new_from: current_params.len(),
         };
         // The first round adds fits from scratch, computed once per model
-        // (slot 0 the current model's, slot i + 1 the i-th candidate's), the
-        // other realisations' only when they are fitted.
+        // (slot 0 the current model's, slot i + 1 the i-th candidate's).
         let first_round = current_model.effects.is_empty();
         let scratch_salt = |slot: usize| salt + 50 + slot as u64;
         // Every fit has its own seed, so fits run side by side give the
@@ -188,13 +172,7 @@ pub fn select(
                 .collect();
             scratch = (0..models.len())
                 .into_par_iter()
-                .map(|slot| {
-                    if slot == 0 || first_level[slot - 1] {
-                        scratch_fits(data, models[slot], settings, scratch_salt(slot))
-                    } else {
-                        Ok(Vec::new())
-                    }
-                })
+                .map(|slot| scratch_fits(data, models[slot], settings, scratch_salt(slot)))
                 .collect::<anyhow::Result<_>>()?;
         }
         let current = fit_seeds_with(data, &current_model, refit, settings, salt, &scratch[0])?;
@@ -237,48 +215,10 @@ pub fn select(
                     fit.best = profile(data, &model, fit.best, at)?;
                     Ok((effect, model, fit))
                 };
-            let mut fits: Vec<_> = (0..remaining.len())
+            let fits: Vec<_> = (0..remaining.len())
                 .into_par_iter()
-                .filter(|&i| first_level[i])
                 .map(|i| fit_one(i, &scratch[i + 1]))
                 .collect::<anyhow::Result<_>>()?;
-            let mut ranked: Vec<(f64, Effect)> = fits
-                .iter()
-                .filter(|(e, _, _)| e.physical() == *e)
-                .map(|(e, _, f)| (f.best.val_rmse, e.physical()))
-                .collect();
-            ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let top: Vec<Effect> = ranked
-                .iter()
-                .take(settings.realisation_top)
-                .map(|r| r.1)
-                .collect();
-            let others: Vec<usize> = (0..remaining.len())
-                .filter(|&i| !first_level[i] && top.contains(&remaining[i].physical()))
-                .collect();
-            if first_round {
-                let fresh: Vec<(usize, Vec<Fit>)> = others
-                    .par_iter()
-                    .filter(|&&i| scratch[i + 1].is_empty())
-                    .map(|&i| {
-                        let fits = scratch_fits(
-                            data,
-                            &remaining_models[i],
-                            settings,
-                            scratch_salt(i + 1),
-                        )?;
-                        Ok((i, fits))
-                    })
-                    .collect::<anyhow::Result<_>>()?;
-                for (i, fits) in fresh {
-                    scratch[i + 1] = fits;
-                }
-            }
-            let more: Vec<_> = others
-                .par_iter()
-                .map(|&i| fit_one(i, &scratch[i + 1]))
-                .collect::<anyhow::Result<_>>()?;
-            fits.extend(more);
             let candidates = judge_all(&fits, yardstick, n, settings);
             let Some(best) = candidates.iter().find(|c| c.passes) else {
                 break candidates;

@@ -143,20 +143,6 @@ impl Effect {
         }
     }
 
-    /// Whether the diagnosis fits this realisation in every round, not only
-    /// when its physical effect's first realisation ranks among the best:
-    /// the first realisations, and the two whose mark on the residual is
-    /// unlike their first realisation's, so that its rank says nothing of
-    /// theirs: the load mode (a ringing, where the extra real pole only
-    /// slows; on the Cavatappi muscle at 400 g the mode is named and rings at
-    /// the residual spectrum's peak while the extra pole ranks low) and the
-    /// drain lag (a slower fall, where the gain asymmetry shifts a branch's
-    /// level; the self-test's drain cases were named a lag while the gain
-    /// asymmetry ranked low: docs/DIAGNOSIS.md, "Realisations").
-    pub fn always_tried(self) -> bool {
-        self.physical() == self || matches!(self, Effect::LoadMode | Effect::DrainLag)
-    }
-
     /// How the physical effect is realised, for reports.
     pub fn realisation(self) -> &'static str {
         match self {
