@@ -180,3 +180,50 @@ mod independent {
         assert!(o.pass, "{o:?}");
     }
 }
+
+/// The report a person reads when the catalogue cannot explain the gap: a
+/// sensor's cross-talk on the shipped stair's input (the independent
+/// generator's), diagnosed through the library and printed as text.
+#[test]
+fn the_report_says_not_explained_and_names_no_cause() {
+    use mckibben::data::csv::{ReadOptions, read_traces};
+    use mckibben::diagnose::blind::{Setup, cases, synthesize};
+    use mckibben::diagnose::diagnose;
+    use mckibben::diagnose::report::{to_json, to_text};
+
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/stair_4.5kg.csv");
+    let stair = read_traces(&path, &ReadOptions::default())
+        .unwrap()
+        .remove(0);
+    let settings = Settings::default();
+    let nominal = Nominal::fit(&stair, Family::Classic, &settings).unwrap();
+    let setup = Setup::new(&nominal, settings.seed).unwrap();
+    let case = cases(&setup, settings.seed)
+        .into_iter()
+        .find(|c| c.name == "outside the catalogue: sensor cross-talk (large on stair)")
+        .unwrap();
+    let d = diagnose(
+        &synthesize(&setup, &case),
+        Family::Classic,
+        &Effect::ALL,
+        &settings,
+    )
+    .unwrap();
+    assert!(d.named().is_empty() && d.explainable.not_explained);
+    let text = to_text(&d);
+    assert!(
+        text.contains("Verdict: not explained by the catalogue."),
+        "{text}"
+    );
+    let json = to_json(&d);
+    assert_eq!(json["verdict_kind"], "not-explained");
+    assert_eq!(json["verdict"].as_array().unwrap().len(), 0);
+    // The fitted effects stay in the final model, reported as fits.
+    let fitted = json["final"]["model"].as_array().unwrap();
+    if !fitted.is_empty() {
+        assert!(
+            text.contains("are fits to part of the gap, not its cause"),
+            "{text}"
+        );
+    }
+}
