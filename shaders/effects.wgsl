@@ -23,7 +23,9 @@ fn smaller(a: f32, b: f32) -> f32 {
     return b;
 }
 
-// step.rs `soft_stop`.
+// step.rs `soft_stop`, which the CPU applies to `±x` and `±bound`
+// (`Prepared::toward`); written out per direction here, the same bits since
+// negation is exact (`tests/eval_effects.rs` checks both directions).
 fn soft_stop(x: f32, bound: f32, e: u32) -> f32 {
     let h = KNEE_H[e];
     var into = (bound + h) - x;
@@ -43,7 +45,8 @@ fn soft_stop(x: f32, bound: f32, e: u32) -> f32 {
     return bent;
 }
 
-// step.rs: the end stop on the side the input drives the output.
+// step.rs: the end stop on the side the input drives the output, on the
+// CPU `±min(±x, ±bound)` (`Prepared::toward`), the same bits as this.
 fn clip(x: f32, bound: f32, e: u32) -> f32 {
     if (DRIVES_UP[e]) {
         return smaller(x, bound);

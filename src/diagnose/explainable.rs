@@ -347,7 +347,8 @@ pub const LARGE_BOUND: f64 = 0.3;
 /// the gap with effects that are not its shape: measured on the
 /// independent self-test's cross-talk on a multisine, where a band-pass
 /// two-pole creep closed 96 % of the gap and the bound 98 %, leaving half
-/// as much; no case of a catalogued effect met either condition).
+/// as much; among the self-test's cases of catalogued effects the second
+/// condition flags none that the first does not).
 pub const SMALL_SHARE: f64 = 0.5;
 
 /// One named effect's share of the bound.
@@ -628,7 +629,7 @@ mod tests {
     #[test]
     fn a_bound_that_leaves_half_as_much_is_not_explained_while_the_floor_is_missed() {
         // The catalogue closes 96 % of the gap, the flexible model 98 %:
-        // it leaves half as much. The final model at 0.5, ten times the floor.
+        // it leaves half as much. The final model at 1.0, ten times the floor.
         let mut last = step(0.96, vec![Effect::TwoPoleCreep]);
         last.val_rmse = 1.0;
         let steps = vec![step(0.0, vec![]), last.clone()];

@@ -92,11 +92,11 @@ impl Diagnosis {
     }
 
     /// The effects the diagnosis names as causes: the accepted ones, unless
-    /// the verdict is "not explained by the catalogue". Then what the
-    /// signals demonstrably explain is mostly something else, and effects
-    /// that close a small part of it are fits, not causes: naming them
-    /// would be a wrong name (they stay in the final model and in
-    /// `selection.verdict`, the order they were accepted in).
+    /// the verdict is "not explained by the catalogue". Then the signals
+    /// demonstrably explain something the accepted effects do not have the
+    /// shape of, and those effects are fits, not causes: naming them would
+    /// be a wrong name (they stay in the final model and in
+    /// `selection.verdict`, in the order they were accepted).
     pub fn named(&self) -> &[Effect] {
         if self.explainable.not_explained {
             &[]

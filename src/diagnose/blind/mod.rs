@@ -202,8 +202,9 @@ pub struct BlindCase {
 /// Every case: on each excitation the control and every catalogued
 /// realisation at the two sizes of [`MARKS`]; then two pairs on the data's
 /// input, each effect at its small size; then the cross-talk outside the
-/// catalogue on each excitation at both sizes. Case `i`'s noise is drawn from `seed + 1 + i`, so a
-/// case keeps its data when others are filtered out.
+/// catalogue on each excitation at both sizes. Case `i`'s noise is drawn
+/// from `seed + 1 + i`, so a case keeps its data when others are filtered
+/// out.
 pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
     let mut out = Vec::new();
     let mut push = |name: String, excitation: usize, size_label: &str, effects| {
