@@ -77,7 +77,7 @@ fn generalized_matrix_reaches_the_noise_floor_in_19_of_20() {
 /// (a stair) at N = 10² … 10⁶ (CPU; lavapipe to 10⁴, several times slower
 /// there), fixed G. Prints the table of docs/RESULTS.md and checks that a
 /// larger population never ends further from the truth than the one before
-/// it, unless both are within the matrix's 5 % bar.
+/// it, unless it is within the matrix's 5 % bar.
 #[test]
 #[ignore = "population sweep: about 20 minutes on 2 cores; results in docs/RESULTS.md"]
 fn larger_populations_do_not_fit_worse() {
