@@ -31,7 +31,8 @@ use super::common::MultiDataArgs;
 /// profile-likelihood interval), HOW MUCH of the gap is explainable at all
 /// (a ridge model of the residual from the input's lags, filters, rate and
 /// branch, each named effect reported as a share of it; "not explained by
-/// the catalogue" when it is large and the effects close little of it), and
+/// the catalogue", and then no effect named, when it is large and the
+/// effects close little of it or leave more than twice what it leaves), and
 /// the residual's spectrum with its peaks (e.g. a load ringing after steps).
 /// "None of the catalogued effects explains the remaining gap" is a valid answer.
 ///
