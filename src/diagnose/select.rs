@@ -162,19 +162,19 @@ pub fn select(
         // The first round adds fits from scratch, computed once per model
         // (slot 0 the current model's, slot i + 1 the i-th candidate's).
         let first_round = current_model.effects.is_empty();
-        let scratch_salt = |slot: usize| salt + 50 + slot as u64;
         // Every fit has its own seed, so fits run side by side give the
         // same numbers as one after the other.
-        let mut scratch: Vec<Vec<Fit>> = vec![Vec::new(); remaining.len() + 1];
-        if first_round {
+        let scratch: Vec<Vec<Fit>> = if first_round {
             let models: Vec<&Augmented> = std::iter::once(&current_model)
                 .chain(&remaining_models)
                 .collect();
-            scratch = (0..models.len())
+            (0..models.len())
                 .into_par_iter()
-                .map(|slot| scratch_fits(data, models[slot], settings, scratch_salt(slot)))
-                .collect::<anyhow::Result<_>>()?;
-        }
+                .map(|slot| scratch_fits(data, models[slot], settings, salt + 50 + slot as u64))
+                .collect::<anyhow::Result<_>>()?
+        } else {
+            vec![Vec::new(); remaining.len() + 1]
+        };
         let current = fit_seeds_with(data, &current_model, refit, settings, salt, &scratch[0])?;
         let mut rebased: Vec<SeededFit> = Vec::new();
         // The refit gives the seed spread of "no new effect". Its seeds (and
@@ -199,8 +199,9 @@ pub fn select(
         let mut ablations = 0;
         let candidates = loop {
             let salt = salt + 10 * ablations as u64;
-            let fit_one =
-                |i: usize, scratch: &[Fit]| -> anyhow::Result<(Effect, Augmented, SeededFit)> {
+            let fits: Vec<(Effect, Augmented, SeededFit)> = (0..remaining.len())
+                .into_par_iter()
+                .map(|i| {
                     let (effect, model) = (remaining[i], remaining_models[i].clone());
                     let (neutral, _, _) = data.space(&model);
                     let mut start = current_params.clone();
@@ -210,14 +211,12 @@ pub fn select(
                         new_from: current_params.len(),
                     };
                     let salt = salt + 1 + i as u64;
-                    let mut fit = fit_seeds_with(data, &model, start, settings, salt, scratch)?;
+                    let mut fit =
+                        fit_seeds_with(data, &model, start, settings, salt, &scratch[i + 1])?;
                     let at = current_params.len() + effect.primary();
                     fit.best = profile(data, &model, fit.best, at)?;
                     Ok((effect, model, fit))
-                };
-            let fits: Vec<_> = (0..remaining.len())
-                .into_par_iter()
-                .map(|i| fit_one(i, &scratch[i + 1]))
+                })
                 .collect::<anyhow::Result<_>>()?;
             let candidates = judge_all(&fits, yardstick, n, settings);
             let Some(best) = candidates.iter().find(|c| c.passes) else {
