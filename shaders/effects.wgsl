@@ -171,6 +171,14 @@ fn score(i: u32, e: u32) -> f32 {
         p_on = params[p + AT_DEADZONE_ON_OFF] - u_mean;
         p_off = p_on - params[p + AT_DEADZONE_ON_OFF + 1u];
     }
+    var ring_a1 = 0.0;
+    var ring_a2 = 0.0;
+    var kick = 0.0;
+    if (HAS_INERTIA_RINGING) {
+        ring_a1 = params[p + AT_INERTIA_RINGING];
+        ring_a2 = params[p + AT_INERTIA_RINGING + 1u];
+        kick = params[p + AT_INERTIA_RINGING + 2u];
+    }
     let big_a = stiffness(th);
     // step.rs `Prepared::start`.
     let u0 = input(span, 0u);
@@ -192,6 +200,8 @@ fn score(i: u32, e: u32) -> f32 {
     var z_fast = 0.0;
     var z_slow = 0.0;
     var on = 0.0;
+    var ring1 = 0.0;
+    var ring2 = 0.0;
     var acc = 0.0;
     var next_restart = cfg.horizon;
     for (var k = 1u; k < span.y; k = k + 1u) {
@@ -308,8 +318,8 @@ fn score(i: u32, e: u32) -> f32 {
         w = hysteresis(th, a_eff, w, xk, delta);
         x_prev2 = x;
         x = xk;
-        // Output side: the creeps' slow states, the load mode, the output
-        // clip and the output lag.
+        // Output side: the creeps' slow states, the ringing, the load mode,
+        // the output clip and the output lag.
         var yk = xk;
         if (HAS_CREEP) {
             z = rounded(rho * z) + rounded(rounded((1.0 - rho) * kappa) * ui);
@@ -324,6 +334,16 @@ fn score(i: u32, e: u32) -> f32 {
             z_slow = rounded(rho_s * z_slow) + rounded(rounded((1.0 - rho_s) * kappa_s) * ui);
             yk = yk + z_fast;
             yk = yk + z_slow;
+        }
+        if (HAS_INERTIA_RINGING) {
+            var prev = u0;
+            if (k >= 2u) {
+                prev = input(span, k - 2u);
+            }
+            let r = (rounded(ring_a1 * ring1) - rounded(ring_a2 * ring2)) + rounded(kick * (raw - prev));
+            ring2 = ring1;
+            ring1 = r;
+            yk = yk + r;
         }
         if (HAS_INERTIA_MODE) {
             let q = (rounded(a1 * mode1) - rounded(a2m * mode2)) + rounded(mode_gain * yk);
@@ -355,7 +375,7 @@ fn score(i: u32, e: u32) -> f32 {
         }
         // step.rs `Prepared::restart`.
         if (k == next_restart) {
-            let xr = (((measured - z) - z_out) - z_fast) - z_slow;
+            let xr = ((((measured - z) - z_out) - z_fast) - z_slow) - ring1;
             w = w + rounded(big_a * (xr - x));
             x = xr;
             lag_out = measured;

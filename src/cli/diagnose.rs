@@ -22,7 +22,8 @@ use super::common::MultiDataArgs;
 /// residual–input tests), WHICH effect of the catalogue (delay, deadzone,
 /// saturation, asymmetry, inertia, backlash, creep, rate, load), in which
 /// realisation (e.g. `delay:input-lag`, a first-order lag on the input;
-/// `inertia:mode`, a ringing load), explains it —
+/// `inertia:ringing`, a hanging load that rings after each input step),
+/// explains it —
 /// each fitted as an addition to the baseline with several seeds and accepted
 /// only if it beats the seed-to-seed spread, pays for its parameters, is
 /// not a better refit of the model without it, and the model still misses
@@ -47,8 +48,8 @@ pub struct Args {
     /// Effects to try, comma-separated (default: the whole catalogue, every
     /// realisation: delay, delay:input-lag, delay:output-lag, deadzone,
     /// deadzone:on-off, saturation, saturation:output, saturation:soft,
-    /// asymmetry, asymmetry:drain, inertia, inertia:mode, backlash, creep,
-    /// creep:output, creep:two-pole, rate, load; `load` only applies with
+    /// asymmetry, asymmetry:drain, inertia, inertia:mode, inertia:ringing,
+    /// backlash, creep, creep:output, creep:two-pole, rate, load; `load` only applies with
     /// several DATA files, e.g. one per hanging load).
     #[arg(long, value_delimiter = ',', value_parser = parse_effect)]
     effects: Vec<Effect>,

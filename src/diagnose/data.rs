@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex};
 
 use nalgebra::DVector;
 
-use super::effects::{Augmented, Context, effect_box};
+use super::effects::{Augmented, Context, Effect, effect_box};
 use crate::data::Trace;
 use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
@@ -178,8 +178,16 @@ impl Data {
     /// no gap to diagnose (as every seed did on the Cavatappi 500 g file:
     /// docs/DIAGNOSIS.md, "Real data: the Cavatappi muscle"). `fit` applies
     /// the same rule (`optim::engine::ModelObjective::for_task`).
+    ///
+    /// And a ringing ([`Effect::Ringing`]) must ring: complex poles,
+    /// `a1² < 4·a2`. With real poles its kick decays as a slow drift driven
+    /// by the input, which is creep's mark, and it was named for the drift
+    /// of the Cavatappi 200 g file (docs/DIAGNOSIS.md).
     pub fn admits(model: &Augmented, theta: &[f64]) -> bool {
-        model.family.loop_bounded(theta)
+        let rings = model
+            .offset_of(Effect::Ringing)
+            .is_none_or(|at| theta[at] * theta[at] < 4.0 * theta[at + 1]);
+        model.family.loop_bounded(theta) && rings
     }
 
     /// The estimation cost under `measure` of every row of `rows`

@@ -15,6 +15,7 @@ pub mod data;
 pub use crate::model::effects;
 pub mod explainable;
 pub mod fitting;
+pub mod hints;
 pub mod interval;
 pub mod locate;
 pub mod report;

@@ -13,7 +13,7 @@
 //! The catalogue (names, parameters, boxes, sizes) is here; the lane-wise
 //! step, [`Prepared::step`] in `step.rs`, is the one definition every
 //! backend follows (docs/ARCHITECTURE.md, "The model description"). (Over
-//! 700 lines: the catalogue of eighteen realisations is about 610; the rest
+//! 700 lines: the catalogue of nineteen realisations is about 635; the rest
 //! are unit tests, which check every realisation's neutral value against the
 //! baseline bit for bit.)
 
@@ -93,6 +93,14 @@ pub enum Effect {
     /// passes `p_on` and lets go below `p_off = p_on − gap`; while off it
     /// rests where the lowest input recorded leaves it (it sees that input).
     OnOffThreshold,
+    /// Inertia as the hanging load ringing after each input step, on top of
+    /// a muscle that follows the force quasi-statically: a mode excited by
+    /// the input's change, `r = a1·r(k−1) − a2·r(k−2) + g·(u(k−1) − u(k−2))`,
+    /// `ŷ = x + r`. Unlike [`Effect::LoadMode`], it rings however slowly the
+    /// baseline's own output moves (a real muscle's force follows the
+    /// pressure at once while the baseline's slow pole describes creep of
+    /// the rubber: measured on the Cavatappi muscle, docs/DIAGNOSIS.md).
+    Ringing,
 }
 
 /// Name and meaning of one effect parameter.
@@ -104,7 +112,7 @@ pub struct EffectParam {
 
 impl Effect {
     /// The whole catalogue, in the order reports list it.
-    pub const ALL: [Effect; 18] = [
+    pub const ALL: [Effect; 19] = [
         Effect::Delay,
         Effect::Deadzone,
         Effect::Saturation,
@@ -123,6 +131,7 @@ impl Effect {
         Effect::OutputCreep,
         Effect::TwoPoleCreep,
         Effect::OnOffThreshold,
+        Effect::Ringing,
     ];
 
     /// The physical effects: the catalogue's first realisation of each, the
@@ -134,7 +143,7 @@ impl Effect {
     pub fn physical(self) -> Effect {
         match self {
             Effect::InputLag | Effect::OutputLag => Effect::Delay,
-            Effect::LoadMode => Effect::Inertia,
+            Effect::LoadMode | Effect::Ringing => Effect::Inertia,
             Effect::DrainLag => Effect::Asymmetry,
             Effect::OutputClip | Effect::SoftStop => Effect::Saturation,
             Effect::OutputCreep | Effect::TwoPoleCreep => Effect::Creep,
@@ -164,6 +173,7 @@ impl Effect {
             Effect::OutputCreep => "driven by the output",
             Effect::TwoPoleCreep => "two time constants",
             Effect::OnOffThreshold => "hysteretic threshold (on/off)",
+            Effect::Ringing => "load rings after input steps",
         }
     }
 
@@ -189,7 +199,7 @@ impl Effect {
                 if params[0] >= 0.0 { "drain" } else { "fill" },
                 samples(params[0].abs())
             )),
-            Effect::LoadMode => {
+            Effect::LoadMode | Effect::Ringing => {
                 let (a1, a2) = (params[0], params[1]);
                 if a2 > 0.0 && a1 * a1 < 4.0 * a2 {
                     let r = a2.sqrt();
@@ -237,6 +247,7 @@ impl Effect {
             Effect::OutputCreep => "creep:output",
             Effect::TwoPoleCreep => "creep:two-pole",
             Effect::OnOffThreshold => "deadzone:on-off",
+            Effect::Ringing => "inertia:ringing",
         }
     }
 
@@ -312,6 +323,14 @@ impl Effect {
                     "p_on − p_off, the input it lets go below (input units)",
                 ),
             ],
+            Effect::Ringing => vec![
+                p("a1", "first coefficient of the mode: 2·r·cos θ"),
+                p(
+                    "a2",
+                    "second coefficient of the mode: r², the pole radius squared",
+                ),
+                p("g", "kick of an input step (output per input unit)"),
+            ],
         }
     }
 
@@ -325,6 +344,7 @@ impl Effect {
         match self {
             Effect::Creep | Effect::OutputCreep | Effect::LoadMode => 1,
             Effect::TwoPoleCreep => 3,
+            Effect::Ringing => 2,
             _ => 0,
         }
     }
@@ -350,7 +370,9 @@ impl Effect {
             Effect::InputLag | Effect::OutputLag => {
                 "residual–input cross-correlation over a spread of positive lags; rounded steps"
             }
-            Effect::LoadMode => "a peak in the residual spectrum: ringing after each input step",
+            Effect::LoadMode | Effect::Ringing => {
+                "a peak in the residual spectrum: ringing after each input step"
+            }
             Effect::DrainLag => "falling branches carry more residual energy, later in the step",
             Effect::OutputClip | Effect::SoftStop => {
                 "residual energy concentrated in the highest input band"
@@ -516,6 +538,18 @@ pub fn effect_box(
         Effect::InputLag | Effect::OutputLag => (vec![0.0], vec![0.0], vec![0.97]),
         // Every stable mode lies in a2 < 1, |a1| < 1 + a2.
         Effect::LoadMode => (vec![0.0, 0.0], vec![-1.9, 0.0], vec![1.98, 0.98]),
+        // A kick of g·Δu rings at most about 1/sin θ times higher; a whole
+        // input range's step then spans the output range at θ ≈ 1 rad.
+        // Neutral at any mode without a kick; this mode rings (the
+        // diagnosis admits only ringing ones: `diagnose::Data::admits`).
+        Effect::Ringing => {
+            let g = ry / ru;
+            (
+                vec![0.0, 0.5, 0.0],
+                vec![-1.9, 0.0, -g],
+                vec![1.98, 0.98, g],
+            )
+        }
         Effect::DrainLag => (vec![0.0], vec![-0.97], vec![0.97]),
         Effect::OutputClip | Effect::SoftStop => effect_box(Effect::Saturation, ctx, datasets),
         Effect::OutputCreep => (vec![0.995, 0.0], vec![0.98, -0.5], vec![0.9995, 0.5]),

@@ -2,6 +2,10 @@
 //! side ([`Prepared::step`]), the one definition the scalar simulation, the
 //! CPU batch path and `shaders/effects.wgsl` follow, and the simulations and
 //! sums of squared errors built on it.
+//!
+//! (Over 700 lines: the step holds a stage for each of the nineteen
+//! realisations in one function, so that the lanes' values stay in
+//! registers from stage to stage; the runs and sums on it follow.)
 
 use super::{Augmented, Context, Effect};
 use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w};
@@ -62,6 +66,8 @@ pub struct Prepared<const L: usize> {
     /// The hysteretic threshold's `p_on` and `p_off` in deviation
     /// coordinates.
     on_off: Option<([f32; L], [f32; L])>,
+    /// The ringing's `a1`, `a2` and kick `g`.
+    ringing: Option<([f32; L], [f32; L], [f32; L])>,
     /// [`Context::knee`] and [`Context::rest_input`].
     knee: [f32; 3],
     rest: f32,
@@ -104,6 +110,9 @@ pub struct EffectState<const L: usize> {
     z_slow: [f32; L],
     /// 1 while the hysteretic threshold is on, else 0.
     on: [f32; L],
+    /// The ringing at the sample before and the one before that.
+    ring1: [f32; L],
+    ring2: [f32; L],
     /// Whether a step was taken (the play and the lags start at the first
     /// input).
     started: bool,
@@ -213,6 +222,8 @@ impl<const L: usize> Prepared<L> {
             z_fast: [0.0; L],
             z_slow: [0.0; L],
             on: [0.0; L],
+            ring1: [0.0; L],
+            ring2: [0.0; L],
             started: false,
             dir: 0.0,
             extreme: u0,
@@ -354,8 +365,8 @@ impl<const L: usize> Prepared<L> {
         self.hysteresis(s, &xk, &a_eff);
         s.x_prev2 = s.x;
         s.x = xk;
-        // Output side: the creeps' slow states, the load mode, the output
-        // clip and the output lag, a loop each.
+        // Output side: the creeps' slow states, the ringing, the load mode,
+        // the output clip and the output lag, a loop each.
         let mut y = xk;
         if let Some((rho, kappa)) = &self.creep {
             for l in 0..L {
@@ -375,6 +386,16 @@ impl<const L: usize> Prepared<L> {
                 s.z_slow[l] = (rs[l] * s.z_slow[l]) + (((1.0 - rs[l]) * ks[l]) * ui[l]);
                 y[l] += s.z_fast[l];
                 y[l] += s.z_slow[l];
+            }
+        }
+        if let Some((a1, a2, kick)) = &self.ringing {
+            let prev = if k >= 2 { u[k - 2] } else { u[0] };
+            let change = raw - prev;
+            for l in 0..L {
+                let r = ((a1[l] * s.ring1[l]) - (a2[l] * s.ring2[l])) + (kick[l] * change);
+                s.ring2[l] = s.ring1[l];
+                s.ring1[l] = r;
+                y[l] += r;
             }
         }
         if let Some((a1, a2, gain)) = &self.mode {
@@ -438,14 +459,14 @@ impl<const L: usize> Prepared<L> {
     }
 
     /// A restart of the prediction to the measurement `y`: the output state
-    /// takes `y` less the creeps, and the Bouc-Wen state the jump's elastic
+    /// takes `y` less the creeps and the ringing, and the Bouc-Wen state the jump's elastic
     /// part, as the baseline's ([`crate::model::sim::Stepper::restart`]);
     /// the load mode and the output lag restart at `y`; the other effects'
     /// states run on.
     #[inline(always)]
     pub fn restart(&self, s: &mut EffectState<L>, y: f32) {
         for l in 0..L {
-            let x = (((y - s.z[l]) - s.z_out[l]) - s.z_fast[l]) - s.z_slow[l];
+            let x = ((((y - s.z[l]) - s.z_out[l]) - s.z_fast[l]) - s.z_slow[l]) - s.ring1[l];
             s.w[l] = restart_w(self.big_a[l], s.w[l], s.x[l], x);
             s.x[l] = x;
             s.lag_out[l] = y;
@@ -513,6 +534,7 @@ impl Augmented {
             output_creep: None,
             two_pole_creep: None,
             on_off: None,
+            ringing: None,
             knee: ctx.knee(),
             rest: ctx.rest_input(),
             u_mean: ctx.u_mean as f32,
@@ -560,6 +582,7 @@ impl Augmented {
                     let gap = col(at + 1);
                     p.on_off = Some((on, std::array::from_fn(|l| on[l] - gap[l])));
                 }
+                Effect::Ringing => p.ringing = Some((v, col(at + 1), col(at + 2))),
             }
             at += dim;
         }
