@@ -10,6 +10,7 @@ use super::accept::{Candidate, Yardstick, judge_all};
 use super::data::Data;
 use super::effects::{Augmented, Effect};
 use super::fitting::{Fit, SeededFit, Start, fit_seeds, fit_seeds_with, profile, scratch_fits};
+use super::hints;
 use crate::eval::Backend;
 use crate::model::Family;
 
@@ -137,6 +138,7 @@ pub fn select(
     let mut verdict = Vec::new();
     let n = data.val_samples().max(2) as f64;
     for round in 0..settings.max_effects {
+        let rings = hints::residual_rings(data, &current_model, &current_params);
         let remaining: Vec<Effect> = effects
             .iter()
             .copied()
@@ -147,6 +149,7 @@ pub fn select(
                     .iter()
                     .any(|m| m.physical() == e.physical())
                     && e.applicable(data.datasets())
+                    && (*e != Effect::Ringing || rings)
             })
             .collect();
         if remaining.is_empty() {
