@@ -7,6 +7,16 @@
 // `Y_MEAN`, `BRANCH_TOL`, `INV_DT`, `DRIVES_UP`, `KNEE_*`, `REST`, indexed by
 // experiment).
 
+// An experiment's constant as the CPU sees it: a value, not a literal.
+// With one experiment its array is indexed by 0 for sure, so the compiler
+// may fold the read into a literal, and Mesa's NIR reassociates sums around
+// literals (`(b + h) − x` into `(b − x) + h`), which rounds differently
+// (measured: the soft stop of a contracting muscle, docs/PERFORMANCE.md).
+// The integer round trip of `rounded` hides the value from it.
+fn unfolded(v: f32) -> f32 {
+    return bitcast<f32>(bitcast<u32>(v) ^ cfg.zero_bits);
+}
+
 // step.rs `larger`: `a` if it is the larger, else `b`.
 fn larger(a: f32, b: f32) -> f32 {
     if (a > b) {
@@ -27,19 +37,19 @@ fn smaller(a: f32, b: f32) -> f32 {
 // (`Prepared::toward`); written out per direction here, the same bits since
 // negation is exact (`tests/eval_effects.rs` checks both directions).
 fn soft_stop(x: f32, bound: f32, e: u32) -> f32 {
-    let h = KNEE_H[e];
+    let h = unfolded(KNEE_H[e]);
     var into = (bound + h) - x;
     if (DRIVES_UP[e]) {
         into = x - (bound - h);
     }
-    let bend = rounded(rounded(into * into) * KNEE_INV_4H[e]);
+    let bend = rounded(rounded(into * into) * unfolded(KNEE_INV_4H[e]));
     var bent = x + bend;
     if (DRIVES_UP[e]) {
         bent = x - bend;
     }
     if (into <= 0.0) {
         return x;
-    } else if (into >= KNEE_2H[e]) {
+    } else if (into >= unfolded(KNEE_2H[e])) {
         return bound;
     }
     return bent;
@@ -73,8 +83,9 @@ fn score(i: u32, e: u32) -> f32 {
     let p = i * STRIDE;
     let th = load_theta(p);
     let r0 = i * cfg.residual_len + span.x - e;
-    let u_mean = U_MEAN[e];
-    let tol = BRANCH_TOL[e];
+    let u_mean = unfolded(U_MEAN[e]);
+    let tol = unfolded(BRANCH_TOL[e]);
+    let y_mean = unfolded(Y_MEAN[e]);
     // step.rs `Augmented::prepare`.
     // The delay in whole samples and the fraction of a sample beyond them.
     var whole = 0u;
@@ -91,7 +102,7 @@ fn score(i: u32, e: u32) -> f32 {
     }
     var bound = 0.0;
     if (HAS_SATURATION) {
-        bound = params[p + AT_SATURATION] - Y_MEAN[e];
+        bound = params[p + AT_SATURATION] - y_mean;
     }
     var eps = 0.0;
     if (HAS_ASYMMETRY) {
@@ -143,11 +154,11 @@ fn score(i: u32, e: u32) -> f32 {
     }
     var clip_bound = 0.0;
     if (HAS_SATURATION_OUTPUT) {
-        clip_bound = params[p + AT_SATURATION_OUTPUT] - Y_MEAN[e];
+        clip_bound = params[p + AT_SATURATION_OUTPUT] - y_mean;
     }
     var soft_bound = 0.0;
     if (HAS_SATURATION_SOFT) {
-        soft_bound = params[p + AT_SATURATION_SOFT] - Y_MEAN[e];
+        soft_bound = params[p + AT_SATURATION_SOFT] - y_mean;
     }
     var rho_zo = 0.0;
     var kappa_zo = 0.0;
@@ -240,7 +251,7 @@ fn score(i: u32, e: u32) -> f32 {
                 on = 0.0;
             }
             if (!(on > 0.0)) {
-                ui = REST[e];
+                ui = unfolded(REST[e]);
             }
         }
         if (HAS_DEADZONE) {
@@ -313,7 +324,7 @@ fn score(i: u32, e: u32) -> f32 {
             if (k >= 2u) {
                 prev = input(span, k - 2u);
             }
-            a_eff = rounded(big_a * (1.0 + rounded(eta * rounded(abs(raw - prev) * INV_DT[e]))));
+            a_eff = rounded(big_a * (1.0 + rounded(eta * rounded(abs(raw - prev) * unfolded(INV_DT[e])))));
         }
         w = hysteresis(th, a_eff, w, xk, delta);
         x_prev2 = x;

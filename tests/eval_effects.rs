@@ -55,12 +55,17 @@ fn population(model: &Augmented, ctx: &Context, count: usize, seed: u64) -> Vec<
     rows
 }
 
-/// The models checked: each effect alone on each family, and two chains.
+/// The models checked: each effect alone on each family, on two datasets
+/// and on one, and two chains. One dataset matters of its own: the
+/// kernel's per-experiment constants are then arrays of one, which a
+/// shader compiler may fold into literals and reassociate sums around
+/// (it did, for the soft stop of a contracting muscle).
 fn models() -> Vec<Augmented> {
     let mut all = Vec::new();
     for family in Family::ALL {
         for e in Effect::ALL {
             all.push(Augmented::new(family, vec![e], 2));
+            all.push(Augmented::new(family, vec![e], 1));
         }
         all.push(Augmented::new(family, Effect::ALL.to_vec(), 2));
     }
@@ -78,7 +83,8 @@ fn models() -> Vec<Augmented> {
 const DIRECTIONS: [bool; 2] = [true, false];
 
 fn problem_of(model: &Augmented, measure: Measure, drives_up: bool) -> (Problem, Vec<Context>) {
-    let exps = experiments();
+    let mut exps = experiments();
+    exps.truncate(model.datasets);
     let contexts: Vec<Context> = exps.iter().map(|e| Context::of(e, drives_up)).collect();
     let problem = Problem::new(model.family, exps)
         .with_measure(measure)
