@@ -49,8 +49,8 @@ pub struct Args {
     /// realisation: delay, delay:input-lag, delay:output-lag, deadzone,
     /// deadzone:on-off, saturation, saturation:output, saturation:soft,
     /// asymmetry, asymmetry:drain, inertia, inertia:mode, inertia:ringing,
-    /// backlash, creep, creep:output, creep:two-pole, rate, load; `load` only applies with
-    /// several DATA files, e.g. one per hanging load).
+    /// backlash, creep, creep:output, creep:two-pole, rate, load; `load`
+    /// only applies with several DATA files, e.g. one per hanging load).
     #[arg(long, value_delimiter = ',', value_parser = parse_effect)]
     effects: Vec<Effect>,
     /// Seed of every random draw (fits are reproducible for a given seed).

@@ -17,10 +17,10 @@ use super::spectrum::{Peak, Settings, welch};
 /// Extra starts (row-major, canonical) for the first stage of a warm fit
 /// from `start` whose new effect's parameters begin at `new_from`: when the
 /// new effect is a mode, for each of the two largest peaks of `start`'s
-/// estimation residual spectrum away from the input's lines, `start` with the mode ringing at the
-/// peak's frequency, lightly and moderately damped (ζ = 0.05, 0.2), and a
-/// ringing's kick the least-squares one for that mode. Empty for any other
-/// effect, or when there is no peak.
+/// estimation residual spectrum away from the input's lines, `start` with
+/// the mode ringing at the peak's frequency, lightly and moderately damped
+/// (ζ = 0.05, 0.2), and a ringing's kick the least-squares one for that
+/// mode. Empty for any other effect, or when there is no such peak.
 pub fn mode_hints(
     data: &Data,
     model: &Augmented,
