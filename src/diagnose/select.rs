@@ -138,7 +138,10 @@ pub fn select(
     let mut verdict = Vec::new();
     let n = data.val_samples().max(2) as f64;
     for round in 0..settings.max_effects {
-        let rings = hints::residual_rings(data, &current_model, &current_params);
+        // The ringing is looked for only where the residual rings (a
+        // spectrum per round, so only when the ringing is among the effects).
+        let rings = effects.contains(&Effect::Ringing)
+            && hints::residual_rings(data, &current_model, &current_params);
         let remaining: Vec<Effect> = effects
             .iter()
             .copied()
