@@ -54,7 +54,7 @@ fn classic_subset_reaches_the_noise_floor_with_every_algorithm() {
 }
 
 #[test]
-#[ignore = "full matrix: about 3 minutes an algorithm; results in docs/RESULTS.md"]
+#[ignore = "full matrix: about 40 seconds an algorithm on 2 cores; results in docs/RESULTS.md"]
 fn classic_matrix_reaches_the_noise_floor_in_19_of_20() {
     for algo in Algorithm::ALL {
         let n = passes(Family::Classic, 20, algo);
@@ -64,7 +64,7 @@ fn classic_matrix_reaches_the_noise_floor_in_19_of_20() {
 }
 
 #[test]
-#[ignore = "full matrix: about 5 minutes an algorithm; falls short today (docs/RESULTS.md)"]
+#[ignore = "full matrix: about 75 seconds an algorithm on 2 cores; falls short today (docs/RESULTS.md)"]
 fn generalized_matrix_reaches_the_noise_floor_in_19_of_20() {
     for algo in Algorithm::ALL {
         let n = passes(Family::Generalized, 20, algo);

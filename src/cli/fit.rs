@@ -33,7 +33,7 @@ use mckibben::report::fit_figures;
 ///   2. free run: differential evolution on the free-run error from the
 ///      global stage's best members (N/5 for G/4 generations);
 ///   3. polish: Levenberg–Marquardt on the free-run residuals from the best
-///      8 distinct members.
+///      16 distinct members (4 per island).
 ///
 /// The free-run error of a slow hysteretic model is a needle that a
 /// population search alone stalls beside; the prediction error is smooth
