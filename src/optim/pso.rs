@@ -4,7 +4,9 @@
 //! After each evaluation the particles update their personal best and the
 //! swarm's global best, then move: `v ← w·v + c1·r1∘(pbest − x) + c2·r2∘(gbest − x)`
 //! (eq. 39), `|v_j| ≤ Vmax_j`, `x ← x + v` (eq. 40), clamped into the box. The
-//! inertia falls linearly, `w(k) = a − (a − b)·k/G` (§5.3.3.4).
+//! inertia falls linearly, `w(k) = a − (a − b)·k/G` (§5.3.3.4). The staged
+//! fit replaces `gbest` by the best on a ring of neighbours
+//! ([`PsoSettings::constriction`]).
 //!
 //! Appendix bugs fixed (see `docs/ARCHITECTURE.md`): the code clamps
 //! `speed(j)` — the j-th entry of the whole speed *matrix* — instead of
@@ -42,6 +44,11 @@ pub struct PsoSettings {
     pub vmax_fraction: f64,
     /// The appendix code's single random number for the social term.
     pub scalar_social: bool,
+    /// Whose best pulls a particle socially: `None` the whole swarm's (the
+    /// thesis' global best), `Some(k)` the best of the `k` particles on each
+    /// side of it on a ring (its own included), the "lbest" topology.
+    #[serde(default)]
+    pub ring: Option<usize>,
 }
 
 impl Default for PsoSettings {
@@ -54,6 +61,7 @@ impl Default for PsoSettings {
             vmax: 20.0,
             vmax_fraction: 1.0,
             scalar_social: false,
+            ring: None,
         }
     }
 }
@@ -81,6 +89,14 @@ impl PsoSettings {
     /// keeps the swarm convergent by construction (measured on the generated
     /// cases: docs/ARCHITECTURE.md, "PSO in the staged fit uses Clerc and
     /// Kennedy's constriction").
+    ///
+    /// On a ring of neighbours one to each side, as Bratton and Kennedy's
+    /// standard PSO ("Defining a standard for particle swarm optimization",
+    /// IEEE Swarm Intelligence Symposium 2007) advises: a best found
+    /// anywhere spreads one neighbour per move, so the swarm keeps searching
+    /// other basins while it does. With the global best the islands of the
+    /// staged fit all collapsed into the linear model (A → 0) on two of six
+    /// seeds of the shipped stair (docs/RESULTS.md, "PSO on a ring").
     pub fn constriction() -> PsoSettings {
         PsoSettings {
             w_start: 0.7298,
@@ -90,6 +106,7 @@ impl PsoSettings {
             vmax: f64::INFINITY,
             vmax_fraction: 0.5,
             scalar_social: false,
+            ring: Some(1),
         }
     }
 
@@ -200,6 +217,7 @@ impl Pso {
         self.moves += 1;
         let w = self.settings.inertia(self.moves, self.generations);
         let (c1, c2) = (self.settings.c1, self.settings.c2);
+        let social = self.social_bests();
         for i in 0..self.n {
             let r2_scalar: f64 = if self.settings.scalar_social {
                 rng.random()
@@ -209,6 +227,10 @@ impl Pso {
             let row = i * d..(i + 1) * d;
             let (x, v) = (&mut self.pos[row.clone()], &mut self.vel[row.clone()]);
             let pb = &self.pbest[row];
+            let best = match social[i] {
+                Some(k) => &self.pbest[k * d..(k + 1) * d],
+                None => &self.gbest[..],
+            };
             for j in 0..d {
                 let r1: f64 = rng.random();
                 let r2: f64 = if self.settings.scalar_social {
@@ -216,12 +238,32 @@ impl Pso {
                 } else {
                     rng.random()
                 };
-                let vj = w * v[j] + c1 * r1 * (pb[j] - x[j]) + c2 * r2 * (self.gbest[j] - x[j]);
+                let vj = w * v[j] + c1 * r1 * (pb[j] - x[j]) + c2 * r2 * (best[j] - x[j]);
                 v[j] = vj.clamp(-self.vmax[j], self.vmax[j]);
                 x[j] += v[j];
             }
             self.bounds.clamp(x);
         }
+    }
+
+    /// For each particle, the particle whose personal best pulls it
+    /// socially (the lowest cost on its ring neighbourhood, the lower index
+    /// on ties), or `None` for the swarm's global best.
+    fn social_bests(&self) -> Vec<Option<usize>> {
+        let Some(k) = self.settings.ring else {
+            return vec![None; self.n];
+        };
+        let n = self.n;
+        let k = k.min(n / 2);
+        (0..n)
+            .map(|i| {
+                (0..=2 * k)
+                    .map(|o| (i + n - k + o) % n)
+                    .min_by(|&a, &b| {
+                        super::cost_order(self.pbest_cost[a], self.pbest_cost[b]).then(a.cmp(&b))
+                    })
+            })
+            .collect()
     }
 }
 
@@ -237,6 +279,26 @@ mod tests {
         let c = PsoSettings::thesis(Family::Classic);
         assert!((c.inertia(30, 30) - 0.3).abs() < 1e-12);
         assert!((c.inertia(15, 30) - 0.7).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_ring_pulls_each_particle_towards_its_neighbourhood_best() {
+        let bounds = Bounds {
+            lower: vec![0.0],
+            upper: vec![1.0],
+            names: vec!["x".into()],
+        };
+        let mut pso = Pso::new(PsoSettings::constriction(), bounds.clone(), 5, 10);
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        pso.init(&[], &mut rng);
+        pso.tell(&[5.0, 1.0, 4.0, 3.0, f32::NAN]);
+        // Particle 4's NaN ranks last; the ring wraps from 4 to 0.
+        let want = [1, 1, 1, 3, 3].map(Some);
+        assert_eq!(pso.social_bests(), want.to_vec());
+        let mut global = Pso::new(PsoSettings::default(), bounds, 5, 10);
+        global.init(&[], &mut rng);
+        global.tell(&[5.0, 1.0, 4.0, 3.0, 2.0]);
+        assert_eq!(global.social_bests(), vec![None; 5]);
     }
 
     #[test]
