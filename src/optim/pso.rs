@@ -218,7 +218,7 @@ impl Pso {
         let w = self.settings.inertia(self.moves, self.generations);
         let (c1, c2) = (self.settings.c1, self.settings.c2);
         let social = self.social_bests();
-        for i in 0..self.n {
+        for (i, neighbour) in social.into_iter().enumerate() {
             let r2_scalar: f64 = if self.settings.scalar_social {
                 rng.random()
             } else {
@@ -227,7 +227,7 @@ impl Pso {
             let row = i * d..(i + 1) * d;
             let (x, v) = (&mut self.pos[row.clone()], &mut self.vel[row.clone()]);
             let pb = &self.pbest[row];
-            let best = match social[i] {
+            let best = match neighbour {
                 Some(k) => &self.pbest[k * d..(k + 1) * d],
                 None => &self.gbest[..],
             };
@@ -257,11 +257,9 @@ impl Pso {
         let k = k.min(n / 2);
         (0..n)
             .map(|i| {
-                (0..=2 * k)
-                    .map(|o| (i + n - k + o) % n)
-                    .min_by(|&a, &b| {
-                        super::cost_order(self.pbest_cost[a], self.pbest_cost[b]).then(a.cmp(&b))
-                    })
+                (0..=2 * k).map(|o| (i + n - k + o) % n).min_by(|&a, &b| {
+                    super::cost_order(self.pbest_cost[a], self.pbest_cost[b]).then(a.cmp(&b))
+                })
             })
             .collect()
     }
