@@ -232,6 +232,12 @@ impl Data {
         self.whole.len()
     }
 
+    /// Estimation residuals over all datasets (the first sample of each is
+    /// the start, not a residual).
+    pub fn est_samples(&self) -> usize {
+        self.est.iter().map(|e| e.len().saturating_sub(1)).sum()
+    }
+
     /// Validation samples over all datasets.
     pub fn val_samples(&self) -> usize {
         self.whole

@@ -18,6 +18,7 @@ use serde::Serialize;
 
 use super::data::Data;
 use super::effects::Augmented;
+use super::interval::CHI2_1_95;
 use super::select::Settings;
 use crate::model::{Family, Measure};
 use crate::optim::AlgoSettings;
@@ -473,7 +474,10 @@ pub fn fit_seeds(
     settings: &Settings,
     salt: u64,
 ) -> anyhow::Result<SeededFit> {
-    Ok(summarize(seed_fits(data, model, start, settings, salt)?))
+    Ok(summarize(
+        seed_fits(data, model, start, settings, salt)?,
+        data.est_samples(),
+    ))
 }
 
 /// [`fit_seeds`] with the fits from scratch `scratch` ([`scratch_fits`])
@@ -493,7 +497,7 @@ pub(super) fn fit_seeds_with(
 ) -> anyhow::Result<SeededFit> {
     let mut fits = seed_fits(data, model, start, settings, salt)?;
     fits.extend_from_slice(scratch);
-    Ok(summarize(fits))
+    Ok(summarize(fits, data.est_samples()))
 }
 
 /// The fits of [`fit_seeds`], one per seed.
@@ -548,17 +552,21 @@ pub(super) fn scratch_fits(
         .collect()
 }
 
-/// The best fit of several seeds and their spread.
-fn summarize(fits: Vec<Fit>) -> SeededFit {
+/// The best fit of several seeds and their spread; `samples` estimation
+/// residuals.
+fn summarize(fits: Vec<Fit>, samples: usize) -> SeededFit {
     let seed_val_rmse: Vec<f64> = fits.iter().map(|f| f.val_rmse).collect();
-    // The spread among the seeds that reached the best estimation fit (within
-    // 1 % of its SSE): how much validation moves between fits the estimation
-    // data cannot tell apart. A seed stuck in a worse basin is a failed fit,
+    // The spread among the seeds that reached the best estimation fit: how
+    // much validation moves between fits the estimation data cannot tell
+    // apart, those within the likelihood-ratio test's 95 % threshold of the
+    // best, `χ²₁(0.95)·σ̂²` with `σ̂² = SSE/N` (the threshold of the profile
+    // intervals, `interval`). A seed stuck in a worse basin is a failed fit,
     // not a competing answer, and does not widen it.
     let best_sse = fits.iter().map(|f| f.est_sse).fold(f64::INFINITY, f64::min);
+    let window = CHI2_1_95 * best_sse / samples.max(1) as f64;
     let converged: Vec<f64> = fits
         .iter()
-        .filter(|f| f.est_sse <= best_sse * 1.01)
+        .filter(|f| f.est_sse <= best_sse + window)
         .map(|f| f.val_rmse)
         .collect();
     let spread = std_dev(&converged);
@@ -615,6 +623,23 @@ mod tests {
     use crate::data::Trace;
     use crate::model::presets::thesis_params;
     use crate::model::simulate;
+
+    #[test]
+    fn the_spread_counts_the_seeds_the_estimation_data_cannot_tell_apart() {
+        let fit = |est_sse: f64, val_rmse: f64| Fit {
+            params: vec![0.0],
+            est_sse,
+            val_rmse,
+        };
+        // 1000 residuals: the window is 3.841·100/1000 = 0.38 above the best.
+        let fits = vec![fit(100.0, 1.0), fit(100.3, 1.2), fit(100.9, 5.0)];
+        let s = summarize(fits, 1000);
+        assert_eq!(s.best.est_sse, 100.0);
+        // 1.4826·MAD of 1.0 and 1.2; the third seed (0.9 % worse, inside
+        // the old fixed 1 %) is a different fit, not spread.
+        assert!((s.spread - 1.4826 * 0.1).abs() < 1e-12, "{}", s.spread);
+        assert_eq!(s.seed_val_rmse, vec![1.0, 1.2, 5.0]);
+    }
 
     /// A stair of pressures through a valve (pole 0.6) and the thesis'
     /// classic model's response (Table 1), plus 0.1 mm of seeded noise.

@@ -19,7 +19,7 @@ use super::effects::{Augmented, Effect};
 use super::fitting::polish_held;
 
 /// `χ²` with one degree of freedom, 95 % quantile.
-const CHI2_1_95: f64 = 3.841;
+pub(super) const CHI2_1_95: f64 = 3.841;
 
 /// The profile interval of one effect's size.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -47,7 +47,7 @@ pub fn size_interval(
     let at = model.offset_of(effect).expect("effect in model") + effect.primary();
     let (_, lo, hi) = data.space(model);
     let sse0 = data.est_sse(model, theta);
-    let n: usize = data.est.iter().map(|e| e.len().saturating_sub(1)).sum();
+    let n = data.est_samples();
     let sigma2 = sse0 / (n.saturating_sub(theta.len()).max(1)) as f64;
     let limit = sse0 + CHI2_1_95 * sigma2;
     // The profile at `v`: every other parameter polished from `start`.
