@@ -118,9 +118,11 @@ fn score(i: u32, e: u32) -> f32 {
     }
     var rho = 0.0;
     var kappa = 0.0;
+    var z0 = 0.0;
     if (HAS_CREEP) {
         rho = params[p + AT_CREEP];
         kappa = params[p + AT_CREEP + 1u];
+        z0 = params[p + AT_CREEP + 2u];
     }
     var eta = 0.0;
     if (HAS_RATE) {
@@ -161,20 +163,26 @@ fn score(i: u32, e: u32) -> f32 {
         soft_bound = params[p + AT_SATURATION_SOFT] - y_mean;
     }
     var rho_zo = 0.0;
+    var z0_out = 0.0;
     var kappa_zo = 0.0;
     if (HAS_CREEP_OUTPUT) {
         rho_zo = params[p + AT_CREEP_OUTPUT];
         kappa_zo = params[p + AT_CREEP_OUTPUT + 1u];
+        z0_out = params[p + AT_CREEP_OUTPUT + 2u];
     }
     var rho_f = 0.0;
     var kappa_f = 0.0;
     var rho_s = 0.0;
     var kappa_s = 0.0;
+    var z0_slow = 0.0;
     if (HAS_CREEP_TWO_POLE) {
+        // step.rs: the total gain split by the faster state's share.
         rho_f = params[p + AT_CREEP_TWO_POLE];
-        kappa_f = params[p + AT_CREEP_TWO_POLE + 1u];
-        rho_s = params[p + AT_CREEP_TWO_POLE + 2u];
-        kappa_s = params[p + AT_CREEP_TWO_POLE + 3u];
+        rho_s = params[p + AT_CREEP_TWO_POLE + 1u];
+        let kappa_two = params[p + AT_CREEP_TWO_POLE + 2u];
+        kappa_f = rounded(params[p + AT_CREEP_TWO_POLE + 3u] * kappa_two);
+        kappa_s = kappa_two - kappa_f;
+        z0_slow = params[p + AT_CREEP_TWO_POLE + 4u];
     }
     var p_on = 0.0;
     var p_off = 0.0;
@@ -201,15 +209,15 @@ fn score(i: u32, e: u32) -> f32 {
     var started = false;
     var dir = 0.0;
     var extreme = u0;
-    var z = 0.0;
+    var z = z0;
     var lag_in = 0.0;
     var drain = 0.0;
     var lag_out = x;
     var mode1 = x;
     var mode2 = x;
-    var z_out = 0.0;
+    var z_out = z0_out;
     var z_fast = 0.0;
-    var z_slow = 0.0;
+    var z_slow = z0_slow;
     var on = 0.0;
     var ring1 = 0.0;
     var ring2 = 0.0;

@@ -130,8 +130,9 @@ pub struct SeededFit {
     pub best: Fit,
     /// Validation RMSE of every seed.
     pub seed_val_rmse: Vec<f64>,
-    /// Their spread: `1.4826·MAD` over the seeds within 1 % of the best
-    /// estimation SSE, a robust standard deviation.
+    /// Their spread, `1.4826·MAD` (a robust standard deviation), over the
+    /// seeds the estimation data cannot tell from the best: those within the
+    /// likelihood-ratio test's 95 % threshold of its SSE.
     pub spread: f64,
 }
 

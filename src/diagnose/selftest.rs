@@ -93,7 +93,7 @@ fn along(nominal: &Nominal, e: Effect, t: f64) -> Vec<f64> {
         Effect::Asymmetry => vec![0.5 * t],
         Effect::Inertia => vec![0.9 * t],
         Effect::Backlash => vec![0.5 * ru * t],
-        Effect::Creep => vec![0.995, -toward * 2.0 * ry / ru * t],
+        Effect::Creep => vec![0.995, -toward * 2.0 * ry / ru * t, 0.0],
         Effect::Rate => vec![10.0 / v * t],
         Effect::Load => vec![0.5 * t],
         other => unreachable!("the catalogue check plants physical effects only, not {other}"),

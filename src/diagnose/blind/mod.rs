@@ -114,7 +114,7 @@ pub fn found_size(r: Realisation, e: Effect, params: &[f64], at: Frame) -> Optio
             params[0] - at.peak
         }),
         (CreepInput | CreepTwo, Effect::Creep) => Some(params[1]),
-        (CreepInput | CreepTwo, Effect::TwoPoleCreep) => Some(params[1] + params[3]),
+        (CreepInput | CreepTwo, Effect::TwoPoleCreep) => Some(params[2]),
         (CreepOutput, Effect::OutputCreep) => Some(params[1]),
         (DeadZone, Effect::Deadzone) => Some(params[0] - at.p_lo),
         (ViscousRate, Effect::Rate) => Some(params[0]),

@@ -49,6 +49,12 @@ pub struct Prepared<const L: usize> {
     inertia: Option<[f32; L]>,
     backlash: Option<[f32; L]>,
     creep: Option<([f32; L], [f32; L])>,
+    /// The creeps' slow states at the first sample (0 without the effect):
+    /// the input-driven one's, the output-driven one's and the two-pole
+    /// creep's slower one's.
+    z0: [f32; L],
+    z0_out: [f32; L],
+    z0_slow: [f32; L],
     rate: Option<[f32; L]>,
     load: Option<[f32; L]>,
     input_lag: Option<[f32; L]>,
@@ -212,15 +218,15 @@ impl<const L: usize> Prepared<L> {
             delayed: [u0; L],
             x_prev2: x,
             play: [0.0; L],
-            z: [0.0; L],
+            z: self.z0,
             lag_in: [0.0; L],
             drain: [0.0; L],
             lag_out: x,
             mode1: x,
             mode2: x,
-            z_out: [0.0; L],
+            z_out: self.z0_out,
             z_fast: [0.0; L],
-            z_slow: [0.0; L],
+            z_slow: self.z0_slow,
             on: [0.0; L],
             ring1: [0.0; L],
             ring2: [0.0; L],
@@ -523,6 +529,9 @@ impl Augmented {
             inertia: None,
             backlash: None,
             creep: None,
+            z0: [0.0; L],
+            z0_out: [0.0; L],
+            z0_slow: [0.0; L],
             rate: None,
             load: None,
             input_lag: None,
@@ -560,7 +569,10 @@ impl Augmented {
                 Effect::Asymmetry => p.asymmetry = Some(v),
                 Effect::Inertia => p.inertia = Some(v),
                 Effect::Backlash => p.backlash = Some(non_negative),
-                Effect::Creep => p.creep = Some((v, col(at + 1))),
+                Effect::Creep => {
+                    p.creep = Some((v, col(at + 1)));
+                    p.z0 = col(at + 2);
+                }
                 Effect::Rate => p.rate = Some(v),
                 Effect::Load => p.load = (dataset >= 1).then(|| col(at + dataset - 1)),
                 Effect::InputLag => p.input_lag = Some(v),
@@ -573,9 +585,16 @@ impl Augmented {
                 Effect::DrainLag => p.drain_lag = Some(v),
                 Effect::OutputClip => p.output_clip = Some(v.map(|l| toward * (l - y_mean))),
                 Effect::SoftStop => p.soft_stop = Some(v.map(|l| toward * (l - y_mean))),
-                Effect::OutputCreep => p.output_creep = Some((v, col(at + 1))),
+                Effect::OutputCreep => {
+                    p.output_creep = Some((v, col(at + 1)));
+                    p.z0_out = col(at + 2);
+                }
                 Effect::TwoPoleCreep => {
-                    p.two_pole_creep = Some([v, col(at + 1), col(at + 2), col(at + 3)]);
+                    let (rho_slow, kappa, share) = (col(at + 1), col(at + 2), col(at + 3));
+                    let kappa_fast: [f32; L] = std::array::from_fn(|l| share[l] * kappa[l]);
+                    let kappa_slow = std::array::from_fn(|l| kappa[l] - kappa_fast[l]);
+                    p.two_pole_creep = Some([v, kappa_fast, rho_slow, kappa_slow]);
+                    p.z0_slow = col(at + 4);
                 }
                 Effect::OnOffThreshold => {
                     let on = v.map(|x| x - p.u_mean);
