@@ -92,6 +92,20 @@ fn json_follows_the_contract() {
         v["final"]["val_rmse"].as_f64().unwrap() <= v["baseline"]["val_rmse"].as_f64().unwrap()
     );
     assert!(v["final"]["gap_closed"].is_number());
+    // The final model refitted from scratch, once per --scratch-seeds (4).
+    let r = &v["final"]["refits"];
+    assert_eq!(r["fits"], 4, "{r}");
+    assert_eq!(r["final_val_fit_percent"], v["final"]["val_fit_percent"]);
+    let (best, last) = (
+        r["best_est_sse"].as_f64().unwrap(),
+        r["final_est_sse"].as_f64().unwrap(),
+    );
+    match r["finding"].as_str().unwrap() {
+        "beaten" => assert!(best < last && r["final_tied"] == false, "{r}"),
+        "best" => assert_eq!(r["tied"], 1, "{r}"),
+        "reproduced" | "unsettled" => assert!(r["tied"].as_u64().unwrap() >= 2, "{r}"),
+        other => panic!("unknown finding {other}"),
+    }
     let x = &v["explainable"];
     for k in ["bound_rmse", "gap_closable", "baseline_rmse"] {
         assert!(x[k].is_number(), "explainable.{k}");

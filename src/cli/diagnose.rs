@@ -29,7 +29,8 @@ use super::common::MultiDataArgs;
 /// not a better refit of the model without it, and the model still misses
 /// by more than the noise — HOW FAR the validation error falls, against
 /// a noise-floor estimate, HOW SURE each named effect's size is (a 95 %
-/// profile-likelihood interval), HOW MUCH of the gap is explainable at all
+/// profile-likelihood interval) and whether the final fit is REFITTED
+/// alike when the final model is fitted again from scratch, HOW MUCH of the gap is explainable at all
 /// (a ridge model of the residual from the input's lags, filters, rate and
 /// branch, each named effect reported as a share of it; "not explained by
 /// the catalogue", and then no effect named, when it is large and the
@@ -68,7 +69,9 @@ pub struct Args {
     /// Extra seeds of each first-round candidate fitted from scratch (the
     /// baseline's budget, through the multi-step-ahead prediction error
     /// first): they find a model with the effect that a warm start from a
-    /// baseline which compensates the effect cannot reach. 0 is faster.
+    /// baseline which compensates the effect cannot reach. The final model
+    /// is refitted from scratch as many times (REFITTED). 0 is faster and
+    /// leaves both out.
     #[arg(long, default_value_t = Settings::default().scratch_seeds)]
     scratch_seeds: usize,
     /// Where the searches score their populations: `cpu` (the batched,

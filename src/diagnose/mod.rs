@@ -2,7 +2,8 @@
 //! ([`locate`]), which unmodelled effect of the catalogue explains it
 //! ([`effects`], chosen by [`select`] under [`accept`]'s rule, each model
 //! fitted by [`fitting`] on the halves of [`data`]), and how far the model
-//! gets with it, relative to a noise-floor estimate; how much of the gap is
+//! gets with it, relative to a noise-floor estimate; whether the estimation
+//! data settle the final fit ([`refits`]); how much of the gap is
 //! explainable at all ([`explainable`], a [`ridge`] model of the residual)
 //! and where the residual's spectrum peaks ([`spectrum`]). [`blind`] checks
 //! the whole chain on data from a generator with its own equations for
@@ -18,6 +19,7 @@ pub mod fitting;
 pub mod hints;
 pub mod interval;
 pub mod locate;
+pub mod refits;
 pub mod report;
 pub mod ridge;
 pub mod select;
@@ -60,6 +62,9 @@ pub struct Diagnosis {
     pub steps: Vec<Step>,
     /// How well the data pin each accepted effect's size in the final model.
     pub size_intervals: Vec<interval::SizeInterval>,
+    /// The final model fitted again from scratch: whether the estimation
+    /// data settle its validation fit (`None` with `--scratch-seeds 0`).
+    pub refits: Option<refits::Refits>,
     /// How much of the baseline's gap a flexible model of its residual
     /// closes, each named effect's share of that, and the verdict.
     pub explainable: explainable::Explainable,
@@ -126,6 +131,10 @@ fn settle_samples(a: f64, len: usize) -> usize {
     let a = a.clamp(1e-6, 1.0 - 1e-9);
     ((3.0 / -a.ln()).ceil() as usize).clamp(1, (len / 4).max(1))
 }
+
+/// Seed salt of the final model's from-scratch refits, far from the
+/// selection's (100 per round, `select::select`).
+const REFIT_SALT: u64 = 9_000;
 
 /// Runs the whole diagnosis on `traces` (estimation first half, validation
 /// second half of each).
@@ -202,6 +211,13 @@ pub fn diagnose(
             )
         })
         .collect::<anyhow::Result<_>>()?;
+    let scratch = fitting::scratch_fits(&data, &selection.final_model, settings, REFIT_SALT)?;
+    let refits = refits::Refits::compare(
+        &selection.final_fit,
+        &scratch,
+        |f| fit_of(&data, &selection.final_model, &f.params),
+        data.est_samples(),
+    );
 
     let ia = family.linear_indices()[0];
     let segments_of = |residuals: Vec<Vec<f64>>| -> Vec<locate::Segment> {
@@ -278,6 +294,7 @@ pub fn diagnose(
         selection,
         steps,
         size_intervals,
+        refits,
         explainable,
         spectrum,
         final_spectrum,

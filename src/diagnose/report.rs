@@ -10,6 +10,7 @@ use super::accept::{Candidate, gap_closed};
 use super::effects::Effect;
 use super::explainable::{EffectShare, Signature};
 use super::locate::{Band, Share};
+use super::refits::Finding;
 use super::spectrum::{Peak, Spectrum};
 use super::{Diagnosis, Step};
 use crate::report::{Figure, Panel, Series};
@@ -134,6 +135,17 @@ pub fn to_json(d: &Diagnosis) -> Value {
             "val_fit_percent": last.val_fit_percent,
             "gap_closed": last.gap_closed,
             "size_intervals": d.size_intervals,
+            "refits": d.refits.as_ref().map(|r| json!({
+                "fits": r.fits,
+                "final_est_sse": r.final_est_sse,
+                "best_est_sse": r.best_est_sse,
+                "final_val_fit_percent": r.final_val_fit_percent,
+                "best_val_fit_percent": r.best_val_fit_percent,
+                "final_tied": r.final_tied,
+                "tied": r.tied,
+                "tied_val_fit_percent": [r.tied_val_fit_percent.0, r.tied_val_fit_percent.1],
+                "finding": r.finding(),
+            })),
         },
         "explainable": {
             "bound_rmse": x.bound.bound_rmse,
@@ -332,6 +344,7 @@ pub fn to_text(d: &Diagnosis) -> String {
             );
         }
     }
+    refits_text(&mut o, d);
     explainable_text(&mut o, d);
     spectrum_text(&mut o, d);
     let x = &d.explainable;
@@ -385,7 +398,71 @@ pub fn to_text(d: &Diagnosis) -> String {
             peak_text(p)
         );
     }
+    if let Some(r) = &d.refits {
+        let (lo, hi) = r.tied_val_fit_percent;
+        match r.finding() {
+            Finding::Reproduced | Finding::Best => {}
+            Finding::Beaten => {
+                let _ = writeln!(
+                    o,
+                    "The estimation data do not settle the final fit: the same model refitted from scratch \
+                     fits the estimation half better and validates at {:.1} % (see REFITTED).",
+                    r.best_val_fit_percent
+                );
+            }
+            Finding::Unsettled => {
+                let _ = writeln!(
+                    o,
+                    "The estimation data do not settle the final fit: fits of the same model they cannot \
+                     tell apart validate between {lo:.1} and {hi:.1} % (see REFITTED)."
+                );
+            }
+        }
+    }
     o
+}
+
+/// The final model refitted from scratch, and what that says of its fit.
+fn refits_text(o: &mut String, d: &Diagnosis) {
+    let Some(r) = &d.refits else {
+        return;
+    };
+    let (lo, hi) = r.tied_val_fit_percent;
+    let _ = writeln!(
+        o,
+        "\nREFITTED: the final model fitted {} times from scratch (fits within the likelihood-ratio\n  \
+         threshold of the lowest estimation SSE are ones the estimation data cannot tell apart):",
+        r.fits
+    );
+    let _ = writeln!(
+        o,
+        "  final fit        estimation SSE {:.4}  validation fit {:5.1} %",
+        r.final_est_sse, r.final_val_fit_percent
+    );
+    let _ = writeln!(
+        o,
+        "  best refit       estimation SSE {:.4}  validation fit {:5.1} %",
+        r.best_est_sse, r.best_val_fit_percent
+    );
+    let said = match r.finding() {
+        Finding::Reproduced => format!(
+            "reproduced: the {} fits the estimation data cannot tell apart validate at {lo:.1}–{hi:.1} %",
+            r.tied
+        ),
+        Finding::Best => "the best estimation fit found: no refit came within the threshold of it \
+                          (they ended in basins worse on the estimation half)"
+            .to_string(),
+        Finding::Beaten => format!(
+            "not settled: a refit fits the estimation half better than the final fit and validates at \
+             {:.1} %; the final fit's {:.1} % is the basin the search ended in",
+            r.best_val_fit_percent, r.final_val_fit_percent
+        ),
+        Finding::Unsettled => format!(
+            "not settled: {} fits the estimation data cannot tell apart validate between {lo:.1} and {hi:.1} %",
+            r.tied
+        ),
+    };
+    let _ = writeln!(o, "  {said}");
 }
 
 fn peak_text(p: &Peak) -> String {
