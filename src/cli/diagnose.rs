@@ -30,9 +30,10 @@ use super::common::MultiDataArgs;
 /// by more than the noise — HOW FAR the validation error falls, against
 /// a noise-floor estimate, HOW SURE each named effect's size is (a 95 %
 /// profile-likelihood interval) and whether the final fit is REFITTED
-/// alike when the final model is fitted again from scratch, HOW MUCH of the gap is explainable at all
-/// (a ridge model of the residual from the input's lags, filters, rate and
-/// branch, each named effect reported as a share of it; "not explained by
+/// alike when the final model is fitted again from scratch, HOW MUCH of
+/// the gap is explainable at all (a ridge model of the residual from the
+/// input's lags, filters, rate and branch, each named effect reported as a
+/// share of it; "not explained by
 /// the catalogue", and then no effect named, when it is large and the
 /// effects close little of it or leave more than twice what it leaves), and
 /// the residual's spectrum with its peaks (e.g. a load ringing after steps).

@@ -51,7 +51,8 @@ pub enum Effect {
     Backlash,
     /// A slow first-order state added to the output:
     /// `z(k) = ρ·z(k−1) + (1−ρ)·κ·u(k−1)`, `ŷ = x + z`; `κ` is its static
-    /// gain (output per input unit), `ρ` its pole.
+    /// gain (output per input unit), `ρ` its pole, `z(0) = z0` where the
+    /// record's history left it.
     Creep,
     /// Rate-dependent hysteresis: the Bouc-Wen stiffness grows with the input
     /// rate, `A_eff = A·(1 + η·|u(k−1) − u(k−2)|/dt)`, so the loop widens with
@@ -84,10 +85,11 @@ pub enum Effect {
     /// fixed half-width of 2.5 % of the output range on each side.
     SoftStop,
     /// Creep driven by the muscle's output: `z = ρ·z + (1−ρ)·κ·x`,
-    /// `ŷ = x + z`; `κ` per output unit.
+    /// `ŷ = x + z`; `κ` per output unit; `z(0) = z0`.
     OutputCreep,
     /// Creep with two time constants: two input-driven slow states, a
-    /// faster and a slower one, each with its own gain.
+    /// faster and a slower one, two terms of a Prony series: gains `s·κ`
+    /// and `(1−s)·κ` of one sign; the slower starts at `z0`.
     TwoPoleCreep,
     /// Hysteretic threshold: the muscle starts to contract when the input
     /// passes `p_on` and lets go below `p_off = p_on − gap`; while off it
