@@ -119,6 +119,42 @@ fn json_follows_the_contract() {
 }
 
 /// The JSON a successful run printed (the run's stderr if it failed).
+/// `--report DIR` writes every figure, the measured output against the
+/// final model among them.
+#[test]
+fn report_writes_the_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("stair.csv");
+    write_csv(&csv, 600, false);
+    let figures = dir.path().join("figures");
+    let out = bin()
+        .args(["diagnose", "--seeds", "2", "--generations", "30"])
+        .args(["--effects", "delay,creep", "--report"])
+        .arg(&figures)
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for name in [
+        "diagnose_fit.svg",
+        "diagnose_residual.svg",
+        "diagnose_loop.svg",
+        "diagnose_breakdown.svg",
+        "diagnose_spectrum.svg",
+    ] {
+        let svg = std::fs::read_to_string(figures.join(name)).expect(name);
+        assert!(svg.starts_with("<svg"), "{name}");
+    }
+    let fit = std::fs::read_to_string(figures.join("diagnose_fit.svg")).unwrap();
+    for label in ["measured", "baseline"] {
+        assert!(fit.contains(label), "diagnose_fit.svg lacks {label}");
+    }
+}
+
 fn json_of(out: &std::process::Output) -> serde_json::Value {
     assert!(
         out.status.success(),

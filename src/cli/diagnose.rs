@@ -86,7 +86,8 @@ pub struct Args {
     /// Print JSON instead of the report.
     #[arg(long)]
     json: bool,
-    /// Write the figures (residual over time, over the hysteresis loop,
+    /// Write the figures (measured output against the baseline and the
+    /// final model, residual over time, over the hysteresis loop,
     /// breakdowns, residual spectrum) to this folder.
     #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,

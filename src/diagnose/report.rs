@@ -636,6 +636,21 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> anyhow::Result<Vec<PathBuf>> 
         ));
     }
     save("diagnose_residual.svg", time)?;
+    // What a person checks first: does the final model follow the record?
+    let mut fit = Figure::new("Measured output against the models (validation half)");
+    for c in &d.curves {
+        fit = fit.with(
+            Panel::new(c.name.clone(), "time (s)", "output")
+                .with(Series::line("measured", c.t.clone(), c.measured.clone()))
+                .with(Series::line("baseline", c.t.clone(), c.baseline.clone()))
+                .with(Series::line(
+                    final_label.clone(),
+                    c.t.clone(),
+                    c.last.clone(),
+                )),
+        );
+    }
+    save("diagnose_fit.svg", fit)?;
     lp = lp.with(out_panel).with(res_panel);
     save("diagnose_loop.svg", lp)?;
 
