@@ -18,7 +18,7 @@ use serde::Serialize;
 
 use super::data::Data;
 use super::effects::Augmented;
-use super::interval::CHI2_1_95;
+use super::interval::indistinguishable_up_to;
 use super::select::Settings;
 use crate::model::{Family, Measure};
 use crate::optim::AlgoSettings;
@@ -564,10 +564,10 @@ fn summarize(fits: Vec<Fit>, samples: usize) -> SeededFit {
     // intervals, `interval`). A seed stuck in a worse basin is a failed fit,
     // not a competing answer, and does not widen it.
     let best_sse = fits.iter().map(|f| f.est_sse).fold(f64::INFINITY, f64::min);
-    let window = CHI2_1_95 * best_sse / samples.max(1) as f64;
+    let threshold = indistinguishable_up_to(best_sse, samples);
     let converged: Vec<f64> = fits
         .iter()
-        .filter(|f| f.est_sse <= best_sse + window)
+        .filter(|f| f.est_sse <= threshold)
         .map(|f| f.val_rmse)
         .collect();
     let spread = std_dev(&converged);

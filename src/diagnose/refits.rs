@@ -14,7 +14,7 @@
 use serde::Serialize;
 
 use super::fitting::Fit;
-use super::interval::CHI2_1_95;
+use super::interval::indistinguishable_up_to;
 
 /// Fit-% points within which fits the estimation data cannot tell apart
 /// count as the same answer.
@@ -75,7 +75,7 @@ impl Refits {
             .filter(|f| f.est_sse.is_finite())
             .min_by(|a, b| a.est_sse.total_cmp(&b.est_sse))?;
         let lowest = best.est_sse.min(final_fit.est_sse);
-        let threshold = lowest + CHI2_1_95 * lowest / samples.max(1) as f64;
+        let threshold = indistinguishable_up_to(lowest, samples);
         let tied: Vec<f64> = std::iter::once(final_fit)
             .chain(scratch)
             .filter(|f| f.est_sse <= threshold)
