@@ -8,8 +8,12 @@ use serde::Serialize;
 use super::common::DataArgs;
 use mckibben::eval::agreement::{Agreement, agreement};
 use mckibben::eval::cpu::CpuEvaluator;
-use mckibben::eval::workload::{mixed_population, search_space, stair_experiment};
+use mckibben::eval::workload::{
+    augmented_population, mixed_population, search_space, stair_experiment,
+};
 use mckibben::eval::{Backend, Evaluator, Problem, open};
+use mckibben::model::effects::{Augmented, Context, Effect};
+use mckibben::model::presets::THESIS_B;
 use mckibben::model::{Experiment, Family};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -21,13 +25,34 @@ use rand_chacha::ChaCha8Rng;
 /// `--repeats` calls, parameter upload and score read-back included. The
 /// population is drawn from the default search box (thesis bounds; half of
 /// it uniform, so it includes diverging candidates, half near the thesis
-/// preset). The scores are compared with the CPU reference on the same
-/// population: maximum relative difference, diverged-in-one-only count,
-/// bit-identity and whether the ten best candidates are the same.
+/// preset). With --effects the model is the family followed by those effect
+/// stages (as `diagnose` scores them), each effect's parameters drawn from
+/// its box (uniform, or near its neutral value on the near-preset half).
+/// The scores are compared with the CPU reference on the same population:
+/// maximum relative difference, diverged-in-one-only count, bit-identity
+/// and whether the ten and the hundred best candidates are the same.
+///
+/// --json prints one object per population size: backend ("gpu" or "cpu"),
+/// adapter, model (the family and its effects, e.g. "classic +
+/// saturation:output"), effects (names), samples, population,
+/// candidate_samples_per_s, evals_per_s, median_s, agreement
+/// {max_rel_diff, finiteness_mismatches, bit_identical, top10_identical,
+/// top100_identical, top100_overlap (how many of the CPU's best hundred
+/// are among the backend's best hundred)}, and with --time-reference
+/// reference {candidate_samples_per_s, evals_per_s, median_s} (the CPU
+/// path timed the same way) and speedup (its median over the backend's),
+/// else null for both.
+///
+/// --markdown prints a table for docs/PERFORMANCE.md instead: a header
+/// and, per population size, one row for the backend and (with
+/// --time-reference) one for the CPU path; columns: model, N, backend,
+/// cand-samples/s, evals/s, median s, GPU/CPU speed-up, max rel SSE diff,
+/// top-100 alike (scripts/gpu-check.sh concatenates these rows).
 ///
 /// Examples:
 ///   mckibben bench --synthetic 4000 --backend cpu --model classic --pop 131072
 ///   mckibben bench run.csv --backend gpu --pop 1000,100000,1000000 --json
+///   mckibben bench --backend gpu --effects saturation:output,creep:output --time-reference --markdown
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -55,9 +80,97 @@ pub struct Args {
     /// Seed of the population draw.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Print JSON on stdout instead of a table.
+    /// Effect stages after the family, comma-separated catalogue names
+    /// (e.g. `saturation:output,creep:output`; `mckibben diagnose --help`
+    /// lists them), scored as the diagnosis scores them.
+    #[arg(long, value_delimiter = ',', value_name = "LIST")]
+    effects: Vec<Effect>,
+    /// Also time the CPU path on the same populations (one warm-up call,
+    /// median of --repeats) and report the backend's speed-up over it.
     #[arg(long)]
+    time_reference: bool,
+    /// Print JSON on stdout instead of a table.
+    #[arg(long, conflicts_with = "markdown")]
     json: bool,
+    /// Print a markdown table (header and rows) instead of the text table.
+    #[arg(long)]
+    markdown: bool,
+}
+
+/// Throughput of one timed evaluator.
+#[derive(Debug, Clone, Copy, Serialize)]
+struct Timing {
+    candidate_samples_per_s: f64,
+    evals_per_s: f64,
+    median_s: f64,
+}
+
+/// The median of one warm-up call and `repeats` timed calls, and the last scores.
+fn time(
+    evaluator: &mut dyn Evaluator,
+    problem: &Problem,
+    population: &[f64],
+    repeats: u32,
+) -> anyhow::Result<(Timing, Vec<f32>)> {
+    let n = population.len() / problem.dim();
+    let mut scores = evaluator.evaluate(problem, population)?;
+    let mut times = Vec::with_capacity(repeats as usize);
+    for _ in 0..repeats {
+        let start = Instant::now();
+        scores = evaluator.evaluate(problem, population)?;
+        times.push(start.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    let median = times[times.len() / 2];
+    let timing = Timing {
+        candidate_samples_per_s: (n * problem.samples()) as f64 / median,
+        evals_per_s: n as f64 / median,
+        median_s: median,
+    };
+    Ok((timing, scores.total))
+}
+
+/// The markdown table's header (`--markdown`).
+const MARKDOWN_HEADER: &str = "| model | N | backend | cand-samples/s | evals/s | median s | GPU/CPU speed-up | max rel SSE diff | top-100 alike |\n\
+                               |---|---:|---|---:|---:|---:|---:|---|---|";
+
+/// The markdown rows of one population size: the backend's, then the CPU
+/// reference's when it was timed.
+fn markdown_rows(row: &Row) -> String {
+    let a = &row.agreement;
+    let diff = if a.bit_identical {
+        "0 (bit-identical)".to_string()
+    } else {
+        let mut s = format!("{:.2e}", a.max_rel_diff);
+        if a.finiteness_mismatches > 0 {
+            s += &format!("; {} diverged on one side only", a.finiteness_mismatches);
+        }
+        s
+    };
+    let best = row.population.min(100);
+    let alike = format!(
+        "{} ({}/{best})",
+        if a.top100_identical { "yes" } else { "no" },
+        a.top100_overlap
+    );
+    let line = |backend: &str, t: &Timing, speedup: &str, diff: &str, alike: &str| {
+        format!(
+            "| {} | {} | {backend} | {:.3e} | {:.3e} | {:.3e} | {speedup} | {diff} | {alike} |",
+            row.model, row.population, t.candidate_samples_per_s, t.evals_per_s, t.median_s
+        )
+    };
+    let mut out = line(
+        row.backend,
+        &row.timing,
+        &row.speedup.map_or("—".to_string(), |s| format!("{s:.2}×")),
+        &diff,
+        &alike,
+    );
+    if let Some(r) = &row.reference {
+        out += "\n";
+        out += &line("cpu", r, "1×", "reference", "reference");
+    }
+    out
 }
 
 /// One population's result; the keys of `--json`.
@@ -65,12 +178,15 @@ pub struct Args {
 struct Row {
     backend: &'static str,
     adapter: String,
+    model: String,
+    effects: Vec<Effect>,
     samples: usize,
     population: usize,
-    candidate_samples_per_s: f64,
-    evals_per_s: f64,
-    median_s: f64,
+    #[serde(flatten)]
+    timing: Timing,
     agreement: Agreement,
+    reference: Option<Timing>,
+    speedup: Option<f64>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -90,7 +206,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|t| Experiment::with_means_of(t, mckibben::model::experiment::halves(t.len()).0))
             .collect(),
     };
-    let problem = Problem::new(args.model, experiments);
+    let datasets = experiments.len();
+    if let Some(e) = args.effects.iter().find(|e| !e.applicable(datasets)) {
+        anyhow::bail!(
+            "--effects: `{e}` needs at least two datasets (data files), this run has {datasets}"
+        );
+    }
+    if args.model == Family::Linear && !args.effects.is_empty() {
+        anyhow::bail!(
+            "--effects: effect stages follow a hysteretic family (classic or generalized), not linear"
+        );
+    }
+    let mut problem = Problem::new(args.model, experiments);
+    // The effects' constants per dataset, as the diagnosis builds them: the
+    // side a rising input drives the output to is the sign of the prior's
+    // gain (the thesis' here, as the search box below).
+    let model = Augmented::new(args.model, args.effects.clone(), datasets);
+    let contexts: Vec<Context> = problem
+        .experiments
+        .iter()
+        .map(|e| Context::of(e, THESIS_B >= 0.0))
+        .collect();
+    if !args.effects.is_empty() {
+        problem = problem.with_effects(args.effects.clone(), contexts.clone());
+    }
+    let label = if args.effects.is_empty() {
+        args.model.to_string()
+    } else {
+        let names: Vec<&str> = args.effects.iter().map(|e| e.name()).collect();
+        format!("{} + {}", args.model, names.join(", "))
+    };
     let mut evaluator = open(args.backend)?;
     let backend = if evaluator.adapter().is_some() {
         "gpu"
@@ -98,11 +243,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "cpu"
     };
     let adapter = evaluator.adapter().unwrap_or_else(|| evaluator.describe());
-    if !args.json {
+    if args.markdown {
+        println!("{MARKDOWN_HEADER}");
+    } else if !args.json {
         println!("backend: {}", evaluator.describe());
         println!(
             "{} model, {} samples in {} experiment(s){}",
-            args.model,
+            label,
             problem.samples(),
             problem.experiments.len(),
             match (args.model, args.free_n) {
@@ -120,35 +267,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut reference = CpuEvaluator::new();
     let mut rows = Vec::new();
     for &n in &args.pop {
-        let population = mixed_population(&space, n, &mut ChaCha8Rng::seed_from_u64(args.seed));
-        let mut scores = evaluator.evaluate(&problem, &population)?;
-        let mut times = Vec::with_capacity(args.repeats as usize);
-        for _ in 0..args.repeats {
-            let start = Instant::now();
-            scores = evaluator.evaluate(&problem, &population)?;
-            times.push(start.elapsed().as_secs_f64());
-        }
-        times.sort_by(f64::total_cmp);
-        let median = times[times.len() / 2];
-        let want = reference.evaluate(&problem, &population)?;
+        let mut rng = ChaCha8Rng::seed_from_u64(args.seed);
+        let population = if args.effects.is_empty() {
+            mixed_population(&space, n, &mut rng)
+        } else {
+            augmented_population(&model, &space, &contexts[0], n, &mut rng)
+        };
+        let (timing, scores) = time(evaluator.as_mut(), &problem, &population, args.repeats)?;
+        let (reference_timing, want) = if args.time_reference {
+            let (t, want) = time(&mut reference, &problem, &population, args.repeats)?;
+            (Some(t), want)
+        } else {
+            (None, reference.evaluate(&problem, &population)?.total)
+        };
         let row = Row {
             backend,
             adapter: adapter.clone(),
+            model: label.clone(),
+            effects: args.effects.clone(),
             samples: problem.samples(),
             population: n,
-            candidate_samples_per_s: (n * problem.samples()) as f64 / median,
-            evals_per_s: n as f64 / median,
-            median_s: median,
-            agreement: agreement(&scores.total, &want.total),
+            timing,
+            agreement: agreement(&scores, &want),
+            speedup: reference_timing.map(|r| r.median_s / timing.median_s),
+            reference: reference_timing,
         };
-        if !args.json {
+        if args.markdown {
+            println!("{}", markdown_rows(&row));
+        } else if !args.json {
             let a = &row.agreement;
             println!(
-                "{:>10}  {:>12.3e}  {:>11.3e}  {:>10.3e}  {}, top-10 {}, max rel diff {:.2e}, {} finiteness mismatches",
+                "{:>10}  {:>12.3e}  {:>11.3e}  {:>10.3e}  {}, top-10 {}, top-100 {} ({} of 100 shared), max rel diff {:.2e}, {} finiteness mismatches{}",
                 n,
-                row.candidate_samples_per_s,
-                row.evals_per_s,
-                median,
+                timing.candidate_samples_per_s,
+                timing.evals_per_s,
+                timing.median_s,
                 if a.bit_identical {
                     "bit-identical"
                 } else {
@@ -159,8 +312,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 } else {
                     "differs"
                 },
+                if a.top100_identical {
+                    "identical"
+                } else {
+                    "differs"
+                },
+                a.top100_overlap,
                 a.max_rel_diff,
-                a.finiteness_mismatches
+                a.finiteness_mismatches,
+                match (&row.reference, row.speedup) {
+                    (Some(r), Some(x)) => format!(
+                        "; CPU path {:.3e} cand-samples/s, speed-up {x:.2}×",
+                        r.candidate_samples_per_s
+                    ),
+                    _ => String::new(),
+                }
             );
         }
         rows.push(row);

@@ -7,6 +7,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::data::Trace;
+use crate::model::effects::{Augmented, Context, effect_box};
 use crate::model::presets::{THESIS_A, THESIS_B, thesis_params};
 use crate::model::{Experiment, Family, Flow, LinearPrior, SearchSpace, simulate};
 
@@ -95,6 +96,47 @@ pub fn mixed_population(space: &SearchSpace, count: usize, rng: &mut ChaCha8Rng)
                 let half = 0.05 * (hi - lo);
                 (center[j] + rng.random_range(-half..half)).clamp(lo, hi)
             });
+        }
+    }
+    rows
+}
+
+/// `count` candidates of `model` (a family with effect stages): the baseline
+/// as [`mixed_population`] draws it from `space`, then each effect's
+/// parameters from its box ([`effect_box`] with `ctx`, the first dataset's
+/// context): uniform in the box on even rows, within ±5 % of the box width
+/// around the effect's neutral value on odd rows (clamped to the box), so
+/// that odd rows stay near the preset and nearly all finite.
+pub fn augmented_population(
+    model: &Augmented,
+    space: &SearchSpace,
+    ctx: &Context,
+    count: usize,
+    rng: &mut ChaCha8Rng,
+) -> Vec<f64> {
+    assert_eq!(space.family, model.family, "search box of another family");
+    let base = mixed_population(space, count, rng);
+    let boxes: Vec<_> = model
+        .effects
+        .iter()
+        .map(|&e| effect_box(e, ctx, model.datasets))
+        .collect();
+    let d0 = model.family.dim();
+    let mut rows = Vec::with_capacity(count * model.dim());
+    for (i, b) in base.chunks_exact(d0).enumerate() {
+        rows.extend_from_slice(b);
+        for (neutral, lo, hi) in &boxes {
+            for j in 0..neutral.len() {
+                let (lo, hi) = (lo[j], hi[j]);
+                rows.push(if lo >= hi {
+                    lo
+                } else if i % 2 == 0 {
+                    rng.random_range(lo..hi)
+                } else {
+                    let half = 0.05 * (hi - lo);
+                    (neutral[j] + rng.random_range(-half..half)).clamp(lo, hi)
+                });
+            }
         }
     }
     rows
