@@ -1,0 +1,237 @@
+#!/usr/bin/env bash
+# scripts/gpu-check.sh: the evaluator and the staged fit measured on a machine
+# with a real GPU, as markdown for docs/PERFORMANCE.md (issue 31).
+#
+# It needs nothing but the built binary, a Vulkan loader and driver, and the
+# repository's data/ (no Rust toolchain, no network, no python or jq). It
+# measures, on data/stair_4.5kg.csv (4000 samples):
+#   - evaluator throughput (`mckibben bench --backend gpu --time-reference`)
+#     at N = 1e5, 1e6, 4e6 for the classic model, the generalized model and
+#     the classic model with effect stages (creep, delay, saturation), and the
+#     CPU path on the same populations (the speed-up is CPU median / GPU
+#     median);
+#   - CPU/GPU agreement on each population: the largest relative SSE
+#     difference and whether the best 100 candidates rank alike;
+#   - a staged fit (`mckibben fit`, classic) at N = 1e5 and 1e6 on both
+#     backends: wall time, final SSE, validation fit %, and whether the two
+#     backends end on the same parameters.
+# It prints the tables on stdout (and writes them to --out) and takes under
+# 8 minutes on one H100/H200 with 16 CPU cores (docs/PERFORMANCE.md).
+#
+#   cargo build --release && scripts/gpu-check.sh
+#   scripts/gpu-check.sh --bin ./mckibben --out gpu-check.md
+#   scripts/gpu-check.sh --small          # CI smoke size, runs on lavapipe
+set -euo pipefail
+
+usage() {
+    cat <<'EOF'
+usage: scripts/gpu-check.sh [--bin PATH] [--small] [--out FILE] [--gens G] [--data FILE]
+
+  --bin PATH   the mckibben binary (default: $MCKIBBEN, else target/release/mckibben)
+  --small      the CI smoke size: bench at N = 1000, 4000; fits at N = 200, 10 generations
+  --out FILE   also write the markdown to FILE
+  --gens G     generations of each staged fit's global stage (default: 30; --small: 10)
+  --data FILE  experiment CSV (default: data/stair_4.5kg.csv of this repository)
+EOF
+}
+
+die() {
+    echo "gpu-check: $*" >&2
+    exit 2
+}
+
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+bin="${MCKIBBEN:-$root/target/release/mckibben}"
+data="$root/data/stair_4.5kg.csv"
+small=0
+out=""
+gens=""
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --bin)
+            [ $# -ge 2 ] || die "--bin needs a path"
+            bin="$2"
+            shift 2
+            ;;
+        --out)
+            [ $# -ge 2 ] || die "--out needs a file name"
+            out="$2"
+            shift 2
+            ;;
+        --data)
+            [ $# -ge 2 ] || die "--data needs a file name"
+            data="$2"
+            shift 2
+            ;;
+        --gens)
+            [ $# -ge 2 ] || die "--gens needs a number"
+            [[ "$2" =~ ^[1-9][0-9]*$ ]] || die "--gens: expected a positive whole number, got '$2'"
+            gens="$2"
+            shift 2
+            ;;
+        --small)
+            small=1
+            shift
+            ;;
+        -h | --help)
+            usage
+            exit 0
+            ;;
+        *)
+            usage >&2
+            die "unknown argument '$1'"
+            ;;
+    esac
+done
+[ -x "$bin" ] || die "--bin: '$bin' is not an executable file (build it with cargo build --release, or pass --bin PATH / MCKIBBEN=PATH)"
+[ -f "$data" ] || die "--data: '$data' does not exist"
+
+if [ "$small" = 1 ]; then
+    pops="1000,4000"
+    repeats=2
+    fit_pops=(200)
+    gens="${gens:-10}"
+    # A lavapipe smoke run: no time limit needed.
+    budget_args=()
+else
+    pops="100000,1000000,4000000"
+    repeats=3
+    fit_pops=(100000 1000000)
+    gens="${gens:-30}"
+    # Keeps a slow machine within the 8 minutes; a stop by it is reported.
+    budget_args=(--time-budget 90)
+fi
+effects="creep,delay,saturation"
+
+work="$(mktemp -d "${TMPDIR:-/tmp}/gpu-check.XXXXXX")"
+trap 'rm -rf "$work"' EXIT
+started=$(date +%s)
+
+# Runs the binary with a log; on failure names the step and shows the log.
+run() {
+    local step="$1"
+    shift
+    echo "gpu-check: $step" >&2
+    if ! "$bin" "$@" >"$work/stdout" 2>"$work/stderr"; then
+        echo "gpu-check: FAILED: $step: $bin $*" >&2
+        tail -n 20 "$work/stderr" >&2
+        exit 1
+    fi
+}
+
+# A top-level key of the binary's pretty-printed JSON (two-space indent),
+# e.g. json_top file seconds.
+json_top() {
+    sed -n "s/^  \"$2\": \"\{0,1\}\([^\",]*\)\"\{0,1\},\{0,1\}\$/\1/p" "$1" | head -n 1
+}
+
+# --- the machine ----------------------------------------------------------
+run "adapter" bench --synthetic 100 --pop 1 --repeats 1 --backend gpu --json
+adapter=$(sed -n 's/^ *"adapter": "\(.*\)",$/\1/p' "$work/stdout" | head -n 1)
+gpu="—"
+if command -v nvidia-smi >/dev/null 2>&1; then
+    gpu=$(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2>/dev/null | head -n 1 || true)
+    gpu="${gpu:-—}"
+fi
+cpu=$(sed -n 's/^model name[[:space:]]*: //p' /proc/cpuinfo 2>/dev/null | head -n 1)
+cpu="${cpu:-unknown}"
+cores=$(nproc)
+version=$("$bin" --version)
+when=$(date -u '+%Y-%m-%d %H:%M UTC')
+samples=$(($(grep -cv '^#' "$data") - 1))
+
+md="$work/table.md"
+{
+    echo "### \`scripts/gpu-check.sh$([ "$small" = 1 ] && echo " --small")\`, $when"
+    echo
+    echo "- binary: $version"
+    echo "- adapter (wgpu): $adapter"
+    echo "- nvidia-smi: $gpu"
+    echo "- CPU: $cpu, $cores logical cores"
+    echo "- data: $(basename "$data") ($samples samples); populations drawn with seed 1"
+    echo
+    echo "Evaluator (\`mckibben bench --backend gpu --time-reference --repeats $repeats --markdown\`;"
+    echo "the cpu rows are the batched CPU path on the same populations, the speed-up is CPU median / GPU median):"
+    echo
+} >"$md"
+
+# --- evaluator throughput and agreement -----------------------------------
+first=1
+for model in classic generalized "classic+effects"; do
+    args=(bench "$data" --backend gpu --time-reference --repeats "$repeats" --pop "$pops" --markdown)
+    case "$model" in
+        classic+effects) args+=(--model classic --effects "$effects") ;;
+        *) args+=(--model "$model") ;;
+    esac
+    run "bench $model at N = $pops" "${args[@]}"
+    if [ "$first" = 1 ]; then
+        cat "$work/stdout" >>"$md"
+        first=0
+    else
+        tail -n +3 "$work/stdout" >>"$md"
+    fi
+done
+
+# --- staged fits on both backends ------------------------------------------
+{
+    echo
+    echo "Staged fit (\`mckibben fit --model classic --pop N --gens $gens --backend B${budget_args[*]:+ ${budget_args[*]}}\`,"
+    echo "seed 1; wall time includes start-up and the figures written to --out):"
+    echo
+    echo "| N | gens (all stages) | backend | wall s | fit s | stop | final SSE | val fit % | GPU/CPU speed-up | same parameters as CPU |"
+    echo "|---:|---:|---|---:|---:|---|---:|---:|---:|---|"
+} >>"$md"
+
+# The "params" object of a fit's JSON, one "name": value per line.
+params() {
+    awk '/^  "params": \{/ { inside = 1; next } inside && /^  \}/ { exit } inside { gsub(/[ ,]/, ""); print }' "$1"
+}
+
+for n in "${fit_pops[@]}"; do
+    for backend in cpu gpu; do
+        t0=$(date +%s.%N)
+        run "fit at N = $n on $backend" fit "$data" --model classic --pop "$n" --gens "$gens" \
+            --backend "$backend" --seed 1 "${budget_args[@]}" --json --out "$work/fit-$backend-$n"
+        t1=$(date +%s.%N)
+        cp "$work/stdout" "$work/fit-$backend-$n.json"
+        awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.2f\n", b - a }' >"$work/wall-$backend-$n"
+    done
+    cpu_json="$work/fit-cpu-$n.json"
+    gpu_json="$work/fit-gpu-$n.json"
+    cpu_wall=$(cat "$work/wall-cpu-$n")
+    gpu_wall=$(cat "$work/wall-gpu-$n")
+    if [ "$(params "$cpu_json")" = "$(params "$gpu_json")" ]; then
+        same="yes (bit-identical)"
+    else
+        # The largest relative difference of a parameter, |g − c| / max(|c|, 1e-12).
+        same=$(paste -d' ' <(params "$cpu_json" | tr ':' ' ') <(params "$gpu_json" | tr ':' ' ') |
+            awk '{ d = $4 - $2; if (d < 0) d = -d; c = $2 < 0 ? -$2 : $2; if (c < 1e-12) c = 1e-12;
+                   if (d / c > m) { m = d / c; w = $1 } }
+                 END { printf "no: max rel param diff %.2e (%s)\n", m, w }')
+    fi
+    for backend in cpu gpu; do
+        f="$work/fit-$backend-$n.json"
+        wall=$(cat "$work/wall-$backend-$n")
+        if [ "$backend" = gpu ]; then
+            speedup=$(awk -v c="$cpu_wall" -v g="$gpu_wall" 'BEGIN { printf "%.2f×\n", c / g }')
+            alike="$same"
+        else
+            speedup="1×"
+            alike="reference"
+        fi
+        printf '| %s | %s | %s | %s | %.2f | %s | %.6g | %.2f | %s | %s |\n' \
+            "$n" "$(json_top "$f" generations)" "$backend" "$wall" "$(json_top "$f" seconds)" \
+            "$(json_top "$f" stop)" "$(json_top "$f" sse)" "$(json_top "$f" val_fit_percent)" \
+            "$speedup" "$alike" >>"$md"
+    done
+done
+
+{
+    echo
+    echo "Whole script: $(($(date +%s) - started)) s."
+} >>"$md"
+
+cat "$md"
+if [ -n "$out" ]; then
+    cp "$md" "$out" || die "--out: cannot write '$out'"
+fi
