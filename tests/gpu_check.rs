@@ -1,0 +1,176 @@
+//! `scripts/gpu-check.sh --small` end to end (the CI smoke run of the real-GPU
+//! check, issue 31), and the `bench` flags it relies on.
+//!
+//! The script needs a GPU adapter: without one the test fails when `CI=true`
+//! and otherwise prints a loud SKIP message and returns
+//! (`common::require_gpu`). On lavapipe (a CPU adapter) the GPU's scores and
+//! the staged fit must carry the CPU path's bits.
+
+mod common;
+
+use std::process::Command;
+
+use mckibben::eval::gpu::adapters;
+
+const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
+
+#[test]
+fn the_small_gpu_check_prints_every_row() {
+    let Some(adapter) = common::require_gpu(
+        adapters()
+            .into_iter()
+            .next()
+            .ok_or("none found (install mesa-vulkan-drivers and libvulkan1)"),
+    ) else {
+        return;
+    };
+    let on_cpu_adapter = adapter.get_info().device_type == wgpu::DeviceType::Cpu;
+    let dir = tempfile::tempdir().unwrap();
+    let out_file = dir.path().join("check.md");
+    let out = Command::new("bash")
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/gpu-check.sh"))
+        .args(["--small", "--bin", BIN, "--out"])
+        .arg(&out_file)
+        .output()
+        .expect("run bash");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "exit {:?}\n{stdout}\n{stderr}",
+        out.status
+    );
+    assert_eq!(
+        std::fs::read_to_string(&out_file).unwrap(),
+        stdout,
+        "--out holds what was printed"
+    );
+    let rows: Vec<Vec<&str>> = stdout
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| model") && !l.starts_with("| N "))
+        .map(|l| l.trim_matches('|').split(" | ").map(str::trim).collect())
+        .collect();
+    let row = |cells: &[&str]| {
+        rows.iter()
+            .find(|r| r.len() >= cells.len() && r[..cells.len()] == *cells)
+            .unwrap_or_else(|| panic!("no row starting {cells:?} in\n{stdout}"))
+    };
+    for model in [
+        "classic",
+        "generalized",
+        "classic + creep, delay, saturation",
+    ] {
+        for n in ["1000", "4000"] {
+            let gpu = row(&[model, n, "gpu"]);
+            let cpu = row(&[model, n, "cpu"]);
+            assert_eq!(gpu.len(), 9, "{gpu:?}");
+            assert_eq!(cpu[6..], ["1×", "reference", "reference"], "{cpu:?}");
+            for r in [gpu, cpu] {
+                for cell in &r[3..6] {
+                    let v: f64 = cell.parse().unwrap_or_else(|_| panic!("{r:?}"));
+                    assert!(v.is_finite() && v > 0.0, "{r:?}");
+                }
+            }
+            assert!(gpu[6].ends_with('×'), "{gpu:?}");
+            if on_cpu_adapter {
+                assert_eq!(gpu[7..], ["0 (bit-identical)", "yes (100/100)"], "{gpu:?}");
+            }
+        }
+    }
+    let cpu_fit = row(&["200", "12", "cpu"]);
+    let gpu_fit = row(&["200", "12", "gpu"]);
+    for r in [cpu_fit, gpu_fit] {
+        assert_eq!((r.len(), r[5]), (10, "completed"), "{r:?}");
+        let fit: f64 = r[7].parse().unwrap();
+        assert!(fit > 50.0 && fit <= 100.0, "validation fit %: {r:?}");
+    }
+    if on_cpu_adapter {
+        assert_eq!(gpu_fit[9], "yes (bit-identical)", "{gpu_fit:?}");
+        assert_eq!(gpu_fit[6..8], cpu_fit[6..8], "same SSE and fit");
+    }
+    assert!(
+        stdout.contains("- adapter (wgpu): ") && stdout.contains("- CPU: "),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn the_check_names_a_bad_flag() {
+    let out = Command::new("bash")
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/gpu-check.sh"))
+        .args(["--small", "--bin", BIN, "--gens", "ten"])
+        .output()
+        .expect("run bash");
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--gens") && stderr.contains("'ten'"),
+        "{stderr}"
+    );
+    let out = Command::new("bash")
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/gpu-check.sh"))
+        .args(["--bin", "/nonexistent/mckibben"])
+        .output()
+        .expect("run bash");
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--bin"));
+}
+
+#[test]
+fn bench_scores_a_model_with_effects_and_times_the_cpu_path() {
+    let out = Command::new(BIN)
+        .args([
+            "bench",
+            "--synthetic",
+            "300",
+            "--backend",
+            "cpu",
+            "--pop",
+            "150",
+            "--repeats",
+            "1",
+            "--effects",
+            "creep,saturation:output",
+            "--time-reference",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let row = &rows[0];
+    assert_eq!(row["model"], "classic + creep, saturation:output");
+    assert_eq!(row["effects"][1], "saturation:output");
+    assert_eq!(row["population"], 150);
+    assert_eq!(row["agreement"]["top100_identical"], true);
+    assert_eq!(row["agreement"]["top100_overlap"], 100);
+    assert!(row["reference"]["median_s"].as_f64().unwrap() > 0.0);
+    assert!(row["speedup"].as_f64().unwrap() > 0.0);
+
+    // One dataset cannot carry the `load` effect; an unknown name is named.
+    for (effects, want) in [("load", "needs at least two datasets"), ("bogus", "bogus")] {
+        let out = Command::new(BIN)
+            .args([
+                "bench",
+                "--synthetic",
+                "100",
+                "--backend",
+                "cpu",
+                "--pop",
+                "4",
+            ])
+            .args(["--effects", effects])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{effects}");
+        assert!(
+            stderr.contains("--effects") && stderr.contains(want),
+            "{stderr}"
+        );
+    }
+}
