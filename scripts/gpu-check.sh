@@ -99,7 +99,7 @@ else
     fit_pops=(100000 1000000)
     gens="${gens:-30}"
     # Keeps a slow machine within the 8 minutes; a stop by it is reported.
-    budget_args=(--time-budget 90)
+    budget_args=(--time-budget 60)
 fi
 effects="creep,delay,saturation"
 
