@@ -140,8 +140,10 @@ impl Effect {
     /// first nine of [`Effect::ALL`].
     pub const PHYSICAL: &'static [Effect] = Effect::ALL.split_at(9).0;
 
-    /// The physical effect this realises (`DESIGN.md` §5's names): the
-    /// first realisation of each is the physical effect itself.
+    /// The physical effect this realises (one of the nine of
+    /// [`Effect::PHYSICAL`], whose names flags, reports and the self-tests'
+    /// confusion tables use): the first realisation of each is the physical
+    /// effect itself.
     pub fn physical(self) -> Effect {
         match self {
             Effect::InputLag | Effect::OutputLag => Effect::Delay,
