@@ -256,7 +256,7 @@ fn cavatappi_500g_gets_a_stable_baseline() {
 /// on the stair because the catalogue closes little of the bound, on the
 /// multisine because it leaves twice what the bound leaves. On a record as
 /// short as the small traces above the ridge bound is too weak to say so
-/// (docs/DIAGNOSIS.md), hence the shipped data. (The large stair case is
+/// (docs/lab/diagnosis.md), hence the shipped data. (The large stair case is
 /// `tests/diagnose_selftest.rs`'s, which reads its report.)
 #[test]
 fn an_effect_outside_the_catalogue_is_not_explained_rather_than_misnamed() {

@@ -176,7 +176,7 @@ impl Data {
     /// (`β + γ < 0`) lets `w` run away once the input leaves the estimation
     /// half's range, and then diverges on its own validation half, leaving
     /// no gap to diagnose (as every seed did on the Cavatappi 500 g file:
-    /// docs/DIAGNOSIS.md, "Real data: the Cavatappi muscle"). `fit` applies
+    /// docs/lab/diagnosis.md, "Real data: the Cavatappi muscle"). `fit` applies
     /// the same rule (`optim::engine::ModelObjective::for_task`).
     ///
     /// And a ringing ([`Effect::Ringing`]) must ring ([`rings`]).
@@ -302,7 +302,7 @@ impl Data {
     /// constant `1/(1 − a)` in samples, so that the output error cannot pile
     /// up through the slow pole, yet the prediction depends on the dynamics
     /// rather than on the last measurement alone (shorter and longer
-    /// horizons measured on the self-test: docs/DIAGNOSIS.md, the budget's
+    /// horizons measured on the self-test: docs/lab/diagnosis.md, the budget's
     /// "in the first round" item).
     pub fn horizon(&self) -> usize {
         let tau = 1.0 / (1.0 - self.prior.a).max(1e-3);
@@ -395,7 +395,7 @@ impl Data {
 /// Cavatappi 200 g file), and a mode damped past `1/√2` has no peak in its
 /// spectrum: it is a high-pass of the input, which the independent
 /// self-test's sensor cross-talk is, and it was named for it (critically
-/// damped, `a1 = 1.11`, `a2 = 0.31`: docs/DIAGNOSIS.md).
+/// damped, `a1 = 1.11`, `a2 = 0.31`: docs/lab/diagnosis.md).
 pub fn rings(a1: f64, a2: f64) -> bool {
     if !(a2 > 0.0 && a1 * a1 < 4.0 * a2) {
         return false;

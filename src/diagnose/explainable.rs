@@ -23,7 +23,7 @@
 //! estimate, not a theorem: an effect whose mark lies outside the span of the
 //! features (a hard nonlinearity deep in the state) can close more, and so
 //! can a physical effect refitted jointly with the baseline when the record
-//! is short (as on the Cavatappi files: docs/DIAGNOSIS.md, "Real data: the
+//! is short (as on the Cavatappi files: docs/lab/diagnosis.md, "Real data: the
 //! Cavatappi muscle"); a share above 100 % says just that. The groups of
 //! features and the penalty are chosen by blocked cross-validation on the
 //! estimation half ([`ridge`](super::ridge)).

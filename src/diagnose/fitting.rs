@@ -147,7 +147,7 @@ pub enum Start<'a> {
     /// The free-run cost of a slow, hysteretic model is a needle along the
     /// pole and the static gain that differential evolution rarely finds
     /// from scratch; the prediction error's is not (measured on the
-    /// self-test: docs/DIAGNOSIS.md, the budget's "in the first round"
+    /// self-test: docs/lab/diagnosis.md, the budget's "in the first round"
     /// item).
     Ahead { horizon: usize },
     /// From a known model: `params` is the current model with the new
@@ -161,7 +161,7 @@ pub enum Start<'a> {
 /// The search is differential evolution on the fitting engine (the update
 /// rule `mckibben fit --algo de` uses). From scratch with the narrow
 /// `p_best = 0.02`, greedier than DE's default, so that more seeds leave the
-/// linear model's plateau (measured: docs/DIAGNOSIS.md, the budget's
+/// linear model's plateau (measured: docs/lab/diagnosis.md, the budget's
 /// "baseline" item); one member is the ARX model, so the fit starts no
 /// worse than least squares.
 ///
@@ -266,7 +266,7 @@ pub fn fit_candidate(
 /// Levenberg–Marquardt from the search's best on the free-run residuals;
 /// the polished point is kept only if its estimation SSE is lower. The
 /// free-run cost of a slow, hysteretic model is a narrow curved valley
-/// along its pole and static gain (measured: docs/DIAGNOSIS.md, the
+/// along its pole and static gain (measured: docs/lab/diagnosis.md, the
 /// budget's "every fit ends with a Levenberg–Marquardt polish" item), along
 /// which differential evolution creeps while Gauss–Newton steps follow it.
 /// Forward differences in the `f32` simulation: steps of 1e-4 of the
@@ -330,7 +330,7 @@ const PROFILE_NODES: i32 = 6;
 /// effect, the fits warm-started from it find the effect small, and the
 /// model with the effect at its true size lies along a valley in which the
 /// rest of the model must move back with it (measured on the self-test:
-/// docs/DIAGNOSIS.md, the budget's "profiled along the new effect's size"
+/// docs/lab/diagnosis.md, the budget's "profiled along the new effect's size"
 /// item).
 pub(super) fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> anyhow::Result<Fit> {
     let (neutral, lo, hi) = data.space(model);
@@ -389,7 +389,7 @@ pub(super) fn polish_held(
 /// (β, γ or β1…β6) log-uniformly in magnitude over four decades: fits of the
 /// muscle often need them near zero, a sliver of the box that a uniform draw
 /// and DE's differences of uniform draws rarely visit; more seeds then leave
-/// the linear model's plateau (A = 0) (measured: docs/DIAGNOSIS.md, the
+/// the linear model's plateau (A = 0) (measured: docs/lab/diagnosis.md, the
 /// budget's "baseline" item).
 fn scratch_rows(
     data: &Data,
@@ -485,7 +485,7 @@ pub fn fit_seeds(
 /// among the seeds: the first round's fits. A from-scratch baseline fitted
 /// to data with an unmodelled effect ends where it compensates the effect
 /// best, often far from where the model with the effect fits (as on the
-/// self-test's `asymmetry (large)` case: docs/DIAGNOSIS.md, the budget's
+/// self-test's `asymmetry (large)` case: docs/lab/diagnosis.md, the budget's
 /// "in the first round" item), and a warm start cannot walk back; a search
 /// from scratch can.
 pub(super) fn fit_seeds_with(

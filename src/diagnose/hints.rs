@@ -7,7 +7,7 @@
 //! ringing), which uniform draws over the box rarely hit, while the
 //! residual's spectrum says where it is. On the Cavatappi muscle at 500 g
 //! the draws ended at 2.4 Hz, heavily damped, beside a 4.3 Hz peak that
-//! holds 70 % of the estimation residual's energy (docs/DIAGNOSIS.md). Only
+//! holds 70 % of the estimation residual's energy (docs/lab/diagnosis.md). Only
 //! the estimation part is read.
 
 use super::data::Data;
@@ -114,7 +114,7 @@ fn estimation_peaks(
 /// (`select`): a mode kicked by the input and damped near 1/√2 is a
 /// high-pass of the input, and without a peak to explain it fitted the
 /// independent self-test's sensor cross-talk, a high-pass added to the
-/// output (docs/DIAGNOSIS.md).
+/// output (docs/lab/diagnosis.md).
 pub fn residual_rings(data: &Data, model: &Augmented, theta: &[f64]) -> bool {
     estimation_peaks(data, model, theta).is_some_and(|(peaks, _)| !peaks.is_empty())
 }

@@ -7,7 +7,7 @@
 //! is where the estimation SSE stays within `χ²₁(95 %)·σ̂²` of its minimum,
 //! `σ̂² = SSE/(N − p)`. A Jacobian's standard error is no substitute here:
 //! the `f32` simulation's rounding makes the curvature of a flat profile look
-//! steep (measured on the self-test: docs/DIAGNOSIS.md, "How sure: the
+//! steep (measured on the self-test: docs/lab/diagnosis.md, "How sure: the
 //! size's interval"). The interval assumes white residuals; on real data,
 //! where the residual is correlated (see the whiteness test), it is too
 //! narrow.

@@ -58,7 +58,7 @@ impl Default for Settings {
     /// because a from-scratch fit of the classic model to the twin's stair
     /// is multimodal: most seeds stay on the linear model's plateau
     /// (`A = 0`), and the best of many reaches a better basin (measured:
-    /// docs/DIAGNOSIS.md, the budget's "baseline" item).
+    /// docs/lab/diagnosis.md, the budget's "baseline" item).
     fn default() -> Self {
         Settings {
             seeds: 3,
@@ -187,7 +187,7 @@ pub fn select(
         // in the first round its fits from scratch) may also reach a better
         // estimation fit of the current model than the one accepted: then
         // that is the current model, as after an ablation below (it happens
-        // on the self-test: docs/DIAGNOSIS.md, "Which: the effects
+        // on the self-test: docs/lab/diagnosis.md, "Which: the effects
         // catalogue", the paragraph after "Ablation").
         if current.best.est_sse < final_fit.est_sse && current.best.val_rmse.is_finite() {
             current_params = current.best.params.clone();

@@ -524,7 +524,7 @@ pub struct TwinCase {
 /// and spool lag act before the pressure sensor, so they are invisible from
 /// the pressure and are diagnosed from the valve command, the input they act
 /// on. The hose compliance sits at the sensor's node and changes nothing
-/// between either input and the displacement at this sample time (TWIN.md).
+/// between either input and the displacement at this sample time (docs/TWIN.md).
 pub const TWIN_CASES: [TwinCase; 4] = [
     TwinCase {
         effect: "friction",

@@ -62,7 +62,7 @@ pub enum Effect {
     /// `e ≥ 1` is `b·(1 + g_e)` on the absolute input (dataset 0 is the reference). Needs several datasets.
     Load,
     // Other realisations of the same physical effects (docs/DIAGNOSIS.md,
-    // "Realisations"): each is named for its physical effect
+    // "The effects catalogue"): each is named for its physical effect
     // ([`Effect::physical`]) and says how it is realised.
     /// Lag as a first-order lag on the input, `v = ρ·v + (1−ρ)·p` (pressure
     /// reaching the muscle through the hose); mean delay `ρ/(1−ρ)` samples.
@@ -101,7 +101,7 @@ pub enum Effect {
     /// `ŷ = x + r`. Unlike [`Effect::LoadMode`], it rings however slowly the
     /// baseline's own output moves (a real muscle's force follows the
     /// pressure at once while the baseline's slow pole describes creep of
-    /// the rubber: measured on the Cavatappi muscle, docs/DIAGNOSIS.md).
+    /// the rubber: measured on the Cavatappi muscle, docs/lab/diagnosis.md).
     Ringing,
 }
 
@@ -140,8 +140,10 @@ impl Effect {
     /// first nine of [`Effect::ALL`].
     pub const PHYSICAL: &'static [Effect] = Effect::ALL.split_at(9).0;
 
-    /// The physical effect this realises (`DESIGN.md` §5's names): the
-    /// first realisation of each is the physical effect itself.
+    /// The physical effect this realises (one of the nine of
+    /// [`Effect::PHYSICAL`], whose names flags, reports and the self-tests'
+    /// confusion tables use): the first realisation of each is the physical
+    /// effect itself.
     pub fn physical(self) -> Effect {
         match self {
             Effect::InputLag | Effect::OutputLag => Effect::Delay,
@@ -543,7 +545,7 @@ pub fn effect_box(
         // other frame (the deviation coordinates of another record, or
         // absolute units) starts a transient that neither `x0` nor the
         // intercept can take (measured on the independent self-test's
-        // output-driven creep on the multisine, docs/DIAGNOSIS.md).
+        // output-driven creep on the multisine, docs/lab/diagnosis.md).
         Effect::Creep => {
             let g = 2.0 * ry / ru;
             (
@@ -589,7 +591,7 @@ pub fn effect_box(
         // and the faster state's share of it). With gains of either sign
         // the pair is a band-pass of the input, not creep: on the twin's
         // stair, which has no creep, gains of −118 and +125 were named
-        // first (docs/DIAGNOSIS.md). The faster state forgets its start
+        // first (docs/lab/diagnosis.md). The faster state forgets its start
         // within a few hundred samples; the slower one gets `z0`.
         Effect::TwoPoleCreep => {
             let g = 2.0 * ry / ru;
