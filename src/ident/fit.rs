@@ -34,6 +34,18 @@ pub fn rmse(y: &[f64], y_hat: &[f64]) -> f64 {
         .sqrt()
 }
 
+/// `χ²` with one degree of freedom, 95 % quantile.
+pub const CHI2_1_95: f64 = 3.841;
+
+/// The largest estimation SSE the likelihood-ratio test at 95 % cannot tell
+/// from a fit at `best_sse` over `samples` residuals: `best_sse +
+/// χ²₁(0.95)·σ̂²`, `σ̂² = best_sse/samples`. Fits below it are ones the
+/// estimation data cannot tell apart (the diagnosis' seed spread and refits,
+/// the generated cases' second pass rule).
+pub fn indistinguishable_up_to(best_sse: f64, samples: usize) -> f64 {
+    best_sse + CHI2_1_95 * best_sse / samples.max(1) as f64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

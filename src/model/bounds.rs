@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::coords::{Coordinates, LinearCoords, Loop, Scale, ShapeCoords, shape_range};
 use super::family::Family;
 use super::presets::{ThesisBounds, hysteresis_hull};
 
@@ -19,13 +20,102 @@ pub enum Flow {
     Thesis,
 }
 
-/// Bounds on a canonical parameter vector.
+/// The box of a fit: bounds on every search coordinate ([`Coordinates`]:
+/// the canonical parameters themselves, or the data's own scale).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SearchSpace {
     pub family: Family,
+    /// How the box's coordinates map to canonical vectors.
+    #[serde(default = "native")]
+    pub coords: Coordinates,
     pub lower: Vec<f64>,
     pub upper: Vec<f64>,
+    /// Where each bound (`[lower, upper]` of each coordinate) comes from:
+    /// only the data's may be widened when a fit ends on them
+    /// ([`SearchSpace::widen`]).
+    #[serde(default)]
+    pub origin: Vec<[Origin; 2]>,
 }
+
+/// Where a bound of the box comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Origin {
+    /// A rule on the data (ARX, ranges): widened when a fit ends on it.
+    Data,
+    /// The parameter's own range or the bounded class's edge, or the
+    /// thesis' tables: never widened.
+    #[default]
+    Class,
+    /// `--bound` or `--fix`.
+    User,
+}
+
+fn native() -> Coordinates {
+    Coordinates::Native
+}
+
+/// A bound a user sets on one parameter (`--bound NAME=LO:HI`, `--fix
+/// NAME=VALUE`), by a canonical name or a search coordinate's name.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct UserBound {
+    pub name: String,
+    pub lower: f64,
+    pub upper: f64,
+}
+
+impl std::str::FromStr for UserBound {
+    type Err = String;
+    /// `NAME=LO:HI` or `NAME=VALUE` (a fixed value: `LO = HI`).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let (name, range) = s
+            .split_once('=')
+            .ok_or_else(|| format!("`{s}`: expected NAME=LO:HI or NAME=VALUE"))?;
+        let number = |v: &str| -> Result<f64, String> {
+            let x: f64 = v
+                .trim()
+                .parse()
+                .map_err(|_| format!("`{s}`: `{v}` is not a number"))?;
+            if x.is_finite() {
+                Ok(x)
+            } else {
+                Err(format!("`{s}`: `{v}` is not a finite number"))
+            }
+        };
+        let (lower, upper) = match range.split_once(':') {
+            Some((lo, hi)) => (number(lo)?, number(hi)?),
+            None => {
+                let v = number(range)?;
+                (v, v)
+            }
+        };
+        if lower > upper {
+            return Err(format!(
+                "`{s}`: the box is empty (lower {lower} is above upper {upper})"
+            ));
+        }
+        Ok(UserBound {
+            name: name.trim().to_string(),
+            lower,
+            upper,
+        })
+    }
+}
+
+/// The data-scale box's loop-shape reach: a normalised loop-shape
+/// coordinate `ψ·Rⁿ/A` is `(R/w_sat)ⁿ`, so this admits loops that saturate at
+/// a thousandth of the output range, far below any record's noise.
+pub const SHAPE_REACH: f64 = 1000.0;
+/// How far the data-scale box lets the pole's time constant `1/(1 − a)`
+/// stray from the ARX one, either way. ARX on hysteretic data finds it
+/// within tens of per cent; a hysteretic model's small-signal pole can
+/// still sit several times slower or faster than ARX's average one.
+pub const POLE_REACH: f64 = 10.0;
+/// How far the data-scale box lets the static gain stray from the ARX one,
+/// either way (ARX finds it within a factor 1.5 on hysteretic records).
+pub const GAIN_REACH: f64 = 5.0;
+/// The data-scale box of the start offset, as a share of the output range.
+pub const START_REACH: f64 = 0.2;
 
 /// What the data say about scale, for the bounds of the linear part.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -97,40 +187,298 @@ impl SearchSpace {
         }
         SearchSpace {
             family,
+            coords: Coordinates::Native,
+            origin: vec![[Origin::Class; 2]; d],
             lower,
             upper,
         }
+    }
+
+    /// The default box of the joint flow, in the data's own scale
+    /// ([`crate::model::coords`]); every bound is set by a rule on what the
+    /// data determine, wide enough that no plausible truth lies outside:
+    ///
+    /// - `A = 1`: the gauge. Scaling `w` by `k` while `A` and the weight
+    ///   `a·(1 − α)` of `w` scale by `1/k` and `k` gives the same output
+    ///   (for `n = 1`; `β, γ` then scale by `k^(n−1)`), so only the
+    ///   product is determined, and the box fixes `A` (Ma, Zhang & Xu,
+    ///   "Parameter analysis of the differential model of hysteresis",
+    ///   J. Appl. Mech. 71, 2004). `a` is then the small-signal pole and
+    ///   `1 − α` the share of it carried by the loop.
+    /// - `α ∈ [0, 1]`: its whole range.
+    /// - `a`: time constant `1/(1 − a)` within [`POLE_REACH`] of the ARX
+    ///   one either way (at least 0).
+    /// - `gain`: the static gain within [`GAIN_REACH`] of ARX's either way.
+    /// - `offset`: as far as the largest input through the largest gain,
+    ///   plus the largest output, can shift the output.
+    /// - `x0_range`: [`START_REACH`] of the output range either way.
+    /// - loop shape: `[0, SHAPE_REACH]` for the bounded class's slopes
+    ///   (`unload_u, unload_v` over their whole `[−1, 1]`), `±SHAPE_REACH`
+    ///   free ([`SHAPE_REACH`]).
+    ///
+    /// `bounds` are then applied in order: each names a coordinate or a
+    /// canonical parameter. Bounding `b` or `c` searches the linear part in
+    /// `b, c, x0` themselves, bounding a loop-shape parameter (`beta`…)
+    /// the loop shape in its canonical parameters; their default boxes are
+    /// the images of the data-scale ones. A bound on a parameter that is
+    /// neither gives an error naming the names there are.
+    pub fn scaled(
+        family: Family,
+        prior: LinearPrior,
+        shape_class: Loop,
+        free_n: bool,
+        bounds: &[UserBound],
+    ) -> Result<SearchSpace, String> {
+        let canonical: Vec<&str> = family.params().iter().map(|p| p.name).collect();
+        let shape_names: Vec<&str> = shape_range(family).map(|i| canonical[i]).collect();
+        let [_, ib, ic] = family.linear_indices();
+        let linear = if bounds
+            .iter()
+            .any(|b| b.name == canonical[ib] || b.name == canonical[ic])
+        {
+            LinearCoords::Native
+        } else {
+            LinearCoords::Scaled
+        };
+        let shape = if bounds
+            .iter()
+            .any(|b| shape_names.contains(&b.name.as_str()))
+        {
+            ShapeCoords::Native
+        } else {
+            match shape_class {
+                Loop::Bounded => ShapeCoords::Bounded,
+                Loop::Free => ShapeCoords::Free,
+            }
+        };
+        let range = if prior.output_range > 0.0 {
+            prior.output_range
+        } else {
+            1.0
+        };
+        let s = (1.0 - prior.a).abs().max(1e-3);
+        let arx_gain = prior.b / s;
+        // A record whose output barely follows its input: ARX's gain is
+        // noise; give the gain coordinate the scale of the output range
+        // over the input's.
+        let floor = 1e-3 * range / prior.max_abs_input.max(f64::MIN_POSITIVE);
+        let gain = if arx_gain.abs() >= floor {
+            arx_gain
+        } else {
+            floor.copysign(if arx_gain == 0.0 { 1.0 } else { arx_gain })
+        };
+        let coords = Coordinates::Scaled {
+            family,
+            shape,
+            linear,
+            scale: Scale { range, gain },
+        };
+        let d = family.dim();
+        let mut lower = vec![0.0; d];
+        let mut upper = vec![0.0; d];
+        let mut origin = vec![[Origin::Class; 2]; d];
+        // A (the gauge) and α.
+        (lower[0], upper[0]) = (1.0, 1.0);
+        (lower[1], upper[1]) = (0.0, 1.0);
+        let ni = family.exponent_index().expect("hysteretic family has n");
+        (lower[ni], upper[ni]) = (1.0, if free_n { 3.0 } else { 1.0 });
+        let native_shape = SHAPE_REACH / range;
+        for (k, i) in shape_range(family).enumerate() {
+            let unload_share = family == Family::Generalized && k >= 4;
+            let (class, data) = (Origin::Class, Origin::Data);
+            (lower[i], upper[i], origin[i]) = match shape {
+                ShapeCoords::Bounded if unload_share => (-1.0, 1.0, [class, class]),
+                ShapeCoords::Bounded => (0.0, SHAPE_REACH, [class, data]),
+                ShapeCoords::Free => (-SHAPE_REACH, SHAPE_REACH, [data, data]),
+                ShapeCoords::Native => (-native_shape, native_shape, [data, data]),
+            };
+        }
+        let ia = family.linear_indices()[0];
+        lower[ia] = (1.0 - POLE_REACH * s).max(0.0);
+        upper[ia] = 1.0 - s / POLE_REACH;
+        let pole_floor = if lower[ia] > 0.0 {
+            Origin::Data
+        } else {
+            Origin::Class
+        };
+        origin[ia] = [pole_floor, Origin::Data];
+        let ix = family.start_index();
+        let offset = (GAIN_REACH * gain.abs() * prior.max_abs_input + prior.max_abs_output) / range;
+        match linear {
+            LinearCoords::Scaled => {
+                (lower[ib], upper[ib]) = (1.0 / GAIN_REACH, GAIN_REACH);
+                (lower[ic], upper[ic]) = (-offset, offset);
+                (lower[ix], upper[ix]) = (-START_REACH, START_REACH);
+            }
+            LinearCoords::Native => {
+                // b = gain·K·(1 − a) over the corners of the scaled box.
+                let corners = [
+                    gain / GAIN_REACH * (1.0 - upper[ia]),
+                    gain * GAIN_REACH * (1.0 - lower[ia]),
+                ];
+                lower[ib] = corners[0].min(corners[1]);
+                upper[ib] = corners[0].max(corners[1]);
+                let c = offset * range * (1.0 - lower[ia]);
+                (lower[ic], upper[ic]) = (-c, c);
+                (lower[ix], upper[ix]) = (-START_REACH * range, START_REACH * range);
+            }
+        }
+        for i in [ib, ic, ix] {
+            origin[i] = [Origin::Data; 2];
+        }
+        let mut space = SearchSpace {
+            family,
+            coords,
+            lower,
+            upper,
+            origin,
+        };
+        for b in bounds {
+            space.set_bound(b)?;
+        }
+        Ok(space)
+    }
+
+    /// Sets one user bound (see [`SearchSpace::scaled`]).
+    fn set_bound(&mut self, b: &UserBound) -> Result<(), String> {
+        let names = self.coords.names(self.family);
+        let canonical: Vec<&str> = self.family.params().iter().map(|p| p.name).collect();
+        let (i, factor) = if let Some(i) = names.iter().position(|n| *n == b.name) {
+            (i, 1.0)
+        } else if b.name == "x0" {
+            // Searched as x0_range = x0/R.
+            let range = match self.coords {
+                Coordinates::Scaled { scale, .. } => scale.range,
+                Coordinates::Native => 1.0,
+            };
+            (self.family.start_index(), 1.0 / range)
+        } else {
+            let mut known: Vec<String> = names.clone();
+            for c in &canonical {
+                if !known.iter().any(|k| k == c) {
+                    known.push((*c).to_string());
+                }
+            }
+            return Err(format!(
+                "no parameter `{}` in the {} model: the names are {}",
+                b.name,
+                self.family,
+                known.join(", ")
+            ));
+        };
+        self.lower[i] = b.lower * factor;
+        self.upper[i] = b.upper * factor;
+        self.origin[i] = [Origin::User; 2];
+        Ok(())
     }
 
     pub fn dim(&self) -> usize {
         self.lower.len()
     }
 
-    /// Indices of the parameters the optimizer moves.
+    /// Indices of the coordinates the optimizer moves.
     pub fn free(&self) -> Vec<usize> {
         (0..self.dim())
             .filter(|&i| self.lower[i] != self.upper[i])
             .collect()
     }
 
-    /// Whether `theta` lies inside the box.
-    pub fn contains(&self, theta: &[f64]) -> bool {
-        theta.len() == self.dim()
-            && theta
-                .iter()
-                .zip(self.lower.iter().zip(&self.upper))
-                .all(|(v, (l, u))| l <= v && v <= u)
+    /// The names of the search coordinates.
+    pub fn names(&self) -> Vec<String> {
+        self.coords.names(self.family)
     }
 
-    /// Clamps `theta` into the box; returns whether anything moved.
+    /// The canonical vector of search coordinates `z`.
+    pub fn to_native(&self, z: &[f64]) -> Vec<f64> {
+        self.coords.to_native(self.family, z)
+    }
+
+    /// The search coordinates of the canonical vector `theta`.
+    pub fn from_native(&self, theta: &[f64]) -> Vec<f64> {
+        self.coords.from_native(self.family, theta)
+    }
+
+    /// Whether the canonical `theta` lies inside the box (within rounding of
+    /// the coordinate map: 10⁻⁹ of each coordinate's width).
+    pub fn contains(&self, theta: &[f64]) -> bool {
+        theta.len() == self.dim()
+            && self
+                .from_native(theta)
+                .iter()
+                .zip(self.lower.iter().zip(&self.upper))
+                .all(|(v, (l, u))| {
+                    let slack = 1e-9 * (u - l);
+                    l - slack <= *v && *v <= u + slack
+                })
+    }
+
+    /// Clamps the canonical `theta` into the box; returns whether anything
+    /// moved.
     pub fn clamp(&self, theta: &mut [f64]) -> bool {
+        let mut z = self.from_native(theta);
         let mut moved = false;
-        for (v, (l, u)) in theta.iter_mut().zip(self.lower.iter().zip(&self.upper)) {
+        for (v, (l, u)) in z.iter_mut().zip(self.lower.iter().zip(&self.upper)) {
             let c = v.clamp(*l, *u);
             moved |= c != *v;
             *v = c;
         }
+        if moved {
+            theta.copy_from_slice(&self.to_native(&z));
+        }
         moved
+    }
+
+    /// Widens the data-set bounds named by `edges` (coordinate index and
+    /// side, `"lower"` or `"upper"`): the time constant's and the gain's
+    /// reach by a factor 4, the offset's by 4, the start's by 2.5, the loop
+    /// shape's by 10. Returns one line
+    /// per bound widened, naming it with its old and new value; bounds that
+    /// are not data-set (the class's edges, user bounds) are left alone.
+    pub fn widen(&mut self, edges: &[(usize, &str)]) -> Vec<String> {
+        let names = self.names();
+        let ia = self.family.linear_indices()[0];
+        let shapes = shape_range(self.family);
+        let mut said = Vec::new();
+        for &(i, side) in edges {
+            let upper = side == "upper";
+            if self.origin[i][usize::from(upper)] != Origin::Data {
+                continue;
+            }
+            let old = if upper { self.upper[i] } else { self.lower[i] };
+            let new = if i == ia {
+                // Time constant 1/(1 − a): four times further from the ARX one.
+                if upper {
+                    1.0 - (1.0 - old) / 4.0
+                } else {
+                    (1.0 - 4.0 * (1.0 - old)).max(0.0)
+                }
+            } else {
+                let factor = if shapes.contains(&i) {
+                    10.0
+                } else if names[i] == "x0_range" || names[i] == "x0" {
+                    2.5
+                } else {
+                    4.0
+                };
+                // Away from the box's inside: outward from zero, or towards
+                // it for a bound on the far side (a positive lower bound).
+                if (old > 0.0) == upper {
+                    old * factor
+                } else {
+                    old / factor
+                }
+            };
+            if upper {
+                self.upper[i] = new;
+            } else {
+                self.lower[i] = new;
+                if i == ia && new == 0.0 {
+                    self.origin[i][0] = Origin::Class;
+                }
+            }
+            said.push(format!("{} {side} bound {old:.6} -> {new:.6}", names[i]));
+        }
+        said
     }
 }
 

@@ -4,6 +4,7 @@
 //! bounds and the thesis presets.
 
 pub mod bounds;
+pub mod coords;
 pub mod effects;
 pub mod experiment;
 pub mod family;
@@ -12,7 +13,8 @@ pub mod presets;
 pub mod sim;
 pub mod static_force;
 
-pub use bounds::{Flow, LinearPrior, SearchSpace};
+pub use bounds::{Flow, LinearPrior, SearchSpace, UserBound};
+pub use coords::{Coordinates, Loop};
 pub use experiment::Experiment;
 pub use family::{Family, ParamInfo};
 pub use fitted::FittedModel;

@@ -1,26 +1,37 @@
-//! Seeded identification cases with a known answer: truths drawn across the
-//! thesis' boxes, simulated in absolute units on a stair, a multisine or a
-//! mix of sines and steps, plus Gaussian measurement noise.
+//! Seeded identification cases with a known answer: truths drawn from the
+//! bounded class on their own priors, simulated in absolute units on a
+//! stair, a multisine or a mix of sines and steps, plus Gaussian measurement
+//! noise, and recorded in MPa→mm, kPa→m or psi→mm.
 //!
 //! They check what a user expects of `mckibben fit`: that its defaults reach
 //! the noise floor — the truth's own validation error — whatever the truth,
-//! the excitation and the algorithm. The truths cover what makes a fit hard:
-//! slow poles (`a·α` up to 0.995, time constants of hundreds of samples),
-//! negative `γ`, narrow and wide loops, 0.02–0.1 mm of noise.
+//! its units, the excitation and the algorithm. The truths cover what makes a
+//! fit hard: slow poles (`a·α` up to 0.995, time constants of hundreds of
+//! samples), a fast linear pole whose slowness is all the loop's (so `b` is
+//! many times ARX's), classic loops of both bounded classes (`γ` from
+//! `−0.9·β` to `3·β`), narrow and wide loops, 0.02–0.1 mm of noise. Nothing
+//! is drawn from, or rejected by, the fit's search box: a truth the box
+//! cannot hold is a failure of the box.
 //!
 //! The truth is simulated the way [`super::synthetic`] does it: once in
 //! absolute units to find the estimation half's means, then again in the
 //! deviation coordinates of those means (the generalized model's sign terms
 //! depend on the origin), so that the truth is a member of the model class
-//! the fit searches.
+//! the fit searches. It is stored in the gauge `A = 1` the fit searches in
+//! ([`crate::model::coords::gauge_fixed`]: the same outputs).
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::Serialize;
 
+use super::engine::model::ModelObjective;
+use super::engine::{Engine, Plan, Polish, Space, StopRules};
 use super::task::{Task, Validation};
 use crate::data::Trace;
+use crate::eval::Evaluator;
+use crate::ident::fit::indistinguishable_up_to;
+use crate::model::coords::{bounded_betas, gauge_fixed, in_bounded_class};
 use crate::model::{Family, Flow, simulate};
 
 /// The input that excites a case.
@@ -55,12 +66,55 @@ pub struct CaseSpec {
     pub samples: usize,
     /// Standard deviation of the displacement noise (mm).
     pub noise_mm: f64,
-    /// Draw a slow pole: `1 − a·α` in [0.005, 0.02] (else the effective
-    /// pole `a·(α + (1 − α)·A)` in [0.9, 0.99], `α` anywhere in [0.3,
-    /// 0.99]). Either way each half of the record spans at least 20 time
-    /// constants of the effective pole.
-    pub slow: bool,
+    /// Where the pole sits.
+    pub pole: Pole,
+    /// The units the record is written in.
+    pub units: Units,
     pub seed: u64,
+}
+
+/// Where a case's slowness lies. Each half of the record spans at least 20
+/// time constants of the effective pole `a·(α + (1 − α)·A)` either way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Pole {
+    /// The effective pole in [0.9, 0.99], `α` anywhere in [0.3, 0.99].
+    Effective,
+    /// `1 − a·α` in [0.005, 0.02]: the linear part itself is slow.
+    Slow,
+    /// `a·α` in [0.2, 0.7] and the effective pole in [0.9, 0.99]: the
+    /// slowness is all the loop's, so the input gain `b` is several times
+    /// what ARX finds.
+    FastLinear,
+}
+
+/// The units a case's record is written in: the input in MPa, kPa or psi,
+/// the output in mm or m.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Units {
+    MpaMm,
+    KpaM,
+    PsiMm,
+}
+
+impl Units {
+    /// Input and output units per MPa and per mm.
+    fn factors(self) -> (f64, f64) {
+        match self {
+            Units::MpaMm => (1.0, 1.0),
+            Units::KpaM => (1000.0, 1e-3),
+            Units::PsiMm => (145.037_737_73, 1.0),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Units::MpaMm => "MPa→mm",
+            Units::KpaM => "kPa→m",
+            Units::PsiMm => "psi→mm",
+        }
+    }
 }
 
 /// A generated case.
@@ -84,8 +138,9 @@ const P_MIN: f64 = 0.05;
 const P_MAX: f64 = 0.5;
 
 /// The standard matrix: `count` cases of `family`, cycling through the three
-/// excitations, with noise spread over 0.02–0.1 mm, every third case a slow
-/// pole, 8000–12000 samples; case `i` has seed `seed + i`.
+/// excitations, the three pole kinds (shifted, so that each excitation meets
+/// each) and, every fourth case, other units than MPa→mm; noise spread over
+/// 0.02–0.1 mm, 8000–12000 samples; case `i` has seed `seed + i`.
 pub fn matrix(family: Family, count: usize, seed: u64) -> Vec<CaseSpec> {
     (0..count)
         .map(|i| {
@@ -96,7 +151,12 @@ pub fn matrix(family: Family, count: usize, seed: u64) -> Vec<CaseSpec> {
                 excitation: Excitation::ALL[i % 3],
                 samples: rng.random_range(8000..=12000),
                 noise_mm: 0.02 + 0.08 * rng.random::<f64>(),
-                slow: i % 3 == 1,
+                pole: [Pole::Effective, Pole::Slow, Pole::FastLinear][(i + i / 3) % 3],
+                units: match i % 8 {
+                    3 => Units::KpaM,
+                    7 => Units::PsiMm,
+                    _ => Units::MpaMm,
+                },
                 seed: s,
             }
         })
@@ -124,16 +184,110 @@ impl Case {
             .expect("a generated case identifies")
     }
 
-    /// A short name for tables: family, excitation, seed.
+    /// A short name for tables: family, excitation, pole, units, seed.
     pub fn name(&self) -> String {
+        let pole = match self.spec.pole {
+            Pole::Effective => "",
+            Pole::Slow => " (slow)",
+            Pole::FastLinear => " (fast a·α)",
+        };
+        let units = match self.spec.units {
+            Units::MpaMm => String::new(),
+            u => format!(" {}", u.name()),
+        };
         format!(
-            "{} {}{} #{}",
+            "{} {}{pole}{units} #{}",
             self.spec.family,
             self.spec.excitation.name(),
-            if self.spec.slow { " (slow)" } else { "" },
             self.spec.seed
         )
     }
+
+    /// The truth polished on the estimation data (Levenberg–Marquardt on
+    /// the free run, as the fit's last stage, from the truth itself): the
+    /// optimum the data make of the truth's basin, and its estimation SSE.
+    pub fn polished_truth(&self, evaluator: &mut dyn Evaluator) -> anyhow::Result<(Vec<f64>, f64)> {
+        let task = self.task();
+        let plan = Plan {
+            global: None,
+            free_run: None,
+            polish: Some(Polish {
+                starts: 1,
+                longest: task.estimation.len(),
+                ..Polish::default()
+            }),
+        };
+        // A box around the truth, which the fit's box need not hold: `A`
+        // and `n` held (the gauge, n = 1), `α` over its range, the rest ten
+        // times the truth's size either way.
+        let names: Vec<String> = task.family.params().iter().map(|p| p.name.into()).collect();
+        let (mut lower, mut upper): (Vec<f64>, Vec<f64>) = self
+            .truth
+            .iter()
+            .map(|&v| (v - 10.0 * v.abs() - 1.0, v + 10.0 * v.abs() + 1.0))
+            .unzip();
+        let ni = task.family.exponent_index().expect("hysteretic");
+        for i in [0, ni] {
+            (lower[i], upper[i]) = (self.truth[i], self.truth[i]);
+        }
+        (lower[1], upper[1]) = (0.0, 1.0);
+        let space = Space::new(lower, upper, names);
+        let mut engine =
+            Engine::new(plan, space, 1, StopRules::default())?.with_initial(&self.truth);
+        let mut objective = ModelObjective::for_task(evaluator, &task);
+        let outcome = engine.run(&mut objective, &mut [], None, None)?;
+        Ok((outcome.params, outcome.sse))
+    }
+
+    /// Judges a fit of this case: its validation RMSE over the truth's, and
+    /// whether it passes. A fit passes when that ratio is at most 1.05; or,
+    /// where the truth's own polished optimum validates worse than that
+    /// (the estimation data then cannot reach the truth), when its
+    /// estimation SSE is within the likelihood-ratio threshold of that
+    /// optimum's.
+    pub fn judge(
+        &self,
+        fitted: &[f64],
+        evaluator: &mut dyn Evaluator,
+    ) -> anyhow::Result<Judgement> {
+        let task = self.task();
+        let ratio = task.validate(fitted).rmse / self.truth_validation.rmse;
+        let mut judgement = Judgement {
+            ratio,
+            polished_ratio: None,
+            passes: ratio <= PASS_RATIO,
+        };
+        if !judgement.passes {
+            let (polished, polished_sse) = self.polished_truth(evaluator)?;
+            let polished_ratio = task.validate(&polished).rmse / self.truth_validation.rmse;
+            judgement.polished_ratio = Some(polished_ratio);
+            if polished_ratio > PASS_RATIO {
+                let mut objective = ModelObjective::for_task(evaluator, &task);
+                let sse = crate::optim::engine::Objective::costs(
+                    &mut objective,
+                    fitted,
+                    crate::model::Measure::FreeRun,
+                )?[0] as f64;
+                let samples = task.estimation.len().saturating_sub(1);
+                judgement.passes = sse <= indistinguishable_up_to(polished_sse, samples);
+            }
+        }
+        Ok(judgement)
+    }
+}
+
+/// The validation RMSE ratio (fit over truth) at which a case passes.
+pub const PASS_RATIO: f64 = 1.05;
+
+/// How a fit of a case fares ([`Case::judge`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Judgement {
+    /// Validation RMSE of the fit over the truth's.
+    pub ratio: f64,
+    /// The same of the truth polished on the estimation data, where the
+    /// fit's ratio is over [`PASS_RATIO`].
+    pub polished_ratio: Option<f64>,
+    pub passes: bool,
 }
 
 /// One draw of a truth and an input; `None` when the draw is rejected (it
@@ -151,38 +305,55 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
     // effective pole, or the estimation half cannot tell a slow pole from a
     // drift and the truth is not what the data determine.
     let slowest = 1.0 - 40.0 / spec.samples as f64;
-    let (a, alpha, big_a, effective) = if spec.slow {
-        let a_alpha = 1.0 - log_uniform(rng, 0.005, 0.02);
-        let alpha: f64 = rng.random_range(0.93..0.99);
-        let a = a_alpha / alpha;
-        let big_a_max = ((slowest / a - alpha) / (1.0 - alpha)).min(1.5);
-        if a > 1.05 || big_a_max < 0.05 {
-            return None;
+    let (a, alpha, big_a, effective) = match spec.pole {
+        Pole::Slow => {
+            let a_alpha = 1.0 - log_uniform(rng, 0.005, 0.02);
+            let alpha: f64 = rng.random_range(0.93..0.99);
+            let a = a_alpha / alpha;
+            let big_a_max = ((slowest / a - alpha) / (1.0 - alpha)).min(1.5);
+            if a > 1.05 || big_a_max < 0.05 {
+                return None;
+            }
+            let big_a: f64 = rng.random_range(0.05..big_a_max);
+            (a, alpha, big_a, a * (alpha + (1.0 - alpha) * big_a))
         }
-        let big_a: f64 = rng.random_range(0.05..big_a_max);
-        (a, alpha, big_a, a * (alpha + (1.0 - alpha) * big_a))
-    } else {
-        let effective = 1.0 - log_uniform(rng, 0.01, 0.1);
-        let alpha: f64 = rng.random_range(0.3..0.99);
-        let a: f64 = rng.random_range(0.6f64.max(effective - 0.2)..1.05);
-        let big_a = (effective / a - alpha) / (1.0 - alpha);
-        if !(0.05..=2.0).contains(&big_a) {
-            return None;
+        Pole::Effective => {
+            let effective = 1.0 - log_uniform(rng, 0.01, 0.1);
+            let alpha: f64 = rng.random_range(0.3..0.99);
+            let a: f64 = rng.random_range(0.6f64.max(effective - 0.2)..1.05);
+            let big_a = (effective / a - alpha) / (1.0 - alpha);
+            if !(0.05..=2.0).contains(&big_a) {
+                return None;
+            }
+            (a, alpha, big_a, effective)
         }
-        (a, alpha, big_a, effective)
+        Pole::FastLinear => {
+            let effective = 1.0 - log_uniform(rng, 0.01, 0.1);
+            let a_alpha: f64 = rng.random_range(0.2..0.7);
+            let a: f64 = rng.random_range(effective..1.05);
+            let alpha = a_alpha / a;
+            let big_a = (effective / a - alpha) / (1.0 - alpha);
+            if !(0.05..=3.0).contains(&big_a) {
+                return None;
+            }
+            (a, alpha, big_a, effective)
+        }
     };
+    // The loop shape, from the bounded class: classic β ≥ 0 with γ from
+    // −0.9·β (class I) to 3·β (class II); generalized loading slopes
+    // log-uniform and (β2, β4) anywhere in the class's diamond.
     let shape: Vec<f64> = match family {
         Family::Classic => {
             let beta = log_uniform(rng, 1e-3, 0.1);
-            let gamma = beta * rng.random_range(-0.9..0.9);
+            let gamma = beta * rng.random_range(-0.9..3.0);
             vec![beta, gamma]
         }
-        _ => (0..6)
-            .map(|_| {
-                let m = log_uniform(rng, 1e-3, 0.05);
-                if rng.random::<bool>() { m } else { -m }
-            })
-            .collect(),
+        _ => {
+            let loading = [(); 4].map(|_| log_uniform(rng, 2e-3, 0.1));
+            let u = rng.random_range(-1.0..1.0);
+            let v = rng.random_range(-1.0..1.0);
+            bounded_betas(loading, u, v).to_vec()
+        }
     };
     if effective > slowest {
         return None;
@@ -274,9 +445,25 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
     // The true state starts at the noiseless first sample: the measured one
     // less its noise.
     theta[family.start_index()] = x[0] + y_mean - trace.output[0];
-    if !task.space.contains(&theta) {
-        return None;
+    // In the record's units: the input scaled by `ku`, the output by `ky`;
+    // `b` by ky/ku, the intercept and start by ky, the loop shape (1/output
+    // units, n = 1) by 1/ky.
+    let (ku, ky) = spec.units.factors();
+    let trace = Trace::uniform(
+        trace.source.clone(),
+        CASE_DT,
+        trace.input.iter().map(|v| v * ku).collect(),
+        trace.output.iter().map(|v| v * ky).collect(),
+    );
+    theta[ib] *= ky / ku;
+    theta[ic] *= ky;
+    theta[family.start_index()] *= ky;
+    for v in &mut theta[2..family.exponent_index().expect("hysteretic")] {
+        *v /= ky;
     }
+    let theta = gauge_fixed(family, &theta);
+    debug_assert!(in_bounded_class(family, &theta));
+    let task = Task::new(&trace, family, Flow::Joint, None, false).ok()?;
     let truth_validation = task.validate(&theta);
     truth_validation.rmse.is_finite().then_some(Case {
         spec,
@@ -362,7 +549,10 @@ mod tests {
     #[test]
     fn cases_are_reproducible_and_the_truth_reaches_the_noise() {
         for family in [Family::Classic, Family::Generalized] {
-            for spec in matrix(family, 3, 11) {
+            for spec in matrix(family, 8, 11)
+                .into_iter()
+                .filter(|s| s.units != Units::MpaMm || s.seed % 3 == 0)
+            {
                 let spec = CaseSpec {
                     samples: 3000,
                     ..spec
@@ -374,20 +564,23 @@ mod tests {
                 // The truth validates at about the noise: its error is the
                 // noise plus what the noisy first sample leaves in the state.
                 let v = case.truth_validation;
+                let (_, ky) = spec.units.factors();
+                let noise = spec.noise_mm * ky;
                 assert!(
-                    v.rmse < 1.5 * spec.noise_mm && v.rmse > 0.8 * spec.noise_mm,
-                    "{}: truth RMSE {} for noise {}",
+                    v.rmse < 1.5 * noise && v.rmse > 0.8 * noise,
+                    "{}: truth RMSE {} for noise {noise}",
                     case.name(),
                     v.rmse,
-                    spec.noise_mm
                 );
+                assert!(in_bounded_class(family, &case.truth), "{}", case.name());
+                assert_eq!(case.truth[0], 1.0, "the truth is in the gauge A = 1");
                 let range = case.trace.output.iter().fold(0.0f64, |m, &v| m.max(v))
                     - case
                         .trace
                         .output
                         .iter()
                         .fold(f64::INFINITY, |m, &v| m.min(v));
-                assert!(range > 4.0, "{}: output range {range}", case.name());
+                assert!(range > 4.0 * ky, "{}: output range {range}", case.name());
             }
         }
     }

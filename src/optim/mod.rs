@@ -17,6 +17,7 @@
 pub mod cases;
 pub mod compare;
 pub mod de;
+pub mod edge;
 pub mod engine;
 pub mod fit;
 pub mod ga;

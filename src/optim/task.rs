@@ -7,7 +7,9 @@ use crate::data::Trace;
 use crate::eval::Problem;
 use crate::ident::{ArxOrders, arx::identify, fit_percent, rmse};
 use crate::model::presets::ThesisBounds;
-use crate::model::{Experiment, Family, FittedModel, Flow, LinearPrior, SearchSpace, simulate};
+use crate::model::{
+    Experiment, Family, FittedModel, Flow, LinearPrior, Loop, SearchSpace, UserBound, simulate,
+};
 
 /// How far beyond the estimation output's largest deviation a bounded model
 /// may go on the whole record's input ([`Task::stress`]).
@@ -22,6 +24,9 @@ pub struct Task {
     pub validation: Experiment,
     pub prior: LinearPrior,
     pub space: SearchSpace,
+    /// Which loop shapes the box admits (the joint flow's; the thesis' flow
+    /// searches its own tables, of either sign).
+    pub loop_shape: Loop,
     pub input_name: String,
     pub output_name: String,
 }
@@ -36,14 +41,30 @@ pub struct Validation {
 
 impl Task {
     /// Splits `trace`, identifies the ARX prior on the estimation half and
-    /// builds the box: `hysteresis` bounds (the hull of the thesis' tables
-    /// when `None`), `n` fixed at 1 unless `free_n`, the linear part per `flow`.
+    /// builds the box: the joint flow's in the data's own scale, bounded
+    /// loops ([`SearchSpace::scaled`]); the thesis' flow's from
+    /// `hysteresis` (the hull of its tables when `None`) with the linear
+    /// part fixed at ARX's. `n` is fixed at 1 unless `free_n`.
     pub fn new(
         trace: &Trace,
         family: Family,
         flow: Flow,
         hysteresis: Option<&ThesisBounds>,
         free_n: bool,
+    ) -> anyhow::Result<Task> {
+        Task::with_box(trace, family, flow, hysteresis, free_n, Loop::Bounded, &[])
+    }
+
+    /// As [`Task::new`], with the joint flow's loop class and user bounds
+    /// (`--loop`, `--bound`, `--fix`); the thesis' flow takes neither.
+    pub fn with_box(
+        trace: &Trace,
+        family: Family,
+        flow: Flow,
+        hysteresis: Option<&ThesisBounds>,
+        free_n: bool,
+        loop_shape: Loop,
+        bounds: &[UserBound],
     ) -> anyhow::Result<Task> {
         anyhow::ensure!(
             family != Family::Linear,
@@ -59,10 +80,22 @@ impl Task {
             output_range: crate::data::range(&trace.output),
         };
         let (estimation, validation) = Experiment::split_halves(trace);
+        let space = match flow {
+            Flow::Thesis => {
+                anyhow::ensure!(
+                    bounds.is_empty(),
+                    "the thesis' flow searches its own tables: --bound and --fix need the joint flow"
+                );
+                SearchSpace::around(family, hysteresis, prior, flow, free_n)
+            }
+            Flow::Joint => SearchSpace::scaled(family, prior, loop_shape, free_n, bounds)
+                .map_err(anyhow::Error::msg)?,
+        };
         Ok(Task {
             family,
             flow,
-            space: SearchSpace::around(family, hysteresis, prior, flow, free_n),
+            space,
+            loop_shape,
             estimation,
             validation,
             prior,
@@ -209,7 +242,10 @@ mod tests {
     fn the_truth_validates_near_the_noise() {
         let s = Synthetic::new(Family::Classic, 600, 0.05, 1);
         let task = Task::new(&s.trace, Family::Classic, Flow::Joint, None, false).unwrap();
-        assert!(task.space.contains(&s.truth));
+        // The box holds the truth's twin in its gauge A = 1.
+        let twin = crate::model::coords::gauge_fixed(Family::Classic, &s.truth);
+        assert!(task.space.contains(&twin), "{twin:?}");
+        assert!(!task.space.contains(&s.truth), "A is held at 1");
         let v = task.validate(&s.truth);
         assert!(v.rmse < 0.2 && v.fit_percent > 95.0, "{v:?}");
         let thesis = Task::new(&s.trace, Family::Classic, Flow::Thesis, None, false).unwrap();

@@ -6,7 +6,8 @@ use nalgebra::DVector;
 use super::plan::{FreeRun, Global, Plan, Polish};
 use super::{Engine, Objective, Outcome, Space, StopRules};
 use crate::eval::{Evaluator, Problem};
-use crate::model::{Flow, Measure};
+use crate::model::coords::in_bounded_class;
+use crate::model::{Flow, Loop, Measure};
 use crate::optim::task::Task;
 use crate::optim::{AlgoSettings, Algorithm};
 
@@ -16,8 +17,11 @@ pub struct ModelObjective<'a> {
     problem: Problem,
     /// A problem whose free-run cost a candidate must keep at or below the
     /// bound, or it scores +∞ on the free run ([`Task::stress`]); a
-    /// candidate whose loop is unbounded ([`Family::loop_bounded`]) too.
+    /// candidate outside the bounded class too, when the task asks for it
+    /// ([`crate::model::coords::in_bounded_class`]).
     stress: Option<(Problem, f64)>,
+    /// Whether the loop must be in the bounded class.
+    bounded_class: bool,
 }
 
 impl<'a> ModelObjective<'a> {
@@ -27,16 +31,22 @@ impl<'a> ModelObjective<'a> {
             evaluator,
             problem,
             stress: None,
+            bounded_class: false,
         }
     }
 
     /// Scores `task`'s estimation problem, and rejects on the free run every
     /// candidate that leaves the task's stress bound: what `fit` writes must
-    /// stay bounded on the whole record's input. The thesis' flow is the
-    /// thesis' experiment and runs without the check.
+    /// stay bounded on the whole record's input. With bounded loops (the
+    /// default) it also rejects every loop outside the class, which the
+    /// data-scale box excludes anyway but a box on the canonical loop-shape
+    /// parameters does not. The thesis' flow is the thesis' experiment and
+    /// runs without either check.
     pub fn for_task(evaluator: &'a mut dyn Evaluator, task: &Task) -> Self {
+        let joint = task.flow != Flow::Thesis;
         ModelObjective {
-            stress: (task.flow != Flow::Thesis).then(|| task.stress()),
+            stress: joint.then(|| task.stress()),
+            bounded_class: joint && task.loop_shape == Loop::Bounded,
             ..ModelObjective::new(evaluator, task.problem())
         }
     }
@@ -50,8 +60,15 @@ impl<'a> ModelObjective<'a> {
         };
         let d = rows.len() / finite.len().max(1);
         let family = problem.family;
+        let admitted = |row: &[f64]| {
+            if self.bounded_class {
+                in_bounded_class(family, row)
+            } else {
+                family.loop_bounded(row)
+            }
+        };
         let picked: Vec<usize> = (0..finite.len())
-            .filter(|&i| finite[i] && family.loop_bounded(&rows[i * d..(i + 1) * d]))
+            .filter(|&i| finite[i] && admitted(&rows[i * d..(i + 1) * d]))
             .collect();
         let subset: Vec<f64> = picked
             .iter()
@@ -190,7 +207,8 @@ pub fn staged_plan(task: &Task, settings: AlgoSettings, n: usize, g: usize) -> P
 }
 
 /// Fits `task` with `plan` on `evaluator`, with no observer, interrupt or
-/// checkpoint (the studies of `compare` and the tests).
+/// checkpoint (the studies of `compare` and the tests), then applies the
+/// edge rule ([`crate::optim::edge`]).
 pub fn fit_task(
     task: &Task,
     plan: Plan,
@@ -198,9 +216,12 @@ pub fn fit_task(
     stops: StopRules,
     evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<(Engine, Outcome)> {
-    let mut engine = Engine::new(plan, Space::from(&task.space), seed, stops)?;
+    let mut engine = Engine::new(plan, Space::from(&task.space), seed, stops.clone())?;
     let mut objective = ModelObjective::for_task(evaluator, task);
     let outcome = engine.run(&mut objective, &mut [], None, None)?;
+    let mut widened = task.clone();
+    let (outcome, _) =
+        crate::optim::edge::refit_off_edges(&mut widened, &engine, outcome, &stops, evaluator)?;
     Ok((engine, outcome))
 }
 

@@ -5,10 +5,12 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::super::Bounds;
-use crate::model::SearchSpace;
+use crate::model::{Coordinates, Family, SearchSpace};
 
-/// The box of a fit over canonical vectors; a coordinate whose bounds are
-/// equal is held there and never shown to the optimizers.
+/// The box of a fit over search coordinates (the canonical parameters, or
+/// the data's own scale: [`Coordinates`]); a coordinate whose bounds are
+/// equal is held there and never shown to the optimizers. What the engine
+/// scores, keeps and reports are canonical vectors ([`Space::embed`]).
 ///
 /// The optimizers see the free coordinates as they are. A log scale for the
 /// loop-shape parameters (β, γ are often 10⁻³ in a box of ±0.5) as
@@ -24,10 +26,26 @@ pub struct Space {
     /// edge (canonical indices).
     #[serde(default)]
     pub decades: Vec<bool>,
+    /// Decades below the box's edge that a log-uniform draw spans.
+    #[serde(default = "thesis_decades")]
+    pub drawn_decades: f64,
+    /// The family and the map from coordinates to its canonical vectors
+    /// (none: the coordinates are the canonical vector).
+    #[serde(default)]
+    pub coords: Option<(Family, Coordinates)>,
 }
 
-/// Decades below the box's edge that a log-uniform draw spans.
-const DRAWN_DECADES: f64 = 4.0;
+/// Decades a log-uniform draw spans below the edge of a box in the thesis'
+/// units (β, γ within ±0.5: down to 5·10⁻⁵).
+const THESIS_DECADES: f64 = 4.0;
+/// Decades a log-uniform draw spans below the edge of a data-scale
+/// loop-shape box (`ψ·Rⁿ/A` up to 1000: down to 10⁻³, loops that saturate
+/// at a thousand times the output range, as nearly linear as a muscle's).
+const SCALED_DECADES: f64 = 6.0;
+
+fn thesis_decades() -> f64 {
+    THESIS_DECADES
+}
 
 impl Space {
     pub fn new(lower: Vec<f64>, upper: Vec<f64>, names: Vec<String>) -> Space {
@@ -37,6 +55,8 @@ impl Space {
             upper,
             names,
             decades,
+            drawn_decades: THESIS_DECADES,
+            coords: None,
         }
     }
 
@@ -64,8 +84,8 @@ impl Space {
                 let (lo, hi) = (self.lower[i], self.upper[i]);
                 let uniform = lo + rng.random::<f64>() * (hi - lo);
                 rows.push(if r % 2 == 1 && self.decades[i] {
-                    let magnitude =
-                        hi.abs().max(lo.abs()) * 10f64.powf(-DRAWN_DECADES * rng.random::<f64>());
+                    let magnitude = hi.abs().max(lo.abs())
+                        * 10f64.powf(-self.drawn_decades * rng.random::<f64>());
                     let sign = if lo < 0.0 && (hi <= 0.0 || rng.random::<bool>()) {
                         -1.0
                     } else {
@@ -107,14 +127,25 @@ impl Space {
         let free = self.free();
         let nf = free.len().max(1);
         let mut out = Vec::with_capacity(rows.len() / nf * self.dim());
+        let mut z = self.lower.clone();
         for row in rows.chunks_exact(nf) {
-            let start = out.len();
-            out.extend_from_slice(&self.lower);
             for (k, &i) in free.iter().enumerate() {
-                out[start + i] = row[k].clamp(self.lower[i], self.upper[i]);
+                z[i] = row[k].clamp(self.lower[i], self.upper[i]);
+            }
+            match &self.coords {
+                Some((family, coords)) => out.extend(coords.to_native(*family, &z)),
+                None => out.extend_from_slice(&z),
             }
         }
         out
+    }
+
+    /// The full search coordinates of a canonical vector.
+    fn coordinates(&self, canonical: &[f64]) -> Vec<f64> {
+        match &self.coords {
+            Some((family, coords)) => coords.from_native(*family, canonical),
+            None => canonical.to_vec(),
+        }
     }
 
     /// The optimizers' coordinates of canonical rows.
@@ -122,23 +153,35 @@ impl Space {
         let free = self.free();
         canonical
             .chunks_exact(self.dim().max(1))
-            .flat_map(|row| free.iter().map(|&i| row[i]).collect::<Vec<_>>())
+            .flat_map(|row| {
+                let z = self.coordinates(row);
+                free.iter().map(|&i| z[i]).collect::<Vec<_>>()
+            })
             .collect()
     }
 
-    /// The free coordinates of `theta` that sit on a bound of the box,
-    /// with the bound (`"lower"` or `"upper"`): a fit that ends there was
-    /// stopped by the box, not by the data.
-    pub fn on_edge(&self, theta: &[f64]) -> Vec<(String, &'static str)> {
+    /// The free coordinates of the canonical `theta` that sit on a bound of
+    /// the box, with the coordinate's index and the bound (`"lower"` or
+    /// `"upper"`): a fit that ends there was stopped by the box, not by the
+    /// data.
+    pub fn on_edge(&self, theta: &[f64]) -> Vec<(usize, &'static str)> {
+        let theta = self.coordinates(theta);
         self.free()
             .into_iter()
             .filter_map(|i| {
+                // A coordinate that spans decades is near its edge only on
+                // the scale of its smallest drawn values.
+                let scale = if self.decades[i] {
+                    10f64.powf(-self.drawn_decades)
+                } else {
+                    1.0
+                };
                 let width = self.upper[i] - self.lower[i];
-                let near = |b: f64| (theta[i] - b).abs() <= 1e-6 * width;
+                let near = |b: f64| (theta[i] - b).abs() <= 1e-6 * scale * width;
                 if near(self.lower[i]) {
-                    Some((self.names[i].clone(), "lower"))
+                    Some((i, "lower"))
                 } else if near(self.upper[i]) {
-                    Some((self.names[i].clone(), "upper"))
+                    Some((i, "upper"))
                 } else {
                     None
                 }
@@ -148,15 +191,19 @@ impl Space {
 }
 
 impl From<&SearchSpace> for Space {
-    /// The loop-shape parameters (β, γ or β1…β6, between α and n) span decades.
+    /// The loop-shape coordinates span decades (not the generalized
+    /// bounded class's unloading shares, which are fractions in [−1, 1]).
     fn from(s: &SearchSpace) -> Space {
-        let shape = 2..s.family.exponent_index().unwrap_or(2);
-        Space::new(
-            s.lower.clone(),
-            s.upper.clone(),
-            s.family.params().iter().map(|p| p.name.into()).collect(),
-        )
-        .with_decades(shape)
+        let names = s.names();
+        let decades: Vec<usize> = crate::model::coords::shape_range(s.family)
+            .filter(|&i| !names[i].starts_with("unload_"))
+            .collect();
+        let mut space = Space::new(s.lower.clone(), s.upper.clone(), names).with_decades(decades);
+        if let Coordinates::Scaled { .. } = s.coords {
+            space.drawn_decades = SCALED_DECADES;
+            space.coords = Some((s.family, s.coords));
+        }
+        space
     }
 }
 

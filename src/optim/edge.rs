@@ -1,0 +1,205 @@
+//! The edge rule: a default fit that ends on a bound the data set (not the
+//! bounded class's own edges, not a bound the user gave) was stopped by the
+//! box, not by the data. The bound is widened and the fit refitted from its
+//! best point, at most [`MAX_WIDENINGS`] times, and the result says so.
+
+use serde::Serialize;
+
+use super::engine::model::ModelObjective;
+use super::engine::{Engine, Outcome, Plan, Space, StopReason, StopRules};
+use super::task::Task;
+use crate::eval::Evaluator;
+use crate::model::bounds::Origin;
+
+/// Refits after widening at most this many times.
+pub const MAX_WIDENINGS: usize = 2;
+
+/// One widening and the refit that followed it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Widening {
+    /// The bounds widened, each as "NAME SIDE bound OLD -> NEW".
+    pub bounds: Vec<String>,
+    /// The estimation SSE before and after the refit (the refit is kept
+    /// only when it is lower).
+    pub sse_before: f64,
+    pub sse_after: f64,
+}
+
+/// A bound still active at the end of a fit.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct ActiveBound {
+    /// The search coordinate's name.
+    pub param: String,
+    /// `"lower"` or `"upper"`.
+    pub bound: &'static str,
+    /// Where the bound comes from: `data` (a data-set bound, after the last
+    /// widening), `class` (the bounded class's edge or the parameter's own
+    /// range) or `user` (`--bound`, `--fix`).
+    pub origin: Origin,
+}
+
+/// Applies the edge rule to `outcome`, the result of the staged fit
+/// `engine` ran on `task`: widens the data-set bounds it ends on, refits
+/// from its best point with the free-run and polish stages of the same plan
+/// (a polish alone where the plan has no free run), and keeps the refit
+/// when its estimation SSE is lower. `task.space` is the widened box on
+/// return. Does nothing for the thesis' flow, or a fit that was
+/// interrupted or found nothing.
+pub fn refit_off_edges(
+    task: &mut Task,
+    engine: &Engine,
+    mut outcome: Outcome,
+    stops: &StopRules,
+    evaluator: &mut dyn Evaluator,
+) -> anyhow::Result<(Outcome, Vec<Widening>)> {
+    let mut widenings = Vec::new();
+    let refits = engine.plan.free_run.is_some() || engine.plan.polish.is_some();
+    if task.flow == crate::model::Flow::Thesis
+        || !refits
+        || outcome.params.is_empty()
+        || outcome.stop == StopReason::Interrupted
+    {
+        return Ok((outcome, widenings));
+    }
+    for round in 0..MAX_WIDENINGS {
+        let space = Space::from(&task.space);
+        let edges: Vec<(usize, &str)> = space
+            .on_edge(&outcome.params)
+            .into_iter()
+            .filter(|&(i, side)| task.space.origin[i][usize::from(side == "upper")] == Origin::Data)
+            .collect();
+        if edges.is_empty() {
+            break;
+        }
+        let bounds = task.space.widen(&edges);
+        let plan = Plan {
+            global: None,
+            free_run: engine.plan.free_run.clone(),
+            polish: engine.plan.polish.clone(),
+        };
+        let seed = engine.seed.wrapping_add(1 + round as u64);
+        let mut refit = Engine::new(plan, Space::from(&task.space), seed, stops.clone())?
+            .with_initial(&outcome.params);
+        let mut objective = ModelObjective::for_task(evaluator, task);
+        let next = refit.run(&mut objective, &mut [], None, None)?;
+        let sse_before = outcome.sse;
+        let sse_after = next.sse;
+        outcome.evaluations += next.evaluations;
+        outcome.generations += next.generations;
+        outcome.seconds += next.seconds;
+        outcome.stages.extend(next.stages.iter().cloned());
+        if !next.params.is_empty() && next.sse < outcome.sse {
+            outcome.params = next.params;
+            outcome.sse = next.sse;
+        }
+        outcome.stop = next.stop;
+        widenings.push(Widening {
+            bounds,
+            sse_before,
+            sse_after,
+        });
+    }
+    Ok((outcome, widenings))
+}
+
+/// The bounds of `task`'s box that the canonical `params` sit on, with why
+/// each stays.
+pub fn active_bounds(task: &Task, params: &[f64]) -> Vec<ActiveBound> {
+    if params.is_empty() {
+        return Vec::new();
+    }
+    let space = Space::from(&task.space);
+    space
+        .on_edge(params)
+        .into_iter()
+        .map(|(i, bound)| ActiveBound {
+            param: space.names[i].clone(),
+            bound,
+            origin: task.space.origin[i][usize::from(bound == "upper")],
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::cpu::CpuEvaluator;
+    use crate::model::Family;
+    use crate::optim::cases::{Case, CaseSpec, matrix};
+    use crate::optim::engine::model::staged_plan;
+    use crate::optim::{Algorithm, engine::Space as EngineSpace};
+
+    #[test]
+    fn a_fit_stopped_by_a_data_bound_widens_it_and_refits() {
+        let case = Case::generate(CaseSpec {
+            samples: 2000,
+            ..matrix(Family::Classic, 1, 7)[0]
+        });
+        let mut task = case.task();
+        // A gain box whose top is half the truth's: the fit must end there.
+        let truth = task.space.from_native(&case.truth);
+        let ib = Family::Classic.linear_indices()[1];
+        task.space.upper[ib] = 0.5 * truth[ib];
+        task.space.lower[ib] = 0.1 * truth[ib];
+        let plan = staged_plan(&task, Algorithm::De.staged_settings(60), 60, 20);
+        let mut cpu = CpuEvaluator::new();
+        let mut engine = Engine::new(
+            plan,
+            EngineSpace::from(&task.space),
+            1,
+            StopRules::default(),
+        )
+        .unwrap();
+        let outcome = engine
+            .run(
+                &mut ModelObjective::for_task(&mut cpu, &task),
+                &mut [],
+                None,
+                None,
+            )
+            .unwrap();
+        let stuck = active_bounds(&task, &outcome.params);
+        assert!(
+            stuck
+                .iter()
+                .any(|b| b.param == "gain" && b.bound == "upper"),
+            "{stuck:?}"
+        );
+        let before = outcome.sse;
+        let (after, widenings) =
+            refit_off_edges(&mut task, &engine, outcome, &StopRules::default(), &mut cpu).unwrap();
+        assert!(!widenings.is_empty());
+        assert!(
+            widenings[0].bounds[0].starts_with("gain upper bound"),
+            "{widenings:?}"
+        );
+        assert!(
+            task.space.upper[ib] > truth[ib],
+            "two widenings reach the truth's gain"
+        );
+        assert!(after.sse < before, "{} !< {before}", after.sse);
+        let left = active_bounds(&task, &after.params);
+        assert!(left.iter().all(|b| b.param != "gain"), "{left:?}");
+
+        // A user's bound is never widened.
+        let mut user = case.task();
+        user.space.origin[ib] = [Origin::User; 2];
+        user.space.upper[ib] = 0.5 * truth[ib];
+        let (_, none) = refit_off_edges(
+            &mut user,
+            &engine,
+            Outcome {
+                params: task.space.to_native(&{
+                    let mut z = truth.clone();
+                    z[ib] = 0.5 * truth[ib];
+                    z
+                }),
+                ..after.clone()
+            },
+            &StopRules::default(),
+            &mut cpu,
+        )
+        .unwrap();
+        assert!(none.is_empty());
+    }
+}
