@@ -20,7 +20,6 @@
 
 use rayon::prelude::*;
 
-use super::oscillator::{self, OscillatorProblem};
 use super::{Evaluator, Problem, Scores, effects, to_f32};
 use crate::model::Family;
 use crate::model::residuals;
@@ -120,15 +119,6 @@ impl Evaluator for CpuEvaluator {
                 Some(all)
             })
             .collect())
-    }
-
-    fn evaluate_oscillator(
-        &mut self,
-        problem: &OscillatorProblem,
-        population: &[f64],
-    ) -> anyhow::Result<Vec<f32>> {
-        let rows = oscillator::rows(problem, population)?;
-        Ok(oscillator::score_rows(problem, &rows))
     }
 }
 
