@@ -6,6 +6,7 @@
 //! converted to `f32` the same way on every backend, so that backends agree.
 
 pub mod agreement;
+mod batch;
 pub mod cpu;
 pub mod effects;
 pub mod gpu;
