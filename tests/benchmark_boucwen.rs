@@ -6,14 +6,13 @@
 mod common;
 
 use mckibben::benchmark::boucwen::{Params, simulate_f64, sse_f32};
+use mckibben::benchmark::evaluator::{CpuOscillator, GpuOscillator, OscillatorEvaluator};
 use mckibben::benchmark::generator::{GeneratorSettings, generate};
 use mckibben::benchmark::identify::{IdentifySettings, Training, identify, search_trace};
 use mckibben::benchmark::{
     BenchmarkData, FS, PERIOD, Record, UPSAMPLE, default_data_dir, rmse, simulate_periodic,
     test_multisine_rmse, test_sinesweep_rmse,
 };
-use mckibben::eval::Evaluator;
-use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::eval::gpu::GpuOptions;
 
 fn small_settings() -> GeneratorSettings {
@@ -91,7 +90,7 @@ fn identifies_the_published_system_from_generated_data() {
         refine_samples: 0,
         ..IdentifySettings::default()
     };
-    let id = identify(&g.record, 1024, &settings, &mut CpuEvaluator::new()).unwrap();
+    let id = identify(&g.record, 1024, &settings, &mut CpuOscillator::new()).unwrap();
     // 2.7 s of data with the benchmark's noise pin every parameter to a few
     // per cent (β·γ and β·δ: β, γ, δ separately are not identifiable).
     let p = id.params;
@@ -162,9 +161,10 @@ fn shader_matches_the_cpu_twin_bit_for_bit_on_lavapipe() {
         max_groups_per_dim: Some(1),
         ..GpuOptions::default()
     };
-    let Some(mut gpu) = common::require_lavapipe(options) else {
+    let Some(lavapipe) = common::require_lavapipe_adapter() else {
         return;
     };
+    let mut gpu = GpuOscillator::with_adapter(lavapipe, options).unwrap();
     let g = generate(&Params::benchmark(), &small_settings()).unwrap();
     let settings = IdentifySettings {
         search_samples: 300,
@@ -186,10 +186,8 @@ fn shader_matches_the_cpu_twin_bit_for_bit_on_lavapipe() {
     wild[2] = -1.0e7; // negative stiffness: the response grows exponentially
     pop.extend_from_slice(&wild);
     let pop: Vec<f64> = pop.into_iter().map(f64::from).collect();
-    let a = CpuEvaluator::new()
-        .evaluate_oscillator(&trace, &pop)
-        .unwrap();
-    let b = gpu.evaluate_oscillator(&trace, &pop).unwrap();
+    let a = CpuOscillator::new().evaluate(&trace, &pop).unwrap();
+    let b = gpu.evaluate(&trace, &pop).unwrap();
     assert!(a[..70].iter().all(|v| v.is_finite()));
     assert_eq!(a[70], f32::INFINITY);
     for (i, (x, y)) in a.iter().zip(&b).enumerate() {

@@ -6,12 +6,20 @@ mod common;
 use std::path::Path;
 use std::process::Command;
 
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_mckibben"))
 }
 
-/// A small stair experiment from the classic model with an end stop at 30 mm.
-fn write_csv(path: &Path, rows: usize, constant_input: bool) {
+/// A small stair experiment from the classic model with an end stop at 30 mm,
+/// which the response reaches on the higher stairs (about half the samples
+/// sit on it), measured with white noise of `noise_sd` mm (seeded).
+fn write_csv(path: &Path, rows: usize, constant_input: bool, noise_sd: f64) {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let noise = Normal::new(0.0, noise_sd).unwrap();
     let mut s = String::from("t,pressure,displacement\n");
     let p0 = if constant_input { 0.2 } else { 0.0 };
     let (mut p, mut x, mut w) = (p0, 0.0f64, 0.0f64);
@@ -21,7 +29,8 @@ fn write_csv(path: &Path, rows: usize, constant_input: bool) {
         } else {
             [0.05, 0.2, 0.35, 0.5, 0.3, 0.1][(k / 50) % 6]
         };
-        s.push_str(&format!("{:.3},{p:.5},{x:.4}\n", k as f64 * 0.1));
+        let measured = x + noise.sample(&mut rng);
+        s.push_str(&format!("{:.3},{p:.5},{measured:.4}\n", k as f64 * 0.1));
         let xn = (0.93 * (0.6 * x + 0.4 * w) + 18.0 * p - 1.0).min(30.0);
         w += 0.9 * (xn - x) - 0.002 * (xn - x).abs() * w;
         x = xn;
@@ -34,7 +43,7 @@ fn write_csv(path: &Path, rows: usize, constant_input: bool) {
 fn json_follows_the_contract() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("stair.csv");
-    write_csv(&csv, 600, false);
+    write_csv(&csv, 600, false, 0.05);
     let out = bin()
         .args(["diagnose", "--json", "--seeds", "2", "--generations", "30"])
         .args(["--effects", "delay,saturation,creep"])
@@ -46,7 +55,12 @@ fn json_follows_the_contract() {
         assert!(!v["baseline"][k].is_null(), "baseline.{k}");
     }
     assert_eq!(v["baseline"]["model"], "classic");
-    assert!(v["noise_floor_rmse"].as_f64().unwrap() >= 0.0);
+    // The planted 0.05 mm of noise, estimated to within 20 %.
+    let floor = v["noise_floor_rmse"].as_f64().unwrap();
+    assert!(
+        (floor - 0.05).abs() < 0.01,
+        "noise floor {floor} for 0.05 mm"
+    );
     for k in ["rising", "falling", "steady"] {
         assert!(v["where"]["branch"][k].is_number(), "where.branch.{k}");
     }
@@ -88,6 +102,13 @@ fn json_follows_the_contract() {
         verdict, accepted,
         "accepted candidates come first, in verdict order"
     );
+    // The planted end stop is found, and nothing that was not planted.
+    assert_eq!(verdict, ["saturation"], "{}", v["candidates"]);
+    let stop = v["final"]["params"]["saturation.l_max"].as_f64().unwrap();
+    assert!(
+        (stop - 30.0).abs() < 0.1,
+        "end stop at {stop} mm, planted at 30"
+    );
     assert!(
         v["final"]["val_rmse"].as_f64().unwrap() <= v["baseline"]["val_rmse"].as_f64().unwrap()
     );
@@ -125,7 +146,7 @@ fn json_follows_the_contract() {
 fn report_writes_the_figures() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("stair.csv");
-    write_csv(&csv, 600, false);
+    write_csv(&csv, 600, false, 0.0);
     let figures = dir.path().join("figures");
     let out = bin()
         .args(["diagnose", "--seeds", "2", "--generations", "30"])
@@ -174,17 +195,17 @@ fn error_of(args: &[&str], csv: &Path) -> String {
 fn undiagnosable_data_gives_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let short = dir.path().join("short.csv");
-    write_csv(&short, 30, false);
+    write_csv(&short, 30, false, 0.0);
     let err = error_of(&["diagnose"], &short);
     assert!(err.contains("too few to split"), "{err}");
 
     let flat = dir.path().join("flat.csv");
-    write_csv(&flat, 300, true);
+    write_csv(&flat, 300, true, 0.0);
     let err = error_of(&["diagnose"], &flat);
     assert!(err.contains("constant"), "{err}");
 
     let ok = dir.path().join("ok.csv");
-    write_csv(&ok, 300, false);
+    write_csv(&ok, 300, false, 0.0);
     let err = error_of(&["diagnose", "--output", "length"], &ok);
     assert!(err.contains("length"), "names the missing column: {err}");
 

@@ -4,13 +4,14 @@
 //! in a chain, the free run and the multi-step-ahead prediction, scores and
 //! residuals.
 //!
-//! The GPU half needs an adapter: without one it fails when `CI=true` and
-//! otherwise prints a loud SKIP message and returns (`common::require_gpu`).
+//! The GPU half needs lavapipe: without it it fails when `CI=true` and
+//! otherwise prints a loud SKIP message and returns
+//! (`common::require_lavapipe`).
 
 mod common;
 
 use mckibben::eval::cpu::{CpuEvaluator, LANES};
-use mckibben::eval::gpu::{GpuEvaluator, GpuOptions};
+use mckibben::eval::gpu::GpuOptions;
 use mckibben::eval::workload::{mixed_population, search_space, stair_experiment};
 use mckibben::eval::{Evaluator, Problem};
 use mckibben::model::effects::{Augmented, Context, Effect, effect_box};
@@ -130,7 +131,7 @@ fn cpu_batches_give_the_scalar_simulations_bits() {
 
 #[test]
 fn gpu_kernels_give_the_cpu_bits() {
-    let Some(mut gpu) = common::require_gpu(GpuEvaluator::open(GpuOptions::default())) else {
+    let Some(mut gpu) = common::require_lavapipe(GpuOptions::default()) else {
         return;
     };
     let mut cpu = CpuEvaluator::new();

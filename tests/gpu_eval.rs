@@ -1,9 +1,11 @@
-//! The GPU evaluator against the CPU reference on whatever adapter exists
-//! (lavapipe in CI): bit-identical SSE for `n = 1`, the same divergence set,
-//! chunking, 2-D dispatch and several experiments in one dispatch.
+//! The GPU evaluator against the CPU reference on lavapipe, the adapter that
+//! never fuses multiply-adds (a hardware GPU may, and then the bits differ):
+//! bit-identical SSE for `n = 1`, the same divergence set, chunking, 2-D
+//! dispatch and several experiments in one dispatch.
 //!
-//! With no adapter these tests fail when `CI=true` (CI must run them) and
-//! otherwise print a loud SKIP message and return (`common::require_gpu`).
+//! Without lavapipe these tests fail when `CI=true` (CI must run them) and
+//! otherwise print a loud SKIP message and return
+//! (`common::require_lavapipe`).
 
 mod common;
 
@@ -17,10 +19,10 @@ use mckibben::model::{Experiment, Family, Measure};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-/// The evaluator, or `None` after the shared skip-or-fail rule.
+/// The evaluator on lavapipe, or `None` after the shared skip-or-fail rule.
 #[track_caller]
 fn gpu(options: GpuOptions) -> Option<GpuEvaluator> {
-    common::require_gpu(GpuEvaluator::open(options))
+    common::require_lavapipe(options)
 }
 
 fn cpu(problem: &Problem, pop: &[f64]) -> Scores {

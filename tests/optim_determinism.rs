@@ -165,7 +165,8 @@ fn a_damaged_checkpoint_is_a_clear_error() {
 
 /// The whole staged fit scored on the GPU backend: bit-identical on
 /// lavapipe, which never fuses multiply-adds (docs/ARCHITECTURE.md); on a
-/// hardware GPU, which may, the final SSE agrees to 1e-3. Without a Vulkan
+/// hardware GPU, which may, the final SSE agrees to 1e-3. Lavapipe is told
+/// by its device type (`common::is_lavapipe`), as in every test. Without a Vulkan
 /// adapter it skips with a banner, and fails under `CI=true`.
 #[test]
 fn cpu_and_gpu_backends_give_the_same_staged_fit() {
@@ -173,7 +174,7 @@ fn cpu_and_gpu_backends_give_the_same_staged_fit() {
     let Some(mut gpu) = common::require_gpu(GpuEvaluator::open(Default::default())) else {
         return;
     };
-    let software = gpu.describe().contains("llvmpipe");
+    let software = common::is_lavapipe(gpu.adapter_info());
     for algo in [Algorithm::De, Algorithm::Mfa] {
         let mut on_cpu = engine(algo, 13);
         let mut on_gpu = engine(algo, 13);

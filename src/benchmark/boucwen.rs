@@ -187,7 +187,7 @@ pub fn simulate_f64(p: &Params, u: &[f64], h: f64) -> Option<Vec<f64>> {
 
 /// The integrator's step sizes in `f32`, derived from the step `h`: the
 /// `f32` twin computes them here and the shader's pipeline header carries
-/// these very values (`eval::gpu::oscillator_source`), so both start from
+/// these very values (`benchmark::evaluator::source`), so both start from
 /// the same bits.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepSizes {

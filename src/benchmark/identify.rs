@@ -1,8 +1,8 @@
 //! Identification of the benchmark oscillator from a training multisine:
 //!
 //! 1. **Population search** over a wide box, on a prefix of the record,
-//!    scored by the project's batch evaluator ([`Evaluator::evaluate_oscillator`]:
-//!    the `f32` twin, one candidate per rayon task, or the WGSL shader). It scores the integrated displacement at the
+//!    scored in batches by an [`OscillatorEvaluator`]: the `f32` twin, one
+//!    candidate per rayon task, or the WGSL shader. It scores the integrated displacement at the
 //!    750 Hz instants without the decimation filter — whose gain is within
 //!    1e-3 of one in the 5–150 Hz band — and integrates at 5 × 750 Hz
 //!    instead of 20 ×, where Newmark's period error at 150 Hz, (ω·h)²/12,
@@ -18,9 +18,8 @@
 use nalgebra::DVector;
 
 use super::boucwen::Params;
+use super::evaluator::{OscillatorEvaluator, OscillatorProblem};
 use super::{FS, Record, UPSAMPLE, resample};
-use crate::eval::Evaluator;
-use crate::eval::oscillator::OscillatorProblem;
 use crate::model::Measure;
 use crate::optim::Algorithm;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
@@ -118,7 +117,7 @@ pub fn identify(
     rec: &Record,
     period: usize,
     settings: &IdentifySettings,
-    evaluator: &mut dyn Evaluator,
+    evaluator: &mut dyn OscillatorEvaluator,
 ) -> anyhow::Result<Identified> {
     let (lower, upper) = search_box(rec, period)?;
     let trace = search_trace(rec, period, settings);
@@ -261,7 +260,7 @@ pub fn search_box(rec: &Record, period: usize) -> anyhow::Result<([f64; 6], [f64
 /// search coordinates ([`search_to_params`]) scored as oscillators on the
 /// search trace.
 struct SearchObjective<'a> {
-    evaluator: &'a mut dyn Evaluator,
+    evaluator: &'a mut dyn OscillatorEvaluator,
     problem: &'a OscillatorProblem,
 }
 
@@ -276,7 +275,7 @@ impl Objective for SearchObjective<'_> {
             .chunks(SEARCH_NAMES.len())
             .flat_map(|x| search_to_params(x).to_vec())
             .collect();
-        self.evaluator.evaluate_oscillator(self.problem, &params)
+        self.evaluator.evaluate(self.problem, &params)
     }
 }
 
@@ -291,7 +290,7 @@ fn population_search(
     lower: &[f64; 6],
     upper: &[f64; 6],
     problem: &OscillatorProblem,
-    evaluator: &mut dyn Evaluator,
+    evaluator: &mut dyn OscillatorEvaluator,
 ) -> anyhow::Result<(Params, f64, usize)> {
     let space = Space::new(
         lower.to_vec(),

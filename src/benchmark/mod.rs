@@ -7,14 +7,17 @@
 //! * [`resample`]: the 750 Hz ↔ 15 kHz conversions the PDF prescribes;
 //! * [`generator`]: benchmark-like training data from the published system,
 //!   so that tests run without the external files;
-//! * [`identify`]: population search on the project's batch evaluator
-//!   ([`crate::eval::oscillator`]), then a Levenberg–Marquardt refinement in
-//!   `f64`.
+//! * [`evaluator`]: the oscillator as a scored problem and its own
+//!   evaluators (the `f32` twin on the CPU, the shader on the project's wgpu
+//!   host);
+//! * [`identify`]: population search on those evaluators, then a
+//!   Levenberg–Marquardt refinement in `f64`.
 //!
 //! The data files are read from `../shared/data/external/boucwen_benchmark`
 //! and never copied into the repository.
 
 pub mod boucwen;
+pub mod evaluator;
 pub mod generator;
 pub mod identify;
 pub mod resample;

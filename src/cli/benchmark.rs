@@ -5,12 +5,13 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use mckibben::benchmark::evaluator;
 use mckibben::benchmark::identify::{IdentifySettings, identify};
 use mckibben::benchmark::{
     BenchmarkData, PERIOD, PUBLISHED, boucwen::PARAM_NAMES, default_data_dir, test_multisine_rmse,
     test_sinesweep_rmse,
 };
-use mckibben::eval::{self, Backend};
+use mckibben::eval::Backend;
 use mckibben::optim::Algorithm;
 
 /// Validate the identification on a public benchmark with published results.
@@ -93,7 +94,7 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
         generations: args.generations,
         ..IdentifySettings::default()
     };
-    let mut evaluator = eval::open(args.backend)?;
+    let mut evaluator = evaluator::open(args.backend)?;
     let id = identify(&data.train, PERIOD, &settings, evaluator.as_mut())?;
     let ms = test_multisine_rmse(&id.params, &data.test_multisine)
         .ok_or_else(|| anyhow::anyhow!("the identified model diverges on the multisine test"))?;

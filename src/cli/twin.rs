@@ -134,8 +134,8 @@ pub struct ServeArgs {
 }
 
 fn serve(args: ServeArgs) -> anyhow::Result<()> {
+    use mckibben::rig::serve::{Fault, Pace, ServeSettings};
     use mckibben::rig::{Link, StdioLink, UdpLink};
-    use mckibben::twin::serve::{Fault, Pace, ServeSettings};
     let faults = args
         .faults
         .iter()
@@ -184,7 +184,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         }
         None => Box::new(StdioLink::new()),
     };
-    mckibben::twin::serve::serve(link.as_mut(), &settings, |r| {
+    mckibben::rig::serve::serve(link.as_mut(), &settings, |r| {
         eprintln!(
             "twin serve: session ended after {} samples ({}); late commands: {}",
             r.samples, r.end, r.late_commands

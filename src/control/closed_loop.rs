@@ -3,32 +3,12 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::controller::Controller;
 use super::limits::ValveLimits;
 use super::metrics::Metrics;
 use super::plant::{Measurement, Plant};
 use super::reference::SineReference;
 use super::runtime::{ControlLoop, StepTime};
-
-/// A feedback law on the input valve voltage.
-pub trait Controller {
-    /// Label for tables and figures (`pi`, `pi-tuned`, `mpc`).
-    fn name(&self) -> &str;
-    /// Prepares an episode; `u0` is the valve command in force before it.
-    fn reset(&mut self, u0: f64);
-    /// The valve command (V) for the coming sample, from the measurement at
-    /// this sample and the reference: `reference[0]` is r at this sample,
-    /// `reference[j]` r `j` samples ahead (known in advance: the sine is
-    /// planned). A controller may read as far ahead as it likes.
-    fn command(&mut self, m: Measurement, reference: &[f64]) -> f64;
-    /// A sample passed without a measurement and `held` (the command in
-    /// force) was held over it; a controller with a model moves its
-    /// estimate on. The default does nothing.
-    fn missed(&mut self, _held: f64) {}
-    /// The solver's counters over the episode, for controllers with one.
-    fn stats(&self) -> Option<super::mpc::MpcStats> {
-        None
-    }
-}
 
 /// How an episode runs and which part of it is scored.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

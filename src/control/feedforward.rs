@@ -11,7 +11,7 @@
 //! — then through the inverse of the valve model to a voltage. A PID on the
 //! tracking error adds what the inverse misses.
 
-use super::closed_loop::Controller;
+use super::controller::Controller;
 use super::model::{ControlModel, Predictor};
 use super::pi::Pi;
 use super::plant::Measurement;

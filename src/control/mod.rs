@@ -10,6 +10,7 @@
 //! displacement), never a plant's internals.
 
 pub mod closed_loop;
+pub mod controller;
 pub mod design;
 pub mod feedforward;
 pub mod figures;
@@ -29,7 +30,8 @@ pub mod tuning;
 pub mod validation;
 pub mod valve;
 
-pub use closed_loop::{Controller, Episode, EpisodeResult, run_episode};
+pub use closed_loop::{Episode, EpisodeResult, run_episode};
+pub use controller::Controller;
 pub use limits::ValveLimits;
 pub use metrics::Metrics;
 pub use model::ControlModel;

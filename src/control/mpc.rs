@@ -21,7 +21,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::closed_loop::Controller;
+use super::controller::{Controller, MpcStats};
 use super::limits::ValveLimits;
 use super::model::{ControlModel, Predictor, State};
 use super::observer::{Observer, ObserverGains};
@@ -58,18 +58,6 @@ impl Default for MpcSettings {
             observer: ObserverGains::default(),
         }
     }
-}
-
-/// Counters of the solver over an episode.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-pub struct MpcStats {
-    /// Samples whose QP could not be set up (non-finite prediction); the
-    /// command in force was held.
-    pub solver_failures: usize,
-    /// QPs cut short by the iteration cap (feasible, not optimal).
-    pub capped_solves: usize,
-    /// Largest number of active-set iterations of one QP.
-    pub max_qp_iterations: usize,
 }
 
 /// The MPC controller.

@@ -12,7 +12,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::closed_loop::Controller;
+use super::controller::Controller;
 use super::limits::ValveLimits;
 use super::plant::Measurement;
 

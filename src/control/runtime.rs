@@ -7,7 +7,7 @@
 
 use std::time::Instant;
 
-use super::closed_loop::Controller;
+use super::controller::Controller;
 use super::limits::ValveLimits;
 use super::plant::Measurement;
 

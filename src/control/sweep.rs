@@ -4,12 +4,13 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::closed_loop::{Controller, Episode, EpisodeResult, run_episode};
+use super::closed_loop::{Episode, EpisodeResult, run_episode};
+use super::controller::{Controller, MpcStats};
 use super::design::{self, OPERATING_BAND_V, PredictionReport, scale_hysteresis};
 use super::feedforward::FeedforwardPid;
 use super::limits::ValveLimits;
 use super::model::ControlModel;
-use super::mpc::{Mpc, MpcSettings, MpcStats};
+use super::mpc::{Mpc, MpcSettings};
 use super::pi::{Pi, PiGains};
 use super::validation::{self, LoopCheck};
 use crate::data::Trace;

@@ -25,7 +25,7 @@ use serde::Serialize;
 
 use super::effects::{Augmented, Effect};
 use super::fitting::SeededFit;
-use super::select::Settings;
+use super::settings::Settings;
 
 /// Share of the baseline's gap above the noise floor that `rmse` closes, in
 /// residual energy: `(R_b² − R²) / (R_b² − F²)`; 0 when the baseline is

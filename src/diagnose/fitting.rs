@@ -18,8 +18,8 @@ use serde::Serialize;
 
 use super::data::Data;
 use super::effects::Augmented;
-use super::interval::indistinguishable_up_to;
-use super::select::Settings;
+use super::likelihood::indistinguishable_up_to;
+use super::settings::Settings;
 use crate::model::{Family, Measure};
 use crate::optim::AlgoSettings;
 use crate::optim::de::DeSettings;

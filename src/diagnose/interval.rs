@@ -17,8 +17,7 @@ use serde::Serialize;
 use super::data::Data;
 use super::effects::{Augmented, Effect};
 use super::fitting::polish_held;
-use crate::ident::fit::CHI2_1_95;
-pub(super) use crate::ident::fit::indistinguishable_up_to;
+use super::likelihood::CHI2_1_95;
 
 /// The profile interval of one effect's size.
 #[derive(Debug, Clone, PartialEq, Serialize)]

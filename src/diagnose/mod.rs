@@ -18,19 +18,22 @@ pub mod explainable;
 pub mod fitting;
 pub mod hints;
 pub mod interval;
+mod likelihood;
 pub mod locate;
 pub mod refits;
 pub mod report;
 pub mod ridge;
 pub mod select;
 pub mod selftest;
+pub mod settings;
 pub mod spectrum;
 
 use serde::Serialize;
 
 pub use data::Data;
 pub use effects::{Augmented, Effect};
-pub use select::{Selection, Settings};
+pub use select::Selection;
+pub use settings::Settings;
 
 use crate::data::Trace;
 use crate::ident::fit_percent;

@@ -14,7 +14,7 @@
 use serde::Serialize;
 
 use super::fitting::Fit;
-use super::interval::indistinguishable_up_to;
+use super::likelihood::indistinguishable_up_to;
 
 /// Fit-% points within which fits the estimation data cannot tell apart
 /// count as the same answer.

@@ -11,73 +11,8 @@ use super::data::Data;
 use super::effects::{Augmented, Effect};
 use super::fitting::{Fit, SeededFit, Start, fit_seeds, fit_seeds_with, profile, scratch_fits};
 use super::hints;
-use crate::eval::Backend;
+use super::settings::Settings;
 use crate::model::Family;
-
-/// Budget and rule settings of a diagnosis.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Settings {
-    /// Seeds per fit (the spread over them is the acceptance rule's yardstick).
-    pub seeds: usize,
-    /// Seeds, population and generations of the baseline fit (from scratch:
-    /// more seeds, since a from-scratch fit can end in a poor basin and the
-    /// best of the seeds on the estimation part is kept).
-    pub baseline_seeds: usize,
-    pub baseline_population: usize,
-    pub baseline_generations: usize,
-    /// Population and generations of each candidate fit (warm-started from
-    /// the current model, effect parameters drawn over their whole box).
-    pub population: usize,
-    pub generations: usize,
-    /// From-scratch seeds of each first-round candidate, on top of its warm
-    /// seeds (baseline population and generations, through the
-    /// multi-step-ahead predictor first; see [`Start::Ahead`]).
-    pub scratch_seeds: usize,
-    /// At most this many effects are named.
-    pub max_effects: usize,
-    /// Rule 1: improvement must exceed this many seed standard deviations.
-    pub spread_factor: f64,
-    /// Rule 2: ΔBIC must be below this.
-    pub bic_threshold: f64,
-    /// Rule 3: minimum relative improvement of the validation RMSE.
-    pub min_relative: f64,
-    /// Rule 4: the current model must miss by more than this multiple of the
-    /// noise-floor estimate (which is good to about 10 %), else there is no
-    /// gap left to explain.
-    pub floor_margin: f64,
-    /// Base seed; seed `i` of a fit uses `seed + i`.
-    pub seed: u64,
-    /// Where the searches score their populations (the same numbers on
-    /// every backend that is bit-exact, lavapipe included).
-    pub backend: Backend,
-}
-
-impl Default for Settings {
-    /// Sized so that `mckibben diagnose` on the default data (a few thousand
-    /// samples) finishes in seconds on two cores. The baseline gets 12 seeds
-    /// because a from-scratch fit of the classic model to the twin's stair
-    /// is multimodal: most seeds stay on the linear model's plateau
-    /// (`A = 0`), and the best of many reaches a better basin (measured:
-    /// docs/lab/diagnosis.md, the budget's "baseline" item).
-    fn default() -> Self {
-        Settings {
-            seeds: 3,
-            baseline_seeds: 12,
-            baseline_population: 40,
-            baseline_generations: 600,
-            population: 30,
-            generations: 300,
-            scratch_seeds: 4,
-            max_effects: 3,
-            spread_factor: 3.0,
-            bic_threshold: -10.0,
-            min_relative: 0.02,
-            floor_margin: 1.1,
-            seed: 1,
-            backend: Backend::Cpu,
-        }
-    }
-}
 
 /// How many times a round may replace the current model by a better refit
 /// found through a candidate (see [`select`]).
@@ -187,7 +122,7 @@ pub fn select(
         // in the first round its fits from scratch) may also reach a better
         // estimation fit of the current model than the one accepted: then
         // that is the current model, as after an ablation below (it happens
-        // on the self-test: docs/lab/diagnosis.md, "Which: the effects
+        // on the self-test: docs/DIAGNOSIS.md, "Which: the effects
         // catalogue", the paragraph after "Ablation").
         if current.best.est_sse < final_fit.est_sse && current.best.val_rmse.is_finite() {
             current_params = current.best.params.clone();

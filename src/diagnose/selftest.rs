@@ -13,7 +13,7 @@ use serde::Serialize;
 use super::data::Data;
 use super::effects::{Augmented, Context, Effect};
 use super::fitting::{Start, fit_seeds};
-use super::select::Settings;
+use super::settings::Settings;
 use super::{Diagnosis, diagnose};
 use crate::data::Trace;
 use crate::model::Family;

@@ -6,7 +6,7 @@
 //! Divergence latches per lane as in [`super::cpu`].
 
 use super::Problem;
-use super::cpu::{LANES, block};
+use super::batch::{LANES, block};
 use crate::model::effects::{Augmented, Prepared};
 
 /// The SSE of every lane of one batch (`chunk`: up to [`LANES`] rows of

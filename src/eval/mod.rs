@@ -6,15 +6,14 @@
 //! converted to `f32` the same way on every backend, so that backends agree.
 
 pub mod agreement;
+mod batch;
 pub mod cpu;
 pub mod effects;
 pub mod gpu;
-pub mod oscillator;
 pub mod workload;
 
 use crate::model::effects::{Augmented, Context, Effect};
 use crate::model::{Experiment, Family, Measure};
-use oscillator::OscillatorProblem;
 
 /// What is scored: a model family against one or more experiments (e.g. two
 /// loads), each in deviation coordinates, under a measure (the free run's
@@ -139,16 +138,6 @@ pub trait Evaluator {
         problem: &Problem,
         population: &[f64],
     ) -> anyhow::Result<Vec<Option<Vec<f32>>>>;
-
-    /// The SSE of every candidate of the benchmark oscillator
-    /// (`population` row-major, [`crate::benchmark::boucwen`]'s canonical
-    /// vectors), `+∞` where its simulation diverged. Bit-identical across
-    /// backends where the muscle models' scores are.
-    fn evaluate_oscillator(
-        &mut self,
-        problem: &OscillatorProblem,
-        population: &[f64],
-    ) -> anyhow::Result<Vec<f32>>;
 }
 
 /// Converts a row-major `f64` population to the `f32` rows every backend scores.
@@ -180,31 +169,48 @@ pub enum Backend {
     Gpu,
 }
 
+/// What `backend` resolves to on this machine: the CPU (with why, when
+/// `auto` fell back to it) or a GPU adapter. The muscle models' evaluator
+/// ([`open`]) and the benchmark oscillator's (`benchmark::evaluator::open`)
+/// both choose by it.
+pub enum Choice {
+    Cpu { note: Option<String> },
+    Gpu(wgpu::Adapter),
+}
+
+/// Resolves `backend`: `auto` takes a hardware GPU if there is one and
+/// otherwise the CPU, saying why; `gpu` takes the best adapter, lavapipe
+/// included, and is an error without one.
+pub fn choose(backend: Backend) -> anyhow::Result<Choice> {
+    Ok(match backend {
+        Backend::Cpu => Choice::Cpu { note: None },
+        Backend::Gpu => Choice::Gpu(gpu::host::best_adapter()?),
+        Backend::Auto => match gpu::adapters().into_iter().next() {
+            Some(adapter) if gpu::is_hardware(&adapter.get_info()) => Choice::Gpu(adapter),
+            Some(a) => Choice::Cpu {
+                note: Some(format!(
+                    "no hardware GPU; {} is slower than the CPU path",
+                    gpu::describe_adapter(&a.get_info())
+                )),
+            },
+            None => Choice::Cpu {
+                note: Some("no GPU adapter found".to_string()),
+            },
+        },
+    })
+}
+
 /// Opens the evaluator `backend` asks for (`Send`, so a run may move it to a
 /// worker thread). It prints nothing: the caller
 /// reports [`Evaluator::describe`], which names the backend and adapter (and,
 /// for `auto` falling back to the CPU, why).
 pub fn open(backend: Backend) -> anyhow::Result<Box<dyn Evaluator + Send>> {
-    match backend {
-        Backend::Cpu => Ok(Box::new(cpu::CpuEvaluator::new())),
-        Backend::Gpu => Ok(Box::new(gpu::GpuEvaluator::open(Default::default())?)),
-        Backend::Auto => {
-            let best = gpu::adapters().into_iter().next();
-            match best {
-                Some(adapter) if gpu::is_hardware(&adapter.get_info()) => Ok(Box::new(
-                    gpu::GpuEvaluator::with_adapter(adapter, Default::default())?,
-                )),
-                other => {
-                    let why = match other {
-                        Some(a) => format!(
-                            "no hardware GPU; {} is slower than the CPU path",
-                            gpu::describe_adapter(&a.get_info())
-                        ),
-                        None => "no GPU adapter found".to_string(),
-                    };
-                    Ok(Box::new(cpu::CpuEvaluator::with_note(why)))
-                }
-            }
-        }
-    }
+    Ok(match choose(backend)? {
+        Choice::Cpu { note: None } => Box::new(cpu::CpuEvaluator::new()),
+        Choice::Cpu { note: Some(why) } => Box::new(cpu::CpuEvaluator::with_note(why)),
+        Choice::Gpu(adapter) => Box::new(gpu::GpuEvaluator::with_adapter(
+            adapter,
+            Default::default(),
+        )?),
+    })
 }

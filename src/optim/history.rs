@@ -6,7 +6,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::engine::Stage;
+use super::stage::Stage;
 use crate::data::write_atomic;
 use crate::model::Measure;
 use crate::report::{Figure, Panel, Series};

@@ -2,12 +2,15 @@
 //! protocol (`protocol`, documented in docs/RIG_PROTOCOL.md), its transports
 //! (`link`: a child process's stdin/stdout, this process's own, UDP), the
 //! controller's end with its deadlines (`remote`) and the run log written as
-//! the run goes (`log`). The twin plays the rig's end (`twin::serve`).
+//! the run goes (`log`); the twin playing the rig's end (`serve`), here
+//! beside the protocol rather than in `twin`, so that `twin` stays below
+//! `control` and `rig` (no import cycle).
 
 pub mod link;
 pub mod log;
 pub mod protocol;
 pub mod remote;
+pub mod serve;
 
 pub use link::{ChildLink, Link, Received, StdioLink, UdpLink};
 pub use log::RunLog;

@@ -27,7 +27,6 @@ pub mod friction;
 pub mod load;
 pub mod muscle;
 pub mod sensors;
-pub mod serve;
 pub mod valve;
 
 pub use config::{EFFECT_NAMES, Effect, Effects, TwinConfig};

@@ -56,24 +56,37 @@ pub fn require_gpu<T, E: Display>(opened: Result<T, E>) -> Option<T> {
     }
 }
 
-/// A GPU evaluator on lavapipe (Mesa's CPU Vulkan adapter, where the shaders
-/// must give the CPU's bits), with `options`; `None` after [`skip_or_fail`]
-/// when there is none.
+/// Whether `info` is lavapipe: Mesa's CPU Vulkan adapter, told by its
+/// device type (a CPU), not by its name. On it the shaders never fuse
+/// multiply-adds, so they must give the CPU's bits; every test that expects
+/// bits on lavapipe and a tolerance elsewhere asks this.
+pub fn is_lavapipe(info: &wgpu::AdapterInfo) -> bool {
+    info.device_type == wgpu::DeviceType::Cpu
+}
+
+/// The lavapipe adapter; `None` after [`skip_or_fail`] when there is none.
+#[track_caller]
+pub fn require_lavapipe_adapter() -> Option<wgpu::Adapter> {
+    let lavapipe = mckibben::eval::gpu::adapters()
+        .into_iter()
+        .find(|a| is_lavapipe(&a.get_info()));
+    if lavapipe.is_none() {
+        skip_or_fail("no CPU Vulkan adapter (lavapipe)");
+    }
+    lavapipe
+}
+
+/// A GPU evaluator on lavapipe, with `options`; `None` after
+/// [`skip_or_fail`] when there is none.
 #[track_caller]
 pub fn require_lavapipe(
     options: mckibben::eval::gpu::GpuOptions,
 ) -> Option<mckibben::eval::gpu::GpuEvaluator> {
-    use mckibben::eval::gpu::{GpuEvaluator, adapters};
-    let lavapipe = adapters()
-        .into_iter()
-        .find(|a| a.get_info().device_type == wgpu::DeviceType::Cpu);
-    match lavapipe {
-        Some(adapter) => require_gpu(GpuEvaluator::with_adapter(adapter, options)),
-        None => {
-            skip_or_fail("no CPU Vulkan adapter (lavapipe)");
-            None
-        }
-    }
+    use mckibben::eval::gpu::GpuEvaluator;
+    require_gpu(GpuEvaluator::with_adapter(
+        require_lavapipe_adapter()?,
+        options,
+    ))
 }
 
 /// The external data folder: `../shared/data/external` beside the

@@ -1,8 +1,8 @@
 //! The project's one wgpu host: which adapters there are, the device, the
 //! pipelines, the buffers, and the dispatch of a population in chunks.
 //! Every scoring kernel (the muscle models of [`super::shader_source`], the
-//! benchmark oscillator of [`super::oscillator_source`]) runs through it, on
-//! the bindings `shaders/prologue.wgsl` declares.
+//! benchmark oscillator of `benchmark::evaluator`) runs through it, on the
+//! bindings `shaders/prologue.wgsl` declares ([`super::PROLOGUE`]).
 //!
 //! The device, the pipelines and the buffers are made once and reused for
 //! every call; buffers grow geometrically; the samples are uploaded only when
@@ -69,6 +69,16 @@ pub fn adapters() -> Vec<wgpu::Adapter> {
     found
 }
 
+/// The best adapter present (see [`adapters`]); an error that says what to
+/// install when there is none.
+pub fn best_adapter() -> anyhow::Result<wgpu::Adapter> {
+    adapters().into_iter().next().context(
+        "no GPU adapter found (Vulkan, Metal or DX12): install a driver \
+         (on Debian, `mesa-vulkan-drivers` and `libvulkan1` give the lavapipe CPU \
+         adapter) or use `--backend cpu`",
+    )
+}
+
 /// Limits a test may lower to exercise chunking and 2-D dispatch cheaply.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct GpuOptions {
@@ -82,7 +92,7 @@ pub struct GpuOptions {
 
 /// What a kernel writes per candidate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub(super) enum Output {
+pub enum Output {
     /// One SSE per trace, which the shader writes trace-major
     /// (`out[e · count + i]` within a chunk).
     Sse,
@@ -92,7 +102,7 @@ pub(super) enum Output {
 }
 
 /// One dispatch's shape: the pipeline and what each candidate reads and writes.
-pub(super) struct Kernel {
+pub struct Kernel {
     /// The pipeline's complete WGSL (pipelines are cached by it).
     pub source: String,
     pub label: &'static str,
@@ -177,7 +187,7 @@ struct Config {
 const CONFIG_STRIDE: u64 = 256;
 
 /// A device, its pipelines and buffers.
-pub(super) struct Host {
+pub struct Host {
     device: wgpu::Device,
     queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,

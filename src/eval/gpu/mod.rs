@@ -11,24 +11,21 @@
 //! the CPU's; a real GPU may fuse `a·b + c` into an fma, so there compare
 //! within a tolerance and compare rankings (`mckibben bench` reports both).
 
-mod host;
-
-use anyhow::Context;
+pub mod host;
 
 pub use host::{GpuOptions, adapters, describe_adapter, is_hardware};
-use host::{Host, Kernel, Output};
+use host::{Host, Kernel, Output, best_adapter};
 
-use super::oscillator::{self, OscillatorProblem};
 use super::{Evaluator, Problem, Scores, to_f32};
-use crate::benchmark::boucwen;
 use crate::model::Family;
 use crate::model::effects::{Context as EffectContext, Effect};
 
-const PROLOGUE: &str = include_str!("../../../shaders/prologue.wgsl");
+/// The bindings every pipeline of the host declares (`host::Host`), the
+/// muscle models' and the benchmark oscillator's (`benchmark::evaluator`).
+pub const PROLOGUE: &str = include_str!("../../../shaders/prologue.wgsl");
 const DRIVER: &str = include_str!("../../../shaders/driver.wgsl");
 const EFFECTS: &str = include_str!("../../../shaders/effects.wgsl");
 const ENTRY: &str = include_str!("../../../shaders/entry.wgsl");
-const OSCILLATOR: &str = include_str!("../../../shaders/boucwen_oscillator.wgsl");
 
 fn family_source(family: Family) -> &'static str {
     match family {
@@ -108,25 +105,6 @@ fn effects_header(problem: &Problem) -> String {
     h
 }
 
-/// The WGSL of the benchmark oscillator's pipeline: a header with the
-/// integrator's step sizes (as [`boucwen::StepSizes`] rounds them for the
-/// `f32` twin, written in Rust's shortest round-trip form), the prologue,
-/// and `shaders/boucwen_oscillator.wgsl`.
-pub fn oscillator_source(problem: &OscillatorProblem) -> String {
-    let step = boucwen::StepSizes::new(problem.h);
-    format!(
-        "const STRIDE: u32 = {}u;\nconst SCORE_EVERY: u32 = {}u;\n\
-         const NEWTON_ITERS: u32 = {}u;\nconst H: f32 = {:?}f;\n\
-         const HALF_H: f32 = {:?}f;\nconst QUARTER_HH: f32 = {:?}f;\n{PROLOGUE}\n{OSCILLATOR}",
-        boucwen::DIM,
-        problem.stride,
-        boucwen::NEWTON_ITERS_F32,
-        step.h,
-        step.half_h,
-        step.quarter_hh,
-    )
-}
-
 /// Scores populations on a wgpu device.
 pub struct GpuEvaluator {
     host: Host,
@@ -136,12 +114,7 @@ impl GpuEvaluator {
     /// Opens the best adapter present (see [`adapters`]); an error, not a
     /// panic, when there is none.
     pub fn open(options: GpuOptions) -> anyhow::Result<Self> {
-        let adapter = adapters().into_iter().next().context(
-            "no GPU adapter found (Vulkan, Metal or DX12): install a driver \
-             (on Debian, `mesa-vulkan-drivers` and `libvulkan1` give the lavapipe CPU \
-             adapter) or use `--backend cpu`",
-        )?;
-        Self::with_adapter(adapter, options)
+        Self::with_adapter(best_adapter()?, options)
     }
 
     /// Opens `adapter` with the largest limits it offers.
@@ -236,26 +209,6 @@ impl Evaluator for GpuEvaluator {
             .take(population.len() / problem.dim())
             .map(|row| row.iter().all(|v| v.is_finite()).then(|| row.to_vec()))
             .collect())
-    }
-
-    fn evaluate_oscillator(
-        &mut self,
-        problem: &OscillatorProblem,
-        population: &[f64],
-    ) -> anyhow::Result<Vec<f32>> {
-        let rows = oscillator::rows(problem, population)?;
-        let (samples, spans) = problem.samples();
-        self.host.upload(samples, spans)?;
-        let kernel = Kernel {
-            source: oscillator_source(problem),
-            label: "boucwen oscillator",
-            dim: boucwen::DIM,
-            traces: 1,
-            horizon: 0,
-            output: Output::Sse,
-            residual_len: 0,
-        };
-        self.host.dispatch(&kernel, &rows)
     }
 }
 

@@ -40,6 +40,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::history::{GenerationRecord, History};
+pub use super::stage::Stage;
 use super::{AskTell, argmin, cost_order};
 use crate::data::write_atomic;
 use crate::model::Measure;
@@ -85,25 +86,6 @@ pub struct StopRules {
     /// than `stall_tolerance` (relative) for this many generations.
     pub stall_generations: Option<usize>,
     pub stall_tolerance: f64,
-}
-
-/// A stage of a fit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Stage {
-    Global,
-    FreeRun,
-    Polish,
-}
-
-impl Stage {
-    pub fn name(self) -> &'static str {
-        match self {
-            Stage::Global => "global",
-            Stage::FreeRun => "free-run",
-            Stage::Polish => "polish",
-        }
-    }
 }
 
 /// Why the fit ended.

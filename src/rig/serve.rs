@@ -17,9 +17,9 @@
 
 use std::time::{Duration, Instant};
 
-use super::{Rig, Sample, TwinConfig};
-use crate::rig::link::{Link, Received};
-use crate::rig::protocol::{FromRig, ToRig, VERSION};
+use super::link::{Link, Received};
+use super::protocol::{FromRig, ToRig, VERSION};
+use crate::twin::{Rig, Sample, TwinConfig};
 
 /// How the twin keeps time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
