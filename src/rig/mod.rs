@@ -1,14 +1,18 @@
 //! Running a controller on a rig that lives outside this process: the line
 //! protocol (`protocol`, documented in docs/RIG_PROTOCOL.md), its transports
 //! (`link`: a child process's stdin/stdout, this process's own, UDP), the
-//! controller's end with its deadlines (`remote`) and the run log written as
-//! the run goes (`log`). The twin plays the rig's end (`twin::serve`).
+//! controller's end with its deadlines (`remote`), the check that a
+//! measurement can be one (`plausible`) and the run log written as the run
+//! goes (`log`). The twin plays the rig's end (`twin::serve`).
 
 pub mod link;
 pub mod log;
+pub mod plausible;
 pub mod protocol;
 pub mod remote;
 
 pub use link::{ChildLink, Link, Received, StdioLink, UdpLink};
 pub use log::RunLog;
+pub use plausible::{Limits, Plausibility};
+pub use protocol::Ranges;
 pub use remote::{RemoteRun, RemoteSettings, RigError, connect, run_remote};
