@@ -338,3 +338,53 @@ fn a_flood_of_lines_ends_at_its_second_line() {
         );
     }
 }
+
+#[test]
+fn twin_serve_refuses_a_command_outside_0_to_10_volts_and_closes_the_valve() {
+    use std::io::Write;
+    let mut serve = Command::new(BIN)
+        .args(["twin", "serve", "--load", "4.5"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let session = "HELLO 1\nU 0 99\nHELLO 1\nU 0 -5\nHELLO 1\nU 0 10\n";
+    serve
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(session.as_bytes())
+        .unwrap();
+    let out = serve.wait_with_output().unwrap();
+    assert!(out.status.success());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let lines: Vec<&str> = stdout.lines().collect();
+    let ready = "READY 1 0.01 -0.04 0.44 -10.5 55.5";
+    assert_eq!(lines.len(), 6, "{stdout}");
+    assert_eq!(lines[0], ready);
+    assert_eq!(
+        lines[1],
+        "ERR `U 0 99`: volts `99` is outside 0–10 V; input valve closed"
+    );
+    assert_eq!(lines[2], ready);
+    assert_eq!(
+        lines[3],
+        "ERR `U 0 -5`: volts `-5` is outside 0–10 V; input valve closed"
+    );
+    // 10 V is in range: the twin advances a sample.
+    assert!(lines[5].starts_with("M 1 0.01 "), "{stdout}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        stderr
+            .matches("session ended after 0 samples (`U 0 ")
+            .count(),
+        2,
+        "{stderr}"
+    );
+    assert_eq!(
+        stderr.matches("input valve closed (0 V)").count(),
+        3,
+        "{stderr}"
+    );
+}
