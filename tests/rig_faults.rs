@@ -15,7 +15,7 @@ const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
 /// reference, so every controller raises the valve), and from sample
 /// `RIG_AT` on does what `RIG_MODE` says. `RIG_LINE` is the bad line, with
 /// `%k` and `%t` standing for the sample and its time. Every line it reads
-/// goes to `RIG_REC`.
+/// goes to `RIG_REC`. `hangup` closes its stdin, then sends `M 5`.
 const RIG: &str = r#"
 read hello; echo "$hello" >> "$RIG_REC"; echo "READY 1 0.01"
 k=0
@@ -31,6 +31,7 @@ while read cmd; do
     once) if [ $k -eq "$RIG_AT" ]; then printf '%s\n' "$bad"; else echo "$honest"; fi ;;
     from) printf '%s\n' "$bad" ;;
     exit) exit 0 ;;
+    hangup) exec 0<&-; echo "$honest"; exec sleep 1 ;;
     stall) ;;
     flood) if [ $k -eq "$RIG_AT" ]; then echo "$honest"; yes "$honest" | head -n 100000 & fi ;;
   esac
@@ -133,7 +134,8 @@ fn attack(controller: &'static str, mode: &str, line: &str, extra: &[&str]) -> S
         })
         .args(extra)
         .arg("--plant")
-        .arg(format!("cmd:sh {}", rig.display()))
+        // `exec`: no shell in between holds the rig's pipes open after it.
+        .arg(format!("cmd:exec sh {}", rig.display()))
         .env("RIG_REC", &rec)
         .env("RIG_MODE", mode)
         .env("RIG_AT", "5")
@@ -387,4 +389,34 @@ fn twin_serve_refuses_a_command_outside_0_to_10_volts_and_closes_the_valve() {
         3,
         "{stderr}"
     );
+}
+
+#[test]
+fn a_rig_that_hangs_up_gives_an_error_not_a_signal() {
+    for c in CONTROLLERS {
+        let seen = attack(c, "hangup", "", &[]);
+        assert_eq!(
+            seen.code,
+            Some(1),
+            "{c}: killed by a signal? {}",
+            seen.stderr
+        );
+        let u4 = seen.volts(4);
+        assert!(
+            seen.stderr.contains(&format!(
+                "went away (Broken pipe (os error 32)); last exchanged: M 5 received (line 6), U 4 {u4} sent"
+            )),
+            "{c}: {}",
+            seen.stderr
+        );
+        assert_eq!(
+            seen.received.last().map(|s| s.as_str()),
+            Some(&*format!("U 4 {u4}"))
+        );
+        assert_eq!(
+            seen.last_log_line(),
+            "# U 5 0, STOP not delivered (Broken pipe (os error 32)): the valve is as the rig left it",
+            "{c}"
+        );
+    }
 }
