@@ -592,7 +592,7 @@ mod tests {
                 &settings,
                 &mut RunLog::none(),
             );
-            let err = out.err().expect("the run must fail").to_string();
+            let err = out.expect_err("the run must fail").to_string();
             assert!(
                 err.contains("`U 3 ") && err.contains("not sent"),
                 "{bad}: {err}"
