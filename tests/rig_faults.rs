@@ -261,10 +261,9 @@ fn the_ranges_given_on_the_command_line_are_the_ones_checked() {
             3,
             "line 4 `M 3 0.03 0.2 25`: implausible measurement (3 in a row)",
         );
-        assert!(
-            seen.log
-                .contains("displacement 0…20 mm (given on the command line)")
-        );
+        assert!(seen.log.contains(
+            "displacement 0…20 mm (displacement from the command line, pressure the twin's)"
+        ));
     }
 }
 

@@ -584,27 +584,30 @@ fn run_external(
     Ok((run, remote.late))
 }
 
-/// The ranges a measurement must be in, and where they come from: each
-/// flag given wins over what the rig announced in READY, which wins over
-/// the twin's own.
-fn ranges(args: &Args, announced: Option<Ranges>) -> (Ranges, &'static str) {
-    let (base, source) = match announced {
+/// The ranges a measurement must be in, and where they come from: a flag
+/// wins over what the rig announced in READY, which wins over the twin's
+/// own limits.
+fn ranges(args: &Args, announced: Option<Ranges>) -> (Ranges, String) {
+    let (base, rest) = match announced {
         Some(r) => (r, "announced by the rig"),
         None => (Limits::of_twin(&TwinConfig::default()).ranges, "the twin's"),
     };
     let pair = |flag: &Option<Vec<f64>>, or: (f64, f64)| flag.as_ref().map_or(or, |v| (v[0], v[1]));
-    let given = args.pressure_range.is_some() || args.displacement_range.is_some();
-    (
-        Ranges {
-            pressure_mpa: pair(&args.pressure_range, base.pressure_mpa),
-            displacement_mm: pair(&args.displacement_range, base.displacement_mm),
-        },
-        if given {
-            "given on the command line"
-        } else {
-            source
-        },
-    )
+    let ranges = Ranges {
+        pressure_mpa: pair(&args.pressure_range, base.pressure_mpa),
+        displacement_mm: pair(&args.displacement_range, base.displacement_mm),
+    };
+    let given = "from the command line";
+    let source = match (
+        args.pressure_range.is_some(),
+        args.displacement_range.is_some(),
+    ) {
+        (true, true) => given.to_string(),
+        (false, false) => rest.to_string(),
+        (true, false) => format!("pressure {given}, displacement {rest}"),
+        (false, true) => format!("displacement {given}, pressure {rest}"),
+    };
+    (ranges, source)
 }
 
 fn print_tables(rows: &[Row], robust: &[RobustRow]) {
