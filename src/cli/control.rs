@@ -14,7 +14,7 @@ use mckibben::control::tuning::{self, TuningEpisodes};
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
 use mckibben::data::Trace;
 use mckibben::data::csv::{ReadOptions, read_traces, write_trace};
-use mckibben::rig::{self, ChildLink, Link, RemoteSettings, RunLog, UdpLink};
+use mckibben::rig::{self, ChildLink, Limits, Link, Ranges, RemoteSettings, RunLog, UdpLink};
 use mckibben::twin::TwinConfig;
 
 /// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
@@ -33,7 +33,10 @@ use mckibben::twin::TwinConfig;
 /// line protocol (docs/RIG_PROTOCOL.md): `cmd:COMMAND` runs COMMAND and talks
 /// to its stdin/stdout, `udp:HOST:PORT` sends datagrams. Each sample has a
 /// deadline; a missing measurement holds the last command; a malformed or
-/// stale line ends the run with an error and the valve closed.
+/// stale line ends the run with an error and the valve closed. A measurement
+/// outside the rig's ranges, or a displacement jump faster than
+/// --max-speed, is implausible: held like a missing one and never shown to
+/// the controller; --max-implausible in a row end the run, valve closed.
 ///
 /// Examples:
 ///   mckibben control --controller pi,mpc --freq 3 --load 4.5,7 --plot figs/
@@ -116,6 +119,34 @@ pub struct Args {
     /// Missing measurements in a row after which the run stops (valve closed).
     #[arg(long, default_value_t = 10)]
     max_missing: usize,
+    /// Pressures (MPa, gauge) the rig's sensor can read; a measurement
+    /// outside is implausible [default: the ranges the rig announces in
+    /// READY, else the twin's, -0.04,0.44].
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "MIN,MAX",
+        allow_hyphen_values = true
+    )]
+    pressure_range: Option<Vec<f64>>,
+    /// Displacements (mm, contraction positive) the rig's sensor can read
+    /// [default: as --pressure-range; the twin's -10.5,55.5].
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "MIN,MAX",
+        allow_hyphen_values = true
+    )]
+    displacement_range: Option<Vec<f64>>,
+    /// Fastest the displacement can change (mm/s); a larger jump since the
+    /// last plausible sample is implausible (the twin's load moves at most
+    /// about 105 mm/s).
+    #[arg(long, value_name = "MM_S", default_value_t = Limits::DEFAULT_MAX_SPEED_MM_S)]
+    max_speed: f64,
+    /// Implausible measurements in a row after which the run stops (valve
+    /// closed).
+    #[arg(long, default_value_t = 3)]
+    max_implausible: usize,
     /// Write each external run's log into this folder as it goes.
     #[arg(long, value_name = "DIR")]
     log: Option<PathBuf>,
@@ -207,6 +238,26 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
         );
     }
     anyhow::ensure!(args.max_missing >= 1, "--max-missing must be at least 1");
+    anyhow::ensure!(
+        args.max_implausible >= 1,
+        "--max-implausible must be at least 1"
+    );
+    anyhow::ensure!(
+        args.max_speed > 0.0 && args.max_speed.is_finite(),
+        "--max-speed must be a positive number of mm/s (got {})",
+        args.max_speed
+    );
+    for (flag, r) in [
+        ("--pressure-range", &args.pressure_range),
+        ("--displacement-range", &args.displacement_range),
+    ] {
+        if let Some(r) = r {
+            anyhow::ensure!(
+                r.len() == 2 && r.iter().all(|v| v.is_finite()) && r[0] < r[1],
+                "{flag} takes two finite numbers MIN,MAX with MIN < MAX (got {r:?})"
+            );
+        }
+    }
     anyhow::ensure!(
         args.warmup >= 0.0
             && args.duration > 0.0
@@ -470,13 +521,19 @@ fn run_external(
         }
         Plant::Twin => unreachable!("in-process runs do not come here"),
     };
-    let dt = rig::connect(link.as_mut(), RemoteSettings::CONNECT_TIMEOUT)?;
+    let (dt, announced) = rig::connect(link.as_mut(), RemoteSettings::CONNECT_TIMEOUT)?;
+    let (ranges, source) = ranges(args, announced);
     let settings = RemoteSettings {
         deadline: args.deadline.map_or_else(
             || RemoteSettings::default_deadline(dt),
             |ms| Duration::from_secs_f64(ms / 1000.0),
         ),
         max_missing: args.max_missing,
+        limits: Limits {
+            ranges,
+            max_speed_mm_s: args.max_speed,
+        },
+        max_implausible: args.max_implausible,
     };
     let mut controller = sweep::build(spec.kind, spec.hysteresis_scale, ing, dt)?;
     let mut log = match &args.log {
@@ -495,6 +552,14 @@ fn run_external(
                         "rig {} (dt {dt} s), deadline {:.1} ms",
                         link.describe(),
                         settings.deadline.as_secs_f64() * 1000.0
+                    ),
+                    format!(
+                        "plausible: pressure {}…{} MPa, displacement {}…{} mm ({source}), at most {} mm/s",
+                        ranges.pressure_mpa.0,
+                        ranges.pressure_mpa.1,
+                        ranges.displacement_mm.0,
+                        ranges.displacement_mm.1,
+                        args.max_speed
                     ),
                 ],
             )
@@ -517,6 +582,32 @@ fn run_external(
         stats: controller.stats(),
     };
     Ok((run, remote.late))
+}
+
+/// The ranges a measurement must be in, and where they come from: a flag
+/// wins over what the rig announced in READY, which wins over the twin's
+/// own limits.
+fn ranges(args: &Args, announced: Option<Ranges>) -> (Ranges, String) {
+    let (base, rest) = match announced {
+        Some(r) => (r, "announced by the rig"),
+        None => (Limits::of_twin(&TwinConfig::default()).ranges, "the twin's"),
+    };
+    let pair = |flag: &Option<Vec<f64>>, or: (f64, f64)| flag.as_ref().map_or(or, |v| (v[0], v[1]));
+    let ranges = Ranges {
+        pressure_mpa: pair(&args.pressure_range, base.pressure_mpa),
+        displacement_mm: pair(&args.displacement_range, base.displacement_mm),
+    };
+    let given = "from the command line";
+    let source = match (
+        args.pressure_range.is_some(),
+        args.displacement_range.is_some(),
+    ) {
+        (true, true) => given.to_string(),
+        (false, false) => rest.to_string(),
+        (true, false) => format!("pressure {given}, displacement {rest}"),
+        (false, true) => format!("displacement {given}, pressure {rest}"),
+    };
+    (ranges, source)
 }
 
 fn print_tables(rows: &[Row], robust: &[RobustRow]) {

@@ -4,7 +4,15 @@
 //! it, e.g. `socat - /dev/ttyUSB0,b115200,raw,echo=0`.
 //!
 //! Reads that wait are done by a reader thread feeding a channel, so that
-//! every transport offers the same `recv` with a timeout.
+//! every transport offers the same `recv` with a timeout. The channel holds
+//! a few lines only: a rig that floods the link waits for the controller
+//! instead of filling its memory.
+//!
+//! `main` restores the default SIGPIPE (so that `mckibben … | head` ends
+//! quietly), which would kill the process when it writes to a rig that has
+//! exited: no message, no close, status 141. Writes to a pipe therefore run
+//! with SIGPIPE blocked on the writing thread ([`without_sigpipe`]) and a
+//! broken pipe comes back as an error the controller can report.
 
 use std::io::{self, BufRead, BufReader, Read, Write};
 use std::net::{SocketAddr, UdpSocket};
@@ -37,11 +45,15 @@ pub trait Link {
     fn end_session(&mut self) {}
 }
 
+/// Lines read ahead of the controller. A rig sends one line a sample; more
+/// waiting than this is a flood, held back in the rig's own pipe.
+const READ_AHEAD: usize = 64;
+
 /// Reads lines of at most [`MAX_LINE`] bytes from `reader` into a channel
 /// until the stream ends. A longer line is passed on cut at the limit (plus
 /// one byte), so that the parser reports it as too long.
 fn spawn_reader(reader: impl Read + Send + 'static) -> Receiver<Received> {
-    let (tx, rx) = mpsc::channel();
+    let (tx, rx) = mpsc::sync_channel(READ_AHEAD);
     std::thread::spawn(move || {
         let mut reader = BufReader::new(reader);
         loop {
@@ -86,6 +98,52 @@ fn wait(rx: &Receiver<Received>, timeout: Option<Duration>) -> Received {
     }
 }
 
+/// Writes `line` and a line break to `out` and flushes it, with SIGPIPE
+/// held off: a reader that is gone gives an `EPIPE` error, not a signal.
+fn write_line(out: &mut impl Write, line: &str) -> io::Result<()> {
+    without_sigpipe(|| {
+        out.write_all(line.as_bytes())?;
+        out.write_all(b"\n")?;
+        out.flush()
+    })
+}
+
+/// Runs `f` with SIGPIPE blocked on this thread. A write to a broken pipe
+/// then fails with `EPIPE` and leaves the signal pending for the thread;
+/// it is taken off (`sigwait`) before the old mask returns, so it is never
+/// delivered. Other threads, and this one afterwards, keep the default.
+#[cfg(unix)]
+fn without_sigpipe<T>(f: impl FnOnce() -> T) -> T {
+    // SAFETY: the sigset_t values are initialised by sigemptyset/sigpending
+    // before use; pthread_sigmask only changes this thread's mask, and the
+    // old mask is restored before returning.
+    unsafe {
+        let mut pipe: libc::sigset_t = std::mem::zeroed();
+        libc::sigemptyset(&mut pipe);
+        libc::sigaddset(&mut pipe, libc::SIGPIPE);
+        let mut old: libc::sigset_t = std::mem::zeroed();
+        libc::pthread_sigmask(libc::SIG_BLOCK, &pipe, &mut old);
+        let out = f();
+        let mut pending: libc::sigset_t = std::mem::zeroed();
+        libc::sigemptyset(&mut pending);
+        if libc::sigpending(&mut pending) == 0
+            && libc::sigismember(&pending, libc::SIGPIPE) == 1
+            && libc::sigismember(&old, libc::SIGPIPE) == 0
+        {
+            let mut sig = 0;
+            libc::sigwait(&pipe, &mut sig);
+        }
+        libc::pthread_sigmask(libc::SIG_SETMASK, &old, std::ptr::null_mut());
+        out
+    }
+}
+
+/// Without SIGPIPE there is nothing to hold off.
+#[cfg(not(unix))]
+fn without_sigpipe<T>(f: impl FnOnce() -> T) -> T {
+    f()
+}
+
 /// A rig behind a child process's stdin and stdout (its stderr is passed
 /// through). Dropping the link closes the child's stdin and reaps it.
 pub struct ChildLink {
@@ -122,9 +180,7 @@ impl Link for ChildLink {
             .stdin
             .as_mut()
             .ok_or_else(|| io::Error::other("stdin closed"))?;
-        stdin.write_all(line.as_bytes())?;
-        stdin.write_all(b"\n")?;
-        stdin.flush()
+        write_line(stdin, line)
     }
 
     fn recv(&mut self, timeout: Option<Duration>) -> Received {
@@ -173,10 +229,7 @@ impl Default for StdioLink {
 
 impl Link for StdioLink {
     fn send(&mut self, line: &str) -> io::Result<()> {
-        let mut out = io::stdout().lock();
-        out.write_all(line.as_bytes())?;
-        out.write_all(b"\n")?;
-        out.flush()
+        write_line(&mut io::stdout().lock(), line)
     }
 
     fn recv(&mut self, timeout: Option<Duration>) -> Received {

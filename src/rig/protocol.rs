@@ -6,16 +6,19 @@
 //!
 //! ```text
 //! controller → rig                      rig → controller
-//! HELLO 1                               READY 1 <dt s>
+//! HELLO 1                               READY 1 <dt s> [<ranges>]
 //! U <k> <volts>                         M <k> <t s> <pressure MPa> <displacement mm>
 //! STOP                                  BYE <samples>
 //!                                       ERR <text>
 //! ```
 //!
-//! `U k v` holds the input valve at `v` volts over sample `k`; `M k …` is
-//! the measurement that closes sample `k − 1`, taken at `t = k·dt` after the
-//! run started. `STOP` closes the input valve (0 V; the output valve opens
-//! and the muscle drains) and ends the run.
+//! `U k v` holds the input valve at `v` volts (0–10) over sample `k`;
+//! `M k …` is the measurement that closes sample `k − 1`, taken at
+//! `t = k·dt` after the run started. `STOP` closes the input valve (0 V; the
+//! output valve opens and the muscle drains) and ends the run. `READY` may
+//! carry the ranges the rig's sensors can read (`<p min> <p max> <x min>
+//! <x max>`, MPa and mm), an addition a rig that leaves them out need not
+//! know about.
 
 use std::fmt;
 
@@ -24,6 +27,27 @@ pub const VERSION: u32 = 1;
 
 /// Longest line accepted (bytes); a longer one is malformed.
 pub const MAX_LINE: usize = 4096;
+
+/// The valve commands a `U` may carry (V): the proportional valves take
+/// 0–10 V. Anything else is malformed, whichever end reads it.
+pub const VOLTS: (f64, f64) = (0.0, 10.0);
+
+/// What a rig's sensors can read: a measurement outside is not one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Ranges {
+    /// Gauge pressure (MPa), lowest and highest.
+    pub pressure_mpa: (f64, f64),
+    /// Displacement (mm, contraction positive), lowest and highest.
+    pub displacement_mm: (f64, f64),
+}
+
+impl fmt::Display for Ranges {
+    /// The four fields as `READY` carries them.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (p, x) = (self.pressure_mpa, self.displacement_mm);
+        write!(f, "{} {} {} {}", p.0, p.1, x.0, x.1)
+    }
+}
 
 /// A message from the controller to the rig.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,6 +63,8 @@ pub enum FromRig {
     Ready {
         version: u32,
         dt: f64,
+        /// The ranges the rig announces, if it does.
+        ranges: Option<Ranges>,
     },
     Measurement {
         k: u64,
@@ -65,7 +91,16 @@ impl fmt::Display for ToRig {
 impl fmt::Display for FromRig {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            FromRig::Ready { version, dt } => write!(f, "READY {version} {dt}"),
+            FromRig::Ready {
+                version,
+                dt,
+                ranges: None,
+            } => write!(f, "READY {version} {dt}"),
+            FromRig::Ready {
+                version,
+                dt,
+                ranges: Some(r),
+            } => write!(f, "READY {version} {dt} {r}"),
             FromRig::Measurement {
                 k,
                 t,
@@ -102,6 +137,17 @@ fn fields<'a>(line: &'a str, keyword: &str, names: &[&str]) -> Result<Vec<&'a st
     Ok(got)
 }
 
+/// A pair of numbers, the lower first.
+fn range(lo: &str, hi: &str, name: &str) -> Result<(f64, f64), Malformed> {
+    let (a, b) = (number(lo, name)?, number(hi, name)?);
+    if a >= b {
+        return Err(Malformed(format!(
+            "{name} range `{lo} {hi}` is empty (the lower end first)"
+        )));
+    }
+    Ok((a, b))
+}
+
 fn number(field: &str, name: &str) -> Result<f64, Malformed> {
     match field.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
@@ -135,13 +181,28 @@ impl FromRig {
         check_ascii(line)?;
         match line.split_ascii_whitespace().next() {
             Some("READY") => {
-                let f = fields(line, "READY", &["version", "dt"])?;
+                // The ranges are optional: two fields, or all six.
+                let names = ["version", "dt", "p_min", "p_max", "x_min", "x_max"];
+                let short = line.split_ascii_whitespace().count() <= 3;
+                let f = fields(line, "READY", if short { &names[..2] } else { &names })?;
                 let version = index(f[0], "version")? as u32;
                 let dt = number(f[1], "dt")?;
                 if dt <= 0.0 {
                     return Err(Malformed(format!("dt `{}` is not positive", f[1])));
                 }
-                Ok(FromRig::Ready { version, dt })
+                let ranges = if short {
+                    None
+                } else {
+                    Some(Ranges {
+                        pressure_mpa: range(f[2], f[3], "pressure")?,
+                        displacement_mm: range(f[4], f[5], "displacement")?,
+                    })
+                };
+                Ok(FromRig::Ready {
+                    version,
+                    dt,
+                    ranges,
+                })
             }
             Some("M") => {
                 let f = fields(line, "M", &["k", "t", "pressure_mpa", "displacement_mm"])?;
@@ -186,9 +247,16 @@ impl ToRig {
             }
             Some("U") => {
                 let f = fields(line, "U", &["k", "volts"])?;
+                let volts = number(f[1], "volts")?;
+                if !(VOLTS.0..=VOLTS.1).contains(&volts) {
+                    return Err(Malformed(format!(
+                        "volts `{}` is outside {}–{} V",
+                        f[1], VOLTS.0, VOLTS.1
+                    )));
+                }
                 Ok(ToRig::Command {
                     k: index(f[0], "k")?,
-                    volts: number(f[1], "volts")?,
+                    volts,
                 })
             }
             Some("STOP") => {
@@ -224,6 +292,15 @@ mod tests {
             FromRig::Ready {
                 version: 1,
                 dt: 0.01,
+                ranges: None,
+            },
+            FromRig::Ready {
+                version: 1,
+                dt: 0.01,
+                ranges: Some(Ranges {
+                    pressure_mpa: (-0.04, 0.44),
+                    displacement_mm: (-10.5, 55.5),
+                }),
             },
             FromRig::Measurement {
                 k: 3,
@@ -249,12 +326,23 @@ mod tests {
             ("X 1", "unknown message `X`"),
             ("", "empty line"),
             ("M 3 0.03 0.2 24\u{7}", "printable ASCII"),
+            ("READY 1 0.01 0 0.4 -5", "takes 6 field(s)"),
+            ("READY 1", "takes 2 field(s)"),
+            (
+                "READY 1 0.01 0.4 0 -5 50",
+                "pressure range `0.4 0` is empty",
+            ),
         ];
         for (line, why) in cases {
             let err = FromRig::parse(line).unwrap_err().0;
             assert!(err.contains(why), "{line:?}: {err}");
         }
         assert!(ToRig::parse("U 1 inf").is_err());
+        for volts in ["99", "-5", "10.000001"] {
+            let err = ToRig::parse(&format!("U 0 {volts}")).unwrap_err().0;
+            assert!(err.contains("outside 0–10 V"), "{volts}: {err}");
+        }
+        assert!(ToRig::parse("U 0 10").is_ok() && ToRig::parse("U 0 0").is_ok());
         assert!(
             FromRig::parse(&"M ".repeat(3000))
                 .unwrap_err()

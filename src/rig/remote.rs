@@ -7,12 +7,22 @@
 //!   controller is told; after `max_missing` in a row the rig counts as
 //!   silent. A measurement that comes after its sample was held is **late**:
 //!   logged and set aside.
+//! - A well-formed measurement the rig cannot have taken (outside its
+//!   ranges, or a jump its load cannot make: `plausible`) is **implausible**:
+//!   held and logged like a missing one, never shown to the controller;
+//!   after `max_implausible` in a row the run ends with the valve closed.
 //! - A **malformed** line (not the protocol, a field that is not a finite
 //!   number) or a **stale** one (a sample already used, or a time stamp that
 //!   is not its sample's) ends the run with an error that quotes the line,
 //!   and the valve is closed: `U k 0` then `STOP`. Closing is the one command
 //!   exempt from the slew limit: the rig can no longer be trusted to carry a
 //!   ramp.
+//! - A rig that **goes away** (end of stream, a broken pipe) ends the run
+//!   with an error that names the last sample exchanged; the log says
+//!   whether the close could still be delivered.
+//! - Every `U` passes one last guard before it goes out: a command that is
+//!   not a number in 0–10 V is never sent, whatever the controller computed;
+//!   the run ends with the valve closed instead.
 
 use std::time::{Duration, Instant};
 
@@ -20,7 +30,8 @@ use thiserror::Error;
 
 use super::link::{Link, Received};
 use super::log::RunLog;
-use super::protocol::{FromRig, ToRig, VERSION};
+use super::plausible::{Limits, Plausibility};
+use super::protocol::{FromRig, Ranges, ToRig, VERSION, VOLTS};
 use crate::control::closed_loop::Recorder;
 use crate::control::{ControlLoop, Controller, Episode, EpisodeResult, Measurement};
 
@@ -32,6 +43,10 @@ pub struct RemoteSettings {
     pub deadline: Duration,
     /// Missing measurements in a row after which the run stops.
     pub max_missing: usize,
+    /// What a measurement must satisfy to be shown to the controller.
+    pub limits: Limits,
+    /// Implausible measurements in a row after which the run stops.
+    pub max_implausible: usize,
 }
 
 impl RemoteSettings {
@@ -73,8 +88,28 @@ pub enum RigError {
         samples: usize,
         seconds: f64,
     },
-    #[error("rig {link} closed the link at sample {k}: {why}")]
-    Closed { link: String, k: usize, why: String },
+    #[error(
+        "rig {link}, line {line_no} `{line}`: implausible measurement ({count} in a row): {why}"
+    )]
+    Implausible {
+        link: String,
+        line_no: usize,
+        line: String,
+        why: String,
+        count: usize,
+    },
+    #[error("rig {link} went away ({why}); last exchanged: {last}")]
+    Gone {
+        link: String,
+        why: String,
+        last: String,
+    },
+    #[error(
+        "rig {link}: the controller computed `U {k} {volts}`, not a valve command ({}–{} V); not sent",
+        VOLTS.0,
+        VOLTS.1
+    )]
+    Command { link: String, k: u64, volts: f64 },
     #[error("rig {link} reported an error: {text}")]
     Refused { link: String, text: String },
     #[error("rig {link}: {why}")]
@@ -93,7 +128,18 @@ pub struct RemoteRun {
     pub late: usize,
 }
 
+/// Sends `msg`: the last guard between a controller and the valve. A
+/// command that is not a finite number in 0–10 V does not go out.
 fn send(link: &mut dyn Link, msg: ToRig) -> Result<(), RigError> {
+    if let ToRig::Command { k, volts } = msg {
+        if !(VOLTS.0..=VOLTS.1).contains(&volts) {
+            return Err(RigError::Command {
+                link: link.describe(),
+                k,
+                volts,
+            });
+        }
+    }
     link.send(&msg.to_string()).map_err(|e| RigError::Send {
         link: link.describe(),
         why: e.to_string(),
@@ -101,8 +147,8 @@ fn send(link: &mut dyn Link, msg: ToRig) -> Result<(), RigError> {
 }
 
 /// `HELLO` / `READY`, waiting `timeout` for the answer: returns the rig's
-/// sample time.
-pub fn connect(link: &mut dyn Link, timeout: Duration) -> Result<f64, RigError> {
+/// sample time and the ranges it announced, if it did.
+pub fn connect(link: &mut dyn Link, timeout: Duration) -> Result<(f64, Option<Ranges>), RigError> {
     let fail = |link: &dyn Link, why: String| RigError::Handshake {
         link: link.describe(),
         why,
@@ -110,7 +156,11 @@ pub fn connect(link: &mut dyn Link, timeout: Duration) -> Result<f64, RigError> 
     send(link, ToRig::Hello { version: VERSION })?;
     match link.recv(Some(timeout)) {
         Received::Line(line) => match FromRig::parse(&line) {
-            Ok(FromRig::Ready { version, dt }) if version == VERSION => Ok(dt),
+            Ok(FromRig::Ready {
+                version,
+                dt,
+                ranges,
+            }) if version == VERSION => Ok((dt, ranges)),
             Ok(FromRig::Ready { version, .. }) => Err(fail(
                 link,
                 format!("speaks protocol version {version}, this build {VERSION}"),
@@ -150,7 +200,11 @@ pub fn run_remote(
         line_no: 1, // READY was line 1
         late: 0,
         in_a_row: 0,
+        implausible: 0,
+        measured: None,
+        commanded: None,
     };
+    let mut plausible = Plausibility::new(settings.limits, dt);
     let log_path = log.path().display().to_string();
     let logged = |r: std::io::Result<()>| {
         r.map_err(|e| RigError::Log {
@@ -159,33 +213,22 @@ pub fn run_remote(
         })
     };
     let first = lp.first();
-    send(
-        link,
-        ToRig::Command {
-            k: 0,
-            volts: first.volts,
-        },
-    )?;
+    let mut result = state.command(link, 0, first.volts);
     // Each measurement is due `deadline` after the one before it arrived
     // (or after the first command, or after the last deadline that passed):
     // on the rig's own rhythm, whatever the controller's compute time.
     let mut anchor = Instant::now();
-    let mut result = Ok(());
-    while !lp.done() {
+    while result.is_ok() && !lp.done() {
         let k = lp.next_sample();
         let left = settings.deadline.saturating_sub(anchor.elapsed());
-        // The samples this wait settles: (sample, measurement or None).
-        let settled: Vec<(usize, Option<Measurement>)> = match link.recv(Some(left)) {
+        // The samples this wait settles, and what settled each.
+        let settled: Vec<(usize, Settled)> = match link.recv(Some(left)) {
             Received::Timeout => {
                 anchor = Instant::now();
-                vec![(k, None)]
+                vec![(k, Settled::Missing)]
             }
             Received::Closed(why) => {
-                result = Err(RigError::Closed {
-                    link: link.describe(),
-                    k,
-                    why,
-                });
+                result = Err(state.gone(link, why));
                 break;
             }
             Received::Line(line) => match state.accept(link, &line, k, dt, n) {
@@ -205,12 +248,39 @@ pub fn run_remote(
                 // Samples the rig skipped were missing; their commands held.
                 Ok(Accepted::Use(j, m)) => {
                     anchor = Instant::now();
-                    (k..j).map(|i| (i, None)).chain([(j, Some(m))]).collect()
+                    let last = match plausible.check(j, &m) {
+                        Ok(()) => {
+                            state.implausible = 0;
+                            Settled::Measured(m)
+                        }
+                        Err(why) => {
+                            state.implausible += 1;
+                            if state.implausible >= settings.max_implausible {
+                                result = Err(RigError::Implausible {
+                                    link: link.describe(),
+                                    line_no: state.line_no,
+                                    line,
+                                    why,
+                                    count: state.implausible,
+                                });
+                                break;
+                            }
+                            Settled::Implausible(format!("line {} `{line}`: {why}", state.line_no))
+                        }
+                    };
+                    (k..j)
+                        .map(|i| (i, Settled::Missing))
+                        .chain([(j, last)])
+                        .collect()
                 }
             },
         };
         let mut last = first;
-        for (i, m) in settled {
+        for (i, s) in settled {
+            let m = match s {
+                Settled::Measured(m) => Some(m),
+                _ => None,
+            };
             let prev = lp.command_in_force();
             last = lp.step(m);
             record.push(
@@ -222,10 +292,11 @@ pub fn run_remote(
                 lp.last_time,
                 &episode.limits,
             );
-            let written = match m {
-                Some(m) => {
+            let written = match s {
+                Settled::Measured(m) => {
                     state.in_a_row = 0;
                     state.used[i] = true;
+                    state.measured = Some((i, state.line_no));
                     log.row(
                         times[i - 1],
                         reference[i - 1],
@@ -234,7 +305,7 @@ pub fn run_remote(
                         last.volts,
                     )
                 }
-                None => {
+                Settled::Missing => {
                     state.in_a_row += 1;
                     state.held[i] = true;
                     log.event(&format!(
@@ -243,6 +314,12 @@ pub fn run_remote(
                         last.volts
                     ))
                 }
+                // Held like a missing one, but counted apart: the rig did
+                // answer. Not `held`: a second line for the sample is stale.
+                Settled::Implausible(why) => log.event(&format!(
+                    "sample {i}: implausible measurement, {why}; held {} V",
+                    last.volts
+                )),
             };
             if let Err(e) = logged(written) {
                 result = Err(e);
@@ -261,16 +338,7 @@ pub fn run_remote(
             break;
         }
         if !lp.done() {
-            if let Err(e) = send(
-                link,
-                ToRig::Command {
-                    k: last.k as u64,
-                    volts: last.volts,
-                },
-            ) {
-                result = Err(e);
-                break;
-            }
+            result = state.command(link, last.k as u64, last.volts);
         }
     }
     match result {
@@ -285,14 +353,38 @@ pub fn run_remote(
             })
         }
         Err(e) => {
-            let k = lp.next_sample() as u64;
-            let _ = send(link, ToRig::Command { k, volts: 0.0 });
-            let _ = send(link, ToRig::Stop);
+            // The error goes into the log first: whatever the link does to
+            // the close, the log says why the run ended.
             let _ = log.event(&format!("error: {e}"));
-            let _ = log.event(&format!("valve closed: U {k} 0, STOP"));
+            // The close is the command of the sample after the last one
+            // sent: the one the rig waits for. A rig that went away may
+            // still read its stdin, so it is sent all the same; but only a
+            // rig still there closed the valve.
+            let k = state.commanded.map_or(0, |(k, _)| k + 1);
+            let close =
+                send(link, ToRig::Command { k, volts: 0.0 }).and_then(|()| send(link, ToRig::Stop));
+            let note = match (close, &e) {
+                (Ok(()), RigError::Gone { .. }) => format!(
+                    "U {k} 0, STOP sent after the rig went away: the valve is as the rig left it"
+                ),
+                (Ok(()), _) => format!("valve closed: U {k} 0, STOP"),
+                (Err(RigError::Send { why, .. }), _) => {
+                    format!("U {k} 0, STOP not delivered ({why}): the valve is as the rig left it")
+                }
+                (Err(other), _) => format!("U {k} 0, STOP not sent: {other}"),
+            };
+            let _ = log.event(&note);
             Err(e)
         }
     }
+}
+
+/// What settled a sample.
+enum Settled {
+    Measured(Measurement),
+    Missing,
+    /// Refused by the plausibility check: the line and why.
+    Implausible(String),
 }
 
 /// What the loop knows of the samples so far.
@@ -303,6 +395,12 @@ struct Session {
     late: usize,
     /// Missing measurements in a row.
     in_a_row: usize,
+    /// Implausible measurements in a row.
+    implausible: usize,
+    /// The last sample whose measurement was used, and its line.
+    measured: Option<(usize, usize)>,
+    /// The last command sent: sample and volts.
+    commanded: Option<(u64, f64)>,
 }
 
 enum Accepted {
@@ -313,6 +411,36 @@ enum Accepted {
 }
 
 impl Session {
+    /// Sends `U k volts` (through the guard) and remembers it.
+    fn command(&mut self, link: &mut dyn Link, k: u64, volts: f64) -> Result<(), RigError> {
+        match send(link, ToRig::Command { k, volts }) {
+            Ok(()) => {
+                self.commanded = Some((k, volts));
+                Ok(())
+            }
+            Err(RigError::Send { why, .. }) => Err(self.gone(link, why)),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The link broke: says which sample was exchanged last, so that the
+    /// rig's own record can be matched to this one.
+    fn gone(&self, link: &dyn Link, why: String) -> RigError {
+        let measured = match self.measured {
+            Some((j, line)) => format!("M {j} received (line {line})"),
+            None => "no measurement received".into(),
+        };
+        let commanded = match self.commanded {
+            Some((k, v)) => format!("U {k} {v} sent"),
+            None => "no command sent".into(),
+        };
+        RigError::Gone {
+            link: link.describe(),
+            why,
+            last: format!("{measured}, {commanded}"),
+        }
+    }
+
     /// Checks one line while the measurement closing sample `k − 1` is due.
     fn accept(
         &mut self,
@@ -394,5 +522,86 @@ mod tests {
         assert!(close(RemoteSettings::default_deadline(0.01), 15.0));
         assert!(close(RemoteSettings::default_deadline(0.1), 150.0));
         assert!(close(RemoteSettings::default_deadline(0.001), 1.5));
+    }
+
+    /// A rig in memory that answers every `U k` with a plausible `M k+1`
+    /// and keeps every line it was sent.
+    struct EchoRig {
+        sent: Vec<String>,
+    }
+
+    impl Link for EchoRig {
+        fn send(&mut self, line: &str) -> std::io::Result<()> {
+            self.sent.push(line.to_string());
+            Ok(())
+        }
+
+        fn recv(&mut self, _: Option<Duration>) -> Received {
+            match self.sent.last().and_then(|l| ToRig::parse(l).ok()) {
+                Some(ToRig::Command { k, .. }) => {
+                    let j = k + 1;
+                    Received::Line(format!("M {j} {} 0.2 25", j as f64 * 0.01))
+                }
+                _ => Received::Closed("end of stream".into()),
+            }
+        }
+
+        fn describe(&self) -> String {
+            "echo".into()
+        }
+    }
+
+    /// A controller with a bug: from its third command on it answers `bad`.
+    struct Faulty {
+        bad: f64,
+        calls: usize,
+    }
+
+    impl Controller for Faulty {
+        fn name(&self) -> &str {
+            "faulty"
+        }
+
+        fn reset(&mut self, _: f64) {
+            self.calls = 0;
+        }
+
+        fn command(&mut self, _: Measurement, _: &[f64]) -> f64 {
+            self.calls += 1;
+            if self.calls >= 3 { self.bad } else { 5.0 }
+        }
+    }
+
+    #[test]
+    fn a_command_outside_0_to_10_volts_never_reaches_the_rig() {
+        let settings = RemoteSettings {
+            deadline: Duration::from_secs(5),
+            max_missing: 3,
+            limits: Limits::of_twin(&crate::twin::TwinConfig::default()),
+            max_implausible: 3,
+        };
+        let episode = Episode::short(3.0, 0.1, 0.1, 0.05);
+        for bad in [f64::NAN, f64::INFINITY, 12.0, -0.5, 10.000001] {
+            let mut rig = EchoRig { sent: Vec::new() };
+            let mut c = Faulty { bad, calls: 0 };
+            let out = run_remote(
+                &mut rig,
+                0.01,
+                &mut c,
+                &episode,
+                &settings,
+                &mut RunLog::none(),
+            );
+            let err = out.expect_err("the run must fail").to_string();
+            assert!(
+                err.contains("`U 3 ") && err.contains("not sent"),
+                "{bad}: {err}"
+            );
+            for line in &rig.sent {
+                assert!(ToRig::parse(line).is_ok(), "{bad}: sent `{line}`");
+            }
+            let tail: Vec<&str> = rig.sent.iter().rev().take(3).map(|s| s.as_str()).collect();
+            assert_eq!(tail, ["STOP", "U 3 0", "U 2 5"], "{bad}");
+        }
     }
 }

@@ -14,10 +14,16 @@
 //!
 //! Faults can be injected into the measurements (`Fault`), to test how a
 //! controller handles a rig that drops, delays or garbles its lines.
+//!
+//! `READY` announces the twin's sensor ranges. A command outside 0–10 V is
+//! refused, not clamped: the session answers `ERR`, closes the input valve
+//! and ends. A clamped command would hide the controller's fault and still
+//! drive the valve to an end stop.
 
 use std::time::{Duration, Instant};
 
 use super::link::{Link, Received};
+use super::plausible::Limits;
 use super::protocol::{FromRig, ToRig, VERSION};
 use crate::twin::{Rig, Sample, TwinConfig};
 
@@ -108,7 +114,15 @@ pub fn serve(
         match ToRig::parse(&line) {
             Ok(ToRig::Hello { version }) if version == VERSION => {
                 let dt = settings.config.sample_time_s;
-                link.send(&FromRig::Ready { version, dt }.to_string())?;
+                let ranges = Some(Limits::of_twin(&settings.config).ranges);
+                link.send(
+                    &FromRig::Ready {
+                        version,
+                        dt,
+                        ranges,
+                    }
+                    .to_string(),
+                )?;
                 let r = Session::new(settings).run(link)?;
                 report(&r);
                 link.end_session();
@@ -194,12 +208,16 @@ impl<'s> Session<'s> {
                     Ok(ToRig::Stop) => return Ok(Some(Next::End("STOP".into()))),
                     Ok(other) => {
                         let why = format!("`{other}` while the command for sample {k} was due");
-                        link.send(&FromRig::Error(why.clone()).to_string())?;
+                        link.send(
+                            &FromRig::Error(format!("{why}; input valve closed")).to_string(),
+                        )?;
                         return Ok(Some(Next::End(why)));
                     }
                     Err(e) => {
                         let why = format!("`{line}`: {e}");
-                        link.send(&FromRig::Error(why.clone()).to_string())?;
+                        link.send(
+                            &FromRig::Error(format!("{why}; input valve closed")).to_string(),
+                        )?;
                         return Ok(Some(Next::End(why)));
                     }
                 },
