@@ -8,8 +8,9 @@ use mckibben::data::csv::{ReadOptions, read_traces_with_notes};
 use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::Algorithm;
+use mckibben::optim::edge::fit_task;
 use mckibben::optim::engine::StopRules;
-use mckibben::optim::engine::model::{GENERATIONS, POPULATION, fit_task, staged_plan};
+use mckibben::optim::engine::model::{GENERATIONS, POPULATION, staged_plan};
 use mckibben::optim::task::Task;
 
 fn default_fit(c: &mut Criterion) {

@@ -22,8 +22,9 @@ use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::model::Family;
 use mckibben::optim::Algorithm;
 use mckibben::optim::cases::{Case, Judgement, matrix};
+use mckibben::optim::edge::fit_task;
 use mckibben::optim::engine::StopRules;
-use mckibben::optim::engine::model::{GENERATIONS, POPULATION, fit_task, staged_plan};
+use mckibben::optim::engine::model::{GENERATIONS, POPULATION, staged_plan};
 
 /// The default fit of `case` with `algo`, judged.
 fn judged(case: &Case, algo: Algorithm) -> Judgement {

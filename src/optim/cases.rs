@@ -26,7 +26,7 @@ use rand_distr::StandardNormal;
 use serde::Serialize;
 
 use super::engine::model::ModelObjective;
-use super::engine::{Engine, Plan, Polish, Space, StopRules};
+use super::engine::{Engine, Objective, Plan, Polish, Space, StopRules};
 use super::task::{Task, Validation};
 use crate::data::Trace;
 use crate::eval::Evaluator;
@@ -263,11 +263,8 @@ impl Case {
             judgement.polished_ratio = Some(polished_ratio);
             if polished_ratio > PASS_RATIO {
                 let mut objective = ModelObjective::for_task(evaluator, &task);
-                let sse = crate::optim::engine::Objective::costs(
-                    &mut objective,
-                    fitted,
-                    crate::model::Measure::FreeRun,
-                )?[0] as f64;
+                let sse = Objective::costs(&mut objective, fitted, crate::model::Measure::FreeRun)?
+                    [0] as f64;
                 let samples = task.estimation.len().saturating_sub(1);
                 judgement.passes = sse <= indistinguishable_up_to(polished_sse, samples);
             }

@@ -38,6 +38,24 @@ pub struct ActiveBound {
     pub origin: Origin,
 }
 
+/// Fits `task` with `plan` on `evaluator`, with no observer, interrupt or
+/// checkpoint (the studies of `compare` and the tests), then applies the
+/// edge rule.
+pub fn fit_task(
+    task: &Task,
+    plan: Plan,
+    seed: u64,
+    stops: StopRules,
+    evaluator: &mut dyn Evaluator,
+) -> anyhow::Result<(Engine, Outcome)> {
+    let mut engine = Engine::new(plan, Space::from(&task.space), seed, stops.clone())?;
+    let mut objective = ModelObjective::for_task(evaluator, task);
+    let outcome = engine.run(&mut objective, &mut [], None, None)?;
+    let mut widened = task.clone();
+    let (outcome, _) = refit_off_edges(&mut widened, &engine, outcome, &stops, evaluator)?;
+    Ok((engine, outcome))
+}
+
 /// Applies the edge rule to `outcome`, the result of the staged fit
 /// `engine` ran on `task`: widens the data-set bounds it ends on, refits
 /// from its best point with the free-run and polish stages of the same plan
@@ -125,7 +143,9 @@ mod tests {
     use super::*;
     use crate::eval::cpu::CpuEvaluator;
     use crate::model::Family;
+    use crate::model::Measure;
     use crate::optim::cases::{Case, CaseSpec, matrix};
+    use crate::optim::engine::Objective;
     use crate::optim::engine::model::staged_plan;
     use crate::optim::{Algorithm, engine::Space as EngineSpace};
 
@@ -201,5 +221,34 @@ mod tests {
         )
         .unwrap();
         assert!(none.is_empty());
+    }
+
+    #[test]
+    fn a_task_objective_rejects_unbounded_loops_on_the_free_run_only() {
+        let spec = CaseSpec {
+            samples: 2000,
+            ..matrix(Family::Classic, 1, 5)[0]
+        };
+        let case = Case::generate(spec);
+        let task = case.task();
+        let mut unbounded = case.truth.clone();
+        // β + γ < 0: the loop grows without bound.
+        unbounded[3] = -unbounded[2] - 0.05;
+        let rows: Vec<f64> = case.truth.iter().chain(&unbounded).copied().collect();
+        let mut cpu = CpuEvaluator::new();
+        let mut objective = ModelObjective::for_task(&mut cpu, &task);
+        let free = objective.costs(&rows, Measure::FreeRun).unwrap();
+        assert!(free[0].is_finite() && free[1] == f32::INFINITY, "{free:?}");
+        let residuals = objective.residuals(&rows, Measure::FreeRun).unwrap();
+        assert!(residuals[0].is_some() && residuals[1].is_none());
+        let ahead = Measure::Ahead { horizon: 10 };
+        let checked = objective.costs(&rows, ahead).unwrap();
+        // The plain objective scores what it simulates; the check only
+        // touches the free run.
+        let mut cpu = CpuEvaluator::new();
+        let mut plain = ModelObjective::new(&mut cpu, task.problem());
+        let bits = |c: Vec<f32>| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(plain.costs(&rows, ahead).unwrap()), bits(checked));
+        assert_eq!(plain.costs(&rows, Measure::FreeRun).unwrap()[0], free[0]);
     }
 }

@@ -10,7 +10,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::engine::model::{GENERATIONS, POPULATION, fit_task, staged_plan};
+use super::edge::fit_task;
+use super::engine::model::{GENERATIONS, POPULATION, staged_plan};
 use super::engine::{Plan, StopRules};
 use super::task::Task;
 use super::{AlgoSettings, Algorithm};

@@ -3,8 +3,8 @@
 
 use nalgebra::DVector;
 
+use super::Objective;
 use super::plan::{FreeRun, Global, Plan, Polish};
-use super::{Engine, Objective, Outcome, Space, StopRules};
 use crate::eval::{Evaluator, Problem};
 use crate::model::coords::in_bounded_class;
 use crate::model::{Flow, Loop, Measure};
@@ -204,60 +204,4 @@ pub fn staged_plan(task: &Task, settings: AlgoSettings, n: usize, g: usize) -> P
         global.settings = settings;
     }
     plan
-}
-
-/// Fits `task` with `plan` on `evaluator`, with no observer, interrupt or
-/// checkpoint (the studies of `compare` and the tests), then applies the
-/// edge rule ([`crate::optim::edge`]).
-pub fn fit_task(
-    task: &Task,
-    plan: Plan,
-    seed: u64,
-    stops: StopRules,
-    evaluator: &mut dyn Evaluator,
-) -> anyhow::Result<(Engine, Outcome)> {
-    let mut engine = Engine::new(plan, Space::from(&task.space), seed, stops.clone())?;
-    let mut objective = ModelObjective::for_task(evaluator, task);
-    let outcome = engine.run(&mut objective, &mut [], None, None)?;
-    let mut widened = task.clone();
-    let (outcome, _) =
-        crate::optim::edge::refit_off_edges(&mut widened, &engine, outcome, &stops, evaluator)?;
-    Ok((engine, outcome))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::eval::cpu::CpuEvaluator;
-    use crate::model::Family;
-    use crate::optim::cases::{Case, CaseSpec, matrix};
-
-    #[test]
-    fn a_task_objective_rejects_unbounded_loops_on_the_free_run_only() {
-        let spec = CaseSpec {
-            samples: 2000,
-            ..matrix(Family::Classic, 1, 5)[0]
-        };
-        let case = Case::generate(spec);
-        let task = case.task();
-        let mut unbounded = case.truth.clone();
-        // β + γ < 0: the loop grows without bound.
-        unbounded[3] = -unbounded[2] - 0.05;
-        let rows: Vec<f64> = case.truth.iter().chain(&unbounded).copied().collect();
-        let mut cpu = CpuEvaluator::new();
-        let mut objective = ModelObjective::for_task(&mut cpu, &task);
-        let free = objective.costs(&rows, Measure::FreeRun).unwrap();
-        assert!(free[0].is_finite() && free[1] == f32::INFINITY, "{free:?}");
-        let residuals = objective.residuals(&rows, Measure::FreeRun).unwrap();
-        assert!(residuals[0].is_some() && residuals[1].is_none());
-        let ahead = Measure::Ahead { horizon: 10 };
-        let checked = objective.costs(&rows, ahead).unwrap();
-        // The plain objective scores what it simulates; the check only
-        // touches the free run.
-        let mut cpu = CpuEvaluator::new();
-        let mut plain = ModelObjective::new(&mut cpu, task.problem());
-        let bits = |c: Vec<f32>| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(plain.costs(&rows, ahead).unwrap()), bits(checked));
-        assert_eq!(plain.costs(&rows, Measure::FreeRun).unwrap()[0], free[0]);
-    }
 }
