@@ -258,7 +258,7 @@ impl Optimizer for Ga {
 
     /// The staged fit keeps its best tenth and mutates by uniform relative
     /// steps with `P_mut = 0.3`: with the thesis' settings the GA misses the
-    /// basin of the generated cases (docs/RESULTS.md, "1. Known truth").
+    /// basin of the generated cases (docs/lab/results.md, "1. Known truth").
     fn staged_settings(n: usize) -> GaSettings {
         GaSettings {
             elitism: (n / 10).max(1),

@@ -29,7 +29,7 @@ use serde::{Deserialize, Serialize};
 use super::{Bounds, Optimizer};
 
 /// Above this population the all-pairs move, `O(N²·d)` a generation, stops
-/// being practical (timed: docs/RESULTS.md, "3. Equal budgets over 10
+/// being practical (timed: docs/lab/results.md, "3. Equal budgets over 10
 /// seeds"), so the thesis' flow and Table 21 move each firefly towards the
 /// [`BRIGHTEST`] brightest instead, unless told otherwise.
 pub const ALL_PAIRS_MAX: usize = 2000;
@@ -257,7 +257,7 @@ impl Optimizer for Mfa {
 
     /// The staged fit moves each firefly towards the 10 brightest with
     /// `e^(−σr²)` (eq. 32) in box units: with the thesis' settings the MFA
-    /// misses the basin of the generated cases (docs/RESULTS.md, "1. Known
+    /// misses the basin of the generated cases (docs/lab/results.md, "1. Known
     /// truth"), and its all-pairs move is `O(N²·d)` at the staged fit's
     /// populations.
     fn staged_settings(_n: usize) -> MfaSettings {

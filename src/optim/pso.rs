@@ -96,7 +96,7 @@ impl PsoSettings {
     /// anywhere spreads one neighbour per move, so the swarm keeps searching
     /// other basins while it does. With the global best the islands of the
     /// staged fit all collapsed into the linear model (A → 0) on two of six
-    /// seeds of the shipped stair (docs/RESULTS.md, "PSO on a ring").
+    /// seeds of the shipped stair (docs/lab/results.md, "PSO on a ring").
     pub fn constriction() -> PsoSettings {
         PsoSettings {
             w_start: 0.7298,

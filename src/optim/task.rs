@@ -119,7 +119,7 @@ impl Task {
     /// estimation optimum with β + γ < 0 lets `w` grow without bound once
     /// the input leaves the estimation half's range, and the fit then writes
     /// a model that diverges on its own validation half (as it did on the
-    /// Cavatappi muscle: docs/RESULTS.md, "Real data: the Cavatappi
+    /// Cavatappi muscle: docs/lab/results.md, "Real data: the Cavatappi
     /// muscle"). The check uses the validation half's input, never its
     /// output; the bound is ten times the estimation output's largest
     /// deviation, on every sample.

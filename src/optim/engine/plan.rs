@@ -65,7 +65,7 @@ pub struct Global {
     /// the stage's algorithm: it is the island that finds the free run's
     /// basin, and the answer should not depend on `--algo` (PSO's and MFA's
     /// own rules there end in the linear model more often: same section,
-    /// and docs/RESULTS.md, "The shipped stair").
+    /// and docs/lab/results.md, "The shipped stair").
     pub ladder: bool,
     /// The longest experiment (samples).
     pub longest: usize,
@@ -127,7 +127,7 @@ impl Default for Polish {
     /// per island of the default plan), because the slow multisines have
     /// distinct free-run minima within 0.1 % of each other's SSE whose
     /// validation differs by 6 %, and eight starts missed the true one on
-    /// the generated cases (docs/RESULTS.md, "Polish starts").
+    /// the generated cases (docs/lab/results.md, "Polish starts").
     fn default() -> Self {
         Polish {
             starts: 16,

@@ -73,7 +73,7 @@ impl Space {
     /// log-uniformly in magnitude over four decades below the box's larger
     /// edge (either sign where the box has both). A uniform draw almost never
     /// visits the sliver near zero where a muscle's β and γ often lie (as
-    /// the shipped stair's hysteretic fits do: docs/RESULTS.md, "The shipped
+    /// the shipped stair's hysteretic fits do: docs/lab/results.md, "The shipped
     /// stair"), and neither do the differences of uniform draws that DE
     /// steps by.
     pub fn draw(&self, count: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
