@@ -1,0 +1,340 @@
+//! `docs/GUIDE.md`, run as written: every ```` ```sh ```` block of the guide,
+//! in order, in a scratch folder holding a copy of the shipped `data/` (less
+//! `logger_example.csv`, which the guide's first block remakes from the
+//! stair), with `mckibben` on the `PATH`. A ```` ```sh fails ```` block must
+//! exit non-zero, any other must succeed; the ```` ```text ```` block right
+//! after a run block must match its real output (see [`check_shown`]); every
+//! file a block names after `>`, `--out`, `--plot` or `--report` must exist
+//! afterwards; and the guide's claims are checked on the numbers themselves
+//! (the fits, the control runs), so a guide edited into a wrong statement
+//! fails too.
+//!
+//! It runs the commands through `sh` (with `awk` and `head`), so it is Unix
+//! only. About 40 s on two cores, most of it `diagnose`.
+
+#![cfg(unix)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+/// One run block of the guide.
+#[derive(Debug)]
+struct Step {
+    /// The block's text, run with `sh -c`.
+    script: String,
+    /// A `sh fails` block: the command must exit non-zero.
+    fails: bool,
+    /// The output the guide shows for it, if a `text` block follows.
+    shown: Option<String>,
+    /// Line of the guide where the block starts (1-based), for messages.
+    line: usize,
+}
+
+/// The guide's run blocks, in order, each with the output block after it.
+fn steps(guide: &str) -> Vec<Step> {
+    let mut steps: Vec<Step> = Vec::new();
+    let mut lines = guide.lines().enumerate();
+    // Whether the fenced block just closed was a run block (so a `text`
+    // block now is its output).
+    let mut after_step = false;
+    while let Some((i, line)) = lines.next() {
+        let Some(info) = line.strip_prefix("```") else {
+            if !line.trim().is_empty() {
+                after_step = false;
+            }
+            continue;
+        };
+        let info = info.trim();
+        let mut body = String::new();
+        for (_, l) in lines.by_ref() {
+            if l.trim_end() == "```" {
+                break;
+            }
+            body.push_str(l);
+            body.push('\n');
+        }
+        match info {
+            "sh" | "sh fails" => {
+                steps.push(Step {
+                    script: body,
+                    fails: info == "sh fails",
+                    shown: None,
+                    line: i + 1,
+                });
+                after_step = true;
+            }
+            "text" if after_step => {
+                steps.last_mut().unwrap().shown = Some(body);
+                after_step = false;
+            }
+            _ => after_step = false,
+        }
+    }
+    steps
+}
+
+/// Every line of the shown output must be in the real one (whitespace at
+/// either end ignored), except a line `…` (rows left out); a line ending in
+/// `…` must begin a real line.
+fn check_shown(step: &Step, real: &str) {
+    let Some(shown) = &step.shown else { return };
+    let real: Vec<&str> = real.lines().map(str::trim).collect();
+    for l in shown.lines().map(str::trim) {
+        if l == "…" || l.is_empty() {
+            continue;
+        }
+        let found = match l.strip_suffix('…') {
+            Some(prefix) => real.iter().any(|r| r.starts_with(prefix.trim_end())),
+            None => real.contains(&l),
+        };
+        assert!(
+            found,
+            "docs/GUIDE.md line {}: the output shown has\n  {l}\nbut the command printed\n{}",
+            step.line,
+            real.join("\n")
+        );
+    }
+}
+
+/// The files a block writes: the word after `>`, `--out`, `--plot` or
+/// `--report`.
+fn written(script: &str) -> Vec<String> {
+    let words: Vec<&str> = script.split_whitespace().collect();
+    words
+        .windows(2)
+        .filter(|w| matches!(w[0], ">" | "--out" | "--plot" | "--report"))
+        .map(|w| w[1].to_string())
+        .collect()
+}
+
+/// The number after `key` on the first line of `out` holding it.
+fn number_after(out: &str, key: &str) -> f64 {
+    let line = out
+        .lines()
+        .find(|l| l.contains(key))
+        .unwrap_or_else(|| panic!("no `{key}` in\n{out}"));
+    let rest = &line[line.find(key).unwrap() + key.len()..];
+    let token: String = rest
+        .trim_start()
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || matches!(c, '.' | '-'))
+        .collect();
+    token
+        .parse()
+        .unwrap_or_else(|_| panic!("no number after `{key}` in\n{line}"))
+}
+
+/// The RMS tracking error (mm) of `controller`'s row in `control`'s table.
+fn rms_of(out: &str, controller: &str) -> f64 {
+    let row = out
+        .lines()
+        .find(|l| l.split_whitespace().next() == Some(controller))
+        .unwrap_or_else(|| panic!("no `{controller}` row in\n{out}"));
+    row.split_whitespace().nth(3).unwrap().parse().unwrap()
+}
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A scratch folder laid out as the repository root for the guide: the
+/// shipped data (less the file the guide remakes) and `bin/mckibben`.
+fn scratch() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("data");
+    std::fs::create_dir(&data).unwrap();
+    for entry in std::fs::read_dir(repo().join("data")).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_owned();
+        if name != "logger_example.csv" {
+            std::fs::copy(&path, data.join(name)).unwrap();
+        }
+    }
+    let bin = dir.path().join("bin");
+    std::fs::create_dir(&bin).unwrap();
+    std::os::unix::fs::symlink(env!("CARGO_BIN_EXE_mckibben"), bin.join("mckibben")).unwrap();
+    dir
+}
+
+fn run(step: &Step, root: &Path) -> String {
+    let path = format!(
+        "{}:{}",
+        root.join("bin").display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let started = Instant::now();
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(&step.script)
+        .current_dir(root)
+        .env("PATH", path)
+        .output()
+        .expect("sh runs");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+    eprintln!(
+        "docs/GUIDE.md line {}: {:.1} s: {}",
+        step.line,
+        started.elapsed().as_secs_f64(),
+        step.script.lines().next().unwrap_or("")
+    );
+    assert_eq!(
+        out.status.success(),
+        !step.fails,
+        "docs/GUIDE.md line {}: the block {} but it exited with {}:\n{}\n{text}",
+        step.line,
+        if step.fails {
+            "is marked `sh fails`"
+        } else {
+            "must succeed"
+        },
+        out.status,
+        step.script
+    );
+    text
+}
+
+#[test]
+fn the_guide_runs_as_written() {
+    let guide = std::fs::read_to_string(repo().join("docs/GUIDE.md")).unwrap();
+    let steps = steps(&guide);
+    let dir = scratch();
+    let root = dir.path();
+    let started = Instant::now();
+
+    // What the guide must keep covering, counted as the blocks run.
+    let mut seen: Vec<&str> = Vec::new();
+    for step in &steps {
+        let out = run(step, root);
+        check_shown(step, &out);
+        if !step.fails {
+            for file in written(&step.script) {
+                assert!(
+                    root.join(&file).exists(),
+                    "docs/GUIDE.md line {}: {file} was not written",
+                    step.line
+                );
+            }
+        }
+        let s = step.script.as_str();
+        if s.contains("> data/logger_example.csv") {
+            // The recipe remakes the shipped file, byte for byte.
+            let made = std::fs::read(root.join("data/logger_example.csv")).unwrap();
+            let shipped = std::fs::read(repo().join("data/logger_example.csv")).unwrap();
+            assert!(
+                made == shipped,
+                "the guide's recipe no longer makes data/logger_example.csv"
+            );
+            seen.push("recipe");
+        } else if s.starts_with("mckibben identify data/logger_example.csv") && step.fails {
+            assert!(out.contains("line 3623, column \"time_s\""), "{out}");
+            seen.push("glitch error");
+        } else if s.contains("identify") && s.contains("--split-gaps") {
+            assert!(
+                out.contains("line 3303: --split-gaps cut here: gap"),
+                "{out}"
+            );
+            assert!(out.contains("line 3623: --split-gaps cut here: time runs back"));
+            assert_eq!(out.matches("ARX identification").count(), 3, "{out}");
+            seen.push("split");
+        } else if s.contains("before_glitch.csv") && step.fails {
+            assert!(out.contains("line 3303") && out.contains("non-uniform"));
+            seen.push("gap error");
+        } else if s.contains("identify") && s.contains("--resample") && !step.fails {
+            assert!(out.contains("(3628 samples, dt = 0.01 s)"), "{out}");
+            seen.push("resample");
+        } else if s.starts_with("mckibben fit") {
+            let fit = number_after(&out, "validation fit");
+            assert!(fit > 85.0, "validation fit {fit} %");
+            let model = written(s)[0].clone() + "/model.json";
+            let model = std::fs::read_to_string(root.join(model)).unwrap();
+            let units = if s.contains("p_kPa") {
+                "p_kPa"
+            } else {
+                "p_MPa"
+            };
+            assert!(model.contains(&format!("\"input_name\": \"{units}\"")));
+            for f in ["loop.svg", "trace.svg", "result.json"] {
+                assert!(root.join(written(s)[0].clone()).join(f).exists(), "{f}");
+            }
+            seen.push("fit");
+        } else if s.starts_with("mckibben diagnose") {
+            assert!(out.contains("on data/logger_example.csv[1], data/logger_example.csv[2]"));
+            let baseline = out.lines().find(|l| l.starts_with("Baseline:")).unwrap();
+            assert!(number_after(baseline, ", fit") > 80.0, "{baseline}");
+            for f in ["diagnose_fit.svg", "diagnose_residual.svg"] {
+                assert!(root.join("out/guide/diagnose").join(f).exists(), "{f}");
+            }
+            seen.push("diagnose");
+        } else if s.starts_with("mckibben simulate --from") {
+            assert!(out.contains("output range"), "{out}");
+            seen.push("simulate");
+        } else if s.starts_with("mckibben control --from") {
+            let rmse = number_after(&out, "prediction RMSE on the validation record:");
+            let mpc = rms_of(&out, "mpc");
+            if s.contains("fit_MPa") {
+                // The model in the twin's units predicts it to under 1.5 mm
+                // and the MPC with it tracks better than the thesis' PI.
+                assert!(rmse < 1.5, "prediction RMSE {rmse} mm");
+                assert!(mpc < rms_of(&out, "pi"), "{out}");
+                assert!(root.join("out/guide/control/control_model.svg").exists());
+                seen.push("control");
+            } else {
+                // The kPa model: the tell the guide points at.
+                assert!(rmse > 3.0, "prediction RMSE {rmse} mm");
+                seen.push("control, wrong units");
+            }
+        }
+    }
+    for want in [
+        "recipe",
+        "glitch error",
+        "split",
+        "gap error",
+        "resample",
+        "fit",
+        "diagnose",
+        "simulate",
+        "control",
+        "control, wrong units",
+    ] {
+        assert!(
+            seen.contains(&want),
+            "docs/GUIDE.md no longer has the step `{want}` (seen: {seen:?})"
+        );
+    }
+
+    // The figures the guide shows are in docs/figures, and README links the
+    // guide.
+    for (i, _) in guide.match_indices("](figures/") {
+        let rest = &guide[i + 2..];
+        let link = &rest[..rest.find(')').unwrap()];
+        assert!(repo().join("docs").join(link).exists(), "{link} is missing");
+    }
+    let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
+    assert!(readme.contains("docs/GUIDE.md"));
+    eprintln!("the guide ran in {:.1} s", started.elapsed().as_secs_f64());
+}
+
+#[test]
+fn steps_are_read_from_the_fenced_blocks() {
+    let md = "text\n\n```sh\nmckibben a\n```\n\n```text\nout a\n```\n\n```bash\nnot run\n```\n\n\
+              ```text\nnot attached\n```\n\n```sh fails\nmckibben b \\\n  --x\n```\nprose\n\n```text\nlate\n```\n";
+    let s = steps(md);
+    assert_eq!(s.len(), 2);
+    assert_eq!(s[0].script, "mckibben a\n");
+    assert_eq!(s[0].shown.as_deref(), Some("out a\n"));
+    assert!(!s[0].fails);
+    assert_eq!(s[1].script, "mckibben b \\\n  --x\n");
+    assert!(s[1].fails);
+    // Prose between a run block and a text block detaches it.
+    assert_eq!(s[1].shown, None);
+    assert_eq!(
+        written("mckibben fit x --out out/a > log.txt"),
+        ["out/a", "log.txt"]
+    );
+}
