@@ -15,7 +15,7 @@
 //! samples need one or two iterations — each a solve with `H⁻¹`, which is
 //! formed once per sample. An interior-point method cannot start from the
 //! old solution and walks the same central path every sample (the two
-//! compared: docs/CONTROL.md, "Real time").
+//! compared: docs/lab/control.md, "Real time").
 
 /// One of the problem's inequality constraints, by the index it bounds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

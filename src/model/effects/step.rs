@@ -88,7 +88,7 @@ pub struct Prepared<const L: usize> {
 /// Laid out in order and aligned to a cache line, so that every lane array
 /// starts on one (the arrays come first, 128 bytes each at `L = 32`): a
 /// vector load of an array that straddles two lines costs two (measured:
-/// docs/PERFORMANCE.md).
+/// docs/lab/performance.md).
 #[derive(Debug, Clone)]
 #[repr(C, align(64))]
 pub struct EffectState<const L: usize> {
@@ -200,7 +200,7 @@ impl<const L: usize> Prepared<L> {
     /// exact, and ties and NaN pick the bound either way), so each stop is
     /// one lane loop with no branch on the direction (choosing per lane,
     /// the output clip ran at 47 % of the plain model's speed, and with one
-    /// loop per direction at 33 %; this way at 80 %: docs/PERFORMANCE.md).
+    /// loop per direction at 33 %; this way at 80 %: docs/lab/performance.md).
     /// WGSL writes each direction out (`shaders/effects.wgsl`).
     #[inline(always)]
     fn toward(&self) -> f32 {

@@ -122,7 +122,7 @@ impl Default for Polish {
     /// of 1e-3 stays above the `f32` simulation's rounding in a central
     /// difference, whose own error is second order; a smaller one drowns
     /// the loop-shape parameters' columns in rounding. Measured:
-    /// docs/ARCHITECTURE.md, "Decisions of the fitting engine" (the bullets
+    /// docs/lab/results.md, "Decisions of the fitting engine: the measurements" (the bullets
     /// on the three stages and on central differences). Sixteen starts (four
     /// per island of the default plan), because the slow multisines have
     /// distinct free-run minima within 0.1 % of each other's SSE whose
