@@ -189,7 +189,7 @@ fn the_report_says_not_explained_and_names_no_cause() {
     use mckibben::data::csv::{ReadOptions, read_traces};
     use mckibben::diagnose::blind::{Setup, cases, synthesize};
     use mckibben::diagnose::diagnose;
-    use mckibben::diagnose::report::{to_json, to_text};
+    use mckibben::diagnose::report::{DiagnosisJson, to_text};
 
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/stair_4.5kg.csv");
     let stair = read_traces(&path, &ReadOptions::default())
@@ -215,18 +215,13 @@ fn the_report_says_not_explained_and_names_no_cause() {
         text.contains("Verdict: not explained by the catalogue."),
         "{text}"
     );
-    let json = to_json(&d);
-    assert_eq!(json["verdict_kind"], "not-explained");
-    assert_eq!(json["verdict"].as_array().unwrap().len(), 0);
+    let json = DiagnosisJson::of(&d);
+    assert_eq!(json.verdict_kind, "not-explained");
+    assert!(json.verdict.is_empty());
     // The catalogue's best model keeps the effects it fitted (they close
     // part of the cross-talk's gap), and the report calls them fits, not
     // causes, by name.
-    let fitted: Vec<&str> = json["final"]["model"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e.as_str().unwrap())
-        .collect();
+    let fitted: Vec<&str> = json.final_.model.clone();
     assert!(
         !fitted.is_empty(),
         "the final model fitted no effect: {text}"

@@ -141,8 +141,8 @@ fn bench_scores_a_model_with_effects_and_times_the_cpu_path() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let rows: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let row = &rows[0];
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let row = &v["rows"][0];
     assert_eq!(row["model"], "classic + creep, saturation:output");
     assert_eq!(row["effects"][1], "saturation:output");
     assert_eq!(row["population"], 150);

@@ -15,6 +15,7 @@ use mckibben::eval::{Backend, Evaluator, Problem, open};
 use mckibben::model::effects::{Augmented, Context, Effect};
 use mckibben::model::presets::THESIS_B;
 use mckibben::model::{Experiment, Family};
+use mckibben::report::json::Versioned;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -32,7 +33,8 @@ use rand_chacha::ChaCha8Rng;
 /// maximum relative difference, diverged-in-one-only count, bit-identity
 /// and whether the ten and the hundred best candidates are the same.
 ///
-/// --json prints one object per population size: backend ("gpu" or "cpu"),
+/// --json prints `schema_version` and `rows`, one object per population
+/// size (docs/JSON.md): backend ("gpu" or "cpu"),
 /// adapter, model (the family and its effects, e.g. "classic +
 /// saturation:output"), effects (names), samples, population,
 /// candidate_samples_per_s, evals_per_s, median_s, agreement
@@ -173,7 +175,13 @@ fn markdown_rows(row: &Row) -> String {
     out
 }
 
-/// One population's result; the keys of `--json`.
+/// The `--json` output: one row per population size.
+#[derive(Debug, Serialize)]
+struct Output<'a> {
+    rows: &'a [Row],
+}
+
+/// One population's result; the keys of `--json`'s rows.
 #[derive(Debug, Serialize)]
 struct Row {
     backend: &'static str,
@@ -332,7 +340,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         rows.push(row);
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&rows)?);
+        println!(
+            "{}",
+            Versioned::new(Output { rows: &rows }).to_string_pretty()?
+        );
     }
     Ok(())
 }

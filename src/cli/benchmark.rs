@@ -13,6 +13,7 @@ use mckibben::benchmark::{
 };
 use mckibben::eval::Backend;
 use mckibben::optim::Algorithm;
+use mckibben::report::json::{Named, Versioned};
 
 /// Validate the identification on a public benchmark with published results.
 #[derive(Debug, clap::Args)]
@@ -55,6 +56,10 @@ struct BoucwenArgs {
     /// Generations of the search.
     #[arg(long, default_value_t = IdentifySettings::default().generations)]
     generations: usize,
+    /// Levenberg–Marquardt iterations of the refinement on the training
+    /// record (0: report the population stage's best as it is).
+    #[arg(long, default_value_t = IdentifySettings::default().lm_iterations)]
+    lm_iterations: usize,
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
@@ -64,10 +69,12 @@ struct BoucwenArgs {
 struct Report {
     test_multisine_rmse_m: f64,
     test_sinesweep_rmse_m: f64,
-    params: serde_json::Map<String, serde_json::Value>,
+    params: Named,
     train_rmse_m: f64,
     seconds: f64,
     evaluations: usize,
+    /// Levenberg–Marquardt iterations the refinement took.
+    lm_iterations: usize,
     backend: String,
     simulation: &'static str,
 }
@@ -92,6 +99,7 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
         seed: args.seed,
         population: args.population,
         generations: args.generations,
+        lm_iterations: args.lm_iterations,
         ..IdentifySettings::default()
     };
     let mut evaluator = evaluator::open(args.backend)?;
@@ -101,11 +109,7 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
     let sw = test_sinesweep_rmse(&id.params, &data.test_sinesweep)
         .ok_or_else(|| anyhow::anyhow!("the identified model diverges on the sine sweep"))?;
     let seconds = start.elapsed().as_secs_f64();
-    let params = PARAM_NAMES
-        .iter()
-        .zip(id.params.to_vec())
-        .map(|(n, v)| (n.to_string(), serde_json::json!(v)))
-        .collect();
+    let params = Named::zip(&PARAM_NAMES, &id.params.to_vec());
     let report = Report {
         test_multisine_rmse_m: ms,
         test_sinesweep_rmse_m: sw,
@@ -113,11 +117,12 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
         train_rmse_m: id.train_rmse,
         seconds,
         evaluations: id.evaluations,
+        lm_iterations: id.lm_iterations,
         backend: id.scorer.clone(),
         simulation: "free-run simulation from the test input only (no measured output used)",
     };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        println!("{}", Versioned::new(&report).to_string_pretty()?);
         return Ok(());
     }
     println!(

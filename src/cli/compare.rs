@@ -11,6 +11,7 @@ use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::optim::compare::{Report, Settings, Study, markdown};
 use mckibben::optim::mfa;
+use mckibben::report::json::Versioned;
 
 /// Compare the optimizers on one experiment (the shipped 4.5 kg stair by
 /// default), as Markdown tables (and JSON with --json):
@@ -107,7 +108,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let md = markdown(&report, &settings);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create --out {}", args.out.display()))?;
-    let json = serde_json::to_string_pretty(&report)?;
+    let json = Versioned::new(&report).to_string_pretty()?;
     write_atomic(&args.out.join("compare.json"), json.as_bytes())
         .with_context(|| format!("cannot write into {}", args.out.display()))?;
     write_atomic(&args.out.join("compare.md"), md.as_bytes())

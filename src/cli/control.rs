@@ -5,15 +5,19 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Context;
+use serde::Serialize;
 
-use mckibben::control::design::OPERATING_BAND_V;
+use mckibben::control::ControlModel;
+use mckibben::control::design::{OPERATING_BAND_V, PredictionReport};
 use mckibben::control::figures;
 use mckibben::control::sweep::{self, Design, Ingredients, Kind, Run, RunSpec, Shape};
 use mckibben::control::table::{self, RobustRow, Row};
-use mckibben::control::tuning::{self, TuningEpisodes};
+use mckibben::control::tuning::{self, Tuned, TuningEpisodes};
+use mckibben::control::validation::LoopShape;
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
 use mckibben::data::Trace;
 use mckibben::data::csv::{ReadOptions, read_traces, write_trace};
+use mckibben::report::json::Versioned;
 use mckibben::rig::{self, ChildLink, Limits, Link, Ranges, RemoteSettings, RunLog, UdpLink};
 use mckibben::twin::TwinConfig;
 
@@ -364,13 +368,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         csvs(dir, &runs)?;
     }
     if args.json {
-        let out = serde_json::json!({
-            "design": design.as_ref().map(design_json),
-            "tuned": tuned,
-            "runs": rows,
-            "robustness": robust,
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        let out = Output {
+            design: design.as_ref().map(DesignJson::of),
+            tuned,
+            runs: &rows,
+            robustness: &robust,
+        };
+        println!("{}", Versioned::new(out).to_string_pretty()?);
     } else {
         print_tables(&rows, &robust);
     }
@@ -442,15 +446,58 @@ fn describe_design(d: &Design) -> String {
     s
 }
 
-fn design_json(d: &Design) -> serde_json::Value {
-    serde_json::json!({
-        "source": d.source,
-        "model": d.model,
-        "prediction": d.prediction,
-        "loop_check": d.loop_check.as_ref().map(|l| serde_json::json!({
-            "plant": l.plant, "model": l.model, "rmse_mm": l.rmse_mm,
-        })),
-    })
+/// The `--json` output.
+#[derive(Debug, Serialize)]
+struct Output<'a> {
+    /// The identified model; null when no controller needs one.
+    design: Option<DesignJson<'a>>,
+    /// The PID gains of pi-tuned and ff-pid; null when neither runs.
+    tuned: Option<TunedJson>,
+    runs: &'a [Row],
+    robustness: &'a [RobustRow],
+}
+
+/// A design without its figure curves.
+#[derive(Debug, Serialize)]
+struct DesignJson<'a> {
+    source: &'a str,
+    model: &'a ControlModel,
+    prediction: &'a PredictionReport,
+    loop_check: Option<LoopCheckJson<'a>>,
+}
+
+#[derive(Debug, Serialize)]
+struct LoopCheckJson<'a> {
+    plant: &'a LoopShape,
+    model: &'a LoopShape,
+    rmse_mm: f64,
+}
+
+impl DesignJson<'_> {
+    fn of(d: &Design) -> DesignJson<'_> {
+        DesignJson {
+            source: &d.source,
+            model: &d.model,
+            prediction: &d.prediction,
+            loop_check: d.loop_check.as_ref().map(|l| LoopCheckJson {
+                plant: &l.plant,
+                model: &l.model,
+                rmse_mm: l.rmse_mm,
+            }),
+        }
+    }
+}
+
+/// The gains pi-tuned and ff-pid ran with, tuned or given.
+#[derive(Debug, Serialize)]
+struct TunedJson {
+    gains: PiGains,
+    /// Whether `--tuned-gains` gave them (then no tuning ran).
+    given: bool,
+    /// The tuning run; null when the gains were given.
+    tuning: Option<Tuned>,
+    /// Gains that ended on an edge of the tuning box.
+    on_edges: Vec<String>,
 }
 
 fn tune(
@@ -458,7 +505,7 @@ fn tune(
     kinds: &[Kind],
     config: &TwinConfig,
     say: &dyn Fn(String),
-) -> anyhow::Result<(Option<PiGains>, Option<serde_json::Value>)> {
+) -> anyhow::Result<(Option<PiGains>, Option<TunedJson>)> {
     if !kinds.iter().any(|k| k.needs_gains()) {
         return Ok((None, None));
     }
@@ -470,7 +517,12 @@ fn tune(
         };
         return Ok((
             Some(gains),
-            Some(serde_json::json!({ "gains": gains, "given": true })),
+            Some(TunedJson {
+                gains,
+                given: true,
+                tuning: None,
+                on_edges: Vec::new(),
+            }),
         ));
     }
     let episodes = TuningEpisodes::default();
@@ -501,7 +553,12 @@ fn tune(
     ));
     Ok((
         Some(t.gains),
-        Some(serde_json::json!({ "tuning": t, "on_edges": edges })),
+        Some(TunedJson {
+            gains: t.gains,
+            given: false,
+            tuning: Some(t),
+            on_edges: edges,
+        }),
     ))
 }
 

@@ -6,11 +6,15 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use mckibben::diagnose::blind;
-use mckibben::diagnose::report::{to_json, to_text, write_figures};
-use mckibben::diagnose::selftest::{Nominal, cases, run_case, table, twin_check};
+use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
+use mckibben::diagnose::selftest::{
+    Nominal, Outcome, TwinOutcome, cases, run_case, table, twin_check,
+};
 use mckibben::diagnose::{Effect, Settings, diagnose};
 use mckibben::eval::Backend;
 use mckibben::model::Family;
+use mckibben::report::json::Versioned;
+use serde::Serialize;
 
 use super::common::MultiDataArgs;
 
@@ -178,7 +182,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => Vec::new(),
     };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&to_json(&d))?);
+        println!(
+            "{}",
+            Versioned::new(DiagnosisJson::of(&d)).to_string_pretty()?
+        );
     } else {
         print!("{}", to_text(&d));
         for f in figures {
@@ -220,13 +227,15 @@ fn self_test(
     if args.json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "nominal": { "model": args.baseline.name(), "params": nominal.params, "data": trace.source },
-                "cases": outcomes,
-                "passed": passed,
-                "twin_check": twin,
-                "total": outcomes.len(),
-            }))?
+            Versioned::new(CatalogueSelfTest {
+                kind: "catalogue",
+                nominal: NominalJson::of(&nominal, trace),
+                cases: &outcomes,
+                passed,
+                twin_check: &twin,
+                total: outcomes.len(),
+            })
+            .to_string_pretty()?
         );
     } else {
         println!(
@@ -299,9 +308,9 @@ fn independent_self_test(
     let passed = outcomes.iter().filter(|o| o.pass).count();
     let wall = started.elapsed().as_secs_f64();
     if args.json {
-        let confusion: Vec<_> = blind::confusion(&outcomes)
+        let rows: Vec<ConfusionRow> = blind::confusion(&outcomes)
             .into_iter()
-            .map(|(row, counts)| serde_json::json!({ "truth": row, "first_named": counts }))
+            .map(|(truth, first_named)| ConfusionRow { truth, first_named })
             .collect();
         // The columns are physical effects: any realisation counts.
         let columns: Vec<&str> = Effect::PHYSICAL
@@ -311,17 +320,18 @@ fn independent_self_test(
             .collect();
         println!(
             "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "kind": "independent",
-                "nominal": { "model": args.baseline.name(), "params": nominal.params, "data": trace.source },
-                "plant": setup.plant,
-                "noise_sigma": setup.sigmas,
-                "cases": outcomes,
-                "confusion": { "columns": columns, "rows": confusion },
-                "passed": passed,
-                "total": outcomes.len(),
-                "wall_s": wall,
-            }))?
+            Versioned::new(IndependentSelfTest {
+                kind: "independent",
+                nominal: NominalJson::of(&nominal, trace),
+                plant: &setup.plant,
+                noise_sigma: &setup.sigmas,
+                cases: &outcomes,
+                confusion: Confusion { columns, rows },
+                passed,
+                total: outcomes.len(),
+                wall_s: wall,
+            })
+            .to_string_pretty()?
         );
     } else {
         println!(
@@ -335,4 +345,60 @@ fn independent_self_test(
         );
     }
     Ok(())
+}
+
+/// The nominal model a self-test generates its data from.
+#[derive(Debug, Serialize)]
+struct NominalJson<'a> {
+    model: &'static str,
+    params: &'a [f64],
+    data: &'a str,
+}
+
+impl<'a> NominalJson<'a> {
+    fn of(n: &'a Nominal, trace: &'a mckibben::data::Trace) -> NominalJson<'a> {
+        NominalJson {
+            model: n.family.name(),
+            params: &n.params,
+            data: &trace.source,
+        }
+    }
+}
+
+/// `--self-test=catalogue --json`.
+#[derive(Debug, Serialize)]
+struct CatalogueSelfTest<'a> {
+    kind: &'static str,
+    nominal: NominalJson<'a>,
+    cases: &'a [Outcome],
+    passed: usize,
+    twin_check: &'a [TwinOutcome],
+    total: usize,
+}
+
+/// `--self-test --json` (independent).
+#[derive(Debug, Serialize)]
+struct IndependentSelfTest<'a> {
+    kind: &'static str,
+    nominal: NominalJson<'a>,
+    plant: &'a blind::generator::Plant,
+    noise_sigma: &'a [f64],
+    cases: &'a [blind::BlindOutcome],
+    confusion: Confusion,
+    passed: usize,
+    total: usize,
+    wall_s: f64,
+}
+
+/// Cases by true physical effect (rows) and first named one (columns).
+#[derive(Debug, Serialize)]
+struct Confusion {
+    columns: Vec<&'static str>,
+    rows: Vec<ConfusionRow>,
+}
+
+#[derive(Debug, Serialize)]
+struct ConfusionRow {
+    truth: String,
+    first_named: Vec<usize>,
 }

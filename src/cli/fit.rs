@@ -24,6 +24,7 @@ use mckibben::optim::history::GenerationRecord;
 use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 use mckibben::optim::task::Task;
 use mckibben::report::fit_figures;
+use mckibben::report::json::{Named, Versioned};
 
 /// Fit a Bouc-Wen hysteresis model (eq. 13 with the classic or generalized
 /// state) to a recorded experiment. The first half of the data is used for
@@ -221,7 +222,8 @@ impl From<ModelArg> for Family {
 struct Output {
     model: Family,
     algo: Algorithm,
-    params: serde_json::Map<String, serde_json::Value>,
+    /// Fitted parameters by name, in the family's canonical order.
+    params: Named,
     /// Estimation SSE of the free run.
     sse: Option<f64>,
     val_rmse: Option<f64>,
@@ -404,7 +406,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &args.out, &task, &engine, &outcome, &widened, &trace, &backend,
     )?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&output)?);
+        println!("{}", Versioned::new(&output).to_string_pretty()?);
     } else {
         print_report(&output, &task);
     }
@@ -437,12 +439,12 @@ fn write_results(
         .with_context(|| format!("cannot create --out {}", out.display()))?;
     let found = !outcome.params.is_empty();
     let val = found.then(|| task.validate(&outcome.params));
-    let params: serde_json::Map<String, serde_json::Value> = task
+    let params: Named = task
         .family
         .params()
         .iter()
         .zip(&outcome.params)
-        .map(|(p, &v)| (p.name.to_string(), serde_json::json!(v)))
+        .map(|(p, &v)| (p.name, v))
         .collect();
     let on_edge = active_bounds(task, &outcome.params);
     let finite = |v: f64| v.is_finite().then_some(v);
@@ -479,7 +481,7 @@ fn write_results(
     };
     write(
         "result.json",
-        serde_json::to_string_pretty(&output)?.as_bytes(),
+        Versioned::new(&output).to_string_pretty()?.as_bytes(),
     )?;
     engine.history.save(out)?;
     let title = format!("{} {} fit", output.algo, task.family);
@@ -519,7 +521,7 @@ fn print_report(o: &Output, task: &Task) {
     );
     let free = task.space.free();
     for (i, p) in task.family.params().iter().enumerate() {
-        if let Some(v) = o.params.get(p.name).and_then(|v| v.as_f64()) {
+        if let Some(v) = o.params.get(p.name) {
             let fixed = if free.contains(&i) { "" } else { "  (fixed)" };
             println!("  {:<7} {v:>14.6}{fixed}", p.name);
         }

@@ -10,6 +10,7 @@ use mckibben::data::write_atomic;
 use mckibben::ident::ArxOrders;
 use mckibben::ident::arx::{Identification, identify};
 use mckibben::model::{Family, FittedModel};
+use mckibben::report::json::Versioned;
 
 /// Identify a linear ARX model from a recorded experiment, as the thesis does
 /// with MATLAB's System Identification Toolbox (§4.3): the means of the
@@ -77,11 +78,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         });
         outputs.push((id, model));
     }
-    let json: Vec<Output> = outputs
+    // One document per data piece, each with its own `schema_version`.
+    let json: Vec<Versioned<Output>> = outputs
         .iter()
-        .map(|(id, model)| Output {
-            identification: id,
-            model: model.clone(),
+        .map(|(id, model)| {
+            Versioned::new(Output {
+                identification: id,
+                model: model.clone(),
+            })
         })
         .collect();
     let text = if json.len() == 1 {

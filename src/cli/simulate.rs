@@ -11,6 +11,7 @@ use mckibben::data::signals::Stair;
 use mckibben::ident::loop_area;
 use mckibben::model::presets::thesis_params;
 use mckibben::model::{Family, FittedModel};
+use mckibben::report::json::{Named, Versioned};
 use mckibben::report::{Figure, Panel, Series};
 
 /// Pressure per volt of valve command used to turn the generated valve
@@ -89,7 +90,7 @@ enum Preset {
 #[derive(Debug, Serialize)]
 struct Summary {
     model: Family,
-    params: serde_json::Map<String, serde_json::Value>,
+    params: Named,
     input: String,
     samples: usize,
     dt: f64,
@@ -170,11 +171,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     let summary = Summary {
         model: model.family,
-        params: model
-            .named_params()
-            .into_iter()
-            .map(|(n, v)| (n.to_string(), v.into()))
-            .collect(),
+        params: model.named_params().into_iter().collect(),
         input: args.input.clone(),
         samples: trace.len(),
         dt: trace.dt(),
@@ -185,7 +182,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         out: args.out.clone(),
     };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        println!("{}", Versioned::new(&summary).to_string_pretty()?);
         return Ok(());
     }
     println!(

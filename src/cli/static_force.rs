@@ -6,6 +6,7 @@ use anyhow::Context;
 use serde::Serialize;
 
 use mckibben::model::static_force::{Braid, max_angle};
+use mckibben::report::json::Versioned;
 use mckibben::report::{Figure, Panel, Series};
 
 /// Print (and plot) the static force model: force against braid angle or
@@ -45,6 +46,13 @@ pub struct Args {
 enum Against {
     Angle,
     Length,
+}
+
+/// The `--json` output.
+#[derive(Debug, Serialize)]
+struct Output<'a> {
+    braid: &'a Braid,
+    rows: &'a [Row],
 }
 
 #[derive(Debug, Serialize)]
@@ -99,7 +107,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         println!(
             "{}",
-            serde_json::to_string_pretty(&serde_json::json!({ "braid": braid, "rows": rows }))?
+            Versioned::new(Output {
+                braid: &braid,
+                rows: &rows
+            })
+            .to_string_pretty()?
         );
         return Ok(());
     }

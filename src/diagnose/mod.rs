@@ -50,8 +50,9 @@ pub struct Step {
     pub gap_closed: f64,
 }
 
-/// Everything the diagnosis found.
-#[derive(Debug, Clone, Serialize)]
+/// Everything the diagnosis found (`report::DiagnosisJson` is its `--json`
+/// document).
+#[derive(Debug, Clone)]
 pub struct Diagnosis {
     pub family: Family,
     pub datasets: Vec<String>,
@@ -76,7 +77,6 @@ pub struct Diagnosis {
     pub spectrum: Option<spectrum::Spectrum>,
     pub final_spectrum: Option<spectrum::Spectrum>,
     /// Validation predictions `(t, input, measured, baseline, final)` per dataset (absolute units).
-    #[serde(skip)]
     pub curves: Vec<Curves>,
 }
 

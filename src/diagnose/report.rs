@@ -4,15 +4,17 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use serde_json::{Value, json};
+use serde::Serialize;
 
 use super::accept::{Candidate, gap_closed};
 use super::effects::Effect;
-use super::explainable::{EffectShare, Signature};
-use super::locate::{Band, Share};
+use super::explainable::{EffectShare, Explainable, Signature};
+use super::interval::SizeInterval;
+use super::locate::{Band, Correlation, DatasetShare, Share};
 use super::refits::Finding;
 use super::spectrum::{Peak, Spectrum};
 use super::{Diagnosis, Step};
+use crate::report::json::Named;
 use crate::report::{Figure, Panel, Series};
 
 /// One entry per effect scored: from the round it was accepted in, else from
@@ -40,136 +42,288 @@ pub fn candidate_list(d: &Diagnosis) -> Vec<(&Candidate, bool, usize)> {
     list
 }
 
-fn named(names: &[String], values: &[f64]) -> Value {
-    let map: serde_json::Map<String, Value> = names
-        .iter()
-        .zip(values)
-        .map(|(n, v)| (n.clone(), json!(v)))
-        .collect();
-    Value::Object(map)
+/// An input band's or frequency band's share of the residual.
+#[derive(Debug, Serialize)]
+pub struct BandJson {
+    pub lo: f64,
+    pub hi: f64,
+    /// Share of the residual energy.
+    pub share: f64,
+    /// Share of the samples.
+    pub sample_share: f64,
 }
 
-fn band_json(b: &Band) -> Value {
-    json!({"lo": b.lo, "hi": b.hi, "share": b.share.energy, "sample_share": b.share.samples})
+impl BandJson {
+    fn of(b: &Band) -> BandJson {
+        BandJson {
+            lo: b.lo,
+            hi: b.hi,
+            share: b.share.energy,
+            sample_share: b.share.samples,
+        }
+    }
 }
 
-/// The `--json` document (the contract of issue 6, plus details).
-pub fn to_json(d: &Diagnosis) -> Value {
-    let sel = &d.selection;
-    let base = d.baseline();
-    let w = &d.locate;
-    let floor = d.noise_floor_rmse;
-    let candidates: Vec<Value> = candidate_list(d)
-        .into_iter()
-        .map(|(c, accepted, round)| {
-            let names: Vec<String> = c.effect_params.iter().map(|(n, _)| n.clone()).collect();
-            let values: Vec<f64> = c.effect_params.iter().map(|(_, v)| *v).collect();
-            json!({
-                "effect": c.effect.name(),
-                "physical": c.effect.physical().name(),
-                "realisation": c.effect.realisation(),
-                "size": c.effect.size_text(&values, d.dt),
-                "params": named(&names, &values),
-                "val_rmse": c.fit.best.val_rmse,
-                "gap_closed": gap_closed(base.val_rmse, c.fit.best.val_rmse, floor),
-                "accepted": accepted,
-                "round": round,
-                "seed_val_rmse": c.fit.seed_val_rmse,
-                "delta_bic": c.delta_bic,
-                "relative_improvement": c.relative,
-                "reason": c.reason,
-                "signature": c.effect.signature(),
+/// One scored effect (a [`candidate_list`] entry).
+#[derive(Debug, Serialize)]
+pub struct CandidateJson {
+    pub effect: &'static str,
+    pub physical: &'static str,
+    pub realisation: &'static str,
+    pub size: Option<String>,
+    pub params: Named,
+    pub val_rmse: f64,
+    pub gap_closed: f64,
+    pub accepted: bool,
+    pub round: usize,
+    pub seed_val_rmse: Vec<f64>,
+    pub delta_bic: f64,
+    pub relative_improvement: f64,
+    pub reason: String,
+    pub signature: &'static str,
+}
+
+#[derive(Debug, Serialize)]
+pub struct BaselineJson {
+    pub model: &'static str,
+    pub params: Named,
+    pub val_rmse: f64,
+    pub val_fit_percent: f64,
+    pub seed_val_rmse: Vec<f64>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct BranchJson {
+    pub rising: f64,
+    pub falling: f64,
+    pub steady: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct AfterStepJson {
+    pub transient: f64,
+    pub settled: f64,
+}
+
+/// Where the baseline's validation residual lies.
+#[derive(Debug, Serialize)]
+pub struct WhereJson {
+    pub rmse: f64,
+    pub branch: BranchJson,
+    pub branch_sample_share: BranchJson,
+    pub input_band: Vec<BandJson>,
+    pub after_step: AfterStepJson,
+    pub after_step_sample_share: AfterStepJson,
+    pub settle_samples: usize,
+    pub frequency_hz: Vec<BandJson>,
+    pub dataset: Vec<DatasetShare>,
+    pub whiteness: Correlation,
+    pub cross_correlation: Correlation,
+}
+
+#[derive(Debug, Serialize)]
+pub struct RefitsJson {
+    pub fits: usize,
+    pub final_est_sse: f64,
+    pub best_est_sse: f64,
+    pub final_val_fit_percent: f64,
+    pub best_val_fit_percent: f64,
+    pub final_tied: bool,
+    pub tied: usize,
+    pub tied_val_fit_percent: [f64; 2],
+    pub finding: Finding,
+}
+
+#[derive(Debug, Serialize)]
+pub struct FinalJson {
+    /// The effects of the final model, in the order accepted.
+    pub model: Vec<&'static str>,
+    pub params: Named,
+    pub val_rmse: f64,
+    pub val_fit_percent: f64,
+    pub gap_closed: f64,
+    pub size_intervals: Vec<SizeInterval>,
+    pub refits: Option<RefitsJson>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct ExplainableJson {
+    pub bound_rmse: f64,
+    pub baseline_rmse: f64,
+    pub gap_closable: f64,
+    pub lambda: f64,
+    pub features: usize,
+    pub groups: Vec<&'static str>,
+    /// Each named effect's share of the closable gap, by effect name.
+    pub effect_shares: Named<Option<f64>>,
+    /// Each named effect's share of the gap closed, by effect name.
+    pub effect_gap_closed: Named,
+    pub catalogue_share: Option<f64>,
+    pub not_explained: bool,
+    pub signature: Option<Signature>,
+    pub method: &'static str,
+}
+
+#[derive(Debug, Serialize)]
+pub struct SpectrumJson {
+    pub segment: Option<usize>,
+    pub segments: Option<usize>,
+    pub bin_hz: Option<f64>,
+    pub peaks: Vec<Peak>,
+    pub final_peaks: Vec<Peak>,
+}
+
+/// The `--json` document of `diagnose` (docs/JSON.md), without its
+/// `schema_version` (see [`crate::report::json::Versioned`]).
+#[derive(Debug, Serialize)]
+pub struct DiagnosisJson {
+    pub baseline: BaselineJson,
+    pub datasets: Vec<String>,
+    pub noise_floor_rmse: f64,
+    pub noise_floor_method: &'static str,
+    #[serde(rename = "where")]
+    pub where_: WhereJson,
+    pub candidates: Vec<CandidateJson>,
+    pub verdict: Vec<&'static str>,
+    /// `named`, `none` or `not-explained`.
+    pub verdict_kind: &'static str,
+    pub steps: Vec<Step>,
+    #[serde(rename = "final")]
+    pub final_: FinalJson,
+    pub explainable: ExplainableJson,
+    pub spectrum: SpectrumJson,
+    pub rule: &'static str,
+}
+
+impl DiagnosisJson {
+    /// The `--json` document of `d`.
+    pub fn of(d: &Diagnosis) -> DiagnosisJson {
+        let sel = &d.selection;
+        let base = d.baseline();
+        let w = &d.locate;
+        let floor = d.noise_floor_rmse;
+        let candidates: Vec<CandidateJson> = candidate_list(d)
+            .into_iter()
+            .map(|(c, accepted, round)| {
+                let values: Vec<f64> = c.effect_params.iter().map(|(_, v)| *v).collect();
+                CandidateJson {
+                    effect: c.effect.name(),
+                    physical: c.effect.physical().name(),
+                    realisation: c.effect.realisation(),
+                    size: c.effect.size_text(&values, d.dt),
+                    params: c.effect_params.iter().map(|(n, v)| (n, *v)).collect(),
+                    val_rmse: c.fit.best.val_rmse,
+                    gap_closed: gap_closed(base.val_rmse, c.fit.best.val_rmse, floor),
+                    accepted,
+                    round,
+                    seed_val_rmse: c.fit.seed_val_rmse.clone(),
+                    delta_bic: c.delta_bic,
+                    relative_improvement: c.relative,
+                    reason: c.reason.clone(),
+                    signature: c.effect.signature(),
+                }
             })
-        })
-        .collect();
-    let share = |s: &Share| json!(s.energy);
-    let last = d.last();
-    let x = &d.explainable;
-    let by_effect = |f: fn(&EffectShare) -> Value| -> Value {
-        let map: serde_json::Map<String, Value> = x
-            .effect_shares
-            .iter()
-            .map(|e| (e.effect.name().to_string(), f(e)))
             .collect();
-        Value::Object(map)
-    };
-    let peaks = |s: &Option<Spectrum>| s.as_ref().map_or(json!([]), |s| json!(s.peaks));
-    json!({
-        "baseline": {
-            "model": d.family.name(),
-            "params": named(&sel.baseline_model.param_names(), &sel.baseline.best.params),
-            "val_rmse": base.val_rmse,
-            "val_fit_percent": base.val_fit_percent,
-            "seed_val_rmse": sel.baseline.seed_val_rmse,
-        },
-        "datasets": d.datasets,
-        "noise_floor_rmse": floor,
-        "noise_floor_method": "median |second difference of the measured validation output| / (0.6745·√6)",
-        "where": {
-            "rmse": w.rmse,
-            "branch": {"rising": share(&w.branch.rising), "falling": share(&w.branch.falling), "steady": share(&w.branch.steady)},
-            "branch_sample_share": {"rising": w.branch.rising.samples, "falling": w.branch.falling.samples, "steady": w.branch.steady.samples},
-            "input_band": w.input_band.iter().map(band_json).collect::<Vec<_>>(),
-            "after_step": {"transient": share(&w.after_step.transient), "settled": share(&w.after_step.settled)},
-            "after_step_sample_share": {"transient": w.after_step.transient.samples, "settled": w.after_step.settled.samples},
-            "settle_samples": w.after_step.settle_samples,
-            "frequency_hz": w.frequency.iter().map(band_json).collect::<Vec<_>>(),
-            "dataset": w.dataset,
-            "whiteness": w.whiteness,
-            "cross_correlation": w.cross_correlation,
-        },
-        "candidates": candidates,
-        "verdict": d.named().iter().map(|e| e.name()).collect::<Vec<_>>(),
-        "verdict_kind": if x.not_explained {
-            "not-explained"
-        } else if sel.verdict.is_empty() {
-            "none"
-        } else {
-            "named"
-        },
-        "steps": d.steps,
-        "final": {
-            "model": sel.final_model.effects.iter().map(|e| e.name()).collect::<Vec<_>>(),
-            "params": named(&sel.final_model.param_names(), &sel.final_fit.params),
-            "val_rmse": last.val_rmse,
-            "val_fit_percent": last.val_fit_percent,
-            "gap_closed": last.gap_closed,
-            "size_intervals": d.size_intervals,
-            "refits": d.refits.as_ref().map(|r| json!({
-                "fits": r.fits,
-                "final_est_sse": r.final_est_sse,
-                "best_est_sse": r.best_est_sse,
-                "final_val_fit_percent": r.final_val_fit_percent,
-                "best_val_fit_percent": r.best_val_fit_percent,
-                "final_tied": r.final_tied,
-                "tied": r.tied,
-                "tied_val_fit_percent": [r.tied_val_fit_percent.0, r.tied_val_fit_percent.1],
-                "finding": r.finding(),
-            })),
-        },
-        "explainable": {
-            "bound_rmse": x.bound.bound_rmse,
-            "baseline_rmse": x.bound.baseline_rmse,
-            "gap_closable": x.bound.gap_closable,
-            "lambda": x.bound.lambda,
-            "features": x.bound.features,
-            "groups": x.bound.groups,
-            "effect_shares": by_effect(|e| json!(e.share)),
-            "effect_gap_closed": by_effect(|e| json!(e.gap_closed)),
-            "catalogue_share": x.catalogue_share,
-            "not_explained": x.not_explained,
-            "signature": x.signature,
-            "method": "ridge regression of the baseline's residual on groups of features (lags, Laguerre and low-pass filters, rate and branch of the input, lags and level terms of the baseline's prediction; never the measured output), groups added forward and the penalty chosen by 5-fold blocked CV on the estimation half, scored on the validation half",
-        },
-        "spectrum": {
-            "segment": d.spectrum.as_ref().map(|s| s.segment),
-            "segments": d.spectrum.as_ref().map(|s| s.segments),
-            "bin_hz": d.spectrum.as_ref().and_then(|s| s.hz.get(1)),
-            "peaks": peaks(&d.spectrum),
-            "final_peaks": peaks(&d.final_spectrum),
-        },
-        "rule": "accept iff R0−R1 > 3·√(s0²+s1²) (seed spread), ΔBIC = N·ln(R1²/R0²) + k·ln N < −10, (R0−R1)/R0 ≥ 2 %, and R0 > 1.1·noise floor; a candidate's gain that the model without it reaches from the candidate's parameters is not credited to it (ablation)",
-    })
+        let last = d.last();
+        let x = &d.explainable;
+        fn by_effect<T>(x: &Explainable, f: fn(&EffectShare) -> T) -> Named<T> {
+            x.effect_shares
+                .iter()
+                .map(|e| (e.effect.name(), f(e)))
+                .collect()
+        }
+        let peaks = |s: &Option<Spectrum>| s.as_ref().map_or(Vec::new(), |s| s.peaks.clone());
+        DiagnosisJson {
+            baseline: BaselineJson {
+                model: d.family.name(),
+                params: Named::zip(&sel.baseline_model.param_names(), &sel.baseline.best.params),
+                val_rmse: base.val_rmse,
+                val_fit_percent: base.val_fit_percent,
+                seed_val_rmse: sel.baseline.seed_val_rmse.clone(),
+            },
+            datasets: d.datasets.clone(),
+            noise_floor_rmse: floor,
+            noise_floor_method: "median |second difference of the measured validation output| / (0.6745·√6)",
+            where_: WhereJson {
+                rmse: w.rmse,
+                branch: BranchJson {
+                    rising: w.branch.rising.energy,
+                    falling: w.branch.falling.energy,
+                    steady: w.branch.steady.energy,
+                },
+                branch_sample_share: BranchJson {
+                    rising: w.branch.rising.samples,
+                    falling: w.branch.falling.samples,
+                    steady: w.branch.steady.samples,
+                },
+                input_band: w.input_band.iter().map(BandJson::of).collect(),
+                after_step: AfterStepJson {
+                    transient: w.after_step.transient.energy,
+                    settled: w.after_step.settled.energy,
+                },
+                after_step_sample_share: AfterStepJson {
+                    transient: w.after_step.transient.samples,
+                    settled: w.after_step.settled.samples,
+                },
+                settle_samples: w.after_step.settle_samples,
+                frequency_hz: w.frequency.iter().map(BandJson::of).collect(),
+                dataset: w.dataset.clone(),
+                whiteness: w.whiteness.clone(),
+                cross_correlation: w.cross_correlation.clone(),
+            },
+            candidates,
+            verdict: d.named().iter().map(|e| e.name()).collect(),
+            verdict_kind: if x.not_explained {
+                "not-explained"
+            } else if sel.verdict.is_empty() {
+                "none"
+            } else {
+                "named"
+            },
+            steps: d.steps.clone(),
+            final_: FinalJson {
+                model: sel.final_model.effects.iter().map(|e| e.name()).collect(),
+                params: Named::zip(&sel.final_model.param_names(), &sel.final_fit.params),
+                val_rmse: last.val_rmse,
+                val_fit_percent: last.val_fit_percent,
+                gap_closed: last.gap_closed,
+                size_intervals: d.size_intervals.clone(),
+                refits: d.refits.as_ref().map(|r| RefitsJson {
+                    fits: r.fits,
+                    final_est_sse: r.final_est_sse,
+                    best_est_sse: r.best_est_sse,
+                    final_val_fit_percent: r.final_val_fit_percent,
+                    best_val_fit_percent: r.best_val_fit_percent,
+                    final_tied: r.final_tied,
+                    tied: r.tied,
+                    tied_val_fit_percent: [r.tied_val_fit_percent.0, r.tied_val_fit_percent.1],
+                    finding: r.finding(),
+                }),
+            },
+            explainable: ExplainableJson {
+                bound_rmse: x.bound.bound_rmse,
+                baseline_rmse: x.bound.baseline_rmse,
+                gap_closable: x.bound.gap_closable,
+                lambda: x.bound.lambda,
+                features: x.bound.features,
+                groups: x.bound.groups.clone(),
+                effect_shares: by_effect(x, |e| e.share),
+                effect_gap_closed: by_effect(x, |e| e.gap_closed),
+                catalogue_share: x.catalogue_share,
+                not_explained: x.not_explained,
+                signature: x.signature.clone(),
+                method: "ridge regression of the baseline's residual on groups of features (lags, Laguerre and low-pass filters, rate and branch of the input, lags and level terms of the baseline's prediction; never the measured output), groups added forward and the penalty chosen by 5-fold blocked CV on the estimation half, scored on the validation half",
+            },
+            spectrum: SpectrumJson {
+                segment: d.spectrum.as_ref().map(|s| s.segment),
+                segments: d.spectrum.as_ref().map(|s| s.segments),
+                bin_hz: d.spectrum.as_ref().and_then(|s| s.hz.get(1).copied()),
+                peaks: peaks(&d.spectrum),
+                final_peaks: peaks(&d.final_spectrum),
+            },
+            rule: "accept iff R0−R1 > 3·√(s0²+s1²) (seed spread), ΔBIC = N·ln(R1²/R0²) + k·ln N < −10, (R0−R1)/R0 ≥ 2 %, and R0 > 1.1·noise floor; a candidate's gain that the model without it reaches from the candidate's parameters is not credited to it (ablation)",
+        }
+    }
 }
 
 fn pct(v: f64) -> String {

@@ -1,0 +1,558 @@
+//! The `--json` contract: each command's output against the field tables of
+//! docs/JSON.md.
+//!
+//! The doc marks each command's table with `<!-- contract: NAME -->`; its
+//! rows give a field's path (`a.b`, `a[].b`, `a.*`) and its JSON type
+//! (`number\|null`, `absent` for a field that can be missing). Each test
+//! runs one command with `--json` on small inputs and checks that every
+//! documented field has its documented type, and that every member of an
+//! object whose members the table lists (the top level always) is
+//! documented: a field added to an output without a row fails here.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value;
+
+const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+
+/// Every contract docs/JSON.md must hold: one per `--json` output.
+const CONTRACTS: [&str; 11] = [
+    "fit",
+    "compare",
+    "identify",
+    "simulate",
+    "diagnose",
+    "diagnose-self-test",
+    "diagnose-self-test-catalogue",
+    "control",
+    "bench",
+    "benchmark-boucwen",
+    "static",
+];
+
+/// One row of a contract table: a field's path and its allowed types.
+#[derive(Debug, Clone)]
+struct Field {
+    path: String,
+    types: Vec<String>,
+}
+
+/// The contract tables of `doc`, by name.
+fn contracts(doc: &str) -> BTreeMap<String, Vec<Field>> {
+    let mut out = BTreeMap::new();
+    let mut lines = doc.lines().peekable();
+    while let Some(line) = lines.next() {
+        let Some(name) = line
+            .trim()
+            .strip_prefix("<!-- contract:")
+            .and_then(|r| r.strip_suffix("-->"))
+        else {
+            continue;
+        };
+        let mut fields = Vec::new();
+        let mut row = 0;
+        while let Some(l) = lines.next_if(|l| l.trim_start().starts_with('|')) {
+            row += 1;
+            if row <= 2 {
+                continue; // the header and its separator
+            }
+            let cells = cells(l);
+            assert!(
+                cells.len() >= 2,
+                "docs/JSON.md, contract {name}: a row without a type: {l}"
+            );
+            let path = cells[0].trim().trim_matches('`').to_string();
+            let types: Vec<String> = cells[1].split('|').map(|t| t.trim().to_string()).collect();
+            for t in &types {
+                assert!(
+                    [
+                        "string", "number", "integer", "boolean", "object", "array", "null",
+                        "absent"
+                    ]
+                    .contains(&t.as_str()),
+                    "docs/JSON.md, contract {name}, field {path}: unknown type `{t}`"
+                );
+            }
+            fields.push(Field { path, types });
+        }
+        assert!(
+            !fields.is_empty(),
+            "docs/JSON.md: contract {name} has no rows"
+        );
+        let previous = out.insert(name.trim().to_string(), fields);
+        assert!(previous.is_none(), "docs/JSON.md: contract {name} twice");
+    }
+    out
+}
+
+/// The cells of a Markdown table row; `\|` stays inside its cell (as `|`).
+fn cells(row: &str) -> Vec<String> {
+    let row = row.trim().trim_start_matches('|').trim_end_matches('|');
+    let mut cells = vec![String::new()];
+    let mut chars = row.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '\\' if chars.peek() == Some(&'|') => {
+                chars.next();
+                cells.last_mut().unwrap().push('|');
+            }
+            '|' => cells.push(String::new()),
+            c => cells.last_mut().unwrap().push(c),
+        }
+    }
+    cells
+}
+
+fn type_of(v: &Value) -> &'static str {
+    match v {
+        Value::Null => "null",
+        Value::Bool(_) => "boolean",
+        Value::Number(n) if n.is_f64() => "number",
+        Value::Number(_) => "integer",
+        Value::String(_) => "string",
+        Value::Array(_) => "array",
+        Value::Object(_) => "object",
+    }
+}
+
+fn type_ok(v: &Value, types: &[String]) -> bool {
+    let t = type_of(v);
+    types
+        .iter()
+        .any(|d| d == t || (d == "number" && t == "integer"))
+}
+
+/// Splits a path into its steps: a member name, `[]` (every element) or
+/// `*` (every member).
+fn steps(path: &str) -> Vec<&str> {
+    let mut out = Vec::new();
+    for part in path.split('.') {
+        match part.strip_suffix("[]") {
+            Some(name) => {
+                out.push(name);
+                out.push("[]");
+            }
+            None => out.push(part),
+        }
+    }
+    out
+}
+
+/// What `doc` says is wrong with `v`: documented fields that are missing
+/// or of another type, and members of fully documented objects that the
+/// doc does not list.
+fn violations(fields: &[Field], v: &Value) -> Vec<String> {
+    let mut errors = Vec::new();
+    for f in fields {
+        let path = steps(&f.path);
+        let (last, parents) = path.split_last().expect("a path has a step");
+        let mut reached = vec![v];
+        for step in parents {
+            reached = reached
+                .into_iter()
+                .flat_map(|v| children(v, step))
+                .collect();
+        }
+        for parent in reached {
+            let values: Vec<&Value> = match (*last, parent) {
+                ("[]" | "*", _) => children(parent, last),
+                (name, Value::Object(m)) => match m.get(name) {
+                    Some(x) => vec![x],
+                    None if f.types.iter().any(|t| t == "absent") => vec![],
+                    None => {
+                        errors.push(format!("documented field `{}` is missing", f.path));
+                        vec![]
+                    }
+                },
+                // A parent of another type (a `string|object` field that is
+                // a string here): its own row checks it.
+                _ => vec![],
+            };
+            for x in values {
+                if !type_ok(x, &f.types) {
+                    errors.push(format!(
+                        "field `{}` is {} ({}), documented as {}",
+                        f.path,
+                        type_of(x),
+                        x,
+                        f.types.join("|")
+                    ));
+                }
+            }
+        }
+    }
+    undocumented(fields, v, "", &mut errors);
+    errors.sort();
+    errors.dedup();
+    errors
+}
+
+fn children<'a>(v: &'a Value, step: &str) -> Vec<&'a Value> {
+    match (step, v) {
+        ("[]", Value::Array(a)) => a.iter().collect(),
+        ("*", Value::Object(m)) => m.values().collect(),
+        (name, Value::Object(m)) if name != "[]" && name != "*" => {
+            m.get(name).into_iter().collect()
+        }
+        _ => vec![],
+    }
+}
+
+/// Members of `v` (at `path`) that the doc does not list, where it lists
+/// any member of `path` (at the top level, always).
+fn undocumented(fields: &[Field], v: &Value, path: &str, errors: &mut Vec<String>) {
+    let child = |name: &str| {
+        if path.is_empty() {
+            name.to_string()
+        } else {
+            format!("{path}.{name}")
+        }
+    };
+    match v {
+        Value::Object(m) => {
+            let wildcard = fields.iter().any(|f| f.path == child("*"));
+            let listed: Vec<&str> = fields
+                .iter()
+                .filter_map(|f| {
+                    let rest = if path.is_empty() {
+                        Some(f.path.as_str())
+                    } else {
+                        f.path.strip_prefix(&format!("{path}."))
+                    }?;
+                    let name = rest.split(['.', '[']).next()?;
+                    Some(name)
+                })
+                .collect();
+            for (k, x) in m {
+                if wildcard {
+                    undocumented(fields, x, &child("*"), errors);
+                } else if listed.contains(&k.as_str()) {
+                    undocumented(fields, x, &child(k), errors);
+                } else if path.is_empty() || !listed.is_empty() {
+                    errors.push(format!("field `{}` is not documented", child(k)));
+                }
+            }
+        }
+        Value::Array(a) => {
+            for x in a {
+                undocumented(fields, x, &format!("{path}[]"), errors);
+            }
+        }
+        _ => {}
+    }
+}
+
+fn doc_contracts() -> BTreeMap<String, Vec<Field>> {
+    let doc = std::fs::read_to_string(Path::new(ROOT).join("docs/JSON.md"))
+        .expect("docs/JSON.md is readable");
+    contracts(&doc)
+}
+
+/// Runs `mckibben args` and checks its stdout against contract `name`.
+fn check(name: &str, args: &[&str]) -> Value {
+    let all = doc_contracts();
+    let fields = all
+        .get(name)
+        .unwrap_or_else(|| panic!("docs/JSON.md has no contract `{name}`"));
+    let out = Command::new(BIN)
+        .args(args)
+        .current_dir(ROOT)
+        .output()
+        .expect("run mckibben");
+    assert!(
+        out.status.success(),
+        "mckibben {}: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "mckibben {}: stdout is not JSON ({e}): {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stdout)
+        )
+    });
+    assert_eq!(
+        v["schema_version"],
+        mckibben::report::json::SCHEMA_VERSION,
+        "{name}: schema_version"
+    );
+    let errors = violations(fields, &v);
+    assert!(
+        errors.is_empty(),
+        "mckibben {} does not match docs/JSON.md's `{name}` table:\n  {}",
+        args.join(" "),
+        errors.join("\n  ")
+    );
+    v
+}
+
+const STAIR: &str = "data/stair_4.5kg.csv";
+
+#[test]
+fn the_doc_holds_one_contract_per_json_output() {
+    let names: Vec<String> = doc_contracts().into_keys().collect();
+    let mut want: Vec<String> = CONTRACTS.iter().map(|s| s.to_string()).collect();
+    want.sort();
+    assert_eq!(names, want);
+}
+
+#[test]
+fn the_checker_catches_a_missing_a_mistyped_and_an_undocumented_field() {
+    let doc = "<!-- contract: t -->\n| field | type | unit | meaning |\n|---|---|---|---|\n\
+               | `a` | number\\|null | — | x |\n| `b` | object | — | x |\n| `b.c` | integer | — | x |\n\
+               | `d` | array | — | x |\n| `d[].e` | string | — | x |\n| `m` | object | — | x |\n\
+               | `m.*` | number | — | x |\n| `o` | object\\|absent | — | x |\n";
+    let c = contracts(doc);
+    let fields = &c["t"];
+    assert_eq!(fields[0].types, ["number", "null"]);
+    let good =
+        serde_json::json!({"a": null, "b": {"c": 1}, "d": [{"e": "x"}], "m": {"p": 1.5, "q": 2}});
+    assert_eq!(violations(fields, &good), Vec::<String>::new());
+    let bad = serde_json::json!({"a": "1", "b": {"c": 1.5, "z": 0}, "d": [{"e": "x", "f": 1}],
+                                 "m": {"p": true}, "new": 1});
+    assert_eq!(
+        violations(fields, &bad),
+        [
+            "field `a` is string (\"1\"), documented as number|null",
+            "field `b.c` is number (1.5), documented as integer",
+            "field `b.z` is not documented",
+            "field `d[].f` is not documented",
+            "field `m.*` is boolean (true), documented as number",
+            "field `new` is not documented",
+        ]
+    );
+    let missing = serde_json::json!({"a": 1});
+    assert_eq!(
+        violations(fields, &missing),
+        [
+            "documented field `b` is missing",
+            "documented field `d` is missing",
+            "documented field `m` is missing",
+        ]
+    );
+}
+
+#[test]
+fn fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    // A bound the fit ends on, so that `on_edge` and `widened` have rows.
+    let v = check(
+        "fit",
+        &[
+            "fit",
+            STAIR,
+            "--pop",
+            "40",
+            "--gens",
+            "10",
+            "--backend",
+            "cpu",
+            "--bound",
+            "alpha=0.1:0.2",
+            "--json",
+            "--out",
+            out,
+        ],
+    );
+    assert!(!v["on_edge"].as_array().unwrap().is_empty());
+    // result.json is the same document.
+    let file: Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("result.json")).unwrap()).unwrap();
+    assert_eq!(file["schema_version"], v["schema_version"]);
+    assert_eq!(file["params"], v["params"]);
+}
+
+#[test]
+fn compare() {
+    let dir = tempfile::tempdir().unwrap();
+    check(
+        "compare",
+        &[
+            "compare",
+            STAIR,
+            "--cross",
+            "data/stair_7kg.csv",
+            "--thesis-sizes",
+            "10",
+            "--sizes",
+            "0",
+            "--gens",
+            "2",
+            "--seeds",
+            "1",
+            "--budget-pop",
+            "20",
+            "--budget-gens",
+            "2",
+            "--backend",
+            "cpu",
+            "--json",
+            "--out",
+            dir.path().to_str().unwrap(),
+        ],
+    );
+}
+
+#[test]
+fn identify() {
+    check("identify", &["identify", STAIR, "--json"]);
+}
+
+#[test]
+fn simulate() {
+    check("simulate", &["simulate", "--json"]);
+}
+
+#[test]
+fn diagnose() {
+    // One effect the stair shows, few generations, one scratch seed: an
+    // accepted candidate, a size interval and the refits, in about 2 s.
+    let v = check(
+        "diagnose",
+        &[
+            "diagnose",
+            STAIR,
+            "--effects",
+            "saturation:output,delay",
+            "--seeds",
+            "2",
+            "--generations",
+            "5",
+            "--scratch-seeds",
+            "1",
+            "--json",
+        ],
+    );
+    assert!(v["final"]["refits"].is_object());
+}
+
+#[test]
+fn diagnose_self_test() {
+    check(
+        "diagnose-self-test",
+        &[
+            "diagnose",
+            STAIR,
+            "--self-test",
+            "--cases",
+            "control",
+            "--effects",
+            "delay",
+            "--seeds",
+            "2",
+            "--generations",
+            "3",
+            "--scratch-seeds",
+            "0",
+            "--json",
+        ],
+    );
+}
+
+#[test]
+fn diagnose_self_test_catalogue() {
+    check(
+        "diagnose-self-test-catalogue",
+        &[
+            "diagnose",
+            STAIR,
+            "--self-test=catalogue",
+            "--cases",
+            "control",
+            "--effects",
+            "delay",
+            "--seeds",
+            "2",
+            "--generations",
+            "3",
+            "--scratch-seeds",
+            "0",
+            "--json",
+        ],
+    );
+}
+
+#[test]
+fn control() {
+    // Given gains (tuning takes minutes), short runs, the robustness table.
+    let v = check(
+        "control",
+        &[
+            "control",
+            "--controller",
+            "pi,ff-pid,mpc",
+            "--tuned-gains",
+            "2.2,65.5,0.02",
+            "--freq",
+            "1",
+            "--load",
+            "4.5",
+            "--warmup",
+            "1",
+            "--duration",
+            "3",
+            "--steady-from",
+            "1",
+            "--robustness",
+            "--json",
+        ],
+    );
+    assert!(v["design"].is_object() && !v["robustness"].as_array().unwrap().is_empty());
+}
+
+#[test]
+fn bench() {
+    check(
+        "bench",
+        &[
+            "bench",
+            "--synthetic",
+            "300",
+            "--backend",
+            "cpu",
+            "--pop",
+            "50",
+            "--repeats",
+            "1",
+            "--time-reference",
+            "--json",
+        ],
+    );
+}
+
+#[test]
+fn benchmark_boucwen() {
+    let data = mckibben::benchmark::default_data_dir();
+    if !data.join("train_multisine.csv").is_file() {
+        common::skip_or_fail(&format!("no Bouc-Wen benchmark data in {}", data.display()));
+        return;
+    }
+    check(
+        "benchmark-boucwen",
+        &[
+            "benchmark",
+            "boucwen",
+            "--backend",
+            "cpu",
+            "--population",
+            "20",
+            "--generations",
+            "2",
+            "--lm-iterations",
+            "0",
+            "--json",
+        ],
+    );
+}
+
+#[test]
+fn static_force() {
+    check("static", &["static", "--points", "3", "--json"]);
+}
