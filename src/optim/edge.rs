@@ -61,7 +61,8 @@ pub fn fit_task(
 /// from its best point with the free-run and polish stages of the same plan
 /// (a polish alone where the plan has no free run), and keeps the refit
 /// when its estimation SSE is lower. `task.space` is the widened box on
-/// return. Does nothing for the thesis' flow, or a fit that was
+/// return. Does nothing for the thesis' flow, a plan that is a population
+/// search alone (a study of the search, not a fit), or a fit that was
 /// interrupted or found nothing.
 pub fn refit_off_edges(
     task: &mut Task,
