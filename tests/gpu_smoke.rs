@@ -5,16 +5,11 @@
 
 mod common;
 
-use mckibben::eval::gpu::{adapters, describe_adapter};
+use mckibben::eval::gpu::describe_adapter;
 
 #[test]
 fn a_compute_shader_runs_on_the_adapter() {
-    let Some(adapter) = common::require_gpu(
-        adapters()
-            .into_iter()
-            .next()
-            .ok_or("none found (install mesa-vulkan-drivers and libvulkan1)"),
-    ) else {
+    let Some(adapter) = common::require_any_adapter() else {
         return;
     };
     eprintln!("adapter: {}", describe_adapter(&adapter.get_info()));

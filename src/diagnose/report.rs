@@ -11,7 +11,7 @@ use super::effects::Effect;
 use super::explainable::{EffectShare, Explainable, Signature};
 use super::interval::SizeInterval;
 use super::locate::{Band, Correlation, DatasetShare, Share};
-use super::refits::Finding;
+use super::refits::{Finding, Refits};
 use super::spectrum::{Peak, Spectrum};
 use super::{Diagnosis, Step};
 use crate::report::json::Named;
@@ -121,16 +121,11 @@ pub struct WhereJson {
     pub cross_correlation: Correlation,
 }
 
+/// The refits as the diagnosis measured them, and what they find.
 #[derive(Debug, Serialize)]
 pub struct RefitsJson {
-    pub fits: usize,
-    pub final_est_sse: f64,
-    pub best_est_sse: f64,
-    pub final_val_fit_percent: f64,
-    pub best_val_fit_percent: f64,
-    pub final_tied: bool,
-    pub tied: usize,
-    pub tied_val_fit_percent: [f64; 2],
+    #[serde(flatten)]
+    pub refits: Refits,
     pub finding: Finding,
 }
 
@@ -289,14 +284,7 @@ impl DiagnosisJson {
                 gap_closed: last.gap_closed,
                 size_intervals: d.size_intervals.clone(),
                 refits: d.refits.as_ref().map(|r| RefitsJson {
-                    fits: r.fits,
-                    final_est_sse: r.final_est_sse,
-                    best_est_sse: r.best_est_sse,
-                    final_val_fit_percent: r.final_val_fit_percent,
-                    best_val_fit_percent: r.best_val_fit_percent,
-                    final_tied: r.final_tied,
-                    tied: r.tied,
-                    tied_val_fit_percent: [r.tied_val_fit_percent.0, r.tied_val_fit_percent.1],
+                    refits: r.clone(),
                     finding: r.finding(),
                 }),
             },

@@ -268,7 +268,6 @@ impl SearchSpace {
             floor.copysign(if arx_gain == 0.0 { 1.0 } else { arx_gain })
         };
         let coords = Coordinates::Scaled {
-            family,
             shape,
             linear,
             scale: Scale { range, gain },

@@ -106,7 +106,6 @@ pub enum Coordinates {
     Native,
     /// The data's own scale.
     Scaled {
-        family: Family,
         shape: ShapeCoords,
         linear: LinearCoords,
         scale: Scale,
@@ -230,9 +229,9 @@ impl Coordinates {
                 z[s + 1] = beta * per;
             }
             (Family::Generalized, ShapeCoords::Bounded) => {
-                let b: Vec<f64> = theta[s..s + 6].to_vec();
+                let b = &theta[s..s + 6];
                 for (k, (sign_w, sign_x)) in LOADING_SIGNS.iter().enumerate() {
-                    z[s + k] = loading_psi(&b, *sign_w, *sign_x) * per;
+                    z[s + k] = loading_psi(b, *sign_w, *sign_x) * per;
                 }
                 let (share2, share4) = if b[0] > 0.0 {
                     (b[1] / b[0], b[3] / b[0])
@@ -352,9 +351,8 @@ fn shape_factor(family: Family, v: &[f64], scale: Scale) -> f64 {
 mod tests {
     use super::*;
 
-    fn scaled(family: Family, shape: ShapeCoords) -> Coordinates {
+    fn scaled(shape: ShapeCoords) -> Coordinates {
         Coordinates::Scaled {
-            family,
             shape,
             linear: LinearCoords::Scaled,
             scale: Scale {
@@ -382,7 +380,7 @@ mod tests {
         ] {
             assert!(in_bounded_class(family, theta), "{family}");
             for shape in [ShapeCoords::Bounded, ShapeCoords::Free, ShapeCoords::Native] {
-                let c = scaled(family, shape);
+                let c = scaled(shape);
                 let z = c.from_native(family, theta);
                 assert!(close(&c.to_native(family, &z), theta), "{family} {shape:?}");
                 assert_eq!(c.names(family).len(), family.dim());
@@ -426,7 +424,6 @@ mod tests {
         let mm = [1.0, 0.6, 0.01, 0.02, 1.0, 0.95, 3.0, -0.4, 0.05];
         let m = [1.0, 0.6, 10.0, 20.0, 1.0, 0.95, 3e-6, -4e-4, 5e-5];
         let c = |range: f64, gain: f64| Coordinates::Scaled {
-            family: Family::Classic,
             shape: ShapeCoords::Bounded,
             linear: LinearCoords::Scaled,
             scale: Scale { range, gain },
@@ -441,7 +438,7 @@ mod tests {
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
         for family in [Family::Classic, Family::Generalized] {
-            let c = scaled(family, ShapeCoords::Bounded);
+            let c = scaled(ShapeCoords::Bounded);
             let generalized = family == Family::Generalized;
             for _ in 0..2000 {
                 let mut z = vec![1.0; family.dim()];
@@ -526,7 +523,7 @@ mod tests {
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(17);
         for family in [Family::Classic, Family::Generalized] {
-            let c = scaled(family, ShapeCoords::Bounded);
+            let c = scaled(ShapeCoords::Bounded);
             for case in 0..300 {
                 let mut z = vec![1.0; family.dim()];
                 z[0] = rng.random_range(0.2..2.0);

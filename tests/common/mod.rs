@@ -57,11 +57,24 @@ pub fn require_gpu<T, E: Display>(opened: Result<T, E>) -> Option<T> {
 }
 
 /// Whether `info` is lavapipe: Mesa's CPU Vulkan adapter, told by its
-/// device type (a CPU), not by its name. On it the shaders never fuse
-/// multiply-adds, so they must give the CPU's bits; every test that expects
-/// bits on lavapipe and a tolerance elsewhere asks this.
+/// device type (a CPU), not by its name. There the shaders' guard against
+/// fused multiply-adds (`rounded()` in `shaders/prologue.wgsl`) makes them
+/// give the CPU's bits; every test that expects bits on lavapipe and a
+/// tolerance elsewhere asks this.
 pub fn is_lavapipe(info: &wgpu::AdapterInfo) -> bool {
     info.device_type == wgpu::DeviceType::Cpu
+}
+
+/// The best adapter present, whatever it is; `None` after [`skip_or_fail`]
+/// when there is none.
+#[track_caller]
+pub fn require_any_adapter() -> Option<wgpu::Adapter> {
+    require_gpu(
+        mckibben::eval::gpu::adapters()
+            .into_iter()
+            .next()
+            .ok_or("none found (install mesa-vulkan-drivers and libvulkan1)"),
+    )
 }
 
 /// The lavapipe adapter; `None` after [`skip_or_fail`] when there is none.
