@@ -15,10 +15,10 @@ use mckibben::eval::{self, Backend};
 use mckibben::model::bounds::Origin;
 use mckibben::model::{Family, Flow, Loop, UserBound};
 use mckibben::optim::Algorithm;
-use mckibben::optim::edge::{ActiveBound, Widening, active_bounds, refit_off_edges};
-use mckibben::optim::engine::model::{GENERATIONS, ModelObjective, POPULATION};
+use mckibben::optim::edge::{ActiveBound, Widening, active_bounds};
+use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
 use mckibben::optim::engine::{Engine, Observer, Outcome, StageSummary, StopReason, StopRules};
-use mckibben::optim::fit::{FitSettings, Overrides};
+use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides};
 use mckibben::optim::ga::{Crossover, Mutation};
 use mckibben::optim::history::GenerationRecord;
 use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
@@ -335,11 +335,6 @@ impl Observer for Progress {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let family: Family = args.model.into();
     let trace = one_trace(args.data.load()?)?;
-    let flow = if args.thesis_flow {
-        Flow::Thesis
-    } else {
-        Flow::Joint
-    };
     for f in &args.fix {
         anyhow::ensure!(
             f.lower == f.upper,
@@ -347,25 +342,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             f.name
         );
     }
-    let bounds: Vec<UserBound> = args.bound.iter().chain(&args.fix).cloned().collect();
-    let mut task = Task::with_box(
-        &trace,
+    let what = FitBox {
         family,
-        flow,
-        None,
-        args.free_n,
-        args.loop_shape,
-        &bounds,
-    )
-    .with_context(|| format!("cannot fit {}", trace.source))?;
+        free_n: args.free_n,
+        loop_shape: args.loop_shape,
+        bounds: args.bound.iter().chain(&args.fix).cloned().collect(),
+    };
     let note = |s: String| {
         if !args.json {
             eprintln!("mckibben: note: {s}");
         }
     };
-    let mut engine = args
-        .settings()
-        .start(&task, args.checkpoint.as_deref(), &note)?;
+    let mut fit = Fit::new(
+        &trace,
+        &what,
+        &args.settings(),
+        args.checkpoint.as_deref(),
+        &note,
+    )?;
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     let interrupt = Arc::new(AtomicBool::new(false));
@@ -375,6 +369,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // only means Ctrl-C kills instead of stopping cleanly.
         let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
     }
+    let engine = &fit.engine;
     let global = engine.plan.global.clone();
     let (algo, population, generations) = global.as_ref().map_or((Algorithm::De, 0, 0), |g| {
         (g.algorithm(), g.population, g.generations)
@@ -390,25 +385,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let mut progress = Progress::new(engine.plan.generations(), args.json);
-    let mut objective = ModelObjective::for_task(evaluator.as_mut(), &task);
-    let outcome = engine.run(
-        &mut objective,
+    let (outcome, widened) = fit.run(
+        evaluator.as_mut(),
         &mut [&mut progress],
         Some(&interrupt),
         args.checkpoint.as_deref(),
     )?;
     progress.finish();
-    drop(objective);
-    let stops = engine.stops.clone();
-    let (outcome, widened) =
-        refit_off_edges(&mut task, &engine, outcome, &stops, evaluator.as_mut())?;
+    let (task, engine) = (&fit.task, &fit.engine);
     let output = write_results(
-        &args.out, &task, &engine, &outcome, &widened, &trace, &backend,
+        &args.out, task, engine, &outcome, &widened, &trace, &backend,
     )?;
     if args.json {
         println!("{}", Versioned::new(&output).to_string_pretty()?);
     } else {
-        print_report(&output, &task);
+        print_report(&output, task);
     }
     if outcome.params.is_empty() && outcome.evaluations == 0 {
         eprintln!(
