@@ -1,0 +1,194 @@
+"""Type stubs of the `mckibben` extension module (docs/PYTHON.md)."""
+
+import os
+from typing import Any, Callable, Literal, Mapping, Sequence, overload
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+ArrayLike = npt.ArrayLike
+Bound = tuple[float, float] | float
+Path = str | os.PathLike[str]
+
+class Trace:
+    """One recorded experiment on a uniform time base."""
+
+    def __init__(
+        self,
+        input: ArrayLike,
+        output: ArrayLike,
+        dt: float,
+        input_name: str = "pressure",
+        output_name: str = "displacement",
+        source: str = "python",
+    ) -> None: ...
+    @property
+    def source(self) -> str: ...
+    @property
+    def t(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def input(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def output(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def input_name(self) -> str: ...
+    @property
+    def output_name(self) -> str: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def extra(self) -> dict[str, npt.NDArray[np.float64]]: ...
+    def __len__(self) -> int: ...
+
+@overload
+def read_csv(
+    path: Path,
+    input: str = "pressure",
+    output: str = "displacement",
+    time: str = "t",
+    resample: float | None = None,
+    split_gaps: Literal[False] = False,
+) -> Trace: ...
+@overload
+def read_csv(
+    path: Path,
+    input: str = "pressure",
+    output: str = "displacement",
+    time: str = "t",
+    resample: None = None,
+    *,
+    split_gaps: Literal[True],
+) -> list[Trace]: ...
+
+class Model:
+    """A fitted hysteresis model: the model file `mckibben fit` writes."""
+
+    @staticmethod
+    def load(path: Path) -> Model: ...
+    def save(self, path: Path) -> None: ...
+    def simulate(self, u: ArrayLike, x0: float | None = None) -> npt.NDArray[np.float64]:
+        """Free-run output on `u`; `x0` is the measured output at the first
+        sample (default: the output mean the model was fitted around)."""
+    @property
+    def params(self) -> dict[str, float]: ...
+    @property
+    def effects(self) -> list[str]: ...
+    @property
+    def family(self) -> Literal["classic", "generalized"]: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def input_mean(self) -> float: ...
+    @property
+    def output_mean(self) -> float: ...
+    @property
+    def input_name(self) -> str: ...
+    @property
+    def output_name(self) -> str: ...
+    def __eq__(self, other: object) -> bool: ...
+
+class FitResult:
+    """What `fit` returns: `mckibben fit --json`'s fields, the model, the history."""
+
+    model: Model | None
+    params: dict[str, float]
+    sse: float
+    val_rmse: float | None
+    val_fit_percent: float | None
+    evaluations: int
+    generations: int
+    seconds: float
+    backend: str
+    family: str
+    algo: str
+    flow: str
+    seed: int
+    population: int
+    stop: Literal["completed", "target-sse", "time-budget", "interrupted"]
+    interrupted: bool
+    stages: list[dict[str, Any]]
+    on_edge: list[dict[str, Any]]
+    widened: list[dict[str, Any]]
+    search_box: dict[str, Any]
+    history: dict[str, Any]
+
+def fit(
+    u: ArrayLike | Trace,
+    y: ArrayLike | None = None,
+    dt: float | None = None,
+    model: Literal["classic", "generalized"] = "classic",
+    effects: Sequence[str] | None = None,
+    algo: Literal["de", "ga", "mfa", "pso"] = "de",
+    pop: int | None = None,
+    gens: int | None = None,
+    seed: int = 1,
+    backend: Literal["auto", "cpu", "gpu"] = "cpu",
+    bounds: Mapping[str, Bound] | None = None,
+    progress: Callable[[dict[str, Any]], object] | None = None,
+    *,
+    free_n: bool = False,
+    loop: Literal["bounded", "free"] = "bounded",
+    thesis_flow: bool = False,
+    target_sse: float | None = None,
+    time_budget: float | None = None,
+    stall: int | None = None,
+) -> FitResult: ...
+
+class Evaluator:
+    """The batch evaluator as an objective over the fit's search box."""
+
+    def __init__(
+        self,
+        u: ArrayLike | Trace,
+        y: ArrayLike | None = None,
+        dt: float | None = None,
+        model: Literal["classic", "generalized"] = "classic",
+        backend: Literal["auto", "cpu", "gpu"] = "auto",
+        *,
+        bounds: Mapping[str, Bound] | None = None,
+        free_n: bool = False,
+        loop: Literal["bounded", "free"] = "bounded",
+        checked: bool = True,
+    ) -> None: ...
+    def __call__(self, thetas: ArrayLike) -> npt.NDArray[np.float64] | float:
+        """N SSEs for an (N, d) array of candidates; a float for one vector of d."""
+    @property
+    def for_scipy(self) -> ScipyObjective: ...
+    @property
+    def bounds(self) -> list[tuple[float, float]]: ...
+    @property
+    def names(self) -> list[str]: ...
+    @property
+    def dim(self) -> int: ...
+    @property
+    def param_names(self) -> list[str]: ...
+    @property
+    def backend(self) -> str: ...
+    @property
+    def samples(self) -> int: ...
+    @property
+    def checked(self) -> bool: ...
+    def to_params(self, thetas: ArrayLike) -> npt.NDArray[np.float64]: ...
+    def to_thetas(self, params: ArrayLike) -> npt.NDArray[np.float64]: ...
+    def score_params(self, params: ArrayLike) -> npt.NDArray[np.float64] | float: ...
+    def model(self, theta: ArrayLike) -> Model: ...
+
+class ScipyObjective:
+    """An Evaluator in SciPy's (d, S) layout."""
+
+    def __call__(self, x: ArrayLike) -> npt.NDArray[np.float64] | float: ...
+    @property
+    def evaluator(self) -> Evaluator: ...
+
+def diagnose(
+    datasets: Trace | Sequence[Trace | tuple[ArrayLike, ArrayLike, float]],
+    baseline: Literal["classic", "generalized"] = "classic",
+    effects: Sequence[str] | None = None,
+    seed: int = 1,
+    seeds: int | None = None,
+    generations: int | None = None,
+    scratch_seeds: int | None = None,
+    backend: Literal["auto", "cpu", "gpu"] = "cpu",
+) -> dict[str, Any]: ...

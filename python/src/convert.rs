@@ -1,0 +1,204 @@
+//! Conversions between Python's values and the library's: arrays of any
+//! float dtype and layout (or lists) to `f64` vectors, checked; names to the
+//! library's enums; serialisable values to Python objects; errors to
+//! Python's exceptions.
+
+use clap::ValueEnum;
+use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use serde::Serialize;
+
+use mckibben::eval::Backend;
+use mckibben::model::{Family, Loop};
+use mckibben::optim::Algorithm;
+
+/// The values of a numeric array in C order, with its shape.
+pub struct Floats {
+    pub values: Vec<f64>,
+    pub shape: Vec<usize>,
+}
+
+/// Reads `obj` (a NumPy array of any real dtype and layout, a list, a
+/// scalar) as `f64`s. Complex numbers, booleans, text and objects are a
+/// `TypeError`; a ragged list a `ValueError`. `what` names the argument in
+/// messages.
+pub fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Floats> {
+    let np = obj.py().import("numpy")?;
+    let array = np
+        .call_method1("asarray", (obj,))
+        .map_err(|e| PyValueError::new_err(format!("{what}: not an array of numbers ({e})")))?;
+    let dtype = array.getattr("dtype")?;
+    let kind: String = dtype.getattr("kind")?.extract()?;
+    if !matches!(kind.as_str(), "f" | "i" | "u") {
+        let name: String = dtype.getattr("name")?.extract()?;
+        return Err(PyTypeError::new_err(format!(
+            "{what}: expected real numbers (a float or integer array or list), got dtype {name}"
+        )));
+    }
+    let contiguous = np.call_method1("ascontiguousarray", (array, "float64"))?;
+    let array = contiguous.cast::<PyArrayDyn<f64>>()?;
+    let shape = array.shape().to_vec();
+    let values = array.readonly().as_slice()?.to_vec();
+    Ok(Floats { values, shape })
+}
+
+/// The first NaN or infinite value, as an error naming its index.
+fn check_finite(values: &[f64], shape: &[usize], what: &str) -> PyResult<()> {
+    if let Some(i) = values.iter().position(|v| !v.is_finite()) {
+        let at = if shape.len() == 2 {
+            format!("[{}, {}]", i / shape[1].max(1), i % shape[1].max(1))
+        } else {
+            format!("[{i}]")
+        };
+        return Err(PyValueError::new_err(format!(
+            "{what}{at} is {}: every value must be a finite number",
+            values[i]
+        )));
+    }
+    Ok(())
+}
+
+/// A one-dimensional, non-empty, finite series (`u`, `y`).
+pub fn series(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
+    let Floats { values, shape } = floats(obj, what)?;
+    if shape.len() != 1 {
+        return Err(PyValueError::new_err(format!(
+            "{what} must be one-dimensional (one value per sample), got shape {}",
+            shape_text(&shape)
+        )));
+    }
+    if values.is_empty() {
+        return Err(PyValueError::new_err(format!("{what} is empty")));
+    }
+    check_finite(&values, &shape, what)?;
+    Ok(values)
+}
+
+/// Candidates as rows of `d` values: an `(N, d)` array (N ≥ 1), or one
+/// vector of `d`; returns the rows (row-major), N, and whether a single
+/// vector was given. `names` name the `d` columns in messages.
+pub fn rows(
+    obj: &Bound<'_, PyAny>,
+    names: &[String],
+    what: &str,
+) -> PyResult<(Vec<f64>, usize, bool)> {
+    let d = names.len();
+    let Floats { values, shape } = floats(obj, what)?;
+    let (n, single) = match shape.as_slice() {
+        [k] if *k == d => (1, true),
+        [_, k] if *k == d => (shape[0], false),
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "{what} must be an (N, {d}) array of candidates, one column per parameter ({}), \
+                 or one vector of {d}; got shape {}",
+                names.join(", "),
+                shape_text(&shape)
+            )));
+        }
+    };
+    if n == 0 {
+        return Err(PyValueError::new_err(format!(
+            "{what} holds no candidate (N = 0)"
+        )));
+    }
+    check_finite(&values, &shape, what)?;
+    Ok((values, n, single))
+}
+
+/// A shape as Python prints it: `(3,)`, `(2, 4)`.
+pub fn shape_text(shape: &[usize]) -> String {
+    match shape {
+        [k] => format!("({k},)"),
+        _ => format!(
+            "({})",
+            shape
+                .iter()
+                .map(|k| k.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
+/// A sample time: finite and positive.
+pub fn sample_time(dt: f64) -> PyResult<f64> {
+    if dt.is_finite() && dt > 0.0 {
+        Ok(dt)
+    } else {
+        Err(PyValueError::new_err(format!(
+            "dt must be a positive number of seconds, got {dt}"
+        )))
+    }
+}
+
+/// A hysteretic family by name (`classic`, `generalized`).
+pub fn family(name: &str) -> PyResult<Family> {
+    match name.parse::<Family>().map_err(PyValueError::new_err)? {
+        Family::Linear => Err(PyValueError::new_err(
+            "model must be a hysteresis model, classic or generalized \
+             (the linear model is fitted by least squares: `mckibben identify`)",
+        )),
+        f => Ok(f),
+    }
+}
+
+/// An update rule by name (`ga`, `mfa`, `pso`, `de`).
+pub fn algorithm(name: &str) -> PyResult<Algorithm> {
+    name.parse().map_err(PyValueError::new_err)
+}
+
+/// A clap value (`--backend`, `--loop`) by name, its error listing the choices.
+fn choice<T: ValueEnum>(name: &str, what: &str) -> PyResult<T> {
+    T::from_str(name, true).map_err(|_| {
+        let names: Vec<String> = T::value_variants()
+            .iter()
+            .filter_map(|v| v.to_possible_value().map(|p| p.get_name().to_string()))
+            .collect();
+        PyValueError::new_err(format!(
+            "unknown {what} `{name}`: expected one of {}",
+            names.join(", ")
+        ))
+    })
+}
+
+/// A backend by name (`auto`, `cpu`, `gpu`).
+pub fn backend(name: &str) -> PyResult<Backend> {
+    choice(name, "backend")
+}
+
+/// A loop class by name (`bounded`, `free`).
+pub fn loop_shape(name: &str) -> PyResult<Loop> {
+    choice(name, "loop")
+}
+
+/// `value` as the Python objects `json.loads` makes of its JSON (what
+/// `--json` prints): dicts, lists, floats, ints, strings, None.
+pub fn to_python<'py>(py: Python<'py>, value: &impl Serialize) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(value).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+/// A library error about the caller's input: `ValueError`, its causes
+/// joined as the command prints them.
+pub fn value_error(e: anyhow::Error) -> PyErr {
+    PyValueError::new_err(format!("{e:#}"))
+}
+
+/// A library error while computing: `RuntimeError`.
+pub fn runtime_error(e: anyhow::Error) -> PyErr {
+    pyo3::exceptions::PyRuntimeError::new_err(format!("{e:#}"))
+}
+
+/// A library error reading a file: `FileNotFoundError` or `OSError` when an
+/// I/O error is its cause, else `ValueError` (the file's content).
+pub fn file_error(e: anyhow::Error) -> PyErr {
+    let message = format!("{e:#}");
+    match e.chain().find_map(|c| c.downcast_ref::<std::io::Error>()) {
+        Some(io) if io.kind() == std::io::ErrorKind::NotFound => {
+            PyFileNotFoundError::new_err(message)
+        }
+        Some(_) => PyOSError::new_err(message),
+        None => PyValueError::new_err(message),
+    }
+}

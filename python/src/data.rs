@@ -1,0 +1,221 @@
+//! Experiments: the library's [`mckibben::data::Trace`] as a Python class,
+//! and its CSV reader.
+
+use std::path::PathBuf;
+
+use numpy::{PyArray1, ToPyArray};
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
+
+use crate::convert::{sample_time, series};
+
+/// One recorded experiment on a uniform time base: the model's input and
+/// output columns and any other columns the file carried. `read_csv`
+/// returns it; `Trace(input, output, dt)` makes one from arrays.
+#[pyclass(module = "mckibben", frozen)]
+#[derive(Clone)]
+pub struct Trace {
+    pub inner: mckibben::data::Trace,
+}
+
+#[pymethods]
+impl Trace {
+    /// A trace on the time base `t = k·dt` from two series of equal length.
+    #[new]
+    #[pyo3(signature = (input, output, dt, input_name = "pressure", output_name = "displacement", source = "python"))]
+    fn new(
+        input: &Bound<'_, PyAny>,
+        output: &Bound<'_, PyAny>,
+        dt: f64,
+        input_name: &str,
+        output_name: &str,
+        source: &str,
+    ) -> PyResult<Trace> {
+        let mut inner = arrays_trace(input, output, dt, source)?;
+        inner.input_name = input_name.to_string();
+        inner.output_name = output_name.to_string();
+        Ok(Trace { inner })
+    }
+
+    /// Where the trace came from (a path, `file.csv[2]` for a piece).
+    #[getter]
+    fn source(&self) -> &str {
+        &self.inner.source
+    }
+
+    /// Time in seconds.
+    #[getter]
+    fn t<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.t.to_pyarray(py)
+    }
+
+    /// The model input.
+    #[getter]
+    fn input<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.input.to_pyarray(py)
+    }
+
+    /// The measured output.
+    #[getter]
+    fn output<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.output.to_pyarray(py)
+    }
+
+    #[getter]
+    fn input_name(&self) -> &str {
+        &self.inner.input_name
+    }
+
+    #[getter]
+    fn output_name(&self) -> &str {
+        &self.inner.output_name
+    }
+
+    /// The sample time: the mean step of the time base (s).
+    #[getter]
+    fn dt(&self) -> f64 {
+        self.inner.dt()
+    }
+
+    /// The other columns, by name.
+    #[getter]
+    fn extra<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (name, v) in &self.inner.extra {
+            d.set_item(name, v.to_pyarray(py))?;
+        }
+        Ok(d)
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Trace({:?}: {} samples at dt = {} s, {} -> {})",
+            self.inner.source,
+            self.inner.len(),
+            self.inner.dt(),
+            self.inner.input_name,
+            self.inner.output_name
+        )
+    }
+}
+
+/// A trace from two series and a sample time, every value checked.
+pub fn arrays_trace(
+    input: &Bound<'_, PyAny>,
+    output: &Bound<'_, PyAny>,
+    dt: f64,
+    source: &str,
+) -> PyResult<mckibben::data::Trace> {
+    let u = series(input, "u")?;
+    let y = series(output, "y")?;
+    if u.len() != y.len() {
+        return Err(PyValueError::new_err(format!(
+            "u and y differ in length: {} and {} samples",
+            u.len(),
+            y.len()
+        )));
+    }
+    Ok(mckibben::data::Trace::uniform(
+        source,
+        sample_time(dt)?,
+        u,
+        y,
+    ))
+}
+
+/// The experiment an API call is about: a `Trace` (then `y` and `dt` stay
+/// `None`), or the arrays `u`, `y` and the sample time `dt`.
+pub fn data_arg(
+    u: &Bound<'_, PyAny>,
+    y: Option<&Bound<'_, PyAny>>,
+    dt: Option<f64>,
+) -> PyResult<mckibben::data::Trace> {
+    if let Ok(trace) = u.cast::<Trace>() {
+        if y.is_some() || dt.is_some() {
+            return Err(PyValueError::new_err(
+                "pass either a Trace, or the arrays u and y with dt, not both",
+            ));
+        }
+        return Ok(trace.get().inner.clone());
+    }
+    match (y, dt) {
+        (Some(y), Some(dt)) => arrays_trace(u, y, dt, "python"),
+        _ => Err(PyValueError::new_err(
+            "give the output y and the sample time dt with the input u (or pass a Trace)",
+        )),
+    }
+}
+
+/// A data file's error as Python's exception: `FileNotFoundError` or
+/// `OSError` when it cannot be read, `ValueError` for its content; the
+/// message is the library's (file, line, column, what).
+fn data_error(e: DataError) -> PyErr {
+    match &e {
+        DataError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+            PyFileNotFoundError::new_err(e.to_string())
+        }
+        DataError::Io { .. } => PyOSError::new_err(e.to_string()),
+        _ => PyValueError::new_err(e.to_string()),
+    }
+}
+
+/// Reads an experiment CSV file with the library's reader (README.md, "Data
+/// format"): columns `time`, `input`, `output` by name. A non-uniform time
+/// base is an error unless `resample` (a step in seconds: every column
+/// interpolated onto it) or `split_gaps` (cut at every gap and backward
+/// jump; then a list of traces is returned). The reader's notes (cuts,
+/// dropped pieces, text columns) become `UserWarning`s.
+#[pyfunction]
+#[pyo3(signature = (path, input = "pressure", output = "displacement", time = "t", resample = None, split_gaps = false))]
+pub fn read_csv<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    input: &str,
+    output: &str,
+    time: &str,
+    resample: Option<f64>,
+    split_gaps: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let gaps = match (resample, split_gaps) {
+        (Some(_), true) => {
+            return Err(PyValueError::new_err(
+                "resample and split_gaps exclude each other: choose one",
+            ));
+        }
+        (Some(dt), false) => Gaps::Resample(sample_time(dt).map_err(|_| {
+            PyValueError::new_err(format!(
+                "resample must be a positive number of seconds, got {dt}"
+            ))
+        })?),
+        (None, true) => Gaps::Split,
+        (None, false) => Gaps::Reject,
+    };
+    let opts = ReadOptions {
+        time: time.to_string(),
+        input: input.to_string(),
+        output: output.to_string(),
+        gaps,
+    };
+    let (traces, notes) = py
+        .detach(|| read_traces_with_notes(&path, &opts))
+        .map_err(data_error)?;
+    let warn = py.import("warnings")?;
+    for note in notes {
+        warn.call_method1("warn", (note,))?;
+    }
+    let mut traces: Vec<Trace> = traces.into_iter().map(|inner| Trace { inner }).collect();
+    if split_gaps {
+        return Ok(pyo3::types::PyList::new(py, traces)?.into_any());
+    }
+    let one = traces
+        .pop()
+        .ok_or_else(|| PyValueError::new_err(format!("{}: no samples", path.display())))?;
+    Ok(Bound::new(py, one)?.into_any())
+}

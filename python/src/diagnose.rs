@@ -1,0 +1,96 @@
+//! `mckibben.diagnose`: the library's diagnosis, its `--json` document as
+//! Python objects.
+
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyTuple;
+
+use mckibben::diagnose::report::DiagnosisJson;
+use mckibben::diagnose::{Effect, Settings};
+use mckibben::report::json::Versioned;
+
+use crate::convert::{backend, family, to_python, value_error};
+use crate::data::{Trace, arrays_trace};
+use crate::fit::{effects_arg, seed_arg};
+
+/// The traces of `datasets`: a `Trace`, or a list whose items are each a
+/// `Trace` or a `(u, y, dt)` tuple.
+fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<Vec<mckibben::data::Trace>> {
+    if let Ok(t) = datasets.cast::<Trace>() {
+        return Ok(vec![t.get().inner.clone()]);
+    }
+    let wrong = || {
+        PyTypeError::new_err(
+            "datasets must be a Trace or a list of them (read_csv), or of (u, y, dt) tuples",
+        )
+    };
+    let mut out = Vec::new();
+    for (i, item) in datasets.try_iter().map_err(|_| wrong())?.enumerate() {
+        let item = item?;
+        if let Ok(t) = item.cast::<Trace>() {
+            out.push(t.get().inner.clone());
+        } else if let Ok(tuple) = item.cast::<PyTuple>()
+            && tuple.len() == 3
+        {
+            let dt: f64 = tuple.get_item(2)?.extract()?;
+            out.push(arrays_trace(
+                &tuple.get_item(0)?,
+                &tuple.get_item(1)?,
+                dt,
+                &format!("datasets[{i}]"),
+            )?);
+        } else {
+            return Err(wrong());
+        }
+    }
+    if out.is_empty() {
+        return Err(PyValueError::new_err(
+            "datasets is empty: give at least one experiment",
+        ));
+    }
+    Ok(out)
+}
+
+/// Diagnoses the sim-to-real gap of a `baseline` model on `datasets` (each
+/// fitted on its first half, validated on its second), as `mckibben
+/// diagnose` does: where the model misses, which effects of the catalogue
+/// (`effects`, default all) explain it, how far the gap shrinks. Returns
+/// the document `mckibben diagnose --json` prints, as dicts and lists.
+#[pyfunction]
+#[pyo3(signature = (datasets, baseline = "classic", effects = None, seed = 1, seeds = None, generations = None, scratch_seeds = None, backend = "cpu"))]
+#[allow(clippy::too_many_arguments)]
+pub fn diagnose<'py>(
+    py: Python<'py>,
+    datasets: &Bound<'py, PyAny>,
+    baseline: &str,
+    effects: Option<Vec<String>>,
+    seed: i128,
+    seeds: Option<usize>,
+    generations: Option<usize>,
+    scratch_seeds: Option<usize>,
+    backend: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let traces = traces(datasets)?;
+    let family = family(baseline)?;
+    let effects = match effects_arg(effects)? {
+        Some(e) if !e.is_empty() => e,
+        _ => Effect::ALL.to_vec(),
+    };
+    let defaults = Settings::default();
+    let seeds = seeds.unwrap_or(defaults.seeds);
+    if seeds == 0 {
+        return Err(PyValueError::new_err("seeds must be at least 1"));
+    }
+    let settings = Settings {
+        seeds,
+        generations: generations.unwrap_or(defaults.generations),
+        scratch_seeds: scratch_seeds.unwrap_or(defaults.scratch_seeds),
+        seed: seed_arg(seed)?,
+        backend: self::backend(backend)?,
+        ..defaults
+    };
+    let d = py
+        .detach(|| mckibben::diagnose::diagnose(&traces, family, &effects, &settings))
+        .map_err(value_error)?;
+    to_python(py, &Versioned::new(DiagnosisJson::of(&d)))
+}

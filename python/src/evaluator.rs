@@ -1,0 +1,319 @@
+//! `mckibben.Evaluator`: the batch evaluator as an objective for Python's
+//! optimizers, over the search box `mckibben fit` searches.
+
+use std::sync::Mutex;
+
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyFloat};
+
+use mckibben::model::{Flow, Measure};
+use mckibben::optim::engine::Objective as _;
+use mckibben::optim::engine::Space;
+use mckibben::optim::engine::model::ModelObjective;
+use mckibben::optim::task::Task;
+
+use crate::convert::{backend, family, loop_shape, rows, runtime_error, value_error};
+use crate::data::data_arg;
+use crate::fit::user_bounds;
+use crate::model::Model;
+
+/// The batch evaluator as an objective: `ev(thetas)` scores an `(N, d)`
+/// array of candidates at once (on the CPU, or a GPU) and returns their N
+/// free-run SSEs on the estimation half (the first half) of the data;
+/// `inf` or NaN for a candidate that diverges.
+///
+/// A candidate is a vector of the search coordinates `mckibben fit`'s
+/// staged engine moves (`names`, in the box `bounds`: the data's own scale,
+/// loops in the bounded class unless `loop="free"`); values outside the box
+/// are clamped into it, as the engine does. With `checked` (the default)
+/// the objective is the fit's own: a candidate whose loop leaves the
+/// bounded class or whose output runs away on the whole record's input
+/// also scores `inf`. Without, it is the batch evaluator's SSE alone, as
+/// `mckibben bench` times it.
+#[pyclass(module = "mckibben", frozen)]
+pub struct Evaluator {
+    task: Task,
+    space: Space,
+    checked: bool,
+    /// The free coordinates' names.
+    names: Vec<String>,
+    describe: String,
+    evaluator: Mutex<Box<dyn mckibben::eval::Evaluator + Send>>,
+}
+
+impl Evaluator {
+    /// The costs of canonical rows, with the interpreter released.
+    fn score(&self, py: Python<'_>, canonical: Vec<f64>) -> PyResult<Vec<f32>> {
+        py.detach(|| {
+            let mut evaluator = self
+                .evaluator
+                .lock()
+                .map_err(|_| anyhow::anyhow!("the evaluator failed in an earlier call"))?;
+            if self.checked {
+                ModelObjective::for_task(evaluator.as_mut(), &self.task)
+                    .costs(&canonical, Measure::FreeRun)
+            } else {
+                Ok(evaluator.evaluate(&self.task.problem(), &canonical)?.total)
+            }
+        })
+        .map_err(runtime_error)
+    }
+
+    /// Scores candidates of search coordinates given as `obj` (see
+    /// [`rows`]): a float for one vector, else an array of N.
+    fn call<'py>(
+        &self,
+        py: Python<'py>,
+        obj: &Bound<'py, PyAny>,
+        what: &str,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (free, _, single) = rows(obj, &self.names, what)?;
+        let canonical = self.space.embed(&free);
+        let costs = self.score(py, canonical)?;
+        sses(py, costs, single)
+    }
+
+    /// The canonical parameter names of the family.
+    fn canonical_names(&self) -> Vec<String> {
+        self.task
+            .family
+            .params()
+            .iter()
+            .map(|p| p.name.to_string())
+            .collect()
+    }
+}
+
+/// Costs as Python values: a float for a single vector, else an array.
+fn sses<'py>(py: Python<'py>, costs: Vec<f32>, single: bool) -> PyResult<Bound<'py, PyAny>> {
+    let costs: Vec<f64> = costs.into_iter().map(f64::from).collect();
+    if single {
+        return Ok(PyFloat::new(py, costs[0]).into_any());
+    }
+    Ok(PyArray1::from_vec(py, costs).into_any())
+}
+
+/// Rows of `d` values as a 1-D array (one vector) or an `(N, d)` array.
+fn matrix<'py>(
+    py: Python<'py>,
+    values: Vec<f64>,
+    d: usize,
+    single: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let n = values.len() / d.max(1);
+    let array = PyArray1::from_vec(py, values);
+    if single {
+        return Ok(array.into_any());
+    }
+    Ok(array.reshape([n, d])?.into_any())
+}
+
+#[pymethods]
+impl Evaluator {
+    /// An evaluator of `model` on one experiment (the arrays `u`, `y` and
+    /// the sample time `dt`, or a `Trace`), scoring on `backend`: `auto` (a
+    /// hardware GPU if there is one, else the CPU), `cpu` or `gpu` (any
+    /// adapter, lavapipe included). `bounds`, `free_n` and `loop` shape the
+    /// box as in `fit`.
+    #[new]
+    #[pyo3(signature = (u, y = None, dt = None, model = "classic", backend = "auto", *, bounds = None, free_n = false, r#loop = "bounded", checked = true))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        u: &Bound<'_, PyAny>,
+        y: Option<&Bound<'_, PyAny>>,
+        dt: Option<f64>,
+        model: &str,
+        backend: &str,
+        bounds: Option<&Bound<'_, PyDict>>,
+        free_n: bool,
+        r#loop: &str,
+        checked: bool,
+    ) -> PyResult<Evaluator> {
+        let trace = data_arg(u, y, dt)?;
+        let family = family(model)?;
+        let loop_shape = loop_shape(r#loop)?;
+        let bounds = user_bounds(bounds)?;
+        let backend = self::backend(backend)?;
+        let task = py
+            .detach(|| {
+                Task::with_box(
+                    &trace,
+                    family,
+                    Flow::Joint,
+                    None,
+                    free_n,
+                    loop_shape,
+                    &bounds,
+                )
+            })
+            .map_err(value_error)?;
+        let space = Space::from(&task.space);
+        let evaluator = py
+            .detach(|| mckibben::eval::open(backend))
+            .map_err(runtime_error)?;
+        Ok(Evaluator {
+            names: space.bounds().names,
+            describe: evaluator.describe(),
+            task,
+            space,
+            checked,
+            evaluator: Mutex::new(evaluator),
+        })
+    }
+
+    /// The SSE of each candidate: `thetas` is an `(N, d)` array (any float
+    /// dtype or layout, or a list) of search coordinates, one row a
+    /// candidate; returns an array of N. One vector of `d` gives a float.
+    fn __call__<'py>(
+        &self,
+        py: Python<'py>,
+        thetas: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        self.call(py, thetas, "thetas")
+    }
+
+    /// The same objective in SciPy's layout: called with a `(d, S)` array
+    /// (`differential_evolution(..., vectorized=True)`) it returns S SSEs;
+    /// with one vector of `d` (the polish), a float.
+    #[getter]
+    fn for_scipy(slf: &Bound<'_, Self>) -> ScipyObjective {
+        ScipyObjective {
+            evaluator: slf.clone().unbind(),
+        }
+    }
+
+    /// The box of each search coordinate, `(lower, upper)`, in `names`' order.
+    #[getter]
+    fn bounds(&self) -> Vec<(f64, f64)> {
+        let b = self.space.bounds();
+        b.lower.into_iter().zip(b.upper).collect()
+    }
+
+    /// The search coordinates' names (the columns of `thetas`).
+    #[getter]
+    fn names(&self) -> Vec<String> {
+        self.names.clone()
+    }
+
+    /// The number of search coordinates d.
+    #[getter]
+    fn dim(&self) -> usize {
+        self.names.len()
+    }
+
+    /// The canonical parameters' names (the columns of `to_params`).
+    #[getter]
+    fn param_names(&self) -> Vec<String> {
+        self.canonical_names()
+    }
+
+    /// Where candidates are scored (backend and adapter).
+    #[getter]
+    fn backend(&self) -> &str {
+        &self.describe
+    }
+
+    /// Samples each candidate is scored on (the estimation half).
+    #[getter]
+    fn samples(&self) -> usize {
+        self.task.estimation.len()
+    }
+
+    /// Whether the fit's bounded-loop checks apply (`checked`).
+    #[getter]
+    fn checked(&self) -> bool {
+        self.checked
+    }
+
+    /// The canonical parameter vectors of candidates: `(N, P)` for `(N, d)`.
+    fn to_params<'py>(
+        &self,
+        py: Python<'py>,
+        thetas: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (free, _, single) = rows(thetas, &self.names, "thetas")?;
+        matrix(py, self.space.embed(&free), self.space.dim(), single)
+    }
+
+    /// The search coordinates of canonical parameter vectors (`(N, P)` to
+    /// `(N, d)`): where a fitted model lies in this box.
+    fn to_thetas<'py>(
+        &self,
+        py: Python<'py>,
+        params: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (canonical, _, single) = rows(params, &self.canonical_names(), "params")?;
+        matrix(py, self.space.project(&canonical), self.names.len(), single)
+    }
+
+    /// The SSE of canonical parameter vectors (`(N, P)`, or one of P), as
+    /// `__call__` scores candidates: e.g. a fitted model's `params` values.
+    fn score_params<'py>(
+        &self,
+        py: Python<'py>,
+        params: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let (canonical, _, single) = rows(params, &self.canonical_names(), "params")?;
+        let costs = self.score(py, canonical)?;
+        sses(py, costs, single)
+    }
+
+    /// The model of one candidate, in the data's coordinates (what `fit`
+    /// would write for it).
+    fn model(&self, theta: &Bound<'_, PyAny>) -> PyResult<Model> {
+        let (free, n, _) = rows(theta, &self.names, "theta")?;
+        if n != 1 {
+            return Err(PyValueError::new_err(format!(
+                "theta must be one candidate (a vector of {}), got {n}",
+                self.names.len()
+            )));
+        }
+        Ok(Model {
+            inner: self.task.model(&self.space.embed(&free)),
+        })
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Evaluator({} on {} samples, d = {} ({}), {}{})",
+            self.task.family,
+            self.task.estimation.len(),
+            self.names.len(),
+            self.names.join(", "),
+            self.describe,
+            if self.checked { "" } else { ", unchecked" }
+        )
+    }
+}
+
+/// An [`Evaluator`] in SciPy's `(d, S)` layout (`Evaluator.for_scipy`).
+#[pyclass(module = "mckibben", frozen)]
+pub struct ScipyObjective {
+    evaluator: Py<Evaluator>,
+}
+
+#[pymethods]
+impl ScipyObjective {
+    /// S SSEs for a `(d, S)` array, a float for one vector of d.
+    fn __call__<'py>(&self, py: Python<'py>, x: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        let array = py.import("numpy")?.call_method1("asarray", (x,))?;
+        let ndim: usize = array.getattr("ndim")?.extract()?;
+        let rows = if ndim == 2 {
+            array.getattr("T")?
+        } else {
+            array
+        };
+        self.evaluator
+            .get()
+            .call(py, &rows, "x (SciPy's (d, S) layout, transposed)")
+    }
+
+    /// The evaluator this wraps.
+    #[getter]
+    fn evaluator(&self, py: Python<'_>) -> Py<Evaluator> {
+        self.evaluator.clone_ref(py)
+    }
+}

@@ -1,0 +1,36 @@
+//! Python bindings of the `mckibben` library (the module `mckibben`).
+//!
+//! The bindings only convert types: every computation is a call into the
+//! library, the same call the command makes (`mckibben fit` and
+//! [`mckibben::optim::fit::Fit`], `mckibben diagnose` and
+//! [`mckibben::diagnose::diagnose`], the batch evaluator behind both). What
+//! is here is checking and converting Python's inputs (any float dtype,
+//! layout, lists), releasing the interpreter while Rust computes, turning
+//! Ctrl-C into the engine's stop flag, and mapping errors to Python's
+//! exceptions. docs/PYTHON.md describes the API.
+
+mod convert;
+mod data;
+mod diagnose;
+mod evaluator;
+mod fit;
+mod model;
+
+use pyo3::prelude::*;
+
+/// Identify, diagnose and simulate hysteretic McKibben muscles: the Rust
+/// library `mckibben`'s staged fit, diagnosis, models and batch evaluator.
+#[pymodule]
+#[pyo3(name = "mckibben")]
+fn mckibben_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<data::Trace>()?;
+    m.add_class::<model::Model>()?;
+    m.add_class::<fit::FitResult>()?;
+    m.add_class::<evaluator::Evaluator>()?;
+    m.add_class::<evaluator::ScipyObjective>()?;
+    m.add_function(wrap_pyfunction!(data::read_csv, m)?)?;
+    m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,69 @@
+"""read_csv and Trace: the library's reader, its errors as Python's."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import mckibben
+from conftest import STAIR
+
+
+def test_the_stair_reads_as_the_command_reads_it(stair):
+    assert len(stair) == 4000
+    assert stair.dt == pytest.approx(0.01)
+    assert (stair.input_name, stair.output_name) == ("pressure", "displacement")
+    assert stair.input.dtype == np.float64 and stair.output.shape == (4000,)
+    assert stair.source == str(STAIR)
+
+
+def test_file_errors_name_the_file_line_and_column(tmp_path):
+    with pytest.raises(FileNotFoundError, match="nope.csv"):
+        mckibben.read_csv(tmp_path / "nope.csv")
+    with pytest.raises(ValueError, match='no input column "valve"'):
+        mckibben.read_csv(STAIR, input="valve")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,pressure,displacement\n0,0.1,1\n0.1,nan,2\n0.2,0.1,3\n")
+    with pytest.raises(ValueError, match=r'line 3, column "pressure": "nan" is not finite'):
+        mckibben.read_csv(bad)
+    gap = tmp_path / "gap.csv"
+    rows = [f"{k * 0.1:.1f},{k % 3},{k}" for k in range(60) if k != 30]
+    gap.write_text("t,pressure,displacement\n" + "\n".join(rows) + "\n")
+    with pytest.raises(ValueError, match="non-uniform time base"):
+        mckibben.read_csv(gap)
+    with warnings.catch_warnings(record=True) as notes:
+        warnings.simplefilter("always")
+        pieces = mckibben.read_csv(gap, split_gaps=True)
+    assert [len(p) for p in pieces] == [30, 29]
+    assert any("--split-gaps cut here" in str(n.message) for n in notes)
+    assert len(mckibben.read_csv(gap, resample=0.1)) == 60
+    with pytest.raises(ValueError, match="resample must be a positive"):
+        mckibben.read_csv(gap, resample=-1.0)
+
+
+def test_a_trace_takes_any_float_dtype_layout_or_list():
+    u = np.linspace(0, 1, 50)
+    y = 2 * u
+    a = mckibben.Trace(u, y, 0.1)
+    b = mckibben.Trace(u.astype(np.float32).tolist(), np.asfortranarray(y[::-1])[::-1], 0.1)
+    assert np.array_equal(a.output, b.output)
+    assert np.array_equal(b.input, u.astype(np.float32).astype(np.float64))
+    assert a.t[-1] == pytest.approx(4.9)
+
+
+@pytest.mark.parametrize(
+    "u, y, dt, error, message",
+    [
+        ([], [], 0.1, ValueError, "u is empty"),
+        ([1.0, np.nan], [1.0, 2.0], 0.1, ValueError, r"u\[1\] is NaN"),
+        ([1.0, 2.0], [1.0, 2.0, 3.0], 0.1, ValueError, "differ in length"),
+        ([[1.0, 2.0]], [1.0, 2.0], 0.1, ValueError, "one-dimensional"),
+        ([1.0, 2.0], [1.0, 2.0], 0.0, ValueError, "dt must be a positive"),
+        (["a", "b"], [1.0, 2.0], 0.1, TypeError, "expected real numbers"),
+        ([1j, 2j], [1.0, 2.0], 0.1, TypeError, "complex"),
+        ([True, False], [1.0, 2.0], 0.1, TypeError, "bool"),
+    ],
+)
+def test_bad_arrays_raise_the_named_exception(u, y, dt, error, message):
+    with pytest.raises(error, match=message):
+        mckibben.Trace(u, y, dt)

@@ -1,0 +1,140 @@
+"""Evaluator: the batch evaluator as an objective, for SciPy and ask/tell."""
+
+import struct
+import time
+
+import numpy as np
+import pytest
+
+import mckibben
+from conftest import missing
+
+
+def draw(ev, n, seed=1):
+    """n candidates uniform in the evaluator's box."""
+    lo, hi = np.array(ev.bounds).T
+    return np.random.default_rng(seed).uniform(lo, hi, size=(n, ev.dim))
+
+
+@pytest.fixture(scope="module")
+def ev(stair):
+    return mckibben.Evaluator(stair, backend="cpu")
+
+
+def test_the_box_is_the_fits(ev, small_fit):
+    assert ev.names == ["alpha", "loading", "beta_range", "a", "gain", "offset", "x0_range"]
+    assert ev.dim == 7 and len(ev.bounds) == 7 and ev.samples == 2000
+    assert list(small_fit.search_box["names"]) == ["A", *ev.names[:3], "n", *ev.names[3:]]
+    assert ev.param_names == list(small_fit.params)
+
+
+def test_an_evaluator_scores_the_fits_sse_bit_for_bit(ev, stair, cli):
+    fitted = cli("fit", stair.source, "--backend", "cpu", "--seed", "1", "--out", "/tmp/mckibben-pytest-fit")
+    params = np.array(list(fitted["params"].values()))
+    assert struct.pack("<d", ev.score_params(params)) == struct.pack("<d", fitted["sse"])
+    # The same point as search coordinates, one row of a population.
+    theta = ev.to_thetas(params)
+    assert np.allclose(ev.to_params(theta), params, rtol=1e-12, atol=0)
+    population = np.vstack([draw(ev, 5), theta])
+    assert ev(population)[-1] == pytest.approx(fitted["sse"], rel=1e-5)
+    assert ev.model(theta).params == pytest.approx(fitted["params"], rel=1e-12)
+
+
+def test_any_dtype_layout_or_list_gives_the_same_bits(ev):
+    thetas = draw(ev, 64)
+    sse = ev(thetas)
+    assert sse.shape == (64,) and sse.dtype == np.float64
+    assert np.array_equal(ev(np.asfortranarray(thetas)), sse, equal_nan=True)
+    assert np.array_equal(ev(thetas.tolist()), sse, equal_nan=True)
+    assert np.array_equal(ev(np.vstack([thetas, thetas])[::2]), sse, equal_nan=True)
+    single = ev(thetas[3])
+    assert isinstance(single, float) and single == sse[3] or np.isnan(single) and np.isnan(sse[3])
+    f32 = thetas.astype(np.float32)
+    assert np.array_equal(ev(f32), ev(f32.astype(np.float64)), equal_nan=True)
+
+
+def test_unchecked_is_the_batch_evaluator_alone(stair, ev):
+    raw = mckibben.Evaluator(stair, backend="cpu", checked=False)
+    thetas = draw(ev, 200, seed=2)
+    checked, plain = ev(thetas), raw(thetas)
+    kept = np.isfinite(checked)
+    assert np.array_equal(checked[kept], plain[kept])
+    assert np.all(np.isinf(checked[~kept]) | np.isnan(plain[~kept]) | np.isfinite(plain[~kept]))
+
+
+def test_the_gpu_gives_the_cpus_bits(stair, ev):
+    try:
+        gpu = mckibben.Evaluator(stair, backend="gpu")
+    except RuntimeError as e:
+        missing(f"no Vulkan adapter for the GPU evaluator ({e})")
+    thetas = draw(ev, 300, seed=5)
+    for checked in (True, False):
+        cpu = mckibben.Evaluator(stair, backend="cpu", checked=checked)
+        gpu = mckibben.Evaluator(stair, backend="gpu", checked=checked)
+        a, b = cpu(thetas), gpu(thetas)
+        assert a.tobytes() == b.tobytes(), (gpu.backend, np.flatnonzero(a != b)[:5])
+
+
+def test_scipy_differential_evolution_runs_vectorized(ev, stair):
+    optimize = pytest.importorskip("scipy.optimize")
+    start = time.perf_counter()
+    result = optimize.differential_evolution(
+        ev.for_scipy,
+        ev.bounds,
+        vectorized=True,
+        updating="deferred",
+        seed=1,
+        maxiter=40,
+        popsize=10,
+        tol=0,
+        polish=False,
+    )
+    seconds = time.perf_counter() - start
+    assert np.isfinite(result.fun) and result.x.shape == (ev.dim,)
+    assert ev(result.x) == pytest.approx(result.fun)
+    fit = ev.model(result.x).simulate(stair.input, x0=stair.output[0])
+    assert np.isfinite(fit).all()
+    print(f"scipy DE: SSE {result.fun:.6g} after {result.nfev} evaluations in {seconds:.2f} s")
+
+
+def test_an_ask_tell_loop(ev):
+    # Ask a population, tell its SSEs, keep the best, ask around it.
+    rng = np.random.default_rng(7)
+    lo, hi = np.array(ev.bounds).T
+    asked = draw(ev, 64, seed=7)
+    best, best_sse = None, np.inf
+    for _ in range(10):
+        told = ev(asked)
+        told = np.where(np.isnan(told), np.inf, told)
+        i = int(np.argmin(told))
+        if told[i] < best_sse:
+            best, best_sse = asked[i], told[i]
+        asked = np.clip(best + rng.normal(scale=0.02, size=(32, ev.dim)) * (hi - lo), lo, hi)
+    assert np.isfinite(best_sse)
+
+
+@pytest.mark.parametrize(
+    "thetas, error, message",
+    [
+        (np.zeros((3, 5)), ValueError, r"an \(N, 7\) array"),
+        (np.zeros((0, 7)), ValueError, "no candidate"),
+        (np.full((2, 7), np.nan), ValueError, r"thetas\[0, 0\] is NaN"),
+        (np.zeros((2, 2, 7)), ValueError, r"got shape \(2, 2, 7\)"),
+        (np.zeros((2, 7), dtype=complex), TypeError, "expected real numbers"),
+        ([["a"] * 7], TypeError, "expected real numbers"),
+    ],
+)
+def test_bad_candidates_raise_the_named_exception(ev, thetas, error, message):
+    with pytest.raises(error, match=message):
+        ev(thetas)
+
+
+def test_bad_construction_raises(stair):
+    with pytest.raises(ValueError, match="unknown model family"):
+        mckibben.Evaluator(stair, model="bouc")
+    with pytest.raises(ValueError, match="linear model"):
+        mckibben.Evaluator(stair, model="linear")
+    with pytest.raises(ValueError, match="differ in length"):
+        mckibben.Evaluator(stair.input, stair.output[:10], 0.01)
+    with pytest.raises(ValueError, match="no parameter `zeta`"):
+        mckibben.Evaluator(stair, bounds={"zeta": 1.0})

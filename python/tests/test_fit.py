@@ -1,0 +1,146 @@
+"""fit: the command's staged engine, bit for bit; progress, Ctrl-C, the GIL."""
+
+import os
+import signal
+import struct
+import threading
+
+import numpy as np
+import pytest
+
+import mckibben
+
+
+def bits(x):
+    return struct.pack("<d", x)
+
+
+def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli):
+    expected = cli("fit", stair.source, "--backend", "cpu", "--seed", "1", "--out", "/tmp/mckibben-pytest-fit")
+    result = mckibben.fit(stair, seed=1)
+    assert list(result.params) == list(expected["params"])
+    assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
+    assert bits(result.sse) == bits(expected["sse"])
+    assert result.val_fit_percent == expected["val_fit_percent"]
+    assert result.stop == expected["stop"] == "completed" and not result.interrupted
+    assert [s["best_cost"] for s in result.stages] == [s["best_cost"] for s in expected["stages"]]
+    assert (result.population, result.algo, result.flow) == (1000, "de", "joint")
+    assert result.on_edge == expected["on_edge"] and result.widened == expected["widened"]
+    assert list(result.search_box["names"]) == expected["search_box"]["names"]
+    h = result.history
+    assert h["params"].shape == (len(h["generation"]), 9) and h["names"][-1] == "x0"
+    assert np.array_equal(h["params"][-1], list(result.params.values()))
+    # Arrays instead of a Trace: the same fit.
+    again = mckibben.fit(stair.input, stair.output, stair.dt, seed=1)
+    assert again.params == result.params
+
+
+def test_seeds_are_per_call(stair, small_fit):
+    same = mckibben.fit(stair, pop=40, gens=20, seed=3)
+    other = mckibben.fit(stair, pop=40, gens=20, seed=4)
+    assert same.params == small_fit.params
+    assert other.params != small_fit.params
+
+
+def test_progress_sees_every_generation(stair):
+    seen = []
+    result = mckibben.fit(stair, pop=40, gens=10, progress=seen.append)
+    assert len(seen) == len(result.history["generation"])
+    assert seen[0]["generation"] == 1 and seen[0]["stage"] == "global"
+    assert seen[0]["planned"] == 10 + 2  # G global generations, then G/4 free-run ones
+    assert set(seen[-1]) >= {"best_sse", "best_params", "evaluations", "diverged"}
+
+
+def test_an_exception_in_progress_stops_the_fit_and_is_raised(stair):
+    def fail(record):
+        if record["generation"] == 3:
+            raise RuntimeError("stop here")
+
+    with pytest.raises(RuntimeError, match="stop here"):
+        mckibben.fit(stair, pop=40, gens=50, progress=fail)
+
+
+def test_ctrl_c_returns_the_best_so_far_marked_interrupted(stair):
+    seen = []
+
+    def interrupt_once(record):
+        seen.append(record["generation"])
+        if len(seen) == 5:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    result = mckibben.fit(stair, pop=200, gens=100_000, progress=interrupt_once)
+    assert result.interrupted and result.stop == "interrupted"
+    assert result.model is not None and result.params
+    assert result.generations < 100
+
+
+def test_a_sigint_from_another_thread_interrupts_too(stair):
+    timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        result = mckibben.fit(stair, pop=200, gens=100_000)
+    finally:
+        timer.cancel()
+    assert result.interrupted and result.model is not None
+
+
+def test_another_thread_runs_during_a_fit(stair):
+    done = threading.Event()
+    count = [0]
+
+    def work():
+        while not done.is_set():
+            count[0] += 1
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    try:
+        before = count[0]
+        mckibben.fit(stair, pop=200, gens=60)
+        during = count[0] - before
+    finally:
+        done.set()
+        worker.join()
+    # Pure-Python increments: with the interpreter held for the whole fit
+    # the thread could not count at all while it ran.
+    assert during > 10_000, during
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, message",
+    [
+        ({"effects": ["delay"]}, NotImplementedError, "fit --effects"),
+        ({"effects": ["delayy"]}, ValueError, "unknown effect `delayy`"),
+        ({"bounds": {"alpah": (0.0, 1.0)}}, ValueError, "no parameter `alpah`"),
+        ({"bounds": {"alpha": (0.9, 0.1)}}, ValueError, "the box is empty"),
+        ({"bounds": {"alpha": "x"}}, TypeError, "a \\(lo, hi\\) pair"),
+        ({"model": "classical"}, ValueError, "unknown model family"),
+        ({"algo": "cmaes"}, ValueError, "unknown algorithm"),
+        ({"backend": "tpu"}, ValueError, "unknown backend `tpu`"),
+        ({"pop": 0}, ValueError, "pop must be at least 1"),
+        ({"seed": -1}, ValueError, "seed must be an integer"),
+        ({"progress": 3}, TypeError, "progress must be callable"),
+    ],
+)
+def test_bad_arguments_raise_the_named_exception(stair, kwargs, error, message):
+    with pytest.raises(error, match=message):
+        mckibben.fit(stair, **{"pop": 40, "gens": 2, **kwargs})
+
+
+def test_bad_data_raise_value_errors(stair):
+    u, y = stair.input, stair.output
+    with pytest.raises(ValueError, match="differ in length"):
+        mckibben.fit(u, y[:-1], 0.01)
+    with pytest.raises(ValueError, match=r"y\[7\] is NaN"):
+        mckibben.fit(u, np.where(np.arange(len(y)) == 7, np.nan, y), 0.01)
+    with pytest.raises(ValueError, match="give the output y"):
+        mckibben.fit(u)
+    with pytest.raises(ValueError, match="not both"):
+        mckibben.fit(stair, y, 0.01)
+    with pytest.raises(ValueError, match="u is empty"):
+        mckibben.fit([], [], 0.01)
+
+
+def test_a_fixed_parameter_stays_fixed(stair):
+    result = mckibben.fit(stair, pop=40, gens=5, bounds={"alpha": 0.5})
+    assert result.params["alpha"] == 0.5
