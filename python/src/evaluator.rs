@@ -70,9 +70,21 @@ impl Evaluator {
         what: &str,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (free, _, single) = rows(obj, &self.names, what)?;
-        let canonical = self.space.embed(&free);
+        let canonical = py.detach(|| self.space.embed(&free));
         let costs = self.score(py, canonical)?;
         sses(py, costs, single)
+    }
+
+    /// The canonical vector of one candidate.
+    fn one(&self, theta: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
+        let (free, n, _) = rows(theta, &self.names, "theta")?;
+        if n != 1 {
+            return Err(PyValueError::new_err(format!(
+                "theta must be one candidate (a vector of {}), got {n}",
+                self.names.len()
+            )));
+        }
+        Ok(self.space.embed(&free))
     }
 
     /// The canonical parameter names of the family.
@@ -235,7 +247,8 @@ impl Evaluator {
         thetas: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (free, _, single) = rows(thetas, &self.names, "thetas")?;
-        matrix(py, self.space.embed(&free), self.space.dim(), single)
+        let canonical = py.detach(|| self.space.embed(&free));
+        matrix(py, canonical, self.space.dim(), single)
     }
 
     /// The search coordinates of canonical parameter vectors (`(N, P)` to
@@ -264,16 +277,25 @@ impl Evaluator {
     /// The model of one candidate, in the data's coordinates (what `fit`
     /// would write for it).
     fn model(&self, theta: &Bound<'_, PyAny>) -> PyResult<Model> {
-        let (free, n, _) = rows(theta, &self.names, "theta")?;
-        if n != 1 {
-            return Err(PyValueError::new_err(format!(
-                "theta must be one candidate (a vector of {}), got {n}",
-                self.names.len()
-            )));
-        }
         Ok(Model {
-            inner: self.task.model(&self.space.embed(&free)),
+            inner: self.task.model(&self.one(theta)?),
         })
+    }
+
+    /// The validation scores of one candidate, as `fit` reports its own:
+    /// `val_rmse` and `val_fit_percent` (MATLAB's `compare`) of a free run
+    /// over the whole record, scored on its second half.
+    fn validate<'py>(
+        &self,
+        py: Python<'py>,
+        theta: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let canonical = self.one(theta)?;
+        let v = py.detach(|| self.task.validate(&canonical));
+        let d = PyDict::new(py);
+        d.set_item("val_rmse", v.rmse)?;
+        d.set_item("val_fit_percent", v.fit_percent)?;
+        Ok(d)
     }
 
     fn __repr__(&self) -> String {

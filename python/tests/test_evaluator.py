@@ -38,6 +38,8 @@ def test_an_evaluator_scores_the_fits_sse_bit_for_bit(ev, stair, cli):
     population = np.vstack([draw(ev, 5), theta])
     assert ev(population)[-1] == pytest.approx(fitted["sse"], rel=1e-5)
     assert ev.model(theta).params == pytest.approx(fitted["params"], rel=1e-12)
+    scores = ev.validate(theta)
+    assert scores["val_fit_percent"] == pytest.approx(fitted["val_fit_percent"], rel=1e-6)
 
 
 def test_any_dtype_layout_or_list_gives_the_same_bits(ev):
