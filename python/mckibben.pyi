@@ -1,29 +1,41 @@
 """Type stubs of the `mckibben` extension module (docs/PYTHON.md)."""
 
 import os
-from typing import Any, Callable, Literal, Mapping, Sequence, overload
+from typing import Any, Callable, Literal, Mapping, Sequence, final, overload
 
 import numpy as np
 import numpy.typing as npt
 
 __version__: str
+__all__ = [
+    "__version__",
+    "Trace",
+    "Model",
+    "FitResult",
+    "Evaluator",
+    "ScipyObjective",
+    "read_csv",
+    "fit",
+    "diagnose",
+]
 
-ArrayLike = npt.ArrayLike
-Bound = tuple[float, float] | float
-Path = str | os.PathLike[str]
+_ArrayLike = npt.ArrayLike
+_Bound = tuple[float, float] | float
+_Path = str | os.PathLike[str]
 
+@final
 class Trace:
     """One recorded experiment on a uniform time base."""
 
-    def __init__(
-        self,
-        input: ArrayLike,
-        output: ArrayLike,
+    def __new__(
+        cls,
+        input: _ArrayLike,
+        output: _ArrayLike,
         dt: float,
         input_name: str = "pressure",
         output_name: str = "displacement",
         source: str = "python",
-    ) -> None: ...
+    ) -> Trace: ...
     @property
     def source(self) -> str: ...
     @property
@@ -44,7 +56,7 @@ class Trace:
 
 @overload
 def read_csv(
-    path: Path,
+    path: _Path,
     input: str = "pressure",
     output: str = "displacement",
     time: str = "t",
@@ -53,7 +65,7 @@ def read_csv(
 ) -> Trace: ...
 @overload
 def read_csv(
-    path: Path,
+    path: _Path,
     input: str = "pressure",
     output: str = "displacement",
     time: str = "t",
@@ -62,13 +74,14 @@ def read_csv(
     split_gaps: Literal[True],
 ) -> list[Trace]: ...
 
+@final
 class Model:
     """A fitted hysteresis model: the model file `mckibben fit` writes."""
 
     @staticmethod
-    def load(path: Path) -> Model: ...
-    def save(self, path: Path) -> None: ...
-    def simulate(self, u: ArrayLike, x0: float | None = None) -> npt.NDArray[np.float64]:
+    def load(path: _Path) -> Model: ...
+    def save(self, path: _Path) -> None: ...
+    def simulate(self, u: _ArrayLike, x0: float | None = None) -> npt.NDArray[np.float64]:
         """Free-run output on `u`; `x0` is the measured output at the first
         sample (default: the output mean the model was fitted around)."""
     @property
@@ -87,8 +100,9 @@ class Model:
     def input_name(self) -> str: ...
     @property
     def output_name(self) -> str: ...
-    def __eq__(self, other: object) -> bool: ...
+    def __eq__(self, other: object, /) -> bool: ...
 
+@final
 class FitResult:
     """What `fit` returns: `mckibben fit --json`'s fields, the model, the history."""
 
@@ -115,8 +129,8 @@ class FitResult:
     history: dict[str, Any]
 
 def fit(
-    u: ArrayLike | Trace,
-    y: ArrayLike | None = None,
+    u: _ArrayLike | Trace,
+    y: _ArrayLike | None = None,
     dt: float | None = None,
     model: Literal["classic", "generalized"] = "classic",
     effects: Sequence[str] | None = None,
@@ -125,7 +139,7 @@ def fit(
     gens: int | None = None,
     seed: int = 1,
     backend: Literal["auto", "cpu", "gpu"] = "cpu",
-    bounds: Mapping[str, Bound] | None = None,
+    bounds: Mapping[str, _Bound] | None = None,
     progress: Callable[[dict[str, Any]], object] | None = None,
     *,
     free_n: bool = False,
@@ -136,23 +150,24 @@ def fit(
     stall: int | None = None,
 ) -> FitResult: ...
 
+@final
 class Evaluator:
     """The batch evaluator as an objective over the fit's search box."""
 
-    def __init__(
-        self,
-        u: ArrayLike | Trace,
-        y: ArrayLike | None = None,
+    def __new__(
+        cls,
+        u: _ArrayLike | Trace,
+        y: _ArrayLike | None = None,
         dt: float | None = None,
         model: Literal["classic", "generalized"] = "classic",
         backend: Literal["auto", "cpu", "gpu"] = "auto",
         *,
-        bounds: Mapping[str, Bound] | None = None,
+        bounds: Mapping[str, _Bound] | None = None,
         free_n: bool = False,
         loop: Literal["bounded", "free"] = "bounded",
         checked: bool = True,
-    ) -> None: ...
-    def __call__(self, thetas: ArrayLike) -> npt.NDArray[np.float64] | float:
+    ) -> Evaluator: ...
+    def __call__(self, thetas: _ArrayLike) -> npt.NDArray[np.float64] | float:
         """N SSEs for an (N, d) array of candidates; a float for one vector of d."""
     @property
     def for_scipy(self) -> ScipyObjective: ...
@@ -170,22 +185,23 @@ class Evaluator:
     def samples(self) -> int: ...
     @property
     def checked(self) -> bool: ...
-    def to_params(self, thetas: ArrayLike) -> npt.NDArray[np.float64]: ...
-    def to_thetas(self, params: ArrayLike) -> npt.NDArray[np.float64]: ...
-    def score_params(self, params: ArrayLike) -> npt.NDArray[np.float64] | float: ...
-    def model(self, theta: ArrayLike) -> Model: ...
-    def validate(self, theta: ArrayLike) -> dict[str, float]:
+    def to_params(self, thetas: _ArrayLike) -> npt.NDArray[np.float64]: ...
+    def to_thetas(self, params: _ArrayLike) -> npt.NDArray[np.float64]: ...
+    def score_params(self, params: _ArrayLike) -> npt.NDArray[np.float64] | float: ...
+    def model(self, theta: _ArrayLike) -> Model: ...
+    def validate(self, theta: _ArrayLike) -> dict[str, float]:
         """`val_rmse` and `val_fit_percent` of one candidate, as `fit` scores its own."""
 
+@final
 class ScipyObjective:
     """An Evaluator in SciPy's (d, S) layout."""
 
-    def __call__(self, x: ArrayLike) -> npt.NDArray[np.float64] | float: ...
+    def __call__(self, x: _ArrayLike) -> npt.NDArray[np.float64] | float: ...
     @property
     def evaluator(self) -> Evaluator: ...
 
 def diagnose(
-    datasets: Trace | Sequence[Trace | tuple[ArrayLike, ArrayLike, float]],
+    datasets: Trace | Sequence[Trace | tuple[_ArrayLike, _ArrayLike, float]],
     baseline: Literal["classic", "generalized"] = "classic",
     effects: Sequence[str] | None = None,
     seed: int = 1,

@@ -22,6 +22,7 @@ stair = mckibben.read_csv("data/stair_4.5kg.csv")
 
 # 1. The staged fit of `mckibben fit` (same defaults, same seed, same bits).
 result = mckibben.fit(stair, seed=1)
+assert result.model is not None, "every candidate diverged"
 print(result)
 print({k: round(v, 6) for k, v in result.params.items()})
 
