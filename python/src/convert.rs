@@ -4,7 +4,7 @@
 //! Python's exceptions.
 
 use clap::ValueEnum;
-use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use serde::Serialize;
@@ -19,11 +19,14 @@ pub struct Floats {
     pub shape: Vec<usize>,
 }
 
-/// Reads `obj` (a NumPy array of any real dtype and layout, a list, a
-/// scalar) as `f64`s. Complex numbers, booleans, text and objects are a
-/// `TypeError`; a ragged list a `ValueError`. `what` names the argument in
-/// messages.
-pub fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Floats> {
+/// `obj` (a NumPy array of any real dtype and layout, a list, a scalar) as
+/// a C-contiguous `float64` array: `obj` itself when it is one, else a
+/// copy. Complex numbers, booleans, text and objects are a `TypeError`; a
+/// ragged list a `ValueError`. `what` names the argument in messages.
+pub fn contiguous<'py>(
+    obj: &Bound<'py, PyAny>,
+    what: &str,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let np = obj.py().import("numpy")?;
     let array = np
         .call_method1("asarray", (obj,))
@@ -37,7 +40,12 @@ pub fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Floats> {
         )));
     }
     let contiguous = np.call_method1("ascontiguousarray", (array, "float64"))?;
-    let array = contiguous.cast::<PyArrayDyn<f64>>()?;
+    Ok(contiguous.cast_into::<PyArrayDyn<f64>>()?)
+}
+
+/// [`contiguous`]'s values, copied.
+pub fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Floats> {
+    let array = contiguous(obj, what)?;
     let shape = array.shape().to_vec();
     let values = array.readonly().as_slice()?.to_vec();
     Ok(Floats { values, shape })
@@ -83,8 +91,20 @@ pub fn rows(
     names: &[String],
     what: &str,
 ) -> PyResult<(Vec<f64>, usize, bool)> {
+    let (view, n, single) = rows_view(obj, names, what)?;
+    Ok((view.as_slice()?.to_vec(), n, single))
+}
+
+/// As [`rows`], without copying an array that is already C-contiguous
+/// `float64`: a read-only view of it.
+pub fn rows_view<'py>(
+    obj: &Bound<'py, PyAny>,
+    names: &[String],
+    what: &str,
+) -> PyResult<(PyReadonlyArrayDyn<'py, f64>, usize, bool)> {
     let d = names.len();
-    let Floats { values, shape } = floats(obj, what)?;
+    let array = contiguous(obj, what)?;
+    let shape = array.shape().to_vec();
     let (n, single) = match shape.as_slice() {
         [k] if *k == d => (1, true),
         [_, k] if *k == d => (shape[0], false),
@@ -102,8 +122,9 @@ pub fn rows(
             "{what} holds no candidate (N = 0)"
         )));
     }
-    check_finite(&values, &shape, what)?;
-    Ok((values, n, single))
+    let view = array.readonly();
+    check_finite(view.as_slice()?, &shape, what)?;
+    Ok((view, n, single))
 }
 
 /// A shape as Python prints it: `(3,)`, `(2, 4)`.
