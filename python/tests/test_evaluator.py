@@ -28,8 +28,8 @@ def test_the_box_is_the_fits(ev, small_fit):
     assert ev.param_names == list(small_fit.params)
 
 
-def test_an_evaluator_scores_the_fits_sse_bit_for_bit(ev, stair, cli):
-    fitted = cli("fit", stair.source, "--backend", "cpu", "--seed", "1", "--out", "/tmp/mckibben-pytest-fit")
+def test_an_evaluator_scores_the_fits_sse_bit_for_bit(ev, stair, cli, tmp_path):
+    fitted = cli("fit", stair.source, "--backend", "cpu", "--seed", "1", "--out", tmp_path)
     params = np.array(list(fitted["params"].values()))
     assert struct.pack("<d", ev.score_params(params)) == struct.pack("<d", fitted["sse"])
     # The same point as search coordinates, one row of a population.

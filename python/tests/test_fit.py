@@ -15,8 +15,8 @@ def bits(x):
     return struct.pack("<d", x)
 
 
-def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli):
-    expected = cli("fit", stair.source, "--backend", "cpu", "--seed", "1", "--out", "/tmp/mckibben-pytest-fit")
+def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli, tmp_path):
+    expected = cli("fit", stair.source, "--backend", "cpu", "--seed", "1", "--out", tmp_path)
     result = mckibben.fit(stair, seed=1)
     assert list(result.params) == list(expected["params"])
     assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
