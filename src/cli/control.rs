@@ -399,8 +399,17 @@ fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
     let Some(path) = &args.from else {
         return Ok(design);
     };
-    let m =
-        mckibben::model::FittedModel::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+    let m = mckibben::model::ModelFile::load(path)
+        .and_then(|f| f.model())
+        .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+    anyhow::ensure!(
+        m.chain.is_none(),
+        "--from {}: the model has effects ({}); control designs from a baseline only so far: \
+         fit the baseline alone (`mckibben fit` without --effects) for control",
+        path.display(),
+        m.effects().iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")
+    );
+    let m = m.base;
     sweep::with_displacement(
         &design,
         m,

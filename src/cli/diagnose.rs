@@ -12,7 +12,7 @@ use mckibben::diagnose::selftest::{
 };
 use mckibben::diagnose::{Effect, Settings, diagnose};
 use mckibben::eval::Backend;
-use mckibben::model::Family;
+use mckibben::model::{Family, ModelFile};
 use mckibben::report::json::Versioned;
 use serde::Serialize;
 
@@ -95,6 +95,11 @@ pub struct Args {
     /// breakdowns, residual spectrum) to this folder.
     #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,
+    /// Write the baseline and the final model as model files to this
+    /// folder (baseline.json, model.json), for `simulate --from`, `fit
+    /// --from` and `control --from`.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
     /// Instead of diagnosing DATA, check the diagnosis itself on data with
     /// known effects, generated from the nominal model fitted to DATA.
     /// `--self-test` (or `=independent`): a generator with its own equations,
@@ -175,6 +180,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => {}
     }
     let d = diagnose(&traces, args.baseline, &effects, &settings)?;
+    if let Some(dir) = &args.out {
+        let provenance = args.data.provenance(Some(args.seed))?;
+        for (name, model) in [("baseline.json", &d.baseline_model), ("model.json", &d.final_model)] {
+            ModelFile::new(model, None, provenance.clone())
+                .save(&dir.join(name))
+                .with_context(|| format!("--out {}", dir.display()))?;
+        }
+    }
     let figures = match &args.report {
         Some(dir) => {
             write_figures(&d, dir).with_context(|| format!("--report {}", dir.display()))?

@@ -13,7 +13,9 @@ use super::common::{DataArgs, one_trace};
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::model::bounds::Origin;
-use mckibben::model::{Family, Flow, Loop, UserBound};
+use mckibben::model::effects::Effect;
+use mckibben::model::file::{Provenance, SearchBox};
+use mckibben::model::{Family, Flow, Loop, Model, ModelFile, UserBound};
 use mckibben::optim::Algorithm;
 use mckibben::optim::edge::{ActiveBound, Widening, active_bounds, refit_off_edges};
 use mckibben::optim::engine::model::{GENERATIONS, ModelObjective, POPULATION};
@@ -78,9 +80,21 @@ use mckibben::report::json::{Named, Versioned};
 pub struct Args {
     #[command(flatten)]
     data: DataArgs,
-    /// Hysteresis model: classic (A, α, β, γ) or generalized (A, α, β1..β6).
-    #[arg(long, value_enum, default_value = "classic")]
-    model: ModelArg,
+    /// Hysteresis model: classic (A, α, β, γ) or generalized (A, α, β1..β6)
+    /// (default: the --from model's, else classic).
+    #[arg(long, value_enum)]
+    model: Option<ModelArg>,
+    /// Effects after the baseline, comma-separated, in chain order (e.g.
+    /// `creep:two-pole,inertia:ringing`; `mckibben diagnose --help` lists
+    /// the catalogue). Their parameters are fitted with the baseline's, each
+    /// in its own box from the record. Default: the --from model's, else none.
+    #[arg(long, value_delimiter = ',', value_name = "LIST", conflicts_with = "thesis_flow")]
+    effects: Option<Vec<Effect>>,
+    /// Start from a model file (a warm start): its parameters are the first
+    /// member of the first population, and its family, effects and --bound
+    /// / --fix are taken unless given here. The box is the new record's.
+    #[arg(long, value_name = "MODEL.json", conflicts_with = "thesis_flow")]
+    from: Option<PathBuf>,
     /// Update rule of the population search: ga, mfa, pso (the thesis') or
     /// de. It changes the time a fit takes, not where it ends.
     #[arg(long, value_enum, default_value = "de")]
@@ -221,6 +235,8 @@ impl From<ModelArg> for Family {
 #[derive(Debug, Serialize)]
 struct Output {
     model: Family,
+    /// The effects after the baseline, in chain order.
+    effects: Vec<String>,
     algo: Algorithm,
     /// Fitted parameters by name, in the family's canonical order.
     params: Named,
@@ -246,14 +262,6 @@ struct Output {
     search_box: SearchBox,
     data: String,
     out: PathBuf,
-}
-
-/// The box a fit searched, in its search coordinates.
-#[derive(Debug, Serialize)]
-struct SearchBox {
-    names: Vec<String>,
-    lower: Vec<f64>,
-    upper: Vec<f64>,
 }
 
 impl Args {
@@ -333,7 +341,21 @@ impl Observer for Progress {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let family: Family = args.model.into();
+    let start = match &args.from {
+        Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?),
+        None => None,
+    };
+    let start_model = start.as_ref().map(|f| f.model()).transpose()?;
+    let family: Family = match (args.model, &start_model) {
+        (Some(m), _) => m.into(),
+        (None, Some(m)) => m.base.family,
+        (None, None) => Family::Classic,
+    };
+    let effects: Vec<Effect> = match (&args.effects, &start_model) {
+        (Some(e), _) => e.clone(),
+        (None, Some(m)) => m.effects().to_vec(),
+        (None, None) => Vec::new(),
+    };
     let trace = one_trace(args.data.load()?)?;
     let flow = if args.thesis_flow {
         Flow::Thesis
@@ -347,7 +369,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             f.name
         );
     }
-    let bounds: Vec<UserBound> = args.bound.iter().chain(&args.fix).cloned().collect();
+    let saved_bounds: Vec<UserBound> = match &start {
+        Some(f) => f
+            .user_bounds
+            .iter()
+            .map(|b| b.parse().map_err(anyhow::Error::msg))
+            .collect::<anyhow::Result<_>>()
+            .context("--from: its user_bounds")?,
+        None => Vec::new(),
+    };
+    // The file's bounds first, so that the flags given here win.
+    let bounds: Vec<UserBound> = saved_bounds
+        .iter()
+        .chain(&args.bound)
+        .chain(&args.fix)
+        .cloned()
+        .collect();
     let mut task = Task::with_box(
         &trace,
         family,
@@ -357,6 +394,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.loop_shape,
         &bounds,
     )
+    .and_then(|t| t.with_effects(&effects, &bounds))
     .with_context(|| format!("cannot fit {}", trace.source))?;
     let note = |s: String| {
         if !args.json {
@@ -366,6 +404,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut engine = args
         .settings()
         .start(&task, args.checkpoint.as_deref(), &note)?;
+    if let Some(m) = &start_model {
+        engine = engine.with_initial(&warm_start(&task, m));
+    }
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     let interrupt = Arc::new(AtomicBool::new(false));
@@ -402,8 +443,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let stops = engine.stops.clone();
     let (outcome, widened) =
         refit_off_edges(&mut task, &engine, outcome, &stops, evaluator.as_mut())?;
+    let mut provenance = args.data.provenance(Some(engine.seed))?;
+    provenance.read.split_gaps = false;
     let output = write_results(
-        &args.out, &task, &engine, &outcome, &widened, &trace, &backend,
+        &args.out,
+        Written {
+            task: &task,
+            engine: &engine,
+            outcome: &outcome,
+            widened: &widened,
+            trace: &trace,
+            backend: &backend,
+            bounds: &bounds,
+            provenance,
+        },
     )?;
     if args.json {
         println!("{}", Versioned::new(&output).to_string_pretty()?);
@@ -426,31 +479,58 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn write_results(
-    out: &Path,
-    task: &Task,
-    engine: &Engine,
-    outcome: &Outcome,
-    widened: &[Widening],
-    trace: &Trace,
-    backend: &str,
-) -> anyhow::Result<Output> {
+/// The start of a warm start from `model`: its baseline's parameters, and
+/// for each of the task's effects the model's value where it has that
+/// effect, else the effect's neutral value.
+fn warm_start(task: &Task, model: &Model) -> Vec<f64> {
+    let mut theta = task.neutral_effects(&model.base.params);
+    let ours = task.augmented();
+    let theirs = model.augmented();
+    let values = model.theta();
+    for &e in &task.effects {
+        if let (Some(to), Some(from)) = (ours.offset_of(e), theirs.offset_of(e)) {
+            let k = e.dim(1);
+            theta[to..to + k].copy_from_slice(&values[from..from + k]);
+        }
+    }
+    theta
+}
+
+/// What a finished fit writes.
+struct Written<'a> {
+    task: &'a Task,
+    engine: &'a Engine,
+    outcome: &'a Outcome,
+    widened: &'a [Widening],
+    trace: &'a Trace,
+    backend: &'a str,
+    /// The --bound and --fix in force (the file's and the flags').
+    bounds: &'a [UserBound],
+    provenance: Provenance,
+}
+
+fn write_results(out: &Path, w: Written) -> anyhow::Result<Output> {
+    let Written {
+        task,
+        engine,
+        outcome,
+        widened,
+        trace,
+        backend,
+        bounds,
+        provenance,
+    } = w;
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create --out {}", out.display()))?;
     let found = !outcome.params.is_empty();
     let val = found.then(|| task.validate(&outcome.params));
-    let params: Named = task
-        .family
-        .params()
-        .iter()
-        .zip(&outcome.params)
-        .map(|(p, &v)| (p.name, v))
-        .collect();
+    let params = Named::zip(&task.augmented().param_names(), &outcome.params);
     let on_edge = active_bounds(task, &outcome.params);
     let finite = |v: f64| v.is_finite().then_some(v);
     let global = engine.plan.global.as_ref();
     let output = Output {
         model: task.family,
+        effects: task.effects.iter().map(|e| e.name().to_string()).collect(),
         algo: global.map_or(Algorithm::De, |g| g.algorithm()),
         params,
         sse: finite(outcome.sse),
@@ -467,11 +547,7 @@ fn write_results(
         stages: outcome.stages.clone(),
         on_edge,
         widened: widened.to_vec(),
-        search_box: SearchBox {
-            names: task.space.names(),
-            lower: task.space.lower.clone(),
-            upper: task.space.upper.clone(),
-        },
+        search_box: SearchBox::of(&task.space),
         data: trace.source.clone(),
         out: out.to_path_buf(),
     };
@@ -495,10 +571,13 @@ fn write_results(
         .save(&out.join("convergence.svg"))?;
     if found {
         let model = task.model(&outcome.params);
-        write(
-            "model.json",
-            serde_json::to_string_pretty(&model)?.as_bytes(),
-        )?;
+        let mut file = ModelFile::new(
+            &model,
+            Some(SearchBox::of(&task.space)),
+            provenance,
+        );
+        file.user_bounds = bounds.iter().map(|b| b.to_string()).collect();
+        file.save(&out.join("model.json"))?;
         let (loop_fig, trace_fig) = fit_figures(&model, trace, &title);
         loop_fig.save(&out.join("loop.svg"))?;
         trace_fig.save(&out.join("trace.svg"))?;
@@ -519,11 +598,14 @@ fn print_report(o: &Output, task: &Task) {
         o.population,
         o.seed
     );
+    if !o.effects.is_empty() {
+        println!("  effects: {}", o.effects.join(", "));
+    }
     let free = task.space.free();
-    for (i, p) in task.family.params().iter().enumerate() {
-        if let Some(v) = o.params.get(p.name) {
+    for (i, name) in task.augmented().param_names().iter().enumerate() {
+        if let Some(v) = o.params.get(name) {
             let fixed = if free.contains(&i) { "" } else { "  (fixed)" };
-            println!("  {:<7} {v:>14.6}{fixed}", p.name);
+            println!("  {name:<7} {v:>14.6}{fixed}");
         }
     }
     let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
@@ -565,6 +647,10 @@ fn print_report(o: &Output, task: &Task) {
                              stopped it, not the data; widen it with --bound"
             }
             Origin::User => "your --bound or --fix",
+            Origin::Class if e.param.contains('.') => {
+                "the edge of the effect's range: where it is neutral, or as far as \
+                 the record lets it go"
+            }
             Origin::Class => {
                 "the edge of its range or of the bounded class (--loop free lifts \
                               the class)"

@@ -20,7 +20,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::model::Experiment;
 use crate::model::Family;
@@ -435,7 +435,7 @@ impl FromStr for Effect {
 
 /// What an effect needs to know about one dataset: its deviation offsets,
 /// sample time, and the scales the parameter bounds derive from.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Context {
     /// Input mean `ū` removed from the data (absolute = deviation + `ū`).
     pub u_mean: f64,
@@ -666,12 +666,38 @@ impl Augmented {
         names
     }
 
+    /// Whether every effect's parameters in `theta` (the whole vector) are
+    /// ones the fits admit: a ringing ([`Effect::Ringing`]) must ring
+    /// ([`rings`]).
+    pub fn effects_admit(&self, theta: &[f64]) -> bool {
+        self.offset_of(Effect::Ringing)
+            .is_none_or(|at| rings(theta[at], theta[at + 1]))
+    }
+
     /// This model with one more effect.
     pub fn with(&self, effect: Effect) -> Augmented {
         let mut effects = self.effects.clone();
         effects.push(effect);
         Augmented::new(self.family, effects, self.datasets)
     }
+}
+
+/// Whether the mode `q = a1·q(k−1) − a2·q(k−2) + …` rings: complex poles
+/// `r·e^{±iθ}` (`r = √a2`, `cos θ = a1/(2r)`) with a resonance, i.e. a
+/// damping ratio under `1/√2`, which is `−ln r < θ`.
+///
+/// Why: with real poles a ringing's kick decays as a slow drift driven by
+/// the input, which is creep's mark (it was named for the drift of the
+/// Cavatappi 200 g file), and a mode damped past `1/√2` has no peak in its
+/// spectrum: it is a high-pass of the input, which the independent
+/// self-test's sensor cross-talk is, and it was named for it (critically
+/// damped, `a1 = 1.11`, `a2 = 0.31`: docs/lab/diagnosis.md).
+pub fn rings(a1: f64, a2: f64) -> bool {
+    if !(a2 > 0.0 && a1 * a1 < 4.0 * a2) {
+        return false;
+    }
+    let r = a2.sqrt();
+    -r.ln() < (a1 / (2.0 * r)).acos()
 }
 
 #[cfg(test)]
