@@ -407,7 +407,11 @@ fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
         "--from {}: the model has effects ({}); control designs from a baseline only so far: \
          fit the baseline alone (`mckibben fit` without --effects) for control",
         path.display(),
-        m.effects().iter().map(|e| e.name()).collect::<Vec<_>>().join(", ")
+        m.effects()
+            .iter()
+            .map(|e| e.name())
+            .collect::<Vec<_>>()
+            .join(", ")
     );
     let m = m.base;
     sweep::with_displacement(

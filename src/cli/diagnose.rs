@@ -182,7 +182,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let d = diagnose(&traces, args.baseline, &effects, &settings)?;
     if let Some(dir) = &args.out {
         let provenance = args.data.provenance(Some(args.seed))?;
-        for (name, model) in [("baseline.json", &d.baseline_model), ("model.json", &d.final_model)] {
+        for (name, model) in [
+            ("baseline.json", &d.baseline_model),
+            ("model.json", &d.final_model),
+        ] {
             ModelFile::new(model, None, provenance.clone())
                 .save(&dir.join(name))
                 .with_context(|| format!("--out {}", dir.display()))?;

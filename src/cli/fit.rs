@@ -13,13 +13,16 @@ use super::common::{DataArgs, one_trace};
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::model::bounds::Origin;
+use mckibben::model::coords::gauge_fixed;
 use mckibben::model::effects::Effect;
 use mckibben::model::file::{Provenance, SearchBox};
 use mckibben::model::{Family, Flow, Loop, Model, ModelFile, UserBound};
 use mckibben::optim::Algorithm;
 use mckibben::optim::edge::{ActiveBound, Widening, active_bounds, refit_off_edges};
 use mckibben::optim::engine::model::{GENERATIONS, ModelObjective, POPULATION};
-use mckibben::optim::engine::{Engine, Observer, Outcome, StageSummary, StopReason, StopRules};
+use mckibben::optim::engine::{
+    Engine, FreeRun, Observer, Outcome, StageSummary, StopReason, StopRules,
+};
 use mckibben::optim::fit::{FitSettings, Overrides};
 use mckibben::optim::ga::{Crossover, Mutation};
 use mckibben::optim::history::GenerationRecord;
@@ -88,7 +91,12 @@ pub struct Args {
     /// `creep:two-pole,inertia:ringing`; `mckibben diagnose --help` lists
     /// the catalogue). Their parameters are fitted with the baseline's, each
     /// in its own box from the record. Default: the --from model's, else none.
-    #[arg(long, value_delimiter = ',', value_name = "LIST", conflicts_with = "thesis_flow")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "LIST",
+        conflicts_with = "thesis_flow"
+    )]
     effects: Option<Vec<Effect>>,
     /// Start from a model file (a warm start): its parameters are the first
     /// member of the first population, and its family, effects and --bound
@@ -385,7 +393,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .chain(&args.fix)
         .cloned()
         .collect();
-    let mut task = Task::with_box(
+    anyhow::ensure!(
+        args.checkpoint.is_none() || start_model.is_none(),
+        "--checkpoint resumes a fit from its own state: not with --from"
+    );
+    let baseline = Task::with_box(
         &trace,
         family,
         flow,
@@ -394,19 +406,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.loop_shape,
         &bounds,
     )
-    .and_then(|t| t.with_effects(&effects, &bounds))
     .with_context(|| format!("cannot fit {}", trace.source))?;
+    let mut task = baseline
+        .with_effects(&effects, &bounds)
+        .with_context(|| format!("cannot fit {}", trace.source))?;
     let note = |s: String| {
         if !args.json {
             eprintln!("mckibben: note: {s}");
         }
     };
-    let mut engine = args
-        .settings()
-        .start(&task, args.checkpoint.as_deref(), &note)?;
-    if let Some(m) = &start_model {
-        engine = engine.with_initial(&warm_start(&task, m));
-    }
+    let settings = args.settings();
+    let mut engine = match &start_model {
+        Some(m) => settings.start_warm(&task, &warm_start(&task, m))?,
+        None => settings.start(&task, args.checkpoint.as_deref(), &note)?,
+    };
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     let interrupt = Arc::new(AtomicBool::new(false));
@@ -416,14 +429,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // only means Ctrl-C kills instead of stopping cleanly.
         let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
     }
-    let global = engine.plan.global.clone();
-    let (algo, population, generations) = global.as_ref().map_or((Algorithm::De, 0, 0), |g| {
-        (g.algorithm(), g.population, g.generations)
-    });
     if !args.json {
+        let (algo, population, generations) = engine
+            .plan
+            .global
+            .as_ref()
+            .map_or((FreeRun::ALGORITHM, 0, 0), |g| {
+                (g.algorithm(), g.population, g.generations)
+            });
         let stages: Vec<&str> = engine.stages().iter().map(|s| s.name()).collect();
+        let model = effects
+            .iter()
+            .fold(family.to_string(), |m, e| format!("{m} + {e}"));
+        let from = match &args.from {
+            Some(p) => format!(", warm start from {}", p.display()),
+            None => String::new(),
+        };
         eprintln!(
-            "fitting {family} with {algo} (N = {population}, G = {generations}, seed {}; stages {}) on {} [{}]",
+            "fitting {model} with {algo} (N = {population}, G = {generations}, seed {}; stages {}{from}) on {} [{}]",
             engine.seed,
             stages.join(" → "),
             trace.source,
@@ -443,8 +466,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let stops = engine.stops.clone();
     let (outcome, widened) =
         refit_off_edges(&mut task, &engine, outcome, &stops, evaluator.as_mut())?;
-    let mut provenance = args.data.provenance(Some(engine.seed))?;
-    provenance.read.split_gaps = false;
+    let provenance = args.data.provenance(Some(engine.seed))?;
     let output = write_results(
         &args.out,
         Written {
@@ -483,7 +505,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// for each of the task's effects the model's value where it has that
 /// effect, else the effect's neutral value.
 fn warm_start(task: &Task, model: &Model) -> Vec<f64> {
-    let mut theta = task.neutral_effects(&model.base.params);
+    // In the box's gauge (A = 1), with the same outputs.
+    let base = gauge_fixed(model.base.family, &model.base.params);
+    let mut theta = task.neutral_effects(&base);
     let ours = task.augmented();
     let theirs = model.augmented();
     let values = model.theta();
@@ -571,11 +595,7 @@ fn write_results(out: &Path, w: Written) -> anyhow::Result<Output> {
         .save(&out.join("convergence.svg"))?;
     if found {
         let model = task.model(&outcome.params);
-        let mut file = ModelFile::new(
-            &model,
-            Some(SearchBox::of(&task.space)),
-            provenance,
-        );
+        let mut file = ModelFile::new(&model, Some(SearchBox::of(&task.space)), provenance);
         file.user_bounds = bounds.iter().map(|b| b.to_string()).collect();
         file.save(&out.join("model.json"))?;
         let (loop_fig, trace_fig) = fit_figures(&model, trace, &title);

@@ -78,8 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             input_name: trace.input_name.clone(),
             output_name: trace.output_name.clone(),
         });
-        let model =
-            model.map(|m| ModelFile::new(&Model::plain(m), None, provenance.clone()));
+        let model = model.map(|m| ModelFile::new(&Model::plain(m), None, provenance.clone()));
         outputs.push((id, model));
     }
     // One document per data piece, each with its own `schema_version`.

@@ -8,9 +8,10 @@ use serde::Serialize;
 use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces, write_trace_with_comments};
 use mckibben::data::signals::Stair;
+use mckibben::data::units::unit_of;
 use mckibben::ident::{fit_percent, loop_area};
-use mckibben::model::presets::thesis_params;
 use mckibben::model::experiment::halves;
+use mckibben::model::presets::thesis_params;
 use mckibben::model::{Family, FittedModel, Model, ModelFile};
 use mckibben::report::json::{Named, Versioned};
 use mckibben::report::{Figure, Panel, Series};
@@ -168,7 +169,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         trace.extra.push(("w".into(), w.clone()));
     }
     let family = model.base.family;
-    let chain: Vec<String> = model.effects().iter().map(|e| e.name().to_string()).collect();
+    let chain: Vec<String> = model
+        .effects()
+        .iter()
+        .map(|e| e.name().to_string())
+        .collect();
     let described = if chain.is_empty() {
         format!("{family}")
     } else {
@@ -251,13 +256,16 @@ fn override_params(model: &mut Model, assignments: &[String]) -> anyhow::Result<
         let (name, value) = assignment
             .split_once('=')
             .with_context(|| format!("--params: `{assignment}` is not NAME=VALUE"))?;
-        let i = names.iter().position(|n| n == name.trim()).with_context(|| {
-            format!(
-                "--params: the {} model has no parameter `{name}`; it has {}",
-                model.base.family,
-                names.join(", ")
-            )
-        })?;
+        let i = names
+            .iter()
+            .position(|n| n == name.trim())
+            .with_context(|| {
+                format!(
+                    "--params: the {} model has no parameter `{name}`; it has {}",
+                    model.base.family,
+                    names.join(", ")
+                )
+            })?;
         theta[i] = value
             .trim()
             .parse()
@@ -303,14 +311,25 @@ fn input_trace(args: &Args, saved: Option<&ModelFile>) -> anyhow::Result<(Trace,
             };
             let resample = args.resample.or(read.resample);
             let opts = ReadOptions {
-                input: column(&args.input_col, saved.map(|f| &f.data.input.column), &defaults.input),
-                output: column(&args.output_col, saved.map(|f| &f.data.output.column), &defaults.output),
+                input: column(
+                    &args.input_col,
+                    saved.map(|f| &f.data.input.column),
+                    &defaults.input,
+                ),
+                output: column(
+                    &args.output_col,
+                    saved.map(|f| &f.data.output.column),
+                    &defaults.output,
+                ),
                 time: column(&args.time, read.time.as_ref(), &defaults.time),
                 gaps: match resample {
                     Some(dt) => Gaps::Resample(dt),
                     None => Gaps::Reject,
                 },
             };
+            if let Some(saved) = saved {
+                check_units(saved, &opts)?;
+            }
             let mut traces = read_traces(&path, &opts)?;
             anyhow::ensure!(
                 traces.len() == 1,
@@ -322,6 +341,25 @@ fn input_trace(args: &Args, saved: Option<&ModelFile>) -> anyhow::Result<(Trace,
             Ok((trace, y0))
         }
     }
+}
+
+/// Refuses columns whose names state other units than the model's: a model
+/// fitted in psi run on kPa would be wrong by a factor, silently.
+fn check_units(saved: &ModelFile, opts: &ReadOptions) -> anyhow::Result<()> {
+    for (which, fitted, column) in [
+        ("input", &saved.data.input, &opts.input),
+        ("output", &saved.data.output, &opts.output),
+    ] {
+        if let (Some(was), Some(now)) = (&fitted.unit, unit_of(column)) {
+            anyhow::ensure!(
+                *was == now,
+                "the model's {which} is in {was} (column `{}`), but `{column}` is in {now}: \
+                 convert the column, or refit the model on data in {now}",
+                fitted.column
+            );
+        }
+    }
+    Ok(())
 }
 
 fn figure(trace: &Trace, described: &str) -> Figure {

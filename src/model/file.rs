@@ -96,7 +96,11 @@ impl Model {
 
     /// Free run on a trace's input from its first measured output.
     pub fn simulate_trace(&self, trace: &crate::data::Trace) -> Vec<f64> {
-        let y0 = trace.output.first().copied().unwrap_or(self.base.output_mean);
+        let y0 = trace
+            .output
+            .first()
+            .copied()
+            .unwrap_or(self.base.output_mean);
         self.simulate_absolute(&trace.input, y0).output
     }
 
@@ -115,15 +119,16 @@ impl Model {
         let exp = Experiment {
             name: "simulation".into(),
             dt: base.dt,
-            u: input.iter().map(|&p| (p - base.input_mean) as f32).collect(),
+            u: input
+                .iter()
+                .map(|&p| (p - base.input_mean) as f32)
+                .collect(),
             y: vec![(y0 - base.output_mean) as f32],
             u_mean: base.input_mean,
             y_mean: base.output_mean,
         };
         let theta: Vec<f32> = self.theta().iter().map(|&v| v as f32).collect();
-        let y = self
-            .augmented()
-            .simulate(&theta, 0, &chain.context, &exp);
+        let y = self.augmented().simulate(&theta, 0, &chain.context, &exp);
         let diverged_at = y
             .iter()
             .position(|v| !v.is_finite() || v.abs() > DIVERGENCE_BOUND);
@@ -297,7 +302,8 @@ impl ModelFile {
     /// Writes the file atomically (a failed write leaves the old one).
     pub fn save(&self, path: &Path) -> anyhow::Result<()> {
         let text = serde_json::to_string_pretty(self)?;
-        write_atomic(path, text.as_bytes()).with_context(|| format!("cannot write {}", path.display()))
+        write_atomic(path, text.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()))
     }
 
     /// Reads a model file of this version or version 1 (a bare model, or
@@ -487,7 +493,9 @@ mod tests {
             .unwrap();
         let back = ModelFile::load(&path).unwrap().model().unwrap();
         assert_eq!(back, model);
-        let input: Vec<f64> = (0..300).map(|k| 0.25 + 0.1 * (k as f64 * 0.03).sin()).collect();
+        let input: Vec<f64> = (0..300)
+            .map(|k| 0.25 + 0.1 * (k as f64 * 0.03).sin())
+            .collect();
         let a = model.simulate_absolute(&input, 10.0);
         assert_eq!(a, back.simulate_absolute(&input, 10.0));
         // The chain changes the output: it is not the baseline's.
@@ -508,7 +516,10 @@ mod tests {
         assert_eq!(read, Model::plain(base()));
         let wrapped = write(
             "id.json",
-            format!(r#"{{"model": {}}}"#, serde_json::to_string(&base()).unwrap()),
+            format!(
+                r#"{{"model": {}}}"#,
+                serde_json::to_string(&base()).unwrap()
+            ),
         );
         assert_eq!(ModelFile::load(&wrapped).unwrap().model().unwrap(), read);
 

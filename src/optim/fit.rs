@@ -5,6 +5,8 @@
 //! The settings carry `fit`'s flags one for one and every error names the
 //! flag it is about, so that the command only parses, calls and prints.
 
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use std::path::Path;
 
 use super::engine::model::staged_plan;
@@ -221,6 +223,22 @@ impl FitSettings {
             }
         }
         Ok(plan)
+    }
+
+    /// A warm start from the canonical `start`: the free-run stage from
+    /// `start` and a cloud around it ([`Space::around`]), then the polish;
+    /// no global search, so the fit refines the basin it is given (a global
+    /// search finds other basins, and where the estimation data do not
+    /// settle the model some of those fit the estimation half better and
+    /// validate worse: docs/ARCHITECTURE.md, "Warm starts").
+    pub fn start_warm(&self, task: &Task, start: &[f64]) -> anyhow::Result<Engine> {
+        let mut plan = self.plan(task, &|_| ())?;
+        plan.global = None;
+        let space = Space::from(&task.space);
+        let n = plan.free_run.as_ref().map_or(1, |f| f.population);
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
+        let rows = space.around(start, n, &mut rng);
+        Ok(Engine::new(plan, space, self.seed, self.stops()?)?.with_initial(&rows))
     }
 
     /// The stop rules, checked.

@@ -120,9 +120,13 @@ impl Task {
     /// The same task with `effects` after the family: their parameters
     /// join the box in their own units (each effect's box from the record,
     /// [`effect_box`]); `bounds` may name them (`creep.kappa=0:1`).
-    pub fn with_effects(mut self, effects: &[Effect], bounds: &[UserBound]) -> anyhow::Result<Task> {
+    pub fn with_effects(
+        mut self,
+        effects: &[Effect],
+        bounds: &[UserBound],
+    ) -> anyhow::Result<Task> {
         anyhow::ensure!(
-            self.flow == Flow::Joint,
+            effects.is_empty() || self.flow == Flow::Joint,
             "the thesis' flow fits the thesis' models: --effects needs the joint flow"
         );
         for (k, e) in effects.iter().enumerate() {
