@@ -13,17 +13,16 @@ use super::common::{DataArgs, one_trace};
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::model::bounds::Origin;
-use mckibben::model::coords::gauge_fixed;
 use mckibben::model::effects::Effect;
 use mckibben::model::file::{Provenance, SearchBox};
-use mckibben::model::{Family, Flow, Loop, Model, ModelFile, UserBound};
+use mckibben::model::{Family, Flow, Loop, ModelFile, UserBound};
 use mckibben::optim::Algorithm;
-use mckibben::optim::edge::{ActiveBound, Widening, active_bounds, refit_off_edges};
-use mckibben::optim::engine::model::{GENERATIONS, ModelObjective, POPULATION};
+use mckibben::optim::edge::{ActiveBound, Widening, active_bounds};
+use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
 use mckibben::optim::engine::{
     Engine, FreeRun, Observer, Outcome, StageSummary, StopReason, StopRules,
 };
-use mckibben::optim::fit::{FitSettings, Overrides};
+use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides};
 use mckibben::optim::ga::{Crossover, Mutation};
 use mckibben::optim::history::GenerationRecord;
 use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
@@ -365,11 +364,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, None) => Vec::new(),
     };
     let trace = one_trace(args.data.load()?)?;
-    let flow = if args.thesis_flow {
-        Flow::Thesis
-    } else {
-        Flow::Joint
-    };
     for f in &args.fix {
         anyhow::ensure!(
             f.lower == f.upper,
@@ -386,40 +380,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .context("--from: its user_bounds")?,
         None => Vec::new(),
     };
-    // The file's bounds first, so that the flags given here win.
-    let bounds: Vec<UserBound> = saved_bounds
-        .iter()
-        .chain(&args.bound)
-        .chain(&args.fix)
-        .cloned()
-        .collect();
-    anyhow::ensure!(
-        args.checkpoint.is_none() || start_model.is_none(),
-        "--checkpoint resumes a fit from its own state: not with --from"
-    );
-    let baseline = Task::with_box(
-        &trace,
+    let what = FitBox {
         family,
-        flow,
-        None,
-        args.free_n,
-        args.loop_shape,
-        &bounds,
-    )
-    .with_context(|| format!("cannot fit {}", trace.source))?;
-    let mut task = baseline
-        .with_effects(&effects, &bounds)
-        .with_context(|| format!("cannot fit {}", trace.source))?;
+        effects: effects.clone(),
+        free_n: args.free_n,
+        loop_shape: args.loop_shape,
+        // The file's bounds first, so that the flags given here win.
+        bounds: saved_bounds
+            .iter()
+            .chain(&args.bound)
+            .chain(&args.fix)
+            .cloned()
+            .collect(),
+    };
     let note = |s: String| {
         if !args.json {
             eprintln!("mckibben: note: {s}");
         }
     };
-    let settings = args.settings();
-    let mut engine = match &start_model {
-        Some(m) => settings.start_warm(&task, &warm_start(&task, m))?,
-        None => settings.start(&task, args.checkpoint.as_deref(), &note)?,
-    };
+    let mut fit = Fit::new(
+        &trace,
+        &what,
+        &args.settings(),
+        start_model.as_ref(),
+        args.checkpoint.as_deref(),
+        &note,
+    )?;
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     let interrupt = Arc::new(AtomicBool::new(false));
@@ -429,6 +415,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // only means Ctrl-C kills instead of stopping cleanly.
         let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
     }
+    let engine = &fit.engine;
     if !args.json {
         let (algo, population, generations) = engine
             .plan
@@ -454,36 +441,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let mut progress = Progress::new(engine.plan.generations(), args.json);
-    let mut objective = ModelObjective::for_task(evaluator.as_mut(), &task);
-    let outcome = engine.run(
-        &mut objective,
+    let (outcome, widened) = fit.run(
+        evaluator.as_mut(),
         &mut [&mut progress],
         Some(&interrupt),
         args.checkpoint.as_deref(),
     )?;
     progress.finish();
-    drop(objective);
-    let stops = engine.stops.clone();
-    let (outcome, widened) =
-        refit_off_edges(&mut task, &engine, outcome, &stops, evaluator.as_mut())?;
+    let (task, engine) = (&fit.task, &fit.engine);
     let provenance = args.data.provenance(Some(engine.seed))?;
     let output = write_results(
         &args.out,
         Written {
-            task: &task,
-            engine: &engine,
+            task,
+            engine,
             outcome: &outcome,
             widened: &widened,
             trace: &trace,
             backend: &backend,
-            bounds: &bounds,
+            bounds: &what.bounds,
             provenance,
         },
     )?;
     if args.json {
         println!("{}", Versioned::new(&output).to_string_pretty()?);
     } else {
-        print_report(&output, &task);
+        print_report(&output, task);
     }
     if outcome.params.is_empty() && outcome.evaluations == 0 {
         eprintln!(
@@ -499,25 +482,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
-}
-
-/// The start of a warm start from `model`: its baseline's parameters, and
-/// for each of the task's effects the model's value where it has that
-/// effect, else the effect's neutral value.
-fn warm_start(task: &Task, model: &Model) -> Vec<f64> {
-    // In the box's gauge (A = 1), with the same outputs.
-    let base = gauge_fixed(model.base.family, &model.base.params);
-    let mut theta = task.neutral_effects(&base);
-    let ours = task.augmented();
-    let theirs = model.augmented();
-    let values = model.theta();
-    for &e in &task.effects {
-        if let (Some(to), Some(from)) = (ours.offset_of(e), theirs.offset_of(e)) {
-            let k = e.dim(1);
-            theta[to..to + k].copy_from_slice(&values[from..from + k]);
-        }
-    }
-    theta
 }
 
 /// What a finished fit writes.

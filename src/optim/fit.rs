@@ -4,18 +4,27 @@
 //!
 //! The settings carry `fit`'s flags one for one and every error names the
 //! flag it is about, so that the command only parses, calls and prints.
+//! [`Fit`] is the whole run on one trace, which the command calls.
 
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+use anyhow::Context as _;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use std::path::Path;
 
-use super::engine::model::staged_plan;
-use super::engine::{Engine, Plan, Space, StopRules};
+use super::edge::{Widening, refit_off_edges};
+use super::engine::model::{ModelObjective, staged_plan};
+use super::engine::{Engine, Observer, Outcome, Plan, Space, StopRules};
 use super::ga::{Crossover, Mutation};
 use super::mfa::{self, Distance, Lambda0Schedule, Scale};
 use super::task::Task;
 use super::{AlgoSettings, Algorithm};
-use crate::model::{Family, Measure};
+use crate::data::Trace;
+use crate::eval::Evaluator;
+use crate::model::coords::gauge_fixed;
+use crate::model::effects::Effect;
+use crate::model::{Family, Flow, Loop, Measure, Model, UserBound};
 
 /// Settings of one algorithm laid over its base settings (`None`, `false`:
 /// keep the base). Each acts on its own algorithm only, but every one given
@@ -285,6 +294,110 @@ impl FitSettings {
         }
         Engine::new(self.plan(task, note)?, space, self.seed, self.stops()?)
     }
+}
+
+/// What a fit identifies on a trace: the family, its effects and its search
+/// box (the joint flow's; the thesis' flow, `FitSettings::thesis_flow`,
+/// takes its own).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitBox {
+    pub family: Family,
+    /// Effect stages after the family, in chain order (`--effects`).
+    pub effects: Vec<Effect>,
+    /// Also fit the Bouc-Wen exponent n (`--free-n`).
+    pub free_n: bool,
+    /// Loop shapes the box admits (`--loop`).
+    pub loop_shape: Loop,
+    /// The user's bounds and fixed values (`--bound`, `--fix`), an effect's
+    /// as `effect.param`.
+    pub bounds: Vec<UserBound>,
+}
+
+/// A fit of one trace as `mckibben fit` runs it: the task, and the engine
+/// that runs on it.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    pub task: Task,
+    pub engine: Engine,
+}
+
+impl Fit {
+    /// The task of `what` on `trace` (its box widened on return of
+    /// [`Fit::run`]) and the engine `settings` start on it: a warm start
+    /// from `start` ([`FitSettings::start_warm`]), else fresh or resumed
+    /// from `checkpoint` ([`FitSettings::start`]).
+    pub fn new(
+        trace: &Trace,
+        what: &FitBox,
+        settings: &FitSettings,
+        start: Option<&Model>,
+        checkpoint: Option<&Path>,
+        note: &dyn Fn(String),
+    ) -> anyhow::Result<Fit> {
+        anyhow::ensure!(
+            checkpoint.is_none() || start.is_none(),
+            "--checkpoint resumes a fit from its own state: not with --from"
+        );
+        let flow = if settings.thesis_flow {
+            Flow::Thesis
+        } else {
+            Flow::Joint
+        };
+        let task = Task::with_box(
+            trace,
+            what.family,
+            flow,
+            None,
+            what.free_n,
+            what.loop_shape,
+            &what.bounds,
+        )
+        .and_then(|t| t.with_effects(&what.effects, &what.bounds))
+        .with_context(|| format!("cannot fit {}", trace.source))?;
+        let engine = match start {
+            Some(m) => settings.start_warm(&task, &warm_start(&task, m))?,
+            None => settings.start(&task, checkpoint, note)?,
+        };
+        Ok(Fit { task, engine })
+    }
+
+    /// Runs the engine on `evaluator` to its end or a stop rule (`interrupt`
+    /// raised: after the current generation), then the edge rule
+    /// ([`refit_off_edges`]); `checkpoint` as [`Engine::run`]. Returns the
+    /// outcome and the widenings.
+    pub fn run(
+        &mut self,
+        evaluator: &mut dyn Evaluator,
+        observers: &mut [&mut dyn Observer],
+        interrupt: Option<&AtomicBool>,
+        checkpoint: Option<&Path>,
+    ) -> anyhow::Result<(Outcome, Vec<Widening>)> {
+        let mut objective = ModelObjective::for_task(evaluator, &self.task);
+        let outcome = self
+            .engine
+            .run(&mut objective, observers, interrupt, checkpoint)?;
+        drop(objective);
+        let stops = self.engine.stops.clone();
+        refit_off_edges(&mut self.task, &self.engine, outcome, &stops, evaluator)
+    }
+}
+
+/// The start of a warm start from `model`: its baseline's parameters in the
+/// box's gauge (same outputs), and for each of the task's effects the
+/// model's value where it has that effect, else the effect's neutral value.
+fn warm_start(task: &Task, model: &Model) -> Vec<f64> {
+    let base = gauge_fixed(model.base.family, &model.base.params);
+    let mut theta = task.neutral_effects(&base);
+    let ours = task.augmented();
+    let theirs = model.augmented();
+    let values = model.theta();
+    for &e in &task.effects {
+        if let (Some(to), Some(from)) = (ours.offset_of(e), theirs.offset_of(e)) {
+            let k = e.dim(1);
+            theta[to..to + k].copy_from_slice(&values[from..from + k]);
+        }
+    }
+    theta
 }
 
 #[cfg(test)]
