@@ -110,6 +110,35 @@ fn the_diagnosed_model_simulates_to_its_reported_fit_and_warm_starts_a_fit() {
     assert_eq!(refit["effects"], final_effects);
     let refitted = refit["val_fit_percent"].as_f64().unwrap();
     assert!(refitted > reported - 0.5, "{refitted} against {reported}");
+
+    // control --from runs with it and says which effects its controllers
+    // leave out.
+    let control = mckibben(&[
+        "control",
+        "--from",
+        d.join("model.json").to_str().unwrap(),
+        "--controller",
+        "mpc",
+        "--freq",
+        "2",
+        "--load",
+        "4.5",
+        "--warmup",
+        "1",
+        "--duration",
+        "2",
+        "--steady-from",
+        "1",
+    ]);
+    let said = String::from_utf8_lossy(&control.stderr);
+    assert!(control.status.success(), "{said}");
+    for effect in final_effects.as_array().unwrap() {
+        let name = effect.as_str().unwrap();
+        assert!(
+            said.contains(&format!("effect {name} (")) && said.contains("left out"),
+            "{said}"
+        );
+    }
 }
 
 #[test]

@@ -402,17 +402,17 @@ fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
     let m = mckibben::model::ModelFile::load(path)
         .and_then(|f| f.model())
         .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
-    anyhow::ensure!(
-        m.chain.is_none(),
-        "--from {}: the model has effects ({}); control designs from a baseline only so far: \
-         fit the baseline alone (`mckibben fit` without --effects) for control",
-        path.display(),
-        m.effects()
-            .iter()
-            .map(|e| e.name())
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+    // The controllers' prediction has a baseline's states only: each effect
+    // of a diagnosed model is said to be left out, not dropped silently.
+    for e in m.effects() {
+        eprintln!(
+            "mckibben: note: --from {}: effect {e} ({}) left out of the controllers' model: \
+             the MPC and the feedforward PID predict with the {} baseline's states only",
+            path.display(),
+            e.physical(),
+            m.base.family
+        );
+    }
     let m = m.base;
     sweep::with_displacement(
         &design,
