@@ -3,8 +3,8 @@
 //! CPU batch path and `shaders/effects.wgsl` follow, and the simulations and
 //! sums of squared errors built on it.
 //!
-//! (Over 700 lines: the step holds a stage for each of the nineteen
-//! realisations in one function, so that the lanes' values stay in
+//! (Over 700 lines: the step holds a stage for each realisation of the
+//! catalogue in one function, so that the lanes' values stay in
 //! registers from stage to stage; the runs and sums on it follow.)
 
 use super::{Augmented, Context, Effect};
