@@ -65,6 +65,13 @@ fn clip(x: f32, bound: f32, e: u32) -> f32 {
     return larger(x, bound);
 }
 
+// step.rs `tenth_power`: ρ^10 by products.
+fn tenth_power(rho: f32) -> f32 {
+    let p2 = rounded(rho * rho);
+    let p4 = rounded(p2 * p2);
+    return rounded(rounded(p4 * p4) * p2);
+}
+
 // One step of a first-order lag of pole `rho` from `prev` toward `v`.
 fn lag(rho: f32, prev: f32, v: f32) -> f32 {
     return rounded(rho * prev) + rounded((1.0 - rho) * v);
@@ -125,6 +132,14 @@ fn score(i: u32, e: u32) -> f32 {
     let kappa_f = rounded(q.creep_two_pole_fast_share * q.creep_two_pole_kappa);
     let kappa_s = q.creep_two_pole_kappa - kappa_f;
     let z0_slow = q.creep_two_pole_z0;
+    // step.rs: the log-time creep's poles a decade apart in time constant
+    // (ρ^100, ρ^10, ρ) and their input weights (1 − ρ)·κ.
+    let rho_ls = q.creep_log_rho;
+    let rho_lm = tenth_power(rho_ls);
+    let rho_lf = tenth_power(rho_lm);
+    let w_lf = rounded((1.0 - rho_lf) * q.creep_log_kappa);
+    let w_lm = rounded((1.0 - rho_lm) * q.creep_log_kappa);
+    let w_ls = rounded((1.0 - rho_ls) * q.creep_log_kappa);
     let p_on = q.deadzone_on_off_p_on - u_mean;
     let p_off = p_on - q.deadzone_on_off_gap;
     let ring_a1 = q.inertia_ringing_a1;
@@ -150,6 +165,9 @@ fn score(i: u32, e: u32) -> f32 {
     var z_out = z0_out;
     var z_fast = 0.0;
     var z_slow = z0_slow;
+    var log_fast = 0.0;
+    var log_mid = 0.0;
+    var log_slow = q.creep_log_z0;
     var on = 0.0;
     var ring1 = 0.0;
     var ring2 = 0.0;
@@ -269,8 +287,9 @@ fn score(i: u32, e: u32) -> f32 {
         w = hysteresis(th, a_eff, w, xk, delta);
         x_prev2 = x;
         x = xk;
-        // Output side: the creeps' slow states, the ringing, the load mode,
-        // the output clip and the output lag.
+        // Output side: the creeps' slow states (input-driven, output-driven,
+        // two-pole, log-time), the ringing, the load mode, the output clip
+        // and the output lag.
         var yk = xk;
         if (HAS_CREEP) {
             z = rounded(rho * z) + rounded(rounded((1.0 - rho) * kappa) * ui);
@@ -285,6 +304,14 @@ fn score(i: u32, e: u32) -> f32 {
             z_slow = rounded(rho_s * z_slow) + rounded(rounded((1.0 - rho_s) * kappa_s) * ui);
             yk = yk + z_fast;
             yk = yk + z_slow;
+        }
+        if (HAS_CREEP_LOG) {
+            log_fast = rounded(rho_lf * log_fast) + rounded(w_lf * ui);
+            log_mid = rounded(rho_lm * log_mid) + rounded(w_lm * ui);
+            log_slow = rounded(rho_ls * log_slow) + rounded(w_ls * ui);
+            yk = yk + log_fast;
+            yk = yk + log_mid;
+            yk = yk + log_slow;
         }
         if (HAS_INERTIA_RINGING) {
             var prev = u0;
@@ -326,7 +353,8 @@ fn score(i: u32, e: u32) -> f32 {
         }
         // step.rs `Prepared::restart`.
         if (k == next_restart) {
-            let xr = ((((measured - z) - z_out) - z_fast) - z_slow) - ring1;
+            let creeps = (((measured - z) - z_out) - z_fast) - z_slow;
+            let xr = (((creeps - log_fast) - log_mid) - log_slow) - ring1;
             w = w + rounded(big_a * (xr - x));
             x = xr;
             lag_out = measured;

@@ -344,6 +344,48 @@ catalogue! {
                 only_on_a_peak: true,
             },
         },
+        /// Log-time creep of the rubber: three input-driven slow states a
+        /// decade apart in time constant (poles `ρ^100`, `ρ^10`, `ρ`), each
+        /// of static gain `κ`, a Prony series with one term per decade, so
+        /// after an input step the output creeps by about `κ·Δu` per decade
+        /// of time, from a hundredth of the slowest time constant to it;
+        /// the slowest starts at `z0`. A rubber's creep has no one time constant: the
+        /// two-pole creep fitted to the Cavatappi records put its two
+        /// poles more than a decade apart (ρ 0.93–0.95 and 0.996–0.997),
+        /// and the response deepened from pulse to pulse beyond the slower
+        /// (docs/DIAGNOSIS.md, "Real data"), with five parameters where
+        /// this has three.
+        LogCreep => Realisation {
+            name: "creep:log",
+            physical: Some(Effect::Creep),
+            realisation: "log-time (a term per decade)",
+            params: Params::Fixed(&[
+                ("rho", "pole of the slowest term; the others are rho^10 and rho^100"),
+                ("kappa", "static gain of each term: creep per decade of time (output per input unit)"),
+                (
+                    "z0",
+                    "the slowest term at the first sample (output units): where the record's history left it",
+                ),
+            ]),
+            // The slowest time constant from 1 000 to 20 000 samples (10 to
+            // 200 s at 100 Hz), the fastest a hundredth of it; three terms
+            // of the creep's whole gain each at most.
+            bounds: |ctx, _| {
+                let ry = ctx.output_range();
+                let g = 2.0 * ry / ctx.input_range();
+                (vec![0.9995, 0.0, 0.0], vec![0.999, -g, -ry], vec![0.99995, g, ry])
+            },
+            size_text: Some(|p, dt| {
+                let tau = |n: f64| -dt / (n * p[0].ln());
+                format!(
+                    "time constants {:.2} s, {:.1} s, {:.0} s",
+                    tau(100.0),
+                    tau(10.0),
+                    tau(1.0)
+                )
+            }),
+            ..CREEP
+        },
     }
 }
 

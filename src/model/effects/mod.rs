@@ -482,6 +482,7 @@ mod tests {
             (Effect::Creep, 0),
             (Effect::OutputCreep, 0),
             (Effect::TwoPoleCreep, 1),
+            (Effect::LogCreep, 0),
         ] {
             let model = Augmented::new(fam, vec![effect], 1);
             let mut theta = neutral_vector(&model, &base, &ctx);
@@ -525,6 +526,41 @@ mod tests {
                 "share {share}: {settled}"
             );
         }
+    }
+
+    /// The log-time creep after an input step: about `κ·Δu` more for each
+    /// decade of time between its fastest and slowest time constants, and
+    /// `3·κ·Δu` in all once the slowest has settled.
+    #[test]
+    fn the_log_creep_creeps_a_gain_per_decade() {
+        let mut exp = experiment();
+        exp.u = vec![0.5; 20_000];
+        exp.y = vec![0.0; 20_000];
+        let ctx = Context::of(&exp, true);
+        let fam = Family::Linear;
+        let base = thesis_params(fam);
+        let model = Augmented::new(fam, vec![Effect::LogCreep], 1);
+        let neutral = neutral_vector(&model, &base, &ctx);
+        let reference = model.simulate(&neutral, 0, &ctx, &exp);
+        let mut theta = neutral.clone();
+        let at = fam.dim();
+        // Time constants of 20, 200 and 2 000 samples.
+        theta[at..at + 2].copy_from_slice(&[0.9995, 2.0]);
+        let y = model.simulate(&theta, 0, &ctx, &exp);
+        let creep = |k: usize| (y[k] - reference[k]) as f64;
+        let per_decade = 2.0 * 0.5;
+        for (from, to) in [(20, 200), (200, 2000)] {
+            let grown = creep(to) - creep(from);
+            assert!(
+                (0.8..1.1).contains(&(grown / per_decade)),
+                "{from} to {to}: {grown}"
+            );
+        }
+        assert!(
+            (creep(19_999) - 3.0 * per_decade).abs() < 1e-3,
+            "{}",
+            creep(19_999)
+        );
     }
 
     #[test]
