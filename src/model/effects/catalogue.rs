@@ -361,7 +361,10 @@ catalogue! {
             realisation: "log-time (a term per decade)",
             params: Params::Fixed(&[
                 ("rho", "pole of the slowest term; the others are rho^10 and rho^100"),
-                ("kappa", "static gain of each term: creep per decade of time (output per input unit)"),
+                (
+                    "kappa",
+                    "static gain of each term: creep per decade of time (output per input unit)",
+                ),
                 (
                     "z0",
                     "the slowest term at the first sample (output units): where the record's history left it",
