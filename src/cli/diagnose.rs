@@ -51,13 +51,11 @@ pub struct Args {
     /// Baseline model family.
     #[arg(long, default_value = "classic", value_parser = parse_family)]
     baseline: Family,
-    /// Effects to try, comma-separated (default: the whole catalogue, every
-    /// realisation: delay, delay:input-lag, delay:output-lag, deadzone,
-    /// deadzone:on-off, saturation, saturation:output, saturation:soft,
-    /// asymmetry, asymmetry:drain, inertia, inertia:mode, inertia:ringing,
-    /// backlash, creep, creep:output, creep:two-pole, rate, load; `load`
-    /// only applies with several DATA files, e.g. one per hanging load).
-    #[arg(long, value_delimiter = ',', value_parser = parse_effect)]
+    // The help lists the catalogue as `model::effects` declares it.
+    #[arg(long, value_delimiter = ',', value_parser = parse_effect, help = format!(
+        "Effects to try, comma-separated (default: the whole catalogue, every realisation: {})",
+        Effect::help_list()
+    ))]
     effects: Vec<Effect>,
     /// Seed of every random draw (fits are reproducible for a given seed).
     #[arg(long, default_value_t = 1)]
