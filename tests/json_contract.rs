@@ -283,14 +283,18 @@ fn check(name: &str, args: &[&str]) -> Value {
         mckibben::report::json::SCHEMA_VERSION,
         "{name}: schema_version"
     );
-    let errors = violations(fields, &v);
+    assert_documented(name, fields, &v, &format!("mckibben {}", args.join(" ")));
+    v
+}
+
+/// Fails naming every way `v` (from `what`) breaks contract `name`.
+fn assert_documented(name: &str, fields: &[Field], v: &Value, what: &str) {
+    let errors = violations(fields, v);
     assert!(
         errors.is_empty(),
-        "mckibben {} does not match docs/JSON.md's `{name}` table:\n  {}",
-        args.join(" "),
+        "{what} does not match docs/JSON.md's `{name}` table:\n  {}",
         errors.join("\n  ")
     );
-    v
 }
 
 /// Checks the JSON file at `path` against contract `name`.
@@ -300,13 +304,7 @@ fn check_file(name: &str, path: &Path) -> Value {
         .get(name)
         .unwrap_or_else(|| panic!("docs/JSON.md has no contract `{name}`"));
     let v: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
-    let errors = violations(fields, &v);
-    assert!(
-        errors.is_empty(),
-        "{} does not match docs/JSON.md's `{name}` table:\n  {}",
-        path.display(),
-        errors.join("\n  ")
-    );
+    assert_documented(name, fields, &v, &path.display().to_string());
     v
 }
 
