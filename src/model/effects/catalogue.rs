@@ -7,7 +7,8 @@
 //! (Over 400 lines: twenty entries of about twenty lines each, the rest
 //! the helpers their sizes and admission rules share.)
 
-use super::table::{Params, Realisation, StartHint, catalogue};
+use super::Realisation;
+use super::table::{Params, StartHint, catalogue};
 
 catalogue! {
     physical {

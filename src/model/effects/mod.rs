@@ -31,7 +31,10 @@ mod step;
 mod table;
 pub use catalogue::{Effect, rings};
 pub use step::{EffectState, Prepared};
-pub use table::{EffectBox, Params, Realisation, StartHint};
+pub use table::{EffectBox, Params, StartHint};
+
+/// One entry of the catalogue ([`Effect::entry`]).
+pub type Realisation = table::Realisation<Effect>;
 
 /// Name and meaning of one effect parameter.
 #[derive(Debug, Clone, PartialEq, Serialize)]

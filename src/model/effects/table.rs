@@ -1,12 +1,11 @@
 //! The shape of one entry of the catalogue ([`Realisation`]) and the
 //! `catalogue!` macro that turns the entries of `catalogue.rs` into the
-//! [`Effect`] enum, [`Effect::ALL`], [`Effect::PHYSICAL`] and the lookup
-//! [`Effect::entry`]: every other question about a realisation (its name,
-//! parameters, box, size, signature, admission rule, start hint, WGSL
-//! parameter names) is answered from its entry, so a realisation is
-//! declared once.
+//! [`super::Effect`] enum, its `ALL`, `PHYSICAL` and the lookup `entry`:
+//! every other question about a realisation (its name, parameters, box,
+//! size, signature, admission rule, start hint, WGSL parameter names) is
+//! answered from its entry, so a realisation is declared once.
 
-use super::{Context, Effect};
+use super::Context;
 
 /// The three vectors of a realisation's box: its neutral value (which gives
 /// the baseline's bits), its lower and its upper bounds.
@@ -14,15 +13,17 @@ pub type EffectBox = (Vec<f64>, Vec<f64>, Vec<f64>);
 
 /// One realisation of the catalogue: everything the diagnosis, the reports
 /// and the backends know about it besides its step (`step.rs` on the CPU,
-/// `shaders/effects.wgsl` on the GPU).
+/// `shaders/effects.wgsl` on the GPU). `E` is the catalogue's enum
+/// ([`super::Realisation`] names it), which the entries generate, so this
+/// schema does not import it back.
 #[derive(Debug, Clone, Copy)]
-pub struct Realisation {
+pub struct Realisation<E> {
     /// Its flag and JSON name: the physical effect's (`delay`) for its
     /// first realisation, `physical:realisation` for the others.
     pub name: &'static str,
     /// The physical effect it realises; `None` for a physical effect's
     /// first realisation, which is the physical effect itself.
-    pub physical: Option<Effect>,
+    pub physical: Option<E>,
     /// How the physical effect is realised, for reports.
     pub realisation: &'static str,
     /// The residual signature that points to it, for reports.
@@ -80,7 +81,7 @@ pub enum StartHint {
 
 /// The catalogue as one list: the physical effects (each its own first
 /// realisation), then the other realisations, each `Variant => entry`
-/// with its doc comment. Generates [`Effect`] with `ALL` (this order: the
+/// with its doc comment. Generates [`super::Effect`] with `ALL` (this order: the
 /// order reports list them, and the diagnosis tries them), `PHYSICAL`
 /// (the first group) and `entry`.
 macro_rules! catalogue {
@@ -108,14 +109,14 @@ macro_rules! catalogue {
             pub const PHYSICAL: &'static [Effect] = &[$(Effect::$p,)*];
 
             /// The realisation's entry in the catalogue.
-            pub fn entry(self) -> &'static $crate::model::effects::table::Realisation {
+            pub fn entry(self) -> &'static $crate::model::effects::Realisation {
                 match self {
                     $( Effect::$p => {
-                        const ENTRY: $crate::model::effects::table::Realisation = $pentry;
+                        const ENTRY: $crate::model::effects::Realisation = $pentry;
                         &ENTRY
                     } )*
                     $( Effect::$r => {
-                        const ENTRY: $crate::model::effects::table::Realisation = $rentry;
+                        const ENTRY: $crate::model::effects::Realisation = $rentry;
                         &ENTRY
                     } )*
                 }
