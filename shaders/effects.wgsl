@@ -2,8 +2,9 @@
 // `Prepared::step` and `Prepared::restart`, spelled with the same
 // operations in the same order (every product that is then added kept
 // rounded, minima and maxima as comparisons). The generated header says
-// which effects are present (`HAS_*`), where their parameters start in the
-// candidate's row (`AT_*`) and each experiment's constants (`U_MEAN`,
+// which effects are present (`HAS_*`), loads their parameters from the
+// candidate's row (`load_effect_params`, generated from the catalogue) and
+// holds each experiment's constants (`U_MEAN`,
 // `Y_MEAN`, `BRANCH_TOL`, `INV_DT`, `DRIVES_UP`, `KNEE_*`, `REST`, indexed by
 // experiment).
 
@@ -64,6 +65,13 @@ fn clip(x: f32, bound: f32, e: u32) -> f32 {
     return larger(x, bound);
 }
 
+// step.rs `tenth_power`: ρ^10 by products.
+fn tenth_power(rho: f32) -> f32 {
+    let p2 = rounded(rho * rho);
+    let p4 = rounded(p2 * p2);
+    return rounded(rounded(p4 * p4) * p2);
+}
+
 // One step of a first-order lag of pole `rho` from `prev` toward `v`.
 fn lag(rho: f32, prev: f32, v: f32) -> f32 {
     return rounded(rho * prev) + rounded((1.0 - rho) * v);
@@ -86,118 +94,57 @@ fn score(i: u32, e: u32) -> f32 {
     let u_mean = unfolded(U_MEAN[e]);
     let tol = unfolded(BRANCH_TOL[e]);
     let y_mean = unfolded(Y_MEAN[e]);
-    // step.rs `Augmented::prepare`.
+    // step.rs `Augmented::prepare`: the parameters as the generated
+    // `load_effect_params` loads them (0 for an effect not in the model),
+    // and what each realisation derives from them once per candidate.
+    let q = load_effect_params(p, e);
     // The delay in whole samples and the fraction of a sample beyond them.
-    var whole = 0u;
-    var frac = 0.0;
-    if (HAS_DELAY) {
-        let d = larger(params[p + AT_DELAY], 0.0);
-        let fl = floor(d);
-        whole = u32(fl);
-        frac = d - fl;
-    }
-    var p0 = 0.0;
-    if (HAS_DEADZONE) {
-        p0 = params[p + AT_DEADZONE];
-    }
-    var bound = 0.0;
-    if (HAS_SATURATION) {
-        bound = params[p + AT_SATURATION] - y_mean;
-    }
-    var eps = 0.0;
-    if (HAS_ASYMMETRY) {
-        eps = params[p + AT_ASYMMETRY];
-    }
-    var a2 = 0.0;
-    if (HAS_INERTIA) {
-        a2 = params[p + AT_INERTIA];
-    }
-    var play_width = 0.0;
-    if (HAS_BACKLASH) {
-        play_width = larger(params[p + AT_BACKLASH], 0.0);
-    }
-    var rho = 0.0;
-    var kappa = 0.0;
-    var z0 = 0.0;
-    if (HAS_CREEP) {
-        rho = params[p + AT_CREEP];
-        kappa = params[p + AT_CREEP + 1u];
-        z0 = params[p + AT_CREEP + 2u];
-    }
-    var eta = 0.0;
-    if (HAS_RATE) {
-        eta = params[p + AT_RATE];
-    }
+    let d = larger(q.delay_d, 0.0);
+    let whole = u32(floor(d));
+    let frac = d - floor(d);
+    let p0 = q.deadzone_p0;
+    let bound = q.saturation_l_max - y_mean;
+    let eps = q.asymmetry_eps;
+    let a2 = q.inertia_a2;
+    let play_width = larger(q.backlash_r, 0.0);
+    let rho = q.creep_rho;
+    let kappa = q.creep_kappa;
+    let z0 = q.creep_z0;
+    let eta = q.rate_eta;
     // The load gain of dataset e ≥ 1 (dataset 0 is the reference).
     let has_load = HAS_LOAD && e >= 1u;
-    var g = 0.0;
-    if (has_load) {
-        g = params[p + AT_LOAD + e - 1u];
-    }
-    var rho_in = 0.0;
-    if (HAS_DELAY_INPUT_LAG) {
-        rho_in = params[p + AT_DELAY_INPUT_LAG];
-    }
-    var rho_out = 0.0;
-    if (HAS_DELAY_OUTPUT_LAG) {
-        rho_out = params[p + AT_DELAY_OUTPUT_LAG];
-    }
-    var a1 = 0.0;
-    var a2m = 0.0;
-    var mode_gain = 0.0;
-    if (HAS_INERTIA_MODE) {
-        a1 = params[p + AT_INERTIA_MODE];
-        a2m = params[p + AT_INERTIA_MODE + 1u];
-        mode_gain = (1.0 - a1) + a2m;
-    }
-    var rho_drain = 0.0;
-    if (HAS_ASYMMETRY_DRAIN) {
-        rho_drain = params[p + AT_ASYMMETRY_DRAIN];
-    }
-    var clip_bound = 0.0;
-    if (HAS_SATURATION_OUTPUT) {
-        clip_bound = params[p + AT_SATURATION_OUTPUT] - y_mean;
-    }
-    var soft_bound = 0.0;
-    if (HAS_SATURATION_SOFT) {
-        soft_bound = params[p + AT_SATURATION_SOFT] - y_mean;
-    }
-    var rho_zo = 0.0;
-    var z0_out = 0.0;
-    var kappa_zo = 0.0;
-    if (HAS_CREEP_OUTPUT) {
-        rho_zo = params[p + AT_CREEP_OUTPUT];
-        kappa_zo = params[p + AT_CREEP_OUTPUT + 1u];
-        z0_out = params[p + AT_CREEP_OUTPUT + 2u];
-    }
-    var rho_f = 0.0;
-    var kappa_f = 0.0;
-    var rho_s = 0.0;
-    var kappa_s = 0.0;
-    var z0_slow = 0.0;
-    if (HAS_CREEP_TWO_POLE) {
-        // step.rs: the total gain split by the faster state's share.
-        rho_f = params[p + AT_CREEP_TWO_POLE];
-        rho_s = params[p + AT_CREEP_TWO_POLE + 1u];
-        let kappa_two = params[p + AT_CREEP_TWO_POLE + 2u];
-        kappa_f = rounded(params[p + AT_CREEP_TWO_POLE + 3u] * kappa_two);
-        kappa_s = kappa_two - kappa_f;
-        z0_slow = params[p + AT_CREEP_TWO_POLE + 4u];
-    }
-    var p_on = 0.0;
-    var p_off = 0.0;
-    if (HAS_DEADZONE_ON_OFF) {
-        p_on = params[p + AT_DEADZONE_ON_OFF] - u_mean;
-        p_off = p_on - params[p + AT_DEADZONE_ON_OFF + 1u];
-    }
-    var ring_a1 = 0.0;
-    var ring_a2 = 0.0;
-    var kick = 0.0;
-    if (HAS_INERTIA_RINGING) {
-        ring_a1 = params[p + AT_INERTIA_RINGING];
-        ring_a2 = params[p + AT_INERTIA_RINGING + 1u];
-        kick = params[p + AT_INERTIA_RINGING + 2u];
-    }
+    let g = q.load_g;
+    let rho_in = q.delay_input_lag_rho;
+    let rho_out = q.delay_output_lag_rho;
+    let a1 = q.inertia_mode_a1;
+    let a2m = q.inertia_mode_a2;
+    let mode_gain = (1.0 - a1) + a2m;
+    let rho_drain = q.asymmetry_drain_rho;
+    let clip_bound = q.saturation_output_l_max - y_mean;
+    let soft_bound = q.saturation_soft_l_max - y_mean;
+    let rho_zo = q.creep_output_rho;
+    let kappa_zo = q.creep_output_kappa;
+    let z0_out = q.creep_output_z0;
+    // step.rs: the two-pole creep's total gain split by the faster state's
+    // share.
+    let rho_f = q.creep_two_pole_rho_fast;
+    let rho_s = q.creep_two_pole_rho_slow;
+    let kappa_f = rounded(q.creep_two_pole_fast_share * q.creep_two_pole_kappa);
+    let kappa_s = q.creep_two_pole_kappa - kappa_f;
+    let z0_slow = q.creep_two_pole_z0;
+    // step.rs: the log-time creep's poles a decade apart in time constant
+    // (ρ^100, ρ^10, ρ) and their input weights (1 − ρ)·κ.
+    let rho_ls = q.creep_log_rho;
+    let rho_lm = tenth_power(rho_ls);
+    let rho_lf = tenth_power(rho_lm);
+    let w_lf = rounded((1.0 - rho_lf) * q.creep_log_kappa);
+    let w_lm = rounded((1.0 - rho_lm) * q.creep_log_kappa);
+    let w_ls = rounded((1.0 - rho_ls) * q.creep_log_kappa);
+    let p_on = q.deadzone_on_off_p_on - u_mean;
+    let p_off = p_on - q.deadzone_on_off_gap;
+    let ring_a1 = q.inertia_ringing_a1;
+    let ring_a2 = q.inertia_ringing_a2;
+    let kick = q.inertia_ringing_g;
     let big_a = stiffness(th);
     // step.rs `Prepared::start`.
     let u0 = input(span, 0u);
@@ -218,6 +165,9 @@ fn score(i: u32, e: u32) -> f32 {
     var z_out = z0_out;
     var z_fast = 0.0;
     var z_slow = z0_slow;
+    var log_fast = 0.0;
+    var log_mid = 0.0;
+    var log_slow = q.creep_log_z0;
     var on = 0.0;
     var ring1 = 0.0;
     var ring2 = 0.0;
@@ -337,8 +287,9 @@ fn score(i: u32, e: u32) -> f32 {
         w = hysteresis(th, a_eff, w, xk, delta);
         x_prev2 = x;
         x = xk;
-        // Output side: the creeps' slow states, the ringing, the load mode,
-        // the output clip and the output lag.
+        // Output side: the creeps' slow states (input-driven, output-driven,
+        // two-pole, log-time), the ringing, the load mode, the output clip
+        // and the output lag.
         var yk = xk;
         if (HAS_CREEP) {
             z = rounded(rho * z) + rounded(rounded((1.0 - rho) * kappa) * ui);
@@ -353,6 +304,14 @@ fn score(i: u32, e: u32) -> f32 {
             z_slow = rounded(rho_s * z_slow) + rounded(rounded((1.0 - rho_s) * kappa_s) * ui);
             yk = yk + z_fast;
             yk = yk + z_slow;
+        }
+        if (HAS_CREEP_LOG) {
+            log_fast = rounded(rho_lf * log_fast) + rounded(w_lf * ui);
+            log_mid = rounded(rho_lm * log_mid) + rounded(w_lm * ui);
+            log_slow = rounded(rho_ls * log_slow) + rounded(w_ls * ui);
+            yk = yk + log_fast;
+            yk = yk + log_mid;
+            yk = yk + log_slow;
         }
         if (HAS_INERTIA_RINGING) {
             var prev = u0;
@@ -394,7 +353,8 @@ fn score(i: u32, e: u32) -> f32 {
         }
         // step.rs `Prepared::restart`.
         if (k == next_restart) {
-            let xr = ((((measured - z) - z_out) - z_fast) - z_slow) - ring1;
+            let creeps = (((measured - z) - z_out) - z_fast) - z_slow;
+            let xr = (((creeps - log_fast) - log_mid) - log_slow) - ring1;
             w = w + rounded(big_a * (xr - x));
             x = xr;
             lag_out = measured;

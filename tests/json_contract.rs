@@ -21,8 +21,9 @@ const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
 /// Every contract docs/JSON.md must hold: one per `--json` output.
-const CONTRACTS: [&str; 11] = [
+const CONTRACTS: [&str; 12] = [
     "fit",
+    "model-file",
     "compare",
     "identify",
     "simulate",
@@ -282,13 +283,28 @@ fn check(name: &str, args: &[&str]) -> Value {
         mckibben::report::json::SCHEMA_VERSION,
         "{name}: schema_version"
     );
-    let errors = violations(fields, &v);
+    assert_documented(name, fields, &v, &format!("mckibben {}", args.join(" ")));
+    v
+}
+
+/// Fails naming every way `v` (from `what`) breaks contract `name`.
+fn assert_documented(name: &str, fields: &[Field], v: &Value, what: &str) {
+    let errors = violations(fields, v);
     assert!(
         errors.is_empty(),
-        "mckibben {} does not match docs/JSON.md's `{name}` table:\n  {}",
-        args.join(" "),
+        "{what} does not match docs/JSON.md's `{name}` table:\n  {}",
         errors.join("\n  ")
     );
+}
+
+/// Checks the JSON file at `path` against contract `name`.
+fn check_file(name: &str, path: &Path) -> Value {
+    let all = doc_contracts();
+    let fields = all
+        .get(name)
+        .unwrap_or_else(|| panic!("docs/JSON.md has no contract `{name}`"));
+    let v: Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    assert_documented(name, fields, &v, &path.display().to_string());
     v
 }
 
@@ -367,6 +383,41 @@ fn fit() {
         serde_json::from_slice(&std::fs::read(dir.path().join("result.json")).unwrap()).unwrap();
     assert_eq!(file["schema_version"], v["schema_version"]);
     assert_eq!(file["params"], v["params"]);
+}
+
+#[test]
+fn model_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let run = Command::new(BIN)
+        .args([
+            "fit",
+            STAIR,
+            "--pop",
+            "40",
+            "--gens",
+            "10",
+            "--backend",
+            "cpu",
+            "--effects",
+            "creep",
+            "--fix",
+            "alpha=0.5",
+            "--out",
+            out,
+        ])
+        .current_dir(ROOT)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let v = check_file("model-file", &dir.path().join("model.json"));
+    assert_eq!(v["effects"][0], "creep");
+    assert_eq!(v["user_bounds"][0], "alpha=0.5");
+    assert!(v["data"]["effect_context"].is_object());
 }
 
 #[test]

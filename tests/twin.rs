@@ -157,7 +157,8 @@ fn heavier_load_lengthens_the_muscle_at_equal_pressure() {
 }
 
 /// For every effect: scale 0 gives exactly the trace of the model without
-/// the effect, and the nominal effect changes the trace (the switch is live).
+/// the effect, and the nominal effect (scale 1, which `creep` and `ringing`
+/// are not by default) changes the trace (the switch is live).
 #[test]
 fn every_effect_at_zero_equals_the_effect_removed() {
     for name in EFFECT_NAMES {
@@ -170,10 +171,12 @@ fn every_effect_at_zero_equals_the_effect_removed() {
         zero.effects.set(name, 0.0).unwrap();
         let mut removed = base.clone();
         removed.effects.remove(name).unwrap();
+        let mut nominal = base.clone();
+        nominal.effects.set(name, 1.0).unwrap();
         let stair = short_stair();
         let a = run(&zero, 4.5, 3, &stair);
         let b = run(&removed, 4.5, 3, &stair);
-        let nominal = run(&base, 4.5, 3, &stair);
+        let nominal = run(&nominal, 4.5, 3, &stair);
         assert_traces_equal(name, &a, &b);
         assert_ne!(nominal, b, "effect {name} at scale 1 changes nothing");
     }
@@ -193,6 +196,29 @@ fn assert_traces_equal(name: &str, a: &Trace, b: &Trace) {
         );
     }
     assert_eq!(a, b, "effect {name}");
+}
+
+/// `creep` and `ringing` are off by default: the default stair is bit for
+/// bit the one with both set to 0, so no published number moves.
+#[test]
+fn creep_and_ringing_are_off_by_default() {
+    let spec = |effects: &[&str]| RunSpec {
+        kind: Kind::Stair,
+        load_kg: 4.5,
+        seed: 1,
+        freq_rad_s: 1.0,
+        effects: effects.iter().map(|e| e.to_string()).collect(),
+    };
+    let default = spec(&[]).run().unwrap();
+    let zeroed = spec(&["creep=0", "ringing=0"]).run().unwrap();
+    assert_traces_equal(
+        "creep and ringing",
+        &default,
+        &Trace {
+            source: default.source.clone(),
+            ..zeroed
+        },
+    );
 }
 
 #[test]

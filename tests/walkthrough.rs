@@ -257,7 +257,7 @@ fn the_guide_runs_as_written() {
             } else {
                 "p_MPa"
             };
-            assert!(model.contains(&format!("\"input_name\": \"{units}\"")));
+            assert!(model.contains(&format!("\"column\": \"{units}\"")));
             for f in ["loop.svg", "trace.svg", "result.json"] {
                 assert!(root.join(written(s)[0].clone()).join(f).exists(), "{f}");
             }
@@ -269,9 +269,13 @@ fn the_guide_runs_as_written() {
             for f in ["diagnose_fit.svg", "diagnose_residual.svg"] {
                 assert!(root.join("out/guide/diagnose").join(f).exists(), "{f}");
             }
+            for f in ["baseline.json", "model.json"] {
+                assert!(root.join("out/guide/diagnosis").join(f).exists(), "{f}");
+            }
             seen.push("diagnose");
         } else if s.starts_with("mckibben simulate --from") {
             assert!(out.contains("output range"), "{out}");
+            assert!(number_after(&out, "as validated:") > 85.0, "{out}");
             seen.push("simulate");
         } else if s.starts_with("mckibben control --from") {
             let rmse = number_after(&out, "prediction RMSE on the validation record:");

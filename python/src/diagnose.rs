@@ -1,5 +1,5 @@
 //! `mckibben.diagnose`: the library's diagnosis, its `--json` document as
-//! Python objects.
+//! Python objects and its models as `Model`s.
 
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -7,11 +7,13 @@ use pyo3::types::PyTuple;
 
 use mckibben::diagnose::report::DiagnosisJson;
 use mckibben::diagnose::{Effect, Settings};
+use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
 
 use crate::convert::{backend, family, to_python, value_error};
 use crate::data::{Trace, arrays_trace};
 use crate::fit::{effects_arg, seed_arg};
+use crate::model::{Model, provenance};
 
 /// The traces of `datasets`: a `Trace`, or a list whose items are each a
 /// `Trace` or a `(u, y, dt)` tuple.
@@ -51,11 +53,38 @@ fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<Vec<mckibben::data::Trace>> {
     Ok(out)
 }
 
+/// What `mckibben.diagnose` returns: the document `mckibben diagnose
+/// --json` prints and the models `diagnose --out` writes.
+#[pyclass(module = "mckibben", frozen, get_all)]
+pub struct Diagnosis {
+    /// The `--json` document (docs/JSON.md), as dicts and lists.
+    document: Py<PyAny>,
+    /// The final model: the baseline with the effects the diagnosis kept
+    /// (`--out`'s `model.json`).
+    model: Py<Model>,
+    /// The baseline alone, fitted on the same data (`--out`'s `baseline.json`).
+    baseline: Py<Model>,
+}
+
+#[pymethods]
+impl Diagnosis {
+    fn __repr__(&self) -> String {
+        let model = self.model.get();
+        let names: Vec<&str> = model.inner.effects().iter().map(|e| e.name()).collect();
+        format!(
+            "Diagnosis({} + [{}])",
+            model.inner.base.family,
+            names.join(", ")
+        )
+    }
+}
+
 /// Diagnoses the sim-to-real gap of a `baseline` model on `datasets` (each
 /// fitted on its first half, validated on its second), as `mckibben
 /// diagnose` does: where the model misses, which effects of the catalogue
 /// (`effects`, default all) explain it, how far the gap shrinks. Returns
-/// the document `mckibben diagnose --json` prints, as dicts and lists.
+/// the document `mckibben diagnose --json` prints, as dicts and lists, and
+/// the final and baseline models as `Model`s.
 #[pyfunction]
 #[pyo3(signature = (datasets, baseline = "classic", effects = None, seed = 1, seeds = None, generations = None, scratch_seeds = None, backend = "cpu"))]
 #[allow(clippy::too_many_arguments)]
@@ -69,7 +98,7 @@ pub fn diagnose<'py>(
     generations: Option<usize>,
     scratch_seeds: Option<usize>,
     backend: &str,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> PyResult<Diagnosis> {
     let traces = traces(datasets)?;
     let family = family(baseline)?;
     let effects = match effects_arg(effects)? {
@@ -92,5 +121,18 @@ pub fn diagnose<'py>(
     let d = py
         .detach(|| mckibben::diagnose::diagnose(&traces, family, &effects, &settings))
         .map_err(value_error)?;
-    to_python(py, &Versioned::new(DiagnosisJson::of(&d)))
+    let sources: Vec<&str> = traces.iter().map(|t| t.source.as_str()).collect();
+    let model = |m: &mckibben::model::Model| {
+        let file = ModelFile::new(
+            m,
+            None,
+            provenance("mckibben.diagnose", &sources, Some(settings.seed)),
+        );
+        Py::new(py, Model::of_file(file).map_err(value_error)?)
+    };
+    Ok(Diagnosis {
+        document: to_python(py, &Versioned::new(DiagnosisJson::of(&d)))?.unbind(),
+        model: model(&d.final_model)?,
+        baseline: model(&d.baseline_model)?,
+    })
 }

@@ -8,16 +8,18 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat};
 
+use mckibben::model::UserBound;
 use mckibben::model::{Flow, Measure};
 use mckibben::optim::engine::Objective as _;
 use mckibben::optim::engine::Space;
 use mckibben::optim::engine::model::ModelObjective;
+use mckibben::optim::fit::model_file;
 use mckibben::optim::task::Task;
 
 use crate::convert::{backend, family, loop_shape, rows, rows_view, runtime_error, value_error};
 use crate::data::data_arg;
 use crate::fit::user_bounds;
-use crate::model::Model;
+use crate::model::{Model, provenance};
 
 /// The batch evaluator as an objective: `ev(thetas)` scores an `(N, d)`
 /// array of candidates at once (on the CPU, or a GPU) and returns their N
@@ -35,6 +37,10 @@ use crate::model::Model;
 #[pyclass(module = "mckibben", frozen)]
 pub struct Evaluator {
     task: Task,
+    /// The user's bounds the box was made with (a model's file keeps them).
+    bounds: Vec<UserBound>,
+    /// The data's source (a model's provenance names it).
+    source: String,
     space: Space,
     checked: bool,
     /// The free coordinates' names.
@@ -186,6 +192,8 @@ impl Evaluator {
             names: space.bounds().names,
             describe: evaluator.describe(),
             task,
+            bounds,
+            source: trace.source.clone(),
             space,
             checked,
             evaluator: Mutex::new(evaluator),
@@ -293,9 +301,13 @@ impl Evaluator {
     /// The model of one candidate, in the data's coordinates (what `fit`
     /// would write for it).
     fn model(&self, theta: &Bound<'_, PyAny>) -> PyResult<Model> {
-        Ok(Model {
-            inner: self.task.model(&self.one(theta)?),
-        })
+        let file = model_file(
+            &self.task,
+            &self.one(theta)?,
+            &self.bounds,
+            provenance("mckibben.Evaluator.model", &[&self.source], None),
+        );
+        Model::of_file(file).map_err(runtime_error)
     }
 
     /// The validation scores of one candidate, as `fit` reports its own:

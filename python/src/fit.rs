@@ -5,23 +5,23 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::{PyKeyboardInterrupt, PyNotImplementedError, PyValueError};
+use pyo3::exceptions::{PyKeyboardInterrupt, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use mckibben::model::UserBound;
 use mckibben::model::effects::Effect;
+use mckibben::model::{ModelFile, UserBound};
 use mckibben::optim::edge::active_bounds;
 use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
 use mckibben::optim::engine::{Observer, StopReason, StopRules};
-use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides};
+use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides, model_file};
 use mckibben::optim::history::{GenerationRecord, History};
 
 use crate::convert::{
-    algorithm, backend, family, loop_shape, runtime_error, to_python, value_error,
+    algorithm, backend, family, file_error, loop_shape, runtime_error, to_python, value_error,
 };
 use crate::data::data_arg;
-use crate::model::Model;
+use crate::model::{Model, provenance};
 
 /// What `mckibben.fit` returns: the fields of `mckibben fit --json` as
 /// Python values, the model, and the history as arrays.
@@ -29,7 +29,8 @@ use crate::model::Model;
 pub struct FitResult {
     /// The fitted model (`None` when every candidate diverged).
     model: Option<Py<Model>>,
-    /// Fitted parameters by name, canonical order (empty when none was found).
+    /// Fitted parameters by name: the family's in canonical order, then the
+    /// effects' as `effect.param` (empty when none was found).
     params: Py<PyDict>,
     /// Estimation SSE of the free run (first half of the data; `inf` when
     /// every candidate diverged).
@@ -44,6 +45,8 @@ pub struct FitResult {
     backend: String,
     /// `classic` or `generalized`.
     family: String,
+    /// The effect stages fitted after the family, in chain order.
+    effects: Vec<String>,
     algo: String,
     /// `joint` or `thesis`.
     flow: String,
@@ -190,6 +193,20 @@ pub fn effects_arg(effects: Option<Vec<String>>) -> PyResult<Option<Vec<Effect>>
         .transpose()
 }
 
+/// A warm start: a `Model`, or the path of a model file.
+fn start_arg(start: &Bound<'_, PyAny>) -> PyResult<ModelFile> {
+    if let Ok(m) = start.cast::<Model>() {
+        return Ok(m.get().file.clone());
+    }
+    let path: std::path::PathBuf = start
+        .extract()
+        .map_err(|_| PyTypeError::new_err("start must be a Model or the path of a model file"))?;
+    start
+        .py()
+        .detach(|| ModelFile::load(&path))
+        .map_err(file_error)
+}
+
 /// A history as a dict of arrays, one entry per record; `names` name the
 /// canonical parameters its records hold. (`History::names` are the search
 /// coordinates' names, which label the canonical values only where the box
@@ -257,10 +274,10 @@ fn history_arrays<'py>(
 /// for bit, for the same data, settings and seed, on any backend.
 #[pyfunction]
 #[pyo3(signature = (
-    u, y = None, dt = None, model = "classic", effects = None, algo = "de", pop = None,
+    u, y = None, dt = None, model = None, effects = None, algo = "de", pop = None,
     gens = None, seed = 1, backend = "cpu", bounds = None, progress = None, *,
     free_n = false, r#loop = "bounded", thesis_flow = false, target_sse = None,
-    time_budget = None, stall = None
+    time_budget = None, stall = None, start = None
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
@@ -268,7 +285,7 @@ pub fn fit(
     u: &Bound<'_, PyAny>,
     y: Option<&Bound<'_, PyAny>>,
     dt: Option<f64>,
-    model: &str,
+    model: Option<&str>,
     effects: Option<Vec<String>>,
     algo: &str,
     pop: Option<i64>,
@@ -283,22 +300,47 @@ pub fn fit(
     target_sse: Option<f64>,
     time_budget: Option<f64>,
     stall: Option<i64>,
+    start: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<FitResult> {
     let trace = data_arg(u, y, dt)?;
+    // As `fit --from`: the start's family, effects and bounds unless given
+    // here (the bounds given here after the file's, so that they win).
+    let start = start.map(start_arg).transpose()?;
+    let start_model = start
+        .as_ref()
+        .map(|f| f.model())
+        .transpose()
+        .map_err(value_error)?;
+    let family = match (model, &start_model) {
+        (Some(m), _) => family(m)?,
+        (None, Some(m)) => m.base.family,
+        (None, None) => mckibben::model::Family::Classic,
+    };
+    let effects: Vec<Effect> = match (effects_arg(effects)?, &start_model) {
+        (Some(e), _) => e,
+        (None, Some(m)) => m.effects().to_vec(),
+        (None, None) => Vec::new(),
+    };
+    let mut all_bounds: Vec<UserBound> = match &start {
+        Some(f) => f
+            .user_bounds
+            .iter()
+            .map(|b| {
+                b.parse().map_err(|e: String| {
+                    PyValueError::new_err(format!("start: its user_bounds: {e}"))
+                })
+            })
+            .collect::<PyResult<_>>()?,
+        None => Vec::new(),
+    };
+    all_bounds.extend(user_bounds(bounds)?);
     let what = FitBox {
-        family: family(model)?,
+        family,
+        effects,
         free_n,
         loop_shape: loop_shape(r#loop)?,
-        bounds: user_bounds(bounds)?,
+        bounds: all_bounds,
     };
-    if let Some(effects) = effects_arg(effects)?.filter(|e| !e.is_empty()) {
-        let names: Vec<&str> = effects.iter().map(|e| e.name()).collect();
-        return Err(PyNotImplementedError::new_err(format!(
-            "fit(effects={names:?}): fitting effect stages needs the library's `fit --effects`, \
-             which this version does not have yet; fit the family alone (effects=None), or \
-             let mckibben.diagnose() try the effects"
-        )));
-    }
     if let Some(p) = progress.as_ref()
         && !p.bind(py).is_callable()
     {
@@ -326,7 +368,7 @@ pub fn fit(
     let notes = Mutex::new(Vec::new());
     let note = |s: String| notes.lock().expect("notes").push(s);
     let mut fit = py
-        .detach(|| Fit::new(&trace, &what, &settings, None, &note))
+        .detach(|| Fit::new(&trace, &what, &settings, start_model.as_ref(), None, &note))
         .map_err(value_error)?;
     let interrupt = AtomicBool::new(false);
     let mut observer = PythonObserver {
@@ -366,7 +408,8 @@ pub fn fit(
     let found = !outcome.params.is_empty();
     let val = found.then(|| task.validate(&outcome.params));
     let finite = |v: f64| v.is_finite().then_some(v);
-    let names: Vec<&str> = task.family.params().iter().map(|p| p.name).collect();
+    let names = task.augmented().param_names();
+    let names: Vec<&str> = names.iter().map(|n| n.as_str()).collect();
     let params = PyDict::new(py);
     for (name, v) in names.iter().zip(&outcome.params) {
         params.set_item(name, v)?;
@@ -376,17 +419,19 @@ pub fn fit(
     search_box.set_item("lower", PyArray1::from_slice(py, &task.space.lower))?;
     search_box.set_item("upper", PyArray1::from_slice(py, &task.space.upper))?;
     let global = engine.plan.global.as_ref();
+    let model = if found {
+        let file = model_file(
+            &task,
+            &outcome.params,
+            &what.bounds,
+            provenance("mckibben.fit", &[&trace.source], Some(engine.seed)),
+        );
+        Some(Py::new(py, Model::of_file(file).map_err(runtime_error)?)?)
+    } else {
+        None
+    };
     Ok(FitResult {
-        model: if found {
-            Some(Py::new(
-                py,
-                Model {
-                    inner: task.model(&outcome.params),
-                },
-            )?)
-        } else {
-            None
-        },
+        model,
         params: params.unbind(),
         sse: outcome.sse,
         val_rmse: val.and_then(|v| finite(v.rmse)),
@@ -396,6 +441,7 @@ pub fn fit(
         seconds: outcome.seconds,
         backend: describe,
         family: task.family.name().to_string(),
+        effects: task.effects.iter().map(|e| e.name().to_string()).collect(),
         algo: global.map_or(settings.algo, |g| g.algorithm()).to_string(),
         flow: to_python(py, &task.flow)?.extract()?,
         seed: engine.seed,

@@ -29,6 +29,7 @@ fn mckibben_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<fit::FitResult>()?;
     m.add_class::<evaluator::Evaluator>()?;
     m.add_class::<evaluator::ScipyObjective>()?;
+    m.add_class::<diagnose::Diagnosis>()?;
     m.add_function(wrap_pyfunction!(data::read_csv, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;

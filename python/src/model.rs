@@ -1,48 +1,72 @@
 //! A fitted model: the library's model file, read and written by one call
 //! each, and its free-run simulation.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::Context as _;
 use numpy::{PyArray1, ToPyArray};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use mckibben::data::write_atomic;
-use mckibben::model::FittedModel;
+use mckibben::model::file::{Provenance, ReadSettings};
+use mckibben::model::{FittedModel, ModelFile};
 
 use crate::convert::{file_error, series};
 
-/// Writes `model` as `mckibben fit` writes its `model.json` (pretty JSON,
-/// replaced atomically): the one place that says what a model file is on
-/// the way out, as [`FittedModel::load`] is on the way in.
-pub fn save_model(path: &Path, model: &FittedModel) -> anyhow::Result<()> {
-    let text = serde_json::to_string_pretty(model)?;
-    write_atomic(path, text.as_bytes()).with_context(|| format!("cannot write {}", path.display()))
-}
-
-/// A fitted hysteresis model, in the coordinates it was fitted in: what
-/// `mckibben fit` writes to `model.json` and `simulate`, `diagnose` and
+/// A fitted hysteresis model, a baseline family and its effect chain, in
+/// the coordinates it was fitted in: what `mckibben fit` writes to
+/// `model.json` and `simulate`, `diagnose --from`, `fit --from` and
 /// `control` read.
 #[pyclass(module = "mckibben", frozen)]
 #[derive(Clone)]
 pub struct Model {
-    pub inner: FittedModel,
+    /// The model file (box, bounds, provenance), written back as read.
+    pub file: ModelFile,
+    /// The model it holds.
+    pub inner: mckibben::model::Model,
+}
+
+impl Model {
+    /// The model a file holds (an error names what is wrong with it).
+    pub fn of_file(file: ModelFile) -> anyhow::Result<Model> {
+        let inner = file.model()?;
+        Ok(Model { file, inner })
+    }
+
+    /// The baseline.
+    fn base(&self) -> &FittedModel {
+        &self.inner.base
+    }
+}
+
+/// Where a model made in Python came from: `what` called (`mckibben.fit`,
+/// ...) in this library version, on the files `sources` name that exist
+/// (hashed), with `seed`.
+pub fn provenance(what: &str, sources: &[&str], seed: Option<u64>) -> Provenance {
+    let files: Vec<String> = sources
+        .iter()
+        .filter(|s| std::path::Path::new(s).is_file())
+        .map(|s| s.to_string())
+        .collect();
+    Provenance {
+        command: format!("{what} (Python)"),
+        ..Provenance::here(&files, seed, ReadSettings::default())
+    }
 }
 
 #[pymethods]
 impl Model {
-    /// Reads a model file written by `mckibben fit` (or `identify --out`).
+    /// Reads a model file written by `mckibben fit`, `diagnose --out` or
+    /// `identify --out` (version 2, or the bare version 1).
     #[staticmethod]
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Model> {
-        let inner = py.detach(|| FittedModel::load(&path)).map_err(file_error)?;
-        Ok(Model { inner })
+        py.detach(|| ModelFile::load(&path).and_then(Model::of_file))
+            .map_err(file_error)
     }
 
-    /// Writes the model file `mckibben fit` writes (the command line reads it back).
+    /// Writes the model file (`mckibben fit`'s `model.json`; the command
+    /// line reads it back).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        py.detach(|| save_model(&path, &self.inner))
-            .map_err(file_error)
+        py.detach(|| self.file.save(&path)).map_err(file_error)
     }
 
     /// The free-run output on the input `u` (absolute units, one value per
@@ -64,10 +88,10 @@ impl Model {
                 )));
             }
             Some(v) => v,
-            None => self.inner.output_mean,
+            None => self.base().output_mean,
         };
-        let (y, sim) = py.detach(|| self.inner.simulate_absolute(&input, y0));
-        if let Some(k) = sim.diverged_at {
+        let run = py.detach(|| self.inner.simulate_absolute(&input, y0));
+        if let Some(k) = run.diverged_at {
             py.import("warnings")?.call_method1(
                 "warn",
                 (format!(
@@ -75,10 +99,11 @@ impl Model {
                 ),),
             )?;
         }
-        Ok(y.to_pyarray(py))
+        Ok(run.output.to_pyarray(py))
     }
 
-    /// The parameters by name, in the family's canonical order.
+    /// The parameters by name: the family's in canonical order, then the
+    /// effects' as `effect.param` (`creep:two-pole.kappa`).
     #[getter]
     fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
@@ -88,47 +113,49 @@ impl Model {
         Ok(d)
     }
 
-    /// The effect stages after the family, by name: none yet (the model
-    /// file holds a plain family until it carries effects).
+    /// The effect stages after the family, in chain order, by realisation
+    /// (`creep:two-pole`, ...); empty for a baseline alone.
     #[getter]
-    fn effects<'py>(&self, py: Python<'py>) -> Bound<'py, PyList> {
-        PyList::empty(py)
+    fn effects<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        PyList::new(py, self.inner.effects().iter().map(|e| e.name()))
     }
 
     /// The family: `classic` or `generalized`.
     #[getter]
     fn family(&self) -> &'static str {
-        self.inner.family.name()
+        self.base().family.name()
     }
 
     /// Sample time the model was fitted at (s).
     #[getter]
     fn dt(&self) -> f64 {
-        self.inner.dt
+        self.base().dt
     }
 
     /// The input mean removed before fitting (input units).
     #[getter]
     fn input_mean(&self) -> f64 {
-        self.inner.input_mean
+        self.base().input_mean
     }
 
     /// The output mean removed before fitting (output units).
     #[getter]
     fn output_mean(&self) -> f64 {
-        self.inner.output_mean
+        self.base().output_mean
     }
 
     #[getter]
     fn input_name(&self) -> &str {
-        &self.inner.input_name
+        &self.base().input_name
     }
 
     #[getter]
     fn output_name(&self) -> &str {
-        &self.inner.output_name
+        &self.base().output_name
     }
 
+    /// Equal models: the same chain, parameters and coordinates (where
+    /// they came from aside).
     fn __eq__(&self, other: &Model) -> bool {
         self.inner == other.inner
     }
@@ -140,13 +167,19 @@ impl Model {
             .iter()
             .map(|(n, v)| format!("{n}={v}"))
             .collect();
+        let chain: String = self
+            .inner
+            .effects()
+            .iter()
+            .map(|e| format!(" + {e}"))
+            .collect();
         format!(
-            "Model({}: {}; dt = {} s, {} -> {})",
-            self.inner.family,
+            "Model({}{chain}: {}; dt = {} s, {} -> {})",
+            self.base().family,
             params.join(", "),
-            self.inner.dt,
-            self.inner.input_name,
-            self.inner.output_name
+            self.base().dt,
+            self.base().input_name,
+            self.base().output_name
         )
     }
 }

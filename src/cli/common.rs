@@ -9,6 +9,7 @@ use anyhow::Context;
 
 use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces_with_notes};
+use mckibben::model::file::{Provenance, ReadSettings};
 
 /// The shipped default experiment, relative to the repository root.
 pub const DEFAULT_DATA: &str = "data/stair_4.5kg.csv";
@@ -88,12 +89,22 @@ impl DataArgs {
     pub fn load(&self) -> anyhow::Result<Vec<Trace>> {
         self.columns.load(self.data.as_slice())
     }
+
+    /// The provenance of a model fitted on this file.
+    pub fn provenance(&self, seed: Option<u64>) -> anyhow::Result<Provenance> {
+        self.columns.provenance(self.data.as_slice(), seed)
+    }
 }
 
 impl MultiDataArgs {
     /// The traces of all files, in the order given.
     pub fn load(&self) -> anyhow::Result<Vec<Trace>> {
         self.columns.load(&self.data)
+    }
+
+    /// The provenance of a model fitted on these files.
+    pub fn provenance(&self, seed: Option<u64>) -> anyhow::Result<Provenance> {
+        self.columns.provenance(&self.data, seed)
     }
 }
 
@@ -110,6 +121,26 @@ impl ColumnArgs {
                 (None, false) => Gaps::Reject,
             },
         }
+    }
+
+    /// How these flags read a file, for a model file's provenance.
+    pub fn read_settings(&self) -> ReadSettings {
+        ReadSettings {
+            time: Some(self.time.clone()),
+            resample: self.resample,
+            split_gaps: self.split_gaps,
+        }
+    }
+
+    /// The provenance of a model fitted on `paths` (the default file when
+    /// empty) read with these flags.
+    pub fn provenance(&self, paths: &[PathBuf], seed: Option<u64>) -> anyhow::Result<Provenance> {
+        let files: Vec<String> = if paths.is_empty() {
+            vec![default_data()?.display().to_string()]
+        } else {
+            paths.iter().map(|p| p.display().to_string()).collect()
+        };
+        Ok(Provenance::here(&files, seed, self.read_settings()))
     }
 
     /// Reads `paths` (the default file when empty), printing any notes to

@@ -399,8 +399,21 @@ fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
     let Some(path) = &args.from else {
         return Ok(design);
     };
-    let m =
-        mckibben::model::FittedModel::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+    let m = mckibben::model::ModelFile::load(path)
+        .and_then(|f| f.model())
+        .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+    // The controllers' prediction has a baseline's states only: each effect
+    // of a diagnosed model is said to be left out, not dropped silently.
+    for e in m.effects() {
+        eprintln!(
+            "mckibben: note: --from {}: effect {e} ({}) left out of the controllers' model: \
+             the MPC and the feedforward PID predict with the {} baseline's states only",
+            path.display(),
+            e.physical(),
+            m.base.family
+        );
+    }
+    let m = m.base;
     sweep::with_displacement(
         &design,
         m,

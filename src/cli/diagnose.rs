@@ -12,7 +12,7 @@ use mckibben::diagnose::selftest::{
 };
 use mckibben::diagnose::{Effect, Settings, diagnose};
 use mckibben::eval::Backend;
-use mckibben::model::Family;
+use mckibben::model::{Family, ModelFile};
 use mckibben::report::json::Versioned;
 use serde::Serialize;
 
@@ -51,13 +51,11 @@ pub struct Args {
     /// Baseline model family.
     #[arg(long, default_value = "classic", value_parser = parse_family)]
     baseline: Family,
-    /// Effects to try, comma-separated (default: the whole catalogue, every
-    /// realisation: delay, delay:input-lag, delay:output-lag, deadzone,
-    /// deadzone:on-off, saturation, saturation:output, saturation:soft,
-    /// asymmetry, asymmetry:drain, inertia, inertia:mode, inertia:ringing,
-    /// backlash, creep, creep:output, creep:two-pole, rate, load; `load`
-    /// only applies with several DATA files, e.g. one per hanging load).
-    #[arg(long, value_delimiter = ',', value_parser = parse_effect)]
+    // The help lists the catalogue as `model::effects` declares it.
+    #[arg(long, value_delimiter = ',', value_parser = parse_effect, help = format!(
+        "Effects to try, comma-separated (default: the whole catalogue, every realisation: {})",
+        Effect::help_list()
+    ))]
     effects: Vec<Effect>,
     /// Seed of every random draw (fits are reproducible for a given seed).
     #[arg(long, default_value_t = 1)]
@@ -95,6 +93,11 @@ pub struct Args {
     /// breakdowns, residual spectrum) to this folder.
     #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,
+    /// Write the baseline and the final model as model files to this
+    /// folder (baseline.json, model.json), for `simulate --from`, `fit
+    /// --from` and `control --from`.
+    #[arg(long, value_name = "DIR")]
+    out: Option<PathBuf>,
     /// Instead of diagnosing DATA, check the diagnosis itself on data with
     /// known effects, generated from the nominal model fitted to DATA.
     /// `--self-test` (or `=independent`): a generator with its own equations,
@@ -175,6 +178,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => {}
     }
     let d = diagnose(&traces, args.baseline, &effects, &settings)?;
+    if let Some(dir) = &args.out {
+        let provenance = args.data.provenance(Some(args.seed))?;
+        for (name, model) in [
+            ("baseline.json", &d.baseline_model),
+            ("model.json", &d.final_model),
+        ] {
+            ModelFile::new(model, None, provenance.clone())
+                .save(&dir.join(name))
+                .with_context(|| format!("--out {}", dir.display()))?;
+        }
+    }
     let figures = match &args.report {
         Some(dir) => {
             write_figures(&d, dir).with_context(|| format!("--report {}", dir.display()))?

@@ -13,12 +13,16 @@ use super::common::{DataArgs, one_trace};
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::model::bounds::Origin;
-use mckibben::model::{Family, Flow, Loop, UserBound};
+use mckibben::model::effects::Effect;
+use mckibben::model::file::{Provenance, SearchBox};
+use mckibben::model::{Family, Flow, Loop, ModelFile, UserBound};
 use mckibben::optim::Algorithm;
 use mckibben::optim::edge::{ActiveBound, Widening, active_bounds};
 use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
-use mckibben::optim::engine::{Engine, Observer, Outcome, StageSummary, StopReason, StopRules};
-use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides};
+use mckibben::optim::engine::{
+    Engine, FreeRun, Observer, Outcome, StageSummary, StopReason, StopRules,
+};
+use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides, model_file};
 use mckibben::optim::ga::{Crossover, Mutation};
 use mckibben::optim::history::GenerationRecord;
 use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
@@ -78,9 +82,26 @@ use mckibben::report::json::{Named, Versioned};
 pub struct Args {
     #[command(flatten)]
     data: DataArgs,
-    /// Hysteresis model: classic (A, α, β, γ) or generalized (A, α, β1..β6).
-    #[arg(long, value_enum, default_value = "classic")]
-    model: ModelArg,
+    /// Hysteresis model: classic (A, α, β, γ) or generalized (A, α, β1..β6)
+    /// (default: the --from model's, else classic).
+    #[arg(long, value_enum)]
+    model: Option<ModelArg>,
+    /// Effects after the baseline, comma-separated, in chain order (e.g.
+    /// `creep:two-pole,inertia:ringing`; `mckibben diagnose --help` lists
+    /// the catalogue). Their parameters are fitted with the baseline's, each
+    /// in its own box from the record. Default: the --from model's, else none.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "LIST",
+        conflicts_with = "thesis_flow"
+    )]
+    effects: Option<Vec<Effect>>,
+    /// Start from a model file (a warm start): its parameters are the first
+    /// member of the first population, and its family, effects and --bound
+    /// / --fix are taken unless given here. The box is the new record's.
+    #[arg(long, value_name = "MODEL.json", conflicts_with = "thesis_flow")]
+    from: Option<PathBuf>,
     /// Update rule of the population search: ga, mfa, pso (the thesis') or
     /// de. It changes the time a fit takes, not where it ends.
     #[arg(long, value_enum, default_value = "de")]
@@ -221,6 +242,8 @@ impl From<ModelArg> for Family {
 #[derive(Debug, Serialize)]
 struct Output {
     model: Family,
+    /// The effects after the baseline, in chain order.
+    effects: Vec<String>,
     algo: Algorithm,
     /// Fitted parameters by name, in the family's canonical order.
     params: Named,
@@ -246,14 +269,6 @@ struct Output {
     search_box: SearchBox,
     data: String,
     out: PathBuf,
-}
-
-/// The box a fit searched, in its search coordinates.
-#[derive(Debug, Serialize)]
-struct SearchBox {
-    names: Vec<String>,
-    lower: Vec<f64>,
-    upper: Vec<f64>,
 }
 
 impl Args {
@@ -333,7 +348,21 @@ impl Observer for Progress {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let family: Family = args.model.into();
+    let start = match &args.from {
+        Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?),
+        None => None,
+    };
+    let start_model = start.as_ref().map(|f| f.model()).transpose()?;
+    let family: Family = match (args.model, &start_model) {
+        (Some(m), _) => m.into(),
+        (None, Some(m)) => m.base.family,
+        (None, None) => Family::Classic,
+    };
+    let effects: Vec<Effect> = match (&args.effects, &start_model) {
+        (Some(e), _) => e.clone(),
+        (None, Some(m)) => m.effects().to_vec(),
+        (None, None) => Vec::new(),
+    };
     let trace = one_trace(args.data.load()?)?;
     for f in &args.fix {
         anyhow::ensure!(
@@ -342,11 +371,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             f.name
         );
     }
+    let saved_bounds: Vec<UserBound> = match &start {
+        Some(f) => f
+            .user_bounds
+            .iter()
+            .map(|b| b.parse().map_err(anyhow::Error::msg))
+            .collect::<anyhow::Result<_>>()
+            .context("--from: its user_bounds")?,
+        None => Vec::new(),
+    };
     let what = FitBox {
         family,
+        effects: effects.clone(),
         free_n: args.free_n,
         loop_shape: args.loop_shape,
-        bounds: args.bound.iter().chain(&args.fix).cloned().collect(),
+        // The file's bounds first, so that the flags given here win.
+        bounds: saved_bounds
+            .iter()
+            .chain(&args.bound)
+            .chain(&args.fix)
+            .cloned()
+            .collect(),
     };
     let note = |s: String| {
         if !args.json {
@@ -357,6 +402,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &trace,
         &what,
         &args.settings(),
+        start_model.as_ref(),
         args.checkpoint.as_deref(),
         &note,
     )?;
@@ -370,14 +416,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
     }
     let engine = &fit.engine;
-    let global = engine.plan.global.clone();
-    let (algo, population, generations) = global.as_ref().map_or((Algorithm::De, 0, 0), |g| {
-        (g.algorithm(), g.population, g.generations)
-    });
     if !args.json {
+        let (algo, population, generations) = engine
+            .plan
+            .global
+            .as_ref()
+            .map_or((FreeRun::ALGORITHM, 0, 0), |g| {
+                (g.algorithm(), g.population, g.generations)
+            });
         let stages: Vec<&str> = engine.stages().iter().map(|s| s.name()).collect();
+        let model = effects
+            .iter()
+            .fold(family.to_string(), |m, e| format!("{m} + {e}"));
+        let from = match &args.from {
+            Some(p) => format!(", warm start from {}", p.display()),
+            None => String::new(),
+        };
         eprintln!(
-            "fitting {family} with {algo} (N = {population}, G = {generations}, seed {}; stages {}) on {} [{}]",
+            "fitting {model} with {algo} (N = {population}, G = {generations}, seed {}; stages {}{from}) on {} [{}]",
             engine.seed,
             stages.join(" → "),
             trace.source,
@@ -393,8 +449,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )?;
     progress.finish();
     let (task, engine) = (&fit.task, &fit.engine);
+    let provenance = args.data.provenance(Some(engine.seed))?;
     let output = write_results(
-        &args.out, task, engine, &outcome, &widened, &trace, &backend,
+        &args.out,
+        Written {
+            task,
+            engine,
+            outcome: &outcome,
+            widened: &widened,
+            trace: &trace,
+            backend: &backend,
+            bounds: &what.bounds,
+            provenance,
+        },
     )?;
     if args.json {
         println!("{}", Versioned::new(&output).to_string_pretty()?);
@@ -417,31 +484,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn write_results(
-    out: &Path,
-    task: &Task,
-    engine: &Engine,
-    outcome: &Outcome,
-    widened: &[Widening],
-    trace: &Trace,
-    backend: &str,
-) -> anyhow::Result<Output> {
+/// What a finished fit writes.
+struct Written<'a> {
+    task: &'a Task,
+    engine: &'a Engine,
+    outcome: &'a Outcome,
+    widened: &'a [Widening],
+    trace: &'a Trace,
+    backend: &'a str,
+    /// The --bound and --fix in force (the file's and the flags').
+    bounds: &'a [UserBound],
+    provenance: Provenance,
+}
+
+fn write_results(out: &Path, w: Written) -> anyhow::Result<Output> {
+    let Written {
+        task,
+        engine,
+        outcome,
+        widened,
+        trace,
+        backend,
+        bounds,
+        provenance,
+    } = w;
     std::fs::create_dir_all(out)
         .with_context(|| format!("cannot create --out {}", out.display()))?;
     let found = !outcome.params.is_empty();
     let val = found.then(|| task.validate(&outcome.params));
-    let params: Named = task
-        .family
-        .params()
-        .iter()
-        .zip(&outcome.params)
-        .map(|(p, &v)| (p.name, v))
-        .collect();
+    let params = Named::zip(&task.augmented().param_names(), &outcome.params);
     let on_edge = active_bounds(task, &outcome.params);
     let finite = |v: f64| v.is_finite().then_some(v);
     let global = engine.plan.global.as_ref();
     let output = Output {
         model: task.family,
+        effects: task.effects.iter().map(|e| e.name().to_string()).collect(),
         algo: global.map_or(Algorithm::De, |g| g.algorithm()),
         params,
         sse: finite(outcome.sse),
@@ -458,11 +535,7 @@ fn write_results(
         stages: outcome.stages.clone(),
         on_edge,
         widened: widened.to_vec(),
-        search_box: SearchBox {
-            names: task.space.names(),
-            lower: task.space.lower.clone(),
-            upper: task.space.upper.clone(),
-        },
+        search_box: SearchBox::of(&task.space),
         data: trace.source.clone(),
         out: out.to_path_buf(),
     };
@@ -485,11 +558,8 @@ fn write_results(
         .convergence_figure(&format!("{title}: convergence"))
         .save(&out.join("convergence.svg"))?;
     if found {
+        model_file(task, &outcome.params, bounds, provenance).save(&out.join("model.json"))?;
         let model = task.model(&outcome.params);
-        write(
-            "model.json",
-            serde_json::to_string_pretty(&model)?.as_bytes(),
-        )?;
         let (loop_fig, trace_fig) = fit_figures(&model, trace, &title);
         loop_fig.save(&out.join("loop.svg"))?;
         trace_fig.save(&out.join("trace.svg"))?;
@@ -510,11 +580,14 @@ fn print_report(o: &Output, task: &Task) {
         o.population,
         o.seed
     );
+    if !o.effects.is_empty() {
+        println!("  effects: {}", o.effects.join(", "));
+    }
     let free = task.space.free();
-    for (i, p) in task.family.params().iter().enumerate() {
-        if let Some(v) = o.params.get(p.name) {
+    for (i, name) in task.augmented().param_names().iter().enumerate() {
+        if let Some(v) = o.params.get(name) {
             let fixed = if free.contains(&i) { "" } else { "  (fixed)" };
-            println!("  {:<7} {v:>14.6}{fixed}", p.name);
+            println!("  {name:<7} {v:>14.6}{fixed}");
         }
     }
     let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
@@ -556,6 +629,10 @@ fn print_report(o: &Output, task: &Task) {
                              stopped it, not the data; widen it with --bound"
             }
             Origin::User => "your --bound or --fix",
+            Origin::Class if e.param.contains('.') => {
+                "the edge of the effect's range: where it is neutral, or as far as \
+                 the record lets it go"
+            }
             Origin::Class => {
                 "the edge of its range or of the bounded class (--loop free lifts \
                               the class)"

@@ -9,7 +9,7 @@ use super::common::DataArgs;
 use mckibben::data::write_atomic;
 use mckibben::ident::ArxOrders;
 use mckibben::ident::arx::{Identification, identify};
-use mckibben::model::{Family, FittedModel};
+use mckibben::model::{Family, FittedModel, Model, ModelFile};
 use mckibben::report::json::Versioned;
 
 /// Identify a linear ARX model from a recorded experiment, as the thesis does
@@ -51,9 +51,10 @@ pub struct Args {
 struct Output<'a> {
     #[serde(flatten)]
     identification: &'a Identification,
-    /// The first-order model in the form `fit` and `simulate` read, when the orders are (1, 1, 1).
+    /// The first-order model as a model file (what `fit`, `simulate` and
+    /// `control` read), when the orders are (1, 1, 1).
     #[serde(skip_serializing_if = "Option::is_none")]
-    model: Option<FittedModel>,
+    model: Option<ModelFile>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -64,6 +65,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     anyhow::ensure!(args.nb >= 1, "--nb must be at least 1");
     let traces = args.data.load()?;
+    let provenance = args.data.provenance(None)?;
     let mut outputs = Vec::new();
     for trace in &traces {
         let id = identify(trace, orders)?;
@@ -76,6 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             input_name: trace.input_name.clone(),
             output_name: trace.output_name.clone(),
         });
+        let model = model.map(|m| ModelFile::new(&Model::plain(m), None, provenance.clone()));
         outputs.push((id, model));
     }
     // One document per data piece, each with its own `schema_version`.

@@ -6,11 +6,13 @@ use anyhow::{Context, bail};
 use serde::Serialize;
 
 use mckibben::data::Trace;
-use mckibben::data::csv::{ReadOptions, read_traces, write_trace_with_comments};
+use mckibben::data::csv::{Gaps, ReadOptions, read_traces, write_trace_with_comments};
 use mckibben::data::signals::Stair;
-use mckibben::ident::loop_area;
+use mckibben::data::units::unit_of;
+use mckibben::ident::{fit_percent, loop_area};
+use mckibben::model::experiment::halves;
 use mckibben::model::presets::thesis_params;
-use mckibben::model::{Family, FittedModel};
+use mckibben::model::{Family, FittedModel, Model, ModelFile};
 use mckibben::report::json::{Named, Versioned};
 use mckibben::report::{Figure, Panel, Series};
 
@@ -46,10 +48,13 @@ pub struct Args {
     /// Parameter preset.
     #[arg(long, value_enum, default_value = "thesis")]
     preset: Preset,
-    /// A model JSON written by `identify --out` or `fit` (sets family, parameters and offsets).
+    /// A model file written by `fit`, `identify --out` or `diagnose --out`
+    /// (family, effects, parameters, coordinates; a CSV input is then read
+    /// with its columns and time base unless the flags below say otherwise).
     #[arg(long, value_name = "MODEL.json", conflicts_with = "model")]
     from: Option<PathBuf>,
-    /// Override parameters, e.g. `--params alpha=0.8,beta=0.01`.
+    /// Override parameters, e.g. `--params alpha=0.8,beta=0.01` (an
+    /// effect's as `creep.kappa=0.5`).
     #[arg(long, value_delimiter = ',', value_name = "NAME=VALUE")]
     params: Vec<String>,
     /// The input: `stair`, `sine` or a CSV file.
@@ -61,12 +66,23 @@ pub struct Args {
     /// Sample time of generated inputs (s).
     #[arg(long, default_value_t = 0.01)]
     dt: f64,
-    /// With a CSV `--input`: the column holding the model input.
-    #[arg(long, value_name = "COL", default_value = "pressure")]
-    input_col: String,
-    /// With a CSV `--input`: the column whose first value starts the simulation.
-    #[arg(long, value_name = "COL", default_value = "displacement")]
-    output_col: String,
+    /// With a CSV `--input`: the column holding the model input (default:
+    /// the model file's, else `pressure`).
+    #[arg(long, value_name = "COL")]
+    input_col: Option<String>,
+    /// With a CSV `--input`: the column whose first value starts the
+    /// simulation and that the fit is scored against (default: the model
+    /// file's, else `displacement`).
+    #[arg(long, value_name = "COL")]
+    output_col: Option<String>,
+    /// With a CSV `--input`: the time column (default: the model file's,
+    /// else `t`).
+    #[arg(long, value_name = "COL")]
+    time: Option<String>,
+    /// With a CSV `--input`: interpolate onto a uniform time base of DT
+    /// seconds (default: as the model file's data were read).
+    #[arg(long, value_name = "DT")]
+    resample: Option<f64>,
     /// Write the simulated trace (t, pressure, displacement, w) to this CSV file.
     #[arg(long, value_name = "FILE.csv")]
     out: Option<PathBuf>,
@@ -90,6 +106,7 @@ enum Preset {
 #[derive(Debug, Serialize)]
 struct Summary {
     model: Family,
+    effects: Vec<String>,
     params: Named,
     input: String,
     samples: usize,
@@ -98,13 +115,21 @@ struct Summary {
     output_min: f64,
     output_max: f64,
     loop_area: f64,
+    /// Free-run fit against the CSV's measured output, whole record and
+    /// second half (the validation half `fit` and `diagnose` score).
+    fit_percent: Option<f64>,
+    val_fit_percent: Option<f64>,
     out: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut model = match &args.from {
-        Some(path) => FittedModel::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?,
-        None => FittedModel {
+    let file = match &args.from {
+        Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?),
+        None => None,
+    };
+    let mut model = match &file {
+        Some(f) => f.model()?,
+        None => Model::plain(FittedModel {
             family: args.model,
             params: thesis_params(args.model),
             input_mean: f64::NAN,
@@ -112,56 +137,57 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             dt: args.dt,
             input_name: "pressure".into(),
             output_name: "displacement".into(),
-        },
+        }),
     };
     if args.list {
-        for p in model.family.params() {
+        for p in model.base.family.params() {
             println!("{:<8} {:<4} {}", p.name, p.symbol, p.meaning);
+        }
+        for e in model.effects() {
+            for p in e.params(model.augmented().datasets) {
+                println!("{:<8} {}", format!("{e}.{}", p.name), p.meaning);
+            }
         }
         return Ok(());
     }
-    for assignment in &args.params {
-        let (name, value) = assignment
-            .split_once('=')
-            .with_context(|| format!("--params: `{assignment}` is not NAME=VALUE"))?;
-        let i = model.family.index_of(name.trim()).with_context(|| {
-            let names: Vec<_> = model.family.params().iter().map(|p| p.name).collect();
-            format!(
-                "--params: {} has no parameter `{name}`; it has {}",
-                model.family,
-                names.join(", ")
-            )
-        })?;
-        model.params[i] = value
-            .trim()
-            .parse()
-            .with_context(|| format!("--params: `{value}` is not a number"))?;
-    }
+    override_params(&mut model, &args.params)?;
     anyhow::ensure!(
         args.dt > 0.0 && args.dt.is_finite(),
         "--dt must be a positive number of seconds"
     );
-    let (mut trace, y0) = input_trace(&args)?;
-    if model.input_mean.is_nan() {
+    let (mut trace, y0) = input_trace(&args, file.as_ref())?;
+    if model.base.input_mean.is_nan() {
         let half = (trace.len() / 2).max(1);
-        model.input_mean = trace.input[..half].iter().sum::<f64>() / half as f64;
+        model.base.input_mean = trace.input[..half].iter().sum::<f64>() / half as f64;
     }
-    let y0 = y0.unwrap_or(model.output_mean);
-    let (y, sim) = model.simulate_absolute(&trace.input, y0);
-    trace.output = y;
-    trace.output_name = model.output_name.clone();
-    trace
-        .extra
-        .push(("w".into(), sim.w.iter().map(|&w| w as f64).collect()));
+    let measured = y0.is_some().then(|| trace.output.clone());
+    let y0 = y0.unwrap_or(model.base.output_mean);
+    let run = model.simulate_absolute(&trace.input, y0);
+    trace.output = run.output.clone();
+    trace.output_name = model.base.output_name.clone();
+    if let Some(w) = &run.w {
+        trace.extra.push(("w".into(), w.clone()));
+    }
+    let family = model.base.family;
+    let chain: Vec<String> = model
+        .effects()
+        .iter()
+        .map(|e| e.name().to_string())
+        .collect();
+    let described = if chain.is_empty() {
+        format!("{family}")
+    } else {
+        format!("{family} + {}", chain.join(" + "))
+    };
     if let Some(path) = &args.out {
         let comment = format!(
-            "simulated by mckibben simulate: {} model, input {}",
-            model.family, args.input
+            "simulated by mckibben simulate: {described} model, input {}",
+            args.input
         );
         write_trace_with_comments(path, &trace, &[comment])?;
     }
     if let Some(path) = &args.plot {
-        figure(&trace, model.family).save(path)?;
+        figure(&trace, &described).save(path)?;
     }
     let finite: Vec<f64> = trace
         .output
@@ -169,16 +195,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .copied()
         .filter(|v| v.is_finite())
         .collect();
+    let scored = |from: usize| -> Option<f64> {
+        let y = measured.as_ref()?;
+        let fit = fit_percent(&y[from..], &run.output[from..]);
+        (run.diverged_at.is_none() && fit.is_finite()).then_some(fit)
+    };
     let summary = Summary {
-        model: model.family,
+        model: family,
+        effects: chain,
         params: model.named_params().into_iter().collect(),
         input: args.input.clone(),
         samples: trace.len(),
         dt: trace.dt(),
-        diverged_at: sim.diverged_at,
+        diverged_at: run.diverged_at,
         output_min: finite.iter().copied().fold(f64::INFINITY, f64::min),
         output_max: finite.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         loop_area: loop_area(&trace.input, &trace.output),
+        fit_percent: scored(0),
+        val_fit_percent: scored(halves(trace.len()).1.start),
         out: args.out.clone(),
     };
     if args.json {
@@ -186,8 +220,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "Simulated the {} model on `{}`: {} samples, dt = {} s",
-        summary.model, summary.input, summary.samples, summary.dt
+        "Simulated the {described} model on `{}`: {} samples, dt = {} s",
+        summary.input, summary.samples, summary.dt
     );
     for (name, value) in model.named_params() {
         println!("  {name:<8} {value}");
@@ -199,6 +233,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             summary.output_min, summary.output_max, summary.loop_area
         ),
     }
+    if let (Some(all), Some(val)) = (summary.fit_percent, summary.val_fit_percent) {
+        println!("  fit to the measured output {all:.2} % (second half, as validated: {val:.2} %)");
+    }
     if let Some(p) = &args.out {
         println!("  trace written to {}", p.display());
     }
@@ -208,8 +245,42 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Applies `--params NAME=VALUE` overrides, baseline or effect parameters.
+fn override_params(model: &mut Model, assignments: &[String]) -> anyhow::Result<()> {
+    if assignments.is_empty() {
+        return Ok(());
+    }
+    let names = model.augmented().param_names();
+    let mut theta = model.theta();
+    for assignment in assignments {
+        let (name, value) = assignment
+            .split_once('=')
+            .with_context(|| format!("--params: `{assignment}` is not NAME=VALUE"))?;
+        let i = names
+            .iter()
+            .position(|n| n == name.trim())
+            .with_context(|| {
+                format!(
+                    "--params: the {} model has no parameter `{name}`; it has {}",
+                    model.base.family,
+                    names.join(", ")
+                )
+            })?;
+        theta[i] = value
+            .trim()
+            .parse()
+            .with_context(|| format!("--params: `{value}` is not a number"))?;
+    }
+    let d = model.base.family.dim();
+    model.base.params = theta[..d].to_vec();
+    if let Some(chain) = &mut model.chain {
+        chain.params = theta[d..].to_vec();
+    }
+    Ok(())
+}
+
 /// The input trace and, for a file, its first measured output.
-fn input_trace(args: &Args) -> anyhow::Result<(Trace, Option<f64>)> {
+fn input_trace(args: &Args, saved: Option<&ModelFile>) -> anyhow::Result<(Trace, Option<f64>)> {
     match args.input.as_str() {
         "stair" => {
             let valve = Stair::default().generate(args.dt);
@@ -231,11 +302,34 @@ fn input_trace(args: &Args) -> anyhow::Result<(Trace, Option<f64>)> {
             if !path.exists() {
                 bail!("--input: `{file}` is neither `stair`, `sine` nor an existing CSV file");
             }
-            let opts = ReadOptions {
-                input: args.input_col.clone(),
-                output: args.output_col.clone(),
-                ..ReadOptions::default()
+            let defaults = ReadOptions::default();
+            let read = saved.map(|f| f.provenance.read.clone()).unwrap_or_default();
+            let column = |flag: &Option<String>, saved: Option<&String>, default: &String| {
+                flag.clone()
+                    .or_else(|| saved.cloned())
+                    .unwrap_or_else(|| default.clone())
             };
+            let resample = args.resample.or(read.resample);
+            let opts = ReadOptions {
+                input: column(
+                    &args.input_col,
+                    saved.map(|f| &f.data.input.column),
+                    &defaults.input,
+                ),
+                output: column(
+                    &args.output_col,
+                    saved.map(|f| &f.data.output.column),
+                    &defaults.output,
+                ),
+                time: column(&args.time, read.time.as_ref(), &defaults.time),
+                gaps: match resample {
+                    Some(dt) => Gaps::Resample(dt),
+                    None => Gaps::Reject,
+                },
+            };
+            if let Some(saved) = saved {
+                check_units(saved, &opts)?;
+            }
             let mut traces = read_traces(&path, &opts)?;
             anyhow::ensure!(
                 traces.len() == 1,
@@ -249,8 +343,27 @@ fn input_trace(args: &Args) -> anyhow::Result<(Trace, Option<f64>)> {
     }
 }
 
-fn figure(trace: &Trace, family: Family) -> Figure {
-    Figure::new(format!("{family} model, simulated"))
+/// Refuses columns whose names state other units than the model's: a model
+/// fitted in psi run on kPa would be wrong by a factor, silently.
+fn check_units(saved: &ModelFile, opts: &ReadOptions) -> anyhow::Result<()> {
+    for (which, fitted, column) in [
+        ("input", &saved.data.input, &opts.input),
+        ("output", &saved.data.output, &opts.output),
+    ] {
+        if let (Some(was), Some(now)) = (&fitted.unit, unit_of(column)) {
+            anyhow::ensure!(
+                *was == now,
+                "the model's {which} is in {was} (column `{}`), but `{column}` is in {now}: \
+                 convert the column, or refit the model on data in {now}",
+                fitted.column
+            );
+        }
+    }
+    Ok(())
+}
+
+fn figure(trace: &Trace, described: &str) -> Figure {
+    Figure::new(format!("{described} model, simulated"))
         .with(
             Panel::new("input", "t (s)", &trace.input_name).with(Series::line(
                 &trace.input_name,

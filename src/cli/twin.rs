@@ -52,7 +52,7 @@ pub struct Args {
     #[arg(long, value_name = "RAD_S", default_value_t = 1.0)]
     freq: f64,
     /// Scale a non-ideal effect: 1 = as documented, 0 = off, 2 = twice as
-    /// large. Repeatable. Names:
+    /// large. Repeatable. Names (the first eight default to 1):
     ///   friction      braid friction (Maxwell-slip break-away forces)
     ///   deadband      valve dead band width
     ///   spool_lag     valve spool time constant
@@ -61,6 +61,12 @@ pub struct Args {
     ///   noise         sensor noise
     ///   quantization  sensor quantization step
     ///   thickness     wall thickness t_k of eq. 9 (0 gives eq. 7)
+    /// These two default to 0 (off), so that the default runs keep the
+    /// numbers published from them; turn them on with e.g. creep=1:
+    ///   creep         the bladder's slow creep (10 % of the rubber's
+    ///                 stiffness relaxing in 5 s; scale < 10)
+    ///   ringing       the load ringing on the muscle's stiffness
+    ///                 (√(k/m)/2π, 6–9 Hz here), scales its excitation
     #[arg(long = "effect", value_name = "NAME=VALUE", verbatim_doc_comment)]
     effects: Vec<String>,
     /// Write the CSV here (atomically).
@@ -115,7 +121,8 @@ pub struct ServeArgs {
     /// Seed of the sensor noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Scale a non-ideal effect (as `mckibben twin --effect`). Repeatable.
+    /// Scale a non-ideal effect (as `mckibben twin --effect`; creep and
+    /// ringing default to 0, the others to 1). Repeatable.
     #[arg(long = "effect", value_name = "NAME=VALUE")]
     effects: Vec<String>,
     /// Keep wall-clock time (one sample every dt) instead of lockstep.

@@ -4,6 +4,7 @@
 pub mod atomic;
 pub mod csv;
 pub mod signals;
+pub mod units;
 
 pub use atomic::write_atomic;
 

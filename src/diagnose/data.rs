@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex};
 
 use nalgebra::DVector;
 
-use super::effects::{Augmented, Context, Effect, effect_box};
+use super::effects::{Augmented, Context, effect_box};
 use crate::data::Trace;
 use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
@@ -179,12 +179,10 @@ impl Data {
     /// docs/lab/diagnosis.md, "Real data: the Cavatappi muscle"). `fit` applies
     /// the same rule (`optim::engine::ModelObjective::for_task`).
     ///
-    /// And a ringing ([`Effect::Ringing`]) must ring ([`rings`]).
+    /// And every effect must be admitted ([`Augmented::effects_admit`]: a
+    /// ringing must ring).
     pub fn admits(model: &Augmented, theta: &[f64]) -> bool {
-        let ringing = model
-            .offset_of(Effect::Ringing)
-            .is_none_or(|at| rings(theta[at], theta[at + 1]));
-        model.family.loop_bounded(theta) && ringing
+        model.family.loop_bounded(theta) && model.effects_admit(theta)
     }
 
     /// The estimation cost under `measure` of every row of `rows`
@@ -384,22 +382,4 @@ impl Data {
         }
         (neutral, lo, hi)
     }
-}
-
-/// Whether the mode `q = a1·q(k−1) − a2·q(k−2) + …` rings: complex poles
-/// `r·e^{±iθ}` (`r = √a2`, `cos θ = a1/(2r)`) with a resonance, i.e. a
-/// damping ratio under `1/√2`, which is `−ln r < θ`.
-///
-/// Why: with real poles a ringing's kick decays as a slow drift driven by
-/// the input, which is creep's mark (it was named for the drift of the
-/// Cavatappi 200 g file), and a mode damped past `1/√2` has no peak in its
-/// spectrum: it is a high-pass of the input, which the independent
-/// self-test's sensor cross-talk is, and it was named for it (critically
-/// damped, `a1 = 1.11`, `a2 = 0.31`: docs/lab/diagnosis.md).
-pub fn rings(a1: f64, a2: f64) -> bool {
-    if !(a2 > 0.0 && a1 * a1 < 4.0 * a2) {
-        return false;
-    }
-    let r = a2.sqrt();
-    -r.ln() < (a1 / (2.0 * r)).acos()
 }

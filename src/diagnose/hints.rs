@@ -1,5 +1,6 @@
 //! Where a candidate fit starts, read off the data: a mode of the hanging
-//! load ([`Effect::LoadMode`], [`Effect::Ringing`]) starts at the peak of
+//! load (an effect whose [`Effect::hint`] is [`StartHint::ResidualPeak`],
+//! e.g. [`Effect::LoadMode`], [`Effect::Ringing`]) starts at the peak of
 //! the residual's spectrum.
 //!
 //! Why: the free-run cost of a lightly damped mode is a narrow valley along
@@ -11,7 +12,7 @@
 //! the estimation part is read.
 
 use super::data::Data;
-use super::effects::{Augmented, Effect};
+use super::effects::{Augmented, Effect, StartHint};
 use super::spectrum::{Peak, Settings, welch};
 
 /// Extra starts (row-major, canonical) for the first stage of a warm fit
@@ -28,15 +29,13 @@ pub fn mode_hints(
     new_from: usize,
     (lo, hi): (&[f64], &[f64]),
 ) -> Vec<f64> {
-    let Some((effect, at)) = [Effect::LoadMode, Effect::Ringing]
-        .into_iter()
-        .find_map(|e| {
-            model
-                .offset_of(e)
-                .filter(|&at| at >= new_from)
-                .map(|at| (e, at))
-        })
-    else {
+    let Some((kick, at)) = model.effects.iter().find_map(|&e| match e.hint() {
+        StartHint::ResidualPeak { kick, .. } => model
+            .offset_of(e)
+            .filter(|&at| at >= new_from)
+            .map(|at| (kick, at)),
+        StartHint::None => None,
+    }) else {
         return Vec::new();
     };
     let Some((peaks, residuals)) = estimation_peaks(data, model, start) else {
@@ -55,8 +54,8 @@ pub fn mode_hints(
             let mut row = start.to_vec();
             row[at] = a1.clamp(lo[at], hi[at]);
             row[at + 1] = a2.clamp(lo[at + 1], hi[at + 1]);
-            if effect == Effect::Ringing {
-                row[at + 2] = ringing_kick(data, &residuals, a1, a2).clamp(lo[at + 2], hi[at + 2]);
+            if let Some(k) = kick.map(|k| at + k) {
+                row[k] = ringing_kick(data, &residuals, a1, a2).clamp(lo[k], hi[k]);
             }
             rows.extend(row);
         }
@@ -107,6 +106,18 @@ fn estimation_peaks(
         .filter(|p| lines.iter().all(|l| (l.hz - p.hz).abs() > 2.0 * bin))
         .collect();
     Some((free, residuals))
+}
+
+/// Whether an effect is looked for only where the residual rings
+/// ([`residual_rings`]), by its start hint.
+pub fn only_on_a_peak(effect: Effect) -> bool {
+    matches!(
+        effect.hint(),
+        StartHint::ResidualPeak {
+            only_on_a_peak: true,
+            ..
+        }
+    )
 }
 
 /// Whether `theta`'s estimation residual rings: its spectrum has a peak

@@ -37,7 +37,8 @@ pub use settings::Settings;
 
 use crate::data::Trace;
 use crate::ident::fit_percent;
-use crate::model::Family;
+use crate::model::file::Chain;
+use crate::model::{Family, FittedModel, Model};
 
 /// Validation RMSE and fit % of one model along the way.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -78,6 +79,9 @@ pub struct Diagnosis {
     pub final_spectrum: Option<spectrum::Spectrum>,
     /// Validation predictions `(t, input, measured, baseline, final)` per dataset (absolute units).
     pub curves: Vec<Curves>,
+    /// The baseline and the final model, as a model file holds them.
+    pub baseline_model: Model,
+    pub final_model: Model,
 }
 
 /// Validation-part curves of one dataset, for figures.
@@ -288,7 +292,16 @@ pub fn diagnose(
             }
         })
         .collect();
+    let baseline_model = model_of(&data, traces, base_model, &base.params);
+    let final_model = model_of(
+        &data,
+        traces,
+        &selection.final_model,
+        &selection.final_fit.params,
+    );
     Ok(Diagnosis {
+        baseline_model,
+        final_model,
         family,
         datasets: traces.iter().map(|t| t.source.clone()).collect(),
         dt: data.ctx[0].dt,
@@ -303,6 +316,29 @@ pub fn diagnose(
         final_spectrum,
         curves,
     })
+}
+
+/// `augmented` with `theta` as a model file holds it: in the first
+/// dataset's coordinates, with its effect constants.
+fn model_of(data: &Data, traces: &[Trace], augmented: &Augmented, theta: &[f64]) -> Model {
+    let d = augmented.family.dim();
+    let first = &data.whole[0];
+    let base = FittedModel {
+        family: augmented.family,
+        params: theta[..d].to_vec(),
+        input_mean: first.u_mean,
+        output_mean: first.y_mean,
+        dt: first.dt,
+        input_name: traces[0].input_name.clone(),
+        output_name: traces[0].output_name.clone(),
+    };
+    let chain = (!augmented.effects.is_empty()).then(|| Chain {
+        effects: augmented.effects.clone(),
+        params: theta[d..].to_vec(),
+        context: data.ctx[0],
+        datasets: augmented.datasets,
+    });
+    Model { base, chain }
 }
 
 /// Welch spectrum of the residual of `segments`, those sampled at the first

@@ -73,9 +73,9 @@ pub fn select(
     let mut verdict = Vec::new();
     let n = data.val_samples().max(2) as f64;
     for round in 0..settings.max_effects {
-        // The ringing is looked for only where the residual rings (a
-        // spectrum per round, so only when the ringing is among the effects).
-        let rings = effects.contains(&Effect::Ringing)
+        // Some effects (the ringing) are looked for only where the residual
+        // rings (a spectrum per round, so only when one is among the effects).
+        let rings = effects.iter().any(|&e| hints::only_on_a_peak(e))
             && hints::residual_rings(data, &current_model, &current_params);
         let remaining: Vec<Effect> = effects
             .iter()
@@ -87,7 +87,7 @@ pub fn select(
                     .iter()
                     .any(|m| m.physical() == e.physical())
                     && e.applicable(data.datasets())
-                    && (*e != Effect::Ringing || rings)
+                    && (!hints::only_on_a_peak(*e) || rings)
             })
             .collect();
         if remaining.is_empty() {

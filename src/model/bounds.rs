@@ -35,6 +35,10 @@ pub struct SearchSpace {
     /// ([`SearchSpace::widen`]).
     #[serde(default)]
     pub origin: Vec<[Origin; 2]>,
+    /// Names of the coordinates after the family's: the effects' own
+    /// parameters (`creep.kappa`), searched as they are.
+    #[serde(default)]
+    pub extra_names: Vec<String>,
 }
 
 /// Where a bound of the box comes from.
@@ -62,6 +66,17 @@ pub struct UserBound {
     pub name: String,
     pub lower: f64,
     pub upper: f64,
+}
+
+impl std::fmt::Display for UserBound {
+    /// As `--bound` and `--fix` take it: `NAME=LO:HI`, or `NAME=VALUE`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.lower == self.upper {
+            write!(f, "{}={}", self.name, self.lower)
+        } else {
+            write!(f, "{}={}:{}", self.name, self.lower, self.upper)
+        }
+    }
 }
 
 impl std::str::FromStr for UserBound {
@@ -191,6 +206,7 @@ impl SearchSpace {
             origin: vec![[Origin::Class; 2]; d],
             lower,
             upper,
+            extra_names: Vec::new(),
         }
     }
 
@@ -331,16 +347,52 @@ impl SearchSpace {
             lower,
             upper,
             origin,
+            extra_names: Vec::new(),
         };
-        for b in bounds {
+        // An effect's parameter (`creep.kappa`) is bounded once its
+        // effect joins the box ([`SearchSpace::with_extra`]).
+        for b in bounds.iter().filter(|b| !b.name.contains('.')) {
             space.set_bound(b)?;
         }
         Ok(space)
     }
 
+    /// The box with more coordinates after the family's (the effects'
+    /// parameters, in their own units: their ranges are the class's, never
+    /// widened), then the user `bounds` that name them.
+    pub fn with_extra(
+        mut self,
+        names: Vec<String>,
+        lower: Vec<f64>,
+        upper: Vec<f64>,
+        bounds: &[UserBound],
+    ) -> Result<SearchSpace, String> {
+        let first = self.extra_names.len() + self.family.dim();
+        self.origin.extend(vec![[Origin::Class; 2]; names.len()]);
+        self.lower.extend(lower);
+        self.upper.extend(upper);
+        self.extra_names.extend(names);
+        let ours = self.names()[first..].to_vec();
+        for b in bounds.iter().filter(|b| b.name.contains('.')) {
+            if !ours.contains(&b.name) {
+                return Err(format!(
+                    "no effect parameter `{}` in this fit: {}",
+                    b.name,
+                    if ours.is_empty() {
+                        "it has no effects (add them with --effects)".to_string()
+                    } else {
+                        format!("its effects' parameters are {}", ours.join(", "))
+                    }
+                ));
+            }
+            self.set_bound(b)?;
+        }
+        Ok(self)
+    }
+
     /// Sets one user bound (see [`SearchSpace::scaled`]).
     fn set_bound(&mut self, b: &UserBound) -> Result<(), String> {
-        let names = self.coords.names(self.family);
+        let names = self.names();
         let canonical: Vec<&str> = self.family.params().iter().map(|p| p.name).collect();
         let (i, factor) = if let Some(i) = names.iter().position(|n| *n == b.name) {
             (i, 1.0)
@@ -384,7 +436,9 @@ impl SearchSpace {
 
     /// The names of the search coordinates.
     pub fn names(&self) -> Vec<String> {
-        self.coords.names(self.family)
+        let mut names = self.coords.names(self.family);
+        names.extend(self.extra_names.iter().cloned());
+        names
     }
 
     /// The canonical vector of search coordinates `z`.

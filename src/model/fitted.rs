@@ -1,16 +1,15 @@
-//! A fitted model: what `fit` writes and `simulate`, `diagnose` and
-//! `control` read.
+//! A fitted baseline: a family's parameters in the coordinates of the data
+//! it was fitted on ([`super::file::Model`] adds the effects; the model file
+//! holds both).
 
-use std::path::Path;
-
-use anyhow::Context;
 use serde::{Deserialize, Serialize};
 
 use super::family::Family;
 use super::sim::{Simulation, simulate};
 use crate::data::Trace;
 
-/// A model with its parameters and the coordinates it was fitted in.
+/// A baseline model with its parameters and the coordinates it was fitted in
+/// (version 1 of the model file is this struct as JSON).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FittedModel {
     pub family: Family,
@@ -27,34 +26,6 @@ pub struct FittedModel {
 }
 
 impl FittedModel {
-    /// Reads a model file written by `fit` (the model itself) or by
-    /// `identify --out` (an object whose `model` field holds it).
-    pub fn load(path: &Path) -> anyhow::Result<FittedModel> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        let value: serde_json::Value =
-            serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
-        let inner = value.get("model").cloned().unwrap_or(value);
-        let model: FittedModel = serde_json::from_value(inner).with_context(|| {
-            format!(
-                "{}: not a model file written by identify or fit",
-                path.display()
-            )
-        })?;
-        let names: Vec<&str> = model.family.params().iter().map(|p| p.name).collect();
-        anyhow::ensure!(
-            model.params.len() == names.len(),
-            "{}: a {} model has {} parameters ({}), the file has {}; a model written \
-             before the start offset x0 was added needs it appended (0 keeps its behaviour)",
-            path.display(),
-            model.family,
-            names.len(),
-            names.join(", "),
-            model.params.len()
-        );
-        Ok(model)
-    }
-
     /// Parameters by name, in canonical order.
     pub fn named_params(&self) -> Vec<(&'static str, f64)> {
         self.family

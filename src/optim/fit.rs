@@ -4,13 +4,14 @@
 //!
 //! The settings carry `fit`'s flags one for one and every error names the
 //! flag it is about, so that the command only parses, calls and prints.
-//! [`Fit`] is the whole run on one trace, which the command and the Python
-//! package both call, so that they fit alike.
+//! [`Fit`] is the whole run on one trace, which the command calls.
 
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 use anyhow::Context as _;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 
 use super::edge::{Widening, refit_off_edges};
 use super::engine::model::{ModelObjective, staged_plan};
@@ -21,7 +22,10 @@ use super::task::Task;
 use super::{AlgoSettings, Algorithm};
 use crate::data::Trace;
 use crate::eval::Evaluator;
-use crate::model::{Family, Flow, Loop, Measure, UserBound};
+use crate::model::coords::gauge_fixed;
+use crate::model::effects::Effect;
+use crate::model::file::{ModelFile, Provenance, SearchBox};
+use crate::model::{Family, Flow, Loop, Measure, Model, UserBound};
 
 /// Settings of one algorithm laid over its base settings (`None`, `false`:
 /// keep the base). Each acts on its own algorithm only, but every one given
@@ -231,6 +235,22 @@ impl FitSettings {
         Ok(plan)
     }
 
+    /// A warm start from the canonical `start`: the free-run stage from
+    /// `start` and a cloud around it ([`Space::around`]), then the polish;
+    /// no global search, so the fit refines the basin it is given (a global
+    /// search finds other basins, and where the estimation data do not
+    /// settle the model some of those fit the estimation half better and
+    /// validate worse: docs/ARCHITECTURE.md, "Warm starts").
+    pub fn start_warm(&self, task: &Task, start: &[f64]) -> anyhow::Result<Engine> {
+        let mut plan = self.plan(task, &|_| ())?;
+        plan.global = None;
+        let space = Space::from(&task.space);
+        let n = plan.free_run.as_ref().map_or(1, |f| f.population);
+        let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
+        let rows = space.around(start, n, &mut rng);
+        Ok(Engine::new(plan, space, self.seed, self.stops()?)?.with_initial(&rows))
+    }
+
     /// The stop rules, checked.
     fn stops(&self) -> anyhow::Result<StopRules> {
         if let Some(t) = self.stops.time_budget_s {
@@ -277,16 +297,20 @@ impl FitSettings {
     }
 }
 
-/// What a fit identifies on a trace: the family and its search box (the
-/// joint flow's; the thesis' flow, `FitSettings::thesis_flow`, takes its own).
+/// What a fit identifies on a trace: the family, its effects and its search
+/// box (the joint flow's; the thesis' flow, `FitSettings::thesis_flow`,
+/// takes its own).
 #[derive(Debug, Clone, PartialEq)]
 pub struct FitBox {
     pub family: Family,
+    /// Effect stages after the family, in chain order (`--effects`).
+    pub effects: Vec<Effect>,
     /// Also fit the Bouc-Wen exponent n (`--free-n`).
     pub free_n: bool,
     /// Loop shapes the box admits (`--loop`).
     pub loop_shape: Loop,
-    /// The user's bounds and fixed values (`--bound`, `--fix`).
+    /// The user's bounds and fixed values (`--bound`, `--fix`), an effect's
+    /// as `effect.param`.
     pub bounds: Vec<UserBound>,
 }
 
@@ -300,15 +324,21 @@ pub struct Fit {
 
 impl Fit {
     /// The task of `what` on `trace` (its box widened on return of
-    /// [`Fit::run`]) and the engine `settings` start on it, fresh or resumed
+    /// [`Fit::run`]) and the engine `settings` start on it: a warm start
+    /// from `start` ([`FitSettings::start_warm`]), else fresh or resumed
     /// from `checkpoint` ([`FitSettings::start`]).
     pub fn new(
         trace: &Trace,
         what: &FitBox,
         settings: &FitSettings,
+        start: Option<&Model>,
         checkpoint: Option<&Path>,
         note: &dyn Fn(String),
     ) -> anyhow::Result<Fit> {
+        anyhow::ensure!(
+            checkpoint.is_none() || start.is_none(),
+            "--checkpoint resumes a fit from its own state: not with --from"
+        );
         let flow = if settings.thesis_flow {
             Flow::Thesis
         } else {
@@ -323,8 +353,12 @@ impl Fit {
             what.loop_shape,
             &what.bounds,
         )
+        .and_then(|t| t.with_effects(&what.effects, &what.bounds))
         .with_context(|| format!("cannot fit {}", trace.source))?;
-        let engine = settings.start(&task, checkpoint, note)?;
+        let engine = match start {
+            Some(m) => settings.start_warm(&task, &warm_start(&task, m))?,
+            None => settings.start(&task, checkpoint, note)?,
+        };
         Ok(Fit { task, engine })
     }
 
@@ -347,6 +381,39 @@ impl Fit {
         let stops = self.engine.stops.clone();
         refit_off_edges(&mut self.task, &self.engine, outcome, &stops, evaluator)
     }
+}
+
+/// The model file of a fit's `params` on `task`, as `mckibben fit` writes
+/// its `model.json`: the model, the box searched (widened where the edge
+/// rule widened it) and `bounds`, the `--bound` and `--fix` in force.
+pub fn model_file(
+    task: &Task,
+    params: &[f64],
+    bounds: &[UserBound],
+    provenance: Provenance,
+) -> ModelFile {
+    let model = task.model(params);
+    let mut file = ModelFile::new(&model, Some(SearchBox::of(&task.space)), provenance);
+    file.user_bounds = bounds.iter().map(|b| b.to_string()).collect();
+    file
+}
+
+/// The start of a warm start from `model`: its baseline's parameters in the
+/// box's gauge (same outputs), and for each of the task's effects the
+/// model's value where it has that effect, else the effect's neutral value.
+fn warm_start(task: &Task, model: &Model) -> Vec<f64> {
+    let base = gauge_fixed(model.base.family, &model.base.params);
+    let mut theta = task.neutral_effects(&base);
+    let ours = task.augmented();
+    let theirs = model.augmented();
+    let values = model.theta();
+    for &e in &task.effects {
+        if let (Some(to), Some(from)) = (ours.offset_of(e), theirs.offset_of(e)) {
+            let k = e.dim(1);
+            theta[to..to + k].copy_from_slice(&values[from..from + k]);
+        }
+    }
+    theta
 }
 
 #[cfg(test)]

@@ -6,9 +6,12 @@
 use crate::data::Trace;
 use crate::eval::Problem;
 use crate::ident::{ArxOrders, arx::identify, fit_percent, rmse};
+use crate::model::effects::{Augmented, Context, Effect, effect_box};
+use crate::model::file::Chain;
 use crate::model::presets::ThesisBounds;
 use crate::model::{
-    Experiment, Family, FittedModel, Flow, LinearPrior, Loop, SearchSpace, UserBound, simulate,
+    Experiment, Family, FittedModel, Flow, LinearPrior, Loop, Model, SearchSpace, UserBound,
+    simulate,
 };
 
 /// How far beyond the estimation output's largest deviation a bounded model
@@ -29,6 +32,12 @@ pub struct Task {
     pub loop_shape: Loop,
     pub input_name: String,
     pub output_name: String,
+    /// Effect stages after the family (`fit --effects`), in chain order;
+    /// their parameters follow the family's in every vector.
+    pub effects: Vec<Effect>,
+    /// The effects' constants: the whole record's, in the estimation
+    /// half's coordinates (as the diagnosis takes them).
+    pub context: Context,
 }
 
 /// Validation scores of a parameter vector (output units).
@@ -80,6 +89,8 @@ impl Task {
             output_range: crate::data::range(&trace.output),
         };
         let (estimation, validation) = Experiment::split_halves(trace);
+        let whole = Experiment::with_offsets(trace, estimation.u_mean, estimation.y_mean);
+        let context = Context::of(&whole, prior.b >= 0.0);
         let space = match flow {
             Flow::Thesis => {
                 anyhow::ensure!(
@@ -101,12 +112,78 @@ impl Task {
             prior,
             input_name: trace.input_name.clone(),
             output_name: trace.output_name.clone(),
+            effects: Vec::new(),
+            context,
         })
+    }
+
+    /// The same task with `effects` after the family: their parameters
+    /// join the box in their own units (each effect's box from the record,
+    /// [`effect_box`]); `bounds` may name them (`creep.kappa=0:1`).
+    pub fn with_effects(
+        mut self,
+        effects: &[Effect],
+        bounds: &[UserBound],
+    ) -> anyhow::Result<Task> {
+        anyhow::ensure!(
+            effects.is_empty() || self.flow == Flow::Joint,
+            "the thesis' flow fits the thesis' models: --effects needs the joint flow"
+        );
+        for (k, e) in effects.iter().enumerate() {
+            anyhow::ensure!(
+                !effects[..k].contains(e),
+                "--effects names `{e}` twice: each effect enters a chain once"
+            );
+            anyhow::ensure!(
+                e.applicable(1),
+                "--effects: `{e}` needs several datasets (one per load); `fit` fits one record"
+            );
+        }
+        self.effects = effects.to_vec();
+        let augmented = self.augmented();
+        let names = augmented.param_names();
+        let d = self.family.dim();
+        let (mut lower, mut upper) = (Vec::new(), Vec::new());
+        for &e in effects {
+            let (_, lo, hi) = effect_box(e, &self.context, 1);
+            lower.extend(lo);
+            upper.extend(hi);
+        }
+        self.space = self
+            .space
+            .with_extra(names[d..].to_vec(), lower, upper, bounds)
+            .map_err(anyhow::Error::msg)?;
+        Ok(self)
+    }
+
+    /// The model description: the family and its effects.
+    pub fn augmented(&self) -> Augmented {
+        Augmented::new(self.family, self.effects.clone(), 1)
+    }
+
+    /// The start of every effect in the chain at its neutral value (the
+    /// baseline's output, bit for bit), after the baseline's `params`.
+    pub fn neutral_effects(&self, params: &[f64]) -> Vec<f64> {
+        let mut theta = params[..self.family.dim()].to_vec();
+        for &e in &self.effects {
+            theta.extend(effect_box(e, &self.context, 1).0);
+        }
+        theta
+    }
+
+    /// The problem of `experiment` with the task's effects.
+    fn problem_of(&self, experiment: Experiment) -> Problem {
+        let problem = Problem::new(self.family, vec![experiment]);
+        if self.effects.is_empty() {
+            problem
+        } else {
+            problem.with_effects(self.effects.clone(), vec![self.context])
+        }
     }
 
     /// The estimation problem the optimizer scores.
     pub fn problem(&self) -> Problem {
-        Problem::new(self.family, vec![self.estimation.clone()])
+        self.problem_of(self.estimation.clone())
     }
 
     /// The check that a candidate stays bounded on every input of the
@@ -137,7 +214,7 @@ impl Task {
             .iter()
             .fold(0.0f64, |m, &v| m.max((v as f64).abs()));
         let bound = whole.u.len() as f64 * (STRESS_FACTOR * largest).powi(2);
-        (Problem::new(self.family, vec![whole]), bound)
+        (self.problem_of(whole), bound)
     }
 
     /// Validation scores: a free run over the whole trace from its first
@@ -150,20 +227,33 @@ impl Task {
         let mut whole = self.estimation.clone();
         whole.u.extend_from_slice(&self.validation.u);
         whole.y.extend_from_slice(&self.validation.y);
-        score_tail(self.family, params, &whole, self.estimation.len())
+        if self.effects.is_empty() {
+            return score_tail(self.family, params, &whole, self.estimation.len());
+        }
+        let theta: Vec<f32> = params.iter().map(|&v| v as f32).collect();
+        let x = self.augmented().simulate(&theta, 0, &self.context, &whole);
+        score_outputs(&whole.y, &x, self.estimation.len())
     }
 
     /// The fitted model in the estimation half's coordinates.
-    pub fn model(&self, params: &[f64]) -> FittedModel {
-        FittedModel {
+    pub fn model(&self, params: &[f64]) -> Model {
+        let d = self.family.dim();
+        let base = FittedModel {
             family: self.family,
-            params: params.to_vec(),
+            params: params[..d].to_vec(),
             input_mean: self.estimation.u_mean,
             output_mean: self.estimation.y_mean,
             dt: self.estimation.dt,
             input_name: self.input_name.clone(),
             output_name: self.output_name.clone(),
-        }
+        };
+        let chain = (!self.effects.is_empty()).then(|| Chain {
+            effects: self.effects.clone(),
+            params: params[d..].to_vec(),
+            context: self.context,
+            datasets: 1,
+        });
+        Model { base, chain }
     }
 }
 
@@ -225,8 +315,20 @@ pub fn score_tail(
             fit_percent: f64::NEG_INFINITY,
         };
     }
-    let y: Vec<f64> = experiment.y[from..].iter().map(|&v| v as f64).collect();
-    let x: Vec<f64> = sim.x[from..].iter().map(|&v| v as f64).collect();
+    score_outputs(&experiment.y, &sim.x, from)
+}
+
+/// RMSE and fit % of the simulated `x` against the measured `y` from
+/// sample `from` on; infinite RMSE and −∞ fit where `x` is not finite.
+fn score_outputs(y: &[f32], x: &[f32], from: usize) -> Validation {
+    if x[from..].iter().any(|v| !v.is_finite()) {
+        return Validation {
+            rmse: f64::INFINITY,
+            fit_percent: f64::NEG_INFINITY,
+        };
+    }
+    let y: Vec<f64> = y[from..].iter().map(|&v| v as f64).collect();
+    let x: Vec<f64> = x[from..].iter().map(|&v| v as f64).collect();
     Validation {
         rmse: rmse(&y, &x),
         fit_percent: fit_percent(&y, &x),

@@ -3,12 +3,12 @@
 
 use super::plot::{Figure, Panel, Series};
 use crate::data::Trace;
-use crate::model::FittedModel;
+use crate::model::Model;
 
 /// The hysteresis loop (displacement against pressure, figs 12, 14, 16,
 /// 20, 21, 23) and the time trace of `model` on the whole `trace`, fitted
 /// over measured, in absolute units (a free run from the first sample).
-pub fn fit_figures(model: &FittedModel, trace: &Trace, title: &str) -> (Figure, Figure) {
+pub fn fit_figures(model: &Model, trace: &Trace, title: &str) -> (Figure, Figure) {
     let fitted = model.simulate_trace(trace);
     let (xin, xout) = (
         format!("{} (input)", trace.input_name),

@@ -122,6 +122,23 @@ pub struct MuscleParams {
     /// Viscous damping of the rubber and the water in the braid (N·s/m).
     /// Assumption: 100 N·s/m (damping ratio ≈ 0.3 of the load on the rubber).
     pub damping_n_s_per_m: f64,
+    /// Share of the rubber's stiffness that relaxes (the `creep` effect): a
+    /// standard linear solid whose Maxwell arm holds this share of
+    /// `rubber_stiffness_n_per_m` and lets it go with `creep_time_s`.
+    /// Assumption: 0.1, the 5–15 % stress relaxation of natural-rubber
+    /// tubing over a minute; under a pressure step it lets the muscle creep
+    /// ≈ 8 % further than its fast response (docs/TWIN.md).
+    pub creep_share: f64,
+    /// Relaxation time of that arm (s). Assumption: 5 s, so the muscle's
+    /// creep (retardation) time is ≈ 5.5 s, the several seconds of the
+    /// pulse-to-pulse deepening on real records.
+    pub creep_time_s: f64,
+    /// Loss factor `η = tan δ` of the rubber at a few hertz (the `ringing`
+    /// effect's damping): a hysteretic loss `η·k_rubber` per radian, taken
+    /// as the viscous `c = η·k_rubber/ω` at the load's frequency ω.
+    /// Assumption: 0.2, within the 0.1–0.3 of natural rubber near 5 Hz;
+    /// it gives a damping ratio `ζ = η·k_rubber/(2k)` of 0.07–0.10.
+    pub rubber_loss_factor: f64,
 }
 
 impl Default for MuscleParams {
@@ -131,6 +148,9 @@ impl Default for MuscleParams {
             natural_angle_rad: 20f64.to_radians(),
             rubber_stiffness_n_per_m: 9e3,
             damping_n_s_per_m: 100.0,
+            creep_share: 0.1,
+            creep_time_s: 5.0,
+            rubber_loss_factor: 0.2,
         }
     }
 }
@@ -223,8 +243,9 @@ impl Default for SensorParams {
     }
 }
 
-/// The names accepted by `--effect NAME=VALUE`, in the order `--help` lists them.
-pub const EFFECT_NAMES: [&str; 8] = [
+/// The names accepted by `--effect NAME=VALUE`, in the order `--help` lists
+/// them. The last two, `creep` and `ringing`, are off (scale 0) by default.
+pub const EFFECT_NAMES: [&str; 10] = [
     "friction",
     "deadband",
     "spool_lag",
@@ -233,6 +254,8 @@ pub const EFFECT_NAMES: [&str; 8] = [
     "noise",
     "quantization",
     "thickness",
+    "creep",
+    "ringing",
 ];
 
 /// One non-ideal effect: a scale on its nominal size (1 = as documented,
@@ -255,14 +278,24 @@ impl Default for Effect {
 }
 
 impl Effect {
+    /// An effect in the model at scale 0: off until `--effect NAME=1`.
+    pub const fn off() -> Self {
+        Effect {
+            scale: 0.0,
+            present: true,
+        }
+    }
+
     /// The scale if the effect is in the model, `None` if removed.
     pub fn active(&self) -> Option<f64> {
         self.present.then_some(self.scale)
     }
 }
 
-/// The switches of every non-ideal effect.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+/// The switches of every non-ideal effect. All are on (scale 1) by default
+/// except `creep` and `ringing`, which came later: off, they leave every
+/// published number of the twin's default runs as it was.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Effects {
     /// Braid friction: scales the break-away forces of the Maxwell-slip elements.
     pub friction: Effect,
@@ -280,6 +313,29 @@ pub struct Effects {
     pub quantization: Effect,
     /// Wall thickness t_k of eq. 8–9: scales it (0 gives the ideal eq. 7).
     pub thickness: Effect,
+    /// Creep of the bladder: scales the relaxing share of the rubber's
+    /// stiffness. Off by default.
+    pub creep: Effect,
+    /// The load's ringing on the muscle's stiffness: scales its excitation.
+    /// Off by default.
+    pub ringing: Effect,
+}
+
+impl Default for Effects {
+    fn default() -> Self {
+        Effects {
+            friction: Effect::default(),
+            deadband: Effect::default(),
+            spool_lag: Effect::default(),
+            compliance: Effect::default(),
+            endstop: Effect::default(),
+            noise: Effect::default(),
+            quantization: Effect::default(),
+            thickness: Effect::default(),
+            creep: Effect::off(),
+            ringing: Effect::off(),
+        }
+    }
 }
 
 impl Effects {
@@ -293,6 +349,8 @@ impl Effects {
             "noise" => &mut self.noise,
             "quantization" => &mut self.quantization,
             "thickness" => &mut self.thickness,
+            "creep" => &mut self.creep,
+            "ringing" => &mut self.ringing,
             _ => return None,
         })
     }
@@ -361,6 +419,37 @@ pub struct TwinConfig {
     pub endstop: EndStopParams,
     pub sensors: SensorParams,
     pub effects: Effects,
+}
+
+impl TwinConfig {
+    /// The integration substep (s): the sample time over the substeps.
+    pub fn substep_s(&self) -> f64 {
+        self.sample_time_s / self.substeps.max(1) as f64
+    }
+
+    /// Checks the settings the effects can make unphysical: the creep must
+    /// leave the rubber a positive relaxed stiffness.
+    pub fn validate(&self) -> Result<(), String> {
+        let share = self.muscle.relaxing_share(&self.effects);
+        if share >= 1.0 {
+            return Err(format!(
+                "effect creep: a share {share} of the rubber's stiffness would relax, \
+                 leaving it no relaxed stiffness; the scale must stay below {}",
+                1.0 / self.muscle.creep_share
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl MuscleParams {
+    /// The share of the rubber's stiffness that relaxes under the `creep`
+    /// effect's scale (0 when it is off or removed).
+    pub fn relaxing_share(&self, fx: &Effects) -> f64 {
+        fx.creep
+            .active()
+            .map_or(0.0, |scale| scale * self.creep_share)
+    }
 }
 
 impl Default for TwinConfig {

@@ -162,6 +162,7 @@ impl RunSpec {
         for e in &self.effects {
             config.effects.apply_arg(e)?;
         }
+        config.validate()?;
         Ok(config)
     }
 

@@ -4,8 +4,9 @@
 //! Parts, one module each: [`valve`] (two proportional valves, dead band,
 //! spool lag, orifice flow), [`chamber`] (water pressure with bulk modulus
 //! and hose compliance), [`muscle`] (eq. 1–9 geometry and force, rubber
-//! elasticity), [`friction`] (Maxwell-slip braid friction), [`load`] (the
-//! hanging mass and its end stops), [`sensors`] (noise and quantization),
+//! elasticity), [`creep`] (the rubber's slow relaxation), [`friction`]
+//! (Maxwell-slip braid friction), [`load`] (the hanging mass, its ringing
+//! and its end stops), [`sensors`] (noise and quantization),
 //! [`experiment`] (the stair, sine and multisine runs), [`config`] (every
 //! parameter and the effect switches).
 //!
@@ -22,6 +23,7 @@
 
 pub mod chamber;
 pub mod config;
+pub mod creep;
 pub mod experiment;
 pub mod friction;
 pub mod load;
@@ -38,8 +40,9 @@ use serde::{Deserialize, Serialize};
 
 use chamber::PressureStep;
 use config::GRAVITY;
+use creep::BladderCreep;
 use friction::MaxwellSlip;
-use load::Load;
+use load::{Load, Ringing};
 use muscle::Muscle;
 use valve::Valve;
 
@@ -67,9 +70,9 @@ pub struct TrueState {
     pub pressure_pa: f64,
     /// Pressure inside the muscle (Pa gauge), behind the inlet fitting.
     pub chamber_pressure_pa: f64,
-    /// Contraction (m).
+    /// Contraction (m): the load's, its ringing included.
     pub contraction_m: f64,
-    /// Contraction rate (m/s).
+    /// Contraction rate (m/s), its ringing included.
     pub velocity_m_s: f64,
     /// Muscle length (m).
     pub length_m: f64,
@@ -80,7 +83,12 @@ pub struct TrueState {
 pub struct Rig {
     config: TwinConfig,
     muscle: Muscle,
+    /// The load at the water-set contraction.
     load: Load,
+    /// The load's swing about it (`ringing` effect), if in the model.
+    ringing: Option<Ringing>,
+    /// The rubber's relaxing arm (`creep` effect), if in the model.
+    creep: Option<BladderCreep>,
     friction: MaxwellSlip,
     valve_in: Valve,
     valve_out: Valve,
@@ -100,8 +108,12 @@ impl Rig {
     ///
     /// Panics unless `load_kg` is positive and light enough that the rubber's
     /// stretch leaves the braid short of straight (about 19 kg with the
-    /// default muscle); [`experiment::RunSpec::run`] checks this for the CLI.
+    /// default muscle), or if [`TwinConfig::validate`] fails;
+    /// [`experiment::RunSpec::run`] checks both for the CLI.
     pub fn new(config: &TwinConfig, load_kg: f64, seed: u64) -> Rig {
+        if let Err(e) = config.validate() {
+            panic!("twin: {e}");
+        }
         let full = config.valve.full_scale_v;
         let muscle = Muscle::new(&config.muscle, load_kg, &config.effects);
         assert!(
@@ -120,6 +132,8 @@ impl Rig {
                 x: 0.0,
                 v: 0.0,
             },
+            ringing: Ringing::new(&config.muscle, &config.effects),
+            creep: BladderCreep::new(&config.muscle, &config.effects, config.substep_s()),
             friction: MaxwellSlip::new(&config.friction),
             valve_in: Valve::at(0.0),
             valve_out: Valve::at(full),
@@ -156,15 +170,25 @@ impl Rig {
         self.steps as f64 * self.config.sample_time_s
     }
 
+    /// The load's contraction and its rate: the water-set ones plus the
+    /// ringing's swing when that is in the model.
+    fn load_motion(&self) -> (f64, f64) {
+        match &self.ringing {
+            Some(r) => (self.load.x + r.offset, self.load.v + r.rate),
+            None => (self.load.x, self.load.v),
+        }
+    }
+
     /// The true state now.
     pub fn true_state(&self) -> TrueState {
+        let (x, v) = self.load_motion();
         TrueState {
             t: self.time(),
             pressure_pa: self.manifold_pa,
             chamber_pressure_pa: self.chamber_pa,
-            contraction_m: self.load.x,
-            velocity_m_s: self.load.v,
-            length_m: self.muscle.length(self.load.x),
+            contraction_m: x,
+            velocity_m_s: v,
+            length_m: self.muscle.length(x),
         }
     }
 
@@ -173,8 +197,12 @@ impl Rig {
         let cfg = &self.config;
         let pressure_mpa =
             sensors::pressure_mpa(self.manifold_pa, &cfg.sensors, &mut self.rng, &cfg.effects);
-        let displacement_mm =
-            sensors::displacement_mm(self.load.x, &cfg.sensors, &mut self.rng, &cfg.effects);
+        let displacement_mm = sensors::displacement_mm(
+            self.load_motion().0,
+            &cfg.sensors,
+            &mut self.rng,
+            &cfg.effects,
+        );
         Sample {
             t: self.time(),
             valve_in: self.command_v,
@@ -202,7 +230,7 @@ impl Rig {
         };
         self.command_v = u;
         let n = self.config.substeps.max(1);
-        let h = self.config.sample_time_s / n as f64;
+        let h = self.config.substep_s();
         for _ in 0..n {
             self.substep(u, full - u, h);
         }
@@ -210,8 +238,9 @@ impl Rig {
     }
 
     /// One integration substep of length `h`: spools, then the load
-    /// (forces at the current chamber pressure), then both pressures
-    /// implicitly with the load's new velocity.
+    /// (forces at the current chamber pressure) with the rubber's creep arm
+    /// and the load's ringing, then both pressures implicitly with the
+    /// load's new velocity.
     fn substep(&mut self, u_in: f64, u_out: f64, h: f64) {
         let cfg = &self.config;
         let fx = &cfg.effects;
@@ -221,12 +250,22 @@ impl Rig {
         let x = self.load.x;
         let p = self.chamber_pa;
         let weight = self.load.mass_kg * GRAVITY;
-        let spring = self.muscle.pressure_force(p, x) + self.muscle.rubber_tension(x) - weight;
+        let creep = self.creep.as_ref().map_or(0.0, BladderCreep::tension);
+        let spring =
+            self.muscle.pressure_force(p, x) + self.muscle.rubber_tension(x) + creep - weight;
         let friction = self.friction.current_force(p, &cfg.friction, fx);
         let stop = load::stop_force(x, self.load.v, &cfg.endstop, fx);
         let damping = -cfg.muscle.damping_n_s_per_m * self.load.v;
+        let v_before = self.load.v;
         let dx = self.load.advance(spring + friction + stop + damping, h);
         self.friction.slide(dx, fx);
+        if let Some(arm) = &mut self.creep {
+            arm.advance(dx);
+        }
+        if let Some(ringing) = &mut self.ringing {
+            let k = self.muscle.axial_stiffness(p, x);
+            ringing.advance(k, self.load.mass_kg, self.load.v - v_before, h);
+        }
 
         let x = self.load.x;
         let vfx = &cfg.valve;

@@ -1,6 +1,8 @@
 //! The muscle's geometry and forces: the braid of eq. 1 sets length, angle
 //! and chamber volume; the pressure force is eq. 9 (eq. 7 when the wall
-//! thickness is switched off); the rubber tube adds a linear elastic force.
+//! thickness is switched off); the rubber tube adds a linear elastic force,
+//! part of which relaxes slowly when the `creep` effect is on
+//! ([`super::creep`]).
 //!
 //! Position is the contraction `x` (m), positive when the muscle shortens,
 //! measured from the rest length `L_rest` at zero gauge pressure with the
@@ -18,9 +20,14 @@ pub struct Muscle {
     thick: bool,
     /// Length of the unloaded, unpressurised rubber (m).
     natural_length: f64,
-    /// Length at zero gauge pressure with the load hanging (m).
+    /// Length at zero gauge pressure with the load hanging long enough for
+    /// the rubber to relax (m).
     rest_length: f64,
+    /// The rubber's instantaneous axial stiffness (N/m).
     stiffness: f64,
+    /// Its relaxed stiffness (N/m): all of it unless the `creep` effect
+    /// hands a share to the Maxwell arm of [`super::creep::BladderCreep`].
+    relaxed_stiffness: f64,
 }
 
 impl Muscle {
@@ -37,13 +44,15 @@ impl Muscle {
             }
         };
         let natural_length = braid.length(p.natural_angle_rad);
-        let rest_length = natural_length + load_kg * GRAVITY / p.rubber_stiffness_n_per_m;
+        let relaxed_stiffness = p.rubber_stiffness_n_per_m * (1.0 - p.relaxing_share(fx));
+        let rest_length = natural_length + load_kg * GRAVITY / relaxed_stiffness;
         Muscle {
             braid,
             thick,
             natural_length,
             rest_length,
             stiffness: p.rubber_stiffness_n_per_m,
+            relaxed_stiffness,
         }
     }
 
@@ -94,10 +103,24 @@ impl Muscle {
         std::f64::consts::PI / 4.0 * self.braid.length(psi) * d * d
     }
 
-    /// Tension of the rubber tube (N): `k·(L − L_nat)`, which with the load's
-    /// weight `k·(L_rest − L_nat)` leaves `−k·x` as the net spring force.
+    /// Tension of the rubber tube's relaxed spring (N): `k_∞·(L − L_nat)`,
+    /// which with the load's weight `k_∞·(L_rest − L_nat)` leaves `−k_∞·x`
+    /// as the net spring force. Without creep `k_∞` is the whole `k`; with
+    /// it, the creep arm adds the rest of the rubber's tension.
     pub fn rubber_tension(&self, x: f64) -> f64 {
-        self.stiffness * (self.length(x) - self.natural_length)
+        self.relaxed_stiffness * (self.length(x) - self.natural_length)
+    }
+
+    /// The muscle's axial stiffness at gauge pressure `p` and contraction
+    /// `x` (N/m), the force lost per metre of contraction at constant
+    /// pressure: `k = k_rubber − ∂F_p/∂x`. The pressure force falls as the
+    /// braid angle opens, so `k` grows with pressure. The rubber counts
+    /// whole (its creep arm has no time to relax within a period); the slope
+    /// of the pressure force is a central difference over ±1 µm.
+    pub fn axial_stiffness(&self, p: f64, x: f64) -> f64 {
+        let h = 1e-6;
+        let slope = (self.pressure_force(p, x + h) - self.pressure_force(p, x - h)) / (2.0 * h);
+        self.stiffness - slope
     }
 }
 
@@ -124,5 +147,21 @@ mod tests {
         let heavy = Muscle::new(&p, 7.0, &fx);
         assert!(heavy.rest_length() > light.rest_length());
         assert!((light.rubber_tension(0.0) - 4.5 * GRAVITY).abs() < 1e-9);
+    }
+
+    #[test]
+    fn creep_relaxes_the_rest_length_but_not_the_instant_stiffness() {
+        let p = MuscleParams::default();
+        let mut fx = Effects::default();
+        let plain = Muscle::new(&p, 4.5, &fx);
+        fx.set("creep", 1.0).unwrap();
+        let creeping = Muscle::new(&p, 4.5, &fx);
+        let relaxed = p.rubber_stiffness_n_per_m * (1.0 - p.creep_share);
+        let stretch = 4.5 * GRAVITY * (1.0 / relaxed - 1.0 / p.rubber_stiffness_n_per_m);
+        assert!((creeping.rest_length() - plain.rest_length() - stretch).abs() < 1e-12);
+        assert!((creeping.rubber_tension(0.0) - 4.5 * GRAVITY).abs() < 1e-9);
+        // At zero pressure only the rubber resists.
+        assert!((creeping.axial_stiffness(0.0, 0.01) - p.rubber_stiffness_n_per_m).abs() < 1e-6);
+        assert!(plain.axial_stiffness(2e5, 0.02) > p.rubber_stiffness_n_per_m + 1e3);
     }
 }

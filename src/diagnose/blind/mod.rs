@@ -115,6 +115,8 @@ pub fn found_size(r: Realisation, e: Effect, params: &[f64], at: Frame) -> Optio
         }),
         (CreepInput | CreepTwo, Effect::Creep) => Some(params[1]),
         (CreepInput | CreepTwo, Effect::TwoPoleCreep) => Some(params[2]),
+        // Three terms of gain κ each.
+        (CreepInput | CreepTwo, Effect::LogCreep) => Some(3.0 * params[1]),
         (CreepOutput, Effect::OutputCreep) => Some(params[1]),
         (DeadZone, Effect::Deadzone) => Some(params[0] - at.p_lo),
         (ViscousRate, Effect::Rate) => Some(params[0]),

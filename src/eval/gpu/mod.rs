@@ -18,7 +18,7 @@ use host::{Host, Kernel, Output, best_adapter};
 
 use super::{Evaluator, Problem, Scores, to_f32};
 use crate::model::Family;
-use crate::model::effects::{Context as EffectContext, Effect};
+use crate::model::effects::{Augmented, Context as EffectContext, Effect, Params};
 
 /// The bindings every pipeline of the host declares (`host::Host`), the
 /// muscle models' and the benchmark oscillator's (`benchmark::evaluator`).
@@ -58,7 +58,8 @@ pub fn shader_source(problem: &Problem, n_one: bool, residuals: bool) -> String 
 }
 
 /// The constants of `shaders/effects.wgsl`: which effects are present,
-/// where their parameters start in a row, and each experiment's constants
+/// the loader of their parameters ([`effect_params_loader`]), and each
+/// experiment's constants
 /// as [`crate::model::effects::Augmented::prepare`] rounds them to `f32`
 /// (written in Rust's shortest round-trip form, which the WGSL compiler
 /// reads back to the same bits).
@@ -67,13 +68,10 @@ fn effects_header(problem: &Problem) -> String {
     let mut h = String::new();
     for effect in Effect::ALL {
         let name = effect.ident();
-        let at = model.offset_of(effect);
-        h.push_str(&format!(
-            "const HAS_{name}: bool = {};\nconst AT_{name}: u32 = {}u;\n",
-            at.is_some(),
-            at.unwrap_or(0)
-        ));
+        let has = model.offset_of(effect).is_some();
+        h.push_str(&format!("const HAS_{name}: bool = {has};\n"));
     }
+    h.push_str(&effect_params_loader(&model));
     let n = problem.contexts.len();
     let array = |name: &str, ty: &str, values: Vec<String>| {
         format!(
@@ -103,6 +101,51 @@ fn effects_header(problem: &Problem) -> String {
         .collect();
     h.push_str(&array("DRIVES_UP", "bool", up));
     h
+}
+
+/// The WGSL that loads every realisation's parameters, generated from the
+/// catalogue (`Effect::params`): a struct `EffectParams` with a field
+/// `<realisation>_<parameter>` for every parameter of every realisation
+/// (`creep_two_pole_rho_fast`; a per-dataset parameter once, `load_g`,
+/// the experiment's own), and `load_effect_params(p, e)`, which fills the
+/// fields of `model`'s effects from row `p` on experiment `e` and leaves the
+/// others 0. `shaders/effects.wgsl` holds only each realisation's arithmetic.
+fn effect_params_loader(model: &Augmented) -> String {
+    let field = |e: Effect, param: &str| format!("{}_{param}", e.ident().to_ascii_lowercase());
+    let mut fields = String::new();
+    let mut loads = String::new();
+    for e in Effect::ALL {
+        let at = model.offset_of(e);
+        match e.entry().params {
+            Params::Fixed(list) => {
+                for (j, (name, _)) in list.iter().enumerate() {
+                    fields.push_str(&format!("    {}: f32,\n", field(e, name)));
+                    if let Some(at) = at {
+                        loads.push_str(&format!(
+                            "    q.{} = params[p + {}u];\n",
+                            field(e, name),
+                            at + j
+                        ));
+                    }
+                }
+            }
+            // Dataset 0 is the reference: its parameter is 0.
+            Params::PerLaterDataset { name, .. } => {
+                fields.push_str(&format!("    {}: f32,\n", field(e, name)));
+                if let Some(at) = at {
+                    loads.push_str(&format!(
+                        "    if (e >= 1u) {{\n        q.{} = params[p + {at}u + e - 1u];\n    }}\n",
+                        field(e, name)
+                    ));
+                }
+            }
+        }
+    }
+    format!(
+        "struct EffectParams {{\n{fields}}}\n\n\
+         fn load_effect_params(p: u32, e: u32) -> EffectParams {{\n    \
+         var q: EffectParams;\n{loads}    return q;\n}}\n"
+    )
 }
 
 /// Scores populations on a wgpu device.

@@ -10,100 +10,31 @@
 //! tests check it): a neutral effect adds `+0`, multiplies by `1`, or never
 //! binds.
 //!
-//! The catalogue (names, parameters, boxes, sizes) is here; the lane-wise
-//! step, [`Prepared::step`] in `step.rs`, is the one definition every
-//! backend follows (docs/ARCHITECTURE.md, "The model description"). (Over
-//! 700 lines: the catalogue of nineteen realisations is about 635; the rest
-//! are unit tests, which check every realisation's neutral value against the
-//! baseline bit for bit.)
+//! The catalogue (names, parameters, boxes, sizes, admission rules, start
+//! hints) is one entry per realisation in `catalogue.rs`, from which
+//! [`Effect`] is generated (`table.rs`); [`Effect`]'s methods here look the
+//! entry up. The lane-wise step, [`Prepared::step`] in `step.rs`, is the
+//! one definition every backend follows (docs/ARCHITECTURE.md, "The model
+//! description"). (Over 400 lines: the unit tests, which check every
+//! realisation's neutral value against the baseline bit for bit.)
 
 use std::fmt;
 use std::str::FromStr;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::model::Experiment;
 use crate::model::Family;
 
+mod catalogue;
 mod step;
+mod table;
+pub use catalogue::{Effect, rings};
 pub use step::{EffectState, Prepared};
+pub use table::{EffectBox, Params, StartHint};
 
-/// One unmodelled effect of the catalogue. Flags, JSON and reports use these
-/// names, so they are part of the interface.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum Effect {
-    /// Input transport delay: `u(k−1−d)` replaces `u(k−1)`; `d ≥ 0` samples,
-    /// fractional `d` interpolates linearly between neighbouring samples.
-    Delay,
-    /// Threshold `p0` (absolute input units) below which the muscle does not
-    /// respond: `p_eff = max(p − p0, 0)`.
-    Deadzone,
-    /// End stop: the output cannot pass `l_max` (absolute output units) in the
-    /// direction the input drives it (hard bound).
-    Saturation,
-    /// Loading and unloading differ: the input gain is `b·(1+ε)` on the rising
-    /// branch and `b·(1−ε)` on the falling one, i.e. `b_up`, `b_down`.
-    Asymmetry,
-    /// An extra pole (load mass, hose compliance): `x(k) += a2·(x(k−1) − x(k−2))`,
-    /// a second-order linear part with the same static gain.
-    Inertia,
-    /// Play of width `r` (input units) on the input (braid stick–slip).
-    Backlash,
-    /// A slow first-order state added to the output:
-    /// `z(k) = ρ·z(k−1) + (1−ρ)·κ·u(k−1)`, `ŷ = x + z`; `κ` is its static
-    /// gain (output per input unit), `ρ` its pole, `z(0) = z0` where the
-    /// record's history left it.
-    Creep,
-    /// Rate-dependent hysteresis: the Bouc-Wen stiffness grows with the input
-    /// rate, `A_eff = A·(1 + η·|u(k−1) − u(k−2)|/dt)`, so the loop widens with
-    /// rate; `η` in seconds per input unit.
-    Rate,
-    /// Parameters that depend on the hanging load: the input gain of dataset
-    /// `e ≥ 1` is `b·(1 + g_e)` on the absolute input (dataset 0 is the reference). Needs several datasets.
-    Load,
-    // Other realisations of the same physical effects (docs/DIAGNOSIS.md,
-    // "The effects catalogue"): each is named for its physical effect
-    // ([`Effect::physical`]) and says how it is realised.
-    /// Lag as a first-order lag on the input, `v = ρ·v + (1−ρ)·p` (pressure
-    /// reaching the muscle through the hose); mean delay `ρ/(1−ρ)` samples.
-    InputLag,
-    /// Lag as a first-order lag on the measured output, `ŷ ← ρ·ŷ(k−1) +
-    /// (1−ρ)·ŷ` (a slow sensor).
-    OutputLag,
-    /// Inertia as a second-order mode of the hanging load on the output,
-    /// `q = a1·q(k−1) − a2·q(k−2) + (1 − a1 + a2)·ŷ`, unit static gain:
-    /// underdamped (ringing) when `a1² < 4·a2`, with pole radius `√a2` and
-    /// angle `acos(a1/(2√a2))` per sample.
-    LoadMode,
-    /// Asymmetry in time constant: the input passes at once on one branch
-    /// and through a first-order lag `|ρ|` on the other (`ρ > 0`: drains
-    /// slower than it fills; `ρ < 0`: fills slower).
-    DrainLag,
-    /// End stop on the measured output only (the state runs on).
-    OutputClip,
-    /// End stop as a smooth knee: a quadratic blend into `l_max` over a
-    /// fixed half-width of 2.5 % of the output range on each side.
-    SoftStop,
-    /// Creep driven by the muscle's output: `z = ρ·z + (1−ρ)·κ·x`,
-    /// `ŷ = x + z`; `κ` per output unit; `z(0) = z0`.
-    OutputCreep,
-    /// Creep with two time constants: two input-driven slow states, a
-    /// faster and a slower one, two terms of a Prony series: gains `s·κ`
-    /// and `(1−s)·κ` of one sign; the slower starts at `z0`.
-    TwoPoleCreep,
-    /// Hysteretic threshold: the muscle starts to contract when the input
-    /// passes `p_on` and lets go below `p_off = p_on − gap`; while off it
-    /// rests where the lowest input recorded leaves it (it sees that input).
-    OnOffThreshold,
-    /// Inertia as the hanging load ringing after each input step, on top of
-    /// a muscle that follows the force quasi-statically: a mode excited by
-    /// the input's change, `r = a1·r(k−1) − a2·r(k−2) + g·(u(k−1) − u(k−2))`,
-    /// `ŷ = x + r`. Unlike [`Effect::LoadMode`], it rings however slowly the
-    /// baseline's own output moves (a real muscle's force follows the
-    /// pressure at once while the baseline's slow pole describes creep of
-    /// the rubber: measured on the Cavatappi muscle, docs/lab/diagnosis.md).
-    Ringing,
-}
+/// One entry of the catalogue ([`Effect::entry`]).
+pub type Realisation = table::Realisation<Effect>;
 
 /// Name and meaning of one effect parameter.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -113,117 +44,23 @@ pub struct EffectParam {
 }
 
 impl Effect {
-    /// The whole catalogue, in the order reports list it.
-    pub const ALL: [Effect; 19] = [
-        Effect::Delay,
-        Effect::Deadzone,
-        Effect::Saturation,
-        Effect::Asymmetry,
-        Effect::Inertia,
-        Effect::Backlash,
-        Effect::Creep,
-        Effect::Rate,
-        Effect::Load,
-        Effect::InputLag,
-        Effect::OutputLag,
-        Effect::LoadMode,
-        Effect::DrainLag,
-        Effect::OutputClip,
-        Effect::SoftStop,
-        Effect::OutputCreep,
-        Effect::TwoPoleCreep,
-        Effect::OnOffThreshold,
-        Effect::Ringing,
-    ];
-
-    /// The physical effects: the catalogue's first realisation of each, the
-    /// first nine of [`Effect::ALL`].
-    pub const PHYSICAL: &'static [Effect] = Effect::ALL.split_at(9).0;
-
-    /// The physical effect this realises (one of the nine of
-    /// [`Effect::PHYSICAL`], whose names flags, reports and the self-tests'
-    /// confusion tables use): the first realisation of each is the physical
-    /// effect itself.
+    /// The physical effect this realises (one of [`Effect::PHYSICAL`],
+    /// whose names flags, reports and the self-tests' confusion tables
+    /// use): the first realisation of each is the physical effect itself.
     pub fn physical(self) -> Effect {
-        match self {
-            Effect::InputLag | Effect::OutputLag => Effect::Delay,
-            Effect::LoadMode | Effect::Ringing => Effect::Inertia,
-            Effect::DrainLag => Effect::Asymmetry,
-            Effect::OutputClip | Effect::SoftStop => Effect::Saturation,
-            Effect::OutputCreep | Effect::TwoPoleCreep => Effect::Creep,
-            Effect::OnOffThreshold => Effect::Deadzone,
-            e => e,
-        }
+        self.entry().physical.unwrap_or(self)
     }
 
     /// How the physical effect is realised, for reports.
     pub fn realisation(self) -> &'static str {
-        match self {
-            Effect::Delay => "pure delay",
-            Effect::Deadzone => "input dead zone",
-            Effect::Saturation => "state clip",
-            Effect::Asymmetry => "in gain",
-            Effect::Inertia => "extra real pole",
-            Effect::Backlash => "play on the input",
-            Effect::Creep => "driven by the input",
-            Effect::Rate => "stiffness grows with input rate",
-            Effect::Load => "input gain per dataset",
-            Effect::InputLag => "first-order lag on the input",
-            Effect::OutputLag => "first-order lag on the output",
-            Effect::LoadMode => "second-order load mode",
-            Effect::DrainLag => "in time constant (fill vs drain)",
-            Effect::OutputClip => "output clip",
-            Effect::SoftStop => "soft limit",
-            Effect::OutputCreep => "driven by the output",
-            Effect::TwoPoleCreep => "two time constants",
-            Effect::OnOffThreshold => "hysteretic threshold (on/off)",
-            Effect::Ringing => "load rings after input steps",
-        }
+        self.entry().realisation
     }
 
     /// The realisation's size in words a person reads, where its parameters
     /// do not say it directly (`params`: the effect's own, `dt` the sample
     /// time): a lag's time constant, a mode's frequency and damping.
     pub fn size_text(self, params: &[f64], dt: f64) -> Option<String> {
-        let samples = |rho: f64| {
-            let tau = rho / (1.0 - rho);
-            format!("{tau:.1} samples ({:.0} ms)", 1000.0 * tau * dt)
-        };
-        match self {
-            Effect::Delay => Some(format!(
-                "{:.1} samples ({:.0} ms)",
-                params[0],
-                1000.0 * params[0] * dt
-            )),
-            Effect::InputLag | Effect::OutputLag => {
-                Some(format!("time constant {}", samples(params[0])))
-            }
-            Effect::DrainLag => Some(format!(
-                "{} time constant {}",
-                if params[0] >= 0.0 { "drain" } else { "fill" },
-                samples(params[0].abs())
-            )),
-            Effect::LoadMode | Effect::Ringing => {
-                let (a1, a2) = (params[0], params[1]);
-                if a2 > 0.0 && a1 * a1 < 4.0 * a2 {
-                    let r = a2.sqrt();
-                    let theta = (a1 / (2.0 * r)).acos();
-                    let zeta = -r.ln() / (r.ln().powi(2) + theta * theta).sqrt();
-                    Some(format!(
-                        "rings at {:.2} Hz, damping ratio {zeta:.2}",
-                        theta / (2.0 * std::f64::consts::PI * dt)
-                    ))
-                } else {
-                    let root = (a1 * a1 - 4.0 * a2).max(0.0).sqrt();
-                    Some(format!(
-                        "no ringing: real poles {:.3} and {:.3}",
-                        0.5 * (a1 + root),
-                        0.5 * (a1 - root)
-                    ))
-                }
-            }
-            _ => None,
-        }
+        self.entry().size_text.map(|text| text(params, dt))
     }
 
     /// The name as a WGSL identifier (`shaders/effects.wgsl`'s `HAS_*`).
@@ -231,125 +68,32 @@ impl Effect {
         self.name().replace([':', '-'], "_").to_ascii_uppercase()
     }
 
+    /// Its flag and JSON name.
     pub fn name(self) -> &'static str {
-        match self {
-            Effect::Delay => "delay",
-            Effect::Deadzone => "deadzone",
-            Effect::Saturation => "saturation",
-            Effect::Asymmetry => "asymmetry",
-            Effect::Inertia => "inertia",
-            Effect::Backlash => "backlash",
-            Effect::Creep => "creep",
-            Effect::Rate => "rate",
-            Effect::Load => "load",
-            Effect::InputLag => "delay:input-lag",
-            Effect::OutputLag => "delay:output-lag",
-            Effect::LoadMode => "inertia:mode",
-            Effect::DrainLag => "asymmetry:drain",
-            Effect::OutputClip => "saturation:output",
-            Effect::SoftStop => "saturation:soft",
-            Effect::OutputCreep => "creep:output",
-            Effect::TwoPoleCreep => "creep:two-pole",
-            Effect::OnOffThreshold => "deadzone:on-off",
-            Effect::Ringing => "inertia:ringing",
-        }
+        self.entry().name
     }
 
     /// Whether the effect can be fitted on `datasets` datasets (`load` needs two).
     pub fn applicable(self, datasets: usize) -> bool {
-        self != Effect::Load || datasets >= 2
+        datasets >= self.entry().min_datasets
     }
 
     /// Parameters of the effect for `datasets` datasets, in vector order.
     pub fn params(self, datasets: usize) -> Vec<EffectParam> {
-        let p = |name: &str, meaning| EffectParam {
-            name: name.into(),
-            meaning,
-        };
-        match self {
-            Effect::Delay => vec![p("d", "input delay (samples)")],
-            Effect::Deadzone => vec![p("p0", "input threshold (absolute input units)")],
-            Effect::Saturation => vec![p("l_max", "output end stop (absolute output units)")],
-            Effect::Asymmetry => vec![p(
-                "eps",
-                "gain asymmetry: b_up = b·(1+eps), b_down = b·(1−eps)",
-            )],
-            Effect::Inertia => vec![p("a2", "weight of x(k−1) − x(k−2): the extra pole")],
-            Effect::Backlash => vec![p("r", "play width (input units)")],
-            Effect::Creep => vec![
-                p("rho", "pole of the slow state (close to 1)"),
-                p(
-                    "kappa",
-                    "static gain of the slow state (output per input unit)",
-                ),
-                p(
-                    "z0",
-                    "the slow state at the first sample (output units): where the record's history left it",
-                ),
-            ],
-            Effect::Rate => vec![p("eta", "growth of A with input rate (s per input unit)")],
-            Effect::Load => (1..datasets.max(1))
-                .map(|e| EffectParam {
-                    name: format!("g{e}"),
-                    meaning: "relative input gain of this dataset against dataset 0",
+        match self.entry().params {
+            Params::Fixed(list) => list
+                .iter()
+                .map(|&(name, meaning)| EffectParam {
+                    name: name.into(),
+                    meaning,
                 })
                 .collect(),
-            Effect::InputLag | Effect::OutputLag => {
-                vec![p("rho", "pole of the lag (mean delay rho/(1−rho) samples)")]
-            }
-            Effect::LoadMode => vec![
-                p("a1", "first coefficient of the mode: 2·r·cos θ"),
-                p(
-                    "a2",
-                    "second coefficient of the mode: r², the pole radius squared",
-                ),
-            ],
-            Effect::DrainLag => vec![p(
-                "rho",
-                "pole of the slow branch: > 0 drains slower, < 0 fills slower",
-            )],
-            Effect::OutputClip | Effect::SoftStop => {
-                vec![p("l_max", "output end stop (absolute output units)")]
-            }
-            Effect::OutputCreep => vec![
-                p("rho", "pole of the slow state (close to 1)"),
-                p("kappa", "static gain of the slow state (per output unit)"),
-                p(
-                    "z0",
-                    "the slow state at the first sample (output units): where the record's history left it",
-                ),
-            ],
-            Effect::TwoPoleCreep => vec![
-                p("rho_fast", "pole of the faster slow state"),
-                p("rho_slow", "pole of the slower slow state"),
-                p(
-                    "kappa",
-                    "static gain of both together (output per input unit)",
-                ),
-                p("fast_share", "the faster state's share of kappa, in [0, 1]"),
-                p(
-                    "z0",
-                    "the slower state at the first sample (output units): where the record's history left it",
-                ),
-            ],
-            Effect::OnOffThreshold => vec![
-                p(
-                    "p_on",
-                    "input above which the muscle contracts (absolute input units)",
-                ),
-                p(
-                    "gap",
-                    "p_on − p_off, the input it lets go below (input units)",
-                ),
-            ],
-            Effect::Ringing => vec![
-                p("a1", "first coefficient of the mode: 2·r·cos θ"),
-                p(
-                    "a2",
-                    "second coefficient of the mode: r², the pole radius squared",
-                ),
-                p("g", "kick of an input step (output per input unit)"),
-            ],
+            Params::PerLaterDataset { name, meaning } => (1..datasets.max(1))
+                .map(|e| EffectParam {
+                    name: format!("{name}{e}"),
+                    meaning,
+                })
+                .collect(),
         }
     }
 
@@ -360,49 +104,43 @@ impl Effect {
     /// Index (within the effect's parameters) of the one that measures its
     /// size, which the self-test recovers.
     pub fn primary(self) -> usize {
-        match self {
-            Effect::Creep | Effect::OutputCreep | Effect::LoadMode => 1,
-            Effect::TwoPoleCreep => 2,
-            Effect::Ringing => 2,
-            _ => 0,
-        }
+        self.entry().primary
     }
 
     /// The residual signature that points to this effect, for the report.
     pub fn signature(self) -> &'static str {
-        match self {
-            Effect::Delay => {
-                "residual–input cross-correlation peaks at a positive lag; energy right after each input step"
-            }
-            Effect::Deadzone => "residual energy concentrated in the lowest input band",
-            Effect::Saturation => "residual energy concentrated in the highest input band",
-            Effect::Asymmetry => "rising and falling branches carry unequal residual energy",
-            Effect::Inertia => {
-                "energy in the transient after steps (overshoot or sluggish rise), mid frequencies"
-            }
-            Effect::Backlash => "residual right after input reversals; loop too narrow",
-            Effect::Creep => "low-frequency residual that drifts while the input is steady",
-            Effect::Rate => {
-                "residual grows with input rate: rising/falling branches, high frequencies"
-            }
-            Effect::Load => "one dataset (load) carries most of the residual energy",
-            Effect::InputLag | Effect::OutputLag => {
-                "residual–input cross-correlation over a spread of positive lags; rounded steps"
-            }
-            Effect::LoadMode | Effect::Ringing => {
-                "a peak in the residual spectrum: ringing after each input step"
-            }
-            Effect::DrainLag => "falling branches carry more residual energy, later in the step",
-            Effect::OutputClip | Effect::SoftStop => {
-                "residual energy concentrated in the highest input band"
-            }
-            Effect::OutputCreep | Effect::TwoPoleCreep => {
-                "low-frequency residual that drifts while the input is steady"
-            }
-            Effect::OnOffThreshold => {
-                "residual in the lowest input band, unlike on rising and falling branches"
-            }
-        }
+        self.entry().signature
+    }
+
+    /// Whether the diagnosis admits the effect's parameters `params` (its
+    /// own, in vector order): a ringing must ring.
+    pub fn admits(self, params: &[f64]) -> bool {
+        self.entry().admits.is_none_or(|admits| admits(params))
+    }
+
+    /// Where the diagnosis starts its fit beyond the uniform draws.
+    pub fn hint(self) -> StartHint {
+        self.entry().hint
+    }
+
+    /// The catalogue for a flag's help: every realisation, grouped by the
+    /// physical effect it realises, and which need several datasets.
+    pub fn help_list() -> String {
+        let names: Vec<&str> = Effect::PHYSICAL
+            .iter()
+            .flat_map(|&p| Effect::ALL.into_iter().filter(move |e| e.physical() == p))
+            .map(Effect::name)
+            .collect();
+        let several: Vec<String> = Effect::ALL
+            .into_iter()
+            .filter(|e| !e.applicable(1))
+            .map(|e| format!("`{e}`"))
+            .collect();
+        format!(
+            "{}; {} only applies with several DATA files, e.g. one per hanging load",
+            names.join(", "),
+            several.join(", ")
+        )
     }
 }
 
@@ -435,7 +173,7 @@ impl FromStr for Effect {
 
 /// What an effect needs to know about one dataset: its deviation offsets,
 /// sample time, and the scales the parameter bounds derive from.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Context {
     /// Input mean `ū` removed from the data (absolute = deviation + `ū`).
     pub u_mean: f64,
@@ -513,104 +251,8 @@ impl Context {
 /// Neutral value and search bounds of each parameter of `effect`, from the
 /// context of the first dataset. The neutral value always lies in the box (an
 /// augmented fit can always fall back on the baseline).
-pub fn effect_box(
-    effect: Effect,
-    ctx: &Context,
-    datasets: usize,
-) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let (ru, ry) = (ctx.input_range(), ctx.output_range());
-    match effect {
-        Effect::Delay => (vec![0.0], vec![0.0], vec![30.0]),
-        Effect::Deadzone => {
-            let lo = ctx.input_min.min(0.0);
-            (vec![0.0], vec![lo], vec![ctx.input_min.max(0.0) + 0.6 * ru])
-        }
-        Effect::Saturation => {
-            // An end stop sits near the largest output recorded: the box is
-            // from 40 % of the range below it to 5 % beyond it, where a model
-            // that follows the data never reaches it (the neutral edge).
-            if ctx.drives_up {
-                let far = ctx.output_max + 0.05 * ry;
-                (vec![far], vec![ctx.output_max - 0.4 * ry], vec![far])
-            } else {
-                let far = ctx.output_min - 0.05 * ry;
-                (vec![far], vec![far], vec![ctx.output_min + 0.4 * ry])
-            }
-        }
-        Effect::Asymmetry => (vec![0.0], vec![-0.5], vec![0.5]),
-        Effect::Inertia => (vec![0.0], vec![-0.5], vec![0.9]),
-        Effect::Backlash => (vec![0.0], vec![0.0], vec![0.5 * ru]),
-        // A creep's slow state starts where the record's history left it,
-        // `z0`, anywhere within the output range: a state at rest in some
-        // other frame (the deviation coordinates of another record, or
-        // absolute units) starts a transient that neither `x0` nor the
-        // intercept can take (measured on the independent self-test's
-        // output-driven creep on the multisine, docs/lab/diagnosis.md).
-        Effect::Creep => {
-            let g = 2.0 * ry / ru;
-            (
-                vec![0.995, 0.0, 0.0],
-                vec![0.98, -g, -ry],
-                vec![0.9995, g, ry],
-            )
-        }
-        Effect::Rate => {
-            let v = (ctx.max_step / ctx.dt).max(f64::MIN_POSITIVE);
-            (vec![0.0], vec![-0.9 / v], vec![10.0 / v])
-        }
-        Effect::Load => {
-            let k = effect.dim(datasets);
-            (vec![0.0; k], vec![-0.5; k], vec![0.5; k])
-        }
-        // A pole of 0.97 is a mean delay of about 32 samples, the pure
-        // delay's 30.
-        Effect::InputLag | Effect::OutputLag => (vec![0.0], vec![0.0], vec![0.97]),
-        // Every stable mode lies in a2 < 1, |a1| < 1 + a2.
-        Effect::LoadMode => (vec![0.0, 0.0], vec![-1.9, 0.0], vec![1.98, 0.98]),
-        // A kick of g·Δu rings at most about 1/sin θ times higher; a whole
-        // input range's step then spans the output range at θ ≈ 1 rad.
-        // Neutral at any mode without a kick; this mode rings (the
-        // diagnosis admits only ringing ones: `diagnose::Data::admits`).
-        Effect::Ringing => {
-            let g = ry / ru;
-            (
-                vec![0.0, 0.5, 0.0],
-                vec![-1.9, 0.0, -g],
-                vec![1.98, 0.98, g],
-            )
-        }
-        Effect::DrainLag => (vec![0.0], vec![-0.97], vec![0.97]),
-        Effect::OutputClip | Effect::SoftStop => effect_box(Effect::Saturation, ctx, datasets),
-        Effect::OutputCreep => (
-            vec![0.995, 0.0, 0.0],
-            vec![0.98, -0.5, -ry],
-            vec![0.9995, 0.5, ry],
-        ),
-        // Two terms of a Prony series: a passive material creeps the same
-        // way at every time scale, so the two gains share a sign (a total
-        // and the faster state's share of it). With gains of either sign
-        // the pair is a band-pass of the input, not creep: on the twin's
-        // stair, which has no creep, gains of −118 and +125 were named
-        // first (docs/lab/diagnosis.md). The faster state forgets its start
-        // within a few hundred samples; the slower one gets `z0`.
-        Effect::TwoPoleCreep => {
-            let g = 2.0 * ry / ru;
-            (
-                vec![0.98, 0.999, 0.0, 0.5, 0.0],
-                vec![0.9, 0.995, -g, 0.0, -ry],
-                vec![0.995, 0.9999, g, 1.0, ry],
-            )
-        }
-        Effect::OnOffThreshold => {
-            // Neutral: on below every input, so the muscle is always on.
-            let never = ctx.input_min.min(0.0) - 0.05 * ru;
-            (
-                vec![never, 0.0],
-                vec![never, 0.0],
-                vec![ctx.input_min.max(0.0) + 0.6 * ru, 0.3 * ru],
-            )
-        }
-    }
+pub fn effect_box(effect: Effect, ctx: &Context, datasets: usize) -> EffectBox {
+    (effect.entry().bounds)(ctx, datasets)
 }
 
 /// A baseline family plus effects: the model a candidate of the diagnosis is.
@@ -664,6 +306,18 @@ impl Augmented {
             );
         }
         names
+    }
+
+    /// Whether every effect's parameters in `theta` (the whole vector) are
+    /// ones the fits admit, each by its own rule ([`Effect::admits`]: a
+    /// ringing must ring).
+    pub fn effects_admit(&self, theta: &[f64]) -> bool {
+        let mut at = self.family.dim();
+        self.effects.iter().all(|e| {
+            let dim = e.dim(self.datasets);
+            at += dim;
+            e.admits(&theta[at - dim..at])
+        })
     }
 
     /// This model with one more effect.
@@ -843,6 +497,7 @@ mod tests {
             (Effect::Creep, 0),
             (Effect::OutputCreep, 0),
             (Effect::TwoPoleCreep, 1),
+            (Effect::LogCreep, 0),
         ] {
             let model = Augmented::new(fam, vec![effect], 1);
             let mut theta = neutral_vector(&model, &base, &ctx);
@@ -886,6 +541,41 @@ mod tests {
                 "share {share}: {settled}"
             );
         }
+    }
+
+    /// The log-time creep after an input step: about `κ·Δu` more for each
+    /// decade of time between its fastest and slowest time constants, and
+    /// `3·κ·Δu` in all once the slowest has settled.
+    #[test]
+    fn the_log_creep_creeps_a_gain_per_decade() {
+        let mut exp = experiment();
+        exp.u = vec![0.5; 20_000];
+        exp.y = vec![0.0; 20_000];
+        let ctx = Context::of(&exp, true);
+        let fam = Family::Linear;
+        let base = thesis_params(fam);
+        let model = Augmented::new(fam, vec![Effect::LogCreep], 1);
+        let neutral = neutral_vector(&model, &base, &ctx);
+        let reference = model.simulate(&neutral, 0, &ctx, &exp);
+        let mut theta = neutral.clone();
+        let at = fam.dim();
+        // Time constants of 20, 200 and 2 000 samples.
+        theta[at..at + 2].copy_from_slice(&[0.9995, 2.0]);
+        let y = model.simulate(&theta, 0, &ctx, &exp);
+        let creep = |k: usize| (y[k] - reference[k]) as f64;
+        let per_decade = 2.0 * 0.5;
+        for (from, to) in [(20, 200), (200, 2000)] {
+            let grown = creep(to) - creep(from);
+            assert!(
+                (0.8..1.1).contains(&(grown / per_decade)),
+                "{from} to {to}: {grown}"
+            );
+        }
+        assert!(
+            (creep(19_999) - 3.0 * per_decade).abs() < 1e-3,
+            "{}",
+            creep(19_999)
+        );
     }
 
     #[test]

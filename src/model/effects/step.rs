@@ -3,8 +3,8 @@
 //! CPU batch path and `shaders/effects.wgsl` follow, and the simulations and
 //! sums of squared errors built on it.
 //!
-//! (Over 700 lines: the step holds a stage for each of the nineteen
-//! realisations in one function, so that the lanes' values stay in
+//! (Over 700 lines: the step holds a stage for each realisation of the
+//! catalogue in one function, so that the lanes' values stay in
 //! registers from stage to stage; the runs and sums on it follow.)
 
 use super::{Augmented, Context, Effect};
@@ -69,6 +69,10 @@ pub struct Prepared<const L: usize> {
     soft_stop: Option<[f32; L]>,
     output_creep: Option<([f32; L], [f32; L])>,
     two_pole_creep: Option<[[f32; L]; 4]>,
+    /// The log-time creep's poles and input weights `(1 − ρ)·κ`, fastest
+    /// first, and its slowest term's start.
+    log_creep: Option<[[f32; L]; 6]>,
+    z0_log: [f32; L],
     /// The hysteretic threshold's `p_on` and `p_off` in deviation
     /// coordinates.
     on_off: Option<([f32; L], [f32; L])>,
@@ -114,6 +118,10 @@ pub struct EffectState<const L: usize> {
     z_out: [f32; L],
     z_fast: [f32; L],
     z_slow: [f32; L],
+    /// The log-time creep's terms, fastest first.
+    log_fast: [f32; L],
+    log_mid: [f32; L],
+    log_slow: [f32; L],
     /// 1 while the hysteretic threshold is on, else 0.
     on: [f32; L],
     /// The ringing at the sample before and the one before that.
@@ -161,6 +169,15 @@ fn soft_stop(x: f32, bound: f32, knee: [f32; 3]) -> f32 {
     } else {
         bent
     }
+}
+
+/// `ρ^10` by products (`ρ²`, `ρ⁴`, `ρ⁸·ρ²`), spelled as in the shader: a
+/// pole whose time constant is a tenth of `ρ`'s.
+#[inline(always)]
+fn tenth_power(rho: f32) -> f32 {
+    let p2 = rho * rho;
+    let p4 = p2 * p2;
+    (p4 * p4) * p2
 }
 
 /// A delay of `d ≥ 0` samples as whole samples and the fraction of a sample
@@ -227,6 +244,9 @@ impl<const L: usize> Prepared<L> {
             z_out: self.z0_out,
             z_fast: [0.0; L],
             z_slow: self.z0_slow,
+            log_fast: [0.0; L],
+            log_mid: [0.0; L],
+            log_slow: self.z0_log,
             on: [0.0; L],
             ring1: [0.0; L],
             ring2: [0.0; L],
@@ -371,8 +391,9 @@ impl<const L: usize> Prepared<L> {
         self.hysteresis(s, &xk, &a_eff);
         s.x_prev2 = s.x;
         s.x = xk;
-        // Output side: the creeps' slow states, the ringing, the load mode,
-        // the output clip and the output lag, a loop each.
+        // Output side: the creeps' slow states (input-driven, output-driven,
+        // two-pole, log-time), the ringing, the load mode, the output clip
+        // and the output lag, a loop each.
         let mut y = xk;
         if let Some((rho, kappa)) = &self.creep {
             for l in 0..L {
@@ -392,6 +413,16 @@ impl<const L: usize> Prepared<L> {
                 s.z_slow[l] = (rs[l] * s.z_slow[l]) + (((1.0 - rs[l]) * ks[l]) * ui[l]);
                 y[l] += s.z_fast[l];
                 y[l] += s.z_slow[l];
+            }
+        }
+        if let Some([rf, wf, rm, wm, rs, ws]) = &self.log_creep {
+            for l in 0..L {
+                s.log_fast[l] = (rf[l] * s.log_fast[l]) + (wf[l] * ui[l]);
+                s.log_mid[l] = (rm[l] * s.log_mid[l]) + (wm[l] * ui[l]);
+                s.log_slow[l] = (rs[l] * s.log_slow[l]) + (ws[l] * ui[l]);
+                y[l] += s.log_fast[l];
+                y[l] += s.log_mid[l];
+                y[l] += s.log_slow[l];
             }
         }
         if let Some((a1, a2, kick)) = &self.ringing {
@@ -465,14 +496,15 @@ impl<const L: usize> Prepared<L> {
     }
 
     /// A restart of the prediction to the measurement `y`: the output state
-    /// takes `y` less the creeps and the ringing, and the Bouc-Wen state the jump's elastic
+    /// takes `y` less the creeps' states and the ringing, and the Bouc-Wen state the jump's elastic
     /// part, as the baseline's ([`crate::model::sim::Stepper::restart`]);
     /// the load mode and the output lag restart at `y`; the other effects'
     /// states run on.
     #[inline(always)]
     pub fn restart(&self, s: &mut EffectState<L>, y: f32) {
         for l in 0..L {
-            let x = ((((y - s.z[l]) - s.z_out[l]) - s.z_fast[l]) - s.z_slow[l]) - s.ring1[l];
+            let creeps = (((y - s.z[l]) - s.z_out[l]) - s.z_fast[l]) - s.z_slow[l];
+            let x = (((creeps - s.log_fast[l]) - s.log_mid[l]) - s.log_slow[l]) - s.ring1[l];
             s.w[l] = restart_w(self.big_a[l], s.w[l], s.x[l], x);
             s.x[l] = x;
             s.lag_out[l] = y;
@@ -542,6 +574,8 @@ impl Augmented {
             soft_stop: None,
             output_creep: None,
             two_pole_creep: None,
+            log_creep: None,
+            z0_log: [0.0; L],
             on_off: None,
             ringing: None,
             knee: ctx.knee(),
@@ -602,6 +636,15 @@ impl Augmented {
                     p.on_off = Some((on, std::array::from_fn(|l| on[l] - gap[l])));
                 }
                 Effect::Ringing => p.ringing = Some((v, col(at + 1), col(at + 2))),
+                Effect::LogCreep => {
+                    // Poles a decade apart in time constant: ρ^100, ρ^10, ρ.
+                    let mid = v.map(tenth_power);
+                    let fast = mid.map(tenth_power);
+                    let kappa = col(at + 1);
+                    let weight = |rho: [f32; L]| std::array::from_fn(|l| (1.0 - rho[l]) * kappa[l]);
+                    p.log_creep = Some([fast, weight(fast), mid, weight(mid), v, weight(v)]);
+                    p.z0_log = col(at + 2);
+                }
             }
             at += dim;
         }

@@ -378,7 +378,7 @@ impl<'a> Study<'a> {
                     val_rmse: finite(val.rmse),
                 });
                 if flow == Flow::Joint {
-                    joint.push(t.model(&params));
+                    joint.push(t.model(&params).base);
                 }
             }
         }
@@ -409,7 +409,7 @@ impl<'a> Study<'a> {
             let family = task.family;
             progress(format!("cross-load: {family}"));
             let (_, params) = self.fitter.staged(task, Algorithm::De, n, g, 1)?;
-            let back = task.model(&params);
+            let back = task.model(&params).base;
             for (model, from, on) in [
                 (here, self.trace, other),
                 (&back, other, self.trace),

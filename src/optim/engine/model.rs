@@ -86,6 +86,21 @@ impl<'a> ModelObjective<'a> {
     }
 }
 
+impl ModelObjective<'_> {
+    /// Which rows' effect parameters the fits admit (all, without effects):
+    /// the diagnosis' rule ([`crate::model::effects::Augmented::effects_admit`]).
+    fn effects_admit(&self, rows: &[f64]) -> Vec<bool> {
+        let d = self.problem.dim().max(1);
+        if self.problem.effects.is_empty() {
+            return vec![true; rows.len() / d];
+        }
+        let model = self.problem.model();
+        rows.chunks_exact(d)
+            .map(|row| model.effects_admit(row))
+            .collect()
+    }
+}
+
 impl Objective for ModelObjective<'_> {
     fn describe(&self) -> String {
         self.evaluator.describe()
@@ -94,6 +109,11 @@ impl Objective for ModelObjective<'_> {
     fn costs(&mut self, rows: &[f64], measure: Measure) -> anyhow::Result<Vec<f32>> {
         self.problem.measure = measure;
         let mut costs = self.evaluator.evaluate(&self.problem, rows)?.total;
+        for (c, ok) in costs.iter_mut().zip(self.effects_admit(rows)) {
+            if !ok {
+                *c = f32::INFINITY;
+            }
+        }
         if measure == Measure::FreeRun && self.stress.is_some() {
             let finite: Vec<bool> = costs.iter().map(|c| c.is_finite()).collect();
             let bounded = self.bounded(rows, &finite)?;
@@ -118,6 +138,11 @@ impl Objective for ModelObjective<'_> {
             .into_iter()
             .map(|r| r.map(|r| DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64))))
             .collect();
+        for (r, ok) in residuals.iter_mut().zip(self.effects_admit(rows)) {
+            if !ok {
+                *r = None;
+            }
+        }
         if measure == Measure::FreeRun && self.stress.is_some() {
             let finite: Vec<bool> = residuals.iter().map(Option::is_some).collect();
             let bounded = self.bounded(rows, &finite)?;

@@ -100,6 +100,30 @@ impl Space {
         rows
     }
 
+    /// `count` canonical rows around the canonical `center`: the center
+    /// itself, then draws within 2 % of the box's width of it on each free
+    /// coordinate (within a factor 10^±0.2 on those that span decades),
+    /// clamped into the box. A warm start's first population: the basin it
+    /// starts in, not the whole box.
+    pub fn around(&self, center: &[f64], count: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
+        let free = self.free();
+        let z0 = self.project(center);
+        let mut rows = Vec::with_capacity(count * free.len());
+        for r in 0..count {
+            for (k, &i) in free.iter().enumerate() {
+                let (lo, hi) = (self.lower[i], self.upper[i]);
+                let step = 2.0 * rng.random::<f64>() - 1.0;
+                let v = match (r, self.decades[i] && z0[k] != 0.0) {
+                    (0, _) => z0[k],
+                    (_, true) => z0[k] * 10f64.powf(0.2 * step),
+                    (_, false) => z0[k] + 0.02 * (hi - lo) * step,
+                };
+                rows.push(v.clamp(lo, hi));
+            }
+        }
+        self.embed(&rows)
+    }
+
     pub fn dim(&self) -> usize {
         self.lower.len()
     }
@@ -226,6 +250,27 @@ mod tests {
         assert_eq!(back[1], 1.0);
         assert_eq!(back, theta);
         assert_eq!(space.bounds().lower, vec![0.0, -0.5]);
+    }
+
+    #[test]
+    fn a_warm_start_cloud_starts_at_its_center_and_stays_near_it() {
+        use rand::SeedableRng;
+        let space = Space::new(
+            vec![0.0, 1.0, 0.0],
+            vec![10.0, 1.0, 1000.0],
+            vec!["x".into(), "n".into(), "shape".into()],
+        )
+        .with_decades([2]);
+        let center = [4.0, 1.0, 0.5];
+        let rows = space.around(&center, 50, &mut ChaCha8Rng::seed_from_u64(7));
+        assert_eq!(rows.len(), 150);
+        assert_eq!(&rows[..3], &center);
+        for row in rows.chunks(3) {
+            assert!((row[0] - 4.0).abs() <= 0.2, "{row:?}");
+            assert_eq!(row[1], 1.0);
+            assert!((0.5 / 1.6..=0.5 * 1.6).contains(&row[2]), "{row:?}");
+        }
+        assert!(rows.chunks(3).skip(1).all(|r| r != center));
     }
 
     #[test]

@@ -1,0 +1,502 @@
+//! The catalogue: one entry per realisation (docs/DIAGNOSIS.md, "The
+//! effects catalogue"), from which [`Effect`] and everything asked of it
+//! are generated or looked up (`table.rs`). A realisation's step is in
+//! `step.rs` (CPU) and `shaders/effects.wgsl` (GPU), two twins that the
+//! bit-identity tests keep equal.
+//!
+//! (Over 400 lines: twenty entries of about twenty lines each, the rest
+//! the helpers their sizes and admission rules share.)
+
+use super::Realisation;
+use super::table::{Params, StartHint, catalogue};
+
+catalogue! {
+    physical {
+        /// Input transport delay: `u(k−1−d)` replaces `u(k−1)`; `d ≥ 0` samples,
+        /// fractional `d` interpolates linearly between neighbouring samples.
+        Delay => Realisation {
+            name: "delay",
+            physical: None,
+            realisation: "pure delay",
+            signature: "residual–input cross-correlation peaks at a positive lag; energy right after each input step",
+            params: Params::Fixed(&[("d", "input delay (samples)")]),
+            primary: 0,
+            bounds: |_, _| (vec![0.0], vec![0.0], vec![30.0]),
+            size_text: Some(|p, dt| format!("{:.1} samples ({:.0} ms)", p[0], 1000.0 * p[0] * dt)),
+            ..PLAIN
+        },
+        /// Threshold `p0` (absolute input units) below which the muscle does not
+        /// respond: `p_eff = max(p − p0, 0)`.
+        Deadzone => Realisation {
+            name: "deadzone",
+            physical: None,
+            realisation: "input dead zone",
+            signature: "residual energy concentrated in the lowest input band",
+            params: Params::Fixed(&[("p0", "input threshold (absolute input units)")]),
+            primary: 0,
+            bounds: |ctx, _| {
+                let lo = ctx.input_min.min(0.0);
+                (vec![0.0], vec![lo], vec![ctx.input_min.max(0.0) + 0.6 * ctx.input_range()])
+            },
+            ..PLAIN
+        },
+        /// End stop: the output cannot pass `l_max` (absolute output units) in the
+        /// direction the input drives it (hard bound).
+        Saturation => Realisation {
+            name: "saturation",
+            physical: None,
+            realisation: "state clip",
+            ..END_STOP
+        },
+        /// Loading and unloading differ: the input gain is `b·(1+ε)` on the rising
+        /// branch and `b·(1−ε)` on the falling one, i.e. `b_up`, `b_down`.
+        Asymmetry => Realisation {
+            name: "asymmetry",
+            physical: None,
+            realisation: "in gain",
+            signature: "rising and falling branches carry unequal residual energy",
+            params: Params::Fixed(&[(
+                "eps",
+                "gain asymmetry: b_up = b·(1+eps), b_down = b·(1−eps)",
+            )]),
+            primary: 0,
+            bounds: |_, _| (vec![0.0], vec![-0.5], vec![0.5]),
+            ..PLAIN
+        },
+        /// An extra pole (load mass, hose compliance): `x(k) += a2·(x(k−1) − x(k−2))`,
+        /// a second-order linear part with the same static gain.
+        Inertia => Realisation {
+            name: "inertia",
+            physical: None,
+            realisation: "extra real pole",
+            signature: "energy in the transient after steps (overshoot or sluggish rise), mid frequencies",
+            params: Params::Fixed(&[("a2", "weight of x(k−1) − x(k−2): the extra pole")]),
+            primary: 0,
+            bounds: |_, _| (vec![0.0], vec![-0.5], vec![0.9]),
+            ..PLAIN
+        },
+        /// Play of width `r` (input units) on the input (braid stick–slip).
+        Backlash => Realisation {
+            name: "backlash",
+            physical: None,
+            realisation: "play on the input",
+            signature: "residual right after input reversals; loop too narrow",
+            params: Params::Fixed(&[("r", "play width (input units)")]),
+            primary: 0,
+            bounds: |ctx, _| (vec![0.0], vec![0.0], vec![0.5 * ctx.input_range()]),
+            ..PLAIN
+        },
+        /// A slow first-order state added to the output:
+        /// `z(k) = ρ·z(k−1) + (1−ρ)·κ·u(k−1)`, `ŷ = x + z`; `κ` is its static
+        /// gain (output per input unit), `ρ` its pole, `z(0) = z0` where the
+        /// record's history left it.
+        Creep => Realisation {
+            name: "creep",
+            physical: None,
+            realisation: "driven by the input",
+            params: Params::Fixed(&[
+                ("rho", "pole of the slow state (close to 1)"),
+                ("kappa", "static gain of the slow state (output per input unit)"),
+                (
+                    "z0",
+                    "the slow state at the first sample (output units): where the record's history left it",
+                ),
+            ]),
+            // A creep's slow state starts where the record's history left
+            // it, `z0`, anywhere within the output range: a state at rest in
+            // some other frame (the deviation coordinates of another record,
+            // or absolute units) starts a transient that neither `x0` nor
+            // the intercept can take (measured on the independent
+            // self-test's output-driven creep on the multisine,
+            // docs/lab/diagnosis.md).
+            bounds: |ctx, _| {
+                let ry = ctx.output_range();
+                let g = 2.0 * ry / ctx.input_range();
+                (vec![0.995, 0.0, 0.0], vec![0.98, -g, -ry], vec![0.9995, g, ry])
+            },
+            ..CREEP
+        },
+        /// Rate-dependent hysteresis: the Bouc-Wen stiffness grows with the input
+        /// rate, `A_eff = A·(1 + η·|u(k−1) − u(k−2)|/dt)`, so the loop widens with
+        /// rate; `η` in seconds per input unit.
+        Rate => Realisation {
+            name: "rate",
+            physical: None,
+            realisation: "stiffness grows with input rate",
+            signature: "residual grows with input rate: rising/falling branches, high frequencies",
+            params: Params::Fixed(&[("eta", "growth of A with input rate (s per input unit)")]),
+            primary: 0,
+            bounds: |ctx, _| {
+                let v = (ctx.max_step / ctx.dt).max(f64::MIN_POSITIVE);
+                (vec![0.0], vec![-0.9 / v], vec![10.0 / v])
+            },
+            ..PLAIN
+        },
+        /// Parameters that depend on the hanging load: the input gain of dataset
+        /// `e ≥ 1` is `b·(1 + g_e)` on the absolute input (dataset 0 is the
+        /// reference). Needs several datasets.
+        Load => Realisation {
+            name: "load",
+            physical: None,
+            realisation: "input gain per dataset",
+            signature: "one dataset (load) carries most of the residual energy",
+            params: Params::PerLaterDataset {
+                name: "g",
+                meaning: "relative input gain of this dataset against dataset 0",
+            },
+            primary: 0,
+            bounds: |_, datasets| {
+                let k = datasets.max(1) - 1;
+                (vec![0.0; k], vec![-0.5; k], vec![0.5; k])
+            },
+            min_datasets: 2,
+            ..PLAIN
+        },
+    }
+    realisations {
+        /// Lag as a first-order lag on the input, `v = ρ·v + (1−ρ)·p` (pressure
+        /// reaching the muscle through the hose); mean delay `ρ/(1−ρ)` samples.
+        InputLag => Realisation {
+            name: "delay:input-lag",
+            realisation: "first-order lag on the input",
+            ..LAG
+        },
+        /// Lag as a first-order lag on the measured output, `ŷ ← ρ·ŷ(k−1) +
+        /// (1−ρ)·ŷ` (a slow sensor).
+        OutputLag => Realisation {
+            name: "delay:output-lag",
+            realisation: "first-order lag on the output",
+            ..LAG
+        },
+        /// Inertia as a second-order mode of the hanging load on the output,
+        /// `q = a1·q(k−1) − a2·q(k−2) + (1 − a1 + a2)·ŷ`, unit static gain:
+        /// underdamped (ringing) when `a1² < 4·a2`, with pole radius `√a2` and
+        /// angle `acos(a1/(2√a2))` per sample.
+        LoadMode => Realisation {
+            name: "inertia:mode",
+            physical: Some(Effect::Inertia),
+            realisation: "second-order load mode",
+            signature: MODE_SIGNATURE,
+            params: Params::Fixed(&[MODE_A1, MODE_A2]),
+            primary: 1,
+            // Every stable mode lies in a2 < 1, |a1| < 1 + a2.
+            bounds: |_, _| (vec![0.0, 0.0], vec![-1.9, 0.0], vec![1.98, 0.98]),
+            size_text: Some(mode_size),
+            min_datasets: 1,
+            admits: None,
+            hint: StartHint::ResidualPeak {
+                kick: None,
+                only_on_a_peak: false,
+            },
+        },
+        /// Asymmetry in time constant: the input passes at once on one branch
+        /// and through a first-order lag `|ρ|` on the other (`ρ > 0`: drains
+        /// slower than it fills; `ρ < 0`: fills slower).
+        DrainLag => Realisation {
+            name: "asymmetry:drain",
+            physical: Some(Effect::Asymmetry),
+            realisation: "in time constant (fill vs drain)",
+            signature: "falling branches carry more residual energy, later in the step",
+            params: Params::Fixed(&[(
+                "rho",
+                "pole of the slow branch: > 0 drains slower, < 0 fills slower",
+            )]),
+            primary: 0,
+            bounds: |_, _| (vec![0.0], vec![-0.97], vec![0.97]),
+            size_text: Some(|p, dt| {
+                let side = if p[0] >= 0.0 { "drain" } else { "fill" };
+                format!("{side} time constant {}", lag_samples(p[0].abs(), dt))
+            }),
+            ..PLAIN
+        },
+        /// End stop on the measured output only (the state runs on).
+        OutputClip => Realisation {
+            name: "saturation:output",
+            physical: Some(Effect::Saturation),
+            realisation: "output clip",
+            ..END_STOP
+        },
+        /// End stop as a smooth knee: a quadratic blend into `l_max` over a
+        /// fixed half-width of 2.5 % of the output range on each side.
+        SoftStop => Realisation {
+            name: "saturation:soft",
+            physical: Some(Effect::Saturation),
+            realisation: "soft limit",
+            ..END_STOP
+        },
+        /// Creep driven by the muscle's output: `z = ρ·z + (1−ρ)·κ·x`,
+        /// `ŷ = x + z`; `κ` per output unit; `z(0) = z0`.
+        OutputCreep => Realisation {
+            name: "creep:output",
+            physical: Some(Effect::Creep),
+            realisation: "driven by the output",
+            params: Params::Fixed(&[
+                ("rho", "pole of the slow state (close to 1)"),
+                ("kappa", "static gain of the slow state (per output unit)"),
+                (
+                    "z0",
+                    "the slow state at the first sample (output units): where the record's history left it",
+                ),
+            ]),
+            bounds: |ctx, _| {
+                let ry = ctx.output_range();
+                (vec![0.995, 0.0, 0.0], vec![0.98, -0.5, -ry], vec![0.9995, 0.5, ry])
+            },
+            ..CREEP
+        },
+        /// Creep with two time constants: two input-driven slow states, a
+        /// faster and a slower one, two terms of a Prony series: gains `s·κ`
+        /// and `(1−s)·κ` of one sign; the slower starts at `z0`.
+        TwoPoleCreep => Realisation {
+            name: "creep:two-pole",
+            physical: Some(Effect::Creep),
+            realisation: "two time constants",
+            params: Params::Fixed(&[
+                ("rho_fast", "pole of the faster slow state"),
+                ("rho_slow", "pole of the slower slow state"),
+                ("kappa", "static gain of both together (output per input unit)"),
+                ("fast_share", "the faster state's share of kappa, in [0, 1]"),
+                (
+                    "z0",
+                    "the slower state at the first sample (output units): where the record's history left it",
+                ),
+            ]),
+            primary: 2,
+            // Two terms of a Prony series: a passive material creeps the
+            // same way at every time scale, so the two gains share a sign (a
+            // total and the faster state's share of it). With gains of
+            // either sign the pair is a band-pass of the input, not creep:
+            // on the twin's stair, which has no creep, gains of −118 and
+            // +125 were named first (docs/lab/diagnosis.md). The faster
+            // state forgets its start within a few hundred samples; the
+            // slower one gets `z0`.
+            bounds: |ctx, _| {
+                let ry = ctx.output_range();
+                let g = 2.0 * ry / ctx.input_range();
+                (
+                    vec![0.98, 0.999, 0.0, 0.5, 0.0],
+                    vec![0.9, 0.995, -g, 0.0, -ry],
+                    vec![0.995, 0.9999, g, 1.0, ry],
+                )
+            },
+            ..CREEP
+        },
+        /// Hysteretic threshold: the muscle starts to contract when the input
+        /// passes `p_on` and lets go below `p_off = p_on − gap`; while off it
+        /// rests where the lowest input recorded leaves it (it sees that input).
+        OnOffThreshold => Realisation {
+            name: "deadzone:on-off",
+            physical: Some(Effect::Deadzone),
+            realisation: "hysteretic threshold (on/off)",
+            signature: "residual in the lowest input band, unlike on rising and falling branches",
+            params: Params::Fixed(&[
+                ("p_on", "input above which the muscle contracts (absolute input units)"),
+                ("gap", "p_on − p_off, the input it lets go below (input units)"),
+            ]),
+            primary: 0,
+            bounds: |ctx, _| {
+                // Neutral: on below every input, so the muscle is always on.
+                let ru = ctx.input_range();
+                let never = ctx.input_min.min(0.0) - 0.05 * ru;
+                (
+                    vec![never, 0.0],
+                    vec![never, 0.0],
+                    vec![ctx.input_min.max(0.0) + 0.6 * ru, 0.3 * ru],
+                )
+            },
+            ..PLAIN
+        },
+        /// Inertia as the hanging load ringing after each input step, on top of
+        /// a muscle that follows the force quasi-statically: a mode excited by
+        /// the input's change, `r = a1·r(k−1) − a2·r(k−2) + g·(u(k−1) − u(k−2))`,
+        /// `ŷ = x + r`. Unlike [`Effect::LoadMode`], it rings however slowly the
+        /// baseline's own output moves (a real muscle's force follows the
+        /// pressure at once while the baseline's slow pole describes creep of
+        /// the rubber: measured on the Cavatappi muscle, docs/lab/diagnosis.md).
+        Ringing => Realisation {
+            name: "inertia:ringing",
+            physical: Some(Effect::Inertia),
+            realisation: "load rings after input steps",
+            signature: MODE_SIGNATURE,
+            params: Params::Fixed(&[
+                MODE_A1,
+                MODE_A2,
+                ("g", "kick of an input step (output per input unit)"),
+            ]),
+            primary: 2,
+            // A kick of g·Δu rings at most about 1/sin θ times higher; a
+            // whole input range's step then spans the output range at θ ≈ 1
+            // rad. Neutral at any mode without a kick; this mode rings (the
+            // diagnosis admits only ringing ones).
+            bounds: |ctx, _| {
+                let g = ctx.output_range() / ctx.input_range();
+                (vec![0.0, 0.5, 0.0], vec![-1.9, 0.0, -g], vec![1.98, 0.98, g])
+            },
+            size_text: Some(mode_size),
+            min_datasets: 1,
+            admits: Some(|p| rings(p[0], p[1])),
+            // Looked for only where the residual rings: a mode kicked by the
+            // input and damped near 1/√2 is a high-pass of the input, and
+            // without a peak to explain it fitted the independent
+            // self-test's sensor cross-talk, a high-pass added to the output
+            // (docs/lab/diagnosis.md).
+            hint: StartHint::ResidualPeak {
+                kick: Some(2),
+                only_on_a_peak: true,
+            },
+        },
+        /// Log-time creep of the rubber: three input-driven slow states a
+        /// decade apart in time constant (poles `ρ^100`, `ρ^10`, `ρ`), each
+        /// of static gain `κ`, a Prony series with one term per decade, so
+        /// after an input step the output creeps by about `κ·Δu` per decade
+        /// of time, from a hundredth of the slowest time constant to it;
+        /// the slowest starts at `z0`. A rubber's creep has no one time constant: the
+        /// two-pole creep fitted to the Cavatappi records put its two
+        /// poles more than a decade apart (ρ 0.93–0.95 and 0.996–0.997),
+        /// and the response deepened from pulse to pulse beyond the slower
+        /// (docs/DIAGNOSIS.md, "Real data"), with five parameters where
+        /// this has three.
+        LogCreep => Realisation {
+            name: "creep:log",
+            physical: Some(Effect::Creep),
+            realisation: "log-time (a term per decade)",
+            params: Params::Fixed(&[
+                ("rho", "pole of the slowest term; the others are rho^10 and rho^100"),
+                (
+                    "kappa",
+                    "static gain of each term: creep per decade of time (output per input unit)",
+                ),
+                (
+                    "z0",
+                    "the slowest term at the first sample (output units): where the record's history left it",
+                ),
+            ]),
+            // The slowest time constant from 1 000 to 20 000 samples (10 to
+            // 200 s at 100 Hz), the fastest a hundredth of it; three terms
+            // of the creep's whole gain each at most.
+            bounds: |ctx, _| {
+                let ry = ctx.output_range();
+                let g = 2.0 * ry / ctx.input_range();
+                (vec![0.9995, 0.0, 0.0], vec![0.999, -g, -ry], vec![0.99995, g, ry])
+            },
+            size_text: Some(|p, dt| {
+                let tau = |n: f64| -dt / (n * p[0].ln());
+                format!(
+                    "time constants {:.2} s, {:.1} s, {:.0} s",
+                    tau(100.0),
+                    tau(10.0),
+                    tau(1.0)
+                )
+            }),
+            ..CREEP
+        },
+    }
+}
+
+/// The defaults of an entry: fitted on one dataset, admitting its whole
+/// box, no start hint, no size in words; the fields every entry sets are
+/// placeholders here.
+const PLAIN: Realisation = Realisation {
+    name: "",
+    physical: None,
+    realisation: "",
+    signature: "",
+    params: Params::Fixed(&[]),
+    primary: 0,
+    bounds: |_, _| (Vec::new(), Vec::new(), Vec::new()),
+    size_text: None,
+    min_datasets: 1,
+    admits: None,
+    hint: StartHint::None,
+};
+
+/// The end stops' common parameter, box and signature.
+const END_STOP: Realisation = Realisation {
+    signature: "residual energy concentrated in the highest input band",
+    params: Params::Fixed(&[("l_max", "output end stop (absolute output units)")]),
+    // An end stop sits near the largest output recorded: the box is from
+    // 40 % of the range below it to 5 % beyond it, where a model that
+    // follows the data never reaches it (the neutral edge).
+    bounds: |ctx, _| {
+        let ry = ctx.output_range();
+        if ctx.drives_up {
+            let far = ctx.output_max + 0.05 * ry;
+            (vec![far], vec![ctx.output_max - 0.4 * ry], vec![far])
+        } else {
+            let far = ctx.output_min - 0.05 * ry;
+            (vec![far], vec![far], vec![ctx.output_min + 0.4 * ry])
+        }
+    },
+    ..PLAIN
+};
+
+/// The first-order lags' common parameter, box and size.
+const LAG: Realisation = Realisation {
+    physical: Some(Effect::Delay),
+    signature: "residual–input cross-correlation over a spread of positive lags; rounded steps",
+    params: Params::Fixed(&[("rho", "pole of the lag (mean delay rho/(1−rho) samples)")]),
+    // A pole of 0.97 is a mean delay of about 32 samples, the pure delay's 30.
+    bounds: |_, _| (vec![0.0], vec![0.0], vec![0.97]),
+    size_text: Some(|p, dt| format!("time constant {}", lag_samples(p[0], dt))),
+    ..PLAIN
+};
+
+/// The creeps' common signature and size parameter (the gain).
+const CREEP: Realisation = Realisation {
+    signature: "low-frequency residual that drifts while the input is steady",
+    primary: 1,
+    ..PLAIN
+};
+
+const MODE_SIGNATURE: &str = "a peak in the residual spectrum: ringing after each input step";
+const MODE_A1: (&str, &str) = ("a1", "first coefficient of the mode: 2·r·cos θ");
+const MODE_A2: (&str, &str) = (
+    "a2",
+    "second coefficient of the mode: r², the pole radius squared",
+);
+
+/// A lag of pole `rho` as its time constant in samples and milliseconds.
+fn lag_samples(rho: f64, dt: f64) -> String {
+    let tau = rho / (1.0 - rho);
+    format!("{tau:.1} samples ({:.0} ms)", 1000.0 * tau * dt)
+}
+
+/// A mode's frequency and damping ratio (`p[0..2]` = `a1`, `a2`), or its
+/// real poles when it does not ring.
+fn mode_size(p: &[f64], dt: f64) -> String {
+    let (a1, a2) = (p[0], p[1]);
+    if a2 > 0.0 && a1 * a1 < 4.0 * a2 {
+        let r = a2.sqrt();
+        let theta = (a1 / (2.0 * r)).acos();
+        let zeta = -r.ln() / (r.ln().powi(2) + theta * theta).sqrt();
+        format!(
+            "rings at {:.2} Hz, damping ratio {zeta:.2}",
+            theta / (2.0 * std::f64::consts::PI * dt)
+        )
+    } else {
+        let root = (a1 * a1 - 4.0 * a2).max(0.0).sqrt();
+        format!(
+            "no ringing: real poles {:.3} and {:.3}",
+            0.5 * (a1 + root),
+            0.5 * (a1 - root)
+        )
+    }
+}
+
+/// Whether the mode `q = a1·q(k−1) − a2·q(k−2) + …` rings: complex poles
+/// `r·e^{±iθ}` (`r = √a2`, `cos θ = a1/(2r)`) with a resonance, i.e. a
+/// damping ratio under `1/√2`, which is `−ln r < θ`.
+///
+/// Why: with real poles a ringing's kick decays as a slow drift driven by
+/// the input, which is creep's mark (it was named for the drift of the
+/// Cavatappi 200 g file), and a mode damped past `1/√2` has no peak in its
+/// spectrum: it is a high-pass of the input, which the independent
+/// self-test's sensor cross-talk is, and it was named for it (critically
+/// damped, `a1 = 1.11`, `a2 = 0.31`: docs/lab/diagnosis.md).
+pub fn rings(a1: f64, a2: f64) -> bool {
+    if !(a2 > 0.0 && a1 * a1 < 4.0 * a2) {
+        return false;
+    }
+    let r = a2.sqrt();
+    -r.ln() < (a1 / (2.0 * r)).acos()
+}

@@ -1,0 +1,127 @@
+//! The shape of one entry of the catalogue ([`Realisation`]) and the
+//! `catalogue!` macro that turns the entries of `catalogue.rs` into the
+//! [`super::Effect`] enum, its `ALL`, `PHYSICAL` and the lookup `entry`:
+//! every other question about a realisation (its name, parameters, box,
+//! size, signature, admission rule, start hint, WGSL parameter names) is
+//! answered from its entry, so a realisation is declared once.
+
+use super::Context;
+
+/// The three vectors of a realisation's box: its neutral value (which gives
+/// the baseline's bits), its lower and its upper bounds.
+pub type EffectBox = (Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// One realisation of the catalogue: everything the diagnosis, the reports
+/// and the backends know about it besides its step (`step.rs` on the CPU,
+/// `shaders/effects.wgsl` on the GPU). `E` is the catalogue's enum
+/// ([`super::Realisation`] names it), which the entries generate, so this
+/// schema does not import it back.
+#[derive(Debug, Clone, Copy)]
+pub struct Realisation<E> {
+    /// Its flag and JSON name: the physical effect's (`delay`) for its
+    /// first realisation, `physical:realisation` for the others.
+    pub name: &'static str,
+    /// The physical effect it realises; `None` for a physical effect's
+    /// first realisation, which is the physical effect itself.
+    pub physical: Option<E>,
+    /// How the physical effect is realised, for reports.
+    pub realisation: &'static str,
+    /// The residual signature that points to it, for reports.
+    pub signature: &'static str,
+    /// Its parameters, in vector order.
+    pub params: Params,
+    /// Index (within its parameters) of the one that measures its size,
+    /// which the self-test recovers and the interval is drawn for.
+    pub primary: usize,
+    /// Its box from the first dataset's context and the number of datasets:
+    /// the neutral value always lies in it (an augmented fit can always
+    /// fall back on the baseline).
+    pub bounds: fn(&Context, usize) -> EffectBox,
+    /// Its size in words a person reads (`params`: its own, `dt`: the
+    /// sample time), where its parameters do not say it directly.
+    pub size_text: Option<fn(&[f64], f64) -> String>,
+    /// Datasets it needs to be fitted at all.
+    pub min_datasets: usize,
+    /// Which of its parameter values the diagnosis admits (`params`: its
+    /// own); `None` admits every one in the box.
+    pub admits: Option<fn(&[f64]) -> bool>,
+    /// Where the diagnosis starts its fit beyond the uniform draws.
+    pub hint: StartHint,
+}
+
+/// A realisation's parameter list.
+#[derive(Debug, Clone, Copy)]
+pub enum Params {
+    /// The same parameters on any number of datasets: `(name, meaning)`.
+    Fixed(&'static [(&'static str, &'static str)]),
+    /// One parameter per dataset after the first, named `name1`, `name2`,
+    /// … (the load gains: dataset 0 is the reference).
+    PerLaterDataset {
+        name: &'static str,
+        meaning: &'static str,
+    },
+}
+
+/// Where the diagnosis starts a realisation's fit, read off the data
+/// (`diagnose::hints`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StartHint {
+    /// Only the uniform draws over the box.
+    None,
+    /// A mode whose first two parameters are `a1`, `a2` starts ringing at
+    /// the peaks of the residual's spectrum; `kick`, where present, is the
+    /// parameter of the input's kick, started at its least-squares value.
+    /// With `only_on_a_peak` it is tried only when the residual has such a
+    /// peak.
+    ResidualPeak {
+        kick: Option<usize>,
+        only_on_a_peak: bool,
+    },
+}
+
+/// The catalogue as one list: the physical effects (each its own first
+/// realisation), then the other realisations, each `Variant => entry`
+/// with its doc comment. Generates [`super::Effect`] with `ALL` (this order: the
+/// order reports list them, and the diagnosis tries them), `PHYSICAL`
+/// (the first group) and `entry`.
+macro_rules! catalogue {
+    (
+        physical { $( $(#[$pdoc:meta])* $p:ident => $pentry:expr, )* }
+        realisations { $( $(#[$rdoc:meta])* $r:ident => $rentry:expr, )* }
+    ) => {
+        /// One unmodelled effect of the catalogue (a realisation of a
+        /// physical effect). Flags, JSON and reports use its name, so the
+        /// names are part of the interface; each variant's entry in
+        /// `catalogue.rs` says everything else about it.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        pub enum Effect {
+            $( $(#[$pdoc])* $p, )*
+            $( $(#[$rdoc])* $r, )*
+        }
+
+        impl Effect {
+            /// The whole catalogue, in the order reports list it.
+            pub const ALL: [Effect; [$(Effect::$p,)* $(Effect::$r,)*].len()] =
+                [$(Effect::$p,)* $(Effect::$r,)*];
+
+            /// The physical effects: each is its own first realisation, and
+            /// they come first in [`Effect::ALL`].
+            pub const PHYSICAL: &'static [Effect] = &[$(Effect::$p,)*];
+
+            /// The realisation's entry in the catalogue.
+            pub fn entry(self) -> &'static $crate::model::effects::Realisation {
+                match self {
+                    $( Effect::$p => {
+                        const ENTRY: $crate::model::effects::Realisation = $pentry;
+                        &ENTRY
+                    } )*
+                    $( Effect::$r => {
+                        const ENTRY: $crate::model::effects::Realisation = $rentry;
+                        &ENTRY
+                    } )*
+                }
+            }
+        }
+    };
+}
+pub(super) use catalogue;

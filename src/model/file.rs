@@ -1,0 +1,544 @@
+//! The model file: one versioned JSON document that `fit`, `identify` and
+//! `diagnose --out` write and `simulate`, `fit --from`, `diagnose --from`
+//! and `control` read. It holds the baseline family and its effect chain,
+//! every parameter by name, the box it was searched in, the data's columns,
+//! units and coordinates, and where it came from (docs/JSON.md, "The model
+//! file").
+
+use std::path::Path;
+
+use anyhow::Context as _;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use super::effects::{Augmented, Context, Effect};
+use super::experiment::Experiment;
+use super::family::Family;
+use super::fitted::FittedModel;
+use super::sim::DIVERGENCE_BOUND;
+use crate::data::units::unit_of;
+use crate::data::write_atomic;
+
+/// What the `format` field of a model file says.
+pub const MODEL_FORMAT: &str = "mckibben-model";
+/// The model file's version. Version 1 is the bare model `fit` and
+/// `identify` wrote before (family, canonical vector, means, `dt`, column
+/// names), which still reads; version 2 added the effect chain, the box,
+/// units and provenance.
+pub const MODEL_VERSION: u32 = 2;
+
+/// A baseline's effect stages with their parameters and the constants they
+/// were fitted with (the [`Context`] of the first dataset: the soft stop's
+/// knee, the branch tolerance and the rest input come from it, so a model
+/// keeps them when it runs on other data).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Chain {
+    pub effects: Vec<Effect>,
+    /// The effects' parameters, in chain order (after the baseline's).
+    pub params: Vec<f64>,
+    pub context: Context,
+    /// Datasets the chain was fitted on (the `load` effect's gains).
+    pub datasets: usize,
+}
+
+/// A fitted model: the baseline and, where the diagnosis or `fit
+/// --effects` found them, its effects.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Model {
+    pub base: FittedModel,
+    pub chain: Option<Chain>,
+}
+
+/// A free run of a [`Model`] in absolute units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Run {
+    pub output: Vec<f64>,
+    /// The hysteretic state `w` (the baseline alone; none with effects,
+    /// whose stages change what `w` means).
+    pub w: Option<Vec<f64>>,
+    pub diverged_at: Option<usize>,
+}
+
+impl Model {
+    /// A baseline without effects.
+    pub fn plain(base: FittedModel) -> Model {
+        Model { base, chain: None }
+    }
+
+    /// The effects, in chain order (none for a baseline).
+    pub fn effects(&self) -> &[Effect] {
+        self.chain.as_ref().map_or(&[], |c| &c.effects)
+    }
+
+    /// The model description the evaluator and the diagnosis use.
+    pub fn augmented(&self) -> Augmented {
+        let datasets = self.chain.as_ref().map_or(1, |c| c.datasets);
+        Augmented::new(self.base.family, self.effects().to_vec(), datasets)
+    }
+
+    /// Every parameter: the baseline's canonical vector, then the effects'.
+    pub fn theta(&self) -> Vec<f64> {
+        let mut theta = self.base.params.clone();
+        if let Some(c) = &self.chain {
+            theta.extend_from_slice(&c.params);
+        }
+        theta
+    }
+
+    /// Every parameter by name (`creep:two-pole.kappa` for an effect's).
+    pub fn named_params(&self) -> Vec<(String, f64)> {
+        self.augmented()
+            .param_names()
+            .into_iter()
+            .zip(self.theta())
+            .collect()
+    }
+
+    /// Free run on a trace's input from its first measured output.
+    pub fn simulate_trace(&self, trace: &crate::data::Trace) -> Vec<f64> {
+        let y0 = trace
+            .output
+            .first()
+            .copied()
+            .unwrap_or(self.base.output_mean);
+        self.simulate_absolute(&trace.input, y0).output
+    }
+
+    /// Free run on an input in absolute units from the absolute output `y0`
+    /// (dataset 0 of a chain fitted on several).
+    pub fn simulate_absolute(&self, input: &[f64], y0: f64) -> Run {
+        let Some(chain) = &self.chain else {
+            let (output, sim) = self.base.simulate_absolute(input, y0);
+            return Run {
+                output,
+                w: Some(sim.w.iter().map(|&w| w as f64).collect()),
+                diverged_at: sim.diverged_at,
+            };
+        };
+        let base = &self.base;
+        let exp = Experiment {
+            name: "simulation".into(),
+            dt: base.dt,
+            u: input
+                .iter()
+                .map(|&p| (p - base.input_mean) as f32)
+                .collect(),
+            y: vec![(y0 - base.output_mean) as f32],
+            u_mean: base.input_mean,
+            y_mean: base.output_mean,
+        };
+        let theta: Vec<f32> = self.theta().iter().map(|&v| v as f32).collect();
+        let y = self.augmented().simulate(&theta, 0, &chain.context, &exp);
+        let diverged_at = y
+            .iter()
+            .position(|v| !v.is_finite() || v.abs() > DIVERGENCE_BOUND);
+        Run {
+            output: y.iter().map(|&v| v as f64 + base.output_mean).collect(),
+            w: None,
+            diverged_at,
+        }
+    }
+}
+
+/// One column of the data a model was fitted on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Column {
+    pub column: String,
+    /// Read off the column's name (`pressure_psi` → psi); `null` when the
+    /// name states none.
+    pub unit: Option<String>,
+    /// The mean removed before fitting: the model's coordinates.
+    pub mean: f64,
+}
+
+/// The data's columns and the coordinates a model runs in.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DataCoords {
+    pub input: Column,
+    pub output: Column,
+    /// Sample time the model was fitted at (s).
+    pub dt: f64,
+    /// The effects' constants ([`Chain::context`]); `null` without effects.
+    pub effect_context: Option<Context>,
+}
+
+/// How the data file was read: what `simulate --from` reads new data with
+/// unless told otherwise.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ReadSettings {
+    pub time: Option<String>,
+    pub resample: Option<f64>,
+    pub split_gaps: bool,
+}
+
+/// One data file a model was fitted on, with its SHA-256.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Source {
+    pub file: String,
+    pub sha256: Option<String>,
+}
+
+/// Where a model came from.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Provenance {
+    /// The command line that wrote it.
+    pub command: String,
+    pub tool_version: String,
+    pub seed: Option<u64>,
+    pub data: Vec<Source>,
+    pub read: ReadSettings,
+}
+
+impl Provenance {
+    /// This process's command line, the files (hashed) and how they were read.
+    pub fn here(files: &[String], seed: Option<u64>, read: ReadSettings) -> Provenance {
+        let command: Vec<String> = std::env::args().collect();
+        Provenance {
+            command: command.join(" "),
+            tool_version: env!("CARGO_PKG_VERSION").into(),
+            seed,
+            data: files
+                .iter()
+                .map(|f| Source {
+                    file: f.clone(),
+                    sha256: sha256_of(Path::new(f)),
+                })
+                .collect(),
+            read,
+        }
+    }
+}
+
+/// The hex SHA-256 of a file's bytes (none for a generated trace).
+fn sha256_of(path: &Path) -> Option<String> {
+    let bytes = std::fs::read(path).ok()?;
+    let digest = Sha256::digest(&bytes);
+    Some(digest.iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// The box a model's parameters were searched in: its coordinates (the
+/// data's own scale for the baseline, the effects' own parameters), their
+/// bounds and where each bound comes from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SearchBox {
+    pub names: Vec<String>,
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+    /// `data`, `class` or `user` for each `[lower, upper]`.
+    pub origin: Vec<[super::bounds::Origin; 2]>,
+}
+
+impl SearchBox {
+    /// The box of a fit's search space.
+    pub fn of(space: &super::bounds::SearchSpace) -> SearchBox {
+        SearchBox {
+            names: space.names(),
+            lower: space.lower.clone(),
+            upper: space.upper.clone(),
+            origin: space.origin.clone(),
+        }
+    }
+}
+
+/// A model file as written: [`Model`] plus its box and provenance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelFile {
+    pub format: String,
+    pub version: u32,
+    pub family: Family,
+    /// Effect realisations in chain order (`creep:two-pole`, ...).
+    pub effects: Vec<String>,
+    /// Every parameter by name: the baseline's in canonical order, then the
+    /// effects' as `effect.param`.
+    pub params: serde_json::Map<String, serde_json::Value>,
+    /// Datasets the model was fitted on together (the `load` effect).
+    pub datasets: usize,
+    pub data: DataCoords,
+    /// The search box; `null` for a model not searched in one (ARX).
+    pub search_box: Option<SearchBox>,
+    /// The `--bound` and `--fix` the fit was given (`NAME=LO:HI`): `fit
+    /// --from` applies them again.
+    #[serde(default)]
+    pub user_bounds: Vec<String>,
+    pub provenance: Provenance,
+}
+
+impl ModelFile {
+    /// The file of `model`.
+    pub fn new(model: &Model, search_box: Option<SearchBox>, provenance: Provenance) -> ModelFile {
+        let base = &model.base;
+        let params = model
+            .named_params()
+            .into_iter()
+            .map(|(n, v)| (n, serde_json::json!(v)))
+            .collect();
+        ModelFile {
+            format: MODEL_FORMAT.into(),
+            version: MODEL_VERSION,
+            family: base.family,
+            effects: model.effects().iter().map(|e| e.name().into()).collect(),
+            params,
+            datasets: model.chain.as_ref().map_or(1, |c| c.datasets),
+            data: DataCoords {
+                input: Column {
+                    column: base.input_name.clone(),
+                    unit: unit_of(&base.input_name),
+                    mean: base.input_mean,
+                },
+                output: Column {
+                    column: base.output_name.clone(),
+                    unit: unit_of(&base.output_name),
+                    mean: base.output_mean,
+                },
+                dt: base.dt,
+                effect_context: model.chain.as_ref().map(|c| c.context),
+            },
+            search_box,
+            user_bounds: Vec::new(),
+            provenance,
+        }
+    }
+
+    /// Writes the file atomically (a failed write leaves the old one).
+    pub fn save(&self, path: &Path) -> anyhow::Result<()> {
+        let text = serde_json::to_string_pretty(self)?;
+        write_atomic(path, text.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()))
+    }
+
+    /// Reads a model file of this version or version 1 (a bare model, or
+    /// `identify --out`'s document whose `model` field holds one).
+    pub fn load(path: &Path) -> anyhow::Result<ModelFile> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let value: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+        // `identify --out` writes its report with the model in `model`.
+        let value = match value.get("model") {
+            Some(inner) if value.get("format").is_none() && inner.get("format").is_some() => {
+                inner.clone()
+            }
+            _ => value,
+        };
+        let Some(format) = value.get("format") else {
+            let legacy = legacy_model(path, value)?;
+            return Ok(ModelFile::new(
+                &Model::plain(legacy),
+                None,
+                Provenance::default(),
+            ));
+        };
+        anyhow::ensure!(
+            format.as_str() == Some(MODEL_FORMAT),
+            "{}: `format` is {format}, not \"{MODEL_FORMAT}\": not a model file",
+            path.display()
+        );
+        let version = value.get("version").and_then(|v| v.as_u64());
+        anyhow::ensure!(
+            version.is_some_and(|v| (1..=MODEL_VERSION as u64).contains(&v)),
+            "{}: model file version {}: this mckibben ({}) reads versions 1 to {MODEL_VERSION}; \
+             a newer mckibben wrote it",
+            path.display(),
+            version.map_or("missing".to_string(), |v| v.to_string()),
+            env!("CARGO_PKG_VERSION")
+        );
+        let file: ModelFile = serde_json::from_value(value)
+            .with_context(|| format!("{}: not a valid model file", path.display()))?;
+        file.model()
+            .with_context(|| format!("{}: not a valid model file", path.display()))?;
+        Ok(file)
+    }
+
+    /// The model the file holds; an error names a parameter missing,
+    /// unknown or out of order, or an unknown effect.
+    pub fn model(&self) -> anyhow::Result<Model> {
+        let effects: Vec<Effect> = self
+            .effects
+            .iter()
+            .map(|e| e.parse::<Effect>().map_err(anyhow::Error::msg))
+            .collect::<anyhow::Result<_>>()?;
+        anyhow::ensure!(self.datasets >= 1, "`datasets` must be at least 1");
+        let augmented = Augmented::new(self.family, effects.clone(), self.datasets);
+        let names = augmented.param_names();
+        let given: Vec<&String> = self.params.keys().collect();
+        if let Some(missing) = names.iter().find(|n| !self.params.contains_key(*n)) {
+            anyhow::bail!(
+                "parameter `{missing}` is missing: a {} model{} has {}",
+                self.family,
+                chain_text(&effects),
+                names.join(", ")
+            );
+        }
+        if let Some(unknown) = given.iter().find(|g| !names.contains(g)) {
+            anyhow::bail!(
+                "unknown parameter `{unknown}`: a {} model{} has {}",
+                self.family,
+                chain_text(&effects),
+                names.join(", ")
+            );
+        }
+        let theta: Vec<f64> = names
+            .iter()
+            .map(|n| {
+                self.params[n]
+                    .as_f64()
+                    .with_context(|| format!("parameter `{n}` is not a number"))
+            })
+            .collect::<anyhow::Result<_>>()?;
+        let d = self.family.dim();
+        let base = FittedModel {
+            family: self.family,
+            params: theta[..d].to_vec(),
+            input_mean: self.data.input.mean,
+            output_mean: self.data.output.mean,
+            dt: self.data.dt,
+            input_name: self.data.input.column.clone(),
+            output_name: self.data.output.column.clone(),
+        };
+        let chain = if effects.is_empty() {
+            None
+        } else {
+            let context = self
+                .data
+                .effect_context
+                .context("a model with effects needs `data.effect_context`")?;
+            Some(Chain {
+                effects,
+                params: theta[d..].to_vec(),
+                context,
+                datasets: self.datasets,
+            })
+        };
+        Ok(Model { base, chain })
+    }
+}
+
+fn chain_text(effects: &[Effect]) -> String {
+    if effects.is_empty() {
+        String::new()
+    } else {
+        let names: Vec<&str> = effects.iter().map(|e| e.name()).collect();
+        format!(" with {}", names.join(", "))
+    }
+}
+
+/// A version-1 model: bare, or in `identify --out`'s `model` field.
+fn legacy_model(path: &Path, value: serde_json::Value) -> anyhow::Result<FittedModel> {
+    let inner = value.get("model").cloned().unwrap_or(value);
+    let model: FittedModel = serde_json::from_value(inner).with_context(|| {
+        format!(
+            "{}: not a model file (no `format` field, and not a version-1 model written \
+             by identify or fit)",
+            path.display()
+        )
+    })?;
+    let names: Vec<&str> = model.family.params().iter().map(|p| p.name).collect();
+    anyhow::ensure!(
+        model.params.len() == names.len(),
+        "{}: a {} model has {} parameters ({}), the file has {}; a model written \
+         before the start offset x0 was added needs it appended (0 keeps its behaviour)",
+        path.display(),
+        model.family,
+        names.len(),
+        names.join(", "),
+        model.params.len()
+    );
+    Ok(model)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::presets::thesis_params;
+
+    fn base() -> FittedModel {
+        FittedModel {
+            family: Family::Classic,
+            params: thesis_params(Family::Classic),
+            input_mean: 0.25,
+            output_mean: 10.0,
+            dt: 0.1,
+            input_name: "pressure".into(),
+            output_name: "displacement".into(),
+        }
+    }
+
+    fn chained() -> Model {
+        let exp = Experiment {
+            name: "x".into(),
+            dt: 0.1,
+            u: (0..200).map(|k| ((k as f32) * 0.05).sin() * 0.1).collect(),
+            y: (0..200).map(|k| ((k as f32) * 0.05).sin() * 3.0).collect(),
+            u_mean: 0.25,
+            y_mean: 10.0,
+        };
+        Model {
+            base: base(),
+            chain: Some(Chain {
+                effects: vec![Effect::Creep, Effect::Ringing],
+                params: vec![0.99, 2.0, 0.5, 1.2, 0.6, 0.3],
+                context: Context::of(&exp, true),
+                datasets: 1,
+            }),
+        }
+    }
+
+    #[test]
+    fn a_model_with_effects_survives_the_file_bit_for_bit() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("model.json");
+        let model = chained();
+        ModelFile::new(&model, None, Provenance::default())
+            .save(&path)
+            .unwrap();
+        let back = ModelFile::load(&path).unwrap().model().unwrap();
+        assert_eq!(back, model);
+        let input: Vec<f64> = (0..300)
+            .map(|k| 0.25 + 0.1 * (k as f64 * 0.03).sin())
+            .collect();
+        let a = model.simulate_absolute(&input, 10.0);
+        assert_eq!(a, back.simulate_absolute(&input, 10.0));
+        // The chain changes the output: it is not the baseline's.
+        let plain = Model::plain(base()).simulate_absolute(&input, 10.0);
+        assert_ne!(a.output, plain.output);
+    }
+
+    #[test]
+    fn version_one_reads_and_bad_files_name_what_is_wrong() {
+        let dir = tempfile::tempdir().unwrap();
+        let write = |name: &str, text: String| {
+            let p = dir.path().join(name);
+            std::fs::write(&p, text).unwrap();
+            p
+        };
+        let v1 = write("v1.json", serde_json::to_string(&base()).unwrap());
+        let read = ModelFile::load(&v1).unwrap().model().unwrap();
+        assert_eq!(read, Model::plain(base()));
+        let wrapped = write(
+            "id.json",
+            format!(
+                r#"{{"model": {}}}"#,
+                serde_json::to_string(&base()).unwrap()
+            ),
+        );
+        assert_eq!(ModelFile::load(&wrapped).unwrap().model().unwrap(), read);
+
+        let mut file = ModelFile::new(&chained(), None, Provenance::default());
+        file.version = 9;
+        let newer = write("v9.json", serde_json::to_string(&file).unwrap());
+        let e = format!("{:#}", ModelFile::load(&newer).unwrap_err());
+        assert!(e.contains("version 9") && e.contains("newer"), "{e}");
+
+        let mut file = ModelFile::new(&chained(), None, Provenance::default());
+        file.params.remove("creep.kappa");
+        let missing = write("missing.json", serde_json::to_string(&file).unwrap());
+        let e = format!("{:#}", ModelFile::load(&missing).unwrap_err());
+        assert!(e.contains("`creep.kappa` is missing"), "{e}");
+
+        let mut file = ModelFile::new(&chained(), None, Provenance::default());
+        file.effects[0] = "friction".into();
+        let unknown = write("unknown.json", serde_json::to_string(&file).unwrap());
+        let e = format!("{:#}", ModelFile::load(&unknown).unwrap_err());
+        assert!(e.contains("unknown effect `friction`"), "{e}");
+    }
+}

@@ -1,0 +1,256 @@
+//! One model from fit to simulation: the model file that `diagnose --out`
+//! and `fit --effects` write is what `simulate --from` runs and `fit
+//! --from` starts from, and a wrong name or unit is an error that says so.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+const STAIR: &str = "data/stair_4.5kg.csv";
+
+fn mckibben(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .current_dir(ROOT)
+        .output()
+        .expect("run mckibben")
+}
+
+fn json_of(args: &[&str]) -> Value {
+    let out = mckibben(args);
+    assert!(
+        out.status.success(),
+        "mckibben {}: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
+fn error_of(args: &[&str]) -> String {
+    let out = mckibben(args);
+    assert!(
+        !out.status.success(),
+        "mckibben {} succeeded",
+        args.join(" ")
+    );
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn model_in(dir: &Path, name: &str) -> Value {
+    serde_json::from_slice(&std::fs::read(dir.join(name)).unwrap()).unwrap()
+}
+
+#[test]
+fn the_diagnosed_model_simulates_to_its_reported_fit_and_warm_starts_a_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().join("d");
+    let d_str = d.to_str().unwrap();
+    let diagnosis = json_of(&[
+        "diagnose",
+        STAIR,
+        "--effects",
+        "saturation:output,delay",
+        "--seeds",
+        "2",
+        "--generations",
+        "5",
+        "--scratch-seeds",
+        "0",
+        "--json",
+        "--out",
+        d_str,
+    ]);
+    let final_effects = diagnosis["final"]["model"].clone();
+    let model = model_in(&d, "model.json");
+    assert_eq!(model["effects"], final_effects);
+    assert_eq!(
+        model_in(&d, "baseline.json")["effects"],
+        serde_json::json!([])
+    );
+
+    // simulate --from reproduces the diagnosis' validation fit.
+    let sim = json_of(&[
+        "simulate",
+        "--from",
+        d.join("model.json").to_str().unwrap(),
+        "--input",
+        STAIR,
+        "--json",
+    ]);
+    let reported = diagnosis["final"]["val_fit_percent"].as_f64().unwrap();
+    let simulated = sim["val_fit_percent"].as_f64().unwrap();
+    assert!(
+        (reported - simulated).abs() < 0.01,
+        "diagnose reported {reported} %, simulate gives {simulated} %"
+    );
+    assert_eq!(sim["effects"], final_effects);
+
+    // fit --from takes the file's family and effects and starts from its
+    // parameters: it ends no worse than where it started.
+    let out = dir.path().join("refit");
+    let refit = json_of(&[
+        "fit",
+        STAIR,
+        "--from",
+        d.join("model.json").to_str().unwrap(),
+        "--pop",
+        "60",
+        "--gens",
+        "20",
+        "--backend",
+        "cpu",
+        "--json",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(refit["effects"], final_effects);
+    let refitted = refit["val_fit_percent"].as_f64().unwrap();
+    assert!(refitted > reported - 0.5, "{refitted} against {reported}");
+
+    // control --from runs with it and says which effects its controllers
+    // leave out.
+    let control = mckibben(&[
+        "control",
+        "--from",
+        d.join("model.json").to_str().unwrap(),
+        "--controller",
+        "mpc",
+        "--freq",
+        "2",
+        "--load",
+        "4.5",
+        "--warmup",
+        "1",
+        "--duration",
+        "2",
+        "--steady-from",
+        "1",
+    ]);
+    let said = String::from_utf8_lossy(&control.stderr);
+    assert!(control.status.success(), "{said}");
+    for effect in final_effects.as_array().unwrap() {
+        let name = effect.as_str().unwrap();
+        assert!(
+            said.contains(&format!("effect {name} (")) && said.contains("left out"),
+            "{said}"
+        );
+    }
+}
+
+#[test]
+fn fit_with_effects_writes_a_chain_that_simulate_reproduces() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let fit = json_of(&[
+        "fit",
+        STAIR,
+        "--effects",
+        "creep",
+        "--pop",
+        "60",
+        "--gens",
+        "20",
+        "--backend",
+        "cpu",
+        "--json",
+        "--out",
+        out,
+    ]);
+    assert_eq!(fit["effects"], serde_json::json!(["creep"]));
+    assert!(fit["params"]["creep.kappa"].is_number());
+    let sim = json_of(&[
+        "simulate",
+        "--from",
+        dir.path().join("model.json").to_str().unwrap(),
+        "--input",
+        STAIR,
+        "--json",
+    ]);
+    let (a, b) = (
+        fit["val_fit_percent"].as_f64().unwrap(),
+        sim["val_fit_percent"].as_f64().unwrap(),
+    );
+    assert!((a - b).abs() < 0.01, "fit {a} %, simulate {b} %");
+}
+
+#[test]
+fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
+    let e = error_of(&[
+        "fit",
+        STAIR,
+        "--effects",
+        "friction",
+        "--pop",
+        "8",
+        "--gens",
+        "2",
+    ]);
+    assert!(
+        e.contains("unknown effect `friction`") && e.contains("creep"),
+        "{e}"
+    );
+    let e = error_of(&[
+        "fit",
+        STAIR,
+        "--bound",
+        "creep.kappa=0:1",
+        "--pop",
+        "8",
+        "--gens",
+        "2",
+    ]);
+    assert!(
+        e.contains("`creep.kappa`") && e.contains("--effects"),
+        "{e}"
+    );
+    let e = error_of(&[
+        "fit",
+        STAIR,
+        "--effects",
+        "creep,creep",
+        "--pop",
+        "8",
+        "--gens",
+        "2",
+    ]);
+    assert!(e.contains("twice"), "{e}");
+
+    // A model fitted in MPa does not run on a column in kPa.
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("model");
+    let _ = json_of(&[
+        "fit",
+        STAIR,
+        "--pop",
+        "8",
+        "--gens",
+        "2",
+        "--backend",
+        "cpu",
+        "--json",
+        "--out",
+        model.to_str().unwrap(),
+    ]);
+    let csv = dir.path().join("kpa.csv");
+    let rows: String = (0..50)
+        .map(|k| format!("{},{},{}\n", k as f64 * 0.01, 100.0 + k as f64, 1.0))
+        .collect();
+    std::fs::write(&csv, format!("t,pressure_kpa,displacement\n{rows}")).unwrap();
+    let e = error_of(&[
+        "simulate",
+        "--from",
+        model.join("model.json").to_str().unwrap(),
+        "--input",
+        csv.to_str().unwrap(),
+        "--input-col",
+        "pressure_kpa",
+    ]);
+    assert!(
+        e.contains("in MPa") && e.contains("`pressure_kpa` is in kPa"),
+        "{e}"
+    );
+}
