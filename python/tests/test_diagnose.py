@@ -1,21 +1,37 @@
-"""diagnose: the document `mckibben diagnose --json` prints."""
+"""diagnose: the document `mckibben diagnose --json` prints, and its models."""
+
+import json
 
 import pytest
 
 import mckibben
 
 
-def test_diagnose_returns_the_commands_document(stair, cli):
+def without_provenance(path):
+    doc = json.loads(path.read_text())
+    del doc["provenance"]
+    return doc
+
+
+def test_diagnose_returns_the_commands_document_and_models(stair, cli, tmp_path):
     args = dict(effects=["delay"], seeds=1, generations=10, scratch_seeds=0)
+    out = tmp_path / "cli"
     expected = cli(
         "diagnose", stair.source, "--effects", "delay", "--seeds", "1",
-        "--generations", "10", "--scratch-seeds", "0",
+        "--generations", "10", "--scratch-seeds", "0", "--out", out,
     )
     got = mckibben.diagnose(stair, **args)
-    assert got == expected
-    assert got["schema_version"] == 1 and "verdict" in got and "final" in got
+    doc = got.document
+    assert doc == expected
+    assert doc["schema_version"] == 1 and "verdict" in doc and "final" in doc
+    assert isinstance(got.model, mckibben.Model) and got.baseline.effects == []
+    assert got.baseline.params == doc["baseline"]["params"]
+    for model, name in ((got.model, "model.json"), (got.baseline, "baseline.json")):
+        model.save(tmp_path / name)
+        assert without_provenance(tmp_path / name) == without_provenance(out / name)
+        assert mckibben.Model.load(out / name) == model
     again = mckibben.diagnose([(stair.input, stair.output, stair.dt)], **args)
-    assert again["baseline"]["params"] == got["baseline"]["params"]
+    assert again.document["baseline"]["params"] == doc["baseline"]["params"]
 
 
 def test_diagnose_rejects_bad_arguments(stair):

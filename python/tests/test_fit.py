@@ -1,9 +1,12 @@
 """fit: the command's staged engine, bit for bit; progress, Ctrl-C, the GIL."""
 
+import json
 import os
 import signal
 import struct
 import threading
+
+import pathlib
 
 import numpy as np
 import pytest
@@ -33,6 +36,47 @@ def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli, tmp_path):
     # Arrays instead of a Trace: the same fit.
     again = mckibben.fit(stair.input, stair.output, stair.dt, seed=1)
     assert again.params == result.params
+
+
+def model_file_without_provenance(path):
+    doc = json.loads(pathlib.Path(path).read_text())
+    del doc["provenance"]
+    return doc
+
+
+def test_fit_with_effects_gives_the_commands_parameters_and_file(stair, cli, tmp_path):
+    small = ["--pop", "40", "--gens", "10", "--seed", "2", "--backend", "cpu"]
+    out = tmp_path / "cli"
+    expected = cli("fit", stair.source, *small, "--effects", "creep", "--out", out)
+    result = mckibben.fit(stair, pop=40, gens=10, seed=2, effects=["creep"])
+    assert result.effects == expected["effects"] == ["creep"]
+    assert list(result.params) == list(expected["params"])
+    assert list(result.params)[9:] == ["creep.rho", "creep.kappa", "creep.z0"]
+    assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
+    assert bits(result.sse) == bits(expected["sse"])
+    assert result.model.effects == ["creep"] and result.model.params == result.params
+    # The model file: the command's, byte for byte but for where it came from.
+    result.model.save(tmp_path / "model.json")
+    assert model_file_without_provenance(tmp_path / "model.json") == model_file_without_provenance(
+        out / "model.json"
+    )
+    provenance = json.loads((tmp_path / "model.json").read_text())["provenance"]
+    assert provenance["command"] == "mckibben.fit (Python)" and provenance["seed"] == 2
+    assert provenance["data"][0]["file"] == stair.source and provenance["data"][0]["sha256"]
+
+
+def test_a_warm_start_is_the_commands_fit_from(stair, cli, small_fit, tmp_path):
+    start = tmp_path / "start.json"
+    small_fit.model.save(start)
+    small = ["--pop", "40", "--gens", "5", "--seed", "5", "--backend", "cpu"]
+    expected = cli("fit", stair.source, *small, "--from", start, "--effects", "delay", "--out", tmp_path / "cli")
+    for given in (start, str(start), small_fit.model):
+        result = mckibben.fit(stair, pop=40, gens=5, seed=5, effects=["delay"], start=given)
+        assert list(result.params) == list(expected["params"])
+        assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
+    # The start's family and effects when not given.
+    again = mckibben.fit(stair, pop=40, gens=2, start=result.model)
+    assert again.effects == result.effects and again.family == "classic"
 
 
 def test_seeds_are_per_call(stair, small_fit):
@@ -109,7 +153,8 @@ def test_another_thread_runs_during_a_fit(stair):
 @pytest.mark.parametrize(
     "kwargs, error, message",
     [
-        ({"effects": ["delay"]}, NotImplementedError, "fit --effects"),
+        ({"start": 3}, TypeError, "start must be a Model or the path"),
+        ({"start": "/nonexistent/model.json"}, FileNotFoundError, "cannot read"),
         ({"effects": ["delayy"]}, ValueError, "unknown effect `delayy`"),
         ({"bounds": {"alpah": (0.0, 1.0)}}, ValueError, "no parameter `alpah`"),
         ({"bounds": {"alpha": (0.9, 0.1)}}, ValueError, "the box is empty"),
