@@ -12,6 +12,7 @@ __all__ = [
     "Trace",
     "Model",
     "FitResult",
+    "Diagnosis",
     "Evaluator",
     "ScipyObjective",
     "read_csv",
@@ -76,7 +77,8 @@ def read_csv(
 
 @final
 class Model:
-    """A fitted hysteresis model: the model file `mckibben fit` writes."""
+    """A fitted hysteresis model, a family and its effect chain: the model
+    file `mckibben fit` and `diagnose --out` write."""
 
     @staticmethod
     def load(path: _Path) -> Model: ...
@@ -85,9 +87,11 @@ class Model:
         """Free-run output on `u`; `x0` is the measured output at the first
         sample (default: the output mean the model was fitted around)."""
     @property
-    def params(self) -> dict[str, float]: ...
+    def params(self) -> dict[str, float]:
+        """The family's parameters in canonical order, then the effects' as `effect.param`."""
     @property
-    def effects(self) -> list[str]: ...
+    def effects(self) -> list[str]:
+        """The effect stages after the family, in chain order."""
     @property
     def family(self) -> Literal["classic", "generalized"]: ...
     @property
@@ -116,6 +120,7 @@ class FitResult:
     seconds: float
     backend: str
     family: str
+    effects: list[str]
     algo: str
     flow: str
     seed: int
@@ -132,7 +137,7 @@ def fit(
     u: _ArrayLike | Trace,
     y: _ArrayLike | None = None,
     dt: float | None = None,
-    model: Literal["classic", "generalized"] = "classic",
+    model: Literal["classic", "generalized"] | None = None,
     effects: Sequence[str] | None = None,
     algo: Literal["de", "ga", "mfa", "pso"] = "de",
     pop: int | None = None,
@@ -148,6 +153,7 @@ def fit(
     target_sse: float | None = None,
     time_budget: float | None = None,
     stall: int | None = None,
+    start: Model | _Path | None = None,
 ) -> FitResult: ...
 
 @final
@@ -209,4 +215,13 @@ def diagnose(
     generations: int | None = None,
     scratch_seeds: int | None = None,
     backend: Literal["auto", "cpu", "gpu"] = "cpu",
-) -> dict[str, Any]: ...
+) -> Diagnosis: ...
+
+@final
+class Diagnosis:
+    """What `diagnose` returns: `mckibben diagnose --json`'s document and the
+    models `diagnose --out` writes."""
+
+    document: dict[str, Any]
+    model: Model
+    baseline: Model
