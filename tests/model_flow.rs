@@ -178,6 +178,44 @@ fn fit_with_effects_writes_a_chain_that_simulate_reproduces() {
 }
 
 #[test]
+fn fit_with_effects_auto_returns_the_diagnosis_final_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let fit = json_of(&[
+        "fit",
+        STAIR,
+        "--effects",
+        "auto",
+        "--backend",
+        "cpu",
+        "--json",
+        "--out",
+        out,
+    ]);
+    let effects = fit["effects"].as_array().unwrap();
+    assert!(
+        !effects.is_empty(),
+        "the stair's diagnosis names effects: {fit}"
+    );
+    let val = fit["val_fit_percent"].as_f64().unwrap();
+    assert!(val > 95.0, "{val}");
+    let sim = json_of(&[
+        "simulate",
+        "--from",
+        dir.path().join("model.json").to_str().unwrap(),
+        "--input",
+        STAIR,
+        "--json",
+    ]);
+    assert_eq!(sim["effects"], fit["effects"]);
+    assert!((sim["val_fit_percent"].as_f64().unwrap() - val).abs() < 1e-9);
+    let e = error_of(&["fit", STAIR, "--effects", "auto,creep"]);
+    assert!(e.contains("`auto` stands alone"), "{e}");
+    let e = error_of(&["fit", STAIR, "--effects", "auto", "--fix", "alpha=0.5"]);
+    assert!(e.contains("--effects auto"), "{e}");
+}
+
+#[test]
 fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
     let e = error_of(&[
         "fit",
