@@ -2,6 +2,8 @@
 //! and `fit --effects` write is what `simulate --from` runs and `fit
 //! --from` starts from, and a wrong name or unit is an error that says so.
 
+mod common;
+
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -175,6 +177,37 @@ fn fit_with_effects_writes_a_chain_that_simulate_reproduces() {
         sim["val_fit_percent"].as_f64().unwrap(),
     );
     assert!((a - b).abs() < 0.01, "fit {a} %, simulate {b} %");
+}
+
+#[test]
+fn a_fit_with_effects_ends_on_the_same_bits_on_lavapipe() {
+    if common::require_lavapipe_adapter().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let run = |backend: &str| {
+        let out = dir.path().join(backend);
+        json_of(&[
+            "fit",
+            STAIR,
+            "--effects",
+            "creep,inertia:ringing",
+            "--pop",
+            "40",
+            "--gens",
+            "10",
+            "--backend",
+            backend,
+            "--json",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    let (cpu, gpu) = (run("cpu"), run("gpu"));
+    assert!(gpu["backend"].as_str().unwrap().starts_with("gpu"));
+    for key in ["params", "sse", "val_fit_percent"] {
+        assert_eq!(cpu[key], gpu[key], "{key}");
+    }
 }
 
 #[test]
