@@ -460,13 +460,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let engine = &fit.engine;
     if !args.json {
-        let (algo, population, generations) = engine
-            .plan
-            .global
-            .as_ref()
-            .map_or((FreeRun::ALGORITHM, 0, 0), |g| {
-                (g.algorithm(), g.population, g.generations)
-            });
+        // A warm start has no global stage: its first is the free run's.
+        let (algo, population, generations) = match (&engine.plan.global, &engine.plan.free_run) {
+            (Some(g), _) => (g.algorithm(), g.population, g.generations),
+            (None, Some(f)) => (FreeRun::ALGORITHM, f.population, f.generations),
+            (None, None) => (FreeRun::ALGORITHM, 0, 0),
+        };
         let stages: Vec<&str> = engine.stages().iter().map(|s| s.name()).collect();
         let model = effects
             .iter()
@@ -674,7 +673,10 @@ fn write_results(out: &Path, w: Written) -> anyhow::Result<Output> {
         backend: backend.to_string(),
         flow: task.flow,
         seed: engine.seed,
-        population: global.map_or(0, |g| g.population),
+        population: global.map_or(
+            engine.plan.free_run.as_ref().map_or(0, |f| f.population),
+            |g| g.population,
+        ),
         stop: outcome.stop,
         stages: outcome.stages.clone(),
         on_edge,
