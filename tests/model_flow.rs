@@ -2,6 +2,8 @@
 //! and `fit --effects` write is what `simulate --from` runs and `fit
 //! --from` starts from, and a wrong name or unit is an error that says so.
 
+mod common;
+
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -175,6 +177,75 @@ fn fit_with_effects_writes_a_chain_that_simulate_reproduces() {
         sim["val_fit_percent"].as_f64().unwrap(),
     );
     assert!((a - b).abs() < 0.01, "fit {a} %, simulate {b} %");
+}
+
+#[test]
+fn a_fit_with_effects_ends_on_the_same_bits_on_lavapipe() {
+    if common::require_lavapipe_adapter().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let run = |backend: &str| {
+        let out = dir.path().join(backend);
+        json_of(&[
+            "fit",
+            STAIR,
+            "--effects",
+            "creep,inertia:ringing",
+            "--pop",
+            "40",
+            "--gens",
+            "10",
+            "--backend",
+            backend,
+            "--json",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+    };
+    let (cpu, gpu) = (run("cpu"), run("gpu"));
+    assert!(gpu["backend"].as_str().unwrap().starts_with("gpu"));
+    for key in ["params", "sse", "val_fit_percent"] {
+        assert_eq!(cpu[key], gpu[key], "{key}");
+    }
+}
+
+#[test]
+fn fit_with_effects_auto_returns_the_diagnosis_final_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let fit = json_of(&[
+        "fit",
+        STAIR,
+        "--effects",
+        "auto",
+        "--backend",
+        "cpu",
+        "--json",
+        "--out",
+        out,
+    ]);
+    let effects = fit["effects"].as_array().unwrap();
+    assert!(
+        !effects.is_empty(),
+        "the stair's diagnosis names effects: {fit}"
+    );
+    let val = fit["val_fit_percent"].as_f64().unwrap();
+    assert!(val > 95.0, "{val}");
+    let sim = json_of(&[
+        "simulate",
+        "--from",
+        dir.path().join("model.json").to_str().unwrap(),
+        "--input",
+        STAIR,
+        "--json",
+    ]);
+    assert_eq!(sim["effects"], fit["effects"]);
+    assert!((sim["val_fit_percent"].as_f64().unwrap() - val).abs() < 1e-9);
+    let e = error_of(&["fit", STAIR, "--effects", "auto,creep"]);
+    assert!(e.contains("`auto` stands alone"), "{e}");
+    let e = error_of(&["fit", STAIR, "--effects", "auto", "--fix", "alpha=0.5"]);
+    assert!(e.contains("--effects auto"), "{e}");
 }
 
 #[test]

@@ -109,6 +109,16 @@ fn fit_writes_the_documented_json_and_files() {
         "{history}"
     );
     assert!(history.contains(",polish,"), "{history}");
+    // Its columns name the canonical parameters its rows hold, not the
+    // search coordinates (gain, loading, ...).
+    assert!(
+        history
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with(",A,alpha,beta,gamma,n,a,b,c,x0"),
+        "{history}"
+    );
 
     // The thesis' flow: one stage on the free run, N × G evaluations, a and
     // b held at the ARX estimate.

@@ -11,9 +11,12 @@ use serde::Serialize;
 
 use super::common::{DataArgs, one_trace};
 use mckibben::data::{Trace, write_atomic};
+use mckibben::diagnose::{Settings as DiagnoseSettings, diagnose};
 use mckibben::eval::{self, Backend};
+use mckibben::ident::{fit_percent, rmse};
 use mckibben::model::bounds::Origin;
 use mckibben::model::effects::Effect;
+use mckibben::model::experiment::halves;
 use mckibben::model::file::{Provenance, SearchBox};
 use mckibben::model::{Family, Flow, Loop, ModelFile, UserBound};
 use mckibben::optim::Algorithm;
@@ -89,14 +92,16 @@ pub struct Args {
     /// Effects after the baseline, comma-separated, in chain order (e.g.
     /// `creep:two-pole,inertia:ringing`; `mckibben diagnose --help` lists
     /// the catalogue). Their parameters are fitted with the baseline's, each
-    /// in its own box from the record. Default: the --from model's, else none.
+    /// in its own box from the record. `auto` runs the diagnosis' selection
+    /// over the whole catalogue and returns its final model (as `mckibben
+    /// diagnose`; minutes, not seconds). Default: the --from model's, else none.
     #[arg(
         long,
         value_delimiter = ',',
         value_name = "LIST",
         conflicts_with = "thesis_flow"
     )]
-    effects: Option<Vec<Effect>>,
+    effects: Option<Vec<EffectArg>>,
     /// Start from a model file (a warm start): its parameters are the first
     /// member of the first population, and its family, effects and --bound
     /// / --fix are taken unless given here. The box is the new record's.
@@ -220,6 +225,23 @@ pub struct Args {
     /// Print JSON on stdout instead of a report.
     #[arg(long)]
     json: bool,
+}
+
+/// One entry of `--effects`: an effect of the catalogue, or `auto`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum EffectArg {
+    Auto,
+    Effect(Effect),
+}
+
+impl std::str::FromStr for EffectArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "auto" => Ok(EffectArg::Auto),
+            _ => s.parse().map(EffectArg::Effect),
+        }
+    }
 }
 
 /// The hysteretic families `fit` can fit.
@@ -358,8 +380,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, Some(m)) => m.base.family,
         (None, None) => Family::Classic,
     };
-    let effects: Vec<Effect> = match (&args.effects, &start_model) {
-        (Some(e), _) => e.clone(),
+    let given: Option<Vec<Effect>> = match args.effects.as_deref() {
+        None => None,
+        Some([EffectArg::Auto]) => {
+            anyhow::ensure!(
+                start_model.is_none() && args.bound.is_empty() && args.fix.is_empty(),
+                "--effects auto runs the diagnosis' own selection: not with --from, --bound or --fix"
+            );
+            let trace = one_trace(args.data.load()?)?;
+            return run_auto(&args, family, &trace);
+        }
+        Some(list) => Some(
+            list.iter()
+                .map(|e| match e {
+                    EffectArg::Effect(e) => Ok(*e),
+                    EffectArg::Auto => Err(anyhow::anyhow!(
+                        "--effects: `auto` stands alone (the diagnosis chooses every effect)"
+                    )),
+                })
+                .collect::<anyhow::Result<_>>()?,
+        ),
+    };
+    let effects: Vec<Effect> = match (given, &start_model) {
+        (Some(e), _) => e,
         (None, Some(m)) => m.effects().to_vec(),
         (None, None) => Vec::new(),
     };
@@ -417,13 +460,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let engine = &fit.engine;
     if !args.json {
-        let (algo, population, generations) = engine
-            .plan
-            .global
-            .as_ref()
-            .map_or((FreeRun::ALGORITHM, 0, 0), |g| {
-                (g.algorithm(), g.population, g.generations)
-            });
+        // A warm start has no global stage: its first is the free run's.
+        let (algo, population, generations) = match (&engine.plan.global, &engine.plan.free_run) {
+            (Some(g), _) => (g.algorithm(), g.population, g.generations),
+            (None, Some(f)) => (FreeRun::ALGORITHM, f.population, f.generations),
+            (None, None) => (FreeRun::ALGORITHM, 0, 0),
+        };
         let stages: Vec<&str> = engine.stages().iter().map(|s| s.name()).collect();
         let model = effects
             .iter()
@@ -484,6 +526,107 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `--effects auto`: the diagnosis' forward selection over the whole
+/// catalogue on `trace` (its settings, with this command's seed and
+/// backend); writes and reports its final model as a fit's.
+fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
+    let settings = DiagnoseSettings {
+        seed: args.seed,
+        backend: args.backend,
+        ..DiagnoseSettings::default()
+    };
+    if !args.json {
+        eprintln!(
+            "fitting {family} with the effects the diagnosis selects from its catalogue \
+             (seed {}) on {}",
+            args.seed, trace.source
+        );
+    }
+    let started = std::time::Instant::now();
+    let d = diagnose(std::slice::from_ref(trace), family, &Effect::ALL, &settings)?;
+    let model = d.final_model.clone();
+    let run = model.simulate_absolute(&trace.input, trace.output[0]);
+    let from = halves(trace.len()).1.start;
+    let (y, yhat) = (&trace.output[from..], &run.output[from..]);
+    let finite = |v: f64| v.is_finite().then_some(v);
+    let output = Output {
+        model: family,
+        effects: model
+            .effects()
+            .iter()
+            .map(|e| e.name().to_string())
+            .collect(),
+        algo: Algorithm::De,
+        params: model.named_params().into_iter().collect(),
+        sse: finite(d.selection.final_fit.est_sse),
+        val_rmse: finite(rmse(y, yhat)),
+        val_fit_percent: finite(fit_percent(y, yhat)),
+        evaluations: 0,
+        generations: 0,
+        seconds: started.elapsed().as_secs_f64(),
+        backend: format!("{:?} (the diagnosis' searches)", args.backend).to_lowercase(),
+        flow: Flow::Joint,
+        seed: args.seed,
+        population: settings.population,
+        stop: StopReason::Completed,
+        stages: Vec::new(),
+        on_edge: Vec::new(),
+        widened: Vec::new(),
+        search_box: SearchBox {
+            names: Vec::new(),
+            lower: Vec::new(),
+            upper: Vec::new(),
+            origin: Vec::new(),
+        },
+        data: trace.source.clone(),
+        out: args.out.clone(),
+    };
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create --out {}", args.out.display()))?;
+    ModelFile::new(&model, None, args.data.provenance(Some(args.seed))?)
+        .save(&args.out.join("model.json"))?;
+    let result = args.out.join("result.json");
+    write_atomic(
+        &result,
+        Versioned::new(&output).to_string_pretty()?.as_bytes(),
+    )
+    .with_context(|| format!("cannot write {}", result.display()))?;
+    let title = format!("diagnosed {family} fit");
+    let (loop_fig, trace_fig) = fit_figures(&model, trace, &title);
+    loop_fig.save(&args.out.join("loop.svg"))?;
+    trace_fig.save(&args.out.join("trace.svg"))?;
+    if args.json {
+        println!("{}", Versioned::new(&output).to_string_pretty()?);
+        return Ok(());
+    }
+    println!(
+        "{family} fit of {} with the diagnosis' effects: {}",
+        trace.source,
+        if output.effects.is_empty() {
+            "none".to_string()
+        } else {
+            output.effects.join(", ")
+        }
+    );
+    for (name, value) in &output.params.0 {
+        println!("  {name:<7} {value:>14.6}");
+    }
+    let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
+    println!("  SSE (estimation)     {}", show(output.sse));
+    println!(
+        "  validation fit       {} %   (RMSE {})",
+        show(output.val_fit_percent),
+        show(output.val_rmse)
+    );
+    println!(
+        "  {:.2} s; `mckibben diagnose` gives the selection's report; wrote model.json, \
+         result.json and figures to {}",
+        output.seconds,
+        args.out.display()
+    );
+    Ok(())
+}
+
 /// What a finished fit writes.
 struct Written<'a> {
     task: &'a Task,
@@ -530,7 +673,10 @@ fn write_results(out: &Path, w: Written) -> anyhow::Result<Output> {
         backend: backend.to_string(),
         flow: task.flow,
         seed: engine.seed,
-        population: global.map_or(0, |g| g.population),
+        population: global.map_or(
+            engine.plan.free_run.as_ref().map_or(0, |f| f.population),
+            |g| g.population,
+        ),
         stop: outcome.stop,
         stages: outcome.stages.clone(),
         on_edge,

@@ -299,7 +299,7 @@ impl Engine {
         );
         let rng = ChaCha8Rng::seed_from_u64(seed);
         Ok(Engine {
-            history: History::new(space.names.clone()),
+            history: History::new(space.canonical_names()),
             plan,
             space,
             seed,

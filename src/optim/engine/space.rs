@@ -164,6 +164,21 @@ impl Space {
         out
     }
 
+    /// The names of the canonical parameters the engine reports (what
+    /// [`Space::embed`] returns): the family's, then any after it (an
+    /// effect's), where the coordinates are another scale's; else the
+    /// coordinates' own names.
+    pub fn canonical_names(&self) -> Vec<String> {
+        match &self.coords {
+            Some((family, _)) => {
+                let mut names = Coordinates::Native.names(*family);
+                names.extend(self.names[family.dim()..].iter().cloned());
+                names
+            }
+            None => self.names.clone(),
+        }
+    }
+
     /// The full search coordinates of a canonical vector.
     fn coordinates(&self, canonical: &[f64]) -> Vec<f64> {
         match &self.coords {
@@ -250,6 +265,31 @@ mod tests {
         assert_eq!(back[1], 1.0);
         assert_eq!(back, theta);
         assert_eq!(space.bounds().lower, vec![0.0, -0.5]);
+    }
+
+    #[test]
+    fn canonical_names_name_what_embed_returns() {
+        use crate::model::{Family, LinearPrior, Loop};
+        let prior = LinearPrior {
+            a: 0.96,
+            b: 25.0,
+            max_abs_input: 0.4,
+            max_abs_output: 40.0,
+            output_range: 30.0,
+        };
+        let scaled = SearchSpace::scaled(Family::Classic, prior, Loop::Bounded, false, &[])
+            .unwrap()
+            .with_extra(vec!["creep.rho".into()], vec![0.9], vec![0.99], &[])
+            .unwrap();
+        let space = Space::from(&scaled);
+        assert!(space.names.contains(&"gain".to_string()));
+        let mut want: Vec<String> = Family::Classic
+            .params()
+            .iter()
+            .map(|p| p.name.to_string())
+            .collect();
+        want.push("creep.rho".into());
+        assert_eq!(space.canonical_names(), want);
     }
 
     #[test]
