@@ -157,7 +157,7 @@ fn parse_effect(s: &str) -> Result<Effect, String> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
     let effects = if args.effects.is_empty() {
-        Effect::ALL.to_vec()
+        Effect::by_default()
     } else {
         args.effects.clone()
     };

@@ -543,7 +543,12 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
         );
     }
     let started = std::time::Instant::now();
-    let d = diagnose(std::slice::from_ref(trace), family, &Effect::ALL, &settings)?;
+    let d = diagnose(
+        std::slice::from_ref(trace),
+        family,
+        &Effect::by_default(),
+        &settings,
+    )?;
     let model = d.final_model.clone();
     let run = model.simulate_absolute(&trace.input, trace.output[0]);
     let from = halves(trace.len()).1.start;

@@ -188,6 +188,7 @@ catalogue! {
                 kick: None,
                 only_on_a_peak: false,
             },
+            on_request: false,
         },
         /// Asymmetry in time constant: the input passes at once on one branch
         /// and through a first-order lag `|ρ|` on the other (`ρ > 0`: drains
@@ -344,6 +345,7 @@ catalogue! {
                 kick: Some(2),
                 only_on_a_peak: true,
             },
+            on_request: false,
         },
         /// Log-time creep of the rubber: three input-driven slow states a
         /// decade apart in time constant (poles `ρ^100`, `ρ^10`, `ρ`), each
@@ -388,6 +390,11 @@ catalogue! {
                     tau(1.0)
                 )
             }),
+            // On the independent self-test it takes the two-pole creep's
+            // case on the multisine and sizes it 51 % off (its slowest term
+            // has not settled within a record), and no Cavatappi record
+            // selects it: tried when named.
+            on_request: true,
             ..CREEP
         },
     }
@@ -408,6 +415,7 @@ const PLAIN: Realisation = Realisation {
     min_datasets: 1,
     admits: None,
     hint: StartHint::None,
+    on_request: false,
 };
 
 /// The end stops' common parameter, box and signature.

@@ -73,6 +73,15 @@ impl Effect {
         self.entry().name
     }
 
+    /// The realisations the diagnosis tries when `--effects` names none:
+    /// the catalogue less those tried only on request.
+    pub fn by_default() -> Vec<Effect> {
+        Effect::ALL
+            .into_iter()
+            .filter(|e| !e.entry().on_request)
+            .collect()
+    }
+
     /// Whether the effect can be fitted on `datasets` datasets (`load` needs two).
     pub fn applicable(self, datasets: usize) -> bool {
         datasets >= self.entry().min_datasets
@@ -136,10 +145,17 @@ impl Effect {
             .filter(|e| !e.applicable(1))
             .map(|e| format!("`{e}`"))
             .collect();
+        let on_request: Vec<String> = Effect::ALL
+            .into_iter()
+            .filter(|e| e.entry().on_request)
+            .map(|e| format!("`{e}`"))
+            .collect();
         format!(
-            "{}; {} only applies with several DATA files, e.g. one per hanging load",
+            "{}; {} only applies with several DATA files, e.g. one per hanging load; {} only \
+             when named",
             names.join(", "),
-            several.join(", ")
+            several.join(", "),
+            on_request.join(", ")
         )
     }
 }
@@ -331,6 +347,14 @@ impl Augmented {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_default_catalogue_leaves_out_only_what_is_tried_on_request() {
+        let default = Effect::by_default();
+        assert!(!default.contains(&Effect::LogCreep));
+        assert_eq!(default.len(), Effect::ALL.len() - 1);
+        assert!(Effect::help_list().contains("`creep:log` only when named"));
+    }
     use crate::model::{Measure, measured_sse, presets::thesis_params, simulate, sse};
 
     fn experiment() -> Experiment {

@@ -47,6 +47,10 @@ pub struct Realisation<E> {
     pub admits: Option<fn(&[f64]) -> bool>,
     /// Where the diagnosis starts its fit beyond the uniform draws.
     pub hint: StartHint,
+    /// Tried only when named (`--effects`), not by the default diagnosis:
+    /// a realisation that has not yet shown it pays for the time and the
+    /// wrong names it adds to every round.
+    pub on_request: bool,
 }
 
 /// A realisation's parameter list.
