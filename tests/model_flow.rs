@@ -250,45 +250,25 @@ fn fit_with_effects_auto_returns_the_diagnosis_final_model() {
 
 #[test]
 fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
-    let e = error_of(&[
-        "fit",
-        STAIR,
-        "--effects",
-        "friction",
-        "--pop",
-        "8",
-        "--gens",
-        "2",
-    ]);
-    assert!(
-        e.contains("unknown effect `friction`") && e.contains("creep"),
-        "{e}"
-    );
-    let e = error_of(&[
-        "fit",
-        STAIR,
-        "--bound",
-        "creep.kappa=0:1",
-        "--pop",
-        "8",
-        "--gens",
-        "2",
-    ]);
-    assert!(
-        e.contains("`creep.kappa`") && e.contains("--effects"),
-        "{e}"
-    );
-    let e = error_of(&[
-        "fit",
-        STAIR,
-        "--effects",
-        "creep,creep",
-        "--pop",
-        "8",
-        "--gens",
-        "2",
-    ]);
-    assert!(e.contains("twice"), "{e}");
+    let cases: [(&[&str], &[&str]); 3] = [
+        (
+            &["--effects", "friction"],
+            &["unknown effect `friction`", "creep"],
+        ),
+        (
+            &["--bound", "creep.kappa=0:1"],
+            &["`creep.kappa`", "--effects"],
+        ),
+        (&["--effects", "creep,creep"], &["twice"]),
+    ];
+    for (flags, wanted) in cases {
+        let mut args = vec!["fit", STAIR, "--pop", "8", "--gens", "2"];
+        args.extend_from_slice(flags);
+        let e = error_of(&args);
+        for w in wanted {
+            assert!(e.contains(w), "fit {flags:?}: {e}");
+        }
+    }
 
     // A model fitted in MPa does not run on a column in kPa.
     let dir = tempfile::tempdir().unwrap();
