@@ -17,6 +17,7 @@ use mckibben::control::validation::LoopShape;
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
 use mckibben::data::Trace;
 use mckibben::data::csv::{ReadOptions, read_traces, write_trace};
+use mckibben::data::units::unit_of;
 use mckibben::report::json::Versioned;
 use mckibben::rig::{self, ChildLink, Limits, Link, Ranges, RemoteSettings, RunLog, UdpLink};
 use mckibben::twin::TwinConfig;
@@ -402,6 +403,21 @@ fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
     let m = mckibben::model::ModelFile::load(path)
         .and_then(|f| f.model())
         .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+    // The controllers drive pressures in MPa and displacements in mm (the
+    // twin's, and the rig protocol's): a model fitted in other units would
+    // be off by a factor, silently.
+    for (which, column, want) in [
+        ("input", &m.base.input_name, "MPa"),
+        ("output", &m.base.output_name, "mm"),
+    ] {
+        if let Some(unit) = unit_of(column).filter(|u| u != want) {
+            anyhow::bail!(
+                "--from {}: the model's {which} is in {unit} (column `{column}`), the \
+                 controllers' in {want}: convert the column to {want} and refit",
+                path.display()
+            );
+        }
+    }
     // The controllers' prediction has a baseline's states only: each effect
     // of a diagnosed model is said to be left out, not dropped silently.
     for e in m.effects() {
