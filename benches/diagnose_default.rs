@@ -17,7 +17,15 @@ fn default_diagnose(c: &mut Criterion) {
     // Criterion's fewest samples; one takes about 16 s here.
     group.sample_size(10);
     group.bench_function("classic stair_4.5kg", |b| {
-        b.iter(|| diagnose(&traces, Family::Classic, &Effect::ALL, &Settings::default()).unwrap())
+        b.iter(|| {
+            diagnose(
+                &traces,
+                Family::Classic,
+                &Effect::by_default(),
+                &Settings::default(),
+            )
+            .unwrap()
+        })
     });
     group.finish();
 }
