@@ -42,6 +42,18 @@ fn error_of(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// `simulate --from model --input` the shipped stair, `--json`.
+fn simulated_stair(model: &Path) -> Value {
+    json_of(&[
+        "simulate",
+        "--from",
+        model.to_str().unwrap(),
+        "--input",
+        STAIR,
+        "--json",
+    ])
+}
+
 fn model_in(dir: &Path, name: &str) -> Value {
     serde_json::from_slice(&std::fs::read(dir.join(name)).unwrap()).unwrap()
 }
@@ -75,14 +87,7 @@ fn the_diagnosed_model_simulates_to_its_reported_fit_and_warm_starts_a_fit() {
     );
 
     // simulate --from reproduces the diagnosis' validation fit.
-    let sim = json_of(&[
-        "simulate",
-        "--from",
-        d.join("model.json").to_str().unwrap(),
-        "--input",
-        STAIR,
-        "--json",
-    ]);
+    let sim = simulated_stair(&d.join("model.json"));
     let reported = diagnosis["final"]["val_fit_percent"].as_f64().unwrap();
     let simulated = sim["val_fit_percent"].as_f64().unwrap();
     assert!(
@@ -164,14 +169,7 @@ fn fit_with_effects_writes_a_chain_that_simulate_reproduces() {
     ]);
     assert_eq!(fit["effects"], serde_json::json!(["creep"]));
     assert!(fit["params"]["creep.kappa"].is_number());
-    let sim = json_of(&[
-        "simulate",
-        "--from",
-        dir.path().join("model.json").to_str().unwrap(),
-        "--input",
-        STAIR,
-        "--json",
-    ]);
+    let sim = simulated_stair(&dir.path().join("model.json"));
     let (a, b) = (
         fit["val_fit_percent"].as_f64().unwrap(),
         sim["val_fit_percent"].as_f64().unwrap(),
@@ -232,14 +230,7 @@ fn fit_with_effects_auto_returns_the_diagnosis_final_model() {
     );
     let val = fit["val_fit_percent"].as_f64().unwrap();
     assert!(val > 95.0, "{val}");
-    let sim = json_of(&[
-        "simulate",
-        "--from",
-        dir.path().join("model.json").to_str().unwrap(),
-        "--input",
-        STAIR,
-        "--json",
-    ]);
+    let sim = simulated_stair(&dir.path().join("model.json"));
     assert_eq!(sim["effects"], fit["effects"]);
     assert!((sim["val_fit_percent"].as_f64().unwrap() - val).abs() < 1e-9);
     let e = error_of(&["fit", STAIR, "--effects", "auto,creep"]);
