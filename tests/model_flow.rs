@@ -296,3 +296,70 @@ fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
         "{e}"
     );
 }
+
+#[test]
+fn diagnose_from_a_model_starts_the_selection_at_its_chain() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().join("d");
+    let quick = ["--seeds", "2", "--generations", "5", "--scratch-seeds", "0"];
+    let mut first = vec!["diagnose", STAIR, "--effects", "saturation:output,delay"];
+    first.extend_from_slice(&quick);
+    first.extend_from_slice(&["--json", "--out", d.to_str().unwrap()]);
+    let first = json_of(&first);
+    let chain = first["final"]["model"].clone();
+    assert!(!chain.as_array().unwrap().is_empty(), "{first}");
+    assert_eq!(first["from"], Value::Null);
+
+    let model = d.join("model.json");
+    let mut again = vec!["diagnose", STAIR, "--from", model.to_str().unwrap()];
+    again.extend_from_slice(&["--effects", "saturation:output,delay,asymmetry"]);
+    again.extend_from_slice(&quick);
+    again.push("--json");
+    let again = json_of(&again);
+    assert_eq!(again["given"], chain, "{again}");
+    assert_eq!(again["from"], model.to_str().unwrap());
+    // The steps: the baseline, the start model's chain refitted, then what
+    // the rounds add; the final model holds the chain and those.
+    let steps = again["steps"].as_array().unwrap();
+    assert_eq!(steps[0]["effects"], serde_json::json!([]));
+    assert_eq!(steps[1]["effects"], chain);
+    let start_fit = steps[1]["val_fit_percent"].as_f64().unwrap();
+    let reported = first["final"]["val_fit_percent"].as_f64().unwrap();
+    assert!(start_fit > reported - 0.5, "{start_fit} against {reported}");
+    let final_model: Vec<Value> = again["final"]["model"].as_array().unwrap().clone();
+    let verdict = again["verdict"].as_array().unwrap();
+    assert_eq!(
+        final_model.len(),
+        chain.as_array().unwrap().len() + verdict.len()
+    );
+    assert!(
+        chain
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|e| final_model.contains(e))
+    );
+    // No candidate repeats a physical effect of the chain.
+    for c in again["candidates"].as_array().unwrap() {
+        assert!(!chain.as_array().unwrap().contains(&c["effect"]), "{c}");
+    }
+
+    // Data at another sample time is refused, naming both.
+    let csv = dir.path().join("fast.csv");
+    let rows: String = (0..80)
+        .map(|k| format!("{},{},{}\n", k as f64 * 0.05, 0.2 + 0.001 * k as f64, 30.0))
+        .collect();
+    std::fs::write(&csv, format!("t,pressure,displacement\n{rows}")).unwrap();
+    for command in ["diagnose", "fit"] {
+        let e = error_of(&[
+            command,
+            csv.to_str().unwrap(),
+            "--from",
+            model.to_str().unwrap(),
+        ]);
+        assert!(
+            e.contains("sampled every 0.05") && e.contains("--resample"),
+            "{command}: {e}"
+        );
+    }
+}

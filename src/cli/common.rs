@@ -9,7 +9,7 @@ use anyhow::Context;
 
 use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces_with_notes};
-use mckibben::model::file::{Provenance, ReadSettings};
+use mckibben::model::file::{ModelFile, Provenance, ReadSettings};
 
 /// The shipped default experiment, relative to the repository root.
 pub const DEFAULT_DATA: &str = "data/stair_4.5kg.csv";
@@ -19,16 +19,19 @@ pub const DEFAULT_DATA: &str = "data/stair_4.5kg.csv";
 pub struct ColumnArgs {
     /// Column holding the model input (the muscle pressure, MPa, in the
     /// shipped data). Any numeric column works, e.g. `--input valve_in`.
-    #[arg(long, value_name = "COL", default_value = "pressure")]
-    pub input: String,
+    /// [default: `pressure`, or the --from model's column]
+    #[arg(long, value_name = "COL")]
+    pub input: Option<String>,
     /// Column holding the measured output (the displacement, mm, in the
-    /// shipped data).
-    #[arg(long, value_name = "COL", default_value = "displacement")]
-    pub output: String,
+    /// shipped data). [default: `displacement`, or the --from model's
+    /// column]
+    #[arg(long, value_name = "COL")]
+    pub output: Option<String>,
     /// Column holding the time in seconds. It must increase on every row
-    /// (with --split-gaps the file is cut where it does not).
-    #[arg(long, value_name = "COL", default_value = "t")]
-    pub time: String,
+    /// (with --split-gaps the file is cut where it does not). [default:
+    /// `t`, or the --from model's]
+    #[arg(long, value_name = "COL")]
+    pub time: Option<String>,
     /// The models are discrete-time and need a uniform time base (every step
     /// within 10% of the median step); a file that is not is an error naming
     /// the first bad row. With this flag every column is instead linearly
@@ -109,12 +112,39 @@ impl MultiDataArgs {
 }
 
 impl ColumnArgs {
+    /// These flags, with what they leave unsaid read as `model` was read
+    /// (its columns, time column and time base): a model refitted or
+    /// diagnosed again reads new data as its own, unless told otherwise.
+    pub fn or_as_read_for(&self, model: &ModelFile) -> ColumnArgs {
+        let read = &model.provenance.read;
+        let time_base_given = self.resample.is_some() || self.split_gaps;
+        ColumnArgs {
+            input: self.input.clone().or(Some(model.data.input.column.clone())),
+            output: self
+                .output
+                .clone()
+                .or(Some(model.data.output.column.clone())),
+            time: self.time.clone().or(read.time.clone()),
+            resample: if time_base_given {
+                self.resample
+            } else {
+                read.resample
+            },
+            split_gaps: if time_base_given {
+                self.split_gaps
+            } else {
+                read.split_gaps
+            },
+        }
+    }
+
     /// The reading options these flags ask for.
     pub fn options(&self) -> ReadOptions {
+        let defaults = ReadOptions::default();
         ReadOptions {
-            time: self.time.clone(),
-            input: self.input.clone(),
-            output: self.output.clone(),
+            time: self.time.clone().unwrap_or(defaults.time),
+            input: self.input.clone().unwrap_or(defaults.input),
+            output: self.output.clone().unwrap_or(defaults.output),
             gaps: match (self.resample, self.split_gaps) {
                 (Some(dt), _) => Gaps::Resample(dt),
                 (None, true) => Gaps::Split,
@@ -126,7 +156,7 @@ impl ColumnArgs {
     /// How these flags read a file, for a model file's provenance.
     pub fn read_settings(&self) -> ReadSettings {
         ReadSettings {
-            time: Some(self.time.clone()),
+            time: Some(self.options().time),
             resample: self.resample,
             split_gaps: self.split_gaps,
         }

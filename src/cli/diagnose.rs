@@ -10,7 +10,7 @@ use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::selftest::{
     Nominal, Outcome, TwinOutcome, cases, run_case, table, twin_check,
 };
-use mckibben::diagnose::{Effect, Settings, diagnose};
+use mckibben::diagnose::{Effect, Settings, diagnose_from};
 use mckibben::eval::Backend;
 use mckibben::model::{Family, ModelFile};
 use mckibben::report::json::Versioned;
@@ -48,9 +48,9 @@ use super::common::MultiDataArgs;
 pub struct Args {
     #[command(flatten)]
     data: MultiDataArgs,
-    /// Baseline model family.
-    #[arg(long, default_value = "classic", value_parser = parse_family)]
-    baseline: Family,
+    /// Baseline model family. [default: classic, or the --from model's]
+    #[arg(long, value_parser = parse_family)]
+    baseline: Option<Family>,
     // The help lists the catalogue as `model::effects` declares it.
     #[arg(long, value_delimiter = ',', value_parser = parse_effect, help = format!(
         "Effects to try, comma-separated (default: the whole catalogue, every realisation: {})",
@@ -98,6 +98,16 @@ pub struct Args {
     /// --from` and `control --from`.
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
+    /// Start the selection from a model file (e.g. an earlier `--out`'s
+    /// model.json, or `fit`'s): its baseline and effects are refitted warm
+    /// on DATA in the model's coordinates instead of the baseline from
+    /// scratch, and the rounds try the rest of the catalogue on top of
+    /// them. DATA is read as the model's data were (columns, time column,
+    /// --resample) unless flags say otherwise, and must have the model's
+    /// units and sample time. Minutes faster than a diagnosis from scratch
+    /// where the model is already close.
+    #[arg(long, value_name = "MODEL.json", conflicts_with = "self_test")]
+    from: Option<PathBuf>,
     /// Instead of diagnosing DATA, check the diagnosis itself on data with
     /// known effects, generated from the nominal model fitted to DATA.
     /// `--self-test` (or `=independent`): a generator with its own equations,
@@ -124,6 +134,13 @@ pub struct Args {
         requires = "self_test"
     )]
     cases: Vec<String>,
+}
+
+impl Args {
+    /// The baseline family asked for: classic unless `--baseline` says.
+    fn family(&self) -> Family {
+        self.baseline.unwrap_or(Family::Classic)
+    }
 }
 
 /// Which self-test `--self-test` runs.
@@ -154,8 +171,25 @@ fn parse_effect(s: &str) -> Result<Effect, String> {
     s.parse()
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
+    let from = match &args.from {
+        Some(path) => {
+            let file = ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+            args.data.columns = args.data.columns.or_as_read_for(&file);
+            let model = file.model()?;
+            let family = args.baseline.unwrap_or(model.base.family);
+            anyhow::ensure!(
+                family == model.base.family,
+                "--baseline {family}: the --from model {} is {}",
+                path.display(),
+                model.base.family
+            );
+            Some(model)
+        }
+        None => None,
+    };
+    let family = args.family();
     let effects = if args.effects.is_empty() {
         Effect::by_default()
     } else {
@@ -177,7 +211,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         None => {}
     }
-    let d = diagnose(&traces, args.baseline, &effects, &settings)?;
+    let family = from.as_ref().map_or(family, |m| m.base.family);
+    let mut d = diagnose_from(&traces, family, &effects, &settings, from.as_ref()).map_err(
+        |e| match &args.from {
+            Some(path) => e.context(format!("--from {}", path.display())),
+            None => e,
+        },
+    )?;
+    if let Some(path) = &args.from {
+        d.from = Some(path.display().to_string());
+    }
     if let Some(dir) = &args.out {
         let provenance = args.data.provenance(Some(args.seed))?;
         for (name, model) in [
@@ -216,7 +259,7 @@ fn self_test(
     settings: &Settings,
 ) -> anyhow::Result<()> {
     let trace = traces.first().context("no data")?;
-    let nominal = Nominal::fit(trace, args.baseline, settings)?;
+    let nominal = Nominal::fit(trace, args.family(), settings)?;
     let mut outcomes = Vec::new();
     for (i, case) in cases(&nominal, effects).iter().enumerate() {
         if !selected(&args.cases, &case.name) {
@@ -237,7 +280,7 @@ fn self_test(
     if !args.json {
         eprintln!("self-test: twin check ...");
     }
-    let twin = twin_check(args.baseline, effects, settings)?;
+    let twin = twin_check(args.family(), effects, settings)?;
     if args.json {
         println!(
             "{}",
@@ -254,7 +297,8 @@ fn self_test(
     } else {
         println!(
             "Self-test on the nominal {} model fitted to {}",
-            args.baseline, trace.source
+            args.family(),
+            trace.source
         );
         print!("{}", table(&outcomes, effects));
         println!("{passed} of {} cases pass", outcomes.len());
@@ -303,7 +347,7 @@ fn independent_self_test(
 ) -> anyhow::Result<()> {
     let trace = traces.first().context("no data")?;
     let started = std::time::Instant::now();
-    let nominal = Nominal::fit(trace, args.baseline, settings)?;
+    let nominal = Nominal::fit(trace, args.family(), settings)?;
     let setup = blind::Setup::new(&nominal, args.seed)?;
     let mut outcomes = Vec::new();
     for case in blind::cases(&setup, args.seed) {
@@ -350,7 +394,10 @@ fn independent_self_test(
     } else {
         println!(
             "Independent self-test on the nominal {} model fitted to {} (noise σ: stair {:.4}, multisine {:.4})",
-            args.baseline, trace.source, setup.sigmas[0], setup.sigmas[1]
+            args.family(),
+            trace.source,
+            setup.sigmas[0],
+            setup.sigmas[1]
         );
         print!("{}", blind::table(&outcomes));
         println!(

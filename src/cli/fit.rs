@@ -104,7 +104,11 @@ pub struct Args {
     effects: Option<Vec<EffectArg>>,
     /// Start from a model file (a warm start): its parameters are the first
     /// member of the first population, and its family, effects and --bound
-    /// / --fix are taken unless given here. The box is the new record's.
+    /// / --fix are taken unless given here. DATA is read as the model's
+    /// data were (columns, time column, --resample) unless flags say
+    /// otherwise, and must have the model's units and sample time. The fit
+    /// runs in the model's coordinates (its means), so the start is the
+    /// saved model itself; the box is the new record's.
     #[arg(long, value_name = "MODEL.json", conflicts_with = "thesis_flow")]
     from: Option<PathBuf>,
     /// Update rule of the population search: ga, mfa, pso (the thesis') or
@@ -369,11 +373,14 @@ impl Observer for Progress {
     }
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
+pub fn run(mut args: Args) -> anyhow::Result<()> {
     let start = match &args.from {
         Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?),
         None => None,
     };
+    if let Some(file) = &start {
+        args.data.columns = args.data.columns.or_as_read_for(file);
+    }
     let start_model = start.as_ref().map(|f| f.model()).transpose()?;
     let family: Family = match (args.model, &start_model) {
         (Some(m), _) => m.into(),

@@ -8,7 +8,6 @@ use serde::Serialize;
 use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces, write_trace_with_comments};
 use mckibben::data::signals::Stair;
-use mckibben::data::units::unit_of;
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::experiment::halves;
 use mckibben::model::presets::thesis_params;
@@ -327,9 +326,6 @@ fn input_trace(args: &Args, saved: Option<&ModelFile>) -> anyhow::Result<(Trace,
                     None => Gaps::Reject,
                 },
             };
-            if let Some(saved) = saved {
-                check_units(saved, &opts)?;
-            }
             let mut traces = read_traces(&path, &opts)?;
             anyhow::ensure!(
                 traces.len() == 1,
@@ -337,29 +333,13 @@ fn input_trace(args: &Args, saved: Option<&ModelFile>) -> anyhow::Result<(Trace,
                 traces.len()
             );
             let trace = traces.remove(0);
+            if let Some(saved) = saved {
+                saved.model()?.check_data(&trace)?;
+            }
             let y0 = trace.output.first().copied();
             Ok((trace, y0))
         }
     }
-}
-
-/// Refuses columns whose names state other units than the model's: a model
-/// fitted in psi run on kPa would be wrong by a factor, silently.
-fn check_units(saved: &ModelFile, opts: &ReadOptions) -> anyhow::Result<()> {
-    for (which, fitted, column) in [
-        ("input", &saved.data.input, &opts.input),
-        ("output", &saved.data.output, &opts.output),
-    ] {
-        if let (Some(was), Some(now)) = (&fitted.unit, unit_of(column)) {
-            anyhow::ensure!(
-                *was == now,
-                "the model's {which} is in {was} (column `{}`), but `{column}` is in {now}: \
-                 convert the column, or refit the model on data in {now}",
-                fitted.column
-            );
-        }
-    }
-    Ok(())
 }
 
 fn figure(trace: &Trace, described: &str) -> Figure {

@@ -12,7 +12,7 @@ use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
 use crate::ident::arx::{Arx, ArxOrders};
 use crate::model::experiment::halves;
-use crate::model::{Experiment, Family, Flow, LinearPrior, Measure, SearchSpace};
+use crate::model::{Experiment, Family, Flow, LinearPrior, Measure, Model, SearchSpace};
 
 /// The data of a diagnosis: every dataset in the deviation coordinates of the
 /// first one's estimation half, the estimation part, and where validation
@@ -64,6 +64,15 @@ impl Data {
     /// Splits every trace in halves (estimation first, as the thesis, §4.3.1)
     /// and checks that the data can be diagnosed at all.
     pub fn new(traces: &[Trace]) -> anyhow::Result<Data> {
+        Data::in_coordinates(traces, None)
+    }
+
+    /// As [`Data::new`], in `model`'s coordinates when one is given
+    /// (`diagnose --from`): its means are removed from every dataset and a
+    /// chain keeps its effect constants on the first, so that the model's
+    /// parameters describe the same model on these data (as
+    /// `optim::task::Task::in_coordinates_of` does for `fit --from`).
+    pub fn in_coordinates(traces: &[Trace], model: Option<&Model>) -> anyhow::Result<Data> {
         anyhow::ensure!(!traces.is_empty(), "no data to diagnose");
         let mut whole: Vec<Experiment> = Vec::new();
         let mut est = Vec::new();
@@ -95,9 +104,10 @@ impl Data {
             // All datasets share the first one's coordinates, so that one
             // absolute model (one intercept) describes them all and a
             // difference between them (a load) is a gap, not a shift of means.
-            let w = match whole.first() {
-                None => Experiment::with_means_of(t, e.clone()),
-                Some(first) => Experiment::with_offsets(t, first.u_mean, first.y_mean),
+            let w = match (model, whole.first()) {
+                (Some(m), _) => Experiment::with_offsets(t, m.base.input_mean, m.base.output_mean),
+                (None, None) => Experiment::with_means_of(t, e.clone()),
+                (None, Some(first)) => Experiment::with_offsets(t, first.u_mean, first.y_mean),
             };
             est.push(w.segment(e));
             val_start.push(v.start);
@@ -123,10 +133,13 @@ impl Data {
                     .collect::<Vec<_>>(),
             ),
         };
-        let ctx = whole
+        let mut ctx: Vec<Context> = whole
             .iter()
             .map(|w| Context::of(w, prior.b >= 0.0))
             .collect();
+        if let Some(chain) = model.and_then(|m| m.chain.as_ref()) {
+            ctx[0] = chain.context;
+        }
         Ok(Data {
             whole,
             est,

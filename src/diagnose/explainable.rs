@@ -438,6 +438,9 @@ pub fn judge(
     let of_bound = |g: f64| sized.then(|| g / bound.gap_closable);
     let effect_shares = steps
         .windows(2)
+        // A step that adds one effect credits it; the chain a selection
+        // started from (`diagnose --from`) is credited to none of its own.
+        .filter(|w| w[1].effects.len() == w[0].effects.len() + 1)
         .filter_map(|w| {
             let effect = *w[1].effects.last()?;
             let gap = w[1].gap_closed - w[0].gap_closed;

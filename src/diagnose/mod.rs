@@ -56,6 +56,9 @@ pub struct Step {
 #[derive(Debug, Clone)]
 pub struct Diagnosis {
     pub family: Family,
+    /// Where the selection started (`diagnose --from`; the command puts the
+    /// model file's name here), `None` from scratch.
+    pub from: Option<String>,
     pub datasets: Vec<String>,
     /// Sample time of the first dataset (s), for sizes in time.
     pub dt: f64,
@@ -151,11 +154,28 @@ pub fn diagnose(
     effects: &[Effect],
     settings: &Settings,
 ) -> anyhow::Result<Diagnosis> {
+    diagnose_from(traces, family, effects, settings, None)
+}
+
+/// [`diagnose`], the selection started from `from` (`diagnose --from`): its
+/// baseline and chain refitted warm in its own coordinates, the rounds
+/// trying the rest of `effects` ([`select::select`]).
+pub fn diagnose_from(
+    traces: &[Trace],
+    family: Family,
+    effects: &[Effect],
+    settings: &Settings,
+    from: Option<&Model>,
+) -> anyhow::Result<Diagnosis> {
     anyhow::ensure!(
         family != Family::Linear,
         "the baseline must be a hysteresis model: classic or generalized"
     );
-    let data = Data::new(traces)?.scored_on(crate::eval::open(settings.backend)?);
+    let data = Data::in_coordinates(traces, from)?.scored_on(crate::eval::open(settings.backend)?);
+    let start = match from {
+        Some(m) => Some(start_of(m, traces, family, data.datasets())?),
+        None => None,
+    };
     let outputs: Vec<Vec<f64>> = data
         .whole
         .iter()
@@ -164,7 +184,8 @@ pub fn diagnose(
         .collect();
     let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
     let floor = locate::noise_floor(&refs);
-    let selection = select::select(&data, family, effects, settings, floor)?;
+    let start_ref = start.as_ref().map(|(m, theta)| (m, theta.as_slice()));
+    let selection = select::select(&data, family, effects, settings, floor, start_ref)?;
     anyhow::ensure!(
         selection.baseline.best.val_rmse.is_finite(),
         "the {family} baseline fitted on the estimation half diverges on the validation half \
@@ -185,6 +206,21 @@ pub fn diagnose(
         val_fit_percent: fit_of(&data, base_model, &base.params),
         gap_closed: 0.0,
     }];
+    if let Some(given) = &selection.given_fit {
+        // The first round may have found a better fit of the start model.
+        let fit = selection
+            .rounds
+            .first()
+            .and_then(|round| round.rebased.last())
+            .map_or(&given.best, |f| &f.best);
+        let model = Augmented::new(family, selection.given.clone(), data.datasets());
+        steps.push(Step {
+            effects: selection.given.clone(),
+            val_rmse: fit.val_rmse,
+            val_fit_percent: fit_of(&data, &model, &fit.params),
+            gap_closed: accept::gap_closed(base.val_rmse, fit.val_rmse, floor),
+        });
+    }
     for (r, round) in selection.rounds.iter().enumerate() {
         if let Some(c) = round
             .candidates
@@ -300,6 +336,7 @@ pub fn diagnose(
         &selection.final_fit.params,
     );
     Ok(Diagnosis {
+        from: from.map(|_| "the start model".to_string()),
         baseline_model,
         final_model,
         family,
@@ -316,6 +353,33 @@ pub fn diagnose(
         final_spectrum,
         curves,
     })
+}
+
+/// The start of a selection from `model`: its chain over `datasets`
+/// datasets and its parameters; an error where it cannot start one here.
+fn start_of(
+    model: &Model,
+    traces: &[Trace],
+    family: Family,
+    datasets: usize,
+) -> anyhow::Result<(Augmented, Vec<f64>)> {
+    anyhow::ensure!(
+        model.base.family == family,
+        "the start model is {}, the baseline asked for {family}",
+        model.base.family
+    );
+    for t in traces {
+        model.check_data(t)?;
+    }
+    let augmented = Augmented::new(family, model.effects().to_vec(), datasets);
+    let theta = model.theta();
+    anyhow::ensure!(
+        theta.len() == augmented.dim(),
+        "the start model was fitted on {} datasets together (its `load` effect has a gain for \
+         each); diagnose it with as many files",
+        model.chain.as_ref().map_or(1, |c| c.datasets)
+    );
+    Ok((augmented, theta))
 }
 
 /// `augmented` with `theta` as a model file holds it: in the first

@@ -182,6 +182,10 @@ pub struct DiagnosisJson {
     pub verdict: Vec<&'static str>,
     /// `named`, `none` or `not-explained`.
     pub verdict_kind: &'static str,
+    /// The model file the selection started from (`--from`), and its
+    /// effects, taken as given.
+    pub from: Option<String>,
+    pub given: Vec<&'static str>,
     pub steps: Vec<Step>,
     #[serde(rename = "final")]
     pub final_: FinalJson,
@@ -275,6 +279,8 @@ impl DiagnosisJson {
             } else {
                 "named"
             },
+            from: d.from.clone(),
+            given: sel.given.iter().map(|e| e.name()).collect(),
             steps: d.steps.clone(),
             final_: FinalJson {
                 model: sel.final_model.effects.iter().map(|e| e.name()).collect(),
@@ -318,11 +324,15 @@ fn pct(v: f64) -> String {
     format!("{:5.1} %", 100.0 * v)
 }
 
-fn step_name(s: &Step) -> String {
+/// A step by what it adds to the one before: one accepted effect, or the
+/// start model's chain (`diagnose --from`).
+fn step_name(before: Option<&Step>, s: &Step) -> String {
+    let had = before.map_or(0, |b| b.effects.len());
     if s.effects.is_empty() {
         "baseline".into()
     } else {
-        format!("+ {}", s.effects.last().map_or("", |e| e.name()))
+        let added: Vec<&str> = s.effects[had..].iter().map(|e| e.name()).collect();
+        format!("+ {}", added.join(" + "))
     }
 }
 
@@ -342,6 +352,21 @@ pub fn to_text(d: &Diagnosis) -> String {
         "Baseline: validation RMSE {:.4}, fit {:.1} %; noise floor ≈ {:.4} (from second differences of the measured output)",
         base.val_rmse, base.val_fit_percent, d.noise_floor_rmse
     );
+    if let Some(from) = &d.from {
+        let names: Vec<&str> = d.selection.given.iter().map(|e| e.name()).collect();
+        let _ = writeln!(
+            o,
+            "Started from {from}: its baseline{} refitted warm on these data; the rounds try the rest of the catalogue",
+            if names.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " and its effects ({}, taken as given, not judged)",
+                    names.join(", ")
+                )
+            }
+        );
+    }
     let _ = writeln!(
         o,
         "\nWHERE the baseline misses (share of residual energy vs share of samples):"
@@ -455,11 +480,11 @@ pub fn to_text(d: &Diagnosis) -> String {
         );
     }
     let _ = writeln!(o, "\nHOW FAR:");
-    for s in &d.steps {
+    for (i, s) in d.steps.iter().enumerate() {
         let _ = writeln!(
             o,
             "  {:<14} val RMSE {:.4}  fit {:5.1} %  gap closed {}",
-            step_name(s),
+            step_name(i.checked_sub(1).map(|j| &d.steps[j]), s),
             s.val_rmse,
             s.val_fit_percent,
             pct(s.gap_closed)

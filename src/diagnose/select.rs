@@ -18,6 +18,10 @@ use crate::model::Family;
 /// found through a candidate (see [`select`]).
 pub const MAX_REBASES: usize = 2;
 
+/// Seed salt of the start model's refit (`diagnose --from`), apart from the
+/// baseline's (0) and the rounds' (100 per round).
+const GIVEN_SALT: u64 = 1;
+
 /// One round of forward selection.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Round {
@@ -38,6 +42,11 @@ pub struct Round {
 pub struct Selection {
     pub baseline_model: Augmented,
     pub baseline: SeededFit,
+    /// The effects of the model the selection started from (`diagnose
+    /// --from`): taken as given, not judged; the rounds add to them.
+    pub given: Vec<Effect>,
+    /// That model refitted warm on these data (`None` without effects).
+    pub given_fit: Option<SeededFit>,
     pub rounds: Vec<Round>,
     /// Accepted effects in the order accepted.
     pub verdict: Vec<Effect>,
@@ -57,18 +66,45 @@ pub struct Selection {
 /// (`Round::rebased`) and the round is judged again against it; the effect
 /// is credited only with what the model without it cannot reach from the
 /// same place. At most [`MAX_REBASES`] times a round.
+///
+/// **A start.** With `from` (a model and its parameters in `data`'s
+/// coordinates, `diagnose --from`), the baseline is refitted warm from the
+/// model's baseline parameters instead of from scratch, the model's chain
+/// is refitted warm and becomes the current model, and the rounds go on
+/// from it with the rest of `effects`.
 pub fn select(
     data: &Data,
     family: Family,
     effects: &[Effect],
     settings: &Settings,
     floor: f64,
+    from: Option<(&Augmented, &[f64])>,
 ) -> anyhow::Result<Selection> {
     let baseline_model = Augmented::new(family, Vec::new(), data.datasets());
-    let mut baseline = fit_seeds(data, &baseline_model, Start::Scratch, settings, 0)?;
+    let d = family.dim();
+    let baseline_start = match from {
+        Some((_, theta)) => Start::Warm {
+            params: &theta[..d],
+            new_from: d,
+        },
+        None => Start::Scratch,
+    };
+    let mut baseline = fit_seeds(data, &baseline_model, baseline_start, settings, 0)?;
     let mut current_model = baseline_model.clone();
     let mut current_params = baseline.best.params.clone();
     let mut final_fit = baseline.best.clone();
+    let mut given_fit = None;
+    if let Some((model, theta)) = from.filter(|(m, _)| !m.effects.is_empty()) {
+        let start = Start::Warm {
+            params: theta,
+            new_from: theta.len(),
+        };
+        let fit = fit_seeds(data, model, start, settings, GIVEN_SALT)?;
+        current_model = model.clone();
+        current_params = fit.best.params.clone();
+        final_fit = fit.best.clone();
+        given_fit = Some(fit);
+    }
     let mut rounds = Vec::new();
     let mut verdict = Vec::new();
     let n = data.val_samples().max(2) as f64;
@@ -212,6 +248,8 @@ pub fn select(
         }
     }
     Ok(Selection {
+        given: from.map_or(Vec::new(), |(m, _)| m.effects.clone()),
+        given_fit,
         baseline_model,
         baseline,
         rounds,

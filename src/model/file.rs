@@ -94,6 +94,37 @@ impl Model {
             .collect()
     }
 
+    /// Refuses data this model cannot run on as it stands: a column whose
+    /// name states other units than the model's (a model fitted in psi run
+    /// on kPa is off by a factor, silently), or another sample time (the
+    /// model is discrete-time: its poles are per sample). Names without a
+    /// unit are taken at their word.
+    pub fn check_data(&self, trace: &crate::data::Trace) -> anyhow::Result<()> {
+        let base = &self.base;
+        for (which, fitted, column) in [
+            ("input", &base.input_name, &trace.input_name),
+            ("output", &base.output_name, &trace.output_name),
+        ] {
+            if let (Some(was), Some(now)) = (unit_of(fitted), unit_of(column)) {
+                anyhow::ensure!(
+                    was == now,
+                    "the model's {which} is in {was} (column `{fitted}`), but `{column}` is in \
+                     {now}: convert the column, or refit the model on data in {now}"
+                );
+            }
+        }
+        let dt = trace.dt();
+        anyhow::ensure!(
+            (dt - base.dt).abs() <= 0.01 * base.dt,
+            "{} is sampled every {dt} s, the model every {} s: a discrete-time model's poles \
+             are per sample, so resample the data onto its time base (--resample {})",
+            trace.source,
+            base.dt,
+            base.dt
+        );
+        Ok(())
+    }
+
     /// Free run on a trace's input from its first measured output.
     pub fn simulate_trace(&self, trace: &crate::data::Trace) -> Vec<f64> {
         let y0 = trace

@@ -344,6 +344,9 @@ impl Fit {
         } else {
             Flow::Joint
         };
+        if let Some(m) = start {
+            m.check_data(trace).context("the start model")?;
+        }
         let task = Task::with_box(
             trace,
             what.family,
@@ -353,6 +356,10 @@ impl Fit {
             what.loop_shape,
             &what.bounds,
         )
+        .map(|t| match start {
+            Some(m) => t.in_coordinates_of(trace, m),
+            None => t,
+        })
         .and_then(|t| t.with_effects(&what.effects, &what.bounds))
         .with_context(|| format!("cannot fit {}", trace.source))?;
         let engine = match start {

@@ -7,6 +7,7 @@ use crate::data::Trace;
 use crate::eval::Problem;
 use crate::ident::{ArxOrders, arx::identify, fit_percent, rmse};
 use crate::model::effects::{Augmented, Context, Effect, effect_box};
+use crate::model::experiment::halves;
 use crate::model::file::Chain;
 use crate::model::presets::ThesisBounds;
 use crate::model::{
@@ -115,6 +116,25 @@ impl Task {
             effects: Vec::new(),
             context,
         })
+    }
+
+    /// The same task in `model`'s coordinates: the model's means are
+    /// removed from `trace` instead of the estimation half's, and a chain
+    /// keeps its effect constants. Then `model`'s parameters describe the
+    /// same model on this record, whatever record it was fitted on: a warm
+    /// start starts at the saved model itself. (Moving a model to other
+    /// means is not a change of its intercept alone: the generalized loop's
+    /// sign terms switch at `x = 0`, so the origin is part of the model.)
+    pub fn in_coordinates_of(mut self, trace: &Trace, model: &Model) -> Task {
+        let whole = Experiment::with_offsets(trace, model.base.input_mean, model.base.output_mean);
+        let (est, val) = halves(trace.len());
+        self.estimation = whole.segment(est);
+        self.validation = whole.segment(val);
+        self.context = match &model.chain {
+            Some(chain) => chain.context,
+            None => Context::of(&whole, self.prior.b >= 0.0),
+        };
+        self
     }
 
     /// The same task with `effects` after the family: their parameters
@@ -353,5 +373,39 @@ mod tests {
         let thesis = Task::new(&s.trace, Family::Classic, Flow::Thesis, None, false).unwrap();
         assert_eq!(thesis.space.free(), vec![0, 1, 2, 3]);
         assert!(Task::new(&s.trace, Family::Linear, Flow::Joint, None, false).is_err());
+    }
+
+    #[test]
+    fn in_a_models_coordinates_its_parameters_are_that_model_on_another_record() {
+        for family in [Family::Classic, Family::Generalized] {
+            let s = Synthetic::new(family, 600, 0.05, 3);
+            let fitted_on = Task::new(&s.trace, family, Flow::Joint, None, false).unwrap();
+            let model = fitted_on.model(&s.truth);
+            // Another record of the same muscle: its means are not the model's.
+            let t = &s.trace;
+            let later = Trace::uniform(
+                "later",
+                t.dt(),
+                t.input[150..].to_vec(),
+                t.output[150..].to_vec(),
+            );
+            let task = Task::new(&later, family, Flow::Joint, None, false).unwrap();
+            assert!((task.estimation.y_mean - model.base.output_mean).abs() > 0.1);
+            let saved = model.simulate_trace(&later);
+            let val_start = later.len() - task.validation.u.len();
+            let expected = fit_percent(&later.output[val_start..], &saved[val_start..]);
+            let here = task
+                .clone()
+                .in_coordinates_of(&later, &model)
+                .validate(&s.truth);
+            assert!(
+                (here.fit_percent - expected).abs() < 1e-6,
+                "{family}: {} against the model's own {expected}",
+                here.fit_percent
+            );
+            // In the record's own coordinates the same numbers are another model.
+            let moved = task.validate(&s.truth).fit_percent;
+            assert!((moved - expected).abs() > 1e-3, "{family}: {moved}");
+        }
     }
 }
