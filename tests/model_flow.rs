@@ -304,11 +304,13 @@ fn diagnose_from_a_model_starts_the_selection_at_its_chain() {
     let quick = ["--seeds", "2", "--generations", "5", "--scratch-seeds", "0"];
     let mut first = vec!["diagnose", STAIR, "--effects", "saturation:output,delay"];
     first.extend_from_slice(&quick);
-    first.extend_from_slice(&["--json", "--out", d.to_str().unwrap()]);
+    first.extend_from_slice(&["--max-effects", "1", "--json", "--out", d.to_str().unwrap()]);
     let first = json_of(&first);
     let chain = first["final"]["model"].clone();
-    assert!(!chain.as_array().unwrap().is_empty(), "{first}");
+    assert_eq!(chain.as_array().unwrap().len(), 1, "{first}");
     assert_eq!(first["from"], Value::Null);
+    // It stopped at the cap with its only round accepting: it says so.
+    assert_eq!(first["capped"], true);
 
     let model = d.join("model.json");
     let mut again = vec!["diagnose", STAIR, "--from", model.to_str().unwrap()];
@@ -318,6 +320,10 @@ fn diagnose_from_a_model_starts_the_selection_at_its_chain() {
     let again = json_of(&again);
     assert_eq!(again["given"], chain, "{again}");
     assert_eq!(again["from"], model.to_str().unwrap());
+    assert_eq!(
+        again["capped"], false,
+        "the default cap leaves room: {again}"
+    );
     // The steps: the baseline, the start model's chain refitted, then what
     // the rounds add; the final model holds the chain and those.
     let steps = again["steps"].as_array().unwrap();

@@ -77,6 +77,14 @@ pub struct Args {
     /// leaves both out.
     #[arg(long, default_value_t = Settings::default().scratch_seeds)]
     scratch_seeds: usize,
+    /// At most this many effects are added, one a round. Each round fits
+    /// every remaining candidate, so one more round costs about a third
+    /// more time; the report says when the selection stopped here rather
+    /// than because nothing passed (a record with several unmodelled
+    /// effects, e.g. a muscle that creeps, saturates and rings, may need
+    /// more).
+    #[arg(long, default_value_t = Settings::default().max_effects)]
+    max_effects: usize,
     /// Where the searches score their populations: `cpu` (the batched,
     /// multi-threaded CPU path), `gpu` (the WGSL kernels on the best adapter,
     /// lavapipe included: the same numbers, bit for bit, where the adapter
@@ -199,6 +207,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         seeds: args.seeds,
         generations: args.generations,
         scratch_seeds: args.scratch_seeds,
+        max_effects: args.max_effects,
         seed: args.seed,
         backend: args.backend,
         ..Settings::default()

@@ -186,6 +186,8 @@ pub struct DiagnosisJson {
     /// effects, taken as given.
     pub from: Option<String>,
     pub given: Vec<&'static str>,
+    /// Whether the selection stopped at `--max-effects` still accepting.
+    pub capped: bool,
     pub steps: Vec<Step>,
     #[serde(rename = "final")]
     pub final_: FinalJson,
@@ -280,6 +282,7 @@ impl DiagnosisJson {
                 "named"
             },
             from: d.from.clone(),
+            capped: sel.capped,
             given: sel.given.iter().map(|e| e.name()).collect(),
             steps: d.steps.clone(),
             final_: FinalJson {
@@ -556,6 +559,15 @@ pub fn to_text(d: &Diagnosis) -> String {
             "\nVerdict: {} (closes {} of the gap above the noise floor).",
             names.join(", then "),
             pct(d.last().gap_closed).trim()
+        );
+    }
+    if d.selection.capped {
+        let n = d.selection.rounds.len();
+        let _ = writeln!(
+            o,
+            "The selection stopped at {n} effects (--max-effects {n}) with its last round still \
+             accepting one: more may pass (--max-effects {}).",
+            n + 1
         );
     }
     if let Some(p) = d.final_spectrum.as_ref().and_then(|s| s.peaks.first()) {

@@ -50,6 +50,9 @@ pub struct Selection {
     pub rounds: Vec<Round>,
     /// Accepted effects in the order accepted.
     pub verdict: Vec<Effect>,
+    /// Whether the selection stopped at [`Settings::max_effects`] with its
+    /// last round still accepting: more effects might have passed.
+    pub capped: bool,
     pub final_model: Augmented,
     pub final_fit: Fit,
 }
@@ -248,6 +251,8 @@ pub fn select(
         }
     }
     Ok(Selection {
+        capped: rounds.len() == settings.max_effects
+            && rounds.last().is_some_and(|r| r.accepted.is_some()),
         given: from.map_or(Vec::new(), |(m, _)| m.effects.clone()),
         given_fit,
         baseline_model,
