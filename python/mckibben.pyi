@@ -208,13 +208,15 @@ class ScipyObjective:
 
 def diagnose(
     datasets: Trace | Sequence[Trace | tuple[_ArrayLike, _ArrayLike, float]],
-    baseline: Literal["classic", "generalized"] = "classic",
+    baseline: Literal["classic", "generalized"] | None = None,
     effects: Sequence[str] | None = None,
     seed: int = 1,
     seeds: int | None = None,
     generations: int | None = None,
     scratch_seeds: int | None = None,
     backend: Literal["auto", "cpu", "gpu"] = "cpu",
+    max_effects: int | None = None,
+    start: Model | _Path | None = None,
 ) -> Diagnosis: ...
 
 @final

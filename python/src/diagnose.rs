@@ -12,7 +12,7 @@ use mckibben::report::json::Versioned;
 
 use crate::convert::{backend, family, to_python, value_error};
 use crate::data::{Trace, arrays_trace};
-use crate::fit::{effects_arg, seed_arg};
+use crate::fit::{effects_arg, seed_arg, start_arg};
 use crate::model::{Model, provenance};
 
 /// The traces of `datasets`: a `Trace`, or a list whose items are each a
@@ -82,28 +82,42 @@ impl Diagnosis {
 /// Diagnoses the sim-to-real gap of a `baseline` model on `datasets` (each
 /// fitted on its first half, validated on its second), as `mckibben
 /// diagnose` does: where the model misses, which effects of the catalogue
-/// (`effects`, default all) explain it, how far the gap shrinks. Returns
-/// the document `mckibben diagnose --json` prints, as dicts and lists, and
-/// the final and baseline models as `Model`s.
+/// (`effects`, default the command's) explain it, how far the gap
+/// shrinks. With `start` (a `Model` or a model file's path), the selection
+/// starts from that model, as `diagnose --from`. Returns the document
+/// `mckibben diagnose --json` prints, as dicts and lists, and the final
+/// and baseline models as `Model`s.
 #[pyfunction]
-#[pyo3(signature = (datasets, baseline = "classic", effects = None, seed = 1, seeds = None, generations = None, scratch_seeds = None, backend = "cpu"))]
+#[pyo3(signature = (datasets, baseline = None, effects = None, seed = 1, seeds = None, generations = None, scratch_seeds = None, backend = "cpu", max_effects = None, start = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose<'py>(
     py: Python<'py>,
     datasets: &Bound<'py, PyAny>,
-    baseline: &str,
+    baseline: Option<&str>,
     effects: Option<Vec<String>>,
     seed: i128,
     seeds: Option<usize>,
     generations: Option<usize>,
     scratch_seeds: Option<usize>,
     backend: &str,
+    max_effects: Option<usize>,
+    start: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Diagnosis> {
     let traces = traces(datasets)?;
-    let family = family(baseline)?;
+    let start = start
+        .map(start_arg)
+        .transpose()?
+        .map(|f| f.model())
+        .transpose()
+        .map_err(value_error)?;
+    let family = match (baseline, &start) {
+        (Some(b), _) => family(b)?,
+        (None, Some(m)) => m.base.family,
+        (None, None) => mckibben::model::Family::Classic,
+    };
     let effects = match effects_arg(effects)? {
         Some(e) if !e.is_empty() => e,
-        _ => Effect::ALL.to_vec(),
+        _ => Effect::by_default(),
     };
     let defaults = Settings::default();
     let seeds = seeds.unwrap_or(defaults.seeds);
@@ -114,12 +128,15 @@ pub fn diagnose<'py>(
         seeds,
         generations: generations.unwrap_or(defaults.generations),
         scratch_seeds: scratch_seeds.unwrap_or(defaults.scratch_seeds),
+        max_effects: max_effects.unwrap_or(defaults.max_effects),
         seed: seed_arg(seed)?,
         backend: self::backend(backend)?,
         ..defaults
     };
     let d = py
-        .detach(|| mckibben::diagnose::diagnose(&traces, family, &effects, &settings))
+        .detach(|| {
+            mckibben::diagnose::diagnose_from(&traces, family, &effects, &settings, start.as_ref())
+        })
         .map_err(value_error)?;
     let sources: Vec<&str> = traces.iter().map(|t| t.source.as_str()).collect();
     let model = |m: &mckibben::model::Model| {

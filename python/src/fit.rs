@@ -194,7 +194,7 @@ pub fn effects_arg(effects: Option<Vec<String>>) -> PyResult<Option<Vec<Effect>>
 }
 
 /// A warm start: a `Model`, or the path of a model file.
-fn start_arg(start: &Bound<'_, PyAny>) -> PyResult<ModelFile> {
+pub fn start_arg(start: &Bound<'_, PyAny>) -> PyResult<ModelFile> {
     if let Ok(m) = start.cast::<Model>() {
         return Ok(m.get().file.clone());
     }

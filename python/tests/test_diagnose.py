@@ -43,3 +43,23 @@ def test_diagnose_rejects_bad_arguments(stair):
         mckibben.diagnose(3)
     with pytest.raises(ValueError, match="seeds must be at least 1"):
         mckibben.diagnose(stair, seeds=0)
+
+
+def test_diagnose_from_a_model_is_the_commands_diagnose_from(stair, cli, tmp_path):
+    args = dict(effects=["saturation:output", "delay"], seeds=1, generations=10,
+                scratch_seeds=0, max_effects=1)
+    first = mckibben.diagnose(stair, **args)
+    assert first.document["capped"] is True
+    chain = first.model.effects
+    assert len(chain) == 1
+    first.model.save(tmp_path / "model.json")
+    again = mckibben.diagnose(stair, **{**args, "max_effects": 3},
+                              start=tmp_path / "model.json")
+    doc = again.document
+    assert doc["given"] == chain and doc["steps"][1]["effects"] == chain
+    assert again.model.effects[: len(chain)] == chain
+    expected = cli(
+        "diagnose", stair.source, "--effects", "saturation:output,delay", "--seeds", "1",
+        "--generations", "10", "--scratch-seeds", "0", "--from", tmp_path / "model.json",
+    )
+    assert doc["final"] == expected["final"] and doc["given"] == expected["given"]
