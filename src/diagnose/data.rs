@@ -10,7 +10,7 @@ use super::effects::{Augmented, Context, effect_box};
 use crate::data::Trace;
 use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
-use crate::ident::arx::{Arx, ArxOrders};
+use crate::ident::arx::linear_prior;
 use crate::model::experiment::halves;
 use crate::model::{Experiment, Family, Flow, LinearPrior, Measure, Model, SearchSpace};
 
@@ -113,26 +113,7 @@ impl Data {
             val_start.push(v.start);
             whole.push(w);
         }
-        let first = &est[0];
-        let u: Vec<f64> = first.u.iter().map(|&v| v as f64).collect();
-        let y: Vec<f64> = first.y.iter().map(|&v| v as f64).collect();
-        let arx = Arx::estimate(&first.name, &u, &y, ArxOrders::default())?;
-        let max_abs = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let prior = LinearPrior {
-            a: arx.a[0],
-            b: arx.b[0],
-            max_abs_input: traces.iter().map(|t| max_abs(&t.input)).fold(0.0, f64::max),
-            max_abs_output: traces
-                .iter()
-                .map(|t| max_abs(&t.output))
-                .fold(0.0, f64::max),
-            output_range: crate::data::range(
-                &traces
-                    .iter()
-                    .flat_map(|t| t.output.iter().copied())
-                    .collect::<Vec<_>>(),
-            ),
-        };
+        let prior = linear_prior(traces)?;
         let mut ctx: Vec<Context> = whole
             .iter()
             .map(|w| Context::of(w, prior.b >= 0.0))
@@ -156,11 +137,6 @@ impl Data {
         self
     }
 
-    /// The backend and device the searches score on.
-    pub fn describe_scorer(&self) -> String {
-        format!("{:?}", self.scorer)
-    }
-
     /// The estimation part under `measure` as the evaluator's problem: the
     /// model description (family and effect stages) and every dataset.
     pub fn est_problem(&self, model: &Augmented, measure: Measure) -> Problem {
@@ -169,7 +145,9 @@ impl Data {
             .with_effects(model.effects.clone(), self.ctx.clone())
     }
 
-    fn with_evaluator<T>(
+    /// Runs `job` on the evaluator: a copy of the CPU path (searches run
+    /// side by side), or the device in turn.
+    pub(super) fn with_evaluator<T>(
         &self,
         job: impl FnOnce(&mut dyn Evaluator) -> anyhow::Result<T>,
     ) -> anyhow::Result<T> {
@@ -196,47 +174,6 @@ impl Data {
     /// ringing must ring).
     pub fn admits(model: &Augmented, theta: &[f64]) -> bool {
         model.family.loop_bounded(theta) && model.effects_admit(theta)
-    }
-
-    /// The estimation cost under `measure` of every row of `rows`
-    /// (row-major, canonical), summed over the datasets in `f64` as
-    /// [`Data::est_sse`] sums: the same numbers, scored as one batch.
-    pub fn est_costs(
-        &self,
-        model: &Augmented,
-        rows: &[f64],
-        measure: Measure,
-    ) -> anyhow::Result<Vec<f64>> {
-        let problem = self.est_problem(model, measure);
-        let scores = self.with_evaluator(|e| e.evaluate(&problem, rows))?;
-        let d = model.dim();
-        Ok(rows
-            .chunks_exact(d)
-            .enumerate()
-            .map(|(i, theta)| match Data::admits(model, theta) {
-                true => scores.per_experiment.iter().map(|s| s[i] as f64).sum(),
-                false => f64::INFINITY,
-            })
-            .collect())
-    }
-
-    /// The free-run residuals of [`Data::est_residuals`] for every row, as
-    /// one batch.
-    pub fn est_residuals_of(
-        &self,
-        model: &Augmented,
-        rows: &[f64],
-    ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
-        let problem = self.est_problem(model, Measure::FreeRun);
-        let all = self.with_evaluator(|e| e.residuals(&problem, rows))?;
-        Ok(all
-            .into_iter()
-            .zip(rows.chunks_exact(model.dim()))
-            .map(|(r, theta)| {
-                let r = r.filter(|_| Data::admits(model, theta))?;
-                Some(DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64)))
-            })
-            .collect())
     }
 
     pub fn datasets(&self) -> usize {
@@ -309,16 +246,14 @@ impl Data {
             .then(|| DVector::from_vec(r))
     }
 
-    /// The prediction horizon of [`Start::Ahead`](super::fitting::Start::Ahead): a third of the ARX time
-    /// constant `1/(1 − a)` in samples, so that the output error cannot pile
-    /// up through the slow pole, yet the prediction depends on the dynamics
-    /// rather than on the last measurement alone (shorter and longer
-    /// horizons measured on the self-test: docs/lab/diagnosis.md, the budget's
-    /// "in the first round" item).
+    /// The prediction horizon of [`Start::Ahead`](super::fitting::Start::Ahead):
+    /// the fit's global stage's ([`crate::optim::engine::model::horizon`]),
+    /// from the ARX pole and the shortest estimation part (shorter and
+    /// longer horizons measured on the self-test: docs/lab/diagnosis.md,
+    /// the budget's "in the first round" item).
     pub fn horizon(&self) -> usize {
-        let tau = 1.0 / (1.0 - self.prior.a).max(1e-3);
         let shortest = self.est.iter().map(|e| e.len()).min().unwrap_or(8);
-        ((tau / 3.0).round() as usize).clamp(2, (shortest / 4).max(2))
+        crate::optim::engine::model::horizon(self.prior.a, shortest)
     }
 
     /// Predicted output (deviation coordinates) over each whole dataset: the

@@ -171,9 +171,14 @@ pub fn diagnose_from(
         family != Family::Linear,
         "the baseline must be a hysteresis model: classic or generalized"
     );
+    if let Some(m) = from {
+        for t in traces {
+            m.check_data(t)?;
+        }
+    }
     let data = Data::in_coordinates(traces, from)?.scored_on(crate::eval::open(settings.backend)?);
     let start = match from {
-        Some(m) => Some(start_of(m, traces, family, data.datasets())?),
+        Some(m) => Some(start_of(m, family, data.datasets())?),
         None => None,
     };
     let outputs: Vec<Vec<f64>> = data
@@ -359,7 +364,6 @@ pub fn diagnose_from(
 /// datasets and its parameters; an error where it cannot start one here.
 fn start_of(
     model: &Model,
-    traces: &[Trace],
     family: Family,
     datasets: usize,
 ) -> anyhow::Result<(Augmented, Vec<f64>)> {
@@ -368,9 +372,6 @@ fn start_of(
         "the start model is {}, the baseline asked for {family}",
         model.base.family
     );
-    for t in traces {
-        model.check_data(t)?;
-    }
     let augmented = Augmented::new(family, model.effects().to_vec(), datasets);
     let theta = model.theta();
     anyhow::ensure!(

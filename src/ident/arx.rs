@@ -10,6 +10,7 @@ use thiserror::Error;
 
 use super::fit::{fit_percent, rmse};
 use crate::data::Trace;
+use crate::model::LinearPrior;
 use crate::model::experiment::halves;
 
 /// Orders of an ARX model: poles `na`, zeros+1 `nb`, input delay `nk`.
@@ -61,6 +62,8 @@ pub enum IdentError {
         "{data}: the least-squares problem is singular (regressors are linearly dependent); try lower orders"
     )]
     Singular { data: String },
+    #[error("no data to identify from")]
+    NoData,
 }
 
 /// An identified ARX model in deviation coordinates.
@@ -210,5 +213,26 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
         estimation_fit_percent: fit_percent(&y[est], &sim_est),
         validation_fit_percent: fit_percent(&y[val.clone()], &sim_val),
         validation_rmse: rmse(&y[val], &sim_val),
+    })
+}
+
+/// What the data say about scale, for the boxes of `fit` and the
+/// diagnosis alike: the first-order ARX pole and gain on the first trace's
+/// estimation half ([`identify`]), and the largest absolute input and
+/// output and the output's range over all of `traces` (absolute units).
+pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
+    let first = traces.first().ok_or(IdentError::NoData)?;
+    let id = identify(first, ArxOrders::default())?;
+    let max_abs = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let outputs: Vec<f64> = traces
+        .iter()
+        .flat_map(|t| t.output.iter().copied())
+        .collect();
+    Ok(LinearPrior {
+        a: id.arx.a[0],
+        b: id.arx.b[0],
+        max_abs_input: traces.iter().map(|t| max_abs(&t.input)).fold(0.0, f64::max),
+        max_abs_output: max_abs(&outputs),
+        output_range: crate::data::range(&outputs),
     })
 }

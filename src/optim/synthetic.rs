@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
 use crate::data::Trace;
-use crate::ident::{ArxOrders, arx::identify};
+use crate::ident::arx::linear_prior;
 use crate::model::{Experiment, Family, Flow, LinearPrior, SearchSpace};
 
 /// A known-truth identification problem.
@@ -107,14 +107,7 @@ impl Synthetic {
         // coordinates the fit uses (the shift of ȳ moves c, nothing else).
         truth[ic] -= (1.0 - abs[ia] * alpha) * (estimation.y_mean - y_mean)
             - abs[ib] * (estimation.u_mean - u_mean);
-        let id = identify(&trace, ArxOrders::default()).expect("synthetic data identify");
-        let prior = LinearPrior {
-            a: id.arx.a[0],
-            b: id.arx.b[0],
-            max_abs_input: trace.input.iter().fold(0.0, |m, v| m.max(v.abs())),
-            max_abs_output: trace.output.iter().fold(0.0, |m, v| m.max(v.abs())),
-            output_range: crate::data::range(&trace.output),
-        };
+        let prior = linear_prior(std::slice::from_ref(&trace)).expect("synthetic data identify");
         Synthetic {
             family,
             trace,

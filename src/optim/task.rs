@@ -5,7 +5,7 @@
 
 use crate::data::Trace;
 use crate::eval::Problem;
-use crate::ident::{ArxOrders, arx::identify, fit_percent, rmse};
+use crate::ident::{arx::linear_prior, fit_percent, rmse};
 use crate::model::effects::{Augmented, Context, Effect, effect_box};
 use crate::model::experiment::halves;
 use crate::model::file::Chain;
@@ -81,14 +81,7 @@ impl Task {
             "the linear model is fitted by least squares: use `mckibben identify`"
         );
         check_f32_range(trace)?;
-        let id = identify(trace, ArxOrders::default())?;
-        let prior = LinearPrior {
-            a: id.arx.a[0],
-            b: id.arx.b[0],
-            max_abs_input: trace.input.iter().fold(0.0, |m, v| m.max(v.abs())),
-            max_abs_output: trace.output.iter().fold(0.0, |m, v| m.max(v.abs())),
-            output_range: crate::data::range(&trace.output),
-        };
+        let prior = linear_prior(std::slice::from_ref(trace))?;
         let (estimation, validation) = Experiment::split_halves(trace);
         let whole = Experiment::with_offsets(trace, estimation.u_mean, estimation.y_mean);
         let context = Context::of(&whole, prior.b >= 0.0);

@@ -22,6 +22,10 @@ pub struct ModelObjective<'a> {
     stress: Option<(Problem, f64)>,
     /// Whether the loop must be in the bounded class.
     bounded_class: bool,
+    /// Whether every row must have a bounded loop
+    /// ([`crate::model::Family::loop_bounded`]), whatever the measure: the
+    /// diagnosis' rule ([`ModelObjective::bounded_loops`]).
+    loop_bounded: bool,
 }
 
 impl<'a> ModelObjective<'a> {
@@ -32,6 +36,17 @@ impl<'a> ModelObjective<'a> {
             problem,
             stress: None,
             bounded_class: false,
+            loop_bounded: false,
+        }
+    }
+
+    /// Scores `problem`, every row with an unbounded loop costing `+∞` under
+    /// every measure: the diagnosis' admission (`diagnose::Data::admits`,
+    /// which says why).
+    pub fn bounded_loops(evaluator: &'a mut dyn Evaluator, problem: Problem) -> Self {
+        ModelObjective {
+            loop_bounded: true,
+            ..ModelObjective::new(evaluator, problem)
         }
     }
 
@@ -87,16 +102,20 @@ impl<'a> ModelObjective<'a> {
 }
 
 impl ModelObjective<'_> {
-    /// Which rows' effect parameters the fits admit (all, without effects):
-    /// the diagnosis' rule ([`crate::model::effects::Augmented::effects_admit`]).
+    /// Which rows the fits admit whatever the measure: their effect
+    /// parameters ([`crate::model::effects::Augmented::effects_admit`]; all,
+    /// without effects) and, with [`ModelObjective::bounded_loops`], their
+    /// loop.
     fn effects_admit(&self, rows: &[f64]) -> Vec<bool> {
         let d = self.problem.dim().max(1);
+        let family = self.problem.family;
+        let loop_ok = |row: &[f64]| !self.loop_bounded || family.loop_bounded(row);
         if self.problem.effects.is_empty() {
-            return vec![true; rows.len() / d];
+            return rows.chunks_exact(d).map(loop_ok).collect();
         }
         let model = self.problem.model();
         rows.chunks_exact(d)
-            .map(|row| model.effects_admit(row))
+            .map(|row| loop_ok(row) && model.effects_admit(row))
             .collect()
     }
 }
@@ -108,7 +127,15 @@ impl Objective for ModelObjective<'_> {
 
     fn costs(&mut self, rows: &[f64], measure: Measure) -> anyhow::Result<Vec<f32>> {
         self.problem.measure = measure;
-        let mut costs = self.evaluator.evaluate(&self.problem, rows)?.total;
+        // Summed over the experiments in `f64`, as the diagnosis' SSEs are
+        // (one experiment, as `fit`'s: the evaluator's own number).
+        let scores = self.evaluator.evaluate(&self.problem, rows)?;
+        let mut costs: Vec<f32> = (0..scores.total.len())
+            .map(|i| {
+                let sum: f64 = scores.per_experiment.iter().map(|e| e[i] as f64).sum();
+                sum as f32
+            })
+            .collect();
         for (c, ok) in costs.iter_mut().zip(self.effects_admit(rows)) {
             if !ok {
                 *c = f32::INFINITY;
