@@ -350,3 +350,50 @@ impl Link for UdpLink {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    use super::*;
+
+    /// A rig that never stops talking: an endless stream of sample lines,
+    /// counting the bytes it has handed out.
+    struct Flood {
+        served: Arc<AtomicUsize>,
+    }
+
+    impl Read for Flood {
+        fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+            const LINE: &[u8] = b"S 1 0.25 30.0\n";
+            for (i, b) in buf.iter_mut().enumerate() {
+                *b = LINE[(self.served.load(Ordering::Relaxed) + i) % LINE.len()];
+            }
+            self.served.fetch_add(buf.len(), Ordering::Relaxed);
+            Ok(buf.len())
+        }
+    }
+
+    #[test]
+    fn a_flooding_rig_is_read_no_further_ahead_than_the_channel_holds() {
+        let served = Arc::new(AtomicUsize::new(0));
+        let rx = spawn_reader(Flood {
+            served: served.clone(),
+        });
+        // The reader fills the channel, then waits for the controller.
+        std::thread::sleep(Duration::from_millis(300));
+        let held = served.load(Ordering::Relaxed);
+        std::thread::sleep(Duration::from_millis(300));
+        assert_eq!(served.load(Ordering::Relaxed), held, "still reading");
+        // At most the channel's lines and the reader's buffers: a few
+        // kilobytes, where an unbounded read would be megabytes by now.
+        assert!(held <= 4 * 8192, "{held} bytes read ahead");
+        for _ in 0..3 * READ_AHEAD {
+            assert_eq!(
+                wait(&rx, Some(Duration::from_secs(5))),
+                Received::Line("S 1 0.25 30.0".into())
+            );
+        }
+    }
+}
