@@ -274,6 +274,18 @@ fn every_realisation_of_the_catalogue_says_how_it_was_used() {
     for e in [Effect::Saturation, Effect::OutputClip, Effect::SoftStop] {
         assert_eq!(used(e), "constraint", "{e}");
     }
+    // A state clip with a creep after it bounds x, not the output.
+    let with_creep = |stop| {
+        let m = with_effects(&[(stop, vec![34.0]), (Effect::Creep, vec![0.99, 8.0, 0.0])]);
+        let (chain, uses) = ControlChain::of(&m);
+        (chain.unwrap().end_stop, uses[0].used.clone())
+    };
+    assert_eq!(with_creep(Effect::Saturation), (None, "left-out".into()));
+    assert_eq!(with_creep(Effect::SoftStop), (None, "left-out".into()));
+    assert_eq!(
+        with_creep(Effect::OutputClip),
+        (Some((34.0, true)), "constraint".into())
+    );
     assert_eq!(used(Effect::Delay), "left-out");
     // The whole catalogue in one chain: what does not fit is left out.
     let all: Vec<(Effect, Vec<f64>)> = Effect::ALL
@@ -298,7 +310,7 @@ fn the_feedforward_inverts_the_whole_chain() {
         .map(|k| 30.0 + 6.0 * (k as f64 * 0.02).sin())
         .collect();
     inverse.start(0.25, r[0], r[0]);
-    let mut s = pr.at_rest(0.25, r[0] - pr.output_mean);
+    let mut s = pr.at_start(0.25, r[0] - pr.output_mean);
     let mut worst = 0.0f64;
     for k in 0..r.len() - 3 {
         let (p, next) = inverse.pressure_and_state(&r[k..]).unwrap();

@@ -23,7 +23,9 @@
 //!   in the input path.
 //! - **End stops** (`saturation`, `saturation:output`, `saturation:soft`):
 //!   as a constraint on what is tracked: the reference is held short of the
-//!   stop `l_max`, so neither controller winds up against it.
+//!   stop `l_max`, so neither controller winds up against it. The state
+//!   clip and the soft stop bound the baseline's `x`, not the output, so
+//!   with effect states adding to the output they are left out.
 //! - Everything else is left out, with its reason ([`EffectUse`]).
 //!
 //! **Estimating the unmeasured states.** The creeps' and the ringing's
@@ -33,8 +35,10 @@
 //! estimate, and corrects the baseline's `x` with the measured output less
 //! them — the restart the diagnosis' h-step-ahead predictor uses
 //! (`Prepared::restart`), so the controller predicts as the model was
-//! fitted to. They start at rest at the first measurement (each creep at
-//! its static value, the ringing at 0). Why not correct the effect states
+//! fitted to. They start as the fit started them ([`ControlChain::start`]).
+//! A ringing mode also takes its steady-state Kalman share of each
+//! innovation ([`Ring::observer_gains`]): a ringing the model's kick did
+//! not start goes into the mode, not into `x`. Why not correct the effect states
 //! from the measurement too: one displacement cannot tell a creep from the
 //! baseline's own slow pole; whatever the split gets wrong as an offset is
 //! taken by the observer's integrating disturbance.
@@ -65,6 +69,9 @@ pub struct Lag {
     /// `(1 − ρ)·κ`.
     pub weight: f64,
     pub drive: Drive,
+    /// Where the state starts (mm): the fitted `z0` for a creep's slowest
+    /// state, 0 for the others, as the step of record starts them.
+    pub start: f64,
 }
 
 /// The load's mode kicked by the pressure's change.
@@ -180,31 +187,38 @@ impl ControlChain {
         let mut uses = Vec::new();
         let mut at = 0;
         let drives_up = chain.context.drives_up;
+        let mut stops = Vec::new();
         for &e in &chain.effects {
             let dim = e.dim(chain.datasets);
             let p = &chain.params[at..at + dim];
             at += dim;
             let states = |lags: &[Lag], ring: bool| lags.len() + 2 * usize::from(ring);
-            let lag = |rho: f64, kappa: f64, drive| Lag {
+            let lag = |rho: f64, kappa: f64, drive, start| Lag {
                 rho,
                 weight: (1.0 - rho) * kappa,
                 drive,
+                start,
             };
             let new_lags: Vec<Lag> = match e {
-                Effect::Creep => vec![lag(p[0], p[1], Drive::Input)],
-                Effect::OutputCreep => vec![lag(p[0], p[1], Drive::Output)],
+                Effect::Creep => vec![lag(p[0], p[1], Drive::Input, p[2])],
+                Effect::OutputCreep => vec![lag(p[0], p[1], Drive::Output, p[2])],
                 Effect::TwoPoleCreep => {
                     let (fast, slow) = (p[3] * p[2], p[2] - p[3] * p[2]);
-                    vec![lag(p[0], fast, Drive::Input), lag(p[1], slow, Drive::Input)]
+                    vec![
+                        lag(p[0], fast, Drive::Input, 0.0),
+                        lag(p[1], slow, Drive::Input, p[4]),
+                    ]
                 }
                 Effect::LogCreep => {
-                    // Poles ρ^100, ρ^10, ρ, each of gain κ (the catalogue's).
+                    // Poles ρ^100, ρ^10, ρ, each of gain κ (the catalogue's);
+                    // the slowest starts at z0.
                     let mid = p[0].powi(10);
                     let fast = mid.powi(10);
-                    [fast, mid, p[0]]
-                        .iter()
-                        .map(|&r| lag(r, p[1], Drive::Input))
-                        .collect()
+                    vec![
+                        lag(fast, p[1], Drive::Input, 0.0),
+                        lag(mid, p[1], Drive::Input, 0.0),
+                        lag(p[0], p[1], Drive::Input, p[2]),
+                    ]
                 }
                 _ => Vec::new(),
             };
@@ -265,28 +279,36 @@ impl ControlChain {
                     ));
                 }
                 Effect::Saturation | Effect::OutputClip | Effect::SoftStop => {
-                    if let Some((stop, _)) = out.end_stop {
-                        let tighter = if drives_up {
-                            stop.min(p[0])
-                        } else {
-                            stop.max(p[0])
-                        };
-                        out.end_stop = Some((tighter, drives_up));
-                    } else {
-                        out.end_stop = Some((p[0], drives_up));
-                    }
-                    uses.push(EffectUse::new(
-                        e,
-                        "constraint",
-                        format!(
-                            "the reference is held {} the end stop {:.2} mm",
-                            if drives_up { "below" } else { "above" },
-                            p[0]
-                        ),
-                    ));
+                    // Decided once every state is known (below).
+                    stops.push((uses.len(), e, p[0]));
+                    uses.push(EffectUse::new(e, "left-out", ""));
                 }
                 other => uses.push(EffectUse::new(other, "left-out", left_out_reason(other))),
             }
+        }
+        // An end stop bounds what can be tracked. The output clip bounds the
+        // output itself; the state clip and the soft stop bound the
+        // baseline's `x`, which is the output only while no effect state
+        // adds to it (on the twin with creep the diagnosis put a state clip
+        // at 34 mm, the creep carrying the output past it to 44 mm: held
+        // below 34 mm, the reference lost its top).
+        for (i, e, l_max) in stops {
+            if e != Effect::OutputClip && out.states() > 0 {
+                uses[i].detail = "it bounds the baseline's x, and the effect states carry the \
+                                  output past it: a bound on the reference would be wrong"
+                    .into();
+                continue;
+            }
+            out.end_stop = Some(match out.end_stop {
+                Some((stop, _)) if drives_up => (stop.min(l_max), true),
+                Some((stop, _)) => (stop.max(l_max), false),
+                None => (l_max, drives_up),
+            });
+            uses[i].used = "constraint".into();
+            uses[i].detail = format!(
+                "the reference is held {} the end stop {l_max:.2} mm",
+                if drives_up { "below" } else { "above" }
+            );
         }
         // Nothing used: the baseline's own code path, bit for bit.
         let used = out.states() > 0 || out.deadzone_mpa.is_some() || out.end_stop.is_some();
@@ -368,29 +390,21 @@ impl ControlChain {
         (x, self.advance(e, u, dp, x))
     }
 
-    /// The states at rest under the effective pressure deviation `u` with
-    /// the output at `y` (deviation), and the baseline's `x` then.
-    pub fn rest(&self, u: f64, y: f64) -> (f64, [f64; MAX_EFFECT_STATES]) {
-        // y = x·(1 + Σ κ_out) + Σ κ_in·u at rest.
-        let (mut k_out, mut from_u) = (0.0, 0.0);
-        for lag in &self.lags {
-            let kappa = lag.weight / (1.0 - lag.rho);
-            match lag.drive {
-                Drive::Input => from_u += kappa * u,
-                Drive::Output => k_out += kappa,
-            }
-        }
-        let x = (y - from_u) / (1.0 + k_out);
+    /// The states at the first measurement, the output at `y` (deviation),
+    /// and the baseline's `x` then: each creep where the model's fit
+    /// started it (`z0`, the state the record's history left it in; the
+    /// fits' records, like the twin's runs, start from the muscle at rest),
+    /// the ringing at 0. Not at each creep's static value `κ·u`: the
+    /// diagnosis' creeps have slow poles whose gains a record of tens of
+    /// seconds does not settle (`creep:two-pole.kappa` 213 mm/MPa on the
+    /// twin's 4.5 kg stair, against the baseline's 108), and started there
+    /// the model predicted the validation record 16 mm off.
+    pub fn start(&self, y: f64) -> (f64, [f64; MAX_EFFECT_STATES]) {
         let mut e = [0.0; MAX_EFFECT_STATES];
         for (i, lag) in self.lags.iter().enumerate() {
-            let kappa = lag.weight / (1.0 - lag.rho);
-            e[i] = kappa
-                * match lag.drive {
-                    Drive::Input => u,
-                    Drive::Output => x,
-                };
+            e[i] = lag.start;
         }
-        (x, e)
+        (y - self.output(&e), e)
     }
 
     /// The reference held short of the end stop (absolute mm).

@@ -82,7 +82,7 @@ fn walk_windows(
     match &pr.chain {
         None => {
             let mut w_measured = vec![0.0; n];
-            w_measured[0] = pr.at_rest(record.p[0], record.x[0]).w;
+            w_measured[0] = pr.at_start(record.p[0], record.x[0]).w;
             for k in 1..n {
                 let w = pr
                     .hysteresis
@@ -92,12 +92,12 @@ fn walk_windows(
                 }
                 w_measured[k] = w;
             }
-            for k in 0..n {
-                track.push(State::new(record.p[k], record.x[k], w_measured[k]));
+            for ((&p, &x), &w) in record.p.iter().zip(&record.x).zip(&w_measured) {
+                track.push(State::new(p, x, w));
             }
         }
         Some(chain) => {
-            track.push(pr.at_rest(record.p[0], record.x[0]));
+            track.push(pr.at_start(record.p[0], record.x[0]));
             for k in 1..n {
                 let last: State = track[k - 1];
                 let (u, _) = chain.effective(last.p, pr.input_mean);

@@ -105,9 +105,9 @@ impl InverseModel {
     /// measurement, moved on to `r0` (else 0, as always).
     pub fn start(&mut self, p: f64, y: f64, r0: f64) {
         let pr = &self.predictor;
-        let there = pr.at_rest(p, self.clip(r0) - pr.output_mean);
+        let there = pr.at_start(p, self.clip(r0) - pr.output_mean);
         let w = if pr.rest_start {
-            let here = pr.at_rest(p, y - pr.output_mean);
+            let here = pr.at_start(p, y - pr.output_mean);
             pr.hysteresis.step(here.w, there.x - here.x)
         } else {
             0.0

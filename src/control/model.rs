@@ -224,13 +224,13 @@ impl Predictor {
         }
     }
 
-    /// A state at rest at the measured pressure `p` and output `y`
-    /// (deviation): each creep at its static value, `w = 0` (or at rest
-    /// with [`ControlModel::rest_start`]).
-    pub fn at_rest(&self, p: f64, y: f64) -> State {
+    /// The state at the first measurement, pressure `p` and output `y`
+    /// (deviation): the effects' as [`ControlChain::start`] says, `w = 0`
+    /// (or at rest with [`ControlModel::rest_start`]).
+    pub fn at_start(&self, p: f64, y: f64) -> State {
         let mut s = match &self.chain {
             Some(c) => {
-                let (x, e) = c.rest(self.input_of(p).0, y);
+                let (x, e) = c.start(y);
                 State {
                     e,
                     ..State::new(p, x, 0.0)

@@ -91,7 +91,7 @@ impl Observer {
         let y = m.displacement_mm - pr.output_mean;
         let p = m.pressure_mpa;
         let estimate = match self.last {
-            None => pr.at_rest(p, y),
+            None => pr.at_start(p, y),
             Some(last) => {
                 let predicted = pr.step(&last, u_prev, self.dx, self.dp);
                 // The measured output less the effects' states run on

@@ -105,7 +105,7 @@ pub fn check_loop(
     );
     // The displacement model free along the measured pressure, from the
     // first measured displacement.
-    let mut s = pr.at_rest(pressure[0], displacement[0] - pr.output_mean);
+    let mut s = pr.at_start(pressure[0], displacement[0] - pr.output_mean);
     let mut model_mm = vec![displacement[0]];
     for &p in &pressure[..n - 1] {
         let input = State {
