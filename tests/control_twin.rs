@@ -44,6 +44,7 @@ fn model_has_the_twins_loop_and_the_mpc_beats_the_thesis_pi() {
         warmup_s: 3.0,
         duration_s: 6.0,
         steady_from_s: 2.0,
+        ..Shape::thesis()
     };
     for load in [4.5, 7.0] {
         let run = |kind| {

@@ -8,8 +8,10 @@ use anyhow::Context;
 use serde::Serialize;
 
 use mckibben::control::ControlModel;
+use mckibben::control::chain::{ControlChain, EffectUse};
 use mckibben::control::design::{OPERATING_BAND_V, PredictionReport};
 use mckibben::control::figures;
+use mckibben::control::reference::Waveform;
 use mckibben::control::sweep::{self, Design, Ingredients, Kind, Run, RunSpec, Shape};
 use mckibben::control::table::{self, RobustRow, Row};
 use mckibben::control::tuning::{self, Tuned, TuningEpisodes};
@@ -18,6 +20,7 @@ use mckibben::control::{MpcSettings, PiGains, ValveLimits};
 use mckibben::data::Trace;
 use mckibben::data::csv::{ReadOptions, read_traces, write_trace};
 use mckibben::data::units::unit_of;
+use mckibben::model::effects::Effect;
 use mckibben::report::json::Versioned;
 use mckibben::rig::{self, ChildLink, Limits, Link, Ranges, RemoteSettings, RunLog, UdpLink};
 use mckibben::twin::TwinConfig;
@@ -100,6 +103,16 @@ pub struct Args {
     /// MPC weight on valve moves (per V²) against tracking error (per mm²).
     #[arg(long, default_value_t = MpcSettings::default().r_move)]
     r_move: f64,
+    /// The reference: `sine` (the thesis', 30 + 10·sin(ω t) mm) or `steps`
+    /// (20 and 40 mm in turn, each held π/ω s: a square wave of the same
+    /// period, after whose steps the hanging load rings).
+    #[arg(long, value_enum, default_value = "sine")]
+    reference: ReferenceArg,
+    /// Scale one of the twin's non-ideal effects, as `mckibben twin
+    /// --effect` (e.g. creep=1, ringing=1; repeatable): the in-process
+    /// plant, the design record and the loop check all run with it.
+    #[arg(long = "effect", value_name = "NAME=VALUE")]
+    effects: Vec<String>,
     /// Seconds of regulation at 30 mm before the sine.
     #[arg(long, default_value_t = Shape::thesis().warmup_s)]
     warmup: f64,
@@ -184,6 +197,12 @@ impl From<KindArg> for Kind {
             KindArg::Mpc => Kind::Mpc,
         }
     }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum ReferenceArg {
+    Sine,
+    Steps,
 }
 
 enum Plant {
@@ -282,7 +301,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_args(&args)?;
     let plant = parse_plant(&args.plant)?;
     let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
-    let config = TwinConfig::default();
+    let mut config = TwinConfig::default();
+    for e in &args.effects {
+        config.effects.apply_arg(e).map_err(anyhow::Error::msg)?;
+    }
+    config.validate().map_err(anyhow::Error::msg)?;
     let say = |s: String| {
         if !args.json {
             eprintln!("{s}");
@@ -310,6 +333,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         warmup_s: args.warmup,
         duration_s: args.duration,
         steady_from_s: args.steady_from,
+        waveform: match args.reference {
+            ReferenceArg::Sine => Waveform::Sine,
+            ReferenceArg::Steps => Waveform::Steps,
+        },
     };
     let (rows, runs) = match &plant {
         Plant::Twin => table::on_twin(
@@ -418,28 +445,30 @@ fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
             );
         }
     }
-    // The controllers' prediction has a baseline's states only: each effect
-    // of a diagnosed model is said to be left out, not dropped silently.
-    for e in m.effects() {
+    // Each effect enters the controllers' prediction where it can, and
+    // the run says how (or why not): a note here, and `design.effects`.
+    let (chain, uses) = ControlChain::of(&m);
+    for u in &uses {
         eprintln!(
-            "mckibben: note: --from {}: effect {e} ({}) left out of the controllers' model: \
-             the MPC and the feedforward PID predict with the {} baseline's states only",
+            "mckibben: note: --from {}: {} ({})",
             path.display(),
-            e.physical(),
-            m.base.family
+            u.line(),
+            Effect::physical(u.effect.parse().expect("a catalogue name"))
         );
     }
-    let m = m.base;
-    sweep::with_displacement(
+    let mut design = sweep::with_displacement(
         &design,
-        m,
+        m.base,
+        chain,
         format!("{}", path.display()),
         config,
         args.design_load,
         args.seed,
         args.horizon,
     )
-    .with_context(|| format!("--from {}", path.display()))
+    .with_context(|| format!("--from {}", path.display()))?;
+    design.effects = uses;
+    Ok(design)
 }
 
 fn describe_design(d: &Design) -> String {
@@ -472,6 +501,9 @@ fn describe_design(d: &Design) -> String {
             l.rmse_mm
         );
     }
+    for u in &d.effects {
+        s += &format!("\n  {}", u.line());
+    }
     s
 }
 
@@ -493,6 +525,8 @@ struct DesignJson<'a> {
     model: &'a ControlModel,
     prediction: &'a PredictionReport,
     loop_check: Option<LoopCheckJson<'a>>,
+    /// How each effect of a `--from` model entered the controllers.
+    effects: &'a [EffectUse],
 }
 
 #[derive(Debug, Serialize)]
@@ -513,6 +547,7 @@ impl DesignJson<'_> {
                 model: &l.model,
                 rmse_mm: l.rmse_mm,
             }),
+            effects: &d.effects,
         }
     }
 }

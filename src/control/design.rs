@@ -74,34 +74,66 @@ fn walk_windows(
     end_to_end: bool,
     mut sink: impl FnMut(usize, f64, f64),
 ) -> Option<()> {
-    // `w` along the measured displacement, as the controller tracks it.
-    let mut w_measured = vec![0.0; record.x.len()];
-    for k in 1..record.x.len() {
-        let w = pr
-            .hysteresis
-            .step(w_measured[k - 1], record.x[k] - record.x[k - 1]);
-        if !(w.is_finite() && w.abs() < 1e6) {
-            return None;
+    // The state along the measured displacement, as the controller tracks
+    // it: `w`, and with an effect chain the effects' states, the baseline's
+    // `x` being the measured output less them (`super::chain`).
+    let n = record.x.len();
+    let mut track = Vec::with_capacity(n);
+    match &pr.chain {
+        None => {
+            let mut w_measured = vec![0.0; n];
+            w_measured[0] = pr.at_start(record.p[0], record.x[0]).w;
+            for k in 1..n {
+                let w = pr
+                    .hysteresis
+                    .step(w_measured[k - 1], record.x[k] - record.x[k - 1]);
+                if !(w.is_finite() && w.abs() < 1e6) {
+                    return None;
+                }
+                w_measured[k] = w;
+            }
+            for ((&p, &x), &w) in record.p.iter().zip(&record.x).zip(&w_measured) {
+                track.push(State::new(p, x, w));
+            }
         }
-        w_measured[k] = w;
+        Some(chain) => {
+            track.push(pr.at_start(record.p[0], record.x[0]));
+            for k in 1..n {
+                let last: State = track[k - 1];
+                let (u, _) = chain.effective(last.p, pr.input_mean);
+                let (x, e) = chain.restart(&last.e, u, last.p - last.p_prev, record.x[k]);
+                let w = pr.hysteresis.step(last.w, x - last.x);
+                if !(w.is_finite() && w.abs() < 1e6) {
+                    return None;
+                }
+                track.push(State {
+                    p: record.p[k],
+                    x,
+                    w,
+                    e,
+                    p_prev: last.p,
+                });
+            }
+        }
     }
     for &k in starts {
-        let mut s = State {
-            p: record.p[k],
-            x: record.x[k],
-            w: w_measured[k],
-        };
+        let mut s = track[k];
         for j in 1..=horizon {
             let i = k + j - 1;
-            let input = State {
-                p: if end_to_end { s.p } else { record.p[i] },
-                ..s
+            let input = if end_to_end {
+                s
+            } else {
+                State {
+                    p: record.p[i],
+                    p_prev: if i > 0 { record.p[i - 1] } else { record.p[i] },
+                    ..s
+                }
             };
             s = pr.step(&input, record.valve[i], 0.0, 0.0);
             if !(s.x.is_finite() && s.x.abs() < 1e4) {
                 return None;
             }
-            sink(j, s.x - record.x[k + j], s.p - record.p[k + j]);
+            sink(j, pr.output(&s) - record.x[k + j], s.p - record.p[k + j]);
         }
     }
     Some(())
@@ -195,6 +227,8 @@ fn model_of(theta: &[f64], valve: &ValveModel, trace: &Trace, mu: f64, my: f64) 
         },
         curvature: b2,
         valve: valve.clone(),
+        chain: None,
+        rest_start: false,
     }
 }
 

@@ -9,6 +9,7 @@
 //! plant), time in s. Controllers see only measurements (pressure and
 //! displacement), never a plant's internals.
 
+pub mod chain;
 pub mod closed_loop;
 pub mod controller;
 pub mod design;

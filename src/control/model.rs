@@ -15,6 +15,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::chain::{ControlChain, MAX_EFFECT_STATES};
 use super::valve::ValveModel;
 use crate::model::{Family, FittedModel};
 
@@ -29,15 +30,45 @@ pub struct ControlModel {
     /// (0 for a model read from `fit` or `identify`).
     pub curvature: f64,
     pub valve: ValveModel,
+    /// The effects of a model read with `--from` that the prediction
+    /// carries (`super::chain`); absent for a baseline.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chain: Option<ControlChain>,
+    /// Start the Bouc-Wen state at rest at the first measurement (`w`
+    /// solved from the displacement equation at rest), not at 0: set for a
+    /// model from `--from`, whose `w` lives in the frame of the data it was
+    /// fitted on (with `β`, `γ` near 0 its `w` barely forgets, and from
+    /// `w = 0` at 30 mm such a model asks for several MPa). Absent (false)
+    /// for the model identified here, which keeps today's numbers.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub rest_start: bool,
 }
 
 /// The model's state at one sample: pressure (MPa, absolute), displacement
-/// (mm, deviation from the model's output mean) and the Bouc-Wen state.
+/// (mm, deviation from the model's output mean) and the Bouc-Wen state;
+/// with an effect chain also the effects' states and the pressure of the
+/// sample before (the ringing's kick). Without a chain `e` stays 0 and
+/// the output is `x`.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct State {
     pub p: f64,
     pub x: f64,
     pub w: f64,
+    pub e: [f64; MAX_EFFECT_STATES],
+    pub p_prev: f64,
+}
+
+impl State {
+    /// A state without effect states (`p_prev = p`).
+    pub fn new(p: f64, x: f64, w: f64) -> State {
+        State {
+            p,
+            x,
+            w,
+            e: [0.0; MAX_EFFECT_STATES],
+            p_prev: p,
+        }
+    }
 }
 
 /// Partial derivatives of one step: `ds/ds` (rows and columns in the order
@@ -95,6 +126,10 @@ pub struct Predictor {
     /// `ū` (MPa) and `ȳ` (mm) of the displacement model.
     pub input_mean: f64,
     pub output_mean: f64,
+    /// The effects the prediction carries (`super::chain`).
+    pub chain: Option<ControlChain>,
+    /// [`ControlModel::rest_start`].
+    pub rest_start: bool,
 }
 
 impl Predictor {
@@ -137,31 +172,90 @@ impl Predictor {
             valve: model.valve.clone(),
             input_mean: m.input_mean,
             output_mean: m.output_mean,
+            chain: model.chain.clone(),
+            rest_start: model.rest_start,
         })
+    }
+
+    /// The pressure deviation the displacement equation sees at absolute
+    /// pressure `p` (after a dead zone), and its slope in `p`.
+    fn input_of(&self, p: f64) -> (f64, f64) {
+        match &self.chain {
+            Some(c) => c.effective(p, self.input_mean),
+            None => (p - self.input_mean, 1.0),
+        }
     }
 
     /// `x(k+1)` from the state at `k`, before any disturbance.
     pub fn next_x(&self, s: &State) -> f64 {
-        let u = s.p - self.input_mean;
+        let u = self.input_of(s.p).0;
         self.rho * s.x + self.h * s.w + self.b * u + self.b2 * u * u + self.c
+    }
+
+    /// The predicted output (mm, deviation): `x` plus the effects'.
+    pub fn output(&self, s: &State) -> f64 {
+        match &self.chain {
+            Some(c) => s.x + c.output(&s.e),
+            None => s.x,
+        }
     }
 
     /// One step with valve voltage `v`; `dx`, `dp` are additive
     /// disturbances on the displacement and pressure equations.
     pub fn step(&self, s: &State, v: f64, dx: f64, dp: f64) -> State {
         let x = self.next_x(s) + dx;
+        let w = self.hysteresis.step(s.w, x - s.x);
+        self.moved(s, self.valve.step(s.p, v) + dp, x, w)
+    }
+
+    /// The state after `s` with the new pressure, displacement and
+    /// Bouc-Wen state given: the effect states advanced on `s`'s pressure.
+    pub fn moved(&self, s: &State, p: f64, x: f64, w: f64) -> State {
+        let e = match &self.chain {
+            Some(c) => c.advance(&s.e, self.input_of(s.p).0, s.p - s.p_prev, x),
+            None => s.e,
+        };
         State {
-            p: self.valve.step(s.p, v) + dp,
+            p,
             x,
-            w: self.hysteresis.step(s.w, x - s.x),
+            w,
+            e,
+            p_prev: s.p,
         }
+    }
+
+    /// The state at the first measurement, pressure `p` and output `y`
+    /// (deviation): the effects' as [`ControlChain::start`] says, `w = 0`
+    /// (or at rest with [`ControlModel::rest_start`]).
+    pub fn at_start(&self, p: f64, y: f64) -> State {
+        let mut s = match &self.chain {
+            Some(c) => {
+                let (x, e) = c.start(y);
+                State {
+                    e,
+                    ..State::new(p, x, 0.0)
+                }
+            }
+            None => State::new(p, y, 0.0),
+        };
+        if self.rest_start && self.h.abs() > 1e-12 {
+            // x = ρ·x + h·w + b·u + b₂·u² + c at rest, solved for w.
+            let u = self.input_of(p).0;
+            s.w = ((1.0 - self.rho) * s.x - self.b * u - self.b2 * u * u - self.c) / self.h;
+        }
+        s
     }
 
     /// The Jacobian of [`Predictor::step`] at `s`, `v`, where the step
     /// reached `next`.
     pub fn jacobian(&self, s: &State, v: f64, next: &State) -> Jacobian {
-        let u = s.p - self.input_mean;
-        let dx = [self.b + 2.0 * self.b2 * u, self.rho, self.h];
+        let (u, slope) = self.input_of(s.p);
+        let du = self.b + 2.0 * self.b2 * u;
+        let dx = [
+            if self.chain.is_some() { du * slope } else { du },
+            self.rho,
+            self.h,
+        ];
         let (w_delta, w_w) = self.hysteresis.partials(s.w, next.x - s.x);
         let dw = [
             w_delta * dx[0],
@@ -193,6 +287,8 @@ pub(crate) fn example_model() -> ControlModel {
             pole: 0.92,
             map: (0..11).map(|i| 0.004 * i as f64 - 0.01).collect(),
         },
+        chain: None,
+        rest_start: false,
     }
 }
 
@@ -222,11 +318,7 @@ mod tests {
     fn jacobian_matches_finite_differences() {
         let model = example_model();
         let pr = Predictor::new(&model).unwrap();
-        let s = State {
-            p: 0.25,
-            x: 1.3,
-            w: 0.4,
-        };
+        let s = State::new(0.25, 1.3, 0.4);
         let v = 5.5;
         let next = pr.step(&s, v, 0.0, 0.0);
         let j = pr.jacobian(&s, v, &next);
@@ -235,16 +327,7 @@ mod tests {
         for col in 0..3 {
             let mut sp = as_vec(&s);
             sp[col] += eps;
-            let moved = pr.step(
-                &State {
-                    p: sp[0],
-                    x: sp[1],
-                    w: sp[2],
-                },
-                v,
-                0.0,
-                0.0,
-            );
+            let moved = pr.step(&State::new(sp[0], sp[1], sp[2]), v, 0.0, 0.0);
             let d = as_vec(&moved);
             let base = as_vec(&next);
             for row in 0..3 {

@@ -21,6 +21,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::chain::MAX_EFFECT_STATES;
 use super::controller::{Controller, MpcStats};
 use super::limits::ValveLimits;
 use super::model::{ControlModel, Predictor, State};
@@ -74,7 +75,8 @@ pub struct Mpc {
     pub stats: MpcStats,
     // Buffers reused every sample.
     states: Vec<State>,
-    /// `gx[j·n + i] = ∂x(j)/∂V(i)`, j = 0..=N+1.
+    /// `gx[j·n + i] = ∂y(j)/∂V(i)`, j = 0..=N+1, `y` the predicted output
+    /// (`x` without an effect chain).
     gx: Vec<f64>,
     hessian: Vec<f64>,
     linear: Vec<f64>,
@@ -139,6 +141,11 @@ impl Mpc {
         self.gx.resize((n + 2) * n, 0.0);
         // Sensitivities of (p, x, w) at step j to each V(i), one column per i.
         let mut sens = vec![[0.0f64; 3]; n];
+        // With an effect chain, those of its states and of p(j−1): the
+        // chain is linear, so its step maps sensitivities to sensitivities
+        // (`super::chain`).
+        let chain = pr.chain.as_ref();
+        let mut sens_e = vec![([0.0f64; MAX_EFFECT_STATES], 0.0f64); chain.map_or(0, |_| n)];
         for j in 0..=n {
             let input = j.min(n - 1);
             let v = self.plan[input];
@@ -148,6 +155,7 @@ impl Mpc {
                 return false;
             }
             let jac = pr.jacobian(&s, v, &next);
+            let slope = chain.map_or(1.0, |c| c.effective(s.p, pr.input_mean).1);
             for (i, col) in sens.iter_mut().enumerate() {
                 let old = *col;
                 for (value, row) in col.iter_mut().zip(&jac.ds_ds) {
@@ -158,11 +166,40 @@ impl Mpc {
                         *value += d;
                     }
                 }
-                self.gx[(j + 1) * n + i] = col[1];
+                self.gx[(j + 1) * n + i] = match chain {
+                    None => col[1],
+                    Some(c) => {
+                        let (e, p_prev) = sens_e[i];
+                        let e = c.advance(&e, slope * old[0], old[0] - p_prev, col[1]);
+                        sens_e[i] = (e, old[0]);
+                        col[1] + c.output(&e)
+                    }
+                };
             }
             self.states.push(next);
         }
         true
+    }
+
+    /// The prediction the MPC optimises over: from the state `s0` along
+    /// the valve `plan` (one voltage per sample of the horizon, the last
+    /// held), the predicted output (mm, absolute) at samples `0..=N+1` and
+    /// its sensitivities to the plan, `∂y(j)/∂V(i)` at `[j·N + i]`; `None`
+    /// if the prediction diverges. The observer's disturbances are those
+    /// of the last sample (0 before the first). For tests and figures.
+    pub fn rollout(&mut self, s0: State, plan: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
+        assert_eq!(plan.len(), self.settings.horizon, "one voltage per sample");
+        self.plan = plan.to_vec();
+        if !self.linearise(s0) {
+            return None;
+        }
+        let pr = &self.predictor;
+        let y = self
+            .states
+            .iter()
+            .map(|s| pr.output(s) + pr.output_mean)
+            .collect();
+        Some((y, self.gx.clone()))
     }
 
     /// Builds `½VᵀHV + fᵀV` for the linearised tracking cost
@@ -172,14 +209,21 @@ impl Mpc {
     fn build_qp(&mut self, reference: &[f64]) {
         let n = self.settings.horizon;
         let (q, r) = (self.settings.q_error, self.settings.r_move);
-        let target = |j: usize| reference[j.min(reference.len() - 1)] - self.predictor.output_mean;
+        let pr = &self.predictor;
+        let target = |j: usize| {
+            let r = reference[j.min(reference.len() - 1)];
+            match &pr.chain {
+                Some(c) => c.clip_reference(r) - pr.output_mean,
+                None => r - pr.output_mean,
+            }
+        };
         self.hessian.clear();
         self.hessian.resize(n * n, 0.0);
         self.linear.clear();
         self.linear.resize(n, 0.0);
         for j in 2..=n + 1 {
             let row = &self.gx[j * n..(j + 1) * n];
-            let offset = self.states[j].x
+            let offset = pr.output(&self.states[j])
                 - target(j)
                 - row.iter().zip(&self.plan).map(|(g, v)| g * v).sum::<f64>();
             for i in 0..n {

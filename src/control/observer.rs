@@ -88,22 +88,42 @@ impl Observer {
     /// valve command `u_prev` held over the sample before (the first call
     /// takes the measurement as it is, with `w = 0`).
     pub fn update(&mut self, pr: &Predictor, m: Measurement, u_prev: f64) -> State {
-        let x = m.displacement_mm - pr.output_mean;
+        let y = m.displacement_mm - pr.output_mean;
         let p = m.pressure_mpa;
         let estimate = match self.last {
-            None => State { p, x, w: 0.0 },
+            None => pr.at_start(p, y),
             Some(last) => {
                 let predicted = pr.step(&last, u_prev, self.dx, self.dp);
-                let (ex, ep) = (x - predicted.x, p - predicted.p);
+                // The measured output less the effects' states run on
+                // (`super::chain`): the baseline's `x` as measured.
+                let x = match &pr.chain {
+                    Some(c) => {
+                        let u = c.effective(last.p, pr.input_mean).0;
+                        c.restart(&last.e, u, last.p - last.p_prev, y).0
+                    }
+                    None => y,
+                };
+                let (mut ex, ep) = (x - predicted.x, p - predicted.p);
+                // A ringing mode takes its share of the innovation.
+                let ring = pr
+                    .chain
+                    .as_ref()
+                    .and_then(|c| Some((c.ring?.gains, c.lags.len())));
+                if let Some((k, _)) = ring {
+                    ex *= k[0];
+                }
                 let g = &self.gains;
                 self.dx += g.displacement_disturbance * ex;
                 self.dp += g.pressure_disturbance * ep;
-                let x = predicted.x + g.displacement * ex;
-                State {
-                    p: predicted.p + g.pressure * ep,
-                    x,
-                    w: pr.hysteresis.step(last.w, x - last.x),
+                let x_new = predicted.x + g.displacement * ex;
+                let w = pr.hysteresis.step(last.w, x_new - last.x);
+                let mut s = pr.moved(&last, predicted.p + g.pressure * ep, x_new, w);
+                if let Some((k, i)) = ring {
+                    let ey = y - pr.output(&predicted);
+                    s.e[i] += k[1] * ey;
+                    s.e[i + 1] += k[2] * ey;
                 }
+                s
             }
         };
         self.last = Some(estimate);

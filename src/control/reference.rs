@@ -3,7 +3,21 @@
 
 use serde::{Deserialize, Serialize};
 
-/// A sine reference for the displacement.
+/// The reference's waveform.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Waveform {
+    /// `bias + amplitude·sin(ω·t)` (the thesis').
+    #[default]
+    Sine,
+    /// Steps between `bias + amplitude` and `bias − amplitude`, switching
+    /// where the sine of the same `ω` crosses zero (a square wave: held
+    /// π/ω s, 1.05 s at 3 rad/s), so the hanging load rings after each.
+    Steps,
+}
+
+/// A sine reference for the displacement (or steps of the same period and
+/// amplitude, [`Waveform::Steps`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct SineReference {
     /// Mean displacement (mm): 30 in §6.2.2.
@@ -12,6 +26,8 @@ pub struct SineReference {
     pub amplitude_mm: f64,
     /// Angular frequency (rad/s): 1, 2 or 3 in §6.2.2.
     pub omega_rad_s: f64,
+    #[serde(default)]
+    pub waveform: Waveform,
 }
 
 impl SineReference {
@@ -21,6 +37,7 @@ impl SineReference {
             bias_mm: 30.0,
             amplitude_mm: 10.0,
             omega_rad_s,
+            waveform: Waveform::Sine,
         }
     }
 
@@ -29,7 +46,12 @@ impl SineReference {
         if t < 0.0 {
             self.bias_mm
         } else {
-            self.bias_mm + self.amplitude_mm * (self.omega_rad_s * t).sin()
+            let s = (self.omega_rad_s * t).sin();
+            match self.waveform {
+                Waveform::Sine => self.bias_mm + self.amplitude_mm * s,
+                Waveform::Steps if s >= 0.0 => self.bias_mm + self.amplitude_mm,
+                Waveform::Steps => self.bias_mm - self.amplitude_mm,
+            }
         }
     }
 }

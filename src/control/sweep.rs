@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::chain::{ControlChain, EffectUse};
 use super::closed_loop::{Episode, EpisodeResult, run_episode};
 use super::controller::{Controller, MpcStats};
 use super::design::{self, OPERATING_BAND_V, PredictionReport, scale_hysteresis};
@@ -12,6 +13,7 @@ use super::limits::ValveLimits;
 use super::model::ControlModel;
 use super::mpc::{Mpc, MpcSettings};
 use super::pi::{Pi, PiGains};
+use super::reference::Waveform;
 use super::validation::{self, LoopCheck};
 use crate::data::Trace;
 use crate::model::FittedModel;
@@ -63,6 +65,10 @@ pub struct Design {
     pub prediction: PredictionReport,
     /// The model's loop against the twin's (at the design load).
     pub loop_check: Option<LoopCheck>,
+    /// How each effect of a model from `--from` entered the controllers
+    /// (empty for a baseline).
+    #[serde(default)]
+    pub effects: Vec<EffectUse>,
 }
 
 /// Length of the loop check's valve cycle (s): slow enough to be
@@ -107,6 +113,7 @@ pub fn finish_design(
         source,
         prediction,
         loop_check,
+        effects: Vec::new(),
     })
 }
 
@@ -132,12 +139,16 @@ pub fn design_on_twin(
 }
 
 /// `design` with its displacement model replaced by `displacement` (a
-/// model fitted elsewhere, named `source`), validated on the twin at `load`
-/// as [`design_on_twin`] does. The valve map stays; the curvature `b2` goes,
-/// since it belonged to the replaced displacement model.
+/// model fitted elsewhere, named `source`) and the effects `chain` of
+/// that model, validated on the twin at `load` as [`design_on_twin`]
+/// does. The valve map stays; the curvature `b2` goes, since it belonged
+/// to the replaced displacement model. Its Bouc-Wen state starts at rest
+/// ([`ControlModel::rest_start`]).
+#[allow(clippy::too_many_arguments)]
 pub fn with_displacement(
     design: &Design,
     displacement: FittedModel,
+    chain: Option<ControlChain>,
     source: String,
     config: &TwinConfig,
     load: f64,
@@ -147,6 +158,8 @@ pub fn with_displacement(
     let mut model = design.model.clone();
     model.displacement = displacement;
     model.curvature = 0.0;
+    model.chain = chain;
+    model.rest_start = true;
     let (_, validation) = twin_records(config, load, seed);
     finish_design(
         model,
@@ -264,6 +277,8 @@ pub struct Shape {
     pub warmup_s: f64,
     pub duration_s: f64,
     pub steady_from_s: f64,
+    /// The reference's waveform (the thesis': a sine).
+    pub waveform: Waveform,
 }
 
 impl Shape {
@@ -274,11 +289,14 @@ impl Shape {
             warmup_s: e.warmup_s,
             duration_s: e.duration_s,
             steady_from_s: e.steady_from_s,
+            waveform: Waveform::Sine,
         }
     }
 
     pub fn episode(&self, omega: f64) -> Episode {
-        Episode::short(omega, self.warmup_s, self.duration_s, self.steady_from_s)
+        let mut e = Episode::short(omega, self.warmup_s, self.duration_s, self.steady_from_s);
+        e.reference.waveform = self.waveform;
+        e
     }
 }
 

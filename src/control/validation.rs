@@ -105,20 +105,17 @@ pub fn check_loop(
     );
     // The displacement model free along the measured pressure, from the
     // first measured displacement.
-    let mut s = State {
-        p: pressure[0],
-        x: displacement[0] - pr.output_mean,
-        w: 0.0,
-    };
+    let mut s = pr.at_start(pressure[0], displacement[0] - pr.output_mean);
     let mut model_mm = vec![displacement[0]];
     for &p in &pressure[..n - 1] {
-        let x = pr.next_x(&State { p, ..s });
-        s = State {
+        let input = State {
             p,
-            x,
-            w: pr.hysteresis.step(s.w, x - s.x),
+            p_prev: s.p,
+            ..s
         };
-        model_mm.push(x + pr.output_mean);
+        let x = pr.next_x(&input);
+        s = pr.moved(&input, p, x, pr.hysteresis.step(s.w, x - s.x));
+        model_mm.push(pr.output(&s) + pr.output_mean);
     }
     let last = n - cycle..n;
     let (p, xp, xm) = (
