@@ -106,7 +106,7 @@ impl ModelObjective<'_> {
     /// parameters ([`crate::model::effects::Augmented::effects_admit`]; all,
     /// without effects) and, with [`ModelObjective::bounded_loops`], their
     /// loop.
-    fn effects_admit(&self, rows: &[f64]) -> Vec<bool> {
+    fn admitted(&self, rows: &[f64]) -> Vec<bool> {
         let d = self.problem.dim().max(1);
         let family = self.problem.family;
         let loop_ok = |row: &[f64]| !self.loop_bounded || family.loop_bounded(row);
@@ -136,7 +136,7 @@ impl Objective for ModelObjective<'_> {
                 sum as f32
             })
             .collect();
-        for (c, ok) in costs.iter_mut().zip(self.effects_admit(rows)) {
+        for (c, ok) in costs.iter_mut().zip(self.admitted(rows)) {
             if !ok {
                 *c = f32::INFINITY;
             }
@@ -165,7 +165,7 @@ impl Objective for ModelObjective<'_> {
             .into_iter()
             .map(|r| r.map(|r| DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64))))
             .collect();
-        for (r, ok) in residuals.iter_mut().zip(self.effects_admit(rows)) {
+        for (r, ok) in residuals.iter_mut().zip(self.admitted(rows)) {
             if !ok {
                 *r = None;
             }
