@@ -10,9 +10,9 @@ use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
 
-use crate::convert::{backend, family, to_python, value_error};
+use crate::convert::{backend, to_python, value_error};
 use crate::data::{Trace, arrays_trace};
-use crate::fit::{effects_arg, seed_arg, start_arg};
+use crate::fit::{effects_arg, family_or_start, seed_arg, start_arg};
 use crate::model::{Model, provenance};
 
 /// The traces of `datasets`: a `Trace`, or a list whose items are each a
@@ -110,11 +110,7 @@ pub fn diagnose<'py>(
         .map(|f| f.model())
         .transpose()
         .map_err(value_error)?;
-    let family = match (baseline, &start) {
-        (Some(b), _) => family(b)?,
-        (None, Some(m)) => m.base.family,
-        (None, None) => mckibben::model::Family::Classic,
-    };
+    let family = family_or_start(baseline, start.as_ref())?;
     let effects = match effects_arg(effects)? {
         Some(e) if !e.is_empty() => e,
         _ => Effect::by_default(),

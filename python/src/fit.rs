@@ -193,6 +193,19 @@ pub fn effects_arg(effects: Option<Vec<String>>) -> PyResult<Option<Vec<Effect>>
         .transpose()
 }
 
+/// The family asked for, else the start model's, else classic (as the
+/// commands' `--model`/`--baseline` with `--from`).
+pub fn family_or_start(
+    given: Option<&str>,
+    start: Option<&mckibben::model::Model>,
+) -> PyResult<mckibben::model::Family> {
+    Ok(match (given, start) {
+        (Some(name), _) => family(name)?,
+        (None, Some(m)) => m.base.family,
+        (None, None) => mckibben::model::Family::Classic,
+    })
+}
+
 /// A warm start: a `Model`, or the path of a model file.
 pub fn start_arg(start: &Bound<'_, PyAny>) -> PyResult<ModelFile> {
     if let Ok(m) = start.cast::<Model>() {
@@ -311,11 +324,7 @@ pub fn fit(
         .map(|f| f.model())
         .transpose()
         .map_err(value_error)?;
-    let family = match (model, &start_model) {
-        (Some(m), _) => family(m)?,
-        (None, Some(m)) => m.base.family,
-        (None, None) => mckibben::model::Family::Classic,
-    };
+    let family = family_or_start(model, start_model.as_ref())?;
     let effects: Vec<Effect> = match (effects_arg(effects)?, &start_model) {
         (Some(e), _) => e,
         (None, Some(m)) => m.effects().to_vec(),
