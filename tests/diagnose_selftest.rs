@@ -234,3 +234,21 @@ fn the_report_says_not_explained_and_names_no_cause() {
         assert!(line.contains(e), "{e} is not named in {line:?}");
     }
 }
+
+/// A raised stop flag (Ctrl-C in the command, a signal in Python) ends the
+/// diagnosis with `Interrupted` instead of a verdict of searches cut short.
+#[test]
+fn a_raised_stop_flag_interrupts_the_diagnosis() {
+    use mckibben::diagnose::{Interrupted, diagnose};
+
+    let settings = fast();
+    settings.stop.raise();
+    let stopped = diagnose(
+        &[rig_trace(1080)],
+        Family::Classic,
+        &[Effect::Delay],
+        &settings,
+    );
+    let error = stopped.expect_err("a stopped diagnosis gave a verdict");
+    assert!(error.downcast_ref::<Interrupted>().is_some(), "{error:#}");
+}

@@ -203,18 +203,18 @@ pub fn to_python<'py>(py: Python<'py>, value: &impl Serialize) -> PyResult<Bound
 /// A library error about the caller's input: `ValueError`, its causes
 /// joined as the command prints them.
 pub fn value_error(e: anyhow::Error) -> PyErr {
-    PyValueError::new_err(format!("{e:#}"))
+    PyValueError::new_err(in_python_terms(&format!("{e:#}")))
 }
 
 /// A library error while computing: `RuntimeError`.
 pub fn runtime_error(e: anyhow::Error) -> PyErr {
-    pyo3::exceptions::PyRuntimeError::new_err(format!("{e:#}"))
+    pyo3::exceptions::PyRuntimeError::new_err(in_python_terms(&format!("{e:#}")))
 }
 
 /// A library error reading a file: `FileNotFoundError` or `OSError` when an
 /// I/O error is its cause, else `ValueError` (the file's content).
 pub fn file_error(e: anyhow::Error) -> PyErr {
-    let message = format!("{e:#}");
+    let message = in_python_terms(&format!("{e:#}"));
     match e.chain().find_map(|c| c.downcast_ref::<std::io::Error>()) {
         Some(io) if io.kind() == std::io::ErrorKind::NotFound => {
             PyFileNotFoundError::new_err(message)
@@ -222,4 +222,80 @@ pub fn file_error(e: anyhow::Error) -> PyErr {
         Some(_) => PyOSError::new_err(message),
         None => PyValueError::new_err(message),
     }
+}
+
+/// The library's messages name the command's flags (`--time-budget must be
+/// at least 0 seconds`); a flag that stands for one of the package's
+/// keyword arguments is named as that argument instead: `` `time_budget` ``,
+/// and a flag with its value's placeholder as `` `input=COL` ``. Flags the
+/// package has no argument for stay as they are.
+pub fn in_python_terms(message: &str) -> String {
+    let mut out = String::with_capacity(message.len());
+    let mut rest = message;
+    while let Some(at) = rest.find("--") {
+        out.push_str(&rest[..at]);
+        let after = &rest[at + 2..];
+        let len = after
+            .find(|c: char| !(c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-'))
+            .unwrap_or(after.len());
+        let flag = &after[..len];
+        let Some(keyword) = keyword_of(flag) else {
+            out.push_str("--");
+            rest = after;
+            continue;
+        };
+        rest = &after[len..];
+        // A placeholder (`--input COL`) joins the keyword as its value.
+        let placeholder = rest
+            .strip_prefix(' ')
+            .map(|r| r.find(|c: char| !c.is_ascii_uppercase()).unwrap_or(r.len()))
+            .filter(|&n| n >= 2)
+            .map(|n| &rest[1..1 + n]);
+        match placeholder {
+            Some(value) => {
+                out.push_str(&format!("`{keyword}={value}`"));
+                rest = &rest[1 + value.len()..];
+            }
+            None => out.push_str(&format!("`{keyword}`")),
+        }
+    }
+    out.push_str(rest);
+    out
+}
+
+/// The keyword argument of `fit`, `read_csv` or `diagnose` that the
+/// command's flag `--flag` sets, if there is one.
+fn keyword_of(flag: &str) -> Option<String> {
+    const SAME: &[&str] = &[
+        "pop",
+        "gens",
+        "algo",
+        "seed",
+        "backend",
+        "effects",
+        "free-n",
+        "loop",
+        "thesis-flow",
+        "target-sse",
+        "time-budget",
+        "stall",
+        "input",
+        "output",
+        "time",
+        "resample",
+        "split-gaps",
+        "seeds",
+        "generations",
+        "scratch-seeds",
+        "max-effects",
+        "baseline",
+        "model",
+    ];
+    let keyword = match flag {
+        "from" => "start",
+        "bound" | "fix" => "bounds",
+        f if SAME.contains(&f) => f,
+        _ => return None,
+    };
+    Some(keyword.replace('-', "_"))
 }

@@ -10,7 +10,7 @@ use pyo3::types::PyDict;
 
 use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 
-use crate::convert::{sample_time, series};
+use crate::convert::{in_python_terms, sample_time, series};
 
 /// One recorded experiment on a uniform time base: the model's input and
 /// output columns and any other columns the file carried. `read_csv`
@@ -157,12 +157,13 @@ pub fn data_arg(
 /// `OSError` when it cannot be read, `ValueError` for its content; the
 /// message is the library's (file, line, column, what).
 fn data_error(e: DataError) -> PyErr {
+    let message = in_python_terms(&e.to_string());
     match &e {
         DataError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
-            PyFileNotFoundError::new_err(e.to_string())
+            PyFileNotFoundError::new_err(message)
         }
-        DataError::Io { .. } => PyOSError::new_err(e.to_string()),
-        _ => PyValueError::new_err(e.to_string()),
+        DataError::Io { .. } => PyOSError::new_err(message),
+        _ => PyValueError::new_err(message),
     }
 }
 
@@ -208,7 +209,7 @@ pub fn read_csv<'py>(
         .map_err(data_error)?;
     let warn = py.import("warnings")?;
     for note in notes {
-        warn.call_method1("warn", (note,))?;
+        warn.call_method1("warn", (in_python_terms(&note),))?;
     }
     let mut traces: Vec<Trace> = traces.into_iter().map(|inner| Trace { inner }).collect();
     if split_gaps {

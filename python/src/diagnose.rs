@@ -6,7 +6,9 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use mckibben::diagnose::report::DiagnosisJson;
-use mckibben::diagnose::{Effect, Settings};
+use std::time::Duration;
+
+use mckibben::diagnose::{Effect, Settings, StopFlag};
 use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
 
@@ -79,6 +81,38 @@ impl Diagnosis {
     }
 }
 
+/// How often the interpreter checks for Ctrl-C while a diagnosis runs.
+const SIGNAL_POLL: Duration = Duration::from_millis(50);
+
+/// Runs `job` on a thread of its own with the interpreter detached, while
+/// this thread checks Python's signals: on Ctrl-C (or any signal handler's
+/// exception) it raises `stop`, waits for `job` to wind down (its searches
+/// stop at their next generation) and returns the signal's exception.
+fn interruptible<T: Send>(
+    py: Python<'_>,
+    stop: &StopFlag,
+    job: impl FnOnce() -> T + Send,
+) -> PyResult<T> {
+    std::thread::scope(|scope| {
+        let worker = scope.spawn(job);
+        loop {
+            py.detach(|| std::thread::sleep(SIGNAL_POLL));
+            if let Err(e) = py.check_signals() {
+                stop.raise();
+                // The job's own result (`Interrupted`) is not news.
+                let _ = py.detach(|| worker.join());
+                return Err(e);
+            }
+            if worker.is_finished() {
+                // A panic goes on as this thread's (PyO3's PanicException).
+                return Ok(worker
+                    .join()
+                    .unwrap_or_else(|p| std::panic::resume_unwind(p)));
+            }
+        }
+    })
+}
+
 /// Diagnoses the sim-to-real gap of a `baseline` model on `datasets` (each
 /// fitted on its first half, validated on its second), as `mckibben
 /// diagnose` does: where the model misses, which effects of the catalogue
@@ -129,11 +163,10 @@ pub fn diagnose<'py>(
         backend: self::backend(backend)?,
         ..defaults
     };
-    let d = py
-        .detach(|| {
-            mckibben::diagnose::diagnose_from(&traces, family, &effects, &settings, start.as_ref())
-        })
-        .map_err(value_error)?;
+    let d = interruptible(py, &settings.stop, || {
+        mckibben::diagnose::diagnose_from(&traces, family, &effects, &settings, start.as_ref())
+    })?
+    .map_err(value_error)?;
     let sources: Vec<&str> = traces.iter().map(|t| t.source.as_str()).collect();
     let model = |m: &mckibben::model::Model| {
         let file = ModelFile::new(

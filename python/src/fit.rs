@@ -18,7 +18,8 @@ use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides, model_file};
 use mckibben::optim::history::{GenerationRecord, History};
 
 use crate::convert::{
-    algorithm, backend, family, file_error, loop_shape, runtime_error, to_python, value_error,
+    algorithm, backend, family, file_error, in_python_terms, loop_shape, runtime_error, to_python,
+    value_error,
 };
 use crate::data::data_arg;
 use crate::model::{Model, provenance};
@@ -174,7 +175,7 @@ pub fn user_bounds(bounds: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<UserBound
         // `{}` prints an f64 so that it parses back to the same bits.
         let bound: UserBound = format!("{name}={lo}:{hi}")
             .parse()
-            .map_err(|e: String| PyValueError::new_err(format!("bounds: {e}")))?;
+            .map_err(|e: String| PyValueError::new_err(in_python_terms(&format!("bounds: {e}"))))?;
         out.push(bound);
     }
     Ok(out)
@@ -410,7 +411,7 @@ pub fn fit(
     }
     let warn = py.import("warnings")?;
     for n in notes.into_inner().expect("notes") {
-        warn.call_method1("warn", (n,))?;
+        warn.call_method1("warn", (in_python_terms(&n),))?;
     }
     let (outcome, widened) = ran;
     let Fit { task, engine } = fit;

@@ -20,7 +20,7 @@ def test_the_stair_reads_as_the_command_reads_it(stair):
 def test_file_errors_name_the_file_line_and_column(tmp_path):
     with pytest.raises(FileNotFoundError, match="nope.csv"):
         mckibben.read_csv(tmp_path / "nope.csv")
-    with pytest.raises(ValueError, match='no input column "valve"'):
+    with pytest.raises(ValueError, match='no input column "valve".*choose another with `input=COL`$'):
         mckibben.read_csv(STAIR, input="valve")
     bad = tmp_path / "bad.csv"
     bad.write_text("t,pressure,displacement\n0,0.1,1\n0.1,nan,2\n0.2,0.1,3\n")
@@ -35,7 +35,7 @@ def test_file_errors_name_the_file_line_and_column(tmp_path):
         warnings.simplefilter("always")
         pieces = mckibben.read_csv(gap, split_gaps=True)
     assert [len(p) for p in pieces] == [30, 29]
-    assert any("--split-gaps cut here" in str(n.message) for n in notes)
+    assert any("`split_gaps` cut here" in str(n.message) for n in notes)
     assert len(mckibben.read_csv(gap, resample=0.1)) == 60
     with pytest.raises(ValueError, match="resample must be a positive"):
         mckibben.read_csv(gap, resample=-1.0)

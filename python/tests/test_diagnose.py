@@ -1,6 +1,10 @@
 """diagnose: the document `mckibben diagnose --json` prints, and its models."""
 
 import json
+import os
+import signal
+import threading
+import time
 
 import pytest
 
@@ -63,3 +67,17 @@ def test_diagnose_from_a_model_is_the_commands_diagnose_from(stair, cli, tmp_pat
         "--generations", "10", "--scratch-seeds", "0", "--from", tmp_path / "model.json",
     )
     assert doc["final"] == expected["final"] and doc["given"] == expected["given"]
+
+
+def test_ctrl_c_stops_a_diagnosis(stair):
+    # Uninterrupted, these candidate fits take minutes (200 s on two cores).
+    timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
+    started = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            mckibben.diagnose(stair, effects=["delay", "deadzone", "creep"], seeds=3,
+                              generations=200_000, scratch_seeds=0)
+    finally:
+        timer.cancel()
+    assert time.monotonic() - started < 10

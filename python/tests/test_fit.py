@@ -163,6 +163,9 @@ def test_another_thread_runs_during_a_fit(stair):
         ({"algo": "cmaes"}, ValueError, "unknown algorithm"),
         ({"backend": "tpu"}, ValueError, "unknown backend `tpu`"),
         ({"pop": 0}, ValueError, "pop must be at least 1"),
+        # The library's messages name the argument, not the command's flag.
+        ({"time_budget": -1}, ValueError, "^`time_budget` must be at least 0 seconds"),
+        ({"effects": ["creep", "creep"]}, ValueError, ": `effects` names `creep` twice"),
         ({"seed": -1}, ValueError, "seed must be an integer"),
         ({"progress": 3}, TypeError, "progress must be callable"),
     ],

@@ -214,6 +214,12 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         backend: args.backend,
         ..Settings::default()
     };
+    {
+        let stop = settings.stop.clone();
+        // A second handler cannot be installed in one process; a failure
+        // only means Ctrl-C kills instead of stopping with a message.
+        let _ = ctrlc::set_handler(move || stop.raise());
+    }
     let traces = args.data.load()?;
     match args.self_test {
         Some(SelfTest::Catalogue) => return self_test(&args, &traces, &effects, &settings),

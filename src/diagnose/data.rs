@@ -7,6 +7,7 @@ use std::sync::{Arc, Mutex};
 use nalgebra::DVector;
 
 use super::effects::{Augmented, Context, effect_box};
+use super::settings::StopFlag;
 use crate::data::Trace;
 use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
@@ -27,6 +28,8 @@ pub struct Data {
     /// ARX estimate on the first dataset's estimation half (bounds of the linear part).
     pub prior: LinearPrior,
     scorer: Scorer,
+    /// Stops every search on these data ([`Data::stopped_by`]).
+    pub(super) stop: StopFlag,
 }
 
 /// The evaluator a diagnosis scores populations on, shared by the clones of
@@ -128,12 +131,19 @@ impl Data {
             ctx,
             prior,
             scorer: Scorer::Cpu(CpuEvaluator::new()),
+            stop: StopFlag::default(),
         })
     }
 
     /// The same data scored on `evaluator` (the CPU batch path by default).
     pub fn scored_on(mut self, evaluator: Box<dyn Evaluator + Send>) -> Data {
         self.scorer = Scorer::of(evaluator);
+        self
+    }
+
+    /// The same data, every search on them stopped once `stop` is raised.
+    pub fn stopped_by(mut self, stop: StopFlag) -> Data {
+        self.stop = stop;
         self
     }
 

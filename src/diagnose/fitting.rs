@@ -19,7 +19,7 @@ use serde::Serialize;
 use super::data::Data;
 use super::effects::Augmented;
 use super::likelihood::indistinguishable_up_to;
-use super::settings::Settings;
+use super::settings::{Interrupted, Settings};
 use crate::model::{Family, Measure};
 use crate::optim::AlgoSettings;
 use crate::optim::de::DeSettings;
@@ -55,20 +55,26 @@ impl Objective for OneMeasure<'_> {
 }
 
 /// Runs `engine` on `model`'s estimation part under `measure` alone
-/// ([`OneMeasure`]), on the data's evaluator.
+/// ([`OneMeasure`]), on the data's evaluator; [`Interrupted`] once the data's
+/// stop flag is raised (the engine stops at its next generation; a polish
+/// runs to its end first).
 fn run_engine(
     data: &Data,
     model: &Augmented,
     measure: Measure,
     engine: &mut Engine,
 ) -> anyhow::Result<Outcome> {
-    data.with_evaluator(|evaluator| {
+    let outcome = data.with_evaluator(|evaluator| {
         let mut objective = OneMeasure {
             objective: ModelObjective::bounded_loops(evaluator, data.est_problem(model, measure)),
             measure,
         };
-        engine.run(&mut objective, &mut [], None, None)
-    })
+        engine.run(&mut objective, &mut [], Some(data.stop.as_atomic()), None)
+    })?;
+    if data.stop.raised() {
+        return Err(Interrupted.into());
+    }
+    Ok(outcome)
 }
 
 /// The box of a search: `lo..hi`, a coordinate with equal bounds held.

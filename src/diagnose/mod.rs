@@ -33,7 +33,7 @@ use serde::Serialize;
 pub use data::Data;
 pub use effects::{Augmented, Effect};
 pub use select::Selection;
-pub use settings::Settings;
+pub use settings::{Interrupted, Settings, StopFlag};
 
 use crate::data::Trace;
 use crate::ident::fit_percent;
@@ -176,7 +176,9 @@ pub fn diagnose_from(
             m.check_data(t)?;
         }
     }
-    let data = Data::in_coordinates(traces, from)?.scored_on(crate::eval::open(settings.backend)?);
+    let data = Data::in_coordinates(traces, from)?
+        .scored_on(crate::eval::open(settings.backend)?)
+        .stopped_by(settings.stop.clone());
     let start = match from {
         Some(m) => Some(start_of(m, family, data.datasets())?),
         None => None,

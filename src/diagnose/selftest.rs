@@ -33,8 +33,9 @@ pub struct Nominal {
 impl Nominal {
     /// Fits `family` to `trace` with the diagnosis' baseline budget.
     pub fn fit(trace: &Trace, family: Family, settings: &Settings) -> anyhow::Result<Nominal> {
-        let data =
-            Data::new(std::slice::from_ref(trace))?.scored_on(crate::eval::open(settings.backend)?);
+        let data = Data::new(std::slice::from_ref(trace))?
+            .scored_on(crate::eval::open(settings.backend)?)
+            .stopped_by(settings.stop.clone());
         let model = Augmented::new(family, Vec::new(), 1);
         let fit = fit_seeds(&data, &model, Start::Scratch, settings, 0)?;
         let pred = data.predict(&model, &fit.best.params);

@@ -2,9 +2,46 @@
 //! struct every stage of it reads (the fits, the acceptance rule, the
 //! selection, the self-tests), so that it sits below all of them.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use serde::Serialize;
 
 use crate::eval::Backend;
+
+/// Raised (from a Ctrl-C handler, or Python's signal check) to stop a
+/// diagnosis: every search of it stops at its next generation and the
+/// diagnosis returns [`Interrupted`], since a selection cut short has no
+/// verdict to report. Clones share one flag.
+#[derive(Debug, Clone, Default)]
+pub struct StopFlag(Arc<AtomicBool>);
+
+impl StopFlag {
+    pub fn raise(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+
+    pub fn raised(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
+    }
+
+    /// The flag as the engine reads it between generations.
+    pub(crate) fn as_atomic(&self) -> &AtomicBool {
+        &self.0
+    }
+}
+
+/// Two settings are alike whatever flag stops them.
+impl PartialEq for StopFlag {
+    fn eq(&self, _: &StopFlag) -> bool {
+        true
+    }
+}
+
+/// The error of a diagnosis stopped by its [`StopFlag`].
+#[derive(Debug, thiserror::Error)]
+#[error("the diagnosis was interrupted before its verdict; nothing was written")]
+pub struct Interrupted;
 
 /// Budget and rule settings of a diagnosis.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -43,6 +80,9 @@ pub struct Settings {
     /// Where the searches score their populations (the same numbers on
     /// every backend that is bit-exact, lavapipe included).
     pub backend: Backend,
+    /// Stops the diagnosis when raised (never, unless a caller raises it).
+    #[serde(skip)]
+    pub stop: StopFlag,
 }
 
 impl Default for Settings {
@@ -68,6 +108,7 @@ impl Default for Settings {
             floor_margin: 1.1,
             seed: 1,
             backend: Backend::Cpu,
+            stop: StopFlag::default(),
         }
     }
 }
