@@ -33,30 +33,21 @@ pub struct Data {
 }
 
 /// The evaluator a diagnosis scores populations on, shared by the clones of
-/// its data: a device behind a lock (searches on it take turns), or the CPU
-/// path, of which every search takes a copy (so searches run side by side).
+/// its data: one that forks ([`Evaluator::fork`]: the CPU path), of which
+/// every search takes a fork, so searches run side by side; or a device
+/// behind the same lock, on which searches take turns.
 #[derive(Clone)]
-enum Scorer {
-    Shared(Arc<Mutex<Box<dyn Evaluator + Send>>>),
-    Cpu(CpuEvaluator),
-}
+struct Scorer(Arc<Mutex<Box<dyn Evaluator + Send>>>);
 
 impl Scorer {
     fn of(evaluator: Box<dyn Evaluator + Send>) -> Scorer {
-        match evaluator.as_cpu() {
-            Some(cpu) => Scorer::Cpu(cpu.clone()),
-            None => Scorer::Shared(Arc::new(Mutex::new(evaluator))),
-        }
+        Scorer(Arc::new(Mutex::new(evaluator)))
     }
 }
 
 impl std::fmt::Debug for Scorer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let shared = match self {
-            Scorer::Cpu(cpu) => return f.write_str(&cpu.describe()),
-            Scorer::Shared(shared) => shared,
-        };
-        match shared.lock() {
+        match self.0.lock() {
             Ok(e) => f.write_str(&e.describe()),
             Err(_) => f.write_str("(evaluator poisoned)"),
         }
@@ -130,7 +121,7 @@ impl Data {
             val_start,
             ctx,
             prior,
-            scorer: Scorer::Cpu(CpuEvaluator::new()),
+            scorer: Scorer::of(Box::new(CpuEvaluator::new())),
             stop: StopFlag::default(),
         })
     }
@@ -155,20 +146,24 @@ impl Data {
             .with_effects(model.effects.clone(), self.ctx.clone())
     }
 
-    /// Runs `job` on the evaluator: a copy of the CPU path (searches run
-    /// side by side), or the device in turn.
+    /// Runs `job` on the evaluator: a fork of it where it forks (searches
+    /// run side by side), else the evaluator itself in turn.
     pub(super) fn with_evaluator<T>(
         &self,
         job: impl FnOnce(&mut dyn Evaluator) -> anyhow::Result<T>,
     ) -> anyhow::Result<T> {
-        let shared = match &self.scorer {
-            Scorer::Cpu(cpu) => return job(&mut cpu.clone()),
-            Scorer::Shared(shared) => shared,
-        };
-        let mut evaluator = shared
+        let mut evaluator = self
+            .scorer
+            .0
             .lock()
             .map_err(|_| anyhow::anyhow!("the evaluator failed in an earlier call"))?;
-        job(evaluator.as_mut())
+        match evaluator.fork() {
+            Some(mut fork) => {
+                drop(evaluator);
+                job(fork.as_mut())
+            }
+            None => job(evaluator.as_mut()),
+        }
     }
 
     /// Whether the diagnosis fits `theta` at all: only models whose loop is

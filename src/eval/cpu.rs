@@ -50,8 +50,9 @@ impl CpuEvaluator {
 }
 
 impl Evaluator for CpuEvaluator {
-    fn as_cpu(&self) -> Option<&CpuEvaluator> {
-        Some(self)
+    /// A copy: it holds no device and no buffers.
+    fn fork(&self) -> Option<Box<dyn Evaluator + Send>> {
+        Some(Box::new(self.clone()))
     }
 
     fn describe(&self) -> String {

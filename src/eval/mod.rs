@@ -114,9 +114,10 @@ pub trait Evaluator {
     /// Backend and device, for the user ("cpu, 2 threads", "gpu: NVIDIA H100").
     fn describe(&self) -> String;
 
-    /// The CPU evaluator, which can be copied to score from several threads
-    /// at once; `None` for a backend that holds a device.
-    fn as_cpu(&self) -> Option<&cpu::CpuEvaluator> {
+    /// An evaluator of its own that gives the same numbers, for a search run
+    /// beside others (a diagnosis fits its candidates side by side); `None`
+    /// for a backend that holds one device, on which searches take turns.
+    fn fork(&self) -> Option<Box<dyn Evaluator + Send>> {
         None
     }
 
