@@ -11,9 +11,8 @@ use super::settings::StopFlag;
 use crate::data::Trace;
 use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
-use crate::ident::arx::linear_prior;
-use crate::model::experiment::halves;
 use crate::model::{Experiment, Family, Flow, LinearPrior, Measure, Model, SearchSpace};
+use crate::optim::records::Records;
 
 /// The data of a diagnosis: every dataset in the deviation coordinates of the
 /// first one's estimation half, the estimation part, and where validation
@@ -55,66 +54,22 @@ impl std::fmt::Debug for Scorer {
 }
 
 impl Data {
-    /// Splits every trace in halves (estimation first, as the thesis, §4.3.1)
-    /// and checks that the data can be diagnosed at all.
+    /// Splits every trace in halves as `fit` does ([`Records::of`], which
+    /// also checks that the data can be fitted at all).
     pub fn new(traces: &[Trace]) -> anyhow::Result<Data> {
         Data::in_coordinates(traces, None)
     }
 
     /// As [`Data::new`], in `model`'s coordinates when one is given
-    /// (`diagnose --from`): its means are removed from every dataset and a
-    /// chain keeps its effect constants on the first, so that the model's
-    /// parameters describe the same model on these data (as
-    /// `optim::task::Task::in_coordinates_of` does for `fit --from`).
+    /// (`diagnose --from`, as `fit --from`: [`Records::of`]).
     pub fn in_coordinates(traces: &[Trace], model: Option<&Model>) -> anyhow::Result<Data> {
-        anyhow::ensure!(!traces.is_empty(), "no data to diagnose");
-        let mut whole: Vec<Experiment> = Vec::new();
-        let mut est = Vec::new();
-        let mut val_start = Vec::new();
-        for t in traces {
-            anyhow::ensure!(
-                t.len() >= 40,
-                "{}: {} samples are too few to split into estimation and validation halves (need at least 40)",
-                t.source,
-                t.len()
-            );
-            let (e, v) = halves(t.len());
-            let (lo, hi) = t.input[e.clone()]
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-                    (a.min(x), b.max(x))
-                });
-            anyhow::ensure!(
-                hi > lo,
-                "{}: the input `{}` is constant over the estimation half, so there is no dynamics to diagnose",
-                t.source,
-                t.input_name
-            );
-            anyhow::ensure!(
-                t.input.iter().chain(&t.output).all(|v| v.is_finite()),
-                "{}: the data contain non-finite values",
-                t.source
-            );
-            // All datasets share the first one's coordinates, so that one
-            // absolute model (one intercept) describes them all and a
-            // difference between them (a load) is a gap, not a shift of means.
-            let w = match (model, whole.first()) {
-                (Some(m), _) => Experiment::with_offsets(t, m.base.input_mean, m.base.output_mean),
-                (None, None) => Experiment::with_means_of(t, e.clone()),
-                (None, Some(first)) => Experiment::with_offsets(t, first.u_mean, first.y_mean),
-            };
-            est.push(w.segment(e));
-            val_start.push(v.start);
-            whole.push(w);
-        }
-        let prior = linear_prior(traces)?;
-        let mut ctx: Vec<Context> = whole
-            .iter()
-            .map(|w| Context::of(w, prior.b >= 0.0))
-            .collect();
-        if let Some(chain) = model.and_then(|m| m.chain.as_ref()) {
-            ctx[0] = chain.context;
-        }
+        let Records {
+            whole,
+            est,
+            val_start,
+            ctx,
+            prior,
+        } = Records::of(traces, model)?;
         Ok(Data {
             whole,
             est,

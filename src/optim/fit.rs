@@ -356,9 +356,9 @@ impl Fit {
             what.loop_shape,
             &what.bounds,
         )
-        .map(|t| match start {
+        .and_then(|t| match start {
             Some(m) => t.in_coordinates_of(trace, m),
-            None => t,
+            None => Ok(t),
         })
         .and_then(|t| t.with_effects(&what.effects, &what.bounds))
         .with_context(|| format!("cannot fit {}", trace.source))?;

@@ -26,6 +26,7 @@ pub mod lm;
 pub mod mfa;
 pub mod pso;
 
+pub mod records;
 pub mod stage;
 pub mod synthetic;
 pub mod task;

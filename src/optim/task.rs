@@ -5,15 +5,15 @@
 
 use crate::data::Trace;
 use crate::eval::Problem;
-use crate::ident::{arx::linear_prior, fit_percent, rmse};
+use crate::ident::{fit_percent, rmse};
 use crate::model::effects::{Augmented, Context, Effect, effect_box};
-use crate::model::experiment::halves;
 use crate::model::file::Chain;
 use crate::model::presets::ThesisBounds;
 use crate::model::{
     Experiment, Family, FittedModel, Flow, LinearPrior, Loop, Model, SearchSpace, UserBound,
     simulate,
 };
+use crate::optim::records::Records;
 
 /// How far beyond the estimation output's largest deviation a bounded model
 /// may go on the whole record's input ([`Task::stress`]).
@@ -80,20 +80,16 @@ impl Task {
             family != Family::Linear,
             "the linear model is fitted by least squares: use `mckibben identify`"
         );
-        check_f32_range(trace)?;
-        let prior = linear_prior(std::slice::from_ref(trace))?;
-        let (estimation, validation) = Experiment::split_halves(trace);
-        let whole = Experiment::with_offsets(trace, estimation.u_mean, estimation.y_mean);
-        let context = Context::of(&whole, prior.b >= 0.0);
+        let records = Records::of(std::slice::from_ref(trace), None)?;
         let space = match flow {
             Flow::Thesis => {
                 anyhow::ensure!(
                     bounds.is_empty(),
                     "the thesis' flow searches its own tables: --bound and --fix need the joint flow"
                 );
-                SearchSpace::around(family, hysteresis, prior, flow, free_n)
+                SearchSpace::around(family, hysteresis, records.prior, flow, free_n)
             }
-            Flow::Joint => SearchSpace::scaled(family, prior, loop_shape, free_n, bounds)
+            Flow::Joint => SearchSpace::scaled(family, records.prior, loop_shape, free_n, bounds)
                 .map_err(anyhow::Error::msg)?,
         };
         Ok(Task {
@@ -101,33 +97,24 @@ impl Task {
             flow,
             space,
             loop_shape,
-            estimation,
-            validation,
-            prior,
+            estimation: records.est[0].clone(),
+            validation: records.validation(0),
+            prior: records.prior,
             input_name: trace.input_name.clone(),
             output_name: trace.output_name.clone(),
             effects: Vec::new(),
-            context,
+            context: records.ctx[0],
         })
     }
 
-    /// The same task in `model`'s coordinates: the model's means are
-    /// removed from `trace` instead of the estimation half's, and a chain
-    /// keeps its effect constants. Then `model`'s parameters describe the
-    /// same model on this record, whatever record it was fitted on: a warm
-    /// start starts at the saved model itself. (Moving a model to other
-    /// means is not a change of its intercept alone: the generalized loop's
-    /// sign terms switch at `x = 0`, so the origin is part of the model.)
-    pub fn in_coordinates_of(mut self, trace: &Trace, model: &Model) -> Task {
-        let whole = Experiment::with_offsets(trace, model.base.input_mean, model.base.output_mean);
-        let (est, val) = halves(trace.len());
-        self.estimation = whole.segment(est);
-        self.validation = whole.segment(val);
-        self.context = match &model.chain {
-            Some(chain) => chain.context,
-            None => Context::of(&whole, self.prior.b >= 0.0),
-        };
-        self
+    /// The same task in `model`'s coordinates ([`Records::of`]): a warm
+    /// start then starts at the saved model itself.
+    pub fn in_coordinates_of(mut self, trace: &Trace, model: &Model) -> anyhow::Result<Task> {
+        let records = Records::of(std::slice::from_ref(trace), Some(model))?;
+        self.estimation = records.est[0].clone();
+        self.validation = records.validation(0);
+        self.context = records.ctx[0];
+        Ok(self)
     }
 
     /// The same task with `effects` after the family: their parameters
@@ -270,36 +257,6 @@ impl Task {
     }
 }
 
-/// Refuses a trace whose values would overflow the `f32` arithmetic of the
-/// simulation: the estimation SSE sums squared output deviations over every
-/// sample, so each column's deviation from its mean, times √(samples), must
-/// stay well inside `√f32::MAX` (10⁻³ of it: room for candidates far off).
-/// Without this check such data "diverges" for every candidate.
-pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
-    let limit = (f32::MAX as f64).sqrt() * 1e-3 / (trace.len().max(1) as f64).sqrt();
-    for (name, column) in [
-        (&trace.input_name, &trace.input),
-        (&trace.output_name, &trace.output),
-    ] {
-        let mean = column.iter().sum::<f64>() / column.len().max(1) as f64;
-        let (lo, hi) = column
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                (a.min(v), b.max(v))
-            });
-        let reach = (hi - mean).abs().max((lo - mean).abs());
-        anyhow::ensure!(
-            reach <= limit,
-            "column `{name}` of {} spans [{lo:e}, {hi:e}]: over {} samples its squared \
-             errors overflow the f32 arithmetic of the simulation (deviations from the mean \
-             must stay below {limit:.3e}); rescale the column (for example Pa to MPa, or m to mm)",
-            trace.source,
-            trace.len()
-        );
-    }
-    Ok(())
-}
-
 /// RMSE and fit % of a free run of `params` on `experiment` (deviation
 /// coordinates; differences are in output units). A diverged run scores
 /// infinite RMSE and −∞ fit.
@@ -390,6 +347,7 @@ mod tests {
             let here = task
                 .clone()
                 .in_coordinates_of(&later, &model)
+                .unwrap()
                 .validate(&s.truth);
             assert!(
                 (here.fit_percent - expected).abs() < 1e-6,

@@ -1,0 +1,136 @@
+//! The records a fit or a diagnosis works on: each trace split into an
+//! estimation and a validation half (the thesis' split, §4.3.1) in one set
+//! of deviation coordinates, the ARX prior of the boxes and the effects'
+//! constants. `fit` ([`super::task::Task`], one record) and `diagnose`
+//! (`diagnose::Data`, one record per load) both split here, so that a
+//! model's parameters mean the same to both.
+
+use crate::data::Trace;
+use crate::ident::arx::linear_prior;
+use crate::model::effects::Context;
+use crate::model::experiment::halves;
+use crate::model::{Experiment, LinearPrior, Model};
+
+/// Traces split for a fit.
+#[derive(Debug, Clone)]
+pub struct Records {
+    /// Every trace in the coordinates of the first one's estimation half
+    /// (or of the model it is read for).
+    pub whole: Vec<Experiment>,
+    /// Their estimation halves.
+    pub est: Vec<Experiment>,
+    /// First validation sample of each.
+    pub val_start: Vec<usize>,
+    /// The effects' constants of each trace (ranges, branch tolerance, the
+    /// end stop's side); a model's chain keeps its own on the first.
+    pub ctx: Vec<Context>,
+    /// What the data say about scale, the boxes' reference
+    /// ([`linear_prior`]: ARX on the first trace's estimation half, ranges
+    /// over all).
+    pub prior: LinearPrior,
+}
+
+impl Records {
+    /// Splits `traces` after checking that each can be fitted: finite, long
+    /// enough to halve, an input that moves over the estimation half and
+    /// values the `f32` simulation can sum. All take the first trace's
+    /// estimation means as their origin, so that one absolute model (one
+    /// intercept) describes them all and a difference between them (a load)
+    /// is a gap, not a shift of means. With `model`, they take its means
+    /// instead and the first its chain's constants: then its parameters
+    /// describe the same model on these records, whatever record it was
+    /// fitted on (`fit --from`, `diagnose --from`). Moving a model to other
+    /// means is not a change of its intercept alone: the generalized loop's
+    /// sign terms switch at `x = 0`, so the origin is part of the model.
+    pub fn of(traces: &[Trace], model: Option<&Model>) -> anyhow::Result<Records> {
+        anyhow::ensure!(!traces.is_empty(), "no data to fit");
+        let mut whole: Vec<Experiment> = Vec::new();
+        let mut est = Vec::new();
+        let mut val_start = Vec::new();
+        for t in traces {
+            anyhow::ensure!(
+                t.len() >= 40,
+                "{}: {} samples are too few to split into estimation and validation halves (need at least 40)",
+                t.source,
+                t.len()
+            );
+            anyhow::ensure!(
+                t.input.iter().chain(&t.output).all(|v| v.is_finite()),
+                "{}: the data contain non-finite values",
+                t.source
+            );
+            let (e, v) = halves(t.len());
+            let (lo, hi) = t.input[e.clone()]
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
+            anyhow::ensure!(
+                hi > lo,
+                "{}: the input `{}` is constant over the estimation half, so there is no dynamics to fit",
+                t.source,
+                t.input_name
+            );
+            check_f32_range(t)?;
+            let w = match (model, whole.first()) {
+                (Some(m), _) => Experiment::with_offsets(t, m.base.input_mean, m.base.output_mean),
+                (None, None) => Experiment::with_means_of(t, e.clone()),
+                (None, Some(first)) => Experiment::with_offsets(t, first.u_mean, first.y_mean),
+            };
+            est.push(w.segment(e));
+            val_start.push(v.start);
+            whole.push(w);
+        }
+        let prior = linear_prior(traces)?;
+        let mut ctx: Vec<Context> = whole
+            .iter()
+            .map(|w| Context::of(w, prior.b >= 0.0))
+            .collect();
+        if let Some(chain) = model.and_then(|m| m.chain.as_ref()) {
+            ctx[0] = chain.context;
+        }
+        Ok(Records {
+            whole,
+            est,
+            val_start,
+            ctx,
+            prior,
+        })
+    }
+
+    /// The validation half of trace `i`.
+    pub fn validation(&self, i: usize) -> Experiment {
+        let w = &self.whole[i];
+        w.segment(self.val_start[i]..w.len())
+    }
+}
+
+/// Refuses a trace whose values would overflow the `f32` arithmetic of the
+/// simulation: the estimation SSE sums squared output deviations over every
+/// sample, so each column's deviation from its mean, times √(samples), must
+/// stay well inside `√f32::MAX` (10⁻³ of it: room for candidates far off).
+/// Without this check such data "diverges" for every candidate.
+pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
+    let limit = (f32::MAX as f64).sqrt() * 1e-3 / (trace.len().max(1) as f64).sqrt();
+    for (name, column) in [
+        (&trace.input_name, &trace.input),
+        (&trace.output_name, &trace.output),
+    ] {
+        let mean = column.iter().sum::<f64>() / column.len().max(1) as f64;
+        let (lo, hi) = column
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        let reach = (hi - mean).abs().max((lo - mean).abs());
+        anyhow::ensure!(
+            reach <= limit,
+            "column `{name}` of {} spans [{lo:e}, {hi:e}]: over {} samples its squared \
+             errors overflow the f32 arithmetic of the simulation (deviations from the mean \
+             must stay below {limit:.3e}); rescale the column (for example Pa to MPa, or m to mm)",
+            trace.source,
+            trace.len()
+        );
+    }
+    Ok(())
+}
