@@ -27,6 +27,8 @@ use crate::model::Experiment;
 use crate::model::Family;
 
 mod catalogue;
+mod stage;
+mod stages;
 mod step;
 mod table;
 pub use catalogue::{Effect, rings};
