@@ -1,7 +1,8 @@
 // The scoring loop of a family with effect stages: src/model/effects/step.rs
-// `Prepared::step` and `Prepared::restart`, spelled with the same
-// operations in the same order (every product that is then added kept
-// rounded, minima and maxima as comparisons). The generated header says
+// `Prepared::step` and `Prepared::restart` with each realisation's stage
+// (src/model/effects/stages/, in the step order of catalogue.rs), spelled
+// with the same operations in the same order (every product that is then
+// added kept rounded, minima and maxima as comparisons). The generated header says
 // which effects are present (`HAS_*`), loads their parameters from the
 // candidate's row (`load_effect_params`, generated from the catalogue) and
 // holds each experiment's constants (`U_MEAN`,
@@ -18,7 +19,7 @@ fn unfolded(v: f32) -> f32 {
     return rounded(v);
 }
 
-// step.rs `larger`: `a` if it is the larger, else `b`.
+// stage.rs `larger`: `a` if it is the larger, else `b`.
 fn larger(a: f32, b: f32) -> f32 {
     if (a > b) {
         return a;
@@ -26,7 +27,7 @@ fn larger(a: f32, b: f32) -> f32 {
     return b;
 }
 
-// step.rs `smaller`: `a` if it is the smaller, else `b`.
+// stage.rs `smaller`: `a` if it is the smaller, else `b`.
 fn smaller(a: f32, b: f32) -> f32 {
     if (a < b) {
         return a;
@@ -34,9 +35,10 @@ fn smaller(a: f32, b: f32) -> f32 {
     return b;
 }
 
-// step.rs `soft_stop`, which the CPU applies to `±x` and `±bound`
-// (`Prepared::toward`); written out per direction here, the same bits since
-// negation is exact (`tests/eval_effects.rs` checks both directions).
+// stages/saturation.rs `soft_stop`, which the CPU applies to `±x` and
+// `±bound` (`Frame::toward`); written out per direction here, the same
+// bits since negation is exact (`tests/eval_effects.rs` checks both
+// directions).
 fn soft_stop(x: f32, bound: f32, e: u32) -> f32 {
     let h = unfolded(KNEE_H[e]);
     var into = (bound + h) - x;
@@ -56,8 +58,9 @@ fn soft_stop(x: f32, bound: f32, e: u32) -> f32 {
     return bent;
 }
 
-// step.rs: the end stop on the side the input drives the output, on the
-// CPU `±min(±x, ±bound)` (`Prepared::toward`), the same bits as this.
+// stages/saturation.rs: the end stop on the side the input drives the
+// output, on the CPU `±min(±x, ±bound)` (`Frame::toward`), the same bits
+// as this.
 fn clip(x: f32, bound: f32, e: u32) -> f32 {
     if (DRIVES_UP[e]) {
         return smaller(x, bound);
@@ -65,7 +68,7 @@ fn clip(x: f32, bound: f32, e: u32) -> f32 {
     return larger(x, bound);
 }
 
-// step.rs `tenth_power`: ρ^10 by products.
+// stages/creep.rs `tenth_power`: ρ^10 by products.
 fn tenth_power(rho: f32) -> f32 {
     let p2 = rounded(rho * rho);
     let p4 = rounded(p2 * p2);
@@ -96,7 +99,8 @@ fn score(i: u32, e: u32) -> f32 {
     let y_mean = unfolded(Y_MEAN[e]);
     // step.rs `Augmented::prepare`: the parameters as the generated
     // `load_effect_params` loads them (0 for an effect not in the model),
-    // and what each realisation derives from them once per candidate.
+    // and what each realisation derives from them once per candidate (its
+    // stage's `prepare`).
     let q = load_effect_params(p, e);
     // The delay in whole samples and the fraction of a sample beyond them.
     let d = larger(q.delay_d, 0.0);
@@ -125,15 +129,15 @@ fn score(i: u32, e: u32) -> f32 {
     let rho_zo = q.creep_output_rho;
     let kappa_zo = q.creep_output_kappa;
     let z0_out = q.creep_output_z0;
-    // step.rs: the two-pole creep's total gain split by the faster state's
-    // share.
+    // stages/creep.rs: the two-pole creep's total gain split by the faster
+    // state's share.
     let rho_f = q.creep_two_pole_rho_fast;
     let rho_s = q.creep_two_pole_rho_slow;
     let kappa_f = rounded(q.creep_two_pole_fast_share * q.creep_two_pole_kappa);
     let kappa_s = q.creep_two_pole_kappa - kappa_f;
     let z0_slow = q.creep_two_pole_z0;
-    // step.rs: the log-time creep's poles a decade apart in time constant
-    // (ρ^100, ρ^10, ρ) and their input weights (1 − ρ)·κ.
+    // stages/creep.rs: the log-time creep's poles a decade apart in time
+    // constant (ρ^100, ρ^10, ρ) and their input weights (1 − ρ)·κ.
     let rho_ls = q.creep_log_rho;
     let rho_lm = tenth_power(rho_ls);
     let rho_lf = tenth_power(rho_lm);
@@ -146,7 +150,7 @@ fn score(i: u32, e: u32) -> f32 {
     let ring_a2 = q.inertia_ringing_a2;
     let kick = q.inertia_ringing_g;
     let big_a = stiffness(th);
-    // step.rs `Prepared::start`.
+    // step.rs `Prepared::start` (each stage's `start`).
     let u0 = input(span, 0u);
     var x = samples[span.x].y + th.x0;
     var w = 0.0;
@@ -175,12 +179,13 @@ fn score(i: u32, e: u32) -> f32 {
     var next_restart = cfg.horizon;
     for (var k = 1u; k < span.y; k = k + 1u) {
         // Input side: delay, input lag, on/off threshold, deadzone, play,
-        // branch gain, load gain, drain lag (step.rs `Prepared::step`).
+        // branch gain, load gain, drain lag (step.rs `Prepared::step`, in
+        // the step order of catalogue.rs).
         let raw = input(span, k - 1u);
         var ui = raw;
         if (HAS_DELAY) {
-            // step.rs `delayed`: u(j) moved by `frac` toward u(j−1), the
-            // u(j) of the sample before.
+            // stages/delay.rs `delayed`: u(j) moved by `frac` toward
+            // u(j−1), the u(j) of the sample before.
             var j = 0u;
             if (k - 1u > whole) {
                 j = k - 1u - whole;
@@ -351,7 +356,8 @@ fn score(i: u32, e: u32) -> f32 {
         } else {
             acc = acc + rounded(err * err);
         }
-        // step.rs `Prepared::restart`.
+        // step.rs `Prepared::restart` (each stage's `restart`, in the step
+        // order).
         if (k == next_restart) {
             let creeps = (((measured - z) - z_out) - z_fast) - z_slow;
             let xr = (((creeps - log_fast) - log_mid) - log_slow) - ring1;

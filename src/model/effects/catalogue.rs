@@ -1,13 +1,17 @@
 //! The catalogue: one entry per realisation (docs/DIAGNOSIS.md, "The
 //! effects catalogue"), from which [`Effect`] and everything asked of it
-//! are generated or looked up (`table.rs`). A realisation's step is in
-//! `step.rs` (CPU) and `shaders/effects.wgsl` (GPU), two twins that the
-//! bit-identity tests keep equal.
+//! are generated or looked up (`table.rs`), and the step order, which
+//! places each realisation's CPU stage (`stages/`) in the step
+//! (`stage.rs`). Its GPU stage is in `shaders/effects.wgsl`, the CPU
+//! stage's twin, which the bit-identity tests keep equal.
 //!
 //! (Over 400 lines: twenty entries of about twenty lines each, the rest
 //! the helpers their sizes and admission rules share.)
 
 use super::Realisation;
+// What the step order's `stages!` names.
+use super::stage::{At, Columns, Frame, InputLoop, Lane, OutputLoop, Stage, StateLoop, stages};
+use super::stages::*;
 use super::table::{Params, StartHint, catalogue};
 
 catalogue! {
@@ -398,6 +402,25 @@ catalogue! {
             ..CREEP
         },
     }
+}
+
+// The step order: where each realisation's stage runs in
+// `Prepared::step` (`step.rs`), the order `shaders/effects.wgsl` follows.
+// The input side moves the input: loops of their own, then the first
+// realisations' shared loop over the lanes, then late loops. The state
+// side moves the new output state: the shared loop with the baseline's
+// linear part, then loops (the rate moves the Bouc-Wen stiffness). The
+// output side moves the predicted output; the restart subtracts the
+// realisations' terms in this order. A new realisation gets a loop of its
+// own (`input`, `input_late`, `state` or `output`): one more stage in a
+// shared loop made it scalar.
+stages! {
+    input: Delay, InputLag, OnOffThreshold;
+    input_lanes: Deadzone, Backlash, Asymmetry, Load;
+    input_late: DrainLag;
+    state_lanes: Inertia, Saturation;
+    state: SoftStop, Rate;
+    output: Creep, OutputCreep, TwoPoleCreep, LogCreep, Ringing, LoadMode, OutputClip, OutputLag;
 }
 
 /// The defaults of an entry: fitted on one dataset, admitting its whole

@@ -15,7 +15,8 @@
 //! [`Effect`] is generated (`table.rs`); [`Effect`]'s methods here look the
 //! entry up. The lane-wise step, [`Prepared::step`] in `step.rs`, is the
 //! one definition every backend follows (docs/ARCHITECTURE.md, "The model
-//! description"). (Over 400 lines: the unit tests, which check every
+//! description"); each realisation's part of it is its stage in `stages/`
+//! (`stage.rs` says what a stage is), placed by the catalogue's step order. (Over 400 lines: the unit tests, which check every
 //! realisation's neutral value against the baseline bit for bit.)
 
 use std::fmt;
@@ -27,6 +28,8 @@ use crate::model::Experiment;
 use crate::model::Family;
 
 mod catalogue;
+mod stage;
+mod stages;
 mod step;
 mod table;
 pub use catalogue::{Effect, rings};

@@ -12,7 +12,8 @@ use super::Context;
 pub type EffectBox = (Vec<f64>, Vec<f64>, Vec<f64>);
 
 /// One realisation of the catalogue: everything the diagnosis, the reports
-/// and the backends know about it besides its step (`step.rs` on the CPU,
+/// and the backends know about it besides its step (its stage in
+/// `stages/` on the CPU, placed by the step order in `catalogue.rs`;
 /// `shaders/effects.wgsl` on the GPU). `E` is the catalogue's enum
 /// ([`super::Realisation`] names it), which the entries generate, so this
 /// schema does not import it back.
