@@ -255,7 +255,7 @@ impl Evaluator {
     /// Samples each candidate is scored on (the estimation half).
     #[getter]
     fn samples(&self) -> usize {
-        self.task.estimation.len()
+        self.task.estimation().len()
     }
 
     /// Whether the fit's bounded-loop checks apply (`checked`).
@@ -330,7 +330,7 @@ impl Evaluator {
         format!(
             "Evaluator({} on {} samples, d = {} ({}), {}{})",
             self.task.family,
-            self.task.estimation.len(),
+            self.task.estimation().len(),
             self.names.len(),
             self.names.join(", "),
             self.describe,

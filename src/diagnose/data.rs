@@ -1,6 +1,5 @@
-//! The data of a diagnosis: the traces split into estimation and validation
-//! halves in shared coordinates, the costs of a model on them, and the box
-//! its parameters are searched in.
+//! The data of a diagnosis: its records (split as `fit` splits them), the
+//! costs of a model on them, and the box its parameters are searched in.
 
 use std::sync::{Arc, Mutex};
 
@@ -11,21 +10,17 @@ use super::settings::StopFlag;
 use crate::data::Trace;
 use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
-use crate::model::{Experiment, Family, Flow, LinearPrior, Measure, Model, SearchSpace};
+use crate::model::{Experiment, Family, Flow, Measure, Model, SearchSpace};
 use crate::optim::records::Records;
 
-/// The data of a diagnosis: every dataset in the deviation coordinates of the
-/// first one's estimation half, the estimation part, and where validation
-/// starts; and the evaluator its searches score populations on.
+/// The data of a diagnosis: its records ([`Records::of`]: every dataset in
+/// the coordinates of the first one's estimation half, the estimation
+/// halves, where validation starts, the prior and the effects' constants),
+/// the evaluator its searches score populations on, and their stop flag.
 #[derive(Debug, Clone)]
 pub struct Data {
-    pub whole: Vec<Experiment>,
-    pub est: Vec<Experiment>,
-    /// First validation sample of each dataset.
-    pub val_start: Vec<usize>,
-    pub ctx: Vec<Context>,
-    /// ARX estimate on the first dataset's estimation half (bounds of the linear part).
-    pub prior: LinearPrior,
+    /// The traces, split as `fit` splits them.
+    pub records: Records,
     scorer: Scorer,
     /// Stops every search on these data ([`Data::stopped_by`]).
     pub(super) stop: StopFlag,
@@ -63,19 +58,8 @@ impl Data {
     /// As [`Data::new`], in `model`'s coordinates when one is given
     /// (`diagnose --from`, as `fit --from`: [`Records::of`]).
     pub fn in_coordinates(traces: &[Trace], model: Option<&Model>) -> anyhow::Result<Data> {
-        let Records {
-            whole,
-            est,
-            val_start,
-            ctx,
-            prior,
-        } = Records::of(traces, model)?;
         Ok(Data {
-            whole,
-            est,
-            val_start,
-            ctx,
-            prior,
+            records: Records::of(traces, model)?,
             scorer: Scorer::of(Box::new(CpuEvaluator::new())),
             stop: StopFlag::default(),
         })
@@ -96,9 +80,9 @@ impl Data {
     /// The estimation part under `measure` as the evaluator's problem: the
     /// model description (family and effect stages) and every dataset.
     pub fn est_problem(&self, model: &Augmented, measure: Measure) -> Problem {
-        Problem::new(model.family, self.est.clone())
+        Problem::new(model.family, self.records.est.clone())
             .with_measure(measure)
-            .with_effects(model.effects.clone(), self.ctx.clone())
+            .with_effects(model.effects.clone(), self.records.ctx.clone())
     }
 
     /// Runs `job` on the evaluator: a fork of it where it forks (searches
@@ -137,20 +121,25 @@ impl Data {
     }
 
     pub fn datasets(&self) -> usize {
-        self.whole.len()
+        self.records.whole.len()
     }
 
     /// Estimation residuals over all datasets (the first sample of each is
     /// the start, not a residual).
     pub fn est_samples(&self) -> usize {
-        self.est.iter().map(|e| e.len().saturating_sub(1)).sum()
+        self.records
+            .est
+            .iter()
+            .map(|e| e.len().saturating_sub(1))
+            .sum()
     }
 
     /// Validation samples over all datasets.
     pub fn val_samples(&self) -> usize {
-        self.whole
+        self.records
+            .whole
             .iter()
-            .zip(&self.val_start)
+            .zip(&self.records.val_start)
             .map(|(w, s)| w.len() - s)
             .sum()
     }
@@ -180,9 +169,10 @@ impl Data {
             return f64::INFINITY;
         }
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
-        self.est
+        self.records
+            .est
             .iter()
-            .zip(&self.ctx)
+            .zip(&self.records.ctx)
             .enumerate()
             .map(|(i, (e, c))| cost(&t, i, c, e) as f64)
             .sum()
@@ -196,8 +186,8 @@ impl Data {
             return None;
         }
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
-        let mut r = Vec::with_capacity(self.est.iter().map(|e| e.len()).sum());
-        for (i, (e, c)) in self.est.iter().zip(&self.ctx).enumerate() {
+        let mut r = Vec::with_capacity(self.records.est.iter().map(|e| e.len()).sum());
+        for (i, (e, c)) in self.records.est.iter().zip(&self.records.ctx).enumerate() {
             let p = model.simulate(&t, i, c, e);
             r.extend(p.iter().zip(&e.y).skip(1).map(|(&a, &b)| (a - b) as f64));
         }
@@ -212,8 +202,8 @@ impl Data {
     /// longer horizons measured on the self-test: docs/lab/diagnosis.md,
     /// the budget's "in the first round" item).
     pub fn horizon(&self) -> usize {
-        let shortest = self.est.iter().map(|e| e.len()).min().unwrap_or(8);
-        crate::optim::engine::model::horizon(self.prior.a, shortest)
+        let shortest = self.records.est.iter().map(|e| e.len()).min().unwrap_or(8);
+        crate::optim::engine::model::horizon(self.records.prior.a, shortest)
     }
 
     /// Predicted output (deviation coordinates) over each whole dataset: the
@@ -221,9 +211,10 @@ impl Data {
     /// warmed-up state rather than `w = 0`.
     pub fn predict(&self, model: &Augmented, theta: &[f64]) -> Vec<Vec<f32>> {
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
-        self.whole
+        self.records
+            .whole
             .iter()
-            .zip(&self.ctx)
+            .zip(&self.records.ctx)
             .enumerate()
             .map(|(i, (e, c))| model.simulate(&t, i, c, e))
             .collect()
@@ -233,8 +224,8 @@ impl Data {
     pub fn val_residuals(&self, model: &Augmented, theta: &[f64]) -> Vec<Vec<f64>> {
         self.predict(model, theta)
             .iter()
-            .zip(&self.whole)
-            .zip(&self.val_start)
+            .zip(&self.records.whole)
+            .zip(&self.records.val_start)
             .map(|((p, w), &s)| (s..w.len()).map(|k| w.y[k] as f64 - p[k] as f64).collect())
             .collect()
     }
@@ -252,13 +243,14 @@ impl Data {
     /// (thesis hull, `a`, `b`, `c` around the ARX estimate) plus each
     /// effect's box.
     pub fn space(&self, model: &Augmented) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-        let mut base = SearchSpace::around(model.family, None, self.prior, Flow::Joint, false);
+        let mut base =
+            SearchSpace::around(model.family, None, self.records.prior, Flow::Joint, false);
         // Least squares on hysteretic data underestimates the input gain: the
         // hysteretic model's `b` relates to the ARX static gain
         // `G = b_ARX/(1 − a_ARX)` through `1 − a·α`, not `1 − a`. Widen the
         // box to reach `G` itself.
         let ib = model.family.linear_indices()[1];
-        let g = self.prior.b / (1.0 - self.prior.a).abs().max(1e-3);
+        let g = self.records.prior.b / (1.0 - self.records.prior.a).abs().max(1e-3);
         if g.abs() > base.upper[ib].abs().max(base.lower[ib].abs()) {
             if g > 0.0 {
                 base.upper[ib] = g;
@@ -283,7 +275,7 @@ impl Data {
             .collect();
         let (mut neutral, mut lo, mut hi) = (mid, base.lower, base.upper);
         for &e in &model.effects {
-            let (n, l, h) = effect_box(e, &self.ctx[0], self.datasets());
+            let (n, l, h) = effect_box(e, &self.records.ctx[0], self.datasets());
             neutral.extend(n);
             lo.extend(l);
             hi.extend(h);

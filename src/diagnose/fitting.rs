@@ -409,8 +409,8 @@ fn scratch_rows(
         v[3] = 0.0f64.clamp(lo[3], hi[3]);
     }
     let [ia, ib, ic] = model.family.linear_indices();
-    v[ia] = data.prior.a.clamp(lo[ia], hi[ia]);
-    v[ib] = data.prior.b.clamp(lo[ib], hi[ib]);
+    v[ia] = data.records.prior.a.clamp(lo[ia], hi[ia]);
+    v[ib] = data.records.prior.b.clamp(lo[ib], hi[ib]);
     v[ic] = 0.0f64.clamp(lo[ic], hi[ic]);
     let mut rows = v;
     let shape = 2..model.family.exponent_index().unwrap_or(2);

@@ -41,7 +41,7 @@ pub fn mode_hints(
     let Some((peaks, residuals)) = estimation_peaks(data, model, start) else {
         return Vec::new();
     };
-    let dt = data.est[0].dt;
+    let dt = data.records.est[0].dt;
     let mut rows = Vec::new();
     for peak in peaks.iter().take(2) {
         let theta = std::f64::consts::TAU * peak.hz * dt;
@@ -72,10 +72,10 @@ fn estimation_peaks(
     model: &Augmented,
     theta: &[f64],
 ) -> Option<(Vec<Peak>, Vec<Vec<f64>>)> {
-    let dt = data.est.first()?.dt;
+    let dt = data.records.est.first()?.dt;
     let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
     let mut residuals = Vec::new();
-    for (i, (e, c)) in data.est.iter().zip(&data.ctx).enumerate() {
+    for (i, (e, c)) in data.records.est.iter().zip(&data.records.ctx).enumerate() {
         let r: Vec<f64> = model
             .simulate(&t, i, c, e)
             .iter()
@@ -93,6 +93,7 @@ fn estimation_peaks(
     // The input's own lines (a multisine's) come out in any misfit's
     // residual: only a peak away from them is the data ringing.
     let inputs: Vec<Vec<f64>> = data
+        .records
         .est
         .iter()
         .map(|e| e.u.iter().map(|&v| f64::from(v)).collect())
@@ -134,7 +135,7 @@ pub fn residual_rings(data: &Data, model: &Augmented, theta: &[f64]) -> bool {
 /// ringing of mode `a1`, `a2` (the step of [`Effect::Ringing`]), in `f64`.
 fn ringing_kick(data: &Data, residuals: &[Vec<f64>], a1: f64, a2: f64) -> f64 {
     let (mut qq, mut qr) = (0.0, 0.0);
-    for (e, r) in data.est.iter().zip(residuals) {
+    for (e, r) in data.records.est.iter().zip(residuals) {
         let u = &e.u;
         let (mut q1, mut q2) = (0.0f64, 0.0f64);
         for k in 1..u.len() {
@@ -194,7 +195,7 @@ mod tests {
         let model = Augmented::new(Family::Linear, vec![Effect::Ringing], 1);
         let (neutral, lo, hi) = data.space(&model);
         // The first-order muscle itself, in the data's deviation coordinates.
-        let e = &data.est[0];
+        let e = &data.records.est[0];
         let c = e.u_mean - (1.0 - 0.9) * e.y_mean;
         let mut start = neutral.clone();
         start[..4].copy_from_slice(&[0.9, 1.0, c, 0.0]);

@@ -158,12 +158,12 @@ mod tests {
         truth.push(eps);
         let model = base.with(Effect::Asymmetry);
         let theta: Vec<f32> = truth.iter().map(|&v| v as f32).collect();
-        let y = model.simulate(&theta, 0, &clean.ctx[0], &clean.whole[0]);
+        let y = model.simulate(&theta, 0, &clean.records.ctx[0], &clean.records.whole[0]);
         let mut rng = ChaCha8Rng::seed_from_u64(5);
         let noise = Normal::new(0.0, sigma).unwrap();
         let y: Vec<f64> = y
             .iter()
-            .map(|&v| v as f64 + clean.whole[0].y_mean + noise.sample(&mut rng))
+            .map(|&v| v as f64 + clean.records.whole[0].y_mean + noise.sample(&mut rng))
             .collect();
         let data = Data::new(&[Trace::uniform("stair", 0.1, p, y)]).expect("valid stair");
         let (_, lo, hi) = data.space(&model);

@@ -125,9 +125,10 @@ impl Diagnosis {
 fn fit_of(data: &Data, model: &Augmented, theta: &[f64]) -> f64 {
     let r = data.val_residuals(model, theta);
     let y: Vec<f64> = data
+        .records
         .whole
         .iter()
-        .zip(&data.val_start)
+        .zip(&data.records.val_start)
         .flat_map(|(w, &s)| w.y[s..].iter().map(|&v| v as f64))
         .collect();
     let flat: Vec<f64> = r.iter().flatten().copied().collect();
@@ -184,9 +185,10 @@ pub fn diagnose_from(
         None => None,
     };
     let outputs: Vec<Vec<f64>> = data
+        .records
         .whole
         .iter()
-        .zip(&data.val_start)
+        .zip(&data.records.val_start)
         .map(|(w, &s)| w.y[s..].iter().map(|&v| v as f64).collect())
         .collect();
     let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
@@ -273,7 +275,7 @@ pub fn diagnose_from(
     let segments_of = |residuals: Vec<Vec<f64>>| -> Vec<locate::Segment> {
         traces
             .iter()
-            .zip(&data.val_start)
+            .zip(&data.records.val_start)
             .zip(residuals)
             .map(|((t, &s), r)| locate::Segment {
                 name: t.source.clone(),
@@ -296,7 +298,7 @@ pub fn diagnose_from(
     let as_f64 = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<f64>>();
     let (pred, meas): (Vec<_>, Vec<_>) = base_pred
         .iter()
-        .zip(&data.whole)
+        .zip(&data.records.whole)
         .map(|(p, w)| (as_f64(p), as_f64(&w.y)))
         .unzip();
     let signals: Vec<explainable::Signals> = traces
@@ -306,7 +308,7 @@ pub fn diagnose_from(
             input: &t.input,
             prediction: &pred[i],
             measured: &meas[i],
-            val_start: data.val_start[i],
+            val_start: data.records.val_start[i],
         })
         .collect();
     let bound = explainable::bound(&signals, floor, &ridge::RidgeSettings::default())?;
@@ -323,8 +325,8 @@ pub fn diagnose_from(
         .iter()
         .enumerate()
         .map(|(i, t)| {
-            let s = data.val_start[i];
-            let ym = data.whole[i].y_mean;
+            let s = data.records.val_start[i];
+            let ym = data.records.whole[i].y_mean;
             Curves {
                 name: t.source.clone(),
                 t: t.t[s..].to_vec(),
@@ -348,7 +350,7 @@ pub fn diagnose_from(
         final_model,
         family,
         datasets: traces.iter().map(|t| t.source.clone()).collect(),
-        dt: data.ctx[0].dt,
+        dt: data.records.ctx[0].dt,
         noise_floor_rmse: floor,
         locate: place,
         selection,
@@ -389,7 +391,7 @@ fn start_of(
 /// dataset's coordinates, with its effect constants.
 fn model_of(data: &Data, traces: &[Trace], augmented: &Augmented, theta: &[f64]) -> Model {
     let d = augmented.family.dim();
-    let first = &data.whole[0];
+    let first = &data.records.whole[0];
     let base = FittedModel {
         family: augmented.family,
         params: theta[..d].to_vec(),
@@ -402,7 +404,7 @@ fn model_of(data: &Data, traces: &[Trace], augmented: &Augmented, theta: &[f64])
     let chain = (!augmented.effects.is_empty()).then(|| Chain {
         effects: augmented.effects.clone(),
         params: theta[d..].to_vec(),
-        context: data.ctx[0],
+        context: data.records.ctx[0],
         datasets: augmented.datasets,
     });
     Model { base, chain }

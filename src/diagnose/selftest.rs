@@ -39,7 +39,7 @@ impl Nominal {
         let model = Augmented::new(family, Vec::new(), 1);
         let fit = fit_seeds(&data, &model, Start::Scratch, settings, 0)?;
         let pred = data.predict(&model, &fit.best.params);
-        let ym = data.whole[0].y_mean;
+        let ym = data.records.whole[0].y_mean;
         let output = pred[0].iter().map(|&v| v as f64 + ym).collect();
         Ok(Nominal {
             family,
@@ -51,7 +51,7 @@ impl Nominal {
     }
 
     fn ctx(&self) -> &Context {
-        &self.data.ctx[0]
+        &self.data.records.ctx[0]
     }
 
     fn output_range(&self) -> (f64, f64) {
@@ -111,7 +111,7 @@ pub fn mark(nominal: &Nominal, effects: &[(Effect, Vec<f64>)]) -> f64 {
         effects: effects.to_vec(),
     };
     let (model, theta) = case_model(nominal, &case);
-    let whole = &nominal.data.whole[0];
+    let whole = &nominal.data.records.whole[0];
     let change: Vec<f64> = (0..model.datasets)
         .flat_map(|i| {
             let y = model.simulate(&theta, i, nominal.ctx(), whole);
@@ -221,7 +221,7 @@ fn case_model(nominal: &Nominal, case: &Case) -> (Augmented, Vec<f32>) {
 pub fn synthesize(nominal: &Nominal, case: &Case, seed: u64) -> Vec<Trace> {
     let (model, theta32) = case_model(nominal, case);
     let datasets = model.datasets;
-    let whole = &nominal.data.whole[0];
+    let whole = &nominal.data.records.whole[0];
     let sigma = noise_sigma(nominal);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, sigma).expect("finite sigma");

@@ -213,7 +213,7 @@ impl Case {
             free_run: None,
             polish: Some(Polish {
                 starts: 1,
-                longest: task.estimation.len(),
+                longest: task.estimation().len(),
                 ..Polish::default()
             }),
         };
@@ -265,7 +265,7 @@ impl Case {
                 let mut objective = ModelObjective::for_task(evaluator, &task);
                 let sse = Objective::costs(&mut objective, fitted, crate::model::Measure::FreeRun)?
                     [0] as f64;
-                let samples = task.estimation.len().saturating_sub(1);
+                let samples = task.estimation().len().saturating_sub(1);
                 judgement.passes = sse <= indistinguishable_up_to(polished_sse, samples);
             }
         }
@@ -437,7 +437,7 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
     // the truth in the coordinates the fit uses (for the classic model a
     // shift of ȳ moves c only; for the generalized one it also moves the
     // sign terms' origin by this much).
-    let dy = task.estimation.y_mean - y_mean;
+    let dy = task.estimation().y_mean - y_mean;
     theta[ic] -= (1.0 - a * alpha) * dy;
     // The true state starts at the noiseless first sample: the measured one
     // less its noise.

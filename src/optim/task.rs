@@ -24,9 +24,8 @@ pub const STRESS_FACTOR: f64 = 10.0;
 pub struct Task {
     pub family: Family,
     pub flow: Flow,
-    pub estimation: Experiment,
-    pub validation: Experiment,
-    pub prior: LinearPrior,
+    /// The trace, split and in its coordinates ([`Records::of`]).
+    pub records: Records,
     pub space: SearchSpace,
     /// Which loop shapes the box admits (the joint flow's; the thesis' flow
     /// searches its own tables, of either sign).
@@ -36,9 +35,6 @@ pub struct Task {
     /// Effect stages after the family (`fit --effects`), in chain order;
     /// their parameters follow the family's in every vector.
     pub effects: Vec<Effect>,
-    /// The effects' constants: the whole record's, in the estimation
-    /// half's coordinates (as the diagnosis takes them).
-    pub context: Context,
 }
 
 /// Validation scores of a parameter vector (output units).
@@ -97,23 +93,17 @@ impl Task {
             flow,
             space,
             loop_shape,
-            estimation: records.est[0].clone(),
-            validation: records.validation(0),
-            prior: records.prior,
+            records,
             input_name: trace.input_name.clone(),
             output_name: trace.output_name.clone(),
             effects: Vec::new(),
-            context: records.ctx[0],
         })
     }
 
     /// The same task in `model`'s coordinates ([`Records::of`]): a warm
     /// start then starts at the saved model itself.
     pub fn in_coordinates_of(mut self, trace: &Trace, model: &Model) -> anyhow::Result<Task> {
-        let records = Records::of(std::slice::from_ref(trace), Some(model))?;
-        self.estimation = records.est[0].clone();
-        self.validation = records.validation(0);
-        self.context = records.ctx[0];
+        self.records = Records::of(std::slice::from_ref(trace), Some(model))?;
         Ok(self)
     }
 
@@ -145,7 +135,7 @@ impl Task {
         let d = self.family.dim();
         let (mut lower, mut upper) = (Vec::new(), Vec::new());
         for &e in effects {
-            let (_, lo, hi) = effect_box(e, &self.context, 1);
+            let (_, lo, hi) = effect_box(e, self.context(), 1);
             lower.extend(lo);
             upper.extend(hi);
         }
@@ -154,6 +144,22 @@ impl Task {
             .with_extra(names[d..].to_vec(), lower, upper, bounds)
             .map_err(anyhow::Error::msg)?;
         Ok(self)
+    }
+
+    /// The estimation half.
+    pub fn estimation(&self) -> &Experiment {
+        &self.records.est[0]
+    }
+
+    /// The ARX prior the box is built on.
+    pub fn prior(&self) -> LinearPrior {
+        self.records.prior
+    }
+
+    /// The effects' constants: the whole record's, in the estimation
+    /// half's coordinates (as the diagnosis takes them).
+    pub fn context(&self) -> &Context {
+        &self.records.ctx[0]
     }
 
     /// The model description: the family and its effects.
@@ -166,7 +172,7 @@ impl Task {
     pub fn neutral_effects(&self, params: &[f64]) -> Vec<f64> {
         let mut theta = params[..self.family.dim()].to_vec();
         for &e in &self.effects {
-            theta.extend(effect_box(e, &self.context, 1).0);
+            theta.extend(effect_box(e, self.context(), 1).0);
         }
         theta
     }
@@ -177,13 +183,13 @@ impl Task {
         if self.effects.is_empty() {
             problem
         } else {
-            problem.with_effects(self.effects.clone(), vec![self.context])
+            problem.with_effects(self.effects.clone(), vec![*self.context()])
         }
     }
 
     /// The estimation problem the optimizer scores.
     pub fn problem(&self) -> Problem {
-        self.problem_of(self.estimation.clone())
+        self.problem_of(self.estimation().clone())
     }
 
     /// The check that a candidate stays bounded on every input of the
@@ -201,15 +207,14 @@ impl Task {
     /// output; the bound is ten times the estimation output's largest
     /// deviation, on every sample.
     pub fn stress(&self) -> (Problem, f64) {
-        let mut whole = self.estimation.clone();
-        whole.u.extend_from_slice(&self.validation.u);
+        let mut whole = self.records.whole[0].clone();
         let start = whole.y.first().copied().unwrap_or(0.0);
         whole.y = vec![0.0; whole.u.len()];
         if let Some(first) = whole.y.first_mut() {
             *first = start;
         }
         let largest = self
-            .estimation
+            .estimation()
             .y
             .iter()
             .fold(0.0f64, |m, &v| m.max((v as f64).abs()));
@@ -224,15 +229,14 @@ impl Task {
     /// start offsets the output for good and even the true parameters would
     /// score badly.)
     pub fn validate(&self, params: &[f64]) -> Validation {
-        let mut whole = self.estimation.clone();
-        whole.u.extend_from_slice(&self.validation.u);
-        whole.y.extend_from_slice(&self.validation.y);
+        let whole = &self.records.whole[0];
+        let from = self.records.val_start[0];
         if self.effects.is_empty() {
-            return score_tail(self.family, params, &whole, self.estimation.len());
+            return score_tail(self.family, params, whole, from);
         }
         let theta: Vec<f32> = params.iter().map(|&v| v as f32).collect();
-        let x = self.augmented().simulate(&theta, 0, &self.context, &whole);
-        score_outputs(&whole.y, &x, self.estimation.len())
+        let x = self.augmented().simulate(&theta, 0, self.context(), whole);
+        score_outputs(&whole.y, &x, from)
     }
 
     /// The fitted model in the estimation half's coordinates.
@@ -241,16 +245,16 @@ impl Task {
         let base = FittedModel {
             family: self.family,
             params: params[..d].to_vec(),
-            input_mean: self.estimation.u_mean,
-            output_mean: self.estimation.y_mean,
-            dt: self.estimation.dt,
+            input_mean: self.estimation().u_mean,
+            output_mean: self.estimation().y_mean,
+            dt: self.estimation().dt,
             input_name: self.input_name.clone(),
             output_name: self.output_name.clone(),
         };
         let chain = (!self.effects.is_empty()).then(|| Chain {
             effects: self.effects.clone(),
             params: params[d..].to_vec(),
-            context: self.context,
+            context: *self.context(),
             datasets: 1,
         });
         Model { base, chain }
@@ -340,9 +344,9 @@ mod tests {
                 t.output[150..].to_vec(),
             );
             let task = Task::new(&later, family, Flow::Joint, None, false).unwrap();
-            assert!((task.estimation.y_mean - model.base.output_mean).abs() > 0.1);
+            assert!((task.estimation().y_mean - model.base.output_mean).abs() > 0.1);
             let saved = model.simulate_trace(&later);
-            let val_start = later.len() - task.validation.u.len();
+            let val_start = task.records.val_start[0];
             let expected = fit_percent(&later.output[val_start..], &saved[val_start..]);
             let here = task
                 .clone()

@@ -149,7 +149,7 @@ impl Setup {
             "the independent self-test's generator implements the classic model only \
              (--baseline classic); `--self-test=catalogue` checks the generalized one"
         );
-        let w = &nominal.data.whole[0];
+        let w = &nominal.data.records.whole[0];
         let trace = &nominal.trace;
         let plant = Plant::classic(&nominal.params, w.u_mean, w.y_mean, trace.dt());
         let (lo, hi) = trace

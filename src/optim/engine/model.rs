@@ -244,12 +244,12 @@ pub fn default_plan(
 /// those settings, `n × g`, its horizon from the task's ARX pole and its
 /// polish's continuation up to the estimation data's length.
 pub fn staged_plan(task: &Task, settings: AlgoSettings, n: usize, g: usize) -> Plan {
-    let longest = task.estimation.len();
+    let longest = task.estimation().len();
     let mut plan = default_plan(
         settings.algorithm(),
         n,
         g,
-        horizon(task.prior.a, longest),
+        horizon(task.prior().a, longest),
         longest,
     );
     if let Some(global) = plan.global.as_mut() {
