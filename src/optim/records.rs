@@ -97,12 +97,6 @@ impl Records {
             prior,
         })
     }
-
-    /// The validation half of trace `i`.
-    pub fn validation(&self, i: usize) -> Experiment {
-        let w = &self.whole[i];
-        w.segment(self.val_start[i]..w.len())
-    }
 }
 
 /// Refuses a trace whose values would overflow the `f32` arithmetic of the
