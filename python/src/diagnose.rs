@@ -121,7 +121,7 @@ fn interruptible<T: Send>(
 /// starts from that model, as `diagnose --from`. Returns the document
 /// `mckibben diagnose --json` prints, as dicts and lists, and the final
 /// and baseline models as `Model`s. Ctrl-C stops it within a generation
-/// and raises `KeyboardInterrupt`.
+/// or polish iteration and raises `KeyboardInterrupt`.
 #[pyfunction]
 #[pyo3(signature = (datasets, baseline = None, effects = None, seed = 1, seeds = None, generations = None, scratch_seeds = None, backend = "cpu", max_effects = None, start = None))]
 #[allow(clippy::too_many_arguments)]

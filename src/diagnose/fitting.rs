@@ -56,8 +56,8 @@ impl Objective for OneMeasure<'_> {
 
 /// Runs `engine` on `model`'s estimation part under `measure` alone
 /// ([`OneMeasure`]), on the data's evaluator; [`Interrupted`] once the data's
-/// stop flag is raised (the engine stops at its next generation; a polish
-/// runs to its end first).
+/// stop flag is raised (the engine stops after its current generation or
+/// polish iteration).
 fn run_engine(
     data: &Data,
     model: &Augmented,
