@@ -1,13 +1,13 @@
 //! `mckibben.diagnose`: the library's diagnosis, its `--json` document as
 //! Python objects and its models as `Model`s.
 
+use std::time::Duration;
+
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use mckibben::diagnose::report::DiagnosisJson;
-use std::time::Duration;
-
 use mckibben::diagnose::{Effect, Settings, StopFlag};
 use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
