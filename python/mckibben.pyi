@@ -115,6 +115,7 @@ class FitResult:
     sse: float
     val_rmse: float | None
     val_fit_percent: float | None
+    linear_val_fit_percent: float | None
     evaluations: int
     generations: int
     seconds: float

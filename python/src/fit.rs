@@ -39,6 +39,9 @@ pub struct FitResult {
     /// Free-run RMSE and fit % (MATLAB's `compare`) on the validation half.
     val_rmse: Option<f64>,
     val_fit_percent: Option<f64>,
+    /// The first-order ARX model's validation fit on the same halves: what
+    /// the fit should beat.
+    linear_val_fit_percent: Option<f64>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -446,6 +449,7 @@ pub fn fit(
         sse: outcome.sse,
         val_rmse: val.and_then(|v| finite(v.rmse)),
         val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
+        linear_val_fit_percent: task.linear_yardstick().and_then(|v| finite(v.fit_percent)),
         evaluations: outcome.evaluations,
         generations: outcome.generations,
         seconds: outcome.seconds,

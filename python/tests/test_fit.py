@@ -25,6 +25,7 @@ def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli, tmp_path):
     assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
     assert bits(result.sse) == bits(expected["sse"])
     assert result.val_fit_percent == expected["val_fit_percent"]
+    assert result.linear_val_fit_percent == expected["linear_val_fit_percent"]
     assert result.stop == expected["stop"] == "completed" and not result.interrupted
     assert [s["best_cost"] for s in result.stages] == [s["best_cost"] for s in expected["stages"]]
     assert (result.population, result.algo, result.flow) == (1000, "de", "joint")

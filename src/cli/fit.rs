@@ -29,6 +29,7 @@ use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides, model_file};
 use mckibben::optim::ga::{Crossover, Mutation};
 use mckibben::optim::history::GenerationRecord;
 use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
+use mckibben::optim::records::Records;
 use mckibben::optim::task::Task;
 use mckibben::report::fit_figures;
 use mckibben::report::json::{Named, Versioned};
@@ -277,6 +278,9 @@ struct Output {
     sse: Option<f64>,
     val_rmse: Option<f64>,
     val_fit_percent: Option<f64>,
+    /// The first-order ARX model's validation fit on the same halves
+    /// (`Records::linear_yardstick`): what the fit should beat.
+    linear_val_fit_percent: Option<f64>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -573,6 +577,9 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
         sse: finite(d.selection.final_fit.est_sse),
         val_rmse: finite(rmse(y, yhat)),
         val_fit_percent: finite(fit_percent(y, yhat)),
+        linear_val_fit_percent: Records::of(std::slice::from_ref(trace), None)?
+            .linear_yardstick(0)
+            .and_then(|v| finite(v.fit_percent)),
         evaluations: 0,
         generations: 0,
         seconds: started.elapsed().as_secs_f64(),
@@ -679,6 +686,7 @@ fn write_results(out: &Path, w: Written) -> anyhow::Result<Output> {
         sse: finite(outcome.sse),
         val_rmse: val.and_then(|v| finite(v.rmse)),
         val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
+        linear_val_fit_percent: task.linear_yardstick().and_then(|v| finite(v.fit_percent)),
         evaluations: outcome.evaluations,
         generations: outcome.generations,
         seconds: outcome.seconds,
@@ -755,6 +763,10 @@ fn print_report(o: &Output, task: &Task) {
         show(o.val_fit_percent),
         show(o.val_rmse)
     );
+    println!(
+        "  validation fit, ARX  {} %   (the first-order linear model on the same halves)",
+        show(o.linear_val_fit_percent)
+    );
     for s in &o.stages {
         println!(
             "  stage {:<9} {:>4} steps, {:>9} evaluations, {:>7.2} s, best {:.4e} ({}), ended: {:?}",
@@ -804,6 +816,16 @@ fn print_report(o: &Output, task: &Task) {
         eprintln!(
             "mckibben: {level}: {} ended on the {} bound of its search box ({why})",
             e.param, e.bound
+        );
+    }
+    if let (Some(fit), Some(linear)) = (o.val_fit_percent, o.linear_val_fit_percent)
+        && fit < linear
+    {
+        eprintln!(
+            "mckibben: warning: the fit validates worse than the first-order ARX model on the \
+             same halves ({fit:.1} % against {linear:.1} %): it follows the estimation half in \
+             a way the validation half does not; do not trust it off this record \
+             (`mckibben diagnose` looks for what the model lacks)"
         );
     }
     if o.sse.is_some() {

@@ -6,10 +6,19 @@
 //! model's parameters mean the same to both.
 
 use crate::data::Trace;
-use crate::ident::arx::linear_prior;
+use crate::ident::arx::{Arx, ArxOrders, linear_prior};
+use crate::ident::{fit_percent, rmse};
 use crate::model::effects::Context;
 use crate::model::experiment::halves;
 use crate::model::{Experiment, LinearPrior, Model};
+
+/// Validation scores of a parameter vector (output units).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Validation {
+    pub rmse: f64,
+    /// MATLAB `compare` fit, percent.
+    pub fit_percent: f64,
+}
 
 /// Traces split for a fit.
 #[derive(Debug, Clone)]
@@ -95,6 +104,28 @@ impl Records {
             val_start,
             ctx,
             prior,
+        })
+    }
+
+    /// The yardstick a fit of trace `i` is read against: the first-order
+    /// ARX model identified on its estimation half, run free over the whole
+    /// trace from its first sample and scored on its validation half, as a
+    /// fit is scored. A hysteretic fit that validates worse than this fits
+    /// the estimation half in a way the validation half does not share.
+    /// (In the estimation half's own means: ARX has no intercept, and the
+    /// fit % and RMSE do not change when both outputs shift alike.) `None`
+    /// if ARX cannot be identified.
+    pub fn linear_yardstick(&self, i: usize) -> Option<Validation> {
+        let (whole, est, from) = (&self.whole[i], &self.est[i], self.val_start[i]);
+        let mean = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>() / v.len().max(1) as f64;
+        let (mu, my) = (mean(&est.u), mean(&est.y));
+        let u: Vec<f64> = whole.u.iter().map(|&v| v as f64 - mu).collect();
+        let y: Vec<f64> = whole.y.iter().map(|&v| v as f64 - my).collect();
+        let arx = Arx::estimate(&whole.name, &u[..from], &y[..from], ArxOrders::default()).ok()?;
+        let sim = arx.simulate(&u, &y);
+        Some(Validation {
+            rmse: rmse(&y[from..], &sim[from..]),
+            fit_percent: fit_percent(&y[from..], &sim[from..]),
         })
     }
 }

@@ -14,6 +14,7 @@ use crate::model::{
     simulate,
 };
 use crate::optim::records::Records;
+pub use crate::optim::records::Validation;
 
 /// How far beyond the estimation output's largest deviation a bounded model
 /// may go on the whole record's input ([`Task::stress`]).
@@ -35,14 +36,6 @@ pub struct Task {
     /// Effect stages after the family (`fit --effects`), in chain order;
     /// their parameters follow the family's in every vector.
     pub effects: Vec<Effect>,
-}
-
-/// Validation scores of a parameter vector (output units).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Validation {
-    pub rmse: f64,
-    /// MATLAB `compare` fit, percent.
-    pub fit_percent: f64,
 }
 
 impl Task {
@@ -237,6 +230,12 @@ impl Task {
         let theta: Vec<f32> = params.iter().map(|&v| v as f32).collect();
         let x = self.augmented().simulate(&theta, 0, self.context(), whole);
         score_outputs(&whole.y, &x, from)
+    }
+
+    /// The first-order ARX model's validation scores on the same halves
+    /// ([`Records::linear_yardstick`]).
+    pub fn linear_yardstick(&self) -> Option<Validation> {
+        self.records.linear_yardstick(0)
     }
 
     /// The fitted model in the estimation half's coordinates.
