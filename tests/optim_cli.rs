@@ -27,6 +27,25 @@ fn data(dir: &Path) -> String {
     path.display().to_string()
 }
 
+/// `mckibben fit` on a Cavatappi record with its columns and time base.
+fn fit_cavatappi(path: &Path, extra: &[&str], dir: &Path) -> Output {
+    let file = path.display().to_string();
+    let mut args = vec![
+        "fit",
+        &file,
+        "--time",
+        "t_s",
+        "--input",
+        "pressure_psi",
+        "--output",
+        "disp_mm",
+        "--resample",
+        "0.01",
+    ];
+    args.extend_from_slice(extra);
+    mckibben(&args, dir)
+}
+
 fn json(out: &Output) -> serde_json::Value {
     assert!(
         out.status.success(),
@@ -338,25 +357,7 @@ fn fit_of_the_real_muscle_stays_bounded_on_validation() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let file = path.display().to_string();
-    let out = mckibben(
-        &[
-            "fit",
-            &file,
-            "--time",
-            "t_s",
-            "--input",
-            "pressure_psi",
-            "--output",
-            "disp_mm",
-            "--resample",
-            "0.01",
-            "--json",
-            "--out",
-            "out",
-        ],
-        dir.path(),
-    );
+    let out = fit_cavatappi(&path, &["--json", "--out", "out"], dir.path());
     let v = json(&out);
     let fit = v["val_fit_percent"].as_f64();
     assert!(
@@ -393,24 +394,9 @@ fn a_fit_below_the_linear_yardstick_is_flagged() {
     let Some(path) = common::require_external("cavatappi_muscle/sample1_100g.csv") else {
         return;
     };
-    let file = path.display().to_string();
-    let out = mckibben(
-        &[
-            "fit",
-            &file,
-            "--time",
-            "t_s",
-            "--input",
-            "pressure_psi",
-            "--output",
-            "disp_mm",
-            "--resample",
-            "0.01",
-            "--model",
-            "generalized",
-            "--out",
-            "muscle",
-        ],
+    let out = fit_cavatappi(
+        &path,
+        &["--model", "generalized", "--out", "muscle"],
         dir.path(),
     );
     let stderr = String::from_utf8_lossy(&out.stderr);
