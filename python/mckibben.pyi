@@ -116,6 +116,8 @@ class FitResult:
     val_rmse: float | None
     val_fit_percent: float | None
     linear_val_fit_percent: float | None
+    start_sse: float | None
+    start_val_fit_percent: float | None
     evaluations: int
     generations: int
     seconds: float

@@ -115,6 +115,14 @@ fn the_diagnosed_model_simulates_to_its_reported_fit_and_warm_starts_a_fit() {
         out.to_str().unwrap(),
     ]);
     assert_eq!(refit["effects"], final_effects);
+    // It scores its start, the model as it was, as simulate --from does
+    // (in the fit's gauge, the same outputs up to `f32` rounding).
+    let start = refit["start_val_fit_percent"].as_f64().unwrap();
+    assert!(
+        (start - simulated).abs() < 0.01,
+        "fit --from scores its start at {start} %, simulate at {simulated} %"
+    );
+    assert!(refit["start_sse"].as_f64().unwrap() > 0.0);
     let refitted = refit["val_fit_percent"].as_f64().unwrap();
     assert!(refitted > reported - 0.5, "{refitted} against {reported}");
 

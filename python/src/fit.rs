@@ -14,7 +14,7 @@ use mckibben::model::{ModelFile, UserBound};
 use mckibben::optim::edge::active_bounds;
 use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
 use mckibben::optim::engine::{Observer, StopReason, StopRules};
-use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides, model_file};
+use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides, model_file, yardstick_warnings};
 use mckibben::optim::history::{GenerationRecord, History};
 
 use crate::convert::{
@@ -42,6 +42,10 @@ pub struct FitResult {
     /// The first-order ARX model's validation fit on the same halves: what
     /// the fit should beat.
     linear_val_fit_percent: Option<f64>,
+    /// With `start`: the start model as it was, on this record's halves
+    /// (`None` without a start, or where it diverges).
+    start_sse: Option<f64>,
+    start_val_fit_percent: Option<f64>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -417,9 +421,15 @@ pub fn fit(
         warn.call_method1("warn", (in_python_terms(&n),))?;
     }
     let (outcome, widened) = ran;
-    let Fit { task, engine } = fit;
+    let start = fit.start_scores();
+    let Fit { task, engine, .. } = fit;
     let found = !outcome.params.is_empty();
     let val = found.then(|| task.validate(&outcome.params));
+    if let Some(val) = val {
+        for w in yardstick_warnings(outcome.sse, val, task.linear_yardstick(), start) {
+            warn.call_method1("warn", (w,))?;
+        }
+    }
     let finite = |v: f64| v.is_finite().then_some(v);
     let names = task.augmented().param_names();
     let names: Vec<&str> = names.iter().map(|n| n.as_str()).collect();
@@ -450,6 +460,8 @@ pub fn fit(
         val_rmse: val.and_then(|v| finite(v.rmse)),
         val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
         linear_val_fit_percent: task.linear_yardstick().and_then(|v| finite(v.fit_percent)),
+        start_sse: start.and_then(|s| finite(s.est_sse)),
+        start_val_fit_percent: start.and_then(|s| finite(s.validation.fit_percent)),
         evaluations: outcome.evaluations,
         generations: outcome.generations,
         seconds: outcome.seconds,

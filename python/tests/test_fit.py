@@ -75,6 +75,10 @@ def test_a_warm_start_is_the_commands_fit_from(stair, cli, small_fit, tmp_path):
         result = mckibben.fit(stair, pop=40, gens=5, seed=5, effects=["delay"], start=given)
         assert list(result.params) == list(expected["params"])
         assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
+        # Its start as it was, scored as the command scores it.
+        assert result.start_sse == expected["start_sse"] is not None
+        assert result.start_val_fit_percent == expected["start_val_fit_percent"] is not None
+    assert small_fit.start_sse is None and small_fit.start_val_fit_percent is None
     # The start's family and effects when not given.
     again = mckibben.fit(stair, pop=40, gens=2, start=result.model)
     assert again.effects == result.effects and again.family == "classic"
@@ -113,7 +117,9 @@ def test_ctrl_c_returns_the_best_so_far_marked_interrupted(stair):
         if len(seen) == 5:
             os.kill(os.getpid(), signal.SIGINT)
 
-    result = mckibben.fit(stair, pop=200, gens=100_000, progress=interrupt_once)
+    # Five generations validate below the first-order ARX model: the fit says so.
+    with pytest.warns(UserWarning, match="first-order ARX model"):
+        result = mckibben.fit(stair, pop=200, gens=100_000, progress=interrupt_once)
     assert result.interrupted and result.stop == "interrupted"
     assert result.model is not None and result.params
     assert result.generations < 100

@@ -25,7 +25,9 @@ use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
 use mckibben::optim::engine::{
     Engine, FreeRun, Observer, Outcome, StageSummary, StopReason, StopRules,
 };
-use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides, model_file};
+use mckibben::optim::fit::{
+    Fit, FitBox, FitSettings, Overrides, StartScores, model_file, yardstick_warnings,
+};
 use mckibben::optim::ga::{Crossover, Mutation};
 use mckibben::optim::history::GenerationRecord;
 use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
@@ -281,6 +283,10 @@ struct Output {
     /// The first-order ARX model's validation fit on the same halves
     /// (`Records::linear_yardstick`): what the fit should beat.
     linear_val_fit_percent: Option<f64>,
+    /// With `--from`: the start model as it was, on this record's halves
+    /// (`null` without `--from`, or where it diverges).
+    start_sse: Option<f64>,
+    start_val_fit_percent: Option<f64>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -510,6 +516,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             engine,
             outcome: &outcome,
             widened: &widened,
+            start: fit.start_scores(),
             trace: &trace,
             backend: &backend,
             bounds: &what.bounds,
@@ -520,6 +527,13 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         println!("{}", Versioned::new(&output).to_string_pretty()?);
     } else {
         print_report(&output, task);
+        if !outcome.params.is_empty() {
+            let val = task.validate(&outcome.params);
+            let start = fit.start_scores();
+            for w in yardstick_warnings(outcome.sse, val, task.linear_yardstick(), start) {
+                eprintln!("mckibben: warning: {w}");
+            }
+        }
     }
     if outcome.params.is_empty() && outcome.evaluations == 0 {
         eprintln!(
@@ -580,6 +594,8 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
         linear_val_fit_percent: Records::of(std::slice::from_ref(trace), None)?
             .linear_yardstick(0)
             .and_then(|v| finite(v.fit_percent)),
+        start_sse: None,
+        start_val_fit_percent: None,
         evaluations: 0,
         generations: 0,
         seconds: started.elapsed().as_secs_f64(),
@@ -652,6 +668,8 @@ struct Written<'a> {
     engine: &'a Engine,
     outcome: &'a Outcome,
     widened: &'a [Widening],
+    /// With `--from`: the start model's own scores ([`Fit::start_scores`]).
+    start: Option<StartScores>,
     trace: &'a Trace,
     backend: &'a str,
     /// The --bound and --fix in force (the file's and the flags').
@@ -665,6 +683,7 @@ fn write_results(out: &Path, w: Written) -> anyhow::Result<Output> {
         engine,
         outcome,
         widened,
+        start,
         trace,
         backend,
         bounds,
@@ -687,6 +706,8 @@ fn write_results(out: &Path, w: Written) -> anyhow::Result<Output> {
         val_rmse: val.and_then(|v| finite(v.rmse)),
         val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
         linear_val_fit_percent: task.linear_yardstick().and_then(|v| finite(v.fit_percent)),
+        start_sse: start.and_then(|s| finite(s.est_sse)),
+        start_val_fit_percent: start.and_then(|s| finite(s.validation.fit_percent)),
         evaluations: outcome.evaluations,
         generations: outcome.generations,
         seconds: outcome.seconds,
@@ -767,6 +788,13 @@ fn print_report(o: &Output, task: &Task) {
         "  validation fit, ARX  {} %   (the first-order linear model on the same halves)",
         show(o.linear_val_fit_percent)
     );
+    if o.start_sse.is_some() || o.start_val_fit_percent.is_some() {
+        println!(
+            "  validation fit, from  {} %   (the --from model as it was, on the same halves; SSE {})",
+            show(o.start_val_fit_percent),
+            show(o.start_sse)
+        );
+    }
     for s in &o.stages {
         println!(
             "  stage {:<9} {:>4} steps, {:>9} evaluations, {:>7.2} s, best {:.4e} ({}), ended: {:?}",
@@ -816,16 +844,6 @@ fn print_report(o: &Output, task: &Task) {
         eprintln!(
             "mckibben: {level}: {} ended on the {} bound of its search box ({why})",
             e.param, e.bound
-        );
-    }
-    if let (Some(fit), Some(linear)) = (o.val_fit_percent, o.linear_val_fit_percent)
-        && fit < linear
-    {
-        eprintln!(
-            "mckibben: warning: the fit validates worse than the first-order ARX model on the \
-             same halves ({fit:.1} % against {linear:.1} %): it follows the estimation half in \
-             a way the validation half does not; do not trust it off this record \
-             (`mckibben diagnose` looks for what the model lacks)"
         );
     }
     if o.sse.is_some() {

@@ -16,9 +16,7 @@ use serde::Serialize;
 use super::fitting::Fit;
 use super::likelihood::indistinguishable_up_to;
 
-/// Fit-% points within which fits the estimation data cannot tell apart
-/// count as the same answer.
-pub const SETTLED_POINTS: f64 = 2.0;
+pub use crate::ident::fit::SETTLED_POINTS;
 
 /// The final model fitted again from scratch, against the final fit.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -37,6 +37,11 @@ pub fn rmse(y: &[f64], y_hat: &[f64]) -> f64 {
 /// `χ²` with one degree of freedom, 95 % quantile.
 pub const CHI2_1_95: f64 = 3.841;
 
+/// Validation fit-% points within which two fits count as the same answer:
+/// the diagnosis' refits (`diagnose::refits`) and `fit --from` against its
+/// start judge by it.
+pub const SETTLED_POINTS: f64 = 2.0;
+
 /// The largest estimation SSE the likelihood-ratio test at 95 % cannot tell
 /// from a fit at `best_sse` over `samples` residuals: `best_sse +
 /// χ²₁(0.95)·σ̂²`, `σ̂² = best_sse/samples`. Fits below it are ones the

@@ -481,6 +481,49 @@ impl SearchSpace {
         moved
     }
 
+    /// Widens every bound the data set (as [`SearchSpace::widen`] does, step
+    /// by step) until the box holds the canonical `theta`: a warm start
+    /// from a model fitted in another box (the diagnosis') then starts from
+    /// that model, not from its clamped image. Bounds of the class and the
+    /// user's are left; `theta` is clamped to those. Returns what moved, as
+    /// [`SearchSpace::widen`] words it, one entry per bound.
+    pub fn widen_to_hold(&mut self, theta: &[f64]) -> Vec<String> {
+        let z = self.from_native(theta);
+        let mut said = Vec::new();
+        for (i, &v) in z.iter().enumerate() {
+            for upper in [false, true] {
+                let beyond = |s: &SearchSpace| {
+                    if upper {
+                        v > s.upper[i]
+                    } else {
+                        v < s.lower[i]
+                    }
+                };
+                let old = if upper { self.upper[i] } else { self.lower[i] };
+                let side = if upper { "upper" } else { "lower" };
+                // Each step widens by a factor of 2.5 or more; a bound that
+                // 16 steps do not carry past `v` (one that shrinks towards
+                // zero while `v` has the other sign) is left there.
+                let mut steps = 0;
+                while beyond(self)
+                    && self.origin[i][usize::from(upper)] == Origin::Data
+                    && steps < 16
+                {
+                    self.widen(&[(i, side)]);
+                    steps += 1;
+                }
+                let new = if upper { self.upper[i] } else { self.lower[i] };
+                if new != old {
+                    said.push(format!(
+                        "{} {side} bound {old:.6} -> {new:.6}",
+                        self.names()[i]
+                    ));
+                }
+            }
+        }
+        said
+    }
+
     /// Widens the data-set bounds named by `edges` (coordinate index and
     /// side, `"lower"` or `"upper"`): the time constant's and the gain's
     /// reach by a factor 4, the offset's by 4, the start's by 2.5, the loop
@@ -571,5 +614,36 @@ mod tests {
         assert!(!s.contains(&theta));
         assert!(s.clamp(&mut theta));
         assert!(s.contains(&theta));
+    }
+
+    #[test]
+    fn a_start_outside_the_data_box_widens_it_until_it_holds() {
+        let mut s =
+            SearchSpace::scaled(Family::Classic, prior(), Loop::Bounded, false, &[]).unwrap();
+        let names = s.names();
+        let gain = names.iter().position(|n| n == "gain").unwrap();
+        // A start whose gain is ten times the box's top, as the diagnosis'
+        // own box allows.
+        let mut z: Vec<f64> = s
+            .lower
+            .iter()
+            .zip(&s.upper)
+            .map(|(l, u)| 0.5 * (l + u))
+            .collect();
+        z[gain] = 10.0 * s.upper[gain];
+        let theta = s.to_native(&z);
+        assert!(!s.contains(&theta));
+        let said = s.widen_to_hold(&theta);
+        assert!(s.contains(&theta), "{said:?}");
+        assert_eq!(said.len(), 1, "{said:?}");
+        assert!(said[0].starts_with("gain upper bound"), "{said:?}");
+        // Inside already: nothing moves.
+        assert!(s.clone().widen_to_hold(&theta).is_empty());
+        // A user's bound stays where the user put it.
+        let user: UserBound = "gain=0.5:2".parse().unwrap();
+        let mut s =
+            SearchSpace::scaled(Family::Classic, prior(), Loop::Bounded, false, &[user]).unwrap();
+        assert!(s.widen_to_hold(&theta).is_empty());
+        assert!(!s.contains(&theta));
     }
 }

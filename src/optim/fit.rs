@@ -18,10 +18,11 @@ use super::engine::model::{ModelObjective, staged_plan};
 use super::engine::{Engine, Observer, Outcome, Plan, Space, StopRules};
 use super::ga::{Crossover, Mutation};
 use super::mfa::{self, Distance, Lambda0Schedule, Scale};
-use super::task::Task;
+use super::task::{Task, Validation};
 use super::{AlgoSettings, Algorithm};
 use crate::data::Trace;
 use crate::eval::Evaluator;
+use crate::ident::fit::SETTLED_POINTS;
 use crate::model::coords::gauge_fixed;
 use crate::model::effects::Effect;
 use crate::model::file::{ModelFile, Provenance, SearchBox};
@@ -320,6 +321,9 @@ pub struct FitBox {
 pub struct Fit {
     pub task: Task,
     pub engine: Engine,
+    /// A warm start's model as it was, in the task's gauge (same outputs):
+    /// what the refit is measured against ([`Fit::start_scores`]).
+    pub start: Option<Vec<f64>>,
 }
 
 impl Fit {
@@ -362,11 +366,39 @@ impl Fit {
         })
         .and_then(|t| t.with_effects(&what.effects, &what.bounds))
         .with_context(|| format!("cannot fit {}", trace.source))?;
-        let engine = match start {
-            Some(m) => settings.start_warm(&task, &warm_start(&task, m))?,
+        let mut task = task;
+        let start = start.map(|m| warm_start(&task, m));
+        if let Some(theta) = &start {
+            let widened = task.space.widen_to_hold(theta);
+            if !widened.is_empty() {
+                note(format!(
+                    "the start model lies outside the box the data set; widened {} so that the \
+                     fit starts from it",
+                    widened.join(", ")
+                ));
+            }
+        }
+        let engine = match &start {
+            Some(theta) => settings.start_warm(&task, theta)?,
             None => settings.start(&task, checkpoint, note)?,
         };
-        Ok(Fit { task, engine })
+        Ok(Fit {
+            task,
+            engine,
+            start,
+        })
+    }
+
+    /// A warm start's model as it was, scored as the refit is: its
+    /// estimation SSE and its validation on this record. Where the refit
+    /// fits the estimation half better and validates clearly worse, the
+    /// estimation half does not settle the model, and the user should see
+    /// both.
+    pub fn start_scores(&self) -> Option<StartScores> {
+        self.start.as_ref().map(|theta| StartScores {
+            est_sse: self.task.est_sse(theta),
+            validation: self.task.validate(theta),
+        })
     }
 
     /// Runs the engine on `evaluator` to its end or a stop rule (`interrupt`
@@ -388,6 +420,69 @@ impl Fit {
         let stops = self.engine.stops.clone();
         refit_off_edges(&mut self.task, &self.engine, outcome, &stops, evaluator)
     }
+}
+
+/// A warm start's model as it was, on the record it is refitted to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StartScores {
+    /// Free-run SSE on the estimation half (`+∞` if it diverged there).
+    pub est_sse: f64,
+    pub validation: Validation,
+}
+
+/// What a fit's scores warn of, against its yardsticks: the first-order ARX
+/// model on the same halves (`linear`) and, for a warm start, the model it
+/// started from (`start`). `sse` and `val` are the fit's own.
+pub fn yardstick_warnings(
+    sse: f64,
+    val: Validation,
+    linear: Option<Validation>,
+    start: Option<StartScores>,
+) -> Vec<String> {
+    let mut warnings = Vec::new();
+    let fit = val.fit_percent;
+    if let Some(linear) = linear.map(|v| v.fit_percent).filter(|v| v.is_finite())
+        && fit < linear
+    {
+        warnings.push(format!(
+            "the fit validates worse than the first-order ARX model on the same halves \
+             ({fit:.1} % against {linear:.1} %): it follows the estimation half in a way the \
+             validation half does not; do not trust it off this record (the diagnosis, \
+             `diagnose`, looks for what the model lacks)"
+        ));
+    }
+    // A refit that fits the estimation half better and validates clearly
+    // worse than its start: the estimation half does not settle the model
+    // (as on the Cavatappi 300 g record: docs/ARCHITECTURE.md, "Warm starts").
+    if let Some(start) = start
+        && start.validation.fit_percent.is_finite()
+        && fit < start.validation.fit_percent - SETTLED_POINTS
+        && sse <= start.est_sse
+    {
+        warnings.push(format!(
+            "the refit fits the estimation half better than the model it started from \
+             (SSE {sse:.4} against {:.4}) but validates {:.1} points worse ({fit:.1} % against \
+             {:.1} %): the estimation half does not settle this model, and the model you \
+             started from may be the one to keep",
+            start.est_sse,
+            start.validation.fit_percent - fit,
+            start.validation.fit_percent
+        ));
+    }
+    // A refit worse on the estimation half than its own start: the start
+    // lies outside this fit's box (each row is clamped into it) or the
+    // search lost it.
+    if let Some(start) = start
+        && sse > start.est_sse
+    {
+        warnings.push(format!(
+            "the refit ends above the estimation SSE of the model it started from ({sse:.4} \
+             against {:.4}): that model lies outside this fit's box (see --bound) or the search \
+             lost it; the model you started from fits this record better",
+            start.est_sse
+        ));
+    }
+    warnings
 }
 
 /// The model file of a fit's `params` on `task`, as `mckibben fit` writes
@@ -498,5 +593,31 @@ mod tests {
         notes.borrow_mut().clear();
         s.plan(&task, &|n| notes.borrow_mut().push(n)).unwrap();
         assert!(notes.borrow().is_empty());
+    }
+
+    #[test]
+    fn a_refit_that_validates_clearly_worse_than_its_start_is_flagged() {
+        let v = |fit_percent: f64| Validation {
+            rmse: 1.0,
+            fit_percent,
+        };
+        let start = |est_sse: f64, fit: f64| StartScores {
+            est_sse,
+            validation: v(fit),
+        };
+        // The Cavatappi 300 g refit: a lower estimation SSE, 3.2 points worse.
+        let flagged = yardstick_warnings(6.39, v(84.2), Some(v(62.7)), Some(start(6.46, 87.4)));
+        assert_eq!(flagged.len(), 1, "{flagged:?}");
+        assert!(flagged[0].contains("3.2 points worse"), "{}", flagged[0]);
+        // Within the settled points: quiet.
+        assert!(yardstick_warnings(6.39, v(86.0), None, Some(start(6.46, 87.4))).is_empty());
+        // Worse on the estimation half too: the search lost its start.
+        let lost = yardstick_warnings(6.50, v(84.2), None, Some(start(6.46, 87.4)));
+        assert_eq!(lost.len(), 1, "{lost:?}");
+        assert!(lost[0].contains("ends above"), "{}", lost[0]);
+        // Below ARX's validation fit.
+        let below = yardstick_warnings(1.0, v(-2.4), Some(v(50.9)), None);
+        assert_eq!(below.len(), 1);
+        assert!(below[0].contains("first-order ARX"), "{}", below[0]);
     }
 }

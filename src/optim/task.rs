@@ -215,6 +215,16 @@ impl Task {
         (self.problem_of(whole), bound)
     }
 
+    /// The free-run SSE of `params` on the estimation half, the cost a fit
+    /// minimises (`+∞` where the run diverges).
+    pub fn est_sse(&self, params: &[f64]) -> f64 {
+        let theta: Vec<f32> = params.iter().map(|&v| v as f32).collect();
+        let sse = self
+            .augmented()
+            .sse(&theta, 0, self.context(), self.estimation()) as f64;
+        if sse.is_finite() { sse } else { f64::INFINITY }
+    }
+
     /// Validation scores: a free run over the whole trace from its first
     /// sample, scored on the second half only. (Starting afresh at the
     /// validation half with `w = 0` would throw away the hysteretic state,
