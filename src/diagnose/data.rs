@@ -230,13 +230,10 @@ impl Data {
             .collect()
     }
 
-    /// Validation RMSE over all datasets (`+∞` if the simulation diverged).
+    /// Validation RMSE over all datasets (`+∞` if the simulation diverged):
+    /// the records' one score ([`Records::validate`]).
     pub fn val_rmse(&self, model: &Augmented, theta: &[f64]) -> f64 {
-        let r = self.val_residuals(model, theta);
-        let sse: f64 = r.iter().flatten().map(|v| v * v).sum();
-        let n = self.val_samples().max(1) as f64;
-        let v = (sse / n).sqrt();
-        if v.is_finite() { v } else { f64::INFINITY }
+        self.records.validate(model, theta).rmse
     }
 
     /// The search box of `model`: the default joint-flow box of the baseline

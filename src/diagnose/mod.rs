@@ -36,7 +36,6 @@ pub use select::Selection;
 pub use settings::{Interrupted, Settings, StopFlag};
 
 use crate::data::Trace;
-use crate::ident::fit_percent;
 use crate::model::file::Chain;
 use crate::model::{Family, FittedModel, Model};
 
@@ -122,20 +121,6 @@ impl Diagnosis {
     }
 }
 
-fn fit_of(data: &Data, model: &Augmented, theta: &[f64]) -> f64 {
-    let r = data.val_residuals(model, theta);
-    let y: Vec<f64> = data
-        .records
-        .whole
-        .iter()
-        .zip(&data.records.val_start)
-        .flat_map(|(w, &s)| w.y[s..].iter().map(|&v| v as f64))
-        .collect();
-    let flat: Vec<f64> = r.iter().flatten().copied().collect();
-    let y_hat: Vec<f64> = y.iter().zip(&flat).map(|(a, e)| a - e).collect();
-    fit_percent(&y, &y_hat)
-}
-
 /// How long after an input step the baseline is still in its transient:
 /// three time constants of the pole `a` (95 % settled), at least one sample.
 fn settle_samples(a: f64, len: usize) -> usize {
@@ -212,7 +197,7 @@ pub fn diagnose_from(
     let mut steps = vec![Step {
         effects: Vec::new(),
         val_rmse: base.val_rmse,
-        val_fit_percent: fit_of(&data, base_model, &base.params),
+        val_fit_percent: data.records.validate(base_model, &base.params).fit_percent,
         gap_closed: 0.0,
     }];
     if let Some(given) = &selection.given_fit {
@@ -226,7 +211,7 @@ pub fn diagnose_from(
         steps.push(Step {
             effects: selection.given.clone(),
             val_rmse: fit.val_rmse,
-            val_fit_percent: fit_of(&data, &model, &fit.params),
+            val_fit_percent: data.records.validate(&model, &fit.params).fit_percent,
             gap_closed: accept::gap_closed(base.val_rmse, fit.val_rmse, floor),
         });
     }
@@ -245,7 +230,7 @@ pub fn diagnose_from(
             steps.push(Step {
                 effects: c.model.effects.clone(),
                 val_rmse: fit.val_rmse,
-                val_fit_percent: fit_of(&data, &c.model, &fit.params),
+                val_fit_percent: data.records.validate(&c.model, &fit.params).fit_percent,
                 gap_closed: accept::gap_closed(base.val_rmse, fit.val_rmse, floor),
             });
         }
@@ -267,7 +252,11 @@ pub fn diagnose_from(
     let refits = refits::Refits::compare(
         &selection.final_fit,
         &scratch,
-        |f| fit_of(&data, &selection.final_model, &f.params),
+        |f| {
+            data.records
+                .validate(&selection.final_model, &f.params)
+                .fit_percent
+        },
         data.est_samples(),
     );
 

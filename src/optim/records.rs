@@ -8,7 +8,7 @@
 use crate::data::Trace;
 use crate::ident::arx::{Arx, ArxOrders, linear_prior};
 use crate::ident::{fit_percent, rmse};
-use crate::model::effects::Context;
+use crate::model::effects::{Augmented, Context};
 use crate::model::experiment::halves;
 use crate::model::{Experiment, LinearPrior, Model};
 
@@ -107,6 +107,42 @@ impl Records {
         })
     }
 
+    /// Validation scores of `model` at `theta`: a free run over each whole
+    /// record from its first sample, scored on its validation half, the
+    /// records pooled (one record: its own RMSE and fit %). Starting afresh
+    /// at the validation half with `w = 0` would throw away the hysteretic
+    /// state, which the model never forgets: `w` integrates the motion, so
+    /// a wrong start offsets the output for good and even the true
+    /// parameters would score badly. Infinite RMSE and −∞ fit where a run
+    /// is not finite on its validation half. `fit`, `diagnose` and the
+    /// generated cases' judge all score here.
+    pub fn validate(&self, model: &Augmented, theta: &[f64]) -> Validation {
+        let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
+        let (mut y, mut x) = (Vec::new(), Vec::new());
+        // No parameters: a fit that found nothing.
+        if theta.is_empty() {
+            return Validation {
+                rmse: f64::INFINITY,
+                fit_percent: f64::NEG_INFINITY,
+            };
+        }
+        for (i, (whole, &from)) in self.whole.iter().zip(&self.val_start).enumerate() {
+            let run = model.simulate(&t, i, &self.ctx[i], whole);
+            y.extend(whole.y[from..].iter().map(|&v| v as f64));
+            x.extend(run[from..].iter().map(|&v| v as f64));
+        }
+        if y.is_empty() || x.iter().any(|v| !v.is_finite()) {
+            return Validation {
+                rmse: f64::INFINITY,
+                fit_percent: f64::NEG_INFINITY,
+            };
+        }
+        Validation {
+            rmse: rmse(&y, &x),
+            fit_percent: fit_percent(&y, &x),
+        }
+    }
+
     /// The yardstick a fit of trace `i` is read against: the first-order
     /// ARX model identified on its estimation half, run free over the whole
     /// trace from its first sample and scored on its validation half, as a
@@ -158,4 +194,55 @@ pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::Family;
+    use crate::optim::synthetic::Synthetic;
+
+    #[test]
+    fn records_pool_their_validation_halves_and_a_runaway_scores_minus_infinity() {
+        let (a, b) = (
+            Synthetic::new(Family::Classic, 600, 0.05, 1),
+            Synthetic::new(Family::Classic, 800, 0.05, 2),
+        );
+        let both = Records::of(&[a.trace.clone(), b.trace.clone()], None).unwrap();
+        let model = Augmented::new(Family::Classic, Vec::new(), 2);
+        let pooled = both.validate(&model, &a.truth);
+        assert!(pooled.fit_percent > 90.0, "{pooled:?}");
+        // The pooled RMSE² is the sample-weighted mean of each record's,
+        // each record scored in the same coordinates.
+        let mut sum = 0.0;
+        let mut samples = 0;
+        for i in 0..2 {
+            let one = Records {
+                whole: vec![both.whole[i].clone()],
+                est: vec![both.est[i].clone()],
+                val_start: vec![both.val_start[i]],
+                ctx: vec![both.ctx[i]],
+                prior: both.prior,
+            };
+            let n = both.whole[i].len() - both.val_start[i];
+            let single = Augmented::new(Family::Classic, Vec::new(), 1);
+            sum += one.validate(&single, &a.truth).rmse.powi(2) * n as f64;
+            samples += n;
+        }
+        let expected = (sum / samples as f64).sqrt();
+        assert!(
+            (pooled.rmse - expected).abs() < 1e-9 * expected,
+            "{pooled:?} {expected}"
+        );
+        // β + γ < 0 with a large A: the state runs away.
+        let mut runaway = a.truth.clone();
+        runaway[0] = 1e6;
+        runaway[3] = -runaway[2] - 10.0;
+        let v = both.validate(&model, &runaway);
+        assert!(
+            v.rmse.is_infinite() && v.fit_percent == f64::NEG_INFINITY,
+            "{v:?}"
+        );
+        assert_eq!(both.validate(&model, &[]).rmse, f64::INFINITY);
+    }
 }

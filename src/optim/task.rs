@@ -225,21 +225,10 @@ impl Task {
         if sse.is_finite() { sse } else { f64::INFINITY }
     }
 
-    /// Validation scores: a free run over the whole trace from its first
-    /// sample, scored on the second half only. (Starting afresh at the
-    /// validation half with `w = 0` would throw away the hysteretic state,
-    /// which the model never forgets: `w` integrates the motion, so a wrong
-    /// start offsets the output for good and even the true parameters would
-    /// score badly.)
+    /// Validation scores on the record's second half
+    /// ([`Records::validate`]).
     pub fn validate(&self, params: &[f64]) -> Validation {
-        let whole = &self.records.whole[0];
-        let from = self.records.val_start[0];
-        if self.effects.is_empty() {
-            return score_tail(self.family, params, whole, from);
-        }
-        let theta: Vec<f32> = params.iter().map(|&v| v as f32).collect();
-        let x = self.augmented().simulate(&theta, 0, self.context(), whole);
-        score_outputs(&whole.y, &x, from)
+        self.records.validate(&self.augmented(), params)
     }
 
     /// The first-order ARX model's validation scores on the same halves
@@ -271,47 +260,24 @@ impl Task {
 }
 
 /// RMSE and fit % of a free run of `params` on `experiment` (deviation
-/// coordinates; differences are in output units). A diverged run scores
+/// coordinates; differences are in output units): the thesis' models
+/// scored on a whole trace, as `compare` scores them. A diverged run scores
 /// infinite RMSE and −∞ fit.
 pub fn score(family: Family, params: &[f64], experiment: &Experiment) -> Validation {
-    score_tail(family, params, experiment, 0)
-}
-
-/// As [`score`], but the samples before `from` only warm the state up.
-pub fn score_tail(
-    family: Family,
-    params: &[f64],
-    experiment: &Experiment,
-    from: usize,
-) -> Validation {
-    if params.is_empty() || experiment.len() <= from {
-        return Validation {
-            rmse: f64::INFINITY,
-            fit_percent: f64::NEG_INFINITY,
-        };
+    let diverged = Validation {
+        rmse: f64::INFINITY,
+        fit_percent: f64::NEG_INFINITY,
+    };
+    if params.is_empty() || experiment.is_empty() {
+        return diverged;
     }
     let theta: Vec<f32> = params.iter().map(|&v| v as f32).collect();
     let sim = simulate(family, &theta, &experiment.u, experiment.y[0]);
     if sim.diverged_at.is_some() {
-        return Validation {
-            rmse: f64::INFINITY,
-            fit_percent: f64::NEG_INFINITY,
-        };
+        return diverged;
     }
-    score_outputs(&experiment.y, &sim.x, from)
-}
-
-/// RMSE and fit % of the simulated `x` against the measured `y` from
-/// sample `from` on; infinite RMSE and −∞ fit where `x` is not finite.
-fn score_outputs(y: &[f32], x: &[f32], from: usize) -> Validation {
-    if x[from..].iter().any(|v| !v.is_finite()) {
-        return Validation {
-            rmse: f64::INFINITY,
-            fit_percent: f64::NEG_INFINITY,
-        };
-    }
-    let y: Vec<f64> = y[from..].iter().map(|&v| v as f64).collect();
-    let x: Vec<f64> = x[from..].iter().map(|&v| v as f64).collect();
+    let y: Vec<f64> = experiment.y.iter().map(|&v| v as f64).collect();
+    let x: Vec<f64> = sim.x.iter().map(|&v| v as f64).collect();
     Validation {
         rmse: rmse(&y, &x),
         fit_percent: fit_percent(&y, &x),
