@@ -118,6 +118,7 @@ class FitResult:
     linear_val_fit_percent: float | None
     start_sse: float | None
     start_val_fit_percent: float | None
+    built: dict[str, float | bool] | None
     evaluations: int
     generations: int
     seconds: float

@@ -188,6 +188,19 @@ fn fit_with_effects_writes_a_chain_that_simulate_reproduces() {
     ]);
     assert_eq!(fit["effects"], serde_json::json!(["creep"]));
     assert!(fit["params"]["creep.kappa"].is_number());
+    // Two starts, from scratch and from the chain built one effect at a
+    // time; the lower estimation SSE is the fit.
+    let built = &fit["built"];
+    let (scratch, chain) = (
+        built["scratch_sse"].as_f64().unwrap(),
+        built["chain_sse"].as_f64().unwrap(),
+    );
+    let sse = fit["sse"].as_f64().unwrap();
+    assert!(
+        sse <= scratch.min(chain),
+        "{sse} against {scratch} and {chain}"
+    );
+    assert_eq!(built["kept_chain"].as_bool().unwrap(), chain < scratch);
     let sim = simulated_stair(&dir.path().join("model.json"));
     let (a, b) = (
         fit["val_fit_percent"].as_f64().unwrap(),

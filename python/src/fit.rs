@@ -9,6 +9,8 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
+use mckibben::diagnose::StopFlag;
+use mckibben::diagnose::chain::with_chain_start;
 use mckibben::model::effects::Effect;
 use mckibben::model::{ModelFile, UserBound};
 use mckibben::optim::edge::active_bounds;
@@ -46,6 +48,10 @@ pub struct FitResult {
     /// (`None` without a start, or where it diverges).
     start_sse: Option<f64>,
     start_val_fit_percent: Option<f64>,
+    /// With effects and no start: the search from scratch against the
+    /// chain built one effect at a time (`scratch_sse`, `chain_sse`,
+    /// `kept_chain`); `None` otherwise.
+    built: Option<Py<PyAny>>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -384,9 +390,15 @@ pub fn fit(
     let backend = self::backend(backend)?;
     let notes = Mutex::new(Vec::new());
     let note = |s: String| notes.lock().expect("notes").push(s);
-    let mut fit = py
+    let fit = py
         .detach(|| Fit::new(&trace, &what, &settings, start_model.as_ref(), None, &note))
         .map_err(value_error)?;
+    // With effects from scratch, a second start: the chain built one effect
+    // at a time, as `mckibben fit --effects` does. (A few seconds at most;
+    // Ctrl-C is seen once the fit's generations run.)
+    let mut fit = py
+        .detach(|| with_chain_start(fit, &trace, &settings, backend, StopFlag::default()))
+        .map_err(runtime_error)?;
     let interrupt = AtomicBool::new(false);
     let mut observer = PythonObserver {
         progress,
@@ -422,6 +434,7 @@ pub fn fit(
     }
     let (outcome, widened) = ran;
     let start = fit.start_scores();
+    let built = fit.built;
     let Fit { task, engine, .. } = fit;
     let found = !outcome.params.is_empty();
     let val = found.then(|| task.validate(&outcome.params));
@@ -462,6 +475,10 @@ pub fn fit(
         linear_val_fit_percent: task.linear_yardstick().and_then(|v| finite(v.fit_percent)),
         start_sse: start.and_then(|s| finite(s.est_sse)),
         start_val_fit_percent: start.and_then(|s| finite(s.validation.fit_percent)),
+        built: built
+            .map(|b| to_python(py, &b))
+            .transpose()?
+            .map(|b| b.unbind()),
         evaluations: outcome.evaluations,
         generations: outcome.generations,
         seconds: outcome.seconds,

@@ -55,6 +55,8 @@ def test_fit_with_effects_gives_the_commands_parameters_and_file(stair, cli, tmp
     assert list(result.params)[9:] == ["creep.rho", "creep.kappa", "creep.z0"]
     assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
     assert bits(result.sse) == bits(expected["sse"])
+    # Its second start, the chain built one effect at a time, as the command's.
+    assert result.built == expected["built"] and set(result.built) == {"scratch_sse", "chain_sse", "kept_chain"}
     assert result.model.effects == ["creep"] and result.model.params == result.params
     # The model file: the command's, byte for byte but for where it came from.
     result.model.save(tmp_path / "model.json")

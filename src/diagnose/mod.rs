@@ -12,6 +12,7 @@
 
 pub mod accept;
 pub mod blind;
+pub mod chain;
 pub mod data;
 pub use crate::model::effects;
 pub mod explainable;

@@ -12,10 +12,11 @@ use std::sync::atomic::AtomicBool;
 use anyhow::Context as _;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use serde::Serialize;
 
 use super::edge::{Widening, refit_off_edges};
 use super::engine::model::{ModelObjective, staged_plan};
-use super::engine::{Engine, Observer, Outcome, Plan, Space, StopRules};
+use super::engine::{Engine, Observer, Outcome, Plan, Space, StopReason, StopRules};
 use super::ga::{Crossover, Mutation};
 use super::mfa::{self, Distance, Lambda0Schedule, Scale};
 use super::task::{Task, Validation};
@@ -324,6 +325,24 @@ pub struct Fit {
     /// A warm start's model as it was, in the task's gauge (same outputs):
     /// what the refit is measured against ([`Fit::start_scores`]).
     pub start: Option<Vec<f64>>,
+    /// A second start run after the engine ([`Fit::also_from`]): its task
+    /// (the box widened to hold it) and its warm-start engine.
+    second: Option<(Task, Engine)>,
+    /// Which of the two was kept, once [`Fit::run`] has run both.
+    pub built: Option<Built>,
+}
+
+/// A fit with effects run twice, from scratch and from the chain built one
+/// effect at a time as the diagnosis builds it; the lower estimation SSE
+/// is kept.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Built {
+    /// Estimation SSE of the search from scratch.
+    pub scratch_sse: f64,
+    /// Estimation SSE of the warm start from the built chain.
+    pub chain_sse: f64,
+    /// `true` when the chain's fit was kept.
+    pub kept_chain: bool,
 }
 
 impl Fit {
@@ -386,7 +405,31 @@ impl Fit {
             task,
             engine,
             start,
+            second: None,
+            built: None,
         })
+    }
+
+    /// Runs, after the engine, a warm start from `model` ([`FitSettings::start_warm`]
+    /// on the task's box widened to hold it) and keeps whichever ends at the
+    /// lower estimation SSE ([`Built`]). `model` must be in the task's
+    /// coordinates: fitted on the same record, split the same way
+    /// (`diagnose::chain::fit_chain` gives one). For `fit --effects`: a
+    /// search of the whole chain's box from scratch is a lottery the
+    /// diagnosis' warm-started rounds do not play (docs/ARCHITECTURE.md,
+    /// "Warm starts").
+    pub fn also_from(mut self, model: &Model, settings: &FitSettings) -> anyhow::Result<Fit> {
+        anyhow::ensure!(
+            model.effects() == self.task.effects.as_slice()
+                && model.base.family == self.task.family,
+            "the second start must be the fit's own model"
+        );
+        let theta = warm_start(&self.task, model);
+        let mut task = self.task.clone();
+        task.space.widen_to_hold(&theta);
+        let engine = settings.start_warm(&task, &theta)?;
+        self.second = Some((task, engine));
+        Ok(self)
     }
 
     /// A warm start's model as it was, scored as the refit is: its
@@ -413,10 +456,36 @@ impl Fit {
         checkpoint: Option<&Path>,
     ) -> anyhow::Result<(Outcome, Vec<Widening>)> {
         let mut objective = ModelObjective::for_task(evaluator, &self.task);
-        let outcome = self
+        let mut outcome = self
             .engine
             .run(&mut objective, observers, interrupt, checkpoint)?;
         drop(objective);
+        if let Some((task, mut engine)) = self.second.take()
+            && outcome.stop != StopReason::Interrupted
+        {
+            let mut objective = ModelObjective::for_task(evaluator, &task);
+            let chain = engine.run(&mut objective, &mut [], interrupt, None)?;
+            drop(objective);
+            let kept_chain = !chain.params.is_empty() && chain.sse < outcome.sse;
+            self.built = Some(Built {
+                scratch_sse: outcome.sse,
+                chain_sse: chain.sse,
+                kept_chain,
+            });
+            if kept_chain {
+                (self.task, self.engine) = (task, engine);
+                let evaluations = outcome.evaluations + chain.evaluations;
+                let seconds = outcome.seconds + chain.seconds;
+                outcome = Outcome {
+                    evaluations,
+                    seconds,
+                    ..chain
+                };
+            } else {
+                outcome.evaluations += chain.evaluations;
+                outcome.seconds += chain.seconds;
+            }
+        }
         let stops = self.engine.stops.clone();
         refit_off_edges(&mut self.task, &self.engine, outcome, &stops, evaluator)
     }
