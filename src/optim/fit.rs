@@ -419,10 +419,12 @@ impl Fit {
     /// diagnosis' warm-started rounds do not play (docs/ARCHITECTURE.md,
     /// "Warm starts").
     pub fn also_from(mut self, model: &Model, settings: &FitSettings) -> anyhow::Result<Fit> {
+        let est = self.task.estimation();
         anyhow::ensure!(
             model.effects() == self.task.effects.as_slice()
-                && model.base.family == self.task.family,
-            "the second start must be the fit's own model"
+                && model.base.family == self.task.family
+                && (model.base.input_mean, model.base.output_mean) == (est.u_mean, est.y_mean),
+            "the second start must be the fit's own model, in the fit's coordinates"
         );
         let theta = warm_start(&self.task, model);
         let mut task = self.task.clone();
