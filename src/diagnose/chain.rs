@@ -86,13 +86,14 @@ pub fn with_chain_start(
         ..Settings::default()
     };
     let (family, effects) = (task.family, task.effects.clone());
+    let started = std::time::Instant::now();
     match fit_chain(
         std::slice::from_ref(trace),
         family,
         &effects,
         &chain_settings,
     ) {
-        Ok((model, _)) => fit.also_from(&model, settings),
+        Ok((model, _)) => fit.also_from(&model, started.elapsed().as_secs_f64(), settings),
         Err(e) if e.is::<Interrupted>() => Ok(fit),
         Err(e) => Err(e),
     }

@@ -326,8 +326,9 @@ pub struct Fit {
     /// what the refit is measured against ([`Fit::start_scores`]).
     pub start: Option<Vec<f64>>,
     /// A second start run after the engine ([`Fit::also_from`]): its task
-    /// (the box widened to hold it) and its warm-start engine.
-    second: Option<(Task, Engine)>,
+    /// (the box widened to hold it), its warm-start engine and the seconds
+    /// its model took to build.
+    second: Option<(Task, Engine, f64)>,
     /// Which of the two was kept, once [`Fit::run`] has run both.
     pub built: Option<Built>,
 }
@@ -417,8 +418,14 @@ impl Fit {
     /// (`diagnose::chain::fit_chain` gives one). For `fit --effects`: a
     /// search of the whole chain's box from scratch is a lottery the
     /// diagnosis' warm-started rounds do not play (docs/ARCHITECTURE.md,
-    /// "Warm starts").
-    pub fn also_from(mut self, model: &Model, settings: &FitSettings) -> anyhow::Result<Fit> {
+    /// "Warm starts"). `built_in_s`, the seconds `model` took to build, is
+    /// counted in the fit's time.
+    pub fn also_from(
+        mut self,
+        model: &Model,
+        built_in_s: f64,
+        settings: &FitSettings,
+    ) -> anyhow::Result<Fit> {
         let est = self.task.estimation();
         anyhow::ensure!(
             model.effects() == self.task.effects.as_slice()
@@ -430,7 +437,7 @@ impl Fit {
         let mut task = self.task.clone();
         task.space.widen_to_hold(&theta);
         let engine = settings.start_warm(&task, &theta)?;
-        self.second = Some((task, engine));
+        self.second = Some((task, engine, built_in_s));
         Ok(self)
     }
 
@@ -462,9 +469,10 @@ impl Fit {
             .engine
             .run(&mut objective, observers, interrupt, checkpoint)?;
         drop(objective);
-        if let Some((task, mut engine)) = self.second.take()
+        if let Some((task, mut engine, built_in_s)) = self.second.take()
             && outcome.stop != StopReason::Interrupted
         {
+            outcome.seconds += built_in_s;
             let mut objective = ModelObjective::for_task(evaluator, &task);
             let chain = engine.run(&mut objective, &mut [], interrupt, None)?;
             drop(objective);
