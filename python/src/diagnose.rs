@@ -88,7 +88,7 @@ const SIGNAL_POLL: Duration = Duration::from_millis(50);
 /// this thread checks Python's signals: on Ctrl-C (or any signal handler's
 /// exception) it raises `stop`, waits for `job` to wind down (its searches
 /// stop at their next generation) and returns the signal's exception.
-fn interruptible<T: Send>(
+pub(crate) fn interruptible<T: Send>(
     py: Python<'_>,
     stop: &StopFlag,
     job: impl FnOnce() -> T + Send,

@@ -24,6 +24,7 @@ use crate::convert::{
     value_error,
 };
 use crate::data::data_arg;
+use crate::diagnose::interruptible;
 use crate::model::{Model, provenance};
 
 /// What `mckibben.fit` returns: the fields of `mckibben fit --json` as
@@ -394,11 +395,13 @@ pub fn fit(
         .detach(|| Fit::new(&trace, &what, &settings, start_model.as_ref(), None, &note))
         .map_err(value_error)?;
     // With effects from scratch, a second start: the chain built one effect
-    // at a time, as `mckibben fit --effects` does. (A few seconds at most;
-    // Ctrl-C is seen once the fit's generations run.)
-    let mut fit = py
-        .detach(|| with_chain_start(fit, &trace, &settings, backend, StopFlag::default()))
-        .map_err(runtime_error)?;
+    // at a time, as `mckibben fit --effects` does. Ctrl-C while it is built
+    // raises `KeyboardInterrupt`: there is no fit yet to return.
+    let stop = StopFlag::default();
+    let mut fit = interruptible(py, &stop, || {
+        with_chain_start(fit, &trace, &settings, backend, stop.clone())
+    })?
+    .map_err(runtime_error)?;
     let interrupt = AtomicBool::new(false);
     let mut observer = PythonObserver {
         progress,

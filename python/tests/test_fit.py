@@ -5,6 +5,7 @@ import os
 import signal
 import struct
 import threading
+import time
 
 import pathlib
 
@@ -201,3 +202,18 @@ def test_bad_data_raise_value_errors(stair):
 def test_a_fixed_parameter_stays_fixed(stair):
     result = mckibben.fit(stair, pop=40, gens=5, bounds={"alpha": 0.5})
     assert result.params["alpha"] == 0.5
+
+
+def test_ctrl_c_while_the_chain_is_built_raises(stair):
+    # Ten stairs end to end: the fit takes about 8 s on two cores, most of it
+    # building the chain, and it has nothing to return before the chain is built.
+    long = mckibben.Trace(np.tile(stair.input, 10), np.tile(stair.output, 10), stair.dt)
+    timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
+    started = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            mckibben.fit(long, effects=["creep"], pop=40, gens=2)
+    finally:
+        timer.cancel()
+    assert time.monotonic() - started < 10
