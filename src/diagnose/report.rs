@@ -483,11 +483,15 @@ pub fn to_text(d: &Diagnosis) -> String {
         );
     }
     let _ = writeln!(o, "\nHOW FAR:");
-    for (i, s) in d.steps.iter().enumerate() {
+    let names: Vec<String> = (0..d.steps.len())
+        .map(|i| step_name(i.checked_sub(1).map(|j| &d.steps[j]), &d.steps[i]))
+        .collect();
+    // One column for every step, however long its effect's name.
+    let width = names.iter().map(|n| n.chars().count()).max().unwrap_or(0).max(14);
+    for (s, name) in d.steps.iter().zip(&names) {
         let _ = writeln!(
             o,
-            "  {:<14} val RMSE {:.4}  fit {:5.1} %  gap closed {}",
-            step_name(i.checked_sub(1).map(|j| &d.steps[j]), s),
+            "  {name:<width$} val RMSE {:.4}  fit {:5.1} %  gap closed {}",
             s.val_rmse,
             s.val_fit_percent,
             pct(s.gap_closed)
