@@ -487,7 +487,12 @@ pub fn to_text(d: &Diagnosis) -> String {
         .map(|i| step_name(i.checked_sub(1).map(|j| &d.steps[j]), &d.steps[i]))
         .collect();
     // One column for every step, however long its effect's name.
-    let width = names.iter().map(|n| n.chars().count()).max().unwrap_or(0).max(14);
+    let width = names
+        .iter()
+        .map(|n| n.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(14);
     for (s, name) in d.steps.iter().zip(&names) {
         let _ = writeln!(
             o,

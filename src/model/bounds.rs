@@ -485,8 +485,11 @@ impl SearchSpace {
     /// by step) until the box holds the canonical `theta`: a warm start
     /// from a model fitted in another box (the diagnosis') then starts from
     /// that model, not from its clamped image. Bounds of the class and the
-    /// user's are left; `theta` is clamped to those. Returns what moved, as
-    /// [`SearchSpace::widen`] words it, one entry per bound.
+    /// user's are left, and so is a data bound the steps cannot carry past
+    /// `theta` (the time constant's towards a pole of 1, a bound that
+    /// shrinks towards zero while `theta` has the other sign): `theta` is
+    /// clamped to those. Returns what moved, as [`SearchSpace::widen`]
+    /// words it, one entry per bound.
     pub fn widen_to_hold(&mut self, theta: &[f64]) -> Vec<String> {
         let z = self.from_native(theta);
         let mut said = Vec::new();
@@ -501,16 +504,21 @@ impl SearchSpace {
                 };
                 let old = if upper { self.upper[i] } else { self.lower[i] };
                 let side = if upper { "upper" } else { "lower" };
-                // Each step widens by a factor of 2.5 or more; a bound that
-                // 16 steps do not carry past `v` (one that shrinks towards
-                // zero while `v` has the other sign) is left there.
-                let mut steps = 0;
-                while beyond(self)
-                    && self.origin[i][usize::from(upper)] == Origin::Data
-                    && steps < 16
-                {
+                if self.origin[i][usize::from(upper)] != Origin::Data || !beyond(self) {
+                    continue;
+                }
+                // Each step widens by a factor of 2.5 or more, so 16 steps
+                // reach any start a bound can reach at all.
+                let before = self.clone();
+                for _ in 0..16 {
                     self.widen(&[(i, side)]);
-                    steps += 1;
+                    if !beyond(self) {
+                        break;
+                    }
+                }
+                if beyond(self) {
+                    *self = before;
+                    continue;
                 }
                 let new = if upper { self.upper[i] } else { self.lower[i] };
                 if new != old {
@@ -645,5 +653,20 @@ mod tests {
             SearchSpace::scaled(Family::Classic, prior(), Loop::Bounded, false, &[user]).unwrap();
         assert!(s.widen_to_hold(&theta).is_empty());
         assert!(!s.contains(&theta));
+        // A bound the steps cannot carry past the start stays as it was:
+        // the time constant's towards a small-signal pole above 1.
+        let mut s =
+            SearchSpace::scaled(Family::Classic, prior(), Loop::Bounded, false, &[]).unwrap();
+        let a = names.iter().position(|n| n == "a").unwrap();
+        let mut z: Vec<f64> = s
+            .lower
+            .iter()
+            .zip(&s.upper)
+            .map(|(l, u)| 0.5 * (l + u))
+            .collect();
+        z[a] = s.upper[a] + 0.01;
+        let before = s.upper[a];
+        assert!(s.widen_to_hold(&s.to_native(&z)).is_empty());
+        assert_eq!(s.upper[a], before);
     }
 }

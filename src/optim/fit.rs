@@ -392,10 +392,17 @@ impl Fit {
             let widened = task.space.widen_to_hold(theta);
             if !widened.is_empty() {
                 note(format!(
-                    "the start model lies outside the box the data set; widened {} so that the \
-                     fit starts from it",
+                    "the start model lies outside the box the data set; widened {}",
                     widened.join(", ")
                 ));
+            }
+            if !task.space.contains(theta) {
+                note(
+                    "the start model lies outside this fit's box on bounds that cannot widen \
+                     (its class, your --bound, or a small-signal pole of 1 or more): the fit \
+                     starts from the nearest point inside"
+                        .to_string(),
+                );
             }
         }
         let engine = match &start {
