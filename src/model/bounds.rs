@@ -624,6 +624,15 @@ mod tests {
         assert!(s.contains(&theta));
     }
 
+    /// The middle of `s`'s box, in its coordinates.
+    fn middle(s: &SearchSpace) -> Vec<f64> {
+        s.lower
+            .iter()
+            .zip(&s.upper)
+            .map(|(l, u)| 0.5 * (l + u))
+            .collect()
+    }
+
     #[test]
     fn a_start_outside_the_data_box_widens_it_until_it_holds() {
         let mut s =
@@ -632,12 +641,7 @@ mod tests {
         let gain = names.iter().position(|n| n == "gain").unwrap();
         // A start whose gain is ten times the box's top, as the diagnosis'
         // own box allows.
-        let mut z: Vec<f64> = s
-            .lower
-            .iter()
-            .zip(&s.upper)
-            .map(|(l, u)| 0.5 * (l + u))
-            .collect();
+        let mut z = middle(&s);
         z[gain] = 10.0 * s.upper[gain];
         let theta = s.to_native(&z);
         assert!(!s.contains(&theta));
@@ -658,12 +662,7 @@ mod tests {
         let mut s =
             SearchSpace::scaled(Family::Classic, prior(), Loop::Bounded, false, &[]).unwrap();
         let a = names.iter().position(|n| n == "a").unwrap();
-        let mut z: Vec<f64> = s
-            .lower
-            .iter()
-            .zip(&s.upper)
-            .map(|(l, u)| 0.5 * (l + u))
-            .collect();
+        let mut z = middle(&s);
         z[a] = s.upper[a] + 0.01;
         let before = s.upper[a];
         assert!(s.widen_to_hold(&s.to_native(&z)).is_empty());
