@@ -11,7 +11,7 @@
 //! (docs/RESULTS.md, "The diagnosed model, end to end").
 
 use super::data::Data;
-use super::fitting::{Start, fit_seeds, fit_seeds_with, profile, scratch_fits};
+use super::fitting::{Start, fit_seeds, fit_with_effect, scratch_fits};
 use super::settings::{Interrupted, Settings, StopFlag};
 use super::{Augmented, Effect, model_of};
 use crate::data::Trace;
@@ -37,27 +37,25 @@ pub fn fit_chain(
     let mut model = Augmented::new(family, Vec::new(), data.datasets());
     let mut best = fit_seeds(&data, &model, Start::Scratch, settings, CHAIN_SALT)?.best;
     for (k, &effect) in effects.iter().enumerate() {
-        let next = model.with(effect);
-        let (neutral, _, _) = data.space(&next);
-        let mut start = best.params.clone();
-        start.extend_from_slice(&neutral[best.params.len()..]);
-        let warm = Start::Warm {
-            params: &start,
-            new_from: best.params.len(),
-        };
         let salt = CHAIN_SALT + 10 * (k as u64 + 1);
         // As the diagnosis' first round: fits of the first effect's model
         // from scratch among the seeds, which a baseline that compensated
         // for the effect cannot walk back to.
         let scratch = if k == 0 {
-            scratch_fits(&data, &next, settings, salt + 5)?
+            scratch_fits(&data, &model.with(effect), settings, salt + 5)?
         } else {
             Vec::new()
         };
-        let fit = fit_seeds_with(&data, &next, warm, settings, salt, &scratch)?;
-        let at = best.params.len() + effect.primary();
-        best = profile(&data, &next, fit.best, at)?;
-        model = next;
+        let (next, fit) = fit_with_effect(
+            &data,
+            &model,
+            &best.params,
+            effect,
+            settings,
+            salt,
+            &scratch,
+        )?;
+        (model, best) = (next, fit.best);
     }
     Ok((model_of(&data, traces, &model, &best.params), best.est_sse))
 }

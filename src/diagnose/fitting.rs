@@ -528,6 +528,34 @@ fn seed_fits(
         .collect()
 }
 
+/// `current` (with parameters `params`) plus `effect`, fitted warm from
+/// `params` with the new effect at its neutral values ([`Start::Warm`],
+/// [`fit_seeds_with`], the fits from scratch `scratch` among the seeds), the
+/// best seed then profiled along the effect's size ([`profile`]): how the
+/// selection tries a candidate, and how a given chain is built
+/// (`diagnose::chain`).
+pub(super) fn fit_with_effect(
+    data: &Data,
+    current: &Augmented,
+    params: &[f64],
+    effect: super::Effect,
+    settings: &Settings,
+    salt: u64,
+    scratch: &[Fit],
+) -> anyhow::Result<(Augmented, SeededFit)> {
+    let model = current.with(effect);
+    let (neutral, _, _) = data.space(&model);
+    let mut start = params.to_vec();
+    start.extend_from_slice(&neutral[params.len()..]);
+    let warm = Start::Warm {
+        params: &start,
+        new_from: params.len(),
+    };
+    let mut fit = fit_seeds_with(data, &model, warm, settings, salt, scratch)?;
+    fit.best = profile(data, &model, fit.best, params.len() + effect.primary())?;
+    Ok((model, fit))
+}
+
 /// `settings.scratch_seeds` fits of `model` from scratch through the
 /// multi-step-ahead predictor ([`Start::Ahead`]) with the baseline's
 /// population and generations. They do not depend on the current model, so

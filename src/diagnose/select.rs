@@ -9,7 +9,9 @@ use serde::Serialize;
 use super::accept::{Candidate, Yardstick, judge_all};
 use super::data::Data;
 use super::effects::{Augmented, Effect};
-use super::fitting::{Fit, SeededFit, Start, fit_seeds, fit_seeds_with, profile, scratch_fits};
+use super::fitting::{
+    Fit, SeededFit, Start, fit_seeds, fit_seeds_with, fit_with_effect, scratch_fits,
+};
 use super::hints;
 use super::settings::Settings;
 use crate::model::Family;
@@ -182,19 +184,17 @@ pub fn select(
             let fits: Vec<(Effect, Augmented, SeededFit)> = (0..remaining.len())
                 .into_par_iter()
                 .map(|i| {
-                    let (effect, model) = (remaining[i], remaining_models[i].clone());
-                    let (neutral, _, _) = data.space(&model);
-                    let mut start = current_params.clone();
-                    start.extend_from_slice(&neutral[current_params.len()..]);
-                    let start = Start::Warm {
-                        params: &start,
-                        new_from: current_params.len(),
-                    };
+                    let effect = remaining[i];
                     let salt = salt + 1 + i as u64;
-                    let mut fit =
-                        fit_seeds_with(data, &model, start, settings, salt, &scratch[i + 1])?;
-                    let at = current_params.len() + effect.primary();
-                    fit.best = profile(data, &model, fit.best, at)?;
+                    let (model, fit) = fit_with_effect(
+                        data,
+                        &current_model,
+                        &current_params,
+                        effect,
+                        settings,
+                        salt,
+                        &scratch[i + 1],
+                    )?;
                     Ok((effect, model, fit))
                 })
                 .collect::<anyhow::Result<_>>()?;
