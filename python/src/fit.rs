@@ -441,12 +441,13 @@ pub fn fit(
     let Fit { task, engine, .. } = fit;
     let found = !outcome.params.is_empty();
     let val = found.then(|| task.validate(&outcome.params));
-    if let Some(val) = val {
-        for w in yardstick_warnings(outcome.sse, val, task.linear_yardstick(), start) {
+    let finite = |v: f64| v.is_finite().then_some(v);
+    let linear = task.linear_yardstick().and_then(|v| finite(v.fit_percent));
+    if let Some(fit) = val.and_then(|v| finite(v.fit_percent)) {
+        for w in yardstick_warnings(outcome.sse, fit, linear, start) {
             warn.call_method1("warn", (w,))?;
         }
     }
-    let finite = |v: f64| v.is_finite().then_some(v);
     let names = task.augmented().param_names();
     let names: Vec<&str> = names.iter().map(|n| n.as_str()).collect();
     let params = PyDict::new(py);
@@ -475,7 +476,7 @@ pub fn fit(
         sse: outcome.sse,
         val_rmse: val.and_then(|v| finite(v.rmse)),
         val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
-        linear_val_fit_percent: task.linear_yardstick().and_then(|v| finite(v.fit_percent)),
+        linear_val_fit_percent: linear,
         start_sse: start.and_then(|s| finite(s.est_sse)),
         start_val_fit_percent: start.and_then(|s| finite(s.validation.fit_percent)),
         built: built

@@ -529,6 +529,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     )?;
     progress.finish();
     let (task, engine) = (&fit.task, &fit.engine);
+    let start = fit.start_scores();
     let provenance = args.data.provenance(Some(engine.seed))?;
     let output = write_results(
         &args.out,
@@ -537,7 +538,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             engine,
             outcome: &outcome,
             widened: &widened,
-            start: fit.start_scores(),
+            start,
             built: fit.built,
             trace: &trace,
             backend: &backend,
@@ -549,10 +550,9 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         println!("{}", Versioned::new(&output).to_string_pretty()?);
     } else {
         print_report(&output, task);
-        if !outcome.params.is_empty() {
-            let val = task.validate(&outcome.params);
-            let start = fit.start_scores();
-            for w in yardstick_warnings(outcome.sse, val, task.linear_yardstick(), start) {
+        if let Some(fit) = output.val_fit_percent {
+            let linear = output.linear_val_fit_percent;
+            for w in yardstick_warnings(outcome.sse, fit, linear, start) {
                 eprintln!("mckibben: warning: {w}");
             }
         }

@@ -517,17 +517,17 @@ pub struct StartScores {
 }
 
 /// What a fit's scores warn of, against its yardsticks: the first-order ARX
-/// model on the same halves (`linear`) and, for a warm start, the model it
-/// started from (`start`). `sse` and `val` are the fit's own.
+/// model's validation fit on the same halves (`linear`) and, for a warm
+/// start, the model it started from (`start`). `sse` and `fit` (validation
+/// fit %) are the fit's own.
 pub fn yardstick_warnings(
     sse: f64,
-    val: Validation,
-    linear: Option<Validation>,
+    fit: f64,
+    linear: Option<f64>,
     start: Option<StartScores>,
 ) -> Vec<String> {
     let mut warnings = Vec::new();
-    let fit = val.fit_percent;
-    if let Some(linear) = linear.map(|v| v.fit_percent).filter(|v| v.is_finite())
+    if let Some(linear) = linear.filter(|v| v.is_finite())
         && fit < linear
     {
         warnings.push(format!(
@@ -692,17 +692,17 @@ mod tests {
             validation: v(fit),
         };
         // The Cavatappi 300 g refit: a lower estimation SSE, 3.2 points worse.
-        let flagged = yardstick_warnings(6.39, v(84.2), Some(v(62.7)), Some(start(6.46, 87.4)));
+        let flagged = yardstick_warnings(6.39, 84.2, Some(62.7), Some(start(6.46, 87.4)));
         assert_eq!(flagged.len(), 1, "{flagged:?}");
         assert!(flagged[0].contains("3.2 points worse"), "{}", flagged[0]);
         // Within the settled points: quiet.
-        assert!(yardstick_warnings(6.39, v(86.0), None, Some(start(6.46, 87.4))).is_empty());
+        assert!(yardstick_warnings(6.39, 86.0, None, Some(start(6.46, 87.4))).is_empty());
         // Worse on the estimation half too: the search lost its start.
-        let lost = yardstick_warnings(6.50, v(84.2), None, Some(start(6.46, 87.4)));
+        let lost = yardstick_warnings(6.50, 84.2, None, Some(start(6.46, 87.4)));
         assert_eq!(lost.len(), 1, "{lost:?}");
         assert!(lost[0].contains("ends above"), "{}", lost[0]);
         // Below ARX's validation fit.
-        let below = yardstick_warnings(1.0, v(-2.4), Some(v(50.9)), None);
+        let below = yardstick_warnings(1.0, -2.4, Some(50.9), None);
         assert_eq!(below.len(), 1);
         assert!(below[0].contains("first-order ARX"), "{}", below[0]);
     }
