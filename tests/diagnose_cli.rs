@@ -51,9 +51,32 @@ fn json_follows_the_contract() {
         .output()
         .unwrap();
     let v = json_of(&out);
-    for k in ["model", "params", "val_rmse", "val_fit_percent"] {
+    for k in [
+        "model",
+        "params",
+        "val_rmse",
+        "val_fit_percent",
+        "selection_rmse",
+        "test_rmse",
+    ] {
         assert!(!v["baseline"][k].is_null(), "baseline.{k}");
     }
+    // The parts: the first half, then selection and test blocks that
+    // alternate inside the second, apart.
+    let parts = &v["parts"][0];
+    assert_eq!(parts["estimation"], serde_json::json!([[0, 300]]));
+    let blocks = |k: &str| -> Vec<(u64, u64)> {
+        parts[k]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| (p[0].as_u64().unwrap(), p[1].as_u64().unwrap()))
+            .collect()
+    };
+    let (sel, test) = (blocks("selection"), blocks("test"));
+    assert_eq!((sel.len(), test.len()), (2, 2), "{parts}");
+    assert!(sel[0].0 == 300 && sel[0].1 < test[0].0 && test[0].1 < sel[1].0);
+    assert!(sel[1].1 < test[1].0 && test[1].1 == 600, "{parts}");
     assert_eq!(v["baseline"]["model"], "classic");
     // The planted 0.05 mm of noise, estimated to within 20 %.
     let floor = v["noise_floor_rmse"].as_f64().unwrap();
@@ -83,7 +106,14 @@ fn json_follows_the_contract() {
     let cands = v["candidates"].as_array().unwrap();
     assert_eq!(cands.len(), 3, "one entry per effect tried");
     for c in cands {
-        for k in ["effect", "params", "val_rmse", "gap_closed", "accepted"] {
+        for k in [
+            "effect",
+            "params",
+            "selection_rmse",
+            "gap_closed",
+            "accepted",
+            "block_ratios",
+        ] {
             assert!(!c[k].is_null(), "candidates[].{k}");
         }
     }
@@ -109,14 +139,20 @@ fn json_follows_the_contract() {
         (stop - 30.0).abs() < 0.1,
         "end stop at {stop} mm, planted at 30"
     );
-    assert!(
-        v["final"]["val_rmse"].as_f64().unwrap() <= v["baseline"]["val_rmse"].as_f64().unwrap()
-    );
-    assert!(v["final"]["gap_closed"].is_number());
+    for part in ["selection_rmse", "test_rmse"] {
+        assert!(
+            v["final"][part].as_f64().unwrap() <= v["baseline"][part].as_f64().unwrap(),
+            "{part}"
+        );
+    }
+    assert!(v["final"]["gap_closed"].is_number() && v["final"]["test_gap_closed"].is_number());
     // The final model refitted from scratch, once per --scratch-seeds (4).
     let r = &v["final"]["refits"];
     assert_eq!(r["fits"], 4, "{r}");
-    assert_eq!(r["final_val_fit_percent"], v["final"]["val_fit_percent"]);
+    assert_eq!(
+        r["final_selection_fit_percent"],
+        v["final"]["selection_fit_percent"]
+    );
     let (best, last) = (
         r["best_est_sse"].as_f64().unwrap(),
         r["final_est_sse"].as_f64().unwrap(),
@@ -146,7 +182,8 @@ fn json_follows_the_contract() {
 fn report_writes_the_figures() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("stair.csv");
-    write_csv(&csv, 600, false, 0.0);
+    // Long enough for a spectrum of the selection blocks.
+    write_csv(&csv, 1600, false, 0.0);
     let figures = dir.path().join("figures");
     let out = bin()
         .args(["diagnose", "--seeds", "2", "--generations", "30"])
@@ -198,6 +235,19 @@ fn undiagnosable_data_gives_clear_errors() {
     write_csv(&short, 30, false, 0.0);
     let err = error_of(&["diagnose"], &short);
     assert!(err.contains("too few to split"), "{err}");
+
+    // Long enough for `fit`'s two halves, too short for four blocks of the
+    // second half: the message says how long the record must be.
+    let halves = dir.path().join("halves.csv");
+    write_csv(&halves, 200, false, 0.0);
+    let err = error_of(&["diagnose"], &halves);
+    assert!(
+        err.contains("200 samples are too few for the diagnosis' three parts")
+            && err.contains("it needs at least"),
+        "{err}"
+    );
+    let err = error_of(&["diagnose", "--blocks", "1"], &halves);
+    assert!(err.contains("--blocks must be at least 2"), "{err}");
 
     let flat = dir.path().join("flat.csv");
     write_csv(&flat, 300, true, 0.0);

@@ -10,6 +10,7 @@ use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::selftest::{
     Nominal, Outcome, TwinOutcome, cases, run_case, table, twin_check,
 };
+use mckibben::diagnose::transfer::transfer;
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
 use mckibben::eval::Backend;
 use mckibben::model::{Family, ModelFile};
@@ -85,6 +86,23 @@ pub struct Args {
     /// more).
     #[arg(long, default_value_t = Settings::default().max_effects)]
     max_effects: usize,
+    /// Blocks the second half of each file is cut into, in turn selection
+    /// (every choice of the diagnosis reads them) and test (read once, when
+    /// the model is final: the figures no choice saw), with a settling gap
+    /// of three time constants between neighbours. More blocks mix the
+    /// record's levels and branches better into both parts; each must keep
+    /// at least 32 samples.
+    #[arg(long, default_value_t = Settings::default().blocks)]
+    blocks: usize,
+    /// Other records of the same muscle (e.g. other loads or specimens, read
+    /// with the same column flags): after the diagnosis, the baseline and
+    /// the final model's chain are each fitted on every OTHER's first half
+    /// as `fit` and `fit --effects CHAIN` fit them, and scored on its second
+    /// half, which no choice of the diagnosis saw. The report (TRANSFER) says
+    /// how much of the baseline's gap the chain closes on each: whether the
+    /// effects belong to the muscle or to one recording.
+    #[arg(long, value_name = "OTHER", num_args = 1.., conflicts_with = "self_test")]
+    transfer: Vec<PathBuf>,
     /// Where the searches score their populations: `cpu` (the batched,
     /// multi-threaded CPU path), `gpu` (the WGSL kernels on the best adapter,
     /// lavapipe included: the same numbers, bit for bit, where the adapter
@@ -183,6 +201,10 @@ fn parse_effect(s: &str) -> Result<Effect, String> {
 
 pub fn run(mut args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
+    anyhow::ensure!(
+        args.blocks >= 2,
+        "--blocks must be at least 2 (one selection and one test block)"
+    );
     let from = match &args.from {
         Some(path) => {
             let file = ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
@@ -210,6 +232,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         generations: args.generations,
         scratch_seeds: args.scratch_seeds,
         max_effects: args.max_effects,
+        blocks: args.blocks,
         seed: args.seed,
         backend: args.backend,
         ..Settings::default()
@@ -228,6 +251,15 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         }
         None => {}
     }
+    // Read before the diagnosis, so that a bad file fails at once.
+    let others = if args.transfer.is_empty() {
+        Vec::new()
+    } else {
+        args.data
+            .columns
+            .load(&args.transfer)
+            .context("--transfer")?
+    };
     let family = from.as_ref().map_or(family, |m| m.base.family);
     let mut d = diagnose_from(&traces, family, &effects, &settings, from.as_ref()).map_err(
         |e| match &args.from {
@@ -237,6 +269,15 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     )?;
     if let Some(path) = &args.from {
         d.from = Some(path.display().to_string());
+    }
+    if !others.is_empty() {
+        if !args.json {
+            eprintln!(
+                "fitting the baseline and the chain on {} other record(s) (--transfer) ...",
+                others.len()
+            );
+        }
+        d.transfers = transfer(&d, &others, &settings)?;
     }
     if let Some(dir) = &args.out {
         let provenance = args.data.provenance(Some(args.seed))?;

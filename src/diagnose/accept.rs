@@ -1,24 +1,29 @@
 //! Whether an effect earns its place: the acceptance rule of the forward
 //! selection ([`select`](super::select)).
 //!
-//! **Acceptance rule.** Let `R0` be the validation RMSE of the current model
-//! and `R1` the candidate's (each fit keeps the seed with the lowest
-//! estimation SSE among those that stay finite on validation); `s0`, `s1` the
-//! seed-to-seed spreads of the validation RMSE (`s0` from refitting the
+//! **Acceptance rule.** Every figure it reads is on the selection part
+//! ([`Data`](super::data::Data)); the test part is never read here. Let `R0`
+//! be the selection RMSE of the current model and `R1` the candidate's (each
+//! fit keeps the seed with the lowest estimation SSE among those that stay
+//! finite on the selection part); `s0`, `s1` the seed-to-seed spreads of the
+//! selection RMSE (`s0` from refitting the
 //! current model with the candidates' seeds and budget, so refitting alone is
 //! not mistaken for an effect; spread = 1.4826·MAD over the seeds that reach
 //! the best estimation fit, a robust standard deviation of fits the
-//! estimation data cannot tell apart); `N` the validation samples, `k` the
+//! estimation data cannot tell apart); `N` the selection samples, `k` the
 //! candidate's extra parameters and `F` the noise-floor estimate. A candidate
-//! is accepted only if all four hold:
+//! is accepted only if all five hold:
 //! 1. `R0 − R1 > 3·√(s0² + s1²)`: the improvement is clearly beyond seed-to-seed spread;
 //! 2. `ΔBIC = N·ln(R1²/R0²) + k·ln N < −10`: it pays for its parameters
 //!    ("very strong" evidence on the Kass–Raftery scale);
 //! 3. `(R0 − R1)/R0 ≥ 2 %`: an improvement a user would notice;
 //! 4. `R0 > 1.1·F`: there is a gap left to explain (the floor estimate is
-//!    good to about 10 %).
+//!    good to about 10 %);
+//! 5. on every selection block `j`, `R1_j < R0_j`: the gain holds across the
+//!    part, not in one stretch of the record that it happens to suit (an
+//!    effect that fits one event carries over to no other record).
 //!
-//! Of the candidates that pass, the one with the lowest validation RMSE is
+//! Of the candidates that pass, the one with the lowest selection RMSE is
 //! accepted; the next round starts from it.
 
 use serde::Serialize;
@@ -47,10 +52,13 @@ pub struct Candidate {
     pub fit: SeededFit,
     /// The candidate's own parameters, by name.
     pub effect_params: Vec<(String, f64)>,
-    /// ΔBIC against the current model on the validation part.
+    /// ΔBIC against the current model on the selection part.
     pub delta_bic: f64,
-    /// Relative improvement of the validation RMSE against the current model.
+    /// Relative improvement of the selection RMSE against the current model.
     pub relative: f64,
+    /// The candidate's RMSE over the current model's on each selection
+    /// block (rule 5: every one below 1).
+    pub block_ratios: Vec<f64>,
     /// Improvement in units of the combined seed spread.
     pub spread_ratio: f64,
     pub passes: bool,
@@ -58,45 +66,51 @@ pub struct Candidate {
     pub reason: String,
 }
 
-/// What a candidate is judged against: the current model's validation RMSE
-/// `r0` and seed spread `s0`, and the noise-floor estimate.
-#[derive(Debug, Clone, Copy)]
+/// What a candidate is judged against: the current model's selection RMSE
+/// `r0`, its RMSE on each selection block and its seed spread `s0`, and
+/// the noise-floor estimate.
+#[derive(Debug, Clone)]
 pub struct Yardstick {
     pub r0: f64,
+    pub blocks: Vec<f64>,
     pub s0: f64,
     pub floor: f64,
 }
 
-/// Judges every candidate fit against the yardstick, best
-/// validation RMSE first.
+/// Judges every candidate fit (with its RMSE on each selection block)
+/// against the yardstick, best selection RMSE first.
 pub fn judge_all(
-    fits: &[(Effect, Augmented, SeededFit)],
-    yardstick: Yardstick,
+    fits: &[(Effect, Augmented, SeededFit, Vec<f64>)],
+    yardstick: &Yardstick,
     n: f64,
     settings: &Settings,
 ) -> Vec<Candidate> {
     let mut candidates: Vec<Candidate> = fits
         .iter()
-        .map(|(e, m, f)| Candidate::judge(*e, m.clone(), f.clone(), yardstick, n, settings))
+        .map(|(e, m, f, blocks)| {
+            Candidate::judge(*e, m.clone(), f.clone(), blocks, yardstick, n, settings)
+        })
         .collect();
-    candidates.sort_by(|a, b| a.fit.best.val_rmse.total_cmp(&b.fit.best.val_rmse));
+    candidates.sort_by(|a, b| a.fit.best.sel_rmse.total_cmp(&b.fit.best.sel_rmse));
     candidates
 }
 
 impl Candidate {
-    /// Scores `fit` of `model` (the current model plus `effect`) against the
-    /// current model's validation RMSE `r0` and seed spread `s0` by the
-    /// acceptance rule; `n` validation samples.
+    /// Scores `fit` of `model` (the current model plus `effect`), whose RMSE
+    /// on each selection block is `blocks`, against the current model's
+    /// ([`Yardstick`]) by the acceptance rule; `n` selection samples.
     pub fn judge(
         effect: Effect,
         model: Augmented,
         fit: SeededFit,
-        Yardstick { r0, s0, floor }: Yardstick,
+        blocks: &[f64],
+        yardstick: &Yardstick,
         n: f64,
         settings: &Settings,
     ) -> Candidate {
+        let Yardstick { r0, s0, floor, .. } = *yardstick;
         let datasets = model.datasets;
-        let r1 = fit.best.val_rmse;
+        let r1 = fit.best.sel_rmse;
         let k = effect.dim(datasets) as f64;
         let (delta_bic, relative) = if r1.is_finite() {
             (n * (r1 * r1 / (r0 * r0)).ln() + k * n.ln(), (r0 - r1) / r0)
@@ -115,7 +129,14 @@ impl Candidate {
         let rule2 = delta_bic < settings.bic_threshold;
         let rule3 = relative >= settings.min_relative;
         let rule4 = r0 > settings.floor_margin * floor;
-        let passes = rule1 && rule2 && rule3 && rule4 && r1.is_finite();
+        let block_ratios: Vec<f64> = blocks
+            .iter()
+            .zip(&yardstick.blocks)
+            .map(|(r1, r0)| r1 / r0)
+            .collect();
+        let worst = block_ratios.iter().copied().fold(0.0f64, f64::max);
+        let rule5 = block_ratios.len() == yardstick.blocks.len() && worst < 1.0;
+        let passes = rule1 && rule2 && rule3 && rule4 && rule5 && r1.is_finite();
         let mut why = Vec::new();
         if !rule1 {
             why.push(format!(
@@ -143,11 +164,18 @@ impl Candidate {
                 100.0 * (settings.floor_margin - 1.0)
             ));
         }
+        if !rule5 {
+            why.push(format!(
+                "it does no better on every selection block (worst block {:.1} % of the \
+                 current model's RMSE)",
+                100.0 * worst
+            ));
+        }
         let reason = if !r1.is_finite() {
-            "the best fit on the estimation part diverges on the validation part".to_string()
+            "the best fit on the estimation part diverges on the selection part".to_string()
         } else if passes {
             format!(
-                "improves validation RMSE by {:.1} % ({:.1}× the seed spread, ΔBIC {:.0})",
+                "improves selection RMSE by {:.1} % ({:.1}× the seed spread, ΔBIC {:.0})",
                 100.0 * relative,
                 spread_ratio,
                 delta_bic
@@ -169,6 +197,7 @@ impl Candidate {
             effect_params,
             delta_bic,
             relative,
+            block_ratios,
             spread_ratio,
             passes,
             reason,
@@ -182,26 +211,42 @@ mod tests {
     use crate::diagnose::fitting::Fit;
     use crate::model::Family;
 
-    /// A candidate with a delay reaching validation RMSE `r1` with seed
-    /// spread `s1`, judged against `r0`, `s0` and the floor with `n`
-    /// validation samples under the default rule.
+    /// A candidate with a delay reaching selection RMSE `r1` (on each of two
+    /// blocks) with seed spread `s1`, judged against `r0`, `s0` and the
+    /// floor with `n` selection samples under the default rule.
     fn judged(r1: f64, s1: f64, (r0, s0, floor): (f64, f64, f64), n: f64) -> Candidate {
+        judged_on_blocks(r1, s1, (r0, s0, floor), n, &[r1, r1])
+    }
+
+    fn judged_on_blocks(
+        r1: f64,
+        s1: f64,
+        (r0, s0, floor): (f64, f64, f64),
+        n: f64,
+        blocks: &[f64],
+    ) -> Candidate {
         let model = Augmented::new(Family::Classic, vec![Effect::Delay], 1);
         let fit = SeededFit {
             best: Fit {
                 params: vec![0.5; model.dim()],
                 est_sse: 1.0,
-                val_rmse: r1,
+                sel_rmse: r1,
             },
-            seed_val_rmse: vec![r1],
+            seed_sel_rmse: vec![r1],
             spread: s1,
         };
-        let yardstick = Yardstick { r0, s0, floor };
+        let yardstick = Yardstick {
+            r0,
+            blocks: vec![r0, r0],
+            s0,
+            floor,
+        };
         Candidate::judge(
             Effect::Delay,
             model,
             fit,
-            yardstick,
+            blocks,
+            &yardstick,
             n,
             &Settings::default(),
         )
@@ -245,6 +290,16 @@ mod tests {
             "{}",
             c.reason
         );
+        // 5: a large pooled gain made on one block while the other gets worse.
+        let c = judged_on_blocks(0.8, 0.01, (1.0, 0.01, 0.1), 2000.0, &[0.5, 1.02]);
+        assert!(
+            !c.passes
+                && c.reason
+                    .starts_with("it does no better on every selection block"),
+            "{}",
+            c.reason
+        );
+        assert_eq!(c.block_ratios, vec![0.5, 1.02]);
     }
 
     #[test]
@@ -261,23 +316,29 @@ mod tests {
             best: Fit {
                 params: vec![0.5; model.dim()],
                 est_sse: 1.0,
-                val_rmse: r,
+                sel_rmse: r,
             },
-            seed_val_rmse: vec![r],
+            seed_sel_rmse: vec![r],
             spread: 0.0,
         };
         let fits = vec![
-            (Effect::Delay, model.clone(), fit(0.9)),
-            (Effect::Delay, model.clone(), fit(f64::INFINITY)),
-            (Effect::Delay, model.clone(), fit(0.7)),
+            (Effect::Delay, model.clone(), fit(0.9), vec![0.9]),
+            (
+                Effect::Delay,
+                model.clone(),
+                fit(f64::INFINITY),
+                vec![f64::INFINITY],
+            ),
+            (Effect::Delay, model.clone(), fit(0.7), vec![0.7]),
         ];
         let yardstick = Yardstick {
             r0: 1.0,
+            blocks: vec![1.0],
             s0: 0.0,
             floor: 0.1,
         };
-        let ranked = judge_all(&fits, yardstick, 2000.0, &Settings::default());
-        let order: Vec<f64> = ranked.iter().map(|c| c.fit.best.val_rmse).collect();
+        let ranked = judge_all(&fits, &yardstick, 2000.0, &Settings::default());
+        let order: Vec<f64> = ranked.iter().map(|c| c.fit.best.sel_rmse).collect();
         assert_eq!(order, vec![0.7, 0.9, f64::INFINITY]);
     }
 

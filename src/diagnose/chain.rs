@@ -31,7 +31,7 @@ pub fn fit_chain(
     effects: &[Effect],
     settings: &Settings,
 ) -> anyhow::Result<(Model, f64)> {
-    let data = Data::new(traces)?
+    let data = Data::new(traces, settings.blocks)?
         .scored_on(crate::eval::open(settings.backend)?)
         .stopped_by(settings.stop.clone());
     let mut model = Augmented::new(family, Vec::new(), data.datasets());

@@ -1,6 +1,9 @@
-//! The data of a diagnosis: its records (split as `fit` splits them), the
-//! costs of a model on them, and the box its parameters are searched in.
+//! The data of a diagnosis: its records (split as `fit` splits them, the
+//! second half of each then cut into selection and test blocks,
+//! [`Parts`]), the costs and scores of a model on them, and the box its
+//! parameters are searched in.
 
+use std::ops::Range;
 use std::sync::{Arc, Mutex};
 
 use nalgebra::DVector;
@@ -10,17 +13,27 @@ use super::settings::StopFlag;
 use crate::data::Trace;
 use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
+use crate::model::experiment::Parts;
 use crate::model::{Experiment, Family, Flow, Measure, Model, SearchSpace};
-use crate::optim::records::Records;
+use crate::optim::records::{Records, Validation};
 
 /// The data of a diagnosis: its records ([`Records::of`]: every dataset in
 /// the coordinates of the first one's estimation half, the estimation
 /// halves, where validation starts, the prior and the effects' constants),
-/// the evaluator its searches score populations on, and their stop flag.
+/// each record's three parts, the evaluator its searches score populations
+/// on, and their stop flag.
+///
+/// The parts keep the diagnosis honest: the fits read the estimation half,
+/// every choice (which effect, which realisation, which seed, when to stop,
+/// the noise floor and the explainable bound it compares with) reads the
+/// selection part, and the test part is read once, by [`Data::test`], after
+/// the model is final. Its figures are the ones no choice saw.
 #[derive(Debug, Clone)]
 pub struct Data {
     /// The traces, split as `fit` splits them.
     pub records: Records,
+    /// Each record's estimation, selection and test samples.
+    pub parts: Vec<Parts>,
     scorer: Scorer,
     /// Stops every search on these data ([`Data::stopped_by`]).
     pub(super) stop: StopFlag,
@@ -50,19 +63,52 @@ impl std::fmt::Debug for Scorer {
 
 impl Data {
     /// Splits every trace in halves as `fit` does ([`Records::of`], which
-    /// also checks that the data can be fitted at all).
-    pub fn new(traces: &[Trace]) -> anyhow::Result<Data> {
-        Data::in_coordinates(traces, None)
+    /// also checks that the data can be fitted at all), the second halves
+    /// in `blocks` blocks ([`Parts::of`]).
+    pub fn new(traces: &[Trace], blocks: usize) -> anyhow::Result<Data> {
+        Data::in_coordinates(traces, None, blocks)
     }
 
     /// As [`Data::new`], in `model`'s coordinates when one is given
     /// (`diagnose --from`, as `fit --from`: [`Records::of`]).
-    pub fn in_coordinates(traces: &[Trace], model: Option<&Model>) -> anyhow::Result<Data> {
+    pub fn in_coordinates(
+        traces: &[Trace],
+        model: Option<&Model>,
+        blocks: usize,
+    ) -> anyhow::Result<Data> {
+        let records = Records::of(traces, model)?;
+        let settle = Data::settle_of(&records);
+        let parts = records
+            .whole
+            .iter()
+            .map(|w| Parts::of(w.len(), blocks, settle))
+            .collect();
         Ok(Data {
-            records: Records::of(traces, model)?,
+            records,
+            parts,
             scorer: Scorer::of(Box::new(CpuEvaluator::new())),
             stop: StopFlag::default(),
         })
+    }
+
+    /// The settling gap between blocks: three time constants of the ARX
+    /// pole (95 % settled), at least one sample.
+    fn settle_of(records: &Records) -> usize {
+        let shortest = records.whole.iter().map(|w| w.len()).min().unwrap_or(0);
+        super::settle_samples(records.prior.a, shortest)
+    }
+
+    /// An error naming the record and the length it needs when a record is
+    /// too short for useful selection and test blocks: the diagnosis then
+    /// refuses to run rather than choose and report on the same samples.
+    pub fn check_parts(&self, blocks: usize) -> anyhow::Result<()> {
+        let settle = Data::settle_of(&self.records);
+        for w in &self.records.whole {
+            if let Some(e) = Parts::too_short(w.len(), blocks, settle) {
+                anyhow::bail!("{}: {e}", w.name);
+            }
+        }
+        Ok(())
     }
 
     /// The same data scored on `evaluator` (the CPU batch path by default).
@@ -134,14 +180,19 @@ impl Data {
             .sum()
     }
 
-    /// Validation samples over all datasets.
-    pub fn val_samples(&self) -> usize {
-        self.records
-            .whole
-            .iter()
-            .zip(&self.records.val_start)
-            .map(|(w, s)| w.len() - s)
-            .sum()
+    /// Selection samples over all datasets.
+    pub fn selection_samples(&self) -> usize {
+        self.parts.iter().map(Parts::selection_len).sum()
+    }
+
+    /// Each dataset's selection blocks.
+    pub fn selection_ranges(&self) -> Vec<Vec<Range<usize>>> {
+        self.parts.iter().map(|p| p.selection.clone()).collect()
+    }
+
+    /// Each dataset's test blocks.
+    pub fn test_ranges(&self) -> Vec<Vec<Range<usize>>> {
+        self.parts.iter().map(|p| p.test.clone()).collect()
     }
 
     /// Estimation SSE of `theta` (summed over datasets, `+∞` if any diverged).
@@ -220,20 +271,55 @@ impl Data {
             .collect()
     }
 
-    /// Validation residuals `y − ŷ` per dataset.
-    pub fn val_residuals(&self, model: &Augmented, theta: &[f64]) -> Vec<Vec<f64>> {
-        self.predict(model, theta)
-            .iter()
-            .zip(&self.records.whole)
-            .zip(&self.records.val_start)
-            .map(|((p, w), &s)| (s..w.len()).map(|k| w.y[k] as f64 - p[k] as f64).collect())
-            .collect()
+    /// Residuals `y − ŷ` of the free run on each selection block, with the
+    /// dataset each belongs to and its range.
+    pub fn selection_residuals(
+        &self,
+        model: &Augmented,
+        theta: &[f64],
+    ) -> Vec<(usize, Range<usize>, Vec<f64>)> {
+        let runs = self.predict(model, theta);
+        let mut blocks = Vec::new();
+        for (i, (p, w)) in runs.iter().zip(&self.records.whole).enumerate() {
+            for r in &self.parts[i].selection {
+                let res = r.clone().map(|k| w.y[k] as f64 - p[k] as f64).collect();
+                blocks.push((i, r.clone(), res));
+            }
+        }
+        blocks
     }
 
-    /// Validation RMSE over all datasets (`+∞` if the simulation diverged):
-    /// the records' one score ([`Records::validate`]).
-    pub fn val_rmse(&self, model: &Augmented, theta: &[f64]) -> f64 {
-        self.records.validate(model, theta).rmse
+    /// Scores on the selection part, every dataset pooled (infinite RMSE
+    /// where the simulation diverged): what every choice reads.
+    pub fn selection(&self, model: &Augmented, theta: &[f64]) -> Validation {
+        self.records
+            .score_on(model, theta, &self.selection_ranges())
+    }
+
+    /// [`Data::selection`]'s RMSE.
+    pub fn selection_rmse(&self, model: &Augmented, theta: &[f64]) -> f64 {
+        self.selection(model, theta).rmse
+    }
+
+    /// Scores on the test part, every dataset pooled: read once the model
+    /// is final, and by nothing that chooses.
+    pub fn test(&self, model: &Augmented, theta: &[f64]) -> Validation {
+        self.records.score_on(model, theta, &self.test_ranges())
+    }
+
+    /// The selection RMSE of each selection block of every dataset, in
+    /// order: whether a gain holds across the part, not only pooled.
+    pub fn block_rmse(&self, model: &Augmented, theta: &[f64]) -> Vec<f64> {
+        self.selection_residuals(model, theta)
+            .iter()
+            .map(|(_, _, r)| {
+                if r.iter().all(|v| v.is_finite()) {
+                    (r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64).sqrt()
+                } else {
+                    f64::INFINITY
+                }
+            })
+            .collect()
     }
 
     /// The search box of `model`: the default joint-flow box of the baseline

@@ -1,6 +1,6 @@
 //! How much of the gap is explainable at all: a flexible model of the
 //! baseline's residual, fitted on the estimation half and scored on the
-//! validation half, gives a reference for how far *any* model driven by the
+//! selection part, gives a reference for how far *any* model driven by the
 //! same signals could close the gap; the named effects are reported as
 //! shares of it, and a large reference that the catalogue closes little of
 //! is reported as "not explained by the catalogue".
@@ -19,7 +19,7 @@
 //! last measurement, which no simulation model can do.
 //!
 //! **What the number means.** The reference is what a ridge regression on
-//! these features achieves on validation data it never saw, so it is an
+//! these features achieves on selection data it never saw, so it is an
 //! estimate, not a theorem: an effect whose mark lies outside the span of the
 //! features (a hard nonlinearity deep in the state) can close more, and so
 //! can a physical effect refitted jointly with the baseline when the record
@@ -27,6 +27,8 @@
 //! Cavatappi muscle"); a share above 100 % says just that. The groups of
 //! features and the penalty are chosen by blocked cross-validation on the
 //! estimation half ([`ridge`](super::ridge)).
+
+use std::ops::Range;
 
 use serde::Serialize;
 
@@ -37,7 +39,7 @@ use super::locate::{Band, Share, Where};
 use super::ridge::{Problem, Ridge, RidgeSettings};
 use super::spectrum::Peak;
 
-/// One dataset's signals over the whole record (estimation then validation).
+/// One dataset's signals over the whole record.
 #[derive(Debug, Clone, Copy)]
 pub struct Signals<'a> {
     /// Input in absolute units.
@@ -46,16 +48,18 @@ pub struct Signals<'a> {
     pub prediction: &'a [f64],
     /// The measured output, in the prediction's coordinates.
     pub measured: &'a [f64],
-    /// First validation sample.
-    pub val_start: usize,
+    /// End of the estimation half, which the flexible model is fitted on.
+    pub est_end: usize,
+    /// The samples it is scored on (the selection blocks).
+    pub scored: &'a [Range<usize>],
 }
 
 /// The explainable bound of the baseline's residual `r = y − ŷ`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Bound {
-    /// Validation RMSE of `r` (the baseline's).
+    /// Selection RMSE of `r` (the baseline's).
     pub baseline_rmse: f64,
-    /// Validation RMSE of `r − r̂`, `r̂` the flexible model's prediction.
+    /// Selection RMSE of `r − r̂`, `r̂` the flexible model's prediction.
     pub bound_rmse: f64,
     /// The noise floor the gaps are measured against.
     pub floor_rmse: f64,
@@ -262,16 +266,16 @@ fn select_groups(
 }
 
 /// Fits the flexible model of `r = measured − prediction` on the estimation
-/// part of every dataset and scores it on the validation part.
+/// part of every dataset and scores it on the selection part.
 pub fn bound(sets: &[Signals], floor: f64, settings: &RidgeSettings) -> anyhow::Result<Bound> {
     anyhow::ensure!(!sets.is_empty(), "no data for the explainable bound");
     let est_u: Vec<f64> = sets
         .iter()
-        .flat_map(|s| s.input[..s.val_start].iter().copied())
+        .flat_map(|s| s.input[..s.est_end].iter().copied())
         .collect();
     let est_y: Vec<f64> = sets
         .iter()
-        .flat_map(|s| s.prediction[..s.val_start].iter().copied())
+        .flat_map(|s| s.prediction[..s.est_end].iter().copied())
         .collect();
     anyhow::ensure!(!est_u.is_empty(), "no estimation samples");
     let (lo, hi) = est_u
@@ -294,16 +298,16 @@ pub fn bound(sets: &[Signals], floor: f64, settings: &RidgeSettings) -> anyhow::
             if k == 0 {
                 continue;
             }
-            if k < s.val_start {
+            if k < s.est_end {
                 x_est.push(row);
                 r_est.push(r);
-            } else {
+            } else if s.scored.iter().any(|b| b.contains(&k)) {
                 x_val.push(row);
                 r_val.push(r);
             }
         }
     }
-    anyhow::ensure!(!r_val.is_empty(), "no validation samples");
+    anyhow::ensure!(!r_val.is_empty(), "no selection samples");
     let layout = groups(sets.len());
     debug_assert_eq!(
         layout.iter().map(|g| g.1).sum::<usize>(),
@@ -454,7 +458,9 @@ pub fn judge(
     let closed = steps.last().map_or(0.0, |s| s.gap_closed);
     let catalogue_share = of_bound(closed);
     let closes_little = catalogue_share.is_some_and(|s| s < SMALL_SHARE);
-    let final_rmse = steps.last().map_or(bound.baseline_rmse, |s| s.val_rmse);
+    let final_rmse = steps
+        .last()
+        .map_or(bound.baseline_rmse, |s| s.selection_rmse);
     let leaves_more = (1.0 - bound.gap_closable) < SMALL_SHARE * (1.0 - closed)
         && final_rmse > floor_margin * bound.floor_rmse;
     let not_explained = bound.gap_closable >= LARGE_BOUND && (closes_little || leaves_more);
@@ -507,11 +513,13 @@ mod tests {
             .zip(residual)
             .map(|(a, b)| a + b)
             .collect();
+        let scored: Vec<_> = std::iter::once(N / 2..N).collect();
         let s = Signals {
             input: u,
             prediction: &prediction,
             measured: &measured,
-            val_start: N / 2,
+            est_end: N / 2,
+            scored: &scored,
         };
         bound(&[s], floor, &RidgeSettings::default()).unwrap()
     }
@@ -590,9 +598,8 @@ mod tests {
     fn step(gap: f64, effects: Vec<Effect>) -> Step {
         Step {
             effects,
-            val_rmse: 0.0,
-            val_fit_percent: 0.0,
             gap_closed: gap,
+            ..Step::default()
         }
     }
 
@@ -634,7 +641,7 @@ mod tests {
         // The catalogue closes 96 % of the gap, the flexible model 98 %:
         // it leaves half as much. The final model at 1.0, ten times the floor.
         let mut last = step(0.96, vec![Effect::TwoPoleCreep]);
-        last.val_rmse = 1.0;
+        last.selection_rmse = 1.0;
         let steps = vec![step(0.0, vec![]), last.clone()];
         let e = judge(bound_closing(0.981), &steps, None, 1.1);
         assert!(e.catalogue_share.unwrap() > 0.9);
@@ -642,7 +649,7 @@ mod tests {
         // Leaving more than half as much: explained.
         assert!(!judge(bound_closing(0.975), &steps, None, 1.1).not_explained);
         // The final model within the floor's margin: nothing left to explain.
-        last.val_rmse = 0.105;
+        last.selection_rmse = 0.105;
         let at_floor = vec![step(0.0, vec![]), last];
         assert!(!judge(bound_closing(0.981), &at_floor, None, 1.1).not_explained);
     }

@@ -113,21 +113,24 @@ fn evolve(
     Ok((outcome.params, outcome.sse))
 }
 
-/// One fitted model.
+/// One fitted model: its parameters, its estimation SSE (what the fit
+/// minimised) and its RMSE on the selection part (what the diagnosis
+/// chooses by).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Fit {
     pub params: Vec<f64>,
     pub est_sse: f64,
-    pub val_rmse: f64,
+    pub sel_rmse: f64,
 }
 
 /// The fits of one model over several seeds.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SeededFit {
-    /// The seed with the lowest estimation SSE (among those finite on validation).
+    /// The seed with the lowest estimation SSE (among those finite on the
+    /// selection part).
     pub best: Fit,
-    /// Validation RMSE of every seed.
-    pub seed_val_rmse: Vec<f64>,
+    /// Selection RMSE of every seed.
+    pub seed_sel_rmse: Vec<f64>,
     /// Their spread, `1.4826·MAD` (a robust standard deviation), over the
     /// seeds the estimation data cannot tell from the best: those within the
     /// likelihood-ratio test's 95 % threshold of its SSE.
@@ -255,7 +258,7 @@ pub fn fit_candidate(
     let est_sse = data.est_sse(model, &best);
     let (best, est_sse) = polish(data, model, best, est_sse, (&lo, &hi))?;
     Ok(Fit {
-        val_rmse: data.val_rmse(model, &best),
+        sel_rmse: data.selection_rmse(model, &best),
         est_sse,
         params: best,
     })
@@ -357,12 +360,12 @@ pub(super) fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> an
         return Ok(fit);
     }
     let (params, est_sse) = polish(data, model, best, best_sse, (&lo, &hi))?;
-    let val_rmse = data.val_rmse(model, &params);
-    Ok(if val_rmse.is_finite() {
+    let sel_rmse = data.selection_rmse(model, &params);
+    Ok(if sel_rmse.is_finite() {
         Fit {
             params,
             est_sse,
-            val_rmse,
+            sel_rmse,
         }
     } else {
         fit
@@ -587,9 +590,9 @@ pub(super) fn scratch_fits(
 /// The best fit of several seeds and their spread; `samples` estimation
 /// residuals.
 fn summarize(fits: Vec<Fit>, samples: usize) -> SeededFit {
-    let seed_val_rmse: Vec<f64> = fits.iter().map(|f| f.val_rmse).collect();
+    let seed_sel_rmse: Vec<f64> = fits.iter().map(|f| f.sel_rmse).collect();
     // The spread among the seeds that reached the best estimation fit: how
-    // much validation moves between fits the estimation data cannot tell
+    // much the selection RMSE moves between fits the estimation data cannot tell
     // apart, those within the likelihood-ratio test's 95 % threshold of the
     // best, `χ²₁(0.95)·σ̂²` with `σ̂² = SSE/N` (the threshold of the profile
     // intervals, `interval`). A seed stuck in a worse basin is a failed fit,
@@ -599,27 +602,27 @@ fn summarize(fits: Vec<Fit>, samples: usize) -> SeededFit {
     let converged: Vec<f64> = fits
         .iter()
         .filter(|f| f.est_sse <= threshold)
-        .map(|f| f.val_rmse)
+        .map(|f| f.sel_rmse)
         .collect();
     let spread = std_dev(&converged);
     // The seed with the lowest estimation SSE among those that stay finite on
-    // the validation part: a fit that diverges there is not a model (the
-    // validation part is used for nothing else in this choice).
-    let any_finite = fits.iter().any(|f| f.val_rmse.is_finite());
+    // the selection part: a fit that diverges there is not a model (the
+    // selection part is used for nothing else in this choice).
+    let any_finite = fits.iter().any(|f| f.sel_rmse.is_finite());
     let best = fits
         .into_iter()
-        .filter(|f| f.val_rmse.is_finite() || !any_finite)
+        .filter(|f| f.sel_rmse.is_finite() || !any_finite)
         .min_by(|a, b| a.est_sse.total_cmp(&b.est_sse))
         .expect("at least one seed");
     SeededFit {
         best,
-        seed_val_rmse,
+        seed_sel_rmse,
         spread,
     }
 }
 
 /// The seed-to-seed spread: a robust standard deviation, `1.4826·MAD` of the
-/// seeds' validation RMSEs (non-finite ones count as +∞). A seed stuck in a
+/// seeds' selection RMSEs (non-finite ones count as +∞). A seed stuck in a
 /// poor basin is a failed fit, not spread, and the median ignores it while
 /// seeds that agree give a small spread.
 fn std_dev(v: &[f64]) -> f64 {
@@ -658,10 +661,10 @@ mod tests {
 
     #[test]
     fn the_spread_counts_the_seeds_the_estimation_data_cannot_tell_apart() {
-        let fit = |est_sse: f64, val_rmse: f64| Fit {
+        let fit = |est_sse: f64, sel_rmse: f64| Fit {
             params: vec![0.0],
             est_sse,
-            val_rmse,
+            sel_rmse,
         };
         // 1000 residuals: the window is 3.841·100/1000 = 0.38 above the best.
         let fits = vec![fit(100.0, 1.0), fit(100.3, 1.2), fit(100.9, 5.0)];
@@ -670,7 +673,7 @@ mod tests {
         // 1.4826·MAD of 1.0 and 1.2; the third seed (0.9 % worse, inside
         // the old fixed 1 %) is a different fit, not spread.
         assert!((s.spread - 1.4826 * 0.1).abs() < 1e-12, "{}", s.spread);
-        assert_eq!(s.seed_val_rmse, vec![1.0, 1.2, 5.0]);
+        assert_eq!(s.seed_sel_rmse, vec![1.0, 1.2, 5.0]);
     }
 
     /// A stair of pressures through a valve (pole 0.6) and the thesis'
@@ -693,7 +696,11 @@ mod tests {
             .iter()
             .map(|&v| v as f64 + noise.sample(&mut rng))
             .collect();
-        Data::new(&[Trace::uniform("stair", 0.1, p, y)]).unwrap()
+        Data::new(
+            &[Trace::uniform("stair", 0.1, p, y)],
+            crate::diagnose::Settings::default().blocks,
+        )
+        .unwrap()
     }
 
     #[test]

@@ -185,7 +185,11 @@ mod tests {
             (q2, q1) = (q1, q);
             y[k] = x + q + noise.sample(&mut rng);
         }
-        Data::new(&[Trace::uniform("ringing", dt, u, y)]).unwrap()
+        Data::new(
+            &[Trace::uniform("ringing", dt, u, y)],
+            crate::diagnose::Settings::default().blocks,
+        )
+        .unwrap()
     }
 
     #[test]

@@ -142,8 +142,11 @@ mod tests {
         let theta: Vec<f32> = thesis.iter().map(|&v| v as f32).collect();
         let plain = simulate(Family::Classic, &theta, &u, 0.0).x;
         let plain: Vec<f64> = plain.iter().map(|&v| v as f64).collect();
-        let clean =
-            Data::new(&[Trace::uniform("stair", 0.1, p.clone(), plain)]).expect("valid stair");
+        let clean = Data::new(
+            &[Trace::uniform("stair", 0.1, p.clone(), plain)],
+            crate::diagnose::Settings::default().blocks,
+        )
+        .expect("valid stair");
         // The thesis' model in the data's deviation coordinates: the fit to
         // its own noiseless response nearest its parameters.
         let base = Augmented::new(Family::Classic, Vec::new(), 1);
@@ -165,7 +168,11 @@ mod tests {
             .iter()
             .map(|&v| v as f64 + clean.records.whole[0].y_mean + noise.sample(&mut rng))
             .collect();
-        let data = Data::new(&[Trace::uniform("stair", 0.1, p, y)]).expect("valid stair");
+        let data = Data::new(
+            &[Trace::uniform("stair", 0.1, p, y)],
+            crate::diagnose::Settings::default().blocks,
+        )
+        .expect("valid stair");
         let (_, lo, hi) = data.space(&model);
         let sse = data.est_sse(&model, &truth);
         let (fit, _) = polish(&data, &model, truth, sse, (&lo, &hi)).unwrap();

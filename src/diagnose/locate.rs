@@ -1,4 +1,4 @@
-//! Where the gap lies: the free-run residual on the validation part broken
+//! Where the gap lies: the free-run residual on the selection part broken
 //! down by share of residual energy, and the residual tests of MATLAB's
 //! `resid` (whiteness, residual–input independence) with 99 % bounds.
 //!
@@ -8,7 +8,7 @@
 
 use serde::Serialize;
 
-/// One validation segment: absolute input and the residual `y − ŷ`.
+/// One scored segment (a selection block): absolute input and the residual `y − ŷ`.
 #[derive(Debug, Clone)]
 pub struct Segment {
     pub name: String,
@@ -196,14 +196,24 @@ pub fn analyse(segments: &[Segment], settle_samples: usize) -> Where {
         });
     }
 
-    let dataset = segments
+    // One entry per dataset, whatever the number of its segments (the
+    // blocks of its selection part).
+    let mut names: Vec<&str> = Vec::new();
+    for s in segments {
+        if !names.contains(&s.name.as_str()) {
+            names.push(&s.name);
+        }
+    }
+    let dataset = names
         .iter()
-        .map(|s| {
-            let e: f64 = s.residual.iter().map(|r| r * r).sum();
+        .map(|name| {
+            let of: Vec<&Segment> = segments.iter().filter(|s| s.name == *name).collect();
+            let e: f64 = of.iter().flat_map(|s| &s.residual).map(|r| r * r).sum();
+            let count: usize = of.iter().map(|s| s.residual.len()).sum();
             DatasetShare {
-                name: s.name.clone(),
-                share: share(e, total, s.residual.len(), n),
-                rmse: (e / s.residual.len().max(1) as f64).sqrt(),
+                name: name.to_string(),
+                share: share(e, total, count, n),
+                rmse: (e / count.max(1) as f64).sqrt(),
             }
         })
         .collect();

@@ -28,6 +28,7 @@ pub mod select;
 pub mod selftest;
 pub mod settings;
 pub mod spectrum;
+pub mod transfer;
 
 use serde::Serialize;
 
@@ -37,18 +38,36 @@ pub use select::Selection;
 pub use settings::{Interrupted, Settings, StopFlag};
 
 use crate::data::Trace;
+use crate::model::experiment::Parts;
 use crate::model::file::Chain;
 use crate::model::{Family, FittedModel, Model};
 
-/// Validation RMSE and fit % of one model along the way.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// One model along the way (the baseline, then after each accepted effect),
+/// scored on each part of the records.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Step {
     /// Effects of the model (empty: the baseline).
     pub effects: Vec<Effect>,
+    /// Free-run RMSE and fit % over the whole second half (selection, test
+    /// and the gaps between): `fit`'s validation figure, the one `simulate
+    /// --from` reproduces. It mixes what chose the model with what did not.
     pub val_rmse: f64,
     pub val_fit_percent: f64,
-    /// Share of the baseline's gap above the noise floor closed (residual energy).
+    /// On the selection part, which every choice of the diagnosis read.
+    pub selection_rmse: f64,
+    pub selection_fit_percent: f64,
+    /// On the test part, which no choice read.
+    pub test_rmse: f64,
+    pub test_fit_percent: f64,
+    /// The selection fit less the test fit, in points: how much the choice
+    /// flattered the model.
+    pub optimism_points: f64,
+    /// Share of the baseline's gap above the noise floor closed (residual
+    /// energy), on the selection part.
     pub gap_closed: f64,
+    /// The same on the test part: how far the gap shrinks on data no
+    /// choice saw.
+    pub test_gap_closed: f64,
 }
 
 /// Everything the diagnosis found (`report::DiagnosisJson` is its `--json`
@@ -60,6 +79,8 @@ pub struct Diagnosis {
     /// model file's name here), `None` from scratch.
     pub from: Option<String>,
     pub datasets: Vec<String>,
+    /// Each dataset's estimation, selection and test samples.
+    pub parts: Vec<Parts>,
     /// Sample time of the first dataset (s), for sizes in time.
     pub dt: f64,
     pub noise_floor_rmse: f64,
@@ -80,14 +101,17 @@ pub struct Diagnosis {
     /// and of the final model; `None` where the validation part is too short.
     pub spectrum: Option<spectrum::Spectrum>,
     pub final_spectrum: Option<spectrum::Spectrum>,
-    /// Validation predictions `(t, input, measured, baseline, final)` per dataset (absolute units).
+    /// Second-half predictions `(t, input, measured, baseline, final)` per dataset (absolute units).
     pub curves: Vec<Curves>,
     /// The baseline and the final model, as a model file holds them.
     pub baseline_model: Model,
     pub final_model: Model,
+    /// The chain fitted on other records of the muscle (`--transfer`,
+    /// [`transfer::transfer`]); empty unless asked for.
+    pub transfers: Vec<transfer::Transfer>,
 }
 
-/// Validation-part curves of one dataset, for figures.
+/// Second-half curves of one dataset, for figures.
 #[derive(Debug, Clone)]
 pub struct Curves {
     pub name: String,
@@ -133,8 +157,9 @@ fn settle_samples(a: f64, len: usize) -> usize {
 /// selection's (100 per round, `select::select`).
 const REFIT_SALT: u64 = 9_000;
 
-/// Runs the whole diagnosis on `traces` (estimation first half, validation
-/// second half of each).
+/// Runs the whole diagnosis on `traces`: each fitted on its first half,
+/// every choice made on the selection blocks of its second half, the test
+/// blocks read once at the end ([`Data`]).
 pub fn diagnose(
     traces: &[Trace],
     family: Family,
@@ -163,27 +188,33 @@ pub fn diagnose_from(
             m.check_data(t)?;
         }
     }
-    let data = Data::in_coordinates(traces, from)?
+    let data = Data::in_coordinates(traces, from, settings.blocks)?
         .scored_on(crate::eval::open(settings.backend)?)
         .stopped_by(settings.stop.clone());
+    data.check_parts(settings.blocks)?;
     let start = match from {
         Some(m) => Some(start_of(m, family, data.datasets())?),
         None => None,
     };
+    // The noise floor the rule compares against: from the selection part.
     let outputs: Vec<Vec<f64>> = data
         .records
         .whole
         .iter()
-        .zip(&data.records.val_start)
-        .map(|(w, &s)| w.y[s..].iter().map(|&v| v as f64).collect())
+        .zip(&data.parts)
+        .flat_map(|(w, p)| {
+            p.selection
+                .iter()
+                .map(|r| w.y[r.clone()].iter().map(|&v| v as f64).collect())
+        })
         .collect();
     let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
     let floor = locate::noise_floor(&refs);
     let start_ref = start.as_ref().map(|(m, theta)| (m, theta.as_slice()));
     let selection = select::select(&data, family, effects, settings, floor, start_ref)?;
     anyhow::ensure!(
-        selection.baseline.best.val_rmse.is_finite(),
-        "the {family} baseline fitted on the estimation half diverges on the validation half \
+        selection.baseline.best.sel_rmse.is_finite(),
+        "the {family} baseline fitted on the estimation half diverges on the selection part \
          for every seed ({}), so there is no gap to diagnose; try fewer datasets at a time, \
          more --seeds, or the other --baseline",
         traces
@@ -193,14 +224,10 @@ pub fn diagnose_from(
             .join(", ")
     );
 
+    // The models along the way, final: each model and its parameters.
     let base_model = &selection.baseline_model;
     let base = &selection.baseline.best;
-    let mut steps = vec![Step {
-        effects: Vec::new(),
-        val_rmse: base.val_rmse,
-        val_fit_percent: data.records.validate(base_model, &base.params).fit_percent,
-        gap_closed: 0.0,
-    }];
+    let mut models: Vec<(Augmented, &[f64])> = vec![(base_model.clone(), &base.params)];
     if let Some(given) = &selection.given_fit {
         // The first round may have found a better fit of the start model.
         let fit = selection
@@ -209,12 +236,7 @@ pub fn diagnose_from(
             .and_then(|round| round.rebased.last())
             .map_or(&given.best, |f| &f.best);
         let model = Augmented::new(family, selection.given.clone(), data.datasets());
-        steps.push(Step {
-            effects: selection.given.clone(),
-            val_rmse: fit.val_rmse,
-            val_fit_percent: data.records.validate(&model, &fit.params).fit_percent,
-            gap_closed: accept::gap_closed(base.val_rmse, fit.val_rmse, floor),
-        });
+        models.push((model, &fit.params));
     }
     for (r, round) in selection.rounds.iter().enumerate() {
         if let Some(c) = round
@@ -228,14 +250,11 @@ pub fn diagnose_from(
                 .get(r + 1)
                 .and_then(|next| next.rebased.last())
                 .map_or(&c.fit.best, |f| &f.best);
-            steps.push(Step {
-                effects: c.model.effects.clone(),
-                val_rmse: fit.val_rmse,
-                val_fit_percent: data.records.validate(&c.model, &fit.params).fit_percent,
-                gap_closed: accept::gap_closed(base.val_rmse, fit.val_rmse, floor),
-            });
+            models.push((c.model.clone(), &fit.params));
         }
     }
+    // The test part is read here, once, after every choice is made.
+    let steps = steps_of(&data, &models, floor);
 
     let size_intervals = selection
         .verdict
@@ -254,30 +273,27 @@ pub fn diagnose_from(
         &selection.final_fit,
         &scratch,
         |f| {
-            data.records
-                .validate(&selection.final_model, &f.params)
+            data.selection(&selection.final_model, &f.params)
                 .fit_percent
         },
         data.est_samples(),
     );
 
     let ia = family.linear_indices()[0];
-    let segments_of = |residuals: Vec<Vec<f64>>| -> Vec<locate::Segment> {
-        traces
-            .iter()
-            .zip(&data.records.val_start)
-            .zip(residuals)
-            .map(|((t, &s), r)| locate::Segment {
-                name: t.source.clone(),
-                dt: t.dt(),
-                input: t.input[s..].to_vec(),
-                residual: r,
+    // Where the models miss, on the selection blocks.
+    let segments_of = |model: &Augmented, theta: &[f64]| -> Vec<locate::Segment> {
+        data.selection_residuals(model, theta)
+            .into_iter()
+            .map(|(i, r, residual)| locate::Segment {
+                name: traces[i].source.clone(),
+                dt: traces[i].dt(),
+                input: traces[i].input[r].to_vec(),
+                residual,
             })
             .collect()
     };
-    let segments = segments_of(data.val_residuals(base_model, &base.params));
-    let final_segments =
-        segments_of(data.val_residuals(&selection.final_model, &selection.final_fit.params));
+    let segments = segments_of(base_model, &base.params);
+    let final_segments = segments_of(&selection.final_model, &selection.final_fit.params);
     let min_len = segments.iter().map(|s| s.residual.len()).min().unwrap_or(0);
     let settle = settle_samples(base.params[ia], min_len);
     let place = locate::analyse(&segments, settle);
@@ -298,7 +314,8 @@ pub fn diagnose_from(
             input: &t.input,
             prediction: &pred[i],
             measured: &meas[i],
-            val_start: data.records.val_start[i],
+            est_end: data.parts[i].estimation.end,
+            scored: &data.parts[i].selection,
         })
         .collect();
     let bound = explainable::bound(&signals, floor, &ridge::RidgeSettings::default())?;
@@ -340,6 +357,7 @@ pub fn diagnose_from(
         final_model,
         family,
         datasets: traces.iter().map(|t| t.source.clone()).collect(),
+        parts: data.parts.clone(),
         dt: data.records.ctx[0].dt,
         noise_floor_rmse: floor,
         locate: place,
@@ -351,7 +369,41 @@ pub fn diagnose_from(
         spectrum,
         final_spectrum,
         curves,
+        transfers: Vec::new(),
     })
+}
+
+/// Each of `models` (the baseline first) scored on every part: the second
+/// half, the selection part and, read here for the first time, the test
+/// part; the gap each closes measured from the baseline's on each part.
+fn steps_of(data: &Data, models: &[(Augmented, &[f64])], floor: f64) -> Vec<Step> {
+    let scored: Vec<_> = models
+        .iter()
+        .map(|(m, theta)| {
+            (
+                m.effects.clone(),
+                data.records.validate(m, theta),
+                data.selection(m, theta),
+                data.test(m, theta),
+            )
+        })
+        .collect();
+    let (base_sel, base_test) = (scored[0].2.rmse, scored[0].3.rmse);
+    scored
+        .into_iter()
+        .map(|(effects, val, sel, test)| Step {
+            effects,
+            val_rmse: val.rmse,
+            val_fit_percent: val.fit_percent,
+            selection_rmse: sel.rmse,
+            selection_fit_percent: sel.fit_percent,
+            test_rmse: test.rmse,
+            test_fit_percent: test.fit_percent,
+            optimism_points: sel.fit_percent - test.fit_percent,
+            gap_closed: accept::gap_closed(base_sel, sel.rmse, floor),
+            test_gap_closed: accept::gap_closed(base_test, test.rmse, floor),
+        })
+        .collect()
 }
 
 /// The start of a selection from `model`: its chain over `datasets`

@@ -1,4 +1,5 @@
-//! Whether the estimation data settle the final model's validation fit.
+//! Whether the estimation data settle the final model's fit on the
+//! selection part.
 //!
 //! The diagnosis' final fit comes from a chain of warm starts, one effect
 //! after another; the estimation half may hold fits of the same model as
@@ -26,16 +27,16 @@ pub struct Refits {
     /// Estimation SSE of the final fit and of the best from-scratch fit.
     pub final_est_sse: f64,
     pub best_est_sse: f64,
-    /// Validation fit % of the final fit and of the best from-scratch fit.
-    pub final_val_fit_percent: f64,
-    pub best_val_fit_percent: f64,
+    /// Selection fit % of the final fit and of the best from-scratch fit.
+    pub final_selection_fit_percent: f64,
+    pub best_selection_fit_percent: f64,
     /// Whether the final fit is within the likelihood-ratio test's 95 %
     /// threshold of the lowest estimation SSE (`χ²₁(0.95)·SSE/N`, the
     /// threshold of the profile intervals).
     pub final_tied: bool,
-    /// Validation fit % over every fit (the final one included) within
+    /// Selection fit % over every fit (the final one included) within
     /// that threshold: the fits the estimation data cannot tell apart.
-    pub tied_val_fit_percent: (f64, f64),
+    pub tied_selection_fit_percent: (f64, f64),
     /// How many fits that is.
     pub tied: usize,
 }
@@ -60,7 +61,7 @@ pub enum Finding {
 
 impl Refits {
     /// Compares the final fit with the from-scratch ones; `fit_percent`
-    /// gives a fit's validation fit %, `samples` is the number of
+    /// gives a fit's selection fit %, `samples` is the number of
     /// estimation residuals. `None` without a finite from-scratch fit.
     pub fn compare(
         final_fit: &Fit,
@@ -89,16 +90,16 @@ impl Refits {
             fits: scratch.len(),
             final_est_sse: final_fit.est_sse,
             best_est_sse: best.est_sse,
-            final_val_fit_percent: fit_percent(final_fit),
-            best_val_fit_percent: fit_percent(best),
+            final_selection_fit_percent: fit_percent(final_fit),
+            best_selection_fit_percent: fit_percent(best),
             final_tied: final_fit.est_sse <= threshold,
-            tied_val_fit_percent: range,
+            tied_selection_fit_percent: range,
             tied: tied.len(),
         })
     }
 
     pub fn finding(&self) -> Finding {
-        let (lo, hi) = self.tied_val_fit_percent;
+        let (lo, hi) = self.tied_selection_fit_percent;
         if !self.final_tied {
             Finding::Beaten
         } else if self.tied < 2 {
@@ -116,16 +117,16 @@ mod tests {
     use super::*;
 
     fn fit(est_sse: f64, val: f64) -> Fit {
-        // `val_rmse` carries the validation fit % in these tests.
+        // `sel_rmse` carries the validation fit % in these tests.
         Fit {
             params: Vec::new(),
             est_sse,
-            val_rmse: val,
+            sel_rmse: val,
         }
     }
 
     fn compare(final_fit: Fit, scratch: &[Fit]) -> Refits {
-        Refits::compare(&final_fit, scratch, |f| f.val_rmse, 1000).expect("a scratch fit")
+        Refits::compare(&final_fit, scratch, |f| f.sel_rmse, 1000).expect("a scratch fit")
     }
 
     #[test]
@@ -133,7 +134,7 @@ mod tests {
         // Threshold: 3.841·100/1000 = 0.38 above the lowest SSE.
         let r = compare(fit(100.0, 88.0), &[fit(100.2, 87.5), fit(130.0, 40.0)]);
         assert_eq!(r.finding(), Finding::Reproduced);
-        assert_eq!((r.tied, r.tied_val_fit_percent), (2, (87.5, 88.0)));
+        assert_eq!((r.tied, r.tied_selection_fit_percent), (2, (87.5, 88.0)));
     }
 
     #[test]
@@ -147,17 +148,17 @@ mod tests {
     fn a_better_scratch_fit_beats_the_final_one() {
         let r = compare(fit(16.4, 83.4), &[fit(14.7, 51.7), fit(16.5, 80.0)]);
         assert_eq!(r.finding(), Finding::Beaten);
-        assert_eq!((r.best_est_sse, r.best_val_fit_percent), (14.7, 51.7));
+        assert_eq!((r.best_est_sse, r.best_selection_fit_percent), (14.7, 51.7));
         assert!(!r.final_tied);
     }
 
     #[test]
     fn tied_fits_that_validate_apart_leave_it_unsettled() {
         // 825 estimation samples: threshold 17.89 + 0.083 (the 300 g case).
-        let r = Refits::compare(&fit(17.97, 82.0), &[fit(17.89, 61.8)], |f| f.val_rmse, 825)
+        let r = Refits::compare(&fit(17.97, 82.0), &[fit(17.89, 61.8)], |f| f.sel_rmse, 825)
             .expect("a scratch fit");
         assert_eq!(r.finding(), Finding::Unsettled);
-        assert_eq!(r.tied_val_fit_percent, (61.8, 82.0));
+        assert_eq!(r.tied_selection_fit_percent, (61.8, 82.0));
     }
 
     #[test]
@@ -165,7 +166,7 @@ mod tests {
         let none = Refits::compare(
             &fit(1.0, 90.0),
             &[fit(f64::INFINITY, 0.0)],
-            |f| f.val_rmse,
+            |f| f.sel_rmse,
             10,
         );
         assert!(none.is_none());

@@ -13,13 +13,15 @@ use super::interval::SizeInterval;
 use super::locate::{Band, Correlation, DatasetShare, Share};
 use super::refits::{Finding, Refits};
 use super::spectrum::{Peak, Spectrum};
+use super::transfer::Transfer;
 use super::{Diagnosis, Step};
+use crate::model::experiment::Parts;
 use crate::report::json::Named;
 use crate::report::{Figure, Panel, Series};
 
 /// One entry per effect scored: from the round it was accepted in, else from
 /// the last round it was scored in. Accepted effects first (in the order
-/// accepted), then the rest by validation RMSE.
+/// accepted), then the rest by selection RMSE.
 pub fn candidate_list(d: &Diagnosis) -> Vec<(&Candidate, bool, usize)> {
     let mut seen: BTreeMap<&'static str, (&Candidate, bool, usize)> = BTreeMap::new();
     for (r, round) in d.selection.rounds.iter().enumerate() {
@@ -37,7 +39,7 @@ pub fn candidate_list(d: &Diagnosis) -> Vec<(&Candidate, bool, usize)> {
         (Some(x), Some(y)) => x.cmp(&y),
         (Some(_), None) => std::cmp::Ordering::Less,
         (None, Some(_)) => std::cmp::Ordering::Greater,
-        (None, None) => a.0.fit.best.val_rmse.total_cmp(&b.0.fit.best.val_rmse),
+        (None, None) => a.0.fit.best.sel_rmse.total_cmp(&b.0.fit.best.sel_rmse),
     });
     list
 }
@@ -72,24 +74,72 @@ pub struct CandidateJson {
     pub realisation: &'static str,
     pub size: Option<String>,
     pub params: Named,
-    pub val_rmse: f64,
+    pub selection_rmse: f64,
     pub gap_closed: f64,
     pub accepted: bool,
     pub round: usize,
-    pub seed_val_rmse: Vec<f64>,
+    pub seed_selection_rmse: Vec<f64>,
+    /// The candidate's RMSE over the current model's on each selection
+    /// block, in order.
+    pub block_ratios: Vec<f64>,
     pub delta_bic: f64,
     pub relative_improvement: f64,
     pub reason: String,
     pub signature: &'static str,
 }
 
+/// A model's figures on each part (a [`Step`] less its effects).
+#[derive(Debug, Serialize)]
+pub struct PartsFigures {
+    pub val_rmse: f64,
+    pub val_fit_percent: f64,
+    pub selection_rmse: f64,
+    pub selection_fit_percent: f64,
+    pub test_rmse: f64,
+    pub test_fit_percent: f64,
+    pub optimism_points: f64,
+}
+
+impl PartsFigures {
+    fn of(s: &Step) -> PartsFigures {
+        PartsFigures {
+            val_rmse: s.val_rmse,
+            val_fit_percent: s.val_fit_percent,
+            selection_rmse: s.selection_rmse,
+            selection_fit_percent: s.selection_fit_percent,
+            test_rmse: s.test_rmse,
+            test_fit_percent: s.test_fit_percent,
+            optimism_points: s.optimism_points,
+        }
+    }
+}
+
 #[derive(Debug, Serialize)]
 pub struct BaselineJson {
     pub model: &'static str,
     pub params: Named,
-    pub val_rmse: f64,
-    pub val_fit_percent: f64,
-    pub seed_val_rmse: Vec<f64>,
+    #[serde(flatten)]
+    pub figures: PartsFigures,
+    pub seed_selection_rmse: Vec<f64>,
+}
+
+/// A record's three parts: `[start, end)` sample ranges.
+#[derive(Debug, Serialize)]
+pub struct PartsJson {
+    pub estimation: Vec<[usize; 2]>,
+    pub selection: Vec<[usize; 2]>,
+    pub test: Vec<[usize; 2]>,
+}
+
+impl PartsJson {
+    fn of(p: &Parts) -> PartsJson {
+        let pairs = |v: &[std::ops::Range<usize>]| v.iter().map(|r| [r.start, r.end]).collect();
+        PartsJson {
+            estimation: pairs(std::slice::from_ref(&p.estimation)),
+            selection: pairs(&p.selection),
+            test: pairs(&p.test),
+        }
+    }
 }
 
 #[derive(Debug, Serialize)]
@@ -134,9 +184,10 @@ pub struct FinalJson {
     /// The effects of the final model, in the order accepted.
     pub model: Vec<&'static str>,
     pub params: Named,
-    pub val_rmse: f64,
-    pub val_fit_percent: f64,
+    #[serde(flatten)]
+    pub figures: PartsFigures,
     pub gap_closed: f64,
+    pub test_gap_closed: f64,
     pub size_intervals: Vec<SizeInterval>,
     pub refits: Option<RefitsJson>,
 }
@@ -174,6 +225,8 @@ pub struct SpectrumJson {
 pub struct DiagnosisJson {
     pub baseline: BaselineJson,
     pub datasets: Vec<String>,
+    /// Each dataset's parts, parallel to `datasets`.
+    pub parts: Vec<PartsJson>,
     pub noise_floor_rmse: f64,
     pub noise_floor_method: &'static str,
     #[serde(rename = "where")]
@@ -193,6 +246,8 @@ pub struct DiagnosisJson {
     pub final_: FinalJson,
     pub explainable: ExplainableJson,
     pub spectrum: SpectrumJson,
+    /// The chain fitted on other records (`--transfer`); empty without.
+    pub transfers: Vec<Transfer>,
     pub rule: &'static str,
 }
 
@@ -213,11 +268,12 @@ impl DiagnosisJson {
                     realisation: c.effect.realisation(),
                     size: c.effect.size_text(&values, d.dt),
                     params: c.effect_params.iter().map(|(n, v)| (n, *v)).collect(),
-                    val_rmse: c.fit.best.val_rmse,
-                    gap_closed: gap_closed(base.val_rmse, c.fit.best.val_rmse, floor),
+                    selection_rmse: c.fit.best.sel_rmse,
+                    gap_closed: gap_closed(base.selection_rmse, c.fit.best.sel_rmse, floor),
                     accepted,
                     round,
-                    seed_val_rmse: c.fit.seed_val_rmse.clone(),
+                    seed_selection_rmse: c.fit.seed_sel_rmse.clone(),
+                    block_ratios: c.block_ratios.clone(),
                     delta_bic: c.delta_bic,
                     relative_improvement: c.relative,
                     reason: c.reason.clone(),
@@ -238,13 +294,13 @@ impl DiagnosisJson {
             baseline: BaselineJson {
                 model: d.family.name(),
                 params: Named::zip(&sel.baseline_model.param_names(), &sel.baseline.best.params),
-                val_rmse: base.val_rmse,
-                val_fit_percent: base.val_fit_percent,
-                seed_val_rmse: sel.baseline.seed_val_rmse.clone(),
+                figures: PartsFigures::of(base),
+                seed_selection_rmse: sel.baseline.seed_sel_rmse.clone(),
             },
             datasets: d.datasets.clone(),
+            parts: d.parts.iter().map(PartsJson::of).collect(),
             noise_floor_rmse: floor,
-            noise_floor_method: "median |second difference of the measured validation output| / (0.6745·√6)",
+            noise_floor_method: "median |second difference of the measured output on the selection blocks| / (0.6745·√6)",
             where_: WhereJson {
                 rmse: w.rmse,
                 branch: BranchJson {
@@ -288,9 +344,9 @@ impl DiagnosisJson {
             final_: FinalJson {
                 model: sel.final_model.effects.iter().map(|e| e.name()).collect(),
                 params: Named::zip(&sel.final_model.param_names(), &sel.final_fit.params),
-                val_rmse: last.val_rmse,
-                val_fit_percent: last.val_fit_percent,
+                figures: PartsFigures::of(last),
                 gap_closed: last.gap_closed,
+                test_gap_closed: last.test_gap_closed,
                 size_intervals: d.size_intervals.clone(),
                 refits: d.refits.as_ref().map(|r| RefitsJson {
                     refits: r.clone(),
@@ -309,7 +365,7 @@ impl DiagnosisJson {
                 catalogue_share: x.catalogue_share,
                 not_explained: x.not_explained,
                 signature: x.signature.clone(),
-                method: "ridge regression of the baseline's residual on groups of features (lags, Laguerre and low-pass filters, rate and branch of the input, lags and level terms of the baseline's prediction; never the measured output), groups added forward and the penalty chosen by 5-fold blocked CV on the estimation half, scored on the validation half",
+                method: "ridge regression of the baseline's residual on groups of features (lags, Laguerre and low-pass filters, rate and branch of the input, lags and level terms of the baseline's prediction; never the measured output), groups added forward and the penalty chosen by 5-fold blocked CV on the estimation half, scored on the selection part",
             },
             spectrum: SpectrumJson {
                 segment: d.spectrum.as_ref().map(|s| s.segment),
@@ -318,6 +374,7 @@ impl DiagnosisJson {
                 peaks: peaks(&d.spectrum),
                 final_peaks: peaks(&d.final_spectrum),
             },
+            transfers: d.transfers.clone(),
             rule: "accept iff R0−R1 > 3·√(s0²+s1²) (seed spread), ΔBIC = N·ln(R1²/R0²) + k·ln N < −10, (R0−R1)/R0 ≥ 2 %, and R0 > 1.1·noise floor; a candidate's gain that the model without it reaches from the candidate's parameters is not credited to it (ablation)",
         }
     }
@@ -339,6 +396,26 @@ fn step_name(before: Option<&Step>, s: &Step) -> String {
     }
 }
 
+/// How the records were split, in words.
+fn parts_text(d: &Diagnosis) -> String {
+    let Some(p) = d.parts.first() else {
+        return String::new();
+    };
+    let blocks = p.selection.len() + p.test.len();
+    let gap = match (p.selection.first(), p.test.first()) {
+        (Some(s), Some(t)) => t.start.saturating_sub(s.end),
+        _ => 0,
+    };
+    format!(
+        "Parts: each record's first half estimates; its second half is cut into {blocks} blocks, \
+         selection and test in turn ({gap}-sample settling gaps between).\n  Every choice reads \
+         the selection blocks ({} samples); the test blocks ({} samples) are read once, after \
+         the model is final.",
+        d.parts.iter().map(Parts::selection_len).sum::<usize>(),
+        d.parts.iter().map(Parts::test_len).sum::<usize>()
+    )
+}
+
 /// The readable report.
 pub fn to_text(d: &Diagnosis) -> String {
     let mut o = String::new();
@@ -350,10 +427,15 @@ pub fn to_text(d: &Diagnosis) -> String {
         d.family,
         d.datasets.join(", ")
     );
+    let _ = writeln!(o, "{}", parts_text(d));
     let _ = writeln!(
         o,
-        "Baseline: validation RMSE {:.4}, fit {:.1} %; noise floor ≈ {:.4} (from second differences of the measured output)",
-        base.val_rmse, base.val_fit_percent, d.noise_floor_rmse
+        "Baseline: selection fit {:.1} % (RMSE {:.4}), test fit {:.1} % (RMSE {:.4}); noise floor ≈ {:.4} (from second differences of the measured selection output)",
+        base.selection_fit_percent,
+        base.selection_rmse,
+        base.test_fit_percent,
+        base.test_rmse,
+        d.noise_floor_rmse
     );
     if let Some(from) = &d.from {
         let names: Vec<&str> = d.selection.given.iter().map(|e| e.name()).collect();
@@ -372,7 +454,7 @@ pub fn to_text(d: &Diagnosis) -> String {
     }
     let _ = writeln!(
         o,
-        "\nWHERE the baseline misses (share of residual energy vs share of samples):"
+        "\nWHERE the baseline misses on the selection part (share of residual energy vs share of samples):"
     );
     let row = |o: &mut String, name: &str, s: &Share| {
         let flag = if s.energy > 1.5 * s.samples && s.energy > 0.1 {
@@ -436,18 +518,18 @@ pub fn to_text(d: &Diagnosis) -> String {
 
     let _ = writeln!(
         o,
-        "\nWHICH effect (validation RMSE; accepted = passes all four rules):"
+        "\nWHICH effect (selection RMSE; accepted = passes every rule):"
     );
     for (i, r) in d.selection.rounds.iter().enumerate() {
         for f in &r.rebased {
             let _ = writeln!(
                 o,
                 "  round {}: a refit of the current model (from its own seeds or from a \
-                 candidate's parameters) reached a better estimation fit (SSE {:.1}, validation \
+                 candidate's parameters) reached a better estimation fit (SSE {:.1}, selection \
                  RMSE {:.4}); it became the current model and the round was judged from it",
                 i + 1,
                 f.best.est_sse,
-                f.best.val_rmse
+                f.best.sel_rmse
             );
         }
     }
@@ -462,10 +544,10 @@ pub fn to_text(d: &Diagnosis) -> String {
             "  {:<2} {:<17} RMSE {:.4}  gap closed {}  [{}]  round {round}: {}",
             if accepted { "✔" } else { " " },
             c.effect.name(),
-            c.fit.best.val_rmse,
+            c.fit.best.sel_rmse,
             pct(gap_closed(
-                base.val_rmse,
-                c.fit.best.val_rmse,
+                base.selection_rmse,
+                c.fit.best.sel_rmse,
                 d.noise_floor_rmse
             )),
             params.join(", "),
@@ -482,7 +564,11 @@ pub fn to_text(d: &Diagnosis) -> String {
             c.effect.signature()
         );
     }
-    let _ = writeln!(o, "\nHOW FAR:");
+    let _ = writeln!(
+        o,
+        "\nHOW FAR (fit % on the selection part, which chose the effects, and on the test part,\n  \
+         which no choice saw; optimism = selection − test, in points; the gap closed is on the test part):"
+    );
     let names: Vec<String> = (0..d.steps.len())
         .map(|i| step_name(i.checked_sub(1).map(|j| &d.steps[j]), &d.steps[i]))
         .collect();
@@ -496,10 +582,11 @@ pub fn to_text(d: &Diagnosis) -> String {
     for (s, name) in d.steps.iter().zip(&names) {
         let _ = writeln!(
             o,
-            "  {name:<width$} val RMSE {:.4}  fit {:5.1} %  gap closed {}",
-            s.val_rmse,
-            s.val_fit_percent,
-            pct(s.gap_closed)
+            "  {name:<width$} selection {:5.1} %  test {:5.1} %  optimism {:+5.1}  gap closed {}",
+            s.selection_fit_percent,
+            s.test_fit_percent,
+            s.optimism_points,
+            pct(s.test_gap_closed)
         );
     }
     if !d.size_intervals.is_empty() {
@@ -526,6 +613,7 @@ pub fn to_text(d: &Diagnosis) -> String {
     refits_text(&mut o, d);
     explainable_text(&mut o, d);
     spectrum_text(&mut o, d);
+    transfer_text(&mut o, d);
     let x = &d.explainable;
     if x.not_explained {
         let closed = d.last().gap_closed;
@@ -565,8 +653,10 @@ pub fn to_text(d: &Diagnosis) -> String {
             .collect();
         let _ = writeln!(
             o,
-            "\nVerdict: {} (closes {} of the gap above the noise floor).",
+            "\nVerdict: {} (closes {} of the gap above the noise floor on the test part, {} on the \
+             selection part that chose it).",
             names.join(", then "),
+            pct(d.last().test_gap_closed).trim(),
             pct(d.last().gap_closed).trim()
         );
     }
@@ -587,22 +677,22 @@ pub fn to_text(d: &Diagnosis) -> String {
         );
     }
     if let Some(r) = &d.refits {
-        let (lo, hi) = r.tied_val_fit_percent;
+        let (lo, hi) = r.tied_selection_fit_percent;
         match r.finding() {
             Finding::Reproduced | Finding::Best => {}
             Finding::Beaten => {
                 let _ = writeln!(
                     o,
                     "The estimation data do not settle the final fit: the same model refitted from scratch \
-                     fits the estimation half better and validates at {:.1} % (see REFITTED).",
-                    r.best_val_fit_percent
+                     fits the estimation half better and scores {:.1} % on the selection part (see REFITTED).",
+                    r.best_selection_fit_percent
                 );
             }
             Finding::Unsettled => {
                 let _ = writeln!(
                     o,
                     "The estimation data do not settle the final fit: fits of the same model they cannot \
-                     tell apart validate between {lo:.1} and {hi:.1} % (see REFITTED)."
+                     tell apart score between {lo:.1} and {hi:.1} % on the selection part (see REFITTED)."
                 );
             }
         }
@@ -615,7 +705,7 @@ fn refits_text(o: &mut String, d: &Diagnosis) {
     let Some(r) = &d.refits else {
         return;
     };
-    let (lo, hi) = r.tied_val_fit_percent;
+    let (lo, hi) = r.tied_selection_fit_percent;
     let _ = writeln!(
         o,
         "\nREFITTED: the final model fitted {} times from scratch (fits within the likelihood-ratio\n  \
@@ -624,29 +714,29 @@ fn refits_text(o: &mut String, d: &Diagnosis) {
     );
     let _ = writeln!(
         o,
-        "  final fit        estimation SSE {:.4}  validation fit {:5.1} %",
-        r.final_est_sse, r.final_val_fit_percent
+        "  final fit        estimation SSE {:.4}  selection fit {:5.1} %",
+        r.final_est_sse, r.final_selection_fit_percent
     );
     let _ = writeln!(
         o,
-        "  best refit       estimation SSE {:.4}  validation fit {:5.1} %",
-        r.best_est_sse, r.best_val_fit_percent
+        "  best refit       estimation SSE {:.4}  selection fit {:5.1} %",
+        r.best_est_sse, r.best_selection_fit_percent
     );
     let said = match r.finding() {
         Finding::Reproduced => format!(
-            "reproduced: the {} fits the estimation data cannot tell apart validate at {lo:.1}–{hi:.1} %",
+            "reproduced: the {} fits the estimation data cannot tell apart score {lo:.1}–{hi:.1} % on the selection part",
             r.tied
         ),
         Finding::Best => "the best estimation fit found: no refit came within the threshold of it \
                           (they ended in basins worse on the estimation half)"
             .to_string(),
         Finding::Beaten => format!(
-            "not settled: a refit fits the estimation half better than the final fit and validates at \
-             {:.1} %; the final fit's {:.1} % is the basin the search ended in",
-            r.best_val_fit_percent, r.final_val_fit_percent
+            "not settled: a refit fits the estimation half better than the final fit and scores \
+             {:.1} % on the selection part; the final fit's {:.1} % is the basin the search ended in",
+            r.best_selection_fit_percent, r.final_selection_fit_percent
         ),
         Finding::Unsettled => format!(
-            "not settled: {} fits the estimation data cannot tell apart validate between {lo:.1} and {hi:.1} %",
+            "not settled: {} fits the estimation data cannot tell apart score between {lo:.1} and {hi:.1} % on the selection part",
             r.tied
         ),
     };
@@ -710,7 +800,7 @@ fn explainable_text(o: &mut String, d: &Diagnosis) {
     );
     let _ = writeln!(
         o,
-        "  validation RMSE {:.4} → {:.4}: a flexible model closes {} of the gap above the noise floor",
+        "  selection RMSE {:.4} → {:.4}: a flexible model closes {} of the gap above the noise floor",
         b.baseline_rmse,
         b.bound_rmse,
         pct(b.gap_closable)
@@ -743,17 +833,51 @@ fn explainable_text(o: &mut String, d: &Diagnosis) {
     );
 }
 
+/// The chain on other records (`--transfer`).
+fn transfer_text(o: &mut String, d: &Diagnosis) {
+    let Some(first) = d.transfers.first() else {
+        return;
+    };
+    let chain: Vec<&str> = first.chain.iter().map(|e| e.name()).collect();
+    let _ = writeln!(
+        o,
+        "\nTRANSFER: the baseline (`fit`) and the chain ({}) (`fit --effects`) fitted on each other\n  \
+         record's first half and scored on its second, which no choice saw:",
+        if chain.is_empty() {
+            "no effect".to_string()
+        } else {
+            chain.join(", ")
+        }
+    );
+    let width = d
+        .transfers
+        .iter()
+        .map(|t| t.dataset.chars().count())
+        .max()
+        .unwrap_or(0);
+    for t in &d.transfers {
+        let _ = writeln!(
+            o,
+            "  {:<width$}  baseline {:5.1} %  with the chain {:5.1} %  gap closed {}",
+            t.dataset,
+            t.baseline_val_fit_percent,
+            t.chain_val_fit_percent,
+            pct(t.gap_closed)
+        );
+    }
+}
+
 fn spectrum_text(o: &mut String, d: &Diagnosis) {
     let Some(s) = &d.spectrum else {
         let _ = writeln!(
             o,
-            "\nSPECTRUM: the validation part is too short for a Welch spectrum."
+            "\nSPECTRUM: the selection blocks are too short for a Welch spectrum."
         );
         return;
     };
     let _ = writeln!(
         o,
-        "\nSPECTRUM of the validation residual (Welch: {} Hann segments of {} samples, {:.3} Hz bins;\n  \
+        "\nSPECTRUM of the selection residual (Welch: {} Hann segments of {} samples, {:.3} Hz bins;\n  \
          a peak stands ≥ 4× above the background of its flanks):",
         s.segments,
         s.segment,
@@ -784,7 +908,7 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> anyhow::Result<Vec<PathBuf>> 
         out.push(p);
         Ok(())
     };
-    let mut time = Figure::new("Validation residual over time");
+    let mut time = Figure::new("Second-half residual over time");
     let mut lp = Figure::new("Residual over the hysteresis loop");
     let mut out_panel = Panel::new("output vs input", "input", "output");
     let mut res_panel = Panel::new("residual vs input", "input", "residual");
@@ -825,7 +949,7 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> anyhow::Result<Vec<PathBuf>> 
     }
     save("diagnose_residual.svg", time)?;
     // What a person checks first: does the final model follow the record?
-    let mut fit = Figure::new("Measured output against the models (validation half)");
+    let mut fit = Figure::new("Measured output against the models (second half)");
     for c in &d.curves {
         fit = fit.with(
             Panel::new(c.name.clone(), "time (s)", "output")
@@ -885,7 +1009,7 @@ pub fn write_figures(d: &Diagnosis, dir: &Path) -> anyhow::Result<Vec<PathBuf>> 
 
     if let Some(base) = &d.spectrum {
         let mut panel = Panel::new(
-            "Welch spectrum of the validation residual (peaks marked)",
+            "Welch spectrum of the selection residual (peaks marked)",
             "frequency (Hz)",
             "power density",
         )

@@ -1,5 +1,5 @@
 //! Which effect: fit the baseline, then every catalogued effect as an
-//! addition to it, score each on the validation part, accept by a stated rule
+//! addition to it, score each on the selection part, accept by a stated rule
 //! and repeat on the remainder (forward selection).
 //! The acceptance rule is [`accept`](super::accept)'s.
 
@@ -112,7 +112,7 @@ pub fn select(
     }
     let mut rounds = Vec::new();
     let mut verdict = Vec::new();
-    let n = data.val_samples().max(2) as f64;
+    let n = data.selection_samples().max(2) as f64;
     for round in 0..settings.max_effects {
         // Some effects (the ringing) are looked for only where the residual
         // rings (a spectrum per round, so only when one is among the effects).
@@ -165,7 +165,7 @@ pub fn select(
         // that is the current model, as after an ablation below (it happens
         // on the self-test: docs/DIAGNOSIS.md, "Which: the effects
         // catalogue", the paragraph after "Ablation").
-        if current.best.est_sse < final_fit.est_sse && current.best.val_rmse.is_finite() {
+        if current.best.est_sse < final_fit.est_sse && current.best.sel_rmse.is_finite() {
             current_params = current.best.params.clone();
             final_fit = current.best.clone();
             if first_round {
@@ -174,14 +174,15 @@ pub fn select(
             rebased.push(current.clone());
         }
         let mut yardstick = Yardstick {
-            r0: final_fit.val_rmse,
+            r0: final_fit.sel_rmse,
+            blocks: data.block_rmse(&current_model, &current_params),
             s0: current.spread,
             floor,
         };
         let mut ablations = 0;
         let candidates = loop {
             let salt = salt + 10 * ablations as u64;
-            let fits: Vec<(Effect, Augmented, SeededFit)> = (0..remaining.len())
+            let fits: Vec<(Effect, Augmented, SeededFit, Vec<f64>)> = (0..remaining.len())
                 .into_par_iter()
                 .map(|i| {
                     let effect = remaining[i];
@@ -195,10 +196,11 @@ pub fn select(
                         salt,
                         &scratch[i + 1],
                     )?;
-                    Ok((effect, model, fit))
+                    let blocks = data.block_rmse(&model, &fit.best.params);
+                    Ok((effect, model, fit, blocks))
                 })
                 .collect::<anyhow::Result<_>>()?;
-            let candidates = judge_all(&fits, yardstick, n, settings);
+            let candidates = judge_all(&fits, &yardstick, n, settings);
             let Some(best) = candidates.iter().find(|c| c.passes) else {
                 break candidates;
             };
@@ -215,7 +217,7 @@ pub fn select(
                 settings,
                 salt + 10,
             )?;
-            if !(ablated.best.est_sse < final_fit.est_sse && ablated.best.val_rmse.is_finite()) {
+            if !(ablated.best.est_sse < final_fit.est_sse && ablated.best.sel_rmse.is_finite()) {
                 break candidates;
             }
             // A better fit of the current model: judge the round again
@@ -226,7 +228,8 @@ pub fn select(
                 baseline = ablated.clone();
             }
             yardstick = Yardstick {
-                r0: ablated.best.val_rmse,
+                r0: ablated.best.sel_rmse,
+                blocks: data.block_rmse(&current_model, &current_params),
                 s0: ablated.spread,
                 floor,
             };

@@ -33,7 +33,7 @@ pub struct Nominal {
 impl Nominal {
     /// Fits `family` to `trace` with the diagnosis' baseline budget.
     pub fn fit(trace: &Trace, family: Family, settings: &Settings) -> anyhow::Result<Nominal> {
-        let data = Data::new(std::slice::from_ref(trace))?
+        let data = Data::new(std::slice::from_ref(trace), settings.blocks)?
             .scored_on(crate::eval::open(settings.backend)?)
             .stopped_by(settings.stop.clone());
         let model = Augmented::new(family, Vec::new(), 1);
@@ -277,6 +277,8 @@ pub struct Outcome {
     pub size_error: Option<f64>,
     /// The diagnosis' 95 % profile interval of the size, in the same units.
     pub size_interval: Option<(f64, f64)>,
+    /// The baseline's and the final model's RMSE on the test part, and the
+    /// share of the baseline's gap above the floor closed there.
     pub baseline_rmse: f64,
     pub final_rmse: f64,
     pub noise_floor: f64,
@@ -293,7 +295,8 @@ pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> Outcome {
     let mut notes = Vec::new();
     let (mut size_true, mut size_found, mut size_error) = (None, None, None);
     let mut size_interval = None;
-    let gap = d.last().gap_closed;
+    // Scored on the test part, which none of the diagnosis' choices read.
+    let gap = d.last().test_gap_closed;
     match truth.len() {
         0 => {
             if !named.is_empty() {
@@ -349,8 +352,8 @@ pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> Outcome {
         size_found,
         size_error,
         size_interval,
-        baseline_rmse: d.baseline().val_rmse,
-        final_rmse: d.last().val_rmse,
+        baseline_rmse: d.baseline().test_rmse,
+        final_rmse: d.last().test_rmse,
         noise_floor: d.noise_floor_rmse,
         gap_closed: gap,
         pass: notes.is_empty(),
@@ -498,7 +501,7 @@ pub struct TwinOutcome {
     pub input: String,
     pub verdict_on: Vec<Effect>,
     pub verdict_off: Vec<Effect>,
-    /// Baseline validation RMSE with the effect on and off.
+    /// Baseline RMSE on the test part with the effect on and off.
     pub baseline_on: f64,
     pub baseline_off: f64,
     /// `(R_b² − R_f²)_on − (R_b² − R_f²)_off`: what the diagnosis explains
@@ -588,7 +591,8 @@ pub fn twin_check(
         }
         Ok(trace)
     };
-    let explained = |d: &Diagnosis| d.baseline().val_rmse.powi(2) - d.last().val_rmse.powi(2);
+    // Measured on the test part, which none of the diagnosis' choices read.
+    let explained = |d: &Diagnosis| d.baseline().test_rmse.powi(2) - d.last().test_rmse.powi(2);
     let mut off: Vec<(&str, Diagnosis)> = Vec::new();
     let mut out = Vec::new();
     for case in TWIN_CASES {
@@ -609,17 +613,17 @@ pub fn twin_check(
             settings,
         )?;
         let attributed = explained(&on) - explained(off);
-        let disappears = on.baseline().val_rmse.powi(2) - off.baseline().val_rmse.powi(2);
+        let disappears = on.baseline().test_rmse.powi(2) - off.baseline().test_rmse.powi(2);
         let ratio = attributed / disappears;
         let pass =
-            (ratio - 1.0).abs() <= 0.2 && disappears >= 0.05 * on.baseline().val_rmse.powi(2);
+            (ratio - 1.0).abs() <= 0.2 && disappears >= 0.05 * on.baseline().test_rmse.powi(2);
         out.push(TwinOutcome {
             twin_effect: case.effect.into(),
             input: case.input.into(),
             verdict_on: on.named().to_vec(),
             verdict_off: off.named().to_vec(),
-            baseline_on: on.baseline().val_rmse,
-            baseline_off: off.baseline().val_rmse,
+            baseline_on: on.baseline().test_rmse,
+            baseline_off: off.baseline().test_rmse,
             attributed,
             disappears,
             ratio,

@@ -75,6 +75,9 @@ pub struct Settings {
     /// noise-floor estimate (which is good to about 10 %), else there is no
     /// gap left to explain.
     pub floor_margin: f64,
+    /// Blocks the second half of each record is cut into, alternating
+    /// selection and test, selection first ([`Parts`](crate::model::experiment::Parts)).
+    pub blocks: usize,
     /// Base seed; seed `i` of a fit uses `seed + i`.
     pub seed: u64,
     /// Where the searches score their populations (the same numbers on
@@ -106,6 +109,7 @@ impl Default for Settings {
             bic_threshold: -10.0,
             min_relative: 0.02,
             floor_margin: 1.1,
+            blocks: 4,
             seed: 1,
             backend: Backend::Cpu,
             stop: StopFlag::default(),

@@ -8,8 +8,9 @@
 //! leak from the lowest bins into the rest), a Hann window applied, and the
 //! periodograms averaged. Averaging `K` segments divides the variance of
 //! each bin by about `K`, which is what lets a peak be told from a noisy bin;
-//! the segment is the longest power of two that still gives at least
-//! [`MIN_SEGMENTS`] segments in the shortest series.
+//! the segment is the longest power of two, no longer than the shortest
+//! series, that still gives at least [`MIN_SEGMENTS`] segments over all the
+//! series (the diagnosis' selection part is several blocks of a record).
 //!
 //! **A peak** is a bin that is the largest within ±2 bins (the Hann window's
 //! main lobe) and stands at least [`Settings::min_prominence`] times above
@@ -145,19 +146,21 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 /// Welch spectrum of `series` (sampled every `dt` s; the periodograms of
-/// all series are averaged together) and its peaks; `None` when the
-/// shortest series is too short for [`MIN_SEGMENTS`] segments of 32 samples.
+/// all series are averaged together) and its peaks; `None` when the series
+/// are too short for [`MIN_SEGMENTS`] segments of 32 samples.
 pub fn welch(series: &[&[f64]], dt: f64, settings: &Settings) -> Option<Spectrum> {
     let shortest = series.iter().map(|s| s.len()).min()?;
-    if dt.is_nan() || dt <= 0.0 {
+    if dt.is_nan() || dt <= 0.0 || shortest < 32 {
         return None;
     }
-    // K half-overlapping segments of length L span (K + 1)·L/2 samples.
-    let most = 2 * shortest / (MIN_SEGMENTS + 1);
-    if most < 32 {
-        return None;
-    }
-    let seg = 1usize << most.ilog2();
+    // A series of n samples holds ⌊(n − L)/(L/2)⌋ + 1 half-overlapping
+    // segments of length L.
+    let count =
+        |seg: usize| -> usize { series.iter().map(|s| (s.len() - seg) / (seg / 2) + 1).sum() };
+    let seg = (5..=shortest.ilog2())
+        .rev()
+        .map(|p| 1usize << p)
+        .find(|&seg| count(seg) >= MIN_SEGMENTS)?;
     let hann: Vec<f64> = (0..seg)
         .map(|k| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * k as f64 / seg as f64).cos())
         .collect();

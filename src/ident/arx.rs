@@ -219,19 +219,26 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
 /// What the data say about scale, for the boxes of `fit` and the
 /// diagnosis alike: the first-order ARX pole and gain on the first trace's
 /// estimation half ([`identify`]), and the largest absolute input and
-/// output and the output's range over all of `traces` (absolute units).
+/// output and the output's range over the estimation halves of all of
+/// `traces` (absolute units). Only the estimation halves are read: a box
+/// or a range taken from the validation half would let the data a fit is
+/// scored on shape the fit.
 pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
     let first = traces.first().ok_or(IdentError::NoData)?;
     let id = identify(first, ArxOrders::default())?;
     let max_abs = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let estimation = |t: &Trace| halves(t.len()).0;
     let outputs: Vec<f64> = traces
         .iter()
-        .flat_map(|t| t.output.iter().copied())
+        .flat_map(|t| t.output[estimation(t)].iter().copied())
         .collect();
     Ok(LinearPrior {
         a: id.arx.a[0],
         b: id.arx.b[0],
-        max_abs_input: traces.iter().map(|t| max_abs(&t.input)).fold(0.0, f64::max),
+        max_abs_input: traces
+            .iter()
+            .map(|t| max_abs(&t.input[estimation(t)]))
+            .fold(0.0, f64::max),
         max_abs_output: max_abs(&outputs),
         output_range: crate::data::range(&outputs),
     })

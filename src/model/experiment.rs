@@ -27,6 +27,107 @@ pub fn halves(len: usize) -> (Range<usize>, Range<usize>) {
     (0..mid, mid..len)
 }
 
+/// The diagnosis' three parts of one record, as ranges of samples (rows after
+/// any resampling, 0 at the first): the estimation half, which `fit` fits
+/// on as well, then the second half cut into blocks that alternate between
+/// selection (every choice of the diagnosis is made there) and test (read
+/// once, after the model is final), selection first.
+///
+/// Why blocks and not two contiguous quarters: a record's second half is
+/// rarely two alike halves. The shipped stair's is one cycle, up then down,
+/// so contiguous quarters would choose on the rising branch and test on the
+/// falling one; a Cavatappi record's holds about two pulses and a half,
+/// each deeper than the last. Alternating blocks give both parts every
+/// branch and level the second half has. Between neighbouring blocks a
+/// settling gap (three time constants of the record's pole, at most a
+/// quarter of a block) is left out of both, so that the transient of one
+/// input step is not scored in one part and its tail in the other. Both
+/// parts are scored from the one free run over the whole record, so the
+/// hysteretic state is never restarted.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Parts {
+    pub estimation: Range<usize>,
+    pub selection: Vec<Range<usize>>,
+    pub test: Vec<Range<usize>>,
+}
+
+/// The fewest samples a selection or test block keeps after its gaps: fewer
+/// carry too little of the record to compare models on.
+pub const MIN_BLOCK: usize = 32;
+
+impl Parts {
+    /// The parts of a record of `len` samples: its second half cut into
+    /// `blocks` blocks (at least 2) with `settle` samples of settling
+    /// between them (capped at a quarter of a block). On a short record the
+    /// blocks may be too short to be useful: [`Parts::too_short`] says.
+    pub fn of(len: usize, blocks: usize, settle: usize) -> Parts {
+        let blocks = blocks.max(2);
+        let (estimation, second) = halves(len);
+        let (width, gap) = Parts::widths(len, blocks, settle);
+        let (mut selection, mut test) = (Vec::new(), Vec::new());
+        for j in 0..blocks {
+            let start = second.start + j * width;
+            let end = if j + 1 == blocks {
+                second.end
+            } else {
+                start + width
+            };
+            let lead = if j == 0 { 0 } else { gap - gap / 2 };
+            let tail = if j + 1 == blocks { 0 } else { gap / 2 };
+            let block = start + lead..end - tail;
+            if j % 2 == 0 {
+                selection.push(block);
+            } else {
+                test.push(block);
+            }
+        }
+        Parts {
+            estimation,
+            selection,
+            test,
+        }
+    }
+
+    /// Why a record of `len` samples is too short for useful parts, with the
+    /// length it needs; `None` when every block keeps at least [`MIN_BLOCK`]
+    /// samples after its settling gaps.
+    pub fn too_short(len: usize, blocks: usize, settle: usize) -> Option<String> {
+        let blocks = blocks.max(2);
+        let useful = |n: usize| {
+            let (w, g) = Parts::widths(n, blocks, settle);
+            w - g >= MIN_BLOCK
+        };
+        if useful(len) {
+            return None;
+        }
+        let needs = (len + 1..).find(|&n| useful(n)).unwrap_or(usize::MAX);
+        Some(format!(
+            "{len} samples are too few for the diagnosis' three parts (the first half \
+             estimates; the second is cut into {blocks} blocks that alternate between \
+             selection and test, each keeping at least {MIN_BLOCK} samples after its \
+             settling gaps): it needs at least {needs} samples; record a longer \
+             experiment, or cut the second half into fewer --blocks"
+        ))
+    }
+
+    /// The width of each block of the second half of `len` samples and the
+    /// settling gap between blocks.
+    fn widths(len: usize, blocks: usize, settle: usize) -> (usize, usize) {
+        let width = halves(len).1.len() / blocks;
+        (width, settle.min(width / 4))
+    }
+
+    /// Samples in the selection part.
+    pub fn selection_len(&self) -> usize {
+        self.selection.iter().map(|r| r.len()).sum()
+    }
+
+    /// Samples in the test part.
+    pub fn test_len(&self) -> usize {
+        self.test.iter().map(|r| r.len()).sum()
+    }
+}
+
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
 }
@@ -76,5 +177,47 @@ impl Experiment {
         let (est, val) = halves(trace.len());
         let whole = Experiment::with_means_of(trace, est.clone());
         (whole.segment(est), whole.segment(val))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_second_half_alternates_selection_and_test_with_gaps_between() {
+        let p = Parts::of(1000, 4, 10);
+        assert_eq!(Parts::too_short(1000, 4, 10), None);
+        assert_eq!(p.estimation, 0..500);
+        // Blocks of 125 from 500; a 10-sample gap centred on each boundary.
+        assert_eq!(p.selection, vec![500..620, 755..870]);
+        assert_eq!(p.test, vec![630..745, 880..1000]);
+        // Every part is disjoint from the others and inside the second half.
+        let mut all: Vec<Range<usize>> = p.selection.iter().chain(&p.test).cloned().collect();
+        all.sort_by_key(|r| r.start);
+        assert!(all.windows(2).all(|w| w[0].end + 10 == w[1].start));
+        assert_eq!((p.selection_len(), p.test_len()), (235, 235));
+    }
+
+    #[test]
+    fn the_gap_never_takes_more_than_a_quarter_of_a_block() {
+        let p = Parts::of(800, 2, 1000);
+        // Blocks of 200: the gap is capped at 50.
+        assert_eq!(p.selection, vec![400..575]);
+        assert_eq!(p.test, vec![625..800]);
+    }
+
+    #[test]
+    fn a_record_too_short_for_three_parts_says_how_long_it_must_be() {
+        let e = Parts::too_short(200, 4, 30).unwrap();
+        assert!(e.contains("200 samples are too few"), "{e}");
+        let needs: usize = e
+            .split("at least ")
+            .nth(2)
+            .and_then(|s| s.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{e}"));
+        assert_eq!(Parts::too_short(needs, 4, 30), None);
+        assert!(Parts::too_short(needs - 1, 4, 30).is_some());
     }
 }

@@ -15,7 +15,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use super::edge::{Widening, refit_off_edges};
-use super::engine::model::{ModelObjective, staged_plan};
+use super::engine::model::{GENERATIONS, ModelObjective, POPULATION, staged_plan};
 use super::engine::{Engine, Observer, Outcome, Plan, Space, StopReason, StopRules};
 use super::ga::{Crossover, Mutation};
 use super::mfa::{self, Distance, Lambda0Schedule, Scale};
@@ -109,6 +109,23 @@ pub struct FitSettings {
 }
 
 impl FitSettings {
+    /// `mckibben fit`'s defaults: the staged fit with differential
+    /// evolution at [`POPULATION`] and [`GENERATIONS`], no overrides, no
+    /// early stop.
+    pub fn staged(seed: u64) -> FitSettings {
+        FitSettings {
+            algo: Algorithm::De,
+            pop: POPULATION,
+            gens: GENERATIONS,
+            seed,
+            thesis_flow: false,
+            islands: None,
+            horizon: None,
+            overrides: Overrides::default(),
+            stops: StopRules::default(),
+        }
+    }
+
     /// The base settings (the thesis' or the staged fit's) with the
     /// overrides laid over them; `note` hears of a rule applied unasked.
     fn algo_settings(&self, family: Family, note: &dyn Fn(String)) -> anyhow::Result<AlgoSettings> {

@@ -5,6 +5,8 @@
 //! (`diagnose::Data`, one record per load) both split here, so that a
 //! model's parameters mean the same to both.
 
+use std::ops::Range;
+
 use crate::data::Trace;
 use crate::ident::arx::{Arx, ArxOrders, linear_prior};
 use crate::ident::{fit_percent, rmse};
@@ -31,11 +33,12 @@ pub struct Records {
     /// First validation sample of each.
     pub val_start: Vec<usize>,
     /// The effects' constants of each trace (ranges, branch tolerance, the
-    /// end stop's side); a model's chain keeps its own on the first.
+    /// end stop's side), from its estimation half; a model's chain keeps its
+    /// own on the first.
     pub ctx: Vec<Context>,
     /// What the data say about scale, the boxes' reference
     /// ([`linear_prior`]: ARX on the first trace's estimation half, ranges
-    /// over all).
+    /// over every estimation half).
     pub prior: LinearPrior,
 }
 
@@ -91,10 +94,8 @@ impl Records {
             whole.push(w);
         }
         let prior = linear_prior(traces)?;
-        let mut ctx: Vec<Context> = whole
-            .iter()
-            .map(|w| Context::of(w, prior.b >= 0.0))
-            .collect();
+        // The constants come from the estimation half alone, as the prior.
+        let mut ctx: Vec<Context> = est.iter().map(|e| Context::of(e, prior.b >= 0.0)).collect();
         if let Some(chain) = model.and_then(|m| m.chain.as_ref()) {
             ctx[0] = chain.context;
         }
@@ -117,25 +118,45 @@ impl Records {
     /// is not finite on its validation half. `fit`, `diagnose` and the
     /// generated cases' judge all score here.
     pub fn validate(&self, model: &Augmented, theta: &[f64]) -> Validation {
-        let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
-        let (mut y, mut x) = (Vec::new(), Vec::new());
+        let halves: Vec<Vec<Range<usize>>> = self
+            .whole
+            .iter()
+            .zip(&self.val_start)
+            .map(|(w, &from)| std::iter::once(from..w.len()).collect())
+            .collect();
+        self.score_on(model, theta, &halves)
+    }
+
+    /// Scores of `model` at `theta` on the samples `ranges[i]` of each
+    /// record `i` (the diagnosis' selection and test parts), from the one
+    /// free run over each whole record, as [`Records::validate`] scores the
+    /// second halves: the records pooled, infinite RMSE and −∞ fit where the
+    /// run is not finite on a scored sample.
+    pub fn score_on(
+        &self,
+        model: &Augmented,
+        theta: &[f64],
+        ranges: &[Vec<Range<usize>>],
+    ) -> Validation {
+        let diverged = Validation {
+            rmse: f64::INFINITY,
+            fit_percent: f64::NEG_INFINITY,
+        };
         // No parameters: a fit that found nothing.
         if theta.is_empty() {
-            return Validation {
-                rmse: f64::INFINITY,
-                fit_percent: f64::NEG_INFINITY,
-            };
+            return diverged;
         }
-        for (i, (whole, &from)) in self.whole.iter().zip(&self.val_start).enumerate() {
+        let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
+        let (mut y, mut x) = (Vec::new(), Vec::new());
+        for (i, (whole, scored)) in self.whole.iter().zip(ranges).enumerate() {
             let run = model.simulate(&t, i, &self.ctx[i], whole);
-            y.extend(whole.y[from..].iter().map(|&v| v as f64));
-            x.extend(run[from..].iter().map(|&v| v as f64));
+            for r in scored {
+                y.extend(whole.y[r.clone()].iter().map(|&v| v as f64));
+                x.extend(run[r.clone()].iter().map(|&v| v as f64));
+            }
         }
         if y.is_empty() || x.iter().any(|v| !v.is_finite()) {
-            return Validation {
-                rmse: f64::INFINITY,
-                fit_percent: f64::NEG_INFINITY,
-            };
+            return diverged;
         }
         Validation {
             rmse: rmse(&y, &x),

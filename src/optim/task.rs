@@ -149,8 +149,8 @@ impl Task {
         self.records.prior
     }
 
-    /// The effects' constants: the whole record's, in the estimation
-    /// half's coordinates (as the diagnosis takes them).
+    /// The effects' constants: the estimation half's, in its coordinates
+    /// (as the diagnosis takes them).
     pub fn context(&self) -> &Context {
         &self.records.ctx[0]
     }

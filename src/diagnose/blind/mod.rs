@@ -301,6 +301,8 @@ pub struct BlindOutcome {
     /// The 95 % profile interval of the size found, in the same units.
     pub size_interval: Option<(f64, f64)>,
     pub size_check: SizeCheck,
+    /// The baseline's and the final model's RMSE on the test part, and the
+    /// share of the baseline's gap above the floor closed there.
     pub baseline_rmse: f64,
     pub final_rmse: f64,
     pub noise_floor: f64,
@@ -341,7 +343,8 @@ pub fn run_case(
 /// Judges a diagnosis of a case by the rules of the module's documentation.
 pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
     let named = d.named().to_vec();
-    let gap = d.last().gap_closed;
+    // Scored on the test part, which none of the diagnosis' choices read.
+    let gap = d.last().test_gap_closed;
     let mut notes = Vec::new();
     let (mut size_true, mut size_found, mut size_error, mut size_interval) =
         (None, None, None, None);
@@ -409,8 +412,8 @@ pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
         size_error,
         size_interval,
         size_check,
-        baseline_rmse: d.baseline().val_rmse,
-        final_rmse: d.last().val_rmse,
+        baseline_rmse: d.baseline().test_rmse,
+        final_rmse: d.last().test_rmse,
         noise_floor: d.noise_floor_rmse,
         gap_closed: gap,
         gap_closable: d.explainable.bound.gap_closable,

@@ -1,0 +1,124 @@
+//! Whether the diagnosed chain belongs to the muscle or to one recording
+//! (`diagnose --transfer OTHER …`): the final model's effects and the plain
+//! baseline are each fitted on another record as `fit --effects CHAIN` and
+//! `fit` fit them (on its estimation half alone, with `fit`'s defaults and
+//! the diagnosis' seed), and scored on that record's second half. No choice
+//! of the diagnosis saw that record, so the share of the baseline's gap the
+//! chain closes there is the tool's own check that an effect carries over.
+//!
+//! Why a refit and not the diagnosed model itself: another record of the
+//! same muscle differs in its load, its history and its offsets, and a user
+//! who trusts the verdict fits the chain to their next record; the question
+//! is whether the chain, not one parameter vector, helps there.
+
+use serde::Serialize;
+
+use super::effects::Effect;
+use super::locate::noise_floor;
+use super::settings::{Interrupted, Settings};
+use super::{Diagnosis, accept::gap_closed, chain::with_chain_start};
+use crate::data::Trace;
+use crate::model::experiment::halves;
+use crate::model::{Family, Loop};
+use crate::optim::fit::{Fit, FitBox, FitSettings};
+use crate::optim::records::Validation;
+
+/// The chain and the baseline fitted on one other record.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Transfer {
+    /// The record.
+    pub dataset: String,
+    /// The effects fitted there: the final model's, less those one record
+    /// cannot hold (`load` needs several).
+    pub chain: Vec<Effect>,
+    /// Free-run RMSE and fit % on the record's second half: the plain
+    /// baseline's (`fit`) and the chain's (`fit --effects`).
+    pub baseline_val_rmse: f64,
+    pub baseline_val_fit_percent: f64,
+    pub chain_val_rmse: f64,
+    pub chain_val_fit_percent: f64,
+    /// The record's noise floor, from its second half.
+    pub noise_floor_rmse: f64,
+    /// Share of the baseline's gap above that floor the chain closes there.
+    pub gap_closed: f64,
+}
+
+/// The chain of `d`'s final model and its baseline, each fitted on every
+/// record of `others` and scored on its second half; the diagnosis'
+/// `settings` give the seed, the backend and the stop flag
+/// ([`Interrupted`] once it is raised).
+pub fn transfer(
+    d: &Diagnosis,
+    others: &[Trace],
+    settings: &Settings,
+) -> anyhow::Result<Vec<Transfer>> {
+    let chain: Vec<Effect> = d
+        .selection
+        .final_model
+        .effects
+        .iter()
+        .copied()
+        .filter(|e| e.applicable(1))
+        .collect();
+    others
+        .iter()
+        .map(|trace| {
+            let baseline = fit_and_score(trace, d.family, &[], settings)?;
+            let fitted = if chain.is_empty() {
+                baseline
+            } else {
+                fit_and_score(trace, d.family, &chain, settings)?
+            };
+            let second = halves(trace.len()).1;
+            let floor = noise_floor(&[&trace.output[second]]);
+            Ok(Transfer {
+                dataset: trace.source.clone(),
+                chain: chain.clone(),
+                baseline_val_rmse: baseline.rmse,
+                baseline_val_fit_percent: baseline.fit_percent,
+                chain_val_rmse: fitted.rmse,
+                chain_val_fit_percent: fitted.fit_percent,
+                noise_floor_rmse: floor,
+                gap_closed: gap_closed(baseline.rmse, fitted.rmse, floor),
+            })
+        })
+        .collect()
+}
+
+/// `family` with `effects` fitted on `trace` as `fit` fits it by default
+/// (with effects: also from the chain built one effect at a time), scored
+/// on the second half.
+fn fit_and_score(
+    trace: &Trace,
+    family: Family,
+    effects: &[Effect],
+    settings: &Settings,
+) -> anyhow::Result<Validation> {
+    let what = FitBox {
+        family,
+        effects: effects.to_vec(),
+        free_n: false,
+        loop_shape: Loop::Bounded,
+        bounds: Vec::new(),
+    };
+    let fit_settings = FitSettings::staged(settings.seed);
+    let fit = Fit::new(trace, &what, &fit_settings, None, None, &|_| ())?;
+    let mut fit = with_chain_start(
+        fit,
+        trace,
+        &fit_settings,
+        settings.backend,
+        settings.stop.clone(),
+    )?;
+    let mut evaluator = crate::eval::open(settings.backend)?;
+    let (outcome, _) = fit.run(
+        evaluator.as_mut(),
+        &mut [],
+        Some(settings.stop.as_atomic()),
+        None,
+    )?;
+    if settings.stop.raised() {
+        return Err(Interrupted.into());
+    }
+    Ok(fit.task.validate(&outcome.params))
+}
