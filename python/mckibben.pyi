@@ -221,6 +221,8 @@ def diagnose(
     backend: Literal["auto", "cpu", "gpu"] = "cpu",
     max_effects: int | None = None,
     start: Model | _Path | None = None,
+    blocks: int | None = None,
+    transfer: Trace | Sequence[Trace | tuple[_ArrayLike, _ArrayLike, float]] | None = None,
 ) -> Diagnosis: ...
 
 @final

@@ -114,16 +114,19 @@ pub(crate) fn interruptible<T: Send>(
 }
 
 /// Diagnoses the sim-to-real gap of a `baseline` model on `datasets` (each
-/// fitted on its first half, validated on its second), as `mckibben
-/// diagnose` does: where the model misses, which effects of the catalogue
-/// (`effects`, default the command's) explain it, how far the gap
-/// shrinks. With `start` (a `Model` or a model file's path), the selection
-/// starts from that model, as `diagnose --from`. Returns the document
+/// fitted on its first half; every choice made on the selection blocks of
+/// its second half, the test blocks read once the model is final;
+/// `blocks` as `--blocks`), as `mckibben diagnose` does: where the model
+/// misses, which effects of the catalogue (`effects`, default the
+/// command's) explain it, how far the gap shrinks. With `start` (a `Model`
+/// or a model file's path), the selection starts from that model, as
+/// `diagnose --from`; with `transfer` (datasets), the chain is fitted on
+/// each of them as `--transfer` does. Returns the document
 /// `mckibben diagnose --json` prints, as dicts and lists, and the final
 /// and baseline models as `Model`s. Ctrl-C stops it within a generation
 /// or polish iteration and raises `KeyboardInterrupt`.
 #[pyfunction]
-#[pyo3(signature = (datasets, baseline = None, effects = None, seed = 1, seeds = None, generations = None, scratch_seeds = None, backend = "cpu", max_effects = None, start = None))]
+#[pyo3(signature = (datasets, baseline = None, effects = None, seed = 1, seeds = None, generations = None, scratch_seeds = None, backend = "cpu", max_effects = None, start = None, blocks = None, transfer = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose<'py>(
     py: Python<'py>,
@@ -137,8 +140,16 @@ pub fn diagnose<'py>(
     backend: &str,
     max_effects: Option<usize>,
     start: Option<&Bound<'py, PyAny>>,
+    blocks: Option<usize>,
+    transfer: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Diagnosis> {
     let traces = traces(datasets)?;
+    let others = transfer.map(self::traces).transpose()?.unwrap_or_default();
+    if blocks.is_some_and(|b| b < 2) {
+        return Err(PyValueError::new_err(
+            "blocks must be at least 2 (one selection and one test block)",
+        ));
+    }
     let start = start
         .map(start_arg)
         .transpose()?
@@ -162,10 +173,21 @@ pub fn diagnose<'py>(
         max_effects: max_effects.unwrap_or(defaults.max_effects),
         seed: seed_arg(seed)?,
         backend: self::backend(backend)?,
+        blocks,
         ..defaults
     };
     let d = interruptible(py, &settings.stop, || {
-        mckibben::diagnose::diagnose_from(&traces, family, &effects, &settings, start.as_ref())
+        let mut d = mckibben::diagnose::diagnose_from(
+            &traces,
+            family,
+            &effects,
+            &settings,
+            start.as_ref(),
+        )?;
+        if !others.is_empty() {
+            d.transfers = mckibben::diagnose::transfer::transfer(&d, &others, &settings)?;
+        }
+        Ok(d)
     })?
     .map_err(value_error)?;
     let sources: Vec<&str> = traces.iter().map(|t| t.source.as_str()).collect();

@@ -21,9 +21,11 @@ use super::common::MultiDataArgs;
 
 /// Diagnose the sim-to-real gap of a fitted hysteresis model.
 ///
-/// Fits the baseline on the first half of each DATA file, then reports
-/// WHERE the free-run residual on the second half lies (input branch, input
-/// level, transient or settled, frequency, dataset; whiteness and
+/// Fits the baseline on the first half of each DATA file and cuts the
+/// second half into blocks that alternate between a selection part, which
+/// every choice below reads, and a test part, read once the model is final
+/// (--blocks). Then reports WHERE the free-run residual lies (input branch,
+/// input level, transient or settled, frequency, dataset; whiteness and
 /// residual–input tests), WHICH effect of the catalogue (delay, deadzone,
 /// saturation, asymmetry, inertia, backlash, creep, rate, load), in which
 /// realisation (e.g. `delay:input-lag`, a first-order lag on the input;
@@ -31,18 +33,22 @@ use super::common::MultiDataArgs;
 /// explains it —
 /// each fitted as an addition to the baseline with several seeds and accepted
 /// only if it beats the seed-to-seed spread, pays for its parameters, is
-/// not a better refit of the model without it, and the model still misses
-/// by more than the noise — HOW FAR the validation error falls, against
-/// a noise-floor estimate, HOW SURE each named effect's size is (a 95 %
+/// not a better refit of the model without it, does not owe its gain to one
+/// block, and the model still misses by more than the noise — HOW FAR the
+/// error falls on the selection part and on the test part (the figures to
+/// quote; their difference is the choice's optimism), against a
+/// noise-floor estimate, HOW SURE each named effect's size is (a 95 %
 /// profile-likelihood interval) and whether the final fit is REFITTED
 /// alike when the final model is fitted again from scratch, HOW MUCH of
 /// the gap is explainable at all (a ridge model of the residual from the
 /// input's lags, filters, rate and branch, each named effect reported as a
 /// share of it; "not explained by
 /// the catalogue", and then no effect named, when it is large and the
-/// effects close little of it or leave more than twice what it leaves), and
-/// the residual's spectrum with its peaks (e.g. a load ringing after steps).
-/// "None of the catalogued effects explains the remaining gap" is a valid answer.
+/// effects close little of it or leave more than twice what it leaves),
+/// the residual's spectrum with its peaks (e.g. a load ringing after
+/// steps) and, with --transfer, how much of the gap the chain closes on
+/// other records. "None of the catalogued effects explains the remaining
+/// gap" is a valid answer.
 ///
 /// Example: `mckibben diagnose data/stair_4.5kg.csv --report out/`
 #[derive(Debug, clap::Args)]
@@ -89,11 +95,12 @@ pub struct Args {
     /// Blocks the second half of each file is cut into, in turn selection
     /// (every choice of the diagnosis reads them) and test (read once, when
     /// the model is final: the figures no choice saw), with a settling gap
-    /// of three time constants between neighbours. More blocks mix the
-    /// record's levels and branches better into both parts; each must keep
-    /// at least 32 samples.
-    #[arg(long, default_value_t = Settings::default().blocks)]
-    blocks: usize,
+    /// of three time constants between neighbours; each must keep at least
+    /// 32 samples. By default each file gets the fewest blocks that give
+    /// both parts its input's levels and rising and falling branches in
+    /// nearly the same proportions (read from the input alone).
+    #[arg(long)]
+    blocks: Option<usize>,
     /// Other records of the same muscle (e.g. other loads or specimens, read
     /// with the same column flags): after the diagnosis, the baseline and
     /// the final model's chain are each fitted on every OTHER's first half
@@ -202,7 +209,7 @@ fn parse_effect(s: &str) -> Result<Effect, String> {
 pub fn run(mut args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
     anyhow::ensure!(
-        args.blocks >= 2,
+        args.blocks.is_none_or(|b| b >= 2),
         "--blocks must be at least 2 (one selection and one test block)"
     );
     let from = match &args.from {

@@ -64,8 +64,9 @@ impl std::fmt::Debug for Scorer {
 impl Data {
     /// Splits every trace in halves as `fit` does ([`Records::of`], which
     /// also checks that the data can be fitted at all), the second halves
-    /// in `blocks` blocks ([`Parts::of`]).
-    pub fn new(traces: &[Trace], blocks: usize) -> anyhow::Result<Data> {
+    /// in `blocks` blocks ([`Parts::of`]), or in as many as each record's
+    /// input asks for ([`Parts::chosen`]) when `None`.
+    pub fn new(traces: &[Trace], blocks: Option<usize>) -> anyhow::Result<Data> {
         Data::in_coordinates(traces, None, blocks)
     }
 
@@ -74,14 +75,16 @@ impl Data {
     pub fn in_coordinates(
         traces: &[Trace],
         model: Option<&Model>,
-        blocks: usize,
+        blocks: Option<usize>,
     ) -> anyhow::Result<Data> {
         let records = Records::of(traces, model)?;
         let settle = Data::settle_of(&records);
-        let parts = records
-            .whole
+        let parts = traces
             .iter()
-            .map(|w| Parts::of(w.len(), blocks, settle))
+            .map(|t| match blocks {
+                Some(b) => Parts::of(t.len(), b, settle),
+                None => Parts::chosen(&t.input, settle),
+            })
             .collect();
         Ok(Data {
             records,
@@ -101,9 +104,10 @@ impl Data {
     /// An error naming the record and the length it needs when a record is
     /// too short for useful selection and test blocks: the diagnosis then
     /// refuses to run rather than choose and report on the same samples.
-    pub fn check_parts(&self, blocks: usize) -> anyhow::Result<()> {
+    pub fn check_parts(&self) -> anyhow::Result<()> {
         let settle = Data::settle_of(&self.records);
-        for w in &self.records.whole {
+        for (w, p) in self.records.whole.iter().zip(&self.parts) {
+            let blocks = p.selection.len() + p.test.len();
             if let Some(e) = Parts::too_short(w.len(), blocks, settle) {
                 anyhow::bail!("{}: {e}", w.name);
             }
@@ -307,17 +311,15 @@ impl Data {
         self.records.score_on(model, theta, &self.test_ranges())
     }
 
-    /// The selection RMSE of each selection block of every dataset, in
-    /// order: whether a gain holds across the part, not only pooled.
-    pub fn block_rmse(&self, model: &Augmented, theta: &[f64]) -> Vec<f64> {
+    /// The SSE of the free run on each selection block of every dataset, in
+    /// order (`+∞` where it diverged): whether a gain holds across the part,
+    /// not only pooled.
+    pub fn block_sse(&self, model: &Augmented, theta: &[f64]) -> Vec<f64> {
         self.selection_residuals(model, theta)
             .iter()
             .map(|(_, _, r)| {
-                if r.iter().all(|v| v.is_finite()) {
-                    (r.iter().map(|v| v * v).sum::<f64>() / r.len().max(1) as f64).sqrt()
-                } else {
-                    f64::INFINITY
-                }
+                let sse: f64 = r.iter().map(|v| v * v).sum();
+                if sse.is_finite() { sse } else { f64::INFINITY }
             })
             .collect()
     }

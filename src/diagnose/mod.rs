@@ -191,7 +191,7 @@ pub fn diagnose_from(
     let data = Data::in_coordinates(traces, from, settings.blocks)?
         .scored_on(crate::eval::open(settings.backend)?)
         .stopped_by(settings.stop.clone());
-    data.check_parts(settings.blocks)?;
+    data.check_parts()?;
     let start = match from {
         Some(m) => Some(start_of(m, family, data.datasets())?),
         None => None,

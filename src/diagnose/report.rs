@@ -82,6 +82,9 @@ pub struct CandidateJson {
     /// The candidate's RMSE over the current model's on each selection
     /// block, in order.
     pub block_ratios: Vec<f64>,
+    /// Rule 5: the selection RMSE's relative improvement with the block it
+    /// gains most on left out (null with one block).
+    pub without_best_block: Option<f64>,
     pub delta_bic: f64,
     pub relative_improvement: f64,
     pub reason: String,
@@ -274,6 +277,7 @@ impl DiagnosisJson {
                     round,
                     seed_selection_rmse: c.fit.seed_sel_rmse.clone(),
                     block_ratios: c.block_ratios.clone(),
+                    without_best_block: c.without_best_block,
                     delta_bic: c.delta_bic,
                     relative_improvement: c.relative,
                     reason: c.reason.clone(),

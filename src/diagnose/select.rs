@@ -175,7 +175,7 @@ pub fn select(
         }
         let mut yardstick = Yardstick {
             r0: final_fit.sel_rmse,
-            blocks: data.block_rmse(&current_model, &current_params),
+            blocks: data.block_sse(&current_model, &current_params),
             s0: current.spread,
             floor,
         };
@@ -196,7 +196,7 @@ pub fn select(
                         salt,
                         &scratch[i + 1],
                     )?;
-                    let blocks = data.block_rmse(&model, &fit.best.params);
+                    let blocks = data.block_sse(&model, &fit.best.params);
                     Ok((effect, model, fit, blocks))
                 })
                 .collect::<anyhow::Result<_>>()?;
@@ -229,7 +229,7 @@ pub fn select(
             }
             yardstick = Yardstick {
                 r0: ablated.best.sel_rmse,
-                blocks: data.block_rmse(&current_model, &current_params),
+                blocks: data.block_sse(&current_model, &current_params),
                 s0: ablated.spread,
                 floor,
             };

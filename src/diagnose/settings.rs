@@ -8,6 +8,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use serde::Serialize;
 
 use crate::eval::Backend;
+#[cfg(doc)]
+use crate::model::experiment::Parts;
 
 /// Raised (from a Ctrl-C handler, or Python's signal check) to stop a
 /// diagnosis: every search of it stops at its next generation and the
@@ -76,8 +78,9 @@ pub struct Settings {
     /// gap left to explain.
     pub floor_margin: f64,
     /// Blocks the second half of each record is cut into, alternating
-    /// selection and test, selection first ([`Parts`](crate::model::experiment::Parts)).
-    pub blocks: usize,
+    /// selection and test, selection first ([`Parts::of`]); `None`: as many
+    /// as each record's input asks for ([`Parts::chosen`]).
+    pub blocks: Option<usize>,
     /// Base seed; seed `i` of a fit uses `seed + i`.
     pub seed: u64,
     /// Where the searches score their populations (the same numbers on
@@ -109,7 +112,7 @@ impl Default for Settings {
             bic_threshold: -10.0,
             min_relative: 0.02,
             floor_margin: 1.1,
-            blocks: 4,
+            blocks: None,
             seed: 1,
             backend: Backend::Cpu,
             stop: StopFlag::default(),

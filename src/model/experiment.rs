@@ -55,6 +55,50 @@ pub struct Parts {
 /// carry too little of the record to compare models on.
 pub const MIN_BLOCK: usize = 32;
 
+/// The most blocks [`Parts::chosen`] tries.
+pub const MAX_BLOCKS: usize = 24;
+
+/// How much more unlike ([`Parts::unlike`]) than the most alike layout a
+/// layout with fewer blocks may be and still be chosen: fewer, longer blocks
+/// share less of a slow residual across their boundaries.
+pub const LAYOUT_TOLERANCE: f64 = 0.05;
+
+/// Equal bands of the input's range that [`input_cells`] tells apart.
+const LEVELS: usize = 5;
+
+/// Each sample's cell of input level (one of [`LEVELS`] equal bands of the
+/// input's range) and loop branch (the direction of the last move of the
+/// input by more than 2 % of its range, the asymmetry effect's tolerance;
+/// rising until the first such move): `level + LEVELS·falling`.
+fn input_cells(input: &[f64]) -> Vec<usize> {
+    let (lo, hi) = input
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let range = (hi - lo).max(f64::MIN_POSITIVE);
+    let tol = 0.02 * range;
+    let (mut anchor, mut falling) = (input.first().copied().unwrap_or(0.0), false);
+    input
+        .iter()
+        .map(|&u| {
+            if u > anchor + tol {
+                falling = false;
+                anchor = u;
+            } else if u < anchor - tol {
+                falling = true;
+                anchor = u;
+            } else if (falling && u < anchor) || (!falling && u > anchor) {
+                // Still moving the same way: the reversal is measured from
+                // the furthest point reached.
+                anchor = u;
+            }
+            let level = (((u - lo) / range) * LEVELS as f64) as usize;
+            level.min(LEVELS - 1) + LEVELS * usize::from(falling)
+        })
+        .collect()
+}
+
 impl Parts {
     /// The parts of a record of `len` samples: its second half cut into
     /// `blocks` blocks (at least 2) with `settle` samples of settling
@@ -108,6 +152,64 @@ impl Parts {
              settling gaps): it needs at least {needs} samples; record a longer \
              experiment, or cut the second half into fewer --blocks"
         ))
+    }
+
+    /// The layout of a record whose input is `input` (any shift of it): the
+    /// fewest blocks whose selection and test parts hold the input's levels
+    /// and loop branches in nearly the same proportions ([`Parts::unlike`]
+    /// within [`LAYOUT_TOLERANCE`] of the most alike layout), from 2 up to
+    /// as many as keep every block useful ([`Parts::too_short`]). Only the
+    /// input is read, never the output, so the choice sees nothing a fit or
+    /// a score could use.
+    ///
+    /// Why from the input: a fixed number of blocks suits one record and
+    /// not another. The shipped stair's second half is one cycle up and
+    /// down a step a second, so two to eight blocks leave the top plateau
+    /// or the lowest steps in one part only, and the test part then judges
+    /// a regime the selection never saw; blocks of a step or less give both
+    /// parts every level on both branches. A Cavatappi record's second half
+    /// holds two and a half pressure pulses, so two or three blocks give
+    /// each part whole pulses, while blocks shorter than a pulse put the
+    /// rises in one part and the holds in the other.
+    pub fn chosen(input: &[f64], settle: usize) -> Parts {
+        let len = input.len();
+        let most = (2..=MAX_BLOCKS)
+            .take_while(|&b| Parts::too_short(len, b, settle).is_none())
+            .last()
+            .unwrap_or(2);
+        let cells = input_cells(input);
+        let unlike: Vec<(usize, f64)> = (2..=most)
+            .map(|b| (b, Parts::of(len, b, settle).unlike(&cells)))
+            .collect();
+        let best = unlike
+            .iter()
+            .map(|&(_, u)| u)
+            .fold(f64::INFINITY, f64::min);
+        let blocks = unlike
+            .iter()
+            .find(|&&(_, u)| u <= best + LAYOUT_TOLERANCE)
+            .map_or(2, |&(b, _)| b);
+        Parts::of(len, blocks, settle)
+    }
+
+    /// How unlike the selection and test parts are in what drives the
+    /// muscle: the total variation distance between the shares of their
+    /// samples in each cell of input level and loop branch (`cells`, one a
+    /// sample, from [`input_cells`]); 0 when alike, 1 when they share no cell.
+    fn unlike(&self, cells: &[usize]) -> f64 {
+        let share = |part: &[Range<usize>]| {
+            let mut h = [0.0f64; 2 * LEVELS];
+            let mut n = 0.0f64;
+            for r in part {
+                for &c in &cells[r.clone()] {
+                    h[c] += 1.0;
+                    n += 1.0;
+                }
+            }
+            h.map(|v| v / n.max(1.0))
+        };
+        let (s, t) = (share(&self.selection), share(&self.test));
+        0.5 * s.iter().zip(&t).map(|(a, b)| (a - b).abs()).sum::<f64>()
     }
 
     /// The width of each block of the second half of `len` samples and the
@@ -205,6 +307,38 @@ mod tests {
         // Blocks of 200: the gap is capped at 50.
         assert_eq!(p.selection, vec![400..575]);
         assert_eq!(p.test, vec![625..800]);
+    }
+
+    /// A first half at rest, then a second half of `cycles` copies of
+    /// `shape`, the input of a record of `2·len` samples.
+    fn record(len: usize, shape: impl Fn(usize) -> f64) -> Vec<f64> {
+        let mut u = vec![0.0; len];
+        u.extend((0..len).map(shape));
+        u
+    }
+
+    #[test]
+    fn the_layout_gives_both_parts_the_input_s_levels_and_branches() {
+        // One stair cycle in the second half, ten steps up and ten down:
+        // blocks shorter than a few steps, or one part holds the top and
+        // the other the bottom.
+        let stair = record(2000, |k| {
+            let step = (k / 100) as f64;
+            if step < 10.0 { step } else { 19.0 - step }
+        });
+        let p = Parts::chosen(&stair, 40);
+        let cells = input_cells(&stair);
+        assert!(p.selection.len() >= 4, "{p:?}");
+        assert!(p.unlike(&cells) < 0.2, "{p:?}: {}", p.unlike(&cells));
+        assert!(Parts::of(2000 * 2, 2, 40).unlike(&cells) > 0.9);
+        // Three pulses: whole pulses in each part, fewer blocks.
+        let pulses = record(1200, |k| if k % 400 < 200 { 10.0 } else { 0.0 });
+        let p = Parts::chosen(&pulses, 20);
+        assert!(
+            p.selection.len() + p.test.len() <= 3,
+            "{p:?}: {}",
+            p.unlike(&input_cells(&pulses))
+        );
     }
 
     #[test]
