@@ -191,7 +191,10 @@ fn a_stage_whose_best_stops_improving_ends_stalled_the_window_after_its_last_imp
         },
     )
     .unwrap();
-    let mut objective = Synthetic::new(|row, _| sphere(row).max(0.5));
+    // A floor the first population almost never holds (the ball of radius
+    // 0.1 is 4·10⁻⁶ of the box; 20 draws), and DE reaches in tens of
+    // generations: the stage improves, then stalls on it.
+    let mut objective = Synthetic::new(|row, _| sphere(row).max(0.01));
     let out = run(&mut engine, &mut objective);
     // The stall ends the stage, not the fit: the plan has no other stage.
     assert_eq!(out.stop, StopReason::Completed);

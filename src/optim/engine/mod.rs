@@ -15,14 +15,16 @@
 //!   poisoning selection or statistics.
 //! - **History**: one record per generation and per polish start.
 //! - **Checkpoints**: an [`Engine`] holds everything its future depends on —
-//!   the stage, the optimizer's state, the random generator's position, the
-//!   history, the best so far — and nothing else, so a checkpoint resumes to
-//!   the bit-identical result. (A polish interrupted half-way is redone from
+//!   the stage and its generation, the optimizer's state, the history, the
+//!   best so far — and nothing else, so a checkpoint resumes to the
+//!   bit-identical result. (A polish interrupted half-way is redone from
 //!   its start: it is deterministic and short.)
 //!
-//! Every random draw comes from the engine's `ChaCha8Rng`, seeded by the
-//! run's seed, so a fit is a pure function of its seed whatever the thread
-//! count or backend.
+//! Every random draw comes from the [`Streams`](super::Streams) of the run's seed, the stage
+//! and its generation, one stream per individual: the update rules run row
+//! by row in parallel (rayon), and a fit is a pure function of its seed
+//! whatever the thread count or backend. No generator is part of the state:
+//! the stage and its generation say where every stream stands.
 
 pub mod model;
 pub mod plan;
@@ -35,13 +37,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use nalgebra::DVector;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::history::{GenerationRecord, History};
 pub use super::stage::Stage;
-use super::{AskTell, argmin, cost_order};
+use super::{AskTell, argmin, best_indices};
 use crate::data::write_atomic;
 use crate::model::Measure;
 
@@ -150,32 +150,6 @@ pub trait Observer {
     fn record(&mut self, record: &GenerationRecord, planned: usize);
 }
 
-/// A `ChaCha8Rng`'s position, as plain serialisable numbers.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct RngState {
-    seed: [u8; 32],
-    stream: u64,
-    /// The word position (`u128`, as a decimal string for JSON).
-    word_pos: String,
-}
-
-impl RngState {
-    fn of(rng: &ChaCha8Rng) -> RngState {
-        RngState {
-            seed: rng.get_seed(),
-            stream: rng.get_stream(),
-            word_pos: rng.get_word_pos().to_string(),
-        }
-    }
-
-    fn restore(&self) -> anyhow::Result<ChaCha8Rng> {
-        let mut rng = ChaCha8Rng::from_seed(self.seed);
-        rng.set_stream(self.stream);
-        rng.set_word_pos(self.word_pos.parse()?);
-        Ok(rng)
-    }
-}
-
 /// The members of one island and their costs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 struct Members {
@@ -189,17 +163,14 @@ struct Members {
 impl Members {
     /// Row indices, best first (ties by index).
     fn order(&self) -> Vec<usize> {
-        let mut order: Vec<usize> = (0..self.costs.len()).collect();
-        order.sort_by(|&a, &b| cost_order(self.costs[a], self.costs[b]).then(a.cmp(&b)));
-        order
+        best_indices(&self.costs, self.costs.len())
     }
 
-    /// The `count` best rows, best first.
+    /// The `count` best rows, best first (a partial selection).
     fn best(&self, count: usize, nf: usize) -> Vec<f64> {
-        self.order()
+        best_indices(&self.costs, count)
             .iter()
-            .take(count)
-            .flat_map(|&i| self.rows[i * nf..(i + 1) * nf].to_vec())
+            .flat_map(|&i| self.rows[i * nf..(i + 1) * nf].iter().copied())
             .collect()
     }
 }
@@ -243,7 +214,6 @@ pub struct Engine {
     stage_start_evaluations: u64,
     stage_start_seconds: f64,
     stage_best: Option<Scored>,
-    rng: RngState,
     pub history: History,
     /// The members each island of the last population stage ended with
     /// (free coordinates) and their costs under its measure.
@@ -259,6 +229,10 @@ pub struct Engine {
     summaries: Vec<StageSummary>,
     #[serde(skip)]
     started: Option<Instant>,
+    /// The canonical rows of the generation being scored, every island's in
+    /// turn: one buffer, refilled in place every generation. Scratch, not state.
+    #[serde(skip)]
+    canonical: Vec<f64>,
 }
 
 impl Engine {
@@ -297,7 +271,6 @@ impl Engine {
             plan.global.is_some() || plan.free_run.is_some() || plan.polish.is_some(),
             "the plan has no stage"
         );
-        let rng = ChaCha8Rng::seed_from_u64(seed);
         Ok(Engine {
             history: History::new(space.canonical_names()),
             plan,
@@ -311,7 +284,6 @@ impl Engine {
             stage_start_evaluations: 0,
             stage_start_seconds: 0.0,
             stage_best: None,
-            rng: RngState::of(&rng),
             carried: Vec::new(),
             pool: Vec::new(),
             best: None,
@@ -319,6 +291,7 @@ impl Engine {
             seconds_before: 0.0,
             summaries: Vec::new(),
             started: None,
+            canonical: Vec::new(),
         })
     }
 
@@ -501,9 +474,23 @@ impl Engine {
         rows: &[f64],
         measure: Measure,
     ) -> anyhow::Result<(Vec<f64>, Vec<f32>)> {
-        let scored = self.costs_of(objective, rows, measure)?;
-        self.evaluations += scored.1.len() as u64;
-        Ok(scored)
+        let canonical = self.space.embed(rows);
+        let costs = self.score_canonical(objective, &canonical, measure)?;
+        Ok((canonical, costs))
+    }
+
+    /// Scores canonical rows under `measure`, counting the evaluations:
+    /// their costs, NaN and −∞ made +∞.
+    fn score_canonical(
+        &mut self,
+        objective: &mut dyn Objective,
+        canonical: &[f64],
+        measure: Measure,
+    ) -> anyhow::Result<Vec<f32>> {
+        let costs = objective.costs(canonical, measure)?;
+        let costs = sanitized(costs, canonical.len() / self.space.dim(), &*objective)?;
+        self.evaluations += costs.len() as u64;
+        Ok(costs)
     }
 
     /// [`Engine::score`] without touching the state.
@@ -515,23 +502,7 @@ impl Engine {
     ) -> anyhow::Result<(Vec<f64>, Vec<f32>)> {
         let canonical = self.space.embed(rows);
         let n = canonical.len() / self.space.dim();
-        let costs: Vec<f32> = objective
-            .costs(&canonical, measure)?
-            .into_iter()
-            .map(|c| {
-                if c.is_nan() || c < 0.0 && c.is_infinite() {
-                    f32::INFINITY
-                } else {
-                    c
-                }
-            })
-            .collect();
-        anyhow::ensure!(
-            costs.len() == n,
-            "{} returned {} costs for {n} candidates",
-            objective.describe(),
-            costs.len()
-        );
+        let costs = sanitized(objective.costs(&canonical, measure)?, n, &*objective)?;
         Ok((canonical, costs))
     }
 
@@ -586,6 +557,15 @@ impl Engine {
         let summary = self.summary(stage, ended);
         self.summaries.push(summary);
         self.cursor += 1;
+    }
+
+    /// Marks the start of a stage: its steps, best, evaluations and seconds
+    /// count from here.
+    fn start_stage(&mut self) {
+        self.stage_steps = 0;
+        self.stage_best = None;
+        self.stage_start_evaluations = self.evaluations;
+        self.stage_start_seconds = self.elapsed();
     }
 
     /// What the current stage, `stage`, has done so far.
@@ -646,4 +626,21 @@ impl Engine {
             )
         })
     }
+}
+
+/// `costs` with NaN and −∞ made +∞, checked to hold one cost per each of
+/// the `n` candidates.
+fn sanitized(mut costs: Vec<f32>, n: usize, objective: &dyn Objective) -> anyhow::Result<Vec<f32>> {
+    anyhow::ensure!(
+        costs.len() == n,
+        "{} returned {} costs for {n} candidates",
+        objective.describe(),
+        costs.len()
+    );
+    for c in &mut costs {
+        if c.is_nan() || *c < 0.0 && c.is_infinite() {
+            *c = f32::INFINITY;
+        }
+    }
+    Ok(costs)
 }

@@ -27,10 +27,7 @@ impl Engine {
             self.history.records.len(),
             self.evaluations,
         );
-        self.stage_steps = 0;
-        self.stage_best = None;
-        self.stage_start_evaluations = self.evaluations;
-        self.stage_start_seconds = self.elapsed();
+        self.start_stage();
         let space = self.space.clone();
         let bounds = space.bounds();
         let nf = bounds.dim();
