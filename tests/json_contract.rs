@@ -380,6 +380,14 @@ fn fit() {
         ],
     );
     assert!(!v["on_edge"].as_array().unwrap().is_empty());
+    // Every stage scores on the evaluator, and that is part of its time.
+    for stage in v["stages"].as_array().unwrap() {
+        let (inside, all) = (
+            stage["evaluator_seconds"].as_f64().unwrap(),
+            stage["seconds"].as_f64().unwrap(),
+        );
+        assert!(inside > 0.0 && inside <= all, "{stage}");
+    }
     // result.json is the same document.
     let file: Value =
         serde_json::from_slice(&std::fs::read(dir.path().join("result.json")).unwrap()).unwrap();

@@ -49,6 +49,10 @@ struct Synthetic {
     pause: Duration,
     calls: usize,
     lowest: Option<(f32, Vec<f64>)>,
+    /// Seconds of "evaluator" time it reports a call
+    /// (`Objective::evaluator_seconds`); `None`: it reports none, and the
+    /// engine times its calls whole.
+    reported: Option<f64>,
 }
 
 impl Synthetic {
@@ -58,6 +62,7 @@ impl Synthetic {
             pause: Duration::ZERO,
             calls: 0,
             lowest: None,
+            reported: None,
         }
     }
 }
@@ -80,6 +85,10 @@ impl Objective for Synthetic {
         }
         self.calls += 1;
         Ok(costs)
+    }
+
+    fn evaluator_seconds(&self) -> Option<f64> {
+        self.reported.map(|per_call| per_call * self.calls as f64)
     }
 }
 
@@ -169,6 +178,37 @@ fn a_time_budget_stops_the_fit_between_generations() {
     // The best so far is kept.
     assert!(out.sse.is_finite() && out.params.len() == DIM, "{out:?}");
     assert_eq!(objective.calls, out.generations);
+}
+
+/// Each stage's `evaluator_seconds` is what the objective says it spent in
+/// its evaluator during the stage, where it says (here a made-up 0.25 s a
+/// call, while it really sleeps 20 ms: the engine must take the objective's
+/// word, not its own clock); where it does not, the engine counts its calls
+/// whole, which take at least the 20 ms each sleeps and never more than the
+/// stage's wall time.
+#[test]
+fn each_stage_counts_the_seconds_spent_in_the_evaluator() {
+    const G: usize = 5;
+    const PAUSE_MS: u64 = 20;
+    for reported in [Some(0.25), None] {
+        let mut engine = Engine::new(plan(8, G), space(), 2, StopRules::default()).unwrap();
+        let mut objective = Synthetic::new(|row, _| sphere(row));
+        objective.pause = Duration::from_millis(PAUSE_MS);
+        objective.reported = reported;
+        let out = run(&mut engine, &mut objective);
+        assert_eq!((out.stages.len(), objective.calls), (1, G));
+        let stage = &out.stages[0];
+        match reported {
+            Some(per_call) => assert_eq!(stage.evaluator_seconds, per_call * G as f64),
+            None => {
+                let slept = (G as u64 * PAUSE_MS) as f64 / 1000.0;
+                assert!(
+                    stage.evaluator_seconds >= slept && stage.evaluator_seconds <= stage.seconds,
+                    "{stage:?}"
+                );
+            }
+        }
+    }
 }
 
 /// A population stage ends as stalled exactly `stall_generations` after its

@@ -19,6 +19,10 @@
 //!   best so far — and nothing else, so a checkpoint resumes to the
 //!   bit-identical result. (A polish interrupted half-way is redone from
 //!   its start: it is deterministic and short.)
+//! - **Costs made visible**: each stage's summary holds the seconds spent
+//!   inside the evaluator's calls beside its wall time, so the share of the
+//!   engine's own work (updates, embedding, selection) can be read off any
+//!   run.
 //!
 //! Every random draw comes from the [`Streams`](super::Streams) of the run's seed, the stage
 //! and its generation, one stream per individual: the update rules run row
@@ -72,6 +76,14 @@ pub trait Objective {
             self.describe()
         )
     }
+
+    /// Seconds spent so far inside the calls of the evaluator it scores on,
+    /// where it does more than score (the muscle models' objective also
+    /// admits rows and sums experiments); `None` where scoring is all it
+    /// does, and the engine then counts its calls whole.
+    fn evaluator_seconds(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// When the whole fit stops early (each stage's own length is in the [`Plan`]).
@@ -122,6 +134,11 @@ pub struct StageSummary {
     pub steps: usize,
     pub evaluations: u64,
     pub seconds: f64,
+    /// Of `seconds`, those spent inside the evaluator's scoring calls: the
+    /// rest is the engine's own work (updates, embedding, selection, the
+    /// polish's linear algebra).
+    #[serde(default)]
+    pub evaluator_seconds: f64,
     /// The stage's best cost under its measure.
     #[serde(with = "super::inf_serde::one_f64")]
     pub best_cost: f64,
@@ -213,6 +230,8 @@ pub struct Engine {
     stage_steps: usize,
     stage_start_evaluations: u64,
     stage_start_seconds: f64,
+    #[serde(default)]
+    stage_start_evaluator_seconds: f64,
     stage_best: Option<Scored>,
     pub history: History,
     /// The members each island of the last population stage ended with
@@ -226,6 +245,9 @@ pub struct Engine {
     evaluations: u64,
     /// Seconds spent before the last resume.
     seconds_before: f64,
+    /// Seconds spent inside the evaluator's calls, all stages.
+    #[serde(default)]
+    evaluator_seconds: f64,
     summaries: Vec<StageSummary>,
     #[serde(skip)]
     started: Option<Instant>,
@@ -283,12 +305,14 @@ impl Engine {
             stage_steps: 0,
             stage_start_evaluations: 0,
             stage_start_seconds: 0.0,
+            stage_start_evaluator_seconds: 0.0,
             stage_best: None,
             carried: Vec::new(),
             pool: Vec::new(),
             best: None,
             evaluations: 0,
             seconds_before: 0.0,
+            evaluator_seconds: 0.0,
             summaries: Vec::new(),
             started: None,
             canonical: Vec::new(),
@@ -479,16 +503,17 @@ impl Engine {
         Ok((canonical, costs))
     }
 
-    /// Scores canonical rows under `measure`, counting the evaluations:
-    /// their costs, NaN and −∞ made +∞.
+    /// Scores canonical rows under `measure`, counting the evaluations and
+    /// the evaluator's seconds: their costs, NaN and −∞ made +∞.
     fn score_canonical(
         &mut self,
         objective: &mut dyn Objective,
         canonical: &[f64],
         measure: Measure,
     ) -> anyhow::Result<Vec<f32>> {
-        let costs = objective.costs(canonical, measure)?;
-        let costs = sanitized(costs, canonical.len() / self.space.dim(), &*objective)?;
+        let (costs, seconds) = timed(objective, |o| o.costs(canonical, measure));
+        self.evaluator_seconds += seconds;
+        let costs = sanitized(costs?, canonical.len() / self.space.dim(), &*objective)?;
         self.evaluations += costs.len() as u64;
         Ok(costs)
     }
@@ -566,6 +591,7 @@ impl Engine {
         self.stage_best = None;
         self.stage_start_evaluations = self.evaluations;
         self.stage_start_seconds = self.elapsed();
+        self.stage_start_evaluator_seconds = self.evaluator_seconds;
     }
 
     /// What the current stage, `stage`, has done so far.
@@ -576,6 +602,7 @@ impl Engine {
             steps: self.stage_steps,
             evaluations: self.evaluations - self.stage_start_evaluations,
             seconds: self.elapsed() - self.stage_start_seconds,
+            evaluator_seconds: self.evaluator_seconds - self.stage_start_evaluator_seconds,
             best_cost: self.stage_best.as_ref().map_or(f64::INFINITY, |b| b.cost),
             ended,
         }
@@ -626,6 +653,21 @@ impl Engine {
             )
         })
     }
+}
+
+/// Runs `call` on `objective` and says how long it spent inside the
+/// evaluator: what the objective counts ([`Objective::evaluator_seconds`]),
+/// or else the whole call.
+fn timed<T>(objective: &mut dyn Objective, call: impl FnOnce(&mut dyn Objective) -> T) -> (T, f64) {
+    let before = objective.evaluator_seconds();
+    let started = Instant::now();
+    let out = call(objective);
+    let whole = started.elapsed().as_secs_f64();
+    let seconds = match (before, objective.evaluator_seconds()) {
+        (Some(a), Some(b)) => b - a,
+        _ => whole,
+    };
+    (out, seconds)
 }
 
 /// `costs` with NaN and −∞ made +∞, checked to hold one cost per each of
