@@ -358,14 +358,16 @@ fn the_checker_catches_a_missing_a_mistyped_and_an_undocumented_field() {
 fn fit() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().to_str().unwrap();
-    // A bound the fit ends on, so that `on_edge` and `widened` have rows.
+    // A bound the fit ends on, so that `on_edge` and `widened` have rows
+    // (with N = 40 × 10 one seed in six stopped inside the bound, short of
+    // the basin; with N = 100, seeds 1–6 all end on it).
     let v = check(
         "fit",
         &[
             "fit",
             STAIR,
             "--pop",
-            "40",
+            "100",
             "--gens",
             "10",
             "--backend",
@@ -378,6 +380,14 @@ fn fit() {
         ],
     );
     assert!(!v["on_edge"].as_array().unwrap().is_empty());
+    // Every stage scores on the evaluator, and that is part of its time.
+    for stage in v["stages"].as_array().unwrap() {
+        let (inside, all) = (
+            stage["evaluator_seconds"].as_f64().unwrap(),
+            stage["seconds"].as_f64().unwrap(),
+        );
+        assert!(inside > 0.0 && inside <= all, "{stage}");
+    }
     // result.json is the same document.
     let file: Value =
         serde_json::from_slice(&std::fs::read(dir.path().join("result.json")).unwrap()).unwrap();

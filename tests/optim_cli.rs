@@ -371,9 +371,11 @@ fn fit_of_the_real_muscle_stays_bounded_on_validation() {
 }
 
 /// A fit that validates worse than the first-order ARX model on the same
-/// halves says so: the generalized model on the Cavatappi 100 g record
-/// (estimation SSE below the classic fit's, validation fit below zero).
-/// A fit of a record the classic model generated beats ARX and gets none.
+/// halves says so: the generalized model on the Cavatappi 300 g record
+/// (60.4 % against ARX's 62.7 %; 60.43 % with the random streams of the
+/// release before, and the classic model ends there too: the Bouc-Wen
+/// model misses what this muscle does, docs/RESULTS.md). A fit of a record
+/// the classic model generated beats ARX and gets none.
 #[test]
 fn a_fit_below_the_linear_yardstick_is_flagged() {
     let dir = tempfile::tempdir().unwrap();
@@ -391,7 +393,7 @@ fn a_fit_below_the_linear_yardstick_is_flagged() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("first-order ARX"), "{stderr}");
 
-    let Some(path) = common::require_external("cavatappi_muscle/sample1_100g.csv") else {
+    let Some(path) = common::require_external("cavatappi_muscle/sample1_300g.csv") else {
         return;
     };
     let out = fit_cavatappi(

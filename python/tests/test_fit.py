@@ -29,6 +29,7 @@ def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli, tmp_path):
     assert result.linear_val_fit_percent == expected["linear_val_fit_percent"]
     assert result.stop == expected["stop"] == "completed" and not result.interrupted
     assert [s["best_cost"] for s in result.stages] == [s["best_cost"] for s in expected["stages"]]
+    assert all(0 < s["evaluator_seconds"] <= s["seconds"] for s in result.stages)
     assert (result.population, result.algo, result.flow) == (1000, "de", "joint")
     assert result.on_edge == expected["on_edge"] and result.widened == expected["widened"]
     assert list(result.search_box["names"]) == expected["search_box"]["names"]

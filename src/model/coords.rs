@@ -152,7 +152,15 @@ impl Coordinates {
 
     /// The canonical vector of coordinates `z`.
     pub fn to_native(&self, family: Family, z: &[f64]) -> Vec<f64> {
-        let mut theta = z.to_vec();
+        let mut theta = vec![0.0; z.len()];
+        self.to_native_into(family, z, &mut theta);
+        theta
+    }
+
+    /// [`Coordinates::to_native`] written into `theta` (as long as `z`): no
+    /// allocation, for the engine, which maps every row of every generation.
+    pub fn to_native_into(&self, family: Family, z: &[f64], theta: &mut [f64]) {
+        theta.copy_from_slice(z);
         let Coordinates::Scaled {
             shape,
             linear,
@@ -160,10 +168,10 @@ impl Coordinates {
             ..
         } = *self
         else {
-            return theta;
+            return;
         };
         if family == Family::Linear {
-            return theta;
+            return;
         }
         let per = shape_factor(family, z, scale).recip();
         let s = shape_range(family).start;
@@ -189,12 +197,11 @@ impl Coordinates {
         }
         if linear == LinearCoords::Scaled {
             let [ia, ib, ic] = family.linear_indices();
-            let slack = 1.0 - small_signal_pole(family, &theta, theta[ia]);
+            let slack = 1.0 - small_signal_pole(family, theta, theta[ia]);
             theta[ib] = z[ib] * scale.gain * slack;
             theta[ic] = z[ic] * scale.range * slack;
             theta[family.start_index()] = z[family.start_index()] * scale.range;
         }
-        theta
     }
 
     /// The coordinates of the canonical vector `theta` (the inverse of

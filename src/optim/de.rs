@@ -13,10 +13,10 @@
 //! Price, 1997) is selectable.
 
 use rand::RngExt;
-use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{Bounds, Optimizer};
+use super::{Bounds, Optimizer, RowRng, Streams};
 
 /// The mutation strategy.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -104,17 +104,18 @@ impl Optimizer for De {
 
     /// A known model among `initial` means the best member never ends worse
     /// than it (selection is greedy).
-    fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
-        self.pop = super::first_population(&self.bounds, self.n, initial, rng);
-        self.pop.clone()
+    fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64] {
+        self.pop = super::first_population(&self.bounds, self.n, initial, streams);
+        &self.pop
     }
 
     /// One trial an individual.
-    fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        self.make_trials(rng);
-        self.trials.clone()
+    fn next(&mut self, streams: &Streams) -> &[f64] {
+        self.make_trials(streams);
+        &self.trials
     }
 
+    /// Greedy one-to-one selection, row by row in parallel.
     fn tell(&mut self, costs: &[f32]) {
         // The first population's costs: nothing to select against yet.
         if self.costs.is_empty() {
@@ -122,14 +123,21 @@ impl Optimizer for De {
             return;
         }
         let d = self.bounds.dim();
-        for (i, &c) in costs.iter().enumerate() {
-            if super::cost_order(c, self.costs[i]).is_le() && c.is_finite() {
-                self.costs[i] = c;
-                self.pop[i * d..(i + 1) * d].copy_from_slice(&self.trials[i * d..(i + 1) * d]);
-                self.f[i] = self.trial_f[i];
-                self.cr[i] = self.trial_cr[i];
-            }
-        }
+        self.pop
+            .par_chunks_mut(d)
+            .zip(self.trials.par_chunks(d))
+            .zip(self.costs.par_iter_mut())
+            .zip(self.f.par_iter_mut().zip(self.cr.par_iter_mut()))
+            .enumerate()
+            .for_each(|(i, (((row, trial), cost), (f, cr)))| {
+                let c = costs[i];
+                if super::cost_order(c, *cost).is_le() && c.is_finite() {
+                    *cost = c;
+                    row.copy_from_slice(trial);
+                    *f = self.trial_f[i];
+                    *cr = self.trial_cr[i];
+                }
+            });
     }
 
     fn members(&self) -> (Vec<f64>, Vec<f32>) {
@@ -138,73 +146,92 @@ impl Optimizer for De {
 }
 
 impl De {
-    fn make_trials(&mut self, rng: &mut ChaCha8Rng) {
+    /// Every individual's trial, in parallel: row `i` and its `F`, `CR`
+    /// from `streams.row(i)` alone.
+    fn make_trials(&mut self, streams: &Streams) {
         let (n, d) = (self.n, self.bounds.dim());
-        let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&a, &b| super::cost_order(self.costs[a], self.costs[b]).then(a.cmp(&b)));
+        // x_pbest is drawn from the best `top`: a partial selection.
         let top = ((self.settings.p_best * n as f64).round() as usize).clamp(1, n);
-        self.trials.clear();
-        self.trial_f.clear();
-        self.trial_cr.clear();
-        for i in 0..n {
-            let f = if rng.random::<f64>() < self.settings.tau_f {
-                0.1 + 0.9 * rng.random::<f64>()
-            } else {
-                self.f[i]
-            };
-            let cr = if rng.random::<f64>() < self.settings.tau_cr {
-                rng.random::<f64>()
-            } else {
-                self.cr[i]
-            };
-            let pick = |rng: &mut ChaCha8Rng, not: &[usize]| loop {
-                let r = rng.random_range(0..n);
-                if !not.contains(&r) {
-                    break r;
-                }
-            };
-            let r1 = pick(rng, &[i]);
-            let r2 = pick(rng, &[i, r1]);
-            let x = |k: usize, j: usize| self.pop[k * d + j];
-            let base: Vec<f64> = match self.settings.strategy {
-                Strategy::Rand1 => {
-                    let r0 = pick(rng, &[i, r1, r2]);
-                    (0..d)
-                        .map(|j| x(r0, j) + f * (x(r1, j) - x(r2, j)))
-                        .collect()
-                }
-                Strategy::CurrentToPbest1 => {
-                    let pb = order[rng.random_range(0..top)];
-                    (0..d)
-                        .map(|j| x(i, j) + f * (x(pb, j) - x(i, j)) + f * (x(r1, j) - x(r2, j)))
-                        .collect()
-                }
-            };
-            let jrand = rng.random_range(0..d);
-            for (j, &vj) in base.iter().enumerate() {
-                let parent = x(i, j);
-                let mut t = if j == jrand || rng.random::<f64>() < cr {
-                    vj
+        let best = match self.settings.strategy {
+            Strategy::CurrentToPbest1 => super::best_indices(&self.costs, top),
+            Strategy::Rand1 => Vec::new(),
+        };
+        self.trials.resize(n * d, 0.0);
+        self.trial_f.resize(n, 0.0);
+        self.trial_cr.resize(n, 0.0);
+        let (pop, bounds, settings) = (&self.pop, &self.bounds, &self.settings);
+        let (f_now, cr_now) = (&self.f, &self.cr);
+        self.trials
+            .par_chunks_mut(d)
+            .zip(
+                self.trial_f
+                    .par_iter_mut()
+                    .zip(self.trial_cr.par_iter_mut()),
+            )
+            .enumerate()
+            .for_each(|(i, (trial, (trial_f, trial_cr)))| {
+                let mut rng = streams.row(i);
+                let f = if rng.random::<f64>() < settings.tau_f {
+                    0.1 + 0.9 * rng.random::<f64>()
                 } else {
-                    parent
+                    f_now[i]
                 };
-                if t < self.bounds.lower[j] {
-                    t = 0.5 * (self.bounds.lower[j] + parent);
-                } else if t > self.bounds.upper[j] {
-                    t = 0.5 * (self.bounds.upper[j] + parent);
+                let cr = if rng.random::<f64>() < settings.tau_cr {
+                    rng.random::<f64>()
+                } else {
+                    cr_now[i]
+                };
+                let pick = |rng: &mut RowRng, not: &[usize]| loop {
+                    let r = rng.random_range(0..n);
+                    if !not.contains(&r) {
+                        break r;
+                    }
+                };
+                let r1 = pick(&mut rng, &[i]);
+                let r2 = pick(&mut rng, &[i, r1]);
+                let x = |k: usize, j: usize| pop[k * d + j];
+                // The mutant's coordinate j: `rand/1` from a third partner,
+                // `current-to-pbest/1` from one of the best.
+                let (r0, pb) = match settings.strategy {
+                    Strategy::Rand1 => (pick(&mut rng, &[i, r1, r2]), i),
+                    Strategy::CurrentToPbest1 => (i, best[rng.random_range(0..top)]),
+                };
+                let mutant = |j: usize| match settings.strategy {
+                    Strategy::Rand1 => x(r0, j) + f * (x(r1, j) - x(r2, j)),
+                    Strategy::CurrentToPbest1 => {
+                        x(i, j) + f * (x(pb, j) - x(i, j)) + f * (x(r1, j) - x(r2, j))
+                    }
+                };
+                let jrand = rng.random_range(0..d);
+                for (j, t) in trial.iter_mut().enumerate() {
+                    let parent = x(i, j);
+                    let mut v = if j == jrand || rng.random::<f64>() < cr {
+                        mutant(j)
+                    } else {
+                        parent
+                    };
+                    if v < bounds.lower[j] {
+                        v = 0.5 * (bounds.lower[j] + parent);
+                    } else if v > bounds.upper[j] {
+                        v = 0.5 * (bounds.upper[j] + parent);
+                    }
+                    *t = v;
                 }
-                self.trials.push(t);
-            }
-            self.trial_f.push(f);
-            self.trial_cr.push(cr);
-        }
+                *trial_f = f;
+                *trial_cr = cr;
+            });
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
+    use crate::optim::stage::Stage;
+
+    /// Generation `g`'s streams of a run seeded by `seed`.
+    fn at(seed: u64, g: usize) -> Streams {
+        Streams::new(seed, Stage::Global, g)
+    }
 
     fn sphere(rows: &[f64], d: usize) -> Vec<f32> {
         rows.chunks(d)
@@ -220,10 +247,9 @@ mod tests {
             names: vec!["x".into(), "y".into(), "z".into()],
         };
         let mut de = De::new(DeSettings::default(), bounds.clone(), 20, 60);
-        let mut rng = ChaCha8Rng::seed_from_u64(5);
         let mut best = f32::INFINITY;
-        let mut rows = de.init(&[], &mut rng);
-        for _ in 0..60 {
+        let mut rows = de.init(Vec::new(), &at(5, 0)).to_vec();
+        for g in 1..=60 {
             assert!(rows.chunks(3).all(|r| {
                 let mut c = r.to_vec();
                 !bounds.clamp(&mut c)
@@ -232,7 +258,7 @@ mod tests {
             let now = de.costs.iter().copied().fold(f32::INFINITY, f32::min);
             assert!(now <= best);
             best = now;
-            rows = de.next(&mut rng);
+            rows = de.next(&at(5, g)).to_vec();
         }
         assert!(best < 1e-6, "{best}");
     }
@@ -249,11 +275,10 @@ mod tests {
             ..DeSettings::default()
         };
         let mut de = De::new(settings, bounds, De::MIN_POPULATION, 5);
-        let mut rng = ChaCha8Rng::seed_from_u64(8);
-        let mut rows = de.init(&[], &mut rng);
-        for _ in 0..5 {
+        let mut rows = de.init(Vec::new(), &at(8, 0)).to_vec();
+        for g in 1..=5 {
             de.tell(&sphere(&rows, 2));
-            rows = de.next(&mut rng);
+            rows = de.next(&at(8, g)).to_vec();
         }
         assert_eq!(rows.len(), 2 * De::MIN_POPULATION);
     }
@@ -266,15 +291,14 @@ mod tests {
             names: vec!["x".into(), "y".into()],
         };
         let mut de = De::new(DeSettings::default(), bounds, 10, 6);
-        let mut rng = ChaCha8Rng::seed_from_u64(1);
-        let rows = de.init(&[0.3, 0.3, 5.0, -0.5], &mut rng);
+        let rows = de.init(vec![0.3, 0.3, 5.0, -0.5], &at(1, 0)).to_vec();
         assert_eq!(rows.len(), 20);
         assert_eq!(&rows[..4], &[0.3, 0.3, 1.0, -0.5]);
         // The warm start is the optimum: the best cost is 0 from the start
         // and greedy selection keeps it.
         de.tell(&sphere(&rows, 2));
-        for _ in 0..5 {
-            let rows = de.next(&mut rng);
+        for g in 1..=5 {
+            let rows = de.next(&at(1, g)).to_vec();
             de.tell(&sphere(&rows, 2));
         }
         assert_eq!(de.costs.iter().copied().fold(f32::INFINITY, f32::min), 0.0);

@@ -10,8 +10,6 @@ use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 use anyhow::Context as _;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use super::edge::{Widening, refit_off_edges};
@@ -19,8 +17,9 @@ use super::engine::model::{GENERATIONS, ModelObjective, POPULATION, staged_plan}
 use super::engine::{Engine, Observer, Outcome, Plan, Space, StopReason, StopRules};
 use super::ga::{Crossover, Mutation};
 use super::mfa::{self, Distance, Lambda0Schedule, Scale};
+use super::stage::Stage;
 use super::task::{Task, Validation};
-use super::{AlgoSettings, Algorithm};
+use super::{AlgoSettings, Algorithm, Streams};
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit::SETTLED_POINTS;
@@ -265,8 +264,10 @@ impl FitSettings {
         plan.global = None;
         let space = Space::from(&task.space);
         let n = plan.free_run.as_ref().map_or(1, |f| f.population);
-        let mut rng = ChaCha8Rng::seed_from_u64(self.seed);
-        let rows = space.around(start, n, &mut rng);
+        // The cloud is the free-run stage's first population: its draws
+        // before the first generation.
+        let streams = Streams::new(self.seed, Stage::FreeRun, 0);
+        let rows = space.around(start, n, &streams);
         Ok(Engine::new(plan, space, self.seed, self.stops()?)?.with_initial(&rows))
     }
 

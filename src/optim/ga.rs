@@ -18,10 +18,10 @@
 //! with the right indices.
 
 use rand::RngExt;
-use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{Bounds, Optimizer};
+use super::{Bounds, Optimizer, RowRng, Streams};
 
 /// How two parents make two children (§5.2.1.5).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
@@ -119,119 +119,162 @@ pub struct Ga {
     /// Their costs, once told.
     #[serde(with = "super::inf_serde")]
     costs: Vec<f32>,
+    /// Where the next population is made, then swapped with `pop` (and its
+    /// flags with `clamped`): no population is allocated or copied a
+    /// generation. Scratch, not state.
+    #[serde(skip)]
+    spare: Vec<f64>,
+    #[serde(skip)]
+    spare_clamped: Vec<bool>,
 }
 
 impl Ga {
     /// Fit of every individual: `1/SSE`, penalised when clamped, 0 when diverged.
     fn fitness(&self) -> Vec<f64> {
+        let q = self.settings.penalty_exponent;
         self.costs
-            .iter()
-            .zip(&self.clamped)
+            .par_iter()
+            .zip(self.clamped.par_iter())
             .map(|(&c, &clamped)| {
                 if !c.is_finite() {
                     return 0.0;
                 }
                 let sse = (c as f64).max(f64::MIN_POSITIVE);
                 let fit = (1.0 / sse).min(f64::MAX);
-                if clamped {
-                    fit.min(sse.powf(-self.settings.penalty_exponent))
-                } else {
-                    fit
-                }
+                if clamped { fit.min(sse.powf(-q)) } else { fit }
             })
             .collect()
     }
 
-    fn offspring(&self, rng: &mut ChaCha8Rng) -> (Vec<f64>, Vec<bool>) {
-        let d = self.bounds.dim();
-        let fit = self.fitness();
+    /// Makes the next population in `spare`: the elites, then children in
+    /// pairs, in parallel, pair `p` (children `elite + 2p` and
+    /// `elite + 2p + 1`) from the stream of its first child.
+    fn offspring(&mut self, streams: &Streams) {
+        let (n, d) = (self.n, self.bounds.dim());
         // Remaining share of the run, for the non-uniform mutation's reach.
         let k = (self.moves + 1) as f64;
         let reach = (1.0 - k / self.generations.max(1) as f64)
             .max(0.0)
             .powf(NON_UNIFORM_B);
-        let roulette = Roulette::new(&fit);
-        let mut pop = Vec::with_capacity(self.n * d);
-        let mut clamped = Vec::with_capacity(self.n);
-        let elite = self.settings.elitism.min(self.n);
-        if elite > 0 {
-            let mut order: Vec<usize> = (0..self.n).collect();
-            order.sort_by(|&a, &b| super::cost_order(self.costs[a], self.costs[b]).then(a.cmp(&b)));
-            for &i in &order[..elite] {
-                pop.extend_from_slice(&self.pop[i * d..(i + 1) * d]);
-                clamped.push(self.clamped[i]);
+        self.spare.resize(n * d, 0.0);
+        self.spare_clamped.resize(n, false);
+        let elite = self.settings.elitism.min(n);
+        for (k, i) in super::best_indices(&self.costs, elite)
+            .into_iter()
+            .enumerate()
+        {
+            self.spare[k * d..(k + 1) * d].copy_from_slice(&self.pop[i * d..(i + 1) * d]);
+            self.spare_clamped[k] = self.clamped[i];
+        }
+        let mating = Mating {
+            settings: &self.settings,
+            bounds: &self.bounds,
+            pop: &self.pop,
+            roulette: Roulette::new(self.fitness()),
+            reach,
+        };
+        self.spare[elite * d..]
+            .par_chunks_mut(2 * d)
+            .zip(self.spare_clamped[elite..].par_chunks_mut(2))
+            .enumerate()
+            .for_each(|(p, (children, clamped))| {
+                mating.pair(children, clamped, &mut streams.row(elite + 2 * p));
+            });
+    }
+}
+
+/// What two children are made from: the parents, their fit and the settings.
+struct Mating<'a> {
+    settings: &'a GaSettings,
+    bounds: &'a Bounds,
+    pop: &'a [f64],
+    /// The parents' fit (eq. 30).
+    roulette: Roulette,
+    /// The non-uniform mutation's reach this generation.
+    reach: f64,
+}
+
+impl Mating<'_> {
+    /// Two parents by roulette, crossover, mutation, clamping: the children
+    /// written into `children` (two rows, or one where the population ends
+    /// with an odd child), their clamp flags into `clamped`.
+    fn pair(&self, children: &mut [f64], clamped: &mut [bool], rng: &mut RowRng) {
+        let d = self.bounds.dim();
+        let (i1, i2) = self.roulette.pair(rng);
+        let p1 = &self.pop[i1 * d..(i1 + 1) * d];
+        let p2 = &self.pop[i2 * d..(i2 + 1) * d];
+        let (f1, f2) = (self.roulette.weights[i1], self.roulette.weights[i2]);
+        // Share of the first parent; parents of zero fit count equally.
+        let pv1 = if f1 + f2 > 0.0 { f1 / (f1 + f2) } else { 0.5 };
+        // The last pair of an odd brood makes its second child and drops it.
+        let mut dropped = Vec::new();
+        let (c1, c2) = if children.len() == 2 * d {
+            children.split_at_mut(d)
+        } else {
+            dropped.resize(d, 0.0);
+            (children, &mut dropped[..])
+        };
+        c1.copy_from_slice(p1);
+        c2.copy_from_slice(p2);
+        match self.settings.crossover {
+            Crossover::Random => {
+                let x = rng.random_range(1..=d);
+                c1[x..].copy_from_slice(&p2[x..]);
+                let x = rng.random_range(1..=d);
+                c2[x..].copy_from_slice(&p1[x..]);
+            }
+            Crossover::Weighted => {
+                let (better, worse, inp) = if f1 >= f2 {
+                    (p1, p2, pv1)
+                } else {
+                    (p2, p1, 1.0 - pv1)
+                };
+                for child in [&mut *c1, &mut *c2] {
+                    for j in 0..d {
+                        child[j] = if rng.random::<f64>() < inp {
+                            better[j]
+                        } else {
+                            worse[j]
+                        };
+                    }
+                }
+            }
+            Crossover::Proportional => {
+                for child in [&mut *c1, &mut *c2] {
+                    for j in 0..d {
+                        if rng.random::<f64>() > self.settings.p_cross {
+                            child[j] = pv1 * p1[j] + (1.0 - pv1) * p2[j];
+                        }
+                    }
+                }
             }
         }
-        while clamped.len() < self.n {
-            let (i1, i2) = roulette.pair(rng);
-            let p1 = &self.pop[i1 * d..(i1 + 1) * d];
-            let p2 = &self.pop[i2 * d..(i2 + 1) * d];
-            let (f1, f2) = (fit[i1], fit[i2]);
-            // Share of the first parent; parents of zero fit count equally.
-            let pv1 = if f1 + f2 > 0.0 { f1 / (f1 + f2) } else { 0.5 };
-            let (mut c1, mut c2) = (p1.to_vec(), p2.to_vec());
-            match self.settings.crossover {
-                Crossover::Random => {
-                    let x = rng.random_range(1..=d);
-                    c1[x..].copy_from_slice(&p2[x..]);
-                    let x = rng.random_range(1..=d);
-                    c2[x..].copy_from_slice(&p1[x..]);
-                }
-                Crossover::Weighted => {
-                    let (better, worse, inp) = if f1 >= f2 {
-                        (p1, p2, pv1)
+        for (child, flag) in [c1, c2].into_iter().zip(clamped) {
+            self.mutate(child, rng);
+            *flag = self.bounds.clamp(child);
+        }
+    }
+
+    /// Each gene mutates with probability `P_mut`.
+    fn mutate(&self, child: &mut [f64], rng: &mut RowRng) {
+        let m = self.settings.m_mut;
+        for (j, g) in child.iter_mut().enumerate() {
+            if rng.random::<f64>() >= self.settings.p_mut {
+                continue;
+            }
+            match self.settings.mutation {
+                Mutation::Fixed => *g *= 1.0 + if rng.random::<f64>() < 0.5 { m } else { -m },
+                Mutation::Uniform => *g *= 1.0 + m * (2.0 * rng.random::<f64>() - 1.0),
+                Mutation::NonUniform => {
+                    let shrink = 1.0 - rng.random::<f64>().powf(self.reach);
+                    if rng.random::<f64>() < 0.5 {
+                        *g += (self.bounds.upper[j] - *g).max(0.0) * shrink;
                     } else {
-                        (p2, p1, 1.0 - pv1)
-                    };
-                    for child in [&mut c1, &mut c2] {
-                        for j in 0..d {
-                            child[j] = if rng.random::<f64>() < inp {
-                                better[j]
-                            } else {
-                                worse[j]
-                            };
-                        }
+                        *g -= (*g - self.bounds.lower[j]).max(0.0) * shrink;
                     }
                 }
-                Crossover::Proportional => {
-                    for child in [&mut c1, &mut c2] {
-                        for j in 0..d {
-                            if rng.random::<f64>() > self.settings.p_cross {
-                                child[j] = pv1 * p1[j] + (1.0 - pv1) * p2[j];
-                            }
-                        }
-                    }
-                }
-            }
-            for mut child in [c1, c2] {
-                if clamped.len() == self.n {
-                    break;
-                }
-                for (j, g) in child.iter_mut().enumerate() {
-                    if rng.random::<f64>() >= self.settings.p_mut {
-                        continue;
-                    }
-                    let m = self.settings.m_mut;
-                    match self.settings.mutation {
-                        Mutation::Fixed => {
-                            *g *= 1.0 + if rng.random::<f64>() < 0.5 { m } else { -m }
-                        }
-                        Mutation::Uniform => *g *= 1.0 + m * (2.0 * rng.random::<f64>() - 1.0),
-                        Mutation::NonUniform => {
-                            let shrink = 1.0 - rng.random::<f64>().powf(reach);
-                            if rng.random::<f64>() < 0.5 {
-                                *g += (self.bounds.upper[j] - *g).max(0.0) * shrink;
-                            } else {
-                                *g -= (*g - self.bounds.lower[j]).max(0.0) * shrink;
-                            }
-                        }
-                    }
-                }
-                clamped.push(self.bounds.clamp(&mut child));
-                pop.extend_from_slice(&child);
             }
         }
-        (pop, clamped)
     }
 }
 
@@ -253,6 +296,8 @@ impl Optimizer for Ga {
             pop: Vec::new(),
             clamped: Vec::new(),
             costs: Vec::new(),
+            spare: Vec::new(),
+            spare_clamped: Vec::new(),
         }
     }
 
@@ -268,22 +313,23 @@ impl Optimizer for Ga {
         }
     }
 
-    fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
-        self.pop = super::first_population(&self.bounds, self.n, initial, rng);
+    fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64] {
+        self.pop = super::first_population(&self.bounds, self.n, initial, streams);
         self.clamped = vec![false; self.n];
-        self.pop.clone()
+        &self.pop
     }
 
-    fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        let (pop, clamped) = self.offspring(rng);
+    fn next(&mut self, streams: &Streams) -> &[f64] {
+        self.offspring(streams);
         self.moves += 1;
-        self.pop = pop;
-        self.clamped = clamped;
-        self.pop.clone()
+        std::mem::swap(&mut self.pop, &mut self.spare);
+        std::mem::swap(&mut self.clamped, &mut self.spare_clamped);
+        &self.pop
     }
 
     fn tell(&mut self, costs: &[f32]) {
-        self.costs = costs.to_vec();
+        self.costs.clear();
+        self.costs.extend_from_slice(costs);
     }
 
     fn members(&self) -> (Vec<f64>, Vec<f32>) {
@@ -299,7 +345,7 @@ struct Roulette {
 }
 
 impl Roulette {
-    fn new(weights: &[f64]) -> Roulette {
+    fn new(weights: Vec<f64>) -> Roulette {
         let mut acc = 0.0;
         let cumulative = weights
             .iter()
@@ -310,7 +356,7 @@ impl Roulette {
             .collect();
         Roulette {
             cumulative,
-            weights: weights.to_vec(),
+            weights,
         }
     }
 
@@ -328,7 +374,7 @@ impl Roulette {
 
     /// Two distinct parents: the first by roulette over all, the second by
     /// roulette over the others (the appendix' `getMatingPartners`, fixed).
-    fn pair(&self, rng: &mut ChaCha8Rng) -> (usize, usize) {
+    fn pair(&self, rng: &mut RowRng) -> (usize, usize) {
         let n = self.weights.len();
         let total = self.total();
         if !(total > 0.0 && total.is_finite()) {
@@ -365,12 +411,17 @@ impl Roulette {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
+    use crate::optim::stage::Stage;
+
+    /// Generation `g`'s streams of a run seeded by `seed`.
+    fn at(seed: u64, g: usize) -> Streams {
+        Streams::new(seed, Stage::Global, g)
+    }
 
     #[test]
     fn roulette_picks_distinct_parents_in_proportion() {
-        let r = Roulette::new(&[0.0, 1.0, 3.0, 0.0]);
-        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let r = Roulette::new(vec![0.0, 1.0, 3.0, 0.0]);
+        let mut rng = at(1, 1).row(0);
         let mut count = [0usize; 4];
         for _ in 0..4000 {
             let (a, b) = r.pair(&mut rng);
@@ -385,8 +436,8 @@ mod tests {
 
     #[test]
     fn a_single_positive_weight_still_gives_two_parents() {
-        let r = Roulette::new(&[0.0, 0.0, 5.0]);
-        let mut rng = ChaCha8Rng::seed_from_u64(2);
+        let r = Roulette::new(vec![0.0, 0.0, 5.0]);
+        let mut rng = at(2, 1).row(0);
         for _ in 0..100 {
             let (a, b) = r.pair(&mut rng);
             assert_eq!(a, 2);
@@ -433,10 +484,9 @@ mod tests {
                 ..GaSettings::default()
             };
             let mut ga = Ga::new(settings, bounds.clone(), 8, 30);
-            let mut rng = ChaCha8Rng::seed_from_u64(6);
-            let first = ga.init(&[], &mut rng);
+            let first = ga.init(Vec::new(), &at(6, 0)).to_vec();
             ga.tell(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, f32::INFINITY]);
-            let next = ga.next(&mut rng);
+            let next = ga.next(&at(6, 1));
             let inherited = next
                 .chunks(3)
                 .all(|child| (0..3).all(|j| first.chunks(3).any(|parent| parent[j] == child[j])));
@@ -456,16 +506,15 @@ mod tests {
             mutation: Mutation::NonUniform,
             ..GaSettings::default()
         };
-        let mut rng = ChaCha8Rng::seed_from_u64(9);
-        let mut spread = |moves: usize| {
+        let spread = |moves: usize| {
             let mut ga = Ga::new(settings.clone(), bounds.clone(), 200, 10);
             ga.pop = vec![5.0; 200];
             ga.clamped = vec![false; 200];
             ga.costs = vec![1.0; 200];
             ga.moves = moves;
-            let (pop, clamped) = ga.offspring(&mut rng);
+            let pop = ga.next(&at(9, moves + 1)).to_vec();
             assert!(pop.iter().all(|x| (0.0..=10.0).contains(x)));
-            assert!(clamped.iter().all(|&c| !c), "never leaves the box");
+            assert!(ga.clamped.iter().all(|&c| !c), "never leaves the box");
             pop.iter().fold(0.0f64, |m, x| m.max((x - 5.0).abs()))
         };
         // Generation 1 of 10 reaches most of the box; generation 9 hardly moves.

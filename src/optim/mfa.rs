@@ -14,19 +14,18 @@
 //! against a snapshot of the others' positions taken at the start of the
 //! generation (the appendix code moves them in place one after another, so a
 //! later firefly sees earlier ones already moved), and each with its own
-//! random stream derived from the run's generator, so the result does not
-//! depend on the thread count. The all-pairs move is `O(N²·d)` per
+//! random stream ([`Streams`]), so the result does not depend on the thread
+//! count. The all-pairs move is `O(N²·d)` per
 //! generation; `max_attractors` caps it at `O(N·K·d)` by moving each firefly
 //! towards `K` brighter fireflies (drawn at random, or the `K` brightest)
 //! instead of all of them.
 
-use rand::{RngExt, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::RngExt;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{Bounds, Optimizer};
+use super::{Bounds, Optimizer, RowRng, Streams};
 
 /// Above this population the all-pairs move, `O(N²·d)` a generation, stops
 /// being practical (timed: docs/lab/results.md, "3. Equal budgets over 10
@@ -158,10 +157,39 @@ pub struct Mfa {
     pos: Vec<f64>,
     #[serde(with = "super::inf_serde")]
     costs: Vec<f32>,
+    /// Where the next positions are made, then swapped with `pos`: the
+    /// snapshot every firefly moves against is `pos` itself, never a copy.
+    /// Scratch, not state.
+    #[serde(skip)]
+    spare: Vec<f64>,
+}
+
+/// The brightness ranking a capped move needs.
+enum Ranking {
+    /// Every firefly, brightest first, and each firefly's place in it: to
+    /// draw attractors among all brighter ones.
+    Full { order: Vec<usize>, rank: Vec<usize> },
+    /// The `k` brightest, brightest first: the brightest attractors.
+    Top(Vec<usize>),
+}
+
+impl Ranking {
+    /// The fireflies brighter than `i`, brightest first, as far as the
+    /// ranking holds them (with [`Ranking::Top`], all `k` for a firefly
+    /// outside them).
+    fn brighter(&self, i: usize) -> &[usize] {
+        match self {
+            Ranking::Full { order, rank } => &order[..rank[i]],
+            Ranking::Top(top) => match top.iter().position(|&t| t == i) {
+                Some(r) => &top[..r],
+                None => top,
+            },
+        }
+    }
 }
 
 impl Mfa {
-    fn step(&mut self, rng: &mut ChaCha8Rng) {
+    fn step(&mut self, streams: &Streams) {
         let d = self.bounds.dim();
         self.moves += 1;
         let (lambda0, sigma, rho) = self.settings.schedule(self.moves, self.generations);
@@ -177,23 +205,32 @@ impl Mfa {
                 Scale::Box => rho * self.bounds.width(j),
             })
             .collect();
-        // Brightness ranking, for drawing brighter attractors when capped.
-        let mut order: Vec<usize> = (0..self.n).collect();
-        order.sort_by(|&a, &b| super::cost_order(self.costs[a], self.costs[b]).then(a.cmp(&b)));
-        let mut rank = vec![0usize; self.n];
-        for (r, &i) in order.iter().enumerate() {
-            rank[i] = r;
-        }
-        let base: [u8; 32] = rng.random();
+        // Brightness ranking, for choosing brighter attractors when capped:
+        // the brightest attractors need only the `k` brightest (a partial
+        // selection), random ones the whole order.
+        let ranking = match (self.settings.max_attractors, self.settings.attractors) {
+            (None, _) => None,
+            (Some(k), Attractors::Brightest) => {
+                Some(Ranking::Top(super::best_indices(&self.costs, k)))
+            }
+            (Some(_), Attractors::Random) => {
+                let order = super::best_indices(&self.costs, self.n);
+                let mut rank = vec![0usize; self.n];
+                for (r, &i) in order.iter().enumerate() {
+                    rank[i] = r;
+                }
+                Some(Ranking::Full { order, rank })
+            }
+        };
         let snapshot = &self.pos;
         let costs = &self.costs;
         let settings = &self.settings;
         let bounds = &self.bounds;
-        let mut next = snapshot.clone();
-        next.par_chunks_mut(d).enumerate().for_each(|(i, x)| {
-            let mut frng = ChaCha8Rng::from_seed(base);
-            frng.set_stream(i as u64);
-            let attract = |x: &mut [f64], j: usize, frng: &mut ChaCha8Rng| {
+        self.spare.resize(snapshot.len(), 0.0);
+        self.spare.par_chunks_mut(d).enumerate().for_each(|(i, x)| {
+            x.copy_from_slice(&snapshot[i * d..(i + 1) * d]);
+            let mut frng = streams.row(i);
+            let attract = |x: &mut [f64], j: usize, frng: &mut RowRng| {
                 let nj = &snapshot[j * d..(j + 1) * d];
                 let r2: f64 = (0..d).map(|t| ((nj[t] - x[t]) * inv_w[t]).powi(2)).sum();
                 let decay = match settings.distance {
@@ -208,29 +245,33 @@ impl Mfa {
                 bounds.clamp(x);
             };
             let ci = costs[i];
-            match settings.max_attractors {
-                None => {
-                    for (j, &cj) in costs.iter().enumerate() {
-                        if super::cost_order(cj, ci).is_lt() && cj.is_finite() {
+            let brighter_than_i =
+                |j: usize| costs[j].is_finite() && super::cost_order(costs[j], ci).is_lt();
+            match (settings.max_attractors, &ranking) {
+                (Some(k), Some(ranking)) => {
+                    let brighter = ranking.brighter(i);
+                    let m = k.min(brighter.len());
+                    for step in 0..m {
+                        let j = match settings.attractors {
+                            Attractors::Random => brighter[frng.random_range(0..brighter.len())],
+                            // Dimmest first, so that the brightest acts last.
+                            Attractors::Brightest => brighter[m - 1 - step],
+                        };
+                        if brighter_than_i(j) {
                             attract(x, j, &mut frng);
                         }
                     }
                 }
-                Some(k) => {
-                    let brighter = rank[i];
-                    for m in 0..k.min(brighter) {
-                        let j = match settings.attractors {
-                            Attractors::Random => order[frng.random_range(0..brighter)],
-                            Attractors::Brightest => order[k.min(brighter) - 1 - m],
-                        };
-                        if costs[j].is_finite() && super::cost_order(costs[j], ci).is_lt() {
+                _ => {
+                    for j in 0..costs.len() {
+                        if brighter_than_i(j) {
                             attract(x, j, &mut frng);
                         }
                     }
                 }
             }
         });
-        self.pos = next;
+        std::mem::swap(&mut self.pos, &mut self.spare);
     }
 }
 
@@ -252,6 +293,7 @@ impl Optimizer for Mfa {
             moves: 0,
             pos: Vec::new(),
             costs: Vec::new(),
+            spare: Vec::new(),
         }
     }
 
@@ -270,18 +312,19 @@ impl Optimizer for Mfa {
         }
     }
 
-    fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
-        self.pos = super::first_population(&self.bounds, self.n, initial, rng);
-        self.pos.clone()
+    fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64] {
+        self.pos = super::first_population(&self.bounds, self.n, initial, streams);
+        &self.pos
     }
 
-    fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        self.step(rng);
-        self.pos.clone()
+    fn next(&mut self, streams: &Streams) -> &[f64] {
+        self.step(streams);
+        &self.pos
     }
 
     fn tell(&mut self, costs: &[f32]) {
-        self.costs = costs.to_vec();
+        self.costs.clear();
+        self.costs.extend_from_slice(costs);
     }
 
     fn members(&self) -> (Vec<f64>, Vec<f32>) {
@@ -323,8 +366,7 @@ mod tests {
         let mut mfa = Mfa::new(MfaSettings::default(), bounds, 3, 30);
         mfa.pos = vec![0.0, 0.0, 0.5, 0.5, -0.5, 0.5];
         mfa.costs = vec![1.0, 2.0, f32::INFINITY];
-        let mut rng = ChaCha8Rng::seed_from_u64(3);
-        let next = mfa.next(&mut rng);
+        let next = mfa.next(&Streams::new(3, crate::optim::stage::Stage::Global, 1));
         assert_eq!(&next[..2], &[0.0, 0.0]);
         let dist = |p: &[f64]| (p[0] * p[0] + p[1] * p[1]).sqrt();
         assert!(dist(&next[2..4]) < dist(&[0.5, 0.5]));

@@ -6,8 +6,9 @@
 //! it and is *told* their costs (SSE, lower is better, `+∞` for a diverged
 //! candidate). The [`engine`] owns everything around that: stages, seeding,
 //! stopping, history, checkpoints, Ctrl-C. Every random draw comes from the
-//! `ChaCha8Rng` the engine passes in, so a run is a pure function of its
-//! seed, whatever the thread count or backend.
+//! [`Streams`] the engine passes in, one stream per individual, so the
+//! update rules run row by row in parallel and a run is a pure function of
+//! its seed, whatever the thread count or backend.
 //!
 //! The thesis' three methods (chapter 5, appendix A.2) are [`ga`], [`mfa`]
 //! and [`pso`]; [`de`] is the modern baseline they are compared against.
@@ -28,6 +29,7 @@ pub mod pso;
 
 pub mod records;
 pub mod stage;
+pub mod streams;
 pub mod synthetic;
 pub mod task;
 
@@ -35,13 +37,15 @@ use std::cmp::Ordering;
 use std::fmt;
 use std::str::FromStr;
 
-use rand_chacha::ChaCha8Rng;
+use rand::RngExt;
+use rayon::prelude::*;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::model::Family;
 
 pub use history::{GenerationRecord, History};
+pub use streams::{RowRng, Streams};
 
 /// The box an optimizer searches: bounds of the free coordinates only
 /// (parameters with `lower == upper` in the [`engine::Space`] are held fixed by
@@ -75,12 +79,11 @@ impl Bounds {
         moved
     }
 
-    /// A point drawn uniformly in the box (eq. 26).
-    pub fn uniform(&self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        use rand::RngExt;
-        (0..self.dim())
-            .map(|j| self.lower[j] + rng.random::<f64>() * self.width(j))
-            .collect()
+    /// Fills `row` with a point drawn uniformly in the box (eq. 26).
+    pub fn uniform(&self, row: &mut [f64], rng: &mut RowRng) {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = self.lower[j] + rng.random::<f64>() * self.width(j);
+        }
     }
 }
 
@@ -122,12 +125,15 @@ pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
     }
 
     /// The first population: `initial` rows (row-major; a warm start) and
-    /// uniform draws for the rest, as `first_population` makes it.
-    /// Row-major, `n × bounds.dim()`, every row inside the box.
-    fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64>;
+    /// uniform draws for the rest, as `first_population` makes it, row `i`
+    /// drawing from `streams.row(i)`. Row-major, `n × bounds.dim()`, every
+    /// row inside the box; it stays the optimizer's own (no copy is handed out).
+    fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64];
 
-    /// The next population, from the costs told of the last one.
-    fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64>;
+    /// The next population, from the costs told of the last one: each
+    /// individual's move from its own stream (`streams.row(i)`), so that
+    /// the rows can be made in parallel, in any order.
+    fn next(&mut self, streams: &Streams) -> &[f64];
 
     /// The costs of the rows of the population last returned, in order.
     fn tell(&mut self, costs: &[f32]);
@@ -187,7 +193,7 @@ impl AskTell {
         bounds: Bounds,
         n: usize,
         generations: usize,
-        initial: &[f64],
+        initial: Vec<f64>,
     ) -> AskTell {
         let min = settings.algorithm().min_population();
         assert!(
@@ -197,9 +203,7 @@ impl AskTell {
         );
         AskTell {
             n,
-            phase: Phase::Fresh {
-                initial: initial.to_vec(),
-            },
+            phase: Phase::Fresh { initial },
             optimizer: AnyOptimizer::new(settings, bounds, n, generations),
         }
     }
@@ -209,15 +213,18 @@ impl AskTell {
     }
 
     /// The next population to evaluate: row-major, `n × bounds.dim()`, every
-    /// row inside the box.
-    pub fn ask(&mut self, rng: &mut ChaCha8Rng) -> Result<Vec<f64>, PhaseError> {
-        let rows = match &self.phase {
-            Phase::Fresh { initial } => self.optimizer.init(initial, rng),
-            Phase::Told => self.optimizer.next(rng),
+    /// row inside the box, individual `i` drawn from `streams.row(i)`.
+    pub fn ask(&mut self, streams: &Streams) -> Result<&[f64], PhaseError> {
+        let fresh = match &mut self.phase {
+            Phase::Fresh { initial } => Some(std::mem::take(initial)),
+            Phase::Told => None,
             Phase::Asked => return Err(PhaseError::AskedTwice(self.algorithm())),
         };
         self.phase = Phase::Asked;
-        Ok(rows)
+        Ok(match fresh {
+            Some(initial) => self.optimizer.init(initial, streams),
+            None => self.optimizer.next(streams),
+        })
     }
 
     /// The costs of the rows last asked for, in order.
@@ -247,21 +254,38 @@ impl AskTell {
 }
 
 /// The first population of an optimizer: the given `initial` rows (clamped
-/// into the box; a warm start from known models), then uniform draws (eq. 26).
+/// into the box; a warm start from known models), then uniform draws (eq.
+/// 26), row `i` from `streams.row(i)`.
 pub(crate) fn first_population(
     bounds: &Bounds,
     n: usize,
-    initial: &[f64],
-    rng: &mut ChaCha8Rng,
+    initial: Vec<f64>,
+    streams: &Streams,
 ) -> Vec<f64> {
     let d = bounds.dim().max(1);
-    let mut pop: Vec<f64> = initial[..initial.len().min(n * d)].to_vec();
-    for row in pop.chunks_mut(d) {
-        bounds.clamp(row);
-    }
-    let given = pop.len() / d;
-    pop.extend((given..n).flat_map(|_| bounds.uniform(rng)));
+    let (mut pop, given) = first_rows(bounds, n, initial);
+    pop.par_chunks_mut(d)
+        .enumerate()
+        .for_each(|(i, row)| first_row(bounds, row, i < given, &mut streams.row(i)));
     pop
+}
+
+/// `initial` cut or grown to `n` rows, and how many of them were given.
+pub(crate) fn first_rows(bounds: &Bounds, n: usize, mut initial: Vec<f64>) -> (Vec<f64>, usize) {
+    let d = bounds.dim().max(1);
+    let given = (initial.len() / d).min(n);
+    initial.resize(n * d, 0.0);
+    (initial, given)
+}
+
+/// Row of a first population: a `given` row clamped into the box, or else
+/// a uniform draw from `rng`.
+pub(crate) fn first_row(bounds: &Bounds, row: &mut [f64], given: bool, rng: &mut RowRng) {
+    if given {
+        bounds.clamp(row);
+    } else {
+        bounds.uniform(row, rng);
+    }
 }
 
 /// Total order on costs for minimisation: `+∞` and NaN last, never
@@ -269,6 +293,25 @@ pub(crate) fn first_population(
 pub fn cost_order(a: f32, b: f32) -> Ordering {
     let key = |v: f32| if v.is_nan() { f32::INFINITY } else { v };
     key(a).total_cmp(&key(b))
+}
+
+/// The indices of the `k` lowest costs, best first (ties by index): a
+/// partial selection, `O(n + k log k)`, where a full sort would be
+/// `O(n log n)`. The order is [`cost_order`] then the index, a total order,
+/// so the result is unique.
+pub fn best_indices(costs: &[f32], k: usize) -> Vec<usize> {
+    let by_cost = |a: &usize, b: &usize| cost_order(costs[*a], costs[*b]).then(a.cmp(b));
+    let mut order: Vec<usize> = (0..costs.len()).collect();
+    let k = k.min(order.len());
+    if k == 0 {
+        return Vec::new();
+    }
+    if k < order.len() {
+        order.select_nth_unstable_by(k - 1, by_cost);
+        order.truncate(k);
+    }
+    order.sort_unstable_by(by_cost);
+    order
 }
 
 /// Index of the lowest cost, `None` if every cost is infinite.
@@ -382,15 +425,15 @@ macro_rules! registry {
                 }
             }
 
-            fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
+            fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64] {
                 match self {
-                    $(AnyOptimizer::$variant(o) => o.init(initial, rng),)+
+                    $(AnyOptimizer::$variant(o) => o.init(initial, streams),)+
                 }
             }
 
-            fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
+            fn next(&mut self, streams: &Streams) -> &[f64] {
                 match self {
-                    $(AnyOptimizer::$variant(o) => o.next(rng),)+
+                    $(AnyOptimizer::$variant(o) => o.next(streams),)+
                 }
             }
 
@@ -455,7 +498,12 @@ impl clap::ValueEnum for Algorithm {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
+    use stage::Stage;
+
+    /// Generation `g`'s streams of a run seeded by `seed`.
+    fn at(seed: u64, g: usize) -> Streams {
+        Streams::new(seed, Stage::Global, g)
+    }
 
     #[test]
     fn infinite_and_nan_costs_sort_last() {
@@ -494,7 +542,7 @@ mod tests {
     fn every_algorithm() -> impl Iterator<Item = AskTell> {
         Algorithm::ALL
             .into_iter()
-            .map(|a| AskTell::new(&a.default_settings(), cube(), N, 10, &[]))
+            .map(|a| AskTell::new(&a.default_settings(), cube(), N, 10, Vec::new()))
     }
 
     fn sphere(rows: &[f64]) -> Vec<f32> {
@@ -506,7 +554,6 @@ mod tests {
     /// The minimum each algorithm states is enough for each of its presets.
     #[test]
     fn every_algorithm_runs_at_its_minimum_population() {
-        let mut rng = ChaCha8Rng::seed_from_u64(2);
         for algo in Algorithm::ALL {
             let n = algo.min_population();
             for settings in [
@@ -514,9 +561,9 @@ mod tests {
                 algo.thesis_settings(Family::Generalized),
                 algo.staged_settings(n),
             ] {
-                let mut search = AskTell::new(&settings, cube(), n, 5, &[]);
-                for _ in 0..5 {
-                    let rows = search.ask(&mut rng).unwrap();
+                let mut search = AskTell::new(&settings, cube(), n, 5, Vec::new());
+                for g in 0..5 {
+                    let rows = search.ask(&at(2, g)).unwrap().to_vec();
                     assert_eq!(rows.len(), n * 3, "{algo}");
                     for row in rows.chunks(3) {
                         assert!(!cube().clamp(&mut row.to_vec()), "{algo}: {row:?}");
@@ -531,13 +578,15 @@ mod tests {
     fn asking_twice_is_an_error_for_every_algorithm_and_changes_nothing() {
         for (mut refused, mut plain) in every_algorithm().zip(every_algorithm()) {
             let algo = refused.algorithm();
-            let (mut r1, mut r2) = (ChaCha8Rng::seed_from_u64(3), ChaCha8Rng::seed_from_u64(3));
-            for _ in 0..3 {
-                let rows = refused.ask(&mut r1).unwrap();
-                assert_eq!(refused.ask(&mut r1), Err(PhaseError::AskedTwice(algo)));
-                // The refused ask neither restarted the search nor drew from
-                // the generator: the two searches stay the same.
-                assert_eq!(rows, plain.ask(&mut r2).unwrap(), "{algo}");
+            for g in 0..3 {
+                let rows = refused.ask(&at(3, g)).unwrap().to_vec();
+                assert_eq!(
+                    refused.ask(&at(3, g)).map(<[f64]>::to_vec),
+                    Err(PhaseError::AskedTwice(algo))
+                );
+                // The refused ask did not restart the search: the two
+                // searches stay the same.
+                assert_eq!(rows, plain.ask(&at(3, g)).unwrap(), "{algo}");
                 refused.tell(&sphere(&rows)).unwrap();
                 plain.tell(&sphere(&rows)).unwrap();
             }
@@ -547,11 +596,10 @@ mod tests {
 
     #[test]
     fn telling_out_of_turn_or_the_wrong_number_of_costs_is_an_error() {
-        let mut rng = ChaCha8Rng::seed_from_u64(4);
         for mut search in every_algorithm() {
             let algo = search.algorithm();
             assert_eq!(search.tell(&[1.0; N]), Err(PhaseError::NothingAsked(algo)));
-            let rows = search.ask(&mut rng).unwrap();
+            let rows = search.ask(&at(4, 0)).unwrap().to_vec();
             for wrong in [N - 1, N + 1] {
                 assert_eq!(
                     search.tell(&vec![1.0; wrong]),

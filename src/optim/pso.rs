@@ -17,10 +17,10 @@
 //! `scalar_social` restores the code's choice.
 
 use rand::RngExt;
-use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{Bounds, Optimizer};
+use super::{Bounds, Optimizer, Streams};
 use crate::model::Family;
 
 /// PSO settings; defaults are Table 11 (classic); [`PsoSettings::thesis`]
@@ -175,33 +175,54 @@ impl Optimizer for Pso {
         PsoSettings::constriction()
     }
 
-    /// The first swarm, with velocities uniform in `[−Vmax_j, Vmax_j]`.
-    fn init(&mut self, initial: &[f64], rng: &mut ChaCha8Rng) -> Vec<f64> {
+    /// The first swarm, with velocities uniform in `[−Vmax_j, Vmax_j]`,
+    /// each particle's drawn after its position from the same stream.
+    fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64] {
         let d = self.bounds.dim();
-        self.pos = super::first_population(&self.bounds, self.n, initial, rng);
-        self.vel = (0..self.n * d)
-            .map(|k| self.vmax[k % d] * (2.0 * rng.random::<f64>() - 1.0))
-            .collect();
-        self.pbest = self.pos.clone();
-        self.pos.clone()
+        let (mut pos, given) = super::first_rows(&self.bounds, self.n, initial);
+        let mut vel = vec![0.0; self.n * d];
+        let (bounds, vmax) = (&self.bounds, &self.vmax);
+        pos.par_chunks_mut(d)
+            .zip(vel.par_chunks_mut(d))
+            .enumerate()
+            .for_each(|(i, (x, v))| {
+                let mut rng = streams.row(i);
+                super::first_row(bounds, x, i < given, &mut rng);
+                for (vj, limit) in v.iter_mut().zip(vmax) {
+                    *vj = limit * (2.0 * rng.random::<f64>() - 1.0);
+                }
+            });
+        self.pbest = pos.clone();
+        self.pos = pos;
+        self.vel = vel;
+        &self.pos
     }
 
-    fn next(&mut self, rng: &mut ChaCha8Rng) -> Vec<f64> {
-        self.step(rng);
-        self.pos.clone()
+    fn next(&mut self, streams: &Streams) -> &[f64] {
+        self.step(streams);
+        &self.pos
     }
 
+    /// Each particle's personal best in parallel, then the swarm's best:
+    /// the lowest cost (the first on ties), if it beats the best so far.
     fn tell(&mut self, costs: &[f32]) {
         let d = self.bounds.dim();
-        for (i, &c) in costs.iter().enumerate() {
-            if super::cost_order(c, self.pbest_cost[i]).is_lt() {
-                self.pbest_cost[i] = c;
-                self.pbest[i * d..(i + 1) * d].copy_from_slice(&self.pos[i * d..(i + 1) * d]);
-            }
-            if super::cost_order(c, self.gbest_cost).is_lt() {
-                self.gbest_cost = c;
-                self.gbest = self.pos[i * d..(i + 1) * d].to_vec();
-            }
+        self.pbest
+            .par_chunks_mut(d)
+            .zip(self.pbest_cost.par_iter_mut())
+            .zip(self.pos.par_chunks(d))
+            .zip(costs.par_iter())
+            .for_each(|(((pbest, pbest_cost), x), &c)| {
+                if super::cost_order(c, *pbest_cost).is_lt() {
+                    *pbest_cost = c;
+                    pbest.copy_from_slice(x);
+                }
+            });
+        if let Some(i) = super::argmin(costs)
+            && super::cost_order(costs[i], self.gbest_cost).is_lt()
+        {
+            self.gbest_cost = costs[i];
+            self.gbest.copy_from_slice(&self.pos[i * d..(i + 1) * d]);
         }
     }
 
@@ -212,38 +233,45 @@ impl Optimizer for Pso {
 }
 
 impl Pso {
-    fn step(&mut self, rng: &mut ChaCha8Rng) {
+    /// Every particle moves in parallel, from its own stream.
+    fn step(&mut self, streams: &Streams) {
         let d = self.bounds.dim();
         self.moves += 1;
         let w = self.settings.inertia(self.moves, self.generations);
         let (c1, c2) = (self.settings.c1, self.settings.c2);
         let social = self.social_bests();
-        for (i, neighbour) in social.into_iter().enumerate() {
-            let r2_scalar: f64 = if self.settings.scalar_social {
-                rng.random()
-            } else {
-                0.0
-            };
-            let row = i * d..(i + 1) * d;
-            let (x, v) = (&mut self.pos[row.clone()], &mut self.vel[row.clone()]);
-            let pb = &self.pbest[row];
-            let best = match neighbour {
-                Some(k) => &self.pbest[k * d..(k + 1) * d],
-                None => &self.gbest[..],
-            };
-            for j in 0..d {
-                let r1: f64 = rng.random();
-                let r2: f64 = if self.settings.scalar_social {
-                    r2_scalar
-                } else {
+        let (settings, bounds, vmax) = (&self.settings, &self.bounds, &self.vmax);
+        let (pbest, gbest) = (&self.pbest, &self.gbest);
+        self.pos
+            .par_chunks_mut(d)
+            .zip(self.vel.par_chunks_mut(d))
+            .zip(social.par_iter())
+            .enumerate()
+            .for_each(|(i, ((x, v), neighbour))| {
+                let mut rng = streams.row(i);
+                let r2_scalar: f64 = if settings.scalar_social {
                     rng.random()
+                } else {
+                    0.0
                 };
-                let vj = w * v[j] + c1 * r1 * (pb[j] - x[j]) + c2 * r2 * (best[j] - x[j]);
-                v[j] = vj.clamp(-self.vmax[j], self.vmax[j]);
-                x[j] += v[j];
-            }
-            self.bounds.clamp(x);
-        }
+                let pb = &pbest[i * d..(i + 1) * d];
+                let best = match neighbour {
+                    Some(k) => &pbest[k * d..(k + 1) * d],
+                    None => &gbest[..],
+                };
+                for j in 0..d {
+                    let r1: f64 = rng.random();
+                    let r2: f64 = if settings.scalar_social {
+                        r2_scalar
+                    } else {
+                        rng.random()
+                    };
+                    let vj = w * v[j] + c1 * r1 * (pb[j] - x[j]) + c2 * r2 * (best[j] - x[j]);
+                    v[j] = vj.clamp(-vmax[j], vmax[j]);
+                    x[j] += v[j];
+                }
+                bounds.clamp(x);
+            });
     }
 
     /// For each particle, the particle whose personal best pulls it
@@ -256,6 +284,7 @@ impl Pso {
         let n = self.n;
         let k = k.min(n / 2);
         (0..n)
+            .into_par_iter()
             .map(|i| {
                 (0..=2 * k).map(|o| (i + n - k + o) % n).min_by(|&a, &b| {
                     super::cost_order(self.pbest_cost[a], self.pbest_cost[b]).then(a.cmp(&b))
@@ -268,7 +297,12 @@ impl Pso {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::SeedableRng;
+    use crate::optim::stage::Stage;
+
+    /// Generation `g`'s streams of a run seeded by `seed`.
+    fn at(seed: u64, g: usize) -> Streams {
+        Streams::new(seed, Stage::Global, g)
+    }
 
     #[test]
     fn thesis_presets_and_inertia() {
@@ -287,14 +321,13 @@ mod tests {
             names: vec!["x".into()],
         };
         let mut pso = Pso::new(PsoSettings::constriction(), bounds.clone(), 5, 10);
-        let mut rng = ChaCha8Rng::seed_from_u64(1);
-        pso.init(&[], &mut rng);
+        pso.init(Vec::new(), &at(1, 0));
         pso.tell(&[5.0, 1.0, 4.0, 3.0, f32::NAN]);
         // Particle 4's NaN ranks last; the ring wraps from 4 to 0.
         let want = [1, 1, 1, 3, 3].map(Some);
         assert_eq!(pso.social_bests(), want.to_vec());
         let mut global = Pso::new(PsoSettings::default(), bounds, 5, 10);
-        global.init(&[], &mut rng);
+        global.init(Vec::new(), &at(1, 0));
         global.tell(&[5.0, 1.0, 4.0, 3.0, 2.0]);
         assert_eq!(global.social_bests(), vec![None; 5]);
     }
@@ -311,12 +344,11 @@ mod tests {
             ..PsoSettings::default()
         };
         let mut pso = Pso::new(settings, bounds, 4, 10);
-        let mut rng = ChaCha8Rng::seed_from_u64(4);
-        let x0 = pso.init(&[], &mut rng);
+        let x0 = pso.init(Vec::new(), &at(4, 0)).to_vec();
         // The first particle is far better: everyone is pulled hard towards it.
         pso.tell(&[0.0, 9.0, 9.0, f32::INFINITY]);
-        let x1 = pso.next(&mut rng);
-        for (a, b) in x0.iter().zip(&x1) {
+        let x1 = pso.next(&at(4, 1));
+        for (a, b) in x0.iter().zip(x1) {
             assert!((a - b).abs() <= 0.5 + 1e-12, "{a} -> {b}");
         }
     }

@@ -15,14 +15,20 @@
 //!   poisoning selection or statistics.
 //! - **History**: one record per generation and per polish start.
 //! - **Checkpoints**: an [`Engine`] holds everything its future depends on —
-//!   the stage, the optimizer's state, the random generator's position, the
-//!   history, the best so far — and nothing else, so a checkpoint resumes to
-//!   the bit-identical result. (A polish interrupted half-way is redone from
+//!   the stage and its generation, the optimizer's state, the history, the
+//!   best so far — and nothing else, so a checkpoint resumes to the
+//!   bit-identical result. (A polish interrupted half-way is redone from
 //!   its start: it is deterministic and short.)
+//! - **Costs made visible**: each stage's summary holds the seconds spent
+//!   inside the evaluator's calls beside its wall time, so the share of the
+//!   engine's own work (updates, embedding, selection) can be read off any
+//!   run.
 //!
-//! Every random draw comes from the engine's `ChaCha8Rng`, seeded by the
-//! run's seed, so a fit is a pure function of its seed whatever the thread
-//! count or backend.
+//! Every random draw comes from the [`Streams`](super::Streams) of the run's seed, the stage
+//! and its generation, one stream per individual: the update rules run row
+//! by row in parallel (rayon), and a fit is a pure function of its seed
+//! whatever the thread count or backend. No generator is part of the state:
+//! the stage and its generation say where every stream stands.
 
 pub mod model;
 pub mod plan;
@@ -35,13 +41,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use nalgebra::DVector;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use super::history::{GenerationRecord, History};
 pub use super::stage::Stage;
-use super::{AskTell, argmin, cost_order};
+use super::{AskTell, argmin, best_indices};
 use crate::data::write_atomic;
 use crate::model::Measure;
 
@@ -71,6 +75,14 @@ pub trait Objective {
             "{} is not a least-squares objective, so a fit of it cannot end with a polish",
             self.describe()
         )
+    }
+
+    /// Seconds spent so far inside the calls of the evaluator it scores on,
+    /// where it does more than score (the muscle models' objective also
+    /// admits rows and sums experiments); `None` where scoring is all it
+    /// does, and the engine then counts its calls whole.
+    fn evaluator_seconds(&self) -> Option<f64> {
+        None
     }
 }
 
@@ -122,6 +134,11 @@ pub struct StageSummary {
     pub steps: usize,
     pub evaluations: u64,
     pub seconds: f64,
+    /// Of `seconds`, those spent inside the evaluator's scoring calls: the
+    /// rest is the engine's own work (updates, embedding, selection, the
+    /// polish's linear algebra).
+    #[serde(default)]
+    pub evaluator_seconds: f64,
     /// The stage's best cost under its measure.
     #[serde(with = "super::inf_serde::one_f64")]
     pub best_cost: f64,
@@ -150,32 +167,6 @@ pub trait Observer {
     fn record(&mut self, record: &GenerationRecord, planned: usize);
 }
 
-/// A `ChaCha8Rng`'s position, as plain serialisable numbers.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct RngState {
-    seed: [u8; 32],
-    stream: u64,
-    /// The word position (`u128`, as a decimal string for JSON).
-    word_pos: String,
-}
-
-impl RngState {
-    fn of(rng: &ChaCha8Rng) -> RngState {
-        RngState {
-            seed: rng.get_seed(),
-            stream: rng.get_stream(),
-            word_pos: rng.get_word_pos().to_string(),
-        }
-    }
-
-    fn restore(&self) -> anyhow::Result<ChaCha8Rng> {
-        let mut rng = ChaCha8Rng::from_seed(self.seed);
-        rng.set_stream(self.stream);
-        rng.set_word_pos(self.word_pos.parse()?);
-        Ok(rng)
-    }
-}
-
 /// The members of one island and their costs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 struct Members {
@@ -189,17 +180,14 @@ struct Members {
 impl Members {
     /// Row indices, best first (ties by index).
     fn order(&self) -> Vec<usize> {
-        let mut order: Vec<usize> = (0..self.costs.len()).collect();
-        order.sort_by(|&a, &b| cost_order(self.costs[a], self.costs[b]).then(a.cmp(&b)));
-        order
+        best_indices(&self.costs, self.costs.len())
     }
 
-    /// The `count` best rows, best first.
+    /// The `count` best rows, best first (a partial selection).
     fn best(&self, count: usize, nf: usize) -> Vec<f64> {
-        self.order()
+        best_indices(&self.costs, count)
             .iter()
-            .take(count)
-            .flat_map(|&i| self.rows[i * nf..(i + 1) * nf].to_vec())
+            .flat_map(|&i| self.rows[i * nf..(i + 1) * nf].iter().copied())
             .collect()
     }
 }
@@ -242,8 +230,9 @@ pub struct Engine {
     stage_steps: usize,
     stage_start_evaluations: u64,
     stage_start_seconds: f64,
+    #[serde(default)]
+    stage_start_evaluator_seconds: f64,
     stage_best: Option<Scored>,
-    rng: RngState,
     pub history: History,
     /// The members each island of the last population stage ended with
     /// (free coordinates) and their costs under its measure.
@@ -256,9 +245,16 @@ pub struct Engine {
     evaluations: u64,
     /// Seconds spent before the last resume.
     seconds_before: f64,
+    /// Seconds spent inside the evaluator's calls, all stages.
+    #[serde(default)]
+    evaluator_seconds: f64,
     summaries: Vec<StageSummary>,
     #[serde(skip)]
     started: Option<Instant>,
+    /// The canonical rows of the generation being scored, every island's in
+    /// turn: one buffer, refilled in place every generation. Scratch, not state.
+    #[serde(skip)]
+    canonical: Vec<f64>,
 }
 
 impl Engine {
@@ -297,7 +293,6 @@ impl Engine {
             plan.global.is_some() || plan.free_run.is_some() || plan.polish.is_some(),
             "the plan has no stage"
         );
-        let rng = ChaCha8Rng::seed_from_u64(seed);
         Ok(Engine {
             history: History::new(space.canonical_names()),
             plan,
@@ -310,15 +305,17 @@ impl Engine {
             stage_steps: 0,
             stage_start_evaluations: 0,
             stage_start_seconds: 0.0,
+            stage_start_evaluator_seconds: 0.0,
             stage_best: None,
-            rng: RngState::of(&rng),
             carried: Vec::new(),
             pool: Vec::new(),
             best: None,
             evaluations: 0,
             seconds_before: 0.0,
+            evaluator_seconds: 0.0,
             summaries: Vec::new(),
             started: None,
+            canonical: Vec::new(),
         })
     }
 
@@ -501,9 +498,24 @@ impl Engine {
         rows: &[f64],
         measure: Measure,
     ) -> anyhow::Result<(Vec<f64>, Vec<f32>)> {
-        let scored = self.costs_of(objective, rows, measure)?;
-        self.evaluations += scored.1.len() as u64;
-        Ok(scored)
+        let canonical = self.space.embed(rows);
+        let costs = self.score_canonical(objective, &canonical, measure)?;
+        Ok((canonical, costs))
+    }
+
+    /// Scores canonical rows under `measure`, counting the evaluations and
+    /// the evaluator's seconds: their costs, NaN and −∞ made +∞.
+    fn score_canonical(
+        &mut self,
+        objective: &mut dyn Objective,
+        canonical: &[f64],
+        measure: Measure,
+    ) -> anyhow::Result<Vec<f32>> {
+        let (costs, seconds) = timed(objective, |o| o.costs(canonical, measure));
+        self.evaluator_seconds += seconds;
+        let costs = sanitized(costs?, canonical.len() / self.space.dim(), &*objective)?;
+        self.evaluations += costs.len() as u64;
+        Ok(costs)
     }
 
     /// [`Engine::score`] without touching the state.
@@ -515,23 +527,7 @@ impl Engine {
     ) -> anyhow::Result<(Vec<f64>, Vec<f32>)> {
         let canonical = self.space.embed(rows);
         let n = canonical.len() / self.space.dim();
-        let costs: Vec<f32> = objective
-            .costs(&canonical, measure)?
-            .into_iter()
-            .map(|c| {
-                if c.is_nan() || c < 0.0 && c.is_infinite() {
-                    f32::INFINITY
-                } else {
-                    c
-                }
-            })
-            .collect();
-        anyhow::ensure!(
-            costs.len() == n,
-            "{} returned {} costs for {n} candidates",
-            objective.describe(),
-            costs.len()
-        );
+        let costs = sanitized(objective.costs(&canonical, measure)?, n, &*objective)?;
         Ok((canonical, costs))
     }
 
@@ -588,6 +584,16 @@ impl Engine {
         self.cursor += 1;
     }
 
+    /// Marks the start of a stage: its steps, best, evaluations and seconds
+    /// count from here.
+    fn start_stage(&mut self) {
+        self.stage_steps = 0;
+        self.stage_best = None;
+        self.stage_start_evaluations = self.evaluations;
+        self.stage_start_seconds = self.elapsed();
+        self.stage_start_evaluator_seconds = self.evaluator_seconds;
+    }
+
     /// What the current stage, `stage`, has done so far.
     fn summary(&self, stage: Stage, ended: StageEnd) -> StageSummary {
         StageSummary {
@@ -596,6 +602,7 @@ impl Engine {
             steps: self.stage_steps,
             evaluations: self.evaluations - self.stage_start_evaluations,
             seconds: self.elapsed() - self.stage_start_seconds,
+            evaluator_seconds: self.evaluator_seconds - self.stage_start_evaluator_seconds,
             best_cost: self.stage_best.as_ref().map_or(f64::INFINITY, |b| b.cost),
             ended,
         }
@@ -646,4 +653,36 @@ impl Engine {
             )
         })
     }
+}
+
+/// Runs `call` on `objective` and says how long it spent inside the
+/// evaluator: what the objective counts ([`Objective::evaluator_seconds`]),
+/// or else the whole call.
+fn timed<T>(objective: &mut dyn Objective, call: impl FnOnce(&mut dyn Objective) -> T) -> (T, f64) {
+    let before = objective.evaluator_seconds();
+    let started = Instant::now();
+    let out = call(objective);
+    let whole = started.elapsed().as_secs_f64();
+    let seconds = match (before, objective.evaluator_seconds()) {
+        (Some(a), Some(b)) => b - a,
+        _ => whole,
+    };
+    (out, seconds)
+}
+
+/// `costs` with NaN and −∞ made +∞, checked to hold one cost per each of
+/// the `n` candidates.
+fn sanitized(mut costs: Vec<f32>, n: usize, objective: &dyn Objective) -> anyhow::Result<Vec<f32>> {
+    anyhow::ensure!(
+        costs.len() == n,
+        "{} returned {} costs for {n} candidates",
+        objective.describe(),
+        costs.len()
+    );
+    for c in &mut costs {
+        if c.is_nan() || *c < 0.0 && c.is_infinite() {
+            *c = f32::INFINITY;
+        }
+    }
+    Ok(costs)
 }

@@ -1,6 +1,8 @@
 //! The muscle models' objective — the batch evaluator on an estimation
 //! problem — and the engine's defaults for fitting them.
 
+use std::time::Instant;
+
 use nalgebra::DVector;
 
 use super::Objective;
@@ -26,6 +28,8 @@ pub struct ModelObjective<'a> {
     /// ([`crate::model::Family::loop_bounded`]), whatever the measure: the
     /// diagnosis' rule ([`ModelObjective::bounded_loops`]).
     loop_bounded: bool,
+    /// Seconds spent inside the evaluator's calls so far.
+    evaluator_seconds: f64,
 }
 
 impl<'a> ModelObjective<'a> {
@@ -37,6 +41,7 @@ impl<'a> ModelObjective<'a> {
             stress: None,
             bounded_class: false,
             loop_bounded: false,
+            evaluator_seconds: 0.0,
         }
     }
 
@@ -93,7 +98,10 @@ impl<'a> ModelObjective<'a> {
         if picked.is_empty() {
             return Ok(ok);
         }
-        let energy = self.evaluator.evaluate(problem, &subset)?.total;
+        let energy = timed(&mut self.evaluator_seconds, || {
+            self.evaluator.evaluate(problem, &subset)
+        })?
+        .total;
         for (&i, &e) in picked.iter().zip(&energy) {
             ok[i] = (e as f64) <= *bound;
         }
@@ -125,11 +133,17 @@ impl Objective for ModelObjective<'_> {
         self.evaluator.describe()
     }
 
+    fn evaluator_seconds(&self) -> Option<f64> {
+        Some(self.evaluator_seconds)
+    }
+
     fn costs(&mut self, rows: &[f64], measure: Measure) -> anyhow::Result<Vec<f32>> {
         self.problem.measure = measure;
         // Summed over the experiments in `f64`, as the diagnosis' SSEs are
         // (one experiment, as `fit`'s: the evaluator's own number).
-        let scores = self.evaluator.evaluate(&self.problem, rows)?;
+        let scores = timed(&mut self.evaluator_seconds, || {
+            self.evaluator.evaluate(&self.problem, rows)
+        })?;
         let mut costs: Vec<f32> = (0..scores.total.len())
             .map(|i| {
                 let sum: f64 = scores.per_experiment.iter().map(|e| e[i] as f64).sum();
@@ -159,9 +173,10 @@ impl Objective for ModelObjective<'_> {
         measure: Measure,
     ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
         self.problem.measure = measure;
-        let mut residuals: Vec<Option<DVector<f64>>> = self
-            .evaluator
-            .residuals(&self.problem, rows)?
+        let raw = timed(&mut self.evaluator_seconds, || {
+            self.evaluator.residuals(&self.problem, rows)
+        })?;
+        let mut residuals: Vec<Option<DVector<f64>>> = raw
             .into_iter()
             .map(|r| r.map(|r| DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64))))
             .collect();
@@ -181,6 +196,14 @@ impl Objective for ModelObjective<'_> {
         }
         Ok(residuals)
     }
+}
+
+/// `call`, with its wall time added to `seconds`.
+fn timed<T>(seconds: &mut f64, call: impl FnOnce() -> T) -> T {
+    let started = Instant::now();
+    let out = call();
+    *seconds += started.elapsed().as_secs_f64();
+    out
 }
 
 /// The global stage's prediction horizon for data whose ARX pole is `a`: a

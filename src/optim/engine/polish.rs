@@ -3,7 +3,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::{Engine, Members, Objective, Scored, Stage, StageEnd, keep_lowest, plan};
+use super::{Engine, Members, Objective, Scored, Stage, StageEnd, keep_lowest, plan, timed};
 use crate::model::Measure;
 use crate::optim::lm::{self, LmError, LmSettings};
 
@@ -27,10 +27,7 @@ impl Engine {
             self.history.records.len(),
             self.evaluations,
         );
-        self.stage_steps = 0;
-        self.stage_best = None;
-        self.stage_start_evaluations = self.evaluations;
-        self.stage_start_seconds = self.elapsed();
+        self.start_stage();
         let space = self.space.clone();
         let bounds = space.bounds();
         let nf = bounds.dim();
@@ -105,10 +102,13 @@ impl Engine {
             }
             let mut x = start;
             for &measure in &measures {
-                let mut evaluations = 0u64;
+                let (mut evaluations, mut seconds) = (0u64, 0.0);
                 let mut residuals = |points: &[Vec<f64>]| {
                     evaluations += points.len() as u64;
-                    objective.residuals(&space.embed(&points.concat()), measure)
+                    let canonical = space.embed(&points.concat());
+                    let (r, s) = timed(objective, |o| o.residuals(&canonical, measure));
+                    seconds += s;
+                    r
                 };
                 let out = lm::levenberg_marquardt_batched(
                     &mut residuals,
@@ -119,6 +119,7 @@ impl Engine {
                     interrupt,
                 );
                 self.evaluations += evaluations;
+                self.evaluator_seconds += seconds;
                 match out {
                     Ok(out) => x = out.x,
                     // A start whose simulation or a probe's diverges keeps

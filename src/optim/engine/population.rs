@@ -1,11 +1,17 @@
 //! The engine's population stages: the global search and the free-run
 //! stage, island by island, one generation a step.
 
-use super::{Engine, FreeRun, Members, Objective, RngState, Stage, StageEnd, keep_lowest};
+use super::{Engine, FreeRun, Members, Objective, Stage, StageEnd, keep_lowest};
 use crate::model::Measure;
-use crate::optim::AskTell;
+use crate::optim::{AskTell, Streams};
 
 impl Engine {
+    /// The streams of generation `generation` of `stage` (0: the draws
+    /// before the first population; `k`: the `k`-th population asked).
+    fn streams(&self, stage: Stage, generation: usize) -> Streams {
+        Streams::new(self.seed, stage, generation)
+    }
+
     /// The islands of a population stage: the global stage's start from
     /// the initial rows (the first island) and [`super::Space::draw`]; each island
     /// of the free-run stage from the best members of the same island
@@ -17,35 +23,33 @@ impl Engine {
     ) -> anyhow::Result<Vec<AskTell>> {
         let bounds = self.space.bounds();
         let nf = bounds.dim();
-        self.stage_steps = 0;
-        self.stage_best = None;
-        self.stage_start_evaluations = self.evaluations;
-        self.stage_start_seconds = self.elapsed();
+        self.start_stage();
         let islands = self.plan.islands();
         match stage {
             Stage::Global => {
                 let g = self.plan.global.clone().expect("a global stage");
                 let n = g.population / islands;
-                let mut rng = self.rng.restore()?;
-                let optimizers = (0..islands)
+                // Island i's rows are individuals i·n … of the stage.
+                let streams = self.streams(stage, 0);
+                Ok((0..islands)
                     .map(|i| {
                         let mut rows = if i == 0 {
                             self.initial[..self.initial.len().min(n * nf)].to_vec()
                         } else {
                             Vec::new()
                         };
-                        rows.extend(self.space.draw(n - rows.len() / nf, &mut rng));
+                        let given = rows.len() / nf;
+                        let drawn = streams.from_row(i * n + given);
+                        rows.extend(self.space.draw(n - given, &drawn));
                         let free_run_island = g.ladder && i > 0 && i + 1 == islands;
                         let settings = if free_run_island {
                             FreeRun::ALGORITHM.default_settings()
                         } else {
                             g.settings.clone()
                         };
-                        AskTell::new(&settings, bounds.clone(), n, g.generations, &rows)
+                        AskTell::new(&settings, bounds.clone(), n, g.generations, rows)
                     })
-                    .collect();
-                self.rng = RngState::of(&rng);
-                Ok(optimizers)
+                    .collect())
             }
             _ => {
                 let f = self.plan.free_run.clone().expect("a free-run stage");
@@ -63,7 +67,7 @@ impl Engine {
                             bounds.clone(),
                             n,
                             f.generations,
-                            &start,
+                            start,
                         )
                     })
                     .collect())
@@ -98,10 +102,13 @@ impl Engine {
         Ok(())
     }
 
-    /// One generation of a population stage: every island asks, the rows
-    /// are scored (in one batch when every island has the same measure),
-    /// every island is told its own. The first island's costs rank the
-    /// stage's best and fill the record: the others may measure other horizons.
+    /// One generation of a population stage: every island asks (island
+    /// `i`'s individuals numbered after those of the islands before it, so
+    /// that each has its own stream), every island's rows are embedded into
+    /// one buffer of canonical rows, scored (in one batch when every island
+    /// has the same measure) and every island is told its own. The first
+    /// island's costs rank the stage's best and fill the record: the others
+    /// may measure other horizons.
     pub(super) fn step_population(
         &mut self,
         objective: &mut dyn Objective,
@@ -114,57 +121,67 @@ impl Engine {
             .map(|i| self.island_measure(stage, i))
             .collect();
         let measure = measures[0];
-        let mut rng = self.rng.restore()?;
-        let asked: Vec<Vec<f64>> = self
-            .optimizers
-            .iter_mut()
-            .map(|o| o.ask(&mut rng))
-            .collect::<Result<_, _>>()?;
-        self.rng = RngState::of(&rng);
-        let scored: Vec<(Vec<f64>, Vec<f32>)> = if measures.iter().all(|&m| m == measure) {
-            let (canonical, costs) = self.score(objective, &asked.concat(), measure)?;
-            let d = self.space.dim();
-            let nf = self.space.free().len();
-            let mut at = 0;
-            asked
-                .iter()
-                .map(|rows| {
-                    let n = rows.len() / nf;
-                    let part = (
-                        canonical[at * d..(at + n) * d].to_vec(),
-                        costs[at..at + n].to_vec(),
-                    );
-                    at += n;
-                    part
-                })
-                .collect()
+        let one_batch = measures.iter().all(|&m| m == measure);
+        let streams = self.streams(stage, self.stage_steps + 1);
+        let (d, nf) = (self.space.dim(), self.space.free().len().max(1));
+        // Each island's rows go straight from the optimizer into its part of
+        // the canonical buffer; `spans[i]` is island i's first row and count.
+        let mut canonical = std::mem::take(&mut self.canonical);
+        let mut spans = Vec::with_capacity(self.optimizers.len());
+        let mut at = 0;
+        for opt in &mut self.optimizers {
+            let rows = opt.ask(&streams.from_row(at))?;
+            let n = rows.len() / nf;
+            canonical.resize((at + n) * d, 0.0);
+            self.space.embed_into(rows, &mut canonical[at * d..]);
+            spans.push((at, n));
+            at += n;
+        }
+        let costs: Vec<Vec<f32>> = if one_batch {
+            vec![self.score_canonical(objective, &canonical, measure)?]
         } else {
-            asked
+            spans
                 .iter()
                 .zip(&measures)
-                .map(|(rows, &m)| self.score(objective, rows, m))
+                .map(|(&(at, n), &m)| {
+                    self.score_canonical(objective, &canonical[at * d..(at + n) * d], m)
+                })
                 .collect::<anyhow::Result<_>>()?
         };
-        for (opt, (_, costs)) in self.optimizers.iter_mut().zip(&scored) {
-            opt.tell(costs)?;
+        // Island i's costs: its part of the one batch, or its own batch.
+        let island_costs = |i: usize| -> &[f32] {
+            if one_batch {
+                let (at, n) = spans[i];
+                &costs[0][at..at + n]
+            } else {
+                &costs[i]
+            }
+        };
+        for (i, opt) in self.optimizers.iter_mut().enumerate() {
+            opt.tell(island_costs(i))?;
         }
-        for ((canonical, costs), &m) in scored.iter().zip(&measures) {
-            if m == Measure::FreeRun {
-                self.offer_best(canonical, costs);
+        for (i, &(at, n)) in spans.iter().enumerate() {
+            if measures[i] == Measure::FreeRun {
+                keep_lowest(
+                    &mut self.best,
+                    &canonical[at * d..(at + n) * d],
+                    island_costs(i),
+                    d,
+                );
             }
         }
-        let d = self.space.dim();
-        let (canonical, costs) = if measures.iter().all(|&m| m == measure) {
-            (
-                scored.iter().flat_map(|s| s.0.clone()).collect::<Vec<_>>(),
-                scored.iter().flat_map(|s| s.1.clone()).collect::<Vec<_>>(),
-            )
+        // The stage's best and the record: every island when they share a
+        // measure, else the first.
+        let (ranked_rows, ranked_costs) = if one_batch {
+            (&canonical[..], &costs[0][..])
         } else {
-            scored[0].clone()
+            let (at, n) = spans[0];
+            (&canonical[at * d..(at + n) * d], &costs[0][..])
         };
-        keep_lowest(&mut self.stage_best, &canonical, &costs, d);
+        keep_lowest(&mut self.stage_best, ranked_rows, ranked_costs, d);
         self.stage_steps += 1;
-        self.record(stage, measure, Some(&costs));
+        self.record(stage, measure, Some(ranked_costs));
+        self.canonical = canonical;
         let length = match stage {
             Stage::Global => self.plan.global.as_ref().map_or(0, |g| g.generations),
             _ => self.plan.free_run.as_ref().map_or(0, |f| f.generations),

@@ -1,10 +1,10 @@
 //! The box a fit searches, and the coordinates the optimizers move in.
 
 use rand::RngExt;
-use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::super::Bounds;
+use super::super::{Bounds, Streams};
 use crate::model::{Coordinates, Family, SearchSpace};
 
 /// The box of a fit over search coordinates (the canonical parameters, or
@@ -68,59 +68,66 @@ impl Space {
         self
     }
 
-    /// `count` random rows of free coordinates: uniform over the box, except
-    /// that every other row draws the coordinates marked as spanning decades
+    /// `count` random rows of free coordinates, row `r` from
+    /// `streams.row(r)`: uniform over the box, except that every other row
+    /// (the odd `r`) draws the coordinates marked as spanning decades
     /// log-uniformly in magnitude over four decades below the box's larger
     /// edge (either sign where the box has both). A uniform draw almost never
     /// visits the sliver near zero where a muscle's β and γ often lie (as
     /// the shipped stair's hysteretic fits do: docs/lab/results.md, "The shipped
     /// stair"), and neither do the differences of uniform draws that DE
     /// steps by.
-    pub fn draw(&self, count: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    pub fn draw(&self, count: usize, streams: &Streams) -> Vec<f64> {
         let free = self.free();
-        let mut rows = Vec::with_capacity(count * free.len());
-        for r in 0..count {
-            for &i in &free {
-                let (lo, hi) = (self.lower[i], self.upper[i]);
-                let uniform = lo + rng.random::<f64>() * (hi - lo);
-                rows.push(if r % 2 == 1 && self.decades[i] {
-                    let magnitude = hi.abs().max(lo.abs())
-                        * 10f64.powf(-self.drawn_decades * rng.random::<f64>());
-                    let sign = if lo < 0.0 && (hi <= 0.0 || rng.random::<bool>()) {
-                        -1.0
+        let mut rows = vec![0.0; count * free.len()];
+        rows.par_chunks_mut(free.len().max(1))
+            .enumerate()
+            .for_each(|(r, row)| {
+                let mut rng = streams.row(r);
+                for (v, &i) in row.iter_mut().zip(&free) {
+                    let (lo, hi) = (self.lower[i], self.upper[i]);
+                    let uniform = lo + rng.random::<f64>() * (hi - lo);
+                    *v = if r % 2 == 1 && self.decades[i] {
+                        let magnitude = hi.abs().max(lo.abs())
+                            * 10f64.powf(-self.drawn_decades * rng.random::<f64>());
+                        let sign = if lo < 0.0 && (hi <= 0.0 || rng.random::<bool>()) {
+                            -1.0
+                        } else {
+                            1.0
+                        };
+                        (sign * magnitude).clamp(lo, hi)
                     } else {
-                        1.0
+                        uniform
                     };
-                    (sign * magnitude).clamp(lo, hi)
-                } else {
-                    uniform
-                });
-            }
-        }
+                }
+            });
         rows
     }
 
     /// `count` canonical rows around the canonical `center`: the center
     /// itself, then draws within 2 % of the box's width of it on each free
     /// coordinate (within a factor 10^±0.2 on those that span decades),
-    /// clamped into the box. A warm start's first population: the basin it
-    /// starts in, not the whole box.
-    pub fn around(&self, center: &[f64], count: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    /// clamped into the box, row `r` from `streams.row(r)`. A warm start's
+    /// first population: the basin it starts in, not the whole box.
+    pub fn around(&self, center: &[f64], count: usize, streams: &Streams) -> Vec<f64> {
         let free = self.free();
         let z0 = self.project(center);
-        let mut rows = Vec::with_capacity(count * free.len());
-        for r in 0..count {
-            for (k, &i) in free.iter().enumerate() {
-                let (lo, hi) = (self.lower[i], self.upper[i]);
-                let step = 2.0 * rng.random::<f64>() - 1.0;
-                let v = match (r, self.decades[i] && z0[k] != 0.0) {
-                    (0, _) => z0[k],
-                    (_, true) => z0[k] * 10f64.powf(0.2 * step),
-                    (_, false) => z0[k] + 0.02 * (hi - lo) * step,
-                };
-                rows.push(v.clamp(lo, hi));
-            }
-        }
+        let mut rows = vec![0.0; count * free.len()];
+        rows.par_chunks_mut(free.len().max(1))
+            .enumerate()
+            .for_each(|(r, row)| {
+                let mut rng = streams.row(r);
+                for ((v, &i), &c) in row.iter_mut().zip(&free).zip(&z0) {
+                    let (lo, hi) = (self.lower[i], self.upper[i]);
+                    let step = 2.0 * rng.random::<f64>() - 1.0;
+                    let v_new = match (r, self.decades[i] && c != 0.0) {
+                        (0, _) => c,
+                        (_, true) => c * 10f64.powf(0.2 * step),
+                        (_, false) => c + 0.02 * (hi - lo) * step,
+                    };
+                    *v = v_new.clamp(lo, hi);
+                }
+            });
         self.embed(&rows)
     }
 
@@ -148,20 +155,34 @@ impl Space {
     /// Canonical rows from rows of the optimizers' coordinates (the held
     /// coordinates at their value).
     pub fn embed(&self, rows: &[f64]) -> Vec<f64> {
+        let nf = self.free().len().max(1);
+        let mut out = vec![0.0; rows.len() / nf * self.dim()];
+        self.embed_into(rows, &mut out);
+        out
+    }
+
+    /// [`Space::embed`] written into `out` (`self.dim()` values a row), row
+    /// by row in parallel, with no allocation a row: what the engine scores
+    /// every generation.
+    pub fn embed_into(&self, rows: &[f64], out: &mut [f64]) {
         let free = self.free();
         let nf = free.len().max(1);
-        let mut out = Vec::with_capacity(rows.len() / nf * self.dim());
-        let mut z = self.lower.clone();
-        for row in rows.chunks_exact(nf) {
-            for (k, &i) in free.iter().enumerate() {
-                z[i] = row[k].clamp(self.lower[i], self.upper[i]);
-            }
-            match &self.coords {
-                Some((family, coords)) => out.extend(coords.to_native(*family, &z)),
-                None => out.extend_from_slice(&z),
-            }
-        }
-        out
+        let dim = self.dim().max(1);
+        debug_assert_eq!(rows.len() / nf * dim, out.len());
+        out.par_chunks_mut(dim)
+            .zip(rows.par_chunks(nf))
+            .for_each_init(
+                || self.lower.clone(),
+                |z, (theta, row)| {
+                    for (&v, &i) in row.iter().zip(&free) {
+                        z[i] = v.clamp(self.lower[i], self.upper[i]);
+                    }
+                    match &self.coords {
+                        Some((family, coords)) => coords.to_native_into(*family, z, theta),
+                        None => theta.copy_from_slice(z),
+                    }
+                },
+            );
     }
 
     /// The names of the canonical parameters the engine reports (what
@@ -294,7 +315,7 @@ mod tests {
 
     #[test]
     fn a_warm_start_cloud_starts_at_its_center_and_stays_near_it() {
-        use rand::SeedableRng;
+        use crate::optim::stage::Stage;
         let space = Space::new(
             vec![0.0, 1.0, 0.0],
             vec![10.0, 1.0, 1000.0],
@@ -302,7 +323,7 @@ mod tests {
         )
         .with_decades([2]);
         let center = [4.0, 1.0, 0.5];
-        let rows = space.around(&center, 50, &mut ChaCha8Rng::seed_from_u64(7));
+        let rows = space.around(&center, 50, &Streams::new(7, Stage::FreeRun, 0));
         assert_eq!(rows.len(), 150);
         assert_eq!(&rows[..3], &center);
         for row in rows.chunks(3) {
@@ -315,14 +336,14 @@ mod tests {
 
     #[test]
     fn draws_stay_in_the_box_and_half_reach_the_decades_near_zero() {
-        use rand::SeedableRng;
+        use crate::optim::stage::Stage;
         let space = Space::new(
             vec![0.0, -0.5],
             vec![2.0, 0.5],
             vec!["A".into(), "beta".into()],
         )
         .with_decades([1]);
-        let draw = |seed| space.draw(1000, &mut ChaCha8Rng::seed_from_u64(seed));
+        let draw = |seed| space.draw(1000, &Streams::new(seed, Stage::Global, 0));
         let rows = draw(3);
         assert_eq!(rows, draw(3));
         assert_eq!(rows.len(), 2000);
