@@ -38,6 +38,24 @@ def test_diagnose_returns_the_commands_document_and_models(stair, cli, tmp_path)
     assert again.document["baseline"]["params"] == doc["baseline"]["params"]
 
 
+def test_diagnose_cuts_blocks_and_transfers_as_the_command(stair, cli):
+    args = dict(effects=["saturation:output"], seeds=1, generations=10, scratch_seeds=0)
+    # Another record of the same muscle: the stair at 7 kg.
+    seven = stair.source.replace("4.5kg", "7kg")
+    got = mckibben.diagnose(stair, blocks=4, transfer=[mckibben.read_csv(seven)], **args)
+    doc = got.document
+    parts = doc["parts"][0]
+    assert len(parts["selection"]) == 2 and len(parts["test"]) == 2
+    assert [t["dataset"] for t in doc["transfers"]] == [seven]
+    expected = cli(
+        "diagnose", stair.source, "--effects", "saturation:output", "--seeds", "1",
+        "--generations", "10", "--scratch-seeds", "0", "--blocks", "4", "--transfer", seven,
+    )
+    assert doc == expected
+    with pytest.raises(ValueError, match="blocks must be at least 2"):
+        mckibben.diagnose(stair, blocks=1, **args)
+
+
 def test_diagnose_rejects_bad_arguments(stair):
     with pytest.raises(ValueError, match="unknown effect `wobble`"):
         mckibben.diagnose(stair, effects=["wobble"])

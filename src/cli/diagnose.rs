@@ -80,8 +80,8 @@ pub struct Args {
     /// baseline's budget, through the multi-step-ahead prediction error
     /// first): they find a model with the effect that a warm start from a
     /// baseline which compensates the effect cannot reach. The final model
-    /// is refitted from scratch as many times (REFITTED). 0 is faster and
-    /// leaves both out.
+    /// is refitted from scratch as many times (REFITTED), and once as `fit
+    /// --effects` fits it (AS FIT). 0 is faster and leaves all three out.
     #[arg(long, default_value_t = Settings::default().scratch_seeds)]
     scratch_seeds: usize,
     /// At most this many effects are added, one a round. Each round fits

@@ -11,6 +11,7 @@
 //! [`report`] turns a [`Diagnosis`] into text, JSON and figures.
 
 pub mod accept;
+pub mod as_fit;
 pub mod blind;
 pub mod chain;
 pub mod data;
@@ -106,6 +107,11 @@ pub struct Diagnosis {
     /// The baseline and the final model, as a model file holds them.
     pub baseline_model: Model,
     pub final_model: Model,
+    /// The final chain as `fit --effects` fits it (one record, from
+    /// scratch; [`as_fit::refit`]), and the final model's parameters: its,
+    /// where it scored better on the selection part, else the selection's.
+    pub as_fit: Option<as_fit::AsFit>,
+    pub final_params: Vec<f64>,
     /// The chain fitted on other records of the muscle (`--transfer`,
     /// [`transfer::transfer`]); empty unless asked for.
     pub transfers: Vec<transfer::Transfer>,
@@ -224,6 +230,34 @@ pub fn diagnose_from(
             .join(", ")
     );
 
+    // The final chain as `fit --effects` fits it: the final parameters
+    // when it scores better on the selection part.
+    let saved = model_of(
+        &data,
+        traces,
+        &selection.final_model,
+        &selection.final_fit.params,
+    );
+    // Like REFITTED, left out with `--scratch-seeds 0`.
+    let as_fit = match from {
+        None if settings.scratch_seeds > 0 => as_fit::refit(
+            &data,
+            &traces[0],
+            (
+                &selection.final_model,
+                &selection.final_fit.params,
+                &saved,
+            ),
+            settings,
+        )?,
+        // `fit` fits in the record's own coordinates, not the start model's.
+        _ => None,
+    };
+    let final_params: Vec<f64> = match &as_fit {
+        Some(a) if a.kept => a.params.clone(),
+        _ => selection.final_fit.params.clone(),
+    };
+
     // The models along the way, final: each model and its parameters.
     let base_model = &selection.baseline_model;
     let base = &selection.baseline.best;
@@ -253,6 +287,9 @@ pub fn diagnose_from(
             models.push((c.model.clone(), &fit.params));
         }
     }
+    if let Some(last) = models.last_mut() {
+        last.1 = &final_params;
+    }
     // The test part is read here, once, after every choice is made.
     let steps = steps_of(&data, &models, floor);
 
@@ -263,14 +300,19 @@ pub fn diagnose_from(
             interval::size_interval(
                 &data,
                 &selection.final_model,
-                &selection.final_fit.params,
+                &final_params,
                 e,
             )
         })
         .collect::<anyhow::Result<_>>()?;
     let scratch = fitting::scratch_fits(&data, &selection.final_model, settings, REFIT_SALT)?;
+    let final_fit = fitting::Fit {
+        est_sse: data.est_sse(&selection.final_model, &final_params),
+        sel_rmse: data.selection_rmse(&selection.final_model, &final_params),
+        params: final_params.clone(),
+    };
     let refits = refits::Refits::compare(
-        &selection.final_fit,
+        &final_fit,
         &scratch,
         |f| {
             data.selection(&selection.final_model, &f.params)
@@ -293,7 +335,7 @@ pub fn diagnose_from(
             .collect()
     };
     let segments = segments_of(base_model, &base.params);
-    let final_segments = segments_of(&selection.final_model, &selection.final_fit.params);
+    let final_segments = segments_of(&selection.final_model, &final_params);
     let min_len = segments.iter().map(|s| s.residual.len()).min().unwrap_or(0);
     let settle = settle_samples(base.params[ia], min_len);
     let place = locate::analyse(&segments, settle);
@@ -327,7 +369,7 @@ pub fn diagnose_from(
     );
     let explainable = explainable::judge(bound, &steps, remaining, settings.floor_margin);
 
-    let last_pred = data.predict(&selection.final_model, &selection.final_fit.params);
+    let last_pred = data.predict(&selection.final_model, &final_params);
     let curves = traces
         .iter()
         .enumerate()
@@ -349,7 +391,7 @@ pub fn diagnose_from(
         &data,
         traces,
         &selection.final_model,
-        &selection.final_fit.params,
+        &final_params,
     );
     Ok(Diagnosis {
         from: from.map(|_| "the start model".to_string()),
@@ -369,6 +411,8 @@ pub fn diagnose_from(
         spectrum,
         final_spectrum,
         curves,
+        as_fit,
+        final_params,
         transfers: Vec::new(),
     })
 }

@@ -193,6 +193,20 @@ pub struct FinalJson {
     pub test_gap_closed: f64,
     pub size_intervals: Vec<SizeInterval>,
     pub refits: Option<RefitsJson>,
+    /// The final chain as `fit --effects` fits it (null with several
+    /// datasets or `--from`).
+    pub as_fit: Option<AsFitJson>,
+}
+
+/// [`super::as_fit::AsFit`] without its parameter vector (the final model's is `final.params`
+/// when it was kept).
+#[derive(Debug, Serialize)]
+pub struct AsFitJson {
+    pub est_sse: f64,
+    pub selection_rmse: f64,
+    pub selection_fit_rmse: f64,
+    pub val_fit_percent: f64,
+    pub kept: bool,
 }
 
 #[derive(Debug, Serialize)]
@@ -347,7 +361,7 @@ impl DiagnosisJson {
             steps: d.steps.clone(),
             final_: FinalJson {
                 model: sel.final_model.effects.iter().map(|e| e.name()).collect(),
-                params: Named::zip(&sel.final_model.param_names(), &sel.final_fit.params),
+                params: Named::zip(&sel.final_model.param_names(), &d.final_params),
                 figures: PartsFigures::of(last),
                 gap_closed: last.gap_closed,
                 test_gap_closed: last.test_gap_closed,
@@ -355,6 +369,13 @@ impl DiagnosisJson {
                 refits: d.refits.as_ref().map(|r| RefitsJson {
                     refits: r.clone(),
                     finding: r.finding(),
+                }),
+                as_fit: d.as_fit.as_ref().map(|a| AsFitJson {
+                    est_sse: a.est_sse,
+                    selection_rmse: a.selection_rmse,
+                    selection_fit_rmse: a.selection_fit_rmse,
+                    val_fit_percent: a.val_fit_percent,
+                    kept: a.kept,
                 }),
             },
             explainable: ExplainableJson {
@@ -615,6 +636,7 @@ pub fn to_text(d: &Diagnosis) -> String {
         }
     }
     refits_text(&mut o, d);
+    as_fit_text(&mut o, d);
     explainable_text(&mut o, d);
     spectrum_text(&mut o, d);
     transfer_text(&mut o, d);
@@ -745,6 +767,28 @@ fn refits_text(o: &mut String, d: &Diagnosis) {
         ),
     };
     let _ = writeln!(o, "  {said}");
+}
+
+/// The final chain as `fit --effects` fits it.
+fn as_fit_text(o: &mut String, d: &Diagnosis) {
+    let Some(a) = &d.as_fit else {
+        return;
+    };
+    let _ = writeln!(
+        o,
+        "\nAS FIT: the final chain fitted as `fit --effects` fits it (its search from scratch and its\n  \
+         warm start from this fit, the lower estimation SSE kept): estimation SSE {:.4}, selection\n  \
+         RMSE {:.4} against this fit's {:.4}, second-half fit {:.1} %; {}",
+        a.est_sse,
+        a.selection_rmse,
+        a.selection_fit_rmse,
+        a.val_fit_percent,
+        if a.kept {
+            "it scores better on the selection part and is the final model"
+        } else {
+            "this fit scores better on the selection part and stays the final model"
+        }
+    );
 }
 
 fn peak_text(p: &Peak) -> String {
