@@ -320,7 +320,9 @@ mod tests {
         let blocks = [0.25, 0.99f64.powi(2)];
         let c = judged_on_blocks(0.8, 0.01, (1.0, 0.01, 0.1), 2000.0, &blocks);
         assert!(
-            !c.passes && c.reason.starts_with("its gain hangs on one selection block"),
+            !c.passes
+                && c.reason
+                    .starts_with("its gain hangs on one selection block"),
             "{}",
             c.reason
         );

@@ -62,8 +62,11 @@ pub fn refit(
         bounds: Vec::new(),
     };
     let fit_settings = FitSettings::staged(settings.seed);
-    let mut fit = Fit::new(trace, &what, &fit_settings, None, None, &|_| ())?
-        .also_from(saved, 0.0, &fit_settings)?;
+    let mut fit = Fit::new(trace, &what, &fit_settings, None, None, &|_| ())?.also_from(
+        saved,
+        0.0,
+        &fit_settings,
+    )?;
     let mut evaluator = crate::eval::open(settings.backend)?;
     let (outcome, _) = fit.run(
         evaluator.as_mut(),

@@ -28,6 +28,15 @@ pub struct Share {
     pub samples: f64,
 }
 
+impl Share {
+    /// Whether the class is where the model misses: it holds more than 1.5
+    /// times its share of the samples in residual energy, and at least a
+    /// tenth of the energy.
+    pub fn over_represented(&self) -> bool {
+        self.energy > 1.5 * self.samples && self.energy > 0.1
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Branches {
     pub rising: Share,
@@ -87,6 +96,50 @@ pub struct Where {
     pub dataset: Vec<DatasetShare>,
     pub whiteness: Correlation,
     pub cross_correlation: Correlation,
+}
+
+impl Where {
+    /// Every class of the breakdown with its name, in the report's order:
+    /// the branches, the input bands, transient and settled, the frequency
+    /// bands (their sample share is of the periodogram's bins) and, with
+    /// several datasets, each dataset.
+    pub fn classes(&self) -> Vec<(String, Share)> {
+        let mut v = vec![
+            ("input rising".to_string(), self.branch.rising),
+            ("input falling".to_string(), self.branch.falling),
+            ("input steady".to_string(), self.branch.steady),
+        ];
+        for b in &self.input_band {
+            v.push((format!("input {:.4}–{:.4}", b.lo, b.hi), b.share));
+        }
+        v.push((
+            format!(
+                "transient (≤{} samples after step)",
+                self.after_step.settle_samples
+            ),
+            self.after_step.transient,
+        ));
+        v.push(("settled".to_string(), self.after_step.settled));
+        for b in &self.frequency {
+            v.push((format!("{:.3}–{:.3} Hz (bins)", b.lo, b.hi), b.share));
+        }
+        if self.dataset.len() > 1 {
+            for d in &self.dataset {
+                v.push((d.name.clone(), d.share));
+            }
+        }
+        v
+    }
+
+    /// The names of the classes where the model misses
+    /// ([`Share::over_represented`]).
+    pub fn over_represented(&self) -> Vec<String> {
+        self.classes()
+            .into_iter()
+            .filter(|(_, s)| s.over_represented())
+            .map(|(name, _)| name)
+            .collect()
+    }
 }
 
 /// Lags of the correlation tests (MATLAB's `resid` default is 25).
@@ -446,6 +499,19 @@ mod tests {
         let w2 = analyse(&[seg2], 10);
         let top = w2.input_band.last().unwrap();
         assert!(top.share.energy > 0.99, "{top:?}");
+        // Named where the model misses, as the report names it; white
+        // noise has no such class.
+        let name = format!("input {:.4}–{:.4}", top.lo, top.hi);
+        assert!(
+            w2.over_represented().contains(&name),
+            "{:?}",
+            w2.over_represented()
+        );
+        assert!(
+            w.over_represented().is_empty(),
+            "{:?}",
+            w.over_represented()
+        );
         assert!(!w2.whiteness.passes);
         assert!(!w2.cross_correlation.passes);
         assert_eq!(w2.cross_correlation.peak_lag, 0);
@@ -471,8 +537,11 @@ mod tests {
             input: u,
             residual: r,
         };
-        let w = analyse(&[seg], 10);
+        let w = analyse(&[seg.clone(), seg], 10);
         assert!(w.after_step.transient.energy > 0.99, "{:?}", w.after_step);
         assert!(w.after_step.transient.samples < 0.15);
+        // Two segments of one dataset (two selection blocks): one entry.
+        assert_eq!(w.dataset.len(), 1);
+        assert_eq!(w.dataset[0].share.samples, 1.0);
     }
 }

@@ -243,11 +243,7 @@ pub fn diagnose_from(
         None if settings.scratch_seeds > 0 => as_fit::refit(
             &data,
             &traces[0],
-            (
-                &selection.final_model,
-                &selection.final_fit.params,
-                &saved,
-            ),
+            (&selection.final_model, &selection.final_fit.params, &saved),
             settings,
         )?,
         // `fit` fits in the record's own coordinates, not the start model's.
@@ -296,14 +292,7 @@ pub fn diagnose_from(
     let size_intervals = selection
         .verdict
         .iter()
-        .map(|&e| {
-            interval::size_interval(
-                &data,
-                &selection.final_model,
-                &final_params,
-                e,
-            )
-        })
+        .map(|&e| interval::size_interval(&data, &selection.final_model, &final_params, e))
         .collect::<anyhow::Result<_>>()?;
     let scratch = fitting::scratch_fits(&data, &selection.final_model, settings, REFIT_SALT)?;
     let final_fit = fitting::Fit {
@@ -387,12 +376,7 @@ pub fn diagnose_from(
         })
         .collect();
     let baseline_model = model_of(&data, traces, base_model, &base.params);
-    let final_model = model_of(
-        &data,
-        traces,
-        &selection.final_model,
-        &final_params,
-    );
+    let final_model = model_of(&data, traces, &selection.final_model, &final_params);
     Ok(Diagnosis {
         from: from.map(|_| "the start model".to_string()),
         baseline_model,

@@ -181,10 +181,7 @@ impl Parts {
         let unlike: Vec<(usize, f64)> = (2..=most)
             .map(|b| (b, Parts::of(len, b, settle).unlike(&cells)))
             .collect();
-        let best = unlike
-            .iter()
-            .map(|&(_, u)| u)
-            .fold(f64::INFINITY, f64::min);
+        let best = unlike.iter().map(|&(_, u)| u).fold(f64::INFINITY, f64::min);
         let blocks = unlike
             .iter()
             .find(|&&(_, u)| u <= best + LAYOUT_TOLERANCE)

@@ -1,0 +1,565 @@
+//! The readable report of a diagnosis.
+
+use std::fmt::Write as _;
+
+use super::candidate_list;
+use crate::diagnose::accept::gap_closed;
+use crate::diagnose::explainable::Signature;
+use crate::diagnose::locate::Share;
+use crate::diagnose::refits::Finding;
+use crate::diagnose::spectrum::Peak;
+use crate::diagnose::{Diagnosis, Step};
+use crate::model::experiment::Parts;
+
+fn pct(v: f64) -> String {
+    format!("{:5.1} %", 100.0 * v)
+}
+
+/// A step by what it adds to the one before: one accepted effect, or the
+/// start model's chain (`diagnose --from`).
+fn step_name(before: Option<&Step>, s: &Step) -> String {
+    let had = before.map_or(0, |b| b.effects.len());
+    if s.effects.is_empty() {
+        "baseline".into()
+    } else {
+        let added: Vec<&str> = s.effects[had..].iter().map(|e| e.name()).collect();
+        format!("+ {}", added.join(" + "))
+    }
+}
+
+/// How the records were split, in words.
+fn parts_text(d: &Diagnosis) -> String {
+    let blocks: Vec<String> = d
+        .parts
+        .iter()
+        .map(|p| (p.selection.len() + p.test.len()).to_string())
+        .collect();
+    let gap = |p: &Parts| match (p.selection.first(), p.test.first()) {
+        (Some(s), Some(t)) => t.start.saturating_sub(s.end),
+        _ => 0,
+    };
+    let gaps: Vec<String> = d.parts.iter().map(|p| gap(p).to_string()).collect();
+    let (blocks, gaps) = if blocks.len() == 1 {
+        (
+            format!("{} blocks", blocks[0]),
+            format!("{}-sample", gaps[0]),
+        )
+    } else {
+        (
+            format!("{} blocks", blocks.join(", ")),
+            format!("{}-sample", gaps.join(", ")),
+        )
+    };
+    format!(
+        "Parts: each record's first half estimates; its second half is cut into {blocks}, \
+         selection and test in turn ({gaps} settling gaps between).\n  Every choice reads \
+         the selection blocks ({} samples); the test blocks ({} samples) are read once, after \
+         the model is final.",
+        d.parts.iter().map(Parts::selection_len).sum::<usize>(),
+        d.parts.iter().map(Parts::test_len).sum::<usize>()
+    )
+}
+
+/// The readable report.
+pub fn to_text(d: &Diagnosis) -> String {
+    let mut o = String::new();
+    header_text(&mut o, d);
+    where_text(&mut o, d);
+    which_text(&mut o, d);
+    how_far_text(&mut o, d);
+    how_sure_text(&mut o, d);
+    refits_text(&mut o, d);
+    as_fit_text(&mut o, d);
+    explainable_text(&mut o, d);
+    spectrum_text(&mut o, d);
+    transfer_text(&mut o, d);
+    verdict_text(&mut o, d);
+    o
+}
+
+/// What was diagnosed, how it was split, the baseline and the floor.
+fn header_text(o: &mut String, d: &Diagnosis) {
+    let base = d.baseline();
+    let _ = writeln!(
+        o,
+        "Diagnosis of the sim-to-real gap ({} baseline) on {}",
+        d.family,
+        d.datasets.join(", ")
+    );
+    let _ = writeln!(o, "{}", parts_text(d));
+    let _ = writeln!(
+        o,
+        "Baseline: selection fit {:.1} % (RMSE {:.4}), test fit {:.1} % (RMSE {:.4}); noise floor ≈ {:.4} (from second differences of the measured selection output)",
+        base.selection_fit_percent,
+        base.selection_rmse,
+        base.test_fit_percent,
+        base.test_rmse,
+        d.noise_floor_rmse
+    );
+    if let Some(from) = &d.from {
+        let names: Vec<&str> = d.selection.given.iter().map(|e| e.name()).collect();
+        let _ = writeln!(
+            o,
+            "Started from {from}: its baseline{} refitted warm on these data; the rounds try the rest of the catalogue",
+            if names.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    " and its effects ({}, taken as given, not judged)",
+                    names.join(", ")
+                )
+            }
+        );
+    }
+}
+
+/// WHERE: the breakdown of the baseline's residual and its tests.
+fn where_text(o: &mut String, d: &Diagnosis) {
+    let w = &d.locate;
+    let _ = writeln!(
+        o,
+        "\nWHERE the baseline misses on the selection part (share of residual energy vs share of samples):"
+    );
+    for (name, s) in w.classes() {
+        let _ = writeln!(
+            o,
+            "  {name:<28} energy {}   samples {}{}",
+            pct(s.energy),
+            pct(s.samples),
+            if s.over_represented() {
+                "  <-- over-represented"
+            } else {
+                ""
+            }
+        );
+    }
+    for (name, c) in [
+        ("residual whiteness (99 %)", &w.whiteness),
+        ("residual–input independence (99 %)", &w.cross_correlation),
+    ] {
+        let _ = writeln!(
+            o,
+            "  {name}: {} ({} of {} lags outside ±{:.3}; peak {:.3} at lag {})",
+            if c.passes { "passes" } else { "FAILS" },
+            c.outside,
+            c.values.len(),
+            c.bound,
+            c.peak,
+            c.peak_lag
+        );
+    }
+}
+
+/// WHICH: the rebases, then every candidate with the rule that decided it.
+fn which_text(o: &mut String, d: &Diagnosis) {
+    let base = d.baseline();
+    let _ = writeln!(
+        o,
+        "\nWHICH effect (selection RMSE; accepted = passes every rule):"
+    );
+    for (i, r) in d.selection.rounds.iter().enumerate() {
+        for f in &r.rebased {
+            let _ = writeln!(
+                o,
+                "  round {}: a refit of the current model (from its own seeds or from a \
+                 candidate's parameters) reached a better estimation fit (SSE {:.1}, selection \
+                 RMSE {:.4}); it became the current model and the round was judged from it",
+                i + 1,
+                f.best.est_sse,
+                f.best.sel_rmse
+            );
+        }
+    }
+    for (c, accepted, round) in candidate_list(d) {
+        let params: Vec<String> = c
+            .effect_params
+            .iter()
+            .map(|(n, v)| format!("{n}={v:.4}"))
+            .collect();
+        let _ = writeln!(
+            o,
+            "  {:<2} {:<17} RMSE {:.4}  gap closed {}  [{}]  round {round}: {}",
+            if accepted { "✔" } else { " " },
+            c.effect.name(),
+            c.fit.best.sel_rmse,
+            pct(gap_closed(
+                base.selection_rmse,
+                c.fit.best.sel_rmse,
+                d.noise_floor_rmse
+            )),
+            params.join(", "),
+            c.reason
+        );
+        let values: Vec<f64> = c.effect_params.iter().map(|(_, v)| *v).collect();
+        let size = c.effect.size_text(&values, d.dt);
+        let _ = writeln!(
+            o,
+            "     {}: {}{}; signature: {}",
+            c.effect.physical(),
+            c.effect.realisation(),
+            size.map_or(String::new(), |s| format!(", {s}")),
+            c.effect.signature()
+        );
+    }
+}
+
+/// HOW FAR: each step on the selection and the test part.
+fn how_far_text(o: &mut String, d: &Diagnosis) {
+    let _ = writeln!(
+        o,
+        "\nHOW FAR (fit % on the selection part, which chose the effects, and on the test part,\n  \
+         which no choice saw; optimism = selection − test, in points; the gap closed is on the test part):"
+    );
+    let names: Vec<String> = (0..d.steps.len())
+        .map(|i| step_name(i.checked_sub(1).map(|j| &d.steps[j]), &d.steps[i]))
+        .collect();
+    // One column for every step, however long its effect's name.
+    let width = names
+        .iter()
+        .map(|n| n.chars().count())
+        .max()
+        .unwrap_or(0)
+        .max(14);
+    for (s, name) in d.steps.iter().zip(&names) {
+        let _ = writeln!(
+            o,
+            "  {name:<width$} selection {:5.1} %  test {:5.1} %  optimism {:+5.1}  gap closed {}",
+            s.selection_fit_percent,
+            s.test_fit_percent,
+            s.optimism_points,
+            pct(s.test_gap_closed)
+        );
+    }
+}
+
+/// HOW SURE: the size intervals of the named effects.
+fn how_sure_text(o: &mut String, d: &Diagnosis) {
+    if d.size_intervals.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        o,
+        "\nHOW SURE (95 % profile-likelihood interval of each named effect's size in the final model;\n  it assumes white residuals and describes only the basin the fit ended in, so it is too\n  narrow when the whiteness test fails or the search missed a better basin):"
+    );
+    for s in &d.size_intervals {
+        let edge = |at: bool| if at { " (box edge: not bounded)" } else { "" };
+        let _ = writeln!(
+            o,
+            "  {:<10} {} = {:.4}  [{:.4}{}, {:.4}{}]  (±{:.4})",
+            s.effect.name(),
+            s.param,
+            s.value,
+            s.lo,
+            edge(s.lo_at_edge),
+            s.hi,
+            edge(s.hi_at_edge),
+            0.5 * (s.hi - s.lo)
+        );
+    }
+}
+
+/// The verdict and the lines that qualify it.
+fn verdict_text(o: &mut String, d: &Diagnosis) {
+    let x = &d.explainable;
+    if x.not_explained {
+        let closed = d.last().gap_closed;
+        let _ = writeln!(
+            o,
+            "\nVerdict: not explained by the catalogue. A flexible model of the signals closes {} \
+             of the gap above the noise floor and leaves {}; the catalogue's best model closes {} \
+             ({} of the flexible model's) and leaves {}.",
+            pct(x.bound.gap_closable).trim(),
+            pct(1.0 - x.bound.gap_closable).trim(),
+            pct(closed).trim(),
+            pct(x.catalogue_share.unwrap_or(0.0)).trim(),
+            pct(1.0 - closed).trim()
+        );
+        if !d.selection.verdict.is_empty() {
+            let fitted: Vec<_> = d.selection.verdict.iter().map(|e| e.name()).collect();
+            let _ = writeln!(
+                o,
+                "  Its effects ({}) are fits to part of the gap, not its cause: none is named.",
+                fitted.join(", ")
+            );
+        }
+        if let Some(sig) = &x.signature {
+            let _ = writeln!(o, "  What is left lies {}.", signature_text(sig));
+        }
+    } else if d.selection.verdict.is_empty() {
+        let _ = writeln!(
+            o,
+            "\nVerdict: none of the catalogued effects explains the remaining gap."
+        );
+    } else {
+        let names: Vec<_> = d
+            .selection
+            .verdict
+            .iter()
+            .map(|e| format!("{} ({})", e.physical(), e.realisation()))
+            .collect();
+        let _ = writeln!(
+            o,
+            "\nVerdict: {} (closes {} of the gap above the noise floor on the test part, {} on the \
+             selection part that chose it).",
+            names.join(", then "),
+            pct(d.last().test_gap_closed).trim(),
+            pct(d.last().gap_closed).trim()
+        );
+    }
+    if d.selection.capped {
+        let n = d.selection.rounds.len();
+        let _ = writeln!(
+            o,
+            "The selection stopped at {n} effects (--max-effects {n}) with its last round still \
+             accepting one: more may pass (--max-effects {}).",
+            n + 1
+        );
+    }
+    if let Some(p) = d.final_spectrum.as_ref().and_then(|s| s.peaks.first()) {
+        let _ = writeln!(
+            o,
+            "The final model's residual still has {}: a periodic component none of the named effects reproduces.",
+            peak_text(p)
+        );
+    }
+    if let Some(r) = &d.refits {
+        let (lo, hi) = r.tied_selection_fit_percent;
+        match r.finding() {
+            Finding::Reproduced | Finding::Best => {}
+            Finding::Beaten => {
+                let _ = writeln!(
+                    o,
+                    "The estimation data do not settle the final fit: the same model refitted from scratch \
+                     fits the estimation half better and scores {:.1} % on the selection part (see REFITTED).",
+                    r.best_selection_fit_percent
+                );
+            }
+            Finding::Unsettled => {
+                let _ = writeln!(
+                    o,
+                    "The estimation data do not settle the final fit: fits of the same model they cannot \
+                     tell apart score between {lo:.1} and {hi:.1} % on the selection part (see REFITTED)."
+                );
+            }
+        }
+    }
+}
+
+/// The final model refitted from scratch, and what that says of its fit.
+fn refits_text(o: &mut String, d: &Diagnosis) {
+    let Some(r) = &d.refits else {
+        return;
+    };
+    let (lo, hi) = r.tied_selection_fit_percent;
+    let _ = writeln!(
+        o,
+        "\nREFITTED: the final model fitted {} times from scratch (fits within the likelihood-ratio\n  \
+         threshold of the lowest estimation SSE are ones the estimation data cannot tell apart):",
+        r.fits
+    );
+    let _ = writeln!(
+        o,
+        "  final fit        estimation SSE {:.4}  selection fit {:5.1} %",
+        r.final_est_sse, r.final_selection_fit_percent
+    );
+    let _ = writeln!(
+        o,
+        "  best refit       estimation SSE {:.4}  selection fit {:5.1} %",
+        r.best_est_sse, r.best_selection_fit_percent
+    );
+    let said = match r.finding() {
+        Finding::Reproduced => format!(
+            "reproduced: the {} fits the estimation data cannot tell apart score {lo:.1}–{hi:.1} % on the selection part",
+            r.tied
+        ),
+        Finding::Best => "the best estimation fit found: no refit came within the threshold of it \
+                          (they ended in basins worse on the estimation half)"
+            .to_string(),
+        Finding::Beaten => format!(
+            "not settled: a refit fits the estimation half better than the final fit and scores \
+             {:.1} % on the selection part; the final fit's {:.1} % is the basin the search ended in",
+            r.best_selection_fit_percent, r.final_selection_fit_percent
+        ),
+        Finding::Unsettled => format!(
+            "not settled: {} fits the estimation data cannot tell apart score between {lo:.1} and {hi:.1} % on the selection part",
+            r.tied
+        ),
+    };
+    let _ = writeln!(o, "  {said}");
+}
+
+/// The final chain as `fit --effects` fits it.
+fn as_fit_text(o: &mut String, d: &Diagnosis) {
+    let Some(a) = &d.as_fit else {
+        return;
+    };
+    let _ = writeln!(
+        o,
+        "\nAS FIT: the final chain fitted as `fit --effects` fits it (its search from scratch and its\n  \
+         warm start from this fit, the lower estimation SSE kept): estimation SSE {:.4}, selection\n  \
+         RMSE {:.4} against this fit's {:.4}, second-half fit {:.1} %; {}",
+        a.est_sse,
+        a.selection_rmse,
+        a.selection_fit_rmse,
+        a.val_fit_percent,
+        if a.kept {
+            "it scores better on the selection part and is the final model"
+        } else {
+            "this fit scores better on the selection part and stays the final model"
+        }
+    );
+}
+
+fn peak_text(p: &Peak) -> String {
+    format!(
+        "a peak at {:.2} Hz ({:.1}× its flanks' background, {} of the residual energy)",
+        p.hz,
+        p.prominence,
+        pct(p.energy_share).trim()
+    )
+}
+
+/// The signature of the residual the catalogue leaves, in words.
+fn signature_text(s: &Signature) -> String {
+    let on = |sh: &Share| {
+        format!(
+            "{} of the energy on {} of the samples",
+            pct(sh.energy).trim(),
+            pct(sh.samples).trim()
+        )
+    };
+    let mut parts = vec![
+        format!(
+            "at input {:.4}–{:.4} ({})",
+            s.level.lo,
+            s.level.hi,
+            on(&s.level.share)
+        ),
+        format!("on the {} branch ({})", s.branch, on(&s.branch_share)),
+        format!(
+            "at {:.3}–{:.3} Hz ({} of the energy)",
+            s.band.lo,
+            s.band.hi,
+            pct(s.band.share.energy).trim()
+        ),
+    ];
+    if let Some(p) = &s.peak {
+        parts.push(format!("with {}", peak_text(p)));
+    }
+    parts.join(", ")
+}
+
+fn explainable_text(o: &mut String, d: &Diagnosis) {
+    let x = &d.explainable;
+    let b = &x.bound;
+    let _ = writeln!(
+        o,
+        "\nHOW MUCH is explainable at all (ridge model of the baseline's residual from lags and filters\n  \
+         of the input, its rate and branch and the baseline's prediction, never the measured output;\n  \
+         groups of features chosen and λ = {:.0e} by blocked cross-validation on the estimation half):\n  \
+         signals used: {}",
+        b.lambda,
+        if b.groups.is_empty() {
+            "none (a constant only)".to_string()
+        } else {
+            b.groups.join(", ")
+        }
+    );
+    let _ = writeln!(
+        o,
+        "  selection RMSE {:.4} → {:.4}: a flexible model closes {} of the gap above the noise floor",
+        b.baseline_rmse,
+        b.bound_rmse,
+        pct(b.gap_closable)
+    );
+    let of_bound = |v: Option<f64>| {
+        v.map_or("— (the bound is too small to share out)".into(), |v| {
+            format!("{} of the explainable", pct(v))
+        })
+    };
+    for e in &x.effect_shares {
+        let _ = writeln!(
+            o,
+            "  {:<12} closes {} of the gap = {}",
+            e.effect.name(),
+            pct(e.gap_closed),
+            of_bound(e.share)
+        );
+    }
+    let _ = writeln!(
+        o,
+        "  {:<12} closes {} of the gap = {}{}",
+        "all named",
+        pct(d.last().gap_closed),
+        of_bound(x.catalogue_share),
+        if x.catalogue_share.is_some_and(|s| s > 1.0) {
+            " (above 100 %: the effects reach what the regression cannot)"
+        } else {
+            ""
+        }
+    );
+}
+
+/// The chain on other records (`--transfer`).
+fn transfer_text(o: &mut String, d: &Diagnosis) {
+    let Some(first) = d.transfers.first() else {
+        return;
+    };
+    let chain: Vec<&str> = first.chain.iter().map(|e| e.name()).collect();
+    let _ = writeln!(
+        o,
+        "\nTRANSFER: the baseline (`fit`) and the chain ({}) (`fit --effects`) fitted on each other\n  \
+         record's first half and scored on its second, which no choice saw:",
+        if chain.is_empty() {
+            "no effect".to_string()
+        } else {
+            chain.join(", ")
+        }
+    );
+    let width = d
+        .transfers
+        .iter()
+        .map(|t| t.dataset.chars().count())
+        .max()
+        .unwrap_or(0);
+    for t in &d.transfers {
+        let _ = writeln!(
+            o,
+            "  {:<width$}  baseline {:5.1} %  with the chain {:5.1} %  gap closed {}",
+            t.dataset,
+            t.baseline_val_fit_percent,
+            t.chain_val_fit_percent,
+            pct(t.gap_closed)
+        );
+    }
+}
+
+fn spectrum_text(o: &mut String, d: &Diagnosis) {
+    let Some(s) = &d.spectrum else {
+        let _ = writeln!(
+            o,
+            "\nSPECTRUM: the selection blocks are too short for a Welch spectrum."
+        );
+        return;
+    };
+    let _ = writeln!(
+        o,
+        "\nSPECTRUM of the selection residual (Welch: {} Hann segments of {} samples, {:.3} Hz bins;\n  \
+         a peak stands ≥ 4× above the background of its flanks):",
+        s.segments,
+        s.segment,
+        s.hz.get(1).copied().unwrap_or(f64::NAN)
+    );
+    for (name, spec) in [
+        ("baseline", &d.spectrum),
+        ("final model", &d.final_spectrum),
+    ] {
+        let peaks = spec.as_ref().map_or(&[][..], |s| s.peaks.as_slice());
+        if peaks.is_empty() {
+            let _ = writeln!(o, "  {name:<12} no peak");
+        }
+        for p in peaks {
+            let _ = writeln!(o, "  {name:<12} {}", peak_text(p));
+        }
+    }
+}
