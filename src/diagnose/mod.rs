@@ -202,15 +202,18 @@ pub fn diagnose_from(
         Some(m) => Some(start_of(m, family, data.datasets())?),
         None => None,
     };
-    // The noise floor the rule compares against: from the selection part.
+    // The noise floor the rule compares against: a property of the sensor,
+    // measured on every sample but the test part's (the estimation half
+    // and the selection blocks; the blocks alone are too few on a short
+    // record, where steps inflate the second differences).
     let outputs: Vec<Vec<f64>> = data
         .records
         .whole
         .iter()
         .zip(&data.parts)
         .flat_map(|(w, p)| {
-            p.selection
-                .iter()
+            std::iter::once(&p.estimation)
+                .chain(&p.selection)
                 .map(|r| w.y[r.clone()].iter().map(|&v| v as f64).collect())
         })
         .collect();

@@ -291,7 +291,7 @@ impl DiagnosisJson {
             datasets: d.datasets.clone(),
             parts: d.parts.iter().map(PartsJson::of).collect(),
             noise_floor_rmse: floor,
-            noise_floor_method: "median |second difference of the measured output on the selection blocks| / (0.6745·√6)",
+            noise_floor_method: "median |second difference of the measured output on the estimation half and the selection blocks| / (0.6745·√6)",
             where_: WhereJson {
                 rmse: w.rmse,
                 branch: BranchJson {

@@ -89,7 +89,7 @@ fn header_text(o: &mut String, d: &Diagnosis) {
     let _ = writeln!(o, "{}", parts_text(d));
     let _ = writeln!(
         o,
-        "Baseline: selection fit {:.1} % (RMSE {:.4}), test fit {:.1} % (RMSE {:.4}); noise floor ≈ {:.4} (from second differences of the measured selection output)",
+        "Baseline: selection fit {:.1} % (RMSE {:.4}), test fit {:.1} % (RMSE {:.4}); noise floor ≈ {:.4} (from second differences of the measured output, test part left out)",
         base.selection_fit_percent,
         base.selection_rmse,
         base.test_fit_percent,
