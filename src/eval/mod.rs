@@ -126,6 +126,14 @@ pub trait Evaluator {
         None
     }
 
+    /// Whether each call pays a round trip to a device, so that fewer,
+    /// larger calls pay (a GPU), rather than costing its rows alone (the
+    /// CPU). The polish then scores every start's points in one call a
+    /// round (`optim::lm::levenberg_marquardt_lockstep`).
+    fn round_trips(&self) -> bool {
+        false
+    }
+
     /// Scores `population` (row-major `N × problem.dim()`).
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores>;
 

@@ -351,7 +351,15 @@ pub fn shape_range(family: Family) -> std::ops::Range<usize> {
 /// shape to speak of) is taken as 10⁻¹² so that the map stays finite.
 fn shape_factor(family: Family, v: &[f64], scale: Scale) -> f64 {
     let n = family.exponent_index().map_or(1.0, |i| v[i]);
-    scale.range.powf(n) / v[0].abs().max(1e-12)
+    // `powf(r, 1)` is `r` exactly (a correctly rounded power of an exact
+    // result), and the fit maps every row of every generation through here
+    // with n = 1: skipping the call keeps the bits and most of the cost.
+    let range_n = if n == 1.0 {
+        scale.range
+    } else {
+        scale.range.powf(n)
+    };
+    range_n / v[0].abs().max(1e-12)
 }
 
 #[cfg(test)]

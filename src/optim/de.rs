@@ -189,31 +189,37 @@ impl De {
                 };
                 let r1 = pick(&mut rng, &[i]);
                 let r2 = pick(&mut rng, &[i, r1]);
-                let x = |k: usize, j: usize| pop[k * d + j];
-                // The mutant's coordinate j: `rand/1` from a third partner,
-                // `current-to-pbest/1` from one of the best.
-                let (r0, pb) = match settings.strategy {
-                    Strategy::Rand1 => (pick(&mut rng, &[i, r1, r2]), i),
-                    Strategy::CurrentToPbest1 => (i, best[rng.random_range(0..top)]),
-                };
-                let mutant = |j: usize| match settings.strategy {
-                    Strategy::Rand1 => x(r0, j) + f * (x(r1, j) - x(r2, j)),
+                let row = |k: usize| &pop[k * d..(k + 1) * d];
+                // The mutant's base and the row it is pulled towards:
+                // `rand/1`, a third partner and none; `current-to-pbest/1`,
+                // the individual itself and one of the best.
+                let (base, pbest) = match settings.strategy {
+                    Strategy::Rand1 => (row(pick(&mut rng, &[i, r1, r2])), None),
                     Strategy::CurrentToPbest1 => {
-                        x(i, j) + f * (x(pb, j) - x(i, j)) + f * (x(r1, j) - x(r2, j))
+                        (row(i), Some(row(best[rng.random_range(0..top)])))
                     }
                 };
+                let (x, x1, x2) = (row(i), row(r1), row(r2));
                 let jrand = rng.random_range(0..d);
-                for (j, t) in trial.iter_mut().enumerate() {
-                    let parent = x(i, j);
+                let coordinates = trial
+                    .iter_mut()
+                    .zip(x)
+                    .zip(base.iter().zip(x1.iter().zip(x2)))
+                    .zip(bounds.lower.iter().zip(&bounds.upper))
+                    .enumerate();
+                for (j, (((t, &parent), (&b, (&a1, &a2))), (&lower, &upper))) in coordinates {
                     let mut v = if j == jrand || rng.random::<f64>() < cr {
-                        mutant(j)
+                        match pbest {
+                            None => b + f * (a1 - a2),
+                            Some(xp) => b + f * (xp[j] - b) + f * (a1 - a2),
+                        }
                     } else {
                         parent
                     };
-                    if v < bounds.lower[j] {
-                        v = 0.5 * (bounds.lower[j] + parent);
-                    } else if v > bounds.upper[j] {
-                        v = 0.5 * (bounds.upper[j] + parent);
+                    if v < lower {
+                        v = 0.5 * (lower + parent);
+                    } else if v > upper {
+                        v = 0.5 * (upper + parent);
                     }
                     *t = v;
                 }

@@ -47,19 +47,16 @@ impl GenerationRecord {
     /// Summary statistics of a population's costs: (best, mean, std, diverged),
     /// over finite values only, so a diverged candidate never poisons them.
     pub fn stats(costs: &[f32]) -> (Option<f64>, Option<f64>, Option<f64>, usize) {
-        let finite: Vec<f64> = costs
-            .iter()
-            .filter(|c| c.is_finite())
-            .map(|&c| c as f64)
-            .collect();
-        let diverged = costs.len() - finite.len();
-        if finite.is_empty() {
+        let finite = || costs.iter().filter(|c| c.is_finite()).map(|&c| c as f64);
+        let count = finite().count();
+        let diverged = costs.len() - count;
+        if count == 0 {
             return (None, None, None, diverged);
         }
-        let n = finite.len() as f64;
-        let best = finite.iter().copied().fold(f64::INFINITY, f64::min);
-        let mean = finite.iter().sum::<f64>() / n;
-        let var = finite.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+        let n = count as f64;
+        let best = finite().fold(f64::INFINITY, f64::min);
+        let mean = finite().sum::<f64>() / n;
+        let var = finite().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
         (Some(best), Some(mean), Some(var.sqrt()), diverged)
     }
 }

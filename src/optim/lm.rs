@@ -120,116 +120,330 @@ pub fn levenberg_marquardt(
 pub fn levenberg_marquardt_batched(
     residuals: &mut BatchResiduals<'_>,
     start: &[f64],
-    (lower, upper): (&[f64], &[f64]),
+    bounds: (&[f64], &[f64]),
     step_floor: &[f64],
     settings: &LmSettings,
     interrupt: Option<&std::sync::atomic::AtomicBool>,
 ) -> anyhow::Result<LmOutcome> {
-    let d = start.len();
-    let clamp = |v: &mut [f64]| {
-        for j in 0..d {
-            v[j] = v[j].clamp(lower[j], upper[j]);
+    let starts = [start.to_vec()];
+    let mut runs =
+        levenberg_marquardt_lockstep(residuals, &starts, bounds, step_floor, settings, interrupt)?;
+    Ok(runs.pop().expect("one start, one outcome").outcome?)
+}
+
+/// One start's polish in lock-step: where it ended, and how many points it
+/// had scored (its own share of the calls).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Polished {
+    pub outcome: Result<LmOutcome, LmError>,
+    pub points: usize,
+}
+
+/// [`levenberg_marquardt_batched`] from several starts in lock-step: every
+/// round, the points all unfinished starts need (one's Jacobian probes,
+/// another's trial steps) are scored in one call, so that a batch evaluator
+/// scores the polish of `k` starts in the calls of one; a start that is done
+/// drops out. Each start takes the very steps it takes alone: its points
+/// and its arithmetic do not depend on the others. One result a start, in
+/// order; only the scorer's own error ends them all.
+pub fn levenberg_marquardt_lockstep(
+    residuals: &mut BatchResiduals<'_>,
+    starts: &[Vec<f64>],
+    bounds: (&[f64], &[f64]),
+    step_floor: &[f64],
+    settings: &LmSettings,
+    interrupt: Option<&std::sync::atomic::AtomicBool>,
+) -> anyhow::Result<Vec<Polished>> {
+    let mut runs: Vec<Run> = starts
+        .iter()
+        .map(|s| Run::new(s, bounds, step_floor, settings))
+        .collect();
+    let cut = || interrupt.is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst));
+    loop {
+        // Which run asked for how many of the points.
+        let mut asked: Vec<(usize, usize)> = Vec::new();
+        let mut points: Vec<Vec<f64>> = Vec::new();
+        for (k, run) in runs.iter_mut().enumerate() {
+            if let Some(p) = run.request(&cut) {
+                asked.push((k, p.len()));
+                points.extend(p);
+            }
         }
-    };
-    let mut x = start.to_vec();
-    clamp(&mut x);
-    let mut r = residuals(std::slice::from_ref(&x))?
-        .pop()
-        .flatten()
-        .ok_or(LmError::StartDiverges)?;
-    let mut sse = r.norm_squared();
-    let mut lambda = 1e-3;
-    let mut iterations = 0;
-    for _ in 0..settings.max_iterations {
-        if interrupt.is_some_and(|f| f.load(std::sync::atomic::Ordering::SeqCst)) {
+        if asked.is_empty() {
             break;
         }
-        iterations += 1;
-        let steps: Vec<f64> = (0..d)
-            .map(|j| {
-                let h = settings.rel_step * x[j].abs().max(step_floor[j]);
-                // Probe inward from an upper bound.
-                if x[j] + h > upper[j] { -h } else { h }
-            })
-            .collect();
-        // Central differences where both probes stay in the box: the
-        // truncation error of a forward difference is first order in the
-        // step, and in a flat valley it bends the Gauss–Newton step.
-        let back: Vec<bool> = (0..d)
-            .map(|j| settings.central && x[j] - steps[j] >= lower[j] && x[j] + steps[j] <= upper[j])
-            .collect();
-        let mut probes: Vec<Vec<f64>> = (0..d)
-            .map(|j| {
-                let mut xp = x.clone();
-                xp[j] += steps[j];
-                xp
-            })
-            .collect();
-        probes.extend((0..d).filter(|&j| back[j]).map(|j| {
-            let mut xp = x.clone();
-            xp[j] -= steps[j];
-            xp
-        }));
-        let mut cols = residuals(&probes)?.into_iter();
-        let forward: Vec<Option<DVector<f64>>> = cols.by_ref().take(d).collect();
-        let mut jac = DMatrix::<f64>::zeros(r.len(), d);
-        for (j, col) in forward.into_iter().enumerate() {
-            let col = col.ok_or(LmError::ProbeDiverges)?;
-            if back[j] {
-                let minus = cols.next().flatten().ok_or(LmError::ProbeDiverges)?;
-                jac.set_column(j, &((col - minus) / (2.0 * steps[j])));
-            } else {
-                jac.set_column(j, &((col - &r) / steps[j]));
-            }
-        }
-        let jtj = jac.transpose() * &jac;
-        let jtr = jac.transpose() * &r;
-        // The trial steps in the order a sequential search tries them: λ
-        // times 10 after a singular solve, times 4 after a step that does not
-        // lower the SSE; the first that lowers it is taken.
-        let mut improved = false;
-        let mut tried = 0;
-        while tried < MAX_TRIALS && !improved {
-            let mut trials: Vec<(Vec<f64>, f64)> = Vec::new();
-            while trials.len() < TRIALS_PER_BATCH && tried < MAX_TRIALS {
-                tried += 1;
-                match bounded_step(&jtj, &jtr, lambda, &x, (lower, upper)) {
-                    None => lambda *= 10.0,
-                    Some(delta) => {
-                        let mut xn: Vec<f64> =
-                            x.iter().zip(delta.iter()).map(|(a, b)| a + b).collect();
-                        clamp(&mut xn);
-                        trials.push((xn, lambda));
-                        lambda *= 4.0;
-                    }
-                }
-            }
-            let points: Vec<Vec<f64>> = trials.iter().map(|(p, _)| p.clone()).collect();
-            let scored = if points.is_empty() {
-                Vec::new()
-            } else {
-                residuals(&points)?
-            };
-            for ((xn, lam), rn) in trials.into_iter().zip(scored) {
-                let Some(rn) = rn else { continue };
-                let sn = rn.norm_squared();
-                if sn < sse {
-                    let rel = (sse - sn) / sse;
-                    (x, r, sse) = (xn, rn, sn);
-                    lambda = (lam / 3.0).max(1e-12);
-                    improved = true;
-                    if rel < settings.tolerance {
-                        return Ok(LmOutcome { x, sse, iterations });
-                    }
-                    break;
-                }
-            }
-        }
-        if !improved {
-            break;
+        let mut scored = residuals(&points)?.into_iter();
+        for (k, count) in asked {
+            runs[k].points += count;
+            runs[k].receive(scored.by_ref().take(count).collect());
         }
     }
-    Ok(LmOutcome { x, sse, iterations })
+    Ok(runs
+        .into_iter()
+        .map(|run| Polished {
+            points: run.points,
+            outcome: run.outcome(),
+        })
+        .collect())
+}
+
+/// One start's polish, as a sequence of requests for scored points: it
+/// says which points it needs next ([`Run::request`]) and goes on when told
+/// their residuals ([`Run::receive`]). The steps are those of
+/// Levenberg–Marquardt as the module describes it.
+struct Run<'a> {
+    bounds: (&'a [f64], &'a [f64]),
+    step_floor: &'a [f64],
+    settings: &'a LmSettings,
+    x: Vec<f64>,
+    r: DVector<f64>,
+    sse: f64,
+    lambda: f64,
+    /// Iterations begun (Jacobians asked for).
+    iterations: usize,
+    /// Points scored for it so far.
+    points: usize,
+    phase: Phase,
+}
+
+/// Where a [`Run`] stands.
+enum Phase {
+    /// It needs the start's residuals.
+    Start,
+    /// At the top of an iteration: it needs the Jacobian's probes next.
+    Iterate,
+    /// It waits for the probes: forward from `x` by `steps`, then back
+    /// where `back` holds (central differences).
+    Probing {
+        steps: Vec<f64>,
+        back: Vec<bool>,
+    },
+    /// It makes trial steps from these normal equations; `tried` so far.
+    Trials {
+        jtj: DMatrix<f64>,
+        jtr: DVector<f64>,
+        tried: usize,
+    },
+    /// It waits for these trial steps, each with its λ.
+    Trying {
+        jtj: DMatrix<f64>,
+        jtr: DVector<f64>,
+        tried: usize,
+        trials: Vec<(Vec<f64>, f64)>,
+    },
+    Done(Result<(), LmError>),
+}
+
+impl<'a> Run<'a> {
+    fn new(
+        start: &[f64],
+        bounds: (&'a [f64], &'a [f64]),
+        step_floor: &'a [f64],
+        settings: &'a LmSettings,
+    ) -> Run<'a> {
+        let mut x = start.to_vec();
+        clamp(&mut x, bounds);
+        Run {
+            bounds,
+            step_floor,
+            settings,
+            x,
+            r: DVector::zeros(0),
+            sse: f64::INFINITY,
+            lambda: 1e-3,
+            iterations: 0,
+            points: 0,
+            phase: Phase::Start,
+        }
+    }
+
+    /// The points to score next, `None` once done; `cut` stops it at the
+    /// top of its next iteration.
+    fn request(&mut self, cut: &dyn Fn() -> bool) -> Option<Vec<Vec<f64>>> {
+        let (lower, upper) = self.bounds;
+        let d = self.x.len();
+        loop {
+            match &mut self.phase {
+                Phase::Start => return Some(vec![self.x.clone()]),
+                Phase::Iterate => {
+                    if self.iterations >= self.settings.max_iterations || cut() {
+                        self.phase = Phase::Done(Ok(()));
+                        continue;
+                    }
+                    self.iterations += 1;
+                    let x = &self.x;
+                    let steps: Vec<f64> = (0..d)
+                        .map(|j| {
+                            let h = self.settings.rel_step * x[j].abs().max(self.step_floor[j]);
+                            // Probe inward from an upper bound.
+                            if x[j] + h > upper[j] { -h } else { h }
+                        })
+                        .collect();
+                    // Central differences where both probes stay in the box:
+                    // the truncation error of a forward difference is first
+                    // order in the step, and in a flat valley it bends the
+                    // Gauss–Newton step.
+                    let back: Vec<bool> = (0..d)
+                        .map(|j| {
+                            self.settings.central
+                                && x[j] - steps[j] >= lower[j]
+                                && x[j] + steps[j] <= upper[j]
+                        })
+                        .collect();
+                    let mut probes: Vec<Vec<f64>> = (0..d)
+                        .map(|j| {
+                            let mut xp = x.clone();
+                            xp[j] += steps[j];
+                            xp
+                        })
+                        .collect();
+                    probes.extend((0..d).filter(|&j| back[j]).map(|j| {
+                        let mut xp = x.clone();
+                        xp[j] -= steps[j];
+                        xp
+                    }));
+                    self.phase = Phase::Probing { steps, back };
+                    return Some(probes);
+                }
+                // The trial steps in the order a sequential search tries
+                // them: λ times 10 after a singular solve, times 4 after a
+                // step that does not lower the SSE; the first that lowers it
+                // is taken. An iteration whose trials all fail ends the polish.
+                Phase::Trials { jtj, jtr, tried } => {
+                    if *tried >= MAX_TRIALS {
+                        self.phase = Phase::Done(Ok(()));
+                        continue;
+                    }
+                    let mut trials: Vec<(Vec<f64>, f64)> = Vec::new();
+                    while trials.len() < TRIALS_PER_BATCH && *tried < MAX_TRIALS {
+                        *tried += 1;
+                        match bounded_step(jtj, jtr, self.lambda, &self.x, self.bounds) {
+                            None => self.lambda *= 10.0,
+                            Some(delta) => {
+                                let mut xn: Vec<f64> = self
+                                    .x
+                                    .iter()
+                                    .zip(delta.iter())
+                                    .map(|(a, b)| a + b)
+                                    .collect();
+                                clamp(&mut xn, self.bounds);
+                                trials.push((xn, self.lambda));
+                                self.lambda *= 4.0;
+                            }
+                        }
+                    }
+                    if trials.is_empty() {
+                        continue;
+                    }
+                    let points = trials.iter().map(|(p, _)| p.clone()).collect();
+                    let Phase::Trials { jtj, jtr, tried } =
+                        std::mem::replace(&mut self.phase, Phase::Iterate)
+                    else {
+                        unreachable!("in the trials phase")
+                    };
+                    self.phase = Phase::Trying {
+                        jtj,
+                        jtr,
+                        tried,
+                        trials,
+                    };
+                    return Some(points);
+                }
+                Phase::Done(_) => return None,
+                Phase::Probing { .. } | Phase::Trying { .. } => {
+                    unreachable!("a run is asked again before it was told its points")
+                }
+            }
+        }
+    }
+
+    /// The residuals of the points last requested, in order.
+    fn receive(&mut self, scored: Vec<Option<DVector<f64>>>) {
+        self.phase = match std::mem::replace(&mut self.phase, Phase::Iterate) {
+            Phase::Start => match scored.into_iter().next().flatten() {
+                Some(r) => {
+                    self.sse = r.norm_squared();
+                    self.r = r;
+                    Phase::Iterate
+                }
+                None => Phase::Done(Err(LmError::StartDiverges)),
+            },
+            Phase::Probing { steps, back } => match self.jacobian(scored, &steps, &back) {
+                Some(jac) => Phase::Trials {
+                    jtj: jac.transpose() * &jac,
+                    jtr: jac.transpose() * &self.r,
+                    tried: 0,
+                },
+                None => Phase::Done(Err(LmError::ProbeDiverges)),
+            },
+            Phase::Trying {
+                jtj,
+                jtr,
+                tried,
+                trials,
+            } => {
+                let mut next = Phase::Trials { jtj, jtr, tried };
+                for ((xn, lam), rn) in trials.into_iter().zip(scored) {
+                    let Some(rn) = rn else { continue };
+                    let sn = rn.norm_squared();
+                    if sn < self.sse {
+                        let rel = (self.sse - sn) / self.sse;
+                        (self.x, self.r, self.sse) = (xn, rn, sn);
+                        self.lambda = (lam / 3.0).max(1e-12);
+                        next = if rel < self.settings.tolerance {
+                            Phase::Done(Ok(()))
+                        } else {
+                            Phase::Iterate
+                        };
+                        break;
+                    }
+                }
+                next
+            }
+            other => other,
+        };
+    }
+
+    /// The Jacobian from the probes' residuals, `None` if a probe diverged.
+    fn jacobian(
+        &self,
+        scored: Vec<Option<DVector<f64>>>,
+        steps: &[f64],
+        back: &[bool],
+    ) -> Option<DMatrix<f64>> {
+        let d = self.x.len();
+        let mut cols = scored.into_iter();
+        let forward: Vec<Option<DVector<f64>>> = cols.by_ref().take(d).collect();
+        let mut jac = DMatrix::<f64>::zeros(self.r.len(), d);
+        for (j, col) in forward.into_iter().enumerate() {
+            let col = col?;
+            if back[j] {
+                let minus = cols.next().flatten()?;
+                jac.set_column(j, &((col - minus) / (2.0 * steps[j])));
+            } else {
+                jac.set_column(j, &((col - &self.r) / steps[j]));
+            }
+        }
+        Some(jac)
+    }
+
+    fn outcome(self) -> Result<LmOutcome, LmError> {
+        match self.phase {
+            Phase::Done(Err(e)) => Err(e),
+            _ => Ok(LmOutcome {
+                x: self.x,
+                sse: self.sse,
+                iterations: self.iterations,
+            }),
+        }
+    }
+}
+
+/// `v` clamped into the box, coordinate by coordinate.
+fn clamp(v: &mut [f64], (lower, upper): (&[f64], &[f64])) {
+    for (j, vj) in v.iter_mut().enumerate() {
+        *vj = vj.clamp(lower[j], upper[j]);
+    }
 }
 
 /// The damped Gauss–Newton step `(JᵀJ + λ·diag JᵀJ) δ = −Jᵀr` with the
@@ -312,6 +526,78 @@ mod tests {
         let out = descend(0.5);
         assert_eq!(out.x[0], 0.5);
         assert!((out.x[1] - 0.25).abs() < 1e-6, "{:?}", out);
+    }
+
+    /// Rosenbrock, diverging right of x = 2, as a batch scorer that counts
+    /// its calls and the points it scored.
+    fn counted<'a>(calls: &'a mut usize, points: &'a mut usize) -> Box<BatchResiduals<'a>> {
+        Box::new(move |batch: &[Vec<f64>]| {
+            *calls += 1;
+            *points += batch.len();
+            Ok(batch
+                .iter()
+                .map(|p| (p[0] <= 2.0).then(|| rosenbrock(p)).flatten())
+                .collect())
+        })
+    }
+
+    /// Starts polished in lock-step take the very steps each takes alone
+    /// (same points, same outcome, a diverging start's error included), in
+    /// as many scorer calls as the longest of them needs.
+    #[test]
+    fn starts_in_lock_step_end_where_each_ends_alone_in_fewer_calls() {
+        // The third start begins where the scorer diverges.
+        let starts = vec![
+            vec![-1.2, 1.0],
+            vec![0.5, -0.5],
+            vec![2.5, 0.0],
+            vec![1.5, 2.5],
+        ];
+        let inf = f64::INFINITY;
+        let bounds: (&[f64], &[f64]) = (&[-inf, -inf], &[inf, inf]);
+        let settings = LmSettings {
+            max_iterations: 50,
+            central: true,
+            ..LmSettings::default()
+        };
+        let (mut alone_calls, mut alone_points) = (Vec::new(), Vec::new());
+        let alone: Vec<Result<LmOutcome, LmError>> = starts
+            .iter()
+            .map(|start| {
+                let (mut calls, mut points) = (0, 0);
+                let out = levenberg_marquardt_batched(
+                    &mut *counted(&mut calls, &mut points),
+                    start,
+                    bounds,
+                    &[1.0, 1.0],
+                    &settings,
+                    None,
+                )
+                .map_err(|e| e.downcast::<LmError>().unwrap());
+                alone_calls.push(calls);
+                alone_points.push(points);
+                out
+            })
+            .collect();
+        let (mut calls, mut points) = (0, 0);
+        let together = levenberg_marquardt_lockstep(
+            &mut *counted(&mut calls, &mut points),
+            &starts,
+            bounds,
+            &[1.0, 1.0],
+            &settings,
+            None,
+        )
+        .unwrap();
+        let outcomes: Vec<_> = together.iter().map(|p| p.outcome.clone()).collect();
+        assert_eq!(outcomes, alone);
+        assert_eq!(outcomes[2], Err(LmError::StartDiverges));
+        assert!(outcomes[0].as_ref().unwrap().sse < 1e-10);
+        // Each start's own share of the points, and all of them together.
+        let shares: Vec<usize> = together.iter().map(|p| p.points).collect();
+        assert_eq!(shares, alone_points);
+        assert_eq!(points, alone_points.iter().sum::<usize>());
+        assert_eq!(calls, *alone_calls.iter().max().unwrap());
     }
 
     #[test]

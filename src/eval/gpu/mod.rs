@@ -229,6 +229,11 @@ impl Evaluator for GpuEvaluator {
         Some(describe_adapter(&self.host.info))
     }
 
+    /// Every call submits and waits for its read-back.
+    fn round_trips(&self) -> bool {
+        true
+    }
+
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {
         let n_exp = problem.experiments.len();
         let flat = self.run(problem, population, Output::Sse)?;

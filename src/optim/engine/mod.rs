@@ -84,6 +84,13 @@ pub trait Objective {
     fn evaluator_seconds(&self) -> Option<f64> {
         None
     }
+
+    /// Whether its calls pay a round trip each (a GPU evaluator's,
+    /// [`crate::eval::Evaluator::round_trips`]): then the polish's starts
+    /// share its calls, each round one call for all of them.
+    fn round_trips(&self) -> bool {
+        false
+    }
 }
 
 /// When the whole fit stops early (each stage's own length is in the [`Plan`]).

@@ -137,6 +137,10 @@ impl Objective for ModelObjective<'_> {
         Some(self.evaluator_seconds)
     }
 
+    fn round_trips(&self) -> bool {
+        self.evaluator.round_trips()
+    }
+
     fn costs(&mut self, rows: &[f64], measure: Measure) -> anyhow::Result<Vec<f32>> {
         self.problem.measure = measure;
         // Summed over the experiments in `f64`, as the diagnosis' SSEs are

@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::{Engine, Members, Objective, Scored, Stage, StageEnd, keep_lowest, plan, timed};
 use crate::model::Measure;
-use crate::optim::lm::{self, LmError, LmSettings};
+use crate::optim::lm::{self, LmSettings};
 
 impl Engine {
     /// The polish: Levenberg–Marquardt on the free-run residuals from the
@@ -96,12 +96,32 @@ impl Engine {
             }
         }
         measures.push(Measure::FreeRun);
-        for (start, _) in starts {
+        // The starts through every horizon, in groups polished in
+        // lock-step: each round, one call scores the points all unfinished
+        // starts of the group need next (each start takes the very steps it
+        // takes alone), and a start that is done drops out. On an objective
+        // whose calls pay a round trip (a GPU) the group is every start; on
+        // the CPU one start, since there a call costs only its rows and a
+        // round of every start's residuals outgrows the caches: measured
+        // slower (docs/PERFORMANCE.md, "The polish in lock-step").
+        let starts: Vec<Vec<f64>> = starts.into_iter().map(|(x, _)| x).collect();
+        let together = if objective.round_trips() {
+            starts.len().max(1)
+        } else {
+            1
+        };
+        for group in starts.chunks(together) {
             if cut() {
                 break;
             }
-            let mut x = start;
+            let before_group = self.evaluations;
+            let mut xs = group.to_vec();
+            // The points each start had scored: its record counts them.
+            let mut points = vec![0usize; xs.len()];
             for &measure in &measures {
+                if cut() {
+                    break;
+                }
                 let (mut evaluations, mut seconds) = (0u64, 0.0);
                 let mut residuals = |points: &[Vec<f64>]| {
                     evaluations += points.len() as u64;
@@ -110,9 +130,9 @@ impl Engine {
                     seconds += s;
                     r
                 };
-                let out = lm::levenberg_marquardt_batched(
+                let polished = lm::levenberg_marquardt_lockstep(
                     &mut residuals,
-                    &x,
+                    &xs,
                     (&bounds.lower, &bounds.upper),
                     &floor,
                     &settings,
@@ -120,22 +140,34 @@ impl Engine {
                 );
                 self.evaluations += evaluations;
                 self.evaluator_seconds += seconds;
-                match out {
-                    Ok(out) => x = out.x,
+                for ((x, count), run) in xs.iter_mut().zip(&mut points).zip(polished?) {
+                    *count += run.points;
                     // A start whose simulation or a probe's diverges keeps
                     // its place: the search's value is still a candidate.
-                    Err(e) if e.downcast_ref::<LmError>().is_some() => {}
-                    Err(e) => return Err(e),
+                    if let Ok(out) = run.outcome {
+                        *x = out.x;
+                    }
                 }
             }
-            // Scored as every other candidate, so that it compares in the
-            // same arithmetic.
-            let rows = self.space.project(&space.embed(&x));
+            // Scored as every other candidate, so that they compare in the
+            // same arithmetic; one record a start, in order, each counting
+            // the evaluations up to its own last score, as if the starts
+            // had been polished one after another.
+            let rows = self.space.project(&space.embed(&xs.concat()));
             let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
-            keep_lowest(&mut self.stage_best, &canonical, &costs, canonical.len());
-            self.offer_best(&canonical, &costs);
-            self.stage_steps += 1;
-            self.record(Stage::Polish, Measure::FreeRun, None);
+            let (d, total) = (self.space.dim(), self.evaluations);
+            let mut counted = before_group;
+            for ((row, cost), points) in canonical.chunks_exact(d).zip(costs.chunks(1)).zip(points)
+            {
+                keep_lowest(&mut self.stage_best, row, cost, d);
+                self.offer_best(row, cost);
+                self.stage_steps += 1;
+                counted += points as u64 + 1;
+                self.evaluations = counted;
+                self.record(Stage::Polish, Measure::FreeRun, None);
+            }
+            debug_assert_eq!(counted, total);
+            self.evaluations = total;
         }
         if cut() {
             let partial = self.stage_best.take();

@@ -132,11 +132,16 @@ impl Engine {
         for opt in &mut self.optimizers {
             let rows = opt.ask(&streams.from_row(at))?;
             let n = rows.len() / nf;
-            canonical.resize((at + n) * d, 0.0);
-            self.space.embed_into(rows, &mut canonical[at * d..]);
+            // The same size every generation after the first: no refill.
+            if canonical.len() < (at + n) * d {
+                canonical.resize((at + n) * d, 0.0);
+            }
+            self.space
+                .embed_into(rows, &mut canonical[at * d..(at + n) * d]);
             spans.push((at, n));
             at += n;
         }
+        canonical.truncate(at * d);
         let costs: Vec<Vec<f32>> = if one_batch {
             vec![self.score_canonical(objective, &canonical, measure)?]
         } else {
