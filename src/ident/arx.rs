@@ -218,8 +218,10 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
 
 /// What the data say about scale, for the boxes of `fit` and the
 /// diagnosis alike: the first-order ARX pole and gain on the first trace's
-/// estimation half ([`identify`]), and the largest absolute input and
-/// output and the output's range over all of `traces` (absolute units).
+/// estimation half ([`identify`]), the largest absolute input and output
+/// and the output's range over all of `traces`, the output's extremes over
+/// their estimation halves, and the first estimation half's output mean
+/// (absolute units).
 pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
     let first = traces.first().ok_or(IdentError::NoData)?;
     let id = identify(first, ArxOrders::default())?;
@@ -228,11 +230,24 @@ pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
         .iter()
         .flat_map(|t| t.output.iter().copied())
         .collect();
+    fn estimation(t: &Trace) -> &[f64] {
+        &t.output[halves(t.len()).0]
+    }
+    let (est_output_min, est_output_max) = traces
+        .iter()
+        .flat_map(|t| estimation(t).iter())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    let first_est = estimation(first);
     Ok(LinearPrior {
         a: id.arx.a[0],
         b: id.arx.b[0],
         max_abs_input: traces.iter().map(|t| max_abs(&t.input)).fold(0.0, f64::max),
         max_abs_output: max_abs(&outputs),
         output_range: crate::data::range(&outputs),
+        est_output_min,
+        est_output_max,
+        output_mean: first_est.iter().sum::<f64>() / first_est.len() as f64,
     })
 }

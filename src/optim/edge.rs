@@ -39,8 +39,9 @@ pub struct ActiveBound {
 }
 
 /// Fits `task` with `plan` on `evaluator`, with no observer, interrupt or
-/// checkpoint (the studies of `compare` and the tests), then applies the
-/// edge rule.
+/// checkpoint (the studies of `compare` and the tests): from both starts of
+/// the default switching where the task has two ([`Task::at_zero`]: the
+/// lower estimation SSE kept), then the edge rule.
 pub fn fit_task(
     task: &Task,
     plan: Plan,
@@ -48,10 +49,25 @@ pub fn fit_task(
     stops: StopRules,
     evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<(Engine, Outcome)> {
-    let mut engine = Engine::new(plan, Space::from(&task.space), seed, stops.clone())?;
-    let mut objective = ModelObjective::for_task(evaluator, task);
-    let outcome = engine.run(&mut objective, &mut [], None, None)?;
+    let run = |task: &Task, evaluator: &mut dyn Evaluator| -> anyhow::Result<(Engine, Outcome)> {
+        let mut engine = Engine::new(plan.clone(), Space::from(&task.space), seed, stops.clone())?;
+        let mut objective = ModelObjective::for_task(evaluator, task);
+        let outcome = engine.run(&mut objective, &mut [], None, None)?;
+        Ok((engine, outcome))
+    };
     let mut widened = task.clone();
+    let (mut engine, mut outcome) = run(task, evaluator)?;
+    if let Some(zero) = task.at_zero() {
+        let (e, o) = run(&zero, evaluator)?;
+        let (evaluations, seconds) = (
+            outcome.evaluations + o.evaluations,
+            outcome.seconds + o.seconds,
+        );
+        if !o.params.is_empty() && o.sse < outcome.sse {
+            (engine, outcome, widened) = (e, o, zero);
+        }
+        (outcome.evaluations, outcome.seconds) = (evaluations, seconds);
+    }
     let (outcome, _) = refit_off_edges(&mut widened, &engine, outcome, &stops, evaluator)?;
     Ok((engine, outcome))
 }

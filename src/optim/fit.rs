@@ -27,7 +27,7 @@ use crate::ident::fit::SETTLED_POINTS;
 use crate::model::coords::gauge_fixed;
 use crate::model::effects::Effect;
 use crate::model::file::{ModelFile, Provenance, SearchBox};
-use crate::model::{Family, Flow, Loop, Measure, Model, UserBound};
+use crate::model::{Family, Flow, Loop, Measure, Model, Switching, UserBound};
 
 /// Settings of one algorithm laid over its base settings (`None`, `false`:
 /// keep the base). Each acts on its own algorithm only, but every one given
@@ -311,6 +311,8 @@ pub struct FitBox {
     pub free_n: bool,
     /// Loop shapes the box admits (`--loop`).
     pub loop_shape: Loop,
+    /// Where a generalized fit lets its sign terms switch (`--switch`).
+    pub switching: Switching,
     /// The user's bounds and fixed values (`--bound`, `--fix`), an effect's
     /// as `effect.param`.
     pub bounds: Vec<UserBound>,
@@ -331,6 +333,26 @@ pub struct Fit {
     second: Option<(Task, Engine, f64)>,
     /// Which of the two was kept, once [`Fit::run`] has run both.
     pub built: Option<Built>,
+    /// The default switching's second start ([`Task::at_zero`]): the same
+    /// fit with the generalized switching level held at the sensor's zero,
+    /// run after the engine, before any [`Fit::also_from`] start.
+    zero: Option<(Task, Engine)>,
+    /// Which of the switching starts was kept, once [`Fit::run`] has run both.
+    pub switched: Option<Switched>,
+}
+
+/// A generalized fit run from the default switching's two starts
+/// ([`crate::model::Switching::Starts`]): the switching level held at the
+/// estimation mean, and at the sensor's zero; the lower estimation SSE is
+/// kept.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Switched {
+    /// Estimation SSE with the level at the estimation mean.
+    pub mean_sse: f64,
+    /// Estimation SSE with the level at the sensor's zero.
+    pub zero_sse: f64,
+    /// `true` when the start at zero was kept.
+    pub kept_zero: bool,
 }
 
 /// A fit with effects run twice, from scratch and from the chain built one
@@ -349,8 +371,11 @@ pub struct Built {
 impl Fit {
     /// The task of `what` on `trace` (its box widened on return of
     /// [`Fit::run`]) and the engine `settings` start on it: a warm start
-    /// from `start` ([`FitSettings::start_warm`]), else fresh or resumed
-    /// from `checkpoint` ([`FitSettings::start`]).
+    /// from `start` ([`FitSettings::start_warm`], the generalized switching
+    /// level held at the start's own unless `what` says otherwise), else
+    /// fresh or resumed from `checkpoint` ([`FitSettings::start`]), and a
+    /// fresh second start where the default switching has one
+    /// ([`Task::at_zero`]).
     pub fn new(
         trace: &Trace,
         what: &FitBox,
@@ -377,7 +402,7 @@ impl Fit {
             flow,
             None,
             what.free_n,
-            what.loop_shape,
+            (what.loop_shape, what.switching),
             &what.bounds,
         )
         .and_then(|t| match start {
@@ -388,6 +413,9 @@ impl Fit {
         .with_context(|| format!("cannot fit {}", trace.source))?;
         let mut task = task;
         let start = start.map(|m| warm_start(&task, m));
+        if let (Some(theta), Some(is)) = (&start, what.family.switch_index()) {
+            task.hold_switch_at(theta[is]);
+        }
         if let Some(theta) = &start {
             let widened = task.space.widen_to_hold(theta);
             if !widened.is_empty() {
@@ -409,12 +437,22 @@ impl Fit {
             Some(theta) => settings.start_warm(&task, theta)?,
             None => settings.start(&task, checkpoint, note)?,
         };
+        // A fresh fit of its own (the checkpoint holds the first start's).
+        let zero = match (&start, task.at_zero()) {
+            (None, Some(zero)) => {
+                let engine = settings.start(&zero, None, &|_| ())?;
+                Some((zero, engine))
+            }
+            _ => None,
+        };
         Ok(Fit {
             task,
             engine,
             start,
             second: None,
             built: None,
+            zero,
+            switched: None,
         })
     }
 
@@ -442,6 +480,9 @@ impl Fit {
         );
         let theta = warm_start(&self.task, model);
         let mut task = self.task.clone();
+        if let Some(is) = task.family.switch_index() {
+            task.hold_switch_at(theta[is]);
+        }
         task.space.widen_to_hold(&theta);
         let engine = settings.start_warm(&task, &theta)?;
         self.second = Some((task, engine, built_in_s));
@@ -476,6 +517,27 @@ impl Fit {
             .engine
             .run(&mut objective, observers, interrupt, checkpoint)?;
         drop(objective);
+        if let Some((task, mut engine)) = self.zero.take()
+            && outcome.stop != StopReason::Interrupted
+        {
+            let mut objective = ModelObjective::for_task(evaluator, &task);
+            let zero = engine.run(&mut objective, &mut [], interrupt, None)?;
+            drop(objective);
+            let kept_zero = !zero.params.is_empty() && zero.sse < outcome.sse;
+            self.switched = Some(Switched {
+                mean_sse: outcome.sse,
+                zero_sse: zero.sse,
+                kept_zero,
+            });
+            let (evaluations, seconds) = (
+                outcome.evaluations + zero.evaluations,
+                outcome.seconds + zero.seconds,
+            );
+            if kept_zero {
+                (self.task, self.engine, outcome) = (task, engine, zero);
+            }
+            (outcome.evaluations, outcome.seconds) = (evaluations, seconds);
+        }
         if let Some((task, mut engine, built_in_s)) = self.second.take()
             && outcome.stop != StopReason::Interrupted
         {
