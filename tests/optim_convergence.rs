@@ -104,7 +104,7 @@ fn classic_matrix_reaches_the_noise_floor_in_19_of_20() {
 /// noise floor: the fit sees only the estimation half, so a ratio below it
 /// would mean the case's truth or the validation is wrong.
 #[test]
-#[ignore = "measurement: about five minutes an algorithm on 2 cores; prints the table of docs/RESULTS.md"]
+#[ignore = "measurement: about eight minutes an algorithm on 2 cores; prints the table of docs/RESULTS.md"]
 fn generalized_matrix_is_measured_and_no_fit_beats_the_noise_floor() {
     let cases: Vec<Case> = matrix(Family::Generalized, 20, 1000)
         .into_iter()

@@ -38,6 +38,32 @@ pub struct ActiveBound {
     pub origin: Origin,
 }
 
+/// A generalized fit run from the default switching's two starts
+/// ([`crate::model::Switching::Starts`]): the switching level held at the
+/// estimation mean, and at the sensor's zero; the lower estimation SSE is
+/// kept.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Switched {
+    /// Estimation SSE with the level at the estimation mean.
+    pub mean_sse: f64,
+    /// Estimation SSE with the level at the sensor's zero.
+    pub zero_sse: f64,
+    /// `true` when the start at zero was kept.
+    pub kept_zero: bool,
+}
+
+impl Switched {
+    /// The two starts' outcomes compared: the one at zero is kept where it
+    /// found a model at a lower estimation SSE.
+    pub fn of(at_mean: &Outcome, at_zero: &Outcome) -> Switched {
+        Switched {
+            mean_sse: at_mean.sse,
+            zero_sse: at_zero.sse,
+            kept_zero: !at_zero.params.is_empty() && at_zero.sse < at_mean.sse,
+        }
+    }
+}
+
 /// Fits `task` with `plan` on `evaluator`, with no observer, interrupt or
 /// checkpoint (the studies of `compare` and the tests): from both starts of
 /// the default switching where the task has two ([`Task::at_zero`]: the
@@ -63,7 +89,7 @@ pub fn fit_task(
             outcome.evaluations + o.evaluations,
             outcome.seconds + o.seconds,
         );
-        if !o.params.is_empty() && o.sse < outcome.sse {
+        if Switched::of(&outcome, &o).kept_zero {
             (engine, outcome, widened) = (e, o, zero);
         }
         (outcome.evaluations, outcome.seconds) = (evaluations, seconds);

@@ -14,6 +14,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
+pub use super::edge::Switched;
 use super::edge::{Widening, refit_off_edges};
 use super::engine::model::{ModelObjective, staged_plan};
 use super::engine::{Engine, Observer, Outcome, Plan, Space, StopReason, StopRules};
@@ -341,20 +342,6 @@ pub struct Fit {
     pub switched: Option<Switched>,
 }
 
-/// A generalized fit run from the default switching's two starts
-/// ([`crate::model::Switching::Starts`]): the switching level held at the
-/// estimation mean, and at the sensor's zero; the lower estimation SSE is
-/// kept.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Switched {
-    /// Estimation SSE with the level at the estimation mean.
-    pub mean_sse: f64,
-    /// Estimation SSE with the level at the sensor's zero.
-    pub zero_sse: f64,
-    /// `true` when the start at zero was kept.
-    pub kept_zero: bool,
-}
-
 /// A fit with effects run twice, from scratch and from the chain built one
 /// effect at a time as the diagnosis builds it; the lower estimation SSE
 /// is kept.
@@ -523,17 +510,13 @@ impl Fit {
             let mut objective = ModelObjective::for_task(evaluator, &task);
             let zero = engine.run(&mut objective, &mut [], interrupt, None)?;
             drop(objective);
-            let kept_zero = !zero.params.is_empty() && zero.sse < outcome.sse;
-            self.switched = Some(Switched {
-                mean_sse: outcome.sse,
-                zero_sse: zero.sse,
-                kept_zero,
-            });
+            let switched = Switched::of(&outcome, &zero);
+            self.switched = Some(switched);
             let (evaluations, seconds) = (
                 outcome.evaluations + zero.evaluations,
                 outcome.seconds + zero.seconds,
             );
-            if kept_zero {
+            if switched.kept_zero {
                 (self.task, self.engine, outcome) = (task, engine, zero);
             }
             (outcome.evaluations, outcome.seconds) = (evaluations, seconds);
