@@ -12,7 +12,8 @@ struct Theta {
     x0: f32,
 }
 
-fn load_theta(p: u32) -> Theta {
+// Candidate row `p` (on any experiment).
+fn load_theta(p: u32, e: u32) -> Theta {
     var n = 1.0;
     if (!N_ONE) {
         n = params[p + 4u];

@@ -23,7 +23,7 @@ fn score(i: u32, e: u32) -> f32 {
     if (span.y == 0u) {
         return 0.0;
     }
-    let th = load_theta(i * STRIDE);
+    let th = load_theta(i * STRIDE, e);
     let r0 = i * cfg.residual_len + span.x - e;
     // sim.rs `Stepper::start`.
     var s = State(samples[span.x].y + th.x0, 0.0);

@@ -92,7 +92,7 @@ fn score(i: u32, e: u32) -> f32 {
         return 0.0;
     }
     let p = i * STRIDE;
-    let th = load_theta(p);
+    let th = load_theta(p, e);
     let r0 = i * cfg.residual_len + span.x - e;
     let u_mean = unfolded(U_MEAN[e]);
     let tol = unfolded(BRANCH_TOL[e]);

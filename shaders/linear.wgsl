@@ -7,7 +7,8 @@ struct Theta {
     x0: f32,
 }
 
-fn load_theta(p: u32) -> Theta {
+// Candidate row `p` (on any experiment).
+fn load_theta(p: u32, e: u32) -> Theta {
     return Theta(params[p], params[p + 1u], params[p + 2u], params[p + 3u]);
 }
 

@@ -6,8 +6,9 @@
 // specialisation, bit-exact; false: the free exponent, `pow` within the
 // device's accuracy — and `const RESIDUALS: bool` — write every error
 // instead of one sum —, `const STRIDE: u32`, the parameters per candidate,
-// and for effect stages which are present, where their parameters sit and
-// each experiment's constants), this prologue, the family's file (its
+// for effect stages which are present, where their parameters sit and each
+// experiment's constants, and for the generalized family each experiment's
+// output mean `Y_MEAN`), this prologue, the family's file (its
 // `Theta`, `load_theta`, `linear`, `stiffness` and `hysteresis`), the
 // scoring loop (driver.wgsl for a plain family, effects.wgsl with effect
 // stages) and entry.wgsl. One invocation scores one candidate on every

@@ -25,7 +25,7 @@ fn rig_trace(len: usize) -> Trace {
         .collect();
     theta[7] = 0.5;
     let u: Vec<f32> = p.iter().map(|&v| v as f32).collect();
-    let x = simulate(Family::Classic, &theta, &u, 0.0).x;
+    let x = simulate(Family::Classic, &theta, 0.0, &u, 0.0).x;
     Trace::uniform("rig", 0.1, p, x.iter().map(|&v| v as f64).collect())
 }
 

@@ -16,7 +16,7 @@ fn reference(problem: &Problem, population: &[f64]) -> Vec<Vec<f32>> {
         .iter()
         .map(|e| {
             rows.chunks_exact(d)
-                .map(|t| sse(problem.family, t, &e.u, &e.y))
+                .map(|t| sse(problem.family, t, e.y_mean as f32, &e.u, &e.y))
                 .collect()
         })
         .collect()

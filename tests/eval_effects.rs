@@ -32,7 +32,10 @@ fn experiments() -> Vec<Experiment> {
 /// tests draw them (finite and diverging candidates mixed), each effect's
 /// parameters uniformly in its box, the first two rows' effects neutral (the
 /// second's baseline is near the preset, so one candidate stays finite
-/// however many effects the model has).
+/// however many effects the model has). A generalized baseline's switching
+/// level is drawn across the output's span, and set at the datasets' output
+/// mean (where the kernel forms the threshold 0) on every third row and at
+/// the sensor's zero (below every sample) on every fifth.
 fn population(model: &Augmented, ctx: &Context, count: usize, seed: u64) -> Vec<f64> {
     let exps = experiments();
     let space = search_space(model.family, &exps[0], false);
@@ -42,6 +45,14 @@ fn population(model: &Augmented, ctx: &Context, count: usize, seed: u64) -> Vec<
     let mut rows = Vec::with_capacity(count * model.dim());
     for (i, b) in base.chunks_exact(d0).enumerate() {
         rows.extend_from_slice(b);
+        if let Some(is) = model.family.switch_index() {
+            let at = rows.len() - d0 + is;
+            if i % 3 == 0 {
+                rows[at] = ctx.y_mean;
+            } else if i % 5 == 0 {
+                rows[at] = 0.0;
+            }
+        }
         for &e in &model.effects {
             let (neutral, lo, hi) = effect_box(e, ctx, model.datasets);
             for j in 0..neutral.len() {

@@ -154,6 +154,83 @@ fn residuals_are_bit_identical_to_the_cpu_with_the_same_divergence_set() {
     }
 }
 
+/// The generalized switching level `x_s` is in the output's own units: each
+/// experiment places it at `x_s − ȳ` with its own output mean (the kernel's
+/// `Y_MEAN`, the CPU's `Experiment::y_mean`). Three experiments with three
+/// means, and levels at the first one's mean (the threshold 0 there), at
+/// the second's, at the sensor's zero, at the box's edges and across the
+/// output: scores and residuals of the free run and the prediction
+/// bit-identical to the CPU's, and the level changes them.
+#[test]
+fn the_switching_level_is_placed_by_each_experiments_mean_as_on_the_cpu() {
+    let Some(mut g) = gpu(GpuOptions::default()) else {
+        return;
+    };
+    let exps = vec![
+        trace(),
+        stair_experiment(900, 40),
+        stair_experiment(600, 41),
+    ];
+    assert!(exps[0].y_mean != exps[1].y_mean && exps[1].y_mean != exps[2].y_mean);
+    let family = Family::Generalized;
+    let (d, is) = (family.dim(), family.switch_index().unwrap());
+    let space = search_space(family, &exps[0], false);
+    let mut pop = mixed_population(&space, 150, &mut ChaCha8Rng::seed_from_u64(42));
+    let levels = [
+        exps[0].y_mean,
+        exps[1].y_mean,
+        0.0,
+        space.lower[is],
+        space.upper[is],
+    ];
+    // The special levels on the first rows and every odd one; the others
+    // keep their draw across the box.
+    for (k, row) in pop.chunks_exact_mut(d).enumerate() {
+        if k < levels.len() || k % 2 == 1 {
+            row[is] = levels[k % levels.len()];
+        }
+    }
+    for measure in [Measure::FreeRun, Measure::Ahead { horizon: 17 }] {
+        let problem = Problem::new(family, exps.clone()).with_measure(measure);
+        let want = cpu(&problem, &pop);
+        let got = g.evaluate(&problem, &pop).unwrap();
+        assert_bit_identical(&got, &want, &format!("switching levels, {measure}"));
+        let want = CpuEvaluator::new().residuals(&problem, &pop).unwrap();
+        let got = g.residuals(&problem, &pop).unwrap();
+        for (i, (a, b)) in got.iter().zip(&want).enumerate() {
+            let bits = |r: &Option<Vec<f32>>| {
+                r.as_ref()
+                    .map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+            };
+            assert_eq!(
+                bits(a),
+                bits(b),
+                "switching levels, {measure}: candidate {i}"
+            );
+        }
+    }
+    // The same candidates switching half-way up the output score otherwise.
+    let mut moved = pop.clone();
+    for row in moved.chunks_exact_mut(d) {
+        row[is] = 0.5 * (space.lower[is] + space.upper[is]);
+    }
+    let problem = Problem::new(family, exps);
+    let (here, there) = (
+        g.evaluate(&problem, &pop).unwrap().total,
+        g.evaluate(&problem, &moved).unwrap().total,
+    );
+    let finite = here.iter().filter(|v| v.is_finite()).count();
+    let changed = here
+        .iter()
+        .zip(&there)
+        .filter(|(a, b)| a.is_finite() && a != b)
+        .count();
+    assert!(
+        finite > 20 && changed * 2 > finite,
+        "{changed} of {finite} finite scores moved with the level"
+    );
+}
+
 #[test]
 fn population_sizes_around_the_workgroup_give_the_right_count_and_values() {
     let Some(mut g) = gpu(GpuOptions::default()) else {

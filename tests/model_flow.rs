@@ -407,3 +407,70 @@ fn diagnose_from_a_model_starts_the_selection_at_its_chain() {
         );
     }
 }
+
+/// The displacement column of a trace `simulate --out` wrote, as written
+/// (Rust's shortest round-trip decimals: equal text is equal bits).
+fn displacement_column(path: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let at = header.iter().position(|&c| c == "displacement").unwrap();
+    lines
+        .map(|l| l.split(',').nth(at).unwrap().to_string())
+        .collect()
+}
+
+/// Generalized model files written before the switching level `x_s`
+/// existed (tests/fixtures/, by a3353e1: a plain one and one with creep)
+/// switched at their estimation mean. They read with `x_s` at their output
+/// mean, and `simulate --from` writes, to the bit, what it wrote then on the
+/// shipped stair's first 1500 samples.
+#[test]
+fn an_older_generalized_model_file_simulates_to_the_same_bits() {
+    use mckibben::model::ModelFile;
+    let fixtures = Path::new(ROOT).join("tests/fixtures");
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("stair1500.csv");
+    let stair = std::fs::read_to_string(Path::new(ROOT).join(STAIR)).unwrap();
+    // Its comment line, its header and 1500 samples.
+    let head: Vec<&str> = stair.lines().take(1502).collect();
+    std::fs::write(&input, head.join("\n") + "\n").unwrap();
+    let reference = std::fs::read_to_string(fixtures.join("generalized_before_x_s.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = reference
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 1500);
+    for (file, column) in [
+        ("generalized_before_x_s.json", 1),
+        ("generalized_creep_before_x_s.json", 2),
+    ] {
+        let path = fixtures.join(file);
+        let model = ModelFile::load(&path).unwrap().model().unwrap();
+        let is = model.base.family.switch_index().unwrap();
+        assert_eq!(model.base.params[is], model.base.output_mean, "{file}");
+        let out = dir.path().join(format!("{column}.csv"));
+        let run = mckibben(&[
+            "simulate",
+            "--from",
+            path.to_str().unwrap(),
+            "--input",
+            input.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(
+            run.status.success(),
+            "{file}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let got = displacement_column(&out);
+        let want: Vec<&str> = rows.iter().map(|r| r[column]).collect();
+        assert_eq!(got.len(), want.len(), "{file}");
+        for (k, (g, w)) in got.iter().zip(&want).enumerate() {
+            assert_eq!(g, w, "{file}: sample {k}");
+        }
+    }
+}

@@ -76,7 +76,7 @@ fn thesis_presets_are_finite_and_hysteretic_on_the_stair() {
     let u: Vec<f32> = p.iter().map(|v| (v - mean) as f32).collect();
     for family in [Family::Classic, Family::Generalized] {
         let theta: Vec<f32> = thesis_params(family).iter().map(|&v| v as f32).collect();
-        let sim = simulate(family, &theta, &u, 0.0);
+        let sim = simulate(family, &theta, 0.0, &u, 0.0);
         assert_eq!(sim.diverged_at, None, "{family} diverged");
         assert!(sim.x.iter().all(|v| v.is_finite()));
         let x: Vec<f64> = sim.x.iter().map(|&v| v as f64).collect();

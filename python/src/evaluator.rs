@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat};
 
 use mckibben::model::UserBound;
-use mckibben::model::{Flow, Measure};
+use mckibben::model::{Flow, Measure, Switching};
 use mckibben::optim::engine::Objective as _;
 use mckibben::optim::engine::Space;
 use mckibben::optim::engine::model::ModelObjective;
@@ -179,7 +179,7 @@ impl Evaluator {
                     Flow::Joint,
                     None,
                     free_n,
-                    loop_shape,
+                    (loop_shape, Switching::default()),
                     &bounds,
                 )
             })

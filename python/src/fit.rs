@@ -12,7 +12,7 @@ use pyo3::types::{PyDict, PyList};
 use mckibben::diagnose::StopFlag;
 use mckibben::diagnose::chain::with_chain_start;
 use mckibben::model::effects::Effect;
-use mckibben::model::{ModelFile, UserBound};
+use mckibben::model::{ModelFile, Switching, UserBound};
 use mckibben::optim::edge::active_bounds;
 use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
 use mckibben::optim::engine::{Observer, StopReason, StopRules};
@@ -363,6 +363,7 @@ pub fn fit(
         effects,
         free_n,
         loop_shape: loop_shape(r#loop)?,
+        switching: Switching::default(),
         bounds: all_bounds,
     };
     if let Some(p) = progress.as_ref()

@@ -19,7 +19,7 @@ use mckibben::model::bounds::Origin;
 use mckibben::model::effects::Effect;
 use mckibben::model::experiment::halves;
 use mckibben::model::file::{Provenance, SearchBox};
-use mckibben::model::{Family, Flow, Loop, ModelFile, UserBound};
+use mckibben::model::{Family, Flow, Loop, ModelFile, Switching, UserBound};
 use mckibben::optim::Algorithm;
 use mckibben::optim::edge::{ActiveBound, Widening, active_bounds};
 use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
@@ -27,7 +27,8 @@ use mckibben::optim::engine::{
     Engine, FreeRun, Observer, Outcome, StageSummary, StopReason, StopRules,
 };
 use mckibben::optim::fit::{
-    Built, Fit, FitBox, FitSettings, Overrides, StartScores, model_file, yardstick_warnings,
+    Built, Fit, FitBox, FitSettings, Overrides, StartScores, Switched, model_file,
+    yardstick_warnings,
 };
 use mckibben::optim::ga::{Crossover, Mutation};
 use mckibben::optim::history::GenerationRecord;
@@ -69,6 +70,17 @@ use mckibben::report::json::{Named, Versioned};
 /// and says so; --bound and --fix set any parameter's box yourself
 /// (docs/ARCHITECTURE.md, "The search space").
 ///
+/// The generalized model's sign terms in x switch where the output crosses
+/// a level x_s (output units; before it was a parameter, always the
+/// estimation half's mean). By default (--switch starts) the fit runs
+/// twice, x_s held at that mean and at the sensor's zero (a muscle's rest
+/// length), and keeps the lower estimation SSE: on generated truths of both
+/// kinds this reaches as many as the better of the two would alone, and
+/// more than either alone or a search of x_s over the output's span
+/// (docs/RESULTS.md, "Where the generalized loop switches"). It doubles a
+/// generalized fit's time. --switch search searches x_s; --fix x_s=0 holds
+/// a sensor zero at rest.
+///
 /// Writes to --out: model.json (read by `simulate`), result.json,
 /// history.csv / history.json (per generation and polish start: stage,
 /// horizon, best SSE, best parameters, population mean and spread, diverged
@@ -84,6 +96,7 @@ use mckibben::report::json::{Named, Versioned};
 ///   mckibben fit --checkpoint fit.ckpt.json   # resumes if the file exists
 ///   mckibben fit run.csv --bound gain=0.1:20 --fix alpha=0.5
 ///   mckibben fit run.csv --bound A=0.2:2 --loop free
+///   mckibben fit run.csv --model generalized --fix x_s=0
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -166,8 +179,20 @@ pub struct Args {
         conflicts_with = "thesis_flow"
     )]
     loop_shape: Loop,
+    /// Where the generalized model's sign terms in x switch (its level x_s,
+    /// in the output's units): starts (two fits, x_s held at the estimation
+    /// half's output mean and at the sensor's zero, the lower estimation SSE
+    /// kept), search (x_s searched over the estimation output's span), mean
+    /// or zero (held there). A --from warm start holds its model's x_s.
+    #[arg(
+        long = "switch",
+        value_enum,
+        default_value = "starts",
+        conflicts_with = "thesis_flow"
+    )]
+    switching: Switching,
     /// Bound one parameter to [LO, HI] (repeatable): a canonical name (A,
-    /// alpha, beta, gamma, beta1..beta6, n, a, b, c, x0) or a search
+    /// alpha, beta, gamma, beta1..beta6, n, x_s, a, b, c, x0) or a search
     /// coordinate's (gain, offset, x0_range, loading, beta_range, psi_pp, ...;
     /// result.json's search_box lists them). Bounding A frees the gauge;
     /// bounding b or c searches the linear part in b, c, x0 themselves; a
@@ -298,6 +323,9 @@ struct Output {
     /// chain built one effect at a time, and which was kept (`null`
     /// otherwise).
     built: Option<Built>,
+    /// A generalized fit from the default switching's two starts: each
+    /// start's estimation SSE and which was kept (`null` otherwise).
+    switching: Option<Switched>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -456,6 +484,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         effects: effects.clone(),
         free_n: args.free_n,
         loop_shape: args.loop_shape,
+        switching: args.switching,
         // The file's bounds first, so that the flags given here win.
         bounds: saved_bounds
             .iter()
@@ -540,6 +569,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             widened: &widened,
             start,
             built: fit.built,
+            switched: fit.switched,
             trace: &trace,
             backend: &backend,
             bounds: &what.bounds,
@@ -619,6 +649,7 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
         start_sse: None,
         start_val_fit_percent: None,
         built: None,
+        switching: None,
         evaluations: 0,
         generations: 0,
         seconds: started.elapsed().as_secs_f64(),
@@ -695,6 +726,8 @@ struct Written<'a> {
     start: Option<StartScores>,
     /// Which of the two starts of a fit with effects was kept ([`Fit::run`]).
     built: Option<Built>,
+    /// Which of the two switching starts was kept ([`Fit::run`]).
+    switched: Option<Switched>,
     trace: &'a Trace,
     backend: &'a str,
     /// The --bound and --fix in force (the file's and the flags').
@@ -710,6 +743,7 @@ fn write_results(out: &Path, w: Written) -> anyhow::Result<Output> {
         widened,
         start,
         built,
+        switched,
         trace,
         backend,
         bounds,
@@ -735,6 +769,7 @@ fn write_results(out: &Path, w: Written) -> anyhow::Result<Output> {
         start_sse: start.and_then(|s| finite(s.est_sse)),
         start_val_fit_percent: start.and_then(|s| finite(s.validation.fit_percent)),
         built,
+        switching: switched,
         evaluations: outcome.evaluations,
         generations: outcome.generations,
         seconds: outcome.seconds,
@@ -820,6 +855,15 @@ fn print_report(o: &Output, task: &Task) {
             "  validation fit, from  {} %   (the --from model as it was, on the same halves; SSE {})",
             show(o.start_val_fit_percent),
             show(o.start_sse)
+        );
+    }
+    if let Some(s) = o.switching {
+        println!(
+            "  switching: x_s at the estimation mean ended at SSE {:.4}, at the sensor's zero at \
+             {:.4}: kept the {}",
+            s.mean_sse,
+            s.zero_sse,
+            if s.kept_zero { "zero" } else { "mean" }
         );
     }
     if let Some(b) = o.built {

@@ -53,7 +53,7 @@ impl StandIn {
         u0: f64,
     ) -> Self {
         let theta: Vec<f32> = model.params.iter().map(|&v| v as f32).collect();
-        let stepper = Stepper::new(model.family, &theta);
+        let stepper = Stepper::new(model.family, &theta, model.output_mean as f32);
         let dt = model.dt;
         let mut plant = StandIn {
             model,

@@ -19,7 +19,7 @@ use super::data::Data;
 use super::effects::Augmented;
 use super::settings::{Interrupted, Settings};
 use crate::data::Trace;
-use crate::model::{Loop, Model};
+use crate::model::{Loop, Model, Switching};
 use crate::optim::fit::{Fit, FitBox, FitSettings};
 
 /// The final chain as `fit --effects` fits it, against the selection's fit.
@@ -59,6 +59,7 @@ pub fn refit(
         effects: model.effects.clone(),
         free_n: false,
         loop_shape: Loop::Bounded,
+        switching: Switching::default(),
         bounds: Vec::new(),
     };
     let fit_settings = FitSettings::staged(settings.seed);

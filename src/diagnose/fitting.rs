@@ -689,7 +689,7 @@ mod tests {
             .map(|&v| v as f32)
             .collect();
         let u: Vec<f32> = p.iter().map(|&v| v as f32).collect();
-        let x = simulate(Family::Classic, &theta, &u, 0.0).x;
+        let x = simulate(Family::Classic, &theta, 0.0, &u, 0.0).x;
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let noise = Normal::new(0.0, 0.1).unwrap();
         let y = x

@@ -140,7 +140,7 @@ mod tests {
         let u: Vec<f32> = p.iter().map(|&v| v as f32).collect();
         let thesis = thesis_params(Family::Classic);
         let theta: Vec<f32> = thesis.iter().map(|&v| v as f32).collect();
-        let plain = simulate(Family::Classic, &theta, &u, 0.0).x;
+        let plain = simulate(Family::Classic, &theta, 0.0, &u, 0.0).x;
         let plain: Vec<f64> = plain.iter().map(|&v| v as f64).collect();
         let clean = Data::new(
             &[Trace::uniform("stair", 0.1, p.clone(), plain)],

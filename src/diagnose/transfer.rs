@@ -19,7 +19,7 @@ use super::settings::{Interrupted, Settings};
 use super::{Diagnosis, accept::gap_closed, chain::with_chain_start};
 use crate::data::Trace;
 use crate::model::experiment::halves;
-use crate::model::{Family, Loop};
+use crate::model::{Family, Loop, Switching};
 use crate::optim::fit::{Fit, FitBox, FitSettings};
 use crate::optim::records::Validation;
 
@@ -99,6 +99,7 @@ fn fit_and_score(
         effects: effects.to_vec(),
         free_n: false,
         loop_shape: Loop::Bounded,
+        switching: Switching::default(),
         bounds: Vec::new(),
     };
     let fit_settings = FitSettings::staged(settings.seed);

@@ -23,7 +23,9 @@ use rayon::prelude::*;
 use super::{Evaluator, Problem, Scores, effects, to_f32};
 use crate::model::Family;
 use crate::model::residuals;
-use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w};
+use crate::model::sim::{
+    classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w, switch_threshold,
+};
 
 pub use super::batch::LANES;
 use super::batch::block;
@@ -88,7 +90,8 @@ impl Evaluator for CpuEvaluator {
                 let mut all = Vec::with_capacity(problem.samples());
                 for (i, e) in problem.experiments.iter().enumerate() {
                     let r = if problem.effects.is_empty() {
-                        residuals(problem.family, theta, &e.u, &e.y, problem.measure)?
+                        let y_mean = e.y_mean as f32;
+                        residuals(problem.family, theta, y_mean, &e.u, &e.y, problem.measure)?
                     } else {
                         model.residuals(theta, i, &problem.contexts[i], e, problem.measure)?
                     };
@@ -129,7 +132,7 @@ pub fn score_rows(problem: &Problem, rows: &[f32]) -> Scores {
             problem
                 .experiments
                 .iter()
-                .map(|e| batch_sse(family, &params, &e.u, &e.y, every))
+                .map(|e| batch_sse(family, &params, e.y_mean as f32, &e.u, &e.y, every))
                 .collect()
         })
         .collect();
@@ -159,14 +162,15 @@ fn transpose(chunk: &[f32], d: usize) -> Vec<[f32; LANES]> {
     params
 }
 
-/// The SSE of every lane of one batch on one experiment, as
-/// [`crate::model::measured_sse`] with restarts after every `every`-th
-/// sample, compiled for the widest vector unit the CPU has (chosen at run
-/// time; the arithmetic is the same IEEE `f32` on each, and Rust never fuses
-/// a·b + c, so the bits do not depend on the choice).
+/// The SSE of every lane of one batch on one experiment (its output mean
+/// `y_mean` removed), as [`crate::model::measured_sse`] with restarts after
+/// every `every`-th sample, compiled for the widest vector unit the CPU has
+/// (chosen at run time; the arithmetic is the same IEEE `f32` on each, and
+/// Rust never fuses a·b + c, so the bits do not depend on the choice).
 fn batch_sse(
     family: Family,
     params: &[[f32; LANES]],
+    y_mean: f32,
     u: &[f32],
     y: &[f32],
     every: usize,
@@ -175,14 +179,14 @@ fn batch_sse(
     {
         if std::is_x86_feature_detected!("avx512f") {
             // SAFETY: the CPU has AVX-512F.
-            return unsafe { batch_sse_avx512(family, params, u, y, every) };
+            return unsafe { batch_sse_avx512(family, params, y_mean, u, y, every) };
         }
         if std::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2.
-            return unsafe { batch_sse_avx2(family, params, u, y, every) };
+            return unsafe { batch_sse_avx2(family, params, y_mean, u, y, every) };
         }
     }
-    batch_sse_portable(family, params, u, y, every)
+    batch_sse_portable(family, params, y_mean, u, y, every)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -190,11 +194,12 @@ fn batch_sse(
 fn batch_sse_avx512(
     family: Family,
     params: &[[f32; LANES]],
+    y_mean: f32,
     u: &[f32],
     y: &[f32],
     every: usize,
 ) -> [f32; LANES] {
-    batch_sse_portable(family, params, u, y, every)
+    batch_sse_portable(family, params, y_mean, u, y, every)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -202,17 +207,19 @@ fn batch_sse_avx512(
 fn batch_sse_avx2(
     family: Family,
     params: &[[f32; LANES]],
+    y_mean: f32,
     u: &[f32],
     y: &[f32],
     every: usize,
 ) -> [f32; LANES] {
-    batch_sse_portable(family, params, u, y, every)
+    batch_sse_portable(family, params, y_mean, u, y, every)
 }
 
 #[inline(always)]
 fn batch_sse_portable(
     family: Family,
     params: &[[f32; LANES]],
+    y_mean: f32,
     u: &[f32],
     y: &[f32],
     every: usize,
@@ -233,11 +240,11 @@ fn batch_sse_portable(
             }
         }
         Family::Generalized => {
-            let p = params.try_into().expect("13 parameters");
+            let p = params.try_into().expect("14 parameters");
             if n_is_one(8) {
-                lanes_sse(&GeneralizedLanes::<true>(p), u, y, every)
+                lanes_sse(&GeneralizedLanes::<true>::new(p, y_mean), u, y, every)
             } else {
-                lanes_sse(&GeneralizedLanes::<false>(p), u, y, every)
+                lanes_sse(&GeneralizedLanes::<false>::new(p, y_mean), u, y, every)
             }
         }
     }
@@ -299,26 +306,40 @@ impl<const N_ONE: bool> LaneModel for ClassicLanes<'_, N_ONE> {
     }
 }
 
-struct GeneralizedLanes<'a, const N_ONE: bool>(&'a [[f32; LANES]; 13]);
+/// The generalized family's lanes with each lane's switching threshold in
+/// the experiment's deviation coordinates, formed once per batch
+/// ([`crate::model::sim::Stepper::new`]).
+struct GeneralizedLanes<'a, const N_ONE: bool> {
+    p: &'a [[f32; LANES]; 14],
+    threshold: [f32; LANES],
+}
+
+impl<'a, const N_ONE: bool> GeneralizedLanes<'a, N_ONE> {
+    fn new(p: &'a [[f32; LANES]; 14], y_mean: f32) -> Self {
+        let threshold = p[9].map(|x_s| switch_threshold(x_s, y_mean));
+        GeneralizedLanes { p, threshold }
+    }
+}
 
 impl<const N_ONE: bool> LaneModel for GeneralizedLanes<'_, N_ONE> {
     #[inline(always)]
     fn start(&self, l: usize) -> f32 {
-        self.0[12][l]
+        self.p[13][l]
     }
 
     #[inline(always)]
     fn step(&self, l: usize, x: f32, w: f32, u_prev: f32) -> (f32, f32) {
-        let [big_a, alpha, b1, b2, b3, b4, b5, b6, n, a, b, c, _] = self.0;
+        let [big_a, alpha, b1, b2, b3, b4, b5, b6, n, _, a, b, c, _] = self.p;
         let nl = if N_ONE { 1.0 } else { n[l] };
         let betas = [b1[l], b2[l], b3[l], b4[l], b5[l], b6[l]];
         let xn = linear_part(a[l], alpha[l], b[l], c[l], x, w, u_prev);
-        (xn, generalized_w(big_a[l], &betas, nl, w, xn, xn - x))
+        let wn = generalized_w(big_a[l], &betas, nl, w, xn, xn - x, self.threshold[l]);
+        (xn, wn)
     }
 
     #[inline(always)]
     fn restart(&self, l: usize, x: f32, w: f32, y: f32) -> (f32, f32) {
-        (y, restart_w(self.0[0][l], w, x, y))
+        (y, restart_w(self.p[0][l], w, x, y))
     }
 }
 
@@ -442,27 +463,31 @@ mod tests {
             let pop = mixed_population(&space, LANES, &mut ChaCha8Rng::seed_from_u64(2));
             let rows = to_f32(&pop);
             let params = transpose(&rows, d);
+            let y_mean = exp.y_mean as f32;
             for measure in measures {
                 let every = measure.restart_every();
                 let want: Vec<u32> = rows
                     .chunks_exact(d)
-                    .map(|t| measured_sse(family, t, &exp.u, &exp.y, measure).to_bits())
+                    .map(|t| measured_sse(family, t, y_mean, &exp.u, &exp.y, measure).to_bits())
                     .collect();
                 let bits = |s: [f32; LANES]| s.map(f32::to_bits).to_vec();
                 let what = format!("{family}, {measure}");
-                let got = batch_sse_portable(family, &params, &exp.u, &exp.y, every);
+                let got = batch_sse_portable(family, &params, y_mean, &exp.u, &exp.y, every);
                 assert_eq!(bits(got), want, "{what}");
                 #[cfg(target_arch = "x86_64")]
                 {
                     if std::is_x86_feature_detected!("avx2") {
                         // SAFETY: the CPU has AVX2.
-                        let got = unsafe { batch_sse_avx2(family, &params, &exp.u, &exp.y, every) };
+                        let got = unsafe {
+                            batch_sse_avx2(family, &params, y_mean, &exp.u, &exp.y, every)
+                        };
                         assert_eq!(bits(got), want, "{what} avx2");
                     }
                     if std::is_x86_feature_detected!("avx512f") {
                         // SAFETY: the CPU has AVX-512F.
-                        let got =
-                            unsafe { batch_sse_avx512(family, &params, &exp.u, &exp.y, every) };
+                        let got = unsafe {
+                            batch_sse_avx512(family, &params, y_mean, &exp.u, &exp.y, every)
+                        };
                         assert_eq!(bits(got), want, "{what} avx512");
                     }
                 }

@@ -33,7 +33,7 @@ pub fn stair_experiment(samples: usize, seed: u64) -> Experiment {
         .iter()
         .map(|&v| v as f32)
         .collect();
-    let sim = simulate(Family::Classic, &theta, &u, 0.0);
+    let sim = simulate(Family::Classic, &theta, 0.0, &u, 0.0);
     let output: Vec<f64> = sim
         .x
         .iter()
@@ -52,14 +52,20 @@ pub fn search_space(family: Family, experiment: &Experiment, free_n: bool) -> Se
             .map(|&x| (x as f64 + mean).abs())
             .fold(0.0, f64::max)
     };
+    let absolute: Vec<f64> = experiment
+        .y
+        .iter()
+        .map(|&v| v as f64 + experiment.y_mean)
+        .collect();
     let prior = LinearPrior {
         a: THESIS_A,
         b: THESIS_B,
         max_abs_input: max_abs(&experiment.u, experiment.u_mean),
         max_abs_output: max_abs(&experiment.y, experiment.y_mean),
-        output_range: crate::data::range(
-            &experiment.y.iter().map(|&v| v as f64).collect::<Vec<_>>(),
-        ),
+        output_range: crate::data::range(&absolute),
+        est_output_min: absolute.iter().copied().fold(f64::INFINITY, f64::min),
+        est_output_max: absolute.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        output_mean: experiment.y_mean,
     };
     SearchSpace::around(family, None, prior, Flow::Joint, free_n)
 }

@@ -218,20 +218,29 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
 
 /// What the data say about scale, for the boxes of `fit` and the
 /// diagnosis alike: the first-order ARX pole and gain on the first trace's
-/// estimation half ([`identify`]), and the largest absolute input and
-/// output and the output's range over the estimation halves of all of
-/// `traces` (absolute units). Only the estimation halves are read: a box
-/// or a range taken from the validation half would let the data a fit is
-/// scored on shape the fit.
+/// estimation half ([`identify`]); the largest absolute input and output,
+/// the output's range and its extremes over the estimation halves of all
+/// of `traces`; and the first estimation half's output mean (absolute
+/// units). Only the estimation halves are read: a box or a range taken
+/// from the validation half would let the data a fit is scored on shape
+/// the fit.
 pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
     let first = traces.first().ok_or(IdentError::NoData)?;
     let id = identify(first, ArxOrders::default())?;
     let max_abs = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let estimation = |t: &Trace| halves(t.len()).0;
+    fn estimation(t: &Trace) -> std::ops::Range<usize> {
+        halves(t.len()).0
+    }
     let outputs: Vec<f64> = traces
         .iter()
         .flat_map(|t| t.output[estimation(t)].iter().copied())
         .collect();
+    let (est_output_min, est_output_max) = outputs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    let first_est = &first.output[estimation(first)];
     Ok(LinearPrior {
         a: id.arx.a[0],
         b: id.arx.b[0],
@@ -241,5 +250,8 @@ pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
             .fold(0.0, f64::max),
         max_abs_output: max_abs(&outputs),
         output_range: crate::data::range(&outputs),
+        est_output_min,
+        est_output_max,
+        output_mean: first_est.iter().sum::<f64>() / first_est.len() as f64,
     })
 }

@@ -59,6 +59,24 @@ fn native() -> Coordinates {
     Coordinates::Native
 }
 
+/// Where a generalized fit lets its sign terms in `x` switch (`--switch`):
+/// the switching level `x_s` held at one value per start, or searched.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Switching {
+    /// Two starts, `x_s` held at the estimation mean in one and at the
+    /// sensor's zero in the other; the lower estimation SSE is kept (the
+    /// default: docs/RESULTS.md, "Where the generalized loop switches").
+    #[default]
+    Starts,
+    /// `x_s` searched over the estimation output's span.
+    Search,
+    /// `x_s` held at the estimation mean (every fit before `x_s` existed).
+    Mean,
+    /// `x_s` held at the sensor's zero (its rest length).
+    Zero,
+}
+
 /// A bound a user sets on one parameter (`--bound NAME=LO:HI`, `--fix
 /// NAME=VALUE`), by a canonical name or a search coordinate's name.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -131,6 +149,11 @@ pub const POLE_REACH: f64 = 10.0;
 pub const GAIN_REACH: f64 = 5.0;
 /// The data-scale box of the start offset, as a share of the output range.
 pub const START_REACH: f64 = 0.2;
+/// How far the switching level's box reaches past the estimation output's
+/// smallest and largest sample, as a share of their span: a free run strays
+/// a little past the measured output, so a level just beyond it still
+/// switches somewhere. Further out every level gives the same model.
+pub const SWITCH_MARGIN: f64 = 0.05;
 
 /// What the data say about scale, for the bounds of the linear part.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -144,6 +167,23 @@ pub struct LinearPrior {
     pub max_abs_output: f64,
     /// Range (max − min) of the output: the scale of the start offset's box.
     pub output_range: f64,
+    /// Smallest and largest output over the estimation halves (absolute
+    /// units): the switching level's box (only the estimation part, which
+    /// the fit chooses on).
+    pub est_output_min: f64,
+    pub est_output_max: f64,
+    /// The output mean `ȳ` the fit's deviation coordinates remove (absolute
+    /// units): where a model that switches at its estimation mean switches.
+    pub output_mean: f64,
+}
+
+impl LinearPrior {
+    /// The box of the switching level `x_s` (absolute units): the
+    /// estimation output's span with [`SWITCH_MARGIN`] either side.
+    pub fn switch_box(&self) -> (f64, f64) {
+        let margin = SWITCH_MARGIN * (self.est_output_max - self.est_output_min);
+        (self.est_output_min - margin, self.est_output_max + margin)
+    }
 }
 
 impl SearchSpace {
@@ -158,7 +198,11 @@ impl SearchSpace {
     /// the thesis' own Table 1 has α = 0.5), `b` within a factor 5 of the
     /// ARX gain, `|c| ≤ |b_ARX|·max|p| + max|l|`, and the start offset
     /// `x0` within 5 % of the output range (many times the noise of any
-    /// usable record; the thesis' flow holds it at 0).
+    /// usable record; the thesis' flow holds it at 0). The generalized
+    /// switching level `x_s` spans the estimation output
+    /// ([`LinearPrior::switch_box`]); the thesis' flow holds it at the
+    /// estimation mean, where the thesis' model, written in deviation
+    /// coordinates, switches.
     pub fn around(
         family: Family,
         hysteresis: Option<&ThesisBounds>,
@@ -178,6 +222,12 @@ impl SearchSpace {
             let ni = family.exponent_index().expect("hysteretic family has n");
             lower[ni] = 1.0;
             upper[ni] = if free_n { 3.0 } else { 1.0 };
+        }
+        if let Some(is) = family.switch_index() {
+            (lower[is], upper[is]) = match flow {
+                Flow::Thesis => (prior.output_mean, prior.output_mean),
+                Flow::Joint => prior.switch_box(),
+            };
         }
         let [ia, ib, ic] = family.linear_indices();
         let ix = family.start_index();
@@ -228,6 +278,15 @@ impl SearchSpace {
     /// - `offset`: as far as the largest input through the largest gain,
     ///   plus the largest output, can shift the output.
     /// - `x0_range`: [`START_REACH`] of the output range either way.
+    /// - `x_s` (generalized, in output units), by `switching`: held at the
+    ///   estimation mean ([`Switching::Starts`]'s first start, and
+    ///   [`Switching::Mean`]), held at 0 ([`Switching::Zero`]), or searched
+    ///   over the estimation output's span with [`SWITCH_MARGIN`]
+    ///   ([`Switching::Search`], [`LinearPrior::switch_box`]). Every one of
+    ///   these bounds is the class's, never widened: past the span every
+    ///   level gives the same model, so a search that ends on its edge has
+    ///   found that the loop does not switch within the record (a rest
+    ///   length below every sample).
     /// - loop shape: `[0, SHAPE_REACH]` for the bounded class's slopes
     ///   (`unload_u, unload_v` over their whole `[−1, 1]`), `±SHAPE_REACH`
     ///   free ([`SHAPE_REACH`]).
@@ -241,7 +300,7 @@ impl SearchSpace {
     pub fn scaled(
         family: Family,
         prior: LinearPrior,
-        shape_class: Loop,
+        (shape_class, switching): (Loop, Switching),
         free_n: bool,
         bounds: &[UserBound],
     ) -> Result<SearchSpace, String> {
@@ -297,6 +356,13 @@ impl SearchSpace {
         (lower[1], upper[1]) = (0.0, 1.0);
         let ni = family.exponent_index().expect("hysteretic family has n");
         (lower[ni], upper[ni]) = (1.0, if free_n { 3.0 } else { 1.0 });
+        if let Some(is) = family.switch_index() {
+            (lower[is], upper[is]) = match switching {
+                Switching::Starts | Switching::Mean => (prior.output_mean, prior.output_mean),
+                Switching::Zero => (0.0, 0.0),
+                Switching::Search => prior.switch_box(),
+            };
+        }
         let native_shape = SHAPE_REACH / range;
         for (k, i) in shape_range(family).enumerate() {
             let unload_share = family == Family::Generalized && k >= 4;
@@ -597,6 +663,9 @@ mod tests {
             max_abs_input: 0.4,
             max_abs_output: 40.0,
             output_range: 30.0,
+            est_output_min: 5.0,
+            est_output_max: 35.0,
+            output_mean: 18.0,
         }
     }
 
@@ -612,7 +681,7 @@ mod tests {
     #[test]
     fn joint_flow_frees_a_b_c_around_the_arx_estimate() {
         let s = SearchSpace::around(Family::Generalized, None, prior(), Flow::Joint, true);
-        assert_eq!(s.free(), (0..13).collect::<Vec<_>>());
+        assert_eq!(s.free(), (0..14).collect::<Vec<_>>());
         let [ia, ib, ic] = Family::Generalized.linear_indices();
         assert!(s.lower[ia] < 0.9618 && 0.9618 < s.upper[ia]);
         assert!(s.lower[ib] < 24.9366 && 24.9366 < s.upper[ib]);
@@ -622,6 +691,67 @@ mod tests {
         assert!(!s.contains(&theta));
         assert!(s.clamp(&mut theta));
         assert!(s.contains(&theta));
+    }
+
+    #[test]
+    fn the_switching_level_spans_the_estimation_output_and_takes_user_bounds() {
+        let g = Family::Generalized;
+        let is = g.switch_index().unwrap();
+        // The estimation output spans 5..35 mm: 5 % of 30 mm either side.
+        let joint = SearchSpace::around(g, None, prior(), Flow::Joint, false);
+        assert_eq!((joint.lower[is], joint.upper[is]), (3.5, 36.5));
+        // The thesis' model switches at the estimation mean.
+        let thesis = SearchSpace::around(g, None, prior(), Flow::Thesis, false);
+        assert_eq!((thesis.lower[is], thesis.upper[is]), (18.0, 18.0));
+        let scaled = |switching| {
+            SearchSpace::scaled(g, prior(), (Loop::Bounded, switching), false, &[]).unwrap()
+        };
+        let held = |s: &SearchSpace| (s.lower[is], s.upper[is]);
+        assert_eq!(held(&scaled(Switching::Starts)), (18.0, 18.0));
+        assert_eq!(held(&scaled(Switching::Mean)), (18.0, 18.0));
+        assert_eq!(held(&scaled(Switching::Zero)), (0.0, 0.0));
+        let searched = scaled(Switching::Search);
+        assert_eq!(searched.names()[is], "x_s");
+        assert_eq!(held(&searched), (3.5, 36.5));
+        // Class edges: past them every level is the same model, so a fit
+        // that ends there is a finding, never a bound to widen.
+        assert_eq!(searched.origin[is], [Origin::Class; 2]);
+        let mut widened = searched.clone();
+        assert!(widened.widen(&[(is, "lower"), (is, "upper")]).is_empty());
+        assert_eq!(widened, searched);
+        // `--fix x_s=0` (a sensor zero at rest) and `--bound` hold exactly.
+        let zero: UserBound = "x_s=0".parse().unwrap();
+        let s = SearchSpace::scaled(
+            g,
+            prior(),
+            (Loop::Bounded, Switching::Search),
+            false,
+            std::slice::from_ref(&zero),
+        )
+        .unwrap();
+        assert_eq!((s.lower[is], s.upper[is]), (0.0, 0.0));
+        assert_eq!(s.origin[is], [Origin::User; 2]);
+        assert_eq!(s.to_native(&middle(&s))[is], 0.0);
+        let bound: UserBound = "x_s=-2:40".parse().unwrap();
+        let s = SearchSpace::scaled(
+            g,
+            prior(),
+            (Loop::Bounded, Switching::Starts),
+            false,
+            &[bound],
+        )
+        .unwrap();
+        assert_eq!((s.lower[is], s.upper[is]), (-2.0, 40.0));
+        // The classic model has no switching level.
+        let e = SearchSpace::scaled(
+            Family::Classic,
+            prior(),
+            (Loop::Bounded, Switching::Starts),
+            false,
+            &[zero],
+        )
+        .unwrap_err();
+        assert!(e.contains("no parameter `x_s` in the classic model"), "{e}");
     }
 
     /// The middle of `s`'s box, in its coordinates.
@@ -635,8 +765,14 @@ mod tests {
 
     #[test]
     fn a_start_outside_the_data_box_widens_it_until_it_holds() {
-        let mut s =
-            SearchSpace::scaled(Family::Classic, prior(), Loop::Bounded, false, &[]).unwrap();
+        let mut s = SearchSpace::scaled(
+            Family::Classic,
+            prior(),
+            (Loop::Bounded, Switching::Starts),
+            false,
+            &[],
+        )
+        .unwrap();
         let names = s.names();
         let gain = names.iter().position(|n| n == "gain").unwrap();
         // A start whose gain is ten times the box's top, as the diagnosis'
@@ -653,14 +789,26 @@ mod tests {
         assert!(s.clone().widen_to_hold(&theta).is_empty());
         // A user's bound stays where the user put it.
         let user: UserBound = "gain=0.5:2".parse().unwrap();
-        let mut s =
-            SearchSpace::scaled(Family::Classic, prior(), Loop::Bounded, false, &[user]).unwrap();
+        let mut s = SearchSpace::scaled(
+            Family::Classic,
+            prior(),
+            (Loop::Bounded, Switching::Starts),
+            false,
+            &[user],
+        )
+        .unwrap();
         assert!(s.widen_to_hold(&theta).is_empty());
         assert!(!s.contains(&theta));
         // A bound the steps cannot carry past the start stays as it was:
         // the time constant's towards a small-signal pole above 1.
-        let mut s =
-            SearchSpace::scaled(Family::Classic, prior(), Loop::Bounded, false, &[]).unwrap();
+        let mut s = SearchSpace::scaled(
+            Family::Classic,
+            prior(),
+            (Loop::Bounded, Switching::Starts),
+            false,
+            &[],
+        )
+        .unwrap();
         let a = names.iter().position(|n| n == "a").unwrap();
         let mut z = middle(&s);
         z[a] = s.upper[a] + 0.01;

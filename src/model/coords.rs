@@ -13,12 +13,19 @@
 //! | `gain` | small-signal static gain over the ARX static gain | `b = gain·K_ARX·(1 − λ)` |
 //! | `offset` | steady output shift over the output range | `c = offset·R·(1 − λ)` |
 //! | `x0_range` | start offset over the output range | `x0 = x0_range·R` |
+//! | `x_s` (generalized) | the switching level itself, output units | the same |
 //! | loop shape | below | `β…` times `A/Rⁿ` |
 //!
 //! `λ = a·(α + (1 − α)·A)` is the small-signal pole (for small loops
 //! `w ≈ A·x`), `K_ARX` the ARX static gain and `R` the output range, both of
-//! the estimation data. Every coordinate is a pure number: the same record in
-//! other units gives the same coordinates, the same search and the same fit.
+//! the estimation data. Every coordinate but one is a pure number: the same
+//! record in other units gives the same coordinates, the same search and the
+//! same fit. The exception is the generalized switching level `x_s`, kept in
+//! the output's units so that its two natural values, the sensor's zero and
+//! the estimation mean, are held exactly (`--fix x_s=0`; a scaled coordinate
+//! would round them). Its search does not depend on the units either: its
+//! box is the output's span, and the optimizers move a coordinate by
+//! fractions of its box (DE, PSO, MFA) or of its value (the GA).
 //!
 //! **Loop shape.** `w` saturates where its slope on a loading branch
 //! vanishes, at `|w|ⁿ = A/ψ` (`ψ = β + γ` for the classic state): the
@@ -387,7 +394,7 @@ mod tests {
     fn coordinates_round_trip() {
         let classic = [0.8, 0.6, 0.01, 0.02, 1.3, 0.95, 3.0, -0.4, 0.05];
         let generalized = [
-            1.2, 0.5, 0.05, 0.01, 0.02, -0.015, 0.01, 0.003, 1.0, 0.97, 2.0, 0.3, -0.02,
+            1.2, 0.5, 0.05, 0.01, 0.02, -0.015, 0.01, 0.003, 1.0, 3.5, 0.97, 2.0, 0.3, -0.02,
         ];
         for (family, theta) in [
             (Family::Classic, &classic[..]),
@@ -411,7 +418,7 @@ mod tests {
             .collect();
         let classic = vec![0.7, 0.6, 0.03, 0.01, 1.4, 0.93, 20.0, 0.1, 0.05];
         let generalized = vec![
-            1.6, 0.5, 0.05, 0.01, 0.02, -0.015, 0.01, 0.003, 1.0, 0.95, 20.0, 0.3, -0.02,
+            1.6, 0.5, 0.05, 0.01, 0.02, -0.015, 0.01, 0.003, 1.0, 0.1, 0.95, 20.0, 0.3, -0.02,
         ];
         for (family, theta) in [
             (Family::Classic, classic),
@@ -420,8 +427,8 @@ mod tests {
             let twin = gauge_fixed(family, &theta);
             assert_eq!(twin[0], 1.0);
             let f = |t: &[f64]| t.iter().map(|&v| v as f32).collect::<Vec<f32>>();
-            let x = simulate(family, &f(&theta), &u, 0.5).x;
-            let y = simulate(family, &f(&twin), &u, 0.5).x;
+            let x = simulate(family, &f(&theta), 0.0, &u, 0.5).x;
+            let y = simulate(family, &f(&twin), 0.0, &u, 0.5).x;
             let worst = x
                 .iter()
                 .zip(&y)
@@ -482,7 +489,7 @@ mod tests {
                 Family::Classic => classic_w(t[0], t[2], t[3], 1.0, w, delta),
                 _ => {
                     let betas = [t[2], t[3], t[4], t[5], t[6], t[7]];
-                    generalized_w(t[0], &betas, 1.0, w, xk, delta)
+                    generalized_w(t[0], &betas, 1.0, w, xk, delta, 0.0)
                 }
             };
             largest = largest.max((w as f64).abs());
@@ -578,7 +585,7 @@ mod tests {
         use rand::SeedableRng;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let classic = [1.0, 0.5, -0.01, 0.03, 1.0, 0.9, 1.0, 0.0, 0.0];
-        let mut generalized = [0.0; 13];
+        let mut generalized = [0.0; 14];
         generalized[0] = 1.0;
         generalized[2..8].copy_from_slice(&[0.02, 0.02, -0.02, 0.02, -0.02, 0.0]);
         for (family, theta) in [
@@ -608,7 +615,7 @@ mod tests {
             Family::Classic,
             &[1.0, 0.5, -0.01, 0.03, 1.0, 0.9, 1.0, 0.0, 0.0]
         ));
-        let mut g = [0.0; 13];
+        let mut g = [0.0; 14];
         g[0] = 1.0;
         g[2..8].copy_from_slice(&[0.05, 0.04, 0.0, 0.02, 0.0, 0.0]);
         assert!(!in_bounded_class(Family::Generalized, &g));

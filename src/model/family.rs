@@ -2,9 +2,10 @@
 //!
 //! Every family has one fixed layout that the CPU simulation, the WGSL shaders
 //! and the optimizers share. The hysteresis parameters come first in the
-//! thesis' order, then the Bouc-Wen exponent `n`, then the linear part
-//! `a, b`, the intercept `c` (see `docs/ARCHITECTURE.md`, "the intercept")
-//! and the start offset `x0` ("the initial state").
+//! thesis' order, then the Bouc-Wen exponent `n` (and, for the generalized
+//! family, the switching level `x_s` of its sign terms in `x`), then the
+//! linear part `a, b`, the intercept `c` (see `docs/ARCHITECTURE.md`, "the
+//! intercept") and the start offset `x0` ("the initial state").
 
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -78,7 +79,7 @@ const CLASSIC: [ParamInfo; 9] = [
     START,
 ];
 
-const GENERALIZED: [ParamInfo; 13] = [
+const GENERALIZED: [ParamInfo; 14] = [
     p("A", "A", "Bouc-Wen stiffness of the hysteretic state"),
     p(
         "alpha",
@@ -86,12 +87,18 @@ const GENERALIZED: [ParamInfo; 13] = [
         "share of the linear feedback, 1 − α goes to the hysteretic state",
     ),
     p("beta1", "β1", "weight of sgn(Δ·w)"),
-    p("beta2", "β2", "weight of sgn(Δ·x)"),
-    p("beta3", "β3", "weight of sgn(x·w)"),
+    p("beta2", "β2", "weight of sgn(Δ·(x − x_s))"),
+    p("beta3", "β3", "weight of sgn((x − x_s)·w)"),
     p("beta4", "β4", "weight of sgn(Δ)"),
     p("beta5", "β5", "weight of sgn(w)"),
-    p("beta6", "β6", "weight of sgn(x)"),
+    p("beta6", "β6", "weight of sgn(x − x_s)"),
     p("n", "n", "Bouc-Wen exponent (1 in the thesis)"),
+    p(
+        "x_s",
+        "x_s",
+        "output level where the sign terms in x switch, in the output's own units (the model's \
+         x is the output less its estimation mean ȳ: they switch at x = x_s − ȳ)",
+    ),
     LINEAR[0],
     LINEAR[1],
     LINEAR[2],
@@ -134,6 +141,12 @@ impl Family {
     /// Position of the Bouc-Wen exponent `n`, if the family has one.
     pub fn exponent_index(self) -> Option<usize> {
         self.index_of("n")
+    }
+
+    /// Position of the switching level `x_s` of the sign terms in `x`, if
+    /// the family has them (the generalized one: right after `n`).
+    pub fn switch_index(self) -> Option<usize> {
+        self.index_of("x_s")
     }
 
     /// Whether the Bouc-Wen loop of `theta` stays bounded under every input.
@@ -200,6 +213,8 @@ mod tests {
         assert_eq!(Family::Classic.exponent_index(), Some(4));
         assert_eq!(Family::Generalized.exponent_index(), Some(8));
         assert_eq!(Family::Linear.exponent_index(), None);
+        assert_eq!(Family::Generalized.switch_index(), Some(9));
+        assert_eq!(Family::Classic.switch_index(), None);
     }
 
     #[test]
@@ -211,7 +226,7 @@ mod tests {
         assert!(Family::Classic.loop_bounded(&theta(1.0, 0.0, 0.0)));
         assert!(!Family::Classic.loop_bounded(&theta(1.0, 0.08, -0.29)));
         assert!(Family::Classic.loop_bounded(&theta(0.0, 0.08, -0.29)));
-        assert!(Family::Generalized.loop_bounded(&[0.0; 13]));
+        assert!(Family::Generalized.loop_bounded(&[0.0; 14]));
     }
 
     #[test]

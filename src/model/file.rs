@@ -381,7 +381,10 @@ impl ModelFile {
     }
 
     /// The model the file holds; an error names a parameter missing,
-    /// unknown or out of order, or an unknown effect.
+    /// unknown or out of order, or an unknown effect. A generalized model
+    /// written before the switching level `x_s` existed switched at its
+    /// estimation mean, so it reads with `x_s` = its output mean: the same
+    /// model, to the bit ([`crate::model::sim::switch_threshold`]).
     pub fn model(&self) -> anyhow::Result<Model> {
         let effects: Vec<Effect> = self
             .effects
@@ -391,8 +394,12 @@ impl ModelFile {
         anyhow::ensure!(self.datasets >= 1, "`datasets` must be at least 1");
         let augmented = Augmented::new(self.family, effects.clone(), self.datasets);
         let names = augmented.param_names();
-        let given: Vec<&String> = self.params.keys().collect();
-        if let Some(missing) = names.iter().find(|n| !self.params.contains_key(*n)) {
+        let mut params = self.params.clone();
+        if self.family.switch_index().is_some() && !params.contains_key("x_s") {
+            params.insert("x_s".into(), serde_json::json!(self.data.output.mean));
+        }
+        let given: Vec<&String> = params.keys().collect();
+        if let Some(missing) = names.iter().find(|n| !params.contains_key(*n)) {
             anyhow::bail!(
                 "parameter `{missing}` is missing: a {} model{} has {}",
                 self.family,
@@ -411,7 +418,7 @@ impl ModelFile {
         let theta: Vec<f64> = names
             .iter()
             .map(|n| {
-                self.params[n]
+                params[n]
                     .as_f64()
                     .with_context(|| format!("parameter `{n}` is not a number"))
             })
@@ -456,7 +463,7 @@ fn chain_text(effects: &[Effect]) -> String {
 /// A version-1 model: bare, or in `identify --out`'s `model` field.
 fn legacy_model(path: &Path, value: serde_json::Value) -> anyhow::Result<FittedModel> {
     let inner = value.get("model").cloned().unwrap_or(value);
-    let model: FittedModel = serde_json::from_value(inner).with_context(|| {
+    let mut model: FittedModel = serde_json::from_value(inner).with_context(|| {
         format!(
             "{}: not a model file (no `format` field, and not a version-1 model written \
              by identify or fit)",
@@ -464,6 +471,13 @@ fn legacy_model(path: &Path, value: serde_json::Value) -> anyhow::Result<FittedM
         )
     })?;
     let names: Vec<&str> = model.family.params().iter().map(|p| p.name).collect();
+    // Written before the switching level existed: it switched at its
+    // estimation mean ([`ModelFile::model`]).
+    if let Some(is) = model.family.switch_index() {
+        if model.params.len() + 1 == names.len() {
+            model.params.insert(is, model.output_mean);
+        }
+    }
     anyhow::ensure!(
         model.params.len() == names.len(),
         "{}: a {} model has {} parameters ({}), the file has {}; a model written \
@@ -571,5 +585,35 @@ mod tests {
         let unknown = write("unknown.json", serde_json::to_string(&file).unwrap());
         let e = format!("{:#}", ModelFile::load(&unknown).unwrap_err());
         assert!(e.contains("unknown effect `friction`"), "{e}");
+    }
+
+    #[test]
+    fn a_generalized_model_from_before_x_s_switches_at_its_estimation_mean() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut now = FittedModel {
+            family: Family::Generalized,
+            params: thesis_params(Family::Generalized),
+            ..base()
+        };
+        let is = Family::Generalized.switch_index().unwrap();
+        now.params[is] = now.output_mean;
+        // Version 1: the bare model with 13 parameters.
+        let mut before = serde_json::to_value(&now).unwrap();
+        before["params"].as_array_mut().unwrap().remove(is);
+        let v1 = dir.path().join("v1.json");
+        std::fs::write(&v1, before.to_string()).unwrap();
+        assert_eq!(
+            ModelFile::load(&v1).unwrap().model().unwrap(),
+            Model::plain(now.clone())
+        );
+        // Version 2 without the key.
+        let mut file = ModelFile::new(&Model::plain(now.clone()), None, Provenance::default());
+        assert!(file.params.remove("x_s").is_some());
+        let v2 = dir.path().join("v2.json");
+        std::fs::write(&v2, serde_json::to_string(&file).unwrap()).unwrap();
+        assert_eq!(
+            ModelFile::load(&v2).unwrap().model().unwrap(),
+            Model::plain(now)
+        );
     }
 }

@@ -45,7 +45,13 @@ impl FittedModel {
             .iter()
             .map(|&p| (p - self.input_mean) as f32)
             .collect();
-        let sim = simulate(self.family, &theta, &u, (y0 - self.output_mean) as f32);
+        let sim = simulate(
+            self.family,
+            &theta,
+            self.output_mean as f32,
+            &u,
+            (y0 - self.output_mean) as f32,
+        );
         let y = sim.x.iter().map(|&x| x as f64 + self.output_mean).collect();
         (y, sim)
     }

@@ -14,7 +14,7 @@ pub mod presets;
 pub mod sim;
 pub mod static_force;
 
-pub use bounds::{Flow, LinearPrior, SearchSpace, UserBound};
+pub use bounds::{Flow, LinearPrior, SearchSpace, Switching, UserBound};
 pub use coords::{Coordinates, Loop};
 pub use experiment::Experiment;
 pub use family::{Family, ParamInfo};

@@ -10,7 +10,10 @@ pub const THESIS_B: f64 = 24.9366;
 
 /// The thesis' trial-and-error parameters (Table 1 classic, Table 2
 /// generalized) with the linear part of eq. 12, no intercept and no start
-/// offset, as a canonical vector of `family`.
+/// offset, as a canonical vector of `family`. The thesis writes its model in
+/// deviation coordinates, so its generalized sign terms switch at the
+/// output mean: `x_s = 0` for data whose output mean is 0 (`simulate`
+/// without a model file).
 pub fn thesis_params(family: Family) -> Vec<f64> {
     match family {
         Family::Linear => vec![THESIS_A, THESIS_B, 0.0, 0.0],
@@ -19,7 +22,8 @@ pub fn thesis_params(family: Family) -> Vec<f64> {
         // Table 2: α 0.9, A 1, n 1, β1..β6 = 0.01, 0.005, 0.1, −0.01, −0.1, 0.001.
         Family::Generalized => {
             vec![
-                1.0, 0.9, 0.01, 0.005, 0.1, -0.01, -0.1, 0.001, 1.0, THESIS_A, THESIS_B, 0.0, 0.0,
+                1.0, 0.9, 0.01, 0.005, 0.1, -0.01, -0.1, 0.001, 1.0, 0.0, THESIS_A, THESIS_B, 0.0,
+                0.0,
             ]
         }
     }
@@ -120,7 +124,7 @@ mod tests {
         for f in [Family::Classic, Family::Generalized] {
             for r in [ThesisRun::Ga, ThesisRun::Mfa, ThesisRun::Pso] {
                 let b = thesis_bounds(f, r).unwrap();
-                assert_eq!(b.lower.len(), f.dim() - 5, "{f} {r:?}");
+                assert_eq!(b.lower.len(), f.exponent_index().unwrap(), "{f} {r:?}");
                 assert!(
                     b.lower.iter().zip(&b.upper).all(|(l, u)| l < u),
                     "{f} {r:?}"

@@ -11,6 +11,15 @@
 //! starts from the measured `x(0) = y(0)` and `w(0) = 0`, runs free (it never
 //! sees the measured output again) and is scored by
 //! `SSE = Σ_{k≥1} (x(k) − y(k))²`.
+//!
+//! One parameter is not in deviation coordinates: the generalized family's
+//! switching level `x_s`, in the output's own units, so that a model switches
+//! where the muscle does whatever record's mean it runs in. Every simulation
+//! is therefore told the output mean `ȳ` its data had removed (`y_mean`), and
+//! the sign terms switch at `x = x_s − ȳ`, formed once per candidate in `f32`
+//! ([`switch_threshold`]). A model that switches at its estimation mean
+//! (`x_s = ȳ`, every model written before `x_s` existed) forms `0` exactly
+//! there, and `x − 0` is `x` bit for bit: the same numbers as before.
 
 use serde::{Deserialize, Serialize};
 
@@ -79,17 +88,37 @@ pub fn classic_w(big_a: f32, beta: f32, gamma: f32, n: f32, w_prev: f32, delta: 
         - ((gamma * delta) * (pw * aw))
 }
 
+/// The level in deviation coordinates where the generalized sign terms in
+/// `x` switch: the switching level `x_s` (output units) less the output mean
+/// `ȳ` the data had removed, in `f32` (`shaders/generalized.wgsl` forms it
+/// the same way). `x_s = ȳ` gives exactly 0.
+#[inline(always)]
+pub fn switch_threshold(x_s: f32, y_mean: f32) -> f32 {
+    x_s - y_mean
+}
+
 /// Generalized Bouc-Wen state update (eq. 23 with `w(k−1)` on the right):
 /// `w(k) = w(k−1) + Δ·[A − |w(k−1)|^n·Ψ(k)]`.
 ///
-/// `Ψ = β1·sgn(Δ·w) + β2·sgn(Δ·x) + β3·sgn(x·w) + β4·sgn(Δ) + β5·sgn(w) + β6·sgn(x)`,
-/// where the sign of a product is taken as the product of signs (the same
-/// number, but immune to underflow of the product).
+/// `Ψ = β1·sgn(Δ·w) + β2·sgn(Δ·ξ) + β3·sgn(ξ·w) + β4·sgn(Δ) + β5·sgn(w) + β6·sgn(ξ)`
+/// with `ξ = x − threshold` (the output against the switching level,
+/// [`switch_threshold`]), where the sign of a product is taken as the
+/// product of signs (the same number, but immune to underflow of the
+/// product).
+#[allow(clippy::too_many_arguments)] // the equation's inputs, one each
 #[inline(always)]
-pub fn generalized_w(big_a: f32, betas: &[f32; 6], n: f32, w_prev: f32, x: f32, delta: f32) -> f32 {
+pub fn generalized_w(
+    big_a: f32,
+    betas: &[f32; 6],
+    n: f32,
+    w_prev: f32,
+    x: f32,
+    delta: f32,
+    threshold: f32,
+) -> f32 {
     let sd = sgn(delta);
     let sw = sgn(w_prev);
-    let sx = sgn(x);
+    let sx = sgn(x - threshold);
     let psi = (((((betas[0] * (sd * sw)) + (betas[1] * (sd * sx))) + (betas[2] * (sx * sw)))
         + (betas[3] * sd))
         + (betas[4] * sw))
@@ -131,6 +160,9 @@ pub enum Stepper {
         alpha: f32,
         betas: [f32; 6],
         n: f32,
+        /// Where the sign terms in `x` switch, in deviation coordinates
+        /// ([`switch_threshold`]).
+        threshold: f32,
         a: f32,
         b: f32,
         c: f32,
@@ -139,8 +171,11 @@ pub enum Stepper {
 }
 
 impl Stepper {
-    /// Unpacks a canonical parameter vector of `family` (see [`Family::params`]).
-    pub fn new(family: Family, theta: &[f32]) -> Self {
+    /// Unpacks a canonical parameter vector of `family` (see
+    /// [`Family::params`]) for data whose output had the mean `y_mean`
+    /// removed (what places the generalized switching level: the other
+    /// families do not read it).
+    pub fn new(family: Family, theta: &[f32], y_mean: f32) -> Self {
         assert_eq!(
             theta.len(),
             family.dim(),
@@ -170,10 +205,11 @@ impl Stepper {
                 alpha: theta[1],
                 betas: [theta[2], theta[3], theta[4], theta[5], theta[6], theta[7]],
                 n: theta[8],
-                a: theta[9],
-                b: theta[10],
-                c: theta[11],
-                x0: theta[12],
+                threshold: switch_threshold(theta[9], y_mean),
+                a: theta[10],
+                b: theta[11],
+                c: theta[12],
+                x0: theta[13],
             },
         }
     }
@@ -220,8 +256,9 @@ impl Stepper {
                 big_a,
                 ref betas,
                 n,
+                threshold,
                 ..
-            } => generalized_w(big_a, betas, n, w_prev, x, delta),
+            } => generalized_w(big_a, betas, n, w_prev, x, delta, threshold),
         }
     }
 
@@ -264,10 +301,12 @@ pub struct Simulation {
 }
 
 /// Simulates `family` with parameters `theta` on input `u` from the first
-/// measured output `y0` (the state [`Stepper::start`]). The whole trace is
-/// produced even after divergence, so that a plot shows where it happened.
-pub fn simulate(family: Family, theta: &[f32], u: &[f32], y0: f32) -> Simulation {
-    let stepper = Stepper::new(family, theta);
+/// measured output `y0` (the state [`Stepper::start`]), in the deviation
+/// coordinates of the output mean `y_mean` ([`Stepper::new`]). The whole
+/// trace is produced even after divergence, so that a plot shows where it
+/// happened.
+pub fn simulate(family: Family, theta: &[f32], y_mean: f32, u: &[f32], y0: f32) -> Simulation {
+    let stepper = Stepper::new(family, theta, y_mean);
     let mut x = Vec::with_capacity(u.len());
     let mut w = Vec::with_capacity(u.len());
     let mut diverged_at = None;
@@ -332,12 +371,14 @@ impl std::fmt::Display for Measure {
     }
 }
 
-/// Runs `family` over the data under `measure`, calling `sink(k, x(k) − y(k))`
-/// for every `k ≥ 1`; returns false at the first out-of-bounds state (the
-/// candidate diverged). The single definition of what every backend scores.
+/// Runs `family` over the data (output mean `y_mean` removed) under
+/// `measure`, calling `sink(k, x(k) − y(k))` for every `k ≥ 1`; returns
+/// false at the first out-of-bounds state (the candidate diverged). The
+/// single definition of what every backend scores.
 fn run_scored(
     family: Family,
     theta: &[f32],
+    y_mean: f32,
     u: &[f32],
     y: &[f32],
     measure: Measure,
@@ -347,7 +388,7 @@ fn run_scored(
     if u.is_empty() {
         return true;
     }
-    let stepper = Stepper::new(family, theta);
+    let stepper = Stepper::new(family, theta, y_mean);
     let every = measure.restart_every();
     let (mut x, mut w) = stepper.start(y[0]);
     for k in 1..u.len() {
@@ -364,15 +405,23 @@ fn run_scored(
 }
 
 /// The fitness of eq. 29 as a cost: `Σ_{k≥1} (x(k) − y(k))²` accumulated in
-/// `f32` in sample order, or `+∞` if the simulation diverged.
-pub fn sse(family: Family, theta: &[f32], u: &[f32], y: &[f32]) -> f32 {
-    measured_sse(family, theta, u, y, Measure::FreeRun)
+/// `f32` in sample order, or `+∞` if the simulation diverged (data with the
+/// output mean `y_mean` removed).
+pub fn sse(family: Family, theta: &[f32], y_mean: f32, u: &[f32], y: &[f32]) -> f32 {
+    measured_sse(family, theta, y_mean, u, y, Measure::FreeRun)
 }
 
 /// The sum of squared errors under `measure`, `+∞` if the simulation diverged.
-pub fn measured_sse(family: Family, theta: &[f32], u: &[f32], y: &[f32], measure: Measure) -> f32 {
+pub fn measured_sse(
+    family: Family,
+    theta: &[f32],
+    y_mean: f32,
+    u: &[f32],
+    y: &[f32],
+    measure: Measure,
+) -> f32 {
     let mut acc = 0.0f32;
-    let ok = run_scored(family, theta, u, y, measure, |_, e| acc += e * e);
+    let ok = run_scored(family, theta, y_mean, u, y, measure, |_, e| acc += e * e);
     if ok { acc } else { f32::INFINITY }
 }
 
@@ -381,12 +430,13 @@ pub fn measured_sse(family: Family, theta: &[f32], u: &[f32], y: &[f32], measure
 pub fn residuals(
     family: Family,
     theta: &[f32],
+    y_mean: f32,
     u: &[f32],
     y: &[f32],
     measure: Measure,
 ) -> Option<Vec<f32>> {
     let mut r = Vec::with_capacity(u.len().saturating_sub(1));
-    run_scored(family, theta, u, y, measure, |_, e| r.push(e)).then_some(r)
+    run_scored(family, theta, y_mean, u, y, measure, |_, e| r.push(e)).then_some(r)
 }
 
 #[cfg(test)]
@@ -395,17 +445,18 @@ mod tests {
 
     #[test]
     fn linear_step_is_eq_12_plus_intercept() {
-        let s = Stepper::new(Family::Linear, &[0.5, 2.0, 1.0, 0.0]);
+        let s = Stepper::new(Family::Linear, &[0.5, 2.0, 1.0, 0.0], 0.0);
         assert_eq!(s.step(4.0, 123.0, 3.0), (0.5 * 4.0 + 2.0 * 3.0 + 1.0, 0.0));
     }
 
     #[test]
     fn classic_with_alpha_one_is_linear() {
         let u: Vec<f32> = (0..200).map(|k| ((k / 20) % 2) as f32).collect();
-        let lin = simulate(Family::Linear, &[0.9, 2.0, 0.1, 0.0], &u, 0.5);
+        let lin = simulate(Family::Linear, &[0.9, 2.0, 0.1, 0.0], 0.0, &u, 0.5);
         let cl = simulate(
             Family::Classic,
             &[0.9, 1.0, 0.1, 0.05, 1.0, 0.9, 2.0, 0.1, 0.0],
+            0.0,
             &u,
             0.5,
         );
@@ -427,12 +478,12 @@ mod tests {
         let y = vec![0.0f32; 100];
         // An unstable pole explodes past the bound.
         assert_eq!(
-            sse(Family::Linear, &[1.5, 1.0, 0.0, 0.0], &u, &y),
+            sse(Family::Linear, &[1.5, 1.0, 0.0, 0.0], 0.0, &u, &y),
             f32::INFINITY
         );
-        let sim = simulate(Family::Linear, &[1.5, 1.0, 0.0, 0.0], &u, 0.0);
+        let sim = simulate(Family::Linear, &[1.5, 1.0, 0.0, 0.0], 0.0, &u, 0.0);
         assert!(sim.diverged_at.is_some());
-        assert!(sse(Family::Linear, &[0.5, 1.0, 0.0, 0.0], &u, &y).is_finite());
+        assert!(sse(Family::Linear, &[0.5, 1.0, 0.0, 0.0], 0.0, &u, &y).is_finite());
     }
 
     #[test]
@@ -442,26 +493,26 @@ mod tests {
         let theta = [0.9f32, 0.6, 0.05, -0.02, 1.0, 0.95, 1.5, 0.01, 0.0];
         let fam = Family::Classic;
         // A horizon past the data is the free run.
-        let free = sse(fam, &theta, &u, &y);
+        let free = sse(fam, &theta, 0.0, &u, &y);
         assert_eq!(
-            measured_sse(fam, &theta, &u, &y, Measure::Ahead { horizon: 300 }),
+            measured_sse(fam, &theta, 0.0, &u, &y, Measure::Ahead { horizon: 300 }),
             free
         );
         // One step ahead: every x(k) starts from the measured y(k − 1), the
         // Bouc-Wen state from its own run moved by the elastic part of the
         // jump to the measurement.
-        let r = residuals(fam, &theta, &u, &y, Measure::Ahead { horizon: 1 }).unwrap();
-        let stepper = Stepper::new(fam, &theta);
+        let r = residuals(fam, &theta, 0.0, &u, &y, Measure::Ahead { horizon: 1 }).unwrap();
+        let stepper = Stepper::new(fam, &theta, 0.0);
         let mut w = 0.0;
         for k in 1..u.len() {
             let (x, wn) = stepper.step(y[k - 1], w, u[k - 1]);
             assert_eq!(r[k - 1], x - y[k], "sample {k}");
             w = wn + theta[0] * (y[k] - x);
         }
-        let ahead = measured_sse(fam, &theta, &u, &y, Measure::Ahead { horizon: 10 });
+        let ahead = measured_sse(fam, &theta, 0.0, &u, &y, Measure::Ahead { horizon: 10 });
         assert_eq!(
             ahead,
-            residuals(fam, &theta, &u, &y, Measure::Ahead { horizon: 10 })
+            residuals(fam, &theta, 0.0, &u, &y, Measure::Ahead { horizon: 10 })
                 .unwrap()
                 .iter()
                 .fold(0.0f32, |acc, e| acc + e * e)
@@ -474,12 +525,79 @@ mod tests {
         let u: Vec<f32> = (0..300).map(|k| (k as f32 * 0.05).sin()).collect();
         let theta = [0.9f32, 0.6, 0.05, -0.02, 1.0, 0.95, 1.5, 0.01, 0.0];
         let y: Vec<f32> = (0..300).map(|k| (k as f32 * 0.04).cos()).collect();
-        let sim = simulate(Family::Classic, &theta, &u, y[0]);
+        let sim = simulate(Family::Classic, &theta, 0.0, &u, y[0]);
         let mut acc = 0.0f32;
         for (x, y) in sim.x.iter().zip(&y).skip(1) {
             let e = x - y;
             acc += e * e;
         }
-        assert_eq!(sse(Family::Classic, &theta, &u, &y), acc);
+        assert_eq!(sse(Family::Classic, &theta, 0.0, &u, &y), acc);
+    }
+
+    #[test]
+    fn the_sign_terms_in_x_switch_at_the_switching_level() {
+        // x_s = ȳ forms the threshold 0 exactly, whatever ȳ.
+        for y_mean in [23.134_275f32, -0.615, 1.0e4] {
+            assert_eq!(switch_threshold(y_mean, y_mean).to_bits(), 0);
+        }
+        // Only β6·sgn(x − threshold): crossing the threshold flips the term,
+        // a step of 2·Δ·|w|·β6 in the new state (all exact in binary), and
+        // nothing else matters.
+        let betas = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0625];
+        let (w, delta, threshold) = (2.0f32, 0.25f32, 3.0f32);
+        let above = generalized_w(1.0, &betas, 1.0, w, threshold + 0.01, delta, threshold);
+        let below = generalized_w(1.0, &betas, 1.0, w, threshold - 0.01, delta, threshold);
+        assert_eq!(below - above, 2.0 * delta * w * 0.0625);
+        let elsewhere = generalized_w(1.0, &betas, 1.0, w, threshold + 5.0, delta, threshold);
+        assert_eq!(elsewhere, above);
+    }
+
+    #[test]
+    fn the_switching_level_is_in_the_outputs_own_units() {
+        // One absolute model (x_s inside the output's swing) simulated in two
+        // deviation frames, ȳ = 0 and ȳ = 17: the intercept carries the shift
+        // (c − (1 − a·α)·ȳ), x_s does not move, and the outputs agree.
+        let u: Vec<f32> = (0..800)
+            .map(|k| 0.5 + 0.5 * (k as f32 * 0.03).sin())
+            .collect();
+        let (a, alpha, c) = (0.95f32, 0.6f32, 3.7f32);
+        let theta = |c: f32| {
+            [
+                1.0, alpha, 0.05, 0.02, 0.03, -0.02, 0.01, 0.04, 1.0, 18.0, a, 8.0, c, 0.0,
+            ]
+        };
+        let fam = Family::Generalized;
+        let absolute = simulate(fam, &theta(c), 0.0, &u, 14.0).x;
+        let lo = absolute.iter().fold(f32::INFINITY, |m, &v| m.min(v));
+        let hi = absolute.iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
+        assert!(lo < 18.0 && 18.0 < hi, "the output crosses x_s: {lo}..{hi}");
+        let y_mean = 17.0f32;
+        let shifted = simulate(
+            fam,
+            &theta(c - (1.0 - a * alpha) * y_mean),
+            y_mean,
+            &u,
+            -3.0,
+        )
+        .x;
+        for (k, (l, x)) in absolute.iter().zip(&shifted).enumerate() {
+            assert!(
+                (l - (x + y_mean)).abs() < 1e-3,
+                "sample {k}: {l} against {}",
+                x + y_mean
+            );
+        }
+        // Read in the frame's own coordinates (switching at its mean, as every
+        // model did before x_s), the same numbers are another model.
+        let at_mean = {
+            let mut t = theta(c - (1.0 - a * alpha) * y_mean);
+            t[9] = y_mean;
+            simulate(fam, &t, y_mean, &u, -3.0).x
+        };
+        let apart = at_mean
+            .iter()
+            .zip(&shifted)
+            .fold(0.0f32, |m, (p, q)| m.max((p - q).abs()));
+        assert!(apart > 0.1, "{apart}");
     }
 }

@@ -13,12 +13,18 @@
 //! is drawn from, or rejected by, the fit's search box: a truth the box
 //! cannot hold is a failure of the box.
 //!
-//! The truth is simulated the way [`super::synthetic`] does it: once in
-//! absolute units to find the estimation half's means, then again in the
-//! deviation coordinates of those means (the generalized model's sign terms
-//! depend on the origin), so that the truth is a member of the model class
-//! the fit searches. It is stored in the gauge `A = 1` the fit searches in
-//! ([`crate::model::coords::gauge_fixed`]: the same outputs).
+//! A generalized truth's sign terms in `x` switch at one of two levels
+//! ([`SwitchAt`]): at the estimation half's output mean, as every
+//! generalized model did before the switching level `x_s` was a parameter,
+//! or at the sensor's zero (the muscle's rest length), the model's usual
+//! form. The first kind is simulated the way [`super::synthetic`] does it:
+//! once in absolute units to find the estimation half's means, then again in
+//! the deviation coordinates of those means with `x_s` at that mean, iterated
+//! until the mean is the output's own. The second is simulated once, in
+//! absolute units with `x_s = 0`, the output placed so that zero lies from
+//! half-way up its swing to a tenth of it below. The truth is stored in the
+//! gauge `A = 1` the fit searches in ([`crate::model::coords::gauge_fixed`]:
+//! the same outputs).
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -58,10 +64,22 @@ impl Excitation {
     }
 }
 
+/// Where a generalized truth's sign terms in `x` switch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SwitchAt {
+    /// At the estimation half's output mean (`x_s = ȳ`).
+    EstimationMean,
+    /// At the sensor's zero (`x_s = 0`), the muscle's rest length.
+    SensorZero,
+}
+
 /// What to generate.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct CaseSpec {
     pub family: Family,
+    /// Where a generalized truth switches (the classic family ignores it).
+    pub switch: SwitchAt,
     pub excitation: Excitation,
     pub samples: usize,
     /// Standard deviation of the displacement noise (mm).
@@ -140,7 +158,10 @@ const P_MAX: f64 = 0.5;
 /// The standard matrix: `count` cases of `family`, cycling through the three
 /// excitations, the three pole kinds (shifted, so that each excitation meets
 /// each) and, every fourth case, other units than MPa→mm; noise spread over
-/// 0.02–0.1 mm, 8000–12000 samples; case `i` has seed `seed + i`.
+/// 0.02–0.1 mm, 8000–12000 samples; case `i` has seed `seed + i`. Generalized
+/// truths switch at the estimation mean in cases 0, 1, 4, 5, 8, 9, … and at
+/// the sensor's zero in cases 2, 3, 6, 7, … (a case of the first kind is the
+/// case its seed gave before the second kind existed).
 pub fn matrix(family: Family, count: usize, seed: u64) -> Vec<CaseSpec> {
     (0..count)
         .map(|i| {
@@ -148,6 +169,11 @@ pub fn matrix(family: Family, count: usize, seed: u64) -> Vec<CaseSpec> {
             let mut rng = ChaCha8Rng::seed_from_u64(s ^ 0x5eed);
             CaseSpec {
                 family,
+                switch: if (i / 2) % 2 == 1 {
+                    SwitchAt::SensorZero
+                } else {
+                    SwitchAt::EstimationMean
+                },
                 excitation: Excitation::ALL[i % 3],
                 samples: rng.random_range(8000..=12000),
                 noise_mm: 0.02 + 0.08 * rng.random::<f64>(),
@@ -184,7 +210,8 @@ impl Case {
             .expect("a generated case identifies")
     }
 
-    /// A short name for tables: family, excitation, pole, units, seed.
+    /// A short name for tables: family, excitation, pole, units, where a
+    /// generalized truth switches when not at the mean, seed.
     pub fn name(&self) -> String {
         let pole = match self.spec.pole {
             Pole::Effective => "",
@@ -195,8 +222,12 @@ impl Case {
             Units::MpaMm => String::new(),
             u => format!(" {}", u.name()),
         };
+        let switch = match (self.spec.family, self.spec.switch) {
+            (Family::Generalized, SwitchAt::SensorZero) => " x_s=0",
+            _ => "",
+        };
         format!(
-            "{} {}{pole}{units} #{}",
+            "{} {}{pole}{units}{switch} #{}",
             self.spec.family,
             self.spec.excitation.name(),
             self.spec.seed
@@ -217,9 +248,11 @@ impl Case {
                 ..Polish::default()
             }),
         };
-        // A box around the truth, which the fit's box need not hold: `A`
-        // and `n` held (the gauge, n = 1), `α` over its range, the rest ten
-        // times the truth's size either way.
+        // A box around the truth, which the fit's box need not hold: `A`,
+        // `n` and the switching level held (the gauge, n = 1, and the
+        // truth's own kind of switching: a level only moves the loss where
+        // it passes a sample, so no derivative would move it anyway), `α`
+        // over its range, the rest ten times the truth's size either way.
         let names: Vec<String> = task.family.params().iter().map(|p| p.name.into()).collect();
         let (mut lower, mut upper): (Vec<f64>, Vec<f64>) = self
             .truth
@@ -227,7 +260,7 @@ impl Case {
             .map(|&v| (v - 10.0 * v.abs() - 1.0, v + 10.0 * v.abs() + 1.0))
             .unzip();
         let ni = task.family.exponent_index().expect("hysteretic");
-        for i in [0, ni] {
+        for i in [0, ni].into_iter().chain(task.family.switch_index()) {
             (lower[i], upper[i]) = (self.truth[i], self.truth[i]);
         }
         (lower[1], upper[1]) = (0.0, 1.0);
@@ -357,23 +390,28 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
     }
     let tau = 1.0 / (1.0 - effective);
     let p = input(spec.excitation, spec.samples, tau, rng);
-    // A first guess at b: a static gain of 60 mm/MPa through the effective pole.
+    // A first guess at b: a static gain of 60 mm/MPa through the effective
+    // pole; a generalized loop switching at the first passes' zero.
     let mut theta = vec![big_a, alpha];
     theta.extend(&shape);
     theta.push(1.0);
+    let switch = family.switch_index();
+    if switch.is_some() {
+        theta.push(0.0);
+    }
     theta.extend([a, 60.0 / tau, 0.0, 0.0]);
     let [_, ib, ic] = family.linear_indices();
-    let run = |theta: &[f64], u: &[f64], x0: f64| -> Option<Vec<f64>> {
+    // A free run from `x0` in the coordinates of the output mean `y_mean`.
+    let run = |theta: &[f64], y_mean: f64, u: &[f64], x0: f64| -> Option<Vec<f64>> {
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
         let u: Vec<f32> = u.iter().map(|&v| v as f32).collect();
-        let sim = simulate(family, &t, &u, x0 as f32);
+        let sim = simulate(family, &t, y_mean as f32, &u, x0 as f32);
         sim.diverged_at
             .is_none()
             .then(|| sim.x.iter().map(|&v| v as f64).collect())
     };
-    // Scale b so that the output swings a drawn 10–40 mm, then place it
-    // 2–10 mm above zero (contraction positive).
-    let first = run(&theta, &p, 0.0)?;
+    // Scale b so that the output swings a drawn 10–40 mm.
+    let first = run(&theta, 0.0, &p, 0.0)?;
     let range = |v: &[f64]| {
         v.iter().fold(f64::NEG_INFINITY, |m, &x| m.max(x))
             - v.iter().fold(f64::INFINITY, |m, &x| m.min(x))
@@ -386,42 +424,67 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
         return None;
     }
     theta[ib] *= swing / r0;
-    let second = run(&theta, &p, 0.0)?;
+    let second = run(&theta, 0.0, &p, 0.0)?;
     let r1 = range(&second);
     if !(0.5 * swing..2.0 * swing).contains(&r1) {
         return None;
     }
-    let floor = rng.random_range(2.0..10.0);
     let min = second.iter().fold(f64::INFINITY, |m, &x| m.min(x));
-    // x ↦ x + s is the model with c + (1 − a·α)·s for the classic model; for
-    // both families it is the absolute trace the second pass re-expresses.
-    let absolute: Vec<f64> = second.iter().map(|&x| x + floor - min).collect();
-
-    // Second pass: the truth in the deviation coordinates of the estimation
-    // half. Its origin `o` must be the mean of the output it produces over
-    // that half (the generalized model's sign terms are not invariant to a
-    // shift of the origin), so iterate to the fixed point.
     let (est, _) = crate::model::experiment::halves(spec.samples);
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
     let u_mean = mean(&p[est.clone()]);
-    let u: Vec<f64> = p.iter().map(|v| v - u_mean).collect();
-    let level = absolute[0] - second[0];
-    let mut origin = mean(&absolute[est.clone()]);
-    let mut x = Vec::new();
-    for _ in 0..20 {
-        // The intercept that keeps the absolute level with this origin.
-        theta[ic] = (1.0 - a * alpha) * (level - origin) + theta[ib] * u_mean;
-        x = run(&theta, &u, absolute[0] - origin)?;
-        let off = mean(&x[est.clone()]);
-        origin += off;
-        if off.abs() < 1e-9 * swing {
-            break;
+    // The noiseless output in the coordinates of the output mean `y_mean`.
+    let (x, y_mean) = match (switch, spec.switch) {
+        (Some(_), SwitchAt::SensorZero) => {
+            // Switching at the sensor's zero: simulated once, in absolute
+            // units (x_s = 0), its lowest point placed from half its swing
+            // below zero to a tenth of it above (x ↦ x + s is the same loop
+            // with c + (1 − a·α)·s only for a loop that switches with it, so
+            // the placement moves the switching and the swing a little).
+            let floor = rng.random_range(-0.5..0.1) * r1;
+            let shift = floor - min;
+            theta[ic] = (1.0 - a * alpha) * shift;
+            let x = run(&theta, 0.0, &p, second[0] + shift)?;
+            if !(0.5 * swing..2.0 * swing).contains(&range(&x)) {
+                return None;
+            }
+            // The intercept for the input less its estimation mean.
+            theta[ic] += theta[ib] * u_mean;
+            (x, 0.0)
         }
-    }
-    if mean(&x[est.clone()]).abs() > 1e-6 * swing {
-        return None;
-    }
-    let y_mean = origin;
+        _ => {
+            // Placed 2–10 mm above zero (contraction positive): x ↦ x + s is
+            // the model with c + (1 − a·α)·s for the classic model; for both
+            // families it is the absolute trace the second pass re-expresses.
+            let floor = rng.random_range(2.0..10.0);
+            let absolute: Vec<f64> = second.iter().map(|&x| x + floor - min).collect();
+            // Second pass: the truth in the deviation coordinates of the
+            // estimation half. Its origin `o` must be the mean of the output
+            // it produces over that half (a generalized truth switches there),
+            // so iterate to the fixed point.
+            let u: Vec<f64> = p.iter().map(|v| v - u_mean).collect();
+            let level = absolute[0] - second[0];
+            let mut origin = mean(&absolute[est.clone()]);
+            let mut x = Vec::new();
+            for _ in 0..20 {
+                // The intercept that keeps the absolute level with this origin.
+                theta[ic] = (1.0 - a * alpha) * (level - origin) + theta[ib] * u_mean;
+                if let Some(is) = switch {
+                    theta[is] = origin;
+                }
+                x = run(&theta, origin, &u, absolute[0] - origin)?;
+                let off = mean(&x[est.clone()]);
+                origin += off;
+                if off.abs() < 1e-9 * swing {
+                    break;
+                }
+            }
+            if mean(&x[est.clone()]).abs() > 1e-6 * swing {
+                return None;
+            }
+            (x, origin)
+        }
+    };
     let noise = spec.noise_mm;
     let l: Vec<f64> = x
         .iter()
@@ -433,18 +496,17 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
     let name = format!("{} {} case #{}", family, spec.excitation.name(), spec.seed);
     let trace = Trace::uniform(name, CASE_DT, p, l);
     let task = Task::new(&trace, family, Flow::Joint, None, false).ok()?;
-    // The noise moves the output mean a little (by about noise/√N): keep
-    // the truth in the coordinates the fit uses (for the classic model a
-    // shift of ȳ moves c only; for the generalized one it also moves the
-    // sign terms' origin by this much).
+    // The coordinates the fit uses are the noisy record's (the noise moves
+    // the output mean by about noise/√N): a shift of ȳ moves c only (the
+    // switching level is absolute).
     let dy = task.estimation().y_mean - y_mean;
     theta[ic] -= (1.0 - a * alpha) * dy;
     // The true state starts at the noiseless first sample: the measured one
     // less its noise.
     theta[family.start_index()] = x[0] + y_mean - trace.output[0];
     // In the record's units: the input scaled by `ku`, the output by `ky`;
-    // `b` by ky/ku, the intercept and start by ky, the loop shape (1/output
-    // units, n = 1) by 1/ky.
+    // `b` by ky/ku, the intercept, start and switching level by ky, the
+    // loop shape (1/output units, n = 1) by 1/ky.
     let (ku, ky) = spec.units.factors();
     let trace = Trace::uniform(
         trace.source.clone(),
@@ -455,6 +517,9 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
     theta[ib] *= ky / ku;
     theta[ic] *= ky;
     theta[family.start_index()] *= ky;
+    if let Some(is) = switch {
+        theta[is] *= ky;
+    }
     for v in &mut theta[2..family.exponent_index().expect("hysteretic")] {
         *v /= ky;
     }

@@ -38,9 +38,36 @@ pub struct ActiveBound {
     pub origin: Origin,
 }
 
+/// A generalized fit run from the default switching's two starts
+/// ([`crate::model::Switching::Starts`]): the switching level held at the
+/// estimation mean, and at the sensor's zero; the lower estimation SSE is
+/// kept.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Switched {
+    /// Estimation SSE with the level at the estimation mean.
+    pub mean_sse: f64,
+    /// Estimation SSE with the level at the sensor's zero.
+    pub zero_sse: f64,
+    /// `true` when the start at zero was kept.
+    pub kept_zero: bool,
+}
+
+impl Switched {
+    /// The two starts' outcomes compared: the one at zero is kept where it
+    /// found a model at a lower estimation SSE.
+    pub fn of(at_mean: &Outcome, at_zero: &Outcome) -> Switched {
+        Switched {
+            mean_sse: at_mean.sse,
+            zero_sse: at_zero.sse,
+            kept_zero: !at_zero.params.is_empty() && at_zero.sse < at_mean.sse,
+        }
+    }
+}
+
 /// Fits `task` with `plan` on `evaluator`, with no observer, interrupt or
-/// checkpoint (the studies of `compare` and the tests), then applies the
-/// edge rule.
+/// checkpoint (the studies of `compare` and the tests): from both starts of
+/// the default switching where the task has two ([`Task::at_zero`]: the
+/// lower estimation SSE kept), then the edge rule.
 pub fn fit_task(
     task: &Task,
     plan: Plan,
@@ -48,10 +75,25 @@ pub fn fit_task(
     stops: StopRules,
     evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<(Engine, Outcome)> {
-    let mut engine = Engine::new(plan, Space::from(&task.space), seed, stops.clone())?;
-    let mut objective = ModelObjective::for_task(evaluator, task);
-    let outcome = engine.run(&mut objective, &mut [], None, None)?;
+    let run = |task: &Task, evaluator: &mut dyn Evaluator| -> anyhow::Result<(Engine, Outcome)> {
+        let mut engine = Engine::new(plan.clone(), Space::from(&task.space), seed, stops.clone())?;
+        let mut objective = ModelObjective::for_task(evaluator, task);
+        let outcome = engine.run(&mut objective, &mut [], None, None)?;
+        Ok((engine, outcome))
+    };
     let mut widened = task.clone();
+    let (mut engine, mut outcome) = run(task, evaluator)?;
+    if let Some(zero) = task.at_zero() {
+        let (e, o) = run(&zero, evaluator)?;
+        let (evaluations, seconds) = (
+            outcome.evaluations + o.evaluations,
+            outcome.seconds + o.seconds,
+        );
+        if Switched::of(&outcome, &o).kept_zero {
+            (engine, outcome, widened) = (e, o, zero);
+        }
+        (outcome.evaluations, outcome.seconds) = (evaluations, seconds);
+    }
     let (outcome, _) = refit_off_edges(&mut widened, &engine, outcome, &stops, evaluator)?;
     Ok((engine, outcome))
 }

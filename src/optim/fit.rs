@@ -12,6 +12,7 @@ use std::sync::atomic::AtomicBool;
 use anyhow::Context as _;
 use serde::Serialize;
 
+pub use super::edge::Switched;
 use super::edge::{Widening, refit_off_edges};
 use super::engine::model::{GENERATIONS, ModelObjective, POPULATION, staged_plan};
 use super::engine::{Engine, Observer, Outcome, Plan, Space, StopReason, StopRules};
@@ -26,7 +27,7 @@ use crate::ident::fit::SETTLED_POINTS;
 use crate::model::coords::gauge_fixed;
 use crate::model::effects::Effect;
 use crate::model::file::{ModelFile, Provenance, SearchBox};
-use crate::model::{Family, Flow, Loop, Measure, Model, UserBound};
+use crate::model::{Family, Flow, Loop, Measure, Model, Switching, UserBound};
 
 /// Settings of one algorithm laid over its base settings (`None`, `false`:
 /// keep the base). Each acts on its own algorithm only, but every one given
@@ -329,6 +330,8 @@ pub struct FitBox {
     pub free_n: bool,
     /// Loop shapes the box admits (`--loop`).
     pub loop_shape: Loop,
+    /// Where a generalized fit lets its sign terms switch (`--switch`).
+    pub switching: Switching,
     /// The user's bounds and fixed values (`--bound`, `--fix`), an effect's
     /// as `effect.param`.
     pub bounds: Vec<UserBound>,
@@ -349,6 +352,12 @@ pub struct Fit {
     second: Option<(Task, Engine, f64)>,
     /// Which of the two was kept, once [`Fit::run`] has run both.
     pub built: Option<Built>,
+    /// The default switching's second start ([`Task::at_zero`]): the same
+    /// fit with the generalized switching level held at the sensor's zero,
+    /// run after the engine, before any [`Fit::also_from`] start.
+    zero: Option<(Task, Engine)>,
+    /// Which of the switching starts was kept, once [`Fit::run`] has run both.
+    pub switched: Option<Switched>,
 }
 
 /// A fit with effects run twice, from scratch and from the chain built one
@@ -367,8 +376,11 @@ pub struct Built {
 impl Fit {
     /// The task of `what` on `trace` (its box widened on return of
     /// [`Fit::run`]) and the engine `settings` start on it: a warm start
-    /// from `start` ([`FitSettings::start_warm`]), else fresh or resumed
-    /// from `checkpoint` ([`FitSettings::start`]).
+    /// from `start` ([`FitSettings::start_warm`], the generalized switching
+    /// level held at the start's own unless `what` says otherwise), else
+    /// fresh or resumed from `checkpoint` ([`FitSettings::start`]), and a
+    /// fresh second start where the default switching has one
+    /// ([`Task::at_zero`]).
     pub fn new(
         trace: &Trace,
         what: &FitBox,
@@ -395,7 +407,7 @@ impl Fit {
             flow,
             None,
             what.free_n,
-            what.loop_shape,
+            (what.loop_shape, what.switching),
             &what.bounds,
         )
         .and_then(|t| match start {
@@ -406,6 +418,9 @@ impl Fit {
         .with_context(|| format!("cannot fit {}", trace.source))?;
         let mut task = task;
         let start = start.map(|m| warm_start(&task, m));
+        if let (Some(theta), Some(is)) = (&start, what.family.switch_index()) {
+            task.hold_switch_at(theta[is]);
+        }
         if let Some(theta) = &start {
             let widened = task.space.widen_to_hold(theta);
             if !widened.is_empty() {
@@ -427,12 +442,22 @@ impl Fit {
             Some(theta) => settings.start_warm(&task, theta)?,
             None => settings.start(&task, checkpoint, note)?,
         };
+        // A fresh fit of its own (the checkpoint holds the first start's).
+        let zero = match (&start, task.at_zero()) {
+            (None, Some(zero)) => {
+                let engine = settings.start(&zero, None, &|_| ())?;
+                Some((zero, engine))
+            }
+            _ => None,
+        };
         Ok(Fit {
             task,
             engine,
             start,
             second: None,
             built: None,
+            zero,
+            switched: None,
         })
     }
 
@@ -460,6 +485,9 @@ impl Fit {
         );
         let theta = warm_start(&self.task, model);
         let mut task = self.task.clone();
+        if let Some(is) = task.family.switch_index() {
+            task.hold_switch_at(theta[is]);
+        }
         task.space.widen_to_hold(&theta);
         let engine = settings.start_warm(&task, &theta)?;
         self.second = Some((task, engine, built_in_s));
@@ -494,6 +522,23 @@ impl Fit {
             .engine
             .run(&mut objective, observers, interrupt, checkpoint)?;
         drop(objective);
+        if let Some((task, mut engine)) = self.zero.take()
+            && outcome.stop != StopReason::Interrupted
+        {
+            let mut objective = ModelObjective::for_task(evaluator, &task);
+            let zero = engine.run(&mut objective, &mut [], interrupt, None)?;
+            drop(objective);
+            let switched = Switched::of(&outcome, &zero);
+            self.switched = Some(switched);
+            let (evaluations, seconds) = (
+                outcome.evaluations + zero.evaluations,
+                outcome.seconds + zero.seconds,
+            );
+            if switched.kept_zero {
+                (self.task, self.engine, outcome) = (task, engine, zero);
+            }
+            (outcome.evaluations, outcome.seconds) = (evaluations, seconds);
+        }
         if let Some((task, mut engine, built_in_s)) = self.second.take()
             && outcome.stop != StopReason::Interrupted
         {

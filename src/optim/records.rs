@@ -51,9 +51,9 @@ impl Records {
     /// is a gap, not a shift of means. With `model`, they take its means
     /// instead and the first its chain's constants: then its parameters
     /// describe the same model on these records, whatever record it was
-    /// fitted on (`fit --from`, `diagnose --from`). Moving a model to other
-    /// means is not a change of its intercept alone: the generalized loop's
-    /// sign terms switch at `x = 0`, so the origin is part of the model.
+    /// fitted on (`fit --from`, `diagnose --from`): its intercept `c` is
+    /// written for its means (the generalized switching level `x_s` is in
+    /// absolute units and does not depend on them).
     pub fn of(traces: &[Trace], model: Option<&Model>) -> anyhow::Result<Records> {
         anyhow::ensure!(!traces.is_empty(), "no data to fit");
         let mut whole: Vec<Experiment> = Vec::new();
@@ -93,7 +93,9 @@ impl Records {
             val_start.push(v.start);
             whole.push(w);
         }
-        let prior = linear_prior(traces)?;
+        let mut prior = linear_prior(traces)?;
+        // The coordinates' own origin: the model's, where one is given.
+        prior.output_mean = whole[0].y_mean;
         // The constants come from the estimation half alone, as the prior.
         let mut ctx: Vec<Context> = est.iter().map(|e| Context::of(e, prior.b >= 0.0)).collect();
         if let Some(chain) = model.and_then(|m| m.chain.as_ref()) {

@@ -29,14 +29,16 @@ pub struct Synthetic {
 
 /// True parameters in absolute units: canonical layout with `c` the
 /// absolute-units intercept. Classic: A = 0.8, α = 0.6, β = 0.05, γ = 0.02;
-/// generalized: A = 0.9, α = 0.7, β = [0.05, 0.02, 0.03, −0.02, 0.01, 0.02];
-/// a = 0.95, b = 20 mm/MPa, c = 1 mm, n = 1 for both, no start offset.
+/// generalized: A = 0.9, α = 0.7, β = [0.05, 0.02, 0.03, −0.02, 0.01, 0.02],
+/// switching at the sensor's zero (`x_s = 0`; [`Synthetic::new`] moves it to
+/// the estimation mean); a = 0.95, b = 20 mm/MPa, c = 1 mm, n = 1 for both,
+/// no start offset.
 pub fn truth_absolute(family: Family) -> Vec<f64> {
     match family {
         Family::Linear => vec![0.95, 20.0, 1.0, 0.0],
         Family::Classic => vec![0.8, 0.6, 0.05, 0.02, 1.0, 0.95, 20.0, 1.0, 0.0],
         Family::Generalized => vec![
-            0.9, 0.7, 0.05, 0.02, 0.03, -0.02, 0.01, 0.02, 1.0, 0.95, 20.0, 1.0, 0.0,
+            0.9, 0.7, 0.05, 0.02, 0.03, -0.02, 0.01, 0.02, 1.0, 0.0, 0.95, 20.0, 1.0, 0.0,
         ],
     }
 }
@@ -61,10 +63,11 @@ impl Synthetic {
     /// Two passes: [`truth_absolute`] is simulated in absolute units to find
     /// the estimation half's means `ū`, `ȳ`; the truth in deviation
     /// coordinates (intercept `c + b·ū − (1 − a·α)·ȳ`) is then simulated
-    /// again in those coordinates and shifted back by `ȳ`. The second pass
-    /// matters for the generalized model, whose `sgn(x)` terms are not
-    /// invariant to a shift of the origin; for the classic model both passes
-    /// give the same trace up to rounding.
+    /// again in those coordinates and shifted back by `ȳ`. The generalized
+    /// truth switches at that `ȳ` (`x_s = ȳ`, the model class of every fit
+    /// before the switching level was searched), so its second pass is
+    /// another trace than its first; for the classic model both passes give
+    /// the same trace up to rounding.
     pub fn new(family: Family, len: usize, noise_mm: f64, seed: u64) -> Synthetic {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let p = stair_input(len, &mut rng);
@@ -77,23 +80,26 @@ impl Synthetic {
         };
         // Start at the absolute-units equilibrium of the first input.
         let x0 = (abs[ib] * p[0] + abs[ic]) / (1.0 - abs[ia] * alpha);
-        let run = |theta: &[f64], u: &[f64], x0: f64| -> Vec<f64> {
+        let run = |theta: &[f64], y_mean: f64, u: &[f64], x0: f64| -> Vec<f64> {
             let theta: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
             let u: Vec<f32> = u.iter().map(|&v| v as f32).collect();
-            crate::model::simulate(family, &theta, &u, x0 as f32)
+            crate::model::simulate(family, &theta, y_mean as f32, &u, x0 as f32)
                 .x
                 .iter()
                 .map(|&x| x as f64)
                 .collect()
         };
-        let clean = run(&abs, &p, x0);
+        let clean = run(&abs, 0.0, &p, x0);
         let (est, _) = crate::model::experiment::halves(len);
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
         let (u_mean, y_mean) = (mean(&p[est.clone()]), mean(&clean[est]));
         let mut truth = abs.clone();
         truth[ic] = abs[ic] + abs[ib] * u_mean - (1.0 - abs[ia] * alpha) * y_mean;
+        if let Some(is) = family.switch_index() {
+            truth[is] = y_mean;
+        }
         let u: Vec<f64> = p.iter().map(|v| v - u_mean).collect();
-        let x = run(&truth, &u, x0 - y_mean);
+        let x = run(&truth, y_mean, &u, x0 - y_mean);
         let l: Vec<f64> = x
             .iter()
             .map(|&x| {
@@ -104,7 +110,8 @@ impl Synthetic {
         let trace = Trace::uniform(format!("synthetic {family}"), 0.1, p, l);
         let (estimation, validation) = Experiment::split_halves(&trace);
         // The noise moves the means a little: keep the truth exact in the
-        // coordinates the fit uses (the shift of ȳ moves c, nothing else).
+        // coordinates the fit uses (the shift of ȳ moves c, nothing else:
+        // `x_s` is absolute).
         truth[ic] -= (1.0 - abs[ia] * alpha) * (estimation.y_mean - y_mean)
             - abs[ib] * (estimation.u_mean - u_mean);
         let prior = linear_prior(std::slice::from_ref(&trace)).expect("synthetic data identify");
@@ -126,7 +133,8 @@ impl Synthetic {
     /// SSE of the true parameters on the estimation half.
     pub fn true_sse(&self) -> f64 {
         let theta: Vec<f32> = self.truth.iter().map(|&v| v as f32).collect();
-        crate::model::sse(self.family, &theta, &self.estimation.u, &self.estimation.y) as f64
+        let e = &self.estimation;
+        crate::model::sse(self.family, &theta, e.y_mean as f32, &e.u, &e.y) as f64
     }
 }
 

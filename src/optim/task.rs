@@ -6,12 +6,13 @@
 use crate::data::Trace;
 use crate::eval::Problem;
 use crate::ident::{fit_percent, rmse};
+use crate::model::bounds::Origin;
 use crate::model::effects::{Augmented, Context, Effect, effect_box};
 use crate::model::file::Chain;
 use crate::model::presets::ThesisBounds;
 use crate::model::{
-    Experiment, Family, FittedModel, Flow, LinearPrior, Loop, Model, SearchSpace, UserBound,
-    simulate,
+    Experiment, Family, FittedModel, Flow, LinearPrior, Loop, Model, SearchSpace, Switching,
+    UserBound, simulate,
 };
 use crate::optim::records::Records;
 pub use crate::optim::records::Validation;
@@ -31,6 +32,9 @@ pub struct Task {
     /// Which loop shapes the box admits (the joint flow's; the thesis' flow
     /// searches its own tables, of either sign).
     pub loop_shape: Loop,
+    /// Where a generalized fit lets its sign terms switch (the joint
+    /// flow's; the thesis' flow holds the level at the estimation mean).
+    pub switching: Switching,
     pub input_name: String,
     pub output_name: String,
     /// Effect stages after the family (`fit --effects`), in chain order;
@@ -41,7 +45,8 @@ pub struct Task {
 impl Task {
     /// Splits `trace`, identifies the ARX prior on the estimation half and
     /// builds the box: the joint flow's in the data's own scale, bounded
-    /// loops ([`SearchSpace::scaled`]); the thesis' flow's from
+    /// loops ([`SearchSpace::scaled`]) and, for the generalized family, the
+    /// default switching ([`Switching::Starts`]); the thesis' flow's from
     /// `hysteresis` (the hull of its tables when `None`) with the linear
     /// part fixed at ARX's. `n` is fixed at 1 unless `free_n`.
     pub fn new(
@@ -51,18 +56,20 @@ impl Task {
         hysteresis: Option<&ThesisBounds>,
         free_n: bool,
     ) -> anyhow::Result<Task> {
-        Task::with_box(trace, family, flow, hysteresis, free_n, Loop::Bounded, &[])
+        let shape = (Loop::Bounded, Switching::Starts);
+        Task::with_box(trace, family, flow, hysteresis, free_n, shape, &[])
     }
 
-    /// As [`Task::new`], with the joint flow's loop class and user bounds
-    /// (`--loop`, `--bound`, `--fix`); the thesis' flow takes neither.
+    /// As [`Task::new`], with the joint flow's loop class, switching and
+    /// user bounds (`--loop`, `--switch`, `--bound`, `--fix`); the thesis'
+    /// flow takes none of them.
     pub fn with_box(
         trace: &Trace,
         family: Family,
         flow: Flow,
         hysteresis: Option<&ThesisBounds>,
         free_n: bool,
-        loop_shape: Loop,
+        (loop_shape, switching): (Loop, Switching),
         bounds: &[UserBound],
     ) -> anyhow::Result<Task> {
         anyhow::ensure!(
@@ -78,19 +85,59 @@ impl Task {
                 );
                 SearchSpace::around(family, hysteresis, records.prior, flow, free_n)
             }
-            Flow::Joint => SearchSpace::scaled(family, records.prior, loop_shape, free_n, bounds)
-                .map_err(anyhow::Error::msg)?,
+            Flow::Joint => SearchSpace::scaled(
+                family,
+                records.prior,
+                (loop_shape, switching),
+                free_n,
+                bounds,
+            )
+            .map_err(anyhow::Error::msg)?,
         };
         Ok(Task {
             family,
             flow,
             space,
             loop_shape,
+            switching,
             records,
             input_name: trace.input_name.clone(),
             output_name: trace.output_name.clone(),
             effects: Vec::new(),
         })
+    }
+
+    /// The second start of [`Switching::Starts`]: the same task with the
+    /// generalized switching level held at the sensor's zero instead of the
+    /// estimation mean. `None` where a fit has one start: another family or
+    /// switching, the thesis' flow, a level the user bounds or fixes, or an
+    /// estimation mean of 0 (the two starts would be one).
+    pub fn at_zero(&self) -> Option<Task> {
+        let is = self.family.switch_index()?;
+        let mean = self.estimation().y_mean;
+        let held_at_mean = (self.space.lower[is], self.space.upper[is]) == (mean, mean)
+            && self.space.origin[is] == [Origin::Class; 2];
+        let two = self.flow == Flow::Joint
+            && self.switching == Switching::Starts
+            && held_at_mean
+            && mean != 0.0;
+        two.then(|| {
+            let mut zero = self.clone();
+            (zero.space.lower[is], zero.space.upper[is]) = (0.0, 0.0);
+            zero
+        })
+    }
+
+    /// Holds the generalized switching level at `x_s` where the default
+    /// switching holds it ([`Switching::Starts`]; not a level the user
+    /// bounds or fixes): a warm start keeps its model's own level.
+    pub fn hold_switch_at(&mut self, x_s: f64) {
+        let Some(is) = self.family.switch_index() else {
+            return;
+        };
+        if self.switching == Switching::Starts && self.space.origin[is] == [Origin::Class; 2] {
+            (self.space.lower[is], self.space.upper[is]) = (x_s, x_s);
+        }
     }
 
     /// The same task in `model`'s coordinates ([`Records::of`]): a warm
@@ -272,7 +319,13 @@ pub fn score(family: Family, params: &[f64], experiment: &Experiment) -> Validat
         return diverged;
     }
     let theta: Vec<f32> = params.iter().map(|&v| v as f32).collect();
-    let sim = simulate(family, &theta, &experiment.u, experiment.y[0]);
+    let sim = simulate(
+        family,
+        &theta,
+        experiment.y_mean as f32,
+        &experiment.u,
+        experiment.y[0],
+    );
     if sim.diverged_at.is_some() {
         return diverged;
     }

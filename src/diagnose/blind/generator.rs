@@ -863,7 +863,8 @@ mod tests {
             .map(|&v| v as f32)
             .collect();
         let u: Vec<f32> = exc.input.iter().map(|&v| (v - 0.27) as f32).collect();
-        let reference = crate::model::simulate(crate::model::Family::Classic, &theta, &u, 0.0).x;
+        let reference =
+            crate::model::simulate(crate::model::Family::Classic, &theta, 0.0, &u, 0.0).x;
         let ours = simulate(&plant, &exc, &[], 0);
         for (k, (r, o)) in reference.iter().zip(&ours).enumerate() {
             let o = o - 5.0;

@@ -46,6 +46,16 @@ pub fn shader_source(problem: &Problem, n_one: bool, residuals: bool) -> String 
         problem.dim()
     );
     let driver = if problem.effects.is_empty() {
+        // The generalized family's switching level is placed by each
+        // experiment's output mean (the effects' header has them too).
+        if problem.family.switch_index().is_some() {
+            let means = problem.experiments.iter().map(|e| e.y_mean as f32);
+            header.push_str(&private_array(
+                "Y_MEAN",
+                "f32",
+                means.map(float_literal).collect(),
+            ));
+        }
         DRIVER
     } else {
         header.push_str(&effects_header(problem));
@@ -72,18 +82,12 @@ fn effects_header(problem: &Problem) -> String {
         h.push_str(&format!("const HAS_{name}: bool = {has};\n"));
     }
     h.push_str(&effect_params_loader(&model));
-    let n = problem.contexts.len();
-    let array = |name: &str, ty: &str, values: Vec<String>| {
-        format!(
-            "var<private> {name}: array<{ty}, {n}> = array<{ty}, {n}>({});\n",
-            values.join(", ")
-        )
-    };
+    let array = private_array;
     let float = |f: &dyn Fn(&EffectContext) -> f32| {
         problem
             .contexts
             .iter()
-            .map(|c| format!("{:?}f", f(c)))
+            .map(|c| float_literal(f(c)))
             .collect::<Vec<_>>()
     };
     h.push_str(&array("U_MEAN", "f32", float(&|c| c.u_mean as f32)));
@@ -101,6 +105,22 @@ fn effects_header(problem: &Problem) -> String {
         .collect();
     h.push_str(&array("DRIVES_UP", "bool", up));
     h
+}
+
+/// A per-experiment constant array of the header: `values` indexed by
+/// experiment.
+fn private_array(name: &str, ty: &str, values: Vec<String>) -> String {
+    let n = values.len();
+    format!(
+        "var<private> {name}: array<{ty}, {n}> = array<{ty}, {n}>({});\n",
+        values.join(", ")
+    )
+}
+
+/// `v` as a WGSL literal, in Rust's shortest round-trip form (which the
+/// WGSL compiler reads back to the same bits).
+fn float_literal(v: f32) -> String {
+    format!("{v:?}f")
 }
 
 /// The WGSL that loads every realisation's parameters, generated from the

@@ -391,10 +391,10 @@ mod tests {
             // Data the baseline explains (the saturation's neutral bound lies
             // a whole output range beyond the data).
             let mut exp = experiment();
-            exp.y = simulate(fam, &base32, &exp.u, 0.5).x;
+            exp.y = simulate(fam, &base32, exp.y_mean as f32, &exp.u, 0.5).x;
             let ctx = Context::of(&exp, true);
-            let reference = simulate(fam, &base32, &exp.u, exp.y[0]);
-            let ref_sse = sse(fam, &base32, &exp.u, &exp.y);
+            let reference = simulate(fam, &base32, exp.y_mean as f32, &exp.u, exp.y[0]);
+            let ref_sse = sse(fam, &base32, exp.y_mean as f32, &exp.u, &exp.y);
             for effect in Effect::ALL {
                 for datasets in [1, 3] {
                     let model = Augmented::new(fam, vec![effect], datasets);
@@ -411,7 +411,8 @@ mod tests {
                         let measure = Measure::Ahead { horizon };
                         assert_eq!(
                             model.measured_sse(&theta, 0, &ctx, &exp, measure).to_bits(),
-                            measured_sse(fam, &base32, &exp.u, &exp.y, measure).to_bits(),
+                            measured_sse(fam, &base32, exp.y_mean as f32, &exp.u, &exp.y, measure)
+                                .to_bits(),
                             "{fam} + {effect}, {measure}"
                         );
                     }
@@ -438,7 +439,7 @@ mod tests {
         let fam = Family::Classic;
         let base = thesis_params(fam);
         let base32: Vec<f32> = base.iter().map(|&v| v as f32).collect();
-        let reference = simulate(fam, &base32, &exp.u, exp.y[0]).x;
+        let reference = simulate(fam, &base32, exp.y_mean as f32, &exp.u, exp.y[0]).x;
         for effect in Effect::ALL {
             let model = Augmented::new(fam, vec![effect], 2);
             let (neutral, lo, hi) = effect_box(effect, &ctx, 2);
@@ -469,7 +470,13 @@ mod tests {
         // The same model on the input shifted by three samples (u(0) held).
         let mut shifted = vec![exp.u[0]; 3];
         shifted.extend_from_slice(&exp.u[..exp.len() - 3]);
-        let reference = simulate(fam, &[0.9, 2.0, 0.1, 0.0], &shifted, exp.y[0]);
+        let reference = simulate(
+            fam,
+            &[0.9, 2.0, 0.1, 0.0],
+            exp.y_mean as f32,
+            &shifted,
+            exp.y[0],
+        );
         assert_eq!(got, reference.x);
     }
 

@@ -8,7 +8,9 @@
 use super::catalogue::{Stages, States};
 use super::stage::{At, Columns, Frame};
 use super::{Augmented, Context};
-use crate::model::sim::{classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w};
+use crate::model::sim::{
+    classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w, switch_threshold,
+};
 use crate::model::{Experiment, Family, Measure};
 
 /// `L` candidates' augmented model on one dataset, unpacked for the inner
@@ -39,6 +41,9 @@ pub struct Prepared<const L: usize> {
     n: [f32; L],
     /// β, γ (classic) or β₁..β₆ (generalized).
     betas: [[f32; L]; 6],
+    /// Where the generalized sign terms in `x` switch, in the dataset's
+    /// deviation coordinates ([`switch_threshold`]; 0 for the others).
+    threshold: [f32; L],
     /// Each realisation's constants, `None` where the model lacks it.
     stages: Stages<L>,
     frame: Frame,
@@ -151,7 +156,8 @@ impl<const L: usize> Prepared<L> {
                     let betas = [bt[0][l], bt[1][l], bt[2][l], bt[3][l], bt[4][l], bt[5][l]];
                     let n = if n_one { 1.0 } else { self.n[l] };
                     let delta = xk[l] - x[l];
-                    w[l] = generalized_w(a_eff[l], &betas, n, w[l], xk[l], delta);
+                    let threshold = self.threshold[l];
+                    w[l] = generalized_w(a_eff[l], &betas, n, w[l], xk[l], delta, threshold);
                 }
             }
         }
@@ -210,6 +216,9 @@ impl Augmented {
             Family::Generalized => (col(0), col(1), std::array::from_fn(|j| col(2 + j))),
         };
         let frame = Frame::of(ctx, dataset);
+        let threshold = fam.switch_index().map_or([0.0; L], |i| {
+            col(i).map(|x_s| switch_threshold(x_s, frame.y_mean))
+        });
         let mut stages = Stages::none();
         let mut at = fam.dim();
         for &e in &self.effects {
@@ -227,6 +236,7 @@ impl Augmented {
             big_a,
             n,
             betas,
+            threshold,
             stages,
             frame,
         }

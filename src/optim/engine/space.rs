@@ -297,11 +297,20 @@ mod tests {
             max_abs_input: 0.4,
             max_abs_output: 40.0,
             output_range: 30.0,
+            est_output_min: 5.0,
+            est_output_max: 35.0,
+            output_mean: 18.0,
         };
-        let scaled = SearchSpace::scaled(Family::Classic, prior, Loop::Bounded, false, &[])
-            .unwrap()
-            .with_extra(vec!["creep.rho".into()], vec![0.9], vec![0.99], &[])
-            .unwrap();
+        let scaled = SearchSpace::scaled(
+            Family::Classic,
+            prior,
+            (Loop::Bounded, Default::default()),
+            false,
+            &[],
+        )
+        .unwrap()
+        .with_extra(vec!["creep.rho".into()], vec![0.9], vec![0.99], &[])
+        .unwrap();
         let space = Space::from(&scaled);
         assert!(space.names.contains(&"gain".to_string()));
         let mut want: Vec<String> = Family::Classic
