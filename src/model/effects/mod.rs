@@ -32,12 +32,16 @@ mod stage;
 mod stages;
 mod step;
 mod table;
-pub use catalogue::{Effect, rings};
+pub use catalogue::{Effect, STEP_ORDER, rings};
+pub use stage::Side;
 pub use step::{EffectState, Prepared};
 pub use table::{EffectBox, Params, StartHint};
 
 /// One entry of the catalogue ([`Effect::entry`]).
 pub type Realisation = table::Realisation<Effect>;
+
+/// A realisation's place in the step order ([`STEP_ORDER`]).
+pub type Placed = stage::Placed<Effect>;
 
 /// Name and meaning of one effect parameter.
 #[derive(Debug, Clone, PartialEq, Serialize)]
