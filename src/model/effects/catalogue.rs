@@ -409,7 +409,8 @@ catalogue! {
 }
 
 // The step order: where each realisation's stage runs in
-// `Prepared::step` (`step.rs`), the order `shaders/effects.wgsl` follows.
+// `Prepared::step` (`step.rs`), and the order the GPU's step calls the
+// stages of `shaders/effects.wgsl` in (`STEP_ORDER`, `eval::gpu::stages`).
 // The input side moves the input: loops of their own, then the first
 // realisations' shared loop over the lanes, then late loops. The state
 // side moves the new output state: the shared loop with the baseline's

@@ -70,11 +70,6 @@ impl Effect {
         self.entry().size_text.map(|text| text(params, dt))
     }
 
-    /// The name as a WGSL identifier (`shaders/effects.wgsl`'s `HAS_*`).
-    pub fn ident(self) -> String {
-        self.name().replace([':', '-'], "_").to_ascii_uppercase()
-    }
-
     /// Its flag and JSON name.
     pub fn name(self) -> &'static str {
         self.entry().name
