@@ -1,13 +1,58 @@
 // The scoring loop of a family with effect stages: src/model/effects/step.rs
-// `Prepared::step` and `Prepared::restart` with each realisation's stage
-// (src/model/effects/stages/, in the step order of catalogue.rs), spelled
-// with the same operations in the same order (every product that is then
-// added kept rounded, minima and maxima as comparisons). The generated header says
-// which effects are present (`HAS_*`), loads their parameters from the
-// candidate's row (`load_effect_params`, generated from the catalogue) and
-// holds each experiment's constants (`U_MEAN`,
-// `Y_MEAN`, `BRANCH_TOL`, `INV_DT`, `DRIVES_UP`, `KNEE_*`, `REST`, indexed by
-// experiment).
+// `Prepared::step` and `Prepared::restart`, and each realisation's stage,
+// the twin of its CPU stage in src/model/effects/stages/ (the same
+// operations in the same order: every product that is then added kept
+// rounded, minima and maxima as comparisons).
+//
+// The generated header (src/eval/gpu/stages.rs) holds every realisation's
+// parameter struct `<Stage>Params` (a field per parameter of the
+// catalogue's list) and, for the realisations the model has, the private
+// variables of their constants and states and the functions `score` calls
+// here: `stages_prepare`, `stages_start`, `stages_input`, `stages_state`,
+// `stages_output` and `stages_restart`, which call each realisation's
+// stage in the catalogue's step order. It also holds each experiment's
+// constants (`U_MEAN`, `Y_MEAN`, `BRANCH_TOL`, `INV_DT`, `DRIVES_UP`,
+// `KNEE_*`, `REST`, indexed by experiment), which `Frame` gathers.
+//
+// A realisation's stage is named after its CPU stage's type (the
+// catalogue's variant), `TwoPoleCreep` here as an example:
+// - `TwoPoleCreepConsts` and `fn two_pole_creep_prepare(q:
+//   TwoPoleCreepParams, frame: Frame) -> TwoPoleCreepConsts`: what the step
+//   needs of its parameters, once per candidate and experiment (`Stage::
+//   prepare`);
+// - where its CPU stage has states (`Stage::State` is not `()`),
+//   `TwoPoleCreepState`, `fn two_pole_creep_start(c, x: f32, u0: f32) ->
+//   TwoPoleCreepState` and `fn two_pole_creep_restart(s: ptr<private,
+//   TwoPoleCreepState>, y: f32, x: f32) -> f32` (the output state `x` less
+//   what it adds to the output; it may restart its states);
+// - `fn two_pole_creep_step(c, [s: ptr<private, TwoPoleCreepState>,] ...)`,
+//   by the side of the step it moves: on the input side `(ui: f32, at: At)
+//   -> f32`, the new input; on the state side `(xk: ptr<function, f32>,
+//   a_eff: ptr<function, f32>, at: At)`, the new output state and the
+//   Bouc-Wen stiffness; on the output side `(y: f32, ui: f32, xk: f32, at:
+//   At) -> f32`, the new prediction.
+// tests/wgsl_variants.rs checks with naga that every pipeline's source is
+// valid WGSL; the lavapipe tests that it gives the CPU's bits.
+
+// What a stage may read of the experiment besides its own parameters
+// (stage.rs `Frame`).
+struct Frame {
+    // Which experiment (the load gain is per dataset).
+    e: u32,
+    u_mean: f32,
+    y_mean: f32,
+    branch_tol: f32,
+    // Whether the input drives the output up: the side of the end stops.
+    drives_up: bool,
+    // Context::knee: the soft stop's half-width h, 2h and 1/(4h).
+    knee_h: f32,
+    knee_2h: f32,
+    knee_inv_4h: f32,
+    // Context::rest_input.
+    rest: f32,
+    // 1/dt: the input rate is multiplied by it, so that no stage divides.
+    inv_dt: f32,
+}
 
 // An experiment's constant as the CPU sees it: a value, not a literal.
 // With one experiment its array is indexed by 0 for sure, so the compiler
@@ -17,6 +62,40 @@
 // The integer round trip of `rounded` hides the value from it.
 fn unfolded(v: f32) -> f32 {
     return rounded(v);
+}
+
+fn frame_of(e: u32) -> Frame {
+    return Frame(e, unfolded(U_MEAN[e]), unfolded(Y_MEAN[e]), unfolded(BRANCH_TOL[e]), DRIVES_UP[e],
+        unfolded(KNEE_H[e]), unfolded(KNEE_2H[e]), unfolded(KNEE_INV_4H[e]), unfolded(REST[e]),
+        unfolded(INV_DT[e]));
+}
+
+// What a stage may read of the sample being stepped, k ≥ 1 (stage.rs `At`).
+struct At {
+    // The experiment's samples in `samples`: (first, length).
+    span: vec2<u32>,
+    k: u32,
+    // The measured input u(k−1).
+    raw: f32,
+    // Whether a step was taken before this one (the play and the lags start
+    // at the first input).
+    started: bool,
+    // The output state x(k−1).
+    x: f32,
+    frame: Frame,
+}
+
+fn input(span: vec2<u32>, k: u32) -> f32 {
+    return samples[span.x + k].x;
+}
+
+// The measured input u(k−2), u(0) at k = 1.
+fn input_before(at: At) -> f32 {
+    var prev = input(at.span, 0u);
+    if (at.k >= 2u) {
+        prev = input(at.span, at.k - 2u);
+    }
+    return prev;
 }
 
 // stage.rs `larger`: `a` if it is the larger, else `b`.
@@ -35,53 +114,9 @@ fn smaller(a: f32, b: f32) -> f32 {
     return b;
 }
 
-// stages/saturation.rs `soft_stop`, which the CPU applies to `±x` and
-// `±bound` (`Frame::toward`); written out per direction here, the same
-// bits since negation is exact (`tests/eval_effects.rs` checks both
-// directions).
-fn soft_stop(x: f32, bound: f32, e: u32) -> f32 {
-    let h = unfolded(KNEE_H[e]);
-    var into = (bound + h) - x;
-    if (DRIVES_UP[e]) {
-        into = x - (bound - h);
-    }
-    let bend = rounded(rounded(into * into) * unfolded(KNEE_INV_4H[e]));
-    var bent = x + bend;
-    if (DRIVES_UP[e]) {
-        bent = x - bend;
-    }
-    if (into <= 0.0) {
-        return x;
-    } else if (into >= unfolded(KNEE_2H[e])) {
-        return bound;
-    }
-    return bent;
-}
-
-// stages/saturation.rs: the end stop on the side the input drives the
-// output, on the CPU `±min(±x, ±bound)` (`Frame::toward`), the same bits
-// as this.
-fn clip(x: f32, bound: f32, e: u32) -> f32 {
-    if (DRIVES_UP[e]) {
-        return smaller(x, bound);
-    }
-    return larger(x, bound);
-}
-
-// stages/creep.rs `tenth_power`: ρ^10 by products.
-fn tenth_power(rho: f32) -> f32 {
-    let p2 = rounded(rho * rho);
-    let p4 = rounded(p2 * p2);
-    return rounded(rounded(p4 * p4) * p2);
-}
-
 // One step of a first-order lag of pole `rho` from `prev` toward `v`.
 fn lag(rho: f32, prev: f32, v: f32) -> f32 {
     return rounded(rho * prev) + rounded((1.0 - rho) * v);
-}
-
-fn input(span: vec2<u32>, k: u32) -> f32 {
-    return samples[span.x + k].x;
 }
 
 // Scores candidate `i` (chunk-local) on experiment `e`, which is the
@@ -94,253 +129,32 @@ fn score(i: u32, e: u32) -> f32 {
     let p = i * STRIDE;
     let th = load_theta(p, e);
     let r0 = i * cfg.residual_len + span.x - e;
-    let u_mean = unfolded(U_MEAN[e]);
-    let tol = unfolded(BRANCH_TOL[e]);
-    let y_mean = unfolded(Y_MEAN[e]);
-    // step.rs `Augmented::prepare`: the parameters as the generated
-    // `load_effect_params` loads them (0 for an effect not in the model),
-    // and what each realisation derives from them once per candidate (its
-    // stage's `prepare`).
-    let q = load_effect_params(p, e);
-    // The delay in whole samples and the fraction of a sample beyond them.
-    let d = larger(q.delay_d, 0.0);
-    let whole = u32(floor(d));
-    let frac = d - floor(d);
-    let p0 = q.deadzone_p0;
-    let bound = q.saturation_l_max - y_mean;
-    let eps = q.asymmetry_eps;
-    let a2 = q.inertia_a2;
-    let play_width = larger(q.backlash_r, 0.0);
-    let rho = q.creep_rho;
-    let kappa = q.creep_kappa;
-    let z0 = q.creep_z0;
-    let eta = q.rate_eta;
-    // The load gain of dataset e ≥ 1 (dataset 0 is the reference).
-    let has_load = HAS_LOAD && e >= 1u;
-    let g = q.load_g;
-    let rho_in = q.delay_input_lag_rho;
-    let rho_out = q.delay_output_lag_rho;
-    let a1 = q.inertia_mode_a1;
-    let a2m = q.inertia_mode_a2;
-    let mode_gain = (1.0 - a1) + a2m;
-    let rho_drain = q.asymmetry_drain_rho;
-    let clip_bound = q.saturation_output_l_max - y_mean;
-    let soft_bound = q.saturation_soft_l_max - y_mean;
-    let rho_zo = q.creep_output_rho;
-    let kappa_zo = q.creep_output_kappa;
-    let z0_out = q.creep_output_z0;
-    // stages/creep.rs: the two-pole creep's total gain split by the faster
-    // state's share.
-    let rho_f = q.creep_two_pole_rho_fast;
-    let rho_s = q.creep_two_pole_rho_slow;
-    let kappa_f = rounded(q.creep_two_pole_fast_share * q.creep_two_pole_kappa);
-    let kappa_s = q.creep_two_pole_kappa - kappa_f;
-    let z0_slow = q.creep_two_pole_z0;
-    // stages/creep.rs: the log-time creep's poles a decade apart in time
-    // constant (ρ^100, ρ^10, ρ) and their input weights (1 − ρ)·κ.
-    let rho_ls = q.creep_log_rho;
-    let rho_lm = tenth_power(rho_ls);
-    let rho_lf = tenth_power(rho_lm);
-    let w_lf = rounded((1.0 - rho_lf) * q.creep_log_kappa);
-    let w_lm = rounded((1.0 - rho_lm) * q.creep_log_kappa);
-    let w_ls = rounded((1.0 - rho_ls) * q.creep_log_kappa);
-    let p_on = q.deadzone_on_off_p_on - u_mean;
-    let p_off = p_on - q.deadzone_on_off_gap;
-    let ring_a1 = q.inertia_ringing_a1;
-    let ring_a2 = q.inertia_ringing_a2;
-    let kick = q.inertia_ringing_g;
+    // step.rs `Augmented::prepare`: each realisation's constants from its
+    // parameters.
+    let frame = frame_of(e);
+    stages_prepare(p, frame);
     let big_a = stiffness(th);
-    // step.rs `Prepared::start` (each stage's `start`).
-    let u0 = input(span, 0u);
+    // step.rs `Prepared::start`.
     var x = samples[span.x].y + th.x0;
     var w = 0.0;
-    var before = u0;
-    var x_prev2 = x;
-    var play = 0.0;
+    stages_start(x, input(span, 0u));
     var started = false;
-    var dir = 0.0;
-    var extreme = u0;
-    var z = z0;
-    var lag_in = 0.0;
-    var drain = 0.0;
-    var lag_out = x;
-    var mode1 = x;
-    var mode2 = x;
-    var z_out = z0_out;
-    var z_fast = 0.0;
-    var z_slow = z0_slow;
-    var log_fast = 0.0;
-    var log_mid = 0.0;
-    var log_slow = q.creep_log_z0;
-    var on = 0.0;
-    var ring1 = 0.0;
-    var ring2 = 0.0;
     var acc = 0.0;
     var next_restart = cfg.horizon;
     for (var k = 1u; k < span.y; k = k + 1u) {
-        // Input side: delay, input lag, on/off threshold, deadzone, play,
-        // branch gain, load gain, drain lag (step.rs `Prepared::step`, in
-        // the step order of catalogue.rs).
-        let raw = input(span, k - 1u);
-        var ui = raw;
-        if (HAS_DELAY) {
-            // stages/delay.rs `delayed`: u(j) moved by `frac` toward
-            // u(j−1), the u(j) of the sample before.
-            var j = 0u;
-            if (k - 1u > whole) {
-                j = k - 1u - whole;
-            }
-            let now = input(span, j);
-            let moved = now + rounded(frac * (before - now));
-            before = now;
-            if (frac == 0.0) {
-                ui = now;
-            } else {
-                ui = moved;
-            }
-        }
-        if (HAS_DELAY_INPUT_LAG) {
-            var prev = ui;
-            if (started) {
-                prev = lag_in;
-            }
-            ui = lag(rho_in, prev, ui);
-            lag_in = ui;
-        }
-        if (HAS_DEADZONE_ON_OFF) {
-            if (ui > p_on) {
-                on = 1.0;
-            } else if (ui < p_off) {
-                on = 0.0;
-            }
-            if (!(on > 0.0)) {
-                ui = unfolded(REST[e]);
-            }
-        }
-        if (HAS_DEADZONE) {
-            ui = larger(ui - p0, -u_mean);
-        }
-        if (HAS_BACKLASH) {
-            let half = rounded(0.5 * play_width);
-            var prev = ui;
-            if (started) {
-                prev = play;
-            }
-            let v = smaller(ui + half, larger(ui - half, prev));
-            play = v;
-            ui = v;
-        }
-        if (HAS_ASYMMETRY) {
-            if (dir >= 0.0) {
-                extreme = larger(raw, extreme);
-                if (raw < extreme - tol) {
-                    dir = -1.0;
-                    extreme = raw;
-                } else if (raw > u0 + tol) {
-                    dir = 1.0;
-                }
-            } else {
-                extreme = smaller(raw, extreme);
-                if (raw > extreme + tol) {
-                    dir = 1.0;
-                    extreme = raw;
-                }
-            }
-            ui = ui + rounded(rounded(dir * eps) * (ui + u_mean));
-        }
-        if (has_load) {
-            ui = ui + rounded(g * (ui + u_mean));
-        }
-        if (HAS_ASYMMETRY_DRAIN) {
-            var prev = ui;
-            if (started) {
-                prev = drain;
-            }
-            var slow = ui > prev;
-            var r = -rho_drain;
-            if (rho_drain >= 0.0) {
-                slow = ui < prev;
-                r = rho_drain;
-            }
-            let lagged = lag(r, prev, ui);
-            if (slow) {
-                ui = lagged;
-            }
-            drain = ui;
-        }
+        // step.rs `Prepared::step`: the input side, the state side (the
+        // family's equations, then the state side's stages), the Bouc-Wen
+        // state, the output side.
+        let at = At(span, k, input(span, k - 1u), started, x, frame);
         started = true;
-        // State: the family's equations, the extra pole and the end stop.
+        let ui = stages_input(at.raw, at);
         var xk = linear(th, State(x, w), ui);
-        if (HAS_INERTIA) {
-            xk = xk + rounded(a2 * (x - x_prev2));
-        }
-        if (HAS_SATURATION) {
-            xk = clip(xk, bound, e);
-        }
-        if (HAS_SATURATION_SOFT) {
-            xk = soft_stop(xk, soft_bound, e);
-        }
-        let delta = xk - x;
         var a_eff = big_a;
-        if (HAS_RATE) {
-            var prev = u0;
-            if (k >= 2u) {
-                prev = input(span, k - 2u);
-            }
-            a_eff = rounded(big_a * (1.0 + rounded(eta * rounded(abs(raw - prev) * unfolded(INV_DT[e])))));
-        }
+        stages_state(&xk, &a_eff, at);
+        let delta = xk - x;
         w = hysteresis(th, a_eff, w, xk, delta);
-        x_prev2 = x;
         x = xk;
-        // Output side: the creeps' slow states (input-driven, output-driven,
-        // two-pole, log-time), the ringing, the load mode, the output clip
-        // and the output lag.
-        var yk = xk;
-        if (HAS_CREEP) {
-            z = rounded(rho * z) + rounded(rounded((1.0 - rho) * kappa) * ui);
-            yk = yk + z;
-        }
-        if (HAS_CREEP_OUTPUT) {
-            z_out = rounded(rho_zo * z_out) + rounded(rounded((1.0 - rho_zo) * kappa_zo) * xk);
-            yk = yk + z_out;
-        }
-        if (HAS_CREEP_TWO_POLE) {
-            z_fast = rounded(rho_f * z_fast) + rounded(rounded((1.0 - rho_f) * kappa_f) * ui);
-            z_slow = rounded(rho_s * z_slow) + rounded(rounded((1.0 - rho_s) * kappa_s) * ui);
-            yk = yk + z_fast;
-            yk = yk + z_slow;
-        }
-        if (HAS_CREEP_LOG) {
-            log_fast = rounded(rho_lf * log_fast) + rounded(w_lf * ui);
-            log_mid = rounded(rho_lm * log_mid) + rounded(w_lm * ui);
-            log_slow = rounded(rho_ls * log_slow) + rounded(w_ls * ui);
-            yk = yk + log_fast;
-            yk = yk + log_mid;
-            yk = yk + log_slow;
-        }
-        if (HAS_INERTIA_RINGING) {
-            var prev = u0;
-            if (k >= 2u) {
-                prev = input(span, k - 2u);
-            }
-            let r = (rounded(ring_a1 * ring1) - rounded(ring_a2 * ring2)) + rounded(kick * (raw - prev));
-            ring2 = ring1;
-            ring1 = r;
-            yk = yk + r;
-        }
-        if (HAS_INERTIA_MODE) {
-            let q = (rounded(a1 * mode1) - rounded(a2m * mode2)) + rounded(mode_gain * yk);
-            mode2 = mode1;
-            mode1 = q;
-            yk = q;
-        }
-        if (HAS_SATURATION_OUTPUT) {
-            yk = clip(yk, clip_bound, e);
-        }
-        if (HAS_DELAY_OUTPUT_LAG) {
-            yk = lag(rho_out, lag_out, yk);
-            lag_out = yk;
-        }
+        let yk = stages_output(xk, ui, xk, at);
         if (!(in_bounds(x) && in_bounds(w) && in_bounds(yk))) {
             if (RESIDUALS) {
                 for (var j = k; j < span.y; j = j + 1u) {
@@ -356,18 +170,622 @@ fn score(i: u32, e: u32) -> f32 {
         } else {
             acc = acc + rounded(err * err);
         }
-        // step.rs `Prepared::restart` (each stage's `restart`, in the step
-        // order).
+        // step.rs `Prepared::restart`: the output state is the measurement
+        // less each realisation's restart term, in the step order; the
+        // Bouc-Wen state takes the jump's elastic part.
         if (k == next_restart) {
-            let creeps = (((measured - z) - z_out) - z_fast) - z_slow;
-            let xr = (((creeps - log_fast) - log_mid) - log_slow) - ring1;
+            let xr = stages_restart(measured);
             w = w + rounded(big_a * (xr - x));
             x = xr;
-            lag_out = measured;
-            mode1 = measured;
-            mode2 = measured;
             next_restart = next_restart + cfg.horizon;
         }
     }
     return acc;
+}
+
+// ---- stages/delay.rs -------------------------------------------------------
+
+// `Delay`: u(k−1−d) for u(k−1), d ≥ 0 samples, interpolated.
+struct DelayConsts {
+    // The delay in whole samples and the fraction of a sample beyond them.
+    whole: u32,
+    frac: f32,
+}
+
+fn delay_prepare(q: DelayParams, frame: Frame) -> DelayConsts {
+    let d = larger(q.d, 0.0);
+    return DelayConsts(u32(floor(d)), d - floor(d));
+}
+
+// The delayed input of the sample before, u(j−1) for the interpolation.
+alias DelayState = f32;
+
+fn delay_start(c: DelayConsts, x: f32, u0: f32) -> DelayState {
+    return u0;
+}
+
+// `delayed`: u(j) moved by `frac` toward u(j−1), the u(j) of the sample
+// before.
+fn delay_step(c: DelayConsts, s: ptr<private, DelayState>, ui: f32, at: At) -> f32 {
+    var j = 0u;
+    if (at.k - 1u > c.whole) {
+        j = at.k - 1u - c.whole;
+    }
+    let now = input(at.span, j);
+    let moved = now + rounded(c.frac * (*s - now));
+    *s = now;
+    if (c.frac == 0.0) {
+        return now;
+    }
+    return moved;
+}
+
+fn delay_restart(s: ptr<private, DelayState>, y: f32, x: f32) -> f32 {
+    return x;
+}
+
+// `InputLag`: a first-order lag on the input.
+alias InputLagConsts = InputLagParams;
+
+fn input_lag_prepare(q: InputLagParams, frame: Frame) -> InputLagConsts {
+    return q;
+}
+
+// The lag's output of the sample before.
+alias InputLagState = f32;
+
+fn input_lag_start(c: InputLagConsts, x: f32, u0: f32) -> InputLagState {
+    return 0.0;
+}
+
+fn input_lag_step(c: InputLagConsts, s: ptr<private, InputLagState>, ui: f32, at: At) -> f32 {
+    var prev = ui;
+    if (at.started) {
+        prev = *s;
+    }
+    let v = lag(c.rho, prev, ui);
+    *s = v;
+    return v;
+}
+
+fn input_lag_restart(s: ptr<private, InputLagState>, y: f32, x: f32) -> f32 {
+    return x;
+}
+
+// `OutputLag`: a first-order lag on the predicted output.
+alias OutputLagConsts = OutputLagParams;
+
+fn output_lag_prepare(q: OutputLagParams, frame: Frame) -> OutputLagConsts {
+    return q;
+}
+
+// The lag's output of the sample before.
+alias OutputLagState = f32;
+
+fn output_lag_start(c: OutputLagConsts, x: f32, u0: f32) -> OutputLagState {
+    return x;
+}
+
+fn output_lag_step(c: OutputLagConsts, s: ptr<private, OutputLagState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
+    let v = lag(c.rho, *s, y);
+    *s = v;
+    return v;
+}
+
+// The lag restarts at the measurement.
+fn output_lag_restart(s: ptr<private, OutputLagState>, y: f32, x: f32) -> f32 {
+    *s = y;
+    return x;
+}
+
+// ---- stages/deadzone.rs ----------------------------------------------------
+
+// `Deadzone`: max(p − p0, 0) on the absolute input.
+alias DeadzoneConsts = DeadzoneParams;
+
+fn deadzone_prepare(q: DeadzoneParams, frame: Frame) -> DeadzoneConsts {
+    return q;
+}
+
+fn deadzone_step(c: DeadzoneConsts, ui: f32, at: At) -> f32 {
+    return larger(ui - c.p0, -at.frame.u_mean);
+}
+
+// `OnOffThreshold`: on above p_on, off below p_off, as it was in between;
+// while off the input is the lowest one recorded.
+struct OnOffThresholdConsts {
+    // In deviation coordinates.
+    p_on: f32,
+    p_off: f32,
+}
+
+fn on_off_threshold_prepare(q: OnOffThresholdParams, frame: Frame) -> OnOffThresholdConsts {
+    let p_on = q.p_on - frame.u_mean;
+    return OnOffThresholdConsts(p_on, p_on - q.gap);
+}
+
+// 1 while on, else 0.
+alias OnOffThresholdState = f32;
+
+fn on_off_threshold_start(c: OnOffThresholdConsts, x: f32, u0: f32) -> OnOffThresholdState {
+    return 0.0;
+}
+
+fn on_off_threshold_step(c: OnOffThresholdConsts, s: ptr<private, OnOffThresholdState>, ui: f32, at: At) -> f32 {
+    if (ui > c.p_on) {
+        *s = 1.0;
+    } else if (ui < c.p_off) {
+        *s = 0.0;
+    }
+    if (!(*s > 0.0)) {
+        return at.frame.rest;
+    }
+    return ui;
+}
+
+fn on_off_threshold_restart(s: ptr<private, OnOffThresholdState>, y: f32, x: f32) -> f32 {
+    return x;
+}
+
+// ---- stages/backlash.rs ----------------------------------------------------
+
+// `Backlash`: play of width r ≥ 0 on the input.
+struct BacklashConsts {
+    width: f32,
+}
+
+fn backlash_prepare(q: BacklashParams, frame: Frame) -> BacklashConsts {
+    return BacklashConsts(larger(q.r, 0.0));
+}
+
+// The play's output, from the first step on.
+alias BacklashState = f32;
+
+fn backlash_start(c: BacklashConsts, x: f32, u0: f32) -> BacklashState {
+    return 0.0;
+}
+
+fn backlash_step(c: BacklashConsts, s: ptr<private, BacklashState>, ui: f32, at: At) -> f32 {
+    let half = rounded(0.5 * c.width);
+    var prev = ui;
+    if (at.started) {
+        prev = *s;
+    }
+    let v = smaller(ui + half, larger(ui - half, prev));
+    *s = v;
+    return v;
+}
+
+fn backlash_restart(s: ptr<private, BacklashState>, y: f32, x: f32) -> f32 {
+    return x;
+}
+
+// ---- stages/asymmetry.rs ---------------------------------------------------
+
+// `Asymmetry`: the input gain is b·(1+ε) on the rising branch and b·(1−ε)
+// on the falling one.
+alias AsymmetryConsts = AsymmetryParams;
+
+fn asymmetry_prepare(q: AsymmetryParams, frame: Frame) -> AsymmetryConsts {
+    return q;
+}
+
+// The branch, which follows the measured input only.
+struct AsymmetryState {
+    // +1 loading, −1 unloading, 0 not yet moved.
+    dir: f32,
+    // The input's extreme on the current branch.
+    extreme: f32,
+}
+
+fn asymmetry_start(c: AsymmetryConsts, x: f32, u0: f32) -> AsymmetryState {
+    return AsymmetryState(0.0, u0);
+}
+
+// The branch switches once the input has moved back from its extreme by
+// the context's tolerance.
+fn asymmetry_step(c: AsymmetryConsts, s: ptr<private, AsymmetryState>, ui: f32, at: At) -> f32 {
+    let raw = at.raw;
+    let tol = at.frame.branch_tol;
+    if ((*s).dir >= 0.0) {
+        (*s).extreme = larger(raw, (*s).extreme);
+        if (raw < (*s).extreme - tol) {
+            (*s).dir = -1.0;
+            (*s).extreme = raw;
+        } else if (raw > input(at.span, 0u) + tol) {
+            (*s).dir = 1.0;
+        }
+    } else {
+        (*s).extreme = smaller(raw, (*s).extreme);
+        if (raw > (*s).extreme + tol) {
+            (*s).dir = 1.0;
+            (*s).extreme = raw;
+        }
+    }
+    return ui + rounded(rounded((*s).dir * c.eps) * (ui + at.frame.u_mean));
+}
+
+fn asymmetry_restart(s: ptr<private, AsymmetryState>, y: f32, x: f32) -> f32 {
+    return x;
+}
+
+// `DrainLag`: the input passes at once on one branch and through a
+// first-order lag |ρ| on the other (ρ > 0: drains slower than it fills).
+alias DrainLagConsts = DrainLagParams;
+
+fn drain_lag_prepare(q: DrainLagParams, frame: Frame) -> DrainLagConsts {
+    return q;
+}
+
+// The stage's output of the sample before.
+alias DrainLagState = f32;
+
+fn drain_lag_start(c: DrainLagConsts, x: f32, u0: f32) -> DrainLagState {
+    return 0.0;
+}
+
+fn drain_lag_step(c: DrainLagConsts, s: ptr<private, DrainLagState>, ui: f32, at: At) -> f32 {
+    var prev = ui;
+    if (at.started) {
+        prev = *s;
+    }
+    var slow = ui > prev;
+    var r = -c.rho;
+    if (c.rho >= 0.0) {
+        slow = ui < prev;
+        r = c.rho;
+    }
+    let lagged = lag(r, prev, ui);
+    var v = ui;
+    if (slow) {
+        v = lagged;
+    }
+    *s = v;
+    return v;
+}
+
+fn drain_lag_restart(s: ptr<private, DrainLagState>, y: f32, x: f32) -> f32 {
+    return x;
+}
+
+// ---- stages/load.rs --------------------------------------------------------
+
+// `Load`: the input gain of dataset e ≥ 1 is b·(1 + g_e) on the absolute
+// input; dataset 0 is the reference (its `g` is 0, and unused).
+alias LoadConsts = LoadParams;
+
+fn load_prepare(q: LoadParams, frame: Frame) -> LoadConsts {
+    return q;
+}
+
+fn load_step(c: LoadConsts, ui: f32, at: At) -> f32 {
+    if (at.frame.e >= 1u) {
+        return ui + rounded(c.g * (ui + at.frame.u_mean));
+    }
+    return ui;
+}
+
+// ---- stages/inertia.rs -----------------------------------------------------
+
+// `Inertia`: x(k) += a2·(x(k−1) − x(k−2)).
+alias InertiaConsts = InertiaParams;
+
+fn inertia_prepare(q: InertiaParams, frame: Frame) -> InertiaConsts {
+    return q;
+}
+
+// x(k−2), the output state of the step before the last.
+alias InertiaState = f32;
+
+fn inertia_start(c: InertiaConsts, x: f32, u0: f32) -> InertiaState {
+    return x;
+}
+
+fn inertia_step(c: InertiaConsts, s: ptr<private, InertiaState>, xk: ptr<function, f32>, a_eff: ptr<function, f32>, at: At) {
+    *xk = *xk + rounded(c.a2 * (at.x - *s));
+    // The next step's x(k−2) is this one's x(k−1) (a restart moves x(k−1),
+    // not it).
+    *s = at.x;
+}
+
+fn inertia_restart(s: ptr<private, InertiaState>, y: f32, x: f32) -> f32 {
+    return x;
+}
+
+// `LoadMode`: a second-order mode of the hanging load on the output,
+// q = a1·q(k−1) − a2·q(k−2) + (1 − a1 + a2)·ŷ.
+struct LoadModeConsts {
+    a1: f32,
+    a2: f32,
+    // The input weight (1 − a1) + a2.
+    gain: f32,
+}
+
+fn load_mode_prepare(q: LoadModeParams, frame: Frame) -> LoadModeConsts {
+    return LoadModeConsts(q.a1, q.a2, (1.0 - q.a1) + q.a2);
+}
+
+// The mode's output at the sample before and the one before that.
+struct LoadModeState {
+    mode1: f32,
+    mode2: f32,
+}
+
+fn load_mode_start(c: LoadModeConsts, x: f32, u0: f32) -> LoadModeState {
+    return LoadModeState(x, x);
+}
+
+fn load_mode_step(c: LoadModeConsts, s: ptr<private, LoadModeState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
+    let q = (rounded(c.a1 * (*s).mode1) - rounded(c.a2 * (*s).mode2)) + rounded(c.gain * y);
+    (*s).mode2 = (*s).mode1;
+    (*s).mode1 = q;
+    return q;
+}
+
+// The mode restarts at rest at the measurement.
+fn load_mode_restart(s: ptr<private, LoadModeState>, y: f32, x: f32) -> f32 {
+    (*s).mode1 = y;
+    (*s).mode2 = y;
+    return x;
+}
+
+// `Ringing`: a mode excited by the input's change, added to the output,
+// r = a1·r(k−1) − a2·r(k−2) + g·(u(k−1) − u(k−2)).
+alias RingingConsts = RingingParams;
+
+fn ringing_prepare(q: RingingParams, frame: Frame) -> RingingConsts {
+    return q;
+}
+
+// The ringing at the sample before and the one before that.
+struct RingingState {
+    ring1: f32,
+    ring2: f32,
+}
+
+fn ringing_start(c: RingingConsts, x: f32, u0: f32) -> RingingState {
+    return RingingState(0.0, 0.0);
+}
+
+fn ringing_step(c: RingingConsts, s: ptr<private, RingingState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
+    let prev = input_before(at);
+    let r = (rounded(c.a1 * (*s).ring1) - rounded(c.a2 * (*s).ring2)) + rounded(c.g * (at.raw - prev));
+    (*s).ring2 = (*s).ring1;
+    (*s).ring1 = r;
+    return y + r;
+}
+
+// The output state is the measurement less the ringing, which rings on.
+fn ringing_restart(s: ptr<private, RingingState>, y: f32, x: f32) -> f32 {
+    return x - (*s).ring1;
+}
+
+// ---- stages/saturation.rs --------------------------------------------------
+
+// The end stops' bound in deviation coordinates.
+fn end_stop(l_max: f32, frame: Frame) -> f32 {
+    return l_max - frame.y_mean;
+}
+
+// The end stop on the side the input drives the output, on the CPU
+// `±min(±x, ±bound)` (`Frame::toward`), the same bits as this.
+fn clip(x: f32, bound: f32, frame: Frame) -> f32 {
+    if (frame.drives_up) {
+        return smaller(x, bound);
+    }
+    return larger(x, bound);
+}
+
+// `soft_stop`, which the CPU applies to `±x` and `±bound`
+// (`Frame::toward`); written out per direction here, the same bits since
+// negation is exact (`tests/eval_effects.rs` checks both directions).
+fn soft_stop(x: f32, bound: f32, frame: Frame) -> f32 {
+    let h = frame.knee_h;
+    var into = (bound + h) - x;
+    if (frame.drives_up) {
+        into = x - (bound - h);
+    }
+    let bend = rounded(rounded(into * into) * frame.knee_inv_4h);
+    var bent = x + bend;
+    if (frame.drives_up) {
+        bent = x - bend;
+    }
+    if (into <= 0.0) {
+        return x;
+    } else if (into >= frame.knee_2h) {
+        return bound;
+    }
+    return bent;
+}
+
+// `Saturation`: the output state cannot pass the end stop.
+struct SaturationConsts {
+    bound: f32,
+}
+
+fn saturation_prepare(q: SaturationParams, frame: Frame) -> SaturationConsts {
+    return SaturationConsts(end_stop(q.l_max, frame));
+}
+
+fn saturation_step(c: SaturationConsts, xk: ptr<function, f32>, a_eff: ptr<function, f32>, at: At) {
+    *xk = clip(*xk, c.bound, at.frame);
+}
+
+// `OutputClip`: the end stop on the predicted output only (the state runs
+// on).
+struct OutputClipConsts {
+    bound: f32,
+}
+
+fn output_clip_prepare(q: OutputClipParams, frame: Frame) -> OutputClipConsts {
+    return OutputClipConsts(end_stop(q.l_max, frame));
+}
+
+fn output_clip_step(c: OutputClipConsts, y: f32, ui: f32, xk: f32, at: At) -> f32 {
+    return clip(y, c.bound, at.frame);
+}
+
+// `SoftStop`: the end stop as a smooth knee on the output state.
+struct SoftStopConsts {
+    bound: f32,
+}
+
+fn soft_stop_prepare(q: SoftStopParams, frame: Frame) -> SoftStopConsts {
+    return SoftStopConsts(end_stop(q.l_max, frame));
+}
+
+fn soft_stop_step(c: SoftStopConsts, xk: ptr<function, f32>, a_eff: ptr<function, f32>, at: At) {
+    *xk = soft_stop(*xk, c.bound, at.frame);
+}
+
+// ---- stages/rate.rs --------------------------------------------------------
+
+// `Rate`: A_eff = A·(1 + η·|u(k−1) − u(k−2)|/dt).
+alias RateConsts = RateParams;
+
+fn rate_prepare(q: RateParams, frame: Frame) -> RateConsts {
+    return q;
+}
+
+fn rate_step(c: RateConsts, xk: ptr<function, f32>, a_eff: ptr<function, f32>, at: At) {
+    let prev = input_before(at);
+    *a_eff = rounded(*a_eff * (1.0 + rounded(c.eta * rounded(abs(at.raw - prev) * at.frame.inv_dt))));
+}
+
+// ---- stages/creep.rs -------------------------------------------------------
+// Slow first-order states added to the output, each starting at z0 (where
+// the record's history left it); a restart takes the output state from the
+// measurement less the slow states, which creep on.
+
+// `tenth_power`: ρ^10 by products.
+fn tenth_power(rho: f32) -> f32 {
+    let p2 = rounded(rho * rho);
+    let p4 = rounded(p2 * p2);
+    return rounded(rounded(p4 * p4) * p2);
+}
+
+// `Creep`: z = ρ·z + (1−ρ)·κ·u(k−1), ŷ = x + z.
+alias CreepConsts = CreepParams;
+
+fn creep_prepare(q: CreepParams, frame: Frame) -> CreepConsts {
+    return q;
+}
+
+// The slow state.
+alias CreepState = f32;
+
+fn creep_start(c: CreepConsts, x: f32, u0: f32) -> CreepState {
+    return c.z0;
+}
+
+fn creep_step(c: CreepConsts, s: ptr<private, CreepState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
+    *s = rounded(c.rho * *s) + rounded(rounded((1.0 - c.rho) * c.kappa) * ui);
+    return y + *s;
+}
+
+fn creep_restart(s: ptr<private, CreepState>, y: f32, x: f32) -> f32 {
+    return x - *s;
+}
+
+// `OutputCreep`: z = ρ·z + (1−ρ)·κ·x, ŷ = x + z.
+alias OutputCreepConsts = OutputCreepParams;
+
+fn output_creep_prepare(q: OutputCreepParams, frame: Frame) -> OutputCreepConsts {
+    return q;
+}
+
+// The slow state.
+alias OutputCreepState = f32;
+
+fn output_creep_start(c: OutputCreepConsts, x: f32, u0: f32) -> OutputCreepState {
+    return c.z0;
+}
+
+fn output_creep_step(c: OutputCreepConsts, s: ptr<private, OutputCreepState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
+    *s = rounded(c.rho * *s) + rounded(rounded((1.0 - c.rho) * c.kappa) * xk);
+    return y + *s;
+}
+
+fn output_creep_restart(s: ptr<private, OutputCreepState>, y: f32, x: f32) -> f32 {
+    return x - *s;
+}
+
+// `TwoPoleCreep`: two input-driven slow states, a faster and a slower one,
+// with gains s·κ and (1−s)·κ.
+struct TwoPoleCreepConsts {
+    rho_fast: f32,
+    kappa_fast: f32,
+    rho_slow: f32,
+    kappa_slow: f32,
+    z0: f32,
+}
+
+// The total gain split by the faster state's share.
+fn two_pole_creep_prepare(q: TwoPoleCreepParams, frame: Frame) -> TwoPoleCreepConsts {
+    let kappa_fast = rounded(q.fast_share * q.kappa);
+    return TwoPoleCreepConsts(q.rho_fast, kappa_fast, q.rho_slow, q.kappa - kappa_fast, q.z0);
+}
+
+struct TwoPoleCreepState {
+    fast: f32,
+    slow: f32,
+}
+
+fn two_pole_creep_start(c: TwoPoleCreepConsts, x: f32, u0: f32) -> TwoPoleCreepState {
+    return TwoPoleCreepState(0.0, c.z0);
+}
+
+fn two_pole_creep_step(c: TwoPoleCreepConsts, s: ptr<private, TwoPoleCreepState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
+    (*s).fast = rounded(c.rho_fast * (*s).fast) + rounded(rounded((1.0 - c.rho_fast) * c.kappa_fast) * ui);
+    (*s).slow = rounded(c.rho_slow * (*s).slow) + rounded(rounded((1.0 - c.rho_slow) * c.kappa_slow) * ui);
+    let v = y + (*s).fast;
+    return v + (*s).slow;
+}
+
+fn two_pole_creep_restart(s: ptr<private, TwoPoleCreepState>, y: f32, x: f32) -> f32 {
+    return (x - (*s).fast) - (*s).slow;
+}
+
+// `LogCreep`: three input-driven slow states a decade apart in time
+// constant (poles ρ^100, ρ^10, ρ), each of static gain κ.
+struct LogCreepConsts {
+    // The poles and input weights (1 − ρ)·κ, fastest first.
+    rho_fast: f32,
+    w_fast: f32,
+    rho_mid: f32,
+    w_mid: f32,
+    rho_slow: f32,
+    w_slow: f32,
+    z0: f32,
+}
+
+fn log_creep_prepare(q: LogCreepParams, frame: Frame) -> LogCreepConsts {
+    let rho_slow = q.rho;
+    let rho_mid = tenth_power(rho_slow);
+    let rho_fast = tenth_power(rho_mid);
+    return LogCreepConsts(rho_fast, rounded((1.0 - rho_fast) * q.kappa), rho_mid,
+        rounded((1.0 - rho_mid) * q.kappa), rho_slow, rounded((1.0 - rho_slow) * q.kappa), q.z0);
+}
+
+// The terms, fastest first.
+struct LogCreepState {
+    fast: f32,
+    mid: f32,
+    slow: f32,
+}
+
+fn log_creep_start(c: LogCreepConsts, x: f32, u0: f32) -> LogCreepState {
+    return LogCreepState(0.0, 0.0, c.z0);
+}
+
+fn log_creep_step(c: LogCreepConsts, s: ptr<private, LogCreepState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
+    (*s).fast = rounded(c.rho_fast * (*s).fast) + rounded(c.w_fast * ui);
+    (*s).mid = rounded(c.rho_mid * (*s).mid) + rounded(c.w_mid * ui);
+    (*s).slow = rounded(c.rho_slow * (*s).slow) + rounded(c.w_slow * ui);
+    let v = (y + (*s).fast) + (*s).mid;
+    return v + (*s).slow;
+}
+
+fn log_creep_restart(s: ptr<private, LogCreepState>, y: f32, x: f32) -> f32 {
+    return ((x - (*s).fast) - (*s).mid) - (*s).slow;
 }

@@ -5,20 +5,24 @@
 //! A pipeline's WGSL is assembled from the model description
 //! ([`shader_source`]: a generated header, `shaders/prologue.wgsl`, one file
 //! per family, `driver.wgsl` or, with effect stages, `effects.wgsl`, and
-//! `entry.wgsl`); it spells the operations of `src/model/sim.rs` and
-//! `src/model/effects/step.rs` in the same order. On an unfused f32
+//! `entry.wgsl`; with effect stages the header holds what `stages`
+//! generates from the catalogue and its step order); it spells the
+//! operations of `src/model/sim.rs` and `src/model/effects/` in the same
+//! order. `tests/wgsl_variants.rs` validates every source it assembles
+//! with naga, without a GPU. On an unfused f32
 //! implementation (Mesa's lavapipe) the `n = 1` scores are bit-identical to
 //! the CPU's; a real GPU may fuse `a·b + c` into an fma, so there compare
 //! within a tolerance and compare rankings (`mckibben bench` reports both).
 
 pub mod host;
+mod stages;
 
 pub use host::{GpuOptions, adapters, describe_adapter, is_hardware};
 use host::{Host, Kernel, Output, best_adapter};
 
 use super::{Evaluator, Problem, Scores, to_f32};
 use crate::model::Family;
-use crate::model::effects::{Augmented, Context as EffectContext, Effect, Params};
+use crate::model::effects::Context as EffectContext;
 
 /// The bindings every pipeline of the host declares (`host::Host`), the
 /// muscle models' and the benchmark oscillator's (`benchmark::evaluator`).
@@ -67,22 +71,15 @@ pub fn shader_source(problem: &Problem, n_one: bool, residuals: bool) -> String 
     )
 }
 
-/// The constants of `shaders/effects.wgsl`: which effects are present,
-/// the loader of their parameters ([`effect_params_loader`]), and each
-/// experiment's constants
-/// as [`crate::model::effects::Augmented::prepare`] rounds them to `f32`
+/// The header of `shaders/effects.wgsl`: the WGSL generated from the
+/// model description ([`stages::source`]: the realisations' parameter
+/// structs, the loads of the present ones' parameters and the calls of
+/// their stages in the step order), and each experiment's constants as
+/// [`crate::model::effects::Augmented::prepare`] rounds them to `f32`
 /// (written in Rust's shortest round-trip form, which the WGSL compiler
 /// reads back to the same bits).
 fn effects_header(problem: &Problem) -> String {
-    let model = problem.model();
-    let mut h = String::new();
-    for effect in Effect::ALL {
-        let name = effect.ident();
-        let has = model.offset_of(effect).is_some();
-        h.push_str(&format!("const HAS_{name}: bool = {has};\n"));
-    }
-    h.push_str(&effect_params_loader(&model));
-    let array = private_array;
+    let mut h = stages::source(&problem.model());
     let float = |f: &dyn Fn(&EffectContext) -> f32| {
         problem
             .contexts
@@ -90,20 +87,20 @@ fn effects_header(problem: &Problem) -> String {
             .map(|c| float_literal(f(c)))
             .collect::<Vec<_>>()
     };
-    h.push_str(&array("U_MEAN", "f32", float(&|c| c.u_mean as f32)));
-    h.push_str(&array("Y_MEAN", "f32", float(&|c| c.y_mean as f32)));
-    h.push_str(&array("BRANCH_TOL", "f32", float(&|c| c.branch_tol as f32)));
-    h.push_str(&array("INV_DT", "f32", float(&|c| (1.0 / c.dt) as f32)));
-    h.push_str(&array("KNEE_H", "f32", float(&|c| c.knee()[0])));
-    h.push_str(&array("KNEE_2H", "f32", float(&|c| c.knee()[1])));
-    h.push_str(&array("KNEE_INV_4H", "f32", float(&|c| c.knee()[2])));
-    h.push_str(&array("REST", "f32", float(&|c| c.rest_input())));
+    h.push_str(&private_array("U_MEAN", "f32", float(&|c| c.u_mean as f32)));
+    h.push_str(&private_array("Y_MEAN", "f32", float(&|c| c.y_mean as f32)));
+    h.push_str(&private_array("BRANCH_TOL", "f32", float(&|c| c.branch_tol as f32)));
+    h.push_str(&private_array("INV_DT", "f32", float(&|c| (1.0 / c.dt) as f32)));
+    h.push_str(&private_array("KNEE_H", "f32", float(&|c| c.knee()[0])));
+    h.push_str(&private_array("KNEE_2H", "f32", float(&|c| c.knee()[1])));
+    h.push_str(&private_array("KNEE_INV_4H", "f32", float(&|c| c.knee()[2])));
+    h.push_str(&private_array("REST", "f32", float(&|c| c.rest_input())));
     let up = problem
         .contexts
         .iter()
         .map(|c| c.drives_up.to_string())
         .collect();
-    h.push_str(&array("DRIVES_UP", "bool", up));
+    h.push_str(&private_array("DRIVES_UP", "bool", up));
     h
 }
 
@@ -121,51 +118,6 @@ fn private_array(name: &str, ty: &str, values: Vec<String>) -> String {
 /// WGSL compiler reads back to the same bits).
 fn float_literal(v: f32) -> String {
     format!("{v:?}f")
-}
-
-/// The WGSL that loads every realisation's parameters, generated from the
-/// catalogue (`Effect::params`): a struct `EffectParams` with a field
-/// `<realisation>_<parameter>` for every parameter of every realisation
-/// (`creep_two_pole_rho_fast`; a per-dataset parameter once, `load_g`,
-/// the experiment's own), and `load_effect_params(p, e)`, which fills the
-/// fields of `model`'s effects from row `p` on experiment `e` and leaves the
-/// others 0. `shaders/effects.wgsl` holds only each realisation's arithmetic.
-fn effect_params_loader(model: &Augmented) -> String {
-    let field = |e: Effect, param: &str| format!("{}_{param}", e.ident().to_ascii_lowercase());
-    let mut fields = String::new();
-    let mut loads = String::new();
-    for e in Effect::ALL {
-        let at = model.offset_of(e);
-        match e.entry().params {
-            Params::Fixed(list) => {
-                for (j, (name, _)) in list.iter().enumerate() {
-                    fields.push_str(&format!("    {}: f32,\n", field(e, name)));
-                    if let Some(at) = at {
-                        loads.push_str(&format!(
-                            "    q.{} = params[p + {}u];\n",
-                            field(e, name),
-                            at + j
-                        ));
-                    }
-                }
-            }
-            // Dataset 0 is the reference: its parameter is 0.
-            Params::PerLaterDataset { name, .. } => {
-                fields.push_str(&format!("    {}: f32,\n", field(e, name)));
-                if let Some(at) = at {
-                    loads.push_str(&format!(
-                        "    if (e >= 1u) {{\n        q.{} = params[p + {at}u + e - 1u];\n    }}\n",
-                        field(e, name)
-                    ));
-                }
-            }
-        }
-    }
-    format!(
-        "struct EffectParams {{\n{fields}}}\n\n\
-         fn load_effect_params(p: u32, e: u32) -> EffectParams {{\n    \
-         var q: EffectParams;\n{loads}    return q;\n}}\n"
-    )
 }
 
 /// Scores populations on a wgpu device.

@@ -3,14 +3,18 @@
 //! are generated or looked up (`table.rs`), and the step order, which
 //! places each realisation's CPU stage (`stages/`) in the step
 //! (`stage.rs`). Its GPU stage is in `shaders/effects.wgsl`, the CPU
-//! stage's twin, which the bit-identity tests keep equal.
+//! stage's twin, named after it and called in the same order (the calls
+//! are generated from the step order: `eval::gpu::stages`), which the
+//! bit-identity tests keep equal.
 //!
 //! (Over 400 lines: twenty entries of about twenty lines each, the rest
 //! the helpers their sizes and admission rules share.)
 
 use super::Realisation;
 // What the step order's `stages!` names.
-use super::stage::{At, Columns, Frame, InputLoop, Lane, OutputLoop, Stage, StateLoop, stages};
+use super::stage::{
+    At, Columns, Frame, InputLoop, Lane, OutputLoop, Placed, Side, Stage, StateLoop, stages,
+};
 use super::stages::*;
 use super::table::{Params, StartHint, catalogue};
 
@@ -405,7 +409,8 @@ catalogue! {
 }
 
 // The step order: where each realisation's stage runs in
-// `Prepared::step` (`step.rs`), the order `shaders/effects.wgsl` follows.
+// `Prepared::step` (`step.rs`), and the order the GPU's step calls the
+// stages of `shaders/effects.wgsl` in (`STEP_ORDER`, `eval::gpu::stages`).
 // The input side moves the input: loops of their own, then the first
 // realisations' shared loop over the lanes, then late loops. The state
 // side moves the new output state: the shared loop with the baseline's

@@ -32,12 +32,16 @@ mod stage;
 mod stages;
 mod step;
 mod table;
-pub use catalogue::{Effect, rings};
+pub use catalogue::{Effect, STEP_ORDER, rings};
+pub use stage::Side;
 pub use step::{EffectState, Prepared};
 pub use table::{EffectBox, Params, StartHint};
 
 /// One entry of the catalogue ([`Effect::entry`]).
 pub type Realisation = table::Realisation<Effect>;
+
+/// A realisation's place in the step order ([`STEP_ORDER`]).
+pub type Placed = stage::Placed<Effect>;
 
 /// Name and meaning of one effect parameter.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -64,11 +68,6 @@ impl Effect {
     /// time): a lag's time constant, a mode's frequency and damping.
     pub fn size_text(self, params: &[f64], dt: f64) -> Option<String> {
         self.entry().size_text.map(|text| text(params, dt))
-    }
-
-    /// The name as a WGSL identifier (`shaders/effects.wgsl`'s `HAS_*`).
-    pub fn ident(self) -> String {
-        self.name().replace([':', '-'], "_").to_ascii_uppercase()
     }
 
     /// Its flag and JSON name.

@@ -175,6 +175,29 @@ pub trait Lane<const L: usize>: Stage<L> {
     fn after(_c: &Self::Consts, _s: &mut Self::State, _at: &At<'_, L>) {}
 }
 
+/// The side of the step a stage moves: the input (an [`InputLoop`] or an
+/// input [`Lane`]), the new output state and the Bouc-Wen stiffness (a
+/// [`StateLoop`] or a state [`Lane`]), or the predicted output (an
+/// [`OutputLoop`]). The WGSL step has one signature per side
+/// (`eval::gpu::stages`, `shaders/effects.wgsl`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    Input,
+    State,
+    Output,
+}
+
+/// A realisation's place in the step order, as the GPU's step is
+/// generated from it: the realisation (`E`: the catalogue's enum, as in
+/// [`super::table::Realisation`]), the side it moves, and whether its
+/// stage carries states (its [`Stage::State`] is not `()`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Placed<E> {
+    pub effect: E,
+    pub side: Side,
+    pub stateful: bool,
+}
+
 /// `a` if it is the larger (ties and NaN: `b`), spelled as in the shader.
 #[inline(always)]
 pub fn larger(a: f32, b: f32) -> f32 {
@@ -193,8 +216,10 @@ pub fn smaller(a: f32, b: f32) -> f32 {
 /// constants, `None` where the model lacks it), `States<L>` (each one's
 /// states, in this order), and on `Stages` `prepare`, `start`, the sides
 /// of the step (`input`, `state_before`, `state_lane`, `state_after`,
-/// `state`, `output`) and `restart` (the terms in this order). The types
-/// and traits of this file it names must be in scope where it is used.
+/// `state`, `output`) and `restart` (the terms in this order), and
+/// `STEP_ORDER`, the order as data ([`Placed`]), which the GPU's step is
+/// generated from. The types and traits of this file it names must be in
+/// scope where it is used.
 macro_rules! stages {
     (
         input: $($input:ident),* ;
@@ -230,6 +255,28 @@ macro_rules! stages {
             $( $state_lane: <$state_lane as Stage<L>>::State, )*
             $( $state: <$state as Stage<L>>::State, )*
             $( $output: <$output as Stage<L>>::State, )*
+        }
+
+        /// The step order as data: every realisation in the order the
+        /// step runs it, with the side it moves and whether it carries
+        /// states.
+        pub const STEP_ORDER: &[Placed<Effect>] = &[
+            $( placed::<$input>(Effect::$input, Side::Input), )*
+            $( placed::<$input_lane>(Effect::$input_lane, Side::Input), )*
+            $( placed::<$input_late>(Effect::$input_late, Side::Input), )*
+            $( placed::<$state_lane>(Effect::$state_lane, Side::State), )*
+            $( placed::<$state>(Effect::$state, Side::State), )*
+            $( placed::<$output>(Effect::$output, Side::Output), )*
+        ];
+
+        /// `effect`'s place, its stage `S` carrying states unless they
+        /// are `()`.
+        const fn placed<S: Stage<1>>(effect: Effect, side: Side) -> Placed<Effect> {
+            Placed {
+                effect,
+                side,
+                stateful: std::mem::size_of::<S::State>() != 0,
+            }
         }
 
         impl<const L: usize> Stages<L> {
