@@ -13,9 +13,6 @@
 //! glitch that sends the clock back) is rejected unless the user asks to
 //! resample it ([`Gaps::Resample`], gaps only) or to split it at the gaps
 //! and backward jumps ([`Gaps::Split`]).
-//!
-//! (Over 700 lines: the code is 690; the rest are its unit tests, one per
-//! kind of malformed input the errors must name.)
 
 use std::fmt::{self, Write as _};
 use std::path::{Path, PathBuf};

@@ -6,9 +6,6 @@
 //! ([`crate::optim::engine`]) over one objective, the model description
 //! scored in batches on the data's evaluator; what is the diagnosis' own is
 //! where each search starts and what it minimises.
-//!
-//! (Over 700 lines: the code is about 610; the rest are its unit tests, which
-//! pin the polish's two guarantees and the bounded-loop admission.)
 
 use nalgebra::DVector;
 use rand::{RngExt, SeedableRng};

@@ -11,11 +11,6 @@
 //! coordinates, free run from `x(0) = y(0) + x₀`, `w(0) = 0`), in `f64`.
 //! Every realisation has one size whose value 0 reproduces the nominal
 //! output exactly (it adds `+0`, multiplies by `1` or never binds).
-//!
-//! (Over 700 lines: the eighteen realisations are kept in one step function,
-//! so that they are read against each other and against the plant; the last
-//! 150 lines are unit tests, one of them the neutral size of every
-//! realisation.)
 
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;

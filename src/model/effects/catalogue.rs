@@ -6,9 +6,6 @@
 //! stage's twin, named after it and called in the same order (the calls
 //! are generated from the step order: `eval::gpu::stages`), which the
 //! bit-identity tests keep equal.
-//!
-//! (Over 400 lines: twenty entries of about twenty lines each, the rest
-//! the helpers their sizes and admission rules share.)
 
 use super::Realisation;
 // What the step order's `stages!` names.

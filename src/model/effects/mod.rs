@@ -16,8 +16,7 @@
 //! entry up. The lane-wise step, [`Prepared::step`] in `step.rs`, is the
 //! one definition every backend follows (docs/ARCHITECTURE.md, "The model
 //! description"); each realisation's part of it is its stage in `stages/`
-//! (`stage.rs` says what a stage is), placed by the catalogue's step order. (Over 400 lines: the unit tests, which check every
-//! realisation's neutral value against the baseline bit for bit.)
+//! (`stage.rs` says what a stage is), placed by the catalogue's step order.
 
 use std::fmt;
 use std::str::FromStr;
