@@ -32,7 +32,7 @@ const CONTRACTS: [&str; 12] = [
     "diagnose-self-test-catalogue",
     "control",
     "bench",
-    "benchmark-boucwen",
+    "validate-boucwen",
     "static",
 ];
 
@@ -589,16 +589,16 @@ fn bench() {
 }
 
 #[test]
-fn benchmark_boucwen() {
+fn validate_boucwen() {
     let data = mckibben::benchmark::default_data_dir();
     if !data.join("train_multisine.csv").is_file() {
         common::skip_or_fail(&format!("no Bouc-Wen benchmark data in {}", data.display()));
         return;
     }
     check(
-        "benchmark-boucwen",
+        "validate-boucwen",
         &[
-            "benchmark",
+            "validate",
             "boucwen",
             "--backend",
             "cpu",
@@ -610,6 +610,37 @@ fn benchmark_boucwen() {
             "0",
             "--json",
         ],
+    );
+}
+
+/// `benchmark`, `validate`'s name before 0.2, still runs the command, with
+/// a note that names the new one; `validate` gives no such note.
+#[test]
+fn the_old_benchmark_name_runs_validate_with_a_note() {
+    let missing = std::env::temp_dir().join("mckibben-no-such-benchmark-dir");
+    let run = |command: &str| {
+        let out = Command::new(BIN)
+            .args([command, "boucwen", "--data"])
+            .arg(&missing)
+            .output()
+            .unwrap();
+        assert!(
+            !out.status.success(),
+            "{command}: no data, yet it succeeded"
+        );
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let (old, new) = (run("benchmark"), run("validate"));
+    let note =
+        "`mckibben benchmark` is deprecated and will be removed; it is now `mckibben validate`";
+    assert!(old.contains(note), "{old}");
+    assert!(!new.contains("deprecated"), "{new}");
+    // Past the note, the same command with the same error.
+    assert_eq!(
+        old.lines()
+            .filter(|l| !l.contains(note))
+            .collect::<Vec<_>>(),
+        new.lines().collect::<Vec<_>>()
     );
 }
 

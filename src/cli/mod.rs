@@ -1,7 +1,6 @@
 //! Argument parsing and the dispatch to each command.
 
 mod bench;
-mod benchmark;
 mod common;
 mod compare;
 mod control;
@@ -11,6 +10,7 @@ mod identify;
 mod simulate;
 mod static_force;
 mod twin;
+mod validate;
 
 use clap::{Parser, Subcommand};
 
@@ -56,7 +56,11 @@ pub enum Command {
     #[command(about = "Time the batch evaluator on the CPU and GPU and check that they agree")]
     Bench(bench::Args),
     #[command(about = "Validate on a public benchmark with published results (Bouc-Wen)")]
-    Benchmark(benchmark::Args),
+    Validate(validate::Args),
+    /// `validate`'s name before 0.2 (too close to `bench`): still runs, with
+    /// a deprecation note.
+    #[command(hide = true)]
+    Benchmark(validate::Args),
     #[command(about = "The static force model (eq. 7 and 9) against braid angle or muscle length")]
     Static(static_force::Args),
 }
@@ -71,7 +75,14 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Control(args) => control::run(args),
         Command::Twin(args) => twin::run(args),
         Command::Bench(args) => bench::run(args),
-        Command::Benchmark(args) => benchmark::run(args),
+        Command::Validate(args) => validate::run(args),
+        Command::Benchmark(args) => {
+            eprintln!(
+                "mckibben: note: `mckibben benchmark` is deprecated and will be removed; \
+                 it is now `mckibben validate` (same arguments)"
+            );
+            validate::run(args)
+        }
         Command::Static(args) => static_force::run(args),
     }
 }

@@ -1,4 +1,5 @@
-//! `mckibben benchmark`: validation on public benchmarks with published results.
+//! `mckibben validate`: validation on public benchmarks with published results
+//! (`mckibben benchmark` before 0.2, still accepted).
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -32,7 +33,7 @@ enum Which {
 /// then report the simulation RMSE (metres) on the official multisine and
 /// sine-sweep test sets beside the published results.
 ///
-/// Example: `mckibben benchmark boucwen --json`
+/// Example: `mckibben validate boucwen --json`
 #[derive(Debug, clap::Args)]
 struct BoucwenArgs {
     /// Folder with train_multisine.csv, test_multisine.csv and

@@ -1,5 +1,5 @@
 //! The fitting engine: the one run loop every command fits parameters with
-//! (`fit`, `compare`, `diagnose`, `benchmark boucwen`, the PID tuning).
+//! (`fit`, `compare`, `diagnose`, `validate boucwen`, the PID tuning).
 //!
 //! A fit is a [`Plan`] — a global population search, a free-run stage and a
 //! Levenberg–Marquardt polish, each optional (see [`plan`] for why) — run
