@@ -119,6 +119,7 @@ class FitResult:
     start_sse: float | None
     start_val_fit_percent: float | None
     built: dict[str, float | bool] | None
+    switching: dict[str, float | bool] | None
     evaluations: int
     generations: int
     seconds: float
@@ -153,6 +154,7 @@ def fit(
     *,
     free_n: bool = False,
     loop: Literal["bounded", "free"] = "bounded",
+    switch: Literal["starts", "search", "mean", "zero"] = "starts",
     thesis_flow: bool = False,
     target_sse: float | None = None,
     time_budget: float | None = None,

@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use serde::Serialize;
 
 use mckibben::eval::Backend;
-use mckibben::model::{Family, Loop};
+use mckibben::model::{Family, Loop, Switching};
 use mckibben::optim::Algorithm;
 
 /// The values of a numeric array in C order, with its shape.
@@ -191,6 +191,12 @@ pub fn backend(name: &str) -> PyResult<Backend> {
 /// A loop class by name (`bounded`, `free`).
 pub fn loop_shape(name: &str) -> PyResult<Loop> {
     choice(name, "loop")
+}
+
+/// Where a generalized fit's sign terms switch (`starts`, `search`,
+/// `mean`, `zero`), as `fit --switch`.
+pub fn switching(name: &str) -> PyResult<Switching> {
+    choice(name, "switch")
 }
 
 /// `value` as the Python objects `json.loads` makes of its JSON (what

@@ -12,7 +12,7 @@ use pyo3::types::{PyDict, PyList};
 use mckibben::diagnose::StopFlag;
 use mckibben::diagnose::chain::with_chain_start;
 use mckibben::model::effects::Effect;
-use mckibben::model::{ModelFile, Switching, UserBound};
+use mckibben::model::{ModelFile, UserBound};
 use mckibben::optim::edge::active_bounds;
 use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
 use mckibben::optim::engine::{Observer, StopReason, StopRules};
@@ -20,8 +20,8 @@ use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides, model_file, yard
 use mckibben::optim::history::{GenerationRecord, History};
 
 use crate::convert::{
-    algorithm, backend, family, file_error, in_python_terms, loop_shape, runtime_error, to_python,
-    value_error,
+    algorithm, backend, family, file_error, in_python_terms, loop_shape, runtime_error, switching,
+    to_python, value_error,
 };
 use crate::data::data_arg;
 use crate::diagnose::interruptible;
@@ -53,6 +53,10 @@ pub struct FitResult {
     /// chain built one effect at a time (`scratch_sse`, `chain_sse`,
     /// `kept_chain`); `None` otherwise.
     built: Option<Py<PyAny>>,
+    /// A generalized fit under the default `switch="starts"`: both starts'
+    /// estimation SSEs and which was kept (`mean_sse`, `zero_sse`,
+    /// `kept_zero`; `fit --json`'s `switching`); `None` otherwise.
+    switching: Option<Py<PyAny>>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -304,8 +308,8 @@ fn history_arrays<'py>(
 #[pyo3(signature = (
     u, y = None, dt = None, model = None, effects = None, algo = "de", pop = None,
     gens = None, seed = 1, backend = "cpu", bounds = None, progress = None, *,
-    free_n = false, r#loop = "bounded", thesis_flow = false, target_sse = None,
-    time_budget = None, stall = None, start = None
+    free_n = false, r#loop = "bounded", switch = "starts", thesis_flow = false,
+    target_sse = None, time_budget = None, stall = None, start = None
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
@@ -324,6 +328,7 @@ pub fn fit(
     progress: Option<Py<PyAny>>,
     free_n: bool,
     r#loop: &str,
+    switch: &str,
     thesis_flow: bool,
     target_sse: Option<f64>,
     time_budget: Option<f64>,
@@ -363,7 +368,7 @@ pub fn fit(
         effects,
         free_n,
         loop_shape: loop_shape(r#loop)?,
-        switching: Switching::default(),
+        switching: switching(switch)?,
         bounds: all_bounds,
     };
     if let Some(p) = progress.as_ref()
@@ -439,6 +444,7 @@ pub fn fit(
     let (outcome, widened) = ran;
     let start = fit.start_scores();
     let built = fit.built;
+    let switched = fit.switched;
     let Fit { task, engine, .. } = fit;
     let found = !outcome.params.is_empty();
     let val = found.then(|| task.validate(&outcome.params));
@@ -484,6 +490,10 @@ pub fn fit(
             .map(|b| to_python(py, &b))
             .transpose()?
             .map(|b| b.unbind()),
+        switching: switched
+            .map(|s| to_python(py, &s))
+            .transpose()?
+            .map(|s| s.unbind()),
         evaluations: outcome.evaluations,
         generations: outcome.generations,
         seconds: outcome.seconds,

@@ -9,6 +9,7 @@ the GPU checks) fails the test instead of skipping it, as the Rust tests do
 import json
 import os
 import pathlib
+import signal
 import subprocess
 
 import pytest
@@ -25,6 +26,17 @@ def missing(what):
     if IN_CI:
         pytest.fail(f"CI=true but {what}")
     pytest.skip(f"SKIP: {what}")
+
+
+@pytest.fixture
+def sigint_raises():
+    """SIGINT raises KeyboardInterrupt for the test, as at an interactive
+    prompt. Python leaves SIGINT ignored when its parent ignored it (a
+    shell's background job does), and a Ctrl-C test would then see no
+    Ctrl-C at all."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
 
 
 @pytest.fixture(scope="session")

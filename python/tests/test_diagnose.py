@@ -87,7 +87,7 @@ def test_diagnose_from_a_model_is_the_commands_diagnose_from(stair, cli, tmp_pat
     assert doc["final"] == expected["final"] and doc["given"] == expected["given"]
 
 
-def test_ctrl_c_stops_a_diagnosis(stair):
+def test_ctrl_c_stops_a_diagnosis(stair, sigint_raises):
     # Uninterrupted, these candidate fits take minutes (200 s on two cores).
     timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
     started = time.monotonic()

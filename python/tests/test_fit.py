@@ -70,6 +70,22 @@ def test_fit_with_effects_gives_the_commands_parameters_and_file(stair, cli, tmp
     assert provenance["data"][0]["file"] == stair.source and provenance["data"][0]["sha256"]
 
 
+def test_a_generalized_fit_switches_as_the_command(stair, cli, tmp_path):
+    small = ["--pop", "40", "--gens", "10", "--seed", "2", "--backend", "cpu", "--model", "generalized"]
+    for switch in ("starts", "zero"):
+        expected = cli("fit", stair.source, *small, "--switch", switch, "--out", tmp_path / switch)
+        result = mckibben.fit(stair, model="generalized", pop=40, gens=10, seed=2, switch=switch)
+        assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
+        assert result.switching == expected.get("switching")
+    # The default runs both starts and says which it kept; one held level runs one.
+    default = mckibben.fit(stair, model="generalized", pop=40, gens=10, seed=2)
+    assert set(default.switching) == {"mean_sse", "zero_sse", "kept_zero"}
+    s = default.switching
+    assert s["kept_zero"] == (s["zero_sse"] < s["mean_sse"])
+    with pytest.raises(ValueError, match="unknown switch `middle`: expected one of starts, search, mean, zero"):
+        mckibben.fit(stair, model="generalized", pop=40, gens=10, switch="middle")
+
+
 def test_a_warm_start_is_the_commands_fit_from(stair, cli, small_fit, tmp_path):
     start = tmp_path / "start.json"
     small_fit.model.save(start)
@@ -113,7 +129,7 @@ def test_an_exception_in_progress_stops_the_fit_and_is_raised(stair):
         mckibben.fit(stair, pop=40, gens=50, progress=fail)
 
 
-def test_ctrl_c_returns_the_best_so_far_marked_interrupted(stair):
+def test_ctrl_c_returns_the_best_so_far_marked_interrupted(stair, sigint_raises):
     seen = []
 
     def interrupt_once(record):
@@ -129,7 +145,7 @@ def test_ctrl_c_returns_the_best_so_far_marked_interrupted(stair):
     assert result.generations < 100
 
 
-def test_a_sigint_from_another_thread_interrupts_too(stair):
+def test_a_sigint_from_another_thread_interrupts_too(stair, sigint_raises):
     timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
     timer.start()
     try:
@@ -205,7 +221,7 @@ def test_a_fixed_parameter_stays_fixed(stair):
     assert result.params["alpha"] == 0.5
 
 
-def test_ctrl_c_while_the_chain_is_built_raises(stair):
+def test_ctrl_c_while_the_chain_is_built_raises(stair, sigint_raises):
     # Ten stairs end to end: the fit takes about 8 s on two cores, most of it
     # building the chain, and it has nothing to return before the chain is built.
     long = mckibben.Trace(np.tile(stair.input, 10), np.tile(stair.output, 10), stair.dt)
