@@ -87,14 +87,15 @@ fn effects_header(problem: &Problem) -> String {
             .map(|c| float_literal(f(c)))
             .collect::<Vec<_>>()
     };
-    h.push_str(&private_array("U_MEAN", "f32", float(&|c| c.u_mean as f32)));
-    h.push_str(&private_array("Y_MEAN", "f32", float(&|c| c.y_mean as f32)));
-    h.push_str(&private_array("BRANCH_TOL", "f32", float(&|c| c.branch_tol as f32)));
-    h.push_str(&private_array("INV_DT", "f32", float(&|c| (1.0 / c.dt) as f32)));
-    h.push_str(&private_array("KNEE_H", "f32", float(&|c| c.knee()[0])));
-    h.push_str(&private_array("KNEE_2H", "f32", float(&|c| c.knee()[1])));
-    h.push_str(&private_array("KNEE_INV_4H", "f32", float(&|c| c.knee()[2])));
-    h.push_str(&private_array("REST", "f32", float(&|c| c.rest_input())));
+    let f32s = |name: &str, values| private_array(name, "f32", values);
+    h.push_str(&f32s("U_MEAN", float(&|c| c.u_mean as f32)));
+    h.push_str(&f32s("Y_MEAN", float(&|c| c.y_mean as f32)));
+    h.push_str(&f32s("BRANCH_TOL", float(&|c| c.branch_tol as f32)));
+    h.push_str(&f32s("INV_DT", float(&|c| (1.0 / c.dt) as f32)));
+    h.push_str(&f32s("KNEE_H", float(&|c| c.knee()[0])));
+    h.push_str(&f32s("KNEE_2H", float(&|c| c.knee()[1])));
+    h.push_str(&f32s("KNEE_INV_4H", float(&|c| c.knee()[2])));
+    h.push_str(&f32s("REST", float(&|c| c.rest_input())));
     let up = problem
         .contexts
         .iter()
