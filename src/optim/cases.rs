@@ -234,42 +234,9 @@ impl Case {
         )
     }
 
-    /// The truth polished on the estimation data (Levenberg–Marquardt on
-    /// the free run, as the fit's last stage, from the truth itself): the
-    /// optimum the data make of the truth's basin, and its estimation SSE.
+    /// The truth polished on the estimation data ([`polished_truth`]).
     pub fn polished_truth(&self, evaluator: &mut dyn Evaluator) -> anyhow::Result<(Vec<f64>, f64)> {
-        let task = self.task();
-        let plan = Plan {
-            global: None,
-            free_run: None,
-            polish: Some(Polish {
-                starts: 1,
-                longest: task.estimation().len(),
-                ..Polish::default()
-            }),
-        };
-        // A box around the truth, which the fit's box need not hold: `A`,
-        // `n` and the switching level held (the gauge, n = 1, and the
-        // truth's own kind of switching: a level only moves the loss where
-        // it passes a sample, so no derivative would move it anyway), `α`
-        // over its range, the rest ten times the truth's size either way.
-        let names: Vec<String> = task.family.params().iter().map(|p| p.name.into()).collect();
-        let (mut lower, mut upper): (Vec<f64>, Vec<f64>) = self
-            .truth
-            .iter()
-            .map(|&v| (v - 10.0 * v.abs() - 1.0, v + 10.0 * v.abs() + 1.0))
-            .unzip();
-        let ni = task.family.exponent_index().expect("hysteretic");
-        for i in [0, ni].into_iter().chain(task.family.switch_index()) {
-            (lower[i], upper[i]) = (self.truth[i], self.truth[i]);
-        }
-        (lower[1], upper[1]) = (0.0, 1.0);
-        let space = Space::new(lower, upper, names);
-        let mut engine =
-            Engine::new(plan, space, 1, StopRules::default())?.with_initial(&self.truth);
-        let mut objective = ModelObjective::for_task(evaluator, &task);
-        let outcome = engine.run(&mut objective, &mut [], None, None)?;
-        Ok((outcome.params, outcome.sse))
+        polished_truth(&self.task(), &self.truth, evaluator)
     }
 
     /// Judges a fit of this case: its validation RMSE over the truth's, and
@@ -304,6 +271,45 @@ impl Case {
         }
         Ok(judgement)
     }
+}
+
+/// `truth` polished on `task`'s estimation data (Levenberg–Marquardt on
+/// the free run, as the fit's last stage, from the truth itself): the
+/// optimum the data make of the truth's basin, and its estimation SSE.
+pub fn polished_truth(
+    task: &Task,
+    truth: &[f64],
+    evaluator: &mut dyn Evaluator,
+) -> anyhow::Result<(Vec<f64>, f64)> {
+    let plan = Plan {
+        global: None,
+        free_run: None,
+        polish: Some(Polish {
+            starts: 1,
+            longest: task.estimation().len(),
+            ..Polish::default()
+        }),
+    };
+    // A box around the truth, which the fit's box need not hold: `A`, `n`
+    // and the switching level held (the gauge, n = 1, and the truth's own
+    // kind of switching: a level only moves the loss where it passes a
+    // sample, so no derivative would move it anyway), `α` over its range,
+    // the rest ten times the truth's size either way.
+    let names: Vec<String> = task.family.params().iter().map(|p| p.name.into()).collect();
+    let (mut lower, mut upper): (Vec<f64>, Vec<f64>) = truth
+        .iter()
+        .map(|&v| (v - 10.0 * v.abs() - 1.0, v + 10.0 * v.abs() + 1.0))
+        .unzip();
+    let ni = task.family.exponent_index().expect("hysteretic");
+    for i in [0, ni].into_iter().chain(task.family.switch_index()) {
+        (lower[i], upper[i]) = (truth[i], truth[i]);
+    }
+    (lower[1], upper[1]) = (0.0, 1.0);
+    let space = Space::new(lower, upper, names);
+    let mut engine = Engine::new(plan, space, 1, StopRules::default())?.with_initial(truth);
+    let mut objective = ModelObjective::for_task(evaluator, task);
+    let outcome = engine.run(&mut objective, &mut [], None, None)?;
+    Ok((outcome.params, outcome.sse))
 }
 
 /// The validation RMSE ratio (fit over truth) at which a case passes.
