@@ -12,7 +12,7 @@ use mckibben::data::csv::{Gaps, ReadOptions, read_traces};
 use mckibben::diagnose::{Diagnosis, Settings, diagnose};
 use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::model::experiment::halves;
-use mckibben::model::{Family, Loop};
+use mckibben::model::{Family, Loop, Switching};
 use mckibben::optim::fit::{Fit, FitBox, FitSettings};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -165,6 +165,7 @@ fn fit_never_reads_its_validation_half() {
                 effects: chain.clone(),
                 free_n: false,
                 loop_shape: Loop::Bounded,
+                switching: Switching::default(),
                 bounds: Vec::new(),
             };
             let settings = FitSettings {

@@ -265,7 +265,19 @@ fn the_guide_runs_as_written() {
         } else if s.starts_with("mckibben diagnose") {
             assert!(out.contains("on data/logger_example.csv[1], data/logger_example.csv[2]"));
             let baseline = out.lines().find(|l| l.starts_with("Baseline:")).unwrap();
-            assert!(number_after(baseline, ", fit") > 80.0, "{baseline}");
+            assert!(number_after(baseline, "test fit") > 80.0, "{baseline}");
+            // The chosen effects lift the fit on the test part, which no
+            // choice saw, not only on the selection part that chose them.
+            let last = out
+                .lines()
+                .take_while(|l| !l.starts_with("HOW SURE"))
+                .filter(|l| l.trim_start().starts_with('+'))
+                .last()
+                .unwrap_or_else(|| panic!("no effect in HOW FAR:\n{out}"));
+            assert!(
+                number_after(last, "test") > number_after(baseline, "test fit"),
+                "{last}\n{baseline}"
+            );
             for f in ["diagnose_fit.svg", "diagnose_residual.svg"] {
                 assert!(root.join("out/guide/diagnose").join(f).exists(), "{f}");
             }
