@@ -9,12 +9,15 @@
 #     at N = 1e5, 1e6, 4e6 for the classic model, the generalized model and
 #     the classic model with effect stages (creep, delay, saturation), and the
 #     CPU path on the same populations (the speed-up is CPU median / GPU
-#     median);
+#     median), end to end and, from the device's timestamps, the kernels
+#     alone;
 #   - CPU/GPU agreement on each population: the largest relative SSE
 #     difference and whether the best 100 candidates rank alike;
 #   - a staged fit (`mckibben fit`, classic) at N = 1e5 and 1e6 on both
 #     backends: wall time, final SSE, validation fit %, and whether the two
-#     backends end on the same parameters.
+#     backends end on the same parameters;
+#   - the default `mckibben diagnose` on both backends: wall time, verdict,
+#     and whether the two JSON documents are byte-identical.
 # It prints the tables on stdout (and writes them to --out) and takes under
 # 8 minutes on one H100/H200 with 16 CPU cores (docs/PERFORMANCE.md).
 #
@@ -151,7 +154,8 @@ md="$work/table.md"
     echo "- data: $(basename "$data") ($samples samples); populations drawn with seed 1"
     echo
     echo "Evaluator (\`mckibben bench --backend gpu --time-reference --repeats $repeats --markdown\`;"
-    echo "the cpu rows are the batched CPU path on the same populations, the speed-up is CPU median / GPU median):"
+    echo "the cpu rows are the batched CPU path on the same populations, the speed-up is CPU median / GPU median;"
+    echo "\"median s\" is a whole evaluate call as a fit makes it, \"kernel\" the compute pass alone from the device's timestamps):"
     echo
 } >"$md"
 
@@ -224,6 +228,41 @@ for n in "${fit_pops[@]}"; do
             "$(json_top "$f" stop)" "$(json_top "$f" sse)" "$(json_top "$f" val_fit_percent)" \
             "$speedup" "$alike" >>"$md"
     done
+done
+
+# --- the default diagnosis on both backends --------------------------------
+if [ "$small" = 1 ]; then
+    # lavapipe takes minutes over the default diagnosis: one effect, briefly.
+    diagnose_args=(--effects delay --seeds 2 --generations 5 --scratch-seeds 0)
+else
+    diagnose_args=()
+fi
+{
+    echo
+    echo "Diagnosis (\`mckibben diagnose DATA${diagnose_args[*]:+ ${diagnose_args[*]}} --backend B --json\`):"
+    echo
+    echo "| backend | wall s | verdict | the CPU's JSON |"
+    echo "|---|---:|---|---|"
+} >>"$md"
+for backend in cpu gpu; do
+    t0=$(date +%s.%N)
+    run "diagnose on $backend" diagnose "$data" "${diagnose_args[@]}" --backend "$backend" --json
+    t1=$(date +%s.%N)
+    cp "$work/stdout" "$work/diagnose-$backend.json"
+    # The names in the top-level "verdict" array (empty: "[]" on one line).
+    verdict=$(awk '/^  "verdict": \[\]/ { exit }
+        /^  "verdict": \[/ { inside = 1; next }
+        inside && /^  \]/ { exit }
+        inside { gsub(/^ *"|",?$/, ""); printf "%s%s", sep, $0; sep = ", " }' "$work/diagnose-$backend.json")
+    if [ "$backend" = cpu ]; then
+        alike="reference"
+    elif cmp -s "$work/diagnose-cpu.json" "$work/diagnose-gpu.json"; then
+        alike="yes (byte-identical)"
+    else
+        alike="no"
+    fi
+    awk -v a="$t0" -v b="$t1" -v be="$backend" -v v="${verdict:-none}" -v s="$alike" \
+        'BEGIN { printf "| %s | %.1f | %s | %s |\n", be, b - a, v, s }' >>"$md"
 done
 
 {

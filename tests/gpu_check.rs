@@ -40,7 +40,12 @@ fn the_small_gpu_check_prints_every_row() {
     );
     let rows: Vec<Vec<&str>> = stdout
         .lines()
-        .filter(|l| l.starts_with("| ") && !l.starts_with("| model") && !l.starts_with("| N "))
+        .filter(|l| {
+            l.starts_with("| ")
+                && !l.starts_with("| model")
+                && !l.starts_with("| N ")
+                && !l.starts_with("| backend")
+        })
         .map(|l| l.trim_matches('|').split(" | ").map(str::trim).collect())
         .collect();
     let row = |cells: &[&str]| {
@@ -56,17 +61,26 @@ fn the_small_gpu_check_prints_every_row() {
         for n in ["1000", "4000"] {
             let gpu = row(&[model, n, "gpu"]);
             let cpu = row(&[model, n, "cpu"]);
-            assert_eq!(gpu.len(), 9, "{gpu:?}");
-            assert_eq!(cpu[6..], ["1×", "reference", "reference"], "{cpu:?}");
+            assert_eq!(gpu.len(), 11, "{gpu:?}");
+            // The CPU has no device clock: no kernel-only figures.
+            assert_eq!(
+                cpu[6..],
+                ["—", "—", "1×", "reference", "reference"],
+                "{cpu:?}"
+            );
             for r in [gpu, cpu] {
                 for cell in &r[3..6] {
                     let v: f64 = cell.parse().unwrap_or_else(|_| panic!("{r:?}"));
                     assert!(v.is_finite() && v > 0.0, "{r:?}");
                 }
             }
-            assert!(gpu[6].ends_with('×'), "{gpu:?}");
+            assert!(gpu[8].ends_with('×'), "{gpu:?}");
             if on_cpu_adapter {
-                assert_eq!(gpu[7..], ["0 (bit-identical)", "yes (100/100)"], "{gpu:?}");
+                // lavapipe offers timestamps: the kernels alone, within the call.
+                let kernel: f64 = gpu[7].parse().unwrap_or_else(|_| panic!("{gpu:?}"));
+                let call: f64 = gpu[5].parse().unwrap();
+                assert!(kernel > 0.0 && kernel <= call, "{gpu:?}");
+                assert_eq!(gpu[9..], ["0 (bit-identical)", "yes (100/100)"], "{gpu:?}");
             }
         }
     }
@@ -80,6 +94,25 @@ fn the_small_gpu_check_prints_every_row() {
     if on_cpu_adapter {
         assert_eq!(gpu_fit[9], "yes (bit-identical)", "{gpu_fit:?}");
         assert_eq!(gpu_fit[6..8], cpu_fit[6..8], "same SSE and fit");
+    }
+    // The diagnosis on both backends: the same verdict, and on lavapipe the
+    // same JSON to the byte.
+    let cpu_diagnosis = row(&["cpu"]);
+    let gpu_diagnosis = row(&["gpu"]);
+    assert_eq!(cpu_diagnosis.len(), 4, "{cpu_diagnosis:?}");
+    assert_eq!(cpu_diagnosis[2], gpu_diagnosis[2], "the verdicts");
+    assert!(
+        cpu_diagnosis[2] == "none"
+            || cpu_diagnosis[2]
+                .split(", ")
+                .all(|name| name.starts_with("delay")),
+        "the verdict is the names the run accepted: {cpu_diagnosis:?}"
+    );
+    if on_cpu_adapter {
+        assert_eq!(
+            gpu_diagnosis[3], "yes (byte-identical)",
+            "{gpu_diagnosis:?}"
+        );
     }
     assert!(
         stdout.contains("- adapter (wgpu): ") && stdout.contains("- CPU: "),
@@ -143,6 +176,8 @@ fn bench_scores_a_model_with_effects_and_times_the_cpu_path() {
     assert_eq!(row["agreement"]["top100_overlap"], 100);
     assert!(row["reference"]["median_s"].as_f64().unwrap() > 0.0);
     assert!(row["speedup"].as_f64().unwrap() > 0.0);
+    // The CPU has no device clock: its kernel figures are null.
+    assert!(row["kernel_median_s"].is_null() && row["kernel_candidate_samples_per_s"].is_null());
 
     // One dataset cannot carry the `load` effect; an unknown name is named.
     for (effects, want) in [("load", "needs at least two datasets"), ("bogus", "bogus")] {

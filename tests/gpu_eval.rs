@@ -384,3 +384,37 @@ fn free_exponent_agrees_within_pow_accuracy() {
         );
     }
 }
+
+/// Where the adapter offers timestamp queries (lavapipe does), every call
+/// reports its kernels' device time, summed over its parts: positive and
+/// within the call's wall time. The CPU reports none.
+#[test]
+fn the_kernels_are_timed_by_the_devices_clock() {
+    let Some(mut g) = gpu(GpuOptions {
+        max_binding_bytes: Some(128 * 12 * 4),
+        max_buffer_bytes: Some(300 * 12 * 4),
+        ..Default::default()
+    }) else {
+        return;
+    };
+    let exp = stair_experiment(300, 17);
+    let space = search_space(Family::Generalized, &exp, false);
+    let problem = Problem::new(Family::Generalized, vec![exp]);
+    for n in [100, 1000] {
+        let pop = mixed_population(&space, n, &mut ChaCha8Rng::seed_from_u64(18));
+        let start = std::time::Instant::now();
+        g.evaluate(&problem, &pop).unwrap();
+        let wall = start.elapsed().as_secs_f64();
+        let kernel = g
+            .kernel_seconds()
+            .expect("lavapipe offers timestamp queries: the kernels are timed");
+        assert!(
+            kernel > 0.0 && kernel <= wall,
+            "N = {n}: kernel {kernel} s, call {wall} s"
+        );
+    }
+    let mut c = CpuEvaluator::new();
+    let pop = mixed_population(&space, 10, &mut ChaCha8Rng::seed_from_u64(19));
+    c.evaluate(&problem, &pop).unwrap();
+    assert_eq!(c.kernel_seconds(), None);
+}

@@ -37,19 +37,23 @@ use rand_chacha::ChaCha8Rng;
 /// size (docs/JSON.md): backend ("gpu" or "cpu"),
 /// adapter, model (the family and its effects, e.g. "classic +
 /// saturation:output"), effects (names), samples, population,
-/// candidate_samples_per_s, evals_per_s, median_s, agreement
+/// candidate_samples_per_s, evals_per_s, median_s (end to end: each
+/// call as a fit makes it), kernel_median_s and
+/// kernel_candidate_samples_per_s (the kernels alone, from the device's
+/// timestamps; null on the CPU and where the adapter offers none), agreement
 /// {max_rel_diff, finiteness_mismatches, bit_identical, top10_identical,
 /// top100_identical, top100_overlap (how many of the CPU's best hundred
 /// are among the backend's best hundred)}, and with --time-reference
-/// reference {candidate_samples_per_s, evals_per_s, median_s} (the CPU
+/// reference {the same timing fields} (the CPU
 /// path timed the same way) and speedup (its median over the backend's),
 /// else null for both.
 ///
 /// --markdown prints a table for docs/PERFORMANCE.md instead: a header
 /// and, per population size, one row for the backend and (with
 /// --time-reference) one for the CPU path; columns: model, N, backend,
-/// cand-samples/s, evals/s, median s, GPU/CPU speed-up, max rel SSE diff,
-/// top-100 alike (scripts/gpu-check.sh concatenates these rows).
+/// cand-samples/s, evals/s, median s, kernel cand-samples/s, kernel
+/// median s, GPU/CPU speed-up, max rel SSE diff, top-100 alike
+/// (scripts/gpu-check.sh concatenates these rows).
 ///
 /// Examples:
 ///   mckibben bench --synthetic 4000 --backend cpu --model classic --pop 131072
@@ -99,12 +103,18 @@ pub struct Args {
     markdown: bool,
 }
 
-/// Throughput of one timed evaluator.
+/// Throughput of one timed evaluator: end to end (each `evaluate` call as
+/// a fit makes it: conversion, upload, kernels, read-back) and, where the
+/// device records timestamps, its kernels alone.
 #[derive(Debug, Clone, Copy, Serialize)]
 struct Timing {
     candidate_samples_per_s: f64,
     evals_per_s: f64,
     median_s: f64,
+    /// The median of the kernels' device time over the same calls; `None`
+    /// on the CPU and where the adapter offers no timestamp queries.
+    kernel_median_s: Option<f64>,
+    kernel_candidate_samples_per_s: Option<f64>,
 }
 
 /// The median of one warm-up call and `repeats` timed calls, and the last scores.
@@ -117,24 +127,33 @@ fn time(
     let n = population.len() / problem.dim();
     let mut scores = evaluator.evaluate(problem, population)?;
     let mut times = Vec::with_capacity(repeats as usize);
+    let mut kernel_times = Vec::with_capacity(repeats as usize);
     for _ in 0..repeats {
         let start = Instant::now();
         scores = evaluator.evaluate(problem, population)?;
         times.push(start.elapsed().as_secs_f64());
+        kernel_times.extend(evaluator.kernel_seconds());
     }
-    times.sort_by(f64::total_cmp);
-    let median = times[times.len() / 2];
+    let median = |mut t: Vec<f64>| {
+        t.sort_by(f64::total_cmp);
+        t[t.len() / 2]
+    };
+    let cand_samples = (n * problem.samples()) as f64;
+    let end_to_end = median(times);
+    let kernel = (kernel_times.len() == repeats as usize).then(|| median(kernel_times));
     let timing = Timing {
-        candidate_samples_per_s: (n * problem.samples()) as f64 / median,
-        evals_per_s: n as f64 / median,
-        median_s: median,
+        candidate_samples_per_s: cand_samples / end_to_end,
+        evals_per_s: n as f64 / end_to_end,
+        median_s: end_to_end,
+        kernel_median_s: kernel,
+        kernel_candidate_samples_per_s: kernel.map(|k| cand_samples / k),
     };
     Ok((timing, scores.total))
 }
 
 /// The markdown table's header (`--markdown`).
-const MARKDOWN_HEADER: &str = "| model | N | backend | cand-samples/s | evals/s | median s | GPU/CPU speed-up | max rel SSE diff | top-100 alike |\n\
-                               |---|---:|---|---:|---:|---:|---:|---|---|";
+const MARKDOWN_HEADER: &str = "| model | N | backend | cand-samples/s | evals/s | median s | kernel cand-samples/s | kernel median s | GPU/CPU speed-up | max rel SSE diff | top-100 alike |\n\
+                               |---|---:|---|---:|---:|---:|---:|---:|---:|---|---|";
 
 /// The markdown rows of one population size: the backend's, then the CPU
 /// reference's when it was timed.
@@ -156,9 +175,16 @@ fn markdown_rows(row: &Row) -> String {
         a.top100_overlap
     );
     let line = |backend: &str, t: &Timing, speedup: &str, diff: &str, alike: &str| {
+        let or_dash = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.3e}"));
         format!(
-            "| {} | {} | {backend} | {:.3e} | {:.3e} | {:.3e} | {speedup} | {diff} | {alike} |",
-            row.model, row.population, t.candidate_samples_per_s, t.evals_per_s, t.median_s
+            "| {} | {} | {backend} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {speedup} | {diff} | {alike} |",
+            row.model,
+            row.population,
+            t.candidate_samples_per_s,
+            t.evals_per_s,
+            t.median_s,
+            or_dash(t.kernel_candidate_samples_per_s),
+            or_dash(t.kernel_median_s)
         )
     };
     let mut out = line(

@@ -134,6 +134,13 @@ pub trait Evaluator {
         false
     }
 
+    /// The device time of the last call's kernels alone (no upload,
+    /// read-back or host work), where the device records timestamps;
+    /// `None` on the CPU and on adapters without timestamp queries.
+    fn kernel_seconds(&self) -> Option<f64> {
+        None
+    }
+
     /// Scores `population` (row-major `N × problem.dim()`).
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores>;
 

@@ -171,6 +171,86 @@ struct Uploaded {
     spans: Vec<[u32; 2]>,
 }
 
+/// The device's clock around each compute pass, where the adapter offers
+/// timestamp queries: the kernels' own time, without the uploads, the
+/// read-back and the host's work.
+struct Timestamps {
+    /// Two timestamps: the pass's beginning and its end.
+    queries: wgpu::QuerySet,
+    /// The resolved timestamps (`u64` ticks), copied to `readback`.
+    resolved: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    /// Nanoseconds per tick.
+    period_ns: f64,
+}
+
+impl Timestamps {
+    fn new(device: &wgpu::Device, queue: &wgpu::Queue) -> Self {
+        let buffer = |label, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 16,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        Timestamps {
+            queries: device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("pass timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            }),
+            resolved: buffer(
+                "resolved timestamps",
+                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: buffer(
+                "timestamp read-back",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            period_ns: f64::from(queue.get_timestamp_period()),
+        }
+    }
+
+    /// The pass's timestamp writes.
+    fn writes(&self) -> wgpu::ComputePassTimestampWrites<'_> {
+        wgpu::ComputePassTimestampWrites {
+            query_set: &self.queries,
+            beginning_of_pass_write_index: Some(0),
+            end_of_pass_write_index: Some(1),
+        }
+    }
+
+    /// Records the copy of the pass's two timestamps for [`Timestamps::seconds`].
+    fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        encoder.resolve_query_set(&self.queries, 0..2, &self.resolved, 0);
+        encoder.copy_buffer_to_buffer(&self.resolved, 0, &self.readback, 0, 16);
+    }
+
+    /// The seconds between the pass's two timestamps, once the submit that
+    /// resolved them is done.
+    fn seconds(&self, device: &wgpu::Device) -> anyhow::Result<f64> {
+        let slice = self.readback.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .context("waiting for the GPU")?;
+        rx.recv()
+            .context("the timestamp read-back was dropped")?
+            .context("mapping the timestamp read-back")?;
+        let ticks: [u64; 2] = {
+            let view = slice.get_mapped_range().context("reading the timestamps")?;
+            let t: &[u64] = bytemuck::cast_slice(&view);
+            [t[0], t[1]]
+        };
+        self.readback.unmap();
+        Ok(ticks[1].saturating_sub(ticks[0]) as f64 * self.period_ns * 1e-9)
+    }
+}
+
 /// The uniform block of `shaders/prologue.wgsl`, one per chunk at a 256-byte stride.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -202,6 +282,11 @@ pub struct Host {
     out: Grown,
     readback: Grown,
     uploaded: Option<Uploaded>,
+    /// `None` where the adapter offers no timestamp queries.
+    timestamps: Option<Timestamps>,
+    /// The kernels' device time in the last [`Host::dispatch`] (summed over
+    /// its parts), where timestamps are offered.
+    kernel_seconds: Option<f64>,
 }
 
 impl Host {
@@ -209,12 +294,19 @@ impl Host {
     pub fn open(adapter: wgpu::Adapter, options: GpuOptions) -> anyhow::Result<Self> {
         let info = adapter.get_info();
         let limits = adapter.limits();
+        // Timestamps only time the kernels (`bench`'s `kernel_median_s`);
+        // where the adapter lacks them, everything else works the same.
+        let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("mckibben evaluator"),
+            required_features: features,
             required_limits: limits.clone(),
             ..Default::default()
         }))
         .with_context(|| format!("cannot open a device on {}", describe_adapter(&info)))?;
+        let timestamps = features
+            .contains(wgpu::Features::TIMESTAMP_QUERY)
+            .then(|| Timestamps::new(&device, &queue));
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         Ok(Host {
             device,
@@ -239,7 +331,15 @@ impl Host {
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             ),
             uploaded: None,
+            timestamps,
+            kernel_seconds: None,
         })
+    }
+
+    /// The kernels' device time in the last dispatch; `None` where the
+    /// adapter offers no timestamp queries.
+    pub fn kernel_seconds(&self) -> Option<f64> {
+        self.kernel_seconds
     }
 
     fn pipeline(&mut self, source: &str, label: &str) -> &wgpu::ComputePipeline {
@@ -351,6 +451,7 @@ impl Host {
             self.buffer_limit()
         );
         let mut flat = Vec::with_capacity(n * per_candidate);
+        self.kernel_seconds = self.timestamps.as_ref().map(|_| 0.0);
         for rows in rows.chunks(part * d) {
             flat.extend(self.dispatch_part(kernel, rows, chunk)?);
         }
@@ -413,7 +514,10 @@ impl Host {
 
         let mut encoder = device.create_command_encoder(&Default::default());
         {
-            let mut compute = encoder.begin_compute_pass(&Default::default());
+            let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("score"),
+                timestamp_writes: self.timestamps.as_ref().map(Timestamps::writes),
+            });
             compute.set_pipeline(pipeline);
             for (c, (&(start, len), &(gx, gy))) in chunks.iter().zip(&grids).enumerate() {
                 let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -451,9 +555,15 @@ impl Host {
             }
         }
         encoder.copy_buffer_to_buffer(out, 0, readback, 0, out_bytes);
+        if let Some(t) = &self.timestamps {
+            t.resolve(&mut encoder);
+        }
         self.queue.submit([encoder.finish()]);
 
         let flat = read_back_f32(&self.device, readback, out_bytes)?;
+        if let (Some(t), Some(total)) = (&self.timestamps, self.kernel_seconds.as_mut()) {
+            *total += t.seconds(&self.device)?;
+        }
         if kernel.output == Output::Residuals {
             return Ok(flat);
         }

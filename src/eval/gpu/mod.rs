@@ -207,6 +207,10 @@ impl Evaluator for GpuEvaluator {
         true
     }
 
+    fn kernel_seconds(&self) -> Option<f64> {
+        self.host.kernel_seconds()
+    }
+
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {
         let n_exp = problem.experiments.len();
         let flat = self.run(problem, population, Output::Sse)?;
