@@ -347,10 +347,22 @@ impl Host {
         self.pipelines
             .entry(source.to_string())
             .or_insert_with_key(|source| {
-                let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                let desc = wgpu::ShaderModuleDescriptor {
                     label: Some(label),
                     source: wgpu::ShaderSource::Wgsl(source.as_str().into()),
-                });
+                };
+                // Without naga's loop-bounding counter every step of the
+                // trace is a few instructions shorter; the bounds checks
+                // stay on.
+                let checks = wgpu::ShaderRuntimeChecks {
+                    force_loop_bounding: false,
+                    ..wgpu::ShaderRuntimeChecks::checked()
+                };
+                // SAFETY: the shaders are this crate's, assembled by
+                // `shader_source`; each of their loops counts a `u32` up to
+                // a span's length or the experiment count, so every loop
+                // ends (`tests/wgsl_variants.rs` validates each variant).
+                let module = unsafe { device.create_shader_module_trusted(desc, checks) };
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(label),
                     layout: None,
