@@ -371,11 +371,10 @@ fn fit_of_the_real_muscle_stays_bounded_on_validation() {
 }
 
 /// A fit that validates worse than the first-order ARX model on the same
-/// halves says so: the generalized model on the Cavatappi 300 g record
-/// (60.4 % against ARX's 62.7 %; 60.43 % with the random streams of the
-/// release before, and the classic model ends there too: the Bouc-Wen
-/// model misses what this muscle does, docs/RESULTS.md). A fit of a record
-/// the classic model generated beats ARX and gets none.
+/// halves says so: the classic model on the Cavatappi 200 g record (38.3 %
+/// against ARX's 57.5 %: the Bouc-Wen model misses what this muscle does,
+/// docs/RESULTS.md). A fit of a record the classic model generated beats
+/// ARX and gets none.
 #[test]
 fn a_fit_below_the_linear_yardstick_is_flagged() {
     let dir = tempfile::tempdir().unwrap();
@@ -393,14 +392,10 @@ fn a_fit_below_the_linear_yardstick_is_flagged() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("first-order ARX"), "{stderr}");
 
-    let Some(path) = common::require_external("cavatappi_muscle/sample1_300g.csv") else {
+    let Some(path) = common::require_external("cavatappi_muscle/sample1_200g.csv") else {
         return;
     };
-    let out = fit_cavatappi(
-        &path,
-        &["--model", "generalized", "--out", "muscle"],
-        dir.path(),
-    );
+    let out = fit_cavatappi(&path, &["--out", "muscle"], dir.path());
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
         stderr.contains("warning: the fit validates worse than the first-order ARX model"),
@@ -476,11 +471,15 @@ fn bounds_a_user_sets_hold_and_bad_ones_are_clear_errors() {
         "b bounded: searched natively"
     );
     assert!(names.iter().any(|n| n == "loading"), "{names:?}");
-    for edge in out["on_edge"].as_array().unwrap() {
-        if edge["param"] == "b" {
-            assert_eq!(edge["origin"], "user", "{edge}");
-        }
-    }
+    // The data want b near 4.6 (docs/JSON.md's fit): it ends on the user's
+    // upper bound, and the report names that bound as the user's.
+    let edges = out["on_edge"].as_array().unwrap();
+    let b_edge = edges
+        .iter()
+        .find(|e| e["param"] == "b")
+        .unwrap_or_else(|| panic!("b is not reported on its edge: {edges:?}"));
+    assert_eq!(b_edge["origin"], "user", "{b_edge}");
+    assert!(b > 0.59, "{b} {b_edge}");
     // The default box is in the data's own scale.
     let out = json(&fit(&[]));
     let names = out["search_box"]["names"].as_array().unwrap();
