@@ -1,20 +1,19 @@
 //! `mckibben.diagnose`: the library's diagnosis, its `--json` document as
 //! Python objects and its models as `Model`s.
 
-use std::time::Duration;
-
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use mckibben::diagnose::report::DiagnosisJson;
-use mckibben::diagnose::{Effect, Settings, StopFlag};
+use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
 
 use crate::convert::{backend, to_python, value_error};
 use crate::data::{Trace, arrays_trace};
 use crate::fit::{effects_arg, family_or_start, seed_arg, start_arg};
+use crate::interrupt::interruptible;
 use crate::model::{Model, provenance};
 
 /// The traces of `datasets`: a `Trace`, or a list whose items are each a
@@ -79,38 +78,6 @@ impl Diagnosis {
             names.join(", ")
         )
     }
-}
-
-/// How often the interpreter checks for Ctrl-C while a diagnosis runs.
-const SIGNAL_POLL: Duration = Duration::from_millis(50);
-
-/// Runs `job` on a thread of its own with the interpreter detached, while
-/// this thread checks Python's signals: on Ctrl-C (or any signal handler's
-/// exception) it raises `stop`, waits for `job` to wind down (its searches
-/// stop at their next generation) and returns the signal's exception.
-pub(crate) fn interruptible<T: Send>(
-    py: Python<'_>,
-    stop: &StopFlag,
-    job: impl FnOnce() -> T + Send,
-) -> PyResult<T> {
-    std::thread::scope(|scope| {
-        let worker = scope.spawn(job);
-        loop {
-            py.detach(|| std::thread::sleep(SIGNAL_POLL));
-            if let Err(e) = py.check_signals() {
-                stop.raise();
-                // The job's own result (`Interrupted`) is not news.
-                let _ = py.detach(|| worker.join());
-                return Err(e);
-            }
-            if worker.is_finished() {
-                // A panic goes on as this thread's (PyO3's PanicException).
-                return Ok(worker
-                    .join()
-                    .unwrap_or_else(|p| std::panic::resume_unwind(p)));
-            }
-        }
-    })
 }
 
 /// Diagnoses the sim-to-real gap of a `baseline` model on `datasets` (each

@@ -24,7 +24,7 @@ use crate::convert::{
     to_python, value_error,
 };
 use crate::data::data_arg;
-use crate::diagnose::interruptible;
+use crate::interrupt::interruptible;
 use crate::model::{Model, provenance};
 
 /// What `mckibben.fit` returns: the fields of `mckibben fit --json` as

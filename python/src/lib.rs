@@ -14,6 +14,7 @@ mod data;
 mod diagnose;
 mod evaluator;
 mod fit;
+mod interrupt;
 mod model;
 
 use pyo3::prelude::*;
