@@ -11,8 +11,8 @@ use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces};
 use mckibben::diagnose::{Diagnosis, Settings, diagnose};
 use mckibben::eval::cpu::CpuEvaluator;
+use mckibben::model::Family;
 use mckibben::model::experiment::halves;
-use mckibben::model::{Family, Loop, Switching};
 use mckibben::optim::fit::{Fit, FitBox, FitSettings};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -160,14 +160,7 @@ fn fit_never_reads_its_validation_half() {
         .unwrap();
     for chain in [vec![], vec![creep]] {
         let params = |t: &Trace| {
-            let what = FitBox {
-                family: Family::Classic,
-                effects: chain.clone(),
-                free_n: false,
-                loop_shape: Loop::Bounded,
-                switching: Switching::default(),
-                bounds: Vec::new(),
-            };
+            let what = FitBox::chain(Family::Classic, &chain);
             let settings = FitSettings {
                 pop: 60,
                 gens: 30,

@@ -236,14 +236,7 @@ fn a_stair_switching_at_zero_is_fitted_to_its_truths_optimum_with_de_and_pso() {
     assert!(floor < 0.06, "the truth validates at {floor}");
     let (_, polished_sse) = polished_truth(&task, &truth, &mut CpuEvaluator::new()).unwrap();
     let threshold = indistinguishable_up_to(polished_sse, task.estimation().len() - 1);
-    let what = FitBox {
-        family: Family::Generalized,
-        effects: Vec::new(),
-        free_n: false,
-        loop_shape: Loop::Bounded,
-        switching: Switching::Starts,
-        bounds: Vec::new(),
-    };
+    let what = FitBox::chain(Family::Generalized, &[]);
     for algo in [Algorithm::De, Algorithm::Pso] {
         let settings = FitSettings {
             algo,

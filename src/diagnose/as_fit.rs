@@ -17,9 +17,10 @@ use serde::Serialize;
 
 use super::data::Data;
 use super::effects::Augmented;
-use super::settings::{Interrupted, Settings};
+use super::settings::Settings;
+use super::transfer::run_stoppable;
 use crate::data::Trace;
-use crate::model::{Loop, Model, Switching};
+use crate::model::Model;
 use crate::optim::fit::{Fit, FitBox, FitSettings};
 
 /// The final chain as `fit --effects` fits it, against the selection's fit.
@@ -54,30 +55,14 @@ pub fn refit(
     if data.datasets() != 1 || !model.effects.iter().all(|e| e.applicable(1)) {
         return Ok(None);
     }
-    let what = FitBox {
-        family: model.family,
-        effects: model.effects.clone(),
-        free_n: false,
-        loop_shape: Loop::Bounded,
-        switching: Switching::default(),
-        bounds: Vec::new(),
-    };
     let fit_settings = FitSettings::staged(settings.seed);
+    let what = FitBox::chain(model.family, &model.effects);
     let mut fit = Fit::new(trace, &what, &fit_settings, None, None, &|_| ())?.also_from(
         saved,
         0.0,
         &fit_settings,
     )?;
-    let mut evaluator = crate::eval::open(settings.backend)?;
-    let (outcome, _) = fit.run(
-        evaluator.as_mut(),
-        &mut [],
-        Some(settings.stop.as_atomic()),
-        None,
-    )?;
-    if settings.stop.raised() {
-        return Err(Interrupted.into());
-    }
+    let outcome = run_stoppable(&mut fit, settings)?;
     let theta = outcome.params;
     if theta.len() != params.len() || !Data::admits(model, &theta) {
         return Ok(None);

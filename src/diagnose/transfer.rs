@@ -18,8 +18,9 @@ use super::locate::noise_floor;
 use super::settings::{Interrupted, Settings};
 use super::{Diagnosis, accept::gap_closed, chain::with_chain_start};
 use crate::data::Trace;
+use crate::model::Family;
 use crate::model::experiment::halves;
-use crate::model::{Family, Loop, Switching};
+use crate::optim::engine::Outcome;
 use crate::optim::fit::{Fit, FitBox, FitSettings};
 use crate::optim::records::Validation;
 
@@ -94,16 +95,15 @@ fn fit_and_score(
     effects: &[Effect],
     settings: &Settings,
 ) -> anyhow::Result<Validation> {
-    let what = FitBox {
-        family,
-        effects: effects.to_vec(),
-        free_n: false,
-        loop_shape: Loop::Bounded,
-        switching: Switching::default(),
-        bounds: Vec::new(),
-    };
     let fit_settings = FitSettings::staged(settings.seed);
-    let fit = Fit::new(trace, &what, &fit_settings, None, None, &|_| ())?;
+    let fit = Fit::new(
+        trace,
+        &FitBox::chain(family, effects),
+        &fit_settings,
+        None,
+        None,
+        &|_| (),
+    )?;
     let mut fit = with_chain_start(
         fit,
         trace,
@@ -111,6 +111,13 @@ fn fit_and_score(
         settings.backend,
         settings.stop.clone(),
     )?;
+    let outcome = run_stoppable(&mut fit, settings)?;
+    Ok(fit.task.validate(&outcome.params))
+}
+
+/// Runs `fit` on the settings' backend, stopping with the diagnosis' stop
+/// flag: a fit the diagnosis makes as `mckibben fit` would.
+pub(crate) fn run_stoppable(fit: &mut Fit, settings: &Settings) -> anyhow::Result<Outcome> {
     let mut evaluator = crate::eval::open(settings.backend)?;
     let (outcome, _) = fit.run(
         evaluator.as_mut(),
@@ -121,5 +128,5 @@ fn fit_and_score(
     if settings.stop.raised() {
         return Err(Interrupted.into());
     }
-    Ok(fit.task.validate(&outcome.params))
+    Ok(outcome)
 }

@@ -337,6 +337,22 @@ pub struct FitBox {
     pub bounds: Vec<UserBound>,
 }
 
+impl FitBox {
+    /// `family` followed by `effects` in the box `fit --effects` searches
+    /// by default: n held at 1, bounded loops, the default switching, no
+    /// user bounds.
+    pub fn chain(family: Family, effects: &[Effect]) -> FitBox {
+        FitBox {
+            family,
+            effects: effects.to_vec(),
+            free_n: false,
+            loop_shape: Loop::Bounded,
+            switching: Switching::default(),
+            bounds: Vec::new(),
+        }
+    }
+}
+
 /// A fit of one trace as `mckibben fit` runs it: the task, and the engine
 /// that runs on it.
 #[derive(Debug, Clone)]

@@ -230,23 +230,7 @@ impl Timestamps {
     /// The seconds between the pass's two timestamps, once the submit that
     /// resolved them is done.
     fn seconds(&self, device: &wgpu::Device) -> anyhow::Result<f64> {
-        let slice = self.readback.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .context("waiting for the GPU")?;
-        rx.recv()
-            .context("the timestamp read-back was dropped")?
-            .context("mapping the timestamp read-back")?;
-        let ticks: [u64; 2] = {
-            let view = slice.get_mapped_range().context("reading the timestamps")?;
-            let t: &[u64] = bytemuck::cast_slice(&view);
-            [t[0], t[1]]
-        };
-        self.readback.unmap();
+        let ticks: Vec<u64> = read_back(device, &self.readback, 16)?;
         Ok(ticks[1].saturating_sub(ticks[0]) as f64 * self.period_ns * 1e-9)
     }
 }
@@ -572,7 +556,7 @@ impl Host {
         }
         self.queue.submit([encoder.finish()]);
 
-        let flat = read_back_f32(&self.device, readback, out_bytes)?;
+        let flat: Vec<f32> = read_back(&self.device, readback, out_bytes)?;
         if let (Some(t), Some(total)) = (&self.timestamps, self.kernel_seconds.as_mut()) {
             *total += t.seconds(&self.device)?;
         }
@@ -594,12 +578,12 @@ impl Host {
 }
 
 /// Maps the first `bytes` of a `MAP_READ` buffer after the work that fills
-/// it was submitted, waits for the GPU, and copies them out as `f32`.
-fn read_back_f32(
+/// it was submitted, waits for the GPU, and copies them out as `T`s.
+fn read_back<T: bytemuck::Pod>(
     device: &wgpu::Device,
     readback: &wgpu::Buffer,
     bytes: u64,
-) -> anyhow::Result<Vec<f32>> {
+) -> anyhow::Result<Vec<T>> {
     let slice = readback.slice(..bytes);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
