@@ -6,12 +6,12 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use mckibben::data::csv::{ReadOptions, read_traces_with_notes};
 use mckibben::eval::cpu::CpuEvaluator;
+use mckibben::fit::edge::fit_task;
+use mckibben::fit::objective::{GENERATIONS, POPULATION, staged_plan};
+use mckibben::fit::task::Task;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::Algorithm;
-use mckibben::optim::edge::fit_task;
 use mckibben::optim::engine::StopRules;
-use mckibben::optim::engine::model::{GENERATIONS, POPULATION, staged_plan};
-use mckibben::optim::task::Task;
 
 fn default_fit(c: &mut Criterion) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/stair_4.5kg.csv");

@@ -8,10 +8,10 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use mckibben::data::csv::{ReadOptions, read_traces_with_notes};
+use mckibben::fit::task::Task;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::engine::Space;
 use mckibben::optim::stage::Stage;
-use mckibben::optim::task::Task;
 use mckibben::optim::{Algorithm, AskTell, Streams};
 
 /// Rows of one island of `fit --pop 100000` (four islands).

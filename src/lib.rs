@@ -14,6 +14,7 @@ pub mod control;
 pub mod data;
 pub mod diagnose;
 pub mod eval;
+pub mod fit;
 pub mod ident;
 pub mod model;
 pub mod optim;

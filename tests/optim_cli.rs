@@ -8,8 +8,8 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 use mckibben::data::csv::write_trace;
+use mckibben::fit::synthetic::Synthetic;
 use mckibben::model::Family;
-use mckibben::optim::synthetic::Synthetic;
 
 fn mckibben(args: &[&str], dir: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_mckibben"))

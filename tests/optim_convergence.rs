@@ -5,7 +5,7 @@
 //! estimation SSE within the likelihood-ratio threshold of that optimum's
 //! ([`Case::judge`]).
 //!
-//! The cases come from `optim::cases`: truths of the bounded class drawn on
+//! The cases come from `fit::cases`: truths of the bounded class drawn on
 //! their own priors (slow poles, fast linear poles with a slow loop, both
 //! classic classes), records in MPa→mm, kPa→m and psi→mm, stair / multisine
 //! / mixed inputs, 0.02–0.1 mm of noise. A cheap subset runs in CI; the full
@@ -22,15 +22,15 @@ use std::time::Instant;
 use mckibben::data::Trace;
 use mckibben::eval::Evaluator;
 use mckibben::eval::cpu::CpuEvaluator;
+use mckibben::fit::cases::{Case, Judgement, SwitchAt, matrix, polished_truth};
+use mckibben::fit::edge::fit_task;
+use mckibben::fit::objective::{GENERATIONS, POPULATION, staged_plan};
+use mckibben::fit::run::{Fit, FitBox, FitSettings, Overrides};
+use mckibben::fit::task::Task;
 use mckibben::ident::fit::indistinguishable_up_to;
 use mckibben::model::{Family, Flow, Loop, Switching, simulate};
 use mckibben::optim::Algorithm;
-use mckibben::optim::cases::{Case, Judgement, SwitchAt, matrix, polished_truth};
-use mckibben::optim::edge::fit_task;
 use mckibben::optim::engine::StopRules;
-use mckibben::optim::engine::model::{GENERATIONS, POPULATION, staged_plan};
-use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides};
-use mckibben::optim::task::Task;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;

@@ -8,11 +8,11 @@ mod common;
 use std::sync::atomic::AtomicBool;
 
 use mckibben::eval::{Evaluator, Problem, cpu::CpuEvaluator};
+use mckibben::fit::objective::{ModelObjective, default_plan};
+use mckibben::fit::synthetic::Synthetic;
 use mckibben::model::Family;
-use mckibben::optim::engine::model::{ModelObjective, default_plan};
 use mckibben::optim::engine::{Engine, Outcome, Plan, Space, Stage, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
-use mckibben::optim::synthetic::Synthetic;
 use mckibben::optim::{AlgoSettings, Algorithm};
 
 fn setup() -> (Synthetic, Problem) {

@@ -8,13 +8,13 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat};
 
+use mckibben::fit::objective::ModelObjective;
+use mckibben::fit::run::model_file;
+use mckibben::fit::task::Task;
 use mckibben::model::UserBound;
 use mckibben::model::{Flow, Measure, Switching};
 use mckibben::optim::engine::Objective as _;
 use mckibben::optim::engine::Space;
-use mckibben::optim::engine::model::ModelObjective;
-use mckibben::optim::fit::model_file;
-use mckibben::optim::task::Task;
 
 use crate::convert::{backend, family, loop_shape, rows, rows_view, runtime_error, value_error};
 use crate::data::data_arg;

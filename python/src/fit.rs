@@ -11,12 +11,12 @@ use pyo3::types::{PyDict, PyList};
 
 use mckibben::diagnose::StopFlag;
 use mckibben::diagnose::chain::with_chain_start;
+use mckibben::fit::edge::active_bounds;
+use mckibben::fit::objective::{GENERATIONS, POPULATION};
+use mckibben::fit::run::{Fit, FitBox, FitSettings, Overrides, model_file, yardstick_warnings};
 use mckibben::model::effects::Effect;
 use mckibben::model::{ModelFile, UserBound};
-use mckibben::optim::edge::active_bounds;
-use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
 use mckibben::optim::engine::{Observer, StopReason, StopRules};
-use mckibben::optim::fit::{Fit, FitBox, FitSettings, Overrides, model_file, yardstick_warnings};
 use mckibben::optim::history::{GenerationRecord, History};
 
 use crate::convert::{

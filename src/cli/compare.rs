@@ -9,7 +9,7 @@ use anyhow::Context;
 use super::common::{ColumnArgs, DataArgs, one_trace};
 use mckibben::data::{Trace, write_atomic};
 use mckibben::eval::{self, Backend};
-use mckibben::optim::compare::{Report, Settings, Study, markdown};
+use mckibben::fit::compare::{Report, Settings, Study, markdown};
 use mckibben::optim::mfa;
 use mckibben::report::json::Versioned;
 

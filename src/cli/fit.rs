@@ -14,6 +14,14 @@ use mckibben::data::{Trace, write_atomic};
 use mckibben::diagnose::chain::with_chain_start;
 use mckibben::diagnose::{Settings as DiagnoseSettings, StopFlag, diagnose};
 use mckibben::eval::{self, Backend};
+use mckibben::fit::edge::{ActiveBound, Widening, active_bounds};
+use mckibben::fit::objective::{GENERATIONS, POPULATION};
+use mckibben::fit::records::Records;
+use mckibben::fit::run::{
+    Built, Fit, FitBox, FitSettings, Overrides, StartScores, Switched, model_file,
+    yardstick_warnings,
+};
+use mckibben::fit::task::Task;
 use mckibben::ident::{fit_percent, rmse};
 use mckibben::model::bounds::Origin;
 use mckibben::model::effects::Effect;
@@ -21,20 +29,12 @@ use mckibben::model::experiment::halves;
 use mckibben::model::file::{Provenance, SearchBox};
 use mckibben::model::{Family, Flow, Loop, ModelFile, Switching, UserBound};
 use mckibben::optim::Algorithm;
-use mckibben::optim::edge::{ActiveBound, Widening, active_bounds};
-use mckibben::optim::engine::model::{GENERATIONS, POPULATION};
 use mckibben::optim::engine::{
     Engine, FreeRun, Observer, Outcome, StageSummary, StopReason, StopRules,
-};
-use mckibben::optim::fit::{
-    Built, Fit, FitBox, FitSettings, Overrides, StartScores, Switched, model_file,
-    yardstick_warnings,
 };
 use mckibben::optim::ga::{Crossover, Mutation};
 use mckibben::optim::history::GenerationRecord;
 use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
-use mckibben::optim::records::Records;
-use mckibben::optim::task::Task;
 use mckibben::report::fit_figures;
 use mckibben::report::json::{Named, Versioned};
 

@@ -20,8 +20,8 @@ use super::effects::Augmented;
 use super::settings::Settings;
 use super::transfer::run_stoppable;
 use crate::data::Trace;
+use crate::fit::run::{Fit, FitBox, FitSettings};
 use crate::model::Model;
-use crate::optim::fit::{Fit, FitBox, FitSettings};
 
 /// The final chain as `fit --effects` fits it, against the selection's fit.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -16,8 +16,8 @@ use super::settings::{Interrupted, Settings, StopFlag};
 use super::{Augmented, Effect, model_of};
 use crate::data::Trace;
 use crate::eval::Backend;
+use crate::fit::run::{Fit, FitSettings};
 use crate::model::{Family, Flow, Model};
-use crate::optim::fit::{Fit, FitSettings};
 
 /// Salt of the chain's seeds, apart from the selection's (100 per round)
 /// and the refits' (9 000).

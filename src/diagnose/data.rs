@@ -13,9 +13,9 @@ use super::settings::StopFlag;
 use crate::data::Trace;
 use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
+use crate::fit::records::{Records, Validation};
 use crate::model::experiment::Parts;
 use crate::model::{Experiment, Family, Flow, Measure, Model, SearchSpace};
-use crate::optim::records::{Records, Validation};
 
 /// The data of a diagnosis: its records ([`Records::of`]: every dataset in
 /// the coordinates of the first one's estimation half, the estimation
@@ -252,13 +252,13 @@ impl Data {
     }
 
     /// The prediction horizon of [`Start::Ahead`](super::fitting::Start::Ahead):
-    /// the fit's global stage's ([`crate::optim::engine::model::horizon`]),
+    /// the fit's global stage's ([`crate::fit::objective::horizon`]),
     /// from the ARX pole and the shortest estimation part (shorter and
     /// longer horizons measured on the self-test: docs/lab/diagnosis.md,
     /// the budget's "in the first round" item).
     pub fn horizon(&self) -> usize {
         let shortest = self.records.est.iter().map(|e| e.len()).min().unwrap_or(8);
-        crate::optim::engine::model::horizon(self.records.prior.a, shortest)
+        crate::fit::objective::horizon(self.records.prior.a, shortest)
     }
 
     /// Predicted output (deviation coordinates) over each whole dataset: the

@@ -17,10 +17,10 @@ use super::data::Data;
 use super::effects::Augmented;
 use super::likelihood::indistinguishable_up_to;
 use super::settings::{Interrupted, Settings};
+use crate::fit::objective::ModelObjective;
 use crate::model::{Family, Measure};
 use crate::optim::AlgoSettings;
 use crate::optim::de::DeSettings;
-use crate::optim::engine::model::ModelObjective;
 use crate::optim::engine::{Engine, Objective, Outcome, Plan, Polish, Space, StopRules};
 
 /// The fit's objective ([`ModelObjective::bounded_loops`]: the model

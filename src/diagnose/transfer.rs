@@ -18,11 +18,11 @@ use super::locate::noise_floor;
 use super::settings::{Interrupted, Settings};
 use super::{Diagnosis, accept::gap_closed, chain::with_chain_start};
 use crate::data::Trace;
+use crate::fit::records::Validation;
+use crate::fit::run::{Fit, FitBox, FitSettings};
 use crate::model::Family;
 use crate::model::experiment::halves;
 use crate::optim::engine::Outcome;
-use crate::optim::fit::{Fit, FitBox, FitSettings};
-use crate::optim::records::Validation;
 
 /// The chain and the baseline fitted on one other record.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -15,23 +15,15 @@
 //! [`lm`] is not a population method: it polishes one point by
 //! Levenberg–Marquardt after a search.
 
-pub mod cases;
-pub mod compare;
 pub mod de;
-pub mod edge;
 pub mod engine;
-pub mod fit;
 pub mod ga;
 pub mod history;
 pub mod lm;
 pub mod mfa;
 pub mod pso;
-
-pub mod records;
 pub mod stage;
 pub mod streams;
-pub mod synthetic;
-pub mod task;
 
 use std::cmp::Ordering;
 use std::fmt;

@@ -30,7 +30,6 @@
 //! whatever the thread count or backend. No generator is part of the state:
 //! the stage and its generation say where every stream stands.
 
-pub mod model;
 pub mod plan;
 mod polish;
 mod population;

@@ -3,8 +3,8 @@
 use std::fmt::Write as _;
 
 use super::{Report, Settings};
+use crate::fit::objective::{GENERATIONS, POPULATION};
 use crate::model::Flow;
-use crate::optim::engine::model::{GENERATIONS, POPULATION};
 
 /// `v` with `digits` decimals, or `diverged`.
 fn opt(v: Option<f64>, digits: usize) -> String {

@@ -11,14 +11,14 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::edge::fit_task;
-use super::engine::model::{GENERATIONS, POPULATION, staged_plan};
-use super::engine::{Plan, StopRules};
+use super::objective::{GENERATIONS, POPULATION, staged_plan};
 use super::task::Task;
-use super::{AlgoSettings, Algorithm};
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit_percent;
 use crate::model::{Family, FittedModel, Flow};
+use crate::optim::engine::{Plan, StopRules};
+use crate::optim::{AlgoSettings, Algorithm};
 
 pub use markdown::markdown;
 

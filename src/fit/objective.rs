@@ -5,12 +5,12 @@ use std::time::Instant;
 
 use nalgebra::DVector;
 
-use super::Objective;
-use super::plan::{FreeRun, Global, Plan, Polish};
 use crate::eval::{Evaluator, Problem};
+use crate::fit::task::Task;
 use crate::model::coords::in_bounded_class;
 use crate::model::{Flow, Loop, Measure};
-use crate::optim::task::Task;
+use crate::optim::engine::Objective;
+use crate::optim::engine::plan::{FreeRun, Global, Plan, Polish};
 use crate::optim::{AlgoSettings, Algorithm};
 
 /// A model family's fit to experiments, scored by a batch evaluator.

@@ -31,14 +31,14 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde::Serialize;
 
-use super::engine::model::ModelObjective;
-use super::engine::{Engine, Objective, Plan, Polish, Space, StopRules};
+use super::objective::ModelObjective;
 use super::task::{Task, Validation};
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit::indistinguishable_up_to;
 use crate::model::coords::{bounded_betas, gauge_fixed, in_bounded_class};
 use crate::model::{Family, Flow, simulate};
+use crate::optim::engine::{Engine, Objective, Plan, Polish, Space, StopRules};
 
 /// The input that excites a case.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

@@ -222,8 +222,8 @@ pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::synthetic::Synthetic;
     use crate::model::Family;
-    use crate::optim::synthetic::Synthetic;
 
     #[test]
     fn records_pool_their_validation_halves_and_a_runaway_scores_minus_infinity() {

@@ -5,11 +5,11 @@
 
 use serde::Serialize;
 
-use super::engine::model::ModelObjective;
-use super::engine::{Engine, Outcome, Plan, Space, StopReason, StopRules};
+use super::objective::ModelObjective;
 use super::task::Task;
 use crate::eval::Evaluator;
 use crate::model::bounds::Origin;
+use crate::optim::engine::{Engine, Outcome, Plan, Space, StopReason, StopRules};
 
 /// Refits after widening at most this many times.
 pub const MAX_WIDENINGS: usize = 2;
@@ -185,11 +185,11 @@ pub fn active_bounds(task: &Task, params: &[f64]) -> Vec<ActiveBound> {
 mod tests {
     use super::*;
     use crate::eval::cpu::CpuEvaluator;
+    use crate::fit::cases::{Case, CaseSpec, matrix};
+    use crate::fit::objective::staged_plan;
     use crate::model::Family;
     use crate::model::Measure;
-    use crate::optim::cases::{Case, CaseSpec, matrix};
     use crate::optim::engine::Objective;
-    use crate::optim::engine::model::staged_plan;
     use crate::optim::{Algorithm, engine::Space as EngineSpace};
 
     #[test]

@@ -5,6 +5,8 @@
 
 use crate::data::Trace;
 use crate::eval::Problem;
+use crate::fit::records::Records;
+pub use crate::fit::records::Validation;
 use crate::ident::{fit_percent, rmse};
 use crate::model::bounds::Origin;
 use crate::model::effects::{Augmented, Context, Effect, effect_box};
@@ -14,8 +16,6 @@ use crate::model::{
     Experiment, Family, FittedModel, Flow, LinearPrior, Loop, Model, SearchSpace, Switching,
     UserBound, simulate,
 };
-use crate::optim::records::Records;
-pub use crate::optim::records::Validation;
 
 /// How far beyond the estimation output's largest deviation a bounded model
 /// may go on the whole record's input ([`Task::stress`]).
@@ -340,7 +340,7 @@ pub fn score(family: Family, params: &[f64], experiment: &Experiment) -> Validat
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::optim::synthetic::Synthetic;
+    use crate::fit::synthetic::Synthetic;
 
     #[test]
     fn the_truth_validates_near_the_noise() {

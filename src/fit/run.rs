@@ -14,13 +14,8 @@ use serde::Serialize;
 
 pub use super::edge::Switched;
 use super::edge::{Widening, refit_off_edges};
-use super::engine::model::{GENERATIONS, ModelObjective, POPULATION, staged_plan};
-use super::engine::{Engine, Observer, Outcome, Plan, Space, StopReason, StopRules};
-use super::ga::{Crossover, Mutation};
-use super::mfa::{self, Distance, Lambda0Schedule, Scale};
-use super::stage::Stage;
+use super::objective::{GENERATIONS, ModelObjective, POPULATION, staged_plan};
 use super::task::{Task, Validation};
-use super::{AlgoSettings, Algorithm, Streams};
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit::SETTLED_POINTS;
@@ -28,6 +23,11 @@ use crate::model::coords::gauge_fixed;
 use crate::model::effects::Effect;
 use crate::model::file::{ModelFile, Provenance, SearchBox};
 use crate::model::{Family, Flow, Loop, Measure, Model, Switching, UserBound};
+use crate::optim::engine::{Engine, Observer, Outcome, Plan, Space, StopReason, StopRules};
+use crate::optim::ga::{Crossover, Mutation};
+use crate::optim::mfa::{self, Distance, Lambda0Schedule, Scale};
+use crate::optim::stage::Stage;
+use crate::optim::{AlgoSettings, Algorithm, Streams};
 
 /// Settings of one algorithm laid over its base settings (`None`, `false`:
 /// keep the base). Each acts on its own algorithm only, but every one given
@@ -688,8 +688,8 @@ mod tests {
     use std::cell::RefCell;
 
     use super::*;
+    use crate::fit::synthetic::Synthetic;
     use crate::model::Flow;
-    use crate::optim::synthetic::Synthetic;
 
     fn settings(algo: Algorithm, pop: usize) -> FitSettings {
         FitSettings {

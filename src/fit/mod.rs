@@ -1,0 +1,19 @@
+//! Fitting a muscle model to recorded traces: the records and their split
+//! ([`records`]), the task on one trace ([`task`]), the objective the
+//! engine minimises ([`objective`]), one run of `mckibben fit` ([`run`]),
+//! the edge rule ([`edge`]), synthetic records with known truths
+//! ([`synthetic`], [`cases`]) and the thesis' comparison of algorithms
+//! ([`compare`]).
+//!
+//! The optimizers and the engine that drives them ([`crate::optim`]) know
+//! nothing of muscles: this module is where a model, its data and its box
+//! meet them.
+
+pub mod cases;
+pub mod compare;
+pub mod edge;
+pub mod objective;
+pub mod records;
+pub mod run;
+pub mod synthetic;
+pub mod task;
