@@ -594,7 +594,7 @@ fn src_has_no_import_cycles() {
     let g = graphs(&files);
     let top = &g[&vec!["mckibben".to_string()]];
     assert!(
-        top["optim"].contains("eval") && top["diagnose"].contains("optim"),
+        top["fit"].contains("eval") && top["diagnose"].contains("fit"),
         "{top:?}"
     );
     let found = cycles(&files);
