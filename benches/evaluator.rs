@@ -16,7 +16,7 @@ use mckibben::eval::gpu::GpuEvaluator;
 use mckibben::eval::workload::{mixed_population, search_space, stair_experiment};
 use mckibben::eval::{Evaluator, Problem};
 use mckibben::model::Family;
-use mckibben::model::effects::{Context, Effect, effect_box};
+use mckibben::model::effects::{Context, Effect, EffectBox, effect_box};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -61,7 +61,11 @@ fn effects(c: &mut Criterion) {
     });
     for effect in Effect::ALL.into_iter().filter(|e| e.applicable(1)) {
         // Every candidate carries the effect halfway into its box.
-        let (neutral, lo, hi) = effect_box(effect, &ctx, 1);
+        let EffectBox {
+            neutral,
+            lower: lo,
+            upper: hi,
+        } = effect_box(effect, &ctx, 1);
         let extra: Vec<f64> = (0..neutral.len())
             .map(|j| neutral[j] + 0.5 * (0.5 * (lo[j] + hi[j]) - neutral[j]))
             .collect();

@@ -6,9 +6,9 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use mckibben::data::csv::{ReadOptions, read_traces_with_notes};
 use mckibben::eval::cpu::CpuEvaluator;
-use mckibben::fit::edge::fit_task;
+use mckibben::fit::edge::fit_problem;
 use mckibben::fit::objective::{GENERATIONS, POPULATION, staged_plan};
-use mckibben::fit::task::Task;
+use mckibben::fit::problem::FitProblem;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::Algorithm;
 use mckibben::optim::engine::StopRules;
@@ -17,19 +17,19 @@ fn default_fit(c: &mut Criterion) {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/stair_4.5kg.csv");
     let (traces, _) =
         read_traces_with_notes(&path, &ReadOptions::default()).expect("the shipped stair");
-    let task = Task::new(&traces[0], Family::Classic, Flow::Joint, None, false).unwrap();
+    let problem = FitProblem::new(&traces[0], Family::Classic, Flow::Joint, None, false).unwrap();
     let mut group = c.benchmark_group("fit_default");
     group.sample_size(10);
     group.bench_function("classic de stair_4.5kg", |b| {
         b.iter(|| {
             let plan = staged_plan(
-                &task,
+                &problem,
                 Algorithm::De.staged_settings(POPULATION),
                 POPULATION,
                 GENERATIONS,
             );
-            fit_task(
-                &task,
+            fit_problem(
+                &problem,
                 plan,
                 1,
                 StopRules::default(),

@@ -8,7 +8,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use mckibben::data::csv::{ReadOptions, read_traces_with_notes};
-use mckibben::fit::task::Task;
+use mckibben::fit::problem::FitProblem;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::engine::Space;
 use mckibben::optim::stage::Stage;
@@ -21,8 +21,8 @@ fn stair_space() -> Space {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/stair_4.5kg.csv");
     let (traces, _) =
         read_traces_with_notes(&path, &ReadOptions::default()).expect("the shipped stair");
-    let task = Task::new(&traces[0], Family::Classic, Flow::Joint, None, false).unwrap();
-    Space::from(&task.space)
+    let problem = FitProblem::new(&traces[0], Family::Classic, Flow::Joint, None, false).unwrap();
+    Space::from(&problem.space)
 }
 
 /// Costs for `n` rows: a fixed scramble of 1..n, so the ranking is dense.

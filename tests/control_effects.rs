@@ -237,7 +237,7 @@ fn runs(m: &Model) {
 fn every_realisation_of_the_catalogue_says_how_it_was_used() {
     let ctx = context();
     for effect in Effect::ALL {
-        let neutral = effect_box(effect, &ctx, 1).0;
+        let neutral = effect_box(effect, &ctx, 1).neutral;
         let m = with_effects(&[(effect, neutral)]);
         let (_, uses) = ControlChain::of(&m);
         assert_eq!(uses.len(), 1, "{effect}");
@@ -256,7 +256,7 @@ fn every_realisation_of_the_catalogue_says_how_it_was_used() {
     }
     // What each is used as.
     let used = |e: Effect| {
-        let neutral = effect_box(e, &ctx, 1).0;
+        let neutral = effect_box(e, &ctx, 1).neutral;
         ControlChain::of(&with_effects(&[(e, neutral)])).1[0]
             .used
             .clone()
@@ -290,7 +290,7 @@ fn every_realisation_of_the_catalogue_says_how_it_was_used() {
     // The whole catalogue in one chain: what does not fit is left out.
     let all: Vec<(Effect, Vec<f64>)> = Effect::ALL
         .iter()
-        .map(|&e| (e, effect_box(e, &ctx, 1).0))
+        .map(|&e| (e, effect_box(e, &ctx, 1).neutral))
         .collect();
     let m = with_effects(&all);
     assert_eq!(ControlChain::of(&m).1.len(), Effect::ALL.len());

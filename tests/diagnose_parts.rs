@@ -178,7 +178,7 @@ fn fit_never_reads_its_validation_half() {
             let (outcome, widened) = fit
                 .run(&mut CpuEvaluator::new(), &mut [], None, None)
                 .unwrap();
-            let validation = fit.task.validate(&outcome.params);
+            let validation = fit.problem.validate(&outcome.params);
             (outcome.params, widened, validation)
         };
         let (a, wa, va) = params(&trace);

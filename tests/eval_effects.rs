@@ -14,7 +14,7 @@ use mckibben::eval::cpu::{CpuEvaluator, LANES};
 use mckibben::eval::gpu::GpuOptions;
 use mckibben::eval::workload::{mixed_population, search_space, stair_experiment};
 use mckibben::eval::{Evaluator, Problem};
-use mckibben::model::effects::{Augmented, Context, Effect, effect_box};
+use mckibben::model::effects::{Augmented, Context, Effect, EffectBox, effect_box};
 use mckibben::model::{Experiment, Family, Measure};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -54,7 +54,11 @@ fn population(model: &Augmented, ctx: &Context, count: usize, seed: u64) -> Vec<
             }
         }
         for &e in &model.effects {
-            let (neutral, lo, hi) = effect_box(e, ctx, model.datasets);
+            let EffectBox {
+                neutral,
+                lower: lo,
+                upper: hi,
+            } = effect_box(e, ctx, model.datasets);
             for j in 0..neutral.len() {
                 rows.push(if i <= 1 {
                     neutral[j]

@@ -23,10 +23,10 @@ use mckibben::data::Trace;
 use mckibben::eval::Evaluator;
 use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::fit::cases::{Case, Judgement, SwitchAt, matrix, polished_truth};
-use mckibben::fit::edge::fit_task;
+use mckibben::fit::edge::fit_problem;
 use mckibben::fit::objective::{GENERATIONS, POPULATION, staged_plan};
+use mckibben::fit::problem::FitProblem;
 use mckibben::fit::run::{Fit, FitBox, FitSettings, Overrides};
-use mckibben::fit::task::Task;
 use mckibben::ident::fit::indistinguishable_up_to;
 use mckibben::model::{Family, Flow, Loop, Switching, simulate};
 use mckibben::optim::Algorithm;
@@ -52,9 +52,9 @@ fn judged(case: &Case, algo: Algorithm) -> Judgement {
 
 /// [`judged`] with population `n` on `evaluator`.
 fn judged_at(case: &Case, algo: Algorithm, n: usize, evaluator: &mut dyn Evaluator) -> Judgement {
-    let task = case.task();
-    let plan = staged_plan(&task, algo.staged_settings(n), n, GENERATIONS);
-    let (_, out) = fit_task(&task, plan, 1, StopRules::default(), evaluator).unwrap();
+    let problem = case.problem();
+    let plan = staged_plan(&problem, algo.staged_settings(n), n, GENERATIONS);
+    let (_, out) = fit_problem(&problem, plan, 1, StopRules::default(), evaluator).unwrap();
     case.judge(&out.params, evaluator).unwrap()
 }
 
@@ -128,12 +128,12 @@ fn generalized_matrix_is_measured_and_no_fit_beats_the_noise_floor() {
     }
 }
 
-/// The default fit of generalized `case` with `switching` ([`fit_task`]:
+/// The default fit of generalized `case` with `switching` ([`fit_problem`]:
 /// both starts of the default), judged: prints the fitted `x_s` against the
 /// truth's and the estimation SSE.
 fn judged_switching(case: &Case, switching: Switching, cpu: &mut CpuEvaluator) -> Judgement {
     let shape = (Loop::Bounded, switching);
-    let task = Task::with_box(
+    let problem = FitProblem::with_box(
         &case.trace,
         Family::Generalized,
         Flow::Joint,
@@ -144,13 +144,13 @@ fn judged_switching(case: &Case, switching: Switching, cpu: &mut CpuEvaluator) -
     )
     .unwrap();
     let plan = staged_plan(
-        &task,
+        &problem,
         Algorithm::De.staged_settings(POPULATION),
         POPULATION,
         GENERATIONS,
     );
     let start = Instant::now();
-    let (_, out) = fit_task(&task, plan, 1, StopRules::default(), cpu).unwrap();
+    let (_, out) = fit_problem(&problem, plan, 1, StopRules::default(), cpu).unwrap();
     let j = case.judge(&out.params, cpu).unwrap();
     assert!(j.ratio.is_finite(), "{}: {switching:?}", case.name());
     let is = Family::Generalized.switch_index().unwrap();
@@ -209,8 +209,8 @@ fn stair_switching_at_zero(seed: u64) -> (Trace, Vec<f64>) {
     // In the estimation half's coordinates the intercept carries the means;
     // the switching level is absolute; the state starts at the noiseless
     // first sample.
-    let task = Task::new(&trace, Family::Generalized, Flow::Joint, None, false).unwrap();
-    let est = task.estimation();
+    let problem = FitProblem::new(&trace, Family::Generalized, Flow::Joint, None, false).unwrap();
+    let est = problem.estimation();
     let [_, _, ic] = Family::Generalized.linear_indices();
     theta[ic] = c + b * est.u_mean - (1.0 - a * alpha) * est.y_mean;
     theta[Family::Generalized.start_index()] = clean.x[0] as f64 - trace.output[0];
@@ -231,11 +231,11 @@ fn stair_switching_at_zero(seed: u64) -> (Trace, Vec<f64>) {
 #[test]
 fn a_stair_switching_at_zero_is_fitted_to_its_truths_optimum_with_de_and_pso() {
     let (trace, truth) = stair_switching_at_zero(44);
-    let task = Task::new(&trace, Family::Generalized, Flow::Joint, None, false).unwrap();
-    let floor = task.validate(&truth).rmse;
+    let problem = FitProblem::new(&trace, Family::Generalized, Flow::Joint, None, false).unwrap();
+    let floor = problem.validate(&truth).rmse;
     assert!(floor < 0.06, "the truth validates at {floor}");
-    let (_, polished_sse) = polished_truth(&task, &truth, &mut CpuEvaluator::new()).unwrap();
-    let threshold = indistinguishable_up_to(polished_sse, task.estimation().len() - 1);
+    let (_, polished_sse) = polished_truth(&problem, &truth, &mut CpuEvaluator::new()).unwrap();
+    let threshold = indistinguishable_up_to(polished_sse, problem.estimation().len() - 1);
     let what = FitBox::chain(Family::Generalized, &[]);
     for algo in [Algorithm::De, Algorithm::Pso] {
         let settings = FitSettings {
@@ -253,7 +253,7 @@ fn a_stair_switching_at_zero_is_fitted_to_its_truths_optimum_with_de_and_pso() {
         let (out, _) = fit
             .run(&mut CpuEvaluator::new(), &mut [], None, None)
             .unwrap();
-        let ratio = fit.task.validate(&out.params).rmse / floor;
+        let ratio = fit.problem.validate(&out.params).rmse / floor;
         let switched = fit.switched.unwrap();
         eprintln!(
             "{algo}: validation RMSE ratio {ratio:.4}, estimation SSE {:.4} (polished truth {polished_sse:.4}), {switched:?}",

@@ -10,9 +10,9 @@ use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
 
+use crate::args::{effects_arg, family_or_start, seed_arg, start_arg};
 use crate::convert::{backend, to_python, value_error};
 use crate::data::{Trace, arrays_trace};
-use crate::fit::{effects_arg, family_or_start, seed_arg, start_arg};
 use crate::interrupt::interruptible;
 use crate::model::{Model, provenance};
 

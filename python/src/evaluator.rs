@@ -9,16 +9,16 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat};
 
 use mckibben::fit::objective::ModelObjective;
+use mckibben::fit::problem::FitProblem;
 use mckibben::fit::run::model_file;
-use mckibben::fit::task::Task;
 use mckibben::model::UserBound;
 use mckibben::model::{Flow, Measure, Switching};
 use mckibben::optim::engine::Objective as _;
 use mckibben::optim::engine::Space;
 
+use crate::args::user_bounds;
 use crate::convert::{backend, family, loop_shape, rows, rows_view, runtime_error, value_error};
 use crate::data::data_arg;
-use crate::fit::user_bounds;
 use crate::model::{Model, provenance};
 
 /// The batch evaluator as an objective: `ev(thetas)` scores an `(N, d)`
@@ -36,7 +36,7 @@ use crate::model::{Model, provenance};
 /// `mckibben bench` times it.
 #[pyclass(module = "mckibben", frozen)]
 pub struct Evaluator {
-    task: Task,
+    problem: FitProblem,
     /// The user's bounds the box was made with (a model's file keeps them).
     bounds: Vec<UserBound>,
     /// The data's source (a model's provenance names it).
@@ -58,10 +58,12 @@ impl Evaluator {
                 .lock()
                 .map_err(|_| anyhow::anyhow!("the evaluator failed in an earlier call"))?;
             if self.checked {
-                ModelObjective::for_task(evaluator.as_mut(), &self.task)
+                ModelObjective::for_problem(evaluator.as_mut(), &self.problem)
                     .costs(&canonical, Measure::FreeRun)
             } else {
-                Ok(evaluator.evaluate(&self.task.problem(), &canonical)?.total)
+                Ok(evaluator
+                    .evaluate(&self.problem.est_problem(), &canonical)?
+                    .total)
             }
         })
         .map_err(runtime_error)
@@ -111,7 +113,8 @@ impl Evaluator {
 
     /// The canonical parameter names of the family.
     fn canonical_names(&self) -> Vec<String> {
-        self.task
+        self.problem
+            .model
             .family
             .params()
             .iter()
@@ -171,9 +174,9 @@ impl Evaluator {
         let loop_shape = loop_shape(r#loop)?;
         let bounds = user_bounds(bounds)?;
         let backend = self::backend(backend)?;
-        let task = py
+        let problem = py
             .detach(|| {
-                Task::with_box(
+                FitProblem::with_box(
                     &trace,
                     family,
                     Flow::Joint,
@@ -184,14 +187,14 @@ impl Evaluator {
                 )
             })
             .map_err(value_error)?;
-        let space = Space::from(&task.space);
+        let space = Space::from(&problem.space);
         let evaluator = py
             .detach(|| mckibben::eval::open(backend))
             .map_err(runtime_error)?;
         Ok(Evaluator {
             names: space.bounds().names,
             describe: evaluator.describe(),
-            task,
+            problem,
             bounds,
             source: trace.source.clone(),
             space,
@@ -255,7 +258,7 @@ impl Evaluator {
     /// Samples each candidate is scored on (the estimation half).
     #[getter]
     fn samples(&self) -> usize {
-        self.task.estimation().len()
+        self.problem.estimation().len()
     }
 
     /// Whether the fit's bounded-loop checks apply (`checked`).
@@ -302,7 +305,7 @@ impl Evaluator {
     /// would write for it).
     fn model(&self, theta: &Bound<'_, PyAny>) -> PyResult<Model> {
         let file = model_file(
-            &self.task,
+            &self.problem,
             &self.one(theta)?,
             &self.bounds,
             provenance("mckibben.Evaluator.model", &[&self.source], None),
@@ -319,7 +322,7 @@ impl Evaluator {
         theta: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let canonical = self.one(theta)?;
-        let v = py.detach(|| self.task.validate(&canonical));
+        let v = py.detach(|| self.problem.validate(&canonical));
         let d = PyDict::new(py);
         d.set_item("val_rmse", v.rmse)?;
         d.set_item("val_fit_percent", v.fit_percent)?;
@@ -329,8 +332,8 @@ impl Evaluator {
     fn __repr__(&self) -> String {
         format!(
             "Evaluator({} on {} samples, d = {} ({}), {}{})",
-            self.task.family,
-            self.task.estimation().len(),
+            self.problem.model.family,
+            self.problem.estimation().len(),
             self.names.len(),
             self.names.join(", "),
             self.describe,

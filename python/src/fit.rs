@@ -4,26 +4,27 @@
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use numpy::{PyArray1, PyArrayMethods};
-use pyo3::exceptions::{PyKeyboardInterrupt, PyTypeError, PyValueError};
+use numpy::PyArray1;
+use pyo3::exceptions::PyKeyboardInterrupt;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::PyDict;
 
 use mckibben::diagnose::StopFlag;
 use mckibben::diagnose::chain::with_chain_start;
-use mckibben::fit::edge::active_bounds;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
-use mckibben::fit::run::{Fit, FitBox, FitSettings, Overrides, model_file, yardstick_warnings};
-use mckibben::model::effects::Effect;
-use mckibben::model::{ModelFile, UserBound};
+use mckibben::fit::report::FitReport;
+use mckibben::fit::request::{FitRequest, Resolved};
+use mckibben::fit::run::{Fit, FitSettings, Overrides, model_file, yardstick_warnings};
 use mckibben::optim::engine::{Observer, StopReason, StopRules};
-use mckibben::optim::history::{GenerationRecord, History};
+use mckibben::optim::history::GenerationRecord;
 
+use crate::args::{count, effects_arg, seed_arg, start_arg, user_bounds};
 use crate::convert::{
-    algorithm, backend, family, file_error, in_python_terms, loop_shape, runtime_error, switching,
-    to_python, value_error,
+    algorithm, backend, family, in_python_terms, loop_shape, runtime_error, switching, to_python,
+    value_error,
 };
 use crate::data::data_arg;
+use crate::history::history_arrays;
 use crate::interrupt::interruptible;
 use crate::model::{Model, provenance};
 
@@ -150,155 +151,9 @@ impl Observer for PythonObserver<'_> {
     }
 }
 
-/// A count argument (`pop`, `gens`, ...): at least 1.
-fn count(value: Option<i64>, default: usize, what: &str) -> PyResult<usize> {
-    match value {
-        None => Ok(default),
-        Some(v) if v >= 1 => Ok(v as usize),
-        Some(v) => Err(PyValueError::new_err(format!(
-            "{what} must be at least 1, got {v}"
-        ))),
-    }
-}
-
-/// A seed: an integer in [0, 2⁶⁴).
-pub fn seed_arg(seed: i128) -> PyResult<u64> {
-    u64::try_from(seed).map_err(|_| {
-        PyValueError::new_err(format!("seed must be an integer in [0, 2**64), got {seed}"))
-    })
-}
-
-/// `bounds` as the library's bounds: `{name: (lo, hi)}` bounds a parameter
-/// (a canonical name or a search coordinate's), `{name: value}` fixes it,
-/// checked by the parser `--bound NAME=LO:HI` goes through.
-pub fn user_bounds(bounds: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<UserBound>> {
-    let Some(bounds) = bounds else {
-        return Ok(Vec::new());
-    };
-    let mut out = Vec::new();
-    for (key, value) in bounds.iter() {
-        let name: String = key.extract().map_err(|_| {
-            pyo3::exceptions::PyTypeError::new_err("bounds' keys must be parameter names (str)")
-        })?;
-        let (lo, hi) = if let Ok(v) = value.extract::<f64>() {
-            (v, v)
-        } else if let Ok(pair) = value.extract::<(f64, f64)>() {
-            pair
-        } else {
-            return Err(pyo3::exceptions::PyTypeError::new_err(format!(
-                "bounds[{name:?}] must be a (lo, hi) pair or a number (to fix it), got {}",
-                value.repr()?
-            )));
-        };
-        // `{}` prints an f64 so that it parses back to the same bits.
-        let bound: UserBound = format!("{name}={lo}:{hi}")
-            .parse()
-            .map_err(|e: String| PyValueError::new_err(in_python_terms(&format!("bounds: {e}"))))?;
-        out.push(bound);
-    }
-    Ok(out)
-}
-
-/// Effect names checked against the catalogue (an unknown name is a
-/// `ValueError` listing the known ones).
-pub fn effects_arg(effects: Option<Vec<String>>) -> PyResult<Option<Vec<Effect>>> {
-    effects
-        .map(|names| {
-            names
-                .iter()
-                .map(|n| n.parse::<Effect>().map_err(PyValueError::new_err))
-                .collect()
-        })
-        .transpose()
-}
-
-/// The family asked for, else the start model's, else classic (as the
-/// commands' `--model`/`--baseline` with `--from`).
-pub fn family_or_start(
-    given: Option<&str>,
-    start: Option<&mckibben::model::Model>,
-) -> PyResult<mckibben::model::Family> {
-    Ok(match (given, start) {
-        (Some(name), _) => family(name)?,
-        (None, Some(m)) => m.base.family,
-        (None, None) => mckibben::model::Family::Classic,
-    })
-}
-
-/// A warm start: a `Model`, or the path of a model file.
-pub fn start_arg(start: &Bound<'_, PyAny>) -> PyResult<ModelFile> {
-    if let Ok(m) = start.cast::<Model>() {
-        return Ok(m.get().file.clone());
-    }
-    let path: std::path::PathBuf = start
-        .extract()
-        .map_err(|_| PyTypeError::new_err("start must be a Model or the path of a model file"))?;
-    start
-        .py()
-        .detach(|| ModelFile::load(&path))
-        .map_err(file_error)
-}
-
-/// A history as a dict of arrays, one entry per record; `names` name the
-/// canonical parameters its records hold. (`History::names` are the search
-/// coordinates' names, which label the canonical values only where the box
-/// is in canonical coordinates.)
-fn history_arrays<'py>(
-    py: Python<'py>,
-    h: &History,
-    names: &[&str],
-) -> PyResult<Bound<'py, PyDict>> {
-    let r = &h.records;
-    let d = PyDict::new(py);
-    let ints = |f: &dyn Fn(&GenerationRecord) -> i64| {
-        PyArray1::from_vec(py, r.iter().map(f).collect::<Vec<i64>>())
-    };
-    let floats = |f: &dyn Fn(&GenerationRecord) -> Option<f64>| {
-        PyArray1::from_vec(
-            py,
-            r.iter()
-                .map(|x| f(x).unwrap_or(f64::NAN))
-                .collect::<Vec<f64>>(),
-        )
-    };
-    d.set_item("generation", ints(&|x| x.generation as i64))?;
-    let stages: Vec<&str> = r.iter().map(|x| x.stage.name()).collect();
-    d.set_item(
-        "stage",
-        py.import("numpy")?.call_method1("array", (stages,))?,
-    )?;
-    d.set_item(
-        "horizon",
-        ints(&|x| match x.measure {
-            mckibben::model::Measure::FreeRun => 0,
-            mckibben::model::Measure::Ahead { horizon } => horizon as i64,
-        }),
-    )?;
-    d.set_item("evaluations", ints(&|x| x.evaluations as i64))?;
-    d.set_item("seconds", floats(&|x| Some(x.seconds)))?;
-    d.set_item("best_sse", floats(&|x| x.best_sse))?;
-    d.set_item("stage_best", floats(&|x| x.stage_best))?;
-    d.set_item("generation_best_sse", floats(&|x| x.generation_best_sse))?;
-    d.set_item("mean_sse", floats(&|x| x.mean_sse))?;
-    d.set_item("std_sse", floats(&|x| x.std_sse))?;
-    d.set_item("diverged", ints(&|x| x.diverged as i64))?;
-    let p = names.len();
-    let rows: Vec<f64> = r
-        .iter()
-        .flat_map(|x| {
-            if x.best_params.len() == p {
-                x.best_params.clone()
-            } else {
-                vec![f64::NAN; p]
-            }
-        })
-        .collect();
-    d.set_item(
-        "params",
-        PyArray1::from_vec(py, rows).reshape([r.len(), p])?,
-    )?;
-    d.set_item("names", PyList::new(py, names)?)?;
-    Ok(d)
+/// `value` as the Python value its JSON reads as.
+fn unbound(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>> {
+    Ok(to_python(py, value)?.unbind())
 }
 
 /// Fits a hysteresis model to one experiment with the staged engine of
@@ -339,38 +194,20 @@ pub fn fit(
     // As `fit --from`: the start's family, effects and bounds unless given
     // here (the bounds given here after the file's, so that they win).
     let start = start.map(start_arg).transpose()?;
-    let start_model = start
-        .as_ref()
-        .map(|f| f.model())
-        .transpose()
-        .map_err(value_error)?;
-    let family = family_or_start(model, start_model.as_ref())?;
-    let effects: Vec<Effect> = match (effects_arg(effects)?, &start_model) {
-        (Some(e), _) => e,
-        (None, Some(m)) => m.effects().to_vec(),
-        (None, None) => Vec::new(),
-    };
-    let mut all_bounds: Vec<UserBound> = match &start {
-        Some(f) => f
-            .user_bounds
-            .iter()
-            .map(|b| {
-                b.parse().map_err(|e: String| {
-                    PyValueError::new_err(format!("start: its user_bounds: {e}"))
-                })
-            })
-            .collect::<PyResult<_>>()?,
-        None => Vec::new(),
-    };
-    all_bounds.extend(user_bounds(bounds)?);
-    let what = FitBox {
-        family,
-        effects,
+    let request = FitRequest {
+        family: model.map(family).transpose()?,
+        effects: effects_arg(effects)?,
         free_n,
         loop_shape: loop_shape(r#loop)?,
         switching: switching(switch)?,
-        bounds: all_bounds,
+        bounds: user_bounds(bounds)?,
     };
+    let Resolved {
+        what,
+        start: start_model,
+    } = request
+        .resolve(start.as_ref())
+        .map_err(|e| value_error(e.context("start")))?;
     if let Some(p) = progress.as_ref()
         && !p.bind(py).is_callable()
     {
@@ -442,73 +279,61 @@ pub fn fit(
         warn.call_method1("warn", (in_python_terms(&n),))?;
     }
     let (outcome, widened) = ran;
-    let start = fit.start_scores();
-    let built = fit.built;
-    let switched = fit.switched;
-    let Fit { task, engine, .. } = fit;
-    let found = !outcome.params.is_empty();
-    let val = found.then(|| task.validate(&outcome.params));
-    let finite = |v: f64| v.is_finite().then_some(v);
-    let linear = task.linear_yardstick().and_then(|v| finite(v.fit_percent));
-    if let Some(fit) = val.and_then(|v| finite(v.fit_percent)) {
-        for w in yardstick_warnings(outcome.sse, fit, linear, start) {
+    let report = FitReport::of(&fit, (&outcome, &widened), &describe, &trace.source);
+    if let Some(val) = report.val_fit_percent {
+        let linear = report.linear_val_fit_percent;
+        for w in yardstick_warnings(outcome.sse, val, linear, fit.start_scores()) {
             warn.call_method1("warn", (w,))?;
         }
     }
-    let names = task.augmented().param_names();
-    let names: Vec<&str> = names.iter().map(|n| n.as_str()).collect();
+    let (problem, engine) = (&fit.problem, &fit.engine);
     let params = PyDict::new(py);
-    for (name, v) in names.iter().zip(&outcome.params) {
+    for (name, v) in &report.params.0 {
         params.set_item(name, v)?;
     }
     let search_box = PyDict::new(py);
-    search_box.set_item("names", task.space.names())?;
-    search_box.set_item("lower", PyArray1::from_slice(py, &task.space.lower))?;
-    search_box.set_item("upper", PyArray1::from_slice(py, &task.space.upper))?;
-    let global = engine.plan.global.as_ref();
-    let model = if found {
+    search_box.set_item("names", &report.search_box.names)?;
+    search_box.set_item("lower", PyArray1::from_slice(py, &report.search_box.lower))?;
+    search_box.set_item("upper", PyArray1::from_slice(py, &report.search_box.upper))?;
+    let model = if outcome.params.is_empty() {
+        None
+    } else {
         let file = model_file(
-            &task,
+            problem,
             &outcome.params,
             &what.bounds,
             provenance("mckibben.fit", &[&trace.source], Some(engine.seed)),
         );
         Some(Py::new(py, Model::of_file(file).map_err(runtime_error)?)?)
-    } else {
-        None
     };
+    let names = problem.model.param_names();
+    let names: Vec<&str> = names.iter().map(|n| n.as_str()).collect();
     Ok(FitResult {
         model,
         params: params.unbind(),
-        sse: outcome.sse,
-        val_rmse: val.and_then(|v| finite(v.rmse)),
-        val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
-        linear_val_fit_percent: linear,
-        start_sse: start.and_then(|s| finite(s.est_sse)),
-        start_val_fit_percent: start.and_then(|s| finite(s.validation.fit_percent)),
-        built: built
-            .map(|b| to_python(py, &b))
-            .transpose()?
-            .map(|b| b.unbind()),
-        switching: switched
-            .map(|s| to_python(py, &s))
-            .transpose()?
-            .map(|s| s.unbind()),
-        evaluations: outcome.evaluations,
-        generations: outcome.generations,
-        seconds: outcome.seconds,
-        backend: describe,
-        family: task.family.name().to_string(),
-        effects: task.effects.iter().map(|e| e.name().to_string()).collect(),
-        algo: global.map_or(settings.algo, |g| g.algorithm()).to_string(),
-        flow: to_python(py, &task.flow)?.extract()?,
-        seed: engine.seed,
-        population: global.map_or(0, |g| g.population),
-        stop: to_python(py, &outcome.stop)?.extract()?,
-        interrupted: outcome.stop == StopReason::Interrupted,
-        stages: to_python(py, &outcome.stages)?.unbind(),
-        on_edge: to_python(py, &active_bounds(&task, &outcome.params))?.unbind(),
-        widened: to_python(py, &widened)?.unbind(),
+        sse: report.sse.unwrap_or(f64::INFINITY),
+        val_rmse: report.val_rmse,
+        val_fit_percent: report.val_fit_percent,
+        linear_val_fit_percent: report.linear_val_fit_percent,
+        start_sse: report.start_sse,
+        start_val_fit_percent: report.start_val_fit_percent,
+        built: report.built.map(|b| unbound(py, &b)).transpose()?,
+        switching: report.switching.map(|s| unbound(py, &s)).transpose()?,
+        evaluations: report.evaluations,
+        generations: report.generations,
+        seconds: report.seconds,
+        backend: report.backend.clone(),
+        family: report.model.name().to_string(),
+        effects: report.effects.clone(),
+        algo: report.algo.to_string(),
+        flow: to_python(py, &report.flow)?.extract()?,
+        seed: report.seed,
+        population: report.population,
+        stop: to_python(py, &report.stop)?.extract()?,
+        interrupted: report.stop == StopReason::Interrupted,
+        stages: unbound(py, &report.stages)?,
+        on_edge: unbound(py, &report.on_edge)?,
+        widened: unbound(py, &report.widened)?,
         search_box: search_box.unbind(),
         history: history_arrays(py, &engine.history, &names)?.unbind(),
     })

@@ -9,11 +9,13 @@
 //! Ctrl-C into the engine's stop flag, and mapping errors to Python's
 //! exceptions. docs/PYTHON.md describes the API.
 
+mod args;
 mod convert;
 mod data;
 mod diagnose;
 mod evaluator;
 mod fit;
+mod history;
 mod interrupt;
 mod model;
 

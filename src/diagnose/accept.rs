@@ -2,7 +2,7 @@
 //! selection ([`select`](super::select)).
 //!
 //! **Acceptance rule.** Every figure it reads is on the selection part
-//! ([`Data`](super::data::Data)); the test part is never read here. Let `R0`
+//! ([`FitProblem`](crate::fit::problem::FitProblem)); the test part is never read here. Let `R0`
 //! be the selection RMSE of the current model and `R1` the candidate's (each
 //! fit keeps the seed with the lowest estimation SSE among those that stay
 //! finite on the selection part); `s0`, `s1` the seed-to-seed spreads of the

@@ -15,11 +15,10 @@
 
 use serde::Serialize;
 
-use super::data::Data;
-use super::effects::Augmented;
 use super::settings::Settings;
 use super::transfer::run_stoppable;
 use crate::data::Trace;
+use crate::fit::problem::FitProblem;
 use crate::fit::run::{Fit, FitBox, FitSettings};
 use crate::model::Model;
 
@@ -40,19 +39,20 @@ pub struct AsFit {
     pub kept: bool,
 }
 
-/// `model` (fitted by the selection at `params`, `saved` as a model file
-/// holds it) fitted again as `fit --effects` fits it on the one record of
-/// `data`; `None` where `fit` cannot fit it so (several records, or a
+/// The final model of `problem` (fitted by the selection at `params`,
+/// `saved` as a model file holds it) fitted again as `fit --effects` fits
+/// it on the problem's one record; `None` where `fit` cannot fit it so (several records, or a
 /// chain with an effect one record cannot hold) or where its result is
 /// not a model the diagnosis admits. The diagnosis' `settings` give the
 /// seed, the backend and the stop flag.
 pub fn refit(
-    data: &Data,
+    problem: &FitProblem,
     trace: &Trace,
-    (model, params, saved): (&Augmented, &[f64], &Model),
+    (params, saved): (&[f64], &Model),
     settings: &Settings,
 ) -> anyhow::Result<Option<AsFit>> {
-    if data.datasets() != 1 || !model.effects.iter().all(|e| e.applicable(1)) {
+    let model = &problem.model;
+    if problem.datasets() != 1 || !model.effects.iter().all(|e| e.applicable(1)) {
         return Ok(None);
     }
     let fit_settings = FitSettings::staged(settings.seed);
@@ -64,14 +64,14 @@ pub fn refit(
     )?;
     let outcome = run_stoppable(&mut fit, settings)?;
     let theta = outcome.params;
-    if theta.len() != params.len() || !Data::admits(model, &theta) {
+    if theta.len() != params.len() || !problem.admits(&theta) {
         return Ok(None);
     }
-    let selection_rmse = data.selection_rmse(model, &theta);
-    let selection_fit_rmse = data.selection_rmse(model, params);
+    let selection_rmse = problem.selection_rmse(&theta);
+    let selection_fit_rmse = problem.selection_rmse(params);
     Ok(Some(AsFit {
-        est_sse: data.est_sse(model, &theta),
-        val_fit_percent: data.records.validate(model, &theta).fit_percent,
+        est_sse: problem.est_sse(&theta),
+        val_fit_percent: problem.validate(&theta).fit_percent,
         kept: selection_rmse < selection_fit_rmse,
         selection_rmse,
         selection_fit_rmse,

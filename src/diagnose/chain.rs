@@ -10,14 +10,21 @@
 //! ended at estimation SSE 27.6 where the diagnosis' chain reached 15.7
 //! (docs/RESULTS.md, "The diagnosed model, end to end").
 
-use super::data::Data;
+use super::Effect;
 use super::fitting::{Start, fit_seeds, fit_with_effect, scratch_fits};
 use super::settings::{Interrupted, Settings, StopFlag};
-use super::{Augmented, Effect, model_of};
 use crate::data::Trace;
 use crate::eval::Backend;
+use crate::fit::problem::FitProblem;
+use crate::fit::records::Records;
+use crate::fit::report::FitReport;
 use crate::fit::run::{Fit, FitSettings};
+use crate::ident::{fit_percent, rmse};
+use crate::model::experiment::halves;
+use crate::model::file::SearchBox;
 use crate::model::{Family, Flow, Model};
+use crate::optim::Algorithm;
+use crate::optim::engine::StopReason;
 
 /// Salt of the chain's seeds, apart from the selection's (100 per round)
 /// and the refits' (9 000).
@@ -31,33 +38,29 @@ pub fn fit_chain(
     effects: &[Effect],
     settings: &Settings,
 ) -> anyhow::Result<(Model, f64)> {
-    let data = Data::new(traces, settings.blocks)?
+    let mut problem = FitProblem::diagnosis(traces, family, None, settings.blocks)?
         .scored_on(crate::eval::open(settings.backend)?)
         .stopped_by(settings.stop.clone());
-    let mut model = Augmented::new(family, Vec::new(), data.datasets());
-    let mut best = fit_seeds(&data, &model, Start::Scratch, settings, CHAIN_SALT)?.best;
+    let mut best = fit_seeds(&problem, Start::Scratch, settings, CHAIN_SALT)?.best;
     for (k, &effect) in effects.iter().enumerate() {
         let salt = CHAIN_SALT + 10 * (k as u64 + 1);
         // As the diagnosis' first round: fits of the first effect's model
         // from scratch among the seeds, which a baseline that compensated
         // for the effect cannot walk back to.
         let scratch = if k == 0 {
-            scratch_fits(&data, &model.with(effect), settings, salt + 5)?
+            scratch_fits(
+                &problem.with_model(&problem.model.with(effect)),
+                settings,
+                salt + 5,
+            )?
         } else {
             Vec::new()
         };
-        let (next, fit) = fit_with_effect(
-            &data,
-            &model,
-            &best.params,
-            effect,
-            settings,
-            salt,
-            &scratch,
-        )?;
-        (model, best) = (next, fit.best);
+        let (next, fit) =
+            fit_with_effect(&problem, &best.params, effect, settings, salt, &scratch)?;
+        (problem, best) = (next, fit.best);
     }
-    Ok((model_of(&data, traces, &model, &best.params), best.est_sse))
+    Ok((problem.fitted_model(&best.params), best.est_sse))
 }
 
 /// `fit` with the chain fitted here as its second start
@@ -73,8 +76,8 @@ pub fn with_chain_start(
     backend: Backend,
     stop: StopFlag,
 ) -> anyhow::Result<Fit> {
-    let task = &fit.task;
-    if task.effects.is_empty() || fit.start.is_some() || task.flow != Flow::Joint {
+    let problem = &fit.problem;
+    if problem.model.effects.is_empty() || fit.start.is_some() || problem.flow != Flow::Joint {
         return Ok(fit);
     }
     let chain_settings = Settings {
@@ -83,7 +86,7 @@ pub fn with_chain_start(
         stop,
         ..Settings::default()
     };
-    let (family, effects) = (task.family, task.effects.clone());
+    let (family, effects) = (problem.model.family, problem.model.effects.clone());
     let started = std::time::Instant::now();
     match fit_chain(
         std::slice::from_ref(trace),
@@ -95,4 +98,74 @@ pub fn with_chain_start(
         Err(e) if e.is::<Interrupted>() => Ok(fit),
         Err(e) => Err(e),
     }
+}
+
+/// `fit --effects auto`: the diagnosis' forward selection over its whole
+/// catalogue on `trace` (the diagnosis' settings with `seed` and
+/// `backend`), its final model reported as a fit's: scored on the second
+/// half from one free run over the whole record, against the first-order
+/// ARX model on the same halves.
+pub fn selected_fit(
+    trace: &Trace,
+    family: Family,
+    seed: u64,
+    backend: Backend,
+) -> anyhow::Result<(Model, FitReport)> {
+    let settings = Settings {
+        seed,
+        backend,
+        ..Settings::default()
+    };
+    let started = std::time::Instant::now();
+    let d = super::diagnose(
+        std::slice::from_ref(trace),
+        family,
+        &Effect::by_default(),
+        &settings,
+    )?;
+    let model = d.final_model.clone();
+    let run = model.simulate_absolute(&trace.input, trace.output[0]);
+    let from = halves(trace.len()).1.start;
+    let (y, yhat) = (&trace.output[from..], &run.output[from..]);
+    let finite = |v: f64| v.is_finite().then_some(v);
+    let report = FitReport {
+        model: family,
+        effects: model
+            .effects()
+            .iter()
+            .map(|e| e.name().to_string())
+            .collect(),
+        algo: Algorithm::De,
+        params: model.named_params().into_iter().collect(),
+        sse: finite(d.selection.final_fit.est_sse),
+        val_rmse: finite(rmse(y, yhat)),
+        val_fit_percent: finite(fit_percent(y, yhat)),
+        linear_val_fit_percent: Records::of(std::slice::from_ref(trace), None)?
+            .linear_yardstick(0)
+            .and_then(|v| finite(v.fit_percent)),
+        start_sse: None,
+        start_val_fit_percent: None,
+        built: None,
+        switching: None,
+        evaluations: 0,
+        generations: 0,
+        seconds: started.elapsed().as_secs_f64(),
+        backend: format!("{backend:?} (the diagnosis' searches)").to_lowercase(),
+        flow: Flow::Joint,
+        seed,
+        population: settings.population,
+        stop: StopReason::Completed,
+        stages: Vec::new(),
+        on_edge: Vec::new(),
+        widened: Vec::new(),
+        search_box: SearchBox {
+            names: Vec::new(),
+            lower: Vec::new(),
+            upper: Vec::new(),
+            origin: Vec::new(),
+        },
+        data: trace.source.clone(),
+        out: None,
+    };
+    Ok((model, report))
 }

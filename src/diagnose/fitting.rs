@@ -4,7 +4,7 @@
 //!
 //! Every search and every polish runs on the fitting engine
 //! ([`crate::optim::engine`]) over one objective, the model description
-//! scored in batches on the data's evaluator; what is the diagnosis' own is
+//! scored in batches on the problem's evaluator; what is the diagnosis' own is
 //! where each search starts and what it minimises.
 
 use nalgebra::DVector;
@@ -13,18 +13,17 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal, Uniform};
 use serde::Serialize;
 
-use super::data::Data;
-use super::effects::Augmented;
 use super::likelihood::indistinguishable_up_to;
 use super::settings::{Interrupted, Settings};
 use crate::fit::objective::ModelObjective;
+use crate::fit::problem::FitProblem;
 use crate::model::{Family, Measure};
 use crate::optim::AlgoSettings;
 use crate::optim::de::DeSettings;
 use crate::optim::engine::{Engine, Objective, Outcome, Plan, Polish, Space, StopRules};
 
 /// The fit's objective ([`ModelObjective::bounded_loops`]: the model
-/// description scored in batches on the data's evaluator, unbounded loops
+/// description scored in batches on the problem's evaluator, unbounded loops
 /// and effects the diagnosis does not admit at `+∞`) under one `measure`,
 /// whatever measure the engine asks for: each search of the diagnosis
 /// minimises one measure, and the engine then keeps the best of it.
@@ -51,43 +50,46 @@ impl Objective for OneMeasure<'_> {
     }
 }
 
-/// Runs `engine` on `model`'s estimation part under `measure` alone
-/// ([`OneMeasure`]), on the data's evaluator; [`Interrupted`] once the data's
+/// Runs `engine` on the problem's estimation part under `measure` alone
+/// ([`OneMeasure`]), on the problem's evaluator; [`Interrupted`] once its
 /// stop flag is raised (the engine stops after its current generation or
 /// polish iteration).
 fn run_engine(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     measure: Measure,
     engine: &mut Engine,
 ) -> anyhow::Result<Outcome> {
-    let outcome = data.with_evaluator(|evaluator| {
+    let outcome = problem.with_evaluator(|evaluator| {
         let mut objective = OneMeasure {
-            objective: ModelObjective::bounded_loops(evaluator, data.est_problem(model, measure)),
+            objective: ModelObjective::for_problem(evaluator, problem),
             measure,
         };
-        engine.run(&mut objective, &mut [], Some(data.stop.as_atomic()), None)
+        engine.run(
+            &mut objective,
+            &mut [],
+            Some(problem.stop.as_atomic()),
+            None,
+        )
     })?;
-    if data.stop.raised() {
+    if problem.stop.raised() {
         return Err(Interrupted.into());
     }
     Ok(outcome)
 }
 
-/// The box of a search: `lo..hi`, a coordinate with equal bounds held.
-fn space_of(lo: &[f64], hi: &[f64]) -> Space {
-    let names = (0..lo.len()).map(|j| format!("p{j}")).collect();
-    Space::new(lo.to_vec(), hi.to_vec(), names)
+/// The box of a search on `problem`: `lo..hi` (the problem's box, or a
+/// part of it held), a coordinate with equal bounds held; the parameters
+/// named as the model names them.
+fn space_of(problem: &FitProblem, lo: &[f64], hi: &[f64]) -> Space {
+    Space::new(lo.to_vec(), hi.to_vec(), problem.space.names())
 }
 
 /// Differential evolution on the engine over the box `lo..hi` from the
 /// `initial` rows (canonical; the rest of the population drawn uniformly),
 /// for `generations` generations after the initial population; returns
 /// the best point seen and its cost.
-#[allow(clippy::too_many_arguments)]
 fn evolve(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     measure: Measure,
     (lo, hi): (&[f64], &[f64]),
     initial: &[f64],
@@ -100,9 +102,14 @@ fn evolve(
         ..DeSettings::default()
     });
     let plan = Plan::search(settings, population, generations + 1);
-    let mut engine = Engine::new(plan, space_of(lo, hi), rng.random(), StopRules::default())?
-        .with_initial(initial);
-    let outcome = run_engine(data, model, measure, &mut engine)?;
+    let mut engine = Engine::new(
+        plan,
+        space_of(problem, lo, hi),
+        rng.random(),
+        StopRules::default(),
+    )?
+    .with_initial(initial);
+    let outcome = run_engine(problem, measure, &mut engine)?;
     if outcome.params.is_empty() {
         // Every candidate diverged: the start is as good as any.
         return Ok((initial[..lo.len()].to_vec(), f64::INFINITY));
@@ -140,7 +147,7 @@ pub enum Start<'a> {
     /// From scratch over the whole box (the baseline).
     Scratch,
     /// From scratch in two stages: half the generations on the
-    /// `horizon`-step-ahead prediction error ([`Data::est_sse_ahead`]), the
+    /// `horizon`-step-ahead prediction error ([`FitProblem::est_sse_ahead`]), the
     /// other half on the free run, started around the first stage's best.
     /// The free-run cost of a slow, hysteretic model is a needle along the
     /// pole and the static gain that differential evolution rarely finds
@@ -170,29 +177,31 @@ pub enum Start<'a> {
 /// for the missing effect and must move back. The start is a member
 /// throughout, so a fit never ends worse than it started.
 pub fn fit_candidate(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     start: Start<'_>,
     seed: u64,
     population: usize,
     generations: usize,
 ) -> anyhow::Result<Fit> {
-    let (neutral, lo, hi) = data.space(model);
+    let (neutral, lo, hi) = (
+        problem.centre(),
+        problem.space.lower.clone(),
+        problem.space.upper.clone(),
+    );
     let d = lo.len();
     let np = population.max(6);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (initial, p_best, generations) = match start {
         Start::Scratch => (
-            scratch_rows(data, model, (&neutral, &lo, &hi), np, &mut rng),
+            scratch_rows(problem, (&neutral, &lo, &hi), np, &mut rng),
             0.02,
             generations,
         ),
         Start::Ahead { horizon } => {
-            let rows = scratch_rows(data, model, (&neutral, &lo, &hi), np, &mut rng);
+            let rows = scratch_rows(problem, (&neutral, &lo, &hi), np, &mut rng);
             let first = generations / 2;
             let (best, _) = evolve(
-                data,
-                model,
+                problem,
                 Measure::Ahead { horizon },
                 (&lo, &hi),
                 &rows,
@@ -216,16 +225,9 @@ pub fn fit_candidate(
                 held_hi[..new_from].copy_from_slice(&s[..new_from]);
                 let mut first = s.to_vec();
                 // A mode starts where the residual's spectrum peaks.
-                first.extend(super::hints::mode_hints(
-                    data,
-                    model,
-                    s,
-                    new_from,
-                    (&lo, &hi),
-                ));
+                first.extend(super::hints::mode_hints(problem, s, new_from, (&lo, &hi)));
                 let (best, _) = evolve(
-                    data,
-                    model,
+                    problem,
                     Measure::FreeRun,
                     (&held_lo, &held_hi),
                     &first,
@@ -242,8 +244,7 @@ pub fn fit_candidate(
         }
     };
     let (best, _) = evolve(
-        data,
-        model,
+        problem,
         Measure::FreeRun,
         (&lo, &hi),
         &initial,
@@ -252,10 +253,10 @@ pub fn fit_candidate(
         &mut rng,
     )?;
     // In `f64`, as the polish compares.
-    let est_sse = data.est_sse(model, &best);
-    let (best, est_sse) = polish(data, model, best, est_sse, (&lo, &hi))?;
+    let est_sse = problem.est_sse(&best);
+    let (best, est_sse) = polish(problem, best, est_sse, (&lo, &hi))?;
     Ok(Fit {
-        sel_rmse: data.selection_rmse(model, &best),
+        sel_rmse: problem.selection_rmse(&best),
         est_sse,
         params: best,
     })
@@ -282,8 +283,7 @@ pub fn fit_candidate(
 /// (docs/lab/diagnosis.md, "One polish"). A coordinate with equal bounds is
 /// held.
 pub(super) fn polish(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     best: Vec<f64>,
     est_sse: f64,
     (lo, hi): (&[f64], &[f64]),
@@ -304,14 +304,14 @@ pub(super) fn polish(
     };
     // The polish draws nothing: the seed is never used.
     let mut engine =
-        Engine::new(plan, space_of(lo, hi), 0, StopRules::default())?.with_initial(&best);
-    let outcome = run_engine(data, model, Measure::FreeRun, &mut engine)?;
+        Engine::new(plan, space_of(problem, lo, hi), 0, StopRules::default())?.with_initial(&best);
+    let outcome = run_engine(problem, Measure::FreeRun, &mut engine)?;
     // No params: the start and every step diverged. The polished point is
     // scored in `f64`, as the start was.
     if outcome.params.is_empty() {
         return Ok((best, est_sse));
     }
-    let sse = data.est_sse(model, &outcome.params);
+    let sse = problem.est_sse(&outcome.params);
     Ok(if sse < est_sse {
         (outcome.params, sse)
     } else {
@@ -335,9 +335,9 @@ const PROFILE_NODES: i32 = 6;
 /// rest of the model must move back with it (measured on the self-test:
 /// docs/lab/diagnosis.md, the budget's "profiled along the new effect's size"
 /// item).
-pub(super) fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> anyhow::Result<Fit> {
-    let (neutral, lo, hi) = data.space(model);
-    let centre = neutral[at].clamp(lo[at], hi[at]);
+pub(super) fn profile(problem: &FitProblem, fit: Fit, at: usize) -> anyhow::Result<Fit> {
+    let (lo, hi) = (&problem.space.lower, &problem.space.upper);
+    let centre = problem.centre()[at].clamp(lo[at], hi[at]);
     let (mut best, mut best_sse) = (fit.params.clone(), fit.est_sse);
     for edge in [lo[at], hi[at]] {
         if edge == centre {
@@ -346,7 +346,7 @@ pub(super) fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> an
         let mut start = fit.params.clone();
         for k in (0..PROFILE_NODES).rev() {
             let v = centre + (edge - centre) * 0.5f64.powi(k);
-            let (node, node_sse) = polish_held(data, model, &start, (at, v), (&lo, &hi))?;
+            let (node, node_sse) = polish_held(problem, &start, (at, v), (lo, hi))?;
             if node_sse < best_sse {
                 (best, best_sse) = (node.clone(), node_sse);
             }
@@ -356,8 +356,8 @@ pub(super) fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> an
     if best_sse >= fit.est_sse {
         return Ok(fit);
     }
-    let (params, est_sse) = polish(data, model, best, best_sse, (&lo, &hi))?;
-    let sel_rmse = data.selection_rmse(model, &params);
+    let (params, est_sse) = polish(problem, best, best_sse, (lo, hi))?;
+    let sel_rmse = problem.selection_rmse(&params);
     Ok(if sel_rmse.is_finite() {
         Fit {
             params,
@@ -372,8 +372,7 @@ pub(super) fn profile(data: &Data, model: &Augmented, fit: Fit, at: usize) -> an
 /// [`polish`] from `start` with coordinate `at` held at `v`: one point of
 /// the profile along that coordinate.
 pub(super) fn polish_held(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     start: &[f64],
     (at, v): (usize, f64),
     (lo, hi): (&[f64], &[f64]),
@@ -382,8 +381,8 @@ pub(super) fn polish_held(
     (l[at], h[at]) = (v, v);
     let mut p = start.to_vec();
     p[at] = v;
-    let sse = data.est_sse(model, &p);
-    polish(data, model, p, sse, (&l, &h))
+    let sse = problem.est_sse(&p);
+    polish(problem, p, sse, (&l, &h))
 }
 
 /// The initial population of a from-scratch fit: one member at the ARX
@@ -395,25 +394,25 @@ pub(super) fn polish_held(
 /// the linear model's plateau (A = 0) (measured: docs/lab/diagnosis.md, the
 /// budget's "baseline" item).
 fn scratch_rows(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     (neutral, lo, hi): (&[f64], &[f64], &[f64]),
     np: usize,
     rng: &mut ChaCha8Rng,
 ) -> Vec<f64> {
     let d = lo.len();
+    let family = problem.model.family;
     let mut v = neutral.to_vec();
-    if model.family != Family::Linear {
+    if family != Family::Linear {
         v[1] = hi[1];
         v[2] = 0.0f64.clamp(lo[2], hi[2]);
         v[3] = 0.0f64.clamp(lo[3], hi[3]);
     }
-    let [ia, ib, ic] = model.family.linear_indices();
-    v[ia] = data.records.prior.a.clamp(lo[ia], hi[ia]);
-    v[ib] = data.records.prior.b.clamp(lo[ib], hi[ib]);
+    let [ia, ib, ic] = family.linear_indices();
+    v[ia] = problem.records.prior.a.clamp(lo[ia], hi[ia]);
+    v[ib] = problem.records.prior.b.clamp(lo[ib], hi[ib]);
     v[ic] = 0.0f64.clamp(lo[ic], hi[ic]);
     let mut rows = v;
-    let shape = 2..model.family.exponent_index().unwrap_or(2);
+    let shape = 2..family.exponent_index().unwrap_or(2);
     for i in 1..np {
         for j in 0..d {
             let uniform = Uniform::new_inclusive(lo[j], hi[j]).map_or(lo[j], |u| u.sample(rng));
@@ -472,15 +471,14 @@ fn rows_around(
 /// Fits `model` with `settings.seeds` seeds (from scratch: `baseline_seeds`
 /// of the baseline budget); `start` as in [`fit_candidate`].
 pub fn fit_seeds(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     start: Start<'_>,
     settings: &Settings,
     salt: u64,
 ) -> anyhow::Result<SeededFit> {
     Ok(summarize(
-        seed_fits(data, model, start, settings, salt)?,
-        data.est_samples(),
+        seed_fits(problem, start, settings, salt)?,
+        problem.est_samples(),
     ))
 }
 
@@ -492,22 +490,20 @@ pub fn fit_seeds(
 /// "in the first round" item), and a warm start cannot walk back; a search
 /// from scratch can.
 pub(super) fn fit_seeds_with(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     start: Start<'_>,
     settings: &Settings,
     salt: u64,
     scratch: &[Fit],
 ) -> anyhow::Result<SeededFit> {
-    let mut fits = seed_fits(data, model, start, settings, salt)?;
+    let mut fits = seed_fits(problem, start, settings, salt)?;
     fits.extend_from_slice(scratch);
-    Ok(summarize(fits, data.est_samples()))
+    Ok(summarize(fits, problem.est_samples()))
 }
 
 /// The fits of [`fit_seeds`], one per seed.
 fn seed_fits(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     start: Start<'_>,
     settings: &Settings,
     salt: u64,
@@ -523,7 +519,7 @@ fn seed_fits(
     (0..seeds.max(1) as u64)
         .map(|i| {
             let seed = settings.seed + 1000 * salt + i;
-            fit_candidate(data, model, start, seed, pop, gens)
+            fit_candidate(problem, start, seed, pop, gens)
         })
         .collect()
 }
@@ -535,25 +531,23 @@ fn seed_fits(
 /// selection tries a candidate, and how a given chain is built
 /// (`diagnose::chain`).
 pub(super) fn fit_with_effect(
-    data: &Data,
-    current: &Augmented,
+    current: &FitProblem,
     params: &[f64],
     effect: super::Effect,
     settings: &Settings,
     salt: u64,
     scratch: &[Fit],
-) -> anyhow::Result<(Augmented, SeededFit)> {
-    let model = current.with(effect);
-    let (neutral, _, _) = data.space(&model);
+) -> anyhow::Result<(FitProblem, SeededFit)> {
+    let candidate = current.with_model(&current.model.with(effect));
     let mut start = params.to_vec();
-    start.extend_from_slice(&neutral[params.len()..]);
+    start.extend_from_slice(&candidate.centre()[params.len()..]);
     let warm = Start::Warm {
         params: &start,
         new_from: params.len(),
     };
-    let mut fit = fit_seeds_with(data, &model, warm, settings, salt, scratch)?;
-    fit.best = profile(data, &model, fit.best, params.len() + effect.primary())?;
-    Ok((model, fit))
+    let mut fit = fit_seeds_with(&candidate, warm, settings, salt, scratch)?;
+    fit.best = profile(&candidate, fit.best, params.len() + effect.primary())?;
+    Ok((candidate, fit))
 }
 
 /// `settings.scratch_seeds` fits of `model` from scratch through the
@@ -561,20 +555,18 @@ pub(super) fn fit_with_effect(
 /// population and generations. They do not depend on the current model, so
 /// a round that is judged again after a rebase reuses them.
 pub(super) fn scratch_fits(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     settings: &Settings,
     salt: u64,
 ) -> anyhow::Result<Vec<Fit>> {
     let ahead = Start::Ahead {
-        horizon: data.horizon(),
+        horizon: problem.horizon(),
     };
     (0..settings.scratch_seeds as u64)
         .map(|i| {
             let seed = settings.seed + 1000 * salt + 500 + i;
             fit_candidate(
-                data,
-                model,
+                problem,
                 ahead,
                 seed,
                 settings.baseline_population,
@@ -675,7 +667,7 @@ mod tests {
 
     /// A stair of pressures through a valve (pole 0.6) and the thesis'
     /// classic model's response (Table 1), plus 0.1 mm of seeded noise.
-    fn stair_data() -> Data {
+    fn stair_data() -> FitProblem {
         let levels = [0.05, 0.2, 0.35, 0.5, 0.3, 0.1, 0.25, 0.45, 0.15];
         let mut p = vec![levels[0]; 1080];
         for k in 1..p.len() {
@@ -693,8 +685,10 @@ mod tests {
             .iter()
             .map(|&v| v as f64 + noise.sample(&mut rng))
             .collect();
-        Data::new(
+        FitProblem::diagnosis(
             &[Trace::uniform("stair", 0.1, p, y)],
+            Family::Classic,
+            None,
             crate::diagnose::Settings::default().blocks,
         )
         .unwrap()
@@ -703,7 +697,6 @@ mod tests {
     #[test]
     fn only_bounded_loops_are_admitted_under_every_measure() {
         let data = stair_data();
-        let model = Augmented::new(Family::Classic, Vec::new(), 1);
         let bounded = thesis_params(Family::Classic);
         // β + γ < 0 with A > 0: w grows without bound.
         let mut unbounded = bounded.clone();
@@ -711,25 +704,23 @@ mod tests {
         let rows: Vec<f64> = bounded.iter().chain(&unbounded).copied().collect();
         let mut cpu = crate::eval::cpu::CpuEvaluator::new();
         for measure in [Measure::FreeRun, Measure::Ahead { horizon: 5 }] {
-            let problem = data.est_problem(&model, measure);
-            let costs = ModelObjective::bounded_loops(&mut cpu, problem)
+            let costs = ModelObjective::for_problem(&mut cpu, &data)
                 .costs(&rows, measure)
                 .unwrap();
             assert!(costs[0].is_finite(), "{measure:?}: {costs:?}");
             assert_eq!(costs[1], f32::INFINITY, "{measure:?}");
             // The batch scores what the diagnosis' own sums score.
             let own = match measure {
-                Measure::Ahead { horizon } => data.est_sse_ahead(&model, &bounded, horizon),
-                Measure::FreeRun => data.est_sse(&model, &bounded),
+                Measure::Ahead { horizon } => data.est_sse_ahead(&bounded, horizon),
+                Measure::FreeRun => data.est_sse(&bounded),
             };
             assert_eq!(costs[0], own as f32, "{measure:?}");
         }
-        assert!(data.est_sse(&model, &bounded).is_finite());
-        assert_eq!(data.est_sse(&model, &unbounded), f64::INFINITY);
-        assert_eq!(data.est_sse_ahead(&model, &unbounded, 5), f64::INFINITY);
-        assert!(data.est_residuals(&model, &unbounded).is_none());
-        let problem = data.est_problem(&model, Measure::FreeRun);
-        let batch = ModelObjective::bounded_loops(&mut cpu, problem)
+        assert!(data.est_sse(&bounded).is_finite());
+        assert_eq!(data.est_sse(&unbounded), f64::INFINITY);
+        assert_eq!(data.est_sse_ahead(&unbounded, 5), f64::INFINITY);
+        assert!(data.est_residuals(&unbounded).is_none());
+        let batch = ModelObjective::for_problem(&mut cpu, &data)
             .residuals(&rows, Measure::FreeRun)
             .unwrap();
         assert!(batch[0].is_some() && batch[1].is_none());
@@ -738,8 +729,7 @@ mod tests {
     #[test]
     fn the_polish_walks_back_along_the_slow_poles_valley() {
         let data = stair_data();
-        let model = Augmented::new(Family::Classic, Vec::new(), 1);
-        let (_, lo, hi) = data.space(&model);
+        let (lo, hi) = (data.space.lower.clone(), data.space.upper.clone());
         let clamp = |p: Vec<f64>| -> Vec<f64> {
             p.iter()
                 .zip(lo.iter().zip(&hi))
@@ -749,19 +739,18 @@ mod tests {
         // The least-squares fit nearest the generating model is the reference
         // (the data's own coordinates shift the intercept).
         let start = clamp(thesis_params(Family::Classic));
-        let start_sse = data.est_sse(&model, &start);
-        let (reference, reference_sse) =
-            polish(&data, &model, start, start_sse, (&lo, &hi)).unwrap();
+        let start_sse = data.est_sse(&start);
+        let (reference, reference_sse) = polish(&data, start, start_sse, (&lo, &hi)).unwrap();
         assert!(reference_sse < start_sse);
         // One percent off in α, a needle's width across the valley.
         let mut off = reference.clone();
         off[1] *= 0.99;
-        let off_sse = data.est_sse(&model, &off);
+        let off_sse = data.est_sse(&off);
         assert!(
             off_sse > 10.0 * reference_sse,
             "{off_sse} vs {reference_sse}"
         );
-        let (back, back_sse) = polish(&data, &model, off, off_sse, (&lo, &hi)).unwrap();
+        let (back, back_sse) = polish(&data, off, off_sse, (&lo, &hi)).unwrap();
         assert!(
             back_sse < 1.01 * reference_sse,
             "{back_sse} vs {reference_sse}"
@@ -777,12 +766,15 @@ mod tests {
     #[test]
     fn the_polish_never_leaves_a_fit_worse_than_the_search_did() {
         let data = stair_data();
-        let model = Augmented::new(Family::Classic, Vec::new(), 1);
-        let (neutral, lo, hi) = data.space(&model);
-        let sse = data.est_sse(&model, &neutral);
-        let (p, polished) = polish(&data, &model, neutral.clone(), sse, (&lo, &hi)).unwrap();
+        let (neutral, lo, hi) = (
+            data.centre(),
+            data.space.lower.clone(),
+            data.space.upper.clone(),
+        );
+        let sse = data.est_sse(&neutral);
+        let (p, polished) = polish(&data, neutral.clone(), sse, (&lo, &hi)).unwrap();
         assert!(polished <= sse);
-        assert_eq!(polished, data.est_sse(&model, &p));
+        assert_eq!(polished, data.est_sse(&p));
         assert!(
             p.iter()
                 .zip(lo.iter().zip(&hi))

@@ -11,9 +11,9 @@
 //! holds 70 % of the estimation residual's energy (docs/lab/diagnosis.md). Only
 //! the estimation part is read.
 
-use super::data::Data;
-use super::effects::{Augmented, Effect, StartHint};
+use super::effects::{Effect, StartHint};
 use super::spectrum::{Peak, Settings, welch};
+use crate::fit::problem::FitProblem;
 
 /// Extra starts (row-major, canonical) for the first stage of a warm fit
 /// from `start` whose new effect's parameters begin at `new_from`: when the
@@ -23,12 +23,12 @@ use super::spectrum::{Peak, Settings, welch};
 /// (ζ = 0.05, 0.2), and a ringing's kick the least-squares one for that
 /// mode. Empty for any other effect, or when there is no such peak.
 pub fn mode_hints(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     start: &[f64],
     new_from: usize,
     (lo, hi): (&[f64], &[f64]),
 ) -> Vec<f64> {
+    let model = &problem.model;
     let Some((kick, at)) = model.effects.iter().find_map(|&e| match e.hint() {
         StartHint::ResidualPeak { kick, .. } => model
             .offset_of(e)
@@ -38,10 +38,10 @@ pub fn mode_hints(
     }) else {
         return Vec::new();
     };
-    let Some((peaks, residuals)) = estimation_peaks(data, model, start) else {
+    let Some((peaks, residuals)) = estimation_peaks(problem, start) else {
         return Vec::new();
     };
-    let dt = data.records.est[0].dt;
+    let dt = problem.records.est[0].dt;
     let mut rows = Vec::new();
     for peak in peaks.iter().take(2) {
         let theta = std::f64::consts::TAU * peak.hz * dt;
@@ -55,7 +55,7 @@ pub fn mode_hints(
             row[at] = a1.clamp(lo[at], hi[at]);
             row[at + 1] = a2.clamp(lo[at + 1], hi[at + 1]);
             if let Some(k) = kick.map(|k| at + k) {
-                row[k] = ringing_kick(data, &residuals, a1, a2).clamp(lo[k], hi[k]);
+                row[k] = ringing_kick(problem, &residuals, a1, a2).clamp(lo[k], hi[k]);
             }
             rows.extend(row);
         }
@@ -67,15 +67,18 @@ pub fn mode_hints(
 /// (every dataset's periodograms averaged) that are not within two bins of
 /// a peak of the input's spectrum, with the residuals; `None` when the
 /// model diverges or the data are too short for a spectrum.
-fn estimation_peaks(
-    data: &Data,
-    model: &Augmented,
-    theta: &[f64],
-) -> Option<(Vec<Peak>, Vec<Vec<f64>>)> {
-    let dt = data.records.est.first()?.dt;
+fn estimation_peaks(problem: &FitProblem, theta: &[f64]) -> Option<(Vec<Peak>, Vec<Vec<f64>>)> {
+    let model = &problem.model;
+    let dt = problem.records.est.first()?.dt;
     let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
     let mut residuals = Vec::new();
-    for (i, (e, c)) in data.records.est.iter().zip(&data.records.ctx).enumerate() {
+    for (i, (e, c)) in problem
+        .records
+        .est
+        .iter()
+        .zip(&problem.records.ctx)
+        .enumerate()
+    {
         let r: Vec<f64> = model
             .simulate(&t, i, c, e)
             .iter()
@@ -92,7 +95,7 @@ fn estimation_peaks(
     let spectrum = welch(&series, dt, &Settings::default())?;
     // The input's own lines (a multisine's) come out in any misfit's
     // residual: only a peak away from them is the data ringing.
-    let inputs: Vec<Vec<f64>> = data
+    let inputs: Vec<Vec<f64>> = problem
         .records
         .est
         .iter()
@@ -127,15 +130,15 @@ pub fn only_on_a_peak(effect: Effect) -> bool {
 /// high-pass of the input, and without a peak to explain it fitted the
 /// independent self-test's sensor cross-talk, a high-pass added to the
 /// output (docs/lab/diagnosis.md).
-pub fn residual_rings(data: &Data, model: &Augmented, theta: &[f64]) -> bool {
-    estimation_peaks(data, model, theta).is_some_and(|(peaks, _)| !peaks.is_empty())
+pub fn residual_rings(problem: &FitProblem, theta: &[f64]) -> bool {
+    estimation_peaks(problem, theta).is_some_and(|(peaks, _)| !peaks.is_empty())
 }
 
 /// The kick `g` that best cancels the estimation residuals `ŷ − y` with a
 /// ringing of mode `a1`, `a2` (the step of [`Effect::Ringing`]), in `f64`.
-fn ringing_kick(data: &Data, residuals: &[Vec<f64>], a1: f64, a2: f64) -> f64 {
+fn ringing_kick(problem: &FitProblem, residuals: &[Vec<f64>], a1: f64, a2: f64) -> f64 {
     let (mut qq, mut qr) = (0.0, 0.0);
-    for (e, r) in data.records.est.iter().zip(residuals) {
+    for (e, r) in problem.records.est.iter().zip(residuals) {
         let u = &e.u;
         let (mut q1, mut q2) = (0.0f64, 0.0f64);
         for k in 1..u.len() {
@@ -154,6 +157,7 @@ mod tests {
     use super::*;
     use crate::data::Trace;
     use crate::model::Family;
+    use crate::model::effects::Augmented;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
@@ -161,7 +165,7 @@ mod tests {
     /// A first-order muscle on a random stair whose load rings at `hz`
     /// (damping 0.05, kick `kick`) after every step, sampled at 100 Hz with
     /// 0.01 mm of noise.
-    fn ringing_data(hz: f64, kick: f64) -> Data {
+    fn ringing_data(hz: f64, kick: f64) -> FitProblem {
         let dt = 0.01;
         let theta = std::f64::consts::TAU * hz * dt;
         let r = (-0.05 * theta / (1.0f64 - 0.0025).sqrt()).exp();
@@ -185,8 +189,10 @@ mod tests {
             (q2, q1) = (q1, q);
             y[k] = x + q + noise.sample(&mut rng);
         }
-        Data::new(
+        FitProblem::diagnosis(
             &[Trace::uniform("ringing", dt, u, y)],
+            Family::Linear,
+            None,
             crate::diagnose::Settings::default().blocks,
         )
         .unwrap()
@@ -197,13 +203,14 @@ mod tests {
         let (hz, kick) = (4.0, 2.0);
         let data = ringing_data(hz, kick);
         let model = Augmented::new(Family::Linear, vec![Effect::Ringing], 1);
-        let (neutral, lo, hi) = data.space(&model);
+        let p = data.with_model(&model);
+        let (neutral, lo, hi) = (p.centre(), p.space.lower.clone(), p.space.upper.clone());
         // The first-order muscle itself, in the data's deviation coordinates.
         let e = &data.records.est[0];
         let c = e.u_mean - (1.0 - 0.9) * e.y_mean;
         let mut start = neutral.clone();
         start[..4].copy_from_slice(&[0.9, 1.0, c, 0.0]);
-        let rows = mode_hints(&data, &model, &start, 4, (&lo, &hi));
+        let rows = mode_hints(&p, &start, 4, (&lo, &hi));
         assert!(!rows.is_empty(), "no peak found");
         let first = &rows[..model.dim()];
         let found = (first[4] / (2.0 * first[5].sqrt())).acos() / (std::f64::consts::TAU * 0.01);
@@ -216,40 +223,40 @@ mod tests {
             "kick {} for {kick}",
             first[6]
         );
-        assert!(data.est_sse(&model, first) < 0.5 * data.est_sse(&model, &start));
+        assert!(p.est_sse(first) < 0.5 * p.est_sse(&start));
     }
 
     #[test]
     fn a_ringing_without_a_resonance_is_not_admitted() {
         let data = ringing_data(4.0, 2.0);
         let model = Augmented::new(Family::Linear, vec![Effect::Ringing], 1);
-        let (mut theta, _, _) = data.space(&model);
+        let p = data.with_model(&model);
+        let mut theta = p.centre();
         theta[..2].copy_from_slice(&[0.9, 1.0]);
-        assert!(
-            data.est_sse(&model, &theta).is_finite(),
-            "the neutral mode rings"
-        );
+        assert!(p.est_sse(&theta).is_finite(), "the neutral mode rings");
         // Poles 0.99 and 0.5: a kick that decays as a drift, not a ringing.
         theta[4..6].copy_from_slice(&[1.49, 0.495]);
-        assert_eq!(data.est_sse(&model, &theta), f64::INFINITY);
+        assert_eq!(p.est_sse(&theta), f64::INFINITY);
         // Complex poles, but damped past 1/√2 (ζ ≈ 0.999): a high-pass.
         theta[4..6].copy_from_slice(&[1.11, 0.309]);
-        assert_eq!(data.est_sse(&model, &theta), f64::INFINITY);
+        assert_eq!(p.est_sse(&theta), f64::INFINITY);
         // Damped at ζ ≈ 0.54: it still has a resonance.
         let (r, angle) = (0.6f64, 0.8f64);
         theta[4..6].copy_from_slice(&[2.0 * r * angle.cos(), r * r]);
-        assert!(data.est_sse(&model, &theta).is_finite());
+        assert!(p.est_sse(&theta).is_finite());
     }
 
     #[test]
     fn only_modes_get_hints() {
         let data = ringing_data(4.0, 2.0);
         let model = Augmented::new(Family::Linear, vec![Effect::Creep], 1);
-        let (neutral, lo, hi) = data.space(&model);
-        assert!(mode_hints(&data, &model, &neutral, 4, (&lo, &hi)).is_empty());
+        let p = data.with_model(&model);
+        let (neutral, lo, hi) = (p.centre(), p.space.lower.clone(), p.space.upper.clone());
+        assert!(mode_hints(&p, &neutral, 4, (&lo, &hi)).is_empty());
         // A mode already in the model (before `new_from`) is not moved.
         let model = Augmented::new(Family::Linear, vec![Effect::Ringing, Effect::Creep], 1);
-        let (neutral, lo, hi) = data.space(&model);
-        assert!(mode_hints(&data, &model, &neutral, 7, (&lo, &hi)).is_empty());
+        let p = data.with_model(&model);
+        let (neutral, lo, hi) = (p.centre(), p.space.lower.clone(), p.space.upper.clone());
+        assert!(mode_hints(&p, &neutral, 7, (&lo, &hi)).is_empty());
     }
 }

@@ -14,10 +14,10 @@
 
 use serde::Serialize;
 
-use super::data::Data;
-use super::effects::{Augmented, Effect};
+use super::effects::Effect;
 use super::fitting::polish_held;
 use super::likelihood::CHI2_1_95;
+use crate::fit::problem::FitProblem;
 
 /// The profile interval of one effect's size.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -34,22 +34,21 @@ pub struct SizeInterval {
     pub hi_at_edge: bool,
 }
 
-/// The 95 % profile interval of `effect`'s primary parameter in `model`
-/// fitted at `theta` on the estimation part of `data`.
+/// The 95 % profile interval of `effect`'s primary parameter in the
+/// problem's model fitted at `theta` on its estimation part.
 pub fn size_interval(
-    data: &Data,
-    model: &Augmented,
+    problem: &FitProblem,
     theta: &[f64],
     effect: Effect,
 ) -> anyhow::Result<SizeInterval> {
-    let at = model.offset_of(effect).expect("effect in model") + effect.primary();
-    let (_, lo, hi) = data.space(model);
-    let sse0 = data.est_sse(model, theta);
-    let n = data.est_samples();
+    let at = problem.model.offset_of(effect).expect("effect in model") + effect.primary();
+    let (lo, hi) = (&problem.space.lower, &problem.space.upper);
+    let sse0 = problem.est_sse(theta);
+    let n = problem.est_samples();
     let sigma2 = sse0 / (n.saturating_sub(theta.len()).max(1)) as f64;
     let limit = sse0 + CHI2_1_95 * sigma2;
     // The profile at `v`: every other parameter polished from `start`.
-    let profile = |v: f64, start: &[f64]| polish_held(data, model, start, (at, v), (&lo, &hi));
+    let profile = |v: f64, start: &[f64]| polish_held(problem, start, (at, v), (lo, hi));
     let value = theta[at];
     let first_step = 0.05 * value.abs().max(1e-2 * (hi[at] - lo[at]));
     let bound = |edge: f64| -> anyhow::Result<(f64, bool)> {
@@ -84,7 +83,7 @@ pub fn size_interval(
     let (hi_v, hi_at_edge) = bound(hi[at])?;
     Ok(SizeInterval {
         effect,
-        param: model.param_names()[at].clone(),
+        param: problem.model.param_names()[at].clone(),
         value,
         lo: lo_v,
         hi: hi_v,
@@ -131,7 +130,7 @@ mod tests {
     /// A stair through a valve (pole 0.6) and the thesis' classic model with
     /// an asymmetry of `eps`, plus `sigma` of seeded white noise; the model
     /// and the fit nearest the generating parameters.
-    fn asymmetric_stair(eps: f64, sigma: f64) -> (Data, Augmented, Vec<f64>) {
+    fn asymmetric_stair(eps: f64, sigma: f64) -> (FitProblem, Vec<f64>) {
         let levels = [0.05, 0.2, 0.35, 0.5, 0.3, 0.1, 0.25, 0.45, 0.15];
         let mut p = vec![levels[0]; 1080];
         for k in 1..p.len() {
@@ -142,24 +141,25 @@ mod tests {
         let theta: Vec<f32> = thesis.iter().map(|&v| v as f32).collect();
         let plain = simulate(Family::Classic, &theta, 0.0, &u, 0.0).x;
         let plain: Vec<f64> = plain.iter().map(|&v| v as f64).collect();
-        let clean = Data::new(
+        let clean = FitProblem::diagnosis(
             &[Trace::uniform("stair", 0.1, p.clone(), plain)],
+            Family::Classic,
+            None,
             crate::diagnose::Settings::default().blocks,
         )
         .expect("valid stair");
         // The thesis' model in the data's deviation coordinates: the fit to
         // its own noiseless response nearest its parameters.
-        let base = Augmented::new(Family::Classic, Vec::new(), 1);
-        let (_, lo, hi) = clean.space(&base);
+        let (lo, hi) = (clean.space.lower.clone(), clean.space.upper.clone());
         let start: Vec<f64> = thesis
             .iter()
             .zip(lo.iter().zip(&hi))
             .map(|(v, (l, h))| v.clamp(*l, *h))
             .collect();
-        let sse = clean.est_sse(&base, &start);
-        let (mut truth, _) = polish(&clean, &base, start, sse, (&lo, &hi)).unwrap();
+        let sse = clean.est_sse(&start);
+        let (mut truth, _) = polish(&clean, start, sse, (&lo, &hi)).unwrap();
         truth.push(eps);
-        let model = base.with(Effect::Asymmetry);
+        let model = clean.model.with(Effect::Asymmetry);
         let theta: Vec<f32> = truth.iter().map(|&v| v as f32).collect();
         let y = model.simulate(&theta, 0, &clean.records.ctx[0], &clean.records.whole[0]);
         let mut rng = ChaCha8Rng::seed_from_u64(5);
@@ -168,22 +168,25 @@ mod tests {
             .iter()
             .map(|&v| v as f64 + clean.records.whole[0].y_mean + noise.sample(&mut rng))
             .collect();
-        let data = Data::new(
+        let data = FitProblem::diagnosis(
             &[Trace::uniform("stair", 0.1, p, y)],
+            Family::Classic,
+            None,
             crate::diagnose::Settings::default().blocks,
         )
-        .expect("valid stair");
-        let (_, lo, hi) = data.space(&model);
-        let sse = data.est_sse(&model, &truth);
-        let (fit, _) = polish(&data, &model, truth, sse, (&lo, &hi)).unwrap();
-        (data, model, fit)
+        .expect("valid stair")
+        .with_model(&model);
+        let (lo, hi) = (data.space.lower.clone(), data.space.upper.clone());
+        let sse = data.est_sse(&truth);
+        let (fit, _) = polish(&data, truth, sse, (&lo, &hi)).unwrap();
+        (data, fit)
     }
 
     #[test]
     fn the_interval_holds_the_truth_and_widens_with_the_noise() {
         let eps = 0.1;
-        let (data, model, fit) = asymmetric_stair(eps, 0.05);
-        let quiet = size_interval(&data, &model, &fit, Effect::Asymmetry).unwrap();
+        let (data, fit) = asymmetric_stair(eps, 0.05);
+        let quiet = size_interval(&data, &fit, Effect::Asymmetry).unwrap();
         assert!(quiet.lo <= eps && eps <= quiet.hi, "{quiet:?}");
         assert!(
             quiet.lo < quiet.value && quiet.value < quiet.hi,
@@ -192,8 +195,8 @@ mod tests {
         assert!(!quiet.lo_at_edge && !quiet.hi_at_edge, "{quiet:?}");
         // Four times the noise: the interval scales with σ for a parameter
         // the data pin (the profile is near-parabolic at this size).
-        let (data, model, fit) = asymmetric_stair(eps, 0.2);
-        let loud = size_interval(&data, &model, &fit, Effect::Asymmetry).unwrap();
+        let (data, fit) = asymmetric_stair(eps, 0.2);
+        let loud = size_interval(&data, &fit, Effect::Asymmetry).unwrap();
         assert!(loud.lo <= eps && eps <= loud.hi, "{loud:?}");
         let ratio = (loud.hi - loud.lo) / (quiet.hi - quiet.lo);
         assert!(

@@ -14,7 +14,6 @@ pub mod accept;
 pub mod as_fit;
 pub mod blind;
 pub mod chain;
-pub mod data;
 pub use crate::model::effects;
 pub mod explainable;
 pub mod fitting;
@@ -33,15 +32,14 @@ pub mod transfer;
 
 use serde::Serialize;
 
-pub use data::Data;
 pub use effects::{Augmented, Effect};
 pub use select::Selection;
 pub use settings::{Interrupted, Settings, StopFlag};
 
 use crate::data::Trace;
+use crate::fit::problem::{FitProblem, settle_samples};
 use crate::model::experiment::Parts;
-use crate::model::file::Chain;
-use crate::model::{Family, FittedModel, Model};
+use crate::model::{Family, Model};
 
 /// One model along the way (the baseline, then after each accepted effect),
 /// scored on each part of the records.
@@ -152,20 +150,13 @@ impl Diagnosis {
     }
 }
 
-/// How long after an input step the baseline is still in its transient:
-/// three time constants of the pole `a` (95 % settled), at least one sample.
-fn settle_samples(a: f64, len: usize) -> usize {
-    let a = a.clamp(1e-6, 1.0 - 1e-9);
-    ((3.0 / -a.ln()).ceil() as usize).clamp(1, (len / 4).max(1))
-}
-
 /// Seed salt of the final model's from-scratch refits, far from the
 /// selection's (100 per round, `select::select`).
 const REFIT_SALT: u64 = 9_000;
 
 /// Runs the whole diagnosis on `traces`: each fitted on its first half,
 /// every choice made on the selection blocks of its second half, the test
-/// blocks read once at the end ([`Data`]).
+/// blocks read once at the end ([`FitProblem`]).
 pub fn diagnose(
     traces: &[Trace],
     family: Family,
@@ -194,7 +185,7 @@ pub fn diagnose_from(
             m.check_data(t)?;
         }
     }
-    let data = Data::in_coordinates(traces, from, settings.blocks)?
+    let data = FitProblem::diagnosis(traces, family, from, settings.blocks)?
         .scored_on(crate::eval::open(settings.backend)?)
         .stopped_by(settings.stop.clone());
     data.check_parts()?;
@@ -235,18 +226,14 @@ pub fn diagnose_from(
 
     // The final chain as `fit --effects` fits it: the final parameters
     // when it scores better on the selection part.
-    let saved = model_of(
-        &data,
-        traces,
-        &selection.final_model,
-        &selection.final_fit.params,
-    );
+    let last = data.with_model(&selection.final_model);
+    let saved = last.fitted_model(&selection.final_fit.params);
     // Like REFITTED, left out with `--scratch-seeds 0`.
     let as_fit = match from {
         None if settings.scratch_seeds > 0 => as_fit::refit(
-            &data,
+            &last,
             &traces[0],
-            (&selection.final_model, &selection.final_fit.params, &saved),
+            (&selection.final_fit.params, &saved),
             settings,
         )?,
         // `fit` fits in the record's own coordinates, not the start model's.
@@ -295,28 +282,26 @@ pub fn diagnose_from(
     let size_intervals = selection
         .verdict
         .iter()
-        .map(|&e| interval::size_interval(&data, &selection.final_model, &final_params, e))
+        .map(|&e| interval::size_interval(&last, &final_params, e))
         .collect::<anyhow::Result<_>>()?;
-    let scratch = fitting::scratch_fits(&data, &selection.final_model, settings, REFIT_SALT)?;
+    let scratch = fitting::scratch_fits(&last, settings, REFIT_SALT)?;
     let final_fit = fitting::Fit {
-        est_sse: data.est_sse(&selection.final_model, &final_params),
-        sel_rmse: data.selection_rmse(&selection.final_model, &final_params),
+        est_sse: last.est_sse(&final_params),
+        sel_rmse: last.selection_rmse(&final_params),
         params: final_params.clone(),
     };
     let refits = refits::Refits::compare(
         &final_fit,
         &scratch,
-        |f| {
-            data.selection(&selection.final_model, &f.params)
-                .fit_percent
-        },
+        |f| last.selection(&f.params).fit_percent,
         data.est_samples(),
     );
 
     let ia = family.linear_indices()[0];
     // Where the models miss, on the selection blocks.
-    let segments_of = |model: &Augmented, theta: &[f64]| -> Vec<locate::Segment> {
-        data.selection_residuals(model, theta)
+    let segments_of = |problem: &FitProblem, theta: &[f64]| -> Vec<locate::Segment> {
+        problem
+            .selection_residuals(theta)
             .into_iter()
             .map(|(i, r, residual)| locate::Segment {
                 name: traces[i].source.clone(),
@@ -326,15 +311,16 @@ pub fn diagnose_from(
             })
             .collect()
     };
-    let segments = segments_of(base_model, &base.params);
-    let final_segments = segments_of(&selection.final_model, &final_params);
+    let first = data.with_model(base_model);
+    let segments = segments_of(&first, &base.params);
+    let final_segments = segments_of(&last, &final_params);
     let min_len = segments.iter().map(|s| s.residual.len()).min().unwrap_or(0);
     let settle = settle_samples(base.params[ia], min_len);
     let place = locate::analyse(&segments, settle);
     let spectrum = residual_spectrum(&segments);
     let final_spectrum = residual_spectrum(&final_segments);
 
-    let base_pred = data.predict(base_model, &base.params);
+    let base_pred = first.predict(&base.params);
     let as_f64 = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<f64>>();
     let (pred, meas): (Vec<_>, Vec<_>) = base_pred
         .iter()
@@ -361,7 +347,7 @@ pub fn diagnose_from(
     );
     let explainable = explainable::judge(bound, &steps, remaining, settings.floor_margin);
 
-    let last_pred = data.predict(&selection.final_model, &final_params);
+    let last_pred = last.predict(&final_params);
     let curves = traces
         .iter()
         .enumerate()
@@ -378,8 +364,8 @@ pub fn diagnose_from(
             }
         })
         .collect();
-    let baseline_model = model_of(&data, traces, base_model, &base.params);
-    let final_model = model_of(&data, traces, &selection.final_model, &final_params);
+    let baseline_model = first.fitted_model(&base.params);
+    let final_model = last.fitted_model(&final_params);
     Ok(Diagnosis {
         from: from.map(|_| "the start model".to_string()),
         baseline_model,
@@ -407,15 +393,16 @@ pub fn diagnose_from(
 /// Each of `models` (the baseline first) scored on every part: the second
 /// half, the selection part and, read here for the first time, the test
 /// part; the gap each closes measured from the baseline's on each part.
-fn steps_of(data: &Data, models: &[(Augmented, &[f64])], floor: f64) -> Vec<Step> {
+fn steps_of(data: &FitProblem, models: &[(Augmented, &[f64])], floor: f64) -> Vec<Step> {
     let scored: Vec<_> = models
         .iter()
         .map(|(m, theta)| {
+            let problem = data.with_model(m);
             (
                 m.effects.clone(),
-                data.records.validate(m, theta),
-                data.selection(m, theta),
-                data.test(m, theta),
+                problem.validate(theta),
+                problem.selection(theta),
+                problem.test(theta),
             )
         })
         .collect();
@@ -458,29 +445,6 @@ fn start_of(
         model.chain.as_ref().map_or(1, |c| c.datasets)
     );
     Ok((augmented, theta))
-}
-
-/// `augmented` with `theta` as a model file holds it: in the first
-/// dataset's coordinates, with its effect constants.
-fn model_of(data: &Data, traces: &[Trace], augmented: &Augmented, theta: &[f64]) -> Model {
-    let d = augmented.family.dim();
-    let first = &data.records.whole[0];
-    let base = FittedModel {
-        family: augmented.family,
-        params: theta[..d].to_vec(),
-        input_mean: first.u_mean,
-        output_mean: first.y_mean,
-        dt: first.dt,
-        input_name: traces[0].input_name.clone(),
-        output_name: traces[0].output_name.clone(),
-    };
-    let chain = (!augmented.effects.is_empty()).then(|| Chain {
-        effects: augmented.effects.clone(),
-        params: theta[d..].to_vec(),
-        context: data.records.ctx[0],
-        datasets: augmented.datasets,
-    });
-    Model { base, chain }
 }
 
 /// Welch spectrum of the residual of `segments`, those sampled at the first

@@ -7,13 +7,13 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::accept::{Candidate, Yardstick, judge_all};
-use super::data::Data;
 use super::effects::{Augmented, Effect};
 use super::fitting::{
     Fit, SeededFit, Start, fit_seeds, fit_seeds_with, fit_with_effect, scratch_fits,
 };
 use super::hints;
 use super::settings::Settings;
+use crate::fit::problem::FitProblem;
 use crate::model::Family;
 
 /// How many times a round may replace the current model by a better refit
@@ -78,7 +78,7 @@ pub struct Selection {
 /// is refitted warm and becomes the current model, and the rounds go on
 /// from it with the rest of `effects`.
 pub fn select(
-    data: &Data,
+    data: &FitProblem,
     family: Family,
     effects: &[Effect],
     settings: &Settings,
@@ -94,7 +94,12 @@ pub fn select(
         },
         None => Start::Scratch,
     };
-    let mut baseline = fit_seeds(data, &baseline_model, baseline_start, settings, 0)?;
+    let mut baseline = fit_seeds(
+        &data.with_model(&baseline_model),
+        baseline_start,
+        settings,
+        0,
+    )?;
     let mut current_model = baseline_model.clone();
     let mut current_params = baseline.best.params.clone();
     let mut final_fit = baseline.best.clone();
@@ -104,7 +109,7 @@ pub fn select(
             params: theta,
             new_from: theta.len(),
         };
-        let fit = fit_seeds(data, model, start, settings, GIVEN_SALT)?;
+        let fit = fit_seeds(&data.with_model(model), start, settings, GIVEN_SALT)?;
         current_model = model.clone();
         current_params = fit.best.params.clone();
         final_fit = fit.best.clone();
@@ -117,7 +122,7 @@ pub fn select(
         // Some effects (the ringing) are looked for only where the residual
         // rings (a spectrum per round, so only when one is among the effects).
         let rings = effects.iter().any(|&e| hints::only_on_a_peak(e))
-            && hints::residual_rings(data, &current_model, &current_params);
+            && hints::residual_rings(&data.with_model(&current_model), &current_params);
         let remaining: Vec<Effect> = effects
             .iter()
             .copied()
@@ -152,12 +157,24 @@ pub fn select(
                 .collect();
             (0..models.len())
                 .into_par_iter()
-                .map(|slot| scratch_fits(data, models[slot], settings, salt + 50 + slot as u64))
+                .map(|slot| {
+                    scratch_fits(
+                        &data.with_model(models[slot]),
+                        settings,
+                        salt + 50 + slot as u64,
+                    )
+                })
                 .collect::<anyhow::Result<_>>()?
         } else {
             vec![Vec::new(); remaining.len() + 1]
         };
-        let current = fit_seeds_with(data, &current_model, refit, settings, salt, &scratch[0])?;
+        let current = fit_seeds_with(
+            &data.with_model(&current_model),
+            refit,
+            settings,
+            salt,
+            &scratch[0],
+        )?;
         let mut rebased: Vec<SeededFit> = Vec::new();
         // The refit gives the seed spread of "no new effect". Its seeds (and
         // in the first round its fits from scratch) may also reach a better
@@ -175,7 +192,7 @@ pub fn select(
         }
         let mut yardstick = Yardstick {
             r0: final_fit.sel_rmse,
-            blocks: data.block_sse(&current_model, &current_params),
+            blocks: data.with_model(&current_model).block_sse(&current_params),
             s0: current.spread,
             floor,
         };
@@ -187,17 +204,16 @@ pub fn select(
                 .map(|i| {
                     let effect = remaining[i];
                     let salt = salt + 1 + i as u64;
-                    let (model, fit) = fit_with_effect(
-                        data,
-                        &current_model,
+                    let (candidate, fit) = fit_with_effect(
+                        &data.with_model(&current_model),
                         &current_params,
                         effect,
                         settings,
                         salt,
                         &scratch[i + 1],
                     )?;
-                    let blocks = data.block_sse(&model, &fit.best.params);
-                    Ok((effect, model, fit, blocks))
+                    let blocks = candidate.block_sse(&fit.best.params);
+                    Ok((effect, candidate.model, fit, blocks))
                 })
                 .collect::<anyhow::Result<_>>()?;
             let candidates = judge_all(&fits, &yardstick, n, settings);
@@ -208,8 +224,7 @@ pub fn select(
                 break candidates;
             }
             let ablated = fit_seeds(
-                data,
-                &current_model,
+                &data.with_model(&current_model),
                 Start::Warm {
                     params: &best.fit.best.params[..current_params.len()],
                     new_from: current_params.len(),
@@ -229,7 +244,7 @@ pub fn select(
             }
             yardstick = Yardstick {
                 r0: ablated.best.sel_rmse,
-                blocks: data.block_sse(&current_model, &current_params),
+                blocks: data.with_model(&current_model).block_sse(&current_params),
                 s0: ablated.spread,
                 floor,
             };

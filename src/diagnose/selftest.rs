@@ -10,12 +10,12 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
-use super::data::Data;
 use super::effects::{Augmented, Context, Effect};
 use super::fitting::{Start, fit_seeds};
 use super::settings::Settings;
 use super::{Diagnosis, diagnose};
 use crate::data::Trace;
+use crate::fit::problem::FitProblem;
 use crate::model::Family;
 
 /// The nominal model the cases are generated from: the baseline fitted to
@@ -24,7 +24,7 @@ use crate::model::Family;
 pub struct Nominal {
     pub family: Family,
     pub trace: Trace,
-    pub data: Data,
+    pub data: FitProblem,
     pub params: Vec<f64>,
     /// Nominal simulated output, absolute units.
     pub output: Vec<f64>,
@@ -33,12 +33,12 @@ pub struct Nominal {
 impl Nominal {
     /// Fits `family` to `trace` with the diagnosis' baseline budget.
     pub fn fit(trace: &Trace, family: Family, settings: &Settings) -> anyhow::Result<Nominal> {
-        let data = Data::new(std::slice::from_ref(trace), settings.blocks)?
-            .scored_on(crate::eval::open(settings.backend)?)
-            .stopped_by(settings.stop.clone());
-        let model = Augmented::new(family, Vec::new(), 1);
-        let fit = fit_seeds(&data, &model, Start::Scratch, settings, 0)?;
-        let pred = data.predict(&model, &fit.best.params);
+        let data =
+            FitProblem::diagnosis(std::slice::from_ref(trace), family, None, settings.blocks)?
+                .scored_on(crate::eval::open(settings.backend)?)
+                .stopped_by(settings.stop.clone());
+        let fit = fit_seeds(&data, Start::Scratch, settings, 0)?;
+        let pred = data.predict(&fit.best.params);
         let ym = data.records.whole[0].y_mean;
         let output = pred[0].iter().map(|&v| v as f64 + ym).collect();
         Ok(Nominal {

@@ -2,43 +2,12 @@
 //! struct every stage of it reads (the fits, the acceptance rule, the
 //! selection, the self-tests), so that it sits below all of them.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-
 use serde::Serialize;
 
 use crate::eval::Backend;
+pub use crate::fit::problem::StopFlag;
 #[cfg(doc)]
 use crate::model::experiment::Parts;
-
-/// Raised (from a Ctrl-C handler, or Python's signal check) to stop a
-/// diagnosis: every search of it stops at its next generation and the
-/// diagnosis returns [`Interrupted`], since a selection cut short has no
-/// verdict to report. Clones share one flag.
-#[derive(Debug, Clone, Default)]
-pub struct StopFlag(Arc<AtomicBool>);
-
-impl StopFlag {
-    pub fn raise(&self) {
-        self.0.store(true, Ordering::SeqCst);
-    }
-
-    pub fn raised(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
-    }
-
-    /// The flag as the engine reads it between generations.
-    pub(crate) fn as_atomic(&self) -> &AtomicBool {
-        &self.0
-    }
-}
-
-/// Two settings are alike whatever flag stops them.
-impl PartialEq for StopFlag {
-    fn eq(&self, _: &StopFlag) -> bool {
-        true
-    }
-}
 
 /// The error of a diagnosis stopped by its [`StopFlag`].
 #[derive(Debug, thiserror::Error)]

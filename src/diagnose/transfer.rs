@@ -112,7 +112,7 @@ fn fit_and_score(
         settings.stop.clone(),
     )?;
     let outcome = run_stoppable(&mut fit, settings)?;
-    Ok(fit.task.validate(&outcome.params))
+    Ok(fit.problem.validate(&outcome.params))
 }
 
 /// Runs `fit` on the settings' backend, stopping with the diagnosis' stop

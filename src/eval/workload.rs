@@ -7,7 +7,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::data::Trace;
-use crate::model::effects::{Augmented, Context, effect_box};
+use crate::model::effects::{Augmented, Context, EffectBox, effect_box};
 use crate::model::presets::{THESIS_A, THESIS_B, thesis_params};
 use crate::model::{Experiment, Family, Flow, LinearPrior, SearchSpace, simulate};
 
@@ -131,7 +131,12 @@ pub fn augmented_population(
     let mut rows = Vec::with_capacity(count * model.dim());
     for (i, b) in base.chunks_exact(d0).enumerate() {
         rows.extend_from_slice(b);
-        for (neutral, lo, hi) in &boxes {
+        for EffectBox {
+            neutral,
+            lower: lo,
+            upper: hi,
+        } in &boxes
+        {
             for j in 0..neutral.len() {
                 let (lo, hi) = (lo[j], hi[j]);
                 rows.push(if lo >= hi {

@@ -32,7 +32,8 @@ use rand_distr::StandardNormal;
 use serde::Serialize;
 
 use super::objective::ModelObjective;
-use super::task::{Task, Validation};
+use super::problem::FitProblem;
+use super::records::Validation;
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit::indistinguishable_up_to;
@@ -204,9 +205,9 @@ impl Case {
         }
     }
 
-    /// The fitting task on this case with the default box.
-    pub fn task(&self) -> Task {
-        Task::new(&self.trace, self.spec.family, Flow::Joint, None, false)
+    /// The fitting problem on this case with the default box.
+    pub fn problem(&self) -> FitProblem {
+        FitProblem::new(&self.trace, self.spec.family, Flow::Joint, None, false)
             .expect("a generated case identifies")
     }
 
@@ -236,7 +237,7 @@ impl Case {
 
     /// The truth polished on the estimation data ([`polished_truth`]).
     pub fn polished_truth(&self, evaluator: &mut dyn Evaluator) -> anyhow::Result<(Vec<f64>, f64)> {
-        polished_truth(&self.task(), &self.truth, evaluator)
+        polished_truth(&self.problem(), &self.truth, evaluator)
     }
 
     /// Judges a fit of this case: its validation RMSE over the truth's, and
@@ -250,8 +251,8 @@ impl Case {
         fitted: &[f64],
         evaluator: &mut dyn Evaluator,
     ) -> anyhow::Result<Judgement> {
-        let task = self.task();
-        let ratio = task.validate(fitted).rmse / self.truth_validation.rmse;
+        let problem = self.problem();
+        let ratio = problem.validate(fitted).rmse / self.truth_validation.rmse;
         let mut judgement = Judgement {
             ratio,
             polished_ratio: None,
@@ -259,13 +260,13 @@ impl Case {
         };
         if !judgement.passes {
             let (polished, polished_sse) = self.polished_truth(evaluator)?;
-            let polished_ratio = task.validate(&polished).rmse / self.truth_validation.rmse;
+            let polished_ratio = problem.validate(&polished).rmse / self.truth_validation.rmse;
             judgement.polished_ratio = Some(polished_ratio);
             if polished_ratio > PASS_RATIO {
-                let mut objective = ModelObjective::for_task(evaluator, &task);
+                let mut objective = ModelObjective::for_problem(evaluator, &problem);
                 let sse = Objective::costs(&mut objective, fitted, crate::model::Measure::FreeRun)?
                     [0] as f64;
-                let samples = task.estimation().len().saturating_sub(1);
+                let samples = problem.estimation().len().saturating_sub(1);
                 judgement.passes = sse <= indistinguishable_up_to(polished_sse, samples);
             }
         }
@@ -273,11 +274,11 @@ impl Case {
     }
 }
 
-/// `truth` polished on `task`'s estimation data (Levenberg–Marquardt on
+/// `truth` polished on `problem`'s estimation data (Levenberg–Marquardt on
 /// the free run, as the fit's last stage, from the truth itself): the
 /// optimum the data make of the truth's basin, and its estimation SSE.
 pub fn polished_truth(
-    task: &Task,
+    problem: &FitProblem,
     truth: &[f64],
     evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<(Vec<f64>, f64)> {
@@ -286,7 +287,7 @@ pub fn polished_truth(
         free_run: None,
         polish: Some(Polish {
             starts: 1,
-            longest: task.estimation().len(),
+            longest: problem.estimation().len(),
             ..Polish::default()
         }),
     };
@@ -295,19 +296,28 @@ pub fn polished_truth(
     // kind of switching: a level only moves the loss where it passes a
     // sample, so no derivative would move it anyway), `α` over its range,
     // the rest ten times the truth's size either way.
-    let names: Vec<String> = task.family.params().iter().map(|p| p.name.into()).collect();
+    let names: Vec<String> = problem
+        .model
+        .family
+        .params()
+        .iter()
+        .map(|p| p.name.into())
+        .collect();
     let (mut lower, mut upper): (Vec<f64>, Vec<f64>) = truth
         .iter()
         .map(|&v| (v - 10.0 * v.abs() - 1.0, v + 10.0 * v.abs() + 1.0))
         .unzip();
-    let ni = task.family.exponent_index().expect("hysteretic");
-    for i in [0, ni].into_iter().chain(task.family.switch_index()) {
+    let ni = problem.model.family.exponent_index().expect("hysteretic");
+    for i in [0, ni]
+        .into_iter()
+        .chain(problem.model.family.switch_index())
+    {
         (lower[i], upper[i]) = (truth[i], truth[i]);
     }
     (lower[1], upper[1]) = (0.0, 1.0);
     let space = Space::new(lower, upper, names);
     let mut engine = Engine::new(plan, space, 1, StopRules::default())?.with_initial(truth);
-    let mut objective = ModelObjective::for_task(evaluator, task);
+    let mut objective = ModelObjective::for_problem(evaluator, problem);
     let outcome = engine.run(&mut objective, &mut [], None, None)?;
     Ok((outcome.params, outcome.sse))
 }
@@ -501,11 +511,11 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
         .collect();
     let name = format!("{} {} case #{}", family, spec.excitation.name(), spec.seed);
     let trace = Trace::uniform(name, CASE_DT, p, l);
-    let task = Task::new(&trace, family, Flow::Joint, None, false).ok()?;
+    let problem = FitProblem::new(&trace, family, Flow::Joint, None, false).ok()?;
     // The coordinates the fit uses are the noisy record's (the noise moves
     // the output mean by about noise/√N): a shift of ȳ moves c only (the
     // switching level is absolute).
-    let dy = task.estimation().y_mean - y_mean;
+    let dy = problem.estimation().y_mean - y_mean;
     theta[ic] -= (1.0 - a * alpha) * dy;
     // The true state starts at the noiseless first sample: the measured one
     // less its noise.
@@ -531,8 +541,8 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
     }
     let theta = gauge_fixed(family, &theta);
     debug_assert!(in_bounded_class(family, &theta));
-    let task = Task::new(&trace, family, Flow::Joint, None, false).ok()?;
-    let truth_validation = task.validate(&theta);
+    let problem = FitProblem::new(&trace, family, Flow::Joint, None, false).ok()?;
+    let truth_validation = problem.validate(&theta);
     truth_validation.rmse.is_finite().then_some(Case {
         spec,
         trace,

@@ -6,7 +6,7 @@
 use serde::Serialize;
 
 use super::objective::ModelObjective;
-use super::task::Task;
+use super::problem::FitProblem;
 use crate::eval::Evaluator;
 use crate::model::bounds::Origin;
 use crate::optim::engine::{Engine, Outcome, Plan, Space, StopReason, StopRules};
@@ -64,26 +64,33 @@ impl Switched {
     }
 }
 
-/// Fits `task` with `plan` on `evaluator`, with no observer, interrupt or
+/// Fits `problem` with `plan` on `evaluator`, with no observer, interrupt or
 /// checkpoint (the studies of `compare` and the tests): from both starts of
-/// the default switching where the task has two ([`Task::at_zero`]: the
+/// the default switching where the problem has two ([`FitProblem::at_zero`]: the
 /// lower estimation SSE kept), then the edge rule.
-pub fn fit_task(
-    task: &Task,
+pub fn fit_problem(
+    problem: &FitProblem,
     plan: Plan,
     seed: u64,
     stops: StopRules,
     evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<(Engine, Outcome)> {
-    let run = |task: &Task, evaluator: &mut dyn Evaluator| -> anyhow::Result<(Engine, Outcome)> {
-        let mut engine = Engine::new(plan.clone(), Space::from(&task.space), seed, stops.clone())?;
-        let mut objective = ModelObjective::for_task(evaluator, task);
+    let run = |problem: &FitProblem,
+               evaluator: &mut dyn Evaluator|
+     -> anyhow::Result<(Engine, Outcome)> {
+        let mut engine = Engine::new(
+            plan.clone(),
+            Space::from(&problem.space),
+            seed,
+            stops.clone(),
+        )?;
+        let mut objective = ModelObjective::for_problem(evaluator, problem);
         let outcome = engine.run(&mut objective, &mut [], None, None)?;
         Ok((engine, outcome))
     };
-    let mut widened = task.clone();
-    let (mut engine, mut outcome) = run(task, evaluator)?;
-    if let Some(zero) = task.at_zero() {
+    let mut widened = problem.clone();
+    let (mut engine, mut outcome) = run(problem, evaluator)?;
+    if let Some(zero) = problem.at_zero() {
         let (e, o) = run(&zero, evaluator)?;
         let (evaluations, seconds) = (
             outcome.evaluations + o.evaluations,
@@ -99,15 +106,15 @@ pub fn fit_task(
 }
 
 /// Applies the edge rule to `outcome`, the result of the staged fit
-/// `engine` ran on `task`: widens the data-set bounds it ends on, refits
+/// `engine` ran on `problem`: widens the data-set bounds it ends on, refits
 /// from its best point with the free-run and polish stages of the same plan
 /// (a polish alone where the plan has no free run), and keeps the refit
-/// when its estimation SSE is lower. `task.space` is the widened box on
+/// when its estimation SSE is lower. `problem.space` is the widened box on
 /// return. Does nothing for the thesis' flow, a plan that is a population
 /// search alone (a study of the search, not a fit), or a fit that was
 /// interrupted or found nothing.
 pub fn refit_off_edges(
-    task: &mut Task,
+    problem: &mut FitProblem,
     engine: &Engine,
     mut outcome: Outcome,
     stops: &StopRules,
@@ -115,7 +122,7 @@ pub fn refit_off_edges(
 ) -> anyhow::Result<(Outcome, Vec<Widening>)> {
     let mut widenings = Vec::new();
     let refits = engine.plan.free_run.is_some() || engine.plan.polish.is_some();
-    if task.flow == crate::model::Flow::Thesis
+    if problem.flow == crate::model::Flow::Thesis
         || !refits
         || outcome.params.is_empty()
         || outcome.stop == StopReason::Interrupted
@@ -123,25 +130,27 @@ pub fn refit_off_edges(
         return Ok((outcome, widenings));
     }
     for round in 0..MAX_WIDENINGS {
-        let space = Space::from(&task.space);
+        let space = Space::from(&problem.space);
         let edges: Vec<(usize, &str)> = space
             .on_edge(&outcome.params)
             .into_iter()
-            .filter(|&(i, side)| task.space.origin[i][usize::from(side == "upper")] == Origin::Data)
+            .filter(|&(i, side)| {
+                problem.space.origin[i][usize::from(side == "upper")] == Origin::Data
+            })
             .collect();
         if edges.is_empty() {
             break;
         }
-        let bounds = task.space.widen(&edges);
+        let bounds = problem.space.widen(&edges);
         let plan = Plan {
             global: None,
             free_run: engine.plan.free_run.clone(),
             polish: engine.plan.polish.clone(),
         };
         let seed = engine.seed.wrapping_add(1 + round as u64);
-        let mut refit = Engine::new(plan, Space::from(&task.space), seed, stops.clone())?
+        let mut refit = Engine::new(plan, Space::from(&problem.space), seed, stops.clone())?
             .with_initial(&outcome.params);
-        let mut objective = ModelObjective::for_task(evaluator, task);
+        let mut objective = ModelObjective::for_problem(evaluator, problem);
         let next = refit.run(&mut objective, &mut [], None, None)?;
         let sse_before = outcome.sse;
         let sse_after = next.sse;
@@ -163,20 +172,20 @@ pub fn refit_off_edges(
     Ok((outcome, widenings))
 }
 
-/// The bounds of `task`'s box that the canonical `params` sit on, with why
+/// The bounds of `problem`'s box that the canonical `params` sit on, with why
 /// each stays.
-pub fn active_bounds(task: &Task, params: &[f64]) -> Vec<ActiveBound> {
+pub fn active_bounds(problem: &FitProblem, params: &[f64]) -> Vec<ActiveBound> {
     if params.is_empty() {
         return Vec::new();
     }
-    let space = Space::from(&task.space);
+    let space = Space::from(&problem.space);
     space
         .on_edge(params)
         .into_iter()
         .map(|(i, bound)| ActiveBound {
             param: space.names[i].clone(),
             bound,
-            origin: task.space.origin[i][usize::from(bound == "upper")],
+            origin: problem.space.origin[i][usize::from(bound == "upper")],
         })
         .collect()
 }
@@ -198,30 +207,30 @@ mod tests {
             samples: 2000,
             ..matrix(Family::Classic, 1, 7)[0]
         });
-        let mut task = case.task();
+        let mut problem = case.problem();
         // A gain box whose top is half the truth's: the fit must end there.
-        let truth = task.space.from_native(&case.truth);
+        let truth = problem.space.from_native(&case.truth);
         let ib = Family::Classic.linear_indices()[1];
-        task.space.upper[ib] = 0.5 * truth[ib];
-        task.space.lower[ib] = 0.1 * truth[ib];
-        let plan = staged_plan(&task, Algorithm::De.staged_settings(60), 60, 20);
+        problem.space.upper[ib] = 0.5 * truth[ib];
+        problem.space.lower[ib] = 0.1 * truth[ib];
+        let plan = staged_plan(&problem, Algorithm::De.staged_settings(60), 60, 20);
         let mut cpu = CpuEvaluator::new();
         let mut engine = Engine::new(
             plan,
-            EngineSpace::from(&task.space),
+            EngineSpace::from(&problem.space),
             1,
             StopRules::default(),
         )
         .unwrap();
         let outcome = engine
             .run(
-                &mut ModelObjective::for_task(&mut cpu, &task),
+                &mut ModelObjective::for_problem(&mut cpu, &problem),
                 &mut [],
                 None,
                 None,
             )
             .unwrap();
-        let stuck = active_bounds(&task, &outcome.params);
+        let stuck = active_bounds(&problem, &outcome.params);
         assert!(
             stuck
                 .iter()
@@ -229,30 +238,36 @@ mod tests {
             "{stuck:?}"
         );
         let before = outcome.sse;
-        let (after, widenings) =
-            refit_off_edges(&mut task, &engine, outcome, &StopRules::default(), &mut cpu).unwrap();
+        let (after, widenings) = refit_off_edges(
+            &mut problem,
+            &engine,
+            outcome,
+            &StopRules::default(),
+            &mut cpu,
+        )
+        .unwrap();
         assert!(!widenings.is_empty());
         assert!(
             widenings[0].bounds[0].starts_with("gain upper bound"),
             "{widenings:?}"
         );
         assert!(
-            task.space.upper[ib] > truth[ib],
+            problem.space.upper[ib] > truth[ib],
             "two widenings reach the truth's gain"
         );
         assert!(after.sse < before, "{} !< {before}", after.sse);
-        let left = active_bounds(&task, &after.params);
+        let left = active_bounds(&problem, &after.params);
         assert!(left.iter().all(|b| b.param != "gain"), "{left:?}");
 
         // A user's bound is never widened.
-        let mut user = case.task();
+        let mut user = case.problem();
         user.space.origin[ib] = [Origin::User; 2];
         user.space.upper[ib] = 0.5 * truth[ib];
         let (_, none) = refit_off_edges(
             &mut user,
             &engine,
             Outcome {
-                params: task.space.to_native(&{
+                params: problem.space.to_native(&{
                     let mut z = truth.clone();
                     z[ib] = 0.5 * truth[ib];
                     z
@@ -273,13 +288,13 @@ mod tests {
             ..matrix(Family::Classic, 1, 5)[0]
         };
         let case = Case::generate(spec);
-        let task = case.task();
+        let problem = case.problem();
         let mut unbounded = case.truth.clone();
         // β + γ < 0: the loop grows without bound.
         unbounded[3] = -unbounded[2] - 0.05;
         let rows: Vec<f64> = case.truth.iter().chain(&unbounded).copied().collect();
         let mut cpu = CpuEvaluator::new();
-        let mut objective = ModelObjective::for_task(&mut cpu, &task);
+        let mut objective = ModelObjective::for_problem(&mut cpu, &problem);
         let free = objective.costs(&rows, Measure::FreeRun).unwrap();
         assert!(free[0].is_finite() && free[1] == f32::INFINITY, "{free:?}");
         let residuals = objective.residuals(&rows, Measure::FreeRun).unwrap();
@@ -289,7 +304,7 @@ mod tests {
         // The plain objective scores what it simulates; the check only
         // touches the free run.
         let mut cpu = CpuEvaluator::new();
-        let mut plain = ModelObjective::new(&mut cpu, task.problem());
+        let mut plain = ModelObjective::new(&mut cpu, problem.est_problem());
         let bits = |c: Vec<f32>| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(plain.costs(&rows, ahead).unwrap()), bits(checked));
         assert_eq!(plain.costs(&rows, Measure::FreeRun).unwrap()[0], free[0]);

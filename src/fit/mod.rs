@@ -1,5 +1,5 @@
 //! Fitting a muscle model to recorded traces: the records and their split
-//! ([`records`]), the task on one trace ([`task`]), the objective the
+//! ([`records`]), the problem on one trace ([`problem`]), the objective the
 //! engine minimises ([`objective`]), one run of `mckibben fit` ([`run`]),
 //! the edge rule ([`edge`]), synthetic records with known truths
 //! ([`synthetic`], [`cases`]) and the thesis' comparison of algorithms
@@ -13,7 +13,10 @@ pub mod cases;
 pub mod compare;
 pub mod edge;
 pub mod objective;
+pub mod problem;
 pub mod records;
+pub mod report;
+pub mod request;
 pub mod run;
+pub mod searches;
 pub mod synthetic;
-pub mod task;

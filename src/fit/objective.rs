@@ -5,8 +5,8 @@ use std::time::Instant;
 
 use nalgebra::DVector;
 
+use super::problem::{Admission, FitProblem};
 use crate::eval::{Evaluator, Problem};
-use crate::fit::task::Task;
 use crate::model::coords::in_bounded_class;
 use crate::model::{Flow, Loop, Measure};
 use crate::optim::engine::Objective;
@@ -18,8 +18,8 @@ pub struct ModelObjective<'a> {
     evaluator: &'a mut dyn Evaluator,
     problem: Problem,
     /// A problem whose free-run cost a candidate must keep at or below the
-    /// bound, or it scores +∞ on the free run ([`Task::stress`]); a
-    /// candidate outside the bounded class too, when the task asks for it
+    /// bound, or it scores +∞ on the free run ([`FitProblem::stress`]); a
+    /// candidate outside the bounded class too, when the problem asks for it
     /// ([`crate::model::coords::in_bounded_class`]).
     stress: Option<(Problem, f64)>,
     /// Whether the loop must be in the bounded class.
@@ -46,7 +46,7 @@ impl<'a> ModelObjective<'a> {
     }
 
     /// Scores `problem`, every row with an unbounded loop costing `+∞` under
-    /// every measure: the diagnosis' admission (`diagnose::Data::admits`,
+    /// every measure: the diagnosis' admission ([`Admission::BoundedLoops`],
     /// which says why).
     pub fn bounded_loops(evaluator: &'a mut dyn Evaluator, problem: Problem) -> Self {
         ModelObjective {
@@ -55,19 +55,28 @@ impl<'a> ModelObjective<'a> {
         }
     }
 
-    /// Scores `task`'s estimation problem, and rejects on the free run every
-    /// candidate that leaves the task's stress bound: what `fit` writes must
-    /// stay bounded on the whole record's input. With bounded loops (the
-    /// default) it also rejects every loop outside the class, which the
-    /// data-scale box excludes anyway but a box on the canonical loop-shape
-    /// parameters does not. The thesis' flow is the thesis' experiment and
-    /// runs without either check.
-    pub fn for_task(evaluator: &'a mut dyn Evaluator, task: &Task) -> Self {
-        let joint = task.flow != Flow::Thesis;
-        ModelObjective {
-            stress: joint.then(|| task.stress()),
-            bounded_class: joint && task.loop_shape == Loop::Bounded,
-            ..ModelObjective::new(evaluator, task.problem())
+    /// Scores `problem`'s estimation halves under its admission
+    /// ([`Admission`]). `fit`'s rejects on the free run every candidate that
+    /// leaves the problem's stress bound: what `fit` writes must stay
+    /// bounded on the whole record's input. With bounded loops (the default)
+    /// it also rejects every loop outside the class, which the data-scale
+    /// box excludes anyway but a box on the canonical loop-shape parameters
+    /// does not. The thesis' flow is the thesis' experiment and runs without
+    /// either check. The diagnosis' admits bounded loops only, under every
+    /// measure ([`ModelObjective::bounded_loops`]).
+    pub fn for_problem(evaluator: &'a mut dyn Evaluator, problem: &FitProblem) -> Self {
+        match problem.admission {
+            Admission::BoundedLoops => {
+                ModelObjective::bounded_loops(evaluator, problem.est_problem())
+            }
+            Admission::Fit => {
+                let joint = problem.flow != Flow::Thesis;
+                ModelObjective {
+                    stress: joint.then(|| problem.stress()),
+                    bounded_class: joint && problem.loop_shape == Loop::Bounded,
+                    ..ModelObjective::new(evaluator, problem.est_problem())
+                }
+            }
         }
     }
 
@@ -210,16 +219,6 @@ fn timed<T>(seconds: &mut f64, call: impl FnOnce() -> T) -> T {
     out
 }
 
-/// The global stage's prediction horizon for data whose ARX pole is `a`: a
-/// third of its time constant `1/(1 − a)` in samples, so that errors cannot
-/// pile up through the slow pole, yet the prediction depends on the
-/// dynamics rather than on the last measurement alone; at least 2, at most
-/// a quarter of the shortest experiment.
-pub fn horizon(arx_pole: f64, shortest: usize) -> usize {
-    let tau = 1.0 / (1.0 - arx_pole).max(1e-3);
-    ((tau / 3.0).round() as usize).clamp(2, (shortest / 4).max(2))
-}
-
 /// Default population of the global stage.
 pub const POPULATION: usize = 1000;
 /// Default islands (fewer when the population is too small for four).
@@ -267,18 +266,12 @@ pub fn default_plan(
     }
 }
 
-/// The engine's default plan for `task` with `settings`' algorithm and
-/// those settings, `n × g`, its horizon from the task's ARX pole and its
+/// The engine's default plan for `problem` with `settings`' algorithm and
+/// those settings, `n × g`, its horizon from the problem's ARX pole and its
 /// polish's continuation up to the estimation data's length.
-pub fn staged_plan(task: &Task, settings: AlgoSettings, n: usize, g: usize) -> Plan {
-    let longest = task.estimation().len();
-    let mut plan = default_plan(
-        settings.algorithm(),
-        n,
-        g,
-        horizon(task.prior().a, longest),
-        longest,
-    );
+pub fn staged_plan(problem: &FitProblem, settings: AlgoSettings, n: usize, g: usize) -> Plan {
+    let longest = problem.estimation().len();
+    let mut plan = default_plan(settings.algorithm(), n, g, problem.horizon(), longest);
     if let Some(global) = plan.global.as_mut() {
         global.settings = settings;
     }

@@ -1,9 +1,9 @@
 //! The records a fit or a diagnosis works on: each trace split into an
 //! estimation and a validation half (the thesis' split, §4.3.1) in one set
 //! of deviation coordinates, the ARX prior of the boxes and the effects'
-//! constants. `fit` ([`super::task::Task`], one record) and `diagnose`
-//! (`diagnose::Data`, one record per load) both split here, so that a
-//! model's parameters mean the same to both.
+//! constants. `fit` (one record) and `diagnose` (one record per load) both
+//! split here, in their [`FitProblem`](super::problem::FitProblem), so
+//! that a model's parameters mean the same to both.
 
 use std::ops::Range;
 

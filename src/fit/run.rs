@@ -15,7 +15,8 @@ use serde::Serialize;
 pub use super::edge::Switched;
 use super::edge::{Widening, refit_off_edges};
 use super::objective::{GENERATIONS, ModelObjective, POPULATION, staged_plan};
-use super::task::{Task, Validation};
+use super::problem::FitProblem;
+use super::records::Validation;
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit::SETTLED_POINTS;
@@ -220,8 +221,8 @@ impl FitSettings {
         Ok(s)
     }
 
-    /// The plan of a fresh fit of `task`.
-    fn plan(&self, task: &Task, note: &dyn Fn(String)) -> anyhow::Result<Plan> {
+    /// The plan of a fresh fit of `problem`.
+    fn plan(&self, problem: &FitProblem, note: &dyn Fn(String)) -> anyhow::Result<Plan> {
         let min = self.algo.min_population();
         anyhow::ensure!(
             self.pop >= min,
@@ -229,11 +230,11 @@ impl FitSettings {
             self.algo,
             self.pop
         );
-        let settings = self.algo_settings(task.family, note)?;
+        let settings = self.algo_settings(problem.model.family, note)?;
         if self.thesis_flow {
             return Ok(Plan::thesis(settings, self.pop, self.gens));
         }
-        let mut plan = staged_plan(task, settings, self.pop, self.gens);
+        let mut plan = staged_plan(problem, settings, self.pop, self.gens);
         if let Some(global) = plan.global.as_mut() {
             if let Some(k) = self.islands {
                 anyhow::ensure!(k >= 1, "--islands must be at least 1");
@@ -260,10 +261,10 @@ impl FitSettings {
     /// search finds other basins, and where the estimation data do not
     /// settle the model some of those fit the estimation half better and
     /// validate worse: docs/ARCHITECTURE.md, "Warm starts").
-    pub fn start_warm(&self, task: &Task, start: &[f64]) -> anyhow::Result<Engine> {
-        let mut plan = self.plan(task, &|_| ())?;
+    pub fn start_warm(&self, problem: &FitProblem, start: &[f64]) -> anyhow::Result<Engine> {
+        let mut plan = self.plan(problem, &|_| ())?;
         plan.global = None;
-        let space = Space::from(&task.space);
+        let space = Space::from(&problem.space);
         let n = plan.free_run.as_ref().map_or(1, |f| f.population);
         // The cloud is the free-run stage's first population: its draws
         // before the first generation.
@@ -283,7 +284,7 @@ impl FitSettings {
         Ok(self.stops.clone())
     }
 
-    /// The engine to run on `task`: resumed from `checkpoint` when that file
+    /// The engine to run on `problem`: resumed from `checkpoint` when that file
     /// exists, else fresh. A checkpoint holds the whole future of its run,
     /// so its plan, N, G, seed and settings win over these and it resumes to
     /// the identical result; only the stop rules are taken from here, since
@@ -291,11 +292,11 @@ impl FitSettings {
     /// resumption and of rules applied unasked.
     pub fn start(
         &self,
-        task: &Task,
+        problem: &FitProblem,
         checkpoint: Option<&Path>,
         note: &dyn Fn(String),
     ) -> anyhow::Result<Engine> {
-        let space = Space::from(&task.space);
+        let space = Space::from(&problem.space);
         if let Some(path) = checkpoint.filter(|p| p.exists()) {
             let mut engine = Engine::load(path)?;
             anyhow::ensure!(
@@ -303,7 +304,7 @@ impl FitSettings {
                 "checkpoint {} fits the parameters {:?}, not those of a {} model: pass the --model it was made with",
                 path.display(),
                 engine.space.names,
-                task.family
+                problem.model.family
             );
             engine.stops = self.stops()?;
             note(format!(
@@ -314,7 +315,7 @@ impl FitSettings {
             ));
             return Ok(engine);
         }
-        Engine::new(self.plan(task, note)?, space, self.seed, self.stops()?)
+        Engine::new(self.plan(problem, note)?, space, self.seed, self.stops()?)
     }
 }
 
@@ -353,25 +354,25 @@ impl FitBox {
     }
 }
 
-/// A fit of one trace as `mckibben fit` runs it: the task, and the engine
+/// A fit of one trace as `mckibben fit` runs it: the problem, and the engine
 /// that runs on it.
 #[derive(Debug, Clone)]
 pub struct Fit {
-    pub task: Task,
+    pub problem: FitProblem,
     pub engine: Engine,
-    /// A warm start's model as it was, in the task's gauge (same outputs):
+    /// A warm start's model as it was, in the problem's gauge (same outputs):
     /// what the refit is measured against ([`Fit::start_scores`]).
     pub start: Option<Vec<f64>>,
-    /// A second start run after the engine ([`Fit::also_from`]): its task
+    /// A second start run after the engine ([`Fit::also_from`]): its problem
     /// (the box widened to hold it), its warm-start engine and the seconds
     /// its model took to build.
-    second: Option<(Task, Engine, f64)>,
+    second: Option<(FitProblem, Engine, f64)>,
     /// Which of the two was kept, once [`Fit::run`] has run both.
     pub built: Option<Built>,
-    /// The default switching's second start ([`Task::at_zero`]): the same
+    /// The default switching's second start ([`FitProblem::at_zero`]): the same
     /// fit with the generalized switching level held at the sensor's zero,
     /// run after the engine, before any [`Fit::also_from`] start.
-    zero: Option<(Task, Engine)>,
+    zero: Option<(FitProblem, Engine)>,
     /// Which of the switching starts was kept, once [`Fit::run`] has run both.
     pub switched: Option<Switched>,
 }
@@ -390,13 +391,13 @@ pub struct Built {
 }
 
 impl Fit {
-    /// The task of `what` on `trace` (its box widened on return of
+    /// The problem of `what` on `trace` (its box widened on return of
     /// [`Fit::run`]) and the engine `settings` start on it: a warm start
     /// from `start` ([`FitSettings::start_warm`], the generalized switching
     /// level held at the start's own unless `what` says otherwise), else
     /// fresh or resumed from `checkpoint` ([`FitSettings::start`]), and a
     /// fresh second start where the default switching has one
-    /// ([`Task::at_zero`]).
+    /// ([`FitProblem::at_zero`]).
     pub fn new(
         trace: &Trace,
         what: &FitBox,
@@ -417,7 +418,7 @@ impl Fit {
         if let Some(m) = start {
             m.check_data(trace).context("the start model")?;
         }
-        let task = Task::with_box(
+        let problem = FitProblem::with_box(
             trace,
             what.family,
             flow,
@@ -432,20 +433,20 @@ impl Fit {
         })
         .and_then(|t| t.with_effects(&what.effects, &what.bounds))
         .with_context(|| format!("cannot fit {}", trace.source))?;
-        let mut task = task;
-        let start = start.map(|m| warm_start(&task, m));
+        let mut problem = problem;
+        let start = start.map(|m| warm_start(&problem, m));
         if let (Some(theta), Some(is)) = (&start, what.family.switch_index()) {
-            task.hold_switch_at(theta[is]);
+            problem.hold_switch_at(theta[is]);
         }
         if let Some(theta) = &start {
-            let widened = task.space.widen_to_hold(theta);
+            let widened = problem.space.widen_to_hold(theta);
             if !widened.is_empty() {
                 note(format!(
                     "the start model lies outside the box the data set; widened {}",
                     widened.join(", ")
                 ));
             }
-            if !task.space.contains(theta) {
+            if !problem.space.contains(theta) {
                 note(
                     "the start model lies outside this fit's box on bounds that cannot widen \
                      (its class, your --bound, or a small-signal pole of 1 or more): the fit \
@@ -455,11 +456,11 @@ impl Fit {
             }
         }
         let engine = match &start {
-            Some(theta) => settings.start_warm(&task, theta)?,
-            None => settings.start(&task, checkpoint, note)?,
+            Some(theta) => settings.start_warm(&problem, theta)?,
+            None => settings.start(&problem, checkpoint, note)?,
         };
         // A fresh fit of its own (the checkpoint holds the first start's).
-        let zero = match (&start, task.at_zero()) {
+        let zero = match (&start, problem.at_zero()) {
             (None, Some(zero)) => {
                 let engine = settings.start(&zero, None, &|_| ())?;
                 Some((zero, engine))
@@ -467,7 +468,7 @@ impl Fit {
             _ => None,
         };
         Ok(Fit {
-            task,
+            problem,
             engine,
             start,
             second: None,
@@ -478,8 +479,8 @@ impl Fit {
     }
 
     /// Runs, after the engine, a warm start from `model` ([`FitSettings::start_warm`]
-    /// on the task's box widened to hold it) and keeps whichever ends at the
-    /// lower estimation SSE ([`Built`]). `model` must be in the task's
+    /// on the problem's box widened to hold it) and keeps whichever ends at the
+    /// lower estimation SSE ([`Built`]). `model` must be in the problem's
     /// coordinates: fitted on the same record, split the same way
     /// (`diagnose::chain::fit_chain` gives one). For `fit --effects`: a
     /// search of the whole chain's box from scratch is a lottery the
@@ -492,21 +493,21 @@ impl Fit {
         built_in_s: f64,
         settings: &FitSettings,
     ) -> anyhow::Result<Fit> {
-        let est = self.task.estimation();
+        let est = self.problem.estimation();
         anyhow::ensure!(
-            model.effects() == self.task.effects.as_slice()
-                && model.base.family == self.task.family
+            model.effects() == self.problem.model.effects.as_slice()
+                && model.base.family == self.problem.model.family
                 && (model.base.input_mean, model.base.output_mean) == (est.u_mean, est.y_mean),
             "the second start must be the fit's own model, in the fit's coordinates"
         );
-        let theta = warm_start(&self.task, model);
-        let mut task = self.task.clone();
-        if let Some(is) = task.family.switch_index() {
-            task.hold_switch_at(theta[is]);
+        let theta = warm_start(&self.problem, model);
+        let mut problem = self.problem.clone();
+        if let Some(is) = problem.model.family.switch_index() {
+            problem.hold_switch_at(theta[is]);
         }
-        task.space.widen_to_hold(&theta);
-        let engine = settings.start_warm(&task, &theta)?;
-        self.second = Some((task, engine, built_in_s));
+        problem.space.widen_to_hold(&theta);
+        let engine = settings.start_warm(&problem, &theta)?;
+        self.second = Some((problem, engine, built_in_s));
         Ok(self)
     }
 
@@ -517,8 +518,8 @@ impl Fit {
     /// both.
     pub fn start_scores(&self) -> Option<StartScores> {
         self.start.as_ref().map(|theta| StartScores {
-            est_sse: self.task.est_sse(theta),
-            validation: self.task.validate(theta),
+            est_sse: self.problem.est_sse(theta),
+            validation: self.problem.validate(theta),
         })
     }
 
@@ -533,15 +534,15 @@ impl Fit {
         interrupt: Option<&AtomicBool>,
         checkpoint: Option<&Path>,
     ) -> anyhow::Result<(Outcome, Vec<Widening>)> {
-        let mut objective = ModelObjective::for_task(evaluator, &self.task);
+        let mut objective = ModelObjective::for_problem(evaluator, &self.problem);
         let mut outcome = self
             .engine
             .run(&mut objective, observers, interrupt, checkpoint)?;
         drop(objective);
-        if let Some((task, mut engine)) = self.zero.take()
+        if let Some((problem, mut engine)) = self.zero.take()
             && outcome.stop != StopReason::Interrupted
         {
-            let mut objective = ModelObjective::for_task(evaluator, &task);
+            let mut objective = ModelObjective::for_problem(evaluator, &problem);
             let zero = engine.run(&mut objective, &mut [], interrupt, None)?;
             drop(objective);
             let switched = Switched::of(&outcome, &zero);
@@ -551,15 +552,15 @@ impl Fit {
                 outcome.seconds + zero.seconds,
             );
             if switched.kept_zero {
-                (self.task, self.engine, outcome) = (task, engine, zero);
+                (self.problem, self.engine, outcome) = (problem, engine, zero);
             }
             (outcome.evaluations, outcome.seconds) = (evaluations, seconds);
         }
-        if let Some((task, mut engine, built_in_s)) = self.second.take()
+        if let Some((problem, mut engine, built_in_s)) = self.second.take()
             && outcome.stop != StopReason::Interrupted
         {
             outcome.seconds += built_in_s;
-            let mut objective = ModelObjective::for_task(evaluator, &task);
+            let mut objective = ModelObjective::for_problem(evaluator, &problem);
             let chain = engine.run(&mut objective, &mut [], interrupt, None)?;
             drop(objective);
             let kept_chain = !chain.params.is_empty() && chain.sse < outcome.sse;
@@ -569,7 +570,7 @@ impl Fit {
                 kept_chain,
             });
             if kept_chain {
-                (self.task, self.engine) = (task, engine);
+                (self.problem, self.engine) = (problem, engine);
                 let evaluations = outcome.evaluations + chain.evaluations;
                 let seconds = outcome.seconds + chain.seconds;
                 outcome = Outcome {
@@ -583,7 +584,7 @@ impl Fit {
             }
         }
         let stops = self.engine.stops.clone();
-        refit_off_edges(&mut self.task, &self.engine, outcome, &stops, evaluator)
+        refit_off_edges(&mut self.problem, &self.engine, outcome, &stops, evaluator)
     }
 }
 
@@ -650,31 +651,31 @@ pub fn yardstick_warnings(
     warnings
 }
 
-/// The model file of a fit's `params` on `task`, as `mckibben fit` writes
+/// The model file of a fit's `params` on `problem`, as `mckibben fit` writes
 /// its `model.json`: the model, the box searched (widened where the edge
 /// rule widened it) and `bounds`, the `--bound` and `--fix` in force.
 pub fn model_file(
-    task: &Task,
+    problem: &FitProblem,
     params: &[f64],
     bounds: &[UserBound],
     provenance: Provenance,
 ) -> ModelFile {
-    let model = task.model(params);
-    let mut file = ModelFile::new(&model, Some(SearchBox::of(&task.space)), provenance);
+    let model = problem.fitted_model(params);
+    let mut file = ModelFile::new(&model, Some(SearchBox::of(&problem.space)), provenance);
     file.user_bounds = bounds.iter().map(|b| b.to_string()).collect();
     file
 }
 
 /// The start of a warm start from `model`: its baseline's parameters in the
-/// box's gauge (same outputs), and for each of the task's effects the
+/// box's gauge (same outputs), and for each of the problem's effects the
 /// model's value where it has that effect, else the effect's neutral value.
-fn warm_start(task: &Task, model: &Model) -> Vec<f64> {
+fn warm_start(problem: &FitProblem, model: &Model) -> Vec<f64> {
     let base = gauge_fixed(model.base.family, &model.base.params);
-    let mut theta = task.neutral_effects(&base);
-    let ours = task.augmented();
+    let mut theta = problem.neutral_effects(&base);
+    let ours = problem.model.clone();
     let theirs = model.augmented();
     let values = model.theta();
-    for &e in &task.effects {
+    for &e in &problem.model.effects {
         if let (Some(to), Some(from)) = (ours.offset_of(e), theirs.offset_of(e)) {
             let k = e.dim(1);
             theta[to..to + k].copy_from_slice(&values[from..from + k]);
@@ -744,11 +745,12 @@ mod tests {
     #[test]
     fn the_thesis_flow_caps_a_large_swarm_and_says_so() {
         let data = Synthetic::new(Family::Classic, 600, 0.05, 1);
-        let task = Task::new(&data.trace, Family::Classic, Flow::Thesis, None, false).unwrap();
+        let problem =
+            FitProblem::new(&data.trace, Family::Classic, Flow::Thesis, None, false).unwrap();
         let mut s = settings(Algorithm::Mfa, mfa::ALL_PAIRS_MAX + 1);
         s.thesis_flow = true;
         let notes = RefCell::new(Vec::new());
-        let plan = s.plan(&task, &|n| notes.borrow_mut().push(n)).unwrap();
+        let plan = s.plan(&problem, &|n| notes.borrow_mut().push(n)).unwrap();
         let Some(AlgoSettings::Mfa(m)) = plan.global.map(|g| g.settings) else {
             panic!("an MFA plan");
         };
@@ -756,7 +758,7 @@ mod tests {
         assert_eq!(notes.borrow().len(), 1);
         s.overrides.mfa_attractors = Some(0);
         notes.borrow_mut().clear();
-        s.plan(&task, &|n| notes.borrow_mut().push(n)).unwrap();
+        s.plan(&problem, &|n| notes.borrow_mut().push(n)).unwrap();
         assert!(notes.borrow().is_empty());
     }
 

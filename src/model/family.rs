@@ -158,7 +158,7 @@ impl Family {
     /// (`A = 0`) nothing grows. The generalized model's sign terms admit
     /// truths outside any such simple condition (the generated cases draw
     /// them), so it is always admitted here and checked by simulation
-    /// instead ([`crate::fit::task::Task::stress`]).
+    /// instead ([`crate::fit::problem::FitProblem::stress`]).
     pub fn loop_bounded(self, theta: &[f64]) -> bool {
         match self {
             Family::Classic => theta[0] == 0.0 || theta[2] + theta[3] >= 0.0,

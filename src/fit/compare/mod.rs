@@ -10,9 +10,9 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::edge::fit_task;
+use super::edge::fit_problem;
 use super::objective::{GENERATIONS, POPULATION, staged_plan};
-use super::task::Task;
+use super::problem::FitProblem;
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit_percent;
@@ -162,22 +162,22 @@ struct Fitter<'a> {
 }
 
 impl Fitter<'_> {
-    /// One fit of `task` with `plan`, seeded by `seed`.
+    /// One fit of `problem` with `plan`, seeded by `seed`.
     fn run(
         &mut self,
-        task: &Task,
+        problem: &FitProblem,
         plan: Plan,
         algo: &str,
         seed: u64,
     ) -> anyhow::Result<(Row, Vec<f64>)> {
         let population = plan.global.as_ref().map_or(0, |g| g.population);
         let t = Instant::now();
-        let (_, out) = fit_task(task, plan, seed, StopRules::default(), self.evaluator)?;
+        let (_, out) = fit_problem(problem, plan, seed, StopRules::default(), self.evaluator)?;
         let seconds = t.elapsed().as_secs_f64();
-        let val = task.validate(&out.params);
+        let val = problem.validate(&out.params);
         Ok((
             Row {
-                model: task.family,
+                model: problem.model.family,
                 algo: algo.into(),
                 population,
                 generations: out.generations,
@@ -194,27 +194,27 @@ impl Fitter<'_> {
     /// The thesis' flow: one search with `settings` on the free run.
     fn thesis(
         &mut self,
-        task: &Task,
+        problem: &FitProblem,
         settings: &AlgoSettings,
         n: usize,
         g: usize,
         seed: u64,
     ) -> anyhow::Result<(Row, Vec<f64>)> {
         let plan = Plan::thesis(settings.clone(), n, g);
-        self.run(task, plan, settings.algorithm().name(), seed)
+        self.run(problem, plan, settings.algorithm().name(), seed)
     }
 
     /// The staged fit of `mckibben fit` with `algo`.
     fn staged(
         &mut self,
-        task: &Task,
+        problem: &FitProblem,
         algo: Algorithm,
         n: usize,
         g: usize,
         seed: u64,
     ) -> anyhow::Result<(Row, Vec<f64>)> {
-        let plan = staged_plan(task, algo.staged_settings(n), n, g);
-        self.run(task, plan, algo.name(), seed)
+        let plan = staged_plan(problem, algo.staged_settings(n), n, g);
+        self.run(problem, plan, algo.name(), seed)
     }
 }
 
@@ -238,8 +238,8 @@ fn median_min_max(mut v: Vec<f64>) -> (Option<f64>, Option<f64>, Option<f64>) {
 pub struct Study<'a> {
     settings: &'a Settings,
     trace: &'a Trace,
-    /// The joint flow's task of each of [`MODELS`].
-    tasks: Vec<Task>,
+    /// The joint flow's problem of each of [`MODELS`].
+    problems: Vec<FitProblem>,
     fitter: Fitter<'a>,
 }
 
@@ -251,14 +251,14 @@ impl<'a> Study<'a> {
         settings: &'a Settings,
         evaluator: &'a mut dyn Evaluator,
     ) -> anyhow::Result<Study<'a>> {
-        let tasks = MODELS
+        let problems = MODELS
             .iter()
-            .map(|&f| Task::new(trace, f, Flow::Joint, None, false))
+            .map(|&f| FitProblem::new(trace, f, Flow::Joint, None, false))
             .collect::<anyhow::Result<_>>()?;
         Ok(Study {
             settings,
             trace,
-            tasks,
+            problems,
             fitter: Fitter { evaluator },
         })
     }
@@ -271,9 +271,9 @@ impl<'a> Study<'a> {
         let settings = self.settings;
         let mut rows = Vec::new();
         for n in settings.table21_sizes() {
-            for task in &self.tasks {
+            for problem in &self.problems {
                 for algo in Algorithm::ALL {
-                    let mut s = algo.thesis_settings(task.family);
+                    let mut s = algo.thesis_settings(problem.model.family);
                     let mut capped = false;
                     if let AlgoSettings::Mfa(m) = &mut s
                         && n > settings.mfa_all_pairs_max
@@ -281,8 +281,8 @@ impl<'a> Study<'a> {
                         m.towards_brightest();
                         capped = true;
                     }
-                    progress(format!("table 21: {} {algo} N = {n}", task.family));
-                    let (mut row, _) = self.fitter.thesis(task, &s, n, settings.gens, 1)?;
+                    progress(format!("table 21: {} {algo} N = {n}", problem.model.family));
+                    let (mut row, _) = self.fitter.thesis(problem, &s, n, settings.gens, 1)?;
                     if capped {
                         row.algo = "mfa*".into();
                     }
@@ -304,8 +304,9 @@ impl<'a> Study<'a> {
         if seeds == 0 {
             return Ok(out);
         }
-        for task in &self.tasks {
-            let thesis = |algo: Algorithm| Variant::Thesis(algo.thesis_settings(task.family));
+        for problem in &self.problems {
+            let thesis =
+                |algo: Algorithm| Variant::Thesis(algo.thesis_settings(problem.model.family));
             // The documented fixes (docs/RESULTS.md) are the staged fit's
             // settings: GA with 10 % elitism, uniform mutation, P_mut 0.3;
             // MFA towards the 10 brightest, r², box units.
@@ -325,14 +326,17 @@ impl<'a> Study<'a> {
                 Algorithm::ALL.map(|algo| (format!("staged fit, {algo}"), Variant::Staged(algo))),
             );
             for (name, variant) in variants {
-                progress(format!("budget: {} {name}, {seeds} seeds", task.family));
+                progress(format!(
+                    "budget: {} {name}, {seeds} seeds",
+                    problem.model.family
+                ));
                 let mut sse = Vec::new();
                 let mut fit = Vec::new();
                 let mut evaluations = 0;
                 for seed in 1..=seeds {
                     let (row, _) = match &variant {
-                        Variant::Thesis(s) => self.fitter.thesis(task, s, n, g, seed)?,
-                        Variant::Staged(algo) => self.fitter.staged(task, *algo, n, g, seed)?,
+                        Variant::Thesis(s) => self.fitter.thesis(problem, s, n, g, seed)?,
+                        Variant::Staged(algo) => self.fitter.staged(problem, *algo, n, g, seed)?,
                     };
                     sse.push(row.sse.unwrap_or(f64::INFINITY));
                     fit.push(row.val_fit_percent.unwrap_or(f64::NEG_INFINITY));
@@ -341,7 +345,7 @@ impl<'a> Study<'a> {
                 let (sse_median, sse_min, sse_max) = median_min_max(sse);
                 let (fit_median, fit_min, fit_max) = median_min_max(fit);
                 out.push(Spread {
-                    model: task.family,
+                    model: problem.model.family,
                     variant: name,
                     seeds,
                     evaluations,
@@ -364,21 +368,21 @@ impl<'a> Study<'a> {
         let (n, g) = (POPULATION, GENERATIONS);
         let mut rows = Vec::new();
         let mut joint = Vec::new();
-        for task in &self.tasks {
+        for problem in &self.problems {
             for flow in [Flow::Joint, Flow::Thesis] {
-                let t = Task::new(self.trace, task.family, flow, None, false)?;
-                progress(format!("flows: {} {flow:?}", task.family));
+                let t = FitProblem::new(self.trace, problem.model.family, flow, None, false)?;
+                progress(format!("flows: {} {flow:?}", problem.model.family));
                 let (row, params) = self.fitter.staged(&t, Algorithm::De, n, g, 1)?;
                 let val = t.validate(&params);
                 rows.push(FlowRow {
-                    model: t.family,
+                    model: t.model.family,
                     flow,
                     sse: row.sse,
                     val_fit_percent: row.val_fit_percent,
                     val_rmse: finite(val.rmse),
                 });
                 if flow == Flow::Joint {
-                    joint.push(t.model(&params).base);
+                    joint.push(t.fitted_model(&params).base);
                 }
             }
         }
@@ -400,16 +404,16 @@ impl<'a> Study<'a> {
         let (n, g) = (POPULATION, GENERATIONS);
         let score =
             |m: &FittedModel, on: &Trace| finite(fit_percent(&on.output, &m.simulate_trace(on)));
-        let tasks: Vec<Task> = MODELS
+        let problems: Vec<FitProblem> = MODELS
             .iter()
-            .map(|&f| Task::new(other, f, Flow::Joint, None, false))
+            .map(|&f| FitProblem::new(other, f, Flow::Joint, None, false))
             .collect::<anyhow::Result<_>>()?;
         let mut out = Vec::new();
-        for (task, here) in tasks.iter().zip(&flows.joint) {
-            let family = task.family;
+        for (problem, here) in problems.iter().zip(&flows.joint) {
+            let family = problem.model.family;
             progress(format!("cross-load: {family}"));
-            let (_, params) = self.fitter.staged(task, Algorithm::De, n, g, 1)?;
-            let back = task.model(&params).base;
+            let (_, params) = self.fitter.staged(problem, Algorithm::De, n, g, 1)?;
+            let back = problem.fitted_model(&params).base;
             for (model, from, on) in [
                 (here, self.trace, other),
                 (&back, other, self.trace),

@@ -13,7 +13,7 @@ use super::stage::{
     At, Columns, Frame, InputLoop, Lane, OutputLoop, Placed, Side, Stage, StateLoop, stages,
 };
 use super::stages::*;
-use super::table::{Params, StartHint, catalogue};
+use super::table::{EffectBox, Params, StartHint, catalogue};
 
 catalogue! {
     physical {
@@ -26,7 +26,7 @@ catalogue! {
             signature: "residual–input cross-correlation peaks at a positive lag; energy right after each input step",
             params: Params::Fixed(&[("d", "input delay (samples)")]),
             primary: 0,
-            bounds: |_, _| (vec![0.0], vec![0.0], vec![30.0]),
+            bounds: |_, _| EffectBox::new(vec![0.0], vec![0.0], vec![30.0]),
             size_text: Some(|p, dt| format!("{:.1} samples ({:.0} ms)", p[0], 1000.0 * p[0] * dt)),
             ..PLAIN
         },
@@ -41,7 +41,7 @@ catalogue! {
             primary: 0,
             bounds: |ctx, _| {
                 let lo = ctx.input_min.min(0.0);
-                (vec![0.0], vec![lo], vec![ctx.input_min.max(0.0) + 0.6 * ctx.input_range()])
+                EffectBox::new(vec![0.0], vec![lo], vec![ctx.input_min.max(0.0) + 0.6 * ctx.input_range()])
             },
             ..PLAIN
         },
@@ -65,7 +65,7 @@ catalogue! {
                 "gain asymmetry: b_up = b·(1+eps), b_down = b·(1−eps)",
             )]),
             primary: 0,
-            bounds: |_, _| (vec![0.0], vec![-0.5], vec![0.5]),
+            bounds: |_, _| EffectBox::new(vec![0.0], vec![-0.5], vec![0.5]),
             ..PLAIN
         },
         /// An extra pole (load mass, hose compliance): `x(k) += a2·(x(k−1) − x(k−2))`,
@@ -77,7 +77,7 @@ catalogue! {
             signature: "energy in the transient after steps (overshoot or sluggish rise), mid frequencies",
             params: Params::Fixed(&[("a2", "weight of x(k−1) − x(k−2): the extra pole")]),
             primary: 0,
-            bounds: |_, _| (vec![0.0], vec![-0.5], vec![0.9]),
+            bounds: |_, _| EffectBox::new(vec![0.0], vec![-0.5], vec![0.9]),
             ..PLAIN
         },
         /// Play of width `r` (input units) on the input (braid stick–slip).
@@ -88,7 +88,7 @@ catalogue! {
             signature: "residual right after input reversals; loop too narrow",
             params: Params::Fixed(&[("r", "play width (input units)")]),
             primary: 0,
-            bounds: |ctx, _| (vec![0.0], vec![0.0], vec![0.5 * ctx.input_range()]),
+            bounds: |ctx, _| EffectBox::new(vec![0.0], vec![0.0], vec![0.5 * ctx.input_range()]),
             ..PLAIN
         },
         /// A slow first-order state added to the output:
@@ -117,7 +117,7 @@ catalogue! {
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
                 let g = 2.0 * ry / ctx.input_range();
-                (vec![0.995, 0.0, 0.0], vec![0.98, -g, -ry], vec![0.9995, g, ry])
+                EffectBox::new(vec![0.995, 0.0, 0.0], vec![0.98, -g, -ry], vec![0.9995, g, ry])
             },
             ..CREEP
         },
@@ -133,7 +133,7 @@ catalogue! {
             primary: 0,
             bounds: |ctx, _| {
                 let v = (ctx.max_step / ctx.dt).max(f64::MIN_POSITIVE);
-                (vec![0.0], vec![-0.9 / v], vec![10.0 / v])
+                EffectBox::new(vec![0.0], vec![-0.9 / v], vec![10.0 / v])
             },
             ..PLAIN
         },
@@ -152,7 +152,7 @@ catalogue! {
             primary: 0,
             bounds: |_, datasets| {
                 let k = datasets.max(1) - 1;
-                (vec![0.0; k], vec![-0.5; k], vec![0.5; k])
+                EffectBox::new(vec![0.0; k], vec![-0.5; k], vec![0.5; k])
             },
             min_datasets: 2,
             ..PLAIN
@@ -185,7 +185,7 @@ catalogue! {
             params: Params::Fixed(&[MODE_A1, MODE_A2]),
             primary: 1,
             // Every stable mode lies in a2 < 1, |a1| < 1 + a2.
-            bounds: |_, _| (vec![0.0, 0.0], vec![-1.9, 0.0], vec![1.98, 0.98]),
+            bounds: |_, _| EffectBox::new(vec![0.0, 0.0], vec![-1.9, 0.0], vec![1.98, 0.98]),
             size_text: Some(mode_size),
             min_datasets: 1,
             admits: None,
@@ -208,7 +208,7 @@ catalogue! {
                 "pole of the slow branch: > 0 drains slower, < 0 fills slower",
             )]),
             primary: 0,
-            bounds: |_, _| (vec![0.0], vec![-0.97], vec![0.97]),
+            bounds: |_, _| EffectBox::new(vec![0.0], vec![-0.97], vec![0.97]),
             size_text: Some(|p, dt| {
                 let side = if p[0] >= 0.0 { "drain" } else { "fill" };
                 format!("{side} time constant {}", lag_samples(p[0].abs(), dt))
@@ -246,7 +246,7 @@ catalogue! {
             ]),
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
-                (vec![0.995, 0.0, 0.0], vec![0.98, -0.5, -ry], vec![0.9995, 0.5, ry])
+                EffectBox::new(vec![0.995, 0.0, 0.0], vec![0.98, -0.5, -ry], vec![0.9995, 0.5, ry])
             },
             ..CREEP
         },
@@ -279,7 +279,7 @@ catalogue! {
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
                 let g = 2.0 * ry / ctx.input_range();
-                (
+                EffectBox::new(
                     vec![0.98, 0.999, 0.0, 0.5, 0.0],
                     vec![0.9, 0.995, -g, 0.0, -ry],
                     vec![0.995, 0.9999, g, 1.0, ry],
@@ -304,7 +304,7 @@ catalogue! {
                 // Neutral: on below every input, so the muscle is always on.
                 let ru = ctx.input_range();
                 let never = ctx.input_min.min(0.0) - 0.05 * ru;
-                (
+                EffectBox::new(
                     vec![never, 0.0],
                     vec![never, 0.0],
                     vec![ctx.input_min.max(0.0) + 0.6 * ru, 0.3 * ru],
@@ -336,7 +336,7 @@ catalogue! {
             // diagnosis admits only ringing ones).
             bounds: |ctx, _| {
                 let g = ctx.output_range() / ctx.input_range();
-                (vec![0.0, 0.5, 0.0], vec![-1.9, 0.0, -g], vec![1.98, 0.98, g])
+                EffectBox::new(vec![0.0, 0.5, 0.0], vec![-1.9, 0.0, -g], vec![1.98, 0.98, g])
             },
             size_text: Some(mode_size),
             min_datasets: 1,
@@ -384,7 +384,7 @@ catalogue! {
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
                 let g = 2.0 * ry / ctx.input_range();
-                (vec![0.9995, 0.0, 0.0], vec![0.999, -g, -ry], vec![0.99995, g, ry])
+                EffectBox::new(vec![0.9995, 0.0, 0.0], vec![0.999, -g, -ry], vec![0.99995, g, ry])
             },
             size_text: Some(|p, dt| {
                 let tau = |n: f64| -dt / (n * p[0].ln());
@@ -435,7 +435,7 @@ const PLAIN: Realisation = Realisation {
     signature: "",
     params: Params::Fixed(&[]),
     primary: 0,
-    bounds: |_, _| (Vec::new(), Vec::new(), Vec::new()),
+    bounds: |_, _| EffectBox::new(Vec::new(), Vec::new(), Vec::new()),
     size_text: None,
     min_datasets: 1,
     admits: None,
@@ -454,10 +454,10 @@ const END_STOP: Realisation = Realisation {
         let ry = ctx.output_range();
         if ctx.drives_up {
             let far = ctx.output_max + 0.05 * ry;
-            (vec![far], vec![ctx.output_max - 0.4 * ry], vec![far])
+            EffectBox::new(vec![far], vec![ctx.output_max - 0.4 * ry], vec![far])
         } else {
             let far = ctx.output_min - 0.05 * ry;
-            (vec![far], vec![far], vec![ctx.output_min + 0.4 * ry])
+            EffectBox::new(vec![far], vec![far], vec![ctx.output_min + 0.4 * ry])
         }
     },
     ..PLAIN
@@ -469,7 +469,7 @@ const LAG: Realisation = Realisation {
     signature: "residual–input cross-correlation over a spread of positive lags; rounded steps",
     params: Params::Fixed(&[("rho", "pole of the lag (mean delay rho/(1−rho) samples)")]),
     // A pole of 0.97 is a mean delay of about 32 samples, the pure delay's 30.
-    bounds: |_, _| (vec![0.0], vec![0.0], vec![0.97]),
+    bounds: |_, _| EffectBox::new(vec![0.0], vec![0.0], vec![0.97]),
     size_text: Some(|p, dt| format!("time constant {}", lag_samples(p[0], dt))),
     ..PLAIN
 };

@@ -374,7 +374,7 @@ mod tests {
     fn neutral_vector(model: &Augmented, base: &[f64], ctx: &Context) -> Vec<f32> {
         let mut theta: Vec<f64> = base.to_vec();
         for &e in &model.effects {
-            theta.extend(effect_box(e, ctx, model.datasets).0);
+            theta.extend(effect_box(e, ctx, model.datasets).neutral);
         }
         theta.iter().map(|&v| v as f32).collect()
     }
@@ -440,7 +440,11 @@ mod tests {
         let reference = simulate(fam, &base32, exp.y_mean as f32, &exp.u, exp.y[0]).x;
         for effect in Effect::ALL {
             let model = Augmented::new(fam, vec![effect], 2);
-            let (neutral, lo, hi) = effect_box(effect, &ctx, 2);
+            let EffectBox {
+                neutral,
+                lower: lo,
+                upper: hi,
+            } = effect_box(effect, &ctx, 2);
             let mut theta = neutral_vector(&model, &base, &ctx);
             let at = model.offset_of(effect).unwrap();
             let i = effect.primary();

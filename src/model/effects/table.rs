@@ -7,9 +7,24 @@
 
 use super::Context;
 
-/// The three vectors of a realisation's box: its neutral value (which gives
-/// the baseline's bits), its lower and its upper bounds.
-pub type EffectBox = (Vec<f64>, Vec<f64>, Vec<f64>);
+/// A realisation's box: its neutral value (which gives the baseline's
+/// bits), its lower and its upper bounds, one entry per parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectBox {
+    pub neutral: Vec<f64>,
+    pub lower: Vec<f64>,
+    pub upper: Vec<f64>,
+}
+
+impl EffectBox {
+    pub fn new(neutral: Vec<f64>, lower: Vec<f64>, upper: Vec<f64>) -> EffectBox {
+        EffectBox {
+            neutral,
+            lower,
+            upper,
+        }
+    }
+}
 
 /// One realisation of the catalogue: everything the diagnosis, the reports
 /// and the backends know about it besides its step (its stage in

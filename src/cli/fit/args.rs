@@ -1,0 +1,346 @@
+//! `mckibben fit`'s flags: what each asks for, and the fit settings they
+//! make.
+
+use std::path::PathBuf;
+
+use super::super::common::DataArgs;
+use mckibben::eval::Backend;
+use mckibben::fit::objective::{GENERATIONS, POPULATION};
+use mckibben::fit::request::FitRequest;
+use mckibben::fit::run::{FitSettings, Overrides};
+use mckibben::model::effects::Effect;
+use mckibben::model::{Family, Loop, Switching, UserBound};
+use mckibben::optim::Algorithm;
+use mckibben::optim::engine::StopRules;
+use mckibben::optim::ga::{Crossover, Mutation};
+use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
+
+/// Fit a Bouc-Wen hysteresis model (eq. 13 with the classic or generalized
+/// state) to a recorded experiment. The first half of the data is used for
+/// estimation, the second half for validation, as in the thesis (§4.3.1).
+///
+/// The fit runs in three stages (docs/ARCHITECTURE.md, "fitting engine"):
+///   1. global: a population search (--algo) on the h-step-ahead prediction
+///      error, h about a third of the data's time constant, in 4 islands;
+///   2. free run: differential evolution on the free-run error from the
+///      global stage's best members (N/5 for G/4 generations);
+///   3. polish: Levenberg–Marquardt on the free-run residuals from the best
+///      16 distinct members (4 per island).
+///
+/// The free-run error of a slow hysteretic model is a needle that a
+/// population search alone stalls beside; the prediction error is smooth
+/// around it. Default N = 1000, G = 300, sized for the ≤ 2 s target on two
+/// CPU cores with the shipped 4000-sample stair (timings:
+/// docs/PERFORMANCE.md, "The default fit").
+///
+/// `a`, `b`, the intercept `c` and the start offset `x0` are fitted with the
+/// hysteresis parameters. `--thesis-flow` redoes the thesis instead: `a`, `b`
+/// fixed at the ARX estimate, no intercept, one population search on the
+/// free run with the thesis' settings (chapter 5), as in its Table 21.
+///
+/// The search box is in the data's own scale, so any units work (MPa→mm,
+/// psi→mm, kPa→m): the static gain within 5× of ARX's, the time constant
+/// within 10×, loop shapes normalised by the output range, A held at 1
+/// (the Bouc-Wen gauge: only A·a·(1 − α) is determined), and loops in the
+/// bounded class (--loop free lifts it). A fit that ends on one of these
+/// data-set bounds widens it and refits from its best point, at most twice,
+/// and says so; --bound and --fix set any parameter's box yourself
+/// (docs/ARCHITECTURE.md, "The search space").
+///
+/// The generalized model's sign terms in x switch where the output crosses
+/// a level x_s (output units; before it was a parameter, always the
+/// estimation half's mean). By default (--switch starts) the fit runs
+/// twice, x_s held at that mean and at the sensor's zero (a muscle's rest
+/// length), and keeps the lower estimation SSE: on generated truths of both
+/// kinds this reaches as many as the better of the two would alone, and
+/// more than either alone or a search of x_s over the output's span
+/// (docs/RESULTS.md, "Where the generalized loop switches"). It doubles a
+/// generalized fit's time. --switch search searches x_s; --fix x_s=0 holds
+/// a sensor zero at rest.
+///
+/// Writes to --out: model.json (read by `simulate`), result.json,
+/// history.csv / history.json (per generation and polish start: stage,
+/// horizon, best SSE, best parameters, population mean and spread, diverged
+/// count), and figures: trends.svg (parameters over generations, the
+/// thesis' figs 9–24), convergence.svg, loop.svg (displacement against
+/// pressure, fitted over measured) and trace.svg. Ctrl-C stops after the
+/// current generation and still writes the best so far.
+///
+/// Examples:
+///   mckibben fit
+///   mckibben fit run.csv --model generalized --algo pso --pop 10000
+///   mckibben fit --thesis-flow --algo ga --crossover weighted --pop 30 --gens 30
+///   mckibben fit --checkpoint fit.ckpt.json   # resumes if the file exists
+///   mckibben fit run.csv --bound gain=0.1:20 --fix alpha=0.5
+///   mckibben fit run.csv --bound A=0.2:2 --loop free
+///   mckibben fit run.csv --model generalized --fix x_s=0
+#[derive(Debug, clap::Args)]
+#[command(verbatim_doc_comment)]
+pub struct Args {
+    #[command(flatten)]
+    pub(super) data: DataArgs,
+    /// Hysteresis model: classic (A, α, β, γ) or generalized (A, α, β1..β6)
+    /// (default: the --from model's, else classic).
+    #[arg(long, value_enum)]
+    pub(super) model: Option<ModelArg>,
+    /// Effects after the baseline, comma-separated, in chain order (e.g.
+    /// `creep:two-pole,inertia:ringing`; `mckibben diagnose --help` lists
+    /// the catalogue). Their parameters are fitted with the baseline's, each
+    /// in its own box from the record, from two starts: the search from
+    /// scratch, and the chain built one effect at a time as the diagnosis
+    /// builds it; the lower estimation SSE is kept (the `built` line says
+    /// which). `auto` runs the diagnosis' selection
+    /// over the whole catalogue and returns its final model (as `mckibben
+    /// diagnose`; minutes, not seconds). Default: the --from model's, else none.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "LIST",
+        conflicts_with = "thesis_flow"
+    )]
+    pub(super) effects: Option<Vec<EffectArg>>,
+    /// Start from a model file (a warm start): its parameters are the first
+    /// member of the first population, and its family, effects and --bound
+    /// / --fix are taken unless given here. DATA is read as the model's
+    /// data were (columns, time column, --resample) unless flags say
+    /// otherwise, and must have the model's units and sample time. The fit
+    /// runs in the model's coordinates (its means), so the start is the
+    /// saved model itself; the box is the new record's, widened where the
+    /// model lies outside it. The report shows the start as it was
+    /// (`validation fit, from`) and warns when the refit validates clearly
+    /// worse.
+    #[arg(long, value_name = "MODEL.json", conflicts_with = "thesis_flow")]
+    pub(super) from: Option<PathBuf>,
+    /// Update rule of the population search: ga, mfa, pso (the thesis') or
+    /// de. It changes the time a fit takes, not where it ends.
+    #[arg(long, value_enum, default_value = "de")]
+    pub(super) algo: Algorithm,
+    /// Population size N of the global stage (the thesis used 10–30).
+    #[arg(long, default_value_t = POPULATION)]
+    pub(super) pop: usize,
+    /// Generations G of the global stage: populations evaluated, the
+    /// initial one included (the thesis used 30).
+    #[arg(long, default_value_t = GENERATIONS)]
+    pub(super) gens: usize,
+    /// Seed of the run's random generator: same seed, same result on any
+    /// backend and thread count.
+    #[arg(long, default_value_t = 1)]
+    pub(super) seed: u64,
+    /// Where populations are scored: auto (a hardware GPU if present, else
+    /// the CPU), cpu, or gpu (any adapter, lavapipe included).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub(super) backend: Backend,
+    /// The thesis' flow: a and b fixed at the ARX estimate, no intercept or
+    /// start offset, one population search on the free run with the
+    /// thesis' algorithm settings (the flags below still override them).
+    #[arg(long)]
+    pub(super) thesis_flow: bool,
+    /// Independent sub-populations of the staged fit's population stages.
+    #[arg(long, value_name = "K", conflicts_with = "thesis_flow")]
+    pub(super) islands: Option<usize>,
+    /// Prediction horizon of the global stage in samples (default: a third
+    /// of the ARX time constant).
+    #[arg(long, value_name = "SAMPLES", conflicts_with = "thesis_flow")]
+    pub(super) horizon: Option<usize>,
+    /// Also fit the Bouc-Wen exponent n in [1, 3] (fixed at 1 in the thesis).
+    #[arg(long)]
+    pub(super) free_n: bool,
+    /// Loop shapes the fit may take: bounded (the class whose state stays
+    /// bounded for every bounded input: classic β ≥ 0 and β + γ ≥ 0,
+    /// generalized ψ ≥ 0 on every loading branch and no unloading branch
+    /// steeper) or free (any signs, for hysteresis outside that class).
+    #[arg(
+        long = "loop",
+        value_enum,
+        default_value = "bounded",
+        conflicts_with = "thesis_flow"
+    )]
+    pub(super) loop_shape: Loop,
+    /// Where the generalized model's sign terms in x switch (its level x_s,
+    /// in the output's units): starts (two fits, x_s held at the estimation
+    /// half's output mean and at the sensor's zero, the lower estimation SSE
+    /// kept), search (x_s searched over the estimation output's span), mean
+    /// or zero (held there). A --from warm start holds its model's x_s.
+    #[arg(
+        long = "switch",
+        value_enum,
+        default_value = "starts",
+        conflicts_with = "thesis_flow"
+    )]
+    pub(super) switching: Switching,
+    /// Bound one parameter to [LO, HI] (repeatable): a canonical name (A,
+    /// alpha, beta, gamma, beta1..beta6, n, x_s, a, b, c, x0) or a search
+    /// coordinate's (gain, offset, x0_range, loading, beta_range, psi_pp, ...;
+    /// result.json's search_box lists them). Bounding A frees the gauge;
+    /// bounding b or c searches the linear part in b, c, x0 themselves; a
+    /// loop-shape parameter, the loop shape in its own parameters.
+    #[arg(long, value_name = "NAME=LO:HI", conflicts_with = "thesis_flow")]
+    pub(super) bound: Vec<UserBound>,
+    /// Hold one parameter at VALUE (repeatable; names as --bound).
+    #[arg(long, value_name = "NAME=VALUE", conflicts_with = "thesis_flow")]
+    pub(super) fix: Vec<UserBound>,
+    /// Stop once the estimation SSE (free run) is at or below this.
+    #[arg(long, value_name = "SSE")]
+    pub(super) target_sse: Option<f64>,
+    /// Stop after this many seconds (the result then depends on the machine).
+    #[arg(long, value_name = "SECONDS")]
+    pub(super) time_budget: Option<f64>,
+    /// End a population stage when its best has not improved for this many
+    /// generations.
+    #[arg(long, value_name = "GENS")]
+    pub(super) stall: Option<usize>,
+    /// GA crossover (§5.2.1.5; default proportional).
+    #[arg(long, value_enum)]
+    pub(super) crossover: Option<Crossover>,
+    /// GA: best individuals kept unchanged (thesis 0; staged fit N/10).
+    #[arg(long)]
+    pub(super) elitism: Option<usize>,
+    /// GA: mutation probability P_mut (thesis 0.1; staged fit 0.3).
+    #[arg(long)]
+    pub(super) p_mut: Option<f64>,
+    /// GA: fixed ±m_m mutation (thesis), uniform in [−m_m, m_m] (staged
+    /// fit), or non-uniform (Michalewicz: towards a bound, reach shrinking
+    /// over the generations).
+    #[arg(long, value_enum)]
+    pub(super) mutation: Option<Mutation>,
+    /// MFA: Λ0 schedule from a to b (appendix code) or to a − b (eq. 36).
+    #[arg(long, value_enum)]
+    mfa_lambda0: Option<Lambda0Schedule>,
+    /// MFA: attractiveness e^(−σr) (thesis' code) or e^(−σr²) (eq. 32;
+    /// staged fit).
+    #[arg(long, value_enum)]
+    pub(super) mfa_distance: Option<Distance>,
+    /// MFA: distances and walk in raw units (thesis) or box widths (staged fit).
+    #[arg(long, value_enum)]
+    pub(super) mfa_scale: Option<Scale>,
+    /// MFA: move towards at most K brighter fireflies (thesis: all of them,
+    /// O(N²·d) a generation; staged fit: the 10 brightest). 0 means all.
+    #[arg(long, value_name = "K")]
+    pub(super) mfa_attractors: Option<usize>,
+    /// MFA: with --mfa-attractors, the K brightest instead of K at random.
+    #[arg(long)]
+    pub(super) mfa_brightest: bool,
+    /// MFA: start ρ0 of the random walk ρ(k) = ρ0·e^(−4.8k/G) (eq. 38: 0.1).
+    #[arg(long, value_name = "RHO0")]
+    mfa_rho0: Option<f64>,
+    /// DE: share of the population x_pbest is drawn from (0.1; smaller is
+    /// greedier).
+    #[arg(long)]
+    pub(super) de_p_best: Option<f64>,
+    /// PSO: one random number for the social term (appendix code).
+    #[arg(long)]
+    pub(super) pso_scalar_social: bool,
+    /// Save the run state to FILE every 10 s and at the end; if FILE exists,
+    /// resume from it to the identical result (the plan, N, G, seed and
+    /// settings come from the checkpoint, stopping rules from this command).
+    #[arg(long, value_name = "FILE")]
+    pub(super) checkpoint: Option<PathBuf>,
+    /// Folder for the model, history and figures.
+    #[arg(long, value_name = "DIR", default_value = "out/fit")]
+    pub(super) out: PathBuf,
+    /// Print JSON on stdout instead of a report.
+    #[arg(long)]
+    pub(super) json: bool,
+}
+
+/// One entry of `--effects`: an effect of the catalogue, or `auto`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum EffectArg {
+    Auto,
+    Effect(Effect),
+}
+
+impl std::str::FromStr for EffectArg {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "auto" => Ok(EffectArg::Auto),
+            _ => s.parse().map(EffectArg::Effect),
+        }
+    }
+}
+
+/// The hysteretic families `fit` can fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModelArg {
+    Classic,
+    Generalized,
+}
+
+impl From<ModelArg> for Family {
+    fn from(m: ModelArg) -> Family {
+        match m {
+            ModelArg::Classic => Family::Classic,
+            ModelArg::Generalized => Family::Generalized,
+        }
+    }
+}
+
+impl Args {
+    /// The fit the flags ask for.
+    pub(super) fn settings(&self) -> FitSettings {
+        FitSettings {
+            algo: self.algo,
+            pop: self.pop,
+            gens: self.gens,
+            seed: self.seed,
+            thesis_flow: self.thesis_flow,
+            islands: self.islands,
+            horizon: self.horizon,
+            overrides: Overrides {
+                crossover: self.crossover,
+                elitism: self.elitism,
+                p_mut: self.p_mut,
+                mutation: self.mutation,
+                mfa_lambda0: self.mfa_lambda0,
+                mfa_distance: self.mfa_distance,
+                mfa_scale: self.mfa_scale,
+                mfa_attractors: self.mfa_attractors,
+                mfa_brightest: self.mfa_brightest,
+                mfa_rho0: self.mfa_rho0,
+                de_p_best: self.de_p_best,
+                pso_scalar_social: self.pso_scalar_social,
+            },
+            stops: StopRules {
+                target_sse: self.target_sse,
+                time_budget_s: self.time_budget,
+                stall_generations: self.stall,
+                stall_tolerance: 0.0,
+            },
+        }
+    }
+
+    /// The fit the flags ask for, before `--from` fills in the rest
+    /// (`--effects auto` is the diagnosis' and is not one).
+    pub(super) fn request(&self) -> anyhow::Result<FitRequest> {
+        for f in &self.fix {
+            anyhow::ensure!(
+                f.lower == f.upper,
+                "--fix {}: expected NAME=VALUE (use --bound for a range)",
+                f.name
+            );
+        }
+        let effects = self
+            .effects
+            .as_ref()
+            .map(|list| {
+                list.iter()
+                    .map(|e| match e {
+                        EffectArg::Effect(e) => Ok(*e),
+                        EffectArg::Auto => Err(anyhow::anyhow!(
+                            "--effects: `auto` stands alone (the diagnosis chooses every effect)"
+                        )),
+                    })
+                    .collect::<anyhow::Result<Vec<Effect>>>()
+            })
+            .transpose()?;
+        Ok(FitRequest {
+            family: self.model.map(Family::from),
+            effects,
+            free_n: self.free_n,
+            loop_shape: self.loop_shape,
+            switching: self.switching,
+            bounds: self.bound.iter().chain(&self.fix).cloned().collect(),
+        })
+    }
+}

@@ -1,0 +1,254 @@
+//! `mckibben fit`: identify a hysteresis model's parameters with the staged
+//! fitting engine (a population search by GA, MFA, PSO or DE, a free-run
+//! stage and a Levenberg–Marquardt polish), or with the thesis' flow.
+
+mod args;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use super::common::one_trace;
+pub use args::Args;
+use args::EffectArg;
+use mckibben::data::Trace;
+use mckibben::diagnose::StopFlag;
+use mckibben::diagnose::chain::{selected_fit, with_chain_start};
+use mckibben::eval;
+use mckibben::fit::report::FitReport;
+use mckibben::fit::run::{Fit, yardstick_warnings};
+use mckibben::model::{Family, ModelFile};
+use mckibben::optim::engine::{FreeRun, Observer};
+use mckibben::optim::history::GenerationRecord;
+use mckibben::report::json::Versioned;
+
+/// A progress bar on stderr (hidden when stderr is not a terminal).
+pub struct Progress(indicatif::ProgressBar);
+
+impl Progress {
+    pub fn new(total: usize, hidden: bool) -> Progress {
+        let bar = if hidden {
+            indicatif::ProgressBar::hidden()
+        } else {
+            indicatif::ProgressBar::new(total as u64)
+        };
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{spinner} gen {pos}/{len} [{bar:30}] {msg} ({elapsed}, eta {eta})",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        Progress(bar)
+    }
+
+    pub fn finish(&self) {
+        self.0.finish_and_clear();
+    }
+}
+
+impl Observer for Progress {
+    fn record(&mut self, r: &GenerationRecord, _: usize) {
+        self.0.set_position(r.generation as u64);
+        let best = r.stage_best.map_or("-".into(), |b| format!("{b:.4e}"));
+        let measure = match r.measure {
+            mckibben::model::Measure::FreeRun => "free run".to_string(),
+            mckibben::model::Measure::Ahead { horizon } => format!("{horizon}-step"),
+        };
+        self.0.set_message(format!(
+            "{} ({measure}) best {best}, {} diverged",
+            r.stage.name(),
+            r.diverged
+        ));
+    }
+}
+
+pub fn run(mut args: Args) -> anyhow::Result<()> {
+    let start = match &args.from {
+        Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?),
+        None => None,
+    };
+    if let Some(file) = &start {
+        args.data.columns = args.data.columns.or_as_read_for(file);
+    }
+    if let Some([EffectArg::Auto]) = args.effects.as_deref() {
+        anyhow::ensure!(
+            start.is_none() && args.bound.is_empty() && args.fix.is_empty(),
+            "--effects auto runs the diagnosis' own selection: not with --from, --bound or --fix"
+        );
+        let family = args.model.map_or(Family::Classic, Family::from);
+        let trace = one_trace(args.data.load()?)?;
+        return run_auto(&args, family, &trace);
+    }
+    let request = args.request()?;
+    let resolved = request
+        .resolve(start.as_ref())
+        .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+    let (what, start_model) = (resolved.what, resolved.start);
+    let trace = one_trace(args.data.load()?)?;
+    let note = |s: String| {
+        if !args.json {
+            eprintln!("mckibben: note: {s}");
+        }
+    };
+    let fit = Fit::new(
+        &trace,
+        &what,
+        &args.settings(),
+        start_model.as_ref(),
+        args.checkpoint.as_deref(),
+        &note,
+    )?;
+    let mut evaluator = eval::open(args.backend)?;
+    let backend = evaluator.describe();
+    let interrupt = Arc::new(AtomicBool::new(false));
+    let chain_stop = StopFlag::default();
+    {
+        let (flag, chain) = (interrupt.clone(), chain_stop.clone());
+        // A second handler cannot be installed in one process; a failure
+        // only means Ctrl-C kills instead of stopping cleanly.
+        let _ = ctrlc::set_handler(move || {
+            flag.store(true, Ordering::SeqCst);
+            chain.raise();
+        });
+    }
+    if !what.effects.is_empty() && start_model.is_none() && !args.json {
+        eprintln!(
+            "building the chain one effect at a time, as the diagnosis does: the fit's second start"
+        );
+    }
+    let mut fit = with_chain_start(fit, &trace, &args.settings(), args.backend, chain_stop)?;
+    if !args.json {
+        announce(&args, &fit, &trace, &backend);
+    }
+    let mut progress = Progress::new(fit.engine.plan.generations(), args.json);
+    let (outcome, widened) = fit.run(
+        evaluator.as_mut(),
+        &mut [&mut progress],
+        Some(&interrupt),
+        args.checkpoint.as_deref(),
+    )?;
+    progress.finish();
+    let mut report = FitReport::of(&fit, (&outcome, &widened), &backend, &trace.source);
+    let provenance = args.data.provenance(Some(fit.engine.seed))?;
+    report.write(
+        &args.out,
+        (&fit, &outcome.params),
+        &trace,
+        &what.bounds,
+        provenance,
+    )?;
+    if args.json {
+        println!("{}", Versioned::new(&report).to_string_pretty()?);
+    } else {
+        let free = fit.problem.space.free();
+        let fixed: Vec<bool> = (0..fit.problem.space.dim())
+            .map(|i| !free.contains(&i))
+            .collect();
+        print!("{}", report.to_text(&fixed));
+        for (level, text) in report.edge_notes() {
+            eprintln!("mckibben: {level}: {text}");
+        }
+        if let Some(val) = report.val_fit_percent {
+            let linear = report.linear_val_fit_percent;
+            for w in yardstick_warnings(outcome.sse, val, linear, fit.start_scores()) {
+                eprintln!("mckibben: warning: {w}");
+            }
+        }
+    }
+    if outcome.params.is_empty() && outcome.evaluations == 0 {
+        eprintln!(
+            "mckibben: note: stopped ({:?}) before any candidate was scored; no model was written",
+            outcome.stop
+        );
+    } else {
+        anyhow::ensure!(
+            !outcome.params.is_empty(),
+            "every candidate diverged: no model was written (the history is in {}); \
+             check the data's units and columns",
+            args.out.display()
+        );
+    }
+    Ok(())
+}
+
+/// The line that says what is about to run: the model, the algorithm and
+/// its size, the stages, the data and the backend.
+fn announce(args: &Args, fit: &Fit, trace: &Trace, backend: &str) {
+    let engine = &fit.engine;
+    // A warm start has no global stage: its first is the free run's.
+    let (algo, population, generations) = match (&engine.plan.global, &engine.plan.free_run) {
+        (Some(g), _) => (g.algorithm(), g.population, g.generations),
+        (None, Some(f)) => (FreeRun::ALGORITHM, f.population, f.generations),
+        (None, None) => (FreeRun::ALGORITHM, 0, 0),
+    };
+    let stages: Vec<&str> = engine.stages().iter().map(|s| s.name()).collect();
+    let model = fit
+        .problem
+        .model
+        .effects
+        .iter()
+        .fold(fit.problem.model.family.to_string(), |m, e| {
+            format!("{m} + {e}")
+        });
+    let from = match &args.from {
+        Some(p) => format!(", warm start from {}", p.display()),
+        None => String::new(),
+    };
+    eprintln!(
+        "fitting {model} with {algo} (N = {population}, G = {generations}, seed {}; stages {}{from}) on {} [{}]",
+        engine.seed,
+        stages.join(" → "),
+        trace.source,
+        backend
+    );
+}
+
+/// `--effects auto`: the diagnosis' forward selection over the whole
+/// catalogue on `trace` (its settings, with this command's seed and
+/// backend); writes and reports its final model as a fit's.
+fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
+    if !args.json {
+        eprintln!(
+            "fitting {family} with the effects the diagnosis selects from its catalogue \
+             (seed {}) on {}",
+            args.seed, trace.source
+        );
+    }
+    let (model, mut report) = selected_fit(trace, family, args.seed, args.backend)?;
+    report.write_model(
+        &args.out,
+        &model,
+        trace,
+        args.data.provenance(Some(args.seed))?,
+    )?;
+    if args.json {
+        println!("{}", Versioned::new(&report).to_string_pretty()?);
+        return Ok(());
+    }
+    println!(
+        "{family} fit of {} with the diagnosis' effects: {}",
+        trace.source,
+        if report.effects.is_empty() {
+            "none".to_string()
+        } else {
+            report.effects.join(", ")
+        }
+    );
+    for (name, value) in &report.params.0 {
+        println!("  {name:<7} {value:>14.6}");
+    }
+    let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
+    println!("  SSE (estimation)     {}", show(report.sse));
+    println!(
+        "  validation fit       {} %   (RMSE {})",
+        show(report.val_fit_percent),
+        show(report.val_rmse)
+    );
+    println!(
+        "  {:.2} s; `mckibben diagnose` gives the selection's report; wrote model.json, \
+         result.json and figures to {}",
+        report.seconds,
+        args.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,358 @@
+//! What a finished fit reports: one type that `mckibben fit --json`, its
+//! `result.json` and Python's `FitResult` all serialise, what `fit` writes
+//! beside it, and its text for a terminal.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context as _;
+use serde::Serialize;
+
+use super::edge::{ActiveBound, Widening, active_bounds};
+use super::run::{Built, Fit, Switched, model_file};
+use crate::data::{Trace, write_atomic};
+use crate::model::Family;
+use crate::model::bounds::Origin;
+use crate::model::file::{Provenance, SearchBox};
+use crate::model::{Flow, Model, ModelFile, UserBound};
+use crate::optim::Algorithm;
+use crate::optim::engine::{Outcome, StageSummary, StopReason};
+use crate::report::fit_figures;
+use crate::report::json::{Named, Versioned};
+
+/// A fit's report (docs/JSON.md, `mckibben fit`).
+#[derive(Debug, Clone, Serialize)]
+pub struct FitReport {
+    pub model: Family,
+    /// The effects after the baseline, in chain order.
+    pub effects: Vec<String>,
+    pub algo: Algorithm,
+    /// Fitted parameters by name, in the family's canonical order, then
+    /// the effects' as `effect.param`.
+    pub params: Named,
+    /// Estimation SSE of the free run (`None` where it diverged).
+    pub sse: Option<f64>,
+    pub val_rmse: Option<f64>,
+    pub val_fit_percent: Option<f64>,
+    /// The first-order ARX model's validation fit on the same halves
+    /// (`Records::linear_yardstick`): what the fit should beat.
+    pub linear_val_fit_percent: Option<f64>,
+    /// With a warm start: the start model as it was, on this record's
+    /// halves (`None` without one, or where it diverges).
+    pub start_sse: Option<f64>,
+    pub start_val_fit_percent: Option<f64>,
+    /// With effects from scratch: the search from scratch against the
+    /// chain built one effect at a time, and which was kept (`None`
+    /// otherwise).
+    pub built: Option<Built>,
+    /// A generalized fit from the default switching's two starts: each
+    /// start's estimation SSE and which was kept (`None` otherwise).
+    pub switching: Option<Switched>,
+    pub evaluations: u64,
+    pub generations: usize,
+    pub seconds: f64,
+    pub backend: String,
+    pub flow: Flow,
+    pub seed: u64,
+    pub population: usize,
+    pub stop: StopReason,
+    pub stages: Vec<StageSummary>,
+    /// Search coordinates that ended on a bound of the box, with where
+    /// each bound comes from (after the edge rule's widenings).
+    pub on_edge: Vec<ActiveBound>,
+    /// The edge rule's widenings and refits, in order.
+    pub widened: Vec<Widening>,
+    /// The search box's coordinates (`names`) and bounds, after widening.
+    pub search_box: SearchBox,
+    /// The data file.
+    pub data: String,
+    /// Where the fit's files were written (`None` where nothing was).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub out: Option<PathBuf>,
+}
+
+/// `v` where it is finite.
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+impl FitReport {
+    /// The report of `fit` once [`Fit::run`] returned `outcome` and
+    /// `widened`, its populations scored on `backend`, on the record
+    /// `data`.
+    pub fn of(
+        fit: &Fit,
+        (outcome, widened): (&Outcome, &[Widening]),
+        backend: &str,
+        data: &str,
+    ) -> FitReport {
+        let (problem, engine) = (&fit.problem, &fit.engine);
+        let start = fit.start_scores();
+        let found = !outcome.params.is_empty();
+        let val = found.then(|| problem.validate(&outcome.params));
+        let global = engine.plan.global.as_ref();
+        FitReport {
+            model: problem.model.family,
+            effects: problem
+                .model
+                .effects
+                .iter()
+                .map(|e| e.name().to_string())
+                .collect(),
+            algo: global.map_or(Algorithm::De, |g| g.algorithm()),
+            params: Named::zip(&problem.model.param_names(), &outcome.params),
+            sse: finite(outcome.sse),
+            val_rmse: val.and_then(|v| finite(v.rmse)),
+            val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
+            linear_val_fit_percent: problem
+                .linear_yardstick()
+                .and_then(|v| finite(v.fit_percent)),
+            start_sse: start.and_then(|s| finite(s.est_sse)),
+            start_val_fit_percent: start.and_then(|s| finite(s.validation.fit_percent)),
+            built: fit.built,
+            switching: fit.switched,
+            evaluations: outcome.evaluations,
+            generations: outcome.generations,
+            seconds: outcome.seconds,
+            backend: backend.to_string(),
+            flow: problem.flow,
+            seed: engine.seed,
+            population: global.map_or(
+                engine.plan.free_run.as_ref().map_or(0, |f| f.population),
+                |g| g.population,
+            ),
+            stop: outcome.stop,
+            stages: outcome.stages.clone(),
+            on_edge: active_bounds(problem, &outcome.params),
+            widened: widened.to_vec(),
+            search_box: SearchBox::of(&problem.space),
+            data: data.to_string(),
+            out: None,
+        }
+    }
+
+    /// Writes the fit to `out`: `result.json` (this report), the history
+    /// (`history.csv`, `history.json`), `trends.svg`, `convergence.svg`
+    /// and, where a model was found, `model.json` (with the user's
+    /// `bounds` and its `provenance`), `loop.svg` and `trace.svg`. Each
+    /// file is written whole or not at all.
+    pub fn write(
+        &mut self,
+        out: &Path,
+        (fit, params): (&Fit, &[f64]),
+        trace: &Trace,
+        bounds: &[UserBound],
+        provenance: Provenance,
+    ) -> anyhow::Result<()> {
+        let (problem, engine) = (&fit.problem, &fit.engine);
+        self.write_result(out)?;
+        engine.history.save(out)?;
+        let title = format!("{} {} fit", self.algo, problem.model.family);
+        engine
+            .history
+            .trends_figure(&format!("{title}: best parameters"), &engine.space.free())
+            .save(&out.join("trends.svg"))?;
+        engine
+            .history
+            .convergence_figure(&format!("{title}: convergence"))
+            .save(&out.join("convergence.svg"))?;
+        if !params.is_empty() {
+            let file = model_file(problem, params, bounds, provenance);
+            save_model(out, &file, &problem.fitted_model(params), trace, &title)?;
+        }
+        Ok(())
+    }
+
+    /// Writes a model found otherwise than by a fit's run (`fit --effects
+    /// auto`: the diagnosis' selection) to `out`: `result.json` (this
+    /// report), `model.json`, `loop.svg` and `trace.svg`.
+    pub fn write_model(
+        &mut self,
+        out: &Path,
+        model: &Model,
+        trace: &Trace,
+        provenance: Provenance,
+    ) -> anyhow::Result<()> {
+        self.write_result(out)?;
+        let file = ModelFile::new(model, None, provenance);
+        save_model(
+            out,
+            &file,
+            model,
+            trace,
+            &format!("diagnosed {} fit", self.model),
+        )
+    }
+
+    /// Creates `out` and writes `result.json` there, with `out` in it.
+    fn write_result(&mut self, out: &Path) -> anyhow::Result<()> {
+        std::fs::create_dir_all(out)
+            .with_context(|| format!("cannot create --out {}", out.display()))?;
+        self.out = Some(out.to_path_buf());
+        let path = out.join("result.json");
+        write_atomic(&path, Versioned::new(&*self).to_string_pretty()?.as_bytes())
+            .with_context(|| format!("cannot write {}", path.display()))
+    }
+
+    /// The report for a terminal: the fit, its parameters (`fixed`: which
+    /// of them the box held), its scores against its yardsticks, the two
+    /// starts where there were two, its stages and where it was written.
+    pub fn to_text(&self, fixed: &[bool]) -> String {
+        let mut s = String::new();
+        let mut line = |l: String| {
+            s.push_str(&l);
+            s.push('\n');
+        };
+        line(format!(
+            "{} {} fit of {} ({} flow), N = {}, seed {}",
+            self.algo,
+            self.model,
+            self.data,
+            match self.flow {
+                Flow::Joint => "joint",
+                Flow::Thesis => "thesis",
+            },
+            self.population,
+            self.seed
+        ));
+        if !self.effects.is_empty() {
+            line(format!("  effects: {}", self.effects.join(", ")));
+        }
+        for (i, (name, v)) in self.params.0.iter().enumerate() {
+            let held = if fixed.get(i) == Some(&true) {
+                "  (fixed)"
+            } else {
+                ""
+            };
+            line(format!("  {name:<7} {v:>14.6}{held}"));
+        }
+        let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
+        line(format!("  SSE (estimation)     {}", show(self.sse)));
+        line(format!(
+            "  validation fit       {} %   (RMSE {})",
+            show(self.val_fit_percent),
+            show(self.val_rmse)
+        ));
+        line(format!(
+            "  validation fit, ARX  {} %   (the first-order linear model on the same halves)",
+            show(self.linear_val_fit_percent)
+        ));
+        if self.start_sse.is_some() || self.start_val_fit_percent.is_some() {
+            line(format!(
+                "  validation fit, from  {} %   (the --from model as it was, on the same halves; SSE {})",
+                show(self.start_val_fit_percent),
+                show(self.start_sse)
+            ));
+        }
+        if let Some(sw) = self.switching {
+            line(format!(
+                "  switching: x_s at the estimation mean ended at SSE {:.4}, at the sensor's zero at \
+                 {:.4}: kept the {}",
+                sw.mean_sse,
+                sw.zero_sse,
+                if sw.kept_zero { "zero" } else { "mean" }
+            ));
+        }
+        if let Some(b) = self.built {
+            line(format!(
+                "  built: the search from scratch ended at SSE {:.4}, the chain built one effect at a \
+                 time at {:.4}: kept the {}",
+                b.scratch_sse,
+                b.chain_sse,
+                if b.kept_chain {
+                    "chain"
+                } else {
+                    "search from scratch"
+                }
+            ));
+        }
+        for st in &self.stages {
+            line(format!(
+                "  stage {:<9} {:>4} steps, {:>9} evaluations, {:>7.2} s, best {:.4e} ({}), ended: {:?}",
+                st.stage.name(),
+                st.steps,
+                st.evaluations,
+                st.seconds,
+                st.best_cost,
+                st.measure,
+                st.ended
+            ));
+        }
+        line(format!(
+            "  {} evaluations in {} generations, {:.2} s, stopped: {:?}",
+            self.evaluations, self.generations, self.seconds, self.stop
+        ));
+        if let (Some(_), Some(out)) = (self.sse, &self.out) {
+            line(format!(
+                "  wrote model.json, result.json, history.csv/json and figures to {}",
+                out.display()
+            ));
+        }
+        s
+    }
+
+    /// What the user should know of the box: each widening the edge rule
+    /// made, and each bound the fit still ends on with where it comes from,
+    /// as `(level, message)` with level `note` or `warning`.
+    pub fn edge_notes(&self) -> Vec<(&'static str, String)> {
+        let mut notes: Vec<(&'static str, String)> = self
+            .widened
+            .iter()
+            .map(|w| {
+                let text = format!(
+                    "the fit ended on a bound the data set; widened {} and refitted from \
+                     its best point: estimation SSE {:.6e} -> {:.6e}",
+                    w.bounds.join(", "),
+                    w.sse_before,
+                    w.sse_after
+                );
+                ("note", text)
+            })
+            .collect();
+        for e in &self.on_edge {
+            let why = match e.origin {
+                Origin::Data => {
+                    "a bound the data set, still active after the widenings: the box \
+                             stopped it, not the data; widen it with --bound"
+                }
+                Origin::User => "your --bound or --fix",
+                Origin::Class if e.param.contains('.') => {
+                    "the edge of the effect's range: where it is neutral, or as far as \
+                     the record lets it go"
+                }
+                Origin::Class => {
+                    "the edge of its range or of the bounded class (--loop free lifts \
+                              the class)"
+                }
+            };
+            let level = if e.origin == Origin::Data {
+                "warning"
+            } else {
+                "note"
+            };
+            notes.push((
+                level,
+                format!(
+                    "{} ended on the {} bound of its search box ({why})",
+                    e.param, e.bound
+                ),
+            ));
+        }
+        notes
+    }
+}
+
+/// Saves `file` as `out/model.json` and `model`'s loop and trace on `trace`
+/// as `loop.svg` and `trace.svg`.
+fn save_model(
+    out: &Path,
+    file: &ModelFile,
+    model: &Model,
+    trace: &Trace,
+    title: &str,
+) -> anyhow::Result<()> {
+    file.save(&out.join("model.json"))?;
+    let (loop_fig, trace_fig) = fit_figures(model, trace, title);
+    loop_fig.save(&out.join("loop.svg"))?;
+    trace_fig.save(&out.join("trace.svg"))?;
+    Ok(())
+}

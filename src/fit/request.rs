@@ -1,0 +1,146 @@
+//! What a user asks of a fit, reconciled with a warm start's model file:
+//! the one place where `mckibben fit`'s flags and Python's `fit` keywords
+//! become a family, its effects and a box.
+
+use anyhow::Context as _;
+
+use super::run::FitBox;
+use crate::model::effects::Effect;
+use crate::model::{Family, Loop, Model, ModelFile, Switching, UserBound};
+
+/// A fit as asked for, before the start model fills in what was not given
+/// (`fit --from`, Python's `start=`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitRequest {
+    /// The family (`None`: the start model's, else classic).
+    pub family: Option<Family>,
+    /// The effects after the family (`None`: the start model's, else none).
+    pub effects: Option<Vec<Effect>>,
+    /// Also fit the Bouc-Wen exponent n.
+    pub free_n: bool,
+    pub loop_shape: Loop,
+    pub switching: Switching,
+    /// The user's bounds and fixed values, after the start file's (so that
+    /// these win).
+    pub bounds: Vec<UserBound>,
+}
+
+/// A request reconciled with its start: what is fitted, and the model the
+/// fit starts from, if any.
+#[derive(Debug, Clone)]
+pub struct Resolved {
+    pub what: FitBox,
+    pub start: Option<Model>,
+}
+
+impl FitRequest {
+    /// The fit `self` asks for from `start`: the family, effects and bounds
+    /// not given here are the start model's, and the start file's own user
+    /// bounds come first. Errors name the start file's part that is wrong.
+    pub fn resolve(&self, start: Option<&ModelFile>) -> anyhow::Result<Resolved> {
+        let model = start.map(|f| f.model()).transpose()?;
+        let family = match (self.family, &model) {
+            (Some(f), _) => f,
+            (None, Some(m)) => m.base.family,
+            (None, None) => Family::Classic,
+        };
+        let effects = match (&self.effects, &model) {
+            (Some(e), _) => e.clone(),
+            (None, Some(m)) => m.effects().to_vec(),
+            (None, None) => Vec::new(),
+        };
+        let mut bounds: Vec<UserBound> = match start {
+            Some(f) => f
+                .user_bounds
+                .iter()
+                .map(|b| b.parse().map_err(anyhow::Error::msg))
+                .collect::<anyhow::Result<_>>()
+                .context("its user_bounds")?,
+            None => Vec::new(),
+        };
+        bounds.extend(self.bounds.iter().cloned());
+        Ok(Resolved {
+            what: FitBox {
+                family,
+                effects,
+                free_n: self.free_n,
+                loop_shape: self.loop_shape,
+                switching: self.switching,
+                bounds,
+            },
+            start: model,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::problem::FitProblem;
+    use crate::fit::synthetic::Synthetic;
+    use crate::model::file::Provenance;
+
+    /// A generalized model with a creep, saved with a user bound on α.
+    fn saved() -> ModelFile {
+        let s = Synthetic::new(Family::Generalized, 600, 0.05, 2);
+        let problem = FitProblem::new(
+            &s.trace,
+            Family::Generalized,
+            crate::model::Flow::Joint,
+            None,
+            false,
+        )
+        .unwrap()
+        .with_effects(&[Effect::Creep], &[])
+        .unwrap();
+        let theta = problem.neutral_effects(&crate::model::coords::gauge_fixed(
+            Family::Generalized,
+            &s.truth,
+        ));
+        let mut file = ModelFile::new(&problem.fitted_model(&theta), None, Provenance::default());
+        file.user_bounds = vec!["alpha=0.2:0.6".to_string()];
+        file
+    }
+
+    fn asked() -> FitRequest {
+        FitRequest {
+            family: None,
+            effects: None,
+            free_n: false,
+            loop_shape: Loop::Bounded,
+            switching: Switching::Starts,
+            bounds: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn what_is_not_asked_for_comes_from_the_start_and_what_is_asked_wins() {
+        let file = saved();
+        let r = asked().resolve(Some(&file)).unwrap();
+        assert_eq!(r.what.family, Family::Generalized);
+        assert_eq!(r.what.effects, vec![Effect::Creep]);
+        assert_eq!(r.what.bounds, vec!["alpha=0.2:0.6".parse().unwrap()]);
+        assert!(r.start.is_some());
+        // Given here: the family, no effects, and a bound after the file's.
+        let mut request = asked();
+        request.family = Some(Family::Classic);
+        request.effects = Some(Vec::new());
+        request.bounds = vec!["alpha=0.3".parse().unwrap()];
+        let r = request.resolve(Some(&file)).unwrap();
+        assert_eq!((r.what.family, r.what.effects.len()), (Family::Classic, 0));
+        assert_eq!(r.what.bounds.len(), 2);
+        assert_eq!(r.what.bounds[1], "alpha=0.3".parse().unwrap());
+        // Without a start: classic, no effects, the bounds as given.
+        let r = asked().resolve(None).unwrap();
+        assert_eq!((r.what.family, r.what.effects.len()), (Family::Classic, 0));
+        assert!(r.start.is_none() && r.what.bounds.is_empty());
+    }
+
+    #[test]
+    fn a_start_file_with_a_broken_bound_is_an_error_that_names_it() {
+        let mut file = saved();
+        file.user_bounds = vec!["alpha=oops".to_string()];
+        let e = format!("{:#}", asked().resolve(Some(&file)).unwrap_err());
+        assert!(e.starts_with("its user_bounds: "), "{e}");
+    }
+}

@@ -1,0 +1,75 @@
+//! What every search on a fitting problem shares: the evaluator that
+//! scores its populations and the flag that stops them.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
+use crate::eval::Evaluator;
+
+/// A flag that stops every search on a problem after its current
+/// generation or polish iteration (Ctrl-C, Python's `KeyboardInterrupt`).
+#[derive(Debug, Clone, Default)]
+pub struct StopFlag(Arc<AtomicBool>);
+
+impl StopFlag {
+    pub fn raise(&self) {
+        self.0.store(true, Ordering::SeqCst);
+    }
+
+    pub fn raised(&self) -> bool {
+        self.0.load(Ordering::SeqCst)
+    }
+
+    /// The flag as the engine reads it between generations.
+    pub(crate) fn as_atomic(&self) -> &AtomicBool {
+        &self.0
+    }
+}
+
+/// Two settings are alike whatever flag stops them.
+impl PartialEq for StopFlag {
+    fn eq(&self, _: &StopFlag) -> bool {
+        true
+    }
+}
+
+/// The evaluator a problem scores populations on, shared by its clones: one
+/// that forks ([`Evaluator::fork`]: the CPU path), of which every search
+/// takes a fork, so searches run side by side; or a device behind the same
+/// lock, on which searches take turns.
+#[derive(Clone)]
+pub struct Scorer(Arc<Mutex<Box<dyn Evaluator + Send>>>);
+
+impl Scorer {
+    pub fn of(evaluator: Box<dyn Evaluator + Send>) -> Scorer {
+        Scorer(Arc::new(Mutex::new(evaluator)))
+    }
+
+    /// Runs `job` on the evaluator: a fork of it where it forks (searches
+    /// run side by side), else the evaluator itself in turn.
+    pub fn run<T>(
+        &self,
+        job: impl FnOnce(&mut dyn Evaluator) -> anyhow::Result<T>,
+    ) -> anyhow::Result<T> {
+        let mut evaluator = self
+            .0
+            .lock()
+            .map_err(|_| anyhow::anyhow!("the evaluator failed in an earlier call"))?;
+        match evaluator.fork() {
+            Some(mut fork) => {
+                drop(evaluator);
+                job(fork.as_mut())
+            }
+            None => job(evaluator.as_mut()),
+        }
+    }
+}
+
+impl std::fmt::Debug for Scorer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0.lock() {
+            Ok(e) => f.write_str(&e.describe()),
+            Err(_) => f.write_str("(evaluator poisoned)"),
+        }
+    }
+}
