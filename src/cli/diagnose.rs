@@ -5,17 +5,13 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use mckibben::diagnose::blind;
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
-use mckibben::diagnose::selftest::{
-    Nominal, Outcome, TwinOutcome, cases, run_case, table, twin_check,
-};
+use mckibben::diagnose::selftest_run;
 use mckibben::diagnose::transfer::transfer;
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
 use mckibben::eval::Backend;
 use mckibben::model::{Family, ModelFile};
 use mckibben::report::json::Versioned;
-use serde::Serialize;
 
 use super::common::MultiDataArgs;
 
@@ -188,11 +184,6 @@ enum SelfTest {
     Catalogue,
 }
 
-/// Whether `--cases` keeps the case `name`.
-fn selected(filter: &[String], name: &str) -> bool {
-    filter.is_empty() || filter.iter().any(|f| name.contains(f.as_str()))
-}
-
 fn parse_family(s: &str) -> Result<Family, String> {
     match s.parse::<Family>()? {
         Family::Linear => {
@@ -251,12 +242,46 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         let _ = ctrlc::set_handler(move || stop.raise());
     }
     let traces = args.data.load()?;
-    match args.self_test {
-        Some(SelfTest::Catalogue) => return self_test(&args, &traces, &effects, &settings),
-        Some(SelfTest::Independent) => {
-            return independent_self_test(&args, &traces, &effects, &settings);
+    if let Some(kind) = args.self_test {
+        let trace = traces.first().context("no data")?;
+        let mut progress = |line: &str| {
+            if !args.json {
+                eprintln!("{line}");
+            }
+        };
+        match kind {
+            SelfTest::Catalogue => {
+                let run = selftest_run::catalogue(
+                    trace,
+                    family,
+                    &effects,
+                    &settings,
+                    &args.cases,
+                    &mut progress,
+                )?;
+                if args.json {
+                    println!("{}", Versioned::new(run.json()).to_string_pretty()?);
+                } else {
+                    print!("{}", run.to_text());
+                }
+            }
+            SelfTest::Independent => {
+                let run = selftest_run::independent(
+                    trace,
+                    family,
+                    &effects,
+                    &settings,
+                    &args.cases,
+                    &mut progress,
+                )?;
+                if args.json {
+                    println!("{}", Versioned::new(run.json()).to_string_pretty()?);
+                } else {
+                    print!("{}", run.to_text());
+                }
+            }
         }
-        None => {}
+        return Ok(());
     }
     // Read before the diagnosis, so that a bad file fails at once.
     let others = if args.transfer.is_empty() {
@@ -315,216 +340,4 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
-}
-
-fn self_test(
-    args: &Args,
-    traces: &[mckibben::data::Trace],
-    effects: &[Effect],
-    settings: &Settings,
-) -> anyhow::Result<()> {
-    let trace = traces.first().context("no data")?;
-    let nominal = Nominal::fit(trace, args.family(), settings)?;
-    let mut outcomes = Vec::new();
-    for (i, case) in cases(&nominal, effects).iter().enumerate() {
-        if !selected(&args.cases, &case.name) {
-            continue;
-        }
-        if !args.json {
-            eprintln!("self-test: {} ...", case.name);
-        }
-        outcomes.push(run_case(
-            &nominal,
-            case,
-            effects,
-            settings,
-            args.seed + i as u64,
-        )?);
-    }
-    let passed = outcomes.iter().filter(|o| o.pass).count();
-    if !args.json {
-        eprintln!("self-test: twin check ...");
-    }
-    let twin = twin_check(args.family(), effects, settings)?;
-    if args.json {
-        println!(
-            "{}",
-            Versioned::new(CatalogueSelfTest {
-                kind: "catalogue",
-                nominal: NominalJson::of(&nominal, trace),
-                cases: &outcomes,
-                passed,
-                twin_check: &twin,
-                total: outcomes.len(),
-            })
-            .to_string_pretty()?
-        );
-    } else {
-        println!(
-            "Self-test on the nominal {} model fitted to {}",
-            args.family(),
-            trace.source
-        );
-        print!("{}", table(&outcomes, effects));
-        println!("{passed} of {} cases pass", outcomes.len());
-        println!("\nTwin check (stair, 4.5 kg): one twin effect on vs all off; gap energy in mm²");
-        println!(
-            "{:<12} {:<9} {:>9} {:>9} {:>11} {:>11} {:>7}  {:<24} result",
-            "twin effect",
-            "input",
-            "RMSE on",
-            "RMSE off",
-            "attributed",
-            "disappears",
-            "ratio",
-            "named (on)"
-        );
-        for t in &twin {
-            let named: Vec<_> = t.verdict_on.iter().map(|e| e.name()).collect();
-            println!(
-                "{:<12} {:<9} {:>9.4} {:>9.4} {:>11.4} {:>11.4} {:>7.2}  {:<24} {}",
-                t.twin_effect,
-                t.input,
-                t.baseline_on,
-                t.baseline_off,
-                t.attributed,
-                t.disappears,
-                t.ratio,
-                if named.is_empty() {
-                    "none".to_string()
-                } else {
-                    named.join("+")
-                },
-                if t.pass { "pass" } else { "fail" }
-            );
-        }
-        let held = twin.iter().filter(|t| t.pass).count();
-        println!("{held} of {} twin effects within 20 %", twin.len());
-    }
-    Ok(())
-}
-
-fn independent_self_test(
-    args: &Args,
-    traces: &[mckibben::data::Trace],
-    effects: &[Effect],
-    settings: &Settings,
-) -> anyhow::Result<()> {
-    let trace = traces.first().context("no data")?;
-    let started = std::time::Instant::now();
-    let nominal = Nominal::fit(trace, args.family(), settings)?;
-    let setup = blind::Setup::new(&nominal, args.seed)?;
-    let mut outcomes = Vec::new();
-    for case in blind::cases(&setup, args.seed) {
-        if !selected(&args.cases, &case.name) {
-            continue;
-        }
-        if !args.json {
-            eprintln!(
-                "self-test: {} ... ({:.0} s)",
-                case.name,
-                started.elapsed().as_secs_f64()
-            );
-        }
-        outcomes.push(blind::run_case(&setup, &case, effects, settings)?);
-    }
-    let passed = outcomes.iter().filter(|o| o.pass).count();
-    let wall = started.elapsed().as_secs_f64();
-    if args.json {
-        let rows: Vec<ConfusionRow> = blind::confusion(&outcomes)
-            .into_iter()
-            .map(|(truth, first_named)| ConfusionRow { truth, first_named })
-            .collect();
-        // The columns are physical effects: any realisation counts.
-        let columns: Vec<&str> = Effect::PHYSICAL
-            .iter()
-            .map(|e| e.name())
-            .chain(["none"])
-            .collect();
-        println!(
-            "{}",
-            Versioned::new(IndependentSelfTest {
-                kind: "independent",
-                nominal: NominalJson::of(&nominal, trace),
-                plant: &setup.plant,
-                noise_sigma: &setup.sigmas,
-                cases: &outcomes,
-                confusion: Confusion { columns, rows },
-                passed,
-                total: outcomes.len(),
-                wall_s: wall,
-            })
-            .to_string_pretty()?
-        );
-    } else {
-        println!(
-            "Independent self-test on the nominal {} model fitted to {} (noise σ: stair {:.4}, multisine {:.4})",
-            args.family(),
-            trace.source,
-            setup.sigmas[0],
-            setup.sigmas[1]
-        );
-        print!("{}", blind::table(&outcomes));
-        println!(
-            "{passed} of {} cases pass ({wall:.0} s wall)",
-            outcomes.len()
-        );
-    }
-    Ok(())
-}
-
-/// The nominal model a self-test generates its data from.
-#[derive(Debug, Serialize)]
-struct NominalJson<'a> {
-    model: &'static str,
-    params: &'a [f64],
-    data: &'a str,
-}
-
-impl<'a> NominalJson<'a> {
-    fn of(n: &'a Nominal, trace: &'a mckibben::data::Trace) -> NominalJson<'a> {
-        NominalJson {
-            model: n.family.name(),
-            params: &n.params,
-            data: &trace.source,
-        }
-    }
-}
-
-/// `--self-test=catalogue --json`.
-#[derive(Debug, Serialize)]
-struct CatalogueSelfTest<'a> {
-    kind: &'static str,
-    nominal: NominalJson<'a>,
-    cases: &'a [Outcome],
-    passed: usize,
-    twin_check: &'a [TwinOutcome],
-    total: usize,
-}
-
-/// `--self-test --json` (independent).
-#[derive(Debug, Serialize)]
-struct IndependentSelfTest<'a> {
-    kind: &'static str,
-    nominal: NominalJson<'a>,
-    plant: &'a blind::generator::Plant,
-    noise_sigma: &'a [f64],
-    cases: &'a [blind::BlindOutcome],
-    confusion: Confusion,
-    passed: usize,
-    total: usize,
-    wall_s: f64,
-}
-
-/// Cases by true physical effect (rows) and first named one (columns).
-#[derive(Debug, Serialize)]
-struct Confusion {
-    columns: Vec<&'static str>,
-    rows: Vec<ConfusionRow>,
-}
-
-#[derive(Debug, Serialize)]
-struct ConfusionRow {
-    truth: String,
-    first_named: Vec<usize>,
 }

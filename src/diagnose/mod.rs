@@ -7,8 +7,9 @@
 //! explainable at all ([`explainable`], a [`ridge`] model of the residual)
 //! and where the residual's spectrum peaks ([`spectrum`]). [`blind`] checks
 //! the whole chain on data from a generator with its own equations for
-//! every effect, [`selftest`] on data made with the catalogue's own;
-//! [`report`] turns a [`Diagnosis`] into text, JSON and figures.
+//! every effect, [`selftest`] on data made with the catalogue's own, and
+//! [`selftest_run`] runs either over the cases asked for; [`report`] turns
+//! a [`Diagnosis`] into text, JSON and figures.
 
 pub mod accept;
 pub mod as_fit;
@@ -26,6 +27,7 @@ pub mod report;
 pub mod ridge;
 pub mod select;
 pub mod selftest;
+pub mod selftest_run;
 pub mod settings;
 pub mod spectrum;
 pub mod transfer;
