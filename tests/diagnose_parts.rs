@@ -11,7 +11,7 @@ use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces};
 use mckibben::diagnose::{Diagnosis, Settings, diagnose};
 use mckibben::eval::cpu::CpuEvaluator;
-use mckibben::fit::run::{Fit, FitBox, FitSettings};
+use mckibben::fit::run::{FitBox, FitRun, FitSettings};
 use mckibben::model::Family;
 use mckibben::model::experiment::halves;
 use rand::SeedableRng;
@@ -166,7 +166,7 @@ fn fit_never_reads_its_validation_half() {
                 gens: 30,
                 ..FitSettings::staged(1)
             };
-            let fit = Fit::new(t, &what, &settings, None, None, &|_| ()).unwrap();
+            let fit = FitRun::new(t, &what, &settings, None, None, &|_| ()).unwrap();
             let mut fit = mckibben::diagnose::chain::with_chain_start(
                 fit,
                 t,

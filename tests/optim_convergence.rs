@@ -26,7 +26,7 @@ use mckibben::fit::cases::{Case, Judgement, SwitchAt, matrix, polished_truth};
 use mckibben::fit::edge::fit_problem;
 use mckibben::fit::objective::{GENERATIONS, POPULATION, staged_plan};
 use mckibben::fit::problem::FitProblem;
-use mckibben::fit::run::{Fit, FitBox, FitSettings, Overrides};
+use mckibben::fit::run::{FitBox, FitRun, FitSettings, Overrides};
 use mckibben::ident::fit::indistinguishable_up_to;
 use mckibben::model::{Family, Flow, Loop, Switching, simulate};
 use mckibben::optim::Algorithm;
@@ -249,7 +249,7 @@ fn a_stair_switching_at_zero_is_fitted_to_its_truths_optimum_with_de_and_pso() {
             overrides: Overrides::default(),
             stops: StopRules::default(),
         };
-        let mut fit = Fit::new(&trace, &what, &settings, None, None, &|_| ()).unwrap();
+        let mut fit = FitRun::new(&trace, &what, &settings, None, None, &|_| ()).unwrap();
         let (out, _) = fit
             .run(&mut CpuEvaluator::new(), &mut [], None, None)
             .unwrap();

@@ -1,4 +1,4 @@
-//! `mckibben.fit`: the library's [`Fit`], the run `mckibben fit` makes,
+//! `mckibben.fit`: the library's [`FitRun`], the run `mckibben fit` makes,
 //! with Python's progress callback and Ctrl-C.
 
 use std::sync::Mutex;
@@ -14,7 +14,7 @@ use mckibben::diagnose::chain::with_chain_start;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::report::FitReport;
 use mckibben::fit::request::{FitRequest, Resolved};
-use mckibben::fit::run::{Fit, FitSettings, Overrides, model_file, yardstick_warnings};
+use mckibben::fit::run::{FitRun, FitSettings, Overrides, model_file, yardstick_warnings};
 use mckibben::optim::engine::{Observer, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 
@@ -235,7 +235,7 @@ pub fn fit(
     let notes = Mutex::new(Vec::new());
     let note = |s: String| notes.lock().expect("notes").push(s);
     let fit = py
-        .detach(|| Fit::new(&trace, &what, &settings, start_model.as_ref(), None, &note))
+        .detach(|| FitRun::new(&trace, &what, &settings, start_model.as_ref(), None, &note))
         .map_err(value_error)?;
     // With effects from scratch, a second start: the chain built one effect
     // at a time, as `mckibben fit --effects` does. Ctrl-C while it is built

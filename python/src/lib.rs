@@ -2,7 +2,7 @@
 //!
 //! The bindings only convert types: every computation is a call into the
 //! library, the same call the command makes (`mckibben fit` and
-//! [`mckibben::fit::run::Fit`], `mckibben diagnose` and
+//! [`mckibben::fit::run::FitRun`], `mckibben diagnose` and
 //! [`mckibben::diagnose::diagnose`], the batch evaluator behind both). What
 //! is here is checking and converting Python's inputs (any float dtype,
 //! layout, lists), releasing the interpreter while Rust computes, turning

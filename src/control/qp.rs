@@ -114,7 +114,7 @@ impl Limits {
 
 /// How a solve ended.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Outcome {
+pub struct SolveStatus {
     /// Active-set iterations (each one linear solve).
     pub iterations: usize,
     /// Whether the optimality conditions hold; when the iteration cap cut
@@ -157,7 +157,7 @@ impl ActiveSetQp {
         limits: &Limits,
         v: &mut [f64],
         max_iterations: usize,
-    ) -> Option<Outcome> {
+    ) -> Option<SolveStatus> {
         let n = v.len();
         inverse_spd(h, n, &mut self.hinv)?;
         limits.repair(v);
@@ -186,7 +186,7 @@ impl ActiveSetQp {
                         self.working.remove(i);
                     }
                     _ => {
-                        return Some(Outcome {
+                        return Some(SolveStatus {
                             iterations: iteration,
                             optimal: true,
                         });
@@ -214,7 +214,7 @@ impl ActiveSetQp {
             }
         }
         limits.repair(v);
-        Some(Outcome {
+        Some(SolveStatus {
             iterations: max_iterations,
             optimal: false,
         })

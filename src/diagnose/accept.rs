@@ -233,7 +233,7 @@ impl Candidate {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::fitting::Fit;
+    use crate::diagnose::fitting::ScoredFit;
     use crate::model::Family;
 
     /// A candidate with a delay reaching selection RMSE `r1` (on each of two
@@ -252,7 +252,7 @@ mod tests {
     ) -> Candidate {
         let model = Augmented::new(Family::Classic, vec![Effect::Delay], 1);
         let fit = SeededFit {
-            best: Fit {
+            best: ScoredFit {
                 params: vec![0.5; model.dim()],
                 est_sse: 1.0,
                 sel_rmse: r1,
@@ -350,7 +350,7 @@ mod tests {
     fn candidates_are_ranked_by_validation_rmse() {
         let model = Augmented::new(Family::Classic, vec![Effect::Delay], 1);
         let fit = |r: f64| SeededFit {
-            best: Fit {
+            best: ScoredFit {
                 params: vec![0.5; model.dim()],
                 est_sse: 1.0,
                 sel_rmse: r,

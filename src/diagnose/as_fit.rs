@@ -1,6 +1,6 @@
 //! The final chain fitted as `fit --effects` fits it: `fit`'s search from
 //! scratch in its own box, and its warm start from the diagnosis' own fit,
-//! the lower estimation SSE kept ([`Fit::also_from`]). It is a second
+//! the lower estimation SSE kept ([`FitRun::also_from`]). It is a second
 //! candidate for the final parameters, chosen, like every other choice, on
 //! the selection part.
 //!
@@ -19,7 +19,7 @@ use super::settings::Settings;
 use super::transfer::run_stoppable;
 use crate::data::Trace;
 use crate::fit::problem::FitProblem;
-use crate::fit::run::{Fit, FitBox, FitSettings};
+use crate::fit::run::{FitBox, FitRun, FitSettings};
 use crate::model::Model;
 
 /// The final chain as `fit --effects` fits it, against the selection's fit.
@@ -57,7 +57,7 @@ pub fn refit(
     }
     let fit_settings = FitSettings::staged(settings.seed);
     let what = FitBox::chain(model.family, &model.effects);
-    let mut fit = Fit::new(trace, &what, &fit_settings, None, None, &|_| ())?.also_from(
+    let mut fit = FitRun::new(trace, &what, &fit_settings, None, None, &|_| ())?.also_from(
         saved,
         0.0,
         &fit_settings,

@@ -18,7 +18,7 @@ use crate::eval::Backend;
 use crate::fit::problem::FitProblem;
 use crate::fit::records::Records;
 use crate::fit::report::FitReport;
-use crate::fit::run::{Fit, FitSettings};
+use crate::fit::run::{FitRun, FitSettings};
 use crate::ident::{fit_percent, rmse};
 use crate::model::experiment::halves;
 use crate::model::file::SearchBox;
@@ -64,18 +64,18 @@ pub fn fit_chain(
 }
 
 /// `fit` with the chain fitted here as its second start
-/// ([`Fit::also_from`]) where it fits effects from scratch: `mckibben fit
+/// ([`FitRun::also_from`]) where it fits effects from scratch: `mckibben fit
 /// --effects LIST` and Python's `fit(effects=…)`. Unchanged otherwise (no
 /// effects, a warm start, the thesis' flow), and when `stop` is raised
 /// while the chain is built. The chain's searches use the diagnosis'
 /// settings with the fit's seed, on `backend`.
 pub fn with_chain_start(
-    fit: Fit,
+    fit: FitRun,
     trace: &Trace,
     settings: &FitSettings,
     backend: Backend,
     stop: StopFlag,
-) -> anyhow::Result<Fit> {
+) -> anyhow::Result<FitRun> {
     let problem = &fit.problem;
     if problem.model.effects.is_empty() || fit.start.is_some() || problem.flow != Flow::Joint {
         return Ok(fit);

@@ -121,7 +121,7 @@ fn evolve(
 /// minimised) and its RMSE on the selection part (what the diagnosis
 /// chooses by).
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Fit {
+pub struct ScoredFit {
     pub params: Vec<f64>,
     pub est_sse: f64,
     pub sel_rmse: f64,
@@ -132,7 +132,7 @@ pub struct Fit {
 pub struct SeededFit {
     /// The seed with the lowest estimation SSE (among those finite on the
     /// selection part).
-    pub best: Fit,
+    pub best: ScoredFit,
     /// Selection RMSE of every seed.
     pub seed_sel_rmse: Vec<f64>,
     /// Their spread, `1.4826·MAD` (a robust standard deviation), over the
@@ -182,7 +182,7 @@ pub fn fit_candidate(
     seed: u64,
     population: usize,
     generations: usize,
-) -> anyhow::Result<Fit> {
+) -> anyhow::Result<ScoredFit> {
     let (neutral, lo, hi) = (
         problem.centre(),
         problem.space.lower.clone(),
@@ -255,7 +255,7 @@ pub fn fit_candidate(
     // In `f64`, as the polish compares.
     let est_sse = problem.est_sse(&best);
     let (best, est_sse) = polish(problem, best, est_sse, (&lo, &hi))?;
-    Ok(Fit {
+    Ok(ScoredFit {
         sel_rmse: problem.selection_rmse(&best),
         est_sse,
         params: best,
@@ -335,7 +335,11 @@ const PROFILE_NODES: i32 = 6;
 /// rest of the model must move back with it (measured on the self-test:
 /// docs/lab/diagnosis.md, the budget's "profiled along the new effect's size"
 /// item).
-pub(super) fn profile(problem: &FitProblem, fit: Fit, at: usize) -> anyhow::Result<Fit> {
+pub(super) fn profile(
+    problem: &FitProblem,
+    fit: ScoredFit,
+    at: usize,
+) -> anyhow::Result<ScoredFit> {
     let (lo, hi) = (&problem.space.lower, &problem.space.upper);
     let centre = problem.centre()[at].clamp(lo[at], hi[at]);
     let (mut best, mut best_sse) = (fit.params.clone(), fit.est_sse);
@@ -359,7 +363,7 @@ pub(super) fn profile(problem: &FitProblem, fit: Fit, at: usize) -> anyhow::Resu
     let (params, est_sse) = polish(problem, best, best_sse, (lo, hi))?;
     let sel_rmse = problem.selection_rmse(&params);
     Ok(if sel_rmse.is_finite() {
-        Fit {
+        ScoredFit {
             params,
             est_sse,
             sel_rmse,
@@ -494,7 +498,7 @@ pub(super) fn fit_seeds_with(
     start: Start<'_>,
     settings: &Settings,
     salt: u64,
-    scratch: &[Fit],
+    scratch: &[ScoredFit],
 ) -> anyhow::Result<SeededFit> {
     let mut fits = seed_fits(problem, start, settings, salt)?;
     fits.extend_from_slice(scratch);
@@ -507,7 +511,7 @@ fn seed_fits(
     start: Start<'_>,
     settings: &Settings,
     salt: u64,
-) -> anyhow::Result<Vec<Fit>> {
+) -> anyhow::Result<Vec<ScoredFit>> {
     let (seeds, pop, gens) = match start {
         Start::Scratch | Start::Ahead { .. } => (
             settings.baseline_seeds,
@@ -536,7 +540,7 @@ pub(super) fn fit_with_effect(
     effect: super::Effect,
     settings: &Settings,
     salt: u64,
-    scratch: &[Fit],
+    scratch: &[ScoredFit],
 ) -> anyhow::Result<(FitProblem, SeededFit)> {
     let candidate = current.with_model(&current.model.with(effect));
     let mut start = params.to_vec();
@@ -558,7 +562,7 @@ pub(super) fn scratch_fits(
     problem: &FitProblem,
     settings: &Settings,
     salt: u64,
-) -> anyhow::Result<Vec<Fit>> {
+) -> anyhow::Result<Vec<ScoredFit>> {
     let ahead = Start::Ahead {
         horizon: problem.horizon(),
     };
@@ -578,7 +582,7 @@ pub(super) fn scratch_fits(
 
 /// The best fit of several seeds and their spread; `samples` estimation
 /// residuals.
-fn summarize(fits: Vec<Fit>, samples: usize) -> SeededFit {
+fn summarize(fits: Vec<ScoredFit>, samples: usize) -> SeededFit {
     let seed_sel_rmse: Vec<f64> = fits.iter().map(|f| f.sel_rmse).collect();
     // The spread among the seeds that reached the best estimation fit: how
     // much the selection RMSE moves between fits the estimation data cannot tell
@@ -650,7 +654,7 @@ mod tests {
 
     #[test]
     fn the_spread_counts_the_seeds_the_estimation_data_cannot_tell_apart() {
-        let fit = |est_sse: f64, sel_rmse: f64| Fit {
+        let fit = |est_sse: f64, sel_rmse: f64| ScoredFit {
             params: vec![0.0],
             est_sse,
             sel_rmse,

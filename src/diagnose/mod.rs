@@ -287,7 +287,7 @@ pub fn diagnose_from(
         .map(|&e| interval::size_interval(&last, &final_params, e))
         .collect::<anyhow::Result<_>>()?;
     let scratch = fitting::scratch_fits(&last, settings, REFIT_SALT)?;
-    let final_fit = fitting::Fit {
+    let final_fit = fitting::ScoredFit {
         est_sse: last.est_sse(&final_params),
         sel_rmse: last.selection_rmse(&final_params),
         params: final_params.clone(),

@@ -14,7 +14,7 @@
 
 use serde::Serialize;
 
-use super::fitting::Fit;
+use super::fitting::ScoredFit;
 use super::likelihood::indistinguishable_up_to;
 
 pub use crate::ident::fit::SETTLED_POINTS;
@@ -64,9 +64,9 @@ impl Refits {
     /// gives a fit's selection fit %, `samples` is the number of
     /// estimation residuals. `None` without a finite from-scratch fit.
     pub fn compare(
-        final_fit: &Fit,
-        scratch: &[Fit],
-        fit_percent: impl Fn(&Fit) -> f64,
+        final_fit: &ScoredFit,
+        scratch: &[ScoredFit],
+        fit_percent: impl Fn(&ScoredFit) -> f64,
         samples: usize,
     ) -> Option<Refits> {
         let best = scratch
@@ -116,16 +116,16 @@ impl Refits {
 mod tests {
     use super::*;
 
-    fn fit(est_sse: f64, val: f64) -> Fit {
+    fn fit(est_sse: f64, val: f64) -> ScoredFit {
         // `sel_rmse` carries the validation fit % in these tests.
-        Fit {
+        ScoredFit {
             params: Vec::new(),
             est_sse,
             sel_rmse: val,
         }
     }
 
-    fn compare(final_fit: Fit, scratch: &[Fit]) -> Refits {
+    fn compare(final_fit: ScoredFit, scratch: &[ScoredFit]) -> Refits {
         Refits::compare(&final_fit, scratch, |f| f.sel_rmse, 1000).expect("a scratch fit")
     }
 

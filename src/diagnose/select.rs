@@ -9,7 +9,7 @@ use serde::Serialize;
 use super::accept::{Candidate, Yardstick, judge_all};
 use super::effects::{Augmented, Effect};
 use super::fitting::{
-    Fit, SeededFit, Start, fit_seeds, fit_seeds_with, fit_with_effect, scratch_fits,
+    ScoredFit, SeededFit, Start, fit_seeds, fit_seeds_with, fit_with_effect, scratch_fits,
 };
 use super::hints;
 use super::settings::Settings;
@@ -56,7 +56,7 @@ pub struct Selection {
     /// last round still accepting: more effects might have passed.
     pub capped: bool,
     pub final_model: Augmented,
-    pub final_fit: Fit,
+    pub final_fit: ScoredFit,
 }
 
 /// Fits the baseline, then runs forward selection over `effects`.
@@ -151,7 +151,7 @@ pub fn select(
         let first_round = current_model.effects.is_empty();
         // Every fit has its own seed, so fits run side by side give the
         // same numbers as one after the other.
-        let scratch: Vec<Vec<Fit>> = if first_round {
+        let scratch: Vec<Vec<ScoredFit>> = if first_round {
             let models: Vec<&Augmented> = std::iter::once(&current_model)
                 .chain(&remaining_models)
                 .collect();

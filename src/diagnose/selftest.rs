@@ -267,7 +267,7 @@ fn size_of(nominal: &Nominal, e: Effect, params: &[f64]) -> f64 {
 
 /// The outcome of one case.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Outcome {
+pub struct CaseOutcome {
     pub case: String,
     pub truth: Vec<Effect>,
     pub named: Vec<Effect>,
@@ -289,7 +289,7 @@ pub struct Outcome {
 }
 
 /// Judges a diagnosis of a case.
-pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> Outcome {
+pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> CaseOutcome {
     let truth: Vec<Effect> = case.effects.iter().map(|(e, _)| *e).collect();
     let named = d.named().to_vec();
     let mut notes = Vec::new();
@@ -344,7 +344,7 @@ pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> Outcome {
             }
         }
     }
-    Outcome {
+    CaseOutcome {
         case: case.name.clone(),
         truth,
         named,
@@ -368,7 +368,7 @@ pub fn run_case(
     effects: &[Effect],
     settings: &Settings,
     seed: u64,
-) -> anyhow::Result<Outcome> {
+) -> anyhow::Result<CaseOutcome> {
     let traces = synthesize(nominal, case, seed);
     if traces
         .iter()
@@ -376,7 +376,7 @@ pub fn run_case(
     {
         // The nominal model with this effect explodes: there is no data to
         // diagnose, and the case counts as failed rather than hidden.
-        return Ok(Outcome {
+        return Ok(CaseOutcome {
             case: case.name.clone(),
             truth: case.effects.iter().map(|(e, _)| *e).collect(),
             named: Vec::new(),
@@ -398,7 +398,7 @@ pub fn run_case(
 
 /// Rows (truth) × columns (first effect named, or `none`) of the single-effect
 /// cases and the control.
-pub fn confusion(outcomes: &[Outcome], effects: &[Effect]) -> Vec<(String, Vec<usize>)> {
+pub fn confusion(outcomes: &[CaseOutcome], effects: &[Effect]) -> Vec<(String, Vec<usize>)> {
     let mut cols: Vec<String> = effects.iter().map(|e| e.name().to_string()).collect();
     cols.push("none".into());
     let mut rows: Vec<(String, Vec<usize>)> = Vec::new();
@@ -428,7 +428,7 @@ pub fn confusion(outcomes: &[Outcome], effects: &[Effect]) -> Vec<(String, Vec<u
 }
 
 /// The confusion table and the per-case lines, as text.
-pub fn table(outcomes: &[Outcome], effects: &[Effect]) -> String {
+pub fn table(outcomes: &[CaseOutcome], effects: &[Effect]) -> String {
     use std::fmt::Write as _;
     let mut o = String::new();
     let mut cols: Vec<&str> = effects.iter().map(|e| e.name()).collect();

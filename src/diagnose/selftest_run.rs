@@ -10,7 +10,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::blind::{self, BlindOutcome, generator::Plant};
-use super::selftest::{self, Nominal, Outcome, TwinOutcome};
+use super::selftest::{self, CaseOutcome, Nominal, TwinOutcome};
 use super::{Effect, Settings};
 use crate::data::Trace;
 use crate::model::Family;
@@ -99,7 +99,7 @@ pub struct CatalogueRun {
     pub nominal: Nominal,
     /// The effects the diagnoses tried: the confusion table's columns.
     pub effects: Vec<Effect>,
-    pub outcomes: Vec<Outcome>,
+    pub outcomes: Vec<CaseOutcome>,
     pub twin: Vec<TwinOutcome>,
 }
 
@@ -250,7 +250,7 @@ impl<'a> NominalJson<'a> {
 pub struct CatalogueSelfTest<'a> {
     kind: &'static str,
     nominal: NominalJson<'a>,
-    cases: &'a [Outcome],
+    cases: &'a [CaseOutcome],
     passed: usize,
     twin_check: &'a [TwinOutcome],
     total: usize,

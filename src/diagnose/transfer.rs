@@ -19,7 +19,7 @@ use super::settings::{Interrupted, Settings};
 use super::{Diagnosis, accept::gap_closed, chain::with_chain_start};
 use crate::data::Trace;
 use crate::fit::records::Validation;
-use crate::fit::run::{Fit, FitBox, FitSettings};
+use crate::fit::run::{FitBox, FitRun, FitSettings};
 use crate::model::Family;
 use crate::model::experiment::halves;
 use crate::optim::engine::Outcome;
@@ -96,7 +96,7 @@ fn fit_and_score(
     settings: &Settings,
 ) -> anyhow::Result<Validation> {
     let fit_settings = FitSettings::staged(settings.seed);
-    let fit = Fit::new(
+    let fit = FitRun::new(
         trace,
         &FitBox::chain(family, effects),
         &fit_settings,
@@ -117,7 +117,7 @@ fn fit_and_score(
 
 /// Runs `fit` on the settings' backend, stopping with the diagnosis' stop
 /// flag: a fit the diagnosis makes as `mckibben fit` would.
-pub(crate) fn run_stoppable(fit: &mut Fit, settings: &Settings) -> anyhow::Result<Outcome> {
+pub(crate) fn run_stoppable(fit: &mut FitRun, settings: &Settings) -> anyhow::Result<Outcome> {
     let mut evaluator = crate::eval::open(settings.backend)?;
     let (outcome, _) = fit.run(
         evaluator.as_mut(),

@@ -8,7 +8,7 @@ use anyhow::Context as _;
 use serde::Serialize;
 
 use super::edge::{ActiveBound, Widening, active_bounds};
-use super::run::{Built, Fit, Switched, model_file};
+use super::run::{Built, FitRun, Switched, model_file};
 use crate::data::{Trace, write_atomic};
 use crate::model::Family;
 use crate::model::bounds::Origin;
@@ -76,11 +76,11 @@ fn finite(v: f64) -> Option<f64> {
 }
 
 impl FitReport {
-    /// The report of `fit` once [`Fit::run`] returned `outcome` and
+    /// The report of `fit` once [`FitRun::run`] returned `outcome` and
     /// `widened`, its populations scored on `backend`, on the record
     /// `data`.
     pub fn of(
-        fit: &Fit,
+        fit: &FitRun,
         (outcome, widened): (&Outcome, &[Widening]),
         backend: &str,
         data: &str,
@@ -138,7 +138,7 @@ impl FitReport {
     pub fn write(
         &mut self,
         out: &Path,
-        (fit, params): (&Fit, &[f64]),
+        (fit, params): (&FitRun, &[f64]),
         trace: &Trace,
         bounds: &[UserBound],
         provenance: Provenance,

@@ -4,7 +4,7 @@
 //!
 //! The settings carry `fit`'s flags one for one and every error names the
 //! flag it is about, so that the command only parses, calls and prints.
-//! [`Fit`] is the whole run on one trace, which the command calls.
+//! [`FitRun`] is the whole run on one trace, which the command calls.
 
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
@@ -357,23 +357,23 @@ impl FitBox {
 /// A fit of one trace as `mckibben fit` runs it: the problem, and the engine
 /// that runs on it.
 #[derive(Debug, Clone)]
-pub struct Fit {
+pub struct FitRun {
     pub problem: FitProblem,
     pub engine: Engine,
     /// A warm start's model as it was, in the problem's gauge (same outputs):
-    /// what the refit is measured against ([`Fit::start_scores`]).
+    /// what the refit is measured against ([`FitRun::start_scores`]).
     pub start: Option<Vec<f64>>,
-    /// A second start run after the engine ([`Fit::also_from`]): its problem
+    /// A second start run after the engine ([`FitRun::also_from`]): its problem
     /// (the box widened to hold it), its warm-start engine and the seconds
     /// its model took to build.
     second: Option<(FitProblem, Engine, f64)>,
-    /// Which of the two was kept, once [`Fit::run`] has run both.
+    /// Which of the two was kept, once [`FitRun::run`] has run both.
     pub built: Option<Built>,
     /// The default switching's second start ([`FitProblem::at_zero`]): the same
     /// fit with the generalized switching level held at the sensor's zero,
-    /// run after the engine, before any [`Fit::also_from`] start.
+    /// run after the engine, before any [`FitRun::also_from`] start.
     zero: Option<(FitProblem, Engine)>,
-    /// Which of the switching starts was kept, once [`Fit::run`] has run both.
+    /// Which of the switching starts was kept, once [`FitRun::run`] has run both.
     pub switched: Option<Switched>,
 }
 
@@ -390,9 +390,9 @@ pub struct Built {
     pub kept_chain: bool,
 }
 
-impl Fit {
+impl FitRun {
     /// The problem of `what` on `trace` (its box widened on return of
-    /// [`Fit::run`]) and the engine `settings` start on it: a warm start
+    /// [`FitRun::run`]) and the engine `settings` start on it: a warm start
     /// from `start` ([`FitSettings::start_warm`], the generalized switching
     /// level held at the start's own unless `what` says otherwise), else
     /// fresh or resumed from `checkpoint` ([`FitSettings::start`]), and a
@@ -405,7 +405,7 @@ impl Fit {
         start: Option<&Model>,
         checkpoint: Option<&Path>,
         note: &dyn Fn(String),
-    ) -> anyhow::Result<Fit> {
+    ) -> anyhow::Result<FitRun> {
         anyhow::ensure!(
             checkpoint.is_none() || start.is_none(),
             "--checkpoint resumes a fit from its own state: not with --from"
@@ -467,7 +467,7 @@ impl Fit {
             }
             _ => None,
         };
-        Ok(Fit {
+        Ok(FitRun {
             problem,
             engine,
             start,
@@ -492,7 +492,7 @@ impl Fit {
         model: &Model,
         built_in_s: f64,
         settings: &FitSettings,
-    ) -> anyhow::Result<Fit> {
+    ) -> anyhow::Result<FitRun> {
         let est = self.problem.estimation();
         anyhow::ensure!(
             model.effects() == self.problem.model.effects.as_slice()

@@ -15,7 +15,7 @@ use mckibben::diagnose::StopFlag;
 use mckibben::diagnose::chain::{selected_fit, with_chain_start};
 use mckibben::eval;
 use mckibben::fit::report::FitReport;
-use mckibben::fit::run::{Fit, yardstick_warnings};
+use mckibben::fit::run::{FitRun, yardstick_warnings};
 use mckibben::model::{Family, ModelFile};
 use mckibben::optim::engine::{FreeRun, Observer};
 use mckibben::optim::history::GenerationRecord;
@@ -90,7 +90,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             eprintln!("mckibben: note: {s}");
         }
     };
-    let fit = Fit::new(
+    let fit = FitRun::new(
         &trace,
         &what,
         &args.settings(),
@@ -173,7 +173,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
 
 /// The line that says what is about to run: the model, the algorithm and
 /// its size, the stages, the data and the backend.
-fn announce(args: &Args, fit: &Fit, trace: &Trace, backend: &str) {
+fn announce(args: &Args, fit: &FitRun, trace: &Trace, backend: &str) {
     let engine = &fit.engine;
     // A warm start has no global stage: its first is the free run's.
     let (algo, population, generations) = match (&engine.plan.global, &engine.plan.free_run) {
