@@ -2,7 +2,6 @@
 //! in process, or on a rig behind the line protocol.
 
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 use anyhow::Context;
 use serde::Serialize;
@@ -12,7 +11,7 @@ use mckibben::control::chain::{ControlChain, EffectUse};
 use mckibben::control::design::{OPERATING_BAND_V, PredictionReport};
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
-use mckibben::control::sweep::{self, Design, Ingredients, Kind, Run, RunSpec, Shape};
+use mckibben::control::sweep::{self, Design, Ingredients, Kind, Run, Shape};
 use mckibben::control::table::{self, RobustRow, Row};
 use mckibben::control::tuning::{self, Tuned, TuningEpisodes};
 use mckibben::control::validation::LoopShape;
@@ -22,7 +21,8 @@ use mckibben::data::csv::{ReadOptions, read_traces, write_trace};
 use mckibben::data::units::unit_of;
 use mckibben::model::effects::Effect;
 use mckibben::report::json::Versioned;
-use mckibben::rig::{self, ChildLink, Limits, Link, Ranges, RemoteSettings, RunLog, UdpLink};
+use mckibben::rig::Limits;
+use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
 use mckibben::twin::TwinConfig;
 
 /// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
@@ -205,31 +205,6 @@ enum ReferenceArg {
     Steps,
 }
 
-enum Plant {
-    Twin,
-    Command(String),
-    Udp(std::net::SocketAddr),
-}
-
-fn parse_plant(spec: &str) -> anyhow::Result<Plant> {
-    if spec == "twin" {
-        Ok(Plant::Twin)
-    } else if let Some(cmd) = spec.strip_prefix("cmd:") {
-        anyhow::ensure!(!cmd.trim().is_empty(), "--plant cmd: needs a command");
-        Ok(Plant::Command(cmd.to_string()))
-    } else if let Some(addr) = spec.strip_prefix("udp:") {
-        use std::net::ToSocketAddrs;
-        let a = addr
-            .to_socket_addrs()
-            .with_context(|| format!("--plant udp:{addr}: not a HOST:PORT"))?
-            .next()
-            .ok_or_else(|| anyhow::anyhow!("--plant udp:{addr}: no address"))?;
-        Ok(Plant::Udp(a))
-    } else {
-        anyhow::bail!("--plant `{spec}`: expected twin, cmd:COMMAND or udp:HOST:PORT")
-    }
-}
-
 fn check_args(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         !args.freq.is_empty() && !args.load.is_empty(),
@@ -299,7 +274,7 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     check_args(&args)?;
-    let plant = parse_plant(&args.plant)?;
+    let plant = PlantSpec::parse(&args.plant)?;
     let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
     let mut config = TwinConfig::default();
     for e in &args.effects {
@@ -338,8 +313,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ReferenceArg::Steps => Waveform::Steps,
         },
     };
-    let (rows, runs) = match &plant {
-        Plant::Twin => table::on_twin(
+    let (rows, runs) = match plant {
+        PlantSpec::Twin => table::on_twin(
             &kinds,
             &args.freq,
             &args.load,
@@ -350,28 +325,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &shape,
             &say,
         )?,
-        external => {
-            let mut rows = Vec::new();
-            let mut runs = Vec::new();
-            for &kind in &kinds {
-                for &freq in &args.freq {
-                    let spec = RunSpec {
-                        kind,
-                        freq_rad_s: freq,
-                        load_kg: f64::NAN,
-                        hysteresis_scale: 1.0,
-                    };
-                    say(format!(
-                        "{} at {freq} rad/s on {}",
-                        kind.label(),
-                        args.plant
-                    ));
-                    let (run, late) = run_external(&args, external, &spec, &ing, &shape)?;
-                    rows.push(Row::of(&run, &args.plant, None, late));
-                    runs.push(run);
-                }
-            }
-            (rows, runs)
+        PlantSpec::Rig(endpoint) => {
+            let pair = |r: &Option<Vec<f64>>| r.as_ref().map(|v| (v[0], v[1]));
+            let settings = RigRunSettings {
+                plant: args.plant.clone(),
+                endpoint,
+                deadline_ms: args.deadline,
+                max_missing: args.max_missing,
+                pressure_range: pair(&args.pressure_range),
+                displacement_range: pair(&args.displacement_range),
+                max_speed_mm_s: args.max_speed,
+                max_implausible: args.max_implausible,
+                log_dir: args.log.clone(),
+            };
+            control_runs::on_rig(&kinds, &args.freq, &settings, &ing, &shape, &say)?
         }
     };
     let robust = if args.robustness {
@@ -624,111 +591,6 @@ fn tune(
             on_edges: edges,
         }),
     ))
-}
-
-fn run_external(
-    args: &Args,
-    plant: &Plant,
-    spec: &RunSpec,
-    ing: &Ingredients,
-    shape: &Shape,
-) -> anyhow::Result<(Run, usize)> {
-    let mut link: Box<dyn Link> = match plant {
-        Plant::Command(cmd) => Box::new(
-            ChildLink::spawn(cmd).with_context(|| format!("--plant: cannot start `{cmd}`"))?,
-        ),
-        Plant::Udp(addr) => {
-            Box::new(UdpLink::connect(*addr).with_context(|| format!("--plant udp:{addr}"))?)
-        }
-        Plant::Twin => unreachable!("in-process runs do not come here"),
-    };
-    let (dt, announced) = rig::connect(link.as_mut(), RemoteSettings::CONNECT_TIMEOUT)?;
-    let (ranges, source) = ranges(args, announced);
-    let settings = RemoteSettings {
-        deadline: args.deadline.map_or_else(
-            || RemoteSettings::default_deadline(dt),
-            |ms| Duration::from_secs_f64(ms / 1000.0),
-        ),
-        max_missing: args.max_missing,
-        limits: Limits {
-            ranges,
-            max_speed_mm_s: args.max_speed,
-        },
-        max_implausible: args.max_implausible,
-    };
-    let mut controller = sweep::build(spec.kind, spec.hysteresis_scale, ing, dt)?;
-    let mut log = match &args.log {
-        Some(dir) => {
-            let path = dir.join(format!("{}_{}rad.csv", spec.kind.label(), spec.freq_rad_s));
-            RunLog::create(
-                &path,
-                &[
-                    format!(
-                        "mckibben control --controller {} --freq {} --plant {}",
-                        spec.kind.label(),
-                        spec.freq_rad_s,
-                        args.plant
-                    ),
-                    format!(
-                        "rig {} (dt {dt} s), deadline {:.1} ms",
-                        link.describe(),
-                        settings.deadline.as_secs_f64() * 1000.0
-                    ),
-                    format!(
-                        "plausible: pressure {}…{} MPa, displacement {}…{} mm ({source}), at most {} mm/s",
-                        ranges.pressure_mpa.0,
-                        ranges.pressure_mpa.1,
-                        ranges.displacement_mm.0,
-                        ranges.displacement_mm.1,
-                        args.max_speed
-                    ),
-                ],
-            )
-            .with_context(|| format!("--log {}", path.display()))?
-        }
-        None => RunLog::none(),
-    };
-    let episode = shape.episode(spec.freq_rad_s);
-    let remote = rig::run_remote(
-        link.as_mut(),
-        dt,
-        controller.as_mut(),
-        &episode,
-        &settings,
-        &mut log,
-    )?;
-    let run = Run {
-        spec: *spec,
-        result: remote.result,
-        stats: controller.stats(),
-    };
-    Ok((run, remote.late))
-}
-
-/// The ranges a measurement must be in, and where they come from: a flag
-/// wins over what the rig announced in READY, which wins over the twin's
-/// own limits.
-fn ranges(args: &Args, announced: Option<Ranges>) -> (Ranges, String) {
-    let (base, rest) = match announced {
-        Some(r) => (r, "announced by the rig"),
-        None => (Limits::of_twin(&TwinConfig::default()).ranges, "the twin's"),
-    };
-    let pair = |flag: &Option<Vec<f64>>, or: (f64, f64)| flag.as_ref().map_or(or, |v| (v[0], v[1]));
-    let ranges = Ranges {
-        pressure_mpa: pair(&args.pressure_range, base.pressure_mpa),
-        displacement_mm: pair(&args.displacement_range, base.displacement_mm),
-    };
-    let given = "from the command line";
-    let source = match (
-        args.pressure_range.is_some(),
-        args.displacement_range.is_some(),
-    ) {
-        (true, true) => given.to_string(),
-        (false, false) => rest.to_string(),
-        (true, false) => format!("pressure {given}, displacement {rest}"),
-        (false, true) => format!("displacement {given}, pressure {rest}"),
-    };
-    (ranges, source)
 }
 
 fn print_tables(rows: &[Row], robust: &[RobustRow]) {
