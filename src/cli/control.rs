@@ -7,19 +7,17 @@ use anyhow::Context;
 use serde::Serialize;
 
 use mckibben::control::ControlModel;
-use mckibben::control::chain::{ControlChain, EffectUse};
-use mckibben::control::design::{OPERATING_BAND_V, PredictionReport};
+use mckibben::control::chain::EffectUse;
+use mckibben::control::design::PredictionReport;
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
-use mckibben::control::sweep::{self, Design, Ingredients, Kind, Run, Shape};
+use mckibben::control::sweep::{self, Design, DesignRequest, Ingredients, Kind, Run, Shape};
 use mckibben::control::table::{self, RobustRow, Row};
-use mckibben::control::tuning::{self, Tuned, TuningEpisodes};
+use mckibben::control::tuning::{self, TunedGains, TuningRun};
 use mckibben::control::validation::LoopShape;
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
 use mckibben::data::Trace;
-use mckibben::data::csv::{ReadOptions, read_traces, write_trace};
-use mckibben::data::units::unit_of;
-use mckibben::model::effects::Effect;
+use mckibben::data::csv::write_trace;
 use mckibben::report::json::Versioned;
 use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
@@ -287,16 +285,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     };
     let design = if kinds.iter().any(|k| k.needs_model()) || args.robustness {
-        let d = make_design(&args, &config)?;
-        say(describe_design(&d));
+        let request = DesignRequest {
+            record: args.design_data.clone(),
+            model: args.from.clone(),
+            load_kg: args.design_load,
+            seed: args.seed,
+            horizon: args.horizon,
+        };
+        let d = sweep::design_for(&request, &config, &|s| eprintln!("mckibben: note: {s}"))?;
+        say(d.summary());
         Some(d)
     } else {
         None
     };
-    let (gains, tuned) = tune(&args, &kinds, &config, &say)?;
+    let given = args.tuned_gains.as_ref().map(|g| PiGains {
+        kp: g[0],
+        ki: g[1],
+        kd: g[2],
+    });
+    let tuning_run = TuningRun {
+        algo: args.algo.clone(),
+        pop: args.pop,
+        gens: args.gens,
+        seed: args.seed,
+    };
+    let tuned = tuning::gains_for(&kinds, given, &tuning_run, &config, &say)?;
     let ing = Ingredients {
         model: design.as_ref().map(|d| d.model.clone()),
-        gains,
+        gains: tuned.as_ref().map(|t| t.gains),
         mpc: MpcSettings {
             horizon: args.horizon,
             r_move: args.r_move,
@@ -365,7 +381,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         let out = Output {
             design: design.as_ref().map(DesignJson::of),
-            tuned,
+            tuned: tuned.as_ref(),
             runs: &rows,
             robustness: &robust,
         };
@@ -376,111 +392,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
-    let design = match &args.design_data {
-        Some(path) => {
-            let traces = read_traces(path, &ReadOptions::default())
-                .map_err(|e| anyhow::anyhow!("--design-data: {e}"))?;
-            let trace = traces
-                .into_iter()
-                .next()
-                .ok_or_else(|| anyhow::anyhow!("--design-data {}: no samples", path.display()))?;
-            sweep::design_from_record(&trace, args.horizon)
-                .with_context(|| format!("identifying the model from {}", path.display()))?
-        }
-        None => sweep::design_on_twin(config, args.design_load, args.seed, args.horizon)
-            .context("identifying the model on the twin")?,
-    };
-    let Some(path) = &args.from else {
-        return Ok(design);
-    };
-    let m = mckibben::model::ModelFile::load(path)
-        .and_then(|f| f.model())
-        .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
-    // The controllers drive pressures in MPa and displacements in mm (the
-    // twin's, and the rig protocol's): a model fitted in other units would
-    // be off by a factor, silently.
-    for (which, column, want) in [
-        ("input", &m.base.input_name, "MPa"),
-        ("output", &m.base.output_name, "mm"),
-    ] {
-        if let Some(unit) = unit_of(column).filter(|u| u != want) {
-            anyhow::bail!(
-                "--from {}: the model's {which} is in {unit} (column `{column}`), the \
-                 controllers' in {want}: convert the column to {want} and refit",
-                path.display()
-            );
-        }
-    }
-    // Each effect enters the controllers' prediction where it can, and
-    // the run says how (or why not): a note here, and `design.effects`.
-    let (chain, uses) = ControlChain::of(&m);
-    for u in &uses {
-        eprintln!(
-            "mckibben: note: --from {}: {} ({})",
-            path.display(),
-            u.line(),
-            Effect::physical(u.effect.parse().expect("a catalogue name"))
-        );
-    }
-    let mut design = sweep::with_displacement(
-        &design,
-        m.base,
-        chain,
-        format!("{}", path.display()),
-        config,
-        args.design_load,
-        args.seed,
-        args.horizon,
-    )
-    .with_context(|| format!("--from {}", path.display()))?;
-    design.effects = uses;
-    Ok(design)
-}
-
-fn describe_design(d: &Design) -> String {
-    let params: Vec<String> = d
-        .model
-        .displacement
-        .named_params()
-        .iter()
-        .map(|(n, v)| format!("{n} {v:.4}"))
-        .collect();
-    let mut s = format!(
-        "model ({}): {}, b2 {:.3}; valve pole {:.3}\n  {}-step prediction RMSE on the validation record: {:.3} mm (pressure measured), {:.3} mm (from the valve)",
-        d.source,
-        params.join(", "),
-        d.model.curvature,
-        d.model.valve.pole,
-        d.prediction.horizon,
-        d.prediction.rmse_mm,
-        d.prediction.end_to_end_rmse_mm
-    );
-    if let Some(l) = &d.loop_check {
-        s += &format!(
-            "\n  loop on a slow {:.0}–{:.0} V triangle: twin {:.2} MPa·mm, {:.2} mm wide; model {:.2} MPa·mm, {:.2} mm wide (RMS gap {:.2} mm)",
-            OPERATING_BAND_V.0,
-            OPERATING_BAND_V.1,
-            l.plant.area_mpa_mm,
-            l.plant.width_mm,
-            l.model.area_mpa_mm,
-            l.model.width_mm,
-            l.rmse_mm
-        );
-    }
-    for u in &d.effects {
-        s += &format!("\n  {}", u.line());
-    }
-    s
-}
-
 /// The `--json` output.
 #[derive(Debug, Serialize)]
 struct Output<'a> {
     /// The identified model; null when no controller needs one.
     design: Option<DesignJson<'a>>,
     /// The PID gains of pi-tuned and ff-pid; null when neither runs.
-    tuned: Option<TunedJson>,
+    tuned: Option<&'a TunedGains>,
     runs: &'a [Row],
     robustness: &'a [RobustRow],
 }
@@ -517,80 +435,6 @@ impl DesignJson<'_> {
             effects: &d.effects,
         }
     }
-}
-
-/// The gains pi-tuned and ff-pid ran with, tuned or given.
-#[derive(Debug, Serialize)]
-struct TunedJson {
-    gains: PiGains,
-    /// Whether `--tuned-gains` gave them (then no tuning ran).
-    given: bool,
-    /// The tuning run; null when the gains were given.
-    tuning: Option<Tuned>,
-    /// Gains that ended on an edge of the tuning box.
-    on_edges: Vec<String>,
-}
-
-fn tune(
-    args: &Args,
-    kinds: &[Kind],
-    config: &TwinConfig,
-    say: &dyn Fn(String),
-) -> anyhow::Result<(Option<PiGains>, Option<TunedJson>)> {
-    if !kinds.iter().any(|k| k.needs_gains()) {
-        return Ok((None, None));
-    }
-    if let Some(g) = &args.tuned_gains {
-        let gains = PiGains {
-            kp: g[0],
-            ki: g[1],
-            kd: g[2],
-        };
-        return Ok((
-            Some(gains),
-            Some(TunedJson {
-                gains,
-                given: true,
-                tuning: None,
-                on_edges: Vec::new(),
-            }),
-        ));
-    }
-    let episodes = TuningEpisodes::default();
-    say(format!(
-        "tuning the PID: {} × {} gain vectors ({}), each on {} episodes ...",
-        args.pop,
-        args.gens,
-        args.algo,
-        episodes.freqs_rad_s.len() * episodes.loads_kg.len()
-    ));
-    let t = tuning::tune_pi(
-        &args.algo, args.pop, args.gens, args.seed, &episodes, config,
-    )?;
-    let edges = tuning::gains_on_edges(&t.gains);
-    say(format!(
-        "tuned PID ({:.0} s): kp {:.5} ki {:.5} kd {:.5}, mean RMS {:.3} mm (thesis gains {:.3} mm); on the box's edges: {}",
-        t.seconds,
-        t.gains.kp,
-        t.gains.ki,
-        t.gains.kd,
-        t.cost,
-        t.baseline_cost,
-        if edges.is_empty() {
-            "none".to_string()
-        } else {
-            edges.join(", ")
-        }
-    ));
-    Ok((
-        Some(t.gains),
-        Some(TunedJson {
-            gains: t.gains,
-            given: false,
-            tuning: Some(t),
-            on_edges: edges,
-        }),
-    ))
 }
 
 fn print_tables(rows: &[Row], robust: &[RobustRow]) {
