@@ -1,23 +1,16 @@
 //! `mckibben control`: closed-loop sine tracking (chapter 6) on the rig twin
-//! in process, or on a rig behind the line protocol.
+//! in process, or on a rig behind the line protocol. This file parses and
+//! checks the flags and prints; the work is `control::{sweep, tuning, table,
+//! figures}`'s and `rig::control_runs`'.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::Context;
-use serde::Serialize;
-
-use mckibben::control::ControlModel;
-use mckibben::control::chain::EffectUse;
-use mckibben::control::design::PredictionReport;
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
-use mckibben::control::sweep::{self, Design, DesignRequest, Ingredients, Kind, Run, Shape};
-use mckibben::control::table::{self, RobustRow, Row};
-use mckibben::control::tuning::{self, TunedGains, TuningRun};
-use mckibben::control::validation::LoopShape;
+use mckibben::control::sweep::{self, DesignRequest, Ingredients, Kind, Shape};
+use mckibben::control::table::{self, DesignJson, JsonOutput};
+use mckibben::control::tuning::{self, TuningRun};
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
-use mckibben::data::Trace;
-use mckibben::data::csv::write_trace;
 use mckibben::report::json::Versioned;
 use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
@@ -373,13 +366,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Vec::new()
     };
     if let Some(dir) = &args.plot {
-        plots(dir, &runs, design.as_ref())?;
+        figures::save(dir, &runs, design.as_ref())?;
     }
     if let Some(dir) = &args.csv {
-        csvs(dir, &runs)?;
+        table::write_csvs(dir, &runs)?;
     }
     if args.json {
-        let out = Output {
+        let out = JsonOutput {
             design: design.as_ref().map(DesignJson::of),
             tuned: tuned.as_ref(),
             runs: &rows,
@@ -387,146 +380,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
         println!("{}", Versioned::new(out).to_string_pretty()?);
     } else {
-        print_tables(&rows, &robust);
-    }
-    Ok(())
-}
-
-/// The `--json` output.
-#[derive(Debug, Serialize)]
-struct Output<'a> {
-    /// The identified model; null when no controller needs one.
-    design: Option<DesignJson<'a>>,
-    /// The PID gains of pi-tuned and ff-pid; null when neither runs.
-    tuned: Option<&'a TunedGains>,
-    runs: &'a [Row],
-    robustness: &'a [RobustRow],
-}
-
-/// A design without its figure curves.
-#[derive(Debug, Serialize)]
-struct DesignJson<'a> {
-    source: &'a str,
-    model: &'a ControlModel,
-    prediction: &'a PredictionReport,
-    loop_check: Option<LoopCheckJson<'a>>,
-    /// How each effect of a `--from` model entered the controllers.
-    effects: &'a [EffectUse],
-}
-
-#[derive(Debug, Serialize)]
-struct LoopCheckJson<'a> {
-    plant: &'a LoopShape,
-    model: &'a LoopShape,
-    rmse_mm: f64,
-}
-
-impl DesignJson<'_> {
-    fn of(d: &Design) -> DesignJson<'_> {
-        DesignJson {
-            source: &d.source,
-            model: &d.model,
-            prediction: &d.prediction,
-            loop_check: d.loop_check.as_ref().map(|l| LoopCheckJson {
-                plant: &l.plant,
-                model: &l.model,
-                rmse_mm: l.rmse_mm,
-            }),
-            effects: &d.effects,
-        }
-    }
-}
-
-fn print_tables(rows: &[Row], robust: &[RobustRow]) {
-    println!(
-        "{:<24} {:>5} {:>5} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8} {:>8} {:>4} {:>4} {:>4}",
-        "controller",
-        "ω",
-        "kg",
-        "RMS mm",
-        "max mm",
-        "u rms V",
-        "u V/s",
-        "max µs",
-        "cpu µs",
-        "mean µs",
-        "viol",
-        "miss",
-        "div"
-    );
-    for r in rows {
-        let load = r.load_kg.map_or("rig".to_string(), |l| l.to_string());
-        println!(
-            "{:<24} {:>5} {:>5} {:>8.3} {:>8.3} {:>8.3} {:>7.2} {:>8.0} {:>8.0} {:>8.1} {:>4} {:>4} {:>4}",
-            r.controller,
-            r.freq_rad_s,
-            load,
-            r.rms_error_mm,
-            r.max_error_mm,
-            r.effort_rms_v,
-            r.effort_travel_v_per_s,
-            r.max_step_time_us,
-            r.max_step_cpu_us,
-            r.mean_step_time_us,
-            r.constraint_violations,
-            r.missing_measurements,
-            if r.diverged { "yes" } else { "no" }
-        );
-    }
-    if !robust.is_empty() {
-        println!(
-            "\n{:<8} {:<18} {:>5} {:>6} {:>8} {:>10} {:>4}",
-            "", "perturbation", "ω", "kg", "RMS mm", "× nominal", "viol"
-        );
-        for r in robust {
-            println!(
-                "{:<8} {:<18} {:>5} {:>6.3} {:>8.3} {:>10.2} {:>4}",
-                r.controller,
-                r.perturbation,
-                r.freq_rad_s,
-                r.load_kg,
-                r.rms_error_mm,
-                r.ratio,
-                r.constraint_violations
-            );
-        }
-    }
-}
-
-fn csvs(dir: &Path, runs: &[Run]) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating --csv {}", dir.display()))?;
-    for run in runs {
-        let r = &run.result;
-        // The plant's sample time, as the run's time base carries it.
-        let dt = r.t.get(1).zip(r.t.first()).map_or(f64::NAN, |(b, a)| b - a);
-        let path = dir.join(format!("{}.csv", figures::stem(run)));
-        let mut trace = Trace::uniform(
-            format!("control {}", r.controller),
-            dt,
-            r.pressure.clone(),
-            r.displacement.clone(),
-        );
-        trace.t = r.t.clone();
-        trace.extra.push(("valve_in".into(), r.valve.clone()));
-        trace.extra.push(("reference".into(), r.reference.clone()));
-        write_trace(&path, &trace).with_context(|| format!("writing --csv {}", path.display()))?;
-    }
-    Ok(())
-}
-
-fn plots(dir: &Path, runs: &[Run], design: Option<&Design>) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating --plot {}", dir.display()))?;
-    let mut figs: Vec<(String, mckibben::report::Figure)> = runs
-        .iter()
-        .map(|r| (format!("{}.svg", figures::stem(r)), figures::run_figure(r)))
-        .collect();
-    if let Some(d) = design {
-        figs.push(("control_model.svg".into(), figures::design_figure(d)));
-    }
-    for (name, fig) in figs {
-        let path = dir.join(name);
-        fig.save(&path)
-            .with_context(|| format!("writing --plot {}", path.display()))?;
+        print!("{}", table::text(&rows, &robust));
     }
     Ok(())
 }
