@@ -1,28 +1,19 @@
 //! `mckibben control`: closed-loop sine tracking (chapter 6) on the rig twin
-//! in process, or on a rig behind the line protocol.
+//! in process, or on a rig behind the line protocol. This file parses and
+//! checks the flags and prints; the work is `control::{sweep, tuning, table,
+//! figures}`'s and `rig::control_runs`'.
 
-use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::path::PathBuf;
 
-use anyhow::Context;
-use serde::Serialize;
-
-use mckibben::control::ControlModel;
-use mckibben::control::chain::{ControlChain, EffectUse};
-use mckibben::control::design::{OPERATING_BAND_V, PredictionReport};
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
-use mckibben::control::sweep::{self, Design, Ingredients, Kind, Run, RunSpec, Shape};
-use mckibben::control::table::{self, RobustRow, Row};
-use mckibben::control::tuning::{self, Tuned, TuningEpisodes};
-use mckibben::control::validation::LoopShape;
+use mckibben::control::sweep::{self, DesignRequest, Ingredients, Kind, Shape};
+use mckibben::control::table::{self, DesignJson, JsonOutput};
+use mckibben::control::tuning::{self, TuningRun};
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
-use mckibben::data::Trace;
-use mckibben::data::csv::{ReadOptions, read_traces, write_trace};
-use mckibben::data::units::unit_of;
-use mckibben::model::effects::Effect;
 use mckibben::report::json::Versioned;
-use mckibben::rig::{self, ChildLink, Limits, Link, Ranges, RemoteSettings, RunLog, UdpLink};
+use mckibben::rig::Limits;
+use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
 use mckibben::twin::TwinConfig;
 
 /// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
@@ -205,31 +196,6 @@ enum ReferenceArg {
     Steps,
 }
 
-enum Plant {
-    Twin,
-    Command(String),
-    Udp(std::net::SocketAddr),
-}
-
-fn parse_plant(spec: &str) -> anyhow::Result<Plant> {
-    if spec == "twin" {
-        Ok(Plant::Twin)
-    } else if let Some(cmd) = spec.strip_prefix("cmd:") {
-        anyhow::ensure!(!cmd.trim().is_empty(), "--plant cmd: needs a command");
-        Ok(Plant::Command(cmd.to_string()))
-    } else if let Some(addr) = spec.strip_prefix("udp:") {
-        use std::net::ToSocketAddrs;
-        let a = addr
-            .to_socket_addrs()
-            .with_context(|| format!("--plant udp:{addr}: not a HOST:PORT"))?
-            .next()
-            .ok_or_else(|| anyhow::anyhow!("--plant udp:{addr}: no address"))?;
-        Ok(Plant::Udp(a))
-    } else {
-        anyhow::bail!("--plant `{spec}`: expected twin, cmd:COMMAND or udp:HOST:PORT")
-    }
-}
-
 fn check_args(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         !args.freq.is_empty() && !args.load.is_empty(),
@@ -299,7 +265,7 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     check_args(&args)?;
-    let plant = parse_plant(&args.plant)?;
+    let plant = PlantSpec::parse(&args.plant)?;
     let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
     let mut config = TwinConfig::default();
     for e in &args.effects {
@@ -312,16 +278,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     };
     let design = if kinds.iter().any(|k| k.needs_model()) || args.robustness {
-        let d = make_design(&args, &config)?;
-        say(describe_design(&d));
+        let request = DesignRequest {
+            record: args.design_data.clone(),
+            model: args.from.clone(),
+            load_kg: args.design_load,
+            seed: args.seed,
+            horizon: args.horizon,
+        };
+        let d = sweep::design_for(&request, &config, &|s| eprintln!("mckibben: note: {s}"))?;
+        say(d.summary());
         Some(d)
     } else {
         None
     };
-    let (gains, tuned) = tune(&args, &kinds, &config, &say)?;
+    let given = args.tuned_gains.as_ref().map(|g| PiGains {
+        kp: g[0],
+        ki: g[1],
+        kd: g[2],
+    });
+    let tuning_run = TuningRun {
+        algo: args.algo.clone(),
+        pop: args.pop,
+        gens: args.gens,
+        seed: args.seed,
+    };
+    let tuned = tuning::gains_for(&kinds, given, &tuning_run, &config, &say)?;
     let ing = Ingredients {
         model: design.as_ref().map(|d| d.model.clone()),
-        gains,
+        gains: tuned.as_ref().map(|t| t.gains),
         mpc: MpcSettings {
             horizon: args.horizon,
             r_move: args.r_move,
@@ -338,8 +322,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ReferenceArg::Steps => Waveform::Steps,
         },
     };
-    let (rows, runs) = match &plant {
-        Plant::Twin => table::on_twin(
+    let (rows, runs) = match plant {
+        PlantSpec::Twin => table::on_twin(
             &kinds,
             &args.freq,
             &args.load,
@@ -350,28 +334,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &shape,
             &say,
         )?,
-        external => {
-            let mut rows = Vec::new();
-            let mut runs = Vec::new();
-            for &kind in &kinds {
-                for &freq in &args.freq {
-                    let spec = RunSpec {
-                        kind,
-                        freq_rad_s: freq,
-                        load_kg: f64::NAN,
-                        hysteresis_scale: 1.0,
-                    };
-                    say(format!(
-                        "{} at {freq} rad/s on {}",
-                        kind.label(),
-                        args.plant
-                    ));
-                    let (run, late) = run_external(&args, external, &spec, &ing, &shape)?;
-                    rows.push(Row::of(&run, &args.plant, None, late));
-                    runs.push(run);
-                }
-            }
-            (rows, runs)
+        PlantSpec::Rig(endpoint) => {
+            let pair = |r: &Option<Vec<f64>>| r.as_ref().map(|v| (v[0], v[1]));
+            let settings = RigRunSettings {
+                plant: args.plant.clone(),
+                endpoint,
+                deadline_ms: args.deadline,
+                max_missing: args.max_missing,
+                pressure_range: pair(&args.pressure_range),
+                displacement_range: pair(&args.displacement_range),
+                max_speed_mm_s: args.max_speed,
+                max_implausible: args.max_implausible,
+                log_dir: args.log.clone(),
+            };
+            control_runs::on_rig(&kinds, &args.freq, &settings, &ing, &shape, &say)?
         }
     };
     let robust = if args.robustness {
@@ -390,437 +366,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Vec::new()
     };
     if let Some(dir) = &args.plot {
-        plots(dir, &runs, design.as_ref())?;
+        figures::save(dir, &runs, design.as_ref())?;
     }
     if let Some(dir) = &args.csv {
-        csvs(dir, &runs)?;
+        table::write_csvs(dir, &runs)?;
     }
     if args.json {
-        let out = Output {
+        let out = JsonOutput {
             design: design.as_ref().map(DesignJson::of),
-            tuned,
+            tuned: tuned.as_ref(),
             runs: &rows,
             robustness: &robust,
         };
         println!("{}", Versioned::new(out).to_string_pretty()?);
     } else {
-        print_tables(&rows, &robust);
-    }
-    Ok(())
-}
-
-fn make_design(args: &Args, config: &TwinConfig) -> anyhow::Result<Design> {
-    let design = match &args.design_data {
-        Some(path) => {
-            let traces = read_traces(path, &ReadOptions::default())
-                .map_err(|e| anyhow::anyhow!("--design-data: {e}"))?;
-            let trace = traces
-                .into_iter()
-                .next()
-                .ok_or_else(|| anyhow::anyhow!("--design-data {}: no samples", path.display()))?;
-            sweep::design_from_record(&trace, args.horizon)
-                .with_context(|| format!("identifying the model from {}", path.display()))?
-        }
-        None => sweep::design_on_twin(config, args.design_load, args.seed, args.horizon)
-            .context("identifying the model on the twin")?,
-    };
-    let Some(path) = &args.from else {
-        return Ok(design);
-    };
-    let m = mckibben::model::ModelFile::load(path)
-        .and_then(|f| f.model())
-        .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
-    // The controllers drive pressures in MPa and displacements in mm (the
-    // twin's, and the rig protocol's): a model fitted in other units would
-    // be off by a factor, silently.
-    for (which, column, want) in [
-        ("input", &m.base.input_name, "MPa"),
-        ("output", &m.base.output_name, "mm"),
-    ] {
-        if let Some(unit) = unit_of(column).filter(|u| u != want) {
-            anyhow::bail!(
-                "--from {}: the model's {which} is in {unit} (column `{column}`), the \
-                 controllers' in {want}: convert the column to {want} and refit",
-                path.display()
-            );
-        }
-    }
-    // Each effect enters the controllers' prediction where it can, and
-    // the run says how (or why not): a note here, and `design.effects`.
-    let (chain, uses) = ControlChain::of(&m);
-    for u in &uses {
-        eprintln!(
-            "mckibben: note: --from {}: {} ({})",
-            path.display(),
-            u.line(),
-            Effect::physical(u.effect.parse().expect("a catalogue name"))
-        );
-    }
-    let mut design = sweep::with_displacement(
-        &design,
-        m.base,
-        chain,
-        format!("{}", path.display()),
-        config,
-        args.design_load,
-        args.seed,
-        args.horizon,
-    )
-    .with_context(|| format!("--from {}", path.display()))?;
-    design.effects = uses;
-    Ok(design)
-}
-
-fn describe_design(d: &Design) -> String {
-    let params: Vec<String> = d
-        .model
-        .displacement
-        .named_params()
-        .iter()
-        .map(|(n, v)| format!("{n} {v:.4}"))
-        .collect();
-    let mut s = format!(
-        "model ({}): {}, b2 {:.3}; valve pole {:.3}\n  {}-step prediction RMSE on the validation record: {:.3} mm (pressure measured), {:.3} mm (from the valve)",
-        d.source,
-        params.join(", "),
-        d.model.curvature,
-        d.model.valve.pole,
-        d.prediction.horizon,
-        d.prediction.rmse_mm,
-        d.prediction.end_to_end_rmse_mm
-    );
-    if let Some(l) = &d.loop_check {
-        s += &format!(
-            "\n  loop on a slow {:.0}–{:.0} V triangle: twin {:.2} MPa·mm, {:.2} mm wide; model {:.2} MPa·mm, {:.2} mm wide (RMS gap {:.2} mm)",
-            OPERATING_BAND_V.0,
-            OPERATING_BAND_V.1,
-            l.plant.area_mpa_mm,
-            l.plant.width_mm,
-            l.model.area_mpa_mm,
-            l.model.width_mm,
-            l.rmse_mm
-        );
-    }
-    for u in &d.effects {
-        s += &format!("\n  {}", u.line());
-    }
-    s
-}
-
-/// The `--json` output.
-#[derive(Debug, Serialize)]
-struct Output<'a> {
-    /// The identified model; null when no controller needs one.
-    design: Option<DesignJson<'a>>,
-    /// The PID gains of pi-tuned and ff-pid; null when neither runs.
-    tuned: Option<TunedJson>,
-    runs: &'a [Row],
-    robustness: &'a [RobustRow],
-}
-
-/// A design without its figure curves.
-#[derive(Debug, Serialize)]
-struct DesignJson<'a> {
-    source: &'a str,
-    model: &'a ControlModel,
-    prediction: &'a PredictionReport,
-    loop_check: Option<LoopCheckJson<'a>>,
-    /// How each effect of a `--from` model entered the controllers.
-    effects: &'a [EffectUse],
-}
-
-#[derive(Debug, Serialize)]
-struct LoopCheckJson<'a> {
-    plant: &'a LoopShape,
-    model: &'a LoopShape,
-    rmse_mm: f64,
-}
-
-impl DesignJson<'_> {
-    fn of(d: &Design) -> DesignJson<'_> {
-        DesignJson {
-            source: &d.source,
-            model: &d.model,
-            prediction: &d.prediction,
-            loop_check: d.loop_check.as_ref().map(|l| LoopCheckJson {
-                plant: &l.plant,
-                model: &l.model,
-                rmse_mm: l.rmse_mm,
-            }),
-            effects: &d.effects,
-        }
-    }
-}
-
-/// The gains pi-tuned and ff-pid ran with, tuned or given.
-#[derive(Debug, Serialize)]
-struct TunedJson {
-    gains: PiGains,
-    /// Whether `--tuned-gains` gave them (then no tuning ran).
-    given: bool,
-    /// The tuning run; null when the gains were given.
-    tuning: Option<Tuned>,
-    /// Gains that ended on an edge of the tuning box.
-    on_edges: Vec<String>,
-}
-
-fn tune(
-    args: &Args,
-    kinds: &[Kind],
-    config: &TwinConfig,
-    say: &dyn Fn(String),
-) -> anyhow::Result<(Option<PiGains>, Option<TunedJson>)> {
-    if !kinds.iter().any(|k| k.needs_gains()) {
-        return Ok((None, None));
-    }
-    if let Some(g) = &args.tuned_gains {
-        let gains = PiGains {
-            kp: g[0],
-            ki: g[1],
-            kd: g[2],
-        };
-        return Ok((
-            Some(gains),
-            Some(TunedJson {
-                gains,
-                given: true,
-                tuning: None,
-                on_edges: Vec::new(),
-            }),
-        ));
-    }
-    let episodes = TuningEpisodes::default();
-    say(format!(
-        "tuning the PID: {} × {} gain vectors ({}), each on {} episodes ...",
-        args.pop,
-        args.gens,
-        args.algo,
-        episodes.freqs_rad_s.len() * episodes.loads_kg.len()
-    ));
-    let t = tuning::tune_pi(
-        &args.algo, args.pop, args.gens, args.seed, &episodes, config,
-    )?;
-    let edges = tuning::gains_on_edges(&t.gains);
-    say(format!(
-        "tuned PID ({:.0} s): kp {:.5} ki {:.5} kd {:.5}, mean RMS {:.3} mm (thesis gains {:.3} mm); on the box's edges: {}",
-        t.seconds,
-        t.gains.kp,
-        t.gains.ki,
-        t.gains.kd,
-        t.cost,
-        t.baseline_cost,
-        if edges.is_empty() {
-            "none".to_string()
-        } else {
-            edges.join(", ")
-        }
-    ));
-    Ok((
-        Some(t.gains),
-        Some(TunedJson {
-            gains: t.gains,
-            given: false,
-            tuning: Some(t),
-            on_edges: edges,
-        }),
-    ))
-}
-
-fn run_external(
-    args: &Args,
-    plant: &Plant,
-    spec: &RunSpec,
-    ing: &Ingredients,
-    shape: &Shape,
-) -> anyhow::Result<(Run, usize)> {
-    let mut link: Box<dyn Link> = match plant {
-        Plant::Command(cmd) => Box::new(
-            ChildLink::spawn(cmd).with_context(|| format!("--plant: cannot start `{cmd}`"))?,
-        ),
-        Plant::Udp(addr) => {
-            Box::new(UdpLink::connect(*addr).with_context(|| format!("--plant udp:{addr}"))?)
-        }
-        Plant::Twin => unreachable!("in-process runs do not come here"),
-    };
-    let (dt, announced) = rig::connect(link.as_mut(), RemoteSettings::CONNECT_TIMEOUT)?;
-    let (ranges, source) = ranges(args, announced);
-    let settings = RemoteSettings {
-        deadline: args.deadline.map_or_else(
-            || RemoteSettings::default_deadline(dt),
-            |ms| Duration::from_secs_f64(ms / 1000.0),
-        ),
-        max_missing: args.max_missing,
-        limits: Limits {
-            ranges,
-            max_speed_mm_s: args.max_speed,
-        },
-        max_implausible: args.max_implausible,
-    };
-    let mut controller = sweep::build(spec.kind, spec.hysteresis_scale, ing, dt)?;
-    let mut log = match &args.log {
-        Some(dir) => {
-            let path = dir.join(format!("{}_{}rad.csv", spec.kind.label(), spec.freq_rad_s));
-            RunLog::create(
-                &path,
-                &[
-                    format!(
-                        "mckibben control --controller {} --freq {} --plant {}",
-                        spec.kind.label(),
-                        spec.freq_rad_s,
-                        args.plant
-                    ),
-                    format!(
-                        "rig {} (dt {dt} s), deadline {:.1} ms",
-                        link.describe(),
-                        settings.deadline.as_secs_f64() * 1000.0
-                    ),
-                    format!(
-                        "plausible: pressure {}…{} MPa, displacement {}…{} mm ({source}), at most {} mm/s",
-                        ranges.pressure_mpa.0,
-                        ranges.pressure_mpa.1,
-                        ranges.displacement_mm.0,
-                        ranges.displacement_mm.1,
-                        args.max_speed
-                    ),
-                ],
-            )
-            .with_context(|| format!("--log {}", path.display()))?
-        }
-        None => RunLog::none(),
-    };
-    let episode = shape.episode(spec.freq_rad_s);
-    let remote = rig::run_remote(
-        link.as_mut(),
-        dt,
-        controller.as_mut(),
-        &episode,
-        &settings,
-        &mut log,
-    )?;
-    let run = Run {
-        spec: *spec,
-        result: remote.result,
-        stats: controller.stats(),
-    };
-    Ok((run, remote.late))
-}
-
-/// The ranges a measurement must be in, and where they come from: a flag
-/// wins over what the rig announced in READY, which wins over the twin's
-/// own limits.
-fn ranges(args: &Args, announced: Option<Ranges>) -> (Ranges, String) {
-    let (base, rest) = match announced {
-        Some(r) => (r, "announced by the rig"),
-        None => (Limits::of_twin(&TwinConfig::default()).ranges, "the twin's"),
-    };
-    let pair = |flag: &Option<Vec<f64>>, or: (f64, f64)| flag.as_ref().map_or(or, |v| (v[0], v[1]));
-    let ranges = Ranges {
-        pressure_mpa: pair(&args.pressure_range, base.pressure_mpa),
-        displacement_mm: pair(&args.displacement_range, base.displacement_mm),
-    };
-    let given = "from the command line";
-    let source = match (
-        args.pressure_range.is_some(),
-        args.displacement_range.is_some(),
-    ) {
-        (true, true) => given.to_string(),
-        (false, false) => rest.to_string(),
-        (true, false) => format!("pressure {given}, displacement {rest}"),
-        (false, true) => format!("displacement {given}, pressure {rest}"),
-    };
-    (ranges, source)
-}
-
-fn print_tables(rows: &[Row], robust: &[RobustRow]) {
-    println!(
-        "{:<24} {:>5} {:>5} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8} {:>8} {:>4} {:>4} {:>4}",
-        "controller",
-        "ω",
-        "kg",
-        "RMS mm",
-        "max mm",
-        "u rms V",
-        "u V/s",
-        "max µs",
-        "cpu µs",
-        "mean µs",
-        "viol",
-        "miss",
-        "div"
-    );
-    for r in rows {
-        let load = r.load_kg.map_or("rig".to_string(), |l| l.to_string());
-        println!(
-            "{:<24} {:>5} {:>5} {:>8.3} {:>8.3} {:>8.3} {:>7.2} {:>8.0} {:>8.0} {:>8.1} {:>4} {:>4} {:>4}",
-            r.controller,
-            r.freq_rad_s,
-            load,
-            r.rms_error_mm,
-            r.max_error_mm,
-            r.effort_rms_v,
-            r.effort_travel_v_per_s,
-            r.max_step_time_us,
-            r.max_step_cpu_us,
-            r.mean_step_time_us,
-            r.constraint_violations,
-            r.missing_measurements,
-            if r.diverged { "yes" } else { "no" }
-        );
-    }
-    if !robust.is_empty() {
-        println!(
-            "\n{:<8} {:<18} {:>5} {:>6} {:>8} {:>10} {:>4}",
-            "", "perturbation", "ω", "kg", "RMS mm", "× nominal", "viol"
-        );
-        for r in robust {
-            println!(
-                "{:<8} {:<18} {:>5} {:>6.3} {:>8.3} {:>10.2} {:>4}",
-                r.controller,
-                r.perturbation,
-                r.freq_rad_s,
-                r.load_kg,
-                r.rms_error_mm,
-                r.ratio,
-                r.constraint_violations
-            );
-        }
-    }
-}
-
-fn csvs(dir: &Path, runs: &[Run]) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating --csv {}", dir.display()))?;
-    for run in runs {
-        let r = &run.result;
-        // The plant's sample time, as the run's time base carries it.
-        let dt = r.t.get(1).zip(r.t.first()).map_or(f64::NAN, |(b, a)| b - a);
-        let path = dir.join(format!("{}.csv", figures::stem(run)));
-        let mut trace = Trace::uniform(
-            format!("control {}", r.controller),
-            dt,
-            r.pressure.clone(),
-            r.displacement.clone(),
-        );
-        trace.t = r.t.clone();
-        trace.extra.push(("valve_in".into(), r.valve.clone()));
-        trace.extra.push(("reference".into(), r.reference.clone()));
-        write_trace(&path, &trace).with_context(|| format!("writing --csv {}", path.display()))?;
-    }
-    Ok(())
-}
-
-fn plots(dir: &Path, runs: &[Run], design: Option<&Design>) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating --plot {}", dir.display()))?;
-    let mut figs: Vec<(String, mckibben::report::Figure)> = runs
-        .iter()
-        .map(|r| (format!("{}.svg", figures::stem(r)), figures::run_figure(r)))
-        .collect();
-    if let Some(d) = design {
-        figs.push(("control_model.svg".into(), figures::design_figure(d)));
-    }
-    for (name, fig) in figs {
-        let path = dir.join(name);
-        fig.save(&path)
-            .with_context(|| format!("writing --plot {}", path.display()))?;
+        print!("{}", table::text(&rows, &robust));
     }
     Ok(())
 }

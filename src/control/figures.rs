@@ -2,6 +2,10 @@
 //! (reference and displacement, valve command, error); per design, the
 //! model's prediction error and its loop against the twin's.
 
+use std::path::Path;
+
+use anyhow::Context as _;
+
 use super::closed_loop::EpisodeResult;
 use super::sweep::{Design, Run};
 use crate::report::{Figure, Panel, Series};
@@ -102,4 +106,23 @@ pub fn design_figure(d: &Design) -> Figure {
         );
     }
     fig
+}
+
+/// Every run's figure and the design's (`control_model.svg`) as SVG files
+/// in `dir` (`--plot`).
+pub fn save(dir: &Path, runs: &[Run], design: Option<&Design>) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating --plot {}", dir.display()))?;
+    let mut figs: Vec<(String, Figure)> = runs
+        .iter()
+        .map(|r| (format!("{}.svg", stem(r)), run_figure(r)))
+        .collect();
+    if let Some(d) = design {
+        figs.push(("control_model.svg".into(), design_figure(d)));
+    }
+    for (name, fig) in figs {
+        let path = dir.join(name);
+        fig.save(&path)
+            .with_context(|| format!("writing --plot {}", path.display()))?;
+    }
+    Ok(())
 }

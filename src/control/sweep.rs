@@ -2,6 +2,9 @@
 //! built, run over frequencies and loads on the in-process twin, and the
 //! robustness runs. The command line only parses and calls these.
 
+use std::path::PathBuf;
+
+use anyhow::Context as _;
 use serde::{Deserialize, Serialize};
 
 use super::chain::{ControlChain, EffectUse};
@@ -16,7 +19,10 @@ use super::pi::{Pi, PiGains};
 use super::reference::Waveform;
 use super::validation::{self, LoopCheck};
 use crate::data::Trace;
-use crate::model::FittedModel;
+use crate::data::csv::{ReadOptions, read_traces};
+use crate::data::units::unit_of;
+use crate::model::effects::Effect;
+use crate::model::{FittedModel, ModelFile};
 use crate::twin::{self, Rig, TwinConfig};
 
 /// The controllers `mckibben control` knows.
@@ -178,6 +184,134 @@ pub fn twin_records(config: &TwinConfig, load: f64, seed: u64) -> (Trace, Trace)
         twin::run(config, load, seed, &experiment),
         twin::run(config, load, seed + 1, &experiment),
     )
+}
+
+/// Where `mckibben control`'s controllers get their model: its
+/// `--design-data`, `--from`, `--design-load`, `--seed` and `--horizon`.
+/// Every error names the flag it is about.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DesignRequest {
+    /// An open-loop record (a `valve_in` column) to identify from instead
+    /// of the twin's design multisine ([`design_from_record`]).
+    pub record: Option<PathBuf>,
+    /// A model file whose displacement model replaces the identified one
+    /// ([`with_displacement`]).
+    pub model: Option<PathBuf>,
+    /// The twin's load (kg) for the design multisine and the checks.
+    pub load_kg: f64,
+    pub seed: u64,
+    pub horizon: usize,
+}
+
+/// The design `request` asks for, on the twin set up as `config`. How each
+/// effect of a model file enters the controllers is in the design's
+/// `effects`, and `note` hears of each as soon as it is known, so that a
+/// user sees it even when the validation that follows fails.
+pub fn design_for(
+    request: &DesignRequest,
+    config: &TwinConfig,
+    note: &dyn Fn(String),
+) -> anyhow::Result<Design> {
+    let design = match &request.record {
+        Some(path) => {
+            let traces = read_traces(path, &ReadOptions::default())
+                .map_err(|e| anyhow::anyhow!("--design-data: {e}"))?;
+            let trace = traces
+                .into_iter()
+                .next()
+                .ok_or_else(|| anyhow::anyhow!("--design-data {}: no samples", path.display()))?;
+            design_from_record(&trace, request.horizon)
+                .with_context(|| format!("identifying the model from {}", path.display()))?
+        }
+        None => design_on_twin(config, request.load_kg, request.seed, request.horizon)
+            .context("identifying the model on the twin")?,
+    };
+    let Some(path) = &request.model else {
+        return Ok(design);
+    };
+    let m = ModelFile::load(path)
+        .and_then(|f| f.model())
+        .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+    // The controllers drive pressures in MPa and displacements in mm (the
+    // twin's, and the rig protocol's): a model fitted in other units would
+    // be off by a factor, silently.
+    for (which, column, want) in [
+        ("input", &m.base.input_name, "MPa"),
+        ("output", &m.base.output_name, "mm"),
+    ] {
+        if let Some(unit) = unit_of(column).filter(|u| u != want) {
+            anyhow::bail!(
+                "--from {}: the model's {which} is in {unit} (column `{column}`), the \
+                 controllers' in {want}: convert the column to {want} and refit",
+                path.display()
+            );
+        }
+    }
+    // Each effect enters the controllers' prediction where it can, and
+    // the run says how (or why not): a note here, and `design.effects`.
+    let (chain, uses) = ControlChain::of(&m);
+    for u in &uses {
+        note(format!(
+            "--from {}: {} ({})",
+            path.display(),
+            u.line(),
+            Effect::physical(u.effect.parse().expect("a catalogue name"))
+        ));
+    }
+    let mut design = with_displacement(
+        &design,
+        m.base,
+        chain,
+        format!("{}", path.display()),
+        config,
+        request.load_kg,
+        request.seed,
+        request.horizon,
+    )
+    .with_context(|| format!("--from {}", path.display()))?;
+    design.effects = uses;
+    Ok(design)
+}
+
+impl Design {
+    /// What the design says to a user: the model's parameters, its
+    /// prediction errors, its loop against the twin's and how each effect
+    /// of a model file was used, a line each.
+    pub fn summary(&self) -> String {
+        let params: Vec<String> = self
+            .model
+            .displacement
+            .named_params()
+            .iter()
+            .map(|(n, v)| format!("{n} {v:.4}"))
+            .collect();
+        let mut s = format!(
+            "model ({}): {}, b2 {:.3}; valve pole {:.3}\n  {}-step prediction RMSE on the validation record: {:.3} mm (pressure measured), {:.3} mm (from the valve)",
+            self.source,
+            params.join(", "),
+            self.model.curvature,
+            self.model.valve.pole,
+            self.prediction.horizon,
+            self.prediction.rmse_mm,
+            self.prediction.end_to_end_rmse_mm
+        );
+        if let Some(l) = &self.loop_check {
+            s += &format!(
+                "\n  loop on a slow {:.0}–{:.0} V triangle: twin {:.2} MPa·mm, {:.2} mm wide; model {:.2} MPa·mm, {:.2} mm wide (RMS gap {:.2} mm)",
+                OPERATING_BAND_V.0,
+                OPERATING_BAND_V.1,
+                l.plant.area_mpa_mm,
+                l.plant.width_mm,
+                l.model.area_mpa_mm,
+                l.model.width_mm,
+                l.rmse_mm
+            );
+        }
+        for u in &self.effects {
+            s += &format!("\n  {}", u.line());
+        }
+        s
+    }
 }
 
 /// What a controller is built from.

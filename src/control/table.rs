@@ -1,9 +1,22 @@
 //! The rows `mckibben control` prints and writes as JSON: one per run, and
-//! the robustness runs with their ratio to the nominal run.
+//! the robustness runs with their ratio to the nominal run; the `--json`
+//! document they go in, the text tables they print as, and the CSV of each
+//! run's samples (`--csv`).
 
+use std::path::Path;
+
+use anyhow::Context as _;
 use serde::Serialize;
 
-use super::sweep::{self, Ingredients, Kind, Run, Shape};
+use super::chain::EffectUse;
+use super::design::PredictionReport;
+use super::figures;
+use super::model::ControlModel;
+use super::sweep::{self, Design, Ingredients, Kind, Run, Shape};
+use super::tuning::TunedGains;
+use super::validation::LoopShape;
+use crate::data::Trace;
+use crate::data::csv::write_trace;
 use crate::twin::TwinConfig;
 
 /// One run.
@@ -148,4 +161,134 @@ pub fn robustness(
         }
     }
     Ok(out)
+}
+
+/// The `--json` document.
+#[derive(Debug, Serialize)]
+pub struct JsonOutput<'a> {
+    /// The identified model; null when no controller needs one.
+    pub design: Option<DesignJson<'a>>,
+    /// The PID gains of pi-tuned and ff-pid; null when neither runs.
+    pub tuned: Option<&'a TunedGains>,
+    pub runs: &'a [Row],
+    pub robustness: &'a [RobustRow],
+}
+
+/// A design without its figure curves, which only the plots need.
+#[derive(Debug, Serialize)]
+pub struct DesignJson<'a> {
+    source: &'a str,
+    model: &'a ControlModel,
+    prediction: &'a PredictionReport,
+    loop_check: Option<LoopCheckJson<'a>>,
+    /// How each effect of a `--from` model entered the controllers.
+    effects: &'a [EffectUse],
+}
+
+/// The loop check's verdict without its curves.
+#[derive(Debug, Serialize)]
+struct LoopCheckJson<'a> {
+    plant: &'a LoopShape,
+    model: &'a LoopShape,
+    rmse_mm: f64,
+}
+
+impl DesignJson<'_> {
+    pub fn of(d: &Design) -> DesignJson<'_> {
+        DesignJson {
+            source: &d.source,
+            model: &d.model,
+            prediction: &d.prediction,
+            loop_check: d.loop_check.as_ref().map(|l| LoopCheckJson {
+                plant: &l.plant,
+                model: &l.model,
+                rmse_mm: l.rmse_mm,
+            }),
+            effects: &d.effects,
+        }
+    }
+}
+
+/// The rows as text: the table of runs, then the robustness table when
+/// there are robustness runs.
+pub fn text(rows: &[Row], robust: &[RobustRow]) -> String {
+    let mut lines = vec![format!(
+        "{:<24} {:>5} {:>5} {:>8} {:>8} {:>8} {:>7} {:>8} {:>8} {:>8} {:>4} {:>4} {:>4}",
+        "controller",
+        "ω",
+        "kg",
+        "RMS mm",
+        "max mm",
+        "u rms V",
+        "u V/s",
+        "max µs",
+        "cpu µs",
+        "mean µs",
+        "viol",
+        "miss",
+        "div"
+    )];
+    for r in rows {
+        let load = r.load_kg.map_or("rig".to_string(), |l| l.to_string());
+        lines.push(format!(
+            "{:<24} {:>5} {:>5} {:>8.3} {:>8.3} {:>8.3} {:>7.2} {:>8.0} {:>8.0} {:>8.1} {:>4} {:>4} {:>4}",
+            r.controller,
+            r.freq_rad_s,
+            load,
+            r.rms_error_mm,
+            r.max_error_mm,
+            r.effort_rms_v,
+            r.effort_travel_v_per_s,
+            r.max_step_time_us,
+            r.max_step_cpu_us,
+            r.mean_step_time_us,
+            r.constraint_violations,
+            r.missing_measurements,
+            if r.diverged { "yes" } else { "no" }
+        ));
+    }
+    if !robust.is_empty() {
+        lines.push(format!(
+            "\n{:<8} {:<18} {:>5} {:>6} {:>8} {:>10} {:>4}",
+            "", "perturbation", "ω", "kg", "RMS mm", "× nominal", "viol"
+        ));
+        for r in robust {
+            lines.push(format!(
+                "{:<8} {:<18} {:>5} {:>6.3} {:>8.3} {:>10.2} {:>4}",
+                r.controller,
+                r.perturbation,
+                r.freq_rad_s,
+                r.load_kg,
+                r.rms_error_mm,
+                r.ratio,
+                r.constraint_violations
+            ));
+        }
+    }
+    let mut text = lines.join("\n");
+    text.push('\n');
+    text
+}
+
+/// One CSV per run in `dir` (t, reference, displacement, pressure,
+/// valve_in), named as its figure ([`figures::stem`]).
+pub fn write_csvs(dir: &Path, runs: &[Run]) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating --csv {}", dir.display()))?;
+    for run in runs {
+        let r = &run.result;
+        // The plant's sample time, as the run's time base carries it.
+        let dt = r.t.get(1).zip(r.t.first()).map_or(f64::NAN, |(b, a)| b - a);
+        let path = dir.join(format!("{}.csv", figures::stem(run)));
+        let mut trace = Trace::uniform(
+            format!("control {}", r.controller),
+            dt,
+            r.pressure.clone(),
+            r.displacement.clone(),
+        );
+        trace.t = r.t.clone();
+        trace.extra.push(("valve_in".into(), r.valve.clone()));
+        trace.extra.push(("reference".into(), r.reference.clone()));
+        write_trace(&path, &trace).with_context(|| format!("writing --csv {}", path.display()))?;
+    }
+    Ok(())
 }

@@ -9,6 +9,7 @@ use serde::{Deserialize, Serialize};
 use super::closed_loop::{Episode, run_episode};
 use super::limits::ValveLimits;
 use super::pi::{Pi, PiGains};
+use super::sweep::Kind;
 use crate::model::Measure;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
 use crate::optim::{Algorithm, Bounds};
@@ -209,4 +210,80 @@ pub fn tune_pi(
             .map(|r| r.best_sse.unwrap_or(f64::INFINITY))
             .collect(),
     })
+}
+
+/// The gains pi-tuned and ff-pid ran with, tuned or given: `mckibben
+/// control`'s `tuned` in its JSON.
+#[derive(Debug, Serialize)]
+pub struct TunedGains {
+    pub gains: PiGains,
+    /// Whether `--tuned-gains` gave them (then no tuning ran).
+    pub given: bool,
+    /// The tuning run; null when the gains were given.
+    pub tuning: Option<Tuned>,
+    /// Gains that ended on an edge of the tuning box.
+    pub on_edges: Vec<String>,
+}
+
+/// How `mckibben control` tunes the PID when no gains are given: its
+/// `--algo`, `--pop`, `--gens` and `--seed`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TuningRun {
+    pub algo: String,
+    pub pop: usize,
+    pub gens: usize,
+    pub seed: u64,
+}
+
+/// The PID gains for `kinds`: none when no kind needs them, `given` when
+/// there are some, else tuned by `run` on the default episodes (minutes),
+/// which `progress` hears of before and after.
+pub fn gains_for(
+    kinds: &[Kind],
+    given: Option<PiGains>,
+    run: &TuningRun,
+    config: &TwinConfig,
+    progress: &dyn Fn(String),
+) -> anyhow::Result<Option<TunedGains>> {
+    if !kinds.iter().any(|k| k.needs_gains()) {
+        return Ok(None);
+    }
+    if let Some(gains) = given {
+        return Ok(Some(TunedGains {
+            gains,
+            given: true,
+            tuning: None,
+            on_edges: Vec::new(),
+        }));
+    }
+    let episodes = TuningEpisodes::default();
+    progress(format!(
+        "tuning the PID: {} × {} gain vectors ({}), each on {} episodes ...",
+        run.pop,
+        run.gens,
+        run.algo,
+        episodes.freqs_rad_s.len() * episodes.loads_kg.len()
+    ));
+    let t = tune_pi(&run.algo, run.pop, run.gens, run.seed, &episodes, config)?;
+    let edges = gains_on_edges(&t.gains);
+    progress(format!(
+        "tuned PID ({:.0} s): kp {:.5} ki {:.5} kd {:.5}, mean RMS {:.3} mm (thesis gains {:.3} mm); on the box's edges: {}",
+        t.seconds,
+        t.gains.kp,
+        t.gains.ki,
+        t.gains.kd,
+        t.cost,
+        t.baseline_cost,
+        if edges.is_empty() {
+            "none".to_string()
+        } else {
+            edges.join(", ")
+        }
+    ));
+    Ok(Some(TunedGains {
+        gains: t.gains,
+        given: false,
+        tuning: Some(t),
+        on_edges: edges,
+    }))
 }

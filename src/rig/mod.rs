@@ -2,11 +2,13 @@
 //! protocol (`protocol`, documented in docs/RIG_PROTOCOL.md), its transports
 //! (`link`: a child process's stdin/stdout, this process's own, UDP), the
 //! controller's end with its deadlines (`remote`), the check that a
-//! measurement can be one (`plausible`) and the run log written as the run
-//! goes (`log`); the twin playing the rig's end (`serve`), here beside the
+//! measurement can be one (`plausible`), the run log written as the run
+//! goes (`log`) and `mckibben control`'s runs made of these
+//! (`control_runs`); the twin playing the rig's end (`serve`), here beside the
 //! protocol rather than in `twin`, so that `twin` stays below `control` and
 //! `rig` (no import cycle).
 
+pub mod control_runs;
 pub mod link;
 pub mod log;
 pub mod plausible;

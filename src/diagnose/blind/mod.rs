@@ -21,12 +21,14 @@
 //!   "not explained by the catalogue", hence no name.
 
 pub mod generator;
+pub mod realisation;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use self::generator::{Excitation, Physical, Plant, Realisation};
+use self::generator::{Excitation, Plant};
+use self::realisation::{Physical, Realisation};
 use super::selftest::{MARKS, Nominal};
 use super::{Diagnosis, Effect, Settings, diagnose};
 use crate::model::Family;
