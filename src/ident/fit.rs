@@ -51,20 +51,6 @@ pub fn indistinguishable_up_to(best_sse: f64, samples: usize) -> f64 {
     best_sse + CHI2_1_95 * best_sse / samples.max(1) as f64
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn perfect_and_mean_predictions() {
-        let y = [1.0, 2.0, 3.0, 4.0];
-        assert_eq!(fit_percent(&y, &y), 100.0);
-        assert!((fit_percent(&y, &[2.5; 4])).abs() < 1e-12);
-        assert!(fit_percent(&[1.0; 3], &[1.0; 3]).is_nan());
-        assert!((rmse(&y, &[2.0, 3.0, 4.0, 5.0]) - 1.0).abs() < 1e-12);
-    }
-}
-
 /// Area enclosed by the input–output path `(u(k), y(k))`, closed back to its
 /// start (shoelace formula, absolute value). A rate-independent hysteresis
 /// traversed by a stair up and down encloses a loop of non-zero area; a
@@ -84,8 +70,17 @@ pub fn loop_area(u: &[f64], y: &[f64]) -> f64 {
 }
 
 #[cfg(test)]
-mod loop_tests {
-    use super::loop_area;
+mod tests {
+    use super::*;
+
+    #[test]
+    fn perfect_and_mean_predictions() {
+        let y = [1.0, 2.0, 3.0, 4.0];
+        assert_eq!(fit_percent(&y, &y), 100.0);
+        assert!((fit_percent(&y, &[2.5; 4])).abs() < 1e-12);
+        assert!(fit_percent(&[1.0; 3], &[1.0; 3]).is_nan());
+        assert!((rmse(&y, &[2.0, 3.0, 4.0, 5.0]) - 1.0).abs() < 1e-12);
+    }
 
     #[test]
     fn unit_square_and_a_line() {
