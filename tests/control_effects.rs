@@ -13,13 +13,13 @@ use mckibben::control::{
 };
 use mckibben::model::effects::{Context, Effect, effect_box};
 use mckibben::model::file::Chain;
-use mckibben::model::{Family, FittedModel, Model};
+use mckibben::model::{Family, FittedBaseline, Model};
 
 const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
 
 /// A classic baseline about 0.25 MPa and 30 mm, `x0 = 0`.
-fn base() -> FittedModel {
-    FittedModel {
+fn base() -> FittedBaseline {
+    FittedBaseline {
         family: Family::Classic,
         // A, alpha, beta, gamma, n, a, b, c, x0
         params: vec![1.0, 0.9, 0.4, 0.3, 1.0, 0.97, 3.0, 0.01, 0.0],

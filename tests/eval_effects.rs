@@ -14,7 +14,7 @@ use mckibben::eval::cpu::{CpuEvaluator, LANES};
 use mckibben::eval::gpu::GpuOptions;
 use mckibben::eval::workload::{mixed_population, search_space, stair_experiment};
 use mckibben::eval::{Evaluator, Problem};
-use mckibben::model::effects::{Augmented, Context, Effect, EffectBox, effect_box};
+use mckibben::model::effects::{Context, Effect, EffectBox, ModelDescription, effect_box};
 use mckibben::model::{Experiment, Family, Measure};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -36,7 +36,7 @@ fn experiments() -> Vec<Experiment> {
 /// level is drawn across the output's span, and set at the datasets' output
 /// mean (where the kernel forms the threshold 0) on every third row and at
 /// the sensor's zero (below every sample) on every fifth.
-fn population(model: &Augmented, ctx: &Context, count: usize, seed: u64) -> Vec<f64> {
+fn population(model: &ModelDescription, ctx: &Context, count: usize, seed: u64) -> Vec<f64> {
     let exps = experiments();
     let space = search_space(model.family, &exps[0], false);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -76,16 +76,16 @@ fn population(model: &Augmented, ctx: &Context, count: usize, seed: u64) -> Vec<
 /// kernel's per-experiment constants are then arrays of one, which a
 /// shader compiler may fold into literals and reassociate sums around
 /// (it did, for the soft stop of a contracting muscle).
-fn models() -> Vec<Augmented> {
+fn models() -> Vec<ModelDescription> {
     let mut all = Vec::new();
     for family in Family::ALL {
         for e in Effect::ALL {
-            all.push(Augmented::new(family, vec![e], 2));
-            all.push(Augmented::new(family, vec![e], 1));
+            all.push(ModelDescription::new(family, vec![e], 2));
+            all.push(ModelDescription::new(family, vec![e], 1));
         }
-        all.push(Augmented::new(family, Effect::ALL.to_vec(), 2));
+        all.push(ModelDescription::new(family, Effect::ALL.to_vec(), 2));
     }
-    all.push(Augmented::new(
+    all.push(ModelDescription::new(
         Family::Classic,
         vec![Effect::Creep, Effect::Delay, Effect::Saturation],
         2,
@@ -98,7 +98,11 @@ fn models() -> Vec<Augmented> {
 /// differ between them.
 const DIRECTIONS: [bool; 2] = [true, false];
 
-fn problem_of(model: &Augmented, measure: Measure, drives_up: bool) -> (Problem, Vec<Context>) {
+fn problem_of(
+    model: &ModelDescription,
+    measure: Measure,
+    drives_up: bool,
+) -> (Problem, Vec<Context>) {
     let mut exps = experiments();
     exps.truncate(model.datasets);
     let contexts: Vec<Context> = exps.iter().map(|e| Context::of(e, drives_up)).collect();

@@ -6,7 +6,7 @@ use mckibben::data::signals::Stair;
 use mckibben::ident::ArxOrders;
 use mckibben::ident::arx::identify;
 use mckibben::twin::experiment::{Kind, RunSpec};
-use mckibben::twin::{EFFECT_NAMES, Experiment, Rig, TwinConfig, run};
+use mckibben::twin::{EFFECT_NAMES, Rig, TwinConfig, TwinExperiment, run};
 
 /// Holds the valve at `u` volts for `seconds` and returns the true state.
 fn hold(rig: &mut Rig, u: f64, seconds: f64) -> mckibben::twin::TrueState {
@@ -29,8 +29,8 @@ fn loop_area(x: &[f64], y: &[f64]) -> f64 {
 }
 
 /// A short stair (one cycle, 0.3 s per level: 600 samples) for the effect tests.
-fn short_stair() -> Experiment {
-    Experiment::Stair(Stair {
+fn short_stair() -> TwinExperiment {
+    TwinExperiment::Stair(Stair {
         hold_s: 0.3,
         cycles: 1,
         ..Stair::default()
@@ -108,7 +108,7 @@ fn settled_points(trace: &Trace) -> (Vec<f64>, Vec<f64>) {
 #[test]
 fn stair_shows_a_hysteresis_loop_of_clearly_nonzero_area() {
     let config = TwinConfig::default();
-    let stair = Experiment::Stair(Stair {
+    let stair = TwinExperiment::Stair(Stair {
         cycles: 1,
         ..Stair::default()
     });

@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use mckibben::model::file::{Provenance, ReadSettings};
-use mckibben::model::{FittedModel, ModelFile};
+use mckibben::model::{FittedBaseline, ModelFile};
 
 use crate::convert::{file_error, series};
 
@@ -33,7 +33,7 @@ impl Model {
     }
 
     /// The baseline.
-    fn base(&self) -> &FittedModel {
+    fn base(&self) -> &FittedBaseline {
         &self.inner.base
     }
 }

@@ -12,7 +12,7 @@ use mckibben::eval::workload::{
     augmented_population, mixed_population, search_space, stair_experiment,
 };
 use mckibben::eval::{Backend, Evaluator, Problem, open};
-use mckibben::model::effects::{Augmented, Context, Effect};
+use mckibben::model::effects::{Context, Effect, ModelDescription};
 use mckibben::model::presets::THESIS_B;
 use mckibben::model::{Experiment, Family};
 use mckibben::report::json::Versioned;
@@ -255,7 +255,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The effects' constants per dataset, as the diagnosis builds them: the
     // side a rising input drives the output to is the sign of the prior's
     // gain (the thesis' here, as the search box below).
-    let model = Augmented::new(args.model, args.effects.clone(), datasets);
+    let model = ModelDescription::new(args.model, args.effects.clone(), datasets);
     let contexts: Vec<Context> = problem
         .experiments
         .iter()

@@ -9,7 +9,7 @@ use super::common::DataArgs;
 use mckibben::data::write_atomic;
 use mckibben::ident::ArxOrders;
 use mckibben::ident::arx::{Identification, identify};
-use mckibben::model::{Family, FittedModel, Model, ModelFile};
+use mckibben::model::{Family, FittedBaseline, Model, ModelFile};
 use mckibben::report::json::Versioned;
 
 /// Identify a linear ARX model from a recorded experiment, as the thesis does
@@ -69,7 +69,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut outputs = Vec::new();
     for trace in &traces {
         let id = identify(trace, orders)?;
-        let model = (orders == ArxOrders::default()).then(|| FittedModel {
+        let model = (orders == ArxOrders::default()).then(|| FittedBaseline {
             family: Family::Linear,
             params: vec![id.arx.a[0], id.arx.b[0], 0.0, 0.0],
             input_mean: id.input_mean,

@@ -11,7 +11,7 @@ use mckibben::data::signals::Stair;
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::experiment::halves;
 use mckibben::model::presets::thesis_params;
-use mckibben::model::{Family, FittedModel, Model, ModelFile};
+use mckibben::model::{Family, FittedBaseline, Model, ModelFile};
 use mckibben::report::json::{Named, Versioned};
 use mckibben::report::{Figure, Panel, Series};
 
@@ -128,7 +128,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut model = match &file {
         Some(f) => f.model()?,
-        None => Model::plain(FittedModel {
+        None => Model::plain(FittedBaseline {
             family: args.model,
             params: thesis_params(args.model),
             input_mean: f64::NAN,

@@ -22,7 +22,7 @@ use super::model::{ControlModel, Predictor, State};
 use super::valve::{ValveModel, window_starts};
 use crate::data::Trace;
 use crate::data::signals::Multisine;
-use crate::model::{Family, FittedModel};
+use crate::model::{Family, FittedBaseline};
 use crate::optim::lm::{LmSettings, levenberg_marquardt};
 
 /// The valve band the sine references of §6.2 need on the twin (20–40 mm lie
@@ -214,7 +214,7 @@ fn model_of(theta: &[f64], valve: &ValveModel, trace: &Trace, mu: f64, my: f64) 
     ];
     let a = rho + h;
     ControlModel {
-        displacement: FittedModel {
+        displacement: FittedBaseline {
             family: Family::Classic,
             // A = 1 and n = 1: for n = 1, A only rescales w, which the
             // weight a·(1−α) absorbs.

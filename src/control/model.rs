@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 
 use super::chain::{ControlChain, MAX_EFFECT_STATES};
 use super::valve::ValveModel;
-use crate::model::{Family, FittedModel};
+use crate::model::{Family, FittedBaseline};
 
 /// What a model-based controller knows about the plant, identified from data
 /// (`control::design`), never read from a plant's internals.
@@ -25,7 +25,7 @@ use crate::model::{Family, FittedModel};
 pub struct ControlModel {
     /// Pressure (MPa) → displacement (mm): eq. 13, classic family (or the
     /// linear one, which has no `w`), in deviation coordinates.
-    pub displacement: FittedModel,
+    pub displacement: FittedBaseline,
     /// `b₂` (mm/MPa²): the curvature of the pressure → displacement map
     /// (0 for a model read from `fit` or `identify`).
     pub curvature: f64,
@@ -273,7 +273,7 @@ impl Predictor {
 #[cfg(test)]
 pub(crate) fn example_model() -> ControlModel {
     ControlModel {
-        displacement: FittedModel {
+        displacement: FittedBaseline {
             family: Family::Classic,
             params: vec![1.0, 1.07, 0.1, 0.6, 1.0, 0.87, 7.5, 0.05, 0.0],
             input_mean: 0.2,

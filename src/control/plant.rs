@@ -3,7 +3,7 @@
 //! (`crate::twin::Rig`) is the plant of record; [`StandIn`] is a small plant
 //! made from the project's own model for fast tests.
 
-use crate::model::FittedModel;
+use crate::model::FittedBaseline;
 use crate::model::sim::Stepper;
 
 /// Measured values at one sample.
@@ -31,7 +31,7 @@ pub trait Plant {
 /// Noise-free and deterministic; for tests and examples, not a rig.
 #[derive(Debug, Clone)]
 pub struct StandIn {
-    model: FittedModel,
+    model: FittedBaseline,
     stepper: Stepper,
     dt: f64,
     /// Pole of the valve → pressure lag.
@@ -47,7 +47,7 @@ impl StandIn {
     /// Starts at rest with the valve at `u0` volts: pressure at its static
     /// value, the displacement model's state at `x = 0`, `w = 0`.
     pub fn new(
-        model: FittedModel,
+        model: FittedBaseline,
         pressure_pole: f64,
         pressure_range: (f64, f64),
         u0: f64,
@@ -74,7 +74,7 @@ impl StandIn {
     /// pressure lag and 0.15–0.35 MPa over the valve range, sampled at 10 ms.
     pub fn thesis_like(u0: f64) -> Self {
         let family = crate::model::Family::Classic;
-        let model = FittedModel {
+        let model = FittedBaseline {
             family,
             params: crate::model::presets::thesis_params(family),
             input_mean: 0.25,

@@ -22,7 +22,7 @@ use crate::data::Trace;
 use crate::data::csv::{ReadOptions, read_traces};
 use crate::data::units::unit_of;
 use crate::model::effects::Effect;
-use crate::model::{FittedModel, ModelFile};
+use crate::model::{FittedBaseline, ModelFile};
 use crate::twin::{self, Rig, TwinConfig};
 
 /// The controllers `mckibben control` knows.
@@ -153,7 +153,7 @@ pub fn design_on_twin(
 #[allow(clippy::too_many_arguments)]
 pub fn with_displacement(
     design: &Design,
-    displacement: FittedModel,
+    displacement: FittedBaseline,
     chain: Option<ControlChain>,
     source: String,
     config: &TwinConfig,
@@ -179,7 +179,7 @@ pub fn with_displacement(
 /// The design multisine run on the twin at `load` (seed `seed`) and its
 /// validation twin (seed `seed + 1`).
 pub fn twin_records(config: &TwinConfig, load: f64, seed: u64) -> (Trace, Trace) {
-    let experiment = twin::Experiment::Multisine(design::design_multisine());
+    let experiment = twin::TwinExperiment::Multisine(design::design_multisine());
     (
         twin::run(config, load, seed, &experiment),
         twin::run(config, load, seed + 1, &experiment),

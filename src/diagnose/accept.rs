@@ -30,7 +30,7 @@
 
 use serde::Serialize;
 
-use super::effects::{Augmented, Effect};
+use super::effects::{Effect, ModelDescription};
 use super::fitting::SeededFit;
 use super::settings::Settings;
 
@@ -69,7 +69,7 @@ fn without_best_block(before: &[f64], after: &[f64]) -> Option<f64> {
 pub struct Candidate {
     pub effect: Effect,
     /// The model the candidate is (current effects plus this one).
-    pub model: Augmented,
+    pub model: ModelDescription,
     pub fit: SeededFit,
     /// The candidate's own parameters, by name.
     pub effect_params: Vec<(String, f64)>,
@@ -104,7 +104,7 @@ pub struct Yardstick {
 /// Judges every candidate fit (with its SSE on each selection block)
 /// against the yardstick, best selection RMSE first.
 pub fn judge_all(
-    fits: &[(Effect, Augmented, SeededFit, Vec<f64>)],
+    fits: &[(Effect, ModelDescription, SeededFit, Vec<f64>)],
     yardstick: &Yardstick,
     n: f64,
     settings: &Settings,
@@ -125,7 +125,7 @@ impl Candidate {
     /// ([`Yardstick`]) by the acceptance rule; `n` selection samples.
     pub fn judge(
         effect: Effect,
-        model: Augmented,
+        model: ModelDescription,
         fit: SeededFit,
         blocks: &[f64],
         yardstick: &Yardstick,
@@ -250,7 +250,7 @@ mod tests {
         n: f64,
         blocks: &[f64],
     ) -> Candidate {
-        let model = Augmented::new(Family::Classic, vec![Effect::Delay], 1);
+        let model = ModelDescription::new(Family::Classic, vec![Effect::Delay], 1);
         let fit = SeededFit {
             best: ScoredFit {
                 params: vec![0.5; model.dim()],
@@ -348,7 +348,7 @@ mod tests {
 
     #[test]
     fn candidates_are_ranked_by_validation_rmse() {
-        let model = Augmented::new(Family::Classic, vec![Effect::Delay], 1);
+        let model = ModelDescription::new(Family::Classic, vec![Effect::Delay], 1);
         let fit = |r: f64| SeededFit {
             best: ScoredFit {
                 params: vec![0.5; model.dim()],

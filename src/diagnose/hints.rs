@@ -157,7 +157,7 @@ mod tests {
     use super::*;
     use crate::data::Trace;
     use crate::model::Family;
-    use crate::model::effects::Augmented;
+    use crate::model::effects::ModelDescription;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
@@ -202,7 +202,7 @@ mod tests {
     fn a_ringing_starts_at_the_residual_spectrum_peak_with_its_kick() {
         let (hz, kick) = (4.0, 2.0);
         let data = ringing_data(hz, kick);
-        let model = Augmented::new(Family::Linear, vec![Effect::Ringing], 1);
+        let model = ModelDescription::new(Family::Linear, vec![Effect::Ringing], 1);
         let p = data.with_model(&model);
         let (neutral, lo, hi) = (p.centre(), p.space.lower.clone(), p.space.upper.clone());
         // The first-order muscle itself, in the data's deviation coordinates.
@@ -229,7 +229,7 @@ mod tests {
     #[test]
     fn a_ringing_without_a_resonance_is_not_admitted() {
         let data = ringing_data(4.0, 2.0);
-        let model = Augmented::new(Family::Linear, vec![Effect::Ringing], 1);
+        let model = ModelDescription::new(Family::Linear, vec![Effect::Ringing], 1);
         let p = data.with_model(&model);
         let mut theta = p.centre();
         theta[..2].copy_from_slice(&[0.9, 1.0]);
@@ -249,12 +249,12 @@ mod tests {
     #[test]
     fn only_modes_get_hints() {
         let data = ringing_data(4.0, 2.0);
-        let model = Augmented::new(Family::Linear, vec![Effect::Creep], 1);
+        let model = ModelDescription::new(Family::Linear, vec![Effect::Creep], 1);
         let p = data.with_model(&model);
         let (neutral, lo, hi) = (p.centre(), p.space.lower.clone(), p.space.upper.clone());
         assert!(mode_hints(&p, &neutral, 4, (&lo, &hi)).is_empty());
         // A mode already in the model (before `new_from`) is not moved.
-        let model = Augmented::new(Family::Linear, vec![Effect::Ringing, Effect::Creep], 1);
+        let model = ModelDescription::new(Family::Linear, vec![Effect::Ringing, Effect::Creep], 1);
         let p = data.with_model(&model);
         let (neutral, lo, hi) = (p.centre(), p.space.lower.clone(), p.space.upper.clone());
         assert!(mode_hints(&p, &neutral, 7, (&lo, &hi)).is_empty());

@@ -34,7 +34,7 @@ pub mod transfer;
 
 use serde::Serialize;
 
-pub use effects::{Augmented, Effect};
+pub use effects::{Effect, ModelDescription};
 pub use select::Selection;
 pub use settings::{Interrupted, Settings, StopFlag};
 
@@ -249,7 +249,7 @@ pub fn diagnose_from(
     // The models along the way, final: each model and its parameters.
     let base_model = &selection.baseline_model;
     let base = &selection.baseline.best;
-    let mut models: Vec<(Augmented, &[f64])> = vec![(base_model.clone(), &base.params)];
+    let mut models: Vec<(ModelDescription, &[f64])> = vec![(base_model.clone(), &base.params)];
     if let Some(given) = &selection.given_fit {
         // The first round may have found a better fit of the start model.
         let fit = selection
@@ -257,7 +257,7 @@ pub fn diagnose_from(
             .first()
             .and_then(|round| round.rebased.last())
             .map_or(&given.best, |f| &f.best);
-        let model = Augmented::new(family, selection.given.clone(), data.datasets());
+        let model = ModelDescription::new(family, selection.given.clone(), data.datasets());
         models.push((model, &fit.params));
     }
     for (r, round) in selection.rounds.iter().enumerate() {
@@ -395,7 +395,7 @@ pub fn diagnose_from(
 /// Each of `models` (the baseline first) scored on every part: the second
 /// half, the selection part and, read here for the first time, the test
 /// part; the gap each closes measured from the baseline's on each part.
-fn steps_of(data: &FitProblem, models: &[(Augmented, &[f64])], floor: f64) -> Vec<Step> {
+fn steps_of(data: &FitProblem, models: &[(ModelDescription, &[f64])], floor: f64) -> Vec<Step> {
     let scored: Vec<_> = models
         .iter()
         .map(|(m, theta)| {
@@ -432,13 +432,13 @@ fn start_of(
     model: &Model,
     family: Family,
     datasets: usize,
-) -> anyhow::Result<(Augmented, Vec<f64>)> {
+) -> anyhow::Result<(ModelDescription, Vec<f64>)> {
     anyhow::ensure!(
         model.base.family == family,
         "the start model is {}, the baseline asked for {family}",
         model.base.family
     );
-    let augmented = Augmented::new(family, model.effects().to_vec(), datasets);
+    let augmented = ModelDescription::new(family, model.effects().to_vec(), datasets);
     let theta = model.theta();
     anyhow::ensure!(
         theta.len() == augmented.dim(),

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::accept::{Candidate, Yardstick, judge_all};
-use super::effects::{Augmented, Effect};
+use super::effects::{Effect, ModelDescription};
 use super::fitting::{
     ScoredFit, SeededFit, Start, fit_seeds, fit_seeds_with, fit_with_effect, scratch_fits,
 };
@@ -42,7 +42,7 @@ pub struct Round {
 /// The result of the selection.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Selection {
-    pub baseline_model: Augmented,
+    pub baseline_model: ModelDescription,
     pub baseline: SeededFit,
     /// The effects of the model the selection started from (`diagnose
     /// --from`): taken as given, not judged; the rounds add to them.
@@ -55,7 +55,7 @@ pub struct Selection {
     /// Whether the selection stopped at [`Settings::max_effects`] with its
     /// last round still accepting: more effects might have passed.
     pub capped: bool,
-    pub final_model: Augmented,
+    pub final_model: ModelDescription,
     pub final_fit: ScoredFit,
 }
 
@@ -83,9 +83,9 @@ pub fn select(
     effects: &[Effect],
     settings: &Settings,
     floor: f64,
-    from: Option<(&Augmented, &[f64])>,
+    from: Option<(&ModelDescription, &[f64])>,
 ) -> anyhow::Result<Selection> {
-    let baseline_model = Augmented::new(family, Vec::new(), data.datasets());
+    let baseline_model = ModelDescription::new(family, Vec::new(), data.datasets());
     let d = family.dim();
     let baseline_start = match from {
         Some((_, theta)) => Start::Warm {
@@ -139,7 +139,7 @@ pub fn select(
         if remaining.is_empty() {
             break;
         }
-        let remaining_models: Vec<Augmented> =
+        let remaining_models: Vec<ModelDescription> =
             remaining.iter().map(|&e| current_model.with(e)).collect();
         let salt = 100 * (round as u64 + 1);
         let refit = Start::Warm {
@@ -152,7 +152,7 @@ pub fn select(
         // Every fit has its own seed, so fits run side by side give the
         // same numbers as one after the other.
         let scratch: Vec<Vec<ScoredFit>> = if first_round {
-            let models: Vec<&Augmented> = std::iter::once(&current_model)
+            let models: Vec<&ModelDescription> = std::iter::once(&current_model)
                 .chain(&remaining_models)
                 .collect();
             (0..models.len())
@@ -199,7 +199,7 @@ pub fn select(
         let mut ablations = 0;
         let candidates = loop {
             let salt = salt + 10 * ablations as u64;
-            let fits: Vec<(Effect, Augmented, SeededFit, Vec<f64>)> = (0..remaining.len())
+            let fits: Vec<(Effect, ModelDescription, SeededFit, Vec<f64>)> = (0..remaining.len())
                 .into_par_iter()
                 .map(|i| {
                     let effect = remaining[i];

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
-use super::effects::{Augmented, Context, Effect};
+use super::effects::{Context, Effect, ModelDescription};
 use super::fitting::{Start, fit_seeds};
 use super::settings::Settings;
 use super::{Diagnosis, diagnose};
@@ -195,13 +195,13 @@ pub fn noise_sigma(nominal: &Nominal) -> f64 {
 
 /// The model a case's data come from and its parameters: the nominal model
 /// with the case's effects (two datasets, two loads, with `load`).
-fn case_model(nominal: &Nominal, case: &Case) -> (Augmented, Vec<f32>) {
+fn case_model(nominal: &Nominal, case: &Case) -> (ModelDescription, Vec<f32>) {
     let datasets = if case.effects.iter().any(|(e, _)| *e == Effect::Load) {
         2
     } else {
         1
     };
-    let model = Augmented::new(
+    let model = ModelDescription::new(
         nominal.family,
         case.effects.iter().map(|(e, _)| *e).collect(),
         datasets,

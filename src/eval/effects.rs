@@ -2,17 +2,17 @@
 //! augmented models): [`LANES`] candidates advance side by side through the
 //! one augmented step, [`Prepared::step`] (whose stages are loops over the
 //! lanes that compile to vector instructions), so that every lane's SSE is
-//! bit-identical to [`Augmented::measured_sse`] for that candidate.
+//! bit-identical to [`ModelDescription::measured_sse`] for that candidate.
 //! Divergence latches per lane as in [`super::cpu`].
 
 use super::Problem;
 use super::batch::{LANES, block};
-use crate::model::effects::{Augmented, Prepared};
+use crate::model::effects::{ModelDescription, Prepared};
 
 /// The SSE of every lane of one batch (`chunk`: up to [`LANES`] rows of
 /// `model`'s parameters; a short batch is padded with its first row, whose
 /// copies' scores the caller drops) on each experiment of `problem`.
-pub fn batch_sse(problem: &Problem, model: &Augmented, chunk: &[f32]) -> Vec<[f32; LANES]> {
+pub fn batch_sse(problem: &Problem, model: &ModelDescription, chunk: &[f32]) -> Vec<[f32; LANES]> {
     let d = model.dim();
     let used = chunk.len() / d;
     let mut rows = chunk.to_vec();

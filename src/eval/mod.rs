@@ -12,7 +12,7 @@ pub mod effects;
 pub mod gpu;
 pub mod workload;
 
-use crate::model::effects::{Augmented, Context, Effect};
+use crate::model::effects::{Context, Effect, ModelDescription};
 use crate::model::{Experiment, Family, Measure};
 
 /// What is scored: a model family against one or more experiments (e.g. two
@@ -60,8 +60,8 @@ impl Problem {
     }
 
     /// The model scored: the family and its effect stages.
-    pub fn model(&self) -> Augmented {
-        Augmented::new(self.family, self.effects.clone(), self.experiments.len())
+    pub fn model(&self) -> ModelDescription {
+        ModelDescription::new(self.family, self.effects.clone(), self.experiments.len())
     }
 
     /// Parameters per candidate.

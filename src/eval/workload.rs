@@ -7,7 +7,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::data::Trace;
-use crate::model::effects::{Augmented, Context, EffectBox, effect_box};
+use crate::model::effects::{Context, EffectBox, ModelDescription, effect_box};
 use crate::model::presets::{THESIS_A, THESIS_B, thesis_params};
 use crate::model::{Experiment, Family, Flow, LinearPrior, SearchSpace, simulate};
 
@@ -114,7 +114,7 @@ pub fn mixed_population(space: &SearchSpace, count: usize, rng: &mut ChaCha8Rng)
 /// around the effect's neutral value on odd rows (clamped to the box), so
 /// that odd rows stay near the preset and nearly all finite.
 pub fn augmented_population(
-    model: &Augmented,
+    model: &ModelDescription,
     space: &SearchSpace,
     ctx: &Context,
     count: usize,

@@ -120,7 +120,7 @@ impl<'a> ModelObjective<'a> {
 
 impl ModelObjective<'_> {
     /// Which rows the fits admit whatever the measure: their effect
-    /// parameters ([`crate::model::effects::Augmented::effects_admit`]; all,
+    /// parameters ([`crate::model::effects::ModelDescription::effects_admit`]; all,
     /// without effects) and, with [`ModelObjective::bounded_loops`], their
     /// loop.
     fn admitted(&self, rows: &[f64]) -> Vec<bool> {

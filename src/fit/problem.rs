@@ -23,12 +23,12 @@ use crate::data::Trace;
 use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
 use crate::model::bounds::Origin;
-use crate::model::effects::{Augmented, Context, Effect, EffectBox, effect_box};
+use crate::model::effects::{Context, Effect, EffectBox, ModelDescription, effect_box};
 use crate::model::experiment::{Parts, halves};
 use crate::model::file::Chain;
 use crate::model::presets::ThesisBounds;
 use crate::model::{
-    Experiment, Family, FittedModel, Flow, LinearPrior, Loop, Model, SearchSpace, Switching,
+    Experiment, Family, FittedBaseline, Flow, LinearPrior, Loop, Model, SearchSpace, Switching,
     UserBound,
 };
 
@@ -70,7 +70,7 @@ pub struct FitProblem {
     pub parts: Vec<Parts>,
     /// What is fitted: the family and its effect stages, in chain order;
     /// their parameters follow the family's in every vector.
-    pub model: Augmented,
+    pub model: ModelDescription,
     /// The box the fit searches.
     pub space: SearchSpace,
     pub flow: Flow,
@@ -167,7 +167,7 @@ impl FitProblem {
                 selection: Vec::new(),
                 test: vec![validation],
             }],
-            model: Augmented::new(family, Vec::new(), 1),
+            model: ModelDescription::new(family, Vec::new(), 1),
             space,
             flow,
             loop_shape,
@@ -203,7 +203,7 @@ impl FitProblem {
             .collect();
         let first = &traces[0];
         let records = Arc::new(records);
-        let baseline = Augmented::new(family, Vec::new(), traces.len());
+        let baseline = ModelDescription::new(family, Vec::new(), traces.len());
         Ok(FitProblem {
             space: FitProblem::diagnosis_box(&records, &baseline),
             records,
@@ -223,7 +223,7 @@ impl FitProblem {
     /// The same records, parts, rules and evaluator with `model` fitted, in
     /// the diagnosis' box ([`FitProblem::diagnosis_box`]): the diagnosis'
     /// candidates.
-    pub fn with_model(&self, model: &Augmented) -> FitProblem {
+    pub fn with_model(&self, model: &ModelDescription) -> FitProblem {
         FitProblem {
             model: model.clone(),
             space: FitProblem::diagnosis_box(&self.records, model),
@@ -234,7 +234,7 @@ impl FitProblem {
     /// The diagnosis' box of `model`: the joint flow's box around the ARX
     /// estimate ([`SearchSpace::around`]: thesis hull, `a`, `b`, `c` around
     /// the ARX estimate) plus each effect's box.
-    fn diagnosis_box(records: &Records, model: &Augmented) -> SearchSpace {
+    fn diagnosis_box(records: &Records, model: &ModelDescription) -> SearchSpace {
         let mut base = SearchSpace::around(model.family, None, records.prior, Flow::Joint, false);
         // Least squares on hysteretic data underestimates the input gain: the
         // hysteretic model's `b` relates to the ARX static gain
@@ -387,7 +387,7 @@ impl FitProblem {
                 "--effects: `{e}` needs several datasets (one per load); `fit` fits one record"
             );
         }
-        self.model = Augmented::new(self.model.family, effects.to_vec(), 1);
+        self.model = ModelDescription::new(self.model.family, effects.to_vec(), 1);
         let names = self.model.param_names();
         let d = self.model.family.dim();
         let (mut lower, mut upper) = (Vec::new(), Vec::new());
@@ -477,7 +477,7 @@ impl FitProblem {
     }
 
     /// Whether the problem's fits admit `theta` whatever the measure: every
-    /// effect admitted ([`Augmented::effects_admit`]: a ringing must ring)
+    /// effect admitted ([`ModelDescription::effects_admit`]: a ringing must ring)
     /// and, under [`Admission::BoundedLoops`], a bounded loop.
     pub fn admits(&self, theta: &[f64]) -> bool {
         let loop_ok =
@@ -494,7 +494,7 @@ impl FitProblem {
     }
 
     /// Estimation SSE of the `horizon`-step-ahead prediction (see
-    /// [`Augmented::sse_ahead`]).
+    /// [`ModelDescription::sse_ahead`]).
     pub fn est_sse_ahead(&self, theta: &[f64], horizon: usize) -> f64 {
         let model = &self.model;
         self.est_sum(theta, |t, i, c, e| model.sse_ahead(t, i, c, e, horizon))
@@ -650,7 +650,7 @@ impl FitProblem {
     pub fn fitted_model(&self, params: &[f64]) -> Model {
         let family = self.model.family;
         let d = family.dim();
-        let base = FittedModel {
+        let base = FittedBaseline {
             family,
             params: params[..d].to_vec(),
             input_mean: self.estimation().u_mean,

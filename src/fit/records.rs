@@ -10,7 +10,7 @@ use std::ops::Range;
 use crate::data::Trace;
 use crate::ident::arx::{Arx, ArxOrders, linear_prior};
 use crate::ident::{fit_percent, rmse};
-use crate::model::effects::{Augmented, Context};
+use crate::model::effects::{Context, ModelDescription};
 use crate::model::experiment::halves;
 use crate::model::{Experiment, LinearPrior, Model};
 
@@ -119,7 +119,7 @@ impl Records {
     /// parameters would score badly. Infinite RMSE and −∞ fit where a run
     /// is not finite on its validation half. `fit`, `diagnose` and the
     /// generated cases' judge all score here.
-    pub fn validate(&self, model: &Augmented, theta: &[f64]) -> Validation {
+    pub fn validate(&self, model: &ModelDescription, theta: &[f64]) -> Validation {
         let halves: Vec<Vec<Range<usize>>> = self
             .whole
             .iter()
@@ -136,7 +136,7 @@ impl Records {
     /// run is not finite on a scored sample.
     pub fn score_on(
         &self,
-        model: &Augmented,
+        model: &ModelDescription,
         theta: &[f64],
         ranges: &[Vec<Range<usize>>],
     ) -> Validation {
@@ -232,7 +232,7 @@ mod tests {
             Synthetic::new(Family::Classic, 800, 0.05, 2),
         );
         let both = Records::of(&[a.trace.clone(), b.trace.clone()], None).unwrap();
-        let model = Augmented::new(Family::Classic, Vec::new(), 2);
+        let model = ModelDescription::new(Family::Classic, Vec::new(), 2);
         let pooled = both.validate(&model, &a.truth);
         assert!(pooled.fit_percent > 90.0, "{pooled:?}");
         // The pooled RMSE² is the sample-weighted mean of each record's,
@@ -248,7 +248,7 @@ mod tests {
                 prior: both.prior,
             };
             let n = both.whole[i].len() - both.val_start[i];
-            let single = Augmented::new(Family::Classic, Vec::new(), 1);
+            let single = ModelDescription::new(Family::Classic, Vec::new(), 1);
             sum += one.validate(&single, &a.truth).rmse.powi(2) * n as f64;
             samples += n;
         }

@@ -11,10 +11,10 @@ use anyhow::Context as _;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use super::effects::{Augmented, Context, Effect};
+use super::effects::{Context, Effect, ModelDescription};
 use super::experiment::Experiment;
 use super::family::Family;
-use super::fitted::FittedModel;
+use super::fitted::FittedBaseline;
 use super::sim::DIVERGENCE_BOUND;
 use crate::data::units::unit_of;
 use crate::data::write_atomic;
@@ -45,7 +45,7 @@ pub struct Chain {
 /// --effects` found them, its effects.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
-    pub base: FittedModel,
+    pub base: FittedBaseline,
     pub chain: Option<Chain>,
 }
 
@@ -61,7 +61,7 @@ pub struct Run {
 
 impl Model {
     /// A baseline without effects.
-    pub fn plain(base: FittedModel) -> Model {
+    pub fn plain(base: FittedBaseline) -> Model {
         Model { base, chain: None }
     }
 
@@ -71,9 +71,9 @@ impl Model {
     }
 
     /// The model description the evaluator and the diagnosis use.
-    pub fn augmented(&self) -> Augmented {
+    pub fn augmented(&self) -> ModelDescription {
         let datasets = self.chain.as_ref().map_or(1, |c| c.datasets);
-        Augmented::new(self.base.family, self.effects().to_vec(), datasets)
+        ModelDescription::new(self.base.family, self.effects().to_vec(), datasets)
     }
 
     /// Every parameter: the baseline's canonical vector, then the effects'.
@@ -392,7 +392,7 @@ impl ModelFile {
             .map(|e| e.parse::<Effect>().map_err(anyhow::Error::msg))
             .collect::<anyhow::Result<_>>()?;
         anyhow::ensure!(self.datasets >= 1, "`datasets` must be at least 1");
-        let augmented = Augmented::new(self.family, effects.clone(), self.datasets);
+        let augmented = ModelDescription::new(self.family, effects.clone(), self.datasets);
         let names = augmented.param_names();
         let mut params = self.params.clone();
         if self.family.switch_index().is_some() && !params.contains_key("x_s") {
@@ -424,7 +424,7 @@ impl ModelFile {
             })
             .collect::<anyhow::Result<_>>()?;
         let d = self.family.dim();
-        let base = FittedModel {
+        let base = FittedBaseline {
             family: self.family,
             params: theta[..d].to_vec(),
             input_mean: self.data.input.mean,
@@ -461,9 +461,9 @@ fn chain_text(effects: &[Effect]) -> String {
 }
 
 /// A version-1 model: bare, or in `identify --out`'s `model` field.
-fn legacy_model(path: &Path, value: serde_json::Value) -> anyhow::Result<FittedModel> {
+fn legacy_model(path: &Path, value: serde_json::Value) -> anyhow::Result<FittedBaseline> {
     let inner = value.get("model").cloned().unwrap_or(value);
-    let mut model: FittedModel = serde_json::from_value(inner).with_context(|| {
+    let mut model: FittedBaseline = serde_json::from_value(inner).with_context(|| {
         format!(
             "{}: not a model file (no `format` field, and not a version-1 model written \
              by identify or fit)",
@@ -496,8 +496,8 @@ mod tests {
     use super::*;
     use crate::model::presets::thesis_params;
 
-    fn base() -> FittedModel {
-        FittedModel {
+    fn base() -> FittedBaseline {
+        FittedBaseline {
             family: Family::Classic,
             params: thesis_params(Family::Classic),
             input_mean: 0.25,
@@ -590,7 +590,7 @@ mod tests {
     #[test]
     fn a_generalized_model_from_before_x_s_switches_at_its_estimation_mean() {
         let dir = tempfile::tempdir().unwrap();
-        let mut now = FittedModel {
+        let mut now = FittedBaseline {
             family: Family::Generalized,
             params: thesis_params(Family::Generalized),
             ..base()

@@ -11,7 +11,7 @@ use crate::data::Trace;
 /// A baseline model with its parameters and the coordinates it was fitted in
 /// (version 1 of the model file is this struct as JSON).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct FittedModel {
+pub struct FittedBaseline {
     pub family: Family,
     /// Canonical parameter vector (see [`Family::params`]).
     pub params: Vec<f64>,
@@ -25,7 +25,7 @@ pub struct FittedModel {
     pub output_name: String,
 }
 
-impl FittedModel {
+impl FittedBaseline {
     /// Parameters by name, in canonical order.
     pub fn named_params(&self) -> Vec<(&'static str, f64)> {
         self.family

@@ -19,5 +19,5 @@ pub use coords::{Coordinates, Loop};
 pub use experiment::Experiment;
 pub use family::{Family, ParamInfo};
 pub use file::{Model, ModelFile};
-pub use fitted::FittedModel;
+pub use fitted::FittedBaseline;
 pub use sim::{DIVERGENCE_BOUND, Measure, Simulation, measured_sse, residuals, simulate, sse};

@@ -263,24 +263,24 @@ pub const EFFECT_NAMES: [&str; 10] = [
 /// (the code path skipped). A scale of 0 must give exactly the trace of the
 /// removed effect; `tests/twin.rs` checks that for every effect.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Effect {
+pub struct EffectScale {
     pub scale: f64,
     pub present: bool,
 }
 
-impl Default for Effect {
+impl Default for EffectScale {
     fn default() -> Self {
-        Effect {
+        EffectScale {
             scale: 1.0,
             present: true,
         }
     }
 }
 
-impl Effect {
+impl EffectScale {
     /// An effect in the model at scale 0: off until `--effect NAME=1`.
     pub const fn off() -> Self {
-        Effect {
+        EffectScale {
             scale: 0.0,
             present: true,
         }
@@ -298,48 +298,48 @@ impl Effect {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Effects {
     /// Braid friction: scales the break-away forces of the Maxwell-slip elements.
-    pub friction: Effect,
+    pub friction: EffectScale,
     /// Valve dead band: scales its width.
-    pub deadband: Effect,
+    pub deadband: EffectScale,
     /// Valve spool lag: scales its time constant.
-    pub spool_lag: Effect,
+    pub spool_lag: EffectScale,
     /// Hose and bladder compliance: scales it (0 leaves water's own bulk modulus).
-    pub compliance: Effect,
+    pub compliance: EffectScale,
     /// End stops: scale their contact stiffness and damping.
-    pub endstop: Effect,
+    pub endstop: EffectScale,
     /// Sensor noise: scales both standard deviations.
-    pub noise: Effect,
+    pub noise: EffectScale,
     /// Sensor quantization: scales both steps (divides the counts per unit).
-    pub quantization: Effect,
+    pub quantization: EffectScale,
     /// Wall thickness t_k of eq. 8–9: scales it (0 gives the ideal eq. 7).
-    pub thickness: Effect,
+    pub thickness: EffectScale,
     /// Creep of the bladder: scales the relaxing share of the rubber's
     /// stiffness. Off by default.
-    pub creep: Effect,
+    pub creep: EffectScale,
     /// The load's ringing on the muscle's stiffness: scales its excitation.
     /// Off by default.
-    pub ringing: Effect,
+    pub ringing: EffectScale,
 }
 
 impl Default for Effects {
     fn default() -> Self {
         Effects {
-            friction: Effect::default(),
-            deadband: Effect::default(),
-            spool_lag: Effect::default(),
-            compliance: Effect::default(),
-            endstop: Effect::default(),
-            noise: Effect::default(),
-            quantization: Effect::default(),
-            thickness: Effect::default(),
-            creep: Effect::off(),
-            ringing: Effect::off(),
+            friction: EffectScale::default(),
+            deadband: EffectScale::default(),
+            spool_lag: EffectScale::default(),
+            compliance: EffectScale::default(),
+            endstop: EffectScale::default(),
+            noise: EffectScale::default(),
+            quantization: EffectScale::default(),
+            thickness: EffectScale::default(),
+            creep: EffectScale::off(),
+            ringing: EffectScale::off(),
         }
     }
 }
 
 impl Effects {
-    fn get_mut(&mut self, name: &str) -> Option<&mut Effect> {
+    fn get_mut(&mut self, name: &str) -> Option<&mut EffectScale> {
         Some(match name {
             "friction" => &mut self.friction,
             "deadband" => &mut self.deadband,

@@ -36,7 +36,7 @@ impl Default for ThesisPi {
 
 /// What to run.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Experiment {
+pub enum TwinExperiment {
     /// The identification staircase on the input valve (open loop).
     Stair(Stair),
     /// The sine reference tracked by the thesis' PI on the displacement.
@@ -45,13 +45,13 @@ pub enum Experiment {
     Multisine(Multisine),
 }
 
-impl Experiment {
+impl TwinExperiment {
     /// A short name for the trace's `source`.
     pub fn name(&self) -> String {
         match self {
-            Experiment::Stair(_) => "stair".into(),
-            Experiment::Sine(r, _) => format!("sine {} rad/s", r.omega_rad_s),
-            Experiment::Multisine(_) => "multisine".into(),
+            TwinExperiment::Stair(_) => "stair".into(),
+            TwinExperiment::Sine(r, _) => format!("sine {} rad/s", r.omega_rad_s),
+            TwinExperiment::Multisine(_) => "multisine".into(),
         }
     }
 }
@@ -59,15 +59,15 @@ impl Experiment {
 /// Runs `experiment` on a fresh rig and returns the recorded trace. Row `k`
 /// holds the sensors read at `t = k·dt` and the valve commands applied from
 /// that instant on (for the sine, computed from that very reading).
-pub fn run(config: &TwinConfig, load_kg: f64, seed: u64, experiment: &Experiment) -> Trace {
+pub fn run(config: &TwinConfig, load_kg: f64, seed: u64, experiment: &TwinExperiment) -> Trace {
     let mut rig = Rig::new(config, load_kg, seed);
     let dt = rig.dt();
     let mut rows: Vec<Sample> = Vec::new();
     let mut reference = Vec::new();
     match experiment {
-        Experiment::Stair(s) => open_loop(&mut rig, &s.generate(dt), &mut rows),
-        Experiment::Multisine(m) => open_loop(&mut rig, &m.generate(dt, seed), &mut rows),
-        Experiment::Sine(r, pi) => {
+        TwinExperiment::Stair(s) => open_loop(&mut rig, &s.generate(dt), &mut rows),
+        TwinExperiment::Multisine(m) => open_loop(&mut rig, &m.generate(dt, seed), &mut rows),
+        TwinExperiment::Sine(r, pi) => {
             reference = r.generate(dt);
             let full = config.valve.full_scale_v;
             let mut integral = 0.0;
@@ -167,17 +167,17 @@ impl RunSpec {
     }
 
     /// The experiment with the thesis' settings (appendix A.1).
-    pub fn experiment(&self) -> Experiment {
+    pub fn experiment(&self) -> TwinExperiment {
         match self.kind {
-            Kind::Stair => Experiment::Stair(Stair::default()),
-            Kind::Sine => Experiment::Sine(
+            Kind::Stair => TwinExperiment::Stair(Stair::default()),
+            Kind::Sine => TwinExperiment::Sine(
                 SineReference {
                     omega_rad_s: self.freq_rad_s,
                     ..SineReference::default()
                 },
                 ThesisPi::default(),
             ),
-            Kind::Multisine => Experiment::Multisine(Multisine::default()),
+            Kind::Multisine => TwinExperiment::Multisine(Multisine::default()),
         }
     }
 

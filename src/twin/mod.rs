@@ -31,8 +31,8 @@ pub mod muscle;
 pub mod sensors;
 pub mod valve;
 
-pub use config::{EFFECT_NAMES, Effect, Effects, TwinConfig};
-pub use experiment::{Experiment, run};
+pub use config::{EFFECT_NAMES, EffectScale, Effects, TwinConfig};
+pub use experiment::{TwinExperiment, run};
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;

@@ -18,7 +18,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
 
-use super::realisation::Realisation;
+use super::mechanism::Mechanism;
 use crate::data::Trace;
 
 /// The nominal classic model in the coordinates it was fitted in.
@@ -81,11 +81,11 @@ impl Plant {
 
 /// The size ranges belong with the generator: they are read off the
 /// excitation a case is generated on.
-impl Realisation {
+impl Mechanism {
     /// The far end of the size's range on `exc`: where calibration stops if
     /// even there the mark is smaller than asked for.
     fn max_size(self, exc: &Excitation, ry: f64) -> f64 {
-        use Realisation::*;
+        use Mechanism::*;
         let ru = exc.input_range();
         match self {
             PureDelay | InputLag | OutputLag | DrainLag => 30.0,
@@ -231,12 +231,12 @@ struct States {
 }
 
 /// The plant's output (absolute) on `exc`'s input with `effects` at their
-/// sizes, for dataset `dataset` (only [`Realisation::LoadGain`] tells the
+/// sizes, for dataset `dataset` (only [`Mechanism::LoadGain`] tells the
 /// datasets apart).
 pub fn simulate(
     plant: &Plant,
     exc: &Excitation,
-    effects: &[(Realisation, f64)],
+    effects: &[(Mechanism, f64)],
     dataset: usize,
 ) -> Vec<f64> {
     let mut y = deviation(plant, exc, effects, dataset);
@@ -250,7 +250,7 @@ pub fn simulate(
 fn deviation(
     plant: &Plant,
     exc: &Excitation,
-    effects: &[(Realisation, f64)],
+    effects: &[(Mechanism, f64)],
     dataset: usize,
 ) -> Vec<f64> {
     // The nominal output's extremes in the same coordinates as the state,
@@ -273,12 +273,12 @@ fn deviation(
 fn run(
     plant: &Plant,
     exc: &Excitation,
-    effects: &[(Realisation, f64)],
+    effects: &[(Mechanism, f64)],
     dataset: usize,
     sc: &Scales,
 ) -> Vec<f64> {
-    use Realisation::*;
-    let size = |r: Realisation| effects.iter().find(|(e, _)| *e == r).map(|&(_, s)| s);
+    use Mechanism::*;
+    let size = |r: Mechanism| effects.iter().find(|(e, _)| *e == r).map(|&(_, s)| s);
     let p = &exc.input;
     let n = p.len();
     let mut out = Vec::with_capacity(n);
@@ -464,7 +464,7 @@ fn mode(s: &mut [f64; 2], x: f64, period: f64) -> f64 {
 /// The mark effects leave on the nominal output: the RMS of the change over
 /// every dataset, less its mean (an offset is absorbed by the intercept);
 /// `+∞` if it is not finite.
-pub fn mark(plant: &Plant, exc: &Excitation, effects: &[(Realisation, f64)]) -> f64 {
+pub fn mark(plant: &Plant, exc: &Excitation, effects: &[(Mechanism, f64)]) -> f64 {
     let nominal = simulate(plant, exc, &[], 0);
     let datasets = effects.iter().map(|(r, _)| r.datasets()).max().unwrap_or(1);
     let change: Vec<f64> = (0..datasets)
@@ -493,7 +493,7 @@ pub fn noise_sigma(plant: &Plant, exc: &Excitation) -> f64 {
 /// to the far end of its range; that end if even it leaves a smaller mark).
 /// The lower end of the last bracket: a mark can jump where an effect starts
 /// to bind, and a case must not be larger than asked for.
-pub fn calibrate(plant: &Plant, exc: &Excitation, r: Realisation, target: f64) -> f64 {
+pub fn calibrate(plant: &Plant, exc: &Excitation, r: Mechanism, target: f64) -> f64 {
     let (lo_y, hi_y) = extremes(&simulate(plant, exc, &[], 0));
     let top = r.max_size(exc, hi_y - lo_y);
     if mark(plant, exc, &[(r, top)]) <= target {
@@ -518,7 +518,7 @@ pub fn calibrate(plant: &Plant, exc: &Excitation, r: Realisation, target: f64) -
 pub fn traces(
     plant: &Plant,
     exc: &Excitation,
-    effects: &[(Realisation, f64)],
+    effects: &[(Mechanism, f64)],
     sigma: f64,
     name: &str,
     rng: &mut ChaCha8Rng,
@@ -587,14 +587,14 @@ mod tests {
         let (plant, excs) = excitations();
         for exc in &excs {
             let nominal = simulate(&plant, exc, &[], 0);
-            for r in Realisation::ALL {
+            for r in Mechanism::ALL {
                 for i in 0..r.datasets() {
                     let y = simulate(&plant, exc, &[(r, 0.0)], i);
                     assert_eq!(y, nominal, "{} on {}", r.label(), exc.name);
                 }
             }
             // All at once, too.
-            let all: Vec<_> = Realisation::ALL.iter().map(|&r| (r, 0.0)).collect();
+            let all: Vec<_> = Mechanism::ALL.iter().map(|&r| (r, 0.0)).collect();
             assert_eq!(simulate(&plant, exc, &all, 1), nominal);
         }
     }
@@ -603,7 +603,7 @@ mod tests {
     fn every_realisation_changes_the_output_at_a_nonzero_size() {
         let (plant, excs) = excitations();
         for exc in &excs {
-            for r in Realisation::ALL {
+            for r in Mechanism::ALL {
                 let s = calibrate(&plant, exc, r, 3.0 * noise_sigma(&plant, exc));
                 assert!(s > 0.0, "{} on {}", r.label(), exc.name);
                 assert!(mark(&plant, exc, &[(r, s)]) > 0.0);
@@ -616,7 +616,7 @@ mod tests {
         let (plant, excs) = excitations();
         for exc in &excs {
             let sigma = noise_sigma(&plant, exc);
-            for r in Realisation::ALL {
+            for r in Mechanism::ALL {
                 let (lo, hi) = extremes(&simulate(&plant, exc, &[], 0));
                 let top = r.max_size(exc, hi - lo);
                 for k in [6.0, 15.0] {
@@ -650,18 +650,11 @@ mod tests {
         let make = |seed| {
             let mut rng = ChaCha8Rng::seed_from_u64(seed);
             let ms = Excitation::multisine(500, 0.1, (0.0, 1.0), &plant, &mut rng);
-            let mut out = traces(
-                &plant,
-                &ms,
-                &[(Realisation::Play, 0.05)],
-                0.1,
-                "x",
-                &mut rng,
-            );
+            let mut out = traces(&plant, &ms, &[(Mechanism::Play, 0.05)], 0.1, "x", &mut rng);
             out.extend(traces(
                 &plant,
                 &stair,
-                &[(Realisation::LoadGain, 0.1)],
+                &[(Mechanism::LoadGain, 0.1)],
                 0.1,
                 "y",
                 &mut rng,

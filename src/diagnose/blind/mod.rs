@@ -21,14 +21,14 @@
 //!   "not explained by the catalogue", hence no name.
 
 pub mod generator;
-pub mod realisation;
+pub mod mechanism;
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use self::generator::{Excitation, Plant};
-use self::realisation::{Physical, Realisation};
+use self::mechanism::{Mechanism, Physical};
 use super::selftest::{MARKS, Nominal};
 use super::{Diagnosis, Effect, Settings, diagnose};
 use crate::model::Family;
@@ -64,8 +64,8 @@ pub fn accepted(p: Physical) -> &'static [Effect] {
 
 /// Why a realisation's size has no counterpart in the catalogue, or `None`
 /// where [`found_size`] maps the catalogue's parameter onto it.
-pub fn not_comparable(r: Realisation) -> Option<&'static str> {
-    use Realisation::*;
+pub fn not_comparable(r: Mechanism) -> Option<&'static str> {
+    use Mechanism::*;
     match r {
         LoadMode => Some("a lightly damped mode has two parameters (period, damping)"),
         SoftLimit => Some("a smooth knee has no hard stop level"),
@@ -96,8 +96,8 @@ pub struct Frame {
 /// goes into the intercept), so its size is `p0 − p_lo`. A first-order lag
 /// of pole `ρ` delays by `ρ/(1 − ρ)` samples, as a time constant does in
 /// samples; the drain lag's size is that of its slow branch.
-pub fn found_size(r: Realisation, e: Effect, params: &[f64], at: Frame) -> Option<f64> {
-    use Realisation::*;
+pub fn found_size(r: Mechanism, e: Effect, params: &[f64], at: Frame) -> Option<f64> {
+    use Mechanism::*;
     if not_comparable(r).is_some() {
         return None;
     }
@@ -198,7 +198,7 @@ pub struct BlindCase {
     pub excitation: usize,
     /// `small` or `large` (empty for the control).
     pub size_label: String,
-    pub effects: Vec<(Realisation, f64)>,
+    pub effects: Vec<(Mechanism, f64)>,
     /// Seed of the case's noise.
     pub seed: u64,
 }
@@ -221,12 +221,12 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
             seed,
         });
     };
-    let size = |r: Realisation, i: usize, k: f64| {
+    let size = |r: Mechanism, i: usize, k: f64| {
         generator::calibrate(&setup.plant, &setup.excitations[i], r, k * setup.sigmas[i])
     };
     for (i, exc) in setup.excitations.iter().enumerate() {
         push(format!("control ({})", exc.name), i, "", Vec::new());
-        for r in Realisation::ALL
+        for r in Mechanism::ALL
             .into_iter()
             .filter(|r| r.physical() != Physical::Outside)
         {
@@ -250,7 +250,7 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
         );
     }
     // Last, so that the other cases keep the seeds they had before it.
-    let r = Realisation::CrossTalk;
+    let r = Mechanism::CrossTalk;
     for (i, exc) in setup.excitations.iter().enumerate() {
         for (k, label) in MARKS {
             push(
@@ -266,9 +266,9 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
 
 /// The two pairs: realisations unlike the catalogue's equations, one on the
 /// input side and one on the output side each.
-pub const PAIRS: [(Realisation, Realisation); 2] = [
-    (Realisation::InputLag, Realisation::OutputClip),
-    (Realisation::DeadZone, Realisation::CreepTwo),
+pub const PAIRS: [(Mechanism, Mechanism); 2] = [
+    (Mechanism::InputLag, Mechanism::OutputClip),
+    (Mechanism::DeadZone, Mechanism::CreepTwo),
 ];
 
 /// How a case's size was judged.
@@ -443,7 +443,7 @@ fn size_of(
     setup: &Setup,
     case: &BlindCase,
     d: &Diagnosis,
-    (r, e): (Realisation, Effect),
+    (r, e): (Mechanism, Effect),
     truth: f64,
 ) -> (SizeCheck, Option<f64>, Option<(f64, f64)>) {
     let (mut found, mut interval) = (None, None);
@@ -455,7 +455,7 @@ fn size_check(
     setup: &Setup,
     case: &BlindCase,
     d: &Diagnosis,
-    (r, e): (Realisation, Effect),
+    (r, e): (Mechanism, Effect),
     truth: f64,
     found: &mut Option<f64>,
     interval: &mut Option<(f64, f64)>,

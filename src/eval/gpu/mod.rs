@@ -75,7 +75,7 @@ pub fn shader_source(problem: &Problem, n_one: bool, residuals: bool) -> String 
 /// model description ([`stages::source`]: the realisations' parameter
 /// structs, the loads of the present ones' parameters and the calls of
 /// their stages in the step order), and each experiment's constants as
-/// [`crate::model::effects::Augmented::prepare`] rounds them to `f32`
+/// [`crate::model::effects::ModelDescription::prepare`] rounds them to `f32`
 /// (written in Rust's shortest round-trip form, which the WGSL compiler
 /// reads back to the same bits).
 fn effects_header(problem: &Problem) -> String {

@@ -7,7 +7,7 @@
 //! by the rule of [`WgslName`], and the step that calls what this
 //! generates.
 
-use crate::model::effects::{Augmented, Effect, Params, STEP_ORDER, Side};
+use crate::model::effects::{Effect, ModelDescription, Params, STEP_ORDER, Side};
 
 /// The WGSL names of a realisation's stage, from its variant's name (which
 /// is its CPU stage's type, `stages::creep::TwoPoleCreep`): the types
@@ -48,7 +48,7 @@ impl WgslName {
 /// `stages_input`, `stages_state`, `stages_output` (the sides of the step,
 /// each realisation's stage in the step order) and `stages_restart` (each
 /// realisation's restart term, in the step order).
-pub fn source(model: &Augmented) -> String {
+pub fn source(model: &ModelDescription) -> String {
     let mut out = String::new();
     for e in Effect::ALL {
         out.push_str(&params_struct(e));
@@ -166,7 +166,7 @@ mod tests {
     #[test]
     fn only_the_present_stages_are_called_in_the_step_order() {
         // Listed out of the step order: the calls follow the step order.
-        let model = Augmented::new(
+        let model = ModelDescription::new(
             Family::Classic,
             vec![Effect::OutputLag, Effect::Deadzone, Effect::Load],
             3,

@@ -16,7 +16,7 @@ use super::problem::FitProblem;
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit_percent;
-use crate::model::{Family, FittedModel, Flow};
+use crate::model::{Family, FittedBaseline, Flow};
 use crate::optim::engine::{Plan, StopRules};
 use crate::optim::{AlgoSettings, Algorithm};
 
@@ -139,7 +139,7 @@ pub struct Report {
 pub struct Flows {
     pub rows: Vec<FlowRow>,
     /// The joint flow's models, one per family of the study.
-    pub joint: Vec<FittedModel>,
+    pub joint: Vec<FittedBaseline>,
 }
 
 fn finite(v: f64) -> Option<f64> {
@@ -403,7 +403,7 @@ impl<'a> Study<'a> {
     ) -> anyhow::Result<Vec<CrossRow>> {
         let (n, g) = (POPULATION, GENERATIONS);
         let score =
-            |m: &FittedModel, on: &Trace| finite(fit_percent(&on.output, &m.simulate_trace(on)));
+            |m: &FittedBaseline, on: &Trace| finite(fit_percent(&on.output, &m.simulate_trace(on)));
         let problems: Vec<FitProblem> = MODELS
             .iter()
             .map(|&f| FitProblem::new(other, f, Flow::Joint, None, false))

@@ -1,7 +1,7 @@
 //! The effects catalogue (docs/DIAGNOSIS.md): parametric additions to the
 //! nominal (baseline) model, in the units of the data.
 //!
-//! An [`Augmented`] model is a baseline [`Family`] plus a list of effects. Its
+//! An [`ModelDescription`] model is a baseline [`Family`] plus a list of effects. Its
 //! parameter vector is the baseline's canonical vector followed by each
 //! effect's parameters in list order. The step reuses the model equations of
 //! [`crate::model::sim`] (`linear_part`, `classic_w`, `generalized_w`) and only
@@ -274,7 +274,7 @@ pub fn effect_box(effect: Effect, ctx: &Context, datasets: usize) -> EffectBox {
 
 /// A baseline family plus effects: the model a candidate of the diagnosis is.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Augmented {
+pub struct ModelDescription {
     pub family: Family,
     pub effects: Vec<Effect>,
     /// Number of datasets scored together (the `load` effect has one gain per
@@ -282,9 +282,9 @@ pub struct Augmented {
     pub datasets: usize,
 }
 
-impl Augmented {
+impl ModelDescription {
     pub fn new(family: Family, effects: Vec<Effect>, datasets: usize) -> Self {
-        Augmented {
+        ModelDescription {
             family,
             effects,
             datasets,
@@ -338,10 +338,10 @@ impl Augmented {
     }
 
     /// This model with one more effect.
-    pub fn with(&self, effect: Effect) -> Augmented {
+    pub fn with(&self, effect: Effect) -> ModelDescription {
         let mut effects = self.effects.clone();
         effects.push(effect);
-        Augmented::new(self.family, effects, self.datasets)
+        ModelDescription::new(self.family, effects, self.datasets)
     }
 }
 
@@ -371,7 +371,7 @@ mod tests {
         Experiment::with_means_of(&trace, 0..300)
     }
 
-    fn neutral_vector(model: &Augmented, base: &[f64], ctx: &Context) -> Vec<f32> {
+    fn neutral_vector(model: &ModelDescription, base: &[f64], ctx: &Context) -> Vec<f32> {
         let mut theta: Vec<f64> = base.to_vec();
         for &e in &model.effects {
             theta.extend(effect_box(e, ctx, model.datasets).neutral);
@@ -395,7 +395,7 @@ mod tests {
             let ref_sse = sse(fam, &base32, exp.y_mean as f32, &exp.u, &exp.y);
             for effect in Effect::ALL {
                 for datasets in [1, 3] {
-                    let model = Augmented::new(fam, vec![effect], datasets);
+                    let model = ModelDescription::new(fam, vec![effect], datasets);
                     let theta = neutral_vector(&model, &base, &ctx);
                     let got = model.simulate(&theta, 0, &ctx, &exp);
                     assert_eq!(got, reference.x, "{fam} + {effect}");
@@ -420,7 +420,7 @@ mod tests {
                 }
             }
             // All effects at once, neutral, are still the baseline.
-            let model = Augmented::new(fam, Effect::ALL.to_vec(), 2);
+            let model = ModelDescription::new(fam, Effect::ALL.to_vec(), 2);
             let theta = neutral_vector(&model, &base, &ctx);
             assert_eq!(
                 model.simulate(&theta, 1, &ctx, &exp),
@@ -439,7 +439,7 @@ mod tests {
         let base32: Vec<f32> = base.iter().map(|&v| v as f32).collect();
         let reference = simulate(fam, &base32, exp.y_mean as f32, &exp.u, exp.y[0]).x;
         for effect in Effect::ALL {
-            let model = Augmented::new(fam, vec![effect], 2);
+            let model = ModelDescription::new(fam, vec![effect], 2);
             let EffectBox {
                 neutral,
                 lower: lo,
@@ -466,7 +466,7 @@ mod tests {
         let exp = experiment();
         let ctx = Context::of(&exp, true);
         let fam = Family::Linear;
-        let model = Augmented::new(fam, vec![Effect::Delay], 1);
+        let model = ModelDescription::new(fam, vec![Effect::Delay], 1);
         let theta = [0.9f32, 2.0, 0.1, 0.0, 3.0];
         let got = model.simulate(&theta, 0, &ctx, &exp);
         // The same model on the input shifted by three samples (u(0) held).
@@ -488,7 +488,7 @@ mod tests {
         // every measurement: ŷ(k) = a·y(k−1) + b·u(k−1) + c.
         let exp = experiment();
         let ctx = Context::of(&exp, true);
-        let model = Augmented::new(Family::Linear, Vec::new(), 1);
+        let model = ModelDescription::new(Family::Linear, Vec::new(), 1);
         let (a, b, c) = (0.8f32, 30.0f32, 0.2f32);
         let want: f32 = (1..exp.len())
             .map(|k| {
@@ -507,7 +507,7 @@ mod tests {
     fn a_horizon_past_the_data_is_the_free_run() {
         let exp = experiment();
         let ctx = Context::of(&exp, true);
-        let model = Augmented::new(Family::Classic, vec![Effect::Creep, Effect::Inertia], 1);
+        let model = ModelDescription::new(Family::Classic, vec![Effect::Creep, Effect::Inertia], 1);
         let mut theta: Vec<f32> = thesis_params(Family::Classic)
             .iter()
             .map(|&v| v as f32)
@@ -527,15 +527,15 @@ mod tests {
         let ctx = Context::of(&exp, true);
         let fam = Family::Classic;
         let base = thesis_params(fam);
-        let baseline = neutral_vector(&Augmented::new(fam, vec![], 1), &base, &ctx);
-        let reference = Augmented::new(fam, vec![], 1).simulate(&baseline, 0, &ctx, &exp);
+        let baseline = neutral_vector(&ModelDescription::new(fam, vec![], 1), &base, &ctx);
+        let reference = ModelDescription::new(fam, vec![], 1).simulate(&baseline, 0, &ctx, &exp);
         for (effect, slow_pole) in [
             (Effect::Creep, 0),
             (Effect::OutputCreep, 0),
             (Effect::TwoPoleCreep, 1),
             (Effect::LogCreep, 0),
         ] {
-            let model = Augmented::new(fam, vec![effect], 1);
+            let model = ModelDescription::new(fam, vec![effect], 1);
             let mut theta = neutral_vector(&model, &base, &ctx);
             let z0 = theta.len() - 1;
             theta[z0] = 2.0;
@@ -563,7 +563,7 @@ mod tests {
         let fam = Family::Linear;
         let mut base = thesis_params(fam);
         base[fam.linear_indices()[1]] = 0.0;
-        let model = Augmented::new(fam, vec![Effect::TwoPoleCreep], 1);
+        let model = ModelDescription::new(fam, vec![Effect::TwoPoleCreep], 1);
         for share in [0.0f32, 0.3, 1.0] {
             let mut theta = neutral_vector(&model, &base, &ctx);
             let at = fam.dim();
@@ -590,7 +590,7 @@ mod tests {
         let ctx = Context::of(&exp, true);
         let fam = Family::Linear;
         let base = thesis_params(fam);
-        let model = Augmented::new(fam, vec![Effect::LogCreep], 1);
+        let model = ModelDescription::new(fam, vec![Effect::LogCreep], 1);
         let neutral = neutral_vector(&model, &base, &ctx);
         let reference = model.simulate(&neutral, 0, &ctx, &exp);
         let mut theta = neutral.clone();

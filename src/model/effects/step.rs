@@ -7,7 +7,7 @@
 
 use super::catalogue::{Stages, States};
 use super::stage::{At, Columns, Frame};
-use super::{Augmented, Context};
+use super::{Context, ModelDescription};
 use crate::model::sim::{
     classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w, switch_threshold,
 };
@@ -186,7 +186,7 @@ impl<const L: usize> Prepared<L> {
     }
 }
 
-impl Augmented {
+impl ModelDescription {
     /// Unpacks `L` rows of parameters (`rows`: row-major, `L × dim`) for
     /// dataset `dataset` with its context.
     pub fn prepare<const L: usize>(
@@ -247,7 +247,7 @@ impl Augmented {
     /// `k ≥ 1`; returns false (and stops) at the first state out of bounds.
     /// With `restart = Some((y, h))` the prediction restarts from the
     /// measured `y(k)` after every `h`-th sample ([`Prepared::restart`]):
-    /// the `h`-step-ahead predictor of [`Augmented::sse_ahead`].
+    /// the `h`-step-ahead predictor of [`ModelDescription::sse_ahead`].
     #[allow(clippy::too_many_arguments)] // the simulation's inputs, one each
     fn run(
         &self,

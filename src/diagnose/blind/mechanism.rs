@@ -44,7 +44,7 @@ impl Physical {
 /// One way a physical effect is realised. Each has one size, 0 neutral.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum Realisation {
+pub enum Mechanism {
     /// The input `d` samples late (linear interpolation): size `d` (samples).
     PureDelay,
     /// The input through `v(k) = ρ·v(k−1) + (1−ρ)·p(k)`: size its mean delay
@@ -109,32 +109,32 @@ pub enum Realisation {
     CrossTalk,
 }
 
-impl Realisation {
+impl Mechanism {
     /// Every realisation, grouped by physical effect.
-    pub const ALL: [Realisation; 19] = [
-        Realisation::PureDelay,
-        Realisation::InputLag,
-        Realisation::OutputLag,
-        Realisation::ExtraPole,
-        Realisation::LoadMode,
-        Realisation::GainAsymmetry,
-        Realisation::DrainLag,
-        Realisation::StateClip,
-        Realisation::OutputClip,
-        Realisation::SoftLimit,
-        Realisation::CreepInput,
-        Realisation::CreepOutput,
-        Realisation::CreepTwo,
-        Realisation::DeadZone,
-        Realisation::HystereticThreshold,
-        Realisation::ViscousRate,
-        Realisation::Play,
-        Realisation::LoadGain,
-        Realisation::CrossTalk,
+    pub const ALL: [Mechanism; 19] = [
+        Mechanism::PureDelay,
+        Mechanism::InputLag,
+        Mechanism::OutputLag,
+        Mechanism::ExtraPole,
+        Mechanism::LoadMode,
+        Mechanism::GainAsymmetry,
+        Mechanism::DrainLag,
+        Mechanism::StateClip,
+        Mechanism::OutputClip,
+        Mechanism::SoftLimit,
+        Mechanism::CreepInput,
+        Mechanism::CreepOutput,
+        Mechanism::CreepTwo,
+        Mechanism::DeadZone,
+        Mechanism::HystereticThreshold,
+        Mechanism::ViscousRate,
+        Mechanism::Play,
+        Mechanism::LoadGain,
+        Mechanism::CrossTalk,
     ];
 
     pub fn physical(self) -> Physical {
-        use Realisation::*;
+        use Mechanism::*;
         match self {
             PureDelay | InputLag | OutputLag => Physical::Lag,
             ExtraPole | LoadMode => Physical::Inertia,
@@ -150,7 +150,7 @@ impl Realisation {
     }
 
     pub fn name(self) -> &'static str {
-        use Realisation::*;
+        use Mechanism::*;
         match self {
             PureDelay => "pure delay",
             InputLag => "input lag",
@@ -181,6 +181,6 @@ impl Realisation {
 
     /// Datasets the realisation needs (a load needs a second one).
     pub fn datasets(self) -> usize {
-        if self == Realisation::LoadGain { 2 } else { 1 }
+        if self == Mechanism::LoadGain { 2 } else { 1 }
     }
 }
