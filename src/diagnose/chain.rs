@@ -9,6 +9,9 @@
 //! 500 g record `fit --effects creep,inertia:ringing,rate` from scratch
 //! ended at estimation SSE 27.6 where the diagnosis' chain reached 15.7
 //! (docs/RESULTS.md, "The diagnosed model, end to end").
+//!
+//! Also `fit --effects auto` ([`selected_fit`]): the diagnosis' own
+//! selection, its final model reported as a fit's.
 
 use super::Effect;
 use super::fitting::{Start, fit_seeds, fit_with_effect, scratch_fits};
