@@ -676,6 +676,52 @@ mod tests {
     use crate::ident::fit_percent;
 
     #[test]
+    fn a_fits_test_part_is_its_validation_half() {
+        let s = Synthetic::new(Family::Classic, 600, 0.05, 4);
+        let problem = FitProblem::new(&s.trace, Family::Classic, Flow::Joint, None, false).unwrap();
+        assert!(problem.parts[0].selection.is_empty());
+        assert_eq!(
+            problem.parts[0].test,
+            vec![problem.records.val_start[0]..600]
+        );
+        assert_eq!(problem.test(&s.truth), problem.validate(&s.truth));
+    }
+
+    #[test]
+    fn a_diagnosis_candidate_searches_the_baselines_box_then_each_effects() {
+        let s = Synthetic::new(Family::Classic, 600, 0.05, 5);
+        let data = FitProblem::diagnosis(&[s.trace], Family::Classic, None, Some(2)).unwrap();
+        let d = Family::Classic.dim();
+        // The classic loop's β held non-negative, the gain's box reaching
+        // the ARX static gain.
+        assert!(data.space.lower[2] >= 0.0);
+        let prior = data.prior();
+        let gain = prior.b / (1.0 - prior.a);
+        let ib = Family::Classic.linear_indices()[1];
+        assert!(data.space.lower[ib] <= gain && gain <= data.space.upper[ib]);
+        let model = data.model.with(Effect::Creep).with(Effect::Asymmetry);
+        let candidate = data.with_model(&model);
+        assert_eq!(candidate.space.lower[..d], data.space.lower[..]);
+        assert_eq!(candidate.space.upper[..d], data.space.upper[..]);
+        let mut at = d;
+        for e in [Effect::Creep, Effect::Asymmetry] {
+            let b = effect_box(e, data.context(), 1);
+            let n = b.neutral.len();
+            assert_eq!(candidate.space.lower[at..at + n], b.lower[..], "{e}");
+            assert_eq!(candidate.space.upper[at..at + n], b.upper[..], "{e}");
+            assert_eq!(candidate.centre()[at..at + n], b.neutral[..], "{e}");
+            at += n;
+        }
+        assert_eq!(candidate.space.names(), model.param_names());
+        // The neutral chain is the baseline, bit for bit.
+        let base = data.centre();
+        assert_eq!(
+            candidate.est_sse(&candidate.neutral_effects(&base)),
+            data.est_sse(&base)
+        );
+    }
+
+    #[test]
     fn the_truth_validates_near_the_noise() {
         let s = Synthetic::new(Family::Classic, 600, 0.05, 1);
         let problem = FitProblem::new(&s.trace, Family::Classic, Flow::Joint, None, false).unwrap();
