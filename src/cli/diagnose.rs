@@ -259,11 +259,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
                     &args.cases,
                     &mut progress,
                 )?;
-                if args.json {
-                    println!("{}", Versioned::new(run.json()).to_string_pretty()?);
-                } else {
-                    print!("{}", run.to_text());
-                }
+                show(args.json, run.json(), run.to_text())?;
             }
             SelfTest::Independent => {
                 let run = selftest_run::independent(
@@ -274,11 +270,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
                     &args.cases,
                     &mut progress,
                 )?;
-                if args.json {
-                    println!("{}", Versioned::new(run.json()).to_string_pretty()?);
-                } else {
-                    print!("{}", run.to_text());
-                }
+                show(args.json, run.json(), run.to_text())?;
             }
         }
         return Ok(());
@@ -338,6 +330,16 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         for f in figures {
             println!("figure written to {}", f.display());
         }
+    }
+    Ok(())
+}
+
+/// A self-test's report: its `--json` document, else its text.
+fn show(json: bool, document: impl serde::Serialize, text: String) -> anyhow::Result<()> {
+    if json {
+        println!("{}", Versioned::new(document).to_string_pretty()?);
+    } else {
+        print!("{text}");
     }
     Ok(())
 }

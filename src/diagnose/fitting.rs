@@ -288,20 +288,16 @@ pub(super) fn polish(
     est_sse: f64,
     (lo, hi): (&[f64], &[f64]),
 ) -> anyhow::Result<(Vec<f64>, f64)> {
-    let plan = Plan {
-        global: None,
-        free_run: None,
-        polish: Some(Polish {
-            starts: 1,
-            iterations: 30,
-            rel_step: 1e-4,
-            step_floor: 1e-2,
-            tolerance: 1e-9,
-            central: false,
-            continuation: false,
-            longest: usize::MAX,
-        }),
-    };
+    let plan = Plan::polish(Polish {
+        starts: 1,
+        iterations: 30,
+        rel_step: 1e-4,
+        step_floor: 1e-2,
+        tolerance: 1e-9,
+        central: false,
+        continuation: false,
+        longest: usize::MAX,
+    });
     // The polish draws nothing: the seed is never used.
     let mut engine =
         Engine::new(plan, space_of(problem, lo, hi), 0, StopRules::default())?.with_initial(&best);

@@ -282,15 +282,11 @@ pub fn polished_truth(
     truth: &[f64],
     evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<(Vec<f64>, f64)> {
-    let plan = Plan {
-        global: None,
-        free_run: None,
-        polish: Some(Polish {
-            starts: 1,
-            longest: problem.estimation().len(),
-            ..Polish::default()
-        }),
-    };
+    let plan = Plan::polish(Polish {
+        starts: 1,
+        longest: problem.estimation().len(),
+        ..Polish::default()
+    });
     // A box around the truth, which the fit's box need not hold: `A`, `n`
     // and the switching level held (the gauge, n = 1, and the truth's own
     // kind of switching: a level only moves the loss where it passes a

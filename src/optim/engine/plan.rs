@@ -154,6 +154,16 @@ impl Plan {
         Plan::search(settings, n, g)
     }
 
+    /// `polish` alone, from the engine's initial rows: a known point
+    /// refined (the diagnosis' polish, a generated case's polished truth).
+    pub fn polish(polish: Polish) -> Plan {
+        Plan {
+            global: None,
+            free_run: None,
+            polish: Some(polish),
+        }
+    }
+
     /// A population search alone, on one island, for objectives with one
     /// measure and no residuals (the PID tuning, the benchmark's search).
     pub fn search(settings: AlgoSettings, n: usize, g: usize) -> Plan {
