@@ -10,7 +10,6 @@ use std::ops::Range;
 use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces};
 use mckibben::diagnose::{Diagnosis, Settings, diagnose};
-use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::fit::run::{FitBox, FitRun, FitSettings};
 use mckibben::model::Family;
 use mckibben::model::experiment::halves;
@@ -175,9 +174,7 @@ fn fit_never_reads_its_validation_half() {
                 Default::default(),
             )
             .unwrap();
-            let (outcome, widened) = fit
-                .run(&mut CpuEvaluator::new(), &mut [], None, None)
-                .unwrap();
+            let (outcome, widened) = fit.run(&mut [], None, None).unwrap();
             let validation = fit.problem.validate(&outcome.params);
             (outcome.params, widened, validation)
         };

@@ -250,9 +250,7 @@ fn a_stair_switching_at_zero_is_fitted_to_its_truths_optimum_with_de_and_pso() {
             stops: StopRules::default(),
         };
         let mut fit = FitRun::new(&trace, &what, &settings, None, None, &|_| ()).unwrap();
-        let (out, _) = fit
-            .run(&mut CpuEvaluator::new(), &mut [], None, None)
-            .unwrap();
+        let (out, _) = fit.run(&mut [], None, None).unwrap();
         let ratio = fit.problem.validate(&out.params).rmse / floor;
         let switched = fit.switched.unwrap();
         eprintln!(

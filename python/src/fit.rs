@@ -241,7 +241,7 @@ pub fn fit(
     // at a time, as `mckibben fit --effects` does. Ctrl-C while it is built
     // raises `KeyboardInterrupt`: there is no fit yet to return.
     let stop = StopFlag::default();
-    let mut fit = interruptible(py, &stop, || {
+    let fit = interruptible(py, &stop, || {
         with_chain_start(fit, &trace, &settings, backend, stop.clone())
     })?
     .map_err(runtime_error)?;
@@ -251,17 +251,13 @@ pub fn fit(
         interrupt: &interrupt,
         error: None,
     };
-    let (ran, describe) = py
+    let (fit, ran, describe) = py
         .detach(|| {
-            let mut evaluator = mckibben::eval::open(backend)?;
+            let evaluator = mckibben::eval::open(backend)?;
             let describe = evaluator.describe();
-            let ran = fit.run(
-                evaluator.as_mut(),
-                &mut [&mut observer],
-                Some(&interrupt),
-                None,
-            )?;
-            anyhow::Ok((ran, describe))
+            let mut fit = fit.scored_on(evaluator);
+            let ran = fit.run(&mut [&mut observer], Some(&interrupt), None)?;
+            anyhow::Ok((fit, ran, describe))
         })
         .map_err(runtime_error)?;
     if let Some(e) = observer.error.take() {

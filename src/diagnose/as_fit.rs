@@ -57,12 +57,12 @@ pub fn refit(
     }
     let fit_settings = FitSettings::staged(settings.seed);
     let what = FitBox::chain(model.family, &model.effects);
-    let mut fit = FitRun::new(trace, &what, &fit_settings, None, None, &|_| ())?.also_from(
+    let fit = FitRun::new(trace, &what, &fit_settings, None, None, &|_| ())?.also_from(
         saved,
         0.0,
         &fit_settings,
     )?;
-    let outcome = run_stoppable(&mut fit, settings)?;
+    let (_, outcome) = run_stoppable(fit, settings)?;
     let theta = outcome.params;
     if theta.len() != params.len() || !problem.admits(&theta) {
         return Ok(None);

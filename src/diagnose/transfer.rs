@@ -104,29 +104,25 @@ fn fit_and_score(
         None,
         &|_| (),
     )?;
-    let mut fit = with_chain_start(
+    let fit = with_chain_start(
         fit,
         trace,
         &fit_settings,
         settings.backend,
         settings.stop.clone(),
     )?;
-    let outcome = run_stoppable(&mut fit, settings)?;
+    let (fit, outcome) = run_stoppable(fit, settings)?;
     Ok(fit.problem.validate(&outcome.params))
 }
 
 /// Runs `fit` on the settings' backend, stopping with the diagnosis' stop
-/// flag: a fit the diagnosis makes as `mckibben fit` would.
-pub(crate) fn run_stoppable(fit: &mut FitRun, settings: &Settings) -> anyhow::Result<Outcome> {
-    let mut evaluator = crate::eval::open(settings.backend)?;
-    let (outcome, _) = fit.run(
-        evaluator.as_mut(),
-        &mut [],
-        Some(settings.stop.as_atomic()),
-        None,
-    )?;
+/// flag: a fit the diagnosis makes as `mckibben fit` would. Returns the fit
+/// as it ended (its box widened by the edge rule) and its outcome.
+pub(crate) fn run_stoppable(fit: FitRun, settings: &Settings) -> anyhow::Result<(FitRun, Outcome)> {
+    let mut fit = fit.scored_on(crate::eval::open(settings.backend)?);
+    let (outcome, _) = fit.run(&mut [], Some(settings.stop.as_atomic()), None)?;
     if settings.stop.raised() {
         return Err(Interrupted.into());
     }
-    Ok(outcome)
+    Ok((fit, outcome))
 }

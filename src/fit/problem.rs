@@ -311,6 +311,17 @@ impl FitProblem {
         self
     }
 
+    /// Scores on `other`'s evaluator (one evaluator shared, as clones share
+    /// it).
+    pub(crate) fn score_like(&mut self, other: &FitProblem) {
+        self.scorer = other.scorer();
+    }
+
+    /// The problem's evaluator, shared ([`Scorer`]).
+    pub(crate) fn scorer(&self) -> Scorer {
+        self.scorer.clone()
+    }
+
     /// The same problem, every search on it stopped once `stop` is raised.
     pub fn stopped_by(mut self, stop: StopFlag) -> FitProblem {
         self.stop = stop;

@@ -523,28 +523,41 @@ impl FitRun {
         })
     }
 
-    /// Runs the engine on `evaluator` to its end or a stop rule (`interrupt`
-    /// raised: after the current generation), then the edge rule
-    /// ([`refit_off_edges`]); `checkpoint` as [`Engine::run`]. Returns the
-    /// outcome and the widenings.
+    /// The same fit, every start of it scored on `evaluator` (the CPU
+    /// batch path until then): the backend the command asked for.
+    pub fn scored_on(mut self, evaluator: Box<dyn Evaluator + Send>) -> FitRun {
+        self.problem = self.problem.scored_on(evaluator);
+        if let Some((zero, _)) = self.zero.as_mut() {
+            zero.score_like(&self.problem);
+        }
+        if let Some((second, _, _)) = self.second.as_mut() {
+            second.score_like(&self.problem);
+        }
+        self
+    }
+
+    /// Runs the engine on the problem's evaluator ([`FitRun::scored_on`]) to
+    /// its end or a stop rule (`interrupt` raised: after the current
+    /// generation), then the edge rule ([`refit_off_edges`]); `checkpoint`
+    /// as [`Engine::run`]. Returns the outcome and the widenings.
     pub fn run(
         &mut self,
-        evaluator: &mut dyn Evaluator,
         observers: &mut [&mut dyn Observer],
         interrupt: Option<&AtomicBool>,
         checkpoint: Option<&Path>,
     ) -> anyhow::Result<(Outcome, Vec<Widening>)> {
-        let mut objective = ModelObjective::for_problem(evaluator, &self.problem);
-        let mut outcome = self
-            .engine
-            .run(&mut objective, observers, interrupt, checkpoint)?;
-        drop(objective);
+        let (problem, engine) = (&self.problem, &mut self.engine);
+        let mut outcome = problem.with_evaluator(|evaluator| {
+            let mut objective = ModelObjective::for_problem(evaluator, problem);
+            engine.run(&mut objective, observers, interrupt, checkpoint)
+        })?;
         if let Some((problem, mut engine)) = self.zero.take()
             && outcome.stop != StopReason::Interrupted
         {
-            let mut objective = ModelObjective::for_problem(evaluator, &problem);
-            let zero = engine.run(&mut objective, &mut [], interrupt, None)?;
-            drop(objective);
+            let zero = problem.with_evaluator(|evaluator| {
+                let mut objective = ModelObjective::for_problem(evaluator, &problem);
+                engine.run(&mut objective, &mut [], interrupt, None)
+            })?;
             let switched = Switched::of(&outcome, &zero);
             self.switched = Some(switched);
             let (evaluations, seconds) = (
@@ -560,9 +573,10 @@ impl FitRun {
             && outcome.stop != StopReason::Interrupted
         {
             outcome.seconds += built_in_s;
-            let mut objective = ModelObjective::for_problem(evaluator, &problem);
-            let chain = engine.run(&mut objective, &mut [], interrupt, None)?;
-            drop(objective);
+            let chain = problem.with_evaluator(|evaluator| {
+                let mut objective = ModelObjective::for_problem(evaluator, &problem);
+                engine.run(&mut objective, &mut [], interrupt, None)
+            })?;
             let kept_chain = !chain.params.is_empty() && chain.sse < outcome.sse;
             self.built = Some(Built {
                 scratch_sse: outcome.sse,
@@ -584,7 +598,9 @@ impl FitRun {
             }
         }
         let stops = self.engine.stops.clone();
-        refit_off_edges(&mut self.problem, &self.engine, outcome, &stops, evaluator)
+        self.problem.scorer().run(|evaluator| {
+            refit_off_edges(&mut self.problem, &self.engine, outcome, &stops, evaluator)
+        })
     }
 }
 
@@ -740,6 +756,77 @@ mod tests {
             panic!("a GA with its own flag");
         };
         assert_eq!(ga.p_mut, 0.3);
+    }
+
+    /// The CPU evaluator, counting the rows it scores in every fork.
+    #[derive(Clone)]
+    struct Counting {
+        cpu: crate::eval::cpu::CpuEvaluator,
+        rows: std::sync::Arc<std::sync::atomic::AtomicUsize>,
+    }
+
+    impl Evaluator for Counting {
+        fn describe(&self) -> String {
+            "counting".into()
+        }
+
+        fn fork(&self) -> Option<Box<dyn Evaluator + Send>> {
+            Some(Box::new(self.clone()))
+        }
+
+        fn evaluate(
+            &mut self,
+            problem: &crate::eval::Problem,
+            population: &[f64],
+        ) -> anyhow::Result<crate::eval::Scores> {
+            let rows = population.len() / problem.dim();
+            self.rows
+                .fetch_add(rows, std::sync::atomic::Ordering::SeqCst);
+            self.cpu.evaluate(problem, population)
+        }
+
+        fn residuals(
+            &mut self,
+            problem: &crate::eval::Problem,
+            population: &[f64],
+        ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
+            let rows = population.len() / problem.dim();
+            self.rows
+                .fetch_add(rows, std::sync::atomic::Ordering::SeqCst);
+            self.cpu.residuals(problem, population)
+        }
+    }
+
+    #[test]
+    fn a_fit_scores_every_start_on_the_evaluator_it_is_given() {
+        let data = Synthetic::new(Family::Generalized, 600, 0.05, 2);
+        let what = FitBox::chain(Family::Generalized, &[]);
+        let fit = FitRun::new(
+            &data.trace,
+            &what,
+            &settings(Algorithm::De, 24),
+            None,
+            None,
+            &|_| (),
+        )
+        .unwrap();
+        assert!(fit.zero.is_some(), "the default switching's second start");
+        let rows = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+        let counting = Counting {
+            cpu: crate::eval::cpu::CpuEvaluator::new(),
+            rows: rows.clone(),
+        };
+        let mut fit = fit.scored_on(Box::new(counting));
+        let (outcome, _) = fit.run(&mut [], None, None).unwrap();
+        assert!(fit.switched.is_some(), "both starts ran");
+        // Every row the engines counted, both starts', passed through it
+        // (and the rows scored again that they do not count).
+        let scored = rows.load(std::sync::atomic::Ordering::SeqCst) as u64;
+        assert!(
+            scored >= outcome.evaluations,
+            "{scored} < {}",
+            outcome.evaluations
+        );
     }
 
     #[test]
