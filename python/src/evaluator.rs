@@ -10,7 +10,7 @@ use pyo3::types::{PyDict, PyFloat};
 
 use mckibben::fit::objective::ModelObjective;
 use mckibben::fit::problem::FitProblem;
-use mckibben::fit::run::model_file;
+use mckibben::fit::report::model_file;
 use mckibben::model::UserBound;
 use mckibben::model::{Flow, Measure, Switching};
 use mckibben::optim::engine::Objective as _;

@@ -13,8 +13,9 @@ use mckibben::diagnose::StopFlag;
 use mckibben::diagnose::chain::with_chain_start;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::report::FitReport;
+use mckibben::fit::report::{model_file, yardstick_warnings};
 use mckibben::fit::request::{FitRequest, Resolved};
-use mckibben::fit::run::{FitRun, FitSettings, Overrides, model_file, yardstick_warnings};
+use mckibben::fit::run::{FitRun, FitSettings, Overrides};
 use mckibben::optim::engine::{Observer, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 

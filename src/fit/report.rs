@@ -8,8 +8,10 @@ use anyhow::Context as _;
 use serde::Serialize;
 
 use super::edge::{ActiveBound, Widening, active_bounds};
-use super::run::{Built, FitRun, Switched, model_file};
+use super::problem::FitProblem;
+use super::run::{Built, FitRun, StartScores, Switched};
 use crate::data::{Trace, write_atomic};
+use crate::ident::fit::SETTLED_POINTS;
 use crate::model::Family;
 use crate::model::bounds::Origin;
 use crate::model::file::{Provenance, SearchBox};
@@ -355,4 +357,106 @@ fn save_model(
     loop_fig.save(&out.join("loop.svg"))?;
     trace_fig.save(&out.join("trace.svg"))?;
     Ok(())
+}
+
+/// What a fit's scores warn of, against its yardsticks: the first-order ARX
+/// model's validation fit on the same halves (`linear`) and, for a warm
+/// start, the model it started from (`start`). `sse` and `fit` (validation
+/// fit %) are the fit's own.
+pub fn yardstick_warnings(
+    sse: f64,
+    fit: f64,
+    linear: Option<f64>,
+    start: Option<StartScores>,
+) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if let Some(linear) = linear.filter(|v| v.is_finite())
+        && fit < linear
+    {
+        warnings.push(format!(
+            "the fit validates worse than the first-order ARX model on the same halves \
+             ({fit:.1} % against {linear:.1} %): it follows the estimation half in a way the \
+             validation half does not; do not trust it off this record (the diagnosis, \
+             `diagnose`, looks for what the model lacks)"
+        ));
+    }
+    // A refit that fits the estimation half better and validates clearly
+    // worse than its start: the estimation half does not settle the model
+    // (as on the Cavatappi 300 g record: docs/ARCHITECTURE.md, "Warm starts").
+    if let Some(start) = start
+        && start.validation.fit_percent.is_finite()
+        && fit < start.validation.fit_percent - SETTLED_POINTS
+        && sse <= start.est_sse
+    {
+        warnings.push(format!(
+            "the refit fits the estimation half better than the model it started from \
+             (SSE {sse:.4} against {:.4}) but validates {:.1} points worse ({fit:.1} % against \
+             {:.1} %): the estimation half does not settle this model, and the model you \
+             started from may be the one to keep",
+            start.est_sse,
+            start.validation.fit_percent - fit,
+            start.validation.fit_percent
+        ));
+    }
+    // A refit worse on the estimation half than its own start: the start
+    // lies outside this fit's box (each row is clamped into it) or the
+    // search lost it.
+    if let Some(start) = start
+        && sse > start.est_sse
+    {
+        warnings.push(format!(
+            "the refit ends above the estimation SSE of the model it started from ({sse:.4} \
+             against {:.4}): that model lies outside this fit's box (see --bound) or the search \
+             lost it; the model you started from fits this record better",
+            start.est_sse
+        ));
+    }
+    warnings
+}
+
+/// The model file of a fit's `params` on `problem`, as `mckibben fit` writes
+/// its `model.json`: the model, the box searched (widened where the edge
+/// rule widened it) and `bounds`, the `--bound` and `--fix` in force.
+pub fn model_file(
+    problem: &FitProblem,
+    params: &[f64],
+    bounds: &[UserBound],
+    provenance: Provenance,
+) -> ModelFile {
+    let model = problem.fitted_model(params);
+    let mut file = ModelFile::new(&model, Some(SearchBox::of(&problem.space)), provenance);
+    file.user_bounds = bounds.iter().map(|b| b.to_string()).collect();
+    file
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::records::Validation;
+
+    #[test]
+    fn a_refit_that_validates_clearly_worse_than_its_start_is_flagged() {
+        let v = |fit_percent: f64| Validation {
+            rmse: 1.0,
+            fit_percent,
+        };
+        let start = |est_sse: f64, fit: f64| StartScores {
+            est_sse,
+            validation: v(fit),
+        };
+        // The Cavatappi 300 g refit: a lower estimation SSE, 3.2 points worse.
+        let flagged = yardstick_warnings(6.39, 84.2, Some(62.7), Some(start(6.46, 87.4)));
+        assert_eq!(flagged.len(), 1, "{flagged:?}");
+        assert!(flagged[0].contains("3.2 points worse"), "{}", flagged[0]);
+        // Within the settled points: quiet.
+        assert!(yardstick_warnings(6.39, 86.0, None, Some(start(6.46, 87.4))).is_empty());
+        // Worse on the estimation half too: the search lost its start.
+        let lost = yardstick_warnings(6.50, 84.2, None, Some(start(6.46, 87.4)));
+        assert_eq!(lost.len(), 1, "{lost:?}");
+        assert!(lost[0].contains("ends above"), "{}", lost[0]);
+        // Below ARX's validation fit.
+        let below = yardstick_warnings(1.0, -2.4, Some(50.9), None);
+        assert_eq!(below.len(), 1);
+        assert!(below[0].contains("first-order ARX"), "{}", below[0]);
+    }
 }

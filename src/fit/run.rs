@@ -19,10 +19,8 @@ use super::problem::FitProblem;
 use super::records::Validation;
 use crate::data::Trace;
 use crate::eval::Evaluator;
-use crate::ident::fit::SETTLED_POINTS;
 use crate::model::coords::gauge_fixed;
 use crate::model::effects::Effect;
-use crate::model::file::{ModelFile, Provenance, SearchBox};
 use crate::model::{Family, Flow, Loop, Measure, Model, Switching, UserBound};
 use crate::optim::engine::{Engine, Observer, Outcome, Plan, Space, StopReason, StopRules};
 use crate::optim::ga::{Crossover, Mutation};
@@ -546,18 +544,17 @@ impl FitRun {
         interrupt: Option<&AtomicBool>,
         checkpoint: Option<&Path>,
     ) -> anyhow::Result<(Outcome, Vec<Widening>)> {
-        let (problem, engine) = (&self.problem, &mut self.engine);
-        let mut outcome = problem.with_evaluator(|evaluator| {
-            let mut objective = ModelObjective::for_problem(evaluator, problem);
-            engine.run(&mut objective, observers, interrupt, checkpoint)
-        })?;
+        let mut outcome = run_on(
+            &self.problem,
+            &mut self.engine,
+            observers,
+            interrupt,
+            checkpoint,
+        )?;
         if let Some((problem, mut engine)) = self.zero.take()
             && outcome.stop != StopReason::Interrupted
         {
-            let zero = problem.with_evaluator(|evaluator| {
-                let mut objective = ModelObjective::for_problem(evaluator, &problem);
-                engine.run(&mut objective, &mut [], interrupt, None)
-            })?;
+            let zero = run_on(&problem, &mut engine, &mut [], interrupt, None)?;
             let switched = Switched::of(&outcome, &zero);
             self.switched = Some(switched);
             let (evaluations, seconds) = (
@@ -573,10 +570,7 @@ impl FitRun {
             && outcome.stop != StopReason::Interrupted
         {
             outcome.seconds += built_in_s;
-            let chain = problem.with_evaluator(|evaluator| {
-                let mut objective = ModelObjective::for_problem(evaluator, &problem);
-                engine.run(&mut objective, &mut [], interrupt, None)
-            })?;
+            let chain = run_on(&problem, &mut engine, &mut [], interrupt, None)?;
             let kept_chain = !chain.params.is_empty() && chain.sse < outcome.sse;
             self.built = Some(Built {
                 scratch_sse: outcome.sse,
@@ -604,82 +598,26 @@ impl FitRun {
     }
 }
 
+/// Runs `engine` on `problem`'s objective and evaluator.
+fn run_on(
+    problem: &FitProblem,
+    engine: &mut Engine,
+    observers: &mut [&mut dyn Observer],
+    interrupt: Option<&AtomicBool>,
+    checkpoint: Option<&Path>,
+) -> anyhow::Result<Outcome> {
+    problem.with_evaluator(|evaluator| {
+        let mut objective = ModelObjective::for_problem(evaluator, problem);
+        engine.run(&mut objective, observers, interrupt, checkpoint)
+    })
+}
+
 /// A warm start's model as it was, on the record it is refitted to.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StartScores {
     /// Free-run SSE on the estimation half (`+∞` if it diverged there).
     pub est_sse: f64,
     pub validation: Validation,
-}
-
-/// What a fit's scores warn of, against its yardsticks: the first-order ARX
-/// model's validation fit on the same halves (`linear`) and, for a warm
-/// start, the model it started from (`start`). `sse` and `fit` (validation
-/// fit %) are the fit's own.
-pub fn yardstick_warnings(
-    sse: f64,
-    fit: f64,
-    linear: Option<f64>,
-    start: Option<StartScores>,
-) -> Vec<String> {
-    let mut warnings = Vec::new();
-    if let Some(linear) = linear.filter(|v| v.is_finite())
-        && fit < linear
-    {
-        warnings.push(format!(
-            "the fit validates worse than the first-order ARX model on the same halves \
-             ({fit:.1} % against {linear:.1} %): it follows the estimation half in a way the \
-             validation half does not; do not trust it off this record (the diagnosis, \
-             `diagnose`, looks for what the model lacks)"
-        ));
-    }
-    // A refit that fits the estimation half better and validates clearly
-    // worse than its start: the estimation half does not settle the model
-    // (as on the Cavatappi 300 g record: docs/ARCHITECTURE.md, "Warm starts").
-    if let Some(start) = start
-        && start.validation.fit_percent.is_finite()
-        && fit < start.validation.fit_percent - SETTLED_POINTS
-        && sse <= start.est_sse
-    {
-        warnings.push(format!(
-            "the refit fits the estimation half better than the model it started from \
-             (SSE {sse:.4} against {:.4}) but validates {:.1} points worse ({fit:.1} % against \
-             {:.1} %): the estimation half does not settle this model, and the model you \
-             started from may be the one to keep",
-            start.est_sse,
-            start.validation.fit_percent - fit,
-            start.validation.fit_percent
-        ));
-    }
-    // A refit worse on the estimation half than its own start: the start
-    // lies outside this fit's box (each row is clamped into it) or the
-    // search lost it.
-    if let Some(start) = start
-        && sse > start.est_sse
-    {
-        warnings.push(format!(
-            "the refit ends above the estimation SSE of the model it started from ({sse:.4} \
-             against {:.4}): that model lies outside this fit's box (see --bound) or the search \
-             lost it; the model you started from fits this record better",
-            start.est_sse
-        ));
-    }
-    warnings
-}
-
-/// The model file of a fit's `params` on `problem`, as `mckibben fit` writes
-/// its `model.json`: the model, the box searched (widened where the edge
-/// rule widened it) and `bounds`, the `--bound` and `--fix` in force.
-pub fn model_file(
-    problem: &FitProblem,
-    params: &[f64],
-    bounds: &[UserBound],
-    provenance: Provenance,
-) -> ModelFile {
-    let model = problem.fitted_model(params);
-    let mut file = ModelFile::new(&model, Some(SearchBox::of(&problem.space)), provenance);
-    file.user_bounds = bounds.iter().map(|b| b.to_string()).collect();
-    file
 }
 
 /// The start of a warm start from `model`: its baseline's parameters in the
@@ -847,31 +785,5 @@ mod tests {
         notes.borrow_mut().clear();
         s.plan(&problem, &|n| notes.borrow_mut().push(n)).unwrap();
         assert!(notes.borrow().is_empty());
-    }
-
-    #[test]
-    fn a_refit_that_validates_clearly_worse_than_its_start_is_flagged() {
-        let v = |fit_percent: f64| Validation {
-            rmse: 1.0,
-            fit_percent,
-        };
-        let start = |est_sse: f64, fit: f64| StartScores {
-            est_sse,
-            validation: v(fit),
-        };
-        // The Cavatappi 300 g refit: a lower estimation SSE, 3.2 points worse.
-        let flagged = yardstick_warnings(6.39, 84.2, Some(62.7), Some(start(6.46, 87.4)));
-        assert_eq!(flagged.len(), 1, "{flagged:?}");
-        assert!(flagged[0].contains("3.2 points worse"), "{}", flagged[0]);
-        // Within the settled points: quiet.
-        assert!(yardstick_warnings(6.39, 86.0, None, Some(start(6.46, 87.4))).is_empty());
-        // Worse on the estimation half too: the search lost its start.
-        let lost = yardstick_warnings(6.50, 84.2, None, Some(start(6.46, 87.4)));
-        assert_eq!(lost.len(), 1, "{lost:?}");
-        assert!(lost[0].contains("ends above"), "{}", lost[0]);
-        // Below ARX's validation fit.
-        let below = yardstick_warnings(1.0, -2.4, Some(50.9), None);
-        assert_eq!(below.len(), 1);
-        assert!(below[0].contains("first-order ARX"), "{}", below[0]);
     }
 }
