@@ -26,7 +26,7 @@ use mckibben::fit::cases::{Case, Judgement, SwitchAt, matrix, polished_truth};
 use mckibben::fit::edge::fit_problem;
 use mckibben::fit::objective::{GENERATIONS, POPULATION, staged_plan};
 use mckibben::fit::problem::FitProblem;
-use mckibben::fit::run::{FitBox, FitRun, FitSettings, Overrides};
+use mckibben::fit::run::{FitBox, FitRun, FitSettings};
 use mckibben::ident::fit::indistinguishable_up_to;
 use mckibben::model::{Family, Flow, Loop, Switching, simulate};
 use mckibben::optim::Algorithm;
@@ -240,14 +240,7 @@ fn a_stair_switching_at_zero_is_fitted_to_its_truths_optimum_with_de_and_pso() {
     for algo in [Algorithm::De, Algorithm::Pso] {
         let settings = FitSettings {
             algo,
-            pop: POPULATION,
-            gens: GENERATIONS,
-            seed: 1,
-            thesis_flow: false,
-            islands: None,
-            horizon: None,
-            overrides: Overrides::default(),
-            stops: StopRules::default(),
+            ..FitSettings::staged(1)
         };
         let mut fit = FitRun::new(&trace, &what, &settings, None, None, &|_| ()).unwrap();
         let (out, _) = fit.run(&mut [], None, None).unwrap();

@@ -651,12 +651,7 @@ mod tests {
             algo,
             pop,
             gens: 10,
-            seed: 1,
-            thesis_flow: false,
-            islands: None,
-            horizon: None,
-            overrides: Overrides::default(),
-            stops: StopRules::default(),
+            ..FitSettings::staged(1)
         }
     }
 
