@@ -22,7 +22,6 @@ use rayon::prelude::*;
 
 use super::{Evaluator, Problem, Scores, effects, to_f32};
 use crate::model::Family;
-use crate::model::residuals;
 use crate::model::sim::{
     classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w, switch_threshold,
 };
@@ -74,8 +73,12 @@ impl Evaluator for CpuEvaluator {
         Ok(score_rows(problem, &rows))
     }
 
-    /// One candidate per task through the reference simulation: a polish
-    /// asks for a handful of candidates, too few to fill a batch.
+    /// A plain family's residuals in the lanes of the scoring loop, as
+    /// many candidates side by side as its scores (a polish asks for a
+    /// Jacobian's probes at a time, two dozen rows: one batch, computed in
+    /// the time the reference simulation takes for one or two); a model
+    /// with effect stages one candidate per task through its reference
+    /// simulation.
     fn residuals(
         &mut self,
         problem: &Problem,
@@ -83,19 +86,50 @@ impl Evaluator for CpuEvaluator {
     ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
         let rows = to_f32(population);
         check_rows(problem, &rows)?;
+        let d = problem.dim();
+        if problem.effects.is_empty() {
+            let every = problem.measure.restart_every();
+            return Ok(rows
+                .par_chunks(LANES * d)
+                .flat_map_iter(|chunk| {
+                    let params = transpose(chunk, d);
+                    let used = chunk.len() / d;
+                    let mut lanes: Vec<Option<Vec<f32>>> = (0..used)
+                        .map(|_| Some(Vec::with_capacity(problem.samples())))
+                        .collect();
+                    for e in &problem.experiments {
+                        let (errors, ok) = batch_residuals(
+                            problem.family,
+                            &params,
+                            e.y_mean as f32,
+                            &e.u,
+                            &e.y,
+                            every,
+                        );
+                        for (l, lane) in lanes.iter_mut().enumerate() {
+                            match lane {
+                                Some(r) if ok[l] => r.extend(errors.iter().map(|es| es[l])),
+                                _ => *lane = None,
+                            }
+                        }
+                    }
+                    lanes
+                })
+                .collect());
+        }
         let model = problem.model();
         Ok(rows
-            .par_chunks(problem.dim())
+            .par_chunks(d)
             .map(|theta| {
                 let mut all = Vec::with_capacity(problem.samples());
                 for (i, e) in problem.experiments.iter().enumerate() {
-                    let r = if problem.effects.is_empty() {
-                        let y_mean = e.y_mean as f32;
-                        residuals(problem.family, theta, y_mean, &e.u, &e.y, problem.measure)?
-                    } else {
-                        model.residuals(theta, i, &problem.contexts[i], e, problem.measure)?
-                    };
-                    all.extend(r);
+                    all.extend(model.residuals(
+                        theta,
+                        i,
+                        &problem.contexts[i],
+                        e,
+                        problem.measure,
+                    )?);
                 }
                 Some(all)
             })
@@ -164,9 +198,7 @@ fn transpose(chunk: &[f32], d: usize) -> Vec<[f32; LANES]> {
 
 /// The SSE of every lane of one batch on one experiment (its output mean
 /// `y_mean` removed), as [`crate::model::measured_sse`] with restarts after
-/// every `every`-th sample, compiled for the widest vector unit the CPU has
-/// (chosen at run time; the arithmetic is the same IEEE `f32` on each, and
-/// Rust never fuses a·b + c, so the bits do not depend on the choice).
+/// every `every`-th sample.
 fn batch_sse(
     family: Family,
     params: &[[f32; LANES]],
@@ -175,76 +207,115 @@ fn batch_sse(
     y: &[f32],
     every: usize,
 ) -> [f32; LANES] {
+    let (sse, ok, _) = batch_run::<false>(family, params, y_mean, u, y, every);
+    std::array::from_fn(|l| if ok[l] { sse[l] } else { f32::INFINITY })
+}
+
+/// The errors `x(k) − y(k)`, `k ≥ 1`, of every lane of one batch on one
+/// experiment, one array of lanes a sample, as [`crate::model::residuals`]
+/// gives each candidate's; a lane is valid where its flag holds (false:
+/// it diverged, and its errors stop meaning anything).
+fn batch_residuals(
+    family: Family,
+    params: &[[f32; LANES]],
+    y_mean: f32,
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+) -> (Vec<[f32; LANES]>, [bool; LANES]) {
+    let (_, ok, errors) = batch_run::<true>(family, params, y_mean, u, y, every);
+    (errors, ok)
+}
+
+/// One batch on one experiment: every lane's SSE, whether it stayed in
+/// bounds and, with `RECORD`, its error at every sample. Compiled for the
+/// widest vector unit the CPU has (chosen at run time; the arithmetic is
+/// the same IEEE `f32` on each, and Rust never fuses a·b + c, so the bits
+/// do not depend on the choice).
+fn batch_run<const RECORD: bool>(
+    family: Family,
+    params: &[[f32; LANES]],
+    y_mean: f32,
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+) -> BatchRun {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx512f") {
             // SAFETY: the CPU has AVX-512F.
-            return unsafe { batch_sse_avx512(family, params, y_mean, u, y, every) };
+            return unsafe { batch_run_avx512::<RECORD>(family, params, y_mean, u, y, every) };
         }
         if std::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2.
-            return unsafe { batch_sse_avx2(family, params, y_mean, u, y, every) };
+            return unsafe { batch_run_avx2::<RECORD>(family, params, y_mean, u, y, every) };
         }
     }
-    batch_sse_portable(family, params, y_mean, u, y, every)
+    batch_run_portable::<RECORD>(family, params, y_mean, u, y, every)
 }
+
+/// A batch's SSE per lane, its in-bounds flags and (when recorded) its
+/// errors, one array of lanes a sample.
+type BatchRun = ([f32; LANES], [bool; LANES], Vec<[f32; LANES]>);
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-fn batch_sse_avx512(
+fn batch_run_avx512<const RECORD: bool>(
     family: Family,
     params: &[[f32; LANES]],
     y_mean: f32,
     u: &[f32],
     y: &[f32],
     every: usize,
-) -> [f32; LANES] {
-    batch_sse_portable(family, params, y_mean, u, y, every)
+) -> BatchRun {
+    batch_run_portable::<RECORD>(family, params, y_mean, u, y, every)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn batch_sse_avx2(
+fn batch_run_avx2<const RECORD: bool>(
     family: Family,
     params: &[[f32; LANES]],
     y_mean: f32,
     u: &[f32],
     y: &[f32],
     every: usize,
-) -> [f32; LANES] {
-    batch_sse_portable(family, params, y_mean, u, y, every)
+) -> BatchRun {
+    batch_run_portable::<RECORD>(family, params, y_mean, u, y, every)
 }
 
 #[inline(always)]
-fn batch_sse_portable(
+fn batch_run_portable<const RECORD: bool>(
     family: Family,
     params: &[[f32; LANES]],
     y_mean: f32,
     u: &[f32],
     y: &[f32],
     every: usize,
-) -> [f32; LANES] {
+) -> BatchRun {
     assert_eq!(u.len(), y.len(), "input and output lengths differ");
     if u.is_empty() {
-        return [0.0; LANES];
+        return ([0.0; LANES], [true; LANES], Vec::new());
     }
     let n_is_one = |j: usize| params[j].iter().all(|&n| n == 1.0);
     match family {
-        Family::Linear => lanes_sse(&LinearLanes(params.try_into().expect("4")), u, y, every),
+        Family::Linear => {
+            lanes_run::<_, RECORD>(&LinearLanes(params.try_into().expect("4")), u, y, every)
+        }
         Family::Classic => {
             let p = params.try_into().expect("9 parameters");
             if n_is_one(4) {
-                lanes_sse(&ClassicLanes::<true>(p), u, y, every)
+                lanes_run::<_, RECORD>(&ClassicLanes::<true>(p), u, y, every)
             } else {
-                lanes_sse(&ClassicLanes::<false>(p), u, y, every)
+                lanes_run::<_, RECORD>(&ClassicLanes::<false>(p), u, y, every)
             }
         }
         Family::Generalized => {
             let p = params.try_into().expect("14 parameters");
             if n_is_one(8) {
-                lanes_sse(&GeneralizedLanes::<true>::new(p, y_mean), u, y, every)
+                lanes_run::<_, RECORD>(&GeneralizedLanes::<true>::new(p, y_mean), u, y, every)
             } else {
-                lanes_sse(&GeneralizedLanes::<false>::new(p, y_mean), u, y, every)
+                lanes_run::<_, RECORD>(&GeneralizedLanes::<false>::new(p, y_mean), u, y, every)
             }
         }
     }
@@ -344,29 +415,41 @@ impl<const N_ONE: bool> LaneModel for GeneralizedLanes<'_, N_ONE> {
 }
 
 /// The one scoring loop of every family: all lanes advance sample by sample,
-/// each accumulating its squared error; the output state restarts from the
-/// measurement after every `every`-th sample. A lane whose state leaves the
-/// bounds latches its mask and scores `+∞`; the loop stops once every lane
-/// has. Blocks end at divergence checks and at restarts, so that neither
-/// costs a test per sample.
+/// each accumulating its squared error (and, with `RECORD`, keeping each
+/// sample's error); the output state restarts from the measurement after
+/// every `every`-th sample. A lane whose state leaves the bounds latches
+/// its flag (its SSE is then `+∞`); the loop stops once every lane has.
+/// Blocks end at divergence checks and at restarts, so that neither costs
+/// a test per sample.
 #[inline(always)]
-fn lanes_sse<M: LaneModel>(m: &M, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+fn lanes_run<M: LaneModel, const RECORD: bool>(
+    m: &M,
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+) -> BatchRun {
     let mut x: [f32; LANES] = std::array::from_fn(|l| y[0] + m.start(l));
     let mut w = [0.0f32; LANES];
     let mut acc = [0.0f32; LANES];
     let mut ok = [true; LANES];
+    let mut errors = Vec::with_capacity(if RECORD { u.len() - 1 } else { 0 });
     let mut start = 1;
     while start < u.len() {
         let (end, restarts) = block(start, u.len(), every);
         for k in start..end {
             let (up, yk) = (u[k - 1], y[k]);
+            let mut es = [0.0f32; LANES];
             for l in 0..LANES {
                 let (xn, wn) = m.step(l, x[l], w[l], up);
                 ok[l] &= in_bounds(xn) & in_bounds(wn);
                 let e = xn - yk;
+                es[l] = e;
                 acc[l] += e * e;
                 x[l] = xn;
                 w[l] = wn;
+            }
+            if RECORD {
+                errors.push(es);
             }
         }
         if restarts {
@@ -380,7 +463,7 @@ fn lanes_sse<M: LaneModel>(m: &M, u: &[f32], y: &[f32], every: usize) -> [f32; L
         }
         start = end;
     }
-    std::array::from_fn(|l| if ok[l] { acc[l] } else { f32::INFINITY })
+    (acc, ok, errors)
 }
 
 /// True while some lane is in bounds.
@@ -407,11 +490,11 @@ mod tests {
         {
             [
                 (
-                    "AVX2 (batch_sse_avx2)",
+                    "AVX2 (batch_run_avx2)",
                     std::is_x86_feature_detected!("avx2"),
                 ),
                 (
-                    "AVX-512F (batch_sse_avx512)",
+                    "AVX-512F (batch_run_avx512)",
                     std::is_x86_feature_detected!("avx512f"),
                 ),
             ]
@@ -427,9 +510,10 @@ mod tests {
     }
 
     /// Every compiled variant the CPU can run gives the reference's bits
-    /// under every measure (the evaluator tests only see the variant this
-    /// CPU picks). A variant this CPU cannot run is not checked, and the
-    /// test says so on stderr rather than passing as if it were.
+    /// under every measure, its scores and its residuals, a diverging lane
+    /// included (the evaluator tests only see the variant this CPU picks).
+    /// A variant this CPU cannot run is not checked, and the test says so
+    /// on stderr rather than passing as if it were.
     #[test]
     fn every_instruction_set_variant_is_bit_identical() {
         let unchecked = variants_this_cpu_cannot_run();
@@ -451,6 +535,31 @@ mod tests {
             Measure::Ahead { horizon: 37 },
             Measure::Ahead { horizon: 128 },
         ];
+        type Variant<const R: bool> =
+            fn(Family, &[[f32; LANES]], f32, &[f32], &[f32], usize) -> BatchRun;
+        let mut variants: Vec<(&str, Variant<false>, Variant<true>)> = vec![(
+            "portable",
+            batch_run_portable::<false>,
+            batch_run_portable::<true>,
+        )];
+        #[cfg(target_arch = "x86_64")]
+        {
+            // SAFETY (both): called only where the CPU has the feature.
+            if std::is_x86_feature_detected!("avx2") {
+                variants.push((
+                    "avx2",
+                    |f, p, m, u, y, e| unsafe { batch_run_avx2::<false>(f, p, m, u, y, e) },
+                    |f, p, m, u, y, e| unsafe { batch_run_avx2::<true>(f, p, m, u, y, e) },
+                ));
+            }
+            if std::is_x86_feature_detected!("avx512f") {
+                variants.push((
+                    "avx512",
+                    |f, p, m, u, y, e| unsafe { batch_run_avx512::<false>(f, p, m, u, y, e) },
+                    |f, p, m, u, y, e| unsafe { batch_run_avx512::<true>(f, p, m, u, y, e) },
+                ));
+            }
+        }
         for (family, free_n) in [
             (Family::Linear, false),
             (Family::Classic, false),
@@ -460,36 +569,47 @@ mod tests {
         ] {
             let d = family.dim();
             let space = search_space(family, &exp, free_n);
-            let pop = mixed_population(&space, LANES, &mut ChaCha8Rng::seed_from_u64(2));
+            let mut pop = mixed_population(&space, LANES, &mut ChaCha8Rng::seed_from_u64(2));
+            // One lane that leaves the bounds where it runs free for more
+            // than a few samples: a pole far outside the unit circle.
+            let ia = family.linear_indices()[0];
+            pop[3 * d + ia] = 3.0;
             let rows = to_f32(&pop);
             let params = transpose(&rows, d);
             let y_mean = exp.y_mean as f32;
             for measure in measures {
                 let every = measure.restart_every();
-                let want: Vec<u32> = rows
+                let want_sse: Vec<u32> = rows
                     .chunks_exact(d)
                     .map(|t| measured_sse(family, t, y_mean, &exp.u, &exp.y, measure).to_bits())
                     .collect();
-                let bits = |s: [f32; LANES]| s.map(f32::to_bits).to_vec();
-                let what = format!("{family}, {measure}");
-                let got = batch_sse_portable(family, &params, y_mean, &exp.u, &exp.y, every);
-                assert_eq!(bits(got), want, "{what}");
-                #[cfg(target_arch = "x86_64")]
-                {
-                    if std::is_x86_feature_detected!("avx2") {
-                        // SAFETY: the CPU has AVX2.
-                        let got = unsafe {
-                            batch_sse_avx2(family, &params, y_mean, &exp.u, &exp.y, every)
-                        };
-                        assert_eq!(bits(got), want, "{what} avx2");
-                    }
-                    if std::is_x86_feature_detected!("avx512f") {
-                        // SAFETY: the CPU has AVX-512F.
-                        let got = unsafe {
-                            batch_sse_avx512(family, &params, y_mean, &exp.u, &exp.y, every)
-                        };
-                        assert_eq!(bits(got), want, "{what} avx512");
-                    }
+                if every > 20 {
+                    assert_eq!(
+                        want_sse[3],
+                        f32::INFINITY.to_bits(),
+                        "{family}: lane 3 diverges"
+                    );
+                }
+                let want_residuals: Vec<Option<Vec<u32>>> = rows
+                    .chunks_exact(d)
+                    .map(|t| {
+                        crate::model::residuals(family, t, y_mean, &exp.u, &exp.y, measure)
+                            .map(|r| r.iter().map(|v| v.to_bits()).collect())
+                    })
+                    .collect();
+                for (name, sse, recorded) in &variants {
+                    let what = format!("{family}, {measure}, {name}");
+                    let (acc, ok, none) = sse(family, &params, y_mean, &exp.u, &exp.y, every);
+                    assert!(none.is_empty(), "{what}: errors kept unasked");
+                    let got: Vec<u32> = (0..LANES)
+                        .map(|l| if ok[l] { acc[l] } else { f32::INFINITY }.to_bits())
+                        .collect();
+                    assert_eq!(got, want_sse, "{what}: scores");
+                    let (_, ok, errors) = recorded(family, &params, y_mean, &exp.u, &exp.y, every);
+                    let got: Vec<Option<Vec<u32>>> = (0..LANES)
+                        .map(|l| ok[l].then(|| errors.iter().map(|es| es[l].to_bits()).collect()))
+                        .collect();
+                    assert_eq!(got, want_residuals, "{what}: residuals");
                 }
             }
         }
