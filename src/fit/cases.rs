@@ -73,6 +73,20 @@ pub enum SwitchAt {
     EstimationMean,
     /// At the sensor's zero (`x_s = 0`), the muscle's rest length.
     SensorZero,
+    /// At a level drawn inside the output's range (from a tenth to nine
+    /// tenths of its swing): neither of the two levels above, so a fit that
+    /// assumes either misses it.
+    Inside,
+}
+
+impl SwitchAt {
+    pub fn name(self) -> &'static str {
+        match self {
+            SwitchAt::EstimationMean => "mean",
+            SwitchAt::SensorZero => "zero",
+            SwitchAt::Inside => "inside",
+        }
+    }
 }
 
 /// What to generate.
@@ -149,6 +163,11 @@ pub struct Case {
     pub truth_validation: Validation,
 }
 
+/// The first case of [`matrix`] whose generalized truth switches inside its
+/// output's range: the twenty before it keep the truths they had before
+/// that kind existed.
+pub const INSIDE_FROM: usize = 20;
+
 /// Sample time of the generated traces (s): the shipped rig data's.
 pub const CASE_DT: f64 = 0.01;
 
@@ -160,9 +179,11 @@ const P_MAX: f64 = 0.5;
 /// excitations, the three pole kinds (shifted, so that each excitation meets
 /// each) and, every fourth case, other units than MPa→mm; noise spread over
 /// 0.02–0.1 mm, 8000–12000 samples; case `i` has seed `seed + i`. Generalized
-/// truths switch at the estimation mean in cases 0, 1, 4, 5, 8, 9, … and at
-/// the sensor's zero in cases 2, 3, 6, 7, … (a case of the first kind is the
-/// case its seed gave before the second kind existed).
+/// truths switch at the estimation mean in cases 0, 1, 4, 5, 8, 9, … up to
+/// case 19 and at the sensor's zero in cases 2, 3, 6, 7, … up to 19 (a case
+/// of the first kind is the case its seed gave before the second kind
+/// existed), and inside the output's range from case 20 on
+/// ([`INSIDE_FROM`]): a matrix of 30 holds ten of each.
 pub fn matrix(family: Family, count: usize, seed: u64) -> Vec<CaseSpec> {
     (0..count)
         .map(|i| {
@@ -170,7 +191,9 @@ pub fn matrix(family: Family, count: usize, seed: u64) -> Vec<CaseSpec> {
             let mut rng = ChaCha8Rng::seed_from_u64(s ^ 0x5eed);
             CaseSpec {
                 family,
-                switch: if (i / 2) % 2 == 1 {
+                switch: if i >= INSIDE_FROM {
+                    SwitchAt::Inside
+                } else if (i / 2) % 2 == 1 {
                     SwitchAt::SensorZero
                 } else {
                     SwitchAt::EstimationMean
@@ -225,6 +248,7 @@ impl Case {
         };
         let switch = match (self.spec.family, self.spec.switch) {
             (Family::Generalized, SwitchAt::SensorZero) => " x_s=0",
+            (Family::Generalized, SwitchAt::Inside) => " x_s inside",
             _ => "",
         };
         format!(
@@ -464,6 +488,28 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
             theta[ic] += theta[ib] * u_mean;
             (x, 0.0)
         }
+        (Some(is), SwitchAt::Inside) => {
+            // Placed 2–10 mm above zero as a truth at the mean, its loop
+            // switching at a level drawn inside the swing; simulated once
+            // in absolute units, as a truth at zero.
+            let shift = rng.random_range(2.0..10.0) - min;
+            theta[ic] = (1.0 - a * alpha) * shift;
+            theta[is] = min + shift + rng.random_range(0.1..0.9) * r1;
+            let x = run(&theta, 0.0, &p, second[0] + shift)?;
+            if !(0.5 * swing..2.0 * swing).contains(&range(&x)) {
+                return None;
+            }
+            // The level must be crossed in the estimation half, or that
+            // half cannot place it.
+            let crossed = x[est.clone()]
+                .windows(2)
+                .any(|w| (w[0] - theta[is]) * (w[1] - theta[is]) < 0.0);
+            if !crossed {
+                return None;
+            }
+            theta[ic] += theta[ib] * u_mean;
+            (x, 0.0)
+        }
         _ => {
             // Placed 2–10 mm above zero (contraction positive): x ↦ x + s is
             // the model with c + (1 − a·α)·s for the classic model; for both
@@ -623,9 +669,12 @@ mod tests {
     #[test]
     fn cases_are_reproducible_and_the_truth_reaches_the_noise() {
         for family in [Family::Classic, Family::Generalized] {
-            for spec in matrix(family, 8, 11)
+            // Every kind of switching level (the generalized truths switch
+            // inside their range from case 20 on), every unit.
+            for spec in matrix(family, 24, 11)
                 .into_iter()
                 .filter(|s| s.units != Units::MpaMm || s.seed % 3 == 0)
+                .filter(|s| s.seed < 19 || family == Family::Generalized)
             {
                 let spec = CaseSpec {
                     samples: 3000,
@@ -647,6 +696,15 @@ mod tests {
                     v.rmse,
                 );
                 assert!(in_bounded_class(family, &case.truth), "{}", case.name());
+                if let (Some(is), SwitchAt::Inside) = (family.switch_index(), spec.switch) {
+                    // Inside the output's range, in the record's units.
+                    let (lo, hi) = case.trace.output.iter().fold(
+                        (f64::INFINITY, f64::NEG_INFINITY),
+                        |(a, b), &v| (a.min(v), b.max(v)),
+                    );
+                    let x_s = case.truth[is];
+                    assert!(lo < x_s && x_s < hi, "{}: x_s {x_s}", case.name());
+                }
                 assert_eq!(case.truth[0], 1.0, "the truth is in the gauge A = 1");
                 let range = case.trace.output.iter().fold(0.0f64, |m, &v| m.max(v))
                     - case
