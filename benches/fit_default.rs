@@ -6,9 +6,9 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use mckibben::data::csv::{ReadOptions, read_traces_with_notes};
 use mckibben::eval::cpu::CpuEvaluator;
-use mckibben::fit::edge::fit_problem;
 use mckibben::fit::objective::{GENERATIONS, POPULATION, staged_plan};
 use mckibben::fit::problem::FitProblem;
+use mckibben::fit::run::fit_problem;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::Algorithm;
 use mckibben::optim::engine::StopRules;

@@ -10,7 +10,8 @@ use std::ops::Range;
 use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces};
 use mckibben::diagnose::{Diagnosis, Settings, diagnose};
-use mckibben::fit::run::{FitBox, FitRun, FitSettings};
+use mckibben::fit::run::{FitBox, FitRun};
+use mckibben::fit::settings::FitSettings;
 use mckibben::model::Family;
 use mckibben::model::experiment::halves;
 use rand::SeedableRng;
@@ -174,7 +175,8 @@ fn fit_never_reads_its_validation_half() {
                 Default::default(),
             )
             .unwrap();
-            let (outcome, widened) = fit.run(&mut [], None, None).unwrap();
+            let mut cpu = mckibben::eval::cpu::CpuEvaluator::new();
+            let (outcome, widened) = fit.run(&mut cpu, &mut [], None, None).unwrap();
             let validation = fit.problem.validate(&outcome.params);
             (outcome.params, widened, validation)
         };

@@ -14,7 +14,8 @@ use mckibben::diagnose::chain::with_chain_start;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::report::{FitReport, model_file, yardstick_warnings};
 use mckibben::fit::request::{FitRequest, Resolved};
-use mckibben::fit::run::{FitRun, FitSettings, Overrides};
+use mckibben::fit::run::FitRun;
+use mckibben::fit::settings::{FitSettings, Overrides};
 use mckibben::optim::engine::{Observer, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 
@@ -54,10 +55,18 @@ pub struct FitResult {
     /// chain built one effect at a time (`scratch_sse`, `chain_sse`,
     /// `kept_chain`); `None` otherwise.
     built: Option<Py<PyAny>>,
-    /// A generalized fit under the default `switch="starts"`: both starts'
-    /// estimation SSEs and which was kept (`mean_sse`, `zero_sse`,
-    /// `kept_zero`; `fit --json`'s `switching`); `None` otherwise.
+    /// A generalized fit with `switch="starts"`: both starts' estimation
+    /// SSEs and which was kept (`mean_sse`, `zero_sse`, `kept_zero`; `fit
+    /// --json`'s `switching`); `None` otherwise.
     switching: Option<Py<PyAny>>,
+    /// Independent tries the population ran (`pop // 1000` from 2000 on,
+    /// else 1), and each one's population.
+    tries: usize,
+    try_population: usize,
+    /// How far the tries agree, `fit --json`'s `agreement` (`tries`,
+    /// `agreeing`, `other_basins`, `diverged`, `threshold`); `None` for a
+    /// single try. Few of many agreeing: run a larger population.
+    agreement: Option<Py<PyAny>>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -163,7 +172,7 @@ fn unbound(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>>
 #[pyo3(signature = (
     u, y = None, dt = None, model = None, effects = None, algo = "de", pop = None,
     gens = None, seed = 1, backend = "cpu", bounds = None, progress = None, *,
-    free_n = false, r#loop = "bounded", switch = "starts", thesis_flow = false,
+    free_n = false, r#loop = "bounded", switch = "search", thesis_flow = false,
     target_sse = None, time_budget = None, stall = None, start = None
 ))]
 #[allow(clippy::too_many_arguments)]
@@ -253,10 +262,15 @@ pub fn fit(
     };
     let (fit, ran, describe) = py
         .detach(|| {
-            let evaluator = mckibben::eval::open(backend)?;
+            let mut evaluator = mckibben::eval::open(backend)?;
             let describe = evaluator.describe();
-            let mut fit = fit.scored_on(evaluator);
-            let ran = fit.run(&mut [&mut observer], Some(&interrupt), None)?;
+            let mut fit = fit;
+            let ran = fit.run(
+                evaluator.as_mut(),
+                &mut [&mut observer],
+                Some(&interrupt),
+                None,
+            )?;
             anyhow::Ok((fit, ran, describe))
         })
         .map_err(runtime_error)?;
@@ -315,6 +329,13 @@ pub fn fit(
         start_val_fit_percent: report.start_val_fit_percent,
         built: report.built.map(|b| unbound(py, &b)).transpose()?,
         switching: report.switching.map(|s| unbound(py, &s)).transpose()?,
+        tries: report.tries,
+        try_population: report.try_population,
+        agreement: report
+            .agreement
+            .as_ref()
+            .map(|a| unbound(py, a))
+            .transpose()?,
         evaluations: report.evaluations,
         generations: report.generations,
         seconds: report.seconds,

@@ -77,13 +77,32 @@ def test_a_generalized_fit_switches_as_the_command(stair, cli, tmp_path):
         result = mckibben.fit(stair, model="generalized", pop=40, gens=10, seed=2, switch=switch)
         assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
         assert result.switching == expected.get("switching")
-    # The default runs both starts and says which it kept; one held level runs one.
-    default = mckibben.fit(stair, model="generalized", pop=40, gens=10, seed=2)
-    assert set(default.switching) == {"mean_sse", "zero_sse", "kept_zero"}
-    s = default.switching
+    # Two starts say which they kept; the default searches the level, one start.
+    starts = mckibben.fit(stair, model="generalized", pop=40, gens=10, seed=2, switch="starts")
+    assert set(starts.switching) == {"mean_sse", "zero_sse", "kept_zero"}
+    s = starts.switching
     assert s["kept_zero"] == (s["zero_sse"] < s["mean_sse"])
-    with pytest.raises(ValueError, match="unknown switch `middle`: expected one of starts, search, mean, zero"):
+    default = mckibben.fit(stair, model="generalized", pop=40, gens=10, seed=2)
+    expected = cli("fit", stair.source, *small, "--out", tmp_path / "default")
+    assert default.switching is None and expected["switching"] is None
+    assert [bits(v) for v in default.params.values()] == [bits(v) for v in expected["params"].values()]
+    with pytest.raises(ValueError, match="unknown switch `middle`: expected one of search, starts, mean, zero"):
         mckibben.fit(stair, model="generalized", pop=40, gens=10, switch="middle")
+
+
+def test_a_larger_population_runs_tries_as_the_command(stair, cli, tmp_path):
+    small = ["--pop", "2000", "--gens", "4", "--seed", "3", "--backend", "cpu"]
+    expected = cli("fit", stair.source, *small, "--out", tmp_path)
+    result = mckibben.fit(stair, pop=2000, gens=4, seed=3)
+    assert (result.tries, result.try_population) == (expected["tries"], expected["try_population"]) == (2, 1000)
+    assert result.agreement == expected["agreement"]
+    assert set(result.agreement) == {"tries", "agreeing", "other_basins", "diverged", "threshold"}
+    assert 1 <= result.agreement["agreeing"] <= 2 == result.agreement["tries"]
+    assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
+    one = mckibben.fit(stair, pop=1000, gens=4, seed=3)
+    assert one.tries == 1 and one.agreement is None
+    # The first of the two tries is the fit of one: two never end higher.
+    assert result.sse <= one.sse
 
 
 def test_a_warm_start_is_the_commands_fit_from(stair, cli, small_fit, tmp_path):

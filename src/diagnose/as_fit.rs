@@ -19,7 +19,8 @@ use super::settings::Settings;
 use super::transfer::run_stoppable;
 use crate::data::Trace;
 use crate::fit::problem::FitProblem;
-use crate::fit::run::{FitBox, FitRun, FitSettings};
+use crate::fit::run::{FitBox, FitRun};
+use crate::fit::settings::FitSettings;
 use crate::model::Model;
 
 /// The final chain as `fit --effects` fits it, against the selection's fit.

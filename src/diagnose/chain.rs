@@ -21,7 +21,8 @@ use crate::eval::Backend;
 use crate::fit::problem::FitProblem;
 use crate::fit::records::Records;
 use crate::fit::report::FitReport;
-use crate::fit::run::{FitRun, FitSettings};
+use crate::fit::run::FitRun;
+use crate::fit::settings::FitSettings;
 use crate::ident::{fit_percent, rmse};
 use crate::model::experiment::halves;
 use crate::model::file::SearchBox;
@@ -157,6 +158,9 @@ pub fn selected_fit(
         flow: Flow::Joint,
         seed,
         population: settings.population,
+        tries: 1,
+        try_population: settings.population,
+        agreement: None,
         stop: StopReason::Completed,
         stages: Vec::new(),
         on_edge: Vec::new(),

@@ -19,7 +19,8 @@ use super::settings::{Interrupted, Settings};
 use super::{Diagnosis, accept::gap_closed, chain::with_chain_start};
 use crate::data::Trace;
 use crate::fit::records::Validation;
-use crate::fit::run::{FitBox, FitRun, FitSettings};
+use crate::fit::run::{FitBox, FitRun};
+use crate::fit::settings::FitSettings;
 use crate::model::Family;
 use crate::model::experiment::halves;
 use crate::optim::engine::Outcome;
@@ -119,8 +120,14 @@ fn fit_and_score(
 /// flag: a fit the diagnosis makes as `mckibben fit` would. Returns the fit
 /// as it ended (its box widened by the edge rule) and its outcome.
 pub(crate) fn run_stoppable(fit: FitRun, settings: &Settings) -> anyhow::Result<(FitRun, Outcome)> {
-    let mut fit = fit.scored_on(crate::eval::open(settings.backend)?);
-    let (outcome, _) = fit.run(&mut [], Some(settings.stop.as_atomic()), None)?;
+    let mut fit = fit;
+    let mut evaluator = crate::eval::open(settings.backend)?;
+    let (outcome, _) = fit.run(
+        evaluator.as_mut(),
+        &mut [],
+        Some(settings.stop.as_atomic()),
+        None,
+    )?;
     if settings.stop.raised() {
         return Err(Interrupted.into());
     }

@@ -1,18 +1,30 @@
-//! The edge rule: a default fit that ends on a bound the data set (not the
-//! bounded class's own edges, not a bound the user gave) was stopped by the
-//! box, not by the data. The bound is widened and the fit refitted from its
-//! best point, at most [`MAX_WIDENINGS`] times, and the result says so.
+//! The edge rule: a default fit that ends on or near a bound the data set
+//! (not the bounded class's own edges, not a bound the user gave) was
+//! stopped by the box, not by the data. The bound is widened and the fit
+//! refitted from its best point, at most [`MAX_WIDENINGS`] times, and the
+//! result says so. Every try of a fit is settled so, each in its own copy
+//! of the box, before the lowest is kept ([`settle_tries`]): a try's end
+//! then depends on nothing but its own seed, and a run of more tries never
+//! ends higher than a run of fewer.
 
 use serde::Serialize;
 
 use super::objective::ModelObjective;
 use super::problem::FitProblem;
 use crate::eval::Evaluator;
-use crate::model::bounds::Origin;
-use crate::optim::engine::{Engine, Outcome, Plan, Space, StopReason, StopRules};
+use crate::model::bounds::{Origin, Side};
+use crate::optim::engine::{Engine, Outcome, Plan, StopReason, StopRules, TryEnd};
+use crate::optim::streams::try_seed;
 
 /// Refits after widening at most this many times.
 pub const MAX_WIDENINGS: usize = 2;
+
+/// A fit that ends within this share of a data-set bound's box width of
+/// it (on the scale of the smallest drawn values, for a coordinate that
+/// spans decades: [`Space::near_edge`]) counts as ended on it: a fit that
+/// stops a hair inside a bound was stopped by it as surely (seen: `a`
+/// 0.03 % of the width inside its lower bound, the truth outside the box).
+pub const NEAR_EDGE: f64 = 0.01;
 
 /// One widening and the refit that followed it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -26,166 +38,190 @@ pub struct Widening {
 }
 
 /// A bound still active at the end of a fit.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ActiveBound {
     /// The search coordinate's name.
     pub param: String,
-    /// `"lower"` or `"upper"`.
-    pub bound: &'static str,
+    pub bound: Side,
     /// Where the bound comes from: `data` (a data-set bound, after the last
     /// widening), `class` (the bounded class's edge or the parameter's own
     /// range) or `user` (`--bound`, `--fix`).
     pub origin: Origin,
+    /// How far inside the bound the parameter ended, as a share of the
+    /// box's width (0: on it).
+    pub inside: f64,
 }
 
-/// A generalized fit run from the default switching's two starts
-/// ([`crate::model::Switching::Starts`]): the switching level held at the
-/// estimation mean, and at the sensor's zero; the lower estimation SSE is
-/// kept.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Switched {
-    /// Estimation SSE with the level at the estimation mean.
-    pub mean_sse: f64,
-    /// Estimation SSE with the level at the sensor's zero.
-    pub zero_sse: f64,
-    /// `true` when the start at zero was kept.
-    pub kept_zero: bool,
-}
-
-impl Switched {
-    /// The two starts' outcomes compared: the one at zero is kept where it
-    /// found a model at a lower estimation SSE.
-    pub fn of(at_mean: &Outcome, at_zero: &Outcome) -> Switched {
-        Switched {
-            mean_sse: at_mean.sse,
-            zero_sse: at_zero.sse,
-            kept_zero: !at_zero.params.is_empty() && at_zero.sse < at_mean.sse,
-        }
-    }
-}
-
-/// Fits `problem` with `plan` on `evaluator`, with no observer, interrupt or
-/// checkpoint (the studies of `compare` and the tests): from both starts of
-/// the default switching where the problem has two ([`FitProblem::at_zero`]: the
-/// lower estimation SSE kept), then the edge rule.
-pub fn fit_problem(
-    problem: &FitProblem,
-    plan: Plan,
-    seed: u64,
-    stops: StopRules,
-    evaluator: &mut dyn Evaluator,
-) -> anyhow::Result<(Engine, Outcome)> {
-    let run = |problem: &FitProblem,
-               evaluator: &mut dyn Evaluator|
-     -> anyhow::Result<(Engine, Outcome)> {
-        let mut engine = Engine::new(
-            plan.clone(),
-            Space::from(&problem.space),
-            seed,
-            stops.clone(),
-        )?;
-        let mut objective = ModelObjective::for_problem(evaluator, problem);
-        let outcome = engine.run(&mut objective, &mut [], None, None)?;
-        Ok((engine, outcome))
-    };
-    let mut widened = problem.clone();
-    let (mut engine, mut outcome) = run(problem, evaluator)?;
-    if let Some(zero) = problem.at_zero() {
-        let (e, o) = run(&zero, evaluator)?;
-        let (evaluations, seconds) = (
-            outcome.evaluations + o.evaluations,
-            outcome.seconds + o.seconds,
-        );
-        if Switched::of(&outcome, &o).kept_zero {
-            (engine, outcome, widened) = (e, o, zero);
-        }
-        (outcome.evaluations, outcome.seconds) = (evaluations, seconds);
-    }
-    let (outcome, _) = refit_off_edges(&mut widened, &engine, outcome, &stops, evaluator)?;
-    Ok((engine, outcome))
-}
-
-/// Applies the edge rule to `outcome`, the result of the staged fit
-/// `engine` ran on `problem`: widens the data-set bounds it ends on, refits
-/// from its best point with the free-run and polish stages of the same plan
-/// (a polish alone where the plan has no free run), and keeps the refit
-/// when its estimation SSE is lower. `problem.space` is the widened box on
-/// return. Does nothing for the thesis' flow, a plan that is a population
-/// search alone (a study of the search, not a fit), or a fit that was
-/// interrupted or found nothing.
-pub fn refit_off_edges(
+/// Settles every try of `outcome`, what `engine` ran on `problem`, by the
+/// edge rule ([`refit_off_edges`]), each in its own copy of the box, and
+/// keeps the lowest (the first on a tie): on return `problem.space` is that
+/// try's box, widened where its rule widened it, `outcome`'s parameters and
+/// SSE are its, `outcome.tries` holds every try's end after its refits, and
+/// the refits' work is counted in. Returns the kept try's widenings.
+pub fn settle_tries(
     problem: &mut FitProblem,
     engine: &Engine,
     mut outcome: Outcome,
     stops: &StopRules,
     evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<(Outcome, Vec<Widening>)> {
+    let mut kept: Option<(usize, FitProblem, Vec<Widening>)> = None;
+    let ends = std::mem::take(&mut outcome.tries);
+    let mut settled: Vec<TryEnd> = Vec::with_capacity(ends.len());
+    for (t, end) in ends.into_iter().enumerate() {
+        let mut own = problem.clone();
+        let refit = refit_off_edges(
+            &mut own,
+            &engine.plan,
+            try_seed(engine.seed, t),
+            (end, outcome.stop),
+            stops,
+            evaluator,
+        )?;
+        outcome.evaluations += refit.evaluations;
+        outcome.generations += refit.generations;
+        outcome.seconds += refit.seconds;
+        outcome.stages.extend(refit.stages);
+        if let Some(stop) = refit.stop {
+            outcome.stop = stop;
+        }
+        let lower = kept
+            .as_ref()
+            .is_none_or(|(k, _, _)| refit.end.sse < settled[*k].sse);
+        if lower && !refit.end.params.is_empty() {
+            kept = Some((t, own, refit.widenings));
+        }
+        settled.push(refit.end);
+    }
     let mut widenings = Vec::new();
-    let refits = engine.plan.free_run.is_some() || engine.plan.polish.is_some();
+    if let Some((t, own, w)) = kept {
+        *problem = own;
+        outcome.params = settled[t].params.clone();
+        outcome.sse = settled[t].sse;
+        widenings = w;
+    }
+    outcome.tries = settled;
+    Ok((outcome, widenings))
+}
+
+/// A try's end after the edge rule, and the work its refits took.
+pub struct Refit {
+    pub end: TryEnd,
+    pub widenings: Vec<Widening>,
+    pub evaluations: u64,
+    pub generations: usize,
+    pub seconds: f64,
+    pub stages: Vec<crate::optim::engine::StageSummary>,
+    /// Why the last refit stopped, where there was one.
+    pub stop: Option<StopReason>,
+}
+
+/// Applies the edge rule to a try's `end` (`stop`: why its fit ended), a
+/// fit of `plan` on `problem` seeded by `seed`: widens the data-set bounds
+/// it ends on or near ([`NEAR_EDGE`]), refits from its best point with the
+/// plan from a point on ([`Plan::from_point`]: the free-run stage, the
+/// polish and the refining rounds; a polish alone where the plan has no
+/// free run), and keeps the refit when its estimation SSE is lower.
+/// `problem.space` is the widened box on return. Does nothing for the
+/// thesis' flow, a plan that is a population search alone (a study of the
+/// search, not a fit), or a fit that was interrupted or found nothing.
+pub fn refit_off_edges(
+    problem: &mut FitProblem,
+    plan: &Plan,
+    seed: u64,
+    (mut end, stop): (TryEnd, StopReason),
+    stops: &StopRules,
+    evaluator: &mut dyn Evaluator,
+) -> anyhow::Result<Refit> {
+    let mut refit = Refit {
+        end: TryEnd {
+            params: Vec::new(),
+            sse: f64::INFINITY,
+        },
+        widenings: Vec::new(),
+        evaluations: 0,
+        generations: 0,
+        seconds: 0.0,
+        stages: Vec::new(),
+        stop: None,
+    };
+    let refits = plan.free_run.is_some() || plan.polish.is_some();
     if problem.flow == crate::model::Flow::Thesis
         || !refits
-        || outcome.params.is_empty()
-        || outcome.stop == StopReason::Interrupted
+        || end.params.is_empty()
+        || stop == StopReason::Interrupted
     {
-        return Ok((outcome, widenings));
+        refit.end = end;
+        return Ok(refit);
     }
     for round in 0..MAX_WIDENINGS {
-        let space = Space::from(&problem.space);
-        let edges: Vec<(usize, &str)> = space
-            .on_edge(&outcome.params)
+        let space = problem.engine_space();
+        let edges: Vec<(usize, Side)> = space
+            .near_edge(&end.params, NEAR_EDGE)
             .into_iter()
-            .filter(|&(i, side)| {
-                problem.space.origin[i][usize::from(side == "upper")] == Origin::Data
-            })
+            .filter(|&(i, side)| problem.space.origin[i][side.index()] == Origin::Data)
             .collect();
         if edges.is_empty() {
             break;
         }
         let bounds = problem.space.widen(&edges);
-        let plan = Plan {
-            global: None,
-            free_run: engine.plan.free_run.clone(),
-            polish: engine.plan.polish.clone(),
-        };
-        let seed = engine.seed.wrapping_add(1 + round as u64);
-        let mut refit = Engine::new(plan, Space::from(&problem.space), seed, stops.clone())?
-            .with_initial(&outcome.params);
+        let seed = seed.wrapping_add(1 + round as u64);
+        let mut engine = Engine::new(
+            plan.from_point(),
+            problem.engine_space(),
+            seed,
+            stops.clone(),
+        )?
+        .with_initial(&end.params);
         let mut objective = ModelObjective::for_problem(evaluator, problem);
-        let next = refit.run(&mut objective, &mut [], None, None)?;
-        let sse_before = outcome.sse;
-        let sse_after = next.sse;
-        outcome.evaluations += next.evaluations;
-        outcome.generations += next.generations;
-        outcome.seconds += next.seconds;
-        outcome.stages.extend(next.stages.iter().cloned());
-        if !next.params.is_empty() && next.sse < outcome.sse {
-            outcome.params = next.params;
-            outcome.sse = next.sse;
+        let next = engine.run(&mut objective, &mut [], None, None)?;
+        let sse_before = end.sse;
+        refit.evaluations += next.evaluations;
+        refit.generations += next.generations;
+        refit.seconds += next.seconds;
+        refit.stages.extend(next.stages.iter().cloned());
+        refit.stop = Some(next.stop);
+        if !next.params.is_empty() && next.sse < end.sse {
+            end = TryEnd {
+                params: next.params,
+                sse: next.sse,
+            };
         }
-        outcome.stop = next.stop;
-        widenings.push(Widening {
+        refit.widenings.push(Widening {
             bounds,
             sse_before,
-            sse_after,
+            sse_after: next.sse,
         });
+        if next.stop == StopReason::Interrupted {
+            break;
+        }
     }
-    Ok((outcome, widenings))
+    refit.end = end;
+    Ok(refit)
 }
 
-/// The bounds of `problem`'s box that the canonical `params` sit on, with why
-/// each stays.
+/// The bounds of `problem`'s box that the canonical `params` end on or near
+/// ([`NEAR_EDGE`]), with why each stays and how far inside it they are.
 pub fn active_bounds(problem: &FitProblem, params: &[f64]) -> Vec<ActiveBound> {
     if params.is_empty() {
         return Vec::new();
     }
-    let space = Space::from(&problem.space);
+    let space = problem.engine_space();
+    let z = problem.space.from_native(params);
     space
-        .on_edge(params)
+        .near_edge(params, NEAR_EDGE)
         .into_iter()
-        .map(|(i, bound)| ActiveBound {
-            param: space.names[i].clone(),
-            bound,
-            origin: problem.space.origin[i][usize::from(bound == "upper")],
+        .map(|(i, bound)| {
+            let b = match bound {
+                Side::Lower => space.lower[i],
+                Side::Upper => space.upper[i],
+            };
+            ActiveBound {
+                param: space.names[i].clone(),
+                bound,
+                origin: problem.space.origin[i][bound.index()],
+                inside: (z[i] - b).abs() / (space.upper[i] - space.lower[i]),
+            }
         })
         .collect()
 }
@@ -198,8 +234,8 @@ mod tests {
     use crate::fit::objective::staged_plan;
     use crate::model::Family;
     use crate::model::Measure;
+    use crate::optim::Algorithm;
     use crate::optim::engine::Objective;
-    use crate::optim::{Algorithm, engine::Space as EngineSpace};
 
     #[test]
     fn a_fit_stopped_by_a_data_bound_widens_it_and_refits() {
@@ -215,13 +251,8 @@ mod tests {
         problem.space.lower[ib] = 0.1 * truth[ib];
         let plan = staged_plan(&problem, Algorithm::De.staged_settings(60), 60, 20);
         let mut cpu = CpuEvaluator::new();
-        let mut engine = Engine::new(
-            plan,
-            EngineSpace::from(&problem.space),
-            1,
-            StopRules::default(),
-        )
-        .unwrap();
+        let mut engine =
+            Engine::new(plan, problem.engine_space(), 1, StopRules::default()).unwrap();
         let outcome = engine
             .run(
                 &mut ModelObjective::for_problem(&mut cpu, &problem),
@@ -234,18 +265,25 @@ mod tests {
         assert!(
             stuck
                 .iter()
-                .any(|b| b.param == "gain" && b.bound == "upper"),
+                .any(|b| b.param == "gain" && b.bound == Side::Upper),
             "{stuck:?}"
         );
         let before = outcome.sse;
-        let (after, widenings) = refit_off_edges(
+        let end = |o: &Outcome| TryEnd {
+            params: o.params.clone(),
+            sse: o.sse,
+        };
+        let stop = StopReason::Completed;
+        let after = refit_off_edges(
             &mut problem,
-            &engine,
-            outcome,
+            &engine.plan,
+            1,
+            (end(&outcome), stop),
             &StopRules::default(),
             &mut cpu,
         )
         .unwrap();
+        let widenings = &after.widenings;
         assert!(!widenings.is_empty());
         assert!(
             widenings[0].bounds[0].starts_with("gain upper bound"),
@@ -255,30 +293,62 @@ mod tests {
             problem.space.upper[ib] > truth[ib],
             "two widenings reach the truth's gain"
         );
-        assert!(after.sse < before, "{} !< {before}", after.sse);
-        let left = active_bounds(&problem, &after.params);
+        assert!(after.end.sse < before, "{} !< {before}", after.end.sse);
+        let left = active_bounds(&problem, &after.end.params);
         assert!(left.iter().all(|b| b.param != "gain"), "{left:?}");
+
+        // A fit that stops a hair inside the bound is widened as well.
+        let mut near = case.problem();
+        near.space.upper[ib] = 0.5 * truth[ib];
+        near.space.lower[ib] = 0.1 * truth[ib];
+        let width = near.space.upper[ib] - near.space.lower[ib];
+        let mut z = near.space.from_native(&outcome.params);
+        z[ib] = near.space.upper[ib] - 3e-4 * width;
+        let inside = TryEnd {
+            params: near.space.to_native(&z),
+            sse: near.est_sse(&near.space.to_native(&z)),
+        };
+        let bound = active_bounds(&near, &inside.params);
+        let gain = bound
+            .iter()
+            .find(|b| b.param == "gain")
+            .expect("near the gain's bound");
+        assert!((gain.inside - 3e-4).abs() < 1e-9, "{gain:?}");
+        let refit = refit_off_edges(
+            &mut near,
+            &engine.plan,
+            1,
+            (inside, stop),
+            &StopRules::default(),
+            &mut cpu,
+        )
+        .unwrap();
+        assert!(
+            refit.widenings[0].bounds[0].starts_with("gain upper bound"),
+            "{:?}",
+            refit.widenings
+        );
 
         // A user's bound is never widened.
         let mut user = case.problem();
         user.space.origin[ib] = [Origin::User; 2];
         user.space.upper[ib] = 0.5 * truth[ib];
-        let (_, none) = refit_off_edges(
+        let mut z = truth.clone();
+        z[ib] = 0.5 * truth[ib];
+        let on_user = TryEnd {
+            params: problem.space.to_native(&z),
+            sse: after.end.sse,
+        };
+        let none = refit_off_edges(
             &mut user,
-            &engine,
-            Outcome {
-                params: problem.space.to_native(&{
-                    let mut z = truth.clone();
-                    z[ib] = 0.5 * truth[ib];
-                    z
-                }),
-                ..after.clone()
-            },
+            &engine.plan,
+            1,
+            (on_user, stop),
             &StopRules::default(),
             &mut cpu,
         )
         .unwrap();
-        assert!(none.is_empty());
+        assert!(none.widenings.is_empty());
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! Fitting a muscle model to recorded traces: the records and their split
 //! ([`records`]), the problem on one trace ([`problem`]), the objective the
-//! engine minimises ([`objective`]), one run of `mckibben fit` ([`run`]),
-//! the edge rule ([`edge`]), synthetic records with known truths
+//! engine minimises ([`objective`]), what a fresh fit runs ([`settings`]), one run of `mckibben fit` ([`run`]),
+//! the edge rule ([`edge`]), how far its tries agree ([`agreement`]), synthetic records with known truths
 //! ([`synthetic`], [`cases`]) and the thesis' comparison of algorithms
 //! ([`compare`]).
 //!
@@ -9,6 +9,7 @@
 //! nothing of muscles: this module is where a model, its data and its box
 //! meet them.
 
+pub mod agreement;
 pub mod cases;
 pub mod compare;
 pub mod edge;
@@ -19,4 +20,5 @@ pub mod report;
 pub mod request;
 pub mod run;
 pub mod searches;
+pub mod settings;
 pub mod synthetic;

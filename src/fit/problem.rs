@@ -22,6 +22,7 @@ pub use super::searches::StopFlag;
 use crate::data::Trace;
 use crate::eval::cpu::CpuEvaluator;
 use crate::eval::{Evaluator, Problem};
+use crate::ident::fit::CHI2_1_95;
 use crate::model::bounds::Origin;
 use crate::model::effects::{Context, Effect, EffectBox, ModelDescription, effect_box};
 use crate::model::experiment::{Parts, halves};
@@ -31,6 +32,7 @@ use crate::model::{
     Experiment, Family, FittedBaseline, Flow, LinearPrior, Loop, Model, SearchSpace, Switching,
     UserBound,
 };
+use crate::optim::engine::Space;
 
 /// How far beyond the estimation output's largest deviation a bounded model
 /// may go on the whole record's input ([`FitProblem::stress`]).
@@ -111,7 +113,7 @@ impl FitProblem {
     /// on the estimation half, and the box of `flow`: the joint flow's in
     /// the data's own scale, bounded loops ([`SearchSpace::scaled`]) and,
     /// for the generalized family, the default switching
-    /// ([`Switching::Starts`]); the thesis' flow's from `hysteresis` (the
+    /// ([`Switching::Search`]); the thesis' flow's from `hysteresis` (the
     /// hull of its tables when `None`) with the linear part fixed at ARX's.
     /// `n` is fixed at 1 unless `free_n`.
     pub fn new(
@@ -121,7 +123,7 @@ impl FitProblem {
         hysteresis: Option<&ThesisBounds>,
         free_n: bool,
     ) -> anyhow::Result<FitProblem> {
-        let shape = (Loop::Bounded, Switching::Starts);
+        let shape = (Loop::Bounded, Switching::default());
         FitProblem::with_box(trace, family, flow, hysteresis, free_n, shape, &[])
     }
 
@@ -211,7 +213,7 @@ impl FitProblem {
             model: baseline,
             flow: Flow::Joint,
             loop_shape: Loop::Bounded,
-            switching: Switching::Starts,
+            switching: Switching::Search,
             admission: Admission::BoundedLoops,
             input_name: first.input_name.clone(),
             output_name: first.output_name.clone(),
@@ -311,17 +313,6 @@ impl FitProblem {
         self
     }
 
-    /// Scores on `other`'s evaluator (one evaluator shared, as clones share
-    /// it).
-    pub(crate) fn score_like(&mut self, other: &FitProblem) {
-        self.scorer = other.scorer();
-    }
-
-    /// The problem's evaluator, shared ([`Scorer`]).
-    pub(crate) fn scorer(&self) -> Scorer {
-        self.scorer.clone()
-    }
-
     /// The same problem, every search on it stopped once `stop` is raised.
     pub fn stopped_by(mut self, stop: StopFlag) -> FitProblem {
         self.stop = stop;
@@ -357,14 +348,15 @@ impl FitProblem {
         })
     }
 
-    /// Holds the generalized switching level at `x_s` where the default
-    /// switching holds it ([`Switching::Starts`]; not a level the user
-    /// bounds or fixes): a warm start keeps its model's own level.
+    /// Holds the generalized switching level at `x_s` under the default
+    /// switching ([`Switching::Search`]; not `--switch mean`, `zero` or
+    /// `starts`, nor a level the user bounds or fixes): a warm start keeps
+    /// its model's own level, as it keeps the basin it is given.
     pub fn hold_switch_at(&mut self, x_s: f64) {
         let Some(is) = self.model.family.switch_index() else {
             return;
         };
-        if self.switching == Switching::Starts && self.space.origin[is] == [Origin::Class; 2] {
+        if self.switching == Switching::default() && self.space.origin[is] == [Origin::Class; 2] {
             (self.space.lower[is], self.space.upper[is]) = (x_s, x_s);
         }
     }
@@ -416,6 +408,19 @@ impl FitProblem {
             .with_extra(names[d..].to_vec(), lower, upper, bounds)
             .map_err(anyhow::Error::msg)?;
         Ok(self)
+    }
+
+    /// The engine's box of this problem: its search box, with a searched
+    /// switching level's preferred levels kept where they score within
+    /// the likelihood-ratio threshold of the lowest (the estimation data
+    /// cannot tell them apart at 95 %).
+    pub fn engine_space(&self) -> Space {
+        let mut space = Space::from(&self.space);
+        let share = CHI2_1_95 / self.est_samples().max(1) as f64;
+        for s in &mut space.stepwise {
+            s.tolerance = share;
+        }
+        space
     }
 
     /// The first record's estimation half.

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context as _;
 use serde::Serialize;
 
+use super::agreement::Agreement;
 use super::edge::{ActiveBound, Widening, active_bounds};
 use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
@@ -56,6 +57,12 @@ pub struct FitReport {
     pub flow: Flow,
     pub seed: u64,
     pub population: usize,
+    /// Independent tries the population ran, and each one's population
+    /// (`fit::objective::tries_of`).
+    pub tries: usize,
+    pub try_population: usize,
+    /// How far the tries agree (`None` for a single try).
+    pub agreement: Option<Agreement>,
     pub stop: StopReason,
     pub stages: Vec<StageSummary>,
     /// Search coordinates that ended on a bound of the box, with where
@@ -120,8 +127,14 @@ impl FitReport {
             seed: engine.seed,
             population: global.map_or(
                 engine.plan.free_run.as_ref().map_or(0, |f| f.population),
+                |g| g.population * engine.plan.tries,
+            ),
+            tries: engine.plan.tries,
+            try_population: global.map_or(
+                engine.plan.free_run.as_ref().map_or(0, |f| f.population),
                 |g| g.population,
             ),
+            agreement: fit.agreement.clone(),
             stop: outcome.stop,
             stages: outcome.stages.clone(),
             on_edge: active_bounds(problem, &outcome.params),
@@ -204,8 +217,12 @@ impl FitReport {
             s.push_str(&l);
             s.push('\n');
         };
+        let tries = match self.tries {
+            1 => String::new(),
+            k => format!(" ({k} tries of {})", self.try_population),
+        };
         line(format!(
-            "{} {} fit of {} ({} flow), N = {}, seed {}",
+            "{} {} fit of {} ({} flow), N = {}{tries}, seed {}",
             self.algo,
             self.model,
             self.data,
@@ -253,6 +270,9 @@ impl FitReport {
                 sw.zero_sse,
                 if sw.kept_zero { "zero" } else { "mean" }
             ));
+        }
+        if let Some(a) = &self.agreement {
+            line(format!("  tries: {}", a.to_text()));
         }
         if let Some(b) = self.built {
             line(format!(
@@ -334,8 +354,14 @@ impl FitReport {
             notes.push((
                 level,
                 format!(
-                    "{} ended on the {} bound of its search box ({why})",
-                    e.param, e.bound
+                    "{} ended {} the {} bound of its search box ({why})",
+                    e.param,
+                    if e.inside > 0.0 {
+                        format!("{:.2} % of the box's width inside", 100.0 * e.inside)
+                    } else {
+                        "on".to_string()
+                    },
+                    e.bound
                 ),
             ));
         }

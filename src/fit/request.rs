@@ -108,7 +108,7 @@ mod tests {
             effects: None,
             free_n: false,
             loop_shape: Loop::Bounded,
-            switching: Switching::Starts,
+            switching: Switching::Search,
             bounds: Vec::new(),
         }
     }

@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 use super::coords::{Coordinates, LinearCoords, Loop, Scale, ShapeCoords, shape_range};
 use super::family::Family;
 use super::presets::{ThesisBounds, hysteresis_hull};
+use super::user_bound::UserBound;
 
 /// How the linear part is treated during a fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -39,6 +40,47 @@ pub struct SearchSpace {
     /// parameters (`creep.kappa`), searched as they are.
     #[serde(default)]
     pub extra_names: Vec<String>,
+    /// Where the generalized switching level is searched as a level
+    /// ([`SearchSpace::scaled`] with [`Switching::Search`]): the levels to
+    /// keep among those the estimation data cannot tell apart (the sensor's
+    /// zero and the estimation mean, where the box holds them). `None`: the
+    /// level is held, or searched as any other coordinate (the diagnosis'
+    /// box).
+    #[serde(default)]
+    pub switch_levels: Option<Vec<f64>>,
+}
+
+/// Which bound of a coordinate's box.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Side {
+    Lower,
+    Upper,
+}
+
+impl Side {
+    pub const BOTH: [Side; 2] = [Side::Lower, Side::Upper];
+
+    /// Its place in a `[lower, upper]` pair (as [`SearchSpace::origin`]'s).
+    pub fn index(self) -> usize {
+        match self {
+            Side::Lower => 0,
+            Side::Upper => 1,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Side::Lower => "lower",
+            Side::Upper => "upper",
+        }
+    }
+}
+
+impl std::fmt::Display for Side {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// Where a bound of the box comes from.
@@ -64,75 +106,21 @@ fn native() -> Coordinates {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Switching {
-    /// Two starts, `x_s` held at the estimation mean in one and at the
-    /// sensor's zero in the other; the lower estimation SSE is kept (the
-    /// default: docs/RESULTS.md, "Where the generalized loop switches").
+    /// `x_s` searched over the estimation output's span as a level (the
+    /// default): a third of the first population starts at the sensor's
+    /// zero and at the estimation mean, the polish holds it, a scan of
+    /// levels moves it, and where the estimation data cannot tell the
+    /// best level from one of those two, that one is kept
+    /// (docs/ARCHITECTURE.md, "Where the generalized loop switches").
     #[default]
-    Starts,
-    /// `x_s` searched over the estimation output's span.
     Search,
+    /// Two starts, `x_s` held at the estimation mean in one and at the
+    /// sensor's zero in the other; the lower estimation SSE is kept.
+    Starts,
     /// `x_s` held at the estimation mean (every fit before `x_s` existed).
     Mean,
     /// `x_s` held at the sensor's zero (its rest length).
     Zero,
-}
-
-/// A bound a user sets on one parameter (`--bound NAME=LO:HI`, `--fix
-/// NAME=VALUE`), by a canonical name or a search coordinate's name.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct UserBound {
-    pub name: String,
-    pub lower: f64,
-    pub upper: f64,
-}
-
-impl std::fmt::Display for UserBound {
-    /// As `--bound` and `--fix` take it: `NAME=LO:HI`, or `NAME=VALUE`.
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        if self.lower == self.upper {
-            write!(f, "{}={}", self.name, self.lower)
-        } else {
-            write!(f, "{}={}:{}", self.name, self.lower, self.upper)
-        }
-    }
-}
-
-impl std::str::FromStr for UserBound {
-    type Err = String;
-    /// `NAME=LO:HI` or `NAME=VALUE` (a fixed value: `LO = HI`).
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let (name, range) = s
-            .split_once('=')
-            .ok_or_else(|| format!("`{s}`: expected NAME=LO:HI or NAME=VALUE"))?;
-        let number = |v: &str| -> Result<f64, String> {
-            let x: f64 = v
-                .trim()
-                .parse()
-                .map_err(|_| format!("`{s}`: `{v}` is not a number"))?;
-            if x.is_finite() {
-                Ok(x)
-            } else {
-                Err(format!("`{s}`: `{v}` is not a finite number"))
-            }
-        };
-        let (lower, upper) = match range.split_once(':') {
-            Some((lo, hi)) => (number(lo)?, number(hi)?),
-            None => {
-                let v = number(range)?;
-                (v, v)
-            }
-        };
-        if lower > upper {
-            return Err(format!(
-                "`{s}`: the box is empty (lower {lower} is above upper {upper})"
-            ));
-        }
-        Ok(UserBound {
-            name: name.trim().to_string(),
-            lower,
-            upper,
-        })
-    }
 }
 
 /// The data-scale box's loop-shape reach: a normalised loop-shape
@@ -257,6 +245,7 @@ impl SearchSpace {
             lower,
             upper,
             extra_names: Vec::new(),
+            switch_levels: None,
         }
     }
 
@@ -407,6 +396,21 @@ impl SearchSpace {
         for i in [ib, ic, ix] {
             origin[i] = [Origin::Data; 2];
         }
+        // A searched level keeps, among levels the estimation data cannot
+        // tell apart, the sensor's zero or the estimation mean where one
+        // of them is among them: a muscle's loop commonly switches at its
+        // rest length, and the generalized state's jumps make the
+        // validation error hang on the exact level while the estimation
+        // error stays flat across a sample's width of it.
+        let switch_levels = match (family.switch_index(), switching) {
+            (Some(is), Switching::Search) => Some(
+                [0.0, prior.output_mean]
+                    .into_iter()
+                    .filter(|v| (lower[is]..=upper[is]).contains(v))
+                    .collect(),
+            ),
+            _ => None,
+        };
         let mut space = SearchSpace {
             family,
             coords,
@@ -414,6 +418,7 @@ impl SearchSpace {
             upper,
             origin,
             extra_names: Vec::new(),
+            switch_levels,
         };
         // An effect's parameter (`creep.kappa`) is bounded once its
         // effect joins the box ([`SearchSpace::with_extra`]).
@@ -560,7 +565,8 @@ impl SearchSpace {
         let z = self.from_native(theta);
         let mut said = Vec::new();
         for (i, &v) in z.iter().enumerate() {
-            for upper in [false, true] {
+            for side in Side::BOTH {
+                let upper = side == Side::Upper;
                 let beyond = |s: &SearchSpace| {
                     if upper {
                         v > s.upper[i]
@@ -569,8 +575,7 @@ impl SearchSpace {
                     }
                 };
                 let old = if upper { self.upper[i] } else { self.lower[i] };
-                let side = if upper { "upper" } else { "lower" };
-                if self.origin[i][usize::from(upper)] != Origin::Data || !beyond(self) {
+                if self.origin[i][side.index()] != Origin::Data || !beyond(self) {
                     continue;
                 }
                 // Each step widens by a factor of 2.5 or more, so 16 steps
@@ -599,19 +604,19 @@ impl SearchSpace {
     }
 
     /// Widens the data-set bounds named by `edges` (coordinate index and
-    /// side, `"lower"` or `"upper"`): the time constant's and the gain's
+    /// side): the time constant's and the gain's
     /// reach by a factor 4, the offset's by 4, the start's by 2.5, the loop
     /// shape's by 10. Returns one line
     /// per bound widened, naming it with its old and new value; bounds that
     /// are not data-set (the class's edges, user bounds) are left alone.
-    pub fn widen(&mut self, edges: &[(usize, &str)]) -> Vec<String> {
+    pub fn widen(&mut self, edges: &[(usize, Side)]) -> Vec<String> {
         let names = self.names();
         let ia = self.family.linear_indices()[0];
         let shapes = shape_range(self.family);
         let mut said = Vec::new();
         for &(i, side) in edges {
-            let upper = side == "upper";
-            if self.origin[i][usize::from(upper)] != Origin::Data {
+            let upper = side == Side::Upper;
+            if self.origin[i][side.index()] != Origin::Data {
                 continue;
             }
             let old = if upper { self.upper[i] } else { self.lower[i] };
@@ -717,7 +722,11 @@ mod tests {
         // that ends there is a finding, never a bound to widen.
         assert_eq!(searched.origin[is], [Origin::Class; 2]);
         let mut widened = searched.clone();
-        assert!(widened.widen(&[(is, "lower"), (is, "upper")]).is_empty());
+        assert!(
+            widened
+                .widen(&[(is, Side::Lower), (is, Side::Upper)])
+                .is_empty()
+        );
         assert_eq!(widened, searched);
         // `--fix x_s=0` (a sensor zero at rest) and `--bound` hold exactly.
         let zero: UserBound = "x_s=0".parse().unwrap();

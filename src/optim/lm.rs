@@ -31,6 +31,10 @@ pub struct LmSettings {
     pub tolerance: f64,
     /// Central differences (twice the probes) instead of forward ones.
     pub central: bool,
+    /// Coordinates held where each start has them (empty: none): no probe,
+    /// no step. For a coordinate in which the objective is piecewise
+    /// constant, whose difference quotients are noise.
+    pub held: Vec<bool>,
 }
 
 impl Default for LmSettings {
@@ -40,6 +44,7 @@ impl Default for LmSettings {
             rel_step: 1e-6,
             tolerance: 1e-12,
             central: false,
+            held: Vec::new(),
         }
     }
 }
@@ -172,11 +177,20 @@ pub fn levenberg_marquardt_lockstep(
         if asked.is_empty() {
             break;
         }
+        // Each run's share of the scored points, then every run's step
+        // (its Jacobian, normal equations and solves) at once: the runs are
+        // independent, so their order of work does not matter.
         let mut scored = residuals(&points)?.into_iter();
+        let mut told: Vec<Option<Vec<Option<DVector<f64>>>>> = vec![None; runs.len()];
         for (k, count) in asked {
             runs[k].points += count;
-            runs[k].receive(scored.by_ref().take(count).collect());
+            told[k] = Some(scored.by_ref().take(count).collect());
         }
+        runs.par_iter_mut().zip(told).for_each(|(run, told)| {
+            if let Some(points) = told {
+                run.receive(points);
+            }
+        });
     }
     Ok(runs
         .into_iter()
@@ -286,11 +300,13 @@ impl<'a> Run<'a> {
                     let back: Vec<bool> = (0..d)
                         .map(|j| {
                             self.settings.central
+                                && !self.held(j)
                                 && x[j] - steps[j] >= lower[j]
                                 && x[j] + steps[j] <= upper[j]
                         })
                         .collect();
                     let mut probes: Vec<Vec<f64>> = (0..d)
+                        .filter(|&j| !self.held(j))
                         .map(|j| {
                             let mut xp = x.clone();
                             xp[j] += steps[j];
@@ -317,7 +333,8 @@ impl<'a> Run<'a> {
                     let mut trials: Vec<(Vec<f64>, f64)> = Vec::new();
                     while trials.len() < TRIALS_PER_BATCH && *tried < MAX_TRIALS {
                         *tried += 1;
-                        match bounded_step(jtj, jtr, self.lambda, &self.x, self.bounds) {
+                        let held = &self.settings.held;
+                        match bounded_step(jtj, jtr, self.lambda, &self.x, self.bounds, held) {
                             None => self.lambda *= 10.0,
                             Some(delta) => {
                                 let mut xn: Vec<f64> = self
@@ -404,7 +421,13 @@ impl<'a> Run<'a> {
         };
     }
 
-    /// The Jacobian from the probes' residuals, `None` if a probe diverged.
+    /// Whether coordinate `j` is held ([`LmSettings::held`]).
+    fn held(&self, j: usize) -> bool {
+        self.settings.held.get(j).copied().unwrap_or(false)
+    }
+
+    /// The Jacobian from the probes' residuals (a held coordinate's column
+    /// zero), `None` if a probe diverged.
     fn jacobian(
         &self,
         scored: Vec<Option<DVector<f64>>>,
@@ -412,10 +435,11 @@ impl<'a> Run<'a> {
         back: &[bool],
     ) -> Option<DMatrix<f64>> {
         let d = self.x.len();
+        let probed: Vec<usize> = (0..d).filter(|&j| !self.held(j)).collect();
         let mut cols = scored.into_iter();
-        let forward: Vec<Option<DVector<f64>>> = cols.by_ref().take(d).collect();
+        let forward: Vec<Option<DVector<f64>>> = cols.by_ref().take(probed.len()).collect();
         let mut jac = DMatrix::<f64>::zeros(self.r.len(), d);
-        for (j, col) in forward.into_iter().enumerate() {
+        for (&j, col) in probed.iter().zip(forward) {
             let col = col?;
             if back[j] {
                 let minus = cols.next().flatten()?;
@@ -447,16 +471,20 @@ fn clamp(v: &mut [f64], (lower, upper): (&[f64], &[f64])) {
 }
 
 /// The damped Gauss–Newton step `(JᵀJ + λ·diag JᵀJ) δ = −Jᵀr` with the
-/// coordinates on a bound whose step points out of the box held at zero.
+/// coordinates on a bound whose step points out of the box, and those
+/// `always` holds, held at zero.
 fn bounded_step(
     jtj: &DMatrix<f64>,
     jtr: &DVector<f64>,
     lambda: f64,
     x: &[f64],
     (lower, upper): (&[f64], &[f64]),
+    always: &[bool],
 ) -> Option<DVector<f64>> {
     let d = x.len();
-    let mut held = vec![false; d];
+    let mut held: Vec<bool> = (0..d)
+        .map(|j| always.get(j).copied().unwrap_or(false))
+        .collect();
     // Each pass holds at least one more coordinate or stops.
     for _ in 0..=d {
         let mut a = jtj.clone();
@@ -509,6 +537,37 @@ mod tests {
         };
         let bounds: (&[f64], &[f64]) = (&[-inf, -inf], &[x_max, inf]);
         levenberg_marquardt(rosenbrock, &[-1.2, 1.0], bounds, &[1.0, 1.0], &settings).unwrap()
+    }
+
+    #[test]
+    fn a_held_coordinate_stays_where_each_start_has_it() {
+        let settings = LmSettings {
+            max_iterations: 200,
+            held: vec![true, false],
+            ..LmSettings::default()
+        };
+        let inf = f64::INFINITY;
+        let starts = [vec![0.5, 1.0], vec![-0.3, -2.0]];
+        let mut batch = |points: &[Vec<f64>]| -> anyhow::Result<Vec<Option<DVector<f64>>>> {
+            Ok(points.iter().map(|p| rosenbrock(p)).collect())
+        };
+        let runs = levenberg_marquardt_lockstep(
+            &mut batch,
+            &starts,
+            (&[-inf, -inf], &[inf, inf]),
+            &[1.0, 1.0],
+            &settings,
+            None,
+        )
+        .unwrap();
+        for (start, run) in starts.iter().zip(runs) {
+            let out = run.outcome.unwrap();
+            // x held: the valley's floor at that x, y = x².
+            assert_eq!(out.x[0], start[0]);
+            assert!((out.x[1] - start[0] * start[0]).abs() < 1e-8, "{out:?}");
+            // One probe an iteration: the free coordinate's alone.
+            assert!(run.points <= 1 + 2 * out.iterations + 12 * out.iterations);
+        }
     }
 
     #[test]

@@ -204,6 +204,11 @@ impl AskTell {
         self.optimizer.algorithm()
     }
 
+    /// Individuals a generation: the rows each `ask` gives.
+    pub fn population(&self) -> usize {
+        self.n
+    }
+
     /// The next population to evaluate: row-major, `n × bounds.dim()`, every
     /// row inside the box, individual `i` drawn from `streams.row(i)`.
     pub fn ask(&mut self, streams: &Streams) -> Result<&[f64], PhaseError> {
@@ -694,6 +699,23 @@ pub(crate) mod inf_serde {
 
         pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
             Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+        }
+    }
+
+    /// The same for `f64` costs.
+    pub mod f64s {
+        use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+        pub fn serialize<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
+            v.iter()
+                .map(|&c| c.is_finite().then_some(c))
+                .collect::<Vec<_>>()
+                .serialize(s)
+        }
+
+        pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+            let v = Vec::<Option<f64>>::deserialize(d)?;
+            Ok(v.into_iter().map(|c| c.unwrap_or(f64::INFINITY)).collect())
         }
     }
 

@@ -10,6 +10,9 @@ pub enum Stage {
     Global,
     FreeRun,
     Polish,
+    /// Differential evolution on the free run in a cloud around a try's
+    /// best so far, each round followed by a polish.
+    Refine,
 }
 
 impl Stage {
@@ -18,6 +21,7 @@ impl Stage {
             Stage::Global => "global",
             Stage::FreeRun => "free-run",
             Stage::Polish => "polish",
+            Stage::Refine => "refine",
         }
     }
 }

@@ -87,6 +87,20 @@ fn stage_tag(stage: Stage) -> u64 {
         Stage::Global => 0,
         Stage::FreeRun => 1,
         Stage::Polish => 2,
+        Stage::Refine => 3,
+    }
+}
+
+/// The seed of try `t` of a run seeded by `seed`: the run's own for the
+/// first try, so that a run of one try is the run of that seed, and an
+/// unrelated one for each other (a run of more tries runs those of fewer
+/// and more: the same seed gives try `t` the same streams whatever the
+/// number of tries).
+pub fn try_seed(seed: u64, t: usize) -> u64 {
+    if t == 0 {
+        seed
+    } else {
+        mix(seed ^ mix(GOLDEN_GAMMA.wrapping_mul(t as u64)))
     }
 }
 

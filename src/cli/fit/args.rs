@@ -7,7 +7,7 @@ use super::super::common::DataArgs;
 use mckibben::eval::Backend;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::request::FitRequest;
-use mckibben::fit::run::{FitSettings, Overrides};
+use mckibben::fit::settings::{FitSettings, Overrides};
 use mckibben::model::effects::Effect;
 use mckibben::model::{Family, Loop, Switching, UserBound};
 use mckibben::optim::Algorithm;
@@ -48,15 +48,24 @@ use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 /// (docs/ARCHITECTURE.md, "The search space").
 ///
 /// The generalized model's sign terms in x switch where the output crosses
-/// a level x_s (output units; before it was a parameter, always the
-/// estimation half's mean). By default (--switch starts) the fit runs
-/// twice, x_s held at that mean and at the sensor's zero (a muscle's rest
-/// length), and keeps the lower estimation SSE: on generated truths of both
-/// kinds this reaches as many as the better of the two would alone, and
-/// more than either alone or a search of x_s over the output's span
-/// (docs/RESULTS.md, "Where the generalized loop switches"). It doubles a
-/// generalized fit's time. --switch search searches x_s; --fix x_s=0 holds
-/// a sensor zero at rest.
+/// a level x_s (output units). By default (--switch search) the fit
+/// searches x_s over the estimation output's span as a level: the error
+/// changes only where the level passes a sample, so the polish holds it
+/// and a scan of levels moves it, and where the estimation half cannot
+/// tell the best level from the sensor's zero (a muscle's rest length) or
+/// the estimation mean, the fit keeps that one. --fix x_s=0 holds a
+/// sensor zero at rest; --switch starts runs two fits, x_s held at the
+/// mean and at zero (docs/RESULTS.md, "Where the generalized loop
+/// switches").
+///
+/// --pop buys independent tries: a population of 2000 or more runs one try
+/// of 1000 for every 1000 (each its own global search, free-run stage,
+/// polish and, for the generalized model, refining rounds), scored
+/// together, and keeps the lowest estimation SSE; the same seed runs the
+/// same tries, so a larger population never ends higher. The report says
+/// how many tries ended within the likelihood-ratio threshold of the best:
+/// few of many means the basin was found by luck, and more tries may find
+/// a better one.
 ///
 /// Writes to --out: model.json (read by `simulate`), result.json,
 /// history.csv / history.json (per generation and polish start: stage,
@@ -115,7 +124,8 @@ pub struct Args {
     /// de. It changes the time a fit takes, not where it ends.
     #[arg(long, value_enum, default_value = "de")]
     pub(super) algo: Algorithm,
-    /// Population size N of the global stage (the thesis used 10–30).
+    /// Population size N of the global stage (the thesis used 10–30); from
+    /// 2000 on, N/1000 independent tries of 1000, scored together.
     #[arg(long, default_value_t = POPULATION)]
     pub(super) pop: usize,
     /// Generations G of the global stage: populations evaluated, the
@@ -157,14 +167,16 @@ pub struct Args {
     )]
     pub(super) loop_shape: Loop,
     /// Where the generalized model's sign terms in x switch (its level x_s,
-    /// in the output's units): starts (two fits, x_s held at the estimation
-    /// half's output mean and at the sensor's zero, the lower estimation SSE
-    /// kept), search (x_s searched over the estimation output's span), mean
-    /// or zero (held there). A --from warm start holds its model's x_s.
+    /// in the output's units): search (x_s searched over the estimation
+    /// output's span, the sensor's zero or the estimation mean kept where
+    /// the estimation half cannot tell it from the best level), starts (two
+    /// fits, x_s held at the estimation mean and at the sensor's zero, the
+    /// lower estimation SSE kept), mean or zero (held there). A --from warm
+    /// start holds its model's x_s unless another value is given here.
     #[arg(
         long = "switch",
         value_enum,
-        default_value = "starts",
+        default_value = "search",
         conflicts_with = "thesis_flow"
     )]
     pub(super) switching: Switching,

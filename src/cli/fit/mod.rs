@@ -98,7 +98,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         args.checkpoint.as_deref(),
         &note,
     )?;
-    let evaluator = eval::open(args.backend)?;
+    let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     let interrupt = Arc::new(AtomicBool::new(false));
     let chain_stop = StopFlag::default();
@@ -116,13 +116,13 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             "building the chain one effect at a time, as the diagnosis does: the fit's second start"
         );
     }
-    let mut fit = with_chain_start(fit, &trace, &args.settings(), args.backend, chain_stop)?
-        .scored_on(evaluator);
+    let mut fit = with_chain_start(fit, &trace, &args.settings(), args.backend, chain_stop)?;
     if !args.json {
         announce(&args, &fit, &trace, &backend);
     }
-    let mut progress = Progress::new(fit.engine.plan.generations(), args.json);
+    let mut progress = Progress::new(fit.engine.planned_generations(), args.json);
     let (outcome, widened) = fit.run(
+        evaluator.as_mut(),
         &mut [&mut progress],
         Some(&interrupt),
         args.checkpoint.as_deref(),

@@ -10,9 +10,9 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::edge::fit_problem;
 use super::objective::{GENERATIONS, POPULATION, staged_plan};
 use super::problem::FitProblem;
+use super::run::fit_problem;
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit_percent;

@@ -23,8 +23,15 @@
 //!   inside the evaluator's calls beside its wall time, so the share of the
 //!   engine's own work (updates, embedding, selection) can be read off any
 //!   run.
+//! - **Tries**: the plan runs as independent tries ([`Plan::tries`]), each
+//!   with its own seed and state, in lock-step: every generation, the rows
+//!   of every try that share a measure are scored in one call, and the
+//!   polish's starts of every try share its calls where calls pay a round
+//!   trip. A try's arithmetic does not depend on the others, so a run of
+//!   more tries holds the tries of a run of fewer, bit for bit, and ends at
+//!   an SSE no higher (the stop rules of the whole fit aside).
 //!
-//! Every random draw comes from the [`Streams`](super::Streams) of the run's seed, the stage
+//! Every random draw comes from the [`Streams`](super::Streams) of the try's seed, the stage
 //! and its generation, one stream per individual: the update rules run row
 //! by row in parallel (rayon), and a fit is a pure function of its seed
 //! whatever the thread count or backend. No generator is part of the state:
@@ -34,6 +41,7 @@ pub mod plan;
 mod polish;
 mod population;
 pub mod space;
+mod tries;
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -42,14 +50,16 @@ use std::time::Instant;
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
+use super::argmin;
 use super::history::{GenerationRecord, History};
 pub use super::stage::Stage;
-use super::{AskTell, argmin, best_indices};
+use super::streams::try_seed;
 use crate::data::write_atomic;
 use crate::model::Measure;
 
-pub use plan::{FreeRun, Global, Plan, Polish};
-pub use space::Space;
+pub use plan::{FreeRun, Global, Plan, Polish, Refine};
+pub use space::{Space, Stepwise};
+use tries::{Members, Scored, Step, Try, keep_lowest};
 
 /// What a fit minimises: the costs of whole populations at once.
 pub trait Objective {
@@ -165,58 +175,25 @@ pub struct Outcome {
     pub seconds: f64,
     pub stop: StopReason,
     pub stages: Vec<StageSummary>,
+    /// Each try's best, in the order of the tries (one for a plan of one
+    /// try): canonical parameters (empty where every candidate of the try
+    /// diverged) and free-run SSE.
+    #[serde(default)]
+    pub tries: Vec<TryEnd>,
+}
+
+/// Where one try ended.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TryEnd {
+    pub params: Vec<f64>,
+    #[serde(with = "super::inf_serde::one_f64")]
+    pub sse: f64,
 }
 
 /// Sees every record as it is made (progress bars, logs).
 pub trait Observer {
     /// `planned` is the plan's number of generations.
     fn record(&mut self, record: &GenerationRecord, planned: usize);
-}
-
-/// The members of one island and their costs.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct Members {
-    rows: Vec<f64>,
-    #[serde(with = "super::inf_serde")]
-    costs: Vec<f32>,
-    /// What the costs measure.
-    measure: Measure,
-}
-
-impl Members {
-    /// Row indices, best first (ties by index).
-    fn order(&self) -> Vec<usize> {
-        best_indices(&self.costs, self.costs.len())
-    }
-
-    /// The `count` best rows, best first (a partial selection).
-    fn best(&self, count: usize, nf: usize) -> Vec<f64> {
-        best_indices(&self.costs, count)
-            .iter()
-            .flat_map(|&i| self.rows[i * nf..(i + 1) * nf].iter().copied())
-            .collect()
-    }
-}
-
-/// A candidate and its cost.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-struct Scored {
-    /// Canonical parameters.
-    params: Vec<f64>,
-    cost: f64,
-}
-
-/// Replaces `slot` by the lowest finite of `costs` (rows of `d` canonical
-/// parameters) when it is lower than the slot's.
-fn keep_lowest(slot: &mut Option<Scored>, canonical: &[f64], costs: &[f32], d: usize) {
-    if let Some(i) = argmin(costs)
-        && slot.as_ref().is_none_or(|b| (costs[i] as f64) < b.cost)
-    {
-        *slot = Some(Scored {
-            params: canonical[i * d..(i + 1) * d].to_vec(),
-            cost: costs[i] as f64,
-        });
-    }
 }
 
 /// A fit in progress (serialisable: a checkpoint is this value as JSON).
@@ -226,28 +203,19 @@ pub struct Engine {
     pub space: Space,
     pub seed: u64,
     pub stops: StopRules,
-    /// Free-coordinate rows the first stage starts from.
+    /// Free-coordinate rows the first try's first stage starts from.
     initial: Vec<f64>,
-    /// Index of the current stage in [`Engine::stages`].
+    /// Index of the current step in [`Engine::steps`].
     cursor: usize,
-    /// The islands of the population stage in progress (empty between stages).
-    optimizers: Vec<AskTell>,
-    /// Generations of the current stage so far.
+    /// The tries, each with its own seed.
+    tries: Vec<Try>,
+    /// Generations of the current stage so far (the most of any try).
     stage_steps: usize,
     stage_start_evaluations: u64,
     stage_start_seconds: f64,
     #[serde(default)]
     stage_start_evaluator_seconds: f64,
-    stage_best: Option<Scored>,
     pub history: History,
-    /// The members each island of the last population stage ended with
-    /// (free coordinates) and their costs under its measure.
-    carried: Vec<Members>,
-    /// The islands of every population stage so far, the latest stage's
-    /// first: the polish's pool of starts.
-    pool: Vec<Members>,
-    /// Lowest free-run SSE seen.
-    best: Option<Scored>,
     evaluations: u64,
     /// Seconds spent before the last resume.
     seconds_before: f64,
@@ -270,6 +238,7 @@ impl Engine {
             !space.free().is_empty(),
             "the search space has no free parameter (every lower bound equals its upper bound)"
         );
+        anyhow::ensure!(plan.tries >= 1, "a plan runs at least one try");
         if let Some(g) = &plan.global {
             let min = g.algorithm().min_population();
             anyhow::ensure!(
@@ -287,11 +256,18 @@ impl Engine {
                 g.algorithm()
             );
         }
+        let min = FreeRun::ALGORITHM.min_population();
         if let Some(f) = &plan.free_run {
-            let min = FreeRun::ALGORITHM.min_population();
             anyhow::ensure!(
                 f.population / plan.islands() >= min && f.generations >= 1,
                 "the free-run stage ({}) needs at least {min} individuals an island and one generation",
+                FreeRun::ALGORITHM
+            );
+        }
+        if let Some(r) = &plan.refine {
+            anyhow::ensure!(
+                r.population >= min && r.generations >= 1,
+                "a refining round ({}) needs at least {min} individuals and one generation",
                 FreeRun::ALGORITHM
             );
         }
@@ -301,21 +277,19 @@ impl Engine {
         );
         Ok(Engine {
             history: History::new(space.canonical_names()),
+            tries: (0..plan.tries)
+                .map(|t| Try::new(try_seed(seed, t)))
+                .collect(),
             plan,
             space,
             seed,
             stops,
             initial: Vec::new(),
             cursor: 0,
-            optimizers: Vec::new(),
             stage_steps: 0,
             stage_start_evaluations: 0,
             stage_start_seconds: 0.0,
             stage_start_evaluator_seconds: 0.0,
-            stage_best: None,
-            carried: Vec::new(),
-            pool: Vec::new(),
-            best: None,
             evaluations: 0,
             seconds_before: 0.0,
             evaluator_seconds: 0.0,
@@ -325,9 +299,10 @@ impl Engine {
         })
     }
 
-    /// Starts the first stage from these canonical rows (a warm start from
-    /// known models): the first members of the first population, or the
-    /// polish's starts when the plan is a polish alone. Clamped into the box.
+    /// Starts the first try's first stage from these canonical rows (a warm
+    /// start from known models): the first members of the first population,
+    /// or the polish's starts when the plan is a polish alone. Clamped into
+    /// the box.
     pub fn with_initial(mut self, canonical: &[f64]) -> Engine {
         let mut rows = self.space.project(canonical);
         let bounds = self.space.bounds();
@@ -336,26 +311,6 @@ impl Engine {
         }
         self.initial = rows;
         self
-    }
-
-    /// The stages of the plan, in order.
-    pub fn stages(&self) -> Vec<Stage> {
-        let mut v = Vec::new();
-        if self.plan.global.is_some() {
-            v.push(Stage::Global);
-        }
-        if self.plan.free_run.is_some() {
-            v.push(Stage::FreeRun);
-        }
-        if self.plan.polish.is_some() {
-            v.push(Stage::Polish);
-        }
-        v
-    }
-
-    /// The stage in progress, `None` once every stage ran.
-    pub fn stage(&self) -> Option<Stage> {
-        self.stages().get(self.cursor).copied()
     }
 
     /// Generations of the population stages so far.
@@ -367,9 +322,9 @@ impl Engine {
             .count()
     }
 
-    /// Best free-run SSE so far and its canonical parameters.
+    /// Best free-run SSE so far over every try, and its canonical parameters.
     pub fn best(&self) -> Option<(&[f64], f64)> {
-        self.best.as_ref().map(|b| (b.params.as_slice(), b.cost))
+        self.overall_best().map(|b| (b.params.as_slice(), b.cost))
     }
 
     fn elapsed(&self) -> f64 {
@@ -412,7 +367,7 @@ impl Engine {
     ) -> anyhow::Result<Outcome> {
         const CHECKPOINT_EVERY_S: f64 = 10.0;
         self.started.get_or_insert_with(Instant::now);
-        let planned = self.plan.generations();
+        let planned = self.planned_generations();
         let mut last_save = Instant::now();
         // The best of a polish cut short: not part of the state (see `polish`).
         let mut interim: Option<Scored> = None;
@@ -420,13 +375,17 @@ impl Engine {
             if let Some(reason) = self.should_stop(interrupt) {
                 break reason;
             }
-            let Some(stage) = self.stage() else {
+            let Some(step) = self.step() else {
                 break StopReason::Completed;
             };
             let before = self.history.records.len();
-            match stage {
-                Stage::Global | Stage::FreeRun => self.step_population(objective, stage)?,
-                Stage::Polish => interim = self.polish(objective, interrupt)?,
+            match step {
+                Step::Global | Step::FreeRun | Step::Refine(_) | Step::Level(_) => {
+                    self.step_population(objective, step)?
+                }
+                Step::Polish | Step::RefinePolish(_) | Step::LevelPolish(_) => {
+                    interim = self.polish(objective, step, interrupt)?
+                }
             }
             for record in &self.history.records[before..] {
                 for o in observers.iter_mut() {
@@ -443,7 +402,7 @@ impl Engine {
         if let Some(path) = checkpoint {
             self.save(path)?;
         }
-        let mut best = self.best.clone();
+        let mut best = self.overall_best().cloned();
         if stop != StopReason::Completed {
             for candidate in [interim, self.best_so_far(objective)?]
                 .into_iter()
@@ -461,7 +420,7 @@ impl Engine {
         let mut stages = self.summaries.clone();
         if let Some(stage) = self.stage()
             && stage != Stage::Polish
-            && !self.optimizers.is_empty()
+            && self.tries.iter().any(|t| !t.optimizers.is_empty())
         {
             stages.push(self.summary(stage, StageEnd::CutShort));
         }
@@ -473,6 +432,14 @@ impl Engine {
             seconds: self.elapsed(),
             stop,
             stages,
+            tries: self
+                .tries
+                .iter()
+                .map(|t| TryEnd {
+                    params: t.best.as_ref().map_or(Vec::new(), |b| b.params.clone()),
+                    sse: t.best.as_ref().map_or(f64::INFINITY, |b| b.cost),
+                })
+                .collect(),
         })
     }
 
@@ -481,7 +448,7 @@ impl Engine {
         if interrupt.is_some_and(|f| f.load(Ordering::SeqCst)) {
             return Some(StopReason::Interrupted);
         }
-        if let (Some(t), Some(b)) = (self.stops.target_sse, &self.best)
+        if let (Some(t), Some(b)) = (self.stops.target_sse, self.overall_best())
             && b.cost <= t
         {
             return Some(StopReason::TargetSse);
@@ -537,25 +504,29 @@ impl Engine {
         Ok((canonical, costs))
     }
 
-    /// Keeps the lowest of `costs` as the best free-run candidate.
-    fn offer_best(&mut self, canonical: &[f64], costs: &[f32]) {
-        keep_lowest(&mut self.best, canonical, costs, self.space.dim());
-    }
-
-    /// Appends the history record of the generation (`costs`) or polish
-    /// start (`None`) just made.
+    /// Appends the history record of the generation (`costs`: the ranked
+    /// costs of every try that stepped) or polish start (`None`) just made.
     fn record(&mut self, stage: Stage, measure: Measure, costs: Option<&[f32]>) {
         let (gbest, mean, std, diverged) =
             costs.map_or((None, None, None, 0), GenerationRecord::stats);
-        let leader = self.stage_best.as_ref().or(self.best.as_ref());
+        let stage_best = self
+            .tries
+            .iter()
+            .filter_map(|t| t.stage_best.as_ref())
+            .fold(None, |b: Option<&Scored>, s| match b {
+                Some(b) if b.cost <= s.cost => Some(b),
+                _ => Some(s),
+            });
+        let best = self.overall_best();
+        let leader = stage_best.or(best);
         let record = GenerationRecord {
             generation: self.history.records.len() + 1,
             stage,
             measure,
             evaluations: self.evaluations,
             seconds: self.elapsed(),
-            best_sse: self.best.as_ref().map(|b| b.cost),
-            stage_best: self.stage_best.as_ref().map(|b| b.cost),
+            best_sse: best.map(|b| b.cost),
+            stage_best: stage_best.map(|b| b.cost),
             generation_best_sse: gbest,
             mean_sse: mean,
             std_sse: std,
@@ -565,36 +536,16 @@ impl Engine {
         self.history.records.push(record);
     }
 
-    /// Ends the current stage: hands its members on and moves to the next.
-    fn end_stage(&mut self, stage: Stage, ended: StageEnd) {
-        if !self.optimizers.is_empty() {
-            let measures: Vec<Measure> = (0..self.optimizers.len())
-                .map(|i| self.island_measure(stage, i))
-                .collect();
-            self.carried = std::mem::take(&mut self.optimizers)
-                .iter()
-                .zip(measures)
-                .map(|(o, measure)| {
-                    let (rows, costs) = o.members();
-                    Members {
-                        rows,
-                        costs,
-                        measure,
-                    }
-                })
-                .collect();
-            self.pool.splice(0..0, self.carried.iter().cloned());
-        }
-        let summary = self.summary(stage, ended);
-        self.summaries.push(summary);
-        self.cursor += 1;
-    }
-
     /// Marks the start of a stage: its steps, best, evaluations and seconds
     /// count from here.
     fn start_stage(&mut self) {
         self.stage_steps = 0;
-        self.stage_best = None;
+        for t in &mut self.tries {
+            t.steps = 0;
+            t.done = false;
+            t.stage_best = None;
+            t.stage_bests.clear();
+        }
         self.stage_start_evaluations = self.evaluations;
         self.stage_start_seconds = self.elapsed();
         self.stage_start_evaluator_seconds = self.evaluator_seconds;
@@ -602,6 +553,12 @@ impl Engine {
 
     /// What the current stage, `stage`, has done so far.
     fn summary(&self, stage: Stage, ended: StageEnd) -> StageSummary {
+        let best = self
+            .tries
+            .iter()
+            .filter_map(|t| t.stage_best.as_ref())
+            .map(|b| b.cost)
+            .fold(f64::INFINITY, f64::min);
         StageSummary {
             stage,
             measure: self.measure(stage),
@@ -609,7 +566,7 @@ impl Engine {
             evaluations: self.evaluations - self.stage_start_evaluations,
             seconds: self.elapsed() - self.stage_start_seconds,
             evaluator_seconds: self.evaluator_seconds - self.stage_start_evaluator_seconds,
-            best_cost: self.stage_best.as_ref().map_or(f64::INFINITY, |b| b.cost),
+            best_cost: best,
             ended,
         }
     }
@@ -620,14 +577,23 @@ impl Engine {
     /// the state untouched, so that a checkpoint resumes to the result of an
     /// uninterrupted fit.
     fn best_so_far(&self, objective: &mut dyn Objective) -> anyhow::Result<Option<Scored>> {
-        if self.best.is_some() {
+        if self.overall_best().is_some() {
             return Ok(None);
         }
-        let members: Vec<f64> = if self.optimizers.is_empty() {
-            self.carried.iter().flat_map(|m| m.rows.clone()).collect()
-        } else {
-            self.optimizers.iter().flat_map(|o| o.members().0).collect()
-        };
+        let members: Vec<f64> = self
+            .tries
+            .iter()
+            .flat_map(|t| {
+                if t.optimizers.is_empty() {
+                    t.carried
+                        .iter()
+                        .flat_map(|m| m.rows.clone())
+                        .collect::<Vec<_>>()
+                } else {
+                    t.optimizers.iter().flat_map(|o| o.members().0).collect()
+                }
+            })
+            .collect();
         if members.is_empty() {
             return Ok(None);
         }
@@ -654,7 +620,7 @@ impl Engine {
             .map_err(|e| anyhow::anyhow!("cannot read checkpoint {}: {e}", path.display()))?;
         serde_json::from_slice(&bytes).map_err(|e| {
             anyhow::anyhow!(
-                "{} is not a mckibben checkpoint (or a damaged one): {e}",
+                "{} is not a mckibben checkpoint of this version (or a damaged one): {e}",
                 path.display()
             )
         })

@@ -1,16 +1,17 @@
-//! The engine's last stage: Levenberg–Marquardt from the best distinct
-//! members of the population stages.
+//! The engine's polish: Levenberg–Marquardt from the best distinct members
+//! of each try's population stages, every try's starts together.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::{Engine, Members, Objective, Scored, Stage, StageEnd, keep_lowest, plan, timed};
+use super::{Engine, Members, Objective, Scored, Stage, StageEnd, Step, keep_lowest, plan, timed};
 use crate::model::Measure;
 use crate::optim::lm::{self, LmSettings};
 
 impl Engine {
-    /// The polish: Levenberg–Marquardt on the free-run residuals from the
-    /// best distinct members of the population stages (or from the initial
-    /// rows when there was none), the best result kept.
+    /// A polish step: Levenberg–Marquardt on the free-run residuals from
+    /// each try's best distinct members (after the population stages, of
+    /// all of them; after a refining round, of that round's; from the
+    /// initial rows when there was none), each try's best result kept.
     ///
     /// Cut short by `interrupt`, it leaves the state as it found it (a
     /// resumed fit redoes it whole, as an uninterrupted one did) and returns
@@ -18,12 +19,16 @@ impl Engine {
     pub(super) fn polish(
         &mut self,
         objective: &mut dyn Objective,
+        step: Step,
         interrupt: Option<&AtomicBool>,
     ) -> anyhow::Result<Option<Scored>> {
         let p = self.plan.polish.clone().expect("a polish stage");
         self.rescore_pool(objective)?;
         let before = (
-            self.best.clone(),
+            self.tries
+                .iter()
+                .map(|t| t.best.clone())
+                .collect::<Vec<_>>(),
             self.history.records.len(),
             self.evaluations,
         );
@@ -31,64 +36,51 @@ impl Engine {
         let space = self.space.clone();
         let bounds = space.bounds();
         let nf = bounds.dim();
-        // The islands' best on the free run first (the free-run stage's,
-        // then the global stage's members re-scored), then their second
-        // best, and so on: each island's basin gets a start before any gets
-        // two. The global stage's members matter when the model cannot fit
-        // the data exactly: there the free-run stage can drift from a good
-        // basin into a degenerate one (towards the linear model, A → 0, on
-        // the shipped stair: docs/ARCHITECTURE.md, "Decisions of the fitting
-        // engine"), which continuation from the global stage's members
-        // avoids.
-        let ranked: Vec<(&[f64], f32)> = if self.pool.is_empty() {
-            self.initial
-                .chunks_exact(nf)
-                .map(|row| (row, f32::INFINITY))
-                .collect()
-        } else {
-            let orders: Vec<Vec<usize>> = self.pool.iter().map(Members::order).collect();
-            let deepest = orders.iter().map(Vec::len).max().unwrap_or(0);
-            (0..deepest)
-                .flat_map(|r| {
-                    self.pool.iter().zip(&orders).filter_map(move |(m, o)| {
-                        o.get(r)
-                            .map(|&i| (&m.rows[i * nf..(i + 1) * nf], m.costs[i]))
-                    })
-                })
-                .collect()
+        let after_round = matches!(step, Step::RefinePolish(_) | Step::LevelPolish(_));
+        let wanted = match (&self.plan.refine, after_round) {
+            (Some(r), true) => r.starts,
+            _ => p.starts,
         };
-        // A start is new when its parameters differ from every start's and
-        // its free-run SSE does too: members that differ only in parameters
-        // the output does not feel (β and γ when A = 0) are one model.
-        let mut starts: Vec<(Vec<f64>, f32)> = Vec::new();
-        for (row, cost) in ranked {
-            if starts.len() == p.starts {
-                break;
-            }
-            let distinct = starts.iter().all(|(s, c)| {
-                // Two infinite costs are not the same model.
-                let same_cost = (cost - c).abs() <= plan::DISTINCT as f32 * c.abs();
-                (0..nf).any(|j| (s[j] - row[j]).abs() > plan::DISTINCT * bounds.width(j))
-                    && !same_cost
-            });
-            if distinct {
-                starts.push((row.to_vec(), cost));
+        // Each try's starts, the try's index beside each.
+        let mut starts: Vec<(usize, Vec<f64>)> = Vec::new();
+        for t in 0..self.tries.len() {
+            let tr = &self.tries[t];
+            let pool: &[Members] = if after_round {
+                // Only a try that took part in the round polishes its members.
+                if !tr.before_round.is_finite() {
+                    continue;
+                }
+                &tr.carried
+            } else {
+                &tr.pool
+            };
+            let initial: &[f64] = if t == 0 { &self.initial } else { &[] };
+            for x in distinct_starts(pool, initial, nf, wanted, &|j| bounds.width(j)) {
+                starts.push((t, x));
             }
         }
         let floor: Vec<f64> = (0..nf).map(|j| p.step_floor * bounds.width(j)).collect();
+        let free = space.free();
         let settings = LmSettings {
             max_iterations: p.iterations,
             rel_step: p.rel_step,
             tolerance: p.tolerance,
             central: p.central,
+            held: free
+                .iter()
+                .map(|&i| space.stepwise.iter().any(|s| s.index == i))
+                .collect(),
         };
         let cut = || interrupt.is_some_and(|f| f.load(Ordering::SeqCst));
         // The horizons a start is polished through: from the global stage's
-        // up by factors of four, then the free run.
+        // up by factors of four, then the free run; after a refining round,
+        // which starts in the free run's own basin, the free run alone.
         let mut measures = Vec::new();
-        if let (true, Some(Measure::Ahead { horizon })) =
-            (p.continuation, self.plan.global.as_ref().map(|g| g.measure))
-        {
+        if let (true, false, Some(Measure::Ahead { horizon })) = (
+            p.continuation,
+            after_round,
+            self.plan.global.as_ref().map(|g| g.measure),
+        ) {
             let mut h = horizon.max(1);
             while h < p.longest {
                 measures.push(Measure::Ahead { horizon: h });
@@ -100,22 +92,22 @@ impl Engine {
         // lock-step: each round, one call scores the points all unfinished
         // starts of the group need next (each start takes the very steps it
         // takes alone), and a start that is done drops out. On an objective
-        // whose calls pay a round trip (a GPU) the group is every start; on
-        // the CPU one start, since there a call costs only its rows and a
-        // round of every start's residuals outgrows the caches: measured
-        // slower (docs/PERFORMANCE.md, "The polish in lock-step").
-        let starts: Vec<Vec<f64>> = starts.into_iter().map(|(x, _)| x).collect();
+        // whose calls pay a round trip (a GPU) the group is every try's
+        // every start; on the CPU one start a thread, which keeps every
+        // core busy with a start's probes and its linear algebra while a
+        // round's residuals stay in the caches (sixteen starts at once
+        // outgrew them: docs/PERFORMANCE.md, "The polish in lock-step").
         let together = if objective.round_trips() {
             starts.len().max(1)
         } else {
-            1
+            rayon::current_num_threads().max(1)
         };
         for group in starts.chunks(together) {
             if cut() {
                 break;
             }
             let before_group = self.evaluations;
-            let mut xs = group.to_vec();
+            let mut xs: Vec<Vec<f64>> = group.iter().map(|(_, x)| x.clone()).collect();
             // The points each start had scored: its record counts them.
             let mut points = vec![0usize; xs.len()];
             for &measure in &measures {
@@ -157,10 +149,15 @@ impl Engine {
             let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
             let (d, total) = (self.space.dim(), self.evaluations);
             let mut counted = before_group;
-            for ((row, cost), points) in canonical.chunks_exact(d).zip(costs.chunks(1)).zip(points)
+            for (((row, cost), points), &(t, _)) in canonical
+                .chunks_exact(d)
+                .zip(costs.chunks(1))
+                .zip(points)
+                .zip(group)
             {
-                keep_lowest(&mut self.stage_best, row, cost, d);
-                self.offer_best(row, cost);
+                let tr = &mut self.tries[t];
+                keep_lowest(&mut tr.stage_best, row, cost, d);
+                keep_lowest(&mut tr.best, row, cost, d);
                 self.stage_steps += 1;
                 counted += points as u64 + 1;
                 self.evaluations = counted;
@@ -170,12 +167,219 @@ impl Engine {
             self.evaluations = total;
         }
         if cut() {
-            let partial = self.stage_best.take();
-            (self.best, _, self.evaluations) = before.clone();
-            self.history.records.truncate(before.1);
+            let partial = self
+                .tries
+                .iter_mut()
+                .filter_map(|t| t.stage_best.take())
+                .fold(None, |b: Option<Scored>, s| match b {
+                    Some(b) if b.cost <= s.cost => Some(b),
+                    _ => Some(s),
+                });
+            let (bests, records, evaluations) = before;
+            for (t, b) in self.tries.iter_mut().zip(bests) {
+                t.best = b;
+            }
+            self.history.records.truncate(records);
+            self.evaluations = evaluations;
             return Ok(partial);
         }
-        self.end_stage(Stage::Polish, StageEnd::Polished);
+        match step {
+            Step::LevelPolish(k) => self.keep_level(k),
+            Step::RefinePolish(_) => {
+                self.scan_stepwise(objective)?;
+                self.settle_round();
+            }
+            _ => self.scan_stepwise(objective)?,
+        }
+        self.end_step(Stage::Polish, StageEnd::Polished);
         Ok(None)
     }
+
+    /// After level round `k`: a try whose round, with the level held at
+    /// that preferred value, ended within the value's tolerance of the
+    /// try's best keeps it (the estimation data cannot tell the two apart,
+    /// and the preferred value is the one to keep among alikes).
+    fn keep_level(&mut self, k: usize) {
+        let (_, _, tolerance) = self.levels()[k];
+        for tr in &mut self.tries {
+            let took_part = tr.before_round.is_finite();
+            tr.before_round = f64::INFINITY;
+            let (Some(held), Some(best)) = (&tr.stage_best, &tr.best) else {
+                continue;
+            };
+            if took_part && held.cost <= best.cost * (1.0 + tolerance) {
+                tr.best = Some(held.clone());
+            }
+        }
+    }
+
+    /// Moves each try's best along each free [`super::Stepwise`] coordinate
+    /// to the lowest of a grid of its levels, every try's grid in one call:
+    /// [`SCAN_LEVELS`] levels over [`SCAN_WINDOW`] of the box's width either
+    /// side of the best, then as many between the grid's neighbours of the
+    /// lowest, so that the level is placed to a fraction of a sample's
+    /// spacing; the preferred values in the window are scored too and kept
+    /// where they score as low as the lowest. The other coordinates stay:
+    /// the refining round that follows moves them with the level.
+    fn scan_stepwise(&mut self, objective: &mut dyn Objective) -> anyhow::Result<()> {
+        let free = self.space.free();
+        let scanned: Vec<(usize, Vec<f64>, f64)> = self
+            .space
+            .stepwise
+            .iter()
+            .filter_map(|s| {
+                let j = free.iter().position(|&i| i == s.index)?;
+                Some((j, s.preferred.clone(), s.tolerance))
+            })
+            .collect();
+        for (j, preferred, tolerance) in scanned {
+            let (lo, hi) = (self.space.lower[free[j]], self.space.upper[free[j]]);
+            let window = SCAN_WINDOW * (hi - lo);
+            // Coarse, then fine around the coarse grid's lowest.
+            for pass in 0..2 {
+                let bests: Vec<Option<Vec<f64>>> = self
+                    .tries
+                    .iter()
+                    .map(|t| t.best.as_ref().map(|b| self.space.project(&b.params)))
+                    .collect();
+                let step = if pass == 0 {
+                    window
+                } else {
+                    2.0 * window / SCAN_LEVELS as f64
+                };
+                let levels: Vec<Vec<f64>> = bests
+                    .iter()
+                    .map(|b| match b {
+                        Some(row) => {
+                            let at = row[j];
+                            let mut v: Vec<f64> = (0..=SCAN_LEVELS)
+                                .map(|k| at - step + 2.0 * step * k as f64 / SCAN_LEVELS as f64)
+                                .map(|v| v.clamp(lo, hi))
+                                .collect();
+                            v.extend(
+                                preferred
+                                    .iter()
+                                    .filter(|p| (at - step..=at + step).contains(*p))
+                                    .filter(|p| (lo..=hi).contains(*p)),
+                            );
+                            v
+                        }
+                        None => Vec::new(),
+                    })
+                    .collect();
+                let rows: Vec<f64> = bests
+                    .iter()
+                    .zip(&levels)
+                    .flat_map(|(b, ls)| {
+                        ls.iter().flat_map(move |&l| {
+                            let mut row = b.clone().expect("levels only for a best");
+                            row[j] = l;
+                            row
+                        })
+                    })
+                    .collect();
+                if rows.is_empty() {
+                    break;
+                }
+                let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
+                let d = self.space.dim();
+                let mut at = 0;
+                for (t, ls) in levels.iter().enumerate() {
+                    let own = &costs[at..at + ls.len()];
+                    let Some(mut k) = crate::optim::argmin(own) else {
+                        at += ls.len();
+                        continue;
+                    };
+                    // A preferred value that scores alike: within the
+                    // tolerance of the lowest and of the try's best.
+                    let tr = &mut self.tries[t];
+                    let current = tr.best.as_ref().map_or(f64::INFINITY, |b| b.cost);
+                    let alike = (own[k] as f64).min(current) * (1.0 + tolerance);
+                    let at_preferred = (0..ls.len())
+                        .filter(|&i| preferred.contains(&ls[i]) && own[i] as f64 <= alike)
+                        .min_by(|&a, &b| own[a].total_cmp(&own[b]));
+                    if let Some(p) = at_preferred {
+                        k = p;
+                    }
+                    let cost = own[k] as f64;
+                    let already = tr
+                        .best
+                        .as_ref()
+                        .is_some_and(|b| self.space.project(&b.params)[j] == ls[k]);
+                    if !already && (cost < current || at_preferred.is_some()) {
+                        let i = at + k;
+                        tr.best = Some(Scored {
+                            params: canonical[i * d..(i + 1) * d].to_vec(),
+                            cost,
+                        });
+                    }
+                    at += ls.len();
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Levels a scan of a [`super::Stepwise`] coordinate scores per pass.
+const SCAN_LEVELS: usize = 128;
+
+/// Half the width of a scan's first grid, as a share of the coordinate's box.
+const SCAN_WINDOW: f64 = 0.05;
+
+/// Up to `wanted` starts for the polish from `pool`, best first, each
+/// distinct from those before it; `initial`'s rows when the pool is empty.
+///
+/// The islands' best on the free run first (the free-run stage's, then the
+/// global stage's members re-scored), then their second best, and so on:
+/// each island's basin gets a start before any gets two. The global stage's
+/// members matter when the model cannot fit the data exactly: there the
+/// free-run stage can drift from a good basin into a degenerate one
+/// (towards the linear model, A → 0, on the shipped stair:
+/// docs/ARCHITECTURE.md, "Decisions of the fitting engine"), which
+/// continuation from the global stage's members avoids.
+///
+/// A start is new when its parameters differ from every start's by more
+/// than [`plan::DISTINCT`] of a coordinate's box `width` and its free-run
+/// SSE does too: members that differ only in parameters the output does
+/// not feel (β and γ when A = 0) are one model.
+fn distinct_starts(
+    pool: &[Members],
+    initial: &[f64],
+    nf: usize,
+    wanted: usize,
+    width: &dyn Fn(usize) -> f64,
+) -> Vec<Vec<f64>> {
+    let ranked: Vec<(&[f64], f32)> = if pool.is_empty() {
+        initial
+            .chunks_exact(nf)
+            .map(|row| (row, f32::INFINITY))
+            .collect()
+    } else {
+        let orders: Vec<Vec<usize>> = pool.iter().map(Members::order).collect();
+        let deepest = orders.iter().map(Vec::len).max().unwrap_or(0);
+        (0..deepest)
+            .flat_map(|r| {
+                pool.iter().zip(&orders).filter_map(move |(m, o)| {
+                    o.get(r)
+                        .map(|&i| (&m.rows[i * nf..(i + 1) * nf], m.costs[i]))
+                })
+            })
+            .collect()
+    };
+    let mut starts: Vec<(Vec<f64>, f32)> = Vec::new();
+    for (row, cost) in ranked {
+        if starts.len() == wanted {
+            break;
+        }
+        let distinct = starts.iter().all(|(s, c)| {
+            // Two infinite costs are not the same model.
+            let same_cost = (cost - c).abs() <= plan::DISTINCT as f32 * c.abs();
+            (0..nf).any(|j| (s[j] - row[j]).abs() > plan::DISTINCT * width(j)) && !same_cost
+        });
+        if distinct {
+            starts.push((row.to_vec(), cost));
+        }
+    }
+    starts.into_iter().map(|(x, _)| x).collect()
 }

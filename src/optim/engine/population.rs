@@ -1,39 +1,60 @@
-//! The engine's population stages: the global search and the free-run
-//! stage, island by island, one generation a step.
+//! The engine's population stages: the global search, the free-run stage
+//! and the refining rounds, every try's islands in lock-step, one
+//! generation a step.
 
-use super::{Engine, FreeRun, Members, Objective, Stage, StageEnd, keep_lowest};
+use super::{Engine, FreeRun, Members, Objective, Stage, StageEnd, Step, keep_lowest};
 use crate::model::Measure;
+use rayon::prelude::*;
+
 use crate::optim::{AskTell, Streams};
 
+/// Where one island's rows of a generation sit in the generation's buffers,
+/// what they are scored under and the streams they are drawn from.
+struct Span {
+    try_index: usize,
+    at: usize,
+    count: usize,
+    measure: Measure,
+    streams: Streams,
+}
+
 impl Engine {
-    /// The streams of generation `generation` of `stage` (0: the draws
-    /// before the first population; `k`: the `k`-th population asked).
-    fn streams(&self, stage: Stage, generation: usize) -> Streams {
-        Streams::new(self.seed, stage, generation)
+    /// The streams of generation `generation` of `stage` in try `t` (0: the
+    /// draws before the first population; `k`: the `k`-th population asked).
+    fn streams(&self, t: usize, stage: Stage, generation: usize) -> Streams {
+        Streams::new(self.tries[t].seed, stage, generation)
     }
 
-    /// The islands of a population stage: the global stage's start from
-    /// the initial rows (the first island) and [`super::Space::draw`]; each island
-    /// of the free-run stage from the best members of the same island
-    /// before, ranked on the free run.
-    pub(super) fn begin(
-        &mut self,
-        objective: &mut dyn Objective,
-        stage: Stage,
-    ) -> anyhow::Result<Vec<AskTell>> {
+    /// The generation of the streams of `step`'s `k`-th population: a
+    /// refining round's count on from the rounds before it, so that no two
+    /// rounds draw the same numbers.
+    fn stream_generation(&self, step: Step, k: usize) -> usize {
+        match (step, &self.plan.refine) {
+            (Step::Refine(r), Some(refine)) => r * (refine.generations + 1) + k,
+            (Step::Level(l), Some(refine)) => (refine.rounds + l) * (refine.generations + 1) + k,
+            _ => k,
+        }
+    }
+
+    /// The islands of try `t` for a population step: the global stage's
+    /// start from the initial rows (the first try's first island) and
+    /// [`super::Space::draw`]; each island of the free-run stage from the
+    /// best members of the same island before, ranked on the free run; a
+    /// refining round's one island from a cloud around the try's best
+    /// ([`super::Space::around`]), or none where the try no longer refines.
+    fn begin_try(&mut self, t: usize, step: Step) -> Vec<AskTell> {
         let bounds = self.space.bounds();
         let nf = bounds.dim();
-        self.start_stage();
         let islands = self.plan.islands();
-        match stage {
-            Stage::Global => {
+        match step {
+            Step::Global => {
                 let g = self.plan.global.clone().expect("a global stage");
                 let n = g.population / islands;
-                // Island i's rows are individuals i·n … of the stage.
-                let streams = self.streams(stage, 0);
-                Ok((0..islands)
+                // Island i's rows are individuals i·n … of the try's stage.
+                let streams = self.streams(t, Stage::Global, 0);
+                (0..islands)
                     .map(|i| {
-                        let mut rows = if i == 0 {
+                        let mut rows = if i == 0 && t == 0 {
                             self.initial[..self.initial.len().min(n * nf)].to_vec()
                         } else {
                             Vec::new()
@@ -49,17 +70,16 @@ impl Engine {
                         };
                         AskTell::new(&settings, bounds.clone(), n, g.generations, rows)
                     })
-                    .collect())
+                    .collect()
             }
-            _ => {
+            Step::FreeRun => {
                 let f = self.plan.free_run.clone().expect("a free-run stage");
                 let n = f.population / islands;
-                self.rescore_pool(objective)?;
-                Ok((0..islands)
+                (0..islands)
                     .map(|i| {
-                        let start = match self.carried.get(i) {
+                        let start = match self.tries[t].carried.get(i) {
                             Some(m) => m.best(n, nf),
-                            None if i == 0 => self.initial.clone(),
+                            None if i == 0 && t == 0 => self.initial.clone(),
                             None => Vec::new(),
                         };
                         AskTell::new(
@@ -70,153 +90,365 @@ impl Engine {
                             start,
                         )
                     })
-                    .collect())
+                    .collect()
+            }
+            Step::Refine(_) => {
+                let r = self.plan.refine.clone().expect("refining rounds");
+                let Some(best) = self.tries[t]
+                    .best
+                    .clone()
+                    .filter(|_| self.tries[t].refining)
+                else {
+                    return Vec::new();
+                };
+                self.tries[t].before_round = best.cost;
+                let streams = self.streams(t, Stage::Refine, self.stream_generation(step, 0));
+                let cloud = self.space.around_rows(&best.params, r.population, &streams);
+                vec![AskTell::new(
+                    &FreeRun::ALGORITHM.default_settings(),
+                    bounds,
+                    r.population,
+                    r.generations,
+                    cloud,
+                )]
+            }
+            Step::Level(k) => {
+                let r = self.plan.refine.clone().expect("refining rounds");
+                let Some(best) = self.tries[t].best.clone() else {
+                    return Vec::new();
+                };
+                let (j, value, _) = self.levels()[k];
+                let mut center = self.space.project(&best.params);
+                if center[j] == value {
+                    // Already there: nothing to hold it at.
+                    return Vec::new();
+                }
+                self.tries[t].before_round = best.cost;
+                center[j] = value;
+                let streams = self.streams(t, Stage::Refine, self.stream_generation(step, 0));
+                let mut cloud =
+                    self.space
+                        .around_rows(&self.space.embed(&center), r.population, &streams);
+                for row in cloud.chunks_mut(nf) {
+                    row[j] = value;
+                }
+                let mut held = bounds;
+                (held.lower[j], held.upper[j]) = (value, value);
+                vec![AskTell::new(
+                    &FreeRun::ALGORITHM.default_settings(),
+                    held,
+                    r.population,
+                    r.generations,
+                    cloud,
+                )]
+            }
+            Step::Polish | Step::RefinePolish(_) | Step::LevelPolish(_) => {
+                unreachable!("not a population step")
             }
         }
     }
 
-    /// Re-scores on the free run the islands in the pool (and in hand) that
-    /// another measure ranked, so that whatever starts from them ranks them
-    /// as the simulator does: on data the model cannot fit exactly, the
-    /// prediction error's best can lie in another basin than the free run's
-    /// (on the shipped stair the prediction ranks the linear model, A → 0,
-    /// first and the free run a hysteretic one: docs/ARCHITECTURE.md, "Where
-    /// the model cannot fit exactly, the free run judges every basin").
+    /// Re-scores on the free run the islands in every try's pool (and in
+    /// hand) that another measure ranked, in one call, so that whatever
+    /// starts from them ranks them as the simulator does: on data the model
+    /// cannot fit exactly, the prediction error's best can lie in another
+    /// basin than the free run's (on the shipped stair the prediction ranks
+    /// the linear model, A → 0, first and the free run a hysteretic one:
+    /// docs/ARCHITECTURE.md, "Where the model cannot fit exactly, the free
+    /// run judges every basin").
     pub(super) fn rescore_pool(&mut self, objective: &mut dyn Objective) -> anyhow::Result<()> {
-        for i in 0..self.pool.len() {
-            if self.pool[i].measure == Measure::FreeRun {
-                continue;
-            }
-            let rows = std::mem::take(&mut self.pool[i].rows);
+        let stale: Vec<(usize, usize)> = self
+            .tries
+            .iter()
+            .enumerate()
+            .flat_map(|(t, tr)| {
+                tr.pool
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, m)| m.measure != Measure::FreeRun)
+                    .map(move |(i, _)| (t, i))
+            })
+            .collect();
+        if !stale.is_empty() {
+            let rows: Vec<f64> = stale
+                .iter()
+                .flat_map(|&(t, i)| self.tries[t].pool[i].rows.iter().copied())
+                .collect();
             let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
-            self.offer_best(&canonical, &costs);
-            self.pool[i] = Members {
-                rows,
-                costs,
-                measure: Measure::FreeRun,
-            };
+            let (d, nf) = (self.space.dim(), self.space.free().len().max(1));
+            let mut at = 0;
+            for (t, i) in stale {
+                let members = &mut self.tries[t].pool[i];
+                let n = members.rows.len() / nf;
+                let own = &costs[at..at + n];
+                keep_lowest(
+                    &mut self.tries[t].best,
+                    &canonical[at * d..(at + n) * d],
+                    own,
+                    d,
+                );
+                let members = &mut self.tries[t].pool[i];
+                members.costs = own.to_vec();
+                members.measure = Measure::FreeRun;
+                at += n;
+            }
         }
         // The islands just ended are the pool's first entries.
-        let fresh = self.carried.len().min(self.pool.len());
-        self.carried = self.pool[..fresh].to_vec();
+        for tr in &mut self.tries {
+            let fresh = tr.carried.len().min(tr.pool.len());
+            tr.carried = tr.pool[..fresh].to_vec();
+        }
         Ok(())
     }
 
-    /// One generation of a population stage: every island asks (island
-    /// `i`'s individuals numbered after those of the islands before it, so
-    /// that each has its own stream), every island's rows are embedded into
-    /// one buffer of canonical rows, scored (in one batch when every island
-    /// has the same measure) and every island is told its own. The first
-    /// island's costs rank the stage's best and fill the record: the others
-    /// may measure other horizons.
+    /// One generation of a population step: every island of every try still
+    /// in the stage asks (island `i`'s individuals numbered after those of
+    /// the try's islands before it, so that each has its own stream), every
+    /// row is embedded into one buffer of canonical rows, the rows that
+    /// share a measure are scored in one call, and every island is told its
+    /// own. Each try's first island's costs rank the try's stage best, and
+    /// fill the record: the others may measure other horizons.
     pub(super) fn step_population(
         &mut self,
         objective: &mut dyn Objective,
-        stage: Stage,
+        step: Step,
     ) -> anyhow::Result<()> {
-        if self.optimizers.is_empty() {
-            self.optimizers = self.begin(objective, stage)?;
+        let stage = step.stage();
+        // A step in progress has a try with islands: every try done ends it.
+        if self.tries.iter().all(|t| t.optimizers.is_empty()) {
+            self.start_stage();
+            if stage != Stage::Global {
+                self.rescore_pool(objective)?;
+            }
+            for t in 0..self.tries.len() {
+                let islands = self.begin_try(t, step);
+                let tr = &mut self.tries[t];
+                tr.done = islands.is_empty();
+                tr.optimizers = islands;
+            }
+            if self.tries.iter().all(|t| t.done) {
+                // No try refines this round: nothing to search.
+                self.end_step(stage, StageEnd::Generations);
+                return Ok(());
+            }
         }
-        let measures: Vec<Measure> = (0..self.optimizers.len())
-            .map(|i| self.island_measure(stage, i))
-            .collect();
-        let measure = measures[0];
-        let one_batch = measures.iter().all(|&m| m == measure);
-        let streams = self.streams(stage, self.stage_steps + 1);
         let (d, nf) = (self.space.dim(), self.space.free().len().max(1));
-        // Each island's rows go straight from the optimizer into its part of
-        // the canonical buffer; `spans[i]` is island i's first row and count.
-        let mut canonical = std::mem::take(&mut self.canonical);
-        let mut spans = Vec::with_capacity(self.optimizers.len());
+        // Where each island's rows go in the generation's buffer, and the
+        // streams it draws from.
+        let mut spans: Vec<Span> = Vec::new();
         let mut at = 0;
-        for opt in &mut self.optimizers {
-            let rows = opt.ask(&streams.from_row(at))?;
-            let n = rows.len() / nf;
-            // The same size every generation after the first: no refill.
-            if canonical.len() < (at + n) * d {
-                canonical.resize((at + n) * d, 0.0);
+        for t in 0..self.tries.len() {
+            if self.tries[t].done {
+                continue;
             }
-            self.space
-                .embed_into(rows, &mut canonical[at * d..(at + n) * d]);
-            spans.push((at, n));
-            at += n;
+            let generation = self.stream_generation(step, self.tries[t].steps + 1);
+            let streams = self.streams(t, stage, generation);
+            let mut within = 0;
+            for (i, opt) in self.tries[t].optimizers.iter().enumerate() {
+                let count = opt.population();
+                spans.push(Span {
+                    try_index: t,
+                    at,
+                    count,
+                    measure: self.island_measure(stage, i),
+                    streams: streams.from_row(within),
+                });
+                within += count;
+                at += count;
+            }
         }
-        canonical.truncate(at * d);
-        let costs: Vec<Vec<f32>> = if one_batch {
-            vec![self.score_canonical(objective, &canonical, measure)?]
-        } else {
-            spans
-                .iter()
-                .zip(&measures)
-                .map(|(&(at, n), &m)| {
-                    self.score_canonical(objective, &canonical[at * d..(at + n) * d], m)
-                })
-                .collect::<anyhow::Result<_>>()?
-        };
-        // Island i's costs: its part of the one batch, or its own batch.
-        let island_costs = |i: usize| -> &[f32] {
-            if one_batch {
-                let (at, n) = spans[i];
-                &costs[0][at..at + n]
+        // Every island asks at once, each into its own rows of one buffer:
+        // with many tries, islands are small, and a generation's update is
+        // many small jobs rather than one large one.
+        let mut rows = vec![0.0; at * nf];
+        {
+            let mut free: &mut [f64] = &mut rows;
+            let mut parts: Vec<&mut [f64]> = Vec::with_capacity(spans.len());
+            for s in &spans {
+                let (part, rest) = free.split_at_mut(s.count * nf);
+                parts.push(part);
+                free = rest;
+            }
+            let islands: Vec<&mut AskTell> = self
+                .tries
+                .iter_mut()
+                .filter(|t| !t.done)
+                .flat_map(|t| t.optimizers.iter_mut())
+                .collect();
+            islands
+                .into_par_iter()
+                .zip(parts)
+                .zip(&spans)
+                .try_for_each(|((opt, part), s)| {
+                    part.copy_from_slice(opt.ask(&s.streams)?);
+                    Ok::<_, crate::optim::PhaseError>(())
+                })?;
+        }
+        let mut canonical = std::mem::take(&mut self.canonical);
+        // The same size every generation after the first: no refill.
+        canonical.resize(at * d, 0.0);
+        self.space.embed_into(&rows, &mut canonical);
+        // One call per measure, over every island that measures it.
+        let mut costs = vec![0.0f32; at];
+        let mut measures: Vec<Measure> = Vec::new();
+        for s in &spans {
+            if !measures.contains(&s.measure) {
+                measures.push(s.measure);
+            }
+        }
+        for &m in &measures {
+            let group: Vec<&Span> = spans.iter().filter(|s| s.measure == m).collect();
+            let rows: Vec<f64> = if group.len() == spans.len() {
+                canonical.clone()
             } else {
-                &costs[i]
+                group
+                    .iter()
+                    .flat_map(|s| canonical[s.at * d..(s.at + s.count) * d].iter().copied())
+                    .collect()
+            };
+            let scored = self.score_canonical(objective, &rows, m)?;
+            let mut from = 0;
+            for s in group {
+                costs[s.at..s.at + s.count].copy_from_slice(&scored[from..from + s.count]);
+                from += s.count;
             }
-        };
-        for (i, opt) in self.optimizers.iter_mut().enumerate() {
-            opt.tell(island_costs(i))?;
         }
-        for (i, &(at, n)) in spans.iter().enumerate() {
-            if measures[i] == Measure::FreeRun {
+        {
+            let islands: Vec<&mut AskTell> = self
+                .tries
+                .iter_mut()
+                .filter(|t| !t.done)
+                .flat_map(|t| t.optimizers.iter_mut())
+                .collect();
+            islands
+                .into_par_iter()
+                .zip(&spans)
+                .try_for_each(|(opt, s)| opt.tell(&costs[s.at..s.at + s.count]))?;
+        }
+        let mut ranked: Vec<f32> = Vec::new();
+        for s in spans.iter().filter(|s| s.measure == Measure::FreeRun) {
+            let own = &costs[s.at..s.at + s.count];
+            let tr = &mut self.tries[s.try_index];
+            keep_lowest(
+                &mut tr.best,
+                &canonical[s.at * d..(s.at + s.count) * d],
+                own,
+                d,
+            );
+        }
+        // Each try's stage best: every island when they share a measure,
+        // else the first.
+        for t in 0..self.tries.len() {
+            let own: Vec<&Span> = spans.iter().filter(|s| s.try_index == t).collect();
+            let Some(first) = own.first() else {
+                continue;
+            };
+            let one_measure = own.iter().all(|s| s.measure == first.measure);
+            let rank: Vec<&&Span> = if one_measure {
+                own.iter().collect()
+            } else {
+                own.iter().take(1).collect()
+            };
+            for s in rank {
+                let span_costs = &costs[s.at..s.at + s.count];
                 keep_lowest(
-                    &mut self.best,
-                    &canonical[at * d..(at + n) * d],
-                    island_costs(i),
+                    &mut self.tries[t].stage_best,
+                    &canonical[s.at * d..(s.at + s.count) * d],
+                    span_costs,
                     d,
                 );
+                ranked.extend_from_slice(span_costs);
             }
+            let tr = &mut self.tries[t];
+            tr.steps += 1;
+            let best = tr.stage_best.as_ref().map_or(f64::INFINITY, |b| b.cost);
+            tr.stage_bests.push(best);
         }
-        // The stage's best and the record: every island when they share a
-        // measure, else the first.
-        let (ranked_rows, ranked_costs) = if one_batch {
-            (&canonical[..], &costs[0][..])
-        } else {
-            let (at, n) = spans[0];
-            (&canonical[at * d..(at + n) * d], &costs[0][..])
-        };
-        keep_lowest(&mut self.stage_best, ranked_rows, ranked_costs, d);
         self.stage_steps += 1;
-        self.record(stage, measure, Some(ranked_costs));
+        let measure = self.island_measure(stage, 0);
+        self.record(stage, measure, Some(&ranked));
         self.canonical = canonical;
-        let length = match stage {
-            Stage::Global => self.plan.global.as_ref().map_or(0, |g| g.generations),
+        let length = match step {
+            Step::Global => self.plan.global.as_ref().map_or(0, |g| g.generations),
+            Step::Refine(_) | Step::Level(_) => {
+                self.plan.refine.as_ref().map_or(0, |r| r.generations)
+            }
             _ => self.plan.free_run.as_ref().map_or(0, |f| f.generations),
         };
-        if self.stage_steps >= length {
-            self.end_stage(stage, StageEnd::Generations);
-        } else if self.stalled(stage) {
-            self.end_stage(stage, StageEnd::Stalled);
+        let mut stalled_any = false;
+        for t in 0..self.tries.len() {
+            if self.tries[t].done {
+                continue;
+            }
+            let stalled = self.stalled(t);
+            if self.tries[t].steps >= length || stalled {
+                stalled_any |= stalled && self.tries[t].steps < length;
+                self.end_try_stage(t, stage);
+            }
+        }
+        if self.tries.iter().all(|t| t.done) {
+            if matches!(step, Step::Refine(_)) && self.plan.polish.is_none() {
+                self.settle_round();
+            }
+            let ended = if stalled_any || self.stage_steps < length {
+                StageEnd::Stalled
+            } else {
+                StageEnd::Generations
+            };
+            self.end_step(stage, ended);
         }
         Ok(())
     }
 
-    /// Whether the current stage's best has not improved by more than the
-    /// stall tolerance over the last `stall_generations` generations.
-    pub(super) fn stalled(&self, stage: Stage) -> bool {
+    /// Try `t` has ended `stage`: its islands' members go to its pool.
+    fn end_try_stage(&mut self, t: usize, stage: Stage) {
+        let measures: Vec<Measure> = (0..self.tries[t].optimizers.len())
+            .map(|i| self.island_measure(stage, i))
+            .collect();
+        let tr = &mut self.tries[t];
+        tr.done = true;
+        tr.carried = std::mem::take(&mut tr.optimizers)
+            .iter()
+            .zip(measures)
+            .map(|(o, measure)| {
+                let (rows, costs) = o.members();
+                Members {
+                    rows,
+                    costs,
+                    measure,
+                }
+            })
+            .collect();
+        tr.pool.splice(0..0, tr.carried.iter().cloned());
+    }
+
+    /// Ends a refining round for every try in it: a try whose round lowered
+    /// its SSE by less than the plan's share stops refining.
+    pub(super) fn settle_round(&mut self) {
+        let gain = self.plan.refine.as_ref().map_or(0.0, |r| r.gain);
+        for tr in &mut self.tries {
+            if !tr.refining || !tr.before_round.is_finite() {
+                continue;
+            }
+            let now = tr.best.as_ref().map_or(f64::INFINITY, |b| b.cost);
+            // A gain of NaN (no finite best) is no gain either.
+            let gained = tr.before_round - now > gain * tr.before_round;
+            tr.refining &= gained;
+            tr.before_round = f64::INFINITY;
+        }
+    }
+
+    /// Whether try `t`'s stage best has not improved by more than the stall
+    /// tolerance over the last `stall_generations` of its generations.
+    fn stalled(&self, t: usize) -> bool {
         let Some(w) = self.stops.stall_generations else {
             return false;
         };
-        let bests: Vec<f64> = self
-            .history
-            .records
-            .iter()
-            .rev()
-            .take_while(|r| r.stage == stage)
-            .map(|r| r.stage_best.unwrap_or(f64::INFINITY))
-            .collect();
+        let bests = &self.tries[t].stage_bests;
         if bests.len() <= w {
             return false;
         }
-        let (now, then) = (bests[0], bests[w]);
+        let (now, then) = (bests[bests.len() - 1], bests[bests.len() - 1 - w]);
         then.is_finite() && now >= then * (1.0 - self.stops.stall_tolerance)
     }
 }

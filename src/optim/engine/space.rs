@@ -5,6 +5,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::super::{Bounds, Streams};
+use crate::model::bounds::Side;
 use crate::model::{Coordinates, Family, SearchSpace};
 
 /// The box of a fit over search coordinates (the canonical parameters, or
@@ -33,6 +34,30 @@ pub struct Space {
     /// (none: the coordinates are the canonical vector).
     #[serde(default)]
     pub coords: Option<(Family, Coordinates)>,
+    /// Coordinates in which the objective is piecewise constant: the polish
+    /// holds them and a scan of levels in one batch moves them
+    /// ([`Stepwise`]).
+    #[serde(default)]
+    pub stepwise: Vec<Stepwise>,
+}
+
+/// A coordinate in which the objective is piecewise constant, as in a level
+/// where a model's state switches: the cost changes only where the level
+/// passes a sample, so its difference quotients are zero or noise and no
+/// gradient step moves it. The polish holds it; after each polish, the
+/// engine scores a grid of its levels around each try's best in one call
+/// and keeps the lowest ([`super::Engine`]'s scan).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Stepwise {
+    /// Its index in the canonical vector (free coordinates only matter).
+    pub index: usize,
+    /// Values kept among those that score alike: the scan keeps one of
+    /// these where it scores within `tolerance` of the lowest, and a third
+    /// of a first population draws them ([`Space::draw`]).
+    pub preferred: Vec<f64>,
+    /// Relative: a preferred value whose cost is at most `1 + tolerance`
+    /// times the lowest scores alike.
+    pub tolerance: f64,
 }
 
 /// Decades a log-uniform draw spans below the edge of a box in the thesis'
@@ -57,6 +82,7 @@ impl Space {
             decades,
             drawn_decades: THESIS_DECADES,
             coords: None,
+            stepwise: Vec::new(),
         }
     }
 
@@ -72,11 +98,14 @@ impl Space {
     /// `streams.row(r)`: uniform over the box, except that every other row
     /// (the odd `r`) draws the coordinates marked as spanning decades
     /// log-uniformly in magnitude over four decades below the box's larger
-    /// edge (either sign where the box has both). A uniform draw almost never
-    /// visits the sliver near zero where a muscle's β and γ often lie (as
-    /// the shipped stair's hysteretic fits do: docs/lab/results.md, "The shipped
-    /// stair"), and neither do the differences of uniform draws that DE
-    /// steps by.
+    /// edge (either sign where the box has both), and every third row (`r`
+    /// of 1 modulo 3) takes a [`Stepwise`] coordinate's preferred values in
+    /// turn. A uniform draw almost never visits the sliver near zero where
+    /// a muscle's β and γ often lie (as the shipped stair's hysteretic fits
+    /// do: docs/lab/results.md, "The shipped stair"), and neither do the
+    /// differences of uniform draws that DE steps by; nor does it hit a
+    /// level exactly, and a level held exactly (DE's crossover keeps a
+    /// parent's coordinate as it is) survives as long as it scores.
     pub fn draw(&self, count: usize, streams: &Streams) -> Vec<f64> {
         let free = self.free();
         let mut rows = vec![0.0; count * free.len()];
@@ -87,7 +116,15 @@ impl Space {
                 for (v, &i) in row.iter_mut().zip(&free) {
                     let (lo, hi) = (self.lower[i], self.upper[i]);
                     let uniform = lo + rng.random::<f64>() * (hi - lo);
-                    *v = if r % 2 == 1 && self.decades[i] {
+                    let preferred = self
+                        .stepwise
+                        .iter()
+                        .find(|s| s.index == i)
+                        .map(|s| s.preferred.as_slice())
+                        .filter(|p| !p.is_empty() && r % 3 == 1);
+                    *v = if let Some(p) = preferred {
+                        p[(r / 3) % p.len()].clamp(lo, hi)
+                    } else if r % 2 == 1 && self.decades[i] {
                         let magnitude = hi.abs().max(lo.abs())
                             * 10f64.powf(-self.drawn_decades * rng.random::<f64>());
                         let sign = if lo < 0.0 && (hi <= 0.0 || rng.random::<bool>()) {
@@ -110,6 +147,12 @@ impl Space {
     /// clamped into the box, row `r` from `streams.row(r)`. A warm start's
     /// first population: the basin it starts in, not the whole box.
     pub fn around(&self, center: &[f64], count: usize, streams: &Streams) -> Vec<f64> {
+        self.embed(&self.around_rows(center, count, streams))
+    }
+
+    /// [`Space::around`]'s rows in free coordinates, as the optimizers see
+    /// them.
+    pub fn around_rows(&self, center: &[f64], count: usize, streams: &Streams) -> Vec<f64> {
         let free = self.free();
         let z0 = self.project(center);
         let mut rows = vec![0.0; count * free.len()];
@@ -128,7 +171,7 @@ impl Space {
                     *v = v_new.clamp(lo, hi);
                 }
             });
-        self.embed(&rows)
+        rows
     }
 
     pub fn dim(&self) -> usize {
@@ -221,27 +264,35 @@ impl Space {
     }
 
     /// The free coordinates of the canonical `theta` that sit on a bound of
-    /// the box, with the coordinate's index and the bound (`"lower"` or
-    /// `"upper"`): a fit that ends there was stopped by the box, not by the
-    /// data.
-    pub fn on_edge(&self, theta: &[f64]) -> Vec<(usize, &'static str)> {
+    /// the box, with the coordinate's index and the bound: a fit that ends
+    /// there was stopped by the box, not by the data.
+    pub fn on_edge(&self, theta: &[f64]) -> Vec<(usize, Side)> {
+        self.near_edge(theta, 1e-6)
+    }
+
+    /// The free coordinates of the canonical `theta` within `share` of the
+    /// box's width of one of its bounds, with the coordinate's index and the
+    /// bound. A coordinate that spans decades is near its lower edge only
+    /// on the scale of its smallest drawn values, and near its upper edge
+    /// within `share` of that edge's value.
+    pub fn near_edge(&self, theta: &[f64], share: f64) -> Vec<(usize, Side)> {
         let theta = self.coordinates(theta);
         self.free()
             .into_iter()
             .filter_map(|i| {
-                // A coordinate that spans decades is near its edge only on
-                // the scale of its smallest drawn values.
-                let scale = if self.decades[i] {
-                    10f64.powf(-self.drawn_decades)
-                } else {
-                    1.0
-                };
                 let width = self.upper[i] - self.lower[i];
-                let near = |b: f64| (theta[i] - b).abs() <= 1e-6 * scale * width;
-                if near(self.lower[i]) {
-                    Some((i, "lower"))
-                } else if near(self.upper[i]) {
-                    Some((i, "upper"))
+                let (below, above) = if self.decades[i] {
+                    (
+                        share * 10f64.powf(-self.drawn_decades) * width,
+                        share * self.upper[i].abs().max(self.lower[i].abs()),
+                    )
+                } else {
+                    (share * width, share * width)
+                };
+                if theta[i] - self.lower[i] <= below {
+                    Some((i, Side::Lower))
+                } else if self.upper[i] - theta[i] <= above {
+                    Some((i, Side::Upper))
                 } else {
                     None
                 }
@@ -262,6 +313,13 @@ impl From<&SearchSpace> for Space {
         if let Coordinates::Scaled { .. } = s.coords {
             space.drawn_decades = SCALED_DECADES;
             space.coords = Some((s.family, s.coords));
+        }
+        if let (Some(index), Some(levels)) = (s.family.switch_index(), &s.switch_levels) {
+            space.stepwise.push(Stepwise {
+                index,
+                preferred: levels.clone(),
+                tolerance: 0.0,
+            });
         }
         space
     }

@@ -1,0 +1,62 @@
+//! A bound a user sets on one parameter of a fit's box (`--bound`, `--fix`,
+//! Python's `bounds`), as the command line writes it.
+
+use serde::{Deserialize, Serialize};
+
+/// A bound a user sets on one parameter (`--bound NAME=LO:HI`, `--fix
+/// NAME=VALUE`), by a canonical name or a search coordinate's name.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct UserBound {
+    pub name: String,
+    pub lower: f64,
+    pub upper: f64,
+}
+
+impl std::fmt::Display for UserBound {
+    /// As `--bound` and `--fix` take it: `NAME=LO:HI`, or `NAME=VALUE`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.lower == self.upper {
+            write!(f, "{}={}", self.name, self.lower)
+        } else {
+            write!(f, "{}={}:{}", self.name, self.lower, self.upper)
+        }
+    }
+}
+
+impl std::str::FromStr for UserBound {
+    type Err = String;
+    /// `NAME=LO:HI` or `NAME=VALUE` (a fixed value: `LO = HI`).
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let (name, range) = s
+            .split_once('=')
+            .ok_or_else(|| format!("`{s}`: expected NAME=LO:HI or NAME=VALUE"))?;
+        let number = |v: &str| -> Result<f64, String> {
+            let x: f64 = v
+                .trim()
+                .parse()
+                .map_err(|_| format!("`{s}`: `{v}` is not a number"))?;
+            if x.is_finite() {
+                Ok(x)
+            } else {
+                Err(format!("`{s}`: `{v}` is not a finite number"))
+            }
+        };
+        let (lower, upper) = match range.split_once(':') {
+            Some((lo, hi)) => (number(lo)?, number(hi)?),
+            None => {
+                let v = number(range)?;
+                (v, v)
+            }
+        };
+        if lower > upper {
+            return Err(format!(
+                "`{s}`: the box is empty (lower {lower} is above upper {upper})"
+            ));
+        }
+        Ok(UserBound {
+            name: name.trim().to_string(),
+            lower,
+            upper,
+        })
+    }
+}
