@@ -296,6 +296,9 @@ pub fn fit(
             warn.call_method1("warn", (w,))?;
         }
     }
+    if let Some(advice) = report.agreement.as_ref().and_then(|a| a.advice()) {
+        warn.call_method1("warn", (in_python_terms(&advice),))?;
+    }
     let (problem, engine) = (&fit.problem, &fit.engine);
     let params = PyDict::new(py);
     for (name, v) in &report.params.0 {

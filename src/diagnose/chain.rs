@@ -42,10 +42,9 @@ pub fn fit_chain(
     effects: &[Effect],
     settings: &Settings,
 ) -> anyhow::Result<(Model, f64)> {
-    let mut problem = FitProblem::diagnosis(traces, family, None, settings.blocks)?
-        .scored_on(crate::eval::open(settings.backend)?)
-        .stopped_by(settings.stop.clone());
-    let mut best = fit_seeds(&problem, Start::Scratch, settings, CHAIN_SALT)?.best;
+    let mut problem = FitProblem::diagnosis(traces, family, None, settings.blocks)?;
+    let searches = settings.searches()?;
+    let mut best = fit_seeds(&problem, &searches, Start::Scratch, settings, CHAIN_SALT)?.best;
     for (k, &effect) in effects.iter().enumerate() {
         let salt = CHAIN_SALT + 10 * (k as u64 + 1);
         // As the diagnosis' first round: fits of the first effect's model
@@ -54,14 +53,22 @@ pub fn fit_chain(
         let scratch = if k == 0 {
             scratch_fits(
                 &problem.with_model(&problem.model.with(effect)),
+                &searches,
                 settings,
                 salt + 5,
             )?
         } else {
             Vec::new()
         };
-        let (next, fit) =
-            fit_with_effect(&problem, &best.params, effect, settings, salt, &scratch)?;
+        let (next, fit) = fit_with_effect(
+            &problem,
+            &searches,
+            &best.params,
+            effect,
+            settings,
+            salt,
+            &scratch,
+        )?;
         (problem, best) = (next, fit.best);
     }
     Ok((problem.fitted_model(&best.params), best.est_sse))

@@ -4,7 +4,7 @@
 //!
 //! Every search and every polish runs on the fitting engine
 //! ([`crate::optim::engine`]) over one objective, the model description
-//! scored in batches on the problem's evaluator; what is the diagnosis' own is
+//! scored in batches on the searches' evaluator; what is the diagnosis' own is
 //! where each search starts and what it minimises.
 
 use nalgebra::DVector;
@@ -17,13 +17,14 @@ use super::likelihood::indistinguishable_up_to;
 use super::settings::{Interrupted, Settings};
 use crate::fit::objective::ModelObjective;
 use crate::fit::problem::FitProblem;
+use crate::fit::searches::Searches;
 use crate::model::{Family, Measure};
 use crate::optim::AlgoSettings;
 use crate::optim::de::DeSettings;
 use crate::optim::engine::{Engine, Objective, Outcome, Plan, Polish, Space, StopRules};
 
 /// The fit's objective ([`ModelObjective::bounded_loops`]: the model
-/// description scored in batches on the problem's evaluator, unbounded loops
+/// description scored in batches on the searches' evaluator, unbounded loops
 /// and effects the diagnosis does not admit at `+∞`) under one `measure`,
 /// whatever measure the engine asks for: each search of the diagnosis
 /// minimises one measure, and the engine then keeps the best of it.
@@ -51,15 +52,16 @@ impl Objective for OneMeasure<'_> {
 }
 
 /// Runs `engine` on the problem's estimation part under `measure` alone
-/// ([`OneMeasure`]), on the problem's evaluator; [`Interrupted`] once its
+/// ([`OneMeasure`]), on the searches' evaluator; [`Interrupted`] once their
 /// stop flag is raised (the engine stops after its current generation or
 /// polish iteration).
 fn run_engine(
     problem: &FitProblem,
+    searches: &Searches,
     measure: Measure,
     engine: &mut Engine,
 ) -> anyhow::Result<Outcome> {
-    let outcome = problem.with_evaluator(|evaluator| {
+    let outcome = searches.run(|evaluator| {
         let mut objective = OneMeasure {
             objective: ModelObjective::for_problem(evaluator, problem),
             measure,
@@ -67,11 +69,11 @@ fn run_engine(
         engine.run(
             &mut objective,
             &mut [],
-            Some(problem.stop.as_atomic()),
+            Some(searches.stop.as_atomic()),
             None,
         )
     })?;
-    if problem.stop.raised() {
+    if searches.stop.raised() {
         return Err(Interrupted.into());
     }
     Ok(outcome)
@@ -89,7 +91,7 @@ fn space_of(problem: &FitProblem, lo: &[f64], hi: &[f64]) -> Space {
 /// for `generations` generations after the initial population; returns
 /// the best point seen and its cost.
 fn evolve(
-    problem: &FitProblem,
+    (problem, searches): (&FitProblem, &Searches),
     measure: Measure,
     (lo, hi): (&[f64], &[f64]),
     initial: &[f64],
@@ -109,7 +111,7 @@ fn evolve(
         StopRules::default(),
     )?
     .with_initial(initial);
-    let outcome = run_engine(problem, measure, &mut engine)?;
+    let outcome = run_engine(problem, searches, measure, &mut engine)?;
     if outcome.params.is_empty() {
         // Every candidate diverged: the start is as good as any.
         return Ok((initial[..lo.len()].to_vec(), f64::INFINITY));
@@ -178,6 +180,7 @@ pub enum Start<'a> {
 /// throughout, so a fit never ends worse than it started.
 pub fn fit_candidate(
     problem: &FitProblem,
+    searches: &Searches,
     start: Start<'_>,
     seed: u64,
     population: usize,
@@ -201,7 +204,7 @@ pub fn fit_candidate(
             let rows = scratch_rows(problem, (&neutral, &lo, &hi), np, &mut rng);
             let first = generations / 2;
             let (best, _) = evolve(
-                problem,
+                (problem, searches),
                 Measure::Ahead { horizon },
                 (&lo, &hi),
                 &rows,
@@ -227,7 +230,7 @@ pub fn fit_candidate(
                 // A mode starts where the residual's spectrum peaks.
                 first.extend(super::hints::mode_hints(problem, s, new_from, (&lo, &hi)));
                 let (best, _) = evolve(
-                    problem,
+                    (problem, searches),
                     Measure::FreeRun,
                     (&held_lo, &held_hi),
                     &first,
@@ -244,7 +247,7 @@ pub fn fit_candidate(
         }
     };
     let (best, _) = evolve(
-        problem,
+        (problem, searches),
         Measure::FreeRun,
         (&lo, &hi),
         &initial,
@@ -254,7 +257,7 @@ pub fn fit_candidate(
     )?;
     // In `f64`, as the polish compares.
     let est_sse = problem.est_sse(&best);
-    let (best, est_sse) = polish(problem, best, est_sse, (&lo, &hi))?;
+    let (best, est_sse) = polish(problem, searches, best, est_sse, (&lo, &hi))?;
     Ok(ScoredFit {
         sel_rmse: problem.selection_rmse(&best),
         est_sse,
@@ -284,6 +287,7 @@ pub fn fit_candidate(
 /// held.
 pub(super) fn polish(
     problem: &FitProblem,
+    searches: &Searches,
     best: Vec<f64>,
     est_sse: f64,
     (lo, hi): (&[f64], &[f64]),
@@ -301,7 +305,7 @@ pub(super) fn polish(
     // The polish draws nothing: the seed is never used.
     let mut engine =
         Engine::new(plan, space_of(problem, lo, hi), 0, StopRules::default())?.with_initial(&best);
-    let outcome = run_engine(problem, Measure::FreeRun, &mut engine)?;
+    let outcome = run_engine(problem, searches, Measure::FreeRun, &mut engine)?;
     // No params: the start and every step diverged. The polished point is
     // scored in `f64`, as the start was.
     if outcome.params.is_empty() {
@@ -333,6 +337,7 @@ const PROFILE_NODES: i32 = 6;
 /// item).
 pub(super) fn profile(
     problem: &FitProblem,
+    searches: &Searches,
     fit: ScoredFit,
     at: usize,
 ) -> anyhow::Result<ScoredFit> {
@@ -346,7 +351,7 @@ pub(super) fn profile(
         let mut start = fit.params.clone();
         for k in (0..PROFILE_NODES).rev() {
             let v = centre + (edge - centre) * 0.5f64.powi(k);
-            let (node, node_sse) = polish_held(problem, &start, (at, v), (lo, hi))?;
+            let (node, node_sse) = polish_held(problem, searches, &start, (at, v), (lo, hi))?;
             if node_sse < best_sse {
                 (best, best_sse) = (node.clone(), node_sse);
             }
@@ -356,7 +361,7 @@ pub(super) fn profile(
     if best_sse >= fit.est_sse {
         return Ok(fit);
     }
-    let (params, est_sse) = polish(problem, best, best_sse, (lo, hi))?;
+    let (params, est_sse) = polish(problem, searches, best, best_sse, (lo, hi))?;
     let sel_rmse = problem.selection_rmse(&params);
     Ok(if sel_rmse.is_finite() {
         ScoredFit {
@@ -373,6 +378,7 @@ pub(super) fn profile(
 /// the profile along that coordinate.
 pub(super) fn polish_held(
     problem: &FitProblem,
+    searches: &Searches,
     start: &[f64],
     (at, v): (usize, f64),
     (lo, hi): (&[f64], &[f64]),
@@ -382,7 +388,7 @@ pub(super) fn polish_held(
     let mut p = start.to_vec();
     p[at] = v;
     let sse = problem.est_sse(&p);
-    polish(problem, p, sse, (&l, &h))
+    polish(problem, searches, p, sse, (&l, &h))
 }
 
 /// The initial population of a from-scratch fit: one member at the ARX
@@ -472,12 +478,13 @@ fn rows_around(
 /// of the baseline budget); `start` as in [`fit_candidate`].
 pub fn fit_seeds(
     problem: &FitProblem,
+    searches: &Searches,
     start: Start<'_>,
     settings: &Settings,
     salt: u64,
 ) -> anyhow::Result<SeededFit> {
     Ok(summarize(
-        seed_fits(problem, start, settings, salt)?,
+        seed_fits(problem, searches, start, settings, salt)?,
         problem.est_samples(),
     ))
 }
@@ -491,12 +498,13 @@ pub fn fit_seeds(
 /// from scratch can.
 pub(super) fn fit_seeds_with(
     problem: &FitProblem,
+    searches: &Searches,
     start: Start<'_>,
     settings: &Settings,
     salt: u64,
     scratch: &[ScoredFit],
 ) -> anyhow::Result<SeededFit> {
-    let mut fits = seed_fits(problem, start, settings, salt)?;
+    let mut fits = seed_fits(problem, searches, start, settings, salt)?;
     fits.extend_from_slice(scratch);
     Ok(summarize(fits, problem.est_samples()))
 }
@@ -504,6 +512,7 @@ pub(super) fn fit_seeds_with(
 /// The fits of [`fit_seeds`], one per seed.
 fn seed_fits(
     problem: &FitProblem,
+    searches: &Searches,
     start: Start<'_>,
     settings: &Settings,
     salt: u64,
@@ -519,7 +528,7 @@ fn seed_fits(
     (0..seeds.max(1) as u64)
         .map(|i| {
             let seed = settings.seed + 1000 * salt + i;
-            fit_candidate(problem, start, seed, pop, gens)
+            fit_candidate(problem, searches, start, seed, pop, gens)
         })
         .collect()
 }
@@ -532,6 +541,7 @@ fn seed_fits(
 /// (`diagnose::chain`).
 pub(super) fn fit_with_effect(
     current: &FitProblem,
+    searches: &Searches,
     params: &[f64],
     effect: super::Effect,
     settings: &Settings,
@@ -545,8 +555,13 @@ pub(super) fn fit_with_effect(
         params: &start,
         new_from: params.len(),
     };
-    let mut fit = fit_seeds_with(&candidate, warm, settings, salt, scratch)?;
-    fit.best = profile(&candidate, fit.best, params.len() + effect.primary())?;
+    let mut fit = fit_seeds_with(&candidate, searches, warm, settings, salt, scratch)?;
+    fit.best = profile(
+        &candidate,
+        searches,
+        fit.best,
+        params.len() + effect.primary(),
+    )?;
     Ok((candidate, fit))
 }
 
@@ -556,6 +571,7 @@ pub(super) fn fit_with_effect(
 /// a round that is judged again after a rebase reuses them.
 pub(super) fn scratch_fits(
     problem: &FitProblem,
+    searches: &Searches,
     settings: &Settings,
     salt: u64,
 ) -> anyhow::Result<Vec<ScoredFit>> {
@@ -567,6 +583,7 @@ pub(super) fn scratch_fits(
             let seed = settings.seed + 1000 * salt + 500 + i;
             fit_candidate(
                 problem,
+                searches,
                 ahead,
                 seed,
                 settings.baseline_population,
@@ -740,7 +757,8 @@ mod tests {
         // (the data's own coordinates shift the intercept).
         let start = clamp(thesis_params(Family::Classic));
         let start_sse = data.est_sse(&start);
-        let (reference, reference_sse) = polish(&data, start, start_sse, (&lo, &hi)).unwrap();
+        let (reference, reference_sse) =
+            polish(&data, &Searches::cpu(), start, start_sse, (&lo, &hi)).unwrap();
         assert!(reference_sse < start_sse);
         // One percent off in α, a needle's width across the valley.
         let mut off = reference.clone();
@@ -750,7 +768,7 @@ mod tests {
             off_sse > 10.0 * reference_sse,
             "{off_sse} vs {reference_sse}"
         );
-        let (back, back_sse) = polish(&data, off, off_sse, (&lo, &hi)).unwrap();
+        let (back, back_sse) = polish(&data, &Searches::cpu(), off, off_sse, (&lo, &hi)).unwrap();
         assert!(
             back_sse < 1.01 * reference_sse,
             "{back_sse} vs {reference_sse}"
@@ -772,7 +790,8 @@ mod tests {
             data.space.upper.clone(),
         );
         let sse = data.est_sse(&neutral);
-        let (p, polished) = polish(&data, neutral.clone(), sse, (&lo, &hi)).unwrap();
+        let (p, polished) =
+            polish(&data, &Searches::cpu(), neutral.clone(), sse, (&lo, &hi)).unwrap();
         assert!(polished <= sse);
         assert_eq!(polished, data.est_sse(&p));
         assert!(

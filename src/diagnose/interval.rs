@@ -18,6 +18,7 @@ use super::effects::Effect;
 use super::fitting::polish_held;
 use super::likelihood::CHI2_1_95;
 use crate::fit::problem::FitProblem;
+use crate::fit::searches::Searches;
 
 /// The profile interval of one effect's size.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -38,6 +39,7 @@ pub struct SizeInterval {
 /// problem's model fitted at `theta` on its estimation part.
 pub fn size_interval(
     problem: &FitProblem,
+    searches: &Searches,
     theta: &[f64],
     effect: Effect,
 ) -> anyhow::Result<SizeInterval> {
@@ -48,7 +50,7 @@ pub fn size_interval(
     let sigma2 = sse0 / (n.saturating_sub(theta.len()).max(1)) as f64;
     let limit = sse0 + CHI2_1_95 * sigma2;
     // The profile at `v`: every other parameter polished from `start`.
-    let profile = |v: f64, start: &[f64]| polish_held(problem, start, (at, v), (lo, hi));
+    let profile = |v: f64, start: &[f64]| polish_held(problem, searches, start, (at, v), (lo, hi));
     let value = theta[at];
     let first_step = 0.05 * value.abs().max(1e-2 * (hi[at] - lo[at]));
     let bound = |edge: f64| -> anyhow::Result<(f64, bool)> {
@@ -157,7 +159,7 @@ mod tests {
             .map(|(v, (l, h))| v.clamp(*l, *h))
             .collect();
         let sse = clean.est_sse(&start);
-        let (mut truth, _) = polish(&clean, start, sse, (&lo, &hi)).unwrap();
+        let (mut truth, _) = polish(&clean, &Searches::cpu(), start, sse, (&lo, &hi)).unwrap();
         truth.push(eps);
         let model = clean.model.with(Effect::Asymmetry);
         let theta: Vec<f32> = truth.iter().map(|&v| v as f32).collect();
@@ -178,7 +180,7 @@ mod tests {
         .with_model(&model);
         let (lo, hi) = (data.space.lower.clone(), data.space.upper.clone());
         let sse = data.est_sse(&truth);
-        let (fit, _) = polish(&data, truth, sse, (&lo, &hi)).unwrap();
+        let (fit, _) = polish(&data, &Searches::cpu(), truth, sse, (&lo, &hi)).unwrap();
         (data, fit)
     }
 
@@ -186,7 +188,7 @@ mod tests {
     fn the_interval_holds_the_truth_and_widens_with_the_noise() {
         let eps = 0.1;
         let (data, fit) = asymmetric_stair(eps, 0.05);
-        let quiet = size_interval(&data, &fit, Effect::Asymmetry).unwrap();
+        let quiet = size_interval(&data, &Searches::cpu(), &fit, Effect::Asymmetry).unwrap();
         assert!(quiet.lo <= eps && eps <= quiet.hi, "{quiet:?}");
         assert!(
             quiet.lo < quiet.value && quiet.value < quiet.hi,
@@ -196,7 +198,7 @@ mod tests {
         // Four times the noise: the interval scales with σ for a parameter
         // the data pin (the profile is near-parabolic at this size).
         let (data, fit) = asymmetric_stair(eps, 0.2);
-        let loud = size_interval(&data, &fit, Effect::Asymmetry).unwrap();
+        let loud = size_interval(&data, &Searches::cpu(), &fit, Effect::Asymmetry).unwrap();
         assert!(loud.lo <= eps && eps <= loud.hi, "{loud:?}");
         let ratio = (loud.hi - loud.lo) / (quiet.hi - quiet.lo);
         assert!(

@@ -187,9 +187,8 @@ pub fn diagnose_from(
             m.check_data(t)?;
         }
     }
-    let data = FitProblem::diagnosis(traces, family, from, settings.blocks)?
-        .scored_on(crate::eval::open(settings.backend)?)
-        .stopped_by(settings.stop.clone());
+    let data = FitProblem::diagnosis(traces, family, from, settings.blocks)?;
+    let searches = settings.searches()?;
     data.check_parts()?;
     let start = match from {
         Some(m) => Some(start_of(m, family, data.datasets())?),
@@ -213,7 +212,9 @@ pub fn diagnose_from(
     let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
     let floor = locate::noise_floor(&refs);
     let start_ref = start.as_ref().map(|(m, theta)| (m, theta.as_slice()));
-    let selection = select::select(&data, family, effects, settings, floor, start_ref)?;
+    let selection = select::select(
+        &data, &searches, family, effects, settings, floor, start_ref,
+    )?;
     anyhow::ensure!(
         selection.baseline.best.sel_rmse.is_finite(),
         "the {family} baseline fitted on the estimation half diverges on the selection part \
@@ -284,9 +285,9 @@ pub fn diagnose_from(
     let size_intervals = selection
         .verdict
         .iter()
-        .map(|&e| interval::size_interval(&last, &final_params, e))
+        .map(|&e| interval::size_interval(&last, &searches, &final_params, e))
         .collect::<anyhow::Result<_>>()?;
-    let scratch = fitting::scratch_fits(&last, settings, REFIT_SALT)?;
+    let scratch = fitting::scratch_fits(&last, &searches, settings, REFIT_SALT)?;
     let final_fit = fitting::ScoredFit {
         est_sse: last.est_sse(&final_params),
         sel_rmse: last.selection_rmse(&final_params),

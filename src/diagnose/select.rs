@@ -14,6 +14,7 @@ use super::fitting::{
 use super::hints;
 use super::settings::Settings;
 use crate::fit::problem::FitProblem;
+use crate::fit::searches::Searches;
 use crate::model::Family;
 
 /// How many times a round may replace the current model by a better refit
@@ -79,6 +80,7 @@ pub struct Selection {
 /// from it with the rest of `effects`.
 pub fn select(
     data: &FitProblem,
+    searches: &Searches,
     family: Family,
     effects: &[Effect],
     settings: &Settings,
@@ -96,6 +98,7 @@ pub fn select(
     };
     let mut baseline = fit_seeds(
         &data.with_model(&baseline_model),
+        searches,
         baseline_start,
         settings,
         0,
@@ -109,7 +112,13 @@ pub fn select(
             params: theta,
             new_from: theta.len(),
         };
-        let fit = fit_seeds(&data.with_model(model), start, settings, GIVEN_SALT)?;
+        let fit = fit_seeds(
+            &data.with_model(model),
+            searches,
+            start,
+            settings,
+            GIVEN_SALT,
+        )?;
         current_model = model.clone();
         current_params = fit.best.params.clone();
         final_fit = fit.best.clone();
@@ -160,6 +169,7 @@ pub fn select(
                 .map(|slot| {
                     scratch_fits(
                         &data.with_model(models[slot]),
+                        searches,
                         settings,
                         salt + 50 + slot as u64,
                     )
@@ -170,6 +180,7 @@ pub fn select(
         };
         let current = fit_seeds_with(
             &data.with_model(&current_model),
+            searches,
             refit,
             settings,
             salt,
@@ -206,6 +217,7 @@ pub fn select(
                     let salt = salt + 1 + i as u64;
                     let (candidate, fit) = fit_with_effect(
                         &data.with_model(&current_model),
+                        searches,
                         &current_params,
                         effect,
                         settings,
@@ -225,6 +237,7 @@ pub fn select(
             }
             let ablated = fit_seeds(
                 &data.with_model(&current_model),
+                searches,
                 Start::Warm {
                     params: &best.fit.best.params[..current_params.len()],
                     new_from: current_params.len(),

@@ -34,10 +34,8 @@ impl Nominal {
     /// Fits `family` to `trace` with the diagnosis' baseline budget.
     pub fn fit(trace: &Trace, family: Family, settings: &Settings) -> anyhow::Result<Nominal> {
         let data =
-            FitProblem::diagnosis(std::slice::from_ref(trace), family, None, settings.blocks)?
-                .scored_on(crate::eval::open(settings.backend)?)
-                .stopped_by(settings.stop.clone());
-        let fit = fit_seeds(&data, Start::Scratch, settings, 0)?;
+            FitProblem::diagnosis(std::slice::from_ref(trace), family, None, settings.blocks)?;
+        let fit = fit_seeds(&data, &settings.searches()?, Start::Scratch, settings, 0)?;
         let pred = data.predict(&fit.best.params);
         let ym = data.records.whole[0].y_mean;
         let output = pred[0].iter().map(|&v| v as f64 + ym).collect();

@@ -5,7 +5,8 @@
 use serde::Serialize;
 
 use crate::eval::Backend;
-pub use crate::fit::problem::StopFlag;
+use crate::fit::searches::Searches;
+pub use crate::fit::searches::StopFlag;
 #[cfg(doc)]
 use crate::model::experiment::Parts;
 
@@ -58,6 +59,17 @@ pub struct Settings {
     /// Stops the diagnosis when raised (never, unless a caller raises it).
     #[serde(skip)]
     pub stop: StopFlag,
+}
+
+impl Settings {
+    /// The searches of a diagnosis: the evaluator `backend` opens, stopped
+    /// by `stop`.
+    pub fn searches(&self) -> anyhow::Result<Searches> {
+        Ok(Searches::new(
+            crate::eval::open(self.backend)?,
+            self.stop.clone(),
+        ))
+    }
 }
 
 impl Default for Settings {

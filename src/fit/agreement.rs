@@ -86,6 +86,17 @@ impl Agreement {
         (self.agreeing as f64) <= UNSURE_SHARE * self.tries as f64
     }
 
+    /// What a user should do about it, where the tries mostly disagree.
+    pub fn advice(&self) -> Option<String> {
+        self.unsure().then(|| {
+            format!(
+                "only {} of {} tries ended in the best basin: it was found by few, and more \
+                 tries (a larger --pop) may find a lower estimation SSE",
+                self.agreeing, self.tries
+            )
+        })
+    }
+
     /// One line for a terminal.
     pub fn to_text(&self) -> String {
         let others = match self.other_basins.len() {
@@ -143,9 +154,10 @@ mod tests {
         assert_eq!(a.diverged, 1);
         assert!((a.threshold - 10.03841).abs() < 1e-9, "{a:?}");
         assert!(a.unsure(), "3 of 7");
+        assert!(a.advice().unwrap().starts_with("only 3 of 7 tries"));
         assert!(a.to_text().starts_with("3 of 7 tries"), "{}", a.to_text());
         let sure = Agreement::of(&[end(5.0), end(5.001), end(9.0)], 1000).unwrap();
-        assert!(!sure.unsure(), "{sure:?}");
+        assert!(!sure.unsure() && sure.advice().is_none(), "{sure:?}");
         assert!(
             Agreement::of(&[end(5.0)], 1000).is_none(),
             "one try agrees with nothing"

@@ -698,10 +698,13 @@ mod tests {
                 assert!(in_bounded_class(family, &case.truth), "{}", case.name());
                 if let (Some(is), SwitchAt::Inside) = (family.switch_index(), spec.switch) {
                     // Inside the output's range, in the record's units.
-                    let (lo, hi) = case.trace.output.iter().fold(
-                        (f64::INFINITY, f64::NEG_INFINITY),
-                        |(a, b), &v| (a.min(v), b.max(v)),
-                    );
+                    let (lo, hi) = case
+                        .trace
+                        .output
+                        .iter()
+                        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                            (a.min(v), b.max(v))
+                        });
                     let x_s = case.truth[is];
                     assert!(lo < x_s && x_s < hi, "{}: x_s {x_s}", case.name());
                 }

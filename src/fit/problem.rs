@@ -1,8 +1,10 @@
 //! The one fitting problem `fit`, `compare`, the generated cases and the
 //! diagnosis all work on: the records (each trace split as the thesis
 //! splits it, §4.3.1, in one set of coordinates), each record's parts, the
-//! model description that is fitted, its search box, which candidates the
-//! fits admit, and the evaluator that scores them.
+//! model description that is fitted, its search box and which candidates
+//! the fits admit: a plain value. The evaluator that scores its searches
+//! and the flag that stops them are the searches' own
+//! ([`super::searches::Searches`], [`super::run::FitRun::run`]).
 //!
 //! `fit` builds it on one trace ([`FitProblem::new`]): the box in the
 //! data's own scale, its validation half the one part it reports on. The
@@ -17,11 +19,8 @@ use std::sync::Arc;
 use nalgebra::DVector;
 
 use super::records::{Records, Validation};
-use super::searches::Scorer;
-pub use super::searches::StopFlag;
 use crate::data::Trace;
-use crate::eval::cpu::CpuEvaluator;
-use crate::eval::{Evaluator, Problem};
+use crate::eval::Problem;
 use crate::ident::fit::CHI2_1_95;
 use crate::model::bounds::Origin;
 use crate::model::effects::{Context, Effect, EffectBox, ModelDescription, effect_box};
@@ -85,9 +84,6 @@ pub struct FitProblem {
     pub admission: Admission,
     pub input_name: String,
     pub output_name: String,
-    scorer: Scorer,
-    /// Stops every search on this problem ([`FitProblem::stopped_by`]).
-    pub stop: StopFlag,
 }
 
 /// How long after an input step a first-order model is still in its
@@ -177,8 +173,6 @@ impl FitProblem {
             admission: Admission::Fit,
             input_name: trace.input_name.clone(),
             output_name: trace.output_name.clone(),
-            scorer: Scorer::of(Box::new(CpuEvaluator::new())),
-            stop: StopFlag::default(),
         })
     }
 
@@ -217,8 +211,6 @@ impl FitProblem {
             admission: Admission::BoundedLoops,
             input_name: first.input_name.clone(),
             output_name: first.output_name.clone(),
-            scorer: Scorer::of(Box::new(CpuEvaluator::new())),
-            stop: StopFlag::default(),
         })
     }
 
@@ -304,27 +296,6 @@ impl FitProblem {
             }
         }
         Ok(())
-    }
-
-    /// The same problem scored on `evaluator` (the CPU batch path by
-    /// default).
-    pub fn scored_on(mut self, evaluator: Box<dyn Evaluator + Send>) -> FitProblem {
-        self.scorer = Scorer::of(evaluator);
-        self
-    }
-
-    /// The same problem, every search on it stopped once `stop` is raised.
-    pub fn stopped_by(mut self, stop: StopFlag) -> FitProblem {
-        self.stop = stop;
-        self
-    }
-
-    /// Runs `job` on the problem's evaluator ([`Scorer::run`]).
-    pub fn with_evaluator<T>(
-        &self,
-        job: impl FnOnce(&mut dyn Evaluator) -> anyhow::Result<T>,
-    ) -> anyhow::Result<T> {
-        self.scorer.run(job)
     }
 
     /// The second start of [`Switching::Starts`]: the same problem with the

@@ -65,6 +65,42 @@ impl Scorer {
     }
 }
 
+/// What every search on a problem shares, beside the problem itself: the
+/// evaluator it scores on and the flag that stops it. A
+/// [`crate::fit::problem::FitProblem`] is a plain value (data, parts,
+/// model, box, admission); the searches that run on it (the diagnosis'
+/// many, side by side) carry this.
+#[derive(Debug, Clone)]
+pub struct Searches {
+    pub scorer: Scorer,
+    pub stop: StopFlag,
+}
+
+impl Searches {
+    pub fn new(evaluator: Box<dyn Evaluator + Send>, stop: StopFlag) -> Searches {
+        Searches {
+            scorer: Scorer::of(evaluator),
+            stop,
+        }
+    }
+
+    /// The batched CPU evaluator, never stopped: a search's default.
+    pub fn cpu() -> Searches {
+        Searches::new(
+            Box::new(crate::eval::cpu::CpuEvaluator::new()),
+            StopFlag::default(),
+        )
+    }
+
+    /// Runs `job` on the evaluator ([`Scorer::run`]).
+    pub fn run<T>(
+        &self,
+        job: impl FnOnce(&mut dyn Evaluator) -> anyhow::Result<T>,
+    ) -> anyhow::Result<T> {
+        self.scorer.run(job)
+    }
+}
+
 impl std::fmt::Debug for Scorer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self.0.lock() {

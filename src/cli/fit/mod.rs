@@ -148,6 +148,9 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         for (level, text) in report.edge_notes() {
             eprintln!("mckibben: {level}: {text}");
         }
+        if let Some(advice) = report.agreement.as_ref().and_then(|a| a.advice()) {
+            eprintln!("mckibben: note: {advice}");
+        }
         if let Some(val) = report.val_fit_percent {
             let linear = report.linear_val_fit_percent;
             for w in yardstick_warnings(outcome.sse, val, linear, fit.start_scores()) {
