@@ -93,14 +93,16 @@ impl Engine {
         // starts of the group need next (each start takes the very steps it
         // takes alone), and a start that is done drops out. On an objective
         // whose calls pay a round trip (a GPU) the group is every try's
-        // every start; on the CPU one start a thread, which keeps every
-        // core busy with a start's probes and its linear algebra while a
-        // round's residuals stay in the caches (sixteen starts at once
-        // outgrew them: docs/PERFORMANCE.md, "The polish in lock-step").
+        // every start; on the CPU four starts a thread, enough rows a call
+        // to keep every core busy, few enough that a round's residuals
+        // stay in the caches (measured on the shipped stair at N = 20 000,
+        // 320 starts on two threads: groups of 2, 8, 32 and all took 6.2,
+        // 4.4, 4.8 and 6.2 s: docs/PERFORMANCE.md, "The polish in
+        // lock-step").
         let together = if objective.round_trips() {
             starts.len().max(1)
         } else {
-            rayon::current_num_threads().max(1)
+            4 * rayon::current_num_threads().max(1)
         };
         for group in starts.chunks(together) {
             if cut() {
