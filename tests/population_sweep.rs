@@ -12,7 +12,8 @@
 //! ```
 //!
 //! `SWEEP_N` lists the populations, `SWEEP_FAMILY` (`classic`,
-//! `generalized`) limits the families and `SWEEP_SEEDS` (default 1) the
+//! `generalized`) limits the families, `SWEEP_CASES` the cases (by their
+//! names' numbers: `1012,1016`) and `SWEEP_SEEDS` (default 1) the
 //! seeds; single tries at a population below 2000 take more seeds to
 //! measure `p` (5 at N = 100 by default). Each result is one line of JSON
 //! appended to `target/sweep/results.jsonl`, and a case already there is
@@ -95,6 +96,9 @@ fn population_sweep() {
         .open(results_file())
         .unwrap();
     let mut cpu = CpuEvaluator::new();
+    let cases = std::env::var("SWEEP_CASES")
+        .ok()
+        .map(|_| list("SWEEP_CASES", ""));
     for n in list("SWEEP_N", "100,1000,10000") {
         let n = n as usize;
         let seeds = match std::env::var("SWEEP_SEEDS") {
@@ -104,6 +108,12 @@ fn population_sweep() {
         };
         for (family, count) in families() {
             for (i, spec) in matrix(family, count, 1000).into_iter().enumerate() {
+                if cases
+                    .as_ref()
+                    .is_some_and(|c| !c.contains(&(1000 + i as u64)))
+                {
+                    continue;
+                }
                 for &seed in &seeds {
                     let known = done.iter().any(|r| {
                         r.family == family.to_string() && r.case == i && r.n == n && r.seed == seed
@@ -233,6 +243,25 @@ fn population_sweep_summary() {
             xs.push((*n as f64).log10());
             pass_y.push(pass as f64);
             time_y.push(mean);
+        }
+        // Nested tries: a larger population runs the default's try and
+        // more, so it never ends at a higher estimation SSE.
+        let default_n = 1000;
+        let at = |n: usize, i: usize| {
+            of_family
+                .iter()
+                .find(|r| r.n == n && r.case == i && r.seed == 1)
+                .map(|r| r.sse)
+        };
+        for &n in by_n.keys().filter(|&&n| n > default_n) {
+            let pairs: Vec<(f64, f64)> = (0..count)
+                .filter_map(|i| Some((at(default_n, i)?, at(n, i)?)))
+                .collect();
+            let nested = pairs.iter().filter(|(d, l)| l <= d).count();
+            println!(
+                "\nnested: at N = {n} the estimation SSE is no higher than at N = {default_n} on {nested} of {} cases",
+                pairs.len()
+            );
         }
         // Per case: p at each population, and whether the fit passed.
         println!(

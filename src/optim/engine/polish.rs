@@ -95,9 +95,7 @@ impl Engine {
         // whose calls pay a round trip (a GPU) the group is every try's
         // every start; on the CPU four starts a thread, enough rows a call
         // to keep every core busy, few enough that a round's residuals
-        // stay in the caches (measured on the shipped stair at N = 20 000,
-        // 320 starts on two threads: groups of 2, 8, 32 and all took 6.2,
-        // 4.4, 4.8 and 6.2 s: docs/PERFORMANCE.md, "The polish in
+        // stay in the caches (docs/PERFORMANCE.md, "The polish in
         // lock-step").
         let together = if objective.round_trips() {
             starts.len().max(1)
