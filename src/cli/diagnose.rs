@@ -133,10 +133,9 @@ pub struct Args {
     /// scratch, and the rounds try the rest of the catalogue on top of
     /// them. DATA is read as the model's data were (columns, time column,
     /// --resample) unless flags say otherwise, and must have the model's
-    /// units and sample time. Several times faster than a diagnosis from
-    /// scratch (3 s against 26 s on the shipped stair from its own
-    /// diagnosis' model); meant for records of the same muscle under the
-    /// same conditions, since the chain is kept.
+    /// units and sample time. Faster than a diagnosis from scratch
+    /// (timings: docs/DIAGNOSIS.md, "Knobs"); meant for records of the same
+    /// muscle under the same conditions, since the chain is kept.
     #[arg(long, value_name = "MODEL.json", conflicts_with = "self_test")]
     from: Option<PathBuf>,
     /// Instead of diagnosing DATA, check the diagnosis itself on data with
@@ -149,10 +148,10 @@ pub struct Args {
     /// cross-talk), which must be called "not explained by the catalogue"
     /// (80 cases, classic baseline only); prints the
     /// confusion table and each case's verdict. `--self-test=catalogue`: the
-    /// older check whose data are the catalogue's own effect equations
-    /// (every effect at two sizes, a control, a two-effect case), then the
-    /// twin check (one twin effect on vs off, gap attributed vs gap that
-    /// disappears).
+    /// withheld-effect check, whose data come from the catalogue's own
+    /// effect equations (every effect at two sizes, a control, a two-effect
+    /// case), then the twin check (one twin effect on vs off, gap attributed
+    /// vs gap that disappears).
     #[arg(long, value_enum, num_args = 0..=1, require_equals = true,
           default_missing_value = "independent", value_name = "KIND")]
     self_test: Option<SelfTest>,

@@ -57,8 +57,9 @@ pub enum Command {
     Bench(bench::Args),
     #[command(about = "Validate on a public benchmark with published results (Bouc-Wen)")]
     Validate(validate::Args),
-    /// `validate`'s name before 0.2 (too close to `bench`): still runs, with
-    /// a deprecation note.
+    /// Deprecated alias of `validate` (its name reads too close to `bench`),
+    /// kept so that existing scripts still run; prints a deprecation note
+    /// (CHANGELOG.md).
     #[command(hide = true)]
     Benchmark(validate::Args),
     #[command(about = "The static force model (eq. 7 and 9) against braid angle or muscle length")]

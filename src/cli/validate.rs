@@ -1,5 +1,5 @@
 //! `mckibben validate`: validation on public benchmarks with published results
-//! (`mckibben benchmark` before 0.2, still accepted).
+//! (`mckibben benchmark` is accepted as a deprecated alias: CHANGELOG.md).
 
 use std::path::PathBuf;
 use std::time::Instant;

@@ -8,8 +8,8 @@
 //! with small populations, and `fit` searches a thousand candidates from
 //! scratch. Where the estimation half does not settle the model, the two
 //! land in different basins of nearly the same estimation SSE that
-//! validate points apart (the Cavatappi 300 g record: estimation SSE 6.45
-//! and 6.39, second-half fit 87.1 and 82.0 %). A user who refits the
+//! validate points apart (as on the Cavatappi 300 g record:
+//! docs/ARCHITECTURE.md, "Warm starts"). A user who refits the
 //! verdict with `fit --effects` gets `fit`'s; the report gives both, and
 //! the final model is whichever scores better on the selection part.
 

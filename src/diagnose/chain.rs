@@ -5,9 +5,9 @@
 //! No selection: every effect is kept whatever it gains.
 //!
 //! Why: a search of the whole chain's box from scratch is a lottery that
-//! the diagnosis' warm-started rounds do not play. On the Cavatappi
+//! the diagnosis' warm-started rounds do not play: on the Cavatappi
 //! 500 g record `fit --effects creep,inertia:ringing,rate` from scratch
-//! ended at estimation SSE 27.6 where the diagnosis' chain reached 15.7
+//! ends far above the estimation SSE the diagnosis' chain reaches
 //! (docs/RESULTS.md, "The diagnosed model, end to end").
 //!
 //! Also `fit --effects auto` ([`selected_fit`]): the diagnosis' own

@@ -23,8 +23,8 @@
 //! estimate, not a theorem: an effect whose mark lies outside the span of the
 //! features (a hard nonlinearity deep in the state) can close more, and so
 //! can a physical effect refitted jointly with the baseline when the record
-//! is short (as on the Cavatappi files: docs/lab/diagnosis.md, "Real data: the
-//! Cavatappi muscle"); a share above 100 % says just that. The groups of
+//! is short (as on the Cavatappi files: docs/DIAGNOSIS.md, "When not to
+//! trust the result"); a share above 100 % says just that. The groups of
 //! features and the penalty are chosen by blocked cross-validation on the
 //! estimation half ([`ridge`](super::ridge)).
 
@@ -348,11 +348,10 @@ pub const LARGE_BOUND: f64 = 0.3;
 /// this share of the bound (most of what is explainable is something
 /// else), or when the flexible model leaves less than this share of what
 /// the final model leaves above the floor (the catalogue fitted most of
-/// the gap with effects that are not its shape: measured on the
-/// independent self-test's cross-talk on a multisine, where a band-pass
-/// two-pole creep closed 96 % of the gap and the bound 98 %, leaving half
-/// as much; among the self-test's cases of catalogued effects the second
-/// condition flags none that the first does not).
+/// the gap with effects that are not its shape, as a band-pass two-pole
+/// creep fits the independent self-test's sensor cross-talk; on the
+/// self-test's catalogued effects the second condition adds no flag to
+/// the first: docs/lab/diagnosis.md, "How much is explainable at all").
 pub const SMALL_SHARE: f64 = 0.5;
 
 /// One named effect's share of the bound.

@@ -153,9 +153,8 @@ pub enum Start<'a> {
     /// other half on the free run, started around the first stage's best.
     /// The free-run cost of a slow, hysteretic model is a needle along the
     /// pole and the static gain that differential evolution rarely finds
-    /// from scratch; the prediction error's is not (measured on the
-    /// self-test: docs/lab/diagnosis.md, the budget's "in the first round"
-    /// item).
+    /// from scratch; the prediction error's is not (docs/ARCHITECTURE.md,
+    /// "Decisions of the fitting engine").
     Ahead { horizon: usize },
     /// From a known model: `params` is the current model with the new
     /// effect's parameters (from `new_from` on) at their neutral values; the
@@ -168,9 +167,9 @@ pub enum Start<'a> {
 /// The search is differential evolution on the fitting engine (the update
 /// rule `mckibben fit --algo de` uses). From scratch with the narrow
 /// `p_best = 0.02`, greedier than DE's default, so that more seeds leave the
-/// linear model's plateau (measured: docs/lab/diagnosis.md, the budget's
-/// "baseline" item); one member is the ARX model, so the fit starts no
-/// worse than least squares.
+/// linear model's plateau (docs/lab/diagnosis.md, "How the diagnosis was
+/// built, and what it measured"); one member is the ARX model, so the fit
+/// starts no worse than least squares.
 ///
 /// Warm-started in two stages. First the new effect's parameters alone, the
 /// rest held at the start (a search in one or two dimensions that rarely
@@ -268,9 +267,9 @@ pub fn fit_candidate(
 /// Levenberg–Marquardt from the search's best on the free-run residuals;
 /// the polished point is kept only if its estimation SSE is lower. The
 /// free-run cost of a slow, hysteretic model is a narrow curved valley
-/// along its pole and static gain (measured: docs/lab/diagnosis.md, the
-/// budget's "every fit ends with a Levenberg–Marquardt polish" item), along
-/// which differential evolution creeps while Gauss–Newton steps follow it.
+/// along its pole and static gain (docs/ARCHITECTURE.md, "Decisions of the
+/// fitting engine"), along which differential evolution creeps while
+/// Gauss–Newton steps follow it.
 ///
 /// The engine's polish from `best` alone: one start, because every seed of
 /// the diagnosis is polished already and their spread is what the
@@ -279,12 +278,10 @@ pub fn fit_candidate(
 /// differences in the `f32` simulation: steps of 1e-4 of the coordinate's
 /// size (taken as at least 1 % of its box width, so that a coordinate near
 /// zero is still probed) stay well above its rounding, at half the
-/// simulations of the fit's central differences ([`Polish::default`]).
-/// Those were measured here too: on the five Cavatappi records the final
-/// validation fits moved by −1.1 to +0.4 points, no better than a change
-/// of seed, and the profile's intervals moved with them
-/// (docs/lab/diagnosis.md, "One polish"). A coordinate with equal bounds is
-/// held.
+/// simulations of the fit's central differences ([`Polish::default`]):
+/// central ones move the diagnosis' fits no more than a change of seed
+/// does (docs/lab/diagnosis.md, "One polish, one prior"). A coordinate
+/// with equal bounds is held.
 pub(super) fn polish(
     problem: &FitProblem,
     searches: &Searches,
@@ -332,9 +329,8 @@ const PROFILE_NODES: i32 = 6;
 /// estimation part. Why: when the current model has absorbed part of an
 /// effect, the fits warm-started from it find the effect small, and the
 /// model with the effect at its true size lies along a valley in which the
-/// rest of the model must move back with it (measured on the self-test:
-/// docs/lab/diagnosis.md, the budget's "profiled along the new effect's size"
-/// item).
+/// rest of the model must move back with it (docs/lab/diagnosis.md, "How
+/// the diagnosis was built, and what it measured").
 pub(super) fn profile(
     problem: &FitProblem,
     searches: &Searches,
@@ -397,8 +393,8 @@ pub(super) fn polish_held(
 /// (β, γ or β1…β6) log-uniformly in magnitude over four decades: fits of the
 /// muscle often need them near zero, a sliver of the box that a uniform draw
 /// and DE's differences of uniform draws rarely visit; more seeds then leave
-/// the linear model's plateau (A = 0) (measured: docs/lab/diagnosis.md, the
-/// budget's "baseline" item).
+/// the linear model's plateau (A = 0) (docs/lab/diagnosis.md, "How the
+/// diagnosis was built, and what it measured").
 fn scratch_rows(
     problem: &FitProblem,
     (neutral, lo, hi): (&[f64], &[f64], &[f64]),
@@ -493,9 +489,9 @@ pub fn fit_seeds(
 /// among the seeds: the first round's fits. A from-scratch baseline fitted
 /// to data with an unmodelled effect ends where it compensates the effect
 /// best, often far from where the model with the effect fits (as on the
-/// self-test's `asymmetry (large)` case: docs/lab/diagnosis.md, the budget's
-/// "in the first round" item), and a warm start cannot walk back; a search
-/// from scratch can.
+/// self-test's `asymmetry (large)` case: docs/lab/diagnosis.md, "How the
+/// diagnosis was built, and what it measured"), and a warm start cannot
+/// walk back; a search from scratch can.
 pub(super) fn fit_seeds_with(
     problem: &FitProblem,
     searches: &Searches,
@@ -676,8 +672,8 @@ mod tests {
         let fits = vec![fit(100.0, 1.0), fit(100.3, 1.2), fit(100.9, 5.0)];
         let s = summarize(fits, 1000);
         assert_eq!(s.best.est_sse, 100.0);
-        // 1.4826·MAD of 1.0 and 1.2; the third seed (0.9 % worse, inside
-        // the old fixed 1 %) is a different fit, not spread.
+        // 1.4826·MAD of 1.0 and 1.2; the third seed (0.9 % worse, which a
+        // fixed 1 % window would count) is a different fit, not spread.
         assert!((s.spread - 1.4826 * 0.1).abs() < 1e-12, "{}", s.spread);
         assert_eq!(s.seed_sel_rmse, vec![1.0, 1.2, 5.0]);
     }

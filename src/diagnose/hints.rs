@@ -6,9 +6,8 @@
 //! Why: the free-run cost of a lightly damped mode is a narrow valley along
 //! its frequency (a ringing out of phase with the data's costs more than no
 //! ringing), which uniform draws over the box rarely hit, while the
-//! residual's spectrum says where it is. On the Cavatappi muscle at 500 g
-//! the draws ended at 2.4 Hz, heavily damped, beside a 4.3 Hz peak that
-//! holds 70 % of the estimation residual's energy (docs/lab/diagnosis.md). Only
+//! residual's spectrum says where it is (as on the Cavatappi muscle's
+//! ringing: docs/lab/diagnosis.md, "Which: the effects catalogue"). Only
 //! the estimation part is read.
 
 use super::effects::{Effect, StartHint};
@@ -127,9 +126,9 @@ pub fn only_on_a_peak(effect: Effect) -> bool {
 /// Whether `theta`'s estimation residual rings: its spectrum has a peak
 /// where the input's has none. [`Effect::Ringing`] is looked for only then
 /// (`select`): a mode kicked by the input and damped near 1/√2 is a
-/// high-pass of the input, and without a peak to explain it fitted the
+/// high-pass of the input, and without a peak to explain it fits the
 /// independent self-test's sensor cross-talk, a high-pass added to the
-/// output (docs/lab/diagnosis.md).
+/// output (docs/lab/diagnosis.md, "Which: the effects catalogue").
 pub fn residual_rings(problem: &FitProblem, theta: &[f64]) -> bool {
     estimation_peaks(problem, theta).is_some_and(|(peaks, _)| !peaks.is_empty())
 }

@@ -3,14 +3,10 @@
 //!
 //! The diagnosis' final fit comes from a chain of warm starts, one effect
 //! after another; the estimation half may hold fits of the same model as
-//! good or better that validate quite differently. Measured on the
-//! Cavatappi muscle (docs/lab/diagnosis.md, "How settled"): at 500 g a
-//! from-scratch fit of the final model reaches a lower estimation SSE
-//! (13.84 against 16.40) and validates at 44.5 % against the reported 83.4 %;
-//! before each creep's start was free, at 300 g two fits within the
-//! likelihood-ratio threshold of each other validated at 82.0 % and 61.8 %.
-//! So the final model is fitted again from scratch and the report says
-//! whether the fit it states is reproduced.
+//! good or better that validate quite differently (as on the Cavatappi
+//! muscle: docs/lab/diagnosis.md, "How settled: the final model
+//! refitted"). So the final model is fitted again from scratch and the
+//! report says whether the fit it states is reproduced.
 
 use serde::Serialize;
 

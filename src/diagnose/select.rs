@@ -191,7 +191,7 @@ pub fn select(
         // in the first round its fits from scratch) may also reach a better
         // estimation fit of the current model than the one accepted: then
         // that is the current model, as after an ablation below (it happens
-        // on the self-test: docs/DIAGNOSIS.md, "Which: the effects
+        // on the self-test: docs/lab/diagnosis.md, "Which: the effects
         // catalogue", the paragraph after "Ablation").
         if current.best.est_sse < final_fit.est_sse && current.best.sel_rmse.is_finite() {
             current_params = current.best.params.clone();

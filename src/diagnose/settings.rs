@@ -77,8 +77,9 @@ impl Default for Settings {
     /// samples) finishes in seconds on two cores. The baseline gets 12 seeds
     /// because a from-scratch fit of the classic model to the twin's stair
     /// is multimodal: most seeds stay on the linear model's plateau
-    /// (`A = 0`), and the best of many reaches a better basin (measured:
-    /// docs/lab/diagnosis.md, the budget's "baseline" item).
+    /// (`A = 0`), and the best of many reaches a better basin
+    /// (docs/lab/diagnosis.md, "How the diagnosis was built, and what it
+    /// measured").
     fn default() -> Self {
         Settings {
             seeds: 3,

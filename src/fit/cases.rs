@@ -14,10 +14,10 @@
 //! cannot hold is a failure of the box.
 //!
 //! A generalized truth's sign terms in `x` switch at one of two levels
-//! ([`SwitchAt`]): at the estimation half's output mean, as every
-//! generalized model did before the switching level `x_s` was a parameter,
-//! or at the sensor's zero (the muscle's rest length), the model's usual
-//! form. The first kind is simulated the way [`super::synthetic`] does it:
+//! ([`SwitchAt`]): at the estimation half's output mean, where the
+//! thesis' model (written in deviation coordinates) switches, or at the
+//! sensor's zero (the muscle's rest length), the model's usual form. The
+//! first kind is simulated the way [`super::synthetic`] does it:
 //! once in absolute units to find the estimation half's means, then again in
 //! the deviation coordinates of those means with `x_s` at that mean, iterated
 //! until the mean is the output's own. The second is simulated once, in
@@ -164,8 +164,8 @@ pub struct Case {
 }
 
 /// The first case of [`matrix`] whose generalized truth switches inside its
-/// output's range: the twenty before it keep the truths they had before
-/// that kind existed.
+/// output's range: placed after the other kinds, so that the twenty before
+/// it draw their truths as if this kind did not exist.
 pub const INSIDE_FROM: usize = 20;
 
 /// Sample time of the generated traces (s): the shipped rig data's.
@@ -181,8 +181,8 @@ const P_MAX: f64 = 0.5;
 /// 0.02–0.1 mm, 8000–12000 samples; case `i` has seed `seed + i`. Generalized
 /// truths switch at the estimation mean in cases 0, 1, 4, 5, 8, 9, … up to
 /// case 19 and at the sensor's zero in cases 2, 3, 6, 7, … up to 19 (a case
-/// of the first kind is the case its seed gave before the second kind
-/// existed), and inside the output's range from case 20 on
+/// of the first kind draws from its seed as if the second kind did not
+/// exist), and inside the output's range from case 20 on
 /// ([`INSIDE_FROM`]): a matrix of 30 holds ten of each.
 pub fn matrix(family: Family, count: usize, seed: u64) -> Vec<CaseSpec> {
     (0..count)

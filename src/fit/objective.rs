@@ -299,13 +299,11 @@ pub fn default_plan(
 /// Only a family whose state switches where the output crosses a level
 /// (the generalized family's sign terms in `x`) is refined: its free run
 /// jumps where a sample crosses the level, and the polish stops on such
-/// ledges (on the generated generalized cases a round of refining moved
-/// fits from 1.7 times the truth's validation error to the truth's:
-/// docs/lab/results.md, "Refining rounds"). A smooth family's polish ends
-/// in its valley's floor, and there refining only finds, on a record the
-/// model cannot fit exactly, another optimum of the estimation half that
-/// validates worse (the shipped stair: estimation SSE 2948 → 2761,
-/// validation fit 92.4 → 90.4 %).
+/// ledges, which a round of refining steps over. A smooth family's polish
+/// ends in its valley's floor, and there refining only finds, on a record
+/// the model cannot fit exactly, another optimum of the estimation half
+/// that validates worse (both measured: docs/ARCHITECTURE.md, "Decisions
+/// of the fitting engine").
 pub fn staged_plan(problem: &FitProblem, settings: AlgoSettings, n: usize, g: usize) -> Plan {
     let longest = problem.estimation().len();
     let mut plan = default_plan(settings.algorithm(), n, g, problem.horizon(), longest);

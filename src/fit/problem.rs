@@ -49,9 +49,9 @@ pub enum Admission {
     /// ([`Family::loop_bounded`]), under every measure. Why: a model fitted
     /// to one half with an unbounded loop (`β + γ < 0`) lets `w` run away
     /// once the input leaves the estimation half's range, and then diverges
-    /// on its own validation half, leaving no gap to diagnose (as every seed
-    /// did on the Cavatappi 500 g file: docs/lab/diagnosis.md, "Real data:
-    /// the Cavatappi muscle").
+    /// on its own validation half, leaving no gap to diagnose (as on the
+    /// Cavatappi 500 g file: docs/lab/diagnosis.md, "Real data: the
+    /// Cavatappi muscle").
     BoundedLoops,
 }
 
@@ -440,9 +440,9 @@ impl FitProblem {
     /// Why: a model fitted to one half can be unstable on the other. An
     /// estimation optimum with β + γ < 0 lets `w` grow without bound once
     /// the input leaves the estimation half's range, and the fit then writes
-    /// a model that diverges on its own validation half (as it did on the
-    /// Cavatappi muscle: docs/lab/results.md, "Real data: the Cavatappi
-    /// muscle"). The check uses the validation half's input, never its
+    /// a model that diverges on its own validation half (as on the
+    /// Cavatappi muscle: docs/ARCHITECTURE.md, "Decisions of the fitting
+    /// engine"). The check uses the validation half's input, never its
     /// output; the bound is ten times the estimation output's largest
     /// deviation, on every sample.
     pub fn stress(&self) -> (Problem, f64) {

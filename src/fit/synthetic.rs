@@ -64,10 +64,9 @@ impl Synthetic {
     /// the estimation half's means `ū`, `ȳ`; the truth in deviation
     /// coordinates (intercept `c + b·ū − (1 − a·α)·ȳ`) is then simulated
     /// again in those coordinates and shifted back by `ȳ`. The generalized
-    /// truth switches at that `ȳ` (`x_s = ȳ`, the model class of every fit
-    /// before the switching level was searched), so its second pass is
-    /// another trace than its first; for the classic model both passes give
-    /// the same trace up to rounding.
+    /// truth switches at that `ȳ` (`x_s = ȳ`, where the thesis' model
+    /// switches), so its second pass is another trace than its first; for
+    /// the classic model both passes give the same trace up to rounding.
     pub fn new(family: Family, len: usize, noise_mm: f64, seed: u64) -> Synthetic {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let p = stair_input(len, &mut rng);

@@ -117,7 +117,8 @@ pub enum Switching {
     /// Two starts, `x_s` held at the estimation mean in one and at the
     /// sensor's zero in the other; the lower estimation SSE is kept.
     Starts,
-    /// `x_s` held at the estimation mean (every fit before `x_s` existed).
+    /// `x_s` held at the estimation mean (where the thesis' model, written
+    /// in deviation coordinates, switches).
     Mean,
     /// `x_s` held at the sensor's zero (its rest length).
     Zero,

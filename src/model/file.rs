@@ -21,10 +21,9 @@ use crate::data::write_atomic;
 
 /// What the `format` field of a model file says.
 pub const MODEL_FORMAT: &str = "mckibben-model";
-/// The model file's version. Version 1 is the bare model `fit` and
-/// `identify` wrote before (family, canonical vector, means, `dt`, column
-/// names), which still reads; version 2 added the effect chain, the box,
-/// units and provenance.
+/// The model file's version. Version 1 is the bare model (family,
+/// canonical vector, means, `dt`, column names), which still reads;
+/// version 2 adds the effect chain, the box, units and provenance.
 pub const MODEL_VERSION: u32 = 2;
 
 /// A baseline's effect stages with their parameters and the constants they
@@ -382,9 +381,9 @@ impl ModelFile {
 
     /// The model the file holds; an error names a parameter missing,
     /// unknown or out of order, or an unknown effect. A generalized model
-    /// written before the switching level `x_s` existed switched at its
-    /// estimation mean, so it reads with `x_s` = its output mean: the same
-    /// model, to the bit ([`crate::model::sim::switch_threshold`]).
+    /// whose file has no switching level `x_s` switches at its estimation
+    /// mean, so it reads with `x_s` = its output mean: the same model, to
+    /// the bit ([`crate::model::sim::switch_threshold`]).
     pub fn model(&self) -> anyhow::Result<Model> {
         let effects: Vec<Effect> = self
             .effects
@@ -471,7 +470,7 @@ fn legacy_model(path: &Path, value: serde_json::Value) -> anyhow::Result<FittedB
         )
     })?;
     let names: Vec<&str> = model.family.params().iter().map(|p| p.name).collect();
-    // Written before the switching level existed: it switched at its
+    // No switching level in the file: the model switches at its
     // estimation mean ([`ModelFile::model`]).
     if let Some(is) = model.family.switch_index() {
         if model.params.len() + 1 == names.len() {

@@ -18,8 +18,9 @@
 //! is therefore told the output mean `ȳ` its data had removed (`y_mean`), and
 //! the sign terms switch at `x = x_s − ȳ`, formed once per candidate in `f32`
 //! ([`switch_threshold`]). A model that switches at its estimation mean
-//! (`x_s = ȳ`, every model written before `x_s` existed) forms `0` exactly
-//! there, and `x − 0` is `x` bit for bit: the same numbers as before.
+//! (`x_s = ȳ`, as the thesis' model does and as a model file without `x_s`
+//! reads) forms `0` exactly there, and `x − 0` is `x` bit for bit: the same
+//! numbers as sign terms that switch at `x = 0` with no level at all.
 
 use serde::{Deserialize, Serialize};
 
@@ -587,8 +588,8 @@ mod tests {
                 x + y_mean
             );
         }
-        // Read in the frame's own coordinates (switching at its mean, as every
-        // model did before x_s), the same numbers are another model.
+        // Read in the frame's own coordinates (switching at its mean, as a
+        // model without x_s does), the same numbers are another model.
         let at_mean = {
             let mut t = theta(c - (1.0 - a * alpha) * y_mean);
             t[9] = y_mean;

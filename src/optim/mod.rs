@@ -111,7 +111,7 @@ pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
 
     /// The settings of the staged fit's global stage with `n` individuals:
     /// the paper's unless they were measured to miss the basin there
-    /// (docs/lab/results.md, "known truth").
+    /// (docs/lab/results.md, "1. Known truth").
     fn staged_settings(_n: usize) -> Self::Settings {
         Self::Settings::default()
     }

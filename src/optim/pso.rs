@@ -94,9 +94,9 @@ impl PsoSettings {
     /// standard PSO ("Defining a standard for particle swarm optimization",
     /// IEEE Swarm Intelligence Symposium 2007) advises: a best found
     /// anywhere spreads one neighbour per move, so the swarm keeps searching
-    /// other basins while it does. With the global best the islands of the
-    /// staged fit all collapsed into the linear model (A → 0) on two of six
-    /// seeds of the shipped stair (docs/lab/results.md, "PSO on a ring").
+    /// other basins while it does. With the global best the staged fit's
+    /// islands can all collapse into the linear model (A → 0) on the
+    /// shipped stair (docs/lab/results.md, "PSO on a ring").
     pub fn constriction() -> PsoSettings {
         PsoSettings {
             w_start: 0.7298,

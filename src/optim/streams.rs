@@ -26,11 +26,11 @@
 //!
 //! A `ChaCha8Rng` per individual (`set_stream`/`set_word_pos`) would be the
 //! one-step derivation, but `rand_chacha` computes four 64-byte blocks on a
-//! generator's first draw: about 150–200 ns a row on this project's machine,
-//! measured, against about 1.5 ns a draw here. At a population of 10⁵ that
-//! alone would be several per cent of a generation whose scoring takes
-//! about 2 µs a row, and the issue this serves asks for the optimizer's own
-//! work to stay under 5 % of the fit.
+//! generator's first draw, which costs a row far more than all of its
+//! SplitMix64 draws. At large populations that alone would take a visible
+//! share of a generation's time, against the target of keeping the
+//! optimizer's own work under 5 % of the fit (docs/PERFORMANCE.md, "The
+//! optimizer's own work").
 
 use std::convert::Infallible;
 

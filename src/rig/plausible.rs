@@ -6,10 +6,10 @@
 //! controller it would drive the valve anywhere (a PI's integral to ±∞,
 //! then NaN).
 //!
-//! Pressure has a range but no speed limit: on the twin it changes by at
-//! most 0.11 MPa a sample, a quarter of its span, and with a faster valve
-//! it could cross the whole span, so a limit would either never bind or
-//! refuse real samples.
+//! Pressure has a range but no speed limit: on the twin one sample can
+//! move it by a good share of its span, and with a faster valve it could
+//! cross the whole span, so a limit would either never bind or refuse real
+//! samples.
 
 use super::protocol::Ranges;
 use crate::control::Measurement;
@@ -24,9 +24,9 @@ pub struct Limits {
 }
 
 impl Limits {
-    /// Fastest the twin's load moves, full valve either way, under any load
-    /// it takes: about 105 mm/s (1.05 mm a sample at 10 ms). The default
-    /// limit is five times that, so that only a jump no load can make is
+    /// The default limit: several times the fastest the twin's load moves,
+    /// full valve either way, under any load it takes (docs/RIG_PROTOCOL.md,
+    /// "Implausible measurements"), so that only a jump no load can make is
     /// refused.
     pub const DEFAULT_MAX_SPEED_MM_S: f64 = 500.0;
 

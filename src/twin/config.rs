@@ -293,8 +293,8 @@ impl EffectScale {
 }
 
 /// The switches of every non-ideal effect. All are on (scale 1) by default
-/// except `creep` and `ringing`, which came later: off, they leave every
-/// published number of the twin's default runs as it was.
+/// except `creep` and `ringing`: off, they leave the twin's default runs,
+/// and every number published from them, as they are.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Effects {
     /// Braid friction: scales the break-away forces of the Maxwell-slip elements.

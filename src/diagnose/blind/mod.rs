@@ -249,7 +249,7 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
             vec![(a, size(a, 0, small)), (b, size(b, 0, small))],
         );
     }
-    // Last, so that the other cases keep the seeds they had before it.
+    // Last, so that the other cases' seeds do not depend on it.
     let r = Mechanism::CrossTalk;
     for (i, exc) in setup.excitations.iter().enumerate() {
         for (k, label) in MARKS {

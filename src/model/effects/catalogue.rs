@@ -111,9 +111,8 @@ catalogue! {
             // it, `z0`, anywhere within the output range: a state at rest in
             // some other frame (the deviation coordinates of another record,
             // or absolute units) starts a transient that neither `x0` nor
-            // the intercept can take (measured on the independent
-            // self-test's output-driven creep on the multisine,
-            // docs/lab/diagnosis.md).
+            // the intercept can take (docs/lab/diagnosis.md, "Which: the
+            // effects catalogue").
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
                 let g = 2.0 * ry / ctx.input_range();
@@ -271,11 +270,11 @@ catalogue! {
             // Two terms of a Prony series: a passive material creeps the
             // same way at every time scale, so the two gains share a sign (a
             // total and the faster state's share of it). With gains of
-            // either sign the pair is a band-pass of the input, not creep:
-            // on the twin's stair, which has no creep, gains of −118 and
-            // +125 were named first (docs/lab/diagnosis.md). The faster
-            // state forgets its start within a few hundred samples; the
-            // slower one gets `z0`.
+            // either sign the pair is a band-pass of the input, not creep,
+            // and is named on the twin's stair, which has no creep
+            // (docs/lab/diagnosis.md, "Which: the effects catalogue"). The
+            // faster state forgets its start within a few hundred samples;
+            // the slower one gets `z0`.
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
                 let g = 2.0 * ry / ctx.input_range();
@@ -318,7 +317,8 @@ catalogue! {
         /// `ŷ = x + r`. Unlike [`Effect::LoadMode`], it rings however slowly the
         /// baseline's own output moves (a real muscle's force follows the
         /// pressure at once while the baseline's slow pole describes creep of
-        /// the rubber: measured on the Cavatappi muscle, docs/lab/diagnosis.md).
+        /// the rubber, as on the Cavatappi muscle: docs/lab/diagnosis.md,
+        /// "Which: the effects catalogue").
         Ringing => Realisation {
             name: "inertia:ringing",
             physical: Some(Effect::Inertia),
@@ -343,9 +343,9 @@ catalogue! {
             admits: Some(|p| rings(p[0], p[1])),
             // Looked for only where the residual rings: a mode kicked by the
             // input and damped near 1/√2 is a high-pass of the input, and
-            // without a peak to explain it fitted the independent
-            // self-test's sensor cross-talk, a high-pass added to the output
-            // (docs/lab/diagnosis.md).
+            // without a peak to explain it fits the independent self-test's
+            // sensor cross-talk, a high-pass added to the output
+            // (docs/lab/diagnosis.md, "Which: the effects catalogue").
             hint: StartHint::ResidualPeak {
                 kick: Some(2),
                 only_on_a_peak: true,
@@ -358,11 +358,11 @@ catalogue! {
         /// after an input step the output creeps by about `κ·Δu` per decade
         /// of time, from a hundredth of the slowest time constant to it;
         /// the slowest starts at `z0`. A rubber's creep has no one time constant: the
-        /// two-pole creep fitted to the Cavatappi records put its two
-        /// poles more than a decade apart (ρ 0.93–0.95 and 0.996–0.997),
-        /// and the response deepened from pulse to pulse beyond the slower
-        /// (docs/DIAGNOSIS.md, "Real data"), with five parameters where
-        /// this has three.
+        /// two-pole creep fitted to the Cavatappi records puts its two
+        /// poles more than a decade apart, and the response deepens from
+        /// pulse to pulse beyond the slower (docs/DIAGNOSIS.md, "Real data:
+        /// the Cavatappi muscle"), with five parameters where this has
+        /// three.
         LogCreep => Realisation {
             name: "creep:log",
             physical: Some(Effect::Creep),
@@ -396,9 +396,10 @@ catalogue! {
                 )
             }),
             // On the independent self-test it takes the two-pole creep's
-            // case on the multisine and sizes it 51 % off (its slowest term
+            // case on the multisine and sizes it far off (its slowest term
             // has not settled within a record), and no Cavatappi record
-            // selects it: tried when named.
+            // selects it (docs/DIAGNOSIS.md, "The effects catalogue"):
+            // tried when named.
             on_request: true,
             ..CREEP
         },
@@ -521,11 +522,11 @@ fn mode_size(p: &[f64], dt: f64) -> String {
 /// damping ratio under `1/√2`, which is `−ln r < θ`.
 ///
 /// Why: with real poles a ringing's kick decays as a slow drift driven by
-/// the input, which is creep's mark (it was named for the drift of the
-/// Cavatappi 200 g file), and a mode damped past `1/√2` has no peak in its
-/// spectrum: it is a high-pass of the input, which the independent
-/// self-test's sensor cross-talk is, and it was named for it (critically
-/// damped, `a1 = 1.11`, `a2 = 0.31`: docs/lab/diagnosis.md).
+/// the input, which is creep's mark, and a mode damped past `1/√2` has no
+/// peak in its spectrum: it is a high-pass of the input, which the
+/// independent self-test's sensor cross-talk is. Admitted in either form,
+/// the ringing is named for drift or for cross-talk, neither of which it
+/// is (docs/lab/diagnosis.md, "Which: the effects catalogue").
 pub fn rings(a1: f64, a2: f64) -> bool {
     if !(a2 > 0.0 && a1 * a1 < 4.0 * a2) {
         return false;

@@ -6,8 +6,8 @@
 //! [`super::Prepared::restart`] that call them: a realisation's CPU step is
 //! declared once, in its stage (`stages/`), and placed once, in the order.
 //!
-//! Every call is to a known type and `#[inline(always)]`, so the step is
-//! one function as it was written out by hand before: the lanes' values
+//! Every call is to a known type and `#[inline(always)]`, so the step
+//! compiles to one function, as if written out by hand: the lanes' values
 //! stay in registers from stage to stage and each stage's loop over the
 //! lanes compiles to vector instructions.
 
@@ -28,10 +28,10 @@ pub struct Frame {
     /// stops are stored times it and applied as `toward · min(toward · x,
     /// bound)`: `max(x, b)` is `−min(−x, −b)` bit for bit (negation is
     /// exact, and ties and NaN pick the bound either way), so each stop is
-    /// one lane loop with no branch on the direction (choosing per lane,
-    /// the output clip ran at 47 % of the plain model's speed, and with one
-    /// loop per direction at 33 %; this way at 80 %: docs/lab/performance.md).
-    /// WGSL writes each direction out (`shaders/effects.wgsl`).
+    /// one lane loop with no branch on the direction: choosing per lane, or
+    /// a loop per direction, is much slower (docs/PERFORMANCE.md, "Effect
+    /// stages on the CPU batch path"). WGSL writes each direction out
+    /// (`shaders/effects.wgsl`).
     pub toward: f32,
     /// [`Context::knee`] and [`Context::rest_input`].
     pub knee: [f32; 3],
@@ -100,7 +100,8 @@ pub trait Stage<const L: usize> {
     type Consts: Clone + std::fmt::Debug;
     /// The states it carries from sample to sample (`()` for none): whole
     /// lane arrays, or a type aligned to a cache line, so that every lane
-    /// array of the effect state starts on one (docs/lab/performance.md).
+    /// array of the effect state starts on one (docs/PERFORMANCE.md,
+    /// "Effect stages on the CPU batch path").
     type State: Clone + std::fmt::Debug;
 
     /// Its constants from its parameters.
@@ -169,7 +170,7 @@ pub trait Lane<const L: usize>: Stage<L> {
     /// Once per sample, after the shared loop. A state that the loop only
     /// reads moves on here: a store in the loop is compiled to a masked
     /// store that runs whether or not the model has the stage (the
-    /// inertia's, 4 % more instructions in every model's step; the play's
+    /// inertia's would add instructions to every model's step; the play's
     /// output is needed in the loop, so its store stays there).
     #[inline(always)]
     fn after(_c: &Self::Consts, _s: &mut Self::State, _at: &At<'_, L>) {}

@@ -53,8 +53,8 @@ pub struct Prepared<const L: usize> {
 /// the baseline's output `x` and Bouc-Wen state `w`, and the realisations'
 /// own. Laid out in order and aligned to a cache line, so that every lane
 /// array starts on one (128 bytes each at `L = 32`): a vector load of an
-/// array that straddles two lines costs two (measured:
-/// docs/lab/performance.md).
+/// array that straddles two lines costs two (docs/PERFORMANCE.md, "Effect
+/// stages on the CPU batch path").
 #[derive(Debug, Clone)]
 #[repr(C, align(64))]
 pub struct EffectState<const L: usize> {

@@ -83,9 +83,9 @@ pub struct Refine {
 impl Default for Refine {
     /// A fifth of the default global population around the best, for as
     /// many generations as the global stage; up to four rounds while a
-    /// round gains a thousandth; four polish starts. Measured on the
-    /// generalized matrix of generated cases (docs/lab/results.md,
-    /// "Refining rounds").
+    /// round gains a thousandth; four polish starts. Sized on the
+    /// generalized matrix of generated cases (docs/ARCHITECTURE.md,
+    /// "Decisions of the fitting engine").
     fn default() -> Self {
         Refine {
             population: 200,
@@ -124,8 +124,8 @@ pub struct Global {
     /// The free-run island searches with [`FreeRun::ALGORITHM`] whatever
     /// the stage's algorithm: it is the island that finds the free run's
     /// basin, and the answer should not depend on `--algo` (PSO's and MFA's
-    /// own rules there end in the linear model more often: same section,
-    /// and docs/lab/results.md, "The shipped stair").
+    /// own rules there end in the linear model more often:
+    /// docs/lab/results.md, "The shipped stair").
     pub ladder: bool,
     /// The longest experiment (samples).
     pub longest: usize,
@@ -181,13 +181,11 @@ impl Default for Polish {
     /// Levenberg–Marquardt stops where the biased gradient vanishes. A step
     /// of 1e-3 stays above the `f32` simulation's rounding in a central
     /// difference, whose own error is second order; a smaller one drowns
-    /// the loop-shape parameters' columns in rounding. Measured:
-    /// docs/lab/results.md, "Decisions of the fitting engine: the measurements" (the bullets
-    /// on the three stages and on central differences). Sixteen starts (four
+    /// the loop-shape parameters' columns in rounding. Sixteen starts (four
     /// per island of the default plan), because the slow multisines have
-    /// distinct free-run minima within 0.1 % of each other's SSE whose
-    /// validation differs by 6 %, and eight starts missed the true one on
-    /// the generated cases (docs/lab/results.md, "Polish starts").
+    /// distinct free-run minima of nearly the same SSE that validate
+    /// differently, and fewer starts miss the true one. All measured:
+    /// docs/ARCHITECTURE.md, "Decisions of the fitting engine".
     fn default() -> Self {
         Polish {
             starts: 16,

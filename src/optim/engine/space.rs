@@ -101,11 +101,11 @@ impl Space {
     /// edge (either sign where the box has both), and every third row (`r`
     /// of 1 modulo 3) takes a [`Stepwise`] coordinate's preferred values in
     /// turn. A uniform draw almost never visits the sliver near zero where
-    /// a muscle's β and γ often lie (as the shipped stair's hysteretic fits
-    /// do: docs/lab/results.md, "The shipped stair"), and neither do the
-    /// differences of uniform draws that DE steps by; nor does it hit a
-    /// level exactly, and a level held exactly (DE's crossover keeps a
-    /// parent's coordinate as it is) survives as long as it scores.
+    /// a muscle's β and γ often lie (docs/ARCHITECTURE.md, "Decisions of the
+    /// fitting engine"), and neither do the differences of uniform draws
+    /// that DE steps by; nor does it hit a level exactly, and a level held
+    /// exactly (DE's crossover keeps a parent's coordinate as it is)
+    /// survives as long as it scores.
     pub fn draw(&self, count: usize, streams: &Streams) -> Vec<f64> {
         let free = self.free();
         let mut rows = vec![0.0; count * free.len()];
