@@ -8,7 +8,7 @@ use mckibben::data::csv::{ReadOptions, read_traces_with_notes};
 use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::fit::objective::{GENERATIONS, POPULATION, staged_plan};
 use mckibben::fit::problem::FitProblem;
-use mckibben::fit::run::fit_problem;
+use mckibben::fit::run::run_fit;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::Algorithm;
 use mckibben::optim::engine::StopRules;
@@ -28,7 +28,7 @@ fn default_fit(c: &mut Criterion) {
                 POPULATION,
                 GENERATIONS,
             );
-            fit_problem(
+            run_fit(
                 &problem,
                 plan,
                 1,

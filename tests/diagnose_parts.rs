@@ -10,7 +10,7 @@ use std::ops::Range;
 use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces};
 use mckibben::diagnose::{Diagnosis, Settings, diagnose};
-use mckibben::fit::run::{FitBox, FitRun};
+use mckibben::fit::run::{FitRun, FitTarget};
 use mckibben::fit::settings::FitSettings;
 use mckibben::model::Family;
 use mckibben::model::experiment::halves;
@@ -160,7 +160,7 @@ fn fit_never_reads_its_validation_half() {
         .unwrap();
     for chain in [vec![], vec![creep]] {
         let params = |t: &Trace| {
-            let what = FitBox::chain(Family::Classic, &chain);
+            let what = FitTarget::chain(Family::Classic, &chain);
             let settings = FitSettings {
                 pop: 60,
                 gens: 30,

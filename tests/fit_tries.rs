@@ -16,7 +16,7 @@ use mckibben::eval::Evaluator;
 use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::fit::objective::{ModelObjective, staged_plan};
 use mckibben::fit::problem::FitProblem;
-use mckibben::fit::run::fit_problem;
+use mckibben::fit::run::run_fit;
 use mckibben::fit::synthetic::Synthetic;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::Algorithm;
@@ -93,7 +93,7 @@ fn more_tries_run_the_tries_of_fewer_and_never_end_higher() {
         .fold(f64::INFINITY, f64::min);
     assert_eq!(three.sse, lowest, "the lowest try is kept");
     // Settled by the edge rule, each in its own box: still nested.
-    let (_, settled_one) = fit_problem(
+    let (_, settled_one) = run_fit(
         &problem,
         plan(&problem, 1),
         3,
@@ -101,7 +101,7 @@ fn more_tries_run_the_tries_of_fewer_and_never_end_higher() {
         &mut cpu,
     )
     .unwrap();
-    let (_, settled_three) = fit_problem(
+    let (_, settled_three) = run_fit(
         &problem,
         plan(&problem, 3),
         3,

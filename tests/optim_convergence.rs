@@ -25,8 +25,8 @@ use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::fit::cases::{Case, Judgement, SwitchAt, matrix, polished_truth};
 use mckibben::fit::objective::{GENERATIONS, POPULATION, staged_plan};
 use mckibben::fit::problem::FitProblem;
-use mckibben::fit::run::fit_problem;
-use mckibben::fit::run::{FitBox, FitRun};
+use mckibben::fit::run::run_fit;
+use mckibben::fit::run::{FitRun, FitTarget};
 use mckibben::fit::settings::FitSettings;
 use mckibben::ident::fit::indistinguishable_up_to;
 use mckibben::model::{Family, Flow, Loop, Switching, simulate};
@@ -55,7 +55,7 @@ fn judged(case: &Case, algo: Algorithm) -> Judgement {
 fn judged_at(case: &Case, algo: Algorithm, n: usize, evaluator: &mut dyn Evaluator) -> Judgement {
     let problem = case.problem();
     let plan = staged_plan(&problem, algo.staged_settings(n), n, GENERATIONS);
-    let (_, out) = fit_problem(&problem, plan, 1, StopRules::default(), evaluator).unwrap();
+    let (_, out) = run_fit(&problem, plan, 1, StopRules::default(), evaluator).unwrap();
     case.judge(&out.params, evaluator).unwrap()
 }
 
@@ -129,7 +129,7 @@ fn generalized_matrix_is_measured_and_no_fit_beats_the_noise_floor() {
     }
 }
 
-/// The default fit of generalized `case` with `switching` ([`fit_problem`]:
+/// The default fit of generalized `case` with `switching` ([`run_fit`]:
 /// both starts of the default), judged: prints the fitted `x_s` against the
 /// truth's and the estimation SSE.
 fn judged_switching(case: &Case, switching: Switching, cpu: &mut CpuEvaluator) -> Judgement {
@@ -151,7 +151,7 @@ fn judged_switching(case: &Case, switching: Switching, cpu: &mut CpuEvaluator) -
         GENERATIONS,
     );
     let start = Instant::now();
-    let (_, out) = fit_problem(&problem, plan, 1, StopRules::default(), cpu).unwrap();
+    let (_, out) = run_fit(&problem, plan, 1, StopRules::default(), cpu).unwrap();
     let j = case.judge(&out.params, cpu).unwrap();
     assert!(j.ratio.is_finite(), "{}: {switching:?}", case.name());
     let is = Family::Generalized.switch_index().unwrap();
@@ -232,7 +232,7 @@ fn stair_switching_at_zero(seed: u64) -> (Trace, Vec<f64>) {
 /// loop switches").
 #[test]
 fn muscles_switching_at_their_rest_length_keep_the_sensors_zero() {
-    let what = FitBox::chain(Family::Generalized, &[]);
+    let what = FitTarget::chain(Family::Generalized, &[]);
     let is = Family::Generalized.switch_index().unwrap();
     let (mut settled, mut within) = (0, 0);
     for record in 44..50 {

@@ -30,7 +30,7 @@ use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::fit::agreement::{Agreement, UNSURE_SHARE};
 use mckibben::fit::cases::{Case, matrix};
 use mckibben::fit::objective::{GENERATIONS, staged_plan};
-use mckibben::fit::run::fit_problem;
+use mckibben::fit::run::run_fit;
 use mckibben::model::Family;
 use mckibben::optim::Algorithm;
 use mckibben::optim::engine::StopRules;
@@ -127,7 +127,7 @@ fn population_sweep() {
                     let plan =
                         staged_plan(&problem, Algorithm::De.staged_settings(n), n, GENERATIONS);
                     let (_, outcome) =
-                        fit_problem(&problem, plan, seed, StopRules::default(), &mut cpu).unwrap();
+                        run_fit(&problem, plan, seed, StopRules::default(), &mut cpu).unwrap();
                     let seconds = started.elapsed().as_secs_f64();
                     let judged = case.judge(&outcome.params, &mut cpu).unwrap();
                     let tries = if outcome.tries.len() > 1 {

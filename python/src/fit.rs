@@ -9,12 +9,12 @@ use pyo3::exceptions::PyKeyboardInterrupt;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use mckibben::diagnose::StopFlag;
 use mckibben::diagnose::chain::with_chain_start;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::report::{FitReport, model_file, yardstick_warnings};
 use mckibben::fit::request::{FitRequest, Resolved};
 use mckibben::fit::run::FitRun;
+use mckibben::fit::searches::StopFlag;
 use mckibben::fit::settings::{FitSettings, Overrides};
 use mckibben::optim::engine::{Observer, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use pyo3::prelude::*;
 
-use mckibben::diagnose::StopFlag;
+use mckibben::fit::searches::StopFlag;
 
 /// How often the interpreter checks for Ctrl-C while a job runs.
 const SIGNAL_POLL: Duration = Duration::from_millis(50);

@@ -19,7 +19,7 @@ use super::settings::Settings;
 use super::transfer::run_stoppable;
 use crate::data::Trace;
 use crate::fit::problem::FitProblem;
-use crate::fit::run::{FitBox, FitRun};
+use crate::fit::run::{FitRun, FitTarget};
 use crate::fit::settings::FitSettings;
 use crate::model::Model;
 
@@ -57,7 +57,7 @@ pub fn refit(
         return Ok(None);
     }
     let fit_settings = FitSettings::staged(settings.seed);
-    let what = FitBox::chain(model.family, &model.effects);
+    let what = FitTarget::chain(model.family, &model.effects);
     let fit = FitRun::new(trace, &what, &fit_settings, None, None, &|_| ())?.also_from(
         saved,
         0.0,

@@ -15,13 +15,14 @@
 
 use super::Effect;
 use super::fitting::{Start, fit_seeds, fit_with_effect, scratch_fits};
-use super::settings::{Interrupted, Settings, StopFlag};
+use super::settings::{Interrupted, Settings};
 use crate::data::Trace;
 use crate::eval::Backend;
 use crate::fit::problem::FitProblem;
 use crate::fit::records::Records;
 use crate::fit::report::FitReport;
 use crate::fit::run::FitRun;
+use crate::fit::searches::StopFlag;
 use crate::fit::settings::FitSettings;
 use crate::ident::{fit_percent, rmse};
 use crate::model::experiment::halves;

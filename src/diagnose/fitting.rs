@@ -211,7 +211,7 @@ pub fn fit_candidate(
                 0.02,
                 &mut rng,
             )?;
-            let rows = rows_around(&best, &best, d, (&lo, &hi), np, &mut rng);
+            let rows = warm_population(&best, &best, d, (&lo, &hi), np, &mut rng);
             (rows, 0.2, generations - first)
         }
         Start::Warm {
@@ -241,7 +241,7 @@ pub fn fit_candidate(
             } else {
                 s.to_vec()
             };
-            let rows = rows_around(s, &staged, new_from, (&lo, &hi), np, &mut rng);
+            let rows = warm_population(s, &staged, new_from, (&lo, &hi), np, &mut rng);
             (rows, 0.2, generations)
         }
     };
@@ -439,7 +439,7 @@ fn scratch_rows(
 /// model, then members around the staged model: the parameters before
 /// `new_from` close (half) or farther (half), the rest near the staged value
 /// (half) or anywhere in the box.
-fn rows_around(
+fn warm_population(
     start: &[f64],
     staged: &[f64],
     new_from: usize,
@@ -452,7 +452,7 @@ fn rows_around(
         .flat_map(|i| {
             (0..d)
                 .map(|j| {
-                    let around = |sd: f64, rng: &mut ChaCha8Rng| {
+                    let near_staged = |sd: f64, rng: &mut ChaCha8Rng| {
                         let v = staged[j]
                             + Normal::new(0.0, sd * (hi[j] - lo[j])).map_or(0.0, |n| n.sample(rng));
                         v.clamp(lo[j], hi[j])
@@ -460,8 +460,8 @@ fn rows_around(
                     match i {
                         0 => start[j],
                         1 => staged[j],
-                        _ if j < new_from => around(if i % 2 == 0 { 0.1 } else { 0.02 }, rng),
-                        _ if i % 2 == 0 => around(0.05, rng),
+                        _ if j < new_from => near_staged(if i % 2 == 0 { 0.1 } else { 0.02 }, rng),
+                        _ if i % 2 == 0 => near_staged(0.05, rng),
                         _ => Uniform::new_inclusive(lo[j], hi[j]).map_or(lo[j], |u| u.sample(rng)),
                     }
                 })

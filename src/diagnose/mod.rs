@@ -36,7 +36,7 @@ use serde::Serialize;
 
 pub use effects::{Effect, ModelDescription};
 pub use select::Selection;
-pub use settings::{Interrupted, Settings, StopFlag};
+pub use settings::{Interrupted, Settings};
 
 use crate::data::Trace;
 use crate::fit::problem::{FitProblem, settle_samples};

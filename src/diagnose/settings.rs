@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use crate::eval::Backend;
 use crate::fit::searches::Searches;
-pub use crate::fit::searches::StopFlag;
+use crate::fit::searches::StopFlag;
 #[cfg(doc)]
 use crate::model::experiment::Parts;
 
@@ -16,7 +16,7 @@ use crate::model::experiment::Parts;
 pub struct Interrupted;
 
 /// Budget and rule settings of a diagnosis.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, Serialize)]
 pub struct Settings {
     /// Seeds per fit (the spread over them is the acceptance rule's yardstick).
     pub seeds: usize,

@@ -19,7 +19,7 @@ use super::settings::{Interrupted, Settings};
 use super::{Diagnosis, accept::gap_closed, chain::with_chain_start};
 use crate::data::Trace;
 use crate::fit::records::Validation;
-use crate::fit::run::{FitBox, FitRun};
+use crate::fit::run::{FitRun, FitTarget};
 use crate::fit::settings::FitSettings;
 use crate::model::Family;
 use crate::model::experiment::halves;
@@ -99,7 +99,7 @@ fn fit_and_score(
     let fit_settings = FitSettings::staged(settings.seed);
     let fit = FitRun::new(
         trace,
-        &FitBox::chain(family, effects),
+        &FitTarget::chain(family, effects),
         &fit_settings,
         None,
         None,

@@ -339,7 +339,8 @@ struct LinearLanes<'a>(&'a [[f32; LANES]; 4]);
 impl LaneModel for LinearLanes<'_> {
     #[inline(always)]
     fn start(&self, l: usize) -> f32 {
-        self.0[3][l]
+        let [.., x0] = self.0;
+        x0[l]
     }
 
     #[inline(always)]
@@ -360,7 +361,8 @@ struct ClassicLanes<'a, const N_ONE: bool>(&'a [[f32; LANES]; 9]);
 impl<const N_ONE: bool> LaneModel for ClassicLanes<'_, N_ONE> {
     #[inline(always)]
     fn start(&self, l: usize) -> f32 {
-        self.0[8][l]
+        let [.., x0] = self.0;
+        x0[l]
     }
 
     #[inline(always)]
@@ -373,7 +375,8 @@ impl<const N_ONE: bool> LaneModel for ClassicLanes<'_, N_ONE> {
 
     #[inline(always)]
     fn restart(&self, l: usize, x: f32, w: f32, y: f32) -> (f32, f32) {
-        (y, restart_w(self.0[0][l], w, x, y))
+        let [big_a, ..] = self.0;
+        (y, restart_w(big_a[l], w, x, y))
     }
 }
 
@@ -387,7 +390,10 @@ struct GeneralizedLanes<'a, const N_ONE: bool> {
 
 impl<'a, const N_ONE: bool> GeneralizedLanes<'a, N_ONE> {
     fn new(p: &'a [[f32; LANES]; 14], y_mean: f32) -> Self {
-        let threshold = p[9].map(|x_s| switch_threshold(x_s, y_mean));
+        let is = Family::Generalized
+            .switch_index()
+            .expect("the generalized family has a switching level");
+        let threshold = p[is].map(|x_s| switch_threshold(x_s, y_mean));
         GeneralizedLanes { p, threshold }
     }
 }
@@ -395,7 +401,8 @@ impl<'a, const N_ONE: bool> GeneralizedLanes<'a, N_ONE> {
 impl<const N_ONE: bool> LaneModel for GeneralizedLanes<'_, N_ONE> {
     #[inline(always)]
     fn start(&self, l: usize) -> f32 {
-        self.p[13][l]
+        let [.., x0] = self.p;
+        x0[l]
     }
 
     #[inline(always)]
@@ -410,7 +417,8 @@ impl<const N_ONE: bool> LaneModel for GeneralizedLanes<'_, N_ONE> {
 
     #[inline(always)]
     fn restart(&self, l: usize, x: f32, w: f32, y: f32) -> (f32, f32) {
-        (y, restart_w(self.p[0][l], w, x, y))
+        let [big_a, ..] = self.p;
+        (y, restart_w(big_a[l], w, x, y))
     }
 }
 

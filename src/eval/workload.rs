@@ -67,7 +67,7 @@ pub fn search_space(family: Family, experiment: &Experiment, free_n: bool) -> Se
         est_output_max: absolute.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         output_mean: experiment.y_mean,
     };
-    SearchSpace::around(family, None, prior, Flow::Joint, free_n)
+    SearchSpace::from_prior(family, None, prior, Flow::Joint, free_n)
 }
 
 /// `count` candidates drawn uniformly from `space`, row-major.

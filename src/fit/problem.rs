@@ -146,7 +146,7 @@ impl FitProblem {
                     bounds.is_empty(),
                     "the thesis' flow searches its own tables: --bound and --fix need the joint flow"
                 );
-                SearchSpace::around(family, hysteresis, records.prior, flow, free_n)
+                SearchSpace::from_prior(family, hysteresis, records.prior, flow, free_n)
             }
             Flow::Joint => SearchSpace::scaled(
                 family,
@@ -226,10 +226,11 @@ impl FitProblem {
     }
 
     /// The diagnosis' box of `model`: the joint flow's box around the ARX
-    /// estimate ([`SearchSpace::around`]: thesis hull, `a`, `b`, `c` around
+    /// estimate ([`SearchSpace::from_prior`]: thesis hull, `a`, `b`, `c` around
     /// the ARX estimate) plus each effect's box.
     fn diagnosis_box(records: &Records, model: &ModelDescription) -> SearchSpace {
-        let mut base = SearchSpace::around(model.family, None, records.prior, Flow::Joint, false);
+        let mut base =
+            SearchSpace::from_prior(model.family, None, records.prior, Flow::Joint, false);
         // Least squares on hysteretic data underestimates the input gain: the
         // hysteretic model's `b` relates to the ARX static gain
         // `G = b_ARX/(1 − a_ARX)` through `1 − a·α`, not `1 − a`. Widen the
@@ -250,7 +251,10 @@ impl FitProblem {
         // fitted there follows the data but turns wild under any change of
         // input or parameters, so it is no base to attribute effects to.
         if model.family == Family::Classic {
-            base.lower[2] = base.lower[2].max(0.0);
+            let beta = Family::Classic
+                .index_of("beta")
+                .expect("the classic family has β");
+            base.lower[beta] = base.lower[beta].max(0.0);
         }
         let names = model.param_names()[model.family.dim()..].to_vec();
         let (mut lower, mut upper) = (Vec::new(), Vec::new());
@@ -681,7 +685,7 @@ mod tests {
         let d = Family::Classic.dim();
         // The classic loop's β held non-negative, the gain's box reaching
         // the ARX static gain.
-        assert!(data.space.lower[2] >= 0.0);
+        assert!(data.space.lower[Family::Classic.index_of("beta").unwrap()] >= 0.0);
         let prior = data.prior();
         let gain = prior.b / (1.0 - prior.a);
         let ib = Family::Classic.linear_indices()[1];

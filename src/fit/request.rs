@@ -4,7 +4,7 @@
 
 use anyhow::Context as _;
 
-use super::run::FitBox;
+use super::run::FitTarget;
 use crate::model::effects::Effect;
 use crate::model::{Family, Loop, Model, ModelFile, Switching, UserBound};
 
@@ -29,7 +29,7 @@ pub struct FitRequest {
 /// fit starts from, if any.
 #[derive(Debug, Clone)]
 pub struct Resolved {
-    pub what: FitBox,
+    pub what: FitTarget,
     pub start: Option<Model>,
 }
 
@@ -60,7 +60,7 @@ impl FitRequest {
         };
         bounds.extend(self.bounds.iter().cloned());
         Ok(Resolved {
-            what: FitBox {
+            what: FitTarget {
                 family,
                 effects,
                 free_n: self.free_n,

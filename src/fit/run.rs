@@ -27,7 +27,7 @@ use crate::optim::engine::{Engine, Observer, Outcome, Plan, StopReason, StopRule
 /// box (the joint flow's; the thesis' flow, `FitSettings::thesis_flow`,
 /// takes its own).
 #[derive(Debug, Clone, PartialEq)]
-pub struct FitBox {
+pub struct FitTarget {
     pub family: Family,
     /// Effect stages after the family, in chain order (`--effects`).
     pub effects: Vec<Effect>,
@@ -42,12 +42,12 @@ pub struct FitBox {
     pub bounds: Vec<UserBound>,
 }
 
-impl FitBox {
+impl FitTarget {
     /// `family` followed by `effects` in the box `fit --effects` searches
     /// by default: n held at 1, bounded loops, the default switching, no
     /// user bounds.
-    pub fn chain(family: Family, effects: &[Effect]) -> FitBox {
-        FitBox {
+    pub fn chain(family: Family, effects: &[Effect]) -> FitTarget {
+        FitTarget {
             family,
             effects: effects.to_vec(),
             free_n: false,
@@ -133,7 +133,7 @@ impl FitRun {
     /// ([`FitProblem::at_zero`]).
     pub fn new(
         trace: &Trace,
-        what: &FitBox,
+        what: &FitTarget,
         settings: &FitSettings,
         start: Option<&Model>,
         checkpoint: Option<&Path>,
@@ -206,7 +206,7 @@ impl FitRun {
     /// problem a second start ([`FitProblem::at_zero`]), a fresh engine of
     /// the same plan and seed on it (a checkpoint holds the first start's
     /// engine only). `mckibben compare` and the generated cases fit so
-    /// ([`fit_problem`]); [`FitRun::new`] builds its fresh fits so.
+    /// ([`run_fit`]); [`FitRun::new`] builds its fresh fits so.
     pub fn of(problem: FitProblem, engine: Engine) -> anyhow::Result<FitRun> {
         let zero = match problem.at_zero() {
             Some(zero) if engine.plan.global.is_some() => {
@@ -374,7 +374,7 @@ fn run_on(
 /// cases), as [`FitRun::run`] fits: both starts of `--switch starts` where
 /// the problem has two, every try settled by the edge rule, the lowest
 /// estimation SSE kept. Returns the kept start's engine and the outcome.
-pub fn fit_problem(
+pub fn run_fit(
     problem: &FitProblem,
     plan: Plan,
     seed: u64,
@@ -470,9 +470,9 @@ mod tests {
     #[test]
     fn a_fit_scores_every_start_on_the_evaluator_it_is_given() {
         let data = Synthetic::new(Family::Generalized, 600, 0.05, 2);
-        let what = FitBox {
+        let what = FitTarget {
             switching: Switching::Starts,
-            ..FitBox::chain(Family::Generalized, &[])
+            ..FitTarget::chain(Family::Generalized, &[])
         };
         let fit = FitRun::new(
             &data.trace,

@@ -26,13 +26,6 @@ impl StopFlag {
     }
 }
 
-/// Two settings are alike whatever flag stops them.
-impl PartialEq for StopFlag {
-    fn eq(&self, _: &StopFlag) -> bool {
-        true
-    }
-}
-
 /// The evaluator a problem scores populations on, shared by its clones: one
 /// that forks ([`Evaluator::fork`]: the CPU path), of which every search
 /// takes a fork, so searches run side by side; or a device behind the same

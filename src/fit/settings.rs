@@ -245,7 +245,7 @@ impl FitSettings {
     }
 
     /// A warm start from the canonical `start`: the free-run stage from
-    /// `start` and a cloud around it ([`Space::around`]), then the polish;
+    /// `start` and a cloud around it ([`Space::cloud`]), then the polish;
     /// no global search, so the fit refines the basin it is given (a global
     /// search finds other basins, and where the estimation data do not
     /// settle the model some of those fit the estimation half better and
@@ -257,7 +257,7 @@ impl FitSettings {
         // The cloud is the free-run stage's first population: its draws
         // before the first generation.
         let streams = Streams::new(self.seed, Stage::FreeRun, 0);
-        let rows = space.around(start, n, &streams);
+        let rows = space.cloud(start, n, &streams);
         Ok(Engine::new(plan, space, self.seed, self.stops()?)?.with_initial(&rows))
     }
 

@@ -126,7 +126,7 @@ impl Synthetic {
 
     /// The default search box (hull of the thesis' bounds, joint flow).
     pub fn space(&self) -> SearchSpace {
-        SearchSpace::around(self.family, None, self.prior, Flow::Joint, false)
+        SearchSpace::from_prior(self.family, None, self.prior, Flow::Joint, false)
     }
 
     /// SSE of the true parameters on the estimation half.

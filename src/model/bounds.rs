@@ -192,7 +192,7 @@ impl SearchSpace {
     /// ([`LinearPrior::switch_box`]); the thesis' flow holds it at the
     /// estimation mean, where the thesis' model, written in deviation
     /// coordinates, switches.
-    pub fn around(
+    pub fn from_prior(
         family: Family,
         hysteresis: Option<&ThesisBounds>,
         prior: LinearPrior,
@@ -677,7 +677,7 @@ mod tests {
 
     #[test]
     fn thesis_flow_fixes_the_linear_part() {
-        let s = SearchSpace::around(Family::Classic, None, prior(), Flow::Thesis, false);
+        let s = SearchSpace::from_prior(Family::Classic, None, prior(), Flow::Thesis, false);
         assert_eq!(s.free(), vec![0, 1, 2, 3]);
         assert_eq!(s.lower[5], 0.9618);
         assert_eq!(s.upper[7], 0.0);
@@ -686,7 +686,7 @@ mod tests {
 
     #[test]
     fn joint_flow_frees_a_b_c_around_the_arx_estimate() {
-        let s = SearchSpace::around(Family::Generalized, None, prior(), Flow::Joint, true);
+        let s = SearchSpace::from_prior(Family::Generalized, None, prior(), Flow::Joint, true);
         assert_eq!(s.free(), (0..14).collect::<Vec<_>>());
         let [ia, ib, ic] = Family::Generalized.linear_indices();
         assert!(s.lower[ia] < 0.9618 && 0.9618 < s.upper[ia]);
@@ -704,10 +704,10 @@ mod tests {
         let g = Family::Generalized;
         let is = g.switch_index().unwrap();
         // The estimation output spans 5..35 mm: 5 % of 30 mm either side.
-        let joint = SearchSpace::around(g, None, prior(), Flow::Joint, false);
+        let joint = SearchSpace::from_prior(g, None, prior(), Flow::Joint, false);
         assert_eq!((joint.lower[is], joint.upper[is]), (3.5, 36.5));
         // The thesis' model switches at the estimation mean.
-        let thesis = SearchSpace::around(g, None, prior(), Flow::Thesis, false);
+        let thesis = SearchSpace::from_prior(g, None, prior(), Flow::Thesis, false);
         assert_eq!((thesis.lower[is], thesis.upper[is]), (18.0, 18.0));
         let scaled = |switching| {
             SearchSpace::scaled(g, prior(), (Loop::Bounded, switching), false, &[]).unwrap()

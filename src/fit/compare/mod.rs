@@ -12,7 +12,7 @@ use serde::Serialize;
 
 use super::objective::{GENERATIONS, POPULATION, staged_plan};
 use super::problem::FitProblem;
-use super::run::fit_problem;
+use super::run::run_fit;
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit_percent;
@@ -172,7 +172,7 @@ impl Fitter<'_> {
     ) -> anyhow::Result<(Row, Vec<f64>)> {
         let population = plan.global.as_ref().map_or(0, |g| g.population);
         let t = Instant::now();
-        let (_, out) = fit_problem(problem, plan, seed, StopRules::default(), self.evaluator)?;
+        let (_, out) = run_fit(problem, plan, seed, StopRules::default(), self.evaluator)?;
         let seconds = t.elapsed().as_secs_f64();
         let val = problem.validate(&out.params);
         Ok((

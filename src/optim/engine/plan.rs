@@ -63,7 +63,7 @@ fn one() -> usize {
 }
 
 /// Rounds of differential evolution on the free run in a cloud around a
-/// try's best ([`super::Space::around`]), each followed by a polish of its
+/// try's best ([`super::Space::cloud`]), each followed by a polish of its
 /// best distinct members with the plan's polish settings (on the free run
 /// alone: the round starts in the free run's own basin).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

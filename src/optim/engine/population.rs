@@ -41,7 +41,7 @@ impl Engine {
     /// [`super::Space::draw`]; each island of the free-run stage from the
     /// best members of the same island before, ranked on the free run; a
     /// refining round's one island from a cloud around the try's best
-    /// ([`super::Space::around`]), or none where the try no longer refines.
+    /// ([`super::Space::cloud`]), or none where the try no longer refines.
     fn begin_try(&mut self, t: usize, step: Step) -> Vec<AskTell> {
         let bounds = self.space.bounds();
         let nf = bounds.dim();
@@ -103,7 +103,7 @@ impl Engine {
                 };
                 self.tries[t].before_round = best.cost;
                 let streams = self.streams(t, Stage::Refine, self.stream_generation(step, 0));
-                let cloud = self.space.around_rows(&best.params, r.population, &streams);
+                let cloud = self.space.cloud_rows(&best.params, r.population, &streams);
                 vec![AskTell::new(
                     &FreeRun::ALGORITHM.default_settings(),
                     bounds,
@@ -128,7 +128,7 @@ impl Engine {
                 let streams = self.streams(t, Stage::Refine, self.stream_generation(step, 0));
                 let mut cloud =
                     self.space
-                        .around_rows(&self.space.embed(&center), r.population, &streams);
+                        .cloud_rows(&self.space.embed(&center), r.population, &streams);
                 for row in cloud.chunks_mut(nf) {
                     row[j] = value;
                 }

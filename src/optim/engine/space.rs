@@ -146,13 +146,13 @@ impl Space {
     /// coordinate (within a factor 10^±0.2 on those that span decades),
     /// clamped into the box, row `r` from `streams.row(r)`. A warm start's
     /// first population: the basin it starts in, not the whole box.
-    pub fn around(&self, center: &[f64], count: usize, streams: &Streams) -> Vec<f64> {
-        self.embed(&self.around_rows(center, count, streams))
+    pub fn cloud(&self, center: &[f64], count: usize, streams: &Streams) -> Vec<f64> {
+        self.embed(&self.cloud_rows(center, count, streams))
     }
 
-    /// [`Space::around`]'s rows in free coordinates, as the optimizers see
+    /// [`Space::cloud`]'s rows in free coordinates, as the optimizers see
     /// them.
-    pub fn around_rows(&self, center: &[f64], count: usize, streams: &Streams) -> Vec<f64> {
+    pub fn cloud_rows(&self, center: &[f64], count: usize, streams: &Streams) -> Vec<f64> {
         let free = self.free();
         let z0 = self.project(center);
         let mut rows = vec![0.0; count * free.len()];
@@ -390,7 +390,7 @@ mod tests {
         )
         .with_decades([2]);
         let center = [4.0, 1.0, 0.5];
-        let rows = space.around(&center, 50, &Streams::new(7, Stage::FreeRun, 0));
+        let rows = space.cloud(&center, 50, &Streams::new(7, Stage::FreeRun, 0));
         assert_eq!(rows.len(), 150);
         assert_eq!(&rows[..3], &center);
         for row in rows.chunks(3) {
