@@ -269,9 +269,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
     let mut config = TwinConfig::default();
     for e in &args.effects {
-        config.effects.apply_arg(e).map_err(anyhow::Error::msg)?;
+        config.effects.apply_arg(e)?;
     }
-    config.validate().map_err(anyhow::Error::msg)?;
+    config.validate()?;
     let say = |s: String| {
         if !args.json {
             eprintln!("{s}");

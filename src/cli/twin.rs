@@ -163,8 +163,8 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         effects: args.effects.clone(),
     };
     // Checks the load and the effects as `twin` does.
-    let config = probe.config().map_err(anyhow::Error::msg)?;
-    probe.check_load().map_err(anyhow::Error::msg)?;
+    let config = probe.config()?;
+    probe.check_load()?;
     let settings = ServeSettings {
         config,
         load_kg: args.load,
@@ -215,7 +215,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         freq_rad_s: args.freq,
         effects: args.effects.clone(),
     };
-    let trace = spec.run().map_err(anyhow::Error::msg)?;
+    let trace = spec.run()?;
     spec.write_csv(&out, &trace)?;
     println!(
         "{}: {} samples, dt = {} s ({})",

@@ -154,8 +154,7 @@ impl FitProblem {
                 (loop_shape, switching),
                 free_n,
                 bounds,
-            )
-            .map_err(anyhow::Error::msg)?,
+            )?,
         };
         let (estimation, validation) = halves(trace.len());
         Ok(FitProblem {
@@ -380,8 +379,7 @@ impl FitProblem {
         }
         self.space = self
             .space
-            .with_extra(names[d..].to_vec(), lower, upper, bounds)
-            .map_err(anyhow::Error::msg)?;
+            .with_extra(names[d..].to_vec(), lower, upper, bounds)?;
         Ok(self)
     }
 

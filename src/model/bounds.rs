@@ -8,6 +8,36 @@ use super::family::Family;
 use super::presets::{ThesisBounds, hysteresis_hull};
 use super::user_bound::UserBound;
 
+/// A user bound (`--bound`, `--fix`) that names no parameter of the fit.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BoundError {
+    /// A name that is neither the family's nor its search coordinates'.
+    #[error("no parameter `{name}` in the {family} model: the names are {}", known.join(", "))]
+    UnknownParameter {
+        name: String,
+        family: Family,
+        /// The names a bound may use.
+        known: Vec<String>,
+    },
+    /// An effect parameter's name (`effect.param`) that no effect of the
+    /// fit has.
+    #[error("no effect parameter `{name}` in this fit: {}", effects_hint(known))]
+    UnknownEffectParameter {
+        name: String,
+        /// The fit's effect parameters (none: the fit has no effects).
+        known: Vec<String>,
+    },
+}
+
+/// What [`BoundError::UnknownEffectParameter`] suggests.
+fn effects_hint(known: &[String]) -> String {
+    if known.is_empty() {
+        "it has no effects (add them with --effects)".to_string()
+    } else {
+        format!("its effects' parameters are {}", known.join(", "))
+    }
+}
+
 /// How the linear part is treated during a fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -293,7 +323,7 @@ impl SearchSpace {
         (shape_class, switching): (Loop, Switching),
         free_n: bool,
         bounds: &[UserBound],
-    ) -> Result<SearchSpace, String> {
+    ) -> Result<SearchSpace, BoundError> {
         let canonical: Vec<&str> = family.params().iter().map(|p| p.name).collect();
         let shape_names: Vec<&str> = shape_range(family).map(|i| canonical[i]).collect();
         let [_, ib, ic] = family.linear_indices();
@@ -438,7 +468,7 @@ impl SearchSpace {
         lower: Vec<f64>,
         upper: Vec<f64>,
         bounds: &[UserBound],
-    ) -> Result<SearchSpace, String> {
+    ) -> Result<SearchSpace, BoundError> {
         let first = self.extra_names.len() + self.family.dim();
         self.origin.extend(vec![[Origin::Class; 2]; names.len()]);
         self.lower.extend(lower);
@@ -447,15 +477,10 @@ impl SearchSpace {
         let ours = self.names()[first..].to_vec();
         for b in bounds.iter().filter(|b| b.name.contains('.')) {
             if !ours.contains(&b.name) {
-                return Err(format!(
-                    "no effect parameter `{}` in this fit: {}",
-                    b.name,
-                    if ours.is_empty() {
-                        "it has no effects (add them with --effects)".to_string()
-                    } else {
-                        format!("its effects' parameters are {}", ours.join(", "))
-                    }
-                ));
+                return Err(BoundError::UnknownEffectParameter {
+                    name: b.name.clone(),
+                    known: ours,
+                });
             }
             self.set_bound(b)?;
         }
@@ -463,7 +488,7 @@ impl SearchSpace {
     }
 
     /// Sets one user bound (see [`SearchSpace::scaled`]).
-    fn set_bound(&mut self, b: &UserBound) -> Result<(), String> {
+    fn set_bound(&mut self, b: &UserBound) -> Result<(), BoundError> {
         let names = self.names();
         let canonical: Vec<&str> = self.family.params().iter().map(|p| p.name).collect();
         let (i, factor) = if let Some(i) = names.iter().position(|n| *n == b.name) {
@@ -482,12 +507,11 @@ impl SearchSpace {
                     known.push((*c).to_string());
                 }
             }
-            return Err(format!(
-                "no parameter `{}` in the {} model: the names are {}",
-                b.name,
-                self.family,
-                known.join(", ")
-            ));
+            return Err(BoundError::UnknownParameter {
+                name: b.name.clone(),
+                family: self.family,
+                known,
+            });
         };
         self.lower[i] = b.lower * factor;
         self.upper[i] = b.upper * factor;
@@ -761,7 +785,15 @@ mod tests {
             &[zero],
         )
         .unwrap_err();
-        assert!(e.contains("no parameter `x_s` in the classic model"), "{e}");
+        assert!(
+            matches!(&e, BoundError::UnknownParameter { name, .. } if name == "x_s"),
+            "{e:?}"
+        );
+        assert!(
+            e.to_string()
+                .contains("no parameter `x_s` in the classic model"),
+            "{e}"
+        );
     }
 
     /// The middle of `s`'s box, in its coordinates.

@@ -15,7 +15,7 @@ pub mod sim;
 pub mod static_force;
 pub mod user_bound;
 
-pub use bounds::{Flow, LinearPrior, SearchSpace, Switching};
+pub use bounds::{BoundError, Flow, LinearPrior, SearchSpace, Switching};
 pub use coords::{Coordinates, Loop};
 pub use experiment::Experiment;
 pub use family::{Family, ParamInfo};

@@ -292,6 +292,30 @@ impl EffectScale {
     }
 }
 
+/// A setting of the twin that it cannot run: an effect's name or scale,
+/// the load or the frequency of an experiment.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TwinError {
+    #[error("unknown effect `{0}`; known: {names}", names = EFFECT_NAMES.join(", "))]
+    UnknownEffect(String),
+    #[error("effect {name}: scale must be a finite number ≥ 0 (got {scale})")]
+    BadScale { name: String, scale: f64 },
+    #[error("--effect {0}: expected NAME=VALUE, e.g. friction=0")]
+    NotNameValue(String),
+    #[error("--effect {arg}: `{value}` is not a number")]
+    NotANumber { arg: String, value: String },
+    /// The creep's scale would relax the rubber's whole stiffness.
+    #[error(
+        "effect creep: a share {share} of the rubber's stiffness would relax, \
+         leaving it no relaxed stiffness; the scale must stay below {below}"
+    )]
+    CreepRelaxesAll { share: f64, below: f64 },
+    #[error("--load {0}: expected a mass in kg above 0 and at most 15 (thesis: 4.5 or 7)")]
+    BadLoad(f64),
+    #[error("--freq {0}: expected a positive angular frequency in rad/s (thesis: 1, 2, 3)")]
+    BadFrequency(f64),
+}
+
 /// The switches of every non-ideal effect. All are on (scale 1) by default
 /// except `creep` and `ringing`: off, they leave the twin's default runs,
 /// and every number published from them, as they are.
@@ -357,43 +381,38 @@ impl Effects {
 
     /// Sets the scale of effect `name`; an error names the unknown effect
     /// and lists the known ones, or rejects a negative or non-finite scale.
-    pub fn set(&mut self, name: &str, scale: f64) -> Result<(), String> {
+    pub fn set(&mut self, name: &str, scale: f64) -> Result<(), TwinError> {
         if !scale.is_finite() || scale < 0.0 {
-            return Err(format!(
-                "effect {name}: scale must be a finite number ≥ 0 (got {scale})"
-            ));
+            return Err(TwinError::BadScale {
+                name: name.to_string(),
+                scale,
+            });
         }
-        let e = self.get_mut(name).ok_or_else(|| {
-            format!(
-                "unknown effect `{name}`; known: {}",
-                EFFECT_NAMES.join(", ")
-            )
-        })?;
+        let e = self
+            .get_mut(name)
+            .ok_or_else(|| TwinError::UnknownEffect(name.to_string()))?;
         e.scale = scale;
         Ok(())
     }
 
     /// Removes effect `name` from the model (its code path is skipped).
-    pub fn remove(&mut self, name: &str) -> Result<(), String> {
-        let e = self.get_mut(name).ok_or_else(|| {
-            format!(
-                "unknown effect `{name}`; known: {}",
-                EFFECT_NAMES.join(", ")
-            )
-        })?;
+    pub fn remove(&mut self, name: &str) -> Result<(), TwinError> {
+        let e = self
+            .get_mut(name)
+            .ok_or_else(|| TwinError::UnknownEffect(name.to_string()))?;
         e.present = false;
         Ok(())
     }
 
     /// Parses `NAME=VALUE` as given to `--effect`.
-    pub fn apply_arg(&mut self, arg: &str) -> Result<(), String> {
+    pub fn apply_arg(&mut self, arg: &str) -> Result<(), TwinError> {
         let (name, value) = arg
             .split_once('=')
-            .ok_or_else(|| format!("--effect {arg}: expected NAME=VALUE, e.g. friction=0"))?;
-        let scale: f64 = value
-            .trim()
-            .parse()
-            .map_err(|_| format!("--effect {arg}: `{value}` is not a number"))?;
+            .ok_or_else(|| TwinError::NotNameValue(arg.to_string()))?;
+        let scale: f64 = value.trim().parse().map_err(|_| TwinError::NotANumber {
+            arg: arg.to_string(),
+            value: value.to_string(),
+        })?;
         self.set(name.trim(), scale)
     }
 }
@@ -429,14 +448,13 @@ impl TwinConfig {
 
     /// Checks the settings the effects can make unphysical: the creep must
     /// leave the rubber a positive relaxed stiffness.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), TwinError> {
         let share = self.muscle.relaxing_share(&self.effects);
         if share >= 1.0 {
-            return Err(format!(
-                "effect creep: a share {share} of the rubber's stiffness would relax, \
-                 leaving it no relaxed stiffness; the scale must stay below {}",
-                1.0 / self.muscle.creep_share
-            ));
+            return Err(TwinError::CreepRelaxesAll {
+                share,
+                below: 1.0 / self.muscle.creep_share,
+            });
         }
         Ok(())
     }

@@ -8,7 +8,7 @@ use crate::data::Trace;
 use crate::data::csv::{DataError, write_trace_with_comments};
 use crate::data::signals::{Multisine, SineReference, Stair};
 
-use super::{Rig, Sample, TwinConfig};
+use super::{Rig, Sample, TwinConfig, TwinError};
 
 /// The thesis' PI controller (Table 22, used for both loads): `Kp = 0.06875`
 /// V/mm, `Ki = 0.05` V/(mm·sample).
@@ -157,7 +157,7 @@ pub struct RunSpec {
 
 impl RunSpec {
     /// The default configuration with this spec's effect settings applied.
-    pub fn config(&self) -> Result<TwinConfig, String> {
+    pub fn config(&self) -> Result<TwinConfig, TwinError> {
         let mut config = TwinConfig::default();
         for e in &self.effects {
             config.effects.apply_arg(e)?;
@@ -211,24 +211,18 @@ impl RunSpec {
     }
 
     /// Checks the load: a mass in kg above 0 and at most 15.
-    pub fn check_load(&self) -> Result<(), String> {
+    pub fn check_load(&self) -> Result<(), TwinError> {
         if !(self.load_kg.is_finite() && self.load_kg > 0.0 && self.load_kg <= 15.0) {
-            return Err(format!(
-                "--load {}: expected a mass in kg above 0 and at most 15 (thesis: 4.5 or 7)",
-                self.load_kg
-            ));
+            return Err(TwinError::BadLoad(self.load_kg));
         }
         Ok(())
     }
 
     /// Runs the experiment; an error names a bad load, frequency or effect.
-    pub fn run(&self) -> Result<Trace, String> {
+    pub fn run(&self) -> Result<Trace, TwinError> {
         self.check_load()?;
         if self.kind == Kind::Sine && !(self.freq_rad_s.is_finite() && self.freq_rad_s > 0.0) {
-            return Err(format!(
-                "--freq {}: expected a positive angular frequency in rad/s (thesis: 1, 2, 3)",
-                self.freq_rad_s
-            ));
+            return Err(TwinError::BadFrequency(self.freq_rad_s));
         }
         let config = self.config()?;
         let mut trace = run(&config, self.load_kg, self.seed, &self.experiment());

@@ -31,7 +31,7 @@ pub mod muscle;
 pub mod sensors;
 pub mod valve;
 
-pub use config::{EFFECT_NAMES, EffectScale, Effects, TwinConfig};
+pub use config::{EFFECT_NAMES, EffectScale, Effects, TwinConfig, TwinError};
 pub use experiment::{TwinExperiment, run};
 
 use rand::SeedableRng;
