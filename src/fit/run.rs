@@ -67,21 +67,66 @@ pub struct FitRun {
     /// A warm start's model as it was, in the problem's gauge (same outputs):
     /// what the refit is measured against ([`FitRun::start_scores`]).
     pub start: Option<Vec<f64>>,
-    /// A second start run after the engine ([`FitRun::also_from`]): its problem
-    /// (the box widened to hold it), its warm-start engine and the seconds
-    /// its model took to build.
-    second: Option<(FitProblem, Engine, f64)>,
+    /// A second start run after the engine ([`FitRun::also_from`]): the
+    /// chain built one effect at a time, warm-started in a box widened to
+    /// hold it.
+    second: Option<ChainStart>,
     /// Which of the two was kept, once [`FitRun::run`] has run both.
     pub built: Option<Built>,
     /// The default switching's second start ([`FitProblem::at_zero`]): the same
     /// fit with the generalized switching level held at the sensor's zero,
     /// run after the engine, before any [`FitRun::also_from`] start.
-    zero: Option<(FitProblem, Engine)>,
+    zero: Option<Start>,
     /// Which of the switching starts was kept, once [`FitRun::run`] has run both.
     pub switched: Option<Switched>,
     /// How far the kept start's tries agree, once [`FitRun::run`] has run
     /// (`None` for a single try).
     pub agreement: Option<Agreement>,
+}
+
+/// One start of a fit: the problem it searches (its box held or widened
+/// where the start asks for it) and the engine that runs on it.
+#[derive(Debug, Clone)]
+struct Start {
+    problem: FitProblem,
+    engine: Engine,
+}
+
+/// The chain's warm start ([`FitRun::also_from`]) and the seconds its model
+/// took to build, counted in the fit's time.
+#[derive(Debug, Clone)]
+struct ChainStart {
+    start: Start,
+    built_in_s: f64,
+}
+
+/// A start run to its end with every try settled by the edge rule: its
+/// outcome and the kept try's widenings.
+struct Settled {
+    outcome: Outcome,
+    widened: Vec<Widening>,
+}
+
+impl Start {
+    /// Runs the start on `evaluator` (no observer, no checkpoint: only the
+    /// fit's first start reports its progress and is checkpointed), then
+    /// settles its tries ([`settle_tries`]).
+    fn run(
+        &mut self,
+        evaluator: &mut dyn Evaluator,
+        stops: &StopRules,
+        interrupt: Option<&AtomicBool>,
+    ) -> anyhow::Result<Settled> {
+        let hooks = Hooks {
+            observers: &mut [],
+            interrupt,
+            checkpoint: None,
+        };
+        let outcome = run_on(&self.problem, &mut self.engine, evaluator, hooks)?;
+        let (outcome, widened) =
+            settle_tries(&mut self.problem, &self.engine, outcome, stops, evaluator)?;
+        Ok(Settled { outcome, widened })
+    }
 }
 
 /// A generalized fit run from the switching's two starts
@@ -216,7 +261,10 @@ impl FitRun {
                     engine.seed,
                     engine.stops.clone(),
                 )?;
-                Some((zero, second))
+                Some(Start {
+                    problem: zero,
+                    engine: second,
+                })
             }
             _ => None,
         };
@@ -261,7 +309,10 @@ impl FitRun {
         }
         problem.space.widen_to_hold(&theta);
         let engine = settings.start_warm(&problem, &theta)?;
-        self.second = Some((problem, engine, built_in_s));
+        self.second = Some(ChainStart {
+            start: Start { problem, engine },
+            built_in_s,
+        });
         Ok(self)
     }
 
@@ -295,39 +346,41 @@ impl FitRun {
         checkpoint: Option<&Path>,
     ) -> anyhow::Result<(Outcome, Vec<Widening>)> {
         let stops = self.engine.stops.clone();
-        let outcome = run_on(
-            &self.problem,
-            &mut self.engine,
-            evaluator,
-            (observers, interrupt, checkpoint),
-        )?;
+        let hooks = Hooks {
+            observers,
+            interrupt,
+            checkpoint,
+        };
+        let outcome = run_on(&self.problem, &mut self.engine, evaluator, hooks)?;
         let (mut outcome, mut widened) =
             settle_tries(&mut self.problem, &self.engine, outcome, &stops, evaluator)?;
-        if let Some((mut problem, mut engine)) = self.zero.take()
+        if let Some(mut start) = self.zero.take()
             && outcome.stop != StopReason::Interrupted
         {
-            let zero = run_on(&problem, &mut engine, evaluator, (&mut [], interrupt, None))?;
-            let (zero, zero_widened) =
-                settle_tries(&mut problem, &engine, zero, &stops, evaluator)?;
-            let switched = Switched::of(&outcome, &zero);
+            let zero = start.run(evaluator, &stops, interrupt)?;
+            let switched = Switched::of(&outcome, &zero.outcome);
             self.switched = Some(switched);
             let (evaluations, seconds) = (
-                outcome.evaluations + zero.evaluations,
-                outcome.seconds + zero.seconds,
+                outcome.evaluations + zero.outcome.evaluations,
+                outcome.seconds + zero.outcome.seconds,
             );
             if switched.kept_zero {
-                (self.problem, self.engine, outcome, widened) =
-                    (problem, engine, zero, zero_widened);
+                (self.problem, self.engine) = (start.problem, start.engine);
+                (outcome, widened) = (zero.outcome, zero.widened);
             }
             (outcome.evaluations, outcome.seconds) = (evaluations, seconds);
         }
-        if let Some((mut problem, mut engine, built_in_s)) = self.second.take()
+        if let Some(ChainStart {
+            mut start,
+            built_in_s,
+        }) = self.second.take()
             && outcome.stop != StopReason::Interrupted
         {
             outcome.seconds += built_in_s;
-            let chain = run_on(&problem, &mut engine, evaluator, (&mut [], interrupt, None))?;
-            let (chain, chain_widened) =
-                settle_tries(&mut problem, &engine, chain, &stops, evaluator)?;
+            let Settled {
+                outcome: chain,
+                widened: chain_widened,
+            } = start.run(evaluator, &stops, interrupt)?;
             let kept_chain = !chain.params.is_empty() && chain.sse < outcome.sse;
             self.built = Some(Built {
                 scratch_sse: outcome.sse,
@@ -335,7 +388,7 @@ impl FitRun {
                 kept_chain,
             });
             if kept_chain {
-                (self.problem, self.engine, widened) = (problem, engine, chain_widened);
+                (self.problem, self.engine, widened) = (start.problem, start.engine, chain_widened);
                 let evaluations = outcome.evaluations + chain.evaluations;
                 let seconds = outcome.seconds + chain.seconds;
                 outcome = Outcome {
@@ -353,20 +406,29 @@ impl FitRun {
     }
 }
 
-/// Runs `engine` on `problem`'s objective, scored on `evaluator`, with the
-/// observers, interrupt and checkpoint of [`Engine::run`].
+/// What watches a run of the engine ([`Engine::run`]): its observers, the
+/// flag that interrupts it and the file it checkpoints to.
+struct Hooks<'a, 'o> {
+    observers: &'a mut [&'o mut dyn Observer],
+    interrupt: Option<&'a AtomicBool>,
+    checkpoint: Option<&'a Path>,
+}
+
+/// Runs `engine` on `problem`'s objective, scored on `evaluator`, watched
+/// by `hooks`.
 fn run_on(
     problem: &FitProblem,
     engine: &mut Engine,
     evaluator: &mut dyn Evaluator,
-    (observers, interrupt, checkpoint): (
-        &mut [&mut dyn Observer],
-        Option<&AtomicBool>,
-        Option<&Path>,
-    ),
+    hooks: Hooks<'_, '_>,
 ) -> anyhow::Result<Outcome> {
     let mut objective = ModelObjective::for_problem(evaluator, problem);
-    engine.run(&mut objective, observers, interrupt, checkpoint)
+    engine.run(
+        &mut objective,
+        hooks.observers,
+        hooks.interrupt,
+        hooks.checkpoint,
+    )
 }
 
 /// Fits `problem` with `plan` from `seed` on `evaluator`, with no observer,
