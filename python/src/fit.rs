@@ -10,13 +10,15 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use mckibben::diagnose::chain::with_chain_start;
+use mckibben::eval::Backend;
+use mckibben::fit::edge::Widening;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::report::{FitReport, model_file, yardstick_warnings};
 use mckibben::fit::request::{FitRequest, Resolved};
-use mckibben::fit::run::FitRun;
+use mckibben::fit::run::{FitRun, FitTarget};
 use mckibben::fit::searches::StopFlag;
 use mckibben::fit::settings::{FitSettings, Overrides};
-use mckibben::optim::engine::{Observer, StopReason, StopRules};
+use mckibben::optim::engine::{Observer, Outcome, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 
 use crate::args::{count, effects_arg, seed_arg, start_arg, user_bounds};
@@ -254,6 +256,41 @@ pub fn fit(
         with_chain_start(fit, &trace, &settings, backend, stop.clone())
     })?
     .map_err(runtime_error)?;
+    let finished = run_fit(py, fit, backend, progress)?;
+    let warn = py.import("warnings")?;
+    for n in notes.into_inner().expect("notes") {
+        warn.call_method1("warn", (in_python_terms(&n),))?;
+    }
+    let Finished {
+        fit,
+        outcome,
+        widened,
+        describe,
+    } = finished;
+    let report = FitReport::of(&fit, (&outcome, &widened), &describe, &trace.source);
+    warn_of_report(&warn, &report, &outcome, &fit)?;
+    fit_result(py, report, &fit, &outcome, &what, &trace.source)
+}
+
+/// A fit run to its end: the run, what it ended at, the edge rule's
+/// widenings, and the evaluator that scored it, for the report.
+struct Finished {
+    fit: FitRun,
+    outcome: Outcome,
+    widened: Vec<Widening>,
+    describe: String,
+}
+
+/// Runs `fit` on `backend` with the interpreter detached, Python's
+/// `progress` seeing each generation and Ctrl-C stopping the fit at its
+/// best so far. Raises an exception `progress` raised, and a signal's
+/// other than `KeyboardInterrupt`, once the fit has stopped.
+fn run_fit(
+    py: Python<'_>,
+    fit: FitRun,
+    backend: Backend,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Finished> {
     let interrupt = AtomicBool::new(false);
     let mut observer = PythonObserver {
         progress,
@@ -284,12 +321,24 @@ pub fn fit(
             return Err(e);
         }
     }
-    let warn = py.import("warnings")?;
-    for n in notes.into_inner().expect("notes") {
-        warn.call_method1("warn", (in_python_terms(&n),))?;
-    }
     let (outcome, widened) = ran;
-    let report = FitReport::of(&fit, (&outcome, &widened), &describe, &trace.source);
+    Ok(Finished {
+        fit,
+        outcome,
+        widened,
+        describe,
+    })
+}
+
+/// Warns through Python's `warnings` of what `mckibben fit` warns of after
+/// a fit: a validation fit the yardsticks find wanting, and tries that
+/// agree too little.
+fn warn_of_report(
+    warn: &Bound<'_, PyModule>,
+    report: &FitReport,
+    outcome: &Outcome,
+    fit: &FitRun,
+) -> PyResult<()> {
     if let Some(val) = report.val_fit_percent {
         let linear = report.linear_val_fit_percent;
         for w in yardstick_warnings(outcome.sse, val, linear, fit.start_scores()) {
@@ -299,6 +348,20 @@ pub fn fit(
     if let Some(advice) = report.agreement.as_ref().and_then(|a| a.advice()) {
         warn.call_method1("warn", (in_python_terms(&advice),))?;
     }
+    Ok(())
+}
+
+/// The fit's `report` as Python values: the fitted model (built within
+/// `what`'s bounds, its provenance naming the data `source`), the
+/// parameters and the box by name, and the history as arrays.
+fn fit_result(
+    py: Python<'_>,
+    report: FitReport,
+    fit: &FitRun,
+    outcome: &Outcome,
+    what: &FitTarget,
+    source: &str,
+) -> PyResult<FitResult> {
     let (problem, engine) = (&fit.problem, &fit.engine);
     let params = PyDict::new(py);
     for (name, v) in &report.params.0 {
@@ -315,7 +378,7 @@ pub fn fit(
             problem,
             &outcome.params,
             &what.bounds,
-            provenance("mckibben.fit", &[&trace.source], Some(engine.seed)),
+            provenance("mckibben.fit", &[source], Some(engine.seed)),
         );
         Some(Py::new(py, Model::of_file(file).map_err(runtime_error)?)?)
     };

@@ -40,6 +40,7 @@ pub use settings::{Interrupted, Settings};
 
 use crate::data::Trace;
 use crate::fit::problem::{FitProblem, settle_samples};
+use crate::fit::searches::Searches;
 use crate::model::experiment::Parts;
 use crate::model::{Family, Model};
 
@@ -194,10 +195,128 @@ pub fn diagnose_from(
         Some(m) => Some(start_of(m, family, data.datasets())?),
         None => None,
     };
-    // The noise floor the rule compares against: a property of the sensor,
-    // measured on every sample but the test part's (the estimation half
-    // and the selection blocks; the blocks alone are too few on a short
-    // record, where steps inflate the second differences).
+    let floor = noise_floor_of(&data);
+    let start_ref = start.as_ref().map(|(m, theta)| (m, theta.as_slice()));
+    let selection = select::select(
+        &data, &searches, family, effects, settings, floor, start_ref,
+    )?;
+    check_baseline(&selection, family, traces)?;
+
+    // The final chain as `fit --effects` fits it: the final parameters
+    // when it scores better on the selection part.
+    let last = data.with_model(&selection.final_model);
+    let as_fit = as_fit_of(&last, traces, &selection, settings, from)?;
+    let final_params: Vec<f64> = match &as_fit {
+        Some(a) if a.kept => a.params.clone(),
+        _ => selection.final_fit.params.clone(),
+    };
+
+    let models = models_along_the_way(&data, &selection, family, &final_params);
+    // The test part is read here, once, after every choice is made.
+    let steps = steps_of(&data, &models, floor);
+
+    let size_intervals = selection
+        .verdict
+        .iter()
+        .map(|&e| interval::size_interval(&last, &searches, &final_params, e))
+        .collect::<anyhow::Result<_>>()?;
+    let refits = refits_of(&data, &last, &searches, settings, &final_params)?;
+
+    let ia = family.linear_indices()[0];
+    let base_model = &selection.baseline_model;
+    let base = &selection.baseline.best;
+    let first = data.with_model(base_model);
+    let segments = selection_segments(traces, &first, &base.params);
+    let final_segments = selection_segments(traces, &last, &final_params);
+    let min_len = segments.iter().map(|s| s.residual.len()).min().unwrap_or(0);
+    let settle = settle_samples(base.params[ia], min_len);
+    let place = locate::analyse(&segments, settle);
+    let spectrum = residual_spectrum(&segments);
+    let final_spectrum = residual_spectrum(&final_segments);
+
+    let base_pred = first.predict(&base.params);
+    let bound = explainable_bound(traces, &data, &base_pred, floor)?;
+    let remaining = explainable::signature(
+        &locate::analyse(&final_segments, settle),
+        final_spectrum
+            .as_ref()
+            .and_then(|s| s.peaks.first().copied()),
+    );
+    let explainable = explainable::judge(bound, &steps, remaining, settings.floor_margin);
+
+    let last_pred = last.predict(&final_params);
+    let curves = curves_of(traces, &data, &base_pred, &last_pred);
+    let baseline_model = first.fitted_model(&base.params);
+    let final_model = last.fitted_model(&final_params);
+    Ok(Diagnosis {
+        from: from.map(|_| "the start model".to_string()),
+        baseline_model,
+        final_model,
+        family,
+        datasets: traces.iter().map(|t| t.source.clone()).collect(),
+        parts: data.parts.clone(),
+        dt: data.records.ctx[0].dt,
+        noise_floor_rmse: floor,
+        locate: place,
+        selection,
+        steps,
+        size_intervals,
+        refits,
+        explainable,
+        spectrum,
+        final_spectrum,
+        curves,
+        as_fit,
+        final_params,
+        transfers: Vec::new(),
+    })
+}
+
+/// An error where the baseline diverges on the selection part for every
+/// seed: then there is no gap to diagnose, and the error says what to try.
+fn check_baseline(selection: &Selection, family: Family, traces: &[Trace]) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        selection.baseline.best.sel_rmse.is_finite(),
+        "the {family} baseline fitted on the estimation half diverges on the selection part \
+         for every seed ({}), so there is no gap to diagnose; try fewer datasets at a time, \
+         more --seeds, or the other --baseline",
+        traces
+            .iter()
+            .map(|t| t.source.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    Ok(())
+}
+
+/// The final chain of `selection` refitted as `fit --effects` fits it, on
+/// `last`, its problem: left out, like the refits, with `--scratch-seeds
+/// 0`, and from a start model, since `fit` fits in the record's own
+/// coordinates, not the start model's.
+fn as_fit_of(
+    last: &FitProblem,
+    traces: &[Trace],
+    selection: &Selection,
+    settings: &Settings,
+    from: Option<&Model>,
+) -> anyhow::Result<Option<as_fit::AsFit>> {
+    let saved = last.fitted_model(&selection.final_fit.params);
+    Ok(match from {
+        None if settings.scratch_seeds > 0 => as_fit::refit(
+            last,
+            &traces[0],
+            (&selection.final_fit.params, &saved),
+            settings,
+        )?,
+        _ => None,
+    })
+}
+
+/// The noise floor the rule compares against: a property of the sensor,
+/// measured on every sample but the test part's (the estimation half and
+/// the selection blocks; the blocks alone are too few on a short record,
+/// where steps inflate the second differences).
+fn noise_floor_of(data: &FitProblem) -> f64 {
     let outputs: Vec<Vec<f64>> = data
         .records
         .whole
@@ -210,44 +329,19 @@ pub fn diagnose_from(
         })
         .collect();
     let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
-    let floor = locate::noise_floor(&refs);
-    let start_ref = start.as_ref().map(|(m, theta)| (m, theta.as_slice()));
-    let selection = select::select(
-        &data, &searches, family, effects, settings, floor, start_ref,
-    )?;
-    anyhow::ensure!(
-        selection.baseline.best.sel_rmse.is_finite(),
-        "the {family} baseline fitted on the estimation half diverges on the selection part \
-         for every seed ({}), so there is no gap to diagnose; try fewer datasets at a time, \
-         more --seeds, or the other --baseline",
-        traces
-            .iter()
-            .map(|t| t.source.as_str())
-            .collect::<Vec<_>>()
-            .join(", ")
-    );
+    locate::noise_floor(&refs)
+}
 
-    // The final chain as `fit --effects` fits it: the final parameters
-    // when it scores better on the selection part.
-    let last = data.with_model(&selection.final_model);
-    let saved = last.fitted_model(&selection.final_fit.params);
-    // Like REFITTED, left out with `--scratch-seeds 0`.
-    let as_fit = match from {
-        None if settings.scratch_seeds > 0 => as_fit::refit(
-            &last,
-            &traces[0],
-            (&selection.final_fit.params, &saved),
-            settings,
-        )?,
-        // `fit` fits in the record's own coordinates, not the start model's.
-        _ => None,
-    };
-    let final_params: Vec<f64> = match &as_fit {
-        Some(a) if a.kept => a.params.clone(),
-        _ => selection.final_fit.params.clone(),
-    };
-
-    // The models along the way, final: each model and its parameters.
+/// The models along the way, each with its parameters: the baseline, the
+/// start model where the selection started from one, then the model after
+/// each accepted effect, each with the best fit of it any later round
+/// found, the last with the final parameters.
+fn models_along_the_way<'a>(
+    data: &FitProblem,
+    selection: &'a Selection,
+    family: Family,
+    final_params: &'a [f64],
+) -> Vec<(ModelDescription, &'a [f64])> {
     let base_model = &selection.baseline_model;
     let base = &selection.baseline.best;
     let mut models: Vec<(ModelDescription, &[f64])> = vec![(base_model.clone(), &base.params)];
@@ -277,53 +371,62 @@ pub fn diagnose_from(
         }
     }
     if let Some(last) = models.last_mut() {
-        last.1 = &final_params;
+        last.1 = final_params;
     }
-    // The test part is read here, once, after every choice is made.
-    let steps = steps_of(&data, &models, floor);
+    models
+}
 
-    let size_intervals = selection
-        .verdict
-        .iter()
-        .map(|&e| interval::size_interval(&last, &searches, &final_params, e))
-        .collect::<anyhow::Result<_>>()?;
-    let scratch = fitting::scratch_fits(&last, &searches, settings, REFIT_SALT)?;
+/// The final model fitted again from scratch on `last`, its problem,
+/// against its final parameters: whether the estimation data settle its
+/// validation fit.
+fn refits_of(
+    data: &FitProblem,
+    last: &FitProblem,
+    searches: &Searches,
+    settings: &Settings,
+    final_params: &[f64],
+) -> anyhow::Result<Option<refits::Refits>> {
+    let scratch = fitting::scratch_fits(last, searches, settings, REFIT_SALT)?;
     let final_fit = fitting::ScoredFit {
-        est_sse: last.est_sse(&final_params),
-        sel_rmse: last.selection_rmse(&final_params),
-        params: final_params.clone(),
+        est_sse: last.est_sse(final_params),
+        sel_rmse: last.selection_rmse(final_params),
+        params: final_params.to_vec(),
     };
-    let refits = refits::Refits::compare(
+    Ok(refits::Refits::compare(
         &final_fit,
         &scratch,
         |f| last.selection(&f.params).fit_percent,
         data.est_samples(),
-    );
+    ))
+}
 
-    let ia = family.linear_indices()[0];
-    // Where the models miss, on the selection blocks.
-    let segments_of = |problem: &FitProblem, theta: &[f64]| -> Vec<locate::Segment> {
-        problem
-            .selection_residuals(theta)
-            .into_iter()
-            .map(|(i, r, residual)| locate::Segment {
-                name: traces[i].source.clone(),
-                dt: traces[i].dt(),
-                input: traces[i].input[r].to_vec(),
-                residual,
-            })
-            .collect()
-    };
-    let first = data.with_model(base_model);
-    let segments = segments_of(&first, &base.params);
-    let final_segments = segments_of(&last, &final_params);
-    let min_len = segments.iter().map(|s| s.residual.len()).min().unwrap_or(0);
-    let settle = settle_samples(base.params[ia], min_len);
-    let place = locate::analyse(&segments, settle);
-    let spectrum = residual_spectrum(&segments);
-    let final_spectrum = residual_spectrum(&final_segments);
+/// Where `theta` of `problem` misses, on the selection blocks: one segment
+/// of input and residual per block, named after its trace.
+fn selection_segments(
+    traces: &[Trace],
+    problem: &FitProblem,
+    theta: &[f64],
+) -> Vec<locate::Segment> {
+    problem
+        .selection_residuals(theta)
+        .into_iter()
+        .map(|(i, r, residual)| locate::Segment {
+            name: traces[i].source.clone(),
+            dt: traces[i].dt(),
+            input: traces[i].input[r].to_vec(),
+            residual,
+        })
+        .collect()
+}
 
-    let base_pred = first.predict(&base.params);
+/// How much of the baseline's gap a flexible model of its residual closes:
+/// the bound from the baseline's predictions `base_pred` over the records.
+fn explainable_bound(
+    traces: &[Trace],
+    data: &FitProblem,
+    base_pred: &[Vec<f32>],
+    floor: f64,
+) -> anyhow::Result<explainable::Bound> {
     let as_f64 = |v: &[f32]| v.iter().map(|&x| x as f64).collect::<Vec<f64>>();
     let (pred, meas): (Vec<_>, Vec<_>) = base_pred
         .iter()
@@ -341,17 +444,19 @@ pub fn diagnose_from(
             scored: &data.parts[i].selection,
         })
         .collect();
-    let bound = explainable::bound(&signals, floor, &ridge::RidgeSettings::default())?;
-    let remaining = explainable::signature(
-        &locate::analyse(&final_segments, settle),
-        final_spectrum
-            .as_ref()
-            .and_then(|s| s.peaks.first().copied()),
-    );
-    let explainable = explainable::judge(bound, &steps, remaining, settings.floor_margin);
+    explainable::bound(&signals, floor, &ridge::RidgeSettings::default())
+}
 
-    let last_pred = last.predict(&final_params);
-    let curves = traces
+/// Second-half curves of every dataset in absolute units: the measured
+/// output, the baseline's prediction `base_pred` and the final model's
+/// `last_pred`.
+fn curves_of(
+    traces: &[Trace],
+    data: &FitProblem,
+    base_pred: &[Vec<f32>],
+    last_pred: &[Vec<f32>],
+) -> Vec<Curves> {
+    traces
         .iter()
         .enumerate()
         .map(|(i, t)| {
@@ -366,31 +471,7 @@ pub fn diagnose_from(
                 last: last_pred[i][s..].iter().map(|&v| v as f64 + ym).collect(),
             }
         })
-        .collect();
-    let baseline_model = first.fitted_model(&base.params);
-    let final_model = last.fitted_model(&final_params);
-    Ok(Diagnosis {
-        from: from.map(|_| "the start model".to_string()),
-        baseline_model,
-        final_model,
-        family,
-        datasets: traces.iter().map(|t| t.source.clone()).collect(),
-        parts: data.parts.clone(),
-        dt: data.records.ctx[0].dt,
-        noise_floor_rmse: floor,
-        locate: place,
-        selection,
-        steps,
-        size_intervals,
-        refits,
-        explainable,
-        spectrum,
-        final_spectrum,
-        curves,
-        as_fit,
-        final_params,
-        transfers: Vec::new(),
-    })
+        .collect()
 }
 
 /// Each of `models` (the baseline first) scored on every part: the second

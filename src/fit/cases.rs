@@ -26,6 +26,8 @@
 //! gauge `A = 1` the fit searches in ([`crate::model::coords::gauge_fixed`]:
 //! the same outputs).
 
+use std::ops::Range;
+
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -359,19 +361,68 @@ pub struct Judgement {
 /// One draw of a truth and an input; `None` when the draw is rejected (it
 /// diverges, barely moves, or its parameters leave the default box).
 fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
-    let family = spec.family;
-    let log_uniform = |rng: &mut ChaCha8Rng, lo: f64, hi: f64| -> f64 {
-        (lo.ln() + rng.random::<f64>() * (hi / lo).ln()).exp()
-    };
-    // The linear part. For small loops `w ≈ A·x`, so the output's effective
-    // pole is `a·(α + (1 − α)·A)`: a slow muscle either has `a·α` itself
-    // near 1 (the slow cases, up to 0.995) or a fast `a·α` and a slow
-    // hysteretic feedback (the thesis' own Table 1: α = 0.5).
     // Each half of the record spans at least 20 time constants of the
     // effective pole, or the estimation half cannot tell a slow pole from a
     // drift and the truth is not what the data determine.
     let slowest = 1.0 - 40.0 / spec.samples as f64;
-    let (a, alpha, big_a, effective) = match spec.pole {
+    let pole = draw_pole(spec.pole, slowest, rng)?;
+    let shape = draw_shape(spec.family, rng);
+    if pole.effective > slowest {
+        return None;
+    }
+    let tau = 1.0 / (1.0 - pole.effective);
+    let p = input(spec.excitation, spec.samples, tau, rng);
+    let mut draft = scale_to_swing(spec.family, &pole, &shape, tau, p, rng)?;
+    let placed = place(spec, &mut draft, rng)?;
+    record_case(spec, draft, &placed, rng)
+}
+
+/// The linear part of a drawn truth: `a`, `α`, the loop's weight `A` and
+/// the output's effective pole `a·(α + (1 − α)·A)` they make.
+struct DrawnPole {
+    a: f64,
+    alpha: f64,
+    big_a: f64,
+    effective: f64,
+}
+
+/// A truth and its input, `b` scaled so that the output swings as drawn,
+/// before the output is placed: what placing it needs.
+struct Draft {
+    family: Family,
+    theta: Vec<f64>,
+    a: f64,
+    alpha: f64,
+    /// The input (MPa).
+    p: Vec<f64>,
+    /// The noiseless output of the scaled truth, switching at zero.
+    second: Vec<f64>,
+    /// The drawn swing (mm).
+    swing: f64,
+    /// The range of `second`.
+    r1: f64,
+}
+
+/// A placed truth's noiseless output, in the coordinates of the output
+/// mean `y_mean`.
+struct Placed {
+    x: Vec<f64>,
+    y_mean: f64,
+}
+
+/// A value drawn log-uniformly from `lo` to `hi`.
+fn log_uniform(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+    (lo.ln() + rng.random::<f64>() * (hi / lo).ln()).exp()
+}
+
+/// Draws the linear part for `pole`; `None` where the draw leaves the
+/// class's range. For small loops `w ≈ A·x`, so the output's effective
+/// pole is `a·(α + (1 − α)·A)`: a slow muscle either has `a·α` itself
+/// near 1 (the slow cases, up to 0.995) or a fast `a·α` and a slow
+/// hysteretic feedback (the thesis' own Table 1: α = 0.5). `slowest` is the
+/// slowest effective pole the record's length allows.
+fn draw_pole(pole: Pole, slowest: f64, rng: &mut ChaCha8Rng) -> Option<DrawnPole> {
+    let (a, alpha, big_a, effective) = match pole {
         Pole::Slow => {
             let a_alpha = 1.0 - log_uniform(rng, 0.005, 0.02);
             let alpha: f64 = rng.random_range(0.93..0.99);
@@ -405,10 +456,19 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
             (a, alpha, big_a, effective)
         }
     };
-    // The loop shape, from the bounded class: classic β ≥ 0 with γ from
-    // −0.9·β (class I) to 3·β (class II); generalized loading slopes
-    // log-uniform and (β2, β4) anywhere in the class's diamond.
-    let shape: Vec<f64> = match family {
+    Some(DrawnPole {
+        a,
+        alpha,
+        big_a,
+        effective,
+    })
+}
+
+/// Draws the loop shape from the bounded class: classic β ≥ 0 with γ from
+/// −0.9·β (class I) to 3·β (class II); generalized loading slopes
+/// log-uniform and (β2, β4) anywhere in the class's diamond.
+fn draw_shape(family: Family, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    match family {
         Family::Classic => {
             let beta = log_uniform(rng, 1e-3, 0.1);
             let gamma = beta * rng.random_range(-0.9..3.0);
@@ -420,38 +480,54 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
             let v = rng.random_range(-1.0..1.0);
             bounded_betas(loading, u, v).to_vec()
         }
-    };
-    if effective > slowest {
-        return None;
     }
-    let tau = 1.0 / (1.0 - effective);
-    let p = input(spec.excitation, spec.samples, tau, rng);
+}
+
+/// A free run of `family`'s `theta` from `x0` in the coordinates of the
+/// output mean `y_mean`, in the simulator's single precision; `None` where
+/// it diverges.
+fn free_run(family: Family, theta: &[f64], y_mean: f64, u: &[f64], x0: f64) -> Option<Vec<f64>> {
+    let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
+    let u: Vec<f32> = u.iter().map(|&v| v as f32).collect();
+    let sim = simulate(family, &t, y_mean as f32, &u, x0 as f32);
+    sim.diverged_at
+        .is_none()
+        .then(|| sim.x.iter().map(|&v| v as f64).collect())
+}
+
+/// The range of `v`: its largest value less its smallest.
+fn range(v: &[f64]) -> f64 {
+    v.iter().fold(f64::NEG_INFINITY, |m, &x| m.max(x))
+        - v.iter().fold(f64::INFINITY, |m, &x| m.min(x))
+}
+
+/// The mean of `v`.
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+/// Builds the truth from its drawn parts and scales `b` so that the output
+/// to input `p` swings a drawn 10–40 mm; `None` where the output diverges,
+/// stays flat or misses the swing by more than a factor of two.
+fn scale_to_swing(
+    family: Family,
+    pole: &DrawnPole,
+    shape: &[f64],
+    tau: f64,
+    p: Vec<f64>,
+    rng: &mut ChaCha8Rng,
+) -> Option<Draft> {
     // A first guess at b: a static gain of 60 mm/MPa through the effective
     // pole; a generalized loop switching at the first passes' zero.
-    let mut theta = vec![big_a, alpha];
-    theta.extend(&shape);
+    let mut theta = vec![pole.big_a, pole.alpha];
+    theta.extend(shape);
     theta.push(1.0);
-    let switch = family.switch_index();
-    if switch.is_some() {
+    if family.switch_index().is_some() {
         theta.push(0.0);
     }
-    theta.extend([a, 60.0 / tau, 0.0, 0.0]);
-    let [_, ib, ic] = family.linear_indices();
-    // A free run from `x0` in the coordinates of the output mean `y_mean`.
-    let run = |theta: &[f64], y_mean: f64, u: &[f64], x0: f64| -> Option<Vec<f64>> {
-        let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
-        let u: Vec<f32> = u.iter().map(|&v| v as f32).collect();
-        let sim = simulate(family, &t, y_mean as f32, &u, x0 as f32);
-        sim.diverged_at
-            .is_none()
-            .then(|| sim.x.iter().map(|&v| v as f64).collect())
-    };
-    // Scale b so that the output swings a drawn 10–40 mm.
-    let first = run(&theta, 0.0, &p, 0.0)?;
-    let range = |v: &[f64]| {
-        v.iter().fold(f64::NEG_INFINITY, |m, &x| m.max(x))
-            - v.iter().fold(f64::INFINITY, |m, &x| m.min(x))
-    };
+    theta.extend([pole.a, 60.0 / tau, 0.0, 0.0]);
+    let [_, ib, _] = family.linear_indices();
+    let first = free_run(family, &theta, 0.0, &p, 0.0)?;
     let swing = rng.random_range(10.0..40.0);
     let r0 = range(&first);
     // A flat (or NaN) response cannot be scaled to a swing.
@@ -460,89 +536,167 @@ fn attempt(spec: CaseSpec, rng: &mut ChaCha8Rng) -> Option<Case> {
         return None;
     }
     theta[ib] *= swing / r0;
-    let second = run(&theta, 0.0, &p, 0.0)?;
+    let second = free_run(family, &theta, 0.0, &p, 0.0)?;
     let r1 = range(&second);
     if !(0.5 * swing..2.0 * swing).contains(&r1) {
         return None;
     }
-    let min = second.iter().fold(f64::INFINITY, |m, &x| m.min(x));
+    Some(Draft {
+        family,
+        theta,
+        a: pole.a,
+        alpha: pole.alpha,
+        p,
+        second,
+        swing,
+        r1,
+    })
+}
+
+/// Places the draft's output as `spec` says its loop switches, and sets
+/// the intercept (and the switching level) to match; `None` where the
+/// placed output misses its swing or its level.
+fn place(spec: CaseSpec, draft: &mut Draft, rng: &mut ChaCha8Rng) -> Option<Placed> {
+    let min = draft.second.iter().fold(f64::INFINITY, |m, &x| m.min(x));
     let (est, _) = crate::model::experiment::halves(spec.samples);
-    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    let u_mean = mean(&p[est.clone()]);
-    // The noiseless output in the coordinates of the output mean `y_mean`.
-    let (x, y_mean) = match (switch, spec.switch) {
-        (Some(_), SwitchAt::SensorZero) => {
-            // Switching at the sensor's zero: simulated once, in absolute
-            // units (x_s = 0), its lowest point placed from half its swing
-            // below zero to a tenth of it above (x ↦ x + s is the same loop
-            // with c + (1 − a·α)·s only for a loop that switches with it, so
-            // the placement moves the switching and the swing a little).
-            let floor = rng.random_range(-0.5..0.1) * r1;
-            let shift = floor - min;
-            theta[ic] = (1.0 - a * alpha) * shift;
-            let x = run(&theta, 0.0, &p, second[0] + shift)?;
-            if !(0.5 * swing..2.0 * swing).contains(&range(&x)) {
-                return None;
-            }
-            // The intercept for the input less its estimation mean.
-            theta[ic] += theta[ib] * u_mean;
-            (x, 0.0)
+    let u_mean = mean(&draft.p[est.clone()]);
+    match (draft.family.switch_index(), spec.switch) {
+        (Some(_), SwitchAt::SensorZero) => place_at_zero(draft, min, u_mean, rng),
+        (Some(is), SwitchAt::Inside) => place_inside(draft, is, min, u_mean, &est, rng),
+        _ => place_at_mean(draft, min, u_mean, &est, rng),
+    }
+}
+
+/// Switching at the sensor's zero: simulated once, in absolute units
+/// (x_s = 0), its lowest point (`min` before placing) placed from half its
+/// swing below zero to a tenth of it above (x ↦ x + s is the same loop
+/// with c + (1 − a·α)·s only for a loop that switches with it, so the
+/// placement moves the switching and the swing a little).
+fn place_at_zero(draft: &mut Draft, min: f64, u_mean: f64, rng: &mut ChaCha8Rng) -> Option<Placed> {
+    let [_, ib, ic] = draft.family.linear_indices();
+    let (a, alpha, swing) = (draft.a, draft.alpha, draft.swing);
+    let floor = rng.random_range(-0.5..0.1) * draft.r1;
+    let shift = floor - min;
+    draft.theta[ic] = (1.0 - a * alpha) * shift;
+    let x = free_run(
+        draft.family,
+        &draft.theta,
+        0.0,
+        &draft.p,
+        draft.second[0] + shift,
+    )?;
+    if !(0.5 * swing..2.0 * swing).contains(&range(&x)) {
+        return None;
+    }
+    // The intercept for the input less its estimation mean.
+    draft.theta[ic] += draft.theta[ib] * u_mean;
+    Some(Placed { x, y_mean: 0.0 })
+}
+
+/// Switching inside the output's range: placed 2–10 mm above zero as a
+/// truth at the mean, its loop switching (parameter `is`) at a level drawn
+/// inside the swing; simulated once in absolute units, as a truth at zero.
+/// The level must be crossed in the estimation half `est`, or that half
+/// cannot place it.
+fn place_inside(
+    draft: &mut Draft,
+    is: usize,
+    min: f64,
+    u_mean: f64,
+    est: &Range<usize>,
+    rng: &mut ChaCha8Rng,
+) -> Option<Placed> {
+    let [_, ib, ic] = draft.family.linear_indices();
+    let (a, alpha, swing) = (draft.a, draft.alpha, draft.swing);
+    let shift = rng.random_range(2.0..10.0) - min;
+    draft.theta[ic] = (1.0 - a * alpha) * shift;
+    draft.theta[is] = min + shift + rng.random_range(0.1..0.9) * draft.r1;
+    let x = free_run(
+        draft.family,
+        &draft.theta,
+        0.0,
+        &draft.p,
+        draft.second[0] + shift,
+    )?;
+    if !(0.5 * swing..2.0 * swing).contains(&range(&x)) {
+        return None;
+    }
+    let level = draft.theta[is];
+    let crossed = x[est.clone()]
+        .windows(2)
+        .any(|w| (w[0] - level) * (w[1] - level) < 0.0);
+    if !crossed {
+        return None;
+    }
+    draft.theta[ic] += draft.theta[ib] * u_mean;
+    Some(Placed { x, y_mean: 0.0 })
+}
+
+/// Switching at the estimation half's mean (and every classic truth):
+/// placed 2–10 mm above zero (contraction positive): x ↦ x + s is the
+/// model with c + (1 − a·α)·s for the classic model; for both families it
+/// is the absolute trace the second pass re-expresses. `None` where the
+/// second pass does not settle on its mean.
+fn place_at_mean(
+    draft: &mut Draft,
+    min: f64,
+    u_mean: f64,
+    est: &Range<usize>,
+    rng: &mut ChaCha8Rng,
+) -> Option<Placed> {
+    let [_, ib, ic] = draft.family.linear_indices();
+    let (a, alpha, swing) = (draft.a, draft.alpha, draft.swing);
+    let second = &draft.second;
+    let floor = rng.random_range(2.0..10.0);
+    let absolute: Vec<f64> = second.iter().map(|&x| x + floor - min).collect();
+    // Second pass: the truth in the deviation coordinates of the
+    // estimation half. Its origin `o` must be the mean of the output
+    // it produces over that half (a generalized truth switches there),
+    // so iterate to the fixed point.
+    let u: Vec<f64> = draft.p.iter().map(|v| v - u_mean).collect();
+    let level = absolute[0] - second[0];
+    let mut origin = mean(&absolute[est.clone()]);
+    let mut x = Vec::new();
+    for _ in 0..20 {
+        // The intercept that keeps the absolute level with this origin.
+        draft.theta[ic] = (1.0 - a * alpha) * (level - origin) + draft.theta[ib] * u_mean;
+        if let Some(is) = draft.family.switch_index() {
+            draft.theta[is] = origin;
         }
-        (Some(is), SwitchAt::Inside) => {
-            // Placed 2–10 mm above zero as a truth at the mean, its loop
-            // switching at a level drawn inside the swing; simulated once
-            // in absolute units, as a truth at zero.
-            let shift = rng.random_range(2.0..10.0) - min;
-            theta[ic] = (1.0 - a * alpha) * shift;
-            theta[is] = min + shift + rng.random_range(0.1..0.9) * r1;
-            let x = run(&theta, 0.0, &p, second[0] + shift)?;
-            if !(0.5 * swing..2.0 * swing).contains(&range(&x)) {
-                return None;
-            }
-            // The level must be crossed in the estimation half, or that
-            // half cannot place it.
-            let crossed = x[est.clone()]
-                .windows(2)
-                .any(|w| (w[0] - theta[is]) * (w[1] - theta[is]) < 0.0);
-            if !crossed {
-                return None;
-            }
-            theta[ic] += theta[ib] * u_mean;
-            (x, 0.0)
+        x = free_run(draft.family, &draft.theta, origin, &u, absolute[0] - origin)?;
+        let off = mean(&x[est.clone()]);
+        origin += off;
+        if off.abs() < 1e-9 * swing {
+            break;
         }
-        _ => {
-            // Placed 2–10 mm above zero (contraction positive): x ↦ x + s is
-            // the model with c + (1 − a·α)·s for the classic model; for both
-            // families it is the absolute trace the second pass re-expresses.
-            let floor = rng.random_range(2.0..10.0);
-            let absolute: Vec<f64> = second.iter().map(|&x| x + floor - min).collect();
-            // Second pass: the truth in the deviation coordinates of the
-            // estimation half. Its origin `o` must be the mean of the output
-            // it produces over that half (a generalized truth switches there),
-            // so iterate to the fixed point.
-            let u: Vec<f64> = p.iter().map(|v| v - u_mean).collect();
-            let level = absolute[0] - second[0];
-            let mut origin = mean(&absolute[est.clone()]);
-            let mut x = Vec::new();
-            for _ in 0..20 {
-                // The intercept that keeps the absolute level with this origin.
-                theta[ic] = (1.0 - a * alpha) * (level - origin) + theta[ib] * u_mean;
-                if let Some(is) = switch {
-                    theta[is] = origin;
-                }
-                x = run(&theta, origin, &u, absolute[0] - origin)?;
-                let off = mean(&x[est.clone()]);
-                origin += off;
-                if off.abs() < 1e-9 * swing {
-                    break;
-                }
-            }
-            if mean(&x[est.clone()]).abs() > 1e-6 * swing {
-                return None;
-            }
-            (x, origin)
-        }
-    };
+    }
+    if mean(&x[est.clone()]).abs() > 1e-6 * swing {
+        return None;
+    }
+    Some(Placed { x, y_mean: origin })
+}
+
+/// The case of a placed truth: its output with measurement noise, the
+/// truth moved to the noisy record's coordinates and both written in the
+/// spec's units, in the gauge the fit searches in; `None` where the record
+/// does not identify or the truth does not validate.
+fn record_case(
+    spec: CaseSpec,
+    draft: Draft,
+    placed: &Placed,
+    rng: &mut ChaCha8Rng,
+) -> Option<Case> {
+    let family = spec.family;
+    let [_, ib, ic] = family.linear_indices();
+    let switch = family.switch_index();
+    let Draft {
+        mut theta,
+        a,
+        alpha,
+        p,
+        ..
+    } = draft;
+    let (x, y_mean) = (&placed.x, placed.y_mean);
     let noise = spec.noise_mm;
     let l: Vec<f64> = x
         .iter()

@@ -33,6 +33,7 @@ use super::log::RunLog;
 use super::plausible::{Limits, Plausibility};
 use super::protocol::{FromRig, Ranges, ToRig, VERSION, VOLTS};
 use crate::control::closed_loop::Recorder;
+use crate::control::runtime::Command;
 use crate::control::{ControlLoop, Controller, Episode, EpisodeResult, Measurement};
 
 /// How strict the loop is with the rig.
@@ -192,9 +193,9 @@ pub fn run_remote(
 ) -> Result<RemoteRun, RigError> {
     let (reference, times) = episode.schedule(dt);
     let n = reference.len();
-    let mut lp = ControlLoop::new(controller, reference.clone(), episode.limits, episode.u0);
-    let mut record = Recorder::new(lp.name(), n);
-    let mut state = Session {
+    let lp = ControlLoop::new(controller, reference.clone(), episode.limits, episode.u0);
+    let record = Recorder::new(lp.name(), n);
+    let state = Session {
         held: vec![false; n + 1],
         used: vec![false; n + 1],
         line_no: 1, // READY was line 1
@@ -204,100 +205,174 @@ pub fn run_remote(
         measured: None,
         commanded: None,
     };
-    let mut plausible = Plausibility::new(settings.limits, dt);
-    let log_path = log.path().display().to_string();
-    let logged = |r: std::io::Result<()>| {
-        r.map_err(|e| RigError::Log {
-            path: log_path.clone(),
-            why: e.to_string(),
-        })
+    let mut run = RemoteLoop {
+        link,
+        dt,
+        episode,
+        settings,
+        plausible: Plausibility::new(settings.limits, dt),
+        log_path: log.path().display().to_string(),
+        log,
+        lp,
+        record,
+        reference,
+        times,
+        state,
     };
-    let first = lp.first();
-    let mut result = state.command(link, 0, first.volts);
-    // Each measurement is due `deadline` after the one before it arrived
-    // (or after the first command, or after the last deadline that passed):
-    // on the rig's own rhythm, whatever the controller's compute time.
-    let mut anchor = Instant::now();
-    while result.is_ok() && !lp.done() {
-        let k = lp.next_sample();
-        let left = settings.deadline.saturating_sub(anchor.elapsed());
-        // The samples this wait settles, and what settled each.
-        let settled: Vec<(usize, Settled)> = match link.recv(Some(left)) {
+    let result = run.drive();
+    run.finish(result)
+}
+
+/// A run on a rig in progress: the line to the rig, the loop it drives and
+/// what the run records and logs, and what the run knows of its samples.
+struct RemoteLoop<'a, 'c> {
+    link: &'a mut dyn Link,
+    dt: f64,
+    episode: &'a Episode,
+    settings: &'a RemoteSettings,
+    plausible: Plausibility,
+    /// The run log's path, for its errors.
+    log_path: String,
+    log: &'a mut RunLog,
+    lp: ControlLoop<'c>,
+    record: Recorder,
+    /// Each sample's reference and time.
+    reference: Vec<f64>,
+    times: Vec<f64>,
+    state: Session,
+}
+
+/// A run log's write result, its error naming the log at `path`.
+fn logged(path: &str, r: std::io::Result<()>) -> Result<(), RigError> {
+    r.map_err(|e| RigError::Log {
+        path: path.to_string(),
+        why: e.to_string(),
+    })
+}
+
+impl RemoteLoop<'_, '_> {
+    /// Drives the loop to its last sample: the first command, then, for
+    /// every sample, the wait for its measurement, the controller's steps
+    /// over what the wait settled and the next command. The first error
+    /// ends it.
+    fn drive(&mut self) -> Result<(), RigError> {
+        let first = self.lp.first();
+        self.state.command(self.link, 0, first.volts)?;
+        // Each measurement is due `deadline` after the one before it arrived
+        // (or after the first command, or after the last deadline that passed):
+        // on the rig's own rhythm, whatever the controller's compute time.
+        let mut anchor = Instant::now();
+        while !self.lp.done() {
+            let k = self.lp.next_sample();
+            let Some(settled) = self.wait(k, &mut anchor)? else {
+                continue;
+            };
+            let last = self.settle(settled, first)?;
+            if self.state.in_a_row >= self.settings.max_missing {
+                return Err(RigError::Silent {
+                    link: self.link.describe(),
+                    samples: self.state.in_a_row,
+                    seconds: self.state.in_a_row as f64 * self.dt,
+                });
+            }
+            if !self.lp.done() {
+                self.state.command(self.link, last.k as u64, last.volts)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Waits until the deadline of the measurement closing sample `k − 1`
+    /// (from `anchor`, moved on when a measurement arrives or the deadline
+    /// passes): the samples the wait settles, and what settled each; `None`
+    /// where a late measurement was set aside and the sample is still due.
+    fn wait(
+        &mut self,
+        k: usize,
+        anchor: &mut Instant,
+    ) -> Result<Option<Vec<(usize, Settled)>>, RigError> {
+        let left = self.settings.deadline.saturating_sub(anchor.elapsed());
+        let line = match self.link.recv(Some(left)) {
             Received::Timeout => {
-                anchor = Instant::now();
-                vec![(k, Settled::Missing)]
+                *anchor = Instant::now();
+                return Ok(Some(vec![(k, Settled::Missing)]));
             }
-            Received::Closed(why) => {
-                result = Err(state.gone(link, why));
-                break;
+            Received::Closed(why) => return Err(self.state.gone(self.link, why)),
+            Received::Line(line) => line,
+        };
+        let n = self.reference.len();
+        match self.state.accept(self.link, &line, k, self.dt, n)? {
+            Accepted::Late(j) => {
+                let note = format!("sample {j}: late measurement set aside (its sample was held)");
+                logged(&self.log_path, self.log.event(&note))?;
+                Ok(None)
             }
-            Received::Line(line) => match state.accept(link, &line, k, dt, n) {
-                Err(e) => {
-                    result = Err(e);
-                    break;
-                }
-                Ok(Accepted::Late(j)) => {
-                    let note =
-                        format!("sample {j}: late measurement set aside (its sample was held)");
-                    if let Err(e) = logged(log.event(&note)) {
-                        result = Err(e);
-                        break;
+            // Samples the rig skipped were missing; their commands held.
+            Accepted::Use(j, m) => {
+                *anchor = Instant::now();
+                let last = match self.plausible.check(j, &m) {
+                    Ok(()) => {
+                        self.state.implausible = 0;
+                        Settled::Measured(m)
                     }
-                    continue;
-                }
-                // Samples the rig skipped were missing; their commands held.
-                Ok(Accepted::Use(j, m)) => {
-                    anchor = Instant::now();
-                    let last = match plausible.check(j, &m) {
-                        Ok(()) => {
-                            state.implausible = 0;
-                            Settled::Measured(m)
+                    Err(why) => {
+                        self.state.implausible += 1;
+                        if self.state.implausible >= self.settings.max_implausible {
+                            return Err(RigError::Implausible {
+                                link: self.link.describe(),
+                                line_no: self.state.line_no,
+                                line,
+                                why,
+                                count: self.state.implausible,
+                            });
                         }
-                        Err(why) => {
-                            state.implausible += 1;
-                            if state.implausible >= settings.max_implausible {
-                                result = Err(RigError::Implausible {
-                                    link: link.describe(),
-                                    line_no: state.line_no,
-                                    line,
-                                    why,
-                                    count: state.implausible,
-                                });
-                                break;
-                            }
-                            Settled::Implausible(format!("line {} `{line}`: {why}", state.line_no))
-                        }
-                    };
+                        Settled::Implausible(format!("line {} `{line}`: {why}", self.state.line_no))
+                    }
+                };
+                Ok(Some(
                     (k..j)
                         .map(|i| (i, Settled::Missing))
                         .chain([(j, last)])
-                        .collect()
-                }
-            },
-        };
+                        .collect(),
+                ))
+            }
+        }
+    }
+
+    /// Steps the controller over every settled sample, in order, recording
+    /// and logging each: a measured one shown to the controller, a missing
+    /// or implausible one held. Returns the last command computed (`first`
+    /// where nothing settled).
+    fn settle(
+        &mut self,
+        settled: Vec<(usize, Settled)>,
+        first: Command,
+    ) -> Result<Command, RigError> {
+        let (times, reference) = (&self.times, &self.reference);
         let mut last = first;
         for (i, s) in settled {
             let m = match s {
                 Settled::Measured(m) => Some(m),
                 _ => None,
             };
-            let prev = lp.command_in_force();
-            last = lp.step(m);
-            record.push(
+            let prev = self.lp.command_in_force();
+            last = self.lp.step(m);
+            self.record.push(
                 times[i - 1],
                 reference[i - 1],
                 m,
                 prev,
                 last.volts,
-                lp.last_time,
-                &episode.limits,
+                self.lp.last_time,
+                &self.episode.limits,
             );
+            let state = &mut self.state;
             let written = match s {
                 Settled::Measured(m) => {
                     state.in_a_row = 0;
                     state.used[i] = true;
                     state.measured = Some((i, state.line_no));
-                    log.row(
+                    self.log.row(
                         times[i - 1],
                         reference[i - 1],
                         m.pressure_mpa,
@@ -308,73 +383,66 @@ pub fn run_remote(
                 Settled::Missing => {
                     state.in_a_row += 1;
                     state.held[i] = true;
-                    log.event(&format!(
+                    self.log.event(&format!(
                         "sample {i}: no measurement within {} ms; held {} V",
-                        settings.deadline.as_millis(),
+                        self.settings.deadline.as_millis(),
                         last.volts
                     ))
                 }
                 // Held like a missing one, but counted apart: the rig did
                 // answer. Not `held`: a second line for the sample is stale.
-                Settled::Implausible(why) => log.event(&format!(
+                Settled::Implausible(why) => self.log.event(&format!(
                     "sample {i}: implausible measurement, {why}; held {} V",
                     last.volts
                 )),
             };
-            if let Err(e) = logged(written) {
-                result = Err(e);
-                break;
-            }
+            logged(&self.log_path, written)?;
         }
-        if result.is_err() {
-            break;
-        }
-        if state.in_a_row >= settings.max_missing {
-            result = Err(RigError::Silent {
-                link: link.describe(),
-                samples: state.in_a_row,
-                seconds: state.in_a_row as f64 * dt,
-            });
-            break;
-        }
-        if !lp.done() {
-            result = state.command(link, last.k as u64, last.volts);
-        }
+        Ok(last)
     }
-    match result {
-        Ok(()) => {
-            let _ = send(link, ToRig::Stop);
-            // The rig's BYE is a courtesy; do not wait long for it.
-            let _ = link.recv(Some(Duration::from_millis(200)));
-            let _ = log.event("run complete; STOP sent");
-            Ok(RemoteRun {
-                result: record.finish(episode),
-                late: state.late,
-            })
-        }
-        Err(e) => {
-            // The error goes into the log first: whatever the link does to
-            // the close, the log says why the run ended.
-            let _ = log.event(&format!("error: {e}"));
-            // The close is the command of the sample after the last one
-            // sent: the one the rig waits for. A rig that went away may
-            // still read its stdin, so it is sent all the same; but only a
-            // rig still there closed the valve.
-            let k = state.commanded.map_or(0, |(k, _)| k + 1);
-            let close =
-                send(link, ToRig::Command { k, volts: 0.0 }).and_then(|()| send(link, ToRig::Stop));
-            let note = match (close, &e) {
-                (Ok(()), RigError::Gone { .. }) => format!(
-                    "U {k} 0, STOP sent after the rig went away: the valve is as the rig left it"
-                ),
-                (Ok(()), _) => format!("valve closed: U {k} 0, STOP"),
-                (Err(RigError::Send { why, .. }), _) => {
-                    format!("U {k} 0, STOP not delivered ({why}): the valve is as the rig left it")
-                }
-                (Err(other), _) => format!("U {k} 0, STOP not sent: {other}"),
-            };
-            let _ = log.event(&note);
-            Err(e)
+
+    /// Ends the run as `result` says: after a run to its end, `STOP`; after
+    /// an error, the error logged first and the valve closed (`U k 0`, then
+    /// `STOP`), the log saying whether the close could be delivered.
+    fn finish(self, result: Result<(), RigError>) -> Result<RemoteRun, RigError> {
+        let (link, log) = (self.link, self.log);
+        match result {
+            Ok(()) => {
+                let _ = send(link, ToRig::Stop);
+                // The rig's BYE is a courtesy; do not wait long for it.
+                let _ = link.recv(Some(Duration::from_millis(200)));
+                let _ = log.event("run complete; STOP sent");
+                Ok(RemoteRun {
+                    result: self.record.finish(self.episode),
+                    late: self.state.late,
+                })
+            }
+            Err(e) => {
+                // The error goes into the log first: whatever the link does to
+                // the close, the log says why the run ended.
+                let _ = log.event(&format!("error: {e}"));
+                // The close is the command of the sample after the last one
+                // sent: the one the rig waits for. A rig that went away may
+                // still read its stdin, so it is sent all the same; but only a
+                // rig still there closed the valve.
+                let k = self.state.commanded.map_or(0, |(k, _)| k + 1);
+                let close = send(link, ToRig::Command { k, volts: 0.0 })
+                    .and_then(|()| send(link, ToRig::Stop));
+                let note = match (close, &e) {
+                    (Ok(()), RigError::Gone { .. }) => format!(
+                        "U {k} 0, STOP sent after the rig went away: the valve is as the rig left it"
+                    ),
+                    (Ok(()), _) => format!("valve closed: U {k} 0, STOP"),
+                    (Err(RigError::Send { why, .. }), _) => {
+                        format!(
+                            "U {k} 0, STOP not delivered ({why}): the valve is as the rig left it"
+                        )
+                    }
+                    (Err(other), _) => format!("U {k} 0, STOP not sent: {other}"),
+                };
+                let _ = log.event(&note);
+                Err(e)
+            }
         }
     }
 }

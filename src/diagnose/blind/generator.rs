@@ -270,6 +270,10 @@ fn deviation(
     run(plant, exc, effects, dataset, &sc)
 }
 
+/// The free run of `plant` on `exc`'s input with `effects` at their sizes
+/// (deviation coordinates): every sample, the input side's effects shape
+/// the pressure the muscle sees, the muscle and its Bouc-Wen state step,
+/// and the output side's effects shape what the sensor sees.
 fn run(
     plant: &Plant,
     exc: &Excitation,
@@ -278,17 +282,21 @@ fn run(
     sc: &Scales,
 ) -> Vec<f64> {
     use Mechanism::*;
-    let size = |r: Mechanism| effects.iter().find(|(e, _)| *e == r).map(|&(_, s)| s);
     let p = &exc.input;
     let n = p.len();
     let mut out = Vec::with_capacity(n);
     if n == 0 {
         return out;
     }
-    let toward = if sc.drives_up { 1.0 } else { -1.0 };
-    // The stop's level and the smooth stop's knee, in deviation coordinates.
-    let stop = |s: f64| sc.peak - toward * s;
-    let soft_h = 0.05 * sc.ry;
+    let r = Run {
+        plant,
+        p,
+        effects,
+        dataset,
+        sc,
+        toward: if sc.drives_up { 1.0 } else { -1.0 },
+        soft_h: 0.05 * sc.ry,
+    };
     let mut st = States {
         lag_in: p[0],
         drain: p[0],
@@ -303,30 +311,72 @@ fn run(
     out.push(x);
     for k in 1..n {
         let raw = p[k - 1];
-        // Input side, in the order the air meets them: transport delay,
-        // valve/chamber lags, the muscle's threshold, the braid's play, the
-        // branch gain, the load's gain.
-        let mut pe = raw;
-        if let Some(d) = size(PureDelay) {
-            let at = (k - 1) as f64 - d;
-            pe = if at <= 0.0 {
-                p[0]
-            } else {
-                let i = at.floor() as usize;
-                let f = at - at.floor();
-                if f == 0.0 {
-                    p[i]
-                } else {
-                    p[i] * (1.0 - f) + p[i + 1] * f
-                }
-            };
+        let pe = r.input_side(&mut st, k);
+        let u = pe - plant.u_mean;
+        let xk = r.muscle(x, w, u);
+        // The Bouc-Wen state follows the motion it sees: the muscle's, or
+        // the load's behind an extra pole.
+        let mut big_a = plant.big_a;
+        if let Some(eta) = r.size(ViscousRate) {
+            let prev = if k >= 2 { p[k - 2] } else { p[0] };
+            st.rate = 0.5 * st.rate + 0.5 * (raw - prev).abs() / plant.dt;
+            big_a *= 1.0 + eta * st.rate;
         }
-        if let Some(tau) = size(InputLag) {
+        let qk = match r.size(ExtraPole) {
+            Some(rho) => rho * q + (1.0 - rho) * xk,
+            None => xk,
+        };
+        w = plant.bouc_wen(big_a, w, qk - q);
+        x = xk;
+        q = qk;
+        out.push(r.output_side(&mut st, raw, qk, xk, u));
+    }
+    out
+}
+
+/// What every sample of a [`run`] reads: the plant, the input, the effects
+/// and their scales, the side the input drives the output to (`toward`,
+/// ±1) and the smooth stop's knee width `soft_h`.
+struct Run<'a> {
+    plant: &'a Plant,
+    p: &'a [f64],
+    effects: &'a [(Mechanism, f64)],
+    dataset: usize,
+    sc: &'a Scales,
+    toward: f64,
+    soft_h: f64,
+}
+
+impl Run<'_> {
+    /// The size of mechanism `r`, `None` where it is not among the effects.
+    fn size(&self, r: Mechanism) -> Option<f64> {
+        self.effects.iter().find(|(e, _)| *e == r).map(|&(_, s)| s)
+    }
+
+    /// An end stop's level for size `s`, in deviation coordinates: at the
+    /// nominal peak for size 0, so that it never binds there.
+    fn stop(&self, s: f64) -> f64 {
+        self.sc.peak - self.toward * s
+    }
+
+    /// The pressure the muscle sees at sample `k`: the effects of the input
+    /// side, in the order the air meets them: transport delay, valve and
+    /// chamber lags, the muscle's threshold, the braid's play, the branch
+    /// gain, the load's gain.
+    fn input_side(&self, st: &mut States, k: usize) -> f64 {
+        use Mechanism::*;
+        let (p, sc) = (self.p, self.sc);
+        let raw = p[k - 1];
+        let mut pe = raw;
+        if let Some(d) = self.size(PureDelay) {
+            pe = delayed(p, k, d);
+        }
+        if let Some(tau) = self.size(InputLag) {
             let rho = tau / (1.0 + tau);
             st.lag_in = rho * st.lag_in + (1.0 - rho) * pe;
             pe = st.lag_in;
         }
-        if let Some(tau) = size(DrainLag) {
+        if let Some(tau) = self.size(DrainLag) {
             st.drain = if pe >= st.drain {
                 pe
             } else {
@@ -335,10 +385,10 @@ fn run(
             };
             pe = st.drain;
         }
-        if let Some(p0) = size(DeadZone) {
+        if let Some(p0) = self.size(DeadZone) {
             pe -= (pe - sc.p_lo).clamp(0.0, p0);
         }
-        if let Some(s) = size(HystereticThreshold) {
+        if let Some(s) = self.size(HystereticThreshold) {
             if pe > sc.p_lo + s {
                 st.engaged = true;
             } else if pe < sc.p_lo + 0.5 * s {
@@ -348,99 +398,125 @@ fn run(
                 pe = pe.min(sc.p_lo);
             }
         }
-        if let Some(r) = size(Play) {
+        if let Some(r) = self.size(Play) {
             let prev = if k == 1 { pe } else { st.play };
             st.play = prev.clamp(pe - 0.5 * r, pe + 0.5 * r);
             pe = st.play;
         }
-        if let Some(eps) = size(GainAsymmetry) {
-            // The branch follows the raw input: rising until it falls
-            // `branch_tol` below its running maximum, and vice versa.
-            if st.dir >= 0.0 {
-                st.extreme = st.extreme.max(raw);
-                if raw < st.extreme - sc.branch_tol {
-                    st.dir = -1.0;
-                    st.extreme = raw;
-                } else if raw > p[0] + sc.branch_tol {
-                    st.dir = 1.0;
-                }
-            } else {
-                st.extreme = st.extreme.min(raw);
-                if raw > st.extreme + sc.branch_tol {
-                    st.dir = 1.0;
-                    st.extreme = raw;
-                }
-            }
-            pe *= 1.0 + st.dir * eps;
+        if let Some(eps) = self.size(GainAsymmetry) {
+            pe *= 1.0 + self.branch(st, raw) * eps;
         }
-        if let Some(g) = size(LoadGain) {
-            if dataset >= 1 {
+        if let Some(g) = self.size(LoadGain) {
+            if self.dataset >= 1 {
                 pe *= 1.0 + g;
             }
         }
-        let u = pe - plant.u_mean;
-        // The muscle: eq. 13's linear part on its own state.
-        let mut xk = plant.a * (plant.alpha * x + (1.0 - plant.alpha) * w) + plant.b * u + plant.c;
-        if let Some(s) = size(StateClip) {
-            let l = stop(s);
-            xk = if sc.drives_up { xk.min(l) } else { xk.max(l) };
-        }
-        if let Some(s) = size(SoftLimit) {
-            let knee = stop(s);
-            let over = toward * (xk - knee);
-            if over > 0.0 {
-                xk = knee + toward * soft_h * (over / soft_h).tanh();
+        pe
+    }
+
+    /// The branch the raw input is on (+1 rising, −1 falling, 0 before it
+    /// first moves): rising until it falls `branch_tol` below its running
+    /// maximum, and vice versa.
+    fn branch(&self, st: &mut States, raw: f64) -> f64 {
+        let sc = self.sc;
+        if st.dir >= 0.0 {
+            st.extreme = st.extreme.max(raw);
+            if raw < st.extreme - sc.branch_tol {
+                st.dir = -1.0;
+                st.extreme = raw;
+            } else if raw > self.p[0] + sc.branch_tol {
+                st.dir = 1.0;
+            }
+        } else {
+            st.extreme = st.extreme.min(raw);
+            if raw > st.extreme + sc.branch_tol {
+                st.dir = 1.0;
+                st.extreme = raw;
             }
         }
-        // The Bouc-Wen state follows the motion it sees: the muscle's, or
-        // the load's behind an extra pole.
-        let mut big_a = plant.big_a;
-        if let Some(eta) = size(ViscousRate) {
-            let prev = if k >= 2 { p[k - 2] } else { p[0] };
-            st.rate = 0.5 * st.rate + 0.5 * (raw - prev).abs() / plant.dt;
-            big_a *= 1.0 + eta * st.rate;
+        st.dir
+    }
+
+    /// The muscle's next state from state `x`, Bouc-Wen state `w` and input
+    /// `u` (deviation): eq. 13's linear part on its own state, held by an
+    /// end stop or a smooth stop where one is among the effects.
+    fn muscle(&self, x: f64, w: f64, u: f64) -> f64 {
+        use Mechanism::*;
+        let (plant, sc) = (self.plant, self.sc);
+        let mut xk = plant.a * (plant.alpha * x + (1.0 - plant.alpha) * w) + plant.b * u + plant.c;
+        if let Some(s) = self.size(StateClip) {
+            let l = self.stop(s);
+            xk = if sc.drives_up { xk.min(l) } else { xk.max(l) };
         }
-        let qk = match size(ExtraPole) {
-            Some(rho) => rho * q + (1.0 - rho) * xk,
-            None => xk,
-        };
-        w = plant.bouc_wen(big_a, w, qk - q);
-        x = xk;
-        q = qk;
-        // Output side: what the sensor sees.
+        if let Some(s) = self.size(SoftLimit) {
+            let knee = self.stop(s);
+            let over = self.toward * (xk - knee);
+            if over > 0.0 {
+                xk = knee + self.toward * self.soft_h * (over / self.soft_h).tanh();
+            }
+        }
+        xk
+    }
+
+    /// What the sensor sees of the load's motion `qk`: the effects of the
+    /// output side (lag, load mode, creep, clip, cross-talk from the raw
+    /// input `raw`), given the muscle's state `xk` and input `u`.
+    fn output_side(&self, st: &mut States, raw: f64, qk: f64, xk: f64, u: f64) -> f64 {
+        use Mechanism::*;
         let mut y = qk;
-        if let Some(tau) = size(OutputLag) {
+        if let Some(tau) = self.size(OutputLag) {
             let rho = tau / (1.0 + tau);
             st.out_lag = rho * st.out_lag + (1.0 - rho) * y;
             y = st.out_lag;
         }
-        if let Some(period) = size(LoadMode) {
+        if let Some(period) = self.size(LoadMode) {
             y = mode(&mut st.mode, y, period);
         }
-        if let Some(kappa) = size(CreepInput) {
+        if let Some(kappa) = self.size(CreepInput) {
             st.creep[0] = 0.995 * st.creep[0] + 0.005 * kappa * u;
             y += st.creep[0];
         }
-        if let Some(kappa) = size(CreepOutput) {
+        if let Some(kappa) = self.size(CreepOutput) {
             st.creep[0] = 0.995 * st.creep[0] + 0.005 * kappa * xk;
             y += st.creep[0];
         }
-        if let Some(kappa) = size(CreepTwo) {
+        if let Some(kappa) = self.size(CreepTwo) {
             st.creep[0] = 0.99 * st.creep[0] + 0.01 * 0.5 * kappa * u;
             st.creep[1] = 0.999 * st.creep[1] + 0.001 * 0.5 * kappa * u;
             y += st.creep[0] + st.creep[1];
         }
-        if let Some(s) = size(OutputClip) {
-            let l = stop(s);
-            y = if sc.drives_up { y.min(l) } else { y.max(l) };
+        if let Some(s) = self.size(OutputClip) {
+            let l = self.stop(s);
+            y = if self.sc.drives_up {
+                y.min(l)
+            } else {
+                y.max(l)
+            };
         }
-        if let Some(kappa) = size(CrossTalk) {
+        if let Some(kappa) = self.size(CrossTalk) {
             st.cross_talk = 0.75 * st.cross_talk + 0.25 * raw;
             y += kappa * (raw - st.cross_talk);
         }
-        out.push(y);
+        y
     }
-    out
+}
+
+/// The input `p` delayed by `d` samples at sample `k` (the input of sample
+/// `k − 1 − d`, linearly interpolated between samples; the first input
+/// before the record starts).
+fn delayed(p: &[f64], k: usize, d: f64) -> f64 {
+    let at = (k - 1) as f64 - d;
+    if at <= 0.0 {
+        p[0]
+    } else {
+        let i = at.floor() as usize;
+        let f = at - at.floor();
+        if f == 0.0 {
+            p[i]
+        } else {
+            p[i] * (1.0 - f) + p[i + 1] * f
+        }
+    }
 }
 
 /// One step of the underdamped mode of natural period `period` samples and

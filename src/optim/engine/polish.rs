@@ -3,9 +3,40 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::{Engine, Members, Objective, Scored, Stage, StageEnd, Step, keep_lowest, plan, timed};
+use super::{
+    Engine, Members, Objective, Scored, Space, Stage, StageEnd, Step, keep_lowest, plan, timed,
+};
 use crate::model::Measure;
+use crate::optim::Bounds;
 use crate::optim::lm::{self, LmSettings};
+
+/// What a polish changes that an interrupted one puts back: each try's
+/// best, the history's length and the evaluations counted.
+struct PolishUndo {
+    bests: Vec<Option<Scored>>,
+    records: usize,
+    evaluations: u64,
+}
+
+/// What every group of a polish step's starts is polished with: the space
+/// as the step found it (the groups' scores borrow the engine), its box,
+/// the probe steps' floor, the settings, the horizons in turn and the
+/// interrupt.
+struct PolishSetup<'a> {
+    space: Space,
+    bounds: Bounds,
+    floor: Vec<f64>,
+    settings: LmSettings,
+    measures: Vec<Measure>,
+    interrupt: Option<&'a AtomicBool>,
+}
+
+impl PolishSetup<'_> {
+    /// Whether the interrupt has been raised.
+    fn cut(&self) -> bool {
+        self.interrupt.is_some_and(|f| f.load(Ordering::SeqCst))
+    }
+}
 
 impl Engine {
     /// A polish step: Levenberg–Marquardt on the free-run residuals from
@@ -24,24 +55,114 @@ impl Engine {
     ) -> anyhow::Result<Option<Scored>> {
         let p = self.plan.polish.clone().expect("a polish stage");
         self.rescore_pool(objective)?;
-        let before = (
-            self.tries
-                .iter()
-                .map(|t| t.best.clone())
-                .collect::<Vec<_>>(),
-            self.history.records.len(),
-            self.evaluations,
-        );
+        let before = PolishUndo {
+            bests: self.tries.iter().map(|t| t.best.clone()).collect(),
+            records: self.history.records.len(),
+            evaluations: self.evaluations,
+        };
         self.start_stage();
+        let after_round = matches!(step, Step::RefinePolish(_) | Step::LevelPolish(_));
+        let setup = self.polish_setup(&p, after_round, interrupt);
+        let starts = self.polish_starts(&p, after_round, &setup.bounds);
+        // The starts through every horizon, in groups polished in
+        // lock-step: each round, one call scores the points all unfinished
+        // starts of the group need next (each start takes the very steps it
+        // takes alone), and a start that is done drops out. On an objective
+        // whose calls pay a round trip (a GPU) the group is every try's
+        // every start; on the CPU four starts a thread, enough rows a call
+        // to keep every core busy, few enough that a round's residuals
+        // stay in the caches (docs/PERFORMANCE.md, "The polish in
+        // lock-step").
+        let together = if objective.round_trips() {
+            starts.len().max(1)
+        } else {
+            4 * rayon::current_num_threads().max(1)
+        };
+        for group in starts.chunks(together) {
+            if setup.cut() {
+                break;
+            }
+            self.polish_group(objective, &setup, group)?;
+        }
+        if setup.cut() {
+            return Ok(self.undo_polish(before));
+        }
+        match step {
+            Step::LevelPolish(k) => self.keep_level(k),
+            Step::RefinePolish(_) => {
+                self.scan_stepwise(objective)?;
+                self.settle_round();
+            }
+            _ => self.scan_stepwise(objective)?,
+        }
+        self.end_step(Stage::Polish, StageEnd::Polished);
+        Ok(None)
+    }
+
+    /// What every group of the polish's starts is polished with, built once
+    /// a step from the plan's polish `p`: whether the step follows a
+    /// refining round decides the horizons.
+    fn polish_setup<'a>(
+        &self,
+        p: &plan::Polish,
+        after_round: bool,
+        interrupt: Option<&'a AtomicBool>,
+    ) -> PolishSetup<'a> {
         let space = self.space.clone();
         let bounds = space.bounds();
         let nf = bounds.dim();
-        let after_round = matches!(step, Step::RefinePolish(_) | Step::LevelPolish(_));
+        let floor: Vec<f64> = (0..nf).map(|j| p.step_floor * bounds.width(j)).collect();
+        let free = space.free();
+        let settings = LmSettings {
+            max_iterations: p.iterations,
+            rel_step: p.rel_step,
+            tolerance: p.tolerance,
+            central: p.central,
+            held: free
+                .iter()
+                .map(|&i| space.stepwise.iter().any(|s| s.index == i))
+                .collect(),
+        };
+        // The horizons a start is polished through: from the global stage's
+        // up by factors of four, then the free run; after a refining round,
+        // which starts in the free run's own basin, the free run alone.
+        let mut measures = Vec::new();
+        if let (true, false, Some(Measure::Ahead { horizon })) = (
+            p.continuation,
+            after_round,
+            self.plan.global.as_ref().map(|g| g.measure),
+        ) {
+            let mut h = horizon.max(1);
+            while h < p.longest {
+                measures.push(Measure::Ahead { horizon: h });
+                h *= 4;
+            }
+        }
+        measures.push(Measure::FreeRun);
+        PolishSetup {
+            space,
+            bounds,
+            floor,
+            settings,
+            measures,
+            interrupt,
+        }
+    }
+
+    /// Each try's starts for the polish, the try's index beside each: after
+    /// a refining round, from the members of the round of each try that
+    /// took part in it; else from the try's whole pool.
+    fn polish_starts(
+        &self,
+        p: &plan::Polish,
+        after_round: bool,
+        bounds: &Bounds,
+    ) -> Vec<(usize, Vec<f64>)> {
+        let nf = bounds.dim();
         let wanted = match (&self.plan.refine, after_round) {
             (Some(r), true) => r.starts,
             _ => p.starts,
         };
-        // Each try's starts, the try's index beside each.
         let mut starts: Vec<(usize, Vec<f64>)> = Vec::new();
         for t in 0..self.tries.len() {
             let tr = &self.tries[t];
@@ -59,140 +180,126 @@ impl Engine {
                 starts.push((t, x));
             }
         }
-        let floor: Vec<f64> = (0..nf).map(|j| p.step_floor * bounds.width(j)).collect();
-        let free = space.free();
-        let settings = LmSettings {
-            max_iterations: p.iterations,
-            rel_step: p.rel_step,
-            tolerance: p.tolerance,
-            central: p.central,
-            held: free
-                .iter()
-                .map(|&i| space.stepwise.iter().any(|s| s.index == i))
-                .collect(),
-        };
-        let cut = || interrupt.is_some_and(|f| f.load(Ordering::SeqCst));
-        // The horizons a start is polished through: from the global stage's
-        // up by factors of four, then the free run; after a refining round,
-        // which starts in the free run's own basin, the free run alone.
-        let mut measures = Vec::new();
-        if let (true, false, Some(Measure::Ahead { horizon })) = (
-            p.continuation,
-            after_round,
-            self.plan.global.as_ref().map(|g| g.measure),
-        ) {
-            let mut h = horizon.max(1);
-            while h < p.longest {
-                measures.push(Measure::Ahead { horizon: h });
-                h *= 4;
-            }
-        }
-        measures.push(Measure::FreeRun);
-        // The starts through every horizon, in groups polished in
-        // lock-step: each round, one call scores the points all unfinished
-        // starts of the group need next (each start takes the very steps it
-        // takes alone), and a start that is done drops out. On an objective
-        // whose calls pay a round trip (a GPU) the group is every try's
-        // every start; on the CPU four starts a thread, enough rows a call
-        // to keep every core busy, few enough that a round's residuals
-        // stay in the caches (docs/PERFORMANCE.md, "The polish in
-        // lock-step").
-        let together = if objective.round_trips() {
-            starts.len().max(1)
-        } else {
-            4 * rayon::current_num_threads().max(1)
-        };
-        for group in starts.chunks(together) {
-            if cut() {
+        starts
+    }
+
+    /// Polishes one group of starts in lock-step through every horizon,
+    /// then scores and records the results, so that each try keeps its
+    /// best.
+    fn polish_group(
+        &mut self,
+        objective: &mut dyn Objective,
+        setup: &PolishSetup,
+        group: &[(usize, Vec<f64>)],
+    ) -> anyhow::Result<()> {
+        let before_group = self.evaluations;
+        let mut xs: Vec<Vec<f64>> = group.iter().map(|(_, x)| x.clone()).collect();
+        // The points each start had scored: its record counts them.
+        let mut points = vec![0usize; xs.len()];
+        for &measure in &setup.measures {
+            if setup.cut() {
                 break;
             }
-            let before_group = self.evaluations;
-            let mut xs: Vec<Vec<f64>> = group.iter().map(|(_, x)| x.clone()).collect();
-            // The points each start had scored: its record counts them.
-            let mut points = vec![0usize; xs.len()];
-            for &measure in &measures {
-                if cut() {
-                    break;
-                }
-                let (mut evaluations, mut seconds) = (0u64, 0.0);
-                let mut residuals = |points: &[Vec<f64>]| {
-                    evaluations += points.len() as u64;
-                    let canonical = space.embed(&points.concat());
-                    let (r, s) = timed(objective, |o| o.residuals(&canonical, measure));
-                    seconds += s;
-                    r
-                };
-                let polished = lm::levenberg_marquardt_lockstep(
-                    &mut residuals,
-                    &xs,
-                    (&bounds.lower, &bounds.upper),
-                    &floor,
-                    &settings,
-                    interrupt,
-                );
-                self.evaluations += evaluations;
-                self.evaluator_seconds += seconds;
-                for ((x, count), run) in xs.iter_mut().zip(&mut points).zip(polished?) {
-                    *count += run.points;
-                    // A start whose simulation or a probe's diverges keeps
-                    // its place: the search's value is still a candidate.
-                    if let Ok(out) = run.outcome {
-                        *x = out.x;
-                    }
-                }
-            }
-            // Scored as every other candidate, so that they compare in the
-            // same arithmetic; one record a start, in order, each counting
-            // the evaluations up to its own last score, as if the starts
-            // had been polished one after another.
-            let rows = self.space.project(&space.embed(&xs.concat()));
-            let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
-            let (d, total) = (self.space.dim(), self.evaluations);
-            let mut counted = before_group;
-            for (((row, cost), points), &(t, _)) in canonical
-                .chunks_exact(d)
-                .zip(costs.chunks(1))
-                .zip(points)
-                .zip(group)
-            {
-                let tr = &mut self.tries[t];
-                keep_lowest(&mut tr.stage_best, row, cost, d);
-                keep_lowest(&mut tr.best, row, cost, d);
-                self.stage_steps += 1;
-                counted += points as u64 + 1;
-                self.evaluations = counted;
-                self.record(Stage::Polish, Measure::FreeRun, None);
-            }
-            debug_assert_eq!(counted, total);
-            self.evaluations = total;
+            self.polish_on(objective, setup, measure, &mut xs, &mut points)?;
         }
-        if cut() {
-            let partial = self
-                .tries
-                .iter_mut()
-                .filter_map(|t| t.stage_best.take())
-                .fold(None, |b: Option<Scored>, s| match b {
-                    Some(b) if b.cost <= s.cost => Some(b),
-                    _ => Some(s),
-                });
-            let (bests, records, evaluations) = before;
-            for (t, b) in self.tries.iter_mut().zip(bests) {
-                t.best = b;
+        self.record_polished(objective, setup, group, &xs, points, before_group)
+    }
+
+    /// One horizon of a group's polish: Levenberg–Marquardt under `measure`
+    /// from `xs`, which move to where their starts end; `points` count the
+    /// points each start has scored, and the engine's counters the
+    /// evaluations and the evaluator's seconds.
+    fn polish_on(
+        &mut self,
+        objective: &mut dyn Objective,
+        setup: &PolishSetup,
+        measure: Measure,
+        xs: &mut [Vec<f64>],
+        points: &mut [usize],
+    ) -> anyhow::Result<()> {
+        let (mut evaluations, mut seconds) = (0u64, 0.0);
+        let mut residuals = |points: &[Vec<f64>]| {
+            evaluations += points.len() as u64;
+            let canonical = setup.space.embed(&points.concat());
+            let (r, s) = timed(objective, |o| o.residuals(&canonical, measure));
+            seconds += s;
+            r
+        };
+        let polished = lm::levenberg_marquardt_lockstep(
+            &mut residuals,
+            xs,
+            (&setup.bounds.lower, &setup.bounds.upper),
+            &setup.floor,
+            &setup.settings,
+            setup.interrupt,
+        );
+        self.evaluations += evaluations;
+        self.evaluator_seconds += seconds;
+        for ((x, count), run) in xs.iter_mut().zip(points).zip(polished?) {
+            *count += run.points;
+            // A start whose simulation or a probe's diverges keeps
+            // its place: the search's value is still a candidate.
+            if let Ok(out) = run.outcome {
+                *x = out.x;
             }
-            self.history.records.truncate(records);
-            self.evaluations = evaluations;
-            return Ok(partial);
         }
-        match step {
-            Step::LevelPolish(k) => self.keep_level(k),
-            Step::RefinePolish(_) => {
-                self.scan_stepwise(objective)?;
-                self.settle_round();
-            }
-            _ => self.scan_stepwise(objective)?,
+        Ok(())
+    }
+
+    /// Scores a group's polished starts as every other candidate, so that
+    /// they compare in the same arithmetic, and keeps each try's best; one
+    /// record a start, in order, each counting the evaluations up to its
+    /// own last score, as if the starts had been polished one after
+    /// another.
+    fn record_polished(
+        &mut self,
+        objective: &mut dyn Objective,
+        setup: &PolishSetup,
+        group: &[(usize, Vec<f64>)],
+        xs: &[Vec<f64>],
+        points: Vec<usize>,
+        before_group: u64,
+    ) -> anyhow::Result<()> {
+        let rows = self.space.project(&setup.space.embed(&xs.concat()));
+        let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
+        let (d, total) = (self.space.dim(), self.evaluations);
+        let mut counted = before_group;
+        for (((row, cost), points), &(t, _)) in canonical
+            .chunks_exact(d)
+            .zip(costs.chunks(1))
+            .zip(points)
+            .zip(group)
+        {
+            let tr = &mut self.tries[t];
+            keep_lowest(&mut tr.stage_best, row, cost, d);
+            keep_lowest(&mut tr.best, row, cost, d);
+            self.stage_steps += 1;
+            counted += points as u64 + 1;
+            self.evaluations = counted;
+            self.record(Stage::Polish, Measure::FreeRun, None);
         }
-        self.end_step(Stage::Polish, StageEnd::Polished);
-        Ok(None)
+        debug_assert_eq!(counted, total);
+        self.evaluations = total;
+        Ok(())
+    }
+
+    /// Puts back what an interrupted polish changed, so that a resumed fit
+    /// redoes it whole, and returns the best it polished so far.
+    fn undo_polish(&mut self, before: PolishUndo) -> Option<Scored> {
+        let partial = self
+            .tries
+            .iter_mut()
+            .filter_map(|t| t.stage_best.take())
+            .fold(None, |b: Option<Scored>, s| match b {
+                Some(b) if b.cost <= s.cost => Some(b),
+                _ => Some(s),
+            });
+        for (t, b) in self.tries.iter_mut().zip(before.bests) {
+            t.best = b;
+        }
+        self.history.records.truncate(before.records);
+        self.evaluations = before.evaluations;
+        partial
     }
 
     /// After level round `k`: a try whose round, with the level held at

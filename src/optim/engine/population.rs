@@ -215,26 +215,73 @@ impl Engine {
     ) -> anyhow::Result<()> {
         let stage = step.stage();
         // A step in progress has a try with islands: every try done ends it.
-        if self.tries.iter().all(|t| t.optimizers.is_empty()) {
-            self.start_stage();
-            if stage != Stage::Global {
-                self.rescore_pool(objective)?;
-            }
-            for t in 0..self.tries.len() {
-                let islands = self.begin_try(t, step);
-                let tr = &mut self.tries[t];
-                tr.done = islands.is_empty();
-                tr.optimizers = islands;
-            }
-            if self.tries.iter().all(|t| t.done) {
-                // No try refines this round: nothing to search.
-                self.end_step(stage, StageEnd::Generations);
-                return Ok(());
-            }
+        if self.tries.iter().all(|t| t.optimizers.is_empty())
+            && !self.begin_population_step(objective, step)?
+        {
+            return Ok(());
         }
-        let (d, nf) = (self.space.dim(), self.space.free().len().max(1));
-        // Where each island's rows go in the generation's buffer, and the
-        // streams it draws from.
+        let d = self.space.dim();
+        let spans = self.generation_spans(step, stage);
+        let at = spans.last().map_or(0, |s| s.at + s.count);
+        let rows = self.ask_islands(&spans, at)?;
+        let mut canonical = std::mem::take(&mut self.canonical);
+        // The same size every generation after the first: no refill.
+        canonical.resize(at * d, 0.0);
+        self.space.embed_into(&rows, &mut canonical);
+        let costs = self.score_spans(objective, &spans, &canonical, at)?;
+        {
+            let islands: Vec<&mut AskTell> = self
+                .tries
+                .iter_mut()
+                .filter(|t| !t.done)
+                .flat_map(|t| t.optimizers.iter_mut())
+                .collect();
+            islands
+                .into_par_iter()
+                .zip(&spans)
+                .try_for_each(|(opt, s)| opt.tell(&costs[s.at..s.at + s.count]))?;
+        }
+        let ranked = self.rank_generation(&spans, &canonical, &costs);
+        self.stage_steps += 1;
+        let measure = self.island_measure(stage, 0);
+        self.record(stage, measure, Some(&ranked));
+        self.canonical = canonical;
+        self.end_finished_tries(step, stage);
+        Ok(())
+    }
+
+    /// Starts a population step: rescores the pool where the stage starts
+    /// from it, and gives every try its islands. Returns whether any try has
+    /// something to search; where none has, the step ends here, since a
+    /// round that no try refines has no generations.
+    fn begin_population_step(
+        &mut self,
+        objective: &mut dyn Objective,
+        step: Step,
+    ) -> anyhow::Result<bool> {
+        let stage = step.stage();
+        self.start_stage();
+        if stage != Stage::Global {
+            self.rescore_pool(objective)?;
+        }
+        for t in 0..self.tries.len() {
+            let islands = self.begin_try(t, step);
+            let tr = &mut self.tries[t];
+            tr.done = islands.is_empty();
+            tr.optimizers = islands;
+        }
+        if self.tries.iter().all(|t| t.done) {
+            self.end_step(stage, StageEnd::Generations);
+            return Ok(false);
+        }
+        Ok(true)
+    }
+
+    /// Where each island of every try still in the stage puts its rows in
+    /// the generation's buffer, what it is scored under and the streams it
+    /// draws from: a try's islands number their individuals on from each
+    /// other, so that no two draw the same numbers.
+    fn generation_spans(&self, step: Step, stage: Stage) -> Vec<Span> {
         let mut spans: Vec<Span> = Vec::new();
         let mut at = 0;
         for t in 0..self.tries.len() {
@@ -257,41 +304,54 @@ impl Engine {
                 at += count;
             }
         }
-        // Every island asks at once, each into its own rows of one buffer:
-        // with many tries, islands are small, and a generation's update is
-        // many small jobs rather than one large one.
+        spans
+    }
+
+    /// Every island asks at once, each into its own rows of one buffer of
+    /// `at` free rows: with many tries, islands are small, and a
+    /// generation's update is many small jobs rather than one large one.
+    fn ask_islands(&mut self, spans: &[Span], at: usize) -> anyhow::Result<Vec<f64>> {
+        let nf = self.space.free().len().max(1);
         let mut rows = vec![0.0; at * nf];
-        {
-            let mut free: &mut [f64] = &mut rows;
-            let mut parts: Vec<&mut [f64]> = Vec::with_capacity(spans.len());
-            for s in &spans {
-                let (part, rest) = free.split_at_mut(s.count * nf);
-                parts.push(part);
-                free = rest;
-            }
-            let islands: Vec<&mut AskTell> = self
-                .tries
-                .iter_mut()
-                .filter(|t| !t.done)
-                .flat_map(|t| t.optimizers.iter_mut())
-                .collect();
-            islands
-                .into_par_iter()
-                .zip(parts)
-                .zip(&spans)
-                .try_for_each(|((opt, part), s)| {
-                    part.copy_from_slice(opt.ask(&s.streams)?);
-                    Ok::<_, crate::optim::PhaseError>(())
-                })?;
+        let mut free: &mut [f64] = &mut rows;
+        let mut parts: Vec<&mut [f64]> = Vec::with_capacity(spans.len());
+        for s in spans {
+            let (part, rest) = free.split_at_mut(s.count * nf);
+            parts.push(part);
+            free = rest;
         }
-        let mut canonical = std::mem::take(&mut self.canonical);
-        // The same size every generation after the first: no refill.
-        canonical.resize(at * d, 0.0);
-        self.space.embed_into(&rows, &mut canonical);
-        // One call per measure, over every island that measures it.
+        let islands: Vec<&mut AskTell> = self
+            .tries
+            .iter_mut()
+            .filter(|t| !t.done)
+            .flat_map(|t| t.optimizers.iter_mut())
+            .collect();
+        islands
+            .into_par_iter()
+            .zip(parts)
+            .zip(spans)
+            .try_for_each(|((opt, part), s)| {
+                part.copy_from_slice(opt.ask(&s.streams)?);
+                Ok::<_, crate::optim::PhaseError>(())
+            })?;
+        Ok(rows)
+    }
+
+    /// Scores a generation's `at` canonical rows with one call per measure,
+    /// over every island that measures it, so that the objective sees as
+    /// few and as large batches as the measures allow; the costs come back
+    /// in the buffer's order.
+    fn score_spans(
+        &mut self,
+        objective: &mut dyn Objective,
+        spans: &[Span],
+        canonical: &[f64],
+        at: usize,
+    ) -> anyhow::Result<Vec<f32>> {
+        let d = self.space.dim();
         let mut costs = vec![0.0f32; at];
         let mut measures: Vec<Measure> = Vec::new();
-        for s in &spans {
+        for s in spans {
             if !measures.contains(&s.measure) {
                 measures.push(s.measure);
             }
@@ -299,7 +359,7 @@ impl Engine {
         for &m in &measures {
             let group: Vec<&Span> = spans.iter().filter(|s| s.measure == m).collect();
             let rows: Vec<f64> = if group.len() == spans.len() {
-                canonical.clone()
+                canonical.to_vec()
             } else {
                 group
                     .iter()
@@ -313,18 +373,15 @@ impl Engine {
                 from += s.count;
             }
         }
-        {
-            let islands: Vec<&mut AskTell> = self
-                .tries
-                .iter_mut()
-                .filter(|t| !t.done)
-                .flat_map(|t| t.optimizers.iter_mut())
-                .collect();
-            islands
-                .into_par_iter()
-                .zip(&spans)
-                .try_for_each(|(opt, s)| opt.tell(&costs[s.at..s.at + s.count]))?;
-        }
+        Ok(costs)
+    }
+
+    /// Ranks a scored generation: the free run's costs update each try's
+    /// best, and each try's stage best takes every island when they share a
+    /// measure, else the first, since other measures' costs do not compare.
+    /// Returns the costs that ranked, for the generation's record.
+    fn rank_generation(&mut self, spans: &[Span], canonical: &[f64], costs: &[f32]) -> Vec<f32> {
+        let d = self.space.dim();
         let mut ranked: Vec<f32> = Vec::new();
         for s in spans.iter().filter(|s| s.measure == Measure::FreeRun) {
             let own = &costs[s.at..s.at + s.count];
@@ -336,8 +393,6 @@ impl Engine {
                 d,
             );
         }
-        // Each try's stage best: every island when they share a measure,
-        // else the first.
         for t in 0..self.tries.len() {
             let own: Vec<&Span> = spans.iter().filter(|s| s.try_index == t).collect();
             let Some(first) = own.first() else {
@@ -364,10 +419,13 @@ impl Engine {
             let best = tr.stage_best.as_ref().map_or(f64::INFINITY, |b| b.cost);
             tr.stage_bests.push(best);
         }
-        self.stage_steps += 1;
-        let measure = self.island_measure(stage, 0);
-        self.record(stage, measure, Some(&ranked));
-        self.canonical = canonical;
+        ranked
+    }
+
+    /// Ends the stage of every try that has run its generations or stalled,
+    /// and the step once no try is left in it, as stalled where any try
+    /// stopped early, so that the summary tells a stall from a full run.
+    fn end_finished_tries(&mut self, step: Step, stage: Stage) {
         let length = match step {
             Step::Global => self.plan.global.as_ref().map_or(0, |g| g.generations),
             Step::Refine(_) | Step::Level(_) => {
@@ -397,7 +455,6 @@ impl Engine {
             };
             self.end_step(stage, ended);
         }
-        Ok(())
     }
 
     /// Try `t` has ended `stage`: its islands' members go to its pool.
