@@ -82,41 +82,68 @@ impl Plausibility {
     /// Checks the measurement that closes sample `k − 1`; says why it cannot
     /// be one. A plausible one becomes the sample the next jump is measured
     /// from; an implausible one leaves it.
-    pub fn check(&mut self, k: usize, m: &Measurement) -> Result<(), String> {
+    pub fn check(&mut self, k: usize, m: &Measurement) -> Result<(), Implausible> {
         let r = &self.limits.ranges;
         let outside = |v: f64, (lo, hi): (f64, f64)| !(lo..=hi).contains(&v);
         if outside(m.pressure_mpa, r.pressure_mpa) {
-            return Err(format!(
-                "pressure {} MPa is outside the rig's range {}…{} MPa",
-                show(m.pressure_mpa),
-                r.pressure_mpa.0,
-                r.pressure_mpa.1
-            ));
+            return Err(Implausible::Pressure {
+                mpa: m.pressure_mpa,
+                range: r.pressure_mpa,
+            });
         }
         if outside(m.displacement_mm, r.displacement_mm) {
-            return Err(format!(
-                "displacement {} mm is outside the rig's range {}…{} mm",
-                show(m.displacement_mm),
-                r.displacement_mm.0,
-                r.displacement_mm.1
-            ));
+            return Err(Implausible::Displacement {
+                mm: m.displacement_mm,
+                range: r.displacement_mm,
+            });
         }
         if let Some((j, x)) = self.last {
             let seconds = k.saturating_sub(j) as f64 * self.dt;
             let allowed = self.limits.max_speed_mm_s * seconds + Limits::SLACK_MM;
             let jump = (m.displacement_mm - x).abs();
             if jump > allowed {
-                return Err(format!(
-                    "displacement moved {} mm since sample {j} ({x} mm), more than the \
-                     {allowed} mm the load can travel in {seconds} s at {} mm/s",
-                    show(jump),
-                    self.limits.max_speed_mm_s
-                ));
+                return Err(Implausible::Jump {
+                    mm: jump,
+                    since: j,
+                    from_mm: x,
+                    allowed_mm: allowed,
+                    seconds,
+                    max_speed_mm_s: self.limits.max_speed_mm_s,
+                });
             }
         }
         self.last = Some((k, m.displacement_mm));
         Ok(())
     }
+}
+
+/// Why a measurement cannot be one the rig read.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Implausible {
+    #[error("pressure {} MPa is outside the rig's range {}…{} MPa", show(*mpa), range.0, range.1)]
+    Pressure { mpa: f64, range: (f64, f64) },
+    #[error(
+        "displacement {} mm is outside the rig's range {}…{} mm",
+        show(*mm),
+        range.0,
+        range.1
+    )]
+    Displacement { mm: f64, range: (f64, f64) },
+    /// A displacement farther from sample `since`'s than the load can
+    /// travel in the time between.
+    #[error(
+        "displacement moved {} mm since sample {since} ({from_mm} mm), more than the \
+         {allowed_mm} mm the load can travel in {seconds} s at {max_speed_mm_s} mm/s",
+        show(*mm)
+    )]
+    Jump {
+        mm: f64,
+        since: usize,
+        from_mm: f64,
+        allowed_mm: f64,
+        seconds: f64,
+        max_speed_mm_s: f64,
+    },
 }
 
 /// A reading as a person reads it: `1e308`, not 309 digits.
@@ -153,12 +180,21 @@ mod tests {
         let mut p = Plausibility::new(Limits::of_twin(&TwinConfig::default()), 0.01);
         assert!(p.check(1, &m(0.2, 25.0)).is_ok());
         for bad in [m(0.2, 1e308), m(0.2, -1e308), m(1e308, 25.0), m(-0.5, 25.0)] {
-            assert!(p.check(2, &bad).unwrap_err().contains("outside"), "{bad:?}");
+            let err = p.check(2, &bad).unwrap_err();
+            assert!(
+                matches!(
+                    err,
+                    Implausible::Pressure { .. } | Implausible::Displacement { .. }
+                ),
+                "{bad:?}"
+            );
+            assert!(err.to_string().contains("outside"), "{err}");
         }
         // 5 mm a sample at 500 mm/s, plus the slack; refused samples leave
         // the reference where it was, so two samples on allow twice as much.
         let err = p.check(2, &m(0.2, 30.6)).unwrap_err();
-        assert!(err.contains("since sample 1 (25 mm)"), "{err}");
+        assert!(matches!(err, Implausible::Jump { since: 1, .. }), "{err:?}");
+        assert!(err.to_string().contains("since sample 1 (25 mm)"), "{err}");
         assert!(p.check(3, &m(0.2, 1e-300)).is_err());
         assert!(p.check(3, &m(0.2, 35.0)).is_ok());
         assert!(p.check(4, &m(0.2, 39.5)).is_ok());

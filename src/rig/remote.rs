@@ -30,7 +30,7 @@ use thiserror::Error;
 
 use super::link::{Link, Received};
 use super::log::RunLog;
-use super::plausible::{Limits, Plausibility};
+use super::plausible::{Implausible, Limits, Plausibility};
 use super::protocol::{FromRig, Ranges, ToRig, VERSION, VOLTS};
 use crate::control::closed_loop::Recorder;
 use crate::control::runtime::Command;
@@ -96,7 +96,7 @@ pub enum RigError {
         link: String,
         line_no: usize,
         line: String,
-        why: String,
+        why: Implausible,
         count: usize,
     },
     #[error("rig {link} went away ({why}); last exchanged: {last}")]
