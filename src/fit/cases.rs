@@ -567,17 +567,10 @@ fn place(spec: CaseSpec, draft: &mut Draft, rng: &mut ChaCha8Rng) -> Option<Plac
     }
 }
 
-/// Switching at the sensor's zero: simulated once, in absolute units
-/// (x_s = 0), its lowest point (`min` before placing) placed from half its
-/// swing below zero to a tenth of it above (x ↦ x + s is the same loop
-/// with c + (1 − a·α)·s only for a loop that switches with it, so the
-/// placement moves the switching and the swing a little).
-fn place_at_zero(draft: &mut Draft, min: f64, u_mean: f64, rng: &mut ChaCha8Rng) -> Option<Placed> {
-    let [_, ib, ic] = draft.family.linear_indices();
-    let (a, alpha, swing) = (draft.a, draft.alpha, draft.swing);
-    let floor = rng.random_range(-0.5..0.1) * draft.r1;
-    let shift = floor - min;
-    draft.theta[ic] = (1.0 - a * alpha) * shift;
+/// The draft's free run in absolute units from its first sample moved by
+/// `shift`; `None` where it diverges or misses its swing by more than a
+/// factor of two.
+fn shifted_run(draft: &Draft, shift: f64) -> Option<Vec<f64>> {
     let x = free_run(
         draft.family,
         &draft.theta,
@@ -585,9 +578,23 @@ fn place_at_zero(draft: &mut Draft, min: f64, u_mean: f64, rng: &mut ChaCha8Rng)
         &draft.p,
         draft.second[0] + shift,
     )?;
-    if !(0.5 * swing..2.0 * swing).contains(&range(&x)) {
-        return None;
-    }
+    (0.5 * draft.swing..2.0 * draft.swing)
+        .contains(&range(&x))
+        .then_some(x)
+}
+
+/// Switching at the sensor's zero: simulated once, in absolute units
+/// (x_s = 0), its lowest point (`min` before placing) placed from half its
+/// swing below zero to a tenth of it above (x ↦ x + s is the same loop
+/// with c + (1 − a·α)·s only for a loop that switches with it, so the
+/// placement moves the switching and the swing a little).
+fn place_at_zero(draft: &mut Draft, min: f64, u_mean: f64, rng: &mut ChaCha8Rng) -> Option<Placed> {
+    let [_, ib, ic] = draft.family.linear_indices();
+    let (a, alpha) = (draft.a, draft.alpha);
+    let floor = rng.random_range(-0.5..0.1) * draft.r1;
+    let shift = floor - min;
+    draft.theta[ic] = (1.0 - a * alpha) * shift;
+    let x = shifted_run(draft, shift)?;
     // The intercept for the input less its estimation mean.
     draft.theta[ic] += draft.theta[ib] * u_mean;
     Some(Placed { x, y_mean: 0.0 })
@@ -607,20 +614,11 @@ fn place_inside(
     rng: &mut ChaCha8Rng,
 ) -> Option<Placed> {
     let [_, ib, ic] = draft.family.linear_indices();
-    let (a, alpha, swing) = (draft.a, draft.alpha, draft.swing);
+    let (a, alpha) = (draft.a, draft.alpha);
     let shift = rng.random_range(2.0..10.0) - min;
     draft.theta[ic] = (1.0 - a * alpha) * shift;
     draft.theta[is] = min + shift + rng.random_range(0.1..0.9) * draft.r1;
-    let x = free_run(
-        draft.family,
-        &draft.theta,
-        0.0,
-        &draft.p,
-        draft.second[0] + shift,
-    )?;
-    if !(0.5 * swing..2.0 * swing).contains(&range(&x)) {
-        return None;
-    }
+    let x = shifted_run(draft, shift)?;
     let level = draft.theta[is];
     let crossed = x[est.clone()]
         .windows(2)

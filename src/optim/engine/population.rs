@@ -230,12 +230,7 @@ impl Engine {
         self.space.embed_into(&rows, &mut canonical);
         let costs = self.score_spans(objective, &spans, &canonical, at)?;
         {
-            let islands: Vec<&mut AskTell> = self
-                .tries
-                .iter_mut()
-                .filter(|t| !t.done)
-                .flat_map(|t| t.optimizers.iter_mut())
-                .collect();
+            let islands = self.active_islands();
             islands
                 .into_par_iter()
                 .zip(&spans)
@@ -248,6 +243,16 @@ impl Engine {
         self.canonical = canonical;
         self.end_finished_tries(step, stage);
         Ok(())
+    }
+
+    /// Every island of every try still in the stage, in the order of the
+    /// generation's spans.
+    fn active_islands(&mut self) -> Vec<&mut AskTell> {
+        self.tries
+            .iter_mut()
+            .filter(|t| !t.done)
+            .flat_map(|t| t.optimizers.iter_mut())
+            .collect()
     }
 
     /// Starts a population step: rescores the pool where the stage starts
@@ -320,12 +325,7 @@ impl Engine {
             parts.push(part);
             free = rest;
         }
-        let islands: Vec<&mut AskTell> = self
-            .tries
-            .iter_mut()
-            .filter(|t| !t.done)
-            .flat_map(|t| t.optimizers.iter_mut())
-            .collect();
+        let islands = self.active_islands();
         islands
             .into_par_iter()
             .zip(parts)
