@@ -465,6 +465,167 @@ fn load_step(c: LoadConsts, ui: f32, at: At) -> f32 {
     return ui;
 }
 
+// ---- stages/softening.rs ---------------------------------------------------
+
+// `largest_so_far`: the largest input so far (after the stages before),
+// from the first step on, given the one of the sample before. (By value:
+// naga's SPIR-V writer fails on a pointer to a state's field.)
+fn largest_so_far(peak: f32, v: f32, at: At) -> f32 {
+    var prev = v;
+    if (at.started) {
+        prev = peak;
+    }
+    return larger(v, prev);
+}
+
+// `Softening`: the input above the lowest one gains s·(p̂ − p_rest), p̂ the
+// largest input so far.
+alias SofteningConsts = SofteningParams;
+
+fn softening_prepare(q: SofteningParams, frame: Frame) -> SofteningConsts {
+    return q;
+}
+
+// The largest input so far.
+alias SofteningState = f32;
+
+fn softening_start(c: SofteningConsts, x: f32, u0: f32) -> SofteningState {
+    return 0.0;
+}
+
+fn softening_step(c: SofteningConsts, s: ptr<private, SofteningState>, ui: f32, at: At) -> f32 {
+    let rest = at.frame.rest;
+    *s = largest_so_far(*s, ui, at);
+    return ui + rounded(rounded(c.s * (*s - rest)) * (ui - rest));
+}
+
+fn softening_restart(s: ptr<private, SofteningState>, y: f32, x: f32) -> f32 {
+    return x;
+}
+
+// `Loadings`: the branch of the measured input (`Branch`, as the
+// asymmetry's), which counts the loadings, and r^n, the share of the
+// growth still to come.
+struct Loadings {
+    dir: f32,
+    extreme: f32,
+    to_come: f32,
+}
+
+fn loadings_start(u0: f32) -> Loadings {
+    return Loadings(0.0, u0, 1.0);
+}
+
+// `Branch::follow` and `Loadings::follow`: the loadings after this
+// sample; at each loading's start the share still to come shrinks by r.
+// (By value, as `largest_so_far`.)
+fn loadings_follow(before: Loadings, r: f32, at: At) -> Loadings {
+    var s = before;
+    let raw = at.raw;
+    let tol = at.frame.branch_tol;
+    let was_loading = s.dir > 0.0;
+    if (s.dir >= 0.0) {
+        s.extreme = larger(raw, s.extreme);
+        if (raw < s.extreme - tol) {
+            s.dir = -1.0;
+            s.extreme = raw;
+        } else if (raw > input(at.span, 0u) + tol) {
+            s.dir = 1.0;
+        }
+    } else {
+        s.extreme = smaller(raw, s.extreme);
+        if (raw > s.extreme + tol) {
+            s.dir = 1.0;
+            s.extreme = raw;
+        }
+    }
+    if (s.dir > 0.0 && !was_loading) {
+        s.to_come = s.to_come * r;
+    }
+    return s;
+}
+
+// `CyclicSoftening`: the input above the lowest one gains s·(1 − r^n)
+// after n loadings.
+alias CyclicSofteningConsts = CyclicSofteningParams;
+
+fn cyclic_softening_prepare(q: CyclicSofteningParams, frame: Frame) -> CyclicSofteningConsts {
+    return q;
+}
+
+alias CyclicSofteningState = Loadings;
+
+fn cyclic_softening_start(c: CyclicSofteningConsts, x: f32, u0: f32) -> CyclicSofteningState {
+    return loadings_start(u0);
+}
+
+fn cyclic_softening_step(c: CyclicSofteningConsts, s: ptr<private, CyclicSofteningState>, ui: f32, at: At) -> f32 {
+    *s = loadings_follow(*s, c.r, at);
+    let rest = at.frame.rest;
+    let reached = 1.0 - (*s).to_come;
+    return ui + rounded(rounded(c.s * reached) * (ui - rest));
+}
+
+fn cyclic_softening_restart(s: ptr<private, CyclicSofteningState>, y: f32, x: f32) -> f32 {
+    return x;
+}
+
+// ---- stages/set.rs ---------------------------------------------------------
+
+// `Set`: the output moves by c·(p̂ − p), p̂ the largest input so far.
+alias SetConsts = SetParams;
+
+fn set_prepare(q: SetParams, frame: Frame) -> SetConsts {
+    return q;
+}
+
+struct SetState {
+    // The largest input so far, and the offset it adds to the output.
+    peak: f32,
+    offset: f32,
+}
+
+fn set_start(c: SetConsts, x: f32, u0: f32) -> SetState {
+    return SetState(0.0, 0.0);
+}
+
+fn set_step(c: SetConsts, s: ptr<private, SetState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
+    (*s).peak = largest_so_far((*s).peak, ui, at);
+    (*s).offset = rounded(c.c * ((*s).peak - ui));
+    return y + (*s).offset;
+}
+
+fn set_restart(s: ptr<private, SetState>, y: f32, x: f32) -> f32 {
+    return x - (*s).offset;
+}
+
+// `Ratchet`: the output moves by w·(1 − r^n) after n loadings.
+alias RatchetConsts = RatchetParams;
+
+fn ratchet_prepare(q: RatchetParams, frame: Frame) -> RatchetConsts {
+    return q;
+}
+
+// `Walk`: the loadings and the offset they add to the output.
+struct RatchetState {
+    loadings: Loadings,
+    offset: f32,
+}
+
+fn ratchet_start(c: RatchetConsts, x: f32, u0: f32) -> RatchetState {
+    return RatchetState(loadings_start(u0), 0.0);
+}
+
+fn ratchet_step(c: RatchetConsts, s: ptr<private, RatchetState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
+    (*s).loadings = loadings_follow((*s).loadings, c.r, at);
+    (*s).offset = rounded(c.w * (1.0 - (*s).loadings.to_come));
+    return y + (*s).offset;
+}
+
+fn ratchet_restart(s: ptr<private, RatchetState>, y: f32, x: f32) -> f32 {
+    return x - (*s).offset;
+}
+
 // ---- stages/inertia.rs -----------------------------------------------------
 
 // `Inertia`: x(k) += a2·(x(k−1) − x(k−2)).

@@ -76,7 +76,8 @@ pub const MARKS: [(f64, &str); 2] = [(6.0, "small"), (15.0, "large")];
 /// The effect's parameters at `t ∈ [0, 1]` along its size, from neutral
 /// (`t = 0`) to the far edge of its search box (`t = 1`), in the direction a
 /// physical rig shows (a positive delay, dead zone, asymmetry, play, extra
-/// pole; an end stop below the peak; a creep with the muscle's gain sign).
+/// pole, softening; an end stop below the peak; a creep with the muscle's
+/// gain sign; a set away from the drive).
 fn along(nominal: &Nominal, e: Effect, t: f64) -> Vec<f64> {
     let c = nominal.ctx();
     let ru = c.input_max - c.input_min;
@@ -95,6 +96,9 @@ fn along(nominal: &Nominal, e: Effect, t: f64) -> Vec<f64> {
         Effect::Creep => vec![0.995, -toward * 2.0 * ry / ru * t, 0.0],
         Effect::Rate => vec![10.0 / v * t],
         Effect::Load => vec![0.5 * t],
+        Effect::Softening => vec![1.0 / ru * t],
+        // A set away from the drive, as a hanging load's lengthening is.
+        Effect::Set => vec![toward * ry / ru * t],
         other => unreachable!("the catalogue check plants physical effects only, not {other}"),
     }
 }

@@ -156,6 +156,49 @@ catalogue! {
             min_datasets: 2,
             ..PLAIN
         },
+        /// Mullins-type softening: the input above the record's lowest one,
+        /// `p − p_rest`, gains `s·(p̂ − p_rest)`, `p̂` the largest input so
+        /// far, so a muscle once driven harder responds more at every input
+        /// (a damage driven by the largest load so far, as Ogden and
+        /// Roxburgh's); equal pulses change only the first rise.
+        Softening => Realisation {
+            name: "softening",
+            physical: None,
+            realisation: "driven by the largest input so far (Mullins)",
+            signature: "the response deepens after each new largest input and stays deeper below it",
+            params: Params::Fixed(&[(
+                "s",
+                "growth of the input gain per input unit of the largest input so far above the lowest",
+            )]),
+            primary: 0,
+            bounds: |ctx, _| {
+                let ru = ctx.input_range();
+                EffectBox::new(vec![0.0], vec![-0.5 / ru], vec![1.0 / ru])
+            },
+            ..PLAIN
+        },
+        /// Permanent set: the output moves by `c·(p̂ − p)`, `p̂` the largest
+        /// input so far: at `p̂` the muscle is where it was when first driven
+        /// there, below it it keeps an offset, which at rest grows with
+        /// every new largest input and never shrinks (as Dorfmann and
+        /// Ogden's set grows with the largest strain).
+        Set => Realisation {
+            name: "set",
+            physical: None,
+            realisation: "grows with the largest input so far",
+            signature: "the rest level moves for good after the largest input so far and stays there",
+            params: Params::Fixed(&[(
+                "c",
+                "output kept per input unit below the largest input so far (output per input unit)",
+            )]),
+            primary: 0,
+            // At most a set as large as the output's range.
+            bounds: |ctx, _| {
+                let g = ctx.output_range() / ctx.input_range();
+                EffectBox::new(vec![0.0], vec![-g], vec![g])
+            },
+            ..PLAIN
+        },
     }
     realisations {
         /// Lag as a first-order lag on the input, `v = ρ·v + (1−ρ)·p` (pressure
@@ -403,6 +446,49 @@ catalogue! {
             on_request: true,
             ..CREEP
         },
+        /// Cyclic softening: the input above the record's lowest one gains
+        /// `s·(1 − r^n)` after `n` loadings (a loading begins where the
+        /// asymmetry's rising branch does), so equal pulses go deeper one
+        /// after the other, by less each time, and a rest does not undo it,
+        /// where a creep recovers.
+        CyclicSoftening => Realisation {
+            name: "softening:cyclic",
+            physical: Some(Effect::Softening),
+            realisation: "driven by the number of loadings",
+            signature: "equal pulses go deeper one after the other, and the rests do not undo it",
+            params: Params::Fixed(&[
+                ("s", "growth of the input gain once trained (relative)"),
+                ("r", "share of the growth still to come that each loading leaves"),
+            ]),
+            primary: 0,
+            // `r` from 0.2: a growth reached at the first loading acts like
+            // the baseline's own gain, since the input above the lowest one
+            // is 0 before it.
+            bounds: |_, _| EffectBox::new(vec![0.0, 0.6], vec![-0.5, 0.2], vec![1.0, 0.95]),
+            size_text: Some(|p, _| loadings_to_half(p[1])),
+            ..PLAIN
+        },
+        /// Ratchet: the output moves by `w·(1 − r^n)` after `n` loadings, an
+        /// offset that walks with every cycle, by less each time.
+        Ratchet => Realisation {
+            name: "set:ratchet",
+            physical: Some(Effect::Set),
+            realisation: "walks with every loading",
+            signature: "the rest level walks with every loading",
+            params: Params::Fixed(&[
+                ("w", "output offset the walk reaches once trained (output units)"),
+                ("r", "share of the walk still to come that each loading leaves"),
+            ]),
+            primary: 0,
+            bounds: |ctx, _| {
+                let ry = ctx.output_range();
+                // `r = 0`: the whole walk at the first loading, which the
+                // rest before it still tells from the baseline's intercept.
+                EffectBox::new(vec![0.0, 0.6], vec![-0.5 * ry, 0.0], vec![0.5 * ry, 0.95])
+            },
+            size_text: Some(|p, _| loadings_to_half(p[1])),
+            ..PLAIN
+        },
     }
 }
 
@@ -420,10 +506,10 @@ catalogue! {
 stages! {
     input: Delay, InputLag, OnOffThreshold;
     input_lanes: Deadzone, Backlash, Asymmetry, Load;
-    input_late: DrainLag;
+    input_late: DrainLag, Softening, CyclicSoftening;
     state_lanes: Inertia, Saturation;
     state: SoftStop, Rate;
-    output: Creep, OutputCreep, TwoPoleCreep, LogCreep, Ringing, LoadMode, OutputClip, OutputLag;
+    output: Creep, OutputCreep, TwoPoleCreep, LogCreep, Set, Ratchet, Ringing, LoadMode, OutputClip, OutputLag;
 }
 
 /// The defaults of an entry: fitted on one dataset, admitting its whole
@@ -488,6 +574,15 @@ const MODE_A2: (&str, &str) = (
     "a2",
     "second coefficient of the mode: r², the pole radius squared",
 );
+
+/// How many loadings reach half of a trained effect whose share still to
+/// come shrinks by `r` at each.
+fn loadings_to_half(r: f64) -> String {
+    if r <= 0.0 {
+        return "all of it at the first loading".into();
+    }
+    format!("half of it after {:.1} loadings", 0.5f64.ln() / r.ln())
+}
 
 /// A lag of pole `rho` as its time constant in samples and milliseconds.
 fn lag_samples(rho: f64, dt: f64) -> String {

@@ -614,6 +614,102 @@ mod tests {
         );
     }
 
+    /// Pulses of `levels` (absolute input, 20 samples each) between rests
+    /// at 0, and what `effect` at `params` moves a static linear
+    /// baseline's output `x(k) = u(k−1)` by at every sample: the input's
+    /// move where the effect moves the input, read back at the sample it
+    /// moved, and the output's one sample later where it moves the output.
+    fn moved_input(levels: &[f64], effect: Effect, params: &[f32]) -> Vec<f64> {
+        let mut p = vec![0.0; 10];
+        for &level in levels {
+            p.extend([level; 20]);
+            p.extend([0.0; 20]);
+        }
+        let y = vec![0.0; p.len()];
+        let trace = crate::data::Trace::uniform("pulses", 0.1, p.clone(), y);
+        let exp = Experiment::with_means_of(&trace, 0..p.len());
+        let ctx = Context::of(&exp, true);
+        let plain = ModelDescription::new(Family::Linear, vec![], 1);
+        let reference = plain.simulate(&[0.0, 1.0, 0.0, 0.0], 0, &ctx, &exp);
+        let model = plain.with(effect);
+        let mut theta = vec![0.0f32, 1.0, 0.0, 0.0];
+        theta.extend_from_slice(params);
+        let got = model.simulate(&theta, 0, &ctx, &exp);
+        (0..p.len() - 1)
+            .map(|k| (got[k + 1] - reference[k + 1]) as f64)
+            .collect()
+    }
+
+    /// The move at the middle of pulse `i` and of the rest after it.
+    fn at_pulse(moved: &[f64], i: usize) -> (f64, f64) {
+        (moved[10 + 40 * i + 10], moved[10 + 40 * i + 30])
+    }
+
+    #[test]
+    fn a_mullins_softening_grows_with_the_largest_input_only() {
+        let s = 0.5;
+        let moved = moved_input(&[0.6, 0.8, 1.0, 1.0, 0.6], Effect::Softening, &[s]);
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-5;
+        for (i, (level, peak)) in [(0.6, 0.6), (0.8, 0.8), (1.0, 1.0), (1.0, 1.0), (0.6, 1.0)]
+            .into_iter()
+            .enumerate()
+        {
+            let (pulse, rest) = at_pulse(&moved, i);
+            assert!(close(pulse, s as f64 * peak * level), "pulse {i}: {pulse}");
+            assert!(close(rest, 0.0), "rest after pulse {i}: {rest}");
+        }
+    }
+
+    #[test]
+    fn a_cyclic_softening_deepens_equal_pulses_by_less_each_time_and_keeps_it() {
+        let (s, r) = (0.4, 0.5);
+        let moved = moved_input(&[1.0; 4], Effect::CyclicSoftening, &[s, r]);
+        for i in 0..4 {
+            let (pulse, rest) = at_pulse(&moved, i);
+            let want = s as f64 * (1.0 - (r as f64).powi(i as i32 + 1));
+            assert!(
+                (pulse - want).abs() < 1e-5,
+                "pulse {i}: {pulse} against {want}"
+            );
+            assert!(rest.abs() < 1e-6, "rest after pulse {i}: {rest}");
+        }
+    }
+
+    #[test]
+    fn a_permanent_set_grows_with_each_new_largest_input_and_never_shrinks() {
+        let c = -0.3;
+        let moved = moved_input(&[0.5, 1.0, 0.5], Effect::Set, &[c]);
+        let mut rests = Vec::new();
+        for (i, (level, peak)) in [(0.5, 0.5), (1.0, 1.0), (0.5, 1.0)].into_iter().enumerate() {
+            let (pulse, rest) = at_pulse(&moved, i);
+            assert!(
+                (pulse - c as f64 * (peak - level)).abs() < 1e-5,
+                "pulse {i}"
+            );
+            assert!(
+                (rest - c as f64 * peak).abs() < 1e-5,
+                "rest after pulse {i}"
+            );
+            rests.push(rest);
+        }
+        // The rest only moves further the set's way.
+        assert!(rests.windows(2).all(|w| w[1] <= w[0]), "{rests:?}");
+    }
+
+    #[test]
+    fn a_ratchet_walks_with_every_loading() {
+        let (w, r) = (0.2, 0.6);
+        let moved = moved_input(&[1.0; 3], Effect::Ratchet, &[w, r]);
+        for i in 0..3 {
+            let (pulse, rest) = at_pulse(&moved, i);
+            let want = w as f64 * (1.0 - (r as f64).powi(i as i32 + 1));
+            assert!(
+                (pulse - want).abs() < 1e-5 && (rest - want).abs() < 1e-5,
+                "cycle {i}"
+            );
+        }
+    }
+
     #[test]
     fn the_physical_effects_are_the_first_realisations_and_every_one_has_one() {
         for e in Effect::PHYSICAL {

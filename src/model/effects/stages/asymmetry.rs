@@ -19,6 +19,40 @@ pub struct Branch {
     extreme: f32,
 }
 
+impl Branch {
+    /// Where a record starts: not yet moved, at its first input `u0`.
+    pub fn start(u0: f32) -> Branch {
+        Branch {
+            dir: 0.0,
+            extreme: u0,
+        }
+    }
+
+    /// Follows the measured input `u(k−1)` one sample: the branch switches
+    /// once the input has moved back from its extreme by the context's
+    /// tolerance (the first loading once it has left the first input by
+    /// it). Returns whether a loading began at this sample.
+    #[inline(always)]
+    pub fn follow<const L: usize>(&mut self, at: &At<'_, L>) -> bool {
+        let (raw, tol) = (at.raw, at.frame.branch_tol);
+        let was_loading = self.dir > 0.0;
+        if self.dir >= 0.0 {
+            self.extreme = larger(raw, self.extreme);
+            if raw < self.extreme - tol {
+                (self.dir, self.extreme) = (-1.0, raw);
+            } else if raw > at.u[0] + tol {
+                self.dir = 1.0;
+            }
+        } else {
+            self.extreme = smaller(raw, self.extreme);
+            if raw > self.extreme + tol {
+                (self.dir, self.extreme) = (1.0, raw);
+            }
+        }
+        self.dir > 0.0 && !was_loading
+    }
+}
+
 impl<const L: usize> Stage<L> for Asymmetry {
     /// `ε`.
     type Consts = [f32; L];
@@ -29,32 +63,14 @@ impl<const L: usize> Stage<L> for Asymmetry {
     }
 
     fn start(_: Option<&Self::Consts>, _: &[f32; L], u0: f32) -> Branch {
-        Branch {
-            dir: 0.0,
-            extreme: u0,
-        }
+        Branch::start(u0)
     }
 }
 
 impl<const L: usize> Lane<L> for Asymmetry {
-    /// The branch switches once the input has moved back from its extreme
-    /// by the context's tolerance.
     #[inline(always)]
     fn before(_: &[f32; L], s: &mut Branch, at: &At<'_, L>) {
-        let (raw, tol) = (at.raw, at.frame.branch_tol);
-        if s.dir >= 0.0 {
-            s.extreme = larger(raw, s.extreme);
-            if raw < s.extreme - tol {
-                (s.dir, s.extreme) = (-1.0, raw);
-            } else if raw > at.u[0] + tol {
-                s.dir = 1.0;
-            }
-        } else {
-            s.extreme = smaller(raw, s.extreme);
-            if raw > s.extreme + tol {
-                (s.dir, s.extreme) = (1.0, raw);
-            }
-        }
+        s.follow(at);
     }
 
     #[inline(always)]

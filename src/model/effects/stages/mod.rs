@@ -13,6 +13,8 @@ mod inertia;
 mod load;
 mod rate;
 mod saturation;
+mod set;
+mod softening;
 
 pub use asymmetry::*;
 pub use backlash::*;
@@ -23,3 +25,5 @@ pub use inertia::*;
 pub use load::*;
 pub use rate::*;
 pub use saturation::*;
+pub use set::*;
+pub use softening::*;

@@ -1,0 +1,108 @@
+//! The permanent set's realisations: an offset the muscle keeps after it
+//! has been driven, growing with the largest input so far, or walking with
+//! every loading (a ratchet). Both add to the output, as a length the
+//! muscle keeps does (an offset on the input would pass through the
+//! muscle's own gain, which is small near rest, where a set shows), and
+//! both are driven by the input, which the model cannot feed back into.
+
+use super::super::stage::{At, Columns, Frame, OutputLoop, Stage};
+use super::softening::{Loadings, largest_so_far};
+
+/// Permanent set: the output moves by `c·(p̂ − p)`, `p̂` the largest input
+/// so far. At `p̂` the muscle is where it was when first driven there;
+/// below it, it keeps an offset that grows with every new largest input
+/// and never shrinks.
+#[derive(Debug)]
+pub struct Set;
+
+impl<const L: usize> Stage<L> for Set {
+    /// `c` (output per input unit).
+    type Consts = [f32; L];
+    /// The largest input so far, and the offset it adds to the output.
+    type State = [[f32; L]; 2];
+
+    fn prepare(p: &Columns<'_, L>, _: &Frame) -> Self::Consts {
+        p.get(0)
+    }
+
+    fn start(_: Option<&Self::Consts>, _: &[f32; L], _: f32) -> Self::State {
+        [[0.0; L]; 2]
+    }
+
+    #[inline(always)]
+    fn restart([_, offset]: &mut Self::State, l: usize, _: f32, x: f32) -> f32 {
+        x - offset[l]
+    }
+}
+
+impl<const L: usize> OutputLoop<L> for Set {
+    #[inline(always)]
+    fn apply(
+        c: &[f32; L],
+        [peak, offset]: &mut Self::State,
+        y: &mut [f32; L],
+        ui: &[f32; L],
+        _: &[f32; L],
+        at: &At<'_, L>,
+    ) {
+        for l in 0..L {
+            let top = largest_so_far(peak, l, ui[l], at);
+            offset[l] = c[l] * (top - ui[l]);
+            y[l] += offset[l];
+        }
+    }
+}
+
+/// Ratchet: the output moves by `w·(1 − r^n)` after `n` loadings, an
+/// offset that walks with every cycle, by less each time.
+#[derive(Debug)]
+pub struct Ratchet;
+
+/// The loadings and the offset they add to the output. Aligned to a cache
+/// line ([`Stage::State`]).
+#[derive(Debug, Clone)]
+#[repr(C, align(64))]
+pub struct Walk<const L: usize> {
+    loadings: Loadings<L>,
+    offset: [f32; L],
+}
+
+impl<const L: usize> Stage<L> for Ratchet {
+    /// `w` and `r`.
+    type Consts = [[f32; L]; 2];
+    type State = Walk<L>;
+
+    fn prepare(p: &Columns<'_, L>, _: &Frame) -> Self::Consts {
+        [p.get(0), p.get(1)]
+    }
+
+    fn start(_: Option<&Self::Consts>, _: &[f32; L], u0: f32) -> Self::State {
+        Walk {
+            loadings: Loadings::start(u0),
+            offset: [0.0; L],
+        }
+    }
+
+    #[inline(always)]
+    fn restart(s: &mut Walk<L>, l: usize, _: f32, x: f32) -> f32 {
+        x - s.offset[l]
+    }
+}
+
+impl<const L: usize> OutputLoop<L> for Ratchet {
+    #[inline(always)]
+    fn apply(
+        [w, r]: &Self::Consts,
+        s: &mut Walk<L>,
+        y: &mut [f32; L],
+        _: &[f32; L],
+        _: &[f32; L],
+        at: &At<'_, L>,
+    ) {
+        s.loadings.follow(r, at);
+        for l in 0..L {
+            s.offset[l] = w[l] * s.loadings.reached(l);
+            y[l] += s.offset[l];
+        }
+    }
+}
