@@ -154,9 +154,14 @@ mod independent {
         let setup = Setup::new(nominal(), 1).unwrap();
         let all = cases(&setup, 1);
         // 18 catalogued realisations × 2 sizes × 2 excitations, 2 controls,
-        // 2 pairs, and the cross-talk outside the catalogue × 2 × 2.
-        assert_eq!(all.len(), 80);
-        assert_eq!(setup.excitations[1].input.len(), nominal().trace.len());
+        // 2 pairs, and the cross-talk outside the catalogue × 2 × 2; then
+        // the softening and the set, 2 realisations × 2 sizes on each of
+        // the two pulse trains, a control on each, and a creep on equal
+        // pulses.
+        assert_eq!(all.len(), 80 + 11);
+        for exc in &setup.excitations[1..] {
+            assert_eq!(exc.input.len(), nominal().trace.len(), "{}", exc.name);
+        }
     }
 
     #[test]

@@ -98,6 +98,8 @@ impl Mechanism {
             DeadZone | HystereticThreshold => 0.6 * ru,
             ViscousRate => 10.0 / exc.max_rate().max(f64::MIN_POSITIVE),
             Play => 0.5 * ru,
+            MullinsSoftening | CyclicSoftening => 1.0,
+            PermanentSet | Ratchet => 0.5 * ry,
         }
     }
 }
@@ -175,6 +177,42 @@ impl Excitation {
         }
     }
 
+    /// Pulses from `lo` to `lo + level·(hi − lo)`, one per level, each
+    /// half of its period, after a quarter period at rest, through a valve
+    /// (a first-order lag of 0.4 per sample): a muscle loaded again and
+    /// again, as a lab cycles one. Started at the nominal equilibrium of
+    /// its first input, as the multisine.
+    pub fn pulses(
+        name: &str,
+        levels: &[f64],
+        len: usize,
+        dt: f64,
+        (lo, hi): (f64, f64),
+        plant: &Plant,
+    ) -> Excitation {
+        let period = len as f64 / (levels.len() as f64 + 0.5);
+        let target = |j: usize| {
+            let t = j as f64 / period - 0.25;
+            let (i, frac) = (t.floor(), t - t.floor());
+            match levels.get(i as usize) {
+                Some(level) if t >= 0.0 && frac < 0.5 => lo + level * (hi - lo),
+                _ => lo,
+            }
+        };
+        let mut input = vec![lo; len];
+        for j in 1..len {
+            input[j] = 0.6 * input[j - 1] + 0.4 * target(j);
+        }
+        let x_start = (plant.b * (lo - plant.u_mean) + plant.c) / (1.0 - plant.a * plant.alpha);
+        Excitation {
+            name: name.into(),
+            dt,
+            input,
+            x_start,
+            template: None,
+        }
+    }
+
     fn input_range(&self) -> f64 {
         let (lo, hi) = extremes(&self.input);
         (hi - lo).max(f64::MIN_POSITIVE)
@@ -206,6 +244,8 @@ fn extremes(v: &[f64]) -> (f64, f64) {
 #[derive(Debug, Clone, Copy)]
 struct Scales {
     p_lo: f64,
+    /// The excitation's input range.
+    ru: f64,
     /// The nominal output's peak on the side the input drives it to
     /// (deviation coordinates), and the output range.
     peak: f64,
@@ -228,6 +268,14 @@ struct States {
     mode: [f64; 2],
     creep: [f64; 2],
     cross_talk: f64,
+    /// The loadings so far, whether one is under way, the input's low
+    /// since the last fall and its high since the last rise, and the
+    /// largest input so far.
+    loadings: f64,
+    loading: bool,
+    low: f64,
+    high: f64,
+    top: f64,
 }
 
 /// The plant's output (absolute) on `exc`'s input with `effects` at their
@@ -262,6 +310,7 @@ fn deviation(
     };
     let sc = Scales {
         p_lo: exc.input_min(),
+        ru: exc.input_range(),
         peak: if plant.drives_up() { omax } else { omin },
         ry: omax - omin,
         branch_tol: 0.02 * exc.input_range(),
@@ -302,6 +351,8 @@ fn run(
         drain: p[0],
         cross_talk: p[0],
         extreme: p[0],
+        low: p[0],
+        top: p[0],
         ..States::default()
     };
     let (mut x, mut w) = (exc.x_start, 0.0);
@@ -311,6 +362,7 @@ fn run(
     out.push(x);
     for k in 1..n {
         let raw = p[k - 1];
+        r.follow_loadings(&mut st, raw);
         let pe = r.input_side(&mut st, k);
         let u = pe - plant.u_mean;
         let xk = r.muscle(x, w, u);
@@ -411,7 +463,38 @@ impl Run<'_> {
                 pe *= 1.0 + g;
             }
         }
+        if let Some(s) = self.size(MullinsSoftening) {
+            let q = (st.top - sc.p_lo) / sc.ru;
+            let g = (1.0 - (-2.0 * q).exp()) / (1.0 - (-2.0f64).exp());
+            pe += (pe - sc.p_lo) * s * g;
+        }
+        if let Some(s) = self.size(CyclicSoftening) {
+            pe += (pe - sc.p_lo) * s * st.loadings / (st.loadings + 1.0);
+        }
         pe
+    }
+
+    /// Counts the loadings of the raw input and keeps its largest value so
+    /// far: a loading begins when the input rises `branch_tol` above its
+    /// low since the last fall, and ends when it falls as far below its
+    /// high.
+    fn follow_loadings(&self, st: &mut States, raw: f64) {
+        let tol = self.sc.branch_tol;
+        if st.loading {
+            st.high = st.high.max(raw);
+            if raw < st.high - tol {
+                st.loading = false;
+                st.low = raw;
+            }
+        } else {
+            st.low = st.low.min(raw);
+            if raw > st.low + tol {
+                st.loading = true;
+                st.loadings += 1.0;
+                st.high = raw;
+            }
+        }
+        st.top = st.top.max(raw);
     }
 
     /// The branch the raw input is on (+1 rising, −1 falling, 0 before it
@@ -492,6 +575,14 @@ impl Run<'_> {
             } else {
                 y.max(l)
             };
+        }
+        // A set and a ratchet move the rest away from the drive.
+        if let Some(s) = self.size(PermanentSet) {
+            let q = (st.top - self.sc.p_lo) / self.sc.ru;
+            y -= self.toward * s * q * (st.top - raw) / self.sc.ru;
+        }
+        if let Some(s) = self.size(Ratchet) {
+            y -= self.toward * s * st.loadings / (st.loadings + 1.0);
         }
         if let Some(kappa) = self.size(CrossTalk) {
             st.cross_talk = 0.75 * st.cross_talk + 0.25 * raw;
@@ -655,7 +746,8 @@ mod tests {
         let (plant, stair) = plant_and_stair();
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let ms = Excitation::multisine(1080, 0.1, (0.05, 0.5), &plant, &mut rng);
-        (plant, vec![stair, ms])
+        let pulses = Excitation::pulses("pulses", &[0.6, 1.0, 0.8], 1080, 0.1, (0.05, 0.5), &plant);
+        (plant, vec![stair, ms, pulses])
     }
 
     #[test]
@@ -717,6 +809,46 @@ mod tests {
                     );
                 }
             }
+        }
+    }
+
+    /// The pulse trains tell the drivers apart: on pulses of 0.6, 0.8, 1
+    /// and 1 a Mullins-type softening leaves the last two alike and a
+    /// cyclic one deepens the last; a set moves the rests after the first
+    /// pulse for good, a ratchet after every one.
+    #[test]
+    fn the_pulse_trains_tell_the_drivers_apart() {
+        let (plant, _) = plant_and_stair();
+        let exc = Excitation::pulses("p", &[0.6, 0.8, 1.0, 1.0], 1080, 0.1, (0.05, 0.5), &plant);
+        let nominal = simulate(&plant, &exc, &[], 0);
+        let period = 1080.0 / 4.5;
+        // The change at the end of pulse `i` and of the rest after it.
+        let change = |r: Mechanism, i: usize| {
+            let y = simulate(&plant, &exc, &[(r, 0.3)], 0);
+            let at = |t: f64| {
+                let k = (t * period) as usize;
+                y[k] - nominal[k]
+            };
+            let i = i as f64;
+            (at(0.25 + i + 0.45), at(0.25 + i + 0.95))
+        };
+        let mullins: Vec<_> = (0..4)
+            .map(|i| change(Mechanism::MullinsSoftening, i))
+            .collect();
+        let cyclic: Vec<_> = (0..4)
+            .map(|i| change(Mechanism::CyclicSoftening, i))
+            .collect();
+        let grown = |c: &[(f64, f64)]| (c[3].0 - c[2].0).abs() / c[3].0.abs();
+        assert!(grown(&mullins) < 0.01, "{mullins:?}");
+        assert!(grown(&cyclic) > 0.03, "{cyclic:?}");
+        for set in [Mechanism::PermanentSet, Mechanism::Ratchet] {
+            let rests: Vec<f64> = (0..4).map(|i| change(set, i).1).collect();
+            assert!(rests.iter().all(|r| r.abs() > 1e-3), "{set:?}: {rests:?}");
+            // Away from the drive (the plant drives up), never back.
+            assert!(
+                rests.windows(2).all(|w| w[1] <= w[0] + 1e-9),
+                "{set:?}: {rests:?}"
+            );
         }
     }
 

@@ -19,6 +19,8 @@ pub enum Physical {
     Rate,
     Backlash,
     Load,
+    Softening,
+    Set,
     /// No catalogued effect: the check that the diagnosis says "not
     /// explained by the catalogue" instead of a wrong name.
     Outside,
@@ -36,6 +38,8 @@ impl Physical {
             Physical::Rate => "rate",
             Physical::Backlash => "backlash",
             Physical::Load => "load",
+            Physical::Softening => "softening",
+            Physical::Set => "set",
             Physical::Outside => "outside the catalogue",
         }
     }
@@ -101,6 +105,25 @@ pub enum Mechanism {
     /// A second dataset (another load) whose input gain is `1 + g` on the
     /// absolute input: size `g`.
     LoadGain,
+    /// The pressure above the input's lowest level drives the muscle
+    /// harder the harder it has ever been driven: times `1 + s·g(p̂)`,
+    /// `g = (1 − e^(−2q))/(1 − e^(−2))`, `q` the largest input so far as a
+    /// share of the excitation's range (Mullins-type damage, saturating):
+    /// size `s`, the growth once the largest input is reached.
+    MullinsSoftening,
+    /// The same drive grows with the number of loadings `n` so far: times
+    /// `1 + s·n/(n + 1)` (a loading begins when the input rises 2 % of its
+    /// range above its low since the last fall): size `s`.
+    CyclicSoftening,
+    /// The sensor sees the muscle's rest moved away from its drive by
+    /// `s·q̂·(p̂ − p)/(p̂ − p_lo)`, `q̂` the largest input so far as a share
+    /// of the range: a set that grows with the square of the largest input
+    /// and vanishes at it: size `s` (output units at rest, once the largest
+    /// input is reached).
+    PermanentSet,
+    /// The sensor sees the muscle's rest walk away from its drive by
+    /// `s·n/(n + 1)` after `n` loadings: size `s` (output units).
+    Ratchet,
     /// The displacement sensor picks up the valve's pressure transients
     /// (electrical cross-talk): `κ·(p(k−1) − v(k))` added to the measured
     /// output, `v` the input through a first-order lag of 3 samples, i.e. a
@@ -111,7 +134,7 @@ pub enum Mechanism {
 
 impl Mechanism {
     /// Every realisation, grouped by physical effect.
-    pub const ALL: [Mechanism; 19] = [
+    pub const ALL: [Mechanism; 23] = [
         Mechanism::PureDelay,
         Mechanism::InputLag,
         Mechanism::OutputLag,
@@ -130,6 +153,10 @@ impl Mechanism {
         Mechanism::ViscousRate,
         Mechanism::Play,
         Mechanism::LoadGain,
+        Mechanism::MullinsSoftening,
+        Mechanism::CyclicSoftening,
+        Mechanism::PermanentSet,
+        Mechanism::Ratchet,
         Mechanism::CrossTalk,
     ];
 
@@ -145,6 +172,8 @@ impl Mechanism {
             ViscousRate => Physical::Rate,
             Play => Physical::Backlash,
             LoadGain => Physical::Load,
+            MullinsSoftening | CyclicSoftening => Physical::Softening,
+            PermanentSet | Ratchet => Physical::Set,
             CrossTalk => Physical::Outside,
         }
     }
@@ -170,6 +199,10 @@ impl Mechanism {
             ViscousRate => "viscous",
             Play => "play",
             LoadGain => "input gain",
+            MullinsSoftening => "largest input so far",
+            CyclicSoftening => "number of loadings",
+            PermanentSet => "grows with the largest input",
+            Ratchet => "walks with every loading",
             CrossTalk => "sensor cross-talk",
         }
     }
@@ -177,6 +210,13 @@ impl Mechanism {
     /// `physical: realisation`, the confusion table's row label.
     pub fn label(self) -> String {
         format!("{}: {}", self.physical().name(), self.name())
+    }
+
+    /// Whether the realisation shows only where a muscle is loaded again
+    /// and again: its cases are on the pulse trains, not on the stair and
+    /// the multisine.
+    pub fn on_pulses(self) -> bool {
+        self.physical() == Physical::Softening || self.physical() == Physical::Set
     }
 
     /// Datasets the realisation needs (a load needs a second one).

@@ -58,6 +58,8 @@ pub fn accepted(p: Physical) -> &'static [Effect] {
         Physical::Rate => &[Effect::Rate],
         Physical::Backlash => &[Effect::Backlash],
         Physical::Load => &[Effect::Load],
+        Physical::Softening => &[Effect::Softening],
+        Physical::Set => &[Effect::Set],
         Physical::Outside => &[],
     }
 }
@@ -70,6 +72,12 @@ pub fn not_comparable(r: Mechanism) -> Option<&'static str> {
         LoadMode => Some("a lightly damped mode has two parameters (period, damping)"),
         SoftLimit => Some("a smooth knee has no hard stop level"),
         HystereticThreshold => Some("an on/off pair is no single dead-zone width"),
+        MullinsSoftening | CyclicSoftening => {
+            Some("a saturating growth has no single counterpart in the catalogue's gain")
+        }
+        PermanentSet | Ratchet => {
+            Some("an offset on the output is not the catalogue's offset on the input")
+        }
         _ => None,
     }
 }
@@ -161,9 +169,19 @@ impl Setup {
                 (a.min(x), b.max(x))
             });
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (len, dt) = (trace.len(), trace.dt());
         let excitations = vec![
             Excitation::stair(trace, &plant),
-            Excitation::multisine(trace.len(), trace.dt(), (lo, hi), &plant, &mut rng),
+            Excitation::multisine(len, dt, (lo, hi), &plant, &mut rng),
+            Excitation::pulses(
+                "rising pulses",
+                &[0.6, 0.8, 1.0, 1.0],
+                len,
+                dt,
+                (lo, hi),
+                &plant,
+            ),
+            Excitation::pulses("equal pulses", &[1.0; 4], len, dt, (lo, hi), &plant),
         ];
         let sigmas = excitations
             .iter()
@@ -190,6 +208,15 @@ impl Setup {
     }
 }
 
+/// The excitations' places in [`Setup::excitations`]: the data's own
+/// input, the multisine, and the two pulse trains the softening and the set
+/// are tried on (pulses of 0.6, 0.8, 1 and 1 of the input's range, which
+/// tell the largest input so far from the number of loadings, and four
+/// equal pulses, which tell the number of loadings from a creep).
+const MULTISINE: usize = 1;
+const RISING: usize = 2;
+const EQUAL: usize = 3;
+
 /// One case of the independent self-test.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BlindCase {
@@ -203,12 +230,15 @@ pub struct BlindCase {
     pub seed: u64,
 }
 
-/// Every case: on each excitation the control and every catalogued
-/// realisation at the two sizes of [`MARKS`]; then two pairs on the data's
-/// input, each effect at its small size; then the cross-talk outside the
-/// catalogue on each excitation at both sizes. Case `i`'s noise is drawn
-/// from `seed + 1 + i`, so a case keeps its data when others are filtered
-/// out.
+/// Every case: on the stair and the multisine the control and every
+/// catalogued realisation at the two sizes of [`MARKS`]; then two pairs on
+/// the data's input, each effect at its small size; then the cross-talk
+/// outside the catalogue on both at both sizes; then the softening and the
+/// set on the pulse trains (rising pulses for the largest-input drivers,
+/// equal ones for the loading-count drivers), each train with its control,
+/// and a creep alone on equal pulses, which must not be named a softening
+/// or a set. Case `i`'s noise is drawn from `seed + 1 + i`, so a case keeps
+/// its data when others are filtered out.
 pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
     let mut out = Vec::new();
     let mut push = |name: String, excitation: usize, size_label: &str, effects| {
@@ -224,11 +254,11 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
     let size = |r: Mechanism, i: usize, k: f64| {
         generator::calibrate(&setup.plant, &setup.excitations[i], r, k * setup.sigmas[i])
     };
-    for (i, exc) in setup.excitations.iter().enumerate() {
+    for (i, exc) in setup.excitations[..=MULTISINE].iter().enumerate() {
         push(format!("control ({})", exc.name), i, "", Vec::new());
         for r in Mechanism::ALL
             .into_iter()
-            .filter(|r| r.physical() != Physical::Outside)
+            .filter(|r| r.physical() != Physical::Outside && !r.on_pulses())
         {
             for (k, label) in MARKS {
                 push(
@@ -251,7 +281,7 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
     }
     // Last, so that the other cases' seeds do not depend on it.
     let r = Mechanism::CrossTalk;
-    for (i, exc) in setup.excitations.iter().enumerate() {
+    for (i, exc) in setup.excitations[..=MULTISINE].iter().enumerate() {
         for (k, label) in MARKS {
             push(
                 format!("{} ({label} on {})", r.label(), exc.name),
@@ -261,7 +291,62 @@ pub fn cases(setup: &Setup, seed: u64) -> Vec<BlindCase> {
             );
         }
     }
+    for (i, drivers) in [
+        (
+            RISING,
+            [Mechanism::MullinsSoftening, Mechanism::PermanentSet],
+        ),
+        (EQUAL, [Mechanism::CyclicSoftening, Mechanism::Ratchet]),
+    ] {
+        let exc = &setup.excitations[i];
+        push(format!("control ({})", exc.name), i, "", Vec::new());
+        for r in drivers {
+            for (k, label) in MARKS {
+                push(
+                    format!("{} ({label} on {})", r.label(), exc.name),
+                    i,
+                    label,
+                    vec![(r, size(r, i, k))],
+                );
+            }
+        }
+    }
+    let r = Mechanism::CreepInput;
+    push(
+        format!("{} (small on {})", r.label(), setup.excitations[EQUAL].name),
+        EQUAL,
+        "small",
+        vec![(r, size(r, EQUAL, small))],
+    );
     out
+}
+
+/// The realisation a case must name first where the physical effect is
+/// not enough: the softening's driver, which the pulse trains tell apart.
+fn driver(r: Mechanism) -> Option<Effect> {
+    match r {
+        Mechanism::MullinsSoftening => Some(Effect::Softening),
+        Mechanism::CyclicSoftening => Some(Effect::CyclicSoftening),
+        _ => None,
+    }
+}
+
+/// On the pulse trains, every softening or set named that the case does
+/// not have: what repeated loading tempts the diagnosis to name.
+fn named_beyond_the_case(case: &BlindCase, named: &[Effect]) -> Vec<Effect> {
+    if case.excitation < RISING {
+        return Vec::new();
+    }
+    let own: Vec<Physical> = case.effects.iter().map(|(r, _)| r.physical()).collect();
+    named
+        .iter()
+        .copied()
+        .filter(|e| {
+            [Physical::Softening, Physical::Set]
+                .into_iter()
+                .any(|p| accepted(p).contains(&e.physical()) && !own.contains(&p))
+        })
+        .collect()
 }
 
 /// The two pairs: realisations unlike the catalogue's equations, one on the
@@ -369,6 +454,13 @@ pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
             size_true = Some(*s);
             let ok = accepted(r.physical());
             match named.first() {
+                Some(e) if driver(*r).is_some_and(|want| want != *e) => {
+                    size_check = SizeCheck::NotNamed;
+                    notes.push(format!(
+                        "named {e} first, wanted the driver {}",
+                        driver(*r).map_or("", |d| d.name())
+                    ));
+                }
                 Some(e) if ok.contains(&e.physical()) => {
                     (size_check, size_found, size_interval) = size_of(setup, case, d, (*r, *e), *s);
                     if let Some(f) = size_found {
@@ -402,6 +494,13 @@ pub fn judge(setup: &Setup, case: &BlindCase, d: &Diagnosis) -> BlindOutcome {
                 }
             }
         }
+    }
+    let beyond = named_beyond_the_case(case, &named);
+    if !beyond.is_empty() && !case.effects.is_empty() {
+        notes.push(format!(
+            "named {}, which the case does not have",
+            names_or_nothing(&beyond)
+        ));
     }
     BlindOutcome {
         case: case.name.clone(),
