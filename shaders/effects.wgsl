@@ -503,27 +503,19 @@ fn softening_restart(s: ptr<private, SofteningState>, y: f32, x: f32) -> f32 {
     return x;
 }
 
-// `Loadings`: the branch of the measured input (`Branch`, as the
-// asymmetry's), which counts the loadings, and r^n, the share of the
-// growth still to come.
-struct Loadings {
+// `Branch`: the branch of the measured input, as the asymmetry's (+1
+// loading, −1 unloading, 0 not yet moved; the input's extreme on it).
+struct Branch {
     dir: f32,
     extreme: f32,
-    to_come: f32,
 }
 
-fn loadings_start(u0: f32) -> Loadings {
-    return Loadings(0.0, u0, 1.0);
-}
-
-// `Branch::follow` and `Loadings::follow`: the loadings after this
-// sample; at each loading's start the share still to come shrinks by r.
-// (By value, as `largest_so_far`.)
-fn loadings_follow(before: Loadings, r: f32, at: At) -> Loadings {
+// `Branch::follow`: the branch after this sample. (By value, as
+// `largest_so_far`.) A loading began where `dir` turned positive.
+fn branch_follow(before: Branch, at: At) -> Branch {
     var s = before;
     let raw = at.raw;
     let tol = at.frame.branch_tol;
-    let was_loading = s.dir > 0.0;
     if (s.dir >= 0.0) {
         s.extreme = larger(raw, s.extreme);
         if (raw < s.extreme - tol) {
@@ -539,7 +531,23 @@ fn loadings_follow(before: Loadings, r: f32, at: At) -> Loadings {
             s.extreme = raw;
         }
     }
-    if (s.dir > 0.0 && !was_loading) {
+    return s;
+}
+
+// `Loadings`: the branch, which counts the loadings, and r^n, the share of
+// the growth still to come.
+struct Loadings {
+    branch: Branch,
+    to_come: f32,
+}
+
+// `Loadings::follow`: at each loading's start the share still to come
+// shrinks by r.
+fn loadings_follow(before: Loadings, r: f32, at: At) -> Loadings {
+    var s = before;
+    let was_loading = s.branch.dir > 0.0;
+    s.branch = branch_follow(s.branch, at);
+    if (s.branch.dir > 0.0 && !was_loading) {
         s.to_come = s.to_come * r;
     }
     return s;
@@ -556,7 +564,7 @@ fn cyclic_softening_prepare(q: CyclicSofteningParams, frame: Frame) -> CyclicSof
 alias CyclicSofteningState = Loadings;
 
 fn cyclic_softening_start(c: CyclicSofteningConsts, x: f32, u0: f32) -> CyclicSofteningState {
-    return loadings_start(u0);
+    return Loadings(Branch(0.0, u0), 1.0);
 }
 
 fn cyclic_softening_step(c: CyclicSofteningConsts, s: ptr<private, CyclicSofteningState>, ui: f32, at: At) -> f32 {
@@ -599,27 +607,35 @@ fn set_restart(s: ptr<private, SetState>, y: f32, x: f32) -> f32 {
     return x - (*s).offset;
 }
 
-// `Ratchet`: the output moves by w·(1 − r^n) after n loadings.
+// `Ratchet`: the output moves by a + v·n after n ≥ 1 loadings.
 alias RatchetConsts = RatchetParams;
 
 fn ratchet_prepare(q: RatchetParams, frame: Frame) -> RatchetConsts {
     return q;
 }
 
-// `Walk`: the loadings and the offset they add to the output.
+// `Walk`: the branch, the offset the loadings add to the output, and
+// their number.
 struct RatchetState {
-    loadings: Loadings,
+    branch: Branch,
     offset: f32,
+    count: f32,
 }
 
 fn ratchet_start(c: RatchetConsts, x: f32, u0: f32) -> RatchetState {
-    return RatchetState(loadings_start(u0), 0.0);
+    return RatchetState(Branch(0.0, u0), 0.0, 0.0);
 }
 
 fn ratchet_step(c: RatchetConsts, s: ptr<private, RatchetState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
-    (*s).loadings = loadings_follow((*s).loadings, c.r, at);
-    (*s).offset = rounded(c.w * (1.0 - (*s).loadings.to_come));
-    return y + (*s).offset;
+    var walk = *s;
+    let was_loading = walk.branch.dir > 0.0;
+    walk.branch = branch_follow(walk.branch, at);
+    if (walk.branch.dir > 0.0 && !was_loading) {
+        walk.count = walk.count + 1.0;
+        walk.offset = c.a + rounded(c.v * walk.count);
+    }
+    *s = walk;
+    return y + walk.offset;
 }
 
 fn ratchet_restart(s: ptr<private, RatchetState>, y: f32, x: f32) -> f32 {

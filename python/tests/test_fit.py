@@ -70,6 +70,20 @@ def test_fit_with_effects_gives_the_commands_parameters_and_file(stair, cli, tmp
     assert provenance["data"][0]["file"] == stair.source and provenance["data"][0]["sha256"]
 
 
+def test_the_softening_and_the_set_fit_as_the_command(stair, cli, tmp_path):
+    small = ["--pop", "40", "--gens", "10", "--seed", "3", "--backend", "cpu"]
+    chain = ["softening:cyclic", "set:ratchet"]
+    expected = cli("fit", stair.source, *small, "--effects", ",".join(chain), "--out", tmp_path / "cli")
+    result = mckibben.fit(stair, pop=40, gens=10, seed=3, effects=chain)
+    assert result.effects == expected["effects"] == chain
+    assert list(result.params)[9:] == [
+        "softening:cyclic.s", "softening:cyclic.r", "set:ratchet.a", "set:ratchet.v",
+    ]
+    assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
+    result.model.save(tmp_path / "model.json")
+    assert mckibben.Model.load(tmp_path / "model.json").effects == chain
+
+
 def test_a_generalized_fit_switches_as_the_command(stair, cli, tmp_path):
     small = ["--pop", "40", "--gens", "10", "--seed", "2", "--backend", "cpu", "--model", "generalized"]
     for switch in ("starts", "zero"):

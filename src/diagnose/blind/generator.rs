@@ -244,8 +244,10 @@ fn extremes(v: &[f64]) -> (f64, f64) {
 #[derive(Debug, Clone, Copy)]
 struct Scales {
     p_lo: f64,
-    /// The excitation's input range.
+    /// The excitation's input range, and the nominal output at rest at
+    /// its lowest input (deviation coordinates).
     ru: f64,
+    rest: f64,
     /// The nominal output's peak on the side the input drives it to
     /// (deviation coordinates), and the output range.
     peak: f64,
@@ -269,13 +271,15 @@ struct States {
     creep: [f64; 2],
     cross_talk: f64,
     /// The loadings so far, whether one is under way, the input's low
-    /// since the last fall and its high since the last rise, and the
-    /// largest input so far.
+    /// since the last fall and its high since the last rise, the largest
+    /// input so far, and the muscle's largest displacement toward its
+    /// drive so far.
     loadings: f64,
     loading: bool,
     low: f64,
     high: f64,
     top: f64,
+    reach: f64,
 }
 
 /// The plant's output (absolute) on `exc`'s input with `effects` at their
@@ -311,6 +315,8 @@ fn deviation(
     let sc = Scales {
         p_lo: exc.input_min(),
         ru: exc.input_range(),
+        rest: (plant.b * (exc.input_min() - plant.u_mean) + plant.c)
+            / (1.0 - plant.a * plant.alpha),
         peak: if plant.drives_up() { omax } else { omin },
         ry: omax - omin,
         branch_tol: 0.02 * exc.input_range(),
@@ -356,6 +362,7 @@ fn run(
         ..States::default()
     };
     let (mut x, mut w) = (exc.x_start, 0.0);
+    st.reach = r.toward * x;
     let mut q = x;
     st.out_lag = x;
     st.mode = [x, x];
@@ -463,11 +470,6 @@ impl Run<'_> {
                 pe *= 1.0 + g;
             }
         }
-        if let Some(s) = self.size(MullinsSoftening) {
-            let q = (st.top - sc.p_lo) / sc.ru;
-            let g = (1.0 - (-2.0 * q).exp()) / (1.0 - (-2.0f64).exp());
-            pe += (pe - sc.p_lo) * s * g;
-        }
         if let Some(s) = self.size(CyclicSoftening) {
             pe += (pe - sc.p_lo) * s * st.loadings / (st.loadings + 1.0);
         }
@@ -542,11 +544,17 @@ impl Run<'_> {
     }
 
     /// What the sensor sees of the load's motion `qk`: the effects of the
-    /// output side (lag, load mode, creep, clip, cross-talk from the raw
-    /// input `raw`), given the muscle's state `xk` and input `u`.
+    /// output side (softening, lag, load mode, creep, set, clip, cross-talk
+    /// from the raw input `raw`), given the muscle's state `xk` and input
+    /// `u`.
     fn output_side(&self, st: &mut States, raw: f64, qk: f64, xk: f64, u: f64) -> f64 {
         use Mechanism::*;
         let mut y = qk;
+        st.reach = st.reach.max(self.toward * xk);
+        if let Some(s) = self.size(MullinsSoftening) {
+            let q = (st.top - self.sc.p_lo) / self.sc.ru;
+            y += (y - self.sc.rest) * s * q;
+        }
         if let Some(tau) = self.size(OutputLag) {
             let rho = tau / (1.0 + tau);
             st.out_lag = rho * st.out_lag + (1.0 - rho) * y;
@@ -578,11 +586,10 @@ impl Run<'_> {
         }
         // A set and a ratchet move the rest away from the drive.
         if let Some(s) = self.size(PermanentSet) {
-            let q = (st.top - self.sc.p_lo) / self.sc.ru;
-            y -= self.toward * s * q * (st.top - raw) / self.sc.ru;
+            y -= self.toward * s * (st.reach - self.toward * xk) / self.sc.ry;
         }
         if let Some(s) = self.size(Ratchet) {
-            y -= self.toward * s * st.loadings / (st.loadings + 1.0);
+            y -= self.toward * s * (1.0 + st.loadings).ln() / 5f64.ln();
         }
         if let Some(kappa) = self.size(CrossTalk) {
             st.cross_talk = 0.75 * st.cross_talk + 0.25 * raw;

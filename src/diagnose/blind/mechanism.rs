@@ -105,24 +105,26 @@ pub enum Mechanism {
     /// A second dataset (another load) whose input gain is `1 + g` on the
     /// absolute input: size `g`.
     LoadGain,
-    /// The pressure above the input's lowest level drives the muscle
-    /// harder the harder it has ever been driven: times `1 + s·g(p̂)`,
-    /// `g = (1 − e^(−2q))/(1 − e^(−2))`, `q` the largest input so far as a
-    /// share of the excitation's range (Mullins-type damage, saturating):
-    /// size `s`, the growth once the largest input is reached.
+    /// A softer muscle moves further from its rest for the same pressure:
+    /// the measured displacement from the nominal rest (at the lowest
+    /// input) grows by `s·q̂`, `q̂` the largest input so far as a share of
+    /// the excitation's range (a Mullins-type damage that grows with the
+    /// largest load): size `s`, the growth once the largest input is
+    /// reached.
     MullinsSoftening,
     /// The same drive grows with the number of loadings `n` so far: times
     /// `1 + s·n/(n + 1)` (a loading begins when the input rises 2 % of its
     /// range above its low since the last fall): size `s`.
     CyclicSoftening,
-    /// The sensor sees the muscle's rest moved away from its drive by
-    /// `s·q̂·(p̂ − p)/(p̂ − p_lo)`, `q̂` the largest input so far as a share
-    /// of the range: a set that grows with the square of the largest input
-    /// and vanishes at it: size `s` (output units at rest, once the largest
-    /// input is reached).
+    /// The sensor sees the muscle kept away from its drive by `s·(x̂ −
+    /// x)/range`, `x̂` the muscle's largest displacement toward its drive so
+    /// far and `range` the nominal output's: a set that grows with the
+    /// largest strain and vanishes at it (Dorfmann and Ogden's): size `s`
+    /// (output units at rest, once the largest displacement is reached).
     PermanentSet,
     /// The sensor sees the muscle's rest walk away from its drive by
-    /// `s·n/(n + 1)` after `n` loadings: size `s` (output units).
+    /// `s·ln(1 + n)/ln 5` after `n` loadings, a walk that slows down
+    /// without stopping: size `s` (output units, the walk after four).
     Ratchet,
     /// The displacement sensor picks up the valve's pressure transients
     /// (electrical cross-talk): `κ·(p(k−1) − v(k))` added to the measured

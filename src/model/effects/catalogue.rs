@@ -468,25 +468,29 @@ catalogue! {
             size_text: Some(|p, _| loadings_to_half(p[1])),
             ..PLAIN
         },
-        /// Ratchet: the output moves by `w·(1 − r^n)` after `n` loadings, an
-        /// offset that walks with every cycle, by less each time.
+        /// Ratchet: the output moves by `a + v·n` after `n ≥ 1` loadings,
+        /// an offset that walks with every cycle: a step at the first
+        /// loading, then a steady walk. Ratchetting slows after the first
+        /// cycles and settles to a constant rate (Kang et al.), where a
+        /// geometric walk would stop; a power of the count would need a
+        /// `pow`, which the GPU does not round as the CPU does.
         Ratchet => Realisation {
             name: "set:ratchet",
             physical: Some(Effect::Set),
             realisation: "walks with every loading",
             signature: "the rest level walks with every loading",
             params: Params::Fixed(&[
-                ("w", "output offset the walk reaches once trained (output units)"),
-                ("r", "share of the walk still to come that each loading leaves"),
+                (
+                    "a",
+                    "step at the first loading beyond the walk (output units); the rest before it tells it from the intercept",
+                ),
+                ("v", "walk per loading (output units)"),
             ]),
-            primary: 0,
+            primary: 1,
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
-                // `r = 0`: the whole walk at the first loading, which the
-                // rest before it still tells from the baseline's intercept.
-                EffectBox::new(vec![0.0, 0.6], vec![-0.5 * ry, 0.0], vec![0.5 * ry, 0.95])
+                EffectBox::new(vec![0.0, 0.0], vec![-0.5 * ry, -0.2 * ry], vec![0.5 * ry, 0.2 * ry])
             },
-            size_text: Some(|p, _| loadings_to_half(p[1])),
             ..PLAIN
         },
     }
@@ -578,9 +582,6 @@ const MODE_A2: (&str, &str) = (
 /// How many loadings reach half of a trained effect whose share still to
 /// come shrinks by `r` at each.
 fn loadings_to_half(r: f64) -> String {
-    if r <= 0.0 {
-        return "all of it at the first loading".into();
-    }
     format!("half of it after {:.1} loadings", 0.5f64.ln() / r.ln())
 }
 

@@ -698,11 +698,11 @@ mod tests {
 
     #[test]
     fn a_ratchet_walks_with_every_loading() {
-        let (w, r) = (0.2, 0.6);
-        let moved = moved_input(&[1.0; 3], Effect::Ratchet, &[w, r]);
+        let (a, v) = (0.2, 0.05);
+        let moved = moved_input(&[1.0; 3], Effect::Ratchet, &[a, v]);
         for i in 0..3 {
             let (pulse, rest) = at_pulse(&moved, i);
-            let want = w as f64 * (1.0 - (r as f64).powi(i as i32 + 1));
+            let want = a as f64 + v as f64 * (i as f64 + 1.0);
             assert!(
                 (pulse - want).abs() < 1e-5 && (rest - want).abs() < 1e-5,
                 "cycle {i}"

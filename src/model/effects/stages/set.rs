@@ -6,7 +6,8 @@
 //! both are driven by the input, which the model cannot feed back into.
 
 use super::super::stage::{At, Columns, Frame, OutputLoop, Stage};
-use super::softening::{Loadings, largest_so_far};
+use super::Branch;
+use super::softening::largest_so_far;
 
 /// Permanent set: the output moves by `c·(p̂ − p)`, `p̂` the largest input
 /// so far. At `p̂` the muscle is where it was when first driven there;
@@ -53,22 +54,26 @@ impl<const L: usize> OutputLoop<L> for Set {
     }
 }
 
-/// Ratchet: the output moves by `w·(1 − r^n)` after `n` loadings, an
-/// offset that walks with every cycle, by less each time.
+/// Ratchet: the output moves by `a + v·n` after `n ≥ 1` loadings, an
+/// offset that walks with every cycle: a step at the first loading, then a
+/// steady walk (a ratchetting rate that settles to a constant).
 #[derive(Debug)]
 pub struct Ratchet;
 
-/// The loadings and the offset they add to the output. Aligned to a cache
-/// line ([`Stage::State`]).
+/// The branch of the measured input, which counts the loadings, and the
+/// offset they add to the output. Aligned to a cache line
+/// ([`Stage::State`]), the lane array right after the branch.
 #[derive(Debug, Clone)]
 #[repr(C, align(64))]
 pub struct Walk<const L: usize> {
-    loadings: Loadings<L>,
+    branch: Branch,
     offset: [f32; L],
+    /// The loadings so far.
+    count: f32,
 }
 
 impl<const L: usize> Stage<L> for Ratchet {
-    /// `w` and `r`.
+    /// `a` and `v`.
     type Consts = [[f32; L]; 2];
     type State = Walk<L>;
 
@@ -78,8 +83,9 @@ impl<const L: usize> Stage<L> for Ratchet {
 
     fn start(_: Option<&Self::Consts>, _: &[f32; L], u0: f32) -> Self::State {
         Walk {
-            loadings: Loadings::start(u0),
+            branch: Branch::start(u0),
             offset: [0.0; L],
+            count: 0.0,
         }
     }
 
@@ -92,16 +98,21 @@ impl<const L: usize> Stage<L> for Ratchet {
 impl<const L: usize> OutputLoop<L> for Ratchet {
     #[inline(always)]
     fn apply(
-        [w, r]: &Self::Consts,
+        [a, v]: &Self::Consts,
         s: &mut Walk<L>,
         y: &mut [f32; L],
         _: &[f32; L],
         _: &[f32; L],
         at: &At<'_, L>,
     ) {
-        s.loadings.follow(r, at);
+        // The offset moves only where a loading begins, and holds between.
+        if s.branch.follow(at) {
+            s.count += 1.0;
+            for l in 0..L {
+                s.offset[l] = a[l] + v[l] * s.count;
+            }
+        }
         for l in 0..L {
-            s.offset[l] = w[l] * s.loadings.reached(l);
             y[l] += s.offset[l];
         }
     }

@@ -76,7 +76,7 @@ impl<const L: usize> Loadings<L> {
     /// The branch follows the measured input; at each loading's start
     /// every lane's share still to come shrinks by its `r`.
     #[inline(always)]
-    pub(super) fn follow(&mut self, r: &[f32; L], at: &At<'_, L>) {
+    fn follow(&mut self, r: &[f32; L], at: &At<'_, L>) {
         if self.branch.follow(at) {
             for l in 0..L {
                 self.to_come[l] *= r[l];
@@ -84,7 +84,7 @@ impl<const L: usize> Loadings<L> {
         }
     }
 
-    pub(super) fn start(u0: f32) -> Self {
+    fn start(u0: f32) -> Self {
         Loadings {
             branch: Branch::start(u0),
             to_come: [1.0; L],
@@ -93,7 +93,7 @@ impl<const L: usize> Loadings<L> {
 
     /// `1 − r^n` of lane `l`: the share of the growth reached.
     #[inline(always)]
-    pub(super) fn reached(&self, l: usize) -> f32 {
+    fn reached(&self, l: usize) -> f32 {
         1.0 - self.to_come[l]
     }
 }
