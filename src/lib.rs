@@ -20,4 +20,5 @@ pub mod model;
 pub mod optim;
 pub mod report;
 pub mod rig;
+pub mod search;
 pub mod twin;

@@ -12,9 +12,10 @@ use serde::Serialize;
 use super::objective::ModelObjective;
 use super::problem::FitProblem;
 use crate::eval::Evaluator;
-use crate::model::bounds::{Origin, Side};
+use crate::model::bounds::Origin;
 use crate::optim::engine::{Engine, Outcome, Plan, StopReason, StopRules, TryEnd};
 use crate::optim::streams::try_seed;
+use crate::search::Side;
 
 /// Refits after widening at most this many times.
 pub const MAX_WIDENINGS: usize = 2;

@@ -8,8 +8,8 @@ use serde::{Deserialize, Serialize};
 
 use super::stage::Stage;
 use crate::data::write_atomic;
-use crate::model::Measure;
 use crate::report::{Figure, Panel, Series};
+use crate::search::Measure;
 
 /// One generation of a population stage, or one start of the polish. Costs
 /// are on the estimation data; `None` stands for "no finite value" (JSON has

@@ -55,7 +55,7 @@ use super::history::{GenerationRecord, History};
 pub use super::stage::Stage;
 use super::streams::try_seed;
 use crate::data::write_atomic;
-use crate::model::Measure;
+use crate::search::Measure;
 
 pub use plan::{FreeRun, Global, Plan, Polish, Refine};
 pub use space::{Space, Stepwise};

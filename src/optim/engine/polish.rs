@@ -6,9 +6,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use super::{
     Engine, Members, Objective, Scored, Space, Stage, StageEnd, Step, keep_lowest, plan, timed,
 };
-use crate::model::Measure;
 use crate::optim::Bounds;
 use crate::optim::lm::{self, LmSettings};
+use crate::search::Measure;
 
 /// What a polish changes that an interrupted one puts back: each try's
 /// best, the history's length and the evaluations counted.

@@ -3,7 +3,7 @@
 //! generation a step.
 
 use super::{Engine, FreeRun, Members, Objective, Stage, StageEnd, Step, keep_lowest};
-use crate::model::Measure;
+use crate::search::Measure;
 use rayon::prelude::*;
 
 use crate::optim::{AskTell, Streams};

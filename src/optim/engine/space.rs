@@ -5,8 +5,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::super::{Bounds, Streams};
-use crate::model::bounds::Side;
 use crate::model::{Coordinates, Family, SearchSpace};
+use crate::search::Side;
 
 /// The box of a fit over search coordinates (the canonical parameters, or
 /// the data's own scale: [`Coordinates`]); a coordinate whose bounds are

@@ -5,9 +5,9 @@
 use serde::{Deserialize, Serialize};
 
 use super::{Engine, Stage, StageEnd};
-use crate::model::Measure;
 use crate::optim::best_indices;
 use crate::optim::{AskTell, argmin};
+use crate::search::Measure;
 
 /// The members of one island and their costs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
