@@ -15,7 +15,7 @@ use crate::optim::engine::{Engine, Plan, StopRules};
 use crate::optim::ga::{Crossover, Mutation};
 use crate::optim::mfa::{self, Distance, Lambda0Schedule, Scale};
 use crate::optim::stage::Stage;
-use crate::optim::{AlgoSettings, Algorithm, Streams};
+use crate::optim::{AlgoSettings, Algorithm, Streams, ThesisModel};
 
 /// Settings of one algorithm laid over its base settings (`None`, `false`:
 /// keep the base). Each acts on its own algorithm only, but every one given
@@ -73,6 +73,16 @@ impl Overrides {
     }
 }
 
+/// The thesis' model whose settings a fit of `family` takes in the thesis'
+/// flow: the generalized model's for the generalized family, the classic
+/// model's for the others.
+pub fn thesis_model(family: Family) -> ThesisModel {
+    match family {
+        Family::Generalized => ThesisModel::Generalized,
+        Family::Classic | Family::Linear => ThesisModel::Classic,
+    }
+}
+
 /// What a fresh fit runs: the algorithm, its size and seed, the flow, the
 /// staged fit's knobs and the stop rules.
 #[derive(Debug, Clone, PartialEq)]
@@ -119,7 +129,7 @@ impl FitSettings {
     fn algo_settings(&self, family: Family, note: &dyn Fn(String)) -> anyhow::Result<AlgoSettings> {
         let o = &self.overrides;
         let mut s = if self.thesis_flow {
-            self.algo.thesis_settings(family)
+            self.algo.thesis_settings(thesis_model(family))
         } else {
             self.algo.staged_settings(self.pop)
         };

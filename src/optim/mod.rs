@@ -34,10 +34,18 @@ use rayon::prelude::*;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use crate::model::Family;
-
 pub use history::{GenerationRecord, History};
 pub use streams::{RowRng, Streams};
+
+/// Which of the thesis' models a search's thesis settings are for: its
+/// tables state other PSO settings for the generalized model (Table 19) than
+/// for the classic one (Table 11). A label, so that the optimizers' presets
+/// need not know the models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ThesisModel {
+    Classic,
+    Generalized,
+}
 
 /// The box an optimizer searches: bounds of the free coordinates only
 /// (parameters with `lower == upper` in the [`engine::Space`] are held fixed by
@@ -104,8 +112,8 @@ pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
     fn new(settings: Self::Settings, bounds: Bounds, n: usize, generations: usize) -> Self;
 
     /// The settings of the thesis' flow and of Table 21 (chapter 5): the
-    /// paper's unless the thesis states others for `family`.
-    fn thesis_settings(_family: Family) -> Self::Settings {
+    /// paper's unless the thesis states others for `model`.
+    fn thesis_settings(_model: ThesisModel) -> Self::Settings {
         Self::Settings::default()
     }
 
@@ -386,10 +394,10 @@ macro_rules! registry {
             }
 
             /// Its settings in the thesis' flow ([`Optimizer::thesis_settings`]).
-            pub fn thesis_settings(self, family: Family) -> AlgoSettings {
+            pub fn thesis_settings(self, model: ThesisModel) -> AlgoSettings {
                 match self {
                     $(Algorithm::$variant => {
-                        AlgoSettings::$variant(<$optimizer as Optimizer>::thesis_settings(family))
+                        AlgoSettings::$variant(<$optimizer as Optimizer>::thesis_settings(model))
                     })+
                 }
             }
@@ -605,7 +613,7 @@ mod tests {
             let n = algo.min_population();
             for settings in [
                 algo.default_settings(),
-                algo.thesis_settings(Family::Generalized),
+                algo.thesis_settings(ThesisModel::Generalized),
                 algo.staged_settings(n),
             ] {
                 let mut search = AskTell::new(&settings, cube(), n, 5, Vec::new());
