@@ -9,6 +9,7 @@
 
 use serde::Serialize;
 
+use super::chart::ModelChart;
 use super::objective::ModelObjective;
 use super::problem::FitProblem;
 use crate::eval::Evaluator;
@@ -61,7 +62,7 @@ pub struct ActiveBound {
 /// the refits' work is counted in. Returns the kept try's widenings.
 pub fn settle_tries(
     problem: &mut FitProblem,
-    engine: &Engine,
+    engine: &Engine<ModelChart>,
     mut outcome: Outcome,
     stops: &StopRules,
     evaluator: &mut dyn Evaluator,

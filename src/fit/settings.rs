@@ -8,6 +8,7 @@
 
 use std::path::Path;
 
+use super::chart::ModelChart;
 use super::objective::{GENERATIONS, POPULATION, staged_plan};
 use super::problem::FitProblem;
 use crate::model::{Family, Measure};
@@ -260,7 +261,11 @@ impl FitSettings {
     /// search finds other basins, and where the estimation data do not
     /// settle the model some of those fit the estimation half better and
     /// validate worse: docs/ARCHITECTURE.md, "Warm starts").
-    pub fn start_warm(&self, problem: &FitProblem, start: &[f64]) -> anyhow::Result<Engine> {
+    pub fn start_warm(
+        &self,
+        problem: &FitProblem,
+        start: &[f64],
+    ) -> anyhow::Result<Engine<ModelChart>> {
         let plan = self.plan(problem, &|_| ())?.from_point();
         let space = problem.engine_space();
         let n = plan.free_run.as_ref().map_or(1, |f| f.population);
@@ -293,7 +298,7 @@ impl FitSettings {
         problem: &FitProblem,
         checkpoint: Option<&Path>,
         note: &dyn Fn(String),
-    ) -> anyhow::Result<Engine> {
+    ) -> anyhow::Result<Engine<ModelChart>> {
         let space = problem.engine_space();
         if let Some(path) = checkpoint.filter(|p| p.exists()) {
             let mut engine = Engine::load(path)?;

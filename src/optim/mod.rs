@@ -1,8 +1,9 @@
 //! Population optimizers in ask/tell form, and the fitting [`engine`] that
-//! drives them against a batch [`Evaluator`](crate::eval::Evaluator).
+//! drives them against an [`engine::Objective`] that scores whole
+//! populations (a fit's is a batch evaluator of a model).
 //!
 //! An optimizer never sees the model: it is handed a box (the free
-//! coordinates of a [`SearchSpace`](crate::model::SearchSpace)), *asks* for a population of points in
+//! coordinates of an [`engine::Space`]), *asks* for a population of points in
 //! it and is *told* their costs (SSE, lower is better, `+∞` for a diverged
 //! candidate). The [`engine`] owns everything around that: stages, seeding,
 //! stopping, history, checkpoints, Ctrl-C. Every random draw comes from the
