@@ -19,7 +19,7 @@ impl Chart for ModelChart {
         self.1.to_native_into(self.0, z, theta);
     }
 
-    fn from_canonical(&self, theta: &[f64]) -> Vec<f64> {
+    fn coordinates_of(&self, theta: &[f64]) -> Vec<f64> {
         self.1.from_native(self.0, theta)
     }
 

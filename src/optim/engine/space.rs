@@ -21,7 +21,7 @@ pub trait Chart:
     fn to_canonical_into(&self, z: &[f64], theta: &mut [f64]);
 
     /// The coordinates of the canonical vector `theta`.
-    fn from_canonical(&self, theta: &[f64]) -> Vec<f64>;
+    fn coordinates_of(&self, theta: &[f64]) -> Vec<f64>;
 
     /// The names of the canonical parameters of the coordinates `names`.
     fn canonical_names(&self, names: &[String]) -> Vec<String>;
@@ -37,7 +37,7 @@ impl Chart for Canonical {
         match *self {}
     }
 
-    fn from_canonical(&self, _: &[f64]) -> Vec<f64> {
+    fn coordinates_of(&self, _: &[f64]) -> Vec<f64> {
         match *self {}
     }
 
@@ -300,7 +300,7 @@ impl<C: Chart> Space<C> {
     /// The full search coordinates of a canonical vector.
     fn coordinates(&self, canonical: &[f64]) -> Vec<f64> {
         match &self.coords {
-            Some(chart) => chart.from_canonical(canonical),
+            Some(chart) => chart.coordinates_of(canonical),
             None => canonical.to_vec(),
         }
     }
