@@ -17,6 +17,7 @@ pub mod eval;
 pub mod fit;
 pub mod ident;
 pub mod model;
+pub mod names;
 pub mod optim;
 pub mod report;
 pub mod rig;

@@ -20,8 +20,8 @@ use imports::{parse_crate, read_tree};
 /// The library's top-level modules, bottom layer first. A module may import
 /// from any layer below its own, none from its own or above.
 const LAYERS: &[&[&str]] = &[
-    // Terms and traces that know nothing of the crate.
-    &["data", "search"],
+    // Terms, traces and names that know nothing of the crate.
+    &["data", "names", "search"],
     // The muscle models; the optimizers and the fitting engine, apart.
     &["model", "optim"],
     // What stands on a model: identification, the twin, the evaluators,

@@ -23,4 +23,4 @@ pub use family::{Family, ParamInfo};
 pub use file::{Model, ModelFile};
 pub use fitted::FittedBaseline;
 pub use sim::{DIVERGENCE_BOUND, Simulation, measured_sse, residuals, simulate, sse};
-pub use user_bound::UserBound;
+pub use user_bound::{UserBound, UserBoundError};

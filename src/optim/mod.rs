@@ -35,6 +35,8 @@ use rayon::prelude::*;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
+use crate::names::UnknownName;
+
 pub use history::{GenerationRecord, History};
 pub use streams::{RowRng, Streams};
 
@@ -495,7 +497,7 @@ impl fmt::Display for Algorithm {
 }
 
 impl FromStr for Algorithm {
-    type Err = String;
+    type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         Algorithm::ALL
             .into_iter()
@@ -503,10 +505,11 @@ impl FromStr for Algorithm {
             .ok_or_else(|| {
                 let names: Vec<&str> = Algorithm::ALL.iter().map(|a| a.name()).collect();
                 let (last, rest) = names.split_last().expect("a registered algorithm");
-                format!(
-                    "unknown algorithm `{s}`: expected {} or {last}",
-                    rest.join(", ")
-                )
+                UnknownName {
+                    what: "algorithm",
+                    got: s.to_string(),
+                    expected: format!("{} or {last}", rest.join(", ")),
+                }
             })
     }
 }
@@ -580,6 +583,7 @@ mod tests {
             "cmaes"
                 .parse::<Algorithm>()
                 .unwrap_err()
+                .to_string()
                 .contains("ga, mfa")
         );
     }
