@@ -8,6 +8,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use mckibben::data::csv::{ReadOptions, read_traces_with_notes};
+use mckibben::fit::chart::ModelChart;
 use mckibben::fit::problem::FitProblem;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::engine::Space;
@@ -17,7 +18,7 @@ use mckibben::optim::{Algorithm, AskTell, Streams};
 /// Rows of one island of `fit --pop 100000` (four islands).
 const ISLAND: usize = 25_000;
 
-fn stair_space() -> Space {
+fn stair_space() -> Space<ModelChart> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/stair_4.5kg.csv");
     let (traces, _) =
         read_traces_with_notes(&path, &ReadOptions::default()).expect("the shipped stair");

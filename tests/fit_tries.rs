@@ -14,6 +14,7 @@ use std::sync::atomic::AtomicBool;
 
 use mckibben::eval::Evaluator;
 use mckibben::eval::cpu::CpuEvaluator;
+use mckibben::fit::chart::ModelChart;
 use mckibben::fit::objective::{ModelObjective, staged_plan};
 use mckibben::fit::problem::FitProblem;
 use mckibben::fit::run::run_fit;
@@ -43,7 +44,11 @@ fn plan(problem: &FitProblem, tries: usize) -> Plan {
     plan
 }
 
-fn run(problem: &FitProblem, plan: Plan, evaluator: &mut dyn Evaluator) -> (Engine, Outcome) {
+fn run(
+    problem: &FitProblem,
+    plan: Plan,
+    evaluator: &mut dyn Evaluator,
+) -> (Engine<ModelChart>, Outcome) {
     run_seeded(problem, plan, 3, evaluator)
 }
 
@@ -52,7 +57,7 @@ fn run_seeded(
     plan: Plan,
     seed: u64,
     evaluator: &mut dyn Evaluator,
-) -> (Engine, Outcome) {
+) -> (Engine<ModelChart>, Outcome) {
     let mut engine = Engine::new(plan, problem.engine_space(), seed, StopRules::default()).unwrap();
     let mut objective = ModelObjective::for_problem(evaluator, problem);
     let outcome = engine.run(&mut objective, &mut [], None, None).unwrap();
@@ -168,7 +173,7 @@ fn an_interrupted_run_of_tries_resumes_to_the_identical_result() {
             )
             .unwrap();
         assert_eq!(cut.stop, StopReason::Interrupted, "at {at}");
-        let mut resumed = Engine::load(&path).unwrap();
+        let mut resumed = Engine::<ModelChart>::load(&path).unwrap();
         let mut cpu = CpuEvaluator::new();
         let mut objective = ModelObjective::for_problem(&mut cpu, &problem);
         let out = resumed.run(&mut objective, &mut [], None, None).unwrap();

@@ -8,6 +8,7 @@ mod common;
 use std::sync::atomic::AtomicBool;
 
 use mckibben::eval::{Evaluator, Problem, cpu::CpuEvaluator};
+use mckibben::fit::chart::ModelChart;
 use mckibben::fit::objective::{ModelObjective, default_plan};
 use mckibben::fit::synthetic::Synthetic;
 use mckibben::model::Family;
@@ -86,23 +87,23 @@ fn variants() -> Vec<(String, Plan)> {
     v
 }
 
-fn engine(algo: Algorithm, seed: u64) -> Engine {
+fn engine(algo: Algorithm, seed: u64) -> Engine<ModelChart> {
     engine_of(plan(algo), seed)
 }
 
-fn engine_of(plan: Plan, seed: u64) -> Engine {
+fn engine_of(plan: Plan, seed: u64) -> Engine<ModelChart> {
     let (s, _) = setup();
     Engine::new(plan, Space::from(&s.space()), seed, StopRules::default()).unwrap()
 }
 
-fn fit(engine: &mut Engine, evaluator: &mut dyn Evaluator) -> Outcome {
+fn fit(engine: &mut Engine<ModelChart>, evaluator: &mut dyn Evaluator) -> Outcome {
     let (_, problem) = setup();
     let mut objective = ModelObjective::new(evaluator, problem);
     engine.run(&mut objective, &mut [], None, None).unwrap()
 }
 
 /// History without the wall-clock column.
-fn fingerprint(e: &Engine) -> Vec<GenerationRecord> {
+fn fingerprint(e: &Engine<ModelChart>) -> Vec<GenerationRecord> {
     e.history
         .records
         .iter()
@@ -214,7 +215,7 @@ fn a_damaged_checkpoint_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad.json");
     std::fs::write(&path, b"{\"plan\": 3}").unwrap();
-    let err = Engine::load(&path).unwrap_err().to_string();
+    let err = Engine::<ModelChart>::load(&path).unwrap_err().to_string();
     assert!(err.contains("not a mckibben checkpoint"), "{err}");
 }
 

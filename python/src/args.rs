@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use mckibben::model::effects::Effect;
-use mckibben::model::{ModelFile, UserBound};
+use mckibben::model::{ModelFile, UserBound, UserBoundError};
 
 use crate::convert::{family, file_error, in_python_terms};
 use crate::model::Model;
@@ -53,9 +53,12 @@ pub fn user_bounds(bounds: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<UserBound
             )));
         };
         // `{}` prints an f64 so that it parses back to the same bits.
-        let bound: UserBound = format!("{name}={lo}:{hi}")
-            .parse()
-            .map_err(|e: String| PyValueError::new_err(in_python_terms(&format!("bounds: {e}"))))?;
+        let bound: UserBound =
+            format!("{name}={lo}:{hi}")
+                .parse()
+                .map_err(|e: UserBoundError| {
+                    PyValueError::new_err(in_python_terms(&format!("bounds: {e}")))
+                })?;
         out.push(bound);
     }
     Ok(out)
@@ -68,7 +71,10 @@ pub fn effects_arg(effects: Option<Vec<String>>) -> PyResult<Option<Vec<Effect>>
         .map(|names| {
             names
                 .iter()
-                .map(|n| n.parse::<Effect>().map_err(PyValueError::new_err))
+                .map(|n| {
+                    n.parse::<Effect>()
+                        .map_err(|e| PyValueError::new_err(e.to_string()))
+                })
                 .collect()
         })
         .transpose()

@@ -11,6 +11,7 @@ use serde::Serialize;
 
 use mckibben::eval::Backend;
 use mckibben::model::{Family, Loop, Switching};
+use mckibben::names::UnknownName;
 use mckibben::optim::Algorithm;
 
 /// The values of a numeric array in C order, with its shape.
@@ -155,7 +156,10 @@ pub fn sample_time(dt: f64) -> PyResult<f64> {
 
 /// A hysteretic family by name (`classic`, `generalized`).
 pub fn family(name: &str) -> PyResult<Family> {
-    match name.parse::<Family>().map_err(PyValueError::new_err)? {
+    match name
+        .parse::<Family>()
+        .map_err(|e| PyValueError::new_err(e.to_string()))?
+    {
         Family::Linear => Err(PyValueError::new_err(
             "model must be a hysteresis model, classic or generalized \
              (the linear model is fitted by least squares: `mckibben identify`)",
@@ -166,7 +170,8 @@ pub fn family(name: &str) -> PyResult<Family> {
 
 /// An update rule by name (`ga`, `mfa`, `pso`, `de`).
 pub fn algorithm(name: &str) -> PyResult<Algorithm> {
-    name.parse().map_err(PyValueError::new_err)
+    name.parse()
+        .map_err(|e: UnknownName| PyValueError::new_err(e.to_string()))
 }
 
 /// A clap value (`--backend`, `--loop`) by name, its error listing the choices.

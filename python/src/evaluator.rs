@@ -8,6 +8,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat};
 
+use mckibben::fit::chart::ModelChart;
 use mckibben::fit::objective::ModelObjective;
 use mckibben::fit::problem::FitProblem;
 use mckibben::fit::report::model_file;
@@ -41,7 +42,7 @@ pub struct Evaluator {
     bounds: Vec<UserBound>,
     /// The data's source (a model's provenance names it).
     source: String,
-    space: Space,
+    space: Space<ModelChart>,
     checked: bool,
     /// The free coordinates' names.
     names: Vec<String>,

@@ -11,6 +11,7 @@ use mckibben::diagnose::transfer::transfer;
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
 use mckibben::eval::Backend;
 use mckibben::model::{Family, ModelFile};
+use mckibben::names::UnknownName;
 use mckibben::report::json::Versioned;
 
 use super::common::MultiDataArgs;
@@ -184,7 +185,7 @@ enum SelfTest {
 }
 
 fn parse_family(s: &str) -> Result<Family, String> {
-    match s.parse::<Family>()? {
+    match s.parse::<Family>().map_err(|e| e.to_string())? {
         Family::Linear => {
             Err("the baseline must be classic or generalized (a hysteresis model)".into())
         }
@@ -192,7 +193,7 @@ fn parse_family(s: &str) -> Result<Family, String> {
     }
 }
 
-fn parse_effect(s: &str) -> Result<Effect, String> {
+fn parse_effect(s: &str) -> Result<Effect, UnknownName> {
     s.parse()
 }
 

@@ -11,6 +11,7 @@ use super::limits::ValveLimits;
 use super::pi::{Pi, PiGains};
 use super::sweep::Kind;
 use crate::model::Measure;
+use crate::names::UnknownName;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
 use crate::optim::{Algorithm, Bounds};
 use crate::twin::{Rig, TwinConfig};
@@ -173,7 +174,7 @@ pub fn tune_pi(
 ) -> anyhow::Result<Tuned> {
     let algorithm: Algorithm = algo
         .parse()
-        .map_err(|e: String| anyhow::anyhow!("--algo: {e}"))?;
+        .map_err(|e: UnknownName| anyhow::anyhow!("--algo: {e}"))?;
     let min = algorithm.min_population();
     anyhow::ensure!(
         pop >= min,

@@ -9,12 +9,14 @@
 
 use serde::Serialize;
 
+use super::chart::ModelChart;
 use super::objective::ModelObjective;
 use super::problem::FitProblem;
 use crate::eval::Evaluator;
-use crate::model::bounds::{Origin, Side};
+use crate::model::bounds::Origin;
 use crate::optim::engine::{Engine, Outcome, Plan, StopReason, StopRules, TryEnd};
 use crate::optim::streams::try_seed;
+use crate::search::Side;
 
 /// Refits after widening at most this many times.
 pub const MAX_WIDENINGS: usize = 2;
@@ -60,7 +62,7 @@ pub struct ActiveBound {
 /// the refits' work is counted in. Returns the kept try's widenings.
 pub fn settle_tries(
     problem: &mut FitProblem,
-    engine: &Engine,
+    engine: &Engine<ModelChart>,
     mut outcome: Outcome,
     stops: &StopRules,
     evaluator: &mut dyn Evaluator,

@@ -11,6 +11,7 @@
 
 pub mod agreement;
 pub mod cases;
+pub mod chart;
 pub mod compare;
 pub mod edge;
 pub mod objective;

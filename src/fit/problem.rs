@@ -18,6 +18,7 @@ use std::sync::Arc;
 
 use nalgebra::DVector;
 
+use super::chart::ModelChart;
 use super::records::{Records, Validation};
 use crate::data::Trace;
 use crate::eval::Problem;
@@ -387,7 +388,7 @@ impl FitProblem {
     /// switching level's preferred levels kept where they score within
     /// the likelihood-ratio threshold of the lowest (the estimation data
     /// cannot tell them apart at 95 %).
-    pub fn engine_space(&self) -> Space {
+    pub fn engine_space(&self) -> Space<ModelChart> {
         let mut space = Space::from(&self.space);
         let share = CHI2_1_95 / self.est_samples().max(1) as f64;
         for s in &mut space.stepwise {

@@ -20,6 +20,7 @@ use crate::model::{Flow, Model, ModelFile, UserBound};
 use crate::optim::Algorithm;
 use crate::optim::engine::{Outcome, StageSummary, StopReason};
 use crate::report::fit_figures;
+use crate::report::history::{convergence_figure, trends_figure};
 use crate::report::json::{Named, Versioned};
 
 /// A fit's report (docs/JSON.md, `mckibben fit`).
@@ -162,13 +163,10 @@ impl FitReport {
         self.write_result(out)?;
         engine.history.save(out)?;
         let title = format!("{} {} fit", self.algo, problem.model.family);
-        engine
-            .history
-            .trends_figure(&format!("{title}: best parameters"), &engine.space.free())
+        let trends = format!("{title}: best parameters");
+        trends_figure(&engine.history, &trends, &engine.space.free())
             .save(&out.join("trends.svg"))?;
-        engine
-            .history
-            .convergence_figure(&format!("{title}: convergence"))
+        convergence_figure(&engine.history, &format!("{title}: convergence"))
             .save(&out.join("convergence.svg"))?;
         if !params.is_empty() {
             let file = model_file(problem, params, bounds, provenance);

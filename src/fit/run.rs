@@ -11,6 +11,7 @@ use anyhow::Context as _;
 use serde::Serialize;
 
 use super::agreement::Agreement;
+use super::chart::ModelChart;
 use super::edge::{Widening, settle_tries};
 use super::objective::ModelObjective;
 use super::problem::FitProblem;
@@ -63,7 +64,7 @@ impl FitTarget {
 #[derive(Debug, Clone)]
 pub struct FitRun {
     pub problem: FitProblem,
-    pub engine: Engine,
+    pub engine: Engine<ModelChart>,
     /// A warm start's model as it was, in the problem's gauge (same outputs):
     /// what the refit is measured against ([`FitRun::start_scores`]).
     pub start: Option<Vec<f64>>,
@@ -89,7 +90,7 @@ pub struct FitRun {
 #[derive(Debug, Clone)]
 struct Start {
     problem: FitProblem,
-    engine: Engine,
+    engine: Engine<ModelChart>,
 }
 
 /// The chain's warm start ([`FitRun::also_from`]) and the seconds its model
@@ -252,7 +253,7 @@ impl FitRun {
     /// the same plan and seed on it (a checkpoint holds the first start's
     /// engine only). `mckibben compare` and the generated cases fit so
     /// ([`run_fit`]); [`FitRun::new`] builds its fresh fits so.
-    pub fn of(problem: FitProblem, engine: Engine) -> anyhow::Result<FitRun> {
+    pub fn of(problem: FitProblem, engine: Engine<ModelChart>) -> anyhow::Result<FitRun> {
         let zero = match problem.at_zero() {
             Some(zero) if engine.plan.global.is_some() => {
                 let second = Engine::new(
@@ -418,7 +419,7 @@ struct Hooks<'a, 'o> {
 /// by `hooks`.
 fn run_on(
     problem: &FitProblem,
-    engine: &mut Engine,
+    engine: &mut Engine<ModelChart>,
     evaluator: &mut dyn Evaluator,
     hooks: Hooks<'_, '_>,
 ) -> anyhow::Result<Outcome> {
@@ -442,7 +443,7 @@ pub fn run_fit(
     seed: u64,
     stops: StopRules,
     evaluator: &mut dyn Evaluator,
-) -> anyhow::Result<(Engine, Outcome)> {
+) -> anyhow::Result<(Engine<ModelChart>, Outcome)> {
     let engine = Engine::new(plan, problem.engine_space(), seed, stops)?;
     let mut fit = FitRun::of(problem.clone(), engine)?;
     let (outcome, _) = fit.run(evaluator, &mut [], None, None)?;

@@ -8,6 +8,7 @@
 
 use std::path::Path;
 
+use super::chart::ModelChart;
 use super::objective::{GENERATIONS, POPULATION, staged_plan};
 use super::problem::FitProblem;
 use crate::model::{Family, Measure};
@@ -15,7 +16,7 @@ use crate::optim::engine::{Engine, Plan, StopRules};
 use crate::optim::ga::{Crossover, Mutation};
 use crate::optim::mfa::{self, Distance, Lambda0Schedule, Scale};
 use crate::optim::stage::Stage;
-use crate::optim::{AlgoSettings, Algorithm, Streams};
+use crate::optim::{AlgoSettings, Algorithm, Streams, ThesisModel};
 
 /// Settings of one algorithm laid over its base settings (`None`, `false`:
 /// keep the base). Each acts on its own algorithm only, but every one given
@@ -73,6 +74,16 @@ impl Overrides {
     }
 }
 
+/// The thesis' model whose settings a fit of `family` takes in the thesis'
+/// flow: the generalized model's for the generalized family, the classic
+/// model's for the others.
+pub fn thesis_model(family: Family) -> ThesisModel {
+    match family {
+        Family::Generalized => ThesisModel::Generalized,
+        Family::Classic | Family::Linear => ThesisModel::Classic,
+    }
+}
+
 /// What a fresh fit runs: the algorithm, its size and seed, the flow, the
 /// staged fit's knobs and the stop rules.
 #[derive(Debug, Clone, PartialEq)]
@@ -119,7 +130,7 @@ impl FitSettings {
     fn algo_settings(&self, family: Family, note: &dyn Fn(String)) -> anyhow::Result<AlgoSettings> {
         let o = &self.overrides;
         let mut s = if self.thesis_flow {
-            self.algo.thesis_settings(family)
+            self.algo.thesis_settings(thesis_model(family))
         } else {
             self.algo.staged_settings(self.pop)
         };
@@ -250,7 +261,11 @@ impl FitSettings {
     /// search finds other basins, and where the estimation data do not
     /// settle the model some of those fit the estimation half better and
     /// validate worse: docs/ARCHITECTURE.md, "Warm starts").
-    pub fn start_warm(&self, problem: &FitProblem, start: &[f64]) -> anyhow::Result<Engine> {
+    pub fn start_warm(
+        &self,
+        problem: &FitProblem,
+        start: &[f64],
+    ) -> anyhow::Result<Engine<ModelChart>> {
         let plan = self.plan(problem, &|_| ())?.from_point();
         let space = problem.engine_space();
         let n = plan.free_run.as_ref().map_or(1, |f| f.population);
@@ -283,7 +298,7 @@ impl FitSettings {
         problem: &FitProblem,
         checkpoint: Option<&Path>,
         note: &dyn Fn(String),
-    ) -> anyhow::Result<Engine> {
+    ) -> anyhow::Result<Engine<ModelChart>> {
         let space = problem.engine_space();
         if let Some(path) = checkpoint.filter(|p| p.exists()) {
             let mut engine = Engine::load(path)?;

@@ -7,6 +7,7 @@ use super::coords::{Coordinates, LinearCoords, Loop, Scale, ShapeCoords, shape_r
 use super::family::Family;
 use super::presets::{ThesisBounds, hysteresis_hull};
 use super::user_bound::UserBound;
+use crate::search::Side;
 
 /// A user bound (`--bound`, `--fix`) that names no parameter of the fit.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -78,39 +79,6 @@ pub struct SearchSpace {
     /// box).
     #[serde(default)]
     pub switch_levels: Option<Vec<f64>>,
-}
-
-/// Which bound of a coordinate's box.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Side {
-    Lower,
-    Upper,
-}
-
-impl Side {
-    pub const BOTH: [Side; 2] = [Side::Lower, Side::Upper];
-
-    /// Its place in a `[lower, upper]` pair (as [`SearchSpace::origin`]'s).
-    pub fn index(self) -> usize {
-        match self {
-            Side::Lower => 0,
-            Side::Upper => 1,
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Side::Lower => "lower",
-            Side::Upper => "upper",
-        }
-    }
-}
-
-impl std::fmt::Display for Side {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
 }
 
 /// Where a bound of the box comes from.

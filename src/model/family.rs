@@ -11,6 +11,8 @@ use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::str::FromStr;
 
+use crate::names::UnknownName;
+
 /// A dynamic model family of the thesis.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -182,15 +184,17 @@ impl fmt::Display for Family {
 }
 
 impl FromStr for Family {
-    type Err = String;
+    type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s.to_ascii_lowercase().as_str() {
             "linear" | "arx" => Ok(Family::Linear),
             "classic" => Ok(Family::Classic),
             "generalized" | "generalised" => Ok(Family::Generalized),
-            other => Err(format!(
-                "unknown model family `{other}`: expected linear, classic or generalized"
-            )),
+            other => Err(UnknownName {
+                what: "model family",
+                got: other.to_string(),
+                expected: "linear, classic or generalized".into(),
+            }),
         }
     }
 }
@@ -238,6 +242,7 @@ mod tests {
             "bogus"
                 .parse::<Family>()
                 .unwrap_err()
+                .to_string()
                 .contains("linear, classic or generalized")
         );
     }

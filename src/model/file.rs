@@ -388,7 +388,7 @@ impl ModelFile {
         let effects: Vec<Effect> = self
             .effects
             .iter()
-            .map(|e| e.parse::<Effect>().map_err(anyhow::Error::msg))
+            .map(|e| Ok(e.parse::<Effect>()?))
             .collect::<anyhow::Result<_>>()?;
         anyhow::ensure!(self.datasets >= 1, "`datasets` must be at least 1");
         let augmented = ModelDescription::new(self.family, effects.clone(), self.datasets);

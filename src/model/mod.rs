@@ -15,11 +15,12 @@ pub mod sim;
 pub mod static_force;
 pub mod user_bound;
 
+pub use crate::search::Measure;
 pub use bounds::{BoundError, Flow, LinearPrior, SearchSpace, Switching};
 pub use coords::{Coordinates, Loop};
 pub use experiment::Experiment;
 pub use family::{Family, ParamInfo};
 pub use file::{Model, ModelFile};
 pub use fitted::FittedBaseline;
-pub use sim::{DIVERGENCE_BOUND, Measure, Simulation, measured_sse, residuals, simulate, sse};
-pub use user_bound::UserBound;
+pub use sim::{DIVERGENCE_BOUND, Simulation, measured_sse, residuals, simulate, sse};
+pub use user_bound::{UserBound, UserBoundError};

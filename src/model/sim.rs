@@ -22,9 +22,8 @@
 //! reads) forms `0` exactly there, and `x − 0` is `x` bit for bit: the same
 //! numbers as sign terms that switch at `x = 0` with no level at all.
 
-use serde::{Deserialize, Serialize};
-
 use super::family::Family;
+use crate::search::Measure;
 
 /// A simulated state whose magnitude exceeds this bound (in the units of the
 /// data) counts as diverged, and so does any non-finite state: the candidate's
@@ -326,50 +325,6 @@ pub fn simulate(family: Family, theta: &[f32], y_mean: f32, u: &[f32], y0: f32) 
         w.push(wk);
     }
     Simulation { x, w, diverged_at }
-}
-
-/// What a score sums: the error of the free run (the thesis' fitness, eq. 29)
-/// or of the `h`-step-ahead prediction.
-///
-/// The `h`-step-ahead predictor is the free run with its output state set
-/// back to the measurement after every `h`-th sample (the Bouc-Wen state,
-/// never measured, follows that jump as it follows any motion of the
-/// output: [`Stepper::restart`]). Its error cannot pile up through a slow pole for
-/// longer than `h` samples, so its cost surface has no needle along the pole
-/// and the static gain where the free run's has one (Ribeiro, Tiels,
-/// Umenberger, Schön and Aguirre, "On the smoothness of nonlinear system
-/// identification", Automatica 2020: the Lipschitz constant of a simulation
-/// error can grow exponentially with the simulated length; short predictions
-/// restore smoothness). `h = 1` is the equation error; `h` past the data is
-/// the free run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Measure {
-    /// `Σ_{k≥1} (x(k) − y(k))²` of the free run.
-    #[default]
-    FreeRun,
-    /// The same sum with the output state restarted from `y(k)` after every
-    /// `horizon`-th sample (`horizon ≥ 1`).
-    Ahead { horizon: usize },
-}
-
-impl Measure {
-    /// Samples between restarts (`usize::MAX`: never).
-    pub fn restart_every(self) -> usize {
-        match self {
-            Measure::FreeRun => usize::MAX,
-            Measure::Ahead { horizon } => horizon.max(1),
-        }
-    }
-}
-
-impl std::fmt::Display for Measure {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Measure::FreeRun => f.write_str("free run"),
-            Measure::Ahead { horizon } => write!(f, "{horizon}-step-ahead prediction"),
-        }
-    }
 }
 
 /// Runs `family` over the data (output mean `y_mean` removed) under

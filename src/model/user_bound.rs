@@ -23,22 +23,45 @@ impl std::fmt::Display for UserBound {
     }
 }
 
+/// A `--bound` or `--fix` that does not read as a bound (`input` is it
+/// as given).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum UserBoundError {
+    #[error("`{input}`: expected NAME=LO:HI or NAME=VALUE")]
+    Form { input: String },
+    #[error("`{input}`: `{value}` is not a number")]
+    NotANumber { input: String, value: String },
+    #[error("`{input}`: `{value}` is not a finite number")]
+    NotFinite { input: String, value: String },
+    #[error("`{input}`: the box is empty (lower {lower} is above upper {upper})")]
+    Empty {
+        input: String,
+        lower: f64,
+        upper: f64,
+    },
+}
+
 impl std::str::FromStr for UserBound {
-    type Err = String;
+    type Err = UserBoundError;
     /// `NAME=LO:HI` or `NAME=VALUE` (a fixed value: `LO = HI`).
     fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let input = || s.to_string();
         let (name, range) = s
             .split_once('=')
-            .ok_or_else(|| format!("`{s}`: expected NAME=LO:HI or NAME=VALUE"))?;
-        let number = |v: &str| -> Result<f64, String> {
-            let x: f64 = v
-                .trim()
-                .parse()
-                .map_err(|_| format!("`{s}`: `{v}` is not a number"))?;
+            .ok_or_else(|| UserBoundError::Form { input: input() })?;
+        let number = |v: &str| -> Result<f64, UserBoundError> {
+            let value = || v.to_string();
+            let x: f64 = v.trim().parse().map_err(|_| UserBoundError::NotANumber {
+                input: input(),
+                value: value(),
+            })?;
             if x.is_finite() {
                 Ok(x)
             } else {
-                Err(format!("`{s}`: `{v}` is not a finite number"))
+                Err(UserBoundError::NotFinite {
+                    input: input(),
+                    value: value(),
+                })
             }
         };
         let (lower, upper) = match range.split_once(':') {
@@ -49,9 +72,11 @@ impl std::str::FromStr for UserBound {
             }
         };
         if lower > upper {
-            return Err(format!(
-                "`{s}`: the box is empty (lower {lower} is above upper {upper})"
-            ));
+            return Err(UserBoundError::Empty {
+                input: input(),
+                lower,
+                upper,
+            });
         }
         Ok(UserBound {
             name: name.trim().to_string(),

@@ -1,5 +1,5 @@
-//! What a run records each generation, as CSV, JSON and figures (the
-//! thesis' parameter trends, figures 9–24, and a convergence curve).
+//! What a run records each generation, as CSV and JSON (`report::history`
+//! draws it).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -8,8 +8,7 @@ use serde::{Deserialize, Serialize};
 
 use super::stage::Stage;
 use crate::data::write_atomic;
-use crate::model::Measure;
-use crate::report::{Figure, Panel, Series};
+use crate::search::Measure;
 
 /// One generation of a population stage, or one start of the polish. Costs
 /// are on the estimation data; `None` stands for "no finite value" (JSON has
@@ -135,58 +134,6 @@ impl History {
         write(
             "history.json",
             serde_json::to_string_pretty(self)?.as_bytes(),
-        )
-    }
-
-    /// Best-so-far parameters over the fit, one panel per free
-    /// parameter (the thesis' figures 9–11, 13, 15, 17–19, 22, 24).
-    /// `free` lists the canonical indices that were searched.
-    pub fn trends_figure(&self, title: &str, free: &[usize]) -> Figure {
-        let names = self.param_names();
-        let mut fig = Figure::new(title);
-        fig.panel_height = 200;
-        for &i in free {
-            let (x, y): (Vec<f64>, Vec<f64>) = self
-                .records
-                .iter()
-                .filter_map(|r| r.best_params.get(i).map(|&v| (r.generation as f64, v)))
-                .unzip();
-            let name = names.get(i).copied().unwrap_or("?");
-            fig = fig.with(Panel::new(name, "generation", name).with(Series::line(
-                "stage best",
-                x,
-                y,
-            )));
-        }
-        fig
-    }
-
-    /// Each stage's best, the best free-run SSE, the generation best and the
-    /// population mean over the fit, log scale (the global stage's costs are
-    /// its prediction error, the others' the free-run SSE).
-    pub fn convergence_figure(&self, title: &str) -> Figure {
-        let g: Vec<f64> = self.records.iter().map(|r| r.generation as f64).collect();
-        let col = |f: fn(&GenerationRecord) -> Option<f64>| -> Vec<f64> {
-            self.records
-                .iter()
-                .map(|r| f(r).unwrap_or(f64::NAN))
-                .collect()
-        };
-        Figure::new(title).with(
-            Panel::new("convergence", "generation", "SSE (estimation)")
-                .with(Series::line(
-                    "best free run",
-                    g.clone(),
-                    col(|r| r.best_sse),
-                ))
-                .with(Series::line("stage best", g.clone(), col(|r| r.stage_best)))
-                .with(Series::line(
-                    "generation best",
-                    g.clone(),
-                    col(|r| r.generation_best_sse),
-                ))
-                .with(Series::line("population mean", g, col(|r| r.mean_sse)))
-                .log_y(),
         )
     }
 }

@@ -1,8 +1,9 @@
 //! Population optimizers in ask/tell form, and the fitting [`engine`] that
-//! drives them against a batch [`Evaluator`](crate::eval::Evaluator).
+//! drives them against an [`engine::Objective`] that scores whole
+//! populations (a fit's is a batch evaluator of a model).
 //!
 //! An optimizer never sees the model: it is handed a box (the free
-//! coordinates of a [`SearchSpace`](crate::model::SearchSpace)), *asks* for a population of points in
+//! coordinates of an [`engine::Space`]), *asks* for a population of points in
 //! it and is *told* their costs (SSE, lower is better, `+∞` for a diverged
 //! candidate). The [`engine`] owns everything around that: stages, seeding,
 //! stopping, history, checkpoints, Ctrl-C. Every random draw comes from the
@@ -34,10 +35,20 @@ use rayon::prelude::*;
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
-use crate::model::Family;
+use crate::names::UnknownName;
 
 pub use history::{GenerationRecord, History};
 pub use streams::{RowRng, Streams};
+
+/// Which of the thesis' models a search's thesis settings are for: its
+/// tables state other PSO settings for the generalized model (Table 19) than
+/// for the classic one (Table 11). A label, so that the optimizers' presets
+/// need not know the models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ThesisModel {
+    Classic,
+    Generalized,
+}
 
 /// The box an optimizer searches: bounds of the free coordinates only
 /// (parameters with `lower == upper` in the [`engine::Space`] are held fixed by
@@ -104,8 +115,8 @@ pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
     fn new(settings: Self::Settings, bounds: Bounds, n: usize, generations: usize) -> Self;
 
     /// The settings of the thesis' flow and of Table 21 (chapter 5): the
-    /// paper's unless the thesis states others for `family`.
-    fn thesis_settings(_family: Family) -> Self::Settings {
+    /// paper's unless the thesis states others for `model`.
+    fn thesis_settings(_model: ThesisModel) -> Self::Settings {
         Self::Settings::default()
     }
 
@@ -386,10 +397,10 @@ macro_rules! registry {
             }
 
             /// Its settings in the thesis' flow ([`Optimizer::thesis_settings`]).
-            pub fn thesis_settings(self, family: Family) -> AlgoSettings {
+            pub fn thesis_settings(self, model: ThesisModel) -> AlgoSettings {
                 match self {
                     $(Algorithm::$variant => {
-                        AlgoSettings::$variant(<$optimizer as Optimizer>::thesis_settings(family))
+                        AlgoSettings::$variant(<$optimizer as Optimizer>::thesis_settings(model))
                     })+
                 }
             }
@@ -486,7 +497,7 @@ impl fmt::Display for Algorithm {
 }
 
 impl FromStr for Algorithm {
-    type Err = String;
+    type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         Algorithm::ALL
             .into_iter()
@@ -494,10 +505,11 @@ impl FromStr for Algorithm {
             .ok_or_else(|| {
                 let names: Vec<&str> = Algorithm::ALL.iter().map(|a| a.name()).collect();
                 let (last, rest) = names.split_last().expect("a registered algorithm");
-                format!(
-                    "unknown algorithm `{s}`: expected {} or {last}",
-                    rest.join(", ")
-                )
+                UnknownName {
+                    what: "algorithm",
+                    got: s.to_string(),
+                    expected: format!("{} or {last}", rest.join(", ")),
+                }
             })
     }
 }
@@ -571,6 +583,7 @@ mod tests {
             "cmaes"
                 .parse::<Algorithm>()
                 .unwrap_err()
+                .to_string()
                 .contains("ga, mfa")
         );
     }
@@ -605,7 +618,7 @@ mod tests {
             let n = algo.min_population();
             for settings in [
                 algo.default_settings(),
-                algo.thesis_settings(Family::Generalized),
+                algo.thesis_settings(ThesisModel::Generalized),
                 algo.staged_settings(n),
             ] {
                 let mut search = AskTell::new(&settings, cube(), n, 5, Vec::new());

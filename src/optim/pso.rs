@@ -20,8 +20,7 @@ use rand::RngExt;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{Bounds, Optimizer, Streams};
-use crate::model::Family;
+use super::{Bounds, Optimizer, Streams, ThesisModel};
 
 /// PSO settings; defaults are Table 11 (classic); [`PsoSettings::thesis`]
 /// gives Table 19 for the generalized model.
@@ -69,15 +68,15 @@ impl Default for PsoSettings {
 impl PsoSettings {
     /// Table 11 (classic: inertia 1.1 → 0.3, Vmax 20) or Table 19
     /// (generalized: inertia 2.1 → 0.6, Vmax 0.1); `c1 = c2 = 2` in both.
-    pub fn thesis(family: Family) -> PsoSettings {
-        match family {
-            Family::Generalized => PsoSettings {
+    pub fn thesis(model: ThesisModel) -> PsoSettings {
+        match model {
+            ThesisModel::Generalized => PsoSettings {
                 w_start: 2.1,
                 w_end: 0.6,
                 vmax: 0.1,
                 ..PsoSettings::default()
             },
-            _ => PsoSettings::default(),
+            ThesisModel::Classic => PsoSettings::default(),
         }
     }
 
@@ -165,8 +164,8 @@ impl Optimizer for Pso {
     }
 
     /// Table 19 for the generalized model, Table 11 otherwise.
-    fn thesis_settings(family: Family) -> PsoSettings {
-        PsoSettings::thesis(family)
+    fn thesis_settings(model: ThesisModel) -> PsoSettings {
+        PsoSettings::thesis(model)
     }
 
     /// The staged fit uses Clerc and Kennedy's constriction
@@ -306,9 +305,9 @@ mod tests {
 
     #[test]
     fn thesis_presets_and_inertia() {
-        let g = PsoSettings::thesis(Family::Generalized);
+        let g = PsoSettings::thesis(ThesisModel::Generalized);
         assert_eq!((g.w_start, g.w_end, g.vmax), (2.1, 0.6, 0.1));
-        let c = PsoSettings::thesis(Family::Classic);
+        let c = PsoSettings::thesis(ThesisModel::Classic);
         assert!((c.inertia(30, 30) - 0.3).abs() < 1e-12);
         assert!((c.inertia(15, 30) - 0.7).abs() < 1e-12);
     }

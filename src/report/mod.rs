@@ -1,6 +1,7 @@
 //! Output for people and scripts: figures (SVG) and small table helpers.
 
 pub mod fit;
+pub mod history;
 pub mod json;
 pub mod plot;
 

@@ -49,13 +49,17 @@ pub enum Fault {
     Repeat(u64),
 }
 
+/// A `--fault` that is none of the faults' forms (the text as given).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("`{0}`: a fault is drop@K, delay@K=MS, garble@K, stale@K or repeat@K")]
+pub struct NotAFault(pub String);
+
 impl std::str::FromStr for Fault {
-    type Err = String;
+    type Err = NotAFault;
 
     /// `drop@K`, `delay@K=MS`, `garble@K`, `stale@K`, `repeat@K`.
-    fn from_str(s: &str) -> Result<Fault, String> {
-        let usage =
-            || format!("`{s}`: a fault is drop@K, delay@K=MS, garble@K, stale@K or repeat@K");
+    fn from_str(s: &str) -> Result<Fault, NotAFault> {
+        let usage = || NotAFault(s.to_string());
         let (kind, rest) = s.split_once('@').ok_or_else(usage)?;
         let (k, ms) = match rest.split_once('=') {
             Some((k, ms)) => (k, Some(ms)),

@@ -10,6 +10,7 @@ use mckibben::fit::request::FitRequest;
 use mckibben::fit::settings::{FitSettings, Overrides};
 use mckibben::model::effects::Effect;
 use mckibben::model::{Family, Loop, Switching, UserBound};
+use mckibben::names::UnknownName;
 use mckibben::optim::Algorithm;
 use mckibben::optim::engine::StopRules;
 use mckibben::optim::ga::{Crossover, Mutation};
@@ -263,7 +264,7 @@ pub(super) enum EffectArg {
 }
 
 impl std::str::FromStr for EffectArg {
-    type Err = String;
+    type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "auto" => Ok(EffectArg::Auto),

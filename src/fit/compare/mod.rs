@@ -13,6 +13,7 @@ use serde::Serialize;
 use super::objective::{GENERATIONS, POPULATION, staged_plan};
 use super::problem::FitProblem;
 use super::run::run_fit;
+use super::settings::thesis_model;
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit_percent;
@@ -273,7 +274,7 @@ impl<'a> Study<'a> {
         for n in settings.table21_sizes() {
             for problem in &self.problems {
                 for algo in Algorithm::ALL {
-                    let mut s = algo.thesis_settings(problem.model.family);
+                    let mut s = algo.thesis_settings(thesis_model(problem.model.family));
                     let mut capped = false;
                     if let AlgoSettings::Mfa(m) = &mut s
                         && n > settings.mfa_all_pairs_max
@@ -305,8 +306,9 @@ impl<'a> Study<'a> {
             return Ok(out);
         }
         for problem in &self.problems {
-            let thesis =
-                |algo: Algorithm| Variant::Thesis(algo.thesis_settings(problem.model.family));
+            let thesis = |algo: Algorithm| {
+                Variant::Thesis(algo.thesis_settings(thesis_model(problem.model.family)))
+            };
             // The documented fixes (docs/RESULTS.md) are the staged fit's
             // settings: GA with 10 % elitism, uniform mutation, P_mut 0.3;
             // MFA towards the 10 brightest, r², box units.

@@ -25,6 +25,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::model::Experiment;
 use crate::model::Family;
+use crate::names::UnknownName;
 
 mod catalogue;
 mod stage;
@@ -175,7 +176,7 @@ impl fmt::Display for Effect {
 }
 
 impl FromStr for Effect {
-    type Err = String;
+    type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         Effect::ALL
             .iter()
@@ -183,7 +184,11 @@ impl FromStr for Effect {
             .find(|e| e.name() == s.trim().to_ascii_lowercase())
             .ok_or_else(|| {
                 let names: Vec<_> = Effect::ALL.iter().map(|e| e.name()).collect();
-                format!("unknown effect `{s}`: expected one of {}", names.join(", "))
+                UnknownName {
+                    what: "effect",
+                    got: s.to_string(),
+                    expected: format!("one of {}", names.join(", ")),
+                }
             })
     }
 }
@@ -729,7 +734,7 @@ mod tests {
         for e in Effect::ALL {
             assert_eq!(e.name().parse::<Effect>().unwrap(), e);
         }
-        let err = "friction".parse::<Effect>().unwrap_err();
+        let err = "friction".parse::<Effect>().unwrap_err().to_string();
         assert!(err.contains("delay") && err.contains("load"), "{err}");
     }
 }

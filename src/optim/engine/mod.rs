@@ -55,10 +55,10 @@ use super::history::{GenerationRecord, History};
 pub use super::stage::Stage;
 use super::streams::try_seed;
 use crate::data::write_atomic;
-use crate::model::Measure;
+use crate::search::Measure;
 
 pub use plan::{FreeRun, Global, Plan, Polish, Refine};
-pub use space::{Space, Stepwise};
+pub use space::{Canonical, Chart, Space, Stepwise};
 use tries::{Members, Scored, Step, Try, keep_lowest};
 
 /// What a fit minimises: the costs of whole populations at once.
@@ -198,9 +198,9 @@ pub trait Observer {
 
 /// A fit in progress (serialisable: a checkpoint is this value as JSON).
 #[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Engine {
+pub struct Engine<C = Canonical> {
     pub plan: Plan,
-    pub space: Space,
+    pub space: Space<C>,
     pub seed: u64,
     pub stops: StopRules,
     /// Free-coordinate rows the first try's first stage starts from.
@@ -231,9 +231,9 @@ pub struct Engine {
     canonical: Vec<f64>,
 }
 
-impl Engine {
+impl<C: Chart> Engine<C> {
     /// A fit of `plan` over `space`.
-    pub fn new(plan: Plan, space: Space, seed: u64, stops: StopRules) -> anyhow::Result<Engine> {
+    pub fn new(plan: Plan, space: Space<C>, seed: u64, stops: StopRules) -> anyhow::Result<Self> {
         anyhow::ensure!(
             !space.free().is_empty(),
             "the search space has no free parameter (every lower bound equals its upper bound)"
@@ -303,7 +303,7 @@ impl Engine {
     /// start from known models): the first members of the first population,
     /// or the polish's starts when the plan is a polish alone. Clamped into
     /// the box.
-    pub fn with_initial(mut self, canonical: &[f64]) -> Engine {
+    pub fn with_initial(mut self, canonical: &[f64]) -> Self {
         let mut rows = self.space.project(canonical);
         let bounds = self.space.bounds();
         for row in rows.chunks_mut(bounds.dim().max(1)) {
@@ -615,7 +615,7 @@ impl Engine {
     }
 
     /// Reads a checkpoint written by [`Engine::save`].
-    pub fn load(path: &Path) -> anyhow::Result<Engine> {
+    pub fn load(path: &Path) -> anyhow::Result<Self> {
         let bytes = std::fs::read(path)
             .map_err(|e| anyhow::anyhow!("cannot read checkpoint {}: {e}", path.display()))?;
         serde_json::from_slice(&bytes).map_err(|e| {

@@ -41,7 +41,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::super::{AlgoSettings, Algorithm};
-use crate::model::Measure;
+use crate::search::Measure;
 
 /// The stages of a fit; an absent stage is skipped.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

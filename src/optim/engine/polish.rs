@@ -4,11 +4,12 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::{
-    Engine, Members, Objective, Scored, Space, Stage, StageEnd, Step, keep_lowest, plan, timed,
+    Chart, Engine, Members, Objective, Scored, Space, Stage, StageEnd, Step, keep_lowest, plan,
+    timed,
 };
-use crate::model::Measure;
 use crate::optim::Bounds;
 use crate::optim::lm::{self, LmSettings};
+use crate::search::Measure;
 
 /// What a polish changes that an interrupted one puts back: each try's
 /// best, the history's length and the evaluations counted.
@@ -22,8 +23,8 @@ struct PolishUndo {
 /// as the step found it (the groups' scores borrow the engine), its box,
 /// the probe steps' floor, the settings, the horizons in turn and the
 /// interrupt.
-struct PolishSetup<'a> {
-    space: Space,
+struct PolishSetup<'a, C> {
+    space: Space<C>,
     bounds: Bounds,
     floor: Vec<f64>,
     settings: LmSettings,
@@ -31,14 +32,14 @@ struct PolishSetup<'a> {
     interrupt: Option<&'a AtomicBool>,
 }
 
-impl PolishSetup<'_> {
+impl<C> PolishSetup<'_, C> {
     /// Whether the interrupt has been raised.
     fn cut(&self) -> bool {
         self.interrupt.is_some_and(|f| f.load(Ordering::SeqCst))
     }
 }
 
-impl Engine {
+impl<C: Chart> Engine<C> {
     /// A polish step: Levenberg–Marquardt on the free-run residuals from
     /// each try's best distinct members (after the population stages, of
     /// all of them; after a refining round, of that round's; from the
@@ -107,7 +108,7 @@ impl Engine {
         p: &plan::Polish,
         after_round: bool,
         interrupt: Option<&'a AtomicBool>,
-    ) -> PolishSetup<'a> {
+    ) -> PolishSetup<'a, C> {
         let space = self.space.clone();
         let bounds = space.bounds();
         let nf = bounds.dim();
@@ -189,7 +190,7 @@ impl Engine {
     fn polish_group(
         &mut self,
         objective: &mut dyn Objective,
-        setup: &PolishSetup,
+        setup: &PolishSetup<C>,
         group: &[(usize, Vec<f64>)],
     ) -> anyhow::Result<()> {
         let before_group = self.evaluations;
@@ -212,7 +213,7 @@ impl Engine {
     fn polish_on(
         &mut self,
         objective: &mut dyn Objective,
-        setup: &PolishSetup,
+        setup: &PolishSetup<C>,
         measure: Measure,
         xs: &mut [Vec<f64>],
         points: &mut [usize],
@@ -254,7 +255,7 @@ impl Engine {
     fn record_polished(
         &mut self,
         objective: &mut dyn Objective,
-        setup: &PolishSetup,
+        setup: &PolishSetup<C>,
         group: &[(usize, Vec<f64>)],
         xs: &[Vec<f64>],
         points: Vec<usize>,

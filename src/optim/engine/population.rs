@@ -2,8 +2,8 @@
 //! and the refining rounds, every try's islands in lock-step, one
 //! generation a step.
 
-use super::{Engine, FreeRun, Members, Objective, Stage, StageEnd, Step, keep_lowest};
-use crate::model::Measure;
+use super::{Chart, Engine, FreeRun, Members, Objective, Stage, StageEnd, Step, keep_lowest};
+use crate::search::Measure;
 use rayon::prelude::*;
 
 use crate::optim::{AskTell, Streams};
@@ -18,7 +18,7 @@ struct Span {
     streams: Streams,
 }
 
-impl Engine {
+impl<C: Chart> Engine<C> {
     /// The streams of generation `generation` of `stage` in try `t` (0: the
     /// draws before the first population; `k`: the `k`-th population asked).
     fn streams(&self, t: usize, stage: Stage, generation: usize) -> Streams {

@@ -2,16 +2,54 @@
 
 use rand::RngExt;
 use rayon::prelude::*;
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use super::super::{Bounds, Streams};
-use crate::model::bounds::Side;
-use crate::model::{Coordinates, Family, SearchSpace};
+use crate::search::Side;
+
+/// The map between the coordinates a box is set in and the canonical
+/// vectors the objective scores, entry for entry (as long as each other).
+/// The engine knows no model: a model's own coordinates come as a chart
+/// (the data's scale of a model family: `fit::chart`). A checkpoint holds
+/// it with the rest of the engine.
+pub trait Chart:
+    Clone + std::fmt::Debug + PartialEq + Send + Sync + Serialize + DeserializeOwned
+{
+    /// The canonical vector of coordinates `z`, written into `theta`: no
+    /// allocation, for the engine maps every row of every generation.
+    fn to_canonical_into(&self, z: &[f64], theta: &mut [f64]);
+
+    /// The coordinates of the canonical vector `theta`.
+    fn coordinates_of(&self, theta: &[f64]) -> Vec<f64>;
+
+    /// The names of the canonical parameters of the coordinates `names`.
+    fn canonical_names(&self, names: &[String]) -> Vec<String>;
+}
+
+/// No chart: a box set in the canonical vectors themselves. It has no
+/// value, so a [`Space`] of it never holds a chart.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Canonical {}
+
+impl Chart for Canonical {
+    fn to_canonical_into(&self, _: &[f64], _: &mut [f64]) {
+        match *self {}
+    }
+
+    fn coordinates_of(&self, _: &[f64]) -> Vec<f64> {
+        match *self {}
+    }
+
+    fn canonical_names(&self, _: &[String]) -> Vec<String> {
+        match *self {}
+    }
+}
 
 /// The box of a fit over search coordinates (the canonical parameters, or
-/// the data's own scale: [`Coordinates`]); a coordinate whose bounds are
-/// equal is held there and never shown to the optimizers. What the engine
-/// scores, keeps and reports are canonical vectors ([`Space::embed`]).
+/// others through a [`Chart`]); a coordinate whose bounds are equal is held
+/// there and never shown to the optimizers. What the engine scores, keeps
+/// and reports are canonical vectors ([`Space::embed`]).
 ///
 /// The optimizers see the free coordinates as they are. A log scale for the
 /// loop-shape parameters (β, γ are often 10⁻³ in a box of ±0.5) as
@@ -19,7 +57,7 @@ use crate::model::{Coordinates, Family, SearchSpace};
 /// draws β, γ log-uniformly"); what helps is drawing half the first
 /// population's values of those parameters log-uniformly ([`Space::draw`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Space {
+pub struct Space<C = Canonical> {
     pub lower: Vec<f64>,
     pub upper: Vec<f64>,
     pub names: Vec<String>,
@@ -30,10 +68,10 @@ pub struct Space {
     /// Decades below the box's edge that a log-uniform draw spans.
     #[serde(default = "thesis_decades")]
     pub drawn_decades: f64,
-    /// The family and the map from coordinates to its canonical vectors
-    /// (none: the coordinates are the canonical vector).
-    #[serde(default)]
-    pub coords: Option<(Family, Coordinates)>,
+    /// The map from coordinates to canonical vectors (none: the
+    /// coordinates are the canonical vector).
+    #[serde(default = "Option::default")]
+    pub coords: Option<C>,
     /// Coordinates in which the objective is piecewise constant: the polish
     /// holds them and a scan of levels in one batch moves them
     /// ([`Stepwise`]).
@@ -63,16 +101,12 @@ pub struct Stepwise {
 /// Decades a log-uniform draw spans below the edge of a box in the thesis'
 /// units (β, γ within ±0.5: down to 5·10⁻⁵).
 const THESIS_DECADES: f64 = 4.0;
-/// Decades a log-uniform draw spans below the edge of a data-scale
-/// loop-shape box (`ψ·Rⁿ/A` up to 1000: down to 10⁻³, loops that saturate
-/// at a thousand times the output range, as nearly linear as a muscle's).
-const SCALED_DECADES: f64 = 6.0;
-
 fn thesis_decades() -> f64 {
     THESIS_DECADES
 }
 
 impl Space {
+    /// A box set in the canonical vectors.
     pub fn new(lower: Vec<f64>, upper: Vec<f64>, names: Vec<String>) -> Space {
         let decades = vec![false; lower.len()];
         Space {
@@ -86,8 +120,33 @@ impl Space {
         }
     }
 
+    /// The same box set in the coordinates of `chart` (none: the canonical
+    /// vectors still).
+    pub fn with_chart<C: Chart>(self, chart: Option<C>) -> Space<C> {
+        let Space {
+            lower,
+            upper,
+            names,
+            decades,
+            drawn_decades,
+            stepwise,
+            ..
+        } = self;
+        Space {
+            lower,
+            upper,
+            names,
+            decades,
+            drawn_decades,
+            coords: chart,
+            stepwise,
+        }
+    }
+}
+
+impl<C: Chart> Space<C> {
     /// Marks the coordinates `indices` as spanning decades (see [`Space::draw`]).
-    pub fn with_decades(mut self, indices: impl IntoIterator<Item = usize>) -> Space {
+    pub fn with_decades(mut self, indices: impl IntoIterator<Item = usize>) -> Space<C> {
         for i in indices {
             self.decades[i] = true;
         }
@@ -221,7 +280,7 @@ impl Space {
                         z[i] = v.clamp(self.lower[i], self.upper[i]);
                     }
                     match &self.coords {
-                        Some((family, coords)) => coords.to_native_into(*family, z, theta),
+                        Some(chart) => chart.to_canonical_into(z, theta),
                         None => theta.copy_from_slice(z),
                     }
                 },
@@ -229,16 +288,11 @@ impl Space {
     }
 
     /// The names of the canonical parameters the engine reports (what
-    /// [`Space::embed`] returns): the family's, then any after it (an
-    /// effect's), where the coordinates are another scale's; else the
+    /// [`Space::embed`] returns): the chart's where there is one, else the
     /// coordinates' own names.
     pub fn canonical_names(&self) -> Vec<String> {
         match &self.coords {
-            Some((family, _)) => {
-                let mut names = Coordinates::Native.names(*family);
-                names.extend(self.names[family.dim()..].iter().cloned());
-                names
-            }
+            Some(chart) => chart.canonical_names(&self.names),
             None => self.names.clone(),
         }
     }
@@ -246,7 +300,7 @@ impl Space {
     /// The full search coordinates of a canonical vector.
     fn coordinates(&self, canonical: &[f64]) -> Vec<f64> {
         match &self.coords {
-            Some((family, coords)) => coords.from_native(*family, canonical),
+            Some(chart) => chart.coordinates_of(canonical),
             None => canonical.to_vec(),
         }
     }
@@ -301,30 +355,6 @@ impl Space {
     }
 }
 
-impl From<&SearchSpace> for Space {
-    /// The loop-shape coordinates span decades (not the generalized
-    /// bounded class's unloading shares, which are fractions in [−1, 1]).
-    fn from(s: &SearchSpace) -> Space {
-        let names = s.names();
-        let decades: Vec<usize> = crate::model::coords::shape_range(s.family)
-            .filter(|&i| !names[i].starts_with("unload_"))
-            .collect();
-        let mut space = Space::new(s.lower.clone(), s.upper.clone(), names).with_decades(decades);
-        if let Coordinates::Scaled { .. } = s.coords {
-            space.drawn_decades = SCALED_DECADES;
-            space.coords = Some((s.family, s.coords));
-        }
-        if let (Some(index), Some(levels)) = (s.family.switch_index(), &s.switch_levels) {
-            space.stepwise.push(Stepwise {
-                index,
-                preferred: levels.clone(),
-                tolerance: 0.0,
-            });
-        }
-        space
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -344,40 +374,6 @@ mod tests {
         assert_eq!(back[1], 1.0);
         assert_eq!(back, theta);
         assert_eq!(space.bounds().lower, vec![0.0, -0.5]);
-    }
-
-    #[test]
-    fn canonical_names_name_what_embed_returns() {
-        use crate::model::{Family, LinearPrior, Loop};
-        let prior = LinearPrior {
-            a: 0.96,
-            b: 25.0,
-            max_abs_input: 0.4,
-            max_abs_output: 40.0,
-            output_range: 30.0,
-            est_output_min: 5.0,
-            est_output_max: 35.0,
-            output_mean: 18.0,
-        };
-        let scaled = SearchSpace::scaled(
-            Family::Classic,
-            prior,
-            (Loop::Bounded, Default::default()),
-            false,
-            &[],
-        )
-        .unwrap()
-        .with_extra(vec!["creep.rho".into()], vec![0.9], vec![0.99], &[])
-        .unwrap();
-        let space = Space::from(&scaled);
-        assert!(space.names.contains(&"gain".to_string()));
-        let mut want: Vec<String> = Family::Classic
-            .params()
-            .iter()
-            .map(|p| p.name.to_string())
-            .collect();
-        want.push("creep.rho".into());
-        assert_eq!(space.canonical_names(), want);
     }
 
     #[test]

@@ -4,10 +4,10 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{Engine, Stage, StageEnd};
-use crate::model::Measure;
+use super::{Chart, Engine, Stage, StageEnd};
 use crate::optim::best_indices;
 use crate::optim::{AskTell, argmin};
+use crate::search::Measure;
 
 /// The members of one island and their costs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -135,7 +135,7 @@ impl Try {
     }
 }
 
-impl Engine {
+impl<C: Chart> Engine<C> {
     /// The plan's steps in order: the global stage, the free-run stage, the
     /// polish, then each refining round and its polish.
     pub(super) fn steps(&self) -> Vec<Step> {

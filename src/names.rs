@@ -1,0 +1,16 @@
+//! The error of a name read from a closed list (an algorithm, a model
+//! family, an effect): below every module that keeps such a list, so that
+//! they share one type.
+
+/// A name that is none of the list's, with the list: "unknown `what` `got`:
+/// expected `expected`".
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown {what} `{got}`: expected {expected}")]
+pub struct UnknownName {
+    /// What the list names ("algorithm", "model family", "effect").
+    pub what: &'static str,
+    /// The name as given (or as the list compares it).
+    pub got: String,
+    /// The names it could have been, as a phrase ("ga, mfa, pso or de").
+    pub expected: String,
+}
