@@ -112,8 +112,8 @@ impl<const L: usize> OutputLoop<L> for Ratchet {
                 s.offset[l] = a[l] + v[l] * s.count;
             }
         }
-        for l in 0..L {
-            y[l] += s.offset[l];
+        for (y, offset) in y.iter_mut().zip(&s.offset) {
+            *y += offset;
         }
     }
 }

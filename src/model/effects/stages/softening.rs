@@ -78,8 +78,8 @@ impl<const L: usize> Loadings<L> {
     #[inline(always)]
     fn follow(&mut self, r: &[f32; L], at: &At<'_, L>) {
         if self.branch.follow(at) {
-            for l in 0..L {
-                self.to_come[l] *= r[l];
+            for (to_come, r) in self.to_come.iter_mut().zip(r) {
+                *to_come *= r;
             }
         }
     }
