@@ -24,7 +24,8 @@ use super::common::MultiDataArgs;
 /// (--blocks). Then reports WHERE the free-run residual lies (input branch,
 /// input level, transient or settled, frequency, dataset; whiteness and
 /// residual–input tests), WHICH effect of the catalogue (delay, deadzone,
-/// saturation, asymmetry, inertia, backlash, creep, rate, load), in which
+/// saturation, asymmetry, inertia, backlash, creep, rate, load, softening,
+/// set), in which
 /// realisation (e.g. `delay:input-lag`, a first-order lag on the input;
 /// `inertia:ringing`, a hanging load that rings after each input step),
 /// explains it —

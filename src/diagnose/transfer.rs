@@ -43,6 +43,17 @@ pub struct Transfer {
     pub noise_floor_rmse: f64,
     /// Share of the baseline's gap above that floor the chain closes there.
     pub gap_closed: f64,
+    /// Whether the chain collapses there: it validates below the plain
+    /// baseline, or its fit has no finite score at all.
+    pub collapses: bool,
+}
+
+/// Whether a chain that validates at `chain_fit_percent` on a record
+/// whose plain baseline validates at `baseline_fit_percent` collapses
+/// there: below the baseline, or not finite (a fit that diverges on the
+/// second half).
+pub fn collapses(chain_fit_percent: f64, baseline_fit_percent: f64) -> bool {
+    !(chain_fit_percent >= baseline_fit_percent)
 }
 
 /// The chain of `d`'s final model and its baseline, each fitted on every
@@ -82,6 +93,7 @@ pub fn transfer(
                 chain_val_fit_percent: fitted.fit_percent,
                 noise_floor_rmse: floor,
                 gap_closed: gap_closed(baseline.rmse, fitted.rmse, floor),
+                collapses: collapses(fitted.fit_percent, baseline.fit_percent),
             })
         })
         .collect()
@@ -132,4 +144,18 @@ pub(crate) fn run_stoppable(fit: FitRun, settings: &Settings) -> anyhow::Result<
         return Err(Interrupted.into());
     }
     Ok((fit, outcome))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::collapses;
+
+    #[test]
+    fn a_chain_below_the_plain_fit_or_without_a_score_collapses() {
+        assert!(!collapses(88.0, 80.0));
+        assert!(!collapses(80.0, 80.0));
+        assert!(collapses(79.9, 80.0));
+        assert!(collapses(-10.0, 86.0));
+        assert!(collapses(f64::NAN, 80.0));
+    }
 }

@@ -523,13 +523,27 @@ fn transfer_text(o: &mut String, d: &Diagnosis) {
         .max()
         .unwrap_or(0);
     for t in &d.transfers {
+        let verdict = if !t.chain_val_fit_percent.is_finite() {
+            "  COLLAPSES: the chain has no finite fit here"
+        } else if t.collapses {
+            "  COLLAPSES: below the plain fit"
+        } else {
+            ""
+        };
         let _ = writeln!(
             o,
-            "  {:<width$}  baseline {:5.1} %  with the chain {:5.1} %  gap closed {}",
+            "  {:<width$}  baseline {:5.1} %  with the chain {:5.1} %  gap closed {}{verdict}",
             t.dataset,
             t.baseline_val_fit_percent,
             t.chain_val_fit_percent,
             pct(t.gap_closed)
+        );
+    }
+    if d.transfers.iter().any(|t| t.collapses) {
+        let _ = writeln!(
+            o,
+            "  A chain that collapses on another record holds something of this recording, not of the\n  \
+             muscle: read it as a description of this record."
         );
     }
 }
