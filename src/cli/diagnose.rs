@@ -146,9 +146,10 @@ pub struct Args {
     /// never the catalogue's, realises every physical effect in two or
     /// three ways (e.g. lag as a pure delay, an input lag, an output lag) on
     /// DATA's input and on a multisine, at two sizes, plus a control on each
-    /// and two pairs, and an effect outside the catalogue (a sensor's
-    /// cross-talk), which must be called "not explained by the catalogue"
-    /// (80 cases, classic baseline only); prints the
+    /// and two pairs, an effect outside the catalogue (a sensor's
+    /// cross-talk), which must be called "not explained by the catalogue",
+    /// and the softening and the set on pulse trains, whose driver must be
+    /// named (91 cases, classic baseline only); prints the
     /// confusion table and each case's verdict. `--self-test=catalogue`: the
     /// withheld-effect check, whose data come from the catalogue's own
     /// effect equations (every effect at two sizes, a control, a two-effect
