@@ -370,38 +370,45 @@ fn asymmetry_prepare(q: AsymmetryParams, frame: Frame) -> AsymmetryConsts {
     return q;
 }
 
-// The branch, which follows the measured input only.
-struct AsymmetryState {
-    // +1 loading, −1 unloading, 0 not yet moved.
+// `Branch`: the branch of the measured input, which follows it only (+1
+// loading, −1 unloading, 0 not yet moved; the input's extreme on it).
+struct Branch {
     dir: f32,
-    // The input's extreme on the current branch.
     extreme: f32,
 }
 
-fn asymmetry_start(c: AsymmetryConsts, x: f32, u0: f32) -> AsymmetryState {
-    return AsymmetryState(0.0, u0);
-}
-
-// The branch switches once the input has moved back from its extreme by
-// the context's tolerance.
-fn asymmetry_step(c: AsymmetryConsts, s: ptr<private, AsymmetryState>, ui: f32, at: At) -> f32 {
+// `Branch::follow`: the branch after this sample. (By value, as
+// `largest_so_far`.) A loading began where `dir` turned positive.
+fn branch_follow(before: Branch, at: At) -> Branch {
+    var s = before;
     let raw = at.raw;
     let tol = at.frame.branch_tol;
-    if ((*s).dir >= 0.0) {
-        (*s).extreme = larger(raw, (*s).extreme);
-        if (raw < (*s).extreme - tol) {
-            (*s).dir = -1.0;
-            (*s).extreme = raw;
+    if (s.dir >= 0.0) {
+        s.extreme = larger(raw, s.extreme);
+        if (raw < s.extreme - tol) {
+            s.dir = -1.0;
+            s.extreme = raw;
         } else if (raw > input(at.span, 0u) + tol) {
-            (*s).dir = 1.0;
+            s.dir = 1.0;
         }
     } else {
-        (*s).extreme = smaller(raw, (*s).extreme);
-        if (raw > (*s).extreme + tol) {
-            (*s).dir = 1.0;
-            (*s).extreme = raw;
+        s.extreme = smaller(raw, s.extreme);
+        if (raw > s.extreme + tol) {
+            s.dir = 1.0;
+            s.extreme = raw;
         }
     }
+    return s;
+}
+
+alias AsymmetryState = Branch;
+
+fn asymmetry_start(c: AsymmetryConsts, x: f32, u0: f32) -> AsymmetryState {
+    return Branch(0.0, u0);
+}
+
+fn asymmetry_step(c: AsymmetryConsts, s: ptr<private, AsymmetryState>, ui: f32, at: At) -> f32 {
+    *s = branch_follow(*s, at);
     return ui + rounded(rounded((*s).dir * c.eps) * (ui + at.frame.u_mean));
 }
 
@@ -501,37 +508,6 @@ fn softening_step(c: SofteningConsts, s: ptr<private, SofteningState>, ui: f32, 
 
 fn softening_restart(s: ptr<private, SofteningState>, y: f32, x: f32) -> f32 {
     return x;
-}
-
-// `Branch`: the branch of the measured input, as the asymmetry's (+1
-// loading, −1 unloading, 0 not yet moved; the input's extreme on it).
-struct Branch {
-    dir: f32,
-    extreme: f32,
-}
-
-// `Branch::follow`: the branch after this sample. (By value, as
-// `largest_so_far`.) A loading began where `dir` turned positive.
-fn branch_follow(before: Branch, at: At) -> Branch {
-    var s = before;
-    let raw = at.raw;
-    let tol = at.frame.branch_tol;
-    if (s.dir >= 0.0) {
-        s.extreme = larger(raw, s.extreme);
-        if (raw < s.extreme - tol) {
-            s.dir = -1.0;
-            s.extreme = raw;
-        } else if (raw > input(at.span, 0u) + tol) {
-            s.dir = 1.0;
-        }
-    } else {
-        s.extreme = smaller(raw, s.extreme);
-        if (raw > s.extreme + tol) {
-            s.dir = 1.0;
-            s.extreme = raw;
-        }
-    }
-    return s;
 }
 
 // `Loadings`: the branch, which counts the loadings, and r^n, the share of
