@@ -6,8 +6,15 @@
 //! checks that each command the rig received was a number in 0–10 V.
 //! (The deadline is generous, so that a loaded machine cannot make a
 //! measurement miss it, except where the rig stalls on purpose.)
+//!
+//! The model-based controllers identify their model from one open-loop
+//! record, written once by `mckibben twin` (`--design-data`): what is under
+//! test is the link, and identifying on the twin's own design runs for
+//! every controller would spend most of the time on the design.
 
+use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::OnceLock;
 
 const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
 
@@ -110,6 +117,24 @@ impl Seen {
     }
 }
 
+/// The open-loop record every design is identified from: the twin's
+/// multisine at the design load, written once per test binary into the
+/// folder Cargo keeps for integration tests.
+fn design_record() -> &'static Path {
+    static RECORD: OnceLock<PathBuf> = OnceLock::new();
+    RECORD.get_or_init(|| {
+        let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("rig_faults_multisine.csv");
+        let out = Command::new(BIN)
+            .args(["twin", "--experiment", "multisine", "--load", "4.5"])
+            .args(["--seed", "1", "--out"])
+            .arg(&path)
+            .output()
+            .expect("run mckibben twin");
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        path
+    })
+}
+
 /// Runs `controller` on the rig in `mode` from sample 5 with `line`.
 fn attack(controller: &'static str, mode: &str, line: &str, extra: &[&str]) -> Seen {
     let dir = tempfile::tempdir().unwrap();
@@ -127,6 +152,8 @@ fn attack(controller: &'static str, mode: &str, line: &str, extra: &[&str]) -> S
             "2.2164,65.528,0.0219",
         ])
         .args(["--log", log.to_str().unwrap()])
+        .arg("--design-data")
+        .arg(design_record())
         .args(if extra.contains(&"--deadline") {
             &[][..]
         } else {
