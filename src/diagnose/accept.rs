@@ -14,6 +14,12 @@
 //! candidate's extra parameters and `F` the noise-floor estimate. A candidate
 //! is accepted only if all five hold:
 //! 1. `R0 − R1 > 3·√(s0² + s1²)`: the improvement is clearly beyond seed-to-seed spread;
+//!    or, where the current model's seeds scatter too widely on the
+//!    selection part for that, every candidate seed the estimation data
+//!    cannot tell from its best still beats every such seed of the current
+//!    model: `max R1ᵢ + 3·s1 < min R0ⱼ`. A misfit model's fits scatter
+//!    most, and a wide spread must not hide an effect that no refit of it
+//!    comes near;
 //! 2. `ΔBIC = N·ln(R1²/R0²) + k·ln N < −10`: it pays for its parameters
 //!    ("very strong" evidence on the Kass–Raftery scale);
 //! 3. `(R0 − R1)/R0 ≥ 2 %`: an improvement a user would notice;
@@ -91,13 +97,15 @@ pub struct Candidate {
 }
 
 /// What a candidate is judged against: the current model's selection RMSE
-/// `r0`, its SSE on each selection block and its seed spread `s0`, and the
-/// noise-floor estimate.
+/// `r0`, its SSE on each selection block, its seed spread `s0` and the
+/// lowest selection RMSE of its fits the estimation data cannot tell apart
+/// (`r0` among them), and the noise-floor estimate.
 #[derive(Debug, Clone)]
 pub struct Yardstick {
     pub r0: f64,
     pub blocks: Vec<f64>,
     pub s0: f64,
+    pub r0_lowest: f64,
     pub floor: f64,
 }
 
@@ -149,7 +157,10 @@ impl Candidate {
         } else {
             0.0
         };
-        let rule1 = r0 - r1 > settings.spread_factor * spread;
+        let beyond_every_refit = fit.indistinguishable.highest
+            + settings.spread_factor * fit.spread
+            < yardstick.r0_lowest;
+        let rule1 = r0 - r1 > settings.spread_factor * spread || beyond_every_refit;
         let rule2 = delta_bic < settings.bic_threshold;
         let rule3 = relative >= settings.min_relative;
         let rule4 = r0 > settings.floor_margin * floor;
@@ -233,7 +244,7 @@ impl Candidate {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::diagnose::fitting::ScoredFit;
+    use crate::diagnose::fitting::{RmseSpan, ScoredFit};
     use crate::model::Family;
 
     /// A candidate with a delay reaching selection RMSE `r1` (on each of two
@@ -250,6 +261,18 @@ mod tests {
         n: f64,
         blocks: &[f64],
     ) -> Candidate {
+        judged_against(r1, s1, (r0, s0, r0, floor), n, blocks)
+    }
+
+    /// As [`judged_on_blocks`], with the lowest selection RMSE `r0_lowest`
+    /// of the current model's indistinguishable fits.
+    fn judged_against(
+        r1: f64,
+        s1: f64,
+        (r0, s0, r0_lowest, floor): (f64, f64, f64, f64),
+        n: f64,
+        blocks: &[f64],
+    ) -> Candidate {
         let model = ModelDescription::new(Family::Classic, vec![Effect::Delay], 1);
         let fit = SeededFit {
             best: ScoredFit {
@@ -259,11 +282,13 @@ mod tests {
             },
             seed_sel_rmse: vec![r1],
             spread: s1,
+            indistinguishable: RmseSpan::of(&[r1]),
         };
         let yardstick = Yardstick {
             r0,
             blocks: vec![r0 * r0, r0 * r0],
             s0,
+            r0_lowest,
             floor,
         };
         Candidate::judge(
@@ -340,6 +365,19 @@ mod tests {
     }
 
     #[test]
+    fn a_wide_spread_of_the_current_model_hides_no_gain_that_no_refit_of_it_comes_near() {
+        // The current model's indistinguishable fits score 1.0 to 2.0 on the
+        // selection part (r0 = 1.5, spread 0.74): a candidate at 0.3 gains
+        // 1.2, within three spreads, yet below every one of those fits.
+        let c = judged_against(0.3, 0.01, (1.5, 0.74, 1.0, 0.1), 2000.0, &[0.09, 0.09]);
+        assert!(c.passes, "{}", c.reason);
+        // One at 0.9 with a spread of 0.05 comes within three of its spreads
+        // of the best refit (1.0): rule 1 refuses it.
+        let c = judged_against(0.9, 0.05, (1.5, 0.74, 1.0, 0.1), 2000.0, &[0.81, 0.81]);
+        assert!(!c.passes && c.reason.contains("seed spread"), "{}", c.reason);
+    }
+
+    #[test]
     fn a_candidate_that_diverges_on_validation_never_passes() {
         let c = judged(f64::INFINITY, 0.0, (1.0, 0.0, 0.1), 2000.0);
         assert!(!c.passes);
@@ -357,6 +395,7 @@ mod tests {
             },
             seed_sel_rmse: vec![r],
             spread: 0.0,
+            indistinguishable: RmseSpan::of(&[r]),
         };
         let fits = vec![
             (Effect::Delay, model.clone(), fit(0.9), vec![0.81]),
@@ -372,6 +411,7 @@ mod tests {
             r0: 1.0,
             blocks: vec![1.0],
             s0: 0.0,
+            r0_lowest: 1.0,
             floor: 0.1,
         };
         let ranked = judge_all(&fits, &yardstick, 2000.0, &Settings::default());

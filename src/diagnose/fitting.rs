@@ -141,6 +141,33 @@ pub struct SeededFit {
     /// seeds the estimation data cannot tell from the best: those within the
     /// likelihood-ratio test's 95 % threshold of its SSE.
     pub spread: f64,
+    /// The lowest and highest selection RMSE among those same seeds.
+    pub indistinguishable: RmseSpan,
+}
+
+/// The lowest and the highest of a set of selection RMSEs.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RmseSpan {
+    pub lowest: f64,
+    pub highest: f64,
+}
+
+impl RmseSpan {
+    /// The span of `rmse`; non-finite values count as +∞, and so does an
+    /// empty set (nothing was reached).
+    pub fn of(rmse: &[f64]) -> RmseSpan {
+        let finite_or_inf = rmse.iter().map(|&r| if r.is_nan() { f64::INFINITY } else { r });
+        match finite_or_inf.clone().reduce(f64::min) {
+            Some(lowest) => RmseSpan {
+                lowest,
+                highest: finite_or_inf.fold(lowest, f64::max),
+            },
+            None => RmseSpan {
+                lowest: f64::INFINITY,
+                highest: f64::INFINITY,
+            },
+        }
+    }
 }
 
 /// Where a fit starts.
@@ -607,6 +634,7 @@ fn summarize(fits: Vec<ScoredFit>, samples: usize) -> SeededFit {
         .map(|f| f.sel_rmse)
         .collect();
     let spread = std_dev(&converged);
+    let indistinguishable = RmseSpan::of(&converged);
     // The seed with the lowest estimation SSE among those that stay finite on
     // the selection part: a fit that diverges there is not a model (the
     // selection part is used for nothing else in this choice).
@@ -620,6 +648,7 @@ fn summarize(fits: Vec<ScoredFit>, samples: usize) -> SeededFit {
         best,
         seed_sel_rmse,
         spread,
+        indistinguishable,
     }
 }
 

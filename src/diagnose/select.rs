@@ -271,6 +271,10 @@ impl Selecting<'_> {
             r0: state.final_fit.sel_rmse,
             blocks: self.data.with_model(&state.model).block_sse(&state.params),
             s0: current.spread,
+            r0_lowest: current
+                .indistinguishable
+                .lowest
+                .min(state.final_fit.sel_rmse),
             floor: self.floor,
         };
         let candidates =
@@ -376,6 +380,7 @@ impl Selecting<'_> {
                 r0: ablated.best.sel_rmse,
                 blocks: self.data.with_model(&state.model).block_sse(&state.params),
                 s0: ablated.spread,
+                r0_lowest: ablated.indistinguishable.lowest.min(ablated.best.sel_rmse),
                 floor: self.floor,
             };
             rebased.push(ablated);

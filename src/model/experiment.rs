@@ -156,11 +156,11 @@ impl Parts {
 
     /// The layout of a record whose input is `input` (any shift of it): the
     /// fewest blocks whose selection and test parts hold the input's levels
-    /// and loop branches in nearly the same proportions ([`Parts::unlike`]
-    /// within [`LAYOUT_TOLERANCE`] of the most alike layout), from 2 up to
-    /// as many as keep every block useful ([`Parts::too_short`]). Only the
-    /// input is read, never the output, so the choice sees nothing a fit or
-    /// a score could use.
+    /// and loop branches in nearly the same proportions and reach nearly
+    /// the same extremes ([`Parts::unlike`] within [`LAYOUT_TOLERANCE`] of
+    /// the most alike layout), from 2 up to as many as keep every block
+    /// useful ([`Parts::too_short`]). Only the input is read, never the
+    /// output, so the choice sees nothing a fit or a score could use.
     ///
     /// Why from the input: a fixed number of blocks suits one record and
     /// not another. The shipped stair's second half is one cycle up and
@@ -170,7 +170,10 @@ impl Parts {
     /// parts every level on both branches. A Cavatappi record's second half
     /// holds two and a half pressure pulses, so two or three blocks give
     /// each part whole pulses, while blocks shorter than a pulse put the
-    /// rises in one part and the holds in the other.
+    /// rises in one part and the holds in the other. A multisine's few
+    /// highest peaks lie close together: two long blocks put them all in
+    /// one part, and an effect that acts only there (an end stop) is then
+    /// either never seen by the selection or never checked by the test.
     pub fn chosen(input: &[f64], settle: usize) -> Parts {
         let len = input.len();
         let most = (2..=MAX_BLOCKS)
@@ -179,7 +182,7 @@ impl Parts {
             .unwrap_or(2);
         let cells = input_cells(input);
         let unlike: Vec<(usize, f64)> = (2..=most)
-            .map(|b| (b, Parts::of(len, b, settle).unlike(&cells)))
+            .map(|b| (b, Parts::of(len, b, settle).unlike(input, &cells)))
             .collect();
         let best = unlike.iter().map(|&(_, u)| u).fold(f64::INFINITY, f64::min);
         let blocks = unlike
@@ -190,10 +193,13 @@ impl Parts {
     }
 
     /// How unlike the selection and test parts are in what drives the
-    /// muscle: the total variation distance between the shares of their
-    /// samples in each cell of input level and loop branch (`cells`, one a
-    /// sample, from [`input_cells`]); 0 when alike, 1 when they share no cell.
-    fn unlike(&self, cells: &[usize]) -> f64 {
+    /// muscle, from 0 (alike) to 1: the larger of
+    /// - the total variation distance between the shares of their samples
+    ///   in each cell of input level and loop branch (`cells`, one a
+    ///   sample, from [`input_cells`]): 1 when they share no cell;
+    /// - how far apart their extremes are ([`Parts::reach_apart`]): a share
+    ///   of samples cannot see a peak that a few samples make.
+    fn unlike(&self, input: &[f64], cells: &[usize]) -> f64 {
         let share = |part: &[Range<usize>]| {
             let mut h = [0.0f64; 2 * LEVELS];
             let mut n = 0.0f64;
@@ -206,7 +212,26 @@ impl Parts {
             h.map(|v| v / n.max(1.0))
         };
         let (s, t) = (share(&self.selection), share(&self.test));
-        0.5 * s.iter().zip(&t).map(|(a, b)| (a - b).abs()).sum::<f64>()
+        let distance = 0.5 * s.iter().zip(&t).map(|(a, b)| (a - b).abs()).sum::<f64>();
+        distance.max(self.reach_apart(input))
+    }
+
+    /// How far apart the highest inputs the selection and the test parts
+    /// reach are, and their lowest, the larger of the two as a share of
+    /// the input's range over the record.
+    fn reach_apart(&self, input: &[f64]) -> f64 {
+        let extremes = |parts: &[Range<usize>]| {
+            parts
+                .iter()
+                .flat_map(|r| &input[r.clone()])
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &u| {
+                    (lo.min(u), hi.max(u))
+                })
+        };
+        let (lo, hi) = extremes(std::slice::from_ref(&(0..input.len())));
+        let range = (hi - lo).max(f64::MIN_POSITIVE);
+        let ((s_lo, s_hi), (t_lo, t_hi)) = (extremes(&self.selection), extremes(&self.test));
+        ((s_hi - t_hi).abs().max((s_lo - t_lo).abs()) / range).min(1.0)
     }
 
     /// The width of each block of the second half of `len` samples and the
@@ -326,16 +351,35 @@ mod tests {
         let p = Parts::chosen(&stair, 40);
         let cells = input_cells(&stair);
         assert!(p.selection.len() >= 4, "{p:?}");
-        assert!(p.unlike(&cells) < 0.2, "{p:?}: {}", p.unlike(&cells));
-        assert!(Parts::of(2000 * 2, 2, 40).unlike(&cells) > 0.9);
+        let unlike = p.unlike(&stair, &cells);
+        assert!(unlike < 0.2, "{p:?}: {unlike}");
+        assert!(Parts::of(2000 * 2, 2, 40).unlike(&stair, &cells) > 0.9);
         // Three pulses: whole pulses in each part, fewer blocks.
         let pulses = record(1200, |k| if k % 400 < 200 { 10.0 } else { 0.0 });
         let p = Parts::chosen(&pulses, 20);
         assert!(
             p.selection.len() + p.test.len() <= 3,
             "{p:?}: {}",
-            p.unlike(&input_cells(&pulses))
+            p.unlike(&pulses, &input_cells(&pulses))
         );
+    }
+
+    #[test]
+    fn the_layout_gives_both_parts_the_input_s_extremes() {
+        // A slow wave whose two highest peaks, close together, stand a
+        // third above the rest: two long blocks leave both in one part,
+        // although the levels and branches are shared alike.
+        let wave = record(2000, |k| {
+            let t = k as f64 / 100.0;
+            let peaks = if (1260..1500).contains(&k) { 1.5 } else { 1.0 };
+            peaks * (t * std::f64::consts::TAU / 1.2).sin()
+        });
+        let cells = input_cells(&wave);
+        let two = Parts::of(4000, 2, 20);
+        assert!(two.reach_apart(&wave) > 0.1, "{}", two.reach_apart(&wave));
+        let p = Parts::chosen(&wave, 20);
+        assert!(p.reach_apart(&wave) < 0.02, "{p:?}: {}", p.reach_apart(&wave));
+        assert!(p.unlike(&wave, &cells) < 0.2, "{p:?}");
     }
 
     #[test]
