@@ -588,6 +588,32 @@ fn bench() {
     );
 }
 
+/// On a GPU adapter the calibration and the kernels' share of it are
+/// there to check; on the CPU (above) they are null.
+#[test]
+fn bench_on_a_gpu() {
+    if common::require_any_adapter().is_none() {
+        return;
+    }
+    let v = check(
+        "bench",
+        &[
+            "bench",
+            "--synthetic",
+            "200",
+            "--backend",
+            "gpu",
+            "--pop",
+            "64",
+            "--repeats",
+            "1",
+            "--json",
+        ],
+    );
+    assert!(v["calibration"]["variants"].as_array().unwrap().len() == 3);
+    assert!(v["rows"][0]["ceiling_share"].as_f64().unwrap() > 0.0);
+}
+
 #[test]
 fn validate_boucwen() {
     let data = mckibben::benchmark::default_data_dir();
