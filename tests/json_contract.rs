@@ -387,6 +387,10 @@ fn fit() {
             stage["seconds"].as_f64().unwrap(),
         );
         assert!(inside > 0.0 && inside <= all, "{stage}");
+        assert!(
+            stage["kernel_seconds"].is_null(),
+            "the CPU has no device clock: {stage}"
+        );
     }
     // result.json is the same document.
     let file: Value =

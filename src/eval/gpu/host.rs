@@ -328,6 +328,11 @@ impl Host {
         self.kernel_seconds
     }
 
+    /// Records a call that ran no kernel: its device time is zero.
+    pub fn no_dispatch(&mut self) {
+        self.kernel_seconds = self.timestamps.as_ref().map(|_| 0.0);
+    }
+
     fn pipeline(&mut self, source: &str, label: &str) -> &wgpu::ComputePipeline {
         let device = &self.device;
         self.pipelines
@@ -430,6 +435,8 @@ impl Host {
         let d = kernel.dim;
         let n = rows.len() / d;
         let per_candidate = kernel.per_candidate();
+        // Zero until each part's kernels add theirs.
+        self.no_dispatch();
         if n == 0 || per_candidate == 0 {
             return Ok(vec![0.0; n * per_candidate]);
         }
@@ -450,7 +457,6 @@ impl Host {
             self.buffer_limit()
         );
         let mut flat = Vec::with_capacity(n * per_candidate);
-        self.kernel_seconds = self.timestamps.as_ref().map(|_| 0.0);
         for rows in rows.chunks(part * d) {
             flat.extend(self.dispatch_part(kernel, rows, chunk)?);
         }

@@ -183,6 +183,8 @@ impl GpuEvaluator {
             population.len()
         );
         if population.is_empty() || problem.experiments.is_empty() {
+            // No kernel runs: this call's device time is none.
+            self.host.no_dispatch();
             return Ok(Vec::new());
         }
         let rows = to_f32(population);
