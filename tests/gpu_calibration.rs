@@ -53,16 +53,16 @@ fn the_calibration_loop_gives_the_cpus_values() {
     }
     // The ceiling, small: every variant timed, finite positive rates.
     let sizing = Sizing {
-        invocations: 1024,
-        min_seconds: 1e-3,
-        max_steps: 64,
+        invocations: 4096,
+        min_seconds: 2e-3,
+        max_steps: 1 << 14,
     };
     let ceiling = gpu.calibrate(sizing).unwrap().expect("timestamps");
-    assert_eq!(ceiling.invocations, 1024);
+    assert_eq!(ceiling.invocations, 4096);
     let names: Vec<Variant> = ceiling.variants.iter().map(|t| t.variant).collect();
     assert_eq!(names, Variant::ALL);
     for t in &ceiling.variants {
-        assert!(t.steps >= 1 && t.steps <= 64, "{t:?}");
+        assert!(t.steps >= 1 && 2 * t.steps <= 1 << 14, "{t:?}");
         assert_eq!(t.ops_per_step, 16);
         assert!(
             t.device_s > 0.0 && t.ops_per_s.is_finite() && t.ops_per_s > 0.0,

@@ -154,8 +154,9 @@ pub fn run(
 pub struct Sizing {
     /// Invocations of each pass (a multiple of 64 fills whole workgroups).
     pub invocations: u32,
-    /// Each variant's steps grow until its pass takes at least this long on
-    /// the device's clock (or reaches `max_steps`).
+    /// Each variant's steps grow until the loop's own time (the difference
+    /// of two passes, [`ceiling`]) is at least this long on the device's
+    /// clock, or the longer pass reaches `max_steps`.
     pub min_seconds: f64,
     pub max_steps: u32,
 }
@@ -163,8 +164,7 @@ pub struct Sizing {
 impl Default for Sizing {
     /// 2²⁰ invocations: several per core of the largest GPUs, so that the
     /// dependent chains of many invocations can hide each other's latency;
-    /// a pass of at least 20 ms, far above the clock's resolution and a
-    /// dispatch's start.
+    /// at least 20 ms of loop, far above the clock's resolution.
     fn default() -> Self {
         Sizing {
             invocations: 1 << 20,
@@ -174,13 +174,16 @@ impl Default for Sizing {
     }
 }
 
-/// One variant's timed pass.
+/// One variant timed: two passes, of `steps` and of `2 · steps` steps.
 #[derive(Debug, Clone, Serialize)]
 pub struct Timed {
     pub variant: Variant,
     pub ops_per_step: u32,
+    /// The steps the longer pass adds.
     pub steps: u32,
-    /// The pass's device time.
+    /// The longer pass's device time less the shorter one's: the time of
+    /// `steps` steps alone, without what a pass costs whatever its length
+    /// (its start, each invocation's set-up and write).
     pub device_s: f64,
     /// `invocations · steps · ops_per_step / device_s`.
     pub ops_per_s: f64,
@@ -208,26 +211,26 @@ impl Ceiling {
     }
 }
 
-/// Times every variant on `host`, each with as many steps as `sizing` asks
-/// (a first pass of one step, then larger ones until the pass is long
-/// enough); `None` where the adapter offers no timestamp queries. An error
-/// if an invocation's result is not finite.
+/// Times every variant on `host`: a pass of `s` steps and one of `2s`,
+/// whose difference is the loop's own time (a pass's fixed costs, large on
+/// a CPU adapter, cancel), from `s = 1` up until that difference is as long
+/// as `sizing` asks. `None` where the adapter offers no timestamp queries;
+/// an error if an invocation's result is not finite, or if the longer pass
+/// is never the longer.
 pub fn ceiling(host: &mut Host, sizing: Sizing) -> anyhow::Result<Option<Ceiling>> {
     let mut variants = Vec::with_capacity(Variant::ALL.len());
     for variant in Variant::ALL {
         let mut steps = 1u32;
         loop {
-            let (values, seconds) = run(host, variant, sizing.invocations, steps)?;
-            if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-                anyhow::bail!(
-                    "the calibration kernel ({}) wrote {v} in invocation {i}: the device's f32 arithmetic is off",
-                    variant.name()
-                );
-            }
-            let Some(seconds) = seconds else {
+            let (Some(short), Some(long)) = (
+                timed_pass(host, variant, sizing.invocations, steps)?,
+                timed_pass(host, variant, sizing.invocations, 2 * steps)?,
+            ) else {
                 return Ok(None);
             };
-            if seconds >= sizing.min_seconds || steps >= sizing.max_steps {
+            let loop_s = long - short;
+            let last = 2 * steps >= sizing.max_steps;
+            if loop_s >= sizing.min_seconds || (last && loop_s > 0.0) {
                 let ops = f64::from(sizing.invocations)
                     * f64::from(steps)
                     * f64::from(variant.ops_per_step());
@@ -235,26 +238,51 @@ pub fn ceiling(host: &mut Host, sizing: Sizing) -> anyhow::Result<Option<Ceiling
                     variant,
                     ops_per_step: variant.ops_per_step(),
                     steps,
-                    device_s: seconds,
-                    ops_per_s: ops / seconds,
+                    device_s: loop_s,
+                    ops_per_s: ops / loop_s,
                 });
                 break;
             }
+            anyhow::ensure!(
+                !last,
+                "the calibration kernel ({}): a pass of {} steps took no longer than one of {steps} \
+                 on the device's clock ({long:.3e} s against {short:.3e} s)",
+                variant.name(),
+                2 * steps
+            );
             // Aim a quarter past the target, at most 64 times further.
-            let factor = if seconds > 0.0 {
-                (sizing.min_seconds / seconds * 1.25).clamp(2.0, 64.0)
+            let factor = if loop_s > 0.0 {
+                (sizing.min_seconds / loop_s * 1.25).clamp(2.0, 64.0)
             } else {
                 64.0
             };
             steps = (f64::from(steps) * factor)
                 .ceil()
-                .min(f64::from(sizing.max_steps)) as u32;
+                .min(f64::from(sizing.max_steps / 2).max(1.0)) as u32;
         }
     }
     Ok(Some(Ceiling {
         invocations: sizing.invocations,
         variants,
     }))
+}
+
+/// One pass's device time (`None` without timestamp queries), its results
+/// checked to be finite.
+fn timed_pass(
+    host: &mut Host,
+    variant: Variant,
+    invocations: u32,
+    steps: u32,
+) -> anyhow::Result<Option<f64>> {
+    let (values, seconds) = run(host, variant, invocations, steps)?;
+    if let Some((i, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        anyhow::bail!(
+            "the calibration kernel ({}) wrote {v} in invocation {i}: the device's f32 arithmetic is off",
+            variant.name()
+        );
+    }
+    Ok(seconds)
 }
 
 /// `f32` operations a model kernel spends on one candidate-sample of the
