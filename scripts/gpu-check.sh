@@ -10,12 +10,16 @@
 #     the classic model with effect stages (creep, delay, saturation), and the
 #     CPU path on the same populations (the speed-up is CPU median / GPU
 #     median), end to end and, from the device's timestamps, the kernels
-#     alone;
+#     alone, with each model kernel's share of the device's f32 ceiling;
+#   - the device's f32 ceiling: the calibration kernel, timed by the device's
+#     clock in each bench call (dependent mul-adds, independent chains, pow);
 #   - CPU/GPU agreement on each population: the largest relative SSE
 #     difference and whether the best 100 candidates rank alike;
 #   - a staged fit (`mckibben fit`, classic) at N = 1e5 and 1e6 on both
-#     backends: wall time, final SSE, validation fit %, and whether the two
-#     backends end on the same parameters;
+#     backends: wall time, final SSE, validation fit %, whether the two
+#     backends end on the same parameters, and from the global stage of its
+#     JSON the host's time a row (outside the evaluator) and the device's
+#     time a generation (the kernels' timestamps);
 #   - the default `mckibben diagnose` on both backends: wall time, verdict,
 #     and whether the two JSON documents are byte-identical.
 # It prints the tables on stdout (and writes them to --out) and takes under
@@ -155,11 +159,14 @@ md="$work/table.md"
     echo
     echo "Evaluator (\`mckibben bench --backend gpu --time-reference --repeats $repeats --markdown\`;"
     echo "the cpu rows are the batched CPU path on the same populations, the speed-up is CPU median / GPU median;"
-    echo "\"median s\" is a whole evaluate call as a fit makes it, \"kernel\" the compute pass alone from the device's timestamps):"
+    echo "\"median s\" is a whole evaluate call as a fit makes it, \"kernel\" the compute pass alone from the device's timestamps;"
+    echo "\"share of ceiling\" is the kernels' f32 operations a second over the calibration's independent-chain rate below):"
     echo
 } >"$md"
 
 # --- evaluator throughput and agreement -----------------------------------
+# Each bench call prints its rows, a blank line and its calibration's rows.
+calibration="$work/calibration.md"
 first=1
 for model in classic generalized "classic+effects"; do
     args=(bench "$data" --backend gpu --time-reference --repeats "$repeats" --pop "$pops" --markdown)
@@ -168,13 +175,28 @@ for model in classic generalized "classic+effects"; do
         *) args+=(--model "$model") ;;
     esac
     run "bench $model at N = $pops" "${args[@]}"
+    awk 'NF == 0 { exit } { print }' "$work/stdout" >"$work/rows"
+    awk 'seen { print } NF == 0 { seen = 1 }' "$work/stdout" >"$work/ceiling"
     if [ "$first" = 1 ]; then
-        cat "$work/stdout" >>"$md"
+        cat "$work/rows" >>"$md"
+        cat "$work/ceiling" >"$calibration"
         first=0
     else
-        tail -n +3 "$work/stdout" >>"$md"
+        tail -n +3 "$work/rows" >>"$md"
+        tail -n +3 "$work/ceiling" >>"$calibration"
     fi
 done
+{
+    echo
+    echo "Device ceiling (the calibration kernel of each bench call above, \`shaders/calibration.wgsl\`, timed by the device's clock;"
+    echo "a mul-add counts two f32 operations, a pow one; the independent chains' rate is the ceiling):"
+    echo
+    if [ -s "$calibration" ]; then
+        cat "$calibration"
+    else
+        echo "— (the adapter offers no timestamp queries)"
+    fi
+} >>"$md"
 
 # --- staged fits on both backends ------------------------------------------
 {
@@ -182,9 +204,21 @@ done
     echo "Staged fit (\`mckibben fit --model classic --pop N --gens $gens --backend B${budget_args[*]:+ ${budget_args[*]}}\`,"
     echo "seed 1; wall time includes start-up and the figures written to --out):"
     echo
-    echo "| N | gens (all stages) | backend | wall s | fit s | stop | final SSE | val fit % | GPU/CPU speed-up | same parameters as CPU |"
-    echo "|---:|---:|---|---:|---:|---|---:|---:|---:|---|"
+    echo "host µs/row and device ms/gen: the global stage of the fit's JSON, (seconds − evaluator_seconds) / evaluations"
+    echo "and kernel_seconds / steps (the kernels on the device's clock; — on the CPU):"
+    echo
+    echo "| N | gens (all stages) | backend | wall s | fit s | stop | final SSE | val fit % | GPU/CPU speed-up | same parameters as CPU | host µs/row | device ms/gen |"
+    echo "|---:|---:|---|---:|---:|---|---:|---:|---:|---|---:|---:|"
 } >>"$md"
+
+# The global stage's "steps evaluations seconds evaluator_seconds kernel_seconds"
+# from a fit's JSON (the stage's members are indented six spaces).
+global_stage() {
+    awk '/^      "stage": "global"/ { inside = 1 }
+        inside && /^    }/ { exit }
+        inside { gsub(/[",]/, ""); v[$1] = $2 }
+        END { print v["steps:"], v["evaluations:"], v["seconds:"], v["evaluator_seconds:"], v["kernel_seconds:"] }' "$1"
+}
 
 # The "params" object of a fit's JSON, one "name": value per line.
 params() {
@@ -223,10 +257,15 @@ for n in "${fit_pops[@]}"; do
             speedup="1×"
             alike="reference"
         fi
-        printf '| %s | %s | %s | %s | %.2f | %s | %.6g | %.2f | %s | %s |\n' \
+        # Host µs a row and device ms a generation of the global stage.
+        timing=$(global_stage "$f" | awk '{
+            host = $2 > 0 ? sprintf("%.3f", ($3 - $4) / $2 * 1e6) : "—"
+            device = ($5 != "" && $5 != "null" && $1 > 0) ? sprintf("%.3f", $5 / $1 * 1e3) : "—"
+            printf "%s | %s\n", host, device }')
+        printf '| %s | %s | %s | %s | %.2f | %s | %.6g | %.2f | %s | %s | %s |\n' \
             "$n" "$(json_top "$f" generations)" "$backend" "$wall" "$(json_top "$f" seconds)" \
             "$(json_top "$f" stop)" "$(json_top "$f" sse)" "$(json_top "$f" val_fit_percent)" \
-            "$speedup" "$alike" >>"$md"
+            "$speedup" "$alike" "$timing" >>"$md"
     done
 done
 

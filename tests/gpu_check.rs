@@ -61,11 +61,11 @@ fn the_small_gpu_check_prints_every_row() {
         for n in ["1000", "4000"] {
             let gpu = row(&[model, n, "gpu"]);
             let cpu = row(&[model, n, "cpu"]);
-            assert_eq!(gpu.len(), 11, "{gpu:?}");
-            // The CPU has no device clock: no kernel-only figures.
+            assert_eq!(gpu.len(), 12, "{gpu:?}");
+            // The CPU has no device clock: no kernel-only figures, no share.
             assert_eq!(
                 cpu[6..],
-                ["—", "—", "1×", "reference", "reference"],
+                ["—", "—", "—", "1×", "reference", "reference"],
                 "{cpu:?}"
             );
             for r in [gpu, cpu] {
@@ -74,22 +74,50 @@ fn the_small_gpu_check_prints_every_row() {
                     assert!(v.is_finite() && v > 0.0, "{r:?}");
                 }
             }
-            assert!(gpu[8].ends_with('×'), "{gpu:?}");
+            assert!(gpu[9].ends_with('×'), "{gpu:?}");
             if on_cpu_adapter {
                 // lavapipe offers timestamps: the kernels alone, within the call.
                 let kernel: f64 = gpu[7].parse().unwrap_or_else(|_| panic!("{gpu:?}"));
                 let call: f64 = gpu[5].parse().unwrap();
                 assert!(kernel > 0.0 && kernel <= call, "{gpu:?}");
-                assert_eq!(gpu[9..], ["0 (bit-identical)", "yes (100/100)"], "{gpu:?}");
+                assert_eq!(gpu[10..], ["0 (bit-identical)", "yes (100/100)"], "{gpu:?}");
+                // The plain families' kernels have an operation count, so a
+                // share of the calibrated ceiling; with effects, none.
+                let share = gpu[8].strip_suffix(" %").map(str::parse::<f64>);
+                if model.contains('+') {
+                    assert_eq!(gpu[8], "—", "{gpu:?}");
+                } else {
+                    assert!(matches!(share, Some(Ok(s)) if s > 0.0), "{gpu:?}");
+                }
+            }
+        }
+        if on_cpu_adapter {
+            // The calibration of this model's bench call: every variant's rate.
+            for variant in ["dependent", "independent", "pow"] {
+                let r = row(&[model, variant, "16"]);
+                assert_eq!(r.len(), 7, "{r:?}");
+                let rate: f64 = r[6].parse().unwrap_or_else(|_| panic!("{r:?}"));
+                assert!(rate.is_finite() && rate > 0.0, "{r:?}");
             }
         }
     }
     let cpu_fit = row(&["200", "12", "cpu"]);
     let gpu_fit = row(&["200", "12", "gpu"]);
     for r in [cpu_fit, gpu_fit] {
-        assert_eq!((r.len(), r[5]), (10, "completed"), "{r:?}");
+        assert_eq!((r.len(), r[5]), (12, "completed"), "{r:?}");
         let fit: f64 = r[7].parse().unwrap();
         assert!(fit > 50.0 && fit <= 100.0, "validation fit %: {r:?}");
+        // The host's time a row of the global stage, outside the evaluator.
+        let host: f64 = r[10].parse().unwrap_or_else(|_| panic!("{r:?}"));
+        assert!(host > 0.0, "{r:?}");
+    }
+    // The device's time a generation: the GPU's kernels, none on the CPU.
+    assert_eq!(cpu_fit[11], "—", "{cpu_fit:?}");
+    if on_cpu_adapter {
+        let device: f64 = gpu_fit[11]
+            .parse()
+            .unwrap_or_else(|_| panic!("{gpu_fit:?}"));
+        assert!(device > 0.0, "{gpu_fit:?}");
     }
     if on_cpu_adapter {
         assert_eq!(gpu_fit[9], "yes (bit-identical)", "{gpu_fit:?}");

@@ -387,6 +387,10 @@ fn fit() {
             stage["seconds"].as_f64().unwrap(),
         );
         assert!(inside > 0.0 && inside <= all, "{stage}");
+        assert!(
+            stage["kernel_seconds"].is_null(),
+            "the CPU has no device clock: {stage}"
+        );
     }
     // result.json is the same document.
     let file: Value =
@@ -586,6 +590,32 @@ fn bench() {
             "--json",
         ],
     );
+}
+
+/// On a GPU adapter the calibration and the kernels' share of it are
+/// there to check; on the CPU (above) they are null.
+#[test]
+fn bench_on_a_gpu() {
+    if common::require_any_adapter().is_none() {
+        return;
+    }
+    let v = check(
+        "bench",
+        &[
+            "bench",
+            "--synthetic",
+            "200",
+            "--backend",
+            "gpu",
+            "--pop",
+            "64",
+            "--repeats",
+            "1",
+            "--json",
+        ],
+    );
+    assert!(v["calibration"]["variants"].as_array().unwrap().len() == 3);
+    assert!(v["rows"][0]["ceiling_share"].as_f64().unwrap() > 0.0);
 }
 
 #[test]

@@ -8,11 +8,12 @@
 //! whole catalogue, and with the chains the lavapipe tests run
 //! (`tests/eval_effects.rs`, `tests/model_flow.rs`), each as the free run
 //! and the prediction, sums and residuals, `n = 1` and a free exponent;
-//! and the benchmark oscillator's. That they give the CPU's bits is the
-//! lavapipe tests' to check.
+//! the benchmark oscillator's; and the calibration kernel's three variants.
+//! That they give the CPU's bits is the lavapipe tests' to check.
 
 use mckibben::benchmark::evaluator::{self as oscillator, OscillatorProblem};
 use mckibben::eval::Problem;
+use mckibben::eval::gpu::calibration::Variant;
 use mckibben::eval::gpu::shader_source;
 use mckibben::eval::workload::stair_experiment;
 use mckibben::model::effects::{Context, Effect};
@@ -118,6 +119,13 @@ fn the_oscillator_shader_is_valid_wgsl() {
 
 /// The check itself fails on a broken stage: one realisation's step with an
 /// undefined name, and one with a type error (an `f32` added to a `u32`).
+#[test]
+fn the_calibration_shaders_are_valid_wgsl() {
+    for variant in Variant::ALL {
+        validate(&format!("calibration {variant:?}"), &variant.source()).unwrap();
+    }
+}
+
 #[test]
 fn a_broken_stage_is_caught() {
     let p = problem(Family::Classic, &[Effect::Creep], 1, Measure::FreeRun);

@@ -8,6 +8,7 @@ use serde::Serialize;
 use super::common::DataArgs;
 use mckibben::eval::agreement::{Agreement, agreement};
 use mckibben::eval::cpu::CpuEvaluator;
+use mckibben::eval::gpu::calibration::{self, Ceiling, Timed, Variant};
 use mckibben::eval::workload::{
     augmented_population, mixed_population, search_space, stair_experiment,
 };
@@ -46,14 +47,28 @@ use rand_chacha::ChaCha8Rng;
 /// are among the backend's best hundred)}, and with --time-reference
 /// reference {the same timing fields} (the CPU
 /// path timed the same way) and speedup (its median over the backend's),
-/// else null for both.
+/// else null for both; ops_per_candidate_sample (the model kernel's f32
+/// operations a candidate-sample, counted from its shader; null with
+/// effects or a free n), kernel_ops_per_s (the kernels' rate in those
+/// operations) and ceiling_share (that rate over the calibrated ceiling).
+///
+/// On a GPU with timestamp queries, bench first times the calibration
+/// kernel (shaders/calibration.wgsl) by the device's clock: loops of known
+/// f32 operations a step, as one chain of dependent mul-adds, as eight
+/// independent chains (the ceiling) and with pow. --json gives them as
+/// calibration {invocations, ceiling_ops_per_s, variants [{variant,
+/// ops_per_step, steps, device_s, ops_per_s}]}, null on the CPU; the text
+/// output gives a line, --markdown a second table after the first.
 ///
 /// --markdown prints a table for docs/PERFORMANCE.md instead: a header
 /// and, per population size, one row for the backend and (with
 /// --time-reference) one for the CPU path; columns: model, N, backend,
 /// cand-samples/s, evals/s, median s, kernel cand-samples/s, kernel
-/// median s, GPU/CPU speed-up, max rel SSE diff, top-100 alike
-/// (scripts/gpu-check.sh concatenates these rows).
+/// median s, share of ceiling, GPU/CPU speed-up, max rel SSE diff, top-100
+/// alike; then, where the device was calibrated, a blank line and the
+/// calibration's table: model, variant, f32 ops a step, steps,
+/// invocations, device s, f32 ops/s (scripts/gpu-check.sh concatenates
+/// the rows of each).
 ///
 /// Examples:
 ///   mckibben bench --synthetic 4000 --backend cpu --model classic --pop 131072
@@ -152,8 +167,37 @@ fn time(
 }
 
 /// The markdown table's header (`--markdown`).
-const MARKDOWN_HEADER: &str = "| model | N | backend | cand-samples/s | evals/s | median s | kernel cand-samples/s | kernel median s | GPU/CPU speed-up | max rel SSE diff | top-100 alike |\n\
-                               |---|---:|---|---:|---:|---:|---:|---:|---:|---|---|";
+const MARKDOWN_HEADER: &str = "| model | N | backend | cand-samples/s | evals/s | median s | kernel cand-samples/s | kernel median s | share of ceiling | GPU/CPU speed-up | max rel SSE diff | top-100 alike |\n\
+                               |---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|---|";
+
+/// The calibration's markdown table (`--markdown`, after the first).
+const CALIBRATION_HEADER: &str = "| model | variant | f32 ops a step | steps | invocations | device s | f32 ops/s |\n\
+                                  |---|---|---:|---:|---:|---:|---:|";
+
+/// The calibration's markdown rows, each named by the run's `model`.
+fn calibration_rows(model: &str, ceiling: &Ceiling) -> String {
+    ceiling
+        .variants
+        .iter()
+        .map(|t| {
+            format!(
+                "| {model} | {} | {} | {} | {} | {:.3e} | {:.3e} |",
+                t.variant.name(),
+                t.ops_per_step,
+                t.steps,
+                ceiling.invocations,
+                t.device_s,
+                t.ops_per_s
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// A share as a percentage, `—` where there is none.
+fn percent(share: Option<f64>) -> String {
+    share.map_or("—".to_string(), |s| format!("{:.1} %", 100.0 * s))
+}
 
 /// The markdown rows of one population size: the backend's, then the CPU
 /// reference's when it was timed.
@@ -174,10 +218,10 @@ fn markdown_rows(row: &Row) -> String {
         if a.top100_identical { "yes" } else { "no" },
         a.top100_overlap
     );
-    let line = |backend: &str, t: &Timing, speedup: &str, diff: &str, alike: &str| {
+    let line = |backend: &str, t: &Timing, share: &str, speedup: &str, diff: &str, alike: &str| {
         let or_dash = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.3e}"));
         format!(
-            "| {} | {} | {backend} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {speedup} | {diff} | {alike} |",
+            "| {} | {} | {backend} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {share} | {speedup} | {diff} | {alike} |",
             row.model,
             row.population,
             t.candidate_samples_per_s,
@@ -190,21 +234,41 @@ fn markdown_rows(row: &Row) -> String {
     let mut out = line(
         row.backend,
         &row.timing,
+        &percent(row.ceiling_share),
         &row.speedup.map_or("—".to_string(), |s| format!("{s:.2}×")),
         &diff,
         &alike,
     );
     if let Some(r) = &row.reference {
         out += "\n";
-        out += &line("cpu", r, "1×", "reference", "reference");
+        out += &line("cpu", r, "—", "1×", "reference", "reference");
     }
     out
 }
 
-/// The `--json` output: one row per population size.
+/// The `--json` output: the calibration, and one row per population size.
 #[derive(Debug, Serialize)]
 struct Output<'a> {
+    calibration: Option<CalibrationJson<'a>>,
     rows: &'a [Row],
+}
+
+/// The calibration as `--json` gives it: the ceiling beside every variant.
+#[derive(Debug, Serialize)]
+struct CalibrationJson<'a> {
+    invocations: u32,
+    ceiling_ops_per_s: f64,
+    variants: &'a [Timed],
+}
+
+impl<'a> From<&'a Ceiling> for CalibrationJson<'a> {
+    fn from(c: &'a Ceiling) -> Self {
+        CalibrationJson {
+            invocations: c.invocations,
+            ceiling_ops_per_s: c.ceiling_ops_per_s(),
+            variants: &c.variants,
+        }
+    }
 }
 
 /// One population's result; the keys of `--json`'s rows.
@@ -221,6 +285,13 @@ struct Row {
     agreement: Agreement,
     reference: Option<Timing>,
     speedup: Option<f64>,
+    /// The model kernel's `f32` operations a candidate-sample, where they
+    /// are a fixed count (`calibration::ops_per_candidate_sample`).
+    ops_per_candidate_sample: Option<u32>,
+    /// The kernels' rate in those operations, from the device's clock.
+    kernel_ops_per_s: Option<f64>,
+    /// `kernel_ops_per_s` over the calibrated ceiling.
+    ceiling_share: Option<f64>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -277,6 +348,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "cpu"
     };
     let adapter = evaluator.adapter().unwrap_or_else(|| evaluator.describe());
+    // The device's ceiling, in the same run as the model's kernels.
+    let ceiling = evaluator.calibrate(calibration::Sizing::default())?;
+    let ops_per_candidate_sample = calibration::ops_per_candidate_sample(
+        args.model,
+        !args.effects.is_empty(),
+        !args.free_n || args.model.exponent_index().is_none(),
+    );
     if args.markdown {
         println!("{MARKDOWN_HEADER}");
     } else if !args.json {
@@ -292,6 +370,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 (_, false) => ", n = 1",
             }
         );
+        if let Some(c) = &ceiling {
+            let rate = |v| c.ops_per_s(v).unwrap_or(f64::NAN);
+            println!(
+                "device ceiling (calibration kernel, device clock): {:.3e} f32 ops/s in {} independent mul-add chains; {:.3e} in one dependent chain; {:.3e} with pow",
+                rate(Variant::Independent),
+                calibration::CHAINS,
+                rate(Variant::Dependent),
+                rate(Variant::Pow)
+            );
+        }
         println!(
             "{:>10}  {:>12}  {:>11}  {:>10}  agreement with the CPU path",
             "population", "cand-samp/s", "evals/s", "median s"
@@ -314,6 +402,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         } else {
             (None, reference.evaluate(&problem, &population)?.total)
         };
+        let kernel_ops_per_s = timing
+            .kernel_candidate_samples_per_s
+            .zip(ops_per_candidate_sample)
+            .map(|(rate, ops)| rate * f64::from(ops));
         let row = Row {
             backend,
             adapter: adapter.clone(),
@@ -325,6 +417,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             agreement: agreement(&scores, &want),
             speedup: reference_timing.map(|r| r.median_s / timing.median_s),
             reference: reference_timing,
+            ops_per_candidate_sample,
+            kernel_ops_per_s,
+            ceiling_share: kernel_ops_per_s
+                .zip(ceiling.as_ref())
+                .map(|(rate, c)| rate / c.ceiling_ops_per_s()),
         };
         if args.markdown {
             println!("{}", markdown_rows(&row));
@@ -360,16 +457,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         r.candidate_samples_per_s
                     ),
                     _ => String::new(),
+                } + &match (row.kernel_ops_per_s, row.ceiling_share) {
+                    (Some(ops), Some(share)) => format!(
+                        "; kernels {ops:.3e} f32 ops/s, {} of the ceiling",
+                        percent(Some(share))
+                    ),
+                    _ => String::new(),
                 }
             );
         }
         rows.push(row);
     }
     if args.json {
-        println!(
-            "{}",
-            Versioned::new(Output { rows: &rows }).to_string_pretty()?
-        );
+        let output = Output {
+            calibration: ceiling.as_ref().map(CalibrationJson::from),
+            rows: &rows,
+        };
+        println!("{}", Versioned::new(output).to_string_pretty()?);
+    } else if let (true, Some(c)) = (args.markdown, &ceiling) {
+        println!("\n{CALIBRATION_HEADER}\n{}", calibration_rows(&label, c));
     }
     Ok(())
 }

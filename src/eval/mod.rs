@@ -141,6 +141,17 @@ pub trait Evaluator {
         None
     }
 
+    /// The device's `f32` rate from the calibration kernel, timed by its
+    /// clock (`gpu::calibration`); `None` on the CPU and on adapters
+    /// without timestamp queries.
+    fn calibrate(
+        &mut self,
+        sizing: gpu::calibration::Sizing,
+    ) -> anyhow::Result<Option<gpu::calibration::Ceiling>> {
+        let _ = sizing;
+        Ok(None)
+    }
+
     /// Scores `population` (row-major `N × problem.dim()`).
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores>;
 

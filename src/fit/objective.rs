@@ -28,8 +28,42 @@ pub struct ModelObjective<'a> {
     /// ([`crate::model::Family::loop_bounded`]), whatever the measure: the
     /// diagnosis' rule ([`ModelObjective::bounded_loops`]).
     loop_bounded: bool,
-    /// Seconds spent inside the evaluator's calls so far.
-    evaluator_seconds: f64,
+    /// What the evaluator's calls have spent so far.
+    clock: Clock,
+}
+
+/// Time spent inside an evaluator's calls.
+struct Clock {
+    /// Wall time.
+    seconds: f64,
+    /// Of that, the kernels' on the device's clock; `None` once a call had
+    /// no device time.
+    kernel: Option<f64>,
+}
+
+impl Clock {
+    fn new() -> Self {
+        Clock {
+            seconds: 0.0,
+            kernel: Some(0.0),
+        }
+    }
+
+    /// `call` on `evaluator`, its wall time and its kernels' device time added.
+    fn timed<T>(
+        &mut self,
+        evaluator: &mut dyn Evaluator,
+        call: impl FnOnce(&mut dyn Evaluator) -> T,
+    ) -> T {
+        let started = Instant::now();
+        let out = call(evaluator);
+        self.seconds += started.elapsed().as_secs_f64();
+        self.kernel = self
+            .kernel
+            .zip(evaluator.kernel_seconds())
+            .map(|(a, b)| a + b);
+        out
+    }
 }
 
 impl<'a> ModelObjective<'a> {
@@ -41,7 +75,7 @@ impl<'a> ModelObjective<'a> {
             stress: None,
             bounded_class: false,
             loop_bounded: false,
-            evaluator_seconds: 0.0,
+            clock: Clock::new(),
         }
     }
 
@@ -107,10 +141,10 @@ impl<'a> ModelObjective<'a> {
         if picked.is_empty() {
             return Ok(ok);
         }
-        let energy = timed(&mut self.evaluator_seconds, || {
-            self.evaluator.evaluate(problem, &subset)
-        })?
-        .total;
+        let energy = self
+            .clock
+            .timed(self.evaluator, |e| e.evaluate(problem, &subset))?
+            .total;
         for (&i, &e) in picked.iter().zip(&energy) {
             ok[i] = (e as f64) <= *bound;
         }
@@ -143,7 +177,11 @@ impl Objective for ModelObjective<'_> {
     }
 
     fn evaluator_seconds(&self) -> Option<f64> {
-        Some(self.evaluator_seconds)
+        Some(self.clock.seconds)
+    }
+
+    fn kernel_seconds(&self) -> Option<f64> {
+        self.clock.kernel
     }
 
     fn round_trips(&self) -> bool {
@@ -154,9 +192,9 @@ impl Objective for ModelObjective<'_> {
         self.problem.measure = measure;
         // Summed over the experiments in `f64`, as the diagnosis' SSEs are
         // (one experiment, as `fit`'s: the evaluator's own number).
-        let scores = timed(&mut self.evaluator_seconds, || {
-            self.evaluator.evaluate(&self.problem, rows)
-        })?;
+        let scores = self
+            .clock
+            .timed(self.evaluator, |e| e.evaluate(&self.problem, rows))?;
         let mut costs: Vec<f32> = (0..scores.total.len())
             .map(|i| {
                 let sum: f64 = scores.per_experiment.iter().map(|e| e[i] as f64).sum();
@@ -186,9 +224,9 @@ impl Objective for ModelObjective<'_> {
         measure: Measure,
     ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
         self.problem.measure = measure;
-        let raw = timed(&mut self.evaluator_seconds, || {
-            self.evaluator.residuals(&self.problem, rows)
-        })?;
+        let raw = self
+            .clock
+            .timed(self.evaluator, |e| e.residuals(&self.problem, rows))?;
         let mut residuals: Vec<Option<DVector<f64>>> = raw
             .into_iter()
             .map(|r| r.map(|r| DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64))))
@@ -209,14 +247,6 @@ impl Objective for ModelObjective<'_> {
         }
         Ok(residuals)
     }
-}
-
-/// `call`, with its wall time added to `seconds`.
-fn timed<T>(seconds: &mut f64, call: impl FnOnce() -> T) -> T {
-    let started = Instant::now();
-    let out = call();
-    *seconds += started.elapsed().as_secs_f64();
-    out
 }
 
 /// Default population of the global stage, all tries together.

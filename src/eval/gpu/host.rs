@@ -2,7 +2,9 @@
 //! pipelines, the buffers, and the dispatch of a population in chunks.
 //! Every scoring kernel (the muscle models of [`super::shader_source`], the
 //! benchmark oscillator of `benchmark::evaluator`) runs through it, on the
-//! bindings `shaders/prologue.wgsl` declares ([`super::PROLOGUE`]).
+//! bindings `shaders/prologue.wgsl` declares ([`super::PROLOGUE`]); so does
+//! the calibration kernel ([`super::calibration`]), on two bindings of its
+//! own, timed by the same device clock.
 //!
 //! The device, the pipelines and the buffers are made once and reused for
 //! every call; buffers grow geometrically; the samples are uploaded only when
@@ -326,6 +328,11 @@ impl Host {
         self.kernel_seconds
     }
 
+    /// Records a call that ran no kernel: its device time is zero.
+    pub fn no_dispatch(&mut self) {
+        self.kernel_seconds = self.timestamps.as_ref().map(|_| 0.0);
+    }
+
     fn pipeline(&mut self, source: &str, label: &str) -> &wgpu::ComputePipeline {
         let device = &self.device;
         self.pipelines
@@ -343,9 +350,10 @@ impl Host {
                     ..wgpu::ShaderRuntimeChecks::checked()
                 };
                 // SAFETY: the shaders are this crate's, assembled by
-                // `shader_source`; each of their loops counts a `u32` up to
-                // a span's length or the experiment count, so every loop
-                // ends (`tests/wgsl_variants.rs` validates each variant).
+                // `shader_source` and `calibration`; each of their loops
+                // counts a `u32` up to a span's length, the experiment count
+                // or the calibration's steps, so every loop ends
+                // (`tests/wgsl_variants.rs` validates each variant).
                 let module = unsafe { device.create_shader_module_trusted(desc, checks) };
                 device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(label),
@@ -427,6 +435,8 @@ impl Host {
         let d = kernel.dim;
         let n = rows.len() / d;
         let per_candidate = kernel.per_candidate();
+        // Zero until each part's kernels add theirs.
+        self.no_dispatch();
         if n == 0 || per_candidate == 0 {
             return Ok(vec![0.0; n * per_candidate]);
         }
@@ -447,7 +457,6 @@ impl Host {
             self.buffer_limit()
         );
         let mut flat = Vec::with_capacity(n * per_candidate);
-        self.kernel_seconds = self.timestamps.as_ref().map(|_| 0.0);
         for rows in rows.chunks(part * d) {
             flat.extend(self.dispatch_part(kernel, rows, chunk)?);
         }
@@ -574,6 +583,75 @@ impl Host {
             }
         }
         Ok(by_candidate)
+    }
+}
+
+impl Host {
+    /// Runs a kernel outside the scoring bindings (the calibration kernel,
+    /// [`super::calibration`]): `uniform` bound at 0, one `f32` a
+    /// invocation written at binding 1, `invocations` invocations in one
+    /// pass of one submit. Returns what they wrote and the pass's device
+    /// time, where the adapter offers timestamp queries.
+    pub(super) fn run_probe(
+        &mut self,
+        source: &str,
+        label: &'static str,
+        uniform: &[u8],
+        invocations: u32,
+    ) -> anyhow::Result<(Vec<f32>, Option<f64>)> {
+        let groups = invocations.div_ceil(WORKGROUP);
+        anyhow::ensure!(
+            groups > 0 && groups <= self.groups_per_dim(),
+            "{label}: {invocations} invocations need 1 to {} workgroups of {WORKGROUP}",
+            self.groups_per_dim()
+        );
+        let out_bytes = u64::from(invocations) * 4;
+        anyhow::ensure!(
+            out_bytes <= self.binding_limit(),
+            "{label}: {invocations} results exceed the device's storage binding limit"
+        );
+        self.pipeline(source, label);
+        let device = &self.device;
+        let cfg = self.configs.at_least(device, uniform.len() as u64);
+        self.queue.write_buffer(cfg, 0, uniform);
+        let out = self.out.at_least(device, out_bytes);
+        let readback = self.readback.at_least(device, out_bytes);
+        let pipeline = &self.pipelines[source];
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(label),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: range(cfg, 0, uniform.len() as u64),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: range(out, 0, out_bytes),
+                },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: self.timestamps.as_ref().map(Timestamps::writes),
+            });
+            compute.set_pipeline(pipeline);
+            compute.set_bind_group(0, &group, &[]);
+            compute.dispatch_workgroups(groups, 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(out, 0, readback, 0, out_bytes);
+        if let Some(t) = &self.timestamps {
+            t.resolve(&mut encoder);
+        }
+        self.queue.submit([encoder.finish()]);
+        let values: Vec<f32> = read_back(&self.device, readback, out_bytes)?;
+        let seconds = match &self.timestamps {
+            Some(t) => Some(t.seconds(&self.device)?),
+            None => None,
+        };
+        Ok((values, seconds))
     }
 }
 

@@ -14,6 +14,7 @@
 //! the CPU's; a real GPU may fuse `a·b + c` into an fma, so there compare
 //! within a tolerance and compare rankings (`mckibben bench` reports both).
 
+pub mod calibration;
 pub mod host;
 mod stages;
 
@@ -145,6 +146,27 @@ impl GpuEvaluator {
         &self.host.info
     }
 
+    /// Times the calibration kernel on this evaluator's device
+    /// ([`calibration::ceiling`]); `None` where the adapter offers no
+    /// timestamp queries.
+    pub fn calibrate(
+        &mut self,
+        sizing: calibration::Sizing,
+    ) -> anyhow::Result<Option<calibration::Ceiling>> {
+        calibration::ceiling(&mut self.host, sizing)
+    }
+
+    /// Runs one variant of the calibration kernel ([`calibration::run`]):
+    /// what each invocation wrote and the pass's device time.
+    pub fn calibration_run(
+        &mut self,
+        variant: calibration::Variant,
+        invocations: u32,
+        steps: u32,
+    ) -> anyhow::Result<(Vec<f32>, Option<f64>)> {
+        calibration::run(&mut self.host, variant, invocations, steps)
+    }
+
     /// Scores `population` writing `output`: per candidate, its SSE on every
     /// experiment or its residuals, candidate-major.
     fn run(
@@ -161,6 +183,8 @@ impl GpuEvaluator {
             population.len()
         );
         if population.is_empty() || problem.experiments.is_empty() {
+            // No kernel runs: this call's device time is none.
+            self.host.no_dispatch();
             return Ok(Vec::new());
         }
         let rows = to_f32(population);
@@ -209,6 +233,13 @@ impl Evaluator for GpuEvaluator {
 
     fn kernel_seconds(&self) -> Option<f64> {
         self.host.kernel_seconds()
+    }
+
+    fn calibrate(
+        &mut self,
+        sizing: calibration::Sizing,
+    ) -> anyhow::Result<Option<calibration::Ceiling>> {
+        GpuEvaluator::calibrate(self, sizing)
     }
 
     fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {

@@ -94,6 +94,14 @@ pub trait Objective {
         None
     }
 
+    /// Seconds so far of the evaluator's kernels on the device's clock
+    /// ([`crate::eval::Evaluator::kernel_seconds`], summed over its calls);
+    /// `None` where a call had no device time (the CPU, an adapter without
+    /// timestamp queries).
+    fn kernel_seconds(&self) -> Option<f64> {
+        None
+    }
+
     /// Whether its calls pay a round trip each (a GPU evaluator's,
     /// [`crate::eval::Evaluator::round_trips`]): then the polish's starts
     /// share its calls, each round one call for all of them.
@@ -155,6 +163,10 @@ pub struct StageSummary {
     /// polish's linear algebra).
     #[serde(default)]
     pub evaluator_seconds: f64,
+    /// Of `evaluator_seconds`, the kernels' own time on the device's clock;
+    /// `None` where the evaluator has no device clock.
+    #[serde(default)]
+    pub kernel_seconds: Option<f64>,
     /// The stage's best cost under its measure.
     #[serde(with = "super::inf_serde::one_f64")]
     pub best_cost: f64,
@@ -215,6 +227,8 @@ pub struct Engine<C = Canonical> {
     stage_start_seconds: f64,
     #[serde(default)]
     stage_start_evaluator_seconds: f64,
+    #[serde(default)]
+    stage_start_kernel_seconds: Option<f64>,
     pub history: History,
     evaluations: u64,
     /// Seconds spent before the last resume.
@@ -222,6 +236,10 @@ pub struct Engine<C = Canonical> {
     /// Seconds spent inside the evaluator's calls, all stages.
     #[serde(default)]
     evaluator_seconds: f64,
+    /// Of those, the kernels' on the device's clock; `None` once a call had
+    /// no device time.
+    #[serde(default)]
+    kernel_seconds: Option<f64>,
     summaries: Vec<StageSummary>,
     #[serde(skip)]
     started: Option<Instant>,
@@ -290,9 +308,11 @@ impl<C: Chart> Engine<C> {
             stage_start_evaluations: 0,
             stage_start_seconds: 0.0,
             stage_start_evaluator_seconds: 0.0,
+            stage_start_kernel_seconds: Some(0.0),
             evaluations: 0,
             seconds_before: 0.0,
             evaluator_seconds: 0.0,
+            kernel_seconds: Some(0.0),
             summaries: Vec::new(),
             started: None,
             canonical: Vec::new(),
@@ -484,8 +504,8 @@ impl<C: Chart> Engine<C> {
         canonical: &[f64],
         measure: Measure,
     ) -> anyhow::Result<Vec<f32>> {
-        let (costs, seconds) = timed(objective, |o| o.costs(canonical, measure));
-        self.evaluator_seconds += seconds;
+        let (costs, spent) = timed(objective, |o| o.costs(canonical, measure));
+        self.spent(spent);
         let costs = sanitized(costs?, canonical.len() / self.space.dim(), &*objective)?;
         self.evaluations += costs.len() as u64;
         Ok(costs)
@@ -549,6 +569,13 @@ impl<C: Chart> Engine<C> {
         self.stage_start_evaluations = self.evaluations;
         self.stage_start_seconds = self.elapsed();
         self.stage_start_evaluator_seconds = self.evaluator_seconds;
+        self.stage_start_kernel_seconds = self.kernel_seconds;
+    }
+
+    /// Counts what a call spent in the evaluator.
+    fn spent(&mut self, spent: Spent) {
+        self.evaluator_seconds += spent.seconds;
+        self.kernel_seconds = self.kernel_seconds.zip(spent.kernel).map(|(a, b)| a + b);
     }
 
     /// What the current stage, `stage`, has done so far.
@@ -566,6 +593,10 @@ impl<C: Chart> Engine<C> {
             evaluations: self.evaluations - self.stage_start_evaluations,
             seconds: self.elapsed() - self.stage_start_seconds,
             evaluator_seconds: self.evaluator_seconds - self.stage_start_evaluator_seconds,
+            kernel_seconds: self
+                .kernel_seconds
+                .zip(self.stage_start_kernel_seconds)
+                .map(|(now, start)| now - start),
             best_cost: best,
             ended,
         }
@@ -627,11 +658,25 @@ impl<C: Chart> Engine<C> {
     }
 }
 
+/// What a call spent inside the evaluator.
+#[derive(Debug, Clone, Copy, Default)]
+struct Spent {
+    /// Wall time.
+    seconds: f64,
+    /// The kernels' device time, where the evaluator has a device clock.
+    kernel: Option<f64>,
+}
+
 /// Runs `call` on `objective` and says how long it spent inside the
 /// evaluator: what the objective counts ([`Objective::evaluator_seconds`]),
-/// or else the whole call.
-fn timed<T>(objective: &mut dyn Objective, call: impl FnOnce(&mut dyn Objective) -> T) -> (T, f64) {
+/// or else the whole call; and of that the kernels' device time
+/// ([`Objective::kernel_seconds`]).
+fn timed<T>(
+    objective: &mut dyn Objective,
+    call: impl FnOnce(&mut dyn Objective) -> T,
+) -> (T, Spent) {
     let before = objective.evaluator_seconds();
+    let kernel_before = objective.kernel_seconds();
     let started = Instant::now();
     let out = call(objective);
     let whole = started.elapsed().as_secs_f64();
@@ -639,7 +684,10 @@ fn timed<T>(objective: &mut dyn Objective, call: impl FnOnce(&mut dyn Objective)
         (Some(a), Some(b)) => b - a,
         _ => whole,
     };
-    (out, seconds)
+    let kernel = kernel_before
+        .zip(objective.kernel_seconds())
+        .map(|(a, b)| b - a);
+    (out, Spent { seconds, kernel })
 }
 
 /// `costs` with NaN and −∞ made +∞, checked to hold one cost per each of

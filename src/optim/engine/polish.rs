@@ -4,8 +4,8 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::{
-    Chart, Engine, Members, Objective, Scored, Space, Stage, StageEnd, Step, keep_lowest, plan,
-    timed,
+    Chart, Engine, Members, Objective, Scored, Space, Spent, Stage, StageEnd, Step, keep_lowest,
+    plan, timed,
 };
 use crate::optim::Bounds;
 use crate::optim::lm::{self, LmSettings};
@@ -218,12 +218,17 @@ impl<C: Chart> Engine<C> {
         xs: &mut [Vec<f64>],
         points: &mut [usize],
     ) -> anyhow::Result<()> {
-        let (mut evaluations, mut seconds) = (0u64, 0.0);
+        let mut evaluations = 0u64;
+        let mut spent = Spent {
+            kernel: Some(0.0),
+            ..Spent::default()
+        };
         let mut residuals = |points: &[Vec<f64>]| {
             evaluations += points.len() as u64;
             let canonical = setup.space.embed(&points.concat());
             let (r, s) = timed(objective, |o| o.residuals(&canonical, measure));
-            seconds += s;
+            spent.seconds += s.seconds;
+            spent.kernel = spent.kernel.zip(s.kernel).map(|(a, b)| a + b);
             r
         };
         let polished = lm::levenberg_marquardt_lockstep(
@@ -235,7 +240,7 @@ impl<C: Chart> Engine<C> {
             setup.interrupt,
         );
         self.evaluations += evaluations;
-        self.evaluator_seconds += seconds;
+        self.spent(spent);
         for ((x, count), run) in xs.iter_mut().zip(points).zip(polished?) {
             *count += run.points;
             // A start whose simulation or a probe's diverges keeps
