@@ -53,7 +53,8 @@ pub struct Transfer {
 /// there: below the baseline, or not finite (a fit that diverges on the
 /// second half).
 pub fn collapses(chain_fit_percent: f64, baseline_fit_percent: f64) -> bool {
-    !(chain_fit_percent >= baseline_fit_percent)
+    // NaN on either side compares as neither: a collapse.
+    chain_fit_percent.partial_cmp(&baseline_fit_percent).is_none_or(|o| o.is_lt())
 }
 
 /// The chain of `d`'s final model and its baseline, each fitted on every
