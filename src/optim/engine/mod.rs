@@ -87,8 +87,8 @@ pub trait Objective {
     }
 
     /// Seconds spent so far inside the calls of the evaluator it scores on,
-    /// where it does more than score (the muscle models' objective also
-    /// admits rows and sums experiments); `None` where scoring is all it
+    /// where it does more than score (an objective may also admit rows or
+    /// sum experiments); `None` where scoring is all it
     /// does, and the engine then counts its calls whole.
     fn evaluator_seconds(&self) -> Option<f64> {
         None

@@ -455,7 +455,7 @@ const SCAN_WINDOW: f64 = 0.05;
 /// A start is new when its parameters differ from every start's by more
 /// than [`plan::DISTINCT`] of a coordinate's box `width` and its free-run
 /// SSE does too: members that differ only in parameters the output does
-/// not feel (β and γ when A = 0) are one model.
+/// not feel (a coordinate multiplied by another that is zero) are one model.
 fn distinct_starts(
     pool: &[Members],
     initial: &[f64],

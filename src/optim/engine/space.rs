@@ -51,11 +51,11 @@ impl Chart for Canonical {
 /// there and never shown to the optimizers. What the engine scores, keeps
 /// and reports are canonical vectors ([`Space::embed`]).
 ///
-/// The optimizers see the free coordinates as they are. A log scale for the
-/// loop-shape parameters (β, γ are often 10⁻³ in a box of ±0.5) as
-/// coordinates does worse (docs/ARCHITECTURE.md, "Half the first population
-/// draws β, γ log-uniformly"); what helps is drawing half the first
-/// population's values of those parameters log-uniformly ([`Space::draw`]).
+/// The optimizers see the free coordinates as they are. For a coordinate
+/// whose values span decades near zero, a log scale as the coordinate does
+/// worse (docs/ARCHITECTURE.md, "Decisions of the fitting engine"); what
+/// helps is drawing half the first population's values of such coordinates
+/// log-uniformly ([`Space::draw`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Space<C = Canonical> {
     pub lower: Vec<f64>,
@@ -98,8 +98,8 @@ pub struct Stepwise {
     pub tolerance: f64,
 }
 
-/// Decades a log-uniform draw spans below the edge of a box in the thesis'
-/// units (β, γ within ±0.5: down to 5·10⁻⁵).
+/// Decades a log-uniform draw spans below the edge of a box (a box of ±0.5:
+/// down to 5·10⁻⁵).
 const THESIS_DECADES: f64 = 4.0;
 fn thesis_decades() -> f64 {
     THESIS_DECADES
@@ -160,7 +160,7 @@ impl<C: Chart> Space<C> {
     /// edge (either sign where the box has both), and every third row (`r`
     /// of 1 modulo 3) takes a [`Stepwise`] coordinate's preferred values in
     /// turn. A uniform draw almost never visits the sliver near zero where
-    /// a muscle's β and γ often lie (docs/ARCHITECTURE.md, "Decisions of the
+    /// such a coordinate's value often lies (docs/ARCHITECTURE.md, "Decisions of the
     /// fitting engine"), and neither do the differences of uniform draws
     /// that DE steps by; nor does it hit a level exactly, and a level held
     /// exactly (DE's crossover keeps a parent's coordinate as it is)
@@ -417,7 +417,7 @@ mod tests {
             small_beta += usize::from(row[1].abs() < 5e-3);
         }
         // Uniform: about 1 in 1000 below 1e-3 of the box. Half the rows draw
-        // β over four decades, a quarter of them within the lowest two.
+        // coordinate 1 over four decades, a quarter of them within the lowest two.
         assert!(small_a < 10, "{small_a}");
         assert!(small_beta > 200, "{small_beta}");
     }
