@@ -374,7 +374,11 @@ mod tests {
         // One at 0.9 with a spread of 0.05 comes within three of its spreads
         // of the best refit (1.0): rule 1 refuses it.
         let c = judged_against(0.9, 0.05, (1.5, 0.74, 1.0, 0.1), 2000.0, &[0.81, 0.81]);
-        assert!(!c.passes && c.reason.contains("seed spread"), "{}", c.reason);
+        assert!(
+            !c.passes && c.reason.contains("seed spread"),
+            "{}",
+            c.reason
+        );
     }
 
     #[test]
