@@ -130,7 +130,11 @@ fn design_record() -> &'static Path {
             .arg(&path)
             .output()
             .expect("run mckibben twin");
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         path
     })
 }

@@ -156,7 +156,9 @@ impl RmseSpan {
     /// The span of `rmse`; non-finite values count as +∞, and so does an
     /// empty set (nothing was reached).
     pub fn of(rmse: &[f64]) -> RmseSpan {
-        let finite_or_inf = rmse.iter().map(|&r| if r.is_nan() { f64::INFINITY } else { r });
+        let finite_or_inf = rmse
+            .iter()
+            .map(|&r| if r.is_nan() { f64::INFINITY } else { r });
         match finite_or_inf.clone().reduce(f64::min) {
             Some(lowest) => RmseSpan {
                 lowest,

@@ -54,7 +54,9 @@ pub struct Transfer {
 /// second half).
 pub fn collapses(chain_fit_percent: f64, baseline_fit_percent: f64) -> bool {
     // NaN on either side compares as neither: a collapse.
-    chain_fit_percent.partial_cmp(&baseline_fit_percent).is_none_or(|o| o.is_lt())
+    chain_fit_percent
+        .partial_cmp(&baseline_fit_percent)
+        .is_none_or(|o| o.is_lt())
 }
 
 /// The chain of `d`'s final model and its baseline, each fitted on every

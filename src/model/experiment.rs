@@ -378,7 +378,11 @@ mod tests {
         let two = Parts::of(4000, 2, 20);
         assert!(two.reach_apart(&wave) > 0.1, "{}", two.reach_apart(&wave));
         let p = Parts::chosen(&wave, 20);
-        assert!(p.reach_apart(&wave) < 0.02, "{p:?}: {}", p.reach_apart(&wave));
+        assert!(
+            p.reach_apart(&wave) < 0.02,
+            "{p:?}: {}",
+            p.reach_apart(&wave)
+        );
         assert!(p.unlike(&wave, &cells) < 0.2, "{p:?}");
     }
 
