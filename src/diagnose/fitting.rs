@@ -156,13 +156,13 @@ impl RmseSpan {
     /// The span of `rmse`; non-finite values count as +∞, and so does an
     /// empty set (nothing was reached).
     pub fn of(rmse: &[f64]) -> RmseSpan {
-        let finite_or_inf = rmse
+        let nan_as_inf = rmse
             .iter()
             .map(|&r| if r.is_nan() { f64::INFINITY } else { r });
-        match finite_or_inf.clone().reduce(f64::min) {
+        match nan_as_inf.clone().reduce(f64::min) {
             Some(lowest) => RmseSpan {
                 lowest,
-                highest: finite_or_inf.fold(lowest, f64::max),
+                highest: nan_as_inf.fold(lowest, f64::max),
             },
             None => RmseSpan {
                 lowest: f64::INFINITY,

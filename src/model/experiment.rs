@@ -170,10 +170,11 @@ impl Parts {
     /// parts every level on both branches. A Cavatappi record's second half
     /// holds two and a half pressure pulses, so two or three blocks give
     /// each part whole pulses, while blocks shorter than a pulse put the
-    /// rises in one part and the holds in the other. A multisine's few
-    /// highest peaks lie close together: two long blocks put them all in
-    /// one part, and an effect that acts only there (an end stop) is then
-    /// either never seen by the selection or never checked by the test.
+    /// rises in one part and the holds in the other. A record's few
+    /// highest peaks may lie close together: two long blocks put them all
+    /// in one part, and an effect that acts only there (an end stop) is
+    /// then either never seen by the selection or never checked by the
+    /// test.
     pub fn chosen(input: &[f64], settle: usize) -> Parts {
         let len = input.len();
         let most = (2..=MAX_BLOCKS)
