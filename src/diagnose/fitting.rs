@@ -707,6 +707,21 @@ mod tests {
         // fixed 1 % window would count) is a different fit, not spread.
         assert!((s.spread - 1.4826 * 0.1).abs() < 1e-12, "{}", s.spread);
         assert_eq!(s.seed_sel_rmse, vec![1.0, 1.2, 5.0]);
+        // Rule 1's second form reads the same seeds' lowest and highest.
+        let span = RmseSpan {
+            lowest: 1.0,
+            highest: 1.2,
+        };
+        assert_eq!(s.indistinguishable, span);
+    }
+
+    #[test]
+    fn a_span_of_nothing_or_of_a_diverged_fit_reaches_nothing() {
+        // An empty span's highest is +∞: it beats no current model.
+        let none = RmseSpan::of(&[]);
+        assert_eq!((none.lowest, none.highest), (f64::INFINITY, f64::INFINITY));
+        let diverged = RmseSpan::of(&[0.5, f64::NAN]);
+        assert_eq!((diverged.lowest, diverged.highest), (0.5, f64::INFINITY));
     }
 
     /// A stair of pressures through a valve (pole 0.6) and the thesis'
