@@ -63,6 +63,13 @@ pub const MAX_BLOCKS: usize = 24;
 /// share less of a slow residual across their boundaries.
 pub const LAYOUT_TOLERANCE: f64 = 0.05;
 
+/// The lowest and the highest of `values` (+∞ and −∞ when there are none).
+fn lowest_and_highest(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+        (lo.min(v), hi.max(v))
+    })
+}
+
 /// Equal bands of the input's range that [`input_cells`] tells apart.
 const LEVELS: usize = 5;
 
@@ -71,11 +78,7 @@ const LEVELS: usize = 5;
 /// input by more than 2 % of its range, the asymmetry effect's tolerance;
 /// rising until the first such move): `level + LEVELS·falling`.
 fn input_cells(input: &[f64]) -> Vec<usize> {
-    let (lo, hi) = input
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
+    let (lo, hi) = lowest_and_highest(input.iter().copied());
     let range = (hi - lo).max(f64::MIN_POSITIVE);
     let tol = 0.02 * range;
     let (mut anchor, mut falling) = (input.first().copied().unwrap_or(0.0), false);
@@ -222,14 +225,9 @@ impl Parts {
     /// the input's range over the record.
     fn reach_apart(&self, input: &[f64]) -> f64 {
         let extremes = |parts: &[Range<usize>]| {
-            parts
-                .iter()
-                .flat_map(|r| &input[r.clone()])
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &u| {
-                    (lo.min(u), hi.max(u))
-                })
+            lowest_and_highest(parts.iter().flat_map(|r| input[r.clone()].iter().copied()))
         };
-        let (lo, hi) = extremes(std::slice::from_ref(&(0..input.len())));
+        let (lo, hi) = lowest_and_highest(input.iter().copied());
         let range = (hi - lo).max(f64::MIN_POSITIVE);
         let ((s_lo, s_hi), (t_lo, t_hi)) = (extremes(&self.selection), extremes(&self.test));
         ((s_hi - t_hi).abs().max((s_lo - t_lo).abs()) / range).min(1.0)
