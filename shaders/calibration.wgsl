@@ -70,6 +70,9 @@ fn dependent(i: u32) -> f32 {
     return x;
 }
 
+// Eight named chains, written out rather than an array indexed in a loop:
+// a private array may live in memory on a GPU, and the loop must time the
+// arithmetic alone. `powers` repeats the shape for the same reason.
 fn independent(i: u32) -> f32 {
     let a = addends(i);
     var x0 = a[0];
