@@ -34,7 +34,11 @@ fn throughput(c: &mut Criterion, name: &str, evaluator: &mut dyn Evaluator) {
             let pop = mixed_population(&space, n, &mut ChaCha8Rng::seed_from_u64(1));
             group.throughput(Throughput::Elements((n * SAMPLES) as u64));
             group.bench_with_input(BenchmarkId::new(family.name(), n), &pop, |b, pop| {
-                b.iter(|| evaluator.evaluate(&problem, pop).expect("evaluate"))
+                b.iter(|| {
+                    evaluator
+                        .evaluate(&problem, problem.rows(pop))
+                        .expect("evaluate")
+                })
             });
         }
     }
@@ -57,7 +61,11 @@ fn effects(c: &mut Criterion) {
     let mut evaluator = CpuEvaluator::new();
     let plain = Problem::new(family, vec![exp.clone()]);
     group.bench_function("classic", |b| {
-        b.iter(|| evaluator.evaluate(&plain, &base).expect("evaluate"))
+        b.iter(|| {
+            evaluator
+                .evaluate(&plain, plain.rows(&base))
+                .expect("evaluate")
+        })
     });
     for effect in Effect::ALL.into_iter().filter(|e| e.applicable(1)) {
         // Every candidate carries the effect halfway into its box.
@@ -75,7 +83,11 @@ fn effects(c: &mut Criterion) {
             .collect();
         let problem = Problem::new(family, vec![exp.clone()]).with_effects(vec![effect], vec![ctx]);
         group.bench_function(format!("classic+{effect}"), |b| {
-            b.iter(|| evaluator.evaluate(&problem, &pop).expect("evaluate"))
+            b.iter(|| {
+                evaluator
+                    .evaluate(&problem, problem.rows(&pop))
+                    .expect("evaluate")
+            })
         });
     }
     group.finish();

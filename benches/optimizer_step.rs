@@ -14,6 +14,7 @@ use mckibben::model::{Family, Flow};
 use mckibben::optim::engine::Space;
 use mckibben::optim::stage::Stage;
 use mckibben::optim::{Algorithm, AskTell, Streams};
+use mckibben::search::Population;
 
 /// Rows of one island of `fit --pop 100000` (four islands).
 const ISLAND: usize = 25_000;
@@ -63,9 +64,9 @@ fn generation(c: &mut Criterion) {
         });
     }
     let rows = space.draw(4 * ISLAND, &Streams::new(1, Stage::Global, 0));
-    let mut canonical = vec![0.0; 4 * ISLAND * space.dim()];
+    let mut canonical = Population::zeros(4 * ISLAND, space.dim());
     group.bench_function("Space::embed_into, 100000 rows", |b| {
-        b.iter(|| space.embed_into(&rows, &mut canonical))
+        b.iter(|| space.embed_into(rows.rows(), &mut canonical))
     });
     group.finish();
 }

@@ -1,9 +1,14 @@
 //! The terms a search and the model it searches share, below both: what a
-//! candidate's cost measures, and which bound of a box. The model's
+//! candidate's cost measures, which bound of a box, and populations whose
+//! type says what their entries are. The model's
 //! simulation runs under a [`Measure`] and its search box has sides; the
 //! fitting engine plans its stages on measures and finds the sides a
 //! result ends on, without knowing the model.
 
+use std::fmt;
+use std::marker::PhantomData;
+
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// What a score sums: the error of the free run (the thesis' fitness, eq. 29)
@@ -41,8 +46,8 @@ impl Measure {
     }
 }
 
-impl std::fmt::Display for Measure {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+impl fmt::Display for Measure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Measure::FreeRun => f.write_str("free run"),
             Measure::Ahead { horizon } => write!(f, "{horizon}-step-ahead prediction"),
@@ -78,8 +83,240 @@ impl Side {
     }
 }
 
-impl std::fmt::Display for Side {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+impl fmt::Display for Side {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
+    }
+}
+
+/// Rows whose entries are a search box's coordinates: the free
+/// coordinates the optimizers move (a model's parameters seen through its
+/// chart, the held ones left out). A marker for [`Rows`] and [`Population`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Coords {}
+
+/// Rows whose entries are a model's canonical parameters, every one of
+/// them: what a simulation runs on and an evaluator scores. A marker for
+/// [`Rows`] and [`Population`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Params {}
+
+/// Row-major vectors of one length, borrowed: a population of
+/// [`Rows::len`] candidates of [`Rows::dim`] entries each. `K` says what the
+/// entries are ([`Coords`] or [`Params`]), so that a population of one kind
+/// cannot be handed where the other is asked for, and the dimension
+/// travels with the values instead of beside them.
+pub struct Rows<'a, K> {
+    flat: &'a [f64],
+    dim: usize,
+    kind: PhantomData<fn() -> K>,
+}
+
+impl<K> Clone for Rows<'_, K> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<K> Copy for Rows<'_, K> {}
+
+impl<K> fmt::Debug for Rows<'_, K> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Rows")
+            .field("dim", &self.dim)
+            .field("flat", &self.flat)
+            .finish()
+    }
+}
+
+impl<'a, K> Rows<'a, K> {
+    /// The rows of `flat`, `dim` values each. Panics unless `dim ≥ 1` and
+    /// `flat` holds whole rows: a caller's slip, not a user's input.
+    pub fn new(flat: &'a [f64], dim: usize) -> Rows<'a, K> {
+        assert!(
+            dim > 0 && flat.len() % dim == 0,
+            "{} values are not whole rows of {dim}",
+            flat.len()
+        );
+        Rows {
+            flat,
+            dim,
+            kind: PhantomData,
+        }
+    }
+
+    /// One row of `row.len()` entries (panics on an empty one).
+    pub fn one(row: &'a [f64]) -> Rows<'a, K> {
+        Rows::new(row, row.len())
+    }
+
+    /// The `count` rows from row `at` on.
+    pub fn span(self, at: usize, count: usize) -> Rows<'a, K> {
+        Rows::new(&self.flat[at * self.dim..(at + count) * self.dim], self.dim)
+    }
+
+    /// Entries a row.
+    pub fn dim(self) -> usize {
+        self.dim
+    }
+
+    /// Rows.
+    pub fn len(self) -> usize {
+        self.flat.len() / self.dim
+    }
+
+    pub fn is_empty(self) -> bool {
+        self.flat.is_empty()
+    }
+
+    /// Row `i`.
+    pub fn row(self, i: usize) -> &'a [f64] {
+        &self.flat[i * self.dim..(i + 1) * self.dim]
+    }
+
+    /// The rows in order.
+    pub fn iter(self) -> std::slice::ChunksExact<'a, f64> {
+        self.flat.chunks_exact(self.dim)
+    }
+
+    /// The rows, for rayon.
+    pub fn par_iter(self) -> rayon::slice::ChunksExact<'a, f64> {
+        self.flat.par_chunks_exact(self.dim)
+    }
+
+    /// Every value, row after row: what a device buffer is filled from.
+    pub fn as_flat(self) -> &'a [f64] {
+        self.flat
+    }
+
+    pub fn to_population(self) -> Population<K> {
+        Population::new(self.flat.to_vec(), self.dim)
+    }
+}
+
+/// Row-major vectors of one length, owned: [`Rows`] that a caller keeps or
+/// fills.
+pub struct Population<K> {
+    flat: Vec<f64>,
+    dim: usize,
+    kind: PhantomData<fn() -> K>,
+}
+
+impl<K> Clone for Population<K> {
+    fn clone(&self) -> Self {
+        Population::new(self.flat.clone(), self.dim)
+    }
+}
+
+impl<K> PartialEq for Population<K> {
+    fn eq(&self, other: &Self) -> bool {
+        self.dim == other.dim && self.flat == other.flat
+    }
+}
+
+impl<K> fmt::Debug for Population<K> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.rows().fmt(f)
+    }
+}
+
+impl<K> Population<K> {
+    /// The rows of `flat`, `dim` values each (panics as [`Rows::new`]).
+    pub fn new(flat: Vec<f64>, dim: usize) -> Population<K> {
+        Rows::<K>::new(&flat, dim);
+        Population {
+            flat,
+            dim,
+            kind: PhantomData,
+        }
+    }
+
+    /// `len` rows of zeros, to be filled.
+    pub fn zeros(len: usize, dim: usize) -> Population<K> {
+        Population::new(vec![0.0; len * dim], dim)
+    }
+
+    pub fn rows(&self) -> Rows<'_, K> {
+        Rows::new(&self.flat, self.dim)
+    }
+
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+
+    pub fn len(&self) -> usize {
+        self.flat.len() / self.dim
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.flat.is_empty()
+    }
+
+    /// `len` rows: cut, or grown with rows of zeros.
+    pub fn resize(&mut self, len: usize) {
+        self.flat.resize(len * self.dim, 0.0);
+    }
+
+    /// Row `i`, to change in place.
+    pub fn row_mut(&mut self, i: usize) -> &mut [f64] {
+        &mut self.flat[i * self.dim..(i + 1) * self.dim]
+    }
+
+    /// The rows in order, to change in place.
+    pub fn iter_mut(&mut self) -> std::slice::ChunksExactMut<'_, f64> {
+        self.flat.chunks_exact_mut(self.dim)
+    }
+
+    /// The rows, to change in place with rayon.
+    pub fn par_iter_mut(&mut self) -> rayon::slice::ChunksExactMut<'_, f64> {
+        self.flat.par_chunks_exact_mut(self.dim)
+    }
+
+    /// The rows of `other` appended (panics where the dimensions differ).
+    pub fn extend(&mut self, other: Rows<'_, K>) {
+        assert_eq!(self.dim, other.dim, "rows of another dimension");
+        self.flat.extend_from_slice(other.flat);
+    }
+
+    /// Every value, row after row.
+    pub fn into_flat(self) -> Vec<f64> {
+        self.flat
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_keep_their_dimension() {
+        let flat = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+        let rows = Rows::<Params>::new(&flat, 3);
+        assert_eq!((rows.len(), rows.dim()), (2, 3));
+        assert_eq!(rows.row(1), &[4.0, 5.0, 6.0]);
+        assert_eq!(rows.iter().count(), 2);
+        assert_eq!(rows.span(1, 1).as_flat(), rows.row(1));
+        assert_eq!(Rows::<Params>::one(rows.row(1)).dim(), 3);
+        let mut population = rows.to_population();
+        population.row_mut(0)[0] = 9.0;
+        population.extend(rows);
+        assert_eq!(population.len(), 4);
+        population.resize(5);
+        assert_eq!(population.rows().row(4), &[0.0; 3]);
+        population.resize(4);
+        assert_eq!(population.rows().row(0), &[9.0, 2.0, 3.0]);
+        assert_eq!(population.rows().row(3), &[4.0, 5.0, 6.0]);
+    }
+
+    #[test]
+    #[should_panic(expected = "not whole rows")]
+    fn a_partial_row_is_refused() {
+        Rows::<Coords>::new(&[1.0, 2.0, 3.0], 2);
+    }
+
+    #[test]
+    #[should_panic(expected = "not whole rows")]
+    fn rows_of_no_entries_are_refused() {
+        Population::<Coords>::zeros(3, 0);
     }
 }

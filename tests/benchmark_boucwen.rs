@@ -5,7 +5,7 @@
 
 mod common;
 
-use mckibben::benchmark::boucwen::{Params, simulate_f64, sse_f32};
+use mckibben::benchmark::boucwen::{self, Params, simulate_f64, sse_f32};
 use mckibben::benchmark::evaluator::{CpuOscillator, GpuOscillator, OscillatorEvaluator};
 use mckibben::benchmark::generator::{GeneratorSettings, generate};
 use mckibben::benchmark::identify::{IdentifySettings, Training, identify, search_trace};
@@ -14,6 +14,7 @@ use mckibben::benchmark::{
     test_multisine_rmse, test_sinesweep_rmse,
 };
 use mckibben::eval::gpu::GpuOptions;
+use mckibben::search::Rows;
 
 fn small_settings() -> GeneratorSettings {
     GeneratorSettings {
@@ -186,8 +187,9 @@ fn shader_matches_the_cpu_twin_bit_for_bit_on_lavapipe() {
     wild[2] = -1.0e7; // negative stiffness: the response grows exponentially
     pop.extend_from_slice(&wild);
     let pop: Vec<f64> = pop.into_iter().map(f64::from).collect();
-    let a = CpuOscillator::new().evaluate(&trace, &pop).unwrap();
-    let b = gpu.evaluate(&trace, &pop).unwrap();
+    let pop = Rows::new(&pop, boucwen::DIM);
+    let a = CpuOscillator::new().evaluate(&trace, pop).unwrap();
+    let b = gpu.evaluate(&trace, pop).unwrap();
     assert!(a[..70].iter().all(|v| v.is_finite()));
     assert_eq!(a[70], f32::INFINITY);
     for (i, (x, y)) in a.iter().zip(&b).enumerate() {

@@ -4,6 +4,7 @@ use mckibben::eval::cpu::{CpuEvaluator, LANES};
 use mckibben::eval::workload::{mixed_population, search_space, stair_experiment};
 use mckibben::eval::{Evaluator, Problem, to_f32};
 use mckibben::model::{Family, sse};
+use mckibben::search::Rows;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -46,7 +47,9 @@ fn batched_cpu_is_bit_identical_to_reference_sse() {
             // 5 full batches and a short one.
             let pop = mixed_population(&space, 5 * LANES + 7, &mut rng);
             let problem = Problem::new(family, vec![exp.clone()]);
-            let scores = CpuEvaluator::new().evaluate(&problem, &pop).unwrap();
+            let scores = CpuEvaluator::new()
+                .evaluate(&problem, problem.rows(&pop))
+                .unwrap();
             let want = reference(&problem, &pop);
             let what = format!("{family} free_n={free_n}");
             assert_bit_identical(&scores.per_experiment[0], &want[0], &what);
@@ -67,7 +70,9 @@ fn several_experiments_score_separately_and_sum() {
     let space = search_space(Family::Generalized, &e1, false);
     let pop = mixed_population(&space, 40, &mut ChaCha8Rng::seed_from_u64(3));
     let both = Problem::new(Family::Generalized, vec![e1.clone(), e2.clone()]);
-    let scores = CpuEvaluator::new().evaluate(&both, &pop).unwrap();
+    let scores = CpuEvaluator::new()
+        .evaluate(&both, both.rows(&pop))
+        .unwrap();
     let want = reference(&both, &pop);
     assert_bit_identical(&scores.per_experiment[0], &want[0], "first");
     assert_bit_identical(&scores.per_experiment[1], &want[1], "second");
@@ -87,7 +92,11 @@ fn results_do_not_depend_on_the_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| CpuEvaluator::new().evaluate(&problem, &pop).unwrap())
+        pool.install(|| {
+            CpuEvaluator::new()
+                .evaluate(&problem, problem.rows(&pop))
+                .unwrap()
+        })
     };
     assert_eq!(run(1), run(3));
 }
@@ -98,10 +107,16 @@ fn short_traces_and_bad_lengths() {
     let problem = Problem::new(Family::Classic, vec![exp]);
     let d = Family::Classic.dim();
     let pop = vec![0.5; d * 3];
-    let scores = CpuEvaluator::new().evaluate(&problem, &pop).unwrap();
+    let scores = CpuEvaluator::new()
+        .evaluate(&problem, problem.rows(&pop))
+        .unwrap();
     assert_eq!(scores.total, vec![0.0; 3]);
+    // Rows of another model's length are refused, not read across.
     let err = CpuEvaluator::new()
-        .evaluate(&problem, &pop[..d - 1])
+        .evaluate(&problem, Rows::new(&pop[..3 * (d - 1)], d - 1))
         .unwrap_err();
-    assert!(err.to_string().contains("multiple"), "{err}");
+    assert!(
+        err.to_string().contains(&format!("has {d} parameters")),
+        "{err}"
+    );
 }

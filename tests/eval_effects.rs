@@ -127,7 +127,9 @@ fn cpu_batches_give_the_scalar_simulations_bits() {
         {
             let (problem, contexts) = problem_of(&model, measure, up);
             let pop = population(&model, &contexts[0], 2 * LANES + 5, 3);
-            let scores = CpuEvaluator::new().evaluate(&problem, &pop).unwrap();
+            let scores = CpuEvaluator::new()
+                .evaluate(&problem, problem.rows(&pop))
+                .unwrap();
             let d = model.dim();
             for (e, exp) in problem.experiments.iter().enumerate() {
                 let want: Vec<f32> = pop
@@ -165,8 +167,8 @@ fn gpu_kernels_give_the_cpu_bits() {
                 "{} + {:?}, {measure}, drives up {up}",
                 model.family, model.effects
             );
-            let want = cpu.evaluate(&problem, &pop).unwrap();
-            let got = gpu.evaluate(&problem, &pop).unwrap();
+            let want = cpu.evaluate(&problem, problem.rows(&pop)).unwrap();
+            let got = gpu.evaluate(&problem, problem.rows(&pop)).unwrap();
             for e in 0..problem.experiments.len() {
                 assert_eq!(
                     bits(&got.per_experiment[e]),
@@ -175,8 +177,8 @@ fn gpu_kernels_give_the_cpu_bits() {
                 );
             }
             let few = &pop[..5 * model.dim()];
-            let want = cpu.residuals(&problem, few).unwrap();
-            let got = gpu.residuals(&problem, few).unwrap();
+            let want = cpu.residuals(&problem, problem.rows(few)).unwrap();
+            let got = gpu.residuals(&problem, problem.rows(few)).unwrap();
             for (i, (g, w)) in got.iter().zip(&want).enumerate() {
                 assert_eq!(
                     g.as_deref().map(bits),

@@ -16,6 +16,7 @@ use mckibben::eval::workload::{mixed_population, search_space, stair_experiment}
 use mckibben::eval::{Evaluator, Problem, Scores};
 use mckibben::model::experiment::halves;
 use mckibben::model::{Experiment, Family, Measure};
+use mckibben::search::Rows;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -26,7 +27,9 @@ fn gpu(options: GpuOptions) -> Option<GpuEvaluator> {
 }
 
 fn cpu(problem: &Problem, pop: &[f64]) -> Scores {
-    CpuEvaluator::new().evaluate(problem, pop).unwrap()
+    CpuEvaluator::new()
+        .evaluate(problem, problem.rows(pop))
+        .unwrap()
 }
 
 fn assert_bit_identical(got: &Scores, want: &Scores, what: &str) {
@@ -81,7 +84,7 @@ fn n_one_scores_are_bit_identical_to_the_cpu_and_agree_on_divergence() {
         let pop = mixed_population(&space, 256, &mut ChaCha8Rng::seed_from_u64(1));
         let problem = Problem::new(family, vec![exp.clone()]);
         let want = cpu(&problem, &pop);
-        let got = g.evaluate(&problem, &pop).unwrap();
+        let got = g.evaluate(&problem, problem.rows(&pop)).unwrap();
         assert_bit_identical(&got, &want, family.name());
         let diverged = want.total.iter().filter(|v| v.is_infinite()).count();
         assert!(
@@ -104,7 +107,7 @@ fn prediction_scores_are_bit_identical_to_the_cpu() {
             let problem = Problem::new(family, vec![exp.clone(), stair_experiment(700, 2)])
                 .with_measure(Measure::Ahead { horizon });
             let want = cpu(&problem, &pop);
-            let got = g.evaluate(&problem, &pop).unwrap();
+            let got = g.evaluate(&problem, problem.rows(&pop)).unwrap();
             assert_bit_identical(&got, &want, &format!("{family}, horizon {horizon}"));
         }
     }
@@ -121,8 +124,10 @@ fn residuals_are_bit_identical_to_the_cpu_with_the_same_divergence_set() {
         let pop = mixed_population(&space, 70, &mut ChaCha8Rng::seed_from_u64(33));
         for measure in [Measure::FreeRun, Measure::Ahead { horizon: 40 }] {
             let problem = Problem::new(family, vec![e1.clone(), e2.clone()]).with_measure(measure);
-            let want = CpuEvaluator::new().residuals(&problem, &pop).unwrap();
-            let got = g.residuals(&problem, &pop).unwrap();
+            let want = CpuEvaluator::new()
+                .residuals(&problem, problem.rows(&pop))
+                .unwrap();
+            let got = g.residuals(&problem, problem.rows(&pop)).unwrap();
             let what = format!("{family}, {measure}");
             assert_eq!(got.len(), want.len(), "{what}");
             if measure == Measure::FreeRun {
@@ -193,10 +198,12 @@ fn the_switching_level_is_placed_by_each_experiments_mean_as_on_the_cpu() {
     for measure in [Measure::FreeRun, Measure::Ahead { horizon: 17 }] {
         let problem = Problem::new(family, exps.clone()).with_measure(measure);
         let want = cpu(&problem, &pop);
-        let got = g.evaluate(&problem, &pop).unwrap();
+        let got = g.evaluate(&problem, problem.rows(&pop)).unwrap();
         assert_bit_identical(&got, &want, &format!("switching levels, {measure}"));
-        let want = CpuEvaluator::new().residuals(&problem, &pop).unwrap();
-        let got = g.residuals(&problem, &pop).unwrap();
+        let want = CpuEvaluator::new()
+            .residuals(&problem, problem.rows(&pop))
+            .unwrap();
+        let got = g.residuals(&problem, problem.rows(&pop)).unwrap();
         for (i, (a, b)) in got.iter().zip(&want).enumerate() {
             let bits = |r: &Option<Vec<f32>>| {
                 r.as_ref()
@@ -216,8 +223,8 @@ fn the_switching_level_is_placed_by_each_experiments_mean_as_on_the_cpu() {
     }
     let problem = Problem::new(family, exps);
     let (here, there) = (
-        g.evaluate(&problem, &pop).unwrap().total,
-        g.evaluate(&problem, &moved).unwrap().total,
+        g.evaluate(&problem, problem.rows(&pop)).unwrap().total,
+        g.evaluate(&problem, problem.rows(&moved)).unwrap().total,
     );
     let finite = here.iter().filter(|v| v.is_finite()).count();
     let changed = here
@@ -241,7 +248,7 @@ fn population_sizes_around_the_workgroup_give_the_right_count_and_values() {
     let problem = Problem::new(Family::Classic, vec![exp]);
     for n in [1, 63, 64, 65, 0] {
         let pop = mixed_population(&space, n, &mut ChaCha8Rng::seed_from_u64(n as u64));
-        let got = g.evaluate(&problem, &pop).unwrap();
+        let got = g.evaluate(&problem, problem.rows(&pop)).unwrap();
         assert_eq!(got.total.len(), n);
         assert_bit_identical(&got, &cpu(&problem, &pop), &format!("population {n}"));
     }
@@ -264,7 +271,7 @@ fn chunks_and_a_folded_2d_grid_give_the_cpu_values() {
         let space = search_space(family, &exp, false);
         let pop = mixed_population(&space, 1000, &mut ChaCha8Rng::seed_from_u64(5));
         let problem = Problem::new(family, vec![exp.clone(), stair_experiment(200, 8)]);
-        let got = g.evaluate(&problem, &pop).unwrap();
+        let got = g.evaluate(&problem, problem.rows(&pop)).unwrap();
         assert_bit_identical(&got, &cpu(&problem, &pop), family.name());
     }
 }
@@ -284,7 +291,7 @@ fn a_population_past_the_buffer_limit_is_scored_in_parts() {
     let space = search_space(Family::Generalized, &exp, false);
     let pop = mixed_population(&space, 1000, &mut ChaCha8Rng::seed_from_u64(15));
     let problem = Problem::new(Family::Generalized, vec![exp, stair_experiment(100, 16)]);
-    let got = g.evaluate(&problem, &pop).unwrap();
+    let got = g.evaluate(&problem, problem.rows(&pop)).unwrap();
     assert_bit_identical(&got, &cpu(&problem, &pop), "parts");
 }
 
@@ -302,7 +309,7 @@ fn more_than_65535_workgroups_fold_into_a_2d_dispatch() {
         pop.extend_from_slice(&[0.5 + (i % 1000) as f64 * 1e-4, (i % 977) as f64, 0.25, 0.0]);
     }
     let problem = Problem::new(Family::Linear, vec![exp]);
-    let got = g.evaluate(&problem, &pop).unwrap();
+    let got = g.evaluate(&problem, problem.rows(&pop)).unwrap();
     assert_eq!(got.total.len(), n);
     assert_bit_identical(&got, &cpu(&problem, &pop), "2-D grid");
 }
@@ -315,17 +322,18 @@ fn two_experiments_in_one_dispatch_equal_two_separate_calls() {
     let (e1, e2) = (stair_experiment(900, 10), stair_experiment(1300, 11));
     let space = search_space(Family::Generalized, &e1, false);
     let pop = mixed_population(&space, 130, &mut ChaCha8Rng::seed_from_u64(12));
+    let rows = Rows::new(&pop, Family::Generalized.dim());
     let both = g
         .evaluate(
             &Problem::new(Family::Generalized, vec![e1.clone(), e2.clone()]),
-            &pop,
+            rows,
         )
         .unwrap();
     let first = g
-        .evaluate(&Problem::new(Family::Generalized, vec![e1]), &pop)
+        .evaluate(&Problem::new(Family::Generalized, vec![e1]), rows)
         .unwrap();
     let second = g
-        .evaluate(&Problem::new(Family::Generalized, vec![e2]), &pop)
+        .evaluate(&Problem::new(Family::Generalized, vec![e2]), rows)
         .unwrap();
     assert_eq!(both.per_experiment[0], first.total);
     assert_eq!(both.per_experiment[1], second.total);
@@ -349,7 +357,7 @@ fn free_exponent_agrees_within_pow_accuracy() {
         let pop = mixed_population(&space, 512, &mut ChaCha8Rng::seed_from_u64(13));
         let problem = Problem::new(family, vec![exp.clone()]);
         let want = cpu(&problem, &pop);
-        let got = g.evaluate(&problem, &pop).unwrap();
+        let got = g.evaluate(&problem, problem.rows(&pop)).unwrap();
         let mut rel = Vec::new();
         let mut mismatches = 0;
         for (a, b) in got.total.iter().zip(&want.total) {
@@ -403,7 +411,7 @@ fn the_kernels_are_timed_by_the_devices_clock() {
     for n in [100, 1000] {
         let pop = mixed_population(&space, n, &mut ChaCha8Rng::seed_from_u64(18));
         let start = std::time::Instant::now();
-        g.evaluate(&problem, &pop).unwrap();
+        g.evaluate(&problem, problem.rows(&pop)).unwrap();
         let wall = start.elapsed().as_secs_f64();
         let kernel = g
             .kernel_seconds()
@@ -415,6 +423,6 @@ fn the_kernels_are_timed_by_the_devices_clock() {
     }
     let mut c = CpuEvaluator::new();
     let pop = mixed_population(&space, 10, &mut ChaCha8Rng::seed_from_u64(19));
-    c.evaluate(&problem, &pop).unwrap();
+    c.evaluate(&problem, problem.rows(&pop)).unwrap();
     assert_eq!(c.kernel_seconds(), None);
 }

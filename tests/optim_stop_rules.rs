@@ -15,6 +15,7 @@ use mckibben::optim::Algorithm;
 use mckibben::optim::engine::{
     Engine, FreeRun, Objective, Outcome, Plan, Space, Stage, StageEnd, StopReason, StopRules,
 };
+use mckibben::search::{Params, Rows};
 
 const DIM: usize = 3;
 
@@ -72,13 +73,13 @@ impl Objective for Synthetic {
         "synthetic test objective".into()
     }
 
-    fn costs(&mut self, rows: &[f64], _: Measure) -> anyhow::Result<Vec<f32>> {
+    fn costs(&mut self, rows: Rows<'_, Params>, _: Measure) -> anyhow::Result<Vec<f32>> {
         std::thread::sleep(self.pause);
         let costs: Vec<f32> = rows
-            .chunks_exact(DIM)
+            .iter()
             .map(|row| (self.cost)(row, self.calls) as f32)
             .collect();
-        for (row, &c) in rows.chunks_exact(DIM).zip(&costs) {
+        for (row, &c) in rows.iter().zip(&costs) {
             if self.lowest.as_ref().is_none_or(|(l, _)| c < *l) {
                 self.lowest = Some((c, row.to_vec()));
             }

@@ -16,6 +16,7 @@ use mckibben::model::UserBound;
 use mckibben::model::{Flow, Measure, Switching};
 use mckibben::optim::engine::Objective as _;
 use mckibben::optim::engine::Space;
+use mckibben::search::Rows;
 
 use crate::args::user_bounds;
 use crate::convert::{backend, family, loop_shape, rows, rows_view, runtime_error, value_error};
@@ -53,6 +54,7 @@ pub struct Evaluator {
 impl Evaluator {
     /// The costs of canonical rows, with the interpreter released.
     fn score(&self, py: Python<'_>, canonical: Vec<f64>) -> PyResult<Vec<f32>> {
+        let canonical = Rows::new(&canonical, self.space.dim());
         py.detach(|| {
             let mut evaluator = self
                 .evaluator
@@ -60,10 +62,10 @@ impl Evaluator {
                 .map_err(|_| anyhow::anyhow!("the evaluator failed in an earlier call"))?;
             if self.checked {
                 ModelObjective::for_problem(evaluator.as_mut(), &self.problem)
-                    .costs(&canonical, Measure::FreeRun)
+                    .costs(canonical, Measure::FreeRun)
             } else {
                 Ok(evaluator
-                    .evaluate(&self.problem.est_problem(), &canonical)?
+                    .evaluate(&self.problem.est_problem(), canonical)?
                     .total)
             }
         })
@@ -92,10 +94,10 @@ impl Evaluator {
     /// (measured: docs/PYTHON.md, "Throughput from Python").
     fn embed(&self, free: &[f64]) -> Vec<f64> {
         const BLOCK: usize = 1024;
-        let d = self.names.len().max(1);
+        let d = self.space.free_dim();
         let mut canonical = Vec::with_capacity(free.len() / d * self.space.dim());
         for block in free.chunks(BLOCK * d) {
-            canonical.extend(self.space.embed(block));
+            canonical.extend(self.space.embed(Rows::new(block, d)).into_flat());
         }
         canonical
     }
@@ -109,7 +111,10 @@ impl Evaluator {
                 self.names.len()
             )));
         }
-        Ok(self.space.embed(&free))
+        Ok(self
+            .space
+            .embed(Rows::new(&free, self.space.free_dim()))
+            .into_flat())
     }
 
     /// The canonical parameter names of the family.
@@ -287,7 +292,8 @@ impl Evaluator {
         params: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (canonical, _, single) = rows(params, &self.canonical_names(), "params")?;
-        matrix(py, self.space.project(&canonical), self.names.len(), single)
+        let thetas = self.space.project(Rows::new(&canonical, self.space.dim()));
+        matrix(py, thetas.into_flat(), self.names.len(), single)
     }
 
     /// The SSE of canonical parameter vectors (`(N, P)`, or one of P), as

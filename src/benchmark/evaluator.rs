@@ -14,6 +14,7 @@ use super::boucwen::{self, DIM, sse_f32};
 use crate::eval::gpu::host::{Host, Kernel, Output, best_adapter};
 use crate::eval::gpu::{GpuOptions, PROLOGUE, describe_adapter};
 use crate::eval::{Backend, Choice, choose, to_f32};
+use crate::search::{Params, Rows};
 
 const OSCILLATOR: &str = include_str!("../../shaders/boucwen_oscillator.wgsl");
 
@@ -77,13 +78,13 @@ pub trait OscillatorEvaluator {
     /// Backend and device, for the user ("cpu, 2 threads", "gpu: …").
     fn describe(&self) -> String;
 
-    /// The SSE of every candidate (`population` row-major,
-    /// [`boucwen`]'s canonical vectors), `+∞` where its simulation diverged.
+    /// The SSE of every candidate (`population`: [`boucwen`]'s canonical
+    /// vectors), `+∞` where its simulation diverged.
     /// Bit-identical across backends where the muscle models' scores are.
     fn evaluate(
         &mut self,
         problem: &OscillatorProblem,
-        population: &[f64],
+        population: Rows<'_, Params>,
     ) -> anyhow::Result<Vec<f32>>;
 }
 
@@ -121,7 +122,7 @@ impl OscillatorEvaluator for CpuOscillator {
     fn evaluate(
         &mut self,
         problem: &OscillatorProblem,
-        population: &[f64],
+        population: Rows<'_, Params>,
     ) -> anyhow::Result<Vec<f32>> {
         let rows = rows(problem, population)?;
         Ok(score_rows(problem, &rows))
@@ -156,7 +157,7 @@ impl OscillatorEvaluator for GpuOscillator {
     fn evaluate(
         &mut self,
         problem: &OscillatorProblem,
-        population: &[f64],
+        population: Rows<'_, Params>,
     ) -> anyhow::Result<Vec<f32>> {
         let rows = rows(problem, population)?;
         let (samples, spans) = problem.samples();
@@ -195,14 +196,14 @@ pub fn source(problem: &OscillatorProblem) -> String {
 
 /// The `f32` rows both backends score, after checking the problem and the
 /// population's shape.
-fn rows(problem: &OscillatorProblem, population: &[f64]) -> anyhow::Result<Vec<f32>> {
+fn rows(problem: &OscillatorProblem, population: Rows<'_, Params>) -> anyhow::Result<Vec<f32>> {
     problem.check()?;
     anyhow::ensure!(
-        population.len() % DIM == 0,
-        "population length {} is not a multiple of the oscillator's {DIM} parameters",
-        population.len()
+        population.dim() == DIM,
+        "rows of {} values, but the oscillator has {DIM} parameters",
+        population.dim()
     );
-    Ok(to_f32(population))
+    Ok(to_f32(population.as_flat()))
 }
 
 /// The SSE of every row, one candidate per rayon task (each from its own

@@ -24,6 +24,7 @@ use crate::model::Measure;
 use crate::optim::Algorithm;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
 use crate::optim::lm::{self, LmError, LmSettings};
+use crate::search::{Params as Canonical, Rows};
 
 /// Settings of the identification.
 #[derive(Debug, Clone, PartialEq)]
@@ -270,12 +271,13 @@ impl Objective for SearchObjective<'_> {
     }
 
     /// One measure only: the SSE on the search trace.
-    fn costs(&mut self, rows: &[f64], _: Measure) -> anyhow::Result<Vec<f32>> {
+    fn costs(&mut self, rows: Rows<'_, Canonical>, _: Measure) -> anyhow::Result<Vec<f32>> {
         let params: Vec<f64> = rows
-            .chunks(SEARCH_NAMES.len())
+            .iter()
             .flat_map(|x| search_to_params(x).to_vec())
             .collect();
-        self.evaluator.evaluate(self.problem, &params)
+        self.evaluator
+            .evaluate(self.problem, Rows::new(&params, super::boucwen::DIM))
     }
 }
 

@@ -17,6 +17,7 @@ use mckibben::model::effects::{Context, Effect, ModelDescription};
 use mckibben::model::presets::THESIS_B;
 use mckibben::model::{Experiment, Family};
 use mckibben::report::json::Versioned;
+use mckibben::search::{Params, Rows};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -136,10 +137,10 @@ struct Timing {
 fn time(
     evaluator: &mut dyn Evaluator,
     problem: &Problem,
-    population: &[f64],
+    population: Rows<'_, Params>,
     repeats: u32,
 ) -> anyhow::Result<(Timing, Vec<f32>)> {
-    let n = population.len() / problem.dim();
+    let n = population.len();
     let mut scores = evaluator.evaluate(problem, population)?;
     let mut times = Vec::with_capacity(repeats as usize);
     let mut kernel_times = Vec::with_capacity(repeats as usize);
@@ -395,12 +396,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         } else {
             augmented_population(&model, &space, &contexts[0], n, &mut rng)
         };
-        let (timing, scores) = time(evaluator.as_mut(), &problem, &population, args.repeats)?;
+        let population = Rows::new(&population, problem.dim());
+        let (timing, scores) = time(evaluator.as_mut(), &problem, population, args.repeats)?;
         let (reference_timing, want) = if args.time_reference {
-            let (t, want) = time(&mut reference, &problem, &population, args.repeats)?;
+            let (t, want) = time(&mut reference, &problem, population, args.repeats)?;
             (Some(t), want)
         } else {
-            (None, reference.evaluate(&problem, &population)?.total)
+            (None, reference.evaluate(&problem, population)?.total)
         };
         let kernel_ops_per_s = timing
             .kernel_candidate_samples_per_s

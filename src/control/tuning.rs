@@ -14,6 +14,7 @@ use crate::model::Measure;
 use crate::names::UnknownName;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
 use crate::optim::{Algorithm, Bounds};
+use crate::search::{Params, Rows};
 use crate::twin::{Rig, TwinConfig};
 
 /// The episodes a gain vector is scored on.
@@ -152,8 +153,8 @@ impl Objective for GainObjective<'_> {
     }
 
     /// One measure only: the mean RMS error of [`pi_costs`].
-    fn costs(&mut self, rows: &[f64], _: Measure) -> anyhow::Result<Vec<f32>> {
-        Ok(pi_costs(rows, self.episodes, self.config)
+    fn costs(&mut self, rows: Rows<'_, Params>, _: Measure) -> anyhow::Result<Vec<f32>> {
+        Ok(pi_costs(rows.as_flat(), self.episodes, self.config)
             .into_iter()
             .map(|c| c as f32)
             .collect())

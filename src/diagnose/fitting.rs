@@ -22,6 +22,7 @@ use crate::model::{Family, Measure};
 use crate::optim::AlgoSettings;
 use crate::optim::de::DeSettings;
 use crate::optim::engine::{Engine, Objective, Outcome, Plan, Polish, Space, StopRules};
+use crate::search::{Params, Rows};
 
 /// The fit's objective ([`ModelObjective::bounded_loops`]: the model
 /// description scored in batches on the searches' evaluator, unbounded loops
@@ -38,11 +39,15 @@ impl Objective for OneMeasure<'_> {
         self.objective.describe()
     }
 
-    fn costs(&mut self, rows: &[f64], _: Measure) -> anyhow::Result<Vec<f32>> {
+    fn costs(&mut self, rows: Rows<'_, Params>, _: Measure) -> anyhow::Result<Vec<f32>> {
         self.objective.costs(rows, self.measure)
     }
 
-    fn residuals(&mut self, rows: &[f64], _: Measure) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
+    fn residuals(
+        &mut self,
+        rows: Rows<'_, Params>,
+        _: Measure,
+    ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
         anyhow::ensure!(
             self.measure == Measure::FreeRun,
             "the diagnosis polishes on the free run only"
@@ -94,7 +99,7 @@ fn evolve(
     (problem, searches): (&FitProblem, &Searches),
     measure: Measure,
     (lo, hi): (&[f64], &[f64]),
-    initial: &[f64],
+    initial: Rows<'_, Params>,
     (population, generations): (usize, usize),
     p_best: f64,
     rng: &mut ChaCha8Rng,
@@ -114,7 +119,7 @@ fn evolve(
     let outcome = run_engine(problem, searches, measure, &mut engine)?;
     if outcome.params.is_empty() {
         // Every candidate diverged: the start is as good as any.
-        return Ok((initial[..lo.len()].to_vec(), f64::INFINITY));
+        return Ok((initial.row(0).to_vec(), f64::INFINITY));
     }
     Ok((outcome.params, outcome.sse))
 }
@@ -235,7 +240,7 @@ pub fn fit_candidate(
                 (problem, searches),
                 Measure::Ahead { horizon },
                 (&lo, &hi),
-                &rows,
+                Rows::new(&rows, d),
                 (np, first),
                 0.02,
                 &mut rng,
@@ -261,7 +266,7 @@ pub fn fit_candidate(
                     (problem, searches),
                     Measure::FreeRun,
                     (&held_lo, &held_hi),
-                    &first,
+                    Rows::new(&first, d),
                     (np1, 60),
                     0.2,
                     &mut rng,
@@ -278,7 +283,7 @@ pub fn fit_candidate(
         (problem, searches),
         Measure::FreeRun,
         (&lo, &hi),
-        &initial,
+        Rows::new(&initial, d),
         (np, generations),
         p_best,
         &mut rng,
@@ -329,8 +334,8 @@ pub(super) fn polish(
         longest: usize::MAX,
     });
     // The polish draws nothing: the seed is never used.
-    let mut engine =
-        Engine::new(plan, space_of(problem, lo, hi), 0, StopRules::default())?.with_initial(&best);
+    let mut engine = Engine::new(plan, space_of(problem, lo, hi), 0, StopRules::default())?
+        .with_initial(Rows::one(&best));
     let outcome = run_engine(problem, searches, Measure::FreeRun, &mut engine)?;
     // No params: the start and every step diverged. The polished point is
     // scored in `f64`, as the start was.
@@ -761,10 +766,11 @@ mod tests {
         let mut unbounded = bounded.clone();
         unbounded[3] = -2.0 * unbounded[2];
         let rows: Vec<f64> = bounded.iter().chain(&unbounded).copied().collect();
+        let rows = Rows::new(&rows, bounded.len());
         let mut cpu = crate::eval::cpu::CpuEvaluator::new();
         for measure in [Measure::FreeRun, Measure::Ahead { horizon: 5 }] {
             let costs = ModelObjective::for_problem(&mut cpu, &data)
-                .costs(&rows, measure)
+                .costs(rows, measure)
                 .unwrap();
             assert!(costs[0].is_finite(), "{measure:?}: {costs:?}");
             assert_eq!(costs[1], f32::INFINITY, "{measure:?}");
@@ -780,7 +786,7 @@ mod tests {
         assert_eq!(data.est_sse_ahead(&unbounded, 5), f64::INFINITY);
         assert!(data.est_residuals(&unbounded).is_none());
         let batch = ModelObjective::for_problem(&mut cpu, &data)
-            .residuals(&rows, Measure::FreeRun)
+            .residuals(rows, Measure::FreeRun)
             .unwrap();
         assert!(batch[0].is_some() && batch[1].is_none());
     }

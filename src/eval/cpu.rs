@@ -20,11 +20,12 @@
 
 use rayon::prelude::*;
 
-use super::{Evaluator, Problem, Scores, effects, to_f32};
+use super::{Evaluator, Problem, Scores, check_dim, effects, to_f32};
 use crate::model::Family;
 use crate::model::sim::{
     classic_w, generalized_w, in_bounds, linear_part, linear_step, restart_w, switch_threshold,
 };
+use crate::search::{Params, Rows};
 
 pub use super::batch::LANES;
 use super::batch::block;
@@ -67,10 +68,13 @@ impl Evaluator for CpuEvaluator {
         }
     }
 
-    fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {
-        let rows = to_f32(population);
-        check_rows(problem, &rows)?;
-        Ok(score_rows(problem, &rows))
+    fn evaluate(
+        &mut self,
+        problem: &Problem,
+        population: Rows<'_, Params>,
+    ) -> anyhow::Result<Scores> {
+        check_dim(problem, population)?;
+        Ok(score_rows(problem, &to_f32(population.as_flat())))
     }
 
     /// A plain family's residuals in the lanes of the scoring loop, as
@@ -82,10 +86,10 @@ impl Evaluator for CpuEvaluator {
     fn residuals(
         &mut self,
         problem: &Problem,
-        population: &[f64],
+        population: Rows<'_, Params>,
     ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
-        let rows = to_f32(population);
-        check_rows(problem, &rows)?;
+        check_dim(problem, population)?;
+        let rows = to_f32(population.as_flat());
         let d = problem.dim();
         if problem.effects.is_empty() {
             let every = problem.measure.restart_every();
@@ -135,18 +139,6 @@ impl Evaluator for CpuEvaluator {
             })
             .collect())
     }
-}
-
-/// A population must be whole rows of the problem's parameters.
-fn check_rows(problem: &Problem, rows: &[f32]) -> anyhow::Result<()> {
-    let d = problem.dim();
-    anyhow::ensure!(
-        rows.len() % d == 0,
-        "population length {} is not a multiple of the {} model's {d} parameters",
-        rows.len(),
-        problem.family
-    );
-    Ok(())
 }
 
 /// Scores `f32` rows (row-major `N × d`) on every experiment of `problem`.

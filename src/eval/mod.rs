@@ -14,6 +14,7 @@ pub mod workload;
 
 use crate::model::effects::{Context, Effect, ModelDescription};
 use crate::model::{Experiment, Family, Measure};
+use crate::search::{Params, Rows};
 
 /// What is scored: a model family against one or more experiments (e.g. two
 /// loads), each in deviation coordinates, under a measure (the free run's
@@ -71,6 +72,12 @@ impl Problem {
         } else {
             self.model().dim()
         }
+    }
+
+    /// The rows of `flat` as candidates of this problem (panics unless it
+    /// holds whole rows of [`Problem::dim`]).
+    pub fn rows<'a>(&self, flat: &'a [f64]) -> Rows<'a, Params> {
+        Rows::new(flat, self.dim())
     }
 
     /// The same problem under another measure.
@@ -152,8 +159,12 @@ pub trait Evaluator {
         Ok(None)
     }
 
-    /// Scores `population` (row-major `N × problem.dim()`).
-    fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores>;
+    /// Scores `population`, whose rows must have `problem.dim()` entries.
+    fn evaluate(
+        &mut self,
+        problem: &Problem,
+        population: Rows<'_, Params>,
+    ) -> anyhow::Result<Scores>;
 
     /// The errors `x(k) − y(k)` of every candidate under the problem's
     /// measure, `k ≥ 1` of each experiment in turn (what a
@@ -163,8 +174,20 @@ pub trait Evaluator {
     fn residuals(
         &mut self,
         problem: &Problem,
-        population: &[f64],
+        population: Rows<'_, Params>,
     ) -> anyhow::Result<Vec<Option<Vec<f32>>>>;
+}
+
+/// A population must have the problem's parameters in every row.
+fn check_dim(problem: &Problem, population: Rows<'_, Params>) -> anyhow::Result<()> {
+    let d = problem.dim();
+    anyhow::ensure!(
+        population.dim() == d,
+        "rows of {} values, but the {} model has {d} parameters",
+        population.dim(),
+        problem.family
+    );
+    Ok(())
 }
 
 /// Converts a row-major `f64` population to the `f32` rows every backend scores.

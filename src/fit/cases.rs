@@ -39,9 +39,11 @@ use super::records::Validation;
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit::indistinguishable_up_to;
+use crate::model::Measure;
 use crate::model::coords::{bounded_betas, gauge_fixed, in_bounded_class};
 use crate::model::{Family, Flow, simulate};
 use crate::optim::engine::{Engine, Objective, Plan, Polish, Space, StopRules};
+use crate::search::Rows;
 
 /// The input that excites a case.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -290,8 +292,8 @@ impl Case {
             judgement.polished_ratio = Some(polished_ratio);
             if polished_ratio > PASS_RATIO {
                 let mut objective = ModelObjective::for_problem(evaluator, &problem);
-                let sse = Objective::costs(&mut objective, fitted, crate::model::Measure::FreeRun)?
-                    [0] as f64;
+                let sse = Objective::costs(&mut objective, Rows::one(fitted), Measure::FreeRun)?[0]
+                    as f64;
                 let samples = problem.estimation().len().saturating_sub(1);
                 judgement.passes = sse <= indistinguishable_up_to(polished_sse, samples);
             }
@@ -338,7 +340,8 @@ pub fn polished_truth(
     }
     (lower[1], upper[1]) = (0.0, 1.0);
     let space = Space::new(lower, upper, names);
-    let mut engine = Engine::new(plan, space, 1, StopRules::default())?.with_initial(truth);
+    let mut engine =
+        Engine::new(plan, space, 1, StopRules::default())?.with_initial(Rows::one(truth));
     let mut objective = ModelObjective::for_problem(evaluator, problem);
     let outcome = engine.run(&mut objective, &mut [], None, None)?;
     Ok((outcome.params, outcome.sse))

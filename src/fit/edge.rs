@@ -16,7 +16,7 @@ use crate::eval::Evaluator;
 use crate::model::bounds::Origin;
 use crate::optim::engine::{Engine, Outcome, Plan, StopReason, StopRules, TryEnd};
 use crate::optim::streams::try_seed;
-use crate::search::Side;
+use crate::search::{Rows, Side};
 
 /// Refits after widening at most this many times.
 pub const MAX_WIDENINGS: usize = 2;
@@ -174,7 +174,7 @@ pub fn refit_off_edges(
             seed,
             stops.clone(),
         )?
-        .with_initial(&end.params);
+        .with_initial(Rows::one(&end.params));
         let mut objective = ModelObjective::for_problem(evaluator, problem);
         let next = engine.run(&mut objective, &mut [], None, None)?;
         let sse_before = end.sse;
@@ -365,20 +365,21 @@ mod tests {
         // β + γ < 0: the loop grows without bound.
         unbounded[3] = -unbounded[2] - 0.05;
         let rows: Vec<f64> = case.truth.iter().chain(&unbounded).copied().collect();
+        let rows = Rows::new(&rows, unbounded.len());
         let mut cpu = CpuEvaluator::new();
         let mut objective = ModelObjective::for_problem(&mut cpu, &problem);
-        let free = objective.costs(&rows, Measure::FreeRun).unwrap();
+        let free = objective.costs(rows, Measure::FreeRun).unwrap();
         assert!(free[0].is_finite() && free[1] == f32::INFINITY, "{free:?}");
-        let residuals = objective.residuals(&rows, Measure::FreeRun).unwrap();
+        let residuals = objective.residuals(rows, Measure::FreeRun).unwrap();
         assert!(residuals[0].is_some() && residuals[1].is_none());
         let ahead = Measure::Ahead { horizon: 10 };
-        let checked = objective.costs(&rows, ahead).unwrap();
+        let checked = objective.costs(rows, ahead).unwrap();
         // The plain objective scores what it simulates; the check only
         // touches the free run.
         let mut cpu = CpuEvaluator::new();
         let mut plain = ModelObjective::new(&mut cpu, problem.est_problem());
         let bits = |c: Vec<f32>| c.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(plain.costs(&rows, ahead).unwrap()), bits(checked));
-        assert_eq!(plain.costs(&rows, Measure::FreeRun).unwrap()[0], free[0]);
+        assert_eq!(bits(plain.costs(rows, ahead).unwrap()), bits(checked));
+        assert_eq!(plain.costs(rows, Measure::FreeRun).unwrap()[0], free[0]);
     }
 }

@@ -12,6 +12,7 @@ use crate::model::{Flow, Loop, Measure};
 use crate::optim::engine::Objective;
 use crate::optim::engine::plan::{FreeRun, Global, Plan, Polish, Refine};
 use crate::optim::{AlgoSettings, Algorithm};
+use crate::search::{Params, Rows};
 
 /// A model family's fit to experiments, scored by a batch evaluator.
 pub struct ModelObjective<'a> {
@@ -117,11 +118,10 @@ impl<'a> ModelObjective<'a> {
     /// Which rows have a bounded loop and stay within the stress bound (all,
     /// without a stress problem). Only rows with `finite` true are checked:
     /// the rest are rejected anyway.
-    fn bounded(&mut self, rows: &[f64], finite: &[bool]) -> anyhow::Result<Vec<bool>> {
+    fn bounded(&mut self, rows: Rows<'_, Params>, finite: &[bool]) -> anyhow::Result<Vec<bool>> {
         let Some((problem, bound)) = &self.stress else {
             return Ok(vec![true; finite.len()]);
         };
-        let d = rows.len() / finite.len().max(1);
         let family = problem.family;
         let admitted = |row: &[f64]| {
             if self.bounded_class {
@@ -131,11 +131,11 @@ impl<'a> ModelObjective<'a> {
             }
         };
         let picked: Vec<usize> = (0..finite.len())
-            .filter(|&i| finite[i] && admitted(&rows[i * d..(i + 1) * d]))
+            .filter(|&i| finite[i] && admitted(rows.row(i)))
             .collect();
         let subset: Vec<f64> = picked
             .iter()
-            .flat_map(|&i| rows[i * d..(i + 1) * d].iter().copied())
+            .flat_map(|&i| rows.row(i).iter().copied())
             .collect();
         let mut ok = vec![false; finite.len()];
         if picked.is_empty() {
@@ -143,7 +143,9 @@ impl<'a> ModelObjective<'a> {
         }
         let energy = self
             .clock
-            .timed(self.evaluator, |e| e.evaluate(problem, &subset))?
+            .timed(self.evaluator, |e| {
+                e.evaluate(problem, Rows::new(&subset, rows.dim()))
+            })?
             .total;
         for (&i, &e) in picked.iter().zip(&energy) {
             ok[i] = (e as f64) <= *bound;
@@ -157,15 +159,14 @@ impl ModelObjective<'_> {
     /// parameters ([`crate::model::effects::ModelDescription::effects_admit`]; all,
     /// without effects) and, with [`ModelObjective::bounded_loops`], their
     /// loop.
-    fn admitted(&self, rows: &[f64]) -> Vec<bool> {
-        let d = self.problem.dim().max(1);
+    fn admitted(&self, rows: Rows<'_, Params>) -> Vec<bool> {
         let family = self.problem.family;
         let loop_ok = |row: &[f64]| !self.loop_bounded || family.loop_bounded(row);
         if self.problem.effects.is_empty() {
-            return rows.chunks_exact(d).map(loop_ok).collect();
+            return rows.iter().map(loop_ok).collect();
         }
         let model = self.problem.model();
-        rows.chunks_exact(d)
+        rows.iter()
             .map(|row| loop_ok(row) && model.effects_admit(row))
             .collect()
     }
@@ -188,7 +189,7 @@ impl Objective for ModelObjective<'_> {
         self.evaluator.round_trips()
     }
 
-    fn costs(&mut self, rows: &[f64], measure: Measure) -> anyhow::Result<Vec<f32>> {
+    fn costs(&mut self, rows: Rows<'_, Params>, measure: Measure) -> anyhow::Result<Vec<f32>> {
         self.problem.measure = measure;
         // Summed over the experiments in `f64`, as the diagnosis' SSEs are
         // (one experiment, as `fit`'s: the evaluator's own number).
@@ -220,7 +221,7 @@ impl Objective for ModelObjective<'_> {
 
     fn residuals(
         &mut self,
-        rows: &[f64],
+        rows: Rows<'_, Params>,
         measure: Measure,
     ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
         self.problem.measure = measure;

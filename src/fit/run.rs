@@ -481,6 +481,7 @@ mod tests {
     use super::*;
     use crate::fit::synthetic::Synthetic;
     use crate::optim::Algorithm;
+    use crate::search::{Params, Rows};
 
     fn settings(algo: Algorithm, pop: usize) -> FitSettings {
         FitSettings {
@@ -510,22 +511,20 @@ mod tests {
         fn evaluate(
             &mut self,
             problem: &crate::eval::Problem,
-            population: &[f64],
+            population: Rows<'_, Params>,
         ) -> anyhow::Result<crate::eval::Scores> {
-            let rows = population.len() / problem.dim();
             self.rows
-                .fetch_add(rows, std::sync::atomic::Ordering::SeqCst);
+                .fetch_add(population.len(), std::sync::atomic::Ordering::SeqCst);
             self.cpu.evaluate(problem, population)
         }
 
         fn residuals(
             &mut self,
             problem: &crate::eval::Problem,
-            population: &[f64],
+            population: Rows<'_, Params>,
         ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
-            let rows = population.len() / problem.dim();
             self.rows
-                .fetch_add(rows, std::sync::atomic::Ordering::SeqCst);
+                .fetch_add(population.len(), std::sync::atomic::Ordering::SeqCst);
             self.cpu.residuals(problem, population)
         }
     }

@@ -273,7 +273,7 @@ impl FitSettings {
         // before the first generation.
         let streams = Streams::new(self.seed, Stage::FreeRun, 0);
         let rows = space.cloud(start, n, &streams);
-        Ok(Engine::new(plan, space, self.seed, self.stops()?)?.with_initial(&rows))
+        Ok(Engine::new(plan, space, self.seed, self.stops()?)?.with_initial(rows.rows()))
     }
 
     /// The stop rules, checked.

@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Bounds, Optimizer, RowRng, Streams};
+use crate::search::{Coords, Population, Rows};
 
 /// The mutation strategy.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -102,17 +103,21 @@ impl Optimizer for De {
         }
     }
 
+    fn bounds(&self) -> &Bounds {
+        &self.bounds
+    }
+
     /// A known model among `initial` means the best member never ends worse
     /// than it (selection is greedy).
-    fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64] {
+    fn init(&mut self, initial: Population<Coords>, streams: &Streams) -> Rows<'_, Coords> {
         self.pop = super::first_population(&self.bounds, self.n, initial, streams);
-        &self.pop
+        Rows::new(&self.pop, self.bounds.dim())
     }
 
     /// One trial an individual.
-    fn next(&mut self, streams: &Streams) -> &[f64] {
+    fn next(&mut self, streams: &Streams) -> Rows<'_, Coords> {
         self.make_trials(streams);
-        &self.trials
+        Rows::new(&self.trials, self.bounds.dim())
     }
 
     /// Greedy one-to-one selection, row by row in parallel.
@@ -140,8 +145,11 @@ impl Optimizer for De {
             });
     }
 
-    fn members(&self) -> (Vec<f64>, Vec<f32>) {
-        (self.pop.clone(), self.costs.clone())
+    fn members(&self) -> (Population<Coords>, Vec<f32>) {
+        (
+            Population::new(self.pop.clone(), self.bounds.dim()),
+            self.costs.clone(),
+        )
     }
 }
 
@@ -254,7 +262,10 @@ mod tests {
         };
         let mut de = De::new(DeSettings::default(), bounds.clone(), 20, 60);
         let mut best = f32::INFINITY;
-        let mut rows = de.init(Vec::new(), &at(5, 0)).to_vec();
+        let mut rows = de
+            .init(Population::zeros(0, 3), &at(5, 0))
+            .as_flat()
+            .to_vec();
         for g in 1..=60 {
             assert!(rows.chunks(3).all(|r| {
                 let mut c = r.to_vec();
@@ -264,7 +275,7 @@ mod tests {
             let now = de.costs.iter().copied().fold(f32::INFINITY, f32::min);
             assert!(now <= best);
             best = now;
-            rows = de.next(&at(5, g)).to_vec();
+            rows = de.next(&at(5, g)).as_flat().to_vec();
         }
         assert!(best < 1e-6, "{best}");
     }
@@ -281,10 +292,13 @@ mod tests {
             ..DeSettings::default()
         };
         let mut de = De::new(settings, bounds, De::MIN_POPULATION, 5);
-        let mut rows = de.init(Vec::new(), &at(8, 0)).to_vec();
+        let mut rows = de
+            .init(Population::zeros(0, 2), &at(8, 0))
+            .as_flat()
+            .to_vec();
         for g in 1..=5 {
             de.tell(&sphere(&rows, 2));
-            rows = de.next(&at(8, g)).to_vec();
+            rows = de.next(&at(8, g)).as_flat().to_vec();
         }
         assert_eq!(rows.len(), 2 * De::MIN_POPULATION);
     }
@@ -297,14 +311,15 @@ mod tests {
             names: vec!["x".into(), "y".into()],
         };
         let mut de = De::new(DeSettings::default(), bounds, 10, 6);
-        let rows = de.init(vec![0.3, 0.3, 5.0, -0.5], &at(1, 0)).to_vec();
+        let initial = Population::new(vec![0.3, 0.3, 5.0, -0.5], 2);
+        let rows = de.init(initial, &at(1, 0)).as_flat().to_vec();
         assert_eq!(rows.len(), 20);
         assert_eq!(&rows[..4], &[0.3, 0.3, 1.0, -0.5]);
         // The warm start is the optimum: the best cost is 0 from the start
         // and greedy selection keeps it.
         de.tell(&sphere(&rows, 2));
         for g in 1..=5 {
-            let rows = de.next(&at(1, g)).to_vec();
+            let rows = de.next(&at(1, g)).as_flat().to_vec();
             de.tell(&sphere(&rows, 2));
         }
         assert_eq!(de.costs.iter().copied().fold(f32::INFINITY, f32::min), 0.0);

@@ -22,6 +22,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Bounds, Optimizer, RowRng, Streams};
+use crate::search::{Coords, Population, Rows};
 
 /// How two parents make two children (§5.2.1.5).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
@@ -313,18 +314,22 @@ impl Optimizer for Ga {
         }
     }
 
-    fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64] {
-        self.pop = super::first_population(&self.bounds, self.n, initial, streams);
-        self.clamped = vec![false; self.n];
-        &self.pop
+    fn bounds(&self) -> &Bounds {
+        &self.bounds
     }
 
-    fn next(&mut self, streams: &Streams) -> &[f64] {
+    fn init(&mut self, initial: Population<Coords>, streams: &Streams) -> Rows<'_, Coords> {
+        self.pop = super::first_population(&self.bounds, self.n, initial, streams);
+        self.clamped = vec![false; self.n];
+        Rows::new(&self.pop, self.bounds.dim())
+    }
+
+    fn next(&mut self, streams: &Streams) -> Rows<'_, Coords> {
         self.offspring(streams);
         self.moves += 1;
         std::mem::swap(&mut self.pop, &mut self.spare);
         std::mem::swap(&mut self.clamped, &mut self.spare_clamped);
-        &self.pop
+        Rows::new(&self.pop, self.bounds.dim())
     }
 
     fn tell(&mut self, costs: &[f32]) {
@@ -332,8 +337,11 @@ impl Optimizer for Ga {
         self.costs.extend_from_slice(costs);
     }
 
-    fn members(&self) -> (Vec<f64>, Vec<f32>) {
-        (self.pop.clone(), self.costs.clone())
+    fn members(&self) -> (Population<Coords>, Vec<f32>) {
+        (
+            Population::new(self.pop.clone(), self.bounds.dim()),
+            self.costs.clone(),
+        )
     }
 }
 
@@ -484,11 +492,14 @@ mod tests {
                 ..GaSettings::default()
             };
             let mut ga = Ga::new(settings, bounds.clone(), 8, 30);
-            let first = ga.init(Vec::new(), &at(6, 0)).to_vec();
+            let first = ga
+                .init(Population::zeros(0, 3), &at(6, 0))
+                .as_flat()
+                .to_vec();
             ga.tell(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, f32::INFINITY]);
             let next = ga.next(&at(6, 1));
             let inherited = next
-                .chunks(3)
+                .iter()
                 .all(|child| (0..3).all(|j| first.chunks(3).any(|parent| parent[j] == child[j])));
             assert_eq!(inherited, closed, "{crossover:?}");
         }
@@ -512,7 +523,7 @@ mod tests {
             ga.clamped = vec![false; 200];
             ga.costs = vec![1.0; 200];
             ga.moves = moves;
-            let pop = ga.next(&at(9, moves + 1)).to_vec();
+            let pop = ga.next(&at(9, moves + 1)).as_flat().to_vec();
             assert!(pop.iter().all(|x| (0.0..=10.0).contains(x)));
             assert!(ga.clamped.iter().all(|&c| !c), "never leaves the box");
             pop.iter().fold(0.0f64, |m, x| m.max((x - 5.0).abs()))

@@ -26,6 +26,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Bounds, Optimizer, RowRng, Streams};
+use crate::search::{Coords, Population, Rows};
 
 /// Above this population the all-pairs move, `O(N²·d)` a generation, stops
 /// being practical (timed: docs/lab/results.md, "3. Equal budgets over 10
@@ -312,14 +313,18 @@ impl Optimizer for Mfa {
         }
     }
 
-    fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64] {
-        self.pos = super::first_population(&self.bounds, self.n, initial, streams);
-        &self.pos
+    fn bounds(&self) -> &Bounds {
+        &self.bounds
     }
 
-    fn next(&mut self, streams: &Streams) -> &[f64] {
+    fn init(&mut self, initial: Population<Coords>, streams: &Streams) -> Rows<'_, Coords> {
+        self.pos = super::first_population(&self.bounds, self.n, initial, streams);
+        Rows::new(&self.pos, self.bounds.dim())
+    }
+
+    fn next(&mut self, streams: &Streams) -> Rows<'_, Coords> {
         self.step(streams);
-        &self.pos
+        Rows::new(&self.pos, self.bounds.dim())
     }
 
     fn tell(&mut self, costs: &[f32]) {
@@ -327,8 +332,11 @@ impl Optimizer for Mfa {
         self.costs.extend_from_slice(costs);
     }
 
-    fn members(&self) -> (Vec<f64>, Vec<f32>) {
-        (self.pos.clone(), self.costs.clone())
+    fn members(&self) -> (Population<Coords>, Vec<f32>) {
+        (
+            Population::new(self.pos.clone(), self.bounds.dim()),
+            self.costs.clone(),
+        )
     }
 }
 
@@ -367,10 +375,10 @@ mod tests {
         mfa.pos = vec![0.0, 0.0, 0.5, 0.5, -0.5, 0.5];
         mfa.costs = vec![1.0, 2.0, f32::INFINITY];
         let next = mfa.next(&Streams::new(3, crate::optim::stage::Stage::Global, 1));
-        assert_eq!(&next[..2], &[0.0, 0.0]);
+        assert_eq!(next.row(0), &[0.0, 0.0]);
         let dist = |p: &[f64]| (p[0] * p[0] + p[1] * p[1]).sqrt();
-        assert!(dist(&next[2..4]) < dist(&[0.5, 0.5]));
+        assert!(dist(next.row(1)) < dist(&[0.5, 0.5]));
         // A diverged firefly is pulled by both brighter ones.
-        assert!(dist(&next[4..6]) < dist(&[-0.5, 0.5]));
+        assert!(dist(next.row(2)) < dist(&[-0.5, 0.5]));
     }
 }

@@ -36,6 +36,7 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::names::UnknownName;
+use crate::search::{Coords, Population, Rows};
 
 pub use history::{GenerationRecord, History};
 pub use streams::{RowRng, Streams};
@@ -114,6 +115,9 @@ pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
     /// run over the search).
     fn new(settings: Self::Settings, bounds: Bounds, n: usize, generations: usize) -> Self;
 
+    /// The box it searches.
+    fn bounds(&self) -> &Bounds;
+
     /// The settings of the thesis' flow and of Table 21 (chapter 5): the
     /// paper's unless the thesis states others for `model`.
     fn thesis_settings(_model: ThesisModel) -> Self::Settings {
@@ -127,24 +131,23 @@ pub trait Optimizer: Sized + Clone + fmt::Debug + Serialize + DeserializeOwned {
         Self::Settings::default()
     }
 
-    /// The first population: `initial` rows (row-major; a warm start) and
-    /// uniform draws for the rest, as `first_population` makes it, row `i`
-    /// drawing from `streams.row(i)`. Row-major, `n × bounds.dim()`, every
-    /// row inside the box; it stays the optimizer's own (no copy is handed out).
-    fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64];
+    /// The first population: `initial` rows (a warm start) and uniform
+    /// draws for the rest, as `first_population` makes it, row `i` drawing
+    /// from `streams.row(i)`. `n` rows, every one inside the box; it stays
+    /// the optimizer's own (no copy is handed out).
+    fn init(&mut self, initial: Population<Coords>, streams: &Streams) -> Rows<'_, Coords>;
 
     /// The next population, from the costs told of the last one: each
     /// individual's move from its own stream (`streams.row(i)`), so that
     /// the rows can be made in parallel, in any order.
-    fn next(&mut self, streams: &Streams) -> &[f64];
+    fn next(&mut self, streams: &Streams) -> Rows<'_, Coords>;
 
     /// The costs of the rows of the population last returned, in order.
     fn tell(&mut self, costs: &[f32]);
 
-    /// The members whose costs drive the next move (row-major) and those
-    /// costs: what a later stage of a fit starts from. Only asked after a
-    /// `tell`.
-    fn members(&self) -> (Vec<f64>, Vec<f32>);
+    /// The members whose costs drive the next move and those costs: what a
+    /// later stage of a fit starts from. Only asked after a `tell`.
+    fn members(&self) -> (Population<Coords>, Vec<f32>);
 }
 
 /// Where a search stands between `ask` and `tell`.
@@ -190,13 +193,13 @@ impl AskTell {
     /// A search by `settings`' algorithm over `bounds` with `n` individuals
     /// a generation (at least [`Algorithm::min_population`]) and
     /// `generations` planned, whose first population starts with the
-    /// `initial` rows (row-major, clamped into the box; may be empty).
+    /// `initial` rows (clamped into the box; may be empty).
     pub fn new(
         settings: &AlgoSettings,
         bounds: Bounds,
         n: usize,
         generations: usize,
-        initial: Vec<f64>,
+        initial: Population<Coords>,
     ) -> AskTell {
         let min = settings.algorithm().min_population();
         assert!(
@@ -204,9 +207,12 @@ impl AskTell {
             "{} needs a population of at least {min} (got {n})",
             settings.algorithm()
         );
+        assert_eq!(initial.dim(), bounds.dim(), "initial rows of another box");
         AskTell {
             n,
-            phase: Phase::Fresh { initial },
+            phase: Phase::Fresh {
+                initial: initial.into_flat(),
+            },
             optimizer: AnyOptimizer::new(settings, bounds, n, generations),
         }
     }
@@ -220,9 +226,9 @@ impl AskTell {
         self.n
     }
 
-    /// The next population to evaluate: row-major, `n × bounds.dim()`, every
-    /// row inside the box, individual `i` drawn from `streams.row(i)`.
-    pub fn ask(&mut self, streams: &Streams) -> Result<&[f64], PhaseError> {
+    /// The next population to evaluate: `n` rows, every one inside the box,
+    /// individual `i` drawn from `streams.row(i)`.
+    pub fn ask(&mut self, streams: &Streams) -> Result<Rows<'_, Coords>, PhaseError> {
         let fresh = match &mut self.phase {
             Phase::Fresh { initial } => Some(std::mem::take(initial)),
             Phase::Told => None,
@@ -230,7 +236,10 @@ impl AskTell {
         };
         self.phase = Phase::Asked;
         Ok(match fresh {
-            Some(initial) => self.optimizer.init(initial, streams),
+            Some(initial) => {
+                let initial = Population::new(initial, self.optimizer.bounds().dim());
+                self.optimizer.init(initial, streams)
+            }
             None => self.optimizer.next(streams),
         })
     }
@@ -252,11 +261,14 @@ impl AskTell {
         Ok(())
     }
 
-    /// [`Optimizer::members`] after a `tell`; empty otherwise.
-    pub fn members(&self) -> (Vec<f64>, Vec<f32>) {
+    /// [`Optimizer::members`] after a `tell`; none otherwise.
+    pub fn members(&self) -> (Population<Coords>, Vec<f32>) {
         match self.phase {
             Phase::Told => self.optimizer.members(),
-            _ => (Vec::new(), Vec::new()),
+            _ => (
+                Population::zeros(0, self.optimizer.bounds().dim()),
+                Vec::new(),
+            ),
         }
     }
 }
@@ -267,10 +279,10 @@ impl AskTell {
 pub(crate) fn first_population(
     bounds: &Bounds,
     n: usize,
-    initial: Vec<f64>,
+    initial: Population<Coords>,
     streams: &Streams,
 ) -> Vec<f64> {
-    let d = bounds.dim().max(1);
+    let d = bounds.dim();
     let (mut pop, given) = first_rows(bounds, n, initial);
     pop.par_chunks_mut(d)
         .enumerate()
@@ -279,11 +291,15 @@ pub(crate) fn first_population(
 }
 
 /// `initial` cut or grown to `n` rows, and how many of them were given.
-pub(crate) fn first_rows(bounds: &Bounds, n: usize, mut initial: Vec<f64>) -> (Vec<f64>, usize) {
-    let d = bounds.dim().max(1);
-    let given = (initial.len() / d).min(n);
-    initial.resize(n * d, 0.0);
-    (initial, given)
+pub(crate) fn first_rows(
+    bounds: &Bounds,
+    n: usize,
+    mut initial: Population<Coords>,
+) -> (Vec<f64>, usize) {
+    assert_eq!(initial.dim(), bounds.dim(), "initial rows of another box");
+    let given = initial.len().min(n);
+    initial.resize(n);
+    (initial.into_flat(), given)
 }
 
 /// Row of a first population: a `given` row clamped into the box, or else
@@ -454,13 +470,19 @@ macro_rules! registry {
                 }
             }
 
-            fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64] {
+            fn bounds(&self) -> &Bounds {
+                match self {
+                    $(AnyOptimizer::$variant(o) => o.bounds(),)+
+                }
+            }
+
+            fn init(&mut self, initial: Population<Coords>, streams: &Streams) -> Rows<'_, Coords> {
                 match self {
                     $(AnyOptimizer::$variant(o) => o.init(initial, streams),)+
                 }
             }
 
-            fn next(&mut self, streams: &Streams) -> &[f64] {
+            fn next(&mut self, streams: &Streams) -> Rows<'_, Coords> {
                 match self {
                     $(AnyOptimizer::$variant(o) => o.next(streams),)+
                 }
@@ -472,7 +494,7 @@ macro_rules! registry {
                 }
             }
 
-            fn members(&self) -> (Vec<f64>, Vec<f32>) {
+            fn members(&self) -> (Population<Coords>, Vec<f32>) {
                 match self {
                     $(AnyOptimizer::$variant(o) => o.members(),)+
                 }
@@ -602,7 +624,12 @@ mod tests {
     fn every_algorithm() -> impl Iterator<Item = AskTell> {
         Algorithm::ALL
             .into_iter()
-            .map(|a| AskTell::new(&a.default_settings(), cube(), N, 10, Vec::new()))
+            .map(|a| AskTell::new(&a.default_settings(), cube(), N, 10, none()))
+    }
+
+    /// No warm start in the 3-d box.
+    fn none() -> Population<Coords> {
+        Population::zeros(0, 3)
     }
 
     fn sphere(rows: &[f64]) -> Vec<f32> {
@@ -621,9 +648,9 @@ mod tests {
                 algo.thesis_settings(ThesisModel::Generalized),
                 algo.staged_settings(n),
             ] {
-                let mut search = AskTell::new(&settings, cube(), n, 5, Vec::new());
+                let mut search = AskTell::new(&settings, cube(), n, 5, none());
                 for g in 0..5 {
-                    let rows = search.ask(&at(2, g)).unwrap().to_vec();
+                    let rows = search.ask(&at(2, g)).unwrap().as_flat().to_vec();
                     assert_eq!(rows.len(), n * 3, "{algo}");
                     for row in rows.chunks(3) {
                         assert!(!cube().clamp(&mut row.to_vec()), "{algo}: {row:?}");
@@ -639,14 +666,14 @@ mod tests {
         for (mut refused, mut plain) in every_algorithm().zip(every_algorithm()) {
             let algo = refused.algorithm();
             for g in 0..3 {
-                let rows = refused.ask(&at(3, g)).unwrap().to_vec();
+                let rows = refused.ask(&at(3, g)).unwrap().as_flat().to_vec();
                 assert_eq!(
-                    refused.ask(&at(3, g)).map(<[f64]>::to_vec),
+                    refused.ask(&at(3, g)).map(|r| r.as_flat().to_vec()),
                     Err(PhaseError::AskedTwice(algo))
                 );
                 // The refused ask did not restart the search: the two
                 // searches stay the same.
-                assert_eq!(rows, plain.ask(&at(3, g)).unwrap(), "{algo}");
+                assert_eq!(rows, plain.ask(&at(3, g)).unwrap().as_flat(), "{algo}");
                 refused.tell(&sphere(&rows)).unwrap();
                 plain.tell(&sphere(&rows)).unwrap();
             }
@@ -659,7 +686,7 @@ mod tests {
         for mut search in every_algorithm() {
             let algo = search.algorithm();
             assert_eq!(search.tell(&[1.0; N]), Err(PhaseError::NothingAsked(algo)));
-            let rows = search.ask(&at(4, 0)).unwrap().to_vec();
+            let rows = search.ask(&at(4, 0)).unwrap().as_flat().to_vec();
             for wrong in [N - 1, N + 1] {
                 assert_eq!(
                     search.tell(&vec![1.0; wrong]),

@@ -21,6 +21,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Bounds, Optimizer, Streams, ThesisModel};
+use crate::search::{Coords, Population, Rows};
 
 /// PSO settings; defaults are Table 11 (classic); [`PsoSettings::thesis`]
 /// gives Table 19 for the generalized model.
@@ -174,9 +175,13 @@ impl Optimizer for Pso {
         PsoSettings::constriction()
     }
 
+    fn bounds(&self) -> &Bounds {
+        &self.bounds
+    }
+
     /// The first swarm, with velocities uniform in `[−Vmax_j, Vmax_j]`,
     /// each particle's drawn after its position from the same stream.
-    fn init(&mut self, initial: Vec<f64>, streams: &Streams) -> &[f64] {
+    fn init(&mut self, initial: Population<Coords>, streams: &Streams) -> Rows<'_, Coords> {
         let d = self.bounds.dim();
         let (mut pos, given) = super::first_rows(&self.bounds, self.n, initial);
         let mut vel = vec![0.0; self.n * d];
@@ -194,12 +199,12 @@ impl Optimizer for Pso {
         self.pbest = pos.clone();
         self.pos = pos;
         self.vel = vel;
-        &self.pos
+        Rows::new(&self.pos, self.bounds.dim())
     }
 
-    fn next(&mut self, streams: &Streams) -> &[f64] {
+    fn next(&mut self, streams: &Streams) -> Rows<'_, Coords> {
         self.step(streams);
-        &self.pos
+        Rows::new(&self.pos, self.bounds.dim())
     }
 
     /// Each particle's personal best in parallel, then the swarm's best:
@@ -226,8 +231,11 @@ impl Optimizer for Pso {
     }
 
     /// The particles' personal bests: the best each has found.
-    fn members(&self) -> (Vec<f64>, Vec<f32>) {
-        (self.pbest.clone(), self.pbest_cost.clone())
+    fn members(&self) -> (Population<Coords>, Vec<f32>) {
+        (
+            Population::new(self.pbest.clone(), self.bounds.dim()),
+            self.pbest_cost.clone(),
+        )
     }
 }
 
@@ -320,13 +328,13 @@ mod tests {
             names: vec!["x".into()],
         };
         let mut pso = Pso::new(PsoSettings::constriction(), bounds.clone(), 5, 10);
-        pso.init(Vec::new(), &at(1, 0));
+        pso.init(Population::zeros(0, 1), &at(1, 0));
         pso.tell(&[5.0, 1.0, 4.0, 3.0, f32::NAN]);
         // Particle 4's NaN ranks last; the ring wraps from 4 to 0.
         let want = [1, 1, 1, 3, 3].map(Some);
         assert_eq!(pso.social_bests(), want.to_vec());
         let mut global = Pso::new(PsoSettings::default(), bounds, 5, 10);
-        global.init(Vec::new(), &at(1, 0));
+        global.init(Population::zeros(0, 1), &at(1, 0));
         global.tell(&[5.0, 1.0, 4.0, 3.0, 2.0]);
         assert_eq!(global.social_bests(), vec![None; 5]);
     }
@@ -343,11 +351,14 @@ mod tests {
             ..PsoSettings::default()
         };
         let mut pso = Pso::new(settings, bounds, 4, 10);
-        let x0 = pso.init(Vec::new(), &at(4, 0)).to_vec();
+        let x0 = pso
+            .init(Population::zeros(0, 3), &at(4, 0))
+            .as_flat()
+            .to_vec();
         // The first particle is far better: everyone is pulled hard towards it.
         pso.tell(&[0.0, 9.0, 9.0, f32::INFINITY]);
         let x1 = pso.next(&at(4, 1));
-        for (a, b) in x0.iter().zip(x1) {
+        for (a, b) in x0.iter().zip(x1.as_flat()) {
             assert!((a - b).abs() <= 0.5 + 1e-12, "{a} -> {b}");
         }
     }

@@ -21,9 +21,10 @@ mod stages;
 pub use host::{GpuOptions, adapters, describe_adapter, is_hardware};
 use host::{Host, Kernel, Output, best_adapter};
 
-use super::{Evaluator, Problem, Scores, to_f32};
+use super::{Evaluator, Problem, Scores, check_dim, to_f32};
 use crate::model::Family;
 use crate::model::effects::Context as EffectContext;
+use crate::search::{Params, Rows};
 
 /// The bindings every pipeline of the host declares (`host::Host`), the
 /// muscle models' and the benchmark oscillator's (`benchmark::evaluator`).
@@ -172,22 +173,18 @@ impl GpuEvaluator {
     fn run(
         &mut self,
         problem: &Problem,
-        population: &[f64],
+        population: Rows<'_, Params>,
         output: Output,
     ) -> anyhow::Result<Vec<f32>> {
         let family = problem.family;
         let d = problem.dim();
-        anyhow::ensure!(
-            population.len() % d == 0,
-            "population length {} is not a multiple of the {family} model's {d} parameters",
-            population.len()
-        );
+        check_dim(problem, population)?;
         if population.is_empty() || problem.experiments.is_empty() {
             // No kernel runs: this call's device time is none.
             self.host.no_dispatch();
             return Ok(Vec::new());
         }
-        let rows = to_f32(population);
+        let rows = to_f32(population.as_flat());
         let n_one = match family.exponent_index() {
             Some(ni) => rows.chunks_exact(d).all(|r| r[ni] == 1.0),
             None => true,
@@ -242,10 +239,14 @@ impl Evaluator for GpuEvaluator {
         GpuEvaluator::calibrate(self, sizing)
     }
 
-    fn evaluate(&mut self, problem: &Problem, population: &[f64]) -> anyhow::Result<Scores> {
+    fn evaluate(
+        &mut self,
+        problem: &Problem,
+        population: Rows<'_, Params>,
+    ) -> anyhow::Result<Scores> {
         let n_exp = problem.experiments.len();
         let flat = self.run(problem, population, Output::Sse)?;
-        let n = population.len() / problem.dim();
+        let n = population.len();
         // `run` returns [candidate][experiment]; scores are [experiment][candidate].
         let per_experiment = (0..n_exp)
             .map(|e| (0..n).map(|i| flat[i * n_exp + e]).collect())
@@ -256,13 +257,13 @@ impl Evaluator for GpuEvaluator {
     fn residuals(
         &mut self,
         problem: &Problem,
-        population: &[f64],
+        population: Rows<'_, Params>,
     ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
         let r = residual_len(problem);
         let flat = self.run(problem, population, Output::Residuals)?;
         Ok(flat
             .chunks(r.max(1))
-            .take(population.len() / problem.dim())
+            .take(population.len())
             .map(|row| row.iter().all(|v| v.is_finite()).then(|| row.to_vec()))
             .collect())
     }

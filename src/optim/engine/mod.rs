@@ -55,7 +55,7 @@ use super::history::{GenerationRecord, History};
 pub use super::stage::Stage;
 use super::streams::try_seed;
 use crate::data::write_atomic;
-use crate::search::Measure;
+use crate::search::{Coords, Measure, Params, Population, Rows};
 
 pub use plan::{FreeRun, Global, Plan, Polish, Refine};
 pub use space::{Canonical, Chart, Space, Stepwise};
@@ -66,17 +66,17 @@ pub trait Objective {
     /// What scores, for the user ("cpu (32-lane batches on 2 threads)").
     fn describe(&self) -> String;
 
-    /// The cost of every row (row-major canonical vectors) under `measure`;
-    /// lower is better, NaN and ±∞ for a diverged candidate. An objective
-    /// with a single measure ignores it.
-    fn costs(&mut self, rows: &[f64], measure: Measure) -> anyhow::Result<Vec<f32>>;
+    /// The cost of every row under `measure`; lower is better, NaN and ±∞
+    /// for a diverged candidate. An objective with a single measure ignores
+    /// it.
+    fn costs(&mut self, rows: Rows<'_, Params>, measure: Measure) -> anyhow::Result<Vec<f32>>;
 
     /// The residuals of every row under `measure`, `None` where it
     /// diverges: what the polish differentiates. Only least-squares
     /// objectives have them.
     fn residuals(
         &mut self,
-        rows: &[f64],
+        rows: Rows<'_, Params>,
         measure: Measure,
     ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
         let _ = (rows, measure);
@@ -246,7 +246,7 @@ pub struct Engine<C = Canonical> {
     /// The canonical rows of the generation being scored, every island's in
     /// turn: one buffer, refilled in place every generation. Scratch, not state.
     #[serde(skip)]
-    canonical: Vec<f64>,
+    canonical: Option<Population<Params>>,
 }
 
 impl<C: Chart> Engine<C> {
@@ -315,7 +315,7 @@ impl<C: Chart> Engine<C> {
             kernel_seconds: Some(0.0),
             summaries: Vec::new(),
             started: None,
-            canonical: Vec::new(),
+            canonical: None,
         })
     }
 
@@ -323,13 +323,13 @@ impl<C: Chart> Engine<C> {
     /// start from known models): the first members of the first population,
     /// or the polish's starts when the plan is a polish alone. Clamped into
     /// the box.
-    pub fn with_initial(mut self, canonical: &[f64]) -> Self {
+    pub fn with_initial(mut self, canonical: Rows<'_, Params>) -> Self {
         let mut rows = self.space.project(canonical);
         let bounds = self.space.bounds();
-        for row in rows.chunks_mut(bounds.dim().max(1)) {
+        for row in rows.iter_mut() {
             bounds.clamp(row);
         }
-        self.initial = rows;
+        self.initial = rows.into_flat();
         self
     }
 
@@ -488,11 +488,11 @@ impl<C: Chart> Engine<C> {
     fn score(
         &mut self,
         objective: &mut dyn Objective,
-        rows: &[f64],
+        rows: Rows<'_, Coords>,
         measure: Measure,
-    ) -> anyhow::Result<(Vec<f64>, Vec<f32>)> {
+    ) -> anyhow::Result<(Population<Params>, Vec<f32>)> {
         let canonical = self.space.embed(rows);
-        let costs = self.score_canonical(objective, &canonical, measure)?;
+        let costs = self.score_canonical(objective, canonical.rows(), measure)?;
         Ok((canonical, costs))
     }
 
@@ -501,12 +501,12 @@ impl<C: Chart> Engine<C> {
     fn score_canonical(
         &mut self,
         objective: &mut dyn Objective,
-        canonical: &[f64],
+        canonical: Rows<'_, Params>,
         measure: Measure,
     ) -> anyhow::Result<Vec<f32>> {
         let (costs, spent) = timed(objective, |o| o.costs(canonical, measure));
         self.spent(spent);
-        let costs = sanitized(costs?, canonical.len() / self.space.dim(), &*objective)?;
+        let costs = sanitized(costs?, canonical.len(), &*objective)?;
         self.evaluations += costs.len() as u64;
         Ok(costs)
     }
@@ -515,12 +515,12 @@ impl<C: Chart> Engine<C> {
     fn costs_of(
         &self,
         objective: &mut dyn Objective,
-        rows: &[f64],
+        rows: Rows<'_, Coords>,
         measure: Measure,
-    ) -> anyhow::Result<(Vec<f64>, Vec<f32>)> {
+    ) -> anyhow::Result<(Population<Params>, Vec<f32>)> {
         let canonical = self.space.embed(rows);
-        let n = canonical.len() / self.space.dim();
-        let costs = sanitized(objective.costs(&canonical, measure)?, n, &*objective)?;
+        let n = canonical.len();
+        let costs = sanitized(objective.costs(canonical.rows(), measure)?, n, &*objective)?;
         Ok((canonical, costs))
     }
 
@@ -621,17 +621,20 @@ impl<C: Chart> Engine<C> {
                         .flat_map(|m| m.rows.clone())
                         .collect::<Vec<_>>()
                 } else {
-                    t.optimizers.iter().flat_map(|o| o.members().0).collect()
+                    t.optimizers
+                        .iter()
+                        .flat_map(|o| o.members().0.into_flat())
+                        .collect()
                 }
             })
             .collect();
         if members.is_empty() {
             return Ok(None);
         }
-        let (canonical, costs) = self.costs_of(objective, &members, Measure::FreeRun)?;
-        let d = self.space.dim();
+        let members = Rows::new(&members, self.space.free_dim());
+        let (canonical, costs) = self.costs_of(objective, members, Measure::FreeRun)?;
         Ok(argmin(&costs).map(|i| Scored {
-            params: canonical[i * d..(i + 1) * d].to_vec(),
+            params: canonical.rows().row(i).to_vec(),
             cost: costs[i] as f64,
         }))
     }

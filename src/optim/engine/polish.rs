@@ -9,7 +9,7 @@ use super::{
 };
 use crate::optim::Bounds;
 use crate::optim::lm::{self, LmSettings};
-use crate::search::Measure;
+use crate::search::{Measure, Rows};
 
 /// What a polish changes that an interrupted one puts back: each try's
 /// best, the history's length and the evaluations counted.
@@ -225,8 +225,11 @@ impl<C: Chart> Engine<C> {
         };
         let mut residuals = |points: &[Vec<f64>]| {
             evaluations += points.len() as u64;
-            let canonical = setup.space.embed(&points.concat());
-            let (r, s) = timed(objective, |o| o.residuals(&canonical, measure));
+            let points = points.concat();
+            let canonical = setup
+                .space
+                .embed(Rows::new(&points, setup.space.free_dim()));
+            let (r, s) = timed(objective, |o| o.residuals(canonical.rows(), measure));
             spent.seconds += s.seconds;
             spent.kernel = spent.kernel.zip(s.kernel).map(|(a, b)| a + b);
             r
@@ -266,19 +269,24 @@ impl<C: Chart> Engine<C> {
         points: Vec<usize>,
         before_group: u64,
     ) -> anyhow::Result<()> {
-        let rows = self.space.project(&setup.space.embed(&xs.concat()));
-        let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
-        let (d, total) = (self.space.dim(), self.evaluations);
+        let polished = xs.concat();
+        let polished = setup
+            .space
+            .embed(Rows::new(&polished, setup.space.free_dim()));
+        let rows = self.space.project(polished.rows());
+        let (canonical, costs) = self.score(objective, rows.rows(), Measure::FreeRun)?;
+        let total = self.evaluations;
         let mut counted = before_group;
         for (((row, cost), points), &(t, _)) in canonical
-            .chunks_exact(d)
+            .rows()
+            .iter()
             .zip(costs.chunks(1))
             .zip(points)
             .zip(group)
         {
             let tr = &mut self.tries[t];
-            keep_lowest(&mut tr.stage_best, row, cost, d);
-            keep_lowest(&mut tr.best, row, cost, d);
+            keep_lowest(&mut tr.stage_best, Rows::one(row), cost);
+            keep_lowest(&mut tr.best, Rows::one(row), cost);
             self.stage_steps += 1;
             counted += points as u64 + 1;
             self.evaluations = counted;
@@ -353,7 +361,7 @@ impl<C: Chart> Engine<C> {
                 let bests: Vec<Option<Vec<f64>>> = self
                     .tries
                     .iter()
-                    .map(|t| t.best.as_ref().map(|b| self.space.project(&b.params)))
+                    .map(|t| t.best.as_ref().map(|b| self.space.project_one(&b.params)))
                     .collect();
                 let step = if pass == 0 {
                     window
@@ -394,8 +402,8 @@ impl<C: Chart> Engine<C> {
                 if rows.is_empty() {
                     break;
                 }
-                let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
-                let d = self.space.dim();
+                let rows = Rows::new(&rows, self.space.free_dim());
+                let (canonical, costs) = self.score(objective, rows, Measure::FreeRun)?;
                 let mut at = 0;
                 for (t, ls) in levels.iter().enumerate() {
                     let own = &costs[at..at + ls.len()];
@@ -418,11 +426,11 @@ impl<C: Chart> Engine<C> {
                     let already = tr
                         .best
                         .as_ref()
-                        .is_some_and(|b| self.space.project(&b.params)[j] == ls[k]);
+                        .is_some_and(|b| self.space.project_one(&b.params)[j] == ls[k]);
                     if !already && (cost < current || at_preferred.is_some()) {
                         let i = at + k;
                         tr.best = Some(Scored {
-                            params: canonical[i * d..(i + 1) * d].to_vec(),
+                            params: canonical.rows().row(i).to_vec(),
                             cost,
                         });
                     }

@@ -3,7 +3,7 @@
 //! generation a step.
 
 use super::{Chart, Engine, FreeRun, Members, Objective, Stage, StageEnd, Step, keep_lowest};
-use crate::search::Measure;
+use crate::search::{Coords, Measure, Params, Population, Rows};
 use rayon::prelude::*;
 
 use crate::optim::{AskTell, Streams};
@@ -54,14 +54,15 @@ impl<C: Chart> Engine<C> {
                 let streams = self.streams(t, Stage::Global, 0);
                 (0..islands)
                     .map(|i| {
-                        let mut rows = if i == 0 && t == 0 {
+                        let rows = if i == 0 && t == 0 {
                             self.initial[..self.initial.len().min(n * nf)].to_vec()
                         } else {
                             Vec::new()
                         };
-                        let given = rows.len() / nf;
+                        let mut rows = Population::new(rows, nf);
+                        let given = rows.len();
                         let drawn = streams.from_row(i * n + given);
-                        rows.extend(self.space.draw(n - given, &drawn));
+                        rows.extend(self.space.draw(n - given, &drawn).rows());
                         let free_run_island = g.ladder && i > 0 && i + 1 == islands;
                         let settings = if free_run_island {
                             FreeRun::ALGORITHM.default_settings()
@@ -87,7 +88,7 @@ impl<C: Chart> Engine<C> {
                             bounds.clone(),
                             n,
                             f.generations,
-                            start,
+                            Population::new(start, nf),
                         )
                     })
                     .collect()
@@ -118,7 +119,7 @@ impl<C: Chart> Engine<C> {
                     return Vec::new();
                 };
                 let (j, value, _) = self.levels()[k];
-                let mut center = self.space.project(&best.params);
+                let mut center = self.space.project_one(&best.params);
                 if center[j] == value {
                     // Already there: nothing to hold it at.
                     return Vec::new();
@@ -126,10 +127,11 @@ impl<C: Chart> Engine<C> {
                 self.tries[t].before_round = best.cost;
                 center[j] = value;
                 let streams = self.streams(t, Stage::Refine, self.stream_generation(step, 0));
-                let mut cloud =
-                    self.space
-                        .cloud_rows(&self.space.embed(&center), r.population, &streams);
-                for row in cloud.chunks_mut(nf) {
+                let center = self.space.embed(Rows::one(&center));
+                let mut cloud = self
+                    .space
+                    .cloud_rows(center.rows().row(0), r.population, &streams);
+                for row in cloud.iter_mut() {
                     row[j] = value;
                 }
                 let mut held = bounds;
@@ -174,19 +176,15 @@ impl<C: Chart> Engine<C> {
                 .iter()
                 .flat_map(|&(t, i)| self.tries[t].pool[i].rows.iter().copied())
                 .collect();
-            let (canonical, costs) = self.score(objective, &rows, Measure::FreeRun)?;
-            let (d, nf) = (self.space.dim(), self.space.free().len().max(1));
+            let nf = self.space.free_dim();
+            let (canonical, costs) =
+                self.score(objective, Rows::new(&rows, nf), Measure::FreeRun)?;
             let mut at = 0;
             for (t, i) in stale {
                 let members = &mut self.tries[t].pool[i];
                 let n = members.rows.len() / nf;
                 let own = &costs[at..at + n];
-                keep_lowest(
-                    &mut self.tries[t].best,
-                    &canonical[at * d..(at + n) * d],
-                    own,
-                    d,
-                );
+                keep_lowest(&mut self.tries[t].best, canonical.rows().span(at, n), own);
                 let members = &mut self.tries[t].pool[i];
                 members.costs = own.to_vec();
                 members.measure = Measure::FreeRun;
@@ -224,11 +222,14 @@ impl<C: Chart> Engine<C> {
         let spans = self.generation_spans(step, stage);
         let at = spans.last().map_or(0, |s| s.at + s.count);
         let rows = self.ask_islands(&spans, at)?;
-        let mut canonical = std::mem::take(&mut self.canonical);
+        let mut canonical = self
+            .canonical
+            .take()
+            .unwrap_or_else(|| Population::zeros(0, d));
         // The same size every generation after the first: no refill.
-        canonical.resize(at * d, 0.0);
-        self.space.embed_into(&rows, &mut canonical);
-        let costs = self.score_spans(objective, &spans, &canonical, at)?;
+        canonical.resize(at);
+        self.space.embed_into(rows.rows(), &mut canonical);
+        let costs = self.score_spans(objective, &spans, canonical.rows(), at)?;
         {
             let islands = self.active_islands();
             islands
@@ -236,11 +237,11 @@ impl<C: Chart> Engine<C> {
                 .zip(&spans)
                 .try_for_each(|(opt, s)| opt.tell(&costs[s.at..s.at + s.count]))?;
         }
-        let ranked = self.rank_generation(&spans, &canonical, &costs);
+        let ranked = self.rank_generation(&spans, canonical.rows(), &costs);
         self.stage_steps += 1;
         let measure = self.island_measure(stage, 0);
         self.record(stage, measure, Some(&ranked));
-        self.canonical = canonical;
+        self.canonical = Some(canonical);
         self.end_finished_tries(step, stage);
         Ok(())
     }
@@ -315,8 +316,8 @@ impl<C: Chart> Engine<C> {
     /// Every island asks at once, each into its own rows of one buffer of
     /// `at` free rows: with many tries, islands are small, and a
     /// generation's update is many small jobs rather than one large one.
-    fn ask_islands(&mut self, spans: &[Span], at: usize) -> anyhow::Result<Vec<f64>> {
-        let nf = self.space.free().len().max(1);
+    fn ask_islands(&mut self, spans: &[Span], at: usize) -> anyhow::Result<Population<Coords>> {
+        let nf = self.space.free_dim();
         let mut rows = vec![0.0; at * nf];
         let mut free: &mut [f64] = &mut rows;
         let mut parts: Vec<&mut [f64]> = Vec::with_capacity(spans.len());
@@ -331,10 +332,10 @@ impl<C: Chart> Engine<C> {
             .zip(parts)
             .zip(spans)
             .try_for_each(|((opt, part), s)| {
-                part.copy_from_slice(opt.ask(&s.streams)?);
+                part.copy_from_slice(opt.ask(&s.streams)?.as_flat());
                 Ok::<_, crate::optim::PhaseError>(())
             })?;
-        Ok(rows)
+        Ok(Population::new(rows, nf))
     }
 
     /// Scores a generation's `at` canonical rows with one call per measure,
@@ -345,10 +346,9 @@ impl<C: Chart> Engine<C> {
         &mut self,
         objective: &mut dyn Objective,
         spans: &[Span],
-        canonical: &[f64],
+        canonical: Rows<'_, Params>,
         at: usize,
     ) -> anyhow::Result<Vec<f32>> {
-        let d = self.space.dim();
         let mut costs = vec![0.0f32; at];
         let mut measures: Vec<Measure> = Vec::new();
         for s in spans {
@@ -358,15 +358,15 @@ impl<C: Chart> Engine<C> {
         }
         for &m in &measures {
             let group: Vec<&Span> = spans.iter().filter(|s| s.measure == m).collect();
-            let rows: Vec<f64> = if group.len() == spans.len() {
-                canonical.to_vec()
+            let scored = if group.len() == spans.len() {
+                self.score_canonical(objective, canonical, m)?
             } else {
-                group
-                    .iter()
-                    .flat_map(|s| canonical[s.at * d..(s.at + s.count) * d].iter().copied())
-                    .collect()
+                let mut rows = Population::zeros(0, canonical.dim());
+                for s in &group {
+                    rows.extend(canonical.span(s.at, s.count));
+                }
+                self.score_canonical(objective, rows.rows(), m)?
             };
-            let scored = self.score_canonical(objective, &rows, m)?;
             let mut from = 0;
             for s in group {
                 costs[s.at..s.at + s.count].copy_from_slice(&scored[from..from + s.count]);
@@ -380,18 +380,17 @@ impl<C: Chart> Engine<C> {
     /// best, and each try's stage best takes every island when they share a
     /// measure, else the first, since other measures' costs do not compare.
     /// Returns the costs that ranked, for the generation's record.
-    fn rank_generation(&mut self, spans: &[Span], canonical: &[f64], costs: &[f32]) -> Vec<f32> {
-        let d = self.space.dim();
+    fn rank_generation(
+        &mut self,
+        spans: &[Span],
+        canonical: Rows<'_, Params>,
+        costs: &[f32],
+    ) -> Vec<f32> {
         let mut ranked: Vec<f32> = Vec::new();
         for s in spans.iter().filter(|s| s.measure == Measure::FreeRun) {
             let own = &costs[s.at..s.at + s.count];
             let tr = &mut self.tries[s.try_index];
-            keep_lowest(
-                &mut tr.best,
-                &canonical[s.at * d..(s.at + s.count) * d],
-                own,
-                d,
-            );
+            keep_lowest(&mut tr.best, canonical.span(s.at, s.count), own);
         }
         for t in 0..self.tries.len() {
             let own: Vec<&Span> = spans.iter().filter(|s| s.try_index == t).collect();
@@ -408,9 +407,8 @@ impl<C: Chart> Engine<C> {
                 let span_costs = &costs[s.at..s.at + s.count];
                 keep_lowest(
                     &mut self.tries[t].stage_best,
-                    &canonical[s.at * d..(s.at + s.count) * d],
+                    canonical.span(s.at, s.count),
                     span_costs,
-                    d,
                 );
                 ranked.extend_from_slice(span_costs);
             }
@@ -470,7 +468,7 @@ impl<C: Chart> Engine<C> {
             .map(|(o, measure)| {
                 let (rows, costs) = o.members();
                 Members {
-                    rows,
+                    rows: rows.into_flat(),
                     costs,
                     measure,
                 }

@@ -6,7 +6,7 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use super::super::{Bounds, Streams};
-use crate::search::Side;
+use crate::search::{Coords, Params, Population, Rows, Side};
 
 /// The map between the coordinates a box is set in and the canonical
 /// vectors the objective scores, entry for entry (as long as each other).
@@ -165,38 +165,36 @@ impl<C: Chart> Space<C> {
     /// that DE steps by; nor does it hit a level exactly, and a level held
     /// exactly (DE's crossover keeps a parent's coordinate as it is)
     /// survives as long as it scores.
-    pub fn draw(&self, count: usize, streams: &Streams) -> Vec<f64> {
+    pub fn draw(&self, count: usize, streams: &Streams) -> Population<Coords> {
         let free = self.free();
-        let mut rows = vec![0.0; count * free.len()];
-        rows.par_chunks_mut(free.len().max(1))
-            .enumerate()
-            .for_each(|(r, row)| {
-                let mut rng = streams.row(r);
-                for (v, &i) in row.iter_mut().zip(&free) {
-                    let (lo, hi) = (self.lower[i], self.upper[i]);
-                    let uniform = lo + rng.random::<f64>() * (hi - lo);
-                    let preferred = self
-                        .stepwise
-                        .iter()
-                        .find(|s| s.index == i)
-                        .map(|s| s.preferred.as_slice())
-                        .filter(|p| !p.is_empty() && r % 3 == 1);
-                    *v = if let Some(p) = preferred {
-                        p[(r / 3) % p.len()].clamp(lo, hi)
-                    } else if r % 2 == 1 && self.decades[i] {
-                        let magnitude = hi.abs().max(lo.abs())
-                            * 10f64.powf(-self.drawn_decades * rng.random::<f64>());
-                        let sign = if lo < 0.0 && (hi <= 0.0 || rng.random::<bool>()) {
-                            -1.0
-                        } else {
-                            1.0
-                        };
-                        (sign * magnitude).clamp(lo, hi)
+        let mut rows = Population::zeros(count, self.free_dim());
+        rows.par_iter_mut().enumerate().for_each(|(r, row)| {
+            let mut rng = streams.row(r);
+            for (v, &i) in row.iter_mut().zip(&free) {
+                let (lo, hi) = (self.lower[i], self.upper[i]);
+                let uniform = lo + rng.random::<f64>() * (hi - lo);
+                let preferred = self
+                    .stepwise
+                    .iter()
+                    .find(|s| s.index == i)
+                    .map(|s| s.preferred.as_slice())
+                    .filter(|p| !p.is_empty() && r % 3 == 1);
+                *v = if let Some(p) = preferred {
+                    p[(r / 3) % p.len()].clamp(lo, hi)
+                } else if r % 2 == 1 && self.decades[i] {
+                    let magnitude = hi.abs().max(lo.abs())
+                        * 10f64.powf(-self.drawn_decades * rng.random::<f64>());
+                    let sign = if lo < 0.0 && (hi <= 0.0 || rng.random::<bool>()) {
+                        -1.0
                     } else {
-                        uniform
+                        1.0
                     };
-                }
-            });
+                    (sign * magnitude).clamp(lo, hi)
+                } else {
+                    uniform
+                };
+            }
+        });
         rows
     }
 
@@ -205,36 +203,45 @@ impl<C: Chart> Space<C> {
     /// coordinate (within a factor 10^±0.2 on those that span decades),
     /// clamped into the box, row `r` from `streams.row(r)`. A warm start's
     /// first population: the basin it starts in, not the whole box.
-    pub fn cloud(&self, center: &[f64], count: usize, streams: &Streams) -> Vec<f64> {
-        self.embed(&self.cloud_rows(center, count, streams))
+    pub fn cloud(&self, center: &[f64], count: usize, streams: &Streams) -> Population<Params> {
+        self.embed(self.cloud_rows(center, count, streams).rows())
     }
 
     /// [`Space::cloud`]'s rows in free coordinates, as the optimizers see
     /// them.
-    pub fn cloud_rows(&self, center: &[f64], count: usize, streams: &Streams) -> Vec<f64> {
+    pub fn cloud_rows(
+        &self,
+        center: &[f64],
+        count: usize,
+        streams: &Streams,
+    ) -> Population<Coords> {
         let free = self.free();
-        let z0 = self.project(center);
-        let mut rows = vec![0.0; count * free.len()];
-        rows.par_chunks_mut(free.len().max(1))
-            .enumerate()
-            .for_each(|(r, row)| {
-                let mut rng = streams.row(r);
-                for ((v, &i), &c) in row.iter_mut().zip(&free).zip(&z0) {
-                    let (lo, hi) = (self.lower[i], self.upper[i]);
-                    let step = 2.0 * rng.random::<f64>() - 1.0;
-                    let v_new = match (r, self.decades[i] && c != 0.0) {
-                        (0, _) => c,
-                        (_, true) => c * 10f64.powf(0.2 * step),
-                        (_, false) => c + 0.02 * (hi - lo) * step,
-                    };
-                    *v = v_new.clamp(lo, hi);
-                }
-            });
+        let z0 = self.project_one(center);
+        let mut rows = Population::zeros(count, self.free_dim());
+        rows.par_iter_mut().enumerate().for_each(|(r, row)| {
+            let mut rng = streams.row(r);
+            for ((v, &i), &c) in row.iter_mut().zip(&free).zip(&z0) {
+                let (lo, hi) = (self.lower[i], self.upper[i]);
+                let step = 2.0 * rng.random::<f64>() - 1.0;
+                let v_new = match (r, self.decades[i] && c != 0.0) {
+                    (0, _) => c,
+                    (_, true) => c * 10f64.powf(0.2 * step),
+                    (_, false) => c + 0.02 * (hi - lo) * step,
+                };
+                *v = v_new.clamp(lo, hi);
+            }
+        });
         rows
     }
 
     pub fn dim(&self) -> usize {
         self.lower.len()
+    }
+
+    /// Entries of a row of the optimizers' coordinates: the free ones, or a
+    /// placeholder where every coordinate is held.
+    pub fn free_dim(&self) -> usize {
+        self.free().len().max(1)
     }
 
     /// Indices of the coordinates the optimizers move.
@@ -256,35 +263,33 @@ impl<C: Chart> Space<C> {
 
     /// Canonical rows from rows of the optimizers' coordinates (the held
     /// coordinates at their value).
-    pub fn embed(&self, rows: &[f64]) -> Vec<f64> {
-        let nf = self.free().len().max(1);
-        let mut out = vec![0.0; rows.len() / nf * self.dim()];
+    pub fn embed(&self, rows: Rows<'_, Coords>) -> Population<Params> {
+        let mut out = Population::zeros(rows.len(), self.dim());
         self.embed_into(rows, &mut out);
         out
     }
 
-    /// [`Space::embed`] written into `out` (`self.dim()` values a row), row
-    /// by row in parallel, with no allocation a row: what the engine scores
-    /// every generation.
-    pub fn embed_into(&self, rows: &[f64], out: &mut [f64]) {
+    /// [`Space::embed`] written into `out` (as many rows), row by row in
+    /// parallel, with no allocation a row: what the engine scores every
+    /// generation.
+    pub fn embed_into(&self, rows: Rows<'_, Coords>, out: &mut Population<Params>) {
         let free = self.free();
-        let nf = free.len().max(1);
-        let dim = self.dim().max(1);
-        debug_assert_eq!(rows.len() / nf * dim, out.len());
-        out.par_chunks_mut(dim)
-            .zip(rows.par_chunks(nf))
-            .for_each_init(
-                || self.lower.clone(),
-                |z, (theta, row)| {
-                    for (&v, &i) in row.iter().zip(&free) {
-                        z[i] = v.clamp(self.lower[i], self.upper[i]);
-                    }
-                    match &self.coords {
-                        Some(chart) => chart.to_canonical_into(z, theta),
-                        None => theta.copy_from_slice(z),
-                    }
-                },
-            );
+        assert_eq!(
+            (rows.len(), rows.dim(), out.dim()),
+            (out.len(), self.free_dim(), self.dim())
+        );
+        out.par_iter_mut().zip(rows.par_iter()).for_each_init(
+            || self.lower.clone(),
+            |z, (theta, row)| {
+                for (&v, &i) in row.iter().zip(&free) {
+                    z[i] = v.clamp(self.lower[i], self.upper[i]);
+                }
+                match &self.coords {
+                    Some(chart) => chart.to_canonical_into(z, theta),
+                    None => theta.copy_from_slice(z),
+                }
+            },
+        );
     }
 
     /// The names of the canonical parameters the engine reports (what
@@ -306,15 +311,23 @@ impl<C: Chart> Space<C> {
     }
 
     /// The optimizers' coordinates of canonical rows.
-    pub fn project(&self, canonical: &[f64]) -> Vec<f64> {
+    pub fn project(&self, canonical: Rows<'_, Params>) -> Population<Coords> {
+        let flat = canonical
+            .iter()
+            .flat_map(|row| self.project_one(row))
+            .collect();
+        Population::new(flat, self.free_dim())
+    }
+
+    /// The optimizers' coordinates of one canonical vector.
+    pub fn project_one(&self, theta: &[f64]) -> Vec<f64> {
+        let z = self.coordinates(theta);
         let free = self.free();
-        canonical
-            .chunks_exact(self.dim().max(1))
-            .flat_map(|row| {
-                let z = self.coordinates(row);
-                free.iter().map(|&i| z[i]).collect::<Vec<_>>()
-            })
-            .collect()
+        if free.is_empty() {
+            // The placeholder entry of a box with nothing free.
+            return vec![0.0];
+        }
+        free.iter().map(|&i| z[i]).collect()
     }
 
     /// The free coordinates of the canonical `theta` that sit on a bound of
@@ -368,11 +381,10 @@ mod tests {
         );
         assert_eq!(space.free(), vec![0, 2]);
         let theta = [0.7, 1.0, -0.003];
-        let z = space.project(&theta);
-        assert_eq!(z.len(), 2);
-        let back = space.embed(&z);
-        assert_eq!(back[1], 1.0);
-        assert_eq!(back, theta);
+        let z = space.project(Rows::new(&theta, 3));
+        assert_eq!((z.len(), z.dim()), (1, 2));
+        let back = space.embed(z.rows());
+        assert_eq!(back.rows().row(0), theta);
         assert_eq!(space.bounds().lower, vec![0.0, -0.5]);
     }
 
@@ -387,14 +399,15 @@ mod tests {
         .with_decades([2]);
         let center = [4.0, 1.0, 0.5];
         let rows = space.cloud(&center, 50, &Streams::new(7, Stage::FreeRun, 0));
-        assert_eq!(rows.len(), 150);
-        assert_eq!(&rows[..3], &center);
-        for row in rows.chunks(3) {
+        let rows = rows.rows();
+        assert_eq!((rows.len(), rows.dim()), (50, 3));
+        assert_eq!(rows.row(0), &center);
+        for row in rows.iter() {
             assert!((row[0] - 4.0).abs() <= 0.2, "{row:?}");
             assert_eq!(row[1], 1.0);
             assert!((0.5 / 1.6..=0.5 * 1.6).contains(&row[2]), "{row:?}");
         }
-        assert!(rows.chunks(3).skip(1).all(|r| r != center));
+        assert!(rows.iter().skip(1).all(|r| r != center));
     }
 
     #[test]
@@ -409,9 +422,9 @@ mod tests {
         let draw = |seed| space.draw(1000, &Streams::new(seed, Stage::Global, 0));
         let rows = draw(3);
         assert_eq!(rows, draw(3));
-        assert_eq!(rows.len(), 2000);
+        assert_eq!((rows.len(), rows.dim()), (1000, 2));
         let (mut small_a, mut small_beta) = (0, 0);
-        for row in rows.chunks(2) {
+        for row in rows.rows().iter() {
             assert!((0.0..=2.0).contains(&row[0]) && (-0.5..=0.5).contains(&row[1]));
             small_a += usize::from(row[0] < 2e-3);
             small_beta += usize::from(row[1].abs() < 5e-3);

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use super::{Chart, Engine, Stage, StageEnd};
 use crate::optim::best_indices;
 use crate::optim::{AskTell, argmin};
-use crate::search::Measure;
+use crate::search::{Measure, Params, Rows};
 
 /// The members of one island and their costs.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -44,12 +44,12 @@ pub(super) struct Scored {
 
 /// Replaces `slot` by the lowest finite of `costs` (rows of `d` canonical
 /// parameters) when it is lower than the slot's.
-pub(super) fn keep_lowest(slot: &mut Option<Scored>, canonical: &[f64], costs: &[f32], d: usize) {
+pub(super) fn keep_lowest(slot: &mut Option<Scored>, canonical: Rows<'_, Params>, costs: &[f32]) {
     if let Some(i) = argmin(costs)
         && slot.as_ref().is_none_or(|b| (costs[i] as f64) < b.cost)
     {
         *slot = Some(Scored {
-            params: canonical[i * d..(i + 1) * d].to_vec(),
+            params: canonical.row(i).to_vec(),
             cost: costs[i] as f64,
         });
     }
