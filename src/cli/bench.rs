@@ -295,11 +295,17 @@ struct Row {
     ceiling_share: Option<f64>,
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        args.pop.iter().all(|&n| n > 0),
-        "--pop: every population size must be at least 1"
-    );
+/// What a run scores: the problem, its model with the effects' constants
+/// of each dataset, and the model's label for the tables.
+struct Workload {
+    problem: Problem,
+    model: ModelDescription,
+    contexts: Vec<Context>,
+    label: String,
+}
+
+/// The experiments `args` name and the model scored on them, checked.
+fn workload(args: &Args) -> anyhow::Result<Workload> {
     let experiments: Vec<Experiment> = match args.synthetic {
         Some(n) => {
             anyhow::ensure!(n >= 2, "--synthetic: at least 2 samples");
@@ -342,6 +348,96 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let names: Vec<&str> = args.effects.iter().map(|e| e.name()).collect();
         format!("{} + {}", args.model, names.join(", "))
     };
+    Ok(Workload {
+        problem,
+        model,
+        contexts,
+        label,
+    })
+}
+
+/// The plain-text lines before the table: the backend, the workload and
+/// the device's ceiling.
+fn print_header(args: &Args, workload: &Workload, describe: &str, ceiling: Option<&Ceiling>) {
+    let problem = &workload.problem;
+    println!("backend: {describe}");
+    println!(
+        "{} model, {} samples in {} experiment(s){}",
+        workload.label,
+        problem.samples(),
+        problem.experiments.len(),
+        match (args.model, args.free_n) {
+            (Family::Linear, _) => "",
+            (_, true) => ", n free",
+            (_, false) => ", n = 1",
+        }
+    );
+    if let Some(c) = ceiling {
+        let rate = |v| c.ops_per_s(v).unwrap_or(f64::NAN);
+        println!(
+            "device ceiling (calibration kernel, device clock): {:.3e} f32 ops/s in {} independent mul-add chains; {:.3e} in one dependent chain; {:.3e} with pow",
+            rate(Variant::Independent),
+            calibration::CHAINS,
+            rate(Variant::Dependent),
+            rate(Variant::Pow)
+        );
+    }
+    println!(
+        "{:>10}  {:>12}  {:>11}  {:>10}  agreement with the CPU path",
+        "population", "cand-samp/s", "evals/s", "median s"
+    );
+}
+
+/// One row of the plain-text table.
+fn print_row(row: &Row) {
+    let (a, timing) = (&row.agreement, &row.timing);
+    println!(
+        "{:>10}  {:>12.3e}  {:>11.3e}  {:>10.3e}  {}, top-10 {}, top-100 {} ({} of 100 shared), max rel diff {:.2e}, {} finiteness mismatches{}",
+        row.population,
+        timing.candidate_samples_per_s,
+        timing.evals_per_s,
+        timing.median_s,
+        if a.bit_identical {
+            "bit-identical"
+        } else {
+            "not bit-identical"
+        },
+        if a.top10_identical {
+            "identical"
+        } else {
+            "differs"
+        },
+        if a.top100_identical {
+            "identical"
+        } else {
+            "differs"
+        },
+        a.top100_overlap,
+        a.max_rel_diff,
+        a.finiteness_mismatches,
+        match (&row.reference, row.speedup) {
+            (Some(r), Some(x)) => format!(
+                "; CPU path {:.3e} cand-samples/s, speed-up {x:.2}×",
+                r.candidate_samples_per_s
+            ),
+            _ => String::new(),
+        } + &match (row.kernel_ops_per_s, row.ceiling_share) {
+            (Some(ops), Some(share)) => format!(
+                "; kernels {ops:.3e} f32 ops/s, {} of the ceiling",
+                percent(Some(share))
+            ),
+            _ => String::new(),
+        }
+    );
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.pop.iter().all(|&n| n > 0),
+        "--pop: every population size must be at least 1"
+    );
+    let workload = workload(&args)?;
+    let (problem, label) = (&workload.problem, &workload.label);
     let mut evaluator = open(args.backend)?;
     let backend = if evaluator.adapter().is_some() {
         "gpu"
@@ -359,32 +455,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.markdown {
         println!("{MARKDOWN_HEADER}");
     } else if !args.json {
-        println!("backend: {}", evaluator.describe());
-        println!(
-            "{} model, {} samples in {} experiment(s){}",
-            label,
-            problem.samples(),
-            problem.experiments.len(),
-            match (args.model, args.free_n) {
-                (Family::Linear, _) => "",
-                (_, true) => ", n free",
-                (_, false) => ", n = 1",
-            }
-        );
-        if let Some(c) = &ceiling {
-            let rate = |v| c.ops_per_s(v).unwrap_or(f64::NAN);
-            println!(
-                "device ceiling (calibration kernel, device clock): {:.3e} f32 ops/s in {} independent mul-add chains; {:.3e} in one dependent chain; {:.3e} with pow",
-                rate(Variant::Independent),
-                calibration::CHAINS,
-                rate(Variant::Dependent),
-                rate(Variant::Pow)
-            );
-        }
-        println!(
-            "{:>10}  {:>12}  {:>11}  {:>10}  agreement with the CPU path",
-            "population", "cand-samp/s", "evals/s", "median s"
-        );
+        print_header(&args, &workload, &evaluator.describe(), ceiling.as_ref());
     }
     let space = search_space(args.model, &problem.experiments[0], args.free_n);
     let mut reference = CpuEvaluator::new();
@@ -394,15 +465,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let population = if args.effects.is_empty() {
             mixed_population(&space, n, &mut rng)
         } else {
-            augmented_population(&model, &space, &contexts[0], n, &mut rng)
+            let (model, context) = (&workload.model, &workload.contexts[0]);
+            augmented_population(model, &space, context, n, &mut rng)
         };
-        let population = Rows::new(&population, problem.dim());
-        let (timing, scores) = time(evaluator.as_mut(), &problem, population, args.repeats)?;
+        let population = problem.rows(&population);
+        let (timing, scores) = time(evaluator.as_mut(), problem, population, args.repeats)?;
         let (reference_timing, want) = if args.time_reference {
-            let (t, want) = time(&mut reference, &problem, population, args.repeats)?;
+            let (t, want) = time(&mut reference, problem, population, args.repeats)?;
             (Some(t), want)
         } else {
-            (None, reference.evaluate(&problem, population)?.total)
+            (None, reference.evaluate(problem, population)?.total)
         };
         let kernel_ops_per_s = timing
             .kernel_candidate_samples_per_s
@@ -428,45 +500,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if args.markdown {
             println!("{}", markdown_rows(&row));
         } else if !args.json {
-            let a = &row.agreement;
-            println!(
-                "{:>10}  {:>12.3e}  {:>11.3e}  {:>10.3e}  {}, top-10 {}, top-100 {} ({} of 100 shared), max rel diff {:.2e}, {} finiteness mismatches{}",
-                n,
-                timing.candidate_samples_per_s,
-                timing.evals_per_s,
-                timing.median_s,
-                if a.bit_identical {
-                    "bit-identical"
-                } else {
-                    "not bit-identical"
-                },
-                if a.top10_identical {
-                    "identical"
-                } else {
-                    "differs"
-                },
-                if a.top100_identical {
-                    "identical"
-                } else {
-                    "differs"
-                },
-                a.top100_overlap,
-                a.max_rel_diff,
-                a.finiteness_mismatches,
-                match (&row.reference, row.speedup) {
-                    (Some(r), Some(x)) => format!(
-                        "; CPU path {:.3e} cand-samples/s, speed-up {x:.2}×",
-                        r.candidate_samples_per_s
-                    ),
-                    _ => String::new(),
-                } + &match (row.kernel_ops_per_s, row.ceiling_share) {
-                    (Some(ops), Some(share)) => format!(
-                        "; kernels {ops:.3e} f32 ops/s, {} of the ceiling",
-                        percent(Some(share))
-                    ),
-                    _ => String::new(),
-                }
-            );
+            print_row(&row);
         }
         rows.push(row);
     }
@@ -477,7 +511,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
         println!("{}", Versioned::new(output).to_string_pretty()?);
     } else if let (true, Some(c)) = (args.markdown, &ceiling) {
-        println!("\n{CALIBRATION_HEADER}\n{}", calibration_rows(&label, c));
+        println!("\n{CALIBRATION_HEADER}\n{}", calibration_rows(label, c));
     }
     Ok(())
 }
