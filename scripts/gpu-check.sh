@@ -20,6 +20,9 @@
 #     backends end on the same parameters, and from the global stage of its
 #     JSON the host's time a row (outside the evaluator) and the device's
 #     time a generation (the kernels' timestamps);
+#   - the population sweep (`mckibben sweep`, classic cases #1000–#1004 at
+#     N = 1e3 and 1e4 on both backends): what a larger population buys in
+#     passing fits and what it costs in wall time;
 #   - the default `mckibben diagnose` on both backends: wall time, verdict,
 #     and whether the two JSON documents are byte-identical.
 # It prints the tables on stdout (and writes them to --out) and takes under
@@ -28,6 +31,7 @@
 #   cargo build --release && scripts/gpu-check.sh
 #   scripts/gpu-check.sh --bin ./mckibben --out gpu-check.md
 #   scripts/gpu-check.sh --small          # CI smoke size, runs on lavapipe
+#                                         # (the sweep: case #1000 at N = 100)
 set -euo pipefail
 
 usage() {
@@ -35,7 +39,8 @@ usage() {
 usage: scripts/gpu-check.sh [--bin PATH] [--small] [--out FILE] [--gens G] [--data FILE]
 
   --bin PATH   the mckibben binary (default: $MCKIBBEN, else target/release/mckibben)
-  --small      the CI smoke size: bench at N = 1000, 4000; fits at N = 200, 10 generations
+  --small      the CI smoke size: bench at N = 1000, 4000; fits at N = 200, 10 generations;
+               the sweep on one case at N = 100
   --out FILE   also write the markdown to FILE
   --gens G     generations of each staged fit's global stage (default: 30; --small: 10)
   --data FILE  experiment CSV (default: data/stair_4.5kg.csv of this repository)
@@ -97,6 +102,7 @@ if [ "$small" = 1 ]; then
     pops="1000,4000"
     repeats=2
     fit_pops=(200)
+    sweep_args=(--pop 100 --cases 1000)
     gens="${gens:-10}"
     # A lavapipe smoke run: no time limit needed.
     budget_args=()
@@ -104,6 +110,7 @@ else
     pops="100000,1000000,4000000"
     repeats=3
     fit_pops=(100000 1000000)
+    sweep_args=(--pop 1000,10000 --cases 1000,1001,1002,1003,1004)
     gens="${gens:-30}"
     # Keeps a slow machine within the 8 minutes; a stop by it is reported.
     budget_args=(--time-budget 60)
@@ -267,6 +274,22 @@ for n in "${fit_pops[@]}"; do
             "$(json_top "$f" stop)" "$(json_top "$f" sse)" "$(json_top "$f" val_fit_percent)" \
             "$speedup" "$alike" "$timing" >>"$md"
     done
+done
+
+# --- the population sweep on both backends ---------------------------------
+{
+    echo
+    echo "Population sweep (\`mckibben sweep --family classic ${sweep_args[*]} --backend B --markdown\`, seed 1;"
+    echo "generated cases with a known truth, \`fit\`'s defaults; p is the share of single tries that pass alone):"
+    echo
+} >>"$md"
+for backend in cpu gpu; do
+    run "sweep on $backend" sweep --family classic "${sweep_args[@]}" --backend "$backend" --markdown
+    if [ "$backend" = cpu ]; then
+        cat "$work/stdout" >>"$md"
+    else
+        tail -n +3 "$work/stdout" >>"$md"
+    fi
 done
 
 # --- the default diagnosis on both backends --------------------------------

@@ -123,11 +123,26 @@ fn the_small_gpu_check_prints_every_row() {
         assert_eq!(gpu_fit[9], "yes (bit-identical)", "{gpu_fit:?}");
         assert_eq!(gpu_fit[6..8], cpu_fit[6..8], "same SSE and fit");
     }
-    // The diagnosis on both backends: the same verdict, and on lavapipe the
-    // same JSON to the byte.
-    let cpu_diagnosis = row(&["cpu"]);
-    let gpu_diagnosis = row(&["gpu"]);
-    assert_eq!(cpu_diagnosis.len(), 4, "{cpu_diagnosis:?}");
+    // The sweep on both backends: one case at N = 100, and on lavapipe the
+    // same fit as the CPU's.
+    let cpu_sweep = row(&["cpu", "classic", "100"]);
+    let gpu_sweep = row(&["gpu", "classic", "100"]);
+    for r in [cpu_sweep, gpu_sweep] {
+        assert_eq!((r.len(), r[3]), (10, "1"), "one try: {r:?}");
+        assert!(r[4] == "0/1" || r[4] == "1/1", "{r:?}");
+    }
+    if on_cpu_adapter {
+        assert_eq!(cpu_sweep[4..7], gpu_sweep[4..7], "pass, within 5 %, p");
+    }
+    // The diagnosis on both backends (its rows are the ones of four cells):
+    // the same verdict, and on lavapipe the same JSON to the byte.
+    let diagnosis = |backend: &str| {
+        rows.iter()
+            .find(|r| r.len() == 4 && r[0] == backend)
+            .unwrap_or_else(|| panic!("no diagnosis row of {backend} in\n{stdout}"))
+    };
+    let cpu_diagnosis = diagnosis("cpu");
+    let gpu_diagnosis = diagnosis("gpu");
     assert_eq!(cpu_diagnosis[2], gpu_diagnosis[2], "the verdicts");
     assert!(
         cpu_diagnosis[2] == "none"

@@ -21,7 +21,7 @@ const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
 /// Every contract docs/JSON.md must hold: one per `--json` output.
-const CONTRACTS: [&str; 12] = [
+const CONTRACTS: [&str; 13] = [
     "fit",
     "model-file",
     "compare",
@@ -32,6 +32,7 @@ const CONTRACTS: [&str; 12] = [
     "diagnose-self-test-catalogue",
     "control",
     "bench",
+    "sweep",
     "validate-boucwen",
     "static",
 ];
@@ -587,6 +588,25 @@ fn bench() {
             "--repeats",
             "1",
             "--time-reference",
+            "--json",
+        ],
+    );
+}
+
+#[test]
+fn sweep() {
+    check(
+        "sweep",
+        &[
+            "sweep",
+            "--pop",
+            "100",
+            "--family",
+            "classic",
+            "--cases",
+            "1000",
+            "--backend",
+            "cpu",
             "--json",
         ],
     );

@@ -19,41 +19,19 @@
 //! appended to `target/sweep/results.jsonl`, and a case already there is
 //! not fitted again, so an interrupted sweep goes on where it stopped.
 //! `population_sweep_summary` then prints the tables of docs/RESULTS.md
-//! from that file and draws docs/figures/population_sweep.svg.
+//! from that file and draws docs/figures/population_sweep.svg. Each fit is
+//! `fit::sweep::fit_case`, as `mckibben sweep` runs it on either backend.
 
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::PathBuf;
-use std::time::Instant;
 
 use mckibben::eval::cpu::CpuEvaluator;
-use mckibben::fit::agreement::{Agreement, UNSURE_SHARE};
-use mckibben::fit::cases::{Case, matrix};
-use mckibben::fit::objective::{GENERATIONS, staged_plan};
-use mckibben::fit::run::run_fit;
+use mckibben::fit::sweep::{
+    CaseFit as Result, PopulationRow, cases, fit_case, markdown_table, matrix_size, summarize,
+};
 use mckibben::model::Family;
-use mckibben::optim::Algorithm;
-use mckibben::optim::engine::StopRules;
 use mckibben::report::{Figure, Panel, Series};
-use serde::{Deserialize, Serialize};
-
-/// One fit of one case.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-struct Result {
-    family: String,
-    case: usize,
-    name: String,
-    n: usize,
-    seed: u64,
-    passes: bool,
-    ratio: f64,
-    sse: f64,
-    /// Whether each try alone passes.
-    tries: Vec<bool>,
-    /// Tries within the likelihood-ratio threshold of the best.
-    agreeing: usize,
-    seconds: f64,
-}
 
 fn results_file() -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/sweep");
@@ -72,9 +50,10 @@ fn read_results() -> Vec<Result> {
 
 fn families() -> Vec<(Family, usize)> {
     let only = std::env::var("SWEEP_FAMILY").ok();
-    [(Family::Classic, 20), (Family::Generalized, 30)]
+    [Family::Classic, Family::Generalized]
         .into_iter()
-        .filter(|(f, _)| only.as_deref().is_none_or(|o| o == f.to_string()))
+        .filter(|f| only.as_deref().is_none_or(|o| o == f.to_string()))
+        .map(|f| (f, matrix_size(f)))
         .collect()
 }
 
@@ -96,7 +75,7 @@ fn population_sweep() {
         .open(results_file())
         .unwrap();
     let mut cpu = CpuEvaluator::new();
-    let cases = std::env::var("SWEEP_CASES")
+    let only = std::env::var("SWEEP_CASES")
         .ok()
         .map(|_| list("SWEEP_CASES", ""));
     for n in list("SWEEP_N", "100,1000,10000") {
@@ -106,57 +85,19 @@ fn population_sweep() {
             Err(_) if n < 1000 => vec![1, 2, 3, 4, 5],
             Err(_) => vec![1],
         };
-        for (family, count) in families() {
-            for (i, spec) in matrix(family, count, 1000).into_iter().enumerate() {
-                if cases
-                    .as_ref()
-                    .is_some_and(|c| !c.contains(&(1000 + i as u64)))
-                {
-                    continue;
-                }
+        for (family, _) in families() {
+            for case in cases(family, only.as_deref()) {
                 for &seed in &seeds {
                     let known = done.iter().any(|r| {
-                        r.family == family.to_string() && r.case == i && r.n == n && r.seed == seed
+                        r.family == family.to_string()
+                            && r.case == case.index
+                            && r.n == n
+                            && r.seed == seed
                     });
                     if known {
                         continue;
                     }
-                    let case = Case::generate(spec);
-                    let problem = case.problem();
-                    let started = Instant::now();
-                    let plan =
-                        staged_plan(&problem, Algorithm::De.staged_settings(n), n, GENERATIONS);
-                    let (_, outcome) =
-                        run_fit(&problem, plan, seed, StopRules::default(), &mut cpu).unwrap();
-                    let seconds = started.elapsed().as_secs_f64();
-                    let judged = case.judge(&outcome.params, &mut cpu).unwrap();
-                    let tries = if outcome.tries.len() > 1 {
-                        outcome
-                            .tries
-                            .iter()
-                            .map(|t| {
-                                !t.params.is_empty()
-                                    && case.judge(&t.params, &mut cpu).unwrap().passes
-                            })
-                            .collect()
-                    } else {
-                        vec![judged.passes]
-                    };
-                    let agreeing = Agreement::of(&outcome.tries, problem.est_samples())
-                        .map_or(1, |a| a.agreeing);
-                    let r = Result {
-                        family: family.to_string(),
-                        case: i,
-                        name: case.name(),
-                        n,
-                        seed,
-                        passes: judged.passes,
-                        ratio: judged.ratio,
-                        sse: outcome.sse,
-                        tries,
-                        agreeing,
-                        seconds,
-                    };
+                    let r = fit_case(&case, n, seed, &mut cpu).unwrap();
                     eprintln!(
                         "{:48} N {n:>6} seed {seed}: ratio {:.3} {} p {}/{} agree {} ({:.1} s)",
                         r.name,
@@ -165,7 +106,7 @@ fn population_sweep() {
                         r.tries.iter().filter(|&&t| t).count(),
                         r.tries.len(),
                         r.agreeing,
-                        seconds
+                        r.seconds
                     );
                     writeln!(out, "{}", serde_json::to_string(&r).unwrap()).unwrap();
                 }
@@ -183,6 +124,7 @@ fn population_sweep_summary() {
     let mut figure = Figure::new("Larger populations: generated cases, seed 1, CPU");
     let mut passes = Panel::new("cases that pass", "log10 N", "pass (of the matrix)");
     let mut times = Panel::new("time a case", "log10 N", "seconds").log_y();
+    let rows = summarize(&results);
     for (family, count) in families() {
         let name = family.to_string();
         let of_family: Vec<&Result> = results.iter().filter(|r| r.family == name).collect();
@@ -190,60 +132,20 @@ fn population_sweep_summary() {
         for r in &of_family {
             by_n.entry(r.n).or_default().push(r);
         }
+        let mut complete: Vec<PopulationRow> = rows
+            .iter()
+            .filter(|r| r.family == name && r.cases == count)
+            .cloned()
+            .collect();
+        complete.sort_by_key(|r| r.n);
         println!("\n{name} ({count} cases), seed 1 unless said:\n");
-        println!(
-            "| N | tries | pass | within 5 % | p (single tries that pass) | agreeing > {:.0} %: missed | agreeing ≤ {:.0} %: missed | time a case (mean; range) |",
-            100.0 * UNSURE_SHARE,
-            100.0 * UNSURE_SHARE
-        );
-        println!("|---:|---:|---:|---:|---:|---:|---:|---:|");
-        let (mut xs, mut pass_y, mut time_y) = (Vec::new(), Vec::new(), Vec::new());
-        for (n, rs) in &by_n {
-            let first: Vec<&&Result> = rs.iter().filter(|r| r.seed == 1).collect();
-            if first.len() < count {
-                println!("| {n} | (incomplete: {} of {count} cases) |", first.len());
-                continue;
-            }
-            let pass = first.iter().filter(|r| r.passes).count();
-            let within = first.iter().filter(|r| r.ratio <= 1.05).count();
-            let (p_pass, p_all): (usize, usize) = rs.iter().fold((0, 0), |(a, b), r| {
-                (
-                    a + r.tries.iter().filter(|&&t| t).count(),
-                    b + r.tries.len(),
-                )
-            });
-            let sure = |r: &&&Result| r.agreeing as f64 > UNSURE_SHARE * r.tries.len() as f64;
-            let (sure_n, sure_miss) = first
-                .iter()
-                .filter(|r| r.tries.len() > 1 && sure(r))
-                .fold((0, 0), |(a, b), r| (a + 1, b + usize::from(!r.passes)));
-            let (unsure_n, unsure_miss) = first
-                .iter()
-                .filter(|r| r.tries.len() > 1 && !sure(r))
-                .fold((0, 0), |(a, b), r| (a + 1, b + usize::from(!r.passes)));
-            let secs: Vec<f64> = first.iter().map(|r| r.seconds).collect();
-            let mean = secs.iter().sum::<f64>() / secs.len() as f64;
-            let (lo, hi) = secs
-                .iter()
-                .fold((f64::INFINITY, 0.0f64), |(a, b), &s| (a.min(s), b.max(s)));
-            let agreement = |k: usize, miss: usize| {
-                if k == 0 {
-                    "—".to_string()
-                } else {
-                    format!("{miss} of {k}")
-                }
-            };
-            println!(
-                "| {n} | {} | {pass}/{count} | {within} | {p_pass}/{p_all} ({:.0} %) | {} | {} | {mean:.1} s ({lo:.1}–{hi:.1}) |",
-                first[0].tries.len(),
-                100.0 * p_pass as f64 / p_all as f64,
-                agreement(sure_n, sure_miss),
-                agreement(unsure_n, unsure_miss),
-            );
-            xs.push((*n as f64).log10());
-            pass_y.push(pass as f64);
-            time_y.push(mean);
+        println!("{}", markdown_table(&complete, None));
+        for r in rows.iter().filter(|r| r.family == name && r.cases < count) {
+            println!("(N = {}: incomplete, {} of {count} cases)", r.n, r.cases);
         }
+        let xs: Vec<f64> = complete.iter().map(|r| (r.n as f64).log10()).collect();
+        let pass_y: Vec<f64> = complete.iter().map(|r| r.pass as f64).collect();
+        let time_y: Vec<f64> = complete.iter().map(|r| r.mean_seconds).collect();
         // Nested tries: a larger population runs the default's try and
         // more, so it never ends at a higher estimation SSE.
         let default_n = 1000;

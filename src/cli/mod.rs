@@ -9,6 +9,7 @@ mod fit;
 mod identify;
 mod simulate;
 mod static_force;
+mod sweep;
 mod twin;
 mod validate;
 
@@ -55,6 +56,10 @@ pub enum Command {
     Twin(twin::Args),
     #[command(about = "Time the batch evaluator on the CPU and GPU and check that they agree")]
     Bench(bench::Args),
+    #[command(
+        about = "Fit generated cases with a known truth at several populations: what more compute buys"
+    )]
+    Sweep(sweep::Args),
     #[command(about = "Validate on a public benchmark with published results (Bouc-Wen)")]
     Validate(validate::Args),
     /// Deprecated alias of `validate` (its name reads too close to `bench`),
@@ -76,6 +81,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Control(args) => control::run(args),
         Command::Twin(args) => twin::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Sweep(args) => sweep::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Benchmark(args) => {
             eprintln!(

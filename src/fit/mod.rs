@@ -2,8 +2,8 @@
 //! ([`records`]), the problem on one trace ([`problem`]), the objective the
 //! engine minimises ([`objective`]), what a fresh fit runs ([`settings`]), one run of `mckibben fit` ([`run`]),
 //! the edge rule ([`edge`]), how far its tries agree ([`agreement`]), synthetic records with known truths
-//! ([`synthetic`], [`cases`]) and the thesis' comparison of algorithms
-//! ([`compare`]).
+//! ([`synthetic`], [`cases`]), what a larger population buys on those
+//! ([`sweep`]) and the thesis' comparison of algorithms ([`compare`]).
 //!
 //! The optimizers and the engine that drives them ([`crate::optim`]) know
 //! nothing of muscles: this module is where a model, its data and its box
@@ -22,4 +22,5 @@ pub mod request;
 pub mod run;
 pub mod searches;
 pub mod settings;
+pub mod sweep;
 pub mod synthetic;

@@ -1,0 +1,89 @@
+//! `mckibben sweep`: generated cases fitted at several populations, on the
+//! CPU and, with the same fits, on lavapipe.
+
+mod common;
+
+use std::process::Command;
+
+use serde_json::Value;
+
+const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
+
+/// `mckibben sweep ARGS --json` on the smallest case's run, parsed.
+fn sweep(args: &[&str]) -> Value {
+    let out = Command::new(BIN)
+        .args([
+            "sweep", "--pop", "100", "--family", "classic", "--cases", "1000",
+        ])
+        .args(args)
+        .arg("--json")
+        .output()
+        .expect("run mckibben");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
+#[test]
+fn a_row_counts_the_first_seed_as_the_cases_and_every_seed_as_single_tries() {
+    let json = sweep(&["--seeds", "1,2", "--backend", "cpu"]);
+    let fits = json["fits"].as_array().unwrap();
+    assert_eq!(fits.len(), 2);
+    assert!(
+        fits[0]["name"].as_str().unwrap().ends_with("#1000"),
+        "{json}"
+    );
+    assert_eq!(
+        (fits[0]["seed"].as_u64(), fits[1]["seed"].as_u64()),
+        (Some(1), Some(2))
+    );
+    let rows = json["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 1);
+    let row = &rows[0];
+    assert_eq!(
+        (row["family"].as_str(), row["n"].as_u64()),
+        (Some("classic"), Some(100))
+    );
+    assert_eq!(
+        (row["cases"].as_u64(), row["single_tries"].as_u64()),
+        (Some(1), Some(2))
+    );
+    let pass = u64::from(fits[0]["passes"].as_bool().unwrap());
+    assert_eq!(row["pass"].as_u64(), Some(pass));
+}
+
+#[test]
+fn lavapipe_fits_the_cases_as_the_cpu_does() {
+    if common::require_lavapipe_adapter().is_none() {
+        return;
+    }
+    let cpu = sweep(&["--backend", "cpu"]);
+    let gpu = sweep(&["--backend", "gpu"]);
+    assert!(gpu["backend"].as_str().unwrap().starts_with("gpu"), "{gpu}");
+    let (c, g) = (&cpu["fits"][0], &gpu["fits"][0]);
+    for key in ["sse", "ratio", "passes", "tries", "agreeing"] {
+        assert_eq!(c[key], g[key], "{key}");
+    }
+}
+
+#[test]
+fn cases_and_populations_out_of_reach_are_refused() {
+    for (args, flag) in [
+        (["--cases", "4242"], "--cases"),
+        (["--pop", "3"], "--pop"),
+        (["--family", "linear"], "--family"),
+    ] {
+        let out = Command::new(BIN)
+            .arg("sweep")
+            .args(args)
+            .output()
+            .expect("run mckibben");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}");
+        assert!(stderr.contains(flag), "{args:?}: {stderr}");
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+}
