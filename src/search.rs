@@ -257,6 +257,11 @@ impl<K> Population<K> {
         self.flat.resize(len * self.dim, 0.0);
     }
 
+    /// Rows `at..at + count`, every value row after row, to fill in place.
+    pub fn span_mut(&mut self, at: usize, count: usize) -> &mut [f64] {
+        &mut self.flat[at * self.dim..(at + count) * self.dim]
+    }
+
     /// Row `i`, to change in place.
     pub fn row_mut(&mut self, i: usize) -> &mut [f64] {
         &mut self.flat[i * self.dim..(i + 1) * self.dim]

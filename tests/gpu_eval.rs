@@ -113,6 +113,39 @@ fn prediction_scores_are_bit_identical_to_the_cpu() {
     }
 }
 
+/// Two populations in flight at once, of two measures and sizes, the
+/// second submitted before the first is collected (as a generation's parts
+/// are): each reads back the CPU's scores, and the device's time is each
+/// one's own.
+#[test]
+fn populations_in_flight_together_read_back_their_own_scores() {
+    let Some(mut g) = gpu(GpuOptions::default()) else {
+        return;
+    };
+    let exp = trace();
+    let space = search_space(Family::Generalized, &exp, false);
+    let first = mixed_population(&space, 300, &mut ChaCha8Rng::seed_from_u64(41));
+    let second = mixed_population(&space, 130, &mut ChaCha8Rng::seed_from_u64(42));
+    let free_run = Problem::new(Family::Generalized, vec![exp.clone()]);
+    let ahead = free_run
+        .clone()
+        .with_measure(Measure::Ahead { horizon: 30 });
+    let a = g.submit(&free_run, free_run.rows(&first)).unwrap();
+    let b = g.submit(&ahead, ahead.rows(&second)).unwrap();
+    let got_a = g.collect(a).unwrap();
+    let seconds_a = g.kernel_seconds();
+    let got_b = g.collect(b).unwrap();
+    assert_bit_identical(&got_a, &cpu(&free_run, &first), "the first in flight");
+    assert_bit_identical(&got_b, &cpu(&ahead, &second), "the second in flight");
+    if let Some(s) = seconds_a {
+        assert!(s > 0.0, "the first's kernels took time: {s}");
+    }
+    // A third after both, on the slots they freed.
+    let again = g.submit(&free_run, free_run.rows(&second)).unwrap();
+    let got = g.collect(again).unwrap();
+    assert_bit_identical(&got, &cpu(&free_run, &second), "after both");
+}
+
 #[test]
 fn residuals_are_bit_identical_to_the_cpu_with_the_same_divergence_set() {
     let Some(mut g) = gpu(GpuOptions::default()) else {

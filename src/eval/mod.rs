@@ -166,6 +166,31 @@ pub trait Evaluator {
         population: Rows<'_, Params>,
     ) -> anyhow::Result<Scores>;
 
+    /// Starts scoring `population` as [`Evaluator::evaluate`] does, and
+    /// returns before the scores are read where the work runs elsewhere (a
+    /// device): the caller may do its own work meanwhile, then
+    /// [`Evaluator::collect`]s them. The same scores, bit for bit. Where
+    /// scoring is the caller's own threads' work (the CPU), it scores here.
+    fn submit(
+        &mut self,
+        problem: &Problem,
+        population: Rows<'_, Params>,
+    ) -> anyhow::Result<Pending> {
+        Ok(Pending::Scored(self.evaluate(problem, population)?))
+    }
+
+    /// The scores of a [`Evaluator::submit`] of this evaluator, once done;
+    /// [`Evaluator::kernel_seconds`] then says its kernels' device time.
+    fn collect(&mut self, pending: Pending) -> anyhow::Result<Scores> {
+        match pending {
+            Pending::Scored(scores) => Ok(scores),
+            Pending::Device(_) => anyhow::bail!(
+                "{}: asked for scores another evaluator submitted",
+                self.describe()
+            ),
+        }
+    }
+
     /// The errors `x(k) − y(k)` of every candidate under the problem's
     /// measure, `k ≥ 1` of each experiment in turn (what a
     /// Levenberg–Marquardt polish differentiates); `None` for a candidate
@@ -176,6 +201,14 @@ pub trait Evaluator {
         problem: &Problem,
         population: Rows<'_, Params>,
     ) -> anyhow::Result<Vec<Option<Vec<f32>>>>;
+}
+
+/// Scores on their way ([`Evaluator::submit`]).
+pub enum Pending {
+    /// Scored already.
+    Scored(Scores),
+    /// On a device, to be read back.
+    Device(gpu::Queued),
 }
 
 /// A population must have the problem's parameters in every row.

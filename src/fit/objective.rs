@@ -6,11 +6,11 @@ use std::time::Instant;
 use nalgebra::DVector;
 
 use super::problem::{Admission, FitProblem};
-use crate::eval::{Evaluator, Problem};
+use crate::eval::{Evaluator, Pending, Problem};
 use crate::model::coords::in_bounded_class;
 use crate::model::{Flow, Loop, Measure};
-use crate::optim::engine::Objective;
 use crate::optim::engine::plan::{FreeRun, Global, Plan, Polish, Refine};
+use crate::optim::engine::{Objective, Ticket};
 use crate::optim::{AlgoSettings, Algorithm};
 use crate::search::{Params, Rows};
 
@@ -190,12 +190,29 @@ impl Objective for ModelObjective<'_> {
     }
 
     fn costs(&mut self, rows: Rows<'_, Params>, measure: Measure) -> anyhow::Result<Vec<f32>> {
+        let ticket = self.submit(rows, measure)?;
+        self.collect(ticket, rows, measure)
+    }
+
+    fn submit(&mut self, rows: Rows<'_, Params>, measure: Measure) -> anyhow::Result<Ticket> {
         self.problem.measure = measure;
+        let pending = self
+            .clock
+            .timed(self.evaluator, |e| e.submit(&self.problem, rows))?;
+        Ok(Ticket::new(pending))
+    }
+
+    /// The scores summed over the experiments, then the admission's checks.
+    fn collect(
+        &mut self,
+        ticket: Ticket,
+        rows: Rows<'_, Params>,
+        measure: Measure,
+    ) -> anyhow::Result<Vec<f32>> {
+        let pending: Pending = ticket.take()?;
+        let scores = self.clock.timed(self.evaluator, |e| e.collect(pending))?;
         // Summed over the experiments in `f64`, as the diagnosis' SSEs are
         // (one experiment, as `fit`'s: the evaluator's own number).
-        let scores = self
-            .clock
-            .timed(self.evaluator, |e| e.evaluate(&self.problem, rows))?;
         let mut costs: Vec<f32> = (0..scores.total.len())
             .map(|i| {
                 let sum: f64 = scores.per_experiment.iter().map(|e| e[i] as f64).sum();

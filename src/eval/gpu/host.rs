@@ -10,7 +10,9 @@
 //! every call; buffers grow geometrically; the samples are uploaded only when
 //! they change; each call records every chunk's dispatch and the copy to the
 //! read-back buffer in one command buffer, so there is one submit and one
-//! read-back per call. A grid past the device's per-dimension workgroup
+//! read-back per call. A call can be submitted and collected apart
+//! ([`Host::submit`], [`Host::collect`]), each in flight on its own slot of
+//! buffers, so that the host works while the device scores. A grid past the device's per-dimension workgroup
 //! limit (65535) folds into 2-D, and a population whose parameters exceed the
 //! storage binding limit is split into chunks, each bound at its own offset
 //! of the same buffers (a population past even the device's buffer size
@@ -229,10 +231,14 @@ impl Timestamps {
         encoder.copy_buffer_to_buffer(&self.resolved, 0, &self.readback, 0, 16);
     }
 
-    /// The seconds between the pass's two timestamps, once the submit that
-    /// resolved them is done.
-    fn seconds(&self, device: &wgpu::Device) -> anyhow::Result<f64> {
-        let ticks: Vec<u64> = read_back(device, &self.readback, 16)?;
+    /// The seconds between the pass's two timestamps, once `submission`,
+    /// which resolved them, is done.
+    fn seconds(
+        &self,
+        device: &wgpu::Device,
+        submission: wgpu::SubmissionIndex,
+    ) -> anyhow::Result<f64> {
+        let ticks: Vec<u64> = read_back(device, &self.readback, 16, submission)?;
         Ok(ticks[1].saturating_sub(ticks[0]) as f64 * self.period_ns * 1e-9)
     }
 }
@@ -252,6 +258,66 @@ struct Config {
 
 const CONFIG_STRIDE: u64 = 256;
 
+/// The buffers of one submission: a population's parameters, its chunks'
+/// configs, its outputs and their read-back, and its pass's timestamps. A
+/// submission in flight holds its slot until it is collected, so that the
+/// next population can be uploaded and run meanwhile (the host updates one
+/// part of a generation while the device scores another).
+struct Slot {
+    params: Grown,
+    configs: Grown,
+    out: Grown,
+    readback: Grown,
+    /// `None` where the adapter offers no timestamp queries.
+    timestamps: Option<Timestamps>,
+    busy: bool,
+}
+
+impl Slot {
+    fn new(device: &wgpu::Device, queue: &wgpu::Queue, timestamps: bool) -> Slot {
+        let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        Slot {
+            params: Grown::new("parameters", storage),
+            configs: Grown::new(
+                "configs",
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            out: Grown::new(
+                "sse",
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: Grown::new(
+                "read-back",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            timestamps: timestamps.then(|| Timestamps::new(device, queue)),
+            busy: false,
+        }
+    }
+}
+
+/// A population submitted to the device and not yet read back
+/// ([`Host::submit`]): its slot and how to unpack its outputs.
+pub struct InFlight {
+    slot: usize,
+    submission: wgpu::SubmissionIndex,
+    traces: usize,
+    output: Output,
+    chunks: Vec<(usize, usize)>,
+    candidates: usize,
+    out_bytes: u64,
+}
+
+/// What [`Host::submit`] hands back for [`Host::collect`].
+pub enum Submitted {
+    /// Read back already, with the kernels' device time: a population with
+    /// nothing to run, or one scored in parts (one submit each, each read
+    /// back before the next, as its parts share the buffers).
+    Done(Vec<f32>, Option<f64>),
+    /// On the device.
+    InFlight(InFlight),
+}
+
 /// A device, its pipelines and buffers.
 pub struct Host {
     device: wgpu::Device,
@@ -261,17 +327,16 @@ pub struct Host {
     options: GpuOptions,
     /// Compiled pipelines by their WGSL source.
     pipelines: HashMap<String, wgpu::ComputePipeline>,
-    params: Grown,
     samples: Grown,
     spans: Grown,
-    configs: Grown,
-    out: Grown,
-    readback: Grown,
     uploaded: Option<Uploaded>,
-    /// `None` where the adapter offers no timestamp queries.
-    timestamps: Option<Timestamps>,
-    /// The kernels' device time in the last [`Host::dispatch`] (summed over
-    /// its parts), where timestamps are offered.
+    /// The submissions' buffers: two once a generation is scored in
+    /// overlapping parts, one otherwise.
+    slots: Vec<Slot>,
+    /// Whether the adapter offers timestamp queries.
+    timestamps: bool,
+    /// The kernels' device time of the last population collected (summed
+    /// over its parts), where timestamps are offered.
     kernel_seconds: Option<f64>,
 }
 
@@ -290,9 +355,7 @@ impl Host {
             ..Default::default()
         }))
         .with_context(|| format!("cannot open a device on {}", describe_adapter(&info)))?;
-        let timestamps = features
-            .contains(wgpu::Features::TIMESTAMP_QUERY)
-            .then(|| Timestamps::new(&device, &queue));
+        let timestamps = features.contains(wgpu::Features::TIMESTAMP_QUERY);
         let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         Ok(Host {
             device,
@@ -301,22 +364,10 @@ impl Host {
             limits,
             options,
             pipelines: HashMap::new(),
-            params: Grown::new("parameters", storage),
             samples: Grown::new("samples", storage),
             spans: Grown::new("spans", storage),
-            configs: Grown::new(
-                "configs",
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            ),
-            out: Grown::new(
-                "sse",
-                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            ),
-            readback: Grown::new(
-                "read-back",
-                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            ),
             uploaded: None,
+            slots: Vec::new(),
             timestamps,
             kernel_seconds: None,
         })
@@ -328,9 +379,27 @@ impl Host {
         self.kernel_seconds
     }
 
-    /// Records a call that ran no kernel: its device time is zero.
-    pub fn no_dispatch(&mut self) {
-        self.kernel_seconds = self.timestamps.as_ref().map(|_| 0.0);
+    /// A device time of nothing: zero where the adapter has a clock.
+    fn no_seconds(&self) -> Option<f64> {
+        self.timestamps.then_some(0.0)
+    }
+
+    /// A population with nothing to run, for [`Host::collect`].
+    pub fn nothing(&mut self) -> Submitted {
+        self.kernel_seconds = self.no_seconds();
+        Submitted::Done(Vec::new(), self.no_seconds())
+    }
+
+    /// A slot no submission holds, made where every one is held.
+    fn free_slot(&mut self) -> usize {
+        match self.slots.iter().position(|s| !s.busy) {
+            Some(i) => i,
+            None => {
+                let slot = Slot::new(&self.device, &self.queue, self.timestamps);
+                self.slots.push(slot);
+                self.slots.len() - 1
+            }
+        }
     }
 
     fn pipeline(&mut self, source: &str, label: &str) -> &wgpu::ComputePipeline {
@@ -429,48 +498,75 @@ impl Host {
     }
 
     /// Runs `kernel` on `rows` (row-major, `kernel.dim` values each) over the
-    /// uploaded traces: per candidate, its SSE on every trace or its
-    /// residuals, candidate-major.
+    /// uploaded traces and waits for it: per candidate, its SSE on every
+    /// trace or its residuals, candidate-major.
     pub fn dispatch(&mut self, kernel: &Kernel, rows: &[f32]) -> anyhow::Result<Vec<f32>> {
+        let submitted = self.submit(kernel, rows)?;
+        self.collect(submitted)
+    }
+
+    /// Hands `kernel` on `rows` to the device as [`Host::dispatch`] does,
+    /// without waiting: the host is free until [`Host::collect`]. A
+    /// population too large for one buffer is scored in parts and waited
+    /// for here.
+    pub fn submit(&mut self, kernel: &Kernel, rows: &[f32]) -> anyhow::Result<Submitted> {
+        // A submit runs no kernel on the host's clock: its time is counted
+        // when it is collected.
+        self.kernel_seconds = self.no_seconds();
         let d = kernel.dim;
         let n = rows.len() / d;
         let per_candidate = kernel.per_candidate();
-        // Zero until each part's kernels add theirs.
-        self.no_dispatch();
         if n == 0 || per_candidate == 0 {
-            return Ok(vec![0.0; n * per_candidate]);
+            return Ok(Submitted::Done(
+                vec![0.0; n * per_candidate],
+                self.no_seconds(),
+            ));
         }
         anyhow::ensure!(self.uploaded.is_some(), "no samples uploaded");
-        // A population whose parameters or outputs exceed one buffer is scored
-        // in parts, one submit each (every part but the last a whole number
-        // of chunks).
         let chunk = self.chunk_len(d, per_candidate)?;
         let by_buffer = (self.buffer_limit() / (4 * d.max(per_candidate)) as u64) as usize;
-        let part = if by_buffer >= n {
-            n
-        } else {
-            by_buffer / chunk * chunk
-        };
+        if by_buffer >= n {
+            return Ok(Submitted::InFlight(self.submit_part(kernel, rows, chunk)?));
+        }
+        // Every part but the last a whole number of chunks.
+        let part = by_buffer / chunk * chunk;
         anyhow::ensure!(
             part > 0,
             "the device's buffer size limit ({} bytes) cannot hold one chunk of candidates",
             self.buffer_limit()
         );
         let mut flat = Vec::with_capacity(n * per_candidate);
+        let mut seconds = self.no_seconds();
         for rows in rows.chunks(part * d) {
-            flat.extend(self.dispatch_part(kernel, rows, chunk)?);
+            let in_flight = self.submit_part(kernel, rows, chunk)?;
+            let (values, s) = self.read(in_flight)?;
+            flat.extend(values);
+            seconds = seconds.zip(s).map(|(a, b)| a + b);
         }
-        Ok(flat)
+        Ok(Submitted::Done(flat, seconds))
+    }
+
+    /// Waits for a submitted population and reads it back, as
+    /// [`Host::dispatch`] returns it; its kernels' device time becomes
+    /// [`Host::kernel_seconds`].
+    pub fn collect(&mut self, submitted: Submitted) -> anyhow::Result<Vec<f32>> {
+        let (values, seconds) = match submitted {
+            Submitted::Done(values, seconds) => (values, seconds),
+            Submitted::InFlight(in_flight) => self.read(in_flight)?,
+        };
+        self.kernel_seconds = seconds;
+        Ok(values)
     }
 
     /// Runs `kernel` on `rows` (that fit in one buffer) in chunks of `chunk`
-    /// candidates, with one submit and one read-back.
-    fn dispatch_part(
+    /// candidates, in one submit on a free slot, and returns without
+    /// waiting.
+    fn submit_part(
         &mut self,
         kernel: &Kernel,
         rows: &[f32],
         chunk: usize,
-    ) -> anyhow::Result<Vec<f32>> {
+    ) -> anyhow::Result<InFlight> {
         let d = kernel.dim;
         let n = rows.len() / d;
         let traces = kernel.traces;
@@ -504,14 +600,16 @@ impl Host {
         }
 
         self.pipeline(&kernel.source, kernel.label);
+        let index = self.free_slot();
+        let slot = &mut self.slots[index];
         let device = &self.device;
-        let params = self.params.at_least(device, param_bytes);
+        let params = slot.params.at_least(device, param_bytes);
         self.queue
             .write_buffer(params, 0, bytemuck::cast_slice(rows));
-        let cfg_buf = self.configs.at_least(device, configs.len() as u64);
+        let cfg_buf = slot.configs.at_least(device, configs.len() as u64);
         self.queue.write_buffer(cfg_buf, 0, &configs);
-        let out = self.out.at_least(device, out_bytes);
-        let readback = self.readback.at_least(device, out_bytes);
+        let out = slot.out.at_least(device, out_bytes);
+        let readback = slot.readback.at_least(device, out_bytes);
         let samples = self.samples.buffer.as_ref().expect("uploaded");
         let spans = self.spans.buffer.as_ref().expect("uploaded");
         let pipeline = &self.pipelines[&kernel.source];
@@ -521,7 +619,7 @@ impl Host {
         {
             let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("score"),
-                timestamp_writes: self.timestamps.as_ref().map(Timestamps::writes),
+                timestamp_writes: slot.timestamps.as_ref().map(Timestamps::writes),
             });
             compute.set_pipeline(pipeline);
             for (c, (&(start, len), &(gx, gy))) in chunks.iter().zip(&grids).enumerate() {
@@ -560,21 +658,42 @@ impl Host {
             }
         }
         encoder.copy_buffer_to_buffer(out, 0, readback, 0, out_bytes);
-        if let Some(t) = &self.timestamps {
+        if let Some(t) = &slot.timestamps {
             t.resolve(&mut encoder);
         }
-        self.queue.submit([encoder.finish()]);
+        let submission = self.queue.submit([encoder.finish()]);
+        slot.busy = true;
+        Ok(InFlight {
+            slot: index,
+            submission,
+            traces,
+            output: kernel.output,
+            chunks,
+            candidates: n,
+            out_bytes,
+        })
+    }
 
-        let flat: Vec<f32> = read_back(&self.device, readback, out_bytes)?;
-        if let (Some(t), Some(total)) = (&self.timestamps, self.kernel_seconds.as_mut()) {
-            *total += t.seconds(&self.device)?;
-        }
-        if kernel.output == Output::Residuals {
-            return Ok(flat);
+    /// Waits for `in_flight`'s submission alone (not for any submitted
+    /// after it), reads its outputs back candidate-major and frees its
+    /// slot; with its kernels' device time.
+    fn read(&mut self, in_flight: InFlight) -> anyhow::Result<(Vec<f32>, Option<f64>)> {
+        let slot = &mut self.slots[in_flight.slot];
+        let readback = slot.readback.buffer.as_ref().expect("submitted");
+        let until = in_flight.submission;
+        let flat: Vec<f32> = read_back(&self.device, readback, in_flight.out_bytes, until.clone())?;
+        let seconds = match &slot.timestamps {
+            Some(t) => Some(t.seconds(&self.device, until)?),
+            None => None,
+        };
+        slot.busy = false;
+        if in_flight.output == Output::Residuals {
+            return Ok((flat, seconds));
         }
         // Chunk c holds [e][i] for its own candidates at start · traces.
-        let mut by_candidate = vec![0.0f32; n * traces];
-        for &(start, len) in &chunks {
+        let traces = in_flight.traces;
+        let mut by_candidate = vec![0.0f32; in_flight.candidates * traces];
+        for &(start, len) in &in_flight.chunks {
             let block = &flat[start * traces..(start + len) * traces];
             for e in 0..traces {
                 for i in 0..len {
@@ -582,7 +701,7 @@ impl Host {
                 }
             }
         }
-        Ok(by_candidate)
+        Ok((by_candidate, seconds))
     }
 }
 
@@ -611,11 +730,13 @@ impl Host {
             "{label}: {invocations} results exceed the device's storage binding limit"
         );
         self.pipeline(source, label);
+        let index = self.free_slot();
+        let slot = &mut self.slots[index];
         let device = &self.device;
-        let cfg = self.configs.at_least(device, uniform.len() as u64);
+        let cfg = slot.configs.at_least(device, uniform.len() as u64);
         self.queue.write_buffer(cfg, 0, uniform);
-        let out = self.out.at_least(device, out_bytes);
-        let readback = self.readback.at_least(device, out_bytes);
+        let out = slot.out.at_least(device, out_bytes);
+        let readback = slot.readback.at_least(device, out_bytes);
         let pipeline = &self.pipelines[source];
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(label),
@@ -635,32 +756,35 @@ impl Host {
         {
             let mut compute = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(label),
-                timestamp_writes: self.timestamps.as_ref().map(Timestamps::writes),
+                timestamp_writes: slot.timestamps.as_ref().map(Timestamps::writes),
             });
             compute.set_pipeline(pipeline);
             compute.set_bind_group(0, &group, &[]);
             compute.dispatch_workgroups(groups, 1, 1);
         }
         encoder.copy_buffer_to_buffer(out, 0, readback, 0, out_bytes);
-        if let Some(t) = &self.timestamps {
+        if let Some(t) = &slot.timestamps {
             t.resolve(&mut encoder);
         }
-        self.queue.submit([encoder.finish()]);
-        let values: Vec<f32> = read_back(&self.device, readback, out_bytes)?;
-        let seconds = match &self.timestamps {
-            Some(t) => Some(t.seconds(&self.device)?),
+        let submission = self.queue.submit([encoder.finish()]);
+        let values: Vec<f32> = read_back(&self.device, readback, out_bytes, submission.clone())?;
+        let seconds = match &slot.timestamps {
+            Some(t) => Some(t.seconds(&self.device, submission)?),
             None => None,
         };
         Ok((values, seconds))
     }
 }
 
-/// Maps the first `bytes` of a `MAP_READ` buffer after the work that fills
-/// it was submitted, waits for the GPU, and copies them out as `T`s.
+/// Maps the first `bytes` of a `MAP_READ` buffer after `until`, the
+/// submission that fills it, waits for that submission (not for any made
+/// after it, which keep the device busy meanwhile), and copies them out as
+/// `T`s.
 fn read_back<T: bytemuck::Pod>(
     device: &wgpu::Device,
     readback: &wgpu::Buffer,
     bytes: u64,
+    until: wgpu::SubmissionIndex,
 ) -> anyhow::Result<Vec<T>> {
     let slice = readback.slice(..bytes);
     let (tx, rx) = std::sync::mpsc::channel();
@@ -668,7 +792,10 @@ fn read_back<T: bytemuck::Pod>(
         let _ = tx.send(r);
     });
     device
-        .poll(wgpu::PollType::wait_indefinitely())
+        .poll(wgpu::PollType::Wait {
+            submission_index: Some(until),
+            timeout: None,
+        })
         .context("waiting for the GPU")?;
     rx.recv()
         .context("the GPU read-back was dropped")?

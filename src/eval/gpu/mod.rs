@@ -19,9 +19,9 @@ pub mod host;
 mod stages;
 
 pub use host::{GpuOptions, adapters, describe_adapter, is_hardware};
-use host::{Host, Kernel, Output, best_adapter};
+use host::{Host, Kernel, Output, Submitted, best_adapter};
 
-use super::{Evaluator, Problem, Scores, check_dim, to_f32};
+use super::{Evaluator, Pending, Problem, Scores, check_dim, to_f32};
 use crate::model::Family;
 use crate::model::effects::Context as EffectContext;
 use crate::search::{Params, Rows};
@@ -176,13 +176,23 @@ impl GpuEvaluator {
         population: Rows<'_, Params>,
         output: Output,
     ) -> anyhow::Result<Vec<f32>> {
+        let submitted = self.submit_run(problem, population, output)?;
+        self.host.collect(submitted)
+    }
+
+    /// [`GpuEvaluator::run`] handed to the device, not waited for.
+    fn submit_run(
+        &mut self,
+        problem: &Problem,
+        population: Rows<'_, Params>,
+        output: Output,
+    ) -> anyhow::Result<Submitted> {
         let family = problem.family;
         let d = problem.dim();
         check_dim(problem, population)?;
         if population.is_empty() || problem.experiments.is_empty() {
             // No kernel runs: this call's device time is none.
-            self.host.no_dispatch();
-            return Ok(Vec::new());
+            return Ok(self.host.nothing());
         }
         let rows = to_f32(population.as_flat());
         let n_one = match family.exponent_index() {
@@ -210,8 +220,25 @@ impl GpuEvaluator {
             output,
             residual_len: residual_len(problem),
         };
-        self.host.dispatch(&kernel, &rows)
+        self.host.submit(&kernel, &rows)
     }
+}
+
+/// Scores a [`GpuEvaluator`] submitted ([`Evaluator::submit`]): the
+/// device's work and the shape of its scores.
+pub struct Queued {
+    submitted: Submitted,
+    candidates: usize,
+    experiments: usize,
+}
+
+/// `flat`, `[candidate][experiment]` as the device writes it, as scores
+/// `[experiment][candidate]`.
+fn scores_of(flat: &[f32], candidates: usize, experiments: usize) -> Scores {
+    let per_experiment = (0..experiments)
+        .map(|e| (0..candidates).map(|i| flat[i * experiments + e]).collect())
+        .collect();
+    Scores::from_per_experiment(per_experiment)
 }
 
 impl Evaluator for GpuEvaluator {
@@ -244,14 +271,30 @@ impl Evaluator for GpuEvaluator {
         problem: &Problem,
         population: Rows<'_, Params>,
     ) -> anyhow::Result<Scores> {
-        let n_exp = problem.experiments.len();
-        let flat = self.run(problem, population, Output::Sse)?;
-        let n = population.len();
-        // `run` returns [candidate][experiment]; scores are [experiment][candidate].
-        let per_experiment = (0..n_exp)
-            .map(|e| (0..n).map(|i| flat[i * n_exp + e]).collect())
-            .collect();
-        Ok(Scores::from_per_experiment(per_experiment))
+        let pending = self.submit(problem, population)?;
+        self.collect(pending)
+    }
+
+    fn submit(
+        &mut self,
+        problem: &Problem,
+        population: Rows<'_, Params>,
+    ) -> anyhow::Result<Pending> {
+        Ok(Pending::Device(Queued {
+            submitted: self.submit_run(problem, population, Output::Sse)?,
+            candidates: population.len(),
+            experiments: problem.experiments.len(),
+        }))
+    }
+
+    fn collect(&mut self, pending: Pending) -> anyhow::Result<Scores> {
+        match pending {
+            Pending::Scored(scores) => Ok(scores),
+            Pending::Device(queued) => {
+                let flat = self.host.collect(queued.submitted)?;
+                Ok(scores_of(&flat, queued.candidates, queued.experiments))
+            }
+        }
     }
 
     fn residuals(

@@ -71,6 +71,26 @@ pub trait Objective {
     /// it.
     fn costs(&mut self, rows: Rows<'_, Params>, measure: Measure) -> anyhow::Result<Vec<f32>>;
 
+    /// Starts [`Objective::costs`] of `rows` and returns before they are
+    /// read where the scoring runs elsewhere (a device), so that the engine
+    /// updates other islands meanwhile; [`Objective::collect`] then gives
+    /// the costs, the same bits. By default it scores here.
+    fn submit(&mut self, rows: Rows<'_, Params>, measure: Measure) -> anyhow::Result<Ticket> {
+        Ok(Ticket::new(self.costs(rows, measure)?))
+    }
+
+    /// The costs of a [`Objective::submit`] of `rows` under `measure` (the
+    /// same rows and measure it was handed).
+    fn collect(
+        &mut self,
+        ticket: Ticket,
+        rows: Rows<'_, Params>,
+        measure: Measure,
+    ) -> anyhow::Result<Vec<f32>> {
+        let _ = (rows, measure);
+        ticket.take()
+    }
+
     /// The residuals of every row under `measure`, `None` where it
     /// diverges: what the polish differentiates. Only least-squares
     /// objectives have them.
@@ -107,6 +127,24 @@ pub trait Objective {
     /// share its calls, each round one call for all of them.
     fn round_trips(&self) -> bool {
         false
+    }
+}
+
+/// Costs on their way ([`Objective::submit`]): whatever the objective needs
+/// to finish them.
+pub struct Ticket(Box<dyn std::any::Any>);
+
+impl Ticket {
+    pub fn new<T: 'static>(value: T) -> Ticket {
+        Ticket(Box::new(value))
+    }
+
+    /// What [`Ticket::new`] was given, as the objective that made it knows it.
+    pub fn take<T: 'static>(self) -> anyhow::Result<T> {
+        self.0
+            .downcast()
+            .map(|b| *b)
+            .map_err(|_| anyhow::anyhow!("a ticket of another objective"))
     }
 }
 

@@ -2,7 +2,12 @@
 //! and the refining rounds, every try's islands in lock-step, one
 //! generation a step.
 
-use super::{Chart, Engine, FreeRun, Members, Objective, Stage, StageEnd, Step, keep_lowest};
+use std::ops::Range;
+
+use super::{
+    Chart, Engine, FreeRun, Members, Objective, Stage, StageEnd, Step, Ticket, keep_lowest,
+    sanitized, timed,
+};
 use crate::search::{Coords, Measure, Params, Population, Rows};
 use rayon::prelude::*;
 
@@ -16,6 +21,44 @@ struct Span {
     count: usize,
     measure: Measure,
     streams: Streams,
+}
+
+/// Parts a generation goes in where the objective's calls pay a round trip
+/// ([`Objective::round_trips`]): the host's asks and tells hide behind the
+/// device's scoring but for one part's (a quarter), at the price of a
+/// call a part and measure.
+const OVERLAPPED_PARTS: usize = 4;
+
+/// One call of a generation's scoring in flight: the islands it scores
+/// (indices into the generation's spans, all of one measure), their rows
+/// where they had to be gathered from the buffer, and the ticket.
+struct Scoring {
+    islands: Vec<usize>,
+    measure: Measure,
+    gathered: Option<Population<Params>>,
+    ticket: Ticket,
+}
+
+/// The first row and the number of rows of consecutive spans.
+fn rows_of(spans: &[Span]) -> (usize, usize) {
+    let from = spans.first().map_or(0, |s| s.at);
+    (from, spans.iter().map(|s| s.count).sum())
+}
+
+/// `spans` cut into at most `count` runs of whole islands, each holding
+/// about an equal share of the rows, none empty.
+fn parts_of(spans: &[Span], count: usize) -> Vec<Range<usize>> {
+    let (_, total) = rows_of(spans);
+    let mut parts = Vec::with_capacity(count);
+    let (mut start, mut rows) = (0, 0);
+    for (i, s) in spans.iter().enumerate() {
+        rows += s.count;
+        if rows * count >= total * (parts.len() + 1) || i + 1 == spans.len() {
+            parts.push(start..i + 1);
+            start = i + 1;
+        }
+    }
+    parts
 }
 
 impl<C: Chart> Engine<C> {
@@ -206,6 +249,12 @@ impl<C: Chart> Engine<C> {
     /// share a measure are scored in one call, and every island is told its
     /// own. Each try's first island's costs rank the try's stage best, and
     /// fill the record: the others may measure other horizons.
+    ///
+    /// Where the objective's calls pay a round trip (a device), the islands
+    /// go in [`OVERLAPPED_PARTS`] parts: while the device scores one part,
+    /// the host asks the next and tells the one before. An island's rows,
+    /// costs and moves do not depend on which part it is in, so the bits
+    /// are those of one part.
     pub(super) fn step_population(
         &mut self,
         objective: &mut dyn Objective,
@@ -221,21 +270,37 @@ impl<C: Chart> Engine<C> {
         let d = self.space.dim();
         let spans = self.generation_spans(step, stage);
         let at = spans.last().map_or(0, |s| s.at + s.count);
-        let rows = self.ask_islands(&spans, at)?;
+        let mut rows = Population::zeros(at, self.space.free_dim());
         let mut canonical = self
             .canonical
             .take()
             .unwrap_or_else(|| Population::zeros(0, d));
         // The same size every generation after the first: no refill.
         canonical.resize(at);
-        self.space.embed_into(rows.rows(), &mut canonical);
-        let costs = self.score_spans(objective, &spans, canonical.rows(), at)?;
-        {
-            let islands = self.active_islands();
-            islands
-                .into_par_iter()
-                .zip(&spans)
-                .try_for_each(|(opt, s)| opt.tell(&costs[s.at..s.at + s.count]))?;
+        let mut costs = vec![0.0f32; at];
+        let parts = parts_of(
+            &spans,
+            if objective.round_trips() {
+                OVERLAPPED_PARTS
+            } else {
+                1
+            },
+        );
+        let mut scoring: Option<(Range<usize>, Vec<Scoring>)> = None;
+        for part in parts {
+            let (from, count) = rows_of(&spans[part.clone()]);
+            self.ask_islands(&spans, part.clone(), &mut rows)?;
+            let asked = rows.rows().span(from, count);
+            self.space.embed_at(asked, &mut canonical, from);
+            let submitted = self.submit_part(objective, &spans, part.clone(), canonical.rows())?;
+            if let Some((before, scorings)) = scoring.replace((part, submitted)) {
+                self.collect_part(objective, &spans, scorings, canonical.rows(), &mut costs)?;
+                self.tell_islands(&spans, before, &costs)?;
+            }
+        }
+        if let Some((last, scorings)) = scoring {
+            self.collect_part(objective, &spans, scorings, canonical.rows(), &mut costs)?;
+            self.tell_islands(&spans, last, &costs)?;
         }
         let ranked = self.rank_generation(&spans, canonical.rows(), &costs);
         self.stage_steps += 1;
@@ -313,67 +378,132 @@ impl<C: Chart> Engine<C> {
         spans
     }
 
-    /// Every island asks at once, each into its own rows of one buffer of
-    /// `at` free rows: with many tries, islands are small, and a
-    /// generation's update is many small jobs rather than one large one.
-    fn ask_islands(&mut self, spans: &[Span], at: usize) -> anyhow::Result<Population<Coords>> {
-        let nf = self.space.free_dim();
-        let mut rows = vec![0.0; at * nf];
-        let mut free: &mut [f64] = &mut rows;
-        let mut parts: Vec<&mut [f64]> = Vec::with_capacity(spans.len());
-        for s in spans {
-            let (part, rest) = free.split_at_mut(s.count * nf);
-            parts.push(part);
+    /// The islands of `part` (indices into `spans`, the generation's) ask
+    /// at once, each into its own rows of the generation's buffer: with many
+    /// tries, islands are small, and a generation's update is many small
+    /// jobs rather than one large one.
+    fn ask_islands(
+        &mut self,
+        spans: &[Span],
+        part: Range<usize>,
+        rows: &mut Population<Coords>,
+    ) -> anyhow::Result<()> {
+        let nf = rows.dim();
+        let (from, count) = rows_of(&spans[part.clone()]);
+        let mut free: &mut [f64] = rows.span_mut(from, count);
+        let mut parts: Vec<&mut [f64]> = Vec::with_capacity(part.len());
+        for s in &spans[part.clone()] {
+            let (own, rest) = free.split_at_mut(s.count * nf);
+            parts.push(own);
             free = rest;
         }
-        let islands = self.active_islands();
+        let islands: Vec<&mut AskTell> = self.active_islands().drain(part.clone()).collect();
         islands
             .into_par_iter()
             .zip(parts)
-            .zip(spans)
-            .try_for_each(|((opt, part), s)| {
-                part.copy_from_slice(opt.ask(&s.streams)?.as_flat());
+            .zip(&spans[part])
+            .try_for_each(|((opt, own), s)| {
+                own.copy_from_slice(opt.ask(&s.streams)?.as_flat());
                 Ok::<_, crate::optim::PhaseError>(())
             })?;
-        Ok(Population::new(rows, nf))
+        Ok(())
     }
 
-    /// Scores a generation's `at` canonical rows with one call per measure,
-    /// over every island that measures it, so that the objective sees as
-    /// few and as large batches as the measures allow; the costs come back
-    /// in the buffer's order.
-    fn score_spans(
+    /// The islands of `part` are told their costs at once.
+    fn tell_islands(
+        &mut self,
+        spans: &[Span],
+        part: Range<usize>,
+        costs: &[f32],
+    ) -> anyhow::Result<()> {
+        let islands: Vec<&mut AskTell> = self.active_islands().drain(part.clone()).collect();
+        islands
+            .into_par_iter()
+            .zip(&spans[part])
+            .try_for_each(|(opt, s)| opt.tell(&costs[s.at..s.at + s.count]))?;
+        Ok(())
+    }
+
+    /// Hands the canonical rows of `part`'s islands to the objective, one
+    /// call per measure over every island of the part that measures it, so
+    /// that the objective sees as few and as large batches as the measures
+    /// allow; nothing waits for the costs.
+    fn submit_part(
         &mut self,
         objective: &mut dyn Objective,
         spans: &[Span],
+        part: Range<usize>,
         canonical: Rows<'_, Params>,
-        at: usize,
-    ) -> anyhow::Result<Vec<f32>> {
-        let mut costs = vec![0.0f32; at];
+    ) -> anyhow::Result<Vec<Scoring>> {
         let mut measures: Vec<Measure> = Vec::new();
-        for s in spans {
+        for s in &spans[part.clone()] {
             if !measures.contains(&s.measure) {
                 measures.push(s.measure);
             }
         }
-        for &m in &measures {
-            let group: Vec<&Span> = spans.iter().filter(|s| s.measure == m).collect();
-            let scored = if group.len() == spans.len() {
-                self.score_canonical(objective, canonical, m)?
-            } else {
+        let mut scorings = Vec::with_capacity(measures.len());
+        for measure in measures {
+            let islands: Vec<usize> = part
+                .clone()
+                .filter(|&i| spans[i].measure == measure)
+                .collect();
+            let gathered = (islands.len() < part.len()).then(|| {
                 let mut rows = Population::zeros(0, canonical.dim());
-                for s in &group {
-                    rows.extend(canonical.span(s.at, s.count));
+                for &i in &islands {
+                    rows.extend(canonical.span(spans[i].at, spans[i].count));
                 }
-                self.score_canonical(objective, rows.rows(), m)?
+                rows
+            });
+            let rows = match &gathered {
+                Some(rows) => rows.rows(),
+                None => {
+                    let (from, count) = rows_of(&spans[part.clone()]);
+                    canonical.span(from, count)
+                }
             };
+            let (ticket, spent) = timed(objective, |o| o.submit(rows, measure));
+            self.spent(spent);
+            scorings.push(Scoring {
+                islands,
+                measure,
+                gathered,
+                ticket: ticket?,
+            });
+        }
+        Ok(scorings)
+    }
+
+    /// Waits for a part's calls ([`Engine::submit_part`]) and writes their
+    /// costs, NaN and −∞ made +∞, into the generation's `costs`, counting
+    /// the evaluations and the evaluator's seconds.
+    fn collect_part(
+        &mut self,
+        objective: &mut dyn Objective,
+        spans: &[Span],
+        scorings: Vec<Scoring>,
+        canonical: Rows<'_, Params>,
+        costs: &mut [f32],
+    ) -> anyhow::Result<()> {
+        for scoring in scorings {
+            let own: Vec<&Span> = scoring.islands.iter().map(|&i| &spans[i]).collect();
+            let n: usize = own.iter().map(|s| s.count).sum();
+            let rows = match &scoring.gathered {
+                Some(rows) => rows.rows(),
+                None => canonical.span(own[0].at, n),
+            };
+            let (scored, spent) = timed(objective, |o| {
+                o.collect(scoring.ticket, rows, scoring.measure)
+            });
+            self.spent(spent);
+            let scored = sanitized(scored?, n, &*objective)?;
+            self.evaluations += n as u64;
             let mut from = 0;
-            for s in group {
+            for s in own {
                 costs[s.at..s.at + s.count].copy_from_slice(&scored[from..from + s.count]);
                 from += s.count;
             }
         }
-        Ok(costs)
+        Ok(())
     }
 
     /// Ranks a scored generation: the free run's costs update each try's
@@ -505,5 +635,42 @@ impl<C: Chart> Engine<C> {
         }
         let (now, then) = (bests[bests.len() - 1], bests[bests.len() - 1 - w]);
         then.is_finite() && now >= then * (1.0 - self.stops.stall_tolerance)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spans(counts: &[usize]) -> Vec<Span> {
+        let mut at = 0;
+        counts
+            .iter()
+            .map(|&count| {
+                let s = Span {
+                    try_index: 0,
+                    at,
+                    count,
+                    measure: Measure::FreeRun,
+                    streams: Streams::new(1, Stage::Global, 1),
+                };
+                at += count;
+                s
+            })
+            .collect()
+    }
+
+    #[test]
+    fn parts_hold_whole_islands_and_about_equal_rows() {
+        assert_eq!(parts_of(&spans(&[10; 8]), 4), vec![0..2, 2..4, 4..6, 6..8]);
+        assert_eq!(parts_of(&spans(&[10; 8]), 1), vec![0..8]);
+        // Fewer islands than parts: one island a part.
+        assert_eq!(parts_of(&spans(&[10, 10]), 4), vec![0..1, 1..2]);
+        // A large island is a part of its own; none is empty.
+        assert_eq!(
+            parts_of(&spans(&[70, 10, 10, 10]), 4),
+            vec![0..1, 1..2, 2..3, 3..4]
+        );
+        assert_eq!(parts_of(&spans(&[10, 10, 10, 70]), 4), vec![0..3, 3..4]);
     }
 }

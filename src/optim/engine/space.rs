@@ -273,23 +273,35 @@ impl<C: Chart> Space<C> {
     /// parallel, with no allocation a row: what the engine scores every
     /// generation.
     pub fn embed_into(&self, rows: Rows<'_, Coords>, out: &mut Population<Params>) {
+        assert_eq!(rows.len(), out.len());
+        self.embed_at(rows, out, 0);
+    }
+
+    /// [`Space::embed_into`] into `out`'s rows from `at` on: a part of a
+    /// generation's buffer.
+    pub fn embed_at(&self, rows: Rows<'_, Coords>, out: &mut Population<Params>, at: usize) {
         let free = self.free();
         assert_eq!(
-            (rows.len(), rows.dim(), out.dim()),
-            (out.len(), self.free_dim(), self.dim())
+            (rows.dim(), out.dim()),
+            (self.free_dim(), self.dim()),
+            "rows of another box"
         );
-        out.par_iter_mut().zip(rows.par_iter()).for_each_init(
-            || self.lower.clone(),
-            |z, (theta, row)| {
-                for (&v, &i) in row.iter().zip(&free) {
-                    z[i] = v.clamp(self.lower[i], self.upper[i]);
-                }
-                match &self.coords {
-                    Some(chart) => chart.to_canonical_into(z, theta),
-                    None => theta.copy_from_slice(z),
-                }
-            },
-        );
+        let dim = out.dim();
+        out.span_mut(at, rows.len())
+            .par_chunks_exact_mut(dim)
+            .zip(rows.par_iter())
+            .for_each_init(
+                || self.lower.clone(),
+                |z, (theta, row)| {
+                    for (&v, &i) in row.iter().zip(&free) {
+                        z[i] = v.clamp(self.lower[i], self.upper[i]);
+                    }
+                    match &self.coords {
+                        Some(chart) => chart.to_canonical_into(z, theta),
+                        None => theta.copy_from_slice(z),
+                    }
+                },
+            );
     }
 
     /// The names of the canonical parameters the engine reports (what
