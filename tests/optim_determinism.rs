@@ -251,3 +251,31 @@ fn cpu_and_gpu_backends_give_the_same_staged_fit() {
         }
     }
 }
+
+/// On the GPU backend a generation goes in parts, the host asking and
+/// telling one while the device scores another (`engine::population`):
+/// with one thread or three, the lavapipe fit is the CPU's, bit for bit.
+#[test]
+fn the_overlapped_gpu_fit_does_not_depend_on_the_thread_count() {
+    use mckibben::eval::gpu::GpuEvaluator;
+    let Some(adapter) = common::require_lavapipe_adapter() else {
+        return;
+    };
+    let plan = plan(Algorithm::De);
+    assert!(plan.islands() > 1, "parts need islands");
+    let (history, params) = run_with_threads(&plan, 2);
+    for threads in [1, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let (gpu_history, gpu_params) = pool.install(|| {
+            let mut gpu = GpuEvaluator::with_adapter(adapter.clone(), Default::default()).unwrap();
+            let mut e = engine_of(plan.clone(), 9);
+            let out = fit(&mut e, &mut gpu);
+            (fingerprint(&e), out.params)
+        });
+        assert_eq!(gpu_params, params, "{threads} threads");
+        assert_eq!(gpu_history, history, "{threads} threads");
+    }
+}
