@@ -212,10 +212,12 @@ done
     echo "seed 1; wall time includes start-up and the figures written to --out):"
     echo
     echo "host µs/row and device ms/gen: the global stage of the fit's JSON, (seconds − evaluator_seconds) / evaluations"
-    echo "and kernel_seconds / steps (the kernels on the device's clock; — on the CPU):"
+    echo "and kernel_seconds / steps (the kernels on the device's clock; — on the CPU); gen / max: the stage's seconds a"
+    echo "generation over the larger of the host's (seconds − evaluator_seconds) and the device's a generation"
+    echo "(1 where they overlap fully, 2 where they take turns at equal shares; — on the CPU):"
     echo
-    echo "| N | gens (all stages) | backend | wall s | fit s | stop | final SSE | val fit % | GPU/CPU speed-up | same parameters as CPU | host µs/row | device ms/gen |"
-    echo "|---:|---:|---|---:|---:|---|---:|---:|---:|---|---:|---:|"
+    echo "| N | gens (all stages) | backend | wall s | fit s | stop | final SSE | val fit % | GPU/CPU speed-up | same parameters as CPU | host µs/row | device ms/gen | gen / max |"
+    echo "|---:|---:|---|---:|---:|---|---:|---:|---:|---|---:|---:|---:|"
 } >>"$md"
 
 # The global stage's "steps evaluations seconds evaluator_seconds kernel_seconds"
@@ -267,8 +269,11 @@ for n in "${fit_pops[@]}"; do
         # Host µs a row and device ms a generation of the global stage.
         timing=$(global_stage "$f" | awk '{
             host = $2 > 0 ? sprintf("%.3f", ($3 - $4) / $2 * 1e6) : "—"
-            device = ($5 != "" && $5 != "null" && $1 > 0) ? sprintf("%.3f", $5 / $1 * 1e3) : "—"
-            printf "%s | %s\n", host, device }')
+            on_device = $5 != "" && $5 != "null" && $1 > 0
+            device = on_device ? sprintf("%.3f", $5 / $1 * 1e3) : "—"
+            larger = ($3 - $4) > $5 ? ($3 - $4) : $5
+            ratio = on_device && larger > 0 ? sprintf("%.2f", $3 / larger) : "—"
+            printf "%s | %s | %s\n", host, device, ratio }')
         printf '| %s | %s | %s | %s | %.2f | %s | %.6g | %.2f | %s | %s | %s |\n' \
             "$n" "$(json_top "$f" generations)" "$backend" "$wall" "$(json_top "$f" seconds)" \
             "$(json_top "$f" stop)" "$(json_top "$f" sse)" "$(json_top "$f" val_fit_percent)" \
