@@ -98,16 +98,7 @@ fn population_sweep() {
                         continue;
                     }
                     let r = fit_case(&case, n, seed, &mut cpu).unwrap();
-                    eprintln!(
-                        "{:48} N {n:>6} seed {seed}: ratio {:.3} {} p {}/{} agree {} ({:.1} s)",
-                        r.name,
-                        r.ratio,
-                        if r.passes { "pass" } else { "FAIL" },
-                        r.tries.iter().filter(|&&t| t).count(),
-                        r.tries.len(),
-                        r.agreeing,
-                        r.seconds
-                    );
+                    eprintln!("{r}");
                     writeln!(out, "{}", serde_json::to_string(&r).unwrap()).unwrap();
                 }
             }

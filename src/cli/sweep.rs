@@ -107,16 +107,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         for case in &picked {
             for &seed in &args.seeds {
                 let fit = fit_case(case, n, seed, evaluator.as_mut())?;
-                eprintln!(
-                    "{:48} N {n:>7} seed {seed}: ratio {:.3} {} p {}/{} agree {} ({:.1} s)",
-                    fit.name,
-                    fit.ratio,
-                    if fit.passes { "pass" } else { "FAIL" },
-                    fit.tries.iter().filter(|&&t| t).count(),
-                    fit.tries.len(),
-                    fit.agreeing,
-                    fit.seconds
-                );
+                eprintln!("{fit}");
                 fits.push(fit);
             }
         }

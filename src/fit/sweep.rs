@@ -77,6 +77,25 @@ pub struct CaseFit {
     pub seconds: f64,
 }
 
+impl std::fmt::Display for CaseFit {
+    /// One line on the fit, as a sweep reports its progress.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{:48} N {:>7} seed {}: ratio {:.3} {} p {}/{} agree {} ({:.1} s)",
+            self.name,
+            self.n,
+            self.seed,
+            self.ratio,
+            if self.passes { "pass" } else { "FAIL" },
+            self.tries.iter().filter(|&&t| t).count(),
+            self.tries.len(),
+            self.agreeing,
+            self.seconds
+        )
+    }
+}
+
 /// Fits `case` with `fit`'s defaults at population `n` and `seed` on
 /// `evaluator`, and judges the fit and each of its tries.
 pub fn fit_case(
@@ -274,6 +293,13 @@ mod tests {
             fit(1000, 1, true, vec![true, false, true, true], 3),
             fit(1000, 1, false, vec![false, false, true, false], 1),
         ];
+        assert!(
+            fits[2]
+                .to_string()
+                .ends_with("N    1000 seed 1: ratio 1.010 pass p 3/4 agree 3 (1.0 s)"),
+            "{}",
+            fits[2]
+        );
         let rows = summarize(&fits);
         assert_eq!(rows.len(), 2);
         let (small, large) = (&rows[0], &rows[1]);
