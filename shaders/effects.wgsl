@@ -474,9 +474,10 @@ fn load_step(c: LoadConsts, ui: f32, at: At) -> f32 {
 
 // ---- stages/softening.rs ---------------------------------------------------
 
-// `largest_so_far`: the largest input so far (after the stages before),
-// from the first step on, given the one of the sample before. (By value:
-// naga's SPIR-V writer fails on a pointer to a state's field.)
+// `largest_so_far`: the largest `v` so far (the input after the stages
+// before, or the set's displacement toward the drive), from the first step
+// on, given the one of the sample before. (By value: naga's SPIR-V writer
+// fails on a pointer to a state's field.)
 fn largest_so_far(peak: f32, v: f32, at: At) -> f32 {
     var prev = v;
     if (at.started) {
@@ -556,15 +557,22 @@ fn cyclic_softening_restart(s: ptr<private, CyclicSofteningState>, y: f32, x: f3
 
 // ---- stages/set.rs ---------------------------------------------------------
 
-// `Set`: the output moves by c·(p̂ − p), p̂ the largest input so far.
-alias SetConsts = SetParams;
+// `Set`: the output moves by share·(x̂ − x) toward the drive, x̂ the muscle's
+// largest displacement toward its drive so far.
+struct SetConsts {
+    // toward · share (times ±1: exact), and toward.
+    share: f32,
+    toward: f32,
+}
 
 fn set_prepare(q: SetParams, frame: Frame) -> SetConsts {
-    return q;
+    let toward = select(-1.0, 1.0, frame.drives_up);
+    return SetConsts(toward * q.share, toward);
 }
 
 struct SetState {
-    // The largest input so far, and the offset it adds to the output.
+    // The largest displacement toward the drive so far (toward · x), and
+    // the offset it adds to the output.
     peak: f32,
     offset: f32,
 }
@@ -574,8 +582,9 @@ fn set_start(c: SetConsts, x: f32, u0: f32) -> SetState {
 }
 
 fn set_step(c: SetConsts, s: ptr<private, SetState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
-    (*s).peak = largest_so_far((*s).peak, ui, at);
-    (*s).offset = rounded(c.c * ((*s).peak - ui));
+    let reach = c.toward * xk;
+    (*s).peak = largest_so_far((*s).peak, reach, at);
+    (*s).offset = rounded(c.share * ((*s).peak - reach));
     return y + (*s).offset;
 }
 

@@ -98,7 +98,7 @@ fn along(nominal: &Nominal, e: Effect, t: f64) -> Vec<f64> {
         Effect::Load => vec![0.5 * t],
         Effect::Softening => vec![1.0 / ru * t],
         // A set away from the drive, as a hanging load's lengthening is.
-        Effect::Set => vec![toward * ry / ru * t],
+        Effect::Set => vec![-t],
         other => unreachable!("the catalogue check plants physical effects only, not {other}"),
     }
 }

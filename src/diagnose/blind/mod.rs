@@ -75,22 +75,21 @@ pub fn not_comparable(r: Mechanism) -> Option<&'static str> {
         MullinsSoftening | CyclicSoftening => {
             Some("a saturating growth has no single counterpart in the catalogue's gain")
         }
-        PermanentSet | Ratchet => {
-            Some("an offset on the output is not the catalogue's offset on the input")
-        }
+        Ratchet => Some("a walk that slows down has no single counterpart in a steady walk"),
         _ => None,
     }
 }
 
 /// Where a case sits, for reading the catalogue's absolute levels as sizes:
 /// the nominal output's peak on the case's excitation (absolute), on the
-/// side the input drives it to, whether that side is up, and the
-/// excitation's lowest input.
+/// side the input drives it to, whether that side is up, the excitation's
+/// lowest input, and the nominal output's range on it.
 #[derive(Debug, Clone, Copy)]
 pub struct Frame {
     pub peak: f64,
     pub up: bool,
     pub p_lo: f64,
+    pub range: f64,
 }
 
 /// The realisation's size implied by the catalogue's fitted parameters of
@@ -103,7 +102,9 @@ pub struct Frame {
 /// `p_lo + max(p − p_lo − s, 0)` with `p0 = p_lo + s` (the offset `p_lo`
 /// goes into the intercept), so its size is `p0 − p_lo`. A first-order lag
 /// of pole `ρ` delays by `ρ/(1 − ρ)` samples, as a time constant does in
-/// samples; the drain lag's size is that of its slow branch.
+/// samples; the drain lag's size is that of its slow branch. The
+/// catalogue's set keeps a share of the way back toward the drive, the
+/// generator's a share `s/range` away from it: its size is `−share·range`.
 pub fn found_size(r: Mechanism, e: Effect, params: &[f64], at: Frame) -> Option<f64> {
     use Mechanism::*;
     if not_comparable(r).is_some() {
@@ -132,6 +133,7 @@ pub fn found_size(r: Mechanism, e: Effect, params: &[f64], at: Frame) -> Option<
         (ViscousRate, Effect::Rate) => Some(params[0]),
         (Play, Effect::Backlash) => Some(params[0]),
         (LoadGain, Effect::Load) => Some(params[0]),
+        (PermanentSet, Effect::Set) => Some(-params[0] * at.range),
         _ => None,
     }
 }
@@ -145,8 +147,9 @@ pub struct Setup {
     /// Noise σ on each excitation (0.5 % of its nominal output range).
     pub sigmas: Vec<f64>,
     /// The nominal output's peak on each excitation (absolute), on the side
-    /// the input drives it to.
+    /// the input drives it to, and its range there.
     pub peaks: Vec<f64>,
+    pub ranges: Vec<f64>,
 }
 
 impl Setup {
@@ -187,23 +190,24 @@ impl Setup {
             .iter()
             .map(|e| generator::noise_sigma(&plant, e))
             .collect();
-        let peaks = excitations
+        let (peaks, ranges) = excitations
             .iter()
             .map(|e| {
                 let y = generator::simulate(&plant, e, &[], 0);
-                let f = if plant.drives_up() {
-                    f64::max
-                } else {
-                    f64::min
-                };
-                y.into_iter().reduce(f).unwrap_or(0.0)
+                let (lo, hi) = y
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                        (a.min(v), b.max(v))
+                    });
+                (if plant.drives_up() { hi } else { lo }, hi - lo)
             })
-            .collect();
+            .unzip();
         Ok(Setup {
             plant,
             excitations,
             sigmas,
             peaks,
+            ranges,
         })
     }
 }
@@ -571,6 +575,7 @@ fn size_check(
         peak: setup.peaks[case.excitation],
         up: setup.plant.drives_up(),
         p_lo: exc.input.iter().copied().fold(f64::INFINITY, f64::min),
+        range: setup.ranges[case.excitation],
     };
     let params = &sel.final_fit.params[offset..];
     let Some(f) = found_size(r, e, params, frame) else {

@@ -177,26 +177,26 @@ catalogue! {
             },
             ..PLAIN
         },
-        /// Permanent set: the output moves by `c·(p̂ − p)`, `p̂` the largest
-        /// input so far: at `p̂` the muscle is where it was when first driven
-        /// there, below it it keeps an offset, which at rest grows with
-        /// every new largest input and never shrinks (as Dorfmann and
-        /// Ogden's set grows with the largest strain).
+        /// Permanent set: the output moves by `share·(x̂ − x)` toward the
+        /// drive, `x̂` the muscle's largest displacement toward its drive so
+        /// far: at `x̂` the muscle is where it was when first driven there,
+        /// short of it it keeps that share of the way back, an offset that
+        /// at rest grows with every new largest displacement and never
+        /// shrinks (as Dorfmann and Ogden's set grows with the largest
+        /// strain).
         Set => Realisation {
             name: "set",
             physical: None,
-            realisation: "grows with the largest input so far",
-            signature: "the rest level moves for good after the largest input so far and stays there",
+            realisation: "grows with the largest displacement so far",
+            signature: "the rest level moves for good after the largest displacement so far and stays there",
             params: Params::Fixed(&[(
-                "c",
-                "output kept per input unit below the largest input so far (output per input unit)",
+                "share",
+                "share of the way back from the largest displacement so far that the muscle keeps (positive: toward the drive)",
             )]),
             primary: 0,
-            // At most a set as large as the output's range.
-            bounds: |ctx, _| {
-                let g = ctx.output_range() / ctx.input_range();
-                EffectBox::new(vec![0.0], vec![-g], vec![g])
-            },
+            // Either way, at most the whole way back: at 1 the output would
+            // stay at the largest displacement.
+            bounds: |_, _| EffectBox::new(vec![0.0], vec![-1.0], vec![1.0]),
             ..PLAIN
         },
     }

@@ -625,6 +625,12 @@ mod tests {
     /// move where the effect moves the input, read back at the sample it
     /// moved, and the output's one sample later where it moves the output.
     fn moved_input(levels: &[f64], effect: Effect, params: &[f32]) -> Vec<f64> {
+        moved_output(levels, 1.0, effect, params)
+    }
+
+    /// The same for a muscle of gain `gain` (`x(k) = gain·u(k−1)`), whose
+    /// displacement is not its input.
+    fn moved_output(levels: &[f64], gain: f32, effect: Effect, params: &[f32]) -> Vec<f64> {
         let mut p = vec![0.0; 10];
         for &level in levels {
             p.extend([level; 20]);
@@ -635,9 +641,9 @@ mod tests {
         let exp = Experiment::with_means_of(&trace, 0..p.len());
         let ctx = Context::of(&exp, true);
         let plain = ModelDescription::new(Family::Linear, vec![], 1);
-        let reference = plain.simulate(&[0.0, 1.0, 0.0, 0.0], 0, &ctx, &exp);
+        let reference = plain.simulate(&[0.0, gain, 0.0, 0.0], 0, &ctx, &exp);
         let model = plain.with(effect);
-        let mut theta = vec![0.0f32, 1.0, 0.0, 0.0];
+        let mut theta = vec![0.0f32, gain, 0.0, 0.0];
         theta.extend_from_slice(params);
         let got = model.simulate(&theta, 0, &ctx, &exp);
         (0..p.len() - 1)
@@ -681,19 +687,22 @@ mod tests {
     }
 
     #[test]
-    fn a_permanent_set_grows_with_each_new_largest_input_and_never_shrinks() {
-        let c = -0.3;
-        let moved = moved_input(&[0.5, 1.0, 0.5], Effect::Set, &[c]);
+    fn a_permanent_set_grows_with_each_new_largest_displacement_and_never_shrinks() {
+        // A muscle of gain 2: the set follows its displacement, twice the
+        // input.
+        let (share, gain) = (-0.3, 2.0);
+        let moved = moved_output(&[0.5, 1.0, 0.5], gain, Effect::Set, &[share]);
         let mut rests = Vec::new();
         for (i, (level, peak)) in [(0.5, 0.5), (1.0, 1.0), (0.5, 1.0)].into_iter().enumerate() {
             let (pulse, rest) = at_pulse(&moved, i);
+            let g = gain as f64;
             assert!(
-                (pulse - c as f64 * (peak - level)).abs() < 1e-5,
-                "pulse {i}"
+                (pulse - share as f64 * g * (peak - level)).abs() < 1e-5,
+                "pulse {i}: {pulse}"
             );
             assert!(
-                (rest - c as f64 * peak).abs() < 1e-5,
-                "rest after pulse {i}"
+                (rest - share as f64 * g * peak).abs() < 1e-5,
+                "rest after pulse {i}: {rest}"
             );
             rests.push(rest);
         }

@@ -1,29 +1,37 @@
 //! The permanent set's realisations: an offset the muscle keeps after it
-//! has been driven, growing with the largest input so far, or walking with
-//! every loading (a ratchet). Both add to the output, as a length the
-//! muscle keeps does (an offset on the input would pass through the
-//! muscle's own gain, which is small near rest, where a set shows), and
-//! both are driven by the input, which the model cannot feed back into.
+//! has been driven, growing with the largest displacement so far, or
+//! walking with every loading (a ratchet). Both add to the output, as a
+//! length the muscle keeps does (an offset on the input would pass through
+//! the muscle's own gain, which is small near rest, where a set shows), and
+//! neither feeds back into the muscle's state: the set reads the state and
+//! the ratchet counts the input's loadings, so neither can run away.
 
 use super::super::stage::{At, Columns, Frame, OutputLoop, Stage};
 use super::Branch;
 use super::softening::largest_so_far;
 
-/// Permanent set: the output moves by `c·(p̂ − p)`, `p̂` the largest input
-/// so far. At `p̂` the muscle is where it was when first driven there;
-/// below it, it keeps an offset that grows with every new largest input
-/// and never shrinks.
+/// Permanent set: the output moves by `share·(x̂ − x)` toward the drive,
+/// `x̂` the muscle's largest displacement toward its drive so far (as
+/// Dorfmann and Ogden's set grows with the largest strain). At `x̂` the
+/// muscle is where it was when first driven there; short of it, it keeps
+/// that share of the way back, an offset that at rest grows with every new
+/// largest displacement and never shrinks. Driven by the muscle's own state, not
+/// by the input: the displacement a pressure reaches grows less than the
+/// pressure does, and the offset builds as the muscle returns, not when
+/// the valve closes.
 #[derive(Debug)]
 pub struct Set;
 
 impl<const L: usize> Stage<L> for Set {
-    /// `c` (output per input unit).
-    type Consts = [f32; L];
-    /// The largest input so far, and the offset it adds to the output.
+    /// `toward · share`, and `toward`.
+    type Consts = ([f32; L], f32);
+    /// The largest displacement toward the drive so far (`toward · x`), and
+    /// the offset it adds to the output.
     type State = [[f32; L]; 2];
 
-    fn prepare(p: &Columns<'_, L>, _: &Frame) -> Self::Consts {
-        p.get(0)
+    fn prepare(p: &Columns<'_, L>, frame: &Frame) -> Self::Consts {
+        // Times ±1: exact, so the share keeps its bits.
+        (p.get(0).map(|c| frame.toward * c), frame.toward)
     }
 
     fn start(_: Option<&Self::Consts>, _: &[f32; L], _: f32) -> Self::State {
@@ -39,16 +47,17 @@ impl<const L: usize> Stage<L> for Set {
 impl<const L: usize> OutputLoop<L> for Set {
     #[inline(always)]
     fn apply(
-        c: &[f32; L],
+        (share, toward): &Self::Consts,
         [peak, offset]: &mut Self::State,
         y: &mut [f32; L],
-        ui: &[f32; L],
         _: &[f32; L],
+        xk: &[f32; L],
         at: &At<'_, L>,
     ) {
         for l in 0..L {
-            let top = largest_so_far(peak, l, ui[l], at);
-            offset[l] = c[l] * (top - ui[l]);
+            let reach = toward * xk[l];
+            let top = largest_so_far(peak, l, reach, at);
+            offset[l] = share[l] * (top - reach);
             y[l] += offset[l];
         }
     }

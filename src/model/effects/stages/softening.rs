@@ -7,9 +7,9 @@
 use super::super::stage::{At, Columns, Frame, InputLoop, Stage, larger};
 use super::Branch;
 
-/// The largest input the muscle has seen so far (the input after the
-/// stages before it), per lane, from the first step on: shared by the
-/// Mullins-type softening and the permanent set.
+/// The largest `v` so far, per lane, from the first step on: the input
+/// the muscle has seen (after the stages before it) for the Mullins-type
+/// softening, the displacement toward the drive for the permanent set.
 #[inline(always)]
 pub(super) fn largest_so_far<const L: usize>(
     peak: &mut [f32; L],
