@@ -15,10 +15,10 @@ use super::softening::largest_so_far;
 /// Dorfmann and Ogden's set grows with the largest strain). At `x̂` the
 /// muscle is where it was when first driven there; short of it, it keeps
 /// that share of the way back, an offset that at rest grows with every new
-/// largest displacement and never shrinks. Driven by the muscle's own state, not
-/// by the input: the displacement a pressure reaches grows less than the
-/// pressure does, and the offset builds as the muscle returns, not when
-/// the valve closes.
+/// largest displacement and never shrinks. Driven by the muscle's own
+/// state, not by the input: the displacement a pressure reaches grows less
+/// than the pressure does, and the offset builds as the muscle returns,
+/// not when the valve closes.
 #[derive(Debug)]
 pub struct Set;
 
