@@ -105,7 +105,10 @@ pub struct Args {
     /// as `fit` and `fit --effects CHAIN` fit them, and scored on its second
     /// half, which no choice of the diagnosis saw. The report (TRANSFER) says
     /// how much of the baseline's gap the chain closes on each: whether the
-    /// effects belong to the muscle or to one recording.
+    /// effects belong to the muscle or to one recording. Where the chain
+    /// falls below the plain fit (COLLAPSES), its leading links are fitted
+    /// alone, one link fewer at a time, and the report names the first link
+    /// that does not carry over.
     #[arg(long, value_name = "OTHER", num_args = 1.., conflicts_with = "self_test")]
     transfer: Vec<PathBuf>,
     /// Where the searches score their populations: `cpu` (the batched,

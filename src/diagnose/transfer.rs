@@ -5,6 +5,8 @@
 //! the diagnosis' seed), and scored on that record's second half. No choice
 //! of the diagnosis saw that record, so the share of the baseline's gap the
 //! chain closes there is the tool's own check that an effect carries over.
+//! Where the chain collapses, its leading links are fitted alone, one link
+//! fewer at a time, to name the first link that does not.
 //!
 //! Why a refit and not the diagnosed model itself: another record of the
 //! same muscle differs in its load, its history and its offsets, and a user
@@ -46,6 +48,40 @@ pub struct Transfer {
     /// Whether the chain collapses there: it validates below the plain
     /// baseline, or its fit has no finite score at all.
     pub collapses: bool,
+    /// Where it collapses, the longest leading part of the chain that does
+    /// not: the links before the one that holds the diagnosed recording.
+    /// `None` where the chain holds, or where even its first link
+    /// collapses.
+    pub carries: Option<Carried>,
+}
+
+/// The leading links of a chain that carry over to a record, and their fit
+/// % on its second half.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Carried {
+    pub effects: Vec<Effect>,
+    pub val_fit_percent: f64,
+}
+
+/// The longest proper leading part of `chain` whose fit % (`score`) does
+/// not collapse against the plain baseline's `baseline_fit_percent`,
+/// shortest last: a chain that collapses is cut one link at a time from
+/// its end, as the diagnosis added them, until what is left holds.
+pub fn longest_carried(
+    chain: &[Effect],
+    baseline_fit_percent: f64,
+    mut score: impl FnMut(&[Effect]) -> anyhow::Result<f64>,
+) -> anyhow::Result<Option<Carried>> {
+    for len in (1..chain.len()).rev() {
+        let fit_percent = score(&chain[..len])?;
+        if !collapses(fit_percent, baseline_fit_percent) {
+            return Ok(Some(Carried {
+                effects: chain[..len].to_vec(),
+                val_fit_percent: fit_percent,
+            }));
+        }
+    }
+    Ok(None)
 }
 
 /// Whether a chain that validates at `chain_fit_percent` on a record
@@ -87,6 +123,14 @@ pub fn transfer(
             };
             let second = halves(trace.len()).1;
             let floor = noise_floor(&[&trace.output[second]]);
+            let collapsed = collapses(fitted.fit_percent, baseline.fit_percent);
+            let carries = if collapsed {
+                longest_carried(&chain, baseline.fit_percent, |links| {
+                    Ok(fit_and_score(trace, d.family, links, settings)?.fit_percent)
+                })?
+            } else {
+                None
+            };
             Ok(Transfer {
                 dataset: trace.source.clone(),
                 chain: chain.clone(),
@@ -96,7 +140,8 @@ pub fn transfer(
                 chain_val_fit_percent: fitted.fit_percent,
                 noise_floor_rmse: floor,
                 gap_closed: gap_closed(baseline.rmse, fitted.rmse, floor),
-                collapses: collapses(fitted.fit_percent, baseline.fit_percent),
+                collapses: collapsed,
+                carries,
             })
         })
         .collect()
@@ -151,7 +196,29 @@ pub(crate) fn run_stoppable(fit: FitRun, settings: &Settings) -> anyhow::Result<
 
 #[cfg(test)]
 mod tests {
-    use super::collapses;
+    use super::{Effect, collapses, longest_carried};
+
+    #[test]
+    fn a_collapsing_chain_is_cut_from_its_end_until_what_is_left_holds() {
+        let chain = [Effect::Creep, Effect::Inertia, Effect::Set];
+        // Only the first link holds on this record (plain fit 60 %).
+        let mut tried = Vec::new();
+        let carried = longest_carried(&chain, 60.0, |links| {
+            tried.push(links.len());
+            Ok(if links.len() == 1 { 75.0 } else { 10.0 })
+        })
+        .unwrap()
+        .unwrap();
+        assert_eq!(carried.effects, [Effect::Creep]);
+        assert_eq!(carried.val_fit_percent, 75.0);
+        // The longest part first, and the whole chain never again.
+        assert_eq!(tried, [2, 1]);
+        // Where even the first link collapses, nothing carries over.
+        assert_eq!(
+            longest_carried(&chain, 60.0, |_| Ok(f64::NAN)).unwrap(),
+            None
+        );
+    }
 
     #[test]
     fn a_chain_below_the_plain_fit_or_without_a_score_collapses() {

@@ -8,7 +8,8 @@ use crate::diagnose::explainable::Signature;
 use crate::diagnose::locate::Share;
 use crate::diagnose::refits::Finding;
 use crate::diagnose::spectrum::Peak;
-use crate::diagnose::{Diagnosis, Step};
+use crate::diagnose::transfer::Transfer;
+use crate::diagnose::{Diagnosis, Effect, Step};
 use crate::model::experiment::Parts;
 
 fn pct(v: f64) -> String {
@@ -500,6 +501,31 @@ fn explainable_text(o: &mut String, d: &Diagnosis) {
     );
 }
 
+/// Which leading links of a chain that collapses on a record carry over
+/// there, and the first that does not.
+fn carried_text(t: &Transfer) -> String {
+    let names = |effects: &[Effect]| {
+        effects
+            .iter()
+            .map(|e| e.name())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match &t.carries {
+        Some(c) => format!(
+            "{} carr{} over ({:.1} %); {} does not",
+            names(&c.effects),
+            if c.effects.len() == 1 { "ies" } else { "y" },
+            c.val_fit_percent,
+            t.chain[c.effects.len()].name()
+        ),
+        None => format!(
+            "not even its first link ({}) carries over",
+            t.chain.first().map_or("none", |e| e.name())
+        ),
+    }
+}
+
 /// The chain on other records (`--transfer`).
 fn transfer_text(o: &mut String, d: &Diagnosis) {
     let Some(first) = d.transfers.first() else {
@@ -538,6 +564,9 @@ fn transfer_text(o: &mut String, d: &Diagnosis) {
             t.chain_val_fit_percent,
             pct(t.gap_closed)
         );
+        if t.collapses {
+            let _ = writeln!(o, "  {:<width$}  {}", "", carried_text(t));
+        }
     }
     if d.transfers.iter().any(|t| t.collapses) {
         let _ = writeln!(
