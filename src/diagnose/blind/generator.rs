@@ -232,7 +232,8 @@ impl Excitation {
     }
 }
 
-fn extremes(v: &[f64]) -> (f64, f64) {
+/// The smallest and the largest value of `v`.
+pub(super) fn extremes(v: &[f64]) -> (f64, f64) {
     v.iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
             (a.min(x), b.max(x))

@@ -165,12 +165,7 @@ impl Setup {
         let w = &nominal.data.records.whole[0];
         let trace = &nominal.trace;
         let plant = Plant::classic(&nominal.params, w.u_mean, w.y_mean, trace.dt());
-        let (lo, hi) = trace
-            .input
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-                (a.min(x), b.max(x))
-            });
+        let (lo, hi) = generator::extremes(&trace.input);
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let (len, dt) = (trace.len(), trace.dt());
         let excitations = vec![
@@ -193,12 +188,7 @@ impl Setup {
         let (peaks, ranges) = excitations
             .iter()
             .map(|e| {
-                let y = generator::simulate(&plant, e, &[], 0);
-                let (lo, hi) = y
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                        (a.min(v), b.max(v))
-                    });
+                let (lo, hi) = generator::extremes(&generator::simulate(&plant, e, &[], 0));
                 (if plant.drives_up() { hi } else { lo }, hi - lo)
             })
             .unzip();
