@@ -10,7 +10,7 @@
 use super::Realisation;
 // What the step order's `stages!` names.
 use super::stage::{
-    At, Columns, Frame, InputLoop, Lane, OutputLoop, Placed, Side, Stage, StateLoop, stages,
+    At, Columns, Frame, InputLoop, Lane, OutputLoop, Placed, Side, Slot, Stage, StateLoop, stages,
 };
 use super::stages::*;
 use super::table::{EffectBox, Params, StartHint, catalogue};

@@ -73,6 +73,77 @@ impl<const L: usize> Columns<'_, L> {
     }
 }
 
+/// Constants that can be all zeros: what a realisation the model lacks
+/// holds ([`Slot`]).
+pub trait Zeroed {
+    fn zeroed() -> Self;
+}
+
+impl Zeroed for f32 {
+    fn zeroed() -> Self {
+        0.0
+    }
+}
+
+impl Zeroed for i32 {
+    fn zeroed() -> Self {
+        0
+    }
+}
+
+impl<T: Zeroed, const N: usize> Zeroed for [T; N] {
+    fn zeroed() -> Self {
+        std::array::from_fn(|_| T::zeroed())
+    }
+}
+
+impl<A: Zeroed, B: Zeroed> Zeroed for (A, B) {
+    fn zeroed() -> Self {
+        (A::zeroed(), B::zeroed())
+    }
+}
+
+impl<A: Zeroed, B: Zeroed, C: Zeroed> Zeroed for (A, B, C) {
+    fn zeroed() -> Self {
+        (A::zeroed(), B::zeroed(), C::zeroed())
+    }
+}
+
+/// One realisation's constants and whether the model has it. Where it does
+/// not, they are zeros, not left unset as an `Option`'s `None` leaves its
+/// payload: the compiler may compute a stage's terms before it tests
+/// whether the stage is on (they are cheap and their result is dropped),
+/// and stack memory that happens to read as a subnormal float makes each
+/// of those operations take a microcode assist. Measured on a build whose
+/// unset constants did: every free run took twice as long
+/// (docs/PERFORMANCE.md, "Absent stages hold zeros").
+#[derive(Debug, Clone)]
+pub struct Slot<C> {
+    on: bool,
+    consts: C,
+}
+
+impl<C: Zeroed> Slot<C> {
+    /// A realisation the model lacks.
+    pub fn off() -> Self {
+        Slot {
+            on: false,
+            consts: C::zeroed(),
+        }
+    }
+
+    /// A realisation the model has, with its constants.
+    pub fn on(consts: C) -> Self {
+        Slot { on: true, consts }
+    }
+
+    /// Its constants, where the model has it.
+    #[inline(always)]
+    pub fn get(&self) -> Option<&C> {
+        if self.on { Some(&self.consts) } else { None }
+    }
+}
+
 /// What a stage may read of the sample being stepped, `k ≥ 1`.
 pub struct At<'a, const L: usize> {
     /// The whole input (deviation coordinates) and the sample.
@@ -97,7 +168,7 @@ pub struct At<'a, const L: usize> {
 /// order says where, and the compiler checks that it is the stage's kind.
 pub trait Stage<const L: usize> {
     /// What the step needs of its parameters, derived once per candidate.
-    type Consts: Clone + std::fmt::Debug;
+    type Consts: Clone + std::fmt::Debug + Zeroed;
     /// The states it carries from sample to sample (`()` for none): whole
     /// lane arrays, or a type aligned to a cache line, so that every lane
     /// array of the effect state starts on one (docs/PERFORMANCE.md,
@@ -214,7 +285,7 @@ pub fn smaller(a: f32, b: f32) -> f32 {
 /// The step order: every realisation once, by the name of its variant
 /// (which is its stage's type), in the slot of the step it runs in and in
 /// the order it runs there. Generates `Stages<L>` (each realisation's
-/// constants, `None` where the model lacks it), `States<L>` (each one's
+/// constants in a [`Slot`], off where the model lacks it), `States<L>` (each one's
 /// states, in this order), and on `Stages` `prepare`, `start`, the sides
 /// of the step (`input`, `state_before`, `state_lane`, `state_after`,
 /// `state`, `output`) and `restart` (the terms in this order), and
@@ -230,18 +301,18 @@ macro_rules! stages {
         state: $($state:ident),* ;
         output: $($output:ident),* ;
     ) => {
-        /// Each realisation's constants for `L` candidates, `None` where
-        /// the model lacks it. (Fields are named by the variants, which the
+        /// Each realisation's constants for `L` candidates, off where the
+        /// model lacks it. (Fields are named by the variants, which the
         /// stages' types are named by.)
         #[allow(non_snake_case)]
         #[derive(Debug, Clone)]
         pub struct Stages<const L: usize> {
-            $( $input: Option<<$input as Stage<L>>::Consts>, )*
-            $( $input_lane: Option<<$input_lane as Stage<L>>::Consts>, )*
-            $( $input_late: Option<<$input_late as Stage<L>>::Consts>, )*
-            $( $state_lane: Option<<$state_lane as Stage<L>>::Consts>, )*
-            $( $state: Option<<$state as Stage<L>>::Consts>, )*
-            $( $output: Option<<$output as Stage<L>>::Consts>, )*
+            $( $input: Slot<<$input as Stage<L>>::Consts>, )*
+            $( $input_lane: Slot<<$input_lane as Stage<L>>::Consts>, )*
+            $( $input_late: Slot<<$input_late as Stage<L>>::Consts>, )*
+            $( $state_lane: Slot<<$state_lane as Stage<L>>::Consts>, )*
+            $( $state: Slot<<$state as Stage<L>>::Consts>, )*
+            $( $output: Slot<<$output as Stage<L>>::Consts>, )*
         }
 
         /// Each realisation's states, in the step's order (`repr(C)`: see
@@ -284,24 +355,24 @@ macro_rules! stages {
             /// No realisation.
             pub fn none() -> Self {
                 Stages {
-                    $( $input: None, )*
-                    $( $input_lane: None, )*
-                    $( $input_late: None, )*
-                    $( $state_lane: None, )*
-                    $( $state: None, )*
-                    $( $output: None, )*
+                    $( $input: Slot::off(), )*
+                    $( $input_lane: Slot::off(), )*
+                    $( $input_late: Slot::off(), )*
+                    $( $state_lane: Slot::off(), )*
+                    $( $state: Slot::off(), )*
+                    $( $output: Slot::off(), )*
                 }
             }
 
             /// Adds realisation `e` with its parameters `p`.
             pub fn prepare(&mut self, e: Effect, p: &Columns<'_, L>, frame: &Frame) {
                 match e {
-                    $( Effect::$input => self.$input = Some(<$input as Stage<L>>::prepare(p, frame)), )*
-                    $( Effect::$input_lane => self.$input_lane = Some(<$input_lane as Stage<L>>::prepare(p, frame)), )*
-                    $( Effect::$input_late => self.$input_late = Some(<$input_late as Stage<L>>::prepare(p, frame)), )*
-                    $( Effect::$state_lane => self.$state_lane = Some(<$state_lane as Stage<L>>::prepare(p, frame)), )*
-                    $( Effect::$state => self.$state = Some(<$state as Stage<L>>::prepare(p, frame)), )*
-                    $( Effect::$output => self.$output = Some(<$output as Stage<L>>::prepare(p, frame)), )*
+                    $( Effect::$input => self.$input = Slot::on(<$input as Stage<L>>::prepare(p, frame)), )*
+                    $( Effect::$input_lane => self.$input_lane = Slot::on(<$input_lane as Stage<L>>::prepare(p, frame)), )*
+                    $( Effect::$input_late => self.$input_late = Slot::on(<$input_late as Stage<L>>::prepare(p, frame)), )*
+                    $( Effect::$state_lane => self.$state_lane = Slot::on(<$state_lane as Stage<L>>::prepare(p, frame)), )*
+                    $( Effect::$state => self.$state = Slot::on(<$state as Stage<L>>::prepare(p, frame)), )*
+                    $( Effect::$output => self.$output = Slot::on(<$output as Stage<L>>::prepare(p, frame)), )*
                 }
             }
 
@@ -309,35 +380,35 @@ macro_rules! stages {
             #[inline(always)]
             pub fn start(&self, x: &[f32; L], u0: f32) -> States<L> {
                 States {
-                    $( $input: <$input as Stage<L>>::start(self.$input.as_ref(), x, u0), )*
-                    $( $input_lane: <$input_lane as Stage<L>>::start(self.$input_lane.as_ref(), x, u0), )*
-                    $( $input_late: <$input_late as Stage<L>>::start(self.$input_late.as_ref(), x, u0), )*
-                    $( $state_lane: <$state_lane as Stage<L>>::start(self.$state_lane.as_ref(), x, u0), )*
-                    $( $state: <$state as Stage<L>>::start(self.$state.as_ref(), x, u0), )*
-                    $( $output: <$output as Stage<L>>::start(self.$output.as_ref(), x, u0), )*
+                    $( $input: <$input as Stage<L>>::start(self.$input.get(), x, u0), )*
+                    $( $input_lane: <$input_lane as Stage<L>>::start(self.$input_lane.get(), x, u0), )*
+                    $( $input_late: <$input_late as Stage<L>>::start(self.$input_late.get(), x, u0), )*
+                    $( $state_lane: <$state_lane as Stage<L>>::start(self.$state_lane.get(), x, u0), )*
+                    $( $state: <$state as Stage<L>>::start(self.$state.get(), x, u0), )*
+                    $( $output: <$output as Stage<L>>::start(self.$output.get(), x, u0), )*
                 }
             }
 
             /// The input side: its loops, the shared loop, its late loops.
             #[inline(always)]
             pub fn input(&self, s: &mut States<L>, ui: &mut [f32; L], at: &At<'_, L>) {
-                $( if let Some(c) = &self.$input {
+                $( if let Some(c) = self.$input.get() {
                     <$input as InputLoop<L>>::apply(c, &mut s.$input, ui, at);
                 } )*
-                $( if let Some(c) = &self.$input_lane {
+                $( if let Some(c) = self.$input_lane.get() {
                     <$input_lane as Lane<L>>::before(c, &mut s.$input_lane, at);
                 } )*
                 for l in 0..L {
                     let mut v = ui[l];
-                    $( if let Some(c) = &self.$input_lane {
+                    $( if let Some(c) = self.$input_lane.get() {
                         v = <$input_lane as Lane<L>>::lane(c, &mut s.$input_lane, l, v, at);
                     } )*
                     ui[l] = v;
                 }
-                $( if let Some(c) = &self.$input_lane {
+                $( if let Some(c) = self.$input_lane.get() {
                     <$input_lane as Lane<L>>::after(c, &mut s.$input_lane, at);
                 } )*
-                $( if let Some(c) = &self.$input_late {
+                $( if let Some(c) = self.$input_late.get() {
                     <$input_late as InputLoop<L>>::apply(c, &mut s.$input_late, ui, at);
                 } )*
             }
@@ -346,7 +417,7 @@ macro_rules! stages {
             /// per sample.
             #[inline(always)]
             pub fn state_before(&self, s: &mut States<L>, at: &At<'_, L>) {
-                $( if let Some(c) = &self.$state_lane {
+                $( if let Some(c) = self.$state_lane.get() {
                     <$state_lane as Lane<L>>::before(c, &mut s.$state_lane, at);
                 } )*
             }
@@ -355,7 +426,7 @@ macro_rules! stages {
             /// sample.
             #[inline(always)]
             pub fn state_after(&self, s: &mut States<L>, at: &At<'_, L>) {
-                $( if let Some(c) = &self.$state_lane {
+                $( if let Some(c) = self.$state_lane.get() {
                     <$state_lane as Lane<L>>::after(c, &mut s.$state_lane, at);
                 } )*
             }
@@ -365,7 +436,7 @@ macro_rules! stages {
             #[inline(always)]
             pub fn state_lane(&self, s: &mut States<L>, l: usize, x: f32, at: &At<'_, L>) -> f32 {
                 let mut v = x;
-                $( if let Some(c) = &self.$state_lane {
+                $( if let Some(c) = self.$state_lane.get() {
                     v = <$state_lane as Lane<L>>::lane(c, &mut s.$state_lane, l, v, at);
                 } )*
                 v
@@ -380,7 +451,7 @@ macro_rules! stages {
                 a_eff: &mut [f32; L],
                 at: &At<'_, L>,
             ) {
-                $( if let Some(c) = &self.$state {
+                $( if let Some(c) = self.$state.get() {
                     <$state as StateLoop<L>>::apply(c, &mut s.$state, xk, a_eff, at);
                 } )*
             }
@@ -395,7 +466,7 @@ macro_rules! stages {
                 xk: &[f32; L],
                 at: &At<'_, L>,
             ) {
-                $( if let Some(c) = &self.$output {
+                $( if let Some(c) = self.$output.get() {
                     <$output as OutputLoop<L>>::apply(c, &mut s.$output, y, ui, xk, at);
                 } )*
             }

@@ -8,13 +8,18 @@ use super::super::stage::{At, Columns, Frame, Lane, Stage};
 pub struct Load;
 
 impl<const L: usize> Stage<L> for Load {
-    /// This dataset's `g`; `None` on the reference dataset (which has no
-    /// parameter: a single dataset's load has none at all).
-    type Consts = Option<[f32; L]>;
+    /// This dataset's `g`; zeros on the reference dataset, which has no
+    /// parameter (a single dataset's load has none at all) and is passed
+    /// through (not an `Option`: see [`super::super::stage::Slot`]).
+    type Consts = [f32; L];
     type State = ();
 
     fn prepare(p: &Columns<'_, L>, frame: &Frame) -> Self::Consts {
-        (frame.dataset >= 1).then(|| p.get(frame.dataset - 1))
+        if frame.dataset >= 1 {
+            p.get(frame.dataset - 1)
+        } else {
+            [0.0; L]
+        }
     }
 
     fn start(_: Option<&Self::Consts>, _: &[f32; L], _: f32) {}
@@ -23,10 +28,11 @@ impl<const L: usize> Stage<L> for Load {
 impl<const L: usize> Lane<L> for Load {
     #[inline(always)]
     fn lane(g: &Self::Consts, _: &mut (), l: usize, v: f32, at: &At<'_, L>) -> f32 {
-        match g {
-            // The gain acts on the absolute input, as the asymmetry's does.
-            Some(g) => v + g[l] * (v + at.frame.u_mean),
-            None => v,
+        // The gain acts on the absolute input, as the asymmetry's does.
+        if at.frame.dataset >= 1 {
+            v + g[l] * (v + at.frame.u_mean)
+        } else {
+            v
         }
     }
 }
