@@ -5,7 +5,9 @@
 use std::sync::OnceLock;
 
 use mckibben::data::Trace;
-use mckibben::diagnose::selftest::{Case, MARKS, Nominal, cases, mark, noise_sigma, run_case};
+use mckibben::diagnose::selftest::{
+    Case, MARKS, Nominal, SizeCheck, cases, mark, noise_sigma, run_case,
+};
 use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::presets::thesis_params;
 use mckibben::model::{Family, simulate};
@@ -54,9 +56,11 @@ fn check(name: &str) {
     let case = case_of(nom, name);
     let o = run_case(nom, &case, &Effect::ALL, &fast(), 7).unwrap();
     assert!(o.pass, "{name}: {o:?}");
-    // The planted realisation itself, so that its size was judged.
-    assert!(
-        o.size_error.is_some(),
+    // The planted realisation itself, its size pinned by the data and so
+    // judged against the truth.
+    assert_eq!(
+        o.size_check,
+        SizeCheck::Judged,
         "{name}: its size was not judged: {o:?}"
     );
 }

@@ -29,7 +29,7 @@ use serde::Serialize;
 
 use self::generator::{Excitation, Plant};
 use self::mechanism::{Mechanism, Physical};
-use super::selftest::{MARKS, Nominal};
+use super::selftest::{MARKS, Nominal, SizeCheck, unpinned};
 use super::{Diagnosis, Effect, Settings, diagnose};
 use crate::model::Family;
 
@@ -350,23 +350,6 @@ pub const PAIRS: [(Mechanism, Mechanism); 2] = [
     (Mechanism::DeadZone, Mechanism::CreepTwo),
 ];
 
-/// How a case's size was judged.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-#[serde(rename_all = "kebab-case", tag = "status", content = "why")]
-pub enum SizeCheck {
-    /// Compared with the truth (within 20 % to pass).
-    Judged,
-    /// The catalogue's parameter does not mean the realisation's size.
-    NotComparable(String),
-    /// The data do not pin it: the diagnosis' 95 % profile interval is
-    /// wider than ±20 % or reaches the search box's edge.
-    NotIdentifiable(String),
-    /// No accepted effect was named first, so there is no size to compare.
-    NotNamed,
-    /// A control or a pair.
-    NotApplicable,
-}
-
 /// The outcome of one case.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct BlindOutcome {
@@ -582,20 +565,10 @@ fn size_check(
     });
     ends.sort_by(f64::total_cmp);
     *interval = Some((ends[0], ends[1]));
-    let half = 0.5 * (ends[1] - ends[0]) / f.abs().max(f64::MIN_POSITIVE);
-    // A NaN width (an end that maps to nothing) is not identifiable either.
-    if iv.lo_at_edge || iv.hi_at_edge || half.is_nan() || half > 0.2 {
-        let edge = if iv.lo_at_edge || iv.hi_at_edge {
-            ", reaching the box's edge"
-        } else {
-            ""
-        };
-        return SizeCheck::NotIdentifiable(format!(
-            "95 % interval ±{:.0} %{edge} (truth {truth:.4})",
-            100.0 * half
-        ));
+    match unpinned((ends[0], ends[1]), f, iv.lo_at_edge || iv.hi_at_edge) {
+        Some(why) => SizeCheck::NotIdentifiable(format!("{why} (truth {truth:.4})")),
+        None => SizeCheck::Judged,
     }
-    SizeCheck::Judged
 }
 
 /// Rows (`physical: realisation`, `control`) × columns (the first effect
