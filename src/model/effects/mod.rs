@@ -724,6 +724,21 @@ mod tests {
         }
     }
 
+    /// A realisation the model lacks holds zeros, not unset memory: the
+    /// step may compute with its constants before it tests whether it is
+    /// on (docs/PERFORMANCE.md, "Absent stages hold zeros").
+    #[test]
+    fn a_model_without_a_realisation_holds_zeros_for_it() {
+        let none = format!("{:?}", catalogue::Stages::<2>::none());
+        assert_eq!(
+            none.matches("on: false").count(),
+            Effect::ALL.len(),
+            "{none}"
+        );
+        let rest = none.replace("0.0", "").replace('0', "");
+        assert!(!rest.contains(|c: char| c.is_ascii_digit()), "{none}");
+    }
+
     #[test]
     fn the_physical_effects_are_the_first_realisations_and_every_one_has_one() {
         for e in Effect::PHYSICAL {

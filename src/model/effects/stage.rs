@@ -285,13 +285,13 @@ pub fn smaller(a: f32, b: f32) -> f32 {
 /// The step order: every realisation once, by the name of its variant
 /// (which is its stage's type), in the slot of the step it runs in and in
 /// the order it runs there. Generates `Stages<L>` (each realisation's
-/// constants in a [`Slot`], off where the model lacks it), `States<L>` (each one's
-/// states, in this order), and on `Stages` `prepare`, `start`, the sides
-/// of the step (`input`, `state_before`, `state_lane`, `state_after`,
-/// `state`, `output`) and `restart` (the terms in this order), and
-/// `STEP_ORDER`, the order as data ([`Placed`]), which the GPU's step is
-/// generated from. The types and traits of this file it names must be in
-/// scope where it is used.
+/// constants in a [`Slot`], off where the model lacks it), `States<L>`
+/// (each one's states, in this order), and on `Stages` `prepare`, `start`,
+/// the sides of the step (`input`, `state_before`, `state_lane`,
+/// `state_after`, `state`, `output`) and `restart` (the terms in this
+/// order), and `STEP_ORDER`, the order as data ([`Placed`]), which the
+/// GPU's step is generated from. The types and traits of this file it
+/// names must be in scope where it is used.
 macro_rules! stages {
     (
         input: $($input:ident),* ;
