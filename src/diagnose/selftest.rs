@@ -362,14 +362,6 @@ pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> CaseOutcome {
             size_true = Some(st);
             // The recovered parameters: the diagnosis' final model's.
             let sel = &d.selection;
-            // Where another realisation of the same physical effect stands
-            // in for the planted one, its parameters mean something else.
-            size_check = match named.iter().find(|n| n.physical() == e.physical()) {
-                Some(n) if n != e => {
-                    SizeCheck::NotComparable(format!("{n}'s parameters are not {e}'s"))
-                }
-                _ => SizeCheck::NotNamed,
-            };
             if let Some(at) = sel.final_model.offset_of(*e) {
                 let sf = size_of(nominal, *e, &sel.final_fit.params[at..]);
                 let err = (sf - st).abs() / st.abs();
@@ -394,6 +386,14 @@ pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> CaseOutcome {
                 if size_check == SizeCheck::Judged && err > 0.2 {
                     notes.push(format!("size off by {:.0} %", 100.0 * err));
                 }
+            } else {
+                // Where another realisation of the same physical effect
+                // stands in for the planted one, its parameters mean
+                // something else.
+                size_check = match named.iter().find(|n| n.physical() == e.physical()) {
+                    Some(n) => SizeCheck::NotComparable(format!("{n}'s parameters are not {e}'s")),
+                    None => SizeCheck::NotNamed,
+                };
             }
             if gap < 0.5 {
                 notes.push(format!("closed only {:.0} % of the gap", 100.0 * gap));
