@@ -592,23 +592,35 @@ fn set_restart(s: ptr<private, SetState>, y: f32, x: f32) -> f32 {
     return x - (*s).offset;
 }
 
-// `Ratchet`: the output moves by a + v·n after n ≥ 1 loadings.
+// `Ratchet`: the output moves by a at the first loading, and at the n-th by
+// the step before times 1 − q/n.
 alias RatchetConsts = RatchetParams;
 
 fn ratchet_prepare(q: RatchetParams, frame: Frame) -> RatchetConsts {
     return q;
 }
 
-// `Walk`: the branch, the offset the loadings add to the output, and
-// their number.
+// `Walk`: the branch, the offset the loadings add to the output, the step
+// the last one added, and their number.
 struct RatchetState {
     branch: Branch,
     offset: f32,
+    step: f32,
     count: f32,
 }
 
 fn ratchet_start(c: RatchetConsts, x: f32, u0: f32) -> RatchetState {
-    return RatchetState(Branch(0.0, u0), 0.0, 0.0);
+    return RatchetState(Branch(0.0, u0), 0.0, 0.0, 0.0);
+}
+
+// set.rs `count_reciprocal`: 1/n by a guess from the bits and three Newton
+// steps, no division.
+fn count_reciprocal(n: f32) -> f32 {
+    var y = bitcast<f32>(0x7EF311C3u - bitcast<u32>(n));
+    for (var i = 0; i < 3; i++) {
+        y = y * (2.0 - rounded(n * y));
+    }
+    return y;
 }
 
 fn ratchet_step(c: RatchetConsts, s: ptr<private, RatchetState>, y: f32, ui: f32, xk: f32, at: At) -> f32 {
@@ -617,7 +629,12 @@ fn ratchet_step(c: RatchetConsts, s: ptr<private, RatchetState>, y: f32, ui: f32
     walk.branch = branch_follow(walk.branch, at);
     if (walk.branch.dir > 0.0 && !was_loading) {
         walk.count = walk.count + 1.0;
-        walk.offset = c.a + rounded(c.v * walk.count);
+        if (walk.count == 1.0) {
+            walk.step = c.a;
+        } else {
+            walk.step = rounded(walk.step * (1.0 - rounded(c.q * count_reciprocal(walk.count))));
+        }
+        walk.offset = walk.offset + walk.step;
     }
     *s = walk;
     return y + walk.offset;

@@ -77,7 +77,7 @@ def test_the_softening_and_the_set_fit_as_the_command(stair, cli, tmp_path):
     result = mckibben.fit(stair, pop=40, gens=10, seed=3, effects=chain)
     assert result.effects == expected["effects"] == chain
     assert list(result.params)[9:] == [
-        "softening:cyclic.s", "softening:cyclic.r", "set:ratchet.a", "set:ratchet.v",
+        "softening:cyclic.s", "softening:cyclic.r", "set:ratchet.a", "set:ratchet.q",
     ]
     assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
     result.model.save(tmp_path / "model.json")

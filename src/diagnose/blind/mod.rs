@@ -75,7 +75,6 @@ pub fn not_comparable(r: Mechanism) -> Option<&'static str> {
         MullinsSoftening | CyclicSoftening => {
             Some("a saturating growth has no single counterpart in the catalogue's gain")
         }
-        Ratchet => Some("a walk that slows down has no single counterpart in a steady walk"),
         _ => None,
     }
 }
@@ -105,6 +104,8 @@ pub struct Frame {
 /// samples; the drain lag's size is that of its slow branch. The
 /// catalogue's set keeps a share of the way back toward the drive, the
 /// generator's a share `s/range` away from it: its size is `−share·range`.
+/// The generator's ratchet is sized by its walk after four loadings, away
+/// from the drive: the catalogue's offset after four, its sign turned.
 pub fn found_size(r: Mechanism, e: Effect, params: &[f64], at: Frame) -> Option<f64> {
     use Mechanism::*;
     if not_comparable(r).is_some() {
@@ -134,8 +135,25 @@ pub fn found_size(r: Mechanism, e: Effect, params: &[f64], at: Frame) -> Option<
         (Play, Effect::Backlash) => Some(params[0]),
         (LoadGain, Effect::Load) => Some(params[0]),
         (PermanentSet, Effect::Set) => Some(-params[0] * at.range),
+        (Ratchet, Effect::Ratchet) => {
+            let walk = ratchet_walk(params[0], params[1], 4);
+            Some(if at.up { -walk } else { walk })
+        }
         _ => None,
     }
+}
+
+/// The catalogue ratchet's offset after `loadings` loadings: a first step
+/// `a`, then each the one before times `1 − q/n`.
+fn ratchet_walk(a: f64, q: f64, loadings: u32) -> f64 {
+    let (mut step, mut walk) = (a, 0.0);
+    for n in 1..=loadings {
+        if n > 1 {
+            step *= 1.0 - q / n as f64;
+        }
+        walk += step;
+    }
+    walk
 }
 
 /// The nominal model as the generator's plant, the two excitations and
@@ -650,4 +668,31 @@ pub fn table(outcomes: &[BlindOutcome]) -> String {
         );
     }
     o
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The catalogue's ratchet sized as the generator sizes its own: the
+    /// walk after four loadings, away from the drive.
+    #[test]
+    fn a_ratchet_is_sized_by_its_walk_after_four_loadings() {
+        let at = |up| Frame {
+            peak: 0.0,
+            up,
+            p_lo: 0.0,
+            range: 1.0,
+        };
+        let size =
+            |a, q, up| found_size(Mechanism::Ratchet, Effect::Ratchet, &[a, q], at(up)).unwrap();
+        // A steady walk: four equal steps.
+        assert!((size(-0.5, 0.0, true) - 2.0).abs() < 1e-12);
+        // As the log of the count: 1 + 1/2 + 1/3 + 1/4 of the first step.
+        assert!((size(-1.0, 1.0, true) - 25.0 / 12.0).abs() < 1e-12);
+        // A muscle driven down walks up, away from its drive.
+        assert!((size(1.0, 1.0, false) - 25.0 / 12.0).abs() < 1e-12);
+        // At q = 2 the first step is all.
+        assert!((size(-1.0, 2.0, true) - 1.0).abs() < 1e-12);
+    }
 }

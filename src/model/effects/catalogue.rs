@@ -468,29 +468,32 @@ catalogue! {
             size_text: Some(|p, _| loadings_to_half(p[1])),
             ..PLAIN
         },
-        /// Ratchet: the output moves by `a + v·n` after `n ≥ 1` loadings,
-        /// an offset that walks with every cycle: a step at the first
-        /// loading, then a steady walk. Ratchetting slows after the first
-        /// cycles and settles to a constant rate (Kang et al.), where a
-        /// geometric walk would stop; a power of the count would need a
-        /// `pow`, which the GPU does not round as the CPU does.
+        /// Ratchet: the output moves by `a` at the first loading, and at the
+        /// `n`-th by the step before times `1 − q/n`: an offset that walks
+        /// with every cycle, its steps falling about as `n^−q`. Ratchetting
+        /// slows after the first cycles, to a steady rate or to a stop
+        /// (shakedown): `q = 0` walks steadily, `q = 1` as the log of the
+        /// count, `q > 1` settles, and at `q = 2` the first step is all. A
+        /// product per loading, where the power itself would need a `pow`,
+        /// which the GPU does not round as the CPU does.
         Ratchet => Realisation {
             name: "set:ratchet",
             physical: Some(Effect::Set),
             realisation: "walks with every loading",
             signature: "the rest level walks with every loading",
             params: Params::Fixed(&[
+                ("a", "step at the first loading (output units)"),
                 (
-                    "a",
-                    "step at the first loading beyond the walk (output units); the rest before it tells it from the intercept",
+                    "q",
+                    "how fast the later steps fall: the n-th is the one before times 1 − q/n (0: a steady walk, 1: a walk as the log of the count, above 1 it settles)",
                 ),
-                ("v", "walk per loading (output units)"),
             ]),
-            primary: 1,
+            primary: 0,
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
-                EffectBox::new(vec![0.0, 0.0], vec![-0.5 * ry, -0.2 * ry], vec![0.5 * ry, 0.2 * ry])
+                EffectBox::new(vec![0.0, 1.0], vec![-0.5 * ry, 0.0], vec![0.5 * ry, 2.0])
             },
+            size_text: Some(|p, _| ratchet_walk(p[0], p[1])),
             ..PLAIN
         },
     }
@@ -581,6 +584,16 @@ const MODE_A2: (&str, &str) = (
 
 /// How many loadings reach half of a trained effect whose share still to
 /// come shrinks by `r` at each.
+/// A ratchet's walk: its first step and how its steps fall.
+fn ratchet_walk(a: f64, q: f64) -> String {
+    let how = match q {
+        q if q < 0.05 => "a steady walk".to_string(),
+        q if q < 1.0 => format!("steps falling as n^−{q:.2}: it walks on"),
+        q => format!("steps falling as n^−{q:.2}: it settles"),
+    };
+    format!("first step {a:.3}, {how}")
+}
+
 fn loadings_to_half(r: f64) -> String {
     format!("half of it after {:.1} loadings", 0.5f64.ln() / r.ln())
 }

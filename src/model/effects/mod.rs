@@ -712,15 +712,23 @@ mod tests {
 
     #[test]
     fn a_ratchet_walks_with_every_loading() {
-        let (a, v) = (0.2, 0.05);
-        let moved = moved_input(&[1.0; 3], Effect::Ratchet, &[a, v]);
-        for i in 0..3 {
-            let (pulse, rest) = at_pulse(&moved, i);
-            let want = a as f64 + v as f64 * (i as f64 + 1.0);
-            assert!(
-                (pulse - want).abs() < 1e-5 && (rest - want).abs() < 1e-5,
-                "cycle {i}"
-            );
+        // A steady walk, one that slows as the log of the count, and one
+        // that settles: the n-th step is the one before times 1 − q/n.
+        for (a, q) in [(0.2f32, 0.0f32), (0.2, 1.0), (0.2, 1.5)] {
+            let moved = moved_input(&[1.0; 4], Effect::Ratchet, &[a, q]);
+            let (mut step, mut want) = (a as f64, 0.0);
+            for i in 0..4 {
+                let n = (i + 1) as f64;
+                if i > 0 {
+                    step *= 1.0 - q as f64 / n;
+                }
+                want += step;
+                let (pulse, rest) = at_pulse(&moved, i);
+                assert!(
+                    (pulse - want).abs() < 1e-5 && (rest - want).abs() < 1e-5,
+                    "q {q}, cycle {i}: pulse {pulse}, rest {rest}, want {want}"
+                );
+            }
         }
     }
 
