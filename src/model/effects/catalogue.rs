@@ -493,7 +493,7 @@ catalogue! {
                 let ry = ctx.output_range();
                 EffectBox::new(vec![0.0, 1.0], vec![-0.5 * ry, 0.0], vec![0.5 * ry, 2.0])
             },
-            size_text: Some(|p, _| ratchet_walk(p[0], p[1])),
+            size_text: Some(|p, _| ratchet_text(p[0], p[1])),
             ..PLAIN
         },
     }
@@ -582,10 +582,8 @@ const MODE_A2: (&str, &str) = (
     "second coefficient of the mode: r², the pole radius squared",
 );
 
-/// How many loadings reach half of a trained effect whose share still to
-/// come shrinks by `r` at each.
-/// A ratchet's walk: its first step and how its steps fall.
-fn ratchet_walk(a: f64, q: f64) -> String {
+/// A ratchet in words: its first step and how its steps fall.
+fn ratchet_text(a: f64, q: f64) -> String {
     let how = match q {
         q if q < 0.05 => "a steady walk".to_string(),
         q if q < 1.0 => format!("steps falling as n^−{q:.2}: it walks on"),
@@ -594,6 +592,8 @@ fn ratchet_walk(a: f64, q: f64) -> String {
     format!("first step {a:.3}, {how}")
 }
 
+/// How many loadings reach half of a trained effect whose share still to
+/// come shrinks by `r` at each.
 fn loadings_to_half(r: f64) -> String {
     format!("half of it after {:.1} loadings", 0.5f64.ln() / r.ln())
 }
