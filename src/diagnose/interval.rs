@@ -35,6 +35,30 @@ pub struct SizeInterval {
     pub hi_at_edge: bool,
 }
 
+impl SizeInterval {
+    /// The interval's ends carried through `size`, a function of the
+    /// effect's parameters (`params`, from its offset on) that reads the
+    /// primary one as a size in other units, every other parameter held;
+    /// low end first.
+    pub fn mapped(&self, params: &[f64], size: impl Fn(&[f64]) -> f64) -> (f64, f64) {
+        let mut p = params.to_vec();
+        let [a, b] = [self.lo, self.hi].map(|v| {
+            p[self.effect.primary()] = v;
+            size(&p)
+        });
+        if a.total_cmp(&b).is_le() {
+            (a, b)
+        } else {
+            (b, a)
+        }
+    }
+
+    /// Whether the search box cuts the interval short on either side.
+    pub fn at_edge(&self) -> bool {
+        self.lo_at_edge || self.hi_at_edge
+    }
+}
+
 /// The 95 % profile interval of `effect`'s primary parameter in the
 /// problem's model fitted at `theta` on its estimation part.
 pub fn size_interval(
@@ -205,5 +229,25 @@ mod tests {
             (2.5..6.0).contains(&ratio),
             "width ratio {ratio}: {quiet:?} {loud:?}"
         );
+    }
+
+    /// The ends carried through a size that falls as the primary
+    /// parameter grows: the low end comes first, and every other
+    /// parameter is held.
+    #[test]
+    fn an_interval_mapped_through_a_size_keeps_the_other_parameters() {
+        let iv = SizeInterval {
+            effect: Effect::Ratchet,
+            param: "set:ratchet.a".into(),
+            value: 1.0,
+            lo: 0.5,
+            hi: 2.0,
+            lo_at_edge: false,
+            hi_at_edge: true,
+        };
+        // A size that falls with `a` and reads `q` as it was.
+        let ends = iv.mapped(&[1.0, 0.25], |p| p[1] - p[0]);
+        assert_eq!(ends, (0.25 - 2.0, 0.25 - 0.5));
+        assert!(iv.at_edge());
     }
 }

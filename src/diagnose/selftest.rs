@@ -369,14 +369,10 @@ pub fn judge(nominal: &Nominal, case: &Case, d: &Diagnosis) -> CaseOutcome {
                 size_error = Some(err);
                 size_check = match d.size_intervals.iter().find(|s| s.effect == *e) {
                     Some(s) => {
-                        let mut p = sel.final_fit.params[at..].to_vec();
-                        let mut ends = [s.lo, s.hi].map(|v| {
-                            p[e.primary()] = v;
-                            size_of(nominal, *e, &p)
-                        });
-                        ends.sort_by(f64::total_cmp);
-                        size_interval = Some((ends[0], ends[1]));
-                        match unpinned((ends[0], ends[1]), sf, s.lo_at_edge || s.hi_at_edge) {
+                        let ends =
+                            s.mapped(&sel.final_fit.params[at..], |p| size_of(nominal, *e, p));
+                        size_interval = Some(ends);
+                        match unpinned(ends, sf, s.at_edge()) {
                             Some(why) => SizeCheck::NotIdentifiable(why),
                             None => SizeCheck::Judged,
                         }

@@ -576,14 +576,9 @@ fn size_check(
     let Some(iv) = d.size_intervals.iter().find(|s| s.effect == e) else {
         return SizeCheck::NotIdentifiable("no profile interval".into());
     };
-    let mut p = params.to_vec();
-    let mut ends = [iv.lo, iv.hi].map(|v| {
-        p[e.primary()] = v;
-        found_size(r, e, &p, frame).unwrap_or(f64::NAN)
-    });
-    ends.sort_by(f64::total_cmp);
-    *interval = Some((ends[0], ends[1]));
-    match unpinned((ends[0], ends[1]), f, iv.lo_at_edge || iv.hi_at_edge) {
+    let ends = iv.mapped(params, |p| found_size(r, e, p, frame).unwrap_or(f64::NAN));
+    *interval = Some(ends);
+    match unpinned(ends, f, iv.at_edge()) {
         Some(why) => SizeCheck::NotIdentifiable(format!("{why} (truth {truth:.4})")),
         None => SizeCheck::Judged,
     }
