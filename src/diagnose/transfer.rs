@@ -20,6 +20,7 @@ use super::locate::noise_floor;
 use super::settings::{Interrupted, Settings};
 use super::{Diagnosis, accept::gap_closed, chain::with_chain_start};
 use crate::data::Trace;
+use crate::fit::edge::{ActiveBound, active_bounds};
 use crate::fit::records::Validation;
 use crate::fit::run::{FitRun, FitTarget};
 use crate::fit::settings::FitSettings;
@@ -53,6 +54,11 @@ pub struct Transfer {
     /// `None` where the chain holds, or where even its first link
     /// collapses.
     pub carries: Option<Carried>,
+    /// The chain's own parameters that its fit on this record left on or
+    /// near an edge of their box: how far the record's first half pushed an
+    /// effect (a creep's gain at its limit, a ratchet walking at a steady
+    /// rate), where to look first when the chain collapses.
+    pub chain_on_edge: Vec<ActiveBound>,
 }
 
 /// The leading links of a chain that carry over to a record, and their fit
@@ -115,9 +121,9 @@ pub fn transfer(
     others
         .iter()
         .map(|trace| {
-            let baseline = fit_and_score(trace, d.family, &[], settings)?;
-            let fitted = if chain.is_empty() {
-                baseline
+            let (baseline, _) = fit_and_score(trace, d.family, &[], settings)?;
+            let (fitted, on_edge) = if chain.is_empty() {
+                (baseline, Vec::new())
             } else {
                 fit_and_score(trace, d.family, &chain, settings)?
             };
@@ -126,7 +132,9 @@ pub fn transfer(
             let collapsed = collapses(fitted.fit_percent, baseline.fit_percent);
             let carries = if collapsed {
                 longest_carried(&chain, baseline.fit_percent, |links| {
-                    Ok(fit_and_score(trace, d.family, links, settings)?.fit_percent)
+                    Ok(fit_and_score(trace, d.family, links, settings)?
+                        .0
+                        .fit_percent)
                 })?
             } else {
                 None
@@ -142,20 +150,34 @@ pub fn transfer(
                 gap_closed: gap_closed(baseline.rmse, fitted.rmse, floor),
                 collapses: collapsed,
                 carries,
+                chain_on_edge: chain_params_on_edge(&chain, on_edge),
             })
+        })
+        .collect()
+}
+
+/// Of a fit's bounds still active at its end, those of `chain`'s own
+/// parameters (named `effect.parameter`), not the baseline's.
+fn chain_params_on_edge(chain: &[Effect], on_edge: Vec<ActiveBound>) -> Vec<ActiveBound> {
+    on_edge
+        .into_iter()
+        .filter(|b| {
+            b.param
+                .split_once('.')
+                .is_some_and(|(effect, _)| chain.iter().any(|e| e.name() == effect))
         })
         .collect()
 }
 
 /// `family` with `effects` fitted on `trace` as `fit` fits it by default
 /// (with effects: also from the chain built one effect at a time), scored
-/// on the second half.
+/// on the second half, with the bounds its fit ended on.
 fn fit_and_score(
     trace: &Trace,
     family: Family,
     effects: &[Effect],
     settings: &Settings,
-) -> anyhow::Result<Validation> {
+) -> anyhow::Result<(Validation, Vec<ActiveBound>)> {
     let fit_settings = FitSettings::staged(settings.seed);
     let fit = FitRun::new(
         trace,
@@ -173,7 +195,10 @@ fn fit_and_score(
         settings.stop.clone(),
     )?;
     let (fit, outcome) = run_stoppable(fit, settings)?;
-    Ok(fit.problem.validate(&outcome.params))
+    Ok((
+        fit.problem.validate(&outcome.params),
+        active_bounds(&fit.problem, &outcome.params),
+    ))
 }
 
 /// Runs `fit` on the settings' backend, stopping with the diagnosis' stop
@@ -196,7 +221,28 @@ pub(crate) fn run_stoppable(fit: FitRun, settings: &Settings) -> anyhow::Result<
 
 #[cfg(test)]
 mod tests {
-    use super::{Effect, collapses, longest_carried};
+    use super::{ActiveBound, Effect, chain_params_on_edge, collapses, longest_carried};
+    use crate::model::bounds::Origin;
+    use crate::search::Side;
+
+    #[test]
+    fn only_the_chains_own_parameters_on_an_edge_are_kept() {
+        let bound = |param: &str| ActiveBound {
+            param: param.into(),
+            bound: Side::Lower,
+            origin: Origin::Class,
+            inside: 0.0,
+        };
+        let on_edge = vec![
+            bound("alpha"),
+            bound("creep.kappa"),
+            bound("set:ratchet.q"),
+            bound("softening.s"),
+        ];
+        let kept = chain_params_on_edge(&[Effect::Creep, Effect::Ratchet], on_edge);
+        let names: Vec<&str> = kept.iter().map(|b| b.param.as_str()).collect();
+        assert_eq!(names, ["creep.kappa", "set:ratchet.q"]);
+    }
 
     #[test]
     fn a_collapsing_chain_is_cut_from_its_end_until_what_is_left_holds() {

@@ -10,6 +10,7 @@ use crate::diagnose::refits::Finding;
 use crate::diagnose::spectrum::Peak;
 use crate::diagnose::transfer::Transfer;
 use crate::diagnose::{Diagnosis, Effect, Step};
+use crate::fit::edge::ActiveBound;
 use crate::model::experiment::Parts;
 
 fn pct(v: f64) -> String {
@@ -526,6 +527,22 @@ fn carried_text(t: &Transfer) -> String {
     }
 }
 
+/// The chain's parameters its fit on another record left on their box's
+/// edge, in words (`None` without any).
+fn edges_text(on_edge: &[ActiveBound]) -> Option<String> {
+    if on_edge.is_empty() {
+        return None;
+    }
+    let each: Vec<String> = on_edge
+        .iter()
+        .map(|b| format!("{} ({})", b.param, b.bound.name()))
+        .collect();
+    Some(format!(
+        "on their box's edge there: {} (the record pushed the effect as far as it goes)",
+        each.join(", ")
+    ))
+}
+
 /// The chain on other records (`--transfer`).
 fn transfer_text(o: &mut String, d: &Diagnosis) {
     let Some(first) = d.transfers.first() else {
@@ -566,6 +583,9 @@ fn transfer_text(o: &mut String, d: &Diagnosis) {
         );
         if t.collapses {
             let _ = writeln!(o, "  {:<width$}  {}", "", carried_text(t));
+            if let Some(edges) = edges_text(&t.chain_on_edge) {
+                let _ = writeln!(o, "  {:<width$}  {edges}", "");
+            }
         }
     }
     if d.transfers.iter().any(|t| t.collapses) {
