@@ -360,6 +360,7 @@ fn parse(
         output_name: opts.output.clone(),
         output,
         extra,
+        cut_from: None,
     };
     let lines: Vec<u64> = rows.iter().map(|r| r.line).collect();
     let traces = match opts.gaps {
@@ -510,6 +511,7 @@ fn resample(path: &Path, trace: &Trace, dt: f64) -> Result<Trace, DataError> {
             .iter()
             .map(|(name, v)| (name.clone(), interp(v)))
             .collect(),
+        cut_from: trace.cut_from.clone(),
         t: grid,
     })
 }
@@ -602,6 +604,7 @@ fn split(
         let mut seg = trace.slice(a..b);
         if segments > 1 {
             seg.source = format!("{}[{}]", trace.source, s + 1);
+            seg.cut_from = Some(trace.source.clone());
         }
         out.push(seg);
     }
@@ -921,6 +924,10 @@ mod tests {
             (traces[0].source.as_str(), traces[1].source.as_str()),
             ("x.csv[1]", "x.csv[2]")
         );
+        // Both know the recording they were cut from.
+        for tr in &traces {
+            assert_eq!(tr.cut_from.as_deref(), Some("x.csv"), "{}", tr.source);
+        }
         // Each piece keeps its own rows in file order; the second overlaps
         // the first in time and is neither merged with it nor sorted.
         assert_eq!((traces[0].t[0], traces[0].t[99]), (10.0, 10.99));

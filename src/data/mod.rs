@@ -28,6 +28,10 @@ pub struct Trace {
     pub output: Vec<f64>,
     /// Further columns (`valve_in`, `valve_out`, `load_kg`, `reference`, ...), in file order.
     pub extra: Vec<(String, Vec<f64>)>,
+    /// The recording this trace is a piece of, where `--split-gaps` cut a
+    /// file into several (`None` for a whole file or a generated trace):
+    /// pieces of one recording share its muscle, its load and its history.
+    pub cut_from: Option<String>,
 }
 
 /// `max − min` of finite values (0 for none).
@@ -54,6 +58,7 @@ impl Trace {
             output_name: "displacement".into(),
             output,
             extra: Vec::new(),
+            cut_from: None,
         }
     }
 
@@ -95,6 +100,7 @@ impl Trace {
                 .iter()
                 .map(|(n, v)| (n.clone(), v[range.clone()].to_vec()))
                 .collect(),
+            cut_from: self.cut_from.clone(),
         }
     }
 }

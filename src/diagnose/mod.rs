@@ -113,6 +113,8 @@ pub struct Diagnosis {
     /// where it scored better on the selection part, else the selection's.
     pub as_fit: Option<as_fit::AsFit>,
     pub final_params: Vec<f64>,
+    /// Effects asked for that the selection did not try, and why.
+    pub not_tried: Vec<NotTried>,
     /// The chain fitted on other records of the muscle (`--transfer`,
     /// [`transfer::transfer`]); empty unless asked for.
     pub transfers: Vec<transfer::Transfer>,
@@ -197,8 +199,9 @@ pub fn diagnose_from(
     };
     let floor = noise_floor_of(&data);
     let start_ref = start.as_ref().map(|(m, theta)| (m, theta.as_slice()));
+    let (effects, not_tried) = tried_effects(traces, effects);
     let selection = select::select(
-        &data, &searches, family, effects, settings, floor, start_ref,
+        &data, &searches, family, &effects, settings, floor, start_ref,
     )?;
     check_baseline(&selection, family, traces)?;
 
@@ -268,8 +271,46 @@ pub fn diagnose_from(
         curves,
         as_fit,
         final_params,
+        not_tried,
         transfers: Vec::new(),
     })
+}
+
+/// An effect of the catalogue the diagnosis was asked to try and left out,
+/// and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NotTried {
+    pub effect: Effect,
+    pub why: &'static str,
+}
+
+/// The effects of `effects` the selection tries on `traces`, and those it
+/// leaves out. `load`, a gain for each dataset after the first, is left out
+/// where two datasets are pieces of one recording (`--split-gaps`): they
+/// share its muscle and its load, and a gain between them would name a
+/// change of the muscle between the pieces (a set, a softening) as a change
+/// of load.
+fn tried_effects(traces: &[Trace], effects: &[Effect]) -> (Vec<Effect>, Vec<NotTried>) {
+    let mut recordings: Vec<&str> = traces
+        .iter()
+        .filter_map(|t| t.cut_from.as_deref())
+        .collect();
+    let pieces = recordings.len();
+    recordings.sort_unstable();
+    recordings.dedup();
+    if recordings.len() == pieces || !effects.contains(&Effect::Load) {
+        return (effects.to_vec(), Vec::new());
+    }
+    let tried = effects
+        .iter()
+        .copied()
+        .filter(|&e| e != Effect::Load)
+        .collect();
+    let not_tried = vec![NotTried {
+        effect: Effect::Load,
+        why: "some datasets are pieces of one recording (cut at its gaps): they share its load",
+    }];
+    (tried, not_tried)
 }
 
 /// An error where the baseline diverges on the selection part for every
@@ -541,4 +582,49 @@ fn residual_spectrum(segments: &[locate::Segment]) -> Option<spectrum::Spectrum>
         .map(|s| s.residual.as_slice())
         .collect();
     spectrum::welch(&series, dt, &spectrum::Settings::default())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Effect, Trace, tried_effects};
+
+    /// A short trace, cut from `recording` where that is given.
+    fn piece(source: &str, recording: Option<&str>) -> Trace {
+        Trace {
+            cut_from: recording.map(String::from),
+            ..Trace::uniform(source, 0.01, vec![0.0; 4], vec![0.0; 4])
+        }
+    }
+
+    #[test]
+    fn load_is_not_tried_between_pieces_of_one_recording() {
+        let effects = [Effect::Delay, Effect::Load, Effect::Set];
+        // Two files, whole or each one piece: a load per file is tried.
+        for traces in [
+            vec![piece("a.csv", None), piece("b.csv", None)],
+            vec![piece("a.csv[1]", Some("a.csv")), piece("b.csv", None)],
+            vec![
+                piece("a.csv[2]", Some("a.csv")),
+                piece("b.csv[1]", Some("b.csv")),
+            ],
+        ] {
+            let (tried, not_tried) = tried_effects(&traces, &effects);
+            assert_eq!(tried, effects);
+            assert!(not_tried.is_empty());
+        }
+        // Two pieces of one file: its load is one, whatever else is there.
+        let traces = [
+            piece("a.csv[1]", Some("a.csv")),
+            piece("b.csv", None),
+            piece("a.csv[2]", Some("a.csv")),
+        ];
+        let (tried, not_tried) = tried_effects(&traces, &effects);
+        assert_eq!(tried, [Effect::Delay, Effect::Set]);
+        assert_eq!(not_tried.len(), 1);
+        assert_eq!(not_tried[0].effect, Effect::Load);
+        assert!(not_tried[0].why.contains("pieces of one recording"));
+        // Nothing to leave out where `load` was not asked for.
+        let (tried, not_tried) = tried_effects(&traces, &[Effect::Set]);
+        assert_eq!((tried, not_tried.len()), (vec![Effect::Set], 0));
+    }
 }

@@ -10,7 +10,7 @@ use crate::diagnose::locate::{Band, Correlation, DatasetShare};
 use crate::diagnose::refits::{Finding, Refits};
 use crate::diagnose::spectrum::{Peak, Spectrum};
 use crate::diagnose::transfer::Transfer;
-use crate::diagnose::{Diagnosis, Step};
+use crate::diagnose::{Diagnosis, NotTried, Step};
 use crate::model::experiment::Parts;
 use crate::report::json::Named;
 
@@ -229,6 +229,9 @@ pub struct DiagnosisJson {
     /// effects, taken as given.
     pub from: Option<String>,
     pub given: Vec<&'static str>,
+    /// Effects asked for that the selection did not try, and why (`load`
+    /// where datasets are pieces of one recording).
+    pub not_tried: Vec<NotTried>,
     /// Whether the selection stopped at `--max-effects` still accepting.
     pub capped: bool,
     pub steps: Vec<Step>,
@@ -332,6 +335,7 @@ impl DiagnosisJson {
             from: d.from.clone(),
             capped: sel.capped,
             given: sel.given.iter().map(|e| e.name()).collect(),
+            not_tried: d.not_tried.clone(),
             steps: d.steps.clone(),
             final_: FinalJson {
                 model: sel.final_model.effects.iter().map(|e| e.name()).collect(),

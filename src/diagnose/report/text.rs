@@ -159,6 +159,9 @@ fn which_text(o: &mut String, d: &Diagnosis) {
         o,
         "\nWHICH effect (selection RMSE; accepted = passes every rule):"
     );
+    for n in &d.not_tried {
+        let _ = writeln!(o, "  not tried: {} ({})", n.effect.name(), n.why);
+    }
     for (i, r) in d.selection.rounds.iter().enumerate() {
         for f in &r.rebased {
             let _ = writeln!(
