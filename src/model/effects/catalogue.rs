@@ -317,14 +317,20 @@ catalogue! {
             // and is named on the twin's stair, which has no creep
             // (docs/lab/diagnosis.md, "Which: the effects catalogue"). The
             // faster state forgets its start within a few hundred samples;
-            // the slower one gets `z0`.
+            // the slower one gets `z0`. The slower state is no slower than
+            // the one-pole creeps' slowest (2 000 samples, the estimation
+            // half of the shipped records): over a record shorter than its
+            // time constant a slow state shows only as a ramp, whose gain
+            // and pole trade along `κ·(1 − ρ)`, and the fit ran that gain
+            // out to four times the true one (docs/lab/diagnosis.md, "A
+            // slow state the record can pin").
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
                 let g = 2.0 * ry / ctx.input_range();
                 EffectBox::new(
                     vec![0.98, 0.999, 0.0, 0.5, 0.0],
                     vec![0.9, 0.995, -g, 0.0, -ry],
-                    vec![0.995, 0.9999, g, 1.0, ry],
+                    vec![0.995, 0.9995, g, 1.0, ry],
                 )
             },
             ..CREEP
