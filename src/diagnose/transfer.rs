@@ -122,7 +122,7 @@ pub fn transfer(
         .iter()
         .map(|trace| {
             let (baseline, _) = fit_and_score(trace, d.family, &[], settings)?;
-            let (fitted, on_edge) = if chain.is_empty() {
+            let (fitted, chain_on_edge) = if chain.is_empty() {
                 (baseline, Vec::new())
             } else {
                 fit_and_score(trace, d.family, &chain, settings)?
@@ -150,28 +150,24 @@ pub fn transfer(
                 gap_closed: gap_closed(baseline.rmse, fitted.rmse, floor),
                 collapses: collapsed,
                 carries,
-                chain_on_edge: chain_params_on_edge(&chain, on_edge),
+                chain_on_edge,
             })
         })
         .collect()
 }
 
-/// Of a fit's bounds still active at its end, those of `chain`'s own
-/// parameters (named `effect.parameter`), not the baseline's.
-fn chain_params_on_edge(chain: &[Effect], on_edge: Vec<ActiveBound>) -> Vec<ActiveBound> {
+/// Of a fit's bounds still active at its end, those of the chain's own
+/// parameters (`names`), not the baseline's.
+fn chain_params_on_edge(names: &[String], on_edge: Vec<ActiveBound>) -> Vec<ActiveBound> {
     on_edge
         .into_iter()
-        .filter(|b| {
-            b.param
-                .split_once('.')
-                .is_some_and(|(effect, _)| chain.iter().any(|e| e.name() == effect))
-        })
+        .filter(|b| names.contains(&b.param))
         .collect()
 }
 
 /// `family` with `effects` fitted on `trace` as `fit` fits it by default
 /// (with effects: also from the chain built one effect at a time), scored
-/// on the second half, with the bounds its fit ended on.
+/// on the second half, with the bounds its chain's parameters ended on.
 fn fit_and_score(
     trace: &Trace,
     family: Family,
@@ -195,10 +191,12 @@ fn fit_and_score(
         settings.stop.clone(),
     )?;
     let (fit, outcome) = run_stoppable(fit, settings)?;
-    Ok((
-        fit.problem.validate(&outcome.params),
+    let model = &fit.problem.model;
+    let on_edge = chain_params_on_edge(
+        &model.param_names()[model.family.dim()..],
         active_bounds(&fit.problem, &outcome.params),
-    ))
+    );
+    Ok((fit.problem.validate(&outcome.params), on_edge))
 }
 
 /// Runs `fit` on the settings' backend, stopping with the diagnosis' stop
@@ -239,7 +237,16 @@ mod tests {
             bound("set:ratchet.q"),
             bound("softening.s"),
         ];
-        let kept = chain_params_on_edge(&[Effect::Creep, Effect::Ratchet], on_edge);
+        let chain: Vec<String> = [
+            "creep.rho",
+            "creep.kappa",
+            "creep.z0",
+            "set:ratchet.a",
+            "set:ratchet.q",
+        ]
+        .map(String::from)
+        .to_vec();
+        let kept = chain_params_on_edge(&chain, on_edge);
         let names: Vec<&str> = kept.iter().map(|b| b.param.as_str()).collect();
         assert_eq!(names, ["creep.kappa", "set:ratchet.q"]);
     }
