@@ -278,13 +278,16 @@ fn undiagnosable_data_gives_clear_errors() {
 
 /// The Cavatappi muscle (psi, mm, 1 kHz in blocks with gaps) read through
 /// `--resample`: the diagnosis runs and finds the end stop at 100 g
-/// (docs/DIAGNOSIS.md). Skipped locally when the external data are
-/// absent; fails then under `CI=true` (`common::require_external`).
+/// (docs/DIAGNOSIS.md), and carries its chain to the 200 g record with the
+/// creep's pole held at the value diagnosed at 100 g. Skipped locally when
+/// the external data are absent; fails then under `CI=true`
+/// (`common::require_external`).
 #[test]
 fn cavatappi_100g_is_diagnosed_after_resampling() {
     let Some(path) = common::require_external("cavatappi_muscle/sample1_100g.csv") else {
         return;
     };
+    let other = common::require_external("cavatappi_muscle/sample1_200g.csv").unwrap();
     let out = bin()
         .args([
             "diagnose",
@@ -297,13 +300,31 @@ fn cavatappi_100g_is_diagnosed_after_resampling() {
         .args(["--output", "disp_mm", "--resample", "0.01"])
         .args(["--effects", "saturation,creep", "--seeds", "3"])
         .arg(&path)
+        .arg("--transfer")
+        .arg(&other)
         .output()
         .unwrap();
     let v = json_of(&out);
     let base = v["baseline"]["val_rmse"].as_f64().unwrap();
     let last = v["final"]["val_rmse"].as_f64().unwrap();
     assert!(last < base, "{v}");
-    assert_eq!(v["verdict"][0], "saturation", "{}", v["verdict"]);
+    assert_eq!(v["verdict"], serde_json::json!(["saturation", "creep"]));
+    // Carried: the creep's pole held at the diagnosed value, its gain and
+    // the end stop's level refitted there; beside it the chain refitted
+    // from its names alone.
+    let t = &v["transfers"][0];
+    let rho = v["final"]["params"]["creep.rho"].as_f64().unwrap();
+    assert_eq!(
+        t["dynamics_held"],
+        serde_json::json!([format!("creep.rho={rho}")])
+    );
+    assert!(
+        t["names_only_val_fit_percent"]
+            .as_f64()
+            .unwrap()
+            .is_finite(),
+        "{t}"
+    );
 }
 
 /// The Cavatappi 500 g file: every seed's baseline used to diverge on the

@@ -210,6 +210,60 @@ fn fit_with_effects_writes_a_chain_that_simulate_reproduces() {
 }
 
 #[test]
+fn a_carried_chain_holds_its_dynamics_and_refits_its_sizes_on_the_next_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let small = ["--pop", "60", "--gens", "20", "--backend", "cpu", "--json"];
+    let mut first = vec![
+        "fit",
+        STAIR,
+        "--effects",
+        "creep,delay:input-lag",
+        "--out",
+        out,
+    ];
+    first.extend_from_slice(&small);
+    let source = json_of(&first);
+    let model = dir.path().join("model.json");
+    let mut next = vec![
+        "fit",
+        "data/stair_7kg.csv",
+        "--carry",
+        model.to_str().unwrap(),
+    ];
+    next.extend_from_slice(&small);
+    let carried = json_of(&next);
+    assert_eq!(carried["effects"], source["effects"]);
+    for held in ["creep.rho", "delay:input-lag.rho"] {
+        assert_eq!(carried["params"][held], source["params"][held], "{held}");
+    }
+    // The sizes are the new record's.
+    assert_ne!(
+        carried["params"]["creep.kappa"],
+        source["params"]["creep.kappa"]
+    );
+    // The held poles are per sample: another sample time is refused.
+    let e = error_of(&[
+        "fit",
+        "data/stair_7kg.csv",
+        "--carry",
+        model.to_str().unwrap(),
+        "--resample",
+        "0.2",
+    ]);
+    assert!(e.contains("--carry") && e.contains("sampled every"), "{e}");
+    let e = error_of(&[
+        "fit",
+        STAIR,
+        "--carry",
+        model.to_str().unwrap(),
+        "--effects",
+        "creep",
+    ]);
+    assert!(e.contains("--carry") && e.contains("--effects"), "{e}");
+}
+
+#[test]
 fn a_fit_with_effects_ends_on_the_same_bits_on_lavapipe() {
     if common::require_lavapipe_adapter().is_none() {
         return;

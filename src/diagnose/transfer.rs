@@ -1,18 +1,27 @@
 //! Whether the diagnosed chain belongs to the muscle or to one recording
-//! (`diagnose --transfer OTHER …`): the final model's effects and the plain
-//! baseline are each fitted on another record as `fit --effects CHAIN` and
-//! `fit` fit them (on its estimation half alone, with `fit`'s defaults and
-//! the diagnosis' seed), and scored on that record's second half. No choice
-//! of the diagnosis saw that record, so the share of the baseline's gap the
-//! chain closes there is the tool's own check that an effect carries over.
-//! Where the chain collapses, its leading links are fitted alone, one link
-//! fewer at a time, to name the first link that does not.
+//! (`diagnose --transfer OTHER …`): the final model's chain is carried to
+//! another record as `fit --carry MODEL` carries it (its effects with their
+//! dynamics, the poles, delays and how fast steps fall, held at the
+//! diagnosed values; the baseline and the effects' sizes fitted on the
+//! record's estimation half alone, with `fit`'s defaults and the
+//! diagnosis' seed), the plain baseline is fitted as `fit` fits it, and
+//! both are scored on that record's second half. No choice of the
+//! diagnosis saw that record, so the share of the baseline's gap the chain
+//! closes there is the tool's own check that an effect carries over. The
+//! chain refitted from its names alone (`fit --effects CHAIN`) is reported
+//! beside it. Where the chain collapses, its leading links are carried
+//! alone, one link fewer at a time, to name the first link that does not.
 //!
-//! Why a refit and not the diagnosed model itself: another record of the
-//! same muscle differs in its load, its history and its offsets, and a user
-//! who trusts the verdict fits the chain to their next record; the question
-//! is whether the chain, not one parameter vector, helps there.
+//! Why the dynamics are held: another record of the same muscle differs
+//! in its load, its history and its offsets, which set the sizes, but a
+//! slow state's time constant is the muscle's. An estimation half of two
+//! loadings pins a gain and hardly a pole slower than the record: refitted
+//! from names alone, a ratchet's walk or a creep's pole runs wherever that
+//! half lets it, and the chain validates below the plain fit on records
+//! where, carried, it holds (docs/DIAGNOSIS.md, "Real data: the Cavatappi
+//! muscle").
 
+use anyhow::Context as _;
 use serde::Serialize;
 
 use super::effects::Effect;
@@ -24,8 +33,8 @@ use crate::fit::edge::{ActiveBound, active_bounds};
 use crate::fit::records::Validation;
 use crate::fit::run::{FitRun, FitTarget};
 use crate::fit::settings::FitSettings;
-use crate::model::Family;
 use crate::model::experiment::halves;
+use crate::model::{Family, UserBound};
 use crate::optim::engine::Outcome;
 
 /// The chain and the baseline fitted on one other record.
@@ -36,12 +45,20 @@ pub struct Transfer {
     /// The effects fitted there: the final model's, less those one record
     /// cannot hold (`load` needs several).
     pub chain: Vec<Effect>,
+    /// The chain's dynamics held there, as `--fix` writes them
+    /// (`creep.rho=0.994`).
+    pub dynamics_held: Vec<String>,
     /// Free-run RMSE and fit % on the record's second half: the plain
-    /// baseline's (`fit`) and the chain's (`fit --effects`).
+    /// baseline's (`fit`) and the carried chain's (`fit --carry`).
     pub baseline_val_rmse: f64,
     pub baseline_val_fit_percent: f64,
     pub chain_val_rmse: f64,
     pub chain_val_fit_percent: f64,
+    /// Fit % on the second half of the chain refitted from its names alone
+    /// (`fit --effects CHAIN`, its dynamics fitted on the record's first
+    /// half too): below the carried chain's, the record's first half does
+    /// not pin the chain's dynamics.
+    pub names_only_val_fit_percent: f64,
     /// The record's noise floor, from its second half.
     pub noise_floor_rmse: f64,
     /// Share of the baseline's gap above that floor the chain closes there.
@@ -101,10 +118,11 @@ pub fn collapses(chain_fit_percent: f64, baseline_fit_percent: f64) -> bool {
         .is_none_or(|o| o.is_lt())
 }
 
-/// The chain of `d`'s final model and its baseline, each fitted on every
-/// record of `others` and scored on its second half; the diagnosis'
-/// `settings` give the seed, the backend and the stop flag
-/// ([`Interrupted`] once it is raised).
+/// The chain of `d`'s final model carried to every record of `others` and
+/// its baseline fitted there, each scored on the record's second half; the
+/// diagnosis' `settings` give the seed, the backend and the stop flag
+/// ([`Interrupted`] once it is raised). A record with another sample time
+/// is an error: the held poles are per sample.
 pub fn transfer(
     d: &Diagnosis,
     others: &[Trace],
@@ -118,23 +136,32 @@ pub fn transfer(
         .copied()
         .filter(|e| e.applicable(1))
         .collect();
+    let held = |links: &[Effect]| d.final_model.held_dynamics(links);
     others
         .iter()
         .map(|trace| {
-            let (baseline, _) = fit_and_score(trace, d.family, &[], settings)?;
-            let (fitted, chain_on_edge) = if chain.is_empty() {
-                (baseline, Vec::new())
+            d.final_model
+                .check_data(trace)
+                .with_context(|| format!("--transfer {}", trace.source))?;
+            let (baseline, _) = fit_and_score(trace, d.family, &[], &[], settings)?;
+            let (fitted, chain_on_edge, names_only) = if chain.is_empty() {
+                (baseline, Vec::new(), baseline.fit_percent)
             } else {
-                fit_and_score(trace, d.family, &chain, settings)?
+                let (fitted, on_edge) =
+                    fit_and_score(trace, d.family, &chain, &held(&chain), settings)?;
+                let names_only = fit_and_score(trace, d.family, &chain, &[], settings)?.0;
+                (fitted, on_edge, names_only.fit_percent)
             };
             let second = halves(trace.len()).1;
             let floor = noise_floor(&[&trace.output[second]]);
             let collapsed = collapses(fitted.fit_percent, baseline.fit_percent);
             let carries = if collapsed {
                 longest_carried(&chain, baseline.fit_percent, |links| {
-                    Ok(fit_and_score(trace, d.family, links, settings)?
-                        .0
-                        .fit_percent)
+                    Ok(
+                        fit_and_score(trace, d.family, links, &held(links), settings)?
+                            .0
+                            .fit_percent,
+                    )
                 })?
             } else {
                 None
@@ -142,10 +169,12 @@ pub fn transfer(
             Ok(Transfer {
                 dataset: trace.source.clone(),
                 chain: chain.clone(),
+                dynamics_held: held(&chain).iter().map(|b| b.to_string()).collect(),
                 baseline_val_rmse: baseline.rmse,
                 baseline_val_fit_percent: baseline.fit_percent,
                 chain_val_rmse: fitted.rmse,
                 chain_val_fit_percent: fitted.fit_percent,
+                names_only_val_fit_percent: names_only,
                 noise_floor_rmse: floor,
                 gap_closed: gap_closed(baseline.rmse, fitted.rmse, floor),
                 collapses: collapsed,
@@ -166,23 +195,22 @@ fn chain_params_on_edge(names: &[String], on_edge: Vec<ActiveBound>) -> Vec<Acti
 }
 
 /// `family` with `effects` fitted on `trace` as `fit` fits it by default
-/// (with effects: also from the chain built one effect at a time), scored
-/// on the second half, with the bounds its chain's parameters ended on.
+/// (with effects: also from the chain built one effect at a time), with
+/// the parameters in `held` held there as `--fix` holds them, scored on
+/// the second half, with the bounds its chain's parameters ended on.
 fn fit_and_score(
     trace: &Trace,
     family: Family,
     effects: &[Effect],
+    held: &[UserBound],
     settings: &Settings,
 ) -> anyhow::Result<(Validation, Vec<ActiveBound>)> {
     let fit_settings = FitSettings::staged(settings.seed);
-    let fit = FitRun::new(
-        trace,
-        &FitTarget::chain(family, effects),
-        &fit_settings,
-        None,
-        None,
-        &|_| (),
-    )?;
+    let what = FitTarget {
+        bounds: held.to_vec(),
+        ..FitTarget::chain(family, effects)
+    };
+    let fit = FitRun::new(trace, &what, &fit_settings, None, None, &|_| ())?;
     let fit = with_chain_start(
         fit,
         trace,

@@ -16,6 +16,7 @@ use super::experiment::Experiment;
 use super::family::Family;
 use super::fitted::FittedBaseline;
 use super::sim::DIVERGENCE_BOUND;
+use super::user_bound::UserBound;
 use crate::data::units::unit_of;
 use crate::data::write_atomic;
 
@@ -91,6 +92,33 @@ impl Model {
             .into_iter()
             .zip(self.theta())
             .collect()
+    }
+
+    /// The dynamics of this model's effects among `effects` (poles, delays,
+    /// how fast steps fall: [`Effect::is_dynamics`]), each held at its value
+    /// as `--fix effect.param=VALUE` holds it: a chain carried to another
+    /// record of the same muscle keeps how its effects evolve in time and
+    /// refits how large they are, in that record's own scale. An estimation
+    /// half of a few loadings pins a gain far better than the time
+    /// constant of a state slower than the record.
+    pub fn held_dynamics(&self, effects: &[Effect]) -> Vec<UserBound> {
+        let description = self.augmented();
+        let theta = self.theta();
+        let mut held = Vec::new();
+        for &e in self.effects().iter().filter(|e| effects.contains(e)) {
+            let at = description.offset_of(e).expect("the model's own effect");
+            for (i, p) in e.params(description.datasets).into_iter().enumerate() {
+                if e.is_dynamics(&p.name) {
+                    let value = theta[at + i];
+                    held.push(UserBound {
+                        name: format!("{e}.{}", p.name),
+                        lower: value,
+                        upper: value,
+                    });
+                }
+            }
+        }
+        held
     }
 
     /// Refuses data this model cannot run on as it stands: a column whose

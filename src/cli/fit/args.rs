@@ -84,6 +84,7 @@ use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 ///   mckibben fit run.csv --bound gain=0.1:20 --fix alpha=0.5
 ///   mckibben fit run.csv --bound A=0.2:2 --loop free
 ///   mckibben fit run.csv --model generalized --fix x_s=0
+///   mckibben fit next.csv --carry out/diagnose/model.json
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -121,6 +122,21 @@ pub struct Args {
     /// worse.
     #[arg(long, value_name = "MODEL.json", conflicts_with = "thesis_flow")]
     pub(super) from: Option<PathBuf>,
+    /// Carry a model's chain to this record, as `diagnose --transfer`
+    /// does: the model's family and effects fitted here from scratch, with
+    /// the effects' dynamics (poles, delays, how fast a ratchet's steps or
+    /// a training fall) held at the model's values, and the baseline and
+    /// the effects' sizes (gains, levels, starts) fitted on this record's
+    /// first half. For the next record of the same muscle: its first half
+    /// pins a gain far better than the pole of a state slower than the
+    /// record. DATA is read as the model's data were and must have its units
+    /// and sample time (the held poles are per sample).
+    #[arg(
+        long,
+        value_name = "MODEL.json",
+        conflicts_with_all = ["thesis_flow", "from", "effects", "model"]
+    )]
+    pub(super) carry: Option<PathBuf>,
     /// Update rule of the population search: ga, mfa, pso (the thesis') or
     /// de. It changes the time a fit takes, not where it ends.
     #[arg(long, value_enum, default_value = "de")]

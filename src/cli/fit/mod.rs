@@ -67,7 +67,11 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?),
         None => None,
     };
-    if let Some(file) = &start {
+    let carried = match &args.carry {
+        Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--carry: {e:#}"))?),
+        None => None,
+    };
+    if let Some(file) = start.as_ref().or(carried.as_ref()) {
         args.data.columns = args.data.columns.or_as_read_for(file);
     }
     if let Some([EffectArg::Auto]) = args.effects.as_deref() {
@@ -80,11 +84,26 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         return run_auto(&args, family, &trace);
     }
     let request = args.request()?;
+    let flag = if carried.is_some() {
+        "--carry"
+    } else {
+        "--from"
+    };
     let resolved = request
-        .resolve(start.as_ref())
-        .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
-    let (what, start_model) = (resolved.what, resolved.start);
+        .resolve(start.as_ref().or(carried.as_ref()))
+        .map_err(|e| anyhow::anyhow!("{flag}: {e:#}"))?;
+    let (mut what, mut start_model) = (resolved.what, resolved.start);
     let trace = one_trace(args.data.load()?)?;
+    if carried.is_some() {
+        // The carried model lends its chain and dynamics, not a start: the
+        // sizes are this record's.
+        let model = start_model.take().expect("resolved from the carried file");
+        model
+            .check_data(&trace)
+            .map_err(|e| anyhow::anyhow!("--carry: {e:#}"))?;
+        let held = model.held_dynamics(&what.effects);
+        what.bounds.splice(0..0, held);
+    }
     let note = |s: String| {
         if !args.json {
             eprintln!("mckibben: note: {s}");
@@ -193,9 +212,10 @@ fn announce(args: &Args, fit: &FitRun, trace: &Trace, backend: &str) {
         .fold(fit.problem.model.family.to_string(), |m, e| {
             format!("{m} + {e}")
         });
-    let from = match &args.from {
-        Some(p) => format!(", warm start from {}", p.display()),
-        None => String::new(),
+    let from = match (&args.from, &args.carry) {
+        (Some(p), _) => format!(", warm start from {}", p.display()),
+        (_, Some(p)) => format!(", the chain of {} carried", p.display()),
+        _ => String::new(),
     };
     eprintln!(
         "fitting {model} with {algo} (N = {population}, G = {generations}, seed {}; stages {}{from}) on {} [{}]",

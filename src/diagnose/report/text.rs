@@ -554,12 +554,18 @@ fn transfer_text(o: &mut String, d: &Diagnosis) {
     let chain: Vec<&str> = first.chain.iter().map(|e| e.name()).collect();
     let _ = writeln!(
         o,
-        "\nTRANSFER: the baseline (`fit`) and the chain ({}) (`fit --effects`) fitted on each other\n  \
-         record's first half and scored on its second, which no choice saw:",
+        "\nTRANSFER: the baseline (`fit`) and the chain ({}) carried (`fit --carry`: {}) fitted on\n  \
+         each other record's first half and scored on its second, which no choice saw; `names only`:\n  \
+         the chain refitted from its names (`fit --effects`), its dynamics fitted there too:",
         if chain.is_empty() {
             "no effect".to_string()
         } else {
             chain.join(", ")
+        },
+        if first.dynamics_held.is_empty() {
+            "nothing held".to_string()
+        } else {
+            format!("{} held", first.dynamics_held.join(", "))
         }
     );
     let width = d
@@ -578,11 +584,12 @@ fn transfer_text(o: &mut String, d: &Diagnosis) {
         };
         let _ = writeln!(
             o,
-            "  {:<width$}  baseline {:5.1} %  with the chain {:5.1} %  gap closed {}{verdict}",
+            "  {:<width$}  baseline {:5.1} %  carried {:5.1} %  gap closed {}  names only {:5.1} %{verdict}",
             t.dataset,
             t.baseline_val_fit_percent,
             t.chain_val_fit_percent,
-            pct(t.gap_closed)
+            pct(t.gap_closed),
+            t.names_only_val_fit_percent
         );
         if t.collapses {
             let _ = writeln!(o, "  {:<width$}  {}", "", carried_text(t));

@@ -25,6 +25,7 @@ catalogue! {
             realisation: "pure delay",
             signature: "residual–input cross-correlation peaks at a positive lag; energy right after each input step",
             params: Params::Fixed(&[("d", "input delay (samples)")]),
+            dynamics: &["d"],
             primary: 0,
             bounds: |_, _| EffectBox::new(vec![0.0], vec![0.0], vec![30.0]),
             size_text: Some(|p, dt| format!("{:.1} samples ({:.0} ms)", p[0], 1000.0 * p[0] * dt)),
@@ -76,6 +77,7 @@ catalogue! {
             realisation: "extra real pole",
             signature: "energy in the transient after steps (overshoot or sluggish rise), mid frequencies",
             params: Params::Fixed(&[("a2", "weight of x(k−1) − x(k−2): the extra pole")]),
+            dynamics: &["a2"],
             primary: 0,
             bounds: |_, _| EffectBox::new(vec![0.0], vec![-0.5], vec![0.9]),
             ..PLAIN
@@ -107,6 +109,7 @@ catalogue! {
                     "the slow state at the first sample (output units): where the record's history left it",
                 ),
             ]),
+            dynamics: &["rho"],
             // A creep's slow state starts where the record's history left
             // it, `z0`, anywhere within the output range: a state at rest in
             // some other frame (the deviation coordinates of another record,
@@ -225,6 +228,7 @@ catalogue! {
             realisation: "second-order load mode",
             signature: MODE_SIGNATURE,
             params: Params::Fixed(&[MODE_A1, MODE_A2]),
+            dynamics: &["a1", "a2"],
             primary: 1,
             // Every stable mode lies in a2 < 1, |a1| < 1 + a2.
             bounds: |_, _| EffectBox::new(vec![0.0, 0.0], vec![-1.9, 0.0], vec![1.98, 0.98]),
@@ -249,6 +253,7 @@ catalogue! {
                 "rho",
                 "pole of the slow branch: > 0 drains slower, < 0 fills slower",
             )]),
+            dynamics: &["rho"],
             primary: 0,
             bounds: |_, _| EffectBox::new(vec![0.0], vec![-0.97], vec![0.97]),
             size_text: Some(|p, dt| {
@@ -286,6 +291,7 @@ catalogue! {
                     "the slow state at the first sample (output units): where the record's history left it",
                 ),
             ]),
+            dynamics: &["rho"],
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
                 EffectBox::new(vec![0.995, 0.0, 0.0], vec![0.98, -0.5, -ry], vec![0.9995, 0.5, ry])
@@ -309,6 +315,7 @@ catalogue! {
                     "the slower state at the first sample (output units): where the record's history left it",
                 ),
             ]),
+            dynamics: &["rho_fast", "rho_slow", "fast_share"],
             primary: 2,
             // Two terms of a Prony series: a passive material creeps the
             // same way at every time scale, so the two gains share a sign (a
@@ -378,6 +385,7 @@ catalogue! {
                 MODE_A2,
                 ("g", "kick of an input step (output per input unit)"),
             ]),
+            dynamics: &["a1", "a2"],
             primary: 2,
             // A kick of g·Δu rings at most about 1/sin θ times higher; a
             // whole input range's step then spans the output range at θ ≈ 1
@@ -427,6 +435,7 @@ catalogue! {
                     "the slowest term at the first sample (output units): where the record's history left it",
                 ),
             ]),
+            dynamics: &["rho"],
             // The slowest time constant from 1 000 to 20 000 samples (10 to
             // 200 s at 100 Hz), the fastest a hundredth of it; three terms
             // of the creep's whole gain each at most.
@@ -466,6 +475,7 @@ catalogue! {
                 ("s", "growth of the input gain once trained (relative)"),
                 ("r", "share of the growth still to come that each loading leaves"),
             ]),
+            dynamics: &["r"],
             primary: 0,
             // `r` from 0.2: a growth reached at the first loading acts like
             // the baseline's own gain, since the input above the lowest one
@@ -494,6 +504,7 @@ catalogue! {
                     "how fast the later steps fall: the n-th is the one before times 1 − q/n (0: a steady walk, 1: a walk as the log of the count, above 1 it settles)",
                 ),
             ]),
+            dynamics: &["q"],
             primary: 0,
             bounds: |ctx, _| {
                 let ry = ctx.output_range();
@@ -534,6 +545,7 @@ const PLAIN: Realisation = Realisation {
     realisation: "",
     signature: "",
     params: Params::Fixed(&[]),
+    dynamics: &[],
     primary: 0,
     bounds: |_, _| EffectBox::new(Vec::new(), Vec::new(), Vec::new()),
     size_text: None,
@@ -568,6 +580,7 @@ const LAG: Realisation = Realisation {
     physical: Some(Effect::Delay),
     signature: "residual–input cross-correlation over a spread of positive lags; rounded steps",
     params: Params::Fixed(&[("rho", "pole of the lag (mean delay rho/(1−rho) samples)")]),
+    dynamics: &["rho"],
     // A pole of 0.97 is a mean delay of about 32 samples, the pure delay's 30.
     bounds: |_, _| EffectBox::new(vec![0.0], vec![0.0], vec![0.97]),
     size_text: Some(|p, dt| format!("time constant {}", lag_samples(p[0], dt))),

@@ -108,6 +108,14 @@ impl Effect {
         }
     }
 
+    /// Whether its parameter `name` says how it evolves in time (a pole, a
+    /// delay, how fast its steps fall) rather than how large it is: what a
+    /// chain carried to another record of the muscle holds
+    /// ([`Realisation::dynamics`](table::Realisation::dynamics)).
+    pub fn is_dynamics(self, name: &str) -> bool {
+        self.entry().dynamics.contains(&name)
+    }
+
     pub fn dim(self, datasets: usize) -> usize {
         self.params(datasets).len()
     }
@@ -360,6 +368,41 @@ mod tests {
         assert!(!default.contains(&Effect::LogCreep));
         assert_eq!(default.len(), Effect::ALL.len() - 1);
         assert!(Effect::help_list().contains("`creep:log` only when named"));
+    }
+
+    #[test]
+    fn an_effects_dynamics_are_its_own_parameters_and_never_its_size() {
+        for effect in Effect::ALL {
+            let names: Vec<String> = effect.params(1).into_iter().map(|p| p.name).collect();
+            for d in effect.entry().dynamics {
+                assert!(
+                    names.iter().any(|n| n == d),
+                    "{effect}: {d} is not a parameter"
+                );
+            }
+            // The size the self-tests recover is refitted on another
+            // record, but where the size is itself a time.
+            let sized_by_a_time = [
+                Effect::Delay,
+                Effect::InputLag,
+                Effect::OutputLag,
+                Effect::Inertia,
+                Effect::LoadMode,
+                Effect::DrainLag,
+            ];
+            if let Some(primary) = names.get(effect.primary()) {
+                let held = effect.is_dynamics(primary);
+                assert_eq!(
+                    held,
+                    sized_by_a_time.contains(&effect),
+                    "{effect}: {primary}"
+                );
+            }
+        }
+        assert!(Effect::TwoPoleCreep.is_dynamics("rho_slow"));
+        assert!(!Effect::TwoPoleCreep.is_dynamics("kappa"));
+        assert!(!Effect::Backlash.is_dynamics("r"));
+        assert!(Effect::CyclicSoftening.is_dynamics("r"));
     }
     use crate::model::{Measure, measured_sse, presets::thesis_params, simulate, sse};
 

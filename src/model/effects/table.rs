@@ -46,6 +46,12 @@ pub struct Realisation<E> {
     pub signature: &'static str,
     /// Its parameters, in vector order.
     pub params: Params,
+    /// Those of its parameters that say how it evolves in time, not how
+    /// large it is: poles, delays, how fast a count's growth or steps fall.
+    /// A chain carried to another record of the same muscle holds these at
+    /// the diagnosed values and refits the rest, which are in the record's
+    /// own scale (`fit --carry`, `diagnose --transfer`).
+    pub dynamics: &'static [&'static str],
     /// Index (within its parameters) of the one that measures its size,
     /// which the self-test recovers and the interval is drawn for.
     pub primary: usize,
