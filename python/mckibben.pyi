@@ -160,6 +160,7 @@ def fit(
     time_budget: float | None = None,
     stall: int | None = None,
     start: Model | _Path | None = None,
+    carry: Model | _Path | None = None,
 ) -> FitResult: ...
 
 @final

@@ -94,13 +94,15 @@ pub fn family_or_start(
 }
 
 /// A warm start: a `Model`, or the path of a model file.
-pub fn start_arg(start: &Bound<'_, PyAny>) -> PyResult<ModelFile> {
+pub fn model_arg(start: &Bound<'_, PyAny>, keyword: &str) -> PyResult<ModelFile> {
     if let Ok(m) = start.cast::<Model>() {
         return Ok(m.get().file.clone());
     }
-    let path: std::path::PathBuf = start
-        .extract()
-        .map_err(|_| PyTypeError::new_err("start must be a Model or the path of a model file"))?;
+    let path: std::path::PathBuf = start.extract().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "{keyword} must be a Model or the path of a model file"
+        ))
+    })?;
     start
         .py()
         .detach(|| ModelFile::load(&path))

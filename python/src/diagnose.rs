@@ -10,7 +10,7 @@ use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
 
-use crate::args::{effects_arg, family_or_start, seed_arg, start_arg};
+use crate::args::{effects_arg, family_or_start, model_arg, seed_arg};
 use crate::convert::{backend, to_python, value_error};
 use crate::data::{Trace, arrays_trace};
 use crate::interrupt::interruptible;
@@ -118,7 +118,7 @@ pub fn diagnose<'py>(
         ));
     }
     let start = start
-        .map(start_arg)
+        .map(|s| model_arg(s, "start"))
         .transpose()?
         .map(|f| f.model())
         .transpose()

@@ -5,7 +5,7 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use numpy::PyArray1;
-use pyo3::exceptions::PyKeyboardInterrupt;
+use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -21,7 +21,7 @@ use mckibben::fit::settings::{FitSettings, Overrides};
 use mckibben::optim::engine::{Observer, Outcome, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 
-use crate::args::{count, effects_arg, seed_arg, start_arg, user_bounds};
+use crate::args::{count, effects_arg, model_arg, seed_arg, user_bounds};
 use crate::convert::{
     algorithm, backend, family, in_python_terms, loop_shape, runtime_error, switching, to_python,
     value_error,
@@ -175,7 +175,7 @@ fn unbound(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>>
     u, y = None, dt = None, model = None, effects = None, algo = "de", pop = None,
     gens = None, seed = 1, backend = "cpu", bounds = None, progress = None, *,
     free_n = false, r#loop = "bounded", switch = "search", thesis_flow = false,
-    target_sse = None, time_budget = None, stall = None, start = None
+    target_sse = None, time_budget = None, stall = None, start = None, carry = None
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
@@ -200,11 +200,22 @@ pub fn fit(
     time_budget: Option<f64>,
     stall: Option<i64>,
     start: Option<&Bound<'_, PyAny>>,
+    carry: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<FitResult> {
     let trace = data_arg(u, y, dt)?;
     // As `fit --from`: the start's family, effects and bounds unless given
-    // here (the bounds given here after the file's, so that they win).
-    let start = start.map(start_arg).transpose()?;
+    // here (the bounds given here after the file's, so that they win). As
+    // `fit --carry`: the carried model's family and effects, its dynamics
+    // held, no warm start.
+    if start.is_some() && carry.is_some() {
+        return Err(PyValueError::new_err(
+            "start and carry: a fit either starts from a model or carries its chain",
+        ));
+    }
+    let (start, carried) = (
+        start.map(|s| model_arg(s, "start")).transpose()?,
+        carry.map(|s| model_arg(s, "carry")).transpose()?,
+    );
     let request = FitRequest {
         family: model.map(family).transpose()?,
         effects: effects_arg(effects)?,
@@ -212,13 +223,21 @@ pub fn fit(
         loop_shape: loop_shape(r#loop)?,
         switching: switching(switch)?,
         bounds: user_bounds(bounds)?,
+        carry: carried.is_some(),
     };
+    let which = if carried.is_some() { "carry" } else { "start" };
     let Resolved {
         what,
         start: start_model,
+        carried,
     } = request
-        .resolve(start.as_ref())
-        .map_err(|e| value_error(e.context("start")))?;
+        .resolve(start.as_ref().or(carried.as_ref()))
+        .map_err(|e| value_error(e.context(which)))?;
+    if let Some(model) = &carried {
+        model
+            .check_data(&trace)
+            .map_err(|e| value_error(e.context("carry")))?;
+    }
     if let Some(p) = progress.as_ref()
         && !p.bind(py).is_callable()
     {

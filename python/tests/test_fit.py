@@ -137,6 +137,22 @@ def test_a_warm_start_is_the_commands_fit_from(stair, cli, small_fit, tmp_path):
     assert again.effects == result.effects and again.family == "classic"
 
 
+def test_a_carried_chain_is_the_commands_fit_carry(stair, cli, tmp_path):
+    small = ["--pop", "40", "--gens", "5", "--seed", "5", "--backend", "cpu"]
+    source = mckibben.fit(stair, pop=40, gens=5, seed=5, effects=["creep"])
+    path = tmp_path / "source.json"
+    source.model.save(path)
+    expected = cli("fit", stair.source, *small, "--carry", path, "--out", tmp_path / "cli")
+    result = mckibben.fit(stair, pop=40, gens=5, seed=5, carry=source.model)
+    assert result.effects == ["creep"]
+    assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
+    # The creep's pole is the carried model's; its gain is fitted again.
+    assert result.params["creep.rho"] == source.params["creep.rho"]
+    assert result.start_sse is None
+    with pytest.raises(ValueError, match="start and carry"):
+        mckibben.fit(stair, pop=40, gens=2, start=source.model, carry=source.model)
+
+
 def test_seeds_are_per_call(stair, small_fit):
     same = mckibben.fit(stair, pop=40, gens=20, seed=3)
     other = mckibben.fit(stair, pop=40, gens=20, seed=4)

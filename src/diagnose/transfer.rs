@@ -45,9 +45,8 @@ pub struct Transfer {
     /// The effects fitted there: the final model's, less those one record
     /// cannot hold (`load` needs several).
     pub chain: Vec<Effect>,
-    /// The chain's dynamics held there, as `--fix` writes them
-    /// (`creep.rho=0.994`).
-    pub dynamics_held: Vec<String>,
+    /// The chain's dynamics held there (`fit --carry`).
+    pub dynamics_held: Vec<Held>,
     /// Free-run RMSE and fit % on the record's second half: the plain
     /// baseline's (`fit`) and the carried chain's (`fit --carry`).
     pub baseline_val_rmse: f64,
@@ -76,6 +75,14 @@ pub struct Transfer {
     /// effect (a creep's gain at its limit, a ratchet walking at a steady
     /// rate), where to look first when the chain collapses.
     pub chain_on_edge: Vec<ActiveBound>,
+}
+
+/// One parameter held at its diagnosed value, as `--fix param=value`
+/// holds it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Held {
+    pub param: String,
+    pub value: f64,
 }
 
 /// The leading links of a chain that carry over to a record, and their fit
@@ -169,7 +176,13 @@ pub fn transfer(
             Ok(Transfer {
                 dataset: trace.source.clone(),
                 chain: chain.clone(),
-                dynamics_held: held(&chain).iter().map(|b| b.to_string()).collect(),
+                dynamics_held: held(&chain)
+                    .into_iter()
+                    .map(|b| Held {
+                        param: b.name,
+                        value: b.lower,
+                    })
+                    .collect(),
                 baseline_val_rmse: baseline.rmse,
                 baseline_val_fit_percent: baseline.fit_percent,
                 chain_val_rmse: fitted.rmse,

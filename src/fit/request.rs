@@ -23,14 +23,21 @@ pub struct FitRequest {
     /// The user's bounds and fixed values, after the start file's (so that
     /// these win).
     pub bounds: Vec<UserBound>,
+    /// The start model is carried, not a warm start (`fit --carry`,
+    /// Python's `carry=`): its chain is fitted from scratch with its
+    /// effects' dynamics held at its values ([`Model::held_dynamics`]).
+    pub carry: bool,
 }
 
 /// A request reconciled with its start: what is fitted, and the model the
-/// fit starts from, if any.
+/// fit starts from, if any, or the model whose chain it carries.
 #[derive(Debug, Clone)]
 pub struct Resolved {
     pub what: FitTarget,
     pub start: Option<Model>,
+    /// The carried model: the data must have its sample time, since the
+    /// held poles are per sample ([`Model::check_data`]).
+    pub carried: Option<Model>,
 }
 
 impl FitRequest {
@@ -59,6 +66,14 @@ impl FitRequest {
             None => Vec::new(),
         };
         bounds.extend(self.bounds.iter().cloned());
+        let (start, carried) = if self.carry {
+            let model = model.context("a carried chain needs the model that carries it")?;
+            // Held first, so that the user's own bounds win.
+            bounds.splice(0..0, model.held_dynamics(&effects));
+            (None, Some(model))
+        } else {
+            (model, None)
+        };
         Ok(Resolved {
             what: FitTarget {
                 family,
@@ -68,7 +83,8 @@ impl FitRequest {
                 switching: self.switching,
                 bounds,
             },
-            start: model,
+            start,
+            carried,
         })
     }
 }
@@ -110,7 +126,35 @@ mod tests {
             loop_shape: Loop::Bounded,
             switching: Switching::Search,
             bounds: Vec::new(),
+            carry: false,
         }
+    }
+
+    #[test]
+    fn a_carried_model_lends_its_chain_and_its_dynamics_not_a_start() {
+        let file = saved();
+        let mut request = asked();
+        request.carry = true;
+        request.bounds = vec!["creep.rho=0.99".parse().unwrap()];
+        let r = request.resolve(Some(&file)).unwrap();
+        assert!(r.start.is_none() && r.carried.is_some());
+        assert_eq!(r.what.effects, [Effect::Creep]);
+        let rho = file.model().unwrap().named_params()[..]
+            .iter()
+            .find(|(n, _)| n == "creep.rho")
+            .unwrap()
+            .1;
+        let bounds: Vec<String> = r.what.bounds.iter().map(|b| b.to_string()).collect();
+        // Held first, so that the file's and the user's bounds win.
+        assert_eq!(
+            bounds,
+            [
+                format!("creep.rho={rho}"),
+                "alpha=0.2:0.6".to_string(),
+                "creep.rho=0.99".to_string()
+            ]
+        );
+        assert!(request.resolve(None).is_err(), "nothing to carry");
     }
 
     #[test]

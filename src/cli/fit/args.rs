@@ -370,6 +370,7 @@ impl Args {
             loop_shape: self.loop_shape,
             switching: self.switching,
             bounds: self.bound.iter().chain(&self.fix).cloned().collect(),
+            carry: self.carry.is_some(),
         })
     }
 }

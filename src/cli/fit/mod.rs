@@ -84,25 +84,16 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         return run_auto(&args, family, &trace);
     }
     let request = args.request()?;
-    let flag = if carried.is_some() {
-        "--carry"
-    } else {
-        "--from"
-    };
+    let flag = if carried.is_some() { "--carry" } else { "--from" };
     let resolved = request
         .resolve(start.as_ref().or(carried.as_ref()))
         .map_err(|e| anyhow::anyhow!("{flag}: {e:#}"))?;
-    let (mut what, mut start_model) = (resolved.what, resolved.start);
+    let (what, start_model) = (resolved.what, resolved.start);
     let trace = one_trace(args.data.load()?)?;
-    if carried.is_some() {
-        // The carried model lends its chain and dynamics, not a start: the
-        // sizes are this record's.
-        let model = start_model.take().expect("resolved from the carried file");
+    if let Some(model) = &resolved.carried {
         model
             .check_data(&trace)
             .map_err(|e| anyhow::anyhow!("--carry: {e:#}"))?;
-        let held = model.held_dynamics(&what.effects);
-        what.bounds.splice(0..0, held);
     }
     let note = |s: String| {
         if !args.json {

@@ -554,18 +554,24 @@ fn transfer_text(o: &mut String, d: &Diagnosis) {
     let chain: Vec<&str> = first.chain.iter().map(|e| e.name()).collect();
     let _ = writeln!(
         o,
-        "\nTRANSFER: the baseline (`fit`) and the chain ({}) carried (`fit --carry`: {}) fitted on\n  \
-         each other record's first half and scored on its second, which no choice saw; `names only`:\n  \
-         the chain refitted from its names (`fit --effects`), its dynamics fitted there too:",
+        "\nTRANSFER: the baseline (`fit`) and the chain ({}) carried as `fit --carry` carries it (its\n  \
+         dynamics held: {}; its sizes fitted there), each fitted on every other record's first half\n  \
+         and scored on its second, which no choice saw; `names only`: the chain refitted from its\n  \
+         names alone (`fit --effects`), its dynamics fitted on that first half too:",
         if chain.is_empty() {
             "no effect".to_string()
         } else {
             chain.join(", ")
         },
         if first.dynamics_held.is_empty() {
-            "nothing held".to_string()
+            "none".to_string()
         } else {
-            format!("{} held", first.dynamics_held.join(", "))
+            first
+                .dynamics_held
+                .iter()
+                .map(|h| format!("{} {:.4}", h.param, h.value))
+                .collect::<Vec<_>>()
+                .join(", ")
         }
     );
     let width = d
