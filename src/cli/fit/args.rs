@@ -130,7 +130,8 @@ pub struct Args {
     /// first half. For the next record of the same muscle: its first half
     /// pins a gain far better than the pole of a state slower than the
     /// record. DATA is read as the model's data were and must have its units
-    /// and sample time (the held poles are per sample).
+    /// and sample time (the held poles are per sample). The model written
+    /// keeps them held (its `user_bounds`), so a later --from refit does too.
     #[arg(
         long,
         value_name = "MODEL.json",
