@@ -18,8 +18,8 @@
 //! loadings pins a gain and hardly a pole slower than the record: refitted
 //! from names alone, a ratchet's walk or a creep's pole runs wherever that
 //! half lets it, and the chain validates below the plain fit on records
-//! where, carried, it holds (docs/DIAGNOSIS.md, "Real data: the Cavatappi
-//! muscle").
+//! where, carried, it holds (docs/RESULTS.md, "Transfers between
+//! loads").
 
 use anyhow::Context as _;
 use serde::Serialize;

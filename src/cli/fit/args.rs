@@ -125,7 +125,7 @@ pub struct Args {
     /// Carry a model's chain to this record, as `diagnose --transfer`
     /// does: the model's family and effects fitted here from scratch, with
     /// the effects' dynamics (poles, delays, how fast a ratchet's steps or
-    /// a training fall) held at the model's values, and the baseline and
+    /// a cyclic softening's growth fall) held at the model's values, and the baseline and
     /// the effects' sizes (gains, levels, starts) fitted on this record's
     /// first half. For the next record of the same muscle: its first half
     /// pins a gain far better than the pole of a state slower than the

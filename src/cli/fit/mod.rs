@@ -84,7 +84,11 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         return run_auto(&args, family, &trace);
     }
     let request = args.request()?;
-    let flag = if carried.is_some() { "--carry" } else { "--from" };
+    let flag = if carried.is_some() {
+        "--carry"
+    } else {
+        "--from"
+    };
     let resolved = request
         .resolve(start.as_ref().or(carried.as_ref()))
         .map_err(|e| anyhow::anyhow!("{flag}: {e:#}"))?;
