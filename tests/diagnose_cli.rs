@@ -316,7 +316,7 @@ fn cavatappi_100g_is_diagnosed_after_resampling() {
     let rho = v["final"]["params"]["creep.rho"].as_f64().unwrap();
     assert_eq!(
         t["dynamics_held"],
-        serde_json::json!([format!("creep.rho={rho}")])
+        serde_json::json!([{"param": "creep.rho", "value": rho}])
     );
     assert!(
         t["names_only_val_fit_percent"]
