@@ -100,15 +100,18 @@ pub struct Args {
     #[arg(long)]
     blocks: Option<usize>,
     /// Other records of the same muscle (e.g. other loads or specimens, read
-    /// with the same column flags): after the diagnosis, the baseline and
-    /// the final model's chain are each fitted on every OTHER's first half
-    /// as `fit` and `fit --effects CHAIN` fit them, and scored on its second
-    /// half, which no choice of the diagnosis saw. The report (TRANSFER) says
-    /// how much of the baseline's gap the chain closes on each: whether the
-    /// effects belong to the muscle or to one recording. Where the chain
-    /// falls below the plain fit (COLLAPSES), its leading links are fitted
-    /// alone, one link fewer at a time, and the report names the first link
-    /// that does not carry over.
+    /// with the same column flags and sampled alike): after the diagnosis,
+    /// the baseline is fitted on every OTHER's first half as `fit` fits it,
+    /// and the final model's chain carried there as `fit --carry` carries
+    /// it (the effects' dynamics, poles, delays, how fast steps fall, held
+    /// at the diagnosed values; their sizes fitted there), each scored on
+    /// its second half, which no choice of the diagnosis saw. The report
+    /// (TRANSFER) says how much of the baseline's gap the chain closes on
+    /// each, whether the effects belong to the muscle or to one recording,
+    /// and beside it the chain refitted from its names alone (`fit --effects
+    /// CHAIN`). Where the carried chain falls below the plain fit
+    /// (COLLAPSES), its leading links are carried alone, one link fewer at a
+    /// time, and the report names the first link that does not carry over.
     #[arg(long, value_name = "OTHER", num_args = 1.., conflicts_with = "self_test")]
     transfer: Vec<PathBuf>,
     /// Where the searches score their populations: `cpu` (the batched,
