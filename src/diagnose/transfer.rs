@@ -144,6 +144,14 @@ pub fn transfer(
         .filter(|e| e.applicable(1))
         .collect();
     let held = |links: &[Effect]| d.final_model.held_dynamics(links);
+    let chain_held = held(&chain);
+    let dynamics_held: Vec<Held> = chain_held
+        .iter()
+        .map(|b| Held {
+            param: b.name.clone(),
+            value: b.lower,
+        })
+        .collect();
     others
         .iter()
         .map(|trace| {
@@ -155,7 +163,7 @@ pub fn transfer(
                 (baseline, Vec::new(), baseline.fit_percent)
             } else {
                 let (fitted, on_edge) =
-                    fit_and_score(trace, d.family, &chain, &held(&chain), settings)?;
+                    fit_and_score(trace, d.family, &chain, &chain_held, settings)?;
                 let names_only = fit_and_score(trace, d.family, &chain, &[], settings)?.0;
                 (fitted, on_edge, names_only.fit_percent)
             };
@@ -176,13 +184,7 @@ pub fn transfer(
             Ok(Transfer {
                 dataset: trace.source.clone(),
                 chain: chain.clone(),
-                dynamics_held: held(&chain)
-                    .into_iter()
-                    .map(|b| Held {
-                        param: b.name,
-                        value: b.lower,
-                    })
-                    .collect(),
+                dynamics_held: dynamics_held.clone(),
                 baseline_val_rmse: baseline.rmse,
                 baseline_val_fit_percent: baseline.fit_percent,
                 chain_val_rmse: fitted.rmse,
