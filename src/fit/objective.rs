@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use nalgebra::DVector;
+use rayon::prelude::*;
 
 use super::problem::{Admission, FitProblem};
 use crate::eval::{Evaluator, Pending, Problem};
@@ -245,8 +246,11 @@ impl Objective for ModelObjective<'_> {
         let raw = self
             .clock
             .timed(self.evaluator, |e| e.residuals(&self.problem, rows))?;
+        // In parallel: a polish round on a GPU brings back thousands of
+        // rows, and one thread converting them all would hold up every
+        // start's step.
         let mut residuals: Vec<Option<DVector<f64>>> = raw
-            .into_iter()
+            .into_par_iter()
             .map(|r| r.map(|r| DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64))))
             .collect();
         for (r, ok) in residuals.iter_mut().zip(self.admitted(rows)) {

@@ -20,6 +20,7 @@ mod stages;
 
 pub use host::{GpuOptions, adapters, describe_adapter, is_hardware};
 use host::{Host, Kernel, Output, Submitted, best_adapter};
+use rayon::prelude::*;
 
 use super::{Evaluator, Pending, Problem, Scores, check_dim, to_f32};
 use crate::model::Family;
@@ -304,8 +305,10 @@ impl Evaluator for GpuEvaluator {
     ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
         let r = residual_len(problem);
         let flat = self.run(problem, population, Output::Residuals)?;
+        // Row by row in parallel: the read-back of a polish round holds
+        // thousands of rows, and this copy is host time the device waits for.
         Ok(flat
-            .chunks(r.max(1))
+            .par_chunks(r.max(1))
             .take(population.len())
             .map(|row| row.iter().all(|v| v.is_finite()).then(|| row.to_vec()))
             .collect())
