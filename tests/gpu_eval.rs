@@ -113,6 +113,51 @@ fn prediction_scores_are_bit_identical_to_the_cpu() {
     }
 }
 
+/// A state that leaves the bounds and comes back inside them has diverged
+/// all the same, on the CPU and on the device, in the free run and in the
+/// prediction (whose restarts put the state back on the measurement): the
+/// device checks its bounds at every sample, though it looks at the result
+/// only every few.
+#[test]
+fn a_state_that_leaves_the_bounds_and_comes_back_has_diverged() {
+    let Some(mut g) = gpu(GpuOptions::default()) else {
+        return;
+    };
+    // An impulse at sample 1; the answer, 1e7 at sample 2, halves each
+    // sample and is back under the bound (1e6) at sample 6.
+    let len = 40;
+    let mut u = vec![0.0f32; len];
+    u[1] = 1.0;
+    let exp = Experiment {
+        name: "impulse".into(),
+        dt: 0.01,
+        u,
+        y: vec![0.0; len],
+        u_mean: 0.0,
+        y_mean: 0.0,
+    };
+    // Classic [A, α, β, γ, n, a, b, c, x0] with A = 0 and α = 1:
+    // x(k) = a·x(k−1) + b·u(k−1) + c. The second row's answer stays inside.
+    let leaves = [0.0, 1.0, 0.0, 0.0, 1.0, 0.5, 1.0e7, 0.0, 0.0];
+    let stays = [0.0, 1.0, 0.0, 0.0, 1.0, 0.5, 1.0e5, 0.0, 0.0];
+    let pop: Vec<f64> = leaves.iter().chain(&stays).copied().collect();
+    for measure in [
+        Measure::FreeRun,
+        Measure::Ahead { horizon: 1 },
+        Measure::Ahead { horizon: 3 },
+    ] {
+        let problem = Problem::new(Family::Classic, vec![exp.clone()]).with_measure(measure);
+        let want = cpu(&problem, &pop);
+        assert!(
+            want.total[0].is_infinite() && want.total[1].is_finite(),
+            "{measure:?}: the CPU's scores {:?}",
+            want.total
+        );
+        let got = g.evaluate(&problem, problem.rows(&pop)).unwrap();
+        assert_bit_identical(&got, &want, &format!("{measure:?}"));
+    }
+}
+
 /// Two populations in flight at once, of two measures and sizes, the
 /// second submitted before the first is collected (as a generation's parts
 /// are): each reads back the CPU's scores, and the device's time is each
