@@ -155,6 +155,63 @@ fn thread_count_does_not_change_the_result() {
     }
 }
 
+/// The CPU's evaluator, but one that cannot fork: the polish's groups of
+/// starts then take turns on it instead of running side by side.
+struct Unforked(CpuEvaluator);
+
+impl Evaluator for Unforked {
+    fn describe(&self) -> String {
+        self.0.describe()
+    }
+
+    fn evaluate(
+        &mut self,
+        problem: &Problem,
+        population: mckibben::search::Rows<'_, mckibben::search::Params>,
+    ) -> anyhow::Result<mckibben::eval::Scores> {
+        self.0.evaluate(problem, population)
+    }
+
+    fn residuals(
+        &mut self,
+        problem: &Problem,
+        population: mckibben::search::Rows<'_, mckibben::search::Params>,
+    ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
+        self.0.residuals(problem, population)
+    }
+}
+
+/// On the CPU the polish's groups of starts run side by side, each on a
+/// fork of the evaluator, and are recorded in their order: the history and
+/// the result are those of the groups one after another. Twelve starts on
+/// one thread make three groups of four.
+#[test]
+fn polish_groups_side_by_side_end_as_one_after_another() {
+    let mut plan = plan(Algorithm::De);
+    plan.polish.as_mut().unwrap().starts = 12;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let (side_by_side, after_another) = pool.install(|| {
+        let mut forked = engine_of(plan.clone(), 4);
+        let a = fit(&mut forked, &mut CpuEvaluator::new());
+        let mut unforked = engine_of(plan, 4);
+        let b = fit(&mut unforked, &mut Unforked(CpuEvaluator::new()));
+        (
+            (fingerprint(&forked), a.params),
+            (fingerprint(&unforked), b.params),
+        )
+    });
+    let polished = side_by_side
+        .0
+        .iter()
+        .filter(|r| r.stage == Stage::Polish)
+        .count();
+    assert!(polished >= 9, "{polished} polish records");
+    assert_eq!(side_by_side, after_another);
+}
+
 #[test]
 fn different_seeds_differ() {
     let mut a = engine(Algorithm::De, 1);

@@ -11,7 +11,7 @@ use crate::eval::{Evaluator, Pending, Problem};
 use crate::model::coords::in_bounded_class;
 use crate::model::{Flow, Loop, Measure};
 use crate::optim::engine::plan::{FreeRun, Global, Plan, Polish, Refine};
-use crate::optim::engine::{Objective, Ticket};
+use crate::optim::engine::{Fork, Objective, Ticket};
 use crate::optim::{AlgoSettings, Algorithm};
 use crate::search::{Params, Rows};
 
@@ -190,6 +190,21 @@ impl Objective for ModelObjective<'_> {
         self.evaluator.round_trips()
     }
 
+    fn forks(&self, n: usize) -> Option<Vec<Box<dyn Fork + '_>>> {
+        (0..n)
+            .map(|_| {
+                let evaluator = self.evaluator.fork()?;
+                Some(Box::new(ModelFork {
+                    evaluator,
+                    problem: &self.problem,
+                    stress: &self.stress,
+                    bounded_class: self.bounded_class,
+                    loop_bounded: self.loop_bounded,
+                }) as Box<dyn Fork + '_>)
+            })
+            .collect()
+    }
+
     fn costs(&mut self, rows: Rows<'_, Params>, measure: Measure) -> anyhow::Result<Vec<f32>> {
         let ticket = self.submit(rows, measure)?;
         self.collect(ticket, rows, measure)
@@ -268,6 +283,32 @@ impl Objective for ModelObjective<'_> {
             }
         }
         Ok(residuals)
+    }
+}
+
+/// A [`ModelObjective`]'s copy for one thread: a forked evaluator, and the
+/// problem and admission of the objective it was forked from.
+struct ModelFork<'o> {
+    evaluator: Box<dyn Evaluator + Send>,
+    problem: &'o Problem,
+    stress: &'o Option<(Problem, f64)>,
+    bounded_class: bool,
+    loop_bounded: bool,
+}
+
+impl Fork for ModelFork<'_> {
+    fn run(
+        &mut self,
+        work: &mut dyn FnMut(&mut dyn Objective) -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        work(&mut ModelObjective {
+            evaluator: &mut *self.evaluator,
+            problem: self.problem.clone(),
+            stress: self.stress.clone(),
+            bounded_class: self.bounded_class,
+            loop_bounded: self.loop_bounded,
+            clock: Clock::new(),
+        })
     }
 }
 

@@ -128,6 +128,26 @@ pub trait Objective {
     fn round_trips(&self) -> bool {
         false
     }
+
+    /// `n` objectives of their own that give the same numbers, one for each
+    /// group of polish starts, so that the groups run side by side where
+    /// the scoring is local (the CPU's evaluator forks,
+    /// [`crate::eval::Evaluator::fork`]); `None` (the default) where the
+    /// groups take turns on this one.
+    fn forks(&self, n: usize) -> Option<Vec<Box<dyn Fork + '_>>> {
+        let _ = n;
+        None
+    }
+}
+
+/// One thread's copy of an objective ([`Objective::forks`]).
+pub trait Fork: Send {
+    /// Runs `work` on an objective of its own that gives the same numbers
+    /// as the one it was forked from.
+    fn run(
+        &mut self,
+        work: &mut dyn FnMut(&mut dyn Objective) -> anyhow::Result<()>,
+    ) -> anyhow::Result<()>;
 }
 
 /// Costs on their way ([`Objective::submit`]): whatever the objective needs

@@ -2,10 +2,13 @@
 //! of each try's population stages, every try's starts together.
 
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use rayon::prelude::*;
 
 use super::{
-    Chart, Engine, Members, Objective, Scored, Space, Spent, Stage, StageEnd, Step, keep_lowest,
-    plan, timed,
+    Chart, Engine, Fork, Members, Objective, Scored, Space, Spent, Stage, StageEnd, Step,
+    keep_lowest, plan, timed,
 };
 use crate::optim::Bounds;
 use crate::optim::lm::{self, LmSettings};
@@ -79,11 +82,29 @@ impl<C: Chart> Engine<C> {
         } else {
             4 * rayon::current_num_threads().max(1)
         };
-        for group in starts.chunks(together) {
-            if setup.cut() {
-                break;
+        let groups: Vec<&[(usize, Vec<f64>)]> = starts.chunks(together).collect();
+        let forked = objective
+            .forks(groups.len())
+            .filter(|_| groups.len() > 1)
+            .map(|forks| polish_side_by_side(&setup, &groups, forks))
+            .transpose()?;
+        match forked {
+            // Cut short: nothing to record.
+            Some(None) => {}
+            Some(Some((polished, spent))) => {
+                self.spent(spent);
+                for (group, polished) in groups.iter().zip(polished) {
+                    self.record_group(objective, &setup, group, polished)?;
+                }
             }
-            self.polish_group(objective, &setup, group)?;
+            None => {
+                for group in groups {
+                    if setup.cut() {
+                        break;
+                    }
+                    self.polish_group(objective, &setup, group)?;
+                }
+            }
         }
         if setup.cut() {
             return Ok(self.undo_polish(before));
@@ -193,66 +214,24 @@ impl<C: Chart> Engine<C> {
         setup: &PolishSetup<C>,
         group: &[(usize, Vec<f64>)],
     ) -> anyhow::Result<()> {
-        let before_group = self.evaluations;
-        let mut xs: Vec<Vec<f64>> = group.iter().map(|(_, x)| x.clone()).collect();
-        // The points each start had scored: its record counts them.
-        let mut points = vec![0usize; xs.len()];
-        for &measure in &setup.measures {
-            if setup.cut() {
-                break;
-            }
-            self.polish_on(objective, setup, measure, &mut xs, &mut points)?;
-        }
-        self.record_polished(objective, setup, group, &xs, points, before_group)
+        let polished = polish_through(objective, setup, group)?;
+        self.spent(polished.spent);
+        self.record_group(objective, setup, group, polished)
     }
 
-    /// One horizon of a group's polish: Levenberg–Marquardt under `measure`
-    /// from `xs`, which move to where their starts end; `points` count the
-    /// points each start has scored, and the engine's counters the
-    /// evaluations and the evaluator's seconds.
-    fn polish_on(
+    /// Counts a group's polish evaluations, then scores and records its
+    /// results ([`Engine::record_polished`]).
+    fn record_group(
         &mut self,
         objective: &mut dyn Objective,
         setup: &PolishSetup<C>,
-        measure: Measure,
-        xs: &mut [Vec<f64>],
-        points: &mut [usize],
+        group: &[(usize, Vec<f64>)],
+        polished: GroupPolish,
     ) -> anyhow::Result<()> {
-        let mut evaluations = 0u64;
-        let mut spent = Spent {
-            kernel: Some(0.0),
-            ..Spent::default()
-        };
-        let mut residuals = |points: &[Vec<f64>]| {
-            evaluations += points.len() as u64;
-            let points = points.concat();
-            let canonical = setup
-                .space
-                .embed(Rows::new(&points, setup.space.free_dim()));
-            let (r, s) = timed(objective, |o| o.residuals(canonical.rows(), measure));
-            spent.seconds += s.seconds;
-            spent.kernel = spent.kernel.zip(s.kernel).map(|(a, b)| a + b);
-            r
-        };
-        let polished = lm::levenberg_marquardt_lockstep(
-            &mut residuals,
-            xs,
-            (&setup.bounds.lower, &setup.bounds.upper),
-            &setup.floor,
-            &setup.settings,
-            setup.interrupt,
-        );
-        self.evaluations += evaluations;
-        self.spent(spent);
-        for ((x, count), run) in xs.iter_mut().zip(points).zip(polished?) {
-            *count += run.points;
-            // A start whose simulation or a probe's diverges keeps
-            // its place: the search's value is still a candidate.
-            if let Ok(out) = run.outcome {
-                *x = out.x;
-            }
-        }
-        Ok(())
+        let before_group = self.evaluations;
+        self.evaluations += polished.evaluations;
+        let GroupPolish { xs, points, .. } = polished;
+        self.record_polished(objective, setup, group, &xs, points, before_group)
     }
 
     /// Scores a group's polished starts as every other candidate, so that
@@ -503,4 +482,128 @@ fn distinct_starts(
         }
     }
     starts.into_iter().map(|(x, _)| x).collect()
+}
+
+/// Where a group's starts ended after every horizon of its polish, the
+/// points each had scored, and what the polish cost.
+struct GroupPolish {
+    xs: Vec<Vec<f64>>,
+    points: Vec<usize>,
+    evaluations: u64,
+    spent: Spent,
+}
+
+/// A group's polish in lock-step through every horizon of `setup`: each
+/// round, one call of `objective` scores the points all its unfinished
+/// starts need next (each start takes the very steps it takes alone), and
+/// a start that is done drops out.
+fn polish_through<C: Chart>(
+    objective: &mut dyn Objective,
+    setup: &PolishSetup<C>,
+    group: &[(usize, Vec<f64>)],
+) -> anyhow::Result<GroupPolish> {
+    let mut polished = GroupPolish {
+        xs: group.iter().map(|(_, x)| x.clone()).collect(),
+        points: vec![0; group.len()],
+        evaluations: 0,
+        spent: Spent {
+            kernel: Some(0.0),
+            ..Spent::default()
+        },
+    };
+    for &measure in &setup.measures {
+        if setup.cut() {
+            break;
+        }
+        polish_on(objective, setup, measure, &mut polished)?;
+    }
+    Ok(polished)
+}
+
+/// One horizon of a group's polish: Levenberg–Marquardt under `measure`
+/// from where its starts stand, which move to where they end.
+fn polish_on<C: Chart>(
+    objective: &mut dyn Objective,
+    setup: &PolishSetup<C>,
+    measure: Measure,
+    polished: &mut GroupPolish,
+) -> anyhow::Result<()> {
+    let mut evaluations = 0u64;
+    let spent = &mut polished.spent;
+    let mut residuals = |points: &[Vec<f64>]| {
+        evaluations += points.len() as u64;
+        let points = points.concat();
+        let canonical = setup
+            .space
+            .embed(Rows::new(&points, setup.space.free_dim()));
+        let (r, s) = timed(objective, |o| o.residuals(canonical.rows(), measure));
+        spent.seconds += s.seconds;
+        spent.kernel = spent.kernel.zip(s.kernel).map(|(a, b)| a + b);
+        r
+    };
+    let runs = lm::levenberg_marquardt_lockstep(
+        &mut residuals,
+        &polished.xs,
+        (&setup.bounds.lower, &setup.bounds.upper),
+        &setup.floor,
+        &setup.settings,
+        setup.interrupt,
+    );
+    polished.evaluations += evaluations;
+    for ((x, count), run) in polished.xs.iter_mut().zip(&mut polished.points).zip(runs?) {
+        *count += run.points;
+        // A start whose simulation or a probe's diverges keeps its place:
+        // the search's value is still a candidate.
+        if let Ok(out) = run.outcome {
+            *x = out.x;
+        }
+    }
+    Ok(())
+}
+
+/// Every group's polish ([`polish_through`]) on its own fork of the
+/// objective, the groups side by side, in the groups' order; `None` when
+/// cut short. Each start takes the very steps it takes in any group, so
+/// the fit is the same bits as with the groups one after another. The
+/// evaluator's seconds of this phase are its wall time times the share of
+/// the groups' own time they spent in evaluator calls.
+fn polish_side_by_side<C: Chart>(
+    setup: &PolishSetup<C>,
+    groups: &[&[(usize, Vec<f64>)]],
+    forks: Vec<Box<dyn Fork + '_>>,
+) -> anyhow::Result<Option<(Vec<GroupPolish>, Spent)>> {
+    let started = Instant::now();
+    let polished: Vec<anyhow::Result<(GroupPolish, f64)>> = groups
+        .par_iter()
+        .zip(forks)
+        .map(|(group, mut fork)| {
+            let began = Instant::now();
+            let mut out = None;
+            fork.run(&mut |forked| {
+                out = Some(polish_through(forked, setup, group)?);
+                Ok(())
+            })?;
+            let polished = out.expect("a fork runs its work");
+            Ok((polished, began.elapsed().as_secs_f64()))
+        })
+        .collect();
+    let wall = started.elapsed().as_secs_f64();
+    let polished = polished.into_iter().collect::<anyhow::Result<Vec<_>>>()?;
+    if setup.cut() {
+        return Ok(None);
+    }
+    let busy: f64 = polished.iter().map(|(_, b)| b).sum();
+    let inside: f64 = polished.iter().map(|(p, _)| p.spent.seconds).sum();
+    let spent = Spent {
+        seconds: if busy > 0.0 {
+            wall * inside / busy
+        } else {
+            0.0
+        },
+        kernel: None,
+    };
+    Ok(Some((
+        polished.into_iter().map(|(p, _)| p).collect(),
+        spent,
+    )))
 }
