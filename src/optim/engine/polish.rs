@@ -4,6 +4,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+use anyhow::Context;
 use rayon::prelude::*;
 
 use super::{
@@ -73,10 +74,11 @@ impl<C: Chart> Engine<C> {
         // starts of the group need next (each start takes the very steps it
         // takes alone), and a start that is done drops out. On an objective
         // whose calls pay a round trip (a GPU) the group is every try's
-        // every start; on the CPU four starts a thread, enough rows a call
-        // to keep every core busy, few enough that a round's residuals
-        // stay in the caches (docs/PERFORMANCE.md, "The polish in
-        // lock-step").
+        // every start; on the CPU four starts a thread, few enough that a
+        // round's residuals stay in the caches, and the groups side by side
+        // on forks of the objective, since one group's round is too little
+        // work for the threads to share (docs/PERFORMANCE.md, "The polish
+        // in lock-step").
         let together = if objective.round_trips() {
             starts.len().max(1)
         } else {
@@ -583,7 +585,7 @@ fn polish_side_by_side<C: Chart>(
                 out = Some(polish_through(forked, setup, group)?);
                 Ok(())
             })?;
-            let polished = out.expect("a fork runs its work");
+            let polished = out.context("a fork of the objective did not run its work")?;
             Ok((polished, began.elapsed().as_secs_f64()))
         })
         .collect();
