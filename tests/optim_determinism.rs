@@ -184,7 +184,8 @@ impl Evaluator for Unforked {
 /// On the CPU the polish's groups of starts run side by side, each on a
 /// fork of the evaluator, and are recorded in their order: the history and
 /// the result are those of the groups one after another. Twelve starts on
-/// one thread make three groups of four.
+/// one thread make three groups of four. Cut at its first record, the
+/// side-by-side polish is undone, and the fit resumes to the same end.
 #[test]
 fn polish_groups_side_by_side_end_as_one_after_another() {
     let mut plan = plan(Algorithm::De);
@@ -193,14 +194,33 @@ fn polish_groups_side_by_side_end_as_one_after_another() {
         .num_threads(1)
         .build()
         .unwrap();
-    let (side_by_side, after_another) = pool.install(|| {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cut.json");
+    let (side_by_side, after_another, resumed) = pool.install(|| {
         let mut forked = engine_of(plan.clone(), 4);
         let a = fit(&mut forked, &mut CpuEvaluator::new());
-        let mut unforked = engine_of(plan, 4);
+        let mut unforked = engine_of(plan.clone(), 4);
         let b = fit(&mut unforked, &mut Unforked(CpuEvaluator::new()));
+        // 12 global and 3 free-run records come first.
+        let flag = AtomicBool::new(false);
+        let mut first = engine_of(plan, 4);
+        let (_, problem) = setup();
+        let mut cpu = CpuEvaluator::new();
+        let cut = first
+            .run(
+                &mut ModelObjective::new(&mut cpu, problem),
+                &mut [&mut common::InterruptAt(16, &flag)],
+                Some(&flag),
+                Some(&path),
+            )
+            .unwrap();
+        assert_eq!(cut.stop, StopReason::Interrupted);
+        let mut again = Engine::load(&path).unwrap();
+        let c = fit(&mut again, &mut CpuEvaluator::new());
         (
             (fingerprint(&forked), a.params),
             (fingerprint(&unforked), b.params),
+            (fingerprint(&again), c.params),
         )
     });
     let polished = side_by_side
@@ -210,6 +230,7 @@ fn polish_groups_side_by_side_end_as_one_after_another() {
         .count();
     assert!(polished >= 9, "{polished} polish records");
     assert_eq!(side_by_side, after_another);
+    assert_eq!(resumed, side_by_side);
 }
 
 #[test]
