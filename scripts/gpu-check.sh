@@ -19,7 +19,7 @@
 #     backends: wall time, final SSE, validation fit %, whether the two
 #     backends end on the same parameters, and from the global stage of its
 #     JSON the host's time a row (outside the evaluator) and the device's
-#     time a generation (the kernels' timestamps);
+#     time a generation (the kernels' timestamps), and the polish's seconds;
 #   - the population sweep (`mckibben sweep`, classic cases #1000–#1004 at
 #     N = 1e3 and 1e4 on both backends): what a larger population buys in
 #     passing fits and what it costs in wall time;
@@ -214,10 +214,11 @@ done
     echo "host µs/row and device ms/gen: the global stage of the fit's JSON, (seconds − evaluator_seconds) / evaluations"
     echo "and kernel_seconds / steps (the kernels on the device's clock; — on the CPU); gen / max: the stage's seconds a"
     echo "generation over the larger of the host's (seconds − evaluator_seconds) and the device's a generation"
-    echo "(1 where they overlap fully, 2 where they take turns at equal shares; — on the CPU):"
+    echo "(1 where they overlap fully, 2 where they take turns at equal shares; — on the CPU); polish s: the seconds of the"
+    echo "fit's polish stages, every try's Levenberg–Marquardt starts (on the GPU their residuals are read back each round):"
     echo
-    echo "| N | gens (all stages) | backend | wall s | fit s | stop | final SSE | val fit % | GPU/CPU speed-up | same parameters as CPU | host µs/row | device ms/gen | gen / max |"
-    echo "|---:|---:|---|---:|---:|---|---:|---:|---:|---|---:|---:|---:|"
+    echo "| N | gens (all stages) | backend | wall s | fit s | stop | final SSE | val fit % | GPU/CPU speed-up | same parameters as CPU | host µs/row | device ms/gen | gen / max | polish s |"
+    echo "|---:|---:|---|---:|---:|---|---:|---:|---:|---|---:|---:|---:|---:|"
 } >>"$md"
 
 # The global stage's "steps evaluations seconds evaluator_seconds kernel_seconds"
@@ -227,6 +228,14 @@ global_stage() {
         inside && /^    }/ { exit }
         inside { gsub(/[",]/, ""); v[$1] = $2 }
         END { print v["steps:"], v["evaluations:"], v["seconds:"], v["evaluator_seconds:"], v["kernel_seconds:"] }' "$1"
+}
+
+# The seconds of a fit's polish stages, summed (the stages' members are
+# indented six spaces).
+polish_seconds() {
+    awk '/^      "stage": / { polish = ($2 == "\"polish\",") }
+        polish && /^      "seconds": / { gsub(/,/, "", $2); sum += $2; polish = 0 }
+        END { printf "%.2f\n", sum }' "$1"
 }
 
 # The "params" object of a fit's JSON, one "name": value per line.
@@ -274,10 +283,10 @@ for n in "${fit_pops[@]}"; do
             larger = ($3 - $4) > $5 ? ($3 - $4) : $5
             ratio = on_device && larger > 0 ? sprintf("%.2f", $3 / larger) : "—"
             printf "%s | %s | %s\n", host, device, ratio }')
-        printf '| %s | %s | %s | %s | %.2f | %s | %.6g | %.2f | %s | %s | %s |\n' \
+        printf '| %s | %s | %s | %s | %.2f | %s | %.6g | %.2f | %s | %s | %s | %s |\n' \
             "$n" "$(json_top "$f" generations)" "$backend" "$wall" "$(json_top "$f" seconds)" \
             "$(json_top "$f" stop)" "$(json_top "$f" sse)" "$(json_top "$f" val_fit_percent)" \
-            "$speedup" "$alike" "$timing" >>"$md"
+            "$speedup" "$alike" "$timing" "$(polish_seconds "$f")" >>"$md"
     done
 done
 

@@ -104,17 +104,20 @@ fn the_small_gpu_check_prints_every_row() {
     let cpu_fit = row(&["200", "12", "cpu"]);
     let gpu_fit = row(&["200", "12", "gpu"]);
     for r in [cpu_fit, gpu_fit] {
-        assert_eq!((r.len(), r[5]), (13, "completed"), "{r:?}");
+        assert_eq!((r.len(), r[5]), (14, "completed"), "{r:?}");
         let fit: f64 = r[7].parse().unwrap();
         assert!(fit > 50.0 && fit <= 100.0, "validation fit %: {r:?}");
         // The host's time a row of the global stage, outside the evaluator.
         let host: f64 = r[10].parse().unwrap_or_else(|_| panic!("{r:?}"));
         assert!(host > 0.0, "{r:?}");
+        // The polish's seconds, a part of the fit's.
+        let (polish, whole): (f64, f64) = (r[13].parse().unwrap(), r[4].parse().unwrap());
+        assert!(polish > 0.0 && polish <= whole, "{r:?}");
     }
     // The device's time a generation: the GPU's kernels, none on the CPU;
     // and a generation's time over the larger of the host's and the
     // device's, at least 1 (they cannot overlap past full).
-    assert_eq!(cpu_fit[11..], ["—", "—"], "{cpu_fit:?}");
+    assert_eq!(cpu_fit[11..13], ["—", "—"], "{cpu_fit:?}");
     if on_cpu_adapter {
         let device: f64 = gpu_fit[11]
             .parse()
