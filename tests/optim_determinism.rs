@@ -183,13 +183,14 @@ impl Evaluator for Unforked {
 
 /// On the CPU the polish's groups of starts run side by side, each on a
 /// fork of the evaluator, and are recorded in their order: the history and
-/// the result are those of the groups one after another. Twelve starts on
-/// one thread make three groups of four. Cut at its first record, the
-/// side-by-side polish is undone, and the fit resumes to the same end.
+/// the result are those of the groups one after another. Twenty starts on
+/// one thread make five groups of four: a wave of four groups side by
+/// side, then the last group alone. Cut at its first record, the polish is
+/// undone, and the fit resumes to the same end.
 #[test]
 fn polish_groups_side_by_side_end_as_one_after_another() {
     let mut plan = plan(Algorithm::De);
-    plan.polish.as_mut().unwrap().starts = 12;
+    plan.polish.as_mut().unwrap().starts = 20;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
@@ -228,7 +229,7 @@ fn polish_groups_side_by_side_end_as_one_after_another() {
         .iter()
         .filter(|r| r.stage == Stage::Polish)
         .count();
-    assert!(polished >= 9, "{polished} polish records");
+    assert!(polished >= 17, "{polished} polish records");
     assert_eq!(side_by_side, after_another);
     assert_eq!(resumed, side_by_side);
 }

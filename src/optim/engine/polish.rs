@@ -15,6 +15,11 @@ use crate::optim::Bounds;
 use crate::optim::lm::{self, LmSettings};
 use crate::search::{Measure, Rows};
 
+/// Groups of polish starts a thread in one wave of groups run side by side
+/// ([`Engine::polish`]): enough that the threads stay busy while the
+/// groups' lengths differ, few enough that the history moves often.
+const WAVE_GROUPS_PER_THREAD: usize = 4;
+
 /// What a polish changes that an interrupted one puts back: each try's
 /// best, the history's length and the evaluations counted.
 struct PolishUndo {
@@ -85,26 +90,34 @@ impl<C: Chart> Engine<C> {
             4 * rayon::current_num_threads().max(1)
         };
         let groups: Vec<&[(usize, Vec<f64>)]> = starts.chunks(together).collect();
-        let forked = objective
-            .forks(groups.len())
-            .filter(|_| groups.len() > 1)
-            .map(|forks| polish_side_by_side(&setup, &groups, forks))
-            .transpose()?;
-        match forked {
-            // Cut short: nothing to record.
-            Some(None) => {}
-            Some(Some((polished, spent))) => {
-                self.spent(spent);
-                for (group, polished) in groups.iter().zip(polished) {
-                    self.record_group(objective, &setup, group, polished)?;
-                }
+        // Side by side in waves, each recorded before the next begins, so
+        // that the history and a progress bar move during a long polish.
+        let wave = WAVE_GROUPS_PER_THREAD * rayon::current_num_threads().max(1);
+        for wave in groups.chunks(wave) {
+            if setup.cut() {
+                break;
             }
-            None => {
-                for group in groups {
-                    if setup.cut() {
-                        break;
+            let forked = objective
+                .forks(wave.len())
+                .filter(|_| wave.len() > 1)
+                .map(|forks| polish_side_by_side(&setup, wave, forks))
+                .transpose()?;
+            match forked {
+                // Cut short: nothing to record.
+                Some(None) => break,
+                Some(Some((polished, spent))) => {
+                    self.spent(spent);
+                    for (group, polished) in wave.iter().zip(polished) {
+                        self.record_group(objective, &setup, group, polished)?;
                     }
-                    self.polish_group(objective, &setup, group)?;
+                }
+                None => {
+                    for group in wave {
+                        if setup.cut() {
+                            break;
+                        }
+                        self.polish_group(objective, &setup, group)?;
+                    }
                 }
             }
         }
