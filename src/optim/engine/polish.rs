@@ -92,14 +92,14 @@ impl<C: Chart> Engine<C> {
         let groups: Vec<&[(usize, Vec<f64>)]> = starts.chunks(together).collect();
         // Side by side in waves, each recorded before the next begins, so
         // that the history and a progress bar move during a long polish.
-        let wave = WAVE_GROUPS_PER_THREAD * rayon::current_num_threads().max(1);
-        for wave in groups.chunks(wave) {
+        let per_wave = WAVE_GROUPS_PER_THREAD * rayon::current_num_threads().max(1);
+        for wave in groups.chunks(per_wave) {
             if setup.cut() {
                 break;
             }
-            let forked = objective
-                .forks(wave.len())
-                .filter(|_| wave.len() > 1)
+            let forked = (wave.len() > 1)
+                .then(|| objective.forks(wave.len()))
+                .flatten()
                 .map(|forks| polish_side_by_side(&setup, wave, forks))
                 .transpose()?;
             match forked {
