@@ -27,9 +27,10 @@ use serde::Serialize;
 /// wall time a fit. With several --seeds, the pass counts are of the first
 /// seed and p counts every seed's tries.
 ///
-/// Each case takes seconds at N = 1000 and about ten times longer at each
-/// tenfold population on the CPU (2 cores: 2 s and 17 s a classic case, 8 s
-/// and 68 s a generalized one); a progress line a fit goes to stderr.
+/// Each case takes seconds at N = 1000 and about eight times longer at
+/// each tenfold population on the CPU (2 cores: 0.8 s and 6.5 s a classic
+/// case, 3 s and 25 s a generalized one); a progress line a fit goes to
+/// stderr.
 ///
 /// --json prints `schema_version`, `backend`, `rows` (one object a family
 /// and population: family, n, cases, tries, pass, within_5_percent,
