@@ -30,6 +30,10 @@ use crate::search::{Params, Rows};
 pub use super::batch::LANES;
 use super::batch::block;
 
+/// Samples of a batch's recorded errors gathered into the lanes' residual
+/// vectors at a time: 64 samples of 32 lanes are 8 KiB, inside any L1.
+const GATHER_SAMPLES: usize = 64;
+
 /// The batched, multi-threaded CPU evaluator. It holds no device and no
 /// buffers, so copies of it score side by side.
 #[derive(Debug, Default, Clone)]
@@ -111,9 +115,18 @@ impl Evaluator for CpuEvaluator {
                             every,
                         );
                         for (l, lane) in lanes.iter_mut().enumerate() {
-                            match lane {
-                                Some(r) if ok[l] => r.extend(errors.iter().map(|es| es[l])),
-                                _ => *lane = None,
+                            if !ok[l] {
+                                *lane = None;
+                            }
+                        }
+                        // A block of samples at a time, each lane's errors
+                        // gathered from it while it sits in L1: lane by lane
+                        // over the whole trace would stream it once a lane.
+                        for block in errors.chunks(GATHER_SAMPLES) {
+                            for (l, lane) in lanes.iter_mut().enumerate() {
+                                if let Some(r) = lane {
+                                    r.extend(block.iter().map(|es| es[l]));
+                                }
                             }
                         }
                     }
