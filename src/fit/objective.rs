@@ -266,7 +266,7 @@ impl Objective for ModelObjective<'_> {
         // start's step.
         let mut residuals: Vec<Option<DVector<f64>>> = raw
             .into_par_iter()
-            .map(|r| r.map(|r| DVector::from_iterator(r.len(), r.iter().map(|&v| v as f64))))
+            .map(|r| r.map(|r| DVector::from_vec(r.iter().map(|&v| f64::from(v)).collect())))
             .collect();
         for (r, ok) in residuals.iter_mut().zip(self.admitted(rows)) {
             if !ok {

@@ -19,6 +19,8 @@
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
+use super::normal::Jacobian;
+
 /// How far and how finely to polish.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LmSettings {
@@ -218,6 +220,11 @@ struct Run<'a> {
     /// Points scored for it so far.
     points: usize,
     phase: Phase,
+    /// The Jacobian's storage, kept from one iteration to the next: at
+    /// thousands of samples, allocating and zeroing a fresh one each
+    /// iteration shows in the polish's time. A held coordinate's column is
+    /// never written, so it stays zero.
+    jac: Jacobian,
 }
 
 /// Where a [`Run`] stands.
@@ -268,6 +275,7 @@ impl<'a> Run<'a> {
             iterations: 0,
             points: 0,
             phase: Phase::Start,
+            jac: Jacobian::zeros(0, 0),
         }
     }
 
@@ -386,11 +394,10 @@ impl<'a> Run<'a> {
                 None => Phase::Done(Err(LmError::StartDiverges)),
             },
             Phase::Probing { steps, back } => match self.jacobian(scored, &steps, &back) {
-                Some(jac) => Phase::Trials {
-                    jtj: jac.transpose() * &jac,
-                    jtr: jac.transpose() * &self.r,
-                    tried: 0,
-                },
+                Some(()) => {
+                    let (jtj, jtr) = self.jac.normal_equations(self.r.as_slice());
+                    Phase::Trials { jtj, jtr, tried: 0 }
+                }
                 None => Phase::Done(Err(LmError::ProbeDiverges)),
             },
             Phase::Trying {
@@ -426,29 +433,36 @@ impl<'a> Run<'a> {
         self.settings.held.get(j).copied().unwrap_or(false)
     }
 
-    /// The Jacobian from the probes' residuals (a held coordinate's column
-    /// zero), `None` if a probe diverged.
+    /// The Jacobian from the probes' residuals, into [`Run::jac`] (a held
+    /// coordinate's column zero); `None` if a probe diverged.
     fn jacobian(
-        &self,
+        &mut self,
         scored: Vec<Option<DVector<f64>>>,
         steps: &[f64],
         back: &[bool],
-    ) -> Option<DMatrix<f64>> {
+    ) -> Option<()> {
         let d = self.x.len();
         let probed: Vec<usize> = (0..d).filter(|&j| !self.held(j)).collect();
         let mut cols = scored.into_iter();
         let forward: Vec<Option<DVector<f64>>> = cols.by_ref().take(probed.len()).collect();
-        let mut jac = DMatrix::<f64>::zeros(self.r.len(), d);
+        if self.jac.shape() != (self.r.len(), d) {
+            self.jac = Jacobian::zeros(self.r.len(), d);
+        }
         for (&j, col) in probed.iter().zip(forward) {
             let col = col?;
-            if back[j] {
-                let minus = cols.next().flatten()?;
-                jac.set_column(j, &((col - minus) / (2.0 * steps[j])));
+            let minus;
+            let (from, h) = if back[j] {
+                minus = cols.next().flatten()?;
+                (&minus, 2.0 * steps[j])
             } else {
-                jac.set_column(j, &((col - &self.r) / steps[j]));
-            }
+                (&self.r, steps[j])
+            };
+            debug_assert_eq!(col.len(), from.len(), "a probe's residuals, one a sample");
+            let (col, from) = (col.as_slice(), from.as_slice());
+            self.jac
+                .set_column(j, col.iter().zip(from).map(|(p, m)| (p - m) / h));
         }
-        Some(jac)
+        Some(())
     }
 
     fn outcome(self) -> Result<LmOutcome, LmError> {

@@ -22,6 +22,7 @@ pub mod ga;
 pub mod history;
 pub mod lm;
 pub mod mfa;
+pub mod normal;
 pub mod pso;
 pub mod stage;
 pub mod streams;
