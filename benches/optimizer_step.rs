@@ -3,7 +3,10 @@
 //! rows, a quarter of `fit --pop 100000`, in the seven free coordinates of
 //! the classic fit of the shipped stair; and the mapping of 10⁵ such rows to
 //! canonical parameters (`Space::embed_into`). The costs told are a fixed
-//! pseudo-random draw, so every generation does the same work.
+//! pseudo-random draw, so every generation does the same work. And a
+//! polish step's algebra after its probes: the Jacobian of 2000 residuals
+//! in those seven coordinates, its normal equations, and for comparison
+//! the same equations by nalgebra's explicit product.
 //! `cargo bench --bench optimizer_step`; figures in docs/PERFORMANCE.md.
 
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -12,9 +15,11 @@ use mckibben::fit::chart::ModelChart;
 use mckibben::fit::problem::FitProblem;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::engine::Space;
+use mckibben::optim::normal::Jacobian;
 use mckibben::optim::stage::Stage;
 use mckibben::optim::{Algorithm, AskTell, Streams};
 use mckibben::search::Population;
+use nalgebra::{DMatrix, DVector};
 
 /// Rows of one island of `fit --pop 100000` (four islands).
 const ISLAND: usize = 25_000;
@@ -71,5 +76,55 @@ fn generation(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, generation);
+/// Residuals a polish step's Jacobian has: the shipped stair's estimation
+/// half.
+const SAMPLES: usize = 2000;
+
+/// A polish step once its probes are scored: the Jacobian's columns from
+/// the probes' residuals and the start's, then `JᵀJ` and `Jᵀr`.
+fn polish_step(c: &mut Criterion) {
+    let d = stair_space().bounds().dim();
+    let wave = |j: usize| -> Vec<f64> {
+        (0..SAMPLES)
+            .map(|k| ((k * (j + 3)) as f64 * 0.01).sin())
+            .collect()
+    };
+    let r = wave(0);
+    let probes: Vec<Vec<f64>> = (1..=d).map(wave).collect();
+    let step = 1e-6;
+    let mut group = c.benchmark_group("polish_step");
+    group.sample_size(50);
+    let mut jac = Jacobian::zeros(SAMPLES, d);
+    group.bench_function(
+        format!("Jacobian and normal equations, {SAMPLES} x {d}"),
+        |b| {
+            b.iter(|| {
+                for (j, p) in probes.iter().enumerate() {
+                    jac.set_column(j, p.iter().zip(&r).map(|(p, r)| (p - r) / step));
+                }
+                jac.normal_equations(&r)
+            })
+        },
+    );
+    let r_vec = DVector::from_column_slice(&r);
+    group.bench_function(
+        format!("the same by nalgebra's explicit product, {SAMPLES} x {d}"),
+        |b| {
+            b.iter(|| {
+                let mut explicit = DMatrix::<f64>::zeros(SAMPLES, d);
+                for (j, p) in probes.iter().enumerate() {
+                    let p = DVector::from_column_slice(p);
+                    explicit.set_column(j, &((p - &r_vec) / step));
+                }
+                (
+                    explicit.transpose() * &explicit,
+                    explicit.transpose() * &r_vec,
+                )
+            })
+        },
+    );
+    group.finish();
+}
+
+criterion_group!(benches, generation, polish_step);
 criterion_main!(benches);
