@@ -16,6 +16,8 @@
 //! out of the box is held there and the step solved for the others
 //! (projecting a coupled step instead would spoil it).
 
+use std::cell::RefCell;
+
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
@@ -220,11 +222,16 @@ struct Run<'a> {
     /// Points scored for it so far.
     points: usize,
     phase: Phase,
-    /// The Jacobian's storage, kept from one iteration to the next: at
-    /// thousands of samples, allocating and zeroing a fresh one each
-    /// iteration shows in the polish's time. A held coordinate's column is
-    /// never written, so it stays zero.
-    jac: Jacobian,
+}
+
+thread_local! {
+    /// Each thread's Jacobian storage, reused from one step to the next. A
+    /// step needs its Jacobian only until it has formed its normal
+    /// equations, so a Jacobian a start would hold thousands of them on a
+    /// GPU's lock-step rounds (a fit at `--pop 1000000` polishes 16 000
+    /// starts together), and a fresh one a step, allocated and zeroed,
+    /// shows in the polish's time.
+    static JACOBIAN: RefCell<Jacobian> = RefCell::new(Jacobian::zeros(0, 0));
 }
 
 /// Where a [`Run`] stands.
@@ -275,7 +282,6 @@ impl<'a> Run<'a> {
             iterations: 0,
             points: 0,
             phase: Phase::Start,
-            jac: Jacobian::zeros(0, 0),
         }
     }
 
@@ -393,13 +399,15 @@ impl<'a> Run<'a> {
                 }
                 None => Phase::Done(Err(LmError::StartDiverges)),
             },
-            Phase::Probing { steps, back } => match self.jacobian(scored, &steps, &back) {
-                Some(()) => {
-                    let (jtj, jtr) = self.jac.normal_equations(self.r.as_slice());
-                    Phase::Trials { jtj, jtr, tried: 0 }
-                }
-                None => Phase::Done(Err(LmError::ProbeDiverges)),
-            },
+            Phase::Probing { steps, back } => {
+                JACOBIAN.with_borrow_mut(|jac| match self.jacobian(scored, &steps, &back, jac) {
+                    Some(()) => {
+                        let (jtj, jtr) = jac.normal_equations(self.r.as_slice());
+                        Phase::Trials { jtj, jtr, tried: 0 }
+                    }
+                    None => Phase::Done(Err(LmError::ProbeDiverges)),
+                })
+            }
             Phase::Trying {
                 jtj,
                 jtr,
@@ -433,20 +441,22 @@ impl<'a> Run<'a> {
         self.settings.held.get(j).copied().unwrap_or(false)
     }
 
-    /// The Jacobian from the probes' residuals, into [`Run::jac`] (a held
+    /// The Jacobian from the probes' residuals, into `jac` (a held
     /// coordinate's column zero); `None` if a probe diverged.
     fn jacobian(
-        &mut self,
+        &self,
         scored: Vec<Option<DVector<f64>>>,
         steps: &[f64],
         back: &[bool],
+        jac: &mut Jacobian,
     ) -> Option<()> {
         let d = self.x.len();
         let probed: Vec<usize> = (0..d).filter(|&j| !self.held(j)).collect();
         let mut cols = scored.into_iter();
         let forward: Vec<Option<DVector<f64>>> = cols.by_ref().take(probed.len()).collect();
-        if self.jac.shape() != (self.r.len(), d) {
-            self.jac = Jacobian::zeros(self.r.len(), d);
+        jac.reshape(self.r.len(), d);
+        for j in (0..d).filter(|&j| self.held(j)) {
+            jac.set_column(j, std::iter::repeat(0.0));
         }
         for (&j, col) in probed.iter().zip(forward) {
             let col = col?;
@@ -459,8 +469,7 @@ impl<'a> Run<'a> {
             };
             debug_assert_eq!(col.len(), from.len(), "a probe's residuals, one a sample");
             let (col, from) = (col.as_slice(), from.as_slice());
-            self.jac
-                .set_column(j, col.iter().zip(from).map(|(p, m)| (p - m) / h));
+            jac.set_column(j, col.iter().zip(from).map(|(p, m)| (p - m) / h));
         }
         Some(())
     }

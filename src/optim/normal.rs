@@ -59,6 +59,15 @@ impl Jacobian {
         (self.rows, self.dim)
     }
 
+    /// Makes it `rows × dim`, its entries zero if the shape changes and
+    /// left as they were if not (storage to be overwritten column by
+    /// column).
+    pub fn reshape(&mut self, rows: usize, dim: usize) {
+        if self.shape() != (rows, dim) {
+            *self = Jacobian::zeros(rows, dim);
+        }
+    }
+
     /// Sets column `j` to `values`, one a row.
     pub fn set_column(&mut self, j: usize, values: impl IntoIterator<Item = f64>) {
         let n = self.rows;
