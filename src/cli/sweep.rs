@@ -28,8 +28,8 @@ use serde::Serialize;
 /// seed and p counts every seed's tries.
 ///
 /// Each case takes seconds at N = 1000 and about eight times longer at
-/// each tenfold population on the CPU (2 cores: 0.8 s and 6.5 s a classic
-/// case, 3 s and 25 s a generalized one); a progress line a fit goes to
+/// each tenfold population on the CPU (2 cores: 0.7 s and 6.5 s a classic
+/// case, 3 s and 23 s a generalized one); a progress line a fit goes to
 /// stderr.
 ///
 /// --json prints `schema_version`, `backend`, `rows` (one object a family
