@@ -227,10 +227,10 @@ struct Run<'a> {
 thread_local! {
     /// Each thread's Jacobian storage, reused from one step to the next. A
     /// step needs its Jacobian only until it has formed its normal
-    /// equations, so a Jacobian a start would hold thousands of them on a
-    /// GPU's lock-step rounds (a fit at `--pop 1000000` polishes 16 000
-    /// starts together), and a fresh one a step, allocated and zeroed,
-    /// shows in the polish's time.
+    /// equations. Storage of its own in every start would be held by
+    /// thousands of starts at once on a GPU, whose lock-step rounds move
+    /// every start together (16 000 at `--pop 1000000`); a fresh Jacobian
+    /// a step, allocated and zeroed, shows in the polish's time.
     static JACOBIAN: RefCell<Jacobian> = RefCell::new(Jacobian::zeros(0, 0));
 }
 

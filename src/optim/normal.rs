@@ -15,10 +15,10 @@
 //!
 //! Formed here a block of rows at a time, each tile of `JᵀJ` in registers,
 //! without the explicit product's transposed copy and packing, which cost
-//! a polish as much as the sums. `f64::mul_add` rounds
-//! once on every CPU, so these sums are the same on a CPU without FMA
-//! instructions too (there in software, and slower), where matrixmultiply
-//! rounded each product apart.
+//! a polish as much as the sums. `f64::mul_add` rounds once on every CPU,
+//! so these sums are the same on a CPU without FMA instructions too (there
+//! in software, and slower), where matrixmultiply rounded each product
+//! apart.
 
 use nalgebra::{DMatrix, DVector};
 
