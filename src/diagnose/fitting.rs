@@ -7,7 +7,6 @@
 //! scored in batches on the searches' evaluator; what is the diagnosis' own is
 //! where each search starts and what it minimises.
 
-use nalgebra::DVector;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal, Uniform};
@@ -47,7 +46,7 @@ impl Objective for OneMeasure<'_> {
         &mut self,
         rows: Rows<'_, Params>,
         _: Measure,
-    ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
+    ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
         anyhow::ensure!(
             self.measure == Measure::FreeRun,
             "the diagnosis polishes on the free run only"

@@ -3,9 +3,6 @@
 
 use std::time::Instant;
 
-use nalgebra::DVector;
-use rayon::prelude::*;
-
 use super::problem::{Admission, FitProblem};
 use crate::eval::{Evaluator, Pending, Problem};
 use crate::model::coords::in_bounded_class;
@@ -256,18 +253,11 @@ impl Objective for ModelObjective<'_> {
         &mut self,
         rows: Rows<'_, Params>,
         measure: Measure,
-    ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
+    ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
         self.problem.measure = measure;
-        let raw = self
+        let mut residuals = self
             .clock
             .timed(self.evaluator, |e| e.residuals(&self.problem, rows))?;
-        // In parallel: a polish round on a GPU brings back thousands of
-        // rows, and one thread converting them all would hold up every
-        // start's step.
-        let mut residuals: Vec<Option<DVector<f64>>> = raw
-            .into_par_iter()
-            .map(|r| r.map(|r| DVector::from_vec(r.iter().map(|&v| f64::from(v)).collect())))
-            .collect();
         for (r, ok) in residuals.iter_mut().zip(self.admitted(rows)) {
             if !ok {
                 *r = None;

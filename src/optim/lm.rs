@@ -85,8 +85,31 @@ impl std::error::Error for LmError {}
 /// Residual vectors of a batch of points, `None` where the model diverges:
 /// what the polish asks for, one batch per Jacobian and one per group of
 /// trial steps, so that a batch evaluator (a GPU) scores them in one call.
-pub type BatchResiduals<'a> =
-    dyn FnMut(&[Vec<f64>]) -> anyhow::Result<Vec<Option<DVector<f64>>>> + 'a;
+pub type BatchResiduals<'a, R = DVector<f64>> =
+    dyn FnMut(&[Vec<f64>]) -> anyhow::Result<Vec<Option<R>>> + 'a;
+
+/// A point's residuals as its scorer gives them: `f64`, or a batch
+/// evaluator's `f32`, widened to `f64` (exactly) only when the start that
+/// asked for them takes its step. A lock-step round on a GPU holds every
+/// start's probes at once (16 000 starts at `--pop 1000000`), and in `f32`
+/// until then they take a third of the memory the `f32` read-back and its
+/// `f64` copy took together.
+pub trait Residuals: Send {
+    /// The residuals in `f64`.
+    fn widen(self) -> DVector<f64>;
+}
+
+impl Residuals for DVector<f64> {
+    fn widen(self) -> DVector<f64> {
+        self
+    }
+}
+
+impl Residuals for Vec<f32> {
+    fn widen(self) -> DVector<f64> {
+        DVector::from_vec(self.iter().map(|&v| f64::from(v)).collect())
+    }
+}
 
 /// Trial steps (λ, 4λ, 16λ, …) scored per batch: most iterations accept the
 /// first, so a larger group wastes simulations on the CPU; a smaller one
@@ -155,8 +178,8 @@ pub struct Polished {
 /// drops out. Each start takes the very steps it takes alone: its points
 /// and its arithmetic do not depend on the others. One result a start, in
 /// order; only the scorer's own error ends them all.
-pub fn levenberg_marquardt_lockstep(
-    residuals: &mut BatchResiduals<'_>,
+pub fn levenberg_marquardt_lockstep<R: Residuals>(
+    residuals: &mut BatchResiduals<'_, R>,
     starts: &[Vec<f64>],
     bounds: (&[f64], &[f64]),
     step_floor: &[f64],
@@ -185,7 +208,7 @@ pub fn levenberg_marquardt_lockstep(
         // (its Jacobian, normal equations and solves) at once: the runs are
         // independent, so their order of work does not matter.
         let mut scored = residuals(&points)?.into_iter();
-        let mut told: Vec<Option<Vec<Option<DVector<f64>>>>> = vec![None; runs.len()];
+        let mut told: Vec<Option<Vec<Option<R>>>> = runs.iter().map(|_| None).collect();
         for (k, count) in asked {
             runs[k].points += count;
             told[k] = Some(scored.by_ref().take(count).collect());
@@ -389,9 +412,9 @@ impl<'a> Run<'a> {
     }
 
     /// The residuals of the points last requested, in order.
-    fn receive(&mut self, scored: Vec<Option<DVector<f64>>>) {
+    fn receive<R: Residuals>(&mut self, scored: Vec<Option<R>>) {
         self.phase = match std::mem::replace(&mut self.phase, Phase::Iterate) {
-            Phase::Start => match scored.into_iter().next().flatten() {
+            Phase::Start => match scored.into_iter().next().flatten().map(R::widen) {
                 Some(r) => {
                     self.sse = r.norm_squared();
                     self.r = r;
@@ -416,7 +439,7 @@ impl<'a> Run<'a> {
             } => {
                 let mut next = Phase::Trials { jtj, jtr, tried };
                 for ((xn, lam), rn) in trials.into_iter().zip(scored) {
-                    let Some(rn) = rn else { continue };
+                    let Some(rn) = rn.map(R::widen) else { continue };
                     let sn = rn.norm_squared();
                     if sn < self.sse {
                         let rel = (self.sse - sn) / self.sse;
@@ -443,9 +466,9 @@ impl<'a> Run<'a> {
 
     /// The Jacobian from the probes' residuals, into `jac` (a held
     /// coordinate's column zero); `None` if a probe diverged.
-    fn jacobian(
+    fn jacobian<R: Residuals>(
         &self,
-        scored: Vec<Option<DVector<f64>>>,
+        scored: Vec<Option<R>>,
         steps: &[f64],
         back: &[bool],
         jac: &mut Jacobian,
@@ -453,16 +476,16 @@ impl<'a> Run<'a> {
         let d = self.x.len();
         let probed: Vec<usize> = (0..d).filter(|&j| !self.held(j)).collect();
         let mut cols = scored.into_iter();
-        let forward: Vec<Option<DVector<f64>>> = cols.by_ref().take(probed.len()).collect();
+        let forward: Vec<Option<R>> = cols.by_ref().take(probed.len()).collect();
         jac.reshape(self.r.len(), d);
         for j in (0..d).filter(|&j| self.held(j)) {
             jac.set_column(j, std::iter::repeat(0.0));
         }
         for (&j, col) in probed.iter().zip(forward) {
-            let col = col?;
+            let col = col?.widen();
             let minus;
             let (from, h) = if back[j] {
-                minus = cols.next().flatten()?;
+                minus = cols.next().flatten()?.widen();
                 (&minus, 2.0 * steps[j])
             } else {
                 (&self.r, steps[j])

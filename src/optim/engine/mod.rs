@@ -47,7 +47,6 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
 use super::argmin;
@@ -91,14 +90,14 @@ pub trait Objective {
         ticket.take()
     }
 
-    /// The residuals of every row under `measure`, `None` where it
-    /// diverges: what the polish differentiates. Only least-squares
-    /// objectives have them.
+    /// The residuals of every row under `measure` (in `f32`, as the
+    /// evaluators simulate), `None` where it diverges: what the polish
+    /// differentiates. Only least-squares objectives have them.
     fn residuals(
         &mut self,
         rows: Rows<'_, Params>,
         measure: Measure,
-    ) -> anyhow::Result<Vec<Option<DVector<f64>>>> {
+    ) -> anyhow::Result<Vec<Option<Vec<f32>>>> {
         let _ = (rows, measure);
         anyhow::bail!(
             "{} is not a least-squares objective, so a fit of it cannot end with a polish",
