@@ -97,17 +97,29 @@ pub type BatchResiduals<'a, R = DVector<f64>> =
 pub trait Residuals: Send {
     /// The residuals in `f64`.
     fn widen(self) -> DVector<f64>;
+
+    /// The residuals read in `f64` where they lie, for a probe whose
+    /// values only enter a Jacobian's column: no `f64` copy is made.
+    fn values(&self) -> impl Iterator<Item = f64> + '_;
 }
 
 impl Residuals for DVector<f64> {
     fn widen(self) -> DVector<f64> {
         self
     }
+
+    fn values(&self) -> impl Iterator<Item = f64> + '_ {
+        self.iter().copied()
+    }
 }
 
 impl Residuals for Vec<f32> {
     fn widen(self) -> DVector<f64> {
-        DVector::from_vec(self.iter().map(|&v| f64::from(v)).collect())
+        DVector::from_vec(self.values().collect())
+    }
+
+    fn values(&self) -> impl Iterator<Item = f64> + '_ {
+        self.iter().map(|&v| f64::from(v))
     }
 }
 
@@ -481,18 +493,22 @@ impl<'a> Run<'a> {
         for j in (0..d).filter(|&j| self.held(j)) {
             jac.set_column(j, std::iter::repeat(0.0));
         }
-        for (&j, col) in probed.iter().zip(forward) {
-            let col = col?.widen();
-            let minus;
-            let (from, h) = if back[j] {
-                minus = cols.next().flatten()?.widen();
-                (&minus, 2.0 * steps[j])
+        for (&j, plus) in probed.iter().zip(forward) {
+            let plus = plus?;
+            if back[j] {
+                let minus = cols.next().flatten()?;
+                let h = 2.0 * steps[j];
+                jac.set_column(
+                    j,
+                    plus.values().zip(minus.values()).map(|(p, m)| (p - m) / h),
+                );
             } else {
-                (&self.r, steps[j])
-            };
-            debug_assert_eq!(col.len(), from.len(), "a probe's residuals, one a sample");
-            let (col, from) = (col.as_slice(), from.as_slice());
-            jac.set_column(j, col.iter().zip(from).map(|(p, m)| (p - m) / h));
+                let h = steps[j];
+                jac.set_column(
+                    j,
+                    plus.values().zip(self.r.iter()).map(|(p, m)| (p - m) / h),
+                );
+            }
         }
         Some(())
     }

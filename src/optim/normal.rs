@@ -71,9 +71,12 @@ impl Jacobian {
     /// Sets column `j` to `values`, one a row.
     pub fn set_column(&mut self, j: usize, values: impl IntoIterator<Item = f64>) {
         let n = self.rows;
+        let mut filled = 0;
         for (e, v) in self.entries[j * n..(j + 1) * n].iter_mut().zip(values) {
             *e = v;
+            filled += 1;
         }
+        debug_assert_eq!(filled, n, "a value a row");
     }
 
     /// `JᵀJ` and `Jᵀr` for the residuals `r`, one a row.
