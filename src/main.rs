@@ -14,9 +14,15 @@ fn main() -> ExitCode {
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("mckibben: error: {err}");
-            for cause in err.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
+            let mut said = err.to_string();
+            eprintln!("mckibben: error: {said}");
+            for cause in err.chain().skip(1).map(|c| c.to_string()) {
+                // An error that quotes its cause ("file: No such file") has
+                // already said it.
+                if !said.contains(&cause) {
+                    eprintln!("  caused by: {cause}");
+                }
+                said = cause;
             }
             ExitCode::FAILURE
         }

@@ -273,6 +273,11 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(needle), "{args:?}: {err}");
     }
+    // The reason a file cannot be read is said once, not again as the
+    // error's cause.
+    let out = mckibben(&["fit", "missing.csv"], dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
     std::fs::write(
         dir.path().join("bad.csv"),
         "t,pressure,displacement\n0,0.1,1\n0.1,x,2\n",
