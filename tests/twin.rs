@@ -325,6 +325,26 @@ fn cli_lists_effects_and_rejects_unknown_ones() {
     assert!(!out.exists());
 }
 
+/// A sine at or above Nyquist's frequency would be recorded as a slower
+/// sine: the twin refuses it and names the limit, and runs just below it.
+#[test]
+fn a_sine_above_nyquist_is_refused_with_its_limit() {
+    let dt = TwinConfig::default().sample_time_s;
+    let nyquist = std::f64::consts::PI / dt;
+    let sine = |freq_rad_s: f64| RunSpec {
+        kind: Kind::Sine,
+        load_kg: 4.5,
+        seed: 1,
+        freq_rad_s,
+        effects: Vec::new(),
+    };
+    for freq in [nyquist, 2.0 * nyquist, 1e9] {
+        let err = sine(freq).run().unwrap_err().to_string();
+        assert!(err.contains(&format!("{nyquist:.1} rad/s")), "{err}");
+    }
+    assert!(sine(0.99 * nyquist).run().is_ok());
+}
+
 /// The command of data/README.md, through the binary, gives the shipped bytes.
 #[test]
 fn cli_regenerates_the_shipped_stair() {

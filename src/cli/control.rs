@@ -11,6 +11,7 @@ use mckibben::control::sweep::{self, DesignRequest, Ingredients, Kind, Shape};
 use mckibben::control::table::{self, DesignJson, JsonOutput};
 use mckibben::control::tuning::{self, TuningRun};
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
+use mckibben::data::signals::nyquist_rad_s;
 use mckibben::report::json::Versioned;
 use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
@@ -272,6 +273,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         config.effects.apply_arg(e)?;
     }
     config.validate()?;
+    if matches!(plant, PlantSpec::Twin) {
+        let nyquist = nyquist_rad_s(config.sample_time_s);
+        if let Some(w) = args.freq.iter().find(|&&w| w >= nyquist) {
+            anyhow::bail!(
+                "--freq {w}: the twin samples every {} s, so a reference must stay below \
+                 Nyquist's {nyquist:.1} rad/s (π/dt)",
+                config.sample_time_s
+            );
+        }
+    }
     let say = |s: String| {
         if !args.json {
             eprintln!("{s}");

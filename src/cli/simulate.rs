@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces, write_trace_with_comments};
-use mckibben::data::signals::Stair;
+use mckibben::data::signals::{Stair, nyquist_rad_s};
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::experiment::halves;
 use mckibben::model::presets::thesis_params;
@@ -59,7 +59,7 @@ pub struct Args {
     /// The input: `stair`, `sine` or a CSV file.
     #[arg(long, default_value = "stair")]
     input: String,
-    /// Angular frequency of `--input sine` (rad/s).
+    /// Angular frequency of `--input sine` (rad/s), below Nyquist's π/dt.
     #[arg(long, default_value_t = 1.0)]
     freq: f64,
     /// Sample time of generated inputs (s).
@@ -290,6 +290,14 @@ fn input_trace(args: &Args, saved: Option<&ModelFile>) -> anyhow::Result<(Trace,
         }
         "sine" => {
             anyhow::ensure!(args.freq > 0.0, "--freq must be positive (rad/s)");
+            let nyquist = nyquist_rad_s(args.dt);
+            anyhow::ensure!(
+                args.freq < nyquist,
+                "--freq {}: with --dt {} a sine must stay below Nyquist's {nyquist:.1} rad/s \
+                 (π/dt); above, its samples show a slower sine",
+                args.freq,
+                args.dt
+            );
             let n = (40.0 / args.dt).round() as usize;
             let p = (0..n)
                 .map(|k| 0.25 + 0.2 * (args.freq * k as f64 * args.dt).sin())

@@ -48,7 +48,8 @@ pub struct Args {
     /// Seed of the sensor noise (and of the multisine's phases).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Angular frequency of the sine reference in rad/s (thesis: 1, 2, 3).
+    /// Angular frequency of the sine reference in rad/s (thesis: 1, 2, 3), below
+    /// Nyquist's π/dt (314 rad/s at the twin's 0.01 s).
     #[arg(long, value_name = "RAD_S", default_value_t = 1.0)]
     freq: f64,
     /// Scale a non-ideal effect: 1 = as documented, 0 = off, 2 = twice as

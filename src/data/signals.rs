@@ -71,6 +71,13 @@ impl Stair {
     }
 }
 
+/// Nyquist's angular frequency for samples `dt` s apart, `π/dt` (rad/s): a
+/// sine at or above it shows in its samples as a slower sine or a constant,
+/// so a signal asked for there says nothing of the frequency asked for.
+pub fn nyquist_rad_s(dt: f64) -> f64 {
+    std::f64::consts::PI / dt
+}
+
 /// The sine reference of appendix A.1.2 with the erratum fixed (the thesis'
 /// script omits `t` inside `sin`): `r(t) = bias + amplitude·sin(ω t)`, in mm.
 #[derive(Debug, Clone, Copy, PartialEq)]

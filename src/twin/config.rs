@@ -314,6 +314,11 @@ pub enum TwinError {
     BadLoad(f64),
     #[error("--freq {0}: expected a positive angular frequency in rad/s (thesis: 1, 2, 3)")]
     BadFrequency(f64),
+    #[error(
+        "--freq {freq}: the twin samples every {dt} s, so a sine must stay below \
+         Nyquist's {nyquist:.1} rad/s (π/dt); above, its samples show a slower sine"
+    )]
+    AboveNyquist { freq: f64, dt: f64, nyquist: f64 },
 }
 
 /// The switches of every non-ideal effect. All are on (scale 1) by default

@@ -6,7 +6,7 @@
 
 use crate::data::Trace;
 use crate::data::csv::{DataError, write_trace_with_comments};
-use crate::data::signals::{Multisine, SineReference, Stair};
+use crate::data::signals::{Multisine, SineReference, Stair, nyquist_rad_s};
 
 use super::{Rig, Sample, TwinConfig, TwinError};
 
@@ -225,6 +225,14 @@ impl RunSpec {
             return Err(TwinError::BadFrequency(self.freq_rad_s));
         }
         let config = self.config()?;
+        let dt = config.sample_time_s;
+        if self.kind == Kind::Sine && self.freq_rad_s >= nyquist_rad_s(dt) {
+            return Err(TwinError::AboveNyquist {
+                freq: self.freq_rad_s,
+                dt,
+                nyquist: nyquist_rad_s(dt),
+            });
+        }
         let mut trace = run(&config, self.load_kg, self.seed, &self.experiment());
         trace.source = self.command();
         Ok(trace)
