@@ -95,3 +95,36 @@ fn thesis_presets_are_finite_and_hysteretic_on_the_stair() {
         );
     }
 }
+
+/// `static` draws eq. 7 and 9 for an inflated muscle: a pressure below
+/// ambient, and each bad braid setting, is an error that names its flag.
+#[test]
+fn static_refuses_what_the_force_model_does_not_hold_for() {
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_mckibben"))
+            .arg("static")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    for (args, needle) in [
+        (&["--pressures=0.2,-0.1"][..], "--pressures: -0.1"),
+        (&["--turns", "0"][..], "--turns must be positive"),
+        (
+            &["--thread-length", "inf"][..],
+            "--thread-length must be positive",
+        ),
+        (&["--thickness-mm=-1"][..], "--thickness-mm"),
+    ] {
+        let out = run(args);
+        assert!(!out.status.success(), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(out.stdout.is_empty(), "{args:?}: no table after an error");
+    }
+    assert!(
+        run(&["--pressures", "0,0.3", "--points", "3"])
+            .status
+            .success()
+    );
+}

@@ -70,14 +70,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "--points must be at least 2 (got {})",
         args.points
     );
+    for (flag, value) in [
+        ("--thread-length", args.thread_length),
+        ("--turns", args.turns),
+    ] {
+        anyhow::ensure!(
+            value > 0.0 && value.is_finite(),
+            "{flag} must be positive (got {value})"
+        );
+    }
     anyhow::ensure!(
-        args.thread_length > 0.0 && args.turns > 0.0 && args.thickness_mm >= 0.0,
-        "--thread-length and --turns must be positive and --thickness-mm non-negative"
+        args.thickness_mm >= 0.0 && args.thickness_mm.is_finite(),
+        "--thickness-mm must be zero or more (got {})",
+        args.thickness_mm
     );
     anyhow::ensure!(
         !args.pressures.is_empty(),
         "--pressures needs at least one value"
     );
+    // Eq. 7 and 9 hold for an inflated muscle: below ambient the sleeve
+    // buckles instead of pushing.
+    if let Some(p) = args
+        .pressures
+        .iter()
+        .find(|p| !(**p >= 0.0 && p.is_finite()))
+    {
+        anyhow::bail!("--pressures: {p} MPa is not a gauge pressure of zero or more");
+    }
     let braid = Braid {
         thread_length: args.thread_length,
         turns: args.turns,
