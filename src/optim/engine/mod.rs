@@ -304,6 +304,9 @@ pub struct Engine<C = Canonical> {
     /// turn: one buffer, refilled in place every generation. Scratch, not state.
     #[serde(skip)]
     canonical: Option<Population<Params>>,
+    /// The free coordinates the islands ask for, the same way.
+    #[serde(skip)]
+    asked: Option<Population<Coords>>,
 }
 
 impl<C: Chart> Engine<C> {
@@ -373,6 +376,7 @@ impl<C: Chart> Engine<C> {
             summaries: Vec::new(),
             started: None,
             canonical: None,
+            asked: None,
         })
     }
 

@@ -270,7 +270,13 @@ impl<C: Chart> Engine<C> {
         let d = self.space.dim();
         let spans = self.generation_spans(step, stage);
         let at = spans.last().map_or(0, |s| s.at + s.count);
-        let mut rows = Population::zeros(at, self.space.free_dim());
+        let free = self.space.free_dim();
+        let mut rows = match self.asked.take() {
+            Some(rows) if rows.dim() == free => rows,
+            _ => Population::zeros(0, free),
+        };
+        // Every island writes all of its rows: no refill either.
+        rows.resize(at);
         let mut canonical = self
             .canonical
             .take()
@@ -307,6 +313,7 @@ impl<C: Chart> Engine<C> {
         let measure = self.island_measure(stage, 0);
         self.record(stage, measure, Some(&ranked));
         self.canonical = Some(canonical);
+        self.asked = Some(rows);
         self.end_finished_tries(step, stage);
         Ok(())
     }
