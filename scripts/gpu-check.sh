@@ -19,7 +19,8 @@
 #     backends: wall time, final SSE, validation fit %, whether the two
 #     backends end on the same parameters, and from the global stage of its
 #     JSON the host's time a row (outside the evaluator) and the device's
-#     time a generation (the kernels' timestamps), and the polish's seconds;
+#     time a generation (the kernels' timestamps), the polish's seconds and
+#     the process's peak resident memory;
 #   - the population sweep (`mckibben sweep`, classic cases #1000–#1004 at
 #     N = 1e3 and 1e4 on both backends): what a larger population buys in
 #     passing fits and what it costs in wall time;
@@ -133,6 +134,26 @@ run() {
     fi
 }
 
+# As run, and writes the step's peak resident memory in MB to $work/peak_mb:
+# GNU time's maximum resident set size, or — where /usr/bin/time is not GNU
+# time (the kernel forgets a process's high-water mark when it exits).
+run_measured() {
+    local step="$1"
+    shift
+    if ! /usr/bin/time -f %M -o "$work/maxrss" true 2>/dev/null; then
+        run "$step" "$@"
+        echo "—" >"$work/peak_mb"
+        return
+    fi
+    echo "gpu-check: $step" >&2
+    if ! /usr/bin/time -f %M -o "$work/maxrss" "$bin" "$@" >"$work/stdout" 2>"$work/stderr"; then
+        echo "gpu-check: FAILED: $step: $bin $*" >&2
+        tail -n 20 "$work/stderr" >&2
+        exit 1
+    fi
+    awk '{ printf "%.0f\n", $1 / 1024 }' "$work/maxrss" >"$work/peak_mb"
+}
+
 # A top-level key of the binary's pretty-printed JSON (two-space indent),
 # e.g. json_top file seconds.
 json_top() {
@@ -215,10 +236,11 @@ done
     echo "and kernel_seconds / steps (the kernels on the device's clock; — on the CPU); gen / max: the stage's seconds a"
     echo "generation over the larger of the host's (seconds − evaluator_seconds) and the device's a generation"
     echo "(1 where they overlap fully, 2 where they take turns at equal shares; — on the CPU); polish s: the seconds of the"
-    echo "fit's polish stages, every try's Levenberg–Marquardt starts (on the GPU their residuals are read back each round):"
+    echo "fit's polish stages, every try's Levenberg–Marquardt starts (on the GPU their residuals are read back each round);"
+    echo "peak host MB: the process's maximum resident set size (GNU time; — without it):"
     echo
-    echo "| N | gens (all stages) | backend | wall s | fit s | stop | final SSE | val fit % | GPU/CPU speed-up | same parameters as CPU | host µs/row | device ms/gen | gen / max | polish s |"
-    echo "|---:|---:|---|---:|---:|---|---:|---:|---:|---|---:|---:|---:|---:|"
+    echo "| N | gens (all stages) | backend | wall s | fit s | stop | final SSE | val fit % | GPU/CPU speed-up | same parameters as CPU | host µs/row | device ms/gen | gen / max | polish s | peak host MB |"
+    echo "|---:|---:|---|---:|---:|---|---:|---:|---:|---|---:|---:|---:|---:|---:|"
 } >>"$md"
 
 # The global stage's "steps evaluations seconds evaluator_seconds kernel_seconds"
@@ -246,10 +268,11 @@ params() {
 for n in "${fit_pops[@]}"; do
     for backend in cpu gpu; do
         t0=$(date +%s.%N)
-        run "fit at N = $n on $backend" fit "$data" --model classic --pop "$n" --gens "$gens" \
+        run_measured "fit at N = $n on $backend" fit "$data" --model classic --pop "$n" --gens "$gens" \
             --backend "$backend" --seed 1 "${budget_args[@]}" --json --out "$work/fit-$backend-$n"
         t1=$(date +%s.%N)
         cp "$work/stdout" "$work/fit-$backend-$n.json"
+        cp "$work/peak_mb" "$work/peak-$backend-$n"
         awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.2f\n", b - a }' >"$work/wall-$backend-$n"
     done
     cpu_json="$work/fit-cpu-$n.json"
@@ -283,10 +306,10 @@ for n in "${fit_pops[@]}"; do
             larger = ($3 - $4) > $5 ? ($3 - $4) : $5
             ratio = on_device && larger > 0 ? sprintf("%.2f", $3 / larger) : "—"
             printf "%s | %s | %s\n", host, device, ratio }')
-        printf '| %s | %s | %s | %s | %.2f | %s | %.6g | %.2f | %s | %s | %s | %s |\n' \
+        printf '| %s | %s | %s | %s | %.2f | %s | %.6g | %.2f | %s | %s | %s | %s | %s |\n' \
             "$n" "$(json_top "$f" generations)" "$backend" "$wall" "$(json_top "$f" seconds)" \
             "$(json_top "$f" stop)" "$(json_top "$f" sse)" "$(json_top "$f" val_fit_percent)" \
-            "$speedup" "$alike" "$timing" "$(polish_seconds "$f")" >>"$md"
+            "$speedup" "$alike" "$timing" "$(polish_seconds "$f")" "$(cat "$work/peak-$backend-$n")" >>"$md"
     done
 done
 

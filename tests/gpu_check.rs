@@ -101,10 +101,14 @@ fn the_small_gpu_check_prints_every_row() {
             }
         }
     }
+    let gnu_time = std::process::Command::new("/usr/bin/time")
+        .args(["-f", "%M", "-o", "/dev/null", "true"])
+        .status()
+        .is_ok_and(|s| s.success());
     let cpu_fit = row(&["200", "12", "cpu"]);
     let gpu_fit = row(&["200", "12", "gpu"]);
     for r in [cpu_fit, gpu_fit] {
-        assert_eq!((r.len(), r[5]), (14, "completed"), "{r:?}");
+        assert_eq!((r.len(), r[5]), (15, "completed"), "{r:?}");
         let fit: f64 = r[7].parse().unwrap();
         assert!(fit > 50.0 && fit <= 100.0, "validation fit %: {r:?}");
         // The host's time a row of the global stage, outside the evaluator.
@@ -113,6 +117,13 @@ fn the_small_gpu_check_prints_every_row() {
         // The polish's seconds, a part of the fit's.
         let (polish, whole): (f64, f64) = (r[13].parse().unwrap(), r[4].parse().unwrap());
         assert!(polish > 0.0 && polish <= whole, "{r:?}");
+        // The process's peak resident memory, where GNU time can tell it.
+        if gnu_time {
+            let peak: u64 = r[14].parse().unwrap_or_else(|_| panic!("{r:?}"));
+            assert!(peak >= 1, "{r:?}");
+        } else {
+            assert_eq!(r[14], "—", "{r:?}");
+        }
     }
     // The device's time a generation: the GPU's kernels, none on the CPU;
     // and a generation's time over the larger of the host's and the
