@@ -45,6 +45,9 @@ usage: scripts/gpu-check.sh [--bin PATH] [--small] [--out FILE] [--gens G] [--da
   --out FILE   also write the markdown to FILE
   --gens G     generations of each staged fit's global stage (default: 30; --small: 10)
   --data FILE  experiment CSV (default: data/stair_4.5kg.csv of this repository)
+
+  GNU_TIME=PATH  GNU time, for the staged fits' peak memory (default: /usr/bin/time;
+                 without it that column shows —)
 EOF
 }
 
@@ -55,6 +58,7 @@ die() {
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bin="${MCKIBBEN:-$root/target/release/mckibben}"
+gnu_time="${GNU_TIME:-/usr/bin/time}"
 data="$root/data/stair_4.5kg.csv"
 small=0
 out=""
@@ -135,18 +139,19 @@ run() {
 }
 
 # As run, and writes the step's peak resident memory in MB to $work/peak_mb:
-# GNU time's maximum resident set size, or — where /usr/bin/time is not GNU
-# time (the kernel forgets a process's high-water mark when it exits).
+# GNU time's maximum resident set size, or — where $GNU_TIME (default
+# /usr/bin/time) is not GNU time (the kernel forgets a process's high-water
+# mark when it exits).
 run_measured() {
     local step="$1"
     shift
-    if ! /usr/bin/time -f %M -o "$work/maxrss" true 2>/dev/null; then
+    if ! "$gnu_time" -f %M -o "$work/maxrss" true 2>/dev/null; then
         run "$step" "$@"
         echo "—" >"$work/peak_mb"
         return
     fi
     echo "gpu-check: $step" >&2
-    if ! /usr/bin/time -f %M -o "$work/maxrss" "$bin" "$@" >"$work/stdout" 2>"$work/stderr"; then
+    if ! "$gnu_time" -f %M -o "$work/maxrss" "$bin" "$@" >"$work/stdout" 2>"$work/stderr"; then
         echo "gpu-check: FAILED: $step: $bin $*" >&2
         tail -n 20 "$work/stderr" >&2
         exit 1
