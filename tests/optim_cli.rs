@@ -514,3 +514,29 @@ fn bounds_a_user_sets_hold_and_bad_ones_are_clear_errors() {
         assert!(err.contains(needle), "{extra:?}: {err}");
     }
 }
+
+/// The report says what a single try cannot tell, and counts the tries
+/// that agree where there are several; the thesis' single search runs no
+/// tries and says nothing of them.
+#[test]
+fn the_report_says_whether_its_tries_agree_or_that_one_cannot_tell() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let text = |extra: &[&str]| {
+        let mut args = vec!["fit", &csv, "--gens", "3", "--backend", "cpu"];
+        args.extend_from_slice(extra);
+        let out = mckibben(&args, dir.path());
+        assert!(out.status.success(), "{extra:?}");
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let one = text(&["--pop", "40"]);
+    assert!(
+        one.contains("tries: 1, which cannot tell whether another try"),
+        "{one}"
+    );
+    let two = text(&["--pop", "2000"]);
+    assert!(two.contains("of 2 tries ended within"), "{two}");
+    assert!(!two.contains("tries: 1, which"), "{two}");
+    let thesis = text(&["--thesis-flow", "--pop", "30"]);
+    assert!(!thesis.contains("tries:"), "{thesis}");
+}

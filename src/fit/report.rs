@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use super::agreement::Agreement;
 use super::edge::{ActiveBound, Widening, active_bounds};
+use super::objective::TRY_POPULATION;
 use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
 use crate::data::{Trace, write_atomic};
@@ -271,6 +272,13 @@ impl FitReport {
         }
         if let Some(a) = &self.agreement {
             line(format!("  tries: {}", a.to_text()));
+        } else if self.tries == 1 && self.flow == Flow::Joint {
+            // The default population runs one try: say what it cannot tell.
+            line(format!(
+                "  tries: 1, which cannot tell whether another try would end in the same \
+                 basin (from --pop {} on, a fit runs one try per {TRY_POPULATION})",
+                2 * TRY_POPULATION
+            ));
         }
         if let Some(b) = self.built {
             line(format!(
