@@ -39,10 +39,13 @@ pub use select::Selection;
 pub use settings::{Interrupted, Settings};
 
 use crate::data::Trace;
+use crate::fit::edge::{ActiveBound, active_bounds};
 use crate::fit::problem::{FitProblem, settle_samples};
 use crate::fit::searches::Searches;
+use crate::model::coords::shape_range;
 use crate::model::experiment::Parts;
 use crate::model::{Family, Model};
+use crate::search::Side;
 
 /// One model along the way (the baseline, then after each accepted effect),
 /// scored on each part of the records.
@@ -118,6 +121,9 @@ pub struct Diagnosis {
     /// The chain fitted on other records of the muscle (`--transfer`,
     /// [`transfer::transfer`]); empty unless asked for.
     pub transfers: Vec<transfer::Transfer>,
+    /// The baseline's loop-shape parameters that ended on or near the edge
+    /// of the diagnosis' box ([`loop_shape_on_edge`]).
+    pub baseline_on_edge: Vec<ActiveBound>,
 }
 
 /// Second-half curves of one dataset, for figures.
@@ -204,6 +210,7 @@ pub fn diagnose_from(
         &data, &searches, family, &effects, settings, floor, start_ref,
     )?;
     check_baseline(&selection, family, traces)?;
+    let baseline_on_edge = loop_shape_on_edge(&data, &selection.baseline.best.params);
 
     // The final chain as `fit --effects` fits it: the final parameters
     // when it scores better on the selection part.
@@ -273,7 +280,29 @@ pub fn diagnose_from(
         final_params,
         not_tried,
         transfers: Vec::new(),
+        baseline_on_edge,
     })
+}
+
+/// The loop-shape parameters of `params`, `data`'s baseline, that ended on
+/// or near ([`crate::fit::edge::NEAR_EDGE`]) the edge of the diagnosis'
+/// box. That box is the thesis' hull, loop shapes per unit of output made
+/// for its muscle's stroke of about 40 mm: a sharper loop (a shorter
+/// stroke, the output in metres) lies outside it, and a baseline stopped
+/// at its edge leaves the effects named from it to stand in for the loop.
+/// The classic `β`'s floor, 0, is the bounded class's own edge, where a
+/// loop may rightly sit, and is left out.
+fn loop_shape_on_edge(data: &FitProblem, params: &[f64]) -> Vec<ActiveBound> {
+    let family = data.model.family;
+    let shape: Vec<String> = family.params()[shape_range(family)]
+        .iter()
+        .map(|p| p.name.to_string())
+        .collect();
+    active_bounds(data, params)
+        .into_iter()
+        .filter(|b| shape.contains(&b.param))
+        .filter(|b| !(family == Family::Classic && b.param == "beta" && b.bound == Side::Lower))
+        .collect()
 }
 
 /// An effect of the catalogue the diagnosis was asked to try and left out,
@@ -586,7 +615,49 @@ fn residual_spectrum(segments: &[locate::Segment]) -> Option<spectrum::Spectrum>
 
 #[cfg(test)]
 mod tests {
-    use super::{Effect, Trace, tried_effects};
+    use super::{Effect, FitProblem, Side, Trace, loop_shape_on_edge, tried_effects};
+    use crate::model::Family;
+
+    /// The diagnosis' problem on a short stair-like record.
+    fn problem() -> FitProblem {
+        let p: Vec<f64> = (0..800).map(|k| 0.1 * ((k / 100) % 4) as f64).collect();
+        // A first-order lag, with a ripple that keeps the regressors apart.
+        let mut y = vec![0.0; p.len()];
+        for k in 1..p.len() {
+            y[k] = 0.9 * y[k - 1] + 4.0 * p[k - 1] + 0.01 * (k as f64 * 0.7).sin();
+        }
+        FitProblem::diagnosis(
+            &[Trace::uniform("stair", 0.1, p, y)],
+            Family::Classic,
+            None,
+            None,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn a_baseline_loop_shape_on_the_boxs_edge_is_flagged_but_not_the_class_floor() {
+        let data = problem();
+        let (lower, upper) = (&data.space.lower, &data.space.upper);
+        let [beta, gamma] = ["beta", "gamma"].map(|n| Family::Classic.index_of(n).unwrap());
+        let mut params = data.centre();
+        params[beta] = lower[beta];
+        assert_eq!(lower[beta], 0.0, "the bounded class's floor");
+        // Inside the box but for β on its floor: nothing to say.
+        assert!(loop_shape_on_edge(&data, &params).is_empty());
+        params[gamma] = upper[gamma];
+        let edges = loop_shape_on_edge(&data, &params);
+        assert_eq!(edges.len(), 1, "{edges:?}");
+        assert_eq!(
+            (edges[0].param.as_str(), edges[0].bound),
+            ("gamma", Side::Upper)
+        );
+        // The linear part's edges are not the loop's.
+        params[gamma] = 0.5 * (lower[gamma] + upper[gamma]);
+        let ia = Family::Classic.linear_indices()[0];
+        params[ia] = upper[ia];
+        assert!(loop_shape_on_edge(&data, &params).is_empty());
+    }
 
     /// A short trace, cut from `recording` where that is given.
     fn piece(source: &str, recording: Option<&str>) -> Trace {

@@ -11,6 +11,7 @@ use crate::diagnose::refits::{Finding, Refits};
 use crate::diagnose::spectrum::{Peak, Spectrum};
 use crate::diagnose::transfer::Transfer;
 use crate::diagnose::{Diagnosis, NotTried, Step};
+use crate::fit::edge::ActiveBound;
 use crate::model::experiment::Parts;
 use crate::report::json::Named;
 
@@ -94,6 +95,9 @@ pub struct BaselineJson {
     #[serde(flatten)]
     pub figures: PartsFigures,
     pub seed_selection_rmse: Vec<f64>,
+    /// Loop-shape parameters that ended on or near the edge of the
+    /// diagnosis' box (`Diagnosis::baseline_on_edge`).
+    pub on_edge: Vec<ActiveBound>,
 }
 
 /// A record's three parts: `[start, end)` sample ranges.
@@ -290,6 +294,7 @@ impl DiagnosisJson {
                 params: Named::zip(&sel.baseline_model.param_names(), &sel.baseline.best.params),
                 figures: PartsFigures::of(base),
                 seed_selection_rmse: sel.baseline.seed_sel_rmse.clone(),
+                on_edge: d.baseline_on_edge.clone(),
             },
             datasets: d.datasets.clone(),
             parts: d.parts.iter().map(PartsJson::of).collect(),

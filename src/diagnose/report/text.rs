@@ -98,6 +98,22 @@ fn header_text(o: &mut String, d: &Diagnosis) {
         base.test_rmse,
         d.noise_floor_rmse
     );
+    if !d.baseline_on_edge.is_empty() {
+        let edges: Vec<String> = d
+            .baseline_on_edge
+            .iter()
+            .map(|b| format!("{} ({} bound)", b.param, b.bound.name()))
+            .collect();
+        let _ = writeln!(
+            o,
+            "  CAUTION: the baseline's loop shape ended on the edge of the diagnosis' box: {}. \
+             That box holds the thesis' loop shapes per unit of output, made for a stroke of \
+             about 40 mm: a sharper loop (a shorter stroke, or the output in metres or inches) \
+             lies outside it, and the effects named from the baseline may then stand in for the \
+             loop it could not reach (`fit`, whose box is in the data's own scale, shows the loop)",
+            edges.join(", ")
+        );
+    }
     if let Some(from) = &d.from {
         let names: Vec<&str> = d.selection.given.iter().map(|e| e.name()).collect();
         let _ = writeln!(
