@@ -89,8 +89,8 @@ pub type BatchResiduals<'a, R = DVector<f64>> =
     dyn FnMut(&[Vec<f64>]) -> anyhow::Result<Vec<Option<R>>> + 'a;
 
 /// A point's residuals as its scorer gives them: `f64`, or a batch
-/// evaluator's `f32`, widened to `f64` (exactly) only when the start that
-/// asked for them takes its step. A lock-step round on a GPU holds every
+/// evaluator's `f32`, read in `f64` (exactly) only inside the step of the
+/// start that asked for them. A lock-step round on a GPU holds every
 /// start's probes at once (16 000 starts at `--pop 1000000`), and in `f32`
 /// until then they take a third of the memory the `f32` read-back and its
 /// `f64` copy took together.
