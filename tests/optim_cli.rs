@@ -540,3 +540,76 @@ fn the_report_says_whether_its_tries_agree_or_that_one_cannot_tell() {
     let thesis = text(&["--thesis-flow", "--pop", "30"]);
     assert!(!thesis.contains("tries:"), "{thesis}");
 }
+
+/// A record in metres: the report writes every parameter, the SSE and the
+/// RMSE with their digits (at six decimals `b` read `0.000005`, at four
+/// the RMSE `0.0013`), each within its last digit of `result.json`'s.
+#[test]
+fn the_report_keeps_its_figures_digits_in_any_unit() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Synthetic::new(Family::Classic, 400, 0.05, 21);
+    let metres = mckibben::data::Trace {
+        output_name: "displacement_m".into(),
+        output: s.trace.output.iter().map(|x| x * 1e-3).collect(),
+        ..s.trace.clone()
+    };
+    let csv = dir.path().join("metres.csv");
+    write_trace(&csv, &metres).unwrap();
+    let csv = csv.display().to_string();
+    let out = mckibben(
+        &[
+            "fit",
+            &csv,
+            "--output",
+            "displacement_m",
+            "--pop",
+            "40",
+            "--gens",
+            "3",
+        ],
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let result: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.path().join("out/fit/result.json")).unwrap(),
+    )
+    .unwrap();
+    let shown = |label: &str| -> f64 {
+        let line = text
+            .lines()
+            .find(|l| l.trim_start().starts_with(label))
+            .unwrap_or_else(|| panic!("no `{label}` line in {text}"));
+        let value = match line.split_once("(RMSE ") {
+            Some((_, rmse)) => rmse.trim_end_matches(')'),
+            None => line.trim_start()[label.len()..]
+                .split_whitespace()
+                .next()
+                .unwrap(),
+        };
+        value.parse().unwrap_or_else(|_| panic!("{line}"))
+    };
+    let mut figures: Vec<(String, f64)> = result["params"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .map(|(name, v)| (format!("{name} "), v.as_f64().unwrap()))
+        .collect();
+    figures.push(("SSE (estimation)".into(), result["sse"].as_f64().unwrap()));
+    figures.push((
+        "validation fit  ".into(),
+        result["val_rmse"].as_f64().unwrap(),
+    ));
+    assert!(figures.iter().any(|(_, v)| v.abs() < 1e-4), "{figures:?}");
+    for (label, v) in figures {
+        let s = shown(&label);
+        assert!(
+            (s - v).abs() <= 1e-3 * v.abs(),
+            "`{label}` reads {s} for {v:e}: {text}"
+        );
+    }
+}

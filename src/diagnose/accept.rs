@@ -39,6 +39,7 @@ use serde::Serialize;
 use super::effects::{Effect, ModelDescription};
 use super::fitting::SeededFit;
 use super::settings::Settings;
+use crate::report::number::significant;
 
 /// Share of the baseline's gap above the noise floor that `rmse` closes, in
 /// residual energy: `(R_b² − R²) / (R_b² − F²)`; 0 when the baseline is
@@ -175,10 +176,10 @@ impl Candidate {
         let mut why = Vec::new();
         if !rule1 {
             why.push(format!(
-                "improvement {:.3} is within {}× the seed spread {:.3}",
-                r0 - r1,
+                "improvement {} is within {}× the seed spread {}",
+                significant(r0 - r1, 3),
                 settings.spread_factor,
-                spread
+                significant(spread, 3)
             ));
         }
         if !rule2 {
@@ -195,8 +196,10 @@ impl Candidate {
         }
         if !rule4 {
             why.push(format!(
-                "the current model ({r0:.3}) is within {:.0} % of the noise floor {floor:.3}",
-                100.0 * (settings.floor_margin - 1.0)
+                "the current model ({}) is within {:.0} % of the noise floor {}",
+                significant(r0, 3),
+                100.0 * (settings.floor_margin - 1.0),
+                significant(floor, 3)
             ));
         }
         if let Some(g) = without_best_block.filter(|_| !rule5) {

@@ -23,6 +23,7 @@ use crate::optim::engine::{Outcome, StageSummary, StopReason};
 use crate::report::fit_figures;
 use crate::report::history::{convergence_figure, trends_figure};
 use crate::report::json::{Named, Versioned};
+use crate::report::number::significant;
 
 /// A fit's report (docs/JSON.md, `mckibben fit`).
 #[derive(Debug, Clone, Serialize)]
@@ -241,14 +242,16 @@ impl FitReport {
             } else {
                 ""
             };
-            line(format!("  {name:<7} {v:>14.6}{held}"));
+            line(format!("  {name:<7} {:>14}{held}", significant(*v, 6)));
         }
         let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
-        line(format!("  SSE (estimation)     {}", show(self.sse)));
+        // SSEs and RMSEs are in the output's units, squared or not.
+        let figure = |v: Option<f64>| v.map_or("diverged".to_string(), |v| significant(v, 4));
+        line(format!("  SSE (estimation)     {}", figure(self.sse)));
         line(format!(
             "  validation fit       {} %   (RMSE {})",
             show(self.val_fit_percent),
-            show(self.val_rmse)
+            figure(self.val_rmse)
         ));
         line(format!(
             "  validation fit, ARX  {} %   (the first-order linear model on the same halves)",
@@ -258,15 +261,15 @@ impl FitReport {
             line(format!(
                 "  validation fit, from  {} %   (the --from model as it was, on the same halves; SSE {})",
                 show(self.start_val_fit_percent),
-                show(self.start_sse)
+                figure(self.start_sse)
             ));
         }
         if let Some(sw) = self.switching {
             line(format!(
-                "  switching: x_s at the estimation mean ended at SSE {:.4}, at the sensor's zero at \
-                 {:.4}: kept the {}",
-                sw.mean_sse,
-                sw.zero_sse,
+                "  switching: x_s at the estimation mean ended at SSE {}, at the sensor's zero at \
+                 {}: kept the {}",
+                significant(sw.mean_sse, 4),
+                significant(sw.zero_sse, 4),
                 if sw.kept_zero { "zero" } else { "mean" }
             ));
         }
@@ -282,10 +285,10 @@ impl FitReport {
         }
         if let Some(b) = self.built {
             line(format!(
-                "  built: the search from scratch ended at SSE {:.4}, the chain built one effect at a \
-                 time at {:.4}: kept the {}",
-                b.scratch_sse,
-                b.chain_sse,
+                "  built: the search from scratch ended at SSE {}, the chain built one effect at a \
+                 time at {}: kept the {}",
+                significant(b.scratch_sse, 4),
+                significant(b.chain_sse, 4),
                 if b.kept_chain {
                     "chain"
                 } else {
@@ -422,10 +425,11 @@ pub fn yardstick_warnings(
     {
         warnings.push(format!(
             "the refit fits the estimation half better than the model it started from \
-             (SSE {sse:.4} against {:.4}) but validates {:.1} points worse ({fit:.1} % against \
+             (SSE {} against {}) but validates {:.1} points worse ({fit:.1} % against \
              {:.1} %): the estimation half does not settle this model, and the model you \
              started from may be the one to keep",
-            start.est_sse,
+            significant(sse, 4),
+            significant(start.est_sse, 4),
             start.validation.fit_percent - fit,
             start.validation.fit_percent
         ));
@@ -437,10 +441,11 @@ pub fn yardstick_warnings(
         && sse > start.est_sse
     {
         warnings.push(format!(
-            "the refit ends above the estimation SSE of the model it started from ({sse:.4} \
-             against {:.4}): that model lies outside this fit's box (see --bound) or the search \
+            "the refit ends above the estimation SSE of the model it started from ({} \
+             against {}): that model lies outside this fit's box (see --bound) or the search \
              lost it; the model you started from fits this record better",
-            start.est_sse
+            significant(sse, 4),
+            significant(start.est_sse, 4)
         ));
     }
     warnings

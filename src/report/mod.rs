@@ -3,6 +3,7 @@
 pub mod fit;
 pub mod history;
 pub mod json;
+pub mod number;
 pub mod plot;
 
 pub use fit::fit_figures;

@@ -12,6 +12,7 @@ use crate::diagnose::transfer::Transfer;
 use crate::diagnose::{Diagnosis, Effect, Step};
 use crate::fit::edge::ActiveBound;
 use crate::model::experiment::Parts;
+use crate::report::number::significant;
 
 fn pct(v: f64) -> String {
     format!("{:5.1} %", 100.0 * v)
@@ -91,12 +92,12 @@ fn header_text(o: &mut String, d: &Diagnosis) {
     let _ = writeln!(o, "{}", parts_text(d));
     let _ = writeln!(
         o,
-        "Baseline: selection fit {:.1} % (RMSE {:.4}), test fit {:.1} % (RMSE {:.4}); noise floor ≈ {:.4} (from second differences of the measured output, test part left out)",
+        "Baseline: selection fit {:.1} % (RMSE {}), test fit {:.1} % (RMSE {}); noise floor ≈ {} (from second differences of the measured output, test part left out)",
         base.selection_fit_percent,
-        base.selection_rmse,
+        significant(base.selection_rmse, 4),
         base.test_fit_percent,
-        base.test_rmse,
-        d.noise_floor_rmse
+        significant(base.test_rmse, 4),
+        significant(d.noise_floor_rmse, 4)
     );
     if !d.baseline_on_edge.is_empty() {
         let edges: Vec<String> = d
@@ -183,11 +184,11 @@ fn which_text(o: &mut String, d: &Diagnosis) {
             let _ = writeln!(
                 o,
                 "  round {}: a refit of the current model (from its own seeds or from a \
-                 candidate's parameters) reached a better estimation fit (SSE {:.1}, selection \
-                 RMSE {:.4}); it became the current model and the round was judged from it",
+                 candidate's parameters) reached a better estimation fit (SSE {}, selection \
+                 RMSE {}); it became the current model and the round was judged from it",
                 i + 1,
-                f.best.est_sse,
-                f.best.sel_rmse
+                significant(f.best.est_sse, 1),
+                significant(f.best.sel_rmse, 4)
             );
         }
     }
@@ -195,14 +196,14 @@ fn which_text(o: &mut String, d: &Diagnosis) {
         let params: Vec<String> = c
             .effect_params
             .iter()
-            .map(|(n, v)| format!("{n}={v:.4}"))
+            .map(|(n, v)| format!("{n}={}", significant(*v, 4)))
             .collect();
         let _ = writeln!(
             o,
-            "  {:<2} {:<17} RMSE {:.4}  gap closed {}  [{}]  round {round}: {}",
+            "  {:<2} {:<17} RMSE {}  gap closed {}  [{}]  round {round}: {}",
             if accepted { "✔" } else { " " },
             c.effect.name(),
-            c.fit.best.sel_rmse,
+            significant(c.fit.best.sel_rmse, 4),
             pct(gap_closed(
                 base.selection_rmse,
                 c.fit.best.sel_rmse,
@@ -266,15 +267,15 @@ fn how_sure_text(o: &mut String, d: &Diagnosis) {
         let edge = |at: bool| if at { " (box edge: not bounded)" } else { "" };
         let _ = writeln!(
             o,
-            "  {:<10} {} = {:.4}  [{:.4}{}, {:.4}{}]  (±{:.4})",
+            "  {:<10} {} = {}  [{}{}, {}{}]  (±{})",
             s.effect.name(),
             s.param,
-            s.value,
-            s.lo,
+            significant(s.value, 4),
+            significant(s.lo, 4),
             edge(s.lo_at_edge),
-            s.hi,
+            significant(s.hi, 4),
             edge(s.hi_at_edge),
-            0.5 * (s.hi - s.lo)
+            significant(0.5 * (s.hi - s.lo), 4)
         );
     }
 }
@@ -380,13 +381,15 @@ fn refits_text(o: &mut String, d: &Diagnosis) {
     );
     let _ = writeln!(
         o,
-        "  final fit        estimation SSE {:.4}  selection fit {:5.1} %",
-        r.final_est_sse, r.final_selection_fit_percent
+        "  final fit        estimation SSE {}  selection fit {:5.1} %",
+        significant(r.final_est_sse, 4),
+        r.final_selection_fit_percent
     );
     let _ = writeln!(
         o,
-        "  best refit       estimation SSE {:.4}  selection fit {:5.1} %",
-        r.best_est_sse, r.best_selection_fit_percent
+        "  best refit       estimation SSE {}  selection fit {:5.1} %",
+        significant(r.best_est_sse, 4),
+        r.best_selection_fit_percent
     );
     let said = match r.finding() {
         Finding::Reproduced => format!(
@@ -417,11 +420,11 @@ fn as_fit_text(o: &mut String, d: &Diagnosis) {
     let _ = writeln!(
         o,
         "\nAS FIT: the final chain fitted as `fit --effects` fits it (its search from scratch and its\n  \
-         warm start from this fit, the lower estimation SSE kept): estimation SSE {:.4}, selection\n  \
-         RMSE {:.4} against this fit's {:.4}, second-half fit {:.1} %; {}",
-        a.est_sse,
-        a.selection_rmse,
-        a.selection_fit_rmse,
+         warm start from this fit, the lower estimation SSE kept): estimation SSE {}, selection\n  \
+         RMSE {} against this fit's {}, second-half fit {:.1} %; {}",
+        significant(a.est_sse, 4),
+        significant(a.selection_rmse, 4),
+        significant(a.selection_fit_rmse, 4),
         a.val_fit_percent,
         if a.kept {
             "it scores better on the selection part and is the final model"
@@ -488,9 +491,9 @@ fn explainable_text(o: &mut String, d: &Diagnosis) {
     );
     let _ = writeln!(
         o,
-        "  selection RMSE {:.4} → {:.4}: a flexible model closes {} of the gap above the noise floor",
-        b.baseline_rmse,
-        b.bound_rmse,
+        "  selection RMSE {} → {}: a flexible model closes {} of the gap above the noise floor",
+        significant(b.baseline_rmse, 4),
+        significant(b.bound_rmse, 4),
         pct(b.gap_closable)
     );
     let of_bound = |v: Option<f64>| {
@@ -585,7 +588,7 @@ fn transfer_text(o: &mut String, d: &Diagnosis) {
             first
                 .dynamics_held
                 .iter()
-                .map(|h| format!("{} {:.4}", h.param, h.value))
+                .map(|h| format!("{} {}", h.param, significant(h.value, 4)))
                 .collect::<Vec<_>>()
                 .join(", ")
         }
