@@ -276,6 +276,34 @@ fn undiagnosable_data_gives_clear_errors() {
     assert!(!err.contains("panicked"), "{err}");
 }
 
+/// An output column whose name states no length unit gets a note that the
+/// diagnosis takes it in mm; one that states its unit, or the shipped
+/// `displacement`, gets none.
+#[test]
+fn an_output_without_a_length_unit_is_noted_as_taken_in_mm() {
+    let dir = tempfile::tempdir().unwrap();
+    let short = dir.path().join("short.csv");
+    write_csv(&short, 30, false, 0.0);
+    let text = std::fs::read_to_string(&short).unwrap();
+    let note = "names no length unit, so the diagnosis' loop-shape box takes it in mm";
+    for (column, noted) in [
+        ("y", true),
+        ("angle_deg", true),
+        ("y_m", false),
+        ("displacement", false),
+    ] {
+        let renamed = dir.path().join(format!("{column}.csv"));
+        std::fs::write(&renamed, text.replacen("displacement", column, 1)).unwrap();
+        // Too short to diagnose: the note comes before the refusal.
+        let err = error_of(&["diagnose", "--output", column], &renamed);
+        assert!(err.contains("too few to split"), "{err}");
+        assert_eq!(err.contains(note), noted, "{column}: {err}");
+        if noted {
+            assert!(err.contains(&format!("`{column}_m`")), "{err}");
+        }
+    }
+}
+
 /// The Cavatappi muscle (psi, mm, 1 kHz in blocks with gaps) read through
 /// `--resample`: the diagnosis runs and finds the end stop at 100 g
 /// (docs/DIAGNOSIS.md), and carries its chain to the 200 g record with the

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
+use mckibben::data::units::{millimetres_in, unit_of};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::selftest_run;
 use mckibben::diagnose::transfer::transfer;
@@ -47,6 +48,11 @@ use super::common::MultiDataArgs;
 /// steps) and, with --transfer, how much of the gap the chain closes on
 /// other records. "None of the catalogued effects explains the remaining
 /// gap" is a valid answer.
+///
+/// The baseline's loop shapes are searched in the thesis' box, made for a
+/// stroke of about 40 mm, in mm or in the length unit that the --output
+/// column's name states (`disp_m`, `x [cm]`, `stroke_um`); a column whose
+/// name states none is taken in mm, with a note.
 ///
 /// Example: `mckibben diagnose data/stair_4.5kg.csv --report out/`
 #[derive(Debug, clap::Args)]
@@ -250,6 +256,18 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         let _ = ctrlc::set_handler(move || stop.raise());
     }
     let traces = args.data.load()?;
+    if let Some(output) = traces.first().map(|t| &t.output_name)
+        && unit_of(output)
+            .as_deref()
+            .and_then(millimetres_in)
+            .is_none()
+    {
+        eprintln!(
+            "mckibben: note: the output column `{output}` names no length unit, so the \
+             diagnosis' loop-shape box takes it in mm; if it is in another, name the unit \
+             (`{output}_m`, `{output} [cm]`)"
+        );
+    }
     if let Some(kind) = args.self_test {
         let trace = traces.first().context("no data")?;
         let mut progress = |line: &str| {

@@ -46,6 +46,18 @@ pub fn unit_of(column: &str) -> Option<String> {
         .map(|(_, unit)| unit.to_string())
 }
 
+/// How many millimetres one of `unit` (as [`unit_of`] spells it) is, for
+/// the lengths a muscle's stroke is written in; `None` for any other unit.
+pub fn millimetres_in(unit: &str) -> Option<f64> {
+    match unit {
+        "mm" => Some(1.0),
+        "cm" => Some(10.0),
+        "m" => Some(1000.0),
+        "µm" => Some(1e-3),
+        _ => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -60,5 +72,18 @@ mod tests {
         assert_eq!(unit_of("valve_in"), None);
         assert_eq!(unit_of("t_s"), None);
         assert_eq!(unit_of("load"), None);
+    }
+
+    #[test]
+    fn lengths_convert_to_millimetres_and_other_units_do_not() {
+        let mm = |column: &str| unit_of(column).as_deref().and_then(millimetres_in);
+        assert_eq!(mm("disp_m"), Some(1000.0));
+        assert_eq!(mm("x (cm)"), Some(10.0));
+        assert_eq!(mm("stroke_mm"), Some(1.0));
+        assert_eq!(mm("displacement"), Some(1.0));
+        assert_eq!(mm("gap_um"), Some(1e-3));
+        assert_eq!(mm("angle_deg"), None);
+        assert_eq!(mm("force_n"), None);
+        assert_eq!(mm("y"), None);
     }
 }

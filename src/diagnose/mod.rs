@@ -286,10 +286,12 @@ pub fn diagnose_from(
 
 /// The loop-shape parameters of `params`, `data`'s baseline, that ended on
 /// or near ([`crate::fit::edge::NEAR_EDGE`]) the edge of the diagnosis'
-/// box. That box is the thesis' hull, loop shapes per unit of output made
-/// for its muscle's stroke of about 40 mm: a sharper loop (a shorter
-/// stroke, the output in metres) lies outside it, and a baseline stopped
-/// at its edge leaves the effects named from it to stand in for the loop.
+/// box. That box is the thesis' hull, loop shapes made for its muscle's
+/// stroke of about 40 mm, in mm or the length unit the output column's
+/// name states ([`crate::fit::problem::shape_per_output_unit`]): a sharper
+/// loop (a shorter stroke, an output in an unstated unit other than mm)
+/// lies outside it, and a baseline stopped at its edge leaves the effects
+/// named from it to stand in for the loop.
 /// The classic `β`'s floor, 0, is the bounded class's own edge, where a
 /// loop may rightly sit, and is left out.
 fn loop_shape_on_edge(data: &FitProblem, params: &[f64]) -> Vec<ActiveBound> {

@@ -21,9 +21,11 @@ use nalgebra::DVector;
 use super::chart::ModelChart;
 use super::records::{Records, Validation};
 use crate::data::Trace;
+use crate::data::units::{millimetres_in, unit_of};
 use crate::eval::Problem;
 use crate::ident::fit::CHI2_1_95;
 use crate::model::bounds::Origin;
+use crate::model::coords::shape_range;
 use crate::model::effects::{Context, Effect, EffectBox, ModelDescription, effect_box};
 use crate::model::experiment::{Parts, halves};
 use crate::model::file::Chain;
@@ -103,6 +105,20 @@ pub fn settle_samples(a: f64, len: usize) -> usize {
 pub fn horizon(arx_pole: f64, shortest: usize) -> usize {
     let tau = 1.0 / (1.0 - arx_pole).max(1e-3);
     ((tau / 3.0).round() as usize).clamp(2, (shortest / 4).max(2))
+}
+
+/// What the thesis' loop-shape bounds, which are per mm of stroke, are
+/// multiplied by in the diagnosis' box of a record whose output column is
+/// `output_name`: with `n = 1`, `β·|w|` is a pure number, so a loop-shape
+/// parameter scales as one over the output's unit, and the same loops in
+/// metres need bounds a thousand times larger. A column that names no
+/// length ([`crate::data::units::unit_of`]) is taken to be in mm, as the
+/// thesis' data and the shipped data are.
+pub fn shape_per_output_unit(output_name: &str) -> f64 {
+    unit_of(output_name)
+        .as_deref()
+        .and_then(millimetres_in)
+        .unwrap_or(1.0)
 }
 
 impl FitProblem {
@@ -201,7 +217,7 @@ impl FitProblem {
         let records = Arc::new(records);
         let baseline = ModelDescription::new(family, Vec::new(), traces.len());
         Ok(FitProblem {
-            space: FitProblem::diagnosis_box(&records, &baseline),
+            space: FitProblem::diagnosis_box(&records, &baseline, &first.output_name),
             records,
             parts,
             model: baseline,
@@ -220,17 +236,27 @@ impl FitProblem {
     pub fn with_model(&self, model: &ModelDescription) -> FitProblem {
         FitProblem {
             model: model.clone(),
-            space: FitProblem::diagnosis_box(&self.records, model),
+            space: FitProblem::diagnosis_box(&self.records, model, &self.output_name),
             ..self.clone()
         }
     }
 
     /// The diagnosis' box of `model`: the joint flow's box around the ARX
     /// estimate ([`SearchSpace::from_prior`]: thesis hull, `a`, `b`, `c` around
-    /// the ARX estimate) plus each effect's box.
-    fn diagnosis_box(records: &Records, model: &ModelDescription) -> SearchSpace {
+    /// the ARX estimate), its loop shapes in the unit of `output_name`
+    /// ([`shape_per_output_unit`]), plus each effect's box.
+    fn diagnosis_box(
+        records: &Records,
+        model: &ModelDescription,
+        output_name: &str,
+    ) -> SearchSpace {
         let mut base =
             SearchSpace::from_prior(model.family, None, records.prior, Flow::Joint, false);
+        let per_unit = shape_per_output_unit(output_name);
+        for i in shape_range(model.family) {
+            base.lower[i] *= per_unit;
+            base.upper[i] *= per_unit;
+        }
         // Least squares on hysteretic data underestimates the input gain: the
         // hysteretic model's `b` relates to the ARX static gain
         // `G = b_ARX/(1 − a_ARX)` through `1 − a·α`, not `1 − a`. Widen the

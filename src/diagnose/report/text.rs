@@ -108,10 +108,12 @@ fn header_text(o: &mut String, d: &Diagnosis) {
         let _ = writeln!(
             o,
             "  CAUTION: the baseline's loop shape ended on the edge of the diagnosis' box: {}. \
-             That box holds the thesis' loop shapes per unit of output, made for a stroke of \
-             about 40 mm: a sharper loop (a shorter stroke, or the output in metres or inches) \
-             lies outside it, and the effects named from the baseline may then stand in for the \
-             loop it could not reach (`fit`, whose box is in the data's own scale, shows the loop)",
+             That box holds the thesis' loop shapes, made for a stroke of about 40 mm, in mm or \
+             in the length unit the output column's name states (`x_m`, `stroke [cm]`): a \
+             sharper loop (a shorter stroke, or an output in another unit that its name does not \
+             state) lies outside it, and the effects named from the baseline may then stand in \
+             for the loop it could not reach (`fit`, whose box is in the data's own scale, shows \
+             the loop)",
             edges.join(", ")
         );
     }
