@@ -134,7 +134,7 @@ impl<'a, K> Rows<'a, K> {
     /// `flat` holds whole rows: a caller's slip, not a user's input.
     pub fn new(flat: &'a [f64], dim: usize) -> Rows<'a, K> {
         assert!(
-            dim > 0 && flat.len() % dim == 0,
+            dim > 0 && flat.len().is_multiple_of(dim),
             "{} values are not whole rows of {dim}",
             flat.len()
         );

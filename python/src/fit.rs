@@ -335,10 +335,10 @@ fn run_fit(
     }
     // A Ctrl-C during the polish or the edge rule's refit, which the engine
     // does not stop for, comes too late to stop anything: the fit is done.
-    if let Err(e) = py.check_signals() {
-        if !e.is_instance_of::<PyKeyboardInterrupt>(py) {
-            return Err(e);
-        }
+    if let Err(e) = py.check_signals()
+        && !e.is_instance_of::<PyKeyboardInterrupt>(py)
+    {
+        return Err(e);
     }
     let (outcome, widened) = ran;
     Ok(Finished {

@@ -205,6 +205,6 @@ pub fn test_sinesweep_rmse(p: &Params, test: &Record) -> Option<f64> {
 pub fn is_periodic(u: &[f64], n: usize) -> bool {
     n > 0
         && u.len() >= n
-        && u.len() % n == 0
+        && u.len().is_multiple_of(n)
         && (n..u.len()).all(|i| (u[i] - u[i - n]).abs() <= 1e-9 * (1.0 + u[i - n].abs()))
 }

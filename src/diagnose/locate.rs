@@ -425,7 +425,7 @@ pub fn noise_floor(outputs: &[&[f64]]) -> f64 {
     }
     d2.sort_by(f64::total_cmp);
     let mid = d2.len() / 2;
-    let med = if d2.len() % 2 == 0 {
+    let med = if d2.len().is_multiple_of(2) {
         0.5 * (d2[mid - 1] + d2[mid])
     } else {
         d2[mid]

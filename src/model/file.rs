@@ -500,10 +500,10 @@ fn legacy_model(path: &Path, value: serde_json::Value) -> anyhow::Result<FittedB
     let names: Vec<&str> = model.family.params().iter().map(|p| p.name).collect();
     // No switching level in the file: the model switches at its
     // estimation mean ([`ModelFile::model`]).
-    if let Some(is) = model.family.switch_index() {
-        if model.params.len() + 1 == names.len() {
-            model.params.insert(is, model.output_mean);
-        }
+    if let Some(is) = model.family.switch_index()
+        && model.params.len() + 1 == names.len()
+    {
+        model.params.insert(is, model.output_mean);
     }
     anyhow::ensure!(
         model.params.len() == names.len(),

@@ -132,14 +132,14 @@ pub struct RemoteRun {
 /// Sends `msg`: the last guard between a controller and the valve. A
 /// command that is not a finite number in 0–10 V does not go out.
 fn send(link: &mut dyn Link, msg: ToRig) -> Result<(), RigError> {
-    if let ToRig::Command { k, volts } = msg {
-        if !(VOLTS.0..=VOLTS.1).contains(&volts) {
-            return Err(RigError::Command {
-                link: link.describe(),
-                k,
-                volts,
-            });
-        }
+    if let ToRig::Command { k, volts } = msg
+        && !(VOLTS.0..=VOLTS.1).contains(&volts)
+    {
+        return Err(RigError::Command {
+            link: link.describe(),
+            k,
+            volts,
+        });
     }
     link.send(&msg.to_string()).map_err(|e| RigError::Send {
         link: link.describe(),

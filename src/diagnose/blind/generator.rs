@@ -466,10 +466,10 @@ impl Run<'_> {
         if let Some(eps) = self.size(GainAsymmetry) {
             pe *= 1.0 + self.branch(st, raw) * eps;
         }
-        if let Some(g) = self.size(LoadGain) {
-            if self.dataset >= 1 {
-                pe *= 1.0 + g;
-            }
+        if let Some(g) = self.size(LoadGain)
+            && self.dataset >= 1
+        {
+            pe *= 1.0 + g;
         }
         if let Some(s) = self.size(CyclicSoftening) {
             pe += (pe - sc.p_lo) * s * st.loadings / (st.loadings + 1.0);

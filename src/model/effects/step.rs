@@ -267,10 +267,10 @@ impl ModelDescription {
                 return false;
             }
             sink(k, yk);
-            if let Some((y, h)) = restart {
-                if k % h == 0 {
-                    p.restart(&mut s, y[k]);
-                }
+            if let Some((y, h)) = restart
+                && k % h == 0
+            {
+                p.restart(&mut s, y[k]);
             }
         }
         true
