@@ -108,7 +108,7 @@ pub fn horizon(arx_pole: f64, shortest: usize) -> usize {
 }
 
 /// What the thesis' loop-shape bounds, which are per mm of stroke, are
-/// multiplied by in the diagnosis' box of a record whose output column is
+/// multiplied by in a box for a record whose output column is
 /// `output_name`: with `n = 1`, `β·|w|` is a pure number, so a loop-shape
 /// parameter scales as one over the output's unit, and the same loops in
 /// metres need bounds a thousand times larger. A column that names no
@@ -121,13 +121,27 @@ pub fn shape_per_output_unit(output_name: &str) -> f64 {
         .unwrap_or(1.0)
 }
 
+/// `space`, a box of the thesis' loop shapes ([`SearchSpace::from_prior`]),
+/// with those shapes in the unit of `output_name`
+/// ([`shape_per_output_unit`]; exact at `n = 1`, where every box but a
+/// `--free-n` one holds `n`).
+fn thesis_shapes_in_unit_of(mut space: SearchSpace, output_name: &str) -> SearchSpace {
+    let per_unit = shape_per_output_unit(output_name);
+    for i in shape_range(space.family) {
+        space.lower[i] *= per_unit;
+        space.upper[i] *= per_unit;
+    }
+    space
+}
+
 impl FitProblem {
     /// `fit`'s problem on `trace`: split in halves, the ARX prior identified
     /// on the estimation half, and the box of `flow`: the joint flow's in
     /// the data's own scale, bounded loops ([`SearchSpace::scaled`]) and,
     /// for the generalized family, the default switching
     /// ([`Switching::Search`]); the thesis' flow's from `hysteresis` (the
-    /// hull of its tables when `None`) with the linear part fixed at ARX's.
+    /// hull of its tables when `None`), its loop shapes in the output's unit
+    /// ([`shape_per_output_unit`]), with the linear part fixed at ARX's.
     /// `n` is fixed at 1 unless `free_n`.
     pub fn new(
         trace: &Trace,
@@ -163,7 +177,10 @@ impl FitProblem {
                     bounds.is_empty(),
                     "the thesis' flow searches its own tables: --bound and --fix need the joint flow"
                 );
-                SearchSpace::from_prior(family, hysteresis, records.prior, flow, free_n)
+                thesis_shapes_in_unit_of(
+                    SearchSpace::from_prior(family, hysteresis, records.prior, flow, free_n),
+                    &trace.output_name,
+                )
             }
             Flow::Joint => SearchSpace::scaled(
                 family,
@@ -250,13 +267,10 @@ impl FitProblem {
         model: &ModelDescription,
         output_name: &str,
     ) -> SearchSpace {
-        let mut base =
-            SearchSpace::from_prior(model.family, None, records.prior, Flow::Joint, false);
-        let per_unit = shape_per_output_unit(output_name);
-        for i in shape_range(model.family) {
-            base.lower[i] *= per_unit;
-            base.upper[i] *= per_unit;
-        }
+        let mut base = thesis_shapes_in_unit_of(
+            SearchSpace::from_prior(model.family, None, records.prior, Flow::Joint, false),
+            output_name,
+        );
         // Least squares on hysteretic data underestimates the input gain: the
         // hysteretic model's `b` relates to the ARX static gain
         // `G = b_ARX/(1 − a_ARX)` through `1 − a·α`, not `1 − a`. Widen the

@@ -160,7 +160,10 @@ pub struct Args {
     pub(super) backend: Backend,
     /// The thesis' flow: a and b fixed at the ARX estimate, no intercept or
     /// start offset, one population search on the free run with the
-    /// thesis' algorithm settings (the flags below still override them).
+    /// thesis' algorithm settings (the flags below still override them), in
+    /// the thesis' box, whose loop shapes are per mm of stroke: an output
+    /// column whose name states another length unit (`x_m`, `x [cm]`) gets
+    /// them converted; one that states none is taken in mm.
     #[arg(long)]
     pub(super) thesis_flow: bool,
     /// Independent sub-populations of the staged fit's population stages.

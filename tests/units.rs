@@ -1,0 +1,118 @@
+//! A record's diagnosis and its fit in the thesis' flow do not hang on the
+//! units it is written in, where its columns' names state them: their
+//! loop-shape boxes, the thesis' per mm of stroke, follow the output's
+//! length unit.
+
+use std::process::Command;
+
+use mckibben::data::Trace;
+use mckibben::data::csv::{ReadOptions, read_traces, write_trace};
+use mckibben::diagnose::report::to_text;
+use mckibben::diagnose::{Settings, diagnose};
+use mckibben::model::Family;
+
+/// The shipped stair (MPa in, mm out) written in kPa and metres, with
+/// column names that say so.
+fn in_kilopascals_and_metres(trace: &Trace) -> Trace {
+    Trace {
+        input_name: "pressure_kpa".into(),
+        input: trace.input.iter().map(|p| p * 1e3).collect(),
+        output_name: "displacement_m".into(),
+        output: trace.output.iter().map(|x| x * 1e-3).collect(),
+        ..trace.clone()
+    }
+}
+
+fn shipped_stair() -> Trace {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+    read_traces(path.as_ref(), &ReadOptions::default())
+        .unwrap()
+        .remove(0)
+}
+
+#[test]
+fn the_shipped_stair_in_kilopascals_and_metres_gets_the_baseline_it_gets_in_mm() {
+    let mm = shipped_stair();
+    let metres = in_kilopascals_and_metres(&mm);
+    // The baseline's own budget; no effect, no refits: the box is the
+    // baseline's.
+    let settings = Settings {
+        scratch_seeds: 0,
+        ..Settings::default()
+    };
+    let baseline = |t: &Trace| diagnose(std::slice::from_ref(t), Family::Classic, &[], &settings);
+    let (a, b) = (baseline(&mm).unwrap(), baseline(&metres).unwrap());
+    let (fit_mm, fit_m) = (
+        a.baseline().selection_fit_percent,
+        b.baseline().selection_fit_percent,
+    );
+    // Without the conversion the metre record's baseline stops with `gamma`
+    // on the box's edge, six points lower.
+    assert!(
+        (fit_mm - fit_m).abs() < 1.0,
+        "selection fit {fit_mm:.2} % in mm, {fit_m:.2} % in metres"
+    );
+    assert!(
+        b.baseline_on_edge.is_empty(),
+        "the metre record's baseline stopped on the box's edge: {:?}",
+        b.baseline_on_edge
+    );
+    // The report writes the metre record's figures with their digits: its
+    // noise floor, 3·10⁻⁵ m, read "0.0000" at four decimals.
+    let text = to_text(&b);
+    let floor: f64 = text
+        .split("noise floor ≈ ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .expect("the baseline line states the noise floor");
+    assert!(
+        (floor / b.noise_floor_rmse - 1.0).abs() < 1e-3,
+        "the report reads {floor} for a noise floor of {:e}",
+        b.noise_floor_rmse
+    );
+}
+
+/// `fit --thesis-flow` searches the thesis' tables: in metres their loop
+/// shapes are a thousand times larger, and the fit validates as in mm.
+#[test]
+fn the_thesis_flow_fits_the_stair_in_metres_as_in_mm() {
+    let dir = tempfile::tempdir().unwrap();
+    let mm = shipped_stair();
+    let metres = in_kilopascals_and_metres(&mm);
+    let fit = |t: &Trace| -> serde_json::Value {
+        let csv = dir.path().join(format!("{}.csv", t.output_name));
+        write_trace(&csv, t).unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
+            .args(["fit", "--thesis-flow", "--json", "--input", &t.input_name])
+            .args(["--output", &t.output_name, "--out"])
+            .arg(dir.path().join(&t.output_name))
+            .arg(&csv)
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let (a, b) = (fit(&mm), fit(&metres));
+    let percent = |v: &serde_json::Value| v["val_fit_percent"].as_f64().unwrap();
+    // Without the conversion the metre fit stops with `beta` and `gamma`
+    // on the table's edges and validates at 61.9 % against 67.3 %.
+    assert!(
+        (percent(&a) - percent(&b)).abs() < 0.5,
+        "validation fit {} % in mm, {} % in metres",
+        percent(&a),
+        percent(&b)
+    );
+    let beta = |v: &serde_json::Value| v["params"]["beta"].as_f64().unwrap();
+    assert!(
+        (beta(&b) / beta(&a) / 1000.0 - 1.0).abs() < 0.05,
+        "beta {} in mm, {} in metres",
+        beta(&a),
+        beta(&b)
+    );
+}
