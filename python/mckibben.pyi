@@ -226,6 +226,7 @@ def diagnose(
     start: Model | _Path | None = None,
     blocks: int | None = None,
     transfer: Trace | Sequence[Trace | tuple[_ArrayLike, _ArrayLike, float]] | None = None,
+    repeat: int = 1,
 ) -> Diagnosis: ...
 
 @final

@@ -276,6 +276,50 @@ fn undiagnosable_data_gives_clear_errors() {
     assert!(!err.contains("panicked"), "{err}");
 }
 
+/// `--repeat 2` runs the diagnosis from `--seed` and the next seed: its
+/// second run is the diagnosis `--seed 2` gives, and the text lists both.
+#[test]
+fn repeat_runs_the_diagnosis_from_the_next_seeds() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("stair.csv");
+    write_csv(&csv, 600, false, 0.05);
+    let run = |extra: &[&str]| {
+        bin()
+            .args(["diagnose", "--seeds", "2", "--generations", "20"])
+            .args(["--effects", "delay,saturation", "--scratch-seeds", "0"])
+            .args(extra)
+            .arg(&csv)
+            .output()
+            .unwrap()
+    };
+    let both = json_of(&run(&["--repeat", "2", "--json"]));
+    let second = json_of(&run(&["--seed", "2", "--json"]));
+    let runs = both["repeats"]["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    assert_eq!((&runs[0]["seed"], &runs[1]["seed"]), (&1.into(), &2.into()));
+    assert_eq!(runs[0]["verdict"], both["verdict"]);
+    assert_eq!(runs[1]["verdict"], second["verdict"]);
+    assert_eq!(
+        runs[1]["baseline_selection_fit_percent"],
+        second["baseline"]["selection_fit_percent"]
+    );
+    assert_eq!(
+        runs[1]["final_test_fit_percent"],
+        second["steps"].as_array().unwrap().last().unwrap()["test_fit_percent"]
+    );
+    assert!(second["repeats"].is_null());
+
+    let text = run(&["--repeat", "2"]);
+    let stdout = String::from_utf8_lossy(&text.stdout);
+    assert!(stdout.contains("REPEATED from 2 seeds"), "{stdout}");
+    assert!(
+        stdout.contains("  seed 1 ") && stdout.contains("  seed 2 "),
+        "{stdout}"
+    );
+    let err = error_of(&["diagnose", "--repeat", "0"], &csv);
+    assert!(err.contains("--repeat"), "{err}");
+}
+
 /// An output column whose name states no length unit gets a note that the
 /// diagnosis takes it in mm; one that states its unit, or the shipped
 /// `displacement`, gets none.

@@ -479,7 +479,8 @@ fn simulate() {
 #[test]
 fn diagnose() {
     // One effect the stair shows, few generations, one scratch seed: an
-    // accepted candidate, a size interval and the refits, in about 2 s.
+    // accepted candidate, a size interval and the refits, twice (--repeat),
+    // in about 4 s.
     let v = check(
         "diagnose",
         &[
@@ -493,10 +494,18 @@ fn diagnose() {
             "5",
             "--scratch-seeds",
             "1",
+            "--repeat",
+            "2",
             "--json",
         ],
     );
     assert!(v["final"]["refits"].is_object());
+    let runs = v["repeats"]["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 2);
+    assert_eq!(
+        runs[0]["verdict"], v["verdict"],
+        "the first run is this one"
+    );
 }
 
 #[test]

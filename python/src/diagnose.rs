@@ -88,12 +88,14 @@ impl Diagnosis {
 /// command's) explain it, how far the gap shrinks. With `start` (a `Model`
 /// or a model file's path), the selection starts from that model, as
 /// `diagnose --from`; with `transfer` (datasets), the chain is fitted on
-/// each of them as `--transfer` does. Returns the document
+/// each of them as `--transfer` does; with `repeat` K, the whole
+/// diagnosis runs from K seeds as `--repeat` does (`document["repeats"]`).
+/// Returns the document
 /// `mckibben diagnose --json` prints, as dicts and lists, and the final
 /// and baseline models as `Model`s. Ctrl-C stops it within a generation
 /// or polish iteration and raises `KeyboardInterrupt`.
 #[pyfunction]
-#[pyo3(signature = (datasets, baseline = None, effects = None, seed = 1, seeds = None, generations = None, scratch_seeds = None, backend = "cpu", max_effects = None, start = None, blocks = None, transfer = None))]
+#[pyo3(signature = (datasets, baseline = None, effects = None, seed = 1, seeds = None, generations = None, scratch_seeds = None, backend = "cpu", max_effects = None, start = None, blocks = None, transfer = None, repeat = 1))]
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose<'py>(
     py: Python<'py>,
@@ -109,9 +111,13 @@ pub fn diagnose<'py>(
     start: Option<&Bound<'py, PyAny>>,
     blocks: Option<usize>,
     transfer: Option<&Bound<'py, PyAny>>,
+    repeat: usize,
 ) -> PyResult<Diagnosis> {
     let traces = traces(datasets)?;
     let others = transfer.map(self::traces).transpose()?.unwrap_or_default();
+    if repeat == 0 {
+        return Err(PyValueError::new_err("repeat must be at least 1"));
+    }
     if blocks.is_some_and(|b| b < 2) {
         return Err(PyValueError::new_err(
             "blocks must be at least 2 (one selection and one test block)",
@@ -154,6 +160,15 @@ pub fn diagnose<'py>(
         if !others.is_empty() {
             d.transfers = mckibben::diagnose::transfer::transfer(&d, &others, &settings)?;
         }
+        d.repeats = mckibben::diagnose::seeds::repeat(
+            &d,
+            &traces,
+            &effects,
+            &settings,
+            start.as_ref(),
+            repeat,
+            &mut |_| (),
+        )?;
         Ok(d)
     })?
     .map_err(value_error)?;

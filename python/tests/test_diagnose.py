@@ -56,6 +56,22 @@ def test_diagnose_cuts_blocks_and_transfers_as_the_command(stair, cli):
         mckibben.diagnose(stair, blocks=1, **args)
 
 
+def test_diagnose_repeats_from_seeds_as_the_command(stair, cli):
+    args = dict(effects=["saturation:output"], seeds=1, generations=10, scratch_seeds=0)
+    got = mckibben.diagnose(stair, repeat=2, **args).document
+    runs = got["repeats"]["runs"]
+    assert [r["seed"] for r in runs] == [1, 2]
+    assert runs[0]["verdict"] == got["verdict"]
+    expected = cli(
+        "diagnose", stair.source, "--effects", "saturation:output", "--seeds", "1",
+        "--generations", "10", "--scratch-seeds", "0", "--repeat", "2",
+    )
+    assert got == expected
+    assert mckibben.diagnose(stair, **args).document["repeats"] is None
+    with pytest.raises(ValueError, match="repeat must be at least 1"):
+        mckibben.diagnose(stair, repeat=0, **args)
+
+
 def test_diagnose_rejects_bad_arguments(stair):
     with pytest.raises(ValueError, match="unknown effect `wobble`"):
         mckibben.diagnose(stair, effects=["wobble"])

@@ -7,9 +7,9 @@ use anyhow::Context;
 
 use mckibben::data::units::{millimetres_in, unit_of};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
-use mckibben::diagnose::selftest_run;
 use mckibben::diagnose::transfer::transfer;
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
+use mckibben::diagnose::{seeds, selftest_run};
 use mckibben::eval::Backend;
 use mckibben::model::{Family, ModelFile};
 use mckibben::names::UnknownName;
@@ -120,6 +120,16 @@ pub struct Args {
     /// time, and the report names the first link that does not carry over.
     #[arg(long, value_name = "OTHER", num_args = 1.., conflicts_with = "self_test")]
     transfer: Vec<PathBuf>,
+    /// Run the whole diagnosis K times, from --seed, --seed + 1, …, and
+    /// report (REPEATED) what each run named and how many runs named each
+    /// effect. Where the baseline has several basins the data cannot tell
+    /// apart, the named effects can change with the seed: an effect that
+    /// only some runs name is the seed's, not the data's. The rest of the
+    /// report, the figures and the models are the first run's. Costs K
+    /// diagnoses.
+    #[arg(long, value_name = "K", default_value_t = 1,
+          value_parser = clap::value_parser!(u16).range(1..), conflicts_with = "self_test")]
+    repeat: u16,
     /// Where the searches score their populations: `cpu` (the batched,
     /// multi-threaded CPU path), `gpu` (the WGSL kernels on the best adapter,
     /// lavapipe included: the same numbers, bit for bit, where the adapter
@@ -329,6 +339,20 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         }
         d.transfers = transfer(&d, &others, &settings)?;
     }
+    let repeats = usize::from(args.repeat);
+    d.repeats = seeds::repeat(
+        &d,
+        &traces,
+        &effects,
+        &settings,
+        from.as_ref(),
+        repeats,
+        &mut |seed| {
+            if !args.json {
+                eprintln!("diagnosing again from seed {seed} (--repeat {repeats}) ...");
+            }
+        },
+    )?;
     if let Some(dir) = &args.out {
         let provenance = args.data.provenance(Some(args.seed))?;
         for (name, model) in [

@@ -25,6 +25,7 @@ pub mod locate;
 pub mod refits;
 pub mod report;
 pub mod ridge;
+pub mod seeds;
 pub mod select;
 pub mod selftest;
 pub mod selftest_run;
@@ -124,6 +125,10 @@ pub struct Diagnosis {
     /// The baseline's loop-shape parameters that ended on or near the edge
     /// of the diagnosis' box ([`loop_shape_on_edge`]).
     pub baseline_on_edge: Vec<ActiveBound>,
+    /// Every run of `--repeat K` ([`seeds::repeat`]), this diagnosis first
+    /// and then the same from the next `K − 1` seeds; empty unless asked
+    /// for.
+    pub repeats: Vec<seeds::SeedRun>,
 }
 
 /// Second-half curves of one dataset, for figures.
@@ -157,6 +162,18 @@ impl Diagnosis {
             &[]
         } else {
             &self.selection.verdict
+        }
+    }
+
+    /// `named` when the diagnosis names effects, `none` when no effect
+    /// passed, `not-explained` when the catalogue does not explain the gap.
+    pub fn verdict_kind(&self) -> &'static str {
+        if self.explainable.not_explained {
+            "not-explained"
+        } else if self.selection.verdict.is_empty() {
+            "none"
+        } else {
+            "named"
         }
     }
 }
@@ -281,6 +298,7 @@ pub fn diagnose_from(
         not_tried,
         transfers: Vec::new(),
         baseline_on_edge,
+        repeats: Vec::new(),
     })
 }
 

@@ -8,6 +8,7 @@ use crate::diagnose::explainable::{EffectShare, Explainable, Signature};
 use crate::diagnose::interval::SizeInterval;
 use crate::diagnose::locate::{Band, Correlation, DatasetShare};
 use crate::diagnose::refits::{Finding, Refits};
+use crate::diagnose::seeds::{NamedCount, SeedRun, named_counts};
 use crate::diagnose::spectrum::{Peak, Spectrum};
 use crate::diagnose::transfer::Transfer;
 use crate::diagnose::{Diagnosis, NotTried, Step};
@@ -245,7 +246,51 @@ pub struct DiagnosisJson {
     pub spectrum: SpectrumJson,
     /// The chain fitted on other records (`--transfer`); empty without.
     pub transfers: Vec<Transfer>,
+    /// Every run of `--repeat K`, this diagnosis first; `null` without.
+    pub repeats: Option<RepeatsJson>,
     pub rule: &'static str,
+}
+
+/// The runs of `--repeat K` and how many of them named each effect.
+#[derive(Debug, Clone, Serialize)]
+pub struct RepeatsJson {
+    pub runs: Vec<RunJson>,
+    /// How many runs named each effect, by realisation
+    /// (`saturation:output`), most often named first.
+    pub named: Vec<NamedCount>,
+    /// The same by physical effect (`saturation`, in any realisation).
+    pub physical: Vec<NamedCount>,
+}
+
+/// One run of `--repeat`.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunJson {
+    pub seed: u64,
+    pub verdict: Vec<&'static str>,
+    pub verdict_kind: &'static str,
+    /// Its baseline on its selection part, which its choices read.
+    pub baseline_selection_fit_percent: f64,
+    /// Its final model on the test part, which none of its choices read.
+    pub final_test_fit_percent: f64,
+}
+
+impl RepeatsJson {
+    fn of(runs: &[SeedRun]) -> Option<RepeatsJson> {
+        (!runs.is_empty()).then(|| RepeatsJson {
+            runs: runs
+                .iter()
+                .map(|r| RunJson {
+                    seed: r.seed,
+                    verdict: r.named.iter().map(|e| e.name()).collect(),
+                    verdict_kind: r.kind,
+                    baseline_selection_fit_percent: r.baseline_selection_fit_percent,
+                    final_test_fit_percent: r.final_test_fit_percent,
+                })
+                .collect(),
+            named: named_counts(runs, false),
+            physical: named_counts(runs, true),
+        })
+    }
 }
 
 impl DiagnosisJson {
@@ -330,13 +375,7 @@ impl DiagnosisJson {
             },
             candidates,
             verdict: d.named().iter().map(|e| e.name()).collect(),
-            verdict_kind: if x.not_explained {
-                "not-explained"
-            } else if sel.verdict.is_empty() {
-                "none"
-            } else {
-                "named"
-            },
+            verdict_kind: d.verdict_kind(),
             from: d.from.clone(),
             capped: sel.capped,
             given: sel.given.iter().map(|e| e.name()).collect(),
@@ -383,6 +422,7 @@ impl DiagnosisJson {
                 final_peaks: peaks(&d.final_spectrum),
             },
             transfers: d.transfers.clone(),
+            repeats: RepeatsJson::of(&d.repeats),
             rule: "accept iff R0−R1 > 3·√(s0²+s1²) (seed spread), ΔBIC = N·ln(R1²/R0²) + k·ln N < −10, (R0−R1)/R0 ≥ 2 %, and R0 > 1.1·noise floor; a candidate's gain that the model without it reaches from the candidate's parameters is not credited to it (ablation)",
         }
     }

@@ -7,6 +7,7 @@ use crate::diagnose::accept::gap_closed;
 use crate::diagnose::explainable::Signature;
 use crate::diagnose::locate::Share;
 use crate::diagnose::refits::Finding;
+use crate::diagnose::seeds::named_counts;
 use crate::diagnose::spectrum::Peak;
 use crate::diagnose::transfer::Transfer;
 use crate::diagnose::{Diagnosis, Effect, Step};
@@ -76,6 +77,7 @@ pub fn to_text(d: &Diagnosis) -> String {
     explainable_text(&mut o, d);
     spectrum_text(&mut o, d);
     transfer_text(&mut o, d);
+    repeats_text(&mut o, d);
     verdict_text(&mut o, d);
     o
 }
@@ -565,6 +567,71 @@ fn edges_text(on_edge: &[ActiveBound]) -> Option<String> {
         "on their box's edge there: {} (the record pushed the effect as far as it goes)",
         each.join(", ")
     ))
+}
+
+/// Every run of `--repeat` and how often each effect was named.
+fn repeats_text(o: &mut String, d: &Diagnosis) {
+    let runs = &d.repeats;
+    if runs.is_empty() {
+        return;
+    }
+    let k = runs.len();
+    let _ = writeln!(
+        o,
+        "\nREPEATED from {k} seeds (--repeat {k}; each run a whole diagnosis, this report the first's;\n  \
+         baseline on each run's selection part, which its choices read, final model on its test part,\n  \
+         which none of them read):"
+    );
+    let verdicts: Vec<String> = runs
+        .iter()
+        .map(|r| match r.kind {
+            "named" => r
+                .named
+                .iter()
+                .map(|e| e.name())
+                .collect::<Vec<_>>()
+                .join(", "),
+            "none" => "no effect named".into(),
+            _ => "not explained by the catalogue".into(),
+        })
+        .collect();
+    let width = verdicts
+        .iter()
+        .map(|v| v.chars().count())
+        .max()
+        .unwrap_or(0);
+    for (r, verdict) in runs.iter().zip(&verdicts) {
+        let _ = writeln!(
+            o,
+            "  seed {:<4} {verdict:<width$}  baseline {:5.1} %  final {:5.1} %",
+            r.seed, r.baseline_selection_fit_percent, r.final_test_fit_percent
+        );
+    }
+    let counts = |physical: bool| -> String {
+        named_counts(runs, physical)
+            .iter()
+            .map(|n| format!("{} {} of {k}", n.effect, n.runs))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let (named, physical) = (counts(false), counts(true));
+    if named.is_empty() {
+        let _ = writeln!(o, "  no run named an effect");
+        return;
+    }
+    let _ = writeln!(o, "  named: {named}");
+    let _ = writeln!(o, "  by physical effect, in any realisation: {physical}");
+    let unanimous = runs.iter().all(|r| r.named == runs[0].named);
+    let _ = writeln!(
+        o,
+        "  {}",
+        if unanimous {
+            "Every run named the same effects in the same order."
+        } else {
+            "An effect that only some runs name is the seed's choice among basins the data \
+             cannot tell apart, not the data's."
+        }
+    );
 }
 
 /// The chain on other records (`--transfer`).
