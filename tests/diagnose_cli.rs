@@ -329,7 +329,7 @@ fn an_output_without_a_length_unit_is_noted_as_taken_in_mm() {
     let short = dir.path().join("short.csv");
     write_csv(&short, 30, false, 0.0);
     let text = std::fs::read_to_string(&short).unwrap();
-    let note = "names no length unit, so the diagnosis' loop-shape box takes it in mm";
+    let note = "names no length unit, so the diagnosis' loop-shape box";
     for (column, noted) in [
         ("y", true),
         ("angle_deg", true),
@@ -344,6 +344,7 @@ fn an_output_without_a_length_unit_is_noted_as_taken_in_mm() {
         assert_eq!(err.contains(note), noted, "{column}: {err}");
         if noted {
             assert!(err.contains(&format!("`{column}_m`")), "{err}");
+            assert!(err.contains("its first record spans "), "{err}");
         }
     }
 }

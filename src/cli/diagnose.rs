@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
+use mckibben::data::range;
 use mckibben::data::units::{millimetres_in, unit_of};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::transfer::transfer;
@@ -14,6 +15,7 @@ use mckibben::eval::Backend;
 use mckibben::model::{Family, ModelFile};
 use mckibben::names::UnknownName;
 use mckibben::report::json::Versioned;
+use mckibben::report::number::significant;
 
 use super::common::MultiDataArgs;
 
@@ -266,16 +268,19 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         let _ = ctrlc::set_handler(move || stop.raise());
     }
     let traces = args.data.load()?;
-    if let Some(output) = traces.first().map(|t| &t.output_name)
-        && unit_of(output)
+    if let Some(first) = traces.first()
+        && unit_of(&first.output_name)
             .as_deref()
             .and_then(millimetres_in)
             .is_none()
     {
+        let output = &first.output_name;
         eprintln!(
             "mckibben: note: the output column `{output}` names no length unit, so the \
-             diagnosis' loop-shape box takes it in mm; if it is in another, name the unit \
-             (`{output}_m`, `{output} [cm]`)"
+             diagnosis' loop-shape box, made for a stroke of about 40 mm, takes it in mm \
+             (its first record spans {}); if it is in another, name the unit \
+             (`{output}_m`, `{output} [cm]`)",
+            significant(range(&first.output), 3)
         );
     }
     if let Some(kind) = args.self_test {
