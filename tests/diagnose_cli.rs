@@ -316,6 +316,10 @@ fn repeat_runs_the_diagnosis_from_the_next_seeds() {
         stdout.contains("  seed 1 ") && stdout.contains("  seed 2 "),
         "{stdout}"
     );
+    // The verdict says how many runs named each of its effects.
+    assert!(!both["verdict"].as_array().unwrap().is_empty());
+    let verdict = stdout.lines().find(|l| l.starts_with("Verdict:")).unwrap();
+    assert!(verdict.contains(" of 2 runs)"), "{verdict}");
     let err = error_of(&["diagnose", "--repeat", "0"], &csv);
     assert!(err.contains("--repeat"), "{err}");
 }
