@@ -116,3 +116,61 @@ fn the_thesis_flow_fits_the_stair_in_metres_as_in_mm() {
         beta(&b)
     );
 }
+
+/// `identify`'s report on the stair in kPa and metres writes `b1`, the
+/// output mean and the RMSE with their digits (at six and four decimals
+/// they read `0.000002`, `0.023134` and `0.0030`), each within its last
+/// digit of the `--json` document's.
+#[test]
+fn identify_reports_the_stair_in_metres_with_its_digits() {
+    let dir = tempfile::tempdir().unwrap();
+    let metres = in_kilopascals_and_metres(&shipped_stair());
+    let csv = dir.path().join("metres.csv");
+    write_trace(&csv, &metres).unwrap();
+    let run = |json: bool| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_mckibben"));
+        cmd.args([
+            "identify",
+            "--input",
+            "pressure_kpa",
+            "--output",
+            "displacement_m",
+        ])
+        .arg(&csv);
+        if json {
+            cmd.arg("--json");
+        }
+        let out = cmd.output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let (text, doc) = (run(false), run(true));
+    let doc: serde_json::Value = serde_json::from_str(&doc).unwrap();
+    let after = |label: &str| -> f64 {
+        let rest = text
+            .split(label)
+            .nth(1)
+            .unwrap_or_else(|| panic!("{label}: {text}"));
+        let value: String = rest
+            .trim_start()
+            .chars()
+            .take_while(|c| c.is_ascii_digit() || ".-e".contains(*c))
+            .collect();
+        value.parse().unwrap_or_else(|_| panic!("{label}: {text}"))
+    };
+    for (label, v) in [
+        ("b1", doc["arx"]["b"][0].as_f64().unwrap()),
+        ("output", doc["output_mean"].as_f64().unwrap()),
+        ("(RMSE", doc["validation_rmse"].as_f64().unwrap()),
+    ] {
+        let shown = after(label);
+        assert!(
+            (shown - v).abs() <= 1e-3 * v.abs(),
+            "`{label}` reads {shown} for {v:e}: {text}"
+        );
+    }
+}

@@ -11,6 +11,7 @@ use mckibben::ident::ArxOrders;
 use mckibben::ident::arx::{Identification, identify};
 use mckibben::model::{Family, FittedBaseline, Model, ModelFile};
 use mckibben::report::json::Versioned;
+use mckibben::report::number::significant;
 
 /// Identify a linear ARX model from a recorded experiment, as the thesis does
 /// with MATLAB's System Identification Toolbox (§4.3): the means of the
@@ -124,19 +125,21 @@ fn print_report(id: &Identification) {
         o.na, o.nb, o.nk
     );
     println!(
-        "  means removed input {:.6}, output {:.6} (estimation half)",
-        id.input_mean, id.output_mean
+        "  means removed input {}, output {} (estimation half)",
+        significant(id.input_mean, 6),
+        significant(id.output_mean, 6)
     );
     for (i, a) in id.arx.a.iter().enumerate() {
-        println!("  a{}            {a:.6}", i + 1);
+        println!("  a{}            {}", i + 1, significant(*a, 6));
     }
     for (j, b) in id.arx.b.iter().enumerate() {
-        println!("  b{}            {b:.6}", j + 1);
+        println!("  b{}            {}", j + 1, significant(*b, 6));
     }
     if o == ArxOrders::default() {
         println!(
-            "  model         l(k) = {:.4}·l(k−1) + {:.4}·p(k−1)   (eq. 12; thesis: 0.9618, 24.9366)",
-            id.arx.a[0], id.arx.b[0]
+            "  model         l(k) = {}·l(k−1) + {}·p(k−1)   (eq. 12; thesis: 0.9618, 24.9366)",
+            significant(id.arx.a[0], 4),
+            significant(id.arx.b[0], 4)
         );
     }
     println!(
@@ -144,7 +147,8 @@ fn print_report(id: &Identification) {
         id.estimation_fit_percent
     );
     println!(
-        "  fit, validation half   {:.2} %   (RMSE {:.4})",
-        id.validation_fit_percent, id.validation_rmse
+        "  fit, validation half   {:.2} %   (RMSE {})",
+        id.validation_fit_percent,
+        significant(id.validation_rmse, 4)
     );
 }

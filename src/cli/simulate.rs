@@ -13,6 +13,7 @@ use mckibben::model::experiment::halves;
 use mckibben::model::presets::thesis_params;
 use mckibben::model::{Family, FittedBaseline, Model, ModelFile};
 use mckibben::report::json::{Named, Versioned};
+use mckibben::report::number::significant;
 use mckibben::report::{Figure, Panel, Series};
 
 /// Pressure per volt of valve command used to turn the generated valve
@@ -228,8 +229,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     match summary.diverged_at {
         Some(k) => println!("  DIVERGED at sample {k} (state beyond ±1e6 or not finite)"),
         None => println!(
-            "  output range {:.3} .. {:.3}, loop area {:.4}",
-            summary.output_min, summary.output_max, summary.loop_area
+            "  output range {} .. {}, loop area {}",
+            significant(summary.output_min, 3),
+            significant(summary.output_max, 3),
+            significant(summary.loop_area, 4)
         ),
     }
     if let (Some(all), Some(val)) = (summary.fit_percent, summary.val_fit_percent) {
