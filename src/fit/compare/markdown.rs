@@ -5,10 +5,12 @@ use std::fmt::Write as _;
 use super::{Report, Settings};
 use crate::fit::objective::{GENERATIONS, POPULATION};
 use crate::model::Flow;
+use crate::report::number::significant;
 
-/// `v` with `digits` decimals, or `diverged`.
+/// `v` with `digits` decimals, more where a small figure needs them
+/// (an SSE in metres: [`significant`]), or `diverged`.
 fn opt(v: Option<f64>, digits: usize) -> String {
-    v.map_or("diverged".into(), |v| format!("{v:.digits$}"))
+    v.map_or("diverged".into(), |v| significant(v, digits))
 }
 
 /// The report as Markdown tables, headed by the settings that made it.
@@ -100,4 +102,17 @@ pub fn markdown(r: &Report, settings: &Settings) -> String {
         }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::opt;
+
+    #[test]
+    fn an_sse_in_metres_keeps_its_digits_in_the_tables() {
+        // The stair in metres: SSE 0.002952, where three decimals read 0.003.
+        assert_eq!(opt(Some(0.0029515), 3), "0.002952");
+        assert_eq!(opt(Some(2948.5012), 3), "2948.501");
+        assert_eq!(opt(None, 3), "diverged");
+    }
 }
