@@ -5,7 +5,7 @@ use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use mckibben::diagnose::report::DiagnosisJson;
+use mckibben::diagnose::report::{DiagnosisJson, baseline_caution};
 use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
@@ -172,6 +172,16 @@ pub fn diagnose<'py>(
         Ok(d)
     })?
     .map_err(value_error)?;
+    // The report's CAUTION, where a Python user sees it.
+    if let Some(caution) = baseline_caution(&d) {
+        let warn = py.import("warnings")?;
+        warn.call_method1(
+            "warn",
+            (format!(
+                "{caution}; a Trace's output name is its column's: Trace(u, y, dt, output_name=\"x_m\")"
+            ),),
+        )?;
+    }
     let sources: Vec<&str> = traces.iter().map(|t| t.source.as_str()).collect();
     let model = |m: &mckibben::model::Model| {
         let file = ModelFile::new(

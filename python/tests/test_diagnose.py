@@ -5,6 +5,7 @@ import os
 import signal
 import threading
 import time
+import warnings
 
 import pytest
 
@@ -70,6 +71,20 @@ def test_diagnose_repeats_from_seeds_as_the_command(stair, cli):
     assert mckibben.diagnose(stair, **args).document["repeats"] is None
     with pytest.raises(ValueError, match="repeat must be at least 1"):
         mckibben.diagnose(stair, repeat=0, **args)
+
+
+def test_a_baseline_on_the_boxs_edge_warns_and_a_named_unit_avoids_it(stair):
+    args = dict(effects=["delay"], seeds=1, generations=10, scratch_seeds=0)
+    u, y = stair.input * 1000, stair.output / 1000
+    # In metres, as a tuple: taken in mm, the loop is too sharp for the box.
+    with pytest.warns(UserWarning, match="ended on the edge of the diagnosis' box"):
+        got = mckibben.diagnose([(u, y, stair.dt)], **args)
+    assert got.document["baseline"]["on_edge"]
+    named = mckibben.Trace(u, y, stair.dt, output_name="x_m")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        got = mckibben.diagnose(named, **args)
+    assert got.document["baseline"]["on_edge"] == []
 
 
 def test_diagnose_rejects_bad_arguments(stair):

@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 
 pub use figures::write_figures;
 pub use json::*;
-pub use text::to_text;
+pub use text::{baseline_caution, to_text};
 
 use super::Diagnosis;
 use super::accept::Candidate;

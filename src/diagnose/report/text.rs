@@ -82,6 +82,30 @@ pub fn to_text(d: &Diagnosis) -> String {
     o
 }
 
+/// Where the baseline's loop shape stopped on the edge of the diagnosis'
+/// box, what that means, in words (the report's CAUTION, Python's
+/// warning); `None` where it did not.
+pub fn baseline_caution(d: &Diagnosis) -> Option<String> {
+    if d.baseline_on_edge.is_empty() {
+        return None;
+    }
+    let edges: Vec<String> = d
+        .baseline_on_edge
+        .iter()
+        .map(|b| format!("{} ({} bound)", b.param, b.bound.name()))
+        .collect();
+    Some(format!(
+        "the baseline's loop shape ended on the edge of the diagnosis' box: {}. \
+         That box holds the thesis' loop shapes, made for a stroke of about 40 mm, in mm or \
+         in the length unit the output column's name states (`x_m`, `stroke [cm]`): a \
+         sharper loop (a shorter stroke, or an output in another unit that its name does not \
+         state) lies outside it, and the effects named from the baseline may then stand in \
+         for the loop it could not reach (`fit`, whose box is in the data's own scale, shows \
+         the loop)",
+        edges.join(", ")
+    ))
+}
+
 /// What was diagnosed, how it was split, the baseline and the floor.
 fn header_text(o: &mut String, d: &Diagnosis) {
     let base = d.baseline();
@@ -101,23 +125,8 @@ fn header_text(o: &mut String, d: &Diagnosis) {
         significant(base.test_rmse, 4),
         significant(d.noise_floor_rmse, 4)
     );
-    if !d.baseline_on_edge.is_empty() {
-        let edges: Vec<String> = d
-            .baseline_on_edge
-            .iter()
-            .map(|b| format!("{} ({} bound)", b.param, b.bound.name()))
-            .collect();
-        let _ = writeln!(
-            o,
-            "  CAUTION: the baseline's loop shape ended on the edge of the diagnosis' box: {}. \
-             That box holds the thesis' loop shapes, made for a stroke of about 40 mm, in mm or \
-             in the length unit the output column's name states (`x_m`, `stroke [cm]`): a \
-             sharper loop (a shorter stroke, or an output in another unit that its name does not \
-             state) lies outside it, and the effects named from the baseline may then stand in \
-             for the loop it could not reach (`fit`, whose box is in the data's own scale, shows \
-             the loop)",
-            edges.join(", ")
-        );
+    if let Some(caution) = baseline_caution(d) {
+        let _ = writeln!(o, "  CAUTION: {caution}");
     }
     if let Some(from) = &d.from {
         let names: Vec<&str> = d.selection.given.iter().map(|e| e.name()).collect();
