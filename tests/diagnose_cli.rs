@@ -309,9 +309,13 @@ fn repeat_runs_the_diagnosis_from_the_next_seeds() {
     );
     assert!(second["repeats"].is_null());
 
+    let one = String::from_utf8_lossy(&run(&[]).stdout).into_owned();
+    let advice = "This is one run, from one seed";
+    assert!(one.contains(advice), "{one}");
     let text = run(&["--repeat", "2"]);
     let stdout = String::from_utf8_lossy(&text.stdout);
     assert!(stdout.contains("REPEATED from 2 seeds"), "{stdout}");
+    assert!(!stdout.contains(advice), "{stdout}");
     assert!(
         stdout.contains("  seed 1 ") && stdout.contains("  seed 2 "),
         "{stdout}"

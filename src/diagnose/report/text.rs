@@ -408,6 +408,15 @@ fn verdict_text(o: &mut String, d: &Diagnosis) {
             }
         }
     }
+    if d.repeats.is_empty() {
+        // One run cannot tell its seed's choices from the data's.
+        let _ = writeln!(
+            o,
+            "This is one run, from one seed: where the baseline has basins the data cannot tell \
+             apart, another seed may name other effects (--repeat 3 runs three seeds and counts \
+             the names)."
+        );
+    }
 }
 
 /// The final model refitted from scratch, and what that says of its fit.
