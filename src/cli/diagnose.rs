@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use mckibben::data::range;
-use mckibben::data::units::{millimetres_in, unit_of};
+use mckibben::data::units::stated_length_in_mm;
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::transfer::transfer;
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
@@ -269,10 +269,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     let traces = args.data.load()?;
     if let Some(first) = traces.first()
-        && unit_of(&first.output_name)
-            .as_deref()
-            .and_then(millimetres_in)
-            .is_none()
+        && stated_length_in_mm(&first.output_name).is_none()
     {
         let output = &first.output_name;
         eprintln!(

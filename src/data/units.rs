@@ -48,7 +48,7 @@ pub fn unit_of(column: &str) -> Option<String> {
 
 /// How many millimetres one of `unit` (as [`unit_of`] spells it) is, for
 /// the lengths a muscle's stroke is written in; `None` for any other unit.
-pub fn millimetres_in(unit: &str) -> Option<f64> {
+fn millimetres_in(unit: &str) -> Option<f64> {
     match unit {
         "mm" => Some(1.0),
         "cm" => Some(10.0),
@@ -56,6 +56,13 @@ pub fn millimetres_in(unit: &str) -> Option<f64> {
         "µm" => Some(1e-3),
         _ => None,
     }
+}
+
+/// How many millimetres one unit of the column `column` is, where its name
+/// states a length ([`unit_of`], [`millimetres_in`]); `None` where it
+/// states none.
+pub fn stated_length_in_mm(column: &str) -> Option<f64> {
+    unit_of(column).as_deref().and_then(millimetres_in)
 }
 
 #[cfg(test)]
@@ -76,7 +83,7 @@ mod tests {
 
     #[test]
     fn lengths_convert_to_millimetres_and_other_units_do_not() {
-        let mm = |column: &str| unit_of(column).as_deref().and_then(millimetres_in);
+        let mm = stated_length_in_mm;
         assert_eq!(mm("disp_m"), Some(1000.0));
         assert_eq!(mm("x (cm)"), Some(10.0));
         assert_eq!(mm("stroke_mm"), Some(1.0));

@@ -21,7 +21,7 @@ use nalgebra::DVector;
 use super::chart::ModelChart;
 use super::records::{Records, Validation};
 use crate::data::Trace;
-use crate::data::units::{millimetres_in, unit_of};
+use crate::data::units::stated_length_in_mm;
 use crate::eval::Problem;
 use crate::ident::fit::CHI2_1_95;
 use crate::model::bounds::Origin;
@@ -112,13 +112,10 @@ pub fn horizon(arx_pole: f64, shortest: usize) -> usize {
 /// `output_name`: with `n = 1`, `β·|w|` is a pure number, so a loop-shape
 /// parameter scales as one over the output's unit, and the same loops in
 /// metres need bounds a thousand times larger. A column that names no
-/// length ([`crate::data::units::unit_of`]) is taken to be in mm, as the
+/// length ([`stated_length_in_mm`]) is taken to be in mm, as the
 /// thesis' data and the shipped data are.
 pub fn shape_per_output_unit(output_name: &str) -> f64 {
-    unit_of(output_name)
-        .as_deref()
-        .and_then(millimetres_in)
-        .unwrap_or(1.0)
+    stated_length_in_mm(output_name).unwrap_or(1.0)
 }
 
 /// `space`, a box of the thesis' loop shapes ([`SearchSpace::from_prior`]),
