@@ -112,6 +112,20 @@ pub fn named_counts(runs: &[SeedRun], physical: bool) -> Vec<NamedCount> {
     counts
 }
 
+/// How many of `runs` named `effect` in its realisation, and how many
+/// named its physical effect in any realisation.
+pub fn runs_naming(runs: &[SeedRun], effect: Effect) -> (usize, usize) {
+    let count = |same: &dyn Fn(&Effect) -> bool| {
+        runs.iter()
+            .filter(|r| r.named.iter().any(|e| same(e)))
+            .count()
+    };
+    (
+        count(&|e| *e == effect),
+        count(&|e| e.physical() == effect.physical()),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -158,5 +172,9 @@ mod tests {
         assert_eq!(physical.len(), 3);
         // Most often first.
         assert!(by_name.windows(2).all(|w| w[0].runs >= w[1].runs));
+        // One effect's support, in its realisation and in any.
+        let output = runs[0].named[0];
+        assert_eq!(runs_naming(&runs, output), (2, 3));
+        assert_eq!(runs_naming(&runs, runs[0].named[2]), (1, 1));
     }
 }

@@ -7,7 +7,7 @@ use crate::diagnose::accept::gap_closed;
 use crate::diagnose::explainable::Signature;
 use crate::diagnose::locate::Share;
 use crate::diagnose::refits::Finding;
-use crate::diagnose::seeds::{NamedCount, named_counts};
+use crate::diagnose::seeds::{named_counts, runs_naming};
 use crate::diagnose::spectrum::Peak;
 use crate::diagnose::transfer::Transfer;
 use crate::diagnose::{Diagnosis, Effect, Step};
@@ -328,24 +328,11 @@ fn verdict_text(o: &mut String, d: &Diagnosis) {
     } else {
         // With --repeat, how many runs named each effect, in this
         // realisation and in any: the verdict says how far it is the data's.
-        let (runs, physical) = (
-            named_counts(&d.repeats, false),
-            named_counts(&d.repeats, true),
-        );
-        let count = |counts: &[NamedCount], name: &str| {
-            counts
-                .iter()
-                .find(|n| n.effect == name)
-                .map_or(0, |n| n.runs)
-        };
         let named_by = |e: &Effect| {
             if d.repeats.is_empty() {
                 return String::new();
             }
-            let (these, any) = (
-                count(&runs, e.name()),
-                count(&physical, e.physical().name()),
-            );
+            let (these, any) = runs_naming(&d.repeats, *e);
             let k = d.repeats.len();
             if these == any {
                 format!("; named by {these} of {k} runs")
