@@ -115,11 +115,8 @@ pub fn named_counts(runs: &[SeedRun], physical: bool) -> Vec<NamedCount> {
 /// How many of `runs` named `effect` in its realisation, and how many
 /// named its physical effect in any realisation.
 pub fn runs_naming(runs: &[SeedRun], effect: Effect) -> (usize, usize) {
-    let count = |same: &dyn Fn(&Effect) -> bool| {
-        runs.iter()
-            .filter(|r| r.named.iter().any(|e| same(e)))
-            .count()
-    };
+    let count =
+        |same: &dyn Fn(&Effect) -> bool| runs.iter().filter(|r| r.named.iter().any(same)).count();
     (
         count(&|e| *e == effect),
         count(&|e| e.physical() == effect.physical()),
