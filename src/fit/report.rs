@@ -23,7 +23,7 @@ use crate::optim::engine::{Outcome, StageSummary, StopReason};
 use crate::report::fit_figures;
 use crate::report::history::{convergence_figure, trends_figure};
 use crate::report::json::{Named, Versioned};
-use crate::report::number::significant;
+use crate::report::number::{decimal_column, significant};
 
 /// A fit's report (docs/JSON.md, `mckibben fit`).
 #[derive(Debug, Clone, Serialize)]
@@ -236,13 +236,28 @@ impl FitReport {
         if !self.effects.is_empty() {
             line(format!("  effects: {}", self.effects.join(", ")));
         }
-        for (i, (name, v)) in self.params.0.iter().enumerate() {
+        let names = self.params.0.iter().map(|(name, _)| name.chars().count());
+        let name_width = names.max().unwrap_or(0).max(7);
+        let figures: Vec<String> = self
+            .params
+            .0
+            .iter()
+            .map(|(_, v)| significant(*v, 6))
+            .collect();
+        for (i, ((name, _), figure)) in self
+            .params
+            .0
+            .iter()
+            .zip(decimal_column(&figures))
+            .enumerate()
+        {
             let held = if fixed.get(i) == Some(&true) {
                 "  (fixed)"
             } else {
                 ""
             };
-            line(format!("  {name:<7} {:>14}{held}", significant(*v, 6)));
+            let row = format!("  {name:<name_width$} {figure:>14}{held}");
+            line(row.trim_end().to_string());
         }
         let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
         // SSEs and RMSEs are in the output's units, squared or not.

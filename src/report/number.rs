@@ -21,9 +21,50 @@ pub fn significant(v: f64, decimals: usize) -> String {
     format!("{v:.*}", decimals.max(needed))
 }
 
+/// `cells`, figures as [`significant`] writes them, padded to one width
+/// with their decimal points in one column: a parameter of `0.000004685`
+/// under one of `18.901187` reads as a column of numbers, where right
+/// alignment would put their last digits, not their points, one under the
+/// other. A cell without a point (`inf`, `NaN`) lines up as a whole number.
+pub fn decimal_column(cells: &[String]) -> Vec<String> {
+    let split = |c: &str| c.find('.').map_or((c.len(), 0), |p| (p, c.len() - p));
+    let (whole, fraction) = cells.iter().fold((0, 0), |(w, f), c| {
+        let (cw, cf) = split(c);
+        (w.max(cw), f.max(cf))
+    });
+    cells
+        .iter()
+        .map(|c| {
+            let (cw, cf) = split(c);
+            format!("{}{c}{}", " ".repeat(whole - cw), " ".repeat(fraction - cf))
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_decimal_column_puts_every_point_under_the_first() {
+        let cells: Vec<String> = ["18.901187", "0.000004685", "-510.8", "1.234e-9", "inf"]
+            .iter()
+            .map(|c| c.to_string())
+            .collect();
+        let column = decimal_column(&cells);
+        assert_eq!(
+            column,
+            [
+                "  18.901187   ",
+                "   0.000004685",
+                "-510.8        ",
+                "   1.234e-9   ",
+                " inf          ",
+            ]
+        );
+        let width = column[0].len();
+        assert!(column.iter().all(|c| c.len() == width));
+    }
 
     #[test]
     fn small_figures_keep_four_significant_digits_and_large_ones_their_decimals() {
