@@ -200,8 +200,16 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
         ],
     ]
     .concat();
-    let part = json(&mckibben(&first, dir.path()));
-    assert!(part["generations"].as_u64().unwrap() < 8);
+    // Stopped before its first generation: an error that says how to go
+    // on, and nothing written beside an older run's files.
+    let result = dir.path().join("out/fit/result.json");
+    let before = std::fs::read(&result).unwrap();
+    let part = mckibben(&first, dir.path());
+    let err = String::from_utf8_lossy(&part.stderr);
+    assert!(!part.status.success(), "{err}");
+    assert!(err.contains("`--checkpoint ck.json` resumes it"), "{err}");
+    assert_eq!(std::fs::read(&result).unwrap(), before);
+    assert!(dir.path().join("ck.json").exists());
     let resumed = json(&mckibben(
         &[&base[..], &["--gens", "8", "--checkpoint", "ck.json"]].concat(),
         dir.path(),
@@ -209,6 +217,19 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
     assert_eq!(resumed["generations"], full["generations"]);
     assert_eq!(resumed["params"], full["params"]);
     assert_eq!(resumed["sse"], full["sse"]);
+    // The same checkpoint on other data is refused: resuming it would
+    // report the first record's fit as the second's.
+    let other = Synthetic::new(Family::Classic, 400, 0.05, 22);
+    write_trace(&dir.path().join("other.csv"), &other.trace).unwrap();
+    let mut on_other = base.to_vec();
+    on_other[1] = "other.csv";
+    let refused = mckibben(
+        &[&on_other[..], &["--gens", "8", "--checkpoint", "ck.json"]].concat(),
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success(), "{err}");
+    assert!(err.contains("made by a fit of other data"), "{err}");
 }
 
 #[test]

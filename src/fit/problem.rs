@@ -434,6 +434,30 @@ impl FitProblem {
         space
     }
 
+    /// A digest of the records this problem fits: every record's samples as
+    /// the fit reads them, its sample time, means and column names. A
+    /// checkpoint keeps it ([`Engine::subject`](crate::optim::engine::Engine))
+    /// so that a fit on other data (another file, column or resampling)
+    /// cannot resume it and report another record's parameters as its own.
+    pub fn data_digest(&self) -> String {
+        use sha2::{Digest, Sha256};
+        let mut hash = Sha256::new();
+        for name in [&self.input_name, &self.output_name] {
+            hash.update((name.len() as u64).to_le_bytes());
+            hash.update(name.as_bytes());
+        }
+        for record in &self.records.whole {
+            hash.update((record.u.len() as u64).to_le_bytes());
+            for v in [record.dt, record.u_mean, record.y_mean] {
+                hash.update(v.to_le_bytes());
+            }
+            for v in record.u.iter().chain(&record.y) {
+                hash.update(v.to_le_bytes());
+            }
+        }
+        format!("{:x}", hash.finalize())
+    }
+
     /// The first record's estimation half.
     pub fn estimation(&self) -> &Experiment {
         &self.records.est[0]

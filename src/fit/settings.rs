@@ -309,6 +309,15 @@ impl FitSettings {
                 engine.space.names,
                 problem.model.family
             );
+            if let Some(subject) = &engine.subject {
+                anyhow::ensure!(
+                    *subject == problem.data_digest(),
+                    "checkpoint {} was made by a fit of other data (another file, other columns \
+                     or another --resample): resuming it would report that fit as this one's; \
+                     delete it or name another --checkpoint",
+                    path.display()
+                );
+            }
             engine.stops = self.stops()?;
             note(format!(
                 "resuming at generation {} of {} from {} (its plan, N, G, seed and settings win)",
@@ -318,7 +327,9 @@ impl FitSettings {
             ));
             return Ok(engine);
         }
-        Engine::new(self.plan(problem, note)?, space, self.seed, self.stops()?)
+        let mut engine = Engine::new(self.plan(problem, note)?, space, self.seed, self.stops()?)?;
+        engine.subject = Some(problem.data_digest());
+        Ok(engine)
     }
 }
 

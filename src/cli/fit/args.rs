@@ -266,6 +266,8 @@ pub struct Args {
     /// Save the run state to FILE every 10 s and at the end; if FILE exists,
     /// resume from it to the identical result (the plan, N, G, seed and
     /// settings come from the checkpoint, stopping rules from this command).
+    /// A checkpoint made on other data (file, columns, resampling) is
+    /// refused.
     #[arg(long, value_name = "FILE")]
     pub(super) checkpoint: Option<PathBuf>,
     /// Folder for the model, history and figures.

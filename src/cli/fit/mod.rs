@@ -142,6 +142,19 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         args.checkpoint.as_deref(),
     )?;
     progress.finish();
+    if outcome.evaluations == 0 {
+        // Nothing to report: writing a result of no model beside the last
+        // run's model.json would leave --out describing two fits, and a
+        // zero exit would let a script go on with the old model.
+        let resume = args.checkpoint.as_ref().map_or(String::new(), |c| {
+            format!("; `--checkpoint {}` resumes it", c.display())
+        });
+        anyhow::bail!(
+            "stopped ({:?}) before any candidate was scored: nothing was written to {}{resume}",
+            outcome.stop,
+            args.out.display()
+        );
+    }
     let mut report = FitReport::of(&fit, (&outcome, &widened), &backend, &trace.source);
     let provenance = args.data.provenance(Some(fit.engine.seed))?;
     report.write(
@@ -172,19 +185,12 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             }
         }
     }
-    if outcome.params.is_empty() && outcome.evaluations == 0 {
-        eprintln!(
-            "mckibben: note: stopped ({:?}) before any candidate was scored; no model was written",
-            outcome.stop
-        );
-    } else {
-        anyhow::ensure!(
-            !outcome.params.is_empty(),
-            "every candidate diverged: no model was written (the history is in {}); \
-             check the data's units and columns",
-            args.out.display()
-        );
-    }
+    anyhow::ensure!(
+        !outcome.params.is_empty(),
+        "every candidate diverged: no model was written (the history is in {}); \
+         check the data's units and columns",
+        args.out.display()
+    );
     Ok(())
 }
 

@@ -272,6 +272,11 @@ pub struct Engine<C = Canonical> {
     pub space: Space<C>,
     pub seed: u64,
     pub stops: StopRules,
+    /// What the caller fits, as it names it (a digest of its data): the
+    /// engine never reads it; a caller resuming a checkpoint compares it
+    /// with its own. `None` in checkpoints written before it was kept.
+    #[serde(default)]
+    pub subject: Option<String>,
     /// Free-coordinate rows the first try's first stage starts from.
     initial: Vec<f64>,
     /// Index of the current step in [`Engine::steps`].
@@ -362,6 +367,7 @@ impl<C: Chart> Engine<C> {
             space,
             seed,
             stops,
+            subject: None,
             initial: Vec::new(),
             cursor: 0,
             stage_steps: 0,
