@@ -85,7 +85,7 @@ class Model:
     def save(self, path: _Path) -> None: ...
     def simulate(self, u: _ArrayLike, x0: float | None = None) -> npt.NDArray[np.float64]:
         """Free-run output on `u`; `x0` is the measured output at the first
-        sample (default: the output mean the model was fitted around)."""
+        sample (default: at rest at the first input)."""
     @property
     def params(self) -> dict[str, float]:
         """The family's parameters in canonical order, then the effects' as `effect.param`."""

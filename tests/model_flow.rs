@@ -528,3 +528,87 @@ fn an_older_generalized_model_file_simulates_to_the_same_bits() {
         }
     }
 }
+
+/// A generated input starts the model at rest at its first value: through
+/// the stair's first hold (1 s at 0 V) the output does not move. Started
+/// anywhere else (the old start was the fit's output mean), a model whose
+/// hysteretic state follows the output's moves keeps that transient in `w`
+/// for good.
+#[test]
+fn a_generated_input_starts_the_model_at_rest() {
+    let fixtures = Path::new(ROOT).join("tests/fixtures");
+    let dir = tempfile::tempdir().unwrap();
+    for file in [
+        "generalized_before_x_s.json",
+        "generalized_creep_before_x_s.json",
+    ] {
+        let out = dir.path().join(format!("{file}.csv"));
+        let run = mckibben(&[
+            "simulate",
+            "--from",
+            fixtures.join(file).to_str().unwrap(),
+            "--input",
+            "stair",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(
+            run.status.success(),
+            "{file}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let y: Vec<f64> = displacement_column(&out)
+            .iter()
+            .map(|v| v.parse().unwrap())
+            .collect();
+        let first_hold = &y[..100];
+        let spread = first_hold.iter().fold(0f64, |m, v| m.max((v - y[0]).abs()));
+        assert!(
+            spread < 1e-3,
+            "{file}: the output moved {spread} mm at rest"
+        );
+    }
+}
+
+/// `simulate --from` generates its input at the model's sample time, and a
+/// run that diverges still writes its finite part, saying where it stopped.
+#[test]
+fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end() {
+    let model = Path::new(ROOT).join("tests/fixtures/generalized_before_x_s.json");
+    let err = error_of(&[
+        "simulate",
+        "--from",
+        model.to_str().unwrap(),
+        "--input",
+        "sine",
+        "--dt",
+        "0.001",
+    ]);
+    assert!(err.contains("fitted at 0.01 s a sample"), "{err}");
+    let err = error_of(&["simulate", "--dt", "1e-9"]);
+    assert!(
+        err.contains("--dt") && err.contains("a record may hold"),
+        "{err}"
+    );
+    let err = error_of(&["simulate", "--params", "alpha=nan"]);
+    assert!(err.contains("`nan` is not a finite number"), "{err}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("diverged.csv");
+    let summary = json_of(&[
+        "simulate",
+        "--params",
+        "beta=-10,gamma=-10",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let k = summary["diverged_at"].as_u64().expect("the run diverges") as usize;
+    assert_eq!(summary["samples"], 4000);
+    assert_eq!(displacement_column(&out).len(), k);
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.contains(&format!("# diverged at sample {k}")),
+        "{text}"
+    );
+}

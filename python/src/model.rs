@@ -70,8 +70,8 @@ impl Model {
     }
 
     /// The free-run output on the input `u` (absolute units, one value per
-    /// sample), from the output `x0` at the first sample (default: the
-    /// output mean the model was fitted around). A run that leaves the
+    /// sample), from the output `x0` at the first sample (default: at rest
+    /// at the first input, as `simulate --input stair` starts). A run that leaves the
     /// model's range warns and goes on (the values after it mean nothing).
     #[pyo3(signature = (u, x0 = None))]
     fn simulate<'py>(
@@ -81,16 +81,15 @@ impl Model {
         x0: Option<f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let input = series(u, "u")?;
-        let y0 = match x0 {
-            Some(v) if !v.is_finite() => {
-                return Err(pyo3::exceptions::PyValueError::new_err(format!(
-                    "x0 must be a finite number, got {v}"
-                )));
-            }
-            Some(v) => v,
-            None => self.base().output_mean,
-        };
-        let run = py.detach(|| self.inner.simulate_absolute(&input, y0));
+        if let Some(v) = x0.filter(|v| !v.is_finite()) {
+            return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "x0 must be a finite number, got {v}"
+            )));
+        }
+        let run = py.detach(|| match x0 {
+            Some(y0) => self.inner.simulate_absolute(&input, y0),
+            None => self.inner.simulate_from_rest(&input),
+        });
         if let Some(k) = run.diverged_at {
             py.import("warnings")?.call_method1(
                 "warn",

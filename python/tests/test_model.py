@@ -41,6 +41,10 @@ def test_simulate_takes_any_layout_and_starts_where_asked(small_fit, stair):
     strided = np.repeat(stair.input, 2)[::2]
     assert np.array_equal(model.simulate(list(strided), x0=stair.output[0]), y)
     assert model.simulate([0.1, 0.2, 0.3]).shape == (3,)
+    # Without x0 the model starts at rest at the first input: held there,
+    # its output does not move.
+    held = model.simulate(np.full(300, 0.2))
+    assert np.ptp(held) < 1e-3
     with pytest.raises(ValueError, match="x0 must be a finite"):
         model.simulate(stair.input, x0=float("nan"))
     with pytest.raises(ValueError, match="u is empty"):

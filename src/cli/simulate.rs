@@ -7,7 +7,7 @@ use serde::Serialize;
 
 use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces, write_trace_with_comments};
-use mckibben::data::signals::{Stair, nyquist_rad_s};
+use mckibben::data::signals::{Stair, nyquist_rad_s, samples_in};
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::experiment::halves;
 use mckibben::model::presets::thesis_params;
@@ -21,19 +21,29 @@ use mckibben::report::{Figure, Panel, Series};
 /// 10 V full scale. A nominal static map, for synthetic inputs only.
 const MPA_PER_VOLT: f64 = 0.05;
 
+/// Sample time of a generated input when no model file sets one (s): the
+/// thesis' rig's 100 Hz.
+const DEFAULT_DT: f64 = 0.01;
+
+/// Length of `--input sine` (s).
+const SINE_SECONDS: f64 = 40.0;
+
 /// Simulate a model free-run on an input and write the trace.
 ///
 /// The model input is the muscle pressure (MPa). `--input stair` is the
 /// identification staircase of appendix A.1.1 (valve 0–10 V, turned into
 /// pressure by a nominal 0.05 MPa/V); `--input sine` a pressure sine
 /// 0.25 + 0.2·sin(ω t) MPa; any other value is a CSV file whose input column
-/// is used (and whose first output sample starts the simulation).
+/// is used (and whose first output sample starts the simulation). A
+/// generated input starts the model at rest at its first value: the output
+/// that the model, held there with no hysteretic state, keeps.
 ///
 /// Parameters come from `--preset thesis` (tables 1 and 2 with eq. 12's a, b;
 /// the default), a model file written by `identify` or `fit` (`--from`), and
 /// `--params NAME=VALUE,...` overrides (names as `mckibben simulate --list`
 /// shows). Without a model file the simulation runs in deviation coordinates:
-/// input mean of the first half removed, output starting at 0.
+/// the input mean of the first half removed, and on a CSV the measured
+/// output's too.
 ///
 /// Examples:
 ///   mckibben simulate --model classic --input stair --out classic.csv
@@ -63,9 +73,10 @@ pub struct Args {
     /// Angular frequency of `--input sine` (rad/s), below Nyquist's π/dt.
     #[arg(long, default_value_t = 1.0)]
     freq: f64,
-    /// Sample time of generated inputs (s).
-    #[arg(long, default_value_t = 0.01)]
-    dt: f64,
+    /// Sample time of generated inputs (s): the model file's (its poles
+    /// are per sample), else 0.01.
+    #[arg(long)]
+    dt: Option<f64>,
     /// With a CSV `--input`: the column holding the model input (default:
     /// the model file's, else `pressure`).
     #[arg(long, value_name = "COL")]
@@ -95,6 +106,13 @@ pub struct Args {
     /// Print JSON on stdout instead of a summary.
     #[arg(long)]
     json: bool,
+}
+
+impl Args {
+    /// Whether `--input` names a generated signal rather than a file.
+    fn input_is_generated(&self) -> bool {
+        matches!(self.input.as_str(), "stair" | "sine")
+    }
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -127,14 +145,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?),
         None => None,
     };
+    let dt = match (args.dt, &file) {
+        (Some(dt), _) => {
+            anyhow::ensure!(
+                dt > 0.0 && dt.is_finite(),
+                "--dt must be a positive number of seconds (got {dt})"
+            );
+            dt
+        }
+        (None, Some(f)) => f.model()?.base.dt,
+        (None, None) => DEFAULT_DT,
+    };
     let mut model = match &file {
         Some(f) => f.model()?,
         None => Model::plain(FittedBaseline {
             family: args.model,
             params: thesis_params(args.model),
             input_mean: f64::NAN,
-            output_mean: 0.0,
-            dt: args.dt,
+            output_mean: f64::NAN,
+            dt,
             input_name: "pressure".into(),
             output_name: "displacement".into(),
         }),
@@ -151,18 +180,49 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     override_params(&mut model, &args.params)?;
-    anyhow::ensure!(
-        args.dt > 0.0 && args.dt.is_finite(),
-        "--dt must be a positive number of seconds"
-    );
-    let (mut trace, y0) = input_trace(&args, file.as_ref())?;
+    if let Some(f) = &file
+        && args.input_is_generated()
+    {
+        let fitted = f.model()?.base.dt;
+        anyhow::ensure!(
+            (dt - fitted).abs() <= 1e-9 * fitted,
+            "--dt {dt}: the model in {} was fitted at {fitted} s a sample and its poles are \
+             per sample; leave --dt out to generate the input at {fitted} s",
+            args.from
+                .as_ref()
+                .expect("a file came from --from")
+                .display()
+        );
+    }
+    let (mut trace, y0) = input_trace(&args, dt, file.as_ref())?;
+    let half = (trace.len() / 2).max(1);
     if model.base.input_mean.is_nan() {
-        let half = (trace.len() / 2).max(1);
         model.base.input_mean = trace.input[..half].iter().sum::<f64>() / half as f64;
     }
+    if model.base.output_mean.is_nan() {
+        // Deviation coordinates: around the measured output where there is
+        // one, so that the preset, which has no intercept, is scored on
+        // the record's level, not on zero.
+        model.base.output_mean = match y0 {
+            Some(_) => trace.output[..half].iter().sum::<f64>() / half as f64,
+            None => 0.0,
+        };
+    }
     let measured = y0.is_some().then(|| trace.output.clone());
-    let y0 = y0.unwrap_or(model.base.output_mean);
-    let run = model.simulate_absolute(&trace.input, y0);
+    let (samples, sample_time) = (trace.len(), trace.dt());
+    let mut run = match y0 {
+        Some(y0) => model.simulate_absolute(&trace.input, y0),
+        None => model.simulate_from_rest(&trace.input),
+    };
+    if let Some(k) = run.diverged_at {
+        // A trace file and a figure hold finite numbers: keep the samples
+        // before the divergence and say where it stopped.
+        trace.truncate(k);
+        run.output.truncate(k);
+        if let Some(w) = &mut run.w {
+            w.truncate(k);
+        }
+    }
     trace.output = run.output.clone();
     trace.output_name = model.base.output_name.clone();
     if let Some(w) = &run.w {
@@ -180,11 +240,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         format!("{family} + {}", chain.join(" + "))
     };
     if let Some(path) = &args.out {
-        let comment = format!(
+        let mut comments = vec![format!(
             "simulated by mckibben simulate: {described} model, input {}",
             args.input
-        );
-        write_trace_with_comments(path, &trace, &[comment])?;
+        )];
+        if let Some(k) = run.diverged_at {
+            comments.push(format!("diverged at sample {k}: the trace stops before it"));
+        }
+        write_trace_with_comments(path, &trace, &comments)?;
     }
     if let Some(path) = &args.plot {
         figure(&trace, &described).save(path)?;
@@ -196,23 +259,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .filter(|v| v.is_finite())
         .collect();
     let scored = |from: usize| -> Option<f64> {
-        let y = measured.as_ref()?;
+        let y = measured.as_ref().filter(|_| run.diverged_at.is_none())?;
         let fit = fit_percent(&y[from..], &run.output[from..]);
-        (run.diverged_at.is_none() && fit.is_finite()).then_some(fit)
+        fit.is_finite().then_some(fit)
     };
     let summary = Summary {
         model: family,
         effects: chain,
         params: model.named_params().into_iter().collect(),
         input: args.input.clone(),
-        samples: trace.len(),
-        dt: trace.dt(),
+        samples,
+        dt: sample_time,
         diverged_at: run.diverged_at,
         output_min: finite.iter().copied().fold(f64::INFINITY, f64::min),
         output_max: finite.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         loop_area: loop_area(&trace.input, &trace.output),
         fit_percent: scored(0),
-        val_fit_percent: scored(halves(trace.len()).1.start),
+        val_fit_percent: scored(halves(samples).1.start),
         out: args.out.clone(),
     };
     if args.json {
@@ -271,7 +334,9 @@ fn override_params(model: &mut Model, assignments: &[String]) -> anyhow::Result<
         theta[i] = value
             .trim()
             .parse()
-            .with_context(|| format!("--params: `{value}` is not a number"))?;
+            .ok()
+            .filter(|v: &f64| v.is_finite())
+            .with_context(|| format!("--params: `{value}` is not a finite number"))?;
     }
     let d = model.base.family.dim();
     model.base.params = theta[..d].to_vec();
@@ -282,30 +347,37 @@ fn override_params(model: &mut Model, assignments: &[String]) -> anyhow::Result<
 }
 
 /// The input trace and, for a file, its first measured output.
-fn input_trace(args: &Args, saved: Option<&ModelFile>) -> anyhow::Result<(Trace, Option<f64>)> {
+fn input_trace(
+    args: &Args,
+    dt: f64,
+    saved: Option<&ModelFile>,
+) -> anyhow::Result<(Trace, Option<f64>)> {
     match args.input.as_str() {
         "stair" => {
-            let valve = Stair::default().generate(args.dt);
+            let stair = Stair::default();
+            samples_in(stair.duration_s(), dt)
+                .map_err(|why| anyhow::anyhow!("--dt {dt}: {why}"))?;
+            let valve = stair.generate(dt);
             let p = valve.iter().map(|v| v * MPA_PER_VOLT).collect();
-            let mut trace = Trace::uniform("stair", args.dt, p, vec![0.0; valve.len()]);
+            let mut trace = Trace::uniform("stair", dt, p, vec![0.0; valve.len()]);
             trace.extra.push(("valve_in".into(), valve));
             Ok((trace, None))
         }
         "sine" => {
             anyhow::ensure!(args.freq > 0.0, "--freq must be positive (rad/s)");
-            let nyquist = nyquist_rad_s(args.dt);
+            let nyquist = nyquist_rad_s(dt);
             anyhow::ensure!(
                 args.freq < nyquist,
-                "--freq {}: with --dt {} a sine must stay below Nyquist's {nyquist:.1} rad/s \
+                "--freq {}: with --dt {dt} a sine must stay below Nyquist's {nyquist:.1} rad/s \
                  (π/dt); above, its samples show a slower sine",
-                args.freq,
-                args.dt
+                args.freq
             );
-            let n = (40.0 / args.dt).round() as usize;
+            let n =
+                samples_in(SINE_SECONDS, dt).map_err(|why| anyhow::anyhow!("--dt {dt}: {why}"))?;
             let p = (0..n)
-                .map(|k| 0.25 + 0.2 * (args.freq * k as f64 * args.dt).sin())
+                .map(|k| 0.25 + 0.2 * (args.freq * k as f64 * dt).sin())
                 .collect();
-            Ok((Trace::uniform("sine", args.dt, p, vec![0.0; n]), None))
+            Ok((Trace::uniform("sine", dt, p, vec![0.0; n]), None))
         }
         file => {
             let path = PathBuf::from(file);

@@ -66,6 +66,16 @@ impl Trace {
         self.t.len()
     }
 
+    /// Keeps the first `len` samples of every column.
+    pub fn truncate(&mut self, len: usize) {
+        self.t.truncate(len);
+        self.input.truncate(len);
+        self.output.truncate(len);
+        for (_, column) in &mut self.extra {
+            column.truncate(len);
+        }
+    }
+
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
     }

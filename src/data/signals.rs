@@ -61,6 +61,11 @@ impl Stair {
     }
 
     /// The input-valve command, one value per sample of period `dt`.
+    /// Seconds the staircase lasts.
+    pub fn duration_s(&self) -> f64 {
+        self.levels().len() as f64 * self.cycles as f64 * self.hold_s
+    }
+
     pub fn generate(&self, dt: f64) -> Vec<f64> {
         let per_level = (self.hold_s / dt).round().max(1.0) as usize;
         let levels = self.levels();
@@ -69,6 +74,24 @@ impl Stair {
             .flat_map(|&v| std::iter::repeat_n(v, per_level))
             .collect()
     }
+}
+
+/// The most samples a generated or resampled record may hold: 10⁷, 28
+/// hours at 100 Hz. A step typed a few decades too small (`1e-9` for
+/// `1e-2`) would otherwise ask for more memory than the machine has.
+pub const MAX_SAMPLES: usize = 10_000_000;
+
+/// The samples of a record `seconds` long, one every `dt` s, or why there
+/// cannot be that many ([`MAX_SAMPLES`]).
+pub fn samples_in(seconds: f64, dt: f64) -> Result<usize, String> {
+    let n = (seconds / dt).round();
+    if n > MAX_SAMPLES as f64 {
+        return Err(format!(
+            "{seconds} s at {dt} s a sample is {n:.3e} samples, more than the {MAX_SAMPLES} \
+             a record may hold"
+        ));
+    }
+    Ok(n as usize)
 }
 
 /// Nyquist's angular frequency for samples `dt` s apart, `π/dt` (rad/s): a

@@ -59,6 +59,15 @@ pub struct Run {
     pub diverged_at: Option<usize>,
 }
 
+/// The longest a chain is held at its first input to settle
+/// ([`Model::simulate_from_rest`]): 2¹⁷ samples, over six time constants of
+/// the slowest creep pole the effects' boxes admit.
+pub const MAX_SETTLE: usize = 1 << 17;
+
+/// How still an output held at one input must be, relative to its size,
+/// over the last quarter of the hold to count as at rest: `f32` resolution.
+const SETTLED: f64 = 1e-6;
+
 impl Model {
     /// A baseline without effects.
     pub fn plain(base: FittedBaseline) -> Model {
@@ -160,6 +169,47 @@ impl Model {
             .copied()
             .unwrap_or(self.base.output_mean);
         self.simulate_absolute(&trace.input, y0).output
+    }
+
+    /// Free run on an input in absolute units from rest at its first value,
+    /// as a muscle that has sat at that pressure: the baseline starts where
+    /// it stays ([`FittedBaseline::rest_output`]), and a chain, whose
+    /// effects' slow states start at zero, first runs held at that value
+    /// until its output stops moving (at most [`MAX_SETTLE`] samples, not
+    /// part of the run returned). A model with no stable rest starts at its
+    /// output mean.
+    pub fn simulate_from_rest(&self, input: &[f64]) -> Run {
+        let Some(&first) = input.first() else {
+            return self.simulate_absolute(input, self.base.output_mean);
+        };
+        let y0 = self
+            .base
+            .rest_output(first)
+            .unwrap_or(self.base.output_mean);
+        if self.chain.is_none() {
+            return self.simulate_absolute(input, y0);
+        }
+        let mut held = 1024;
+        while held < MAX_SETTLE {
+            let y = self.simulate_absolute(&vec![first; held], y0).output;
+            let end = y[held - 1];
+            let settled = y[held - held / 4..]
+                .iter()
+                .all(|v| (v - end).abs() <= SETTLED * (1.0 + end.abs()));
+            if settled || !end.is_finite() {
+                break;
+            }
+            held *= 2;
+        }
+        let mut prefixed = vec![first; held];
+        prefixed.extend_from_slice(input);
+        let mut run = self.simulate_absolute(&prefixed, y0);
+        run.output.drain(..held);
+        if let Some(w) = &mut run.w {
+            w.drain(..held);
+        }
+        run.diverged_at = run.diverged_at.map(|k| k.saturating_sub(held));
+        run
     }
 
     /// Free run on an input in absolute units from the absolute output `y0`

@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::family::Family;
-use super::sim::{Simulation, simulate};
+use super::sim::{Simulation, rest_state, simulate};
 use crate::data::Trace;
 
 /// A baseline model with its parameters and the coordinates it was fitted in
@@ -34,6 +34,16 @@ impl FittedBaseline {
             .map(|p| p.name)
             .zip(self.params.iter().copied())
             .collect()
+    }
+
+    /// The absolute output from which a free run held at the absolute input
+    /// `u` stays put ([`rest_state`], less the start offset `x0` the run
+    /// adds): where a muscle that has sat at `u` is. `None` where the model
+    /// has no stable rest.
+    pub fn rest_output(&self, u: f64) -> Option<f64> {
+        let x = rest_state(self.family, &self.params, u - self.input_mean)?;
+        let x0 = self.params[self.family.start_index()];
+        Some(x - x0 + self.output_mean)
     }
 
     /// Free-run simulation on an input in absolute units, starting from the

@@ -72,6 +72,17 @@ pub fn linear_part(
     ((a * ((alpha * x_prev) + ((1.0 - alpha) * w_prev))) + (b * u_prev)) + c
 }
 
+/// Where a model held at the input `u` (deviation units) rests: the state
+/// `x` that [`linear_part`] keeps with `w = 0`, `x = a·α·x + b·u + c`
+/// (`α = 1` for the linear family). The output does not move there, so
+/// neither does `w`. `None` where `|a·α| ≥ 1`: no stable rest.
+pub fn rest_state(family: Family, theta: &[f64], u: f64) -> Option<f64> {
+    let [ia, ib, ic] = family.linear_indices();
+    let alpha = family.index_of("alpha").map_or(1.0, |i| theta[i]);
+    let pole = theta[ia] * alpha;
+    (pole.abs() < 1.0).then(|| (theta[ib] * u + theta[ic]) / (1.0 - pole))
+}
+
 /// The linear family's step (eq. 12 plus intercept): `x(k) = a·x(k−1) + b·u(k−1) + c`.
 #[inline(always)]
 pub fn linear_step(a: f32, b: f32, c: f32, x_prev: f32, u_prev: f32) -> f32 {
@@ -398,6 +409,35 @@ pub fn residuals(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_model_started_at_rest_stays_there() {
+        let classic = [1.0, 0.6, 0.02, 0.01, 1.0, 0.97, 8.0, 0.3, 0.5];
+        let generalized = [
+            1.0, 0.6, 0.02, 0.01, 0.02, 0.01, 0.03, 0.01, 1.0, 5.0, 0.97, 8.0, 0.3, 0.5,
+        ];
+        for (family, theta) in [
+            (Family::Linear, &[0.95, 2.0, 0.1, 0.0][..]),
+            (Family::Classic, &classic[..]),
+            (Family::Generalized, &generalized[..]),
+        ] {
+            let u = 0.25;
+            let x = rest_state(family, theta, u).unwrap();
+            let f32s: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
+            let stepper = Stepper::new(family, &f32s, 0.0);
+            let (mut xk, mut wk) = (x as f32, 0.0);
+            for _ in 0..200 {
+                (xk, wk) = stepper.step(xk, wk, u as f32);
+            }
+            assert!(
+                (f64::from(xk) - x).abs() < 1e-4 * x.abs(),
+                "{family}: {xk} vs {x}"
+            );
+            assert!(wk.abs() < 1e-3, "{family}: w {wk}");
+        }
+        let unstable = [1.0, 1.0, 0.02, 0.01, 1.0, 1.01, 8.0, 0.3, 0.5];
+        assert_eq!(rest_state(Family::Classic, &unstable, 0.25), None);
+    }
 
     #[test]
     fn linear_step_is_eq_12_plus_intercept() {
