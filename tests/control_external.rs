@@ -142,6 +142,7 @@ fn pi_and_mpc_give_the_same_numbers_in_process_over_stdio_and_over_udp() {
 fn a_missing_measurement_holds_and_a_late_one_is_set_aside() {
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().to_str().unwrap();
+    let tables = dir.path().join("csv");
     let out = control(&[
         "--controller",
         "pi",
@@ -150,6 +151,8 @@ fn a_missing_measurement_holds_and_a_late_one_is_set_aside() {
         "1000",
         "--log",
         log,
+        "--csv",
+        tables.to_str().unwrap(),
         "--plant",
         &serve_cmd("--fault drop@100 --fault delay@200=1500"),
     ]);
@@ -161,6 +164,59 @@ fn a_missing_measurement_holds_and_a_late_one_is_set_aside() {
     assert!(text.contains("# sample 100: no measurement within 1000 ms; held"));
     assert!(text.contains("# sample 200: late measurement set aside"));
     assert!(text.trim_end().ends_with("# run complete; STOP sent"));
+    // The run's table keeps every sample; the two with no measurement have
+    // empty measured cells.
+    let table = std::fs::read_to_string(tables.join("control_pi_rig_3rad.csv")).unwrap();
+    let empty = table
+        .lines()
+        .filter(|l| l.split(',').filter(|c| c.is_empty()).count() == 2)
+        .count();
+    assert_eq!(empty, 2, "{table}");
+}
+
+/// Ctrl-C in the middle of a run on a rig closes the valve before the
+/// command ends: the rig (its own process group, out of the terminal's
+/// reach) hears `U k 0` and `STOP`, and the log says so.
+#[cfg(unix)]
+#[test]
+fn ctrl_c_closes_the_valve_before_the_command_ends() {
+    let dir = tempfile::tempdir().unwrap();
+    let child = Command::new(BIN)
+        .args([
+            "control",
+            "--controller",
+            "pi",
+            "--freq",
+            "1",
+            "--duration",
+            "600",
+        ])
+        .args(["--deadline", "1000", "--log", dir.path().to_str().unwrap()])
+        .args(["--plant", &serve_cmd("")])
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run mckibben");
+    let log = dir.path().join("pi_1rad.csv");
+    let started = std::time::Instant::now();
+    while std::fs::read_to_string(&log).map_or(0, |t| t.lines().count()) < 50 {
+        assert!(started.elapsed().as_secs() < 60, "the run never started");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    // SAFETY: kill(2) on our own child's pid, with a valid signal.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("interrupted (Ctrl-C) before sample"), "{err}");
+    assert!(err.contains("input valve closed (0 V)"), "{err}");
+    let text = std::fs::read_to_string(&log).unwrap();
+    let last = text.trim_end().lines().last().unwrap();
+    assert!(
+        last.starts_with("# valve closed: U ") && last.ends_with(" 0, STOP"),
+        "{last}"
+    );
 }
 
 fn failing(fault: &str, expect: &[&str]) {

@@ -4,6 +4,8 @@
 //! figures}`'s and `rig::control_runs`'.
 
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
@@ -36,7 +38,8 @@ use mckibben::twin::TwinConfig;
 /// stale line ends the run with an error and the valve closed. A measurement
 /// outside the rig's ranges, or a displacement jump faster than
 /// --max-speed, is implausible: held like a missing one and never shown to
-/// the controller; --max-implausible in a row end the run, valve closed.
+/// the controller; --max-implausible in a row end the run, valve closed,
+/// and so does Ctrl-C.
 ///
 /// Examples:
 ///   mckibben control --controller pi,mpc --freq 3 --load 4.5,7 --plot figs/
@@ -357,7 +360,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 max_speed_mm_s: args.max_speed,
                 max_implausible: args.max_implausible,
                 log_dir: args.log.clone(),
+                interrupt: Arc::new(AtomicBool::new(false)),
             };
+            let flag = settings.interrupt.clone();
+            // One handler a process; failing to install it only means that
+            // Ctrl-C kills the run instead of closing the valve first.
+            let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
             control_runs::on_rig(&kinds, &args.freq, &settings, &ing, &shape, &say)?
         }
     };

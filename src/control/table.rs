@@ -16,7 +16,7 @@ use super::sweep::{self, Design, Ingredients, Kind, Run, Shape};
 use super::tuning::TunedGains;
 use super::validation::LoopShape;
 use crate::data::Trace;
-use crate::data::csv::write_trace;
+use crate::data::csv::write_log_with_comments;
 use crate::twin::TwinConfig;
 
 /// One run.
@@ -288,7 +288,17 @@ pub fn write_csvs(dir: &Path, runs: &[Run]) -> anyhow::Result<()> {
         trace.t = r.t.clone();
         trace.extra.push(("valve_in".into(), r.valve.clone()));
         trace.extra.push(("reference".into(), r.reference.clone()));
-        write_trace(&path, &trace).with_context(|| format!("writing --csv {}", path.display()))?;
+        let load = match run.spec.load_kg {
+            kg if kg.is_finite() => format!("{kg} kg"),
+            _ => "the rig's load".to_string(),
+        };
+        let comments = [format!(
+            "{}, {} rad/s, {load}: an empty cell is a sample whose measurement was missing \
+             (the command in force was held)",
+            r.controller, run.spec.freq_rad_s
+        )];
+        write_log_with_comments(&path, &trace, &comments)
+            .with_context(|| format!("writing --csv {}", path.display()))?;
     }
     Ok(())
 }

@@ -17,6 +17,7 @@
 use std::fmt::{self, Write as _};
 use std::path::{Path, PathBuf};
 
+use super::signals::samples_in;
 use super::{Trace, write_atomic};
 
 /// How far one time step may stray from the median step and still count as
@@ -478,6 +479,7 @@ fn resample(path: &Path, trace: &Trace, dt: f64) -> Result<Trace, DataError> {
     let span = trace.t[trace.len() - 1] - t0;
     // The small slack keeps the last sample when span/dt is an integer up
     // to rounding.
+    samples_in(span, dt).map_err(|why| unusable(format!("--resample {dt}: {why}")))?;
     let n = (span / dt + 1e-9).floor() as usize + 1;
     if n < 2 {
         return Err(unusable(format!(
@@ -633,6 +635,36 @@ pub fn write_trace_with_comments(
     trace: &Trace,
     comments: &[String],
 ) -> Result<(), DataError> {
+    write_columns(path, trace, comments, Missing::Refused)
+}
+
+/// As [`write_trace_with_comments`] for a log whose measurements may be
+/// missing (a control run's dropped sample): a value that is not finite is
+/// written as an empty cell, which [`read_traces`] reports with its line
+/// and column if the log is read as data.
+pub fn write_log_with_comments(
+    path: &Path,
+    trace: &Trace,
+    comments: &[String],
+) -> Result<(), DataError> {
+    write_columns(path, trace, comments, Missing::EmptyCell)
+}
+
+/// What a writer does with a value that is not finite.
+#[derive(Clone, Copy, PartialEq)]
+enum Missing {
+    /// An error naming its line and column: a trace is data to fit.
+    Refused,
+    /// An empty cell: a log says what was and was not measured.
+    EmptyCell,
+}
+
+fn write_columns(
+    path: &Path,
+    trace: &Trace,
+    comments: &[String],
+    missing: Missing,
+) -> Result<(), DataError> {
     let bad = |message: String| DataError::BadTrace {
         path: path.to_path_buf(),
         message,
@@ -663,7 +695,9 @@ pub fn write_trace_with_comments(
                 trace.len()
             )));
         }
-        if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+        if let Some(k) = values.iter().position(|v| !v.is_finite())
+            && missing == Missing::Refused
+        {
             return Err(DataError::NotFinite {
                 path: path.to_path_buf(),
                 line: header_line + 1 + k as u64,
@@ -680,7 +714,9 @@ pub fn write_trace_with_comments(
             if i > 0 {
                 out.push(',');
             }
-            let _ = write!(out, "{}", values[k]);
+            if values[k].is_finite() {
+                let _ = write!(out, "{}", values[k]);
+            }
         }
         out.push('\n');
     }

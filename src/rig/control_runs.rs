@@ -10,6 +10,8 @@
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 use anyhow::Context as _;
@@ -93,6 +95,9 @@ pub struct RigRunSettings {
     pub max_implausible: usize,
     /// Folder of the run logs; `None`: no log.
     pub log_dir: Option<PathBuf>,
+    /// Raised by Ctrl-C: the run in progress ends with the valve closed,
+    /// and no other starts.
+    pub interrupt: Arc<AtomicBool>,
 }
 
 /// The runs of `kinds` at every frequency in `freqs` on the rig, each on a
@@ -196,6 +201,7 @@ fn run_on_rig(
         &episode,
         &remote_settings,
         &mut log,
+        &settings.interrupt,
     )?;
     let run = Run {
         spec: *spec,

@@ -156,13 +156,19 @@ pub struct ChildLink {
 impl ChildLink {
     /// Starts `command` with `sh -c`.
     pub fn spawn(command: &str) -> io::Result<ChildLink> {
-        let mut child = Command::new("sh")
+        let mut shell = Command::new("sh");
+        shell
             .arg("-c")
             .arg(command)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()?;
+            .stderr(Stdio::inherit());
+        // A process group of its own: Ctrl-C in the terminal reaches the
+        // controller alone, which then closes the valve through the rig; in
+        // the terminal's group the rig would die with it first.
+        #[cfg(unix)]
+        std::os::unix::process::CommandExt::process_group(&mut shell, 0);
+        let mut child = shell.spawn()?;
         let stdout = child.stdout.take().expect("piped stdout");
         let stdin = child.stdin.take();
         Ok(ChildLink {

@@ -24,6 +24,7 @@
 //!   not a number in 0–10 V is never sent, whatever the controller computed;
 //!   the run ends with the valve closed instead.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use thiserror::Error;
@@ -119,6 +120,8 @@ pub enum RigError {
     Send { link: String, why: String },
     #[error("run log {path}: {why}")]
     Log { path: String, why: String },
+    #[error("rig {link}: interrupted (Ctrl-C) before sample {k}")]
+    Interrupted { link: String, k: usize },
 }
 
 /// A finished run on a rig.
@@ -190,6 +193,7 @@ pub fn run_remote(
     episode: &Episode,
     settings: &RemoteSettings,
     log: &mut RunLog,
+    interrupt: &AtomicBool,
 ) -> Result<RemoteRun, RigError> {
     let (reference, times) = episode.schedule(dt);
     let n = reference.len();
@@ -207,6 +211,7 @@ pub fn run_remote(
     };
     let mut run = RemoteLoop {
         link,
+        interrupt,
         dt,
         episode,
         settings,
@@ -227,6 +232,9 @@ pub fn run_remote(
 /// what the run records and logs, and what the run knows of its samples.
 struct RemoteLoop<'a, 'c> {
     link: &'a mut dyn Link,
+    /// Raised by Ctrl-C: the run ends before its next sample, as after an
+    /// error, with the valve closed.
+    interrupt: &'a AtomicBool,
     dt: f64,
     episode: &'a Episode,
     settings: &'a RemoteSettings,
@@ -264,6 +272,12 @@ impl RemoteLoop<'_, '_> {
         let mut anchor = Instant::now();
         while !self.lp.done() {
             let k = self.lp.next_sample();
+            if self.interrupt.load(Ordering::SeqCst) {
+                return Err(RigError::Interrupted {
+                    link: self.link.describe(),
+                    k,
+                });
+            }
             let Some(settled) = self.wait(k, &mut anchor)? else {
                 continue;
             };
@@ -659,6 +673,7 @@ mod tests {
                 &episode,
                 &settings,
                 &mut RunLog::none(),
+                &AtomicBool::new(false),
             );
             let err = out.expect_err("the run must fail").to_string();
             assert!(
@@ -671,5 +686,62 @@ mod tests {
             let tail: Vec<&str> = rig.sent.iter().rev().take(3).map(|s| s.as_str()).collect();
             assert_eq!(tail, ["STOP", "U 3 0", "U 2 5"], "{bad}");
         }
+    }
+
+    /// A controller that raises Ctrl-C's flag at its third command.
+    struct Interrupting<'a> {
+        flag: &'a AtomicBool,
+        calls: usize,
+    }
+
+    impl Controller for Interrupting<'_> {
+        fn name(&self) -> &str {
+            "interrupting"
+        }
+
+        fn reset(&mut self, _: f64) {
+            self.calls = 0;
+        }
+
+        fn command(&mut self, _: Measurement, _: &[f64]) -> f64 {
+            self.calls += 1;
+            if self.calls == 3 {
+                self.flag.store(true, Ordering::SeqCst);
+            }
+            5.0
+        }
+    }
+
+    #[test]
+    fn ctrl_c_ends_the_run_with_the_valve_closed() {
+        let settings = RemoteSettings {
+            deadline: Duration::from_secs(5),
+            max_missing: 3,
+            limits: Limits::of_twin(&crate::twin::TwinConfig::default()),
+            max_implausible: 3,
+        };
+        let episode = Episode::short(3.0, 0.1, 0.1, 0.05);
+        let flag = AtomicBool::new(false);
+        let mut rig = EchoRig { sent: Vec::new() };
+        let mut c = Interrupting {
+            flag: &flag,
+            calls: 0,
+        };
+        let out = run_remote(
+            &mut rig,
+            0.01,
+            &mut c,
+            &episode,
+            &settings,
+            &mut RunLog::none(),
+            &flag,
+        );
+        let err = out.expect_err("the run must stop").to_string();
+        assert!(
+            err.contains("interrupted (Ctrl-C) before sample 4"),
+            "{err}"
+        );
+        let tail: Vec<&str> = rig.sent.iter().rev().take(3).map(|s| s.as_str()).collect();
+        assert_eq!(tail, ["STOP", "U 4 0", "U 3 5"]);
     }
 }
