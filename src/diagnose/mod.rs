@@ -222,7 +222,7 @@ pub fn diagnose_from(
     };
     let floor = noise_floor_of(&data);
     let start_ref = start.as_ref().map(|(m, theta)| (m, theta.as_slice()));
-    let (effects, not_tried) = tried_effects(traces, effects);
+    let (effects, not_tried) = tried_effects(traces, effects, from);
     let selection = select::select(
         &data, &searches, family, &effects, settings, floor, start_ref,
     )?;
@@ -334,12 +334,19 @@ pub struct NotTried {
 }
 
 /// The effects of `effects` the selection tries on `traces`, and those it
-/// leaves out. `load`, a gain for each dataset after the first, is left out
-/// where two datasets are pieces of one recording (`--split-gaps`): they
-/// share its muscle and its load, and a gain between them would name a
-/// change of the muscle between the pieces (a set, a softening) as a change
-/// of load.
-fn tried_effects(traces: &[Trace], effects: &[Effect]) -> (Vec<Effect>, Vec<NotTried>) {
+/// leaves out, with why:
+/// - an effect that needs more datasets than there are (`load`, a gain for
+///   each dataset after the first);
+/// - one whose physical effect `from`'s chain already holds (`--from`);
+/// - `load` where two datasets are pieces of one recording
+///   (`--split-gaps`): they share its muscle and its load, and a gain
+///   between them would name a change of the muscle between the pieces (a
+///   set, a softening) as a change of load.
+fn tried_effects(
+    traces: &[Trace],
+    effects: &[Effect],
+    from: Option<&Model>,
+) -> (Vec<Effect>, Vec<NotTried>) {
     let mut recordings: Vec<&str> = traces
         .iter()
         .filter_map(|t| t.cut_from.as_deref())
@@ -347,18 +354,24 @@ fn tried_effects(traces: &[Trace], effects: &[Effect]) -> (Vec<Effect>, Vec<NotT
     let pieces = recordings.len();
     recordings.sort_unstable();
     recordings.dedup();
-    if recordings.len() == pieces || !effects.contains(&Effect::Load) {
-        return (effects.to_vec(), Vec::new());
+    let one_recording = recordings.len() < pieces;
+    let held = from.map_or(&[][..], |m| m.effects());
+    let (mut tried, mut not_tried) = (Vec::new(), Vec::new());
+    for &effect in effects {
+        let why = if !effect.applicable(traces.len()) {
+            Some("it is a difference between datasets, and there is one: give two or more files")
+        } else if held.iter().any(|h| h.physical() == effect.physical()) {
+            Some("the --from model's chain holds it already")
+        } else if effect == Effect::Load && one_recording {
+            Some("some datasets are pieces of one recording (cut at its gaps): they share its load")
+        } else {
+            None
+        };
+        match why {
+            Some(why) => not_tried.push(NotTried { effect, why }),
+            None => tried.push(effect),
+        }
     }
-    let tried = effects
-        .iter()
-        .copied()
-        .filter(|&e| e != Effect::Load)
-        .collect();
-    let not_tried = vec![NotTried {
-        effect: Effect::Load,
-        why: "some datasets are pieces of one recording (cut at its gaps): they share its load",
-    }];
     (tried, not_tried)
 }
 
@@ -699,7 +712,7 @@ mod tests {
                 piece("b.csv[1]", Some("b.csv")),
             ],
         ] {
-            let (tried, not_tried) = tried_effects(&traces, &effects);
+            let (tried, not_tried) = tried_effects(&traces, &effects, None);
             assert_eq!(tried, effects);
             assert!(not_tried.is_empty());
         }
@@ -709,13 +722,32 @@ mod tests {
             piece("b.csv", None),
             piece("a.csv[2]", Some("a.csv")),
         ];
-        let (tried, not_tried) = tried_effects(&traces, &effects);
+        let (tried, not_tried) = tried_effects(&traces, &effects, None);
         assert_eq!(tried, [Effect::Delay, Effect::Set]);
         assert_eq!(not_tried.len(), 1);
         assert_eq!(not_tried[0].effect, Effect::Load);
         assert!(not_tried[0].why.contains("pieces of one recording"));
         // Nothing to leave out where `load` was not asked for.
-        let (tried, not_tried) = tried_effects(&traces, &[Effect::Set]);
+        let (tried, not_tried) = tried_effects(&traces, &[Effect::Set], None);
         assert_eq!((tried, not_tried.len()), (vec![Effect::Set], 0));
+    }
+
+    /// What cannot be tried is said, not skipped: a load on one dataset,
+    /// and an effect the `--from` model's chain holds already.
+    #[test]
+    fn effects_that_cannot_be_tried_are_named_with_why() {
+        let one = [piece("a.csv", None)];
+        let (tried, not_tried) = tried_effects(&one, &[Effect::Load, Effect::Set], None);
+        assert_eq!(tried, [Effect::Set]);
+        assert_eq!(not_tried.len(), 1);
+        assert!(not_tried[0].why.contains("there is one"), "{}", not_tried[0].why);
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/fixtures/generalized_creep_before_x_s.json");
+        let model = crate::model::ModelFile::load(&path).unwrap().model().unwrap();
+        let creep = model.effects()[0];
+        let (tried, not_tried) = tried_effects(&one, &[creep, Effect::Set], Some(&model));
+        assert_eq!(tried, [Effect::Set]);
+        assert_eq!(not_tried[0].effect, creep);
+        assert!(not_tried[0].why.contains("--from"), "{}", not_tried[0].why);
     }
 }

@@ -296,7 +296,13 @@ fn how_sure_text(o: &mut String, d: &Diagnosis) {
 /// The verdict and the lines that qualify it.
 fn verdict_text(o: &mut String, d: &Diagnosis) {
     let x = &d.explainable;
-    if x.not_explained {
+    if d.selection.rounds.is_empty() {
+        let _ = writeln!(
+            o,
+            "\nVerdict: nothing was tried (--max-effects 0, or none of the effects asked for \
+             could be tried on this record: see WHICH), so this says nothing of the catalogue."
+        );
+    } else if x.not_explained {
         let closed = d.last().gap_closed;
         let _ = writeln!(
             o,
