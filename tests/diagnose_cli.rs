@@ -460,3 +460,45 @@ fn an_effect_outside_the_catalogue_is_not_explained_rather_than_misnamed() {
         assert_eq!(c["pass"], true, "{c}");
     }
 }
+
+/// A `--transfer` record on another time base, and an `--out` that cannot
+/// be a folder, fail before the diagnosis runs, not after it: the work of
+/// a diagnosis is not lost to a flag that could be checked first.
+#[test]
+fn bad_transfer_and_output_flags_fail_before_the_diagnosis() {
+    let dir = tempfile::tempdir().unwrap();
+    let stair = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_7kg.csv"))
+        .unwrap();
+    // Every other sample: the same record every 0.02 s.
+    let decimated: Vec<&str> = stair
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| *i < 2 || i % 2 == 0)
+        .map(|(_, l)| l)
+        .collect();
+    let slow = dir.path().join("every_20ms.csv");
+    std::fs::write(&slow, decimated.join("\n") + "\n").unwrap();
+    let file = dir.path().join("a_file");
+    std::fs::write(&file, "").unwrap();
+    for (args, expect) in [
+        (
+            vec!["--transfer", slow.to_str().unwrap()],
+            "sampled every 0.02 s, the diagnosed record every 0.01 s",
+        ),
+        (
+            vec!["--out", file.to_str().unwrap()],
+            "cannot create the folder",
+        ),
+        (
+            vec!["--report", file.to_str().unwrap()],
+            "cannot create the folder",
+        ),
+    ] {
+        let out = bin().arg("diagnose").args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}: {err}");
+        assert!(err.contains(expect), "{args:?}: {err}");
+        // Nothing of a diagnosis was printed: it never ran.
+        assert!(out.stdout.is_empty(), "{args:?}");
+    }
+}

@@ -85,6 +85,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     settings.check()?;
     let trace = one_trace(args.data.load()?)?;
+    // Read before the study, so that a bad --cross fails at once, not
+    // after minutes of fits.
+    let other = cross_trace(&args)?;
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     eprintln!("comparing on {} [{backend}]", trace.source);
@@ -93,7 +96,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let table21 = study.table21(&progress)?;
     let budget = study.budget(&progress)?;
     let flows = study.flows(&progress)?;
-    let cross_load = match cross_trace(&args)? {
+    let cross_load = match other {
         Some(other) => study.cross_load(&other, &flows, &progress)?,
         None => Vec::new(),
     };

@@ -313,7 +313,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    // Read before the diagnosis, so that a bad file fails at once.
+    // Read and checked before the diagnosis, so that a bad file or folder
+    // fails at once, not after it.
     let others = if args.transfer.is_empty() {
         Vec::new()
     } else {
@@ -322,6 +323,22 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             .load(&args.transfer)
             .context("--transfer")?
     };
+    let dt = traces[0].dt();
+    for other in &others {
+        anyhow::ensure!(
+            (other.dt() - dt).abs() <= 0.01 * dt,
+            "--transfer {}: sampled every {} s, the diagnosed record every {dt} s; the \
+             model's poles are per sample, so resample it (--resample {dt})",
+            other.source,
+            other.dt()
+        );
+    }
+    for (flag, dir) in [("--out", &args.out), ("--report", &args.report)] {
+        if let Some(dir) = dir {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{flag} {}: cannot create the folder", dir.display()))?;
+        }
+    }
     let family = from.as_ref().map_or(family, |m| m.base.family);
     let mut d = diagnose_from(&traces, family, &effects, &settings, from.as_ref()).map_err(
         |e| match &args.from {

@@ -740,10 +740,17 @@ mod tests {
         let (tried, not_tried) = tried_effects(&one, &[Effect::Load, Effect::Set], None);
         assert_eq!(tried, [Effect::Set]);
         assert_eq!(not_tried.len(), 1);
-        assert!(not_tried[0].why.contains("there is one"), "{}", not_tried[0].why);
+        assert!(
+            not_tried[0].why.contains("there is one"),
+            "{}",
+            not_tried[0].why
+        );
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("tests/fixtures/generalized_creep_before_x_s.json");
-        let model = crate::model::ModelFile::load(&path).unwrap().model().unwrap();
+        let model = crate::model::ModelFile::load(&path)
+            .unwrap()
+            .model()
+            .unwrap();
         let creep = model.effects()[0];
         let (tried, not_tried) = tried_effects(&one, &[creep, Effect::Set], Some(&model));
         assert_eq!(tried, [Effect::Set]);
