@@ -590,10 +590,34 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
         err.contains("--dt") && err.contains("a record may hold"),
         "{err}"
     );
+    // A file of the input alone runs from rest and scores nothing; its
+    // columns are simulate's --input-col and --output-col.
+    let dir = tempfile::tempdir().unwrap();
+    let input_only = dir.path().join("pressure_only.csv");
+    std::fs::write(&input_only, "t,pressure\n0,0.1\n0.01,0.2\n0.02,0.3\n").unwrap();
+    let run = json_of(&[
+        "simulate",
+        "--input",
+        input_only.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(run["samples"], 3);
+    assert!(run["fit_percent"].is_null());
+    let named = ["--output-col", "displacement"];
+    let err = error_of(
+        &[
+            &["simulate", "--input", input_only.to_str().unwrap()][..],
+            &named,
+        ]
+        .concat(),
+    );
+    assert!(
+        err.contains("choose another with --output-col COL"),
+        "{err}"
+    );
     let err = error_of(&["simulate", "--params", "alpha=nan"]);
     assert!(err.contains("`nan` is not a finite number"), "{err}");
 
-    let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("diverged.csv");
     let summary = json_of(&[
         "simulate",

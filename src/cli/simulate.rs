@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use serde::Serialize;
 
 use mckibben::data::Trace;
-use mckibben::data::csv::{Gaps, ReadOptions, read_traces, write_trace_with_comments};
+use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces, write_trace_with_comments};
 use mckibben::data::signals::{Stair, nyquist_rad_s, samples_in};
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::experiment::halves;
@@ -34,7 +34,8 @@ const SINE_SECONDS: f64 = 40.0;
 /// identification staircase of appendix A.1.1 (valve 0–10 V, turned into
 /// pressure by a nominal 0.05 MPa/V); `--input sine` a pressure sine
 /// 0.25 + 0.2·sin(ω t) MPa; any other value is a CSV file whose input column
-/// is used (and whose first output sample starts the simulation). A
+/// is used (and whose first output sample starts the simulation; a file
+/// with no output column is an input alone, started at rest). A
 /// generated input starts the model at rest at its first value: the output
 /// that the model, held there with no hysteretic state, keeps.
 ///
@@ -409,17 +410,59 @@ fn input_trace(
                     None => Gaps::Reject,
                 },
             };
-            let mut traces = read_traces(&path, &opts)?;
+            // simulate's own `--input` names the signal; its columns are
+            // --input-col and --output-col.
+            let read = |opts: &ReadOptions| {
+                read_traces(&path, opts).map_err(|e| match e {
+                    DataError::MissingColumn {
+                        path,
+                        line,
+                        role,
+                        column,
+                        available,
+                        flag,
+                    } => DataError::MissingColumn {
+                        flag: match flag {
+                            "--input" => "--input-col",
+                            "--output" => "--output-col",
+                            other => other,
+                        },
+                        path,
+                        line,
+                        role,
+                        column,
+                        available,
+                    },
+                    other => other,
+                })
+            };
+            // A file with no output column (none named) is an input alone:
+            // the run starts at rest and nothing is scored.
+            let (mut traces, measured) = match read(&opts) {
+                Err(DataError::MissingColumn { role: "output", .. })
+                    if args.output_col.is_none() =>
+                {
+                    let input_only = ReadOptions {
+                        output: opts.input.clone(),
+                        ..opts
+                    };
+                    (read(&input_only)?, false)
+                }
+                read => (read?, true),
+            };
             anyhow::ensure!(
                 traces.len() == 1,
                 "{file}: --split-gaps gave {} pieces; simulate one file piece at a time",
                 traces.len()
             );
-            let trace = traces.remove(0);
+            let mut trace = traces.remove(0);
+            if !measured {
+                trace.output_name = saved.map_or(defaults.output, |f| f.data.output.column.clone());
+            }
             if let Some(saved) = saved {
                 saved.model()?.check_data(&trace)?;
             }
-            let y0 = trace.output.first().copied();
+            let y0 = trace.output.first().copied().filter(|_| measured);
             Ok((trace, y0))
         }
     }
