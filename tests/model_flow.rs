@@ -383,6 +383,59 @@ fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
         e.contains("in MPa") && e.contains("`pressure_kpa` is in kPa"),
         "{e}"
     );
+
+    // A model whose input column states no unit drives the controllers as
+    // if in MPa, and `control --from` says so.
+    let stair = std::fs::read_to_string(Path::new(ROOT).join(STAIR)).unwrap();
+    let unnamed = dir.path().join("p.csv");
+    let renamed: Vec<String> = stair
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .enumerate()
+        .map(|(i, l)| match i {
+            0 => l.replacen("pressure", "p", 1),
+            _ => l.to_string(),
+        })
+        .collect();
+    std::fs::write(&unnamed, renamed.join("\n") + "\n").unwrap();
+    let p_model = dir.path().join("p_model");
+    let _ = json_of(&[
+        "fit",
+        unnamed.to_str().unwrap(),
+        "--input",
+        "p",
+        "--pop",
+        "20",
+        "--gens",
+        "2",
+        "--backend",
+        "cpu",
+        "--json",
+        "--out",
+        p_model.to_str().unwrap(),
+    ]);
+    let out = mckibben(&[
+        "control",
+        "--controller",
+        "mpc",
+        "--from",
+        p_model.join("model.json").to_str().unwrap(),
+        "--freq",
+        "1",
+        "--load",
+        "4.5",
+        "--warmup",
+        "1",
+        "--duration",
+        "2",
+        "--steady-from",
+        "1",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("input column `p` states no unit; it is taken in MPa"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -253,6 +253,21 @@ pub fn identify(trace: &Trace, band: (f64, f64), horizon: usize) -> anyhow::Resu
     let mu = trace.input.iter().sum::<f64>() / n as f64;
     let my = trace.output.iter().sum::<f64>() / n as f64;
     let record = Record::new(trace, my)?;
+    // A column that does not move holds nothing to identify: the least
+    // squares would end on a bound and the controllers on nonsense.
+    for (name, values) in [
+        ("valve_in", &record.valve),
+        (trace.input_name.as_str(), &record.p),
+        (trace.output_name.as_str(), &trace.output),
+    ] {
+        anyhow::ensure!(
+            crate::data::range(values) > 0.0,
+            "{}: the column `{name}` is constant, so there is no response to identify; \
+             record the valve driven by a multisine (`mckibben twin --experiment multisine` \
+             shows one)",
+            trace.source
+        );
+    }
     let (valve, _) = ValveModel::identify(&trace.source, &record.valve, &record.p, band, horizon)?;
     let starts = window_starts(&record.valve, band, horizon);
     anyhow::ensure!(
@@ -332,6 +347,38 @@ pub fn scale_hysteresis(model: &ControlModel, factor: f64) -> ControlModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A record whose pressure (or valve, or displacement) never moves is
+    /// refused by name, where it identified a gain on its bound.
+    #[test]
+    fn a_constant_column_is_refused_by_name() {
+        let n = 2000;
+        let moving: Vec<f64> = (0..n)
+            .map(|k| 5.0 + 3.0 * (k as f64 * 0.05).sin())
+            .collect();
+        for constant in ["valve_in", "pressure", "displacement"] {
+            let column = |name: &str, scale: f64| -> Vec<f64> {
+                match name == constant {
+                    true => vec![0.2; n],
+                    false => moving.iter().map(|v| v * scale).collect(),
+                }
+            };
+            let mut trace = Trace::uniform(
+                "record.csv",
+                0.01,
+                column("pressure", 0.04),
+                column("displacement", 6.0),
+            );
+            trace
+                .extra
+                .push(("valve_in".into(), column("valve_in", 1.0)));
+            let err = identify(&trace, (3.0, 8.0), 10).unwrap_err().to_string();
+            assert!(
+                err.contains(&format!("`{constant}` is constant")),
+                "{constant}: {err}"
+            );
+        }
+    }
 
     #[test]
     fn scaling_keeps_the_pole_and_scales_the_loop() {

@@ -239,12 +239,19 @@ pub fn design_for(
         ("input", &m.base.input_name, "MPa"),
         ("output", &m.base.output_name, "mm"),
     ] {
-        if let Some(unit) = unit_of(column).filter(|u| u != want) {
-            anyhow::bail!(
+        match unit_of(column) {
+            Some(unit) if unit != want => anyhow::bail!(
                 "--from {}: the model's {which} is in {unit} (column `{column}`), the \
                  controllers' in {want}: convert the column to {want} and refit",
                 path.display()
-            );
+            ),
+            Some(_) => {}
+            None => note(format!(
+                "--from {}: the model's {which} column `{column}` states no unit; it is taken \
+                 in {want}, the controllers' (a model of another signal, such as a valve \
+                 voltage, predicts nonsense here)",
+                path.display()
+            )),
         }
     }
     // Each effect enters the controllers' prediction where it can, and
