@@ -668,6 +668,23 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
         err.contains("choose another with --output-col COL"),
         "{err}"
     );
+    // An identification of other orders is a report, not a model, and
+    // `simulate --from` says so.
+    let report = dir.path().join("arx2.json");
+    let written = mckibben(&[
+        "identify",
+        STAIR,
+        "--na",
+        "2",
+        "--out",
+        report.to_str().unwrap(),
+    ]);
+    assert!(String::from_utf8_lossy(&written.stdout).contains("no model"));
+    let err = error_of(&["simulate", "--from", report.to_str().unwrap()]);
+    assert!(
+        err.contains("an `identify` report without a model"),
+        "{err}"
+    );
     let err = error_of(&["simulate", "--params", "alpha=nan"]);
     assert!(err.contains("`nan` is not a finite number"), "{err}");
 

@@ -40,7 +40,9 @@ pub struct Args {
     /// Input delay in samples.
     #[arg(long, default_value_t = 1)]
     nk: usize,
-    /// Write the identified model as JSON to this file.
+    /// Write the identification as JSON to this file: with the default
+    /// orders (--na 1 --nb 1 --nk 1) and one piece of data it is also a
+    /// model file that `simulate --from` and `fit --from` read.
     #[arg(long, value_name = "FILE")]
     out: Option<PathBuf>,
     /// Print JSON on stdout instead of a report.
@@ -109,7 +111,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print_report(id);
     }
     if let Some(path) = &args.out {
-        println!("model written to {}", path.display());
+        match (outputs.len(), orders == ArxOrders::default()) {
+            (1, true) => println!("model written to {}", path.display()),
+            (_, true) => println!(
+                "reports of {} pieces written to {} (a model file holds one: `simulate --from` \
+                 reads none of them)",
+                outputs.len(),
+                path.display()
+            ),
+            (_, false) => println!(
+                "report written to {} (no model: only the first-order ARX, --na 1 --nb 1 --nk 1, \
+                 is a model file `simulate --from` reads)",
+                path.display()
+            ),
+        }
     }
     Ok(())
 }

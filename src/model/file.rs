@@ -421,7 +421,26 @@ impl ModelFile {
             .with_context(|| format!("cannot read {}", path.display()))?;
         let value: serde_json::Value =
             serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
-        // `identify --out` writes its report with the model in `model`.
+        // `identify --out` writes its report with the model in `model`:
+        // `null` for ARX orders other than the model file's first order, a
+        // list of reports for the pieces of `--split-gaps`.
+        if value.get("arx").is_some() && value.get("model").is_none_or(|m| m.is_null()) {
+            anyhow::bail!(
+                "{}: an `identify` report without a model: only the first-order ARX \
+                 (--na 1 --nb 1 --nk 1, the default) is a model `simulate` and `fit` read",
+                path.display()
+            );
+        }
+        if value
+            .as_array()
+            .is_some_and(|a| a.first().is_some_and(|r| r.get("arx").is_some()))
+        {
+            anyhow::bail!(
+                "{}: `identify` reports of several pieces (--split-gaps): a model file holds \
+                 one model: identify one piece at a time",
+                path.display()
+            );
+        }
         let value = match value.get("model") {
             Some(inner) if value.get("format").is_none() && inner.get("format").is_some() => {
                 inner.clone()
