@@ -162,8 +162,14 @@ fn print_report(id: &Identification) {
         id.estimation_fit_percent
     );
     println!(
-        "  fit, validation half   {:.2} %   (RMSE {})",
+        "  fit, validation half   {:.2} %   (RMSE {}; simulated from the half's own start, \
+         as MATLAB's compare)",
         id.validation_fit_percent,
         significant(id.validation_rmse, 4)
+    );
+    println!(
+        "  run on from the start  {:.2} %   (the same half, simulated from the record's first \
+         sample: how `fit` and `simulate` score)",
+        id.continued_validation_fit_percent
     );
 }
