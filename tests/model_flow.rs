@@ -327,7 +327,7 @@ fn fit_with_effects_auto_returns_the_diagnosis_final_model() {
 
 #[test]
 fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
-    let cases: [(&[&str], &[&str]); 3] = [
+    let cases: [(&[&str], &[&str]); 4] = [
         (
             &["--effects", "friction"],
             &["unknown effect `friction`", "creep"],
@@ -337,6 +337,10 @@ fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
             &["`creep.kappa`", "--effects"],
         ),
         (&["--effects", "creep,creep"], &["twice"]),
+        (
+            &["--bound", "alpha=0.2:0.3", "--fix", "alpha=0.5"],
+            &["`alpha` is given twice in --bound and --fix"],
+        ),
     ];
     for (flags, wanted) in cases {
         let mut args = vec!["fit", STAIR, "--pop", "8", "--gens", "2"];

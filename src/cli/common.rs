@@ -19,17 +19,18 @@ pub const DEFAULT_DATA: &str = "data/stair_4.5kg.csv";
 pub struct ColumnArgs {
     /// Column holding the model input (the muscle pressure, MPa, in the
     /// shipped data). Any numeric column works, e.g. `--input valve_in`.
-    /// [default: `pressure`, or the --from model's column]
+    /// [default: `pressure`; in `fit` and `diagnose`, the --from model's
+    /// column]
     #[arg(long, value_name = "COL")]
     pub input: Option<String>,
     /// Column holding the measured output (the displacement, mm, in the
-    /// shipped data). [default: `displacement`, or the --from model's
-    /// column]
+    /// shipped data). [default: `displacement`; in `fit` and `diagnose`,
+    /// the --from model's column]
     #[arg(long, value_name = "COL")]
     pub output: Option<String>,
     /// Column holding the time in seconds. It must increase on every row
     /// (with --split-gaps the file is cut where it does not). [default:
-    /// `t`, or the --from model's]
+    /// `t`; in `fit` and `diagnose`, the --from model's]
     #[arg(long, value_name = "COL")]
     pub time: Option<String>,
     /// The models are discrete-time and need a uniform time base (every step

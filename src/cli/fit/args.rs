@@ -206,7 +206,8 @@ pub struct Args {
     /// coordinate's (gain, offset, x0_range, loading, beta_range, psi_pp, ...;
     /// result.json's search_box lists them). Bounding A frees the gauge;
     /// bounding b or c searches the linear part in b, c, x0 themselves; a
-    /// loop-shape parameter, the loop shape in its own parameters.
+    /// loop-shape parameter, the loop shape in its own parameters. NAME=VALUE
+    /// holds it at VALUE, as --fix does; a name may be given once.
     #[arg(long, value_name = "NAME=LO:HI", conflicts_with = "thesis_flow")]
     pub(super) bound: Vec<UserBound>,
     /// Hold one parameter at VALUE (repeatable; names as --bound).
@@ -353,6 +354,20 @@ impl Args {
                 f.lower == f.upper,
                 "--fix {}: expected NAME=VALUE (use --bound for a range)",
                 f.name
+            );
+        }
+        // One box a parameter: two flags on one name would leave the user
+        // guessing which one held.
+        let given: Vec<&str> = self
+            .bound
+            .iter()
+            .chain(&self.fix)
+            .map(|b| b.name.as_str())
+            .collect();
+        for (i, name) in given.iter().enumerate() {
+            anyhow::ensure!(
+                !given[..i].contains(name),
+                "`{name}` is given twice in --bound and --fix: give each parameter one box"
             );
         }
         let effects = self
