@@ -281,3 +281,16 @@ fn a_silent_rig_is_reported() {
         "{err}"
     );
 }
+
+/// The link's flags on the in-process twin are an error, not flags that
+/// silently hold nothing.
+#[test]
+fn link_flags_without_a_rig_are_refused() {
+    let out = control(&["--controller", "pi", "--deadline", "20", "--log", "logs"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("--deadline, --log hold(s) a run on a rig"),
+        "{err}"
+    );
+}

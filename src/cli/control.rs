@@ -270,6 +270,25 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     check_args(&args)?;
     let plant = PlantSpec::parse(&args.plant)?;
+    if matches!(plant, PlantSpec::Twin) {
+        // The link's flags have no link to hold to on the in-process twin:
+        // say so rather than run as if they held.
+        let given: Vec<&str> = [
+            ("--deadline", args.deadline.is_some()),
+            ("--pressure-range", args.pressure_range.is_some()),
+            ("--displacement-range", args.displacement_range.is_some()),
+            ("--log", args.log.is_some()),
+        ]
+        .into_iter()
+        .filter_map(|(flag, given)| given.then_some(flag))
+        .collect();
+        anyhow::ensure!(
+            given.is_empty(),
+            "{} hold(s) a run on a rig (--plant cmd:... or udp:...); the in-process twin \
+             has no link to hold to them",
+            given.join(", ")
+        );
+    }
     let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
     let mut config = TwinConfig::default();
     for e in &args.effects {
