@@ -11,7 +11,15 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    fs::create_dir_all(dir)?;
+    fs::create_dir_all(dir).map_err(|e| match dir.ancestors().find(|a| a.is_file()) {
+        // The OS says "File exists" of a folder path through a file.
+        Some(file) => io::Error::other(format!(
+            "{} is a file, so {} cannot be a folder",
+            file.display(),
+            dir.display()
+        )),
+        None => e,
+    })?;
     let name = path
         .file_name()
         .ok_or_else(|| io::Error::other(format!("{} names no file", path.display())))?;
@@ -35,6 +43,15 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_folder_through_a_file_names_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("notadir");
+        fs::write(&file, "").unwrap();
+        let err = write_atomic(&file.join("x.csv"), b"t\n").unwrap_err().to_string();
+        assert!(err.contains("notadir is a file"), "{err}");
+    }
 
     #[test]
     fn replaces_content_and_leaves_no_temporary() {
