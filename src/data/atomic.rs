@@ -49,7 +49,9 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("notadir");
         fs::write(&file, "").unwrap();
-        let err = write_atomic(&file.join("x.csv"), b"t\n").unwrap_err().to_string();
+        let err = write_atomic(&file.join("x.csv"), b"t\n")
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("notadir is a file"), "{err}");
     }
 

@@ -59,6 +59,18 @@ pub enum IdentError {
     )]
     ConstantInput { data: String, column: String },
     #[error(
+        "{data}: the output `{column}` is constant over the estimation half, so there is no response to identify"
+    )]
+    ConstantOutput { data: String, column: String },
+    #[error(
+        "{data}: the input `{input}` and the output `{output}` hold the same values: name the measured response with --output"
+    )]
+    SameColumns {
+        data: String,
+        input: String,
+        output: String,
+    },
+    #[error(
         "{data}: the least-squares problem is singular (regressors are linearly dependent); try lower orders"
     )]
     Singular { data: String },
@@ -195,6 +207,19 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
             column: trace.input_name.clone(),
         });
     }
+    if est_len > 0 && y[est.clone()].iter().all(|&v| v == y[est.start]) {
+        return Err(IdentError::ConstantOutput {
+            data: trace.source.clone(),
+            column: trace.output_name.clone(),
+        });
+    }
+    if trace.input == trace.output {
+        return Err(IdentError::SameColumns {
+            data: trace.source.clone(),
+            input: trace.input_name.clone(),
+            output: trace.output_name.clone(),
+        });
+    }
     let arx = Arx::estimate(&trace.source, &u[est.clone()], &y[est.clone()], orders)?;
     if val.len() <= orders.lag() {
         let need = 2 * (orders.lag() + orders.na + orders.nb + 1);
@@ -263,4 +288,29 @@ pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
         est_output_max,
         output_mean: first_est.iter().sum::<f64>() / first_est.len() as f64,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A record with no response, or whose output is its input, is named
+    /// for what it is, not reported as a singular least-squares problem.
+    #[test]
+    fn a_record_with_nothing_to_identify_says_which_column() {
+        let input: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
+        let flat = Trace::uniform("flat.csv", 0.01, input.clone(), vec![4.5; 400]);
+        let err = identify(&flat, ArxOrders::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("the output `displacement` is constant"),
+            "{err}"
+        );
+        let same = Trace::uniform("same.csv", 0.01, input.clone(), input);
+        let err = identify(&same, ArxOrders::default())
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("hold the same values"), "{err}");
+    }
 }
