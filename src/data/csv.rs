@@ -228,6 +228,34 @@ fn split_fields(text: &str) -> Result<csv::StringRecord, csv::Error> {
     Ok(record)
 }
 
+/// Why the header line `text` is not a comma-separated header with one
+/// line a row, where its form shows it: lines ended by a lone carriage
+/// return (read as one line), or fields separated by `;` or tabs with no
+/// comma (read as one column).
+fn check_header_form(text: &str) -> Result<(), String> {
+    if text.contains('\r') {
+        return Err(
+            "the lines end in a lone carriage return (CR, an old Mac format), so the \
+                    whole file reads as one line: convert its line ends to LF or CRLF"
+                .into(),
+        );
+    }
+    if !text.contains(',') {
+        let decimal_comma = " (a file separated by semicolons likely writes decimal commas: \
+                             convert those to points too)";
+        for (separator, name, also) in [(';', "semicolons", decimal_comma), ('\t', "tabs", "")] {
+            if text.contains(separator) {
+                return Err(format!(
+                    "the header `{}` is separated by {name}, not commas: mckibben reads \
+                     comma-separated files{also}",
+                    text.escape_debug()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// One data row: its line in the file and its trimmed cells.
 struct Row {
     line: u64,
@@ -254,6 +282,13 @@ fn parse(
         let text = text.trim_start_matches('\u{feff}').trim();
         if text.is_empty() || text.starts_with('#') {
             continue;
+        }
+        if header.is_none() {
+            check_header_form(text).map_err(|message| DataError::Parse {
+                path: p(),
+                line,
+                message,
+            })?;
         }
         let cells = split_fields(text).map_err(|e| DataError::Parse {
             path: p(),
@@ -864,6 +899,30 @@ mod tests {
         assert_eq!(read(text, Gaps::Reject).unwrap().0[0].len(), 5);
         let text = "t,pressure,displacement\n0,0,0\n0.0115,1,1\n0.02,2,2\n0.03,3,3\n";
         assert!(err(text).contains("line 3"));
+    }
+
+    #[test]
+    fn a_header_in_another_form_says_which() {
+        for (text, expect) in [
+            (
+                "t;pressure;displacement\n0;0,1;1\n0,01;0,2;2\n",
+                "separated by semicolons",
+            ),
+            (
+                "t\tpressure\tdisplacement\n0\t0.1\t1\n",
+                "separated by tabs",
+            ),
+            (
+                "t,pressure,displacement\r0,0.1,1\r0.01,0.2,2\r",
+                "lone carriage return",
+            ),
+        ] {
+            let err = read(text, Gaps::Reject).unwrap_err().to_string();
+            assert!(err.contains(expect), "{text:?}: {err}");
+        }
+        // CRLF is read as it should be.
+        let crlf = "t,pressure,displacement\r\n0,0.1,1\r\n0.01,0.2,2\r\n";
+        assert_eq!(read(crlf, Gaps::Reject).unwrap().0[0].len(), 2);
     }
 
     #[test]
