@@ -115,6 +115,14 @@ fn static_refuses_what_the_force_model_does_not_hold_for() {
             "--thread-length must be positive",
         ),
         (&["--thickness-mm=-1"][..], "--thickness-mm"),
+        (
+            &["--thickness-mm", "100"][..],
+            "the wall must be thinner than the muscle's widest radius",
+        ),
+        (
+            &["--points", "100000000"][..],
+            "--points must be 2 to 100000",
+        ),
     ] {
         let out = run(args);
         assert!(!out.status.success(), "{args:?}");

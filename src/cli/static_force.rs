@@ -64,10 +64,14 @@ struct Row {
     force_thick_n: f64,
 }
 
+/// The most angles `--points` may ask for: a curve needs hundreds, and a
+/// typo of a few more digits should not run for minutes.
+const MAX_POINTS: usize = 100_000;
+
 pub fn run(args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(
-        args.points >= 2,
-        "--points must be at least 2 (got {})",
+        (2..=MAX_POINTS).contains(&args.points),
+        "--points must be 2 to {MAX_POINTS} (got {})",
         args.points
     );
     for (flag, value) in [
@@ -102,6 +106,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         turns: args.turns,
         thickness: args.thickness_mm * 1e-3,
     };
+    // Eq. 9 takes the wall inside the braid's diameter: a wall as thick as
+    // the widest muscle's radius leaves no bore to inflate.
+    let widest_radius_mm = braid.diameter(std::f64::consts::FRAC_PI_2) / 2.0 * 1e3;
+    anyhow::ensure!(
+        args.thickness_mm < widest_radius_mm,
+        "--thickness-mm {}: the wall must be thinner than the muscle's widest radius, \
+         b/(2πn) = {widest_radius_mm:.1} mm for --thread-length {} and --turns {}",
+        args.thickness_mm,
+        args.thread_length,
+        args.turns
+    );
     let (lo, hi) = (5f64.to_radians(), max_angle());
     let angles: Vec<f64> = (0..args.points)
         .map(|i| lo + (hi - lo) * i as f64 / (args.points - 1) as f64)
