@@ -236,7 +236,7 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 8] = [
         (&["fit", "missing.csv"], "missing.csv"),
         (&["fit", &csv, "--algo", "cmaes"], "cmaes"),
         // Each algorithm's own minimum, named with the flag.
@@ -286,6 +286,11 @@ fn bad_flags_and_bad_data_are_clear_errors() {
                 "cpu",
             ],
             "islands",
+        ),
+        // The synthetic record's estimation half has 200 samples.
+        (
+            &["fit", &csv, "--horizon", "500", "--backend", "cpu"],
+            "--horizon 500: a prediction horizon is 1 to 199 samples here",
         ),
     ];
     for (args, needle) in cases {

@@ -248,7 +248,21 @@ impl FitSettings {
                 global.islands = k;
             }
             if let Some(h) = self.horizon {
-                anyhow::ensure!(h >= 1, "--horizon must be at least 1 sample");
+                // Beyond the shortest estimation half a prediction is a free
+                // run of the whole half: the horizon then means nothing.
+                let shortest = problem
+                    .records
+                    .est
+                    .iter()
+                    .map(|e| e.len())
+                    .min()
+                    .unwrap_or(0);
+                anyhow::ensure!(
+                    (1..shortest).contains(&h),
+                    "--horizon {h}: a prediction horizon is 1 to {} samples here (the \
+                     shortest estimation half has {shortest})",
+                    shortest.saturating_sub(1)
+                );
                 global.measure = Measure::Ahead { horizon: h };
             }
         }
