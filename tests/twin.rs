@@ -368,4 +368,12 @@ fn cli_regenerates_the_shipped_stair() {
     assert!(status.status.success());
     let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
     assert!(std::fs::read(&out).unwrap() == std::fs::read(shipped).unwrap());
+    // --freq sets the sine alone: on the stair it is an error, not ignored.
+    let refused = std::process::Command::new(exe)
+        .args(["twin", "--experiment", "stair", "--freq", "3", "--out"])
+        .arg(dir.path().join("stair3.csv"))
+        .output()
+        .unwrap();
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--experiment sine"));
 }

@@ -8,6 +8,10 @@ use mckibben::data::Trace;
 use mckibben::report::{Figure, Panel, Series};
 use mckibben::twin::experiment::{Kind, RunSpec};
 
+/// The sine's frequency when `--freq` is not given (rad/s): the thesis'
+/// slowest.
+const DEFAULT_FREQ_RAD_S: f64 = 1.0;
+
 /// Run an experiment on the rig twin, a physically based simulator of the
 /// thesis' tap-water rig (two proportional valves, water column, braided
 /// muscle with friction, hanging load, sensors; see docs/TWIN.md), and write
@@ -49,9 +53,10 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Angular frequency of the sine reference in rad/s (thesis: 1, 2, 3), below
-    /// Nyquist's π/dt (314 rad/s at the twin's 0.01 s).
-    #[arg(long, value_name = "RAD_S", default_value_t = 1.0)]
-    freq: f64,
+    /// Nyquist's π/dt (314 rad/s at the twin's 0.01 s); `--experiment sine`
+    /// only [default: 1].
+    #[arg(long, value_name = "RAD_S")]
+    freq: Option<f64>,
     /// Scale a non-ideal effect: 1 = as documented, 0 = off, 2 = twice as
     /// large. Repeatable. Names (the first eight default to 1):
     ///   friction      braid friction (Maxwell-slip break-away forces)
@@ -205,6 +210,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return serve(s);
     }
     let out = args.out.clone().expect("clap requires --out");
+    anyhow::ensure!(
+        args.freq.is_none() || matches!(args.experiment, ExperimentArg::Sine),
+        "--freq sets the sine's frequency: --experiment sine"
+    );
     let spec = RunSpec {
         kind: match args.experiment {
             ExperimentArg::Stair => Kind::Stair,
@@ -213,7 +222,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         load_kg: args.load,
         seed: args.seed,
-        freq_rad_s: args.freq,
+        freq_rad_s: args.freq.unwrap_or(DEFAULT_FREQ_RAD_S),
         effects: args.effects.clone(),
     };
     let trace = spec.run()?;
