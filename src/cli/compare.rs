@@ -140,7 +140,12 @@ fn cross_trace(args: &Args) -> anyhow::Result<Option<Trace>> {
             }
             sibling
         }
-        (None, Some(_)) => return Ok(None),
+        (None, Some(_)) => {
+            eprintln!(
+                "mckibben: note: no cross-load check: name the other load's record with --cross FILE"
+            );
+            return Ok(None);
+        }
     };
     let cols: &ColumnArgs = &args.data.columns;
     let other = DataArgs {
