@@ -181,7 +181,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     override_params(&mut model, &args.params)?;
-    if let Some(f) = &file
+    if let (Some(path), Some(f)) = (&args.from, &file)
         && args.input_is_generated()
     {
         let fitted = f.model()?.base.dt;
@@ -189,10 +189,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (dt - fitted).abs() <= 1e-9 * fitted,
             "--dt {dt}: the model in {} was fitted at {fitted} s a sample and its poles are \
              per sample; leave --dt out to generate the input at {fitted} s",
-            args.from
-                .as_ref()
-                .expect("a file came from --from")
-                .display()
+            path.display()
         );
     }
     let (mut trace, y0) = input_trace(&args, dt, file.as_ref())?;

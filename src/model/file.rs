@@ -62,7 +62,7 @@ pub struct Run {
 /// The longest a chain is held at its first input to settle
 /// ([`Model::simulate_from_rest`]): 2¹⁷ samples, over six time constants of
 /// the slowest creep pole the effects' boxes admit.
-pub const MAX_SETTLE: usize = 1 << 17;
+const MAX_SETTLE: usize = 1 << 17;
 
 /// How still an output held at one input must be, relative to its size,
 /// over the last quarter of the hold to count as at rest: `f32` resolution.
@@ -175,7 +175,7 @@ impl Model {
     /// as a muscle that has sat at that pressure: the baseline starts where
     /// it stays ([`FittedBaseline::rest_output`]), and a chain, whose
     /// effects' slow states start at zero, first runs held at that value
-    /// until its output stops moving (at most [`MAX_SETTLE`] samples, not
+    /// until its output stops moving (at most `MAX_SETTLE`, 2¹⁷ samples, not
     /// part of the run returned). A model with no stable rest starts at its
     /// output mean.
     pub fn simulate_from_rest(&self, input: &[f64]) -> Run {
