@@ -335,8 +335,9 @@ pub struct NotTried {
 
 /// The effects of `effects` the selection tries on `traces`, and those it
 /// leaves out, with why:
-/// - an effect that needs more datasets than there are (`load`, a gain for
-///   each dataset after the first);
+/// - an effect named (not the default catalogue's, which tries what
+///   applies and leaves the rest silently) that needs more datasets than
+///   there are (`load`, a gain for each dataset after the first);
 /// - one whose physical effect `from`'s chain already holds (`--from`);
 /// - `load` where two datasets are pieces of one recording
 ///   (`--split-gaps`): they share its muscle and its load, and a gain
@@ -356,9 +357,15 @@ fn tried_effects(
     recordings.dedup();
     let one_recording = recordings.len() < pieces;
     let held = from.map_or(&[][..], |m| m.effects());
+    // The default catalogue tries what applies; an effect named yourself
+    // that cannot apply is said.
+    let named = effects != Effect::by_default().as_slice();
     let (mut tried, mut not_tried) = (Vec::new(), Vec::new());
     for &effect in effects {
         let why = if !effect.applicable(traces.len()) {
+            if !named {
+                continue;
+            }
             Some("it is a difference between datasets, and there is one: give two or more files")
         } else if held.iter().any(|h| h.physical() == effect.physical()) {
             Some("the --from model's chain holds it already")
@@ -737,6 +744,9 @@ mod tests {
     #[test]
     fn effects_that_cannot_be_tried_are_named_with_why() {
         let one = [piece("a.csv", None)];
+        // The default catalogue leaves `load` out on one file without a word.
+        let (tried, not_tried) = tried_effects(&one, &Effect::by_default(), None);
+        assert!(!tried.contains(&Effect::Load) && not_tried.is_empty());
         let (tried, not_tried) = tried_effects(&one, &[Effect::Load, Effect::Set], None);
         assert_eq!(tried, [Effect::Set]);
         assert_eq!(not_tried.len(), 1);
