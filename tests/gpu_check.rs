@@ -239,8 +239,9 @@ fn bench_scores_a_model_with_effects_and_times_the_cpu_path() {
     assert_eq!(row["population"], 150);
     assert_eq!(row["agreement"]["top100_identical"], true);
     assert_eq!(row["agreement"]["top100_overlap"], 100);
-    assert!(row["reference"]["median_s"].as_f64().unwrap() > 0.0);
-    assert!(row["speedup"].as_f64().unwrap() > 0.0);
+    // --time-reference times the CPU path against a GPU's: on the CPU
+    // backend there is no speed-up to measure, and none is reported.
+    assert!(row["reference"].is_null() && row["speedup"].is_null());
     // The CPU has no device clock: its kernel figures are null.
     assert!(row["kernel_median_s"].is_null() && row["kernel_candidate_samples_per_s"].is_null());
 

@@ -236,7 +236,7 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 8] = [
+    let cases: [(&[&str], &str); 9] = [
         (&["fit", "missing.csv"], "missing.csv"),
         (&["fit", &csv, "--algo", "cmaes"], "cmaes"),
         // Each algorithm's own minimum, named with the flag.
@@ -286,6 +286,10 @@ fn bad_flags_and_bad_data_are_clear_errors() {
                 "cpu",
             ],
             "islands",
+        ),
+        (
+            &["fit", &csv, "--target-sse", "nan", "--backend", "cpu"],
+            "--target-sse must be a finite SSE of 0 or more",
         ),
         // The synthetic record's estimation half has 200 samples.
         (

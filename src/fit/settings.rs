@@ -298,6 +298,12 @@ impl FitSettings {
                 "--time-budget must be at least 0 seconds (got {t})"
             );
         }
+        if let Some(sse) = self.stops.target_sse {
+            anyhow::ensure!(
+                sse.is_finite() && sse >= 0.0,
+                "--target-sse must be a finite SSE of 0 or more (got {sse})"
+            );
+        }
         Ok(self.stops.clone())
     }
 
