@@ -83,9 +83,10 @@ class Model:
     @staticmethod
     def load(path: _Path) -> Model: ...
     def save(self, path: _Path) -> None: ...
-    def simulate(self, u: _ArrayLike, x0: float | None = None) -> npt.NDArray[np.float64]:
+    def simulate(self, u: _ArrayLike | Trace, x0: float | None = None) -> npt.NDArray[np.float64]:
         """Free-run output on `u`; `x0` is the measured output at the first
-        sample (default: at rest at the first input)."""
+        sample (default: at rest at the first input; for a `Trace`, its
+        first measured output)."""
     @property
     def params(self) -> dict[str, float]:
         """The family's parameters in canonical order, then the effects' as `effect.param`."""
@@ -130,6 +131,9 @@ class FitResult:
     flow: str
     seed: int
     population: int
+    tries: int
+    try_population: int
+    agreement: dict[str, Any] | None
     stop: Literal["completed", "target-sse", "time-budget", "interrupted"]
     interrupted: bool
     stages: list[dict[str, Any]]
@@ -154,7 +158,7 @@ def fit(
     *,
     free_n: bool = False,
     loop: Literal["bounded", "free"] = "bounded",
-    switch: Literal["starts", "search", "mean", "zero"] = "starts",
+    switch: Literal["search", "starts", "mean", "zero"] = "search",
     thesis_flow: bool = False,
     target_sse: float | None = None,
     time_budget: float | None = None,

@@ -23,6 +23,19 @@ pub fn count(value: Option<i64>, default: usize, what: &str) -> PyResult<usize> 
     }
 }
 
+/// An integer argument of at least `min` (`default` when `None`): a
+/// `ValueError` naming it otherwise, where a `usize` parameter would raise
+/// an `OverflowError` on a negative one.
+pub fn at_least(value: Option<i64>, default: usize, min: usize, what: &str) -> PyResult<usize> {
+    match value {
+        None => Ok(default),
+        Some(v) if v >= min as i64 => Ok(v as usize),
+        Some(v) => Err(PyValueError::new_err(format!(
+            "{what} must be at least {min}, got {v}"
+        ))),
+    }
+}
+
 /// A seed: an integer in [0, 2⁶⁴).
 pub fn seed_arg(seed: i128) -> PyResult<u64> {
     u64::try_from(seed).map_err(|_| {
@@ -42,13 +55,20 @@ pub fn user_bounds(bounds: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<UserBound
         let name: String = key.extract().map_err(|_| {
             pyo3::exceptions::PyTypeError::new_err("bounds' keys must be parameter names (str)")
         })?;
-        let (lo, hi) = if let Ok(v) = value.extract::<f64>() {
+        // A bool extracts as a number: `True` would fix the parameter at 1.
+        let boolean = value.is_instance_of::<pyo3::types::PyBool>();
+        let pair = value
+            .extract::<Vec<f64>>()
+            .ok()
+            .filter(|p| p.len() == 2 && !boolean);
+        let (lo, hi) = if let (false, Ok(v)) = (boolean, value.extract::<f64>()) {
             (v, v)
-        } else if let Ok(pair) = value.extract::<(f64, f64)>() {
-            pair
+        } else if let Some(pair) = pair {
+            (pair[0], pair[1])
         } else {
             return Err(pyo3::exceptions::PyTypeError::new_err(format!(
-                "bounds[{name:?}] must be a (lo, hi) pair or a number (to fix it), got {}",
+                "bounds[{name:?}] must be a (lo, hi) pair (a tuple, list or array of two numbers) \
+                 or a number (to fix it), got {}",
                 value.repr()?
             )));
         };

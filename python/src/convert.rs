@@ -32,6 +32,14 @@ pub fn contiguous<'py>(
     let array = np
         .call_method1("asarray", (obj,))
         .map_err(|e| PyValueError::new_err(format!("{what}: not an array of numbers ({e})")))?;
+    // `ascontiguousarray` makes a single number a one-sample array: a
+    // scalar passed for a series would then run as one.
+    let ndim: usize = array.getattr("ndim")?.extract()?;
+    if ndim == 0 {
+        return Err(PyValueError::new_err(format!(
+            "{what}: a single number, not an array of samples"
+        )));
+    }
     let dtype = array.getattr("dtype")?;
     let kind: String = dtype.getattr("kind")?.extract()?;
     if !matches!(kind.as_str(), "f" | "i" | "u") {

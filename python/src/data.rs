@@ -122,6 +122,11 @@ pub fn arrays_trace(
             y.len()
         )));
     }
+    if u.len() < 2 {
+        return Err(PyValueError::new_err(
+            "a trace needs at least 2 samples (one time step)",
+        ));
+    }
     Ok(mckibben::data::Trace::uniform(
         source,
         sample_time(dt)?,

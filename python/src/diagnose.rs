@@ -10,7 +10,7 @@ use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
 
-use crate::args::{effects_arg, family_or_start, model_arg, seed_arg};
+use crate::args::{at_least, effects_arg, family_or_start, model_arg, seed_arg};
 use crate::convert::{backend, to_python, value_error};
 use crate::data::{Trace, arrays_trace};
 use crate::interrupt::interruptible;
@@ -103,26 +103,27 @@ pub fn diagnose<'py>(
     baseline: Option<&str>,
     effects: Option<Vec<String>>,
     seed: i128,
-    seeds: Option<usize>,
-    generations: Option<usize>,
-    scratch_seeds: Option<usize>,
+    seeds: Option<i64>,
+    generations: Option<i64>,
+    scratch_seeds: Option<i64>,
     backend: &str,
-    max_effects: Option<usize>,
+    max_effects: Option<i64>,
     start: Option<&Bound<'py, PyAny>>,
-    blocks: Option<usize>,
+    blocks: Option<i64>,
     transfer: Option<&Bound<'py, PyAny>>,
-    repeat: usize,
+    repeat: i64,
 ) -> PyResult<Diagnosis> {
     let traces = traces(datasets)?;
     let others = transfer.map(self::traces).transpose()?.unwrap_or_default();
-    if repeat == 0 {
-        return Err(PyValueError::new_err("repeat must be at least 1"));
-    }
-    if blocks.is_some_and(|b| b < 2) {
-        return Err(PyValueError::new_err(
-            "blocks must be at least 2 (one selection and one test block)",
-        ));
-    }
+    let defaults = Settings::default();
+    let repeat = at_least(Some(repeat), 1, 1, "repeat")?;
+    let blocks = blocks
+        .map(|b| at_least(Some(b), 2, 2, "blocks"))
+        .transpose()?;
+    let seeds = at_least(seeds, defaults.seeds, 1, "seeds")?;
+    let generations = at_least(generations, defaults.generations, 1, "generations")?;
+    let scratch_seeds = at_least(scratch_seeds, defaults.scratch_seeds, 0, "scratch_seeds")?;
+    let max_effects = at_least(max_effects, defaults.max_effects, 0, "max_effects")?;
     let start = start
         .map(|s| model_arg(s, "start"))
         .transpose()?
@@ -134,16 +135,11 @@ pub fn diagnose<'py>(
         Some(e) if !e.is_empty() => e,
         _ => Effect::by_default(),
     };
-    let defaults = Settings::default();
-    let seeds = seeds.unwrap_or(defaults.seeds);
-    if seeds == 0 {
-        return Err(PyValueError::new_err("seeds must be at least 1"));
-    }
     let settings = Settings {
         seeds,
-        generations: generations.unwrap_or(defaults.generations),
-        scratch_seeds: scratch_seeds.unwrap_or(defaults.scratch_seeds),
-        max_effects: max_effects.unwrap_or(defaults.max_effects),
+        generations,
+        scratch_seeds,
+        max_effects,
         seed: seed_arg(seed)?,
         backend: self::backend(backend)?,
         blocks,

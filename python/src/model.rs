@@ -71,7 +71,9 @@ impl Model {
 
     /// The free-run output on the input `u` (absolute units, one value per
     /// sample), from the output `x0` at the first sample (default: at rest
-    /// at the first input, as `simulate --input stair` starts). A run that leaves the
+    /// at the first input, as `simulate --input stair` starts). `u` may be a
+    /// `Trace`: then its input, from its first measured output unless `x0`
+    /// is given, as `simulate --from` runs a CSV. A run that leaves the
     /// model's range warns and goes on (the values after it mean nothing).
     #[pyo3(signature = (u, x0 = None))]
     fn simulate<'py>(
@@ -80,7 +82,13 @@ impl Model {
         u: &Bound<'py, PyAny>,
         x0: Option<f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let input = series(u, "u")?;
+        let (input, x0) = match u.cast::<crate::data::Trace>() {
+            Ok(trace) => {
+                let trace = &trace.borrow().inner;
+                (trace.input.clone(), x0.or(trace.output.first().copied()))
+            }
+            Err(_) => (series(u, "u")?, x0),
+        };
         if let Some(v) = x0.filter(|v| !v.is_finite()) {
             return Err(pyo3::exceptions::PyValueError::new_err(format!(
                 "x0 must be a finite number, got {v}"

@@ -96,6 +96,10 @@ def test_diagnose_rejects_bad_arguments(stair):
         mckibben.diagnose(3)
     with pytest.raises(ValueError, match="seeds must be at least 1"):
         mckibben.diagnose(stair, seeds=0)
+    # A negative count is a ValueError naming it, not an OverflowError.
+    for name in ["seeds", "generations", "scratch_seeds", "max_effects", "repeat"]:
+        with pytest.raises(ValueError, match=f"^{name} must be at least"):
+            mckibben.diagnose(stair, **{name: -1})
 
 
 def test_diagnose_from_a_model_is_the_commands_diagnose_from(stair, cli, tmp_path):

@@ -235,12 +235,16 @@ def test_another_thread_runs_during_a_fit(stair):
         ({"bounds": {"alpah": (0.0, 1.0)}}, ValueError, "no parameter `alpah`"),
         ({"bounds": {"alpha": (0.9, 0.1)}}, ValueError, "the box is empty"),
         ({"bounds": {"alpha": "x"}}, TypeError, "a \\(lo, hi\\) pair"),
+        # A bool is not a number to fix a parameter at.
+        ({"bounds": {"alpha": True}}, TypeError, "a \\(lo, hi\\) pair"),
         ({"model": "classical"}, ValueError, "unknown model family"),
         ({"algo": "cmaes"}, ValueError, "unknown algorithm"),
         ({"backend": "tpu"}, ValueError, "unknown backend `tpu`"),
         ({"pop": 0}, ValueError, "pop must be at least 1"),
         # The library's messages name the argument, not the command's flag.
         ({"time_budget": -1}, ValueError, "^`time_budget` must be at least 0 seconds"),
+        ({"target_sse": float("nan")}, ValueError, "^`target_sse` must be a finite SSE"),
+        ({"target_sse": -1.0}, ValueError, "^`target_sse` must be a finite SSE"),
         ({"effects": ["creep", "creep"]}, ValueError, ": `effects` names `creep` twice"),
         ({"seed": -1}, ValueError, "seed must be an integer"),
         ({"progress": 3}, TypeError, "progress must be callable"),
@@ -268,6 +272,9 @@ def test_bad_data_raise_value_errors(stair):
 def test_a_fixed_parameter_stays_fixed(stair):
     result = mckibben.fit(stair, pop=40, gens=5, bounds={"alpha": 0.5})
     assert result.params["alpha"] == 0.5
+    # A box may be any pair of numbers: a tuple, a list or an array.
+    boxed = mckibben.fit(stair, pop=40, gens=5, bounds={"alpha": np.array([0.4, 0.6])})
+    assert 0.4 <= boxed.params["alpha"] <= 0.6
 
 
 def test_ctrl_c_while_the_chain_is_built_raises(stair, sigint_raises):

@@ -38,6 +38,8 @@ def test_simulate_takes_any_layout_and_starts_where_asked(small_fit, stair):
     # x0 is the measured output at the first sample; the model starts at it
     # plus its start offset, the parameter x0.
     assert y[0] == pytest.approx(stair.output[0] + model.params["x0"], abs=1e-4)
+    # A Trace runs from its first measured output, as the command runs a CSV.
+    assert np.array_equal(model.simulate(stair), y)
     strided = np.repeat(stair.input, 2)[::2]
     assert np.array_equal(model.simulate(list(strided), x0=stair.output[0]), y)
     assert model.simulate([0.1, 0.2, 0.3]).shape == (3,)
@@ -49,6 +51,11 @@ def test_simulate_takes_any_layout_and_starts_where_asked(small_fit, stair):
         model.simulate(stair.input, x0=float("nan"))
     with pytest.raises(ValueError, match="u is empty"):
         model.simulate([])
+    # A number is not a series of one sample.
+    with pytest.raises(ValueError, match="a single number"):
+        model.simulate(0.3)
+    with pytest.raises(ValueError, match="at least 2 samples"):
+        mckibben.Trace([0.3], [1.0], 0.01)
 
 
 @pytest.fixture(scope="module")
