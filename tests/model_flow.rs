@@ -54,6 +54,14 @@ fn simulated_stair(model: &Path) -> Value {
     ])
 }
 
+/// A fit of 20 candidates for 2 generations of `data` (a file and its
+/// column flags) into `out`: a model to check names and units with.
+fn quick_fit(data: &[&str], out: &Path) {
+    let size = ["--pop", "20", "--gens", "2", "--backend", "cpu", "--json"];
+    let out = ["--out", out.to_str().unwrap()];
+    let _ = json_of(&[&["fit"][..], data, &size, &out].concat());
+}
+
 fn model_in(dir: &Path, name: &str) -> Value {
     serde_json::from_slice(&std::fs::read(dir.join(name)).unwrap()).unwrap()
 }
@@ -356,19 +364,7 @@ fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
     // write no model: 20 find one.)
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("model");
-    let _ = json_of(&[
-        "fit",
-        STAIR,
-        "--pop",
-        "20",
-        "--gens",
-        "2",
-        "--backend",
-        "cpu",
-        "--json",
-        "--out",
-        model.to_str().unwrap(),
-    ]);
+    quick_fit(&[STAIR], &model);
     let csv = dir.path().join("kpa.csv");
     let rows: String = (0..50)
         .map(|k| format!("{},{},{}\n", k as f64 * 0.01, 100.0 + k as f64, 1.0))
@@ -403,21 +399,7 @@ fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
         .collect();
     std::fs::write(&unnamed, renamed.join("\n") + "\n").unwrap();
     let p_model = dir.path().join("p_model");
-    let _ = json_of(&[
-        "fit",
-        unnamed.to_str().unwrap(),
-        "--input",
-        "p",
-        "--pop",
-        "20",
-        "--gens",
-        "2",
-        "--backend",
-        "cpu",
-        "--json",
-        "--out",
-        p_model.to_str().unwrap(),
-    ]);
+    quick_fit(&[unnamed.to_str().unwrap(), "--input", "p"], &p_model);
     let out = mckibben(&[
         "control",
         "--controller",

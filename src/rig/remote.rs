@@ -654,14 +654,20 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_command_outside_0_to_10_volts_never_reaches_the_rig() {
-        let settings = RemoteSettings {
+    /// A deadline no test machine misses, three misses or implausible
+    /// measurements in a row allowed, the twin's ranges.
+    fn patient() -> RemoteSettings {
+        RemoteSettings {
             deadline: Duration::from_secs(5),
             max_missing: 3,
             limits: Limits::of_twin(&crate::twin::TwinConfig::default()),
             max_implausible: 3,
-        };
+        }
+    }
+
+    #[test]
+    fn a_command_outside_0_to_10_volts_never_reaches_the_rig() {
+        let settings = patient();
         let episode = Episode::short(3.0, 0.1, 0.1, 0.05);
         for bad in [f64::NAN, f64::INFINITY, 12.0, -0.5, 10.000001] {
             let mut rig = EchoRig { sent: Vec::new() };
@@ -714,12 +720,7 @@ mod tests {
 
     #[test]
     fn ctrl_c_ends_the_run_with_the_valve_closed() {
-        let settings = RemoteSettings {
-            deadline: Duration::from_secs(5),
-            max_missing: 3,
-            limits: Limits::of_twin(&crate::twin::TwinConfig::default()),
-            max_implausible: 3,
-        };
+        let settings = patient();
         let episode = Episode::short(3.0, 0.1, 0.1, 0.05);
         let flag = AtomicBool::new(false);
         let mut rig = EchoRig { sent: Vec::new() };
