@@ -543,6 +543,27 @@ fn bounds_a_user_sets_hold_and_bad_ones_are_clear_errors() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(needle), "{extra:?}: {err}");
     }
+    // alpha is a share: a box past [0, 1] runs, and the command says what
+    // it leaves; one inside says nothing of it.
+    for (fix, noted) in [("alpha=2", true), ("alpha=0.45", false)] {
+        let args = [
+            "fit",
+            &csv,
+            "--pop",
+            "20",
+            "--gens",
+            "2",
+            "--backend",
+            "cpu",
+        ];
+        let out = mckibben(
+            &[&args[..], &["--out", "alphadir", "--fix", fix]].concat(),
+            dir.path(),
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{fix}: {err}");
+        assert_eq!(err.contains("reaches past [0, 1]"), noted, "{fix}: {err}");
+    }
 }
 
 /// The report says what a single try cannot tell, and counts the tries

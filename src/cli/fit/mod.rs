@@ -84,6 +84,22 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         return run_auto(&args, family, &trace);
     }
     let request = args.request()?;
+    // α is a share (eq. 13: α of the restoring force elastic, 1 − α
+    // hysteretic); a box past [0, 1] is the user's to ask for, and the
+    // command says what it leaves.
+    for b in request.bounds.iter().filter(|b| b.name == "alpha") {
+        if !args.json && (b.lower < 0.0 || b.upper > 1.0) {
+            let given = match b.lower == b.upper {
+                true => format!("alpha = {}", b.lower),
+                false => format!("alpha in [{}, {}]", b.lower, b.upper),
+            };
+            eprintln!(
+                "mckibben: note: {given} reaches past [0, 1]: alpha is the elastic share of the \
+                 restoring force (eq. 13), and past it one part enters with the opposite sign \
+                 (above 1 the hysteretic, below 0 the elastic)"
+            );
+        }
+    }
     let flag = if carried.is_some() {
         "--carry"
     } else {
