@@ -54,6 +54,30 @@ fn simulated_stair(model: &Path) -> Value {
     ])
 }
 
+/// `control --from model`, the MPC alone at `freq` rad/s and 4.5 kg, over
+/// a short episode (1 s of warm-up, 2 s scored from 1 s): enough to hear
+/// what it says of the model.
+fn short_mpc(model: &Path, freq: &str) -> Output {
+    let from = [
+        "control",
+        "--from",
+        model.to_str().unwrap(),
+        "--controller",
+        "mpc",
+    ];
+    let run = [
+        "--freq",
+        freq,
+        "--load",
+        "4.5",
+        "--warmup",
+        "1",
+        "--duration",
+        "2",
+    ];
+    mckibben(&[&from[..], &run, &["--steady-from", "1"]].concat())
+}
+
 /// A fit of 20 candidates for 2 generations of `data` (a file and its
 /// column flags) into `out`: a model to check names and units with.
 fn quick_fit(data: &[&str], out: &Path) {
@@ -136,23 +160,7 @@ fn the_diagnosed_model_simulates_to_its_reported_fit_and_warm_starts_a_fit() {
 
     // control --from runs with it and says how its controllers used each
     // effect, or that one was left out and why.
-    let control = mckibben(&[
-        "control",
-        "--from",
-        d.join("model.json").to_str().unwrap(),
-        "--controller",
-        "mpc",
-        "--freq",
-        "2",
-        "--load",
-        "4.5",
-        "--warmup",
-        "1",
-        "--duration",
-        "2",
-        "--steady-from",
-        "1",
-    ]);
+    let control = short_mpc(&d.join("model.json"), "2");
     let said = String::from_utf8_lossy(&control.stderr);
     assert!(control.status.success(), "{said}");
     for effect in final_effects.as_array().unwrap() {
@@ -400,23 +408,7 @@ fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
     std::fs::write(&unnamed, renamed.join("\n") + "\n").unwrap();
     let p_model = dir.path().join("p_model");
     quick_fit(&[unnamed.to_str().unwrap(), "--input", "p"], &p_model);
-    let out = mckibben(&[
-        "control",
-        "--controller",
-        "mpc",
-        "--from",
-        p_model.join("model.json").to_str().unwrap(),
-        "--freq",
-        "1",
-        "--load",
-        "4.5",
-        "--warmup",
-        "1",
-        "--duration",
-        "2",
-        "--steady-from",
-        "1",
-    ]);
+    let out = short_mpc(&p_model.join("model.json"), "1");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         err.contains("input column `p` states no unit; it is taken in MPa"),

@@ -633,13 +633,16 @@ mod tests {
         }
     }
 
-    /// A controller with a bug: from its third command on it answers `bad`.
-    struct Faulty {
+    /// A controller that answers 5 V, and from its third command on `bad`
+    /// (a bug, where `bad` is no valve command), raising `interrupt` then
+    /// (Ctrl-C) where it has one.
+    struct Faulty<'a> {
         bad: f64,
         calls: usize,
+        interrupt: Option<&'a AtomicBool>,
     }
 
-    impl Controller for Faulty {
+    impl Controller for Faulty<'_> {
         fn name(&self) -> &str {
             "faulty"
         }
@@ -650,7 +653,13 @@ mod tests {
 
         fn command(&mut self, _: Measurement, _: &[f64]) -> f64 {
             self.calls += 1;
-            if self.calls >= 3 { self.bad } else { 5.0 }
+            if self.calls < 3 {
+                return 5.0;
+            }
+            if let Some(flag) = self.interrupt {
+                flag.store(true, Ordering::SeqCst);
+            }
+            self.bad
         }
     }
 
@@ -671,7 +680,11 @@ mod tests {
         let episode = Episode::short(3.0, 0.1, 0.1, 0.05);
         for bad in [f64::NAN, f64::INFINITY, 12.0, -0.5, 10.000001] {
             let mut rig = EchoRig { sent: Vec::new() };
-            let mut c = Faulty { bad, calls: 0 };
+            let mut c = Faulty {
+                bad,
+                calls: 0,
+                interrupt: None,
+            };
             let out = run_remote(
                 &mut rig,
                 0.01,
@@ -694,39 +707,16 @@ mod tests {
         }
     }
 
-    /// A controller that raises Ctrl-C's flag at its third command.
-    struct Interrupting<'a> {
-        flag: &'a AtomicBool,
-        calls: usize,
-    }
-
-    impl Controller for Interrupting<'_> {
-        fn name(&self) -> &str {
-            "interrupting"
-        }
-
-        fn reset(&mut self, _: f64) {
-            self.calls = 0;
-        }
-
-        fn command(&mut self, _: Measurement, _: &[f64]) -> f64 {
-            self.calls += 1;
-            if self.calls == 3 {
-                self.flag.store(true, Ordering::SeqCst);
-            }
-            5.0
-        }
-    }
-
     #[test]
     fn ctrl_c_ends_the_run_with_the_valve_closed() {
         let settings = patient();
         let episode = Episode::short(3.0, 0.1, 0.1, 0.05);
         let flag = AtomicBool::new(false);
         let mut rig = EchoRig { sent: Vec::new() };
-        let mut c = Interrupting {
-            flag: &flag,
+        let mut c = Faulty {
+            bad: 5.0,
             calls: 0,
+            interrupt: Some(&flag),
         };
         let out = run_remote(
             &mut rig,
