@@ -293,4 +293,22 @@ fn link_flags_without_a_rig_are_refused() {
         err.contains("--deadline, --log hold(s) a run on a rig"),
         "{err}"
     );
+    // The rig's guards too, though each has a default: given, they are
+    // named; left out, the twin runs (every other test here).
+    let out = control(&[
+        "--controller",
+        "pi",
+        "--max-missing",
+        "5",
+        "--max-speed",
+        "200",
+        "--max-implausible",
+        "2",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("--max-missing, --max-speed, --max-implausible hold(s) a run on a rig"),
+        "{err}"
+    );
 }

@@ -19,6 +19,14 @@ use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
 use mckibben::twin::TwinConfig;
 
+/// Missing measurements in a row that end a run on a rig, unless
+/// `--max-missing` says otherwise: a tenth of a second of silence at the
+/// rig's 10 ms.
+const MAX_MISSING: usize = 10;
+/// Implausible measurements in a row that end a run on a rig, unless
+/// `--max-implausible` says otherwise.
+const MAX_IMPLAUSIBLE: usize = 3;
+
 /// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
 /// closing the loop on the input valve voltage (0–10 V, slew 0.25 V per
 /// sample; the output valve at 10 − u), and report the steady-state RMS and
@@ -129,9 +137,10 @@ pub struct Args {
     /// rig's sample time, i.e. one sample plus jitter; 15 ms at 10 ms].
     #[arg(long, value_name = "MS")]
     deadline: Option<f64>,
-    /// Missing measurements in a row after which the run stops (valve closed).
-    #[arg(long, default_value_t = 10)]
-    max_missing: usize,
+    /// Missing measurements in a row after which the run on a rig stops
+    /// (valve closed) [default: 10].
+    #[arg(long, value_name = "COUNT")]
+    max_missing: Option<usize>,
     /// Pressures (MPa, gauge) the rig's sensor can read; a measurement
     /// outside is implausible [default: the ranges the rig announces in
     /// READY, else the twin's, -0.04,0.44].
@@ -151,15 +160,15 @@ pub struct Args {
         allow_hyphen_values = true
     )]
     displacement_range: Option<Vec<f64>>,
-    /// Fastest the displacement can change (mm/s); a larger jump since the
-    /// last plausible sample is implausible (the twin's load moves at most
-    /// about 105 mm/s).
-    #[arg(long, value_name = "MM_S", default_value_t = Limits::DEFAULT_MAX_SPEED_MM_S)]
-    max_speed: f64,
-    /// Implausible measurements in a row after which the run stops (valve
-    /// closed).
-    #[arg(long, default_value_t = 3)]
-    max_implausible: usize,
+    /// Fastest the rig's displacement can change (mm/s); a larger jump
+    /// since the last plausible sample is implausible [default: 500; the
+    /// twin's load moves at most about 105 mm/s].
+    #[arg(long, value_name = "MM_S")]
+    max_speed: Option<f64>,
+    /// Implausible measurements in a row after which the run on a rig stops
+    /// (valve closed) [default: 3].
+    #[arg(long, value_name = "COUNT")]
+    max_implausible: Option<usize>,
     /// Write each external run's log into this folder as it goes.
     #[arg(long, value_name = "DIR")]
     log: Option<PathBuf>,
@@ -231,16 +240,20 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
             "--deadline must be a positive number of milliseconds (got {ms})"
         );
     }
-    anyhow::ensure!(args.max_missing >= 1, "--max-missing must be at least 1");
     anyhow::ensure!(
-        args.max_implausible >= 1,
+        args.max_missing.is_none_or(|n| n >= 1),
+        "--max-missing must be at least 1"
+    );
+    anyhow::ensure!(
+        args.max_implausible.is_none_or(|n| n >= 1),
         "--max-implausible must be at least 1"
     );
-    anyhow::ensure!(
-        args.max_speed > 0.0 && args.max_speed.is_finite(),
-        "--max-speed must be a positive number of mm/s (got {})",
-        args.max_speed
-    );
+    if let Some(speed) = args.max_speed {
+        anyhow::ensure!(
+            speed > 0.0 && speed.is_finite(),
+            "--max-speed must be a positive number of mm/s (got {speed})"
+        );
+    }
     for (flag, r) in [
         ("--pressure-range", &args.pressure_range),
         ("--displacement-range", &args.displacement_range),
@@ -277,6 +290,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ("--deadline", args.deadline.is_some()),
             ("--pressure-range", args.pressure_range.is_some()),
             ("--displacement-range", args.displacement_range.is_some()),
+            ("--max-missing", args.max_missing.is_some()),
+            ("--max-speed", args.max_speed.is_some()),
+            ("--max-implausible", args.max_implausible.is_some()),
             ("--log", args.log.is_some()),
         ]
         .into_iter()
@@ -373,11 +389,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 plant: args.plant.clone(),
                 endpoint,
                 deadline_ms: args.deadline,
-                max_missing: args.max_missing,
+                max_missing: args.max_missing.unwrap_or(MAX_MISSING),
                 pressure_range: pair(&args.pressure_range),
                 displacement_range: pair(&args.displacement_range),
-                max_speed_mm_s: args.max_speed,
-                max_implausible: args.max_implausible,
+                max_speed_mm_s: args.max_speed.unwrap_or(Limits::DEFAULT_MAX_SPEED_MM_S),
+                max_implausible: args.max_implausible.unwrap_or(MAX_IMPLAUSIBLE),
                 log_dir: args.log.clone(),
                 interrupt: Arc::new(AtomicBool::new(false)),
             };
