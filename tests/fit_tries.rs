@@ -205,3 +205,36 @@ fn cpu_and_gpu_backends_give_the_same_tries() {
         );
     }
 }
+
+/// A larger cap on the refining rounds only adds rounds: a try that stopped
+/// refining on the gain rule within the smaller cap ends bit for bit as
+/// under it (the level rounds draw the same numbers whatever the cap), and
+/// a try the smaller cap cut short says by how much its last round still
+/// gained.
+#[test]
+fn a_larger_refining_cap_only_adds_rounds() {
+    let problem = problem();
+    let mut cpu = CpuEvaluator::new();
+    let capped = |rounds: usize| {
+        let mut p = plan(&problem, 6);
+        p.refine.as_mut().unwrap().rounds = rounds;
+        p
+    };
+    let (_, small) = run(&problem, capped(1), &mut cpu);
+    let (_, large) = run(&problem, capped(6), &mut cpu);
+    let gain = plan(&problem, 1).refine.unwrap().gain;
+    let (mut stopped, mut cut) = (0, 0);
+    for (t, (s, l)) in small.tries.iter().zip(&large.tries).enumerate() {
+        match s.cut_gain {
+            None => {
+                stopped += 1;
+                assert_eq!(s, l, "try {t} stopped refining within the smaller cap");
+            }
+            Some(g) => {
+                cut += 1;
+                assert!(g > gain, "try {t}: a cut try's last round gained {g}");
+            }
+        }
+    }
+    assert!(stopped > 0 && cut > 0, "{stopped} stopped, {cut} cut");
+}

@@ -137,6 +137,7 @@ mod tests {
                 Vec::new()
             },
             sse,
+            cut_gain: None,
         }
     }
 

@@ -139,6 +139,7 @@ pub fn refit_off_edges(
         end: TryEnd {
             params: Vec::new(),
             sse: f64::INFINITY,
+            cut_gain: None,
         },
         widenings: Vec::new(),
         evaluations: 0,
@@ -187,6 +188,7 @@ pub fn refit_off_edges(
             end = TryEnd {
                 params: next.params,
                 sse: next.sse,
+                cut_gain: next.tries.first().and_then(|t| t.cut_gain),
             };
         }
         refit.widenings.push(Widening {
@@ -274,6 +276,7 @@ mod tests {
         let end = |o: &Outcome| TryEnd {
             params: o.params.clone(),
             sse: o.sse,
+            cut_gain: None,
         };
         let stop = StopReason::Completed;
         let after = refit_off_edges(
@@ -309,6 +312,7 @@ mod tests {
         let inside = TryEnd {
             params: near.space.to_native(&z),
             sse: near.est_sse(&near.space.to_native(&z)),
+            cut_gain: None,
         };
         let bound = active_bounds(&near, &inside.params);
         let gain = bound
@@ -340,6 +344,7 @@ mod tests {
         let on_user = TryEnd {
             params: problem.space.to_native(&z),
             sse: after.end.sse,
+            cut_gain: None,
         };
         let none = refit_off_edges(
             &mut user,

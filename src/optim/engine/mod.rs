@@ -257,6 +257,11 @@ pub struct TryEnd {
     pub params: Vec<f64>,
     #[serde(with = "super::inf_serde::one_f64")]
     pub sse: f64,
+    /// Where the plan's refining rounds ran out while this try's last
+    /// round still lowered its SSE by more than [`Refine::gain`]: that
+    /// round's share. More rounds would have gone on.
+    #[serde(default)]
+    pub cut_gain: Option<f64>,
 }
 
 /// Sees every record as it is made (progress bars, logs).
@@ -511,6 +516,7 @@ impl<C: Chart> Engine<C> {
         {
             stages.push(self.summary(stage, StageEnd::CutShort));
         }
+        let finished = stop == StopReason::Completed;
         Ok(Outcome {
             params: best.as_ref().map_or(Vec::new(), |b| b.params.clone()),
             sse: best.as_ref().map_or(f64::INFINITY, |b| b.cost),
@@ -525,6 +531,10 @@ impl<C: Chart> Engine<C> {
                 .map(|t| TryEnd {
                     params: t.best.as_ref().map_or(Vec::new(), |b| b.params.clone()),
                     sse: t.best.as_ref().map_or(f64::INFINITY, |b| b.cost),
+                    // Still refining once every step ran: the cap ended it.
+                    cut_gain: t
+                        .round_gain
+                        .filter(|_| t.refining && self.plan.refine.is_some() && finished),
                 })
                 .collect(),
         })

@@ -71,13 +71,21 @@ pub struct Refine {
     pub population: usize,
     /// Generations a round: populations evaluated, the cloud included.
     pub generations: usize,
-    /// Rounds at most.
+    /// Rounds at most (`fit --refine-rounds`): a try still gaining when
+    /// they run out is reported ([`super::TryEnd::cut_gain`]).
     pub rounds: usize,
     /// A try stops refining after a round that lowers its SSE by less than
     /// this share.
     pub gain: f64,
     /// Members polished after each round.
     pub starts: usize,
+}
+
+impl Refine {
+    /// The default cap on the rounds. The level rounds draw their streams
+    /// after this many rounds' whatever the cap, so that a larger cap only
+    /// adds rounds (population.rs, `stream_generation`).
+    pub const DEFAULT_ROUNDS: usize = 4;
 }
 
 impl Default for Refine {
@@ -90,7 +98,7 @@ impl Default for Refine {
         Refine {
             population: 200,
             generations: 300,
-            rounds: 4,
+            rounds: Refine::DEFAULT_ROUNDS,
             gain: 1e-3,
             starts: 4,
         }

@@ -5,7 +5,7 @@
 use std::ops::Range;
 
 use super::{
-    Chart, Engine, FreeRun, Members, Objective, Stage, StageEnd, Step, Ticket, keep_lowest,
+    Chart, Engine, FreeRun, Members, Objective, Refine, Stage, StageEnd, Step, Ticket, keep_lowest,
     sanitized, timed,
 };
 use crate::search::{Coords, Measure, Params, Population, Rows};
@@ -70,13 +70,23 @@ impl<C: Chart> Engine<C> {
 
     /// The generation of the streams of `step`'s `k`-th population: a
     /// refining round's count on from the rounds before it, so that no two
-    /// rounds draw the same numbers.
+    /// rounds draw the same numbers. Each round draws from a slot of its
+    /// own: the first [`Refine::DEFAULT_ROUNDS`] rounds, then the level
+    /// rounds, then the rounds a larger cap adds, so that raising the cap
+    /// moves no draw of the rounds a smaller one runs (a try that stops
+    /// refining within the default's rounds ends bit for bit as with it).
     fn stream_generation(&self, step: Step, k: usize) -> usize {
-        match (step, &self.plan.refine) {
-            (Step::Refine(r), Some(refine)) => r * (refine.generations + 1) + k,
-            (Step::Level(l), Some(refine)) => (refine.rounds + l) * (refine.generations + 1) + k,
-            _ => k,
-        }
+        let Some(refine) = &self.plan.refine else {
+            return k;
+        };
+        let first = Refine::DEFAULT_ROUNDS;
+        let slot = match step {
+            Step::Refine(r) if r < first => r,
+            Step::Refine(r) => r + self.levels().len(),
+            Step::Level(l) => first + l,
+            _ => return k,
+        };
+        slot * (refine.generations + 1) + k
     }
 
     /// The islands of try `t` for a population step: the global stage's
@@ -626,6 +636,7 @@ impl<C: Chart> Engine<C> {
             // A gain of NaN (no finite best) is no gain either.
             let gained = tr.before_round - now > gain * tr.before_round;
             tr.refining &= gained;
+            tr.round_gain = Some((tr.before_round - now) / tr.before_round);
             tr.before_round = f64::INFINITY;
         }
     }

@@ -115,6 +115,9 @@ pub(super) struct Try {
     pub(super) before_round: f64,
     /// Whether it still refines: false once a round gained too little.
     pub(super) refining: bool,
+    /// The share of its SSE its last refining round took off.
+    #[serde(default)]
+    pub(super) round_gain: Option<f64>,
 }
 
 impl Try {
@@ -131,6 +134,7 @@ impl Try {
             best: None,
             before_round: f64::INFINITY,
             refining: true,
+            round_gain: None,
         }
     }
 }
