@@ -134,6 +134,7 @@ class FitResult:
     tries: int
     try_population: int
     agreement: dict[str, Any] | None
+    refining: dict[str, Any] | None
     stop: Literal["completed", "target-sse", "time-budget", "interrupted"]
     interrupted: bool
     stages: list[dict[str, Any]]
@@ -165,6 +166,7 @@ def fit(
     stall: int | None = None,
     start: Model | _Path | None = None,
     carry: Model | _Path | None = None,
+    refine_rounds: int | None = None,
 ) -> FitResult: ...
 
 @final

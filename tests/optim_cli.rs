@@ -592,6 +592,51 @@ fn the_report_says_whether_its_tries_agree_or_that_one_cannot_tell() {
     assert!(!thesis.contains("tries:"), "{thesis}");
 }
 
+/// A generalized fit whose last allowed refining round still gained says
+/// so, with the flag that lets it go on; the classic family, which is not
+/// refined, refuses the flag.
+#[test]
+fn a_refinement_cut_short_by_its_cap_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let stair = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+    let fit = |extra: &[&str]| {
+        let mut args = vec!["fit", stair, "--model", "generalized", "--gens", "20"];
+        args.extend_from_slice(extra);
+        mckibben(&args, dir.path())
+    };
+    // One round: on this record the first round takes several per cent off.
+    let out = fit(&["--refine-rounds", "1", "--json"]);
+    let report = json(&out);
+    let refining = &report["refining"];
+    assert_eq!(refining["rounds"], 1, "{refining}");
+    assert_eq!(refining["cut_tries"], 1, "{refining}");
+    let gain = refining["largest_last_gain"].as_f64().unwrap();
+    assert!(gain > 1e-3, "{refining}");
+    let out = fit(&["--refine-rounds", "1"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("refining ran out of rounds: after 1 round the fit still lowered")
+            && err.contains("--refine-rounds 4 lets it go on"),
+        "{err}"
+    );
+    // No rounds: nothing to cut short.
+    let none = json(&fit(&["--refine-rounds", "0", "--json"]));
+    assert_eq!(none["refining"]["cut_tries"], 0, "{}", none["refining"]);
+    assert!(none["refining"]["largest_last_gain"].is_null());
+    let classic = mckibben(&["fit", stair, "--refine-rounds", "8"], dir.path());
+    let err = String::from_utf8_lossy(&classic.stderr);
+    assert!(!classic.status.success());
+    assert!(
+        err.contains("--refine-rounds: only a generalized fit is refined"),
+        "{err}"
+    );
+    let report = json(&mckibben(
+        &["fit", stair, "--gens", "5", "--json"],
+        dir.path(),
+    ));
+    assert!(report["refining"].is_null(), "{}", report["refining"]);
+}
+
 /// A record in metres: the report writes every parameter, the SSE and the
 /// RMSE with their digits (at six decimals `b` read `0.000005`, at four
 /// the RMSE `0.0013`), each within its last digit of `result.json`'s.

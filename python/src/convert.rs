@@ -309,6 +309,7 @@ fn keyword_of(flag: &str) -> Option<String> {
         "max-effects",
         "baseline",
         "model",
+        "refine-rounds",
     ];
     let keyword = match flag {
         "from" => "start",

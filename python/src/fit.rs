@@ -21,7 +21,7 @@ use mckibben::fit::settings::{FitSettings, Overrides};
 use mckibben::optim::engine::{Observer, Outcome, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 
-use crate::args::{count, effects_arg, model_arg, seed_arg, user_bounds};
+use crate::args::{at_least, count, effects_arg, model_arg, seed_arg, user_bounds};
 use crate::convert::{
     algorithm, backend, family, in_python_terms, loop_shape, runtime_error, switching, to_python,
     value_error,
@@ -69,6 +69,10 @@ pub struct FitResult {
     /// `agreeing`, `other_basins`, `diverged`, `threshold`); `None` for a
     /// single try. Few of many agreeing: run a larger population.
     agreement: Option<Py<PyAny>>,
+    /// A generalized fit's refining rounds, `fit --json`'s `refining`
+    /// (`rounds`, `cut_tries`, `largest_last_gain`); `None` for a family
+    /// that is not refined.
+    refining: Option<Py<PyAny>>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -175,7 +179,8 @@ fn unbound(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>>
     u, y = None, dt = None, model = None, effects = None, algo = "de", pop = None,
     gens = None, seed = 1, backend = "cpu", bounds = None, progress = None, *,
     free_n = false, r#loop = "bounded", switch = "search", thesis_flow = false,
-    target_sse = None, time_budget = None, stall = None, start = None, carry = None
+    target_sse = None, time_budget = None, stall = None, start = None, carry = None,
+    refine_rounds = None
 ))]
 #[allow(clippy::too_many_arguments)]
 pub fn fit(
@@ -201,6 +206,7 @@ pub fn fit(
     stall: Option<i64>,
     start: Option<&Bound<'_, PyAny>>,
     carry: Option<&Bound<'_, PyAny>>,
+    refine_rounds: Option<i64>,
 ) -> PyResult<FitResult> {
     let trace = data_arg(u, y, dt)?;
     // As `fit --from`: the start's family, effects and bounds unless given
@@ -253,6 +259,9 @@ pub fn fit(
         thesis_flow,
         islands: None,
         horizon: None,
+        refine_rounds: refine_rounds
+            .map(|r| at_least(Some(r), 0, 0, "refine_rounds"))
+            .transpose()?,
         overrides: Overrides::default(),
         stops: StopRules {
             target_sse,
@@ -367,6 +376,9 @@ fn warn_of_report(
     if let Some(advice) = report.agreement.as_ref().and_then(|a| a.advice()) {
         warn.call_method1("warn", (in_python_terms(&advice),))?;
     }
+    if let Some(advice) = report.refining.and_then(|r| r.advice(report.tries)) {
+        warn.call_method1("warn", (in_python_terms(&advice),))?;
+    }
     Ok(())
 }
 
@@ -421,6 +433,7 @@ fn fit_result(
             .as_ref()
             .map(|a| unbound(py, a))
             .transpose()?,
+        refining: report.refining.map(|r| unbound(py, &r)).transpose()?,
         evaluations: report.evaluations,
         generations: report.generations,
         seconds: report.seconds,

@@ -119,6 +119,21 @@ def test_a_larger_population_runs_tries_as_the_command(stair, cli, tmp_path):
     assert result.sse <= one.sse
 
 
+def test_a_refinement_cut_short_is_the_commands_and_warns(stair, cli, tmp_path):
+    small = ["--pop", "40", "--gens", "20", "--seed", "3", "--backend", "cpu", "--model", "generalized"]
+    expected = cli("fit", stair.source, *small, "--refine-rounds", "1", "--out", tmp_path)
+    with pytest.warns(UserWarning, match="refining ran out of rounds.*refine_rounds=4 lets it go on"):
+        result = mckibben.fit(stair, model="generalized", pop=40, gens=20, seed=3, refine_rounds=1)
+    assert result.refining == expected["refining"]
+    assert result.refining["rounds"] == result.refining["cut_tries"] == 1
+    assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
+    assert mckibben.fit(stair, pop=40, gens=2).refining is None
+    with pytest.raises(ValueError, match="only a generalized fit is refined"):
+        mckibben.fit(stair, pop=40, gens=2, refine_rounds=2)
+    with pytest.raises(ValueError, match="refine_rounds must be at least 0, got -1"):
+        mckibben.fit(stair, model="generalized", pop=40, gens=2, refine_rounds=-1)
+
+
 def test_a_warm_start_is_the_commands_fit_from(stair, cli, small_fit, tmp_path):
     start = tmp_path / "start.json"
     small_fit.model.save(start)

@@ -169,6 +169,7 @@ pub fn selected_fit(
         tries: 1,
         try_population: settings.population,
         agreement: None,
+        refining: None,
         stop: StopReason::Completed,
         stages: Vec::new(),
         on_edge: Vec::new(),

@@ -66,6 +66,9 @@ pub struct FitReport {
     pub try_population: usize,
     /// How far the tries agree (`None` for a single try).
     pub agreement: Option<Agreement>,
+    /// A refined fit's rounds and the tries they ran out on (`None` where
+    /// the fit has no refining rounds: every family but the generalized).
+    pub refining: Option<Refining>,
     pub stop: StopReason,
     pub stages: Vec<StageSummary>,
     /// Search coordinates that ended on a bound of the box, with where
@@ -80,6 +83,41 @@ pub struct FitReport {
     /// Where the fit's files were written (`None` where nothing was).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub out: Option<PathBuf>,
+}
+
+/// The refining rounds of a generalized fit: the most a try may run, and
+/// the tries whose last allowed round still lowered their SSE by more than
+/// the rule's thousandth (they would have gone on).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Refining {
+    pub rounds: usize,
+    /// Tries cut short by the cap.
+    pub cut_tries: usize,
+    /// The largest share of its SSE a cut try's last round took off
+    /// (`None` where no try was cut).
+    pub largest_last_gain: Option<f64>,
+}
+
+impl Refining {
+    /// What `fit` says when the cap cut a try short.
+    pub fn advice(&self, tries: usize) -> Option<String> {
+        let gain = self.largest_last_gain?;
+        let which = if tries == 1 {
+            "the fit".to_string()
+        } else {
+            format!("{} of {tries} tries", self.cut_tries)
+        };
+        Some(format!(
+            "refining ran out of rounds: after {} round{} {which} still lowered the estimation \
+             SSE by {:.2} % in the last one; --refine-rounds {} lets it go on (check the \
+             validation fit: where the estimation half barely settles the model, a lower \
+             SSE can validate either way)",
+            self.rounds,
+            if self.rounds == 1 { "" } else { "s" },
+            100.0 * gain,
+            2 * self.rounds.max(2)
+        ))
+    }
 }
 
 /// `v` where it is finite.
@@ -138,6 +176,14 @@ impl FitReport {
                 |g| g.population,
             ),
             agreement: fit.agreement.clone(),
+            refining: engine.plan.refine.as_ref().map(|r| {
+                let cut: Vec<f64> = outcome.tries.iter().filter_map(|t| t.cut_gain).collect();
+                Refining {
+                    rounds: r.rounds,
+                    cut_tries: cut.len(),
+                    largest_last_gain: cut.into_iter().reduce(f64::max),
+                }
+            }),
             stop: outcome.stop,
             stages: outcome.stages.clone(),
             on_edge: active_bounds(problem, &outcome.params),

@@ -102,6 +102,9 @@ pub struct FitSettings {
     pub islands: Option<usize>,
     /// Prediction horizon of the staged fit's global stage (`--horizon`).
     pub horizon: Option<usize>,
+    /// Most refining rounds of a generalized fit (`--refine-rounds`;
+    /// default [`crate::optim::engine::Refine::DEFAULT_ROUNDS`]).
+    pub refine_rounds: Option<usize>,
     pub overrides: Overrides,
     /// `--target-sse`, `--time-budget`, `--stall`.
     pub stops: StopRules,
@@ -120,6 +123,7 @@ impl FitSettings {
             thesis_flow: false,
             islands: None,
             horizon: None,
+            refine_rounds: None,
             overrides: Overrides::default(),
             stops: StopRules::default(),
         }
@@ -233,6 +237,17 @@ impl FitSettings {
             return Ok(Plan::thesis(settings, self.pop, self.gens));
         }
         let mut plan = staged_plan(problem, settings, self.pop, self.gens);
+        if let Some(rounds) = self.refine_rounds {
+            let refine = plan.refine.as_mut().ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--refine-rounds: only a generalized fit is refined (its switching level \
+                     makes ledges the polish stops on); the {} model's polish ends in its \
+                     valley's floor",
+                    problem.model.family
+                )
+            })?;
+            refine.rounds = rounds;
+        }
         if let Some(global) = plan.global.as_mut() {
             if let Some(k) = self.islands {
                 anyhow::ensure!(k >= 1, "--islands must be at least 1");

@@ -173,6 +173,14 @@ pub struct Args {
     /// of the ARX time constant).
     #[arg(long, value_name = "SAMPLES", conflicts_with = "thesis_flow")]
     pub(super) horizon: Option<usize>,
+    /// Most refining rounds of a generalized fit (default 4). After the
+    /// polish, rounds of differential evolution around each try's best
+    /// step over the ledges the switching level makes; they go on while a
+    /// round lowers the SSE by a thousandth. When the last allowed round
+    /// still did, the fit says so: more rounds go on from there, at about
+    /// a tenth of the default fit's time each.
+    #[arg(long, value_name = "ROUNDS", conflicts_with = "thesis_flow")]
+    pub(super) refine_rounds: Option<usize>,
     /// Also fit the Bouc-Wen exponent n in [1, 3] (fixed at 1 in the thesis).
     #[arg(long)]
     pub(super) free_n: bool,
@@ -323,6 +331,7 @@ impl Args {
             thesis_flow: self.thesis_flow,
             islands: self.islands,
             horizon: self.horizon,
+            refine_rounds: self.refine_rounds,
             overrides: Overrides {
                 crossover: self.crossover,
                 elitism: self.elitism,

@@ -194,6 +194,9 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         if let Some(advice) = report.agreement.as_ref().and_then(|a| a.advice()) {
             eprintln!("mckibben: note: {advice}");
         }
+        if let Some(advice) = report.refining.and_then(|r| r.advice(report.tries)) {
+            eprintln!("mckibben: note: {advice}");
+        }
         if let Some(val) = report.val_fit_percent {
             let linear = report.linear_val_fit_percent;
             for w in yardstick_warnings(outcome.sse, val, linear, fit.start_scores()) {
