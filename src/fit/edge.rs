@@ -185,10 +185,13 @@ pub fn refit_off_edges(
         refit.stages.extend(next.stages.iter().cloned());
         refit.stop = Some(next.stop);
         if !next.params.is_empty() && next.sse < end.sse {
+            // A refit that stopped refining in time does not undo a cut
+            // in the fit it started from: more rounds there would have
+            // handed it another point.
             end = TryEnd {
                 params: next.params,
                 sse: next.sse,
-                cut_gain: next.tries.first().and_then(|t| t.cut_gain),
+                cut_gain: next.tries.first().and_then(|t| t.cut_gain).or(end.cut_gain),
             };
         }
         refit.widenings.push(Widening {
@@ -312,7 +315,8 @@ mod tests {
         let inside = TryEnd {
             params: near.space.to_native(&z),
             sse: near.est_sse(&near.space.to_native(&z)),
-            cut_gain: None,
+            // As if refining had been cut short on the way here.
+            cut_gain: Some(0.01),
         };
         let bound = active_bounds(&near, &inside.params);
         let gain = bound
@@ -334,6 +338,10 @@ mod tests {
             "{:?}",
             refit.widenings
         );
+        // The refit, kept, ran no refining rounds of its own to cut: the
+        // cut on the way to its start still stands.
+        assert!(refit.end.sse < refit.widenings[0].sse_before);
+        assert_eq!(refit.end.cut_gain, Some(0.01));
 
         // A user's bound is never widened.
         let mut user = case.problem();
