@@ -178,7 +178,9 @@ pub struct Args {
     /// step over the ledges the switching level makes; they go on while a
     /// round lowers the SSE by a thousandth. When the last allowed round
     /// still did, the fit says so: more rounds go on from there, at about
-    /// a tenth of the default fit's time each.
+    /// a tenth of the default fit's time each. They lower the estimation
+    /// SSE; check the validation fit, which on a record that barely
+    /// settles the model can fall as well as rise.
     #[arg(long, value_name = "ROUNDS", conflicts_with = "thesis_flow")]
     pub(super) refine_rounds: Option<usize>,
     /// Also fit the Bouc-Wen exponent n in [1, 3] (fixed at 1 in the thesis).
