@@ -264,12 +264,22 @@ pub fn in_python_terms(message: &str) -> String {
             continue;
         };
         rest = &after[len..];
-        // A placeholder (`--input COL`) joins the keyword as its value.
-        let placeholder = rest
-            .strip_prefix(' ')
-            .map(|r| r.find(|c: char| !c.is_ascii_uppercase()).unwrap_or(r.len()))
-            .filter(|&n| n >= 2)
-            .map(|n| &rest[1..1 + n]);
+        // A placeholder (`--input COL`) or a number (`--refine-rounds 8`)
+        // joins the keyword as its value.
+        let placeholder = rest.strip_prefix(' ').and_then(|r| {
+            let upper = r.find(|c: char| !c.is_ascii_uppercase()).unwrap_or(r.len());
+            let number = r
+                .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+                .unwrap_or(r.len());
+            let whole = |n: usize| !r[n..].starts_with(|c: char| c.is_alphanumeric());
+            if upper >= 2 {
+                Some(&r[..upper])
+            } else if number >= 1 && r.starts_with(|c: char| c.is_ascii_digit()) && whole(number) {
+                Some(r[..number].trim_end_matches('.'))
+            } else {
+                None
+            }
+        });
         match placeholder {
             Some(value) => {
                 out.push_str(&format!("`{keyword}={value}`"));

@@ -122,7 +122,7 @@ def test_a_larger_population_runs_tries_as_the_command(stair, cli, tmp_path):
 def test_a_refinement_cut_short_is_the_commands_and_warns(stair, cli, tmp_path):
     small = ["--pop", "40", "--gens", "20", "--seed", "3", "--backend", "cpu", "--model", "generalized"]
     expected = cli("fit", stair.source, *small, "--refine-rounds", "1", "--out", tmp_path)
-    with pytest.warns(UserWarning, match="refining ran out of rounds.*refine_rounds=4 lets it go on"):
+    with pytest.warns(UserWarning, match="refining ran out of rounds.*`refine_rounds=4` lets it go on"):
         result = mckibben.fit(stair, model="generalized", pop=40, gens=20, seed=3, refine_rounds=1)
     assert result.refining == expected["refining"]
     assert result.refining["rounds"] == result.refining["cut_tries"] == 1
