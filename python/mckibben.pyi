@@ -135,6 +135,7 @@ class FitResult:
     try_population: int
     agreement: dict[str, Any] | None
     refining: dict[str, Any] | None
+    std_errors: dict[str, float | None]
     stop: Literal["completed", "target-sse", "time-budget", "interrupted"]
     interrupted: bool
     stages: list[dict[str, Any]]

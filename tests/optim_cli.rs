@@ -100,6 +100,14 @@ fn fit_writes_the_documented_json_and_files() {
     assert_eq!(v["algo"], "pso");
     // a, b, c, x0, A, α, β, γ, n.
     assert_eq!(v["params"].as_object().unwrap().len(), 9);
+    // A standard error a parameter, by the same names; the gauge and the
+    // exponent are held.
+    let errors = v["std_errors"].as_object().unwrap();
+    let names =
+        |o: &serde_json::Map<String, serde_json::Value>| o.keys().cloned().collect::<Vec<_>>();
+    assert_eq!(names(errors), names(v["params"].as_object().unwrap()));
+    assert!(errors["A"].is_null() && errors["n"].is_null(), "{errors:?}");
+    assert!(errors["b"].as_f64().unwrap() > 0.0, "{errors:?}");
     let stages: Vec<&str> = v["stages"]
         .as_array()
         .unwrap()

@@ -73,6 +73,10 @@ pub struct FitResult {
     /// (`rounds`, `cut_tries`, `largest_last_gain`); `None` for a family
     /// that is not refined.
     refining: Option<Py<PyAny>>,
+    /// Each parameter's standard error on the estimation half, by name
+    /// (`fit --json`'s `std_errors`; `None` where held): a lower bound,
+    /// since a free run's residuals are correlated.
+    std_errors: Py<PyAny>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -379,6 +383,9 @@ fn warn_of_report(
     if let Some(advice) = report.refining.and_then(|r| r.advice(report.tries)) {
         warn.call_method1("warn", (in_python_terms(&advice),))?;
     }
+    if let Some(loose) = report.undetermined() {
+        warn.call_method1("warn", (loose,))?;
+    }
     Ok(())
 }
 
@@ -434,6 +441,7 @@ fn fit_result(
             .map(|a| unbound(py, a))
             .transpose()?,
         refining: report.refining.map(|r| unbound(py, &r)).transpose()?,
+        std_errors: unbound(py, &report.std_errors)?,
         evaluations: report.evaluations,
         generations: report.generations,
         seconds: report.seconds,

@@ -149,6 +149,11 @@ pub fn selected_fit(
             .collect(),
         algo: Algorithm::De,
         params: model.named_params().into_iter().collect(),
+        std_errors: model
+            .named_params()
+            .into_iter()
+            .map(|(name, _)| (name, None))
+            .collect(),
         sse: finite(d.selection.final_fit.est_sse),
         val_rmse: finite(rmse(y, yhat)),
         val_fit_percent: finite(fit_percent(y, yhat)),

@@ -1,7 +1,8 @@
 //! Fitting a muscle model to recorded traces: the records and their split
 //! ([`records`]), the problem on one trace ([`problem`]), the objective the
 //! engine minimises ([`objective`]), what a fresh fit runs ([`settings`]), one run of `mckibben fit` ([`run`]),
-//! the edge rule ([`edge`]), how far its tries agree ([`agreement`]), synthetic records with known truths
+//! the edge rule ([`edge`]), how far its tries agree ([`agreement`]), how closely the record determines
+//! each parameter ([`uncertainty`]), synthetic records with known truths
 //! ([`synthetic`], [`cases`]), what a larger population buys on those
 //! ([`sweep`]) and the thesis' comparison of algorithms ([`compare`]).
 //!
@@ -24,3 +25,4 @@ pub mod searches;
 pub mod settings;
 pub mod sweep;
 pub mod synthetic;
+pub mod uncertainty;

@@ -12,6 +12,7 @@ use super::edge::{ActiveBound, Widening, active_bounds};
 use super::objective::TRY_POPULATION;
 use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
+use super::uncertainty::standard_errors;
 use crate::data::{Trace, write_atomic};
 use crate::ident::fit::SETTLED_POINTS;
 use crate::model::Family;
@@ -23,7 +24,7 @@ use crate::optim::engine::{Outcome, StageSummary, StopReason};
 use crate::report::fit_figures;
 use crate::report::history::{convergence_figure, trends_figure};
 use crate::report::json::{Named, Versioned};
-use crate::report::number::{decimal_column, significant};
+use crate::report::number::{decimal_column, significant, uncertainty};
 
 /// A fit's report (docs/JSON.md, `mckibben fit`).
 #[derive(Debug, Clone, Serialize)]
@@ -35,6 +36,9 @@ pub struct FitReport {
     /// Fitted parameters by name, in the family's canonical order, then
     /// the effects' as `effect.param`.
     pub params: Named,
+    /// Each parameter's standard error on the estimation half, by name
+    /// (`fit::uncertainty`: a lower bound; `None` where held).
+    pub std_errors: Named<Option<f64>>,
     /// Estimation SSE of the free run (`None` where it diverged).
     pub sse: Option<f64>,
     pub val_rmse: Option<f64>,
@@ -150,6 +154,16 @@ impl FitReport {
                 .collect(),
             algo: global.map_or(Algorithm::De, |g| g.algorithm()),
             params: Named::zip(&problem.model.param_names(), &outcome.params),
+            std_errors: problem
+                .model
+                .param_names()
+                .into_iter()
+                .zip(if found {
+                    standard_errors(problem, &outcome.params)
+                } else {
+                    vec![None; problem.model.dim()]
+                })
+                .collect(),
             sse: finite(outcome.sse),
             val_rmse: val.and_then(|v| finite(v.rmse)),
             val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
@@ -302,7 +316,11 @@ impl FitReport {
             } else {
                 ""
             };
-            let row = format!("  {name:<name_width$} {figure:>14}{held}");
+            let error = match self.std_errors.0.get(i) {
+                Some((_, Some(e))) if held.is_empty() => format!("  ± {}", uncertainty(*e)),
+                _ => String::new(),
+            };
+            let row = format!("  {name:<name_width$} {figure:>14}{held}{error}");
             line(row.trim_end().to_string());
         }
         let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
@@ -380,6 +398,30 @@ impl FitReport {
             ));
         }
         s
+    }
+
+    /// The parameters whose standard error is at least their own size, as
+    /// a note: the estimation half does not determine them.
+    pub fn undetermined(&self) -> Option<String> {
+        let loose: Vec<String> = self
+            .params
+            .0
+            .iter()
+            .zip(&self.std_errors.0)
+            .filter_map(|((name, v), (_, e))| {
+                let e = (*e)?;
+                (e >= v.abs())
+                    .then(|| format!("{name} ({} ± {})", significant(*v, 4), uncertainty(e)))
+            })
+            .collect();
+        (!loose.is_empty()).then(|| {
+            format!(
+                "the estimation half does not determine {}: a standard error as large as the \
+                 value (and the errors are a lower bound: the residuals of a free run are \
+                 correlated)",
+                loose.join(", ")
+            )
+        })
     }
 
     /// What the user should know of the box: each widening the edge rule

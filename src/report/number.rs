@@ -21,6 +21,20 @@ pub fn significant(v: f64, decimals: usize) -> String {
     format!("{v:.*}", decimals.max(needed))
 }
 
+/// An uncertainty with two significant digits (`0.0021`, `0.44`, `12`):
+/// its own uncertainty makes more digits noise. Below 10⁻⁶ in magnitude it
+/// is written in scientific notation.
+pub fn uncertainty(v: f64) -> String {
+    if !v.is_finite() || v == 0.0 {
+        return format!("{v}");
+    }
+    let magnitude = v.abs().log10().floor() as i32;
+    if magnitude < -6 {
+        return format!("{v:.1e}");
+    }
+    format!("{v:.*}", (1 - magnitude).max(0) as usize)
+}
+
 /// `cells`, figures as [`significant`] writes them, padded to one width
 /// with their decimal points in one column: a parameter of `0.000004685`
 /// under one of `18.901187` reads as a column of numbers, where right
@@ -64,6 +78,17 @@ mod tests {
         );
         let width = column[0].len();
         assert!(column.iter().all(|c| c.len() == width));
+    }
+
+    #[test]
+    fn an_uncertainty_keeps_two_significant_digits() {
+        assert_eq!(uncertainty(0.0020961), "0.0021");
+        assert_eq!(uncertainty(0.4435), "0.44");
+        assert_eq!(uncertainty(0.3), "0.30");
+        assert_eq!(uncertainty(12.34), "12");
+        assert_eq!(uncertainty(1234.5), "1234");
+        assert_eq!(uncertainty(2.3e-8), "2.3e-8");
+        assert_eq!(uncertainty(0.0), "0");
     }
 
     #[test]

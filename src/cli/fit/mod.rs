@@ -197,6 +197,9 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         if let Some(advice) = report.refining.and_then(|r| r.advice(report.tries)) {
             eprintln!("mckibben: note: {advice}");
         }
+        if let Some(loose) = report.undetermined() {
+            eprintln!("mckibben: note: {loose}");
+        }
         if let Some(val) = report.val_fit_percent {
             let linear = report.linear_val_fit_percent;
             for w in yardstick_warnings(outcome.sse, val, linear, fit.start_scores()) {
