@@ -11,13 +11,18 @@
 //! piecewise constant in it) and a coordinate within its probe step of a
 //! bound are held: the errors are those of the others given them.
 //!
+//! Reported only where the free-run error is smooth in the parameters
+//! ([`standard_errors`]): the generalized family's jumps where a sample
+//! crosses its switching level, and its linearized errors measured far too
+//! small ([`linearized_errors`] computes them anyway, for that measurement).
+//!
 //! The formula assumes white residuals. A free run's residuals are what
 //! the model cannot describe, correlated from sample to sample, so the
 //! figures are a lower bound on the real uncertainty: a parameter whose
 //! standard error is as large as itself is not determined by the record;
 //! a small one does not prove that it is.
 
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 
 use super::problem::FitProblem;
 
@@ -29,11 +34,32 @@ const REL_STEP: f64 = 1e-3;
 const STEP_FLOOR: f64 = 1e-2;
 
 /// Each canonical parameter's standard error at `theta` on `problem`'s
-/// estimation halves, in the parameter's own units; `None` where the box
-/// or the rules above hold it, and for every parameter where the
-/// residuals diverge at `theta` or the free coordinates are not jointly
-/// determined (`JᵀJ` singular).
+/// estimation halves, as `fit` reports it: [`linearized_errors`] for a
+/// model whose free-run error is smooth in its parameters, the classic
+/// (and linear) family without effect stages; `None` throughout for the
+/// others. The generalized family's error jumps wherever a sample crosses
+/// its switching level, so the probes' differences read those jumps as
+/// slopes: on the generated cases with white noise its errors held 53 %
+/// of the fits' deviations from the truth within two errors (the classic
+/// family's 86 %), and some deviations were hundreds of errors
+/// (`tests/uncertainty_coverage.rs`). Effect stages have not been
+/// measured so, and some (a dead zone, a ratchet) jump alike.
 pub fn standard_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>> {
+    let smooth = problem.model.family.switch_index().is_none() && problem.model.effects.is_empty();
+    if smooth {
+        linearized_errors(problem, theta)
+    } else {
+        vec![None; theta.len()]
+    }
+}
+
+/// Each canonical parameter's standard error at `theta` on `problem`'s
+/// estimation halves by the Gauss–Newton approximation, whatever the
+/// model, in the parameter's own units: infinite where it moves along a
+/// direction the record does not determine at all, `None` where the box
+/// or the rules above hold it, and for every parameter where the
+/// residuals diverge at `theta`.
+pub fn linearized_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>> {
     let d = theta.len();
     let none = vec![None; d];
     let space = &problem.space;
@@ -73,11 +99,10 @@ pub fn standard_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>> 
         return none;
     }
     let jac = DMatrix::from_column_slice(n, p, &columns);
-    let Some(inverse) = (jac.transpose() * &jac).cholesky().map(|c| c.inverse()) else {
+    let s2 = r0.norm_squared() / (n - p) as f64;
+    let Some(covariance) = Covariance::of(&(jac.transpose() * &jac), s2) else {
         return none;
     };
-    let s2 = r0.norm_squared() / (n - p) as f64;
-    let covariance = inverse * s2;
     // The chart's derivatives: how each canonical parameter moves with each
     // probed coordinate (exact arithmetic, no simulation).
     let mut chart = DMatrix::zeros(d, p);
@@ -94,14 +119,87 @@ pub fn standard_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>> 
     }
     (0..d)
         .map(|i| {
-            let g = chart.row(i);
+            let g = chart.row(i).transpose();
             if g.iter().all(|&v| v == 0.0) {
                 return None;
             }
-            let var = (g * &covariance * g.transpose())[(0, 0)];
-            (var.is_finite() && var >= 0.0).then(|| var.sqrt())
+            covariance.std_error(&g)
         })
         .collect()
+}
+
+/// Below this share of the largest eigenvalue of the scaled `JᵀJ`, a
+/// direction is one the record does not determine at all. Measured on a
+/// generated generalized case whose loop never visits two of its branches
+/// (`tests/uncertainty_coverage.rs`, #1007): those directions sit at
+/// 10⁻¹⁷ and 10⁻²³ of the largest, the poorest determined ones at 10⁻⁹.
+const NULL_SHARE: f64 = 1e-12;
+
+/// The covariance `s²·(JᵀJ)⁻¹` of the probed coordinates, through the
+/// eigenvectors of `JᵀJ` scaled to unit diagonal; where the record does
+/// not determine some direction (a loop branch it never visits, a
+/// parameter without effect), `JᵀJ` is singular along it, and a quantity
+/// that moves along it has no finite error.
+struct Covariance {
+    /// `1 / √(JᵀJ)ₖₖ` (1 for a column of zeros).
+    unscale: DVector<f64>,
+    /// The determined directions (scaled) and `s²/λ` of each.
+    determined: Vec<(DVector<f64>, f64)>,
+    /// The directions the record does not determine.
+    null: Vec<DVector<f64>>,
+}
+
+impl Covariance {
+    fn of(jtj: &DMatrix<f64>, s2: f64) -> Option<Covariance> {
+        let p = jtj.nrows();
+        let unscale = DVector::from_iterator(
+            p,
+            (0..p).map(|k| match jtj[(k, k)] {
+                v if v > 0.0 => 1.0 / v.sqrt(),
+                _ => 1.0,
+            }),
+        );
+        let scaled = DMatrix::from_fn(p, p, |i, j| jtj[(i, j)] * unscale[i] * unscale[j]);
+        if !scaled.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let eigen = scaled.symmetric_eigen();
+        let largest = eigen.eigenvalues.max();
+        if largest <= 0.0 {
+            return None;
+        }
+        let (mut determined, mut null) = (Vec::new(), Vec::new());
+        for (k, &lambda) in eigen.eigenvalues.iter().enumerate() {
+            let v = eigen.eigenvectors.column(k).into_owned();
+            if lambda > NULL_SHARE * largest {
+                determined.push((v, s2 / lambda));
+            } else {
+                null.push(v);
+            }
+        }
+        Some(Covariance {
+            unscale,
+            determined,
+            null,
+        })
+    }
+
+    /// The standard error of a quantity whose derivatives with respect to
+    /// the probed coordinates are `g`: infinite where it moves along a
+    /// direction the record does not determine.
+    fn std_error(&self, g: &DVector<f64>) -> Option<f64> {
+        let h = g.component_mul(&self.unscale);
+        let size = h.norm();
+        if self.null.iter().any(|v| h.dot(v).abs() > 1e-6 * size) {
+            return Some(f64::INFINITY);
+        }
+        let var: f64 = self
+            .determined
+            .iter()
+            .map(|(v, w)| h.dot(v).powi(2) * w)
+            .sum();
+        (var.is_finite() && var >= 0.0).then(|| var.sqrt())
+    }
 }
 
 #[cfg(test)]
@@ -152,5 +250,24 @@ mod tests {
         assert!(z.len() >= 5, "{z:?}");
         let largest = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(largest < 5.0 && largest > 0.05, "{z:?}");
+    }
+
+    /// The generalized family's free-run error jumps where a sample crosses
+    /// its switching level: its linearized errors are computed, not
+    /// reported.
+    #[test]
+    fn a_model_whose_error_jumps_reports_none() {
+        let case = Case::generate(matrix(Family::Generalized, 1, 1000)[0]);
+        let problem = case.problem();
+        assert!(
+            linearized_errors(&problem, &case.truth)
+                .iter()
+                .any(|e| e.is_some())
+        );
+        assert!(
+            standard_errors(&problem, &case.truth)
+                .iter()
+                .all(|e| e.is_none())
+        );
     }
 }
