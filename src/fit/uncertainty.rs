@@ -259,15 +259,57 @@ mod tests {
     fn a_model_whose_error_jumps_reports_none() {
         let case = Case::generate(matrix(Family::Generalized, 1, 1000)[0]);
         let problem = case.problem();
+        let linearized = linearized_errors(&problem, &case.truth);
         assert!(
-            linearized_errors(&problem, &case.truth)
+            linearized
                 .iter()
-                .any(|e| e.is_some())
+                .flatten()
+                .filter(|e| e.is_finite())
+                .count()
+                >= 5
         );
         assert!(
             standard_errors(&problem, &case.truth)
                 .iter()
                 .all(|e| e.is_none())
         );
+    }
+
+    /// Where `JᵀJ` is regular the errors are those of its inverse; a
+    /// coordinate without effect (a column of zeros) has no finite error,
+    /// and neither has any quantity that moves with it, while the others
+    /// keep theirs.
+    #[test]
+    fn a_direction_the_record_does_not_determine_has_an_infinite_error() {
+        let jtj = DMatrix::from_row_slice(2, 2, &[4.0, 1.0, 1.0, 2.0]);
+        let c = Covariance::of(&jtj, 3.0).unwrap();
+        let inverse = jtj.clone().try_inverse().unwrap() * 3.0;
+        for (g, want) in [
+            (DVector::from_vec(vec![1.0, 0.0]), inverse[(0, 0)]),
+            (DVector::from_vec(vec![0.0, 1.0]), inverse[(1, 1)]),
+            (DVector::from_vec(vec![1.0, 1.0]), inverse.sum()),
+        ] {
+            let e = c.std_error(&g).unwrap();
+            assert!(
+                (e - want.sqrt()).abs() < 1e-12 * e,
+                "{g:?}: {e} against {}",
+                want.sqrt()
+            );
+        }
+        let singular =
+            DMatrix::from_row_slice(3, 3, &[4.0, 1.0, 0.0, 1.0, 2.0, 0.0, 0.0, 0.0, 0.0]);
+        let c = Covariance::of(&singular, 3.0).unwrap();
+        let first = c
+            .std_error(&DVector::from_vec(vec![1.0, 0.0, 0.0]))
+            .unwrap();
+        assert!((first - inverse[(0, 0)].sqrt()).abs() < 1e-12 * first);
+        let third = c
+            .std_error(&DVector::from_vec(vec![0.0, 0.0, 1.0]))
+            .unwrap();
+        assert!(third.is_infinite());
+        let mixed = c
+            .std_error(&DVector::from_vec(vec![1.0, 0.0, 0.5]))
+            .unwrap();
+        assert!(mixed.is_infinite());
     }
 }
