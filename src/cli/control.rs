@@ -19,14 +19,6 @@ use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
 use mckibben::twin::TwinConfig;
 
-/// Missing measurements in a row that end a run on a rig, unless
-/// `--max-missing` says otherwise: a tenth of a second of silence at the
-/// rig's 10 ms.
-const MAX_MISSING: usize = 10;
-/// Implausible measurements in a row that end a run on a rig, unless
-/// `--max-implausible` says otherwise.
-const MAX_IMPLAUSIBLE: usize = 3;
-
 /// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
 /// closing the loop on the input valve voltage (0–10 V, slew 0.25 V per
 /// sample; the output valve at 10 − u), and report the steady-state RMS and
@@ -389,11 +381,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 plant: args.plant.clone(),
                 endpoint,
                 deadline_ms: args.deadline,
-                max_missing: args.max_missing.unwrap_or(MAX_MISSING),
+                max_missing: args
+                    .max_missing
+                    .unwrap_or(RigRunSettings::DEFAULT_MAX_MISSING),
                 pressure_range: pair(&args.pressure_range),
                 displacement_range: pair(&args.displacement_range),
                 max_speed_mm_s: args.max_speed.unwrap_or(Limits::DEFAULT_MAX_SPEED_MM_S),
-                max_implausible: args.max_implausible.unwrap_or(MAX_IMPLAUSIBLE),
+                max_implausible: args
+                    .max_implausible
+                    .unwrap_or(RigRunSettings::DEFAULT_MAX_IMPLAUSIBLE),
                 log_dir: args.log.clone(),
                 interrupt: Arc::new(AtomicBool::new(false)),
             };

@@ -100,6 +100,15 @@ pub struct RigRunSettings {
     pub interrupt: Arc<AtomicBool>,
 }
 
+impl RigRunSettings {
+    /// Missing measurements in a row that end a run unless `--max-missing`
+    /// says otherwise: a tenth of a second of silence at the rig's 10 ms.
+    pub const DEFAULT_MAX_MISSING: usize = 10;
+    /// Implausible measurements in a row that end a run unless
+    /// `--max-implausible` says otherwise.
+    pub const DEFAULT_MAX_IMPLAUSIBLE: usize = 3;
+}
+
 /// The runs of `kinds` at every frequency in `freqs` on the rig, each on a
 /// fresh connection, with their rows; `progress` hears of each run before
 /// it starts.
