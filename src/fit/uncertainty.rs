@@ -25,13 +25,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::problem::FitProblem;
-
-/// The polish's probe step, relative to a coordinate's scale
-/// ([`crate::optim::engine::Polish`]'s `rel_step`).
-const REL_STEP: f64 = 1e-3;
-/// A coordinate's scale is at least this share of its box width (the
-/// polish's `step_floor`).
-const STEP_FLOOR: f64 = 1e-2;
+use crate::optim::engine::Polish;
 
 /// Each canonical parameter's standard error at `theta` on `problem`'s
 /// estimation halves, as `fit` reports it: [`linearized_errors`] for a
@@ -68,6 +62,13 @@ pub fn linearized_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>
     };
     let z0 = space.from_native(theta);
     let switch = problem.model.family.switch_index();
+    // The polish's probe steps: a share of the coordinate, at least a
+    // share of its box width.
+    let Polish {
+        rel_step,
+        step_floor,
+        ..
+    } = Polish::default();
     let mut probed: Vec<(usize, f64)> = Vec::new();
     let mut columns: Vec<f64> = Vec::new();
     for j in space.free() {
@@ -75,7 +76,7 @@ pub fn linearized_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>
             continue;
         }
         let (lo, hi) = (space.lower[j], space.upper[j]);
-        let h = REL_STEP * z0[j].abs().max(STEP_FLOOR * (hi - lo));
+        let h = rel_step * z0[j].abs().max(step_floor * (hi - lo));
         if z0[j] - h < lo || z0[j] + h > hi {
             continue;
         }
