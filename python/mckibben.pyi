@@ -136,6 +136,7 @@ class FitResult:
     agreement: dict[str, Any] | None
     refining: dict[str, Any] | None
     std_errors: dict[str, float | None]
+    undetermined: list[str]
     stop: Literal["completed", "target-sse", "time-budget", "interrupted"]
     interrupted: bool
     stages: list[dict[str, Any]]

@@ -645,6 +645,40 @@ fn a_refinement_cut_short_by_its_cap_is_reported() {
     assert!(report["refining"].is_null(), "{}", report["refining"]);
 }
 
+/// The parameters whose standard error reaches their own size are listed
+/// in the JSON, where an infinite error would read as a held one's `null`,
+/// and named in the text's note. On the 1 rad/s sine the offset `x0` is
+/// such a parameter.
+#[test]
+fn the_parameters_a_record_does_not_determine_are_listed() {
+    let dir = tempfile::tempdir().unwrap();
+    let sine = concat!(env!("CARGO_MANIFEST_DIR"), "/data/sine_1rads_4.5kg.csv");
+    let report = json(&mckibben(&["fit", sine, "--json"], dir.path()));
+    let errors = report["std_errors"].as_object().unwrap();
+    let loose: Vec<&str> = report["params"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .filter(|(name, v)| {
+            errors[name.as_str()]
+                .as_f64()
+                .is_some_and(|e| e >= v.as_f64().unwrap().abs())
+        })
+        .map(|(name, _)| name.as_str())
+        .collect();
+    assert!(!loose.is_empty(), "{errors:?}");
+    assert_eq!(report["undetermined"], serde_json::json!(loose));
+    let out = mckibben(&["fit", sine], dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    let note = err
+        .lines()
+        .find(|l| l.contains("the estimation half does not determine"))
+        .unwrap_or_else(|| panic!("{err}"));
+    for name in loose {
+        assert!(note.contains(&format!("{name} (")), "{note}");
+    }
+}
+
 /// A record in metres: the report writes every parameter, the SSE and the
 /// RMSE with their digits (at six decimals `b` read `0.000005`, at four
 /// the RMSE `0.0013`), each within its last digit of `result.json`'s.

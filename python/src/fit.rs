@@ -74,9 +74,13 @@ pub struct FitResult {
     /// that is not refined.
     refining: Option<Py<PyAny>>,
     /// Each parameter's standard error on the estimation half, by name
-    /// (`fit --json`'s `std_errors`; `None` where held): a lower bound,
-    /// since a free run's residuals are correlated.
-    std_errors: Py<PyAny>,
+    /// (`fit --json`'s `std_errors`; `None` where held, `inf` where the
+    /// record does not determine it at all): a lower bound, since a free
+    /// run's residuals are correlated.
+    std_errors: Py<PyDict>,
+    /// The parameters whose standard error is at least their own size,
+    /// an infinite one included (`fit --json`'s `undetermined`).
+    undetermined: Vec<String>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -405,6 +409,12 @@ fn fit_result(
     for (name, v) in &report.params.0 {
         params.set_item(name, v)?;
     }
+    // Built here, not through the JSON: an infinite error stays `inf`
+    // rather than the JSON's `null`, which would read as held.
+    let std_errors = PyDict::new(py);
+    for (name, e) in &report.std_errors.0 {
+        std_errors.set_item(name, e)?;
+    }
     let search_box = PyDict::new(py);
     search_box.set_item("names", &report.search_box.names)?;
     search_box.set_item("lower", PyArray1::from_slice(py, &report.search_box.lower))?;
@@ -441,7 +451,8 @@ fn fit_result(
             .map(|a| unbound(py, a))
             .transpose()?,
         refining: report.refining.map(|r| unbound(py, &r)).transpose()?,
-        std_errors: unbound(py, &report.std_errors)?,
+        std_errors: std_errors.unbind(),
+        undetermined: report.undetermined.clone(),
         evaluations: report.evaluations,
         generations: report.generations,
         seconds: report.seconds,

@@ -26,6 +26,7 @@ def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli, tmp_path):
     assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
     assert bits(result.sse) == bits(expected["sse"])
     assert result.std_errors == expected["std_errors"]
+    assert result.undetermined == expected["undetermined"] == []
     assert result.std_errors["A"] is None and result.std_errors["b"] > 0
     assert result.val_fit_percent == expected["val_fit_percent"]
     assert result.linear_val_fit_percent == expected["linear_val_fit_percent"]

@@ -154,6 +154,7 @@ pub fn selected_fit(
             .into_iter()
             .map(|(name, _)| (name, None))
             .collect(),
+        undetermined: Vec::new(),
         sse: finite(d.selection.final_fit.est_sse),
         val_rmse: finite(rmse(y, yhat)),
         val_fit_percent: finite(fit_percent(y, yhat)),

@@ -37,8 +37,13 @@ pub struct FitReport {
     /// the effects' as `effect.param`.
     pub params: Named,
     /// Each parameter's standard error on the estimation half, by name
-    /// (`fit::uncertainty`: a lower bound; `None` where held).
+    /// (`fit::uncertainty`: a lower bound; `None` where held, infinite
+    /// where the record does not determine it at all).
     pub std_errors: Named<Option<f64>>,
+    /// The parameters whose standard error is at least their own size,
+    /// an infinite one included: the JSON writes an infinite error as
+    /// `null`, as a held one, and this list tells them apart.
+    pub undetermined: Vec<String>,
     /// Estimation SSE of the free run (`None` where it diverged).
     pub sse: Option<f64>,
     pub val_rmse: Option<f64>,
@@ -87,6 +92,22 @@ pub struct FitReport {
     /// Where the fit's files were written (`None` where nothing was).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub out: Option<PathBuf>,
+}
+
+/// Each parameter whose standard error is at least its own size, an
+/// infinite error included, with its value and error.
+fn loose<'a>(
+    params: &'a Named,
+    errors: &'a Named<Option<f64>>,
+) -> impl Iterator<Item = (&'a str, f64, f64)> {
+    params
+        .0
+        .iter()
+        .zip(&errors.0)
+        .filter_map(|((name, v), (_, e))| {
+            let e = (*e)?;
+            (e >= v.abs()).then_some((name.as_str(), *v, e))
+        })
 }
 
 /// The refining rounds of a generalized fit: the most a try may run, and
@@ -144,6 +165,19 @@ impl FitReport {
         let found = !outcome.params.is_empty();
         let val = found.then(|| problem.validate(&outcome.params));
         let global = engine.plan.global.as_ref();
+        let names = problem.model.param_names();
+        let params = Named::zip(&names, &outcome.params);
+        let std_errors: Named<Option<f64>> = names
+            .iter()
+            .zip(if found {
+                standard_errors(problem, &outcome.params)
+            } else {
+                vec![None; problem.model.dim()]
+            })
+            .collect();
+        let undetermined = loose(&params, &std_errors)
+            .map(|(name, _, _)| name.to_string())
+            .collect();
         FitReport {
             model: problem.model.family,
             effects: problem
@@ -153,17 +187,9 @@ impl FitReport {
                 .map(|e| e.name().to_string())
                 .collect(),
             algo: global.map_or(Algorithm::De, |g| g.algorithm()),
-            params: Named::zip(&problem.model.param_names(), &outcome.params),
-            std_errors: problem
-                .model
-                .param_names()
-                .into_iter()
-                .zip(if found {
-                    standard_errors(problem, &outcome.params)
-                } else {
-                    vec![None; problem.model.dim()]
-                })
-                .collect(),
+            params,
+            std_errors,
+            undetermined,
             sse: finite(outcome.sse),
             val_rmse: val.and_then(|v| finite(v.rmse)),
             val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
@@ -403,16 +429,8 @@ impl FitReport {
     /// The parameters whose standard error is at least their own size, as
     /// a note: the estimation half does not determine them.
     pub fn undetermined(&self) -> Option<String> {
-        let loose: Vec<String> = self
-            .params
-            .0
-            .iter()
-            .zip(&self.std_errors.0)
-            .filter_map(|((name, v), (_, e))| {
-                let e = (*e)?;
-                (e >= v.abs())
-                    .then(|| format!("{name} ({} ± {})", significant(*v, 4), uncertainty(e)))
-            })
+        let loose: Vec<String> = loose(&self.params, &self.std_errors)
+            .map(|(name, v, e)| format!("{name} ({} ± {})", significant(v, 4), uncertainty(e)))
             .collect();
         (!loose.is_empty()).then(|| {
             format!(
@@ -598,5 +616,27 @@ mod tests {
         let below = yardstick_warnings(1.0, -2.4, Some(50.9), None);
         assert_eq!(below.len(), 1);
         assert!(below[0].contains("first-order ARX"), "{}", below[0]);
+    }
+
+    /// A parameter is undetermined where its error reaches its own size,
+    /// an infinite error too (which the JSON writes as a held one's
+    /// `null`); a held parameter and a small error are not.
+    #[test]
+    fn undetermined_parameters_include_the_infinite_errors_and_not_the_held() {
+        let params = Named::zip(
+            &["a", "b", "A", "gamma", "beta"],
+            &[2.0, -0.5, 1.0, 0.3, 0.0],
+        );
+        let errors: Named<Option<f64>> = [
+            ("a", Some(0.1)),
+            ("b", Some(0.5)),
+            ("A", None),
+            ("gamma", Some(f64::INFINITY)),
+            ("beta", Some(0.01)),
+        ]
+        .into_iter()
+        .collect();
+        let names: Vec<&str> = loose(&params, &errors).map(|(n, _, _)| n).collect();
+        assert_eq!(names, ["b", "gamma", "beta"]);
     }
 }
