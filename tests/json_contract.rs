@@ -8,6 +8,11 @@
 //! documented field has its documented type, and that every member of an
 //! object whose members the table lists (the top level always) is
 //! documented: a field added to an output without a row fails here.
+//!
+//! The examples of the commands whose output does not depend on time or
+//! load (`identify`, `simulate`, `static`) are checked too, value for
+//! value to the six significant digits the doc writes: an example that
+//! no longer reads as the command's output fails here.
 
 mod common;
 
@@ -311,6 +316,72 @@ fn check_file(name: &str, path: &Path) -> Value {
 
 const STAIR: &str = "data/stair_4.5kg.csv";
 
+/// The first ```json block after docs/JSON.md's heading `heading`.
+fn doc_example(heading: &str) -> Value {
+    let doc = std::fs::read_to_string(Path::new(ROOT).join("docs/JSON.md")).unwrap();
+    let block: Vec<&str> = doc
+        .lines()
+        .skip_while(|l| *l != heading)
+        .skip_while(|l| *l != "```json")
+        .skip(1)
+        .take_while(|l| *l != "```")
+        .collect();
+    serde_json::from_str(&block.join("\n"))
+        .unwrap_or_else(|e| panic!("docs/JSON.md, {heading}: the example is not JSON: {e}"))
+}
+
+/// Every way `actual` differs from the doc's `example`: the same members
+/// and lengths, the same strings (a doc string with `…` stands for any,
+/// a hash say) and flags, numbers to the example's six significant
+/// digits.
+fn example_differences(example: &Value, actual: &Value, path: &str, out: &mut Vec<String>) {
+    match (example, actual) {
+        (Value::Object(e), Value::Object(a)) => {
+            let (ek, ak): (Vec<_>, Vec<_>) = (e.keys().collect(), a.keys().collect());
+            if ek != ak {
+                out.push(format!("{path}: members {ek:?}, the command's {ak:?}"));
+            }
+            for (k, ev) in e {
+                if let Some(av) = a.get(k) {
+                    example_differences(ev, av, &format!("{path}.{k}"), out);
+                }
+            }
+        }
+        (Value::Array(e), Value::Array(a)) if e.len() == a.len() => {
+            for (i, (ev, av)) in e.iter().zip(a).enumerate() {
+                example_differences(ev, av, &format!("{path}[{i}]"), out);
+            }
+        }
+        (Value::Number(e), Value::Number(a)) => {
+            let (e, a) = (e.as_f64().unwrap(), a.as_f64().unwrap());
+            if (e - a).abs() > 5e-6 * a.abs() + 1e-12 {
+                out.push(format!("{path}: {e} in the doc, {a} from the command"));
+            }
+        }
+        (Value::String(e), Value::String(_)) if e.contains('…') => {}
+        (e, a) if e == a => {}
+        (e, a) => out.push(format!("{path}: {e} in the doc, {a} from the command")),
+    }
+}
+
+/// Fails naming every way docs/JSON.md's example under `heading` differs
+/// from `actual`.
+/// The command line a provenance records starts with the binary's path,
+/// which the doc writes as `mckibben`.
+fn assert_example(heading: &str, actual: &Value) {
+    let mut actual = actual.clone();
+    if let Some(Value::String(command)) = actual.pointer_mut("/model/provenance/command") {
+        *command = command.replacen(BIN, "mckibben", 1);
+    }
+    let mut out = Vec::new();
+    example_differences(&doc_example(heading), &actual, "", &mut out);
+    assert!(
+        out.is_empty(),
+        "docs/JSON.md's example under {heading} is not the command's output:\n  {}",
+        out.join("\n  ")
+    );
+}
+
 #[test]
 fn the_doc_holds_one_contract_per_json_output() {
     let names: Vec<String> = doc_contracts().into_keys().collect();
@@ -469,11 +540,15 @@ fn compare() {
 #[test]
 fn identify() {
     check("identify", &["identify", STAIR, "--json"]);
+    // The doc's example: the default data, the command as the doc writes it.
+    let v = check("identify", &["identify", "--json"]);
+    assert_example("## `identify`", &v);
 }
 
 #[test]
 fn simulate() {
-    check("simulate", &["simulate", "--json"]);
+    let v = check("simulate", &["simulate", "--json"]);
+    assert_example("## `simulate`", &v);
 }
 
 #[test]
@@ -706,4 +781,31 @@ fn the_old_benchmark_name_runs_validate_with_a_note() {
 #[test]
 fn static_force() {
     check("static", &["static", "--points", "3", "--json"]);
+    let v = check(
+        "static",
+        &["static", "--points", "2", "--pressures", "0.3", "--json"],
+    );
+    assert_example("## `static`", &v);
+}
+
+#[test]
+fn the_example_check_catches_a_stale_figure_a_member_and_a_string() {
+    let doc = serde_json::json!({"a": 87.735, "b": [1, "x"], "c": {"d": 0.0}});
+    let now = serde_json::json!({"a": 87.7352, "b": [1, "x"], "c": {"d": 0.0}});
+    let mut out = Vec::new();
+    example_differences(&doc, &now, "", &mut out);
+    assert!(out.is_empty(), "{out:?}");
+    let stale = serde_json::json!({"a": -91.5286, "b": [1, "y"], "c": {"d": 0.0, "e": 1}});
+    let hash = serde_json::json!({"h": "…"});
+    example_differences(&hash, &serde_json::json!({"h": "da9f"}), "", &mut out);
+    assert!(out.is_empty(), "{out:?}");
+    example_differences(&doc, &stale, "", &mut out);
+    assert_eq!(
+        out,
+        [
+            ".a: 87.735 in the doc, -91.5286 from the command",
+            ".b[1]: \"x\" in the doc, \"y\" from the command",
+            ".c: members [\"d\"], the command's [\"d\", \"e\"]",
+        ]
+    );
 }
