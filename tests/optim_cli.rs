@@ -354,6 +354,40 @@ fn bad_flags_and_bad_data_are_clear_errors() {
     assert!(!dir.path().join("huge/model.json").exists());
 }
 
+/// A warm start keeps its model's family: another `--model`, or an ARX
+/// model from `identify`, is a clear error, not a start vector read as
+/// another family's parameters (which panicked, or ran on nonsense).
+#[test]
+fn a_warm_start_from_another_family_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let fit = ["fit", &csv, "--pop", "20", "--gens", "2", "--backend", "cpu"];
+    let saved = mckibben(&[&fit[..], &["--out", "classic"]].concat(), dir.path());
+    assert!(saved.status.success(), "{}", String::from_utf8_lossy(&saved.stderr));
+    let arx = mckibben(&["identify", &csv, "--out", "arx.json"], dir.path());
+    assert!(arx.status.success(), "{}", String::from_utf8_lossy(&arx.stderr));
+    let cases: [(&[&str], &str); 3] = [
+        (
+            &["--from", "classic/model.json", "--model", "generalized"],
+            "--from: the model is classic and a warm start keeps its family: --model generalized",
+        ),
+        (
+            &["--from", "arx.json"],
+            "--from: the model is linear (`identify`'s)",
+        ),
+        (
+            &["--from", "arx.json", "--model", "classic"],
+            "--from: the model is linear (`identify`'s)",
+        ),
+    ];
+    for (extra, needle) in cases {
+        let out = mckibben(&[&fit[..], extra].concat(), dir.path());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{extra:?}: {err}");
+        assert!(err.contains(needle), "{extra:?}: {err}");
+    }
+}
+
 #[test]
 fn compare_writes_markdown_and_json() {
     let dir = tempfile::tempdir().unwrap();

@@ -46,6 +46,27 @@ impl FitRequest {
     /// bounds come first. Errors name the start file's part that is wrong.
     pub fn resolve(&self, start: Option<&ModelFile>) -> anyhow::Result<Resolved> {
         let model = start.map(|f| f.model()).transpose()?;
+        if let Some(m) = &model {
+            let theirs = m.base.family;
+            anyhow::ensure!(
+                theirs != Family::Linear,
+                "the model is linear (`identify`'s), and a fit starts only from a classic or \
+                 generalized model: fit without it (the fit's box is built around the same \
+                 first-order ARX model)"
+            );
+            // A warm start's vector is the model's own parameters; the
+            // families share no exact map (the classic's γ is a constant
+            // weight the generalized sign terms lack). A carried chain is
+            // fitted from scratch, so any family may carry it.
+            if let Some(asked) = self.family.filter(|f| *f != theirs && !self.carry) {
+                anyhow::bail!(
+                    "the model is {} and a warm start keeps its family: --model {} would start \
+                     from another family's parameters; leave --model out, or fit without a start",
+                    theirs.name(),
+                    asked.name()
+                );
+            }
+        }
         let family = match (self.family, &model) {
             (Some(f), _) => f,
             (None, Some(m)) => m.base.family,
@@ -165,15 +186,27 @@ mod tests {
         assert_eq!(r.what.effects, vec![Effect::Creep]);
         assert_eq!(r.what.bounds, vec!["alpha=0.2:0.6".parse().unwrap()]);
         assert!(r.start.is_some());
-        // Given here: the family, no effects, and a bound after the file's.
+        // Given here: the family (its own), no effects, and a bound after
+        // the file's.
         let mut request = asked();
-        request.family = Some(Family::Classic);
+        request.family = Some(Family::Generalized);
         request.effects = Some(Vec::new());
         request.bounds = vec!["alpha=0.3".parse().unwrap()];
         let r = request.resolve(Some(&file)).unwrap();
-        assert_eq!((r.what.family, r.what.effects.len()), (Family::Classic, 0));
+        assert_eq!((r.what.family, r.what.effects.len()), (Family::Generalized, 0));
         assert_eq!(r.what.bounds.len(), 2);
         assert_eq!(r.what.bounds[1], "alpha=0.3".parse().unwrap());
+        // Another family: the start's parameters mean nothing there.
+        request.family = Some(Family::Classic);
+        let e = format!("{:#}", request.resolve(Some(&file)).unwrap_err());
+        assert!(
+            e.contains("the model is generalized and a warm start keeps its family"),
+            "{e}"
+        );
+        // Carried, the chain is fitted from scratch: any family.
+        request.carry = true;
+        let r = request.resolve(Some(&file)).unwrap();
+        assert_eq!(r.what.family, Family::Classic);
         // Without a start: classic, no effects, the bounds as given.
         let r = asked().resolve(None).unwrap();
         assert_eq!((r.what.family, r.what.effects.len()), (Family::Classic, 0));

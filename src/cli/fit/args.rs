@@ -91,7 +91,7 @@ pub struct Args {
     #[command(flatten)]
     pub(super) data: DataArgs,
     /// Hysteresis model: classic (A, α, β, γ) or generalized (A, α, β1..β6)
-    /// (default: the --from model's, else classic).
+    /// (default: the --from model's, which it must be, else classic).
     #[arg(long, value_enum)]
     pub(super) model: Option<ModelArg>,
     /// Effects after the baseline, comma-separated, in chain order (e.g.
@@ -111,8 +111,9 @@ pub struct Args {
     )]
     pub(super) effects: Option<Vec<EffectArg>>,
     /// Start from a model file (a warm start): its parameters are the first
-    /// member of the first population, and its family, effects and --bound
-    /// / --fix are taken unless given here. DATA is read as the model's
+    /// member of the first population, its family is kept (another --model
+    /// is an error; an ARX model from `identify` cannot start a fit), and
+    /// its effects and --bound / --fix are taken unless given here. DATA is read as the model's
     /// data were (columns, time column, --resample) unless flags say
     /// otherwise, and must have the model's units and sample time. The fit
     /// runs in the model's coordinates (its means), so the start is the
