@@ -312,3 +312,26 @@ fn link_flags_without_a_rig_are_refused() {
         "{err}"
     );
 }
+
+/// A load the twin cannot carry is a flag error before any run, not a
+/// panic after the runs (which lost their results): `--load` above the
+/// twin's limit, and a design load whose robustness run (× 1.3) is.
+#[test]
+fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
+    for (args, needle) in [
+        (
+            &["--controller", "pi", "--load", "20"][..],
+            "--load 20: the twin carries at most 15 kg",
+        ),
+        (
+            &["--controller", "mpc", "--design-load", "15", "--robustness"][..],
+            "--design-load 15: the twin carries at most 15 kg, and --robustness runs it at 1.3 × \
+             the design load (so at most 11.54 kg)",
+        ),
+    ] {
+        let out = control(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+}

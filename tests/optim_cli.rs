@@ -361,11 +361,28 @@ fn bad_flags_and_bad_data_are_clear_errors() {
 fn a_warm_start_from_another_family_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let fit = ["fit", &csv, "--pop", "20", "--gens", "2", "--backend", "cpu"];
+    let fit = [
+        "fit",
+        &csv,
+        "--pop",
+        "20",
+        "--gens",
+        "2",
+        "--backend",
+        "cpu",
+    ];
     let saved = mckibben(&[&fit[..], &["--out", "classic"]].concat(), dir.path());
-    assert!(saved.status.success(), "{}", String::from_utf8_lossy(&saved.stderr));
+    assert!(
+        saved.status.success(),
+        "{}",
+        String::from_utf8_lossy(&saved.stderr)
+    );
     let arx = mckibben(&["identify", &csv, "--out", "arx.json"], dir.path());
-    assert!(arx.status.success(), "{}", String::from_utf8_lossy(&arx.stderr));
+    assert!(
+        arx.status.success(),
+        "{}",
+        String::from_utf8_lossy(&arx.stderr)
+    );
     let cases: [(&[&str], &str); 3] = [
         (
             &["--from", "classic/model.json", "--model", "generalized"],

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
-use mckibben::control::sweep::{self, DesignRequest, Ingredients, Kind, Shape};
+use mckibben::control::sweep::{self, DesignRequest, Ingredients, Kind, ROBUST_LOAD_SCALE, Shape};
 use mckibben::control::table::{self, DesignJson, JsonOutput};
 use mckibben::control::tuning::{self, TuningRun};
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
@@ -17,7 +17,7 @@ use mckibben::data::signals::nyquist_rad_s;
 use mckibben::report::json::Versioned;
 use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
-use mckibben::twin::TwinConfig;
+use mckibben::twin::{MAX_LOAD_KG, TwinConfig};
 
 /// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
 /// closing the loop on the input valve voltage (0–10 V, slew 0.25 V per
@@ -212,12 +212,36 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
             "--freq: {w} is not a positive frequency (rad/s)"
         );
     }
-    for &m in args.load.iter().chain([args.design_load].iter()) {
+    // The twin carries at most MAX_LOAD_KG; the robustness table runs it
+    // at the design load × 1.3 too. Checked here, before any run.
+    let heaviest = |flag: &str, m: f64, scale: f64| {
         anyhow::ensure!(
             m > 0.0 && m.is_finite(),
-            "--load/--design-load: {m} is not a positive mass (kg)"
+            "{flag}: {m} is not a positive mass (kg)"
         );
+        anyhow::ensure!(
+            m * scale <= MAX_LOAD_KG,
+            "{flag} {m}: the twin carries at most {MAX_LOAD_KG} kg{}",
+            if scale > 1.0 {
+                format!(
+                    ", and --robustness runs it at {scale} × the design load (so at most {:.2} kg)",
+                    MAX_LOAD_KG / scale
+                )
+            } else {
+                String::new()
+            }
+        );
+        Ok(())
+    };
+    for &m in &args.load {
+        heaviest("--load", m, 1.0)?;
     }
+    let perturbed = if args.robustness {
+        ROBUST_LOAD_SCALE
+    } else {
+        1.0
+    };
+    heaviest("--design-load", args.design_load, perturbed)?;
     for &s in &args.hysteresis_scale {
         anyhow::ensure!(
             s > 0.0 && s.is_finite(),
@@ -261,7 +285,13 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
         args.warmup >= 0.0
             && args.duration > 0.0
             && (0.0..args.duration).contains(&args.steady_from),
-        "--warmup ≥ 0, --duration > 0 and 0 ≤ --steady-from < --duration"
+        "--warmup {} ≥ 0, --duration {} > 0 and 0 ≤ --steady-from {} < --duration: \
+         each is in seconds, and a shorter --duration needs a --steady-from below it \
+         (its default is {} s)",
+        args.warmup,
+        args.duration,
+        args.steady_from,
+        Shape::thesis().steady_from_s
     );
     if let Some(g) = &args.tuned_gains {
         anyhow::ensure!(

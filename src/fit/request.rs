@@ -193,7 +193,10 @@ mod tests {
         request.effects = Some(Vec::new());
         request.bounds = vec!["alpha=0.3".parse().unwrap()];
         let r = request.resolve(Some(&file)).unwrap();
-        assert_eq!((r.what.family, r.what.effects.len()), (Family::Generalized, 0));
+        assert_eq!(
+            (r.what.family, r.what.effects.len()),
+            (Family::Generalized, 0)
+        );
         assert_eq!(r.what.bounds.len(), 2);
         assert_eq!(r.what.bounds[1], "alpha=0.3".parse().unwrap());
         // Another family: the start's parameters mean nothing there.

@@ -310,7 +310,10 @@ pub enum TwinError {
          leaving it no relaxed stiffness; the scale must stay below {below}"
     )]
     CreepRelaxesAll { share: f64, below: f64 },
-    #[error("--load {0}: expected a mass in kg above 0 and at most 15 (thesis: 4.5 or 7)")]
+    #[error(
+        "--load {0}: expected a mass in kg above 0 and at most {max} (thesis: 4.5 or 7)",
+        max = super::MAX_LOAD_KG
+    )]
     BadLoad(f64),
     #[error("--freq {0}: expected a positive angular frequency in rad/s (thesis: 1, 2, 3)")]
     BadFrequency(f64),

@@ -8,7 +8,7 @@ use crate::data::Trace;
 use crate::data::csv::{DataError, write_trace_with_comments};
 use crate::data::signals::{Multisine, SineReference, Stair, nyquist_rad_s};
 
-use super::{Rig, Sample, TwinConfig, TwinError};
+use super::{MAX_LOAD_KG, Rig, Sample, TwinConfig, TwinError};
 
 /// The thesis' PI controller (Table 22, used for both loads): `Kp = 0.06875`
 /// V/mm, `Ki = 0.05` V/(mm·sample).
@@ -210,9 +210,10 @@ impl RunSpec {
         write_trace_with_comments(path, trace, &self.comments())
     }
 
-    /// Checks the load: a mass in kg above 0 and at most 15.
+    /// Checks the load: a mass in kg above 0 and at most
+    /// [`MAX_LOAD_KG`].
     pub fn check_load(&self) -> Result<(), TwinError> {
-        if !(self.load_kg.is_finite() && self.load_kg > 0.0 && self.load_kg <= 15.0) {
+        if !(self.load_kg.is_finite() && self.load_kg > 0.0 && self.load_kg <= MAX_LOAD_KG) {
             return Err(TwinError::BadLoad(self.load_kg));
         }
         Ok(())

@@ -101,6 +101,11 @@ pub struct Rig {
     rng: ChaCha8Rng,
 }
 
+/// The heaviest load (kg) the commands hang on the twin: the default
+/// muscle's rubber stretches the braid straight at about 19 kg
+/// ([`Rig::new`]), and the thesis loads it with 4.5 and 7.
+pub const MAX_LOAD_KG: f64 = 15.0;
+
 impl Rig {
     /// The rig at rest: load hanging, chamber at atmospheric pressure, input
     /// valve commanded shut (0 V) and output valve open (10 V). `seed` seeds
