@@ -405,6 +405,69 @@ fn a_warm_start_from_another_family_is_a_clear_error() {
     }
 }
 
+/// A fit that finds no model writes nothing, so that an earlier fit's
+/// files in `--out` still describe one fit; an `--out` that cannot be a
+/// folder fails before any fit or study runs.
+#[test]
+fn a_failed_fit_leaves_out_as_it_was_and_a_bad_out_fails_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+    let fit = ["fit", csv, "--pop", "20", "--gens", "5", "--backend", "cpu"];
+    let first = mckibben(&[&fit[..], &["--out", "o"]].concat(), dir.path());
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let files = |d: &str| {
+        let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir.path().join(d))
+            .unwrap()
+            .map(|e| {
+                let e = e.unwrap();
+                (
+                    e.file_name().to_string_lossy().into(),
+                    std::fs::read(e.path()).unwrap(),
+                )
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    let before = files("o");
+    // A pole of 1.5 diverges on every candidate over the stair's 2000
+    // estimation samples.
+    let failed = mckibben(
+        &[&fit[..], &["--out", "o", "--fix", "a=1.5"]].concat(),
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&failed.stderr);
+    assert_eq!(failed.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("every candidate diverged: nothing was written to o")
+            && err.contains("--fix and --bound"),
+        "{err}"
+    );
+    assert!(before == files("o"), "--out changed");
+
+    std::fs::write(dir.path().join("afile"), "").unwrap();
+    let out = mckibben(&[&fit[..], &["--out", "afile"]].concat(), dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("afile is a file, not a folder"), "{err}");
+    assert!(!err.contains("fitting"), "the fit ran first: {err}");
+    let out = mckibben(
+        &["compare", csv, "--backend", "cpu", "--out", "afile/x"],
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("afile is a file, so afile/x cannot be a folder"),
+        "{err}"
+    );
+    assert!(!err.contains("comparing on"), "the study ran first: {err}");
+}
+
 #[test]
 fn compare_writes_markdown_and_json() {
     let dir = tempfile::tempdir().unwrap();

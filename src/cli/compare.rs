@@ -88,6 +88,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Read before the study, so that a bad --cross fails at once, not
     // after minutes of fits.
     let other = cross_trace(&args)?;
+    // The folder too: a study of minutes must not end on a path that
+    // cannot be written.
+    mckibben::data::create_dir_all(&args.out)
+        .with_context(|| format!("cannot create --out {}", args.out.display()))?;
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     eprintln!("comparing on {} [{backend}]", trace.source);
@@ -109,19 +113,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         cross_load,
     };
     let md = markdown(&report, &settings);
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create --out {}", args.out.display()))?;
     let json = Versioned::new(&report).to_string_pretty()?;
-    write_atomic(&args.out.join("compare.json"), json.as_bytes())
-        .with_context(|| format!("cannot write into {}", args.out.display()))?;
-    write_atomic(&args.out.join("compare.md"), md.as_bytes())
-        .with_context(|| format!("cannot write into {}", args.out.display()))?;
+    // Printed even where a write fails: minutes of study are not lost.
+    let written = write_atomic(&args.out.join("compare.json"), json.as_bytes())
+        .and_then(|()| write_atomic(&args.out.join("compare.md"), md.as_bytes()))
+        .with_context(|| format!("cannot write into {}", args.out.display()));
     if args.json {
         println!("{json}");
     } else {
         print!("{md}");
     }
-    Ok(())
+    written
 }
 
 /// The second experiment: --cross, or the 7 kg stair beside the default data.

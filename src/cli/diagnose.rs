@@ -335,7 +335,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     for (flag, dir) in [("--out", &args.out), ("--report", &args.report)] {
         if let Some(dir) = dir {
-            std::fs::create_dir_all(dir)
+            mckibben::data::create_dir_all(dir)
                 .with_context(|| format!("{flag} {}: cannot create the folder", dir.display()))?;
         }
     }

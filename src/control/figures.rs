@@ -111,7 +111,8 @@ pub fn design_figure(d: &Design) -> Figure {
 /// Every run's figure and the design's (`control_model.svg`) as SVG files
 /// in `dir` (`--plot`).
 pub fn save(dir: &Path, runs: &[Run], design: Option<&Design>) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating --plot {}", dir.display()))?;
+    crate::data::create_dir_all(dir)
+        .with_context(|| format!("creating --plot {}", dir.display()))?;
     let mut figs: Vec<(String, Figure)> = runs
         .iter()
         .map(|r| (format!("{}.svg", stem(r)), run_figure(r)))

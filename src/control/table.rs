@@ -273,7 +273,8 @@ pub fn text(rows: &[Row], robust: &[RobustRow]) -> String {
 /// One CSV per run in `dir` (t, reference, displacement, pressure,
 /// valve_in), named as its figure ([`figures::stem`]).
 pub fn write_csvs(dir: &Path, runs: &[Run]) -> anyhow::Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating --csv {}", dir.display()))?;
+    crate::data::create_dir_all(dir)
+        .with_context(|| format!("creating --csv {}", dir.display()))?;
     for run in runs {
         let r = &run.result;
         // The plant's sample time, as the run's time base carries it.

@@ -5,21 +5,30 @@ use std::fs;
 use std::io::{self, Write};
 use std::path::Path;
 
-/// Writes `bytes` to `path` atomically, creating the parent folder if needed.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
+/// Creates the folder `dir` and its parents, as `fs::create_dir_all`; where
+/// a part of the path is a file, the error names it (the OS says "File
+/// exists" or "Not a directory").
+pub fn create_dir_all(dir: &Path) -> io::Result<()> {
     fs::create_dir_all(dir).map_err(|e| match dir.ancestors().find(|a| a.is_file()) {
-        // The OS says "File exists" of a folder path through a file.
+        Some(file) if file == dir => {
+            io::Error::other(format!("{} is a file, not a folder", dir.display()))
+        }
         Some(file) => io::Error::other(format!(
             "{} is a file, so {} cannot be a folder",
             file.display(),
             dir.display()
         )),
         None => e,
-    })?;
+    })
+}
+
+/// Writes `bytes` to `path` atomically, creating the parent folder if needed.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    create_dir_all(dir)?;
     let name = path
         .file_name()
         .ok_or_else(|| io::Error::other(format!("{} names no file", path.display())))?;

@@ -6,7 +6,7 @@ pub mod csv;
 pub mod signals;
 pub mod units;
 
-pub use atomic::write_atomic;
+pub use atomic::{create_dir_all, write_atomic};
 
 use serde::{Deserialize, Serialize};
 

@@ -286,7 +286,7 @@ impl FitReport {
 
     /// Creates `out` and writes `result.json` there, with `out` in it.
     fn write_result(&mut self, out: &Path) -> anyhow::Result<()> {
-        std::fs::create_dir_all(out)
+        crate::data::create_dir_all(out)
             .with_context(|| format!("cannot create --out {}", out.display()))?;
         self.out = Some(out.to_path_buf());
         let path = out.join("result.json");

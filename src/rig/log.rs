@@ -31,7 +31,7 @@ impl RunLog {
     /// and the column names.
     pub fn create(path: &Path, header: &[String]) -> io::Result<RunLog> {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)?;
+            crate::data::create_dir_all(dir)?;
         }
         let mut log = RunLog {
             path: path.to_path_buf(),

@@ -81,6 +81,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         );
         let family = args.model.map_or(Family::Classic, Family::from);
         let trace = one_trace(args.data.load()?)?;
+        out_folder(&args.out)?;
         return run_auto(&args, family, &trace);
     }
     let request = args.request()?;
@@ -110,6 +111,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("{flag}: {e:#}"))?;
     let (what, start_model) = (resolved.what, resolved.start);
     let trace = one_trace(args.data.load()?)?;
+    out_folder(&args.out)?;
     if let Some(model) = &resolved.carried {
         model
             .check_data(&trace)
@@ -173,13 +175,20 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     let mut report = FitReport::of(&fit, (&outcome, &widened), &backend, &trace.source);
     let provenance = args.data.provenance(Some(fit.engine.seed))?;
-    report.write(
-        &args.out,
-        (&fit, &outcome.params),
-        &trace,
-        &what.bounds,
-        provenance,
-    )?;
+    let found = !outcome.params.is_empty();
+    // A fit without a model writes nothing: its result.json and history
+    // beside an earlier fit's model.json would leave --out describing two
+    // fits. A write that fails still lets the report below be printed.
+    let written = match found {
+        true => report.write(
+            &args.out,
+            (&fit, &outcome.params),
+            &trace,
+            &what.bounds,
+            provenance,
+        ),
+        false => Ok(()),
+    };
     if args.json {
         println!("{}", Versioned::new(&report).to_string_pretty()?);
     } else {
@@ -207,13 +216,26 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             }
         }
     }
+    written?;
+    let held = match what.bounds.is_empty() {
+        true => String::new(),
+        false => ", and the values --fix and --bound hold (an unstable pole diverges)".to_string(),
+    };
     anyhow::ensure!(
-        !outcome.params.is_empty(),
-        "every candidate diverged: no model was written (the history is in {}); \
-         check the data's units and columns",
+        found,
+        "every candidate diverged: nothing was written to {} (what it held is untouched); \
+         check the data's units and columns{held}",
         args.out.display()
     );
     Ok(())
+}
+
+/// Creates `--out` before the fit runs, so that a path that cannot be a
+/// folder fails at once, not after the fit.
+fn out_folder(out: &std::path::Path) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    mckibben::data::create_dir_all(out)
+        .with_context(|| format!("cannot create --out {}", out.display()))
 }
 
 /// The line that says what is about to run: the model, the algorithm and

@@ -8,7 +8,7 @@ use crate::report::{Figure, Panel, Series};
 
 /// Writes the figures into `dir`; returns their paths.
 pub fn write_figures(d: &Diagnosis, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir)
+    crate::data::create_dir_all(dir)
         .map_err(|e| anyhow::anyhow!("cannot create --report directory {}: {e}", dir.display()))?;
     let mut out = Vec::new();
     let mut save = |name: &str, fig: Figure| -> anyhow::Result<()> {
