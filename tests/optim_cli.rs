@@ -238,6 +238,29 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success(), "{err}");
     assert!(err.contains("made by a fit of other data"), "{err}");
+    // And with another box: the checkpoint would resume its own and report
+    // the new --fix as applied.
+    let refused = mckibben(
+        &[
+            &base[..],
+            &[
+                "--gens",
+                "8",
+                "--checkpoint",
+                "ck.json",
+                "--fix",
+                "alpha=0.5",
+            ],
+        ]
+        .concat(),
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success(), "{err}");
+    assert!(
+        err.contains("searched another box for alpha (made with other --bound, --fix"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -353,6 +353,24 @@ impl FitSettings {
                     path.display()
                 );
             }
+            // The box, held values included: a checkpoint resumes its own
+            // box, so another --bound or --fix would be reported as applied
+            // and not be.
+            let differs: Vec<String> = (0..space.dim())
+                .filter(|&i| {
+                    engine.space.lower[i].to_bits() != space.lower[i].to_bits()
+                        || engine.space.upper[i].to_bits() != space.upper[i].to_bits()
+                })
+                .map(|i| space.names[i].clone())
+                .collect();
+            anyhow::ensure!(
+                differs.is_empty(),
+                "checkpoint {} searched another box for {} (made with other --bound, --fix, \
+                 --loop or --free-n): resuming it would not apply this command's; give the \
+                 flags it was made with, or name another --checkpoint",
+                path.display(),
+                differs.join(", ")
+            );
             engine.stops = self.stops()?;
             note(format!(
                 "resuming at generation {} of {} from {} (its plan, N, G, seed and settings win)",
