@@ -684,3 +684,98 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
         "{text}"
     );
 }
+
+/// The column of `name` in a CSV that `simulate --out` wrote.
+fn column_of(path: &Path, name: &str) -> Vec<f64> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let i = header
+        .iter()
+        .position(|h| *h == name)
+        .unwrap_or_else(|| panic!("no column {name} in {header:?}"));
+    lines
+        .map(|l| l.split(',').nth(i).unwrap().parse().unwrap())
+        .collect()
+}
+
+/// A generated input is a pressure in MPa: `simulate` converts it to the
+/// model's input unit (a kPa model on the MPa stair was a thousand times
+/// off, silently); and what it writes reads back: the measured output
+/// kept beside the simulated one, and `w` renamed where the input file
+/// has a `w` already.
+#[test]
+fn simulate_drives_a_model_in_its_own_units_and_writes_a_file_that_reads_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let kpa = dir.path().join("kpa");
+    quick_fit(
+        &[
+            "data/logger_example.csv",
+            "--time",
+            "time_s",
+            "--input",
+            "p_kPa",
+            "--output",
+            "stroke_mm",
+            "--split-gaps",
+        ],
+        &kpa,
+    );
+    let model = kpa.join("model.json");
+    let written = dir.path().join("stair_kpa.csv");
+    let out = mckibben(&[
+        "simulate",
+        "--from",
+        model.to_str().unwrap(),
+        "--input",
+        "stair",
+        "--out",
+        written.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("converted from MPa to kPa"), "{err}");
+    // The stair reaches 0.5 MPa: 500 kPa.
+    let p = column_of(&written, "p_kPa");
+    let top = p.iter().fold(0.0f64, |m, v| m.max(*v));
+    assert!((top - 500.0).abs() < 1e-9, "{top}");
+
+    // An input file with a column `w`: the file written has the measured
+    // output and both w's, and reads back.
+    let stair = std::fs::read_to_string(Path::new(ROOT).join(STAIR)).unwrap();
+    let mut rows = stair.lines().filter(|l| !l.starts_with('#'));
+    let header = rows.next().unwrap();
+    let with_w: Vec<String> = std::iter::once(format!("{header},w"))
+        .chain(rows.take(300).map(|r| format!("{r},7")))
+        .collect();
+    let input = dir.path().join("with_w.csv");
+    std::fs::write(&input, with_w.join("\n") + "\n").unwrap();
+    let out = dir.path().join("sim_w.csv");
+    let _ = json_of(&[
+        "simulate",
+        "--input",
+        input.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(column_of(&out, "w").iter().all(|v| *v == 7.0));
+    assert_eq!(column_of(&out, "w_simulated").len(), 300);
+    let measured = column_of(&out, "displacement_measured");
+    assert_eq!(measured, column_of(&input, "displacement"));
+    let _ = json_of(&["identify", out.to_str().unwrap(), "--json"]);
+
+    // A model whose input is not a pressure cannot run on a generated one.
+    let mut volts = model_in(&kpa, "model.json");
+    volts["data"]["input"]["column"] = "valve_V".into();
+    volts["data"]["input"]["unit"] = "V".into();
+    let volts_path = dir.path().join("volts.json");
+    std::fs::write(&volts_path, volts.to_string()).unwrap();
+    let err = error_of(&["simulate", "--from", volts_path.to_str().unwrap()]);
+    assert!(
+        err.contains(
+            "a generated input is a pressure in MPa, and the model's input `valve_V` is in V"
+        ),
+        "{err}"
+    );
+}

@@ -8,6 +8,7 @@ use serde::Serialize;
 use mckibben::data::Trace;
 use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces, write_trace_with_comments};
 use mckibben::data::signals::{Stair, nyquist_rad_s, samples_in};
+use mckibben::data::units::{megapascals_in, unit_of};
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::experiment::halves;
 use mckibben::model::presets::thesis_params;
@@ -95,7 +96,11 @@ pub struct Args {
     /// seconds (default: as the model file's data were read).
     #[arg(long, value_name = "DT")]
     resample: Option<f64>,
-    /// Write the simulated trace (t, pressure, displacement, w) to this CSV file.
+    /// Write the simulated trace to this CSV file: the time, the input and
+    /// the simulated output under the model's column names, then the
+    /// input file's other columns, the measured output as
+    /// `<output>_measured` and the hysteretic state `w` (a name a column
+    /// already has gets `_simulated`).
     #[arg(long, value_name = "FILE.csv")]
     out: Option<PathBuf>,
     /// Draw the trace and the hysteresis loop to this SVG file.
@@ -193,6 +198,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let (mut trace, y0) = input_trace(&args, dt, file.as_ref())?;
+    if args.input_is_generated() {
+        in_model_units(&mut trace, &model.base.input_name, !args.json)?;
+    }
     let half = (trace.len() / 2).max(1);
     if model.base.input_mean.is_nan() {
         model.base.input_mean = trace.input[..half].iter().sum::<f64>() / half as f64;
@@ -207,6 +215,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
     }
     let measured = y0.is_some().then(|| trace.output.clone());
+    // The file written keeps the measured output beside the simulated one,
+    // under a name of its own, as it keeps w.
+    if let Some(y) = &measured {
+        let name = free_name(&trace, &format!("{}_measured", trace.output_name));
+        trace.extra.push((name, y.clone()));
+    }
     let (samples, sample_time) = (trace.len(), trace.dt());
     let mut run = match y0 {
         Some(y0) => model.simulate_absolute(&trace.input, y0),
@@ -224,7 +238,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     trace.output = run.output.clone();
     trace.output_name = model.base.output_name.clone();
     if let Some(w) = &run.w {
-        trace.extra.push(("w".into(), w.clone()));
+        let name = free_name(&trace, "w");
+        trace.extra.push((name, w.clone()));
     }
     let family = model.base.family;
     let chain: Vec<String> = model
@@ -344,6 +359,55 @@ fn override_params(model: &mut Model, assignments: &[String]) -> anyhow::Result<
     Ok(())
 }
 
+/// `name`, or where the trace has a column of that name already,
+/// `name_simulated`: a column the written file can be read back with.
+fn free_name(trace: &Trace, name: &str) -> String {
+    let taken = |n: &str| {
+        n == trace.input_name || n == trace.output_name || trace.extra.iter().any(|(e, _)| e == n)
+    };
+    match taken(name) {
+        false => name.to_string(),
+        true => (1..)
+            .map(|k| match k {
+                1 => format!("{name}_simulated"),
+                k => format!("{name}_simulated{k}"),
+            })
+            .find(|n| !taken(n))
+            .expect("an unbounded search finds a free name"),
+    }
+}
+
+/// A generated input (MPa) in the model's input unit: converted where the
+/// model's input column states another pressure unit (a model fitted in kPa
+/// run on MPa is a thousand times off), an error where it states a unit
+/// that is not a pressure; a column stating none is taken at its word.
+fn in_model_units(trace: &mut Trace, column: &str, say: bool) -> anyhow::Result<()> {
+    let Some(unit) = unit_of(column) else {
+        return Ok(());
+    };
+    let per_unit = megapascals_in(&unit).with_context(|| {
+        format!(
+            "--input {}: a generated input is a pressure in MPa, and the model's input `{column}` \
+             is in {unit}; pass a CSV file as --input",
+            trace.source
+        )
+    })?;
+    if unit != "MPa" {
+        for v in &mut trace.input {
+            *v /= per_unit;
+        }
+        if say {
+            eprintln!(
+                "mckibben: note: the {}'s pressures are converted from MPa to {unit}, the unit of \
+                 the model's input `{column}`",
+                trace.source
+            );
+        }
+    }
+    trace.input_name = column.to_string();
+    Ok(())
+}
+
 /// The input trace and, for a file, its first measured output.
 fn input_trace(
     args: &Args,
@@ -430,7 +494,13 @@ fn input_trace(
                         column,
                         available,
                     },
-                    other => other,
+                    // simulate runs one experiment and has no --split-gaps.
+                    other => other.with_time_hint(
+                        "simulate runs one experiment, so cut the file there \
+                         (`mckibben identify FILE --split-gaps` lists its pieces)",
+                        "pass --resample DT to interpolate onto a uniform step, or cut the file \
+                         at its gaps (simulate runs one experiment)",
+                    ),
                 })
             };
             // A file with no output column (none named) is an input alone:

@@ -214,8 +214,14 @@ pub fn design_for(
 ) -> anyhow::Result<Design> {
     let design = match &request.record {
         Some(path) => {
-            let traces = read_traces(path, &ReadOptions::default())
-                .map_err(|e| anyhow::anyhow!("--design-data: {e}"))?;
+            let traces = read_traces(path, &ReadOptions::default()).map_err(|e| {
+                let e = e.with_time_hint(
+                    "the design record is one experiment: cut the file there",
+                    "the design record needs a uniform time step: resample it, or cut it at \
+                     its gaps, first",
+                );
+                anyhow::anyhow!("--design-data: {e}")
+            })?;
             let trace = traces
                 .into_iter()
                 .next()

@@ -171,6 +171,48 @@ pub enum DataError {
     BadTrace { path: PathBuf, message: String },
 }
 
+impl DataError {
+    /// The same error with `hint` as what the user can do about a time
+    /// base, for a caller that does not offer `--split-gaps` or
+    /// `--resample` (the reader's own hints name them); other errors are
+    /// returned as they are.
+    pub fn with_time_hint(self, not_increasing: &'static str, non_uniform: &'static str) -> Self {
+        match self {
+            DataError::NotIncreasing {
+                path,
+                line,
+                column,
+                value,
+                previous,
+                ..
+            } => DataError::NotIncreasing {
+                path,
+                line,
+                column,
+                value,
+                previous,
+                hint: not_increasing,
+            },
+            DataError::NonUniform {
+                path,
+                line,
+                column,
+                step,
+                expected,
+                ..
+            } => DataError::NonUniform {
+                path,
+                line,
+                column,
+                step,
+                expected,
+                hint: non_uniform,
+            },
+            other => other,
+        }
+    }
+}
+
 /// ": it runs back by D s" when `value` is below `previous`: a 1 s jump back
 /// in a 1 kHz file reads more clearly than two nearby times.
 fn runs_back(value: f64, previous: f64) -> String {

@@ -58,6 +58,20 @@ fn millimetres_in(unit: &str) -> Option<f64> {
     }
 }
 
+/// How many MPa one of `unit` (as [`unit_of`] spells it) is, for the
+/// pressures a muscle is driven with; `None` for any other unit.
+pub fn megapascals_in(unit: &str) -> Option<f64> {
+    match unit {
+        "MPa" => Some(1.0),
+        "kPa" => Some(1e-3),
+        "Pa" => Some(1e-6),
+        "bar" => Some(0.1),
+        // 1 psi = 6894.757293168 Pa (the international pound and inch).
+        "psi" => Some(6.894757293168e-3),
+        _ => None,
+    }
+}
+
 /// How many millimetres one unit of the column `column` is, where its name
 /// states a length ([`unit_of`], [`millimetres_in`]); `None` where it
 /// states none.
@@ -78,6 +92,8 @@ mod tests {
         assert_eq!(unit_of("pressure").as_deref(), Some("MPa"));
         assert_eq!(unit_of("valve_in"), None);
         assert_eq!(unit_of("t_s"), None);
+        assert_eq!(megapascals_in("kPa"), Some(1e-3));
+        assert_eq!(megapascals_in("mm"), None);
         assert_eq!(unit_of("load"), None);
     }
 
