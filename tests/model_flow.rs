@@ -765,6 +765,34 @@ fn simulate_drives_a_model_in_its_own_units_and_writes_a_file_that_reads_back() 
     assert_eq!(measured, column_of(&input, "displacement"));
     let _ = json_of(&["identify", out.to_str().unwrap(), "--json"]);
 
+    // simulate runs one experiment: its time-base errors advise what it
+    // has (--resample, cutting the file), not fit's --split-gaps.
+    let back = dir.path().join("back.csv");
+    std::fs::write(
+        &back,
+        "t,pressure,displacement\n0,0.1,1\n0.1,0.2,2\n0.05,0.3,3\n",
+    )
+    .unwrap();
+    let gap = dir.path().join("gap.csv");
+    std::fs::write(
+        &gap,
+        "t,pressure,displacement\n0,0.1,1\n0.1,0.2,2\n0.2,0.3,3\n0.5,0.3,3\n",
+    )
+    .unwrap();
+    for (file, wanted) in [
+        (&back, "simulate runs one experiment, so cut the file there"),
+        (
+            &gap,
+            "pass --resample DT to interpolate onto a uniform step, or cut the file",
+        ),
+    ] {
+        let err = error_of(&["simulate", "--input", file.to_str().unwrap()]);
+        assert!(
+            err.contains(wanted) && !err.contains("pass --split-gaps"),
+            "{err}"
+        );
+    }
+
     // A model whose input is not a pressure cannot run on a generated one.
     let mut volts = model_in(&kpa, "model.json");
     volts["data"]["input"]["column"] = "valve_V".into();
