@@ -11,6 +11,22 @@ use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::model::file::{ModelFile, Provenance, ReadSettings};
 
+/// The hysteretic families `fit` fits and `diagnose` takes as a baseline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModelArg {
+    Classic,
+    Generalized,
+}
+
+impl From<ModelArg> for mckibben::model::Family {
+    fn from(m: ModelArg) -> Self {
+        match m {
+            ModelArg::Classic => Self::Classic,
+            ModelArg::Generalized => Self::Generalized,
+        }
+    }
+}
+
 /// The shipped default experiment, relative to the repository root.
 pub const DEFAULT_DATA: &str = "data/stair_4.5kg.csv";
 
@@ -19,18 +35,18 @@ pub const DEFAULT_DATA: &str = "data/stair_4.5kg.csv";
 pub struct ColumnArgs {
     /// Column holding the model input (the muscle pressure, MPa, in the
     /// shipped data). Any numeric column works, e.g. `--input valve_in`.
-    /// [default: `pressure`; in `fit` and `diagnose`, the --from model's
-    /// column]
+    /// [default: `pressure`, or the --from model's column where the command
+    /// takes --from]
     #[arg(long, value_name = "COL")]
     pub input: Option<String>,
     /// Column holding the measured output (the displacement, mm, in the
-    /// shipped data). [default: `displacement`; in `fit` and `diagnose`,
-    /// the --from model's column]
+    /// shipped data). [default: `displacement`, or the --from model's
+    /// column where the command takes --from]
     #[arg(long, value_name = "COL")]
     pub output: Option<String>,
     /// Column holding the time in seconds. It must increase on every row
     /// (with --split-gaps the file is cut where it does not). [default:
-    /// `t`; in `fit` and `diagnose`, the --from model's]
+    /// `t`, or the --from model's where the command takes --from]
     #[arg(long, value_name = "COL")]
     pub time: Option<String>,
     /// The models are discrete-time and need a uniform time base (every step

@@ -17,7 +17,7 @@ use mckibben::names::UnknownName;
 use mckibben::report::json::Versioned;
 use mckibben::report::number::significant;
 
-use super::common::MultiDataArgs;
+use super::common::{ModelArg, MultiDataArgs};
 
 /// Diagnose the sim-to-real gap of a fitted hysteresis model.
 ///
@@ -62,8 +62,8 @@ pub struct Args {
     #[command(flatten)]
     data: MultiDataArgs,
     /// Baseline model family. [default: classic, or the --from model's]
-    #[arg(long, value_parser = parse_family)]
-    baseline: Option<Family>,
+    #[arg(long, value_enum)]
+    baseline: Option<ModelArg>,
     // The help lists the catalogue as `model::effects` declares it.
     #[arg(long, value_delimiter = ',', value_parser = parse_effect, help = format!(
         "Effects to try, comma-separated (default: the whole catalogue, every realisation: {})",
@@ -196,7 +196,7 @@ pub struct Args {
 impl Args {
     /// The baseline family asked for: classic unless `--baseline` says.
     fn family(&self) -> Family {
-        self.baseline.unwrap_or(Family::Classic)
+        self.baseline.map_or(Family::Classic, Family::from)
     }
 }
 
@@ -208,15 +208,6 @@ enum SelfTest {
     Independent,
     /// Cases made with the catalogue's own effect equations, and the twin check.
     Catalogue,
-}
-
-fn parse_family(s: &str) -> Result<Family, String> {
-    match s.parse::<Family>().map_err(|e| e.to_string())? {
-        Family::Linear => {
-            Err("the baseline must be classic or generalized (a hysteresis model)".into())
-        }
-        f => Ok(f),
-    }
 }
 
 fn parse_effect(s: &str) -> Result<Effect, UnknownName> {
@@ -234,7 +225,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             let file = ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
             args.data.columns = args.data.columns.or_as_read_for(&file);
             let model = file.model()?;
-            let family = args.baseline.unwrap_or(model.base.family);
+            let family = args.baseline.map_or(model.base.family, Family::from);
             anyhow::ensure!(
                 family == model.base.family,
                 "--baseline {family}: the --from model {} is {}",

@@ -49,7 +49,7 @@ pub enum Command {
     )]
     Diagnose(diagnose::Args),
     #[command(
-        about = "Close the loop on the rig twin: thesis PI, tuned PI and MPC at 1, 2, 3 rad/s"
+        about = "Close the loop: thesis PI, tuned PID, feedforward PID and MPC at 1, 2, 3 rad/s, on the rig twin or a rig (--plant)"
     )]
     Control(control::Args),
     #[command(about = "Run an experiment on the rig twin and write the recording as CSV")]

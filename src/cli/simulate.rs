@@ -31,7 +31,8 @@ const SINE_SECONDS: f64 = 40.0;
 
 /// Simulate a model free-run on an input and write the trace.
 ///
-/// The model input is the muscle pressure (MPa). `--input stair` is the
+/// The model input is the muscle pressure (MPa; a generated input is
+/// converted to a model file's pressure unit). `--input stair` is the
 /// identification staircase of appendix A.1.1 (valve 0–10 V, turned into
 /// pressure by a nominal 0.05 MPa/V); `--input sine` a pressure sine
 /// 0.25 + 0.2·sin(ω t) MPa; any other value is a CSV file whose input column
@@ -41,9 +42,9 @@ const SINE_SECONDS: f64 = 40.0;
 /// that the model, held there with no hysteretic state, keeps.
 ///
 /// Parameters come from `--preset thesis` (tables 1 and 2 with eq. 12's a, b;
-/// the default), a model file written by `identify` or `fit` (`--from`), and
-/// `--params NAME=VALUE,...` overrides (names as `mckibben simulate --list`
-/// shows). Without a model file the simulation runs in deviation coordinates:
+/// the default), a model file written by `fit`, `identify` or `diagnose
+/// --out` (`--from`), and `--params NAME=VALUE,...` overrides (names as
+/// `mckibben simulate --list` shows). Without a model file the simulation runs in deviation coordinates:
 /// the input mean of the first half removed, and on a CSV the measured
 /// output's too.
 ///

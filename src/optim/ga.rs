@@ -57,7 +57,7 @@ pub enum Mutation {
     /// `m_m` unused):
     /// the gene moves towards the upper or the lower bound (even odds) by
     /// `Δ(k, y) = y·(1 − r^((1 − k/G)^b))`, `y` its distance to that bound,
-    /// `r` uniform in [0, 1], `b` = [`NON_UNIFORM_B`]. Early it can reach
+    /// `r` uniform in [0, 1], `b` = 5 (`NON_UNIFORM_B`). Early it can reach
     /// anywhere in the box — a gene near 0 is not stuck, as it is under a
     /// change relative to its own value — and the reach shrinks to 0 by
     /// generation `G`, so the same operator explores and then refines.

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use super::super::common::DataArgs;
+use super::super::common::{DataArgs, ModelArg};
 use mckibben::eval::Backend;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::request::FitRequest;
@@ -303,22 +303,6 @@ impl std::str::FromStr for EffectArg {
         match s {
             "auto" => Ok(EffectArg::Auto),
             _ => s.parse().map(EffectArg::Effect),
-        }
-    }
-}
-
-/// The hysteretic families `fit` can fit.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum ModelArg {
-    Classic,
-    Generalized,
-}
-
-impl From<ModelArg> for Family {
-    fn from(m: ModelArg) -> Family {
-        match m {
-            ModelArg::Classic => Family::Classic,
-            ModelArg::Generalized => Family::Generalized,
         }
     }
 }
