@@ -480,10 +480,16 @@ fn bad_transfer_and_output_flags_fail_before_the_diagnosis() {
     std::fs::write(&slow, decimated.join("\n") + "\n").unwrap();
     let file = dir.path().join("a_file");
     std::fs::write(&file, "").unwrap();
+    let stair_7kg = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_7kg.csv");
     for (args, expect) in [
         (
             vec!["--transfer", slow.to_str().unwrap()],
             "sampled every 0.02 s, the diagnosed record every 0.01 s",
+        ),
+        // Two records of two sample times for one model.
+        (
+            vec![stair_7kg, slow.to_str().unwrap()],
+            "every_20ms.csv is sampled every 0.02 s",
         ),
         (
             vec!["--out", file.to_str().unwrap()],

@@ -489,6 +489,27 @@ fn a_failed_fit_leaves_out_as_it_was_and_a_bad_out_fails_first() {
         "{err}"
     );
     assert!(!err.contains("comparing on"), "the study ran first: {err}");
+    // A cross-load record of another sample time: refused before the study.
+    let stair = std::fs::read_to_string(csv).unwrap();
+    let every_other: Vec<&str> = stair
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .enumerate()
+        .filter(|(i, _)| *i == 0 || i % 2 == 1)
+        .map(|(_, l)| l)
+        .collect();
+    std::fs::write(dir.path().join("slow.csv"), every_other.join("\n") + "\n").unwrap();
+    let out = mckibben(
+        &["compare", csv, "--backend", "cpu", "--cross", "slow.csv"],
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("--cross slow.csv: sampled every 0.02 s"),
+        "{err}"
+    );
+    assert!(!err.contains("comparing on"), "the study ran first: {err}");
 }
 
 #[test]

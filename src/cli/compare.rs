@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use super::common::{ColumnArgs, DataArgs, one_trace};
-use mckibben::data::{Trace, write_atomic};
+use mckibben::data::{Trace, tidy_step, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::fit::compare::{Report, Settings, Study, markdown};
 use mckibben::optim::mfa;
@@ -88,6 +88,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Read before the study, so that a bad --cross fails at once, not
     // after minutes of fits.
     let other = cross_trace(&args)?;
+    if let Some(other) = &other {
+        let dt = trace.dt();
+        anyhow::ensure!(
+            (other.dt() - dt).abs() <= 0.01 * dt,
+            "--cross {}: sampled every {} s, {} every {} s: a model's poles are per sample, so \
+             the cross-load check needs one step (--resample {})",
+            other.source,
+            tidy_step(other.dt()),
+            trace.source,
+            tidy_step(dt),
+            tidy_step(dt)
+        );
+    }
     // The folder too: a study of minutes must not end on a path that
     // cannot be written.
     mckibben::data::create_dir_all(&args.out)

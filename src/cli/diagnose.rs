@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use mckibben::data::range;
 use mckibben::data::units::stated_length_in_mm;
+use mckibben::data::{Trace, range, tidy_step};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::transfer::transfer;
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
@@ -315,13 +315,25 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             .context("--transfer")?
     };
     let dt = traces[0].dt();
+    let same_step = |t: &Trace| (t.dt() - dt).abs() <= 0.01 * dt;
+    let shown = tidy_step(dt);
+    // One model, one sample time: its poles are per sample.
+    if let Some(other) = traces.iter().find(|t| !same_step(t)) {
+        anyhow::bail!(
+            "{} is sampled every {} s, {} every {shown} s: one model's poles are per \
+             sample, so resample the records onto one step (--resample {shown})",
+            other.source,
+            tidy_step(other.dt()),
+            traces[0].source
+        );
+    }
     for other in &others {
         anyhow::ensure!(
-            (other.dt() - dt).abs() <= 0.01 * dt,
-            "--transfer {}: sampled every {} s, the diagnosed record every {dt} s; the \
-             model's poles are per sample, so resample it (--resample {dt})",
+            same_step(other),
+            "--transfer {}: sampled every {} s, the diagnosed record every {shown} s; the \
+             model's poles are per sample, so resample it (--resample {shown})",
             other.source,
-            other.dt()
+            tidy_step(other.dt())
         );
     }
     for (flag, dir) in [("--out", &args.out), ("--report", &args.report)] {

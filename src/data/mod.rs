@@ -114,3 +114,24 @@ impl Trace {
         }
     }
 }
+
+/// `v` rounded to 10 significant digits, for a time step computed from a
+/// record (a span over a count): 0.09999999999999999 s reads as 0.1 s, in
+/// a message and in the flag it suggests.
+pub fn tidy_step(v: f64) -> f64 {
+    format!("{v:.9e}").parse().unwrap_or(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_computed_time_step_reads_as_the_step_it_is() {
+        let dt = (39.9 - 0.0) / 399.0;
+        assert_ne!(dt, 0.1);
+        assert_eq!(tidy_step(dt), 0.1);
+        assert_eq!(tidy_step(0.012345678912), 0.01234567891);
+        assert!(tidy_step(f64::NAN).is_nan());
+    }
+}

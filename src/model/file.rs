@@ -17,6 +17,7 @@ use super::family::Family;
 use super::fitted::FittedBaseline;
 use super::sim::DIVERGENCE_BOUND;
 use super::user_bound::UserBound;
+use crate::data::tidy_step;
 use crate::data::units::unit_of;
 use crate::data::write_atomic;
 
@@ -152,11 +153,12 @@ impl Model {
         let dt = trace.dt();
         anyhow::ensure!(
             (dt - base.dt).abs() <= 0.01 * base.dt,
-            "{} is sampled every {dt} s, the model every {} s: a discrete-time model's poles \
+            "{} is sampled every {} s, the model every {} s: a discrete-time model's poles \
              are per sample, so resample the data onto its time base (--resample {})",
             trace.source,
-            base.dt,
-            base.dt
+            tidy_step(dt),
+            tidy_step(base.dt),
+            tidy_step(base.dt)
         );
         Ok(())
     }
