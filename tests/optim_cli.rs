@@ -267,8 +267,14 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 10] = [
         (&["fit", "missing.csv"], "missing.csv"),
+        // A population no machine holds: an error, not an aborted
+        // allocation.
+        (
+            &["fit", &csv, "--pop", "18446744073709551615"],
+            "for '--pop <POP>': at most 100000000 candidates",
+        ),
         (&["fit", &csv, "--algo", "cmaes"], "cmaes"),
         // Each algorithm's own minimum, named with the flag.
         (

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::common::DataArgs;
+use super::common::{DataArgs, population};
 use mckibben::eval::agreement::{Agreement, agreement};
 use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::eval::gpu::calibration::{self, Ceiling, Timed, Variant};
@@ -13,6 +13,7 @@ use mckibben::eval::workload::{
     augmented_population, mixed_population, search_space, stair_experiment,
 };
 use mckibben::eval::{Backend, Evaluator, Problem, open};
+use mckibben::fit::records::check_f32_range;
 use mckibben::model::effects::{Context, Effect, ModelDescription};
 use mckibben::model::presets::THESIS_B;
 use mckibben::model::{Experiment, Family};
@@ -88,7 +89,7 @@ pub struct Args {
     #[arg(long, default_value = "classic")]
     model: Family,
     /// Population sizes, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
+    #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000", value_parser = population)]
     pop: Vec<usize>,
     /// Where to score: `auto` takes a real GPU if there is one, else the CPU.
     #[arg(long, value_enum, default_value_t = Backend::Auto)]
@@ -312,12 +313,20 @@ fn workload(args: &Args) -> anyhow::Result<Workload> {
             anyhow::ensure!(n >= 2, "--synthetic: at least 2 samples");
             vec![stair_experiment(n, args.seed)]
         }
-        None => args
-            .data
-            .load()?
-            .iter()
-            .map(|t| Experiment::with_means_of(t, mckibben::model::experiment::halves(t.len()).0))
-            .collect(),
+        None => {
+            let traces = args.data.load()?;
+            // As fit's: values whose errors overflow the f32 kernels would
+            // give a box no candidate can be drawn from.
+            for t in &traces {
+                check_f32_range(t)?;
+            }
+            traces
+                .iter()
+                .map(|t| {
+                    Experiment::with_means_of(t, mckibben::model::experiment::halves(t.len()).0)
+                })
+                .collect()
+        }
     };
     let datasets = experiments.len();
     if let Some(e) = args.effects.iter().find(|e| !e.applicable(datasets)) {

@@ -9,6 +9,7 @@ use anyhow::Context;
 
 use mckibben::data::Trace;
 use mckibben::data::csv::{Gaps, ReadOptions, read_traces_with_notes};
+use mckibben::fit::settings::MAX_POPULATION;
 use mckibben::model::file::{ModelFile, Provenance, ReadSettings};
 
 /// The hysteretic families `fit` fits and `diagnose` takes as a baseline.
@@ -25,6 +26,20 @@ impl From<ModelArg> for mckibben::model::Family {
             ModelArg::Generalized => Self::Generalized,
         }
     }
+}
+
+/// A population-size flag: a count up to [`MAX_POPULATION`], so that a
+/// typo or a wrapped number is an error naming the flag, not an aborted
+/// allocation.
+pub fn population(s: &str) -> Result<usize, String> {
+    let n: usize = s.parse().map_err(|e| format!("{e}"))?;
+    if n > MAX_POPULATION {
+        return Err(format!(
+            "at most {MAX_POPULATION} candidates (a larger population is a typo, or more rows \
+             than a machine holds)"
+        ));
+    }
+    Ok(n)
 }
 
 /// The shipped default experiment, relative to the repository root.

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use super::common::{ColumnArgs, DataArgs, one_trace};
+use super::common::{ColumnArgs, DataArgs, one_trace, population};
 use mckibben::data::{Trace, tidy_step, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::fit::compare::{Report, Settings, Study, markdown};
@@ -40,10 +40,10 @@ pub struct Args {
     #[command(flatten)]
     data: DataArgs,
     /// The thesis' population sizes (Table 21).
-    #[arg(long, value_delimiter = ',', default_value = "10,20,30")]
+    #[arg(long, value_delimiter = ',', default_value = "10,20,30", value_parser = population)]
     thesis_sizes: Vec<usize>,
     /// Large population sizes to add to Table 21 (`--sizes 0`: none).
-    #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000")]
+    #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000", value_parser = population)]
     sizes: Vec<usize>,
     /// Generations for Table 21 (the thesis used 30).
     #[arg(long, default_value_t = 30)]
@@ -52,7 +52,7 @@ pub struct Args {
     #[arg(long, default_value_t = 10)]
     seeds: u64,
     /// Population and generations of the equal-budget table.
-    #[arg(long, default_value_t = 500)]
+    #[arg(long, default_value_t = 500, value_parser = population)]
     budget_pop: usize,
     #[arg(long, default_value_t = 100)]
     budget_gens: usize,

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use super::common::population;
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
 use mckibben::control::sweep::{self, DesignRequest, Ingredients, Kind, ROBUST_LOAD_SCALE, Shape};
@@ -87,7 +88,7 @@ pub struct Args {
     #[arg(long, default_value = "de")]
     algo: String,
     /// Population of the gain tuning.
-    #[arg(long, default_value_t = 24)]
+    #[arg(long, default_value_t = 24, value_parser = population)]
     pop: usize,
     /// Generations of the gain tuning.
     #[arg(long, default_value_t = 30)]

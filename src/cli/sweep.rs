@@ -1,6 +1,7 @@
 //! `mckibben sweep`: what a larger population buys, on generated cases
 //! with a known truth.
 
+use super::common::population;
 use mckibben::eval::{self, Backend};
 use mckibben::fit::sweep::{CaseFit, PopulationRow, cases, fit_case, markdown_table, summarize};
 use mckibben::model::Family;
@@ -48,7 +49,7 @@ use serde::Serialize;
 #[command(verbatim_doc_comment)]
 pub struct Args {
     /// Populations, comma-separated (each at least 4).
-    #[arg(long, value_delimiter = ',', default_value = "100,1000,10000")]
+    #[arg(long, value_delimiter = ',', default_value = "100,1000,10000", value_parser = population)]
     pop: Vec<usize>,
     /// Families, comma-separated: classic, generalized.
     #[arg(long, value_delimiter = ',', default_value = "classic,generalized")]

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
+use super::common::population;
 use mckibben::benchmark::evaluator;
 use mckibben::benchmark::identify::{IdentifySettings, identify};
 use mckibben::benchmark::{
@@ -52,7 +53,7 @@ struct BoucwenArgs {
     #[arg(long, default_value_t = IdentifySettings::default().seed)]
     seed: u64,
     /// Population size of the search.
-    #[arg(long, default_value_t = IdentifySettings::default().population)]
+    #[arg(long, default_value_t = IdentifySettings::default().population, value_parser = population)]
     population: usize,
     /// Generations of the search.
     #[arg(long, default_value_t = IdentifySettings::default().generations)]

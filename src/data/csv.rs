@@ -322,6 +322,16 @@ fn parse(
             message: "not UTF-8 text".into(),
         })?;
         let text = text.trim_start_matches('\u{feff}').trim();
+        // A comment line that holds a lone carriage return is a file of
+        // CR line ends that starts with a comment: all of it read as one
+        // comment, it would be reported empty.
+        if text.starts_with('#') && text.contains('\r') && header.is_none() {
+            check_header_form(text).map_err(|message| DataError::Parse {
+                path: p(),
+                line,
+                message,
+            })?;
+        }
         if text.is_empty() || text.starts_with('#') {
             continue;
         }
@@ -953,6 +963,10 @@ mod tests {
             (
                 "t\tpressure\tdisplacement\n0\t0.1\t1\n",
                 "separated by tabs",
+            ),
+            (
+                "# logged by hand\rt,pressure,displacement\r0,0.1,1\r0.01,0.2,2\r",
+                "lone carriage return",
             ),
             (
                 "t,pressure,displacement\r0,0.1,1\r0.01,0.2,2\r",

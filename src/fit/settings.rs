@@ -18,6 +18,11 @@ use crate::optim::mfa::{self, Distance, Lambda0Schedule, Scale};
 use crate::optim::stage::Stage;
 use crate::optim::{AlgoSettings, Algorithm, Streams, ThesisModel};
 
+/// The largest population a fit takes: 10⁸ candidates of a generalized
+/// model are 11 GB of rows before any copy, past what a machine that runs
+/// this tool is likely to hold; a larger `--pop` is a typo or a wrap.
+pub const MAX_POPULATION: usize = 100_000_000;
+
 /// Settings of one algorithm laid over its base settings (`None`, `false`:
 /// keep the base). Each acts on its own algorithm only, but every one given
 /// is checked whatever the algorithm.
@@ -231,6 +236,13 @@ impl FitSettings {
             "--pop must be at least {min} for --algo {} (got {})",
             self.algo,
             self.pop
+        );
+        anyhow::ensure!(
+            self.pop <= MAX_POPULATION,
+            "--pop {}: at most {MAX_POPULATION} candidates (their rows alone would take {:.0} GB \
+             here)",
+            self.pop,
+            self.pop as f64 * problem.model.dim() as f64 * 8.0 / 1e9
         );
         let settings = self.algo_settings(problem.model.family, note)?;
         if self.thesis_flow {
@@ -457,5 +469,27 @@ mod tests {
         notes.borrow_mut().clear();
         s.plan(&problem, &|n| notes.borrow_mut().push(n)).unwrap();
         assert!(notes.borrow().is_empty());
+    }
+
+    /// Python's `pop` reaches the plan without the CLI's parser: a
+    /// population past any machine is an error there too, before a row is
+    /// allocated.
+    #[test]
+    fn a_population_past_any_machine_is_an_error() {
+        let data = Synthetic::new(Family::Classic, 600, 0.05, 1);
+        let problem =
+            FitProblem::new(&data.trace, Family::Classic, Flow::Joint, None, false).unwrap();
+        let e = settings(Algorithm::De, MAX_POPULATION + 1)
+            .plan(&problem, &|_| ())
+            .unwrap_err();
+        assert!(
+            e.to_string().contains("at most 100000000 candidates"),
+            "{e}"
+        );
+        assert!(
+            settings(Algorithm::De, MAX_POPULATION)
+                .plan(&problem, &|_| ())
+                .is_ok()
+        );
     }
 }

@@ -33,9 +33,12 @@ impl Default for ArxOrders {
 }
 
 impl ArxOrders {
-    /// Samples of history a prediction needs.
+    /// Samples of history a prediction needs (saturating: orders from a
+    /// flag can be any `usize`, and a count that wraps would pass the
+    /// length checks).
     pub fn lag(&self) -> usize {
-        self.na.max(self.nk + self.nb.saturating_sub(1))
+        self.na
+            .max(self.nk.saturating_add(self.nb.saturating_sub(1)))
     }
 }
 
@@ -101,8 +104,8 @@ impl Arx {
             return Err(IdentError::Orders { na, nb, nk });
         }
         let lag = orders.lag();
-        let cols = na + nb;
-        let need = lag + cols + 1;
+        let cols = na.saturating_add(nb);
+        let need = lag.saturating_add(cols).saturating_add(1);
         if y.len() < need {
             return Err(IdentError::TooShort {
                 data: source.into(),
@@ -222,7 +225,12 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
     }
     let arx = Arx::estimate(&trace.source, &u[est.clone()], &y[est.clone()], orders)?;
     if val.len() <= orders.lag() {
-        let need = 2 * (orders.lag() + orders.na + orders.nb + 1);
+        let need = orders
+            .lag()
+            .saturating_add(orders.na)
+            .saturating_add(orders.nb)
+            .saturating_add(1)
+            .saturating_mul(2);
         let ArxOrders { na, nb, nk } = orders;
         return Err(IdentError::TooShort {
             data: trace.source.clone(),
@@ -312,5 +320,37 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("hold the same values"), "{err}");
+    }
+
+    /// Orders as large as a flag can give are too long a history, not an
+    /// index past the record (the lag wrapped round and passed the check).
+    #[test]
+    fn orders_past_any_record_are_an_error_not_a_wrap() {
+        let input: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
+        let output: Vec<f64> = input.iter().map(|u| 2.0 * u).collect();
+        let trace = Trace::uniform("x.csv", 0.01, input, output);
+        for orders in [
+            ArxOrders {
+                na: 1,
+                nb: 1,
+                nk: usize::MAX,
+            },
+            ArxOrders {
+                na: usize::MAX,
+                nb: 1,
+                nk: 1,
+            },
+            ArxOrders {
+                na: 1,
+                nb: usize::MAX,
+                nk: 1,
+            },
+        ] {
+            let err = identify(&trace, orders).unwrap_err();
+            assert!(
+                matches!(err, IdentError::TooShort { .. }),
+                "{orders:?}: {err}"
+            );
+        }
     }
 }

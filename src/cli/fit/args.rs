@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use super::super::common::{DataArgs, ModelArg};
+use super::super::common::{DataArgs, ModelArg, population};
 use mckibben::eval::Backend;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::request::FitRequest;
@@ -145,7 +145,7 @@ pub struct Args {
     pub(super) algo: Algorithm,
     /// Population size N of the global stage (the thesis used 10–30); from
     /// 2000 on, N/1000 independent tries of 1000, scored together.
-    #[arg(long, default_value_t = POPULATION)]
+    #[arg(long, default_value_t = POPULATION, value_parser = population)]
     pub(super) pop: usize,
     /// Generations G of the global stage: populations evaluated, the
     /// initial one included (the thesis used 30).
