@@ -129,6 +129,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `y(k) = a1·y(k−1) + … + b1·u(k−nk) + …`, each term with its sign.
+fn difference_equation(a: &[f64], b: &[f64], nk: usize) -> String {
+    let terms = a
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (*v, format!("y(k−{})", i + 1)))
+        .chain(
+            b.iter()
+                .enumerate()
+                .map(|(j, v)| (*v, format!("u(k−{})", nk + j))),
+        );
+    let mut s = String::from("y(k) =");
+    for (i, (v, term)) in terms.enumerate() {
+        let sign = match (v < 0.0, i) {
+            (true, _) => " −",
+            (false, 0) => "",
+            (false, _) => " +",
+        };
+        s.push_str(&format!("{sign} {}·{term}", significant(v.abs(), 4)));
+    }
+    s
+}
+
 fn print_report(id: &Identification) {
     let o = id.arx.orders;
     println!(
@@ -156,6 +179,18 @@ fn print_report(id: &Identification) {
             significant(id.arx.a[0], 4),
             significant(id.arx.b[0], 4)
         );
+    } else {
+        println!(
+            "  model         {}",
+            difference_equation(&id.arx.a, &id.arx.b, o.nk)
+        );
+        // MATLAB's arx writes A(q)·y = B(q)·u with A(q) = 1 + a1·q⁻¹ + …:
+        // its a's are these with the opposite sign.
+        let matlab: Vec<String> = id.arx.a.iter().map(|a| significant(-a, 4)).collect();
+        println!(
+            "                (MATLAB's arx: A(q) = 1 + a1·q⁻¹ + … with a = [{}], the opposite sign)",
+            matlab.join(", ")
+        );
     }
     println!(
         "  fit, estimation half   {:.2} %",
@@ -172,4 +207,22 @@ fn print_report(id: &Identification) {
          sample: how `fit` and `simulate` score)",
         id.continued_validation_fit_percent
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each term with its own sign and lag, the input's from nk on.
+    #[test]
+    fn the_difference_equation_reads_as_the_estimates_say() {
+        assert_eq!(
+            difference_equation(&[1.543, -0.5491], &[2.4524, -1.7993], 2),
+            "y(k) = 1.5430·y(k−1) − 0.5491·y(k−2) + 2.4524·u(k−2) − 1.7993·u(k−3)"
+        );
+        assert_eq!(
+            difference_equation(&[-0.5], &[3.0], 1),
+            "y(k) = − 0.5000·y(k−1) + 3.0000·u(k−1)"
+        );
+    }
 }
