@@ -407,11 +407,17 @@ fn parse(
         if c == it || c == ii || c == io {
             continue;
         }
-        match numeric_column(path, &rows, c, name, false)? {
-            Some(v) => extra.push((name.clone(), v)),
-            None => notes.push(format!(
+        // A column the model does not read (a marker, a note) may have
+        // empty or other cells: left out with a note, not a failed file.
+        match numeric_column(path, &rows, c, name, false) {
+            Ok(Some(v)) => extra.push((name.clone(), v)),
+            Ok(None) => notes.push(format!(
                 "{}: column \"{name}\" holds no numbers; left out",
                 path.display()
+            )),
+            Err(e) => notes.push(format!(
+                "{e}; column \"{name}\" left out (only the time, input and output columns \
+                 must be numbers throughout)"
             )),
         }
     }
@@ -829,6 +835,34 @@ mod tests {
         read(text, Gaps::Reject).unwrap_err().to_string()
     }
 
+    /// A column the model does not read, filled only here and there (an
+    /// event marker) or with a number among text, is left out with a note
+    /// that names its first bad cell; the same cell in the input is an
+    /// error.
+    #[test]
+    fn a_sparse_extra_column_is_left_out_and_a_sparse_input_is_an_error() {
+        let text = "t,pressure,displacement,marker,note,load_kg\n0,0.1,1,,ok,3\n\
+                    0.01,0.2,2,1,ok,inf\n0.02,0.3,3,,7,3\n";
+        let (traces, notes) = read(text, Gaps::Reject).unwrap();
+        assert!(traces[0].extra.is_empty(), "{:?}", traces[0].extra);
+        assert_eq!(notes.len(), 3, "{notes:?}");
+        assert!(
+            notes[0].starts_with("x.csv: line 2, column \"marker\": \"\" is not a number")
+                && notes[0].ends_with("column \"marker\" left out (only the time, input and output columns must be numbers throughout)"),
+            "{notes:?}"
+        );
+        assert!(
+            notes[1].contains("line 2, column \"note\": \"ok\""),
+            "{notes:?}"
+        );
+        let bad_input = "t,pressure,displacement\n0,0.1,1\n0.01,,2\n";
+        assert!(
+            err(bad_input).contains("line 3, column \"pressure\""),
+            "{}",
+            err(bad_input)
+        );
+    }
+
     /// `n` rows at `dt`, pressure = k, displacement = 2k.
     fn uniform_text(n: usize, dt: f64) -> String {
         let mut s = String::from("t,pressure,displacement\n");
@@ -902,13 +936,14 @@ mod tests {
                 "t,pressure,displacement\n0,1,2\n1,2,NaN\n",
                 &["x.csv: line 3, column \"displacement\": \"NaN\" is not finite"],
             ),
+            // (A further column's bad cell is a note: the sparse test below.)
             (
-                "t,pressure,displacement,load_kg\n0,1,2,3\n1,1,2,inf\n",
-                &["x.csv: line 3, column \"load_kg\": \"inf\" is not finite"],
+                "t,pressure,displacement,load_kg\n0,1,2,3\n1,inf,2,3\n",
+                &["x.csv: line 3, column \"pressure\": \"inf\" is not finite"],
             ),
             (
-                "t,pressure,displacement,load_kg\n0,1,2,3\n1,1,2,x\n",
-                &["x.csv: line 3, column \"load_kg\": \"x\" is not a number"],
+                "t,pressure,displacement,load_kg\n0,1,2,3\n1,x,2,3\n",
+                &["x.csv: line 3, column \"pressure\": \"x\" is not a number"],
             ),
             ("", &["x.csv: the file is empty"]),
             ("# only a comment\n\n", &["x.csv: the file is empty"]),
