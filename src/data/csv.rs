@@ -51,6 +51,10 @@ pub enum Gaps {
     Split,
 }
 
+/// The largest gauge pressure (MPa) a column named `pressure`, taken in
+/// MPa, holds without a note: a McKibben muscle works well under it.
+const IMPLAUSIBLE_MPA: f64 = 10.0;
+
 /// Which columns to read and how to treat the time base.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReadOptions {
@@ -446,6 +450,20 @@ fn parse(
         }
     }
 
+    // `pressure` states no unit and is taken in MPa (README.md, "Data
+    // format"); a muscle's gauge pressure is well under 10 MPa, so a larger
+    // value is most likely kPa, Pa or psi under the shipped data's name.
+    if opts.input == "pressure" {
+        let largest = input.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if largest > IMPLAUSIBLE_MPA {
+            notes.push(format!(
+                "{}: column \"pressure\" is taken in MPa (the shipped data's unit), but it \
+                 reaches {largest}; if it is in kPa, Pa, bar or psi, say so in its name \
+                 (`pressure_kPa`), so that a model fitted on it records its unit",
+                path.display()
+            ));
+        }
+    }
     let trace = Trace {
         source: path.display().to_string(),
         t,
@@ -855,6 +873,15 @@ mod tests {
             notes[1].contains("line 2, column \"note\": \"ok\""),
             "{notes:?}"
         );
+        // A `pressure` column in kPa under the shipped data's name: a note.
+        let kpa = "t,pressure,displacement\n0,100,1\n0.01,250,2\n";
+        let (_, notes) = read(kpa, Gaps::Reject).unwrap();
+        assert!(
+            notes.len() == 1
+                && notes[0]
+                    .contains("is taken in MPa (the shipped data's unit), but it reaches 250"),
+            "{notes:?}"
+        );
         let bad_input = "t,pressure,displacement\n0,0.1,1\n0.01,,2\n";
         assert!(
             err(bad_input).contains("line 3, column \"pressure\""),
@@ -867,7 +894,9 @@ mod tests {
     fn uniform_text(n: usize, dt: f64) -> String {
         let mut s = String::from("t,pressure,displacement\n");
         for k in 0..n {
-            s += &format!("{},{},{}\n", k as f64 * dt, k, 2 * k);
+            // The input in thousandths of the row (MPa, as `pressure` is
+            // taken), the output twice the row.
+            s += &format!("{},{}e-3,{}\n", k as f64 * dt, k, 2 * k);
         }
         s
     }
@@ -1045,7 +1074,7 @@ mod tests {
             .chain((0..5).map(|k| 100.0 + k as f64))
             .chain((0..25).map(|k| 200.0 + k as f64));
         for (k, t) in times.enumerate() {
-            s += &format!("{t},{k},0\n");
+            s += &format!("{t},{k}e-3,0\n");
         }
         let (traces, notes) = read(&s, Gaps::Split).unwrap();
         assert_eq!(traces.len(), 2);
@@ -1054,7 +1083,7 @@ mod tests {
             (traces[0].source.as_str(), traces[1].source.as_str()),
             ("x.csv[1]", "x.csv[3]")
         );
-        assert_eq!((traces[1].t[0], traces[1].input[0]), (200.0, 35.0));
+        assert_eq!((traces[1].t[0], traces[1].input[0]), (200.0, 0.035));
         assert_eq!(
             notes,
             [
@@ -1069,7 +1098,7 @@ mod tests {
         // A segment that is non-uniform inside is still an error.
         let mut bad = uniform_text(30, 1.0);
         bad += "29.7,0,0\n";
-        let bad = bad.replace("29,29,58\n", "29.3,29,58\n");
+        let bad = bad.replace("29,29e-3,58\n", "29.3,29e-3,58\n");
         let msg = read(&bad, Gaps::Split).unwrap_err().to_string();
         assert!(
             msg.starts_with("x.csv: line 31, column \"t\": non-uniform time base: step 1.3")
@@ -1093,7 +1122,7 @@ mod tests {
         let mut s = String::from("# logger\nt,pressure,displacement\n");
         for k in 0..n {
             let t = 10.0 + k as f64 * 0.01 - if k >= back { 1.03 } else { 0.0 };
-            s += &format!("{t:.2},{k},0\n");
+            s += &format!("{t:.2},{k}e-3,0\n");
         }
         s
     }
@@ -1117,7 +1146,7 @@ mod tests {
         // Each piece keeps its own rows in file order; the second overlaps
         // the first in time and is neither merged with it nor sorted.
         assert_eq!((traces[0].t[0], traces[0].t[99]), (10.0, 10.99));
-        assert_eq!((traces[1].t[0], traces[1].input[0]), (9.97, 100.0));
+        assert_eq!((traces[1].t[0], traces[1].input[0]), (9.97, 0.1));
         for tr in &traces {
             assert!((tr.dt() - 0.01).abs() < 1e-9, "{}: {}", tr.source, tr.dt());
         }
@@ -1170,7 +1199,7 @@ mod tests {
         // Row 30 repeats the time of row 29 (a logger writing one sample twice).
         let mut text = uniform_text(30, 1.0);
         for k in 29..60 {
-            text += &format!("{k},{k},0\n");
+            text += &format!("{k},{k}e-3,0\n");
         }
         let (traces, notes) = read(&text, Gaps::Split).unwrap();
         assert_eq!((traces[0].len(), traces[1].len()), (30, 31));
