@@ -496,6 +496,10 @@ fn bad_transfer_and_output_flags_fail_before_the_diagnosis() {
             "cannot create the folder",
         ),
         (
+            vec!["--effects", "delay,creep,delay"],
+            "--effects names `delay` twice",
+        ),
+        (
             vec!["--report", file.to_str().unwrap()],
             "cannot create the folder",
         ),

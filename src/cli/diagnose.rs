@@ -216,6 +216,12 @@ fn parse_effect(s: &str) -> Result<Effect, UnknownName> {
 
 pub fn run(mut args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
+    for (k, e) in args.effects.iter().enumerate() {
+        anyhow::ensure!(
+            !args.effects[..k].contains(e),
+            "--effects names `{e}` twice: each effect is tried once"
+        );
+    }
     anyhow::ensure!(
         args.blocks.is_none_or(|b| b >= 2),
         "--blocks must be at least 2 (one selection and one test block)"

@@ -350,7 +350,7 @@ fn override_params(model: &mut Model, assignments: &[String]) -> anyhow::Result<
             .parse()
             .ok()
             .filter(|v: &f64| v.is_finite())
-            .with_context(|| format!("--params: `{value}` is not a finite number"))?;
+            .with_context(|| format!("--params {name}: `{value}` is not a finite number"))?;
     }
     let d = model.base.family.dim();
     model.base.params = theta[..d].to_vec();

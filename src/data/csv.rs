@@ -97,7 +97,11 @@ pub enum DataError {
     },
     #[error("{}: the file is empty (expected a header row such as `t,pressure,displacement`)", path.display())]
     Empty { path: PathBuf },
-    #[error("{}: line {line}: a header row but {rows} data rows; a time step needs at least 2", path.display())]
+    #[error(
+        "{}: line {line}: a header row but {rows} data row{}; a time step needs at least 2",
+        path.display(),
+        if *rows == 1 { "" } else { "s" }
+    )]
     TooFewRows {
         path: PathBuf,
         line: u64,
@@ -979,6 +983,10 @@ mod tests {
             (
                 "# c\nt,pressure,displacement\n",
                 &["x.csv: line 2: a header row but 0 data rows"],
+            ),
+            (
+                "t,pressure,displacement\n0,1,2\n",
+                &["x.csv: line 1: a header row but 1 data row; a time step"],
             ),
             (
                 "t,pressure,displacement\n0,1,2\n1,2\n",
