@@ -479,17 +479,22 @@ fn parse(
         cut_from: None,
     };
     let lines: Vec<u64> = rows.iter().map(|r| r.line).collect();
+    // A muscle is sampled many times a second: a step over a second is
+    // most likely a time column in milliseconds, read as seconds.
+    let step = median_step(&trace.t);
+    if step > 1.0 {
+        notes.push(format!(
+            "{}: column \"{}\" steps by {step} s; the time is read in seconds, so if it is in \
+             milliseconds, convert it (the poles a model has are per sample, but --resample, \
+             the figures and the reports read seconds)",
+            path.display(),
+            opts.time
+        ));
+    }
     let traces = match opts.gaps {
         Gaps::Reject => {
             let hint = "pass --resample DT to interpolate onto a uniform step, or --split-gaps to cut the file at gaps";
-            check_uniform(
-                path,
-                &opts.time,
-                &trace.t,
-                &lines,
-                median_step(&trace.t),
-                hint,
-            )?;
+            check_uniform(path, &opts.time, &trace.t, &lines, step, hint)?;
             vec![trace]
         }
         Gaps::Resample(dt) => vec![resample(path, &trace, dt)?],
@@ -875,6 +880,13 @@ mod tests {
         );
         assert!(
             notes[1].contains("line 2, column \"note\": \"ok\""),
+            "{notes:?}"
+        );
+        // A time column in milliseconds: a note.
+        let ms = "t,pressure,displacement\n0,0.1,1\n10,0.2,2\n20,0.3,3\n";
+        let (_, notes) = read(ms, Gaps::Reject).unwrap();
+        assert!(
+            notes.len() == 1 && notes[0].contains("column \"t\" steps by 10 s"),
             "{notes:?}"
         );
         // A `pressure` column in kPa under the shipped data's name: a note.
