@@ -323,6 +323,11 @@ fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
             &["--controller", "pi", "--load", "20"][..],
             "--load 20: the twin carries at most 15 kg",
         ),
+        // A negative value reaches the check, not the shell's flag parser.
+        (
+            &["--controller", "pi", "--freq", "-1"][..],
+            "--freq: -1 is not a positive frequency (rad/s)",
+        ),
         (
             &["--controller", "mpc", "--design-load", "15", "--robustness"][..],
             "--design-load 15: the twin carries at most 15 kg, and --robustness runs it at 1.3 × \

@@ -55,13 +55,23 @@ pub struct Args {
     #[arg(long, value_enum, value_delimiter = ',', default_value = "pi,mpc")]
     controller: Vec<KindArg>,
     /// Reference frequencies ω (rad/s), comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,3")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1,2,3",
+        allow_negative_numbers = true
+    )]
     freq: Vec<f64>,
     /// Loads (kg) of the in-process twin, comma-separated (ignored with --plant).
-    #[arg(long, value_delimiter = ',', default_value = "4.5,7")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "4.5,7",
+        allow_negative_numbers = true
+    )]
     load: Vec<f64>,
     /// Load (kg) at which the model is identified on the twin.
-    #[arg(long, default_value_t = 4.5)]
+    #[arg(long, default_value_t = 4.5, allow_negative_numbers = true)]
     design_load: f64,
     /// Identify the model from this open-loop record (CSV with valve_in,
     /// pressure, displacement; e.g. a multisine recorded on the rig) instead
