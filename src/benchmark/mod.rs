@@ -73,7 +73,8 @@ pub fn read_record(path: &Path) -> anyhow::Result<Record> {
     let find = |name: &str| {
         cols.iter().position(|c| *c == name).with_context(|| {
             format!(
-                "{}:{}: no column `{name}` in header `{header}`",
+                "{}: line {}: no column \"{name}\" in the header `{header}` (expected columns \
+                 u_N,y_m, separated by commas)",
                 path.display(),
                 hrow + 1
             )
@@ -88,18 +89,22 @@ pub fn read_record(path: &Path) -> anyhow::Result<Record> {
         let fields: Vec<&str> = line.split(',').map(str::trim).collect();
         let get = |i: usize, name: &str| -> anyhow::Result<f64> {
             let s = fields.get(i).with_context(|| {
-                format!("{}:{}: missing column `{name}`", path.display(), row + 1)
+                format!(
+                    "{}: line {}: no field for column \"{name}\"",
+                    path.display(),
+                    row + 1
+                )
             })?;
             let v: f64 = s.parse().with_context(|| {
                 format!(
-                    "{}:{}: column `{name}`: `{s}` is not a number",
+                    "{}: line {}, column \"{name}\": \"{s}\" is not a number",
                     path.display(),
                     row + 1
                 )
             })?;
             anyhow::ensure!(
                 v.is_finite(),
-                "{}:{}: column `{name}` is not finite",
+                "{}: line {}, column \"{name}\": \"{s}\" is not finite",
                 path.display(),
                 row + 1
             );

@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use anyhow::Context as _;
 use serde::Serialize;
 
 use super::common::population;
@@ -105,7 +106,12 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
         ..IdentifySettings::default()
     };
     let mut evaluator = evaluator::open(args.backend)?;
-    let id = identify(&data.train, PERIOD, &settings, evaluator.as_mut())?;
+    let id = identify(&data.train, PERIOD, &settings, evaluator.as_mut()).with_context(|| {
+        format!(
+            "identifying from {}",
+            dir.join("train_multisine.csv").display()
+        )
+    })?;
     let ms = test_multisine_rmse(&id.params, &data.test_multisine)
         .ok_or_else(|| anyhow::anyhow!("the identified model diverges on the multisine test"))?;
     let sw = test_sinesweep_rmse(&id.params, &data.test_sinesweep)
