@@ -478,6 +478,15 @@ fn a_failed_fit_leaves_out_as_it_was_and_a_bad_out_fails_first() {
     );
     assert!(before == files("o"), "--out changed");
 
+    // A write that fails after the fit: the report is still printed.
+    std::fs::create_dir_all(dir.path().join("blocked/model.json")).unwrap();
+    let out = mckibben(&[&fit[..], &["--out", "blocked"]].concat(), dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("model.json"), "{err}");
+    let report = String::from_utf8_lossy(&out.stdout);
+    assert!(report.contains("validation fit"), "{report}");
+
     std::fs::write(dir.path().join("afile"), "").unwrap();
     let out = mckibben(&[&fit[..], &["--out", "afile"]].concat(), dir.path());
     let err = String::from_utf8_lossy(&out.stderr);
