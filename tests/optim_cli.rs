@@ -493,18 +493,8 @@ fn a_failed_fit_leaves_out_as_it_was_and_a_bad_out_fails_first() {
     assert!(!out.status.success());
     assert!(err.contains("afile is a file, not a folder"), "{err}");
     assert!(!err.contains("fitting"), "the fit ran first: {err}");
-    let out = mckibben(
-        &["compare", csv, "--backend", "cpu", "--out", "afile/x"],
-        dir.path(),
-    );
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success());
-    assert!(
-        err.contains("afile is a file, so afile/x cannot be a folder"),
-        "{err}"
-    );
-    assert!(!err.contains("comparing on"), "the study ran first: {err}");
-    // A cross-load record of another sample time: refused before the study.
+    // A cross-load record of another sample time: refused before the
+    // study, as a bad --out is.
     let stair = std::fs::read_to_string(csv).unwrap();
     let every_other: Vec<&str> = stair
         .lines()
@@ -514,17 +504,27 @@ fn a_failed_fit_leaves_out_as_it_was_and_a_bad_out_fails_first() {
         .map(|(_, l)| l)
         .collect();
     std::fs::write(dir.path().join("slow.csv"), every_other.join("\n") + "\n").unwrap();
-    let out = mckibben(
-        &["compare", csv, "--backend", "cpu", "--cross", "slow.csv"],
-        dir.path(),
-    );
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success());
-    assert!(
-        err.contains("--cross slow.csv: sampled every 0.02 s"),
-        "{err}"
-    );
-    assert!(!err.contains("comparing on"), "the study ran first: {err}");
+    for (flag, value, needle) in [
+        (
+            "--out",
+            "afile/x",
+            "afile is a file, so afile/x cannot be a folder",
+        ),
+        (
+            "--cross",
+            "slow.csv",
+            "--cross slow.csv: sampled every 0.02 s",
+        ),
+    ] {
+        let out = mckibben(
+            &["compare", csv, "--backend", "cpu", flag, value],
+            dir.path(),
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success());
+        assert!(err.contains(needle), "{err}");
+        assert!(!err.contains("comparing on"), "the study ran first: {err}");
+    }
 }
 
 #[test]
