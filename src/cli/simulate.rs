@@ -44,9 +44,9 @@ const SINE_SECONDS: f64 = 40.0;
 /// Parameters come from `--preset thesis` (tables 1 and 2 with eq. 12's a, b;
 /// the default), a model file written by `fit`, `identify` or `diagnose
 /// --out` (`--from`), and `--params NAME=VALUE,...` overrides (names as
-/// `mckibben simulate --list` shows). Without a model file the simulation runs in deviation coordinates:
-/// the input mean of the first half removed, and on a CSV the measured
-/// output's too.
+/// `mckibben simulate --list` shows). Without a model file the simulation
+/// runs in deviation coordinates: the input mean of the first half removed,
+/// and on a CSV the measured output's too.
 ///
 /// Examples:
 ///   mckibben simulate --model classic --input stair --out classic.csv

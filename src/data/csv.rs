@@ -184,40 +184,17 @@ impl DataError {
     /// base, for a caller that does not offer `--split-gaps` or
     /// `--resample` (the reader's own hints name them); other errors are
     /// returned as they are.
-    pub fn with_time_hint(self, not_increasing: &'static str, non_uniform: &'static str) -> Self {
-        match self {
-            DataError::NotIncreasing {
-                path,
-                line,
-                column,
-                value,
-                previous,
-                ..
-            } => DataError::NotIncreasing {
-                path,
-                line,
-                column,
-                value,
-                previous,
-                hint: not_increasing,
-            },
-            DataError::NonUniform {
-                path,
-                line,
-                column,
-                step,
-                expected,
-                ..
-            } => DataError::NonUniform {
-                path,
-                line,
-                column,
-                step,
-                expected,
-                hint: non_uniform,
-            },
-            other => other,
+    pub fn with_time_hint(
+        mut self,
+        not_increasing: &'static str,
+        non_uniform: &'static str,
+    ) -> Self {
+        match &mut self {
+            DataError::NotIncreasing { hint, .. } => *hint = not_increasing,
+            DataError::NonUniform { hint, .. } => *hint = non_uniform,
+            _ => {}
         }
+        self
     }
 }
 
