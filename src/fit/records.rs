@@ -7,7 +7,7 @@
 
 use std::ops::Range;
 
-use crate::data::Trace;
+use crate::data::{Trace, range};
 use crate::ident::arx::{Arx, ArxOrders, linear_prior};
 use crate::ident::{fit_percent, rmse};
 use crate::model::effects::{Context, ModelDescription};
@@ -203,12 +203,7 @@ const FAR_LEVEL: f64 = 10.0;
 pub fn offset_note(trace: &Trace) -> Option<String> {
     let est = &trace.output[halves(trace.len()).0];
     let mean = est.iter().sum::<f64>() / est.len().max(1) as f64;
-    let (lo, hi) = est
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-            (a.min(v), b.max(v))
-        });
-    let swing = hi - lo;
+    let swing = range(est);
     (swing > 0.0 && mean.abs() > FAR_LEVEL * swing).then(|| {
         format!(
             "the output `{}` sits at {mean:.6e} on average, {:.0} times its swing of \
@@ -255,26 +250,6 @@ pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
 mod tests {
     use super::*;
     use crate::fit::synthetic::Synthetic;
-
-    /// An output far from zero for its swing gets the note; the shipped
-    /// data's kind of level (about half its swing) does not.
-    #[test]
-    fn an_output_far_from_zero_for_its_swing_is_noted() {
-        let s = Synthetic::new(crate::model::Family::Classic, 400, 0.05, 3);
-        assert!(offset_note(&s.trace).is_none());
-        let est = &s.trace.output[..200];
-        let swing = est.iter().cloned().fold(f64::NEG_INFINITY, f64::max)
-            - est.iter().cloned().fold(f64::INFINITY, f64::min);
-        let far = Trace {
-            output: s.trace.output.iter().map(|y| y + 20.0 * swing).collect(),
-            ..s.trace.clone()
-        };
-        let note = offset_note(&far).expect("a note");
-        assert!(
-            note.contains("times its swing") && note.contains("subtract it"),
-            "{note}"
-        );
-    }
     use crate::model::Family;
 
     #[test]
@@ -319,5 +294,23 @@ mod tests {
             "{v:?}"
         );
         assert_eq!(both.validate(&model, &[]).rmse, f64::INFINITY);
+    }
+
+    /// An output far from zero for its swing gets the note; the shipped
+    /// data's kind of level (about half its swing) does not.
+    #[test]
+    fn an_output_far_from_zero_for_its_swing_is_noted() {
+        let s = Synthetic::new(Family::Classic, 400, 0.05, 3);
+        assert!(offset_note(&s.trace).is_none());
+        let swing = range(&s.trace.output[..200]);
+        let far = Trace {
+            output: s.trace.output.iter().map(|y| y + 20.0 * swing).collect(),
+            ..s.trace.clone()
+        };
+        let note = offset_note(&far).expect("a note");
+        assert!(
+            note.contains("times its swing") && note.contains("subtract it"),
+            "{note}"
+        );
     }
 }
