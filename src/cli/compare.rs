@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use super::common::{ColumnArgs, DataArgs, one_trace, population};
-use mckibben::data::{Trace, tidy_step, write_atomic};
+use mckibben::data::{Trace, same_step, tidy_step, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::fit::compare::{Report, Settings, Study, markdown};
 use mckibben::optim::mfa;
@@ -91,7 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(other) = &other {
         let dt = trace.dt();
         anyhow::ensure!(
-            (other.dt() - dt).abs() <= 0.01 * dt,
+            same_step(other.dt(), dt),
             "--cross {}: sampled every {} s, {} every {} s: a model's poles are per sample, so \
              the cross-load check needs one step (--resample {})",
             other.source,

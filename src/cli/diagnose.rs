@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use mckibben::data::units::stated_length_in_mm;
-use mckibben::data::{Trace, range, tidy_step};
+use mckibben::data::{range, same_step, tidy_step};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::transfer::transfer;
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
@@ -321,10 +321,9 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             .context("--transfer")?
     };
     let dt = traces[0].dt();
-    let same_step = |t: &Trace| (t.dt() - dt).abs() <= 0.01 * dt;
     let shown = tidy_step(dt);
     // One model, one sample time: its poles are per sample.
-    if let Some(other) = traces.iter().find(|t| !same_step(t)) {
+    if let Some(other) = traces.iter().find(|t| !same_step(t.dt(), dt)) {
         anyhow::bail!(
             "{} is sampled every {} s, {} every {shown} s: one model's poles are per \
              sample, so resample the records onto one step (--resample {shown})",
@@ -335,7 +334,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     for other in &others {
         anyhow::ensure!(
-            same_step(other),
+            same_step(other.dt(), dt),
             "--transfer {}: sampled every {} s, the diagnosed record every {shown} s; the \
              model's poles are per sample, so resample it (--resample {shown})",
             other.source,

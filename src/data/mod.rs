@@ -115,6 +115,12 @@ impl Trace {
     }
 }
 
+/// Whether sample time `dt` is `reference`'s, within 1 %: what one
+/// discrete-time model, whose poles are per sample, can run on.
+pub fn same_step(dt: f64, reference: f64) -> bool {
+    (dt - reference).abs() <= 0.01 * reference
+}
+
 /// `v` rounded to 10 significant digits, for a time step computed from a
 /// record (a span over a count): 0.09999999999999999 s reads as 0.1 s, in
 /// a message and in the flag it suggests.

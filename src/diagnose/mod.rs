@@ -39,7 +39,7 @@ pub use effects::{Effect, ModelDescription};
 pub use select::Selection;
 pub use settings::{Interrupted, Settings};
 
-use crate::data::Trace;
+use crate::data::{Trace, same_step};
 use crate::fit::edge::{ActiveBound, active_bounds};
 use crate::fit::problem::{FitProblem, settle_samples};
 use crate::fit::searches::Searches;
@@ -647,7 +647,7 @@ fn residual_spectrum(segments: &[locate::Segment]) -> Option<spectrum::Spectrum>
     let dt = segments.first()?.dt;
     let series: Vec<&[f64]> = segments
         .iter()
-        .filter(|s| (s.dt - dt).abs() <= 0.01 * dt)
+        .filter(|s| same_step(s.dt, dt))
         .map(|s| s.residual.as_slice())
         .collect();
     spectrum::welch(&series, dt, &spectrum::Settings::default())

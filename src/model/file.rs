@@ -17,9 +17,9 @@ use super::family::Family;
 use super::fitted::FittedBaseline;
 use super::sim::DIVERGENCE_BOUND;
 use super::user_bound::UserBound;
-use crate::data::tidy_step;
 use crate::data::units::unit_of;
 use crate::data::write_atomic;
+use crate::data::{same_step, tidy_step};
 
 /// What the `format` field of a model file says.
 pub const MODEL_FORMAT: &str = "mckibben-model";
@@ -152,7 +152,7 @@ impl Model {
         }
         let dt = trace.dt();
         anyhow::ensure!(
-            (dt - base.dt).abs() <= 0.01 * base.dt,
+            same_step(dt, base.dt),
             "{} is sampled every {} s, the model every {} s: a discrete-time model's poles \
              are per sample, so resample the data onto its time base (--resample {})",
             trace.source,
