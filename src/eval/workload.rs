@@ -47,7 +47,11 @@ pub fn stair_experiment(samples: usize, seed: u64) -> Experiment {
 /// unless `free_n`, joint flow around the thesis' ARX estimate). Its `a` range
 /// reaches past 1, so a uniform draw includes diverging candidates.
 pub fn search_space(family: Family, experiment: &Experiment, free_n: bool) -> SearchSpace {
-    let reach = |v: &[f32]| v.iter().map(|&x| (x as f64).abs()).fold(0.0, f64::max);
+    let max_abs = |v: &[f32], mean: f64| {
+        v.iter()
+            .map(|&x| (x as f64 + mean).abs())
+            .fold(0.0, f64::max)
+    };
     let absolute: Vec<f64> = experiment
         .y
         .iter()
@@ -56,8 +60,8 @@ pub fn search_space(family: Family, experiment: &Experiment, free_n: bool) -> Se
     let prior = LinearPrior {
         a: THESIS_A,
         b: THESIS_B,
-        input_reach: reach(&experiment.u),
-        output_reach: reach(&experiment.y),
+        max_abs_input: max_abs(&experiment.u, experiment.u_mean),
+        max_abs_output: max_abs(&experiment.y, experiment.y_mean),
         output_range: crate::data::range(&absolute),
         est_output_min: absolute.iter().copied().fold(f64::INFINITY, f64::min),
         est_output_max: absolute.iter().copied().fold(f64::NEG_INFINITY, f64::max),

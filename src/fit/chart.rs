@@ -75,8 +75,8 @@ mod tests {
         let prior = LinearPrior {
             a: 0.96,
             b: 25.0,
-            input_reach: 0.2,
-            output_reach: 17.0,
+            max_abs_input: 0.4,
+            max_abs_output: 40.0,
             output_range: 30.0,
             est_output_min: 5.0,
             est_output_max: 35.0,

@@ -15,7 +15,7 @@ use super::chart::ModelChart;
 use super::edge::{Widening, settle_tries};
 use super::objective::ModelObjective;
 use super::problem::FitProblem;
-use super::records::Validation;
+use super::records::{Validation, offset_note};
 use super::settings::FitSettings;
 use crate::data::Trace;
 use crate::eval::Evaluator;
@@ -196,6 +196,9 @@ impl FitRun {
         };
         if let Some(m) = start {
             m.check_data(trace).context("the start model")?;
+        }
+        if let Some(far) = offset_note(trace) {
+            note(far);
         }
         let problem = FitProblem::with_box(
             trace,

@@ -113,8 +113,7 @@ impl Synthetic {
         // `x_s` is absolute).
         truth[ic] -= (1.0 - abs[ia] * alpha) * (estimation.y_mean - y_mean)
             - abs[ib] * (estimation.u_mean - u_mean);
-        let prior =
-            linear_prior(std::slice::from_ref(&trace), None).expect("synthetic data identify");
+        let prior = linear_prior(std::slice::from_ref(&trace)).expect("synthetic data identify");
         Synthetic {
             family,
             trace,

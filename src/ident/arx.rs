@@ -260,30 +260,16 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
 
 /// What the data say about scale, for the boxes of `fit` and the
 /// diagnosis alike: the first-order ARX pole and gain on the first trace's
-/// estimation half ([`identify`]); how far the input and output reach from
-/// `origin` (the input and output levels the fit's coordinates remove:
-/// where `None`, the first estimation half's means), the output's range
-/// and its extremes over the estimation halves of all of `traces`. Only the
-/// estimation halves are read: a box or a range taken from the validation
-/// half would let the data a fit is scored on shape the fit. Every scale is
-/// measured from `origin`, never from zero, so a constant added to a
-/// column (an encoder's counts, an absolute position) moves no box.
-pub fn linear_prior(
-    traces: &[Trace],
-    origin: Option<(f64, f64)>,
-) -> Result<LinearPrior, IdentError> {
+/// estimation half ([`identify`]); the largest absolute input and output,
+/// the output's range and its extremes over the estimation halves of all
+/// of `traces`; and the first estimation half's output mean (absolute
+/// units). Only the estimation halves are read: a box or a range taken
+/// from the validation half would let the data a fit is scored on shape
+/// the fit.
+pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
     let first = traces.first().ok_or(IdentError::NoData)?;
     let id = identify(first, ArxOrders::default())?;
-    let (input_origin, output_origin) = origin.unwrap_or((id.input_mean, id.output_mean));
-    // How far a column moves over the estimation halves, or sits from the
-    // origin, whichever is farther: the hysteretic state starts at 0 on a
-    // record's first sample and follows the input's moves, so the input's
-    // span bounds it wherever the origin is.
-    let reach = |v: &[f64], from: f64| {
-        v.iter()
-            .fold(0.0f64, |m, x| m.max((x - from).abs()))
-            .max(crate::data::range(v))
-    };
+    let max_abs = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     fn estimation(t: &Trace) -> std::ops::Range<usize> {
         halves(t.len()).0
     }
@@ -296,21 +282,19 @@ pub fn linear_prior(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
             (lo.min(v), hi.max(v))
         });
+    let first_est = &first.output[estimation(first)];
     Ok(LinearPrior {
         a: id.arx.a[0],
         b: id.arx.b[0],
-        input_reach: reach(
-            &traces
-                .iter()
-                .flat_map(|t| t.input[estimation(t)].iter().copied())
-                .collect::<Vec<_>>(),
-            input_origin,
-        ),
-        output_reach: reach(&outputs, output_origin),
+        max_abs_input: traces
+            .iter()
+            .map(|t| max_abs(&t.input[estimation(t)]))
+            .fold(0.0, f64::max),
+        max_abs_output: max_abs(&outputs),
         output_range: crate::data::range(&outputs),
         est_output_min,
         est_output_max,
-        output_mean: output_origin,
+        output_mean: first_est.iter().sum::<f64>() / first_est.len() as f64,
     })
 }
 

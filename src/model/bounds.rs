@@ -148,17 +148,10 @@ pub struct LinearPrior {
     /// ARX pole and gain (eq. 12) on the estimation data.
     pub a: f64,
     pub b: f64,
-    /// How far the input and the output reach over the estimation halves:
-    /// the farther of their span and their largest distance from the
-    /// coordinates' origin (the levels the fit removes,
-    /// [`LinearPrior::output_mean`] for the output). The intercept can be
-    /// no larger than what they can produce: the hysteretic state starts
-    /// at 0 on a record's first sample and follows the input's moves, so
-    /// the span bounds it wherever the origin is. Measured from the data,
-    /// never from zero, so that a constant level added to a column leaves
-    /// every box where it was.
-    pub input_reach: f64,
-    pub output_reach: f64,
+    /// Largest absolute input and output in the data's own units (before mean
+    /// removal): the intercept can be no larger than what they can produce.
+    pub max_abs_input: f64,
+    pub max_abs_output: f64,
     /// Range (max − min) of the output: the scale of the start offset's box.
     pub output_range: f64,
     /// Smallest and largest output over the estimation halves (absolute
@@ -190,8 +183,7 @@ impl SearchSpace {
     /// hysteretic model's *effective* pole `a·(α + (1 − α)·A)`, which a fast
     /// `a·α` with a slow hysteretic feedback gives as well as a slow `a·α`:
     /// the thesis' own Table 1 has α = 0.5), `b` within a factor 5 of the
-    /// ARX gain, `|c| ≤ |b_ARX|·r_p + r_l` (the input's and the output's
-    /// reach, [`LinearPrior::input_reach`]), and the start offset
+    /// ARX gain, `|c| ≤ |b_ARX|·max|p| + max|l|`, and the start offset
     /// `x0` within 5 % of the output range (many times the noise of any
     /// usable record; the thesis' flow holds it at 0). The generalized
     /// switching level `x_s` spans the estimation output
@@ -239,7 +231,7 @@ impl SearchSpace {
                 upper[ia] = (prior.a + 3.0 * s).clamp(1.05, 1.2);
                 let (b1, b2) = (prior.b / 5.0, prior.b * 5.0);
                 (lower[ib], upper[ib]) = (b1.min(b2), b1.max(b2));
-                let cmax = prior.b.abs() * prior.input_reach + prior.output_reach;
+                let cmax = prior.b.abs() * prior.max_abs_input + prior.max_abs_output;
                 (lower[ic], upper[ic]) = (-cmax, cmax);
                 let xmax = 0.05 * prior.output_range;
                 (lower[ix], upper[ix]) = (-xmax, xmax);
@@ -271,10 +263,8 @@ impl SearchSpace {
     /// - `a`: time constant `1/(1 − a)` within [`POLE_REACH`] of the ARX
     ///   one either way (at least 0).
     /// - `gain`: the static gain within [`GAIN_REACH`] of ARX's either way.
-    /// - `offset`: as far as the input's reach through the largest gain,
-    ///   plus the output's reach, can shift the output
-    ///   ([`LinearPrior::input_reach`]: measured from the coordinates'
-    ///   origin, so that a constant level in a column moves no bound).
+    /// - `offset`: as far as the largest input through the largest gain,
+    ///   plus the largest output, can shift the output.
     /// - `x0_range`: [`START_REACH`] of the output range either way.
     /// - `x_s` (generalized, in output units), by `switching`: held at the
     ///   estimation mean ([`Switching::Starts`]'s first start, and
@@ -334,7 +324,7 @@ impl SearchSpace {
         // A record whose output barely follows its input: ARX's gain is
         // noise; give the gain coordinate the scale of the output range
         // over the input's.
-        let floor = 1e-3 * range / prior.input_reach.max(f64::MIN_POSITIVE);
+        let floor = 1e-3 * range / prior.max_abs_input.max(f64::MIN_POSITIVE);
         let gain = if arx_gain.abs() >= floor {
             arx_gain
         } else {
@@ -382,7 +372,7 @@ impl SearchSpace {
         };
         origin[ia] = [pole_floor, Origin::Data];
         let ix = family.start_index();
-        let offset = (GAIN_REACH * gain.abs() * prior.input_reach + prior.output_reach) / range;
+        let offset = (GAIN_REACH * gain.abs() * prior.max_abs_input + prior.max_abs_output) / range;
         match linear {
             LinearCoords::Scaled => {
                 (lower[ib], upper[ib]) = (1.0 / GAIN_REACH, GAIN_REACH);
@@ -668,8 +658,8 @@ mod tests {
         LinearPrior {
             a: 0.9618,
             b: 24.9366,
-            input_reach: 0.2,
-            output_reach: 17.0,
+            max_abs_input: 0.4,
+            max_abs_output: 40.0,
             output_range: 30.0,
             est_output_min: 5.0,
             est_output_max: 35.0,
