@@ -267,7 +267,7 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 10] = [
+    let cases: [(&[&str], &str); 13] = [
         (&["fit", "missing.csv"], "missing.csv"),
         // A population no machine holds: an error, not an aborted
         // allocation.
@@ -332,6 +332,22 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         (
             &["fit", &csv, "--horizon", "500", "--backend", "cpu"],
             "--horizon 500: a prediction horizon is 1 to 199 samples here",
+        ),
+        // Flags that would be ignored without a word: a switching level
+        // for a family without sign terms, an exponent both fitted and held.
+        (
+            &["fit", &csv, "--switch", "zero", "--backend", "cpu"],
+            "--switch zero: the switching level belongs to the generalized model's sign terms, \
+             and this fit is classic",
+        ),
+        (
+            &["fit", &csv, "--free-n", "--fix", "n=2", "--backend", "cpu"],
+            "--free-n fits the exponent n and --fix n holds it",
+        ),
+        // `simulate --from` runs the model's parameters, not a preset's.
+        (
+            &["simulate", "--from", "model.json", "--preset", "thesis"],
+            "'--from <MODEL.json>' cannot be used with '--preset <PRESET>'",
         ),
     ];
     for (args, needle) in cases {

@@ -58,8 +58,8 @@ pub struct Args {
     /// Model family.
     #[arg(long, default_value = "classic")]
     model: Family,
-    /// Parameter preset.
-    #[arg(long, value_enum, default_value = "thesis")]
+    /// Parameter preset (without --from, whose parameters are the model's).
+    #[arg(long, value_enum, default_value = "thesis", conflicts_with = "from")]
     preset: Preset,
     /// A model file written by `fit`, `identify --out` or `diagnose --out`
     /// (family, effects, parameters, coordinates; a CSV input is then read

@@ -205,13 +205,9 @@ pub struct Args {
     /// fits, x_s held at the estimation mean and at the sensor's zero, the
     /// lower estimation SSE kept), mean or zero (held there). A --from warm
     /// start holds its model's x_s unless another value is given here.
-    #[arg(
-        long = "switch",
-        value_enum,
-        default_value = "search",
-        conflicts_with = "thesis_flow"
-    )]
-    pub(super) switching: Switching,
+    /// [default: search]
+    #[arg(long = "switch", value_enum, conflicts_with = "thesis_flow")]
+    pub(super) switching: Option<Switching>,
     /// Bound one parameter to [LO, HI] (repeatable): a canonical name (A,
     /// alpha, beta, gamma, beta1..beta6, n, x_s, a, b, c, x0) or a search
     /// coordinate's (gain, offset, x0_range, loading, beta_range, psi_pp, ...;
@@ -352,6 +348,10 @@ impl Args {
                 f.name
             );
         }
+        anyhow::ensure!(
+            !(self.free_n && self.fix.iter().any(|f| f.name == "n")),
+            "--free-n fits the exponent n and --fix n holds it: give one of them"
+        );
         // One box a parameter: two flags on one name would leave the user
         // guessing which one held.
         let given: Vec<&str> = self
@@ -385,7 +385,7 @@ impl Args {
             effects,
             free_n: self.free_n,
             loop_shape: self.loop_shape,
-            switching: self.switching,
+            switching: self.switching.unwrap_or(Switching::Search),
             bounds: self.bound.iter().chain(&self.fix).cloned().collect(),
             carry: self.carry.is_some(),
         })

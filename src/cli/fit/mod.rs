@@ -110,6 +110,17 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         .resolve(start.as_ref().or(carried.as_ref()))
         .map_err(|e| anyhow::anyhow!("{flag}: {e:#}"))?;
     let (what, start_model) = (resolved.what, resolved.start);
+    // The level only exists where the sign terms do; a --switch given to
+    // another family would be ignored without a word.
+    if let Some(switching) = args.switching {
+        anyhow::ensure!(
+            what.family == Family::Generalized,
+            "--switch {}: the switching level belongs to the generalized model's sign terms, and \
+             this fit is {}: leave --switch out, or fit --model generalized",
+            format!("{switching:?}").to_lowercase(),
+            what.family.name()
+        );
+    }
     let trace = one_trace(args.data.load()?)?;
     out_folder(&args.out)?;
     if let Some(model) = &resolved.carried {
