@@ -14,7 +14,7 @@ use mckibben::eval::Backend;
 use mckibben::fit::edge::Widening;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::report::{FitReport, model_file, yardstick_warnings};
-use mckibben::fit::request::{FitRequest, Resolved};
+use mckibben::fit::request::{FitRequest, Resolved, switching_misapplied};
 use mckibben::fit::run::{FitRun, FitTarget};
 use mckibben::fit::searches::StopFlag;
 use mckibben::fit::settings::{FitSettings, Overrides};
@@ -186,7 +186,7 @@ fn unbound(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>>
 #[pyo3(signature = (
     u, y = None, dt = None, model = None, effects = None, algo = "de", pop = None,
     gens = None, seed = 1, backend = "cpu", bounds = None, progress = None, *,
-    free_n = false, r#loop = "bounded", switch = "search", thesis_flow = false,
+    free_n = false, r#loop = "bounded", switch = None, thesis_flow = false,
     target_sse = None, time_budget = None, stall = None, start = None, carry = None,
     refine_rounds = None
 ))]
@@ -207,7 +207,7 @@ pub fn fit(
     progress: Option<Py<PyAny>>,
     free_n: bool,
     r#loop: &str,
-    switch: &str,
+    switch: Option<&str>,
     thesis_flow: bool,
     target_sse: Option<f64>,
     time_budget: Option<f64>,
@@ -235,7 +235,7 @@ pub fn fit(
         effects: effects_arg(effects)?,
         free_n,
         loop_shape: loop_shape(r#loop)?,
-        switching: switching(switch)?,
+        switching: switching(switch.unwrap_or("search"))?,
         bounds: user_bounds(bounds)?,
         carry: carried.is_some(),
     };
@@ -251,6 +251,12 @@ pub fn fit(
         model
             .check_data(&trace)
             .map_err(|e| value_error(e.context("carry")))?;
+    }
+    let asked = switch.map(switching).transpose()?;
+    if let Some(why) = switching_misapplied(what.family, asked) {
+        return Err(PyValueError::new_err(format!(
+            "switch={why}: leave switch out, or fit model=\"generalized\""
+        )));
     }
     if let Some(p) = progress.as_ref()
         && !p.bind(py).is_callable()

@@ -105,6 +105,10 @@ def test_a_generalized_fit_switches_as_the_command(stair, cli, tmp_path):
     assert [bits(v) for v in default.params.values()] == [bits(v) for v in expected["params"].values()]
     with pytest.raises(ValueError, match="unknown switch `middle`: expected one of search, starts, mean, zero"):
         mckibben.fit(stair, model="generalized", pop=40, gens=10, switch="middle")
+    # The classic model has no switching level: a switch given to it is an
+    # error, as `fit --switch` is, not a keyword ignored.
+    with pytest.raises(ValueError, match="zero: the switching level belongs to the generalized model"):
+        mckibben.fit(stair, pop=40, gens=10, switch="zero")
 
 
 def test_a_larger_population_runs_tries_as_the_command(stair, cli, tmp_path):

@@ -110,6 +110,20 @@ impl FitRequest {
     }
 }
 
+/// Why a switching level asked for (`fit --switch`, Python's `switch=`)
+/// does not apply to a fit of `family`: only the generalized model's sign
+/// terms switch, and a level given to another family would be ignored
+/// without a word.
+pub fn switching_misapplied(family: Family, asked: Option<Switching>) -> Option<String> {
+    let asked = asked.filter(|_| family != Family::Generalized)?;
+    Some(format!(
+        "{}: the switching level belongs to the generalized model's sign terms, and this fit \
+         is {}",
+        format!("{asked:?}").to_lowercase(),
+        family.name()
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -149,6 +163,22 @@ mod tests {
             bounds: Vec::new(),
             carry: false,
         }
+    }
+
+    /// A switching level given to a family without sign terms is named;
+    /// none given, or the generalized family, is not.
+    #[test]
+    fn a_switching_level_applies_to_the_generalized_family_only() {
+        let why = switching_misapplied(Family::Classic, Some(Switching::Zero)).unwrap();
+        assert!(
+            why.starts_with("zero: ") && why.ends_with("this fit is classic"),
+            "{why}"
+        );
+        assert_eq!(switching_misapplied(Family::Classic, None), None);
+        assert_eq!(
+            switching_misapplied(Family::Generalized, Some(Switching::Starts)),
+            None
+        );
     }
 
     #[test]

@@ -14,6 +14,7 @@ use mckibben::data::Trace;
 use mckibben::diagnose::chain::{selected_fit, with_chain_start};
 use mckibben::eval;
 use mckibben::fit::report::{FitReport, yardstick_warnings};
+use mckibben::fit::request::switching_misapplied;
 use mckibben::fit::run::FitRun;
 use mckibben::fit::searches::StopFlag;
 use mckibben::model::{Family, ModelFile};
@@ -110,16 +111,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         .resolve(start.as_ref().or(carried.as_ref()))
         .map_err(|e| anyhow::anyhow!("{flag}: {e:#}"))?;
     let (what, start_model) = (resolved.what, resolved.start);
-    // The level only exists where the sign terms do; a --switch given to
-    // another family would be ignored without a word.
-    if let Some(switching) = args.switching {
-        anyhow::ensure!(
-            what.family == Family::Generalized,
-            "--switch {}: the switching level belongs to the generalized model's sign terms, and \
-             this fit is {}: leave --switch out, or fit --model generalized",
-            format!("{switching:?}").to_lowercase(),
-            what.family.name()
-        );
+    if let Some(why) = switching_misapplied(what.family, args.switching) {
+        anyhow::bail!("--switch {why}: leave --switch out, or fit --model generalized");
     }
     let trace = one_trace(args.data.load()?)?;
     out_folder(&args.out)?;
