@@ -230,12 +230,15 @@ pub fn fit(
         start.map(|s| model_arg(s, "start")).transpose()?,
         carry.map(|s| model_arg(s, "carry")).transpose()?,
     );
+    // `None`: the search, the default; a value the classic family lacks is
+    // an error below, once the start's family is known.
+    let asked = switch.map(switching).transpose()?;
     let request = FitRequest {
         family: model.map(family).transpose()?,
         effects: effects_arg(effects)?,
         free_n,
         loop_shape: loop_shape(r#loop)?,
-        switching: switching(switch.unwrap_or("search"))?,
+        switching: asked.unwrap_or_default(),
         bounds: user_bounds(bounds)?,
         carry: carried.is_some(),
     };
@@ -252,7 +255,6 @@ pub fn fit(
             .check_data(&trace)
             .map_err(|e| value_error(e.context("carry")))?;
     }
-    let asked = switch.map(switching).transpose()?;
     if let Some(why) = switching_misapplied(what.family, asked) {
         return Err(PyValueError::new_err(format!(
             "switch={why}: leave switch out, or fit model=\"generalized\""
