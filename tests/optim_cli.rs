@@ -20,6 +20,12 @@ fn mckibben(args: &[&str], dir: &Path) -> Output {
         .unwrap()
 }
 
+/// `fit` of `csv` at a tiny budget (N = 20, G = 2, CPU): for checks of
+/// what the command accepts and says, not of where it ends.
+fn short_fit(csv: &str) -> [&str; 8] {
+    ["fit", csv, "--pop", "20", "--gens", "2", "--backend", "cpu"]
+}
+
 fn data(dir: &Path) -> String {
     let s = Synthetic::new(Family::Classic, 400, 0.05, 21);
     let path = dir.join("synthetic.csv");
@@ -406,16 +412,7 @@ fn bad_flags_and_bad_data_are_clear_errors() {
 fn a_warm_start_from_another_family_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let fit = [
-        "fit",
-        &csv,
-        "--pop",
-        "20",
-        "--gens",
-        "2",
-        "--backend",
-        "cpu",
-    ];
+    let fit = short_fit(&csv);
     let saved = mckibben(&[&fit[..], &["--out", "classic"]].concat(), dir.path());
     assert!(
         saved.status.success(),
@@ -743,16 +740,7 @@ fn bounds_a_user_sets_hold_and_bad_ones_are_clear_errors() {
     // alpha is a share: a box past [0, 1] runs, and the command says what
     // it leaves; one inside says nothing of it.
     for (fix, noted) in [("alpha=2", true), ("alpha=0.45", false)] {
-        let args = [
-            "fit",
-            &csv,
-            "--pop",
-            "20",
-            "--gens",
-            "2",
-            "--backend",
-            "cpu",
-        ];
+        let args = short_fit(&csv);
         let out = mckibben(
             &[&args[..], &["--out", "alphadir", "--fix", fix]].concat(),
             dir.path(),
