@@ -739,6 +739,28 @@ fn simulate_drives_a_model_in_its_own_units_and_writes_a_file_that_reads_back() 
     let p = column_of(&written, "p_kPa");
     let top = p.iter().fold(0.0f64, |m, v| m.max(*v));
     assert!((top - 500.0).abs() < 1e-9, "{top}");
+    // Its time is named as the model's data named it (`time_s`), so the
+    // model reads it back, and so does a file simulated from a file.
+    let _ = json_of(&[
+        "simulate",
+        "--from",
+        model.to_str().unwrap(),
+        "--input",
+        written.to_str().unwrap(),
+        "--json",
+    ]);
+    let again = dir.path().join("again.csv");
+    let _ = json_of(&[
+        "simulate",
+        "--from",
+        model.to_str().unwrap(),
+        "--input",
+        written.to_str().unwrap(),
+        "--out",
+        again.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(column_of(&again, "time_s"), column_of(&written, "time_s"));
 
     // An input file with a column `w`: the file written has the measured
     // output and both w's, and reads back.

@@ -64,6 +64,12 @@ impl Trace {
         self.inner.output.to_pyarray(py)
     }
 
+    /// The time column's name (`t` for a trace made from arrays).
+    #[getter]
+    fn time_name(&self) -> &str {
+        &self.inner.time_name
+    }
+
     #[getter]
     fn input_name(&self) -> &str {
         &self.inner.input_name

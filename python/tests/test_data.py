@@ -12,9 +12,16 @@ from conftest import STAIR
 def test_the_stair_reads_as_the_command_reads_it(stair):
     assert len(stair) == 4000
     assert stair.dt == pytest.approx(0.01)
-    assert (stair.input_name, stair.output_name) == ("pressure", "displacement")
+    assert (stair.time_name, stair.input_name, stair.output_name) == ("t", "pressure", "displacement")
     assert stair.input.dtype == np.float64 and stair.output.shape == (4000,)
     assert stair.source == str(STAIR)
+
+
+def test_a_file_of_other_column_names_keeps_them(tmp_path):
+    f = tmp_path / "rig.csv"
+    f.write_text("time_s,p_kPa,x_mm\n0,100,1\n0.1,200,2\n0.2,300,3\n")
+    trace = mckibben.read_csv(f, time="time_s", input="p_kPa", output="x_mm")
+    assert (trace.time_name, trace.input_name, trace.output_name) == ("time_s", "p_kPa", "x_mm")
 
 
 def test_file_errors_name_the_file_line_and_column(tmp_path):

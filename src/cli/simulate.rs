@@ -201,6 +201,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (mut trace, y0) = input_trace(&args, dt, file.as_ref())?;
     if args.input_is_generated() {
         in_model_units(&mut trace, &model.base.input_name, !args.json)?;
+        // The file written reads back as the model's data did: its time
+        // under the same name as its input.
+        if let Some(time) = file.as_ref().and_then(|f| f.provenance.read.time.clone()) {
+            trace.time_name = time;
+        }
     }
     let half = (trace.len() / 2).max(1);
     if model.base.input_mean.is_nan() {

@@ -447,6 +447,7 @@ fn parse(
     }
     let trace = Trace {
         source: path.display().to_string(),
+        time_name: opts.time.clone(),
         t,
         input_name: opts.input.clone(),
         input,
@@ -601,6 +602,7 @@ fn resample(path: &Path, trace: &Trace, dt: f64) -> Result<Trace, DataError> {
     };
     Ok(Trace {
         source: trace.source.clone(),
+        time_name: trace.time_name.clone(),
         input_name: trace.input_name.clone(),
         input: interp(&trace.input),
         output_name: trace.output_name.clone(),
@@ -767,7 +769,7 @@ fn write_columns(
         message,
     };
     let mut columns: Vec<(&str, &[f64])> = vec![
-        ("t", &trace.t),
+        (&trace.time_name, &trace.t),
         (&trace.input_name, &trace.input),
         (&trace.output_name, &trace.output),
     ];

@@ -16,6 +16,9 @@ use serde::{Deserialize, Serialize};
 pub struct Trace {
     /// Where the trace came from (a file path or a generator name), for messages.
     pub source: String,
+    /// Name of the time column (default `t`): a file written from the
+    /// trace names its time as the file it was read from did.
+    pub time_name: String,
     /// Time in seconds, strictly increasing and uniform (see [`Trace::dt`]).
     pub t: Vec<f64>,
     /// Name of the input column (default `pressure`, MPa).
@@ -52,6 +55,7 @@ impl Trace {
         let t = (0..input.len()).map(|k| k as f64 * dt).collect();
         Trace {
             source: source.into(),
+            time_name: "t".into(),
             t,
             input_name: "pressure".into(),
             input,
@@ -100,6 +104,7 @@ impl Trace {
     pub fn slice(&self, range: std::ops::Range<usize>) -> Trace {
         Trace {
             source: self.source.clone(),
+            time_name: self.time_name.clone(),
             t: self.t[range.clone()].to_vec(),
             input_name: self.input_name.clone(),
             input: self.input[range.clone()].to_vec(),
