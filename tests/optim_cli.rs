@@ -273,7 +273,7 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 13] = [
+    let cases: [(&[&str], &str); 16] = [
         (&["fit", "missing.csv"], "missing.csv"),
         // A population no machine holds: an error, not an aborted
         // allocation.
@@ -355,6 +355,20 @@ fn bad_flags_and_bad_data_are_clear_errors() {
             &["simulate", "--from", "model.json", "--preset", "thesis"],
             "'--from <MODEL.json>' cannot be used with '--preset <PRESET>'",
         ),
+        // `-` is no standard output here: refused, not a file or folder
+        // of that name.
+        (
+            &["twin", "--out", "-"],
+            "'--out <FILE.csv>': `-` is not standard output here",
+        ),
+        (
+            &["fit", &csv, "--out", "-", "--backend", "cpu"],
+            "'--out <DIR>': `-` is not standard output here",
+        ),
+        (
+            &["simulate", "--plot", ""],
+            "'--plot <FILE.svg>': an empty name",
+        ),
     ];
     for (args, needle) in cases {
         let out = mckibben(args, dir.path());
@@ -362,6 +376,7 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(needle), "{args:?}: {err}");
     }
+    assert!(!dir.path().join("-").exists());
     // The reason a file cannot be read is said once, not again as the
     // error's cause.
     let out = mckibben(&["fit", "missing.csv"], dir.path());

@@ -42,6 +42,17 @@ pub fn population(s: &str) -> Result<usize, String> {
     Ok(n)
 }
 
+/// A flag naming a file or folder to write: `-` (standard output to many
+/// tools) and an empty name are refused, where they would make a file or
+/// folder of that name.
+pub fn output_path(s: &str) -> Result<std::path::PathBuf, String> {
+    match s {
+        "" => Err("an empty name: give the file or folder to write".into()),
+        "-" => Err("`-` is not standard output here: give a file or folder to write".into()),
+        _ => Ok(s.into()),
+    }
+}
+
 /// The shipped default experiment, relative to the repository root.
 pub const DEFAULT_DATA: &str = "data/stair_4.5kg.csv";
 

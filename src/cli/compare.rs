@@ -66,7 +66,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "auto")]
     backend: Backend,
     /// Folder for compare.md and compare.json.
-    #[arg(long, value_name = "DIR", default_value = "out/compare")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "DIR", default_value = "out/compare")]
     out: PathBuf,
     /// Print JSON on stdout instead of Markdown.
     #[arg(long)]

@@ -173,14 +173,14 @@ pub struct Args {
     #[arg(long, value_name = "COUNT")]
     max_implausible: Option<usize>,
     /// Write each external run's log into this folder as it goes.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "DIR")]
     log: Option<PathBuf>,
     /// Write SVG figures (tracking, valve command, error per run; the
     /// model's loop and prediction error) into this folder.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "DIR")]
     plot: Option<PathBuf>,
     /// Write one CSV per run (t, reference, displacement, pressure, valve_in).
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "DIR")]
     csv: Option<PathBuf>,
     /// Print JSON (design, tuning, runs, robustness) instead of tables.
     #[arg(long)]

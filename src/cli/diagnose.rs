@@ -146,12 +146,12 @@ pub struct Args {
     /// Write the figures (measured output against the baseline and the
     /// final model, residual over time, over the hysteresis loop,
     /// breakdowns, residual spectrum) to this folder.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "DIR")]
     report: Option<PathBuf>,
     /// Write the baseline and the final model as model files to this
     /// folder (baseline.json, model.json), for `simulate --from`, `fit
     /// --from` and `control --from`.
-    #[arg(long, value_name = "DIR")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Start the selection from a model file (e.g. an earlier `--out`'s
     /// model.json, or `fit`'s): its baseline and effects are refitted warm

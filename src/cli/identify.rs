@@ -43,7 +43,7 @@ pub struct Args {
     /// Write the identification as JSON to this file: with the default
     /// orders (--na 1 --nb 1 --nk 1) and one piece of data it is also a
     /// model file that `simulate --from` and `control --from` read.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE")]
     out: Option<PathBuf>,
     /// Print JSON on stdout instead of a report.
     #[arg(long)]

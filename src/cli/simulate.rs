@@ -102,10 +102,10 @@ pub struct Args {
     /// input file's other columns, the measured output as
     /// `<output>_measured` and the hysteretic state `w` (a name a column
     /// already has gets `_simulated`).
-    #[arg(long, value_name = "FILE.csv")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.csv")]
     out: Option<PathBuf>,
     /// Draw the trace and the hysteresis loop to this SVG file.
-    #[arg(long, value_name = "FILE.svg")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
     /// List the family's parameter names and exit.
     #[arg(long)]

@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(long, default_value_t = 10)]
     points: usize,
     /// Also draw the curves to this SVG file.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE")]
     plot: Option<PathBuf>,
     /// Print JSON instead of a table.
     #[arg(long)]

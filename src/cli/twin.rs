@@ -76,11 +76,11 @@ pub struct Args {
     #[arg(long = "effect", value_name = "NAME=VALUE", verbatim_doc_comment)]
     effects: Vec<String>,
     /// Write the CSV here (atomically).
-    #[arg(long, value_name = "FILE.csv", required = true)]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.csv", required = true)]
     out: Option<PathBuf>,
     /// Also draw the run to this SVG file: pressure and displacement against
     /// time (thesis figure 3) and displacement against pressure (figure 4).
-    #[arg(long, value_name = "FILE.svg")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
 }
 

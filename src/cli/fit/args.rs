@@ -223,7 +223,9 @@ pub struct Args {
     /// Stop once the estimation SSE (free run) is at or below this.
     #[arg(long, value_name = "SSE")]
     pub(super) target_sse: Option<f64>,
-    /// Stop after this many seconds (the result then depends on the machine).
+    /// Stop after this many seconds of the fit (the result then depends on
+    /// the machine). A fit resumed from --checkpoint counts the seconds it
+    /// ran before as well: the budget is the whole fit's.
     #[arg(long, value_name = "SECONDS")]
     pub(super) time_budget: Option<f64>,
     /// End a population stage when its best has not improved for this many
@@ -276,10 +278,10 @@ pub struct Args {
     /// settings come from the checkpoint, stopping rules from this command).
     /// A checkpoint made on other data (file, columns, resampling) is
     /// refused.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE")]
     pub(super) checkpoint: Option<PathBuf>,
     /// Folder for the model, history and figures.
-    #[arg(long, value_name = "DIR", default_value = "out/fit")]
+    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "DIR", default_value = "out/fit")]
     pub(super) out: PathBuf,
     /// Print JSON on stdout instead of a report.
     #[arg(long)]
