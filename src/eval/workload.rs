@@ -7,6 +7,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::data::Trace;
+use crate::ident::arx::level_reach;
 use crate::model::effects::{Context, EffectBox, ModelDescription, effect_box};
 use crate::model::presets::{THESIS_A, THESIS_B, thesis_params};
 use crate::model::{Experiment, Family, Flow, LinearPrior, SearchSpace, simulate};
@@ -47,24 +48,18 @@ pub fn stair_experiment(samples: usize, seed: u64) -> Experiment {
 /// unless `free_n`, joint flow around the thesis' ARX estimate). Its `a` range
 /// reaches past 1, so a uniform draw includes diverging candidates.
 pub fn search_space(family: Family, experiment: &Experiment, free_n: bool) -> SearchSpace {
-    let max_abs = |v: &[f32], mean: f64| {
-        v.iter()
-            .map(|&x| (x as f64 + mean).abs())
-            .fold(0.0, f64::max)
-    };
-    let absolute: Vec<f64> = experiment
-        .y
-        .iter()
-        .map(|&v| v as f64 + experiment.y_mean)
-        .collect();
+    let absolute =
+        |v: &[f32], mean: f64| -> Vec<f64> { v.iter().map(|&x| x as f64 + mean).collect() };
+    let input = absolute(&experiment.u, experiment.u_mean);
+    let output = absolute(&experiment.y, experiment.y_mean);
     let prior = LinearPrior {
         a: THESIS_A,
         b: THESIS_B,
-        max_abs_input: max_abs(&experiment.u, experiment.u_mean),
-        max_abs_output: max_abs(&experiment.y, experiment.y_mean),
-        output_range: crate::data::range(&absolute),
-        est_output_min: absolute.iter().copied().fold(f64::INFINITY, f64::min),
-        est_output_max: absolute.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        max_abs_input: level_reach(&input),
+        max_abs_output: level_reach(&output),
+        output_range: crate::data::range(&output),
+        est_output_min: output.iter().copied().fold(f64::INFINITY, f64::min),
+        est_output_max: output.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         output_mean: experiment.y_mean,
     };
     SearchSpace::from_prior(family, None, prior, Flow::Joint, free_n)

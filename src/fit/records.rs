@@ -197,9 +197,11 @@ const FAR_LEVEL: f64 = 10.0;
 /// times its swing (largest less smallest) away from zero, as an encoder's
 /// counts or an absolute position do. The fit works in deviations from the
 /// mean, but the intercept's search box is sized from the largest absolute
-/// input and output (`ident::arx::linear_prior`), so such an offset
-/// changes the search: the shipped stair with 1000 mm added validates at
-/// 91.83 % instead of 92.39 % (docs/GUIDE.md, "When not to trust it").
+/// input and output, up to [`crate::ident::arx::LEVEL_REACH`] times their
+/// span (`ident::arx::linear_prior`), so such a level gives a wider box
+/// than the record near its zero: the shipped stair with 1000 mm added
+/// validates at 92.05 % instead of 92.39 % (docs/GUIDE.md, "When not to
+/// trust it").
 pub fn offset_note(trace: &Trace) -> Option<String> {
     let est = &trace.output[halves(trace.len()).0];
     let mean = est.iter().sum::<f64>() / est.len().max(1) as f64;
@@ -207,11 +209,12 @@ pub fn offset_note(trace: &Trace) -> Option<String> {
     (swing > 0.0 && mean.abs() > FAR_LEVEL * swing).then(|| {
         format!(
             "the output `{}` sits at {mean:.6e} on average, {:.0} times its swing of \
-             {swing:.3e}: a constant offset changes this fit (its intercept's search box is \
-             sized from absolute values, a known limit); subtract it from the column for the \
-             fit the record less its offset gets",
+             {swing:.3e}: its intercept's search box, sized from absolute values up to {} \
+             swings, is wider than the record near its zero would get, and the fit may differ \
+             a little from that one; subtract the level from the column for it",
             trace.output_name,
-            mean.abs() / swing
+            mean.abs() / swing,
+            crate::ident::arx::LEVEL_REACH
         )
     })
 }
@@ -309,7 +312,7 @@ mod tests {
         };
         let note = offset_note(&far).expect("a note");
         assert!(
-            note.contains("times its swing") && note.contains("subtract it"),
+            note.contains("times its swing") && note.contains("subtract the level"),
             "{note}"
         );
     }

@@ -258,25 +258,49 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
     })
 }
 
+/// How many times its span a column's largest absolute value may count in
+/// a box ([`linear_prior`]'s `max_abs_*`). The fit works in deviations from
+/// the mean, so a constant level (an absolute position, an encoder's
+/// counts, a gauge reading atmospheric pressure) changes nothing the model
+/// must reach, yet the intercept's box grew with it without end; past this
+/// many spans a level no longer widens the box. Every record that starts
+/// near its zero lies well inside it and keeps its box exactly.
+pub const LEVEL_REACH: f64 = 10.0;
+
+/// The largest absolute value of `v`, at most [`LEVEL_REACH`] times its
+/// span (a constant column keeps its largest absolute value).
+pub fn level_reach(v: &[f64]) -> f64 {
+    let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let span = crate::data::range(v);
+    if span > 0.0 {
+        largest.min(LEVEL_REACH * span)
+    } else {
+        largest
+    }
+}
+
 /// What the data say about scale, for the boxes of `fit` and the
 /// diagnosis alike: the first-order ARX pole and gain on the first trace's
-/// estimation half ([`identify`]); the largest absolute input and output,
-/// the output's range and its extremes over the estimation halves of all
-/// of `traces`; and the first estimation half's output mean (absolute
-/// units). Only the estimation halves are read: a box or a range taken
-/// from the validation half would let the data a fit is scored on shape
-/// the fit.
+/// estimation half ([`identify`]); the largest absolute input and output
+/// (each at most [`LEVEL_REACH`] times its span), the output's range and
+/// its extremes over the estimation halves of all of `traces`; and the
+/// first estimation half's output mean (absolute units). Only the
+/// estimation halves are read: a box or a range taken from the validation
+/// half would let the data a fit is scored on shape the fit.
 pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
     let first = traces.first().ok_or(IdentError::NoData)?;
     let id = identify(first, ArxOrders::default())?;
-    let max_abs = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     fn estimation(t: &Trace) -> std::ops::Range<usize> {
         halves(t.len()).0
     }
-    let outputs: Vec<f64> = traces
-        .iter()
-        .flat_map(|t| t.output[estimation(t)].iter().copied())
-        .collect();
+    let estimation_halves = |column: fn(&Trace) -> &[f64]| -> Vec<f64> {
+        traces
+            .iter()
+            .flat_map(|t| column(t)[estimation(t)].iter().copied())
+            .collect()
+    };
+    let inputs = estimation_halves(|t| &t.input);
+    let outputs = estimation_halves(|t| &t.output);
     let (est_output_min, est_output_max) = outputs
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
@@ -286,11 +310,8 @@ pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
     Ok(LinearPrior {
         a: id.arx.a[0],
         b: id.arx.b[0],
-        max_abs_input: traces
-            .iter()
-            .map(|t| max_abs(&t.input[estimation(t)]))
-            .fold(0.0, f64::max),
-        max_abs_output: max_abs(&outputs),
+        max_abs_input: level_reach(&inputs),
+        max_abs_output: level_reach(&outputs),
         output_range: crate::data::range(&outputs),
         est_output_min,
         est_output_max,

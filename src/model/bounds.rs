@@ -149,7 +149,10 @@ pub struct LinearPrior {
     pub a: f64,
     pub b: f64,
     /// Largest absolute input and output in the data's own units (before mean
-    /// removal): the intercept can be no larger than what they can produce.
+    /// removal), each at most [`crate::ident::arx::LEVEL_REACH`] times its
+    /// span: the intercept can be no larger than what they can produce, and
+    /// a constant level far past the swing changes nothing the model must
+    /// reach.
     pub max_abs_input: f64,
     pub max_abs_output: f64,
     /// Range (max − min) of the output: the scale of the start offset's box.
@@ -264,7 +267,8 @@ impl SearchSpace {
     ///   one either way (at least 0).
     /// - `gain`: the static gain within [`GAIN_REACH`] of ARX's either way.
     /// - `offset`: as far as the largest input through the largest gain,
-    ///   plus the largest output, can shift the output.
+    ///   plus the largest output, can shift the output (each largest value
+    ///   at most [`crate::ident::arx::LEVEL_REACH`] times its column's span).
     /// - `x0_range`: [`START_REACH`] of the output range either way.
     /// - `x_s` (generalized, in output units), by `switching`: held at the
     ///   estimation mean ([`Switching::Starts`]'s first start, and
