@@ -209,9 +209,9 @@ pub fn offset_note(trace: &Trace) -> Option<String> {
     (swing > 0.0 && mean.abs() > FAR_LEVEL * swing).then(|| {
         format!(
             "the output `{}` sits at {mean:.6e} on average, {:.0} times its swing of \
-             {swing:.3e}: its intercept's search box, sized from absolute values up to {} \
-             swings, is wider than the record near its zero would get, and the fit may differ \
-             a little from that one; subtract the level from the column for it",
+             {swing:.3e}: the intercept's search box, sized from absolute values up to {} \
+             swings, is then wider than a record near zero gets, so this fit may differ a \
+             little from that one; subtract the level from the column to get that fit",
             trace.output_name,
             mean.abs() / swing,
             crate::ident::arx::LEVEL_REACH
