@@ -786,6 +786,32 @@ fn simulate_drives_a_model_in_its_own_units_and_writes_a_file_that_reads_back() 
     let measured = column_of(&out, "displacement_measured");
     assert_eq!(measured, column_of(&input, "displacement"));
     let _ = json_of(&["identify", out.to_str().unwrap(), "--json"]);
+    // A linear model has no hysteretic state: no `w` column of zeros.
+    let arx = dir.path().join("arx.json");
+    let _ = json_of(&[
+        "identify",
+        input.to_str().unwrap(),
+        "--out",
+        arx.to_str().unwrap(),
+        "--json",
+    ]);
+    let linear = dir.path().join("linear.csv");
+    let _ = json_of(&[
+        "simulate",
+        "--from",
+        arx.to_str().unwrap(),
+        "--input",
+        input.to_str().unwrap(),
+        "--out",
+        linear.to_str().unwrap(),
+        "--json",
+    ]);
+    let text = std::fs::read_to_string(&linear).unwrap();
+    let header = text.lines().find(|l| !l.starts_with('#')).unwrap();
+    assert_eq!(
+        header,
+        "t,pressure,displacement,valve_in,valve_out,load_kg,w,displacement_measured"
+    );
 
     // simulate runs one experiment: its time-base errors advise what it
     // has (--resample, cutting the file), not fit's --split-gaps.

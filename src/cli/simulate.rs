@@ -100,8 +100,9 @@ pub struct Args {
     /// Write the simulated trace to this CSV file: the time, the input and
     /// the simulated output under the model's column names, then the
     /// input file's other columns, the measured output as
-    /// `<output>_measured` and the hysteretic state `w` (a name a column
-    /// already has gets `_simulated`).
+    /// `<output>_measured` and, for a Bouc-Wen model without effects, the
+    /// hysteretic state `w` (a name a column already has gets
+    /// `_simulated`).
     #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.csv")]
     out: Option<PathBuf>,
     /// Draw the trace and the hysteresis loop to this SVG file.

@@ -55,7 +55,8 @@ pub struct Model {
 pub struct Run {
     pub output: Vec<f64>,
     /// The hysteretic state `w` (the baseline alone; none with effects,
-    /// whose stages change what `w` means).
+    /// whose stages change what `w` means, nor for the linear family, which
+    /// has none).
     pub w: Option<Vec<f64>>,
     pub diverged_at: Option<usize>,
 }
@@ -219,9 +220,10 @@ impl Model {
     pub fn simulate_absolute(&self, input: &[f64], y0: f64) -> Run {
         let Some(chain) = &self.chain else {
             let (output, sim) = self.base.simulate_absolute(input, y0);
+            let hysteretic = self.base.family.exponent_index().is_some();
             return Run {
                 output,
-                w: Some(sim.w.iter().map(|&w| w as f64).collect()),
+                w: hysteretic.then(|| sim.w.iter().map(|&w| w as f64).collect()),
                 diverged_at: sim.diverged_at,
             };
         };
