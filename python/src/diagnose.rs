@@ -183,7 +183,12 @@ pub fn diagnose<'py>(
         let file = ModelFile::new(
             m,
             None,
-            provenance("mckibben.diagnose", &sources, Some(settings.seed)),
+            provenance(
+                "mckibben.diagnose",
+                &sources,
+                traces.first().map_or("t", |t| t.time_name.as_str()),
+                Some(settings.seed),
+            ),
         );
         Py::new(py, Model::of_file(file).map_err(value_error)?)
     };

@@ -41,8 +41,10 @@ pub struct Evaluator {
     problem: FitProblem,
     /// The user's bounds the box was made with (a model's file keeps them).
     bounds: Vec<UserBound>,
-    /// The data's source (a model's provenance names it).
+    /// The data's source and time column's name (a model's provenance
+    /// names them).
     source: String,
+    time_name: String,
     space: Space<ModelChart>,
     checked: bool,
     /// The free coordinates' names.
@@ -203,6 +205,7 @@ impl Evaluator {
             problem,
             bounds,
             source: trace.source.clone(),
+            time_name: trace.time_name.clone(),
             space,
             checked,
             evaluator: Mutex::new(evaluator),
@@ -315,7 +318,12 @@ impl Evaluator {
             &self.problem,
             &self.one(theta)?,
             &self.bounds,
-            provenance("mckibben.Evaluator.model", &[&self.source], None),
+            provenance(
+                "mckibben.Evaluator.model",
+                &[&self.source],
+                &self.time_name,
+                None,
+            ),
         );
         Model::of_file(file).map_err(runtime_error)
     }

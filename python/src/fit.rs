@@ -313,7 +313,7 @@ pub fn fit(
     } = finished;
     let report = FitReport::of(&fit, (&outcome, &widened), &describe, &trace.source);
     warn_of_report(&warn, &report, &outcome, &fit)?;
-    fit_result(py, report, &fit, &outcome, &what, &trace.source)
+    fit_result(py, report, &fit, &outcome, &what, &trace)
 }
 
 /// A fit run to its end: the run, what it ended at, the edge rule's
@@ -402,15 +402,15 @@ fn warn_of_report(
 }
 
 /// The fit's `report` as Python values: the fitted model (built within
-/// `what`'s bounds, its provenance naming the data `source`), the
-/// parameters and the box by name, and the history as arrays.
+/// `what`'s bounds, its provenance naming the data `trace` was read from),
+/// the parameters and the box by name, and the history as arrays.
 fn fit_result(
     py: Python<'_>,
     report: FitReport,
     fit: &FitRun,
     outcome: &Outcome,
     what: &FitTarget,
-    source: &str,
+    trace: &mckibben::data::Trace,
 ) -> PyResult<FitResult> {
     let (problem, engine) = (&fit.problem, &fit.engine);
     let params = PyDict::new(py);
@@ -434,7 +434,12 @@ fn fit_result(
             problem,
             &outcome.params,
             &what.bounds,
-            provenance("mckibben.fit", &[source], Some(engine.seed)),
+            provenance(
+                "mckibben.fit",
+                &[&trace.source],
+                &trace.time_name,
+                Some(engine.seed),
+            ),
         );
         Some(Py::new(py, Model::of_file(file).map_err(runtime_error)?)?)
     };

@@ -107,3 +107,15 @@ def test_a_version_1_file_still_loads(small_fit, tmp_path):
     path = tmp_path / "v1.json"
     path.write_text(json.dumps(legacy))
     assert mckibben.Model.load(path) == m
+
+
+def test_a_model_fitted_in_python_names_its_time_column_for_the_command(stair, cli, tmp_path):
+    rows = [f"{t!r},{p!r},{y!r}" for t, p, y in zip(stair.t[:600], stair.input[:600], stair.output[:600])]
+    data = tmp_path / "rig.csv"
+    data.write_text("time_s,pressure,displacement\n" + "\n".join(rows) + "\n")
+    trace = mckibben.read_csv(data, time="time_s")
+    path = tmp_path / "model.json"
+    mckibben.fit(trace, pop=20, gens=5, seed=1).model.save(path)
+    assert json.loads(path.read_text())["provenance"]["read"]["time"] == "time_s"
+    # `simulate --from` reads the file as the model's data were read.
+    assert cli("simulate", "--from", path, "--input", data)["samples"] == 600
