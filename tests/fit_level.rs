@@ -1,6 +1,6 @@
 //! A constant level added to a column (an encoder's counts, a position
 //! measured from the frame, a gauge that reads the atmosphere) moves what
-//! a fit sees only up to `ident::arx::LEVEL_REACH` times the column's span:
+//! a fit sees only up to `model::bounds::LEVEL_REACH` times the column's span:
 //! the fit works in deviations from the estimation means, and the
 //! intercept's box, sized from the largest absolute values, stops growing
 //! there. A record that starts near its zero keeps its box exactly.

@@ -7,7 +7,7 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::data::Trace;
-use crate::ident::arx::level_reach;
+use crate::model::bounds::level_reach;
 use crate::model::effects::{Context, EffectBox, ModelDescription, effect_box};
 use crate::model::presets::{THESIS_A, THESIS_B, thesis_params};
 use crate::model::{Experiment, Family, Flow, LinearPrior, SearchSpace, simulate};

@@ -197,7 +197,7 @@ const FAR_LEVEL: f64 = 10.0;
 /// times its swing (largest less smallest) away from zero, as an encoder's
 /// counts or an absolute position do. The fit works in deviations from the
 /// mean, but the intercept's search box is sized from the largest absolute
-/// input and output, up to [`crate::ident::arx::LEVEL_REACH`] times their
+/// input and output, up to [`crate::model::bounds::LEVEL_REACH`] times their
 /// span (`ident::arx::linear_prior`), so such a level gives a wider box
 /// than the record near its zero: the shipped stair with 1000 mm added
 /// validates at 92.05 % instead of 92.39 % (docs/GUIDE.md, "When not to
@@ -214,7 +214,7 @@ pub fn offset_note(trace: &Trace) -> Option<String> {
              little from that one; subtract the level from the column to get that fit",
             trace.output_name,
             mean.abs() / swing,
-            crate::ident::arx::LEVEL_REACH
+            crate::model::bounds::LEVEL_REACH
         )
     })
 }

@@ -11,6 +11,7 @@ use thiserror::Error;
 use super::fit::{fit_percent, rmse};
 use crate::data::Trace;
 use crate::model::LinearPrior;
+use crate::model::bounds::level_reach;
 use crate::model::experiment::halves;
 
 /// Orders of an ARX model: poles `na`, zeros+1 `nb`, input delay `nk`.
@@ -258,33 +259,13 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
     })
 }
 
-/// How many times its span a column's largest absolute value may count in
-/// a box ([`linear_prior`]'s `max_abs_*`). The fit works in deviations from
-/// the mean, so a constant level (an absolute position, an encoder's
-/// counts, a gauge reading atmospheric pressure) changes nothing the model
-/// must reach, yet the intercept's box grew with it without end; past this
-/// many spans a level no longer widens the box. Every record that starts
-/// near its zero lies well inside it and keeps its box exactly.
-pub const LEVEL_REACH: f64 = 10.0;
-
-/// The largest absolute value of `v`, at most [`LEVEL_REACH`] times its
-/// span (a constant column keeps its largest absolute value).
-pub fn level_reach(v: &[f64]) -> f64 {
-    let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let span = crate::data::range(v);
-    if span > 0.0 {
-        largest.min(LEVEL_REACH * span)
-    } else {
-        largest
-    }
-}
-
 /// What the data say about scale, for the boxes of `fit` and the
 /// diagnosis alike: the first-order ARX pole and gain on the first trace's
 /// estimation half ([`identify`]); the largest absolute input and output
-/// (each at most [`LEVEL_REACH`] times its span), the output's range and
-/// its extremes over the estimation halves of all of `traces`; and the
-/// first estimation half's output mean (absolute units). Only the
+/// (each at most [`crate::model::bounds::LEVEL_REACH`] times its span),
+/// the output's range and its extremes over the estimation halves of all
+/// of `traces`; and the first estimation half's output mean (absolute
+/// units). Only the
 /// estimation halves are read: a box or a range taken from the validation
 /// half would let the data a fit is scored on shape the fit.
 pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {

@@ -142,6 +142,28 @@ pub const START_REACH: f64 = 0.2;
 /// switches somewhere. Further out every level gives the same model.
 pub const SWITCH_MARGIN: f64 = 0.05;
 
+/// How many times its span a column's largest absolute value may count in
+/// a box ([`LinearPrior`]'s `max_abs_*`, from `ident::arx::linear_prior`).
+/// The fit works in deviations from the mean, so a constant level (an
+/// absolute position, an encoder's counts, a gauge reading atmospheric
+/// pressure) changes nothing the model must reach, yet the intercept's box
+/// grew with it without end; past this many spans a level no longer widens
+/// the box. Every record that starts near its zero lies well inside it and
+/// keeps its box exactly.
+pub const LEVEL_REACH: f64 = 10.0;
+
+/// The largest absolute value of `v`, at most [`LEVEL_REACH`] times its
+/// span (a constant column keeps its largest absolute value).
+pub fn level_reach(v: &[f64]) -> f64 {
+    let largest = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let span = crate::data::range(v);
+    if span > 0.0 {
+        largest.min(LEVEL_REACH * span)
+    } else {
+        largest
+    }
+}
+
 /// What the data say about scale, for the bounds of the linear part.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LinearPrior {
@@ -149,7 +171,7 @@ pub struct LinearPrior {
     pub a: f64,
     pub b: f64,
     /// Largest absolute input and output in the data's own units (before mean
-    /// removal), each at most [`crate::ident::arx::LEVEL_REACH`] times its
+    /// removal), each at most [`LEVEL_REACH`] times its
     /// span: the intercept can be no larger than what they can produce, and
     /// a constant level far past the swing changes nothing the model must
     /// reach.
@@ -268,7 +290,7 @@ impl SearchSpace {
     /// - `gain`: the static gain within [`GAIN_REACH`] of ARX's either way.
     /// - `offset`: as far as the largest input through the largest gain,
     ///   plus the largest output, can shift the output (each largest value
-    ///   at most [`crate::ident::arx::LEVEL_REACH`] times its column's span).
+    ///   at most [`LEVEL_REACH`] times its column's span).
     /// - `x0_range`: [`START_REACH`] of the output range either way.
     /// - `x_s` (generalized, in output units), by `switching`: held at the
     ///   estimation mean ([`Switching::Starts`]'s first start, and
