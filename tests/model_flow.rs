@@ -699,6 +699,22 @@ fn column_of(path: &Path, name: &str) -> Vec<f64> {
         .collect()
 }
 
+/// `simulate --from MODEL --input INPUT [--out OUT] --json`'s document.
+fn simulate_from(model: &Path, input: &Path, out: Option<&Path>) -> Value {
+    let mut args = vec![
+        "simulate",
+        "--from",
+        model.to_str().unwrap(),
+        "--input",
+        input.to_str().unwrap(),
+        "--json",
+    ];
+    if let Some(out) = out {
+        args.extend(["--out", out.to_str().unwrap()]);
+    }
+    json_of(&args)
+}
+
 /// A generated input is a pressure in MPa: `simulate` converts it to the
 /// model's input unit (a kPa model on the MPa stair was a thousand times
 /// off, silently); and what it writes reads back: the measured output
@@ -741,25 +757,9 @@ fn simulate_drives_a_model_in_its_own_units_and_writes_a_file_that_reads_back() 
     assert!((top - 500.0).abs() < 1e-9, "{top}");
     // Its time is named as the model's data named it (`time_s`), so the
     // model reads it back, and so does a file simulated from a file.
-    let _ = json_of(&[
-        "simulate",
-        "--from",
-        model.to_str().unwrap(),
-        "--input",
-        written.to_str().unwrap(),
-        "--json",
-    ]);
+    let _ = simulate_from(&model, &written, None);
     let again = dir.path().join("again.csv");
-    let _ = json_of(&[
-        "simulate",
-        "--from",
-        model.to_str().unwrap(),
-        "--input",
-        written.to_str().unwrap(),
-        "--out",
-        again.to_str().unwrap(),
-        "--json",
-    ]);
+    let _ = simulate_from(&model, &written, Some(&again));
     assert_eq!(column_of(&again, "time_s"), column_of(&written, "time_s"));
 
     // An input file with a column `w`: the file written has the measured
@@ -796,16 +796,7 @@ fn simulate_drives_a_model_in_its_own_units_and_writes_a_file_that_reads_back() 
         "--json",
     ]);
     let linear = dir.path().join("linear.csv");
-    let _ = json_of(&[
-        "simulate",
-        "--from",
-        arx.to_str().unwrap(),
-        "--input",
-        input.to_str().unwrap(),
-        "--out",
-        linear.to_str().unwrap(),
-        "--json",
-    ]);
+    let _ = simulate_from(&arx, &input, Some(&linear));
     let text = std::fs::read_to_string(&linear).unwrap();
     let header = text.lines().find(|l| !l.starts_with('#')).unwrap();
     assert_eq!(
