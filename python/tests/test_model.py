@@ -110,7 +110,7 @@ def test_a_version_1_file_still_loads(small_fit, tmp_path):
 
 
 def test_a_model_fitted_in_python_names_its_time_column_for_the_command(stair, cli, tmp_path):
-    rows = [f"{t!r},{p!r},{y!r}" for t, p, y in zip(stair.t[:600], stair.input[:600], stair.output[:600])]
+    rows = [f"{t:.17g},{p:.17g},{y:.17g}" for t, p, y in zip(stair.t[:600], stair.input[:600], stair.output[:600])]
     data = tmp_path / "rig.csv"
     data.write_text("time_s,pressure,displacement\n" + "\n".join(rows) + "\n")
     trace = mckibben.read_csv(data, time="time_s")
