@@ -265,9 +265,9 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
 /// (each at most [`crate::model::bounds::LEVEL_REACH`] times its span),
 /// the output's range and its extremes over the estimation halves of all
 /// of `traces`; and the first estimation half's output mean (absolute
-/// units). Only the
-/// estimation halves are read: a box or a range taken from the validation
-/// half would let the data a fit is scored on shape the fit.
+/// units). Only the estimation halves are read: a box or a range taken
+/// from the validation half would let the data a fit is scored on shape
+/// the fit.
 pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
     let first = traces.first().ok_or(IdentError::NoData)?;
     let id = identify(first, ArxOrders::default())?;

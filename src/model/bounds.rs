@@ -170,10 +170,10 @@ pub struct LinearPrior {
     /// ARX pole and gain (eq. 12) on the estimation data.
     pub a: f64,
     pub b: f64,
-    /// Largest absolute input and output in the data's own units (before mean
-    /// removal), each at most [`LEVEL_REACH`] times its
-    /// span: the intercept can be no larger than what they can produce, and
-    /// a constant level far past the swing changes nothing the model must
+    /// Largest absolute input and output in the data's own units (before
+    /// mean removal), each at most [`LEVEL_REACH`] times its span: the
+    /// intercept can be no larger than what they can produce, and a
+    /// constant level far past the swing changes nothing the model must
     /// reach.
     pub max_abs_input: f64,
     pub max_abs_output: f64,
@@ -208,7 +208,8 @@ impl SearchSpace {
     /// hysteretic model's *effective* pole `a·(α + (1 − α)·A)`, which a fast
     /// `a·α` with a slow hysteretic feedback gives as well as a slow `a·α`:
     /// the thesis' own Table 1 has α = 0.5), `b` within a factor 5 of the
-    /// ARX gain, `|c| ≤ |b_ARX|·max|p| + max|l|`, and the start offset
+    /// ARX gain, `|c| ≤ |b_ARX|·max|p| + max|l|` (each `max` at most
+    /// [`LEVEL_REACH`] spans), and the start offset
     /// `x0` within 5 % of the output range (many times the noise of any
     /// usable record; the thesis' flow holds it at 0). The generalized
     /// switching level `x_s` spans the estimation output
