@@ -36,6 +36,7 @@ class Trace:
         input_name: str = "pressure",
         output_name: str = "displacement",
         source: str = "python",
+        time_name: str = "t",
     ) -> Trace: ...
     @property
     def source(self) -> str: ...

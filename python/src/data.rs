@@ -24,8 +24,10 @@ pub struct Trace {
 #[pymethods]
 impl Trace {
     /// A trace on the time base `t = k·dt` from two series of equal length.
+    /// The three column names are the ones a model fitted on it records
+    /// and `simulate --from` reads, so they must be distinct and not empty.
     #[new]
-    #[pyo3(signature = (input, output, dt, input_name = "pressure", output_name = "displacement", source = "python"))]
+    #[pyo3(signature = (input, output, dt, input_name = "pressure", output_name = "displacement", source = "python", time_name = "t"))]
     fn new(
         input: &Bound<'_, PyAny>,
         output: &Bound<'_, PyAny>,
@@ -33,10 +35,13 @@ impl Trace {
         input_name: &str,
         output_name: &str,
         source: &str,
+        time_name: &str,
     ) -> PyResult<Trace> {
+        column_names(time_name, input_name, output_name)?;
         let mut inner = arrays_trace(input, output, dt, source)?;
         inner.input_name = input_name.to_string();
         inner.output_name = output_name.to_string();
+        inner.time_name = time_name.to_string();
         Ok(Trace { inner })
     }
 
@@ -110,6 +115,29 @@ impl Trace {
             self.inner.output_name
         )
     }
+}
+
+/// Checks that the time, input and output columns' names could head one
+/// CSV file that reads back: none empty, no two the same.
+fn column_names(time: &str, input: &str, output: &str) -> PyResult<()> {
+    let named = [
+        ("time_name", time),
+        ("input_name", input),
+        ("output_name", output),
+    ];
+    for (i, (arg, name)) in named.iter().enumerate() {
+        if name.trim().is_empty() {
+            return Err(PyValueError::new_err(format!(
+                "{arg} is empty: a column needs a name"
+            )));
+        }
+        if let Some((other, _)) = named[..i].iter().find(|(_, n)| n == name) {
+            return Err(PyValueError::new_err(format!(
+                "{other} and {arg} are both {name:?}: a file could not tell the columns apart"
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// A trace from two series and a sample time, every value checked.

@@ -24,6 +24,17 @@ def test_a_file_of_other_column_names_keeps_them(tmp_path):
     assert (trace.time_name, trace.input_name, trace.output_name) == ("time_s", "p_kPa", "x_mm")
 
 
+def test_a_trace_from_arrays_takes_its_column_names(stair):
+    u, y = stair.input[:100], stair.output[:100]
+    trace = mckibben.Trace(u, y, stair.dt, input_name="p_kPa", output_name="x_mm", time_name="time_s")
+    assert (trace.time_name, trace.input_name, trace.output_name) == ("time_s", "p_kPa", "x_mm")
+    assert mckibben.Trace(u, y, stair.dt).time_name == "t"
+    with pytest.raises(ValueError, match='time_name and input_name are both "p"'):
+        mckibben.Trace(u, y, stair.dt, input_name="p", time_name="p")
+    with pytest.raises(ValueError, match="output_name is empty"):
+        mckibben.Trace(u, y, stair.dt, output_name=" ")
+
+
 def test_file_errors_name_the_file_line_and_column(tmp_path):
     with pytest.raises(FileNotFoundError, match="nope.csv"):
         mckibben.read_csv(tmp_path / "nope.csv")
