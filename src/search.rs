@@ -11,6 +11,15 @@ use std::marker::PhantomData;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+/// Rows one rayon task of a row-by-row update takes at least: an
+/// optimizer's step, a draw, rows embedded into the model's parameters.
+/// Such a row costs well under a microsecond, and handing a task to
+/// another thread costs tens of microseconds in wake-ups, so a generation
+/// of a few dozen rows (the diagnosis' fits) runs on one thread while
+/// 10⁵ rows still split into hundreds of tasks. Each row draws from its
+/// own stream, so where the rows split never moves a bit.
+pub const ROWS_PER_TASK: usize = 256;
+
 /// What a score sums: the error of the free run (the thesis' fitness, eq. 29)
 /// or of the `h`-step-ahead prediction.
 ///
@@ -179,9 +188,11 @@ impl<'a, K> Rows<'a, K> {
         self.flat.chunks_exact(self.dim)
     }
 
-    /// The rows, for rayon.
-    pub fn par_iter(self) -> rayon::slice::ChunksExact<'a, f64> {
-        self.flat.par_chunks_exact(self.dim)
+    /// The rows, for rayon, [`ROWS_PER_TASK`] or more to a task.
+    pub fn par_iter(self) -> rayon::iter::MinLen<rayon::slice::ChunksExact<'a, f64>> {
+        self.flat
+            .par_chunks_exact(self.dim)
+            .with_min_len(ROWS_PER_TASK)
     }
 
     /// Every value, row after row: what a device buffer is filled from.
@@ -272,9 +283,12 @@ impl<K> Population<K> {
         self.flat.chunks_exact_mut(self.dim)
     }
 
-    /// The rows, to change in place with rayon.
-    pub fn par_iter_mut(&mut self) -> rayon::slice::ChunksExactMut<'_, f64> {
-        self.flat.par_chunks_exact_mut(self.dim)
+    /// The rows, to change in place with rayon, [`ROWS_PER_TASK`] or more
+    /// to a task.
+    pub fn par_iter_mut(&mut self) -> rayon::iter::MinLen<rayon::slice::ChunksExactMut<'_, f64>> {
+        self.flat
+            .par_chunks_exact_mut(self.dim)
+            .with_min_len(ROWS_PER_TASK)
     }
 
     /// The rows of `other` appended (panics where the dimensions differ).
@@ -292,6 +306,32 @@ impl<K> Population<K> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The threads that ran `count` rows (on a pool of four), each row
+    /// long enough (0.2 ms) for an idle thread to steal work if allowed.
+    fn threads_of_rows(count: usize) -> std::collections::BTreeSet<Option<usize>> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(4)
+            .build()
+            .unwrap();
+        let mut rows = Population::<Coords>::zeros(count, 3);
+        let seen = std::sync::Mutex::new(std::collections::BTreeSet::new());
+        pool.install(|| {
+            let note = || {
+                std::thread::sleep(std::time::Duration::from_micros(200));
+                seen.lock().unwrap().insert(rayon::current_thread_index());
+            };
+            rows.par_iter_mut().for_each(|_| note());
+            rows.rows().par_iter().for_each(|_| note());
+        });
+        seen.into_inner().unwrap()
+    }
+
+    #[test]
+    fn a_generation_of_fewer_rows_than_a_task_takes_runs_on_one_thread() {
+        assert_eq!(threads_of_rows(ROWS_PER_TASK).len(), 1);
+        assert_eq!(threads_of_rows(40).len(), 1);
+    }
 
     #[test]
     fn rows_keep_their_dimension() {

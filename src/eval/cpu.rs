@@ -99,6 +99,7 @@ impl Evaluator for CpuEvaluator {
             let every = problem.measure.restart_every();
             return Ok(rows
                 .par_chunks(LANES * d)
+                .with_min_len(batches_per_task(problem))
                 .flat_map_iter(|chunk| {
                     let params = transpose(chunk, d);
                     let used = chunk.len() / d;
@@ -163,6 +164,7 @@ pub fn score_rows(problem: &Problem, rows: &[f32]) -> Scores {
     let model = problem.model();
     let batches: Vec<Vec<[f32; LANES]>> = rows
         .par_chunks(LANES * d)
+        .with_min_len(batches_per_task(problem))
         .map(|chunk| {
             if !problem.effects.is_empty() {
                 return effects::batch_sse(problem, &model, chunk);
@@ -185,6 +187,19 @@ pub fn score_rows(problem: &Problem, rows: &[f32]) -> Scores {
         })
         .collect();
     Scores::from_per_experiment(per_experiment)
+}
+
+/// Lane-samples (candidates times samples) one rayon task of the scoring
+/// loops takes at least: some 0.1 ms of simulation. A batch of the
+/// shipped stair (4000 samples) is a task of its own, as before; a short
+/// record's batches go several to a task, since handing one to another
+/// thread costs tens of microseconds in wake-ups, as much as its
+/// simulation. A batch's scores never depend on its task.
+const LANE_SAMPLES_PER_TASK: usize = 1 << 17;
+
+/// Batches of [`LANES`] candidates one task of the scoring loops takes.
+fn batches_per_task(problem: &Problem) -> usize {
+    (LANE_SAMPLES_PER_TASK / (LANES * problem.samples().max(1))).max(1)
 }
 
 /// `params[j][l]`: parameter `j` of lane `l`. A short last batch is padded

@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Bounds, Optimizer, RowRng, Streams};
-use crate::search::{Coords, Population, Rows};
+use crate::search::{Coords, Population, ROWS_PER_TASK, Rows};
 
 /// The mutation strategy.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -134,6 +134,7 @@ impl Optimizer for De {
             .zip(self.costs.par_iter_mut())
             .zip(self.f.par_iter_mut().zip(self.cr.par_iter_mut()))
             .enumerate()
+            .with_min_len(ROWS_PER_TASK)
             .for_each(|(i, (((row, trial), cost), (f, cr)))| {
                 let c = costs[i];
                 if super::cost_order(c, *cost).is_le() && c.is_finite() {
@@ -177,6 +178,7 @@ impl De {
                     .zip(self.trial_cr.par_iter_mut()),
             )
             .enumerate()
+            .with_min_len(ROWS_PER_TASK)
             .for_each(|(i, (trial, (trial_f, trial_cr)))| {
                 let mut rng = streams.row(i);
                 let f = if rng.random::<f64>() < settings.tau_f {

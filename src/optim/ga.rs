@@ -22,7 +22,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Bounds, Optimizer, RowRng, Streams};
-use crate::search::{Coords, Population, Rows};
+use crate::search::{Coords, Population, ROWS_PER_TASK, Rows};
 
 /// How two parents make two children (§5.2.1.5).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
@@ -136,6 +136,7 @@ impl Ga {
         self.costs
             .par_iter()
             .zip(self.clamped.par_iter())
+            .with_min_len(ROWS_PER_TASK)
             .map(|(&c, &clamped)| {
                 if !c.is_finite() {
                     return 0.0;
@@ -178,6 +179,7 @@ impl Ga {
             .par_chunks_mut(2 * d)
             .zip(self.spare_clamped[elite..].par_chunks_mut(2))
             .enumerate()
+            .with_min_len(ROWS_PER_TASK / 2)
             .for_each(|(p, (children, clamped))| {
                 mating.pair(children, clamped, &mut streams.row(elite + 2 * p));
             });

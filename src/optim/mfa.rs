@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Bounds, Optimizer, RowRng, Streams};
-use crate::search::{Coords, Population, Rows};
+use crate::search::{Coords, Population, ROWS_PER_TASK, Rows};
 
 /// Above this population the all-pairs move, `O(N²·d)` a generation, stops
 /// being practical (timed: docs/lab/results.md, "3. Equal budgets over 10
@@ -228,50 +228,56 @@ impl Mfa {
         let settings = &self.settings;
         let bounds = &self.bounds;
         self.spare.resize(snapshot.len(), 0.0);
-        self.spare.par_chunks_mut(d).enumerate().for_each(|(i, x)| {
-            x.copy_from_slice(&snapshot[i * d..(i + 1) * d]);
-            let mut frng = streams.row(i);
-            let attract = |x: &mut [f64], j: usize, frng: &mut RowRng| {
-                let nj = &snapshot[j * d..(j + 1) * d];
-                let r2: f64 = (0..d).map(|t| ((nj[t] - x[t]) * inv_w[t]).powi(2)).sum();
-                let decay = match settings.distance {
-                    Distance::Linear => r2.sqrt(),
-                    Distance::Squared => r2,
+        self.spare
+            .par_chunks_mut(d)
+            .enumerate()
+            .with_min_len(ROWS_PER_TASK)
+            .for_each(|(i, x)| {
+                x.copy_from_slice(&snapshot[i * d..(i + 1) * d]);
+                let mut frng = streams.row(i);
+                let attract = |x: &mut [f64], j: usize, frng: &mut RowRng| {
+                    let nj = &snapshot[j * d..(j + 1) * d];
+                    let r2: f64 = (0..d).map(|t| ((nj[t] - x[t]) * inv_w[t]).powi(2)).sum();
+                    let decay = match settings.distance {
+                        Distance::Linear => r2.sqrt(),
+                        Distance::Squared => r2,
+                    };
+                    let lambda = lambda0 * (-sigma * decay).exp();
+                    for t in 0..d {
+                        let v: f64 = frng.sample(StandardNormal);
+                        x[t] += lambda * (nj[t] - x[t]) + walk[t] * v;
+                    }
+                    bounds.clamp(x);
                 };
-                let lambda = lambda0 * (-sigma * decay).exp();
-                for t in 0..d {
-                    let v: f64 = frng.sample(StandardNormal);
-                    x[t] += lambda * (nj[t] - x[t]) + walk[t] * v;
-                }
-                bounds.clamp(x);
-            };
-            let ci = costs[i];
-            let brighter_than_i =
-                |j: usize| costs[j].is_finite() && super::cost_order(costs[j], ci).is_lt();
-            match (settings.max_attractors, &ranking) {
-                (Some(k), Some(ranking)) => {
-                    let brighter = ranking.brighter(i);
-                    let m = k.min(brighter.len());
-                    for step in 0..m {
-                        let j = match settings.attractors {
-                            Attractors::Random => brighter[frng.random_range(0..brighter.len())],
-                            // Dimmest first, so that the brightest acts last.
-                            Attractors::Brightest => brighter[m - 1 - step],
-                        };
-                        if brighter_than_i(j) {
-                            attract(x, j, &mut frng);
+                let ci = costs[i];
+                let brighter_than_i =
+                    |j: usize| costs[j].is_finite() && super::cost_order(costs[j], ci).is_lt();
+                match (settings.max_attractors, &ranking) {
+                    (Some(k), Some(ranking)) => {
+                        let brighter = ranking.brighter(i);
+                        let m = k.min(brighter.len());
+                        for step in 0..m {
+                            let j = match settings.attractors {
+                                Attractors::Random => {
+                                    brighter[frng.random_range(0..brighter.len())]
+                                }
+                                // Dimmest first, so that the brightest acts last.
+                                Attractors::Brightest => brighter[m - 1 - step],
+                            };
+                            if brighter_than_i(j) {
+                                attract(x, j, &mut frng);
+                            }
+                        }
+                    }
+                    _ => {
+                        for j in 0..costs.len() {
+                            if brighter_than_i(j) {
+                                attract(x, j, &mut frng);
+                            }
                         }
                     }
                 }
-                _ => {
-                    for j in 0..costs.len() {
-                        if brighter_than_i(j) {
-                            attract(x, j, &mut frng);
-                        }
-                    }
-                }
-            }
-        });
+            });
         std::mem::swap(&mut self.pos, &mut self.spare);
     }
 }

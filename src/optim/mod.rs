@@ -37,7 +37,7 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::names::UnknownName;
-use crate::search::{Coords, Population, Rows};
+use crate::search::{Coords, Population, ROWS_PER_TASK, Rows};
 
 pub use history::{GenerationRecord, History};
 pub use streams::{RowRng, Streams};
@@ -287,6 +287,7 @@ pub(crate) fn first_population(
     let (mut pop, given) = first_rows(bounds, n, initial);
     pop.par_chunks_mut(d)
         .enumerate()
+        .with_min_len(ROWS_PER_TASK)
         .for_each(|(i, row)| first_row(bounds, row, i < given, &mut streams.row(i)));
     pop
 }

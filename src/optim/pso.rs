@@ -21,7 +21,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{Bounds, Optimizer, Streams, ThesisModel};
-use crate::search::{Coords, Population, Rows};
+use crate::search::{Coords, Population, ROWS_PER_TASK, Rows};
 
 /// PSO settings; defaults are Table 11 (classic); [`PsoSettings::thesis`]
 /// gives Table 19 for the generalized model.
@@ -189,6 +189,7 @@ impl Optimizer for Pso {
         pos.par_chunks_mut(d)
             .zip(vel.par_chunks_mut(d))
             .enumerate()
+            .with_min_len(ROWS_PER_TASK)
             .for_each(|(i, (x, v))| {
                 let mut rng = streams.row(i);
                 super::first_row(bounds, x, i < given, &mut rng);
@@ -216,6 +217,7 @@ impl Optimizer for Pso {
             .zip(self.pbest_cost.par_iter_mut())
             .zip(self.pos.par_chunks(d))
             .zip(costs.par_iter())
+            .with_min_len(ROWS_PER_TASK)
             .for_each(|(((pbest, pbest_cost), x), &c)| {
                 if super::cost_order(c, *pbest_cost).is_lt() {
                     *pbest_cost = c;
@@ -254,6 +256,7 @@ impl Pso {
             .zip(self.vel.par_chunks_mut(d))
             .zip(social.par_iter())
             .enumerate()
+            .with_min_len(ROWS_PER_TASK)
             .for_each(|(i, ((x, v), neighbour))| {
                 let mut rng = streams.row(i);
                 let r2_scalar: f64 = if settings.scalar_social {
@@ -292,6 +295,7 @@ impl Pso {
         let k = k.min(n / 2);
         (0..n)
             .into_par_iter()
+            .with_min_len(ROWS_PER_TASK)
             .map(|i| {
                 (0..=2 * k).map(|o| (i + n - k + o) % n).min_by(|&a, &b| {
                     super::cost_order(self.pbest_cost[a], self.pbest_cost[b]).then(a.cmp(&b))
