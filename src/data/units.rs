@@ -73,7 +73,7 @@ pub fn megapascals_in(unit: &str) -> Option<f64> {
 }
 
 /// How many millimetres one unit of the column `column` is, where its name
-/// states a length ([`unit_of`], [`millimetres_in`]); `None` where it
+/// states a length ([`unit_of`], then the unit's size in mm); `None` where it
 /// states none.
 pub fn stated_length_in_mm(column: &str) -> Option<f64> {
     unit_of(column).as_deref().and_then(millimetres_in)

@@ -1,7 +1,7 @@
 //! Diagnosis of the sim-to-real gap: where the fitted model misses
 //! ([`locate`]), which unmodelled effect of the catalogue explains it
 //! ([`effects`], chosen by [`select`] under [`accept`]'s rule, each model
-//! fitted by [`fitting`] on the halves of [`data`]), and how far the model
+//! fitted by [`fitting`] on the halves of the data), and how far the model
 //! gets with it, relative to a noise-floor estimate; whether the estimation
 //! data settle the final fit ([`refits`]); how much of the gap is
 //! explainable at all ([`explainable`], a [`ridge`] model of the residual)

@@ -23,7 +23,7 @@ pub const MAX_WIDENINGS: usize = 2;
 
 /// A fit that ends within this share of a data-set bound's box width of
 /// it (on the scale of the smallest drawn values, for a coordinate that
-/// spans decades: [`Space::near_edge`]) counts as ended on it: a fit that
+/// spans decades: [`crate::optim::engine::space::Space::near_edge`]) counts as ended on it: a fit that
 /// stops a hair inside a bound was stopped by it as surely (as a fit whose
 /// truth lies beyond the bound can end just inside it).
 pub const NEAR_EDGE: f64 = 0.01;

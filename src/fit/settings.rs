@@ -297,7 +297,7 @@ impl FitSettings {
     }
 
     /// A warm start from the canonical `start`: the free-run stage from
-    /// `start` and a cloud around it ([`Space::cloud`]), then the polish;
+    /// `start` and a cloud around it ([`crate::optim::engine::space::Space::cloud`]), then the polish;
     /// no global search, so the fit refines the basin it is given (a global
     /// search finds other basins, and where the estimation data do not
     /// settle the model some of those fit the estimation half better and

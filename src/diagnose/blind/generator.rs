@@ -1,6 +1,6 @@
 //! The independent self-test's data generator: its own `f64` simulation of
 //! the classic Bouc-Wen model and its own realisations of every physical
-//! effect listed in [`super::realisation`] (docs/DIAGNOSIS.md, "The
+//! effect listed in [`Effect::PHYSICAL`](crate::model::effects::Effect::PHYSICAL) (docs/DIAGNOSIS.md, "The
 //! independent self-test").
 //!
 //! Why a second implementation: data made by adding the catalogue's own

@@ -176,7 +176,7 @@ pub struct FinalJson {
     pub as_fit: Option<AsFitJson>,
 }
 
-/// [`super::as_fit::AsFit`] without its parameter vector (the final model's is `final.params`
+/// [`crate::diagnose::as_fit::AsFit`] without its parameter vector (the final model's is `final.params`
 /// when it was kept).
 #[derive(Debug, Serialize)]
 pub struct AsFitJson {

@@ -7,7 +7,7 @@
 //! shapes: one chain of dependent mul-adds (bound by an operation's
 //! latency), eight independent chains (bound by the throughput: the
 //! ceiling) and eight chains of `pow` and an add. It runs on the project's
-//! one host ([`Host::run_probe`]); [`reference`] is the CPU's evaluation of
+//! one host ([`Host::run_probe`]); [`reference()`] is the CPU's evaluation of
 //! the same loop, which the mul-add variants match bit for bit (each product
 //! is exact, so a fused and an unfused mul-add round alike).
 //!
