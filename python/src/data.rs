@@ -9,6 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
+use mckibben::model::file::ReadSettings;
 
 use crate::convert::{in_python_terms, sample_time, series};
 
@@ -19,6 +20,11 @@ use crate::convert::{in_python_terms, sample_time, series};
 #[derive(Clone)]
 pub struct Trace {
     pub inner: mckibben::data::Trace,
+    /// How it was read (`read_csv`'s time column, resampling and gap
+    /// splitting; the time column's name alone for arrays): a model fitted
+    /// on it records them, so that `simulate --from` reads a file as the
+    /// model's data were read.
+    pub read: ReadSettings,
 }
 
 #[pymethods]
@@ -42,7 +48,10 @@ impl Trace {
         inner.input_name = input_name.to_string();
         inner.output_name = output_name.to_string();
         inner.time_name = time_name.to_string();
-        Ok(Trace { inner })
+        Ok(Trace {
+            inner,
+            read: timed_only(time_name),
+        })
     }
 
     /// Where the trace came from (a path, `file.csv[2]` for a piece).
@@ -140,6 +149,14 @@ fn column_names(time: &str, input: &str, output: &str) -> PyResult<()> {
     Ok(())
 }
 
+/// How a trace made from arrays counts as read: its time column's name.
+pub fn timed_only(time_name: &str) -> ReadSettings {
+    ReadSettings {
+        time: Some(time_name.to_string()),
+        ..ReadSettings::default()
+    }
+}
+
 /// A trace from two series and a sample time, every value checked.
 pub fn arrays_trace(
     input: &Bound<'_, PyAny>,
@@ -169,23 +186,25 @@ pub fn arrays_trace(
     ))
 }
 
-/// The experiment an API call is about: a `Trace` (then `y` and `dt` stay
-/// `None`), or the arrays `u`, `y` and the sample time `dt`.
+/// The experiment an API call is about, and how it was read: a `Trace`
+/// (then `y` and `dt` stay `None`), or the arrays `u`, `y` and the sample
+/// time `dt`.
 pub fn data_arg(
     u: &Bound<'_, PyAny>,
     y: Option<&Bound<'_, PyAny>>,
     dt: Option<f64>,
-) -> PyResult<mckibben::data::Trace> {
+) -> PyResult<(mckibben::data::Trace, ReadSettings)> {
     if let Ok(trace) = u.cast::<Trace>() {
         if y.is_some() || dt.is_some() {
             return Err(PyValueError::new_err(
                 "pass either a Trace, or the arrays u and y with dt, not both",
             ));
         }
-        return Ok(trace.get().inner.clone());
+        let trace = trace.get();
+        return Ok((trace.inner.clone(), trace.read.clone()));
     }
     match (y, dt) {
-        (Some(y), Some(dt)) => arrays_trace(u, y, dt, "python"),
+        (Some(y), Some(dt)) => Ok((arrays_trace(u, y, dt, "python")?, timed_only("t"))),
         _ => Err(PyValueError::new_err(
             "give the output y and the sample time dt with the input u (or pass a Trace)",
         )),
@@ -250,7 +269,18 @@ pub fn read_csv<'py>(
     for note in notes {
         warn.call_method1("warn", (in_python_terms(&note),))?;
     }
-    let mut traces: Vec<Trace> = traces.into_iter().map(|inner| Trace { inner }).collect();
+    let read = ReadSettings {
+        time: Some(time.to_string()),
+        resample,
+        split_gaps,
+    };
+    let mut traces: Vec<Trace> = traces
+        .into_iter()
+        .map(|inner| Trace {
+            inner,
+            read: read.clone(),
+        })
+        .collect();
     if split_gaps {
         return Ok(pyo3::types::PyList::new(py, traces)?.into_any());
     }

@@ -8,19 +8,21 @@ use pyo3::types::PyTuple;
 use mckibben::diagnose::report::{DiagnosisJson, baseline_caution};
 use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::ModelFile;
+use mckibben::model::file::ReadSettings;
 use mckibben::report::json::Versioned;
 
 use crate::args::{at_least, effects_arg, family_or_start, model_arg, seed_arg};
 use crate::convert::{backend, to_python, value_error};
-use crate::data::{Trace, arrays_trace};
+use crate::data::{Trace, arrays_trace, timed_only};
 use crate::interrupt::interruptible;
 use crate::model::{Model, provenance};
 
-/// The traces of `datasets`: a `Trace`, or a list whose items are each a
-/// `Trace` or a `(u, y, dt)` tuple.
-fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<Vec<mckibben::data::Trace>> {
+/// The traces of `datasets` (a `Trace`, or a list whose items are each a
+/// `Trace` or a `(u, y, dt)` tuple), and how the first was read.
+fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<(Vec<mckibben::data::Trace>, ReadSettings)> {
     if let Ok(t) = datasets.cast::<Trace>() {
-        return Ok(vec![t.get().inner.clone()]);
+        let t = t.get();
+        return Ok((vec![t.inner.clone()], t.read.clone()));
     }
     let wrong = || {
         PyTypeError::new_err(
@@ -28,10 +30,13 @@ fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<Vec<mckibben::data::Trace>> {
         )
     };
     let mut out = Vec::new();
+    let mut reads = Vec::new();
     for (i, item) in datasets.try_iter().map_err(|_| wrong())?.enumerate() {
         let item = item?;
         if let Ok(t) = item.cast::<Trace>() {
-            out.push(t.get().inner.clone());
+            let t = t.get();
+            out.push(t.inner.clone());
+            reads.push(t.read.clone());
         } else if let Ok(tuple) = item.cast::<PyTuple>()
             && tuple.len() == 3
         {
@@ -42,6 +47,7 @@ fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<Vec<mckibben::data::Trace>> {
                 dt,
                 &format!("datasets[{i}]"),
             )?);
+            reads.push(timed_only("t"));
         } else {
             return Err(wrong());
         }
@@ -51,7 +57,7 @@ fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<Vec<mckibben::data::Trace>> {
             "datasets is empty: give at least one experiment",
         ));
     }
-    Ok(out)
+    Ok((out, reads.swap_remove(0)))
 }
 
 /// What `mckibben.diagnose` returns: the document `mckibben diagnose
@@ -113,8 +119,11 @@ pub fn diagnose<'py>(
     transfer: Option<&Bound<'py, PyAny>>,
     repeat: i64,
 ) -> PyResult<Diagnosis> {
-    let traces = traces(datasets)?;
-    let others = transfer.map(self::traces).transpose()?.unwrap_or_default();
+    let (traces, read) = traces(datasets)?;
+    let others = transfer
+        .map(|t| self::traces(t).map(|(others, _)| others))
+        .transpose()?
+        .unwrap_or_default();
     let defaults = Settings::default();
     let repeat = at_least(Some(repeat), 1, 1, "repeat")?;
     let blocks = blocks
@@ -183,12 +192,7 @@ pub fn diagnose<'py>(
         let file = ModelFile::new(
             m,
             None,
-            provenance(
-                "mckibben.diagnose",
-                &sources,
-                traces.first().map_or("t", |t| t.time_name.as_str()),
-                Some(settings.seed),
-            ),
+            provenance("mckibben.diagnose", &sources, &read, Some(settings.seed)),
         );
         Py::new(py, Model::of_file(file).map_err(value_error)?)
     };

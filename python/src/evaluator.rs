@@ -13,6 +13,7 @@ use mckibben::fit::objective::ModelObjective;
 use mckibben::fit::problem::FitProblem;
 use mckibben::fit::report::model_file;
 use mckibben::model::UserBound;
+use mckibben::model::file::ReadSettings;
 use mckibben::model::{Flow, Measure, Switching};
 use mckibben::optim::engine::Objective as _;
 use mckibben::optim::engine::Space;
@@ -41,10 +42,10 @@ pub struct Evaluator {
     problem: FitProblem,
     /// The user's bounds the box was made with (a model's file keeps them).
     bounds: Vec<UserBound>,
-    /// The data's source and time column's name (a model's provenance
-    /// names them).
+    /// The data's source and how it was read (a model's provenance names
+    /// them).
     source: String,
-    time_name: String,
+    read: ReadSettings,
     space: Space<ModelChart>,
     checked: bool,
     /// The free coordinates' names.
@@ -177,7 +178,7 @@ impl Evaluator {
         r#loop: &str,
         checked: bool,
     ) -> PyResult<Evaluator> {
-        let trace = data_arg(u, y, dt)?;
+        let (trace, read) = data_arg(u, y, dt)?;
         let family = family(model)?;
         let loop_shape = loop_shape(r#loop)?;
         let bounds = user_bounds(bounds)?;
@@ -205,7 +206,7 @@ impl Evaluator {
             problem,
             bounds,
             source: trace.source.clone(),
-            time_name: trace.time_name.clone(),
+            read,
             space,
             checked,
             evaluator: Mutex::new(evaluator),
@@ -321,7 +322,7 @@ impl Evaluator {
             provenance(
                 "mckibben.Evaluator.model",
                 &[&self.source],
-                &self.time_name,
+                &self.read,
                 None,
             ),
         );

@@ -18,6 +18,7 @@ use mckibben::fit::request::{FitRequest, Resolved, switching_misapplied};
 use mckibben::fit::run::{FitRun, FitTarget};
 use mckibben::fit::searches::StopFlag;
 use mckibben::fit::settings::{FitSettings, Overrides};
+use mckibben::model::file::ReadSettings;
 use mckibben::optim::engine::{Observer, Outcome, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 
@@ -216,7 +217,7 @@ pub fn fit(
     carry: Option<&Bound<'_, PyAny>>,
     refine_rounds: Option<i64>,
 ) -> PyResult<FitResult> {
-    let trace = data_arg(u, y, dt)?;
+    let (trace, read) = data_arg(u, y, dt)?;
     // As `fit --from`: the start's family, effects and bounds unless given
     // here (the bounds given here after the file's, so that they win). As
     // `fit --carry`: the carried model's family and effects, its dynamics
@@ -313,7 +314,7 @@ pub fn fit(
     } = finished;
     let report = FitReport::of(&fit, (&outcome, &widened), &describe, &trace.source);
     warn_of_report(&warn, &report, &outcome, &fit)?;
-    fit_result(py, report, &fit, &outcome, &what, &trace)
+    fit_result(py, report, &fit, &outcome, &what, &trace, &read)
 }
 
 /// A fit run to its end: the run, what it ended at, the edge rule's
@@ -411,6 +412,7 @@ fn fit_result(
     outcome: &Outcome,
     what: &FitTarget,
     trace: &mckibben::data::Trace,
+    read: &ReadSettings,
 ) -> PyResult<FitResult> {
     let (problem, engine) = (&fit.problem, &fit.engine);
     let params = PyDict::new(py);
@@ -434,12 +436,7 @@ fn fit_result(
             problem,
             &outcome.params,
             &what.bounds,
-            provenance(
-                "mckibben.fit",
-                &[&trace.source],
-                &trace.time_name,
-                Some(engine.seed),
-            ),
+            provenance("mckibben.fit", &[&trace.source], read, Some(engine.seed)),
         );
         Some(Py::new(py, Model::of_file(file).map_err(runtime_error)?)?)
     };

@@ -40,9 +40,14 @@ impl Model {
 
 /// Where a model made in Python came from: `what` called (`mckibben.fit`,
 /// ...) in this library version, on the files `sources` name that exist
-/// (hashed), their time column named `time` (as `simulate --from` then
-/// reads a file), with `seed`.
-pub fn provenance(what: &str, sources: &[&str], time: &str, seed: Option<u64>) -> Provenance {
+/// (hashed), read as `read` says (as `simulate --from` then reads a file),
+/// with `seed`.
+pub fn provenance(
+    what: &str,
+    sources: &[&str],
+    read: &ReadSettings,
+    seed: Option<u64>,
+) -> Provenance {
     let files: Vec<String> = sources
         .iter()
         .filter(|s| std::path::Path::new(s).is_file())
@@ -50,14 +55,7 @@ pub fn provenance(what: &str, sources: &[&str], time: &str, seed: Option<u64>) -
         .collect();
     Provenance {
         command: format!("{what} (Python)"),
-        ..Provenance::here(
-            &files,
-            seed,
-            ReadSettings {
-                time: Some(time.to_string()),
-                ..ReadSettings::default()
-            },
-        )
+        ..Provenance::here(&files, seed, read.clone())
     }
 }
 

@@ -119,3 +119,22 @@ def test_a_model_fitted_in_python_names_its_time_column_for_the_command(stair, c
     assert json.loads(path.read_text())["provenance"]["read"]["time"] == "time_s"
     # `simulate --from` reads the file as the model's data were read.
     assert cli("simulate", "--from", path, "--input", data)["samples"] == 600
+
+
+def test_a_model_fitted_in_python_on_resampled_data_resamples_for_the_command(stair, cli, tmp_path):
+    # A logger's clock: every sample up to 1 ms late, so the file is not
+    # uniform and reads only resampled.
+    late = 0.001 * (np.arange(600) % 3) / 2
+    t = stair.t[:600] + late
+    rows = [f"{a:.17g},{p:.17g},{y:.17g}" for a, p, y in zip(t, stair.input[:600], stair.output[:600])]
+    data = tmp_path / "logger.csv"
+    data.write_text("t,pressure,displacement\n" + "\n".join(rows) + "\n")
+    with pytest.raises(ValueError, match="resample"):
+        mckibben.read_csv(data)
+    trace = mckibben.read_csv(data, resample=0.01)
+    path = tmp_path / "model.json"
+    mckibben.fit(trace, pop=20, gens=5, seed=1).model.save(path)
+    read = json.loads(path.read_text())["provenance"]["read"]
+    assert (read["time"], read["resample"], read["split_gaps"]) == ("t", 0.01, False)
+    # `simulate --from` resamples the file as the model's data were.
+    assert cli("simulate", "--from", path, "--input", data)["samples"] == len(trace)
