@@ -228,10 +228,14 @@ impl Mfa {
         let settings = &self.settings;
         let bounds = &self.bounds;
         self.spare.resize(snapshot.len(), 0.0);
+        // A firefly's move costs one attraction a brighter firefly it
+        // heeds (all N, or the cap): a task takes about the work of
+        // ROWS_PER_TASK rows of the other optimizers' steps.
+        let attractions = settings.max_attractors.unwrap_or(self.n).max(1);
         self.spare
             .par_chunks_mut(d)
             .enumerate()
-            .with_min_len(ROWS_PER_TASK)
+            .with_min_len((ROWS_PER_TASK / attractions).max(1))
             .for_each(|(i, x)| {
                 x.copy_from_slice(&snapshot[i * d..(i + 1) * d]);
                 let mut frng = streams.row(i);
