@@ -204,7 +204,11 @@ pub fn data_arg(
         return Ok((trace.inner.clone(), trace.read.clone()));
     }
     match (y, dt) {
-        (Some(y), Some(dt)) => Ok((arrays_trace(u, y, dt, "python")?, timed_only("t"))),
+        (Some(y), Some(dt)) => {
+            let trace = arrays_trace(u, y, dt, "python")?;
+            let read = timed_only(&trace.time_name);
+            Ok((trace, read))
+        }
         _ => Err(PyValueError::new_err(
             "give the output y and the sample time dt with the input u (or pass a Trace)",
         )),

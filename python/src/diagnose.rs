@@ -30,34 +30,35 @@ fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<(Vec<mckibben::data::Trace>, 
         )
     };
     let mut out = Vec::new();
-    let mut reads = Vec::new();
+    let mut first_read = None;
     for (i, item) in datasets.try_iter().map_err(|_| wrong())?.enumerate() {
         let item = item?;
         if let Ok(t) = item.cast::<Trace>() {
             let t = t.get();
             out.push(t.inner.clone());
-            reads.push(t.read.clone());
+            first_read.get_or_insert_with(|| t.read.clone());
         } else if let Ok(tuple) = item.cast::<PyTuple>()
             && tuple.len() == 3
         {
             let dt: f64 = tuple.get_item(2)?.extract()?;
-            out.push(arrays_trace(
+            let trace = arrays_trace(
                 &tuple.get_item(0)?,
                 &tuple.get_item(1)?,
                 dt,
                 &format!("datasets[{i}]"),
-            )?);
-            reads.push(timed_only("t"));
+            )?;
+            first_read.get_or_insert_with(|| timed_only(&trace.time_name));
+            out.push(trace);
         } else {
             return Err(wrong());
         }
     }
-    if out.is_empty() {
-        return Err(PyValueError::new_err(
+    match first_read {
+        Some(read) => Ok((out, read)),
+        None => Err(PyValueError::new_err(
             "datasets is empty: give at least one experiment",
-        ));
+        )),
     }
-    Ok((out, reads.swap_remove(0)))
 }
 
 /// What `mckibben.diagnose` returns: the document `mckibben diagnose
