@@ -123,7 +123,7 @@ pub struct Diagnosis {
     /// [`transfer::transfer`]); empty unless asked for.
     pub transfers: Vec<transfer::Transfer>,
     /// The baseline's loop-shape parameters that ended on or near the edge
-    /// of the diagnosis' box ([`loop_shape_on_edge`]).
+    /// of the diagnosis' box (`loop_shape_on_edge`).
     pub baseline_on_edge: Vec<ActiveBound>,
     /// Every run of `--repeat K` ([`seeds::repeat`]), this diagnosis first
     /// and then the same from the next `K − 1` seeds; empty unless asked

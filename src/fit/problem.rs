@@ -245,7 +245,7 @@ impl FitProblem {
     }
 
     /// The same records, parts, rules and evaluator with `model` fitted, in
-    /// the diagnosis' box ([`FitProblem::diagnosis_box`]): the diagnosis'
+    /// the diagnosis' box (`FitProblem::diagnosis_box`): the diagnosis'
     /// candidates.
     pub fn with_model(&self, model: &ModelDescription) -> FitProblem {
         FitProblem {

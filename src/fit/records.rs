@@ -193,7 +193,7 @@ impl Records {
 /// [`offset_note`] speaks.
 const FAR_LEVEL: f64 = 10.0;
 
-/// A note where the estimation half's output sits more than [`FAR_LEVEL`]
+/// A note where the estimation half's output sits more than `FAR_LEVEL`
 /// times its swing (largest less smallest) away from zero, as an encoder's
 /// counts or an absolute position do. The fit works in deviations from the
 /// mean, but the intercept's search box is sized from the largest absolute

@@ -58,7 +58,7 @@ pub const MIN_BLOCK: usize = 32;
 /// The most blocks [`Parts::chosen`] tries.
 pub const MAX_BLOCKS: usize = 24;
 
-/// How much more unlike ([`Parts::unlike`]) than the most alike layout a
+/// How much more unlike (`Parts::unlike`) than the most alike layout a
 /// layout with fewer blocks may be and still be chosen: fewer, longer blocks
 /// share less of a slow residual across their boundaries.
 pub const LAYOUT_TOLERANCE: f64 = 0.05;
@@ -160,7 +160,7 @@ impl Parts {
     /// The layout of a record whose input is `input` (any shift of it): the
     /// fewest blocks whose selection and test parts hold the input's levels
     /// and loop branches in nearly the same proportions and reach nearly
-    /// the same extremes ([`Parts::unlike`] within [`LAYOUT_TOLERANCE`] of
+    /// the same extremes (`Parts::unlike` within [`LAYOUT_TOLERANCE`] of
     /// the most alike layout), from 2 up to as many as keep every block
     /// useful ([`Parts::too_short`]). Only the input is read, never the
     /// output, so the choice sees nothing a fit or a score could use.

@@ -7,8 +7,8 @@
 //! before (nalgebra's `jac.transpose() * &jac`, which multiplies through
 //! matrixmultiply's fused kernels), kept so that every fit keeps its
 //! digits:
-//! - `JᵀJ` with more than [`PLAIN_MAX_DIM`] coordinates (and rows): each
-//!   entry summed over blocks of [`FUSED_BLOCK_ROWS`] rows, each block one
+//! - `JᵀJ` with more than `PLAIN_MAX_DIM` coordinates (and rows): each
+//!   entry summed over blocks of `FUSED_BLOCK_ROWS` rows, each block one
 //!   chain of fused multiply-adds from zero, the blocks added in order;
 //! - `JᵀJ` with fewer coordinates, and `Jᵀr` always: rounded products added
 //!   one row after another.

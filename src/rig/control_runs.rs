@@ -87,9 +87,9 @@ pub struct RigRunSettings {
     /// Deadline of each sample (ms); `None`: [`RemoteSettings::default_deadline`].
     pub deadline_ms: Option<f64>,
     pub max_missing: usize,
-    /// Pressures (MPa) the rig's sensor can read; `None`: see [`ranges`].
+    /// Pressures (MPa) the rig's sensor can read; `None`: see `ranges`.
     pub pressure_range: Option<(f64, f64)>,
-    /// Displacements (mm) the rig's sensor can read; `None`: see [`ranges`].
+    /// Displacements (mm) the rig's sensor can read; `None`: see `ranges`.
     pub displacement_range: Option<(f64, f64)>,
     pub max_speed_mm_s: f64,
     pub max_implausible: usize,

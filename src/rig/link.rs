@@ -11,7 +11,7 @@
 //! `main` restores the default SIGPIPE (so that `mckibben … | head` ends
 //! quietly), which would kill the process when it writes to a rig that has
 //! exited: no message, no close, status 141. Writes to a pipe therefore run
-//! with SIGPIPE blocked on the writing thread ([`without_sigpipe`]) and a
+//! with SIGPIPE blocked on the writing thread (`without_sigpipe`) and a
 //! broken pipe comes back as an error the controller can report.
 
 use std::io::{self, BufRead, BufReader, Read, Write};

@@ -7,7 +7,7 @@
 //! shapes: one chain of dependent mul-adds (bound by an operation's
 //! latency), eight independent chains (bound by the throughput: the
 //! ceiling) and eight chains of `pow` and an add. It runs on the project's
-//! one host ([`Host::run_probe`]); [`reference()`] is the CPU's evaluation of
+//! one host (`Host::run_probe`); [`reference()`] is the CPU's evaluation of
 //! the same loop, which the mul-add variants match bit for bit (each product
 //! is exact, so a fused and an unfused mul-add round alike).
 //!
@@ -212,7 +212,7 @@ impl Ceiling {
 }
 
 /// Times every variant on `host`: a pass of `s` steps and one of `4s`,
-/// each the fastest of [`REPEATS`] (what else runs on the device only ever
+/// each the fastest of `REPEATS` (what else runs on the device only ever
 /// slows a pass), whose difference is the time of `3s` steps alone (a
 /// pass's fixed costs, large on a CPU adapter, cancel), from `s = 1` up
 /// until that difference is as long as `sizing` asks. `None` where the

@@ -111,7 +111,7 @@ impl Effect {
     /// Whether its parameter `name` says how it evolves in time (a pole, a
     /// delay, how fast its steps fall) rather than how large it is: what a
     /// chain carried to another record of the muscle holds
-    /// ([`Realisation::dynamics`](table::Realisation::dynamics)).
+    /// (`Realisation::dynamics`).
     pub fn is_dynamics(self, name: &str) -> bool {
         self.entry().dynamics.contains(&name)
     }

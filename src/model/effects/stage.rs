@@ -247,10 +247,10 @@ pub trait Lane<const L: usize>: Stage<L> {
     fn after(_c: &Self::Consts, _s: &mut Self::State, _at: &At<'_, L>) {}
 }
 
-/// The side of the step a stage moves: the input (an [`InputLoop`] or an
-/// input [`Lane`]), the new output state and the Bouc-Wen stiffness (a
-/// [`StateLoop`] or a state [`Lane`]), or the predicted output (an
-/// [`OutputLoop`]). The WGSL step has one signature per side
+/// The side of the step a stage moves: the input (an `InputLoop` or an
+/// input `Lane`), the new output state and the Bouc-Wen stiffness (a
+/// `StateLoop` or a state `Lane`), or the predicted output (an
+/// `OutputLoop`). The WGSL step has one signature per side
 /// (`eval::gpu::stages`, `shaders/effects.wgsl`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Side {
