@@ -846,3 +846,33 @@ fn simulate_drives_a_model_in_its_own_units_and_writes_a_file_that_reads_back() 
         "{err}"
     );
 }
+
+/// `simulate --out -` writes the trace a file would get to standard output,
+/// for a pipe, and its summary to standard error; with `--json`, which
+/// also wants standard output, it is an error naming both flags.
+#[test]
+fn simulate_writes_its_trace_to_standard_output_for_a_dash() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("simulated.csv");
+    let args = ["simulate", "--model", "generalized", "--input", STAIR];
+    let to_file = mckibben(&[&args[..], &["--out", file.to_str().unwrap()]].concat());
+    assert!(to_file.status.success());
+    let piped = mckibben(&[&args[..], &["--out", "-"]].concat());
+    assert!(
+        piped.status.success(),
+        "{}",
+        String::from_utf8_lossy(&piped.stderr)
+    );
+    assert!(
+        piped.stdout == std::fs::read(&file).unwrap(),
+        "standard output differs from the file --out writes"
+    );
+    let summary = String::from_utf8_lossy(&piped.stderr);
+    assert!(
+        summary.contains("Simulated the generalized model")
+            && summary.contains("trace written to standard output"),
+        "{summary}"
+    );
+    let err = error_of(&[&args[..], &["--out", "-", "--json"]].concat());
+    assert!(err.contains("--out -") && err.contains("--json"), "{err}");
+}

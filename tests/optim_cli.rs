@@ -355,11 +355,12 @@ fn bad_flags_and_bad_data_are_clear_errors() {
             &["simulate", "--from", "model.json", "--preset", "thesis"],
             "'--from <MODEL.json>' cannot be used with '--preset <PRESET>'",
         ),
-        // `-` is no standard output here: refused, not a file or folder
-        // of that name.
+        // `-` is no standard output for a folder or a figure: refused,
+        // not a file or folder of that name (a CSV trace's `--out` takes
+        // it: tests/twin.rs, tests/model_flow.rs).
         (
-            &["twin", "--out", "-"],
-            "'--out <FILE.csv>': `-` is not standard output here",
+            &["twin", "--out", "out.csv", "--plot", "-"],
+            "'--plot <FILE.svg>': `-` is not standard output here",
         ),
         (
             &["fit", &csv, "--out", "-", "--backend", "cpu"],

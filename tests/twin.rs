@@ -269,6 +269,32 @@ fn shipped_stair_regenerates_byte_for_byte() {
     );
 }
 
+/// `twin --out -` writes the recording a file would get to standard
+/// output (here the shipped stair, byte for byte) and its summary line to
+/// standard error.
+#[test]
+fn the_twin_writes_its_recording_to_standard_output_for_a_dash() {
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_mckibben"))
+        .args(["twin", "--experiment", "stair", "--out", "-"])
+        .output()
+        .expect("run mckibben");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.stdout == std::fs::read(shipped).unwrap(),
+        "standard output differs from {shipped}"
+    );
+    let summary = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        summary.starts_with("standard output: 4000 samples"),
+        "{summary}"
+    );
+}
+
 #[test]
 fn sine_run_tracks_the_reference_with_the_thesis_pi() {
     let spec = RunSpec {

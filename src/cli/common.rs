@@ -8,7 +8,10 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use mckibben::data::Trace;
-use mckibben::data::csv::{Gaps, ReadOptions, read_traces_with_notes};
+use mckibben::data::csv::{
+    DataError, Gaps, ReadOptions, STANDARD_OUTPUT, print_trace_with_comments,
+    read_traces_with_notes, write_trace_with_comments,
+};
 use mckibben::fit::settings::MAX_POPULATION;
 use mckibben::model::file::{ModelFile, Provenance, ReadSettings};
 
@@ -50,6 +53,51 @@ pub fn output_path(s: &str) -> Result<std::path::PathBuf, String> {
         "" => Err("an empty name: give the file or folder to write".into()),
         "-" => Err("`-` is not standard output here: give a file or folder to write".into()),
         _ => Ok(s.into()),
+    }
+}
+
+/// Where a command that writes one CSV trace (`simulate --out`, `twin
+/// --out`) writes it: a file, atomically, or standard output for `-`, so
+/// that the trace can be piped into another program.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum CsvOut {
+    File(PathBuf),
+    Stdout,
+}
+
+/// A `--out FILE.csv` flag that takes `-` for standard output; an empty
+/// name is refused.
+pub fn csv_output(s: &str) -> Result<CsvOut, String> {
+    match s {
+        "-" => Ok(CsvOut::Stdout),
+        _ => output_path(s).map(CsvOut::File),
+    }
+}
+
+impl CsvOut {
+    /// Writes `trace` with `# ` comment lines first.
+    pub fn write(&self, trace: &Trace, comments: &[String]) -> Result<(), DataError> {
+        match self {
+            CsvOut::File(path) => write_trace_with_comments(path, trace, comments),
+            CsvOut::Stdout => print_trace_with_comments(trace, comments),
+        }
+    }
+
+    /// The file, or `-`.
+    pub fn file(&self) -> Option<&Path> {
+        match self {
+            CsvOut::File(path) => Some(path),
+            CsvOut::Stdout => None,
+        }
+    }
+}
+
+impl std::fmt::Display for CsvOut {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CsvOut::File(path) => write!(f, "{}", path.display()),
+            CsvOut::Stdout => f.write_str(STANDARD_OUTPUT),
+        }
     }
 }
 

@@ -1,12 +1,13 @@
 //! `mckibben simulate`: run a model on a generated or recorded input.
 
-use std::path::PathBuf;
+use std::io::Write;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use serde::Serialize;
 
 use mckibben::data::Trace;
-use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces, write_trace_with_comments};
+use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces};
 use mckibben::data::signals::{Stair, nyquist_rad_s, samples_in};
 use mckibben::data::units::{megapascals_in, unit_of};
 use mckibben::ident::{fit_percent, loop_area};
@@ -16,6 +17,8 @@ use mckibben::model::{Family, FittedBaseline, Model, ModelFile};
 use mckibben::report::json::{Named, Versioned};
 use mckibben::report::number::significant;
 use mckibben::report::{Figure, Panel, Series};
+
+use super::common::CsvOut;
 
 /// Pressure per volt of valve command used to turn the generated valve
 /// signals into a pressure input: the tap supply (0.5 MPa) over the valve's
@@ -102,9 +105,10 @@ pub struct Args {
     /// input file's other columns, the measured output as
     /// `<output>_measured` and, for a Bouc-Wen model without effects, the
     /// hysteretic state `w` (a name a column already has gets
-    /// `_simulated`).
-    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.csv")]
-    out: Option<PathBuf>,
+    /// `_simulated`). `-` writes it to standard output, for a pipe; the
+    /// summary then goes to standard error.
+    #[arg(long, value_parser = crate::cli::common::csv_output, value_name = "FILE.csv")]
+    out: Option<CsvOut>,
     /// Draw the trace and the hysteresis loop to this SVG file.
     #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
@@ -149,6 +153,11 @@ struct Summary {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let to_stdout = args.out == Some(CsvOut::Stdout);
+    anyhow::ensure!(
+        !(to_stdout && args.json),
+        "--out - and --json would both write to standard output: give --out a file"
+    );
     let file = match &args.from {
         Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?),
         None => None,
@@ -267,7 +276,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Some(k) = run.diverged_at {
             comments.push(format!("diverged at sample {k}: the trace stops before it"));
         }
-        write_trace_with_comments(path, &trace, &comments)?;
+        path.write(&trace, &comments)?;
     }
     if let Some(path) = &args.plot {
         figure(&trace, &described).save(path)?;
@@ -296,36 +305,54 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         loop_area: loop_area(&trace.input, &trace.output),
         fit_percent: scored(0),
         val_fit_percent: scored(halves(samples).1.start),
-        out: args.out.clone(),
+        out: args
+            .out
+            .as_ref()
+            .and_then(CsvOut::file)
+            .map(Path::to_path_buf),
     };
     if args.json {
         println!("{}", Versioned::new(&summary).to_string_pretty()?);
         return Ok(());
     }
-    println!(
+    // The summary goes where the trace does not.
+    let mut report: Box<dyn Write> = if to_stdout {
+        Box::new(std::io::stderr())
+    } else {
+        Box::new(std::io::stdout())
+    };
+    writeln!(
+        report,
         "Simulated the {described} model on `{}`: {} samples, dt = {} s",
         summary.input, summary.samples, summary.dt
-    );
+    )?;
     for (name, value) in model.named_params() {
-        println!("  {name:<8} {value}");
+        writeln!(report, "  {name:<8} {value}")?;
     }
     match summary.diverged_at {
-        Some(k) => println!("  DIVERGED at sample {k} (state beyond ±1e6 or not finite)"),
-        None => println!(
+        Some(k) => writeln!(
+            report,
+            "  DIVERGED at sample {k} (state beyond ±1e6 or not finite)"
+        )?,
+        None => writeln!(
+            report,
             "  output range {} .. {}, loop area {}",
             significant(summary.output_min, 3),
             significant(summary.output_max, 3),
             significant(summary.loop_area, 4)
-        ),
+        )?,
     }
     if let (Some(all), Some(val)) = (summary.fit_percent, summary.val_fit_percent) {
-        println!("  fit to the measured output {all:.2} % (second half, as validated: {val:.2} %)");
+        writeln!(
+            report,
+            "  fit to the measured output {all:.2} % (second half, as validated: {val:.2} %)"
+        )?;
     }
     if let Some(p) = &args.out {
-        println!("  trace written to {}", p.display());
+        writeln!(report, "  trace written to {p}")?;
     }
     if let Some(p) = &args.plot {
-        println!("  figure written to {}", p.display());
+        writeln!(report, "  figure written to {}", p.display())?;
     }
     Ok(())
 }

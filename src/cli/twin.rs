@@ -8,6 +8,8 @@ use mckibben::data::Trace;
 use mckibben::report::{Figure, Panel, Series};
 use mckibben::twin::experiment::{Kind, RunSpec};
 
+use super::common::CsvOut;
+
 /// The sine's frequency when `--freq` is not given (rad/s): the thesis'
 /// slowest.
 const DEFAULT_FREQ_RAD_S: f64 = 1.0;
@@ -75,9 +77,10 @@ pub struct Args {
     ///                 (√(k/m)/2π, 6–9 Hz here), scales its excitation
     #[arg(long = "effect", value_name = "NAME=VALUE", verbatim_doc_comment)]
     effects: Vec<String>,
-    /// Write the CSV here (atomically).
-    #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.csv", required = true)]
-    out: Option<PathBuf>,
+    /// Write the CSV here (atomically); `-` writes it to standard output,
+    /// for a pipe, and the summary line to standard error.
+    #[arg(long, value_parser = crate::cli::common::csv_output, value_name = "FILE.csv", required = true)]
+    out: Option<CsvOut>,
     /// Also draw the run to this SVG file: pressure and displacement against
     /// time (thesis figure 3) and displacement against pressure (figure 4).
     #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.svg")]
@@ -226,19 +229,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         effects: args.effects.clone(),
     };
     let trace = spec.run()?;
-    spec.write_csv(&out, &trace)?;
-    println!(
-        "{}: {} samples, dt = {} s ({})",
-        out.display(),
+    out.write(&trace, &spec.comments())?;
+    let summary = format!(
+        "{out}: {} samples, dt = {} s ({})",
         trace.len(),
         trace.dt(),
         spec.command()
     );
+    // The summary goes where the trace does not.
+    let to_stdout = out == CsvOut::Stdout;
+    let say = |line: &str| {
+        if to_stdout {
+            eprintln!("{line}");
+        } else {
+            println!("{line}");
+        }
+    };
+    say(&summary);
     if let Some(path) = &args.plot {
         figure(&trace, &spec)
             .save(path)
             .with_context(|| format!("cannot write --plot {}", path.display()))?;
-        println!("figure written to {}", path.display());
+        say(&format!("figure written to {}", path.display()));
     }
     Ok(())
 }

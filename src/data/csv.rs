@@ -15,6 +15,7 @@
 //! and backward jumps ([`Gaps::Split`]).
 
 use std::fmt::{self, Write as _};
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::signals::samples_in;
@@ -737,6 +738,25 @@ pub fn write_trace_with_comments(
     write_columns(path, trace, comments, Missing::Refused)
 }
 
+/// As [`write_trace_with_comments`], on standard output (`--out -`): the
+/// same bytes a file would get, for a pipe into another program. An error
+/// names "standard output" where a file's would name the file.
+pub fn print_trace_with_comments(trace: &Trace, comments: &[String]) -> Result<(), DataError> {
+    let label = Path::new(STANDARD_OUTPUT);
+    let text = format_columns(label, trace, comments, Missing::Refused)?;
+    let mut stdout = std::io::stdout().lock();
+    stdout
+        .write_all(text.as_bytes())
+        .and_then(|()| stdout.flush())
+        .map_err(|source| DataError::Io {
+            path: label.to_path_buf(),
+            source,
+        })
+}
+
+/// What an error about a trace written to standard output names as its file.
+pub const STANDARD_OUTPUT: &str = "standard output";
+
 /// As [`write_trace_with_comments`] for a log whose measurements may be
 /// missing (a control run's dropped sample): a value that is not finite is
 /// written as an empty cell, which [`read_traces`] reports with its line
@@ -764,6 +784,20 @@ fn write_columns(
     comments: &[String],
     missing: Missing,
 ) -> Result<(), DataError> {
+    let text = format_columns(path, trace, comments, missing)?;
+    write_atomic(path, text.as_bytes()).map_err(|source| DataError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The CSV text of `trace`; an error names `path`, where it goes.
+fn format_columns(
+    path: &Path,
+    trace: &Trace,
+    comments: &[String],
+    missing: Missing,
+) -> Result<String, DataError> {
     let bad = |message: String| DataError::BadTrace {
         path: path.to_path_buf(),
         message,
@@ -819,10 +853,7 @@ fn write_columns(
         }
         out.push('\n');
     }
-    write_atomic(path, out.as_bytes()).map_err(|source| DataError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+    Ok(out)
 }
 
 #[cfg(test)]
