@@ -424,6 +424,148 @@ fn bad_flags_and_bad_data_are_clear_errors() {
 /// A warm start keeps its model's family: another `--model`, or an ARX
 /// model from `identify`, is a clear error, not a start vector read as
 /// another family's parameters (which panicked, or ran on nonsense).
+/// Values no muscle or rig has, files named twice and flags that contradict
+/// each other: each an error naming what is wrong, never a panic, an
+/// aborted allocation or a run that scores nothing (found by a robustness
+/// sweep over every command's flags).
+#[test]
+fn values_out_of_any_rigs_range_and_contradicting_flags_are_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let control = [
+        "control",
+        "--controller",
+        "pi",
+        "--freq",
+        "1",
+        "--load",
+        "4.5",
+        "--warmup",
+        "1",
+    ];
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        // A creep that softens the rubber until the load stretches the
+        // braid straight (it panicked).
+        (
+            vec!["twin", "--effect", "creep=8", "--out", "t.csv"],
+            "stretches the muscle at rest",
+        ),
+        (
+            [
+                &control[..],
+                &["--duration", "2", "--steady-from", "1"],
+                &["--effect", "creep=8"],
+            ]
+            .concat(),
+            "stretches the muscle at rest",
+        ),
+        // Episodes of more samples than a record holds (an aborted
+        // allocation), or whose scored part holds none (NaN metrics).
+        (
+            [&control[..], &["--duration", "1e12", "--steady-from", "1"]].concat(),
+            "more than the 10000000 a record may hold",
+        ),
+        (
+            [&control[..], &["--duration", "2", "--steady-from", "1.999"]].concat(),
+            "nothing would be scored",
+        ),
+        (
+            vec!["bench", "--backend", "cpu", "--synthetic", "10000000000"],
+            "--synthetic 10000000000: at least 2 samples and at most 10000000",
+        ),
+        // Waits no clock holds (they panicked).
+        (
+            vec!["twin", "serve", "--idle-timeout", "1e20"],
+            "--idle-timeout must be a positive number of seconds, at most a day",
+        ),
+        (
+            [
+                &control[..],
+                &["--duration", "2", "--steady-from", "1"],
+                &["--deadline", "1e300"],
+            ]
+            .concat(),
+            "--deadline must be a positive number of milliseconds, at most a day",
+        ),
+        // A twin whose physics overflow: named as the twin's, not as a
+        // bad data file.
+        (
+            vec!["twin", "--effect", "thickness=5", "--out", "t.csv"],
+            "the twin's `displacement` is not finite",
+        ),
+        (
+            vec!["static", "--turns", "1e-300"],
+            "is not a finite number",
+        ),
+        // Files named twice: the input would be replaced by the output.
+        (
+            vec!["simulate", "--input", &csv, "--out", &csv],
+            "the command reads that file as --input",
+        ),
+        (
+            vec!["identify", &csv, "--out", &csv],
+            "the command reads that file as DATA",
+        ),
+        (
+            vec!["twin", "--out", "x.csv", "--plot", "./x.csv"],
+            "--plot ./x.csv: the command writes that file as --out",
+        ),
+        // Contradicting or repeated flags: one would win without a word.
+        (
+            vec![
+                "fit",
+                &csv,
+                "--model",
+                "generalized",
+                "--switch",
+                "zero",
+                "--fix",
+                "x_s=1",
+            ],
+            "--switch zero: the switching level is searched or held by it, and also boxed",
+        ),
+        (
+            vec!["simulate", "--params", "alpha=1,alpha=2"],
+            "`alpha` is given twice",
+        ),
+        (
+            vec![
+                "twin", "--effect", "noise=1", "--effect", "noise=2", "--out", "t.csv",
+            ],
+            "--effect noise is given twice",
+        ),
+        (
+            vec!["simulate", "--input", "stair", "--input-col", "p"],
+            "--input-col read(s) a CSV --input, and --input stair is generated",
+        ),
+        (
+            vec!["fit", &csv, "--gens", "0"],
+            "--gens must be at least 1",
+        ),
+        (
+            vec![
+                "diagnose",
+                &csv,
+                "--self-test=catalogue",
+                "--cases",
+                "no-such-case",
+            ],
+            "--cases no-such-case: no case's name contains it",
+        ),
+    ];
+    for (args, needle) in cases {
+        let out = mckibben(&args, dir.path());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+    let written: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(written, ["synthetic.csv"], "a refused run wrote files");
+}
+
 #[test]
 fn a_warm_start_from_another_family_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
@@ -480,8 +622,9 @@ fn a_failed_fit_leaves_out_as_it_was_and_a_bad_out_fails_first() {
     let files = |d: &str| {
         let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir.path().join(d))
             .unwrap()
+            .map(|e| e.unwrap())
+            .filter(|e| e.path().is_file())
             .map(|e| {
-                let e = e.unwrap();
                 (
                     e.file_name().to_string_lossy().into(),
                     std::fs::read(e.path()).unwrap(),
@@ -506,6 +649,22 @@ fn a_failed_fit_leaves_out_as_it_was_and_a_bad_out_fails_first() {
         "{err}"
     );
     assert!(before == files("o"), "--out changed");
+
+    // A write that fails after the fit leaves every file of the last run
+    // (the model, its report, its history), not some of each run.
+    let svg = dir.path().join("o/trace.svg");
+    std::fs::remove_file(&svg).unwrap();
+    std::fs::create_dir(&svg).unwrap();
+    let before = files("o");
+    let other_seed = mckibben(
+        &[&fit[..], &["--out", "o", "--seed", "7"]].concat(),
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&other_seed.stderr);
+    assert!(!other_seed.status.success());
+    assert!(err.contains("trace.svg is a folder"), "{err}");
+    assert!(before == files("o"), "--out changed in part");
+    std::fs::remove_dir(&svg).unwrap();
 
     // A write that fails after the fit: the report is still printed.
     std::fs::create_dir_all(dir.path().join("blocked/model.json")).unwrap();

@@ -14,7 +14,7 @@ use mckibben::eval::Backend;
 use mckibben::fit::edge::Widening;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::report::{FitReport, model_file, yardstick_warnings};
-use mckibben::fit::request::{FitRequest, Resolved, switching_misapplied};
+use mckibben::fit::request::{FitRequest, Resolved, switching_boxed, switching_misapplied};
 use mckibben::fit::run::{FitRun, FitTarget};
 use mckibben::fit::searches::StopFlag;
 use mckibben::fit::settings::{FitSettings, Overrides};
@@ -259,6 +259,11 @@ pub fn fit(
     if let Some(why) = switching_misapplied(what.family, asked) {
         return Err(PyValueError::new_err(format!(
             "switch={why}: leave switch out, or fit model=\"generalized\""
+        )));
+    }
+    if let Some(why) = switching_boxed(asked, &request.bounds) {
+        return Err(PyValueError::new_err(format!(
+            "switch={why} in bounds: give one of them"
         )));
     }
     if let Some(p) = progress.as_ref()

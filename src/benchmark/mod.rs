@@ -113,7 +113,14 @@ pub fn read_record(path: &Path) -> anyhow::Result<Record> {
         rec.u.push(get(iu, "u_N")?);
         rec.y.push(get(iy, "y_m")?);
     }
-    anyhow::ensure!(!rec.u.is_empty(), "{}: no data rows", path.display());
+    anyhow::ensure!(
+        rec.u.len() >= resample::MIN_RECORD,
+        "{}: {} data rows; a record needs at least {} (the decimation filter's reach; the \
+         published records hold 8192 and more)",
+        path.display(),
+        rec.u.len(),
+        resample::MIN_RECORD
+    );
     Ok(rec)
 }
 
@@ -212,4 +219,23 @@ pub fn is_periodic(u: &[f64], n: usize) -> bool {
         && u.len() >= n
         && u.len().is_multiple_of(n)
         && (n..u.len()).all(|i| (u[i] - u[i - n]).abs() <= 1e-9 * (1.0 + u[i - n].abs()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A record too short for the decimation filter is an error naming the
+    /// file (simulating it read past its ends).
+    #[test]
+    fn a_record_shorter_than_the_filter_reach_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("test_sinesweep.csv");
+        std::fs::write(&path, "u_N,y_m\n1,0\n2,0\n3,0\n").unwrap();
+        let err = read_record(&path).unwrap_err().to_string();
+        assert!(
+            err.contains("test_sinesweep.csv: 3 data rows; a record needs at least 16"),
+            "{err}"
+        );
+    }
 }

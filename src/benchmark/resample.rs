@@ -118,16 +118,25 @@ fn fir1_lowpass(order: usize, r: usize) -> Vec<f64> {
     b
 }
 
-/// MATLAB's `decimate(x, r, 'fir')`: `ceil(len/r)` samples.
+/// The fewest samples [`decimate_once`] reflects at both ends as MATLAB
+/// does: the filter reaches half its order past each end.
+pub const MIN_RECORD: usize = DECIMATE_ORDER / 2 + 1;
+
+/// MATLAB's `decimate(x, r, 'fir')`: `ceil(len/r)` samples. A record
+/// shorter than [`MIN_RECORD`] is reflected as far as it reaches (its ends
+/// repeat past that).
 pub fn decimate_once(x: &[f64], r: usize) -> Vec<f64> {
     let n = x.len();
+    if n == 0 {
+        return Vec::new();
+    }
     let b = fir1_lowpass(DECIMATE_ORDER, r);
     let half = (DECIMATE_ORDER / 2) as isize;
     let at = |i: isize| -> f64 {
         if i < 0 {
-            2.0 * x[0] - x[(-i) as usize]
+            2.0 * x[0] - x[((-i) as usize).min(n - 1)]
         } else if i >= n as isize {
-            2.0 * x[n - 1] - x[(2 * (n as isize - 1) - i) as usize]
+            2.0 * x[n - 1] - x[(2 * (n as isize - 1) - i).max(0) as usize]
         } else {
             x[i as usize]
         }
@@ -201,5 +210,24 @@ mod tests {
                 x[j * 20]
             );
         }
+    }
+
+    #[test]
+    fn a_record_shorter_than_the_filters_reach_decimates_without_reading_past_it() {
+        // From MIN_RECORD on, point reflection about the ends keeps a
+        // straight line straight; a shorter record keeps a constant.
+        for n in [MIN_RECORD, MIN_RECORD + 1] {
+            let x: Vec<f64> = (0..n).map(|i| 2.0 + 0.5 * i as f64).collect();
+            let d = decimate_once(&x, 2);
+            for (j, &v) in d.iter().enumerate() {
+                assert!((v - x[2 * j]).abs() < 1e-9, "n {n}, sample {j}: {v}");
+            }
+        }
+        for n in [1, 2, 3, MIN_RECORD - 1] {
+            let d = decimate_once(&vec![2.5; n], 2);
+            assert_eq!(d.len(), n.div_ceil(2));
+            assert!(d.iter().all(|v| (v - 2.5).abs() < 1e-12), "n {n}: {d:?}");
+        }
+        assert!(decimate_once(&[], 2).is_empty());
     }
 }

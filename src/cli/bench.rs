@@ -6,6 +6,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::common::{DataArgs, population};
+use mckibben::data::signals::MAX_SAMPLES;
 use mckibben::eval::agreement::{Agreement, agreement};
 use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::eval::gpu::calibration::{self, Ceiling, Timed, Variant};
@@ -310,7 +311,11 @@ struct Workload {
 fn workload(args: &Args) -> anyhow::Result<Workload> {
     let experiments: Vec<Experiment> = match args.synthetic {
         Some(n) => {
-            anyhow::ensure!(n >= 2, "--synthetic: at least 2 samples");
+            anyhow::ensure!(
+                (2..=MAX_SAMPLES).contains(&n),
+                "--synthetic {n}: at least 2 samples and at most {MAX_SAMPLES} (as many as a \
+                 record may hold)"
+            );
             vec![stair_experiment(n, args.seed)]
         }
         None => {

@@ -101,6 +101,48 @@ impl std::fmt::Display for CsvOut {
     }
 }
 
+/// Refuses a set of files to write where one would replace a file the
+/// command reads, or another of the set: `simulate --input run.csv --out
+/// run.csv` would replace the recording by its simulation, and `--out
+/// x.csv --plot x.csv` the trace by its figure. Each path comes with the
+/// flag that named it; a path is compared as the file it names (`./a.csv`
+/// and `a.csv` are one file, and so are two links to it).
+pub fn check_distinct(reads: &[(&str, &Path)], writes: &[(&str, &Path)]) -> anyhow::Result<()> {
+    for (i, (flag, path)) in writes.iter().enumerate() {
+        let clash = reads
+            .iter()
+            .map(|(what, p)| (*what, *p, "reads"))
+            .chain(writes[..i].iter().map(|(what, p)| (*what, *p, "writes")));
+        for (what, other, verb) in clash {
+            if same_file(path, other) {
+                anyhow::bail!(
+                    "{flag} {}: the command {verb} that file as {what}; give another name",
+                    path.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Whether `a` and `b` name one file, existing or about to be written: the
+/// same canonical path, or the same name in the same canonical folder.
+fn same_file(a: &Path, b: &Path) -> bool {
+    let canonical = |p: &Path| {
+        p.canonicalize().ok().or_else(|| {
+            let folder = match p.parent() {
+                Some(d) if !d.as_os_str().is_empty() => d,
+                _ => Path::new("."),
+            };
+            Some(folder.canonicalize().ok()?.join(p.file_name()?))
+        })
+    };
+    match (canonical(a), canonical(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => a == b,
+    }
+}
+
 /// The shipped default experiment, relative to the repository root.
 pub const DEFAULT_DATA: &str = "data/stair_4.5kg.csv";
 

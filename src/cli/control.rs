@@ -8,6 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::common::population;
+use mckibben::control::closed_loop::Episode;
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
 use mckibben::control::sweep::{self, DesignRequest, Ingredients, Kind, ROBUST_LOAD_SCALE, Shape};
@@ -262,9 +263,11 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.horizon >= 2, "--horizon must be at least 2 samples");
     anyhow::ensure!(args.r_move > 0.0, "--r-move must be positive");
     if let Some(ms) = args.deadline {
+        // At most a day: a longer wait is a typo, and past about 10¹⁹ s
+        // no clock can hold it.
         anyhow::ensure!(
-            ms > 0.0 && ms.is_finite(),
-            "--deadline must be a positive number of milliseconds (got {ms})"
+            ms > 0.0 && ms <= 86_400_000.0,
+            "--deadline must be a positive number of milliseconds, at most a day (got {ms})"
         );
     }
     anyhow::ensure!(
@@ -340,11 +343,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
     let mut config = TwinConfig::default();
-    for e in &args.effects {
-        config.effects.apply_arg(e)?;
-    }
+    config.effects.apply_args(&args.effects)?;
     config.validate()?;
     if matches!(plant, PlantSpec::Twin) {
+        // Every load the runs hang on the twin: the tracking runs', the
+        // design runs' (× ROBUST_LOAD_SCALE for the robustness table) and
+        // the PI tuning's episodes'. The effects can make a load the
+        // range checks above let through too heavy (a softer rubber).
+        let mut hung: Vec<(&str, f64)> = args.load.iter().map(|&m| ("--load", m)).collect();
+        hung.push(("--design-load", args.design_load));
+        if args.robustness {
+            hung.push(("--design-load", args.design_load * ROBUST_LOAD_SCALE));
+        }
+        if kinds.contains(&Kind::PiTuned) {
+            let tuning = tuning::TuningEpisodes::default().loads_kg;
+            hung.extend(tuning.into_iter().map(|m| ("the PI tuning's load", m)));
+        }
+        for (what, load) in hung {
+            config
+                .check_load(load)
+                .map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
+        }
+        // A rig's sample time is checked once its handshake gives it.
+        Episode::short(1.0, args.warmup, args.duration, args.steady_from)
+            .check(config.sample_time_s)
+            .map_err(|e| anyhow::anyhow!("--warmup, --duration, --steady-from: {e}"))?;
         let nyquist = nyquist_rad_s(config.sample_time_s);
         if let Some(w) = args.freq.iter().find(|&&w| w >= nyquist) {
             anyhow::bail!(

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 use serde::Serialize;
 
-use super::common::DataArgs;
+use super::common::{DataArgs, check_distinct, default_data};
 use mckibben::data::write_atomic;
 use mckibben::ident::ArxOrders;
 use mckibben::ident::arx::{Identification, identify};
@@ -67,6 +67,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         nk: args.nk,
     };
     anyhow::ensure!(args.nb >= 1, "--nb must be at least 1");
+    if let Some(out) = &args.out {
+        let read = match &args.data.data {
+            Some(path) => path.clone(),
+            None => default_data()?,
+        };
+        check_distinct(&[("DATA", &read)], &[("--out", out)])?;
+    }
     let traces = args.data.load()?;
     let provenance = args.data.provenance(None)?;
     let mut outputs = Vec::new();

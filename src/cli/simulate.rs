@@ -18,7 +18,7 @@ use mckibben::report::json::{Named, Versioned};
 use mckibben::report::number::significant;
 use mckibben::report::{Figure, Panel, Series};
 
-use super::common::CsvOut;
+use super::common::{CsvOut, check_distinct};
 
 /// Pressure per volt of valve command used to turn the generated valve
 /// signals into a pressure input: the tap supply (0.5 MPa) over the valve's
@@ -158,6 +158,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         !(to_stdout && args.json),
         "--out - and --json would both write to standard output: give --out a file"
     );
+    let mut reads: Vec<(&str, &Path)> = Vec::new();
+    if !args.input_is_generated() {
+        reads.push(("--input", Path::new(&args.input)));
+    }
+    if let Some(path) = &args.from {
+        reads.push(("--from", path));
+    }
+    let mut writes: Vec<(&str, &Path)> = Vec::new();
+    if let Some(path) = args.out.as_ref().and_then(CsvOut::file) {
+        writes.push(("--out", path));
+    }
+    if let Some(path) = &args.plot {
+        writes.push(("--plot", path));
+    }
+    check_distinct(&reads, &writes)?;
+    if args.input_is_generated() {
+        let csv_only = [
+            ("--input-col", args.input_col.is_some()),
+            ("--output-col", args.output_col.is_some()),
+            ("--time", args.time.is_some()),
+            ("--resample", args.resample.is_some()),
+        ];
+        let given: Vec<&str> = csv_only.iter().filter(|f| f.1).map(|f| f.0).collect();
+        anyhow::ensure!(
+            given.is_empty(),
+            "{} read(s) a CSV --input, and --input {} is generated: leave {} out",
+            given.join(", "),
+            args.input,
+            if given.len() == 1 { "it" } else { "them" }
+        );
+    }
     let file = match &args.from {
         Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?),
         None => None,
@@ -364,10 +395,17 @@ fn override_params(model: &mut Model, assignments: &[String]) -> anyhow::Result<
     }
     let names = model.augmented().param_names();
     let mut theta = model.theta();
+    let mut seen: Vec<&str> = Vec::new();
     for assignment in assignments {
         let (name, value) = assignment
             .split_once('=')
             .with_context(|| format!("--params: `{assignment}` is not NAME=VALUE"))?;
+        anyhow::ensure!(
+            !seen.contains(&name.trim()),
+            "--params: `{}` is given twice: give each parameter one value",
+            name.trim()
+        );
+        seen.push(name.trim());
         let i = names
             .iter()
             .position(|n| n == name.trim())

@@ -133,6 +133,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             });
         }
     }
+    // Values far outside a muscle's (a thread of 10³⁰⁰ m, 10⁻³⁰⁰ turns) can
+    // overflow the formulas: say which, rather than print inf or NaN.
+    if let Some(r) = rows.iter().find(|r| {
+        ![r.length_mm, r.force_ideal_n, r.force_thick_n]
+            .iter()
+            .all(|v| v.is_finite())
+    }) {
+        anyhow::bail!(
+            // `{:?}` writes 1e300 where `{}` writes 301 digits.
+            "the force at {:?} MPa and ψ = {:.1}° is not a finite number (length {:?} mm, ideal \
+             force {} N, with the wall {} N): --pressures, --thread-length {:?} and --turns {:?} \
+             are too far from a muscle's for double precision",
+            r.pressure_mpa,
+            r.angle_deg,
+            r.length_mm,
+            r.force_ideal_n,
+            r.force_thick_n,
+            args.thread_length,
+            args.turns
+        );
+    }
     if let Some(path) = &args.plot {
         figure(&rows, &args)
             .save(path)

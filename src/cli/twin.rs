@@ -8,7 +8,7 @@ use mckibben::data::Trace;
 use mckibben::report::{Figure, Panel, Series};
 use mckibben::twin::experiment::{Kind, RunSpec};
 
-use super::common::CsvOut;
+use super::common::{CsvOut, check_distinct};
 
 /// The sine's frequency when `--freq` is not given (rad/s): the thesis'
 /// slowest.
@@ -160,9 +160,12 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
                 .map_err(|e| anyhow::anyhow!("--fault {e}"))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
+    // At most a day: a longer wait is a typo, and past about 10¹⁹ s no
+    // clock can hold it.
     anyhow::ensure!(
-        args.idle_timeout > 0.0 && args.idle_timeout.is_finite(),
-        "--idle-timeout must be a positive number of seconds"
+        args.idle_timeout > 0.0 && args.idle_timeout <= 86_400.0,
+        "--idle-timeout must be a positive number of seconds, at most a day (got {})",
+        args.idle_timeout
     );
     let probe = RunSpec {
         kind: Kind::Stair,
@@ -172,8 +175,7 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
         effects: args.effects.clone(),
     };
     // Checks the load and the effects as `twin` does.
-    let config = probe.config()?;
-    probe.check_load()?;
+    let config = probe.checked_config()?;
     let settings = ServeSettings {
         config,
         load_kg: args.load,
@@ -213,6 +215,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return serve(s);
     }
     let out = args.out.clone().expect("clap requires --out");
+    if let (Some(csv), Some(plot)) = (out.file(), &args.plot) {
+        check_distinct(&[], &[("--out", csv), ("--plot", plot)])?;
+    }
     anyhow::ensure!(
         args.freq.is_none() || matches!(args.experiment, ExperimentArg::Sine),
         "--freq sets the sine's frequency: --experiment sine"

@@ -9,6 +9,7 @@ use super::metrics::Metrics;
 use super::plant::{Measurement, Plant};
 use super::reference::SineReference;
 use super::runtime::{ControlLoop, StepTime};
+use crate::data::signals::samples_in;
 
 /// How an episode runs and which part of it is scored.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -41,6 +42,25 @@ impl Episode {
             u0: 5.0,
             limits: ValveLimits::default(),
         }
+    }
+
+    /// Why the episode cannot run on a plant sampled every `dt` seconds, if
+    /// it cannot: more samples than a record may hold, or none in the
+    /// scored part (its metrics would be NaN).
+    pub fn check(&self, dt: f64) -> Result<(), String> {
+        samples_in(self.warmup_s + self.duration_s, dt)
+            .map_err(|e| format!("the warm-up and the sine together: {e}"))?;
+        // Sample k of the sine is at k·dt; the scored ones at or after
+        // `steady_from_s` (Metrics::of).
+        let sine = (self.duration_s / dt).round();
+        if sine < 1.0 || (sine - 1.0) * dt < self.steady_from_s - 1e-9 {
+            return Err(format!(
+                "the sine's {} s, sampled every {dt} s, hold no sample from {} s on: nothing \
+                 would be scored (lengthen the sine or start scoring earlier)",
+                self.duration_s, self.steady_from_s
+            ));
+        }
+        Ok(())
     }
 
     /// The reference at each sample and the time of each sample (time 0 is

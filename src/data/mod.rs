@@ -6,7 +6,7 @@ pub mod csv;
 pub mod signals;
 pub mod units;
 
-pub use atomic::{create_dir_all, write_atomic};
+pub use atomic::{create_dir_all, write_all_atomic, write_atomic};
 
 use serde::{Deserialize, Serialize};
 

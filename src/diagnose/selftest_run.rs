@@ -21,6 +21,32 @@ fn selected(filter: &[String], name: &str) -> bool {
     filter.is_empty() || filter.iter().any(|f| name.contains(f.as_str()))
 }
 
+/// Refuses a filter string that keeps no case: a typo in `--cases` would
+/// otherwise run nothing and report "0 of 0 cases pass".
+fn check_filter(filter: &[String], names: &[&str]) -> anyhow::Result<()> {
+    let idle: Vec<&str> = filter
+        .iter()
+        .map(String::as_str)
+        .filter(|f| !names.iter().any(|n| n.contains(f)))
+        .collect();
+    if idle.is_empty() {
+        return Ok(());
+    }
+    const SHOWN: usize = 6;
+    let more = names.len().saturating_sub(SHOWN);
+    anyhow::bail!(
+        "--cases {}: no case's name contains it; the {} cases are named like {}{}",
+        idle.join(","),
+        names.len(),
+        names[..names.len().min(SHOWN)].join(", "),
+        if more > 0 {
+            format!(" and {more} more")
+        } else {
+            String::new()
+        }
+    )
+}
+
 /// The catalogue's check on the nominal model fitted to `trace`: the cases
 /// of [`selftest::cases`] that `filter` keeps, then the twin check. Case `i`
 /// of the whole list draws its noise from `settings.seed + i`, so a filtered
@@ -35,8 +61,11 @@ pub fn catalogue(
     progress: &mut dyn FnMut(&str),
 ) -> anyhow::Result<CatalogueRun> {
     let nominal = Nominal::fit(trace, family, settings)?;
+    let cases = selftest::cases(&nominal, effects);
+    let names: Vec<&str> = cases.iter().map(|c| c.name.as_str()).collect();
+    check_filter(filter, &names)?;
     let mut outcomes = Vec::new();
-    for (i, case) in selftest::cases(&nominal, effects).iter().enumerate() {
+    for (i, case) in cases.iter().enumerate() {
         if !selected(filter, &case.name) {
             continue;
         }
@@ -73,8 +102,11 @@ pub fn independent(
     let started = Instant::now();
     let nominal = Nominal::fit(trace, family, settings)?;
     let setup = blind::Setup::new(&nominal, settings.seed)?;
+    let cases = blind::cases(&setup, settings.seed);
+    let names: Vec<&str> = cases.iter().map(|c| c.name.as_str()).collect();
+    check_filter(filter, &names)?;
     let mut outcomes = Vec::new();
-    for case in blind::cases(&setup, settings.seed) {
+    for case in cases {
         if !selected(filter, &case.name) {
             continue;
         }

@@ -13,7 +13,7 @@ use super::objective::TRY_POPULATION;
 use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
 use super::uncertainty::standard_errors;
-use crate::data::{Trace, write_atomic};
+use crate::data::{Trace, write_all_atomic};
 use crate::ident::fit::SETTLED_POINTS;
 use crate::model::Family;
 use crate::model::bounds::Origin;
@@ -237,8 +237,8 @@ impl FitReport {
     /// Writes the fit to `out`: `result.json` (this report), the history
     /// (`history.csv`, `history.json`), `trends.svg`, `convergence.svg`
     /// and, where a model was found, `model.json` (with the user's
-    /// `bounds` and its `provenance`), `loop.svg` and `trace.svg`. Each
-    /// file is written whole or not at all.
+    /// `bounds` and its `provenance`), `loop.svg` and `trace.svg`. The
+    /// files are written all or none: a failure leaves `out` as it was.
     pub fn write(
         &mut self,
         out: &Path,
@@ -248,24 +248,42 @@ impl FitReport {
         provenance: Provenance,
     ) -> anyhow::Result<()> {
         let (problem, engine) = (&fit.problem, &fit.engine);
-        self.write_result(out)?;
-        engine.history.save(out)?;
         let title = format!("{} {} fit", self.algo, problem.model.family);
         let trends = format!("{title}: best parameters");
-        trends_figure(&engine.history, &trends, &engine.space.free())
-            .save(&out.join("trends.svg"))?;
-        convergence_figure(&engine.history, &format!("{title}: convergence"))
-            .save(&out.join("convergence.svg"))?;
+        let mut files = vec![
+            ("history.csv", engine.history.to_csv().into_bytes()),
+            (
+                "history.json",
+                serde_json::to_string_pretty(&engine.history)?.into_bytes(),
+            ),
+            (
+                "trends.svg",
+                trends_figure(&engine.history, &trends, &engine.space.free())
+                    .to_svg()?
+                    .into_bytes(),
+            ),
+            (
+                "convergence.svg",
+                convergence_figure(&engine.history, &format!("{title}: convergence"))
+                    .to_svg()?
+                    .into_bytes(),
+            ),
+        ];
         if !params.is_empty() {
             let file = model_file(problem, params, bounds, provenance);
-            save_model(out, &file, &problem.fitted_model(params), trace, &title)?;
+            files.extend(model_files(
+                &file,
+                &problem.fitted_model(params),
+                trace,
+                &title,
+            )?);
         }
-        Ok(())
+        self.write_with_result(out, files)
     }
 
     /// Writes a model found otherwise than by a fit's run (`fit --effects
     /// auto`: the diagnosis' selection) to `out`: `result.json` (this
-    /// report), `model.json`, `loop.svg` and `trace.svg`.
+    /// report), `model.json`, `loop.svg` and `trace.svg`, all or none.
     pub fn write_model(
         &mut self,
         out: &Path,
@@ -273,25 +291,36 @@ impl FitReport {
         trace: &Trace,
         provenance: Provenance,
     ) -> anyhow::Result<()> {
-        self.write_result(out)?;
         let file = ModelFile::new(model, None, provenance);
-        save_model(
-            out,
-            &file,
-            model,
-            trace,
-            &format!("diagnosed {} fit", self.model),
-        )
+        let title = format!("diagnosed {} fit", self.model);
+        let files = model_files(&file, model, trace, &title)?;
+        self.write_with_result(out, files)
     }
 
-    /// Creates `out` and writes `result.json` there, with `out` in it.
-    fn write_result(&mut self, out: &Path) -> anyhow::Result<()> {
+    /// Creates `out` and writes `files` there with `result.json` (this
+    /// report, with `out` in it), all or none.
+    fn write_with_result(
+        &mut self,
+        out: &Path,
+        mut files: Vec<(&str, Vec<u8>)>,
+    ) -> anyhow::Result<()> {
         crate::data::create_dir_all(out)
             .with_context(|| format!("cannot create --out {}", out.display()))?;
         self.out = Some(out.to_path_buf());
-        let path = out.join("result.json");
-        write_atomic(&path, Versioned::new(&*self).to_string_pretty()?.as_bytes())
-            .with_context(|| format!("cannot write {}", path.display()))
+        files.insert(
+            0,
+            (
+                "result.json",
+                Versioned::new(&*self).to_string_pretty()?.into_bytes(),
+            ),
+        );
+        let paths: Vec<PathBuf> = files.iter().map(|(name, _)| out.join(name)).collect();
+        let set: Vec<(&Path, &[u8])> = paths
+            .iter()
+            .zip(&files)
+            .map(|(path, (_, bytes))| (path.as_path(), bytes.as_slice()))
+            .collect();
+        write_all_atomic(&set).with_context(|| format!("cannot write --out {}", out.display()))
     }
 
     /// The report for a terminal: the fit, its parameters (`fixed`: which
@@ -499,20 +528,23 @@ impl FitReport {
     }
 }
 
-/// Saves `file` as `out/model.json` and `model`'s loop and trace on `trace`
-/// as `loop.svg` and `trace.svg`.
-fn save_model(
-    out: &Path,
+/// `file` as `model.json` and `model`'s loop and trace on `trace` as
+/// `loop.svg` and `trace.svg`, to write.
+fn model_files(
     file: &ModelFile,
     model: &Model,
     trace: &Trace,
     title: &str,
-) -> anyhow::Result<()> {
-    file.save(&out.join("model.json"))?;
+) -> anyhow::Result<Vec<(&'static str, Vec<u8>)>> {
     let (loop_fig, trace_fig) = fit_figures(model, trace, title);
-    loop_fig.save(&out.join("loop.svg"))?;
-    trace_fig.save(&out.join("trace.svg"))?;
-    Ok(())
+    Ok(vec![
+        (
+            "model.json",
+            serde_json::to_string_pretty(file)?.into_bytes(),
+        ),
+        ("loop.svg", loop_fig.to_svg()?.into_bytes()),
+        ("trace.svg", trace_fig.to_svg()?.into_bytes()),
+    ])
 }
 
 /// What a fit's scores warn of, against its yardsticks: the first-order ARX

@@ -124,6 +124,20 @@ pub fn switching_misapplied(family: Family, asked: Option<Switching>) -> Option<
     ))
 }
 
+/// Why a switching level asked for (`fit --switch`, Python's `switch=`)
+/// contradicts the user's own box on that level (`--fix x_s=…`,
+/// `--bound x_s=…`, Python's `fix=`/`bounds=`): both say where the level
+/// lies, and one would be dropped without a word.
+pub fn switching_boxed(asked: Option<Switching>, bounds: &[UserBound]) -> Option<String> {
+    let asked = asked?;
+    let level = Family::Generalized.params()[Family::Generalized.switch_index()?].name;
+    let boxed = bounds.iter().find(|b| b.name == level)?;
+    Some(format!(
+        "{}: the switching level is searched or held by it, and also boxed by `{boxed}`",
+        format!("{asked:?}").to_lowercase()
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -175,6 +189,17 @@ mod tests {
             "{why}"
         );
         assert_eq!(switching_misapplied(Family::Classic, None), None);
+        // A level asked for and boxed by the user is a contradiction; either
+        // alone is not.
+        let fixed = [UserBound {
+            name: "x_s".into(),
+            lower: 1.0,
+            upper: 1.0,
+        }];
+        let why = switching_boxed(Some(Switching::Zero), &fixed).unwrap();
+        assert!(why.starts_with("zero:") && why.contains("x_s=1"), "{why}");
+        assert_eq!(switching_boxed(None, &fixed), None);
+        assert_eq!(switching_boxed(Some(Switching::Zero), &[]), None);
         assert_eq!(
             switching_misapplied(Family::Generalized, Some(Switching::Starts)),
             None

@@ -244,6 +244,10 @@ impl FitSettings {
             self.pop,
             self.pop as f64 * problem.model.dim() as f64 * 8.0 / 1e9
         );
+        anyhow::ensure!(
+            self.gens >= 1,
+            "--gens must be at least 1 (got 0): the first generation is the drawn population"
+        );
         let settings = self.algo_settings(problem.model.family, note)?;
         if self.thesis_flow {
             return Ok(Plan::thesis(settings, self.pop, self.gens));

@@ -75,9 +75,17 @@ pub enum IdentError {
         output: String,
     },
     #[error(
-        "{data}: the least-squares problem is singular (regressors are linearly dependent); try lower orders"
+        "{data}: the least-squares problem is singular: the regressors are linearly dependent, \
+         or their sizes lie more than 10 decades apart (root mean square of the output {output_rms:.3e}, \
+         of the input {input_rms:.3e}: check the units, and for a value far from the rest){hint}"
     )]
-    Singular { data: String },
+    Singular {
+        data: String,
+        output_rms: f64,
+        input_rms: f64,
+        /// Lower orders to try, where there are any.
+        hint: String,
+    },
     #[error("no data to identify from")]
     NoData,
 }
@@ -130,18 +138,23 @@ impl Arx {
         let svd = phi.svd(true, true);
         let smax = svd.singular_values.max();
         let smin = svd.singular_values.min();
+        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        let singular = || IdentError::Singular {
+            data: source.into(),
+            output_rms: rms(y),
+            input_rms: rms(u),
+            hint: if cols > 2 {
+                "; or try lower orders".into()
+            } else {
+                String::new()
+            },
+        };
         // NaN singular values count as singular.
         let conditioned = smin > smax * 1e-10;
         if !conditioned {
-            return Err(IdentError::Singular {
-                data: source.into(),
-            });
+            return Err(singular());
         }
-        let theta = svd
-            .solve(&target, smax * 1e-12)
-            .map_err(|_| IdentError::Singular {
-                data: source.into(),
-            })?;
+        let theta = svd.solve(&target, smax * 1e-12).map_err(|_| singular())?;
         Ok(Arx {
             orders,
             a: theta.as_slice()[..na].to_vec(),
@@ -199,6 +212,25 @@ pub struct Identification {
 }
 
 pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, IdentError> {
+    // Each half needs the samples an estimate does (Arx::estimate), and is
+    // checked first: a half of one sample is "constant" too.
+    let need = orders
+        .lag()
+        .saturating_add(orders.na)
+        .saturating_add(orders.nb)
+        .saturating_add(1)
+        .saturating_mul(2);
+    if trace.len() < need {
+        let ArxOrders { na, nb, nk } = orders;
+        return Err(IdentError::TooShort {
+            data: trace.source.clone(),
+            len: trace.len(),
+            need,
+            na,
+            nb,
+            nk,
+        });
+    }
     let (est, val) = halves(trace.len());
     let est_len = est.len();
     let input_mean = trace.input[est.clone()].iter().sum::<f64>() / est_len.max(1) as f64;
@@ -225,23 +257,6 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
         });
     }
     let arx = Arx::estimate(&trace.source, &u[est.clone()], &y[est.clone()], orders)?;
-    if val.len() <= orders.lag() {
-        let need = orders
-            .lag()
-            .saturating_add(orders.na)
-            .saturating_add(orders.nb)
-            .saturating_add(1)
-            .saturating_mul(2);
-        let ArxOrders { na, nb, nk } = orders;
-        return Err(IdentError::TooShort {
-            data: trace.source.clone(),
-            len: trace.len(),
-            need,
-            na,
-            nb,
-            nk,
-        });
-    }
     let sim_est = arx.simulate(&u[est.clone()], &y[est.clone()]);
     let sim_val = arx.simulate(&u[val.clone()], &y[val.clone()]);
     let sim_whole = arx.simulate(&u, &y);
@@ -322,6 +337,38 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("hold the same values"), "{err}");
+    }
+
+    /// A record too short for its orders says so before anything else (a
+    /// half of one sample is constant too), and one whose columns lie
+    /// decades apart says their sizes, not only that it is singular.
+    #[test]
+    fn a_short_record_or_columns_decades_apart_say_so() {
+        let two = Trace::uniform("two.csv", 0.01, vec![0.1, 0.2], vec![1.0, 2.0]);
+        let err = identify(&two, ArxOrders::default()).unwrap_err();
+        assert!(
+            matches!(
+                err,
+                IdentError::TooShort {
+                    len: 2,
+                    need: 8,
+                    ..
+                }
+            ),
+            "{err}"
+        );
+        let input: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
+        let output: Vec<f64> = (0..400).map(|k| 1e14 * (k as f64 * 0.07).cos()).collect();
+        let apart = Trace::uniform("apart.csv", 0.01, input, output);
+        let err = identify(&apart, ArxOrders::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("singular")
+                && err.contains("of the output 7.")
+                && !err.contains("lower orders"),
+            "{err}"
+        );
     }
 
     /// Orders as large as a flag can give are too long a history, not an

@@ -492,6 +492,14 @@ impl ModelFile {
             .map(|e| Ok(e.parse::<Effect>()?))
             .collect::<anyhow::Result<_>>()?;
         anyhow::ensure!(self.datasets >= 1, "`datasets` must be at least 1");
+        // The poles are per sample: without a sample time the model cannot
+        // run on any record (every command would blame its own flags).
+        anyhow::ensure!(
+            self.data.dt > 0.0 && self.data.dt.is_finite(),
+            "`data.dt` is {}: a model needs the sample time it was fitted at (positive \
+             seconds)",
+            self.data.dt
+        );
         let augmented = ModelDescription::new(self.family, effects.clone(), self.datasets);
         let names = augmented.param_names();
         let mut params = self.params.clone();
@@ -685,6 +693,13 @@ mod tests {
         let unknown = write("unknown.json", serde_json::to_string(&file).unwrap());
         let e = format!("{:#}", ModelFile::load(&unknown).unwrap_err());
         assert!(e.contains("unknown effect `friction`"), "{e}");
+
+        // Every command would otherwise blame its own --dt or --resample.
+        let mut file = ModelFile::new(&chained(), None, Provenance::default());
+        file.data.dt = 0.0;
+        let no_dt = write("no_dt.json", serde_json::to_string(&file).unwrap());
+        let e = format!("{:#}", ModelFile::load(&no_dt).unwrap_err());
+        assert!(e.contains("`data.dt` is 0"), "{e}");
     }
 
     #[test]

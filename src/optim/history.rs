@@ -2,12 +2,10 @@
 //! draws it).
 
 use std::fmt::Write as _;
-use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
 use super::stage::Stage;
-use crate::data::write_atomic;
 use crate::search::Measure;
 
 /// One generation of a population stage, or one start of the polish. Costs
@@ -121,20 +119,6 @@ impl History {
             s.push('\n');
         }
         s
-    }
-
-    /// Writes `history.csv` and `history.json` into `dir`.
-    pub fn save(&self, dir: &Path) -> anyhow::Result<()> {
-        let write = |name: &str, bytes: &[u8]| {
-            let path = dir.join(name);
-            write_atomic(&path, bytes)
-                .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
-        };
-        write("history.csv", self.to_csv().as_bytes())?;
-        write(
-            "history.json",
-            serde_json::to_string_pretty(self)?.as_bytes(),
-        )
     }
 }
 

@@ -28,6 +28,9 @@ pub const VERSION: u32 = 1;
 /// Longest line accepted (bytes); a longer one is malformed.
 pub const MAX_LINE: usize = 4096;
 
+/// The longest sample time a `READY` may announce (s).
+pub const MAX_DT_S: f64 = 60.0;
+
 /// The valve commands a `U` may carry (V): the proportional valves take
 /// 0–10 V. Anything else is malformed, whichever end reads it.
 pub const VOLTS: (f64, f64) = (0.0, 10.0);
@@ -187,8 +190,13 @@ impl FromRig {
                 let f = fields(line, "READY", if short { &names[..2] } else { &names })?;
                 let version = index(f[0], "version")? as u32;
                 let dt = number(f[1], "dt")?;
-                if dt <= 0.0 {
-                    return Err(Malformed(format!("dt `{}` is not positive", f[1])));
+                // A minute at most: a longer sample is a unit slip (ms
+                // for s), and the deadlines are made from it.
+                if !(dt > 0.0 && dt <= MAX_DT_S) {
+                    return Err(Malformed(format!(
+                        "dt `{}` is not a sample time above 0 and at most {MAX_DT_S} s",
+                        f[1]
+                    )));
                 }
                 let ranges = if short {
                     None

@@ -195,6 +195,10 @@ pub fn run_remote(
     log: &mut RunLog,
     interrupt: &AtomicBool,
 ) -> Result<RemoteRun, RigError> {
+    episode.check(dt).map_err(|why| RigError::Handshake {
+        link: link.describe(),
+        why: format!("sample time {dt} s: {why}"),
+    })?;
     let (reference, times) = episode.schedule(dt);
     let n = reference.len();
     let lp = ControlLoop::new(controller, reference.clone(), episode.limits, episode.u0);

@@ -300,6 +300,8 @@ pub enum TwinError {
     UnknownEffect(String),
     #[error("effect {name}: scale must be a finite number ≥ 0 (got {scale})")]
     BadScale { name: String, scale: f64 },
+    #[error("--effect {0} is given twice: give each effect one scale")]
+    Repeated(String),
     #[error("--effect {0}: expected NAME=VALUE, e.g. friction=0")]
     NotNameValue(String),
     #[error("--effect {arg}: `{value}` is not a number")]
@@ -315,6 +317,32 @@ pub enum TwinError {
         max = super::MAX_LOAD_KG
     )]
     BadLoad(f64),
+    /// The load stretches the muscle at rest to its braid's thread length:
+    /// the braid would be straight before any pressure.
+    #[error(
+        "a {load_kg} kg load stretches the muscle at rest to {rest_mm:.1} mm, past its braid's \
+         thread length of {thread_mm:.1} mm{}",
+        if *creep { " (--effect creep leaves the rubber softer: a smaller scale carries more)" } else { "" }
+    )]
+    TooHeavy {
+        load_kg: f64,
+        rest_mm: f64,
+        thread_mm: f64,
+        /// Whether the creep effect softened the rubber.
+        creep: bool,
+    },
+    /// The run left the rig's physics: a sensor read a value that is not
+    /// finite.
+    #[error(
+        "the twin's `{column}` is not finite from {t_s:.3} s on (sample {k}): `{command}` takes \
+         the rig outside what it models; use scales nearer 1 or another load"
+    )]
+    NotFinite {
+        column: String,
+        k: usize,
+        t_s: f64,
+        command: String,
+    },
     #[error("--freq {0}: expected a positive angular frequency in rad/s (thesis: 1, 2, 3)")]
     BadFrequency(f64),
     #[error(
@@ -412,8 +440,23 @@ impl Effects {
         Ok(())
     }
 
+    /// Applies every `--effect NAME=VALUE` in turn; a name given twice is
+    /// an error, where the last would silently win.
+    pub fn apply_args(&mut self, args: &[String]) -> Result<(), TwinError> {
+        let mut seen: Vec<&str> = Vec::new();
+        for arg in args {
+            let name = arg.split_once('=').map_or(arg.as_str(), |(n, _)| n.trim());
+            if seen.contains(&name) {
+                return Err(TwinError::Repeated(name.to_string()));
+            }
+            seen.push(name);
+            self.apply_arg(arg)?;
+        }
+        Ok(())
+    }
+
     /// Parses `NAME=VALUE` as given to `--effect`.
-    pub fn apply_arg(&mut self, arg: &str) -> Result<(), TwinError> {
+    fn apply_arg(&mut self, arg: &str) -> Result<(), TwinError> {
         let (name, value) = arg
             .split_once('=')
             .ok_or_else(|| TwinError::NotNameValue(arg.to_string()))?;
@@ -456,6 +499,28 @@ impl TwinConfig {
 
     /// Checks the settings the effects can make unphysical: the creep must
     /// leave the rubber a positive relaxed stiffness.
+    /// Checks that the rig can hang `load_kg` (a mass above 0 and at most
+    /// [`super::MAX_LOAD_KG`]) with these settings: the rubber, softened
+    /// by the creep effect, must leave the braid short of straight at rest.
+    /// Also [`TwinConfig::validate`].
+    pub fn check_load(&self, load_kg: f64) -> Result<(), TwinError> {
+        self.validate()?;
+        if !(load_kg.is_finite() && load_kg > 0.0 && load_kg <= super::MAX_LOAD_KG) {
+            return Err(TwinError::BadLoad(load_kg));
+        }
+        let rest = super::muscle::Muscle::new(&self.muscle, load_kg, &self.effects).rest_length();
+        let thread = self.muscle.braid.thread_length;
+        if rest >= thread {
+            return Err(TwinError::TooHeavy {
+                load_kg,
+                rest_mm: rest * 1e3,
+                thread_mm: thread * 1e3,
+                creep: self.muscle.relaxing_share(&self.effects) > 0.0,
+            });
+        }
+        Ok(())
+    }
+
     pub fn validate(&self) -> Result<(), TwinError> {
         let share = self.muscle.relaxing_share(&self.effects);
         if share >= 1.0 {

@@ -159,9 +159,7 @@ impl RunSpec {
     /// The default configuration with this spec's effect settings applied.
     pub fn config(&self) -> Result<TwinConfig, TwinError> {
         let mut config = TwinConfig::default();
-        for e in &self.effects {
-            config.effects.apply_arg(e)?;
-        }
+        config.effects.apply_args(&self.effects)?;
         config.validate()?;
         Ok(config)
     }
@@ -210,22 +208,23 @@ impl RunSpec {
         write_trace_with_comments(path, trace, &self.comments())
     }
 
-    /// Checks the load: a mass in kg above 0 and at most
-    /// [`MAX_LOAD_KG`].
-    pub fn check_load(&self) -> Result<(), TwinError> {
-        if !(self.load_kg.is_finite() && self.load_kg > 0.0 && self.load_kg <= MAX_LOAD_KG) {
-            return Err(TwinError::BadLoad(self.load_kg));
-        }
-        Ok(())
+    /// The configuration ([`RunSpec::config`]) once it is checked to carry
+    /// the load ([`TwinConfig::check_load`]).
+    pub fn checked_config(&self) -> Result<TwinConfig, TwinError> {
+        let config = self.config()?;
+        config.check_load(self.load_kg)?;
+        Ok(config)
     }
 
     /// Runs the experiment; an error names a bad load, frequency or effect.
     pub fn run(&self) -> Result<Trace, TwinError> {
-        self.check_load()?;
+        if !(self.load_kg.is_finite() && self.load_kg > 0.0 && self.load_kg <= MAX_LOAD_KG) {
+            return Err(TwinError::BadLoad(self.load_kg));
+        }
         if self.kind == Kind::Sine && !(self.freq_rad_s.is_finite() && self.freq_rad_s > 0.0) {
             return Err(TwinError::BadFrequency(self.freq_rad_s));
         }
-        let config = self.config()?;
+        let config = self.checked_config()?;
         let dt = config.sample_time_s;
         if self.kind == Kind::Sine && self.freq_rad_s >= nyquist_rad_s(dt) {
             return Err(TwinError::AboveNyquist {
@@ -236,6 +235,21 @@ impl RunSpec {
         }
         let mut trace = run(&config, self.load_kg, self.seed, &self.experiment());
         trace.source = self.command();
+        let columns = [
+            (trace.input_name.as_str(), trace.input.as_slice()),
+            (trace.output_name.as_str(), trace.output.as_slice()),
+        ];
+        let extra = trace.extra.iter().map(|(n, v)| (n.as_str(), v.as_slice()));
+        for (column, values) in columns.into_iter().chain(extra) {
+            if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+                return Err(TwinError::NotFinite {
+                    column: column.to_string(),
+                    k,
+                    t_s: trace.t[k],
+                    command: self.command(),
+                });
+            }
+        }
         Ok(trace)
     }
 }

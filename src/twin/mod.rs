@@ -111,24 +111,16 @@ impl Rig {
     /// valve commanded shut (0 V) and output valve open (10 V). `seed` seeds
     /// the sensor noise (`ChaCha8Rng`); nothing else is random.
     ///
-    /// Panics unless `load_kg` is positive and light enough that the rubber's
-    /// stretch leaves the braid short of straight (about 19 kg with the
-    /// default muscle), or if [`TwinConfig::validate`] fails;
-    /// [`experiment::RunSpec::run`] checks both for the CLI.
+    /// Panics where [`TwinConfig::check_load`] fails (a load that is not a
+    /// positive mass up to [`MAX_LOAD_KG`], or that stretches the braid
+    /// straight at rest, or settings [`TwinConfig::validate`] refuses):
+    /// every command checks it first, to say so as an error.
     pub fn new(config: &TwinConfig, load_kg: f64, seed: u64) -> Rig {
-        if let Err(e) = config.validate() {
+        if let Err(e) = config.check_load(load_kg) {
             panic!("twin: {e}");
         }
         let full = config.valve.full_scale_v;
         let muscle = Muscle::new(&config.muscle, load_kg, &config.effects);
-        assert!(
-            load_kg.is_finite() && load_kg > 0.0,
-            "twin: load must be a positive mass in kg (got {load_kg})"
-        );
-        assert!(
-            muscle.rest_length() < config.muscle.braid.thread_length,
-            "twin: a {load_kg} kg load stretches the muscle past its thread length"
-        );
         Rig {
             config: config.clone(),
             muscle,

@@ -13,8 +13,9 @@ use args::EffectArg;
 use mckibben::data::Trace;
 use mckibben::diagnose::chain::{selected_fit, with_chain_start};
 use mckibben::eval;
+use mckibben::fit::objective::POPULATION;
 use mckibben::fit::report::{FitReport, yardstick_warnings};
-use mckibben::fit::request::switching_misapplied;
+use mckibben::fit::request::{switching_boxed, switching_misapplied};
 use mckibben::fit::run::FitRun;
 use mckibben::fit::searches::StopFlag;
 use mckibben::model::{Family, ModelFile};
@@ -113,6 +114,9 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     let (what, start_model) = (resolved.what, resolved.start);
     if let Some(why) = switching_misapplied(what.family, args.switching) {
         anyhow::bail!("--switch {why}: leave --switch out, or fit --model generalized");
+    }
+    if let Some(why) = switching_boxed(args.switching, &request.bounds) {
+        anyhow::bail!("--switch {why}: give one of them");
     }
     let trace = one_trace(args.data.load()?)?;
     out_folder(&args.out)?;
@@ -225,21 +229,42 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         true => String::new(),
         false => ", and the values --fix and --bound hold (an unstable pole diverges)".to_string(),
     };
+    // A few random candidates in a wide box can all be unstable: the
+    // population is then the first suspect, not the data.
+    let few = if args.pop < POPULATION {
+        format!(
+            "; with --pop {} few candidates were tried: a larger population (the default is \
+             {POPULATION}) may find a stable one",
+            args.pop
+        )
+    } else {
+        String::new()
+    };
     anyhow::ensure!(
         found,
         "every candidate diverged: nothing was written to {} (what it held is untouched); \
-         check the data's units and columns{held}",
+         check the data's units and columns{held}{few}",
         args.out.display()
     );
     Ok(())
 }
 
-/// Creates `--out` before the fit runs, so that a path that cannot be a
-/// folder fails at once, not after the fit.
+/// Checks that `--out` can be a folder before the fit runs, so that a path
+/// that cannot fails at once, not after the fit: it creates the folder and
+/// removes again the folders it created (the fit's writer creates them for
+/// good), so that a fit that fails leaves no empty folder behind.
 fn out_folder(out: &std::path::Path) -> anyhow::Result<()> {
     use anyhow::Context as _;
+    let missing: Vec<&std::path::Path> = out
+        .ancestors()
+        .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+        .collect();
     mckibben::data::create_dir_all(out)
-        .with_context(|| format!("cannot create --out {}", out.display()))
+        .with_context(|| format!("cannot create --out {}", out.display()))?;
+    for folder in missing {
+        let _ = std::fs::remove_dir(folder);
+    }
+    Ok(())
 }
 
 /// The line that says what is about to run: the model, the algorithm and
