@@ -109,6 +109,9 @@ def test_a_generalized_fit_switches_as_the_command(stair, cli, tmp_path):
     # error, as `fit --switch` is, not a keyword ignored.
     with pytest.raises(ValueError, match="zero: the switching level belongs to the generalized model"):
         mckibben.fit(stair, pop=40, gens=10, switch="zero")
+    # A level asked for and boxed too: one of them would be dropped.
+    with pytest.raises(ValueError, match="switch=zero: the switching level is searched or held by it, and also boxed by `x_s=1`"):
+        mckibben.fit(stair, model="generalized", pop=40, gens=10, switch="zero", bounds={"x_s": 1.0})
 
 
 def test_a_larger_population_runs_tries_as_the_command(stair, cli, tmp_path):
