@@ -213,6 +213,34 @@ enum ReferenceArg {
     Steps,
 }
 
+/// What the twin's settings decide before any run on it: every load the
+/// runs hang on it and the episode's samples at its sample time.
+fn check_on_twin(args: &Args, config: &TwinConfig, kinds: &[Kind]) -> anyhow::Result<()> {
+    // Every load the runs hang on the twin: the tracking runs', the
+    // design runs' (× ROBUST_LOAD_SCALE for the robustness table) and
+    // the PI tuning's episodes'. The effects can make a load the
+    // range checks above let through too heavy (a softer rubber).
+    let mut hung: Vec<(&str, f64)> = args.load.iter().map(|&m| ("--load", m)).collect();
+    hung.push(("--design-load", args.design_load));
+    if args.robustness {
+        hung.push(("--design-load", args.design_load * ROBUST_LOAD_SCALE));
+    }
+    if kinds.contains(&Kind::PiTuned) {
+        let tuning = tuning::TuningEpisodes::default().loads_kg;
+        hung.extend(tuning.into_iter().map(|m| ("the PI tuning's load", m)));
+    }
+    for (what, load) in hung {
+        config
+            .check_load(load)
+            .map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
+    }
+    // A rig's sample time is checked once its handshake gives it.
+    Episode::short(1.0, args.warmup, args.duration, args.steady_from)
+        .check(config.sample_time_s)
+        .map_err(|e| anyhow::anyhow!("--warmup, --duration, --steady-from: {e}"))?;
+    Ok(())
+}
+
 fn check_args(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         !args.freq.is_empty() && !args.load.is_empty(),
@@ -346,28 +374,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     config.effects.apply_args(&args.effects)?;
     config.validate()?;
     if matches!(plant, PlantSpec::Twin) {
-        // Every load the runs hang on the twin: the tracking runs', the
-        // design runs' (× ROBUST_LOAD_SCALE for the robustness table) and
-        // the PI tuning's episodes'. The effects can make a load the
-        // range checks above let through too heavy (a softer rubber).
-        let mut hung: Vec<(&str, f64)> = args.load.iter().map(|&m| ("--load", m)).collect();
-        hung.push(("--design-load", args.design_load));
-        if args.robustness {
-            hung.push(("--design-load", args.design_load * ROBUST_LOAD_SCALE));
-        }
-        if kinds.contains(&Kind::PiTuned) {
-            let tuning = tuning::TuningEpisodes::default().loads_kg;
-            hung.extend(tuning.into_iter().map(|m| ("the PI tuning's load", m)));
-        }
-        for (what, load) in hung {
-            config
-                .check_load(load)
-                .map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
-        }
-        // A rig's sample time is checked once its handshake gives it.
-        Episode::short(1.0, args.warmup, args.duration, args.steady_from)
-            .check(config.sample_time_s)
-            .map_err(|e| anyhow::anyhow!("--warmup, --duration, --steady-from: {e}"))?;
+        check_on_twin(&args, &config, &kinds)?;
         let nyquist = nyquist_rad_s(config.sample_time_s);
         if let Some(w) = args.freq.iter().find(|&&w| w >= nyquist) {
             anyhow::bail!(

@@ -153,42 +153,7 @@ struct Summary {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let to_stdout = args.out == Some(CsvOut::Stdout);
-    anyhow::ensure!(
-        !(to_stdout && args.json),
-        "--out - and --json would both write to standard output: give --out a file"
-    );
-    let mut reads: Vec<(&str, &Path)> = Vec::new();
-    if !args.input_is_generated() {
-        reads.push(("--input", Path::new(&args.input)));
-    }
-    if let Some(path) = &args.from {
-        reads.push(("--from", path));
-    }
-    let mut writes: Vec<(&str, &Path)> = Vec::new();
-    if let Some(path) = args.out.as_ref().and_then(CsvOut::file) {
-        writes.push(("--out", path));
-    }
-    if let Some(path) = &args.plot {
-        writes.push(("--plot", path));
-    }
-    check_distinct(&reads, &writes)?;
-    if args.input_is_generated() {
-        let csv_only = [
-            ("--input-col", args.input_col.is_some()),
-            ("--output-col", args.output_col.is_some()),
-            ("--time", args.time.is_some()),
-            ("--resample", args.resample.is_some()),
-        ];
-        let given: Vec<&str> = csv_only.iter().filter(|f| f.1).map(|f| f.0).collect();
-        anyhow::ensure!(
-            given.is_empty(),
-            "{} read(s) a CSV --input, and --input {} is generated: leave {} out",
-            given.join(", "),
-            args.input,
-            if given.len() == 1 { "it" } else { "them" }
-        );
-    }
+    check_files_and_flags(&args)?;
     let file = match &args.from {
         Some(path) => Some(ModelFile::load(path).map_err(|e| anyhow::anyhow!("--from: {e:#}"))?),
         None => None,
@@ -346,8 +311,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", Versioned::new(&summary).to_string_pretty()?);
         return Ok(());
     }
+    print_summary(&args, &summary, &model, &described)
+}
+
+/// The summary for a terminal, on standard output, or on standard error
+/// where the trace went to standard output.
+fn print_summary(
+    args: &Args,
+    summary: &Summary,
+    model: &Model,
+    described: &str,
+) -> anyhow::Result<()> {
     // The summary goes where the trace does not.
-    let mut report: Box<dyn Write> = if to_stdout {
+    let mut report: Box<dyn Write> = if args.out == Some(CsvOut::Stdout) {
         Box::new(std::io::stderr())
     } else {
         Box::new(std::io::stdout())
@@ -384,6 +360,47 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(p) = &args.plot {
         writeln!(report, "  figure written to {}", p.display())?;
+    }
+    Ok(())
+}
+
+/// Refuses flags that contradict each other or name one file twice,
+/// before anything runs.
+fn check_files_and_flags(args: &Args) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        !(args.out == Some(CsvOut::Stdout) && args.json),
+        "--out - and --json would both write to standard output: give --out a file"
+    );
+    let mut reads: Vec<(&str, &Path)> = Vec::new();
+    if !args.input_is_generated() {
+        reads.push(("--input", Path::new(&args.input)));
+    }
+    if let Some(path) = &args.from {
+        reads.push(("--from", path));
+    }
+    let mut writes: Vec<(&str, &Path)> = Vec::new();
+    if let Some(path) = args.out.as_ref().and_then(CsvOut::file) {
+        writes.push(("--out", path));
+    }
+    if let Some(path) = &args.plot {
+        writes.push(("--plot", path));
+    }
+    check_distinct(&reads, &writes)?;
+    if args.input_is_generated() {
+        let csv_only = [
+            ("--input-col", args.input_col.is_some()),
+            ("--output-col", args.output_col.is_some()),
+            ("--time", args.time.is_some()),
+            ("--resample", args.resample.is_some()),
+        ];
+        let given: Vec<&str> = csv_only.iter().filter(|f| f.1).map(|f| f.0).collect();
+        anyhow::ensure!(
+            given.is_empty(),
+            "{} read(s) a CSV --input, and --input {} is generated: leave {} out",
+            given.join(", "),
+            args.input,
+            if given.len() == 1 { "it" } else { "them" }
+        );
     }
     Ok(())
 }

@@ -497,8 +497,6 @@ impl TwinConfig {
         self.sample_time_s / self.substeps.max(1) as f64
     }
 
-    /// Checks the settings the effects can make unphysical: the creep must
-    /// leave the rubber a positive relaxed stiffness.
     /// Checks that the rig can hang `load_kg` (a mass above 0 and at most
     /// [`super::MAX_LOAD_KG`]) with these settings: the rubber, softened
     /// by the creep effect, must leave the braid short of straight at rest.
@@ -521,6 +519,8 @@ impl TwinConfig {
         Ok(())
     }
 
+    /// Checks the settings the effects can make unphysical: the creep must
+    /// leave the rubber a positive relaxed stiffness.
     pub fn validate(&self) -> Result<(), TwinError> {
         let share = self.muscle.relaxing_share(&self.effects);
         if share >= 1.0 {

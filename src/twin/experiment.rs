@@ -8,7 +8,7 @@ use crate::data::Trace;
 use crate::data::csv::{DataError, write_trace_with_comments};
 use crate::data::signals::{Multisine, SineReference, Stair, nyquist_rad_s};
 
-use super::{MAX_LOAD_KG, Rig, Sample, TwinConfig, TwinError};
+use super::{Rig, Sample, TwinConfig, TwinError};
 
 /// The thesis' PI controller (Table 22, used for both loads): `Kp = 0.06875`
 /// V/mm, `Ki = 0.05` V/(mm·sample).
@@ -218,13 +218,10 @@ impl RunSpec {
 
     /// Runs the experiment; an error names a bad load, frequency or effect.
     pub fn run(&self) -> Result<Trace, TwinError> {
-        if !(self.load_kg.is_finite() && self.load_kg > 0.0 && self.load_kg <= MAX_LOAD_KG) {
-            return Err(TwinError::BadLoad(self.load_kg));
-        }
+        let config = self.checked_config()?;
         if self.kind == Kind::Sine && !(self.freq_rad_s.is_finite() && self.freq_rad_s > 0.0) {
             return Err(TwinError::BadFrequency(self.freq_rad_s));
         }
-        let config = self.checked_config()?;
         let dt = config.sample_time_s;
         if self.kind == Kind::Sine && self.freq_rad_s >= nyquist_rad_s(dt) {
             return Err(TwinError::AboveNyquist {

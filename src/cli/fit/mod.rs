@@ -225,9 +225,17 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         }
     }
     written?;
-    let held = match what.bounds.is_empty() {
-        true => String::new(),
-        false => ", and the values --fix and --bound hold (an unstable pole diverges)".to_string(),
+    anyhow::ensure!(found, "{}", all_diverged(&args, !what.bounds.is_empty()));
+    Ok(())
+}
+
+/// Why a fit that found no stable candidate may have found none: the data,
+/// the values the user held, or a population too small to try many.
+fn all_diverged(args: &Args, held: bool) -> String {
+    let held = if held {
+        ", and the values --fix and --bound hold (an unstable pole diverges)"
+    } else {
+        ""
     };
     // A few random candidates in a wide box can all be unstable: the
     // population is then the first suspect, not the data.
@@ -240,13 +248,11 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     } else {
         String::new()
     };
-    anyhow::ensure!(
-        found,
+    format!(
         "every candidate diverged: nothing was written to {} (what it held is untouched); \
          check the data's units and columns{held}{few}",
         args.out.display()
-    );
-    Ok(())
+    )
 }
 
 /// Checks that `--out` can be a folder before the fit runs, so that a path
