@@ -72,8 +72,8 @@ fn malformed_files_name_file_line_and_column() {
             "gap.csv",
             format!("{head}0,0,0\n0.01,0,0\n0.02,0,0\n0.05,0,0\n0.06,0,0\n"),
             vec![
-                "line 6, column \"t\": non-uniform time base: step 0.03",
-                "expected 0.01",
+                // The step as the rows wrote it, not 0.030000000000000002.
+                "line 6, column \"t\": non-uniform time base: step 0.03 s, expected 0.01 s",
                 "--resample DT",
                 "--split-gaps",
             ],

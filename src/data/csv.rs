@@ -162,8 +162,8 @@ pub enum DataError {
         hint: &'static str,
     },
     #[error(
-        "{}: line {line}, column \"{column}\": non-uniform time base: step {step} s, expected {expected} s (±{}%); {hint}",
-        path.display(), UNIFORM_TOLERANCE * 100.0
+        "{}: line {line}, column \"{column}\": non-uniform time base: step {} s, expected {} s (±{}%); {hint}",
+        path.display(), seconds(*step), seconds(*expected), UNIFORM_TOLERANCE * 100.0
     )]
     NonUniform {
         path: PathBuf,
@@ -178,6 +178,13 @@ pub enum DataError {
     Unusable { path: PathBuf, message: String },
     #[error("{}: {message}", path.display())]
     BadTrace { path: PathBuf, message: String },
+}
+
+/// A difference of two time stamps as the rows wrote it: twelve significant
+/// digits, so that 0.32 − 0.00 reads `0.32`, not `0.32000000000000006`.
+fn seconds(v: f64) -> String {
+    let rounded: f64 = format!("{v:.11e}").parse().unwrap_or(v);
+    rounded.to_string()
 }
 
 impl DataError {
