@@ -295,6 +295,34 @@ fn the_twin_writes_its_recording_to_standard_output_for_a_dash() {
     );
 }
 
+/// A recording and its figure are written both or neither: a `--plot`
+/// that cannot be written leaves no CSV behind.
+#[test]
+fn the_twin_writes_its_recording_and_figure_both_or_neither() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("a_folder")).unwrap();
+    let twin = |plot: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_mckibben"))
+            .args(["twin", "--out", "run.csv", "--plot", plot])
+            .current_dir(dir.path())
+            .output()
+            .expect("run mckibben")
+    };
+    let out = twin("a_folder");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("--plot a_folder") && err.contains("is a folder"),
+        "{err}"
+    );
+    assert!(
+        !dir.path().join("run.csv").exists(),
+        "a CSV without its figure"
+    );
+    assert!(twin("run.svg").status.success());
+    assert!(dir.path().join("run.csv").is_file() && dir.path().join("run.svg").is_file());
+}
+
 #[test]
 fn sine_run_tracks_the_reference_with_the_thesis_pi() {
     let spec = RunSpec {

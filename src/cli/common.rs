@@ -9,11 +9,13 @@ use anyhow::Context;
 
 use mckibben::data::Trace;
 use mckibben::data::csv::{
-    DataError, Gaps, ReadOptions, STANDARD_OUTPUT, print_trace_with_comments,
-    read_traces_with_notes, write_trace_with_comments,
+    Gaps, ReadOptions, STANDARD_OUTPUT, print_trace_with_comments, read_traces_with_notes,
+    trace_text,
 };
+use mckibben::data::{write_all_atomic, write_atomic};
 use mckibben::fit::settings::MAX_POPULATION;
 use mckibben::model::file::{ModelFile, Provenance, ReadSettings};
+use mckibben::report::Figure;
 
 /// The hysteretic families `fit` fits and `diagnose` takes as a baseline.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -75,12 +77,41 @@ pub fn csv_output(s: &str) -> Result<CsvOut, String> {
 }
 
 impl CsvOut {
-    /// Writes `trace` with `# ` comment lines first.
-    pub fn write(&self, trace: &Trace, comments: &[String]) -> Result<(), DataError> {
+    /// Writes `trace` with `# ` comment lines first and, where `plot` names
+    /// a file, its figure: a trace file and its figure both or neither.
+    pub fn write(
+        &self,
+        trace: &Trace,
+        comments: &[String],
+        plot: Option<(&Path, &Figure)>,
+    ) -> anyhow::Result<()> {
+        let svg = plot.map(|(path, figure)| Ok::<_, anyhow::Error>((path, figure.to_svg()?)));
+        let svg = svg.transpose()?;
         match self {
-            CsvOut::File(path) => write_trace_with_comments(path, trace, comments),
-            CsvOut::Stdout => print_trace_with_comments(trace, comments),
+            CsvOut::File(path) => {
+                let text = trace_text(path, trace, comments)?;
+                let mut files: Vec<(&Path, &[u8])> = vec![(path, text.as_bytes())];
+                files.extend(svg.as_ref().map(|(p, s)| (*p, s.as_bytes())));
+                write_all_atomic(&files).with_context(|| match &svg {
+                    Some((plot, _)) => format!(
+                        "cannot write --out {} and --plot {}",
+                        path.display(),
+                        plot.display()
+                    ),
+                    None => format!("cannot write --out {}", path.display()),
+                })?;
+            }
+            CsvOut::Stdout => {
+                // The figure first: a reader that closes the pipe early
+                // ends the command.
+                if let Some((path, svg)) = &svg {
+                    write_atomic(path, svg.as_bytes())
+                        .with_context(|| format!("cannot write --plot {}", path.display()))?;
+                }
+                print_trace_with_comments(trace, comments)?;
+            }
         }
+        Ok(())
     }
 
     /// The file, or `-`.

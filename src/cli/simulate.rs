@@ -272,9 +272,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Some(k) = run.diverged_at {
             comments.push(format!("diverged at sample {k}: the trace stops before it"));
         }
-        path.write(&trace, &comments)?;
-    }
-    if let Some(path) = &args.plot {
+        let plot = args.plot.as_ref().map(|p| (p, figure(&trace, &described)));
+        path.write(
+            &trace,
+            &comments,
+            plot.as_ref().map(|(p, f)| (p.as_path(), f)),
+        )?;
+    } else if let Some(path) = &args.plot {
         figure(&trace, &described).save(path)?;
     }
     let finite: Vec<f64> = trace

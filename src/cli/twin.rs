@@ -234,7 +234,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         effects: args.effects.clone(),
     };
     let trace = spec.run()?;
-    out.write(&trace, &spec.comments())?;
+    let plot = args.plot.as_ref().map(|p| (p, figure(&trace, &spec)));
+    out.write(
+        &trace,
+        &spec.comments(),
+        plot.as_ref().map(|(p, f)| (p.as_path(), f)),
+    )?;
     let summary = format!(
         "{out}: {} samples, dt = {} s ({})",
         trace.len(),
@@ -252,9 +257,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     say(&summary);
     if let Some(path) = &args.plot {
-        figure(&trace, &spec)
-            .save(path)
-            .with_context(|| format!("cannot write --plot {}", path.display()))?;
         say(&format!("figure written to {}", path.display()));
     }
     Ok(())

@@ -761,6 +761,12 @@ pub fn print_trace_with_comments(trace: &Trace, comments: &[String]) -> Result<(
         })
 }
 
+/// The text [`write_trace_with_comments`] writes to `path` (which errors
+/// name), for a caller that writes it with other files at once.
+pub fn trace_text(path: &Path, trace: &Trace, comments: &[String]) -> Result<String, DataError> {
+    format_columns(path, trace, comments, Missing::Refused)
+}
+
 /// What an error about a trace written to standard output names as its file.
 pub const STANDARD_OUTPUT: &str = "standard output";
 
