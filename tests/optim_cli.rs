@@ -542,6 +542,23 @@ fn values_out_of_any_rigs_range_and_contradicting_flags_are_errors() {
             vec!["fit", &csv, "--gens", "0"],
             "--gens must be at least 1",
         ),
+        // Counts whose plan or layout would be built before the run (a
+        // hang, an aborted allocation).
+        (
+            vec![
+                "fit",
+                &csv,
+                "--model",
+                "generalized",
+                "--refine-rounds",
+                "1000000",
+            ],
+            "--refine-rounds 1000000: at most 100",
+        ),
+        (
+            vec!["diagnose", &csv, "--blocks", "4294967296"],
+            "it needs at least",
+        ),
         (
             vec![
                 "diagnose",

@@ -227,6 +227,16 @@ pub fn fit(
             "start and carry: a fit either starts from a model or carries its chain",
         ));
     }
+    // As `fit --carry` refuses `--model` and `--effects`.
+    if carry.is_some() {
+        let given = [("model", model.is_some()), ("effects", effects.is_some())];
+        if let Some((name, _)) = given.iter().find(|g| g.1) {
+            return Err(PyValueError::new_err(format!(
+                "carry and {name}: a carried chain keeps its model's family and effects; \
+                 leave {name} out"
+            )));
+        }
+    }
     let (start, carried) = (
         start.map(|s| model_arg(s, "start")).transpose()?,
         carry.map(|s| model_arg(s, "carry")).transpose()?,

@@ -55,6 +55,13 @@ def test_diagnose_cuts_blocks_and_transfers_as_the_command(stair, cli):
     assert doc == expected
     with pytest.raises(ValueError, match="blocks must be at least 2"):
         mckibben.diagnose(stair, blocks=1, **args)
+    # A count no record holds answers at once, naming the length it needs.
+    with pytest.raises(ValueError, match="it needs at least"):
+        mckibben.diagnose(stair, blocks=2**32, **args)
+    # One model, one sample time: a second record at another step is refused.
+    coarse = (stair.input[::2], stair.output[::2], 2 * stair.dt)
+    with pytest.raises(ValueError, match="one model's poles are per sample"):
+        mckibben.diagnose([stair, coarse], **args)
 
 
 def test_diagnose_repeats_from_seeds_as_the_command(stair, cli):

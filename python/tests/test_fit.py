@@ -176,6 +176,9 @@ def test_a_carried_chain_is_the_commands_fit_carry(stair, cli, tmp_path):
     assert result.start_sse is None
     with pytest.raises(ValueError, match="start and carry"):
         mckibben.fit(stair, pop=40, gens=2, start=source.model, carry=source.model)
+    # As `fit --carry` refuses --model: the carried family would be dropped.
+    with pytest.raises(ValueError, match="carry and model: a carried chain keeps its model's family"):
+        mckibben.fit(stair, pop=40, gens=2, carry=source.model, model="generalized")
 
 
 def test_seeds_are_per_call(stair, small_fit):

@@ -20,8 +20,8 @@ use nalgebra::DVector;
 
 use super::chart::ModelChart;
 use super::records::{Records, Validation};
-use crate::data::Trace;
 use crate::data::units::stated_length_in_mm;
+use crate::data::{Trace, same_step, tidy_step};
 use crate::eval::Problem;
 use crate::ident::fit::CHI2_1_95;
 use crate::model::bounds::Origin;
@@ -218,15 +218,33 @@ impl FitProblem {
         model: Option<&Model>,
         blocks: Option<usize>,
     ) -> anyhow::Result<FitProblem> {
+        // One model, one sample time: its poles are per sample.
+        if let Some(first) = traces.first()
+            && let Some(other) = traces.iter().find(|t| !same_step(t.dt(), first.dt()))
+        {
+            anyhow::bail!(
+                "{} is sampled every {} s, {} every {} s: one model's poles are per sample, so \
+                 resample the records onto one step",
+                other.source,
+                tidy_step(other.dt()),
+                first.source,
+                tidy_step(first.dt())
+            );
+        }
         let records = Records::of(traces, model)?;
         let settle = FitProblem::settle_of(&records);
         let parts = traces
             .iter()
             .map(|t| match blocks {
-                Some(b) => Parts::of(t.len(), b, settle),
-                None => Parts::chosen(&t.input, settle),
+                // Checked before the blocks are laid out: a count no
+                // record holds would otherwise be laid out first.
+                Some(b) => match Parts::too_short(t.len(), b, settle) {
+                    Some(e) => Err(anyhow::anyhow!("{}: {e}", t.source)),
+                    None => Ok(Parts::of(t.len(), b, settle)),
+                },
+                None => Ok(Parts::chosen(&t.input, settle)),
             })
-            .collect();
+            .collect::<anyhow::Result<_>>()?;
         let first = &traces[0];
         let records = Arc::new(records);
         let baseline = ModelDescription::new(family, Vec::new(), traces.len());

@@ -18,6 +18,9 @@ use crate::optim::mfa::{self, Distance, Lambda0Schedule, Scale};
 use crate::optim::stage::Stage;
 use crate::optim::{AlgoSettings, Algorithm, Streams, ThesisModel};
 
+/// The most refining rounds a fit may ask for (`fit --refine-rounds`).
+pub const MAX_REFINE_ROUNDS: usize = 100;
+
 /// The largest population a fit takes: 10⁸ candidates of a generalized
 /// model are 11 GB of rows before any copy, past what a machine that runs
 /// this tool is likely to hold; a larger `--pop` is a typo or a wrap.
@@ -262,6 +265,13 @@ impl FitSettings {
                     problem.model.family
                 )
             })?;
+            // The plan lists every round's steps up front: a count past
+            // any run's needs is a typo, not a longer fit.
+            anyhow::ensure!(
+                rounds <= MAX_REFINE_ROUNDS,
+                "--refine-rounds {rounds}: at most {MAX_REFINE_ROUNDS} (a round takes about a \
+                 tenth of the default fit's time)"
+            );
             refine.rounds = rounds;
         }
         if let Some(global) = plan.global.as_mut() {

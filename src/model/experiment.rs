@@ -147,7 +147,25 @@ impl Parts {
         if useful(len) {
             return None;
         }
-        let needs = (len + 1..).find(|&n| useful(n)).unwrap_or(usize::MAX);
+        // `useful` grows with the length: double past it, then bisect, so
+        // that a count of blocks no record could hold answers at once.
+        let (mut lo, mut hi) = (len, len.saturating_add(1));
+        while !useful(hi) {
+            if hi == usize::MAX {
+                break;
+            }
+            lo = hi;
+            hi = hi.saturating_mul(2);
+        }
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            if useful(mid) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        let needs = hi;
         Some(format!(
             "{len} samples are too few for the diagnosis' three parts (the first half \
              estimates; the second is cut into {blocks} blocks that alternate between \

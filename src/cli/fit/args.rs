@@ -174,7 +174,7 @@ pub struct Args {
     /// of the ARX time constant).
     #[arg(long, value_name = "SAMPLES", conflicts_with = "thesis_flow")]
     pub(super) horizon: Option<usize>,
-    /// Most refining rounds of a generalized fit (default 4). After the
+    /// Most refining rounds of a generalized fit (default 4, at most 100). After the
     /// polish, rounds of differential evolution around each try's best
     /// step over the ledges the switching level makes; they go on while a
     /// round lowers the SSE by a thousandth. When the last allowed round
