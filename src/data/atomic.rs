@@ -24,10 +24,36 @@ pub fn create_dir_all(dir: &Path) -> io::Result<()> {
 
 /// Writes `bytes` to `path` atomically, creating the parent folder if needed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let path = &target(path)?;
     let tmp = stage(path, bytes)?;
     fs::rename(&tmp, path).inspect_err(|_| {
         let _ = fs::remove_file(&tmp);
     })
+}
+
+/// The file a write to `path` replaces: through a symbolic link, the file
+/// it points to (a rename would replace the link itself). Something that
+/// is not a regular file (a device such as `/dev/null`, a pipe) cannot be
+/// replaced by one, and is an error.
+fn target(path: &Path) -> io::Result<PathBuf> {
+    let resolved = match fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => match fs::canonicalize(path) {
+            Ok(p) => p,
+            // A link to nothing yet: the file it names is written.
+            Err(_) => {
+                let to = fs::read_link(path)?;
+                path.parent().map_or(to.clone(), |d| d.join(to))
+            }
+        },
+        _ => path.to_path_buf(),
+    };
+    match fs::metadata(&resolved) {
+        Ok(m) if !m.is_file() && !m.is_dir() => Err(io::Error::other(format!(
+            "{} is not a regular file (a device or a pipe): give a file to write",
+            path.display()
+        ))),
+        _ => Ok(resolved),
+    }
 }
 
 /// Writes every file of `files` or none: each goes first to a temporary
@@ -40,12 +66,16 @@ pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> io::Result<()> {
     let named =
         |path: &Path, e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", path.display()));
     let mut staged: Vec<(PathBuf, &Path)> = Vec::with_capacity(files.len());
+    let targets: Vec<PathBuf> = files
+        .iter()
+        .map(|&(path, _)| target(path))
+        .collect::<io::Result<_>>()?;
     let result = (|| {
-        for &(path, bytes) in files {
+        for (&(_, bytes), path) in files.iter().zip(&targets) {
             let tmp = stage(path, bytes).map_err(|e| named(path, e))?;
             staged.push((tmp, path));
         }
-        if let Some(folder) = files.iter().map(|f| f.0).find(|p| p.is_dir()) {
+        if let Some(folder) = targets.iter().find(|p| p.is_dir()) {
             return Err(io::Error::other(format!(
                 "{} is a folder, not a file",
                 folder.display()
@@ -123,6 +153,29 @@ mod tests {
         assert!(err.contains("b.svg is a folder"), "{err}");
         assert_eq!(fs::read(&a).unwrap(), b"one");
         assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_link_is_written_through_and_a_device_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("real.json");
+        let link = dir.path().join("link.json");
+        fs::write(&file, "old").unwrap();
+        std::os::unix::fs::symlink(&file, &link).unwrap();
+        write_atomic(&link, b"new").unwrap();
+        assert!(
+            fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(fs::read(&file).unwrap(), b"new");
+        let err = write_atomic(Path::new("/dev/null"), b"x")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("/dev/null is not a regular file"), "{err}");
+        assert!(!fs::metadata("/dev/null").unwrap().is_file());
     }
 
     #[test]
