@@ -157,7 +157,7 @@ pub fn transfer(
         .map(|trace| {
             d.final_model
                 .check_data(trace)
-                .with_context(|| format!("--transfer {}", trace.source))?;
+                .with_context(|| format!("the transfer to {}", trace.source))?;
             let (baseline, _) = fit_and_score(trace, d.family, &[], &[], settings)?;
             let (fitted, chain_on_edge, names_only) = if chain.is_empty() {
                 (baseline, Vec::new(), baseline.fit_percent)

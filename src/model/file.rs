@@ -465,10 +465,15 @@ impl ModelFile {
             path.display()
         );
         let version = value.get("version").and_then(|v| v.as_u64());
+        // Only a version past this build's is a newer mckibben's.
+        let why = match version {
+            Some(v) if v > MODEL_VERSION as u64 => "a newer mckibben wrote it",
+            _ => "no mckibben writes it",
+        };
         anyhow::ensure!(
             version.is_some_and(|v| (1..=MODEL_VERSION as u64).contains(&v)),
             "{}: model file version {}: this mckibben ({}) reads versions 1 to {MODEL_VERSION}; \
-             a newer mckibben wrote it",
+             {why}",
             path.display(),
             version.map_or("missing".to_string(), |v| v.to_string()),
             env!("CARGO_PKG_VERSION")
@@ -681,6 +686,13 @@ mod tests {
         let newer = write("v9.json", serde_json::to_string(&file).unwrap());
         let e = format!("{:#}", ModelFile::load(&newer).unwrap_err());
         assert!(e.contains("version 9") && e.contains("newer"), "{e}");
+        file.version = 0;
+        let zero = write("v0.json", serde_json::to_string(&file).unwrap());
+        let e = format!("{:#}", ModelFile::load(&zero).unwrap_err());
+        assert!(
+            e.contains("version 0") && e.contains("no mckibben writes it"),
+            "{e}"
+        );
 
         let mut file = ModelFile::new(&chained(), None, Provenance::default());
         file.params.remove("creep.kappa");
