@@ -399,6 +399,18 @@ fn warn_of_report(
     outcome: &Outcome,
     fit: &FitRun,
 ) -> PyResult<()> {
+    // The command's error, as a warning: the result still holds the run's
+    // history and stages, which say where it failed.
+    if outcome.params.is_empty() {
+        warn.call_method1(
+            "warn",
+            (
+                "every candidate diverged: the result holds no model (`model` is None); check \
+              the data's units and columns, the values `bounds` hold, and whether a larger \
+              `pop` finds a stable candidate",
+            ),
+        )?;
+    }
     if let Some(val) = report.val_fit_percent {
         let linear = report.linear_val_fit_percent;
         for w in yardstick_warnings(outcome.sse, val, linear, fit.start_scores()) {

@@ -318,3 +318,11 @@ def test_ctrl_c_while_the_chain_is_built_raises(stair, sigint_raises):
     finally:
         timer.cancel()
     assert time.monotonic() - started < 10
+
+
+def test_a_fit_where_every_candidate_diverges_warns_and_holds_no_model(stair):
+    # A pole of 1.5 diverges on every candidate (as `fit --fix a=1.5`, an
+    # error there): the result says so instead of returning quietly.
+    with pytest.warns(UserWarning, match="every candidate diverged: the result holds no model"):
+        result = mckibben.fit(stair, pop=20, gens=5, bounds={"a": 1.5})
+    assert result.model is None and result.params == {}

@@ -19,7 +19,7 @@ use mckibben::data::signals::nyquist_rad_s;
 use mckibben::report::json::Versioned;
 use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
-use mckibben::twin::{MAX_LOAD_KG, TwinConfig};
+use mckibben::twin::{MAX_LOAD_KG, Rig, TwinConfig};
 
 /// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
 /// closing the loop on the input valve voltage (0–10 V, slew 0.25 V per
@@ -230,9 +230,7 @@ fn check_on_twin(args: &Args, config: &TwinConfig, kinds: &[Kind]) -> anyhow::Re
         hung.extend(tuning.into_iter().map(|m| ("the PI tuning's load", m)));
     }
     for (what, load) in hung {
-        config
-            .check_load(load)
-            .map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
+        Rig::check_load(config, load).map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
     }
     // A rig's sample time is checked once its handshake gives it.
     Episode::short(1.0, args.warmup, args.duration, args.steady_from)

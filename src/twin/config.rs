@@ -497,28 +497,6 @@ impl TwinConfig {
         self.sample_time_s / self.substeps.max(1) as f64
     }
 
-    /// Checks that the rig can hang `load_kg` (a mass above 0 and at most
-    /// [`super::MAX_LOAD_KG`]) with these settings: the rubber, softened
-    /// by the creep effect, must leave the braid short of straight at rest.
-    /// Also [`TwinConfig::validate`].
-    pub fn check_load(&self, load_kg: f64) -> Result<(), TwinError> {
-        self.validate()?;
-        if !(load_kg.is_finite() && load_kg > 0.0 && load_kg <= super::MAX_LOAD_KG) {
-            return Err(TwinError::BadLoad(load_kg));
-        }
-        let rest = super::muscle::Muscle::new(&self.muscle, load_kg, &self.effects).rest_length();
-        let thread = self.muscle.braid.thread_length;
-        if rest >= thread {
-            return Err(TwinError::TooHeavy {
-                load_kg,
-                rest_mm: rest * 1e3,
-                thread_mm: thread * 1e3,
-                creep: self.muscle.relaxing_share(&self.effects) > 0.0,
-            });
-        }
-        Ok(())
-    }
-
     /// Checks the settings the effects can make unphysical: the creep must
     /// leave the rubber a positive relaxed stiffness.
     pub fn validate(&self) -> Result<(), TwinError> {

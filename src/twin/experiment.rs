@@ -209,10 +209,10 @@ impl RunSpec {
     }
 
     /// The configuration ([`RunSpec::config`]) once it is checked to carry
-    /// the load ([`TwinConfig::check_load`]).
+    /// the load ([`Rig::check_load`]).
     pub fn checked_config(&self) -> Result<TwinConfig, TwinError> {
         let config = self.config()?;
-        config.check_load(self.load_kg)?;
+        Rig::check_load(&config, self.load_kg)?;
         Ok(config)
     }
 

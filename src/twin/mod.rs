@@ -111,12 +111,34 @@ impl Rig {
     /// valve commanded shut (0 V) and output valve open (10 V). `seed` seeds
     /// the sensor noise (`ChaCha8Rng`); nothing else is random.
     ///
-    /// Panics where [`TwinConfig::check_load`] fails (a load that is not a
+    /// Checks that the rig can hang `load_kg` (a mass above 0 and at most
+    /// [`MAX_LOAD_KG`]) with these settings: the rubber, softened
+    /// by the creep effect, must leave the braid short of straight at rest.
+    /// Also [`TwinConfig::validate`]. Every command checks it before it
+    /// builds a rig, to say so as an error.
+    pub fn check_load(config: &TwinConfig, load_kg: f64) -> Result<(), TwinError> {
+        config.validate()?;
+        if !(load_kg.is_finite() && load_kg > 0.0 && load_kg <= MAX_LOAD_KG) {
+            return Err(TwinError::BadLoad(load_kg));
+        }
+        let rest = Muscle::new(&config.muscle, load_kg, &config.effects).rest_length();
+        let thread = config.muscle.braid.thread_length;
+        if rest >= thread {
+            return Err(TwinError::TooHeavy {
+                load_kg,
+                rest_mm: rest * 1e3,
+                thread_mm: thread * 1e3,
+                creep: config.muscle.relaxing_share(&config.effects) > 0.0,
+            });
+        }
+        Ok(())
+    }
+
+    /// Panics where [`Rig::check_load`] fails (a load that is not a
     /// positive mass up to [`MAX_LOAD_KG`], or that stretches the braid
-    /// straight at rest, or settings [`TwinConfig::validate`] refuses):
-    /// every command checks it first, to say so as an error.
+    /// straight at rest, or settings [`TwinConfig::validate`] refuses).
     pub fn new(config: &TwinConfig, load_kg: f64, seed: u64) -> Rig {
-        if let Err(e) = config.check_load(load_kg) {
+        if let Err(e) = Rig::check_load(config, load_kg) {
             panic!("twin: {e}");
         }
         let full = config.valve.full_scale_v;
