@@ -104,6 +104,8 @@ fn written(script: &str) -> Vec<String> {
     words
         .windows(2)
         .filter(|w| matches!(w[0], ">" | "--out" | "--plot" | "--report"))
+        // `--out -` writes to standard output, which the block shows.
+        .filter(|w| w[1] != "-")
         .map(|w| w[1].to_string())
         .collect()
 }
