@@ -114,6 +114,15 @@ impl CsvOut {
         Ok(())
     }
 
+    /// Where a command's summary goes: where the trace does not (standard
+    /// error when the trace is on standard output).
+    pub fn summary(out: Option<&CsvOut>) -> Box<dyn std::io::Write> {
+        match out {
+            Some(CsvOut::Stdout) => Box::new(std::io::stderr()),
+            _ => Box::new(std::io::stdout()),
+        }
+    }
+
     /// The file, or `-`.
     pub fn file(&self) -> Option<&Path> {
         match self {

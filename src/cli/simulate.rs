@@ -326,12 +326,7 @@ fn print_summary(
     model: &Model,
     described: &str,
 ) -> anyhow::Result<()> {
-    // The summary goes where the trace does not.
-    let mut report: Box<dyn Write> = if args.out == Some(CsvOut::Stdout) {
-        Box::new(std::io::stderr())
-    } else {
-        Box::new(std::io::stdout())
-    };
+    let mut report = CsvOut::summary(args.out.as_ref());
     writeln!(
         report,
         "Simulated the {described} model on `{}`: {} samples, dt = {} s",

@@ -1,5 +1,6 @@
 //! `mckibben twin`: run an experiment on the rig twin and write its CSV.
 
+use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -246,18 +247,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         trace.dt(),
         spec.command()
     );
-    // The summary goes where the trace does not.
-    let to_stdout = out == CsvOut::Stdout;
-    let say = |line: &str| {
-        if to_stdout {
-            eprintln!("{line}");
-        } else {
-            println!("{line}");
-        }
-    };
-    say(&summary);
+    let mut report = CsvOut::summary(Some(&out));
+    writeln!(report, "{summary}")?;
     if let Some(path) = &args.plot {
-        say(&format!("figure written to {}", path.display()));
+        writeln!(report, "figure written to {}", path.display())?;
     }
     Ok(())
 }

@@ -65,30 +65,31 @@ fn target(path: &Path) -> io::Result<PathBuf> {
 pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> io::Result<()> {
     let named =
         |path: &Path, e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", path.display()));
-    let mut staged: Vec<(PathBuf, &Path)> = Vec::with_capacity(files.len());
     let targets: Vec<PathBuf> = files
         .iter()
         .map(|&(path, _)| target(path))
         .collect::<io::Result<_>>()?;
+    if let Some(folder) = targets.iter().find(|p| p.is_dir()) {
+        return Err(io::Error::other(format!(
+            "{} is a folder, not a file",
+            folder.display()
+        )));
+    }
+    let mut staged: Vec<PathBuf> = Vec::with_capacity(files.len());
     let result = (|| {
         for (&(_, bytes), path) in files.iter().zip(&targets) {
-            let tmp = stage(path, bytes).map_err(|e| named(path, e))?;
-            staged.push((tmp, path));
+            staged.push(stage(path, bytes).map_err(|e| named(path, e))?);
         }
-        if let Some(folder) = targets.iter().find(|p| p.is_dir()) {
-            return Err(io::Error::other(format!(
-                "{} is a folder, not a file",
-                folder.display()
-            )));
-        }
-        while let Some((tmp, path)) = staged.first() {
+        for (tmp, path) in staged.iter().zip(&targets) {
             fs::rename(tmp, path).map_err(|e| named(path, e))?;
-            staged.remove(0);
         }
         Ok(())
     })();
-    for (tmp, _) in &staged {
-        let _ = fs::remove_file(tmp);
+    if result.is_err() {
+        // The temporaries not yet renamed (the others are gone already).
+        for tmp in &staged {
+            let _ = fs::remove_file(tmp);
+        }
     }
     result
 }
