@@ -37,6 +37,16 @@ pub struct Trace {
     pub cut_from: Option<String>,
 }
 
+/// A number as a person reads it, and as every parser here reads it back:
+/// `1e300`, not 301 digits; `1e-300`, not 300 zeros; `4.5` as `4.5`.
+pub fn readable(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 /// `max − min` of finite values (0 for none).
 pub fn range(v: &[f64]) -> f64 {
     let (lo, hi) = v

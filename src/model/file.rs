@@ -445,6 +445,7 @@ impl ModelFile {
                 path.display()
             );
         }
+        let whole = value.clone();
         let value = match value.get("model") {
             Some(inner) if value.get("format").is_none() && inner.get("format").is_some() => {
                 inner.clone()
@@ -478,7 +479,16 @@ impl ModelFile {
             version.map_or("missing".to_string(), |v| v.to_string()),
             env!("CARGO_PKG_VERSION")
         );
-        let file: ModelFile = serde_json::from_value(value)
+        let file: ModelFile = serde_json::from_value(value.clone())
+            .map_err(|e| {
+                // A value carries no positions: where the whole text is the
+                // model, reading the text again says at which line and column
+                // the field is wrong.
+                let positioned = (value == whole)
+                    .then(|| serde_json::from_str::<ModelFile>(&text).err())
+                    .flatten();
+                anyhow::anyhow!("{}", positioned.unwrap_or(e))
+            })
             .with_context(|| format!("{}: not a valid model file", path.display()))?;
         file.model()
             .with_context(|| format!("{}: not a valid model file", path.display()))?;
@@ -496,6 +506,12 @@ impl ModelFile {
             .iter()
             .map(|e| Ok(e.parse::<Effect>()?))
             .collect::<anyhow::Result<_>>()?;
+        for (k, e) in effects.iter().enumerate() {
+            anyhow::ensure!(
+                !effects[..k].contains(e),
+                "`effects` lists `{e}` twice: each effect enters a chain once"
+            );
+        }
         anyhow::ensure!(self.datasets >= 1, "`datasets` must be at least 1");
         // The poles are per sample: without a sample time the model cannot
         // run on any record (every command would blame its own flags).
@@ -712,6 +728,31 @@ mod tests {
         let no_dt = write("no_dt.json", serde_json::to_string(&file).unwrap());
         let e = format!("{:#}", ModelFile::load(&no_dt).unwrap_err());
         assert!(e.contains("`data.dt` is 0"), "{e}");
+
+        // A duplicate would otherwise read as parameters missing from a
+        // chain that lists the effect's names twice.
+        let mut file = ModelFile::new(&chained(), None, Provenance::default());
+        file.effects.push(file.effects[0].clone());
+        let twice = write("twice.json", serde_json::to_string(&file).unwrap());
+        let e = format!("{:#}", ModelFile::load(&twice).unwrap_err());
+        assert!(e.contains("lists `creep` twice"), "{e}");
+
+        // A field of the wrong type is named by its place in the file.
+        let file = ModelFile::new(&chained(), None, Provenance::default());
+        let text = serde_json::to_string_pretty(&file).unwrap().replacen(
+            "\"dt\": ",
+            "\"dt\": null, \"was\": ",
+            1,
+        );
+        let line = 1 + text[..text.find("\"dt\": null").unwrap()]
+            .matches('\n')
+            .count();
+        let null_dt = write("null_dt.json", text);
+        let e = format!("{:#}", ModelFile::load(&null_dt).unwrap_err());
+        assert!(
+            e.contains("invalid type: null") && e.contains(&format!("at line {line} column")),
+            "{e}"
+        );
     }
 
     #[test]

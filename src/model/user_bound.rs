@@ -1,6 +1,7 @@
 //! A bound a user sets on one parameter of a fit's box (`--bound`, `--fix`,
 //! Python's `bounds`), as the command line writes it.
 
+use crate::data::readable;
 use serde::{Deserialize, Serialize};
 
 /// A bound a user sets on one parameter (`--bound NAME=LO:HI`, `--fix
@@ -15,10 +16,11 @@ pub struct UserBound {
 impl std::fmt::Display for UserBound {
     /// As `--bound` and `--fix` take it: `NAME=LO:HI`, or `NAME=VALUE`.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let (lower, upper) = (readable(self.lower), readable(self.upper));
         if self.lower == self.upper {
-            write!(f, "{}={}", self.name, self.lower)
+            write!(f, "{}={lower}", self.name)
         } else {
-            write!(f, "{}={}:{}", self.name, self.lower, self.upper)
+            write!(f, "{}={lower}:{upper}", self.name)
         }
     }
 }
@@ -33,7 +35,11 @@ pub enum UserBoundError {
     NotANumber { input: String, value: String },
     #[error("`{input}`: `{value}` is not a finite number")]
     NotFinite { input: String, value: String },
-    #[error("`{input}`: the box is empty (lower {lower} is above upper {upper})")]
+    #[error(
+        "`{input}`: the box is empty (lower {} is above upper {})",
+        readable(*.lower),
+        readable(*.upper)
+    )]
     Empty {
         input: String,
         lower: f64,
@@ -83,5 +89,31 @@ impl std::str::FromStr for UserBound {
             lower,
             upper,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A bound is written back (a model file's `user_bounds`, a note) as a
+    /// person reads it and as `--bound` reads it again, at any magnitude.
+    #[test]
+    fn a_bound_is_written_as_it_reads_back_at_any_magnitude() {
+        for (given, written) in [
+            ("alpha=0.5", "alpha=0.5"),
+            ("alpha=1e300", "alpha=1e300"),
+            ("beta=0:1e-300", "beta=0:1e-300"),
+            ("x_s=-2.5:4000", "x_s=-2.5:4000"),
+        ] {
+            let bound: UserBound = given.parse().unwrap();
+            assert_eq!(bound.to_string(), written);
+            assert_eq!(written.parse::<UserBound>().unwrap(), bound);
+        }
+        let empty = "alpha=1e300:1e-300".parse::<UserBound>().unwrap_err();
+        assert!(
+            empty.to_string().contains("lower 1e300 is above upper 1e-300"),
+            "{empty}"
+        );
     }
 }

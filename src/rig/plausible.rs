@@ -13,6 +13,7 @@
 
 use super::protocol::Ranges;
 use crate::control::Measurement;
+use crate::data::readable;
 use crate::twin::TwinConfig;
 
 /// What the physics allows.
@@ -120,11 +121,11 @@ impl Plausibility {
 /// Why a measurement cannot be one the rig read.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum Implausible {
-    #[error("pressure {} MPa is outside the rig's range {}…{} MPa", show(*mpa), range.0, range.1)]
+    #[error("pressure {} MPa is outside the rig's range {}…{} MPa", readable(*mpa), range.0, range.1)]
     Pressure { mpa: f64, range: (f64, f64) },
     #[error(
         "displacement {} mm is outside the rig's range {}…{} mm",
-        show(*mm),
+        readable(*mm),
         range.0,
         range.1
     )]
@@ -134,7 +135,7 @@ pub enum Implausible {
     #[error(
         "displacement moved {} mm since sample {since} ({from_mm} mm), more than the \
          {allowed_mm} mm the load can travel in {seconds} s at {max_speed_mm_s} mm/s",
-        show(*mm)
+        readable(*mm)
     )]
     Jump {
         mm: f64,
@@ -144,15 +145,6 @@ pub enum Implausible {
         seconds: f64,
         max_speed_mm_s: f64,
     },
-}
-
-/// A reading as a person reads it: `1e308`, not 309 digits.
-fn show(v: f64) -> String {
-    if v != 0.0 && !(1e-4..1e9).contains(&v.abs()) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
 }
 
 #[cfg(test)]

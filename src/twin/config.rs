@@ -313,7 +313,8 @@ pub enum TwinError {
     )]
     CreepRelaxesAll { share: f64, below: f64 },
     #[error(
-        "--load {0}: expected a mass in kg above 0 and at most {max} (thesis: 4.5 or 7)",
+        "--load {}: expected a mass in kg above 0 and at most {max} (thesis: 4.5 or 7)",
+        crate::data::readable(*.0),
         max = super::MAX_LOAD_KG
     )]
     BadLoad(f64),

@@ -4,9 +4,9 @@
 //! (MPa), output `displacement` (mm) and the columns `valve_in`, `valve_out`,
 //! `load_kg` (and `reference` for the sine).
 
-use crate::data::Trace;
 use crate::data::csv::{DataError, write_trace_with_comments};
 use crate::data::signals::{Multisine, SineReference, Stair, nyquist_rad_s};
+use crate::data::{Trace, readable};
 
 use super::{Rig, Sample, TwinConfig, TwinError};
 
@@ -87,7 +87,12 @@ pub fn run(config: &TwinConfig, load_kg: f64, seed: u64, experiment: &TwinExperi
             }
         }
     }
-    let source = format!("twin {} {} kg seed {}", experiment.name(), load_kg, seed);
+    let source = format!(
+        "twin {} {} kg seed {}",
+        experiment.name(),
+        readable(load_kg),
+        seed
+    );
     let mut trace = Trace::uniform(
         source,
         dt,
@@ -185,11 +190,11 @@ impl RunSpec {
         let mut c = format!(
             "mckibben twin --experiment {} --load {} --seed {}",
             self.kind.as_str(),
-            self.load_kg,
+            readable(self.load_kg),
             self.seed
         );
         if self.kind == Kind::Sine {
-            c.push_str(&format!(" --freq {}", self.freq_rad_s));
+            c.push_str(&format!(" --freq {}", readable(self.freq_rad_s)));
         }
         for e in &self.effects {
             c.push_str(&format!(" --effect {e}"));

@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use super::common::one_trace;
 pub use args::Args;
 use args::EffectArg;
-use mckibben::data::Trace;
+use mckibben::data::{Trace, readable};
 use mckibben::diagnose::chain::{selected_fit, with_chain_start};
 use mckibben::eval;
 use mckibben::fit::objective::POPULATION;
@@ -93,8 +93,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     for b in request.bounds.iter().filter(|b| b.name == "alpha") {
         if !args.json && (b.lower < 0.0 || b.upper > 1.0) {
             let given = match b.lower == b.upper {
-                true => format!("alpha = {}", b.lower),
-                false => format!("alpha in [{}, {}]", b.lower, b.upper),
+                true => format!("alpha = {}", readable(b.lower)),
+                false => format!("alpha in [{}, {}]", readable(b.lower), readable(b.upper)),
             };
             eprintln!(
                 "mckibben: note: {given} reaches past [0, 1]: alpha is the elastic share of the \
