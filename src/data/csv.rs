@@ -120,6 +120,24 @@ pub enum DataError {
         available: Vec<String>,
         flag: &'static str,
     },
+    #[error(
+        "{}: line {line} holds numbers, not column names: the file needs a header line that \
+         names its columns (for example `t,pressure,displacement`; MATLAB's writetable writes \
+         one, csvwrite and writematrix do not)",
+        path.display()
+    )]
+    NoHeader { path: PathBuf, line: u64 },
+    #[error(
+        "{}: line {line}: column \"{column}\" is named as both the time and the {role}: each \
+         needs a column of its own",
+        path.display()
+    )]
+    TimeAsData {
+        path: PathBuf,
+        line: u64,
+        column: String,
+        role: &'static str,
+    },
     #[error("{}: line {line}: column \"{column}\" appears twice in the header", path.display())]
     DuplicateColumn {
         path: PathBuf,
@@ -379,9 +397,28 @@ fn parse(
                 flag,
             })
     };
+    if names.iter().all(|n| n.trim().parse::<f64>().is_ok()) {
+        return Err(DataError::NoHeader {
+            path: p(),
+            line: header_line,
+        });
+    }
     let it = find(&opts.time, "time", "--time")?;
     let ii = find(&opts.input, "input", "--input")?;
     let io = find(&opts.output, "output", "--output")?;
+    // The input and the output may share a column: `simulate` reads a file
+    // of an input alone so, and the identification names a measured
+    // response that copies the input as such.
+    for (c, role) in [(ii, "input"), (io, "output")] {
+        if c == it {
+            return Err(DataError::TimeAsData {
+                path: p(),
+                line: header_line,
+                column: names[c].clone(),
+                role,
+            });
+        }
+    }
     if rows.len() < 2 {
         return Err(DataError::TooFewRows {
             path: p(),
@@ -1058,6 +1095,39 @@ mod tests {
         assert_eq!(read(text, Gaps::Reject).unwrap().0[0].len(), 5);
         let text = "t,pressure,displacement\n0,0,0\n0.0115,1,1\n0.02,2,2\n0.03,3,3\n";
         assert!(err(text).contains("line 3"));
+    }
+
+    /// MATLAB's csvwrite and writematrix write no header: the first row of
+    /// numbers is named as such, not listed as columns "0", "0.1", "1".
+    #[test]
+    fn a_file_without_a_header_says_so() {
+        let e = err("0,0.1,1\n0.01,0.2,2\n0.02,0.3,3\n");
+        assert!(e.contains("line 1 holds numbers, not column names"), "{e}");
+        // A header with a number among its names is still a header.
+        let e = err("t,pressure,2\n0,0.1,1\n0.01,0.2,2\n");
+        assert!(e.contains("no output column \"displacement\""), "{e}");
+    }
+
+    /// One column named for two roles (`--input t`) would fit the time as
+    /// the pressure.
+    #[test]
+    fn one_column_in_two_roles_is_an_error() {
+        let text = "t,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n0.02,0.3,3\n";
+        for (time, input, output, roles) in [
+            ("t", "t", "displacement", "both the time and the input"),
+            ("t", "pressure", "t", "both the time and the output"),
+        ] {
+            let opts = ReadOptions {
+                time: time.into(),
+                input: input.into(),
+                output: output.into(),
+                gaps: Gaps::Reject,
+            };
+            let e = parse(Path::new("x.csv"), text.as_bytes(), &opts)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(roles), "{e}");
+        }
     }
 
     #[test]

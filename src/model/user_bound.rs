@@ -112,7 +112,9 @@ mod tests {
         }
         let empty = "alpha=1e300:1e-300".parse::<UserBound>().unwrap_err();
         assert!(
-            empty.to_string().contains("lower 1e300 is above upper 1e-300"),
+            empty
+                .to_string()
+                .contains("lower 1e300 is above upper 1e-300"),
             "{empty}"
         );
     }
