@@ -26,23 +26,27 @@
 #     passing fits and what it costs in wall time;
 #   - the default `mckibben diagnose` on both backends: wall time, verdict,
 #     and whether the two JSON documents are byte-identical.
-# It prints the tables on stdout (and writes them to --out) and takes under
-# 8 minutes on one H100/H200 with 16 CPU cores (docs/PERFORMANCE.md).
+# It prints the tables on stdout and writes them to --out as each section
+# ends, so that a run stopped from outside leaves what it measured; with
+# --deadline it starts no section past that many seconds and says which it
+# skipped (docs/PERFORMANCE.md).
 #
 #   cargo build --release && scripts/gpu-check.sh
-#   scripts/gpu-check.sh --bin ./mckibben --out gpu-check.md
+#   scripts/gpu-check.sh --bin ./mckibben --out gpu-check.md --deadline 420
 #   scripts/gpu-check.sh --small          # CI smoke size, runs on lavapipe
 #                                         # (the sweep: case #1000 at N = 100)
 set -euo pipefail
 
 usage() {
     cat <<'EOF'
-usage: scripts/gpu-check.sh [--bin PATH] [--small] [--out FILE] [--gens G] [--data FILE]
+usage: scripts/gpu-check.sh [--bin PATH] [--small] [--out FILE] [--deadline S] [--gens G] [--data FILE]
 
   --bin PATH   the mckibben binary (default: $MCKIBBEN, else target/release/mckibben)
   --small      the CI smoke size: bench at N = 1000, 4000; fits at N = 200, 10 generations;
                the sweep on one case at N = 100
-  --out FILE   also write the markdown to FILE
+  --out FILE   also write the markdown to FILE, section by section as each ends
+  --deadline S start no section (a model's bench, a fit's population, a sweep, the
+               diagnosis) once S seconds have passed; the tables name what was skipped
   --gens G     generations of each staged fit's global stage (default: 30; --small: 10)
   --data FILE  experiment CSV (default: data/stair_4.5kg.csv of this repository)
 
@@ -62,6 +66,7 @@ gnu_time="${GNU_TIME:-/usr/bin/time}"
 data="$root/data/stair_4.5kg.csv"
 small=0
 out=""
+deadline=""
 gens=""
 while [ $# -gt 0 ]; do
     case "$1" in
@@ -78,6 +83,12 @@ while [ $# -gt 0 ]; do
         --data)
             [ $# -ge 2 ] || die "--data needs a file name"
             data="$2"
+            shift 2
+            ;;
+        --deadline)
+            [ $# -ge 2 ] || die "--deadline needs a number of seconds"
+            [[ "$2" =~ ^[0-9]+$ ]] || die "--deadline: expected a whole number of seconds, got '$2'"
+            deadline="$2"
             shift 2
             ;;
         --gens)
@@ -102,6 +113,9 @@ while [ $# -gt 0 ]; do
 done
 [ -x "$bin" ] || die "--bin: '$bin' is not an executable file (build it with cargo build --release, or pass --bin PATH / MCKIBBEN=PATH)"
 [ -f "$data" ] || die "--data: '$data' does not exist"
+if [ -n "$out" ]; then
+    : >"$out" 2>/dev/null || die "--out: cannot write '$out'"
+fi
 
 if [ "$small" = 1 ]; then
     pops="1000,4000"
@@ -125,6 +139,25 @@ effects="creep,delay,saturation"
 work="$(mktemp -d "${TMPDIR:-/tmp}/gpu-check.XXXXXX")"
 trap 'rm -rf "$work"' EXIT
 started=$(date +%s)
+
+# Copies the tables so far to --out (through a temporary beside it, so that a
+# run stopped from outside leaves the last whole copy).
+publish() {
+    if [ -n "$out" ]; then
+        cp "$md" "$out.partial" && mv "$out.partial" "$out" || die "--out: cannot write '$out'"
+    fi
+}
+
+# Whether a section may start: false once --deadline seconds have passed, and
+# then the section's name joins the list of those skipped.
+skipped=()
+in_time() {
+    if [ -n "$deadline" ] && [ $(($(date +%s) - started)) -ge "$deadline" ]; then
+        skipped+=("$1")
+        echo "gpu-check: skipped (--deadline $deadline s): $1" >&2
+        return 1
+    fi
+}
 
 # Runs the binary with a log; on failure names the step and shows the log.
 run() {
@@ -202,6 +235,7 @@ md="$work/table.md"
 calibration="$work/calibration.md"
 first=1
 for model in classic generalized "classic+effects"; do
+    in_time "bench $model" || continue
     args=(bench "$data" --backend gpu --time-reference --repeats "$repeats" --pop "$pops" --markdown)
     case "$model" in
         classic+effects) args+=(--model classic --effects "$effects") ;;
@@ -218,6 +252,7 @@ for model in classic generalized "classic+effects"; do
         tail -n +3 "$work/rows" >>"$md"
         tail -n +3 "$work/ceiling" >>"$calibration"
     fi
+    publish
 done
 {
     echo
@@ -230,6 +265,7 @@ done
         echo "— (the adapter offers no timestamp queries)"
     fi
 } >>"$md"
+publish
 
 # --- staged fits on both backends ------------------------------------------
 {
@@ -271,6 +307,7 @@ params() {
 }
 
 for n in "${fit_pops[@]}"; do
+    in_time "fits at N = $n" || continue
     for backend in cpu gpu; do
         t0=$(date +%s.%N)
         run_measured "fit at N = $n on $backend" fit "$data" --model classic --pop "$n" --gens "$gens" \
@@ -316,6 +353,7 @@ for n in "${fit_pops[@]}"; do
             "$(json_top "$f" stop)" "$(json_top "$f" sse)" "$(json_top "$f" val_fit_percent)" \
             "$speedup" "$alike" "$timing" "$(polish_seconds "$f")" "$(cat "$work/peak-$backend-$n")" >>"$md"
     done
+    publish
 done
 
 # --- the population sweep on both backends ---------------------------------
@@ -326,12 +364,14 @@ done
     echo
 } >>"$md"
 for backend in cpu gpu; do
+    in_time "sweep on $backend" || continue
     run "sweep on $backend" sweep --family classic "${sweep_args[@]}" --backend "$backend" --markdown
     if [ "$backend" = cpu ]; then
         cat "$work/stdout" >>"$md"
     else
         tail -n +3 "$work/stdout" >>"$md"
     fi
+    publish
 done
 
 # --- the default diagnosis on both backends --------------------------------
@@ -349,6 +389,7 @@ fi
     echo "|---|---:|---|---|"
 } >>"$md"
 for backend in cpu gpu; do
+    in_time "diagnose on $backend" || continue
     t0=$(date +%s.%N)
     run "diagnose on $backend" diagnose "$data" "${diagnose_args[@]}" --backend "$backend" --json
     t1=$(date +%s.%N)
@@ -367,14 +408,17 @@ for backend in cpu gpu; do
     fi
     awk -v a="$t0" -v b="$t1" -v be="$backend" -v v="${verdict:-none}" -v s="$alike" \
         'BEGIN { printf "| %s | %.1f | %s | %s |\n", be, b - a, v, s }' >>"$md"
+    publish
 done
 
 {
     echo
+    if [ ${#skipped[@]} -gt 0 ]; then
+        echo "Skipped, the --deadline of $deadline s having passed: $(printf '%s; ' "${skipped[@]}" | sed 's/; $//')."
+        echo
+    fi
     echo "Whole script: $(($(date +%s) - started)) s."
 } >>"$md"
 
 cat "$md"
-if [ -n "$out" ]; then
-    cp "$md" "$out" || die "--out: cannot write '$out'"
-fi
+publish

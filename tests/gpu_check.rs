@@ -185,6 +185,47 @@ fn the_small_gpu_check_prints_every_row() {
     );
 }
 
+/// On a device lent for minutes, a run must end inside its lease and leave
+/// what it measured: past `--deadline` no section starts, the tables say
+/// which were skipped, and `--out` holds every table printed.
+#[test]
+fn past_its_deadline_the_check_starts_no_section_and_names_them() {
+    if common::require_any_adapter().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out_file = dir.path().join("check.md");
+    let out = Command::new("bash")
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/gpu-check.sh"))
+        .args(["--small", "--bin", BIN, "--deadline", "0", "--out"])
+        .arg(&out_file)
+        .output()
+        .expect("run bash");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(std::fs::read_to_string(&out_file).unwrap(), stdout);
+    assert!(
+        stdout.contains(
+            "Skipped, the --deadline of 0 s having passed: bench classic; bench generalized; \
+             bench classic+effects; fits at N = 200; sweep on cpu; sweep on gpu; diagnose on \
+             cpu; diagnose on gpu."
+        ),
+        "{stdout}"
+    );
+    // No section ran: no row of any table.
+    assert!(
+        !stdout.lines().any(|l| l.starts_with("| classic")
+            || l.starts_with("| 200 ")
+            || l.starts_with("| cpu ")
+            || l.starts_with("| gpu ")),
+        "{stdout}"
+    );
+}
+
 #[test]
 fn the_check_names_a_bad_flag() {
     let out = Command::new("bash")
@@ -205,6 +246,17 @@ fn the_check_names_a_bad_flag() {
         .expect("run bash");
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--bin"));
+    let out = Command::new("bash")
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/gpu-check.sh"))
+        .args(["--small", "--bin", BIN, "--deadline", "-5"])
+        .output()
+        .expect("run bash");
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("--deadline") && stderr.contains("'-5'"),
+        "{stderr}"
+    );
 }
 
 #[test]
