@@ -120,6 +120,7 @@ fn bits(v: &[f32]) -> Vec<u32> {
 
 #[test]
 fn cpu_batches_give_the_scalar_simulations_bits() {
+    let (mut seen_finite, mut seen_diverged) = (false, false);
     for model in models() {
         for (measure, up) in MEASURES
             .into_iter()
@@ -146,8 +147,35 @@ fn cpu_batches_give_the_scalar_simulations_bits() {
                 assert_eq!(bits(&scores.per_experiment[e]), bits(&want), "{what}");
                 assert!(want.iter().any(|v| v.is_finite()), "{what}: all diverged");
             }
+            // The residuals (a polish's probes), a short last batch among
+            // them: each row's every experiment in turn, or none where one
+            // diverged.
+            let residuals = CpuEvaluator::new()
+                .residuals(&problem, problem.rows(&pop))
+                .unwrap();
+            assert_eq!(residuals.len(), pop.len() / d);
+            for (i, (row, got)) in pop.chunks_exact(d).zip(&residuals).enumerate() {
+                let t: Vec<f32> = row.iter().map(|&v| v as f32).collect();
+                let want: Option<Vec<f32>> = problem
+                    .experiments
+                    .iter()
+                    .enumerate()
+                    .map(|(e, exp)| model.residuals(&t, e, &contexts[e], exp, measure))
+                    .collect::<Option<Vec<Vec<f32>>>>()
+                    .map(|r| r.concat());
+                assert_eq!(
+                    got.as_deref().map(bits),
+                    want.as_deref().map(bits),
+                    "{} + {:?}, {measure}, drives up {up}: residuals of row {i}",
+                    model.family,
+                    model.effects
+                );
+            }
+            seen_finite |= residuals.iter().any(Option::is_some);
+            seen_diverged |= residuals.iter().any(Option::is_none);
         }
     }
+    assert!(seen_finite && seen_diverged, "rows of both kinds");
 }
 
 #[test]

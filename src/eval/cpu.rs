@@ -137,20 +137,9 @@ impl Evaluator for CpuEvaluator {
         }
         let model = problem.model();
         Ok(rows
-            .par_chunks(d)
-            .map(|theta| {
-                let mut all = Vec::with_capacity(problem.samples());
-                for (i, e) in problem.experiments.iter().enumerate() {
-                    all.extend(model.residuals(
-                        theta,
-                        i,
-                        &problem.contexts[i],
-                        e,
-                        problem.measure,
-                    )?);
-                }
-                Some(all)
-            })
+            .par_chunks(LANES * d)
+            .with_min_len(batches_per_task(problem))
+            .flat_map_iter(|chunk| effects::batch_residuals(problem, &model, chunk))
             .collect())
     }
 }

@@ -13,12 +13,7 @@ use crate::model::effects::{ModelDescription, Prepared};
 /// `model`'s parameters; a short batch is padded with its first row, whose
 /// copies' scores the caller drops) on each experiment of `problem`.
 pub fn batch_sse(problem: &Problem, model: &ModelDescription, chunk: &[f32]) -> Vec<[f32; LANES]> {
-    let d = model.dim();
-    let used = chunk.len() / d;
-    let mut rows = chunk.to_vec();
-    for _ in used..LANES {
-        rows.extend_from_slice(&chunk[..d]);
-    }
+    let rows = padded(chunk, model.dim());
     let every = problem.measure.restart_every();
     problem
         .experiments
@@ -30,6 +25,50 @@ pub fn batch_sse(problem: &Problem, model: &ModelDescription, chunk: &[f32]) -> 
             lanes_sse(&lanes, &exp.u, &exp.y, every)
         })
         .collect()
+}
+
+/// The residuals `ŷ − y` of each row of one batch (`chunk`: up to
+/// [`LANES`] rows), every experiment of `problem` in turn from its second
+/// sample on, each row's bit for bit as [`ModelDescription::residuals`]
+/// gives them; `None` for a row that leaves the bounds on any experiment.
+/// A polish's probes go through here: one batch steps them side by side
+/// where the scalar reference would run them one after another.
+pub fn batch_residuals(
+    problem: &Problem,
+    model: &ModelDescription,
+    chunk: &[f32],
+) -> Vec<Option<Vec<f32>>> {
+    let used = chunk.len() / model.dim();
+    let rows = padded(chunk, model.dim());
+    let every = problem.measure.restart_every();
+    let mut residuals: Vec<Option<Vec<f32>>> = (0..used)
+        .map(|_| Some(Vec::with_capacity(problem.samples())))
+        .collect();
+    for (e, (exp, ctx)) in problem
+        .experiments
+        .iter()
+        .zip(&problem.contexts)
+        .enumerate()
+    {
+        let lanes: Prepared<LANES> = model.prepare(&rows, e, ctx);
+        let ok = lanes_residuals(&lanes, &exp.u, &exp.y, every, &mut residuals);
+        for (r, ok) in residuals.iter_mut().zip(ok) {
+            if !ok {
+                *r = None;
+            }
+        }
+    }
+    residuals
+}
+
+/// `chunk`'s rows of `d` parameters, padded to [`LANES`] rows with copies
+/// of its first.
+fn padded(chunk: &[f32], d: usize) -> Vec<f32> {
+    let mut rows = chunk.to_vec();
+    for _ in chunk.len() / d..LANES {
+        rows.extend_from_slice(&chunk[..d]);
+    }
+    rows
 }
 
 /// Compiled for the widest vector unit the CPU has (chosen at run time; the
@@ -66,23 +105,109 @@ fn lanes_sse_avx2(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f
 /// on the same schedule ([`block`]).
 #[inline(always)]
 fn lanes_sse_portable(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+    let mut acc = [0.0f32; LANES];
+    let ok = walk(p, u, y, every, |errors| {
+        for l in 0..LANES {
+            acc[l] += errors[l] * errors[l];
+        }
+    });
+    std::array::from_fn(|l| if ok[l] { acc[l] } else { f32::INFINITY })
+}
+
+/// As [`lanes_sse`], each lane's errors appended to its row of `residuals`
+/// (the padding's lanes, past its end, are dropped); whether each lane
+/// stayed in bounds.
+fn lanes_residuals(
+    p: &Prepared<LANES>,
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+    residuals: &mut [Option<Vec<f32>>],
+) -> [bool; LANES] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F.
+            return unsafe { lanes_residuals_avx512(p, u, y, every, residuals) };
+        }
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU has AVX2.
+            return unsafe { lanes_residuals_avx2(p, u, y, every, residuals) };
+        }
+    }
+    lanes_residuals_portable(p, u, y, every, residuals)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn lanes_residuals_avx512(
+    p: &Prepared<LANES>,
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+    residuals: &mut [Option<Vec<f32>>],
+) -> [bool; LANES] {
+    lanes_residuals_portable(p, u, y, every, residuals)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn lanes_residuals_avx2(
+    p: &Prepared<LANES>,
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+    residuals: &mut [Option<Vec<f32>>],
+) -> [bool; LANES] {
+    lanes_residuals_portable(p, u, y, every, residuals)
+}
+
+#[inline(always)]
+fn lanes_residuals_portable(
+    p: &Prepared<LANES>,
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+    residuals: &mut [Option<Vec<f32>>],
+) -> [bool; LANES] {
+    walk(p, u, y, every, |errors| {
+        for (r, &e) in residuals.iter_mut().zip(errors) {
+            if let Some(r) = r {
+                r.push(e);
+            }
+        }
+    })
+}
+
+/// Steps every lane through `u` from `y[0]` on [`block`]'s schedule (the
+/// output state restarts from the measurement after each block where
+/// `every` says so), handing `errors` each sample's `ŷ − y` of every lane;
+/// whether each lane stayed in bounds. Stops once no lane does.
+#[inline(always)]
+fn walk(
+    p: &Prepared<LANES>,
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+    mut errors: impl FnMut(&[f32; LANES]),
+) -> [bool; LANES] {
     assert_eq!(u.len(), y.len(), "input and output lengths differ");
+    let mut ok = [true; LANES];
     if u.is_empty() {
-        return [0.0; LANES];
+        return ok;
     }
     let mut s = p.start(y[0], u[0]);
-    let mut acc = [0.0f32; LANES];
-    let mut ok = [true; LANES];
     let mut start = 1;
     while start < u.len() {
         let (end, restarts) = block(start, u.len(), every);
         for (k, &yk) in y.iter().enumerate().take(end).skip(start) {
             let predicted = p.step(&mut s, k, u);
+            let mut e = [0.0f32; LANES];
             for l in 0..LANES {
                 ok[l] &= Prepared::in_bounds(&s, l, predicted[l]);
-                let e = predicted[l] - yk;
-                acc[l] += e * e;
+                e[l] = predicted[l] - yk;
             }
+            errors(&e);
         }
         if restarts {
             p.restart(&mut s, y[end - 1]);
@@ -92,5 +217,5 @@ fn lanes_sse_portable(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -
         }
         start = end;
     }
-    std::array::from_fn(|l| if ok[l] { acc[l] } else { f32::INFINITY })
+    ok
 }
