@@ -12,6 +12,7 @@ use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::model::file::ReadSettings;
 
 use crate::convert::{in_python_terms, sample_time, series};
+use crate::named;
 
 /// One recorded experiment on a uniform time base: the model's input and
 /// output columns and any other columns the file carried. `read_csv`
@@ -37,11 +38,11 @@ impl Trace {
     fn new(
         input: &Bound<'_, PyAny>,
         output: &Bound<'_, PyAny>,
-        dt: f64,
-        input_name: &str,
-        output_name: &str,
-        source: &str,
-        time_name: &str,
+        #[pyo3(from_py_with = named::dt)] dt: f64,
+        #[pyo3(from_py_with = named::input_name)] input_name: &str,
+        #[pyo3(from_py_with = named::output_name)] output_name: &str,
+        #[pyo3(from_py_with = named::source)] source: &str,
+        #[pyo3(from_py_with = named::time_name)] time_name: &str,
     ) -> PyResult<Trace> {
         column_names(time_name, input_name, output_name)?;
         let mut inner = arrays_trace(input, output, dt, source)?;
@@ -239,12 +240,12 @@ fn data_error(e: DataError) -> PyErr {
 #[pyo3(signature = (path, input = "pressure", output = "displacement", time = "t", resample = None, split_gaps = false))]
 pub fn read_csv<'py>(
     py: Python<'py>,
-    path: PathBuf,
-    input: &str,
-    output: &str,
-    time: &str,
-    resample: Option<f64>,
-    split_gaps: bool,
+    #[pyo3(from_py_with = named::csv_path)] path: PathBuf,
+    #[pyo3(from_py_with = named::input)] input: &str,
+    #[pyo3(from_py_with = named::output)] output: &str,
+    #[pyo3(from_py_with = named::time)] time: &str,
+    #[pyo3(from_py_with = named::resample)] resample: Option<f64>,
+    #[pyo3(from_py_with = named::split_gaps)] split_gaps: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let gaps = match (resample, split_gaps) {
         (Some(_), true) => {

@@ -11,11 +11,12 @@ use mckibben::model::ModelFile;
 use mckibben::model::file::ReadSettings;
 use mckibben::report::json::Versioned;
 
-use crate::args::{at_least, effects_arg, family_or_start, model_arg, seed_arg};
+use crate::args::{family_or_start, model_arg, real};
 use crate::convert::{backend, to_python, value_error};
 use crate::data::{Trace, arrays_trace, timed_only};
 use crate::interrupt::interruptible;
 use crate::model::{Model, provenance};
+use crate::named;
 
 /// The traces of `datasets` (a `Trace`, or a list whose items are each a
 /// `Trace` or a `(u, y, dt)` tuple), and how the first was read.
@@ -40,7 +41,7 @@ fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<(Vec<mckibben::data::Trace>, 
         } else if let Ok(tuple) = item.cast::<PyTuple>()
             && tuple.len() == 3
         {
-            let dt: f64 = tuple.get_item(2)?.extract()?;
+            let dt = real(&tuple.get_item(2)?, &format!("datasets[{i}][2]"))?;
             let trace = arrays_trace(
                 &tuple.get_item(0)?,
                 &tuple.get_item(1)?,
@@ -107,18 +108,18 @@ impl Diagnosis {
 pub fn diagnose<'py>(
     py: Python<'py>,
     datasets: &Bound<'py, PyAny>,
-    baseline: Option<&str>,
-    effects: Option<Vec<String>>,
-    seed: i128,
-    seeds: Option<i64>,
-    generations: Option<i64>,
-    scratch_seeds: Option<i64>,
-    backend: &str,
-    max_effects: Option<i64>,
+    #[pyo3(from_py_with = named::baseline)] baseline: Option<&str>,
+    #[pyo3(from_py_with = named::effects)] effects: Option<Vec<Effect>>,
+    #[pyo3(from_py_with = named::seed_arg)] seed: u64,
+    #[pyo3(from_py_with = named::seeds)] seeds: Option<usize>,
+    #[pyo3(from_py_with = named::generations)] generations: Option<usize>,
+    #[pyo3(from_py_with = named::scratch_seeds)] scratch_seeds: Option<usize>,
+    #[pyo3(from_py_with = named::backend)] backend: &str,
+    #[pyo3(from_py_with = named::max_effects)] max_effects: Option<usize>,
     start: Option<&Bound<'py, PyAny>>,
-    blocks: Option<i64>,
+    #[pyo3(from_py_with = named::blocks)] blocks: Option<usize>,
     transfer: Option<&Bound<'py, PyAny>>,
-    repeat: i64,
+    #[pyo3(from_py_with = named::repeat)] repeat: usize,
 ) -> PyResult<Diagnosis> {
     let (traces, read) = traces(datasets)?;
     let others = transfer
@@ -126,14 +127,10 @@ pub fn diagnose<'py>(
         .transpose()?
         .unwrap_or_default();
     let defaults = Settings::default();
-    let repeat = at_least(Some(repeat), 1, 1, "repeat")?;
-    let blocks = blocks
-        .map(|b| at_least(Some(b), 2, 2, "blocks"))
-        .transpose()?;
-    let seeds = at_least(seeds, defaults.seeds, 1, "seeds")?;
-    let generations = at_least(generations, defaults.generations, 1, "generations")?;
-    let scratch_seeds = at_least(scratch_seeds, defaults.scratch_seeds, 0, "scratch_seeds")?;
-    let max_effects = at_least(max_effects, defaults.max_effects, 0, "max_effects")?;
+    let seeds = seeds.unwrap_or(defaults.seeds);
+    let generations = generations.unwrap_or(defaults.generations);
+    let scratch_seeds = scratch_seeds.unwrap_or(defaults.scratch_seeds);
+    let max_effects = max_effects.unwrap_or(defaults.max_effects);
     let start = start
         .map(|s| model_arg(s, "start"))
         .transpose()?
@@ -141,7 +138,7 @@ pub fn diagnose<'py>(
         .transpose()
         .map_err(value_error)?;
     let family = family_or_start(baseline, start.as_ref())?;
-    let effects = match effects_arg(effects)? {
+    let effects = match effects {
         Some(e) if !e.is_empty() => e,
         _ => Effect::by_default(),
     };
@@ -150,7 +147,7 @@ pub fn diagnose<'py>(
         generations,
         scratch_seeds,
         max_effects,
-        seed: seed_arg(seed)?,
+        seed,
         backend: self::backend(backend)?,
         blocks,
         ..defaults

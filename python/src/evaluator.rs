@@ -19,10 +19,10 @@ use mckibben::optim::engine::Objective as _;
 use mckibben::optim::engine::Space;
 use mckibben::search::Rows;
 
-use crate::args::user_bounds;
 use crate::convert::{backend, family, loop_shape, rows, rows_view, runtime_error, value_error};
 use crate::data::data_arg;
 use crate::model::{Model, provenance};
+use crate::named;
 
 /// The batch evaluator as an objective: `ev(thetas)` scores an `(N, d)`
 /// array of candidates at once (on the CPU, or a GPU) and returns their N
@@ -170,18 +170,18 @@ impl Evaluator {
         py: Python<'_>,
         u: &Bound<'_, PyAny>,
         y: Option<&Bound<'_, PyAny>>,
-        dt: Option<f64>,
-        model: &str,
-        backend: &str,
-        bounds: Option<&Bound<'_, PyDict>>,
-        free_n: bool,
-        r#loop: &str,
-        checked: bool,
+        #[pyo3(from_py_with = named::dt_opt)] dt: Option<f64>,
+        #[pyo3(from_py_with = named::family)] model: &str,
+        #[pyo3(from_py_with = named::backend)] backend: &str,
+        #[pyo3(from_py_with = named::bounds)] bounds: Option<Vec<UserBound>>,
+        #[pyo3(from_py_with = named::free_n)] free_n: bool,
+        #[pyo3(from_py_with = named::loop_shape)] r#loop: &str,
+        #[pyo3(from_py_with = named::checked)] checked: bool,
     ) -> PyResult<Evaluator> {
         let (trace, read) = data_arg(u, y, dt)?;
         let family = family(model)?;
         let loop_shape = loop_shape(r#loop)?;
-        let bounds = user_bounds(bounds)?;
+        let bounds = bounds.unwrap_or_default();
         let backend = self::backend(backend)?;
         let problem = py
             .detach(|| {

@@ -11,6 +11,7 @@ use mckibben::model::file::{Provenance, ReadSettings};
 use mckibben::model::{FittedBaseline, ModelFile};
 
 use crate::convert::{file_error, series};
+use crate::named;
 
 /// A fitted hysteresis model, a baseline family and its effect chain, in
 /// the coordinates it was fitted in: what `mckibben fit` writes to
@@ -64,14 +65,21 @@ impl Model {
     /// Reads a model file written by `mckibben fit`, `diagnose --out` or
     /// `identify --out` (version 2, or the bare version 1).
     #[staticmethod]
-    fn load(py: Python<'_>, path: PathBuf) -> PyResult<Model> {
+    fn load(
+        py: Python<'_>,
+        #[pyo3(from_py_with = named::model_path)] path: PathBuf,
+    ) -> PyResult<Model> {
         py.detach(|| ModelFile::load(&path).and_then(Model::of_file))
             .map_err(file_error)
     }
 
     /// Writes the model file (`mckibben fit`'s `model.json`; the command
     /// line reads it back).
-    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+    fn save(
+        &self,
+        py: Python<'_>,
+        #[pyo3(from_py_with = named::model_path)] path: PathBuf,
+    ) -> PyResult<()> {
         py.detach(|| self.file.save(&path)).map_err(file_error)
     }
 
@@ -86,7 +94,7 @@ impl Model {
         &self,
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
-        x0: Option<f64>,
+        #[pyo3(from_py_with = named::x0)] x0: Option<f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let (input, x0) = match u.cast::<crate::data::Trace>() {
             Ok(trace) => {

@@ -85,3 +85,30 @@ def test_a_trace_takes_any_float_dtype_layout_or_list():
 def test_bad_arrays_raise_the_named_exception(u, y, dt, error, message):
     with pytest.raises(error, match=message):
         mckibben.Trace(u, y, dt)
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        # PyO3 names an argument it cannot convert only in a note on the
+        # exception: the message itself names it here.
+        (lambda: mckibben.Trace([1.0, 2.0], [1.0, 2.0], "0.1"), r"^dt must be a number \(an int or a float\), got str '0.1'"),
+        (lambda: mckibben.Trace([1.0, 2.0], [1.0, 2.0], 0.1, input_name=1), "^input_name must be a str, got int 1"),
+        (lambda: mckibben.Trace([1.0, 2.0], [1.0, 2.0], 0.1, source=None), "^source must be a str, got None"),
+        (lambda: mckibben.read_csv(STAIR, resample="0.01"), "^resample must be a number .*, got str '0.01'"),
+        (lambda: mckibben.read_csv(STAIR, split_gaps=1), "^split_gaps must be True or False, got int 1"),
+        (lambda: mckibben.read_csv(STAIR, time=None), "^time must be a str, got None"),
+        (lambda: mckibben.read_csv(3), r"^path must be a file's path \(a str, bytes or os.PathLike\), got int 3"),
+    ],
+)
+def test_a_value_of_the_wrong_type_names_its_argument(call, message):
+    with pytest.raises(TypeError, match=message):
+        call()
+
+
+def test_a_bool_is_not_a_number():
+    # Taken as 1, `dt=True` made a trace of 1 s steps.
+    with pytest.raises(TypeError, match="^dt must be a number .*, got bool True"):
+        mckibben.Trace([1.0, 2.0], [1.0, 2.0], True)
+    with pytest.raises(TypeError, match="^resample must be a number .*, got bool True"):
+        mckibben.read_csv(STAIR, resample=True)

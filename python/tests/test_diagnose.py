@@ -107,6 +107,34 @@ def test_diagnose_rejects_bad_arguments(stair):
     for name in ["seeds", "generations", "scratch_seeds", "max_effects", "repeat"]:
         with pytest.raises(ValueError, match=f"^{name} must be at least"):
             mckibben.diagnose(stair, **{name: -1})
+        # Past 2**63 (2**64 for a seed) it was a bare OverflowError.
+        with pytest.raises(ValueError, match=rf"^{name} must be less than 2\*\*63, got 1180591620717411303424"):
+            mckibben.diagnose(stair, **{name: 2**70})
+    with pytest.raises(ValueError, match=r"^seed must be an integer in \[0, 2\*\*64\), got -1361129467683753853853498429727072845824"):
+        mckibben.diagnose(stair, seed=-(2**130))
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        # PyO3 names an argument it cannot convert only in a note on the
+        # exception: the message itself names it here.
+        ({"seeds": 1.5}, "^seeds must be an integer, got float 1.5"),
+        ({"blocks": "4"}, "^blocks must be an integer, got str '4'"),
+        ({"baseline": 1}, "^baseline must be a str, got int 1"),
+        ({"effects": "delay"}, r"^effects must be a list of names \(str\), got str 'delay'"),
+        ({"backend": None}, "^backend must be a str, got None"),
+        # A bool is not a count.
+        ({"repeat": True}, "^repeat must be an integer, got bool True"),
+        ({"generations": False}, "^generations must be an integer, got bool False"),
+    ],
+)
+def test_a_value_of_the_wrong_type_names_its_argument(stair, kwargs, message):
+    with pytest.raises(TypeError, match=message):
+        mckibben.diagnose(stair, **kwargs)
+    # In a (u, y, dt) tuple, the sample time by its place.
+    with pytest.raises(TypeError, match=r"^datasets\[0\]\[2\] must be a number .*, got str '0.01'"):
+        mckibben.diagnose([(stair.input, stair.output, "0.01")])
 
 
 def test_diagnose_from_a_model_is_the_commands_diagnose_from(stair, cli, tmp_path):

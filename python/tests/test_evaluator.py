@@ -151,3 +151,10 @@ def test_bad_construction_raises(stair):
         mckibben.Evaluator(stair.input, stair.output[:10], 0.01)
     with pytest.raises(ValueError, match="no parameter `zeta`"):
         mckibben.Evaluator(stair, bounds={"zeta": 1.0})
+    # A wrong type names its argument (PyO3 names it only in a note).
+    with pytest.raises(TypeError, match="^checked must be True or False, got int 1"):
+        mckibben.Evaluator(stair, checked=1)
+    with pytest.raises(TypeError, match="^model must be a str, got None"):
+        mckibben.Evaluator(stair, model=None)
+    with pytest.raises(TypeError, match="^dt must be a number .*, got bool True"):
+        mckibben.Evaluator(stair.input, stair.output, True)

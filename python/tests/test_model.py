@@ -138,3 +138,14 @@ def test_a_model_fitted_in_python_on_resampled_data_resamples_for_the_command(st
     assert (read["time"], read["resample"], read["split_gaps"]) == ("t", 0.01, False)
     # `simulate --from` resamples the file as the model's data were.
     assert cli("simulate", "--from", path, "--input", data)["samples"] == len(trace)
+
+
+def test_a_value_of_the_wrong_type_names_its_argument(small_fit):
+    with pytest.raises(TypeError, match=r"^x0 must be a number \(an int or a float\), got str '1'"):
+        small_fit.model.simulate([0.1, 0.2], x0="1")
+    with pytest.raises(TypeError, match="^x0 must be a number .*, got bool True"):
+        small_fit.model.simulate([0.1, 0.2], x0=True)
+    with pytest.raises(TypeError, match="^path must be a file's path .*, got int 3"):
+        mckibben.Model.load(3)
+    with pytest.raises(TypeError, match="^path must be a file's path .*, got None"):
+        small_fit.model.save(None)
