@@ -45,7 +45,12 @@ impl Trace {
         #[pyo3(from_py_with = named::time_name)] time_name: &str,
     ) -> PyResult<Trace> {
         column_names(time_name, input_name, output_name)?;
-        let mut inner = arrays_trace(input, output, dt, source)?;
+        let names = ArrayNames {
+            input: "input",
+            output: "output",
+            dt: "dt",
+        };
+        let mut inner = arrays_trace(input, output, dt, source, &names)?;
         inner.input_name = input_name.to_string();
         inner.output_name = output_name.to_string();
         inner.time_name = time_name.to_string();
@@ -158,18 +163,37 @@ pub fn timed_only(time_name: &str) -> ReadSettings {
     }
 }
 
-/// A trace from two series and a sample time, every value checked.
+/// The names of a trace's input, output and sample time in messages: the
+/// arguments they were passed as.
+pub struct ArrayNames<'a> {
+    pub input: &'a str,
+    pub output: &'a str,
+    pub dt: &'a str,
+}
+
+/// `fit`'s and `Evaluator`'s `u`, `y` and `dt`.
+pub const UY: ArrayNames<'static> = ArrayNames {
+    input: "u",
+    output: "y",
+    dt: "dt",
+};
+
+/// A trace from two series and a sample time, every value checked, named
+/// in messages as `names` says.
 pub fn arrays_trace(
     input: &Bound<'_, PyAny>,
     output: &Bound<'_, PyAny>,
     dt: f64,
     source: &str,
+    names: &ArrayNames<'_>,
 ) -> PyResult<mckibben::data::Trace> {
-    let u = series(input, "u")?;
-    let y = series(output, "y")?;
+    let u = series(input, names.input)?;
+    let y = series(output, names.output)?;
     if u.len() != y.len() {
         return Err(PyValueError::new_err(format!(
-            "u and y differ in length: {} and {} samples",
+            "{} and {} differ in length: {} and {} samples",
+            names.input,
+            names.output,
             u.len(),
             y.len()
         )));
@@ -181,7 +205,7 @@ pub fn arrays_trace(
     }
     Ok(mckibben::data::Trace::uniform(
         source,
-        sample_time(dt)?,
+        sample_time(dt, names.dt)?,
         u,
         y,
     ))
@@ -206,7 +230,7 @@ pub fn data_arg(
     }
     match (y, dt) {
         (Some(y), Some(dt)) => {
-            let trace = arrays_trace(u, y, dt, "python")?;
+            let trace = arrays_trace(u, y, dt, "python", &UY)?;
             let read = timed_only(&trace.time_name);
             Ok((trace, read))
         }
@@ -253,11 +277,7 @@ pub fn read_csv<'py>(
                 "resample and split_gaps exclude each other: choose one",
             ));
         }
-        (Some(dt), false) => Gaps::Resample(sample_time(dt).map_err(|_| {
-            PyValueError::new_err(format!(
-                "resample must be a positive number of seconds, got {dt}"
-            ))
-        })?),
+        (Some(dt), false) => Gaps::Resample(sample_time(dt, "resample")?),
         (None, true) => Gaps::Split,
         (None, false) => Gaps::Reject,
     };

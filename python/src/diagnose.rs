@@ -13,7 +13,7 @@ use mckibben::report::json::Versioned;
 
 use crate::args::{family_or_start, model_arg, real};
 use crate::convert::{backend, to_python, value_error};
-use crate::data::{Trace, arrays_trace, timed_only};
+use crate::data::{ArrayNames, Trace, arrays_trace, timed_only};
 use crate::interrupt::interruptible;
 use crate::model::{Model, provenance};
 use crate::named;
@@ -41,12 +41,19 @@ fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<(Vec<mckibben::data::Trace>, 
         } else if let Ok(tuple) = item.cast::<PyTuple>()
             && tuple.len() == 3
         {
-            let dt = real(&tuple.get_item(2)?, &format!("datasets[{i}][2]"))?;
+            let at = |k: usize| format!("datasets[{i}][{k}]");
+            let names = ArrayNames {
+                input: &at(0),
+                output: &at(1),
+                dt: &at(2),
+            };
+            let dt = real(&tuple.get_item(2)?, names.dt)?;
             let trace = arrays_trace(
                 &tuple.get_item(0)?,
                 &tuple.get_item(1)?,
                 dt,
                 &format!("datasets[{i}]"),
+                &names,
             )?;
             first_read.get_or_insert_with(|| timed_only(&trace.time_name));
             out.push(trace);

@@ -72,9 +72,16 @@ def test_a_trace_takes_any_float_dtype_layout_or_list():
 @pytest.mark.parametrize(
     "u, y, dt, error, message",
     [
-        ([], [], 0.1, ValueError, "u is empty"),
-        ([1.0, np.nan], [1.0, 2.0], 0.1, ValueError, r"u\[1\] is NaN"),
-        ([1.0, 2.0], [1.0, 2.0, 3.0], 0.1, ValueError, "differ in length"),
+        # Named as Trace's arguments: input, output.
+        ([], [], 0.1, ValueError, "^input is empty"),
+        ([1.0, np.nan], [1.0, 2.0], 0.1, ValueError, r"^input\[1\] is NaN"),
+        ([1.0, 2.0], [1.0, np.inf], 0.1, ValueError, r"^output\[1\] is inf"),
+        ([1.0, 2.0], [1.0, 2.0, 3.0], 0.1, ValueError, "^input and output differ in length"),
+        # Text or None where an array goes is the wrong type, not a value.
+        ("ab", [1.0, 2.0], 0.1, TypeError, r"^input must be an array of numbers \(a NumPy array or a list\), got str 'ab'"),
+        ([1.0, 2.0], None, 0.1, TypeError, "^output must be an array of numbers .*, got None"),
+        (b"ab", [1.0, 2.0], 0.1, TypeError, "^input must be an array of numbers .*, got bytes b'ab'"),
+        ({"a": 1}, [1.0, 2.0], 0.1, TypeError, "^input must be an array of numbers .*, got dict"),
         ([[1.0, 2.0]], [1.0, 2.0], 0.1, ValueError, "one-dimensional"),
         ([1.0, 2.0], [1.0, 2.0], 0.0, ValueError, "dt must be a positive"),
         (["a", "b"], [1.0, 2.0], 0.1, TypeError, "expected real numbers"),

@@ -7,6 +7,7 @@ import threading
 import time
 import warnings
 
+import numpy as np
 import pytest
 
 import mckibben
@@ -101,6 +102,11 @@ def test_diagnose_rejects_bad_arguments(stair):
         mckibben.diagnose([])
     with pytest.raises(TypeError, match="datasets must be"):
         mckibben.diagnose(3)
+    # A tuple's arrays are named by their place.
+    with pytest.raises(TypeError, match=r"^datasets\[1\]\[0\] must be an array of numbers .*, got str 'u'"):
+        mckibben.diagnose([stair, ("u", stair.output, stair.dt)])
+    with pytest.raises(ValueError, match=r"^datasets\[0\]\[1\]\[2\] is NaN"):
+        mckibben.diagnose([(stair.input[:3], [1.0, 2.0, np.nan], stair.dt)])
     with pytest.raises(ValueError, match="seeds must be at least 1"):
         mckibben.diagnose(stair, seeds=0)
     # A negative count is a ValueError naming it, not an OverflowError.

@@ -135,6 +135,8 @@ def test_an_ask_tell_loop(ev):
         (np.zeros((2, 2, 7)), ValueError, r"got shape \(2, 2, 7\)"),
         (np.zeros((2, 7), dtype=complex), TypeError, "expected real numbers"),
         ([["a"] * 7], TypeError, "expected real numbers"),
+        ("thetas", TypeError, "^thetas must be an array of numbers .*, got str 'thetas'"),
+        (None, TypeError, "^thetas must be an array of numbers .*, got None"),
     ],
 )
 def test_bad_candidates_raise_the_named_exception(ev, thetas, error, message):

@@ -295,6 +295,11 @@ def test_bad_data_raise_value_errors(stair):
         mckibben.fit(stair, y, 0.01)
     with pytest.raises(ValueError, match="u is empty"):
         mckibben.fit([], [], 0.01)
+    # Text or None where an array goes is a TypeError naming the argument.
+    with pytest.raises(TypeError, match="^u must be an array of numbers .*, got str 'u.csv'"):
+        mckibben.fit("u.csv", y, 0.01)
+    with pytest.raises(TypeError, match="^y must be an array of numbers .*, got str 'y'"):
+        mckibben.fit(u, "y", 0.01)
 
 
 def test_a_fixed_parameter_stays_fixed(stair):

@@ -54,6 +54,11 @@ def test_simulate_takes_any_layout_and_starts_where_asked(small_fit, stair):
     # A number is not a series of one sample.
     with pytest.raises(ValueError, match="a single number"):
         model.simulate(0.3)
+    # Text or None is not an array: a TypeError naming the argument.
+    with pytest.raises(TypeError, match="^u must be an array of numbers .*, got str 'stair.csv'"):
+        model.simulate("stair.csv")
+    with pytest.raises(TypeError, match="^u must be an array of numbers .*, got None"):
+        model.simulate(None)
     with pytest.raises(ValueError, match="at least 2 samples"):
         mckibben.Trace([0.3], [1.0], 0.01)
 
