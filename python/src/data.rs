@@ -203,12 +203,18 @@ pub fn arrays_trace(
             "a trace needs at least 2 samples (one time step)",
         ));
     }
-    Ok(mckibben::data::Trace::uniform(
-        source,
-        sample_time(dt, names.dt)?,
-        u,
-        y,
-    ))
+    let dt = sample_time(dt, names.dt)?;
+    // The time base is `k·dt`: a step so large that the last sample's time
+    // overflows would give the trace an infinite time (and mean step).
+    let last = u.len() - 1;
+    if !(last as f64 * dt).is_finite() {
+        return Err(PyValueError::new_err(format!(
+            "{} = {dt:e} s puts the last sample ({last} steps in) at an infinite time: \
+             give the sample time in seconds",
+            names.dt
+        )));
+    }
+    Ok(mckibben::data::Trace::uniform(source, dt, u, y))
 }
 
 /// The experiment an API call is about, and how it was read: a `Trace`

@@ -84,6 +84,10 @@ def test_a_trace_takes_any_float_dtype_layout_or_list():
         ({"a": 1}, [1.0, 2.0], 0.1, TypeError, "^input must be an array of numbers .*, got dict"),
         ([[1.0, 2.0]], [1.0, 2.0], 0.1, ValueError, "one-dimensional"),
         ([1.0, 2.0], [1.0, 2.0], 0.0, ValueError, "dt must be a positive"),
+        # A step whose last time is infinite.
+        ([1.0, 2.0], [1.0, 2.0], float("inf"), ValueError, "^dt must be a positive number of seconds, got inf"),
+        ([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], 1e308, ValueError,
+         r"^dt = 1e308 s puts the last sample \(2 steps in\) at an infinite time"),
         (["a", "b"], [1.0, 2.0], 0.1, TypeError, "expected real numbers"),
         ([1j, 2j], [1.0, 2.0], 0.1, TypeError, "complex"),
         ([True, False], [1.0, 2.0], 0.1, TypeError, "bool"),

@@ -105,6 +105,8 @@ def test_diagnose_rejects_bad_arguments(stair):
     # A tuple's arrays are named by their place.
     with pytest.raises(TypeError, match=r"^datasets\[1\]\[0\] must be an array of numbers .*, got str 'u'"):
         mckibben.diagnose([stair, ("u", stair.output, stair.dt)])
+    with pytest.raises(ValueError, match=r"^datasets\[0\]\[2\] = 1e308 s puts the last sample"):
+        mckibben.diagnose([(stair.input, stair.output, 1e308)])
     with pytest.raises(ValueError, match=r"^datasets\[0\]\[1\]\[2\] is NaN"):
         mckibben.diagnose([(stair.input[:3], [1.0, 2.0, np.nan], stair.dt)])
     with pytest.raises(ValueError, match="seeds must be at least 1"):

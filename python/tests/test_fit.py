@@ -295,6 +295,9 @@ def test_bad_data_raise_value_errors(stair):
         mckibben.fit(stair, y, 0.01)
     with pytest.raises(ValueError, match="u is empty"):
         mckibben.fit([], [], 0.01)
+    # A sample time that puts the last sample at an infinite time.
+    with pytest.raises(ValueError, match=r"^dt = 1e307 s puts the last sample \(3999 steps in\) at an infinite time"):
+        mckibben.fit(u, y, 1e307)
     # Text or None where an array goes is a TypeError naming the argument.
     with pytest.raises(TypeError, match="^u must be an array of numbers .*, got str 'u.csv'"):
         mckibben.fit("u.csv", y, 0.01)
