@@ -1,5 +1,6 @@
 """read_csv and Trace: the library's reader, its errors as Python's."""
 
+import os
 import warnings
 
 import numpy as np
@@ -123,3 +124,14 @@ def test_a_bool_is_not_a_number():
         mckibben.Trace([1.0, 2.0], [1.0, 2.0], True)
     with pytest.raises(TypeError, match="^resample must be a number .*, got bool True"):
         mckibben.read_csv(STAIR, resample=True)
+
+
+def test_a_path_may_be_bytes_as_open_takes_it(tmp_path):
+    # read_csv's own message listed bytes, yet refused them.
+    trace = mckibben.read_csv(os.fsencode(STAIR))
+    assert len(trace) == 4000 and trace.source == str(STAIR)
+    # Decoded as os.fsdecode does: a name that is not UTF-8 reads too.
+    name = os.fsencode(tmp_path) + b"/caf\xe9.csv"
+    with open(name, "w") as f:
+        f.write("t,pressure,displacement\n0,0.1,1\n0.1,0.2,2\n")
+    assert len(mckibben.read_csv(name)) == 2

@@ -1,6 +1,7 @@
 """Model: the model file the command writes and reads, and simulation."""
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -154,3 +155,12 @@ def test_a_value_of_the_wrong_type_names_its_argument(small_fit):
         mckibben.Model.load(3)
     with pytest.raises(TypeError, match="^path must be a file's path .*, got None"):
         small_fit.model.save(None)
+
+
+def test_a_model_path_may_be_bytes(small_fit, stair, tmp_path):
+    # As open() takes it (Model.load refused bytes).
+    path = os.fsencode(tmp_path / "model.json")
+    small_fit.model.save(path)
+    assert mckibben.Model.load(path) == small_fit.model
+    warm = mckibben.fit(stair, pop=20, gens=2, start=path)
+    assert warm.start_sse is not None
