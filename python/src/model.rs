@@ -1,9 +1,10 @@
 //! A fitted model: the library's model file, read and written by one call
 //! each, and its free-run simulation.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use numpy::{PyArray1, ToPyArray};
+use pyo3::exceptions::PyIsADirectoryError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -60,6 +61,28 @@ pub fn provenance(
     }
 }
 
+/// Where `path` names a folder (one that exists, or a path that ends in a
+/// separator), an `IsADirectoryError` that says so: the library's write
+/// reports the OS's bare "Is a directory" or "Not a directory".
+fn folder_error(path: &Path) -> Option<PyErr> {
+    let text = path.to_string_lossy();
+    let example = path.join("model.json");
+    let why = if text.ends_with(std::path::is_separator) {
+        format!(
+            "{} ends in a separator, so it names a folder",
+            path.display()
+        )
+    } else if path.is_dir() {
+        format!("{} is a folder", path.display())
+    } else {
+        return None;
+    };
+    Some(PyIsADirectoryError::new_err(format!(
+        "{why}: give the model file's path (such as {})",
+        example.display()
+    )))
+}
+
 #[pymethods]
 impl Model {
     /// Reads a model file written by `mckibben fit`, `diagnose --out` or
@@ -80,6 +103,9 @@ impl Model {
         py: Python<'_>,
         #[pyo3(from_py_with = named::model_path)] path: PathBuf,
     ) -> PyResult<()> {
+        if let Some(e) = folder_error(&path) {
+            return Err(e);
+        }
         py.detach(|| self.file.save(&path)).map_err(file_error)
     }
 

@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 
 import numpy as np
 import pytest
@@ -21,6 +22,20 @@ def test_a_model_saves_and_loads_the_file_the_command_writes(small_fit, tmp_path
     assert model.family == "classic" and model.dt == pytest.approx(0.01)
     on_disk = json.loads(path.read_text())
     assert on_disk["family"] == "classic" and len(on_disk["params"]) == 9
+
+
+def test_saving_to_a_folder_says_so(small_fit, tmp_path):
+    # The OS said only "Is a directory" or "Not a directory".
+    folder = tmp_path / "models"
+    folder.mkdir()
+    expected = f"{folder} is a folder: give the model file's path (such as {folder}/model.json)"
+    with pytest.raises(IsADirectoryError, match="^" + re.escape(expected)):
+        small_fit.model.save(folder)
+    for path in (f"{folder}/", f"{tmp_path}/new/"):
+        expected = f"{path} ends in a separator, so it names a folder: give the model file's path (such as {path}model.json)"
+        with pytest.raises(IsADirectoryError, match="^" + re.escape(expected)):
+            small_fit.model.save(path)
+    assert list(folder.iterdir()) == [] and not (tmp_path / "new").exists()
 
 
 def test_load_errors(tmp_path):
