@@ -277,6 +277,16 @@ pub fn read_csv<'py>(
     #[pyo3(from_py_with = named::resample)] resample: Option<f64>,
     #[pyo3(from_py_with = named::split_gaps)] split_gaps: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
+    // The library's reader would read one column as two (`input="t"` gave
+    // time and input the same values).
+    let columns = [("time", time), ("input", input), ("output", output)];
+    for (i, (arg, name)) in columns.iter().enumerate() {
+        if let Some((other, _)) = columns[..i].iter().find(|(_, n)| n == name) {
+            return Err(PyValueError::new_err(format!(
+                "{other} and {arg} are both {name:?}: each must name a column of its own"
+            )));
+        }
+    }
     let gaps = match (resample, split_gaps) {
         (Some(_), true) => {
             return Err(PyValueError::new_err(

@@ -60,6 +60,21 @@ def test_file_errors_name_the_file_line_and_column(tmp_path):
         mckibben.read_csv(gap, resample=-1.0)
 
 
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"input": "t"}, 'time and input are both "t"'),
+        ({"output": "t"}, 'time and output are both "t"'),
+        ({"output": "pressure"}, 'input and output are both "pressure"'),
+        ({"time": "displacement"}, 'time and output are both "displacement"'),
+    ],
+)
+def test_two_arguments_naming_one_column_are_refused(kwargs, message):
+    # The reader read the one column twice: input="t" gave the time as input.
+    with pytest.raises(ValueError, match=f"^{message}: each must name a column of its own"):
+        mckibben.read_csv(STAIR, **kwargs)
+
+
 def test_a_trace_takes_any_float_dtype_layout_or_list():
     u = np.linspace(0, 1, 50)
     y = 2 * u
