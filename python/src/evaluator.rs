@@ -141,6 +141,24 @@ fn sses<'py>(py: Python<'py>, costs: Vec<f32>, single: bool) -> PyResult<Bound<'
     Ok(PyArray1::from_vec(py, costs).into_any())
 }
 
+/// Checks the rows (of `names.len()` values each) that the rows of `what`
+/// map to: a non-finite value is an error naming the row and the column,
+/// where the map would return it silently (`to_thetas` of a parameter of
+/// 1e308 gave `inf` or NaN).
+fn finite_rows(values: &[f64], names: &[String], what: &str, kind: &str) -> PyResult<()> {
+    let Some(i) = values.iter().position(|v| !v.is_finite()) else {
+        return Ok(());
+    };
+    let d = names.len().max(1);
+    let (row, column) = (i / d, i % d);
+    Err(PyValueError::new_err(format!(
+        "{what}[{row}] maps to a non-finite {kind}: {} (column {column}) is {}; \
+         a value of that row is too large in size for it",
+        names.get(column).map_or("?", String::as_str),
+        values[i]
+    )))
+}
+
 /// Rows of `d` values as a 1-D array (one vector) or an `(N, d)` array.
 fn matrix<'py>(
     py: Python<'py>,
@@ -285,6 +303,7 @@ impl Evaluator {
     ) -> PyResult<Bound<'py, PyAny>> {
         let (free, _, single) = rows(thetas, &self.names, "thetas")?;
         let canonical = py.detach(|| self.embed(&free));
+        finite_rows(&canonical, &self.canonical_names(), "thetas", "parameter")?;
         matrix(py, canonical, self.space.dim(), single)
     }
 
@@ -296,8 +315,12 @@ impl Evaluator {
         params: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (canonical, _, single) = rows(params, &self.canonical_names(), "params")?;
-        let thetas = self.space.project(Rows::new(&canonical, self.space.dim()));
-        matrix(py, thetas.into_flat(), self.names.len(), single)
+        let thetas = self
+            .space
+            .project(Rows::new(&canonical, self.space.dim()))
+            .into_flat();
+        finite_rows(&thetas, &self.names, "params", "search coordinate")?;
+        matrix(py, thetas, self.names.len(), single)
     }
 
     /// The SSE of canonical parameter vectors (`(N, P)`, or one of P), as

@@ -144,6 +144,23 @@ def test_bad_candidates_raise_the_named_exception(ev, thetas, error, message):
         ev(thetas)
 
 
+@pytest.mark.parametrize(
+    "column, value, message",
+    [
+        (2, 1e308, r"^params\[1\] maps to a non-finite search coordinate: loading \(column 1\) is inf"),
+        (4, 1e308, r"^params\[1\] maps to a non-finite search coordinate: loading \(column 1\) is NaN"),
+        (7, -1e308, r"^params\[1\] maps to a non-finite search coordinate: offset \(column 5\) is -inf"),
+    ],
+)
+def test_parameters_too_large_for_the_box_are_refused(ev, column, value, message):
+    # They mapped to inf or NaN coordinates, silently.
+    params = np.tile([1.0, 0.9, 0.001, -0.001, 1.0, 0.99, -0.0025, -1.3, 8.3], (2, 1))
+    assert np.all(np.isfinite(ev.to_thetas(params)))
+    params[1, column] = value
+    with pytest.raises(ValueError, match=message):
+        ev.to_thetas(params)
+
+
 def test_bad_construction_raises(stair):
     with pytest.raises(ValueError, match="unknown model family"):
         mckibben.Evaluator(stair, model="bouc")
