@@ -145,6 +145,27 @@ def test_a_value_of_the_wrong_type_names_its_argument(stair, kwargs, message):
         mckibben.diagnose([(stair.input, stair.output, "0.01")])
 
 
+def test_a_record_at_fault_is_named_by_its_place_in_the_list(stair):
+    args = dict(effects=["delay"], seeds=1, generations=2, scratch_seeds=0)
+    u, y = stair.input, stair.output
+    # The library names a record by its source, which Traces share.
+    short = mckibben.Trace(u[:30], y[:30], stair.dt)
+    with pytest.raises(ValueError, match=r"^datasets\[1\] \(python\): 30 samples are too few"):
+        mckibben.diagnose([stair, short], **args)
+    with pytest.raises(ValueError, match=r"^datasets\[2\] \(python\): the input `pressure` is constant"):
+        mckibben.diagnose([stair, mckibben.Trace(u, y, stair.dt), mckibben.Trace(np.ones(100), y[:100], stair.dt)], **args)
+    # A tuple's source is its place: named once, and a transfer's as such
+    # (it was "cannot fit datasets[1]: datasets[1]: ...").
+    with pytest.raises(ValueError, match=r"^datasets\[1\]: 30 samples are too few to split"):
+        mckibben.diagnose([stair, (u[:30], y[:30], stair.dt)], **args)
+    with pytest.raises(ValueError) as e:
+        mckibben.diagnose([stair, (u * 1e30, y, stair.dt)], **args)
+    assert str(e.value).startswith("column `pressure` of datasets[1] spans")
+    assert str(e.value).count("datasets[1]") == 1
+    with pytest.raises(ValueError, match=r"^transfer\[1\]: 30 samples are too few to split"):
+        mckibben.diagnose(stair, transfer=[stair, (u[:30], y[:30], stair.dt)], **args)
+
+
 def test_diagnose_from_a_model_is_the_commands_diagnose_from(stair, cli, tmp_path):
     args = dict(effects=["saturation:output", "delay"], seeds=1, generations=10,
                 scratch_seeds=0, max_effects=1)
