@@ -22,7 +22,7 @@ __all__ = [
 
 _ArrayLike = npt.ArrayLike
 _Bound = tuple[float, float] | float
-_Path = str | os.PathLike[str]
+_Path = str | bytes | os.PathLike[str] | os.PathLike[bytes]
 
 @final
 class Trace:

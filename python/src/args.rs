@@ -2,9 +2,11 @@
 //! library's types, with errors in Python's terms (`ValueError`,
 //! `TypeError`).
 
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use std::path::PathBuf;
+
+use pyo3::exceptions::{PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBool, PyBytes, PyDict, PyString};
 
 use mckibben::model::effects::Effect;
 use mckibben::model::{ModelFile, UserBound, UserBoundError};
@@ -12,72 +14,254 @@ use mckibben::model::{ModelFile, UserBound, UserBoundError};
 use crate::convert::{family, file_error, in_python_terms};
 use crate::model::Model;
 
-/// A count argument (`pop`, `gens`, ...): at least 1.
-pub fn count(value: Option<i64>, default: usize, what: &str) -> PyResult<usize> {
-    match value {
-        None => Ok(default),
-        Some(v) if v >= 1 => Ok(v as usize),
-        Some(v) => Err(PyValueError::new_err(format!(
-            "{what} must be at least 1, got {v}"
-        ))),
+/// A value as a message shows it: its type and repr (`str '0.1'`,
+/// `bool True`), a long repr cut short.
+pub fn given(obj: &Bound<'_, PyAny>) -> String {
+    if obj.is_none() {
+        return "None".into();
     }
+    let ty = obj
+        .get_type()
+        .name()
+        .map_or_else(|_| "object".into(), |n| n.to_string());
+    let repr = obj.repr().map_or_else(|_| "?".into(), |r| r.to_string());
+    let repr = match repr.char_indices().nth(60) {
+        Some((at, _)) => format!("{}...", &repr[..at]),
+        None => repr,
+    };
+    format!("{ty} {repr}")
 }
 
-/// An integer argument of at least `min` (`default` when `None`): a
-/// `ValueError` naming it otherwise, where a `usize` parameter would raise
-/// an `OverflowError` on a negative one.
-pub fn at_least(value: Option<i64>, default: usize, min: usize, what: &str) -> PyResult<usize> {
-    match value {
-        None => Ok(default),
-        Some(v) if v >= min as i64 => Ok(v as usize),
-        Some(v) => Err(PyValueError::new_err(format!(
-            "{what} must be at least {min}, got {v}"
-        ))),
+/// Whether `obj` is a boolean, Python's or NumPy's: both convert to
+/// numbers, and `True` taken as 1 is a mistake more often than not.
+fn is_bool(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
+    if obj.is_instance_of::<PyBool>() {
+        return Ok(true);
     }
+    let numpy_bool = obj.py().import("numpy")?.getattr("bool_")?;
+    obj.is_instance(&numpy_bool)
 }
 
-/// A seed: an integer in [0, 2⁶⁴).
-pub fn seed_arg(seed: i128) -> PyResult<u64> {
-    u64::try_from(seed).map_err(|_| {
-        PyValueError::new_err(format!("seed must be an integer in [0, 2**64), got {seed}"))
+/// A real-number argument: an int or a float (or a NumPy number), not a
+/// bool or text.
+pub fn real(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<f64> {
+    let wrong = || {
+        PyTypeError::new_err(format!(
+            "{what} must be a number (an int or a float), got {}",
+            given(obj)
+        ))
+    };
+    if is_bool(obj)? || obj.is_instance_of::<PyString>() || obj.is_instance_of::<PyBytes>() {
+        return Err(wrong());
+    }
+    obj.extract::<f64>().map_err(|e| {
+        if e.is_instance_of::<PyOverflowError>(obj.py()) {
+            PyValueError::new_err(format!(
+                "{what} must be a finite number, got an integer too large for a float"
+            ))
+        } else {
+            wrong()
+        }
     })
+}
+
+/// An integer's value where an `i128` holds it, else its sign and how a
+/// message shows it.
+enum Int {
+    Value(i128),
+    Huge { negative: bool, text: String },
+}
+
+/// An integer argument: a Python int or a NumPy integer (anything with
+/// `__index__`), not a bool or a float.
+fn integer(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Int> {
+    let py = obj.py();
+    let wrong = || PyTypeError::new_err(format!("{what} must be an integer, got {}", given(obj)));
+    if is_bool(obj)? {
+        return Err(wrong());
+    }
+    let index = py
+        .import("operator")?
+        .call_method1("index", (obj,))
+        .map_err(|e| {
+            if e.is_instance_of::<PyTypeError>(py) {
+                wrong()
+            } else {
+                e
+            }
+        })?;
+    if let Ok(v) = index.extract::<i128>() {
+        return Ok(Int::Value(v));
+    }
+    // Printed in full up to about 90 digits (Python refuses to print an
+    // int of more than 4300 digits at all).
+    let bits: u64 = index.call_method0("bit_length")?.extract()?;
+    let text = if bits <= 300 {
+        index.str()?.to_string()
+    } else {
+        format!("an integer of {bits} bits")
+    };
+    Ok(Int::Huge {
+        negative: index.lt(0)?,
+        text,
+    })
+}
+
+/// An integer argument of at least `min` and less than 2**63 (a count:
+/// `pop`, `gens`, `seeds`, ...): a `ValueError` naming it otherwise.
+pub fn at_least(obj: &Bound<'_, PyAny>, what: &str, min: usize) -> PyResult<usize> {
+    let below = |v: &str| PyValueError::new_err(format!("{what} must be at least {min}, got {v}"));
+    let above = |v: &str| PyValueError::new_err(format!("{what} must be less than 2**63, got {v}"));
+    match integer(obj, what)? {
+        Int::Value(v) if v < min as i128 => Err(below(&v.to_string())),
+        Int::Value(v) if v > i64::MAX as i128 => Err(above(&v.to_string())),
+        Int::Value(v) => usize::try_from(v).map_err(|_| above(&v.to_string())),
+        Int::Huge {
+            negative: true,
+            text,
+        } => Err(below(&text)),
+        Int::Huge { text, .. } => Err(above(&text)),
+    }
+}
+
+/// A seed: an integer in [0, 2**64).
+pub fn seed(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<u64> {
+    let outside = |v: &str| {
+        PyValueError::new_err(format!("{what} must be an integer in [0, 2**64), got {v}"))
+    };
+    match integer(obj, what)? {
+        Int::Value(v) => u64::try_from(v).map_err(|_| outside(&v.to_string())),
+        Int::Huge { text, .. } => Err(outside(&text)),
+    }
+}
+
+/// A flag: `True` or `False` (Python's or NumPy's), not a number.
+pub fn flag(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<bool> {
+    if !is_bool(obj)? {
+        return Err(PyTypeError::new_err(format!(
+            "{what} must be True or False, got {}",
+            given(obj)
+        )));
+    }
+    obj.is_truthy()
+}
+
+/// A text argument (a name, a column): a `str`.
+pub fn text<'a>(obj: &'a Bound<'_, PyAny>, what: &str) -> PyResult<&'a str> {
+    let s = obj
+        .cast::<PyString>()
+        .map_err(|_| PyTypeError::new_err(format!("{what} must be a str, got {}", given(obj))))?;
+    s.to_str()
+        .map_err(|e| PyValueError::new_err(format!("{what}: {e}")))
+}
+
+/// A list of names (`effects`): any iterable of `str`, but not one `str`
+/// (whose letters would each be a name).
+pub fn names(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<String>> {
+    let wrong = || {
+        PyTypeError::new_err(format!(
+            "{what} must be a list of names (str), got {}",
+            given(obj)
+        ))
+    };
+    if obj.is_instance_of::<PyString>() {
+        return Err(PyTypeError::new_err(format!(
+            "{what} must be a list of names (str), got str {}: a list of one is [{0}]",
+            obj.repr()?
+        )));
+    }
+    obj.try_iter()
+        .map_err(|_| wrong())?
+        .enumerate()
+        .map(|(i, item)| Ok(text(&item?, &format!("{what}[{i}]"))?.to_string()))
+        .collect()
+}
+
+/// A path, as Python's `open` takes one: a `str`, `bytes` (decoded with the
+/// file system's encoding, `os.fsdecode`) or an `os.PathLike`.
+pub fn path(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<PathBuf> {
+    let py = obj.py();
+    let os = py.import("os")?;
+    let fspath = os.call_method1("fspath", (obj,)).map_err(|e| {
+        if e.is_instance_of::<PyTypeError>(py) {
+            PyTypeError::new_err(format!(
+                "{what} must be a file's path (a str, bytes or os.PathLike), got {}",
+                given(obj)
+            ))
+        } else {
+            e
+        }
+    })?;
+    let fspath = if fspath.is_instance_of::<PyBytes>() {
+        os.call_method1("fsdecode", (fspath,))?
+    } else {
+        fspath
+    };
+    fspath.extract()
+}
+
+/// `conv` of `obj`, or `None` for Python's `None`.
+pub fn optional<'a, 'py, T>(
+    obj: &'a Bound<'py, PyAny>,
+    conv: impl FnOnce(&'a Bound<'py, PyAny>) -> PyResult<T>,
+) -> PyResult<Option<T>> {
+    if obj.is_none() {
+        return Ok(None);
+    }
+    conv(obj).map(Some)
 }
 
 /// `bounds` as the library's bounds: `{name: (lo, hi)}` bounds a parameter
 /// (a canonical name or a search coordinate's), `{name: value}` fixes it,
-/// checked by the parser `--bound NAME=LO:HI` goes through.
-pub fn user_bounds(bounds: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<UserBound>> {
-    let Some(bounds) = bounds else {
-        return Ok(Vec::new());
+/// checked by the parser `--bound NAME=LO:HI` goes through. Any mapping
+/// will do.
+pub fn user_bounds(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<UserBound>> {
+    let py = obj.py();
+    let bounds = match obj.cast::<PyDict>() {
+        Ok(d) => d.clone(),
+        Err(_) => {
+            let mapping = py.import("collections.abc")?.getattr("Mapping")?;
+            if !obj.is_instance(&mapping)? {
+                return Err(PyTypeError::new_err(format!(
+                    "{what} must be a dict, {{name: (lo, hi)}} or {{name: value}}, got {}",
+                    given(obj)
+                )));
+            }
+            PyDict::from_sequence(&obj.call_method0("items")?)?
+        }
     };
     let mut out = Vec::new();
     for (key, value) in bounds.iter() {
         let name: String = key.extract().map_err(|_| {
-            pyo3::exceptions::PyTypeError::new_err("bounds' keys must be parameter names (str)")
+            PyTypeError::new_err(format!("{what}' keys must be parameter names (str)"))
         })?;
-        // A bool extracts as a number: `True` would fix the parameter at 1.
-        let boolean = value.is_instance_of::<pyo3::types::PyBool>();
-        let pair = value
-            .extract::<Vec<f64>>()
-            .ok()
-            .filter(|p| p.len() == 2 && !boolean);
-        let (lo, hi) = if let (false, Ok(v)) = (boolean, value.extract::<f64>()) {
-            (v, v)
-        } else if let Some(pair) = pair {
-            (pair[0], pair[1])
-        } else {
-            return Err(pyo3::exceptions::PyTypeError::new_err(format!(
-                "bounds[{name:?}] must be a (lo, hi) pair (a tuple, list or array of two numbers) \
+        let wrong = || {
+            PyTypeError::new_err(format!(
+                "{what}[{name:?}] must be a (lo, hi) pair (a tuple, list or array of two numbers) \
                  or a number (to fix it), got {}",
-                value.repr()?
-            )));
+                given(&value)
+            ))
+        };
+        // A bool converts to a number: `True` would fix the parameter at 1.
+        let (lo, hi) = if is_bool(&value)? {
+            return Err(wrong());
+        } else if let (false, Ok(v)) = (value.is_instance_of::<PyString>(), value.extract::<f64>())
+        {
+            (v, v)
+        } else if let Ok(pair) = value.extract::<Vec<Bound<'_, PyAny>>>()
+            && pair.len() == 2
+        {
+            let end = |i: usize| real(&pair[i], &format!("{what}[{name:?}][{i}]"));
+            (end(0)?, end(1)?)
+        } else {
+            return Err(wrong());
         };
         // `{}` prints an f64 so that it parses back to the same bits.
         let bound: UserBound =
             format!("{name}={lo}:{hi}")
                 .parse()
                 .map_err(|e: UserBoundError| {
-                    PyValueError::new_err(in_python_terms(&format!("bounds: {e}")))
+                    PyValueError::new_err(in_python_terms(&format!("{what}: {e}")))
                 })?;
         out.push(bound);
     }
@@ -86,27 +270,23 @@ pub fn user_bounds(bounds: Option<&Bound<'_, PyDict>>) -> PyResult<Vec<UserBound
 
 /// Effect names checked against the catalogue (an unknown name is a
 /// `ValueError` listing the known ones).
-pub fn effects_arg(effects: Option<Vec<String>>) -> PyResult<Option<Vec<Effect>>> {
-    effects
-        .map(|names| {
-            names
-                .iter()
-                .map(|n| {
-                    n.parse::<Effect>()
-                        .map_err(|e| PyValueError::new_err(e.to_string()))
-                })
-                .collect()
+pub fn effects_arg(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Effect>> {
+    names(obj, what)?
+        .iter()
+        .map(|n| {
+            n.parse::<Effect>()
+                .map_err(|e| PyValueError::new_err(e.to_string()))
         })
-        .transpose()
+        .collect()
 }
 
 /// The family asked for, else the start model's, else classic (as the
 /// commands' `--model`/`--baseline` with `--from`).
 pub fn family_or_start(
-    given: Option<&str>,
+    asked: Option<&str>,
     start: Option<&mckibben::model::Model>,
 ) -> PyResult<mckibben::model::Family> {
-    Ok(match (given, start) {
+    Ok(match (asked, start) {
         (Some(name), _) => family(name)?,
         (None, Some(m)) => m.base.family,
         (None, None) => mckibben::model::Family::Classic,
@@ -118,10 +298,15 @@ pub fn model_arg(start: &Bound<'_, PyAny>, keyword: &str) -> PyResult<ModelFile>
     if let Ok(m) = start.cast::<Model>() {
         return Ok(m.get().file.clone());
     }
-    let path: std::path::PathBuf = start.extract().map_err(|_| {
-        PyTypeError::new_err(format!(
-            "{keyword} must be a Model or the path of a model file"
-        ))
+    let path = path(start, keyword).map_err(|e| {
+        if e.is_instance_of::<PyTypeError>(start.py()) {
+            PyTypeError::new_err(format!(
+                "{keyword} must be a Model or the path of a model file, got {}",
+                given(start)
+            ))
+        } else {
+            e
+        }
     })?;
     start
         .py()

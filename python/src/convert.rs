@@ -9,6 +9,8 @@ use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyTypeError, PyValueError
 use pyo3::prelude::*;
 use serde::Serialize;
 
+use crate::args::given;
+
 use mckibben::eval::Backend;
 use mckibben::model::{Family, Loop, Switching};
 use mckibben::names::UnknownName;
@@ -22,8 +24,9 @@ pub struct Floats {
 
 /// `obj` (a NumPy array of any real dtype and layout, a list, a scalar) as
 /// a C-contiguous `float64` array: `obj` itself when it is one, else a
-/// copy. Complex numbers, booleans, text and objects are a `TypeError`; a
-/// ragged list a `ValueError`. `what` names the argument in messages.
+/// copy. Complex numbers, booleans, text, `None` and objects are a
+/// `TypeError`; a ragged list or a single number a `ValueError`. `what`
+/// names the argument in messages.
 pub fn contiguous<'py>(
     obj: &Bound<'py, PyAny>,
     what: &str,
@@ -32,17 +35,26 @@ pub fn contiguous<'py>(
     let array = np
         .call_method1("asarray", (obj,))
         .map_err(|e| PyValueError::new_err(format!("{what}: not an array of numbers ({e})")))?;
+    let ndim: usize = array.getattr("ndim")?.extract()?;
+    let dtype = array.getattr("dtype")?;
+    let kind: String = dtype.getattr("kind")?.extract()?;
+    let real = matches!(kind.as_str(), "f" | "i" | "u");
+    // A str, `None` or another object NumPy makes a 0-d array of: not an
+    // array at all.
+    if ndim == 0 && !real {
+        return Err(PyTypeError::new_err(format!(
+            "{what} must be an array of numbers (a NumPy array or a list), got {}",
+            given(obj)
+        )));
+    }
     // `ascontiguousarray` makes a single number a one-sample array: a
     // scalar passed for a series would then run as one.
-    let ndim: usize = array.getattr("ndim")?.extract()?;
     if ndim == 0 {
         return Err(PyValueError::new_err(format!(
             "{what}: a single number, not an array of samples"
         )));
     }
-    let dtype = array.getattr("dtype")?;
-    let kind: String = dtype.getattr("kind")?.extract()?;
-    if !matches!(kind.as_str(), "f" | "i" | "u") {
+    if !real {
         let name: String = dtype.getattr("name")?.extract()?;
         return Err(PyTypeError::new_err(format!(
             "{what}: expected real numbers (a float or integer array or list), got dtype {name}"
@@ -151,13 +163,13 @@ pub fn shape_text(shape: &[usize]) -> String {
     }
 }
 
-/// A sample time: finite and positive.
-pub fn sample_time(dt: f64) -> PyResult<f64> {
+/// A sample time (`what` names it): finite and positive.
+pub fn sample_time(dt: f64, what: &str) -> PyResult<f64> {
     if dt.is_finite() && dt > 0.0 {
         Ok(dt)
     } else {
         Err(PyValueError::new_err(format!(
-            "dt must be a positive number of seconds, got {dt}"
+            "{what} must be a positive number of seconds, got {dt}"
         )))
     }
 }

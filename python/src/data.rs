@@ -12,6 +12,7 @@ use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::model::file::ReadSettings;
 
 use crate::convert::{in_python_terms, sample_time, series};
+use crate::named;
 
 /// One recorded experiment on a uniform time base: the model's input and
 /// output columns and any other columns the file carried. `read_csv`
@@ -37,14 +38,19 @@ impl Trace {
     fn new(
         input: &Bound<'_, PyAny>,
         output: &Bound<'_, PyAny>,
-        dt: f64,
-        input_name: &str,
-        output_name: &str,
-        source: &str,
-        time_name: &str,
+        #[pyo3(from_py_with = named::dt)] dt: f64,
+        #[pyo3(from_py_with = named::input_name)] input_name: &str,
+        #[pyo3(from_py_with = named::output_name)] output_name: &str,
+        #[pyo3(from_py_with = named::source)] source: &str,
+        #[pyo3(from_py_with = named::time_name)] time_name: &str,
     ) -> PyResult<Trace> {
         column_names(time_name, input_name, output_name)?;
-        let mut inner = arrays_trace(input, output, dt, source)?;
+        let names = ArrayNames {
+            input: "input",
+            output: "output",
+            dt: "dt",
+        };
+        let mut inner = arrays_trace(input, output, dt, source, &names)?;
         inner.input_name = input_name.to_string();
         inner.output_name = output_name.to_string();
         inner.time_name = time_name.to_string();
@@ -157,18 +163,37 @@ pub fn timed_only(time_name: &str) -> ReadSettings {
     }
 }
 
-/// A trace from two series and a sample time, every value checked.
+/// The names of a trace's input, output and sample time in messages: the
+/// arguments they were passed as.
+pub struct ArrayNames<'a> {
+    pub input: &'a str,
+    pub output: &'a str,
+    pub dt: &'a str,
+}
+
+/// `fit`'s and `Evaluator`'s `u`, `y` and `dt`.
+pub const UY: ArrayNames<'static> = ArrayNames {
+    input: "u",
+    output: "y",
+    dt: "dt",
+};
+
+/// A trace from two series and a sample time, every value checked, named
+/// in messages as `names` says.
 pub fn arrays_trace(
     input: &Bound<'_, PyAny>,
     output: &Bound<'_, PyAny>,
     dt: f64,
     source: &str,
+    names: &ArrayNames<'_>,
 ) -> PyResult<mckibben::data::Trace> {
-    let u = series(input, "u")?;
-    let y = series(output, "y")?;
+    let u = series(input, names.input)?;
+    let y = series(output, names.output)?;
     if u.len() != y.len() {
         return Err(PyValueError::new_err(format!(
-            "u and y differ in length: {} and {} samples",
+            "{} and {} differ in length: {} and {} samples",
+            names.input,
+            names.output,
             u.len(),
             y.len()
         )));
@@ -178,12 +203,18 @@ pub fn arrays_trace(
             "a trace needs at least 2 samples (one time step)",
         ));
     }
-    Ok(mckibben::data::Trace::uniform(
-        source,
-        sample_time(dt)?,
-        u,
-        y,
-    ))
+    let dt = sample_time(dt, names.dt)?;
+    // The time base is `k·dt`: a step so large that the last sample's time
+    // overflows would give the trace an infinite time (and mean step).
+    let last = u.len() - 1;
+    if !(last as f64 * dt).is_finite() {
+        return Err(PyValueError::new_err(format!(
+            "{} = {dt:e} s puts the last sample ({last} steps in) at an infinite time: \
+             give the sample time in seconds",
+            names.dt
+        )));
+    }
+    Ok(mckibben::data::Trace::uniform(source, dt, u, y))
 }
 
 /// The experiment an API call is about, and how it was read: a `Trace`
@@ -205,7 +236,7 @@ pub fn data_arg(
     }
     match (y, dt) {
         (Some(y), Some(dt)) => {
-            let trace = arrays_trace(u, y, dt, "python")?;
+            let trace = arrays_trace(u, y, dt, "python", &UY)?;
             let read = timed_only(&trace.time_name);
             Ok((trace, read))
         }
@@ -239,24 +270,30 @@ fn data_error(e: DataError) -> PyErr {
 #[pyo3(signature = (path, input = "pressure", output = "displacement", time = "t", resample = None, split_gaps = false))]
 pub fn read_csv<'py>(
     py: Python<'py>,
-    path: PathBuf,
-    input: &str,
-    output: &str,
-    time: &str,
-    resample: Option<f64>,
-    split_gaps: bool,
+    #[pyo3(from_py_with = named::csv_path)] path: PathBuf,
+    #[pyo3(from_py_with = named::input)] input: &str,
+    #[pyo3(from_py_with = named::output)] output: &str,
+    #[pyo3(from_py_with = named::time)] time: &str,
+    #[pyo3(from_py_with = named::resample)] resample: Option<f64>,
+    #[pyo3(from_py_with = named::split_gaps)] split_gaps: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
+    // The library's reader would read one column as two (`input="t"` gave
+    // time and input the same values).
+    let columns = [("time", time), ("input", input), ("output", output)];
+    for (i, (arg, name)) in columns.iter().enumerate() {
+        if let Some((other, _)) = columns[..i].iter().find(|(_, n)| n == name) {
+            return Err(PyValueError::new_err(format!(
+                "{other} and {arg} are both {name:?}: each must name a column of its own"
+            )));
+        }
+    }
     let gaps = match (resample, split_gaps) {
         (Some(_), true) => {
             return Err(PyValueError::new_err(
                 "resample and split_gaps exclude each other: choose one",
             ));
         }
-        (Some(dt), false) => Gaps::Resample(sample_time(dt).map_err(|_| {
-            PyValueError::new_err(format!(
-                "resample must be a positive number of seconds, got {dt}"
-            ))
-        })?),
+        (Some(dt), false) => Gaps::Resample(sample_time(dt, "resample")?),
         (None, true) => Gaps::Split,
         (None, false) => Gaps::Reject,
     };

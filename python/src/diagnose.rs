@@ -11,24 +11,40 @@ use mckibben::model::ModelFile;
 use mckibben::model::file::ReadSettings;
 use mckibben::report::json::Versioned;
 
-use crate::args::{at_least, effects_arg, family_or_start, model_arg, seed_arg};
-use crate::convert::{backend, to_python, value_error};
-use crate::data::{Trace, arrays_trace, timed_only};
+use crate::args::{family_or_start, model_arg, real};
+use crate::convert::{backend, in_python_terms, to_python, value_error};
+use crate::data::{ArrayNames, Trace, arrays_trace, timed_only};
 use crate::interrupt::interruptible;
 use crate::model::{Model, provenance};
+use crate::named;
+
+/// The records of a diagnosis' argument (`datasets`, `transfer`): the
+/// traces, how the first was read, and each one's place in the list
+/// (`datasets[1]`; none for a lone `Trace`).
+struct Records {
+    traces: Vec<mckibben::data::Trace>,
+    read: ReadSettings,
+    places: Vec<String>,
+}
 
 /// The traces of `datasets` (a `Trace`, or a list whose items are each a
-/// `Trace` or a `(u, y, dt)` tuple), and how the first was read.
-fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<(Vec<mckibben::data::Trace>, ReadSettings)> {
+/// `Trace` or a `(u, y, dt)` tuple), `what` naming the argument; a tuple's
+/// source is its place (`transfer[0]`).
+fn traces(datasets: &Bound<'_, PyAny>, what: &str) -> PyResult<Records> {
     if let Ok(t) = datasets.cast::<Trace>() {
         let t = t.get();
-        return Ok((vec![t.inner.clone()], t.read.clone()));
+        return Ok(Records {
+            traces: vec![t.inner.clone()],
+            read: t.read.clone(),
+            places: Vec::new(),
+        });
     }
     let wrong = || {
-        PyTypeError::new_err(
-            "datasets must be a Trace or a list of them (read_csv), or of (u, y, dt) tuples",
-        )
+        PyTypeError::new_err(format!(
+            "{what} must be a Trace or a list of them (read_csv), or of (u, y, dt) tuples"
+        ))
     };
+    let mut places = Vec::new();
     let mut out = Vec::new();
     let mut first_read = None;
     for (i, item) in datasets.try_iter().map_err(|_| wrong())?.enumerate() {
@@ -40,25 +56,64 @@ fn traces(datasets: &Bound<'_, PyAny>) -> PyResult<(Vec<mckibben::data::Trace>, 
         } else if let Ok(tuple) = item.cast::<PyTuple>()
             && tuple.len() == 3
         {
-            let dt: f64 = tuple.get_item(2)?.extract()?;
+            let at = |k: usize| format!("{what}[{i}][{k}]");
+            let names = ArrayNames {
+                input: &at(0),
+                output: &at(1),
+                dt: &at(2),
+            };
+            let dt = real(&tuple.get_item(2)?, names.dt)?;
             let trace = arrays_trace(
                 &tuple.get_item(0)?,
                 &tuple.get_item(1)?,
                 dt,
-                &format!("datasets[{i}]"),
+                &format!("{what}[{i}]"),
+                &names,
             )?;
             first_read.get_or_insert_with(|| timed_only(&trace.time_name));
             out.push(trace);
         } else {
             return Err(wrong());
         }
+        places.push(format!("{what}[{i}]"));
     }
     match first_read {
-        Some(read) => Ok((out, read)),
-        None => Err(PyValueError::new_err(
-            "datasets is empty: give at least one experiment",
-        )),
+        Some(read) => Ok(Records {
+            traces: out,
+            read,
+            places,
+        }),
+        None => Err(PyValueError::new_err(format!(
+            "{what} is empty: give at least one experiment"
+        ))),
     }
+}
+
+/// A library error about the records, with the record at fault named by
+/// its place in its list as well as by its source: the library names it by
+/// its source alone, which several traces may share (`python`, the same
+/// file). The record is the first whose own checks
+/// ([`mckibben::fit::records::Records::of`]) fail with the same cause.
+fn located(e: anyhow::Error, lists: &[&Records]) -> PyErr {
+    let cause = e.root_cause().to_string();
+    for records in lists {
+        for (t, place) in records.traces.iter().zip(&records.places) {
+            let alone = mckibben::fit::records::Records::of(std::slice::from_ref(t), None);
+            if !alone.is_err_and(|a| a.root_cause().to_string() == cause) {
+                continue;
+            }
+            // A tuple's source is its place: named once.
+            let message = if &t.source == place && cause.contains(place.as_str()) {
+                cause
+            } else if let Some(rest) = cause.strip_prefix(&format!("{}: ", t.source)) {
+                format!("{place} ({}): {rest}", t.source)
+            } else {
+                format!("{place}: {cause}")
+            };
+            return PyValueError::new_err(in_python_terms(&message));
+        }
+    }
+    value_error(e)
 }
 
 /// What `mckibben.diagnose` returns: the document `mckibben diagnose
@@ -107,33 +162,28 @@ impl Diagnosis {
 pub fn diagnose<'py>(
     py: Python<'py>,
     datasets: &Bound<'py, PyAny>,
-    baseline: Option<&str>,
-    effects: Option<Vec<String>>,
-    seed: i128,
-    seeds: Option<i64>,
-    generations: Option<i64>,
-    scratch_seeds: Option<i64>,
-    backend: &str,
-    max_effects: Option<i64>,
+    #[pyo3(from_py_with = named::baseline)] baseline: Option<&str>,
+    #[pyo3(from_py_with = named::effects)] effects: Option<Vec<Effect>>,
+    #[pyo3(from_py_with = named::seed_arg)] seed: u64,
+    #[pyo3(from_py_with = named::seeds)] seeds: Option<usize>,
+    #[pyo3(from_py_with = named::generations)] generations: Option<usize>,
+    #[pyo3(from_py_with = named::scratch_seeds)] scratch_seeds: Option<usize>,
+    #[pyo3(from_py_with = named::backend)] backend: &str,
+    #[pyo3(from_py_with = named::max_effects)] max_effects: Option<usize>,
     start: Option<&Bound<'py, PyAny>>,
-    blocks: Option<i64>,
+    #[pyo3(from_py_with = named::blocks)] blocks: Option<usize>,
     transfer: Option<&Bound<'py, PyAny>>,
-    repeat: i64,
+    #[pyo3(from_py_with = named::repeat)] repeat: usize,
 ) -> PyResult<Diagnosis> {
-    let (traces, read) = traces(datasets)?;
-    let others = transfer
-        .map(|t| self::traces(t).map(|(others, _)| others))
-        .transpose()?
-        .unwrap_or_default();
+    let records = traces(datasets, "datasets")?;
+    let transfers = transfer.map(|t| self::traces(t, "transfer")).transpose()?;
+    let (traces, read) = (&records.traces, &records.read);
+    let others = transfers.as_ref().map_or(&[][..], |r| &r.traces[..]);
     let defaults = Settings::default();
-    let repeat = at_least(Some(repeat), 1, 1, "repeat")?;
-    let blocks = blocks
-        .map(|b| at_least(Some(b), 2, 2, "blocks"))
-        .transpose()?;
-    let seeds = at_least(seeds, defaults.seeds, 1, "seeds")?;
-    let generations = at_least(generations, defaults.generations, 1, "generations")?;
-    let scratch_seeds = at_least(scratch_seeds, defaults.scratch_seeds, 0, "scratch_seeds")?;
-    let max_effects = at_least(max_effects, defaults.max_effects, 0, "max_effects")?;
+    let seeds = seeds.unwrap_or(defaults.seeds);
+    let generations = generations.unwrap_or(defaults.generations);
+    let scratch_seeds = scratch_seeds.unwrap_or(defaults.scratch_seeds);
+    let max_effects = max_effects.unwrap_or(defaults.max_effects);
     let start = start
         .map(|s| model_arg(s, "start"))
         .transpose()?
@@ -141,7 +191,7 @@ pub fn diagnose<'py>(
         .transpose()
         .map_err(value_error)?;
     let family = family_or_start(baseline, start.as_ref())?;
-    let effects = match effects_arg(effects)? {
+    let effects = match effects {
         Some(e) if !e.is_empty() => e,
         _ => Effect::by_default(),
     };
@@ -150,25 +200,20 @@ pub fn diagnose<'py>(
         generations,
         scratch_seeds,
         max_effects,
-        seed: seed_arg(seed)?,
+        seed,
         backend: self::backend(backend)?,
         blocks,
         ..defaults
     };
     let d = interruptible(py, &settings.stop, || {
-        let mut d = mckibben::diagnose::diagnose_from(
-            &traces,
-            family,
-            &effects,
-            &settings,
-            start.as_ref(),
-        )?;
+        let mut d =
+            mckibben::diagnose::diagnose_from(traces, family, &effects, &settings, start.as_ref())?;
         if !others.is_empty() {
-            d.transfers = mckibben::diagnose::transfer::transfer(&d, &others, &settings)?;
+            d.transfers = mckibben::diagnose::transfer::transfer(&d, others, &settings)?;
         }
         d.repeats = mckibben::diagnose::seeds::repeat(
             &d,
-            &traces,
+            traces,
             &effects,
             &settings,
             start.as_ref(),
@@ -177,7 +222,12 @@ pub fn diagnose<'py>(
         )?;
         Ok(d)
     })?
-    .map_err(value_error)?;
+    .map_err(|e| {
+        located(
+            e,
+            &[&records].into_iter().chain(&transfers).collect::<Vec<_>>(),
+        )
+    })?;
     // The report's CAUTION, where a Python user sees it.
     if let Some(caution) = baseline_caution(&d) {
         let warn = py.import("warnings")?;
@@ -193,7 +243,7 @@ pub fn diagnose<'py>(
         let file = ModelFile::new(
             m,
             None,
-            provenance("mckibben.diagnose", &sources, &read, Some(settings.seed)),
+            provenance("mckibben.diagnose", &sources, read, Some(settings.seed)),
         );
         Py::new(py, Model::of_file(file).map_err(value_error)?)
     };

@@ -19,10 +19,10 @@ use mckibben::optim::engine::Objective as _;
 use mckibben::optim::engine::Space;
 use mckibben::search::Rows;
 
-use crate::args::user_bounds;
 use crate::convert::{backend, family, loop_shape, rows, rows_view, runtime_error, value_error};
 use crate::data::data_arg;
 use crate::model::{Model, provenance};
+use crate::named;
 
 /// The batch evaluator as an objective: `ev(thetas)` scores an `(N, d)`
 /// array of candidates at once (on the CPU, or a GPU) and returns their N
@@ -141,6 +141,24 @@ fn sses<'py>(py: Python<'py>, costs: Vec<f32>, single: bool) -> PyResult<Bound<'
     Ok(PyArray1::from_vec(py, costs).into_any())
 }
 
+/// Checks the rows (of `names.len()` values each) that the rows of `what`
+/// map to: a non-finite value is an error naming the row and the column,
+/// where the map would return it silently (`to_thetas` of a parameter of
+/// 1e308 gave `inf` or NaN).
+fn finite_rows(values: &[f64], names: &[String], what: &str, kind: &str) -> PyResult<()> {
+    let Some(i) = values.iter().position(|v| !v.is_finite()) else {
+        return Ok(());
+    };
+    let d = names.len().max(1);
+    let (row, column) = (i / d, i % d);
+    Err(PyValueError::new_err(format!(
+        "{what}[{row}] maps to a non-finite {kind}: {} (column {column}) is {}; \
+         a value of that row is too large in size for it",
+        names.get(column).map_or("?", String::as_str),
+        values[i]
+    )))
+}
+
 /// Rows of `d` values as a 1-D array (one vector) or an `(N, d)` array.
 fn matrix<'py>(
     py: Python<'py>,
@@ -170,18 +188,18 @@ impl Evaluator {
         py: Python<'_>,
         u: &Bound<'_, PyAny>,
         y: Option<&Bound<'_, PyAny>>,
-        dt: Option<f64>,
-        model: &str,
-        backend: &str,
-        bounds: Option<&Bound<'_, PyDict>>,
-        free_n: bool,
-        r#loop: &str,
-        checked: bool,
+        #[pyo3(from_py_with = named::dt_opt)] dt: Option<f64>,
+        #[pyo3(from_py_with = named::family)] model: &str,
+        #[pyo3(from_py_with = named::backend)] backend: &str,
+        #[pyo3(from_py_with = named::bounds)] bounds: Option<Vec<UserBound>>,
+        #[pyo3(from_py_with = named::free_n)] free_n: bool,
+        #[pyo3(from_py_with = named::loop_shape)] r#loop: &str,
+        #[pyo3(from_py_with = named::checked)] checked: bool,
     ) -> PyResult<Evaluator> {
         let (trace, read) = data_arg(u, y, dt)?;
         let family = family(model)?;
         let loop_shape = loop_shape(r#loop)?;
-        let bounds = user_bounds(bounds)?;
+        let bounds = bounds.unwrap_or_default();
         let backend = self::backend(backend)?;
         let problem = py
             .detach(|| {
@@ -285,6 +303,7 @@ impl Evaluator {
     ) -> PyResult<Bound<'py, PyAny>> {
         let (free, _, single) = rows(thetas, &self.names, "thetas")?;
         let canonical = py.detach(|| self.embed(&free));
+        finite_rows(&canonical, &self.canonical_names(), "thetas", "parameter")?;
         matrix(py, canonical, self.space.dim(), single)
     }
 
@@ -296,8 +315,12 @@ impl Evaluator {
         params: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (canonical, _, single) = rows(params, &self.canonical_names(), "params")?;
-        let thetas = self.space.project(Rows::new(&canonical, self.space.dim()));
-        matrix(py, thetas.into_flat(), self.names.len(), single)
+        let thetas = self
+            .space
+            .project(Rows::new(&canonical, self.space.dim()))
+            .into_flat();
+        finite_rows(&thetas, &self.names, "params", "search coordinate")?;
+        matrix(py, thetas, self.names.len(), single)
     }
 
     /// The SSE of canonical parameter vectors (`(N, P)`, or one of P), as

@@ -18,11 +18,13 @@ use mckibben::fit::request::{FitRequest, Resolved, switching_boxed, switching_mi
 use mckibben::fit::run::{FitRun, FitTarget};
 use mckibben::fit::searches::StopFlag;
 use mckibben::fit::settings::{FitSettings, Overrides};
+use mckibben::model::UserBound;
+use mckibben::model::effects::Effect;
 use mckibben::model::file::ReadSettings;
 use mckibben::optim::engine::{Observer, Outcome, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 
-use crate::args::{at_least, count, effects_arg, model_arg, seed_arg, user_bounds};
+use crate::args::model_arg;
 use crate::convert::{
     algorithm, backend, family, in_python_terms, loop_shape, runtime_error, switching, to_python,
     value_error,
@@ -31,6 +33,7 @@ use crate::data::data_arg;
 use crate::history::history_arrays;
 use crate::interrupt::interruptible;
 use crate::model::{Model, provenance};
+use crate::named;
 
 /// What `mckibben.fit` returns: the fields of `mckibben fit --json` as
 /// Python values, the model, and the history as arrays.
@@ -196,26 +199,26 @@ pub fn fit(
     py: Python<'_>,
     u: &Bound<'_, PyAny>,
     y: Option<&Bound<'_, PyAny>>,
-    dt: Option<f64>,
-    model: Option<&str>,
-    effects: Option<Vec<String>>,
-    algo: &str,
-    pop: Option<i64>,
-    gens: Option<i64>,
-    seed: i128,
-    backend: &str,
-    bounds: Option<&Bound<'_, PyDict>>,
+    #[pyo3(from_py_with = named::dt_opt)] dt: Option<f64>,
+    #[pyo3(from_py_with = named::family_opt)] model: Option<&str>,
+    #[pyo3(from_py_with = named::effects)] effects: Option<Vec<Effect>>,
+    #[pyo3(from_py_with = named::algo)] algo: &str,
+    #[pyo3(from_py_with = named::pop)] pop: Option<usize>,
+    #[pyo3(from_py_with = named::gens)] gens: Option<usize>,
+    #[pyo3(from_py_with = named::seed_arg)] seed: u64,
+    #[pyo3(from_py_with = named::backend)] backend: &str,
+    #[pyo3(from_py_with = named::bounds)] bounds: Option<Vec<UserBound>>,
     progress: Option<Py<PyAny>>,
-    free_n: bool,
-    r#loop: &str,
-    switch: Option<&str>,
-    thesis_flow: bool,
-    target_sse: Option<f64>,
-    time_budget: Option<f64>,
-    stall: Option<i64>,
+    #[pyo3(from_py_with = named::free_n)] free_n: bool,
+    #[pyo3(from_py_with = named::loop_shape)] r#loop: &str,
+    #[pyo3(from_py_with = named::switch)] switch: Option<&str>,
+    #[pyo3(from_py_with = named::thesis_flow)] thesis_flow: bool,
+    #[pyo3(from_py_with = named::target_sse)] target_sse: Option<f64>,
+    #[pyo3(from_py_with = named::time_budget)] time_budget: Option<f64>,
+    #[pyo3(from_py_with = named::stall)] stall: Option<usize>,
     start: Option<&Bound<'_, PyAny>>,
     carry: Option<&Bound<'_, PyAny>>,
-    refine_rounds: Option<i64>,
+    #[pyo3(from_py_with = named::refine_rounds)] refine_rounds: Option<usize>,
 ) -> PyResult<FitResult> {
     let (trace, read) = data_arg(u, y, dt)?;
     // As `fit --from`: the start's family, effects and bounds unless given
@@ -246,11 +249,11 @@ pub fn fit(
     let asked = switch.map(switching).transpose()?;
     let request = FitRequest {
         family: model.map(family).transpose()?,
-        effects: effects_arg(effects)?,
+        effects,
         free_n,
         loop_shape: loop_shape(r#loop)?,
         switching: asked.unwrap_or_default(),
-        bounds: user_bounds(bounds)?,
+        bounds: bounds.unwrap_or_default(),
         carry: carried.is_some(),
     };
     let which = if carried.is_some() { "carry" } else { "start" };
@@ -285,20 +288,18 @@ pub fn fit(
     }
     let settings = FitSettings {
         algo: algorithm(algo)?,
-        pop: count(pop, POPULATION, "pop")?,
-        gens: count(gens, GENERATIONS, "gens")?,
-        seed: seed_arg(seed)?,
+        pop: pop.unwrap_or(POPULATION),
+        gens: gens.unwrap_or(GENERATIONS),
+        seed,
         thesis_flow,
         islands: None,
         horizon: None,
-        refine_rounds: refine_rounds
-            .map(|r| at_least(Some(r), 0, 0, "refine_rounds"))
-            .transpose()?,
+        refine_rounds,
         overrides: Overrides::default(),
         stops: StopRules {
             target_sse,
             time_budget_s: time_budget,
-            stall_generations: stall.map(|s| count(Some(s), 1, "stall")).transpose()?,
+            stall_generations: stall,
             stall_tolerance: 0.0,
         },
     };

@@ -18,6 +18,7 @@ mod fit;
 mod history;
 mod interrupt;
 mod model;
+mod named;
 
 use pyo3::prelude::*;
 

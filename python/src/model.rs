@@ -1,9 +1,10 @@
 //! A fitted model: the library's model file, read and written by one call
 //! each, and its free-run simulation.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use numpy::{PyArray1, ToPyArray};
+use pyo3::exceptions::PyIsADirectoryError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -11,6 +12,7 @@ use mckibben::model::file::{Provenance, ReadSettings};
 use mckibben::model::{FittedBaseline, ModelFile};
 
 use crate::convert::{file_error, series};
+use crate::named;
 
 /// A fitted hysteresis model, a baseline family and its effect chain, in
 /// the coordinates it was fitted in: what `mckibben fit` writes to
@@ -59,19 +61,51 @@ pub fn provenance(
     }
 }
 
+/// Where `path` names a folder (one that exists, or a path that ends in a
+/// separator), an `IsADirectoryError` that says so: the library's write
+/// reports the OS's bare "Is a directory" or "Not a directory".
+fn folder_error(path: &Path) -> Option<PyErr> {
+    let text = path.to_string_lossy();
+    let example = path.join("model.json");
+    let why = if text.ends_with(std::path::is_separator) {
+        format!(
+            "{} ends in a separator, so it names a folder",
+            path.display()
+        )
+    } else if path.is_dir() {
+        format!("{} is a folder", path.display())
+    } else {
+        return None;
+    };
+    Some(PyIsADirectoryError::new_err(format!(
+        "{why}: give the model file's path (such as {})",
+        example.display()
+    )))
+}
+
 #[pymethods]
 impl Model {
     /// Reads a model file written by `mckibben fit`, `diagnose --out` or
     /// `identify --out` (version 2, or the bare version 1).
     #[staticmethod]
-    fn load(py: Python<'_>, path: PathBuf) -> PyResult<Model> {
+    fn load(
+        py: Python<'_>,
+        #[pyo3(from_py_with = named::model_path)] path: PathBuf,
+    ) -> PyResult<Model> {
         py.detach(|| ModelFile::load(&path).and_then(Model::of_file))
             .map_err(file_error)
     }
 
     /// Writes the model file (`mckibben fit`'s `model.json`; the command
     /// line reads it back).
-    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+    fn save(
+        &self,
+        py: Python<'_>,
+        #[pyo3(from_py_with = named::model_path)] path: PathBuf,
+    ) -> PyResult<()> {
+        if let Some(e) = folder_error(&path) {
+            return Err(e);
+        }
         py.detach(|| self.file.save(&path)).map_err(file_error)
     }
 
@@ -86,7 +120,7 @@ impl Model {
         &self,
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
-        x0: Option<f64>,
+        #[pyo3(from_py_with = named::x0)] x0: Option<f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let (input, x0) = match u.cast::<crate::data::Trace>() {
             Ok(trace) => {

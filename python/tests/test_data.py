@@ -1,5 +1,6 @@
 """read_csv and Trace: the library's reader, its errors as Python's."""
 
+import os
 import warnings
 
 import numpy as np
@@ -59,6 +60,21 @@ def test_file_errors_name_the_file_line_and_column(tmp_path):
         mckibben.read_csv(gap, resample=-1.0)
 
 
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"input": "t"}, 'time and input are both "t"'),
+        ({"output": "t"}, 'time and output are both "t"'),
+        ({"output": "pressure"}, 'input and output are both "pressure"'),
+        ({"time": "displacement"}, 'time and output are both "displacement"'),
+    ],
+)
+def test_two_arguments_naming_one_column_are_refused(kwargs, message):
+    # The reader read the one column twice: input="t" gave the time as input.
+    with pytest.raises(ValueError, match=f"^{message}: each must name a column of its own"):
+        mckibben.read_csv(STAIR, **kwargs)
+
+
 def test_a_trace_takes_any_float_dtype_layout_or_list():
     u = np.linspace(0, 1, 50)
     y = 2 * u
@@ -72,11 +88,22 @@ def test_a_trace_takes_any_float_dtype_layout_or_list():
 @pytest.mark.parametrize(
     "u, y, dt, error, message",
     [
-        ([], [], 0.1, ValueError, "u is empty"),
-        ([1.0, np.nan], [1.0, 2.0], 0.1, ValueError, r"u\[1\] is NaN"),
-        ([1.0, 2.0], [1.0, 2.0, 3.0], 0.1, ValueError, "differ in length"),
+        # Named as Trace's arguments: input, output.
+        ([], [], 0.1, ValueError, "^input is empty"),
+        ([1.0, np.nan], [1.0, 2.0], 0.1, ValueError, r"^input\[1\] is NaN"),
+        ([1.0, 2.0], [1.0, np.inf], 0.1, ValueError, r"^output\[1\] is inf"),
+        ([1.0, 2.0], [1.0, 2.0, 3.0], 0.1, ValueError, "^input and output differ in length"),
+        # Text or None where an array goes is the wrong type, not a value.
+        ("ab", [1.0, 2.0], 0.1, TypeError, r"^input must be an array of numbers \(a NumPy array or a list\), got str 'ab'"),
+        ([1.0, 2.0], None, 0.1, TypeError, "^output must be an array of numbers .*, got None"),
+        (b"ab", [1.0, 2.0], 0.1, TypeError, "^input must be an array of numbers .*, got bytes b'ab'"),
+        ({"a": 1}, [1.0, 2.0], 0.1, TypeError, "^input must be an array of numbers .*, got dict"),
         ([[1.0, 2.0]], [1.0, 2.0], 0.1, ValueError, "one-dimensional"),
         ([1.0, 2.0], [1.0, 2.0], 0.0, ValueError, "dt must be a positive"),
+        # A step whose last time is infinite.
+        ([1.0, 2.0], [1.0, 2.0], float("inf"), ValueError, "^dt must be a positive number of seconds, got inf"),
+        ([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], 1e308, ValueError,
+         r"^dt = 1e308 s puts the last sample \(2 steps in\) at an infinite time"),
         (["a", "b"], [1.0, 2.0], 0.1, TypeError, "expected real numbers"),
         ([1j, 2j], [1.0, 2.0], 0.1, TypeError, "complex"),
         ([True, False], [1.0, 2.0], 0.1, TypeError, "bool"),
@@ -85,3 +112,41 @@ def test_a_trace_takes_any_float_dtype_layout_or_list():
 def test_bad_arrays_raise_the_named_exception(u, y, dt, error, message):
     with pytest.raises(error, match=message):
         mckibben.Trace(u, y, dt)
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        # PyO3 names an argument it cannot convert only in a note on the
+        # exception: the message itself names it here.
+        (lambda: mckibben.Trace([1.0, 2.0], [1.0, 2.0], "0.1"), r"^dt must be a number \(an int or a float\), got str '0.1'"),
+        (lambda: mckibben.Trace([1.0, 2.0], [1.0, 2.0], 0.1, input_name=1), "^input_name must be a str, got int 1"),
+        (lambda: mckibben.Trace([1.0, 2.0], [1.0, 2.0], 0.1, source=None), "^source must be a str, got None"),
+        (lambda: mckibben.read_csv(STAIR, resample="0.01"), "^resample must be a number .*, got str '0.01'"),
+        (lambda: mckibben.read_csv(STAIR, split_gaps=1), "^split_gaps must be True or False, got int 1"),
+        (lambda: mckibben.read_csv(STAIR, time=None), "^time must be a str, got None"),
+        (lambda: mckibben.read_csv(3), r"^path must be a file's path \(a str, bytes or os.PathLike\), got int 3"),
+    ],
+)
+def test_a_value_of_the_wrong_type_names_its_argument(call, message):
+    with pytest.raises(TypeError, match=message):
+        call()
+
+
+def test_a_bool_is_not_a_number():
+    # Taken as 1, `dt=True` made a trace of 1 s steps.
+    with pytest.raises(TypeError, match="^dt must be a number .*, got bool True"):
+        mckibben.Trace([1.0, 2.0], [1.0, 2.0], True)
+    with pytest.raises(TypeError, match="^resample must be a number .*, got bool True"):
+        mckibben.read_csv(STAIR, resample=True)
+
+
+def test_a_path_may_be_bytes_as_open_takes_it(tmp_path):
+    # read_csv's own message listed bytes, yet refused them.
+    trace = mckibben.read_csv(os.fsencode(STAIR))
+    assert len(trace) == 4000 and trace.source == str(STAIR)
+    # Decoded as os.fsdecode does: a name that is not UTF-8 reads too.
+    name = os.fsencode(tmp_path) + b"/caf\xe9.csv"
+    with open(name, "w") as f:
+        f.write("t,pressure,displacement\n0,0.1,1\n0.1,0.2,2\n")
+    assert len(mckibben.read_csv(name)) == 2

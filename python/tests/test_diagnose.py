@@ -7,6 +7,7 @@ import threading
 import time
 import warnings
 
+import numpy as np
 import pytest
 
 import mckibben
@@ -101,12 +102,68 @@ def test_diagnose_rejects_bad_arguments(stair):
         mckibben.diagnose([])
     with pytest.raises(TypeError, match="datasets must be"):
         mckibben.diagnose(3)
+    # A tuple's arrays are named by their place.
+    with pytest.raises(TypeError, match=r"^datasets\[1\]\[0\] must be an array of numbers .*, got str 'u'"):
+        mckibben.diagnose([stair, ("u", stair.output, stair.dt)])
+    with pytest.raises(ValueError, match=r"^datasets\[0\]\[2\] = 1e308 s puts the last sample"):
+        mckibben.diagnose([(stair.input, stair.output, 1e308)])
+    with pytest.raises(ValueError, match=r"^datasets\[0\]\[1\]\[2\] is NaN"):
+        mckibben.diagnose([(stair.input[:3], [1.0, 2.0, np.nan], stair.dt)])
     with pytest.raises(ValueError, match="seeds must be at least 1"):
         mckibben.diagnose(stair, seeds=0)
     # A negative count is a ValueError naming it, not an OverflowError.
     for name in ["seeds", "generations", "scratch_seeds", "max_effects", "repeat"]:
         with pytest.raises(ValueError, match=f"^{name} must be at least"):
             mckibben.diagnose(stair, **{name: -1})
+        # Past 2**63 (2**64 for a seed) it was a bare OverflowError.
+        with pytest.raises(ValueError, match=rf"^{name} must be less than 2\*\*63, got 1180591620717411303424"):
+            mckibben.diagnose(stair, **{name: 2**70})
+    with pytest.raises(ValueError, match=r"^seed must be an integer in \[0, 2\*\*64\), got -1361129467683753853853498429727072845824"):
+        mckibben.diagnose(stair, seed=-(2**130))
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        # PyO3 names an argument it cannot convert only in a note on the
+        # exception: the message itself names it here.
+        ({"seeds": 1.5}, "^seeds must be an integer, got float 1.5"),
+        ({"blocks": "4"}, "^blocks must be an integer, got str '4'"),
+        ({"baseline": 1}, "^baseline must be a str, got int 1"),
+        ({"effects": "delay"}, r"^effects must be a list of names \(str\), got str 'delay'"),
+        ({"backend": None}, "^backend must be a str, got None"),
+        # A bool is not a count.
+        ({"repeat": True}, "^repeat must be an integer, got bool True"),
+        ({"generations": False}, "^generations must be an integer, got bool False"),
+    ],
+)
+def test_a_value_of_the_wrong_type_names_its_argument(stair, kwargs, message):
+    with pytest.raises(TypeError, match=message):
+        mckibben.diagnose(stair, **kwargs)
+    # In a (u, y, dt) tuple, the sample time by its place.
+    with pytest.raises(TypeError, match=r"^datasets\[0\]\[2\] must be a number .*, got str '0.01'"):
+        mckibben.diagnose([(stair.input, stair.output, "0.01")])
+
+
+def test_a_record_at_fault_is_named_by_its_place_in_the_list(stair):
+    args = dict(effects=["delay"], seeds=1, generations=2, scratch_seeds=0)
+    u, y = stair.input, stair.output
+    # The library names a record by its source, which Traces share.
+    short = mckibben.Trace(u[:30], y[:30], stair.dt)
+    with pytest.raises(ValueError, match=r"^datasets\[1\] \(python\): 30 samples are too few"):
+        mckibben.diagnose([stair, short], **args)
+    with pytest.raises(ValueError, match=r"^datasets\[2\] \(python\): the input `pressure` is constant"):
+        mckibben.diagnose([stair, mckibben.Trace(u, y, stair.dt), mckibben.Trace(np.ones(100), y[:100], stair.dt)], **args)
+    # A tuple's source is its place: named once, and a transfer's as such
+    # (it was "cannot fit datasets[1]: datasets[1]: ...").
+    with pytest.raises(ValueError, match=r"^datasets\[1\]: 30 samples are too few to split"):
+        mckibben.diagnose([stair, (u[:30], y[:30], stair.dt)], **args)
+    with pytest.raises(ValueError) as e:
+        mckibben.diagnose([stair, (u * 1e30, y, stair.dt)], **args)
+    assert str(e.value).startswith("column `pressure` of datasets[1] spans")
+    assert str(e.value).count("datasets[1]") == 1
+    with pytest.raises(ValueError, match=r"^transfer\[1\]: 30 samples are too few to split"):
+        mckibben.diagnose(stair, transfer=[stair, (u[:30], y[:30], stair.dt)], **args)
 
 
 def test_diagnose_from_a_model_is_the_commands_diagnose_from(stair, cli, tmp_path):

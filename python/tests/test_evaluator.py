@@ -135,11 +135,30 @@ def test_an_ask_tell_loop(ev):
         (np.zeros((2, 2, 7)), ValueError, r"got shape \(2, 2, 7\)"),
         (np.zeros((2, 7), dtype=complex), TypeError, "expected real numbers"),
         ([["a"] * 7], TypeError, "expected real numbers"),
+        ("thetas", TypeError, "^thetas must be an array of numbers .*, got str 'thetas'"),
+        (None, TypeError, "^thetas must be an array of numbers .*, got None"),
     ],
 )
 def test_bad_candidates_raise_the_named_exception(ev, thetas, error, message):
     with pytest.raises(error, match=message):
         ev(thetas)
+
+
+@pytest.mark.parametrize(
+    "column, value, message",
+    [
+        (2, 1e308, r"^params\[1\] maps to a non-finite search coordinate: loading \(column 1\) is inf"),
+        (4, 1e308, r"^params\[1\] maps to a non-finite search coordinate: loading \(column 1\) is NaN"),
+        (7, -1e308, r"^params\[1\] maps to a non-finite search coordinate: offset \(column 5\) is -inf"),
+    ],
+)
+def test_parameters_too_large_for_the_box_are_refused(ev, column, value, message):
+    # They mapped to inf or NaN coordinates, silently.
+    params = np.tile([1.0, 0.9, 0.001, -0.001, 1.0, 0.99, -0.0025, -1.3, 8.3], (2, 1))
+    assert np.all(np.isfinite(ev.to_thetas(params)))
+    params[1, column] = value
+    with pytest.raises(ValueError, match=message):
+        ev.to_thetas(params)
 
 
 def test_bad_construction_raises(stair):
@@ -151,3 +170,10 @@ def test_bad_construction_raises(stair):
         mckibben.Evaluator(stair.input, stair.output[:10], 0.01)
     with pytest.raises(ValueError, match="no parameter `zeta`"):
         mckibben.Evaluator(stair, bounds={"zeta": 1.0})
+    # A wrong type names its argument (PyO3 names it only in a note).
+    with pytest.raises(TypeError, match="^checked must be True or False, got int 1"):
+        mckibben.Evaluator(stair, checked=1)
+    with pytest.raises(TypeError, match="^model must be a str, got None"):
+        mckibben.Evaluator(stair, model=None)
+    with pytest.raises(TypeError, match="^dt must be a number .*, got bool True"):
+        mckibben.Evaluator(stair.input, stair.output, True)

@@ -295,6 +295,14 @@ def test_bad_data_raise_value_errors(stair):
         mckibben.fit(stair, y, 0.01)
     with pytest.raises(ValueError, match="u is empty"):
         mckibben.fit([], [], 0.01)
+    # A sample time that puts the last sample at an infinite time.
+    with pytest.raises(ValueError, match=r"^dt = 1e307 s puts the last sample \(3999 steps in\) at an infinite time"):
+        mckibben.fit(u, y, 1e307)
+    # Text or None where an array goes is a TypeError naming the argument.
+    with pytest.raises(TypeError, match="^u must be an array of numbers .*, got str 'u.csv'"):
+        mckibben.fit("u.csv", y, 0.01)
+    with pytest.raises(TypeError, match="^y must be an array of numbers .*, got str 'y'"):
+        mckibben.fit(u, "y", 0.01)
 
 
 def test_a_fixed_parameter_stays_fixed(stair):
@@ -326,3 +334,75 @@ def test_a_fit_where_every_candidate_diverges_warns_and_holds_no_model(stair):
     with pytest.warns(UserWarning, match="every candidate diverged: the result holds no model"):
         result = mckibben.fit(stair, pop=20, gens=5, bounds={"a": 1.5})
     assert result.model is None and result.params == {}
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        # PyO3 names an argument it cannot convert only in a note on the
+        # exception: the message itself names it here.
+        ({"dt": "0.01"}, r"^dt must be a number \(an int or a float\), got str '0.01'"),
+        ({"pop": 1.5}, "^pop must be an integer, got float 1.5"),
+        ({"gens": "2"}, "^gens must be an integer, got str '2'"),
+        ({"seed": 1.0}, "^seed must be an integer, got float 1.0"),
+        ({"model": 3}, "^model must be a str, got int 3"),
+        ({"algo": None}, "^algo must be a str, got None"),
+        ({"backend": b"cpu"}, "^backend must be a str, got bytes b'cpu'"),
+        ({"effects": "creep"}, "^effects must be a list of names \\(str\\), got str 'creep'"),
+        ({"effects": ["creep", 2]}, r"^effects\[1\] must be a str, got int 2"),
+        ({"effects": 3}, r"^effects must be a list of names \(str\), got int 3"),
+        ({"free_n": 1}, "^free_n must be True or False, got int 1"),
+        ({"thesis_flow": "yes"}, "^thesis_flow must be True or False, got str 'yes'"),
+        ({"loop": 0}, "^loop must be a str, got int 0"),
+        ({"switch": 1}, "^switch must be a str, got int 1"),
+        ({"bounds": [("alpha", 0.5)]}, r"^bounds must be a dict, \{name: \(lo, hi\)\} or \{name: value\}"),
+        ({"bounds": {"alpha": (0.1, "x")}}, r'^bounds\["alpha"\]\[1\] must be a number'),
+        ({"target_sse": "1"}, "^target_sse must be a number"),
+        ({"time_budget": 1j}, "^time_budget must be a number .*, got complex 1j"),
+        ({"stall": 2.0}, "^stall must be an integer, got float 2.0"),
+        ({"refine_rounds": "3"}, "^refine_rounds must be an integer, got str '3'"),
+    ],
+)
+def test_a_value_of_the_wrong_type_names_its_argument(stair, kwargs, message):
+    u, y = stair.input[:200], stair.output[:200]
+    with pytest.raises(TypeError, match=message):
+        mckibben.fit(u, y, **{"dt": 0.01, "pop": 40, "gens": 2, **kwargs})
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"pop": True}, "pop"),
+        ({"gens": np.True_}, "gens"),
+        ({"dt": True}, "dt"),
+        ({"seed": False}, "seed"),
+        ({"stall": True}, "stall"),
+        ({"target_sse": True}, "target_sse"),
+        ({"time_budget": np.False_}, "time_budget"),
+        ({"bounds": {"alpha": (False, 1.0)}}, r'bounds\["alpha"\]\[0\]'),
+    ],
+)
+def test_a_bool_is_not_a_number(stair, kwargs, name):
+    # `pop=True` ran a population of 1, `dt=True` a step of 1 s.
+    u, y = stair.input[:200], stair.output[:200]
+    with pytest.raises(TypeError, match=f"^{name} must be .*, got bool (True|False|np.True_|np.False_)"):
+        mckibben.fit(u, y, **{"dt": 0.01, "pop": 40, "gens": 2, **kwargs})
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        # Beyond 2**64 these were a bare OverflowError.
+        ({"seed": 2**200}, r"^seed must be an integer in \[0, 2\*\*64\), got 1606938044258990275541962092341162602522202993782792835301376"),
+        ({"seed": -(2**130)}, r"^seed must be an integer in \[0, 2\*\*64\), got -1361129467683753853853498429727072845824"),
+        ({"pop": 2**70}, r"^pop must be less than 2\*\*63, got 1180591620717411303424"),
+        ({"gens": 2**63}, r"^gens must be less than 2\*\*63, got 9223372036854775808"),
+        ({"stall": -(2**200)}, r"^stall must be at least 1, got -1606938044258990275541962092341162602522202993782792835301376"),
+        ({"refine_rounds": 10**5000}, r"^refine_rounds must be less than 2\*\*63, got an integer of 16610 bits"),
+        ({"dt": 10**400}, "^dt must be a finite number, got an integer too large for a float"),
+    ],
+)
+def test_an_integer_out_of_range_names_its_argument_and_range(stair, kwargs, message):
+    u, y = stair.input[:200], stair.output[:200]
+    with pytest.raises(ValueError, match=message):
+        mckibben.fit(u, y, **{"dt": 0.01, "pop": 40, "gens": 2, **kwargs})

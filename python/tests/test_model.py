@@ -1,6 +1,8 @@
 """Model: the model file the command writes and reads, and simulation."""
 
 import json
+import os
+import re
 
 import numpy as np
 import pytest
@@ -20,6 +22,20 @@ def test_a_model_saves_and_loads_the_file_the_command_writes(small_fit, tmp_path
     assert model.family == "classic" and model.dt == pytest.approx(0.01)
     on_disk = json.loads(path.read_text())
     assert on_disk["family"] == "classic" and len(on_disk["params"]) == 9
+
+
+def test_saving_to_a_folder_says_so(small_fit, tmp_path):
+    # The OS said only "Is a directory" or "Not a directory".
+    folder = tmp_path / "models"
+    folder.mkdir()
+    expected = f"{folder} is a folder: give the model file's path (such as {folder}/model.json)"
+    with pytest.raises(IsADirectoryError, match="^" + re.escape(expected)):
+        small_fit.model.save(folder)
+    for path in (f"{folder}/", f"{tmp_path}/new/"):
+        expected = f"{path} ends in a separator, so it names a folder: give the model file's path (such as {path}model.json)"
+        with pytest.raises(IsADirectoryError, match="^" + re.escape(expected)):
+            small_fit.model.save(path)
+    assert list(folder.iterdir()) == [] and not (tmp_path / "new").exists()
 
 
 def test_load_errors(tmp_path):
@@ -54,6 +70,11 @@ def test_simulate_takes_any_layout_and_starts_where_asked(small_fit, stair):
     # A number is not a series of one sample.
     with pytest.raises(ValueError, match="a single number"):
         model.simulate(0.3)
+    # Text or None is not an array: a TypeError naming the argument.
+    with pytest.raises(TypeError, match="^u must be an array of numbers .*, got str 'stair.csv'"):
+        model.simulate("stair.csv")
+    with pytest.raises(TypeError, match="^u must be an array of numbers .*, got None"):
+        model.simulate(None)
     with pytest.raises(ValueError, match="at least 2 samples"):
         mckibben.Trace([0.3], [1.0], 0.01)
 
@@ -138,3 +159,23 @@ def test_a_model_fitted_in_python_on_resampled_data_resamples_for_the_command(st
     assert (read["time"], read["resample"], read["split_gaps"]) == ("t", 0.01, False)
     # `simulate --from` resamples the file as the model's data were.
     assert cli("simulate", "--from", path, "--input", data)["samples"] == len(trace)
+
+
+def test_a_value_of_the_wrong_type_names_its_argument(small_fit):
+    with pytest.raises(TypeError, match=r"^x0 must be a number \(an int or a float\), got str '1'"):
+        small_fit.model.simulate([0.1, 0.2], x0="1")
+    with pytest.raises(TypeError, match="^x0 must be a number .*, got bool True"):
+        small_fit.model.simulate([0.1, 0.2], x0=True)
+    with pytest.raises(TypeError, match="^path must be a file's path .*, got int 3"):
+        mckibben.Model.load(3)
+    with pytest.raises(TypeError, match="^path must be a file's path .*, got None"):
+        small_fit.model.save(None)
+
+
+def test_a_model_path_may_be_bytes(small_fit, stair, tmp_path):
+    # As open() takes it (Model.load refused bytes).
+    path = os.fsencode(tmp_path / "model.json")
+    small_fit.model.save(path)
+    assert mckibben.Model.load(path) == small_fit.model
+    warm = mckibben.fit(stair, pop=20, gens=2, start=path)
+    assert warm.start_sse is not None
