@@ -271,13 +271,23 @@ pub fn user_bounds(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<UserBound
 /// Effect names checked against the catalogue (an unknown name is a
 /// `ValueError` listing the known ones).
 pub fn effects_arg(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Effect>> {
-    names(obj, what)?
+    let effects: Vec<Effect> = names(obj, what)?
         .iter()
         .map(|n| {
             n.parse::<Effect>()
                 .map_err(|e| PyValueError::new_err(e.to_string()))
         })
-        .collect()
+        .collect::<PyResult<_>>()?;
+    // As the commands' --effects: a chain holds an effect once, and the
+    // diagnosis tries each once.
+    for (k, e) in effects.iter().enumerate() {
+        if effects[..k].contains(e) {
+            return Err(PyValueError::new_err(format!(
+                "{what} names `{e}` twice: each effect enters once"
+            )));
+        }
+    }
+    Ok(effects)
 }
 
 /// The family asked for, else the start model's, else classic (as the

@@ -98,6 +98,10 @@ def test_a_baseline_on_the_boxs_edge_warns_and_a_named_unit_avoids_it(stair):
 def test_diagnose_rejects_bad_arguments(stair):
     with pytest.raises(ValueError, match="unknown effect `wobble`"):
         mckibben.diagnose(stair, effects=["wobble"])
+    # As `diagnose --effects delay,delay`: each effect is tried once (it
+    # was tried twice, a whole round's fits).
+    with pytest.raises(ValueError, match="^effects names `delay` twice"):
+        mckibben.diagnose(stair, effects=["delay", "delay"])
     with pytest.raises(ValueError, match="datasets is empty"):
         mckibben.diagnose([])
     with pytest.raises(TypeError, match="datasets must be"):

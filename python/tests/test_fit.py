@@ -273,7 +273,7 @@ def test_another_thread_runs_during_a_fit(stair):
         ({"time_budget": -1}, ValueError, "^`time_budget` must be at least 0 seconds"),
         ({"target_sse": float("nan")}, ValueError, "^`target_sse` must be a finite SSE"),
         ({"target_sse": -1.0}, ValueError, "^`target_sse` must be a finite SSE"),
-        ({"effects": ["creep", "creep"]}, ValueError, ": `effects` names `creep` twice"),
+        ({"effects": ["creep", "creep"]}, ValueError, "^effects names `creep` twice"),
         ({"seed": -1}, ValueError, "seed must be an integer"),
         ({"progress": 3}, TypeError, "progress must be callable"),
     ],
