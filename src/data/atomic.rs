@@ -9,9 +9,12 @@ use std::path::{Path, PathBuf};
 /// a part of the path is a file, the error names it (the OS says "File
 /// exists" or "Not a directory").
 pub fn create_dir_all(dir: &Path) -> io::Result<()> {
-    fs::create_dir_all(dir).map_err(|e| match dir.ancestors().find(|a| a.is_file()) {
-        Some(file) if file == dir => {
-            io::Error::other(format!("{} is a file, not a folder", dir.display()))
+    // Without a trailing separator, which would make a file's name read
+    // as no file at all.
+    let plain: PathBuf = dir.components().collect();
+    fs::create_dir_all(dir).map_err(|e| match plain.ancestors().find(|a| a.is_file()) {
+        Some(file) if file == plain => {
+            io::Error::other(format!("{} is a file, not a folder", plain.display()))
         }
         Some(file) => io::Error::other(format!(
             "{} is a file, so {} cannot be a folder",
@@ -32,10 +35,24 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
 }
 
 /// The file a write to `path` replaces: through a symbolic link, the file
-/// it points to (a rename would replace the link itself). Something that
-/// is not a regular file (a device such as `/dev/null`, a pipe) cannot be
-/// replaced by one, and is an error.
+/// it points to (a rename would replace the link itself). A folder, a name
+/// ending in a separator (a folder to be), and something that is not a
+/// regular file (a device such as `/dev/null`, a pipe) cannot be replaced
+/// by a file, and are errors that name the path.
 fn target(path: &Path) -> io::Result<PathBuf> {
+    let text = path.as_os_str().as_encoded_bytes();
+    if text
+        .last()
+        .is_some_and(|&c| std::path::is_separator(c as char))
+    {
+        return Err(io::Error::new(
+            io::ErrorKind::IsADirectory,
+            format!(
+                "{} ends in a separator, so it names a folder: give a file name in it",
+                path.display()
+            ),
+        ));
+    }
     let resolved = match fs::symlink_metadata(path) {
         Ok(m) if m.file_type().is_symlink() => match fs::canonicalize(path) {
             Ok(p) => p,
@@ -48,7 +65,11 @@ fn target(path: &Path) -> io::Result<PathBuf> {
         _ => path.to_path_buf(),
     };
     match fs::metadata(&resolved) {
-        Ok(m) if !m.is_file() && !m.is_dir() => Err(io::Error::other(format!(
+        Ok(m) if m.is_dir() => Err(io::Error::new(
+            io::ErrorKind::IsADirectory,
+            format!("{} is a folder, not a file", path.display()),
+        )),
+        Ok(m) if !m.is_file() => Err(io::Error::other(format!(
             "{} is not a regular file (a device or a pipe): give a file to write",
             path.display()
         ))),
@@ -65,16 +86,12 @@ fn target(path: &Path) -> io::Result<PathBuf> {
 pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> io::Result<()> {
     let named =
         |path: &Path, e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", path.display()));
+    // Every target is checked (a folder in the way, a device) before any
+    // file is staged.
     let targets: Vec<PathBuf> = files
         .iter()
         .map(|&(path, _)| target(path))
         .collect::<io::Result<_>>()?;
-    if let Some(folder) = targets.iter().find(|p| p.is_dir()) {
-        return Err(io::Error::other(format!(
-            "{} is a folder, not a file",
-            folder.display()
-        )));
-    }
     let mut staged: Vec<PathBuf> = Vec::with_capacity(files.len());
     let result = (|| {
         for (&(_, bytes), path) in files.iter().zip(&targets) {
@@ -137,6 +154,32 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("notadir is a file"), "{err}");
+        // A file named as a folder (`--out model.json/`).
+        let err = create_dir_all(&dir.path().join("notadir/"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("notadir is a file, not a folder"), "{err}");
+    }
+
+    /// A folder, or a name that ends as a folder's, is named as such, and
+    /// nothing is left beside it (a temporary was staged in the parent
+    /// before the rename failed with "Is a directory").
+    #[test]
+    fn a_folder_is_named_and_nothing_is_staged() {
+        let dir = tempfile::tempdir().unwrap();
+        let folder = dir.path().join("out");
+        fs::create_dir(&folder).unwrap();
+        let err = write_atomic(&folder, b"x").unwrap_err();
+        assert_eq!(err.kind(), io::ErrorKind::IsADirectory);
+        assert!(
+            err.to_string().contains("out is a folder, not a file"),
+            "{err}"
+        );
+        let to_be = dir.path().join("new/");
+        let err = write_atomic(&to_be, b"x").unwrap_err();
+        assert_eq!(err.kind(), io::ErrorKind::IsADirectory);
+        assert!(err.to_string().contains("ends in a separator"), "{err}");
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
     }
 
     #[test]
