@@ -481,7 +481,23 @@ fn bad_transfer_and_output_flags_fail_before_the_diagnosis() {
     let file = dir.path().join("a_file");
     std::fs::write(&file, "").unwrap();
     let stair_7kg = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_7kg.csv");
+    // A record the baseline cannot be fitted on: nothing responds.
+    let still = dir.path().join("still.csv");
+    let rows: String = (0..400)
+        .map(|k| format!("{},{},5\n", k as f64 * 0.01, 0.1 * f64::from(k % 50 > 25)))
+        .collect();
+    std::fs::write(&still, format!("t,pressure,displacement\n{rows}")).unwrap();
+    let unused_out = dir.path().join("never_made");
     for (args, expect) in [
+        (
+            vec![
+                "--transfer",
+                still.to_str().unwrap(),
+                "--out",
+                unused_out.to_str().unwrap(),
+            ],
+            "the transfer to",
+        ),
         (
             vec!["--transfer", slow.to_str().unwrap()],
             "sampled every 0.02 s, the diagnosed record every 0.01 s",
@@ -511,4 +527,5 @@ fn bad_transfer_and_output_flags_fail_before_the_diagnosis() {
         // Nothing of a diagnosis was printed: it never ran.
         assert!(out.stdout.is_empty(), "{args:?}");
     }
+    assert!(!unused_out.exists(), "a refused run makes no --out folder");
 }

@@ -206,6 +206,7 @@ pub fn diagnose<'py>(
         ..defaults
     };
     let d = interruptible(py, &settings.stop, || {
+        mckibben::diagnose::transfer::check_others(family, others, &settings)?;
         let mut d =
             mckibben::diagnose::diagnose_from(traces, family, &effects, &settings, start.as_ref())?;
         if !others.is_empty() {

@@ -8,7 +8,7 @@ use anyhow::Context;
 use mckibben::data::units::stated_length_in_mm;
 use mckibben::data::{range, same_step, tidy_step};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
-use mckibben::diagnose::transfer::transfer;
+use mckibben::diagnose::transfer::{check_others, transfer};
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
 use mckibben::diagnose::{seeds, selftest_run};
 use mckibben::eval::Backend;
@@ -341,13 +341,14 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             tidy_step(other.dt())
         );
     }
+    let family = from.as_ref().map_or(family, |m| m.base.family);
+    check_others(family, &others, &settings).context("--transfer")?;
     for (flag, dir) in [("--out", &args.out), ("--report", &args.report)] {
         if let Some(dir) = dir {
             mckibben::data::create_dir_all(dir)
                 .with_context(|| format!("{flag} {}: cannot create the folder", dir.display()))?;
         }
     }
-    let family = from.as_ref().map_or(family, |m| m.base.family);
     let mut d = diagnose_from(&traces, family, &effects, &settings, from.as_ref()).map_err(
         |e| match &args.from {
             Some(path) => e.context(format!("--from {}", path.display())),

@@ -125,6 +125,26 @@ pub fn collapses(chain_fit_percent: f64, baseline_fit_percent: f64) -> bool {
         .is_none_or(|o| o.is_lt())
 }
 
+/// Whether the baseline of `family` can be fitted on each record of
+/// `others` as [`transfer`] will fit it (long enough, a response to
+/// identify, numbers a fit can take): checked before the diagnosis, so
+/// that a record it cannot use fails at once rather than after the
+/// diagnosis' minutes. No search runs.
+pub fn check_others(family: Family, others: &[Trace], settings: &Settings) -> anyhow::Result<()> {
+    for trace in others {
+        FitRun::new(
+            trace,
+            &FitTarget::chain(family, &[]),
+            &FitSettings::staged(settings.seed),
+            None,
+            None,
+            &|_| (),
+        )
+        .with_context(|| format!("the transfer to {}", trace.source))?;
+    }
+    Ok(())
+}
+
 /// The chain of `d`'s final model carried to every record of `others` and
 /// its baseline fitted there, each scored on the record's second half; the
 /// diagnosis' `settings` give the seed, the backend and the stop flag
