@@ -121,12 +121,21 @@ pub enum DataError {
         flag: &'static str,
     },
     #[error(
-        "{}: line {line} holds numbers, not column names: the file needs a header line that \
-         names its columns (for example `t,pressure,displacement`; MATLAB's writetable writes \
-         one, csvwrite and writematrix do not)",
-        path.display()
+        "{}: line {line} holds only numbers ({}) and no {role} column \"{column}\": if it is \
+         data, the file needs a header line that names its columns (for example \
+         `t,pressure,displacement`; MATLAB's writetable writes one, csvwrite and writematrix \
+         do not); if those are the columns' names, choose them with --time, --input and \
+         --output",
+        path.display(), quoted(first)
     )]
-    NoHeader { path: PathBuf, line: u64 },
+    NoHeader {
+        path: PathBuf,
+        line: u64,
+        role: &'static str,
+        column: String,
+        /// The line's first fields.
+        first: Vec<String>,
+    },
     #[error(
         "{}: line {line}: column \"{column}\" is named as both the time and the {role}: each \
          needs a column of its own",
@@ -375,8 +384,13 @@ fn parse(
         }
     }
     let (header_line, names) = header.ok_or_else(|| DataError::Empty { path: p() })?;
+    // A first line of numbers alone is data more often than names (pandas
+    // writes `0,1,2` as names): a column missing from it says both, and
+    // two equal numbers in it (a record starting at `0,0,0`) are no
+    // header's repeated name.
+    let numbers_only = names.iter().all(|n| n.trim().parse::<f64>().is_ok());
     for (i, n) in names.iter().enumerate() {
-        if names[..i].contains(n) {
+        if !numbers_only && names[..i].contains(n) {
             return Err(DataError::DuplicateColumn {
                 path: p(),
                 line: header_line,
@@ -385,24 +399,27 @@ fn parse(
         }
     }
     let find = |column: &str, role, flag| {
-        names
-            .iter()
-            .position(|n| n == column)
-            .ok_or_else(|| DataError::MissingColumn {
-                path: p(),
-                line: header_line,
-                role,
-                column: column.into(),
-                available: names.clone(),
-                flag,
-            })
+        names.iter().position(|n| n == column).ok_or_else(|| {
+            if numbers_only {
+                DataError::NoHeader {
+                    path: p(),
+                    line: header_line,
+                    role,
+                    column: column.into(),
+                    first: names.iter().take(3).cloned().collect(),
+                }
+            } else {
+                DataError::MissingColumn {
+                    path: p(),
+                    line: header_line,
+                    role,
+                    column: column.into(),
+                    available: names.clone(),
+                    flag,
+                }
+            }
+        })
     };
-    if names.iter().all(|n| n.trim().parse::<f64>().is_ok()) {
-        return Err(DataError::NoHeader {
-            path: p(),
-            line: header_line,
-        });
-    }
     let it = find(&opts.time, "time", "--time")?;
     let ii = find(&opts.input, "input", "--input")?;
     let io = find(&opts.output, "output", "--output")?;
@@ -1101,11 +1118,28 @@ mod tests {
     /// numbers is named as such, not listed as columns "0", "0.1", "1".
     #[test]
     fn a_file_without_a_header_says_so() {
+        let e = err("0,0,0\n0.01,0.2,2\n0.02,0.3,3\n");
+        assert!(e.contains("line 1 holds only numbers"), "{e}");
         let e = err("0,0.1,1\n0.01,0.2,2\n0.02,0.3,3\n");
-        assert!(e.contains("line 1 holds numbers, not column names"), "{e}");
+        assert!(
+            e.contains("line 1 holds only numbers (\"0\", \"0.1\", \"1\") and no time column")
+                && e.contains("the file needs a header line"),
+            "{e}"
+        );
         // A header with a number among its names is still a header.
         let e = err("t,pressure,2\n0,0.1,1\n0.01,0.2,2\n");
         assert!(e.contains("no output column \"displacement\""), "{e}");
+        // pandas names the columns of an unnamed frame 0, 1, 2: they can
+        // be chosen by those names.
+        let opts = ReadOptions {
+            time: "0".into(),
+            input: "1".into(),
+            output: "2".into(),
+            gaps: Gaps::Reject,
+        };
+        let text = "0,1,2\n0,0.1,1\n0.01,0.2,2\n0.02,0.3,3\n";
+        let (traces, _) = parse(Path::new("x.csv"), text.as_bytes(), &opts).unwrap();
+        assert_eq!(traces[0].output, [1.0, 2.0, 3.0]);
     }
 
     /// One column named for two roles (`--input t`) would fit the time as
