@@ -9,28 +9,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyBytes, PyDict, PyString};
 
 use mckibben::model::effects::Effect;
-use mckibben::model::{ModelFile, UserBound, UserBoundError};
+use mckibben::model::{UserBound, UserBoundError};
 
-use crate::convert::{family, file_error, in_python_terms};
-use crate::model::Model;
-
-/// A value as a message shows it: its type and repr (`str '0.1'`,
-/// `bool True`), a long repr cut short.
-pub fn given(obj: &Bound<'_, PyAny>) -> String {
-    if obj.is_none() {
-        return "None".into();
-    }
-    let ty = obj
-        .get_type()
-        .name()
-        .map_or_else(|_| "object".into(), |n| n.to_string());
-    let repr = obj.repr().map_or_else(|_| "?".into(), |r| r.to_string());
-    let repr = match repr.char_indices().nth(60) {
-        Some((at, _)) => format!("{}...", &repr[..at]),
-        None => repr,
-    };
-    format!("{ty} {repr}")
-}
+use crate::convert::{family, given, in_python_terms};
 
 /// Whether `obj` is a boolean, Python's or NumPy's: both convert to
 /// numbers, and `True` taken as 1 is a mistake more often than not.
@@ -301,25 +282,4 @@ pub fn family_or_start(
         (None, Some(m)) => m.base.family,
         (None, None) => mckibben::model::Family::Classic,
     })
-}
-
-/// A warm start: a `Model`, or the path of a model file.
-pub fn model_arg(start: &Bound<'_, PyAny>, keyword: &str) -> PyResult<ModelFile> {
-    if let Ok(m) = start.cast::<Model>() {
-        return Ok(m.get().file.clone());
-    }
-    let path = path(start, keyword).map_err(|e| {
-        if e.is_instance_of::<PyTypeError>(start.py()) {
-            PyTypeError::new_err(format!(
-                "{keyword} must be a Model or the path of a model file, got {}",
-                given(start)
-            ))
-        } else {
-            e
-        }
-    })?;
-    start
-        .py()
-        .detach(|| ModelFile::load(&path))
-        .map_err(file_error)
 }

@@ -9,12 +9,28 @@ use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyTypeError, PyValueError
 use pyo3::prelude::*;
 use serde::Serialize;
 
-use crate::args::given;
-
 use mckibben::eval::Backend;
 use mckibben::model::{Family, Loop, Switching};
 use mckibben::names::UnknownName;
 use mckibben::optim::Algorithm;
+
+/// A value as a message shows it: its type and repr (`str '0.1'`,
+/// `bool True`), a long repr cut short.
+pub fn given(obj: &Bound<'_, PyAny>) -> String {
+    if obj.is_none() {
+        return "None".into();
+    }
+    let ty = obj
+        .get_type()
+        .name()
+        .map_or_else(|_| "object".into(), |n| n.to_string());
+    let repr = obj.repr().map_or_else(|_| "?".into(), |r| r.to_string());
+    let repr = match repr.char_indices().nth(60) {
+        Some((at, _)) => format!("{}...", &repr[..at]),
+        None => repr,
+    };
+    format!("{ty} {repr}")
+}
 
 /// The values of a numeric array in C order, with its shape.
 pub struct Floats {

@@ -11,10 +11,11 @@ use mckibben::model::ModelFile;
 use mckibben::model::file::ReadSettings;
 use mckibben::report::json::Versioned;
 
-use crate::args::{family_or_start, model_arg, real};
+use crate::args::{family_or_start, real};
 use crate::convert::{backend, in_python_terms, to_python, value_error};
 use crate::data::{ArrayNames, Trace, arrays_trace, timed_only};
 use crate::interrupt::interruptible;
+use crate::model::model_arg;
 use crate::model::{Model, provenance};
 use crate::named;
 

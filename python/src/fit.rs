@@ -24,7 +24,6 @@ use mckibben::model::file::ReadSettings;
 use mckibben::optim::engine::{Observer, Outcome, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 
-use crate::args::model_arg;
 use crate::convert::{
     algorithm, backend, family, in_python_terms, loop_shape, runtime_error, switching, to_python,
     value_error,
@@ -32,6 +31,7 @@ use crate::convert::{
 use crate::data::data_arg;
 use crate::history::history_arrays;
 use crate::interrupt::interruptible;
+use crate::model::model_arg;
 use crate::model::{Model, provenance};
 use crate::named;
 

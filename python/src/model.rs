@@ -4,14 +4,15 @@
 use std::path::{Path, PathBuf};
 
 use numpy::{PyArray1, ToPyArray};
-use pyo3::exceptions::PyIsADirectoryError;
+use pyo3::exceptions::{PyIsADirectoryError, PyTypeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use mckibben::model::file::{Provenance, ReadSettings};
 use mckibben::model::{FittedBaseline, ModelFile};
 
-use crate::convert::{file_error, series};
+use crate::args::path;
+use crate::convert::{file_error, given, series};
 use crate::named;
 
 /// A fitted hysteresis model, a baseline family and its effect chain, in
@@ -229,4 +230,25 @@ impl Model {
             self.base().output_name
         )
     }
+}
+
+/// A warm start: a `Model`, or the path of a model file.
+pub fn model_arg(start: &Bound<'_, PyAny>, keyword: &str) -> PyResult<ModelFile> {
+    if let Ok(m) = start.cast::<Model>() {
+        return Ok(m.get().file.clone());
+    }
+    let path = path(start, keyword).map_err(|e| {
+        if e.is_instance_of::<PyTypeError>(start.py()) {
+            PyTypeError::new_err(format!(
+                "{keyword} must be a Model or the path of a model file, got {}",
+                given(start)
+            ))
+        } else {
+            e
+        }
+    })?;
+    start
+        .py()
+        .detach(|| ModelFile::load(&path))
+        .map_err(file_error)
 }
