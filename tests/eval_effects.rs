@@ -127,7 +127,9 @@ fn cpu_batches_give_the_scalar_simulations_bits() {
             .flat_map(|m| DIRECTIONS.map(|up| (m, up)))
         {
             let (problem, contexts) = problem_of(&model, measure, up);
-            let pop = population(&model, &contexts[0], 2 * LANES + 5, 3);
+            // Full batches and a short last one of each narrower width.
+            let count = if up { 2 * LANES + 5 } else { LANES + 13 };
+            let pop = population(&model, &contexts[0], count, 3);
             let scores = CpuEvaluator::new()
                 .evaluate(&problem, problem.rows(&pop))
                 .unwrap();

@@ -1,7 +1,8 @@
 //! The CPU batch path of a model with effect stages (the diagnosis'
-//! augmented models): [`LANES`] candidates advance side by side through the
-//! one augmented step, [`Prepared::step`] (whose stages are loops over the
-//! lanes that compile to vector instructions), so that every lane's SSE is
+//! augmented models): [`LANES`] candidates (fewer for a short batch)
+//! advance side by side through the one augmented step, [`Prepared::step`]
+//! (whose stages are loops over the lanes that compile to vector
+//! instructions), so that every lane's SSE is
 //! bit-identical to [`ModelDescription::measured_sse`] for that candidate.
 //! Divergence latches per lane as in [`super::cpu`].
 
@@ -10,10 +11,24 @@ use super::batch::{LANES, block};
 use crate::model::effects::{ModelDescription, Prepared};
 
 /// The SSE of every lane of one batch (`chunk`: up to [`LANES`] rows of
-/// `model`'s parameters; a short batch is padded with its first row, whose
-/// copies' scores the caller drops) on each experiment of `problem`.
+/// `model`'s parameters) on each experiment of `problem`; lanes past the
+/// chunk's rows hold nothing the caller reads.
 pub fn batch_sse(problem: &Problem, model: &ModelDescription, chunk: &[f32]) -> Vec<[f32; LANES]> {
-    let rows = padded(chunk, model.dim());
+    let used = chunk.len() / model.dim();
+    match width(used) {
+        NARROW => sse_of::<NARROW>(problem, model, chunk),
+        HALF => sse_of::<HALF>(problem, model, chunk),
+        _ => sse_of::<LANES>(problem, model, chunk),
+    }
+}
+
+/// [`batch_sse`] on `N` lanes, widened to [`LANES`].
+fn sse_of<const N: usize>(
+    problem: &Problem,
+    model: &ModelDescription,
+    chunk: &[f32],
+) -> Vec<[f32; LANES]> {
+    let rows = padded(chunk, model.dim(), N);
     let every = problem.measure.restart_every();
     problem
         .experiments
@@ -21,8 +36,9 @@ pub fn batch_sse(problem: &Problem, model: &ModelDescription, chunk: &[f32]) -> 
         .zip(&problem.contexts)
         .enumerate()
         .map(|(e, (exp, ctx))| {
-            let lanes: Prepared<LANES> = model.prepare(&rows, e, ctx);
-            lanes_sse(&lanes, &exp.u, &exp.y, every)
+            let lanes: Prepared<N> = model.prepare(&rows, e, ctx);
+            let sse = lanes_sse(&lanes, &exp.u, &exp.y, every);
+            std::array::from_fn(|l| sse.get(l).copied().unwrap_or(f32::INFINITY))
         })
         .collect()
 }
@@ -39,7 +55,21 @@ pub fn batch_residuals(
     chunk: &[f32],
 ) -> Vec<Option<Vec<f32>>> {
     let used = chunk.len() / model.dim();
-    let rows = padded(chunk, model.dim());
+    match width(used) {
+        NARROW => residuals_of::<NARROW>(problem, model, chunk),
+        HALF => residuals_of::<HALF>(problem, model, chunk),
+        _ => residuals_of::<LANES>(problem, model, chunk),
+    }
+}
+
+/// [`batch_residuals`] on `N` lanes.
+fn residuals_of<const N: usize>(
+    problem: &Problem,
+    model: &ModelDescription,
+    chunk: &[f32],
+) -> Vec<Option<Vec<f32>>> {
+    let used = chunk.len() / model.dim();
+    let rows = padded(chunk, model.dim(), N);
     let every = problem.measure.restart_every();
     let mut residuals: Vec<Option<Vec<f32>>> = (0..used)
         .map(|_| Some(Vec::with_capacity(problem.samples())))
@@ -50,7 +80,7 @@ pub fn batch_residuals(
         .zip(&problem.contexts)
         .enumerate()
     {
-        let lanes: Prepared<LANES> = model.prepare(&rows, e, ctx);
+        let lanes: Prepared<N> = model.prepare(&rows, e, ctx);
         let ok = lanes_residuals(&lanes, &exp.u, &exp.y, every, &mut residuals);
         for (r, ok) in residuals.iter_mut().zip(ok) {
             if !ok {
@@ -61,11 +91,26 @@ pub fn batch_residuals(
     residuals
 }
 
-/// `chunk`'s rows of `d` parameters, padded to [`LANES`] rows with copies
-/// of its first.
-fn padded(chunk: &[f32], d: usize) -> Vec<f32> {
+/// Narrower batches for a short chunk: a batch's every lane is stepped,
+/// so a tail of a few rows (the last of a population of 40, a polish's 15
+/// probes) padded to [`LANES`] would step mostly copies. Each lane's
+/// arithmetic is its own, so the width moves no bit.
+const NARROW: usize = 8;
+const HALF: usize = 16;
+
+/// The narrowest of the batch widths that holds `used` rows.
+fn width(used: usize) -> usize {
+    [NARROW, HALF, LANES]
+        .into_iter()
+        .find(|&w| used <= w)
+        .unwrap_or(LANES)
+}
+
+/// `chunk`'s rows of `d` parameters, padded to `n` rows with copies of its
+/// first.
+fn padded(chunk: &[f32], d: usize, n: usize) -> Vec<f32> {
     let mut rows = chunk.to_vec();
-    for _ in chunk.len() / d..LANES {
+    for _ in chunk.len() / d..n {
         rows.extend_from_slice(&chunk[..d]);
     }
     rows
@@ -74,7 +119,7 @@ fn padded(chunk: &[f32], d: usize) -> Vec<f32> {
 /// Compiled for the widest vector unit the CPU has (chosen at run time; the
 /// arithmetic is the same IEEE `f32` on each, so the bits do not depend on
 /// the choice).
-fn lanes_sse(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+fn lanes_sse<const N: usize>(p: &Prepared<N>, u: &[f32], y: &[f32], every: usize) -> [f32; N] {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx512f") {
@@ -91,23 +136,33 @@ fn lanes_sse(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; L
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-fn lanes_sse_avx512(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+fn lanes_sse_avx512<const N: usize>(
+    p: &Prepared<N>,
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+) -> [f32; N] {
     lanes_sse_portable(p, u, y, every)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn lanes_sse_avx2(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
+fn lanes_sse_avx2<const N: usize>(p: &Prepared<N>, u: &[f32], y: &[f32], every: usize) -> [f32; N] {
     lanes_sse_portable(p, u, y, every)
 }
 
 /// The scoring loop of [`super::cpu`]'s `lanes_sse` over the augmented step,
 /// on the same schedule ([`block`]).
 #[inline(always)]
-fn lanes_sse_portable(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -> [f32; LANES] {
-    let mut acc = [0.0f32; LANES];
+fn lanes_sse_portable<const N: usize>(
+    p: &Prepared<N>,
+    u: &[f32],
+    y: &[f32],
+    every: usize,
+) -> [f32; N] {
+    let mut acc = [0.0f32; N];
     let ok = walk(p, u, y, every, |errors| {
-        for l in 0..LANES {
+        for l in 0..N {
             acc[l] += errors[l] * errors[l];
         }
     });
@@ -117,13 +172,13 @@ fn lanes_sse_portable(p: &Prepared<LANES>, u: &[f32], y: &[f32], every: usize) -
 /// As [`lanes_sse`], each lane's errors appended to its row of `residuals`
 /// (the padding's lanes, past its end, are dropped); whether each lane
 /// stayed in bounds.
-fn lanes_residuals(
-    p: &Prepared<LANES>,
+fn lanes_residuals<const N: usize>(
+    p: &Prepared<N>,
     u: &[f32],
     y: &[f32],
     every: usize,
     residuals: &mut [Option<Vec<f32>>],
-) -> [bool; LANES] {
+) -> [bool; N] {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx512f") {
@@ -140,36 +195,36 @@ fn lanes_residuals(
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-fn lanes_residuals_avx512(
-    p: &Prepared<LANES>,
+fn lanes_residuals_avx512<const N: usize>(
+    p: &Prepared<N>,
     u: &[f32],
     y: &[f32],
     every: usize,
     residuals: &mut [Option<Vec<f32>>],
-) -> [bool; LANES] {
+) -> [bool; N] {
     lanes_residuals_portable(p, u, y, every, residuals)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn lanes_residuals_avx2(
-    p: &Prepared<LANES>,
+fn lanes_residuals_avx2<const N: usize>(
+    p: &Prepared<N>,
     u: &[f32],
     y: &[f32],
     every: usize,
     residuals: &mut [Option<Vec<f32>>],
-) -> [bool; LANES] {
+) -> [bool; N] {
     lanes_residuals_portable(p, u, y, every, residuals)
 }
 
 #[inline(always)]
-fn lanes_residuals_portable(
-    p: &Prepared<LANES>,
+fn lanes_residuals_portable<const N: usize>(
+    p: &Prepared<N>,
     u: &[f32],
     y: &[f32],
     every: usize,
     residuals: &mut [Option<Vec<f32>>],
-) -> [bool; LANES] {
+) -> [bool; N] {
     walk(p, u, y, every, |errors| {
         for (r, &e) in residuals.iter_mut().zip(errors) {
             if let Some(r) = r {
@@ -184,15 +239,15 @@ fn lanes_residuals_portable(
 /// `every` says so), handing `errors` each sample's `ŷ − y` of every lane;
 /// whether each lane stayed in bounds. Stops once no lane does.
 #[inline(always)]
-fn walk(
-    p: &Prepared<LANES>,
+fn walk<const N: usize>(
+    p: &Prepared<N>,
     u: &[f32],
     y: &[f32],
     every: usize,
-    mut errors: impl FnMut(&[f32; LANES]),
-) -> [bool; LANES] {
+    mut errors: impl FnMut(&[f32; N]),
+) -> [bool; N] {
     assert_eq!(u.len(), y.len(), "input and output lengths differ");
-    let mut ok = [true; LANES];
+    let mut ok = [true; N];
     if u.is_empty() {
         return ok;
     }
@@ -202,8 +257,8 @@ fn walk(
         let (end, restarts) = block(start, u.len(), every);
         for (k, &yk) in y.iter().enumerate().take(end).skip(start) {
             let predicted = p.step(&mut s, k, u);
-            let mut e = [0.0f32; LANES];
-            for l in 0..LANES {
+            let mut e = [0.0f32; N];
+            for l in 0..N {
                 ok[l] &= Prepared::in_bounds(&s, l, predicted[l]);
                 e[l] = predicted[l] - yk;
             }
