@@ -116,39 +116,56 @@ fn padded(chunk: &[f32], d: usize, n: usize) -> Vec<f32> {
     rows
 }
 
-/// Compiled for the widest vector unit the CPU has (chosen at run time; the
-/// arithmetic is the same IEEE `f32` on each, so the bits do not depend on
-/// the choice).
-fn lanes_sse<const N: usize>(p: &Prepared<N>, u: &[f32], y: &[f32], every: usize) -> [f32; N] {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU has AVX-512F.
-            return unsafe { lanes_sse_avx512(p, u, y, every) };
+/// `fn NAME<const N: usize>(ARGS) -> R` that runs `PORTABLE(ARGS)`
+/// compiled for the widest vector unit the CPU has, chosen at run time
+/// (AVX-512F, AVX2, else the build's own): the arithmetic is the same IEEE
+/// `f32` on each, so the bits do not depend on the choice.
+macro_rules! widest {
+    ($(#[$doc:meta])* fn $name:ident<const $n:ident: usize>($($arg:ident: $ty:ty),*) -> $ret:ty
+        = $portable:ident) => {
+        $(#[$doc])*
+        fn $name<const $n: usize>($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f")]
+                fn avx512<const $n: usize>($($arg: $ty),*) -> $ret {
+                    $portable($($arg),*)
+                }
+                #[target_feature(enable = "avx2")]
+                fn avx2<const $n: usize>($($arg: $ty),*) -> $ret {
+                    $portable($($arg),*)
+                }
+                if std::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the CPU has AVX-512F.
+                    return unsafe { avx512($($arg),*) };
+                }
+                if std::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU has AVX2.
+                    return unsafe { avx2($($arg),*) };
+                }
+            }
+            $portable($($arg),*)
         }
-        if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2.
-            return unsafe { lanes_sse_avx2(p, u, y, every) };
-        }
-    }
-    lanes_sse_portable(p, u, y, every)
+    };
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn lanes_sse_avx512<const N: usize>(
-    p: &Prepared<N>,
-    u: &[f32],
-    y: &[f32],
-    every: usize,
-) -> [f32; N] {
-    lanes_sse_portable(p, u, y, every)
+widest! {
+    /// A batch's SSE per lane ([`lanes_sse_portable`]).
+    fn lanes_sse<const N: usize>(p: &Prepared<N>, u: &[f32], y: &[f32], every: usize) -> [f32; N]
+        = lanes_sse_portable
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn lanes_sse_avx2<const N: usize>(p: &Prepared<N>, u: &[f32], y: &[f32], every: usize) -> [f32; N] {
-    lanes_sse_portable(p, u, y, every)
+widest! {
+    /// As [`lanes_sse`], each lane's errors appended to its row of
+    /// `residuals` (the padding's lanes, past its end, are dropped);
+    /// whether each lane stayed in bounds.
+    fn lanes_residuals<const N: usize>(
+        p: &Prepared<N>,
+        u: &[f32],
+        y: &[f32],
+        every: usize,
+        residuals: &mut [Option<Vec<f32>>]
+    ) -> [bool; N] = lanes_residuals_portable
 }
 
 /// The scoring loop of [`super::cpu`]'s `lanes_sse` over the augmented step,
@@ -167,54 +184,6 @@ fn lanes_sse_portable<const N: usize>(
         }
     });
     std::array::from_fn(|l| if ok[l] { acc[l] } else { f32::INFINITY })
-}
-
-/// As [`lanes_sse`], each lane's errors appended to its row of `residuals`
-/// (the padding's lanes, past its end, are dropped); whether each lane
-/// stayed in bounds.
-fn lanes_residuals<const N: usize>(
-    p: &Prepared<N>,
-    u: &[f32],
-    y: &[f32],
-    every: usize,
-    residuals: &mut [Option<Vec<f32>>],
-) -> [bool; N] {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU has AVX-512F.
-            return unsafe { lanes_residuals_avx512(p, u, y, every, residuals) };
-        }
-        if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2.
-            return unsafe { lanes_residuals_avx2(p, u, y, every, residuals) };
-        }
-    }
-    lanes_residuals_portable(p, u, y, every, residuals)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn lanes_residuals_avx512<const N: usize>(
-    p: &Prepared<N>,
-    u: &[f32],
-    y: &[f32],
-    every: usize,
-    residuals: &mut [Option<Vec<f32>>],
-) -> [bool; N] {
-    lanes_residuals_portable(p, u, y, every, residuals)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn lanes_residuals_avx2<const N: usize>(
-    p: &Prepared<N>,
-    u: &[f32],
-    y: &[f32],
-    every: usize,
-    residuals: &mut [Option<Vec<f32>>],
-) -> [bool; N] {
-    lanes_residuals_portable(p, u, y, every, residuals)
 }
 
 #[inline(always)]
