@@ -2,9 +2,10 @@
 //! augmented models): [`LANES`] candidates (fewer for a short batch)
 //! advance side by side through the one augmented step, [`Prepared::step`]
 //! (whose stages are loops over the lanes that compile to vector
-//! instructions), so that every lane's SSE is
-//! bit-identical to [`ModelDescription::measured_sse`] for that candidate.
-//! Divergence latches per lane as in [`super::cpu`].
+//! instructions), so that every lane's SSE and residuals are bit-identical
+//! to [`ModelDescription::measured_sse`] and
+//! [`ModelDescription::residuals`] for that candidate. Divergence latches
+//! per lane as in [`super::cpu`].
 
 use super::Problem;
 use super::batch::{LANES, block};
