@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use mckibben::data::units::stated_length_in_mm;
-use mckibben::data::{range, same_step, tidy_step};
+use mckibben::data::{mixed_steps, range, same_step, tidy_step};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::transfer::{check_others, transfer};
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
@@ -322,15 +322,10 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     };
     let dt = traces[0].dt();
     let shown = tidy_step(dt);
-    // One model, one sample time: its poles are per sample.
-    if let Some(other) = traces.iter().find(|t| !same_step(t.dt(), dt)) {
-        anyhow::bail!(
-            "{} is sampled every {} s, {} every {shown} s: one model's poles are per \
-             sample, so resample the records onto one step (--resample {shown})",
-            other.source,
-            tidy_step(other.dt()),
-            traces[0].source
-        );
+    // Checked again by the diagnosis; here before any folder is made, with
+    // the flag that resamples.
+    if let Some(why) = mixed_steps(&traces) {
+        anyhow::bail!("{why} (--resample {shown})");
     }
     for other in &others {
         anyhow::ensure!(

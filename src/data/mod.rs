@@ -136,6 +136,22 @@ pub fn same_step(dt: f64, reference: f64) -> bool {
     (dt - reference).abs() <= 0.01 * reference
 }
 
+/// Where `traces` are not all sampled at the first one's step (within
+/// [`same_step`]'s 1 %), the sentence that says which and why one model
+/// cannot take them: its poles are per sample.
+pub fn mixed_steps(traces: &[Trace]) -> Option<String> {
+    let first = traces.first()?;
+    let other = traces.iter().find(|t| !same_step(t.dt(), first.dt()))?;
+    Some(format!(
+        "{} is sampled every {} s, {} every {} s: one model's poles are per sample, so \
+         resample the records onto one step",
+        other.source,
+        tidy_step(other.dt()),
+        first.source,
+        tidy_step(first.dt())
+    ))
+}
+
 /// `v` rounded to 10 significant digits, for a time step computed from a
 /// record (a span over a count): 0.09999999999999999 s reads as 0.1 s, in
 /// a message and in the flag it suggests.

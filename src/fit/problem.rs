@@ -21,7 +21,7 @@ use nalgebra::DVector;
 use super::chart::ModelChart;
 use super::records::{Records, Validation};
 use crate::data::units::stated_length_in_mm;
-use crate::data::{Trace, same_step, tidy_step};
+use crate::data::{Trace, mixed_steps};
 use crate::eval::Problem;
 use crate::ident::fit::CHI2_1_95;
 use crate::model::bounds::Origin;
@@ -218,18 +218,8 @@ impl FitProblem {
         model: Option<&Model>,
         blocks: Option<usize>,
     ) -> anyhow::Result<FitProblem> {
-        // One model, one sample time: its poles are per sample.
-        if let Some(first) = traces.first()
-            && let Some(other) = traces.iter().find(|t| !same_step(t.dt(), first.dt()))
-        {
-            anyhow::bail!(
-                "{} is sampled every {} s, {} every {} s: one model's poles are per sample, so \
-                 resample the records onto one step",
-                other.source,
-                tidy_step(other.dt()),
-                first.source,
-                tidy_step(first.dt())
-            );
+        if let Some(why) = mixed_steps(traces) {
+            anyhow::bail!(why);
         }
         let records = Records::of(traces, model)?;
         let settle = FitProblem::settle_of(&records);

@@ -107,10 +107,6 @@ pub struct Rig {
 pub const MAX_LOAD_KG: f64 = 15.0;
 
 impl Rig {
-    /// The rig at rest: load hanging, chamber at atmospheric pressure, input
-    /// valve commanded shut (0 V) and output valve open (10 V). `seed` seeds
-    /// the sensor noise (`ChaCha8Rng`); nothing else is random.
-    ///
     /// Checks that the rig can hang `load_kg` (a mass above 0 and at most
     /// [`MAX_LOAD_KG`]) with these settings: the rubber, softened
     /// by the creep effect, must leave the braid short of straight at rest.
@@ -134,6 +130,10 @@ impl Rig {
         Ok(())
     }
 
+    /// The rig at rest: load hanging, chamber at atmospheric pressure, input
+    /// valve commanded shut (0 V) and output valve open (10 V). `seed` seeds
+    /// the sensor noise (`ChaCha8Rng`); nothing else is random.
+    ///
     /// Panics where [`Rig::check_load`] fails (a load that is not a
     /// positive mass up to [`MAX_LOAD_KG`], or that stretches the braid
     /// straight at rest, or settings [`TwinConfig::validate`] refuses).
