@@ -2,8 +2,8 @@
 //! folder: every malformed file gives an error naming file, line and column
 //! (never a panic); resampling and splitting behave as documented; real
 //! jittery recordings from ../shared load (skipped locally without them,
-//! a failure under `CI=true`). One test runs `mckibben identify` on a file
-//! whose clock runs back, as a user would.
+//! a failure under `CI=true`). Two tests run `mckibben identify` and
+//! `mckibben fit` on files cut by `--split-gaps`, as a user would.
 
 mod common;
 
@@ -243,6 +243,72 @@ fn identify_with_split_gaps_uses_both_sides_of_a_clock_glitch() {
         "{stderr}"
     );
     assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+/// `fit --split-gaps` fits the longest piece and says which, with its
+/// share of the samples; where the other pieces outweigh it (a logger that
+/// paused every second: pieces of about equal length) it warns that the
+/// fit reads a small part of the recording and names the ways to use all
+/// of it.
+#[test]
+fn fit_with_split_gaps_names_the_piece_and_warns_when_it_is_a_small_part() {
+    let dir = tempfile::tempdir().unwrap();
+    // 100 Hz pieces of `lengths` rows, each 0.5 s after the one before.
+    let paused = |name: &str, lengths: &[usize]| {
+        let mut text = String::from("t,pressure,displacement\n");
+        let (mut t, mut x, mut k) = (0.0, 0.0, 0);
+        for &n in lengths {
+            for _ in 0..n {
+                let p = [0.1, 0.4, 0.2, 0.5, 0.3][(k / 25) % 5];
+                text += &format!("{t:.2},{p},{x:.6}\n");
+                x = 0.9 * x + 2.0 * p;
+                t += 0.01;
+                k += 1;
+            }
+            t += 0.5;
+        }
+        file(dir.path(), name, &text)
+    };
+    let fit = |path: &Path| {
+        let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
+            .arg("fit")
+            .arg(path)
+            .args(["--split-gaps", "--pop", "40", "--gens", "5", "--out"])
+            .arg(dir.path().join("fit"))
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{stderr}");
+        stderr
+    };
+
+    let path = paused("paused.csv", &[120, 160, 120]);
+    let stderr = fit(&path);
+    assert!(
+        stderr.contains(&format!(
+            "mckibben: note: 3 pieces after --split-gaps; fitting the longest, {}[2] (160 of \
+             their 400 samples, 40 %)",
+            path.display()
+        )),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains(
+            "mckibben: warning: the fit reads 40 % of the recording; --resample DT instead keeps \
+             all of it"
+        ),
+        "{stderr}"
+    );
+
+    // The glitch's two pieces: the longest holds most of the samples.
+    let stderr = fit(&clock_runs_back(dir.path()));
+    assert!(
+        stderr.contains("fitting the longest, ")
+            && stderr.contains("(200 of their 350 samples, 57 %)"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("warning: the fit reads"), "{stderr}");
 }
 
 #[test]

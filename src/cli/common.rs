@@ -223,16 +223,35 @@ pub struct ColumnArgs {
     pub split_gaps: bool,
 }
 
-/// The longest of the traces (several come from `--split-gaps`).
+/// The longest of the traces (several come from `--split-gaps`; of equal
+/// ones the first). The note names the piece and its share of the samples,
+/// and warns where the rest outweighs it: a recording cut at many short
+/// gaps (a logger's pauses) leaves pieces of equal length, and a fit of one
+/// of them reads a small part of what was measured.
 pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
     anyhow::ensure!(!traces.is_empty(), "the data file holds no samples");
-    if traces.len() > 1 {
-        eprintln!(
-            "mckibben: note: {} pieces after --split-gaps; fitting the longest",
-            traces.len()
-        );
-    }
+    // Stable: of pieces of equal length the first stays first.
     traces.sort_by_key(|t| std::cmp::Reverse(t.len()));
+    if traces.len() > 1 {
+        let total: usize = traces.iter().map(Trace::len).sum();
+        let longest = &traces[0];
+        let share = 100.0 * longest.len() as f64 / total as f64;
+        eprintln!(
+            "mckibben: note: {} pieces after --split-gaps; fitting the longest, {} ({} of their \
+             {total} samples, {share:.0} %)",
+            traces.len(),
+            longest.source,
+            longest.len(),
+        );
+        if 2 * longest.len() < total {
+            eprintln!(
+                "mckibben: warning: the fit reads {share:.0} % of the recording; --resample DT \
+                 instead keeps all of it as one record, interpolating across the gaps (where \
+                 they are short against the muscle's time constant), and `diagnose` fits every \
+                 piece"
+            );
+        }
+    }
     Ok(traces.swap_remove(0))
 }
 
