@@ -120,6 +120,8 @@ class FitResult:
     val_rmse: float | None
     val_fit_percent: float | None
     linear_val_fit_percent: float | None
+    stable_step: float | None
+    largest_step: float | None
     start_sse: float | None
     start_val_fit_percent: float | None
     built: dict[str, float | bool] | None

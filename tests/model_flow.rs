@@ -685,6 +685,53 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
     );
 }
 
+/// A loop that saturates within a small step of the output, run on the
+/// shipped stair: its explicit update overshoots from the first step past
+/// `Family::stable_step` and diverges, and `simulate` names that step; a
+/// loop that never saturates diverges without it. The fit reports the
+/// fitted loop's step beside the record's largest.
+#[test]
+fn a_diverged_run_names_the_step_its_hysteresis_update_could_not_take() {
+    use mckibben::model::Family;
+    let params = |summary: &Value| -> Vec<f64> {
+        let p = summary["params"].as_object().unwrap();
+        Family::Classic
+            .params()
+            .iter()
+            .map(|i| p[i.name].as_f64().unwrap())
+            .collect()
+    };
+    let steep = json_of(&["simulate", "--params", "beta=50", "--json"]);
+    assert!(steep["diverged_at"].is_u64(), "{steep}");
+    let limit = Family::Classic.stable_step(&params(&steep)).unwrap();
+    let out = mckibben(&["simulate", "--params", "beta=50"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let line = text
+        .lines()
+        .find(|l| l.contains("the output first stepped"))
+        .unwrap_or_else(|| panic!("{text}"));
+    let figures: Vec<f64> = line
+        .split_whitespace()
+        .filter_map(|w| w.trim_end_matches(',').parse().ok())
+        .collect();
+    let (at, step, said) = (figures[0], figures[1], figures[2]);
+    assert!(at >= 1.0 && step > said, "{line}");
+    assert!((said - limit).abs() <= 1e-4 * limit, "{line}: {limit}");
+    let unbounded = mckibben(&["simulate", "--params", "beta=-10,gamma=-10"]);
+    let text = String::from_utf8_lossy(&unbounded.stdout);
+    assert!(
+        text.contains("DIVERGED") && !text.contains("first stepped"),
+        "{text}"
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let fit = json_of(&["fit", "--json", "--out", dir.path().to_str().unwrap()]);
+    let stable = fit["stable_step"].as_f64().unwrap();
+    assert_eq!(Some(stable), Family::Classic.stable_step(&params(&fit)));
+    let largest = fit["largest_step"].as_f64().unwrap();
+    assert!(0.0 < largest && largest < stable, "{fit}");
+}
+
 /// The column of `name` in a CSV that `simulate --out` wrote.
 fn column_of(path: &Path, name: &str) -> Vec<f64> {
     let text = std::fs::read_to_string(path).unwrap();

@@ -53,6 +53,11 @@ pub struct FitResult {
     /// The first-order ARX model's validation fit on the same halves: what
     /// the fit should beat.
     linear_val_fit_percent: Option<f64>,
+    /// The largest output step a sample within which the fitted
+    /// hysteresis update settles, and the record's largest measured step
+    /// (`fit --json`'s `stable_step`, `largest_step`).
+    stable_step: Option<f64>,
+    largest_step: Option<f64>,
     /// With `start`: the start model as it was, on this record's halves
     /// (`None` without a start, or where it diverges).
     start_sse: Option<f64>,
@@ -477,6 +482,8 @@ fn fit_result(
         val_rmse: report.val_rmse,
         val_fit_percent: report.val_fit_percent,
         linear_val_fit_percent: report.linear_val_fit_percent,
+        stable_step: report.stable_step,
+        largest_step: report.largest_step,
         start_sse: report.start_sse,
         start_val_fit_percent: report.start_val_fit_percent,
         built: report.built.map(|b| unbound(py, &b)).transpose()?,

@@ -30,6 +30,8 @@ def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli, tmp_path):
     assert result.std_errors["A"] is None and result.std_errors["b"] > 0
     assert result.val_fit_percent == expected["val_fit_percent"]
     assert result.linear_val_fit_percent == expected["linear_val_fit_percent"]
+    assert (result.stable_step, result.largest_step) == (expected["stable_step"], expected["largest_step"])
+    assert result.stable_step > result.largest_step > 0
     assert result.stop == expected["stop"] == "completed" and not result.interrupted
     assert [s["best_cost"] for s in result.stages] == [s["best_cost"] for s in expected["stages"]]
     assert all(0 < s["evaluator_seconds"] <= s["seconds"] for s in result.stages)

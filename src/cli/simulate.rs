@@ -238,6 +238,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(y0) => model.simulate_absolute(&trace.input, y0),
         None => model.simulate_from_rest(&trace.input),
     };
+    let overstep = run
+        .diverged_at
+        .and_then(|k| model.overstep(&run.output[..k.min(run.output.len())]));
     if let Some(k) = run.diverged_at {
         // A trace file and a figure hold finite numbers: keep the samples
         // before the divergence and say where it stopped.
@@ -315,7 +318,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", Versioned::new(&summary).to_string_pretty()?);
         return Ok(());
     }
-    print_summary(&args, &summary, &model, &described)
+    print_summary(&args, &summary, &model, &described, overstep)
 }
 
 /// The summary for a terminal, on standard output, or on standard error
@@ -325,6 +328,7 @@ fn print_summary(
     summary: &Summary,
     model: &Model,
     described: &str,
+    overstep: Option<(usize, f64, f64)>,
 ) -> anyhow::Result<()> {
     let mut report = CsvOut::summary(args.out.as_ref());
     writeln!(
@@ -336,10 +340,23 @@ fn print_summary(
         writeln!(report, "  {name:<8} {value}")?;
     }
     match summary.diverged_at {
-        Some(k) => writeln!(
-            report,
-            "  DIVERGED at sample {k} (state beyond ±1e6 or not finite)"
-        )?,
+        Some(k) => {
+            writeln!(
+                report,
+                "  DIVERGED at sample {k} (state beyond ±1e6 or not finite)"
+            )?;
+            if let Some((at, step, limit)) = overstep {
+                writeln!(
+                    report,
+                    "  at sample {at} the output first stepped {} in one sample, past the {} \
+                     within which the model's discrete hysteresis update settles (`stable_step`, \
+                     docs/GUIDE.md, \"When not to trust it\"); this record, or its start, moves \
+                     faster than the model holds",
+                    significant(step, 3),
+                    significant(limit, 3),
+                )?;
+            }
+        }
         None => writeln!(
             report,
             "  output range {} .. {}, loop area {}",

@@ -161,6 +161,9 @@ pub fn selected_fit(
         linear_val_fit_percent: Records::of(std::slice::from_ref(trace), None)?
             .linear_yardstick(0)
             .and_then(|v| finite(v.fit_percent)),
+        // The effect stages move the output off the state the update steps on.
+        stable_step: None,
+        largest_step: None,
         start_sse: None,
         start_val_fit_percent: None,
         built: None,

@@ -51,6 +51,14 @@ pub struct FitReport {
     /// The first-order ARX model's validation fit on the same halves
     /// (`Records::linear_yardstick`): what the fit should beat.
     pub linear_val_fit_percent: Option<f64>,
+    /// The largest step of the output in one sample within which the
+    /// fitted hysteresis update settles (`Family::stable_step`; `None`
+    /// where the loop never saturates or effect stages stand between the
+    /// state and the output), and the measured output's largest
+    /// step on the record (both halves): a record or a start that steps
+    /// further makes the model overshoot, and at larger steps diverge.
+    pub stable_step: Option<f64>,
+    pub largest_step: Option<f64>,
     /// With a warm start: the start model as it was, on this record's
     /// halves (`None` without one, or where it diverges).
     pub start_sse: Option<f64>,
@@ -196,6 +204,17 @@ impl FitReport {
             linear_val_fit_percent: problem
                 .linear_yardstick()
                 .and_then(|v| finite(v.fit_percent)),
+            // The effect stages move the output off the state the update
+            // steps on: the step is the plain families' figure.
+            stable_step: (found && problem.model.effects.is_empty())
+                .then(|| problem.model.family.stable_step(&outcome.params))
+                .flatten(),
+            largest_step: problem
+                .records
+                .whole
+                .iter()
+                .flat_map(|e| e.y.windows(2).map(|p| f64::from((p[1] - p[0]).abs())))
+                .reduce(f64::max),
             start_sse: start.and_then(|s| finite(s.est_sse)),
             start_val_fit_percent: start.and_then(|s| finite(s.validation.fit_percent)),
             built: fit.built,
@@ -378,23 +397,31 @@ impl FitReport {
             let row = format!("  {name:<name_width$} {figure:>14}{held}{error}");
             line(row.trim_end().to_string());
         }
-        let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
+        let percent = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4} %"));
         // SSEs and RMSEs are in the output's units, squared or not.
         let figure = |v: Option<f64>| v.map_or("diverged".to_string(), |v| significant(v, 4));
         line(format!("  SSE (estimation)     {}", figure(self.sse)));
         line(format!(
-            "  validation fit       {} %   (RMSE {})",
-            show(self.val_fit_percent),
+            "  validation fit       {}   (RMSE {})",
+            percent(self.val_fit_percent),
             figure(self.val_rmse)
         ));
         line(format!(
-            "  validation fit, ARX  {} %   (the first-order linear model on the same halves)",
-            show(self.linear_val_fit_percent)
+            "  validation fit, ARX  {}   (the first-order linear model on the same halves)",
+            percent(self.linear_val_fit_percent)
         ));
+        if let (Some(stable), Some(largest)) = (self.stable_step, self.largest_step) {
+            line(format!(
+                "  stable steps         up to {} a sample   (the record's largest: {}; past it \
+                 the hysteresis update overshoots)",
+                significant(stable, 4),
+                significant(largest, 4)
+            ));
+        }
         if self.start_sse.is_some() || self.start_val_fit_percent.is_some() {
             line(format!(
-                "  validation fit, from  {} %   (the --from model as it was, on the same halves; SSE {})",
-                show(self.start_val_fit_percent),
+                "  validation fit, from  {}   (the --from model as it was, on the same halves; SSE {})",
+                percent(self.start_val_fit_percent),
                 figure(self.start_sse)
             ));
         }

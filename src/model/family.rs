@@ -168,6 +168,50 @@ impl Family {
         }
     }
 
+    /// The largest step of the output in one sample (output units) within
+    /// which the discrete hysteresis update of `theta` settles on its
+    /// saturation, or `None` where its loop never saturates (the linear
+    /// family, `A ≤ 0`, `n ≤ 0`, or no loading branch that bends toward a
+    /// bound).
+    ///
+    /// The update is an explicit step, `w' = w + Δ·(A − Ψ·|w|^n)`
+    /// ([`crate::model::sim::classic_w`], [`crate::model::sim::generalized_w`]).
+    /// On a loading branch (`Δ` and `w` of one sign) with `Ψ > 0` it moves
+    /// `w` toward its saturation `w* = (A/Ψ)^(1/n)` with the factor
+    /// `1 − |Δ|·n·A/w*` there. Past `|Δ| = 2·w*/(n·A)` (`2/Ψ` at `n = 1`,
+    /// where the factor holds along the whole branch) it is below −1: each
+    /// step overshoots `w*` by more than the last, the state no longer
+    /// settles, and at larger steps it runs away, though the continuous
+    /// model's loop is bounded. A model fitted on a record that moves a
+    /// little each sample can hold this close to the steps it saw; another
+    /// record, or a start far from its own rest, may step further.
+    ///
+    /// The classic loading branch has `Ψ = β + γ`; the generalized one
+    /// `β1 + (β2 + β3)·d·q + (β4 + β5)·d + β6·q` for each direction `d` and
+    /// side `q` of the switching level, the smallest step binding.
+    pub fn stable_step(self, theta: &[f64]) -> Option<f64> {
+        let loading: Vec<f64> = match self {
+            Family::Linear => return None,
+            Family::Classic => vec![theta[2] + theta[3]],
+            Family::Generalized => {
+                let b = &theta[2..8];
+                [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
+                    .map(|(d, q)| b[0] + (b[1] + b[2]) * d * q + (b[3] + b[4]) * d + b[5] * q)
+                    .to_vec()
+            }
+        };
+        let (big_a, n) = (theta[0], theta[self.exponent_index()?]);
+        if !(big_a > 0.0 && n > 0.0) {
+            return None;
+        }
+        loading
+            .into_iter()
+            .filter(|&psi| psi > 0.0)
+            .map(|psi| 2.0 * (big_a / psi).powf(1.0 / n) / (n * big_a))
+            .filter(|step| step.is_finite())
+            .reduce(f64::min)
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Family::Linear => "linear",
@@ -231,6 +275,70 @@ mod tests {
         assert!(!Family::Classic.loop_bounded(&theta(1.0, 0.08, -0.29)));
         assert!(Family::Classic.loop_bounded(&theta(0.0, 0.08, -0.29)));
         assert!(Family::Generalized.loop_bounded(&[0.0; 14]));
+    }
+
+    /// Steps of one size, all one way, from `w = 0`: the update's state
+    /// after `steps` of them, and how far its last step moved it.
+    fn ramp(family: Family, theta: &[f64], delta: f64, x: f64, steps: usize) -> (f32, f32) {
+        use crate::model::sim::{classic_w, generalized_w};
+        let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
+        let (mut w, mut moved) = (0.0f32, 0.0f32);
+        for _ in 0..steps {
+            let next = match family {
+                Family::Classic => classic_w(t[0], t[2], t[3], t[4], w, delta as f32),
+                _ => {
+                    let betas = [t[2], t[3], t[4], t[5], t[6], t[7]];
+                    generalized_w(t[0], &betas, t[8], w, x as f32, delta as f32, 0.0)
+                }
+            };
+            (moved, w) = ((next - w).abs(), next);
+        }
+        (w, moved)
+    }
+
+    #[test]
+    fn the_update_settles_within_its_stable_step_and_not_past_it() {
+        // A, α, β, γ, n, a, b, c, x0: the 400 g Cavatappi fit's loop (β + γ
+        // = 14.93 a mm: 0.134 mm), a thesis-like one, n ≠ 1.
+        let classic =
+            |beta: f64, gamma: f64, n: f64| [1.0, 0.9, beta, gamma, n, 0.97, 0.1, 0.0, 0.0];
+        let cases = [
+            (Family::Classic, classic(14.176, 0.7565, 1.0).to_vec(), 1.0),
+            (Family::Classic, classic(0.3, 0.2, 1.0).to_vec(), 1.0),
+            (Family::Classic, classic(0.3, 0.2, 2.0).to_vec(), 1.0),
+            // β1..β6 with the binding branch above the switching level.
+            (
+                Family::Generalized,
+                vec![
+                    1.0, 0.9, 0.4, 0.1, 0.05, 0.2, 0.1, 0.3, 1.0, 0.0, 0.97, 0.1, 0.0, 0.0,
+                ],
+                1.0,
+            ),
+        ];
+        for (family, theta, x) in cases {
+            let step = family.stable_step(&theta).unwrap();
+            let (settled, moved) = ramp(family, &theta, 0.9 * step, x, 400);
+            assert!(
+                settled.is_finite() && moved < 1e-4 * settled.abs(),
+                "{family} {theta:?}: {settled} moved {moved}"
+            );
+            let (w, moved) = ramp(family, &theta, 1.1 * step, x, 400);
+            assert!(
+                !w.is_finite() || moved > 1e-2 * settled.abs(),
+                "{family} {theta:?}: {w} moved {moved}"
+            );
+        }
+        let cavatappi = Family::Classic
+            .stable_step(&classic(14.176, 0.7565, 1.0))
+            .unwrap();
+        assert!((cavatappi - 2.0 / 14.9325).abs() < 1e-12, "{cavatappi}");
+        // No saturation, no step: a loop without one (β + γ ≤ 0), no loop.
+        assert_eq!(Family::Classic.stable_step(&classic(0.1, -0.2, 1.0)), None);
+        assert_eq!(
+            Family::Classic.stable_step(&[0.0, 0.9, 1.0, 1.0, 1.0, 0.9, 0.1, 0.0, 0.0]),
+            None
+        );
+        assert_eq!(Family::Linear.stable_step(&[0.9, 0.1, 0.0, 0.0]), None);
     }
 
     #[test]

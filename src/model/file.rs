@@ -87,6 +87,22 @@ impl Model {
         ModelDescription::new(self.base.family, self.effects().to_vec(), datasets)
     }
 
+    /// The first sample at which `output`, a free run of this model, stepped
+    /// further in one sample than its hysteresis update settles within
+    /// ([`Family::stable_step`]): `(sample, step, limit)`. Only for a model
+    /// without effect stages, whose output is the state the update steps
+    /// on; with them, or where the loop never saturates, `None`.
+    pub fn overstep(&self, output: &[f64]) -> Option<(usize, f64, f64)> {
+        if !self.effects().is_empty() {
+            return None;
+        }
+        let limit = self.base.family.stable_step(&self.base.params)?;
+        (1..output.len())
+            .map(|k| (k, (output[k] - output[k - 1]).abs()))
+            .find(|&(_, step)| step > limit)
+            .map(|(k, step)| (k, step, limit))
+    }
+
     /// Every parameter: the baseline's canonical vector, then the effects'.
     pub fn theta(&self) -> Vec<f64> {
         let mut theta = self.base.params.clone();
