@@ -301,6 +301,29 @@ fn fit_with_split_gaps_names_the_piece_and_warns_when_it_is_a_small_part() {
         "{stderr}"
     );
 
+    // Pieces of one length: the one whose input moves, not a rest before it.
+    let mut text = String::from("t,pressure,displacement\n");
+    let mut x = 2.0;
+    for k in 0..200 {
+        let t = k as f64 * 0.01 + if k >= 100 { 0.5 } else { 0.0 };
+        let p = if k < 100 {
+            0.1
+        } else {
+            [0.1, 0.4, 0.2, 0.5][(k / 25) % 4]
+        };
+        text += &format!("{t:.2},{p},{x:.6}\n");
+        x = 0.9 * x + 2.0 * p;
+    }
+    let rest_first = file(dir.path(), "rest_first.csv", &text);
+    let stderr = fit(&rest_first);
+    assert!(
+        stderr.contains(&format!(
+            "fitting the longest, {}[2] (100 of",
+            rest_first.display()
+        )),
+        "{stderr}"
+    );
+
     // The glitch's two pieces: the longest holds most of the samples.
     let stderr = fit(&clock_runs_back(dir.path()));
     assert!(

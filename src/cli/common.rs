@@ -224,14 +224,20 @@ pub struct ColumnArgs {
 }
 
 /// The longest of the traces (several come from `--split-gaps`; of equal
-/// ones the first). The note names the piece and its share of the samples,
+/// ones the one whose input spans most, then the first). The note names the piece and its share of the samples,
 /// and warns where the rest outweighs it: a recording cut at many short
 /// gaps (a logger's pauses) leaves pieces of equal length, and a fit of one
 /// of them reads a small part of what was measured.
 pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
     anyhow::ensure!(!traces.is_empty(), "the data file holds no samples");
-    // Stable: of pieces of equal length the first stays first.
-    traces.sort_by_key(|t| std::cmp::Reverse(t.len()));
+    // Of pieces of equal length (a logger that pauses every second) the
+    // one whose input moves most: a rest before the first cycle is as long
+    // as a cycle. Stable: of wholly equal ones the first stays first.
+    traces.sort_by(|a, b| {
+        b.len()
+            .cmp(&a.len())
+            .then(mckibben::data::range(&b.input).total_cmp(&mckibben::data::range(&a.input)))
+    });
     if traces.len() > 1 {
         let total: usize = traces.iter().map(Trace::len).sum();
         let longest = &traces[0];

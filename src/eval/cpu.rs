@@ -62,10 +62,11 @@ impl Evaluator for CpuEvaluator {
     }
 
     fn describe(&self) -> String {
-        let base = format!(
-            "cpu ({LANES}-lane batches on {} threads)",
-            rayon::current_num_threads()
-        );
+        let threads = match rayon::current_num_threads() {
+            1 => "1 thread".to_string(),
+            n => format!("{n} threads"),
+        };
+        let base = format!("cpu ({LANES}-lane batches on {threads})");
         match &self.note {
             Some(note) => format!("{base}; {note}"),
             None => base,
