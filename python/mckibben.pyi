@@ -142,6 +142,7 @@ class FitResult:
     refining: dict[str, Any] | None
     std_errors: dict[str, float | None]
     undetermined: list[str]
+    diverging_probes: list[str]
     stop: Literal["completed", "target-sse", "time-budget", "interrupted"]
     interrupted: bool
     stages: list[dict[str, Any]]

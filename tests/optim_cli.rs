@@ -791,6 +791,58 @@ fn fit_of_the_real_muscle_stays_bounded_on_validation() {
     assert!(beta + gamma >= 0.0, "β + γ = {}", beta + gamma);
 }
 
+/// On the real Cavatappi muscle at 400 g the classic fit ends at the edge
+/// of divergence: a step of a thousandth of its loop shape, pole or gain
+/// makes the estimation free run diverge, so those have no standard error,
+/// and the report says why rather than leave them blank. Its loop settles
+/// within 0.134 mm a sample (`stable_step`), below the record's largest
+/// step.
+#[test]
+fn a_fit_at_the_edge_of_divergence_says_why_its_parameters_have_no_error() {
+    let Some(path) = common::require_external("cavatappi_muscle/sample1_400g.csv") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let v = json(&fit_cavatappi(
+        &path,
+        &["--json", "--out", "out"],
+        dir.path(),
+    ));
+    let diverging: Vec<&str> = v["diverging_probes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    assert_eq!(diverging, ["loading", "beta_range", "a", "gain"], "{v}");
+    let errors = &v["std_errors"];
+    for name in ["beta", "gamma", "a", "b"] {
+        assert!(errors[name].is_null(), "{name}: {errors}");
+    }
+    for name in ["alpha", "c", "x0"] {
+        assert!(
+            errors[name].as_f64().is_some_and(|e| e > 0.0),
+            "{name}: {errors}"
+        );
+    }
+    let (stable, largest) = (
+        v["stable_step"].as_f64().unwrap(),
+        v["largest_step"].as_f64().unwrap(),
+    );
+    assert!(
+        (stable - 0.1339).abs() < 1e-4 && largest > stable,
+        "{stable} {largest}"
+    );
+    let out = fit_cavatappi(&path, &["--out", "text"], dir.path());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains(
+            "(a step of a thousandth along loading, beta_range, a, gain makes the free run diverge"
+        ),
+        "{text}"
+    );
+}
+
 /// A fit that validates worse than the first-order ARX model on the same
 /// halves says so: the classic model on the Cavatappi 200 g record (38.3 %
 /// against ARX's 57.5 %: the Bouc-Wen model misses what this muscle does,

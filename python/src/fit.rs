@@ -90,6 +90,9 @@ pub struct FitResult {
     /// The parameters whose standard error is at least their own size,
     /// an infinite one included (`fit --json`'s `undetermined`).
     undetermined: Vec<String>,
+    /// The search coordinates along which a step of a thousandth makes the
+    /// estimation free run diverge (`fit --json`'s `diverging_probes`).
+    diverging_probes: Vec<String>,
     evaluations: u64,
     generations: usize,
     seconds: f64,
@@ -498,6 +501,7 @@ fn fit_result(
         refining: report.refining.map(|r| unbound(py, &r)).transpose()?,
         std_errors: std_errors.unbind(),
         undetermined: report.undetermined.clone(),
+        diverging_probes: report.diverging_probes.clone(),
         evaluations: report.evaluations,
         generations: report.generations,
         seconds: report.seconds,

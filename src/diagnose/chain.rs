@@ -155,6 +155,7 @@ pub fn selected_fit(
             .map(|(name, _)| (name, None))
             .collect(),
         undetermined: Vec::new(),
+        diverging_probes: Vec::new(),
         sse: finite(d.selection.final_fit.est_sse),
         val_rmse: finite(rmse(y, yhat)),
         val_fit_percent: finite(fit_percent(y, yhat)),

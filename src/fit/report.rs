@@ -12,7 +12,7 @@ use super::edge::{ActiveBound, Widening, active_bounds};
 use super::objective::TRY_POPULATION;
 use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
-use super::uncertainty::standard_errors;
+use super::uncertainty::{diverging_probes, standard_errors};
 use crate::data::{Trace, write_all_atomic};
 use crate::ident::fit::SETTLED_POINTS;
 use crate::model::Family;
@@ -44,6 +44,11 @@ pub struct FitReport {
     /// an infinite one included: the JSON writes an infinite error as
     /// `null`, as a held one, and this list tells them apart.
     pub undetermined: Vec<String>,
+    /// The search coordinates along which a step of a thousandth makes the
+    /// estimation free run diverge (`fit::uncertainty::diverging_probes`):
+    /// the fit ends at the edge of divergence there, and the parameters
+    /// they move have no standard error.
+    pub diverging_probes: Vec<String>,
     /// Estimation SSE of the free run (`None` where it diverged).
     pub sse: Option<f64>,
     pub val_rmse: Option<f64>,
@@ -186,6 +191,10 @@ impl FitReport {
         let undetermined = loose(&params, &std_errors)
             .map(|(name, _, _)| name.to_string())
             .collect();
+        let diverging_probes = match found {
+            true => diverging_probes(problem, &outcome.params),
+            false => Vec::new(),
+        };
         FitReport {
             model: problem.model.family,
             effects: problem
@@ -198,6 +207,7 @@ impl FitReport {
             params,
             std_errors,
             undetermined,
+            diverging_probes,
             sse: finite(outcome.sse),
             val_rmse: val.and_then(|v| finite(v.rmse)),
             val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
@@ -400,6 +410,13 @@ impl FitReport {
         let percent = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4} %"));
         // SSEs and RMSEs are in the output's units, squared or not.
         let figure = |v: Option<f64>| v.map_or("diverged".to_string(), |v| significant(v, 4));
+        if !self.diverging_probes.is_empty() {
+            line(format!(
+                "  (a step of a thousandth along {} makes the free run diverge on the estimation \
+                 half: the fit ends at the edge of divergence, and what those move has no ±)",
+                self.diverging_probes.join(", ")
+            ));
+        }
         line(format!("  SSE (estimation)     {}", figure(self.sse)));
         line(format!(
             "  validation fit       {}   (RMSE {})",

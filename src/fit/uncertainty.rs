@@ -57,44 +57,16 @@ pub fn linearized_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>
     let d = theta.len();
     let none = vec![None; d];
     let space = &problem.space;
-    let Some(r0) = problem.est_residuals(theta) else {
+    let Some(Probes {
+        r0,
+        z0,
+        probed,
+        columns,
+        ..
+    }) = probes(problem, theta)
+    else {
         return none;
     };
-    let z0 = space.from_native(theta);
-    let switch = problem.model.family.switch_index();
-    // The polish's probe steps: a share of the coordinate, at least a
-    // share of its box width.
-    let Polish {
-        rel_step,
-        step_floor,
-        ..
-    } = Polish::default();
-    let mut probed: Vec<(usize, f64)> = Vec::new();
-    let mut columns: Vec<f64> = Vec::new();
-    for j in space.free() {
-        if Some(j) == switch {
-            continue;
-        }
-        let (lo, hi) = (space.lower[j], space.upper[j]);
-        let h = rel_step * z0[j].abs().max(step_floor * (hi - lo));
-        if z0[j] - h < lo || z0[j] + h > hi {
-            continue;
-        }
-        let at = |step: f64| {
-            let mut z = z0.clone();
-            z[j] += step;
-            problem.est_residuals(&space.to_native(&z))
-        };
-        let (Some(plus), Some(minus)) = (at(h), at(-h)) else {
-            continue;
-        };
-        columns.extend(
-            plus.iter()
-                .zip(minus.iter())
-                .map(|(p, m)| (p - m) / (2.0 * h)),
-        );
-        probed.push((j, h));
-    }
     let (n, p) = (r0.len(), probed.len());
     if p == 0 || n <= p {
         return none;
@@ -127,6 +99,81 @@ pub fn linearized_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>
             covariance.std_error(&g)
         })
         .collect()
+}
+
+/// The estimation residuals at `theta` and their central differences
+/// along each free search coordinate, with the polish's probe steps.
+struct Probes {
+    r0: DVector<f64>,
+    /// `theta` in the search coordinates.
+    z0: Vec<f64>,
+    /// The probed coordinates and their steps, in order.
+    probed: Vec<(usize, f64)>,
+    /// The differences, one column of `r0.len()` a probed coordinate.
+    columns: Vec<f64>,
+    /// The free coordinates a step of whose probe made the free run
+    /// diverge (the switching level is not probed).
+    diverging: Vec<usize>,
+}
+
+/// [`Probes`] at `theta`, `None` where its own residuals diverge.
+fn probes(problem: &FitProblem, theta: &[f64]) -> Option<Probes> {
+    let space = &problem.space;
+    let r0 = problem.est_residuals(theta)?;
+    let z0 = space.from_native(theta);
+    let switch = problem.model.family.switch_index();
+    // The polish's probe steps: a share of the coordinate, at least a
+    // share of its box width.
+    let Polish {
+        rel_step,
+        step_floor,
+        ..
+    } = Polish::default();
+    let (mut probed, mut columns, mut diverging) = (Vec::new(), Vec::new(), Vec::new());
+    for j in space.free() {
+        if Some(j) == switch {
+            continue;
+        }
+        let (lo, hi) = (space.lower[j], space.upper[j]);
+        let h = rel_step * z0[j].abs().max(step_floor * (hi - lo));
+        if z0[j] - h < lo || z0[j] + h > hi {
+            continue;
+        }
+        let at = |step: f64| {
+            let mut z = z0.clone();
+            z[j] += step;
+            problem.est_residuals(&space.to_native(&z))
+        };
+        let (Some(plus), Some(minus)) = (at(h), at(-h)) else {
+            diverging.push(j);
+            continue;
+        };
+        columns.extend(
+            plus.iter()
+                .zip(minus.iter())
+                .map(|(p, m)| (p - m) / (2.0 * h)),
+        );
+        probed.push((j, h));
+    }
+    Some(Probes {
+        r0,
+        z0,
+        probed,
+        columns,
+        diverging,
+    })
+}
+
+/// The search coordinates (by the box's names) along which a step of a
+/// thousandth (the polish's and the standard errors' probe) makes the
+/// estimation free run at `theta` diverge: the fit ends at the edge of
+/// divergence along them, and the parameters they move get no standard
+/// error. Empty where the run at `theta` itself diverges.
+pub fn diverging_probes(problem: &FitProblem, theta: &[f64]) -> Vec<String> {
+    let names = problem.space.names();
+    probes(problem, theta).map_or_else(Vec::new, |p| {
+        p.diverging.into_iter().map(|j| names[j].clone()).collect()
+    })
 }
 
 /// Below this share of the largest eigenvalue of the scaled `JᵀJ`, a
