@@ -844,7 +844,7 @@ fn a_fit_at_the_edge_of_divergence_says_why_its_parameters_have_no_error() {
 }
 
 /// A fit that validates worse than the first-order ARX model on the same
-/// halves says so: the classic model on the Cavatappi 200 g record (38.3 %
+/// halves says so, on stderr and in `--json`'s `notes`: the classic model on the Cavatappi 200 g record (38.3 %
 /// against ARX's 57.5 %: the Bouc-Wen model misses what this muscle does,
 /// docs/RESULTS.md). A fit of a record the classic model generated beats
 /// ARX and gets none.
@@ -874,6 +874,26 @@ fn a_fit_below_the_linear_yardstick_is_flagged() {
         stderr.contains("warning: the fit validates worse than the first-order ARX model"),
         "{stderr}"
     );
+    // A script reads the same lines from the document, in the order printed.
+    let out = fit_cavatappi(&path, &["--json", "--out", "muscle"], dir.path());
+    let printed: Vec<String> = stderr
+        .lines()
+        .filter_map(|l| l.strip_prefix("mckibben: "))
+        .map(String::from)
+        .collect();
+    let notes: Vec<String> = json(&out)["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| {
+            format!(
+                "{}: {}",
+                n["level"].as_str().unwrap(),
+                n["text"].as_str().unwrap()
+            )
+        })
+        .collect();
+    assert_eq!(notes, printed);
 }
 
 /// A fit with effects has two starts: the search from scratch and the chain

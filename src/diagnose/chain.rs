@@ -191,6 +191,7 @@ pub fn selected_fit(
             origin: Vec::new(),
         },
         data: trace.source.clone(),
+        notes: Vec::new(),
         out: None,
     };
     Ok((model, report))

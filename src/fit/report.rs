@@ -102,6 +102,9 @@ pub struct FitReport {
     pub search_box: SearchBox,
     /// The data file.
     pub data: String,
+    /// What `fit` says on stderr of the data and of the fit: the notes
+    /// before it ran and [`FitReport::after_notes`], in the order printed.
+    pub notes: Vec<Note>,
     /// Where the fit's files were written (`None` where nothing was).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub out: Option<PathBuf>,
@@ -121,6 +124,23 @@ fn loose<'a>(
             let e = (*e)?;
             (e >= v.abs()).then_some((name.as_str(), *v, e))
         })
+}
+
+/// One line `fit` prints on stderr, `mckibben: LEVEL: TEXT`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Note {
+    /// `note` or `warning`.
+    pub level: &'static str,
+    pub text: String,
+}
+
+impl Note {
+    pub fn note(text: String) -> Note {
+        Note {
+            level: "note",
+            text,
+        }
+    }
 }
 
 /// The refining rounds of a generalized fit: the most a try may run, and
@@ -259,6 +279,7 @@ impl FitReport {
             widened: widened.to_vec(),
             search_box: SearchBox::of(&problem.space),
             data: data.to_string(),
+            notes: Vec::new(),
             out: None,
         }
     }
@@ -497,6 +518,33 @@ impl FitReport {
             ));
         }
         s
+    }
+
+    /// What the fit says of itself once it has run, in the order `fit`
+    /// prints it: the box ([`FitReport::edge_notes`]), tries that agree
+    /// too little, refining rounds cut short, parameters the estimation
+    /// half does not determine, and a validation fit the yardsticks find
+    /// wanting ([`yardstick_warnings`], with the warm start's `start`).
+    pub fn after_notes(&self, start: Option<StartScores>) -> Vec<Note> {
+        let mut notes: Vec<Note> = self
+            .edge_notes()
+            .into_iter()
+            .map(|(level, text)| Note { level, text })
+            .collect();
+        let advice = [
+            self.agreement.as_ref().and_then(|a| a.advice()),
+            self.refining.and_then(|r| r.advice(self.tries)),
+            self.undetermined(),
+        ];
+        notes.extend(advice.into_iter().flatten().map(Note::note));
+        if let (Some(sse), Some(val)) = (self.sse, self.val_fit_percent) {
+            let warnings = yardstick_warnings(sse, val, self.linear_val_fit_percent, start);
+            notes.extend(warnings.into_iter().map(|text| Note {
+                level: "warning",
+                text,
+            }));
+        }
+        notes
     }
 
     /// The parameters whose standard error is at least their own size, as

@@ -14,7 +14,7 @@ use mckibben::data::{Trace, readable};
 use mckibben::diagnose::chain::{selected_fit, with_chain_start};
 use mckibben::eval;
 use mckibben::fit::objective::POPULATION;
-use mckibben::fit::report::{FitReport, yardstick_warnings};
+use mckibben::fit::report::{FitReport, Note};
 use mckibben::fit::request::{switching_boxed, switching_misapplied};
 use mckibben::fit::run::FitRun;
 use mckibben::fit::searches::StopFlag;
@@ -87,20 +87,29 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         return run_auto(&args, family, &trace);
     }
     let request = args.request()?;
+    // Printed as they come, and kept for the report (`fit --json`'s
+    // `notes`), where a script reads them.
+    let early = std::cell::RefCell::new(Vec::new());
+    let note = |s: String| {
+        if !args.json {
+            eprintln!("mckibben: note: {s}");
+        }
+        early.borrow_mut().push(Note::note(s));
+    };
     // α is a share (eq. 13: α of the restoring force elastic, 1 − α
     // hysteretic); a box past [0, 1] is the user's to ask for, and the
     // command says what it leaves.
     for b in request.bounds.iter().filter(|b| b.name == "alpha") {
-        if !args.json && (b.lower < 0.0 || b.upper > 1.0) {
+        if b.lower < 0.0 || b.upper > 1.0 {
             let given = match b.lower == b.upper {
                 true => format!("alpha = {}", readable(b.lower)),
                 false => format!("alpha in [{}, {}]", readable(b.lower), readable(b.upper)),
             };
-            eprintln!(
-                "mckibben: note: {given} reaches past [0, 1]: alpha is the elastic share of the \
-                 restoring force (eq. 13), and past it one part enters with the opposite sign \
-                 (above 1 the hysteretic, below 0 the elastic)"
-            );
+            note(format!(
+                "{given} reaches past [0, 1]: alpha is the elastic share of the restoring force \
+                 (eq. 13), and past it one part enters with the opposite sign (above 1 the \
+                 hysteretic, below 0 the elastic)"
+            ));
         }
     }
     let flag = if carried.is_some() {
@@ -125,11 +134,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             .check_data(&trace)
             .map_err(|e| anyhow::anyhow!("--carry: {e:#}"))?;
     }
-    let note = |s: String| {
-        if !args.json {
-            eprintln!("mckibben: note: {s}");
-        }
-    };
+
     let fit = FitRun::new(
         &trace,
         &what,
@@ -182,6 +187,9 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         );
     }
     let mut report = FitReport::of(&fit, (&outcome, &widened), &backend, &trace.source);
+    let after = report.after_notes(fit.start_scores());
+    report.notes = early.take();
+    report.notes.extend(after.iter().cloned());
     let provenance = args.data.provenance(Some(fit.engine.seed))?;
     let found = !outcome.params.is_empty();
     // A fit without a model writes nothing: its result.json and history
@@ -205,23 +213,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             .map(|i| !free.contains(&i))
             .collect();
         print!("{}", report.to_text(&fixed));
-        for (level, text) in report.edge_notes() {
+        for Note { level, text } in &after {
             eprintln!("mckibben: {level}: {text}");
-        }
-        if let Some(advice) = report.agreement.as_ref().and_then(|a| a.advice()) {
-            eprintln!("mckibben: note: {advice}");
-        }
-        if let Some(advice) = report.refining.and_then(|r| r.advice(report.tries)) {
-            eprintln!("mckibben: note: {advice}");
-        }
-        if let Some(loose) = report.undetermined() {
-            eprintln!("mckibben: note: {loose}");
-        }
-        if let Some(val) = report.val_fit_percent {
-            let linear = report.linear_val_fit_percent;
-            for w in yardstick_warnings(outcome.sse, val, linear, fit.start_scores()) {
-                eprintln!("mckibben: warning: {w}");
-            }
         }
     }
     written?;
