@@ -334,6 +334,44 @@ fn fit_with_split_gaps_names_the_piece_and_warns_when_it_is_a_small_part() {
     assert!(!stderr.contains("warning: the fit reads"), "{stderr}");
 }
 
+/// A time column named in milliseconds (a logger's `t_ms`) is refused with
+/// its file, line and column: read as seconds, a 10 ms step became a model
+/// of 10 s a sample, and a record in seconds simulated on it held two
+/// samples.
+#[test]
+fn a_time_column_in_milliseconds_is_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "# logger\nt_ms,pressure,displacement\n0,0.1,0\n10,0.2,0.1\n20,0.3,0.2\n";
+    let path = file(dir.path(), "ms.csv", text);
+    let read = ReadOptions {
+        time: "t_ms".into(),
+        ..ReadOptions::default()
+    };
+    let msg = read_traces(&path, &read).unwrap_err().to_string();
+    assert_eq!(
+        msg,
+        format!(
+            "{}: line 2: the time column \"t_ms\" is in milliseconds, and time is read in \
+             seconds (the model's sample time, its poles per sample, the figures' axes): convert \
+             the column to seconds and name it so",
+            path.display()
+        )
+    );
+    let seconds = file(
+        dir.path(),
+        "s.csv",
+        &text
+            .replace("t_ms", "t_s")
+            .replace("\n10,", "\n0.01,")
+            .replace("\n20,", "\n0.02,"),
+    );
+    let read = ReadOptions {
+        time: "t_s".into(),
+        ..ReadOptions::default()
+    };
+    assert_eq!(read_traces(&seconds, &read).unwrap()[0].dt(), 0.01);
+}
+
 #[test]
 fn written_traces_read_back_identically() {
     let dir = tempfile::tempdir().unwrap();

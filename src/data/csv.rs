@@ -147,6 +147,18 @@ pub enum DataError {
         column: String,
         role: &'static str,
     },
+    #[error(
+        "{}: line {line}: the time column \"{column}\" is in {unit}, and time is read in \
+         seconds (the model's sample time, its poles per sample, the figures' axes): convert \
+         the column to seconds and name it so",
+        path.display()
+    )]
+    TimeNotSeconds {
+        path: PathBuf,
+        line: u64,
+        column: String,
+        unit: &'static str,
+    },
     #[error("{}: line {line}: column \"{column}\" appears twice in the header", path.display())]
     DuplicateColumn {
         path: PathBuf,
@@ -421,6 +433,14 @@ fn parse(
         })
     };
     let it = find(&opts.time, "time", "--time")?;
+    if let Some(unit) = crate::data::units::time_unit_other_than_seconds(&names[it]) {
+        return Err(DataError::TimeNotSeconds {
+            path: p(),
+            line: header_line,
+            column: names[it].clone(),
+            unit,
+        });
+    }
     let ii = find(&opts.input, "input", "--input")?;
     let io = find(&opts.output, "output", "--output")?;
     // The input and the output may share a column: `simulate` reads a file

@@ -46,6 +46,28 @@ pub fn unit_of(column: &str) -> Option<String> {
         .map(|(_, unit)| unit.to_string())
 }
 
+/// The unit a time column's name states where it is not seconds
+/// (`t_ms`, `time [us]`, `t (min)`): time is read in seconds, and a column
+/// in another unit would be read as that many seconds. `None` for a name
+/// in seconds (`t_s`, `time [s]`) or that states no unit.
+pub fn time_unit_other_than_seconds(column: &str) -> Option<&'static str> {
+    let name = column.trim();
+    let bracketed = name
+        .strip_suffix(']')
+        .and_then(|s| s.rsplit_once('['))
+        .or_else(|| name.strip_suffix(')').and_then(|s| s.rsplit_once('(')))
+        .map(|(_, unit)| unit);
+    let tail = bracketed.or_else(|| name.rsplit_once('_').map(|(_, unit)| unit))?;
+    match tail.trim().to_ascii_lowercase().as_str() {
+        "ms" | "msec" => Some("milliseconds"),
+        "us" | "µs" | "μs" | "usec" => Some("microseconds"),
+        "ns" => Some("nanoseconds"),
+        "min" => Some("minutes"),
+        "h" | "hr" => Some("hours"),
+        _ => None,
+    }
+}
+
 /// How many millimetres one of `unit` (as [`unit_of`] spells it) is, for
 /// the lengths a muscle's stroke is written in; `None` for any other unit.
 fn millimetres_in(unit: &str) -> Option<f64> {
@@ -95,6 +117,24 @@ mod tests {
         assert_eq!(megapascals_in("kPa"), Some(1e-3));
         assert_eq!(megapascals_in("mm"), None);
         assert_eq!(unit_of("load"), None);
+    }
+
+    #[test]
+    fn a_time_column_named_in_another_unit_than_seconds_is_found() {
+        for name in ["t_ms", "time [ms]", "t (us)", "t_µs", "time_min", "t [h]"] {
+            assert!(time_unit_other_than_seconds(name).is_some(), "{name}");
+        }
+        for name in [
+            "t",
+            "t_s",
+            "time [s]",
+            "time_sec",
+            "t (s)",
+            "time_s",
+            "timestamp",
+        ] {
+            assert_eq!(time_unit_other_than_seconds(name), None, "{name}");
+        }
     }
 
     #[test]

@@ -410,6 +410,69 @@ pub fn residuals(
 mod tests {
     use super::*;
 
+    /// Steps of one size, all one way, from `w = 0`: the update's state
+    /// after `steps` of them, and how far its last step moved it.
+    fn ramp(family: Family, theta: &[f64], delta: f64, x: f64, steps: usize) -> (f32, f32) {
+        let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
+        let (mut w, mut moved) = (0.0f32, 0.0f32);
+        for _ in 0..steps {
+            let next = match family {
+                Family::Classic => classic_w(t[0], t[2], t[3], t[4], w, delta as f32),
+                _ => {
+                    let betas = [t[2], t[3], t[4], t[5], t[6], t[7]];
+                    generalized_w(t[0], &betas, t[8], w, x as f32, delta as f32, 0.0)
+                }
+            };
+            (moved, w) = ((next - w).abs(), next);
+        }
+        (w, moved)
+    }
+
+    #[test]
+    fn the_update_settles_within_its_stable_step_and_not_past_it() {
+        // A, α, β, γ, n, a, b, c, x0: the 400 g Cavatappi fit's loop (β + γ
+        // = 14.93 a mm: 0.134 mm), a thesis-like one, n ≠ 1.
+        let classic =
+            |beta: f64, gamma: f64, n: f64| [1.0, 0.9, beta, gamma, n, 0.97, 0.1, 0.0, 0.0];
+        let cases = [
+            (Family::Classic, classic(14.176, 0.7565, 1.0).to_vec(), 1.0),
+            (Family::Classic, classic(0.3, 0.2, 1.0).to_vec(), 1.0),
+            (Family::Classic, classic(0.3, 0.2, 2.0).to_vec(), 1.0),
+            // β1..β6 with the binding branch above the switching level.
+            (
+                Family::Generalized,
+                vec![
+                    1.0, 0.9, 0.4, 0.1, 0.05, 0.2, 0.1, 0.3, 1.0, 0.0, 0.97, 0.1, 0.0, 0.0,
+                ],
+                1.0,
+            ),
+        ];
+        for (family, theta, x) in cases {
+            let step = family.stable_step(&theta).unwrap();
+            let (settled, moved) = ramp(family, &theta, 0.9 * step, x, 400);
+            assert!(
+                settled.is_finite() && moved < 1e-4 * settled.abs(),
+                "{family} {theta:?}: {settled} moved {moved}"
+            );
+            let (w, moved) = ramp(family, &theta, 1.1 * step, x, 400);
+            assert!(
+                !w.is_finite() || moved > 1e-2 * settled.abs(),
+                "{family} {theta:?}: {w} moved {moved}"
+            );
+        }
+        let cavatappi = Family::Classic
+            .stable_step(&classic(14.176, 0.7565, 1.0))
+            .unwrap();
+        assert!((cavatappi - 2.0 / 14.9325).abs() < 1e-12, "{cavatappi}");
+        // No saturation, no step: a loop without one (β + γ ≤ 0), no loop.
+        assert_eq!(Family::Classic.stable_step(&classic(0.1, -0.2, 1.0)), None);
+        assert_eq!(
+            Family::Classic.stable_step(&[0.0, 0.9, 1.0, 1.0, 1.0, 0.9, 0.1, 0.0, 0.0]),
+            None
+        );
+        assert_eq!(Family::Linear.stable_step(&[0.9, 0.1, 0.0, 0.0]), None);
+    }
+
     #[test]
     fn a_model_started_at_rest_stays_there() {
         let classic = [1.0, 0.6, 0.02, 0.01, 1.0, 0.97, 8.0, 0.3, 0.5];
