@@ -1,7 +1,8 @@
 //! Reading and writing experiment CSV files (the format: README.md, "Data format").
 //!
 //! A file has one header row, optionally preceded by `#` comment lines; blank
-//! lines are skipped. One column is the time (s), one the model input and one
+//! lines, and rows whose every cell is empty (a spreadsheet's `,,`), are
+//! skipped. One column is the time (s), one the model input and one
 //! the output; every other numeric column is carried along in
 //! [`Trace::extra`]. Every malformed value is an error naming the file, the
 //! 1-based line number and the column, so a user can open the file at the
@@ -381,6 +382,9 @@ fn parse(
         })?;
         match &header {
             None => header = Some((line, cells.iter().map(String::from).collect())),
+            // A row of empty cells (`,,`: a spreadsheet's export of rows
+            // it once held) is a blank line.
+            Some(_) if cells.iter().all(|c| c.trim().is_empty()) => continue,
             Some((header_line, names)) => {
                 if cells.len() != names.len() {
                     return Err(DataError::Ragged {
@@ -1027,6 +1031,9 @@ mod tests {
         assert_eq!(tr.source, "x.csv");
         assert_eq!(notes.len(), 1, "{notes:?}");
         assert!(notes[0].contains("\"label\""));
+        // A spreadsheet's rows of empty cells, after the data and quoted.
+        let (again, _) = read(&format!("{text}\n,,,,\n , ,,,\n\"\",,,,\n"), Gaps::Reject).unwrap();
+        assert_eq!(again[0].t, tr.t);
         let msg = err("# a\n\nt,pressure,displacement\n\n0,1,2\r\n\n# b\n1,x,3\n");
         assert!(
             msg.starts_with("x.csv: line 8, column \"pressure\""),
