@@ -561,10 +561,51 @@ fn parse(
             check_uniform(path, &opts.time, &trace.t, &lines, step, hint)?;
             vec![trace]
         }
-        Gaps::Resample(dt) => vec![resample(path, &trace, dt)?],
+        Gaps::Resample(dt) => {
+            let resampled = resample(path, &trace, dt)?;
+            notes.extend(widest_gap_filled(path, &trace, &lines, step, dt));
+            vec![resampled]
+        }
         Gaps::Split => split(path, &opts.time, trace, &lines, &mut notes)?,
     };
     Ok((traces, notes))
+}
+
+/// The note `--resample` owes where it interpolated across a gap (a step
+/// over 1.5 median steps, as `--split-gaps` cuts): the widest, with its
+/// line, how many of the new samples fall inside it and their share.
+/// `None` where the file had no gap.
+fn widest_gap_filled(
+    path: &Path,
+    trace: &Trace,
+    lines: &[u64],
+    median: f64,
+    dt: f64,
+) -> Option<String> {
+    let steps = trace.t.windows(2).map(|w| w[1] - w[0]);
+    let gaps = steps.clone().filter(|&s| s > 1.5 * median).count();
+    let (k, widest) = steps
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .filter(|&(_, s)| s > 1.5 * median)?;
+    // Grid points strictly inside the gap: its ends are measured.
+    let made_up = ((widest / dt).ceil() as usize).saturating_sub(1);
+    let total = ((trace.t[trace.len() - 1] - trace.t[0]) / dt).floor() as usize + 1;
+    let others = match gaps {
+        1 => String::new(),
+        n => format!(", the widest of {n}"),
+    };
+    Some(format!(
+        "{}: line {}: --resample {dt} interpolated across a gap of {} s (from {} s to {} s){others}: \
+         {made_up} of the record's {total} samples are made up there ({:.0} %); use it where \
+         such gaps are short against the muscle's time constant",
+        path.display(),
+        lines[k + 1],
+        rounded(widest),
+        trace.t[k],
+        trace.t[k + 1],
+        100.0 * made_up as f64 / total as f64,
+    ))
 }
 
 /// Parses column `c` of every row, erring at the first bad cell. A column
@@ -1230,6 +1271,22 @@ mod tests {
         let ten: Vec<f64> = want.iter().map(|v| v * 10.0).collect();
         assert_eq!(tr.output, ten);
         assert_eq!(tr.column("valve_in").unwrap()[9], 22.5);
+        // The gap is said: its line, its width, the samples made up in it.
+        let (_, notes) = read(text, Gaps::Resample(0.5)).unwrap();
+        assert_eq!(
+            notes,
+            [
+                "x.csv: line 5: --resample 0.5 interpolated across a gap of 2 s (from 2 s to 4 s): \
+              3 of the record's 11 samples are made up there (27 %); use it where such gaps are \
+              short against the muscle's time constant"
+            ]
+        );
+        let (_, notes) = read(
+            "t,pressure,displacement\n0,0,0\n1,1,1\n2,2,2\n",
+            Gaps::Resample(0.5),
+        )
+        .unwrap();
+        assert!(notes.is_empty(), "{notes:?}");
         assert!(read(text, Gaps::Resample(0.0)).is_err());
         assert!(
             read(text, Gaps::Resample(10.0))
