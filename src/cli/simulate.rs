@@ -368,7 +368,7 @@ fn print_summary(
     if let (Some(all), Some(val)) = (summary.fit_percent, summary.val_fit_percent) {
         writeln!(
             report,
-            "  fit to the measured output {all:.2} % (second half, as validated: {val:.2} %)"
+            "  fit to the measured output {all:.2} % (its second half alone: {val:.2} %, as `fit` scores its validation half)"
         )?;
     }
     if let Some(p) = &args.out {
