@@ -391,6 +391,39 @@ fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
         e.contains("in MPa") && e.contains("`pressure_kpa` is in kPa"),
         "{e}"
     );
+    // The other way round: the shipped data's `pressure` states no unit and
+    // is read as MPa, which the error says rather than assert it.
+    let stair_kpa = dir.path().join("stair_kpa.csv");
+    let rows: Vec<String> = std::fs::read_to_string(Path::new(ROOT).join(STAIR))
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .map(|l| {
+            let f: Vec<f64> = l.split(',').map(|v| v.parse().unwrap()).collect();
+            format!("{},{},{}", f[0], 1000.0 * f[1], f[2])
+        })
+        .collect();
+    let text = format!("t,pressure_kpa,displacement\n{}\n", rows.join("\n"));
+    std::fs::write(&stair_kpa, text).unwrap();
+    let kpa_model = dir.path().join("kpa_model");
+    quick_fit(
+        &[stair_kpa.to_str().unwrap(), "--input", "pressure_kpa"],
+        &kpa_model,
+    );
+    let e = error_of(&[
+        "simulate",
+        "--from",
+        kpa_model.join("model.json").to_str().unwrap(),
+        "--input",
+        STAIR,
+        "--input-col",
+        "pressure",
+    ]);
+    assert!(
+        e.contains("but `pressure` is read as MPa (its name states no unit"),
+        "{e}"
+    );
 
     // A model whose input column states no unit drives the controllers as
     // if in MPa, and `control --from` says so.

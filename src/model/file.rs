@@ -160,10 +160,20 @@ impl Model {
             ("output", &base.output_name, &trace.output_name),
         ] {
             if let (Some(was), Some(now)) = (unit_of(fitted), unit_of(column)) {
+                // `pressure` and `displacement` state no unit: they are the
+                // shipped data's names, read as MPa and mm.
+                let named = if column.trim() == "pressure" || column.trim() == "displacement" {
+                    format!(
+                        "`{column}` is read as {now} (its name states no unit: the shipped \
+                         data's convention)"
+                    )
+                } else {
+                    format!("`{column}` is in {now}")
+                };
                 anyhow::ensure!(
                     was == now,
-                    "the model's {which} is in {was} (column `{fitted}`), but `{column}` is in \
-                     {now}: convert the column, or refit the model on data in {now}"
+                    "the model's {which} is in {was} (column `{fitted}`), but {named}: convert \
+                     the column, or name its unit, or refit the model on data in {now}"
                 );
             }
         }
