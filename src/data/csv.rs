@@ -288,25 +288,72 @@ pub fn read_traces_with_notes(
     parse(path, &bytes, opts)
 }
 
-/// The trimmed fields of one CSV line (quotes allowed, as RFC 4180).
-fn split_fields(text: &str) -> Result<csv::StringRecord, csv::Error> {
-    if !text.contains('"') {
-        // The common case, without a reader (and its buffer) per line.
-        return Ok(text.split(',').map(str::trim).collect());
+/// How a file separates its fields, read off its header: commas; or,
+/// where the header holds no comma, semicolons (what a spreadsheet writes
+/// in a locale of decimal commas, which then read as points) or tabs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Dialect {
+    Commas,
+    Semicolons,
+    Tabs,
+}
+
+impl Dialect {
+    fn of_header(text: &str) -> Dialect {
+        if text.contains(',') {
+            Dialect::Commas
+        } else if text.contains(';') {
+            Dialect::Semicolons
+        } else if text.contains('\t') {
+            Dialect::Tabs
+        } else {
+            Dialect::Commas
+        }
     }
-    let mut reader = csv::ReaderBuilder::new()
-        .has_headers(false)
-        .trim(csv::Trim::All)
-        .from_reader(text.as_bytes());
-    let mut record = csv::StringRecord::new();
-    reader.read_record(&mut record)?;
+
+    fn separator(self) -> char {
+        match self {
+            Dialect::Commas => ',',
+            Dialect::Semicolons => ';',
+            Dialect::Tabs => '\t',
+        }
+    }
+
+    /// The note a file in another dialect than commas gets.
+    fn note(self, path: &Path) -> Option<String> {
+        let how = match self {
+            Dialect::Commas => return None,
+            Dialect::Semicolons => "semicolons, a decimal comma read as a point",
+            Dialect::Tabs => "tabs",
+        };
+        Some(format!("{}: fields separated by {how}", path.display()))
+    }
+}
+
+/// The trimmed fields of one line (quotes allowed, as RFC 4180).
+fn split_fields(text: &str, dialect: Dialect) -> Result<csv::StringRecord, csv::Error> {
+    let mut record: csv::StringRecord = if !text.contains('"') {
+        // The common case, without a reader (and its buffer) per line.
+        text.split(dialect.separator()).map(str::trim).collect()
+    } else {
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .delimiter(dialect.separator() as u8)
+            .trim(csv::Trim::All)
+            .from_reader(text.as_bytes());
+        let mut record = csv::StringRecord::new();
+        reader.read_record(&mut record)?;
+        record
+    };
+    if dialect == Dialect::Semicolons && record.iter().any(|c| c.contains(',')) {
+        record = record.iter().map(|c| c.replace(',', ".")).collect();
+    }
     Ok(record)
 }
 
-/// Why the header line `text` is not a comma-separated header with one
-/// line a row, where its form shows it: lines ended by a lone carriage
-/// return (read as one line), or fields separated by `;` or tabs with no
-/// comma (read as one column).
+/// Why the header line `text` is not a header with one line a row, where
+/// its form shows it: lines ended by a lone carriage return (the whole
+/// file would read as one line).
 fn check_header_form(text: &str) -> Result<(), String> {
     if text.contains('\r') {
         return Err(
@@ -314,19 +361,6 @@ fn check_header_form(text: &str) -> Result<(), String> {
                     whole file reads as one line: convert its line ends to LF or CRLF"
                 .into(),
         );
-    }
-    if !text.contains(',') {
-        let decimal_comma = " (a file separated by semicolons likely writes decimal commas: \
-                             convert those to points too)";
-        for (separator, name, also) in [(';', "semicolons", decimal_comma), ('\t', "tabs", "")] {
-            if text.contains(separator) {
-                return Err(format!(
-                    "the header `{}` is separated by {name}, not commas: mckibben reads \
-                     comma-separated files{also}",
-                    text.escape_debug()
-                ));
-            }
-        }
     }
     Ok(())
 }
@@ -346,6 +380,7 @@ fn parse(
     // Lines are numbered here rather than by the `csv` reader, which does not
     // count comment and blank lines; one record per line.
     let mut header: Option<(u64, Vec<String>)> = None;
+    let mut dialect: Option<Dialect> = None;
     let mut rows = Vec::new();
     for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let line = i as u64 + 1;
@@ -375,7 +410,8 @@ fn parse(
                 message,
             })?;
         }
-        let cells = split_fields(text).map_err(|e| DataError::Parse {
+        let dialect = *dialect.get_or_insert_with(|| Dialect::of_header(text));
+        let cells = split_fields(text, dialect).map_err(|e| DataError::Parse {
             path: p(),
             line,
             message: e.to_string(),
@@ -468,7 +504,7 @@ fn parse(
         });
     }
 
-    let mut notes = Vec::new();
+    let mut notes: Vec<String> = dialect.and_then(|d| d.note(path)).into_iter().collect();
     let column = |c: usize| -> Result<Vec<f64>, DataError> {
         Ok(numeric_column(path, &rows, c, &names[c], true)?.unwrap_or_default())
     };
@@ -1236,14 +1272,6 @@ mod tests {
     fn a_header_in_another_form_says_which() {
         for (text, expect) in [
             (
-                "t;pressure;displacement\n0;0,1;1\n0,01;0,2;2\n",
-                "separated by semicolons",
-            ),
-            (
-                "t\tpressure\tdisplacement\n0\t0.1\t1\n",
-                "separated by tabs",
-            ),
-            (
                 "# logged by hand\rt,pressure,displacement\r0,0.1,1\r0.01,0.2,2\r",
                 "lone carriage return",
             ),
@@ -1258,6 +1286,49 @@ mod tests {
         // CRLF is read as it should be.
         let crlf = "t,pressure,displacement\r\n0,0.1,1\r\n0.01,0.2,2\r\n";
         assert_eq!(read(crlf, Gaps::Reject).unwrap().0[0].len(), 2);
+        // A spreadsheet's semicolons with decimal commas (a quoted cell
+        // too), and tabs, read as the same numbers, and say how.
+        let (commas, _) = read(
+            "t,pressure,displacement\n0,0.1,1\n0.01,0.25,2\n",
+            Gaps::Reject,
+        )
+        .unwrap();
+        for (text, how) in [
+            (
+                "t;pressure;displacement\n0;0,1;1\n0,01;\"0,25\";2\n",
+                "semicolons, a decimal comma read as a point",
+            ),
+            (
+                "t;pressure;displacement\n0;0.1;1\n0.01;0.25;2\n",
+                "semicolons, a decimal comma read as a point",
+            ),
+            (
+                "t\tpressure\tdisplacement\n0\t0.1\t1\n0.01\t0.25\t2\n",
+                "tabs",
+            ),
+        ] {
+            let (traces, notes) = read(text, Gaps::Reject).unwrap();
+            assert_eq!(
+                (&traces[0].t, &traces[0].input, &traces[0].output),
+                (&commas[0].t, &commas[0].input, &commas[0].output),
+                "{text:?}"
+            );
+            assert_eq!(
+                notes,
+                [format!("x.csv: fields separated by {how}")],
+                "{text:?}"
+            );
+        }
+        let err = read(
+            "t;pressure;displacement\n0;0,1;1\n0,01;1.234,5;2\n",
+            Gaps::Reject,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.starts_with("x.csv: line 3, column \"pressure\""),
+            "{err}"
+        );
     }
 
     #[test]
