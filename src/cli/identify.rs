@@ -163,7 +163,9 @@ fn print_report(id: &Identification) {
     let o = id.arx.orders;
     println!(
         "ARX identification of {} ({} samples, dt = {} s)",
-        id.source, id.samples, id.dt
+        id.source,
+        id.samples,
+        mckibben::data::tidy_step(id.dt)
     );
     println!(
         "  orders        na = {}, nb = {}, nk = {}",

@@ -334,7 +334,9 @@ fn print_summary(
     writeln!(
         report,
         "Simulated the {described} model on `{}`: {} samples, dt = {} s",
-        summary.input, summary.samples, summary.dt
+        summary.input,
+        summary.samples,
+        mckibben::data::tidy_step(summary.dt)
     )?;
     for (name, value) in model.named_params() {
         writeln!(report, "  {name:<8} {value}")?;
