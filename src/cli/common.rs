@@ -224,10 +224,11 @@ pub struct ColumnArgs {
 }
 
 /// The longest of the traces (several come from `--split-gaps`; of equal
-/// ones the one whose input spans most, then the first). The note names the piece and its share of the samples,
-/// and warns where the rest outweighs it: a recording cut at many short
-/// gaps (a logger's pauses) leaves pieces of equal length, and a fit of one
-/// of them reads a small part of what was measured.
+/// ones the one whose input spans most, then the first). The note names
+/// the piece and its share of the samples, and warns where the rest
+/// outweighs it: a recording cut at many short gaps (a logger's pauses)
+/// leaves pieces of equal length, and a fit of one of them reads a small
+/// part of what was measured.
 pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
     anyhow::ensure!(!traces.is_empty(), "the data file holds no samples");
     // Of pieces of equal length (a logger that pauses every second) the

@@ -8,8 +8,10 @@
 //! a thousandth of the coordinate, at least a hundredth of that of its box
 //! width), and carried to the canonical parameters through the chart. A
 //! coordinate held by the box, the switching level (the free-run error is
-//! piecewise constant in it) and a coordinate within its probe step of a
-//! bound are held: the errors are those of the others given them.
+//! piecewise constant in it), a coordinate within its probe step of a
+//! bound and one a probe step along which makes the free run diverge
+//! ([`diverging_probes`]) are held: the errors are those of the others
+//! given them.
 //!
 //! Reported only where the free-run error is smooth in the parameters
 //! ([`standard_errors`]): the generalized family's jumps where a sample
