@@ -763,6 +763,21 @@ fn a_diverged_run_names_the_step_its_hysteresis_update_could_not_take() {
     assert_eq!(Some(stable), Family::Classic.stable_step(&params(&fit)));
     let largest = fit["largest_step"].as_f64().unwrap();
     assert!(0.0 < largest && largest < stable, "{fit}");
+
+    // The same fit with its loop made steep: the controllers' check of its
+    // prediction on the twin's record names the step as the cause.
+    let file = dir.path().join("model.json");
+    let mut model: Value = serde_json::from_slice(&std::fs::read(&file).unwrap()).unwrap();
+    model["params"]["beta"] = 50.0.into();
+    let steep = dir.path().join("steep.json");
+    std::fs::write(&steep, model.to_string()).unwrap();
+    let out = short_mpc(&steep, "1");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("the model's prediction diverges: its hysteresis update settles only within"),
+        "{err}"
+    );
 }
 
 /// The column of `name` in a CSV that `simulate --out` wrote.

@@ -187,7 +187,25 @@ pub fn prediction_report(
     let mut measured = vec![0.0; horizon];
     let mut chained = vec![0.0; horizon];
     let mut pressure = 0.0;
-    let diverged = || anyhow::anyhow!("{}: the model's prediction diverges", trace.source);
+    // Where the record steps further a sample than the model's
+    // hysteresis update settles within, that is the likely cause: say so.
+    let base = &model.displacement;
+    let largest = trace
+        .output
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .fold(0.0, f64::max);
+    let why = match base.family.stable_step(&base.params) {
+        Some(stable) if largest > stable => format!(
+            ": its hysteresis update settles only within {} mm a sample (`stable_step`), and \
+             this record steps up to {} mm: the model was fitted on slower motion \
+             (docs/GUIDE.md, \"When not to trust it\")",
+            crate::report::number::significant(stable, 3),
+            crate::report::number::significant(largest, 3)
+        ),
+        _ => String::new(),
+    };
+    let diverged = || anyhow::anyhow!("{}: the model's prediction diverges{why}", trace.source);
     walk_windows(&pr, &record, &starts, horizon, false, |j, e, _| {
         measured[j - 1] += e * e
     })
