@@ -216,7 +216,10 @@ pub struct ColumnArgs {
     /// Instead of failing on a non-uniform time base, cut the file at every
     /// gap (a step over 1.5 median steps) and at every backward jump of the
     /// time column (time that runs back or repeats, e.g. a logger glitch),
-    /// and use each piece as its own experiment (FILE[1], FILE[2], ...).
+    /// and use each piece as its own experiment (FILE[1], FILE[2], ...). A
+    /// row whose time, input or output is not a finite number (a logger's
+    /// NaN for a dropped sample, an empty cell) is dropped, and the file is
+    /// cut where it was.
     /// Each cut is noted on stderr with its line and times; pieces under 20
     /// samples are dropped with a note. Pieces are never merged or sorted.
     #[arg(long, conflicts_with = "resample")]

@@ -496,6 +496,28 @@ fn parse(
             });
         }
     }
+    // With --split-gaps a row whose time, input or output is not a finite
+    // number (a logger's NaN for a dropped sample, an empty cell) is a
+    // glitch: it is dropped, and the gap it leaves is cut as any other.
+    let mut dropped = Vec::new();
+    if matches!(opts.gaps, Gaps::Split) {
+        rows.retain(|row| {
+            let bad = [it, ii, io]
+                .into_iter()
+                .find(|&c| !row.cells[c].parse::<f64>().is_ok_and(f64::is_finite));
+            if let Some(c) = bad {
+                dropped.push(format!(
+                    "{}: line {}: --split-gaps dropped the row: column \"{}\" holds \"{}\", not \
+                     a finite number",
+                    path.display(),
+                    row.line,
+                    names[c],
+                    &row.cells[c]
+                ));
+            }
+            bad.is_none()
+        });
+    }
     if rows.len() < 2 {
         return Err(DataError::TooFewRows {
             path: p(),
@@ -505,6 +527,7 @@ fn parse(
     }
 
     let mut notes: Vec<String> = dialect.and_then(|d| d.note(path)).into_iter().collect();
+    notes.extend(dropped);
     let column = |c: usize| -> Result<Vec<f64>, DataError> {
         Ok(numeric_column(path, &rows, c, &names[c], true)?.unwrap_or_default())
     };
@@ -1515,6 +1538,44 @@ mod tests {
         assert!(err(&text).ends_with(
             "line 32, column \"t\": time 29 does not increase (previous row: 29); pass --split-gaps to cut the file there"
         ));
+    }
+
+    #[test]
+    fn split_drops_a_row_that_is_not_a_number_and_cuts_there() {
+        // Row 30 a logger's NaN, row 60 an empty output, the last a NaN time.
+        let rows: Vec<String> = uniform_text(100, 1.0).lines().map(String::from).collect();
+        let mut text = String::new();
+        for (k, row) in rows.iter().enumerate() {
+            let row = match k {
+                31 => "30,NaN,60".to_string(),
+                61 => "60,60e-3,".to_string(),
+                100 => "nan,99e-3,198".to_string(),
+                _ => row.clone(),
+            };
+            text += &row;
+            text += "\n";
+        }
+        let (traces, notes) = read(&text, Gaps::Split).unwrap();
+        let lengths: Vec<usize> = traces.iter().map(Trace::len).collect();
+        assert_eq!(lengths, [30, 29, 38], "{notes:?}");
+        assert_eq!((traces[1].t[0], traces[2].t[0]), (31.0, 61.0));
+        assert_eq!(
+            notes,
+            [
+                "x.csv: line 32: --split-gaps dropped the row: column \"pressure\" holds \"NaN\", not a finite number",
+                "x.csv: line 62: --split-gaps dropped the row: column \"displacement\" holds \"\", not a finite number",
+                "x.csv: line 101: --split-gaps dropped the row: column \"t\" holds \"nan\", not a finite number",
+                "x.csv: line 33: --split-gaps cut here: gap of 2 s (from 29 s on line 31 to 31 s); piece [2] starts here",
+                "x.csv: line 63: --split-gaps cut here: gap of 2 s (from 59 s on line 61 to 61 s); piece [3] starts here",
+            ]
+        );
+        // Without --split-gaps each is the error it was (the time column
+        // is read first).
+        let msg = err(&text);
+        assert!(
+            msg.ends_with("line 101, column \"t\": \"nan\" is not finite"),
+            "{msg}"
+        );
     }
 
     #[test]
