@@ -99,6 +99,9 @@ class Model:
     @property
     def family(self) -> Literal["classic", "generalized"]: ...
     @property
+    def stable_step(self) -> float | None:
+        """The largest output step a sample within which the hysteresis update settles."""
+    @property
     def dt(self) -> float: ...
     @property
     def input_mean(self) -> float: ...

@@ -174,6 +174,18 @@ impl Model {
         self.base().family.name()
     }
 
+    /// The largest step of the output in one sample within which the
+    /// hysteresis update settles (`fit --json`'s `stable_step`): a record
+    /// that steps further makes it overshoot, and at larger steps diverge.
+    /// `None` for a loop that never saturates and for a model with effects.
+    #[getter]
+    fn stable_step(&self) -> Option<f64> {
+        match self.inner.effects().is_empty() {
+            true => self.base().family.stable_step(&self.base().params),
+            false => None,
+        }
+    }
+
     /// Sample time the model was fitted at (s).
     #[getter]
     fn dt(&self) -> f64 {

@@ -33,6 +33,7 @@ def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli, tmp_path):
     assert result.linear_val_fit_percent == expected["linear_val_fit_percent"]
     assert (result.stable_step, result.largest_step) == (expected["stable_step"], expected["largest_step"])
     assert result.stable_step > result.largest_step > 0
+    assert result.model.stable_step == result.stable_step
     assert result.stop == expected["stop"] == "completed" and not result.interrupted
     assert [s["best_cost"] for s in result.stages] == [s["best_cost"] for s in expected["stages"]]
     assert all(0 < s["evaluator_seconds"] <= s["seconds"] for s in result.stages)

@@ -142,6 +142,11 @@ struct Summary {
     samples: usize,
     dt: f64,
     diverged_at: Option<usize>,
+    /// The largest output step a sample within which the model's
+    /// hysteresis update settles (`Family::stable_step`), and the first
+    /// sample whose step went past it (`Model::overstep`).
+    stable_step: Option<f64>,
+    stepped_past_at: Option<usize>,
     output_min: f64,
     output_max: f64,
     loop_area: f64,
@@ -238,9 +243,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(y0) => model.simulate_absolute(&trace.input, y0),
         None => model.simulate_from_rest(&trace.input),
     };
-    let overstep = run
+    let ran = run
         .diverged_at
-        .and_then(|k| model.overstep(&run.output[..k.min(run.output.len())]));
+        .map_or(run.output.len(), |k| k.min(run.output.len()));
+    let overstep = model.overstep(&run.output[..ran]);
     if let Some(k) = run.diverged_at {
         // A trace file and a figure hold finite numbers: keep the samples
         // before the divergence and say where it stopped.
@@ -303,6 +309,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         samples,
         dt: sample_time,
         diverged_at: run.diverged_at,
+        stable_step: match model.effects().is_empty() {
+            true => family.stable_step(&model.base.params),
+            false => None,
+        },
+        stepped_past_at: overstep.map(|(at, _, _)| at),
         output_min: finite.iter().copied().fold(f64::INFINITY, f64::min),
         output_max: finite.iter().copied().fold(f64::NEG_INFINITY, f64::max),
         loop_area: loop_area(&trace.input, &trace.output),
@@ -347,6 +358,8 @@ fn print_summary(
                 report,
                 "  DIVERGED at sample {k} (state beyond ±1e6 or not finite)"
             )?;
+            // Only a run that diverged: past the step the update
+            // overshoots, which a run that ends finite bore.
             if let Some((at, step, limit)) = overstep {
                 writeln!(
                     report,

@@ -135,7 +135,8 @@ pub struct Note {
 }
 
 impl Note {
-    pub fn note(text: String) -> Note {
+    /// A line at the level `note`.
+    pub fn plain(text: String) -> Note {
         Note {
             level: "note",
             text,
@@ -536,7 +537,7 @@ impl FitReport {
             self.refining.and_then(|r| r.advice(self.tries)),
             self.undetermined(),
         ];
-        notes.extend(advice.into_iter().flatten().map(Note::note));
+        notes.extend(advice.into_iter().flatten().map(Note::plain));
         if let (Some(sse), Some(val)) = (self.sse, self.val_fit_percent) {
             let warnings = yardstick_warnings(sse, val, self.linear_val_fit_percent, start);
             notes.extend(warnings.into_iter().map(|text| Note {

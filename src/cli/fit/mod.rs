@@ -94,7 +94,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         if !args.json {
             eprintln!("mckibben: note: {s}");
         }
-        early.borrow_mut().push(Note::note(s));
+        early.borrow_mut().push(Note::plain(s));
     };
     // α is a share (eq. 13: α of the restoring force elastic, 1 − α
     // hysteretic); a box past [0, 1] is the user's to ask for, and the
