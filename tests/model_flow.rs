@@ -722,7 +722,8 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
 /// shipped stair: its explicit update overshoots from the first step past
 /// `Family::stable_step` and diverges, and `simulate` names that step; a
 /// loop that never saturates diverges without it. The fit reports the
-/// fitted loop's step beside the record's largest.
+/// fitted loop's step beside the record's largest, and the controllers
+/// name it, or a gain of the wrong sign, before they run such a model.
 #[test]
 fn a_diverged_run_names_the_step_its_hysteresis_update_could_not_take() {
     use mckibben::model::Family;
@@ -776,6 +777,19 @@ fn a_diverged_run_names_the_step_its_hysteresis_update_could_not_take() {
     assert!(!out.status.success(), "{err}");
     assert!(
         err.contains("the model's prediction diverges: its hysteresis update settles only within"),
+        "{err}"
+    );
+    // And with its gain's sign flipped (a contraction logged negative), the
+    // controllers refuse it before the MPC holds the valve shut.
+    let b = model["params"]["b"].as_f64().unwrap();
+    model["params"]["beta"] = params(&fit)[2].into();
+    model["params"]["b"] = (-b).into();
+    let flipped = dir.path().join("flipped.json");
+    std::fs::write(&flipped, model.to_string()).unwrap();
+    let out = short_mpc(&flipped, "1");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("the model's output falls as the pressure rises"),
         "{err}"
     );
 }

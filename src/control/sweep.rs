@@ -260,6 +260,20 @@ pub fn design_for(
             )),
         }
     }
+    // The controllers push the displacement up with the pressure (the
+    // twin's and the thesis' contraction, positive): a model whose output
+    // falls as the pressure rises (an extension, or a contraction logged
+    // negative) steers every correction the wrong way, and the MPC holds
+    // the valve shut while the run diverges.
+    let b = m.base.params[m.base.family.linear_indices()[1]];
+    anyhow::ensure!(
+        b > 0.0,
+        "--from {}: the model's output falls as the pressure rises (its input gain b = {}): \
+         the controllers move a displacement that grows with the pressure (contraction, \
+         positive): flip the output column's sign and refit",
+        path.display(),
+        crate::report::number::significant(b, 4)
+    );
     // Each effect enters the controllers' prediction where it can, and
     // the run says how (or why not): a note here, and `design.effects`.
     let (chain, uses) = ControlChain::of(&m);
