@@ -210,6 +210,7 @@ fn draw_panel<DB: DrawingBackend>(
             .configure_mesh()
             .x_desc(&panel.x_label)
             .y_desc(&panel.y_label)
+            .y_label_formatter(&log_tick)
             .draw()
             .map_err(plot_err)?;
         for (i, s) in panel.series.iter().enumerate() {
@@ -283,6 +284,20 @@ where
     Ok(())
 }
 
+/// A tick of a log axis, in four significant digits without trailing
+/// zeros (`1e-5`, `2.5e3`): a decade's tick is a power of ten computed,
+/// `9.999999999999999e-6` where it should read `1e-5`.
+fn log_tick(v: &f64) -> String {
+    let s = format!("{v:.3e}");
+    match s.split_once('e') {
+        Some((mantissa, exponent)) if mantissa.contains('.') => {
+            let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+            format!("{mantissa}e{exponent}")
+        }
+        _ => s,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -305,5 +320,23 @@ mod tests {
             );
         let svg = fig.to_svg().unwrap();
         assert!(svg.starts_with("<svg") && svg.contains("sin") && svg.contains("SSE"));
+    }
+
+    #[test]
+    fn a_log_tick_reads_as_its_decade() {
+        assert_eq!(log_tick(&9.999999999999999e-6), "1e-5");
+        assert_eq!(log_tick(&2500.0), "2.5e3");
+        assert_eq!(log_tick(&0.12345), "1.235e-1");
+        // A log axis over 1e-7..1e-3 draws its decades so.
+        let x = vec![0.0, 1.0];
+        let svg = Figure::new("t")
+            .with(
+                Panel::new("log", "x", "y")
+                    .with(Series::line("s", x, vec![1e-7, 1e-3]))
+                    .log_y(),
+            )
+            .to_svg()
+            .unwrap();
+        assert!(svg.contains("\n1e-5\n") && !svg.contains("99999"), "{svg}");
     }
 }
