@@ -22,6 +22,19 @@ const KNOWN: [(&str, &str); 15] = [
     ("deg", "deg"),
 ];
 
+/// What a column name states as its unit, lower-case: the text inside
+/// trailing brackets or parentheses (`p [kPa]`, `x (m)`), else after the
+/// last `_` (`disp_mm`).
+fn stated(name: &str) -> Option<String> {
+    let bracketed = name
+        .strip_suffix(']')
+        .and_then(|s| s.rsplit_once('['))
+        .or_else(|| name.strip_suffix(')').and_then(|s| s.rsplit_once('(')))
+        .map(|(_, unit)| unit);
+    let tail = bracketed.or_else(|| name.rsplit_once('_').map(|(_, unit)| unit))?;
+    Some(tail.trim().to_ascii_lowercase())
+}
+
 /// The unit a column name states, if it states one: a known unit after the
 /// last `_`, or inside trailing brackets or parentheses. The shipped data's
 /// `pressure` and `displacement` columns are in MPa and mm (README.md,
@@ -33,13 +46,7 @@ pub fn unit_of(column: &str) -> Option<String> {
         "displacement" => return Some("mm".into()),
         _ => {}
     }
-    let bracketed = name
-        .strip_suffix(']')
-        .and_then(|s| s.rsplit_once('['))
-        .or_else(|| name.strip_suffix(')').and_then(|s| s.rsplit_once('(')))
-        .map(|(_, unit)| unit);
-    let tail = bracketed.or_else(|| name.rsplit_once('_').map(|(_, unit)| unit))?;
-    let tail = tail.trim().to_ascii_lowercase();
+    let tail = stated(name)?;
     KNOWN
         .iter()
         .find(|(key, _)| *key == tail)
@@ -51,14 +58,7 @@ pub fn unit_of(column: &str) -> Option<String> {
 /// in another unit would be read as that many seconds. `None` for a name
 /// in seconds (`t_s`, `time [s]`) or that states no unit.
 pub fn time_unit_other_than_seconds(column: &str) -> Option<&'static str> {
-    let name = column.trim();
-    let bracketed = name
-        .strip_suffix(']')
-        .and_then(|s| s.rsplit_once('['))
-        .or_else(|| name.strip_suffix(')').and_then(|s| s.rsplit_once('(')))
-        .map(|(_, unit)| unit);
-    let tail = bracketed.or_else(|| name.rsplit_once('_').map(|(_, unit)| unit))?;
-    match tail.trim().to_ascii_lowercase().as_str() {
+    match stated(column.trim())?.as_str() {
         "ms" | "msec" => Some("milliseconds"),
         "us" | "µs" | "μs" | "usec" => Some("microseconds"),
         "ns" => Some("nanoseconds"),
