@@ -12,7 +12,7 @@ use super::edge::{ActiveBound, Widening, active_bounds};
 use super::objective::TRY_POPULATION;
 use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
-use super::uncertainty::{diverging_probes, standard_errors};
+use super::uncertainty::{Assessment, assess};
 use crate::data::{Trace, write_all_atomic};
 use crate::ident::fit::SETTLED_POINTS;
 use crate::model::Family;
@@ -45,7 +45,7 @@ pub struct FitReport {
     /// `null`, as a held one, and this list tells them apart.
     pub undetermined: Vec<String>,
     /// The search coordinates along which a step of a thousandth makes the
-    /// estimation free run diverge (`fit::uncertainty::diverging_probes`):
+    /// estimation free run diverge (`fit::uncertainty::Assessment`):
     /// the fit ends at the edge of divergence there, and the parameters
     /// they move have no standard error.
     pub diverging_probes: Vec<String>,
@@ -201,21 +201,20 @@ impl FitReport {
         let global = engine.plan.global.as_ref();
         let names = problem.model.param_names();
         let params = Named::zip(&names, &outcome.params);
-        let std_errors: Named<Option<f64>> = names
-            .iter()
-            .zip(if found {
-                standard_errors(problem, &outcome.params)
-            } else {
-                vec![None; problem.model.dim()]
-            })
-            .collect();
+        let Assessment {
+            std_errors,
+            diverging_probes,
+        } = match found {
+            true => assess(problem, &outcome.params),
+            false => Assessment {
+                std_errors: vec![None; problem.model.dim()],
+                diverging_probes: Vec::new(),
+            },
+        };
+        let std_errors: Named<Option<f64>> = names.iter().zip(std_errors).collect();
         let undetermined = loose(&params, &std_errors)
             .map(|(name, _, _)| name.to_string())
             .collect();
-        let diverging_probes = match found {
-            true => diverging_probes(problem, &outcome.params),
-            false => Vec::new(),
-        };
         FitReport {
             model: problem.model.family,
             effects: problem

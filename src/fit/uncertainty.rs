@@ -10,11 +10,11 @@
 //! coordinate held by the box, the switching level (the free-run error is
 //! piecewise constant in it), a coordinate within its probe step of a
 //! bound and one a probe step along which makes the free run diverge
-//! ([`diverging_probes`]) are held: the errors are those of the others
+//! ([`Assessment::diverging_probes`]) are held: the errors are those of the others
 //! given them.
 //!
 //! Reported only where the free-run error is smooth in the parameters
-//! ([`standard_errors`]): the generalized family's jumps where a sample
+//! ([`Assessment::std_errors`]): the generalized family's jumps where a sample
 //! crosses its switching level, and its linearized errors measured far too
 //! small ([`linearized_errors`] computes them anyway, for that measurement).
 //!
@@ -29,23 +29,47 @@ use nalgebra::{DMatrix, DVector};
 use super::problem::FitProblem;
 use crate::optim::engine::Polish;
 
-/// Each canonical parameter's standard error at `theta` on `problem`'s
-/// estimation halves, as `fit` reports it: [`linearized_errors`] for a
-/// model whose free-run error is smooth in its parameters, the classic
-/// (and linear) family without effect stages; `None` throughout for the
-/// others. The generalized family's error jumps wherever a sample crosses
-/// its switching level, so the probes' differences read those jumps as
-/// slopes: on the generated cases with white noise its errors held 53 %
-/// of the fits' deviations from the truth within two errors (the classic
-/// family's 86 %), and some deviations were hundreds of errors
-/// (`tests/uncertainty_coverage.rs`). Effect stages have not been
-/// measured so, and some (a dead zone, a ratchet) jump alike.
-pub fn standard_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>> {
+/// What `fit` reports of how well the estimation half settles `theta`,
+/// from one set of probes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Assessment {
+    /// Each canonical parameter's standard error at `theta` on `problem`'s
+    /// estimation halves, as `fit` reports it: [`linearized_errors`] for a
+    /// model whose free-run error is smooth in its parameters, the classic
+    /// (and linear) family without effect stages; `None` throughout for the
+    /// others. The generalized family's error jumps wherever a sample crosses
+    /// its switching level, so the probes' differences read those jumps as
+    /// slopes: on the generated cases with white noise its errors held 53 %
+    /// of the fits' deviations from the truth within two errors (the classic
+    /// family's 86 %), and some deviations were hundreds of errors
+    /// (`tests/uncertainty_coverage.rs`). Effect stages have not been
+    /// measured so, and some (a dead zone, a ratchet) jump alike.
+    pub std_errors: Vec<Option<f64>>,
+    /// The search coordinates (by the box's names) along which a step of
+    /// a thousandth (the polish's and the errors' probe) makes the
+    /// estimation free run diverge: the fit ends at the edge of divergence
+    /// along them, and the parameters they move get no standard error.
+    /// Empty where the run at `theta` itself diverges.
+    pub diverging_probes: Vec<String>,
+}
+
+/// [`Assessment`] of `theta` on `problem`'s estimation halves.
+pub fn assess(problem: &FitProblem, theta: &[f64]) -> Assessment {
+    let none = vec![None; theta.len()];
+    let Some(probes) = probes(problem, theta) else {
+        return Assessment {
+            std_errors: none,
+            diverging_probes: Vec::new(),
+        };
+    };
     let smooth = problem.model.family.switch_index().is_none() && problem.model.effects.is_empty();
-    if smooth {
-        linearized_errors(problem, theta)
-    } else {
-        vec![None; theta.len()]
+    let names = problem.space.names();
+    Assessment {
+        std_errors: match smooth {
+            true => errors_of(problem, theta.len(), &probes),
+            false => none,
+        },
+        diverging_probes: probes.diverging.iter().map(|&j| names[j].clone()).collect(),
     }
 }
 
@@ -56,24 +80,29 @@ pub fn standard_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>> 
 /// or the rules above hold it, and for every parameter where the
 /// residuals diverge at `theta`.
 pub fn linearized_errors(problem: &FitProblem, theta: &[f64]) -> Vec<Option<f64>> {
-    let d = theta.len();
+    probes(problem, theta).map_or_else(
+        || vec![None; theta.len()],
+        |p| errors_of(problem, theta.len(), &p),
+    )
+}
+
+/// The standard errors of the `d` canonical parameters from `probes`
+/// ([`linearized_errors`]).
+fn errors_of(problem: &FitProblem, d: usize, probes: &Probes) -> Vec<Option<f64>> {
     let none = vec![None; d];
     let space = &problem.space;
-    let Some(Probes {
+    let Probes {
         r0,
         z0,
         probed,
         columns,
         ..
-    }) = probes(problem, theta)
-    else {
-        return none;
-    };
+    } = probes;
     let (n, p) = (r0.len(), probed.len());
     if p == 0 || n <= p {
         return none;
     }
-    let jac = DMatrix::from_column_slice(n, p, &columns);
+    let jac = DMatrix::from_column_slice(n, p, columns);
     let s2 = r0.norm_squared() / (n - p) as f64;
     let Some(covariance) = Covariance::of(&(jac.transpose() * &jac), s2) else {
         return none;
@@ -166,18 +195,6 @@ fn probes(problem: &FitProblem, theta: &[f64]) -> Option<Probes> {
     })
 }
 
-/// The search coordinates (by the box's names) along which a step of a
-/// thousandth (the polish's and the standard errors' probe) makes the
-/// estimation free run at `theta` diverge: the fit ends at the edge of
-/// divergence along them, and the parameters they move get no standard
-/// error. Empty where the run at `theta` itself diverges.
-pub fn diverging_probes(problem: &FitProblem, theta: &[f64]) -> Vec<String> {
-    let names = problem.space.names();
-    probes(problem, theta).map_or_else(Vec::new, |p| {
-        p.diverging.into_iter().map(|j| names[j].clone()).collect()
-    })
-}
-
 /// Below this share of the largest eigenvalue of the scaled `JᵀJ`, a
 /// direction is one the record does not determine at all. Measured on a
 /// generated generalized case whose loop never visits two of its branches
@@ -267,7 +284,7 @@ mod tests {
         let spec = matrix(Family::Classic, 1, 1000)[0];
         let case = Case::generate(spec);
         let problem = case.problem();
-        let at_truth = standard_errors(&problem, &case.truth);
+        let at_truth = assess(&problem, &case.truth).std_errors;
         let names = problem.model.param_names();
         for (name, e) in names.iter().zip(&at_truth) {
             let held = name == "A" || name == "n";
@@ -280,7 +297,7 @@ mod tests {
             noise_mm: 2.0 * spec.noise_mm,
             ..spec
         });
-        let twice = standard_errors(&louder.problem(), &louder.truth);
+        let twice = assess(&louder.problem(), &louder.truth).std_errors;
         for ((name, one), two) in names.iter().zip(&at_truth).zip(&twice) {
             if let (Some(one), Some(two)) = (one, two) {
                 assert!((1.8..2.3).contains(&(two / one)), "{name}: {one} -> {two}");
@@ -290,7 +307,7 @@ mod tests {
         // standard error: not by many of them, and not by none.
         let (polished, _) =
             polished_truth(&problem, &case.truth, &mut CpuEvaluator::new()).unwrap();
-        let errors = standard_errors(&problem, &polished);
+        let errors = assess(&problem, &polished).std_errors;
         let z: Vec<f64> = polished
             .iter()
             .zip(&case.truth)
@@ -319,7 +336,8 @@ mod tests {
                 >= 5
         );
         assert!(
-            standard_errors(&problem, &case.truth)
+            assess(&problem, &case.truth)
+                .std_errors
                 .iter()
                 .all(|e| e.is_none())
         );
