@@ -166,6 +166,7 @@ fn fit_never_reads_its_validation_half() {
                 gens: 30,
                 ..FitSettings::staged(1)
             };
+            let t = std::slice::from_ref(t);
             let fit = FitRun::new(t, &what, &settings, None, None, &|_| ()).unwrap();
             let mut fit = mckibben::diagnose::chain::with_chain_start(
                 fit,

@@ -7,6 +7,7 @@ mod common;
 use std::path::Path;
 use std::process::{Command, Output};
 
+use mckibben::data::Trace;
 use mckibben::data::csv::write_trace;
 use mckibben::fit::synthetic::Synthetic;
 use mckibben::model::Family;
@@ -1194,4 +1195,98 @@ fn the_report_keeps_its_figures_digits_in_any_unit() {
             "`{label}` reads {s} for {v:e}: {text}"
         );
     }
+}
+
+/// `fit a.csv b.csv` fits one model to both records: the report scores
+/// each record's second half on its own, as the written model scores it
+/// there (`simulate --from`), pools them in its headline figure, and
+/// draws each record's loop and trace.
+#[test]
+fn a_fit_of_several_records_scores_each_as_its_model_file_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let records: Vec<String> = [(400, 21), (600, 22)]
+        .iter()
+        .map(|&(len, seed)| {
+            let s = Synthetic::new(Family::Classic, len, 0.05, seed);
+            let path = dir.path().join(format!("record{seed}.csv"));
+            write_trace(&path, &s.trace).unwrap();
+            path.display().to_string()
+        })
+        .collect();
+    let (a, b) = (records[0].as_str(), records[1].as_str());
+    let fit = [
+        "fit",
+        a,
+        b,
+        "--pop",
+        "60",
+        "--gens",
+        "20",
+        "--backend",
+        "cpu",
+    ];
+    let report = json(&mckibben(
+        &[&fit[..], &["--json", "--out", "out"]].concat(),
+        dir.path(),
+    ));
+    assert_eq!(report["data"], format!("{a}, {b}"));
+    let scored = report["records"].as_array().expect("records");
+    assert_eq!(scored.len(), 2);
+    for (record, (path, len)) in scored.iter().zip([(a, 400), (b, 600)]) {
+        assert_eq!(record["data"], path);
+        assert_eq!(record["samples"], len);
+        let run = json(&mckibben(
+            &[
+                "simulate",
+                "--from",
+                "out/model.json",
+                "--input",
+                path,
+                "--json",
+            ],
+            dir.path(),
+        ));
+        let (fit, simulated) = (
+            record["val_fit_percent"].as_f64().unwrap(),
+            run["val_fit_percent"].as_f64().unwrap(),
+        );
+        assert!(
+            (fit - simulated).abs() < 1e-3,
+            "{path}: {fit} against {simulated}"
+        );
+    }
+    for figure in ["loop.svg", "trace.svg", "loop-2.svg", "trace-2.svg"] {
+        assert!(dir.path().join("out").join(figure).exists(), "{figure}");
+    }
+    let text = mckibben(&[&fit[..], &["--out", "text"]].concat(), dir.path());
+    let stdout = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        stdout.contains("the 2 records' second halves pooled") && stdout.contains(b),
+        "{stdout}"
+    );
+}
+
+/// Records sampled at different steps cannot share one model's poles:
+/// the fit refuses them and names both.
+#[test]
+fn a_fit_of_records_at_different_steps_names_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Synthetic::new(Family::Classic, 400, 0.05, 21);
+    let slow = Trace {
+        t: s.trace.t.iter().map(|t| 2.0 * t).collect(),
+        ..s.trace.clone()
+    };
+    write_trace(&dir.path().join("fast.csv"), &s.trace).unwrap();
+    write_trace(&dir.path().join("slow.csv"), &slow).unwrap();
+    let out = mckibben(
+        &["fit", "fast.csv", "slow.csv", "--pop", "20", "--gens", "2"],
+        dir.path(),
+    );
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("slow.csv is sampled every") && err.contains("fast.csv every"),
+        "{err}"
+    );
+    assert!(!dir.path().join("out").exists(), "nothing written");
 }

@@ -135,7 +135,7 @@ fn generalized_matrix_is_measured_and_no_fit_beats_the_noise_floor() {
 fn judged_switching(case: &Case, switching: Switching, cpu: &mut CpuEvaluator) -> Judgement {
     let shape = (Loop::Bounded, switching);
     let problem = FitProblem::with_box(
-        &case.trace,
+        std::slice::from_ref(&case.trace),
         Family::Generalized,
         Flow::Joint,
         None,
@@ -243,8 +243,15 @@ fn muscles_switching_at_their_rest_length_keep_the_sensors_zero() {
         assert!(floor < 0.06, "#{record}: the truth validates at {floor}");
         let (_, polished_sse) = polished_truth(&problem, &truth, &mut CpuEvaluator::new()).unwrap();
         let threshold = indistinguishable_up_to(polished_sse, problem.estimation().len() - 1);
-        let mut fit =
-            FitRun::new(&trace, &what, &FitSettings::staged(1), None, None, &|_| ()).unwrap();
+        let mut fit = FitRun::new(
+            std::slice::from_ref(&trace),
+            &what,
+            &FitSettings::staged(1),
+            None,
+            None,
+            &|_| (),
+        )
+        .unwrap();
         let (out, _) = fit
             .run(&mut CpuEvaluator::new(), &mut [], None, None)
             .unwrap();

@@ -204,7 +204,7 @@ impl Evaluator {
         let problem = py
             .detach(|| {
                 FitProblem::with_box(
-                    &trace,
+                    std::slice::from_ref(&trace),
                     family,
                     Flow::Joint,
                     None,

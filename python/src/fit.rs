@@ -314,15 +314,16 @@ pub fn fit(
     let backend = self::backend(backend)?;
     let notes = Mutex::new(Vec::new());
     let note = |s: String| notes.lock().expect("notes").push(s);
+    let traces = std::slice::from_ref(&trace);
     let fit = py
-        .detach(|| FitRun::new(&trace, &what, &settings, start_model.as_ref(), None, &note))
+        .detach(|| FitRun::new(traces, &what, &settings, start_model.as_ref(), None, &note))
         .map_err(value_error)?;
     // With effects from scratch, a second start: the chain built one effect
     // at a time, as `mckibben fit --effects` does. Ctrl-C while it is built
     // raises `KeyboardInterrupt`: there is no fit yet to return.
     let stop = StopFlag::default();
     let fit = interruptible(py, &stop, || {
-        with_chain_start(fit, &trace, &settings, backend, stop.clone())
+        with_chain_start(fit, traces, &settings, backend, stop.clone())
     })?
     .map_err(runtime_error)?;
     let finished = run_fit(py, fit, backend, progress)?;
@@ -336,7 +337,7 @@ pub fn fit(
         widened,
         describe,
     } = finished;
-    let report = FitReport::of(&fit, (&outcome, &widened), &describe, &trace.source);
+    let report = FitReport::of(&fit, (&outcome, &widened), &describe, traces);
     warn_of_report(&warn, &report, &outcome, &fit)?;
     fit_result(py, report, &fit, &outcome, &what, &trace, &read)
 }

@@ -152,6 +152,15 @@ pub fn mixed_steps(traces: &[Trace]) -> Option<String> {
     ))
 }
 
+/// The traces' sources as a message names them: `a.csv, b.csv`.
+pub fn sources(traces: &[Trace]) -> String {
+    traces
+        .iter()
+        .map(|t| t.source.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// `v` rounded to 10 significant digits, for a time step computed from a
 /// record (a span over a count): 0.09999999999999999 s reads as 0.1 s, in
 /// a message and in the flag it suggests.

@@ -58,11 +58,15 @@ pub fn refit(
     }
     let fit_settings = FitSettings::staged(settings.seed);
     let what = FitTarget::chain(model.family, &model.effects);
-    let fit = FitRun::new(trace, &what, &fit_settings, None, None, &|_| ())?.also_from(
-        saved,
-        0.0,
+    let fit = FitRun::new(
+        std::slice::from_ref(trace),
+        &what,
         &fit_settings,
-    )?;
+        None,
+        None,
+        &|_| (),
+    )?
+    .also_from(saved, 0.0, &fit_settings)?;
     let (_, outcome) = run_stoppable(fit, settings)?;
     let theta = outcome.params;
     if theta.len() != params.len() || !problem.admits(&theta) {

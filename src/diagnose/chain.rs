@@ -20,7 +20,7 @@ use crate::data::Trace;
 use crate::eval::Backend;
 use crate::fit::problem::FitProblem;
 use crate::fit::records::Records;
-use crate::fit::report::FitReport;
+use crate::fit::report::{FitReport, RecordScore};
 use crate::fit::run::FitRun;
 use crate::fit::searches::StopFlag;
 use crate::fit::settings::FitSettings;
@@ -83,7 +83,7 @@ pub fn fit_chain(
 /// settings with the fit's seed, on `backend`.
 pub fn with_chain_start(
     fit: FitRun,
-    trace: &Trace,
+    traces: &[Trace],
     settings: &FitSettings,
     backend: Backend,
     stop: StopFlag,
@@ -100,12 +100,7 @@ pub fn with_chain_start(
     };
     let (family, effects) = (problem.model.family, problem.model.effects.clone());
     let started = std::time::Instant::now();
-    match fit_chain(
-        std::slice::from_ref(trace),
-        family,
-        &effects,
-        &chain_settings,
-    ) {
+    match fit_chain(traces, family, &effects, &chain_settings) {
         Ok((model, _)) => fit.also_from(&model, started.elapsed().as_secs_f64(), settings),
         Err(e) if e.is::<Interrupted>() => Ok(fit),
         Err(e) => Err(e),
@@ -140,6 +135,7 @@ pub fn selected_fit(
     let from = halves(trace.len()).1.start;
     let (y, yhat) = (&trace.output[from..], &run.output[from..]);
     let finite = |v: f64| v.is_finite().then_some(v);
+    let (val_rmse, val_fit_percent) = (finite(rmse(y, yhat)), finite(fit_percent(y, yhat)));
     let report = FitReport {
         model: family,
         effects: model
@@ -157,10 +153,10 @@ pub fn selected_fit(
         undetermined: Vec::new(),
         diverging_probes: Vec::new(),
         sse: finite(d.selection.final_fit.est_sse),
-        val_rmse: finite(rmse(y, yhat)),
-        val_fit_percent: finite(fit_percent(y, yhat)),
+        val_rmse,
+        val_fit_percent,
         linear_val_fit_percent: Records::of(std::slice::from_ref(trace), None)?
-            .linear_yardstick(0)
+            .linear_yardstick()
             .and_then(|v| finite(v.fit_percent)),
         // The effect stages move the output off the state the update steps on.
         stable_step: None,
@@ -191,6 +187,12 @@ pub fn selected_fit(
             origin: Vec::new(),
         },
         data: trace.source.clone(),
+        records: vec![RecordScore {
+            data: trace.source.clone(),
+            samples: trace.len(),
+            val_rmse,
+            val_fit_percent,
+        }],
         notes: Vec::new(),
         out: None,
     };

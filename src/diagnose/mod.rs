@@ -39,7 +39,7 @@ pub use effects::{Effect, ModelDescription};
 pub use select::Selection;
 pub use settings::{Interrupted, Settings};
 
-use crate::data::{Trace, same_step};
+use crate::data::{Trace, same_step, sources};
 use crate::fit::edge::{ActiveBound, active_bounds};
 use crate::fit::problem::{FitProblem, settle_samples};
 use crate::fit::searches::Searches;
@@ -390,11 +390,7 @@ fn check_baseline(selection: &Selection, family: Family, traces: &[Trace]) -> an
         "the {family} baseline fitted on the estimation half diverges on the selection part \
          for every seed ({}), so there is no gap to diagnose; try fewer datasets at a time, \
          more --seeds, or the other --baseline",
-        traces
-            .iter()
-            .map(|t| t.source.as_str())
-            .collect::<Vec<_>>()
-            .join(", ")
+        sources(traces)
     );
     Ok(())
 }

@@ -133,7 +133,7 @@ pub fn collapses(chain_fit_percent: f64, baseline_fit_percent: f64) -> bool {
 pub fn check_others(family: Family, others: &[Trace], settings: &Settings) -> anyhow::Result<()> {
     for trace in others {
         FitRun::new(
-            trace,
+            std::slice::from_ref(trace),
             &FitTarget::chain(family, &[]),
             &FitSettings::staged(settings.seed),
             None,
@@ -245,10 +245,11 @@ fn fit_and_score(
         bounds: held.to_vec(),
         ..FitTarget::chain(family, effects)
     };
-    let fit = FitRun::new(trace, &what, &fit_settings, None, None, &|_| ())?;
+    let traces = std::slice::from_ref(trace);
+    let fit = FitRun::new(traces, &what, &fit_settings, None, None, &|_| ())?;
     let fit = with_chain_start(
         fit,
-        trace,
+        traces,
         &fit_settings,
         settings.backend,
         settings.stop.clone(),

@@ -6,8 +6,9 @@
 //! and the flag that stops them are the searches' own
 //! ([`super::searches::Searches`], [`super::run::FitRun::run`]).
 //!
-//! `fit` builds it on one trace ([`FitProblem::new`]): the box in the
-//! data's own scale, its validation half the one part it reports on. The
+//! `fit` builds it on its traces, one per file ([`FitProblem::with_box`]):
+//! the box in the data's own scale, their validation halves the one part
+//! it reports on. The
 //! diagnosis builds it on one trace per load ([`FitProblem::diagnosis`]):
 //! the second halves cut into selection and test blocks, and every
 //! candidate model in the diagnosis' box ([`FitProblem::with_model`]).
@@ -132,9 +133,10 @@ fn thesis_shapes_in_unit_of(mut space: SearchSpace, output_name: &str) -> Search
 }
 
 impl FitProblem {
-    /// `fit`'s problem on `trace`: split in halves, the ARX prior identified
-    /// on the estimation half, and the box of `flow`: the joint flow's in
-    /// the data's own scale, bounded loops ([`SearchSpace::scaled`]) and,
+    /// `fit`'s problem on `trace` ([`FitProblem::with_box`] on the one
+    /// record): split in halves, the ARX prior identified on the estimation
+    /// half, and the box of `flow`: the joint flow's in the data's own
+    /// scale, bounded loops ([`SearchSpace::scaled`]) and,
     /// for the generalized family, the default switching
     /// ([`Switching::Search`]); the thesis' flow's from `hysteresis` (the
     /// hull of its tables when `None`), its loop shapes in the output's unit
@@ -148,14 +150,18 @@ impl FitProblem {
         free_n: bool,
     ) -> anyhow::Result<FitProblem> {
         let shape = (Loop::Bounded, Switching::default());
-        FitProblem::with_box(trace, family, flow, hysteresis, free_n, shape, &[])
+        let traces = std::slice::from_ref(trace);
+        FitProblem::with_box(traces, family, flow, hysteresis, free_n, shape, &[])
     }
 
-    /// As [`FitProblem::new`], with the joint flow's loop class, switching
-    /// and user bounds (`--loop`, `--switch`, `--bound`, `--fix`); the
-    /// thesis' flow takes none of them.
+    /// As [`FitProblem::new`] on every one of `traces` (`fit a.csv b.csv`:
+    /// several experiments on one muscle, each split in halves, one model
+    /// for all; the box from the first record's ARX estimate and every
+    /// record's ranges, [`Records::of`]), with
+    /// the joint flow's loop class, switching and user bounds (`--loop`,
+    /// `--switch`, `--bound`, `--fix`); the thesis' flow takes none of them.
     pub fn with_box(
-        trace: &Trace,
+        traces: &[Trace],
         family: Family,
         flow: Flow,
         hysteresis: Option<&ThesisBounds>,
@@ -167,7 +173,11 @@ impl FitProblem {
             family != Family::Linear,
             "the linear model is fitted by least squares: use `mckibben identify`"
         );
-        let records = Records::of(std::slice::from_ref(trace), None)?;
+        if let Some(why) = mixed_steps(traces) {
+            anyhow::bail!(why);
+        }
+        let records = Records::of(traces, None)?;
+        let first = &traces[0];
         let space = match flow {
             Flow::Thesis => {
                 anyhow::ensure!(
@@ -176,7 +186,7 @@ impl FitProblem {
                 );
                 thesis_shapes_in_unit_of(
                     SearchSpace::from_prior(family, hysteresis, records.prior, flow, free_n),
-                    &trace.output_name,
+                    &first.output_name,
                 )
             }
             Flow::Joint => SearchSpace::scaled(
@@ -187,22 +197,28 @@ impl FitProblem {
                 bounds,
             )?,
         };
-        let (estimation, validation) = halves(trace.len());
+        let parts = traces
+            .iter()
+            .map(|t| {
+                let (estimation, validation) = halves(t.len());
+                Parts {
+                    estimation,
+                    selection: Vec::new(),
+                    test: vec![validation],
+                }
+            })
+            .collect();
         Ok(FitProblem {
             records: Arc::new(records),
-            parts: vec![Parts {
-                estimation,
-                selection: Vec::new(),
-                test: vec![validation],
-            }],
-            model: ModelDescription::new(family, Vec::new(), 1),
+            parts,
+            model: ModelDescription::new(family, Vec::new(), traces.len()),
             space,
             flow,
             loop_shape,
             switching,
             admission: Admission::Fit,
-            input_name: trace.input_name.clone(),
-            output_name: trace.output_name.clone(),
+            input_name: first.input_name.clone(),
+            output_name: first.output_name.clone(),
         })
     }
 
@@ -383,8 +399,12 @@ impl FitProblem {
 
     /// The same problem in `model`'s coordinates ([`Records::of`]): a warm
     /// start then starts at the saved model itself.
-    pub fn in_coordinates_of(mut self, trace: &Trace, model: &Model) -> anyhow::Result<FitProblem> {
-        self.records = Arc::new(Records::of(std::slice::from_ref(trace), Some(model))?);
+    pub fn in_coordinates_of(
+        mut self,
+        traces: &[Trace],
+        model: &Model,
+    ) -> anyhow::Result<FitProblem> {
+        self.records = Arc::new(Records::of(traces, Some(model))?);
         Ok(self)
     }
 
@@ -405,12 +425,16 @@ impl FitProblem {
                 !effects[..k].contains(e),
                 "--effects names `{e}` twice: each effect enters a chain once"
             );
+            // Its parameters would tell the records apart (one per load),
+            // and a model file is one model for any record.
             anyhow::ensure!(
                 e.applicable(1),
-                "--effects: `{e}` needs several datasets (one per load); `fit` fits one record"
+                "--effects: `{e}` needs several datasets (one per load) and fits a parameter \
+                 for each; `fit` fits one model for all its records: use `mckibben diagnose`"
             );
         }
-        self.model = ModelDescription::new(self.model.family, effects.to_vec(), 1);
+        let datasets = self.datasets();
+        self.model = ModelDescription::new(self.model.family, effects.to_vec(), datasets);
         let names = self.model.param_names();
         let d = self.model.family.dim();
         let (mut lower, mut upper) = (Vec::new(), Vec::new());
@@ -419,7 +443,7 @@ impl FitProblem {
                 lower: lo,
                 upper: hi,
                 ..
-            } = effect_box(e, self.context(), 1);
+            } = effect_box(e, self.context(), datasets);
             lower.extend(lo);
             upper.extend(hi);
         }
@@ -504,34 +528,44 @@ impl FitProblem {
     }
 
     /// The check that a candidate stays bounded on every input of the
-    /// trace: the whole record's input (estimation and validation halves)
-    /// with the measured output replaced by its first sample and zeros, so
-    /// that a candidate's free-run "SSE" on it is the energy of its own
-    /// output, and the largest energy a bounded model may have.
+    /// records: each whole record's input (estimation and validation
+    /// halves) with the measured output replaced by its first sample and
+    /// zeros, so that a candidate's free-run "SSE" on them is the energy of
+    /// its own output, and the largest energy a bounded model may have.
     ///
     /// Why: a model fitted to one half can be unstable on the other. An
     /// estimation optimum with β + γ < 0 lets `w` grow without bound once
     /// the input leaves the estimation half's range, and the fit then writes
     /// a model that diverges on its own validation half (as on the
     /// Cavatappi muscle: docs/ARCHITECTURE.md, "Decisions of the fitting
-    /// engine"). The check uses the validation half's input, never its
-    /// output; the bound is ten times the estimation output's largest
+    /// engine"). The check uses the validation halves' input, never their
+    /// output; the bound is ten times the estimation outputs' largest
     /// deviation, on every sample.
     pub fn stress(&self) -> (Problem, f64) {
-        let mut whole = self.records.whole[0].clone();
-        let start = whole.y.first().copied().unwrap_or(0.0);
-        whole.y = vec![0.0; whole.u.len()];
-        if let Some(first) = whole.y.first_mut() {
-            *first = start;
-        }
-        let largest = self
-            .estimation()
-            .y
+        let quiet: Vec<Experiment> = self
+            .records
+            .whole
             .iter()
+            .map(|record| {
+                let mut whole = record.clone();
+                let start = whole.y.first().copied().unwrap_or(0.0);
+                whole.y = vec![0.0; whole.u.len()];
+                if let Some(first) = whole.y.first_mut() {
+                    *first = start;
+                }
+                whole
+            })
+            .collect();
+        let largest = self
+            .records
+            .est
+            .iter()
+            .flat_map(|e| &e.y)
             .fold(0.0f64, |m, &v| m.max((v as f64).abs()));
-        let bound = whole.u.len() as f64 * (STRESS_FACTOR * largest).powi(2);
-        let problem = Problem::new(self.model.family, vec![whole])
-            .with_effects(self.model.effects.clone(), vec![*self.context()]);
+        let samples: usize = quiet.iter().map(|w| w.u.len()).sum();
+        let bound = samples as f64 * (STRESS_FACTOR * largest).powi(2);
+        let problem = Problem::new(self.model.family, quiet)
+            .with_effects(self.model.effects.clone(), self.records.ctx.clone());
         (problem, bound)
     }
 
@@ -698,10 +732,10 @@ impl FitProblem {
         self.records.validate(&self.model, theta)
     }
 
-    /// The first-order ARX model's validation scores on the same halves
-    /// ([`Records::linear_yardstick`]).
+    /// The first-order ARX model's validation scores on the same halves,
+    /// every record pooled ([`Records::linear_yardstick`]).
     pub fn linear_yardstick(&self) -> Option<Validation> {
-        self.records.linear_yardstick(0)
+        self.records.linear_yardstick()
     }
 
     /// The fitted model as a model file holds it: in the first record's
@@ -744,6 +778,44 @@ mod tests {
             vec![problem.records.val_start[0]..600]
         );
         assert_eq!(problem.test(&s.truth), problem.validate(&s.truth));
+    }
+
+    /// A fit of several records splits each, and what it admits must stay
+    /// bounded on every record's input, not the first's alone.
+    #[test]
+    fn a_fit_of_several_records_splits_and_stresses_each() {
+        let (a, b) = (
+            Synthetic::new(Family::Classic, 400, 0.05, 6),
+            Synthetic::new(Family::Classic, 700, 0.05, 7),
+        );
+        let traces = [a.trace.clone(), b.trace.clone()];
+        let shape = (Loop::Bounded, Switching::default());
+        let problem = FitProblem::with_box(
+            &traces,
+            Family::Classic,
+            Flow::Joint,
+            None,
+            false,
+            shape,
+            &[],
+        )
+        .unwrap();
+        assert_eq!(problem.datasets(), 2);
+        assert_eq!(problem.parts[1].test, vec![halves(700).1]);
+        let (stress, bound) = problem.stress();
+        assert_eq!(stress.experiments.len(), 2);
+        for (quiet, record) in stress.experiments.iter().zip(&problem.records.whole) {
+            assert_eq!(quiet.u, record.u);
+            assert_eq!(quiet.y[0], record.y[0]);
+            assert!(quiet.y[1..].iter().all(|&y| y == 0.0));
+        }
+        let largest = problem
+            .records
+            .est
+            .iter()
+            .flat_map(|e| &e.y)
+            .fold(0.0f64, |m, &v| m.max(f64::from(v).abs()));
+        assert_eq!(bound, 1100.0 * (STRESS_FACTOR * largest).powi(2));
     }
 
     #[test]
@@ -816,7 +888,7 @@ mod tests {
             let expected = fit_percent(&later.output[val_start..], &saved[val_start..]);
             let here = problem
                 .clone()
-                .in_coordinates_of(&later, &model)
+                .in_coordinates_of(std::slice::from_ref(&later), &model)
                 .unwrap()
                 .validate(&s.truth);
             assert!(

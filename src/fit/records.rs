@@ -1,7 +1,7 @@
 //! The records a fit or a diagnosis works on: each trace split into an
 //! estimation and a validation half (the thesis' split, §4.3.1) in one set
 //! of deviation coordinates, the ARX prior of the boxes and the effects'
-//! constants. `fit` (one record) and `diagnose` (one record per load) both
+//! constants. `fit` (one record per file) and `diagnose` (one per load) both
 //! split here, in their [`FitProblem`](super::problem::FitProblem), so
 //! that a model's parameters mean the same to both.
 
@@ -129,6 +129,22 @@ impl Records {
         self.score_on(model, theta, &halves)
     }
 
+    /// [`Records::validate`] on each record alone, in order: where one
+    /// record of several is missed.
+    pub fn validate_each(&self, model: &ModelDescription, theta: &[f64]) -> Vec<Validation> {
+        (0..self.whole.len())
+            .map(|i| {
+                let only: Vec<Vec<Range<usize>>> = (0..self.whole.len())
+                    .map(|j| match j == i {
+                        true => std::iter::once(self.val_start[i]..self.whole[i].len()).collect(),
+                        false => Vec::new(),
+                    })
+                    .collect();
+                self.score_on(model, theta, &only)
+            })
+            .collect()
+    }
+
     /// Scores of `model` at `theta` on the samples `ranges[i]` of each
     /// record `i` (the diagnosis' selection and test parts), from the one
     /// free run over each whole record, as [`Records::validate`] scores the
@@ -151,6 +167,9 @@ impl Records {
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
         let (mut y, mut x) = (Vec::new(), Vec::new());
         for (i, (whole, scored)) in self.whole.iter().zip(ranges).enumerate() {
+            if scored.is_empty() {
+                continue;
+            }
             let run = model.simulate(&t, i, &self.ctx[i], whole);
             for r in scored {
                 y.extend(whole.y[r.clone()].iter().map(|&v| v as f64));
@@ -166,25 +185,33 @@ impl Records {
         }
     }
 
-    /// The yardstick a fit of trace `i` is read against: the first-order
+    /// The yardstick a fit is read against: on each record, the first-order
     /// ARX model identified on its estimation half, run free over the whole
-    /// trace from its first sample and scored on its validation half, as a
-    /// fit is scored. A hysteretic fit that validates worse than this fits
-    /// the estimation half in a way the validation half does not share.
-    /// (In the estimation half's own means: ARX has no intercept, and the
-    /// fit % and RMSE do not change when both outputs shift alike.) `None`
-    /// if ARX cannot be identified.
-    pub fn linear_yardstick(&self, i: usize) -> Option<Validation> {
-        let (whole, est, from) = (&self.whole[i], &self.est[i], self.val_start[i]);
+    /// record from its first sample and scored on its validation half, the
+    /// records pooled as a fit's are ([`Records::validate`]). A hysteretic
+    /// fit that validates worse than this fits the estimation halves in a
+    /// way the validation halves do not share. With several records each
+    /// has its own linear model, a yardstick that one model for all must
+    /// clear with room. (In each estimation half's own means: ARX has no
+    /// intercept, and the fit % and RMSE do not change when both outputs
+    /// shift alike; the pooled scores are taken in the records' common
+    /// coordinates.) `None` if ARX cannot be identified on a record.
+    pub fn linear_yardstick(&self) -> Option<Validation> {
         let mean = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>() / v.len().max(1) as f64;
-        let (mu, my) = (mean(&est.u), mean(&est.y));
-        let u: Vec<f64> = whole.u.iter().map(|&v| v as f64 - mu).collect();
-        let y: Vec<f64> = whole.y.iter().map(|&v| v as f64 - my).collect();
-        let arx = Arx::estimate(&whole.name, &u[..from], &y[..from], ArxOrders::default()).ok()?;
-        let sim = arx.simulate(&u, &y);
+        let (mut measured, mut simulated) = (Vec::new(), Vec::new());
+        for ((whole, est), &from) in self.whole.iter().zip(&self.est).zip(&self.val_start) {
+            let (mu, my) = (mean(&est.u), mean(&est.y));
+            let u: Vec<f64> = whole.u.iter().map(|&v| v as f64 - mu).collect();
+            let y: Vec<f64> = whole.y.iter().map(|&v| v as f64 - my).collect();
+            let arx =
+                Arx::estimate(&whole.name, &u[..from], &y[..from], ArxOrders::default()).ok()?;
+            let sim = arx.simulate(&u, &y);
+            measured.extend(y[from..].iter().map(|v| v + my));
+            simulated.extend(sim[from..].iter().map(|v| v + my));
+        }
         Some(Validation {
-            rmse: rmse(&y[from..], &sim[from..]),
-            fit_percent: fit_percent(&y[from..], &sim[from..]),
+            rmse: rmse(&measured, &simulated),
+            fit_percent: fit_percent(&measured, &simulated),
         })
     }
 }
@@ -279,7 +306,10 @@ mod tests {
             };
             let n = both.whole[i].len() - both.val_start[i];
             let single = ModelDescription::new(Family::Classic, Vec::new(), 1);
-            sum += one.validate(&single, &a.truth).rmse.powi(2) * n as f64;
+            let alone = one.validate(&single, &a.truth);
+            // Each record's own score, as `fit` reports it beside the pool.
+            assert_eq!(both.validate_each(&model, &a.truth)[i], alone);
+            sum += alone.rmse.powi(2) * n as f64;
             samples += n;
         }
         let expected = (sum / samples as f64).sqrt();

@@ -13,7 +13,7 @@ use super::objective::TRY_POPULATION;
 use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
 use super::uncertainty::{Assessment, assess};
-use crate::data::{Trace, write_all_atomic};
+use crate::data::{Trace, sources, write_all_atomic};
 use crate::ident::fit::SETTLED_POINTS;
 use crate::model::Family;
 use crate::model::bounds::Origin;
@@ -100,8 +100,11 @@ pub struct FitReport {
     pub widened: Vec<Widening>,
     /// The search box's coordinates (`names`) and bounds, after widening.
     pub search_box: SearchBox,
-    /// The data file.
+    /// The data files, `, `-separated where several.
     pub data: String,
+    /// Each record's validation scores on its own second half, in the
+    /// order read (one record: the figures above again).
+    pub records: Vec<RecordScore>,
     /// What `fit` says on stderr of the data and of the fit: the notes
     /// before it ran and [`FitReport::after_notes`], in the order printed.
     pub notes: Vec<Note>,
@@ -124,6 +127,18 @@ fn loose<'a>(
             let e = (*e)?;
             (e >= v.abs()).then_some((name.as_str(), *v, e))
         })
+}
+
+/// One record's validation scores in a fit of several
+/// ([`Records::validate_each`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RecordScore {
+    /// Where the record came from.
+    pub data: String,
+    /// Its samples; the second half, from sample `samples / 2` on, is scored.
+    pub samples: usize,
+    pub val_rmse: Option<f64>,
+    pub val_fit_percent: Option<f64>,
 }
 
 /// One line `fit` prints on stderr, `mckibben: LEVEL: TEXT`.
@@ -186,13 +201,13 @@ fn finite(v: f64) -> Option<f64> {
 
 impl FitReport {
     /// The report of `fit` once [`FitRun::run`] returned `outcome` and
-    /// `widened`, its populations scored on `backend`, on the record
-    /// `data`.
+    /// `widened`, its populations scored on `backend`, on the records
+    /// `traces` (the fit's, in its order).
     pub fn of(
         fit: &FitRun,
         (outcome, widened): (&Outcome, &[Widening]),
         backend: &str,
-        data: &str,
+        traces: &[Trace],
     ) -> FitReport {
         let (problem, engine) = (&fit.problem, &fit.engine);
         let start = fit.start_scores();
@@ -278,7 +293,21 @@ impl FitReport {
             on_edge: active_bounds(problem, &outcome.params),
             widened: widened.to_vec(),
             search_box: SearchBox::of(&problem.space),
-            data: data.to_string(),
+            data: sources(traces),
+            records: traces
+                .iter()
+                .zip(
+                    problem
+                        .records
+                        .validate_each(&problem.model, &outcome.params),
+                )
+                .map(|(t, v)| RecordScore {
+                    data: t.source.clone(),
+                    samples: t.len(),
+                    val_rmse: finite(v.rmse),
+                    val_fit_percent: finite(v.fit_percent),
+                })
+                .collect(),
             notes: Vec::new(),
             out: None,
         }
@@ -287,13 +316,14 @@ impl FitReport {
     /// Writes the fit to `out`: `result.json` (this report), the history
     /// (`history.csv`, `history.json`), `trends.svg`, `convergence.svg`
     /// and, where a model was found, `model.json` (with the user's
-    /// `bounds` and its `provenance`), `loop.svg` and `trace.svg`. The
+    /// `bounds` and its `provenance`), `loop.svg` and `trace.svg` on each
+    /// of `traces` ([`model_files`]). The
     /// files are written all or none: a failure leaves `out` as it was.
     pub fn write(
         &mut self,
         out: &Path,
         (fit, params): (&FitRun, &[f64]),
-        trace: &Trace,
+        traces: &[Trace],
         bounds: &[UserBound],
         provenance: Provenance,
     ) -> anyhow::Result<()> {
@@ -301,19 +331,19 @@ impl FitReport {
         let title = format!("{} {} fit", self.algo, problem.model.family);
         let trends = format!("{title}: best parameters");
         let mut files = vec![
-            ("history.csv", engine.history.to_csv().into_bytes()),
+            ("history.csv".into(), engine.history.to_csv().into_bytes()),
             (
-                "history.json",
+                "history.json".into(),
                 serde_json::to_string_pretty(&engine.history)?.into_bytes(),
             ),
             (
-                "trends.svg",
+                "trends.svg".into(),
                 trends_figure(&engine.history, &trends, &engine.space.free())
                     .to_svg()?
                     .into_bytes(),
             ),
             (
-                "convergence.svg",
+                "convergence.svg".into(),
                 convergence_figure(&engine.history, &format!("{title}: convergence"))
                     .to_svg()?
                     .into_bytes(),
@@ -324,7 +354,7 @@ impl FitReport {
             files.extend(model_files(
                 &file,
                 &problem.fitted_model(params),
-                trace,
+                traces,
                 &title,
             )?);
         }
@@ -343,7 +373,7 @@ impl FitReport {
     ) -> anyhow::Result<()> {
         let file = ModelFile::new(model, None, provenance);
         let title = format!("diagnosed {} fit", self.model);
-        let files = model_files(&file, model, trace, &title)?;
+        let files = model_files(&file, model, std::slice::from_ref(trace), &title)?;
         self.write_with_result(out, files)
     }
 
@@ -352,7 +382,7 @@ impl FitReport {
     fn write_with_result(
         &mut self,
         out: &Path,
-        mut files: Vec<(&str, Vec<u8>)>,
+        mut files: Vec<(String, Vec<u8>)>,
     ) -> anyhow::Result<()> {
         crate::data::create_dir_all(out)
             .with_context(|| format!("cannot create --out {}", out.display()))?;
@@ -360,7 +390,7 @@ impl FitReport {
         files.insert(
             0,
             (
-                "result.json",
+                "result.json".into(),
                 Versioned::new(&*self).to_string_pretty()?.into_bytes(),
             ),
         );
@@ -439,20 +469,40 @@ impl FitReport {
             ));
         }
         line(format!("  SSE (estimation)     {}", figure(self.sse)));
+        let pooled = match self.records.len() {
+            1 => String::new(),
+            k => format!("; the {k} records' second halves pooled"),
+        };
         line(format!(
-            "  validation fit       {}   (RMSE {})",
+            "  validation fit       {}   (RMSE {}{pooled})",
             percent(self.val_fit_percent),
             figure(self.val_rmse)
         ));
+        if self.records.len() > 1 {
+            let width = self.records.iter().map(|r| r.data.chars().count()).max();
+            let width = width.unwrap_or(0).max(16);
+            for r in &self.records {
+                line(format!(
+                    "    {:<width$} {}   (RMSE {})",
+                    r.data,
+                    percent(r.val_fit_percent),
+                    figure(r.val_rmse)
+                ));
+            }
+        }
         line(format!(
             "  validation fit, ARX  {}   (the first-order linear model on the same halves)",
             percent(self.linear_val_fit_percent)
         ));
         if let (Some(stable), Some(largest)) = (self.stable_step, self.largest_step) {
             line(format!(
-                "  stable steps         up to {} a sample   (the record's largest: {}; past it \
+                "  stable steps         up to {} a sample   ({} largest: {}; past it \
                  the hysteresis update overshoots)",
                 significant(stable, 4),
+                match self.records.len() {
+                    1 => "the record's",
+                    _ => "the records'",
+                },
                 significant(largest, 4)
             ));
         }
@@ -620,23 +670,32 @@ impl FitReport {
     }
 }
 
-/// `file` as `model.json` and `model`'s loop and trace on `trace` as
-/// `loop.svg` and `trace.svg`, to write.
+/// `file` as `model.json` and `model`'s loop and trace on each of
+/// `traces` as `loop.svg` and `trace.svg` (the first record's), then
+/// `loop-2.svg`, `trace-2.svg` and so on, to write.
 fn model_files(
     file: &ModelFile,
     model: &Model,
-    trace: &Trace,
+    traces: &[Trace],
     title: &str,
-) -> anyhow::Result<Vec<(&'static str, Vec<u8>)>> {
-    let (loop_fig, trace_fig) = fit_figures(model, trace, title);
-    Ok(vec![
-        (
-            "model.json",
-            serde_json::to_string_pretty(file)?.into_bytes(),
-        ),
-        ("loop.svg", loop_fig.to_svg()?.into_bytes()),
-        ("trace.svg", trace_fig.to_svg()?.into_bytes()),
-    ])
+) -> anyhow::Result<Vec<(String, Vec<u8>)>> {
+    let mut files = vec![(
+        "model.json".to_string(),
+        serde_json::to_string_pretty(file)?.into_bytes(),
+    )];
+    for (k, trace) in traces.iter().enumerate() {
+        let (loop_fig, trace_fig) = fit_figures(model, trace, title);
+        let suffix = match k {
+            0 => String::new(),
+            k => format!("-{}", k + 1),
+        };
+        files.push((format!("loop{suffix}.svg"), loop_fig.to_svg()?.into_bytes()));
+        files.push((
+            format!("trace{suffix}.svg"),
+            trace_fig.to_svg()?.into_bytes(),
+        ));
+    }
+    Ok(files)
 }
 
 /// What a fit's scores warn of, against its yardsticks: the first-order ARX

@@ -17,7 +17,7 @@ use super::objective::ModelObjective;
 use super::problem::FitProblem;
 use super::records::{Validation, offset_note};
 use super::settings::FitSettings;
-use crate::data::Trace;
+use crate::data::{Trace, sources};
 use crate::eval::Evaluator;
 use crate::model::coords::gauge_fixed;
 use crate::model::effects::Effect;
@@ -170,7 +170,8 @@ pub struct Built {
 }
 
 impl FitRun {
-    /// The problem of `what` on `trace` (its box widened on return of
+    /// The problem of `what` on `traces` (one model for all, each split
+    /// in halves: [`FitProblem::with_box`]; its box widened on return of
     /// [`FitRun::run`]) and the engine `settings` start on it: a warm start
     /// from `start` ([`FitSettings::start_warm`], the generalized switching
     /// level held at the start's own unless `what` says otherwise), else
@@ -178,7 +179,7 @@ impl FitRun {
     /// fresh second start where the default switching has one
     /// ([`FitProblem::at_zero`]).
     pub fn new(
-        trace: &Trace,
+        traces: &[Trace],
         what: &FitTarget,
         settings: &FitSettings,
         start: Option<&Model>,
@@ -194,14 +195,16 @@ impl FitRun {
         } else {
             Flow::Joint
         };
-        if let Some(m) = start {
-            m.check_data(trace).context("the start model")?;
-        }
-        if let Some(far) = offset_note(trace) {
-            note(far);
+        for trace in traces {
+            if let Some(m) = start {
+                m.check_data(trace).context("the start model")?;
+            }
+            if let Some(far) = offset_note(trace) {
+                note(far);
+            }
         }
         let problem = FitProblem::with_box(
-            trace,
+            traces,
             what.family,
             flow,
             None,
@@ -210,11 +213,11 @@ impl FitRun {
             &what.bounds,
         )
         .and_then(|t| match start {
-            Some(m) => t.in_coordinates_of(trace, m),
+            Some(m) => t.in_coordinates_of(traces, m),
             None => Ok(t),
         })
         .and_then(|t| t.with_effects(&what.effects, &what.bounds))
-        .with_context(|| format!("cannot fit {}", trace.source))?;
+        .with_context(|| format!("cannot fit {}", sources(traces)))?;
         let mut problem = problem;
         let start = start.map(|m| warm_start(&problem, m));
         if let (Some(theta), Some(is)) = (&start, what.family.switch_index()) {
@@ -540,7 +543,7 @@ mod tests {
             ..FitTarget::chain(Family::Generalized, &[])
         };
         let fit = FitRun::new(
-            &data.trace,
+            std::slice::from_ref(&data.trace),
             &what,
             &settings(Algorithm::De, 24),
             None,

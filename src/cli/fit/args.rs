@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use super::super::common::{DataArgs, ModelArg, population};
+use super::super::common::{ModelArg, MultiDataArgs, population};
 use mckibben::eval::Backend;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
 use mckibben::fit::request::FitRequest;
@@ -19,6 +19,13 @@ use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 /// Fit a Bouc-Wen hysteresis model (eq. 13 with the classic or generalized
 /// state) to a recorded experiment. The first half of the data is used for
 /// estimation, the second half for validation, as in the thesis (§4.3.1).
+///
+/// Several files (experiments on one muscle: a stair and a sine, say) fit
+/// one model to all of them, as MATLAB's `merge` of experiments: each file
+/// split in halves, the estimation halves' errors summed, and the
+/// validation halves scored pooled and each on its own. They must share
+/// columns and sample time. A file `--split-gaps` cuts gives its longest
+/// piece.
 ///
 /// The fit runs in three stages (docs/ARCHITECTURE.md, "fitting engine"):
 ///   1. global: a population search (--algo) on the h-step-ahead prediction
@@ -79,6 +86,7 @@ use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 /// Examples:
 ///   mckibben fit
 ///   mckibben fit run.csv --model generalized --algo pso --pop 10000
+///   mckibben fit data/stair_4.5kg.csv data/sine_2rads_4.5kg.csv
 ///   mckibben fit --thesis-flow --algo ga --crossover weighted --pop 30 --gens 30
 ///   mckibben fit --checkpoint fit.ckpt.json   # resumes if the file exists
 ///   mckibben fit run.csv --bound gain=0.1:20 --fix alpha=0.5
@@ -89,7 +97,7 @@ use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 #[command(verbatim_doc_comment)]
 pub struct Args {
     #[command(flatten)]
-    pub(super) data: DataArgs,
+    pub(super) data: MultiDataArgs,
     /// Hysteresis model: classic (A, α, β, γ) or generalized (A, α, β1..β6)
     /// (default: the --from model's, which it must be, else classic).
     #[arg(long, value_enum)]

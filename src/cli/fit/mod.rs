@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use super::common::one_trace;
 pub use args::Args;
 use args::EffectArg;
-use mckibben::data::{Trace, readable};
+use mckibben::data::{Trace, readable, sources};
 use mckibben::diagnose::chain::{selected_fit, with_chain_start};
 use mckibben::eval;
 use mckibben::fit::objective::POPULATION;
@@ -82,9 +82,14 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             "--effects auto runs the diagnosis' own selection: not with --from, --bound or --fix"
         );
         let family = args.model.map_or(Family::Classic, Family::from);
-        let trace = one_trace(args.data.load()?)?;
+        let [trace] = &records(args.data.load()?)?[..] else {
+            anyhow::bail!(
+                "--effects auto runs the diagnosis' selection on one record: give one file \
+                 (`mckibben diagnose` takes several)"
+            );
+        };
         out_folder(&args.out)?;
-        return run_auto(&args, family, &trace);
+        return run_auto(&args, family, trace);
     }
     let request = args.request()?;
     // Printed as they come, and kept for the report (`fit --json`'s
@@ -127,16 +132,18 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if let Some(why) = switching_boxed(args.switching, &request.bounds) {
         anyhow::bail!("--switch {why}: give one of them");
     }
-    let trace = one_trace(args.data.load()?)?;
+    let traces = records(args.data.load()?)?;
     out_folder(&args.out)?;
     if let Some(model) = &resolved.carried {
-        model
-            .check_data(&trace)
-            .map_err(|e| anyhow::anyhow!("--carry: {e:#}"))?;
+        for trace in &traces {
+            model
+                .check_data(trace)
+                .map_err(|e| anyhow::anyhow!("--carry: {e:#}"))?;
+        }
     }
 
     let fit = FitRun::new(
-        &trace,
+        &traces,
         &what,
         &args.settings(),
         start_model.as_ref(),
@@ -161,9 +168,9 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             "building the chain one effect at a time, as the diagnosis does: the fit's second start"
         );
     }
-    let mut fit = with_chain_start(fit, &trace, &args.settings(), args.backend, chain_stop)?;
+    let mut fit = with_chain_start(fit, &traces, &args.settings(), args.backend, chain_stop)?;
     if !args.json {
-        announce(&args, &fit, &trace, &backend);
+        announce(&args, &fit, &traces, &backend);
     }
     let mut progress = Progress::new(fit.engine.planned_generations(), args.json);
     let (outcome, widened) = fit.run(
@@ -186,7 +193,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             args.out.display()
         );
     }
-    let mut report = FitReport::of(&fit, (&outcome, &widened), &backend, &trace.source);
+    let mut report = FitReport::of(&fit, (&outcome, &widened), &backend, &traces);
     let after = report.after_notes(fit.start_scores());
     report.notes = early.take();
     report.notes.extend(after.iter().cloned());
@@ -199,7 +206,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         true => report.write(
             &args.out,
             (&fit, &outcome.params),
-            &trace,
+            &traces,
             &what.bounds,
             provenance,
         ),
@@ -220,6 +227,32 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     written?;
     anyhow::ensure!(found, "{}", all_diverged(&args, !what.bounds.is_empty()));
     Ok(())
+}
+
+/// The records a fit reads: every file given, one record each; a file
+/// `--split-gaps` cut into pieces gives its longest piece
+/// ([`one_trace`], which says so).
+fn records(traces: Vec<Trace>) -> anyhow::Result<Vec<Trace>> {
+    let mut records: Vec<Trace> = Vec::new();
+    let mut pieces: Vec<Trace> = Vec::new();
+    for trace in traces {
+        let same_file = match (pieces.last(), &trace.cut_from) {
+            (Some(last), Some(from)) => last.cut_from.as_ref() == Some(from),
+            _ => false,
+        };
+        if !same_file && !pieces.is_empty() {
+            records.push(one_trace(std::mem::take(&mut pieces))?);
+        }
+        match trace.cut_from {
+            Some(_) => pieces.push(trace),
+            None => records.push(trace),
+        }
+    }
+    if !pieces.is_empty() {
+        records.push(one_trace(pieces)?);
+    }
+    anyhow::ensure!(!records.is_empty(), "the data file holds no samples");
+    Ok(records)
 }
 
 /// Why a fit that found no stable candidate may have found none: the data,
@@ -268,7 +301,7 @@ fn out_folder(out: &std::path::Path) -> anyhow::Result<()> {
 
 /// The line that says what is about to run: the model, the algorithm and
 /// its size, the stages, the data and the backend.
-fn announce(args: &Args, fit: &FitRun, trace: &Trace, backend: &str) {
+fn announce(args: &Args, fit: &FitRun, traces: &[Trace], backend: &str) {
     let engine = &fit.engine;
     // A warm start has no global stage: its first is the free run's.
     let (algo, population, generations) = match (&engine.plan.global, &engine.plan.free_run) {
@@ -294,7 +327,7 @@ fn announce(args: &Args, fit: &FitRun, trace: &Trace, backend: &str) {
         "fitting {model} with {algo} (N = {population}, G = {generations}, seed {}; stages {}{from}) on {} [{}]",
         engine.seed,
         stages.join(" → "),
-        trace.source,
+        sources(traces),
         backend
     );
 }
