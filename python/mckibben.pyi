@@ -123,6 +123,7 @@ class FitResult:
     val_rmse: float | None
     val_fit_percent: float | None
     linear_val_fit_percent: float | None
+    records: list[dict[str, Any]]
     stable_step: float | None
     largest_step: float | None
     start_sse: float | None
@@ -155,7 +156,7 @@ class FitResult:
     history: dict[str, Any]
 
 def fit(
-    u: _ArrayLike | Trace,
+    u: _ArrayLike | Trace | Sequence[Trace | tuple[_ArrayLike, _ArrayLike, float]],
     y: _ArrayLike | None = None,
     dt: float | None = None,
     model: Literal["classic", "generalized"] | None = None,

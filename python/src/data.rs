@@ -4,14 +4,15 @@
 use std::path::PathBuf;
 
 use numpy::{PyArray1, ToPyArray};
-use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyValueError};
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyTuple};
 
 use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::model::file::ReadSettings;
 
-use crate::convert::{in_python_terms, sample_time, series};
+use crate::args::real;
+use crate::convert::{in_python_terms, sample_time, series, value_error};
 use crate::named;
 
 /// One recorded experiment on a uniform time base: the model's input and
@@ -329,4 +330,103 @@ pub fn read_csv<'py>(
         .pop()
         .ok_or_else(|| PyValueError::new_err(format!("{}: no samples", path.display())))?;
     Ok(Bound::new(py, one)?.into_any())
+}
+
+/// The records of an argument that lists experiments (`fit`'s `u`,
+/// `diagnose`'s `datasets` and `transfer`): the traces, how the first was
+/// read, and each one's place in the list (`datasets[1]`; none for a lone
+/// `Trace`).
+pub struct Records {
+    pub traces: Vec<mckibben::data::Trace>,
+    pub read: ReadSettings,
+    places: Vec<String>,
+}
+
+/// The traces of `datasets` (a `Trace`, or a list whose items are each a
+/// `Trace` or a `(u, y, dt)` tuple), `what` naming the argument; a tuple's
+/// source is its place (`transfer[0]`).
+pub fn traces(datasets: &Bound<'_, PyAny>, what: &str) -> PyResult<Records> {
+    if let Ok(t) = datasets.cast::<Trace>() {
+        let t = t.get();
+        return Ok(Records {
+            traces: vec![t.inner.clone()],
+            read: t.read.clone(),
+            places: Vec::new(),
+        });
+    }
+    let wrong = || {
+        PyTypeError::new_err(format!(
+            "{what} must be a Trace or a list of them (read_csv), or of (u, y, dt) tuples"
+        ))
+    };
+    let mut places = Vec::new();
+    let mut out = Vec::new();
+    let mut first_read = None;
+    for (i, item) in datasets.try_iter().map_err(|_| wrong())?.enumerate() {
+        let item = item?;
+        if let Ok(t) = item.cast::<Trace>() {
+            let t = t.get();
+            out.push(t.inner.clone());
+            first_read.get_or_insert_with(|| t.read.clone());
+        } else if let Ok(tuple) = item.cast::<PyTuple>()
+            && tuple.len() == 3
+        {
+            let at = |k: usize| format!("{what}[{i}][{k}]");
+            let names = ArrayNames {
+                input: &at(0),
+                output: &at(1),
+                dt: &at(2),
+            };
+            let dt = real(&tuple.get_item(2)?, names.dt)?;
+            let trace = arrays_trace(
+                &tuple.get_item(0)?,
+                &tuple.get_item(1)?,
+                dt,
+                &format!("{what}[{i}]"),
+                &names,
+            )?;
+            first_read.get_or_insert_with(|| timed_only(&trace.time_name));
+            out.push(trace);
+        } else {
+            return Err(wrong());
+        }
+        places.push(format!("{what}[{i}]"));
+    }
+    match first_read {
+        Some(read) => Ok(Records {
+            traces: out,
+            read,
+            places,
+        }),
+        None => Err(PyValueError::new_err(format!(
+            "{what} is empty: give at least one experiment"
+        ))),
+    }
+}
+
+/// A library error about the records, with the record at fault named by
+/// its place in its list as well as by its source: the library names it by
+/// its source alone, which several traces may share (`python`, the same
+/// file). The record is the first whose own checks
+/// ([`mckibben::fit::records::Records::of`]) fail with the same cause.
+pub fn located(e: anyhow::Error, lists: &[&Records]) -> PyErr {
+    let cause = e.root_cause().to_string();
+    for records in lists {
+        for (t, place) in records.traces.iter().zip(&records.places) {
+            let alone = mckibben::fit::records::Records::of(std::slice::from_ref(t), None);
+            if !alone.is_err_and(|a| a.root_cause().to_string() == cause) {
+                continue;
+            }
+            // A tuple's source is its place: named once.
+            let message = if &t.source == place && cause.contains(place.as_str()) {
+                cause
+            } else if let Some(rest) = cause.strip_prefix(&format!("{}: ", t.source)) {
+                format!("{place} ({}): {rest}", t.source)
+            } else {
+                format!("{place}: {cause}")
+            };
+            return PyValueError::new_err(in_python_terms(&message));
+        }
+    }
+    value_error(e)
 }

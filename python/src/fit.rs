@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use numpy::PyArray1;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyList};
 
 use mckibben::diagnose::chain::with_chain_start;
 use mckibben::eval::Backend;
@@ -28,7 +28,7 @@ use crate::convert::{
     algorithm, backend, family, in_python_terms, loop_shape, runtime_error, switching, to_python,
     value_error,
 };
-use crate::data::data_arg;
+use crate::data::{data_arg, located, traces};
 use crate::history::history_arrays;
 use crate::interrupt::interruptible;
 use crate::model::model_arg;
@@ -53,6 +53,10 @@ pub struct FitResult {
     /// The first-order ARX model's validation fit on the same halves: what
     /// the fit should beat.
     linear_val_fit_percent: Option<f64>,
+    /// Each experiment's validation scores on its own second half, one
+    /// dict per experiment (`data`, `samples`, `val_rmse`,
+    /// `val_fit_percent`; `fit --json`'s `records`).
+    records: Py<PyAny>,
     /// The largest output step a sample within which the fitted
     /// hysteresis update settles, and the record's largest measured step
     /// (`fit --json`'s `stable_step`, `largest_step`).
@@ -193,7 +197,9 @@ fn unbound(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>>
 
 /// Fits a hysteresis model to one experiment with the staged engine of
 /// `mckibben fit`, its defaults and its edge rule: the same parameters, bit
-/// for bit, for the same data, settings and seed, on any backend.
+/// for bit, for the same data, settings and seed, on any backend. A list
+/// `u` of experiments (each a `Trace` or a `(u, y, dt)` tuple) fits one
+/// model to all, as `mckibben fit a.csv b.csv`.
 #[pyfunction]
 #[pyo3(signature = (
     u, y = None, dt = None, model = None, effects = None, algo = "de", pop = None,
@@ -228,7 +234,24 @@ pub fn fit(
     carry: Option<&Bound<'_, PyAny>>,
     #[pyo3(from_py_with = named::refine_rounds)] refine_rounds: Option<usize>,
 ) -> PyResult<FitResult> {
-    let (trace, read) = data_arg(u, y, dt)?;
+    // A list of experiments, as `fit a.csv b.csv`; its records are named by
+    // their place in it where the library's checks refuse one.
+    let listed = match u.cast::<PyList>() {
+        Ok(_) if y.is_none() && dt.is_none() => Some(traces(u, "u")?),
+        _ => None,
+    };
+    let (traces, read) = match &listed {
+        Some(records) => (records.traces.clone(), records.read.clone()),
+        None => {
+            let (trace, read) = data_arg(u, y, dt)?;
+            (vec![trace], read)
+        }
+    };
+    let traces = &traces[..];
+    let refused = |e: anyhow::Error| match &listed {
+        Some(records) => located(e, &[records]),
+        None => value_error(e),
+    };
     // As `fit --from`: the start's family, effects and bounds unless given
     // here (the bounds given here after the file's, so that they win). As
     // `fit --carry`: the carried model's family and effects, its dynamics
@@ -273,9 +296,11 @@ pub fn fit(
         .resolve(start.as_ref().or(carried.as_ref()))
         .map_err(|e| value_error(e.context(which)))?;
     if let Some(model) = &carried {
-        model
-            .check_data(&trace)
-            .map_err(|e| value_error(e.context("carry")))?;
+        for trace in traces {
+            model
+                .check_data(trace)
+                .map_err(|e| value_error(e.context("carry")))?;
+        }
     }
     if let Some(why) = switching_misapplied(what.family, asked) {
         return Err(PyValueError::new_err(format!(
@@ -314,10 +339,9 @@ pub fn fit(
     let backend = self::backend(backend)?;
     let notes = Mutex::new(Vec::new());
     let note = |s: String| notes.lock().expect("notes").push(s);
-    let traces = std::slice::from_ref(&trace);
     let fit = py
         .detach(|| FitRun::new(traces, &what, &settings, start_model.as_ref(), None, &note))
-        .map_err(value_error)?;
+        .map_err(refused)?;
     // With effects from scratch, a second start: the chain built one effect
     // at a time, as `mckibben fit --effects` does. Ctrl-C while it is built
     // raises `KeyboardInterrupt`: there is no fit yet to return.
@@ -339,7 +363,7 @@ pub fn fit(
     } = finished;
     let report = FitReport::of(&fit, (&outcome, &widened), &describe, traces);
     warn_of_report(&warn, &report, &outcome, &fit)?;
-    fit_result(py, report, &fit, &outcome, &what, &trace, &read)
+    fit_result(py, report, &fit, &outcome, &what, traces, &read)
 }
 
 /// A fit run to its end: the run, what it ended at, the edge rule's
@@ -440,7 +464,7 @@ fn warn_of_report(
 }
 
 /// The fit's `report` as Python values: the fitted model (built within
-/// `what`'s bounds, its provenance naming the data `trace` was read from),
+/// `what`'s bounds, its provenance naming the data `traces` were read from),
 /// the parameters and the box by name, and the history as arrays.
 fn fit_result(
     py: Python<'_>,
@@ -448,7 +472,7 @@ fn fit_result(
     fit: &FitRun,
     outcome: &Outcome,
     what: &FitTarget,
-    trace: &mckibben::data::Trace,
+    traces: &[mckibben::data::Trace],
     read: &ReadSettings,
 ) -> PyResult<FitResult> {
     let (problem, engine) = (&fit.problem, &fit.engine);
@@ -473,7 +497,12 @@ fn fit_result(
             problem,
             &outcome.params,
             &what.bounds,
-            provenance("mckibben.fit", &[&trace.source], read, Some(engine.seed)),
+            provenance(
+                "mckibben.fit",
+                &traces.iter().map(|t| t.source.as_str()).collect::<Vec<_>>(),
+                read,
+                Some(engine.seed),
+            ),
         );
         Some(Py::new(py, Model::of_file(file).map_err(runtime_error)?)?)
     };
@@ -486,6 +515,7 @@ fn fit_result(
         val_rmse: report.val_rmse,
         val_fit_percent: report.val_fit_percent,
         linear_val_fit_percent: report.linear_val_fit_percent,
+        records: unbound(py, &report.records)?,
         stable_step: report.stable_step,
         largest_step: report.largest_step,
         start_sse: report.start_sse,

@@ -54,6 +54,23 @@ def model_file_without_provenance(path):
     return doc
 
 
+def test_a_list_of_experiments_is_the_commands_fit_of_several_files(stair, cli, tmp_path):
+    sine = mckibben.read_csv(pathlib.Path(stair.source).parent / "sine_2rads_4.5kg.csv")
+    expected = cli("fit", stair.source, sine.source, "--backend", "cpu", "--pop", "200", "--gens", "40",
+                   "--out", tmp_path)
+    result = mckibben.fit([stair, sine], pop=200, gens=40)
+    assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
+    assert result.records == expected["records"]
+    assert [r["data"] for r in result.records] == [stair.source, sine.source]
+    saved = tmp_path / "model.json"
+    result.model.save(saved)
+    sources = [f["file"] for f in json.loads(saved.read_text())["provenance"]["data"]]
+    assert sources == [stair.source, sine.source]
+    # A tuple is an experiment too, named by its place where it is refused.
+    with pytest.raises(ValueError, match=r"u\[1\]"):
+        mckibben.fit([stair, (stair.input[:10], stair.output[:10], 0.01)], pop=20, gens=2)
+
+
 def test_fit_with_effects_gives_the_commands_parameters_and_file(stair, cli, tmp_path):
     small = ["--pop", "40", "--gens", "10", "--seed", "2", "--backend", "cpu"]
     out = tmp_path / "cli"
