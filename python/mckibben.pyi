@@ -66,6 +66,7 @@ def read_csv(
     time: str = "t",
     resample: float | None = None,
     split_gaps: Literal[False] = False,
+    dt: float | None = None,
 ) -> Trace: ...
 @overload
 def read_csv(
@@ -76,6 +77,7 @@ def read_csv(
     resample: None = None,
     *,
     split_gaps: Literal[True],
+    dt: float | None = None,
 ) -> list[Trace]: ...
 
 @final

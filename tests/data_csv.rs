@@ -401,6 +401,7 @@ fn cavatappi_recordings_load_split_or_resampled() {
         input: "pressure_psi".into(),
         output: "disp_mm".into(),
         gaps: Gaps::Reject,
+        ..ReadOptions::default()
     };
     // 12 000 samples at 1 kHz in 12 blocks of 1000, with 20 ms – 1.2 s gaps between.
     let msg = read_traces(&path, &columns).unwrap_err().to_string();

@@ -137,6 +137,7 @@ fn the_cavatappi_300g_choices_never_read_its_test_part() {
         input: "pressure_psi".into(),
         output: "disp_mm".into(),
         gaps: Gaps::Resample(0.01),
+        ..ReadOptions::default()
     };
     let trace = read_traces(&path, &read).unwrap();
     test_part_is_read_only_for_test_figures(&trace[0]);

@@ -1290,3 +1290,37 @@ fn a_fit_of_records_at_different_steps_names_them() {
     );
     assert!(!dir.path().join("out").exists(), "nothing written");
 }
+
+/// A file without a time column fits with `--dt` as the same file with
+/// one: the same parameters, bit for bit, and the model file records how
+/// it was read. Without `--dt` the error names the flag.
+#[test]
+fn a_file_without_a_time_column_fits_with_dt() {
+    let dir = tempfile::tempdir().unwrap();
+    let timed = data(dir.path());
+    let text = std::fs::read_to_string(&timed).unwrap();
+    let untimed: String = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_once(',').unwrap().1.to_string() + "\n")
+        .collect();
+    assert!(untimed.starts_with("pressure,displacement"), "{untimed}");
+    std::fs::write(dir.path().join("untimed.csv"), untimed).unwrap();
+    let fit = |file: &str, extra: &[&str]| {
+        let args = [&short_fit(file)[..], extra, &["--json", "--out", "out"]].concat();
+        json(&mckibben(&args, dir.path()))
+    };
+    let with_column = fit(&timed, &[])["params"].clone();
+    let with_dt = fit("untimed.csv", &["--dt", "0.01"]);
+    assert_eq!(with_dt["params"], with_column);
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("out/model.json")).unwrap())
+            .unwrap();
+    assert_eq!(model["provenance"]["read"]["dt"], 0.01);
+    let without = mckibben(&short_fit("untimed.csv"), dir.path());
+    let err = String::from_utf8_lossy(&without.stderr);
+    assert!(
+        !without.status.success() && err.contains("--dt SECONDS"),
+        "{err}"
+    );
+}

@@ -341,6 +341,7 @@ fn keyword_of(flag: &str) -> Option<String> {
         "time",
         "resample",
         "split-gaps",
+        "dt",
         "seeds",
         "generations",
         "scratch-seeds",

@@ -268,7 +268,8 @@ fn data_error(e: DataError) -> PyErr {
 /// jump; then a list of traces is returned). The reader's notes (cuts,
 /// dropped pieces, text columns) become `UserWarning`s.
 #[pyfunction]
-#[pyo3(signature = (path, input = "pressure", output = "displacement", time = "t", resample = None, split_gaps = false))]
+#[pyo3(signature = (path, input = "pressure", output = "displacement", time = "t", resample = None, split_gaps = false, dt = None))]
+#[allow(clippy::too_many_arguments)]
 pub fn read_csv<'py>(
     py: Python<'py>,
     #[pyo3(from_py_with = named::csv_path)] path: PathBuf,
@@ -277,6 +278,7 @@ pub fn read_csv<'py>(
     #[pyo3(from_py_with = named::time)] time: &str,
     #[pyo3(from_py_with = named::resample)] resample: Option<f64>,
     #[pyo3(from_py_with = named::split_gaps)] split_gaps: bool,
+    #[pyo3(from_py_with = named::dt_opt)] dt: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     // The library's reader would read one column as two (`input="t"` gave
     // time and input the same values).
@@ -298,8 +300,10 @@ pub fn read_csv<'py>(
         (None, true) => Gaps::Split,
         (None, false) => Gaps::Reject,
     };
+    let dt = dt.map(|dt| sample_time(dt, "dt")).transpose()?;
     let opts = ReadOptions {
         time: time.to_string(),
+        dt,
         input: input.to_string(),
         output: output.to_string(),
         gaps,
@@ -315,6 +319,7 @@ pub fn read_csv<'py>(
         time: Some(time.to_string()),
         resample,
         split_gaps,
+        dt,
     };
     let mut traces: Vec<Trace> = traces
         .into_iter()

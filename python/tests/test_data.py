@@ -25,6 +25,20 @@ def test_a_file_of_other_column_names_keeps_them(tmp_path):
     assert (trace.time_name, trace.input_name, trace.output_name) == ("time_s", "p_kPa", "x_mm")
 
 
+def test_a_file_without_a_time_column_reads_with_dt(stair, tmp_path):
+    f = tmp_path / "untimed.csv"
+    f.write_text("p_kPa,x_mm\n100,1\n200,2\n300,3\n")
+    trace = mckibben.read_csv(f, input="p_kPa", output="x_mm", dt=0.5)
+    assert list(trace.t) == [0.0, 0.5, 1.0] and trace.dt == 0.5
+    assert list(trace.output) == [1.0, 2.0, 3.0]
+    with pytest.raises(ValueError, match=r"no time column \"t\".*`dt=SECONDS`"):
+        mckibben.read_csv(f, input="p_kPa", output="x_mm")
+    with pytest.raises(ValueError, match='this file has one, "t"'):
+        mckibben.read_csv(STAIR, dt=0.01)
+    with pytest.raises(ValueError, match="dt must be a positive number of seconds"):
+        mckibben.read_csv(f, input="p_kPa", output="x_mm", dt=-1.0)
+
+
 def test_a_trace_from_arrays_takes_its_column_names(stair):
     u, y = stair.input[:100], stair.output[:100]
     trace = mckibben.Trace(u, y, stair.dt, input_name="p_kPa", output_name="x_mm", time_name="time_s")

@@ -205,6 +205,13 @@ pub struct ColumnArgs {
     /// `t`, or the --from model's where the command takes --from]
     #[arg(long, value_name = "COL")]
     pub time: Option<String>,
+    /// A file without a time column (MATLAB's writematrix of [u y] under a
+    /// header, a logger that counts rows): its rows are DT seconds apart,
+    /// the first at 0. A file that has the time column is an error, not a
+    /// choice between two clocks.
+    #[arg(long = "dt", value_name = "SECONDS", value_parser = positive_seconds,
+          allow_negative_numbers = true, conflicts_with = "time")]
+    pub dt: Option<f64>,
     /// The models are discrete-time and need a uniform time base (every step
     /// within 10% of the median step); a file that is not is an error naming
     /// the first bad row. With this flag every column is instead linearly
@@ -327,6 +334,9 @@ impl ColumnArgs {
                 .clone()
                 .or(Some(model.data.output.column.clone())),
             time: self.time.clone().or(read.time.clone()),
+            // Not the model's: its file's rows are no clock for another
+            // file, which may have a time column.
+            dt: self.dt,
             resample: if time_base_given {
                 self.resample
             } else {
@@ -345,6 +355,7 @@ impl ColumnArgs {
         let defaults = ReadOptions::default();
         ReadOptions {
             time: self.time.clone().unwrap_or(defaults.time),
+            dt: self.dt,
             input: self.input.clone().unwrap_or(defaults.input),
             output: self.output.clone().unwrap_or(defaults.output),
             gaps: match (self.resample, self.split_gaps) {
@@ -361,6 +372,7 @@ impl ColumnArgs {
             time: Some(self.options().time),
             resample: self.resample,
             split_gaps: self.split_gaps,
+            dt: self.dt,
         }
     }
 

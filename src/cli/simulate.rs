@@ -80,7 +80,8 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     freq: f64,
     /// Sample time of generated inputs (s): the model file's (its poles
-    /// are per sample), else 0.01.
+    /// are per sample), else 0.01. With a CSV `--input` that has no time
+    /// column: its rows' spacing (s), the first row at 0.
     #[arg(long)]
     dt: Option<f64>,
     /// With a CSV `--input`: the column holding the model input (default:
@@ -586,6 +587,7 @@ fn input_trace(
                     &defaults.output,
                 ),
                 time: column(&args.time, read.time.as_ref(), &defaults.time),
+                dt: args.dt,
                 gaps: match resample {
                     Some(dt) => Gaps::Resample(dt),
                     None => Gaps::Reject,

@@ -60,8 +60,12 @@ const IMPLAUSIBLE_MPA: f64 = 10.0;
 /// Which columns to read and how to treat the time base.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReadOptions {
-    /// Time column (seconds).
+    /// Time column (seconds); with `dt`, the name the time takes.
     pub time: String,
+    /// A file without a time column: its rows are `dt` seconds apart
+    /// (`--dt`). A file that has the column `time` is then an error, not
+    /// a choice between two clocks.
+    pub dt: Option<f64>,
     /// Model input column (default `pressure`, MPa).
     pub input: String,
     /// Model output column (default `displacement`, mm).
@@ -75,6 +79,7 @@ impl Default for ReadOptions {
     fn default() -> Self {
         ReadOptions {
             time: "t".into(),
+            dt: None,
             input: "pressure".into(),
             output: "displacement".into(),
             gaps: Gaps::Reject,
@@ -110,8 +115,9 @@ pub enum DataError {
         rows: usize,
     },
     #[error(
-        "{}: line {line}: no {role} column \"{column}\"; the file has columns {}; choose another with {flag} COL",
-        path.display(), quoted(available)
+        "{}: line {line}: no {role} column \"{column}\"; the file has columns {}; choose another with {flag} COL{}",
+        path.display(), quoted(available),
+        if *role == "time" { " (or, for a file without one, give its rows' spacing in seconds with --dt SECONDS)" } else { "" }
     )]
     MissingColumn {
         path: PathBuf,
@@ -147,6 +153,17 @@ pub enum DataError {
         line: u64,
         column: String,
         role: &'static str,
+    },
+    #[error(
+        "{}: line {line}: --dt gives the rows' spacing for a file without a time column, \
+         and this file has one, \"{column}\": leave --dt out to read it (or --resample DT \
+         to put it on another step)",
+        path.display()
+    )]
+    TimeBesideDt {
+        path: PathBuf,
+        line: u64,
+        column: String,
     },
     #[error(
         "{}: line {line}: the time column \"{column}\" is in {unit}, and time is read in \
@@ -365,10 +382,21 @@ fn check_header_form(text: &str) -> Result<(), String> {
     Ok(())
 }
 
-/// One data row: its line in the file and its trimmed cells.
+/// One data row: its line in the file, its place among the data rows
+/// (its time where `--dt` gives the spacing) and its trimmed cells.
 struct Row {
     line: u64,
+    index: usize,
     cells: csv::StringRecord,
+}
+
+/// Where a file's time comes from.
+#[derive(Clone, Copy)]
+enum Clock {
+    /// Its column of that index.
+    Column(usize),
+    /// Its rows, this many seconds apart (`--dt`).
+    Rows(f64),
 }
 
 fn parse(
@@ -431,7 +459,8 @@ fn parse(
                         header_line: *header_line,
                     });
                 }
-                rows.push(Row { line, cells });
+                let index = rows.len();
+                rows.push(Row { line, index, cells });
             }
         }
     }
@@ -472,8 +501,26 @@ fn parse(
             }
         })
     };
-    let it = find(&opts.time, "time", "--time")?;
-    if let Some(unit) = crate::data::units::time_unit_other_than_seconds(&names[it]) {
+    let clock = match opts.dt {
+        None => Clock::Column(find(&opts.time, "time", "--time")?),
+        Some(dt) => match names.iter().position(|n| n == &opts.time) {
+            Some(c) => {
+                return Err(DataError::TimeBesideDt {
+                    path: p(),
+                    line: header_line,
+                    column: names[c].clone(),
+                });
+            }
+            None => Clock::Rows(dt),
+        },
+    };
+    let it = match clock {
+        Clock::Column(c) => Some(c),
+        Clock::Rows(_) => None,
+    };
+    if let Some(it) = it
+        && let Some(unit) = crate::data::units::time_unit_other_than_seconds(&names[it])
+    {
         return Err(DataError::TimeNotSeconds {
             path: p(),
             line: header_line,
@@ -487,7 +534,7 @@ fn parse(
     // of an input alone so, and the identification names a measured
     // response that copies the input as such.
     for (c, role) in [(ii, "input"), (io, "output")] {
-        if c == it {
+        if Some(c) == it {
             return Err(DataError::TimeAsData {
                 path: p(),
                 line: header_line,
@@ -502,8 +549,9 @@ fn parse(
     let mut dropped = Vec::new();
     if matches!(opts.gaps, Gaps::Split) {
         rows.retain(|row| {
-            let bad = [it, ii, io]
+            let bad = it
                 .into_iter()
+                .chain([ii, io])
                 .find(|&c| !row.cells[c].parse::<f64>().is_ok_and(f64::is_finite));
             if let Some(c) = bad {
                 dropped.push(format!(
@@ -531,10 +579,15 @@ fn parse(
     let column = |c: usize| -> Result<Vec<f64>, DataError> {
         Ok(numeric_column(path, &rows, c, &names[c], true)?.unwrap_or_default())
     };
-    let (t, input, output) = (column(it)?, column(ii)?, column(io)?);
+    // A row dropped above leaves its time out, and `--split-gaps` cuts there.
+    let t = match clock {
+        Clock::Column(c) => column(c)?,
+        Clock::Rows(dt) => rows.iter().map(|r| r.index as f64 * dt).collect(),
+    };
+    let (input, output) = (column(ii)?, column(io)?);
     let mut extra = Vec::new();
     for (c, name) in names.iter().enumerate() {
-        if c == it || c == ii || c == io {
+        if Some(c) == it || c == ii || c == io {
             continue;
         }
         // A column the model does not read (a marker, a note) may have
@@ -1149,6 +1202,7 @@ mod tests {
             input: "b".into(),
             output: "a".into(),
             gaps: Gaps::Reject,
+            ..ReadOptions::default()
         };
         let tr = &parse(Path::new("y.csv"), text.as_bytes(), &opts).unwrap().0[0];
         assert_eq!(
@@ -1263,6 +1317,7 @@ mod tests {
             input: "1".into(),
             output: "2".into(),
             gaps: Gaps::Reject,
+            ..ReadOptions::default()
         };
         let text = "0,1,2\n0,0.1,1\n0.01,0.2,2\n0.02,0.3,3\n";
         let (traces, _) = parse(Path::new("x.csv"), text.as_bytes(), &opts).unwrap();
@@ -1283,6 +1338,7 @@ mod tests {
                 input: input.into(),
                 output: output.into(),
                 gaps: Gaps::Reject,
+                ..ReadOptions::default()
             };
             let e = parse(Path::new("x.csv"), text.as_bytes(), &opts)
                 .unwrap_err()
@@ -1575,6 +1631,44 @@ mod tests {
         assert!(
             msg.ends_with("line 101, column \"t\": \"nan\" is not finite"),
             "{msg}"
+        );
+    }
+
+    /// A file without a time column reads with `--dt` as rows that far
+    /// apart, the first at 0; a row `--split-gaps` drops keeps its time out,
+    /// so the file is cut there; a file that has the time column refuses
+    /// `--dt`, and one without it names `--dt` in its error.
+    #[test]
+    fn rows_dt_apart_where_the_file_has_no_time_column() {
+        let mut text = String::from("pressure,displacement\n");
+        for k in 0..60 {
+            match k {
+                25 => text += "NaN,50\n",
+                _ => text += &format!("{},{}\n", k as f64 * 1e-3, 2 * k),
+            }
+        }
+        let at = |gaps| ReadOptions {
+            dt: Some(0.5),
+            gaps,
+            ..ReadOptions::default()
+        };
+        let missing = err(&text);
+        assert!(missing.contains("no time column \"t\"") && missing.contains("--dt SECONDS"));
+        let nan = parse(Path::new("x.csv"), text.as_bytes(), &at(Gaps::Reject)).unwrap_err();
+        assert!(nan.to_string().contains("line 27"), "{nan}");
+        let (traces, _) = parse(Path::new("x.csv"), text.as_bytes(), &at(Gaps::Split)).unwrap();
+        let lengths: Vec<usize> = traces.iter().map(Trace::len).collect();
+        assert_eq!(lengths, [25, 34]);
+        assert_eq!((traces[0].t[1], traces[1].t[0]), (0.5, 13.0));
+        assert_eq!(
+            (traces[1].output[0], traces[0].time_name.as_str()),
+            (52.0, "t")
+        );
+        let timed = uniform_text(40, 0.01);
+        let both = parse(Path::new("x.csv"), timed.as_bytes(), &at(Gaps::Reject)).unwrap_err();
+        assert!(
+            matches!(&both, DataError::TimeBesideDt { column, .. } if column == "t"),
+            "{both}"
         );
     }
 

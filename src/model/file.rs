@@ -307,6 +307,10 @@ pub struct ReadSettings {
     pub time: Option<String>,
     pub resample: Option<f64>,
     pub split_gaps: bool,
+    /// A file without a time column, its rows this many seconds apart
+    /// (`--dt`); absent from files written before it existed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dt: Option<f64>,
 }
 
 /// One data file a model was fitted on, with its SHA-256.
