@@ -1324,3 +1324,59 @@ fn a_file_without_a_time_column_fits_with_dt() {
         "{err}"
     );
 }
+
+/// With `--effects`, the chain built one effect at a time is the fit's
+/// second start, a warm start of a fifth of the population and no global
+/// stage; where it is kept, the report still gives the population and
+/// algorithm the fit was asked for, as the line announcing it did.
+#[test]
+fn a_kept_chain_start_reports_the_population_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let twin = mckibben(
+        &[
+            "twin",
+            "--experiment",
+            "stair",
+            "--seed",
+            "3",
+            "--out",
+            "stair.csv",
+        ],
+        dir.path(),
+    );
+    assert!(twin.status.success());
+    let kept = (1..=4).find_map(|seed| {
+        let seed = seed.to_string();
+        let report = json(&mckibben(
+            &[
+                "fit",
+                "stair.csv",
+                "--effects",
+                "creep",
+                "--algo",
+                "pso",
+                "--pop",
+                "60",
+                "--gens",
+                "10",
+                "--seed",
+                &seed,
+                "--backend",
+                "cpu",
+                "--json",
+                "--out",
+                "out",
+            ],
+            dir.path(),
+        ));
+        assert_eq!(
+            (report["population"].as_u64(), report["algo"].as_str()),
+            (Some(60), Some("pso"))
+        );
+        (report["built"]["kept_chain"] == true).then_some(seed)
+    });
+    assert!(
+        kept.is_some(),
+        "no seed of 1–4 kept the chain's start: the case tests nothing"
+    );
+}

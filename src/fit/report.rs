@@ -213,7 +213,9 @@ impl FitReport {
         let start = fit.start_scores();
         let found = !outcome.params.is_empty();
         let val = found.then(|| problem.validate(&outcome.params));
-        let global = engine.plan.global.as_ref();
+        // What was asked (the announce's), not the kept start's plan.
+        let asked = &fit.asked;
+        let global = asked.global.as_ref();
         let names = problem.model.param_names();
         let params = Named::zip(&names, &outcome.params);
         let Assessment {
@@ -270,15 +272,14 @@ impl FitReport {
             backend: backend.to_string(),
             flow: problem.flow,
             seed: engine.seed,
-            population: global.map_or(
-                engine.plan.free_run.as_ref().map_or(0, |f| f.population),
-                |g| g.population * engine.plan.tries,
-            ),
-            tries: engine.plan.tries,
-            try_population: global.map_or(
-                engine.plan.free_run.as_ref().map_or(0, |f| f.population),
-                |g| g.population,
-            ),
+            population: global.map_or(asked.free_run.as_ref().map_or(0, |f| f.population), |g| {
+                g.population * asked.tries
+            }),
+            tries: asked.tries,
+            try_population: global
+                .map_or(asked.free_run.as_ref().map_or(0, |f| f.population), |g| {
+                    g.population
+                }),
             agreement: fit.agreement.clone(),
             refining: engine.plan.refine.as_ref().map(|r| {
                 let cut: Vec<f64> = outcome.tries.iter().filter_map(|t| t.cut_gain).collect();

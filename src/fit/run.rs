@@ -59,12 +59,17 @@ impl FitTarget {
     }
 }
 
-/// A fit of one trace as `mckibben fit` runs it: the problem, and the engine
-/// that runs on it.
+/// A fit of its traces as `mckibben fit` runs it: the problem, and the
+/// engine that runs on it.
 #[derive(Debug, Clone)]
 pub struct FitRun {
     pub problem: FitProblem,
     pub engine: Engine<ModelChart>,
+    /// The first start's plan, what the fit was asked to run (its
+    /// algorithm, population and tries): the engine above is the kept
+    /// start's, which may be the chain's warm start, of a smaller
+    /// population and no global stage.
+    pub asked: Plan,
     /// A warm start's model as it was, in the problem's gauge (same outputs):
     /// what the refit is measured against ([`FitRun::start_scores`]).
     pub start: Option<Vec<f64>>,
@@ -277,6 +282,7 @@ impl FitRun {
         };
         Ok(FitRun {
             problem,
+            asked: engine.plan.clone(),
             engine,
             start: None,
             second: None,
