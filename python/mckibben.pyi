@@ -126,6 +126,7 @@ class FitResult:
     val_fit_percent: float | None
     linear_val_fit_percent: float | None
     records: list[dict[str, Any]]
+    notes: list[dict[str, str]]
     stable_step: float | None
     largest_step: float | None
     start_sse: float | None

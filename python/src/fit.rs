@@ -13,7 +13,7 @@ use mckibben::diagnose::chain::with_chain_start;
 use mckibben::eval::Backend;
 use mckibben::fit::edge::Widening;
 use mckibben::fit::objective::{GENERATIONS, POPULATION};
-use mckibben::fit::report::{FitReport, model_file, yardstick_warnings};
+use mckibben::fit::report::{FitReport, Note, model_file};
 use mckibben::fit::request::{FitRequest, Resolved, switching_boxed, switching_misapplied};
 use mckibben::fit::run::{FitRun, FitTarget};
 use mckibben::fit::searches::StopFlag;
@@ -53,6 +53,12 @@ pub struct FitResult {
     /// The first-order ARX model's validation fit on the same halves: what
     /// the fit should beat.
     linear_val_fit_percent: Option<f64>,
+    /// What `fit` prints on stderr and `fit --json` holds as `notes`, one
+    /// dict each (`level`, `note` or `warning`, and `text`), in order: the
+    /// notes before the run, the box's, tries that agree too little,
+    /// undetermined parameters, a validation fit below its yardsticks. Each
+    /// was also raised as a `UserWarning`.
+    notes: Py<PyAny>,
     /// Each experiment's validation scores on its own second half, one
     /// dict per experiment (`data`, `samples`, `val_rmse`,
     /// `val_fit_percent`; `fit --json`'s `records`).
@@ -351,18 +357,44 @@ pub fn fit(
     })?
     .map_err(runtime_error)?;
     let finished = run_fit(py, fit, backend, progress)?;
-    let warn = py.import("warnings")?;
-    for n in notes.into_inner().expect("notes") {
-        warn.call_method1("warn", (in_python_terms(&n),))?;
-    }
     let Finished {
         fit,
         outcome,
         widened,
         describe,
     } = finished;
-    let report = FitReport::of(&fit, (&outcome, &widened), &describe, traces);
-    warn_of_report(&warn, &report, &outcome, &fit)?;
+    let mut report = FitReport::of(&fit, (&outcome, &widened), &describe, traces);
+    // What `fit` prints on stderr and `fit --json` holds as `notes`: the
+    // notes before the run, then the report's own, each a `UserWarning`.
+    let after = report.after_notes(fit.start_scores());
+    let early = notes
+        .into_inner()
+        .expect("notes")
+        .into_iter()
+        .map(Note::plain);
+    report.notes = early
+        .chain(after)
+        .map(|n| Note {
+            text: in_python_terms(&n.text),
+            ..n
+        })
+        .collect();
+    let warn = py.import("warnings")?;
+    for n in &report.notes {
+        warn.call_method1("warn", (&n.text,))?;
+    }
+    if outcome.params.is_empty() {
+        // The command's error, as a warning: the result still holds the
+        // run's history and stages, which say where it failed.
+        warn.call_method1(
+            "warn",
+            (
+                "every candidate diverged: the result holds no model (`model` is None); check \
+                 the data's units and columns, the values `bounds` hold, and whether a larger \
+                 `pop` finds a stable candidate",
+            ),
+        )?;
+    }
     fit_result(py, report, &fit, &outcome, &what, traces, &read)
 }
 
@@ -424,45 +456,6 @@ fn run_fit(
     })
 }
 
-/// Warns through Python's `warnings` of what `mckibben fit` warns of after
-/// a fit: a validation fit the yardsticks find wanting, and tries that
-/// agree too little.
-fn warn_of_report(
-    warn: &Bound<'_, PyModule>,
-    report: &FitReport,
-    outcome: &Outcome,
-    fit: &FitRun,
-) -> PyResult<()> {
-    // The command's error, as a warning: the result still holds the run's
-    // history and stages, which say where it failed.
-    if outcome.params.is_empty() {
-        warn.call_method1(
-            "warn",
-            (
-                "every candidate diverged: the result holds no model (`model` is None); check \
-              the data's units and columns, the values `bounds` hold, and whether a larger \
-              `pop` finds a stable candidate",
-            ),
-        )?;
-    }
-    if let Some(val) = report.val_fit_percent {
-        let linear = report.linear_val_fit_percent;
-        for w in yardstick_warnings(outcome.sse, val, linear, fit.start_scores()) {
-            warn.call_method1("warn", (w,))?;
-        }
-    }
-    if let Some(advice) = report.agreement.as_ref().and_then(|a| a.advice()) {
-        warn.call_method1("warn", (in_python_terms(&advice),))?;
-    }
-    if let Some(advice) = report.refining.and_then(|r| r.advice(report.tries)) {
-        warn.call_method1("warn", (in_python_terms(&advice),))?;
-    }
-    if let Some(loose) = report.undetermined() {
-        warn.call_method1("warn", (loose,))?;
-    }
-    Ok(())
-}
-
 /// The fit's `report` as Python values: the fitted model (built within
 /// `what`'s bounds, its provenance naming the data `traces` were read from),
 /// the parameters and the box by name, and the history as arrays.
@@ -516,6 +509,7 @@ fn fit_result(
         val_fit_percent: report.val_fit_percent,
         linear_val_fit_percent: report.linear_val_fit_percent,
         records: unbound(py, &report.records)?,
+        notes: unbound(py, &report.notes)?,
         stable_step: report.stable_step,
         largest_step: report.largest_step,
         start_sse: report.start_sse,

@@ -157,6 +157,10 @@ def test_a_refinement_cut_short_is_the_commands_and_warns(stair, cli, tmp_path):
         result = mckibben.fit(stair, model="generalized", pop=40, gens=20, seed=3, refine_rounds=1)
     assert result.refining == expected["refining"]
     assert result.refining["rounds"] == result.refining["cut_tries"] == 1
+    # The command's notes, in order, as the Python terms name its flags.
+    assert [n["level"] for n in result.notes] == [n["level"] for n in expected["notes"]]
+    assert any("`refine_rounds=4`" in n["text"] for n in result.notes)
+    assert any("--refine-rounds 4" in n["text"] for n in expected["notes"])
     assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
     assert mckibben.fit(stair, pop=40, gens=2).refining is None
     with pytest.raises(ValueError, match="only a generalized fit is refined"):
