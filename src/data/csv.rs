@@ -316,6 +316,25 @@ enum Dialect {
 }
 
 impl Dialect {
+    /// The dialect Excel's first line `sep=;` names (it writes one so that
+    /// another Excel reads the file right), or why it cannot be read.
+    fn of_sep_line(text: &str) -> Option<Result<Dialect, String>> {
+        let sep = text.get(..4).filter(|s| s.eq_ignore_ascii_case("sep="))?;
+        let named = &text[sep.len()..];
+        Some(match named {
+            "," => Ok(Dialect::Commas),
+            ";" => Ok(Dialect::Semicolons),
+            // `sep=` and a tab: the line is read trimmed.
+            "\t" | "" => Ok(Dialect::Tabs),
+            other if other.chars().count() == 1 => Err(format!(
+                "the first line `{text}` asks for fields separated by \"{other}\": only commas, \
+                 semicolons and tabs are read; save the file as CSV with commas"
+            )),
+            // Longer: not Excel's line, but a header that starts so.
+            _ => return None,
+        })
+    }
+
     fn of_header(text: &str) -> Dialect {
         if text.contains(',') {
             Dialect::Commas
@@ -437,6 +456,17 @@ fn parse(
                 line,
                 message,
             })?;
+        }
+        if header.is_none()
+            && dialect.is_none()
+            && let Some(named) = Dialect::of_sep_line(text)
+        {
+            dialect = Some(named.map_err(|message| DataError::Parse {
+                path: p(),
+                line,
+                message,
+            })?);
+            continue;
         }
         let dialect = *dialect.get_or_insert_with(|| Dialect::of_header(text));
         let cells = split_fields(text, dialect).map_err(|e| DataError::Parse {
@@ -1669,6 +1699,25 @@ mod tests {
         assert!(
             matches!(&both, DataError::TimeBesideDt { column, .. } if column == "t"),
             "{both}"
+        );
+    }
+
+    /// Excel's `sep=;` first line names the separator and is no header;
+    /// a separator that is not read is an error naming the line.
+    #[test]
+    fn an_excel_sep_line_names_the_separator() {
+        let body = "t;pressure;displacement\n0;0,1;1\n0,01;0,2;2\n0,02;0,3;3\n";
+        let (traces, notes) = read(&format!("sep=;\n{body}"), Gaps::Reject).unwrap();
+        assert_eq!(traces[0].input, [0.1, 0.2, 0.3]);
+        assert!(notes[0].contains("semicolons"), "{notes:?}");
+        let commas = "SEP=,\nt,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n";
+        assert_eq!(read(commas, Gaps::Reject).unwrap().0[0].output, [1.0, 2.0]);
+        let tabs = "sep=\t\nt\tpressure\tdisplacement\n0\t0.1\t1\n0.01\t0.2\t2\n";
+        assert_eq!(read(tabs, Gaps::Reject).unwrap().0[0].output, [1.0, 2.0]);
+        let pipes = err("sep=|\nt|pressure|displacement\n0|0.1|1\n");
+        assert!(
+            pipes.contains("line 1") && pipes.contains("\"|\""),
+            "{pipes}"
         );
     }
 
