@@ -1258,6 +1258,14 @@ fn a_fit_of_several_records_scores_each_as_its_model_file_does() {
     for figure in ["loop.svg", "trace.svg", "loop-2.svg", "trace-2.svg"] {
         assert!(dir.path().join("out").join(figure).exists(), "{figure}");
     }
+    // A later fit of one record into the same folder leaves no figure of
+    // a second record that would pass for its own.
+    let one = mckibben(&[&short_fit(a)[..], &["--out", "out"]].concat(), dir.path());
+    assert!(one.status.success());
+    assert!(dir.path().join("out/loop.svg").exists());
+    assert!(
+        !dir.path().join("out/loop-2.svg").exists() && !dir.path().join("out/trace-2.svg").exists()
+    );
     let text = mckibben(&[&fit[..], &["--out", "text"]].concat(), dir.path());
     let stdout = String::from_utf8_lossy(&text.stdout);
     assert!(

@@ -401,7 +401,23 @@ impl FitReport {
             .zip(&files)
             .map(|(path, (_, bytes))| (path.as_path(), bytes.as_slice()))
             .collect();
-        write_all_atomic(&set).with_context(|| format!("cannot write --out {}", out.display()))
+        write_all_atomic(&set).with_context(|| format!("cannot write --out {}", out.display()))?;
+        // An earlier fit of more records left figures of records this one
+        // does not have: beside this fit's, they would pass for its own.
+        let drawn = files
+            .iter()
+            .filter(|(name, _)| name.starts_with("loop"))
+            .count();
+        for k in drawn.max(1) + 1.. {
+            let stale = [format!("loop-{k}.svg"), format!("trace-{k}.svg")].map(|f| out.join(f));
+            if !stale.iter().any(|f| f.exists()) {
+                break;
+            }
+            for f in stale {
+                let _ = std::fs::remove_file(f);
+            }
+        }
+        Ok(())
     }
 
     /// The report for a terminal: the fit, its parameters (`fixed`: which
