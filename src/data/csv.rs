@@ -105,6 +105,17 @@ pub enum DataError {
     #[error("{}: the file is empty (expected a header row such as `t,pressure,displacement`)", path.display())]
     Empty { path: PathBuf },
     #[error(
+        "{}: line {line} holds no numbers ({}), right under the header: a row of units? \
+         Make it a comment (`# s,MPa,mm`) or delete it, and state each unit in its column's \
+         name (`t_s`, `pressure_MPa`, `stroke_mm`), where the model file records it",
+        path.display(), quoted(cells)
+    )]
+    UnitRow {
+        path: PathBuf,
+        line: u64,
+        cells: Vec<String>,
+    },
+    #[error(
         "{}: line {line}: a header row but {rows} data row{}; a time step needs at least 2",
         path.display(),
         if *rows == 1 { "" } else { "s" }
@@ -594,6 +605,19 @@ fn parse(
                 ));
             }
             bad.is_none()
+        });
+    }
+    // A spreadsheet's second header row, of units: text in every cell.
+    if let Some(first) = rows.first()
+        && first
+            .cells
+            .iter()
+            .all(|c| !c.is_empty() && c.parse::<f64>().is_err())
+    {
+        return Err(DataError::UnitRow {
+            path: p(),
+            line: first.line,
+            cells: first.cells.iter().take(3).map(String::from).collect(),
         });
     }
     if rows.len() < 2 {
@@ -1700,6 +1724,20 @@ mod tests {
             matches!(&both, DataError::TimeBesideDt { column, .. } if column == "t"),
             "{both}"
         );
+    }
+
+    /// A row of units under the header is named for what it likely is,
+    /// with the fix; a first row with a number in it is data, read as such.
+    #[test]
+    fn a_row_of_units_under_the_header_says_so() {
+        let e = err("t,pressure,displacement\ns,MPa,mm\n0,0.1,1\n0.01,0.2,2\n");
+        assert!(
+            e.contains("line 2 holds no numbers (\"s\", \"MPa\", \"mm\")")
+                && e.contains("a row of units?"),
+            "{e}"
+        );
+        let e = err("t,pressure,displacement\ns,0.1,mm\n0,0.1,1\n0.01,0.2,2\n");
+        assert!(e.contains("\"s\" is not a number"), "{e}");
     }
 
     /// Excel's `sep=;` first line names the separator and is no header;
