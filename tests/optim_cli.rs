@@ -1272,6 +1272,36 @@ fn a_fit_of_several_records_scores_each_as_its_model_file_does() {
         stdout.contains("the 2 records' second halves pooled") && stdout.contains(b),
         "{stdout}"
     );
+    assert!(
+        !String::from_utf8_lossy(&text.stderr).contains("does not hold on this record"),
+        "both records are one muscle's"
+    );
+    // A record logged with the opposite sign is another muscle to the one
+    // model: it is named, whatever the pooled figure says.
+    let s = Synthetic::new(Family::Classic, 600, 0.05, 22);
+    let flipped = Trace {
+        output: s.trace.output.iter().map(|y| -y).collect(),
+        ..s.trace
+    };
+    write_trace(&dir.path().join("flipped.csv"), &flipped).unwrap();
+    let fit = [
+        "fit",
+        a,
+        "flipped.csv",
+        "--pop",
+        "60",
+        "--gens",
+        "20",
+        "--backend",
+        "cpu",
+    ];
+    let both = mckibben(&[&fit[..], &["--out", "flipped"]].concat(), dir.path());
+    let stderr = String::from_utf8_lossy(&both.stderr);
+    assert!(
+        stderr.contains("its own first-order ARX model")
+            && stderr.contains("does not hold on this record"),
+        "{stderr}"
+    );
 }
 
 /// Records sampled at different steps cannot share one model's poles:

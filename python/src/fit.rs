@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use numpy::PyArray1;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList};
+use pyo3::types::{PyDict, PyList, PyTuple};
 
 use mckibben::diagnose::chain::with_chain_start;
 use mckibben::eval::Backend;
@@ -28,7 +28,7 @@ use crate::convert::{
     algorithm, backend, family, in_python_terms, loop_shape, runtime_error, switching, to_python,
     value_error,
 };
-use crate::data::{data_arg, located, traces};
+use crate::data::{Trace, data_arg, located, traces};
 use crate::history::history_arrays;
 use crate::interrupt::interruptible;
 use crate::model::model_arg;
@@ -242,8 +242,12 @@ pub fn fit(
 ) -> PyResult<FitResult> {
     // A list of experiments, as `fit a.csv b.csv`; its records are named by
     // their place in it where the library's checks refuse one.
-    let listed = match u.cast::<PyList>() {
-        Ok(_) if y.is_none() && dt.is_none() => Some(traces(u, "u")?),
+    // A tuple of Traces is such a list; a tuple of arrays is not.
+    let traces_only = u
+        .cast::<PyTuple>()
+        .is_ok_and(|t| !t.is_empty() && t.iter().all(|i| i.cast::<Trace>().is_ok()));
+    let listed = match u.cast::<PyList>().is_ok() || traces_only {
+        true if y.is_none() && dt.is_none() => Some(traces(u, "u")?),
         _ => None,
     };
     let (traces, read) = match &listed {

@@ -66,6 +66,11 @@ def test_a_list_of_experiments_is_the_commands_fit_of_several_files(stair, cli, 
     result.model.save(saved)
     sources = [f["file"] for f in json.loads(saved.read_text())["provenance"]["data"]]
     assert sources == [stair.source, sine.source]
+    # A tuple of Traces is such a list; records of other columns are refused.
+    assert mckibben.fit((stair, sine), pop=200, gens=40).params == result.params
+    kpa = mckibben.Trace(sine.input * 1e3, sine.output, sine.dt, input_name="p_kPa")
+    with pytest.raises(ValueError, match="give the records the same columns"):
+        mckibben.fit([stair, kpa], pop=20, gens=2)
     # A tuple is an experiment too, named by its place where it is refused.
     with pytest.raises(ValueError, match=r"u\[1\]"):
         mckibben.fit([stair, (stair.input[:10], stair.output[:10], 0.01)], pop=20, gens=2)

@@ -136,6 +136,9 @@ pub fn selected_fit(
     let (y, yhat) = (&trace.output[from..], &run.output[from..]);
     let finite = |v: f64| v.is_finite().then_some(v);
     let (val_rmse, val_fit_percent) = (finite(rmse(y, yhat)), finite(fit_percent(y, yhat)));
+    let linear_val_fit_percent = Records::of(std::slice::from_ref(trace), None)?
+        .linear_yardstick()
+        .and_then(|v| finite(v.fit_percent));
     let report = FitReport {
         model: family,
         effects: model
@@ -155,9 +158,7 @@ pub fn selected_fit(
         sse: finite(d.selection.final_fit.est_sse),
         val_rmse,
         val_fit_percent,
-        linear_val_fit_percent: Records::of(std::slice::from_ref(trace), None)?
-            .linear_yardstick()
-            .and_then(|v| finite(v.fit_percent)),
+        linear_val_fit_percent,
         // The effect stages move the output off the state the update steps on.
         stable_step: None,
         largest_step: None,
@@ -192,6 +193,7 @@ pub fn selected_fit(
             samples: trace.len(),
             val_rmse,
             val_fit_percent,
+            linear_val_fit_percent,
         }],
         notes: Vec::new(),
         out: None,

@@ -176,6 +176,7 @@ impl FitProblem {
         if let Some(why) = mixed_steps(traces) {
             anyhow::bail!(why);
         }
+        FitProblem::check_one_model_fits(traces)?;
         let records = Records::of(traces, None)?;
         let first = &traces[0];
         let space = match flow {
@@ -220,6 +221,41 @@ impl FitProblem {
             input_name: first.input_name.clone(),
             output_name: first.output_name.clone(),
         })
+    }
+
+    /// Refuses records that one model cannot take as they are: columns of
+    /// other names (another quantity, or another unit), or one record
+    /// given twice, which would weigh it double and shrink every standard
+    /// error by √2 without a sample more.
+    fn check_one_model_fits(traces: &[Trace]) -> anyhow::Result<()> {
+        let Some(first) = traces.first() else {
+            return Ok(());
+        };
+        for (k, t) in traces.iter().enumerate() {
+            anyhow::ensure!(
+                (&t.input_name, &t.output_name) == (&first.input_name, &first.output_name),
+                "{} has the input `{}` and output `{}`, {} `{}` and `{}`: one model takes one \
+                 input and one output, in one unit; give the records the same columns",
+                t.source,
+                t.input_name,
+                t.output_name,
+                first.source,
+                first.input_name,
+                first.output_name
+            );
+            if let Some(twin) = traces[..k]
+                .iter()
+                .find(|o| o.input == t.input && o.output == t.output && o.t == t.t)
+            {
+                anyhow::bail!(
+                    "{} and {} hold the same samples: a record given twice weighs double and \
+                     makes every standard error look √2 smaller; give it once",
+                    twin.source,
+                    t.source
+                );
+            }
+        }
+        Ok(())
     }
 
     /// The diagnosis' problem on `traces` with `family` as its baseline:
@@ -816,6 +852,31 @@ mod tests {
             .flat_map(|e| &e.y)
             .fold(0.0f64, |m, &v| m.max(f64::from(v).abs()));
         assert_eq!(bound, 1100.0 * (STRESS_FACTOR * largest).powi(2));
+        // One record twice, or records of other columns, one model cannot take.
+        let fit = |traces: &[Trace]| {
+            FitProblem::with_box(
+                traces,
+                Family::Classic,
+                Flow::Joint,
+                None,
+                false,
+                shape,
+                &[],
+            )
+            .unwrap_err()
+            .to_string()
+        };
+        let twice = fit(&[a.trace.clone(), b.trace.clone(), a.trace.clone()]);
+        assert!(twice.contains("hold the same samples"), "{twice}");
+        let metres = Trace {
+            output_name: "x_m".into(),
+            ..b.trace.clone()
+        };
+        let named = fit(&[a.trace.clone(), metres]);
+        assert!(
+            named.contains("give the records the same columns"),
+            "{named}"
+        );
     }
 
     #[test]

@@ -9,7 +9,7 @@ use std::ops::Range;
 
 use crate::data::{Trace, range};
 use crate::ident::arx::{Arx, ArxOrders, linear_prior};
-use crate::ident::{fit_percent, rmse};
+use crate::ident::{pooled_fit_percent, rmse};
 use crate::model::effects::{Context, ModelDescription};
 use crate::model::experiment::halves;
 use crate::model::{Experiment, LinearPrior, Model};
@@ -165,24 +165,21 @@ impl Records {
             return diverged;
         }
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
-        let (mut y, mut x) = (Vec::new(), Vec::new());
+        // Each record's scored samples, measured and simulated.
+        let mut scores: Vec<(Vec<f64>, Vec<f64>)> = Vec::new();
         for (i, (whole, scored)) in self.whole.iter().zip(ranges).enumerate() {
             if scored.is_empty() {
                 continue;
             }
             let run = model.simulate(&t, i, &self.ctx[i], whole);
+            let (mut y, mut x) = (Vec::new(), Vec::new());
             for r in scored {
                 y.extend(whole.y[r.clone()].iter().map(|&v| v as f64));
                 x.extend(run[r.clone()].iter().map(|&v| v as f64));
             }
+            scores.push((y, x));
         }
-        if y.is_empty() || x.iter().any(|v| !v.is_finite()) {
-            return diverged;
-        }
-        Validation {
-            rmse: rmse(&y, &x),
-            fit_percent: fit_percent(&y, &x),
-        }
+        pooled(&scores).unwrap_or(diverged)
     }
 
     /// The yardstick a fit is read against: on each record, the first-order
@@ -197,8 +194,23 @@ impl Records {
     /// shift alike; the pooled scores are taken in the records' common
     /// coordinates.) `None` if ARX cannot be identified on a record.
     pub fn linear_yardstick(&self) -> Option<Validation> {
+        pooled(&self.linear_runs()?)
+    }
+
+    /// [`Records::linear_yardstick`] on each record alone, in order (`None`
+    /// where ARX cannot be identified on some record).
+    pub fn linear_yardstick_each(&self) -> Option<Vec<Validation>> {
+        let runs = self.linear_runs()?;
+        runs.into_iter()
+            .map(|run| pooled(std::slice::from_ref(&run)))
+            .collect()
+    }
+
+    /// Each record's validation half, measured and as its own first-order
+    /// ARX model runs it ([`Records::linear_yardstick`]).
+    fn linear_runs(&self) -> Option<Vec<(Vec<f64>, Vec<f64>)>> {
         let mean = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>() / v.len().max(1) as f64;
-        let (mut measured, mut simulated) = (Vec::new(), Vec::new());
+        let mut scores: Vec<(Vec<f64>, Vec<f64>)> = Vec::new();
         for ((whole, est), &from) in self.whole.iter().zip(&self.est).zip(&self.val_start) {
             let (mu, my) = (mean(&est.u), mean(&est.y));
             let u: Vec<f64> = whole.u.iter().map(|&v| v as f64 - mu).collect();
@@ -206,14 +218,30 @@ impl Records {
             let arx =
                 Arx::estimate(&whole.name, &u[..from], &y[..from], ArxOrders::default()).ok()?;
             let sim = arx.simulate(&u, &y);
-            measured.extend(y[from..].iter().map(|v| v + my));
-            simulated.extend(sim[from..].iter().map(|v| v + my));
+            scores.push((y[from..].to_vec(), sim[from..].to_vec()));
         }
-        Some(Validation {
-            rmse: rmse(&measured, &simulated),
-            fit_percent: fit_percent(&measured, &simulated),
-        })
+        Some(scores)
     }
+}
+
+/// The scores of records' `(measured, simulated)` samples pooled: the RMSE
+/// over all of them, and the fit with each record's deviations from its own
+/// mean ([`pooled_fit_percent`]); `None` where there is no sample or a
+/// simulated one is not finite.
+fn pooled(scores: &[(Vec<f64>, Vec<f64>)]) -> Option<Validation> {
+    let y: Vec<f64> = scores.iter().flat_map(|(y, _)| y.iter().copied()).collect();
+    let x: Vec<f64> = scores.iter().flat_map(|(_, x)| x.iter().copied()).collect();
+    if y.is_empty() || x.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let records: Vec<(&[f64], &[f64])> = scores
+        .iter()
+        .map(|(y, x)| (y.as_slice(), x.as_slice()))
+        .collect();
+    Some(Validation {
+        rmse: rmse(&y, &x),
+        fit_percent: pooled_fit_percent(&records),
+    })
 }
 
 /// How many times its swing the output's level may sit from zero before

@@ -139,6 +139,8 @@ pub struct RecordScore {
     pub samples: usize,
     pub val_rmse: Option<f64>,
     pub val_fit_percent: Option<f64>,
+    /// Its own first-order ARX model's validation fit on the same halves.
+    pub linear_val_fit_percent: Option<f64>,
 }
 
 /// One line `fit` prints on stderr, `mckibben: LEVEL: TEXT`.
@@ -295,20 +297,27 @@ impl FitReport {
             widened: widened.to_vec(),
             search_box: SearchBox::of(&problem.space),
             data: sources(traces),
-            records: traces
-                .iter()
-                .zip(
-                    problem
-                        .records
-                        .validate_each(&problem.model, &outcome.params),
-                )
-                .map(|(t, v)| RecordScore {
-                    data: t.source.clone(),
-                    samples: t.len(),
-                    val_rmse: finite(v.rmse),
-                    val_fit_percent: finite(v.fit_percent),
-                })
-                .collect(),
+            records: {
+                let linear = problem.records.linear_yardstick_each();
+                traces
+                    .iter()
+                    .zip(
+                        problem
+                            .records
+                            .validate_each(&problem.model, &outcome.params),
+                    )
+                    .enumerate()
+                    .map(|(i, (t, v))| RecordScore {
+                        data: t.source.clone(),
+                        samples: t.len(),
+                        val_rmse: finite(v.rmse),
+                        val_fit_percent: finite(v.fit_percent),
+                        linear_val_fit_percent: linear
+                            .as_ref()
+                            .and_then(|l| finite(l[i].fit_percent)),
+                    })
+                    .collect()
+            },
             notes: Vec::new(),
             out: None,
         }
@@ -500,10 +509,11 @@ impl FitReport {
             let width = width.unwrap_or(0).max(16);
             for r in &self.records {
                 line(format!(
-                    "    {:<width$} {}   (RMSE {})",
+                    "    {:<width$} {}   (RMSE {}; its own ARX {})",
                     r.data,
                     percent(r.val_fit_percent),
-                    figure(r.val_rmse)
+                    figure(r.val_rmse),
+                    percent(r.linear_val_fit_percent)
                 ));
             }
         }
@@ -587,6 +597,28 @@ impl FitReport {
         s
     }
 
+    /// Of several records, each that the one model validates on worse than
+    /// that record's own first-order ARX model: the pooled figure may
+    /// still look good, and the model does not hold there.
+    fn missed_records(&self) -> impl Iterator<Item = String> + '_ {
+        let several = self.records.len() > 1;
+        self.records
+            .iter()
+            .filter(move |_| several)
+            .filter_map(|r| {
+                let (fit, linear) = (r.val_fit_percent?, r.linear_val_fit_percent?);
+                (fit < linear).then(|| {
+                    format!(
+                        "{} validates at {fit:.1} % on its second half, below its own first-order \
+                     ARX model ({linear:.1} %): the one model does not hold on this record (a \
+                     different load or condition, or a start far from rest); fit it apart, or \
+                     run `diagnose` on the records",
+                        r.data
+                    )
+                })
+            })
+    }
+
     /// What the fit says of itself once it has run, in the order `fit`
     /// prints it: the box ([`FitReport::edge_notes`]), tries that agree
     /// too little, refining rounds cut short, parameters the estimation
@@ -611,6 +643,10 @@ impl FitReport {
                 text,
             }));
         }
+        notes.extend(self.missed_records().map(|text| Note {
+            level: "warning",
+            text,
+        }));
         notes
     }
 
@@ -732,8 +768,8 @@ pub fn yardstick_warnings(
         warnings.push(format!(
             "the fit validates worse than the first-order ARX model on the same halves \
              ({fit:.1} % against {linear:.1} %): it follows the estimation half in a way the \
-             validation half does not; do not trust it off this record (the diagnosis, \
-             `diagnose`, looks for what the model lacks)"
+             validation half does not; do not trust it beyond the data it was fitted on (the \
+             diagnosis, `diagnose`, looks for what the model lacks)"
         ));
     }
     // A refit that fits the estimation half better and validates clearly

@@ -3,17 +3,38 @@
 /// MATLAB's `compare` fit: `100·(1 − ‖y − ŷ‖ / ‖y − mean(y)‖)` in percent.
 /// `NaN` when `y` is constant (the measure is undefined) or lengths differ.
 pub fn fit_percent(y: &[f64], y_hat: &[f64]) -> f64 {
-    if y.len() != y_hat.len() || y.is_empty() {
+    pooled_fit_percent(&[(y, y_hat)])
+}
+
+/// The fit of several records `(y, ŷ)` as one figure: `100·(1 − ‖y − ŷ‖ /
+/// ‖y − mean‖)` over all their samples, each record's deviations taken from
+/// its own mean. One mean for all would count the records' different
+/// levels (a load, a sensor's zero) as output the model explains, and a
+/// record the model misses would hide behind the others. One record:
+/// [`fit_percent`]'s figure, bit for bit. `NaN` where every record is
+/// constant, a record's lengths differ, or there is none.
+pub fn pooled_fit_percent(records: &[(&[f64], &[f64])]) -> f64 {
+    if records.is_empty()
+        || records
+            .iter()
+            .any(|(y, y_hat)| y.len() != y_hat.len() || y.is_empty())
+    {
         return f64::NAN;
     }
-    let mean = y.iter().sum::<f64>() / y.len() as f64;
-    let err: f64 = y
+    let err: f64 = records
         .iter()
-        .zip(y_hat)
+        .flat_map(|(y, y_hat)| y.iter().zip(y_hat.iter()))
         .map(|(a, b)| (a - b).powi(2))
         .sum::<f64>()
         .sqrt();
-    let spread: f64 = y.iter().map(|a| (a - mean).powi(2)).sum::<f64>().sqrt();
+    let spread: f64 = records
+        .iter()
+        .flat_map(|(y, _)| {
+            let mean = y.iter().sum::<f64>() / y.len() as f64;
+            y.iter().map(move |a| (a - mean).powi(2))
+        })
+        .sum::<f64>()
+        .sqrt();
     if spread == 0.0 {
         f64::NAN
     } else {
@@ -80,6 +101,26 @@ mod tests {
         assert!((fit_percent(&y, &[2.5; 4])).abs() < 1e-12);
         assert!(fit_percent(&[1.0; 3], &[1.0; 3]).is_nan());
         assert!((rmse(&y, &[2.0, 3.0, 4.0, 5.0]) - 1.0).abs() < 1e-12);
+    }
+
+    /// Records at different levels pool without their levels counting as
+    /// explained: a record the model meets only at its mean pulls the pooled
+    /// fit down as far as its share of the spread, not to nothing.
+    #[test]
+    fn pooled_records_count_each_ones_spread_about_its_own_mean() {
+        let (near, far) = ([0.0, 1.0, 0.0, 1.0], [100.0, 101.0, 100.0, 101.0]);
+        let pooled = pooled_fit_percent(&[(&near, &near), (&far, &[100.5; 4])]);
+        let expected = 100.0 * (1.0 - 1.0 / 2f64.sqrt());
+        assert!((pooled - expected).abs() < 1e-12, "{pooled}");
+        // One mean for both would have called it 99 %.
+        let joined: Vec<f64> = near.iter().chain(&far).copied().collect();
+        let predicted: Vec<f64> = near.iter().chain(&[100.5; 4]).copied().collect();
+        assert!(fit_percent(&joined, &predicted) > 99.0);
+        assert_eq!(
+            pooled_fit_percent(&[(&near, &[0.5; 4])]),
+            fit_percent(&near, &[0.5; 4])
+        );
+        assert!(pooled_fit_percent(&[]).is_nan());
     }
 
     #[test]

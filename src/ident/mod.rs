@@ -4,4 +4,4 @@ pub mod arx;
 pub mod fit;
 
 pub use arx::{Arx, ArxOrders};
-pub use fit::{fit_percent, loop_area, rmse};
+pub use fit::{fit_percent, loop_area, pooled_fit_percent, rmse};
