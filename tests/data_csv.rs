@@ -295,8 +295,8 @@ fn fit_with_split_gaps_names_the_piece_and_warns_when_it_is_a_small_part() {
     );
     assert!(
         stderr.contains(
-            "mckibben: warning: the fit reads 40 % of the recording; --resample DT instead keeps \
-             all of it"
+            "mckibben: warning: the fit reads 40 % of the recording; where the cuts are gaps in \
+             time, --resample DT instead keeps all of it"
         ),
         "{stderr}"
     );

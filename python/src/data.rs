@@ -304,6 +304,7 @@ pub fn read_csv<'py>(
     let opts = ReadOptions {
         time: time.to_string(),
         dt,
+        untimed_dt: None,
         input: input.to_string(),
         output: output.to_string(),
         gaps,

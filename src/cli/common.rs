@@ -212,6 +212,10 @@ pub struct ColumnArgs {
     #[arg(long = "dt", value_name = "SECONDS", value_parser = positive_seconds,
           allow_negative_numbers = true, conflicts_with = "time")]
     pub dt: Option<f64>,
+    /// The `--dt` of the model the data are read for (`--from`,
+    /// `--carry`): the rows' spacing of a file that has no time column.
+    #[arg(skip)]
+    pub model_dt: Option<f64>,
     /// The models are discrete-time and need a uniform time base (every step
     /// within 10% of the median step); a file that is not is an error naming
     /// the first bad row. With this flag every column is instead linearly
@@ -262,10 +266,11 @@ pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
         );
         if 2 * longest.len() < total {
             eprintln!(
-                "mckibben: warning: the fit reads {share:.0} % of the recording; --resample DT \
-                 instead keeps all of it as one record, interpolating across the gaps (where \
-                 they are short against the muscle's time constant), and `diagnose` fits every \
-                 piece"
+                "mckibben: warning: the fit reads {share:.0} % of the recording; where the \
+                 cuts are gaps in time, --resample DT instead keeps all of it as one record, \
+                 interpolating across them (where they are short against the muscle's time \
+                 constant; rows the reader dropped must be filled first), and `diagnose` fits \
+                 every piece"
             );
         }
     }
@@ -334,9 +339,9 @@ impl ColumnArgs {
                 .clone()
                 .or(Some(model.data.output.column.clone())),
             time: self.time.clone().or(read.time.clone()),
-            // Not the model's: its file's rows are no clock for another
-            // file, which may have a time column.
             dt: self.dt,
+            // Only for a file without a time column: another may have one.
+            model_dt: if self.time.is_some() { None } else { read.dt },
             resample: if time_base_given {
                 self.resample
             } else {
@@ -356,6 +361,7 @@ impl ColumnArgs {
         ReadOptions {
             time: self.time.clone().unwrap_or(defaults.time),
             dt: self.dt,
+            untimed_dt: self.model_dt,
             input: self.input.clone().unwrap_or(defaults.input),
             output: self.output.clone().unwrap_or(defaults.output),
             gaps: match (self.resample, self.split_gaps) {
@@ -372,7 +378,7 @@ impl ColumnArgs {
             time: Some(self.options().time),
             resample: self.resample,
             split_gaps: self.split_gaps,
-            dt: self.dt,
+            dt: self.dt.or(self.model_dt),
         }
     }
 
@@ -438,7 +444,12 @@ fn first_existing(candidates: &[PathBuf]) -> anyhow::Result<PathBuf> {
 /// Parses a step in seconds that must be positive and finite.
 fn positive_seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        // A nanosecond to a day: past either, a sample time is a typo, and
+        // times k·DT would lose their digits or overflow.
+        Ok(v) if (1e-9..=86_400.0).contains(&v) => Ok(v),
+        Ok(v) if v.is_finite() && v > 0.0 => Err(format!(
+            "{s} s is outside a nanosecond to a day (1e-9 to 86400): not a sample time"
+        )),
         _ => Err(format!(
             "\"{s}\" is not a positive number of seconds (e.g. 0.01 for 100 Hz)"
         )),

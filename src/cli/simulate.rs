@@ -588,6 +588,7 @@ fn input_trace(
                 ),
                 time: column(&args.time, read.time.as_ref(), &defaults.time),
                 dt: args.dt,
+                untimed_dt: if args.time.is_some() { None } else { read.dt },
                 gaps: match resample {
                     Some(dt) => Gaps::Resample(dt),
                     None => Gaps::Reject,

@@ -66,6 +66,10 @@ pub struct ReadOptions {
     /// (`--dt`). A file that has the column `time` is then an error, not
     /// a choice between two clocks.
     pub dt: Option<f64>,
+    /// The rows' spacing where the file has no time column and `dt` is not
+    /// given: a model's own `--dt`, carried to the data it is read for
+    /// (`simulate --from`, `fit --from`); a file with its clock reads it.
+    pub untimed_dt: Option<f64>,
     /// Model input column (default `pressure`, MPa).
     pub input: String,
     /// Model output column (default `displacement`, mm).
@@ -80,6 +84,7 @@ impl Default for ReadOptions {
         ReadOptions {
             time: "t".into(),
             dt: None,
+            untimed_dt: None,
             input: "pressure".into(),
             output: "displacement".into(),
             gaps: Gaps::Reject,
@@ -167,8 +172,8 @@ pub enum DataError {
     },
     #[error(
         "{}: line {line}: --dt gives the rows' spacing for a file without a time column, \
-         and this file has one, \"{column}\": leave --dt out to read it (or --resample DT \
-         to put it on another step)",
+         and this file has one, \"{column}\": read its clock instead (--time {column}, without \
+         --dt), and --resample DT to put it on another step",
         path.display()
     )]
     TimeBesideDt {
@@ -330,8 +335,10 @@ impl Dialect {
     /// The dialect Excel's first line `sep=;` names (it writes one so that
     /// another Excel reads the file right), or why it cannot be read.
     fn of_sep_line(text: &str) -> Option<Result<Dialect, String>> {
-        let sep = text.get(..4).filter(|s| s.eq_ignore_ascii_case("sep="))?;
-        let named = &text[sep.len()..];
+        // Quoted where a tool wrote it as a field: `"sep=;"`.
+        let line = text.trim_matches('"');
+        let sep = line.get(..4).filter(|s| s.eq_ignore_ascii_case("sep="))?;
+        let named = line[sep.len()..].trim();
         Some(match named {
             "," => Ok(Dialect::Commas),
             ";" => Ok(Dialect::Semicolons),
@@ -392,7 +399,8 @@ fn split_fields(text: &str, dialect: Dialect) -> Result<csv::StringRecord, csv::
         reader.read_record(&mut record)?;
         record
     };
-    if dialect == Dialect::Semicolons && record.iter().any(|c| c.contains(',')) {
+    // Where commas do not separate, they are a locale's decimal commas.
+    if dialect != Dialect::Commas && record.iter().any(|c| c.contains(',')) {
         record = record.iter().map(|c| c.replace(',', ".")).collect();
     }
     Ok(record)
@@ -439,7 +447,14 @@ fn parse(
     // count comment and blank lines; one record per line.
     let mut header: Option<(u64, Vec<String>)> = None;
     let mut dialect: Option<Dialect> = None;
+    // The line of Excel's `sep=` line, where the file has one.
+    let mut sep_line: Option<u64> = None;
     let mut rows = Vec::new();
+    // Under --dt a row is a sample, and an empty one (a blank line or `,,`)
+    // between samples is a missing sample, not nothing: the lines of those
+    // not yet followed by a sample (leading and trailing ones are nothing).
+    let mut missing: Vec<u64> = Vec::new();
+    let by_rows = opts.dt.is_some() || opts.untimed_dt.is_some();
     for (i, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let line = i as u64 + 1;
         let text = std::str::from_utf8(raw).map_err(|_| DataError::Parse {
@@ -457,6 +472,9 @@ fn parse(
                 line,
                 message,
             })?;
+        }
+        if text.is_empty() && by_rows && !rows.is_empty() {
+            missing.push(line);
         }
         if text.is_empty() || text.starts_with('#') {
             continue;
@@ -477,7 +495,22 @@ fn parse(
                 line,
                 message,
             })?);
+            sep_line = Some(line);
             continue;
+        }
+        if let (None, Some(named), Some(at)) = (&header, dialect, sep_line)
+            && !text.contains(named.separator())
+            && text.contains([',', ';', '\t'])
+        {
+            return Err(DataError::Parse {
+                path: p(),
+                line,
+                message: format!(
+                    "line {at} names {:?} as the separator, and this header holds none: the \
+                     file is separated otherwise; delete line {at}",
+                    named.separator()
+                ),
+            });
         }
         let dialect = *dialect.get_or_insert_with(|| Dialect::of_header(text));
         let cells = split_fields(text, dialect).map_err(|e| DataError::Parse {
@@ -489,8 +522,19 @@ fn parse(
             None => header = Some((line, cells.iter().map(String::from).collect())),
             // A row of empty cells (`,,`: a spreadsheet's export of rows
             // it once held) is a blank line.
-            Some(_) if cells.iter().all(|c| c.trim().is_empty()) => continue,
+            Some(_) if cells.iter().all(|c| c.trim().is_empty()) => {
+                if by_rows && !rows.is_empty() {
+                    missing.push(line);
+                }
+                continue;
+            }
             Some((header_line, names)) => {
+                // Kept as rows of empty cells until the clock is known.
+                for line in missing.drain(..) {
+                    let index = rows.len();
+                    let cells = names.iter().map(|_| "").collect();
+                    rows.push(Row { line, index, cells });
+                }
                 if cells.len() != names.len() {
                     return Err(DataError::Ragged {
                         path: p(),
@@ -520,6 +564,7 @@ fn parse(
             });
         }
     }
+    let mut untimed_note = None;
     let find = |column: &str, role, flag| {
         names.iter().position(|n| n == column).ok_or_else(|| {
             if numbers_only {
@@ -543,8 +588,24 @@ fn parse(
         })
     };
     let clock = match opts.dt {
-        None => Clock::Column(find(&opts.time, "time", "--time")?),
-        Some(dt) => match names.iter().position(|n| n == &opts.time) {
+        None => match (find(&opts.time, "time", "--time"), opts.untimed_dt) {
+            (Ok(c), _) => Clock::Column(c),
+            (Err(_), Some(dt)) if !names.iter().any(|n| crate::data::units::names_a_time(n)) => {
+                untimed_note = Some(format!(
+                    "{}: no time column \"{}\": its rows are read {} s apart, as the model's \
+                     data were (--dt)",
+                    path.display(),
+                    opts.time,
+                    crate::data::tidy_step(dt)
+                ));
+                Clock::Rows(dt)
+            }
+            (Err(e), _) => return Err(e),
+        },
+        Some(dt) => match names
+            .iter()
+            .position(|n| n == &opts.time || crate::data::units::names_a_time(n))
+        {
             Some(c) => {
                 return Err(DataError::TimeBesideDt {
                     path: p(),
@@ -559,6 +620,26 @@ fn parse(
         Clock::Column(c) => Some(c),
         Clock::Rows(_) => None,
     };
+    // The empty rows kept in case the rows were the clock.
+    let empty = |r: &Row| r.cells.iter().all(str::is_empty);
+    match clock {
+        Clock::Column(_) => rows.retain(|r| !empty(r)),
+        // Dropped and cut there with --split-gaps, as a row of NaN is;
+        // else an error, as a NaN is.
+        Clock::Rows(_) if !matches!(opts.gaps, Gaps::Split) => {
+            if let Some(r) = rows.iter().find(|r| empty(r)) {
+                return Err(DataError::Parse {
+                    path: p(),
+                    line: r.line,
+                    message: "an empty row between samples: with --dt every row is a sample, \
+                              and leaving it out would move every later one a step earlier; \
+                              fill it or delete it, or pass --split-gaps to cut the file there"
+                        .into(),
+                });
+            }
+        }
+        Clock::Rows(_) => {}
+    }
     if let Some(it) = it
         && let Some(unit) = crate::data::units::time_unit_other_than_seconds(&names[it])
     {
@@ -629,6 +710,7 @@ fn parse(
     }
 
     let mut notes: Vec<String> = dialect.and_then(|d| d.note(path)).into_iter().collect();
+    notes.extend(untimed_note);
     notes.extend(dropped);
     let column = |c: usize| -> Result<Vec<f64>, DataError> {
         Ok(numeric_column(path, &rows, c, &names[c], true)?.unwrap_or_default())
@@ -712,7 +794,8 @@ fn parse(
     // A muscle is sampled many times a second: a step over a second is
     // most likely a time column in milliseconds, read as seconds.
     let step = median_step(&trace.t);
-    if step > 1.0 {
+    // A step given with --dt is the user's own, not a column misread.
+    if step > 1.0 && matches!(clock, Clock::Column(_)) {
         notes.push(format!(
             "{}: column \"{}\" steps by {step} s; the time is read in seconds, so if it is in \
              milliseconds, convert it (the poles a model has are per sample, but --resample, \
@@ -1724,6 +1807,47 @@ mod tests {
             matches!(&both, DataError::TimeBesideDt { column, .. } if column == "t"),
             "{both}"
         );
+        // A clock under another name is a clock too.
+        let logged = timed.replacen("t,", "time_s,", 1);
+        let both = parse(Path::new("x.csv"), logged.as_bytes(), &at(Gaps::Reject)).unwrap_err();
+        assert!(both.to_string().contains("--time time_s"), "{both}");
+        // An empty row between samples is a missing sample: an error, or a
+        // cut with --split-gaps; trailing empty rows are nothing.
+        let rows = |hole: &str| {
+            let mut s = String::from("pressure,displacement\n");
+            for k in 0..50 {
+                s += &match k {
+                    25 => format!("{hole}\n"),
+                    _ => format!("{},{k}\n", k as f64 * 1e-3),
+                };
+            }
+            s.replacen("\n", "\n\n,\n", 1) + "\n,\n"
+        };
+        for hole in [",", ""] {
+            let e = parse(Path::new("x.csv"), rows(hole).as_bytes(), &at(Gaps::Reject));
+            let e = e.unwrap_err().to_string();
+            assert!(e.contains("line 29: an empty row between samples"), "{e}");
+        }
+        let (cut, _) = parse(Path::new("x.csv"), rows(",").as_bytes(), &at(Gaps::Split)).unwrap();
+        let starts: Vec<(usize, f64)> = cut.iter().map(|t| (t.len(), t.t[0])).collect();
+        assert_eq!(starts, [(25, 0.0), (24, 13.0)]);
+        // A model's own spacing reads a file without a clock, and says so;
+        // a file with its clock reads that.
+        let carried = ReadOptions {
+            untimed_dt: Some(0.5),
+            ..ReadOptions::default()
+        };
+        let e = parse(Path::new("x.csv"), rows(",").as_bytes(), &carried).unwrap_err();
+        assert!(e.to_string().contains("line 29: an empty row"), "{e}");
+        let clean = rows("1,1");
+        let (read, notes) = parse(Path::new("x.csv"), clean.as_bytes(), &carried).unwrap();
+        assert_eq!(read[0].t[2], 1.0);
+        assert!(
+            notes[0].contains("read 0.5 s apart, as the model's data were"),
+            "{notes:?}"
+        );
+        let (own, _) = parse(Path::new("x.csv"), timed.as_bytes(), &carried).unwrap();
+        assert_eq!(own[0].t[1], 0.01);
     }
 
     /// A row of units under the header is named for what it likely is,
@@ -1750,8 +1874,15 @@ mod tests {
         assert!(notes[0].contains("semicolons"), "{notes:?}");
         let commas = "SEP=,\nt,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n";
         assert_eq!(read(commas, Gaps::Reject).unwrap().0[0].output, [1.0, 2.0]);
-        let tabs = "sep=\t\nt\tpressure\tdisplacement\n0\t0.1\t1\n0.01\t0.2\t2\n";
+        let tabs = "sep=\t\nt\tpressure\tdisplacement\n0\t0,1\t1\n0,01\t0,2\t2\n";
         assert_eq!(read(tabs, Gaps::Reject).unwrap().0[0].output, [1.0, 2.0]);
+        let quoted = "\"sep=;\"\nt;pressure;displacement\n0;0,1;1\n0,01;0,2;2\n";
+        assert_eq!(read(quoted, Gaps::Reject).unwrap().0[0].input, [0.1, 0.2]);
+        let other = err("sep=;\nt,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n");
+        assert!(
+            other.contains("line 1 names ';'") && other.contains("line 2"),
+            "{other}"
+        );
         let pipes = err("sep=|\nt|pressure|displacement\n0|0.1|1\n");
         assert!(
             pipes.contains("line 1") && pipes.contains("\"|\""),

@@ -68,6 +68,31 @@ pub fn time_unit_other_than_seconds(column: &str) -> Option<&'static str> {
     }
 }
 
+/// Whether a column name reads as a time: `t`, `time` or `timestamp`, or
+/// a name that states a unit of time (`t_s`, `time_ms`, `elapsed (s)`).
+/// `--dt` refuses a file with such a column rather than read its rows by
+/// count and leave its clock, gaps and glitches unread.
+pub fn names_a_time(column: &str) -> bool {
+    let name = column.trim().to_ascii_lowercase();
+    matches!(name.as_str(), "t" | "time" | "timestamp")
+        || stated(&name).is_some_and(|unit| {
+            matches!(
+                unit.as_str(),
+                "s" | "sec"
+                    | "ms"
+                    | "msec"
+                    | "us"
+                    | "µs"
+                    | "μs"
+                    | "usec"
+                    | "ns"
+                    | "min"
+                    | "h"
+                    | "hr"
+            )
+        })
+}
+
 /// How many millimetres one of `unit` (as [`unit_of`] spells it) is, for
 /// the lengths a muscle's stroke is written in; `None` for any other unit.
 fn millimetres_in(unit: &str) -> Option<f64> {

@@ -373,9 +373,9 @@ impl FitSettings {
             if let Some(subject) = &engine.subject {
                 anyhow::ensure!(
                     *subject == problem.data_digest(),
-                    "checkpoint {} was made by a fit of other data (another file, other columns \
-                     or another --resample): resuming it would report that fit as this one's; \
-                     delete it or name another --checkpoint",
+                    "checkpoint {} was made by a fit of other data (another file, other columns, \
+                     another --resample or --dt): resuming it would report that fit as this \
+                     one's; delete it or name another --checkpoint",
                     path.display()
                 );
             }
