@@ -824,18 +824,19 @@ mod tests {
             Synthetic::new(Family::Classic, 400, 0.05, 6),
             Synthetic::new(Family::Classic, 700, 0.05, 7),
         );
-        let traces = [a.trace.clone(), b.trace.clone()];
         let shape = (Loop::Bounded, Switching::default());
-        let problem = FitProblem::with_box(
-            &traces,
-            Family::Classic,
-            Flow::Joint,
-            None,
-            false,
-            shape,
-            &[],
-        )
-        .unwrap();
+        let problem_of = |traces: &[Trace]| {
+            FitProblem::with_box(
+                traces,
+                Family::Classic,
+                Flow::Joint,
+                None,
+                false,
+                shape,
+                &[],
+            )
+        };
+        let problem = problem_of(&[a.trace.clone(), b.trace.clone()]).unwrap();
         assert_eq!(problem.datasets(), 2);
         assert_eq!(problem.parts[1].test, vec![halves(700).1]);
         let (stress, bound) = problem.stress();
@@ -853,19 +854,7 @@ mod tests {
             .fold(0.0f64, |m, &v| m.max(f64::from(v).abs()));
         assert_eq!(bound, 1100.0 * (STRESS_FACTOR * largest).powi(2));
         // One record twice, or records of other columns, one model cannot take.
-        let fit = |traces: &[Trace]| {
-            FitProblem::with_box(
-                traces,
-                Family::Classic,
-                Flow::Joint,
-                None,
-                false,
-                shape,
-                &[],
-            )
-            .unwrap_err()
-            .to_string()
-        };
+        let fit = |traces: &[Trace]| problem_of(traces).unwrap_err().to_string();
         let twice = fit(&[a.trace.clone(), b.trace.clone(), a.trace.clone()]);
         assert!(twice.contains("hold the same samples"), "{twice}");
         let metres = Trace {
