@@ -205,9 +205,10 @@ pub struct ColumnArgs {
     /// `t`, or the --from model's where the command takes --from]
     #[arg(long, value_name = "COL")]
     pub time: Option<String>,
-    /// A file without a time column (MATLAB's writematrix of [u y] under a
-    /// header, a logger that counts rows): its rows are DT seconds apart,
-    /// the first at 0. A file that has the time column is an error, not a
+    /// A file without a time column (MATLAB's writetable of u and y, a
+    /// logger that counts rows): its rows are SECONDS apart, the first at
+    /// 0, as iddata(y, u, Ts) takes them. A file with a time column (`t`,
+    /// `time`, or a name with a unit of time, `time_s`) is an error, not a
     /// choice between two clocks.
     #[arg(long = "dt", value_name = "SECONDS", value_parser = positive_seconds,
           allow_negative_numbers = true, conflicts_with = "time")]
