@@ -120,28 +120,22 @@ impl Records {
     /// is not finite on its validation half. `fit`, `diagnose` and the
     /// generated cases' judge all score here.
     pub fn validate(&self, model: &ModelDescription, theta: &[f64]) -> Validation {
-        let halves: Vec<Vec<Range<usize>>> = self
-            .whole
+        self.score_on(model, theta, &self.validation_halves())
+    }
+
+    /// [`Records::validate`], and each record's own scores beside it (in
+    /// order: where one record of several is missed), from the one run over
+    /// each record.
+    pub fn validate_each(&self, model: &ModelDescription, theta: &[f64]) -> Scores {
+        Scores::of(&self.runs_on(model, theta, &self.validation_halves()))
+    }
+
+    /// Each record's validation half, as [`Records::score_on`] takes it.
+    fn validation_halves(&self) -> Vec<Vec<Range<usize>>> {
+        self.whole
             .iter()
             .zip(&self.val_start)
             .map(|(w, &from)| std::iter::once(from..w.len()).collect())
-            .collect();
-        self.score_on(model, theta, &halves)
-    }
-
-    /// [`Records::validate`] on each record alone, in order: where one
-    /// record of several is missed.
-    pub fn validate_each(&self, model: &ModelDescription, theta: &[f64]) -> Vec<Validation> {
-        (0..self.whole.len())
-            .map(|i| {
-                let only: Vec<Vec<Range<usize>>> = (0..self.whole.len())
-                    .map(|j| match j == i {
-                        true => std::iter::once(self.val_start[i]..self.whole[i].len()).collect(),
-                        false => Vec::new(),
-                    })
-                    .collect();
-                self.score_on(model, theta, &only)
-            })
             .collect()
     }
 
@@ -156,17 +150,23 @@ impl Records {
         theta: &[f64],
         ranges: &[Vec<Range<usize>>],
     ) -> Validation {
-        let diverged = Validation {
-            rmse: f64::INFINITY,
-            fit_percent: f64::NEG_INFINITY,
-        };
-        // No parameters: a fit that found nothing.
+        pooled(&self.runs_on(model, theta, ranges)).unwrap_or(DIVERGED)
+    }
+
+    /// The scored samples of each record with any, measured and as the
+    /// free run over the whole record simulates them; none for no
+    /// parameters (a fit that found nothing).
+    fn runs_on(
+        &self,
+        model: &ModelDescription,
+        theta: &[f64],
+        ranges: &[Vec<Range<usize>>],
+    ) -> Vec<(Vec<f64>, Vec<f64>)> {
         if theta.is_empty() {
-            return diverged;
+            return Vec::new();
         }
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
-        // Each record's scored samples, measured and simulated.
-        let mut scores: Vec<(Vec<f64>, Vec<f64>)> = Vec::new();
+        let mut runs = Vec::new();
         for (i, (whole, scored)) in self.whole.iter().zip(ranges).enumerate() {
             if scored.is_empty() {
                 continue;
@@ -177,9 +177,9 @@ impl Records {
                 y.extend(whole.y[r.clone()].iter().map(|&v| v as f64));
                 x.extend(run[r.clone()].iter().map(|&v| v as f64));
             }
-            scores.push((y, x));
+            runs.push((y, x));
         }
-        pooled(&scores).unwrap_or(diverged)
+        runs
     }
 
     /// The yardstick a fit is read against: on each record, the first-order
@@ -197,13 +197,10 @@ impl Records {
         pooled(&self.linear_runs()?)
     }
 
-    /// [`Records::linear_yardstick`] on each record alone, in order (`None`
-    /// where ARX cannot be identified on some record).
-    pub fn linear_yardstick_each(&self) -> Option<Vec<Validation>> {
-        let runs = self.linear_runs()?;
-        runs.into_iter()
-            .map(|run| pooled(std::slice::from_ref(&run)))
-            .collect()
+    /// [`Records::linear_yardstick`], and each record's own beside it
+    /// (`None` where ARX cannot be identified on some record).
+    pub fn linear_yardstick_each(&self) -> Option<Scores> {
+        Some(Scores::of(&self.linear_runs()?))
     }
 
     /// Each record's validation half, measured and as its own first-order
@@ -221,6 +218,33 @@ impl Records {
             scores.push((y[from..].to_vec(), sim[from..].to_vec()));
         }
         Some(scores)
+    }
+}
+
+/// The scores of a run that diverged, or of no run at all.
+const DIVERGED: Validation = Validation {
+    rmse: f64::INFINITY,
+    fit_percent: f64::NEG_INFINITY,
+};
+
+/// Scores pooled over the records, and each record's alone.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scores {
+    pub pooled: Validation,
+    pub each: Vec<Validation>,
+}
+
+impl Scores {
+    /// The scores of records' `(measured, simulated)` samples ([`pooled`]),
+    /// infinite RMSE and −∞ fit where a run is not finite.
+    fn of(runs: &[(Vec<f64>, Vec<f64>)]) -> Scores {
+        Scores {
+            pooled: pooled(runs).unwrap_or(DIVERGED),
+            each: runs
+                .iter()
+                .map(|run| pooled(std::slice::from_ref(run)).unwrap_or(DIVERGED))
+                .collect(),
+        }
     }
 }
 
@@ -336,7 +360,8 @@ mod tests {
             let single = ModelDescription::new(Family::Classic, Vec::new(), 1);
             let alone = one.validate(&single, &a.truth);
             // Each record's own score, as `fit` reports it beside the pool.
-            assert_eq!(both.validate_each(&model, &a.truth)[i], alone);
+            let scores = both.validate_each(&model, &a.truth);
+            assert_eq!((scores.each[i], scores.pooled), (alone, pooled));
             sum += alone.rmse.powi(2) * n as f64;
             samples += n;
         }

@@ -130,7 +130,7 @@ fn loose<'a>(
 }
 
 /// One record's validation scores in a fit of several
-/// ([`Records::validate_each`]).
+/// ([`crate::fit::records::Records::validate_each`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RecordScore {
     /// Where the record came from.
@@ -214,7 +214,12 @@ impl FitReport {
         let (problem, engine) = (&fit.problem, &fit.engine);
         let start = fit.start_scores();
         let found = !outcome.params.is_empty();
-        let val = found.then(|| problem.validate(&outcome.params));
+        // Each record simulated once, its ARX model identified once: the
+        // pooled figures and each record's come from the same runs.
+        let val = problem
+            .records
+            .validate_each(&problem.model, &outcome.params);
+        let linear = problem.records.linear_yardstick_each();
         // What was asked (the announce's), not the kept start's plan.
         let asked = &fit.asked;
         let global = asked.global.as_ref();
@@ -248,11 +253,9 @@ impl FitReport {
             undetermined,
             diverging_probes,
             sse: finite(outcome.sse),
-            val_rmse: val.and_then(|v| finite(v.rmse)),
-            val_fit_percent: val.and_then(|v| finite(v.fit_percent)),
-            linear_val_fit_percent: problem
-                .linear_yardstick()
-                .and_then(|v| finite(v.fit_percent)),
+            val_rmse: finite(val.pooled.rmse),
+            val_fit_percent: finite(val.pooled.fit_percent),
+            linear_val_fit_percent: linear.as_ref().and_then(|l| finite(l.pooled.fit_percent)),
             // The effect stages move the output off the state the update
             // steps on: the step is the plain families' figure.
             stable_step: (found && problem.model.effects.is_empty())
@@ -297,27 +300,20 @@ impl FitReport {
             widened: widened.to_vec(),
             search_box: SearchBox::of(&problem.space),
             data: sources(traces),
-            records: {
-                let linear = problem.records.linear_yardstick_each();
-                traces
-                    .iter()
-                    .zip(
-                        problem
-                            .records
-                            .validate_each(&problem.model, &outcome.params),
-                    )
-                    .enumerate()
-                    .map(|(i, (t, v))| RecordScore {
-                        data: t.source.clone(),
-                        samples: t.len(),
-                        val_rmse: finite(v.rmse),
-                        val_fit_percent: finite(v.fit_percent),
-                        linear_val_fit_percent: linear
-                            .as_ref()
-                            .and_then(|l| finite(l[i].fit_percent)),
-                    })
-                    .collect()
-            },
+            // A fit that found no model has no runs: its records score none.
+            records: traces
+                .iter()
+                .enumerate()
+                .map(|(i, t)| RecordScore {
+                    data: t.source.clone(),
+                    samples: t.len(),
+                    val_rmse: val.each.get(i).and_then(|v| finite(v.rmse)),
+                    val_fit_percent: val.each.get(i).and_then(|v| finite(v.fit_percent)),
+                    linear_val_fit_percent: linear
+                        .as_ref()
+                        .and_then(|l| finite(l.each[i].fit_percent)),
+                })
+                .collect(),
             notes: Vec::new(),
             out: None,
         }
