@@ -543,6 +543,18 @@ fn identify() {
     // The doc's example: the default data, the command as the doc writes it.
     let v = check("identify", &["identify", "--json"]);
     assert_example("## `identify`", &v);
+    // Two files: one model, each file's own scores in `records`.
+    let sine = "data/sine_2rads_4.5kg.csv";
+    let v = check("identify", &["identify", STAIR, sine, "--json"]);
+    let files: Vec<&str> = v["records"]
+        .as_array()
+        .expect("records with two files")
+        .iter()
+        .map(|r| r["data"].as_str().unwrap())
+        .collect();
+    assert_eq!(files, [STAIR, sine]);
+    assert_eq!(v["samples"], 8000);
+    assert_eq!(v["model"]["family"], "linear");
 }
 
 #[test]

@@ -985,3 +985,39 @@ fn simulate_writes_its_trace_to_standard_output_for_a_dash() {
     let err = error_of(&[&args[..], &["--out", "-", "--json"]].concat());
     assert!(err.contains("--out -") && err.contains("--json"), "{err}");
 }
+
+/// `identify a.csv b.csv`: one model for both files, which `simulate
+/// --from` runs on either to the figure the report gives that file (the
+/// report in f64, the simulation in f32).
+#[test]
+fn a_model_identified_on_two_files_simulates_each_as_its_report_says() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("arx.json");
+    let sine = "data/sine_2rads_4.5kg.csv";
+    let report = json_of(&[
+        "identify",
+        STAIR,
+        sine,
+        "--out",
+        model.to_str().unwrap(),
+        "--json",
+    ]);
+    for (k, file) in [STAIR, sine].into_iter().enumerate() {
+        let run = json_of(&[
+            "simulate",
+            "--from",
+            model.to_str().unwrap(),
+            "--input",
+            file,
+            "--json",
+        ]);
+        let reported = report["records"][k]["continued_validation_fit_percent"]
+            .as_f64()
+            .unwrap();
+        let simulated = run["val_fit_percent"].as_f64().unwrap();
+        assert!(
+            (reported - simulated).abs() < 1e-3,
+            "{file}: identify says {reported} %, simulate {simulated} %"
+        );
+    }
+}

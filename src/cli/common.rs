@@ -278,6 +278,32 @@ pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
     Ok(traces.swap_remove(0))
 }
 
+/// The records of several files (`fit`, `identify`): one record each; a file
+/// `--split-gaps` cut into pieces gives its longest piece
+/// ([`one_trace`], which says so).
+pub fn records(traces: Vec<Trace>) -> anyhow::Result<Vec<Trace>> {
+    let mut records: Vec<Trace> = Vec::new();
+    let mut pieces: Vec<Trace> = Vec::new();
+    for trace in traces {
+        let same_file = match (pieces.last(), &trace.cut_from) {
+            (Some(last), Some(from)) => last.cut_from.as_ref() == Some(from),
+            _ => false,
+        };
+        if !same_file && !pieces.is_empty() {
+            records.push(one_trace(std::mem::take(&mut pieces))?);
+        }
+        match trace.cut_from {
+            Some(_) => pieces.push(trace),
+            None => records.push(trace),
+        }
+    }
+    if !pieces.is_empty() {
+        records.push(one_trace(pieces)?);
+    }
+    anyhow::ensure!(!records.is_empty(), "the data file holds no samples");
+    Ok(records)
+}
+
 /// One data file (for `identify`, `simulate`, ...).
 #[derive(Debug, Clone, clap::Args)]
 pub struct DataArgs {
@@ -306,11 +332,6 @@ impl DataArgs {
     /// The traces of the file (several with `--split-gaps`).
     pub fn load(&self) -> anyhow::Result<Vec<Trace>> {
         self.columns.load(self.data.as_slice())
-    }
-
-    /// The provenance of a model fitted on this file.
-    pub fn provenance(&self, seed: Option<u64>) -> anyhow::Result<Provenance> {
-        self.columns.provenance(self.data.as_slice(), seed)
     }
 }
 

@@ -5,10 +5,10 @@ use std::path::PathBuf;
 use anyhow::Context;
 use serde::Serialize;
 
-use super::common::{DataArgs, check_distinct, default_data};
+use super::common::{MultiDataArgs, check_distinct, default_data, records};
 use mckibben::data::write_atomic;
 use mckibben::ident::ArxOrders;
-use mckibben::ident::arx::{Identification, identify};
+use mckibben::ident::arx::{Identification, identify, identify_jointly};
 use mckibben::model::{Family, FittedBaseline, Model, ModelFile};
 use mckibben::report::json::Versioned;
 use mckibben::report::number::significant;
@@ -22,15 +22,22 @@ use mckibben::report::number::significant;
 /// With the default orders (na = nb = nk = 1) this is eq. 12,
 /// `l(k) = a·l(k−1) + b·p(k−1)`; the thesis found a = 0.9618, b = 24.9366.
 ///
+/// Several files (experiments on one muscle) give one model for all, as
+/// MATLAB's `arx(merge(z1, z2), ...)`: each file is split in halves, the
+/// means of all estimation halves are removed, the least squares run over
+/// every estimation half (no regressor reaches from one file into the
+/// next), and the report gives the pooled fit and each file's own.
+///
 /// Examples:
 ///   mckibben identify                       # the shipped 4.5 kg stair experiment
 ///   mckibben identify run.csv --input p_bar --output x_mm --na 2 --nb 2
+///   mckibben identify stair.csv sine.csv    # one model for both
 ///   mckibben identify --out model.json --json
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
     #[command(flatten)]
-    data: DataArgs,
+    data: MultiDataArgs,
     /// Number of poles (past outputs).
     #[arg(long, default_value_t = 1)]
     na: usize,
@@ -41,8 +48,9 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     nk: usize,
     /// Write the identification as JSON to this file: with the default
-    /// orders (--na 1 --nb 1 --nk 1) and one piece of data it is also a
-    /// model file that `simulate --from` and `control --from` read.
+    /// orders (--na 1 --nb 1 --nk 1) it is also a model file that
+    /// `simulate --from` and `control --from` read (unless one file's
+    /// --split-gaps pieces give one report each).
     #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE")]
     out: Option<PathBuf>,
     /// Print JSON on stdout instead of a report.
@@ -68,17 +76,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     anyhow::ensure!(args.nb >= 1, "--nb must be at least 1");
     if let Some(out) = &args.out {
-        let read = match &args.data.data {
-            Some(path) => path.clone(),
-            None => default_data()?,
+        let reads = match args.data.data.as_slice() {
+            [] => vec![default_data()?],
+            files => files.to_vec(),
         };
-        check_distinct(&[("DATA", &read)], &[("--out", out)])?;
+        let reads: Vec<(&str, &std::path::Path)> =
+            reads.iter().map(|p| ("DATA", p.as_path())).collect();
+        check_distinct(&reads, &[("--out", out)])?;
     }
     let traces = args.data.load()?;
     let provenance = args.data.provenance(None)?;
+    // One file: each --split-gaps piece on its own, as the thesis treats
+    // one experiment. Several: one model for all, a split file giving its
+    // longest piece, as `fit` takes them.
+    let ids = if args.data.data.len() > 1 {
+        let mut records = records(traces)?;
+        vec![(identify_jointly(&records, orders)?, records.swap_remove(0))]
+    } else {
+        traces
+            .into_iter()
+            .map(|t| Ok((identify(&t, orders)?, t)))
+            .collect::<anyhow::Result<Vec<_>>>()?
+    };
     let mut outputs = Vec::new();
-    for trace in &traces {
-        let id = identify(trace, orders)?;
+    for (id, trace) in ids {
         let model = (orders == ArxOrders::default()).then(|| FittedBaseline {
             family: Family::Linear,
             params: vec![id.arx.a[0], id.arx.b[0], 0.0, 0.0],
@@ -172,9 +193,14 @@ fn print_report(id: &Identification) {
         o.na, o.nb, o.nk
     );
     println!(
-        "  means removed input {}, output {} (estimation half)",
+        "  means removed input {}, output {} (estimation {})",
         significant(id.input_mean, 6),
-        significant(id.output_mean, 6)
+        significant(id.output_mean, 6),
+        if id.records.is_empty() {
+            "half"
+        } else {
+            "halves together"
+        }
     );
     for (i, a) in id.arx.a.iter().enumerate() {
         println!("  a{}            {}", i + 1, significant(*a, 6));
@@ -216,6 +242,22 @@ fn print_report(id: &Identification) {
          sample: how `fit` and `simulate` score)",
         id.continued_validation_fit_percent
     );
+    if !id.records.is_empty() {
+        println!(
+            "  the fits above pool the records, each about its own mean; each record's own \
+             (estimation / validation / run on):"
+        );
+        for r in &id.records {
+            println!(
+                "    {:<28} {:>7.2} / {:>7.2} / {:>7.2} %   (validation RMSE {})",
+                r.data,
+                r.estimation_fit_percent,
+                r.validation_fit_percent,
+                r.continued_validation_fit_percent,
+                significant(r.validation_rmse, 4)
+            );
+        }
+    }
 }
 
 #[cfg(test)]

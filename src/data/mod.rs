@@ -152,6 +152,39 @@ pub fn mixed_steps(traces: &[Trace]) -> Option<String> {
     ))
 }
 
+/// Why one model cannot take `traces` as they are, if it cannot: columns
+/// of other names (another quantity, or another unit), or one record given
+/// twice, which would weigh it double and shrink every standard error by
+/// √2 without a sample more.
+pub fn unlike_records(traces: &[Trace]) -> Option<String> {
+    let first = traces.first()?;
+    for (k, t) in traces.iter().enumerate() {
+        if (&t.input_name, &t.output_name) != (&first.input_name, &first.output_name) {
+            return Some(format!(
+                "{} has the input `{}` and output `{}`, {} `{}` and `{}`: one model takes one \
+                 input and one output, in one unit; give the records the same columns",
+                t.source,
+                t.input_name,
+                t.output_name,
+                first.source,
+                first.input_name,
+                first.output_name
+            ));
+        }
+        if let Some(twin) = traces[..k]
+            .iter()
+            .find(|o| o.input == t.input && o.output == t.output && o.t == t.t)
+        {
+            return Some(format!(
+                "{} and {} hold the same samples: a record given twice weighs double and \
+                 makes every standard error look √2 smaller; give it once",
+                twin.source, t.source
+            ));
+        }
+    }
+    None
+}
+
 /// The traces' sources as a message names them: `a.csv, b.csv`.
 pub fn sources(traces: &[Trace]) -> String {
     traces

@@ -176,7 +176,9 @@ impl FitProblem {
         if let Some(why) = mixed_steps(traces) {
             anyhow::bail!(why);
         }
-        FitProblem::check_one_model_fits(traces)?;
+        if let Some(why) = crate::data::unlike_records(traces) {
+            anyhow::bail!(why);
+        }
         let records = Records::of(traces, None)?;
         let first = &traces[0];
         let space = match flow {
@@ -223,41 +225,6 @@ impl FitProblem {
         })
     }
 
-    /// Refuses records that one model cannot take as they are: columns of
-    /// other names (another quantity, or another unit), or one record
-    /// given twice, which would weigh it double and shrink every standard
-    /// error by √2 without a sample more.
-    fn check_one_model_fits(traces: &[Trace]) -> anyhow::Result<()> {
-        let Some(first) = traces.first() else {
-            return Ok(());
-        };
-        for (k, t) in traces.iter().enumerate() {
-            anyhow::ensure!(
-                (&t.input_name, &t.output_name) == (&first.input_name, &first.output_name),
-                "{} has the input `{}` and output `{}`, {} `{}` and `{}`: one model takes one \
-                 input and one output, in one unit; give the records the same columns",
-                t.source,
-                t.input_name,
-                t.output_name,
-                first.source,
-                first.input_name,
-                first.output_name
-            );
-            if let Some(twin) = traces[..k]
-                .iter()
-                .find(|o| o.input == t.input && o.output == t.output && o.t == t.t)
-            {
-                anyhow::bail!(
-                    "{} and {} hold the same samples: a record given twice weighs double and \
-                     makes every standard error look √2 smaller; give it once",
-                    twin.source,
-                    t.source
-                );
-            }
-        }
-        Ok(())
-    }
-
     /// The diagnosis' problem on `traces` with `family` as its baseline:
     /// every trace split in halves as `fit` splits it, in `model`'s
     /// coordinates when one is given (`diagnose --from`, as `fit --from`:
@@ -270,7 +237,7 @@ impl FitProblem {
         model: Option<&Model>,
         blocks: Option<usize>,
     ) -> anyhow::Result<FitProblem> {
-        if let Some(why) = mixed_steps(traces) {
+        if let Some(why) = mixed_steps(traces).or_else(|| crate::data::unlike_records(traces)) {
             anyhow::bail!(why);
         }
         let records = Records::of(traces, model)?;

@@ -4,11 +4,13 @@
 //! `y(k) = Σ_{i=1..na} a_i·y(k−i) + Σ_{j=1..nb} b_j·u(k−nk−j+1)`.
 //! Orders (1, 1, 1) give eq. 12: `y(k) = a·y(k−1) + b·u(k−1)`.
 
+use std::ops::Range;
+
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
-use super::fit::{fit_percent, rmse};
+use super::fit::{fit_percent, pooled_fit_percent, rmse};
 use crate::data::Trace;
 use crate::model::LinearPrior;
 use crate::model::bounds::level_reach;
@@ -88,6 +90,10 @@ pub enum IdentError {
     },
     #[error("no data to identify from")]
     NoData,
+    /// Records one model cannot take together (other sample times,
+    /// other columns, one record twice): the reason.
+    #[error("{0}")]
+    Unlike(String),
 }
 
 /// An identified ARX model in deviation coordinates.
@@ -108,41 +114,73 @@ impl Arx {
         y: &[f64],
         orders: ArxOrders,
     ) -> Result<Arx, IdentError> {
+        Arx::estimate_on(source, &[(u, y)], orders)
+    }
+
+    /// Least squares over several stretches of deviation data `(u, y)`
+    /// (MATLAB's `arx` on `merge`d experiments): each stretch gives the
+    /// rows its own history allows, and no regressor reaches from one
+    /// stretch into the next, where the records are not continuous.
+    pub fn estimate_on(
+        source: &str,
+        stretches: &[(&[f64], &[f64])],
+        orders: ArxOrders,
+    ) -> Result<Arx, IdentError> {
         let ArxOrders { na, nb, nk } = orders;
         if nb == 0 {
             return Err(IdentError::Orders { na, nb, nk });
         }
         let lag = orders.lag();
         let cols = na.saturating_add(nb);
-        let need = lag.saturating_add(cols).saturating_add(1);
-        if y.len() < need {
+        let len: usize = stretches.iter().map(|(_, y)| y.len()).sum();
+        let rows: usize = stretches
+            .iter()
+            .map(|(_, y)| y.len().saturating_sub(lag))
+            .sum();
+        if rows <= cols {
             return Err(IdentError::TooShort {
                 data: source.into(),
-                len: y.len(),
-                need,
+                len,
+                need: lag.saturating_add(cols).saturating_add(1),
                 na,
                 nb,
                 nk,
             });
         }
-        let rows = y.len() - lag;
+        // (stretch, sample) of each row.
+        let at: Vec<(usize, usize)> = stretches
+            .iter()
+            .enumerate()
+            .flat_map(|(s, (_, y))| (lag..y.len()).map(move |k| (s, k)))
+            .collect();
         let phi = DMatrix::from_fn(rows, cols, |r, c| {
-            let k = r + lag;
+            let (s, k) = at[r];
+            let (u, y) = stretches[s];
             if c < na {
                 y[k - 1 - c]
             } else {
                 u[k - nk - (c - na)]
             }
         });
-        let target = DVector::from_fn(rows, |r, _| y[r + lag]);
+        let target = DVector::from_fn(rows, |r, _| {
+            let (s, k) = at[r];
+            stretches[s].1[k]
+        });
         let svd = phi.svd(true, true);
         let smax = svd.singular_values.max();
         let smin = svd.singular_values.min();
-        let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt();
+        let rms = |input: bool| {
+            let squares: f64 = stretches
+                .iter()
+                .flat_map(|&(u, y)| if input { u } else { y })
+                .map(|x| x * x)
+                .sum();
+            (squares / len as f64).sqrt()
+        };
         let singular = || IdentError::Singular {
             data: source.into(),
-            output_rms: rms(y),
-            input_rms: rms(u),
+            output_rms: rms(false),
+            input_rms: rms(true),
             hint: if cols > 2 {
                 "; or try lower orders".into()
             } else {
@@ -188,7 +226,9 @@ impl Arx {
 }
 
 /// The thesis' identification: means of the estimation half removed, ARX on
-/// the first half, free-run fit on the second.
+/// the first half, free-run fit on the second. Of several records (one
+/// muscle, several experiments): one model for all, as MATLAB's `arx` on
+/// `merge`d data; see [`identify_jointly`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Identification {
     pub source: String,
@@ -209,9 +249,41 @@ pub struct Identification {
     /// `simulate` a model, which carries the estimation half's end state
     /// into the validation half.
     pub continued_validation_fit_percent: f64,
+    /// Each record's own scores, where there are several (the figures
+    /// above then pool them, [`pooled_fit_percent`]); empty for one.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub records: Vec<RecordArxScore>,
+}
+
+/// One record's scores under a model identified on several.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordArxScore {
+    pub data: String,
+    pub samples: usize,
+    pub estimation_fit_percent: f64,
+    pub validation_fit_percent: f64,
+    pub validation_rmse: f64,
+    pub continued_validation_fit_percent: f64,
 }
 
 pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, IdentError> {
+    identify_jointly(std::slice::from_ref(trace), orders)
+}
+
+/// One ARX model for several records of one muscle, each split in halves:
+/// the means of all estimation halves together removed (one operating
+/// point, as one model file holds), least squares over every estimation
+/// half ([`Arx::estimate_on`]), and each record simulated on its own. The
+/// figures pool the records, each record's deviations about its own mean
+/// ([`pooled_fit_percent`]); `records` gives each one's. One record: the
+/// thesis' identification, and no `records`.
+pub fn identify_jointly(traces: &[Trace], orders: ArxOrders) -> Result<Identification, IdentError> {
+    let first = traces.first().ok_or(IdentError::NoData)?;
+    if let Some(why) =
+        crate::data::mixed_steps(traces).or_else(|| crate::data::unlike_records(traces))
+    {
+        return Err(IdentError::Unlike(why));
+    }
     // Each half needs the samples an estimate does (Arx::estimate), and is
     // checked first: a half of one sample is "constant" too.
     let need = orders
@@ -220,57 +292,127 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
         .saturating_add(orders.nb)
         .saturating_add(1)
         .saturating_mul(2);
-    if trace.len() < need {
-        let ArxOrders { na, nb, nk } = orders;
-        return Err(IdentError::TooShort {
-            data: trace.source.clone(),
-            len: trace.len(),
-            need,
-            na,
-            nb,
-            nk,
-        });
+    for trace in traces {
+        if trace.len() < need {
+            let ArxOrders { na, nb, nk } = orders;
+            return Err(IdentError::TooShort {
+                data: trace.source.clone(),
+                len: trace.len(),
+                need,
+                na,
+                nb,
+                nk,
+            });
+        }
     }
-    let (est, val) = halves(trace.len());
-    let est_len = est.len();
-    let input_mean = trace.input[est.clone()].iter().sum::<f64>() / est_len.max(1) as f64;
-    let output_mean = trace.output[est.clone()].iter().sum::<f64>() / est_len.max(1) as f64;
-    let u: Vec<f64> = trace.input.iter().map(|p| p - input_mean).collect();
-    let y: Vec<f64> = trace.output.iter().map(|l| l - output_mean).collect();
-    if est_len > 0 && u[est.clone()].iter().all(|&v| v == u[est.start]) {
+    let source = crate::data::sources(traces);
+    let estimation = |column: fn(&Trace) -> &[f64]| -> Vec<f64> {
+        traces
+            .iter()
+            .flat_map(|t| column(t)[halves(t.len()).0].iter().copied())
+            .collect()
+    };
+    let (est_u, est_y) = (estimation(|t| &t.input), estimation(|t| &t.output));
+    let input_mean = est_u.iter().sum::<f64>() / est_u.len() as f64;
+    let output_mean = est_y.iter().sum::<f64>() / est_y.len() as f64;
+    let constant = |v: &[f64]| v.iter().all(|&x| x == v[0]);
+    if constant(&est_u) {
         return Err(IdentError::ConstantInput {
-            data: trace.source.clone(),
-            column: trace.input_name.clone(),
+            data: source,
+            column: first.input_name.clone(),
         });
     }
-    if est_len > 0 && y[est.clone()].iter().all(|&v| v == y[est.start]) {
+    if constant(&est_y) {
         return Err(IdentError::ConstantOutput {
-            data: trace.source.clone(),
-            column: trace.output_name.clone(),
+            data: source,
+            column: first.output_name.clone(),
         });
     }
-    if trace.input == trace.output {
+    if let Some(trace) = traces.iter().find(|t| t.input == t.output) {
         return Err(IdentError::SameColumns {
             data: trace.source.clone(),
             input: trace.input_name.clone(),
             output: trace.output_name.clone(),
         });
     }
-    let arx = Arx::estimate(&trace.source, &u[est.clone()], &y[est.clone()], orders)?;
-    let sim_est = arx.simulate(&u[est.clone()], &y[est.clone()]);
-    let sim_val = arx.simulate(&u[val.clone()], &y[val.clone()]);
-    let sim_whole = arx.simulate(&u, &y);
+    let deviations: Vec<(Vec<f64>, Vec<f64>)> = traces
+        .iter()
+        .map(|t| {
+            (
+                t.input.iter().map(|p| p - input_mean).collect(),
+                t.output.iter().map(|l| l - output_mean).collect(),
+            )
+        })
+        .collect();
+    let stretches: Vec<(&[f64], &[f64])> = deviations
+        .iter()
+        .map(|(u, y)| {
+            let est = halves(y.len()).0;
+            (&u[est.clone()], &y[est])
+        })
+        .collect();
+    let arx = Arx::estimate_on(&source, &stretches, orders)?;
+    // Per record: (y, simulated) on the estimation half, the validation
+    // half from its own first samples, and the validation half of the
+    // run from the record's first sample. A half's first `lag` samples
+    // start its simulation as measured, so they are not scored: a fit
+    // that counted them would grow towards 100 % with the delay `nk`.
+    let lag = orders.lag();
+    let runs: Vec<[(&[f64], Vec<f64>); 3]> = deviations
+        .iter()
+        .map(|(u, y)| {
+            let (est, val) = halves(y.len());
+            let whole = arx.simulate(u, y);
+            let simulated = |half: Range<usize>| {
+                let run = arx.simulate(&u[half.clone()], &y[half.clone()]);
+                (&y[half.start + lag..half.end], run[lag..].to_vec())
+            };
+            [
+                simulated(est),
+                simulated(val.clone()),
+                (&y[val.clone()], whole[val].to_vec()),
+            ]
+        })
+        .collect();
+    let pooled = |which: usize| {
+        let pairs: Vec<(&[f64], &[f64])> = runs
+            .iter()
+            .map(|r| (r[which].0, r[which].1.as_slice()))
+            .collect();
+        pooled_fit_percent(&pairs)
+    };
+    let (val_y, val_sim): (Vec<f64>, Vec<f64>) = runs
+        .iter()
+        .flat_map(|r| r[1].0.iter().copied().zip(r[1].1.iter().copied()))
+        .unzip();
+    let records = if traces.len() > 1 {
+        traces
+            .iter()
+            .zip(&runs)
+            .map(|(t, [est, val, continued])| RecordArxScore {
+                data: t.source.clone(),
+                samples: t.len(),
+                estimation_fit_percent: fit_percent(est.0, &est.1),
+                validation_fit_percent: fit_percent(val.0, &val.1),
+                validation_rmse: rmse(val.0, &val.1),
+                continued_validation_fit_percent: fit_percent(continued.0, &continued.1),
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     Ok(Identification {
-        source: trace.source.clone(),
+        source,
         arx,
         input_mean,
         output_mean,
-        samples: trace.len(),
-        dt: trace.dt(),
-        estimation_fit_percent: fit_percent(&y[est], &sim_est),
-        validation_fit_percent: fit_percent(&y[val.clone()], &sim_val),
-        validation_rmse: rmse(&y[val.clone()], &sim_val),
-        continued_validation_fit_percent: fit_percent(&y[val.clone()], &sim_whole[val]),
+        samples: traces.iter().map(Trace::len).sum(),
+        dt: first.dt(),
+        estimation_fit_percent: pooled(0),
+        validation_fit_percent: pooled(1),
+        validation_rmse: rmse(&val_y, &val_sim),
+        continued_validation_fit_percent: pooled(2),
+        records,
     })
 }
 
@@ -286,7 +428,7 @@ pub fn identify(trace: &Trace, orders: ArxOrders) -> Result<Identification, Iden
 pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
     let first = traces.first().ok_or(IdentError::NoData)?;
     let id = identify(first, ArxOrders::default())?;
-    fn estimation(t: &Trace) -> std::ops::Range<usize> {
+    fn estimation(t: &Trace) -> Range<usize> {
         halves(t.len()).0
     }
     let estimation_halves = |column: fn(&Trace) -> &[f64]| -> Vec<f64> {
@@ -401,5 +543,132 @@ mod tests {
                 "{orders:?}: {err}"
             );
         }
+    }
+
+    /// Output of `y(k) = a·y(k−1) + b·u(k−1)` from `y0`, no means.
+    fn first_order(a: f64, b: f64, y0: f64, u: &[f64]) -> Vec<f64> {
+        let mut y = vec![y0];
+        for k in 1..u.len() {
+            y.push(a * y[k - 1] + b * u[k - 1]);
+        }
+        y
+    }
+
+    /// Stretches that do not continue each other (the second starts far
+    /// from where the first ended) give the exact model, because no row
+    /// regresses one stretch's sample on the other's; the same samples run
+    /// together as one record do not.
+    #[test]
+    fn no_regressor_reaches_from_one_stretch_into_the_next() {
+        let u1: Vec<f64> = (0..300).map(|k| (k as f64 * 0.05).sin()).collect();
+        let u2: Vec<f64> = (0..300).map(|k| (k as f64 * 0.11).cos()).collect();
+        let y1 = first_order(0.9, 2.0, 0.0, &u1);
+        let y2 = first_order(0.9, 2.0, 40.0, &u2);
+        let arx = Arx::estimate_on("two", &[(&u1, &y1), (&u2, &y2)], ArxOrders::default()).unwrap();
+        assert!(
+            (arx.a[0] - 0.9).abs() < 1e-9 && (arx.b[0] - 2.0).abs() < 1e-9,
+            "{arx:?}"
+        );
+        let joined = |a: &[f64], b: &[f64]| [a, b].concat();
+        let run_together = Arx::estimate(
+            "one",
+            &joined(&u1, &u2),
+            &joined(&y1, &y2),
+            ArxOrders::default(),
+        )
+        .unwrap();
+        assert!((run_together.a[0] - 0.9).abs() > 1e-3, "{run_together:?}");
+    }
+
+    /// Two records at other levels, one model: the same model whichever
+    /// record comes first, each record scored on its own, and the pooled
+    /// figure between theirs (a mediant of their error ratios). One record
+    /// has no `records`; records at other sample times are refused.
+    #[test]
+    fn a_joint_identification_pools_the_records_and_keeps_each_ones_score() {
+        let u1: Vec<f64> = (0..600)
+            .map(|k| 0.2 + 0.1 * (k as f64 * 0.03).sin())
+            .collect();
+        let u2: Vec<f64> = (0..400)
+            .map(|k| 0.3 + 0.1 * (k as f64 * 0.07).cos())
+            .collect();
+        let noisy = |y: Vec<f64>, phase: f64| -> Vec<f64> {
+            y.iter()
+                .enumerate()
+                .map(|(k, v)| v + 0.3 * (k as f64 * 1.7 + phase).sin())
+                .collect()
+        };
+        let a = Trace::uniform(
+            "a.csv",
+            0.01,
+            u1.clone(),
+            noisy(first_order(0.95, 2.0, 8.0, &u1), 0.0),
+        );
+        let b = Trace::uniform(
+            "b.csv",
+            0.01,
+            u2.clone(),
+            noisy(first_order(0.95, 2.0, 12.0, &u2), 1.0),
+        );
+        let ab = identify_jointly(&[a.clone(), b.clone()], ArxOrders::default()).unwrap();
+        let ba = identify_jointly(&[b.clone(), a.clone()], ArxOrders::default()).unwrap();
+        assert!((ab.arx.a[0] - ba.arx.a[0]).abs() < 1e-12, "{ab:?} {ba:?}");
+        assert!((ab.arx.b[0] - ba.arx.b[0]).abs() < 1e-9, "{ab:?} {ba:?}");
+        assert_eq!(ab.source, "a.csv, b.csv");
+        assert_eq!(ab.samples, 1000);
+        let names: Vec<&str> = ab.records.iter().map(|r| r.data.as_str()).collect();
+        assert_eq!(names, ["a.csv", "b.csv"]);
+        let own: Vec<f64> = ab
+            .records
+            .iter()
+            .map(|r| r.validation_fit_percent)
+            .collect();
+        assert!(own[0] != own[1], "{own:?}");
+        let (lo, hi) = (own[0].min(own[1]), own[0].max(own[1]));
+        assert!(
+            lo <= ab.validation_fit_percent && ab.validation_fit_percent <= hi,
+            "{} not within {own:?}",
+            ab.validation_fit_percent
+        );
+        assert!(
+            identify(&a, ArxOrders::default())
+                .unwrap()
+                .records
+                .is_empty()
+        );
+        let slower = Trace::uniform("slow.csv", 0.02, u2.clone(), b.output.clone());
+        let err = identify_jointly(&[a, slower], ArxOrders::default()).unwrap_err();
+        assert!(
+            matches!(&err, IdentError::Unlike(why) if why.contains("every 0.02 s")),
+            "{err}"
+        );
+    }
+
+    /// A half's first `lag` samples start its simulation as measured and
+    /// are not scored: counted, they made `--nk 1990` on the shipped stair
+    /// read 99.98 %.
+    #[test]
+    fn samples_a_simulation_starts_from_are_not_scored() {
+        let input: Vec<f64> = (0..600).map(|k| (k as f64 * 0.05).sin()).collect();
+        let output = first_order(0.9, 2.0, 1.0, &input)
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 0.2 * (k as f64 * 1.3).sin())
+            .collect();
+        let trace = Trace::uniform("x.csv", 0.01, input, output);
+        let orders = ArxOrders {
+            na: 1,
+            nb: 1,
+            nk: 200,
+        };
+        let id = identify(&trace, orders).unwrap();
+        let u: Vec<f64> = trace.input.iter().map(|v| v - id.input_mean).collect();
+        let y: Vec<f64> = trace.output.iter().map(|v| v - id.output_mean).collect();
+        let sim = id.arx.simulate(&u[300..], &y[300..]);
+        assert_eq!(
+            id.validation_fit_percent,
+            fit_percent(&y[500..], &sim[200..]),
+            "scored from the first simulated sample on"
+        );
     }
 }

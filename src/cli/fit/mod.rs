@@ -7,7 +7,7 @@ mod args;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::common::one_trace;
+use super::common::records;
 pub use args::Args;
 use args::EffectArg;
 use mckibben::data::{Trace, readable, sources};
@@ -227,32 +227,6 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     written?;
     anyhow::ensure!(found, "{}", all_diverged(&args, !what.bounds.is_empty()));
     Ok(())
-}
-
-/// The records a fit reads: every file given, one record each; a file
-/// `--split-gaps` cut into pieces gives its longest piece
-/// ([`one_trace`], which says so).
-fn records(traces: Vec<Trace>) -> anyhow::Result<Vec<Trace>> {
-    let mut records: Vec<Trace> = Vec::new();
-    let mut pieces: Vec<Trace> = Vec::new();
-    for trace in traces {
-        let same_file = match (pieces.last(), &trace.cut_from) {
-            (Some(last), Some(from)) => last.cut_from.as_ref() == Some(from),
-            _ => false,
-        };
-        if !same_file && !pieces.is_empty() {
-            records.push(one_trace(std::mem::take(&mut pieces))?);
-        }
-        match trace.cut_from {
-            Some(_) => pieces.push(trace),
-            None => records.push(trace),
-        }
-    }
-    if !pieces.is_empty() {
-        records.push(one_trace(pieces)?);
-    }
-    anyhow::ensure!(!records.is_empty(), "the data file holds no samples");
-    Ok(records)
 }
 
 /// Why a fit that found no stable candidate may have found none: the data,
