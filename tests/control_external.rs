@@ -12,6 +12,7 @@ use std::process::{Command, Output, Stdio};
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 /// A short episode: 2 s settling, 4 s of 3 rad/s sine scored from 2 s.
 const SHORT: [&str; 8] = [
     "--freq",
@@ -333,10 +334,104 @@ fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
             "--design-load 15: the twin carries at most 15 kg, and --robustness runs it at 1.3 × \
              the design load (so at most 11.54 kg)",
         ),
+        // A load so light that the twin's physics leaves its range at
+        // once: rows of NaN, before.
+        (
+            &["--controller", "pi", "--load", "0.01"][..],
+            "--load: the twin's `displacement` is not finite from 0.010 s on",
+        ),
+        // A model named for controllers that read none: a typo in its
+        // path went unseen.
+        (
+            &["--controller", "pi", "--from", "no-such-model.json"][..],
+            "--from: none of the controllers asked for (pi) uses a model",
+        ),
+        (
+            &["--controller", "pi", "--design-data", "no-such.csv"][..],
+            "--design-data: none of the controllers asked for (pi) uses a model",
+        ),
     ] {
         let out = control(args);
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
         assert!(err.contains(needle), "{args:?}: {err}");
     }
+}
+
+/// A folder for the figures or the traces that cannot be made is an error
+/// before the runs, which it lost; and a model at another sample time than
+/// the twin's is refused before any run, naming its file.
+#[test]
+fn what_would_fail_after_the_runs_fails_before_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("a-file");
+    std::fs::write(&file, "not a folder").unwrap();
+    for flag in ["--csv", "--plot"] {
+        let out = control(&["--controller", "pi", flag, file.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains(&format!("cannot create {flag}")), "{err}");
+        assert!(!err.contains("[1/"), "no run started: {err}");
+    }
+    // The shipped stair's model, refitted on a record at 0.02 s.
+    let slow = dir.path().join("slow.csv");
+    let text = std::fs::read_to_string(format!("{ROOT}/data/stair_4.5kg.csv")).unwrap();
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let header = lines.next().unwrap();
+    let mut doubled = vec![header.to_string()];
+    for line in lines {
+        let (t, rest) = line.split_once(',').unwrap();
+        doubled.push(format!("{},{rest}", 2.0 * t.parse::<f64>().unwrap()));
+    }
+    std::fs::write(&slow, doubled.join("\n")).unwrap();
+    let model = dir.path().join("slow");
+    let fitted = Command::new(BIN)
+        .args([
+            "fit",
+            slow.to_str().unwrap(),
+            "--pop",
+            "40",
+            "--gens",
+            "5",
+            "--out",
+        ])
+        .arg(&model)
+        .output()
+        .unwrap();
+    assert!(
+        fitted.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fitted.stderr)
+    );
+    let from = model.join("model.json");
+    let out = control(&["--controller", "pi,mpc", "--from", from.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the model steps every 0.02 s, the twin every 0.01 s")
+            && err.contains("--from"),
+        "{err}"
+    );
+    assert!(!err.contains("[1/"), "no run started: {err}");
+}
+
+/// An MPC whose every QP fails holds the valve: its row is no MPC's, and
+/// the command says so; the row's `controller` stays the kind (the scale
+/// has its own field), as the JSON contract says.
+#[test]
+fn an_mpc_whose_solves_fail_is_named_and_its_row_keeps_its_kind() {
+    let out = control(&["--controller", "mpc", "--hysteresis-scale", "100", "--json"]);
+    let rows = runs(&out);
+    let scaled = rows
+        .iter()
+        .find(|r| r["hysteresis_scale"] == 100.0)
+        .expect("the scaled run");
+    assert_eq!(scaled["controller"], "mpc");
+    assert!(scaled["solver_failures"].as_u64().unwrap() > 0, "{scaled:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("warning: mpc (hysteresis ×100) at 3 rad/s, 4.5 kg:")
+            && err.contains("of the MPC's QP solves failed"),
+        "{err}"
+    );
 }

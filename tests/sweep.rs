@@ -75,6 +75,10 @@ fn cases_and_populations_out_of_reach_are_refused() {
         (["--cases", "4242"], "--cases"),
         (["--pop", "3"], "--pop"),
         (["--family", "linear"], "--family"),
+        // Given twice, a case was fitted and counted twice.
+        (["--seeds", "1,1"], "--seeds names 1 twice"),
+        (["--pop", "100,100"], "--pop names 100 twice"),
+        (["--family", "classic,classic"], "--family names classic twice"),
     ] {
         let out = Command::new(BIN)
             .arg("sweep")

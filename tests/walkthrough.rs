@@ -311,7 +311,7 @@ fn the_guide_runs_as_written() {
             if s.contains("fit_MPa") {
                 // The model in the twin's units predicts it to under 1.5 mm
                 // and the MPC with it tracks better than the thesis' PI.
-                let rmse = number_after(&out, "prediction RMSE on the validation record:");
+                let rmse = number_after(&out, "steps ahead on the validation record:");
                 assert!(rmse < 1.5, "prediction RMSE {rmse} mm");
                 assert!(rms_of(&out, "mpc") < rms_of(&out, "pi"), "{out}");
                 assert!(root.join("out/guide/control/control_model.svg").exists());

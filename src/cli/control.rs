@@ -4,6 +4,8 @@
 //! figures}`'s and `rig::control_runs`'.
 
 use std::path::PathBuf;
+
+use anyhow::Context as _;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -16,6 +18,7 @@ use mckibben::control::table::{self, DesignJson, JsonOutput};
 use mckibben::control::tuning::{self, TuningRun};
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
 use mckibben::data::signals::nyquist_rad_s;
+use mckibben::data::{same_step, tidy_step};
 use mckibben::report::json::Versioned;
 use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
@@ -230,7 +233,7 @@ fn check_on_twin(args: &Args, config: &TwinConfig, kinds: &[Kind]) -> anyhow::Re
         hung.extend(tuning.into_iter().map(|m| ("the PI tuning's load", m)));
     }
     for (what, load) in hung {
-        Rig::check_load(config, load).map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
+        Rig::check_holds(config, load, args.seed).map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
     }
     // A rig's sample time is checked once its handshake gives it.
     Episode::short(1.0, args.warmup, args.duration, args.steady_from)
@@ -368,6 +371,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
+    let designs = kinds.iter().any(|k| k.needs_model()) || args.robustness;
+    if !designs {
+        // A model named for nothing would hide a typo in its path.
+        for (flag, given) in [
+            ("--from", args.from.is_some()),
+            ("--design-data", args.design_data.is_some()),
+        ] {
+            anyhow::ensure!(
+                !given,
+                "{flag}: none of the controllers asked for ({}) uses a model; add ff-pid or \
+                 mpc to --controller, or leave {flag} out",
+                args.controller
+                    .iter()
+                    .map(|&k| Kind::from(k).label())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
+    // The folders first: runs of minutes must not end on a path that
+    // cannot be written.
+    for (flag, dir) in [("--plot", &args.plot), ("--csv", &args.csv)] {
+        if let Some(dir) = dir {
+            mckibben::data::create_dir_all(dir)
+                .with_context(|| format!("cannot create {flag} {}", dir.display()))?;
+        }
+    }
     let mut config = TwinConfig::default();
     config.effects.apply_args(&args.effects)?;
     config.validate()?;
@@ -387,7 +417,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             eprintln!("{s}");
         }
     };
-    let design = if kinds.iter().any(|k| k.needs_model()) || args.robustness {
+    let design = if designs {
         let request = DesignRequest {
             record: args.design_data.clone(),
             model: args.from.clone(),
@@ -396,6 +426,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             horizon: args.horizon,
         };
         let d = sweep::design_for(&request, &config, &|s| eprintln!("mckibben: note: {s}"))?;
+        // A rig's sample time is checked once its handshake gives it.
+        let dt = d.model.displacement.dt;
+        if matches!(plant, PlantSpec::Twin) && !same_step(dt, config.sample_time_s) {
+            let source = match (&args.from, &args.design_data) {
+                (Some(p), _) => format!("--from {}", p.display()),
+                (None, Some(p)) => format!("--design-data {}", p.display()),
+                (None, None) => "the design record".into(),
+            };
+            anyhow::bail!(
+                "{source}: the model steps every {} s, the twin every {} s: a discrete-time \
+                 model's poles are per sample; give a model fitted on data sampled every {} s",
+                tidy_step(dt),
+                config.sample_time_s,
+                config.sample_time_s
+            );
+        }
         say(d.summary());
         Some(d)
     } else {
@@ -484,11 +530,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         Vec::new()
     };
-    if let Some(dir) = &args.plot {
-        figures::save(dir, &runs, design.as_ref())?;
-    }
-    if let Some(dir) = &args.csv {
-        table::write_csvs(dir, &runs)?;
+    // The results are printed before the files are written: a write that
+    // fails loses none of them.
+    for r in rows.iter().filter(|r| r.solver_failures > 0) {
+        eprintln!(
+            "mckibben: warning: {} at {} rad/s{}: {} of the MPC's QP solves failed, and the \
+             valve held its last command at each; its row measures that, not the MPC",
+            sweep::scaled_label(&r.controller, r.hysteresis_scale),
+            r.freq_rad_s,
+            r.load_kg.map_or(String::new(), |m| format!(", {m} kg")),
+            r.solver_failures
+        );
     }
     if args.json {
         let out = JsonOutput {
@@ -500,6 +552,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", Versioned::new(out).to_string_pretty()?);
     } else {
         print!("{}", table::text(&rows, &robust));
+    }
+    if let Some(dir) = &args.plot {
+        figures::save(dir, &runs, design.as_ref())?;
+    }
+    if let Some(dir) = &args.csv {
+        table::write_csvs(dir, &runs)?;
     }
     Ok(())
 }

@@ -79,7 +79,22 @@ struct Output<'a> {
     fits: &'a [CaseFit],
 }
 
+/// A value given twice would fit the same cases twice and count each
+/// pass twice.
+fn given_once<T: PartialEq + std::fmt::Display>(flag: &str, values: &[T]) -> anyhow::Result<()> {
+    for (i, v) in values.iter().enumerate() {
+        anyhow::ensure!(
+            !values[..i].contains(v),
+            "{flag} names {v} twice: each case would be fitted, and counted, twice"
+        );
+    }
+    Ok(())
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    given_once("--pop", &args.pop)?;
+    given_once("--family", &args.family)?;
+    given_once("--seeds", &args.seeds)?;
     if let Some(&n) = args.pop.iter().find(|&&n| n < 4) {
         anyhow::bail!("--pop: every population must be at least 4 (got {n})");
     }

@@ -313,7 +313,7 @@ impl Design {
             .map(|(n, v)| format!("{n} {v:.4}"))
             .collect();
         let mut s = format!(
-            "model ({}): {}, b2 {:.3}; valve pole {:.3}\n  {}-step prediction RMSE on the validation record: {:.3} mm (pressure measured), {:.3} mm (from the valve)",
+            "model ({}): {}, b2 {:.3}; valve pole {:.3}\n  prediction RMSE over 1–{} steps ahead on the validation record: {:.3} mm (pressure measured), {:.3} mm (from the valve)",
             self.source,
             params.join(", "),
             self.model.curvature,
@@ -389,10 +389,15 @@ pub fn build(
 
 /// `mpc` or `mpc (hysteresis ×0.8)`.
 pub fn run_label(kind: Kind, scale: f64) -> String {
+    scaled_label(kind.label(), scale)
+}
+
+/// A controller's name with its model's hysteresis scale where it is not 1.
+pub fn scaled_label(controller: &str, scale: f64) -> String {
     if scale == 1.0 {
-        kind.label().to_string()
+        controller.to_string()
     } else {
-        format!("{} (hysteresis ×{scale})", kind.label())
+        format!("{controller} (hysteresis ×{scale})")
     }
 }
 

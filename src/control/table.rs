@@ -50,7 +50,8 @@ impl Row {
         let m = &run.result.metrics;
         let s = run.stats.unwrap_or_default();
         Row {
-            controller: run.result.controller.clone(),
+            // The kind alone: the scale has its own field.
+            controller: run.spec.kind.label().to_string(),
             plant: plant.to_string(),
             freq_rad_s: run.spec.freq_rad_s,
             load_kg,
@@ -232,7 +233,7 @@ pub fn text(rows: &[Row], robust: &[RobustRow]) -> String {
         let load = r.load_kg.map_or("rig".to_string(), |l| l.to_string());
         lines.push(format!(
             "{:<24} {:>5} {:>5} {:>8.3} {:>8.3} {:>8.3} {:>7.2} {:>8.0} {:>8.0} {:>8.1} {:>4} {:>4} {:>4}",
-            r.controller,
+            sweep::scaled_label(&r.controller, r.hysteresis_scale),
             r.freq_rad_s,
             load,
             r.rms_error_mm,

@@ -373,20 +373,46 @@ impl Dialect {
         }
     }
 
-    /// The note a file in another dialect than commas gets.
-    fn note(self, path: &Path) -> Option<String> {
+    /// Whether a comma in a cell is a locale's decimal comma: where commas
+    /// do not separate the fields.
+    fn decimal_comma(self) -> bool {
+        self != Dialect::Commas
+    }
+
+    /// The note a file in another dialect than commas gets; `commas`:
+    /// whether a cell held a decimal comma.
+    fn note(self, path: &Path, commas: bool) -> Option<String> {
         let how = match self {
             Dialect::Commas => return None,
-            Dialect::Semicolons => "semicolons, a decimal comma read as a point",
+            Dialect::Semicolons => "semicolons",
             Dialect::Tabs => "tabs",
         };
-        Some(format!("{}: fields separated by {how}", path.display()))
+        let commas = if commas {
+            ", a decimal comma read as a point"
+        } else {
+            ""
+        };
+        Some(format!(
+            "{}: fields separated by {how}{commas}",
+            path.display()
+        ))
+    }
+}
+
+/// The number a cell holds; where `decimal_comma`, its comma is a decimal
+/// point (the cell itself is kept as the file has it, for the header's
+/// names and for the messages that quote it).
+fn number(cell: &str, decimal_comma: bool) -> Result<f64, std::num::ParseFloatError> {
+    if decimal_comma && cell.contains(',') {
+        cell.replace(',', ".").parse()
+    } else {
+        cell.parse()
     }
 }
 
 /// The trimmed fields of one line (quotes allowed, as RFC 4180).
 fn split_fields(text: &str, dialect: Dialect) -> Result<csv::StringRecord, csv::Error> {
-    let mut record: csv::StringRecord = if !text.contains('"') {
+    let record: csv::StringRecord = if !text.contains('"') {
         // The common case, without a reader (and its buffer) per line.
         text.split(dialect.separator()).map(str::trim).collect()
     } else {
@@ -399,10 +425,6 @@ fn split_fields(text: &str, dialect: Dialect) -> Result<csv::StringRecord, csv::
         reader.read_record(&mut record)?;
         record
     };
-    // Where commas do not separate, they are a locale's decimal commas.
-    if dialect != Dialect::Commas && record.iter().any(|c| c.contains(',')) {
-        record = record.iter().map(|c| c.replace(',', ".")).collect();
-    }
     Ok(record)
 }
 
@@ -554,7 +576,10 @@ fn parse(
     // writes `0,1,2` as names): a column missing from it says both, and
     // two equal numbers in it (a record starting at `0,0,0`) are no
     // header's repeated name.
-    let numbers_only = names.iter().all(|n| n.trim().parse::<f64>().is_ok());
+    let decimal_comma = dialect.is_some_and(Dialect::decimal_comma);
+    let numbers_only = names
+        .iter()
+        .all(|n| number(n.trim(), decimal_comma).is_ok());
     for (i, n) in names.iter().enumerate() {
         if !numbers_only && names[..i].contains(n) {
             return Err(DataError::DuplicateColumn {
@@ -674,7 +699,7 @@ fn parse(
             let bad = it
                 .into_iter()
                 .chain([ii, io])
-                .find(|&c| !row.cells[c].parse::<f64>().is_ok_and(f64::is_finite));
+                .find(|&c| !number(&row.cells[c], decimal_comma).is_ok_and(f64::is_finite));
             if let Some(c) = bad {
                 dropped.push(format!(
                     "{}: line {}: --split-gaps dropped the row: column \"{}\" holds \"{}\", not \
@@ -693,7 +718,7 @@ fn parse(
         && first
             .cells
             .iter()
-            .all(|c| !c.is_empty() && c.parse::<f64>().is_err())
+            .all(|c| !c.is_empty() && number(c, decimal_comma).is_err())
     {
         return Err(DataError::UnitRow {
             path: p(),
@@ -709,11 +734,15 @@ fn parse(
         });
     }
 
-    let mut notes: Vec<String> = dialect.and_then(|d| d.note(path)).into_iter().collect();
+    let commas = decimal_comma && rows.iter().any(|r| r.cells.iter().any(|c| c.contains(',')));
+    let mut notes: Vec<String> = dialect
+        .and_then(|d| d.note(path, commas))
+        .into_iter()
+        .collect();
     notes.extend(untimed_note);
     notes.extend(dropped);
     let column = |c: usize| -> Result<Vec<f64>, DataError> {
-        Ok(numeric_column(path, &rows, c, &names[c], true)?.unwrap_or_default())
+        Ok(numeric_column(path, &rows, c, &names[c], true, decimal_comma)?.unwrap_or_default())
     };
     // A row dropped above leaves its time out, and `--split-gaps` cuts there.
     let t = match clock {
@@ -728,7 +757,7 @@ fn parse(
         }
         // A column the model does not read (a marker, a note) may have
         // empty or other cells: left out with a note, not a failed file.
-        match numeric_column(path, &rows, c, name, false) {
+        match numeric_column(path, &rows, c, name, false, decimal_comma) {
             Ok(Some(v)) => extra.push((name.clone(), v)),
             Ok(None) => notes.push(format!(
                 "{}: column \"{name}\" holds no numbers; left out",
@@ -857,7 +886,8 @@ fn widest_gap_filled(
     ))
 }
 
-/// Parses column `c` of every row, erring at the first bad cell. A column
+/// Parses column `c` of every row (`decimal_comma`: as [`number`]), erring
+/// at the first bad cell. A column
 /// that is not `required` (not selected) and holds no number at all is a text
 /// column: `Ok(None)`, left out of the trace.
 fn numeric_column(
@@ -866,12 +896,13 @@ fn numeric_column(
     c: usize,
     name: &str,
     required: bool,
+    decimal_comma: bool,
 ) -> Result<Option<Vec<f64>>, DataError> {
     let mut values = Vec::with_capacity(rows.len());
     let mut first_bad = None;
     for row in rows {
         let cell = &row.cells[c];
-        match cell.parse::<f64>() {
+        match number(cell, decimal_comma) {
             Ok(v) if v.is_finite() => values.push(v),
             Ok(_) => {
                 return Err(DataError::NotFinite {
@@ -1516,7 +1547,7 @@ mod tests {
             ),
             (
                 "t;pressure;displacement\n0;0.1;1\n0.01;0.25;2\n",
-                "semicolons, a decimal comma read as a point",
+                "semicolons",
             ),
             (
                 "t\tpressure\tdisplacement\n0\t0.1\t1\n0.01\t0.25\t2\n",
@@ -1542,9 +1573,19 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(
-            err.starts_with("x.csv: line 3, column \"pressure\""),
-            "{err}"
+            err.starts_with("x.csv: line 3, column \"pressure\": \"1.234,5\" is not"),
+            "the cell as the file has it: {err}"
         );
+        // A name's comma is the name's: Excel keeps it in a header of
+        // semicolons.
+        let named = ReadOptions {
+            input: "pressure (MPa, gauge)".into(),
+            ..ReadOptions::default()
+        };
+        let text = "sep=;\nt;pressure (MPa, gauge);displacement\n0;0,1;1\n0,01;0,25;2\n";
+        let (traces, _) = parse(Path::new("x.csv"), text.as_bytes(), &named).unwrap();
+        assert_eq!(traces[0].input, commas[0].input);
+        assert_eq!(traces[0].input_name, "pressure (MPa, gauge)");
     }
 
     #[test]

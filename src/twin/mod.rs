@@ -130,6 +130,34 @@ impl Rig {
         Ok(())
     }
 
+    /// [`Rig::check_load`], then whether the twin's physics holds `load_kg`
+    /// over the valve's whole range: shut for a second, then fully open for
+    /// another, every sample finite. A load a few grams light leaves the
+    /// integration at once; this says so before a run records rows of NaN.
+    pub fn check_holds(config: &TwinConfig, load_kg: f64, seed: u64) -> Result<(), TwinError> {
+        Rig::check_load(config, load_kg)?;
+        let mut rig = Rig::new(config, load_kg, seed);
+        let second = (1.0 / config.sample_time_s).ceil() as usize;
+        let full = config.valve.full_scale_v;
+        for k in 1..=2 * second {
+            let s = rig.step(if k <= second { 0.0 } else { full });
+            for (column, v) in [
+                ("displacement", s.displacement_mm),
+                ("pressure", s.pressure_mpa),
+            ] {
+                if !v.is_finite() {
+                    return Err(TwinError::NotFinite {
+                        column: column.into(),
+                        k,
+                        t_s: s.t,
+                        command: format!("{load_kg} kg"),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// The rig at rest: load hanging, chamber at atmospheric pressure, input
     /// valve commanded shut (0 V) and output valve open (10 V). `seed` seeds
     /// the sensor noise (`ChaCha8Rng`); nothing else is random.
