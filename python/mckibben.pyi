@@ -91,7 +91,8 @@ class Model:
     def simulate(self, u: _ArrayLike | Trace, x0: float | None = None) -> npt.NDArray[np.float64]:
         """Free-run output on `u`; `x0` is the measured output at the first
         sample (default: at rest at the first input; for a `Trace`, its
-        first measured output)."""
+        first measured output). A `Trace` in other units or at another
+        sample time than the model's raises `ValueError`."""
     @property
     def params(self) -> dict[str, float]:
         """The family's parameters in canonical order, then the effects' as `effect.param`."""
@@ -99,7 +100,7 @@ class Model:
     def effects(self) -> list[str]:
         """The effect stages after the family, in chain order."""
     @property
-    def family(self) -> Literal["classic", "generalized"]: ...
+    def family(self) -> Literal["linear", "classic", "generalized"]: ...
     @property
     def stable_step(self) -> float | None:
         """The largest output step a sample within which the hysteresis update settles."""

@@ -427,7 +427,10 @@ fn an_mpc_whose_solves_fail_is_named_and_its_row_keeps_its_kind() {
         .find(|r| r["hysteresis_scale"] == 100.0)
         .expect("the scaled run");
     assert_eq!(scaled["controller"], "mpc");
-    assert!(scaled["solver_failures"].as_u64().unwrap() > 0, "{scaled:?}");
+    assert!(
+        scaled["solver_failures"].as_u64().unwrap() > 0,
+        "{scaled:?}"
+    );
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         err.contains("warning: mpc (hysteresis ×100) at 3 rad/s, 4.5 kg:")

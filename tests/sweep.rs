@@ -78,7 +78,10 @@ fn cases_and_populations_out_of_reach_are_refused() {
         // Given twice, a case was fitted and counted twice.
         (["--seeds", "1,1"], "--seeds names 1 twice"),
         (["--pop", "100,100"], "--pop names 100 twice"),
-        (["--family", "classic,classic"], "--family names classic twice"),
+        (
+            ["--family", "classic,classic"],
+            "--family names classic twice",
+        ),
     ] {
         let out = Command::new(BIN)
             .arg("sweep")

@@ -126,6 +126,11 @@ impl Model {
         let (input, x0) = match u.cast::<crate::data::Trace>() {
             Ok(trace) => {
                 let trace = &trace.borrow().inner;
+                // As `simulate --from` on a file: units and sample time
+                // the model's, or an error (an array is taken at its word).
+                self.inner
+                    .check_data(trace)
+                    .map_err(crate::convert::value_error)?;
                 (trace.input.clone(), x0.or(trace.output.first().copied()))
             }
             Err(_) => (series(u, "u")?, x0),
@@ -168,7 +173,8 @@ impl Model {
         PyList::new(py, self.inner.effects().iter().map(|e| e.name()))
     }
 
-    /// The family: `classic` or `generalized`.
+    /// The family: `classic` or `generalized` (`linear` for an `identify`
+    /// model).
     #[getter]
     fn family(&self) -> &'static str {
         self.base().family.name()

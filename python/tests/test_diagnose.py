@@ -157,7 +157,10 @@ def test_a_record_at_fault_is_named_by_its_place_in_the_list(stair):
     with pytest.raises(ValueError, match=r"^datasets\[1\] \(python\): 30 samples are too few"):
         mckibben.diagnose([stair, short], **args)
     with pytest.raises(ValueError, match=r"^datasets\[2\] \(python\): the input `pressure` is constant"):
-        mckibben.diagnose([stair, mckibben.Trace(u, y, stair.dt), mckibben.Trace(np.ones(100), y[:100], stair.dt)], **args)
+        mckibben.diagnose([stair, mckibben.Trace(u[:2000], y[:2000], stair.dt), mckibben.Trace(np.ones(100), y[:100], stair.dt)], **args)
+    # The stair given twice would weigh double.
+    with pytest.raises(ValueError, match="hold the same samples"):
+        mckibben.diagnose([stair, mckibben.Trace(u, y, stair.dt)], **args)
     # A tuple's source is its place: named once, and a transfer's as such
     # (it was "cannot fit datasets[1]: datasets[1]: ...").
     with pytest.raises(ValueError, match=r"^datasets\[1\]: 30 samples are too few to split"):
@@ -166,6 +169,10 @@ def test_a_record_at_fault_is_named_by_its_place_in_the_list(stair):
         mckibben.diagnose([stair, (u * 1e30, y, stair.dt)], **args)
     assert str(e.value).startswith("column `pressure` of datasets[1] spans")
     assert str(e.value).count("datasets[1]") == 1
+    # Records in other units are not pooled, as `fit` does not pool them.
+    in_kpa = mckibben.Trace(u * 1000, y, stair.dt, input_name="p_kPa")
+    with pytest.raises(ValueError, match="one model takes one input and one output, in one unit"):
+        mckibben.diagnose([stair, in_kpa], **args)
     with pytest.raises(ValueError, match=r"^transfer\[1\]: 30 samples are too few to split"):
         mckibben.diagnose(stair, transfer=[stair, (u[:30], y[:30], stair.dt)], **args)
 

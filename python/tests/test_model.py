@@ -73,6 +73,14 @@ def test_simulate_takes_any_layout_and_starts_where_asked(small_fit, stair):
     # Text or None is not an array: a TypeError naming the argument.
     with pytest.raises(TypeError, match="^u must be an array of numbers .*, got str 'stair.csv'"):
         model.simulate("stair.csv")
+    # A Trace in other units, or at another sample time, is refused as
+    # `simulate --from` refuses such a file.
+    in_kpa = mckibben.Trace(stair.input * 1000, stair.output, stair.dt, input_name="p_kPa")
+    with pytest.raises(ValueError, match="the model's input is in MPa .* `p_kPa` is in kPa"):
+        model.simulate(in_kpa)
+    slower = mckibben.Trace(stair.input, stair.output, 2 * stair.dt)
+    with pytest.raises(ValueError, match="sampled every 0.02 s, the model every 0.01 s"):
+        model.simulate(slower)
     with pytest.raises(TypeError, match="^u must be an array of numbers .*, got None"):
         model.simulate(None)
     with pytest.raises(ValueError, match="at least 2 samples"):

@@ -334,6 +334,9 @@ fn workload(args: &Args) -> anyhow::Result<Workload> {
         }
     };
     let datasets = experiments.len();
+    if let Some(why) = Effect::chain_conflict(&args.effects) {
+        anyhow::bail!("--effects {why}");
+    }
     if let Some(e) = args.effects.iter().find(|e| !e.applicable(datasets)) {
         anyhow::bail!(
             "--effects: `{e}` needs at least two datasets (data files), this run has {datasets}"

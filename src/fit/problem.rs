@@ -423,11 +423,10 @@ impl FitProblem {
             effects.is_empty() || self.flow == Flow::Joint,
             "the thesis' flow fits the thesis' models: --effects needs the joint flow"
         );
-        for (k, e) in effects.iter().enumerate() {
-            anyhow::ensure!(
-                !effects[..k].contains(e),
-                "--effects names `{e}` twice: each effect enters a chain once"
-            );
+        if let Some(why) = Effect::chain_conflict(effects) {
+            anyhow::bail!("--effects {why}");
+        }
+        for e in effects {
             // Its parameters would tell the records apart (one per load),
             // and a model file is one model for any record.
             anyhow::ensure!(

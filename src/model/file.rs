@@ -536,11 +536,8 @@ impl ModelFile {
             .iter()
             .map(|e| Ok(e.parse::<Effect>()?))
             .collect::<anyhow::Result<_>>()?;
-        for (k, e) in effects.iter().enumerate() {
-            anyhow::ensure!(
-                !effects[..k].contains(e),
-                "`effects` lists `{e}` twice: each effect enters a chain once"
-            );
+        if let Some(why) = Effect::chain_conflict(&effects) {
+            anyhow::bail!("`effects` {why}");
         }
         anyhow::ensure!(self.datasets >= 1, "`datasets` must be at least 1");
         // The poles are per sample: without a sample time the model cannot
@@ -765,7 +762,16 @@ mod tests {
         file.effects.push(file.effects[0].clone());
         let twice = write("twice.json", serde_json::to_string(&file).unwrap());
         let e = format!("{:#}", ModelFile::load(&twice).unwrap_err());
-        assert!(e.contains("lists `creep` twice"), "{e}");
+        assert!(e.contains("`effects` names `creep` twice"), "{e}");
+        // Two realisations of one physical effect: a model holds one.
+        let mut file = ModelFile::new(&chained(), None, Provenance::default());
+        file.effects.push("creep:output".into());
+        let both = write("both.json", serde_json::to_string(&file).unwrap());
+        let e = format!("{:#}", ModelFile::load(&both).unwrap_err());
+        assert!(
+            e.contains("names `creep` and `creep:output`, two realisations of `creep`"),
+            "{e}"
+        );
 
         // A field of the wrong type is named by its place in the file.
         let file = ModelFile::new(&chained(), None, Provenance::default());

@@ -84,6 +84,27 @@ impl Effect {
             .collect()
     }
 
+    /// Why `effects` cannot be one chain, if they cannot: an effect named
+    /// twice, or two realisations of one physical effect (`creep` and
+    /// `creep:output`), where a model holds one of each.
+    pub fn chain_conflict(effects: &[Effect]) -> Option<String> {
+        for (k, e) in effects.iter().enumerate() {
+            if let Some(other) = effects[..k].iter().find(|o| o.physical() == e.physical()) {
+                return Some(if other == e {
+                    format!("names `{e}` twice: each effect enters a chain once")
+                } else {
+                    format!(
+                        "names `{other}` and `{e}`, two realisations of `{}`: a model holds one \
+                         realisation of each physical effect (`diagnose --effects` tries them \
+                         against each other)",
+                        e.physical()
+                    )
+                });
+            }
+        }
+        None
+    }
+
     /// Whether the effect can be fitted on `datasets` datasets (`load` needs two).
     pub fn applicable(self, datasets: usize) -> bool {
         datasets >= self.entry().min_datasets
@@ -361,6 +382,26 @@ impl ModelDescription {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A chain holds one realisation of each physical effect: `fit
+    /// --effects creep,creep:output` built two creeps, where the diagnosis
+    /// tries them against each other.
+    #[test]
+    fn a_chain_holds_one_realisation_of_each_physical_effect() {
+        let parse =
+            |names: &[&str]| -> Vec<Effect> { names.iter().map(|n| n.parse().unwrap()).collect() };
+        assert_eq!(
+            Effect::chain_conflict(&parse(&["creep", "delay:input-lag"])),
+            None
+        );
+        let both = Effect::chain_conflict(&parse(&["creep", "delay", "creep:output"])).unwrap();
+        assert!(
+            both.contains("`creep` and `creep:output`, two realisations of `creep`"),
+            "{both}"
+        );
+        let twice = Effect::chain_conflict(&parse(&["delay", "delay"])).unwrap();
+        assert!(twice.starts_with("names `delay` twice"), "{twice}");
+    }
 
     #[test]
     fn the_default_catalogue_leaves_out_only_what_is_tried_on_request() {
