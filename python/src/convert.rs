@@ -182,7 +182,9 @@ pub fn shape_text(shape: &[usize]) -> String {
 /// A sample time (`what` names it): finite and positive.
 pub fn sample_time(dt: f64, what: &str) -> PyResult<f64> {
     if dt.is_finite() && dt > 0.0 {
-        Ok(dt)
+        // As the commands' --dt and --resample: a nanosecond to a day.
+        mckibben::data::sample_time(dt)
+            .map_err(|why| PyValueError::new_err(format!("{what}: {why}")))
     } else {
         Err(PyValueError::new_err(format!(
             "{what} must be a positive number of seconds, got {dt}"
@@ -292,6 +294,20 @@ pub fn in_python_terms(message: &str) -> String {
             continue;
         };
         rest = &after[len..];
+        // A value after `=` (`--time=t`, `--loop=free`) is the argument's:
+        // `time="t"`, a number bare.
+        if let Some(given) = rest.strip_prefix('=') {
+            let end = given
+                .find(|c: char| c.is_whitespace() || matches!(c, ',' | ';' | ')'))
+                .unwrap_or(given.len());
+            let value = &given[..end];
+            match value.parse::<f64>() {
+                Ok(_) => out.push_str(&format!("`{keyword}={value}`")),
+                Err(_) => out.push_str(&format!("`{keyword}=\"{value}\"`")),
+            }
+            rest = &given[end..];
+            continue;
+        }
         // A placeholder (`--input COL`) or a number (`--refine-rounds 8`)
         // joins the keyword as its value.
         let placeholder = rest.strip_prefix(' ').and_then(|r| {

@@ -9,7 +9,7 @@ use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
 
 use crate::args::family_or_start;
-use crate::convert::{backend, to_python, value_error};
+use crate::convert::{backend, in_python_terms, to_python, value_error};
 use crate::data::{located, traces};
 use crate::interrupt::interruptible;
 use crate::model::model_arg;
@@ -79,6 +79,10 @@ pub fn diagnose<'py>(
     let transfers = transfer.map(|t| self::traces(t, "transfer")).transpose()?;
     let (traces, read) = (&records.traces, &records.read);
     let others = transfers.as_ref().map_or(&[][..], |r| &r.traces[..]);
+    if let Some(note) = mckibben::diagnose::assumed_unit_note(traces) {
+        py.import("warnings")?
+            .call_method1("warn", (in_python_terms(&note),))?;
+    }
     let defaults = Settings::default();
     let seeds = seeds.unwrap_or(defaults.seeds);
     let generations = generations.unwrap_or(defaults.generations);

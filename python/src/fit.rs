@@ -242,10 +242,14 @@ pub fn fit(
 ) -> PyResult<FitResult> {
     // A list of experiments, as `fit a.csv b.csv`; its records are named by
     // their place in it where the library's checks refuse one.
-    // A tuple of Traces is such a list; a tuple of arrays is not.
+    // A tuple of Traces or of (u, y, dt) tuples is such a list; a tuple of
+    // numbers (one input) is not.
+    let experiment = |i: Bound<'_, PyAny>| {
+        i.cast::<Trace>().is_ok() || i.cast::<PyTuple>().is_ok_and(|t| t.len() == 3)
+    };
     let traces_only = u
         .cast::<PyTuple>()
-        .is_ok_and(|t| !t.is_empty() && t.iter().all(|i| i.cast::<Trace>().is_ok()));
+        .is_ok_and(|t| !t.is_empty() && t.iter().all(experiment));
     let listed = match u.cast::<PyList>().is_ok() || traces_only {
         true if y.is_none() && dt.is_none() => Some(traces(u, "u")?),
         _ => None,
@@ -387,7 +391,17 @@ pub fn fit(
     for n in &report.notes {
         warn.call_method1("warn", (&n.text,))?;
     }
-    if outcome.params.is_empty() {
+    if outcome.evaluations == 0 {
+        // Stopped before a score: nothing diverged, nothing was tried.
+        warn.call_method1(
+            "warn",
+            (format!(
+                "stopped ({:?}) before any candidate was scored: the result holds no model \
+                 (`model` is None)",
+                outcome.stop
+            ),),
+        )?;
+    } else if outcome.params.is_empty() {
         // The command's error, as a warning: the result still holds the
         // run's history and stages, which say where it failed.
         warn.call_method1(

@@ -33,7 +33,8 @@ def test_a_file_without_a_time_column_reads_with_dt(stair, tmp_path):
     assert list(trace.output) == [1.0, 2.0, 3.0]
     with pytest.raises(ValueError, match=r"no time column \"t\".*`dt=SECONDS`"):
         mckibben.read_csv(f, input="p_kPa", output="x_mm")
-    with pytest.raises(ValueError, match='this file has one, "t"'):
+    # The fix in Python's words (it read "(`time` t, without `dt`)").
+    with pytest.raises(ValueError, match=r'this file has one, "t": read its clock instead \(`time="t"`, without `dt`\)'):
         mckibben.read_csv(STAIR, dt=0.01)
     with pytest.raises(ValueError, match="dt must be a positive number of seconds"):
         mckibben.read_csv(f, input="p_kPa", output="x_mm", dt=-1.0)
@@ -116,8 +117,9 @@ def test_a_trace_takes_any_float_dtype_layout_or_list():
         ([1.0, 2.0], [1.0, 2.0], 0.0, ValueError, "dt must be a positive"),
         # A step whose last time is infinite.
         ([1.0, 2.0], [1.0, 2.0], float("inf"), ValueError, "^dt must be a positive number of seconds, got inf"),
-        ([1.0, 2.0, 3.0], [1.0, 2.0, 3.0], 1e308, ValueError,
-         r"^dt = 1e308 s puts the last sample \(2 steps in\) at an infinite time"),
+        # As the commands' --dt: a nanosecond to a day.
+        ([1.0, 2.0], [1.0, 2.0], 1e300, ValueError, r"^dt: 1e300 s is outside a nanosecond to a day"),
+        ([1.0, 2.0], [1.0, 2.0], 1e-12, ValueError, r"^dt: 1e-12 s is outside a nanosecond to a day"),
         (["a", "b"], [1.0, 2.0], 0.1, TypeError, "expected real numbers"),
         ([1j, 2j], [1.0, 2.0], 0.1, TypeError, "complex"),
         ([True, False], [1.0, 2.0], 0.1, TypeError, "bool"),

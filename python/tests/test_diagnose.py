@@ -109,7 +109,7 @@ def test_diagnose_rejects_bad_arguments(stair):
     # A tuple's arrays are named by their place.
     with pytest.raises(TypeError, match=r"^datasets\[1\]\[0\] must be an array of numbers .*, got str 'u'"):
         mckibben.diagnose([stair, ("u", stair.output, stair.dt)])
-    with pytest.raises(ValueError, match=r"^datasets\[0\]\[2\] = 1e308 s puts the last sample"):
+    with pytest.raises(ValueError, match=r"^datasets\[0\]\[2\]: 1e308 s is outside a nanosecond to a day"):
         mckibben.diagnose([(stair.input, stair.output, 1e308)])
     with pytest.raises(ValueError, match=r"^datasets\[0\]\[1\]\[2\] is NaN"):
         mckibben.diagnose([(stair.input[:3], [1.0, 2.0, np.nan], stair.dt)])
@@ -169,6 +169,12 @@ def test_a_record_at_fault_is_named_by_its_place_in_the_list(stair):
         mckibben.diagnose([stair, (u * 1e30, y, stair.dt)], **args)
     assert str(e.value).startswith("column `pressure` of datasets[1] spans")
     assert str(e.value).count("datasets[1]") == 1
+    # An output that names no length unit is taken in mm, and Python is
+    # told so, as the command tells its user.
+    unnamed = mckibben.Trace(u, y, stair.dt, output_name="y")
+    with pytest.warns(UserWarning, match="the output column `y` names no length unit"):
+        with pytest.raises(ValueError):
+            mckibben.diagnose([unnamed, (u[:30], y[:30], stair.dt)], **args)
     # Records in other units are not pooled, as `fit` does not pool them.
     in_kpa = mckibben.Trace(u * 1000, y, stair.dt, input_name="p_kPa")
     with pytest.raises(ValueError, match="one model takes one input and one output, in one unit"):

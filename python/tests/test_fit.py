@@ -74,6 +74,9 @@ def test_a_list_of_experiments_is_the_commands_fit_of_several_files(stair, cli, 
     # A tuple is an experiment too, named by its place where it is refused.
     with pytest.raises(ValueError, match=r"u\[1\]"):
         mckibben.fit([stair, (stair.input[:10], stair.output[:10], 0.01)], pop=20, gens=2)
+    # So is a tuple of them (it was read as one input array).
+    with pytest.raises(ValueError, match=r"u\[1\]"):
+        mckibben.fit((stair, (stair.input[:10], stair.output[:10], 0.01)), pop=20, gens=2)
 
 
 def test_fit_with_effects_gives_the_commands_parameters_and_file(stair, cli, tmp_path):
@@ -325,8 +328,8 @@ def test_bad_data_raise_value_errors(stair):
         mckibben.fit(stair, y, 0.01)
     with pytest.raises(ValueError, match="u is empty"):
         mckibben.fit([], [], 0.01)
-    # A sample time that puts the last sample at an infinite time.
-    with pytest.raises(ValueError, match=r"^dt = 1e307 s puts the last sample \(3999 steps in\) at an infinite time"):
+    # A sample time past a day (its last sample's time was infinite).
+    with pytest.raises(ValueError, match=r"^dt: 1e307 s is outside a nanosecond to a day"):
         mckibben.fit(u, y, 1e307)
     # Text or None where an array goes is a TypeError naming the argument.
     with pytest.raises(TypeError, match="^u must be an array of numbers .*, got str 'u.csv'"):
@@ -364,6 +367,11 @@ def test_a_fit_where_every_candidate_diverges_warns_and_holds_no_model(stair):
     with pytest.warns(UserWarning, match="every candidate diverged: the result holds no model"):
         result = mckibben.fit(stair, pop=20, gens=5, bounds={"a": 1.5})
     assert result.model is None and result.params == {}
+    # Stopped before any score, nothing diverged: it said so, wrongly.
+    with pytest.warns(UserWarning, match=r"stopped \(TimeBudget\) before any candidate was scored") as seen:
+        result = mckibben.fit(stair, pop=20, gens=5, time_budget=0)
+    assert result.model is None
+    assert not any("diverged" in str(w.message) for w in seen)
 
 
 @pytest.mark.parametrize(

@@ -466,13 +466,8 @@ fn first_existing(candidates: &[PathBuf]) -> anyhow::Result<PathBuf> {
 /// Parses a step in seconds that must be positive and finite.
 fn positive_seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
-        // A nanosecond to a day: past either, a sample time is a typo, and
-        // times k·DT would lose their digits or overflow.
-        Ok(v) if (1e-9..=86_400.0).contains(&v) => Ok(v),
-        Ok(v) if v.is_finite() && v > 0.0 => Err(format!(
-            "{s} s is outside a nanosecond to a day (1e-9 to 86400): not a sample time"
-        )),
-        _ => Err(format!(
+        Ok(v) => mckibben::data::sample_time(v),
+        Err(_) => Err(format!(
             "\"{s}\" is not a positive number of seconds (e.g. 0.01 for 100 Hz)"
         )),
     }

@@ -5,8 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use mckibben::data::units::stated_length_in_mm;
-use mckibben::data::{mixed_steps, range, same_step, tidy_step};
+use mckibben::data::{mixed_steps, same_step, tidy_step};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::transfer::{check_others, transfer};
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
@@ -15,7 +14,6 @@ use mckibben::eval::Backend;
 use mckibben::model::{Family, ModelFile};
 use mckibben::names::UnknownName;
 use mckibben::report::json::Versioned;
-use mckibben::report::number::significant;
 
 use super::common::{ModelArg, MultiDataArgs};
 
@@ -265,17 +263,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         let _ = ctrlc::set_handler(move || stop.raise());
     }
     let traces = args.data.load()?;
-    if let Some(first) = traces.first()
-        && stated_length_in_mm(&first.output_name).is_none()
-    {
-        let output = &first.output_name;
-        eprintln!(
-            "mckibben: note: the output column `{output}` names no length unit, so the \
-             diagnosis' loop-shape box, made for a stroke of about 40 mm, takes it in mm \
-             (its first record spans {}); if it is in another, name the unit \
-             (`{output}_m`, `{output} [cm]`)",
-            significant(range(&first.output), 3)
-        );
+    if let Some(note) = mckibben::diagnose::assumed_unit_note(&traces) {
+        eprintln!("mckibben: note: {note}");
     }
     if let Some(kind) = args.self_test {
         let trace = traces.first().context("no data")?;

@@ -172,7 +172,7 @@ pub enum DataError {
     },
     #[error(
         "{}: line {line}: --dt gives the rows' spacing for a file without a time column, \
-         and this file has one, \"{column}\": read its clock instead (--time {column}, without \
+         and this file has one, \"{column}\": read its clock instead (--time={column}, without \
          --dt), and --resample DT to put it on another step",
         path.display()
     )]
@@ -581,7 +581,9 @@ fn parse(
         .iter()
         .all(|n| number(n.trim(), decimal_comma).is_ok());
     for (i, n) in names.iter().enumerate() {
-        if !numbers_only && names[..i].contains(n) {
+        // Unnamed columns (pandas' index, a spreadsheet's empty columns)
+        // are left out below, however many there are.
+        if !numbers_only && !n.is_empty() && names[..i].contains(n) {
             return Err(DataError::DuplicateColumn {
                 path: p(),
                 line: header_line,
@@ -753,6 +755,16 @@ fn parse(
     let mut extra = Vec::new();
     for (c, name) in names.iter().enumerate() {
         if Some(c) == it || c == ii || c == io {
+            continue;
+        }
+        // No name to keep it under, nor to write it back with.
+        if name.is_empty() {
+            notes.push(format!(
+                "{}: column {} has no name (pandas' index, or a spreadsheet's empty column); \
+                 left out",
+                path.display(),
+                c + 1
+            ));
             continue;
         }
         // A column the model does not read (a marker, a note) may have
@@ -1492,6 +1504,42 @@ mod tests {
         assert_eq!(traces[0].output, [1.0, 2.0, 3.0]);
     }
 
+    /// Columns without a name (pandas' `to_csv` index, a spreadsheet's
+    /// empty columns at the end) are left out with a note, however many:
+    /// two were "column \"\" appears twice", one was kept under the name
+    /// "" that no file can be written with.
+    #[test]
+    fn unnamed_columns_are_left_out() {
+        let (plain, _) = read(
+            "t,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n",
+            Gaps::Reject,
+        )
+        .unwrap();
+        for (text, columns) in [
+            (
+                ",t,pressure,displacement\n0,0,0.1,1\n1,0.01,0.2,2\n",
+                vec![1],
+            ),
+            (
+                "t,pressure,displacement,,\n0,0.1,1,,\n0.01,0.2,2,,\n",
+                vec![4, 5],
+            ),
+        ] {
+            let (traces, notes) = read(text, Gaps::Reject).unwrap();
+            assert_eq!(
+                (&traces[0].t, &traces[0].input, &traces[0].output),
+                (&plain[0].t, &plain[0].input, &plain[0].output),
+                "{text:?}"
+            );
+            assert!(traces[0].extra.is_empty(), "{text:?}");
+            let expected: Vec<String> = columns
+                .iter()
+                .map(|c| format!("x.csv: column {c} has no name (pandas' index, or a spreadsheet's empty column); left out"))
+                .collect();
+            assert_eq!(notes, expected, "{text:?}");
+        }
+    }
+
     /// One column named for two roles (`--input t`) would fit the time as
     /// the pressure.
     #[test]
@@ -1851,7 +1899,7 @@ mod tests {
         // A clock under another name is a clock too.
         let logged = timed.replacen("t,", "time_s,", 1);
         let both = parse(Path::new("x.csv"), logged.as_bytes(), &at(Gaps::Reject)).unwrap_err();
-        assert!(both.to_string().contains("--time time_s"), "{both}");
+        assert!(both.to_string().contains("--time=time_s"), "{both}");
         // An empty row between samples is a missing sample: an error, or a
         // cut with --split-gaps; trailing empty rows are nothing.
         let rows = |hole: &str| {

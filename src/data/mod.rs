@@ -185,6 +185,25 @@ pub fn unlike_records(traces: &[Trace]) -> Option<String> {
     None
 }
 
+/// The sample times a record may have: a nanosecond to a day. Past either,
+/// a step is a typo, and the times `k·dt` lose their digits or overflow.
+pub const SAMPLE_TIMES: std::ops::RangeInclusive<f64> = 1e-9..=86_400.0;
+
+/// `dt` where it is a sample time ([`SAMPLE_TIMES`]), else why it is not.
+pub fn sample_time(dt: f64) -> Result<f64, String> {
+    if SAMPLE_TIMES.contains(&dt) {
+        Ok(dt)
+    } else if dt.is_finite() && dt > 0.0 {
+        Err(format!(
+            "{dt:e} s is outside a nanosecond to a day (1e-9 to 86400): not a sample time"
+        ))
+    } else {
+        Err(format!(
+            "{dt} is not a positive number of seconds (e.g. 0.01 for 100 Hz)"
+        ))
+    }
+}
+
 /// The traces' sources as a message names them: `a.csv, b.csv`.
 pub fn sources(traces: &[Trace]) -> String {
     traces

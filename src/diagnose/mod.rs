@@ -333,6 +333,24 @@ pub struct NotTried {
     pub why: &'static str,
 }
 
+/// The note a diagnosis of `traces` owes its user where the first record's
+/// output column names no length unit: the loop-shape box, made for a
+/// stroke of about 40 mm, then takes it in mm, and a record in metres
+/// gets another verdict.
+pub fn assumed_unit_note(traces: &[Trace]) -> Option<String> {
+    let first = traces.first()?;
+    let output = &first.output_name;
+    if crate::data::units::stated_length_in_mm(output).is_some() {
+        return None;
+    }
+    Some(format!(
+        "the output column `{output}` names no length unit, so the diagnosis' loop-shape box, \
+         made for a stroke of about 40 mm, takes it in mm (its first record spans {}); if it \
+         is in another, name the unit (`{output}_m`, `{output} [cm]`)",
+        crate::report::number::significant(crate::data::range(&first.output), 3)
+    ))
+}
+
 /// The effects of `effects` the selection tries on `traces`, and those it
 /// leaves out, with why:
 /// - an effect named (not the default catalogue's, which tries what

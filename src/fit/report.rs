@@ -692,7 +692,7 @@ impl FitReport {
                      the record lets it go"
                 }
                 Origin::Class => {
-                    "the edge of its range or of the bounded class (--loop free lifts \
+                    "the edge of its range or of the bounded class (--loop=free lifts \
                               the class)"
                 }
             };
