@@ -82,8 +82,9 @@ pub struct Args {
     /// of the twin's design multisine. Its second half validates the model.
     #[arg(long, value_name = "FILE.csv")]
     design_data: Option<PathBuf>,
-    /// Replace the identified displacement model by this one (a model JSON
-    /// written by `fit` or `identify --out`; classic or linear family).
+    /// Replace the identified displacement model by this one (a model file
+    /// written by `fit --out`, `diagnose --out` or `identify --out`: the
+    /// classic or linear family, with the effects the controllers can use).
     #[arg(long, value_name = "MODEL.json")]
     from: Option<PathBuf>,
     /// Also run the model-based controllers with the model's hysteresis
@@ -372,21 +373,47 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
     let designs = kinds.iter().any(|k| k.needs_model()) || args.robustness;
-    if !designs {
-        // A model named for nothing would hide a typo in its path.
-        for (flag, given) in [
-            ("--from", args.from.is_some()),
-            ("--design-data", args.design_data.is_some()),
-        ] {
-            anyhow::ensure!(
-                !given,
-                "{flag}: none of the controllers asked for ({}) uses a model; add ff-pid or \
-                 mpc to --controller, or leave {flag} out",
-                args.controller
-                    .iter()
-                    .map(|&k| Kind::from(k).label())
-                    .collect::<Vec<_>>()
-                    .join(", ")
+    // Said, not refused: a script may name its record for every run.
+    let asked = || {
+        args.controller
+            .iter()
+            .map(|&k| Kind::from(k).label())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let model_based = kinds.iter().any(|k| k.needs_model());
+    for (flag, given, used, by) in [
+        ("--from", args.from.is_some(), designs, "ff-pid or mpc"),
+        (
+            "--design-data",
+            args.design_data.is_some(),
+            designs,
+            "ff-pid or mpc",
+        ),
+        (
+            "--hysteresis-scale",
+            !args.hysteresis_scale.is_empty(),
+            model_based,
+            "ff-pid or mpc",
+        ),
+        (
+            "--robustness",
+            args.robustness,
+            model_based,
+            "ff-pid or mpc",
+        ),
+        (
+            "--tuned-gains",
+            args.tuned_gains.is_some(),
+            kinds.iter().any(|k| k.needs_gains()),
+            "pi-tuned or ff-pid",
+        ),
+    ] {
+        if given && !used {
+            eprintln!(
+                "mckibben: warning: {flag} is not read: none of the controllers asked for ({}) \
+                 uses it; add {by} to --controller for one that does",
+                asked()
             );
         }
     }

@@ -76,13 +76,14 @@ pub struct Args {
     /// The input: `stair`, `sine` or a CSV file.
     #[arg(long, default_value = "stair")]
     input: String,
-    /// Angular frequency of `--input sine` (rad/s), below Nyquist's π/dt.
-    #[arg(long, default_value_t = 1.0)]
-    freq: f64,
+    /// Angular frequency of `--input sine` (rad/s), below Nyquist's π/dt
+    /// [default: 1].
+    #[arg(long, allow_negative_numbers = true)]
+    freq: Option<f64>,
     /// Sample time of generated inputs (s): the model file's (its poles
     /// are per sample), else 0.01. With a CSV `--input` that has no time
     /// column: its rows' spacing (s), the first row at 0.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     dt: Option<f64>,
     /// With a CSV `--input`: the column holding the model input (default:
     /// the model file's, else `pressure`).
@@ -418,6 +419,11 @@ fn check_files_and_flags(args: &Args) -> anyhow::Result<()> {
         writes.push(("--plot", path));
     }
     check_distinct(&reads, &writes)?;
+    anyhow::ensure!(
+        args.freq.is_none() || args.input == "sine",
+        "--freq sets the frequency of --input sine; --input {} has its own: leave --freq out",
+        args.input
+    );
     if args.input_is_generated() {
         let csv_only = [
             ("--input-col", args.input_col.is_some()),
@@ -547,18 +553,18 @@ fn input_trace(
             Ok((trace, None))
         }
         "sine" => {
-            anyhow::ensure!(args.freq > 0.0, "--freq must be positive (rad/s)");
+            let freq = args.freq.unwrap_or(1.0);
+            anyhow::ensure!(freq > 0.0, "--freq must be positive (rad/s)");
             let nyquist = nyquist_rad_s(dt);
             anyhow::ensure!(
-                args.freq < nyquist,
-                "--freq {}: with --dt {dt} a sine must stay below Nyquist's {nyquist:.1} rad/s \
-                 (π/dt); above, its samples show a slower sine",
-                args.freq
+                freq < nyquist,
+                "--freq {freq}: with --dt {dt} a sine must stay below Nyquist's {nyquist:.1} \
+                 rad/s (π/dt); above, its samples show a slower sine"
             );
             let n =
                 samples_in(SINE_SECONDS, dt).map_err(|why| anyhow::anyhow!("--dt {dt}: {why}"))?;
             let p = (0..n)
-                .map(|k| 0.25 + 0.2 * (args.freq * k as f64 * dt).sin())
+                .map(|k| 0.25 + 0.2 * (freq * k as f64 * dt).sin())
                 .collect();
             Ok((Trace::uniform("sine", dt, p, vec![0.0; n]), None))
         }

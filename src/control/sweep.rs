@@ -19,7 +19,7 @@ use super::pi::{Pi, PiGains};
 use super::reference::Waveform;
 use super::validation::{self, LoopCheck};
 use crate::data::Trace;
-use crate::data::csv::{ReadOptions, read_traces};
+use crate::data::csv::{DataError, ReadOptions, read_traces};
 use crate::data::units::unit_of;
 use crate::model::effects::Effect;
 use crate::model::{FittedBaseline, ModelFile};
@@ -215,6 +215,19 @@ pub fn design_for(
     let design = match &request.record {
         Some(path) => {
             let traces = read_traces(path, &ReadOptions::default()).map_err(|e| {
+                // `control` has no column flags: the names are the fix.
+                if let DataError::MissingColumn {
+                    column, available, ..
+                } = &e
+                {
+                    return anyhow::anyhow!(
+                        "--design-data {}: no column \"{column}\" (the file has {}): the design \
+                         record's columns are named t (s), valve_in (V), pressure (MPa) and \
+                         displacement (mm); rename the file's to these",
+                        path.display(),
+                        available.join(", ")
+                    );
+                }
                 let e = e.with_time_hint(
                     "the design record is one experiment: cut the file there",
                     "the design record needs a uniform time step: resample it, or cut it at \

@@ -118,12 +118,17 @@ fn header_text(o: &mut String, d: &Diagnosis) {
     let _ = writeln!(o, "{}", parts_text(d));
     let _ = writeln!(
         o,
-        "Baseline: selection fit {:.1} % (RMSE {}), test fit {:.1} % (RMSE {}); noise floor ≈ {} (from second differences of the measured output, test part left out)",
+        "Baseline: selection fit {:.1} % (RMSE {}), test fit {:.1} % (RMSE {}); noise floor ≈ {} (from second differences of the measured output, test part left out){}",
         base.selection_fit_percent,
         significant(base.selection_rmse, 4),
         base.test_fit_percent,
         significant(base.test_rmse, 4),
-        significant(d.noise_floor_rmse, 4)
+        significant(d.noise_floor_rmse, 4),
+        // Every figure below pools them as this one does.
+        match d.datasets.len() {
+            1 => String::new(),
+            n => format!("; the {n} records' parts pooled, each about its own mean"),
+        }
     );
     if let Some(caution) = baseline_caution(d) {
         let _ = writeln!(o, "  CAUTION: {caution}");
@@ -536,10 +541,16 @@ fn explainable_text(o: &mut String, d: &Diagnosis) {
     );
     let _ = writeln!(
         o,
-        "  selection RMSE {} → {}: a flexible model closes {} of the gap above the noise floor",
+        "  selection RMSE {} → {}: a flexible model closes {} of the gap above the noise floor{}",
         significant(b.baseline_rmse, 4),
         significant(b.bound_rmse, 4),
-        pct(b.gap_closable)
+        pct(b.gap_closable),
+        if b.gap_closable < 0.0 {
+            " (below zero: the regression, chosen on the estimation half, does worse than the \
+             baseline on the selection part, so it bounds nothing here)"
+        } else {
+            ""
+        }
     );
     let of_bound = |v: Option<f64>| {
         v.map_or("— (the bound is too small to share out)".into(), |v| {
