@@ -304,7 +304,7 @@ pub fn records(traces: Vec<Trace>) -> anyhow::Result<Vec<Trace>> {
     Ok(records)
 }
 
-/// One data file (for `identify`, `simulate`, ...).
+/// One data file (for `compare` and `bench`).
 #[derive(Debug, Clone, clap::Args)]
 pub struct DataArgs {
     /// Experiment CSV: a header row (after any `#` comment lines) naming the
@@ -316,7 +316,7 @@ pub struct DataArgs {
     pub columns: ColumnArgs,
 }
 
-/// Zero or more data files (for `diagnose`).
+/// Zero or more data files (for `fit`, `identify`, `diagnose`).
 #[derive(Debug, Clone, clap::Args)]
 pub struct MultiDataArgs {
     /// Experiment CSV files, each with a header row (after any `#` comment

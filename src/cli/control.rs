@@ -4,10 +4,10 @@
 //! figures}`'s and `rig::control_runs`'.
 
 use std::path::PathBuf;
-
-use anyhow::Context as _;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+
+use anyhow::Context as _;
 
 use super::common::population;
 use mckibben::control::closed_loop::Episode;
@@ -557,8 +557,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         Vec::new()
     };
-    // The results are printed before the files are written: a write that
-    // fails loses none of them.
     for r in rows.iter().filter(|r| r.solver_failures > 0) {
         eprintln!(
             "mckibben: warning: {} at {} rad/s{}: {} of the MPC's QP solves failed, and the \
@@ -569,6 +567,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             r.solver_failures
         );
     }
+    // The results are printed before the files are written: a write that
+    // fails loses none of them.
     if args.json {
         let out = JsonOutput {
             design: design.as_ref().map(DesignJson::of),

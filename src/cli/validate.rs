@@ -134,16 +134,26 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "Bouc-Wen benchmark (data: {}), identified in {seconds:.1} s ({} evaluations, {})",
+        "Bouc-Wen benchmark (data: {}), identified in {seconds:.1} s ({} candidates scored by \
+         the population search, then {} Levenberg–Marquardt iterations; {})",
         dir.display(),
         id.evaluations,
+        id.lm_iterations,
         id.scorer
     );
     println!("parameters (β·γ and β·δ: β, γ, δ are not separately identifiable):");
     for (n, v) in PARAM_NAMES.iter().zip(id.params.to_vec()) {
         println!("  {n:<11} {v:>14.6e}");
     }
-    println!("training RMSE (refined part): {:.3e} m", id.train_rmse);
+    println!(
+        "training RMSE (on the part the refinement reads; {}): {:.3e} m",
+        if id.lm_iterations == 0 {
+            "the search's best, unrefined"
+        } else {
+            "refined"
+        },
+        id.train_rmse
+    );
     println!();
     println!(
         "{:<34} {:>14} {:>14}",
