@@ -431,6 +431,40 @@ fn what_would_fail_after_the_runs_fails_before_them() {
         "{err}"
     );
     assert!(!err.contains("[1/"), "no run started: {err}");
+    // Two seconds of a multisine settle no model: its pole came out at
+    // −1.02 and the MPC held the valve shut, without a word.
+    let multisine = dir.path().join("multisine.csv");
+    let twin = Command::new(BIN)
+        .args(["twin", "--experiment", "multisine", "--out"])
+        .arg(&multisine)
+        .output()
+        .unwrap();
+    assert!(
+        twin.status.success(),
+        "{}",
+        String::from_utf8_lossy(&twin.stderr)
+    );
+    let text = std::fs::read_to_string(&multisine).unwrap();
+    let short = dir.path().join("short.csv");
+    std::fs::write(
+        &short,
+        text.lines().take(200).collect::<Vec<_>>().join("\n"),
+    )
+    .unwrap();
+    let out = control(&[
+        "--controller",
+        "mpc",
+        "--design-data",
+        short.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the model identified from it has the pole a = ")
+            && err.contains("outside 0 to 1"),
+        "{err}"
+    );
+    assert!(!err.contains("[1/"), "no run started: {err}");
 }
 
 /// An MPC whose every QP fails holds the valve: its row is no MPC's, and

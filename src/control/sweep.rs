@@ -239,8 +239,23 @@ pub fn design_for(
                 .into_iter()
                 .next()
                 .ok_or_else(|| anyhow::anyhow!("--design-data {}: no samples", path.display()))?;
-            design_from_record(&trace, request.horizon)
-                .with_context(|| format!("identifying the model from {}", path.display()))?
+            let design = design_from_record(&trace, request.horizon)
+                .with_context(|| format!("identifying the model from {}", path.display()))?;
+            // A muscle's displacement settles without ringing from one
+            // sample to the next: a pole outside (0, 1) is the record's
+            // lack of excitation, and an MPC on it holds the valve shut.
+            let base = &design.model.displacement;
+            let a = base.params[base.family.linear_indices()[0]];
+            anyhow::ensure!(
+                a > 0.0 && a < 1.0,
+                "--design-data {}: the model identified from it has the pole a = {} (outside 0 \
+                 to 1: it flips sign every sample or grows), so the record does not settle the \
+                 model ({:.1} s of it were read); record a longer multisine of the valve",
+                path.display(),
+                crate::report::number::significant(a, 4),
+                trace.len() as f64 * trace.dt() / 2.0
+            );
+            design
         }
         None => design_on_twin(config, request.load_kg, request.seed, request.horizon)
             .context("identifying the model on the twin")?,
