@@ -259,18 +259,27 @@ fn data_error(e: DataError) -> PyErr {
 /// jump; then a list of traces is returned). The reader's notes (cuts,
 /// dropped pieces, text columns) become `UserWarning`s.
 #[pyfunction]
-#[pyo3(signature = (path, input = "pressure", output = "displacement", time = "t", resample = None, split_gaps = false, dt = None))]
+#[pyo3(signature = (path, input = "pressure", output = "displacement", time = None, resample = None, split_gaps = false, dt = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn read_csv<'py>(
     py: Python<'py>,
     #[pyo3(from_py_with = named::csv_path)] path: PathBuf,
     #[pyo3(from_py_with = named::input)] input: &str,
     #[pyo3(from_py_with = named::output)] output: &str,
-    #[pyo3(from_py_with = named::time)] time: &str,
+    #[pyo3(from_py_with = named::time)] time: Option<&str>,
     #[pyo3(from_py_with = named::resample)] resample: Option<f64>,
     #[pyo3(from_py_with = named::split_gaps)] split_gaps: bool,
     #[pyo3(from_py_with = named::dt_opt)] dt: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    // As the command refuses --time beside --dt: one names the file's
+    // clock, the other the spacing of a file without one.
+    if time.is_some() && dt.is_some() {
+        return Err(PyValueError::new_err(
+            "time and dt exclude each other: time names the file's clock column, dt the \
+             spacing of the rows of a file without one",
+        ));
+    }
+    let time = time.unwrap_or("t");
     // The library's reader would read one column as two (`input="t"` gave
     // time and input the same values).
     let columns = [("time", time), ("input", input), ("output", output)];

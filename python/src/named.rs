@@ -49,7 +49,7 @@ named! {
     csv_path: PathBuf = path("path");
     input: &'a str = text("input");
     output: &'a str = text("output");
-    time: &'a str = text("time");
+    time: &'a str = optional(text("time"));
     resample: f64 = optional(real("resample"));
     split_gaps: bool = flag("split_gaps");
     // Model.

@@ -33,6 +33,9 @@ def test_a_file_without_a_time_column_reads_with_dt(stair, tmp_path):
     assert list(trace.output) == [1.0, 2.0, 3.0]
     with pytest.raises(ValueError, match=r"no time column \"t\".*`dt=SECONDS`"):
         mckibben.read_csv(f, input="p_kPa", output="x_mm")
+    # A clock named beside dt is refused, as --time beside --dt.
+    with pytest.raises(ValueError, match="^time and dt exclude each other"):
+        mckibben.read_csv(STAIR, time="t", dt=0.01)
     # The fix in Python's words (it read "(`time` t, without `dt`)").
     with pytest.raises(ValueError, match=r'this file has one, "t": read its clock instead \(`time="t"`, without `dt`\)'):
         mckibben.read_csv(STAIR, dt=0.01)
@@ -140,7 +143,7 @@ def test_bad_arrays_raise_the_named_exception(u, y, dt, error, message):
         (lambda: mckibben.Trace([1.0, 2.0], [1.0, 2.0], 0.1, source=None), "^source must be a str, got None"),
         (lambda: mckibben.read_csv(STAIR, resample="0.01"), "^resample must be a number .*, got str '0.01'"),
         (lambda: mckibben.read_csv(STAIR, split_gaps=1), "^split_gaps must be True or False, got int 1"),
-        (lambda: mckibben.read_csv(STAIR, time=None), "^time must be a str, got None"),
+        (lambda: mckibben.read_csv(STAIR, time=3), "^time must be a str, got int 3"),
         (lambda: mckibben.read_csv(3), r"^path must be a file's path \(a str, bytes or os.PathLike\), got int 3"),
     ],
 )
