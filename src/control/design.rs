@@ -198,8 +198,9 @@ pub fn prediction_report(
     let why = match base.family.stable_step(&base.params) {
         Some(stable) if largest > stable => format!(
             ": its hysteresis update settles only within {} mm a sample (`stable_step`), and \
-             this record steps up to {} mm: the model was fitted on slower motion \
-             (docs/GUIDE.md, \"When not to trust it\")",
+             this record steps up to {} mm: motion faster than the model holds (it was \
+             fitted on slower motion, or on too little motion this fast; docs/GUIDE.md, \
+             \"When not to trust it\")",
             crate::report::number::significant(stable, 3),
             crate::report::number::significant(largest, 3)
         ),
