@@ -1021,3 +1021,36 @@ fn a_model_identified_on_two_files_simulates_each_as_its_report_says() {
         );
     }
 }
+
+/// `simulate --plot` on a record draws the measured output under the
+/// simulated one, in time and in the loop, as the fit % it prints compares
+/// them; a generated input has no measured output to draw.
+#[test]
+fn simulate_plots_the_measured_output_it_scores() {
+    let dir = tempfile::tempdir().unwrap();
+    let on_record = dir.path().join("record.svg");
+    let generated = dir.path().join("generated.svg");
+    for (input, plot) in [(STAIR, &on_record), ("stair", &generated)] {
+        let out = mckibben(&[
+            "simulate",
+            "--input",
+            input,
+            "--plot",
+            plot.to_str().unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let legends = |svg: &Path| {
+        std::fs::read_to_string(svg)
+            .unwrap()
+            .lines()
+            .filter(|l| l.trim() == "measured")
+            .count()
+    };
+    assert_eq!(legends(&on_record), 2, "the output panel and the loop");
+    assert_eq!(legends(&generated), 0);
+}

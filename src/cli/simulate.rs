@@ -111,7 +111,8 @@ pub struct Args {
     /// summary then goes to standard error.
     #[arg(long, value_parser = crate::cli::common::csv_output, value_name = "FILE.csv")]
     out: Option<CsvOut>,
-    /// Draw the trace and the hysteresis loop to this SVG file.
+    /// Draw the trace and the hysteresis loop to this SVG file, the
+    /// simulation over the measured output where `--input` is a record.
     #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
     /// List the family's parameter names and exit.
@@ -283,14 +284,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Some(k) = run.diverged_at {
             comments.push(format!("diverged at sample {k}: the trace stops before it"));
         }
-        let plot = args.plot.as_ref().map(|p| (p, figure(&trace, &described)));
+        let plot = args
+            .plot
+            .as_ref()
+            .map(|p| (p, figure(&trace, measured.as_deref(), &described)));
         path.write(
             &trace,
             &comments,
             plot.as_ref().map(|(p, f)| (p.as_path(), f)),
         )?;
     } else if let Some(path) = &args.plot {
-        figure(&trace, &described).save(path)?;
+        figure(&trace, measured.as_deref(), &described).save(path)?;
     }
     let finite: Vec<f64> = trace
         .output
@@ -664,7 +668,16 @@ fn input_trace(
     }
 }
 
-fn figure(trace: &Trace, described: &str) -> Figure {
+fn figure(trace: &Trace, measured: Option<&[f64]>, described: &str) -> Figure {
+    let mut output = Panel::new("output", "t (s)", &trace.output_name);
+    let mut hysteresis = Panel::new("hysteresis loop", &trace.input_name, &trace.output_name);
+    // The measured output first, so that the simulation is drawn over it:
+    // a reader compares the two where the fit % is printed.
+    if let Some(y) = measured {
+        let y = y[..trace.len()].to_vec();
+        output = output.with(Series::line("measured", trace.t.clone(), y.clone()));
+        hysteresis = hysteresis.with(Series::points("measured", trace.input.clone(), y));
+    }
     Figure::new(format!("{described} model, simulated"))
         .with(
             Panel::new("input", "t (s)", &trace.input_name).with(Series::line(
@@ -673,16 +686,14 @@ fn figure(trace: &Trace, described: &str) -> Figure {
                 trace.input.clone(),
             )),
         )
-        .with(
-            Panel::new("output", "t (s)", &trace.output_name).with(Series::line(
-                "simulated",
-                trace.t.clone(),
-                trace.output.clone(),
-            )),
-        )
-        .with(
-            Panel::new("hysteresis loop", &trace.input_name, &trace.output_name).with(
-                Series::line("simulated", trace.input.clone(), trace.output.clone()),
-            ),
-        )
+        .with(output.with(Series::line(
+            "simulated",
+            trace.t.clone(),
+            trace.output.clone(),
+        )))
+        .with(hysteresis.with(Series::line(
+            "simulated",
+            trace.input.clone(),
+            trace.output.clone(),
+        )))
 }
