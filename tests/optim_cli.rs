@@ -274,7 +274,7 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 16] = [
+    let cases: [(&[&str], &str); 18] = [
         (&["fit", "missing.csv"], "missing.csv"),
         // A population no machine holds: an error, not an aborted
         // allocation.
@@ -370,6 +370,22 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         (
             &["simulate", "--plot", ""],
             "'--plot <FILE.svg>': an empty name",
+        ),
+        // A seed the runs add to past 2^64 wrapped to seed 0 (`diagnose
+        // --repeat 2` ran seed 0 second); every seed flag takes the same range.
+        (
+            &[
+                "diagnose",
+                "--seed",
+                "18446744073709551615",
+                "--repeat",
+                "2",
+            ],
+            "'--seed <SEED>': seeds run from 0 to 2^53 - 1 = 9007199254740991",
+        ),
+        (
+            &["sweep", "--seeds", "1,9007199254740992"],
+            "'--seeds <SEEDS>': seeds run from 0 to 2^53 - 1",
         ),
     ];
     for (args, needle) in cases {

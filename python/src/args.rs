@@ -105,13 +105,16 @@ pub fn at_least(obj: &Bound<'_, PyAny>, what: &str, min: usize) -> PyResult<usiz
     }
 }
 
-/// A seed: an integer in [0, 2**64).
+/// A seed: an integer in [0, 2**53), as the command's `--seed`.
 pub fn seed(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<u64> {
     let outside = |v: &str| {
-        PyValueError::new_err(format!("{what} must be an integer in [0, 2**64), got {v}"))
+        PyValueError::new_err(format!("{what} must be an integer in [0, 2**53), got {v}"))
     };
     match integer(obj, what)? {
-        Int::Value(v) => u64::try_from(v).map_err(|_| outside(&v.to_string())),
+        Int::Value(v) => u64::try_from(v)
+            .ok()
+            .and_then(|v| mckibben::optim::streams::checked_seed(v).ok())
+            .ok_or_else(|| outside(&v.to_string())),
         Int::Huge { text, .. } => Err(outside(&text)),
     }
 }

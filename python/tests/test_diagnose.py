@@ -119,10 +119,10 @@ def test_diagnose_rejects_bad_arguments(stair):
     for name in ["seeds", "generations", "scratch_seeds", "max_effects", "repeat"]:
         with pytest.raises(ValueError, match=f"^{name} must be at least"):
             mckibben.diagnose(stair, **{name: -1})
-        # Past 2**63 (2**64 for a seed) it was a bare OverflowError.
+        # Past 2**63 (2**53 for a seed) it was a bare OverflowError.
         with pytest.raises(ValueError, match=rf"^{name} must be less than 2\*\*63, got 1180591620717411303424"):
             mckibben.diagnose(stair, **{name: 2**70})
-    with pytest.raises(ValueError, match=r"^seed must be an integer in \[0, 2\*\*64\), got -1361129467683753853853498429727072845824"):
+    with pytest.raises(ValueError, match=r"^seed must be an integer in \[0, 2\*\*53\), got -1361129467683753853853498429727072845824"):
         mckibben.diagnose(stair, seed=-(2**130))
 
 

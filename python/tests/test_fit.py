@@ -431,8 +431,10 @@ def test_a_bool_is_not_a_number(stair, kwargs, name):
     "kwargs, message",
     [
         # Beyond 2**64 these were a bare OverflowError.
-        ({"seed": 2**200}, r"^seed must be an integer in \[0, 2\*\*64\), got 1606938044258990275541962092341162602522202993782792835301376"),
-        ({"seed": -(2**130)}, r"^seed must be an integer in \[0, 2\*\*64\), got -1361129467683753853853498429727072845824"),
+        ({"seed": 2**200}, r"^seed must be an integer in \[0, 2\*\*53\), got 1606938044258990275541962092341162602522202993782792835301376"),
+        ({"seed": -(2**130)}, r"^seed must be an integer in \[0, 2\*\*53\), got -1361129467683753853853498429727072845824"),
+        # A seed the runs would add to past 2**64 (wrapping to seed 0).
+        ({"seed": 2**64 - 1}, r"^seed must be an integer in \[0, 2\*\*53\), got 18446744073709551615"),
         ({"pop": 2**70}, r"^pop must be less than 2\*\*63, got 1180591620717411303424"),
         ({"gens": 2**63}, r"^gens must be less than 2\*\*63, got 9223372036854775808"),
         ({"stall": -(2**200)}, r"^stall must be at least 1, got -1606938044258990275541962092341162602522202993782792835301376"),

@@ -102,7 +102,7 @@ pub struct Args {
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
     repeats: u32,
     /// Seed of the population draw.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = crate::cli::common::seed)]
     seed: u64,
     /// Effect stages after the family, comma-separated catalogue names
     /// (e.g. `saturation:output,creep:output`; `mckibben diagnose --help`

@@ -15,6 +15,7 @@ use mckibben::data::csv::{
 use mckibben::data::{write_all_atomic, write_atomic};
 use mckibben::fit::settings::MAX_POPULATION;
 use mckibben::model::file::{ModelFile, Provenance, ReadSettings};
+use mckibben::optim::streams::checked_seed;
 use mckibben::report::Figure;
 
 /// The hysteretic families `fit` fits and `diagnose` takes as a baseline.
@@ -45,6 +46,13 @@ pub fn population(s: &str) -> Result<usize, String> {
         ));
     }
     Ok(n)
+}
+
+/// A seed flag: an integer up to
+/// [`MAX_SEED`](mckibben::optim::streams::MAX_SEED).
+pub fn seed(s: &str) -> Result<u64, String> {
+    let seed: u64 = s.parse().map_err(|e| format!("{e}"))?;
+    checked_seed(seed)
 }
 
 /// A flag naming a file or folder to write: `-` (standard output to many

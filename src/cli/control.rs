@@ -135,7 +135,7 @@ pub struct Args {
     steady_from: f64,
     /// Seed of the twin's sensor noise (design record: this seed; its
     /// validation record: seed + 1) and of the tuning.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = crate::cli::common::seed)]
     seed: u64,
     /// The plant: `twin` (in process), `cmd:COMMAND` or `udp:HOST:PORT`.
     #[arg(long, default_value = "twin", value_name = "SPEC")]

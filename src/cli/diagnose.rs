@@ -69,7 +69,7 @@ pub struct Args {
     ))]
     effects: Vec<Effect>,
     /// Seed of every random draw (fits are reproducible for a given seed).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = crate::cli::common::seed)]
     seed: u64,
     /// Seeds per candidate fit; their spread is the yardstick of the acceptance rule.
     #[arg(long, default_value_t = Settings::default().seeds)]

@@ -59,7 +59,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_name = "NUMBERS")]
     cases: Option<Vec<u64>>,
     /// Fit seeds, comma-separated.
-    #[arg(long, value_delimiter = ',', default_value = "1")]
+    #[arg(long, value_delimiter = ',', default_value = "1", value_parser = crate::cli::common::seed)]
     seeds: Vec<u64>,
     /// Where to score: `auto` takes a real GPU if there is one, else the CPU.
     #[arg(long, value_enum, default_value_t = Backend::Auto)]

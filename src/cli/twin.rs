@@ -53,7 +53,7 @@ pub struct Args {
     #[arg(long, default_value_t = 4.5)]
     load: f64,
     /// Seed of the sensor noise (and of the multisine's phases).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = crate::cli::common::seed)]
     seed: u64,
     /// Angular frequency of the sine reference in rad/s (thesis: 1, 2, 3), below
     /// Nyquist's π/dt (314 rad/s at the twin's 0.01 s); `--experiment sine`
@@ -129,7 +129,7 @@ pub struct ServeArgs {
     #[arg(long, default_value_t = 4.5)]
     load: f64,
     /// Seed of the sensor noise.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = crate::cli::common::seed)]
     seed: u64,
     /// Scale a non-ideal effect (as `mckibben twin --effect`; creep and
     /// ringing default to 0, the others to 1). Repeatable.

@@ -51,7 +51,7 @@ struct BoucwenArgs {
     #[arg(long, value_enum, default_value = "auto")]
     backend: Backend,
     /// Seed of the population search.
-    #[arg(long, default_value_t = IdentifySettings::default().seed)]
+    #[arg(long, default_value_t = IdentifySettings::default().seed, value_parser = crate::cli::common::seed)]
     seed: u64,
     /// Population size of the search.
     #[arg(long, default_value_t = IdentifySettings::default().population, value_parser = population)]

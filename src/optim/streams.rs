@@ -39,6 +39,24 @@ use rand_chacha::ChaCha8Rng;
 
 use super::stage::Stage;
 
+/// The largest seed a run takes, 2⁵³ − 1. Runs derive further seeds by
+/// adding small offsets to theirs (a diagnosis' repeats and its fits, the
+/// generated cases, the control sweep's validation twin), which must not
+/// wrap round to seed 0; and a JSON reader that keeps numbers as doubles
+/// (JavaScript's, a spreadsheet's) holds every seed up to it exactly.
+pub const MAX_SEED: u64 = (1 << 53) - 1;
+
+/// `seed`, or why a run cannot take it.
+pub fn checked_seed(seed: u64) -> Result<u64, String> {
+    if seed > MAX_SEED {
+        return Err(format!(
+            "seeds run from 0 to 2^53 - 1 = {MAX_SEED}: the runs derive further seeds by adding \
+             to it, and JSON readers hold integers that large exactly"
+        ));
+    }
+    Ok(seed)
+}
+
 /// The streams of one generation of one stage of a run; [`Streams::row`]
 /// is individual `i`'s. Cheap to copy.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -161,7 +161,7 @@ pub struct Args {
     pub(super) gens: usize,
     /// Seed of the run's random generator: same seed, same result on any
     /// backend and thread count.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = crate::cli::common::seed)]
     pub(super) seed: u64,
     /// Where populations are scored: auto (a hardware GPU if present, else
     /// the CPU), cpu, or gpu (any adapter, lavapipe included).
