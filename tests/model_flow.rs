@@ -424,6 +424,16 @@ fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
         e.contains("but `pressure` is read as MPa (its name states no unit"),
         "{e}"
     );
+    // A `unit` edited in the file alone, which no check read: refused.
+    let mut edited = model_in(&kpa_model, "model.json");
+    edited["data"]["input"]["unit"] = "MPa".into();
+    let edited_path = dir.path().join("edited.json");
+    std::fs::write(&edited_path, edited.to_string()).unwrap();
+    let e = error_of(&["simulate", "--from", edited_path.to_str().unwrap()]);
+    assert!(
+        e.contains("`data.input.unit` is `MPa`, but its column `pressure_kpa` names `kPa`"),
+        "{e}"
+    );
 
     // A model whose input column states no unit drives the controllers as
     // if in MPa, and `control --from` says so.

@@ -548,6 +548,24 @@ impl ModelFile {
              seconds)",
             self.data.dt
         );
+        // The unit is read off the column's name wherever data meet the
+        // model: a `unit` edited alone would say one unit and act another.
+        // (`null` states none; a file written before a name's unit was
+        // recognised has one.)
+        for (which, column) in [("input", &self.data.input), ("output", &self.data.output)] {
+            let named = unit_of(&column.column);
+            if let Some(unit) = &column.unit {
+                anyhow::ensure!(
+                    named.as_ref() == Some(unit),
+                    "`data.{which}.unit` is `{unit}`, but its column `{}` names {}: the unit \
+                     is read off the column's name, so edit the name to change it",
+                    column.column,
+                    named
+                        .as_deref()
+                        .map_or("no unit".into(), |u| format!("`{u}`")),
+                );
+            }
+        }
         let augmented = ModelDescription::new(self.family, effects.clone(), self.datasets);
         let names = augmented.param_names();
         let mut params = self.params.clone();
