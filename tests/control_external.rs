@@ -490,3 +490,34 @@ fn an_mpc_whose_solves_fail_is_named_and_its_row_keeps_its_kind() {
         "{err}"
     );
 }
+
+/// A steps run at ω and the sine run at ω write files of their own names
+/// into one `--csv` and `--plot` folder: the second invocation overwrote
+/// the first's traces and figures.
+#[test]
+fn steps_and_sine_runs_keep_their_own_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let (csv, plot) = (dir.path().join("csv"), dir.path().join("plot"));
+    for reference in ["sine", "steps"] {
+        let out = control(&[
+            "--controller",
+            "pi",
+            "--reference",
+            reference,
+            "--csv",
+            csv.to_str().unwrap(),
+            "--plot",
+            plot.to_str().unwrap(),
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let sine = std::fs::read_to_string(csv.join("control_pi_4.5kg_3rad.csv")).unwrap();
+    let steps = std::fs::read_to_string(csv.join("control_pi_4.5kg_3rad_steps.csv")).unwrap();
+    assert_ne!(sine, steps);
+    assert!(plot.join("control_pi_4.5kg_3rad.svg").exists());
+    assert!(plot.join("control_pi_4.5kg_3rad_steps.svg").exists());
+}

@@ -581,10 +581,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print!("{}", table::text(&rows, &robust));
     }
     if let Some(dir) = &args.plot {
-        figures::save(dir, &runs, design.as_ref())?;
+        figures::save(dir, &runs, shape.waveform, design.as_ref())?;
     }
     if let Some(dir) = &args.csv {
-        table::write_csvs(dir, &runs)?;
+        table::write_csvs(dir, &runs, shape.waveform)?;
     }
     Ok(())
 }

@@ -7,12 +7,13 @@ use std::path::Path;
 use anyhow::Context as _;
 
 use super::closed_loop::EpisodeResult;
+use super::reference::Waveform;
 use super::sweep::{Design, Run};
 use crate::report::{Figure, Panel, Series};
 
-/// File stem of a run: `control_<controller>_<load>kg_<ω>rad` (`rig` for an
-/// external plant).
-pub fn stem(run: &Run) -> String {
+/// File stem of a run: `control_<controller>_<load>kg_<ω>rad` (`rig` for
+/// the load of an external plant), `_steps` after it for a steps reference.
+pub fn stem(run: &Run, waveform: Waveform) -> String {
     let name = run
         .result
         .controller
@@ -23,7 +24,16 @@ pub fn stem(run: &Run) -> String {
     } else {
         format!("{}kg", run.spec.load_kg)
     };
-    format!("control_{name}_{load}_{}rad", run.spec.freq_rad_s)
+    // A steps run at ω is another run than the sine at ω: its own name, so
+    // that one folder holds both.
+    let reference = match waveform {
+        Waveform::Sine => "",
+        Waveform::Steps => "_steps",
+    };
+    format!(
+        "control_{name}_{load}_{}rad{reference}",
+        run.spec.freq_rad_s
+    )
 }
 
 /// Reference and displacement, valve command, tracking error.
@@ -110,12 +120,17 @@ pub fn design_figure(d: &Design) -> Figure {
 
 /// Every run's figure and the design's (`control_model.svg`) as SVG files
 /// in `dir` (`--plot`).
-pub fn save(dir: &Path, runs: &[Run], design: Option<&Design>) -> anyhow::Result<()> {
+pub fn save(
+    dir: &Path,
+    runs: &[Run],
+    waveform: Waveform,
+    design: Option<&Design>,
+) -> anyhow::Result<()> {
     crate::data::create_dir_all(dir)
         .with_context(|| format!("creating --plot {}", dir.display()))?;
     let mut figs: Vec<(String, Figure)> = runs
         .iter()
-        .map(|r| (format!("{}.svg", stem(r)), run_figure(r)))
+        .map(|r| (format!("{}.svg", stem(r, waveform)), run_figure(r)))
         .collect();
     if let Some(d) = design {
         figs.push(("control_model.svg".into(), design_figure(d)));

@@ -12,6 +12,7 @@ use super::chain::EffectUse;
 use super::design::PredictionReport;
 use super::figures;
 use super::model::ControlModel;
+use super::reference::Waveform;
 use super::sweep::{self, Design, Ingredients, Kind, Run, Shape};
 use super::tuning::TunedGains;
 use super::validation::LoopShape;
@@ -273,14 +274,14 @@ pub fn text(rows: &[Row], robust: &[RobustRow]) -> String {
 
 /// One CSV per run in `dir` (t, reference, displacement, pressure,
 /// valve_in), named as its figure ([`figures::stem`]).
-pub fn write_csvs(dir: &Path, runs: &[Run]) -> anyhow::Result<()> {
+pub fn write_csvs(dir: &Path, runs: &[Run], waveform: Waveform) -> anyhow::Result<()> {
     crate::data::create_dir_all(dir)
         .with_context(|| format!("creating --csv {}", dir.display()))?;
     for run in runs {
         let r = &run.result;
         // The plant's sample time, as the run's time base carries it.
         let dt = r.t.get(1).zip(r.t.first()).map_or(f64::NAN, |(b, a)| b - a);
-        let path = dir.join(format!("{}.csv", figures::stem(run)));
+        let path = dir.join(format!("{}.csv", figures::stem(run, waveform)));
         let mut trace = Trace::uniform(
             format!("control {}", r.controller),
             dt,

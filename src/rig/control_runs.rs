@@ -21,6 +21,7 @@ use super::log::RunLog;
 use super::plausible::Limits;
 use super::protocol::Ranges;
 use super::remote::{RemoteSettings, connect, run_remote};
+use crate::control::reference::Waveform;
 use crate::control::sweep::{self, Ingredients, Kind, Run, RunSpec, Shape};
 use crate::control::table::Row;
 use crate::twin::TwinConfig;
@@ -171,14 +172,23 @@ fn run_on_rig(
     let mut controller = sweep::build(spec.kind, spec.hysteresis_scale, ing, dt)?;
     let mut log = match &settings.log_dir {
         Some(dir) => {
-            let path = dir.join(format!("{}_{}rad.csv", spec.kind.label(), spec.freq_rad_s));
+            // A steps run at ω has a name of its own, as its table CSV.
+            let (suffix, flag) = match shape.waveform {
+                Waveform::Sine => ("", ""),
+                Waveform::Steps => ("_steps", " --reference steps"),
+            };
+            let path = dir.join(format!(
+                "{}_{}rad{suffix}.csv",
+                spec.kind.label(),
+                spec.freq_rad_s
+            ));
             // The header says what the run was held to, so that a log read
             // later explains its own events.
             RunLog::create(
                 &path,
                 &[
                     format!(
-                        "mckibben control --controller {} --freq {} --plant {}",
+                        "mckibben control --controller {} --freq {}{flag} --plant {}",
                         spec.kind.label(),
                         spec.freq_rad_s,
                         settings.plant
