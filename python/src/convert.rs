@@ -48,6 +48,7 @@ pub fn contiguous<'py>(
     what: &str,
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
     let np = obj.py().import("numpy")?;
+    refuse_masked(&np, obj, what)?;
     let array = np
         .call_method1("asarray", (obj,))
         .map_err(|e| PyValueError::new_err(format!("{what}: not an array of numbers ({e})")))?;
@@ -80,6 +81,40 @@ pub fn contiguous<'py>(
     Ok(contiguous.cast_into::<PyArrayDyn<f64>>()?)
 }
 
+/// A NumPy masked array with a masked value is an error naming the first:
+/// `asarray` would hand on the number under the mask, and a free run needs
+/// a number at every sample. One with nothing masked is its data.
+fn refuse_masked(np: &Bound<'_, PyModule>, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<()> {
+    let ma = np.getattr("ma")?;
+    if !obj.is_instance(&ma.getattr("MaskedArray")?)? {
+        return Ok(());
+    }
+    let mask = ma.call_method1("getmaskarray", (obj,))?;
+    if !mask.call_method0("any")?.extract::<bool>()? {
+        return Ok(());
+    }
+    let first: usize = mask
+        .call_method0("ravel")?
+        .call_method0("argmax")?
+        .extract()?;
+    let shape: Vec<usize> = mask.getattr("shape")?.extract()?;
+    Err(PyValueError::new_err(format!(
+        "{what}{} is masked: a free run needs a number at every sample; fill the masked \
+         values (`.filled(...)`) or cut the record before them",
+        index_text(first, &shape)
+    )))
+}
+
+/// The index of the `i`-th value of a row-major array of `shape`, as
+/// Python writes it: `[i]`, or `[row, column]`.
+fn index_text(i: usize, shape: &[usize]) -> String {
+    if shape.len() == 2 {
+        format!("[{}, {}]", i / shape[1].max(1), i % shape[1].max(1))
+    } else {
+        format!("[{i}]")
+    }
+}
+
 /// [`contiguous`]'s values, copied.
 pub fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Floats> {
     let array = contiguous(obj, what)?;
@@ -91,13 +126,9 @@ pub fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Floats> {
 /// The first NaN or infinite value, as an error naming its index.
 fn check_finite(values: &[f64], shape: &[usize], what: &str) -> PyResult<()> {
     if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-        let at = if shape.len() == 2 {
-            format!("[{}, {}]", i / shape[1].max(1), i % shape[1].max(1))
-        } else {
-            format!("[{i}]")
-        };
         return Err(PyValueError::new_err(format!(
-            "{what}{at} is {}: every value must be a finite number",
+            "{what}{} is {}: every value must be a finite number",
+            index_text(i, shape),
             values[i]
         )));
     }

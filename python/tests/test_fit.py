@@ -322,6 +322,13 @@ def test_bad_data_raise_value_errors(stair):
         mckibben.fit(u, y[:-1], 0.01)
     with pytest.raises(ValueError, match=r"y\[7\] is NaN"):
         mckibben.fit(u, np.where(np.arange(len(y)) == 7, np.nan, y), 0.01)
+    # A masked sample was run on the number under its mask.
+    masked = np.ma.masked_array(y, mask=np.arange(len(y)) == 9)
+    with pytest.raises(ValueError, match=r"^y\[9\] is masked: a free run needs a number"):
+        mckibben.fit(u, masked, 0.01)
+    # Nothing masked: the data, as a plain array.
+    unmasked = mckibben.fit(u, np.ma.masked_array(y), 0.01, pop=40, gens=2)
+    assert unmasked.params == mckibben.fit(u, y, 0.01, pop=40, gens=2).params
     with pytest.raises(ValueError, match="give the output y"):
         mckibben.fit(u)
     with pytest.raises(ValueError, match="not both"):
