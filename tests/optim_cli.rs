@@ -1434,3 +1434,58 @@ fn a_kept_chain_start_reports_the_population_asked_for() {
         "no seed of 1–4 kept the chain's start: the case tests nothing"
     );
 }
+
+/// `fit --out` writes the files `files_written` names, and refuses a folder
+/// where one of them would replace a file it reads: a recording named
+/// `history.csv` was replaced by the fit's history.
+#[test]
+fn fit_writes_its_named_files_and_none_over_its_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let second = dir.path().join("second.csv");
+    let s = Synthetic::new(Family::Classic, 400, 0.05, 22);
+    write_trace(&second, &s.trace).unwrap();
+    let mut args = short_fit(&csv).to_vec();
+    args.extend([second.to_str().unwrap(), "--out", "two"]);
+    let out = mckibben(&args, dir.path());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut written: Vec<String> = std::fs::read_dir(dir.path().join("two"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    written.sort();
+    let mut named = mckibben::fit::report::files_written(2);
+    named.sort();
+    assert_eq!(written, named);
+
+    let recording = dir.path().join("rec");
+    std::fs::create_dir(&recording).unwrap();
+    let history = recording.join("history.csv");
+    std::fs::copy(&csv, &history).unwrap();
+    let before = std::fs::read(&history).unwrap();
+    let out = mckibben(
+        &[&short_fit("rec/history.csv")[..], &["--out", "rec"]].concat(),
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("--out rec: the command writes history.csv there, over rec/history.csv that it reads as DATA"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&history).unwrap(), before);
+    // `diagnose --out` of the folder its --from model lies in, likewise.
+    let out = mckibben(
+        &["diagnose", &csv, "--from", "two/model.json", "--out", "two"],
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--out two: the command writes model.json there, over two/model.json that it reads as --from"),
+        "{err}"
+    );
+}

@@ -173,6 +173,29 @@ pub fn check_distinct(reads: &[(&str, &Path)], writes: &[(&str, &Path)]) -> anyh
     Ok(())
 }
 
+/// Refuses an output folder `dir` (named by `flag`) where the command would
+/// write one of `names` over a file it reads: `fit rec/history.csv --out
+/// rec` replaced the recording by the fit's history.
+pub fn check_folder(
+    flag: &str,
+    dir: &Path,
+    names: &[String],
+    reads: &[(&str, &Path)],
+) -> anyhow::Result<()> {
+    for name in names {
+        let written = dir.join(name);
+        if let Some((what, read)) = reads.iter().find(|(_, read)| same_file(&written, read)) {
+            anyhow::bail!(
+                "{flag} {}: the command writes {name} there, over {} that it reads as {what}; \
+                 give another folder",
+                dir.display(),
+                read.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Whether `a` and `b` name one file, existing or about to be written: the
 /// same canonical path, or the same name in the same canonical folder.
 fn same_file(a: &Path, b: &Path) -> bool {

@@ -1,7 +1,7 @@
 //! `mckibben diagnose`: where the fitted model misses, which unmodelled
 //! effect causes it, and how far the model gets with it.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
@@ -15,7 +15,10 @@ use mckibben::model::{Family, ModelFile};
 use mckibben::names::UnknownName;
 use mckibben::report::json::Versioned;
 
-use super::common::{ModelArg, MultiDataArgs};
+use super::common::{ModelArg, MultiDataArgs, check_folder};
+
+/// The model files `--out` writes: the baseline and the final model.
+const OUT_FILES: [&str; 2] = ["baseline.json", "model.json"];
 
 /// Diagnose the sim-to-real gap of a fitted hysteresis model.
 ///
@@ -327,6 +330,17 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     let family = from.as_ref().map_or(family, |m| m.base.family);
     check_others(family, &others, &settings).context("--transfer")?;
+    if let Some(dir) = &args.out {
+        let mut reads: Vec<(&str, &Path)> = args
+            .data
+            .data
+            .iter()
+            .map(|p| ("DATA", p.as_path()))
+            .collect();
+        reads.extend(args.transfer.iter().map(|p| ("--transfer", p.as_path())));
+        reads.extend(args.from.iter().map(|p| ("--from", p.as_path())));
+        check_folder("--out", dir, &OUT_FILES.map(String::from), &reads)?;
+    }
     for (flag, dir) in [("--out", &args.out), ("--report", &args.report)] {
         if let Some(dir) = dir {
             mckibben::data::create_dir_all(dir)
@@ -367,10 +381,10 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     )?;
     if let Some(dir) = &args.out {
         let provenance = args.data.provenance(Some(args.seed))?;
-        for (name, model) in [
-            ("baseline.json", &d.baseline_model),
-            ("model.json", &d.final_model),
-        ] {
+        for (name, model) in OUT_FILES
+            .into_iter()
+            .zip([&d.baseline_model, &d.final_model])
+        {
             ModelFile::new(model, None, provenance.clone())
                 .save(&dir.join(name))
                 .with_context(|| format!("--out {}", dir.display()))?;

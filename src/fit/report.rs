@@ -719,6 +719,33 @@ impl FitReport {
     }
 }
 
+/// The names a fit of `records` records writes in its `--out` folder
+/// (`fit --effects auto` writes some of them).
+pub fn files_written(records: usize) -> Vec<String> {
+    let mut names: Vec<String> = [
+        "result.json",
+        "history.csv",
+        "history.json",
+        "trends.svg",
+        "convergence.svg",
+        "model.json",
+    ]
+    .map(String::from)
+    .to_vec();
+    for k in 0..records.max(1) {
+        names.extend(["loop", "trace"].map(|f| format!("{f}{}.svg", figure_suffix(k))));
+    }
+    names
+}
+
+/// The suffix of record `k`'s figures: none for the first, `-2` on.
+fn figure_suffix(k: usize) -> String {
+    match k {
+        0 => String::new(),
+        k => format!("-{}", k + 1),
+    }
+}
+
 /// `file` as `model.json` and `model`'s loop and trace on each of
 /// `traces` as `loop.svg` and `trace.svg` (the first record's), then
 /// `loop-2.svg`, `trace-2.svg` and so on, to write.
@@ -734,10 +761,7 @@ fn model_files(
     )];
     for (k, trace) in traces.iter().enumerate() {
         let (loop_fig, trace_fig) = fit_figures(model, trace, title);
-        let suffix = match k {
-            0 => String::new(),
-            k => format!("-{}", k + 1),
-        };
+        let suffix = figure_suffix(k);
         files.push((format!("loop{suffix}.svg"), loop_fig.to_svg()?.into_bytes()));
         files.push((
             format!("trace{suffix}.svg"),

@@ -7,14 +7,14 @@ mod args;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::common::records;
+use super::common::{check_folder, records};
 pub use args::Args;
 use args::EffectArg;
 use mckibben::data::{Trace, readable, sources};
 use mckibben::diagnose::chain::{selected_fit, with_chain_start};
 use mckibben::eval;
 use mckibben::fit::objective::POPULATION;
-use mckibben::fit::report::{FitReport, Note};
+use mckibben::fit::report::{FitReport, Note, files_written};
 use mckibben::fit::request::{switching_boxed, switching_misapplied};
 use mckibben::fit::run::FitRun;
 use mckibben::fit::searches::StopFlag;
@@ -88,7 +88,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
                  (`mckibben diagnose` takes several)"
             );
         };
-        out_folder(&args.out)?;
+        out_folder(&args, 1)?;
         return run_auto(&args, family, trace);
     }
     let request = args.request()?;
@@ -133,7 +133,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         anyhow::bail!("--switch {why}: give one of them");
     }
     let traces = records(args.data.load()?)?;
-    out_folder(&args.out)?;
+    out_folder(&args, traces.len())?;
     if let Some(model) = &resolved.carried {
         for trace in &traces {
             model
@@ -256,11 +256,25 @@ fn all_diverged(args: &Args, held: bool) -> String {
 }
 
 /// Checks that `--out` can be a folder before the fit runs, so that a path
-/// that cannot fails at once, not after the fit: it creates the folder and
+/// that cannot fails at once, not after the fit, and that the fit's files
+/// there would replace none it reads (`files_written`): it creates the folder and
 /// removes again the folders it created (the fit's writer creates them for
 /// good), so that a fit that fails leaves no empty folder behind.
-fn out_folder(out: &std::path::Path) -> anyhow::Result<()> {
+fn out_folder(args: &Args, records: usize) -> anyhow::Result<()> {
     use anyhow::Context as _;
+    let out = args.out.as_path();
+    let mut reads: Vec<(&str, &std::path::Path)> = args
+        .data
+        .data
+        .iter()
+        .map(|p| ("DATA", p.as_path()))
+        .collect();
+    for (flag, path) in [("--from", &args.from), ("--carry", &args.carry)] {
+        if let Some(path) = path {
+            reads.push((flag, path));
+        }
+    }
+    check_folder("--out", out, &files_written(records), &reads)?;
     let missing: Vec<&std::path::Path> = out
         .ancestors()
         .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
