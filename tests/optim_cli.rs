@@ -1489,3 +1489,27 @@ fn fit_writes_its_named_files_and_none_over_its_data() {
         "{err}"
     );
 }
+
+/// `fit --effects` under a budget the chain's build spends: the build stops
+/// at the budget, and the error says the time went there (it said no
+/// candidate was scored, after seconds of the build's searches).
+#[test]
+fn a_budget_spent_building_the_chain_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let out = mckibben(
+        &[
+            &short_fit(&csv)[..],
+            &["--effects", "creep", "--time-budget", "0"],
+        ]
+        .concat(),
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("stopped (TimeBudget) while the chain was built (")
+            && err.contains("nothing was written to out/fit"),
+        "{err}"
+    );
+}

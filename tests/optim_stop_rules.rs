@@ -387,3 +387,63 @@ fn an_interrupt_during_the_search_keeps_the_best_candidate_scored_so_far() {
     let (lowest, row) = objective.lowest.expect("candidates were scored");
     assert_eq!((out.sse, &out.params), (lowest as f64, &row));
 }
+
+/// A time budget covers a whole fit: the chain's build (`built_in_s`) and
+/// every start. A fit whose build spent it runs no start, not even the
+/// switching's second one, and says where the time went; with time left,
+/// both starts run and the fit completes.
+#[test]
+fn a_time_budget_covers_every_start_of_a_fit() {
+    use mckibben::eval::cpu::CpuEvaluator;
+    use mckibben::fit::run::{FitRun, FitTarget};
+    use mckibben::fit::settings::FitSettings;
+    use mckibben::fit::synthetic::Synthetic;
+    use mckibben::model::{Family, Switching};
+
+    let trace = Synthetic::new(Family::Generalized, 400, 0.05, 3).trace;
+    let what = FitTarget {
+        switching: Switching::Starts,
+        ..FitTarget::chain(Family::Generalized, &[])
+    };
+    let settings = |budget: f64| FitSettings {
+        pop: 20,
+        gens: 3,
+        stops: StopRules {
+            time_budget_s: Some(budget),
+            ..StopRules::default()
+        },
+        ..FitSettings::staged(1)
+    };
+    let fit = |budget: f64, built_in_s: f64| {
+        let mut fit = FitRun::new(
+            std::slice::from_ref(&trace),
+            &what,
+            &settings(budget),
+            None,
+            None,
+            &|_| (),
+        )
+        .unwrap();
+        fit.built_in_s = built_in_s;
+        let (out, _) = fit
+            .run(&mut CpuEvaluator::new(), &mut [], None, None)
+            .unwrap();
+        (fit, out)
+    };
+    let (spent, out) = fit(2.0, 2.0);
+    assert_eq!((out.stop, out.evaluations), (StopReason::TimeBudget, 0));
+    assert!(spent.switched.is_none(), "the second start ran");
+    assert_eq!(
+        spent.unscored(out.stop),
+        "stopped (TimeBudget) while the chain was built (2.0 s), before the fit's first start \
+         scored a candidate"
+    );
+    let (left, out) = fit(600.0, 2.0);
+    assert_eq!(out.stop, StopReason::Completed);
+    assert!(left.switched.is_some(), "both starts ran");
+    assert!(
+        out.seconds >= 2.0,
+        "the build's seconds are the fit's: {}",
+        out.seconds
+    );
+}

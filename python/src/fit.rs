@@ -396,9 +396,8 @@ pub fn fit(
         warn.call_method1(
             "warn",
             (format!(
-                "stopped ({:?}) before any candidate was scored: the result holds no model \
-                 (`model` is None)",
-                outcome.stop
+                "{}: the result holds no model (`model` is None)",
+                fit.unscored(outcome.stop)
             ),),
         )?;
     } else if outcome.params.is_empty() {

@@ -78,8 +78,10 @@ pub fn fit_chain(
 /// `fit` with the chain fitted here as its second start
 /// ([`FitRun::also_from`]) where it fits effects from scratch: `mckibben fit
 /// --effects LIST` and Python's `fit(effects=…)`. Unchanged otherwise (no
-/// effects, a warm start, the thesis' flow), and when `stop` is raised
-/// while the chain is built. The chain's searches use the diagnosis'
+/// effects, a warm start, the thesis' flow), and without the second start
+/// when `stop` is raised or the fit's time budget runs out while the chain
+/// is built (the seconds spent are the fit's all the same:
+/// [`FitRun::built_in_s`]). The chain's searches use the diagnosis'
 /// settings with the fit's seed, on `backend`.
 pub fn with_chain_start(
     fit: FitRun,
@@ -92,17 +94,42 @@ pub fn with_chain_start(
     if problem.model.effects.is_empty() || fit.start.is_some() || problem.flow != Flow::Joint {
         return Ok(fit);
     }
+    // The build's own flag, raised by `stop` or at the end of the budget;
+    // `stop` itself is the caller's, never raised here.
+    let build = StopFlag::default();
     let chain_settings = Settings {
         seed: settings.seed,
         backend,
-        stop,
+        stop: build.clone(),
         ..Settings::default()
     };
     let (family, effects) = (problem.model.family, problem.model.effects.clone());
     let started = std::time::Instant::now();
-    match fit_chain(traces, family, &effects, &chain_settings) {
-        Ok((model, _)) => fit.also_from(&model, started.elapsed().as_secs_f64(), settings),
-        Err(e) if e.is::<Interrupted>() => Ok(fit),
+    let done = std::sync::atomic::AtomicBool::new(false);
+    let built = std::thread::scope(|scope| {
+        scope.spawn(|| {
+            let budget = settings.stops.time_budget_s;
+            while !done.load(std::sync::atomic::Ordering::SeqCst) {
+                let spent = started.elapsed().as_secs_f64();
+                if stop.raised() || budget.is_some_and(|b| spent >= b) {
+                    build.raise();
+                    return;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(10));
+            }
+        });
+        let built = fit_chain(traces, family, &effects, &chain_settings);
+        done.store(true, std::sync::atomic::Ordering::SeqCst);
+        built
+    });
+    let built_in_s = started.elapsed().as_secs_f64();
+    match built {
+        Ok((model, _)) => fit.also_from(&model, built_in_s, settings),
+        Err(e) if e.is::<Interrupted>() => {
+            let mut fit = fit;
+            fit.built_in_s = built_in_s;
+            Ok(fit)
+        }
         Err(e) => Err(e),
     }
 }

@@ -77,6 +77,9 @@ pub struct FitRun {
     /// chain built one effect at a time, warm-started in a box widened to
     /// hold it.
     second: Option<ChainStart>,
+    /// Seconds spent before the first start, building that chain (whether
+    /// or not the build ended): counted in the fit's time and its budget.
+    pub built_in_s: f64,
     /// Which of the two was kept, once [`FitRun::run`] has run both.
     pub built: Option<Built>,
     /// The default switching's second start ([`FitProblem::at_zero`]): the same
@@ -98,12 +101,10 @@ struct Start {
     engine: Engine<ModelChart>,
 }
 
-/// The chain's warm start ([`FitRun::also_from`]) and the seconds its model
-/// took to build, counted in the fit's time.
+/// The chain's warm start ([`FitRun::also_from`]).
 #[derive(Debug, Clone)]
 struct ChainStart {
     start: Start,
-    built_in_s: f64,
 }
 
 /// A start run to its end with every try settled by the edge rule: its
@@ -286,6 +287,7 @@ impl FitRun {
             engine,
             start: None,
             second: None,
+            built_in_s: 0.0,
             built: None,
             zero,
             switched: None,
@@ -324,9 +326,24 @@ impl FitRun {
         let engine = settings.start_warm(&problem, &theta)?;
         self.second = Some(ChainStart {
             start: Start { problem, engine },
-            built_in_s,
         });
+        self.built_in_s = built_in_s;
         Ok(self)
+    }
+
+    /// Why a run that scored no candidate ended, for its message: a stop
+    /// while the chain was built says so (its searches scored candidates,
+    /// the fit's did not).
+    pub fn unscored(&self, stop: StopReason) -> String {
+        if self.built_in_s > 0.0 {
+            format!(
+                "stopped ({stop:?}) while the chain was built ({:.1} s), before the fit's first \
+                 start scored a candidate",
+                self.built_in_s
+            )
+        } else {
+            format!("stopped ({stop:?}) before any candidate was scored")
+        }
     }
 
     /// A warm start's model as it was, scored as the refit is: its
@@ -346,7 +363,11 @@ impl FitRun {
     /// starts (the switching's start at zero, the chain's warm start) where
     /// there are, every start's tries settled by the edge rule
     /// ([`settle_tries`]) before the lowest estimation SSE is kept;
-    /// `checkpoint` as [`Engine::run`]. Returns the outcome and the kept
+    /// `checkpoint` as [`Engine::run`]. A time budget covers the whole fit,
+    /// the chain's build included: each start runs in what the ones before
+    /// it left, and one with nothing left does not run. The outcome's
+    /// `stop` is the first start's that ended early (a budget, a target,
+    /// Ctrl-C), `completed` only where every start ran to its end. Returns the outcome and the kept
     /// try's widenings. The one place a fit's starts, tries, switching
     /// levels and edge refits run: `mckibben fit`, Python's `fit`, the
     /// diagnosis' fits as `fit` makes them, `compare` and the generated
@@ -359,6 +380,8 @@ impl FitRun {
         checkpoint: Option<&Path>,
     ) -> anyhow::Result<(Outcome, Vec<Widening>)> {
         let stops = self.engine.stops.clone();
+        let left = |spent: f64| stops.time_budget_s.map(|b| (b - spent).max(0.0));
+        self.engine.stops.time_budget_s = left(self.built_in_s);
         let hooks = Hooks {
             observers,
             interrupt,
@@ -367,10 +390,29 @@ impl FitRun {
         let outcome = run_on(&self.problem, &mut self.engine, evaluator, hooks)?;
         let (mut outcome, mut widened) =
             settle_tries(&mut self.problem, &self.engine, outcome, &stops, evaluator)?;
-        if let Some(mut start) = self.zero.take()
-            && outcome.stop != StopReason::Interrupted
-        {
+        outcome.seconds += self.built_in_s;
+        let mut stop = outcome.stop;
+        // A later start runs where the fit was not stopped and time is left.
+        let runs_on = |stop: StopReason, spent: f64| {
+            if stop == StopReason::Interrupted {
+                return Err(StopReason::Interrupted);
+            }
+            match left(spent) {
+                Some(t) if t <= 0.0 => Err(StopReason::TimeBudget),
+                t => Ok(t),
+            }
+        };
+        if let Some(mut start) = self.zero.take() {
+            match runs_on(stop, outcome.seconds) {
+                Ok(budget) => start.engine.stops.time_budget_s = budget,
+                Err(why) => {
+                    outcome.stop = earliest(stop, why);
+                    self.agreement = Agreement::of(&outcome.tries, self.problem.est_samples());
+                    return Ok((outcome, widened));
+                }
+            }
             let zero = start.run(evaluator, &stops, interrupt)?;
+            stop = earliest(stop, zero.outcome.stop);
             let switched = Switched::of(&outcome, &zero.outcome);
             self.switched = Some(switched);
             let (evaluations, seconds) = (
@@ -383,17 +425,20 @@ impl FitRun {
             }
             (outcome.evaluations, outcome.seconds) = (evaluations, seconds);
         }
-        if let Some(ChainStart {
-            mut start,
-            built_in_s,
-        }) = self.second.take()
-            && outcome.stop != StopReason::Interrupted
-        {
-            outcome.seconds += built_in_s;
+        if let Some(ChainStart { mut start }) = self.second.take() {
+            match runs_on(stop, outcome.seconds) {
+                Ok(budget) => start.engine.stops.time_budget_s = budget,
+                Err(why) => {
+                    outcome.stop = earliest(stop, why);
+                    self.agreement = Agreement::of(&outcome.tries, self.problem.est_samples());
+                    return Ok((outcome, widened));
+                }
+            }
             let Settled {
                 outcome: chain,
                 widened: chain_widened,
             } = start.run(evaluator, &stops, interrupt)?;
+            stop = earliest(stop, chain.stop);
             let kept_chain = !chain.params.is_empty() && chain.sse < outcome.sse;
             self.built = Some(Built {
                 scratch_sse: outcome.sse,
@@ -414,8 +459,18 @@ impl FitRun {
                 outcome.seconds += chain.seconds;
             }
         }
+        outcome.stop = stop;
         self.agreement = Agreement::of(&outcome.tries, self.problem.est_samples());
         Ok((outcome, widened))
+    }
+}
+
+/// Why a fit of several starts ended: the first start's reason that is not
+/// `completed`, so that a fit cut short anywhere says so.
+fn earliest(first: StopReason, then: StopReason) -> StopReason {
+    match first {
+        StopReason::Completed => then,
+        early => early,
     }
 }
 

@@ -232,8 +232,9 @@ pub struct Args {
     #[arg(long, value_name = "SSE")]
     pub(super) target_sse: Option<f64>,
     /// Stop after this many seconds of the fit (the result then depends on
-    /// the machine). A fit resumed from --checkpoint counts the seconds it
-    /// ran before as well: the budget is the whole fit's.
+    /// the machine). The budget is the whole fit's: the --effects chain's
+    /// build and every start (a start with no time left is not run), and
+    /// a fit resumed from --checkpoint counts the seconds it ran before.
     #[arg(long, value_name = "SECONDS")]
     pub(super) time_budget: Option<f64>,
     /// End a population stage when its best has not improved for this many

@@ -188,8 +188,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             format!("; `--checkpoint {}` resumes it", c.display())
         });
         anyhow::bail!(
-            "stopped ({:?}) before any candidate was scored: nothing was written to {}{resume}",
-            outcome.stop,
+            "{}: nothing was written to {}{resume}",
+            fit.unscored(outcome.stop),
             args.out.display()
         );
     }
