@@ -339,6 +339,24 @@ fn fit_with_effects_auto_returns_the_diagnosis_final_model() {
     assert!(e.contains("`auto` stands alone"), "{e}");
     let e = error_of(&["fit", STAIR, "--effects", "auto", "--fix", "alpha=0.5"]);
     assert!(e.contains("--effects auto"), "{e}");
+    // Flags the selection would not read (it ran 50 s past a 5 s budget,
+    // and reported DE at 30 where PSO at 10 was asked).
+    let e = error_of(&[
+        "fit",
+        STAIR,
+        "--effects",
+        "auto",
+        "--time-budget",
+        "5",
+        "--pop",
+        "10",
+        "--algo",
+        "pso",
+    ]);
+    assert!(
+        e.contains("--algo, --pop, --time-budget would not be read; leave them out"),
+        "{e}"
+    );
 }
 
 #[test]

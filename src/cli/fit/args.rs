@@ -110,7 +110,9 @@ pub struct Args {
     /// builds it; the lower estimation SSE is kept (the `built` line says
     /// which). `auto` runs the diagnosis' selection
     /// over the whole catalogue and returns its final model (as `mckibben
-    /// diagnose`; minutes, not seconds). Default: the --from model's, else none.
+    /// diagnose`; minutes, not seconds), its searches set by --seed and
+    /// --backend alone (the search flags are refused beside it). Default:
+    /// the --from model's, else none.
     #[arg(
         long,
         value_delimiter = ',',
@@ -315,6 +317,47 @@ impl std::str::FromStr for EffectArg {
 }
 
 impl Args {
+    /// The flags `--effects auto` would not read, given: the diagnosis'
+    /// selection runs its own searches from the seed alone.
+    pub(super) fn unread_by_auto(&self) -> Vec<&'static str> {
+        let given = [
+            ("--from", self.from.is_some()),
+            ("--carry", self.carry.is_some()),
+            ("--bound", !self.bound.is_empty()),
+            ("--fix", !self.fix.is_empty()),
+            ("--algo", self.algo != Algorithm::De),
+            ("--pop", self.pop != POPULATION),
+            ("--gens", self.gens != GENERATIONS),
+            ("--thesis-flow", self.thesis_flow),
+            ("--islands", self.islands.is_some()),
+            ("--horizon", self.horizon.is_some()),
+            ("--refine-rounds", self.refine_rounds.is_some()),
+            ("--free-n", self.free_n),
+            ("--loop", self.loop_shape != Loop::Bounded),
+            ("--switch", self.switching.is_some()),
+            ("--target-sse", self.target_sse.is_some()),
+            ("--time-budget", self.time_budget.is_some()),
+            ("--stall", self.stall.is_some()),
+            ("--crossover", self.crossover.is_some()),
+            ("--elitism", self.elitism.is_some()),
+            ("--p-mut", self.p_mut.is_some()),
+            ("--mutation", self.mutation.is_some()),
+            ("--mfa-distance", self.mfa_distance.is_some()),
+            ("--mfa-scale", self.mfa_scale.is_some()),
+            ("--mfa-attractors", self.mfa_attractors.is_some()),
+            ("--mfa-brightest", self.mfa_brightest),
+            ("--mfa-lambda0", self.mfa_lambda0.is_some()),
+            ("--mfa-rho0", self.mfa_rho0.is_some()),
+            ("--de-p-best", self.de_p_best.is_some()),
+            ("--pso-scalar-social", self.pso_scalar_social),
+            ("--checkpoint", self.checkpoint.is_some()),
+        ];
+        given
+            .iter()
+            .filter(|(_, g)| *g)
+            .map(|(flag, _)| *flag)
+            .collect()
+    }
     /// The fit the flags ask for.
     pub(super) fn settings(&self) -> FitSettings {
         FitSettings {

@@ -77,9 +77,14 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         args.data.columns = args.data.columns.or_as_read_for(file);
     }
     if let Some([EffectArg::Auto]) = args.effects.as_deref() {
+        let unread = args.unread_by_auto();
         anyhow::ensure!(
-            start.is_none() && args.bound.is_empty() && args.fix.is_empty(),
-            "--effects auto runs the diagnosis' own selection: not with --from, --bound or --fix"
+            unread.is_empty(),
+            "--effects auto runs the diagnosis' own selection, its searches set by the seed \
+             alone: {} would not be read; leave {} out (`mckibben diagnose` has the \
+             selection's own knobs)",
+            unread.join(", "),
+            if unread.len() == 1 { "it" } else { "them" }
         );
         let family = args.model.map_or(Family::Classic, Family::from);
         let [trace] = &records(args.data.load()?)?[..] else {
