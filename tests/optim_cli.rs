@@ -1513,3 +1513,37 @@ fn a_budget_spent_building_the_chain_says_so() {
         "{err}"
     );
 }
+
+/// A fit whose files cannot be written prints its report (the minutes of
+/// search are not lost) without saying it wrote them, and exits 1: a
+/// folder named `model.json` stood where the model goes.
+#[test]
+fn a_failed_write_is_not_reported_as_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    std::fs::create_dir_all(dir.path().join("od/model.json")).unwrap();
+    for json in [false, true] {
+        let mut args = [&short_fit(&csv)[..], &["--out", "od"]].concat();
+        if json {
+            args.push("--json");
+        }
+        let out = mckibben(&args, dir.path());
+        let (stdout, err) = (
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr),
+        );
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains("cannot write --out od"), "{err}");
+        if json {
+            let doc: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+            assert!(doc.get("out").is_none(), "{doc}");
+            assert!(doc["sse"].is_number());
+        } else {
+            assert!(
+                stdout.contains("evaluations in") && !stdout.contains("wrote"),
+                "{stdout}"
+            );
+        }
+    }
+    assert!(!dir.path().join("od/result.json").exists());
+}

@@ -406,7 +406,12 @@ impl FitReport {
             .zip(&files)
             .map(|(path, (_, bytes))| (path.as_path(), bytes.as_slice()))
             .collect();
-        write_all_atomic(&set).with_context(|| format!("cannot write --out {}", out.display()))?;
+        if let Err(e) = write_all_atomic(&set) {
+            // The report printed after a failed write must not say where
+            // it was written.
+            self.out = None;
+            return Err(e).with_context(|| format!("cannot write --out {}", out.display()));
+        }
         // An earlier fit of more records left figures of records this one
         // does not have: beside this fit's, they would pass for its own.
         let drawn = files
