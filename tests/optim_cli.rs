@@ -1547,3 +1547,32 @@ fn a_failed_write_is_not_reported_as_written() {
     }
     assert!(!dir.path().join("od/result.json").exists());
 }
+
+/// A checkpoint that cannot be written (a full disk, a file where its
+/// folder goes) does not throw the fit away: its files are written and a
+/// warning says it cannot be resumed (the fit ran to its end and then
+/// failed, writing nothing).
+#[test]
+fn a_checkpoint_that_cannot_be_written_keeps_the_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    std::fs::write(dir.path().join("afile"), "x").unwrap();
+    let args = [
+        &short_fit(&csv)[..],
+        &["--checkpoint", "afile/ck.json", "--out", "kept", "--json"],
+    ]
+    .concat();
+    let out = mckibben(&args, dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(dir.path().join("kept/model.json").exists());
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let warned = doc["notes"].as_array().unwrap().iter().any(|n| {
+        n["level"] == "warning"
+            && n["text"]
+                .as_str()
+                .unwrap()
+                .starts_with("cannot write checkpoint afile/ck.json")
+    });
+    assert!(warned, "{}", doc["notes"]);
+}

@@ -388,6 +388,8 @@ impl FitRun {
             checkpoint,
         };
         let outcome = run_on(&self.problem, &mut self.engine, evaluator, hooks)?;
+        // Only the first start is checkpointed: its failure to be is the fit's.
+        let checkpoint_error = outcome.checkpoint_error.clone();
         let (mut outcome, mut widened) =
             settle_tries(&mut self.problem, &self.engine, outcome, &stops, evaluator)?;
         outcome.seconds += self.built_in_s;
@@ -406,9 +408,8 @@ impl FitRun {
             match runs_on(stop, outcome.seconds) {
                 Ok(budget) => start.engine.stops.time_budget_s = budget,
                 Err(why) => {
-                    outcome.stop = earliest(stop, why);
-                    self.agreement = Agreement::of(&outcome.tries, self.problem.est_samples());
-                    return Ok((outcome, widened));
+                    let stop = earliest(stop, why);
+                    return Ok(self.ended(outcome, widened, stop, checkpoint_error));
                 }
             }
             let zero = start.run(evaluator, &stops, interrupt)?;
@@ -429,9 +430,8 @@ impl FitRun {
             match runs_on(stop, outcome.seconds) {
                 Ok(budget) => start.engine.stops.time_budget_s = budget,
                 Err(why) => {
-                    outcome.stop = earliest(stop, why);
-                    self.agreement = Agreement::of(&outcome.tries, self.problem.est_samples());
-                    return Ok((outcome, widened));
+                    let stop = earliest(stop, why);
+                    return Ok(self.ended(outcome, widened, stop, checkpoint_error));
                 }
             }
             let Settled {
@@ -459,9 +459,22 @@ impl FitRun {
                 outcome.seconds += chain.seconds;
             }
         }
+        Ok(self.ended(outcome, widened, stop, checkpoint_error))
+    }
+
+    /// The kept start's outcome as the fit's: why the fit ended, whether
+    /// its checkpoint was written, and how far the kept start's tries agree.
+    fn ended(
+        &mut self,
+        mut outcome: Outcome,
+        widened: Vec<Widening>,
+        stop: StopReason,
+        checkpoint_error: Option<String>,
+    ) -> (Outcome, Vec<Widening>) {
         outcome.stop = stop;
+        outcome.checkpoint_error = checkpoint_error;
         self.agreement = Agreement::of(&outcome.tries, self.problem.est_samples());
-        Ok((outcome, widened))
+        (outcome, widened)
     }
 }
 

@@ -199,7 +199,16 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         );
     }
     let mut report = FitReport::of(&fit, (&outcome, &widened), &backend, &traces);
-    let after = report.after_notes(fit.start_scores());
+    let mut after = report.after_notes(fit.start_scores());
+    if let Some(why) = &outcome.checkpoint_error {
+        after.push(Note {
+            level: "warning",
+            text: format!(
+                "{why}: the fit went on without it and its result is whole, but it cannot be \
+                 resumed from that checkpoint"
+            ),
+        });
+    }
     report.notes = early.take();
     report.notes.extend(after.iter().cloned());
     let provenance = args.data.provenance(Some(fit.engine.seed))?;

@@ -249,6 +249,11 @@ pub struct Outcome {
     /// diverged) and free-run SSE.
     #[serde(default)]
     pub tries: Vec<TryEnd>,
+    /// Why the last checkpoint could not be written, where it could not
+    /// (a full disk): the fit ran on, its result whole, but it cannot be
+    /// resumed from there.
+    #[serde(skip)]
+    pub checkpoint_error: Option<String>,
 }
 
 /// Where one try ended.
@@ -449,7 +454,9 @@ impl<C: Chart> Engine<C> {
 
     /// Runs until every stage ran or a stop rule holds. `interrupt` (Ctrl-C)
     /// stops cleanly after the current generation or polish iteration;
-    /// `checkpoint` is rewritten every ten seconds and when the fit stops.
+    /// `checkpoint` is rewritten every ten seconds and when the fit stops;
+    /// a write that fails does not stop the fit (its result is whole) and
+    /// is reported in [`Outcome::checkpoint_error`] where the last one failed.
     pub fn run(
         &mut self,
         objective: &mut dyn Objective,
@@ -461,6 +468,7 @@ impl<C: Chart> Engine<C> {
         self.started.get_or_insert_with(Instant::now);
         let planned = self.planned_generations();
         let mut last_save = Instant::now();
+        let mut checkpoint_error = None;
         // The best of a polish cut short: not part of the state (see `polish`).
         let mut interim: Option<Scored> = None;
         let stop = loop {
@@ -487,12 +495,12 @@ impl<C: Chart> Engine<C> {
             if let Some(path) = checkpoint
                 && last_save.elapsed().as_secs_f64() >= CHECKPOINT_EVERY_S
             {
-                self.save(path)?;
+                checkpoint_error = self.save(path).err().map(|e| format!("{e:#}"));
                 last_save = Instant::now();
             }
         };
         if let Some(path) = checkpoint {
-            self.save(path)?;
+            checkpoint_error = self.save(path).err().map(|e| format!("{e:#}"));
         }
         let mut best = self.overall_best().cloned();
         if stop != StopReason::Completed {
@@ -537,6 +545,7 @@ impl<C: Chart> Engine<C> {
                         .filter(|_| t.refining && self.plan.refine.is_some() && finished),
                 })
                 .collect(),
+            checkpoint_error,
         })
     }
 
