@@ -436,6 +436,27 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         "{err}"
     );
     assert!(!dir.path().join("huge/model.json").exists());
+
+    // A stroke in nanometres: no overflow, but past the bound at which a
+    // simulated state counts as diverged, so even the truth would: refused
+    // with the column's range (every candidate "diverged" before).
+    let synthetic = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = synthetic.lines();
+    let mut nm = vec![lines.next().unwrap().to_string()];
+    nm.extend(lines.map(|l| {
+        let mut cells: Vec<String> = l.split(',').map(String::from).collect();
+        cells[2] = format!("{}", cells[2].parse::<f64>().unwrap() * 1e6);
+        cells.join(",")
+    }));
+    std::fs::write(dir.path().join("nm.csv"), nm.join("\n") + "\n").unwrap();
+    let out = mckibben(&short_fit("nm.csv"), dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("the output `displacement` of nm.csv spans")
+            && err.contains("counts a state beyond ±1e6 as diverged"),
+        "{err}"
+    );
 }
 
 /// A warm start keeps its model's family: another `--model`, or an ARX

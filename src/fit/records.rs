@@ -12,7 +12,7 @@ use crate::ident::arx::{Arx, ArxOrders, linear_prior};
 use crate::ident::{pooled_fit_percent, rmse};
 use crate::model::effects::{Context, ModelDescription};
 use crate::model::experiment::halves;
-use crate::model::{Experiment, LinearPrior, Model};
+use crate::model::{DIVERGENCE_BOUND, Experiment, LinearPrior, Model};
 
 /// Validation scores of a parameter vector (output units).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -302,6 +302,9 @@ pub fn offset_note(trace: &Trace) -> Option<String> {
 /// simulation: the estimation SSE sums squared output deviations over every
 /// sample, so each column's deviation from its mean, times √(samples), must
 /// stay well inside `√f32::MAX` (10⁻³ of it: room for candidates far off).
+/// And the output's deviations must stay well inside the bound past which
+/// a simulated state counts as diverged ([`DIVERGENCE_BOUND`]; a quarter of
+/// it: room for a candidate's overshoot), or even the truth would be.
 /// Without this check such data "diverges" for every candidate.
 pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
     let limit = (f32::MAX as f64).sqrt() * 1e-3 / (trace.len().max(1) as f64).sqrt();
@@ -323,6 +326,15 @@ pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
              must stay below {limit:.3e}); rescale the column (for example Pa to MPa, or m to mm)",
             trace.source,
             trace.len()
+        );
+        let states = f64::from(DIVERGENCE_BOUND) / 4.0;
+        anyhow::ensure!(
+            name != &trace.output_name || reach <= states,
+            "the output `{name}` of {} spans [{lo:e}, {hi:e}]: the simulation counts a state \
+             beyond ±{:e} as diverged, and deviations from the mean must stay below {states:e} \
+             to leave a model room; rescale the column (for example nm to mm)",
+            trace.source,
+            DIVERGENCE_BOUND
         );
     }
     Ok(())
