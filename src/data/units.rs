@@ -2,18 +2,26 @@
 //! that a model fitted in one unit is never run on data in another.
 
 /// Units a column name may end in (`pressure_psi`, `disp_mm`, `p [kPa]`,
-/// `x (m)`), lower-case, with the spelling a model file records. Not
-/// inches: `valve_in` is the input valve.
-const KNOWN: [(&str, &str); 15] = [
+/// `x (m)`), lower-case, with the spelling a model file records. Inches
+/// only as `_inch` or in brackets (`x [in]`): `valve_in` is the input valve.
+const KNOWN: [(&str, &str); 22] = [
     ("mpa", "MPa"),
     ("kpa", "kPa"),
+    ("hpa", "hPa"),
     ("pa", "Pa"),
     ("bar", "bar"),
+    ("mbar", "mbar"),
+    ("atm", "atm"),
     ("psi", "psi"),
     ("mm", "mm"),
     ("cm", "cm"),
     ("m", "m"),
     ("um", "µm"),
+    // The micro sign and the Greek mu, which keyboards give alike.
+    ("\u{b5}m", "µm"),
+    ("\u{3bc}m", "µm"),
+    ("inch", "in"),
+    ("ft", "ft"),
     ("v", "V"),
     ("mv", "mV"),
     ("n", "N"),
@@ -47,6 +55,9 @@ pub fn unit_of(column: &str) -> Option<String> {
         _ => {}
     }
     let tail = stated(name)?;
+    if tail == "in" && (name.ends_with(']') || name.ends_with(')')) {
+        return Some("in".into());
+    }
     KNOWN
         .iter()
         .find(|(key, _)| *key == tail)
@@ -101,6 +112,8 @@ fn millimetres_in(unit: &str) -> Option<f64> {
         "cm" => Some(10.0),
         "m" => Some(1000.0),
         "µm" => Some(1e-3),
+        "in" => Some(25.4),
+        "ft" => Some(304.8),
         _ => None,
     }
 }
@@ -112,7 +125,9 @@ pub fn megapascals_in(unit: &str) -> Option<f64> {
         "MPa" => Some(1.0),
         "kPa" => Some(1e-3),
         "Pa" => Some(1e-6),
+        "hPa" | "mbar" => Some(1e-4),
         "bar" => Some(0.1),
+        "atm" => Some(0.101325),
         // 1 psi = 6894.757293168 Pa (the international pound and inch).
         "psi" => Some(6.894757293168e-3),
         _ => None,
@@ -142,6 +157,15 @@ mod tests {
         assert_eq!(megapascals_in("kPa"), Some(1e-3));
         assert_eq!(megapascals_in("mm"), None);
         assert_eq!(unit_of("load"), None);
+        // Both mus, inches where they cannot be the input valve.
+        assert_eq!(unit_of("x_\u{b5}m").as_deref(), Some("µm"));
+        assert_eq!(unit_of("x_\u{3bc}m").as_deref(), Some("µm"));
+        assert_eq!(unit_of("stroke [in]").as_deref(), Some("in"));
+        assert_eq!(unit_of("stroke_inch").as_deref(), Some("in"));
+        assert_eq!(unit_of("valve_in"), None);
+        assert_eq!(unit_of("p_mbar").as_deref(), Some("mbar"));
+        assert_eq!(megapascals_in("hPa"), Some(1e-4));
+        assert_eq!(stated_length_in_mm("disp_ft"), Some(304.8));
     }
 
     #[test]
