@@ -1082,3 +1082,50 @@ fn simulate_plots_the_measured_output_it_scores() {
     assert_eq!(legends(&on_record), 2, "the output panel and the loop");
     assert_eq!(legends(&generated), 0);
 }
+
+/// `simulate` checks a record as the other commands do: values the f32
+/// simulation cannot sum are refused naming the input file (the error named
+/// the --out file the diverged run could not be written to), and a
+/// `pressure` column past any muscle's MPa gets the note asking its unit.
+#[test]
+fn simulate_checks_its_record_as_fit_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let stair = std::fs::read_to_string(Path::new(ROOT).join(STAIR)).unwrap();
+    let scaled = |column: usize, by: f64| -> String {
+        let mut rows = stair.lines().filter(|l| !l.starts_with('#'));
+        let mut out = vec![rows.next().unwrap().to_string()];
+        out.extend(rows.map(|l| {
+            let mut cells: Vec<String> = l.split(',').map(String::from).collect();
+            cells[column] = format!("{:e}", cells[column].parse::<f64>().unwrap() * by);
+            cells.join(",")
+        }));
+        out.join("\n") + "\n"
+    };
+    let huge = dir.path().join("huge.csv");
+    std::fs::write(&huge, scaled(2, 1e200)).unwrap();
+    let written = dir.path().join("sim.csv");
+    let e = error_of(&[
+        "simulate",
+        "--input",
+        huge.to_str().unwrap(),
+        "--out",
+        written.to_str().unwrap(),
+    ]);
+    assert!(
+        e.contains(&format!(
+            "column `displacement` of {} spans",
+            huge.display()
+        )),
+        "{e}"
+    );
+    assert!(!written.exists());
+    let kpa = dir.path().join("kpa.csv");
+    std::fs::write(&kpa, scaled(1, 1e3)).unwrap();
+    let out = mckibben(&["simulate", "--input", kpa.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("if it is in kPa, Pa, bar or psi, say so in its name"),
+        "{err}"
+    );
+}

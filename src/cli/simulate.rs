@@ -7,9 +7,10 @@ use anyhow::{Context, bail};
 use serde::Serialize;
 
 use mckibben::data::Trace;
-use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces};
+use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::data::signals::{Stair, nyquist_rad_s, samples_in};
 use mckibben::data::units::{megapascals_in, unit_of};
+use mckibben::fit::records::check_f32_range;
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::experiment::halves;
 use mckibben::model::presets::thesis_params;
@@ -607,7 +608,7 @@ fn input_trace(
             // simulate's own `--input` names the signal; its columns are
             // --input-col and --output-col.
             let read = |opts: &ReadOptions| {
-                read_traces(&path, opts).map_err(|e| match e {
+                read_traces_with_notes(&path, opts).map_err(|e| match e {
                     DataError::MissingColumn {
                         path,
                         line,
@@ -638,7 +639,7 @@ fn input_trace(
             };
             // A file with no output column (none named) is an input alone:
             // the run starts at rest and nothing is scored.
-            let (mut traces, measured) = match read(&opts) {
+            let ((mut traces, notes), measured) = match read(&opts) {
                 Err(DataError::MissingColumn { role: "output", .. })
                     if args.output_col.is_none() =>
                 {
@@ -650,12 +651,21 @@ fn input_trace(
                 }
                 read => (read?, true),
             };
+            for note in notes {
+                eprintln!("mckibben: note: {note}");
+            }
             anyhow::ensure!(
                 traces.len() == 1,
                 "{file}: --split-gaps gave {} pieces; simulate one file piece at a time",
                 traces.len()
             );
             let mut trace = traces.remove(0);
+            // Values the f32 simulation cannot sum, or an output past the
+            // bound a state diverges at, are refused as `fit` refuses them
+            // (the simulation ran on, and its file could not be written).
+            if measured {
+                check_f32_range(&trace)?;
+            }
             if !measured {
                 trace.output_name = saved.map_or(defaults.output, |f| f.data.output.column.clone());
             }
