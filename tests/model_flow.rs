@@ -406,7 +406,8 @@ fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
         "pressure_kpa",
     ]);
     assert!(
-        e.contains("in MPa") && e.contains("`pressure_kpa` is in kPa"),
+        e.contains(&format!("{}: the model's input is in MPa", csv.display()))
+            && e.contains("`pressure_kpa` is in kPa"),
         "{e}"
     );
     // The other way round: the shipped data's `pressure` states no unit and

@@ -172,8 +172,9 @@ impl Model {
                 };
                 anyhow::ensure!(
                     was == now,
-                    "the model's {which} is in {was} (column `{fitted}`), but {named}: convert \
-                     the column, or name its unit, or refit the model on data in {now}"
+                    "{}: the model's {which} is in {was} (column `{fitted}`), but {named}: \
+                     convert the column, or name its unit, or refit the model on data in {now}",
+                    trace.source
                 );
             }
         }
