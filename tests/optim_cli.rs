@@ -274,7 +274,7 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 18] = [
+    let cases: [(&[&str], &str); 20] = [
         (&["fit", "missing.csv"], "missing.csv"),
         // A population no machine holds: an error, not an aborted
         // allocation.
@@ -386,6 +386,16 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         (
             &["sweep", "--seeds", "1,9007199254740992"],
             "'--seeds <SEEDS>': seeds run from 0 to 2^53 - 1",
+        ),
+        // The record itself as the other record: it scored as a transfer
+        // or a cross-load check of itself.
+        (
+            &["diagnose", &csv, "--transfer", &csv],
+            "which the diagnosis reads: a transfer scores the chain on another record",
+        ),
+        (
+            &["compare", &csv, "--cross", &csv],
+            "the cross-load check scores the fits on another record",
         ),
     ];
     for (args, needle) in cases {

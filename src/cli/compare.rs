@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::Context;
 
 use super::common::{ColumnArgs, DataArgs, one_trace, population};
-use mckibben::data::{Trace, same_step, tidy_step, write_atomic};
+use mckibben::data::{Trace, same_samples, same_step, tidy_step, write_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::fit::compare::{Report, Settings, Study, markdown};
 use mckibben::optim::mfa;
@@ -89,6 +89,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // after minutes of fits.
     let other = cross_trace(&args)?;
     if let Some(other) = &other {
+        anyhow::ensure!(
+            !same_samples(&trace, other),
+            "--cross {}: it holds the samples of {}: the cross-load check scores the fits on \
+             another record (the other load); give one",
+            other.source,
+            trace.source
+        );
         let dt = trace.dt();
         anyhow::ensure!(
             same_step(other.dt(), dt),

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use mckibben::data::{mixed_steps, same_step, tidy_step};
+use mckibben::data::{mixed_steps, same_samples, same_step, tidy_step};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::transfer::{check_others, transfer};
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
@@ -320,6 +320,14 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         anyhow::bail!("{why} (--resample {shown})");
     }
     for other in &others {
+        if let Some(own) = traces.iter().find(|t| same_samples(t, other)) {
+            anyhow::bail!(
+                "--transfer {}: it holds the samples of {}, which the diagnosis reads: a \
+                 transfer scores the chain on another record; give one",
+                other.source,
+                own.source
+            );
+        }
         anyhow::ensure!(
             same_step(other.dt(), dt),
             "--transfer {}: sampled every {} s, the diagnosed record every {shown} s; the \

@@ -171,10 +171,7 @@ pub fn unlike_records(traces: &[Trace]) -> Option<String> {
                 first.output_name
             ));
         }
-        if let Some(twin) = traces[..k]
-            .iter()
-            .find(|o| o.input == t.input && o.output == t.output && o.t == t.t)
-        {
+        if let Some(twin) = traces[..k].iter().find(|o| same_samples(o, t)) {
             return Some(format!(
                 "{} and {} hold the same samples: a record given twice weighs double and \
                  makes every standard error look √2 smaller; give it once",
@@ -183,6 +180,12 @@ pub fn unlike_records(traces: &[Trace]) -> Option<String> {
         }
     }
     None
+}
+
+/// Whether two traces hold the same samples: one record, given twice or
+/// under two names.
+pub fn same_samples(a: &Trace, b: &Trace) -> bool {
+    a.input == b.input && a.output == b.output && a.t == b.t
 }
 
 /// The sample times a record may have: a nanosecond to a day. Past either,
