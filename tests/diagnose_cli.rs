@@ -255,6 +255,9 @@ fn undiagnosable_data_gives_clear_errors() {
             && err.contains("it needs at least"),
         "{err}"
     );
+    // Two blocks are the fewest: no advice to cut into fewer than that.
+    let err = error_of(&["diagnose", "--blocks", "2"], &halves);
+    assert!(!err.contains("fewer --blocks"), "{err}");
     let err = error_of(&["diagnose", "--blocks", "1"], &halves);
     assert!(err.contains("--blocks must be at least 2"), "{err}");
 

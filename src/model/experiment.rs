@@ -166,12 +166,19 @@ impl Parts {
             }
         }
         let needs = hi;
+        // Fewer blocks help only where there are more than the two the
+        // parts need, and only where two would fit.
+        let fewer = if blocks > 2 && Parts::too_short(len, 2, settle).is_none() {
+            ", or cut the second half into fewer --blocks"
+        } else {
+            ""
+        };
         Some(format!(
             "{len} samples are too few for the diagnosis' three parts (the first half \
              estimates; the second is cut into {blocks} blocks that alternate between \
              selection and test, each keeping at least {MIN_BLOCK} samples after its \
              settling gaps): it needs at least {needs} samples; record a longer \
-             experiment, or cut the second half into fewer --blocks"
+             experiment{fewer}"
         ))
     }
 
