@@ -207,14 +207,14 @@ pub enum DataError {
         expected: usize,
         header_line: u64,
     },
-    #[error("{}: line {line}, column \"{column}\": \"{value}\" is not a number", path.display())]
+    #[error("{}: line {line}, column \"{column}\": \"{}\" is not a number", path.display(), shown(value))]
     NotANumber {
         path: PathBuf,
         line: u64,
         column: String,
         value: String,
     },
-    #[error("{}: line {line}, column \"{column}\": \"{value}\" is not finite", path.display())]
+    #[error("{}: line {line}, column \"{column}\": \"{}\" is not finite", path.display(), shown(value))]
     NotFinite {
         path: PathBuf,
         line: u64,
@@ -296,8 +296,35 @@ fn rounded(x: f64) -> f64 {
 }
 
 fn quoted(names: &[String]) -> String {
-    let q: Vec<String> = names.iter().map(|n| format!("\"{n}\"")).collect();
+    const MOST: usize = 12;
+    let mut q: Vec<String> = names
+        .iter()
+        .take(MOST)
+        .map(|n| format!("\"{}\"", shown(n)))
+        .collect();
+    if names.len() > MOST {
+        q.push(format!("and {} more", names.len() - MOST));
+    }
     q.join(", ")
+}
+
+/// A cell as an error quotes it: control characters escaped (a NUL printed
+/// raw) and at most 40 characters, the rest counted (a 50 MB line made a
+/// 50 MB message).
+fn shown(text: &str) -> String {
+    const MOST: usize = 40;
+    let head: String = text
+        .chars()
+        .take(MOST)
+        .flat_map(|c| match c.is_control() {
+            true => c.escape_default().collect::<Vec<char>>(),
+            false => vec![c],
+        })
+        .collect();
+    match text.chars().count() {
+        n if n > MOST => format!("{head}… ({n} characters)"),
+        _ => head,
+    }
 }
 
 /// Reads the traces in `path`: one, or with [`Gaps::Split`] one per segment.
@@ -814,9 +841,10 @@ fn parse(
         if largest > IMPLAUSIBLE_MPA {
             notes.push(format!(
                 "{}: column \"pressure\" is taken in MPa (the shipped data's unit), but it \
-                 reaches {largest}; if it is in kPa, Pa, bar or psi, say so in its name \
+                 reaches {}; if it is in kPa, Pa, bar or psi, say so in its name \
                  (`pressure_kPa`), so that a model fitted on it records its unit",
-                path.display()
+                path.display(),
+                super::readable(largest)
             ));
         }
     }
@@ -1294,6 +1322,24 @@ mod tests {
 
     fn err(text: &str) -> String {
         read(text, Gaps::Reject).unwrap_err().to_string()
+    }
+
+    /// An error quotes at most 40 characters of a cell, with control
+    /// characters escaped, and at most 12 column names: a 50 MB line made
+    /// a 50 MB message, and a NUL printed raw.
+    #[test]
+    fn errors_quote_cells_and_columns_briefly() {
+        let long = "x".repeat(5000);
+        let e = err(&format!("t,pressure,displacement\n0,{long},1\n0.01,0.2,2\n"));
+        assert!(
+            e.ends_with(&format!("\"{}… (5000 characters)\" is not a number", "x".repeat(40))),
+            "{e}"
+        );
+        let e = err("t,pressure,displacement\n0,\u{0}1,1\n0.01,0.2,2\n");
+        assert!(e.contains("\"\\u{0}1\" is not a number"), "{e}");
+        let names: Vec<String> = (0..100).map(|k| format!("c{k}")).collect();
+        let e = err(&format!("{}\n{}\n", names.join(","), vec!["1"; 100].join(",")));
+        assert!(e.contains("\"c11\", and 88 more") && !e.contains("c12"), "{e}");
     }
 
     /// A column the model does not read, filled only here and there (an
