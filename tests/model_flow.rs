@@ -1130,3 +1130,60 @@ fn simulate_checks_its_record_as_fit_does() {
         "{err}"
     );
 }
+
+/// A warm start holds its model's switching level unless `--switch` asks
+/// for another: `--switch zero` holds the sensor's zero, `--switch search`
+/// searches the level (both were ignored, the level held at the start's),
+/// and `--switch starts`, two fresh fits, is no warm start.
+#[test]
+fn a_warm_start_switches_where_switch_asks() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("g");
+    quick_fit(&[STAIR, "--model", "generalized"], &model);
+    let from = model.join("model.json");
+    let refit = |switch: &[&str]| {
+        let mut args = vec![
+            "fit",
+            "data/stair_7kg.csv",
+            "--from",
+            from.to_str().unwrap(),
+        ];
+        args.extend_from_slice(switch);
+        let out = dir.path().join(format!("r{}", switch.len()));
+        args.extend(["--gens", "5", "--out", out.to_str().unwrap(), "--json"]);
+        json_of(&args)
+    };
+    let x_s_box = |doc: &Value| {
+        let b = &doc["search_box"];
+        let i = b["names"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .position(|n| n == "x_s")
+            .unwrap();
+        (
+            b["lower"][i].as_f64().unwrap(),
+            b["upper"][i].as_f64().unwrap(),
+        )
+    };
+    let held = refit(&[]);
+    let (lo, hi) = x_s_box(&held);
+    assert_eq!(lo, hi, "the start's level held");
+    let zero = refit(&["--switch", "zero"]);
+    assert_eq!(zero["params"]["x_s"], 0.0);
+    let searched = refit(&["--switch", "search"]);
+    let (lo, hi) = x_s_box(&searched);
+    assert!(
+        hi - lo > 10.0,
+        "the level searched over the output's span: {lo}..{hi}"
+    );
+    let e = error_of(&[
+        "fit",
+        "data/stair_7kg.csv",
+        "--from",
+        from.to_str().unwrap(),
+        "--switch",
+        "starts",
+    ]);
+    assert!(e.contains("--switch starts runs two fresh fits"), "{e}");
+}

@@ -402,7 +402,7 @@ fn a_time_budget_covers_every_start_of_a_fit() {
 
     let trace = Synthetic::new(Family::Generalized, 400, 0.05, 3).trace;
     let what = FitTarget {
-        switching: Switching::Starts,
+        switching: Some(Switching::Starts),
         ..FitTarget::chain(Family::Generalized, &[])
     };
     let settings = |budget: f64| FitSettings {

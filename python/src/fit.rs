@@ -297,7 +297,7 @@ pub fn fit(
         effects,
         free_n,
         loop_shape: loop_shape(r#loop)?,
-        switching: asked.unwrap_or_default(),
+        switching: asked,
         bounds: bounds.unwrap_or_default(),
         carry: carried.is_some(),
     };

@@ -1330,16 +1330,28 @@ mod tests {
     #[test]
     fn errors_quote_cells_and_columns_briefly() {
         let long = "x".repeat(5000);
-        let e = err(&format!("t,pressure,displacement\n0,{long},1\n0.01,0.2,2\n"));
+        let e = err(&format!(
+            "t,pressure,displacement\n0,{long},1\n0.01,0.2,2\n"
+        ));
         assert!(
-            e.ends_with(&format!("\"{}… (5000 characters)\" is not a number", "x".repeat(40))),
+            e.ends_with(&format!(
+                "\"{}… (5000 characters)\" is not a number",
+                "x".repeat(40)
+            )),
             "{e}"
         );
         let e = err("t,pressure,displacement\n0,\u{0}1,1\n0.01,0.2,2\n");
         assert!(e.contains("\"\\u{0}1\" is not a number"), "{e}");
         let names: Vec<String> = (0..100).map(|k| format!("c{k}")).collect();
-        let e = err(&format!("{}\n{}\n", names.join(","), vec!["1"; 100].join(",")));
-        assert!(e.contains("\"c11\", and 88 more") && !e.contains("c12"), "{e}");
+        let e = err(&format!(
+            "{}\n{}\n",
+            names.join(","),
+            vec!["1"; 100].join(",")
+        ));
+        assert!(
+            e.contains("\"c11\", and 88 more") && !e.contains("c12"),
+            "{e}"
+        );
     }
 
     /// A column the model does not read, filled only here and there (an

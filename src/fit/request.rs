@@ -19,7 +19,8 @@ pub struct FitRequest {
     /// Also fit the Bouc-Wen exponent n.
     pub free_n: bool,
     pub loop_shape: Loop,
-    pub switching: Switching,
+    /// `None`: the default (search; a warm start's level held).
+    pub switching: Option<Switching>,
     /// The user's bounds and fixed values, after the start file's (so that
     /// these win).
     pub bounds: Vec<UserBound>,
@@ -95,6 +96,11 @@ impl FitRequest {
         } else {
             (model, None)
         };
+        anyhow::ensure!(
+            start.is_none() || self.switching != Some(Switching::Starts),
+            "--switch starts runs two fresh fits, and a warm start is one fit from its model: \
+             give search, mean or zero, or fit without a start"
+        );
         Ok(Resolved {
             what: FitTarget {
                 family,
@@ -173,7 +179,7 @@ mod tests {
             effects: None,
             free_n: false,
             loop_shape: Loop::Bounded,
-            switching: Switching::Search,
+            switching: None,
             bounds: Vec::new(),
             carry: false,
         }

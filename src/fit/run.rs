@@ -36,8 +36,10 @@ pub struct FitTarget {
     pub free_n: bool,
     /// Loop shapes the box admits (`--loop`).
     pub loop_shape: Loop,
-    /// Where a generalized fit lets its sign terms switch (`--switch`).
-    pub switching: Switching,
+    /// Where a generalized fit lets its sign terms switch (`--switch`);
+    /// `None`, the default: searched from scratch, and a warm start's
+    /// model's level held.
+    pub switching: Option<Switching>,
     /// The user's bounds and fixed values (`--bound`, `--fix`), an effect's
     /// as `effect.param`.
     pub bounds: Vec<UserBound>,
@@ -53,7 +55,7 @@ impl FitTarget {
             effects: effects.to_vec(),
             free_n: false,
             loop_shape: Loop::Bounded,
-            switching: Switching::default(),
+            switching: None,
             bounds: Vec::new(),
         }
     }
@@ -215,7 +217,7 @@ impl FitRun {
             flow,
             None,
             what.free_n,
-            (what.loop_shape, what.switching),
+            (what.loop_shape, what.switching.unwrap_or_default()),
             &what.bounds,
         )
         .and_then(|t| match start {
@@ -226,7 +228,9 @@ impl FitRun {
         .with_context(|| format!("cannot fit {}", sources(traces)))?;
         let mut problem = problem;
         let start = start.map(|m| warm_start(&problem, m));
-        if let (Some(theta), Some(is)) = (&start, what.family.switch_index()) {
+        // A warm start keeps its model's level unless another was asked.
+        if let (Some(theta), Some(is), None) = (&start, what.family.switch_index(), what.switching)
+        {
             problem.hold_switch_at(theta[is]);
         }
         if let Some(theta) = &start {
@@ -613,7 +617,7 @@ mod tests {
     fn a_fit_scores_every_start_on_the_evaluator_it_is_given() {
         let data = Synthetic::new(Family::Generalized, 600, 0.05, 2);
         let what = FitTarget {
-            switching: Switching::Starts,
+            switching: Some(Switching::Starts),
             ..FitTarget::chain(Family::Generalized, &[])
         };
         let fit = FitRun::new(

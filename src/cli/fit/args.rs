@@ -439,7 +439,7 @@ impl Args {
             effects,
             free_n: self.free_n,
             loop_shape: self.loop_shape,
-            switching: self.switching.unwrap_or(Switching::Search),
+            switching: self.switching,
             bounds: self.bound.iter().chain(&self.fix).cloned().collect(),
             carry: self.carry.is_some(),
         })
