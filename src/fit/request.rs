@@ -96,6 +96,13 @@ impl FitRequest {
         } else {
             (model, None)
         };
+        // Later entries win (the user's over the start file's, those over
+        // the carried dynamics): only the last of each name is kept, so that
+        // the model file written records the bounds that held.
+        let mut named = std::collections::HashSet::new();
+        bounds.reverse();
+        bounds.retain(|b| named.insert(b.name.clone()));
+        bounds.reverse();
         anyhow::ensure!(
             start.is_none() || self.switching != Some(Switching::Starts),
             "--switch starts runs two fresh fits, and a warm start is one fit from its model: \
@@ -227,15 +234,16 @@ mod tests {
             .unwrap()
             .1;
         let bounds: Vec<String> = r.what.bounds.iter().map(|b| b.to_string()).collect();
-        // Held first, so that the file's and the user's bounds win.
+        // The file's and the user's bounds win over the held dynamics: the
+        // user's value of `creep.rho` replaces the held one.
         assert_eq!(
             bounds,
-            [
-                format!("creep.rho={rho}"),
-                "alpha=0.2:0.6".to_string(),
-                "creep.rho=0.99".to_string()
-            ]
+            ["alpha=0.2:0.6".to_string(), "creep.rho=0.99".to_string()]
         );
+        let mut unasked = request.clone();
+        unasked.bounds.clear();
+        let held = unasked.resolve(Some(&file)).unwrap().what.bounds;
+        assert!(held.contains(&format!("creep.rho={rho}").parse().unwrap()));
         assert!(request.resolve(None).is_err(), "nothing to carry");
     }
 
@@ -258,8 +266,9 @@ mod tests {
             (r.what.family, r.what.effects.len()),
             (Family::Generalized, 0)
         );
-        assert_eq!(r.what.bounds.len(), 2);
-        assert_eq!(r.what.bounds[1], "alpha=0.3".parse().unwrap());
+        // The user's `alpha` replaces the file's: one entry, which the model
+        // file written records (it kept both).
+        assert_eq!(r.what.bounds, vec!["alpha=0.3".parse().unwrap()]);
         // Another family: the start's parameters mean nothing there.
         request.family = Some(Family::Classic);
         let e = format!("{:#}", request.resolve(Some(&file)).unwrap_err());
