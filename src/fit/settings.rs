@@ -9,7 +9,7 @@
 use std::path::Path;
 
 use super::chart::ModelChart;
-use super::objective::{GENERATIONS, POPULATION, staged_plan};
+use super::objective::{GENERATIONS, POPULATION, TRY_POPULATION, staged_plan, tries_of};
 use super::problem::FitProblem;
 use crate::model::{Family, Measure};
 use crate::optim::engine::{Engine, Plan, StopRules};
@@ -254,6 +254,16 @@ impl FitSettings {
         let settings = self.algo_settings(problem.model.family, note)?;
         if self.thesis_flow {
             return Ok(Plan::thesis(settings, self.pop, self.gens));
+        }
+        let (tries, try_population) = tries_of(self.pop);
+        if tries * try_population != self.pop {
+            note(format!(
+                "--pop {} runs {tries} tries of {try_population} ({} candidates): from {} on, a \
+                 population is whole tries of {try_population}",
+                self.pop,
+                tries * try_population,
+                2 * TRY_POPULATION
+            ));
         }
         let mut plan = staged_plan(problem, settings, self.pop, self.gens);
         if let Some(rounds) = self.refine_rounds {

@@ -70,7 +70,8 @@ use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 /// of 1000 for every 1000 (each its own global search, free-run stage,
 /// polish and, for the generalized model, refining rounds), scored
 /// together, and keeps the lowest estimation SSE; the same seed runs the
-/// same tries, so a larger population never ends higher. The report says
+/// same tries, so of two populations from 2000 on the larger never ends
+/// higher (below 2000 a population is one try, which may end anywhere). The report says
 /// how many tries ended within the likelihood-ratio threshold of the best:
 /// few of many means the basin was found by luck, and more tries may find
 /// a better one.
@@ -154,7 +155,8 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "de")]
     pub(super) algo: Algorithm,
     /// Population size N of the global stage (the thesis used 10–30); from
-    /// 2000 on, N/1000 independent tries of 1000, scored together.
+    /// 2000 on, N/1000 independent tries of 1000 (rounded down: 2500 runs
+    /// 2000, with a note), scored together.
     #[arg(long, default_value_t = POPULATION, value_parser = population)]
     pub(super) pop: usize,
     /// Generations G of the global stage: populations evaluated, the
