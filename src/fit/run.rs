@@ -371,8 +371,8 @@ impl FitRun {
     /// the chain's build included: each start runs in what the ones before
     /// it left, and one with nothing left does not run. The outcome's
     /// `stop` is the first start's that ended early (a budget, a target,
-    /// Ctrl-C), `completed` only where every start ran to its end. Returns the outcome and the kept
-    /// try's widenings. The one place a fit's starts, tries, switching
+    /// Ctrl-C), `completed` only where every start ran to its end. Returns
+    /// the outcome and the kept try's widenings. The one place a fit's starts, tries, switching
     /// levels and edge refits run: `mckibben fit`, Python's `fit`, the
     /// diagnosis' fits as `fit` makes them, `compare` and the generated
     /// cases all run their fits here.
