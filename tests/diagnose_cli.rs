@@ -51,6 +51,9 @@ fn json_follows_the_contract() {
         .output()
         .unwrap();
     let v = json_of(&out);
+    // A script reading the JSON gets no progress lines.
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("fitting the classic baseline"), "{err}");
     for k in [
         "model",
         "params",
@@ -220,6 +223,18 @@ fn report_writes_the_figures() {
     for label in ["measured", "baseline"] {
         assert!(fit.contains(label), "diagnose_fit.svg lacks {label}");
     }
+    // A person waiting sees each stage as it starts, in order.
+    let err = String::from_utf8_lossy(&out.stderr);
+    let at = |stage: &str| {
+        err.find(stage)
+            .unwrap_or_else(|| panic!("no `{stage}`: {err}"))
+    };
+    assert!(
+        at("fitting the classic baseline (12 seeds) ...")
+            < at("round 1: trying delay, creep on the current model ...")
+            && at("round 1:") < at("fitting the final chain as `fit --effects` does"),
+        "{err}"
+    );
 }
 
 fn json_of(out: &std::process::Output) -> serde_json::Value {

@@ -7,6 +7,7 @@ use anyhow::Context;
 
 use mckibben::data::{mixed_steps, same_samples, same_step, tidy_step};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
+use mckibben::diagnose::settings::Progress;
 use mckibben::diagnose::transfer::{check_others, transfer};
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
 use mckibben::diagnose::{seeds, selftest_run};
@@ -249,7 +250,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     } else {
         args.effects.clone()
     };
-    let settings = Settings {
+    let mut settings = Settings {
         seeds: args.seeds,
         generations: args.generations,
         scratch_seeds: args.scratch_seeds,
@@ -301,6 +302,14 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             }
         }
         return Ok(());
+    }
+    // Where the diagnosis stands, for the minutes it runs (the self-tests'
+    // many diagnoses say only their cases).
+    if !args.json {
+        let started = std::time::Instant::now();
+        settings.progress = Progress::to(move |stage| {
+            eprintln!("[{:>4.0} s] {stage} ...", started.elapsed().as_secs_f64());
+        });
     }
     // Read and checked before the diagnosis, so that a bad file or folder
     // fails at once, not after it.

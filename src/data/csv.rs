@@ -1339,7 +1339,10 @@ mod tests {
         trace.extra.push(("a,b".into(), vec![4.0, 5.0, 6.0]));
         trace.extra.push(("say \"hi\"".into(), vec![7.0, 8.0, 9.0]));
         let text = format_columns(Path::new("x.csv"), &trace, &[], Missing::Refused).unwrap();
-        assert!(text.starts_with("t,pressure,displacement,\"a,b\",\"say \"\"hi\"\"\"\n"), "{text}");
+        assert!(
+            text.starts_with("t,pressure,displacement,\"a,b\",\"say \"\"hi\"\"\"\n"),
+            "{text}"
+        );
         let (back, _) = read(&text, Gaps::Reject).unwrap();
         let names: Vec<&str> = back[0].extra.iter().map(|(n, _)| n.as_str()).collect();
         assert_eq!(names, ["a,b", "say \"hi\""]);

@@ -232,6 +232,9 @@ pub fn diagnose_from(
     // The final chain as `fit --effects` fits it: the final parameters
     // when it scores better on the selection part.
     let last = data.with_model(&selection.final_model);
+    settings
+        .progress
+        .say("fitting the final chain as `fit --effects` does, and its size intervals");
     let as_fit = as_fit_of(&last, traces, &selection, settings, from)?;
     let final_params: Vec<f64> = match &as_fit {
         Some(a) if a.kept => a.params.clone(),

@@ -96,6 +96,10 @@ pub fn select(
         },
         None => Start::Scratch,
     };
+    settings.progress.say(&format!(
+        "fitting the {family} baseline ({} seeds)",
+        settings.baseline_seeds
+    ));
     let baseline = fit_seeds(
         &data.with_model(&baseline_model),
         searches,
@@ -141,6 +145,12 @@ pub fn select(
         if remaining.is_empty() {
             break;
         }
+        let names: Vec<String> = remaining.iter().map(|e| e.to_string()).collect();
+        settings.progress.say(&format!(
+            "round {}: trying {} on the current model",
+            round + 1,
+            names.join(", ")
+        ));
         let round = selecting.round(&mut state, &remaining, round)?;
         verdict.extend(round.accepted);
         let accepted = round.accepted;

@@ -2,6 +2,8 @@
 //! struct every stage of it reads (the fits, the acceptance rule, the
 //! selection, the self-tests), so that it sits below all of them.
 
+use std::sync::Arc;
+
 use serde::Serialize;
 
 use crate::eval::Backend;
@@ -59,6 +61,38 @@ pub struct Settings {
     /// Stops the diagnosis when raised (never, unless a caller raises it).
     #[serde(skip)]
     pub stop: StopFlag,
+    /// Hears of each stage as it starts (silent unless a caller listens:
+    /// `mckibben diagnose` prints them).
+    #[serde(skip)]
+    pub progress: Progress,
+}
+
+/// A listener for the stages of a diagnosis, as each starts: a diagnosis
+/// runs for minutes, and a person waiting should see where it stands.
+#[derive(Clone, Default)]
+pub struct Progress(Option<Arc<dyn Fn(&str) + Send + Sync>>);
+
+impl Progress {
+    pub fn to(listener: impl Fn(&str) + Send + Sync + 'static) -> Progress {
+        Progress(Some(Arc::new(listener)))
+    }
+
+    /// Tells the listener, if there is one, that `stage` starts.
+    pub fn say(&self, stage: &str) {
+        if let Some(listener) = &self.0 {
+            listener(stage);
+        }
+    }
+}
+
+impl std::fmt::Debug for Progress {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(if self.0.is_some() {
+            "Progress(listened)"
+        } else {
+            "Progress(silent)"
+        })
+    }
 }
 
 impl Settings {
@@ -98,6 +132,7 @@ impl Default for Settings {
             seed: 1,
             backend: Backend::Cpu,
             stop: StopFlag::default(),
+            progress: Progress::default(),
         }
     }
 }
