@@ -67,10 +67,13 @@ pub struct Settings {
     pub progress: Progress,
 }
 
+/// What hears of a stage: its name.
+type Listener = Arc<dyn Fn(&str) + Send + Sync>;
+
 /// A listener for the stages of a diagnosis, as each starts: a diagnosis
 /// runs for minutes, and a person waiting should see where it stands.
 #[derive(Clone, Default)]
-pub struct Progress(Option<Arc<dyn Fn(&str) + Send + Sync>>);
+pub struct Progress(Option<Listener>);
 
 impl Progress {
     pub fn to(listener: impl Fn(&str) + Send + Sync + 'static) -> Progress {
