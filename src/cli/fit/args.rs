@@ -71,10 +71,10 @@ use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 /// polish and, for the generalized model, refining rounds), scored
 /// together, and keeps the lowest estimation SSE; the same seed runs the
 /// same tries, so of two populations from 2000 on the larger never ends
-/// higher (below 2000 a population is one try, which may end anywhere). The report says
-/// how many tries ended within the likelihood-ratio threshold of the best:
-/// few of many means the basin was found by luck, and more tries may find
-/// a better one.
+/// higher (below 2000 a population is one try, which may end anywhere).
+/// The report says how many tries ended within the likelihood-ratio
+/// threshold of the best: few of many means the basin was found by luck,
+/// and more tries may find a better one.
 ///
 /// Writes to --out: model.json (read by `simulate`), result.json,
 /// history.csv / history.json (per generation and polish start: stage,
