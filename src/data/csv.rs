@@ -2099,7 +2099,8 @@ mod tests {
             "{msg}"
         );
         let mut tr = Trace::uniform("gen", 1.0, vec![0.0, 1.0], vec![0.0, 1.0]);
-        tr.extra.push(("a,b".into(), vec![0.0, 0.0]));
+        // A newline in a name would split the header (a comma is quoted).
+        tr.extra.push(("a\nb".into(), vec![0.0, 0.0]));
         assert!(write_trace(&p, &tr).is_err());
         tr.extra[0] = ("short".into(), vec![0.0]);
         assert!(
