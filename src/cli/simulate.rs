@@ -665,8 +665,7 @@ fn input_trace(
             // (the simulation ran on, and its file could not be written).
             if measured {
                 check_f32_range(&trace)?;
-            }
-            if !measured {
+            } else {
                 trace.output_name = saved.map_or(defaults.output, |f| f.data.output.column.clone());
             }
             if let Some(saved) = saved {
