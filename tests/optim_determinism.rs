@@ -234,6 +234,65 @@ fn polish_groups_side_by_side_end_as_one_after_another() {
     assert_eq!(resumed, side_by_side);
 }
 
+/// A target SSE that a polish start reaches stops the fit there: the
+/// result is the best of the starts up to the first that reached it (the
+/// polish's running best at that start, in an unstopped fit's history),
+/// on any number of threads though a wave polishes more starts, and the
+/// try's end holds it (a fit of several tries reports its tries' ends).
+#[test]
+fn a_target_reached_in_the_polish_stops_the_fit_with_the_same_result_on_any_thread_count() {
+    let mut plan = plan(Algorithm::De);
+    plan.polish.as_mut().unwrap().starts = 20;
+    let mut straight = engine_of(plan.clone(), 4);
+    let full = fit(&mut straight, &mut CpuEvaluator::new());
+    let polish: Vec<&GenerationRecord> = straight
+        .history
+        .records
+        .iter()
+        .filter(|r| r.stage == Stage::Polish)
+        .collect();
+    let before = straight
+        .history
+        .records
+        .iter()
+        .rfind(|r| r.stage == Stage::FreeRun)
+        .and_then(|r| r.best_sse)
+        .unwrap();
+    // Between the free run's end and the fit's: a polish start reaches it.
+    let target = 0.5 * (before + full.sse);
+    assert!(full.sse < target && target < before, "{full:?}");
+    let reached = polish
+        .iter()
+        .find(|r| r.stage_best.unwrap() <= target)
+        .unwrap();
+    let expected = reached.stage_best.unwrap();
+    for threads in [1, 2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let out = pool.install(|| {
+            let stops = StopRules {
+                target_sse: Some(target),
+                ..StopRules::default()
+            };
+            let (s, _) = setup();
+            let mut e = Engine::new(plan.clone(), Space::from(&s.space()), 4, stops).unwrap();
+            fit(&mut e, &mut CpuEvaluator::new())
+        });
+        assert_eq!(out.stop, StopReason::TargetSse, "{threads} threads");
+        assert_eq!(out.sse, expected, "{threads} threads");
+        assert_eq!(out.tries[0].sse, out.sse, "{threads} threads");
+        assert_eq!(out.tries[0].params, out.params, "{threads} threads");
+        assert!(
+            out.evaluations >= reached.evaluations,
+            "the polish's work is counted: {} < {}",
+            out.evaluations,
+            reached.evaluations
+        );
+    }
+}
+
 #[test]
 fn different_seeds_differ() {
     let mut a = engine(Algorithm::De, 1);

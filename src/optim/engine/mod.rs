@@ -55,6 +55,7 @@ pub use super::stage::Stage;
 use super::streams::try_seed;
 use crate::data::write_atomic;
 use crate::search::{Coords, Measure, Params, Population, Rows};
+use polish::CutPolish;
 
 pub use plan::{FreeRun, Global, Plan, Polish, Refine};
 pub use space::{Canonical, Chart, Space, Stepwise};
@@ -469,10 +470,11 @@ impl<C: Chart> Engine<C> {
         let planned = self.planned_generations();
         let mut last_save = Instant::now();
         let mut checkpoint_error = None;
-        // The best of a polish cut short: not part of the state (see `polish`).
-        let mut interim: Option<Scored> = None;
+        // What a polish cut short did: not part of the state (see `polish`).
+        let mut interim: Option<CutPolish> = None;
         let stop = loop {
-            if let Some(reason) = self.should_stop(interrupt) {
+            let cut_best = interim.as_ref().and_then(|c| c.best.as_ref());
+            if let Some(reason) = self.should_stop(interrupt, cut_best.map(|(_, s)| s)) {
                 break reason;
             }
             let Some(step) = self.step() else {
@@ -504,9 +506,13 @@ impl<C: Chart> Engine<C> {
         }
         let mut best = self.overall_best().cloned();
         if stop != StopReason::Completed {
-            for candidate in [interim, self.best_so_far(objective)?]
-                .into_iter()
-                .flatten()
+            let cut_polish = interim.as_ref().and_then(|c| c.best.as_ref());
+            for candidate in [
+                cut_polish.map(|(_, s)| s.clone()),
+                self.best_so_far(objective)?,
+            ]
+            .into_iter()
+            .flatten()
             {
                 if best.as_ref().is_none_or(|b| candidate.cost < b.cost) {
                     best = Some(candidate);
@@ -528,7 +534,7 @@ impl<C: Chart> Engine<C> {
         Ok(Outcome {
             params: best.as_ref().map_or(Vec::new(), |b| b.params.clone()),
             sse: best.as_ref().map_or(f64::INFINITY, |b| b.cost),
-            evaluations: self.evaluations,
+            evaluations: self.evaluations + interim.as_ref().map_or(0, |c| c.evaluations),
             generations: self.generation(),
             seconds: self.elapsed(),
             stop,
@@ -536,26 +542,47 @@ impl<C: Chart> Engine<C> {
             tries: self
                 .tries
                 .iter()
-                .map(|t| TryEnd {
-                    params: t.best.as_ref().map_or(Vec::new(), |b| b.params.clone()),
-                    sse: t.best.as_ref().map_or(f64::INFINITY, |b| b.cost),
-                    // Still refining once every step ran: the cap ended it.
-                    cut_gain: t
-                        .round_gain
-                        .filter(|_| t.refining && self.plan.refine.is_some() && finished),
+                .enumerate()
+                .map(|(i, t)| {
+                    // A try's end is its best, or the polish cut short
+                    // found better.
+                    let best = match interim.as_ref().and_then(|c| c.best.as_ref()) {
+                        Some((k, s))
+                            if *k == i && t.best.as_ref().is_none_or(|b| s.cost < b.cost) =>
+                        {
+                            Some(s)
+                        }
+                        _ => t.best.as_ref(),
+                    };
+                    TryEnd {
+                        params: best.map_or(Vec::new(), |b| b.params.clone()),
+                        sse: best.map_or(f64::INFINITY, |b| b.cost),
+                        // Still refining once every step ran: the cap ended it.
+                        cut_gain: t
+                            .round_gain
+                            .filter(|_| t.refining && self.plan.refine.is_some() && finished),
+                    }
                 })
                 .collect(),
             checkpoint_error,
         })
     }
 
-    /// Whether the whole fit should stop now, and why.
-    fn should_stop(&self, interrupt: Option<&AtomicBool>) -> Option<StopReason> {
+    /// Whether the whole fit should stop now, and why; `interim` is the
+    /// best of a polish cut short, which the state does not hold.
+    fn should_stop(
+        &self,
+        interrupt: Option<&AtomicBool>,
+        interim: Option<&Scored>,
+    ) -> Option<StopReason> {
         if interrupt.is_some_and(|f| f.load(Ordering::SeqCst)) {
             return Some(StopReason::Interrupted);
         }
-        if let (Some(t), Some(b)) = (self.stops.target_sse, self.overall_best())
-            && b.cost <= t
+        if let Some(t) = self.stops.target_sse
+            && [self.overall_best(), interim]
+                .into_iter()
+                .flatten()
+                .any(|b| b.cost <= t)
         {
             return Some(StopReason::TargetSse);
         }

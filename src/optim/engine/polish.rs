@@ -2,7 +2,7 @@
 //! of each try's population stages, every try's starts together.
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use rayon::prelude::*;
@@ -28,10 +28,18 @@ struct PolishUndo {
     evaluations: u64,
 }
 
+/// What a polish cut short leaves outside the state, which it puts back:
+/// the best start it polished, its try's index beside it, and the
+/// evaluations it recorded.
+pub(super) struct CutPolish {
+    pub(super) best: Option<(usize, Scored)>,
+    pub(super) evaluations: u64,
+}
+
 /// What every group of a polish step's starts is polished with: the space
 /// as the step found it (the groups' scores borrow the engine), its box,
-/// the probe steps' floor, the settings, the horizons in turn and the
-/// interrupt.
+/// the probe steps' floor, the settings, the horizons in turn, the
+/// interrupt and the time budget's end.
 struct PolishSetup<'a, C> {
     space: Space<C>,
     bounds: Bounds,
@@ -39,12 +47,14 @@ struct PolishSetup<'a, C> {
     settings: LmSettings,
     measures: Vec<Measure>,
     interrupt: Option<&'a AtomicBool>,
+    deadline: Option<Instant>,
 }
 
 impl<C> PolishSetup<'_, C> {
-    /// Whether the interrupt has been raised.
+    /// Whether the interrupt has been raised or the time budget is spent.
     fn cut(&self) -> bool {
         self.interrupt.is_some_and(|f| f.load(Ordering::SeqCst))
+            || self.deadline.is_some_and(|d| Instant::now() >= d)
     }
 }
 
@@ -54,15 +64,18 @@ impl<C: Chart> Engine<C> {
     /// all of them; after a refining round, of that round's; from the
     /// initial rows when there was none), each try's best result kept.
     ///
-    /// Cut short by `interrupt`, it leaves the state as it found it (a
-    /// resumed fit redoes it whole, as an uninterrupted one did) and returns
-    /// the best it polished so far.
+    /// Cut short by `interrupt` or the time budget, it leaves the state as
+    /// it found it (a resumed fit redoes it whole, as an uninterrupted one
+    /// did) and returns what it did ([`CutPolish`]). So it does too once a
+    /// start reaches the target SSE, the best being that of the starts up
+    /// to the first that reached it: the same on any number of threads,
+    /// though a wave polishes more.
     pub(super) fn polish(
         &mut self,
         objective: &mut dyn Objective,
         step: Step,
         interrupt: Option<&AtomicBool>,
-    ) -> anyhow::Result<Option<Scored>> {
+    ) -> anyhow::Result<Option<CutPolish>> {
         let p = self.plan.polish.clone().expect("a polish stage");
         self.rescore_pool(objective)?;
         let before = PolishUndo {
@@ -74,6 +87,9 @@ impl<C: Chart> Engine<C> {
         let after_round = matches!(step, Step::RefinePolish(_) | Step::LevelPolish(_));
         let setup = self.polish_setup(&p, after_round, interrupt);
         let starts = self.polish_starts(&p, after_round, &setup.bounds);
+        // Each polished start's score, its try's index beside it, in the
+        // starts' order.
+        let mut done: Vec<(usize, Scored)> = Vec::with_capacity(starts.len());
         // The starts through every horizon, in groups polished in
         // lock-step: each round, one call scores the points all unfinished
         // starts of the group need next (each start takes the very steps it
@@ -108,7 +124,7 @@ impl<C: Chart> Engine<C> {
                 Some(Some((polished, spent))) => {
                     self.spent(spent);
                     for (group, polished) in wave.iter().zip(polished) {
-                        self.record_group(objective, &setup, group, polished)?;
+                        done.extend(self.record_group(objective, &setup, group, polished)?);
                     }
                 }
                 None => {
@@ -116,13 +132,20 @@ impl<C: Chart> Engine<C> {
                         if setup.cut() {
                             break;
                         }
-                        self.polish_group(objective, &setup, group)?;
+                        done.extend(self.polish_group(objective, &setup, group)?);
                     }
                 }
             }
+            if let Some(reached) = self.reaching_target(&done) {
+                let cut = self.undo_polish(before);
+                return Ok(Some(CutPolish {
+                    best: Some(reached),
+                    ..cut
+                }));
+            }
         }
         if setup.cut() {
-            return Ok(self.undo_polish(before));
+            return Ok(Some(self.undo_polish(before)));
         }
         match step {
             Step::LevelPolish(k) => self.keep_level(k),
@@ -176,6 +199,9 @@ impl<C: Chart> Engine<C> {
             }
         }
         measures.push(Measure::FreeRun);
+        let deadline = self.stops.time_budget_s.map(|budget| {
+            Instant::now() + Duration::from_secs_f64((budget - self.elapsed()).clamp(0.0, 1e9))
+        });
         PolishSetup {
             space,
             bounds,
@@ -183,6 +209,7 @@ impl<C: Chart> Engine<C> {
             settings,
             measures,
             interrupt,
+            deadline,
         }
     }
 
@@ -228,7 +255,7 @@ impl<C: Chart> Engine<C> {
         objective: &mut dyn Objective,
         setup: &PolishSetup<C>,
         group: &[(usize, Vec<f64>)],
-    ) -> anyhow::Result<()> {
+    ) -> anyhow::Result<Vec<(usize, Scored)>> {
         let polished = polish_through(objective, setup, group)?;
         self.spent(polished.spent);
         self.record_group(objective, setup, group, polished)
@@ -242,7 +269,7 @@ impl<C: Chart> Engine<C> {
         setup: &PolishSetup<C>,
         group: &[(usize, Vec<f64>)],
         polished: GroupPolish,
-    ) -> anyhow::Result<()> {
+    ) -> anyhow::Result<Vec<(usize, Scored)>> {
         let before_group = self.evaluations;
         self.evaluations += polished.evaluations;
         let GroupPolish { xs, points, .. } = polished;
@@ -253,7 +280,8 @@ impl<C: Chart> Engine<C> {
     /// they compare in the same arithmetic, and keeps each try's best; one
     /// record a start, in order, each counting the evaluations up to its
     /// own last score, as if the starts had been polished one after
-    /// another.
+    /// another. Returns the starts' scores, in order, each try's index
+    /// beside it.
     fn record_polished(
         &mut self,
         objective: &mut dyn Objective,
@@ -262,7 +290,7 @@ impl<C: Chart> Engine<C> {
         xs: &[Vec<f64>],
         points: Vec<usize>,
         before_group: u64,
-    ) -> anyhow::Result<()> {
+    ) -> anyhow::Result<Vec<(usize, Scored)>> {
         let polished = xs.concat();
         let polished = setup
             .space
@@ -288,26 +316,49 @@ impl<C: Chart> Engine<C> {
         }
         debug_assert_eq!(counted, total);
         self.evaluations = total;
-        Ok(())
+        Ok(canonical
+            .rows()
+            .iter()
+            .zip(&costs)
+            .zip(group)
+            .map(|((row, &cost), &(t, _))| {
+                let scored = Scored {
+                    params: row.to_vec(),
+                    cost: cost as f64,
+                };
+                (t, scored)
+            })
+            .collect())
+    }
+
+    /// Once one of the polished starts `done` (in the starts' order) reached
+    /// the target SSE: the best of those up to the first that did (the
+    /// first of equals).
+    fn reaching_target(&self, done: &[(usize, Scored)]) -> Option<(usize, Scored)> {
+        let target = self.stops.target_sse?;
+        let first = done.iter().position(|(_, s)| s.cost <= target)?;
+        done[..=first]
+            .iter()
+            .reduce(|a, b| if b.1.cost < a.1.cost { b } else { a })
+            .cloned()
     }
 
     /// Puts back what an interrupted polish changed, so that a resumed fit
-    /// redoes it whole, and returns the best it polished so far.
-    fn undo_polish(&mut self, before: PolishUndo) -> Option<Scored> {
-        let partial = self
+    /// redoes it whole, and returns what it did: its best so far.
+    fn undo_polish(&mut self, before: PolishUndo) -> CutPolish {
+        let best = self
             .tries
             .iter_mut()
-            .filter_map(|t| t.stage_best.take())
-            .fold(None, |b: Option<Scored>, s| match b {
-                Some(b) if b.cost <= s.cost => Some(b),
-                _ => Some(s),
-            });
+            .enumerate()
+            .filter_map(|(t, tr)| Some((t, tr.stage_best.take()?)))
+            .reduce(|a, b| if b.1.cost < a.1.cost { b } else { a });
         for (t, b) in self.tries.iter_mut().zip(before.bests) {
             t.best = b;
         }
         self.history.records.truncate(before.records);
+        let evaluations = self.evaluations - before.evaluations;
         self.evaluations = before.evaluations;
-        partial
+        CutPolish { best, evaluations }
     }
 
     /// After level round `k`: a try whose round, with the level held at
