@@ -703,7 +703,7 @@ fn a_failed_fit_leaves_out_as_it_was_and_a_bad_out_fails_first() {
     // A pole of 1.5 diverges on every candidate over the stair's 2000
     // estimation samples.
     let failed = mckibben(
-        &[&fit[..], &["--out", "o", "--fix", "a=1.5"]].concat(),
+        &[&fit[..], &["--out", "o", "--fix", "a=1.5", "--json"]].concat(),
         dir.path(),
     );
     let err = String::from_utf8_lossy(&failed.stderr);
@@ -713,6 +713,11 @@ fn a_failed_fit_leaves_out_as_it_was_and_a_bad_out_fails_first() {
             && err.contains("--fix and --bound"),
         "{err}"
     );
+    // The report still says what ran, with no parameters and so no errors.
+    let report: serde_json::Value = serde_json::from_slice(&failed.stdout).unwrap();
+    assert_eq!(report["params"], serde_json::json!({}), "{report}");
+    assert_eq!(report["std_errors"], serde_json::json!({}), "{report}");
+    assert_eq!(report["sse"], serde_json::Value::Null, "{report}");
     assert!(before == files("o"), "--out changed");
 
     // A write that fails after the fit leaves every file of the last run

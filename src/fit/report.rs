@@ -230,8 +230,9 @@ impl FitReport {
             diverging_probes,
         } = match found {
             true => assess(problem, &outcome.params),
+            // No parameters, no errors: `std_errors` has `params`' names.
             false => Assessment {
-                std_errors: vec![None; problem.model.dim()],
+                std_errors: Vec::new(),
                 diverging_probes: Vec::new(),
             },
         };
