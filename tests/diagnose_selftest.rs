@@ -227,6 +227,23 @@ fn the_report_says_not_explained_and_names_no_cause() {
     let json = DiagnosisJson::of(&d);
     assert_eq!(json.verdict_kind, "not-explained");
     assert!(json.verdict.is_empty());
+    assert_eq!(json.asked.len(), Effect::ALL.len());
+
+    // Asked to try fewer effects than the catalogue holds, the verdict
+    // speaks of those alone.
+    let mut d = d;
+    d.asked = vec![Effect::Delay, Effect::Creep];
+    let text = to_text(&d);
+    assert!(
+        text.contains("Verdict: not explained by the effects tried (delay, creep).")
+            && text.contains("their best model closes"),
+        "{text}"
+    );
+    assert!(
+        !text.contains("by the catalogue") && !text.contains("the catalogue's best model"),
+        "{text}"
+    );
+    assert_eq!(DiagnosisJson::of(&d).asked, ["delay", "creep"]);
 }
 
 /// Under a "not explained" verdict the effects the final model holds are

@@ -117,6 +117,9 @@ pub struct Diagnosis {
     /// where it scored better on the selection part, else the selection's.
     pub as_fit: Option<as_fit::AsFit>,
     pub final_params: Vec<f64>,
+    /// The effects the selection was asked to try: the default catalogue,
+    /// or those `--effects` named.
+    pub asked: Vec<Effect>,
     /// Effects asked for that the selection did not try, and why.
     pub not_tried: Vec<NotTried>,
     /// The chain fitted on other records of the muscle (`--transfer`,
@@ -165,8 +168,16 @@ impl Diagnosis {
         }
     }
 
+    /// Whether the effects asked for leave out some of the default
+    /// catalogue's: a verdict then speaks of those effects, not of the
+    /// catalogue.
+    pub fn narrowed(&self) -> bool {
+        Effect::by_default().iter().any(|e| !self.asked.contains(e))
+    }
+
     /// `named` when the diagnosis names effects, `none` when no effect
-    /// passed, `not-explained` when the catalogue does not explain the gap.
+    /// passed, `not-explained` when the effects asked for do not explain
+    /// the gap.
     pub fn verdict_kind(&self) -> &'static str {
         if self.explainable.not_explained {
             "not-explained"
@@ -222,6 +233,7 @@ pub fn diagnose_from(
     };
     let floor = noise_floor_of(&data);
     let start_ref = start.as_ref().map(|(m, theta)| (m, theta.as_slice()));
+    let asked = effects.to_vec();
     let (effects, not_tried) = tried_effects(traces, effects, from);
     let selection = select::select(
         &data, &searches, family, &effects, settings, floor, start_ref,
@@ -298,6 +310,7 @@ pub fn diagnose_from(
         curves,
         as_fit,
         final_params,
+        asked,
         not_tried,
         transfers: Vec::new(),
         baseline_on_edge,

@@ -234,6 +234,9 @@ pub struct DiagnosisJson {
     /// effects, taken as given.
     pub from: Option<String>,
     pub given: Vec<&'static str>,
+    /// The effects the selection was asked to try (the default catalogue
+    /// or `--effects`'), of which the verdict speaks.
+    pub asked: Vec<&'static str>,
     /// Effects asked for that the selection did not try, and why (`load`
     /// where datasets are pieces of one recording).
     pub not_tried: Vec<NotTried>,
@@ -379,6 +382,7 @@ impl DiagnosisJson {
             from: d.from.clone(),
             capped: sel.capped,
             given: sel.given.iter().map(|e| e.name()).collect(),
+            asked: d.asked.iter().map(|e| e.name()).collect(),
             not_tried: d.not_tried.clone(),
             steps: d.steps.clone(),
             final_: FinalJson {

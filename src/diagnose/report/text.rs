@@ -298,6 +298,12 @@ fn how_sure_text(o: &mut String, d: &Diagnosis) {
     }
 }
 
+/// The effects the selection was asked to try, by name.
+fn asked_names(d: &Diagnosis) -> String {
+    let names: Vec<&str> = d.asked.iter().map(|e| e.name()).collect();
+    names.join(", ")
+}
+
 /// The verdict and the lines that qualify it.
 fn verdict_text(o: &mut String, d: &Diagnosis) {
     let x = &d.explainable;
@@ -309,11 +315,18 @@ fn verdict_text(o: &mut String, d: &Diagnosis) {
         );
     } else if x.not_explained {
         let closed = d.last().gap_closed;
+        let (by, best) = match d.narrowed() {
+            true => (
+                format!("the effects tried ({})", asked_names(d)),
+                "their best model",
+            ),
+            false => ("the catalogue".to_string(), "the catalogue's best model"),
+        };
         let _ = writeln!(
             o,
-            "\nVerdict: not explained by the catalogue. A flexible model of the signals closes {} \
-             of the gap above the noise floor and leaves {}; the catalogue's best model closes {} \
-             ({} of the flexible model's) and leaves {}.",
+            "\nVerdict: not explained by {by}. A flexible model of the signals closes {} of the \
+             gap above the noise floor and leaves {}; {best} closes {} ({} of the flexible \
+             model's) and leaves {}.",
             pct(x.bound.gap_closable).trim(),
             pct(1.0 - x.bound.gap_closable).trim(),
             pct(closed).trim(),
@@ -332,10 +345,11 @@ fn verdict_text(o: &mut String, d: &Diagnosis) {
             let _ = writeln!(o, "  What is left lies {}.", signature_text(sig));
         }
     } else if d.selection.verdict.is_empty() {
-        let _ = writeln!(
-            o,
-            "\nVerdict: none of the catalogued effects explains the remaining gap."
-        );
+        let which = match d.narrowed() {
+            true => format!("the effects tried ({})", asked_names(d)),
+            false => "the catalogued effects".to_string(),
+        };
+        let _ = writeln!(o, "\nVerdict: none of {which} explains the remaining gap.");
     } else {
         // With --repeat, how many runs named each effect, in this
         // realisation and in any: the verdict says how far it is the data's.
@@ -644,6 +658,7 @@ fn repeats_text(o: &mut String, d: &Diagnosis) {
                 .collect::<Vec<_>>()
                 .join(", "),
             "none" => "no effect named".into(),
+            _ if d.narrowed() => "not explained by the effects tried".into(),
             _ => "not explained by the catalogue".into(),
         })
         .collect();
