@@ -465,6 +465,62 @@ fn what_would_fail_after_the_runs_fails_before_them() {
         "{err}"
     );
     assert!(!err.contains("[1/"), "no run started: {err}");
+    // A cell of the valve column that is no number: the design reads that
+    // column, so the cell is named (it was "no `valve_in` column").
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let header = lines.iter().position(|l| l.starts_with("t,")).unwrap();
+    let valve = lines[header]
+        .split(',')
+        .position(|c| c == "valve_in")
+        .unwrap();
+    let mut cells: Vec<&str> = lines[header + 100].split(',').collect();
+    cells[valve] = "abc";
+    lines[header + 100] = cells.join(",");
+    let bad = dir.path().join("bad-valve.csv");
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    let out = control(&[
+        "--controller",
+        "mpc",
+        "--design-data",
+        bad.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(&format!(
+            "line {}, column \"valve_in\": \"abc\" is not a number",
+            header + 101
+        )),
+        "{err}"
+    );
+    // A model whose free run diverges (a pole of 1.5 in a classic model of
+    // the stair) steered the MPC without a word: refused before any run.
+    let stair = Command::new(BIN)
+        .args([
+            "fit",
+            &format!("{ROOT}/data/stair_4.5kg.csv"),
+            "--pop",
+            "40",
+            "--gens",
+            "5",
+            "--out",
+        ])
+        .arg(dir.path().join("stair"))
+        .output()
+        .unwrap();
+    assert!(stair.status.success());
+    let file = dir.path().join("stair/model.json");
+    let mut m: Value = serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    m["params"]["a"] = serde_json::json!(1.5);
+    std::fs::write(&file, m.to_string()).unwrap();
+    let out = control(&["--controller", "mpc", "--from", file.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("diverges") && err.contains("it cannot steer the controllers"),
+        "{err}"
+    );
+    assert!(!err.contains("[1/"), "no run started: {err}");
 }
 
 /// An MPC whose every QP fails holds the valve: its row is no MPC's, and

@@ -18,7 +18,7 @@
 use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 
-use super::model::{ControlModel, Predictor, State};
+use super::model::{ControlModel, DIVERGED_MM, Predictor, State};
 use super::valve::{ValveModel, window_starts};
 use crate::data::Trace;
 use crate::data::signals::Multisine;
@@ -130,7 +130,7 @@ fn walk_windows(
                 }
             };
             s = pr.step(&input, record.valve[i], 0.0, 0.0);
-            if !(s.x.is_finite() && s.x.abs() < 1e4) {
+            if !(s.x.is_finite() && s.x.abs() < DIVERGED_MM) {
                 return None;
             }
             sink(j, pr.output(&s) - record.x[k + j], s.p - record.p[k + j]);
@@ -138,6 +138,9 @@ fn walk_windows(
     }
     Some(())
 }
+
+/// The design record's column of the input valve's voltage (V).
+pub const VALVE_IN: &str = "valve_in";
 
 /// A record in the model's coordinates.
 struct Record {
@@ -148,7 +151,7 @@ struct Record {
 
 impl Record {
     fn new(trace: &Trace, output_mean: f64) -> anyhow::Result<Record> {
-        let valve = trace.column("valve_in").ok_or_else(|| {
+        let valve = trace.column(VALVE_IN).ok_or_else(|| {
             anyhow::anyhow!(
                 "{}: no `valve_in` column; the valve → pressure model needs the input valve voltage",
                 trace.source

@@ -111,6 +111,10 @@ impl BoucWen {
     }
 }
 
+/// A predicted displacement (mm, from the model's mean) beyond this has
+/// diverged: no muscle holds it.
+pub const DIVERGED_MM: f64 = 1e4;
+
 /// [`ControlModel`] unpacked for prediction.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Predictor {

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use super::chain::{ControlChain, EffectUse};
 use super::closed_loop::{Episode, EpisodeResult, run_episode};
 use super::controller::{Controller, MpcStats};
-use super::design::{self, OPERATING_BAND_V, PredictionReport, scale_hysteresis};
+use super::design::{self, OPERATING_BAND_V, PredictionReport, VALVE_IN, scale_hysteresis};
 use super::feedforward::FeedforwardPid;
 use super::limits::ValveLimits;
 use super::model::ControlModel;
@@ -19,7 +19,7 @@ use super::pi::{Pi, PiGains};
 use super::reference::Waveform;
 use super::validation::{self, LoopCheck};
 use crate::data::Trace;
-use crate::data::csv::{DataError, ReadOptions, read_traces};
+use crate::data::csv::{DataError, ReadOptions, read_traces_with_notes};
 use crate::data::units::unit_of;
 use crate::model::effects::Effect;
 use crate::model::{FittedBaseline, ModelFile};
@@ -214,7 +214,7 @@ pub fn design_for(
 ) -> anyhow::Result<Design> {
     let design = match &request.record {
         Some(path) => {
-            let traces = read_traces(path, &ReadOptions::default()).map_err(|e| {
+            let (traces, notes) = read_traces_with_notes(path, &ReadOptions::default()).map_err(|e| {
                 // `control` has no column flags: the names are the fix.
                 if let DataError::MissingColumn {
                     column, available, ..
@@ -239,6 +239,17 @@ pub fn design_for(
                 .into_iter()
                 .next()
                 .ok_or_else(|| anyhow::anyhow!("--design-data {}: no samples", path.display()))?;
+            // A valve column with a bad cell is left out with a note, like
+            // any column no model reads; here the model reads it, so the
+            // cell is the error.
+            let left_out = format!("; column \"{VALVE_IN}\" left out");
+            if trace.column(VALVE_IN).is_none()
+                && let Some((cell, _)) = notes.iter().find_map(|n| n.split_once(&left_out))
+            {
+                anyhow::bail!(
+                    "--design-data: {cell}: the valve → pressure model reads every sample of it"
+                );
+            }
             let design = design_from_record(&trace, request.horizon)
                 .with_context(|| format!("identifying the model from {}", path.display()))?;
             // A muscle's displacement settles without ringing from one

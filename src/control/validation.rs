@@ -6,7 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::model::{ControlModel, Predictor, State};
+use super::model::{ControlModel, DIVERGED_MM, Predictor, State};
 use super::plant::Plant;
 use crate::ident::fit::{loop_area, rmse};
 
@@ -116,6 +116,19 @@ pub fn check_loop(
         let x = pr.next_x(&input);
         s = pr.moved(&input, p, x, pr.hysteresis.step(s.w, x - s.x));
         model_mm.push(pr.output(&s) + pr.output_mean);
+    }
+    // A model whose free run leaves every displacement a muscle can hold
+    // steers the controllers by nonsense (an MPC on it holds the valve and
+    // reports nothing amiss).
+    if let Some(k) = model_mm
+        .iter()
+        .position(|x| !((x - pr.output_mean).abs() < DIVERGED_MM))
+    {
+        anyhow::bail!(
+            "the model's displacement, run free along the twin's pressure over the loop \
+             check's valve triangle, diverges (it passes ±{DIVERGED_MM} mm at sample {k} of \
+             {n}): it cannot steer the controllers"
+        );
     }
     let last = n - cycle..n;
     let (p, xp, xm) = (
