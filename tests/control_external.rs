@@ -547,6 +547,50 @@ fn an_mpc_whose_solves_fail_is_named_and_its_row_keeps_its_kind() {
     );
 }
 
+/// A plan the rig's sample time cannot carry is refused at the first
+/// connection, before any run drove the rig: a model identified at the
+/// twin's 0.01 s on a rig at 0.02 s (the PI used to run its whole episode
+/// first, then the MPC failed and both were lost), and a reference above
+/// the rig's Nyquist frequency (it used to run). The rig hears HELLO and
+/// STOP, no command.
+#[cfg(unix)]
+#[test]
+fn a_plan_the_rig_cannot_carry_is_refused_before_any_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let heard = dir.path().join("heard.txt");
+    let rig = dir.path().join("rig.sh");
+    std::fs::write(
+        &rig,
+        format!(
+            "while read -r line; do echo \"$line\" >> '{}'; case \"$line\" in \
+             HELLO*) echo 'READY 1 0.02';; STOP*) echo 'BYE 1'; exit 0;; esac; done\n",
+            heard.display()
+        ),
+    )
+    .unwrap();
+    let plant = format!("cmd:sh {}", rig.display());
+    for (args, needle) in [
+        (&["--controller", "pi,mpc"][..], "mpc cannot run on cmd:"),
+        (
+            &["--controller", "pi", "--freq", "200"][..],
+            "--freq 200: the rig samples every 0.02 s: a reference at 200 rad/s must stay below \
+             Nyquist's 157.1 rad/s",
+        ),
+    ] {
+        let _ = std::fs::remove_file(&heard);
+        let out = control(&[args, &["--plant", &plant]].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        let heard = std::fs::read_to_string(&heard).unwrap();
+        assert_eq!(
+            heard.lines().collect::<Vec<_>>(),
+            ["HELLO 1", "STOP"],
+            "{args:?}"
+        );
+    }
+}
+
 /// A steps run at ω and the sine run at ω write files of their own names
 /// into one `--csv` and `--plot` folder: the second invocation overwrote
 /// the first's traces and figures.
@@ -574,6 +618,9 @@ fn steps_and_sine_runs_keep_their_own_files() {
     let sine = std::fs::read_to_string(csv.join("control_pi_4.5kg_3rad.csv")).unwrap();
     let steps = std::fs::read_to_string(csv.join("control_pi_4.5kg_3rad_steps.csv")).unwrap();
     assert_ne!(sine, steps);
+    // The columns in the order `control --help` gives them.
+    let header = sine.lines().find(|l| !l.starts_with('#')).unwrap();
+    assert_eq!(header, "t,pressure,displacement,valve_in,reference");
     assert!(plot.join("control_pi_4.5kg_3rad.svg").exists());
     assert!(plot.join("control_pi_4.5kg_3rad_steps.svg").exists());
 }

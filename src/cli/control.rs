@@ -184,7 +184,8 @@ pub struct Args {
     /// model's loop and prediction error) into this folder.
     #[arg(long, value_parser = crate::cli::common::output_path, value_name = "DIR")]
     plot: Option<PathBuf>,
-    /// Write one CSV per run (t, reference, displacement, pressure, valve_in).
+    /// Write one CSV per run, its columns in this order: t (s), pressure
+    /// (MPa), displacement (mm), valve_in (V), reference (mm).
     #[arg(long, value_parser = crate::cli::common::output_path, value_name = "DIR")]
     csv: Option<PathBuf>,
     /// Print JSON (design, tuning, runs, robustness) instead of tables.

@@ -9,7 +9,7 @@ use super::metrics::Metrics;
 use super::plant::{Measurement, Plant};
 use super::reference::SineReference;
 use super::runtime::{ControlLoop, StepTime};
-use crate::data::signals::samples_in;
+use crate::data::signals::{nyquist_rad_s, samples_in};
 
 /// How an episode runs and which part of it is scored.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -45,9 +45,17 @@ impl Episode {
     }
 
     /// Why the episode cannot run on a plant sampled every `dt` seconds, if
-    /// it cannot: more samples than a record may hold, or none in the
-    /// scored part (its metrics would be NaN).
+    /// it cannot: a reference at or above Nyquist's frequency (its samples
+    /// would trace another, slower wave), more samples than a record may
+    /// hold, or none in the scored part (its metrics would be NaN).
     pub fn check(&self, dt: f64) -> Result<(), String> {
+        let nyquist = nyquist_rad_s(dt);
+        if self.reference.omega_rad_s >= nyquist {
+            return Err(format!(
+                "a reference at {} rad/s must stay below Nyquist's {nyquist:.1} rad/s (π/dt)",
+                self.reference.omega_rad_s
+            ));
+        }
         samples_in(self.warmup_s + self.duration_s, dt)
             .map_err(|e| format!("the warm-up and the sine together: {e}"))?;
         // Sample k of the sine is at k·dt; the scored ones at or after

@@ -20,7 +20,7 @@ use super::link::{ChildLink, Link, UdpLink};
 use super::log::RunLog;
 use super::plausible::Limits;
 use super::protocol::Ranges;
-use super::remote::{RemoteSettings, connect, run_remote};
+use super::remote::{RemoteSettings, connect, hang_up, run_remote};
 use crate::control::reference::Waveform;
 use crate::control::sweep::{self, Ingredients, Kind, Run, RunSpec, Shape};
 use crate::control::table::Row;
@@ -121,6 +121,21 @@ pub fn on_rig(
     shape: &Shape,
     progress: &dyn Fn(String),
 ) -> anyhow::Result<(Vec<Row>, Vec<Run>)> {
+    // Whether every run can go on a rig sampled every `dt` s: checked at
+    // each connection, so that the first refuses a plan a later run would
+    // fail on before any run drove the rig (and none is lost).
+    let plan_fits = |dt: f64| -> anyhow::Result<()> {
+        for &kind in kinds {
+            sweep::build(kind, 1.0, ing, dt)
+                .with_context(|| format!("{} cannot run on {}", kind.label(), settings.plant))?;
+        }
+        for &freq in freqs {
+            shape.episode(freq).check(dt).map_err(|why| {
+                anyhow::anyhow!("--freq {freq}: the rig samples every {dt} s: {why}")
+            })?;
+        }
+        Ok(())
+    };
     let mut rows = Vec::new();
     let mut runs = Vec::new();
     for &kind in kinds {
@@ -137,7 +152,7 @@ pub fn on_rig(
                 kind.label(),
                 settings.plant
             ));
-            let (run, late) = run_on_rig(&spec, settings, ing, shape)?;
+            let (run, late) = run_on_rig(&spec, settings, ing, shape, &plan_fits)?;
             rows.push(Row::of(&run, &settings.plant, None, late));
             runs.push(run);
         }
@@ -146,16 +161,22 @@ pub fn on_rig(
 }
 
 /// One run of `spec` on the rig, and how many of its measurements came
-/// late. The deadline scales with the sample time the rig announces unless
-/// one is given.
+/// late, once `plan_fits` the sample time the rig announces (else the
+/// session ends at once, before any command). The deadline scales with
+/// that sample time unless one is given.
 fn run_on_rig(
     spec: &RunSpec,
     settings: &RigRunSettings,
     ing: &Ingredients,
     shape: &Shape,
+    plan_fits: &dyn Fn(f64) -> anyhow::Result<()>,
 ) -> anyhow::Result<(Run, usize)> {
     let mut link = settings.endpoint.open()?;
     let (dt, announced) = connect(link.as_mut(), RemoteSettings::CONNECT_TIMEOUT)?;
+    if let Err(e) = plan_fits(dt) {
+        hang_up(link.as_mut());
+        return Err(e);
+    }
     let (ranges, source) = ranges(settings, announced);
     let remote_settings = RemoteSettings {
         deadline: settings.deadline_ms.map_or_else(

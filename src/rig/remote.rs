@@ -184,6 +184,13 @@ pub fn connect(link: &mut dyn Link, timeout: Duration) -> Result<(f64, Option<Ra
     }
 }
 
+/// Ends a session before its first command: `STOP` (the valve was never
+/// moved), its `BYE` not waited for long.
+pub fn hang_up(link: &mut dyn Link) {
+    let _ = send(link, ToRig::Stop);
+    let _ = link.recv(Some(Duration::from_millis(200)));
+}
+
 /// Runs `controller` over `episode` on a connected rig with sample time
 /// `dt`, writing `log` as it goes. On any error the valve is closed first.
 pub fn run_remote(
