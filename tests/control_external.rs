@@ -87,6 +87,16 @@ fn pi_and_mpc_give_the_same_numbers_in_process_over_stdio_and_over_udp() {
     for (a, b) in local.iter().zip(&piped) {
         assert_eq!(numbers(a), numbers(b));
     }
+    // A step's CPU time lies within its wall time (it was read outside
+    // it, and an interrupt in that read made it up to ten times the wall
+    // time); the margin is the two clocks' own disagreement.
+    for run in local.iter().chain(&piped) {
+        let (wall, cpu) = (
+            run["max_step_time_us"].as_f64().unwrap(),
+            run["max_step_cpu_us"].as_f64().unwrap(),
+        );
+        assert!(cpu <= 1.001 * wall + 1.0, "{run}");
+    }
     assert!(
         local[1]["rms_error_mm"].as_f64().unwrap() < local[0]["rms_error_mm"].as_f64().unwrap()
     );
@@ -589,6 +599,41 @@ fn a_plan_the_rig_cannot_carry_is_refused_before_any_run() {
             "{args:?}"
         );
     }
+}
+
+/// `--hysteresis-scale` runs on a rig as on the twin (it was dropped
+/// without a word), the same numbers; `--robustness`, whose runs move the
+/// twin's load, is refused there (its table came from the in-process twin
+/// and passed as the rig's).
+#[test]
+fn hysteresis_scales_run_on_a_rig_and_robustness_is_refused_there() {
+    let scaled = ["--controller", "mpc", "--hysteresis-scale", "0.8", "--json"];
+    let local = runs(&control(&[&scaled[..], &["--load", "4.5"]].concat()));
+    let piped = runs(&control(
+        &[
+            &scaled[..],
+            &["--deadline", "5000", "--plant", &serve_cmd("")],
+        ]
+        .concat(),
+    ));
+    assert_eq!(piped.len(), 2);
+    assert_eq!(piped[1]["hysteresis_scale"], 0.8);
+    for (a, b) in local.iter().zip(&piped) {
+        assert_eq!(numbers(a), numbers(b));
+    }
+    let out = control(&[
+        "--controller",
+        "mpc",
+        "--robustness",
+        "--plant",
+        &serve_cmd(""),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--robustness runs the in-process twin"),
+        "{err}"
+    );
 }
 
 /// A steps run at ω and the sine run at ω write files of their own names

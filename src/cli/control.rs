@@ -371,6 +371,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
              has no link to hold to them",
             given.join(", ")
         );
+    } else {
+        // Its perturbed runs move the twin's load, which a rig's cannot
+        // follow: run on the twin, they would pass as the rig's.
+        anyhow::ensure!(
+            !args.robustness,
+            "--robustness runs the in-process twin at loads 30 % off the design load, which a \
+             rig's load cannot follow; on a rig, --hysteresis-scale 0.8,1.2 runs its model-side \
+             half, and --robustness without --plant the whole table on the twin"
+        );
     }
     let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
     let designs = kinds.iter().any(|k| k.needs_model()) || args.robustness;
@@ -540,7 +549,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             // One handler a process; failing to install it only means that
             // Ctrl-C kills the run instead of closing the valve first.
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
-            control_runs::on_rig(&kinds, &args.freq, &settings, &ing, &shape, &say)?
+            let plan = sweep::plan(&kinds, &args.freq, &[f64::NAN], &args.hysteresis_scale);
+            control_runs::on_rig(&plan, &settings, &ing, &shape, &say)?
         }
     };
     let robust = if args.robustness {

@@ -22,7 +22,7 @@ use super::plausible::Limits;
 use super::protocol::Ranges;
 use super::remote::{RemoteSettings, connect, hang_up, run_remote};
 use crate::control::reference::Waveform;
-use crate::control::sweep::{self, Ingredients, Kind, Run, RunSpec, Shape};
+use crate::control::sweep::{self, Ingredients, Run, RunSpec, Shape};
 use crate::control::table::Row;
 use crate::twin::TwinConfig;
 
@@ -110,12 +110,11 @@ impl RigRunSettings {
     pub const DEFAULT_MAX_IMPLAUSIBLE: usize = 3;
 }
 
-/// The runs of `kinds` at every frequency in `freqs` on the rig, each on a
-/// fresh connection, with their rows; `progress` hears of each run before
-/// it starts.
+/// The runs `plan` holds ([`sweep::plan`]; the rig's load is not ours to
+/// know, so theirs is NaN) on the rig, each on a fresh connection, with
+/// their rows; `progress` hears of each run before it starts.
 pub fn on_rig(
-    kinds: &[Kind],
-    freqs: &[f64],
+    plan: &[RunSpec],
     settings: &RigRunSettings,
     ing: &Ingredients,
     shape: &Shape,
@@ -125,37 +124,33 @@ pub fn on_rig(
     // each connection, so that the first refuses a plan a later run would
     // fail on before any run drove the rig (and none is lost).
     let plan_fits = |dt: f64| -> anyhow::Result<()> {
-        for &kind in kinds {
-            sweep::build(kind, 1.0, ing, dt)
-                .with_context(|| format!("{} cannot run on {}", kind.label(), settings.plant))?;
-        }
-        for &freq in freqs {
-            shape.episode(freq).check(dt).map_err(|why| {
-                anyhow::anyhow!("--freq {freq}: the rig samples every {dt} s: {why}")
+        for spec in plan {
+            sweep::build(spec.kind, spec.hysteresis_scale, ing, dt).with_context(|| {
+                format!("{} cannot run on {}", spec.kind.label(), settings.plant)
+            })?;
+            shape.episode(spec.freq_rad_s).check(dt).map_err(|why| {
+                anyhow::anyhow!(
+                    "--freq {}: the rig samples every {dt} s: {why}",
+                    spec.freq_rad_s
+                )
             })?;
         }
         Ok(())
     };
     let mut rows = Vec::new();
     let mut runs = Vec::new();
-    for &kind in kinds {
-        for &freq in freqs {
-            let spec = RunSpec {
-                kind,
-                freq_rad_s: freq,
-                // The rig's load is not ours to know.
-                load_kg: f64::NAN,
-                hysteresis_scale: 1.0,
-            };
-            progress(format!(
-                "{} at {freq} rad/s on {}",
-                kind.label(),
-                settings.plant
-            ));
-            let (run, late) = run_on_rig(&spec, settings, ing, shape, &plan_fits)?;
-            rows.push(Row::of(&run, &settings.plant, None, late));
-            runs.push(run);
-        }
+    for (i, spec) in plan.iter().enumerate() {
+        progress(format!(
+            "[{}/{}] {} at {} rad/s on {}",
+            i + 1,
+            plan.len(),
+            sweep::run_label(spec.kind, spec.hysteresis_scale),
+            spec.freq_rad_s,
+            settings.plant
+        ));
+        let (run, late) = run_on_rig(spec, settings, ing, shape, &plan_fits)?;
+        rows.push(Row::of(&run, &settings.plant, None, late));
+        runs.push(run);
     }
     Ok((rows, runs))
 }
@@ -198,8 +193,16 @@ fn run_on_rig(
                 Waveform::Sine => ("", ""),
                 Waveform::Steps => ("_steps", " --reference steps"),
             };
+            // So does a run with its model's hysteresis scaled.
+            let (scaled, scaled_flag) = match spec.hysteresis_scale {
+                1.0 => (String::new(), String::new()),
+                scale => (
+                    format!("_hysteresis{scale}"),
+                    format!(" --hysteresis-scale {scale}"),
+                ),
+            };
             let path = dir.join(format!(
-                "{}_{}rad{suffix}.csv",
+                "{}{scaled}_{}rad{suffix}.csv",
                 spec.kind.label(),
                 spec.freq_rad_s
             ));
@@ -209,7 +212,7 @@ fn run_on_rig(
                 &path,
                 &[
                     format!(
-                        "mckibben control --controller {} --freq {}{flag} --plant {}",
+                        "mckibben control --controller {}{scaled_flag} --freq {}{flag} --plant {}",
                         spec.kind.label(),
                         spec.freq_rad_s,
                         settings.plant
