@@ -3,6 +3,7 @@
 
 use super::common::population;
 use mckibben::eval::{self, Backend};
+use mckibben::fit::objective::tries_of;
 use mckibben::fit::sweep::{CaseFit, PopulationRow, cases, fit_case, markdown_table, summarize};
 use mckibben::model::Family;
 use mckibben::report::json::Versioned;
@@ -116,11 +117,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .join(" or ")
         );
     }
+    // A population from two tries on is whole tries, as `fit` runs it: the
+    // rows say the population that ran.
+    let mut pops: Vec<usize> = Vec::new();
+    for &n in &args.pop {
+        let (tries, size) = tries_of(n);
+        let ran = tries * size;
+        if ran != n {
+            eprintln!(
+                "mckibben: note: --pop {n} runs {tries} tries of {size} ({ran} candidates), as \
+                 `fit --pop {n}` does"
+            );
+        }
+        if !pops.contains(&ran) {
+            pops.push(ran);
+        }
+    }
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     eprintln!("backend: {backend}");
     let mut fits = Vec::new();
-    for &n in &args.pop {
+    for &n in &pops {
         for case in &picked {
             for &seed in &args.seeds {
                 let fit = fit_case(case, n, seed, evaluator.as_mut())?;
