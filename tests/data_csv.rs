@@ -243,6 +243,17 @@ fn identify_with_split_gaps_uses_both_sides_of_a_clock_glitch() {
         "{stderr}"
     );
     assert!(!stderr.contains("panicked"), "{stderr}");
+
+    // The file given twice, under two names: its pieces passed as one
+    // record's (the longest of four, reported alone, exit 0).
+    let again = dir.path().join(".").join(path.file_name().unwrap());
+    let out = run(&[again.to_str().unwrap(), "--split-gaps"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("DATA names one file twice") && stderr.contains("give it once"),
+        "{stderr}"
+    );
 }
 
 /// `fit --split-gaps` fits the longest piece and says which, with its

@@ -456,6 +456,23 @@ impl ColumnArgs {
         } else {
             paths
         };
+        // One file given twice (under one name or two): its pieces after
+        // --split-gaps would pass as one record's, which no later check
+        // of the samples can tell apart.
+        let files: Vec<PathBuf> = paths
+            .iter()
+            .map(|p| std::fs::canonicalize(p).unwrap_or_else(|_| p.clone()))
+            .collect();
+        for (k, file) in files.iter().enumerate() {
+            if let Some(j) = files[..k].iter().position(|f| f == file) {
+                anyhow::bail!(
+                    "DATA names one file twice ({} and {}): a record given twice weighs double \
+                     and makes every standard error look √2 smaller; give it once",
+                    paths[j].display(),
+                    paths[k].display()
+                );
+            }
+        }
         let opts = self.options();
         let mut traces = Vec::new();
         for path in paths {
