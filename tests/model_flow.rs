@@ -970,19 +970,33 @@ fn simulate_drives_a_model_in_its_own_units_and_writes_a_file_that_reads_back() 
         );
     }
 
-    // A model whose input is not a pressure cannot run on a generated one.
-    let mut volts = model_in(&kpa, "model.json");
-    volts["data"]["input"]["column"] = "valve_V".into();
-    volts["data"]["input"]["unit"] = "V".into();
-    let volts_path = dir.path().join("volts.json");
-    std::fs::write(&volts_path, volts.to_string()).unwrap();
-    let err = error_of(&["simulate", "--from", volts_path.to_str().unwrap()]);
-    assert!(
-        err.contains(
-            "a generated input is a pressure in MPa, and the model's input `valve_V` is in V"
-        ),
-        "{err}"
-    );
+    // A model of the valve voltage runs on the generated stair's valve
+    // command (the shipped `valve_in` is in V: it was driven by the stair's
+    // pressure in MPa); a sine, which is a pressure alone, it cannot run on.
+    for column in ["valve_V", "valve_in"] {
+        let mut volts = model_in(&kpa, "model.json");
+        volts["data"]["input"]["column"] = column.into();
+        volts["data"]["input"]["unit"] = "V".into();
+        let volts_path = dir.path().join("volts.json");
+        std::fs::write(&volts_path, volts.to_string()).unwrap();
+        let from = volts_path.to_str().unwrap();
+        let stair = mckibben(&["simulate", "--from", from, "--input", "stair"]);
+        let note = String::from_utf8_lossy(&stair.stderr);
+        assert!(stair.status.success(), "{note}");
+        assert!(
+            note.contains(&format!(
+                "the stair's valve command (V) drives the model's input `{column}`"
+            )),
+            "{note}"
+        );
+        let err = error_of(&["simulate", "--from", from, "--input", "sine"]);
+        assert!(
+            err.contains(&format!(
+                "a generated input is a pressure in MPa, and the model's input `{column}` is in V"
+            )),
+            "{err}"
+        );
+    }
 }
 
 /// `simulate --out -` writes the trace a file would get to standard output,

@@ -511,12 +511,27 @@ fn free_name(trace: &Trace, name: &str) -> String {
 
 /// A generated input (MPa) in the model's input unit: converted where the
 /// model's input column states another pressure unit (a model fitted in kPa
-/// run on MPa is a thousand times off), an error where it states a unit
-/// that is not a pressure; a column stating none is taken at its word.
+/// run on MPa is a thousand times off); for a model of the valve voltage
+/// (V), the stair's valve command it was made from; an error where the
+/// column states a unit that is neither; a column stating none is taken at
+/// its word.
 fn in_model_units(trace: &mut Trace, column: &str, say: bool) -> anyhow::Result<()> {
     let Some(unit) = unit_of(column) else {
         return Ok(());
     };
+    if unit == "V"
+        && let Some(valve) = trace.column("valve_in")
+    {
+        trace.input = valve.to_vec();
+        if say {
+            eprintln!(
+                "mckibben: note: the {}'s valve command (V) drives the model's input `{column}`",
+                trace.source
+            );
+        }
+        trace.input_name = column.to_string();
+        return Ok(());
+    }
     let per_unit = megapascals_in(&unit).with_context(|| {
         format!(
             "--input {}: a generated input is a pressure in MPa, and the model's input `{column}` \

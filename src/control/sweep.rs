@@ -285,11 +285,21 @@ pub fn design_for(
         ("output", &m.base.output_name, "mm"),
     ] {
         match unit_of(column) {
-            Some(unit) if unit != want => anyhow::bail!(
-                "--from {}: the model's {which} is in {unit} (column `{column}`), the \
-                 controllers' in {want}: convert the column to {want} and refit",
-                path.display()
-            ),
+            Some(unit) if unit != want => {
+                // A valve voltage is another signal, not another unit.
+                let fix = match unit.as_str() {
+                    "V" | "mV" => format!(
+                        "the controllers read a model of the pressure (their valve model is \
+                         their own): fit on the pressure column, in {want}"
+                    ),
+                    _ => format!("convert the column to {want} and refit"),
+                };
+                anyhow::bail!(
+                    "--from {}: the model's {which} is in {unit} (column `{column}`), the \
+                     controllers' in {want}: {fix}",
+                    path.display()
+                )
+            }
             Some(_) => {}
             None => note(format!(
                 "--from {}: the model's {which} column `{column}` states no unit; it is taken \

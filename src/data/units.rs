@@ -43,16 +43,22 @@ fn stated(name: &str) -> Option<String> {
     Some(tail.trim().to_ascii_lowercase())
 }
 
+/// The shipped data's column names, which state no unit, and their units
+/// (README.md, "Data format").
+pub const SHIPPED: [(&str, &str); 4] = [
+    ("pressure", "MPa"),
+    ("displacement", "mm"),
+    ("valve_in", "V"),
+    ("valve_out", "V"),
+];
+
 /// The unit a column name states, if it states one: a known unit after the
-/// last `_`, or inside trailing brackets or parentheses. The shipped data's
-/// `pressure` and `displacement` columns are in MPa and mm (README.md,
-/// "Data format").
+/// last `_`, or inside trailing brackets or parentheses; the shipped data's
+/// names are in their units ([`SHIPPED`]).
 pub fn unit_of(column: &str) -> Option<String> {
     let name = column.trim();
-    match name {
-        "pressure" => return Some("MPa".into()),
-        "displacement" => return Some("mm".into()),
-        _ => {}
+    if let Some((_, unit)) = SHIPPED.iter().find(|(shipped, _)| *shipped == name) {
+        return Some(unit.to_string());
     }
     let tail = stated(name)?;
     if tail == "in" && (name.ends_with(']') || name.ends_with(')')) {
@@ -152,7 +158,7 @@ mod tests {
         assert_eq!(unit_of("p [kPa]").as_deref(), Some("kPa"));
         assert_eq!(unit_of("x (m)").as_deref(), Some("m"));
         assert_eq!(unit_of("pressure").as_deref(), Some("MPa"));
-        assert_eq!(unit_of("valve_in"), None);
+        assert_eq!(unit_of("valve_in").as_deref(), Some("V"));
         assert_eq!(unit_of("t_s"), None);
         assert_eq!(megapascals_in("kPa"), Some(1e-3));
         assert_eq!(megapascals_in("mm"), None);
@@ -162,7 +168,7 @@ mod tests {
         assert_eq!(unit_of("x_\u{3bc}m").as_deref(), Some("µm"));
         assert_eq!(unit_of("stroke [in]").as_deref(), Some("in"));
         assert_eq!(unit_of("stroke_inch").as_deref(), Some("in"));
-        assert_eq!(unit_of("valve_in"), None);
+        assert_eq!(unit_of("valve_out").as_deref(), Some("V"));
         assert_eq!(unit_of("p_mbar").as_deref(), Some("mbar"));
         assert_eq!(megapascals_in("hPa"), Some(1e-4));
         assert_eq!(stated_length_in_mm("disp_ft"), Some(304.8));

@@ -17,7 +17,7 @@ use super::family::Family;
 use super::fitted::FittedBaseline;
 use super::sim::DIVERGENCE_BOUND;
 use super::user_bound::UserBound;
-use crate::data::units::unit_of;
+use crate::data::units::{SHIPPED, unit_of};
 use crate::data::write_atomic;
 use crate::data::{same_step, tidy_step};
 
@@ -160,9 +160,9 @@ impl Model {
             ("output", &base.output_name, &trace.output_name),
         ] {
             if let (Some(was), Some(now)) = (unit_of(fitted), unit_of(column)) {
-                // `pressure` and `displacement` state no unit: they are the
-                // shipped data's names, read as MPa and mm.
-                let named = if column.trim() == "pressure" || column.trim() == "displacement" {
+                // `pressure`, `displacement`, `valve_in` state no unit:
+                // they are the shipped data's names, read in its units.
+                let named = if SHIPPED.iter().any(|(name, _)| *name == column.trim()) {
                     format!(
                         "`{column}` is read as {now} (its name states no unit: the shipped \
                          data's convention)"
