@@ -1201,3 +1201,58 @@ fn a_warm_start_switches_where_switch_asks() {
     ]);
     assert!(e.contains("--switch starts runs two fresh fits"), "{e}");
 }
+
+/// A model with the `load` effect holds a gain for each record after the
+/// first of those it was fitted on: `simulate` runs the first's and says
+/// so (it ran another record's load without a word), and `fit --from`
+/// refuses it naming `--from` and the command that refits it (it named
+/// `--effects`, which the user never passed).
+#[test]
+fn a_model_of_several_loads_says_what_it_runs_and_fit_refers_it_to_diagnose() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("f");
+    let fitted = mckibben(&[
+        "fit",
+        STAIR,
+        "--pop",
+        "40",
+        "--gens",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(fitted.status.success());
+    let mut model: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("model.json")).unwrap()).unwrap();
+    let context: Value = serde_json::from_str(
+        &std::fs::read_to_string(format!(
+            "{ROOT}/tests/fixtures/generalized_creep_before_x_s.json"
+        ))
+        .unwrap(),
+    )
+    .unwrap();
+    model["effects"] = serde_json::json!(["load"]);
+    model["params"]["load.g1"] = serde_json::json!(0.1);
+    model["datasets"] = serde_json::json!(2);
+    model["data"]["effect_context"] = context["data"]["effect_context"].clone();
+    let path = dir.path().join("two-loads.json");
+    std::fs::write(&path, model.to_string()).unwrap();
+    let from = path.to_str().unwrap();
+
+    let ran = mckibben(&["simulate", "--from", from, "--input", "data/stair_7kg.csv"]);
+    let stderr = String::from_utf8_lossy(&ran.stderr);
+    assert!(ran.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(
+            "its `load` effect fitted a parameter for each record after the first of the 2"
+        ),
+        "{stderr}"
+    );
+    let err = error_of(&["fit", STAIR, "--from", from]);
+    assert!(
+        err.contains(&format!("--from {from}: its `load` effect"))
+            && err.contains(&format!("mckibben diagnose FILES --from {from}"))
+            && !err.contains("--effects:"),
+        "{err}"
+    );
+}

@@ -202,6 +202,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     override_params(&mut model, &args.params)?;
+    // A model of several records simulates one: its first's.
+    if let (Some(path), Some(e)) = (
+        &args.from,
+        model.effects().iter().find(|e| !e.applicable(1)),
+    ) && !args.json
+    {
+        eprintln!(
+            "mckibben: note: --from {}: its `{e}` effect fitted a parameter for each record \
+             after the first of the {} it was fitted on; a simulation runs the first record's \
+             (which has none), so on another record it is off by that record's",
+            path.display(),
+            model.augmented().datasets
+        );
+    }
     if let (Some(path), Some(f)) = (&args.from, &file)
         && args.input_is_generated()
     {

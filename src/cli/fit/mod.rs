@@ -76,6 +76,24 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if let Some(file) = start.as_ref().or(carried.as_ref()) {
         args.data.columns = args.data.columns.or_as_read_for(file);
     }
+    // A parameter a record (one per load) is the diagnosis' to fit: a fit
+    // fits one model for all its records.
+    for (flag, path, file) in [
+        ("--from", &args.from, &start),
+        ("--carry", &args.carry, &carried),
+    ] {
+        if let (Some(path), Some(file)) = (path, file)
+            && let Some(e) = file.model()?.effects().iter().find(|e| !e.applicable(1))
+        {
+            anyhow::bail!(
+                "{flag} {}: its `{e}` effect fits a parameter for each record it was fitted \
+                 on (one per load), and `fit` fits one model for all its records: refit it \
+                 with `mckibben diagnose FILES --from {}`",
+                path.display(),
+                path.display()
+            );
+        }
+    }
     if let Some([EffectArg::Auto]) = args.effects.as_deref() {
         let unread = args.unread_by_auto();
         anyhow::ensure!(
