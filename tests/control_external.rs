@@ -350,6 +350,11 @@ fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
             &["--controller", "pi", "--load", "0.01"][..],
             "--load: the twin's `displacement` is not finite from 0.010 s on",
         ),
+        // The creep's softer rubber is as much the cause as the load.
+        (
+            &["--controller", "pi", "--effect", "creep=9"][..],
+            "--load with --effect creep=9: a 4.5 kg load stretches the muscle at rest",
+        ),
         // `control` has no column flags to suggest: the names are the fix.
         (
             &[

@@ -234,8 +234,16 @@ fn check_on_twin(args: &Args, config: &TwinConfig, kinds: &[Kind]) -> anyhow::Re
         let tuning = tuning::TuningEpisodes::default().loads_kg;
         hung.extend(tuning.into_iter().map(|m| ("the PI tuning's load", m)));
     }
+    // The creep softens the rubber: a load it cannot carry is as much the
+    // creep's doing as the load's, and the error names both flags.
+    let creep = args
+        .effects
+        .iter()
+        .find(|e| e.trim_start().starts_with("creep="))
+        .map_or(String::new(), |e| format!(" with --effect {}", e.trim()));
     for (what, load) in hung {
-        Rig::check_holds(config, load, args.seed).map_err(|e| anyhow::anyhow!("{what}: {e}"))?;
+        Rig::check_holds(config, load, args.seed)
+            .map_err(|e| anyhow::anyhow!("{what}{creep}: {e}"))?;
     }
     // A rig's sample time is checked once its handshake gives it.
     Episode::short(1.0, args.warmup, args.duration, args.steady_from)

@@ -73,7 +73,9 @@ pub struct Args {
     /// These two default to 0 (off), so that the default runs keep the
     /// numbers published from them; turn them on with e.g. creep=1:
     ///   creep         the bladder's slow creep (10 % of the rubber's
-    ///                 stiffness relaxing in 5 s; scale < 10)
+    ///                 stiffness relaxing in 5 s; scale < 10, and the
+    ///                 softer rubber must carry the load: up to about 7
+    ///                 at 4.5 kg, 6 at 7 kg)
     ///   ringing       the load ringing on the muscle's stiffness
     ///                 (√(k/m)/2π, 6–9 Hz here), scales its excitation
     #[arg(long = "effect", value_name = "NAME=VALUE", verbatim_doc_comment)]
