@@ -334,11 +334,21 @@ pub fn design_for(
             Effect::physical(u.effect.parse().expect("a catalogue name"))
         ));
     }
+    // The valve → pressure model stays the design record's, where one was
+    // given: the source says both.
+    let source = match &request.record {
+        Some(record) => format!(
+            "{} (valve → pressure from {})",
+            path.display(),
+            record.display()
+        ),
+        None => format!("{}", path.display()),
+    };
     let mut design = with_displacement(
         &design,
         m.base,
         chain,
-        format!("{}", path.display()),
+        source,
         config,
         request.load_kg,
         request.seed,
