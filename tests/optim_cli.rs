@@ -508,14 +508,19 @@ fn values_out_of_any_rigs_range_and_contradicting_flags_are_errors() {
             "stretches the muscle at rest",
         ),
         // Episodes of more samples than a record holds (an aborted
-        // allocation), or whose scored part holds none (NaN metrics).
+        // allocation), or whose scored part holds none (NaN metrics) or
+        // one (a NaN valve travel).
         (
             [&control[..], &["--duration", "1e12", "--steady-from", "1"]].concat(),
             "more than the 10000000 a record may hold",
         ),
         (
             [&control[..], &["--duration", "2", "--steady-from", "1.999"]].concat(),
-            "nothing would be scored",
+            "hold fewer than two samples from 1.999 s on",
+        ),
+        (
+            [&control[..], &["--duration", "0.005", "--steady-from", "0"]].concat(),
+            "hold fewer than two samples from 0 s on",
         ),
         (
             vec!["bench", "--backend", "cpu", "--synthetic", "10000000000"],

@@ -59,12 +59,14 @@ impl Episode {
         samples_in(self.warmup_s + self.duration_s, dt)
             .map_err(|e| format!("the warm-up and the sine together: {e}"))?;
         // Sample k of the sine is at k·dt; the scored ones at or after
-        // `steady_from_s` (Metrics::of).
+        // `steady_from_s` (Metrics::of). One alone has no valve travel
+        // (its rate over no time is NaN).
         let sine = (self.duration_s / dt).round();
-        if sine < 1.0 || (sine - 1.0) * dt < self.steady_from_s - 1e-9 {
+        let first = (self.steady_from_s / dt - 1e-9).ceil().max(0.0);
+        if sine - first < 2.0 {
             return Err(format!(
-                "the sine's {} s, sampled every {dt} s, hold no sample from {} s on: nothing \
-                 would be scored (lengthen the sine or start scoring earlier)",
+                "the sine's {} s, sampled every {dt} s, hold fewer than two samples from {} s \
+                 on: a score needs two (lengthen the sine or start scoring earlier)",
                 self.duration_s, self.steady_from_s
             ));
         }
