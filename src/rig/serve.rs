@@ -51,7 +51,10 @@ pub enum Fault {
 
 /// A `--fault` that is none of the faults' forms (the text as given).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("`{0}`: a fault is drop@K, delay@K=MS, garble@K, stale@K or repeat@K")]
+#[error(
+    "`{0}`: a fault is drop@K, delay@K=MS, garble@K, stale@K or repeat@K, K ≥ 1: the \
+     measurement `M K` it acts on (the first is M 1)"
+)]
 pub struct NotAFault(pub String);
 
 impl std::str::FromStr for Fault {
@@ -65,7 +68,8 @@ impl std::str::FromStr for Fault {
             Some((k, ms)) => (k, Some(ms)),
             None => (rest, None),
         };
-        let k: u64 = k.parse().map_err(|_| usage())?;
+        // No `M 0` is sent: a fault there would never act.
+        let k: u64 = k.parse().ok().filter(|&k| k >= 1).ok_or_else(usage)?;
         match (kind, ms) {
             ("drop", None) => Ok(Fault::Drop(k)),
             ("garble", None) => Ok(Fault::Garble(k)),
@@ -293,5 +297,34 @@ impl<'s> Session<'s> {
     fn close(mut self, why: String) -> SessionReport {
         self.u = 0.0;
         self.report(format!("{why}; input valve closed ({} V)", self.u))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each fault's form reads; one at `M 0`, which is never sent, would
+    /// never act and is refused, as is any other text.
+    #[test]
+    fn faults_read_from_measurement_one_on() {
+        assert_eq!("drop@1".parse(), Ok(Fault::Drop(1)));
+        assert_eq!("repeat@7".parse(), Ok(Fault::Repeat(7)));
+        assert_eq!(
+            "delay@3=250".parse(),
+            Ok(Fault::Delay(3, Duration::from_millis(250)))
+        );
+        for bad in [
+            "drop@0",
+            "repeat@0",
+            "delay@0=5",
+            "drop",
+            "drop@x",
+            "melt@3",
+        ] {
+            let err = bad.parse::<Fault>().unwrap_err();
+            assert_eq!(err, NotAFault(bad.to_string()));
+            assert!(err.to_string().contains("K ≥ 1"), "{err}");
+        }
     }
 }
