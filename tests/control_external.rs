@@ -389,6 +389,51 @@ fn a_model_no_controller_reads_is_named() {
             "{err}"
         );
     }
+    // So are the MPC's, the design's and the tuning's knobs, and the
+    // twin's effects where the twin runs nothing.
+    let rig = serve_cmd("");
+    for (args, warning) in [
+        (
+            &["--controller", "pi", "--horizon", "5", "--r-move", "3"][..],
+            "--horizon is not read: none of the controllers asked for (pi) uses it; add mpc",
+        ),
+        (
+            &["--controller", "pi", "--design-load", "7"][..],
+            "--design-load is not read: none of the controllers asked for (pi) uses it",
+        ),
+        (
+            &["--controller", "pi", "--algo", "ga"][..],
+            "--algo is not read: it sets the gain tuning, and none of the controllers asked \
+             for (pi) is tuned",
+        ),
+        (
+            &[
+                "--controller",
+                "pi-tuned",
+                "--tuned-gains",
+                "2,60,0",
+                "--pop",
+                "7",
+            ][..],
+            "--pop is not read: it sets the gain tuning, and the gains are given",
+        ),
+        (
+            &["--controller", "pi", "--effect", "creep=1", "--plant", &rig][..],
+            "--effect is not read: it sets the twin",
+        ),
+    ] {
+        let out = control(&[args, &["--json"]].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("warning: {warning}")),
+            "{args:?}: {err}"
+        );
+    }
+    // Where they are read, nothing is said.
+    let out = control(&["--controller", "mpc", "--horizon", "5", "--json"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && !err.contains("not read"), "{err}");
 }
 
 /// A folder for the figures or the traces that cannot be made is an error

@@ -24,6 +24,14 @@ use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
 use mckibben::twin::{MAX_LOAD_KG, Rig, TwinConfig};
 
+/// The load (kg) the model is identified at on the twin unless
+/// `--design-load` says otherwise: the thesis' lighter one.
+const DESIGN_LOAD_KG: f64 = 4.5;
+/// The gain tuning's optimizer, population and generations unless told.
+const TUNING_ALGO: &str = "de";
+const TUNING_POP: usize = 24;
+const TUNING_GENS: usize = 30;
+
 /// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
 /// closing the loop on the input valve voltage (0–10 V, slew 0.25 V per
 /// sample; the output valve at 10 − u), and report the steady-state RMS and
@@ -75,7 +83,7 @@ pub struct Args {
     )]
     load: Vec<f64>,
     /// Load (kg) at which the model is identified on the twin.
-    #[arg(long, default_value_t = 4.5, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DESIGN_LOAD_KG, allow_negative_numbers = true)]
     design_load: f64,
     /// Identify the model from this open-loop record (CSV with valve_in,
     /// pressure, displacement; e.g. a multisine recorded on the rig) instead
@@ -100,13 +108,13 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', value_name = "KP,KI,KD")]
     tuned_gains: Option<Vec<f64>>,
     /// Optimizer of the gain tuning: ga, mfa, pso or de.
-    #[arg(long, default_value = "de")]
+    #[arg(long, default_value = TUNING_ALGO)]
     algo: String,
     /// Population of the gain tuning.
-    #[arg(long, default_value_t = 24, value_parser = population)]
+    #[arg(long, default_value_t = TUNING_POP, value_parser = population)]
     pop: usize,
     /// Generations of the gain tuning.
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = TUNING_GENS)]
     gens: usize,
     /// MPC horizon (samples).
     #[arg(long, default_value_t = MpcSettings::default().horizon)]
@@ -426,6 +434,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             kinds.iter().any(|k| k.needs_gains()),
             "pi-tuned or ff-pid",
         ),
+        (
+            "--design-load",
+            args.design_load != DESIGN_LOAD_KG,
+            designs,
+            "ff-pid or mpc",
+        ),
+        (
+            "--horizon",
+            args.horizon != MpcSettings::default().horizon,
+            kinds.contains(&Kind::Mpc),
+            "mpc",
+        ),
+        (
+            "--r-move",
+            args.r_move != MpcSettings::default().r_move,
+            kinds.contains(&Kind::Mpc),
+            "mpc",
+        ),
     ] {
         if given && !used {
             eprintln!(
@@ -434,6 +460,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 asked()
             );
         }
+    }
+    // The tuning's knobs, where nothing is tuned.
+    let tunes = kinds.iter().any(|k| k.needs_gains()) && args.tuned_gains.is_none();
+    for (flag, given) in [
+        ("--algo", args.algo != TUNING_ALGO),
+        ("--pop", args.pop != TUNING_POP),
+        ("--gens", args.gens != TUNING_GENS),
+    ] {
+        if given && !tunes {
+            let why = match args.tuned_gains {
+                Some(_) => "the gains are given (--tuned-gains)".to_string(),
+                None => format!(
+                    "none of the controllers asked for ({}) is tuned; pi-tuned and ff-pid are",
+                    asked()
+                ),
+            };
+            eprintln!("mckibben: warning: {flag} is not read: it sets the gain tuning, and {why}");
+        }
+    }
+    // On a rig the twin runs only the design and the tuning.
+    if !matches!(plant, PlantSpec::Twin) && !designs && !tunes && !args.effects.is_empty() {
+        eprintln!(
+            "mckibben: warning: --effect is not read: it sets the twin, which here runs \
+             neither a design (ff-pid, mpc) nor a tuning (pi-tuned, ff-pid), the runs being \
+             on the rig"
+        );
     }
     // The folders first: runs of minutes must not end on a path that
     // cannot be written.
