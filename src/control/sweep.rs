@@ -251,7 +251,14 @@ pub fn design_for(
                 );
             }
             let design = design_from_record(&trace, request.horizon)
-                .with_context(|| format!("identifying the model from {}", path.display()))?;
+                .with_context(|| {
+                    format!(
+                        "identifying the model from {} (a design record drives the valve with \
+                         a multisine over its operating band, as `mckibben twin --experiment \
+                         multisine` records one; a stair's few steps do not settle the model)",
+                        path.display()
+                    )
+                })?;
             // A muscle's displacement settles without ringing from one
             // sample to the next: a pole outside (0, 1) is the record's
             // lack of excitation, and an MPC on it holds the valve shut.
