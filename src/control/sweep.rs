@@ -250,15 +250,14 @@ pub fn design_for(
                     "--design-data: {cell}: the valve → pressure model reads every sample of it"
                 );
             }
-            let design = design_from_record(&trace, request.horizon)
-                .with_context(|| {
-                    format!(
-                        "identifying the model from {} (a design record drives the valve with \
+            let design = design_from_record(&trace, request.horizon).with_context(|| {
+                format!(
+                    "identifying the model from {} (a design record drives the valve with \
                          a multisine over its operating band, as `mckibben twin --experiment \
                          multisine` records one; a stair's few steps do not settle the model)",
-                        path.display()
-                    )
-                })?;
+                    path.display()
+                )
+            })?;
             // A muscle's displacement settles without ringing from one
             // sample to the next: a pole outside (0, 1) is the record's
             // lack of excitation, and an MPC on it holds the valve shut.

@@ -120,10 +120,10 @@ pub fn check_loop(
     // A model whose free run leaves every displacement a muscle can hold
     // steers the controllers by nonsense (an MPC on it holds the valve and
     // reports nothing amiss).
-    if let Some(k) = model_mm
-        .iter()
-        .position(|x| !((x - pr.output_mean).abs() < DIVERGED_MM))
-    {
+    if let Some(k) = model_mm.iter().position(|x| {
+        let off = (x - pr.output_mean).abs();
+        !(off.is_finite() && off < DIVERGED_MM)
+    }) {
         anyhow::bail!(
             "the model's displacement, run free along the twin's pressure over the loop \
              check's valve triangle, diverges (it passes ±{DIVERGED_MM} mm at sample {k} of \
