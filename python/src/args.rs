@@ -274,14 +274,14 @@ pub fn effects_arg(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Effect>> 
     Ok(effects)
 }
 
-/// The family asked for, else the start model's, else classic (as the
-/// commands' `--model`/`--baseline` with `--from`).
+/// The family asked for as the argument `what`, else the start model's,
+/// else classic (as the commands' `--model`/`--baseline` with `--from`).
 pub fn family_or_start(
-    asked: Option<&str>,
+    (what, asked): (&str, Option<&str>),
     start: Option<&mckibben::model::Model>,
 ) -> PyResult<mckibben::model::Family> {
     Ok(match (asked, start) {
-        (Some(name), _) => family(name)?,
+        (Some(name), _) => family(name, what)?,
         (None, Some(m)) => m.base.family,
         (None, None) => mckibben::model::Family::Classic,
     })

@@ -223,16 +223,17 @@ pub fn sample_time(dt: f64, what: &str) -> PyResult<f64> {
     }
 }
 
-/// A hysteretic family by name (`classic`, `generalized`).
-pub fn family(name: &str) -> PyResult<Family> {
+/// A hysteretic family by name (`classic`, `generalized`), given as the
+/// argument `what`.
+pub fn family(name: &str, what: &str) -> PyResult<Family> {
     match name
         .parse::<Family>()
         .map_err(|e| PyValueError::new_err(e.to_string()))?
     {
-        Family::Linear => Err(PyValueError::new_err(
-            "model must be a hysteresis model, classic or generalized \
-             (the linear model is fitted by least squares: `mckibben identify`)",
-        )),
+        Family::Linear => Err(PyValueError::new_err(format!(
+            "{what} must be a hysteresis model, classic or generalized \
+             (the linear model is fitted by least squares: `mckibben identify`)"
+        ))),
         f => Ok(f),
     }
 }
@@ -315,6 +316,22 @@ pub fn in_python_terms(message: &str) -> String {
     while let Some(at) = rest.find("--") {
         out.push_str(&rest[..at]);
         let after = &rest[at + 2..];
+        // A flag starts a word: `--` inside one is a path's or a name's
+        // (`run--seed.json`), left as it is; so is one inside a code span,
+        // which quotes a command (`diagnose --effects`).
+        let starts_word = out
+            .chars()
+            .next_back()
+            .is_none_or(|c| c.is_whitespace() || "(`'\",;:[".contains(c));
+        let quoted = out.matches('`').count() % 2 == 1;
+        // A code span of the flag alone (`` `--pop` ``) is the keyword's
+        // own: it takes no second pair of backticks.
+        let alone = quoted && out.ends_with('`');
+        if !starts_word || (quoted && !alone) {
+            out.push_str("--");
+            rest = after;
+            continue;
+        }
         let len = after
             .find(|c: char| !(c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-'))
             .unwrap_or(after.len());
@@ -325,6 +342,10 @@ pub fn in_python_terms(message: &str) -> String {
             continue;
         };
         rest = &after[len..];
+        let code = |text: String| match alone {
+            true => text,
+            false => format!("`{text}`"),
+        };
         // A value after `=` (`--time=t`, `--loop=free`) is the argument's:
         // `time="t"`, a number bare.
         if let Some(given) = rest.strip_prefix('=') {
@@ -333,8 +354,8 @@ pub fn in_python_terms(message: &str) -> String {
                 .unwrap_or(given.len());
             let value = &given[..end];
             match value.parse::<f64>() {
-                Ok(_) => out.push_str(&format!("`{keyword}={value}`")),
-                Err(_) => out.push_str(&format!("`{keyword}=\"{value}\"`")),
+                Ok(_) => out.push_str(&code(format!("{keyword}={value}"))),
+                Err(_) => out.push_str(&code(format!("{keyword}=\"{value}\""))),
             }
             rest = &given[end..];
             continue;
@@ -357,10 +378,10 @@ pub fn in_python_terms(message: &str) -> String {
         });
         match placeholder {
             Some(value) => {
-                out.push_str(&format!("`{keyword}={value}`"));
+                out.push_str(&code(format!("{keyword}={value}")));
                 rest = &rest[1 + value.len()..];
             }
-            None => out.push_str(&format!("`{keyword}`")),
+            None => out.push_str(&code(keyword)),
         }
     }
     out.push_str(rest);
@@ -396,6 +417,8 @@ fn keyword_of(flag: &str) -> Option<String> {
         "baseline",
         "model",
         "refine-rounds",
+        "blocks",
+        "switch",
     ];
     let keyword = match flag {
         "from" => "start",

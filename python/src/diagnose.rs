@@ -1,6 +1,7 @@
 //! `mckibben.diagnose`: the library's diagnosis, its `--json` document as
 //! Python objects and its models as `Model`s.
 
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use mckibben::diagnose::report::{DiagnosisJson, baseline_caution};
@@ -94,10 +95,18 @@ pub fn diagnose<'py>(
         .map(|f| f.model())
         .transpose()
         .map_err(value_error)?;
-    let family = family_or_start(baseline, start.as_ref())?;
+    let family = family_or_start(("baseline", baseline), start.as_ref())?;
+    // An empty list is no request for the catalogue: the CLI has no way to
+    // say it, and `fit`'s `effects=[]` means none.
     let effects = match effects {
-        Some(e) if !e.is_empty() => e,
-        _ => Effect::by_default(),
+        Some(e) if e.is_empty() => {
+            return Err(PyValueError::new_err(
+                "effects=[] names no effect to try: leave it out (None) for the default \
+                 catalogue, or pass max_effects=0 for the baseline alone",
+            ));
+        }
+        Some(e) => e,
+        None => Effect::by_default(),
     };
     let settings = Settings {
         seeds,

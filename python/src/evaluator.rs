@@ -197,7 +197,7 @@ impl Evaluator {
         #[pyo3(from_py_with = named::checked)] checked: bool,
     ) -> PyResult<Evaluator> {
         let (trace, read) = data_arg(u, y, dt)?;
-        let family = family(model)?;
+        let family = family(model, "model")?;
         let loop_shape = loop_shape(r#loop)?;
         let bounds = bounds.unwrap_or_default();
         let backend = self::backend(backend)?;
@@ -215,6 +215,15 @@ impl Evaluator {
             })
             .map_err(value_error)?;
         let space = Space::from(&problem.space);
+        // Nothing to search: a row of no coordinates is no candidate, and
+        // `fit` refuses the same box.
+        if space.free().is_empty() {
+            return Err(PyValueError::new_err(
+                "bounds: every search coordinate is held, so there is nothing to evaluate: \
+                 the search space has no free parameter (`Model.simulate` runs a model whose \
+                 every parameter is given)",
+            ));
+        }
         let evaluator = py
             .detach(|| mckibben::eval::open(backend))
             .map_err(runtime_error)?;

@@ -293,7 +293,7 @@ pub fn fit(
     // an error below, once the start's family is known.
     let asked = switch.map(switching).transpose()?;
     let request = FitRequest {
-        family: model.map(family).transpose()?,
+        family: model.map(|m| family(m, "model")).transpose()?,
         effects,
         free_n,
         loop_shape: loop_shape(r#loop)?,
@@ -500,6 +500,9 @@ fn fit_result(
     search_box.set_item("names", &report.search_box.names)?;
     search_box.set_item("lower", PyArray1::from_slice(py, &report.search_box.lower))?;
     search_box.set_item("upper", PyArray1::from_slice(py, &report.search_box.upper))?;
+    // Where each bound came from, as `fit --json` says: `data`, `class`
+    // or `user` for each `[lower, upper]`.
+    search_box.set_item("origin", to_python(py, &report.search_box.origin)?)?;
     let model = if outcome.params.is_empty() {
         None
     } else {

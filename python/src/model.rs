@@ -51,11 +51,20 @@ pub fn provenance(
     read: &ReadSettings,
     seed: Option<u64>,
 ) -> Provenance {
-    let files: Vec<String> = sources
-        .iter()
-        .filter(|s| std::path::Path::new(s).is_file())
-        .map(|s| s.to_string())
-        .collect();
+    // Each source as `fit` names it: a `--split-gaps` piece (`file.csv[2]`)
+    // by its file, hashed; a name that is no file (an array's `source`)
+    // as given, with no hash.
+    let mut files: Vec<String> = Vec::new();
+    for source in sources {
+        let file = source
+            .strip_suffix(']')
+            .and_then(|s| s.rsplit_once('['))
+            .filter(|(file, k)| k.parse::<usize>().is_ok() && std::path::Path::new(file).is_file())
+            .map_or(*source, |(file, _)| file);
+        if !files.iter().any(|f| f == file) {
+            files.push(file.to_string());
+        }
+    }
     Provenance {
         command: format!("{what} (Python)"),
         ..Provenance::here(&files, seed, read.clone())

@@ -169,3 +169,11 @@ def test_a_path_may_be_bytes_as_open_takes_it(tmp_path):
     with open(name, "w") as f:
         f.write("t,pressure,displacement\n0,0.1,1\n0.1,0.2,2\n")
     assert len(mckibben.read_csv(name)) == 2
+
+
+def test_a_path_with_two_dashes_is_named_as_given(tmp_path):
+    # The flags' renaming to keywords rewrote `run--time` as run`time`.
+    missing = tmp_path / "run--time" / "missing.csv"
+    with pytest.raises(FileNotFoundError) as raised:
+        mckibben.read_csv(missing)
+    assert str(missing) in str(raised.value)

@@ -215,3 +215,9 @@ def test_ctrl_c_stops_a_diagnosis(stair, sigint_raises):
     finally:
         timer.cancel()
     assert time.monotonic() - started < 10
+
+
+def test_an_empty_list_of_effects_is_refused(stair):
+    # It ran the whole catalogue, where fit's effects=[] means none.
+    with pytest.raises(ValueError, match=r"effects=\[\] names no effect to try"):
+        mckibben.diagnose(stair, effects=[], seeds=1, generations=1, scratch_seeds=0)

@@ -177,3 +177,13 @@ def test_bad_construction_raises(stair):
         mckibben.Evaluator(stair, model=None)
     with pytest.raises(TypeError, match="^dt must be a number .*, got bool True"):
         mckibben.Evaluator(stair.input, stair.output, True)
+
+
+def test_a_box_with_nothing_free_is_refused_as_fit_refuses_it(stair, ev):
+    # Every search coordinate held: the evaluator panicked on a call, or
+    # scored three rows of nothing as no SSE at all.
+    held = {name: (lo + hi) / 2 for name, (lo, hi) in zip(ev.names, ev.bounds)}
+    with pytest.raises(ValueError, match="the search space has no free parameter"):
+        mckibben.Evaluator(stair, backend="cpu", bounds=held)
+    with pytest.raises(ValueError, match="the search space has no free parameter"):
+        mckibben.fit(stair, bounds=held, pop=20, gens=2)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import mckibben
+from conftest import REPO
 
 
 def bits(x):
@@ -453,3 +454,28 @@ def test_an_integer_out_of_range_names_its_argument_and_range(stair, kwargs, mes
     u, y = stair.input[:200], stair.output[:200]
     with pytest.raises(ValueError, match=message):
         mckibben.fit(u, y, **{"dt": 0.01, "pop": 40, "gens": 2, **kwargs})
+
+
+def test_provenance_names_a_piece_by_its_file_and_arrays_by_their_source(tmp_path):
+    pieces = mckibben.read_csv(REPO / "data" / "logger_example.csv", input="p_kPa", output="stroke_mm",
+                               time="time_s", split_gaps=True)
+    arrays = mckibben.Trace(pieces[0].input, pieces[0].output, pieces[0].dt, input_name="p_kPa",
+                            output_name="stroke_mm", source="rig-run-7")
+    for trace, file, hashed in [(pieces[0], str(REPO / "data" / "logger_example.csv"), True),
+                                (arrays, "rig-run-7", False)]:
+        result = mckibben.fit(trace, pop=40, gens=3)
+        result.model.save(tmp_path / "m.json")
+        data = json.loads((tmp_path / "m.json").read_text())["provenance"]["data"]
+        assert [d["file"] for d in data] == [file]
+        assert bool(data[0]["sha256"]) == hashed
+    # The box says where each bound came from, as fit --json does.
+    origin = result.search_box["origin"]
+    assert len(origin) == len(result.search_box["names"])
+    assert all(set(pair) <= {"data", "class", "user"} for pair in origin)
+
+
+def test_a_message_quoting_a_command_keeps_its_flags(stair):
+    # Renamed inside its code span, the flag came out as `diagnose `effects``.
+    with pytest.raises(ValueError) as raised:
+        mckibben.fit(stair, effects=["creep:log", "creep"], pop=20, gens=2)
+    assert "`diagnose --effects`" in str(raised.value), raised.value
