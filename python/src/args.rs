@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use pyo3::exceptions::{PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyBytes, PyDict, PyString};
+use pyo3::types::{PyBool, PyBytes, PyDict, PyInt, PyString};
 
 use mckibben::model::effects::Effect;
 use mckibben::model::{UserBound, UserBoundError};
@@ -231,6 +231,10 @@ pub fn user_bounds(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<UserBound
             return Err(wrong());
         } else if let (false, Ok(v)) = (value.is_instance_of::<PyString>(), value.extract::<f64>())
         {
+            (v, v)
+        } else if value.is_instance_of::<PyInt>() {
+            // A number all the same, one no float holds: `real` says so.
+            let v = real(&value, &format!("{what}[{name:?}]"))?;
             (v, v)
         } else if let Ok(pair) = value.extract::<Vec<Bound<'_, PyAny>>>()
             && pair.len() == 2

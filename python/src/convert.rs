@@ -376,16 +376,39 @@ pub fn in_python_terms(message: &str) -> String {
                 None
             }
         });
-        match placeholder {
-            Some(value) => {
+        // One of the flag's named values (`--switch starts`) is a string.
+        let named = rest.strip_prefix(' ').and_then(|r| {
+            let end = r
+                .find(|c: char| !(c.is_ascii_lowercase() || c == '-'))
+                .unwrap_or(r.len());
+            named_values(flag).contains(&&r[..end]).then(|| &r[..end])
+        });
+        match (placeholder, named) {
+            (Some(value), _) => {
                 out.push_str(&code(format!("{keyword}={value}")));
                 rest = &rest[1 + value.len()..];
             }
-            None => out.push_str(&code(keyword)),
+            (None, Some(value)) => {
+                out.push_str(&code(format!("{keyword}=\"{value}\"")));
+                rest = &rest[1 + value.len()..];
+            }
+            (None, None) => out.push_str(&code(keyword)),
         }
     }
     out.push_str(rest);
     out
+}
+
+/// The values a flag takes by name, which its keyword takes as strings.
+fn named_values(flag: &str) -> &'static [&'static str] {
+    match flag {
+        "switch" => &["search", "starts", "mean", "zero"],
+        "loop" => &["bounded", "free"],
+        "algo" => &["ga", "mfa", "pso", "de"],
+        "backend" => &["auto", "cpu", "gpu"],
+        "model" | "baseline" => &["classic", "generalized", "linear"],
+        _ => &[],
+    }
 }
 
 /// The keyword argument of `fit`, `read_csv` or `diagnose` that the

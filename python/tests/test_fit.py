@@ -479,3 +479,16 @@ def test_a_message_quoting_a_command_keeps_its_flags(stair):
     with pytest.raises(ValueError) as raised:
         mckibben.fit(stair, effects=["creep:log", "creep"], pop=20, gens=2)
     assert "`diagnose --effects`" in str(raised.value), raised.value
+
+
+def test_a_flags_named_value_reads_as_the_keywords_string(stair):
+    start = REPO / "tests" / "fixtures" / "generalized_before_x_s.json"
+    with pytest.raises(ValueError) as raised:
+        mckibben.fit(stair, model="generalized", switch="starts", start=start, pop=20, gens=2)
+    assert '`switch="starts"` runs two fresh fits' in str(raised.value), raised.value
+
+
+def test_a_bound_past_the_largest_float_is_named_as_a_number(stair):
+    # It read "must be a (lo, hi) pair ... or a number", of a number.
+    with pytest.raises(ValueError, match=r'bounds\["alpha"\] must be a finite number'):
+        mckibben.fit(stair, bounds={"alpha": 10**400}, pop=20, gens=2)
