@@ -293,8 +293,8 @@ pub fn design_for(
         match unit_of(column) {
             Some(unit) if unit != want => {
                 // A valve voltage is another signal, not another unit.
-                let fix = match unit.as_str() {
-                    "V" | "mV" => format!(
+                let fix = match (which, unit.as_str()) {
+                    ("input", "V" | "mV") => format!(
                         "the controllers read a model of the pressure (their valve model is \
                          their own): fit on the pressure column, in {want}"
                     ),
