@@ -339,7 +339,7 @@ impl<C: Chart> Engine<C> {
         let first = done.iter().position(|(_, s)| s.cost <= target)?;
         done[..=first]
             .iter()
-            .reduce(|a, b| if b.1.cost < a.1.cost { b } else { a })
+            .min_by(|a, b| a.1.cost.total_cmp(&b.1.cost))
             .cloned()
     }
 
@@ -351,7 +351,7 @@ impl<C: Chart> Engine<C> {
             .iter_mut()
             .enumerate()
             .filter_map(|(t, tr)| Some((t, tr.stage_best.take()?)))
-            .reduce(|a, b| if b.1.cost < a.1.cost { b } else { a });
+            .min_by(|a, b| a.1.cost.total_cmp(&b.1.cost));
         for (t, b) in self.tries.iter_mut().zip(before.bests) {
             t.best = b;
         }
