@@ -244,11 +244,14 @@ fn check_on_twin(args: &Args, config: &TwinConfig, kinds: &[Kind]) -> anyhow::Re
     }
     // The creep softens the rubber: a load it cannot carry is as much the
     // creep's doing as the load's, and the error names both flags.
-    let creep = args
+    let creep = config
         .effects
-        .iter()
-        .find(|e| e.trim_start().starts_with("creep="))
-        .map_or(String::new(), |e| format!(" with --effect {}", e.trim()));
+        .creep
+        .active()
+        .filter(|&scale| scale > 0.0)
+        .map_or(String::new(), |scale| {
+            format!(" with --effect creep={scale}")
+        });
     for (what, load) in hung {
         Rig::check_holds(config, load, args.seed)
             .map_err(|e| anyhow::anyhow!("{what}{creep}: {e}"))?;

@@ -121,9 +121,14 @@ pub fn on_rig(
     progress: &dyn Fn(String),
 ) -> anyhow::Result<(Vec<Row>, Vec<Run>)> {
     // Whether every run can go on a rig sampled every `dt` s: checked at
-    // each connection, so that the first refuses a plan a later run would
-    // fail on before any run drove the rig (and none is lost).
+    // the first connection, so that it refuses a plan a later run would
+    // fail on before any run drove the rig (and none is lost), and again
+    // only where a later connection announces another sample time.
+    let fits_at = std::cell::Cell::new(None);
     let plan_fits = |dt: f64| -> anyhow::Result<()> {
+        if fits_at.get() == Some(dt) {
+            return Ok(());
+        }
         for spec in plan {
             sweep::build(spec.kind, spec.hysteresis_scale, ing, dt).with_context(|| {
                 format!("{} cannot run on {}", spec.kind.label(), settings.plant)
@@ -135,6 +140,7 @@ pub fn on_rig(
                 )
             })?;
         }
+        fits_at.set(Some(dt));
         Ok(())
     };
     let mut rows = Vec::new();
