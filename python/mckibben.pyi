@@ -146,6 +146,7 @@ class FitResult:
     population: int
     tries: int
     try_population: int
+    try_sizes: list[dict[str, int]]
     agreement: dict[str, Any] | None
     refining: dict[str, Any] | None
     std_errors: dict[str, float | None]

@@ -6,7 +6,7 @@
 use mckibben::model::Measure;
 use mckibben::optim::Algorithm;
 use mckibben::optim::engine::{
-    Engine, FreeRun, Global, Objective, Outcome, Plan, Space, StopRules, Ticket,
+    Engine, FreeRun, Global, Objective, Outcome, Plan, Space, StopRules, Ticket, TrySize,
 };
 use mckibben::search::{Params, Rows};
 
@@ -74,9 +74,10 @@ impl Objective for Deferred {
     }
 }
 
-/// Two tries of four islands, then a free-run stage; with `ladder` the
-/// islands measure a ladder of horizons (the last one the free run), so
-/// that a generation's islands go in calls of several measures.
+/// Three tries of four islands, the second smaller, then a free-run stage;
+/// with `ladder` the islands measure a ladder of horizons (the last one the
+/// free run), so that a generation's islands go in calls of several
+/// measures.
 fn plan(ladder: bool) -> Plan {
     Plan {
         global: Some(Global {
@@ -94,7 +95,16 @@ fn plan(ladder: bool) -> Plan {
         }),
         polish: None,
         refine: None,
-        tries: 2,
+        // Tries of two sizes: their islands differ in size within a part.
+        tries: 3,
+        sizes: [48, 16, 48]
+            .map(|global| TrySize {
+                global,
+                free_run: (global / 2).max(16),
+                refine: 0,
+                polish: 0,
+            })
+            .to_vec(),
     }
 }
 

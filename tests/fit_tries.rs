@@ -21,7 +21,7 @@ use mckibben::fit::run::run_fit;
 use mckibben::fit::synthetic::Synthetic;
 use mckibben::model::{Family, Flow};
 use mckibben::optim::Algorithm;
-use mckibben::optim::engine::{Engine, Outcome, Plan, Stage, StopReason, StopRules};
+use mckibben::optim::engine::{Engine, Outcome, Plan, Stage, StopReason, StopRules, TrySize};
 use mckibben::optim::streams::try_seed;
 
 /// A generalized record of 600 samples and its fitting problem (the
@@ -118,6 +118,49 @@ fn more_tries_run_the_tries_of_fewer_and_never_end_higher() {
     assert!(settled_three.sse <= settled_one.sse);
 }
 
+/// `plan` with tries of these global populations (a fifth of each, at
+/// least four an island, in the free-run stage; eight in a refining round;
+/// a polish start for each 20 of the population).
+fn sized(mut plan: Plan, populations: &[usize]) -> Plan {
+    plan.tries = populations.len();
+    plan.sizes = populations
+        .iter()
+        .map(|&global| TrySize {
+            global,
+            free_run: (global / 5).max(16),
+            refine: 8,
+            polish: (global / 20).max(1),
+        })
+        .collect();
+    plan
+}
+
+#[test]
+fn tries_of_different_sizes_each_run_as_alone() {
+    let problem = problem();
+    let mut cpu = CpuEvaluator::new();
+    let populations = [40, 40, 16, 16, 40];
+    let (_, mixed) = run(&problem, sized(plan(&problem, 1), &populations), &mut cpu);
+    assert_eq!(mixed.tries.len(), populations.len());
+    for (t, &n) in populations.iter().enumerate() {
+        let (_, alone) = run_seeded(
+            &problem,
+            sized(plan(&problem, 1), &[n]),
+            try_seed(3, t),
+            &mut cpu,
+        );
+        assert_eq!(mixed.tries[t], alone.tries[0], "try {t} of {n}");
+    }
+    assert_ne!(mixed.tries[2], mixed.tries[0]);
+    // The first try of a sized plan is the unsized plan's run of one.
+    let (_, one) = run(&problem, plan(&problem, 1), &mut cpu);
+    assert_eq!(mixed.tries[0], one.tries[0]);
+    // Every size is checked against its algorithm's smallest island.
+    let tiny = sized(plan(&problem, 1), &[40, 8]);
+    let refused = Engine::new(tiny, problem.engine_space(), 3, StopRules::default());
+    assert!(refused.is_err());
+}
+
 #[test]
 fn tries_do_not_depend_on_the_thread_count() {
     let problem = problem();
@@ -126,7 +169,10 @@ fn tries_do_not_depend_on_the_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| run(&problem, plan(&problem, 3), &mut CpuEvaluator::new()).1)
+            .install(|| {
+                let plan = sized(plan(&problem, 1), &[40, 16, 40]);
+                run(&problem, plan, &mut CpuEvaluator::new()).1
+            })
     };
     let one = on(1);
     for threads in [2, 3] {
@@ -192,8 +238,9 @@ fn cpu_and_gpu_backends_give_the_same_tries() {
     };
     let software = common::is_lavapipe(gpu.adapter_info());
     let problem = problem();
-    let (_, a) = run(&problem, plan(&problem, 3), &mut CpuEvaluator::new());
-    let (_, b) = run(&problem, plan(&problem, 3), &mut gpu);
+    let mixed = || sized(plan(&problem, 1), &[40, 16, 40]);
+    let (_, a) = run(&problem, mixed(), &mut CpuEvaluator::new());
+    let (_, b) = run(&problem, mixed(), &mut gpu);
     if software {
         assert_eq!(a.tries, b.tries);
     } else {

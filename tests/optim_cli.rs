@@ -1096,8 +1096,15 @@ fn the_report_says_whether_its_tries_agree_or_that_one_cannot_tell() {
         "{one}"
     );
     let two = text(&["--pop", "2000"]);
+    assert!(two.contains("N = 2000 (2 tries of 1000)"), "{two}");
     assert!(two.contains("of 2 tries ended within"), "{two}");
     assert!(!two.contains("tries: 1, which"), "{two}");
+    let mixed = text(&["--pop", "3000"]);
+    assert!(
+        mixed.contains("N = 3000 (2 tries of 1000 and 10 of 100)"),
+        "{mixed}"
+    );
+    assert!(mixed.contains("of 12 tries ended within"), "{mixed}");
     let thesis = text(&["--thesis-flow", "--pop", "30"]);
     assert!(!thesis.contains("tries:"), "{thesis}");
 }

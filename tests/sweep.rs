@@ -56,30 +56,28 @@ fn a_row_counts_the_first_seed_as_the_cases_and_every_seed_as_single_tries() {
 }
 
 /// A population from two tries on runs as whole tries, as `fit` runs it:
-/// 2500 is 2000, said once and fitted once beside a 2000 asked for (its
-/// rows said N 2500 of a fit of 2000).
+/// 3050 is 3000 (two tries of 1000 and ten of 100; the next try would hold
+/// 1000), said once and fitted once beside a 3000 asked for (its rows said
+/// N 3050 of a fit of 3000).
 #[test]
 fn a_population_runs_and_is_reported_as_whole_tries() {
     let out = Command::new(BIN)
-        .args(["sweep", "--pop", "2500,2000", "--family", "classic"])
+        .args(["sweep", "--pop", "3050,3000", "--family", "classic"])
         .args(["--cases", "1000", "--backend", "cpu", "--json"])
         .output()
         .expect("run mckibben");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     assert!(
-        stderr.contains("--pop 2500 runs 2 tries of 1000 (2000 candidates)"),
+        stderr.contains("--pop 3050 runs 3000 candidates (2 tries of 1000 and 10 of 100)"),
         "{stderr}"
     );
     let json: Value = serde_json::from_slice(&out.stdout).unwrap();
-    let ns: Vec<u64> = json["fits"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f["n"].as_u64().unwrap())
-        .collect();
-    assert_eq!(ns, [2000]);
-    assert_eq!(json["rows"][0]["n"], 2000);
+    let fits = json["fits"].as_array().unwrap();
+    let ns: Vec<u64> = fits.iter().map(|f| f["n"].as_u64().unwrap()).collect();
+    assert_eq!(ns, [3000]);
+    assert_eq!(json["rows"][0]["n"], 3000);
+    assert_eq!(fits[0]["tries"].as_array().unwrap().len(), 12);
 }
 
 #[test]

@@ -80,10 +80,13 @@ pub struct FitResult {
     /// SSEs and which was kept (`mean_sse`, `zero_sse`, `kept_zero`; `fit
     /// --json`'s `switching`); `None` otherwise.
     switching: Option<Py<PyAny>>,
-    /// Independent tries the population ran (`pop // 1000` from 2000 on,
-    /// else 1), and each one's population.
+    /// Independent tries the population ran (from `pop=2000` on, tries of
+    /// 1000 and of 100; else 1), the first one's population, and the tries
+    /// by population (`fit --json`'s `try_sizes`: a list of dicts with
+    /// `population` and `tries`).
     tries: usize,
     try_population: usize,
+    try_sizes: Py<PyAny>,
     /// How far the tries agree, `fit --json`'s `agreement` (`tries`,
     /// `agreeing`, `other_basins`, `diverged`, `threshold`); `None` for a
     /// single try. Few of many agreeing: run a larger population.
@@ -538,6 +541,7 @@ fn fit_result(
         switching: report.switching.map(|s| unbound(py, &s)).transpose()?,
         tries: report.tries,
         try_population: report.try_population,
+        try_sizes: unbound(py, &report.try_sizes)?,
         agreement: report
             .agreement
             .as_ref()

@@ -18,6 +18,7 @@ use super::fitting::{Start, fit_seeds, fit_with_effect, scratch_fits};
 use super::settings::{Interrupted, Settings};
 use crate::data::Trace;
 use crate::eval::Backend;
+use crate::fit::objective::TryGroup;
 use crate::fit::problem::FitProblem;
 use crate::fit::records::Records;
 use crate::fit::report::{FitReport, RecordScore};
@@ -202,6 +203,10 @@ pub fn selected_fit(
         population: settings.population,
         tries: 1,
         try_population: settings.population,
+        try_sizes: vec![TryGroup {
+            population: settings.population,
+            tries: 1,
+        }],
         agreement: None,
         refining: None,
         stop: StopReason::Completed,

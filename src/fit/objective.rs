@@ -3,11 +3,13 @@
 
 use std::time::Instant;
 
+use serde::Serialize;
+
 use super::problem::{Admission, FitProblem};
 use crate::eval::{Evaluator, Pending, Problem};
 use crate::model::coords::in_bounded_class;
 use crate::model::{Flow, Loop, Measure};
-use crate::optim::engine::plan::{FreeRun, Global, Plan, Polish, Refine};
+use crate::optim::engine::plan::{FreeRun, Global, Plan, Polish, Refine, TrySize};
 use crate::optim::engine::{Fork, Objective, Ticket};
 use crate::optim::{AlgoSettings, Algorithm};
 use crate::search::{Params, Rows};
@@ -304,12 +306,17 @@ impl Fork for ModelFork<'_> {
 
 /// Default population of the global stage, all tries together.
 pub const POPULATION: usize = 1000;
-/// A try's population: a population of at least twice this runs
-/// `population / TRY_POPULATION` tries of this size (what is left over is
-/// not searched), a smaller one a single try of its own size. Fixed, so
-/// that with the same seed a larger population runs the tries of a smaller
-/// one and more, and never ends at a higher estimation SSE.
+/// A try's population: a population of at least twice this runs tries of
+/// this size and of [`SMALL_TRY_POPULATION`] ([`try_populations`]), a
+/// smaller one a single try of its own size.
 pub const TRY_POPULATION: usize = 1000;
+/// A small try's population: on some records a population this small
+/// converges before its loop saturates, where every try of
+/// [`TRY_POPULATION`] converges into a saturated loop (measured on the
+/// generated cases: docs/RESULTS.md, "Larger populations").
+pub const SMALL_TRY_POPULATION: usize = 100;
+/// Small tries that follow each large one after the first two.
+const SMALL_TRIES_A_BLOCK: usize = TRY_POPULATION / SMALL_TRY_POPULATION;
 /// Default islands of a try (fewer when its population is too small for four).
 pub const ISLANDS: usize = 4;
 /// The fewest individuals an island of the default plan holds, unless its
@@ -320,14 +327,85 @@ pub const ISLAND_MIN: usize = 4;
 /// Default generations of the global stage.
 pub const GENERATIONS: usize = 300;
 
-/// How a population of `n` is run: the number of tries and each one's
-/// population ([`TRY_POPULATION`]).
-pub fn tries_of(n: usize) -> (usize, usize) {
-    if n >= 2 * TRY_POPULATION {
-        (n / TRY_POPULATION, TRY_POPULATION)
-    } else {
-        (1, n)
+/// Each try's population when a population of `n` is run: the prefix of
+/// one fixed sequence (two tries of [`TRY_POPULATION`], then blocks of ten
+/// tries of [`SMALL_TRY_POPULATION`] and one large try, so that both sizes
+/// get about half the budget, as BIPOP gives them: Hansen, 2009) that `n`
+/// holds, what is left over not searched; below two large tries, a single
+/// try of `n`. Fixed, so that with the same seed a larger population runs
+/// the tries of a smaller one and more, and never ends at a higher
+/// estimation SSE.
+pub fn try_populations(n: usize) -> Vec<usize> {
+    if n < 2 * TRY_POPULATION {
+        return vec![n];
     }
+    let sequence = [TRY_POPULATION; 2].into_iter().chain(
+        std::iter::repeat(
+            std::iter::repeat_n(SMALL_TRY_POPULATION, SMALL_TRIES_A_BLOCK).chain([TRY_POPULATION]),
+        )
+        .flatten(),
+    );
+    let mut left = n;
+    sequence
+        .map_while(|size| {
+            left = left.checked_sub(size)?;
+            Some(size)
+        })
+        .collect()
+}
+
+/// Tries of one population: how a fit's tries are told (a fit of
+/// `--pop 10000` runs 6 tries of 1000 and 40 of 100).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct TryGroup {
+    pub population: usize,
+    pub tries: usize,
+}
+
+/// The tries of `plan`, by population (the global stage's, or the
+/// free-run stage's in a plan from a known point), in the order they first
+/// run.
+pub fn try_groups(plan: &Plan) -> Vec<TryGroup> {
+    let populations: Vec<usize> = (0..plan.tries)
+        .map(|t| {
+            let size = plan.try_size(t);
+            if plan.global.is_some() {
+                size.global
+            } else {
+                size.free_run
+            }
+        })
+        .collect();
+    groups_of(&populations)
+}
+
+/// Tries of these populations, by population, in the order they first run.
+pub fn groups_of(populations: &[usize]) -> Vec<TryGroup> {
+    let mut groups: Vec<TryGroup> = Vec::new();
+    for &population in populations {
+        match groups.iter_mut().find(|g| g.population == population) {
+            Some(g) => g.tries += 1,
+            None => groups.push(TryGroup {
+                population,
+                tries: 1,
+            }),
+        }
+    }
+    groups
+}
+
+/// How `groups` read: "6 tries of 1000 and 40 of 100".
+pub fn tries_text(groups: &[TryGroup]) -> String {
+    groups
+        .iter()
+        .enumerate()
+        .map(|(i, g)| match (i, g.tries) {
+            (0, 1) => format!("1 try of {}", g.population),
+            (0, k) => format!("{k} tries of {}", g.population),
+            (_, k) => format!("{k} of {}", g.population),
+        })
+        .collect::<Vec<_>>()
+        .join(" and ")
 }
 
 /// The engine's default plan for a muscle model of a population `n` (all
@@ -344,10 +422,26 @@ pub fn default_plan(
     horizon: usize,
     longest: usize,
 ) -> Plan {
-    let (tries, n) = tries_of(n);
+    let populations = try_populations(n);
+    let n = populations[0];
     let per_island = ISLAND_MIN.max(algorithm.min_population());
     let islands = (n / per_island).clamp(1, ISLANDS);
-    let free_run = (n / 5).max(FreeRun::ALGORITHM.min_population() * islands);
+    // A try's free-run stage and refining rounds hold a fifth of its
+    // global population; its polish takes starts in proportion to its
+    // population (the first try's sixteen), one an island at least: a
+    // polish start costs the same whatever the try's size, and sixteen
+    // would take most of a small try's time.
+    let polish = Polish::default().starts;
+    let size = |global: usize| {
+        let fifth = (global / 5).max(FreeRun::ALGORITHM.min_population() * islands);
+        TrySize {
+            global,
+            free_run: fifth,
+            refine: fifth,
+            polish: (polish * global).div_ceil(n).max(islands),
+        }
+    };
+    let free_run = size(n).free_run;
     Plan {
         global: Some(Global {
             settings: algorithm.staged_settings(n),
@@ -371,7 +465,12 @@ pub fn default_plan(
             generations: g,
             ..Refine::default()
         }),
-        tries,
+        tries: populations.len(),
+        sizes: if populations.iter().all(|&p| p == n) {
+            Vec::new()
+        } else {
+            populations.into_iter().map(size).collect()
+        },
     }
 }
 
@@ -397,4 +496,47 @@ pub fn staged_plan(problem: &FitProblem, settings: AlgoSettings, n: usize, g: us
         plan.refine = None;
     }
     plan
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_larger_population_runs_a_smaller_ones_tries_first() {
+        assert_eq!(try_populations(1000), [1000]);
+        assert_eq!(try_populations(1999), [1999]);
+        assert_eq!(try_populations(2000), [1000, 1000]);
+        let ten = try_populations(10_000);
+        assert_eq!(ten.iter().sum::<usize>(), 10_000);
+        assert_eq!(
+            groups_of(&ten),
+            [
+                TryGroup {
+                    population: 1000,
+                    tries: 6
+                },
+                TryGroup {
+                    population: 100,
+                    tries: 40
+                }
+            ]
+        );
+        assert_eq!(
+            tries_text(&groups_of(&ten)),
+            "6 tries of 1000 and 40 of 100"
+        );
+        // Every population from two large tries on holds the tries of every
+        // smaller one as its first, and what it leaves is less than the
+        // next try of the sequence.
+        let mut before = try_populations(2000);
+        for n in (2000..=30_000).step_by(50) {
+            let now = try_populations(n);
+            assert_eq!(now[..before.len()], before[..], "{n}");
+            let left = n - now.iter().sum::<usize>();
+            let next = try_populations(n + TRY_POPULATION)[now.len()];
+            assert!(left < next, "{n} leaves {left}, the next try holds {next}");
+            before = now;
+        }
+    }
 }

@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use super::agreement::Agreement;
 use super::edge::{ActiveBound, Widening, active_bounds};
-use super::objective::TRY_POPULATION;
+use super::objective::{SMALL_TRY_POPULATION, TRY_POPULATION, TryGroup, tries_text, try_groups};
 use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
 use super::uncertainty::{Assessment, assess};
@@ -82,10 +82,11 @@ pub struct FitReport {
     pub flow: Flow,
     pub seed: u64,
     pub population: usize,
-    /// Independent tries the population ran, and each one's population
-    /// (`fit::objective::tries_of`).
+    /// Independent tries the population ran, the first one's population
+    /// and the tries by population (`fit::objective::try_populations`).
     pub tries: usize,
     pub try_population: usize,
+    pub try_sizes: Vec<TryGroup>,
     /// How far the tries agree (`None` for a single try).
     pub agreement: Option<Agreement>,
     /// A refined fit's rounds and the tries they ran out on (`None` where
@@ -278,14 +279,15 @@ impl FitReport {
             backend: backend.to_string(),
             flow: problem.flow,
             seed: engine.seed,
-            population: global.map_or(asked.free_run.as_ref().map_or(0, |f| f.population), |g| {
-                g.population * asked.tries
+            population: global.map_or(asked.free_run.as_ref().map_or(0, |f| f.population), |_| {
+                asked.population()
             }),
             tries: asked.tries,
             try_population: global
                 .map_or(asked.free_run.as_ref().map_or(0, |f| f.population), |g| {
                     g.population
                 }),
+            try_sizes: try_groups(asked),
             agreement: fit.agreement.clone(),
             refining: engine.plan.refine.as_ref().map(|r| {
                 let cut: Vec<f64> = outcome.tries.iter().filter_map(|t| t.cut_gain).collect();
@@ -442,7 +444,7 @@ impl FitReport {
         };
         let tries = match self.tries {
             1 => String::new(),
-            k => format!(" ({k} tries of {})", self.try_population),
+            _ => format!(" ({})", tries_text(&self.try_sizes)),
         };
         line(format!(
             "{} {} fit of {} ({} flow), N = {}{tries}, seed {}",
@@ -557,7 +559,8 @@ impl FitReport {
             // The default population runs one try: say what it cannot tell.
             line(format!(
                 "  tries: 1, which cannot tell whether another try would end in the same \
-                 basin (from --pop {} on, a fit runs one try per {TRY_POPULATION})",
+                 basin (from --pop {} on, a fit runs tries of {TRY_POPULATION} and \
+                 {SMALL_TRY_POPULATION})",
                 2 * TRY_POPULATION
             ));
         }

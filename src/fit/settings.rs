@@ -9,7 +9,10 @@
 use std::path::Path;
 
 use super::chart::ModelChart;
-use super::objective::{GENERATIONS, POPULATION, TRY_POPULATION, staged_plan, tries_of};
+use super::objective::{
+    GENERATIONS, POPULATION, SMALL_TRY_POPULATION, TRY_POPULATION, groups_of, staged_plan,
+    tries_text, try_populations,
+};
 use super::problem::FitProblem;
 use crate::model::{Family, Measure};
 use crate::optim::engine::{Engine, Plan, StopRules};
@@ -255,14 +258,17 @@ impl FitSettings {
         if self.thesis_flow {
             return Ok(Plan::thesis(settings, self.pop, self.gens));
         }
-        let (tries, try_population) = tries_of(self.pop);
-        if tries * try_population != self.pop {
+        let populations = try_populations(self.pop);
+        let ran: usize = populations.iter().sum();
+        if ran != self.pop {
             note(format!(
-                "--pop {} runs {tries} tries of {try_population} ({} candidates): from {} on, a \
-                 population is whole tries of {try_population}",
+                "--pop {} runs {ran} candidates ({}): from {} on, a population is whole tries, \
+                 in a fixed order of tries of {TRY_POPULATION} and {SMALL_TRY_POPULATION} (the \
+                 next one holds {})",
                 self.pop,
-                tries * try_population,
-                2 * TRY_POPULATION
+                tries_text(&groups_of(&populations)),
+                2 * TRY_POPULATION,
+                try_populations(self.pop + TRY_POPULATION)[populations.len()]
             ));
         }
         let mut plan = staged_plan(problem, settings, self.pop, self.gens);

@@ -71,6 +71,10 @@ pub struct CaseFit {
     pub sse: f64,
     /// Whether each try alone passes.
     pub tries: Vec<bool>,
+    /// Each try's population, in the order of `tries` (empty in results
+    /// recorded before tries differed in size: all of `n / tries`).
+    #[serde(default)]
+    pub try_populations: Vec<usize>,
     /// Tries within the likelihood-ratio threshold of the best.
     pub agreeing: usize,
     /// Wall time of the fit (the judging not counted).
@@ -108,6 +112,7 @@ pub fn fit_case(
     let problem = generated.problem();
     let started = Instant::now();
     let plan = staged_plan(&problem, Algorithm::De.staged_settings(n), n, GENERATIONS);
+    let try_populations = (0..plan.tries).map(|t| plan.try_size(t).global).collect();
     let (_, outcome) = run_fit(&problem, plan, seed, StopRules::default(), evaluator)?;
     let seconds = started.elapsed().as_secs_f64();
     let judged = generated.judge(&outcome.params, evaluator)?;
@@ -131,6 +136,7 @@ pub fn fit_case(
         ratio: judged.ratio,
         sse: outcome.sse,
         tries,
+        try_populations,
         agreeing,
         seconds,
     })
@@ -279,6 +285,7 @@ mod tests {
             passes,
             ratio: if passes { 1.01 } else { 2.0 },
             sse: 1.0,
+            try_populations: vec![n / tries.len(); tries.len()],
             tries,
             agreeing,
             seconds: seed as f64,

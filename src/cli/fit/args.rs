@@ -66,12 +66,15 @@ use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 /// mean and at zero (docs/RESULTS.md, "Where the generalized loop
 /// switches").
 ///
-/// --pop buys independent tries: a population of 2000 or more runs one try
-/// of 1000 for every 1000 (each its own global search, free-run stage,
-/// polish and, for the generalized model, refining rounds), scored
-/// together, and keeps the lowest estimation SSE; the same seed runs the
-/// same tries, so of two populations from 2000 on the larger never ends
-/// higher (below 2000 a population is one try, which may end anywhere).
+/// --pop buys independent tries: a population of 2000 or more runs tries
+/// of 1000 and of 100 (each its own global search, free-run stage, polish
+/// and, for the generalized model, refining rounds), scored together, and
+/// keeps the lowest estimation SSE: two of 1000, then ten of 100 and one
+/// of 1000 in turn (--pop 10000: 6 of 1000 and 40 of 100), since on some
+/// records only a small population stops before its loop saturates. The
+/// same seed runs the same tries, so of two populations from 2000 on the
+/// larger never ends higher (below 2000 a population is one try, which may
+/// end anywhere).
 /// The report says how many tries ended within the likelihood-ratio
 /// threshold of the best: few of many means the basin was found by luck,
 /// and more tries may find a better one.
@@ -155,8 +158,8 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "de")]
     pub(super) algo: Algorithm,
     /// Population size N of the global stage (the thesis used 10–30); from
-    /// 2000 on, N/1000 independent tries of 1000 (rounded down: 2500 runs
-    /// 2000, with a note), scored together.
+    /// 2000 on, independent tries of 1000 and 100, scored together (what a
+    /// whole try does not fill is left, with a note: 3500 runs 3000).
     #[arg(long, default_value_t = POPULATION, value_parser = population)]
     pub(super) pop: usize,
     /// Generations G of the global stage: populations evaluated, the

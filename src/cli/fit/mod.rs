@@ -13,7 +13,7 @@ use args::EffectArg;
 use mckibben::data::{Trace, readable, sources};
 use mckibben::diagnose::chain::{selected_fit, with_chain_start};
 use mckibben::eval;
-use mckibben::fit::objective::POPULATION;
+use mckibben::fit::objective::{POPULATION, tries_text, try_groups};
 use mckibben::fit::report::{FitReport, Note, files_written};
 use mckibben::fit::request::{switching_boxed, switching_misapplied};
 use mckibben::fit::run::FitRun;
@@ -325,7 +325,7 @@ fn announce(args: &Args, fit: &FitRun, traces: &[Trace], backend: &str) {
     let engine = &fit.engine;
     // A warm start has no global stage: its first is the free run's.
     let (algo, population, generations) = match (&engine.plan.global, &engine.plan.free_run) {
-        (Some(g), _) => (g.algorithm(), g.population, g.generations),
+        (Some(g), _) => (g.algorithm(), engine.plan.population(), g.generations),
         (None, Some(f)) => (FreeRun::ALGORITHM, f.population, f.generations),
         (None, None) => (FreeRun::ALGORITHM, 0, 0),
     };
@@ -343,8 +343,12 @@ fn announce(args: &Args, fit: &FitRun, traces: &[Trace], backend: &str) {
         (_, Some(p)) => format!(", the chain of {} carried", p.display()),
         _ => String::new(),
     };
+    let tries = match engine.plan.tries {
+        1 => String::new(),
+        _ => format!(" in {}", tries_text(&try_groups(&engine.plan))),
+    };
     eprintln!(
-        "fitting {model} with {algo} (N = {population}, G = {generations}, seed {}; stages {}{from}) on {} [{}]",
+        "fitting {model} with {algo} (N = {population}{tries}, G = {generations}, seed {}; stages {}{from}) on {} [{}]",
         engine.seed,
         stages.join(" → "),
         sources(traces),

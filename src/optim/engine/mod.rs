@@ -57,7 +57,7 @@ use crate::data::write_atomic;
 use crate::search::{Coords, Measure, Params, Population, Rows};
 use polish::CutPolish;
 
-pub use plan::{FreeRun, Global, Plan, Polish, Refine};
+pub use plan::{FreeRun, Global, Plan, Polish, Refine, TrySize};
 pub use space::{Canonical, Chart, Space, Stepwise};
 use tries::{Members, Scored, Step, Try, keep_lowest};
 
@@ -363,6 +363,29 @@ impl<C: Chart> Engine<C> {
                 r.population >= min && r.generations >= 1,
                 "a refining round ({}) needs at least {min} individuals and one generation",
                 FreeRun::ALGORITHM
+            );
+        }
+        anyhow::ensure!(
+            plan.sizes.is_empty() || plan.sizes.len() == plan.tries,
+            "a plan that sizes its tries sizes each of them ({} sizes for {} tries)",
+            plan.sizes.len(),
+            plan.tries
+        );
+        for size in &plan.sizes {
+            anyhow::ensure!(
+                plan.global
+                    .as_ref()
+                    .is_none_or(|g| { size.global / g.islands >= g.algorithm().min_population() })
+                    && plan
+                        .free_run
+                        .as_ref()
+                        .is_none_or(|_| size.free_run / plan.islands() >= min)
+                    && plan.refine.as_ref().is_none_or(|_| size.refine >= min),
+                "a try of {} ({} in the free-run stage, {} a refining round) leaves an island or \
+                 a round below its algorithm's smallest population",
+                size.global,
+                size.free_run,
+                size.refine
             );
         }
         anyhow::ensure!(

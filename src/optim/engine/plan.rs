@@ -53,9 +53,30 @@ pub struct Plan {
     #[serde(default)]
     pub refine: Option<Refine>,
     /// Independent tries of the whole plan (at least 1); every population
-    /// size above is a try's.
+    /// size above is a try's, unless `sizes` says otherwise.
     #[serde(default = "one")]
     pub tries: usize,
+    /// Each try's populations where the tries differ in size, in try order
+    /// (empty: every try runs the populations of the stages above). On
+    /// some problems a small population stops short of a wrong basin that
+    /// every large one converges into, and on others the reverse; tries of
+    /// both sizes hedge (BIPOP: Hansen, 2009).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sizes: Vec<TrySize>,
+}
+
+/// One try's populations, stage by stage (an absent stage's is unread).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TrySize {
+    /// The global stage's, all its islands together.
+    pub global: usize,
+    /// The free-run stage's, all its islands together.
+    pub free_run: usize,
+    /// A refining round's.
+    pub refine: usize,
+    /// The starts of its polish after the population stages (a refining
+    /// round's polish has the round's own: [`Refine::starts`]).
+    pub polish: usize,
 }
 
 fn one() -> usize {
@@ -229,6 +250,7 @@ impl Plan {
             polish: Some(polish),
             refine: None,
             tries: 1,
+            sizes: Vec::new(),
         }
     }
 
@@ -249,17 +271,36 @@ impl Plan {
             polish: None,
             refine: None,
             tries: 1,
+            sizes: Vec::new(),
         }
     }
 
-    /// The same plan from a known point on: no global stage, one try (a
-    /// warm start, the edge rule's refit).
+    /// The same plan from a known point on: no global stage, one try of the
+    /// first try's size (a warm start; the edge rule's refit of any try,
+    /// the small ones included: a refit refines a point, and its free-run
+    /// stage and polish at the larger size cost little beside the tries).
     pub fn from_point(&self) -> Plan {
         Plan {
             global: None,
             tries: 1,
+            sizes: self.sizes.first().copied().into_iter().collect(),
             ..self.clone()
         }
+    }
+
+    /// Try `t`'s populations: its entry of `sizes`, or the stages' own.
+    pub fn try_size(&self, t: usize) -> TrySize {
+        self.sizes.get(t).copied().unwrap_or(TrySize {
+            global: self.global.as_ref().map_or(0, |g| g.population),
+            free_run: self.free_run.as_ref().map_or(0, |f| f.population),
+            refine: self.refine.as_ref().map_or(0, |r| r.population),
+            polish: self.polish.as_ref().map_or(0, |p| p.starts),
+        })
+    }
+
+    /// Candidates a generation of the global stage holds, every try's.
+    pub fn population(&self) -> usize {
+        (0..self.tries).map(|t| self.try_size(t).global).sum()
     }
 
     /// Islands of the population stages (the free-run stage keeps the

@@ -86,7 +86,7 @@ impl<C: Chart> Engine<C> {
         self.start_stage();
         let after_round = matches!(step, Step::RefinePolish(_) | Step::LevelPolish(_));
         let setup = self.polish_setup(&p, after_round, interrupt);
-        let starts = self.polish_starts(&p, after_round, &setup.bounds);
+        let starts = self.polish_starts(after_round, &setup.bounds);
         // Each polished start's score, its try's index beside it, in the
         // starts' order.
         let mut done: Vec<(usize, Scored)> = Vec::with_capacity(starts.len());
@@ -216,19 +216,14 @@ impl<C: Chart> Engine<C> {
     /// Each try's starts for the polish, the try's index beside each: after
     /// a refining round, from the members of the round of each try that
     /// took part in it; else from the try's whole pool.
-    fn polish_starts(
-        &self,
-        p: &plan::Polish,
-        after_round: bool,
-        bounds: &Bounds,
-    ) -> Vec<(usize, Vec<f64>)> {
+    fn polish_starts(&self, after_round: bool, bounds: &Bounds) -> Vec<(usize, Vec<f64>)> {
         let nf = bounds.dim();
-        let wanted = match (&self.plan.refine, after_round) {
-            (Some(r), true) => r.starts,
-            _ => p.starts,
-        };
         let mut starts: Vec<(usize, Vec<f64>)> = Vec::new();
         for t in 0..self.tries.len() {
+            let wanted = match (&self.plan.refine, after_round) {
+                (Some(r), true) => r.starts,
+                _ => self.plan.try_size(t).polish,
+            };
             let tr = &self.tries[t];
             let pool: &[Members] = if after_round {
                 // Only a try that took part in the round polishes its members.

@@ -102,7 +102,7 @@ impl<C: Chart> Engine<C> {
         match step {
             Step::Global => {
                 let g = self.plan.global.clone().expect("a global stage");
-                let n = g.population / islands;
+                let n = self.plan.try_size(t).global / islands;
                 // Island i's rows are individuals i·n … of the try's stage.
                 let streams = self.streams(t, Stage::Global, 0);
                 (0..islands)
@@ -128,7 +128,7 @@ impl<C: Chart> Engine<C> {
             }
             Step::FreeRun => {
                 let f = self.plan.free_run.clone().expect("a free-run stage");
-                let n = f.population / islands;
+                let n = self.plan.try_size(t).free_run / islands;
                 (0..islands)
                     .map(|i| {
                         let start = match self.tries[t].carried.get(i) {
@@ -157,11 +157,12 @@ impl<C: Chart> Engine<C> {
                 };
                 self.tries[t].before_round = best.cost;
                 let streams = self.streams(t, Stage::Refine, self.stream_generation(step, 0));
-                let cloud = self.space.cloud_rows(&best.params, r.population, &streams);
+                let population = self.plan.try_size(t).refine;
+                let cloud = self.space.cloud_rows(&best.params, population, &streams);
                 vec![AskTell::new(
                     &FreeRun::ALGORITHM.default_settings(),
                     bounds,
-                    r.population,
+                    population,
                     r.generations,
                     cloud,
                 )]
@@ -181,9 +182,10 @@ impl<C: Chart> Engine<C> {
                 center[j] = value;
                 let streams = self.streams(t, Stage::Refine, self.stream_generation(step, 0));
                 let center = self.space.embed(Rows::one(&center));
+                let population = self.plan.try_size(t).refine;
                 let mut cloud = self
                     .space
-                    .cloud_rows(center.rows().row(0), r.population, &streams);
+                    .cloud_rows(center.rows().row(0), population, &streams);
                 for row in cloud.iter_mut() {
                     row[j] = value;
                 }
@@ -192,7 +194,7 @@ impl<C: Chart> Engine<C> {
                 vec![AskTell::new(
                     &FreeRun::ALGORITHM.default_settings(),
                     held,
-                    r.population,
+                    population,
                     r.generations,
                     cloud,
                 )]
