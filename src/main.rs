@@ -14,8 +14,12 @@ fn main() -> ExitCode {
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
+            let interrupted = cli::interrupted(&err);
             let mut said = err.to_string();
-            eprintln!("mckibben: error: {said}");
+            match interrupted {
+                true => eprintln!("mckibben: {said}"),
+                false => eprintln!("mckibben: error: {said}"),
+            }
             for cause in err.chain().skip(1).map(|c| c.to_string()) {
                 // An error that quotes its cause ("file: No such file") has
                 // already said it.
@@ -24,7 +28,11 @@ fn main() -> ExitCode {
                 }
                 said = cause;
             }
-            ExitCode::FAILURE
+            match interrupted {
+                // 128 + SIGINT, the status a shell gives a program Ctrl-C killed.
+                true => ExitCode::from(130),
+                false => ExitCode::FAILURE,
+            }
         }
     }
 }

@@ -187,7 +187,8 @@ fn a_missing_measurement_holds_and_a_late_one_is_set_aside() {
 
 /// Ctrl-C in the middle of a run on a rig closes the valve before the
 /// command ends: the rig (its own process group, out of the terminal's
-/// reach) hears `U k 0` and `STOP`, and the log says so.
+/// reach) hears `U k 0` and `STOP`, the log says so, and the command exits
+/// with 130, as a program Ctrl-C killed does.
 #[cfg(unix)]
 #[test]
 fn ctrl_c_closes_the_valve_before_the_command_ends() {
@@ -219,7 +220,7 @@ fn ctrl_c_closes_the_valve_before_the_command_ends() {
     assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
     let out = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{err}");
+    assert_eq!(out.status.code(), Some(130), "{err}");
     assert!(err.contains("interrupted (Ctrl-C) before sample"), "{err}");
     assert!(err.contains("input valve closed (0 V)"), "{err}");
     let text = std::fs::read_to_string(&log).unwrap();

@@ -196,6 +196,25 @@ pub fn check_folder(
     Ok(())
 }
 
+/// Checks that `dir` (named by `flag`) can be a folder before a run of
+/// minutes, so that a path that cannot fails at once, not after the run: it
+/// creates the folder, then removes again the folders it created, so that a
+/// run that fails or is interrupted leaves no empty folder behind. The
+/// command creates the folder for good when it writes there.
+pub fn check_creatable(flag: &str, dir: &Path) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    let missing: Vec<&Path> = dir
+        .ancestors()
+        .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+        .collect();
+    mckibben::data::create_dir_all(dir)
+        .with_context(|| format!("cannot create {flag} {}", dir.display()))?;
+    for folder in missing {
+        let _ = std::fs::remove_dir(folder);
+    }
+    Ok(())
+}
+
 /// Whether `a` and `b` name one file, existing or about to be written: the
 /// same canonical path, or the same name in the same canonical folder.
 fn same_file(a: &Path, b: &Path) -> bool {

@@ -16,7 +16,7 @@ use mckibben::model::{Family, ModelFile};
 use mckibben::names::UnknownName;
 use mckibben::report::json::Versioned;
 
-use super::common::{ModelArg, MultiDataArgs, check_folder};
+use super::common::{ModelArg, MultiDataArgs, check_creatable, check_folder};
 
 /// The model files `--out` writes: the baseline and the final model.
 const OUT_FILES: [&str; 2] = ["baseline.json", "model.json"];
@@ -360,8 +360,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     for (flag, dir) in [("--out", &args.out), ("--report", &args.report)] {
         if let Some(dir) = dir {
-            mckibben::data::create_dir_all(dir)
-                .with_context(|| format!("{flag} {}: cannot create the folder", dir.display()))?;
+            check_creatable(flag, dir)?;
         }
     }
     let mut d = diagnose_from(&traces, family, &effects, &settings, from.as_ref()).map_err(
@@ -398,6 +397,8 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     )?;
     if let Some(dir) = &args.out {
         let provenance = args.data.provenance(Some(args.seed))?;
+        mckibben::data::create_dir_all(dir)
+            .with_context(|| format!("cannot create --out {}", dir.display()))?;
         for (name, model) in OUT_FILES
             .into_iter()
             .zip([&d.baseline_model, &d.final_model])
@@ -408,9 +409,10 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         }
     }
     let figures = match &args.report {
-        Some(dir) => {
-            write_figures(&d, dir).with_context(|| format!("--report {}", dir.display()))?
-        }
+        Some(dir) => mckibben::data::create_dir_all(dir)
+            .map_err(anyhow::Error::from)
+            .and_then(|()| write_figures(&d, dir))
+            .with_context(|| format!("--report {}", dir.display()))?,
         None => Vec::new(),
     };
     if args.json {

@@ -85,7 +85,8 @@ use mckibben::optim::mfa::{Distance, Lambda0Schedule, Scale};
 /// count), and figures: trends.svg (parameters over generations, the
 /// thesis' figs 9–24), convergence.svg, loop.svg (displacement against
 /// pressure, fitted over measured) and trace.svg. Ctrl-C stops after the
-/// current generation and still writes the best so far.
+/// current generation, still writes the best so far and exits with status
+/// 130, as an interrupted program does, so that a script stops too.
 ///
 /// Examples:
 ///   mckibben fit

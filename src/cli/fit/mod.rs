@@ -7,7 +7,7 @@ mod args;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::common::{check_folder, records};
+use super::common::{check_creatable, check_folder, records};
 pub use args::Args;
 use args::EffectArg;
 use mckibben::data::{Trace, readable, sources};
@@ -19,7 +19,7 @@ use mckibben::fit::request::{switching_boxed, switching_misapplied};
 use mckibben::fit::run::FitRun;
 use mckibben::fit::searches::StopFlag;
 use mckibben::model::{Family, ModelFile};
-use mckibben::optim::engine::{FreeRun, Observer};
+use mckibben::optim::engine::{FreeRun, Observer, StopReason};
 use mckibben::optim::history::GenerationRecord;
 use mckibben::report::json::Versioned;
 
@@ -207,14 +207,16 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         // Nothing to report: writing a result of no model beside the last
         // run's model.json would leave --out describing two fits, and a
         // zero exit would let a script go on with the old model.
-        let resume = args.checkpoint.as_ref().map_or(String::new(), |c| {
-            format!("; `--checkpoint {}` resumes it", c.display())
-        });
-        anyhow::bail!(
-            "{}: nothing was written to {}{resume}",
+        let said = format!(
+            "{}: nothing was written to {}{}",
             fit.unscored(outcome.stop),
-            args.out.display()
+            args.out.display(),
+            resumes(&args)
         );
+        return Err(match outcome.stop {
+            StopReason::Interrupted => Interrupted(said).into(),
+            _ => anyhow::anyhow!(said),
+        });
     }
     let mut report = FitReport::of(&fit, (&outcome, &widened), &backend, &traces);
     let mut after = report.after_notes(fit.start_scores());
@@ -258,7 +260,29 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     written?;
     anyhow::ensure!(found, "{}", all_diverged(&args, !what.bounds.is_empty()));
+    if outcome.stop == StopReason::Interrupted {
+        return Err(Interrupted(format!(
+            "interrupted (Ctrl-C): the best so far is written to {}{}",
+            args.out.display(),
+            resumes(&args)
+        ))
+        .into());
+    }
     Ok(())
+}
+
+/// A fit stopped by Ctrl-C, with what it wrote: the command ends as an
+/// interrupted program does ([`super::interrupted`]), so that a script
+/// running it stops instead of going on with a partial fit.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct Interrupted(String);
+
+/// How to go on with a fit that stopped early: its checkpoint, if it has one.
+fn resumes(args: &Args) -> String {
+    args.checkpoint.as_ref().map_or(String::new(), |c| {
+        format!("; `--checkpoint {}` resumes it", c.display())
+    })
 }
 
 /// Why a fit that found no stable candidate may have found none: the data,
@@ -287,13 +311,10 @@ fn all_diverged(args: &Args, held: bool) -> String {
     )
 }
 
-/// Checks that `--out` can be a folder before the fit runs, so that a path
-/// that cannot fails at once, not after the fit, and that the fit's files
-/// there would replace none it reads (`files_written`): it creates the folder and
-/// removes again the folders it created (the fit's writer creates them for
-/// good), so that a fit that fails leaves no empty folder behind.
+/// Checks that `--out` can be a folder before the fit runs
+/// ([`check_creatable`]; the fit's writer creates it for good), and that
+/// the fit's files there would replace none it reads (`files_written`).
 fn out_folder(args: &Args, records: usize) -> anyhow::Result<()> {
-    use anyhow::Context as _;
     let out = args.out.as_path();
     let mut reads: Vec<(&str, &std::path::Path)> = args
         .data
@@ -307,16 +328,7 @@ fn out_folder(args: &Args, records: usize) -> anyhow::Result<()> {
         }
     }
     check_folder("--out", out, &files_written(records), &reads)?;
-    let missing: Vec<&std::path::Path> = out
-        .ancestors()
-        .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
-        .collect();
-    mckibben::data::create_dir_all(out)
-        .with_context(|| format!("cannot create --out {}", out.display()))?;
-    for folder in missing {
-        let _ = std::fs::remove_dir(folder);
-    }
-    Ok(())
+    check_creatable("--out", out)
 }
 
 /// The line that says what is about to run: the model, the algorithm and
