@@ -28,7 +28,8 @@ use std::path::PathBuf;
 
 use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::fit::sweep::{
-    CaseFit as Result, PopulationRow, cases, fit_case, markdown_table, matrix_size, summarize,
+    CaseFit as Result, MATRIX_SEED, PopulationRow, cases, fit_case, markdown_table, matrix_size,
+    summarize,
 };
 use mckibben::model::Family;
 use mckibben::report::{Figure, Panel, Series};
@@ -86,7 +87,7 @@ fn population_sweep() {
             Err(_) => vec![1],
         };
         for (family, _) in families() {
-            for case in cases(family, only.as_deref()) {
+            for case in cases(family, MATRIX_SEED, only.as_deref()) {
                 for &seed in &seeds {
                     let known = done.iter().any(|r| {
                         r.family == family.to_string()

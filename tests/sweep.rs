@@ -94,6 +94,44 @@ fn lavapipe_fits_the_cases_as_the_cpu_does() {
     }
 }
 
+/// `--matrix` draws the cases afresh from another seed and numbers them
+/// from it; a number of the shipped matrix then picks nothing, and the
+/// error says which numbers there are.
+#[test]
+fn another_matrix_draws_other_cases_numbered_from_its_seed() {
+    let shipped = sweep(&["--backend", "cpu"]);
+    assert_eq!(shipped["matrix"], 1000);
+    let out = Command::new(BIN)
+        .args(["sweep", "--pop", "100", "--family", "classic"])
+        .args(["--matrix", "5000", "--cases", "5000", "--backend", "cpu"])
+        .arg("--json")
+        .output()
+        .expect("run mckibben");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let other: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(other["matrix"], 5000);
+    let (a, b) = (&shipped["fits"][0], &other["fits"][0]);
+    assert_eq!((a["case"].as_u64(), b["case"].as_u64()), (Some(0), Some(0)));
+    assert!(b["name"].as_str().unwrap().ends_with("#5000"), "{b}");
+    assert_ne!(a["sse"], b["sse"], "the same record drawn twice");
+    let out = Command::new(BIN)
+        .args([
+            "sweep", "--family", "classic", "--matrix", "5000", "--cases", "1000",
+        ])
+        .output()
+        .expect("run mckibben");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("--matrix 5000 has these numbers (classic: 5000–5019)"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn cases_and_populations_out_of_reach_are_refused() {
     for (args, flag) in [

@@ -17,7 +17,7 @@ use mckibben::eval::cpu::CpuEvaluator;
 use mckibben::fit::cases::Case;
 use mckibben::fit::objective::{GENERATIONS, POPULATION, staged_plan};
 use mckibben::fit::run::FitRun;
-use mckibben::fit::sweep::cases;
+use mckibben::fit::sweep::{MATRIX_SEED, cases};
 use mckibben::fit::uncertainty::linearized_errors;
 use mckibben::model::Family;
 use mckibben::optim::Algorithm;
@@ -34,7 +34,7 @@ fn standard_error_coverage() {
     for family in [Family::Classic, Family::Generalized] {
         let mut z: Vec<f64> = Vec::new();
         let (mut passing, mut all, mut unbounded) = (0, 0, 0);
-        for case in cases(family, None) {
+        for case in cases(family, MATRIX_SEED, None) {
             let generated = Case::generate(case.spec);
             let problem = generated.problem();
             let settings = Algorithm::De.staged_settings(POPULATION);

@@ -19,7 +19,8 @@ use crate::model::Family;
 use crate::optim::Algorithm;
 use crate::optim::engine::StopRules;
 
-/// The seed of the cases' matrix: the cases are named from it (#1000, #1001, …).
+/// The seed of the shipped figures' matrix: its cases are named from it
+/// (#1000, #1001, …). Another seed draws other cases of the same kinds.
 pub const MATRIX_SEED: u64 = 1000;
 
 /// How many cases each family's matrix holds: the classic one 20, the
@@ -31,7 +32,8 @@ pub fn matrix_size(family: Family) -> usize {
     }
 }
 
-/// One case of a family's matrix, by its number (`MATRIX_SEED + index`).
+/// One case of a family's matrix, by its number (the matrix' seed plus
+/// `index`).
 #[derive(Debug, Clone, Copy)]
 pub struct SweepCase {
     pub family: Family,
@@ -39,13 +41,14 @@ pub struct SweepCase {
     pub spec: CaseSpec,
 }
 
-/// The cases of `family`'s matrix, all of them or those numbered in `only`
-/// (`1000`, `1012`, …).
-pub fn cases(family: Family, only: Option<&[u64]>) -> Vec<SweepCase> {
-    matrix(family, matrix_size(family), MATRIX_SEED)
+/// The cases of `family`'s matrix drawn from `seed` ([`MATRIX_SEED`] for
+/// the shipped figures), all of them or those numbered in `only` (`1000`,
+/// `1012`, …: the seed plus the index).
+pub fn cases(family: Family, seed: u64, only: Option<&[u64]>) -> Vec<SweepCase> {
+    matrix(family, matrix_size(family), seed)
         .into_iter()
         .enumerate()
-        .filter(|(i, _)| only.is_none_or(|o| o.contains(&(MATRIX_SEED + *i as u64))))
+        .filter(|(i, _)| only.is_none_or(|o| o.contains(&(seed + *i as u64))))
         .map(|(index, spec)| SweepCase {
             family,
             index,
@@ -335,11 +338,18 @@ mod tests {
 
     #[test]
     fn cases_are_picked_by_their_numbers() {
-        let picked = cases(Family::Classic, Some(&[1003, 1017]));
+        let picked = cases(Family::Classic, MATRIX_SEED, Some(&[1003, 1017]));
         assert_eq!(
             picked.iter().map(|c| c.index).collect::<Vec<_>>(),
             vec![3, 17]
         );
-        assert_eq!(cases(Family::Generalized, None).len(), 30);
+        assert_eq!(cases(Family::Generalized, MATRIX_SEED, None).len(), 30);
+        // Another matrix numbers its cases from its own seed, and draws
+        // other truths at the same places.
+        let other = cases(Family::Classic, 5000, Some(&[5003, 1003]));
+        assert_eq!(other.len(), 1);
+        assert_eq!((other[0].index, other[0].spec.seed), (3, 5003));
+        assert_eq!(other[0].spec.excitation, picked[0].spec.excitation);
+        assert_ne!(other[0].spec.samples, picked[0].spec.samples);
     }
 }
