@@ -118,6 +118,18 @@ fn another_matrix_draws_other_cases_numbered_from_its_seed() {
     assert_eq!((a["case"].as_u64(), b["case"].as_u64()), (Some(0), Some(0)));
     assert!(b["name"].as_str().unwrap().ends_with("#5000"), "{b}");
     assert_ne!(a["sse"], b["sse"], "the same record drawn twice");
+    // The table says which cases it holds, wherever it is pasted.
+    let out = Command::new(BIN)
+        .args(["sweep", "--pop", "100", "--family", "classic"])
+        .args(["--matrix", "5000", "--cases", "5000", "--backend", "cpu"])
+        .arg("--markdown")
+        .output()
+        .expect("run mckibben");
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        table.starts_with("Cases of --matrix 5000 (#5000 on):\n\n| backend |"),
+        "{table}"
+    );
     let out = Command::new(BIN)
         .args([
             "sweep", "--family", "classic", "--matrix", "5000", "--cases", "1000",

@@ -44,7 +44,8 @@ use serde::Serialize;
 /// few_agreed_missed, mean_seconds, min_seconds, max_seconds) and `fits`
 /// (one object a fit: family, case, name, n, seed, passes, ratio, sse,
 /// tries, try_populations, agreeing, seconds). --markdown prints the table
-/// for docs/PERFORMANCE.md with the backend in each row.
+/// for docs/PERFORMANCE.md with the backend in each row. A table of another
+/// --matrix than 1000 starts with a line that names it.
 ///
 /// Examples:
 ///   mckibben sweep --pop 1000,10000 --family classic
@@ -185,6 +186,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         "cpu"
     };
+    // A table of other cases than the documented ones says so, wherever
+    // it is pasted.
+    if args.matrix != MATRIX_SEED {
+        println!("Cases of --matrix {} (#{} on):\n", args.matrix, args.matrix);
+    }
     println!("{}", markdown_table(&rows, args.markdown.then_some(kind)));
     Ok(())
 }
