@@ -257,33 +257,20 @@ fn error_of(args: &[&str], csv: &Path) -> String {
 #[cfg(unix)]
 #[test]
 fn ctrl_c_stops_the_diagnosis_and_exits_as_interrupted() {
-    use std::io::BufRead;
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("stair.csv");
     write_csv(&csv, 600, false, 0.05);
-    let mut child = bin()
-        .args(["diagnose", "--backend", "cpu", "--out", "report"])
-        .arg(&csv)
-        .current_dir(dir.path())
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
     // The first stage's line comes once the handler is in place.
-    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut line = String::new();
-    while !line.contains("s] ") {
-        line.clear();
-        assert!(stderr.read_line(&mut line).unwrap() > 0, "no progress line");
-    }
-    std::thread::sleep(std::time::Duration::from_millis(500));
-    // SAFETY: kill(2) on our own child's pid, with a valid signal.
-    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
-    let status = child.wait().unwrap();
-    let mut err = String::new();
-    std::io::Read::read_to_string(&mut stderr, &mut err).unwrap();
-    assert_eq!(status.code(), Some(130), "{err}");
+    let out = common::interrupt_once(
+        bin()
+            .args(["diagnose", "--backend", "cpu", "--out", "report"])
+            .arg(&csv)
+            .current_dir(dir.path()),
+        |line| line.contains("s] "),
+        std::time::Duration::from_millis(500),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{err}");
     assert!(
         err.contains("mckibben: the diagnosis was interrupted before its verdict"),
         "{err}"

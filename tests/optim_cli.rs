@@ -276,35 +276,19 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
 #[cfg(unix)]
 #[test]
 fn ctrl_c_writes_the_best_so_far_and_exits_as_interrupted() {
-    use std::io::BufRead;
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let mut child = Command::new(env!("CARGO_BIN_EXE_mckibben"))
-        .args(["fit", &csv, "--pop", "200", "--gens", "1000000"])
-        .args(["--backend", "cpu", "--checkpoint", "ck.json"])
-        .current_dir(dir.path())
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
     // The line that announces the fit comes once the handler is in place
     // and the data are read; the first generations take milliseconds.
-    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
-    let mut announced = String::new();
-    while !announced.starts_with("fitting") {
-        announced.clear();
-        assert!(
-            stderr.read_line(&mut announced).unwrap() > 0,
-            "no announcement"
-        );
-    }
-    std::thread::sleep(std::time::Duration::from_secs(2));
-    // SAFETY: kill(2) on our own child's pid, with a valid signal.
-    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
-    let out = child.wait_with_output().unwrap();
-    let mut err = String::new();
-    std::io::Read::read_to_string(&mut stderr, &mut err).unwrap();
+    let out = common::interrupt_once(
+        Command::new(env!("CARGO_BIN_EXE_mckibben"))
+            .args(["fit", &csv, "--pop", "200", "--gens", "1000000"])
+            .args(["--backend", "cpu", "--checkpoint", "ck.json"])
+            .current_dir(dir.path()),
+        |line| line.starts_with("fitting"),
+        std::time::Duration::from_secs(2),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(130), "{err}");
     assert!(
         err.contains("interrupted (Ctrl-C): the best so far is written to out/fit"),

@@ -3,28 +3,36 @@
 
 mod common;
 
-use std::process::Command;
+use std::process::{Command, Output};
 
 use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
 
-/// `mckibben sweep ARGS --json` on the smallest case's run, parsed.
-fn sweep(args: &[&str]) -> Value {
-    let out = Command::new(BIN)
-        .args([
-            "sweep", "--pop", "100", "--family", "classic", "--cases", "1000",
-        ])
+/// `mckibben sweep --pop 100 --family classic ARGS`: a small population.
+fn small_sweep(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(["sweep", "--pop", "100", "--family", "classic"])
         .args(args)
-        .arg("--json")
         .output()
-        .expect("run mckibben");
+        .expect("run mckibben")
+}
+
+/// A sweep's `--json` document, once it succeeded.
+fn json_of(out: Output) -> Value {
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
     serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
+/// `mckibben sweep ARGS --json` on the smallest case's run, parsed.
+fn sweep(args: &[&str]) -> Value {
+    json_of(small_sweep(
+        &[&["--cases", "1000"], args, &["--json"]].concat(),
+    ))
 }
 
 #[test]
@@ -101,41 +109,31 @@ fn lavapipe_fits_the_cases_as_the_cpu_does() {
 fn another_matrix_draws_other_cases_numbered_from_its_seed() {
     let shipped = sweep(&["--backend", "cpu"]);
     assert_eq!(shipped["matrix"], 1000);
-    let out = Command::new(BIN)
-        .args(["sweep", "--pop", "100", "--family", "classic"])
-        .args(["--matrix", "5000", "--cases", "5000", "--backend", "cpu"])
-        .arg("--json")
-        .output()
-        .expect("run mckibben");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let other: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let first_of_matrix_5000 = |output: &str| {
+        small_sweep(&[
+            "--matrix",
+            "5000",
+            "--cases",
+            "5000",
+            "--backend",
+            "cpu",
+            output,
+        ])
+    };
+    let other = json_of(first_of_matrix_5000("--json"));
     assert_eq!(other["matrix"], 5000);
     let (a, b) = (&shipped["fits"][0], &other["fits"][0]);
     assert_eq!((a["case"].as_u64(), b["case"].as_u64()), (Some(0), Some(0)));
     assert!(b["name"].as_str().unwrap().ends_with("#5000"), "{b}");
     assert_ne!(a["sse"], b["sse"], "the same record drawn twice");
     // The table says which cases it holds, wherever it is pasted.
-    let out = Command::new(BIN)
-        .args(["sweep", "--pop", "100", "--family", "classic"])
-        .args(["--matrix", "5000", "--cases", "5000", "--backend", "cpu"])
-        .arg("--markdown")
-        .output()
-        .expect("run mckibben");
+    let out = first_of_matrix_5000("--markdown");
     let table = String::from_utf8_lossy(&out.stdout);
     assert!(
         table.starts_with("Cases of --matrix 5000 (#5000 on):\n\n| backend |"),
         "{table}"
     );
-    let out = Command::new(BIN)
-        .args([
-            "sweep", "--family", "classic", "--matrix", "5000", "--cases", "1000",
-        ])
-        .output()
-        .expect("run mckibben");
+    let out = small_sweep(&["--matrix", "5000", "--cases", "1000"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
     assert!(

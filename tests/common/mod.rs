@@ -10,7 +10,8 @@
 //! green test.
 //!
 //! It also holds [`InterruptAt`], the observer the engine tests press
-//! Ctrl-C with. Each test file includes this with `mod common;`.
+//! Ctrl-C with, and [`interrupt_once`], which presses it on a command.
+//! Each test file includes this with `mod common;`.
 
 // Every test binary compiles its own copy of this module and uses only the
 // helpers it needs; the others would each warn as dead code.
@@ -139,4 +140,39 @@ impl mckibben::optim::engine::Observer for InterruptAt<'_> {
             self.1.store(true, std::sync::atomic::Ordering::SeqCst);
         }
     }
+}
+
+/// Runs `command` with its output piped and presses Ctrl-C (SIGINT)
+/// `settle` after the first line of its stderr that `ready` accepts: a line
+/// the command prints once its handler is in place. Returns its exit status,
+/// its stdout, and its stderr after that line.
+#[cfg(unix)]
+pub fn interrupt_once(
+    command: &mut std::process::Command,
+    ready: impl Fn(&str) -> bool,
+    settle: std::time::Duration,
+) -> std::process::Output {
+    use std::io::{BufRead, Read};
+    use std::process::Stdio;
+    let mut child = command
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run mckibben");
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    while !ready(&line) {
+        line.clear();
+        assert!(
+            stderr.read_line(&mut line).unwrap() > 0,
+            "stderr ended before the line that says the command is ready"
+        );
+    }
+    std::thread::sleep(settle);
+    // SAFETY: kill(2) on our own child's pid, with a valid signal.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
+    let mut out = child.wait_with_output().unwrap();
+    stderr.read_to_end(&mut out.stderr).unwrap();
+    out
 }
