@@ -366,17 +366,19 @@ pub struct TryGroup {
 /// free-run stage's in a plan from a known point), in the order they first
 /// run.
 pub fn try_groups(plan: &Plan) -> Vec<TryGroup> {
-    let populations: Vec<usize> = (0..plan.tries)
-        .map(|t| {
-            let size = plan.try_size(t);
-            if plan.global.is_some() {
-                size.global
-            } else {
-                size.free_run
-            }
-        })
-        .collect();
+    let populations: Vec<usize> = (0..plan.tries).map(|t| try_population(plan, t)).collect();
     groups_of(&populations)
+}
+
+/// Try `t`'s population: its global stage's, or its free-run stage's in a
+/// plan from a known point (0 in a plan with neither).
+pub fn try_population(plan: &Plan, t: usize) -> usize {
+    let size = plan.try_size(t);
+    if plan.global.is_some() {
+        size.global
+    } else {
+        size.free_run
+    }
 }
 
 /// Tries of these populations, by population, in the order they first run.

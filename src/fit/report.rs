@@ -9,7 +9,9 @@ use serde::Serialize;
 
 use super::agreement::Agreement;
 use super::edge::{ActiveBound, Widening, active_bounds};
-use super::objective::{SMALL_TRY_POPULATION, TRY_POPULATION, TryGroup, tries_text, try_groups};
+use super::objective::{
+    SMALL_TRY_POPULATION, TRY_POPULATION, TryGroup, tries_text, try_groups, try_population,
+};
 use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
 use super::uncertainty::{Assessment, assess};
@@ -279,14 +281,9 @@ impl FitReport {
             backend: backend.to_string(),
             flow: problem.flow,
             seed: engine.seed,
-            population: global.map_or(asked.free_run.as_ref().map_or(0, |f| f.population), |_| {
-                asked.population()
-            }),
+            population: (0..asked.tries).map(|t| try_population(asked, t)).sum(),
             tries: asked.tries,
-            try_population: global
-                .map_or(asked.free_run.as_ref().map_or(0, |f| f.population), |g| {
-                    g.population
-                }),
+            try_population: try_population(asked, 0),
             try_sizes: try_groups(asked),
             agreement: fit.agreement.clone(),
             refining: engine.plan.refine.as_ref().map(|r| {
