@@ -74,7 +74,7 @@ def read_csv(
     input: str = "pressure",
     output: str = "displacement",
     time: str | None = None,
-    resample: None = None,
+    resample: float | None = None,
     *,
     split_gaps: Literal[True],
     dt: float | None = None,

@@ -260,7 +260,8 @@ fn identify_with_split_gaps_uses_both_sides_of_a_clock_glitch() {
 /// share of the samples; where the other pieces outweigh it (a logger that
 /// paused every second: pieces of about equal length) it warns that the
 /// fit reads a small part of the recording and names the ways to use all
-/// of it.
+/// of it. Beside `--resample`, it cuts only where the clock jumps: the
+/// paused logger's file is one record again, its pauses filled in.
 #[test]
 fn fit_with_split_gaps_names_the_piece_and_warns_when_it_is_a_small_part() {
     let dir = tempfile::tempdir().unwrap();
@@ -280,19 +281,30 @@ fn fit_with_split_gaps_names_the_piece_and_warns_when_it_is_a_small_part() {
         }
         file(dir.path(), name, &text)
     };
-    let fit = |path: &Path| {
+    let fit_with = |path: &Path, resample: &[&str]| {
         let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
             .arg("fit")
             .arg(path)
-            .args(["--split-gaps", "--pop", "40", "--gens", "5", "--out"])
+            .args(resample)
+            .args([
+                "--split-gaps",
+                "--pop",
+                "40",
+                "--gens",
+                "5",
+                "--json",
+                "--out",
+            ])
             .arg(dir.path().join("fit"))
             .env("XDG_RUNTIME_DIR", std::env::temp_dir())
             .output()
             .unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
         assert!(out.status.success(), "{stderr}");
-        stderr
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        (stderr, json)
     };
+    let fit = |path: &Path| fit_with(path, &[]).0;
 
     let path = paused("paused.csv", &[120, 160, 120]);
     let stderr = fit(&path);
@@ -307,10 +319,20 @@ fn fit_with_split_gaps_names_the_piece_and_warns_when_it_is_a_small_part() {
     assert!(
         stderr.contains(
             "mckibben: warning: the fit reads 40 % of the recording; where the cuts are gaps in \
-             time, --resample DT instead keeps all of it"
+             time, --resample DT beside --split-gaps keeps each stretch between jumps of the \
+             clock as one record"
         ),
         "{stderr}"
     );
+    // Both flags: no cut (the clock never jumps back), the two pauses
+    // interpolated over: 4.99 s at 0.01 s, all 400 samples and 100 made up.
+    let (stderr, json) = fit_with(&path, &["--resample", "0.01"]);
+    assert!(!stderr.contains("pieces after --split-gaps"), "{stderr}");
+    assert!(
+        stderr.contains("--resample 0.01 interpolated across a gap of 0.51 s"),
+        "{stderr}"
+    );
+    assert_eq!(json["records"][0]["samples"], 500, "{}", json["records"]);
 
     // Pieces of one length: the one whose input moves, not a rest before it.
     let mut text = String::from("t,pressure,displacement\n");
@@ -343,6 +365,36 @@ fn fit_with_split_gaps_names_the_piece_and_warns_when_it_is_a_small_part() {
         "{stderr}"
     );
     assert!(!stderr.contains("warning: the fit reads"), "{stderr}");
+
+    // A clock that jumps back at every pause: both flags cut there alone,
+    // and when the pieces outweigh the longest, the warning does not send
+    // the user to the --resample they gave.
+    let mut text = String::from(
+        "t,pressure,displacement
+",
+    );
+    let mut x = 0.0;
+    for k in 0..300 {
+        let t = (k % 100) as f64 * 0.01 + if k % 100 >= 50 { 0.3 } else { 0.0 };
+        let p = [0.1, 0.4, 0.2, 0.5, 0.3][(k / 25) % 5];
+        text += &format!("{t:.2},{p},{x:.6}\n");
+        x = 0.9 * x + 2.0 * p;
+    }
+    let restarts = file(dir.path(), "restarts.csv", &text);
+    let (stderr, json) = fit_with(&restarts, &["--resample", "0.01"]);
+    assert!(
+        stderr.contains("3 pieces after --split-gaps; fitting the longest")
+            && stderr.contains("time runs back by 1.29 s"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains(
+            "mckibben: warning: the fit reads 33 % of the recording; `diagnose` fits every piece"
+        ),
+        "{stderr}"
+    );
+    // Each piece: 0 to 1.29 s with its pause filled in.
+    assert_eq!(json["records"][0]["samples"], 130, "{}", json["records"]);
 }
 
 /// A time column named in milliseconds (a logger's `t_ms`) is refused with

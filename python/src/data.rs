@@ -256,8 +256,10 @@ fn data_error(e: DataError) -> PyErr {
 /// format"): columns `time`, `input`, `output` by name. A non-uniform time
 /// base is an error unless `resample` (a step in seconds: every column
 /// interpolated onto it) or `split_gaps` (cut at every gap and backward
-/// jump; then a list of traces is returned). The reader's notes (cuts,
-/// dropped pieces, text columns) become `UserWarning`s.
+/// jump; then a list of traces is returned), or both (cut only where time
+/// runs back or stands still, each piece interpolated across its gaps).
+/// The reader's notes (cuts, dropped pieces, text columns) become
+/// `UserWarning`s.
 #[pyfunction]
 #[pyo3(signature = (path, input = "pressure", output = "displacement", time = None, resample = None, split_gaps = false, dt = None))]
 #[allow(clippy::too_many_arguments)]
@@ -291,11 +293,7 @@ pub fn read_csv<'py>(
         }
     }
     let gaps = match (resample, split_gaps) {
-        (Some(_), true) => {
-            return Err(PyValueError::new_err(
-                "resample and split_gaps exclude each other: choose one",
-            ));
-        }
+        (Some(dt), true) => Gaps::SplitResample(sample_time(dt, "resample")?),
         (Some(dt), false) => Gaps::Resample(sample_time(dt, "resample")?),
         (None, true) => Gaps::Split,
         (None, false) => Gaps::Reject,

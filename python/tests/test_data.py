@@ -74,6 +74,16 @@ def test_file_errors_name_the_file_line_and_column(tmp_path):
     assert [len(p) for p in pieces] == [30, 29]
     assert any("`split_gaps` cut here" in str(n.message) for n in notes)
     assert len(mckibben.read_csv(gap, resample=0.1)) == 60
+    # Both: cut only where the clock runs back, each piece across its gap.
+    back = tmp_path / "back.csv"
+    rows = [f"{k * 0.1 - (3.5 if k >= 40 else 0):.1f},{k % 3},{k}" for k in range(80) if k != 30]
+    back.write_text("t,pressure,displacement\n" + "\n".join(rows) + "\n")
+    with warnings.catch_warnings(record=True) as notes:
+        warnings.simplefilter("always")
+        pieces = mckibben.read_csv(back, resample=0.1, split_gaps=True)
+    assert [len(p) for p in pieces] == [40, 40]
+    assert pieces[1].t[0] == pytest.approx(0.5)
+    assert any("time runs back" in str(n.message) for n in notes)
     with pytest.raises(ValueError, match="resample must be a positive"):
         mckibben.read_csv(gap, resample=-1.0)
 

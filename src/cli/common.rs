@@ -272,7 +272,8 @@ pub struct ColumnArgs {
     /// the first bad row. With this flag every column is instead linearly
     /// interpolated onto t0 + k·DT (DT in seconds, e.g. 0.01 for 100 Hz);
     /// gaps become straight lines. Time that runs back or repeats is still
-    /// an error (never interpolated over): see --split-gaps.
+    /// an error (never interpolated over): add --split-gaps to cut the file
+    /// there and resample each piece.
     #[arg(long, value_name = "DT", value_parser = positive_seconds, allow_negative_numbers = true)]
     pub resample: Option<f64>,
     /// Instead of failing on a non-uniform time base, cut the file at every
@@ -284,7 +285,11 @@ pub struct ColumnArgs {
     /// cut where it was.
     /// Each cut is noted on stderr with its line and times; pieces under 20
     /// samples are dropped with a note. Pieces are never merged or sorted.
-    #[arg(long, conflicts_with = "resample")]
+    /// With --resample, the file is cut only where time runs back or
+    /// stands still, and each piece is interpolated onto its own time base:
+    /// a logger whose clock glitches keeps the stretches between glitches
+    /// whole, across their gaps.
+    #[arg(long)]
     pub split_gaps: bool,
 }
 
@@ -293,8 +298,10 @@ pub struct ColumnArgs {
 /// the piece and its share of the samples, and warns where the rest
 /// outweighs it: a recording cut at many short gaps (a logger's pauses)
 /// leaves pieces of equal length, and a fit of one of them reads a small
-/// part of what was measured.
-pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
+/// part of what was measured. `resampled`: the pieces were cut where the
+/// clock jumps and resampled across their gaps (`--resample` beside
+/// `--split-gaps`), so that `--resample` is no way to keep more.
+pub fn one_trace(mut traces: Vec<Trace>, resampled: bool) -> anyhow::Result<Trace> {
     anyhow::ensure!(!traces.is_empty(), "the data file holds no samples");
     // Of pieces of equal length (a logger that pauses every second) the
     // one whose input moves most: a rest before the first cycle is as long
@@ -316,12 +323,16 @@ pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
             longest.len(),
         );
         if 2 * longest.len() < total {
+            let instead = if resampled {
+                ""
+            } else {
+                "; where the cuts are gaps in time, --resample DT beside --split-gaps keeps \
+                 each stretch between jumps of the clock as one record, interpolating across \
+                 its gaps (where they are short against the muscle's time constant)"
+            };
             eprintln!(
-                "mckibben: warning: the fit reads {share:.0} % of the recording; where the \
-                 cuts are gaps in time, --resample DT instead keeps all of it as one record, \
-                 interpolating across them (where they are short against the muscle's time \
-                 constant; rows the reader dropped must be filled first), and `diagnose` fits \
-                 every piece"
+                "mckibben: warning: the fit reads {share:.0} % of the recording{instead}; \
+                 `diagnose` fits every piece"
             );
         }
     }
@@ -330,8 +341,8 @@ pub fn one_trace(mut traces: Vec<Trace>) -> anyhow::Result<Trace> {
 
 /// The records of several files (`fit`, `identify`): one record each; a file
 /// `--split-gaps` cut into pieces gives its longest piece
-/// ([`one_trace`], which says so).
-pub fn records(traces: Vec<Trace>) -> anyhow::Result<Vec<Trace>> {
+/// ([`one_trace`], which says so; `resampled` as there).
+pub fn records(traces: Vec<Trace>, resampled: bool) -> anyhow::Result<Vec<Trace>> {
     let mut records: Vec<Trace> = Vec::new();
     let mut pieces: Vec<Trace> = Vec::new();
     for trace in traces {
@@ -340,7 +351,7 @@ pub fn records(traces: Vec<Trace>) -> anyhow::Result<Vec<Trace>> {
             _ => false,
         };
         if !same_file && !pieces.is_empty() {
-            records.push(one_trace(std::mem::take(&mut pieces))?);
+            records.push(one_trace(std::mem::take(&mut pieces), resampled)?);
         }
         match trace.cut_from {
             Some(_) => pieces.push(trace),
@@ -348,7 +359,7 @@ pub fn records(traces: Vec<Trace>) -> anyhow::Result<Vec<Trace>> {
         }
     }
     if !pieces.is_empty() {
-        records.push(one_trace(pieces)?);
+        records.push(one_trace(pieces, resampled)?);
     }
     anyhow::ensure!(!records.is_empty(), "the data file holds no samples");
     Ok(records)
@@ -437,7 +448,8 @@ impl ColumnArgs {
             input: self.input.clone().unwrap_or(defaults.input),
             output: self.output.clone().unwrap_or(defaults.output),
             gaps: match (self.resample, self.split_gaps) {
-                (Some(dt), _) => Gaps::Resample(dt),
+                (Some(dt), true) => Gaps::SplitResample(dt),
+                (Some(dt), false) => Gaps::Resample(dt),
                 (None, true) => Gaps::Split,
                 (None, false) => Gaps::Reject,
             },
@@ -571,6 +583,8 @@ mod tests {
         let many = Many::try_parse_from(["x", "a.csv", "b.csv", "--split-gaps"]).unwrap();
         assert_eq!(many.data.data.len(), 2);
         assert_eq!(many.data.columns.options().gaps, Gaps::Split);
+        let both = One::try_parse_from(["x", "--resample", "0.01", "--split-gaps"]).unwrap();
+        assert_eq!(both.data.columns.options().gaps, Gaps::SplitResample(0.01));
         assert_eq!(
             One::try_parse_from(["x"]).unwrap().data.columns.options(),
             ReadOptions::default()
@@ -579,8 +593,6 @@ mod tests {
 
     #[test]
     fn bad_flags_are_refused_by_name() {
-        let e = One::try_parse_from(["x", "--resample", "0.01", "--split-gaps"]).unwrap_err();
-        assert!(e.to_string().contains("--split-gaps"), "{e}");
         let e = One::try_parse_from(["x", "--resample", "-1"]).unwrap_err();
         assert!(
             e.to_string().contains("not a positive number of seconds"),

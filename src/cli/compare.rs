@@ -84,7 +84,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         mfa_all_pairs_max: args.mfa_all_pairs_max,
     };
     settings.check()?;
-    let trace = one_trace(args.data.load()?)?;
+    let trace = one_trace(args.data.load()?, args.data.columns.resample.is_some())?;
     // Read before the study, so that a bad --cross fails at once, not
     // after minutes of fits.
     let other = cross_trace(&args)?;
@@ -174,5 +174,5 @@ fn cross_trace(args: &Args) -> anyhow::Result<Option<Trace>> {
         data: Some(path),
         columns: cols.clone(),
     };
-    Ok(Some(one_trace(other.load()?)?))
+    Ok(Some(one_trace(other.load()?, cols.resample.is_some())?))
 }

@@ -90,7 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // one experiment. Several: one model for all, a split file giving its
     // longest piece, as `fit` takes them.
     let ids = if args.data.data.len() > 1 {
-        let mut records = records(traces)?;
+        let mut records = records(traces, args.data.columns.resample.is_some())?;
         vec![(identify_jointly(&records, orders)?, records.swap_remove(0))]
     } else {
         traces

@@ -12,11 +12,13 @@
 //! every step within [`UNIFORM_TOLERANCE`] of the median step. Recorded data
 //! that is not (a logger that dropped samples, a paused recording, a logger
 //! glitch that sends the clock back) is rejected unless the user asks to
-//! resample it ([`Gaps::Resample`], gaps only) or to split it at the gaps
-//! and backward jumps ([`Gaps::Split`]).
+//! resample it ([`Gaps::Resample`], gaps only), to split it at the gaps
+//! and backward jumps ([`Gaps::Split`]), or both: to split it where the
+//! clock jumps back and resample each piece ([`Gaps::SplitResample`]).
 
 use std::fmt::{self, Write as _};
 use std::io::Write as _;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use super::signals::samples_in;
@@ -51,6 +53,21 @@ pub enum Gaps {
     /// be uniform; segments shorter than [`MIN_SEGMENT`] samples are
     /// dropped, with a note.
     Split,
+    /// Cut the file only where time runs back or stands still (which no
+    /// interpolation can cross), and interpolate each piece onto its own
+    /// `t0 + k·dt`, `dt` in seconds: a gap inside a piece becomes a straight
+    /// line, as with [`Gaps::Resample`]. A row that is not a finite number
+    /// is dropped, as with [`Gaps::Split`], and interpolated over. Pieces
+    /// with fewer than [`MIN_SEGMENT`] samples, read or resampled, are
+    /// dropped, with a note.
+    SplitResample(f64),
+}
+
+impl Gaps {
+    /// Whether the file is cut into pieces, each its own experiment.
+    fn splits(self) -> bool {
+        matches!(self, Gaps::Split | Gaps::SplitResample(_))
+    }
 }
 
 /// The largest gauge pressure (MPa) a column named `pressure`, taken in
@@ -680,7 +697,7 @@ fn parse(
         Clock::Column(_) => rows.retain(|r| !empty(r)),
         // Dropped and cut there with --split-gaps, as a row of NaN is;
         // else an error, as a NaN is.
-        Clock::Rows(_) if !matches!(opts.gaps, Gaps::Split) => {
+        Clock::Rows(_) if !opts.gaps.splits() => {
             if let Some(r) = rows.iter().find(|r| empty(r)) {
                 return Err(DataError::Parse {
                     path: p(),
@@ -723,7 +740,7 @@ fn parse(
     // number (a logger's NaN for a dropped sample, an empty cell) is a
     // glitch: it is dropped, and the gap it leaves is cut as any other.
     let mut dropped = Vec::new();
-    if matches!(opts.gaps, Gaps::Split) {
+    if opts.gaps.splits() {
         rows.retain(|row| {
             let bad = it
                 .into_iter()
@@ -812,10 +829,10 @@ fn parse(
     // Time that runs back or stands still is never interpolated over or
     // reordered: only `--split-gaps` accepts it, by cutting the file there.
     let hint = match opts.gaps {
-        Gaps::Split => None,
+        Gaps::Split | Gaps::SplitResample(_) => None,
         Gaps::Reject => Some("pass --split-gaps to cut the file there"),
         Gaps::Resample(_) => Some(
-            "--resample cannot interpolate across it; pass --split-gaps instead to cut the file there",
+            "--resample cannot interpolate across it; add --split-gaps to cut the file there and resample each piece",
         ),
     };
     if let Some(hint) = hint {
@@ -881,10 +898,55 @@ fn parse(
         }
         Gaps::Resample(dt) => {
             let resampled = resample(path, &trace, dt)?;
-            notes.extend(widest_gap_filled(path, &trace, &lines, step, dt));
+            notes.extend(widest_gap_filled(&trace, &lines, step, dt));
             vec![resampled]
         }
-        Gaps::Split => split(path, &opts.time, trace, &lines, &mut notes)?,
+        Gaps::Split => {
+            let mut pieces = Vec::new();
+            for (number, rows) in cut(path, &trace, &lines, Cuts::GapsAndJumps, &mut notes)? {
+                // Suggesting --split-gaps here would send the user round in a circle.
+                let hint = "--split-gaps cuts only where a step is over 1.5 median steps or time runs back or stands still; add --resample DT to interpolate each piece onto a uniform step";
+                check_uniform(
+                    path,
+                    &opts.time,
+                    &trace.t[rows.clone()],
+                    &lines[rows.clone()],
+                    step,
+                    hint,
+                )?;
+                pieces.push(piece(&trace, number, rows));
+            }
+            pieces
+        }
+        Gaps::SplitResample(dt) => {
+            let mut pieces = Vec::new();
+            for (number, rows) in cut(path, &trace, &lines, Cuts::Jumps, &mut notes)? {
+                let read = piece(&trace, number, rows.clone());
+                // Checked before resampling, which refuses a span under a step.
+                let samples = grid_len(read.t[read.len() - 1] - read.t[0], dt);
+                if samples < MIN_SEGMENT {
+                    notes.push(format!(
+                        "{}: lines {} to {}: --split-gaps dropped piece [{number}]: {samples} \
+                         samples at --resample {dt}, fewer than {MIN_SEGMENT}",
+                        path.display(),
+                        lines[rows.start],
+                        lines[rows.end - 1],
+                    ));
+                    continue;
+                }
+                pieces.push(resample(path, &read, dt)?);
+                notes.extend(widest_gap_filled(&read, &lines[rows], step, dt));
+            }
+            if pieces.is_empty() {
+                return Err(DataError::Unusable {
+                    path: p(),
+                    message: format!(
+                        "--split-gaps: every piece is shorter than {MIN_SEGMENT} samples at --resample {dt}"
+                    ),
+                });
+            }
+            pieces
+        }
     };
     Ok((traces, notes))
 }
@@ -892,14 +954,8 @@ fn parse(
 /// The note `--resample` owes where it interpolated across a gap (a step
 /// over 1.5 median steps, as `--split-gaps` cuts): the widest, with its
 /// line, how many of the new samples fall inside it and their share.
-/// `None` where the file had no gap.
-fn widest_gap_filled(
-    path: &Path,
-    trace: &Trace,
-    lines: &[u64],
-    median: f64,
-    dt: f64,
-) -> Option<String> {
+/// `None` where the trace (a file, or a piece of one) had no gap.
+fn widest_gap_filled(trace: &Trace, lines: &[u64], median: f64, dt: f64) -> Option<String> {
     let steps = trace.t.windows(2).map(|w| w[1] - w[0]);
     let gaps = steps.clone().filter(|&s| s > 1.5 * median).count();
     let (k, widest) = steps
@@ -917,7 +973,7 @@ fn widest_gap_filled(
         "{}: line {}: --resample {dt} interpolated across a gap of {} s (from {} s to {} s){others}: \
          {made_up} of the record's {total} samples are made up there ({:.0} %); use it where \
          such gaps are short against the muscle's time constant",
-        path.display(),
+        trace.source,
         lines[k + 1],
         rounded(widest),
         trace.t[k],
@@ -1009,6 +1065,13 @@ fn check_uniform(
     Ok(())
 }
 
+/// How many points of a grid `dt` apart fit in `span` seconds, both ends
+/// counted; the small slack keeps the last when `span / dt` is an integer
+/// up to rounding.
+fn grid_len(span: f64, dt: f64) -> usize {
+    (span / dt + 1e-9).floor() as usize + 1
+}
+
 /// Linear interpolation of every column onto `t0 + k·dt`.
 fn resample(path: &Path, trace: &Trace, dt: f64) -> Result<Trace, DataError> {
     let unusable = |message: String| DataError::Unusable {
@@ -1022,10 +1085,8 @@ fn resample(path: &Path, trace: &Trace, dt: f64) -> Result<Trace, DataError> {
     }
     let t0 = trace.t[0];
     let span = trace.t[trace.len() - 1] - t0;
-    // The small slack keeps the last sample when span/dt is an integer up
-    // to rounding.
     samples_in(span, dt).map_err(|why| unusable(format!("--resample {dt}: {why}")))?;
-    let n = (span / dt + 1e-9).floor() as usize + 1;
+    let n = grid_len(span, dt);
     if n < 2 {
         return Err(unusable(format!(
             "--resample {dt}: the file spans only {span} s, less than one step"
@@ -1085,19 +1146,31 @@ impl fmt::Display for Jump {
     }
 }
 
-/// Cuts the trace at every gap (a step over [`GAP_FACTOR`] median steps) and
-/// at every step where time runs back or stands still, so that each piece
-/// has an increasing time base of its own. Pieces are never merged or
-/// reordered: after a jump back they may overlap earlier times, and each
-/// stays a separate experiment. Every cut and every dropped piece is a note
-/// naming its line, so the user can find it in the file.
-fn split(
+/// Where a file is cut into pieces.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Cuts {
+    /// At every gap (a step over [`GAP_FACTOR`] median steps) and every
+    /// jump of the clock ([`Gaps::Split`]).
+    GapsAndJumps,
+    /// Only where time runs back or stands still ([`Gaps::SplitResample`]:
+    /// the resampling fills the gaps).
+    Jumps,
+}
+
+/// The pieces of `trace` between its cuts, each its number (from 1,
+/// counting the dropped ones) and its rows, so that each has an increasing
+/// time base of its own. Pieces are never merged or reordered: after a
+/// jump back they may overlap earlier times, and each stays a separate
+/// experiment. Every cut and every piece dropped as shorter than
+/// [`MIN_SEGMENT`] samples is a note naming its line, so the user can find
+/// it in the file; an error where every piece is.
+fn cut(
     path: &Path,
-    column: &str,
-    trace: Trace,
+    trace: &Trace,
     lines: &[u64],
+    cuts: Cuts,
     notes: &mut Vec<String>,
-) -> Result<Vec<Trace>, DataError> {
+) -> Result<Vec<(usize, Range<usize>)>, DataError> {
     let dt = median_step(&trace.t);
     let mut bounds = vec![0];
     let mut jumps = Vec::new();
@@ -1107,7 +1180,7 @@ fn split(
             Jump::Back(-step)
         } else if step == 0.0 {
             Jump::Stall
-        } else if step > GAP_FACTOR * dt {
+        } else if cuts == Cuts::GapsAndJumps && step > GAP_FACTOR * dt {
             Jump::Gap(step)
         } else {
             continue;
@@ -1117,7 +1190,7 @@ fn split(
     }
     bounds.push(trace.len());
     let segments = bounds.len() - 1;
-    let mut out = Vec::new();
+    let mut kept = Vec::new();
     for (s, w) in bounds.windows(2).enumerate() {
         let (a, b) = (w[0], w[1]);
         if s > 0 {
@@ -1146,17 +1219,9 @@ fn split(
             ));
             continue;
         }
-        // Suggesting --split-gaps here would send the user round in a circle.
-        let hint = "--split-gaps cuts only where a step is over 1.5 median steps or time runs back or stands still; pass --resample DT instead to interpolate onto a uniform step";
-        check_uniform(path, column, &trace.t[a..b], &lines[a..b], dt, hint)?;
-        let mut seg = trace.slice(a..b);
-        if segments > 1 {
-            seg.source = format!("{}[{}]", trace.source, s + 1);
-            seg.cut_from = Some(trace.source.clone());
-        }
-        out.push(seg);
+        kept.push((s + 1, a..b));
     }
-    if out.is_empty() {
+    if kept.is_empty() {
         return Err(DataError::Unusable {
             path: path.to_path_buf(),
             message: format!(
@@ -1164,7 +1229,19 @@ fn split(
             ),
         });
     }
-    Ok(out)
+    Ok(kept)
+}
+
+/// Rows `rows` of `trace` as piece `number`: named `FILE[number]` and
+/// knowing the file it was cut from, unless it is the whole file.
+fn piece(trace: &Trace, number: usize, rows: Range<usize>) -> Trace {
+    let whole = rows.len() == trace.len();
+    let mut piece = trace.slice(rows);
+    if !whole {
+        piece.source = format!("{}[{number}]", trace.source);
+        piece.cut_from = Some(trace.source.clone());
+    }
+    piece
 }
 
 /// Writes `trace` as CSV: header `t,<input_name>,<output_name>,<extra...>`,
@@ -1792,7 +1869,7 @@ mod tests {
         let msg = read(&bad, Gaps::Split).unwrap_err().to_string();
         assert!(
             msg.starts_with("x.csv: line 31, column \"t\": non-uniform time base: step 1.3")
-                && msg.ends_with("--split-gaps cuts only where a step is over 1.5 median steps or time runs back or stands still; pass --resample DT instead to interpolate onto a uniform step"),
+                && msg.ends_with("--split-gaps cuts only where a step is over 1.5 median steps or time runs back or stands still; add --resample DT to interpolate each piece onto a uniform step"),
             "{msg}"
         );
         // Nothing long enough: an error.
@@ -1860,8 +1937,79 @@ mod tests {
             "{msg}"
         );
         assert!(
-            msg.contains("--resample cannot interpolate across it; pass --split-gaps instead"),
+            msg.contains(
+                "--resample cannot interpolate across it; add --split-gaps to cut the file there \
+                 and resample each piece"
+            ),
             "{msg}"
+        );
+    }
+
+    /// Both flags: the file is cut only where its clock runs back, each
+    /// piece interpolated onto its own grid across its gaps, a row that is
+    /// not a number dropped and interpolated over; a piece too short at the
+    /// step is dropped with a note, and a file with none left is an error.
+    #[test]
+    fn split_and_resample_cut_only_where_the_clock_jumps() {
+        // Rows 40 to 44 missing (a gap of 0.06 s; row k is on line k − 2
+        // after them) and row 120 a NaN.
+        let text: String = runs_back_text(150, 100)
+            .lines()
+            .enumerate()
+            .filter(|&(line, _)| !(42..47).contains(&line))
+            .map(|(line, row)| match line {
+                122 => "10.17,NaN,0\n".to_string(),
+                _ => format!("{row}\n"),
+            })
+            .collect();
+        let (traces, notes) = read(&text, Gaps::SplitResample(0.01)).unwrap();
+        let lengths: Vec<usize> = traces.iter().map(Trace::len).collect();
+        assert_eq!(lengths, [100, 50], "{notes:?}");
+        assert_eq!(
+            (traces[0].source.as_str(), traces[1].source.as_str()),
+            ("x.csv[1]", "x.csv[2]")
+        );
+        assert_eq!((traces[0].t[0], traces[1].t[0]), (10.0, 9.97));
+        // The input rises by 1e-3 a row, so the straight line across a
+        // gap is the rise itself.
+        for (tr, first) in traces.iter().zip([0, 100]) {
+            assert!((tr.dt() - 0.01).abs() < 1e-9, "{}", tr.source);
+            for (k, &u) in tr.input.iter().enumerate() {
+                let want = (first + k) as f64 * 1e-3;
+                assert!(
+                    (u - want).abs() < 1e-9,
+                    "{}[{k}]: {u} against {want}",
+                    tr.source
+                );
+            }
+        }
+        assert_eq!(notes.len(), 4, "{notes:?}");
+        assert_eq!(
+            notes[..2],
+            [
+                "x.csv: line 118: --split-gaps dropped the row: column \"pressure\" holds \"NaN\", not a finite number",
+                "x.csv: line 98: --split-gaps cut here: time runs back by 1.02 s (from 10.99 s on line 97 to 9.97 s); piece [2] starts here",
+            ]
+        );
+        assert!(
+            notes[2].starts_with("x.csv[1]: line 43: --resample 0.01 interpolated across a gap of 0.06 s (from 10.39 s to 10.45 s)")
+                && notes[3].starts_with("x.csv[2]: line 119: --resample 0.01 interpolated across a gap of 0.02 s"),
+            "{notes:?}"
+        );
+
+        // At 0.05 s the first piece keeps 20 samples, the second 10.
+        let (traces, notes) = read(&text, Gaps::SplitResample(0.05)).unwrap();
+        assert_eq!((traces.len(), traces[0].len()), (1, 20), "{notes:?}");
+        assert!(
+            notes.contains(&"x.csv: lines 98 to 147: --split-gaps dropped piece [2]: 10 samples at --resample 0.05, fewer than 20".to_string()),
+            "{notes:?}"
+        );
+        let msg = read(&text, Gaps::SplitResample(0.1))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            msg,
+            "x.csv: --split-gaps: every piece is shorter than 20 samples at --resample 0.1"
         );
     }
 

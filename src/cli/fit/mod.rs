@@ -105,7 +105,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             if unread.len() == 1 { "it" } else { "them" }
         );
         let family = args.model.map_or(Family::Classic, Family::from);
-        let [trace] = &records(args.data.load()?)?[..] else {
+        let [trace] = &records(args.data.load()?, args.data.columns.resample.is_some())?[..] else {
             anyhow::bail!(
                 "--effects auto runs the diagnosis' selection on one record: give one file \
                  (`mckibben diagnose` takes several)"
@@ -155,7 +155,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if let Some(why) = switching_boxed(args.switching, &request.bounds) {
         anyhow::bail!("--switch {why}: give one of them");
     }
-    let traces = records(args.data.load()?)?;
+    let traces = records(args.data.load()?, args.data.columns.resample.is_some())?;
     out_folder(&args, traces.len())?;
     if let Some(model) = &resolved.carried {
         for trace in &traces {
