@@ -208,6 +208,17 @@ impl Drop for ChildLink {
             }
             std::thread::sleep(Duration::from_millis(10));
         }
+        // The whole group: `sh -c` may run the rig as a child of its own,
+        // which killing the shell alone would leave running, holding the
+        // inherited stderr open for whoever reads it.
+        #[cfg(unix)]
+        if let Ok(group) = libc::pid_t::try_from(self.child.id()) {
+            // SAFETY: a plain system call; the group is the child's own
+            // (`process_group(0)` in `spawn`), not yet reaped.
+            unsafe {
+                libc::kill(-group, libc::SIGKILL);
+            }
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
@@ -401,5 +412,27 @@ mod tests {
                 Received::Line("S 1 0.25 30.0".into())
             );
         }
+    }
+
+    /// A rig the shell runs as a child of its own ends with the link: it
+    /// was left running, holding the controller's stderr open.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn dropping_a_child_link_ends_the_rig_its_shell_started() {
+        let mut link = ChildLink::spawn("sleep 30 & echo $!; wait").unwrap();
+        let Received::Line(pid) = link.recv(Some(Duration::from_secs(10))) else {
+            panic!("the shell did not say its child");
+        };
+        // Running: listed, and not a zombie waiting to be reaped.
+        let running = |pid: &str| {
+            std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|s| !s.contains(") Z"))
+        };
+        assert!(running(&pid), "{pid}");
+        drop(link);
+        let ended = (0..300).any(|_| {
+            std::thread::sleep(Duration::from_millis(10));
+            !running(&pid)
+        });
+        assert!(ended, "the rig {pid} outlived its link");
     }
 }

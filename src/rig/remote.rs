@@ -150,6 +150,13 @@ fn send(link: &mut dyn Link, msg: ToRig) -> Result<(), RigError> {
     })
 }
 
+/// A line the rig sent that the protocol refused, as an error quotes it:
+/// control characters and other bytes escaped (`\u{1b}`), so that a rig
+/// sending binary cannot drive the user's terminal through the message.
+fn shown(line: &str) -> String {
+    line.escape_debug().to_string()
+}
+
 /// `HELLO` / `READY`, waiting `timeout` for the answer: returns the rig's
 /// sample time and the ranges it announced, if it did.
 pub fn connect(link: &mut dyn Link, timeout: Duration) -> Result<(f64, Option<Ranges>), RigError> {
@@ -174,7 +181,7 @@ pub fn connect(link: &mut dyn Link, timeout: Duration) -> Result<(f64, Option<Ra
                 text,
             }),
             Ok(other) => Err(fail(link, format!("expected READY, got `{other}`"))),
-            Err(e) => Err(fail(link, format!("line 1 `{line}`: {e}"))),
+            Err(e) => Err(fail(link, format!("line 1 `{}`: {e}", shown(&line)))),
         },
         Received::Timeout => Err(fail(
             link,
@@ -555,7 +562,7 @@ impl Session {
             Err(e) => Err(RigError::Malformed {
                 link: link.describe(),
                 line_no,
-                line: line.to_string(),
+                line: shown(line),
                 why: e.0,
             }),
             Ok(FromRig::Error(text)) => Err(RigError::Refused {
