@@ -24,7 +24,9 @@ pub mod resample;
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, bail};
+use anyhow::Context;
+
+use crate::data::csv::{DataError, ReadOptions, read_traces};
 
 pub use boucwen::{FS, Params, UPSAMPLE};
 
@@ -55,73 +57,45 @@ pub struct Record {
 }
 
 /// Reads a benchmark CSV: `#` comment lines, a header with columns `u_N` and
-/// `y_m`, then numbers. Errors name the file, row and column.
+/// `y_m`, then numbers, one row per sample at [`FS`]. The project's own
+/// reader reads it (a byte-order mark, semicolons, a row with too many
+/// fields: as every command's data); errors name the file, line and column.
 pub fn read_record(path: &Path) -> anyhow::Result<Record> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim_start().starts_with('#') && !l.trim().is_empty());
-    let Some((hrow, header)) = lines.next() else {
-        bail!(
-            "{}: no header row (expected columns u_N,y_m)",
-            path.display()
-        );
+    let opts = ReadOptions {
+        dt: Some(1.0 / FS),
+        input: "u_N".into(),
+        output: "y_m".into(),
+        ..ReadOptions::default()
     };
-    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
-    let find = |name: &str| {
-        cols.iter().position(|c| *c == name).with_context(|| {
-            format!(
-                "{}: line {}: no column \"{name}\" in the header `{header}` (expected columns \
-                 u_N,y_m, separated by commas)",
-                path.display(),
-                hrow + 1
-            )
-        })
-    };
-    let (iu, iy) = (find("u_N")?, find("y_m")?);
-    let mut rec = Record {
-        u: Vec::new(),
-        y: Vec::new(),
-    };
-    for (row, line) in lines {
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        let get = |i: usize, name: &str| -> anyhow::Result<f64> {
-            let s = fields.get(i).with_context(|| {
-                format!(
-                    "{}: line {}: no field for column \"{name}\"",
-                    path.display(),
-                    row + 1
-                )
-            })?;
-            let v: f64 = s.parse().with_context(|| {
-                format!(
-                    "{}: line {}, column \"{name}\": \"{s}\" is not a number",
-                    path.display(),
-                    row + 1
-                )
-            })?;
-            anyhow::ensure!(
-                v.is_finite(),
-                "{}: line {}, column \"{name}\": \"{s}\" is not finite",
-                path.display(),
-                row + 1
-            );
-            Ok(v)
-        };
-        rec.u.push(get(iu, "u_N")?);
-        rec.y.push(get(iy, "y_m")?);
-    }
+    let mut traces = read_traces(path, &opts).map_err(|e| match e {
+        // The reader's own advice names flags `validate` does not have.
+        DataError::MissingColumn {
+            path,
+            line,
+            column,
+            available,
+            ..
+        } => anyhow::anyhow!(
+            "{}: line {line}: no column \"{column}\" (a benchmark record holds u_N, the force in \
+             N, and y_m, the displacement in m); the file has columns {}",
+            path.display(),
+            available.join(", ")
+        ),
+        other => other.into(),
+    })?;
+    let trace = traces.pop().context("no samples")?;
     anyhow::ensure!(
-        rec.u.len() >= resample::MIN_RECORD,
+        trace.len() >= resample::MIN_RECORD,
         "{}: {} data rows; a record needs at least {} (the decimation filter's reach; the \
          published records hold 8192 and more)",
         path.display(),
-        rec.u.len(),
+        trace.len(),
         resample::MIN_RECORD
     );
-    Ok(rec)
+    Ok(Record {
+        u: trace.input,
+        y: trace.output,
+    })
 }
 
 /// The three benchmark files.
@@ -235,6 +209,39 @@ mod tests {
         let err = read_record(&path).unwrap_err().to_string();
         assert!(
             err.contains("test_sinesweep.csv: 3 data rows; a record needs at least 16"),
+            "{err}"
+        );
+    }
+
+    /// A benchmark file is read as every command's data: a byte-order
+    /// mark and semicolons read as the plain file; a row with a field too
+    /// many, or a missing column, is an error naming the line.
+    #[test]
+    fn a_record_reads_as_every_command_s_data() {
+        let dir = tempfile::tempdir().unwrap();
+        let rows: String = (0..40).map(|k| format!("{k},{}e-4\n", k % 5)).collect();
+        let plain = dir.path().join("plain.csv");
+        std::fs::write(&plain, format!("# fs=750 Hz\nu_N,y_m\n{rows}")).unwrap();
+        let want = read_record(&plain).unwrap();
+        assert_eq!((want.u.len(), want.u[3], want.y[3]), (40, 3.0, 3e-4));
+        let bom = dir.path().join("bom.csv");
+        std::fs::write(&bom, format!("\u{feff}# fs=750 Hz\nu_N,y_m\n{rows}")).unwrap();
+        assert_eq!(read_record(&bom).unwrap(), want);
+        let semicolons = dir.path().join("semicolons.csv");
+        std::fs::write(&semicolons, format!("u_N;y_m\n{}", rows.replace(',', ";"))).unwrap();
+        assert_eq!(read_record(&semicolons).unwrap(), want);
+
+        let extra = dir.path().join("extra.csv");
+        let mut text = format!("u_N,y_m\n{rows}");
+        text = text.replacen("7,2e-4\n", "7,2e-4,1,2\n", 1);
+        std::fs::write(&extra, text).unwrap();
+        let err = read_record(&extra).unwrap_err().to_string();
+        assert!(err.contains("extra.csv: line 9"), "{err}");
+        let renamed = dir.path().join("renamed.csv");
+        std::fs::write(&renamed, format!("force,y_m\n{rows}")).unwrap();
+        let err = read_record(&renamed).unwrap_err().to_string();
+        assert!(
+            err.contains("renamed.csv: line 1: no column \"u_N\" (a benchmark record holds u_N"),
             "{err}"
         );
     }
