@@ -305,7 +305,11 @@ pub fn offset_note(trace: &Trace) -> Option<String> {
 /// And the output's deviations must stay well inside the bound past which
 /// a simulated state counts as diverged ([`DIVERGENCE_BOUND`]; a quarter of
 /// it: room for a candidate's overshoot), or even the truth would be.
-/// Without this check such data "diverges" for every candidate.
+/// Without this check such data "diverges" for every candidate. Nor may
+/// the output's deviations be so small that their squares fall under
+/// `f32`'s smallest normal number (10³ times its square root: room for
+/// errors far smaller than the swing), where every candidate would score
+/// an SSE of 0.
 pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
     let limit = (f32::MAX as f64).sqrt() * 1e-3 / (trace.len().max(1) as f64).sqrt();
     for (name, column) in [
@@ -335,6 +339,16 @@ pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
              to leave a model room; rescale the column (for example nm to mm)",
             trace.source,
             DIVERGENCE_BOUND
+        );
+        let floor = f64::from(f32::MIN_POSITIVE).sqrt() * 1e3;
+        // A constant output (reach 0) is refused where its dynamics are sought.
+        anyhow::ensure!(
+            name != &trace.output_name || reach == 0.0 || reach >= floor,
+            "the output `{name}` of {} spans [{lo:e}, {hi:e}]: deviations from the mean this \
+             small (under {floor:.1e}) have squared errors that vanish in the f32 arithmetic of \
+             the simulation, so every model would score an SSE of 0; rescale the column (for \
+             example m to µm)",
+            trace.source,
         );
     }
     Ok(())

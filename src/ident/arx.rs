@@ -88,6 +88,16 @@ pub enum IdentError {
         /// Lower orders to try, where there are any.
         hint: String,
     },
+    #[error(
+        "{data}: the column `{column}` reaches {reach:e} from its mean: its squares overflow \
+         double precision, and every figure would be infinite; rescale the column (for example \
+         Pa to MPa, or m to mm)"
+    )]
+    TooLarge {
+        data: String,
+        column: String,
+        reach: f64,
+    },
     #[error("no data to identify from")]
     NoData,
     /// Records one model cannot take together (other sample times,
@@ -344,6 +354,25 @@ pub fn identify_jointly(traces: &[Trace], orders: ArxOrders) -> Result<Identific
             )
         })
         .collect();
+    // The sums of squares over every sample must stay finite.
+    let samples: usize = traces.iter().map(Trace::len).sum();
+    let limit = f64::MAX.sqrt() / (samples as f64).sqrt() * 1e-3;
+    for (trace, (u, y)) in traces.iter().zip(&deviations) {
+        for (column, values) in [(&trace.input_name, u), (&trace.output_name, y)] {
+            // A NaN deviation (about a mean whose sum overflowed) is past it too.
+            let reach = match values.iter().any(|v| v.is_nan()) {
+                true => f64::INFINITY,
+                false => values.iter().fold(0.0f64, |m, v| m.max(v.abs())),
+            };
+            if reach > limit {
+                return Err(IdentError::TooLarge {
+                    data: trace.source.clone(),
+                    column: column.clone(),
+                    reach,
+                });
+            }
+        }
+    }
     let stretches: Vec<(&[f64], &[f64])> = deviations
         .iter()
         .map(|(u, y)| {
@@ -479,6 +508,23 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("hold the same values"), "{err}");
+    }
+
+    /// Values whose squares overflow a double are named by column, not
+    /// reported as a fit of NaN % with an infinite RMSE.
+    #[test]
+    fn values_past_double_precision_name_the_column() {
+        let input: Vec<f64> = (0..400).map(|k| (k as f64 * 0.05).sin()).collect();
+        let output: Vec<f64> = (0..400).map(|k| 1e160 * (k as f64 * 0.07).cos()).collect();
+        let huge = Trace::uniform("huge.csv", 0.01, input, output);
+        let err = identify(&huge, ArxOrders::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with("huge.csv: the column `displacement` reaches 1")
+                && err.contains("e160 from its mean: its squares overflow"),
+            "{err}"
+        );
     }
 
     /// A record too short for its orders says so before anything else (a
