@@ -3,6 +3,7 @@
 
 mod cli;
 
+use std::io::Write;
 use std::process::ExitCode;
 
 use clap::Parser;
@@ -16,15 +17,18 @@ fn main() -> ExitCode {
         Err(err) => {
             let interrupted = cli::interrupted(&err);
             let mut said = err.to_string();
-            match interrupted {
-                true => eprintln!("mckibben: {said}"),
-                false => eprintln!("mckibben: error: {said}"),
-            }
+            // Where standard error cannot be written there is nowhere to
+            // say it; the status still does.
+            let mut stderr = std::io::stderr().lock();
+            let _ = match interrupted {
+                true => writeln!(stderr, "mckibben: {said}"),
+                false => writeln!(stderr, "mckibben: error: {said}"),
+            };
             for cause in err.chain().skip(1).map(|c| c.to_string()) {
                 // An error that quotes its cause ("file: No such file") has
                 // already said it.
                 if !said.contains(&cause) {
-                    eprintln!("  caused by: {cause}");
+                    let _ = writeln!(stderr, "  caused by: {cause}");
                 }
                 said = cause;
             }

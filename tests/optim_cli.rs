@@ -498,6 +498,30 @@ fn bad_flags_and_bad_data_are_clear_errors() {
             && err.contains("counts a state beyond ±1e6 as diverged"),
         "{err}"
     );
+
+    // A stroke a trillion trillion times smaller: squared errors under
+    // f32's smallest normal number, where every model scored an SSE of 0.
+    let tiny: Vec<String> = nm
+        .iter()
+        .enumerate()
+        .map(|(k, l)| match k {
+            0 => l.clone(),
+            _ => {
+                let mut cells: Vec<String> = l.split(',').map(String::from).collect();
+                cells[2] = format!("{}", cells[2].parse::<f64>().unwrap() * 1e-30);
+                cells.join(",")
+            }
+        })
+        .collect();
+    std::fs::write(dir.path().join("tiny.csv"), tiny.join("\n") + "\n").unwrap();
+    let out = mckibben(&short_fit("tiny.csv"), dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("the output `displacement` of tiny.csv spans")
+            && err.contains("every model would score an SSE of 0"),
+        "{err}"
+    );
 }
 
 /// A warm start keeps its model's family: another `--model`, or an ARX
@@ -1567,6 +1591,21 @@ fn fit_writes_its_named_files_and_none_over_its_data() {
         err.contains("--out two: the command writes model.json there, over two/model.json that it reads as --from"),
         "{err}"
     );
+    // A checkpoint inside the folder under a name the fit writes: the
+    // model replaced it, and a resume then found no checkpoint.
+    let out = mckibben(
+        &[
+            &short_fit(&csv)[..],
+            &["--out", "two", "--checkpoint", "two/model.json"],
+        ]
+        .concat(),
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--out two: the command writes model.json there, over two/model.json that it reads as --checkpoint"),
+        "{err}"
+    );
 }
 
 /// `fit --effects` under a budget the chain's build spends: the build stops
@@ -1654,4 +1693,48 @@ fn a_checkpoint_that_cannot_be_written_keeps_the_fit() {
                 .starts_with("cannot write checkpoint afile/ck.json")
     });
     assert!(warned, "{}", doc["notes"]);
+}
+
+/// Standard output that cannot be written (a full disk) is an error that
+/// names it, exit 1: `println!` panicked (exit 101). A file name that is
+/// not UTF-8 (from another system) is read and recorded with its odd bytes
+/// replaced: recording the command line panicked, after the whole fit.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_full_standard_output_and_a_name_that_is_not_utf8_are_no_panics() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    for args in [
+        vec!["identify", csv.as_str()],
+        [&short_fit(&csv)[..], &["--json", "--out", "full"]].concat(),
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
+            .args(&args)
+            .current_dir(dir.path())
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .stdout(std::fs::File::create("/dev/full").unwrap())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("mckibben: error: standard output: No space left on device"),
+            "{args:?}: {err}"
+        );
+    }
+
+    let odd = dir.path().join(std::ffi::OsStr::from_bytes(b"run\xff.csv"));
+    std::fs::copy(&csv, &odd).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
+        .args(["identify", "--out", "arx.json"])
+        .arg(&odd)
+        .current_dir(dir.path())
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let model = std::fs::read_to_string(dir.path().join("arx.json")).unwrap();
+    assert!(model.contains("run\u{fffd}.csv"), "{model}");
 }

@@ -117,7 +117,12 @@ fn static_refuses_what_the_force_model_does_not_hold_for() {
         (&["--thickness-mm=-1"][..], "--thickness-mm"),
         (
             &["--thickness-mm", "100"][..],
-            "the wall must be thinner than the muscle's widest radius",
+            "is no wider than its wall (--thickness-mm 100): the wall must be thinner",
+        ),
+        // A braid of 1e300 turns, behind a default wall: the braid named first.
+        (
+            &["--turns", "1e300"][..],
+            "--thread-length 0.35 and --turns 1e300 give a muscle whose widest radius",
         ),
         (
             &["--points", "100000000"][..],

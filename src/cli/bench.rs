@@ -376,10 +376,15 @@ fn workload(args: &Args) -> anyhow::Result<Workload> {
 
 /// The plain-text lines before the table: the backend, the workload and
 /// the device's ceiling.
-fn print_header(args: &Args, workload: &Workload, describe: &str, ceiling: Option<&Ceiling>) {
+fn print_header(
+    args: &Args,
+    workload: &Workload,
+    describe: &str,
+    ceiling: Option<&Ceiling>,
+) -> anyhow::Result<()> {
     let problem = &workload.problem;
-    println!("backend: {describe}");
-    println!(
+    outln!("backend: {describe}")?;
+    outln!(
         "{} model, {} samples in {} experiment(s){}",
         workload.label,
         problem.samples(),
@@ -389,18 +394,18 @@ fn print_header(args: &Args, workload: &Workload, describe: &str, ceiling: Optio
             (_, true) => ", n free",
             (_, false) => ", n = 1",
         }
-    );
+    )?;
     if let Some(c) = ceiling {
         let rate = |v| c.ops_per_s(v).unwrap_or(f64::NAN);
-        println!(
+        outln!(
             "device ceiling (calibration kernel, device clock): {:.3e} f32 ops/s in {} independent mul-add chains; {:.3e} in one dependent chain; {:.3e} with pow",
             rate(Variant::Independent),
             calibration::CHAINS,
             rate(Variant::Dependent),
             rate(Variant::Pow)
-        );
+        )?;
     }
-    println!(
+    outln!(
         "{:>10}  {:>12}  {:>11}  {:>10}  {}",
         "population",
         "cand-samp/s",
@@ -413,13 +418,13 @@ fn print_header(args: &Args, workload: &Workload, describe: &str, ceiling: Optio
             // (the lanes' bits against `model::sse` are the tests').
             "agreement with the CPU path (the path itself here: a check for a GPU backend)"
         }
-    );
+    )
 }
 
 /// One row of the plain-text table.
-fn print_row(row: &Row) {
+fn print_row(row: &Row) -> anyhow::Result<()> {
     let (a, timing) = (&row.agreement, &row.timing);
-    println!(
+    outln!(
         "{:>10}  {:>12.3e}  {:>11.3e}  {:>10.3e}  {}, top-10 {}, top-100 {} ({} of 100 shared), max rel diff {:.2e}, {} finiteness mismatches{}",
         row.population,
         timing.candidate_samples_per_s,
@@ -456,7 +461,7 @@ fn print_row(row: &Row) {
             ),
             _ => String::new(),
         }
-    );
+    )
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -477,7 +482,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // would be noise presented as a figure.
     let time_reference = args.time_reference && backend == "gpu";
     if args.time_reference && !time_reference {
-        eprintln!(
+        errln!(
             "mckibben: note: --time-reference times the CPU path against a GPU's; the backend \
              here is the CPU, so there is no speed-up to measure"
         );
@@ -490,9 +495,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         !args.free_n || args.model.exponent_index().is_none(),
     );
     if args.markdown {
-        println!("{MARKDOWN_HEADER}");
+        outln!("{MARKDOWN_HEADER}")?;
     } else if !args.json {
-        print_header(&args, &workload, &evaluator.describe(), ceiling.as_ref());
+        print_header(&args, &workload, &evaluator.describe(), ceiling.as_ref())?;
     }
     let space = search_space(args.model, &problem.experiments[0], args.free_n);
     let mut reference = CpuEvaluator::new();
@@ -535,9 +540,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .map(|(rate, c)| rate / c.ceiling_ops_per_s()),
         };
         if args.markdown {
-            println!("{}", markdown_rows(&row));
+            outln!("{}", markdown_rows(&row))?;
         } else if !args.json {
-            print_row(&row);
+            print_row(&row)?;
         }
         rows.push(row);
     }
@@ -546,9 +551,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             calibration: ceiling.as_ref().map(CalibrationJson::from),
             rows: &rows,
         };
-        println!("{}", Versioned::new(output).to_string_pretty()?);
+        outln!("{}", Versioned::new(output).to_string_pretty()?)?;
     } else if let (true, Some(c)) = (args.markdown, &ceiling) {
-        println!("\n{CALIBRATION_HEADER}\n{}", calibration_rows(label, c));
+        outln!("\n{CALIBRATION_HEADER}\n{}", calibration_rows(label, c))?;
     }
     Ok(())
 }

@@ -315,7 +315,7 @@ pub fn one_trace(mut traces: Vec<Trace>, resampled: bool) -> anyhow::Result<Trac
         let total: usize = traces.iter().map(Trace::len).sum();
         let longest = &traces[0];
         let share = 100.0 * longest.len() as f64 / total as f64;
-        eprintln!(
+        errln!(
             "mckibben: note: {} pieces after --split-gaps; fitting the longest, {} ({} of their \
              {total} samples, {share:.0} %)",
             traces.len(),
@@ -330,7 +330,7 @@ pub fn one_trace(mut traces: Vec<Trace>, resampled: bool) -> anyhow::Result<Trac
                  each stretch between jumps of the clock as one record, interpolating across \
                  its gaps (where they are short against the muscle's time constant)"
             };
-            eprintln!(
+            errln!(
                 "mckibben: warning: the fit reads {share:.0} % of the recording{instead}; \
                  `diagnose` fits every piece"
             );
@@ -509,7 +509,7 @@ impl ColumnArgs {
         for path in paths {
             let (mut read, notes) = read_traces_with_notes(path, &opts)?;
             for note in notes {
-                eprintln!("mckibben: note: {note}");
+                errln!("mckibben: note: {note}");
             }
             traces.append(&mut read);
         }

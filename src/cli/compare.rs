@@ -114,8 +114,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_context(|| format!("cannot create --out {}", args.out.display()))?;
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
-    eprintln!("comparing on {} [{backend}]", trace.source);
-    let progress = |s: String| eprintln!("{s}");
+    errln!("comparing on {} [{backend}]", trace.source);
+    let progress = |s: String| errln!("{s}");
     let mut study = Study::new(&trace, &settings, evaluator.as_mut())?;
     let table21 = study.table21(&progress)?;
     let budget = study.budget(&progress)?;
@@ -139,9 +139,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .and_then(|()| write_atomic(&args.out.join("compare.md"), md.as_bytes()))
         .with_context(|| format!("cannot write into {}", args.out.display()));
     if args.json {
-        println!("{json}");
+        outln!("{json}")?;
     } else {
-        print!("{md}");
+        out!("{md}")?;
     }
     written
 }
@@ -154,7 +154,7 @@ fn cross_trace(args: &Args) -> anyhow::Result<Option<Trace>> {
             let default = super::common::default_data()?;
             let sibling = default.with_file_name("stair_7kg.csv");
             if !sibling.is_file() {
-                eprintln!(
+                errln!(
                     "mckibben: note: no {} for the cross-load check",
                     sibling.display()
                 );
@@ -163,7 +163,7 @@ fn cross_trace(args: &Args) -> anyhow::Result<Option<Trace>> {
             sibling
         }
         (None, Some(_)) => {
-            eprintln!(
+            errln!(
                 "mckibben: note: no cross-load check: name the other load's record with --cross FILE"
             );
             return Ok(None);

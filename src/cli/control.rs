@@ -242,19 +242,17 @@ fn check_on_twin(args: &Args, config: &TwinConfig, kinds: &[Kind]) -> anyhow::Re
         let tuning = tuning::TuningEpisodes::default().loads_kg;
         hung.extend(tuning.into_iter().map(|m| ("the PI tuning's load", m)));
     }
-    // The creep softens the rubber: a load it cannot carry is as much the
-    // creep's doing as the load's, and the error names both flags.
-    let creep = config
-        .effects
-        .creep
-        .active()
-        .filter(|&scale| scale > 0.0)
-        .map_or(String::new(), |scale| {
-            format!(" with --effect creep={scale}")
-        });
+    // An effect can make a load the rig cannot carry (the creep softens
+    // the rubber) or take the rig outside its physics (a friction a
+    // million times the twin's): the error names the effects beside the
+    // load, as much their doing as the load's.
+    let effects = match args.effects.as_slice() {
+        [] => String::new(),
+        given => format!(" with --effect {}", given.join(" --effect ")),
+    };
     for (what, load) in hung {
         Rig::check_holds(config, load, args.seed)
-            .map_err(|e| anyhow::anyhow!("{what}{creep}: {e}"))?;
+            .map_err(|e| anyhow::anyhow!("{what}{effects}: {e}"))?;
     }
     // A rig's sample time is checked once its handshake gives it.
     Episode::short(1.0, args.warmup, args.duration, args.steady_from)
@@ -457,7 +455,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ),
     ] {
         if given && !used {
-            eprintln!(
+            errln!(
                 "mckibben: warning: {flag} is not read: none of the controllers asked for ({}) \
                  uses it; add {by} to --controller for one that does",
                 asked()
@@ -479,12 +477,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     asked()
                 ),
             };
-            eprintln!("mckibben: warning: {flag} is not read: it sets the gain tuning, and {why}");
+            errln!("mckibben: warning: {flag} is not read: it sets the gain tuning, and {why}");
         }
     }
     // On a rig the twin runs only the design and the tuning.
     if !matches!(plant, PlantSpec::Twin) && !designs && !tunes && !args.effects.is_empty() {
-        eprintln!(
+        errln!(
             "mckibben: warning: --effect is not read: it sets the twin, which here runs \
              neither a design (ff-pid, mpc) nor a tuning (pi-tuned, ff-pid), the runs being \
              on the rig"
@@ -514,7 +512,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let say = |s: String| {
         if !args.json {
-            eprintln!("{s}");
+            errln!("{s}");
         }
     };
     let design = if designs {
@@ -525,7 +523,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             seed: args.seed,
             horizon: args.horizon,
         };
-        let d = sweep::design_for(&request, &config, &|s| eprintln!("mckibben: note: {s}"))?;
+        let d = sweep::design_for(&request, &config, &|s| errln!("mckibben: note: {s}"))?;
         // A rig's sample time is checked once its handshake gives it.
         let dt = d.model.displacement.dt;
         if matches!(plant, PlantSpec::Twin) && !same_step(dt, config.sample_time_s) {
@@ -632,7 +630,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Vec::new()
     };
     for r in rows.iter().filter(|r| r.solver_failures > 0) {
-        eprintln!(
+        errln!(
             "mckibben: warning: {} at {} rad/s{}: {} of the MPC's QP solves failed, and the \
              valve held its last command at each; its row measures that, not the MPC",
             sweep::scaled_label(&r.controller, r.hysteresis_scale),
@@ -650,9 +648,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             runs: &rows,
             robustness: &robust,
         };
-        println!("{}", Versioned::new(out).to_string_pretty()?);
+        outln!("{}", Versioned::new(out).to_string_pretty()?)?;
     } else {
-        print!("{}", table::text(&rows, &robust));
+        out!("{}", table::text(&rows, &robust))?;
     }
     if let Some(dir) = &args.plot {
         figures::save(dir, &runs, shape.waveform, design.as_ref())?;

@@ -268,13 +268,13 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     let traces = args.data.load()?;
     if let Some(note) = mckibben::diagnose::assumed_unit_note(&traces) {
-        eprintln!("mckibben: note: {note}");
+        errln!("mckibben: note: {note}");
     }
     if let Some(kind) = args.self_test {
         let trace = traces.first().context("no data")?;
         let mut progress = |line: &str| {
             if !args.json {
-                eprintln!("{line}");
+                errln!("{line}");
             }
         };
         match kind {
@@ -308,7 +308,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if !args.json {
         let started = std::time::Instant::now();
         settings.progress = Progress::to(move |stage| {
-            eprintln!("[{:>4.0} s] {stage} ...", started.elapsed().as_secs_f64());
+            errln!("[{:>4.0} s] {stage} ...", started.elapsed().as_secs_f64());
         });
     }
     // Read and checked before the diagnosis, so that a bad file or folder
@@ -374,7 +374,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     if !others.is_empty() {
         if !args.json {
-            eprintln!(
+            errln!(
                 "fitting the baseline and the chain on {} other record(s) (--transfer) ...",
                 others.len()
             );
@@ -391,7 +391,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         repeats,
         &mut |seed| {
             if !args.json {
-                eprintln!("diagnosing again from seed {seed} (--repeat {repeats}) ...");
+                errln!("diagnosing again from seed {seed} (--repeat {repeats}) ...");
             }
         },
     )?;
@@ -416,14 +416,14 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         None => Vec::new(),
     };
     if args.json {
-        println!(
+        outln!(
             "{}",
             Versioned::new(DiagnosisJson::of(&d)).to_string_pretty()?
-        );
+        )?;
     } else {
-        print!("{}", to_text(&d));
+        out!("{}", to_text(&d))?;
         for f in figures {
-            println!("figure written to {}", f.display());
+            outln!("figure written to {}", f.display())?;
         }
     }
     Ok(())
@@ -432,9 +432,9 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
 /// A self-test's report: its `--json` document, else its text.
 fn show(json: bool, document: impl serde::Serialize, text: String) -> anyhow::Result<()> {
     if json {
-        println!("{}", Versioned::new(document).to_string_pretty()?);
+        outln!("{}", Versioned::new(document).to_string_pretty()?)?;
     } else {
-        print!("{text}");
+        out!("{text}")?;
     }
     Ok(())
 }

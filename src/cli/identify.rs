@@ -132,26 +132,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("cannot write --out {}", path.display()))?;
     }
     if args.json {
-        println!("{text}");
+        outln!("{text}")?;
         return Ok(());
     }
     for (id, _) in &outputs {
-        print_report(id);
+        print_report(id)?;
     }
     if let Some(path) = &args.out {
         match (outputs.len(), orders == ArxOrders::default()) {
-            (1, true) => println!("model written to {}", path.display()),
-            (_, true) => println!(
+            (1, true) => outln!("model written to {}", path.display())?,
+            (_, true) => outln!(
                 "reports of {} pieces written to {} (a model file holds one: `simulate --from` \
                  reads none of them)",
                 outputs.len(),
                 path.display()
-            ),
-            (_, false) => println!(
+            )?,
+            (_, false) => outln!(
                 "report written to {} (no model: only the first-order ARX, --na 1 --nb 1 --nk 1, \
                  is a model file `simulate --from` reads)",
                 path.display()
-            ),
+            )?,
         }
     }
     Ok(())
@@ -180,19 +180,21 @@ fn difference_equation(a: &[f64], b: &[f64], nk: usize) -> String {
     s
 }
 
-fn print_report(id: &Identification) {
+fn print_report(id: &Identification) -> anyhow::Result<()> {
     let o = id.arx.orders;
-    println!(
+    outln!(
         "ARX identification of {} ({} samples, dt = {} s)",
         id.source,
         id.samples,
         mckibben::data::tidy_step(id.dt)
-    );
-    println!(
+    )?;
+    outln!(
         "  orders        na = {}, nb = {}, nk = {}",
-        o.na, o.nb, o.nk
-    );
-    println!(
+        o.na,
+        o.nb,
+        o.nk
+    )?;
+    outln!(
         "  means removed input {}, output {} (estimation {})",
         significant(id.input_mean, 6),
         significant(id.output_mean, 6),
@@ -201,63 +203,64 @@ fn print_report(id: &Identification) {
         } else {
             "halves together"
         }
-    );
+    )?;
     for (i, a) in id.arx.a.iter().enumerate() {
-        println!("  a{}            {}", i + 1, significant(*a, 6));
+        outln!("  a{}            {}", i + 1, significant(*a, 6))?;
     }
     for (j, b) in id.arx.b.iter().enumerate() {
-        println!("  b{}            {}", j + 1, significant(*b, 6));
+        outln!("  b{}            {}", j + 1, significant(*b, 6))?;
     }
     if o == ArxOrders::default() {
-        println!(
+        outln!(
             "  model         l(k) = {}·l(k−1) + {}·p(k−1)   (eq. 12; thesis: 0.9618, 24.9366)",
             significant(id.arx.a[0], 4),
             significant(id.arx.b[0], 4)
-        );
+        )?;
     } else {
-        println!(
+        outln!(
             "  model         {}",
             difference_equation(&id.arx.a, &id.arx.b, o.nk)
-        );
+        )?;
         // MATLAB's arx writes A(q)·y = B(q)·u with A(q) = 1 + a1·q⁻¹ + …:
         // its a's are these with the opposite sign.
         let matlab: Vec<String> = id.arx.a.iter().map(|a| significant(-a, 4)).collect();
-        println!(
+        outln!(
             "                (MATLAB's arx: A(q) = 1 + a1·q⁻¹ + … with a = [{}], the opposite sign)",
             matlab.join(", ")
-        );
+        )?;
     }
-    println!(
+    outln!(
         "  fit, estimation half   {:.2} %",
         id.estimation_fit_percent
-    );
-    println!(
+    )?;
+    outln!(
         "  fit, validation half   {:.2} %   (RMSE {}; simulated from the half's own start, \
          as MATLAB's compare)",
         id.validation_fit_percent,
         significant(id.validation_rmse, 4)
-    );
-    println!(
+    )?;
+    outln!(
         "  run on from the start  {:.2} %   (the same half, simulated from the record's first \
          sample: how `fit` and `simulate` score)",
         id.continued_validation_fit_percent
-    );
+    )?;
     if !id.records.is_empty() {
-        println!(
+        outln!(
             "  the fits above pool the records, each about its own mean; each record's own \
              (estimation / validation / run on):"
-        );
+        )?;
         for r in &id.records {
-            println!(
+            outln!(
                 "    {:<28} {:>7.2} / {:>7.2} / {:>7.2} %   (validation RMSE {})",
                 r.data,
                 r.estimation_fit_percent,
                 r.validation_fit_percent,
                 r.continued_validation_fit_percent,
                 significant(r.validation_rmse, 4)
-            );
+            )?;
         }
     }
+    Ok(())
 }
 
 #[cfg(test)]

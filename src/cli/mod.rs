@@ -1,5 +1,9 @@
 //! Argument parsing and the dispatch to each command.
 
+// First: its macros are then in scope in every module below.
+#[macro_use]
+mod output;
+
 mod bench;
 mod common;
 mod compare;
@@ -84,7 +88,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Sweep(args) => sweep::run(args),
         Command::Validate(args) => validate::run(args),
         Command::Benchmark(args) => {
-            eprintln!(
+            errln!(
                 "mckibben: note: `mckibben benchmark` is deprecated and will be removed; \
                  it is now `mckibben validate` (same arguments)"
             );

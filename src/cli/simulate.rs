@@ -192,11 +192,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     if args.list {
         for p in model.base.family.params() {
-            println!("{:<8} {:<4} {}", p.name, p.symbol, p.meaning);
+            outln!("{:<8} {:<4} {}", p.name, p.symbol, p.meaning)?;
         }
         for e in model.effects() {
             for p in e.params(model.augmented().datasets) {
-                println!("{:<8} {}", format!("{e}.{}", p.name), p.meaning);
+                outln!("{:<8} {}", format!("{e}.{}", p.name), p.meaning)?;
             }
         }
         return Ok(());
@@ -208,7 +208,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         model.effects().iter().find(|e| !e.applicable(1)),
     ) && !args.json
     {
-        eprintln!(
+        errln!(
             "mckibben: note: --from {}: its `{e}` effect fitted a parameter for each record \
              after the first of the {} it was fitted on; a simulation runs the first record's \
              (which has none), so on another record it is off by that record's",
@@ -309,7 +309,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             plot.as_ref().map(|(p, f)| (p.as_path(), f)),
         )?;
     } else if let Some(path) = &args.plot {
-        figure(&trace, measured.as_deref(), &described).save(path)?;
+        figure(&trace, measured.as_deref(), &described)
+            .save(path)
+            .with_context(|| format!("writing --plot {}", path.display()))?;
     }
     let finite: Vec<f64> = trace
         .output
@@ -347,7 +349,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(Path::to_path_buf),
     };
     if args.json {
-        println!("{}", Versioned::new(&summary).to_string_pretty()?);
+        outln!("{}", Versioned::new(&summary).to_string_pretty()?)?;
         return Ok(());
     }
     print_summary(&args, &summary, &model, &described, overstep)
@@ -538,7 +540,7 @@ fn in_model_units(trace: &mut Trace, column: &str, say: bool) -> anyhow::Result<
     {
         trace.input = valve.to_vec();
         if say {
-            eprintln!(
+            errln!(
                 "mckibben: note: the {}'s valve command (V) drives the model's input `{column}`",
                 trace.source
             );
@@ -558,7 +560,7 @@ fn in_model_units(trace: &mut Trace, column: &str, say: bool) -> anyhow::Result<
             *v /= per_unit;
         }
         if say {
-            eprintln!(
+            errln!(
                 "mckibben: note: the {}'s pressures are converted from MPa to {unit}, the unit of \
                  the model's input `{column}`",
                 trace.source
@@ -681,7 +683,7 @@ fn input_trace(
                 read => (read?, true),
             };
             for note in notes {
-                eprintln!("mckibben: note: {note}");
+                errln!("mckibben: note: {note}");
             }
             anyhow::ensure!(
                 traces.len() == 1,

@@ -109,13 +109,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Eq. 9 takes the wall inside the braid's diameter: a wall as thick as
     // the widest muscle's radius leaves no bore to inflate.
     let widest_radius_mm = braid.diameter(std::f64::consts::FRAC_PI_2) / 2.0 * 1e3;
+    // Said from the braid's side: the wall is often the default, and the
+    // braid the flags just given.
+    use mckibben::data::readable;
     anyhow::ensure!(
         args.thickness_mm < widest_radius_mm,
-        "--thickness-mm {}: the wall must be thinner than the muscle's widest radius, \
-         b/(2πn) = {widest_radius_mm:.1} mm for --thread-length {} and --turns {}",
-        args.thickness_mm,
-        args.thread_length,
-        args.turns
+        "--thread-length {} and --turns {} give a muscle whose widest radius, b/(2πn) = {} mm, \
+         is no wider than its wall (--thickness-mm {}): the wall must be thinner, to leave a \
+         bore to inflate",
+        readable(args.thread_length),
+        readable(args.turns),
+        readable(widest_radius_mm),
+        readable(args.thickness_mm),
     );
     let (lo, hi) = (5f64.to_radians(), max_angle());
     let angles: Vec<f64> = (0..args.points)
@@ -160,32 +165,42 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("writing --plot {}", path.display()))?;
     }
     if args.json {
-        println!(
+        outln!(
             "{}",
             Versioned::new(Output {
                 braid: &braid,
                 rows: &rows
             })
             .to_string_pretty()?
-        );
+        )?;
         return Ok(());
     }
-    println!(
+    outln!(
         "Static force (eq. 7 ideal, eq. 9 with t_k = {:.2} mm); b = {} m, n = {}",
-        args.thickness_mm, braid.thread_length, braid.turns
-    );
-    println!(
+        args.thickness_mm,
+        braid.thread_length,
+        braid.turns
+    )?;
+    outln!(
         "{:>9} {:>9} {:>10} {:>12} {:>12}",
-        "p (MPa)", "ψ (°)", "L (mm)", "F eq.7 (N)", "F eq.9 (N)"
-    );
+        "p (MPa)",
+        "ψ (°)",
+        "L (mm)",
+        "F eq.7 (N)",
+        "F eq.9 (N)"
+    )?;
     for r in &rows {
-        println!(
+        outln!(
             "{:>9.3} {:>9.2} {:>10.1} {:>12.1} {:>12.1}",
-            r.pressure_mpa, r.angle_deg, r.length_mm, r.force_ideal_n, r.force_thick_n
-        );
+            r.pressure_mpa,
+            r.angle_deg,
+            r.length_mm,
+            r.force_ideal_n,
+            r.force_thick_n
+        )?;
     }
     if let Some(path) = &args.plot {
-        println!("figure written to {}", path.display());
+        outln!("figure written to {}", path.display())?;
     }
     Ok(())
 }

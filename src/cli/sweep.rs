@@ -148,7 +148,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let populations = try_populations(n);
         let ran: usize = populations.iter().sum();
         if ran != n {
-            eprintln!(
+            errln!(
                 "mckibben: note: --pop {n} runs {ran} candidates ({}), as `fit --pop {n}` does",
                 tries_text(&groups_of(&populations))
             );
@@ -159,13 +159,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
-    eprintln!("backend: {backend}");
+    errln!("backend: {backend}");
     let mut fits = Vec::new();
     for &n in &pops {
         for case in &picked {
             for &seed in &args.seeds {
                 let fit = fit_case(case, n, seed, evaluator.as_mut())?;
-                eprintln!("{fit}");
+                errln!("{fit}");
                 fits.push(fit);
             }
         }
@@ -178,7 +178,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             rows: &rows,
             fits: &fits,
         };
-        println!("{}", Versioned::new(output).to_string_pretty()?);
+        outln!("{}", Versioned::new(output).to_string_pretty()?)?;
         return Ok(());
     }
     let kind = if evaluator.adapter().is_some() {
@@ -189,8 +189,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // A table of other cases than the documented ones says so, wherever
     // it is pasted.
     if args.matrix != MATRIX_SEED {
-        println!("Cases of --matrix {} (#{} on):\n", args.matrix, args.matrix);
+        outln!("Cases of --matrix {} (#{} on):\n", args.matrix, args.matrix)?;
     }
-    println!("{}", markdown_table(&rows, args.markdown.then_some(kind)));
+    outln!("{}", markdown_table(&rows, args.markdown.then_some(kind)))?;
     Ok(())
 }

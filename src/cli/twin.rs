@@ -200,15 +200,17 @@ fn serve(args: ServeArgs) -> anyhow::Result<()> {
                 .next()
                 .ok_or_else(|| anyhow::anyhow!("--udp {addr}: no address"))?;
             let link = UdpLink::serve(a).with_context(|| format!("--udp {addr}: cannot bind"))?;
-            eprintln!("twin serve: listening on udp {}", link.local_addr()?);
+            errln!("twin serve: listening on udp {}", link.local_addr()?);
             Box::new(link)
         }
         None => Box::new(StdioLink::new()),
     };
     mckibben::rig::serve::serve(link.as_mut(), &settings, |r| {
-        eprintln!(
+        errln!(
             "twin serve: session ended after {} samples ({}); late commands: {}",
-            r.samples, r.end, r.late_commands
+            r.samples,
+            r.end,
+            r.late_commands
         )
     })
 }

@@ -130,22 +130,22 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
         simulation: "free-run simulation from the test input only (no measured output used)",
     };
     if args.json {
-        println!("{}", Versioned::new(&report).to_string_pretty()?);
+        outln!("{}", Versioned::new(&report).to_string_pretty()?)?;
         return Ok(());
     }
-    println!(
+    outln!(
         "Bouc-Wen benchmark (data: {}), identified in {seconds:.1} s ({} candidates scored by \
          the population search, then {} Levenberg–Marquardt iterations; {})",
         dir.display(),
         id.evaluations,
         id.lm_iterations,
         id.scorer
-    );
-    println!("parameters (β·γ and β·δ: β, γ, δ are not separately identifiable):");
+    )?;
+    outln!("parameters (β·γ and β·δ: β, γ, δ are not separately identifiable):")?;
     for (n, v) in PARAM_NAMES.iter().zip(id.params.to_vec()) {
-        println!("  {n:<11} {v:>14.6e}");
+        outln!("  {n:<11} {v:>14.6e}")?;
     }
-    println!(
+    outln!(
         "training RMSE (on the part the refinement reads; {}): {:.3e} m",
         if id.lm_iterations == 0 {
             "the search's best, unrefined"
@@ -153,16 +153,18 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
             "refined"
         },
         id.train_rmse
-    );
-    println!();
-    println!(
+    )?;
+    outln!()?;
+    outln!(
         "{:<34} {:>14} {:>14}",
-        "model", "multisine (m)", "sine sweep (m)"
-    );
-    println!("{:<34} {:>14.3e} {:>14.3e}", "mckibben (this run)", ms, sw);
+        "model",
+        "multisine (m)",
+        "sine sweep (m)"
+    )?;
+    outln!("{:<34} {:>14.3e} {:>14.3e}", "mckibben (this run)", ms, sw)?;
     for (name, v) in PUBLISHED {
-        println!("{name:<34} {v:>14.3e} {:>14}", "—");
+        outln!("{name:<34} {v:>14.3e} {:>14}", "—")?;
     }
-    println!("(simulation RMSE, PDF eq. 6; published values as quoted in the data README)");
+    outln!("(simulation RMSE, PDF eq. 6; published values as quoted in the data README)")?;
     Ok(())
 }

@@ -335,7 +335,11 @@ pub struct Provenance {
 impl Provenance {
     /// This process's command line, the files (hashed) and how they were read.
     pub fn here(files: &[String], seed: Option<u64>, read: ReadSettings) -> Provenance {
-        let command: Vec<String> = std::env::args().collect();
+        // `args()` panics on a name that is not UTF-8 (a file from another
+        // system); the record keeps it readable, its odd bytes replaced.
+        let command: Vec<String> = std::env::args_os()
+            .map(|a| a.to_string_lossy().into_owned())
+            .collect();
         Provenance {
             command: command.join(" "),
             tool_version: env!("CARGO_PKG_VERSION").into(),

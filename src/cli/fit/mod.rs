@@ -120,7 +120,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     let early = std::cell::RefCell::new(Vec::new());
     let note = |s: String| {
         if !args.json {
-            eprintln!("mckibben: note: {s}");
+            errln!("mckibben: note: {s}");
         }
         early.borrow_mut().push(Note::plain(s));
     };
@@ -187,7 +187,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         });
     }
     if !what.effects.is_empty() && start_model.is_none() && !args.json {
-        eprintln!(
+        errln!(
             "building the chain one effect at a time, as the diagnosis does: the fit's second start"
         );
     }
@@ -247,15 +247,15 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
         false => Ok(()),
     };
     if args.json {
-        println!("{}", Versioned::new(&report).to_string_pretty()?);
+        outln!("{}", Versioned::new(&report).to_string_pretty()?)?;
     } else {
         let free = fit.problem.space.free();
         let fixed: Vec<bool> = (0..fit.problem.space.dim())
             .map(|i| !free.contains(&i))
             .collect();
-        print!("{}", report.to_text(&fixed));
+        out!("{}", report.to_text(&fixed))?;
         for Note { level, text } in &after {
-            eprintln!("mckibben: {level}: {text}");
+            errln!("mckibben: {level}: {text}");
         }
     }
     written?;
@@ -322,7 +322,12 @@ fn out_folder(args: &Args, records: usize) -> anyhow::Result<()> {
         .iter()
         .map(|p| ("DATA", p.as_path()))
         .collect();
-    for (flag, path) in [("--from", &args.from), ("--carry", &args.carry)] {
+    // The checkpoint too: the fit would write its model over it.
+    for (flag, path) in [
+        ("--from", &args.from),
+        ("--carry", &args.carry),
+        ("--checkpoint", &args.checkpoint),
+    ] {
         if let Some(path) = path {
             reads.push((flag, path));
         }
@@ -359,7 +364,7 @@ fn announce(args: &Args, fit: &FitRun, traces: &[Trace], backend: &str) {
         1 => String::new(),
         _ => format!(" in {}", tries_text(&try_groups(&engine.plan))),
     };
-    eprintln!(
+    errln!(
         "fitting {model} with {algo} (N = {population}{tries}, G = {generations}, seed {}; stages {}{from}) on {} [{}]",
         engine.seed,
         stages.join(" → "),
@@ -373,10 +378,11 @@ fn announce(args: &Args, fit: &FitRun, traces: &[Trace], backend: &str) {
 /// backend); writes and reports its final model as a fit's.
 fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
     if !args.json {
-        eprintln!(
+        errln!(
             "fitting {family} with the effects the diagnosis selects from its catalogue \
              (seed {}) on {}",
-            args.seed, trace.source
+            args.seed,
+            trace.source
         );
     }
     let (model, mut report) = selected_fit(trace, family, args.seed, args.backend)?;
@@ -387,10 +393,10 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
         args.data.provenance(Some(args.seed))?,
     )?;
     if args.json {
-        println!("{}", Versioned::new(&report).to_string_pretty()?);
+        outln!("{}", Versioned::new(&report).to_string_pretty()?)?;
         return Ok(());
     }
-    println!(
+    outln!(
         "{family} fit of {} with the diagnosis' effects: {}",
         trace.source,
         if report.effects.is_empty() {
@@ -398,22 +404,22 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
         } else {
             report.effects.join(", ")
         }
-    );
+    )?;
     for (name, value) in &report.params.0 {
-        println!("  {name:<7} {value:>14.6}");
+        outln!("  {name:<7} {value:>14.6}")?;
     }
     let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
-    println!("  SSE (estimation)     {}", show(report.sse));
-    println!(
+    outln!("  SSE (estimation)     {}", show(report.sse))?;
+    outln!(
         "  validation fit       {} %   (RMSE {})",
         show(report.val_fit_percent),
         show(report.val_rmse)
-    );
-    println!(
+    )?;
+    outln!(
         "  {:.2} s; `mckibben diagnose` gives the selection's report; wrote model.json, \
          result.json and figures to {}",
         report.seconds,
         args.out.display()
-    );
+    )?;
     Ok(())
 }
