@@ -265,6 +265,8 @@ pub struct UdpLink {
     peer: Option<SocketAddr>,
     /// The rig's end: adopt the sender of a datagram as the peer.
     serving: bool,
+    /// Whether the peer has sent anything yet.
+    heard: bool,
 }
 
 impl UdpLink {
@@ -281,6 +283,7 @@ impl UdpLink {
             socket,
             peer: Some(peer),
             serving: false,
+            heard: false,
         })
     }
 
@@ -290,6 +293,7 @@ impl UdpLink {
             socket: UdpSocket::bind(addr)?,
             peer: None,
             serving: true,
+            heard: false,
         })
     }
 
@@ -322,6 +326,7 @@ impl Link for UdpLink {
                         Some(_) => {}
                         None => self.peer = Some(from),
                     }
+                    self.heard = true;
                     let mut text = &buf[..n];
                     while let Some((&last, rest)) = text.split_last() {
                         if last == b'\n' || last == b'\r' {
@@ -338,8 +343,16 @@ impl Link for UdpLink {
                 {
                     return Received::Timeout;
                 }
-                // A previous datagram was refused by the peer (ICMP): the
-                // rig is not there (yet); report it as silence.
+                // A datagram the peer refused (ICMP) before it ever spoke:
+                // nothing listens there, and waiting would only say so
+                // later and wrongly (as a timeout).
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused && !self.heard => {
+                    return Received::Closed(
+                        "its port refused the datagram: nothing listens there".into(),
+                    );
+                }
+                // Once the rig has answered, a refusal is a datagram lost
+                // while it restarts: silence, as the deadlines treat it.
                 Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {
                     return Received::Timeout;
                 }
@@ -411,6 +424,23 @@ mod tests {
                 wait(&rx, Some(Duration::from_secs(5))),
                 Received::Line("S 1 0.25 30.0".into())
             );
+        }
+    }
+
+    /// A controller whose rig address has nothing listening hears so at
+    /// once: it waited nothing and then reported "no READY within 10 s".
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_udp_rig_that_is_not_there_is_named_not_waited_for() {
+        let vacant = UdpSocket::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap();
+        let mut link = UdpLink::connect(vacant).unwrap();
+        link.send("HELLO 1").unwrap();
+        match link.recv(Some(Duration::from_secs(5))) {
+            Received::Closed(why) => assert!(why.contains("nothing listens there"), "{why}"),
+            other => panic!("{other:?}"),
         }
     }
 
