@@ -239,8 +239,8 @@ pub enum DataError {
         value: String,
     },
     #[error(
-        "{}: line {line}, column \"{column}\": time {value} does not increase (previous row: {previous}){}; {hint}",
-        path.display(), runs_back(*value, *previous)
+        "{}: line {line}, column \"{column}\": time {} does not increase (previous row: {}){}; {hint}",
+        path.display(), super::readable(*value), super::readable(*previous), runs_back(*value, *previous)
     )]
     NotIncreasing {
         path: PathBuf,
@@ -300,7 +300,10 @@ impl DataError {
 /// in a 1 kHz file reads more clearly than two nearby times.
 fn runs_back(value: f64, previous: f64) -> String {
     if value < previous {
-        format!(": it runs back by {} s", rounded(previous - value))
+        format!(
+            ": it runs back by {} s",
+            super::readable(rounded(previous - value))
+        )
     } else {
         String::new()
     }
