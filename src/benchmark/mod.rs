@@ -84,6 +84,9 @@ pub fn read_record(path: &Path) -> anyhow::Result<Record> {
         other => other.into(),
     })?;
     let trace = traces.pop().context("no samples")?;
+    // The identification runs in f32 too (the evaluators' twin and shader):
+    // values whose squared errors leave its range score nothing.
+    crate::fit::records::check_f32_range(&trace)?;
     anyhow::ensure!(
         trace.len() >= resample::MIN_RECORD,
         "{}: {} data rows; a record needs at least {} (the decimation filter's reach; the \
@@ -237,6 +240,13 @@ mod tests {
         std::fs::write(&extra, text).unwrap();
         let err = read_record(&extra).unwrap_err().to_string();
         assert!(err.contains("extra.csv: line 9"), "{err}");
+        let huge = dir.path().join("huge.csv");
+        std::fs::write(&huge, format!("u_N,y_m\n{}", rows.replace("e-4", "e300"))).unwrap();
+        let err = read_record(&huge).unwrap_err().to_string();
+        assert!(
+            err.contains("column `y_m` of") && err.contains("overflow the f32 arithmetic"),
+            "{err}"
+        );
         let renamed = dir.path().join("renamed.csv");
         std::fs::write(&renamed, format!("force,y_m\n{rows}")).unwrap();
         let err = read_record(&renamed).unwrap_err().to_string();
