@@ -311,6 +311,8 @@ fn undiagnosable_data_gives_clear_errors() {
     write_csv(&ok, 300, false, 0.0);
     let err = error_of(&["diagnose", "--output", "length"], &ok);
     assert!(err.contains("length"), "names the missing column: {err}");
+    let err = error_of(&["diagnose", "--generations", "0"], &ok);
+    assert!(err.contains("--generations must be at least 1"), "{err}");
 
     let err = error_of(&["diagnose", "--effects", "friction"], &ok);
     assert!(

@@ -218,6 +218,12 @@ fn parse_effect(s: &str) -> Result<Effect, UnknownName> {
 
 pub fn run(mut args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
+    // As fit's --gens: a search of no generation would score only the
+    // drawn population.
+    anyhow::ensure!(
+        args.generations >= 1,
+        "--generations must be at least 1 (got 0): the first generation is the drawn population"
+    );
     for (k, e) in args.effects.iter().enumerate() {
         anyhow::ensure!(
             !args.effects[..k].contains(e),

@@ -93,6 +93,11 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
     let dir = args.data.clone().unwrap_or_else(default_data_dir);
     let data = BenchmarkData::load(&dir)?;
     let min = Algorithm::De.min_population();
+    // As fit's --gens (0 ran as 1 here, silently).
+    anyhow::ensure!(
+        args.generations >= 1,
+        "--generations must be at least 1 (got 0): the first generation is the drawn population"
+    );
     anyhow::ensure!(
         args.population >= min,
         "--population must be at least {min}, the minimum of its differential evolution (got {})",
