@@ -86,7 +86,7 @@ pub fn read_record(path: &Path) -> anyhow::Result<Record> {
     let trace = traces.pop().context("no samples")?;
     // The identification runs in f32 too (the evaluators' twin and shader):
     // values whose squared errors leave its range score nothing.
-    crate::fit::records::check_f32_range(&trace)?;
+    crate::model::check_f32_range(&trace)?;
     anyhow::ensure!(
         trace.len() >= resample::MIN_RECORD,
         "{}: {} data rows; a record needs at least {} (the decimation filter's reach; the \

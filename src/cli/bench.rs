@@ -14,7 +14,7 @@ use mckibben::eval::workload::{
     augmented_population, mixed_population, search_space, stair_experiment,
 };
 use mckibben::eval::{Backend, Evaluator, Problem, open};
-use mckibben::fit::records::check_f32_range;
+use mckibben::model::check_f32_range;
 use mckibben::model::effects::{Context, Effect, ModelDescription};
 use mckibben::model::presets::THESIS_B;
 use mckibben::model::{Experiment, Family};

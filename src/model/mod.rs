@@ -22,5 +22,7 @@ pub use experiment::Experiment;
 pub use family::{Family, ParamInfo};
 pub use file::{Model, ModelFile};
 pub use fitted::FittedBaseline;
-pub use sim::{DIVERGENCE_BOUND, Simulation, measured_sse, residuals, simulate, sse};
+pub use sim::{
+    DIVERGENCE_BOUND, Simulation, check_f32_range, measured_sse, residuals, simulate, sse,
+};
 pub use user_bound::{UserBound, UserBoundError};

@@ -23,6 +23,7 @@
 //! numbers as sign terms that switch at `x = 0` with no level at all.
 
 use super::family::Family;
+use crate::data::Trace;
 use crate::search::Measure;
 
 /// A simulated state whose magnitude exceeds this bound (in the units of the
@@ -404,6 +405,62 @@ pub fn residuals(
 ) -> Option<Vec<f32>> {
     let mut r = Vec::with_capacity(u.len().saturating_sub(1));
     run_scored(family, theta, y_mean, u, y, measure, |_, e| r.push(e)).then_some(r)
+}
+
+/// Refuses a trace whose values would overflow the `f32` arithmetic of the
+/// simulation: the estimation SSE sums squared output deviations over every
+/// sample, so each column's deviation from its mean, times √(samples), must
+/// stay well inside `√f32::MAX` (10⁻³ of it: room for candidates far off).
+/// And the output's deviations must stay well inside the bound past which
+/// a simulated state counts as diverged ([`DIVERGENCE_BOUND`]; a quarter of
+/// it: room for a candidate's overshoot), or even the truth would be.
+/// Without this check such data "diverges" for every candidate. Nor may
+/// the output's deviations be so small that their squares fall under
+/// `f32`'s smallest normal number (10³ times its square root: room for
+/// errors far smaller than the swing), where every candidate would score
+/// an SSE of 0.
+pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
+    let limit = (f32::MAX as f64).sqrt() * 1e-3 / (trace.len().max(1) as f64).sqrt();
+    for (name, column) in [
+        (&trace.input_name, &trace.input),
+        (&trace.output_name, &trace.output),
+    ] {
+        let mean = column.iter().sum::<f64>() / column.len().max(1) as f64;
+        let (lo, hi) = column
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        let reach = (hi - mean).abs().max((lo - mean).abs());
+        anyhow::ensure!(
+            reach <= limit,
+            "column `{name}` of {} spans [{lo:e}, {hi:e}]: over {} samples its squared \
+             errors overflow the f32 arithmetic of the simulation (deviations from the mean \
+             must stay below {limit:.3e}); rescale the column (for example Pa to MPa, or m to mm)",
+            trace.source,
+            trace.len()
+        );
+        let states = f64::from(DIVERGENCE_BOUND) / 4.0;
+        anyhow::ensure!(
+            name != &trace.output_name || reach <= states,
+            "the output `{name}` of {} spans [{lo:e}, {hi:e}]: the simulation counts a state \
+             beyond ±{:e} as diverged, and deviations from the mean must stay below {states:e} \
+             to leave a model room; rescale the column (for example nm to mm)",
+            trace.source,
+            DIVERGENCE_BOUND
+        );
+        let floor = f64::from(f32::MIN_POSITIVE).sqrt() * 1e3;
+        // A constant output (reach 0) is refused where its dynamics are sought.
+        anyhow::ensure!(
+            name != &trace.output_name || reach == 0.0 || reach >= floor,
+            "the output `{name}` of {} spans [{lo:e}, {hi:e}]: deviations from the mean this \
+             small (under {floor:.1e}) have squared errors that vanish in the f32 arithmetic of \
+             the simulation, so every model would score an SSE of 0; rescale the column (for \
+             example m to µm)",
+            trace.source,
+        );
+    }
+    Ok(())
 }
 
 #[cfg(test)]
