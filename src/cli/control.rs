@@ -496,6 +496,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .with_context(|| format!("cannot create {flag} {}", dir.display()))?;
         }
     }
+    // Read before any run: a model that cannot steer the controllers
+    // fails at once, not after the twin's checks and the design.
+    let given = match &args.from {
+        Some(path) if designs => Some(sweep::given_model(path, &|s| {
+            errln!("mckibben: note: {s}")
+        })?),
+        _ => None,
+    };
     let mut config = TwinConfig::default();
     config.effects.apply_args(&args.effects)?;
     config.validate()?;
@@ -518,7 +526,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let design = if designs {
         let request = DesignRequest {
             record: args.design_data.clone(),
-            model: args.from.clone(),
+            model: given,
             load_kg: args.design_load,
             seed: args.seed,
             horizon: args.horizon,

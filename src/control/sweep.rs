@@ -2,7 +2,7 @@
 //! built, run over frequencies and loads on the in-process twin, and the
 //! robustness runs. The command line only parses and calls these.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context as _;
 use serde::{Deserialize, Serialize};
@@ -195,12 +195,80 @@ pub struct DesignRequest {
     /// of the twin's design multisine ([`design_from_record`]).
     pub record: Option<PathBuf>,
     /// A model file whose displacement model replaces the identified one
-    /// ([`with_displacement`]).
-    pub model: Option<PathBuf>,
+    /// ([`with_displacement`]), read and checked by [`given_model`].
+    pub model: Option<GivenModel>,
     /// The twin's load (kg) for the design multisine and the checks.
     pub load_kg: f64,
     pub seed: u64,
     pub horizon: usize,
+}
+
+/// A model file for [`DesignRequest::model`], read and checked before any
+/// run, so that a file that cannot steer the controllers fails at once,
+/// not after the seconds of the design: a model of the pressure in MPa and
+/// the displacement in mm (a column that states no unit is taken so, with
+/// a `note`), whose output rises with the pressure.
+pub fn given_model(path: &Path, note: &dyn Fn(String)) -> anyhow::Result<GivenModel> {
+    let m = ModelFile::load(path)
+        .and_then(|f| f.model())
+        .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
+    // The controllers drive pressures in MPa and displacements in mm (the
+    // twin's, and the rig protocol's): a model fitted in other units would
+    // be off by a factor, silently.
+    for (which, column, want) in [
+        ("input", &m.base.input_name, "MPa"),
+        ("output", &m.base.output_name, "mm"),
+    ] {
+        match unit_of(column) {
+            Some(unit) if unit != want => {
+                // A valve voltage is another signal, not another unit.
+                let fix = match (which, unit.as_str()) {
+                    ("input", "V" | "mV") => format!(
+                        "the controllers read a model of the pressure (their valve model is \
+                         their own): fit on the pressure column, in {want}"
+                    ),
+                    _ => format!("convert the column to {want} and refit"),
+                };
+                anyhow::bail!(
+                    "--from {}: the model's {which} is in {unit} (column `{column}`), the \
+                     controllers' in {want}: {fix}",
+                    path.display()
+                )
+            }
+            Some(_) => {}
+            None => note(format!(
+                "--from {}: the model's {which} column `{column}` states no unit; it is taken \
+                 in {want}, the controllers' (a model of another signal, such as a valve \
+                 voltage, predicts nonsense here)",
+                path.display()
+            )),
+        }
+    }
+    // The controllers push the displacement up with the pressure (the
+    // twin's and the thesis' contraction, positive): a model whose output
+    // falls as the pressure rises (an extension, or a contraction logged
+    // negative) steers every correction the wrong way, and the MPC holds
+    // the valve shut while the run diverges.
+    let b = m.base.params[m.base.family.linear_indices()[1]];
+    anyhow::ensure!(
+        b > 0.0,
+        "--from {}: the model's output falls as the pressure rises (its input gain b = {}): \
+         the controllers move a displacement that grows with the pressure (contraction, \
+         positive): flip the output column's sign and refit",
+        path.display(),
+        crate::report::number::significant(b, 4)
+    );
+    Ok(GivenModel {
+        path: path.to_path_buf(),
+        model: m,
+    })
+}
+
+/// A model file read for a design ([`given_model`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GivenModel {
+    pub path: PathBuf,
+    pub model: crate::model::Model,
 }
 
 /// The design `request` asks for, on the twin set up as `config`. How each
@@ -277,61 +345,12 @@ pub fn design_for(
         None => design_on_twin(config, request.load_kg, request.seed, request.horizon)
             .context("identifying the model on the twin")?,
     };
-    let Some(path) = &request.model else {
+    let Some(GivenModel { path, model: m }) = &request.model else {
         return Ok(design);
     };
-    let m = ModelFile::load(path)
-        .and_then(|f| f.model())
-        .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
-    // The controllers drive pressures in MPa and displacements in mm (the
-    // twin's, and the rig protocol's): a model fitted in other units would
-    // be off by a factor, silently.
-    for (which, column, want) in [
-        ("input", &m.base.input_name, "MPa"),
-        ("output", &m.base.output_name, "mm"),
-    ] {
-        match unit_of(column) {
-            Some(unit) if unit != want => {
-                // A valve voltage is another signal, not another unit.
-                let fix = match (which, unit.as_str()) {
-                    ("input", "V" | "mV") => format!(
-                        "the controllers read a model of the pressure (their valve model is \
-                         their own): fit on the pressure column, in {want}"
-                    ),
-                    _ => format!("convert the column to {want} and refit"),
-                };
-                anyhow::bail!(
-                    "--from {}: the model's {which} is in {unit} (column `{column}`), the \
-                     controllers' in {want}: {fix}",
-                    path.display()
-                )
-            }
-            Some(_) => {}
-            None => note(format!(
-                "--from {}: the model's {which} column `{column}` states no unit; it is taken \
-                 in {want}, the controllers' (a model of another signal, such as a valve \
-                 voltage, predicts nonsense here)",
-                path.display()
-            )),
-        }
-    }
-    // The controllers push the displacement up with the pressure (the
-    // twin's and the thesis' contraction, positive): a model whose output
-    // falls as the pressure rises (an extension, or a contraction logged
-    // negative) steers every correction the wrong way, and the MPC holds
-    // the valve shut while the run diverges.
-    let b = m.base.params[m.base.family.linear_indices()[1]];
-    anyhow::ensure!(
-        b > 0.0,
-        "--from {}: the model's output falls as the pressure rises (its input gain b = {}): \
-         the controllers move a displacement that grows with the pressure (contraction, \
-         positive): flip the output column's sign and refit",
-        path.display(),
-        crate::report::number::significant(b, 4)
-    );
     // Each effect enters the controllers' prediction where it can, and
     // the run says how (or why not): a note here, and `design.effects`.
-    let (chain, uses) = ControlChain::of(&m);
+    let (chain, uses) = ControlChain::of(m);
     for u in &uses {
         note(format!(
             "--from {}: {} ({})",
@@ -352,7 +371,7 @@ pub fn design_for(
     };
     let mut design = with_displacement(
         &design,
-        m.base,
+        m.base.clone(),
         chain,
         source,
         config,
