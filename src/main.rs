@@ -42,7 +42,8 @@ fn main() -> ExitCode {
 }
 
 /// `mckibben fit | head` should end quietly when `head` closes the pipe, as
-/// other command-line tools do, rather than panic in `println!`.
+/// other command-line tools do, rather than report a broken pipe as an
+/// error.
 fn restore_default_sigpipe() {
     #[cfg(unix)]
     // SAFETY: called first thing in `main`, before any thread exists;

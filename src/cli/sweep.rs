@@ -70,7 +70,7 @@ pub struct Args {
     /// 5000) draws other truths, records and noise of the same kinds, that
     /// no choice of this tool has seen: a check of a claim on data that did
     /// not shape it.
-    #[arg(long, value_name = "SEED", default_value_t = MATRIX_SEED, value_parser = crate::cli::common::seed)]
+    #[arg(long, value_name = "SEED", default_value_t = MATRIX_SEED, value_parser = matrix_seed)]
     matrix: u64,
     /// Fit seeds, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "1", value_parser = crate::cli::common::seed)]
@@ -104,6 +104,25 @@ fn given_once<T: PartialEq + std::fmt::Display>(flag: &str, values: &[T]) -> any
         );
     }
     Ok(())
+}
+
+/// A `--matrix` seed: a seed whose cases' numbers (it, and on) are seeds
+/// too, exact in the JSON as every seed is.
+fn matrix_seed(s: &str) -> Result<u64, String> {
+    let seed = crate::cli::common::seed(s)?;
+    let last = [Family::Classic, Family::Generalized]
+        .map(matrix_size)
+        .into_iter()
+        .max()
+        .unwrap_or(0) as u64;
+    let most = mckibben::optim::streams::MAX_SEED - (last - 1);
+    if seed > most {
+        return Err(format!(
+            "at most {most}: the cases are numbered from the seed on, and the last of {last} \
+             must be a seed too (at most 2^53 - 1)"
+        ));
+    }
+    Ok(seed)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
