@@ -122,8 +122,13 @@ fn stage(path: &Path, bytes: &[u8]) -> io::Result<PathBuf> {
     let name = path
         .file_name()
         .ok_or_else(|| io::Error::other(format!("{} names no file", path.display())))?;
+    // The process and a count of its writes: two threads writing one
+    // target (Python's `Model.save` releases the interpreter) each stage
+    // their own file, and the last rename wins whole.
+    static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let write = WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let tmp = dir.join(format!(
-        ".{}.tmp-{}",
+        ".{}.tmp-{}-{write}",
         name.to_string_lossy(),
         std::process::id()
     ));
@@ -144,6 +149,33 @@ fn stage(path: &Path, bytes: &[u8]) -> io::Result<PathBuf> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Threads writing one file each stage their own temporary: every
+    /// write succeeds and the file is always one of them whole (they
+    /// shared one name, and a rename found it gone or half-written).
+    #[test]
+    fn threads_writing_one_file_never_meet() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("model.json");
+        let texts = ["a".repeat(100_000), "b".repeat(50_000)];
+        std::thread::scope(|s| {
+            for text in &texts {
+                let path = &path;
+                s.spawn(move || {
+                    for _ in 0..100 {
+                        write_atomic(path, text.as_bytes()).unwrap();
+                    }
+                });
+            }
+            for _ in 0..100 {
+                if let Ok(read) = fs::read_to_string(&path) {
+                    assert!(texts.contains(&read), "{} bytes, mixed", read.len());
+                }
+            }
+        });
+        let left: Vec<_> = fs::read_dir(dir.path()).unwrap().collect();
+        assert_eq!(left.len(), 1, "temporaries left behind");
+    }
 
     #[test]
     fn a_folder_through_a_file_names_the_file() {
