@@ -1738,3 +1738,40 @@ fn a_full_standard_output_and_a_name_that_is_not_utf8_are_no_panics() {
     let model = std::fs::read_to_string(dir.path().join("arx.json")).unwrap();
     assert!(model.contains("run\u{fffd}.csv"), "{model}");
 }
+
+/// A model file whose means lie past the f32 range from its data (edited
+/// by hand): `fit --from` is refused with the column and the model's mean,
+/// where the polish's decomposition of non-finite residuals panicked.
+#[test]
+fn a_model_whose_means_are_far_from_the_data_is_refused_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let out = mckibben(
+        &[&short_fit(&csv)[..], &["--out", "m"]].concat(),
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.path().join("m/model.json")).unwrap();
+    let mut model: serde_json::Value = serde_json::from_str(&text).unwrap();
+    model["data"]["output"]["mean"] = serde_json::json!(1e39);
+    std::fs::write(dir.path().join("far.json"), model.to_string()).unwrap();
+    let out = mckibben(
+        &[
+            &short_fit(&csv)[..],
+            &["--from", "far.json", "--out", "far"],
+        ]
+        .concat(),
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("deviations from the model's mean 1e39 must stay below")
+            && err.contains("fit afresh"),
+        "{err}"
+    );
+}

@@ -12,6 +12,7 @@ use crate::ident::arx::{Arx, ArxOrders, linear_prior};
 use crate::ident::{pooled_fit_percent, rmse};
 use crate::model::effects::{Context, ModelDescription};
 use crate::model::experiment::halves;
+use crate::model::sim::check_f32_range_about;
 use crate::model::{Experiment, LinearPrior, Model, check_f32_range};
 
 /// Validation scores of a parameter vector (output units).
@@ -84,6 +85,9 @@ impl Records {
                 t.input_name
             );
             check_f32_range(t)?;
+            if let Some(m) = model {
+                check_f32_range_about(t, Some((m.base.input_mean, m.base.output_mean)))?;
+            }
             let w = match (model, whole.first()) {
                 (Some(m), _) => Experiment::with_offsets(t, m.base.input_mean, m.base.output_mean),
                 (None, None) => Experiment::with_means_of(t, e.clone()),

@@ -420,12 +420,31 @@ pub fn residuals(
 /// errors far smaller than the swing), where every candidate would score
 /// an SSE of 0.
 pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
+    check_f32_range_about(trace, None)
+}
+
+/// [`check_f32_range`] about a model's means (input, output) instead of the
+/// trace's own: the origin of the coordinates a model read from a file
+/// simulates in. Means far from the data (a file edited by hand, a model
+/// of other units) leave the `f32` range as values too large do.
+pub fn check_f32_range_about(trace: &Trace, means: Option<(f64, f64)>) -> anyhow::Result<()> {
     let limit = (f32::MAX as f64).sqrt() * 1e-3 / (trace.len().max(1) as f64).sqrt();
-    for (name, column) in [
-        (&trace.input_name, &trace.input),
-        (&trace.output_name, &trace.output),
+    for (name, column, given) in [
+        (&trace.input_name, &trace.input, means.map(|m| m.0)),
+        (&trace.output_name, &trace.output, means.map(|m| m.1)),
     ] {
-        let mean = column.iter().sum::<f64>() / column.len().max(1) as f64;
+        let own = || column.iter().sum::<f64>() / column.len().max(1) as f64;
+        let mean = given.unwrap_or_else(own);
+        let (the_mean, fix) = match given {
+            Some(m) => (
+                format!("the model's mean {m:e}"),
+                "the model describes data far from these (or its file was edited): fit afresh",
+            ),
+            None => (
+                "the mean".to_string(),
+                "rescale the column (for example Pa to MPa, or m to mm)",
+            ),
+        };
         let (lo, hi) = column
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
@@ -435,8 +454,8 @@ pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
         anyhow::ensure!(
             reach <= limit,
             "column `{name}` of {} spans [{lo:e}, {hi:e}]: over {} samples its squared \
-             errors overflow the f32 arithmetic of the simulation (deviations from the mean \
-             must stay below {limit:.3e}); rescale the column (for example Pa to MPa, or m to mm)",
+             errors overflow the f32 arithmetic of the simulation (deviations from {the_mean} \
+             must stay below {limit:.3e}); {fix}",
             trace.source,
             trace.len()
         );
@@ -444,10 +463,14 @@ pub fn check_f32_range(trace: &Trace) -> anyhow::Result<()> {
         anyhow::ensure!(
             name != &trace.output_name || reach <= states,
             "the output `{name}` of {} spans [{lo:e}, {hi:e}]: the simulation counts a state \
-             beyond ±{:e} as diverged, and deviations from the mean must stay below {states:e} \
-             to leave a model room; rescale the column (for example nm to mm)",
+             beyond ±{:e} as diverged, and deviations from {the_mean} must stay below \
+             {states:e} to leave a model room; {}",
             trace.source,
-            DIVERGENCE_BOUND
+            DIVERGENCE_BOUND,
+            match given {
+                Some(_) => fix,
+                None => "rescale the column (for example nm to mm)",
+            }
         );
         let floor = f64::from(f32::MIN_POSITIVE).sqrt() * 1e3;
         // A constant output (reach 0) is refused where its dynamics are sought.
