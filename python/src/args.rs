@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use pyo3::exceptions::{PyOverflowError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyBytes, PyDict, PyInt, PyString};
+use pyo3::types::{PyBool, PyBytes, PyDict, PyFrozenSet, PyInt, PySet, PyString};
 
 use mckibben::model::effects::Effect;
 use mckibben::model::{UserBound, UserBoundError};
@@ -153,6 +153,18 @@ pub fn names(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<String>> {
             "{what} must be a list of names (str), got str {}: a list of one is [{0}]",
             obj.repr()?
         )));
+    }
+    // The order is the chain's: a set's changes from one interpreter to the
+    // next (PYTHONHASHSEED), and with it the fit. A dict's keys are no list.
+    if obj.is_instance_of::<PySet>() || obj.is_instance_of::<PyFrozenSet>() {
+        return Err(PyTypeError::new_err(format!(
+            "{what} must be a list of names (str), got {}: its order is the chain's, and a \
+             set's changes from one interpreter to the next",
+            given(obj)
+        )));
+    }
+    if obj.is_instance_of::<PyDict>() {
+        return Err(wrong());
     }
     obj.try_iter()
         .map_err(|_| wrong())?

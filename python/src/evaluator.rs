@@ -200,6 +200,15 @@ impl Evaluator {
         let family = family(model, "model")?;
         let loop_shape = loop_shape(r#loop)?;
         let bounds = bounds.unwrap_or_default();
+        // The box of the family alone: a bound on an effect's parameter
+        // (`creep.rho`) would be left out without a word, where `fit` reads it.
+        if let Some(b) = bounds.iter().find(|b| b.name.contains('.')) {
+            return Err(PyValueError::new_err(format!(
+                "bounds: `{}` names an effect's parameter, and an Evaluator scores the {family} \
+                 family alone, without effects: leave it out",
+                b.name
+            )));
+        }
         let backend = self::backend(backend)?;
         let problem = py
             .detach(|| {

@@ -170,6 +170,9 @@ def test_bad_construction_raises(stair):
         mckibben.Evaluator(stair.input, stair.output[:10], 0.01)
     with pytest.raises(ValueError, match="no parameter `zeta`"):
         mckibben.Evaluator(stair, bounds={"zeta": 1.0})
+    # An effect's parameter: the family's box has none (it was left out).
+    with pytest.raises(ValueError, match="`creep.rho` names an effect's parameter"):
+        mckibben.Evaluator(stair, bounds={"creep.rho": 0.5})
     # A wrong type names its argument (PyO3 names it only in a note).
     with pytest.raises(TypeError, match="^checked must be True or False, got int 1"):
         mckibben.Evaluator(stair, checked=1)

@@ -398,6 +398,9 @@ def test_a_fit_where_every_candidate_diverges_warns_and_holds_no_model(stair):
         ({"effects": "creep"}, "^effects must be a list of names \\(str\\), got str 'creep'"),
         ({"effects": ["creep", 2]}, r"^effects\[1\] must be a str, got int 2"),
         ({"effects": 3}, r"^effects must be a list of names \(str\), got int 3"),
+        # A set's order, the chain's, changed with PYTHONHASHSEED.
+        ({"effects": {"creep", "delay"}}, r"^effects must be a list of names \(str\), got set .*a set's changes"),
+        ({"effects": {"creep": 1}}, r"^effects must be a list of names \(str\), got dict"),
         ({"free_n": 1}, "^free_n must be True or False, got int 1"),
         ({"thesis_flow": "yes"}, "^thesis_flow must be True or False, got str 'yes'"),
         ({"loop": 0}, "^loop must be a str, got int 0"),
