@@ -460,8 +460,8 @@ fn run_fit(
     if let Some(e) = observer.error.take() {
         return Err(e);
     }
-    // A Ctrl-C during the polish or the edge rule's refit, which the engine
-    // does not stop for, comes too late to stop anything: the fit is done.
+    // A Ctrl-C during the edge rule's refit, which the engine does not
+    // stop for, comes too late to stop anything: the fit is done.
     if let Err(e) = py.check_signals()
         && !e.is_instance_of::<PyKeyboardInterrupt>(py)
     {

@@ -276,6 +276,30 @@ pub trait Observer {
     fn record(&mut self, record: &GenerationRecord, planned: usize);
 }
 
+/// The observers of a step and how far into the history they have heard:
+/// a long step (a polish of many starts, in waves) tells them as it goes,
+/// so that a progress bar moves and an observer that watches for Ctrl-C
+/// (Python's) is asked between waves, not only once the step is done.
+struct Heard<'a, 'b> {
+    observers: &'a mut [&'b mut dyn Observer],
+    planned: usize,
+    upto: usize,
+}
+
+impl Heard<'_, '_> {
+    /// Tells every observer the history's records it has not heard yet.
+    fn tell(&mut self, history: &History) {
+        let records = &history.records;
+        // A polish cut short rolls its records back: nothing new then.
+        for record in records.get(self.upto..).unwrap_or_default() {
+            for o in self.observers.iter_mut() {
+                o.record(record, self.planned);
+            }
+        }
+        self.upto = self.upto.max(records.len());
+    }
+}
+
 /// A fit in progress (serialisable: a checkpoint is this value as JSON).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Engine<C = Canonical> {
@@ -503,20 +527,20 @@ impl<C: Chart> Engine<C> {
             let Some(step) = self.step() else {
                 break StopReason::Completed;
             };
-            let before = self.history.records.len();
+            let mut heard = Heard {
+                observers: &mut *observers,
+                planned,
+                upto: self.history.records.len(),
+            };
             match step {
                 Step::Global | Step::FreeRun | Step::Refine(_) | Step::Level(_) => {
                     self.step_population(objective, step)?
                 }
                 Step::Polish | Step::RefinePolish(_) | Step::LevelPolish(_) => {
-                    interim = self.polish(objective, step, interrupt)?
+                    interim = self.polish(objective, step, interrupt, &mut heard)?
                 }
             }
-            for record in &self.history.records[before..] {
-                for o in observers.iter_mut() {
-                    o.record(record, planned);
-                }
-            }
+            heard.tell(&self.history);
             if let Some(path) = checkpoint
                 && last_save.elapsed().as_secs_f64() >= CHECKPOINT_EVERY_S
             {

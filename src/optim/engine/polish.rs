@@ -8,7 +8,7 @@ use anyhow::Context;
 use rayon::prelude::*;
 
 use super::{
-    Chart, Engine, Fork, Members, Objective, Scored, Space, Spent, Stage, StageEnd, Step,
+    Chart, Engine, Fork, Heard, Members, Objective, Scored, Space, Spent, Stage, StageEnd, Step,
     keep_lowest, plan, timed,
 };
 use crate::optim::Bounds;
@@ -75,6 +75,7 @@ impl<C: Chart> Engine<C> {
         objective: &mut dyn Objective,
         step: Step,
         interrupt: Option<&AtomicBool>,
+        heard: &mut Heard,
     ) -> anyhow::Result<Option<CutPolish>> {
         let p = self.plan.polish.clone().expect("a polish stage");
         self.rescore_pool(objective)?;
@@ -136,6 +137,7 @@ impl<C: Chart> Engine<C> {
                     }
                 }
             }
+            heard.tell(&self.history);
             if let Some(reached) = self.reaching_target(&done) {
                 let cut = self.undo_polish(before);
                 return Ok(Some(CutPolish {
