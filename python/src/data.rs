@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use numpy::{PyArray1, ToPyArray};
 use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::{PyDict, PyList, PyTuple};
 
 use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::model::file::ReadSettings;
@@ -226,13 +226,30 @@ pub fn data_arg(
         let trace = trace.get();
         return Ok((trace.inner.clone(), trace.read.clone()));
     }
+    // Said for what is missing, and for a list of Traces where one
+    // experiment is taken (an Evaluator scores one record).
+    // Only a list or a tuple is looked into: a generator would lose its
+    // first item to the look.
+    let listed = (u.is_instance_of::<PyList>() || u.is_instance_of::<PyTuple>())
+        && u.get_item(0)
+            .is_ok_and(|first| first.cast::<Trace>().is_ok());
     match (y, dt) {
+        _ if listed => Err(PyValueError::new_err(
+            "u is a list of Traces, and this takes one experiment: pass one Trace, or the \
+             arrays u and y with dt",
+        )),
         (Some(y), Some(dt)) => {
             let trace = arrays_trace(u, y, dt, "python", &UY)?;
             let read = timed_only(&trace.time_name);
             Ok((trace, read))
         }
-        _ => Err(PyValueError::new_err(
+        (Some(_), None) => Err(PyValueError::new_err(
+            "give the sample time dt with the arrays u and y (or pass a Trace)",
+        )),
+        (None, Some(_)) => Err(PyValueError::new_err(
+            "give the output y with the input u and dt (or pass a Trace)",
+        )),
+        (None, None) => Err(PyValueError::new_err(
             "give the output y and the sample time dt with the input u (or pass a Trace)",
         )),
     }

@@ -168,6 +168,13 @@ def test_bad_construction_raises(stair):
         mckibben.Evaluator(stair, model="linear")
     with pytest.raises(ValueError, match="differ in length"):
         mckibben.Evaluator(stair.input, stair.output[:10], 0.01)
+    # What is missing is named, not both; a list of Traces is one too many.
+    with pytest.raises(ValueError, match="^give the sample time dt with the arrays u and y"):
+        mckibben.Evaluator(stair.input, stair.output)
+    with pytest.raises(ValueError, match="^give the output y with the input u and dt"):
+        mckibben.Evaluator(stair.input, dt=0.01)
+    with pytest.raises(ValueError, match="^u is a list of Traces, and this takes one experiment"):
+        mckibben.Evaluator([stair, stair])
     with pytest.raises(ValueError, match="no parameter `zeta`"):
         mckibben.Evaluator(stair, bounds={"zeta": 1.0})
     # An effect's parameter: the family's box has none (it was left out).
