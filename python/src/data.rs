@@ -234,6 +234,9 @@ pub fn data_arg(
         && u.get_item(0)
             .is_ok_and(|first| first.cast::<Trace>().is_ok());
     match (y, dt) {
+        (Some(_), _) | (_, Some(_)) if listed => Err(PyValueError::new_err(
+            "u is a list of Traces, each with its own output and sample time: leave y and dt out",
+        )),
         _ if listed => Err(PyValueError::new_err(
             "u is a list of Traces, and this takes one experiment: pass one Trace, or the \
              arrays u and y with dt",

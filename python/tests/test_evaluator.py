@@ -175,6 +175,9 @@ def test_bad_construction_raises(stair):
         mckibben.Evaluator(stair.input, dt=0.01)
     with pytest.raises(ValueError, match="^u is a list of Traces, and this takes one experiment"):
         mckibben.Evaluator([stair, stair])
+    # fit takes a list, each Trace with its own output and sample time.
+    with pytest.raises(ValueError, match="^u is a list of Traces, each with its own output"):
+        mckibben.fit([stair], stair.output, pop=20, gens=2)
     with pytest.raises(ValueError, match="no parameter `zeta`"):
         mckibben.Evaluator(stair, bounds={"zeta": 1.0})
     # An effect's parameter: the family's box has none (it was left out).
