@@ -13,12 +13,16 @@ use mckibben::fit::synthetic::Synthetic;
 use mckibben::model::Family;
 
 fn mckibben(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_mckibben"))
-        .args(args)
+    command(dir).args(args).output().unwrap()
+}
+
+/// The binary, run in `dir`, for a test that sets more than its arguments.
+fn command(dir: &Path) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_mckibben"));
+    command
         .current_dir(dir)
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .unwrap()
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir());
+    command
 }
 
 /// `fit` of `csv` at a tiny budget (N = 20, G = 2, CPU): for checks of
@@ -281,10 +285,9 @@ fn ctrl_c_writes_the_best_so_far_and_exits_as_interrupted() {
     // The line that announces the fit comes once the handler is in place
     // and the data are read; the first generations take milliseconds.
     let out = common::interrupt_once(
-        Command::new(env!("CARGO_BIN_EXE_mckibben"))
+        command(dir.path())
             .args(["fit", &csv, "--pop", "200", "--gens", "1000000"])
-            .args(["--backend", "cpu", "--checkpoint", "ck.json"])
-            .current_dir(dir.path()),
+            .args(["--backend", "cpu", "--checkpoint", "ck.json"]),
         |line| line.starts_with("fitting"),
         std::time::Duration::from_secs(2),
     );
@@ -1709,10 +1712,8 @@ fn a_full_standard_output_and_a_name_that_is_not_utf8_are_no_panics() {
         vec!["identify", csv.as_str()],
         [&short_fit(&csv)[..], &["--json", "--out", "full"]].concat(),
     ] {
-        let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
+        let out = command(dir.path())
             .args(&args)
-            .current_dir(dir.path())
-            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
             .stdout(std::fs::File::create("/dev/full").unwrap())
             .output()
             .unwrap();
@@ -1726,11 +1727,9 @@ fn a_full_standard_output_and_a_name_that_is_not_utf8_are_no_panics() {
 
     let odd = dir.path().join(std::ffi::OsStr::from_bytes(b"run\xff.csv"));
     std::fs::copy(&csv, &odd).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
+    let out = command(dir.path())
         .args(["identify", "--out", "arx.json"])
         .arg(&odd)
-        .current_dir(dir.path())
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
