@@ -312,7 +312,10 @@ fn undiagnosable_data_gives_clear_errors() {
     let err = error_of(&["diagnose", "--output", "length"], &ok);
     assert!(err.contains("length"), "names the missing column: {err}");
     let err = error_of(&["diagnose", "--generations", "0"], &ok);
-    assert!(err.contains("--generations must be at least 1"), "{err}");
+    assert!(
+        err.contains("'--generations <GENERATIONS>': at least 1: the first generation"),
+        "{err}"
+    );
 
     let err = error_of(&["diagnose", "--effects", "friction"], &ok);
     assert!(

@@ -48,6 +48,16 @@ pub fn population(s: &str) -> Result<usize, String> {
     Ok(n)
 }
 
+/// A number of generations (`diagnose` and `validate --generations`): at
+/// least 1, as `fit --gens` takes it. Zero ran the drawn population alone,
+/// or one generation, without a word.
+pub fn generations(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>().map_err(|e| format!("{e}"))? {
+        0 => Err("at least 1: the first generation is the drawn population".into()),
+        g => Ok(g),
+    }
+}
+
 /// A seed flag: an integer up to
 /// [`MAX_SEED`](mckibben::optim::streams::MAX_SEED).
 pub fn seed(s: &str) -> Result<u64, String> {

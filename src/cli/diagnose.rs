@@ -82,7 +82,7 @@ pub struct Args {
     /// 600 generations of 40 with 12 seeds. Every fit then ends with a
     /// Levenberg–Marquardt polish of its best point. Fewer is faster and
     /// less certain.
-    #[arg(long, default_value_t = Settings::default().generations)]
+    #[arg(long, default_value_t = Settings::default().generations, value_parser = crate::cli::common::generations)]
     generations: usize,
     /// Extra seeds of each first-round candidate fitted from scratch (the
     /// baseline's budget, through the multi-step-ahead prediction error
@@ -218,12 +218,6 @@ fn parse_effect(s: &str) -> Result<Effect, UnknownName> {
 
 pub fn run(mut args: Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.seeds >= 1, "--seeds must be at least 1");
-    // As fit's --gens: a search of no generation would score only the
-    // drawn population.
-    anyhow::ensure!(
-        args.generations >= 1,
-        "--generations must be at least 1 (got 0): the first generation is the drawn population"
-    );
     for (k, e) in args.effects.iter().enumerate() {
         anyhow::ensure!(
             !args.effects[..k].contains(e),

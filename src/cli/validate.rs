@@ -57,7 +57,7 @@ struct BoucwenArgs {
     #[arg(long, default_value_t = IdentifySettings::default().population, value_parser = population)]
     population: usize,
     /// Generations of the search.
-    #[arg(long, default_value_t = IdentifySettings::default().generations)]
+    #[arg(long, default_value_t = IdentifySettings::default().generations, value_parser = crate::cli::common::generations)]
     generations: usize,
     /// Levenberg–Marquardt iterations of the refinement on the training
     /// record (0: report the population stage's best as it is).
@@ -93,11 +93,6 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
     let dir = args.data.clone().unwrap_or_else(default_data_dir);
     let data = BenchmarkData::load(&dir)?;
     let min = Algorithm::De.min_population();
-    // As fit's --gens (0 ran as 1 here, silently).
-    anyhow::ensure!(
-        args.generations >= 1,
-        "--generations must be at least 1 (got 0): the first generation is the drawn population"
-    );
     anyhow::ensure!(
         args.population >= min,
         "--population must be at least {min}, the minimum of its differential evolution (got {})",
