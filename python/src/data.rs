@@ -366,6 +366,21 @@ pub struct Records {
     places: Vec<String>,
 }
 
+impl Records {
+    /// Each trace with its place in the list, a lone `Trace` with the
+    /// argument's name `what`.
+    pub fn placed<'a>(
+        &'a self,
+        what: &'a str,
+    ) -> impl Iterator<Item = (&'a mckibben::data::Trace, &'a str)> {
+        let place = move |i| self.places.get(i).map_or(what, String::as_str);
+        self.traces
+            .iter()
+            .enumerate()
+            .map(move |(i, t)| (t, place(i)))
+    }
+}
+
 /// The traces of `datasets` (a `Trace`, or a list whose items are each a
 /// `Trace` or a `(u, y, dt)` tuple), `what` naming the argument; a tuple's
 /// source is its place (`transfer[0]`).
@@ -441,16 +456,22 @@ pub fn located(e: anyhow::Error, lists: &[&Records]) -> PyErr {
             if !alone.is_err_and(|a| a.root_cause().to_string() == cause) {
                 continue;
             }
-            // A tuple's source is its place: named once.
-            let message = if &t.source == place && cause.contains(place.as_str()) {
-                cause
-            } else if let Some(rest) = cause.strip_prefix(&format!("{}: ", t.source)) {
-                format!("{place} ({}): {rest}", t.source)
-            } else {
-                format!("{place}: {cause}")
-            };
-            return PyValueError::new_err(in_python_terms(&message));
+            return placed(cause, t, place);
         }
     }
     value_error(e)
+}
+
+/// An error `cause` about the record `t`, named by its `place` in its list
+/// as well as by its source.
+pub fn placed(cause: String, t: &mckibben::data::Trace, place: &str) -> PyErr {
+    // A tuple's source is its place: named once.
+    let message = if t.source == place && cause.contains(place) {
+        cause
+    } else if let Some(rest) = cause.strip_prefix(&format!("{}: ", t.source)) {
+        format!("{place} ({}): {rest}", t.source)
+    } else {
+        format!("{place}: {cause}")
+    };
+    PyValueError::new_err(in_python_terms(&message))
 }

@@ -5,13 +5,14 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use mckibben::diagnose::report::{DiagnosisJson, baseline_caution};
+use mckibben::diagnose::transfer::check_others;
 use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::ModelFile;
 use mckibben::report::json::Versioned;
 
 use crate::args::family_or_start;
 use crate::convert::{backend, in_python_terms, to_python, value_error};
-use crate::data::{located, traces};
+use crate::data::{located, placed, traces};
 use crate::interrupt::interruptible;
 use crate::model::model_arg;
 use crate::model::{Model, provenance};
@@ -118,8 +119,13 @@ pub fn diagnose<'py>(
         blocks,
         ..defaults
     };
+    // Before the diagnosis, so that a record the chain cannot be carried to
+    // fails at once, named by its place in `transfer`.
+    for (other, place) in transfers.iter().flat_map(|r| r.placed("transfer")) {
+        check_others(family, traces, std::slice::from_ref(other), &settings)
+            .map_err(|e| placed(e.root_cause().to_string(), other, place))?;
+    }
     let d = interruptible(py, &settings.stop, || {
-        mckibben::diagnose::transfer::check_others(family, others, &settings)?;
         let mut d =
             mckibben::diagnose::diagnose_from(traces, family, &effects, &settings, start.as_ref())?;
         if !others.is_empty() {

@@ -179,8 +179,27 @@ def test_a_record_at_fault_is_named_by_its_place_in_the_list(stair):
     in_kpa = mckibben.Trace(u * 1000, y, stair.dt, input_name="p_kPa")
     with pytest.raises(ValueError, match="one model takes one input and one output, in one unit"):
         mckibben.diagnose([stair, in_kpa], **args)
+    seven = mckibben.read_csv(stair.source.replace("4.5kg", "7kg"))
     with pytest.raises(ValueError, match=r"^transfer\[1\]: 30 samples are too few to split"):
-        mckibben.diagnose(stair, transfer=[stair, (u[:30], y[:30], stair.dt)], **args)
+        mckibben.diagnose(stair, transfer=[seven, (u[:30], y[:30], stair.dt)], **args)
+
+
+def test_a_transfer_the_chain_cannot_run_on_is_refused_before_the_diagnosis(stair):
+    args = dict(effects=["delay"], seeds=1, generations=2, scratch_seeds=0)
+    seven = mckibben.read_csv(stair.source.replace("4.5kg", "7kg"))
+    u, y, dt = seven.input, seven.output, seven.dt
+    # Each is said as the command says it before its diagnosis runs; they
+    # were found after it (another step, other units) or not at all (the
+    # diagnosed record scored as its own transfer).
+    cases = [
+        ([seven, stair], r"^transfer\[1\] \(.*stair_4.5kg.csv\): it holds the samples of .*stair_4.5kg.csv, which the diagnosis reads"),
+        ([(u, y, 2 * dt)], r"^transfer\[0\]: sampled every 0.02 s, the diagnosed record every 0.01 s"),
+        ([mckibben.Trace(u * 1000, y, dt, input_name="p_kPa")],
+         r"^transfer\[0\] \(python\): the diagnosed record's input is in MPa \(column `pressure`\), but `p_kPa` is in kPa"),
+    ]
+    for transfer, message in cases:
+        with pytest.raises(ValueError, match=message):
+            mckibben.diagnose(stair, transfer=transfer, **args)
 
 
 def test_diagnose_from_a_model_is_the_commands_diagnose_from(stair, cli, tmp_path):

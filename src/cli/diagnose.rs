@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use mckibben::data::{mixed_steps, same_samples, same_step, tidy_step};
+use mckibben::data::{mixed_steps, tidy_step};
 use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
 use mckibben::diagnose::settings::Progress;
 use mckibben::diagnose::transfer::{check_others, transfer};
@@ -321,32 +321,13 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             .load(&args.transfer)
             .context("--transfer")?
     };
-    let dt = traces[0].dt();
-    let shown = tidy_step(dt);
     // Checked again by the diagnosis; here before any folder is made, with
     // the flag that resamples.
     if let Some(why) = mixed_steps(&traces) {
-        anyhow::bail!("{why} (--resample {shown})");
-    }
-    for other in &others {
-        if let Some(own) = traces.iter().find(|t| same_samples(t, other)) {
-            anyhow::bail!(
-                "--transfer {}: it holds the samples of {}, which the diagnosis reads: a \
-                 transfer scores the chain on another record; give one",
-                other.source,
-                own.source
-            );
-        }
-        anyhow::ensure!(
-            same_step(other.dt(), dt),
-            "--transfer {}: sampled every {} s, the diagnosed record every {shown} s; the \
-             model's poles are per sample, so resample it (--resample {shown})",
-            other.source,
-            tidy_step(other.dt())
-        );
+        anyhow::bail!("{why} (--resample {})", tidy_step(traces[0].dt()));
     }
     let family = from.as_ref().map_or(family, |m| m.base.family);
-    check_others(family, &others, &settings).context("--transfer")?;
+    check_others(family, &traces, &others, &settings).context("--transfer")?;
     if let Some(dir) = &args.out {
         let mut reads: Vec<(&str, &Path)> = args
             .data

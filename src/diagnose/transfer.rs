@@ -28,12 +28,13 @@ use super::effects::Effect;
 use super::locate::noise_floor;
 use super::settings::{Interrupted, Settings};
 use super::{Diagnosis, accept::gap_closed, chain::with_chain_start};
-use crate::data::Trace;
+use crate::data::{Trace, same_samples, same_step, tidy_step};
 use crate::fit::edge::{ActiveBound, active_bounds};
 use crate::fit::records::Validation;
 use crate::fit::run::{FitRun, FitTarget};
 use crate::fit::settings::FitSettings;
 use crate::model::experiment::halves;
+use crate::model::file::check_units;
 use crate::model::{Family, UserBound};
 use crate::optim::engine::Outcome;
 
@@ -125,22 +126,58 @@ pub fn collapses(chain_fit_percent: f64, baseline_fit_percent: f64) -> bool {
         .is_none_or(|o| o.is_lt())
 }
 
-/// Whether the baseline of `family` can be fitted on each record of
-/// `others` as [`transfer`] will fit it (long enough, a response to
-/// identify, numbers a fit can take): checked before the diagnosis, so
-/// that a record it cannot use fails at once rather than after the
-/// diagnosis' minutes. No search runs.
-pub fn check_others(family: Family, others: &[Trace], settings: &Settings) -> anyhow::Result<()> {
-    for trace in others {
+/// Whether each record of `others` can take the chain that a diagnosis
+/// of `diagnosed` will carry to it, as [`transfer`] will: another record
+/// (not one of `diagnosed`'s, which would score the chain on what chose
+/// it), sampled at their step (the held poles are per sample), in their
+/// units where both name one, and one on which the baseline of `family`
+/// can be fitted (long enough, a response to identify, numbers a fit can
+/// take). Checked before the diagnosis, so that a record it cannot use
+/// fails at once rather than after the diagnosis' minutes. No search
+/// runs.
+pub fn check_others(
+    family: Family,
+    diagnosed: &[Trace],
+    others: &[Trace],
+    settings: &Settings,
+) -> anyhow::Result<()> {
+    let Some(first) = diagnosed.first() else {
+        return Ok(());
+    };
+    let dt = first.dt();
+    for other in others {
+        if let Some(own) = diagnosed.iter().find(|t| same_samples(t, other)) {
+            anyhow::bail!(
+                "{}: it holds the samples of {}, which the diagnosis reads: a transfer scores \
+                 the chain on another record; give one",
+                other.source,
+                own.source
+            );
+        }
+        anyhow::ensure!(
+            same_step(other.dt(), dt),
+            "{}: sampled every {} s, the diagnosed record every {} s; the model's poles are \
+             per sample, so resample it (--resample {})",
+            other.source,
+            tidy_step(other.dt()),
+            tidy_step(dt),
+            tidy_step(dt)
+        );
+        check_units(
+            "the diagnosed record's",
+            &first.input_name,
+            &first.output_name,
+            other,
+        )?;
         FitRun::new(
-            std::slice::from_ref(trace),
+            std::slice::from_ref(other),
             &FitTarget::chain(family, &[]),
             &FitSettings::staged(settings.seed),
             None,
             None,
             &|_| (),
         )
-        .with_context(|| format!("the transfer to {}", trace.source))?;
+        .with_context(|| format!("the transfer to {}", other.source))?;
     }
     Ok(())
 }

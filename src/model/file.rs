@@ -155,29 +155,7 @@ impl Model {
     /// unit are taken at their word.
     pub fn check_data(&self, trace: &crate::data::Trace) -> anyhow::Result<()> {
         let base = &self.base;
-        for (which, fitted, column) in [
-            ("input", &base.input_name, &trace.input_name),
-            ("output", &base.output_name, &trace.output_name),
-        ] {
-            if let (Some(was), Some(now)) = (unit_of(fitted), unit_of(column)) {
-                // `pressure`, `displacement`, `valve_in` state no unit:
-                // they are the shipped data's names, read in its units.
-                let named = if SHIPPED.iter().any(|(name, _)| *name == column.trim()) {
-                    format!(
-                        "`{column}` is read as {now} (its name states no unit: the shipped \
-                         data's convention)"
-                    )
-                } else {
-                    format!("`{column}` is in {now}")
-                };
-                anyhow::ensure!(
-                    was == now,
-                    "{}: the model's {which} is in {was} (column `{fitted}`), but {named}: \
-                     convert the column, or name its unit, or refit the model on data in {now}",
-                    trace.source
-                );
-            }
-        }
+        check_units("the model's", &base.input_name, &base.output_name, trace)?;
         let dt = trace.dt();
         anyhow::ensure!(
             same_step(dt, base.dt),
@@ -668,6 +646,42 @@ fn legacy_model(path: &Path, value: serde_json::Value) -> anyhow::Result<FittedB
         model.params.len()
     );
     Ok(model)
+}
+
+/// Whether `trace`'s columns are in the units of `whose` columns (`input`,
+/// `output`: a model's, or the records it is fitted on), where both names
+/// state one: a model of pressure in bar runs wrong on kPa without a word
+/// otherwise.
+pub fn check_units(
+    whose: &str,
+    input: &str,
+    output: &str,
+    trace: &crate::data::Trace,
+) -> anyhow::Result<()> {
+    for (which, fitted, column) in [
+        ("input", input, &trace.input_name),
+        ("output", output, &trace.output_name),
+    ] {
+        if let (Some(was), Some(now)) = (unit_of(fitted), unit_of(column)) {
+            // `pressure`, `displacement`, `valve_in` state no unit: they
+            // are the shipped data's names, read in its units.
+            let named = if SHIPPED.iter().any(|(name, _)| *name == column.trim()) {
+                format!(
+                    "`{column}` is read as {now} (its name states no unit: the shipped data's \
+                     convention)"
+                )
+            } else {
+                format!("`{column}` is in {now}")
+            };
+            anyhow::ensure!(
+                was == now,
+                "{}: {whose} {which} is in {was} (column `{fitted}`), but {named}: convert the \
+                 column, or name its unit, or refit the model on data in {now}",
+                trace.source
+            );
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]
