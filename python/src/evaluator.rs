@@ -8,6 +8,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat};
 
+use mckibben::data::readable;
 use mckibben::fit::chart::ModelChart;
 use mckibben::fit::objective::ModelObjective;
 use mckibben::fit::problem::FitProblem;
@@ -118,6 +119,33 @@ impl Evaluator {
             .space
             .embed(Rows::new(&free, self.space.free_dim()))
             .into_flat())
+    }
+
+    /// Refuses canonical rows that a held coordinate of the box cannot
+    /// stand for: their search coordinates would score the hold instead.
+    fn check_holds(&self, canonical: &[f64]) -> PyResult<()> {
+        let d = self.space.dim();
+        for (row, theta) in canonical.chunks_exact(d).enumerate() {
+            let Some((i, value)) = self.space.off_hold(theta) else {
+                continue;
+            };
+            let name = &self.space.names[i];
+            let hold = readable(self.space.lower[i]);
+            let (by, free) = if self.bounds.iter().any(|b| &b.name == name) {
+                (" (`bounds`)", "")
+            } else if name == "n" {
+                (" (free_n=False)", "; free_n=True searches it")
+            } else {
+                ("", "")
+            };
+            return Err(PyValueError::new_err(format!(
+                "params[{row}]: {name} is {}, where this Evaluator's box holds it at {hold}{by}: \
+                 the search coordinates have no place for it, and scoring them would use \
+                 {hold}{free}",
+                readable(value)
+            )));
+        }
+        Ok(())
     }
 
     /// The canonical parameter names of the family.
@@ -333,6 +361,7 @@ impl Evaluator {
         params: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (canonical, _, single) = rows(params, &self.canonical_names(), "params")?;
+        self.check_holds(&canonical)?;
         let thetas = self
             .space
             .project(Rows::new(&canonical, self.space.dim()))

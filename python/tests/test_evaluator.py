@@ -148,7 +148,7 @@ def test_bad_candidates_raise_the_named_exception(ev, thetas, error, message):
     "column, value, message",
     [
         (2, 1e308, r"^params\[1\] maps to a non-finite search coordinate: loading \(column 1\) is inf"),
-        (4, 1e308, r"^params\[1\] maps to a non-finite search coordinate: loading \(column 1\) is NaN"),
+        (4, 1e308, r"^params\[1\]: n is 1e308, where this Evaluator's box holds it at 1"),
         (7, -1e308, r"^params\[1\] maps to a non-finite search coordinate: offset \(column 5\) is -inf"),
     ],
 )
@@ -159,6 +159,26 @@ def test_parameters_too_large_for_the_box_are_refused(ev, column, value, message
     params[1, column] = value
     with pytest.raises(ValueError, match=message):
         ev.to_thetas(params)
+
+
+def test_parameters_the_box_holds_elsewhere_are_refused(stair):
+    # They mapped to coordinates that score the hold (n = 1), silently.
+    params = np.tile([1.0, 0.9, 0.001, -0.001, 1.0, 0.99, -0.0025, -1.3, 8.3], (2, 1))
+    params[1, 4] = 1.5
+    held = mckibben.Evaluator(stair, backend="cpu")
+    with pytest.raises(ValueError, match=r"^params\[1\]: n is 1.5, where this Evaluator's box "
+                       r"holds it at 1 \(free_n=False\): .*; free_n=True searches it$"):
+        held.to_thetas(params)
+    free = mckibben.Evaluator(stair, backend="cpu", free_n=True)
+    assert free.to_params(free.to_thetas(params))[1, 4] == pytest.approx(1.5, rel=1e-12)
+    params[1, 4] = 1e308
+    with pytest.raises(ValueError, match=r"^params\[1\] maps to a non-finite search coordinate: "
+                       r"loading \(column 1\) is NaN"):
+        free.to_thetas(params)
+    held_at_two = mckibben.Evaluator(stair, backend="cpu", free_n=True, bounds={"n": (2.0, 2.0)})
+    with pytest.raises(ValueError, match=r"^params\[0\]: n is 1, where .* holds it at 2 "
+                       r"\(`bounds`\): .* would use 2$"):
+        held_at_two.to_thetas(params)
 
 
 def test_bad_construction_raises(stair):

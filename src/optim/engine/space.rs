@@ -342,6 +342,23 @@ impl<C: Chart> Space<C> {
         free.iter().map(|&i| z[i]).collect()
     }
 
+    /// The first held coordinate (its bounds equal) at which the canonical
+    /// `theta` lies elsewhere than where the box holds it, with its value
+    /// there: [`Space::project_one`] leaves it out, so the coordinates it
+    /// returns stand for `theta` with the hold in its place. Within a
+    /// relative 10⁻⁹, the rounding of a chart's round trip.
+    pub fn off_hold(&self, theta: &[f64]) -> Option<(usize, f64)> {
+        let z = self.coordinates(theta);
+        (0..self.dim())
+            .filter(|&i| self.lower[i] == self.upper[i])
+            .find(|&i| {
+                let hold = self.lower[i];
+                // NaN is elsewhere too.
+                !((z[i] - hold).abs() <= 1e-9 * hold.abs().max(1.0))
+            })
+            .map(|i| (i, z[i]))
+    }
+
     /// The free coordinates of the canonical `theta` that sit on a bound of
     /// the box, with the coordinate's index and the bound: a fit that ends
     /// there was stopped by the box, not by the data.
