@@ -91,11 +91,15 @@ impl Trace {
         &self.inner.time_name
     }
 
+    /// The input column's name (`pressure` for a trace made from arrays,
+    /// read as MPa: the shipped data's convention).
     #[getter]
     fn input_name(&self) -> &str {
         &self.inner.input_name
     }
 
+    /// The output column's name (`displacement` for a trace made from
+    /// arrays, read as mm: the shipped data's convention).
     #[getter]
     fn output_name(&self) -> &str {
         &self.inner.output_name

@@ -47,8 +47,9 @@ pub struct FitResult {
     /// Estimation SSE of the free run (first half of the data; `inf` when
     /// every candidate diverged).
     sse: f64,
-    /// Free-run RMSE and fit % (MATLAB's `compare`) on the validation half.
+    /// Free-run RMSE on the validation half (the second half of the data).
     val_rmse: Option<f64>,
+    /// Free-run fit % (MATLAB's `compare`) on the validation half.
     val_fit_percent: Option<f64>,
     /// The first-order ARX model's validation fit on the same halves: what
     /// the fit should beat.
@@ -64,13 +65,17 @@ pub struct FitResult {
     /// `val_fit_percent`; `fit --json`'s `records`).
     records: Py<PyAny>,
     /// The largest output step a sample within which the fitted
-    /// hysteresis update settles, and the record's largest measured step
-    /// (`fit --json`'s `stable_step`, `largest_step`).
+    /// hysteresis update settles (`fit --json`'s `stable_step`).
     stable_step: Option<f64>,
+    /// The record's largest measured output step a sample (`fit --json`'s
+    /// `largest_step`): above `stable_step`, the model runs past what it
+    /// settles.
     largest_step: Option<f64>,
-    /// With `start`: the start model as it was, on this record's halves
-    /// (`None` without a start, or where it diverges).
+    /// With `start`: the start model's estimation SSE as it was, on this
+    /// record's first half (`None` without a start, or where it diverges).
     start_sse: Option<f64>,
+    /// With `start`: the start model's fit % as it was, on this record's
+    /// second half (`None` without a start, or where it diverges).
     start_val_fit_percent: Option<f64>,
     /// With effects and no start: the search from scratch against the
     /// chain built one effect at a time (`scratch_sse`, `chain_sse`,
@@ -81,11 +86,12 @@ pub struct FitResult {
     /// --json`'s `switching`); `None` otherwise.
     switching: Option<Py<PyAny>>,
     /// Independent tries the population ran (from `pop=2000` on, tries of
-    /// 1000 and of 100; else 1), the first one's population, and the tries
-    /// by population (`fit --json`'s `try_sizes`: a list of dicts with
-    /// `population` and `tries`).
+    /// 1000 and of 100; else 1).
     tries: usize,
+    /// The first try's population.
     try_population: usize,
+    /// The tries by population (`fit --json`'s `try_sizes`: a list of
+    /// dicts with `population` and `tries`).
     try_sizes: Py<PyAny>,
     /// How far the tries agree, `fit --json`'s `agreement` (`tries`,
     /// `agreeing`, `other_basins`, `diverged`, `threshold`); `None` for a
@@ -106,8 +112,11 @@ pub struct FitResult {
     /// The search coordinates along which a step of a thousandth makes the
     /// estimation free run diverge (`fit --json`'s `diverging_probes`).
     diverging_probes: Vec<String>,
+    /// Candidates scored, every stage and try together.
     evaluations: u64,
+    /// Generations of the population stages run.
     generations: usize,
+    /// Wall time of the fit (s).
     seconds: f64,
     /// Where populations were scored.
     backend: String,
@@ -115,10 +124,14 @@ pub struct FitResult {
     family: String,
     /// The effect stages fitted after the family, in chain order.
     effects: Vec<String>,
+    /// The population search's update rule that ran: `de`, `ga`, `mfa` or
+    /// `pso` (`algo`).
     algo: String,
     /// `joint` or `thesis`.
     flow: String,
+    /// The seed every random draw of the fit came from.
     seed: u64,
+    /// Candidates a generation scores, all tries together (`pop`).
     population: usize,
     /// Why the fit ended: `completed`, `target-sse`, `time-budget`, `interrupted`.
     stop: String,

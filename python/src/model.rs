@@ -219,11 +219,15 @@ impl Model {
         self.base().output_mean
     }
 
+    /// The input column the model was fitted on (its name states the
+    /// unit, where it states one).
     #[getter]
     fn input_name(&self) -> &str {
         &self.base().input_name
     }
 
+    /// The output column the model was fitted on (its name states the
+    /// unit, where it states one).
     #[getter]
     fn output_name(&self) -> &str {
         &self.base().output_name
