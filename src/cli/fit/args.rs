@@ -227,7 +227,9 @@ pub struct Args {
     /// Bound one parameter to [LO, HI] (repeatable): a canonical name (A,
     /// alpha, beta, gamma, beta1..beta6, n, x_s, a, b, c, x0) or a search
     /// coordinate's (gain, offset, x0_range, loading, beta_range, psi_pp, ...;
-    /// result.json's search_box lists them). Bounding A frees the gauge;
+    /// result.json's search_box lists them), or an effect's as EFFECT.PARAM
+    /// (creep.rho, inertia:ringing.a1: the names `fit --json`'s params
+    /// prints, with --effects or --carry). Bounding A frees the gauge;
     /// bounding b or c searches the linear part in b, c, x0 themselves; a
     /// loop-shape parameter, the loop shape in its own parameters. NAME=VALUE
     /// holds it at VALUE, as --fix does; a name may be given once.
