@@ -353,8 +353,9 @@ impl<C: Chart> Space<C> {
             .filter(|&i| self.lower[i] == self.upper[i])
             .find(|&i| {
                 let hold = self.lower[i];
+                let off = (z[i] - hold).abs();
                 // NaN is elsewhere too.
-                !((z[i] - hold).abs() <= 1e-9 * hold.abs().max(1.0))
+                off.is_nan() || off > 1e-9 * hold.abs().max(1.0)
             })
             .map(|i| (i, z[i]))
     }
