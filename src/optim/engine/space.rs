@@ -416,6 +416,13 @@ mod tests {
         let back = space.embed(z.rows());
         assert_eq!(back.rows().row(0), theta);
         assert_eq!(space.bounds().lower, vec![0.0, -0.5]);
+        // Only a held coordinate's own value is off its hold; a free one
+        // anywhere, and rounding of the hold, are not.
+        assert_eq!(space.off_hold(&theta), None);
+        assert_eq!(space.off_hold(&[9.0, 1.0 + 1e-12, 0.4]), None);
+        assert_eq!(space.off_hold(&[0.7, 1.5, -0.003]), Some((1, 1.5)));
+        let nan = space.off_hold(&[0.7, f64::NAN, -0.003]);
+        assert!(nan.is_some_and(|(i, v)| i == 1 && v.is_nan()));
     }
 
     #[test]
