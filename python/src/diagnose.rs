@@ -52,7 +52,9 @@ impl Diagnosis {
 /// command's) explain it, how far the gap shrinks. With `start` (a `Model`
 /// or a model file's path), the selection starts from that model, as
 /// `diagnose --from`; with `transfer` (datasets), the chain is fitted on
-/// each of them as `--transfer` does; with `repeat` K, the whole
+/// each of them as `--transfer` does (one sampled otherwise, in other
+/// units, or holding the samples of one of `datasets` raises `ValueError`
+/// before the diagnosis runs); with `repeat` K, the whole
 /// diagnosis runs from K seeds as `--repeat` does (`document["repeats"]`).
 /// Returns the document
 /// `mckibben diagnose --json` prints, as dicts and lists, and the final
