@@ -79,6 +79,16 @@ def read_csv(
     split_gaps: Literal[True],
     dt: float | None = None,
 ) -> list[Trace]: ...
+@overload
+def read_csv(
+    path: _Path,
+    input: str = "pressure",
+    output: str = "displacement",
+    time: str | None = None,
+    resample: float | None = None,
+    split_gaps: bool = False,
+    dt: float | None = None,
+) -> Trace | list[Trace]: ...
 
 @final
 class Model:

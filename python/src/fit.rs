@@ -143,7 +143,8 @@ pub struct FitResult {
     on_edge: Py<PyAny>,
     /// The edge rule's widenings and refits (`fit --json`'s `widened`).
     widened: Py<PyAny>,
-    /// The box searched: `names`, `lower`, `upper` (after widening).
+    /// The box searched: `names`, `lower`, `upper` (after widening), and each
+    /// bound's `origin` (`data`, `class` or `user`).
     search_box: Py<PyDict>,
     /// One entry per generation and polish start: arrays `generation`,
     /// `stage`, `horizon` (0 for the free run), `evaluations`, `seconds`,
