@@ -492,6 +492,20 @@ fn what_would_fail_after_the_runs_fails_before_them() {
         "{err}"
     );
     assert!(!err.contains("[1/"), "no run started: {err}");
+    // The step is checked before the design: one whose prediction would
+    // diverge on the twin (a pole of 1.5) still gets the step's refusal,
+    // not the design's "the model's prediction diverges".
+    let mut file: Value = serde_json::from_str(&std::fs::read_to_string(&from).unwrap()).unwrap();
+    file["params"]["a"] = serde_json::json!(1.5);
+    let unstable = dir.path().join("unstable.json");
+    std::fs::write(&unstable, file.to_string()).unwrap();
+    let out = control(&["--controller", "mpc", "--from", unstable.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the model steps every 0.02 s, the twin every 0.01 s"),
+        "{err}"
+    );
     // Two seconds of a multisine settle no model: its pole came out at
     // −1.02 and the MPC held the valve shut, without a word.
     let multisine = dir.path().join("multisine.csv");

@@ -518,6 +518,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
     }
+    // A discrete-time model's poles are per sample: a model on another
+    // step than the twin's is refused before the design's seconds of work
+    // (a model file's step is known now, a design record's once
+    // identified; a rig's once its handshake gives it).
+    let step_refused = |dt: f64| -> anyhow::Result<()> {
+        if !matches!(plant, PlantSpec::Twin) || same_step(dt, config.sample_time_s) {
+            return Ok(());
+        }
+        let source = match (&args.from, &args.design_data) {
+            (Some(p), _) => format!("--from {}", p.display()),
+            (None, Some(p)) => format!("--design-data {}", p.display()),
+            (None, None) => "the design record".into(),
+        };
+        anyhow::bail!(
+            "{source}: the model steps every {} s, the twin every {} s: a discrete-time \
+             model's poles are per sample; give a model fitted on data sampled every {} s",
+            tidy_step(dt),
+            config.sample_time_s,
+            config.sample_time_s
+        )
+    };
+    if let Some(g) = &given {
+        step_refused(g.model.base.dt)?;
+    }
     let say = |s: String| {
         if !args.json {
             errln!("{s}");
@@ -532,22 +556,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             horizon: args.horizon,
         };
         let d = sweep::design_for(&request, &config, &|s| errln!("mckibben: note: {s}"))?;
-        // A rig's sample time is checked once its handshake gives it.
-        let dt = d.model.displacement.dt;
-        if matches!(plant, PlantSpec::Twin) && !same_step(dt, config.sample_time_s) {
-            let source = match (&args.from, &args.design_data) {
-                (Some(p), _) => format!("--from {}", p.display()),
-                (None, Some(p)) => format!("--design-data {}", p.display()),
-                (None, None) => "the design record".into(),
-            };
-            anyhow::bail!(
-                "{source}: the model steps every {} s, the twin every {} s: a discrete-time \
-                 model's poles are per sample; give a model fitted on data sampled every {} s",
-                tidy_step(dt),
-                config.sample_time_s,
-                config.sample_time_s
-            );
-        }
+        step_refused(d.model.displacement.dt)?;
         say(d.summary());
         Some(d)
     } else {
