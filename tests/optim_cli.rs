@@ -1015,6 +1015,74 @@ fn a_fit_below_the_linear_yardstick_is_flagged() {
     assert_eq!(notes, printed);
 }
 
+/// A record whose output stops moving at its second half (a sensor frozen,
+/// an end stop) has no fit % there: the measure divides by the output's
+/// spread, which the rounding of a mean made 10⁻¹² and the fit −10¹⁶ %
+/// (`identify`) or "diverged" (`fit`). Each command says undefined, why,
+/// and gives the RMSE.
+#[test]
+fn a_validation_half_whose_output_is_constant_has_no_fit_percent() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = Synthetic::new(Family::Classic, 400, 0.05, 21);
+    let mut output = s.trace.output.clone();
+    output[200..].fill(7.5);
+    let frozen = Trace::uniform("frozen.csv", s.trace.dt(), s.trace.input.clone(), output);
+    let path = dir.path().join("frozen.csv");
+    write_trace(&path, &frozen).unwrap();
+    let csv = path.display().to_string();
+    let warned = |out: &Output| {
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(
+            stderr.contains("warning: the output is constant over the validation half"),
+            "{stderr}"
+        );
+    };
+
+    let out = mckibben(&["identify", &csv], dir.path());
+    warned(&out);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("fit, validation half   undefined (the output is constant over it)"),
+        "{text}"
+    );
+    let v = json(&mckibben(&["identify", &csv, "--json"], dir.path()));
+    assert!(v["validation_fit_percent"].is_null(), "{v}");
+    assert!(v["validation_rmse"].as_f64().unwrap() > 0.0, "{v}");
+
+    let mut args = short_fit(&csv).to_vec();
+    args.extend(["--out", "frozen"]);
+    let out = mckibben(&args, dir.path());
+    warned(&out);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("validation fit       undefined   (RMSE "),
+        "{text}"
+    );
+    assert!(!text.contains("diverged"), "{text}");
+    args.push("--json");
+    let v = json(&mckibben(&args, dir.path()));
+    assert!(v["val_fit_percent"].is_null(), "{v}");
+    assert!(v["linear_val_fit_percent"].is_null(), "{v}");
+    assert!(v["val_rmse"].as_f64().unwrap() > 0.0, "{v}");
+
+    let model = dir.path().join("frozen/model.json");
+    let out = mckibben(
+        &[
+            "simulate",
+            "--from",
+            model.to_str().unwrap(),
+            "--input",
+            &csv,
+        ],
+        dir.path(),
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("its second half alone: undefined, the output being constant over it"),
+        "{text}"
+    );
+}
+
 /// A fit with effects has two starts: the search from scratch and the chain
 /// built one effect at a time. On the Cavatappi 300 g record with the
 /// diagnosis' verdict the search from scratch ends at estimation SSE 6.47

@@ -180,6 +180,15 @@ fn difference_equation(a: &[f64], b: &[f64], nk: usize) -> String {
     s
 }
 
+/// A fit % to two decimals; `NaN` is an output constant over the half
+/// scored ([`mckibben::ident::fit_percent`]), where the measure is undefined.
+fn percent(v: f64) -> String {
+    match v.is_nan() {
+        true => "undefined (the output is constant over it)".into(),
+        false => format!("{v:.2} %"),
+    }
+}
+
 fn print_report(id: &Identification) -> anyhow::Result<()> {
     let o = id.arx.orders;
     outln!(
@@ -211,11 +220,10 @@ fn print_report(id: &Identification) -> anyhow::Result<()> {
         outln!("  b{}            {}", j + 1, significant(*b, 6))?;
     }
     if o == ArxOrders::default() {
-        outln!(
-            "  model         l(k) = {}·l(k−1) + {}·p(k−1)   (eq. 12; thesis: 0.9618, 24.9366)",
-            significant(id.arx.a[0], 4),
-            significant(id.arx.b[0], 4)
-        )?;
+        let equation = difference_equation(&id.arx.a, &id.arx.b, o.nk)
+            .replace('y', "l")
+            .replace('u', "p");
+        outln!("  model         {equation}   (eq. 12; thesis: 0.9618, 24.9366)")?;
     } else {
         outln!(
             "  model         {}",
@@ -230,32 +238,43 @@ fn print_report(id: &Identification) -> anyhow::Result<()> {
         )?;
     }
     outln!(
-        "  fit, estimation half   {:.2} %",
-        id.estimation_fit_percent
+        "  fit, estimation half   {}",
+        percent(id.estimation_fit_percent)
     )?;
     outln!(
-        "  fit, validation half   {:.2} %   (RMSE {}; simulated from the half's own start, \
+        "  fit, validation half   {}   (RMSE {}; simulated from the half's own start, \
          as MATLAB's compare)",
-        id.validation_fit_percent,
+        percent(id.validation_fit_percent),
         significant(id.validation_rmse, 4)
     )?;
     outln!(
-        "  run on from the start  {:.2} %   (the same half, simulated from the record's first \
+        "  run on from the start  {}   (the same half, simulated from the record's first \
          sample: how `fit` and `simulate` score)",
-        id.continued_validation_fit_percent
+        percent(id.continued_validation_fit_percent)
     )?;
+    if id.validation_fit_percent.is_nan() {
+        errln!(
+            "mckibben: warning: the output is constant over the validation half: its fit % is \
+             undefined (it divides by the output's spread), and the RMSE says only how near \
+             the model holds that one level; validate on a record whose second half moves"
+        );
+    }
     if !id.records.is_empty() {
         outln!(
             "  the fits above pool the records, each about its own mean; each record's own \
              (estimation / validation / run on):"
         )?;
         for r in &id.records {
+            let cell = |v: f64| match v.is_nan() {
+                true => "  undef".to_string(),
+                false => format!("{v:>7.2}"),
+            };
             outln!(
-                "    {:<28} {:>7.2} / {:>7.2} / {:>7.2} %   (validation RMSE {})",
+                "    {:<28} {} / {} / {} %   (validation RMSE {})",
                 r.data,
-                r.estimation_fit_percent,
-                r.validation_fit_percent,
-                r.continued_validation_fit_percent,
+                cell(r.estimation_fit_percent),
+                cell(r.validation_fit_percent),
+                cell(r.continued_validation_fit_percent),
                 significant(r.validation_rmse, 4)
             )?;
         }

@@ -403,10 +403,16 @@ fn print_summary(
             significant(summary.loop_area, 4)
         )?,
     }
-    if let (Some(all), Some(val)) = (summary.fit_percent, summary.val_fit_percent) {
+    // A run that did not diverge scores both; a fit % left out there is
+    // an output constant over the half (the measure divides by its spread).
+    if let Some(all) = summary.fit_percent {
+        let val = match summary.val_fit_percent {
+            Some(val) => format!("{val:.2} %"),
+            None => "undefined, the output being constant over it".into(),
+        };
         writeln!(
             report,
-            "  fit to the measured output {all:.2} % (its second half alone: {val:.2} %, as `fit` scores its validation half)"
+            "  fit to the measured output {all:.2} % (its second half alone: {val}, as `fit` scores its validation half)"
         )?;
     }
     if let Some(p) = &args.out {

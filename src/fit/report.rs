@@ -485,7 +485,14 @@ impl FitReport {
             let row = format!("  {name:<name_width$} {figure:>14}{held}{error}");
             line(row.trim_end().to_string());
         }
-        let percent = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4} %"));
+        // A fit % is missing where the run diverged, or, where the RMSE is
+        // finite, where the output it divides by is constant.
+        let percent = |v: Option<f64>, rmse: Option<f64>| match (v, rmse) {
+            (Some(v), _) => format!("{v:.4} %"),
+            (None, Some(_)) => "undefined".to_string(),
+            (None, None) => "diverged".to_string(),
+        };
+        let constant = self.val_fit_percent.is_none() && self.val_rmse.is_some();
         // SSEs and RMSEs are in the output's units, squared or not.
         let figure = |v: Option<f64>| v.map_or("diverged".to_string(), |v| significant(v, 4));
         if !self.diverging_probes.is_empty() {
@@ -500,9 +507,15 @@ impl FitReport {
             1 => String::new(),
             k => format!("; the {k} records' second halves pooled"),
         };
+        let constant_why = match constant {
+            true => {
+                "; the output is constant over the validation half: fit % divides by its spread"
+            }
+            false => "",
+        };
         line(format!(
-            "  validation fit       {}   (RMSE {}{pooled})",
-            percent(self.val_fit_percent),
+            "  validation fit       {}   (RMSE {}{pooled}{constant_why})",
+            percent(self.val_fit_percent, self.val_rmse),
             figure(self.val_rmse)
         ));
         if self.records.len() > 1 {
@@ -512,15 +525,15 @@ impl FitReport {
                 line(format!(
                     "    {:<width$} {}   (RMSE {}; its own ARX {})",
                     r.data,
-                    percent(r.val_fit_percent),
+                    percent(r.val_fit_percent, r.val_rmse),
                     figure(r.val_rmse),
-                    percent(r.linear_val_fit_percent)
+                    percent(r.linear_val_fit_percent, r.val_rmse)
                 ));
             }
         }
         line(format!(
             "  validation fit, ARX  {}   (the first-order linear model on the same halves)",
-            percent(self.linear_val_fit_percent)
+            percent(self.linear_val_fit_percent, self.val_rmse)
         ));
         if let (Some(stable), Some(largest)) = (self.stable_step, self.largest_step) {
             line(format!(
@@ -537,7 +550,10 @@ impl FitReport {
         if self.start_sse.is_some() || self.start_val_fit_percent.is_some() {
             line(format!(
                 "  validation fit, from  {}   (the --from model as it was, on the same halves; SSE {})",
-                percent(self.start_val_fit_percent),
+                percent(
+                    self.start_val_fit_percent,
+                    self.val_rmse.filter(|_| constant)
+                ),
                 figure(self.start_sse)
             ));
         }
@@ -649,7 +665,32 @@ impl FitReport {
             level: "warning",
             text,
         }));
+        notes.extend(self.constant_validation().map(|text| Note {
+            level: "warning",
+            text,
+        }));
         notes
+    }
+
+    /// The records whose output is constant over their validation half (a
+    /// sensor frozen or at an end stop), as a warning: their fit % is
+    /// undefined, and their RMSE says only how near the model holds that
+    /// one level, not whether it follows a motion it never saw.
+    fn constant_validation(&self) -> Option<String> {
+        let constant: Vec<&str> = self
+            .records
+            .iter()
+            .filter(|r| r.val_fit_percent.is_none() && r.val_rmse.is_some())
+            .map(|r| r.data.as_str())
+            .collect();
+        (!constant.is_empty()).then(|| {
+            format!(
+                "the output is constant over the validation half of {}: its fit % is undefined \
+                 (it divides by the output's spread), and its RMSE says only how near the model \
+                 holds that one level; validate on a record whose second half moves",
+                constant.join(", ")
+            )
+        })
     }
 
     /// The parameters whose standard error is at least their own size, as

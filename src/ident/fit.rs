@@ -12,7 +12,11 @@ pub fn fit_percent(y: &[f64], y_hat: &[f64]) -> f64 {
 /// levels (a load, a sensor's zero) as output the model explains, and a
 /// record the model misses would hide behind the others. One record:
 /// [`fit_percent`]'s figure, bit for bit. `NaN` where every record is
-/// constant, a record's lengths differ, or there is none.
+/// constant, a record's lengths differ, or there is none. Constant means
+/// to the rounding of its values: a sensor frozen at 7.5 mm, in
+/// coordinates about another mean, spreads by the rounding of that mean
+/// alone (10⁻¹² of the values), which would divide the error into a fit
+/// of −10¹⁶ %.
 pub fn pooled_fit_percent(records: &[(&[f64], &[f64])]) -> f64 {
     if records.is_empty()
         || records
@@ -35,12 +39,23 @@ pub fn pooled_fit_percent(records: &[(&[f64], &[f64])]) -> f64 {
         })
         .sum::<f64>()
         .sqrt();
-    if spread == 0.0 {
+    let level: f64 = records
+        .iter()
+        .flat_map(|(y, _)| y.iter().map(|a| a * a))
+        .sum::<f64>()
+        .sqrt();
+    if spread <= CONSTANT_TO * level {
         f64::NAN
     } else {
         100.0 * (1.0 - err / spread)
     }
 }
+
+/// The spread about the mean, as a share of the values' own size, below
+/// which an output counts as constant ([`pooled_fit_percent`]): far below
+/// any sensor's resolution (a nanometre in a metre), far above the
+/// rounding of a mean of doubles (about 10⁻¹⁵ a sample).
+const CONSTANT_TO: f64 = 1e-9;
 
 /// Root-mean-square difference.
 pub fn rmse(y: &[f64], y_hat: &[f64]) -> f64 {
@@ -100,6 +115,21 @@ mod tests {
         assert_eq!(fit_percent(&y, &y), 100.0);
         assert!((fit_percent(&y, &[2.5; 4])).abs() < 1e-12);
         assert!(fit_percent(&[1.0; 3], &[1.0; 3]).is_nan());
+        // Constant in coordinates about another mean: its spread is the
+        // mean's rounding, not a motion to score against.
+        let frozen = vec![7.5 - 10.973269; 2000];
+        assert!(
+            frozen
+                .iter()
+                .map(|v| v - frozen.iter().sum::<f64>() / 2000.0)
+                .any(|d| d != 0.0)
+        );
+        assert!(fit_percent(&frozen, &[0.0; 2000]).is_nan());
+        // A motion of a micrometre on an offset of 250 mm is still one.
+        let small: Vec<f64> = (0..2000)
+            .map(|k| 250.0 + 1e-3 * (k as f64 * 0.01).sin())
+            .collect();
+        assert!(fit_percent(&small, &small) == 100.0);
         assert!((rmse(&y, &[2.0, 3.0, 4.0, 5.0]) - 1.0).abs() < 1e-12);
     }
 

@@ -410,9 +410,13 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
     }
     let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
     outln!("  SSE (estimation)     {}", show(report.sse))?;
+    let percent = match (report.val_fit_percent, report.val_rmse) {
+        (Some(v), _) => format!("{v:.4} %"),
+        (None, Some(_)) => "undefined (the output is constant over the validation half)".into(),
+        (None, None) => "diverged".into(),
+    };
     outln!(
-        "  validation fit       {} %   (RMSE {})",
-        show(report.val_fit_percent),
+        "  validation fit       {percent}   (RMSE {})",
         show(report.val_rmse)
     )?;
     outln!(
