@@ -32,15 +32,57 @@ const KNOWN: [(&str, &str); 22] = [
 
 /// What a column name states as its unit, lower-case: the text inside
 /// trailing brackets or parentheses (`p [kPa]`, `x (m)`), else after the
-/// last `_` (`disp_mm`).
+/// last `_`, space or `/` (`disp_mm`, `pressure kPa`, ISO's `p/kPa`).
 fn stated(name: &str) -> Option<String> {
     let bracketed = name
         .strip_suffix(']')
         .and_then(|s| s.rsplit_once('['))
         .or_else(|| name.strip_suffix(')').and_then(|s| s.rsplit_once('(')))
         .map(|(_, unit)| unit);
-    let tail = bracketed.or_else(|| name.rsplit_once('_').map(|(_, unit)| unit))?;
+    let tail = bracketed.or_else(|| name.rsplit_once(['_', ' ', '/']).map(|(_, unit)| unit))?;
     Some(tail.trim().to_ascii_lowercase())
+}
+
+/// Pressure units a gauge's `g` or an absolute `a` may follow (`psig`,
+/// `kPag`, `bara`), lower-case.
+const PRESSURES: [&str; 4] = ["psi", "kpa", "mpa", "bar"];
+
+/// A pressure `unit` (as [`unit_of`] spells it) read from zero at vacuum:
+/// another unit than the gauge's, since the two differ by the day's
+/// atmosphere, which no column states.
+fn absolute(unit: &str) -> String {
+    format!("{unit} (abs)")
+}
+
+/// The unit `tail` (lower-case, as [`stated`] gives it) names, with a
+/// pressure's gauge or absolute mark: `psig` and `psi gauge` are psi, the
+/// gauge pressure a muscle's sensor reads; `psia` and `kPa abs` are
+/// [`absolute`].
+fn known(tail: &str) -> Option<String> {
+    let plain = |key: &str| {
+        KNOWN
+            .iter()
+            .find(|(k, _)| *k == key)
+            .map(|(_, u)| u.to_string())
+    };
+    if let Some(unit) = plain(tail) {
+        return Some(unit);
+    }
+    let pressure = |key: &str| PRESSURES.contains(&key).then(|| plain(key)).flatten();
+    if let Some((unit, mark)) = tail.rsplit_once([' ', '_']) {
+        let unit = pressure(unit.trim())?;
+        return match mark.trim() {
+            "g" | "gauge" | "gage" => Some(unit),
+            "a" | "abs" | "absolute" => Some(absolute(&unit)),
+            _ => None,
+        };
+    }
+    if let Some(unit) = tail.strip_suffix('g').and_then(pressure) {
+        return Some(unit);
+    }
+    tail.strip_suffix('a')
+        .and_then(pressure)
+        .map(|u| absolute(&u))
 }
 
 /// The shipped data's column names, which state no unit, and their units
@@ -64,10 +106,18 @@ pub fn unit_of(column: &str) -> Option<String> {
     if tail == "in" && (name.ends_with(']') || name.ends_with(')')) {
         return Some("in".into());
     }
-    KNOWN
-        .iter()
-        .find(|(key, _)| *key == tail)
-        .map(|(_, unit)| unit.to_string())
+    // A gauge's or an absolute mark after the unit (`pressure_kPa_gauge`,
+    // `p kPa abs`): the unit is the word before it.
+    if let Some((rest, mark)) = name.rsplit_once(['_', ' ', '/'])
+        && matches!(
+            mark.trim().to_ascii_lowercase().as_str(),
+            "gauge" | "gage" | "abs" | "absolute"
+        )
+    {
+        let unit = stated(rest.trim())?;
+        return known(&format!("{unit} {}", mark.trim().to_ascii_lowercase()));
+    }
+    known(&tail)
 }
 
 /// The unit a time column's name states where it is not seconds
@@ -172,6 +222,48 @@ mod tests {
         assert_eq!(unit_of("p_mbar").as_deref(), Some("mbar"));
         assert_eq!(megapascals_in("hPa"), Some(1e-4));
         assert_eq!(stated_length_in_mm("disp_ft"), Some(304.8));
+    }
+
+    /// A space or ISO's `/` before the unit, and a pressure's gauge mark,
+    /// state it as well: a `pressure_psig` column was read as stating no
+    /// unit, and a model fitted on it ran on MPa without a word.
+    #[test]
+    fn other_spellings_state_the_same_units() {
+        for (name, unit) in [
+            ("pressure kPa", "kPa"),
+            ("p/kPa", "kPa"),
+            ("disp mm", "mm"),
+            ("pressure_psig", "psi"),
+            ("p_kPag", "kPa"),
+            ("p (barg)", "bar"),
+            ("pressure_MPa_gauge", "MPa"),
+            ("p [kPa g]", "kPa"),
+            ("p (psi gauge)", "psi"),
+            ("pressure_psia", "psi (abs)"),
+            ("p_bara", "bar (abs)"),
+            ("pressure_kPa_abs", "kPa (abs)"),
+            ("p [kPa abs]", "kPa (abs)"),
+        ] {
+            assert_eq!(unit_of(name).as_deref(), Some(unit), "{name}");
+        }
+        // An absolute pressure differs from a gauge's by the day's
+        // atmosphere: no factor converts it.
+        assert_eq!(megapascals_in("psi (abs)"), None);
+        // Words that are not units, and marks on no pressure.
+        for name in [
+            "valve in",
+            "p_raw",
+            "disp_mm_gauge",
+            "load_ga",
+            "stroke_gauge",
+            "x/p0",
+        ] {
+            assert_eq!(unit_of(name), None, "{name}");
+        }
+        assert_eq!(
+            time_unit_other_than_seconds("time ms"),
+            Some("milliseconds")
+        );
     }
 
     #[test]
