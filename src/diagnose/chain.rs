@@ -183,6 +183,7 @@ pub fn selected_fit(
             .collect(),
         undetermined: Vec::new(),
         diverging_probes: Vec::new(),
+        held_at_bounds: Vec::new(),
         sse: finite(d.selection.final_fit.est_sse),
         val_rmse,
         val_fit_percent,

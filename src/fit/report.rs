@@ -51,6 +51,11 @@ pub struct FitReport {
     /// the fit ends at the edge of divergence there, and the parameters
     /// they move have no standard error.
     pub diverging_probes: Vec<String>,
+    /// The search coordinates held for the errors because their probe
+    /// step reaches past a bound (`fit::uncertainty::Assessment`): said
+    /// in a note, which the JSON's `notes` carry.
+    #[serde(skip)]
+    pub held_at_bounds: Vec<String>,
     /// Estimation SSE of the free run (`None` where it diverged).
     pub sse: Option<f64>,
     pub val_rmse: Option<f64>,
@@ -231,12 +236,14 @@ impl FitReport {
         let Assessment {
             std_errors,
             diverging_probes,
+            held_at_bounds,
         } = match found {
             true => assess(problem, &outcome.params),
             // No parameters, no errors: `std_errors` has `params`' names.
             false => Assessment {
                 std_errors: Vec::new(),
                 diverging_probes: Vec::new(),
+                held_at_bounds: Vec::new(),
             },
         };
         let std_errors: Named<Option<f64>> = names.iter().zip(std_errors).collect();
@@ -256,6 +263,7 @@ impl FitReport {
             std_errors,
             undetermined,
             diverging_probes,
+            held_at_bounds,
             sse: finite(outcome.sse),
             val_rmse: finite(val.pooled.rmse),
             val_fit_percent: finite(val.pooled.fit_percent),
@@ -654,6 +662,19 @@ impl FitReport {
             self.undetermined(),
         ];
         notes.extend(advice.into_iter().flatten().map(Note::plain));
+        if !self.held_at_bounds.is_empty() {
+            notes.push(Note::plain(format!(
+                "no standard error along {}: {} within its probe step (a thousandth of the \
+                 value) of a bound the data or --bound set, so the errors hold it there; the \
+                 parameters it moves have no ±, and the others' are those given it held. \
+                 `--bound NAME=LO:HI` with room around the value gives it one",
+                self.held_at_bounds.join(", "),
+                match self.held_at_bounds.len() {
+                    1 => "it ended",
+                    _ => "each ended",
+                }
+            )));
+        }
         if let (Some(sse), Some(val)) = (self.sse, self.val_fit_percent) {
             let warnings = yardstick_warnings(sse, val, self.linear_val_fit_percent, start);
             notes.extend(warnings.into_iter().map(|text| Note {

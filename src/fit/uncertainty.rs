@@ -27,6 +27,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::problem::FitProblem;
+use crate::model::bounds::Origin;
 use crate::optim::engine::Polish;
 
 /// What `fit` reports of how well the estimation half settles `theta`,
@@ -51,6 +52,14 @@ pub struct Assessment {
     /// along them, and the parameters they move get no standard error.
     /// Empty where the run at `theta` itself diverges.
     pub diverging_probes: Vec<String>,
+    /// The search coordinates (by the box's names) held because their
+    /// probe step reaches past a bound of the box that the data or the
+    /// user set, where errors are reported at all: the parameters they move get none, and the others'
+    /// are those given them held. A slow pole at a fast rate (0.99978 under
+    /// a box's 0.9999) is one; probing it with the room it has instead
+    /// read the model's change near such bounds as slopes (coverage on the
+    /// generated cases fell from 86 % to 69 % within two errors).
+    pub held_at_bounds: Vec<String>,
 }
 
 /// [`Assessment`] of `theta` on `problem`'s estimation halves.
@@ -60,16 +69,22 @@ pub fn assess(problem: &FitProblem, theta: &[f64]) -> Assessment {
         return Assessment {
             std_errors: none,
             diverging_probes: Vec::new(),
+            held_at_bounds: Vec::new(),
         };
     };
     let smooth = problem.model.family.switch_index().is_none() && problem.model.effects.is_empty();
     let names = problem.space.names();
+    let named = |coordinates: &[usize]| coordinates.iter().map(|&j| names[j].clone()).collect();
     Assessment {
         std_errors: match smooth {
             true => errors_of(problem, theta.len(), &probes),
             false => none,
         },
-        diverging_probes: probes.diverging.iter().map(|&j| names[j].clone()).collect(),
+        diverging_probes: named(&probes.diverging),
+        held_at_bounds: match smooth {
+            true => named(&probes.near_bound),
+            false => Vec::new(),
+        },
     }
 }
 
@@ -145,6 +160,9 @@ struct Probes {
     /// The free coordinates a step of whose probe made the free run
     /// diverge (the switching level is not probed).
     diverging: Vec<usize>,
+    /// The free coordinates held because their probe step reaches past a
+    /// bound the data or the user set.
+    near_bound: Vec<usize>,
 }
 
 /// [`Probes`] at `theta`, `None` where its own residuals diverge.
@@ -160,7 +178,8 @@ fn probes(problem: &FitProblem, theta: &[f64]) -> Option<Probes> {
         step_floor,
         ..
     } = Polish::default();
-    let (mut probed, mut columns, mut diverging) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut probed, mut columns) = (Vec::new(), Vec::new());
+    let (mut diverging, mut near_bound) = (Vec::new(), Vec::new());
     for j in space.free() {
         if Some(j) == switch {
             continue;
@@ -168,6 +187,13 @@ fn probes(problem: &FitProblem, theta: &[f64]) -> Option<Probes> {
         let (lo, hi) = (space.lower[j], space.upper[j]);
         let h = rel_step * z0[j].abs().max(step_floor * (hi - lo));
         if z0[j] - h < lo || z0[j] + h > hi {
+            // A class's edge (the bounded loop's, a parameter's own range)
+            // is the model's and says why itself; a bound the data or the
+            // user set can be moved.
+            let side = usize::from(z0[j] + h > hi);
+            if space.origin[j][side] != Origin::Class {
+                near_bound.push(j);
+            }
             continue;
         }
         let at = |step: f64| {
@@ -192,6 +218,7 @@ fn probes(problem: &FitProblem, theta: &[f64]) -> Option<Probes> {
         probed,
         columns,
         diverging,
+        near_bound,
     })
 }
 
@@ -317,6 +344,39 @@ mod tests {
         assert!(z.len() >= 5, "{z:?}");
         let largest = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         assert!(largest < 5.0 && largest > 0.05, "{z:?}");
+    }
+
+    /// A coordinate within its probe step of a bound the user (or the
+    /// data) set is held, and named: its missing error had no word.
+    #[test]
+    fn a_coordinate_held_at_a_bound_it_can_leave_is_named() {
+        use crate::fit::problem::FitProblem;
+        use crate::model::{Flow, Loop, Switching, UserBound};
+        let case = Case::generate(matrix(Family::Classic, 1, 1000)[0]);
+        let open = assess(&case.problem(), &case.truth);
+        assert!(open.held_at_bounds.is_empty(), "{open:?}");
+        let names = case.problem().model.param_names();
+        let at = names.iter().position(|n| n == "a").unwrap();
+        let a = case.truth[at];
+        let near = UserBound {
+            name: "a".into(),
+            lower: 0.5 * a,
+            upper: a + 0.5e-3 * a,
+        };
+        let problem = FitProblem::with_box(
+            std::slice::from_ref(&case.trace),
+            Family::Classic,
+            Flow::Joint,
+            None,
+            false,
+            (Loop::Bounded, Switching::default()),
+            &[near],
+        )
+        .unwrap();
+        let held = assess(&problem, &case.truth);
+        assert_eq!(held.held_at_bounds, ["a"]);
+        assert_eq!(held.std_errors[at], None);
+        assert!(open.std_errors[at].is_some());
     }
 
     /// The generalized family's free-run error jumps where a sample crosses
