@@ -568,6 +568,32 @@ fn what_would_fail_after_the_runs_fails_before_them() {
         )),
         "{err}"
     );
+    // A pressure in kPa under the MPa name: the design read it as a record
+    // that does not settle the model, "a stair's few steps" on a multisine.
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let pressure = lines[header]
+        .split(',')
+        .position(|c| c == "pressure")
+        .unwrap();
+    for line in &mut lines[header + 1..] {
+        let mut cells: Vec<String> = line.split(',').map(String::from).collect();
+        cells[pressure] = (1000.0 * cells[pressure].parse::<f64>().unwrap()).to_string();
+        *line = cells.join(",");
+    }
+    let kpa = dir.path().join("kpa.csv");
+    std::fs::write(&kpa, lines.join("\n")).unwrap();
+    let out = control(&[
+        "--controller",
+        "mpc",
+        "--design-data",
+        kpa.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the design record's pressure is in MPa") && err.contains("convert it to MPa"),
+        "{err}"
+    );
     // A model whose free run diverges (a pole of 1.5 in a classic model of
     // the stair) steered the MPC without a word: refused before any run.
     let stair = Command::new(BIN)

@@ -318,6 +318,19 @@ pub fn design_for(
                     "--design-data: {cell}: the valve → pressure model reads every sample of it"
                 );
             }
+            // The record's pressure is the controllers' and the twin's, in
+            // MPa; a muscle's stays well under 10 MPa, so a larger value is
+            // another unit under the MPa name, which the design would read
+            // as a record that does not settle the model.
+            let largest = trace.input.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            anyhow::ensure!(
+                largest <= crate::data::csv::IMPLAUSIBLE_MPA,
+                "--design-data {}: column \"pressure\" reaches {}, but the design record's \
+                 pressure is in MPa (the controllers' and the twin's): if it is in kPa, Pa, bar \
+                 or psi, convert it to MPa",
+                path.display(),
+                crate::data::readable(largest)
+            );
             let design = design_from_record(&trace, request.horizon).with_context(|| {
                 format!(
                     "identifying the model from {} (a design record drives the valve with \

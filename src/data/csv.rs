@@ -72,7 +72,7 @@ impl Gaps {
 
 /// The largest gauge pressure (MPa) a column named `pressure`, taken in
 /// MPa, holds without a note: a McKibben muscle works well under it.
-const IMPLAUSIBLE_MPA: f64 = 10.0;
+pub const IMPLAUSIBLE_MPA: f64 = 10.0;
 
 /// Which columns to read and how to treat the time base.
 #[derive(Debug, Clone, PartialEq)]
