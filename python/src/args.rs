@@ -11,7 +11,7 @@ use pyo3::types::{PyBool, PyBytes, PyDict, PyFrozenSet, PyInt, PySet, PyString};
 use mckibben::model::effects::Effect;
 use mckibben::model::{UserBound, UserBoundError};
 
-use crate::convert::{family, given, in_python_terms};
+use crate::convert::{family, given, in_python_terms, must_pass};
 
 /// Whether `obj` is a boolean, Python's or NumPy's: both convert to
 /// numbers, and `True` taken as 1 is a mistake more often than not.
@@ -40,6 +40,8 @@ pub fn real(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<f64> {
             PyValueError::new_err(format!(
                 "{what} must be a finite number, got an integer too large for a float"
             ))
+        } else if must_pass(&e, obj.py()) {
+            e
         } else {
             wrong()
         }

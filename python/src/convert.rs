@@ -5,7 +5,9 @@
 
 use clap::ValueEnum;
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyTypeError, PyValueError};
+use pyo3::exceptions::{
+    PyException, PyFileNotFoundError, PyMemoryError, PyOSError, PyTypeError, PyValueError,
+};
 use pyo3::prelude::*;
 use serde::Serialize;
 
@@ -32,6 +34,15 @@ pub fn given(obj: &Bound<'_, PyAny>) -> String {
     format!("{ty} {repr}")
 }
 
+/// Whether `e`, raised while an argument was read, must reach the caller as
+/// it is: an interrupt (`KeyboardInterrupt`, `SystemExit`: no `Exception`)
+/// or a `MemoryError`, which a message on the argument would turn into a
+/// wrong value (Ctrl-C during a pandas column's `__array__` read as "not an
+/// array of numbers").
+pub fn must_pass(e: &PyErr, py: Python<'_>) -> bool {
+    !e.is_instance_of::<PyException>(py) || e.is_instance_of::<PyMemoryError>(py)
+}
+
 /// The values of a numeric array in C order, with its shape.
 pub struct Floats {
     pub values: Vec<f64>,
@@ -51,7 +62,10 @@ pub fn contiguous<'py>(
     refuse_masked(&np, obj, what)?;
     let array = np
         .call_method1("asarray", (obj,))
-        .map_err(|e| PyValueError::new_err(format!("{what}: not an array of numbers ({e})")))?;
+        .map_err(|e| match must_pass(&e, obj.py()) {
+            true => e,
+            false => PyValueError::new_err(format!("{what}: not an array of numbers ({e})")),
+        })?;
     let ndim: usize = array.getattr("ndim")?.extract()?;
     let dtype = array.getattr("dtype")?;
     let kind: String = dtype.getattr("kind")?.extract()?;

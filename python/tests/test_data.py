@@ -187,3 +187,31 @@ def test_a_path_with_two_dashes_is_named_as_given(tmp_path):
     with pytest.raises(FileNotFoundError) as raised:
         mckibben.read_csv(missing)
     assert str(missing) in str(raised.value)
+
+
+class _Raises:
+    """An array-like (as a pandas column is) or a number whose conversion
+    raises `error`, as Ctrl-C or an exhausted memory raises it there."""
+
+    def __init__(self, error):
+        self.error = error
+
+    def __array__(self, dtype=None, copy=None):
+        raise self.error
+
+    def __float__(self):
+        raise self.error
+
+
+@pytest.mark.parametrize("error", [KeyboardInterrupt, MemoryError])
+def test_an_interrupt_while_an_argument_converts_reaches_the_caller(error):
+    # It was a ValueError ("not an array of numbers") and a TypeError ("dt
+    # must be a number"): a Ctrl-C read as a wrong argument.
+    u = np.linspace(0.0, 0.4, 100)
+    with pytest.raises(error):
+        mckibben.Trace(_Raises(error), u, 0.01)
+    with pytest.raises(error):
+        mckibben.Trace(u, u, _Raises(error))
+    # Any other error of the conversion is the argument's.
+    with pytest.raises(ValueError, match="not an array of numbers"):
+        mckibben.Trace(_Raises(RuntimeError("broken")), u, 0.01)
