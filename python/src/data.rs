@@ -463,6 +463,29 @@ pub fn located(e: anyhow::Error, lists: &[&Records]) -> PyErr {
             return placed(cause, t, place);
         }
     }
+    // A cause about two records (the same samples, other steps, other
+    // columns) names both by their sources, which both may share (`python
+    // and python hold the same samples`): the same checks on the records
+    // named by their places as well say which.
+    for records in lists {
+        let named: Vec<mckibben::data::Trace> = records
+            .traces
+            .iter()
+            .zip(&records.places)
+            .map(|(t, place)| {
+                let mut t = t.clone();
+                if t.source != *place {
+                    t.source = format!("{place} ({})", t.source);
+                }
+                t
+            })
+            .collect();
+        let again =
+            mckibben::data::mixed_steps(&named).or_else(|| mckibben::data::unlike_records(&named));
+        if let Some(why) = again {
+            return PyValueError::new_err(in_python_terms(&why));
+        }
+    }
     value_error(e)
 }
 

@@ -158,9 +158,14 @@ def test_a_record_at_fault_is_named_by_its_place_in_the_list(stair):
         mckibben.diagnose([stair, short], **args)
     with pytest.raises(ValueError, match=r"^datasets\[2\] \(python\): the input `pressure` is constant"):
         mckibben.diagnose([stair, mckibben.Trace(u[:2000], y[:2000], stair.dt), mckibben.Trace(np.ones(100), y[:100], stair.dt)], **args)
-    # The stair given twice would weigh double.
-    with pytest.raises(ValueError, match="hold the same samples"):
-        mckibben.diagnose([stair, mckibben.Trace(u, y, stair.dt)], **args)
+    # The stair given twice would weigh double; two records that share a
+    # source are named by their places (it was "python and python").
+    same = mckibben.Trace(u, y, stair.dt)
+    with pytest.raises(ValueError, match=r"datasets\[1\] \(python\) hold the same samples"):
+        mckibben.diagnose([stair, same, same], **args)
+    slower = mckibben.Trace(u[::2], y[::2], 2 * stair.dt)
+    with pytest.raises(ValueError, match=r"^u\[2\] \(python\) is sampled every 0.02 s, u\[0\] \(.*\) every 0.01 s"):
+        mckibben.fit([stair, mckibben.Trace(u[:3000], y[:3000], stair.dt), slower])
     # A tuple's source is its place: named once, and a transfer's as such
     # (it was "cannot fit datasets[1]: datasets[1]: ...").
     with pytest.raises(ValueError, match=r"^datasets\[1\]: 30 samples are too few to split"):
