@@ -329,7 +329,7 @@ pub fn design_for(
                  pressure is in MPa (the controllers' and the twin's): if it is in kPa, Pa, bar \
                  or psi, convert it to MPa",
                 path.display(),
-                crate::data::readable(largest)
+                crate::report::number::significant(largest, 4)
             );
             let design = design_from_record(&trace, request.horizon).with_context(|| {
                 format!(

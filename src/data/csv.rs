@@ -911,7 +911,7 @@ fn parse(
                  reaches {}; if it is in kPa, Pa, bar or psi, say so in its name \
                  (`pressure_kPa`), so that a model fitted on it records its unit",
                 path.display(),
-                super::readable(largest)
+                super::readable(rounded(largest))
             ));
         }
     }
