@@ -6,7 +6,8 @@
 use clap::ValueEnum;
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{
-    PyException, PyFileNotFoundError, PyMemoryError, PyOSError, PyTypeError, PyValueError,
+    PyException, PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyMemoryError,
+    PyNotADirectoryError, PyOSError, PyPermissionError, PyTypeError, PyValueError,
 };
 use pyo3::prelude::*;
 use serde::Serialize;
@@ -306,16 +307,35 @@ pub fn runtime_error(e: anyhow::Error) -> PyErr {
     pyo3::exceptions::PyRuntimeError::new_err(in_python_terms(&format!("{e:#}")))
 }
 
-/// A library error reading a file: `FileNotFoundError` or `OSError` when an
-/// I/O error is its cause, else `ValueError` (the file's content).
+/// A library error reading a file: the `OSError` of its cause when an I/O
+/// error is its cause ([`os_error`]), else `ValueError` (the file's content).
 pub fn file_error(e: anyhow::Error) -> PyErr {
     let message = in_python_terms(&format!("{e:#}"));
     match e.chain().find_map(|c| c.downcast_ref::<std::io::Error>()) {
-        Some(io) if io.kind() == std::io::ErrorKind::NotFound => {
-            PyFileNotFoundError::new_err(message)
-        }
-        Some(_) => PyOSError::new_err(message),
+        Some(io) => os_error(io, message),
         None => PyValueError::new_err(message),
+    }
+}
+
+/// The I/O error `io` as Python's `open` raises it: the `OSError` subclass
+/// of its errno (`FileNotFoundError`, `PermissionError`,
+/// `IsADirectoryError`, …, with `errno` set), or of its kind where the OS
+/// gave none; `message` (the library's: the file and the cause) its text.
+/// A folder read as a file was a plain `OSError`, which an `except
+/// IsADirectoryError` missed.
+pub fn os_error(io: &std::io::Error, message: String) -> PyErr {
+    use std::io::ErrorKind;
+    if let Some(errno) = io.raw_os_error() {
+        // OSError(errno, text) makes the errno's subclass itself.
+        return PyOSError::new_err((errno, message));
+    }
+    match io.kind() {
+        ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
+        ErrorKind::PermissionDenied => PyPermissionError::new_err(message),
+        ErrorKind::IsADirectory => PyIsADirectoryError::new_err(message),
+        ErrorKind::NotADirectory => PyNotADirectoryError::new_err(message),
+        ErrorKind::AlreadyExists => PyFileExistsError::new_err(message),
+        _ => PyOSError::new_err(message),
     }
 }
 

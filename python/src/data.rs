@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use numpy::{PyArray1, ToPyArray};
-use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
@@ -12,7 +12,7 @@ use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::model::file::ReadSettings;
 
 use crate::args::real;
-use crate::convert::{in_python_terms, sample_time, series, value_error};
+use crate::convert::{in_python_terms, os_error, sample_time, series, value_error};
 use crate::named;
 
 /// One recorded experiment on a uniform time base: the model's input and
@@ -262,16 +262,13 @@ pub fn data_arg(
     }
 }
 
-/// A data file's error as Python's exception: `FileNotFoundError` or
-/// `OSError` when it cannot be read, `ValueError` for its content; the
+/// A data file's error as Python's exception: the `OSError` of its cause
+/// when it cannot be read ([`os_error`]), `ValueError` for its content; the
 /// message is the library's (file, line, column, what).
 fn data_error(e: DataError) -> PyErr {
     let message = in_python_terms(&e.to_string());
     match &e {
-        DataError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
-            PyFileNotFoundError::new_err(message)
-        }
-        DataError::Io { .. } => PyOSError::new_err(message),
+        DataError::Io { source, .. } => os_error(source, message),
         _ => PyValueError::new_err(message),
     }
 }

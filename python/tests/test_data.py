@@ -215,3 +215,16 @@ def test_an_interrupt_while_an_argument_converts_reaches_the_caller(error):
     # Any other error of the conversion is the argument's.
     with pytest.raises(ValueError, match="not an array of numbers"):
         mckibben.Trace(_Raises(RuntimeError("broken")), u, 0.01)
+
+
+def test_a_file_that_cannot_be_read_raises_open_s_exception(tmp_path):
+    # A folder read as a file was a plain OSError, which `except
+    # IsADirectoryError` missed; the errno is set, as open() sets it.
+    with pytest.raises(IsADirectoryError) as raised:
+        mckibben.read_csv(tmp_path)
+    assert raised.value.errno == 21 and str(tmp_path) in str(raised.value)
+    with pytest.raises(IsADirectoryError):
+        mckibben.Model.load(tmp_path)
+    with pytest.raises(FileNotFoundError) as raised:
+        mckibben.read_csv(tmp_path / "missing.csv")
+    assert raised.value.errno == 2
