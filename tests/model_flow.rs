@@ -696,6 +696,23 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
     ]);
     assert_eq!(run["samples"], 3);
     assert!(run["fit_percent"].is_null());
+    // With a model, whose output column the file may hold under another
+    // name (`disp_mm` for `disp (mm)`), the note says why nothing is
+    // scored.
+    let model = Path::new(ROOT).join("tests/fixtures/generalized_before_x_s.json");
+    let out = mckibben(&[
+        "simulate",
+        "--from",
+        model.to_str().unwrap(),
+        "--input",
+        input_only.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("pressure_only.csv has no column `displacement` (the model's output)"),
+        "{err}"
+    );
     let named = ["--output-col", "displacement"];
     let err = error_of(
         &[

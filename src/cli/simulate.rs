@@ -704,6 +704,16 @@ fn input_trace(
                 check_f32_range(&trace)?;
             } else {
                 trace.output_name = saved.map_or(defaults.output, |f| f.data.output.column.clone());
+                // A model's output column under another name (`disp_mm`
+                // for `disp (mm)`) read as an input alone, silently.
+                if saved.is_some() {
+                    errln!(
+                        "mckibben: note: {file} has no column `{}` (the model's output), so the \
+                         run starts at rest and nothing is scored; name the measured output with \
+                         --output-col",
+                        trace.output_name
+                    );
+                }
             }
             if let Some(saved) = saved {
                 saved.model()?.check_data(&trace)?;
