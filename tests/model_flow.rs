@@ -713,6 +713,23 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
         err.contains("pressure_only.csv has no column `displacement` (the model's output)"),
         "{err}"
     );
+    // The thesis' preset is in MPa and mm: a column in kPa diverged under it
+    // without a word.
+    let kpa = dir.path().join("kpa.csv");
+    std::fs::write(&kpa, "t,pressure_kPa\n0,100\n0.01,200\n0.02,300\n").unwrap();
+    let err = error_of(&[
+        "simulate",
+        "--input",
+        kpa.to_str().unwrap(),
+        "--input-col",
+        "pressure_kPa",
+    ]);
+    assert!(
+        err.contains(
+            "the thesis' preset's input is in MPa (column `pressure`), but `pressure_kPa` is in kPa"
+        ),
+        "{err}"
+    );
     let named = ["--output-col", "displacement"];
     let err = error_of(
         &[

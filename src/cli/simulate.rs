@@ -715,8 +715,16 @@ fn input_trace(
                     );
                 }
             }
-            if let Some(saved) = saved {
-                saved.model()?.check_data(&trace)?;
+            match saved {
+                Some(saved) => saved.model()?.check_data(&trace)?,
+                // The thesis' preset is in the shipped data's units: on a
+                // `pressure_kPa` column it diverged without a word.
+                None => mckibben::model::file::check_units(
+                    "the thesis' preset's",
+                    "pressure",
+                    "displacement",
+                    &trace,
+                )?,
             }
             let y0 = trace.output.first().copied().filter(|_| measured);
             Ok((trace, y0))
