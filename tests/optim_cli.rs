@@ -1136,6 +1136,23 @@ fn bench_says_how_many_candidates_diverged() {
     assert!(!stderr.contains("diverged"), "{stderr}");
 }
 
+/// `static --pressures` is in MPa: 300 (kPa meant) gave 642 kN without a
+/// word.
+#[test]
+fn a_static_pressure_past_any_muscle_s_gets_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let note = |pressures: &str| {
+        let out = mckibben(
+            &["static", "--pressures", pressures, "--points", "2"],
+            dir.path(),
+        );
+        assert!(out.status.success());
+        String::from_utf8_lossy(&out.stderr).contains("the pressures are in MPa")
+    };
+    assert!(note("0.3,300"));
+    assert!(!note("0.3,0.5"));
+}
+
 /// A fit with effects has two starts: the search from scratch and the chain
 /// built one effect at a time. On the Cavatappi 300 g record with the
 /// diagnosis' verdict the search from scratch ends at estimation SSE 6.47

@@ -101,6 +101,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     {
         anyhow::bail!("--pressures: {p} MPa is not a gauge pressure of zero or more");
     }
+    // In MPa, as the shipped data's pressure: a muscle works well under
+    // 10, so a larger value is most likely kPa or psi, and its kilonewtons
+    // a unit's mistake.
+    if let Some(p) = args
+        .pressures
+        .iter()
+        .find(|p| **p > mckibben::data::csv::IMPLAUSIBLE_MPA)
+    {
+        errln!(
+            "mckibben: note: --pressures {}: the pressures are in MPa, and a muscle works well \
+             under {} MPa; if it is in kPa or psi, convert it (300 kPa is 0.3)",
+            mckibben::data::readable(*p),
+            mckibben::data::csv::IMPLAUSIBLE_MPA
+        );
+    }
     let braid = Braid {
         thread_length: args.thread_length,
         turns: args.turns,
