@@ -308,7 +308,7 @@ fn ctrl_c_writes_the_best_so_far_and_exits_as_interrupted() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 21] = [
+    let cases: [(&[&str], &str); 22] = [
         (&["fit", "missing.csv"], "missing.csv"),
         // A population no machine holds: an error, not an aborted
         // allocation.
@@ -364,6 +364,12 @@ fn bad_flags_and_bad_data_are_clear_errors() {
                 "cpu",
             ],
             "islands",
+        ),
+        // A stall of 0 generations ended every stage after its first
+        // (Python's `stall` refused it already).
+        (
+            &["fit", &csv, "--stall", "0"],
+            "invalid value '0' for '--stall <GENS>': at least 1",
         ),
         // A lone particle stops near its draw: six seeds of seven ended
         // with no model, and a warning that blamed the data.

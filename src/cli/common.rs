@@ -58,6 +58,15 @@ pub fn generations(s: &str) -> Result<usize, String> {
     }
 }
 
+/// `fit --stall`: generations without improvement, at least 1. Zero ended
+/// every stage after its first generation.
+pub fn stall(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>().map_err(|e| format!("{e}"))? {
+        0 => Err("at least 1: 0 would end every stage after its first generation".into()),
+        g => Ok(g),
+    }
+}
+
 /// A seed flag: an integer up to
 /// [`MAX_SEED`](mckibben::optim::streams::MAX_SEED).
 pub fn seed(s: &str) -> Result<u64, String> {

@@ -248,8 +248,8 @@ pub struct Args {
     #[arg(long, value_name = "SECONDS")]
     pub(super) time_budget: Option<f64>,
     /// End a population stage when its best has not improved for this many
-    /// generations.
-    #[arg(long, value_name = "GENS")]
+    /// generations (at least 1).
+    #[arg(long, value_name = "GENS", value_parser = crate::cli::common::stall)]
     pub(super) stall: Option<usize>,
     /// GA crossover (§5.2.1.5; default proportional).
     #[arg(long, value_enum)]
