@@ -23,6 +23,7 @@ use crate::model::file::{Provenance, SearchBox};
 use crate::model::{Flow, Model, ModelFile, UserBound};
 use crate::optim::Algorithm;
 use crate::optim::engine::{Outcome, StageSummary, StopReason};
+use crate::optim::stage::Stage;
 use crate::report::fit_figures;
 use crate::report::history::{convergence_figure, trends_figure};
 use crate::report::json::{Named, Versioned};
@@ -598,9 +599,23 @@ impl FitReport {
                 }
             ));
         }
-        for st in &self.stages {
+        for (k, st) in self.stages.iter().enumerate() {
+            // The polish goes through the prediction horizons before the
+            // free run, so its starts may end above the stage before it
+            // under the same measure: each try keeps the lower, which the
+            // line says, where it read as the polish making the fit worse.
+            let kept = match k.checked_sub(1).map(|j| &self.stages[j]) {
+                Some(before)
+                    if st.stage == Stage::Polish
+                        && before.measure == st.measure
+                        && before.best_cost < st.best_cost =>
+                {
+                    format!("; the {} stage's lower best is kept", before.stage.name())
+                }
+                _ => String::new(),
+            };
             line(format!(
-                "  stage {:<9} {:>4} steps, {:>9} evaluations, {:>7.2} s, best {:.4e} ({}), ended: {:?}",
+                "  stage {:<9} {:>4} steps, {:>9} evaluations, {:>7.2} s, best {:.4e} ({}), ended: {:?}{kept}",
                 st.stage.name(),
                 st.steps,
                 st.evaluations,
