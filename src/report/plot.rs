@@ -220,8 +220,14 @@ fn draw_panel<DB: DrawingBackend>(
                     .copied()
                     .zip(s.y.iter().copied())
                     .filter(|(x, y)| x.is_finite() && ok(y))
+                    .map(|(x, y)| (x, y.log10()))
                     .collect();
-            draw_series(&mut chart, s, pts, color)?;
+            let pixels = Pixels::of(area, (x0, x1), (y0.log10(), y1.log10()));
+            let pts = pixels
+                .thinned(pts, s.style)
+                .into_iter()
+                .map(|(x, y)| (x, 10f64.powf(y)));
+            draw_series(&mut chart, s, pts.collect(), color)?;
         }
         chart
             .configure_series_labels()
@@ -247,6 +253,7 @@ fn draw_panel<DB: DrawingBackend>(
                     .zip(s.y.iter().copied())
                     .filter(|(x, y)| x.is_finite() && y.is_finite())
                     .collect();
+            let pts = Pixels::of(area, (x0, x1), (y0, y1)).thinned(pts, s.style);
             draw_series(&mut chart, s, pts, color)?;
         }
         chart
@@ -257,6 +264,90 @@ fn draw_panel<DB: DrawingBackend>(
             .map_err(plot_err)?;
     }
     Ok(())
+}
+
+/// A panel's data units per quarter of a pixel, along each axis: what a
+/// series is thinned to ([`Pixels::thinned`]).
+struct Pixels {
+    x0: f64,
+    dx: f64,
+    dy: f64,
+}
+
+impl Pixels {
+    fn of<DB: DrawingBackend>(
+        area: &DrawingArea<DB, plotters::coord::Shift>,
+        (x0, x1): (f64, f64),
+        (y0, y1): (f64, f64),
+    ) -> Pixels {
+        let (w, h) = area.dim_in_pixel();
+        Pixels {
+            x0,
+            dx: (x1 - x0) / (4.0 * f64::from(w.max(1))),
+            dy: (y1 - y0) / (4.0 * f64::from(h.max(1))),
+        }
+    }
+
+    /// `pts`, drawn as `style`, with what a quarter of a pixel cannot show
+    /// left out, so that a record of 200 000 samples draws as some
+    /// thousands of points (its figures were 10–20 MB, which a browser
+    /// opens slowly, if at all). Points: the first in each pixel. A line against an `x` that never falls (a trace in time): each
+    /// quarter-pixel column keeps its first, lowest, highest and last
+    /// points, in order, so the envelope of noise and every spike stay.
+    /// Another line (a loop): a point where it moved a quarter of a pixel
+    /// from the last kept one.
+    fn thinned(&self, pts: Vec<(f64, f64)>, style: Style) -> Vec<(f64, f64)> {
+        if pts.len() < 1000 || !(self.dx > 0.0 && self.dy > 0.0) {
+            return pts;
+        }
+        if style == Style::Points {
+            // A dot is 4 pixels wide: one moved less than a pixel is the
+            // same dot.
+            let mut drawn = std::collections::HashSet::new();
+            let cell = |p: &(f64, f64)| {
+                (
+                    ((p.0 - self.x0) / (4.0 * self.dx)).floor() as i64,
+                    (p.1 / (4.0 * self.dy)).floor() as i64,
+                )
+            };
+            return pts.into_iter().filter(|p| drawn.insert(cell(p))).collect();
+        }
+        if pts.windows(2).all(|w| w[0].0 <= w[1].0) {
+            let column = |x: f64| ((x - self.x0) / self.dx).floor();
+            let mut kept = Vec::new();
+            let mut start = 0;
+            while start < pts.len() {
+                let c = column(pts[start].0);
+                let end = start + pts[start..].iter().take_while(|p| column(p.0) == c).count();
+                let bucket = &pts[start..end];
+                let by_y = |a: &&(f64, f64), b: &&(f64, f64)| a.1.total_cmp(&b.1);
+                let low = bucket.iter().enumerate().min_by(|a, b| by_y(&a.1, &b.1));
+                let high = bucket.iter().enumerate().max_by(|a, b| by_y(&a.1, &b.1));
+                let mut at: Vec<usize> = [Some(0), low.map(|l| l.0), high.map(|h| h.0)]
+                    .into_iter()
+                    .flatten()
+                    .chain([bucket.len() - 1])
+                    .collect();
+                at.sort_unstable();
+                at.dedup();
+                kept.extend(at.into_iter().map(|i| bucket[i]));
+                start = end;
+            }
+            return kept;
+        }
+        let mut kept = vec![pts[0]];
+        for &p in &pts[1..] {
+            let last = kept[kept.len() - 1];
+            if (p.0 - last.0).abs() >= self.dx || (p.1 - last.1).abs() >= self.dy {
+                kept.push(p);
+            }
+        }
+        // The path ends where the data end.
+        if kept[kept.len() - 1] != pts[pts.len() - 1] {
+            kept.push(pts[pts.len() - 1]);
+        }
+        kept
+    }
 }
 
 fn draw_series<DB, CT>(
@@ -320,6 +411,43 @@ mod tests {
             );
         let svg = fig.to_svg().unwrap();
         assert!(svg.starts_with("<svg") && svg.contains("sin") && svg.contains("SSE"));
+    }
+
+    /// A long record draws as what the panel's pixels can show: a trace of
+    /// 200 000 samples made a 20 MB figure. The envelope stays: the lowest
+    /// and the highest sample of every column, a lone spike among them.
+    #[test]
+    fn a_long_series_draws_as_its_pixels_show_it() {
+        let n = 200_000;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 1e-3).collect();
+        let mut y: Vec<f64> = t
+            .iter()
+            .map(|v| (v * 0.5).sin() + 0.01 * (v * 977.0).sin())
+            .collect();
+        y[123_457] = 5.0;
+        let loop_x: Vec<f64> = t.iter().map(|v| (v * 0.05).sin()).collect();
+        let svg = |panel: Panel| Figure::new("long").with(panel).to_svg().unwrap();
+        let trace =
+            svg(Panel::new("trace", "t", "y").with(Series::line("y", t.clone(), y.clone())));
+        let loop_ = svg(Panel::new("loop", "u", "y").with(Series::points("y", loop_x, y.clone())));
+        assert!(trace.len() < 1_000_000, "{} bytes", trace.len());
+        assert!(loop_.len() < 1_000_000, "{} bytes", loop_.len());
+        // The spike is drawn: the trace's highest point, at the top.
+        let pixels = Pixels {
+            x0: 0.0,
+            dx: 0.05,
+            dy: 1e-3,
+        };
+        let pts: Vec<(f64, f64)> = t.iter().copied().zip(y.iter().copied()).collect();
+        let kept = pixels.thinned(pts, Style::Line);
+        assert!(kept.len() < n / 10, "{}", kept.len());
+        assert!(kept.contains(&(t[123_457], 5.0)));
+        let lowest = y.iter().copied().fold(f64::INFINITY, f64::min);
+        assert!(kept.iter().any(|p| p.1 == lowest));
+        assert_eq!(kept.last(), Some(&(t[n - 1], y[n - 1])));
+        // A short series is drawn whole.
+        let short: Vec<(f64, f64)> = (0..999).map(|k| (k as f64, 0.0)).collect();
+        assert_eq!(pixels.thinned(short.clone(), Style::Line), short);
     }
 
     #[test]
