@@ -220,14 +220,9 @@ fn draw_panel<DB: DrawingBackend>(
                     .copied()
                     .zip(s.y.iter().copied())
                     .filter(|(x, y)| x.is_finite() && ok(y))
-                    .map(|(x, y)| (x, y.log10()))
                     .collect();
-            let pixels = Pixels::of(area, (x0, x1), (y0.log10(), y1.log10()));
-            let pts = pixels
-                .thinned(pts, s.style)
-                .into_iter()
-                .map(|(x, y)| (x, 10f64.powf(y)));
-            draw_series(&mut chart, s, pts.collect(), color)?;
+            let pts = thinned(pts, s.style, |p| chart.backend_coord(p));
+            draw_series(&mut chart, s, pts, color)?;
         }
         chart
             .configure_series_labels()
@@ -253,7 +248,7 @@ fn draw_panel<DB: DrawingBackend>(
                     .zip(s.y.iter().copied())
                     .filter(|(x, y)| x.is_finite() && y.is_finite())
                     .collect();
-            let pts = Pixels::of(area, (x0, x1), (y0, y1)).thinned(pts, s.style);
+            let pts = thinned(pts, s.style, |p| chart.backend_coord(p));
             draw_series(&mut chart, s, pts, color)?;
         }
         chart
@@ -266,88 +261,61 @@ fn draw_panel<DB: DrawingBackend>(
     Ok(())
 }
 
-/// A panel's data units per quarter of a pixel, along each axis: what a
-/// series is thinned to ([`Pixels::thinned`]).
-struct Pixels {
-    x0: f64,
-    dx: f64,
-    dy: f64,
-}
-
-impl Pixels {
-    fn of<DB: DrawingBackend>(
-        area: &DrawingArea<DB, plotters::coord::Shift>,
-        (x0, x1): (f64, f64),
-        (y0, y1): (f64, f64),
-    ) -> Pixels {
-        let (w, h) = area.dim_in_pixel();
-        Pixels {
-            x0,
-            dx: (x1 - x0) / (4.0 * f64::from(w.max(1))),
-            dy: (y1 - y0) / (4.0 * f64::from(h.max(1))),
+/// `pts`, drawn as `style` at the pixels `pixel` maps them to, with what
+/// the pixels cannot show left out, so that a record of 200 000 samples
+/// draws as some thousands of points (its figures were 5–25 MB, which a
+/// browser opens slowly, if at all). Points: the first at each pixel. A
+/// line against an `x` that never falls (a trace in time): each pixel
+/// column keeps its first, lowest, highest and last points, in order, so
+/// the envelope of noise and every spike stay. Another line (a loop): a
+/// point where it reaches another pixel than the last kept one.
+fn thinned(
+    pts: Vec<(f64, f64)>,
+    style: Style,
+    pixel: impl Fn(&(f64, f64)) -> (i32, i32),
+) -> Vec<(f64, f64)> {
+    if pts.len() < 1000 {
+        return pts;
+    }
+    if style == Style::Points {
+        let mut drawn = std::collections::HashSet::new();
+        return pts.into_iter().filter(|p| drawn.insert(pixel(p))).collect();
+    }
+    if pts.windows(2).all(|w| w[0].0 <= w[1].0) {
+        let mut kept = Vec::new();
+        let mut start = 0;
+        while start < pts.len() {
+            let column = pixel(&pts[start]).0;
+            let len = pts[start..]
+                .iter()
+                .take_while(|p| pixel(p).0 == column)
+                .count();
+            let bucket = &pts[start..start + len];
+            let by_y = |a: &(usize, &(f64, f64)), b: &(usize, &(f64, f64))| a.1.1.total_cmp(&b.1.1);
+            let low = bucket.iter().enumerate().min_by(by_y).map(|l| l.0);
+            let high = bucket.iter().enumerate().max_by(by_y).map(|h| h.0);
+            let mut at: Vec<usize> = [Some(0), low, high, Some(len - 1)]
+                .into_iter()
+                .flatten()
+                .collect();
+            at.sort_unstable();
+            at.dedup();
+            kept.extend(at.into_iter().map(|i| bucket[i]));
+            start += len;
+        }
+        return kept;
+    }
+    let mut kept = vec![pts[0]];
+    for &p in &pts[1..] {
+        if pixel(&p) != pixel(&kept[kept.len() - 1]) {
+            kept.push(p);
         }
     }
-
-    /// `pts`, drawn as `style`, with what a quarter of a pixel cannot show
-    /// left out, so that a record of 200 000 samples draws as some
-    /// thousands of points (its figures were 10–20 MB, which a browser
-    /// opens slowly, if at all). Points: the first in each pixel. A line against an `x` that never falls (a trace in time): each
-    /// quarter-pixel column keeps its first, lowest, highest and last
-    /// points, in order, so the envelope of noise and every spike stay.
-    /// Another line (a loop): a point where it moved a quarter of a pixel
-    /// from the last kept one.
-    fn thinned(&self, pts: Vec<(f64, f64)>, style: Style) -> Vec<(f64, f64)> {
-        if pts.len() < 1000 || !(self.dx > 0.0 && self.dy > 0.0) {
-            return pts;
-        }
-        if style == Style::Points {
-            // A dot is 4 pixels wide: one moved less than a pixel is the
-            // same dot.
-            let mut drawn = std::collections::HashSet::new();
-            let cell = |p: &(f64, f64)| {
-                (
-                    ((p.0 - self.x0) / (4.0 * self.dx)).floor() as i64,
-                    (p.1 / (4.0 * self.dy)).floor() as i64,
-                )
-            };
-            return pts.into_iter().filter(|p| drawn.insert(cell(p))).collect();
-        }
-        if pts.windows(2).all(|w| w[0].0 <= w[1].0) {
-            let column = |x: f64| ((x - self.x0) / self.dx).floor();
-            let mut kept = Vec::new();
-            let mut start = 0;
-            while start < pts.len() {
-                let c = column(pts[start].0);
-                let end = start + pts[start..].iter().take_while(|p| column(p.0) == c).count();
-                let bucket = &pts[start..end];
-                let by_y = |a: &&(f64, f64), b: &&(f64, f64)| a.1.total_cmp(&b.1);
-                let low = bucket.iter().enumerate().min_by(|a, b| by_y(&a.1, &b.1));
-                let high = bucket.iter().enumerate().max_by(|a, b| by_y(&a.1, &b.1));
-                let mut at: Vec<usize> = [Some(0), low.map(|l| l.0), high.map(|h| h.0)]
-                    .into_iter()
-                    .flatten()
-                    .chain([bucket.len() - 1])
-                    .collect();
-                at.sort_unstable();
-                at.dedup();
-                kept.extend(at.into_iter().map(|i| bucket[i]));
-                start = end;
-            }
-            return kept;
-        }
-        let mut kept = vec![pts[0]];
-        for &p in &pts[1..] {
-            let last = kept[kept.len() - 1];
-            if (p.0 - last.0).abs() >= self.dx || (p.1 - last.1).abs() >= self.dy {
-                kept.push(p);
-            }
-        }
-        // The path ends where the data end.
-        if kept[kept.len() - 1] != pts[pts.len() - 1] {
-            kept.push(pts[pts.len() - 1]);
-        }
-        kept
+    // The path ends where the data end.
+    if kept[kept.len() - 1] != pts[pts.len() - 1] {
+        kept.push(pts[pts.len() - 1]);
     }
+    kept
 }
 
 fn draw_series<DB, CT>(
@@ -432,22 +400,26 @@ mod tests {
         let loop_ = svg(Panel::new("loop", "u", "y").with(Series::points("y", loop_x, y.clone())));
         assert!(trace.len() < 1_000_000, "{} bytes", trace.len());
         assert!(loop_.len() < 1_000_000, "{} bytes", loop_.len());
-        // The spike is drawn: the trace's highest point, at the top.
-        let pixels = Pixels {
-            x0: 0.0,
-            dx: 0.05,
-            dy: 1e-3,
-        };
+        // The spike is drawn, and the lowest sample, and the last.
+        let pixel = |p: &(f64, f64)| ((p.0 * 20.0) as i32, (p.1 * 1000.0) as i32);
         let pts: Vec<(f64, f64)> = t.iter().copied().zip(y.iter().copied()).collect();
-        let kept = pixels.thinned(pts, Style::Line);
+        let kept = thinned(pts, Style::Line, pixel);
         assert!(kept.len() < n / 10, "{}", kept.len());
         assert!(kept.contains(&(t[123_457], 5.0)));
         let lowest = y.iter().copied().fold(f64::INFINITY, f64::min);
         assert!(kept.iter().any(|p| p.1 == lowest));
         assert_eq!(kept.last(), Some(&(t[n - 1], y[n - 1])));
+        // Points: one a pixel, none lost from a pixel not yet drawn.
+        assert_eq!(trace.matches("<circle").count(), 0);
+        let circles: Vec<&str> = loop_
+            .match_indices("<circle")
+            .map(|(at, _)| &loop_[at..at + 30])
+            .collect();
+        let distinct: std::collections::HashSet<&&str> = circles.iter().collect();
+        assert_eq!(distinct.len(), circles.len());
         // A short series is drawn whole.
         let short: Vec<(f64, f64)> = (0..999).map(|k| (k as f64, 0.0)).collect();
-        assert_eq!(pixels.thinned(short.clone(), Style::Line), short);
+        assert_eq!(thinned(short.clone(), Style::Line, pixel), short);
     }
 
     #[test]
