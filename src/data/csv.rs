@@ -567,7 +567,15 @@ fn parse(
         let text = std::str::from_utf8(raw).map_err(|_| DataError::Parse {
             path: p(),
             line,
-            message: "not UTF-8 text".into(),
+            // Excel's "Unicode text" and some loggers write UTF-16, whose
+            // byte-order mark says so.
+            message: match bytes {
+                [0xff, 0xfe, ..] | [0xfe, 0xff, ..] => "UTF-16 text, not UTF-8 (Excel's \
+                    \"Unicode text\" writes it): save it as \"CSV UTF-8\", or convert it \
+                    (`iconv -f UTF-16 -t UTF-8`)"
+                    .into(),
+                _ => "not UTF-8 text".into(),
+            },
         })?;
         let text = text.trim_start_matches('\u{feff}').trim();
         // A comment line that holds a lone carriage return is a file of
@@ -1455,6 +1463,23 @@ mod tests {
 
     fn err(text: &str) -> String {
         read(text, Gaps::Reject).unwrap_err().to_string()
+    }
+
+    /// A file of UTF-16 (Excel's "Unicode text") is named as such, with
+    /// the way out; other bytes that are no UTF-8 stay "not UTF-8 text".
+    #[test]
+    fn a_utf16_file_is_named_as_such() {
+        let text = "t,pressure,displacement\n0,0.1,1\n";
+        let mut utf16 = vec![0xff, 0xfe];
+        utf16.extend(text.encode_utf16().flat_map(|c| c.to_le_bytes()));
+        let e = parse(Path::new("x.csv"), &utf16, &ReadOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("UTF-16 text, not UTF-8"), "{e}");
+        let latin1 = b"t,pressure,displacement\n0,0.1,1\xb5\n";
+        let e = parse(Path::new("x.csv"), latin1, &ReadOptions::default()).unwrap_err();
+        assert!(
+            e.to_string().contains("not UTF-8 text") && !e.to_string().contains("16"),
+            "{e}"
+        );
     }
 
     /// A column named with a comma or a quote is written quoted and reads
