@@ -713,6 +713,53 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
         err.contains("pressure_only.csv has no column `displacement` (the model's output)"),
         "{err}"
     );
+    // A file with a gap, fitted with --split-gaps on its longest piece:
+    // `simulate --piece K` runs that piece and scores its second half as
+    // the fit did (simulate refused the file, and it had to be cut by hand).
+    let text = std::fs::read_to_string(format!("{ROOT}/{STAIR}")).unwrap();
+    let mut gapped = Vec::new();
+    for (k, line) in text.lines().filter(|l| !l.starts_with('#')).enumerate() {
+        match (k, line.split_once(',')) {
+            (0, _) | (_, None) => gapped.push(line.to_string()),
+            (_, Some((t, rest))) => {
+                let t: f64 = t.parse().unwrap();
+                let t = if k > 1500 { t + 0.5 } else { t };
+                gapped.push(format!("{t},{rest}"));
+            }
+        }
+    }
+    let gaps = dir.path().join("gaps.csv");
+    std::fs::write(&gaps, gapped.join("\n")).unwrap();
+    let gaps = gaps.to_str().unwrap();
+    let fit = dir.path().join("gaps-fit");
+    let fitted = json_of(&[
+        "fit",
+        gaps,
+        "--split-gaps",
+        "--pop",
+        "40",
+        "--gens",
+        "5",
+        "--json",
+        "--out",
+        fit.to_str().unwrap(),
+    ]);
+    let model = fit.join("model.json");
+    let model = model.to_str().unwrap();
+    let run = json_of(&[
+        "simulate", "--from", model, "--input", gaps, "--piece", "2", "--json",
+    ]);
+    let (got, want) = (
+        run["val_fit_percent"].as_f64().unwrap(),
+        fitted["val_fit_percent"].as_f64().unwrap(),
+    );
+    assert!((got - want).abs() < 1e-6, "{got} against {want}");
+    let err = error_of(&["simulate", "--from", model, "--input", gaps]);
+    assert!(err.contains("run one piece with --piece K"), "{err}");
+    let err = error_of(&["simulate", "--from", model, "--input", gaps, "--piece", "3"]);
+    assert!(err.contains("has the pieces [1], [2]"), "{err}");
+    let err = error_of(&["simulate", "--input", "stair", "--piece", "1"]);
+    assert!(err.contains("--piece read(s) a CSV --input"), "{err}");
     // The thesis' preset is in MPa and mm: a column in kPa diverged under it
     // without a word.
     let kpa = dir.path().join("kpa.csv");
@@ -991,10 +1038,13 @@ fn simulate_drives_a_model_in_its_own_units_and_writes_a_file_that_reads_back() 
     )
     .unwrap();
     for (file, wanted) in [
-        (&back, "simulate runs one experiment, so cut the file there"),
+        (
+            &back,
+            "simulate runs one experiment: run one piece with --piece K",
+        ),
         (
             &gap,
-            "pass --resample DT to interpolate onto a uniform step, or cut the file",
+            "pass --resample DT to interpolate onto a uniform step, or run one piece with --piece K",
         ),
     ] {
         let err = error_of(&["simulate", "--input", file.to_str().unwrap()]);

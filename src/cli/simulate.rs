@@ -103,6 +103,13 @@ pub struct Args {
     /// seconds (default: as the model file's data were read).
     #[arg(long, value_name = "DT")]
     resample: Option<f64>,
+    /// With a CSV `--input` that has gaps or a clock that jumps back: cut it
+    /// there, as `fit --split-gaps` does, and run piece K (numbered as
+    /// `identify FILE --split-gaps` lists them, from 1): a model fitted on
+    /// the pieces is checked on each, its second half scored as `fit`
+    /// scores that record.
+    #[arg(long, value_name = "K", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    piece: Option<usize>,
     /// Write the simulated trace to this CSV file: the time, the input and
     /// the simulated output under the model's column names, then the
     /// input file's other columns, the measured output as
@@ -457,6 +464,7 @@ fn check_files_and_flags(args: &Args) -> anyhow::Result<()> {
             ("--output-col", args.output_col.is_some()),
             ("--time", args.time.is_some()),
             ("--resample", args.resample.is_some()),
+            ("--piece", args.piece.is_some()),
         ];
         let given: Vec<&str> = csv_only.iter().filter(|f| f.1).map(|f| f.0).collect();
         anyhow::ensure!(
@@ -637,9 +645,11 @@ fn input_trace(
                 time: column(&args.time, read.time.as_ref(), &defaults.time),
                 dt: args.dt,
                 untimed_dt: if args.time.is_some() { None } else { read.dt },
-                gaps: match resample {
-                    Some(dt) => Gaps::Resample(dt),
-                    None => Gaps::Reject,
+                gaps: match (resample, args.piece) {
+                    (Some(dt), None) => Gaps::Resample(dt),
+                    (None, None) => Gaps::Reject,
+                    (Some(dt), Some(_)) => Gaps::SplitResample(dt),
+                    (None, Some(_)) => Gaps::Split,
                 },
             };
             // simulate's own `--input` names the signal; its columns are
@@ -665,12 +675,12 @@ fn input_trace(
                         column,
                         available,
                     },
-                    // simulate runs one experiment and has no --split-gaps.
+                    // simulate runs one experiment: one piece of a file cut.
                     other => other.with_time_hint(
-                        "simulate runs one experiment, so cut the file there \
-                         (`mckibben identify FILE --split-gaps` lists its pieces)",
-                        "pass --resample DT to interpolate onto a uniform step, or cut the file \
-                         at its gaps (simulate runs one experiment)",
+                        "simulate runs one experiment: run one piece with --piece K \
+                         (`mckibben identify FILE --split-gaps` lists them)",
+                        "pass --resample DT to interpolate onto a uniform step, or run one \
+                         piece with --piece K (`mckibben identify FILE --split-gaps` lists them)",
                     ),
                 })
             };
@@ -691,12 +701,31 @@ fn input_trace(
             for note in notes {
                 errln!("mckibben: note: {note}");
             }
-            anyhow::ensure!(
-                traces.len() == 1,
-                "{file}: --split-gaps gave {} pieces; simulate one file piece at a time",
-                traces.len()
-            );
-            let mut trace = traces.remove(0);
+            let mut trace = match args.piece {
+                // A file without a cut is its one piece.
+                Some(k) => {
+                    let numbered = format!("[{k}]");
+                    let whole = traces.len() == 1 && traces[0].cut_from.is_none();
+                    let at = traces
+                        .iter()
+                        .position(|t| t.source.ends_with(&numbered))
+                        .or(whole.then_some(0).filter(|_| k == 1));
+                    let Some(at) = at else {
+                        let kept: Vec<String> = match whole {
+                            true => vec!["[1] (it has no gap)".into()],
+                            false => traces
+                                .iter()
+                                .filter_map(|t| {
+                                    t.source.rfind('[').map(|i| t.source[i..].to_string())
+                                })
+                                .collect(),
+                        };
+                        bail!("--piece {k}: {file} has the pieces {}", kept.join(", "));
+                    };
+                    traces.swap_remove(at)
+                }
+                None => traces.remove(0),
+            };
             // Values the f32 simulation cannot sum, or an output past the
             // bound a state diverges at, are refused as `fit` refuses them
             // (the simulation ran on, and its file could not be written).
