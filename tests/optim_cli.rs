@@ -1142,6 +1142,33 @@ fn bench_says_how_many_candidates_diverged() {
     assert!(!stderr.contains("diverged"), "{stderr}");
 }
 
+/// A population whose candidates need more memory than is free is refused
+/// before a row is allocated: under `ulimit -v` the allocation that failed
+/// midway panicked (and in Python killed the interpreter).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_population_past_the_free_memory_is_refused_before_it_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let fit = format!(
+        "ulimit -v 1500000; exec {} fit {csv} --pop 10000000 --gens 1 --backend cpu",
+        env!("CARGO_BIN_EXE_mckibben")
+    );
+    let out = Command::new("bash")
+        .args(["-c", &fit])
+        .current_dir(dir.path())
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--pop 10000000: its candidates need about 3.0 GB")
+            && err.contains("are free here"),
+        "{err}"
+    );
+}
+
 /// `static --pressures` is in MPa: 300 (kPa meant) gave 642 kN without a
 /// word.
 #[test]

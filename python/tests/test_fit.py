@@ -4,6 +4,8 @@ import json
 import os
 import signal
 import struct
+import subprocess
+import sys
 import threading
 import time
 import warnings
@@ -14,7 +16,7 @@ import numpy as np
 import pytest
 
 import mckibben
-from conftest import REPO
+from conftest import REPO, STAIR
 
 
 def bits(x):
@@ -515,3 +517,22 @@ def test_a_bound_past_the_largest_float_is_named_as_a_number(stair):
     # It read "must be a (lo, hi) pair ... or a number", of a number.
     with pytest.raises(ValueError, match=r'bounds\["alpha"\] must be a finite number'):
         mckibben.fit(stair, bounds={"alpha": 10**400}, pop=20, gens=2)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc and RLIMIT_AS")
+def test_a_population_past_the_free_memory_is_refused_before_it_runs():
+    # Under a limit on the address space the allocation that failed midway
+    # aborted the interpreter ("memory allocation failed", exit 134).
+    script = (
+        "import resource, mckibben\n"
+        "resource.setrlimit(resource.RLIMIT_AS, (2_500_000_000, resource.RLIM_INFINITY))\n"
+        f"trace = mckibben.read_csv({str(STAIR)!r})\n"
+        "try:\n"
+        "    mckibben.fit(trace, pop=10**7, gens=1)\n"
+        "except ValueError as e:\n"
+        "    print('refused:', e)\n"
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("refused: `pop=10000000`: its candidates need about 3.0 GB"), run.stdout
+    assert "are free here" in run.stdout, run.stdout

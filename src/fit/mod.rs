@@ -15,6 +15,7 @@ pub mod cases;
 pub mod chart;
 pub mod compare;
 pub mod edge;
+pub mod memory;
 pub mod objective;
 pub mod problem;
 pub mod records;

@@ -254,6 +254,9 @@ impl FitSettings {
             self.gens >= 1,
             "--gens must be at least 1 (got 0): the first generation is the drawn population"
         );
+        if let Some(why) = super::memory::too_large(self.pop) {
+            anyhow::bail!(why);
+        }
         let settings = self.algo_settings(problem.model.family, note)?;
         if self.thesis_flow {
             return Ok(Plan::thesis(settings, self.pop, self.gens));
@@ -516,10 +519,10 @@ mod tests {
             e.to_string().contains("at most 100000000 candidates"),
             "{e}"
         );
-        assert!(
-            settings(Algorithm::De, MAX_POPULATION)
-                .plan(&problem, &|_| ())
-                .is_ok()
-        );
+        // At the cap it plans, where the machine's memory holds it.
+        let at_cap = settings(Algorithm::De, MAX_POPULATION).plan(&problem, &|_| ());
+        if let Err(e) = at_cap {
+            assert!(e.to_string().contains("are free here"), "{e}");
+        }
     }
 }
