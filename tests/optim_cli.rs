@@ -1163,7 +1163,7 @@ fn a_population_past_the_free_memory_is_refused_before_it_runs() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("--pop 10000000: its candidates need about 3.0 GB")
+        err.contains("--pop 10000000: its candidates need at least 3.0 GB")
             && err.contains("are free here"),
         "{err}"
     );

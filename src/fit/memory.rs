@@ -17,9 +17,9 @@ pub fn too_large(pop: usize) -> Option<String> {
     let free = available_bytes()?;
     (needs > free).then(|| {
         format!(
-            "--pop {pop}: its candidates need about {:.1} GB (some {} bytes each), and {:.1} GB \
-             are free here (memory and swap, or what the process may still map): a smaller \
-             --pop runs",
+            "--pop {pop}: its candidates need at least {:.1} GB ({} bytes each at the least), \
+             and {:.1} GB are free here (memory and swap, or what the process may still map): \
+             a smaller --pop runs",
             needs / 1e9,
             BYTES_A_CANDIDATE,
             free / 1e9
