@@ -758,6 +758,8 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
     assert!(err.contains("run one piece with --piece K"), "{err}");
     let err = error_of(&["simulate", "--from", model, "--input", gaps, "--piece", "3"]);
     assert!(err.contains("has the pieces [1], [2]"), "{err}");
+    let err = error_of(&["simulate", "--from", model, "--input", gaps, "--piece", "0"]);
+    assert!(err.contains("pieces are numbered from 1"), "{err}");
     let err = error_of(&["simulate", "--input", "stair", "--piece", "1"]);
     assert!(err.contains("--piece read(s) a CSV --input"), "{err}");
     // The thesis' preset is in MPa and mm: a column in kPa diverged under it

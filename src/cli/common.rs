@@ -67,6 +67,15 @@ pub fn stall(s: &str) -> Result<usize, String> {
     }
 }
 
+/// `simulate --piece`: a piece's number, as `--split-gaps` numbers them,
+/// from 1.
+pub fn piece(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>().map_err(|e| format!("{e}"))? {
+        0 => Err("pieces are numbered from 1, as `identify FILE --split-gaps` lists them".into()),
+        k => Ok(k),
+    }
+}
+
 /// A seed flag: an integer up to
 /// [`MAX_SEED`](mckibben::optim::streams::MAX_SEED).
 pub fn seed(s: &str) -> Result<u64, String> {

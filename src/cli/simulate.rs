@@ -108,7 +108,7 @@ pub struct Args {
     /// `identify FILE --split-gaps` lists them, from 1): a model fitted on
     /// the pieces is checked on each, its second half scored as `fit`
     /// scores that record.
-    #[arg(long, value_name = "K", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    #[arg(long, value_name = "K", value_parser = crate::cli::common::piece)]
     piece: Option<usize>,
     /// Write the simulated trace to this CSV file: the time, the input and
     /// the simulated output under the model's column names, then the
