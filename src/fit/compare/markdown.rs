@@ -30,12 +30,14 @@ pub fn markdown(r: &Report, settings: &Settings) -> String {
         for row in &r.table21 {
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {:.3} | {:.4} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} |",
                 row.population,
                 row.algo,
                 row.model,
-                row.seconds,
-                row.seconds_per_generation,
+                // Three decimals, and the figures a run of under a
+                // millisecond needs (three decimals printed it as 0.000).
+                significant(row.seconds, 3),
+                significant(row.seconds_per_generation, 4),
                 opt(row.sse, 3),
                 opt(row.val_fit_percent, 2)
             );
@@ -106,7 +108,7 @@ pub fn markdown(r: &Report, settings: &Settings) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::opt;
+    use super::{Report, Settings, markdown, opt};
 
     #[test]
     fn an_sse_in_metres_keeps_its_digits_in_the_tables() {
@@ -114,5 +116,42 @@ mod tests {
         assert_eq!(opt(Some(0.0029515), 3), "0.002952");
         assert_eq!(opt(Some(2948.5012), 3), "2948.501");
         assert_eq!(opt(None, 3), "diverged");
+    }
+
+    /// A run of under a millisecond keeps its figures in Table 21 (it read
+    /// 0.000 s, and 0.0000 s a generation).
+    #[test]
+    fn a_fast_run_keeps_its_time_in_table_21() {
+        use crate::fit::compare::Row;
+        use crate::model::Family;
+        let report = Report {
+            data: "x.csv".into(),
+            backend: "cpu".into(),
+            table21: vec![Row {
+                model: Family::Classic,
+                algo: "de".into(),
+                population: 10,
+                generations: 5,
+                evaluations: 50,
+                seconds: 0.00042,
+                seconds_per_generation: 0.000084,
+                sse: Some(1.0),
+                val_fit_percent: Some(90.0),
+            }],
+            budget: Vec::new(),
+            flows: Vec::new(),
+            cross_load: Vec::new(),
+        };
+        let settings = Settings {
+            thesis_sizes: vec![10],
+            sizes: Vec::new(),
+            gens: 5,
+            seeds: 0,
+            budget_pop: 10,
+            budget_gens: 1,
+            mfa_all_pairs_max: 10,
+        };
+        let table = markdown(&report, &settings);
+        assert!(table.contains("| 0.0004200 | 0.00008400 |"), "{table}");
     }
 }
