@@ -420,14 +420,23 @@ impl Design {
             self.prediction.end_to_end_rmse_mm
         );
         if let Some(l) = &self.loop_check {
+            // The width is the falling branch less the rising one: below
+            // zero, a loop that turns the other way, which the area (a
+            // size) does not say.
+            let turned = |w: f64| match w < 0.0 {
+                true => " (its falling branch below the rising: turned the other way)",
+                false => "",
+            };
             s += &format!(
-                "\n  loop on a slow {:.0}–{:.0} V triangle: twin {:.2} MPa·mm, {:.2} mm wide; model {:.2} MPa·mm, {:.2} mm wide (RMS gap {:.2} mm)",
+                "\n  loop on a slow {:.0}–{:.0} V triangle: twin {:.2} MPa·mm, {:.2} mm wide{}; model {:.2} MPa·mm, {:.2} mm wide{} (RMS gap {:.2} mm)",
                 OPERATING_BAND_V.0,
                 OPERATING_BAND_V.1,
                 l.plant.area_mpa_mm,
                 l.plant.width_mm,
+                turned(l.plant.width_mm),
                 l.model.area_mpa_mm,
                 l.model.width_mm,
+                turned(l.model.width_mm),
                 l.rmse_mm
             );
         }
