@@ -1097,8 +1097,8 @@ fn a_validation_half_whose_output_is_constant_has_no_fit_percent() {
 
 /// `bench` draws from the thesis' box, in MPa and mm: on the same record in
 /// Pa and m nearly every candidate diverged and stopped early, and the rate
-/// read 12–15 times a fit's without a word. It says how many diverged, and
-/// warns where nearly all did.
+/// read ten times that of the record in MPa and mm, without a word. It says
+/// how many diverged, and warns where nearly all did.
 #[test]
 fn bench_says_how_many_candidates_diverged() {
     let dir = tempfile::tempdir().unwrap();
