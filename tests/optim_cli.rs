@@ -371,7 +371,7 @@ fn bad_flags_and_bad_data_are_clear_errors() {
             &["fit", &csv, "--stall", "0"],
             "invalid value '0' for '--stall <GENS>': at least 1",
         ),
-        // A lone particle stops near its draw: six seeds of seven ended
+        // A lone particle stops near its draw: five seeds of seven ended
         // with no model, and a warning that blamed the data.
         (
             &["fit", &csv, "--algo", "pso", "--pop", "1"],

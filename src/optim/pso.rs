@@ -141,10 +141,10 @@ impl Optimizer for Pso {
     const HELP: &'static str = "Particle swarm optimization (§5.3.3, A.2.3)";
 
     /// A lone particle's own best is the swarm's, so both pulls vanish and
-    /// its drawn velocity decays by χ a step: it stops a few box-widths'
-    /// fractions from its draw, and a draw that diverges stays diverged (a
-    /// fit of `--pop 1` ended with no model for six seeds of seven). A
-    /// second particle gives each a place to move to.
+    /// its drawn velocity decays by χ a step: it stops near its draw, and a
+    /// draw that diverges stays diverged (`fit --algo pso --pop 1` on the
+    /// shipped stair ended with no model for five seeds of seven). A second
+    /// particle gives each a place to move to.
     const MIN_POPULATION: usize = 2;
 
     fn new(settings: PsoSettings, bounds: Bounds, n: usize, generations: usize) -> Pso {
