@@ -3,9 +3,10 @@
 //! failed midway aborted the process (and, from Python, the interpreter).
 
 /// The bytes a fit holds for each candidate, under what was measured: the
-/// shipped stair at `--pop 200000` and `--pop 1000000` held 375 and 387
-/// bytes a candidate (peak resident set, `--gens 1`, 2026-12-02). An
-/// estimate that errs low refuses only a fit that cannot run.
+/// shipped stair at `--pop 200000` and `--pop 1000000` held 370 and 394
+/// bytes a candidate more than at `--pop 1000` (peak resident set, `--gens
+/// 1`, 2026-12-02). An estimate that errs low refuses only a fit that
+/// cannot run.
 const BYTES_A_CANDIDATE: f64 = 300.0;
 
 /// Why a population of `pop` cannot run here, where memory and swap free
