@@ -1144,7 +1144,7 @@ fn bench_says_how_many_candidates_diverged() {
 
 /// A population whose candidates need more memory than is free is refused
 /// before a row is allocated: under `ulimit -v` the allocation that failed
-/// midway panicked (and in Python killed the interpreter).
+/// midway aborted the command (exit 134), and in Python the interpreter.
 #[cfg(target_os = "linux")]
 #[test]
 fn a_population_past_the_free_memory_is_refused_before_it_runs() {
