@@ -157,18 +157,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `y(k) = a1·y(k−1) + … + b1·u(k−nk) + …`, each term with its sign.
-fn difference_equation(a: &[f64], b: &[f64], nk: usize) -> String {
+/// `y(k) = a1·y(k−1) + … + b1·u(k−nk) + …`, each term with its sign, the
+/// output and the input named `(y, u)`.
+fn difference_equation(a: &[f64], b: &[f64], nk: usize, (y, u): (&str, &str)) -> String {
     let terms = a
         .iter()
         .enumerate()
-        .map(|(i, v)| (*v, format!("y(k−{})", i + 1)))
+        .map(|(i, v)| (*v, format!("{y}(k−{})", i + 1)))
         .chain(
             b.iter()
                 .enumerate()
-                .map(|(j, v)| (*v, format!("u(k−{})", nk + j))),
+                .map(|(j, v)| (*v, format!("{u}(k−{})", nk + j))),
         );
-    let mut s = String::from("y(k) =");
+    let mut s = format!("{y}(k) =");
     for (i, (v, term)) in terms.enumerate() {
         let sign = match (v < 0.0, i) {
             (true, _) => " −",
@@ -220,14 +221,13 @@ fn print_report(id: &Identification) -> anyhow::Result<()> {
         outln!("  b{}            {}", j + 1, significant(*b, 6))?;
     }
     if o == ArxOrders::default() {
-        let equation = difference_equation(&id.arx.a, &id.arx.b, o.nk)
-            .replace('y', "l")
-            .replace('u', "p");
+        // The thesis' eq. 12 names them l and p.
+        let equation = difference_equation(&id.arx.a, &id.arx.b, o.nk, ("l", "p"));
         outln!("  model         {equation}   (eq. 12; thesis: 0.9618, 24.9366)")?;
     } else {
         outln!(
             "  model         {}",
-            difference_equation(&id.arx.a, &id.arx.b, o.nk)
+            difference_equation(&id.arx.a, &id.arx.b, o.nk, ("y", "u"))
         )?;
         // MATLAB's arx writes A(q)·y = B(q)·u with A(q) = 1 + a1·q⁻¹ + …:
         // its a's are these with the opposite sign.
@@ -254,9 +254,8 @@ fn print_report(id: &Identification) -> anyhow::Result<()> {
     )?;
     if id.validation_fit_percent.is_nan() {
         errln!(
-            "mckibben: warning: the output is constant over the validation half: its fit % is \
-             undefined (it divides by the output's spread), and the RMSE says only how near \
-             the model holds that one level; validate on a record whose second half moves"
+            "mckibben: warning: {}",
+            mckibben::ident::fit::constant_validation_warning("")
         );
     }
     if !id.records.is_empty() {
@@ -290,11 +289,11 @@ mod tests {
     #[test]
     fn the_difference_equation_reads_as_the_estimates_say() {
         assert_eq!(
-            difference_equation(&[1.543, -0.5491], &[2.4524, -1.7993], 2),
+            difference_equation(&[1.543, -0.5491], &[2.4524, -1.7993], 2, ("y", "u")),
             "y(k) = 1.5430·y(k−1) − 0.5491·y(k−2) + 2.4524·u(k−2) − 1.7993·u(k−3)"
         );
         assert_eq!(
-            difference_equation(&[-0.5], &[3.0], 1),
+            difference_equation(&[-0.5], &[3.0], 1, ("y", "u")),
             "y(k) = − 0.5000·y(k−1) + 3.0000·u(k−1)"
         );
     }

@@ -16,7 +16,7 @@ use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
 use super::uncertainty::{Assessment, assess};
 use crate::data::{Trace, sources, write_all_atomic};
-use crate::ident::fit::SETTLED_POINTS;
+use crate::ident::fit::{SETTLED_POINTS, constant_validation_warning, fit_percent_text};
 use crate::model::Family;
 use crate::model::bounds::Origin;
 use crate::model::file::{Provenance, SearchBox};
@@ -494,13 +494,7 @@ impl FitReport {
             let row = format!("  {name:<name_width$} {figure:>14}{held}{error}");
             line(row.trim_end().to_string());
         }
-        // A fit % is missing where the run diverged, or, where the RMSE is
-        // finite, where the output it divides by is constant.
-        let percent = |v: Option<f64>, rmse: Option<f64>| match (v, rmse) {
-            (Some(v), _) => format!("{v:.4} %"),
-            (None, Some(_)) => "undefined".to_string(),
-            (None, None) => "diverged".to_string(),
-        };
+        let percent = |v: Option<f64>, rmse: Option<f64>| fit_percent_text(v, rmse.is_some(), 4);
         let constant = self.val_fit_percent.is_none() && self.val_rmse.is_some();
         // SSEs and RMSEs are in the output's units, squared or not.
         let figure = |v: Option<f64>| v.map_or("diverged".to_string(), |v| significant(v, 4));
@@ -719,14 +713,8 @@ impl FitReport {
             .filter(|r| r.val_fit_percent.is_none() && r.val_rmse.is_some())
             .map(|r| r.data.as_str())
             .collect();
-        (!constant.is_empty()).then(|| {
-            format!(
-                "the output is constant over the validation half of {}: its fit % is undefined \
-                 (it divides by the output's spread), and its RMSE says only how near the model \
-                 holds that one level; validate on a record whose second half moves",
-                constant.join(", ")
-            )
-        })
+        (!constant.is_empty())
+            .then(|| constant_validation_warning(&format!(" of {}", constant.join(", "))))
     }
 
     /// The parameters whose standard error is at least their own size, as

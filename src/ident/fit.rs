@@ -57,6 +57,28 @@ pub fn pooled_fit_percent(records: &[(&[f64], &[f64])]) -> f64 {
 /// rounding of a mean of doubles (about 10⁻¹⁵ a sample).
 const CONSTANT_TO: f64 = 1e-9;
 
+/// The warning a validation half owes its user where its output is
+/// constant (`which`: "" for one record, " of FILE, …" for some of several):
+/// the fit % is undefined there, and the RMSE alone checks only a level.
+pub fn constant_validation_warning(which: &str) -> String {
+    format!(
+        "the output is constant over the validation half{which}: its fit % is undefined (it \
+         divides by the output's spread), and its RMSE says only how near the model holds that \
+         one level; validate on a record whose second half moves"
+    )
+}
+
+/// A validation fit % as the reports print it, to `decimals`: `None` is a
+/// run that diverged, or, where its RMSE is finite (`scored`), an output
+/// constant over the half, where the measure is undefined.
+pub fn fit_percent_text(fit: Option<f64>, scored: bool, decimals: usize) -> String {
+    match (fit, scored) {
+        (Some(v), _) => format!("{v:.decimals$} %"),
+        (None, true) => "undefined".into(),
+        (None, false) => "diverged".into(),
+    }
+}
+
 /// Root-mean-square difference.
 pub fn rmse(y: &[f64], y_hat: &[f64]) -> f64 {
     if y.len() != y_hat.len() || y.is_empty() {

@@ -410,15 +410,18 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
     }
     let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
     outln!("  SSE (estimation)     {}", show(report.sse))?;
-    let percent = match (report.val_fit_percent, report.val_rmse) {
-        (Some(v), _) => format!("{v:.4} %"),
-        (None, Some(_)) => "undefined (the output is constant over the validation half)".into(),
-        (None, None) => "diverged".into(),
-    };
+    let scored = report.val_rmse.is_some();
+    let percent = mckibben::ident::fit::fit_percent_text(report.val_fit_percent, scored, 4);
     outln!(
         "  validation fit       {percent}   (RMSE {})",
         show(report.val_rmse)
     )?;
+    if report.val_fit_percent.is_none() && scored {
+        errln!(
+            "mckibben: warning: {}",
+            mckibben::ident::fit::constant_validation_warning("")
+        );
+    }
     outln!(
         "  {:.2} s; `mckibben diagnose` gives the selection's report; wrote model.json, \
          result.json and figures to {}",
