@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use numpy::{PyArray1, ToPyArray};
+use numpy::{PyArray1, PyReadonlyArray1, ToPyArray};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
@@ -123,6 +123,73 @@ impl Trace {
 
     fn __len__(&self) -> usize {
         self.inner.len()
+    }
+
+    /// Pickles as its columns and how it was read, so that a trace crosses
+    /// to worker processes and `copy.deepcopy` copies it: every sample to
+    /// the bit, its names, source and read settings as they were (a model
+    /// fitted on the copy records the same).
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyTuple>)> {
+        let t = &self.inner;
+        let extra = PyList::empty(py);
+        for (name, v) in &t.extra {
+            extra.append((name, v.to_pyarray(py)))?;
+        }
+        let read = serde_json::to_string(&self.read)
+            .map_err(|e| crate::convert::runtime_error(e.into()))?;
+        let state = (
+            &t.source,
+            &t.time_name,
+            t.t.to_pyarray(py),
+            &t.input_name,
+            t.input.to_pyarray(py),
+            &t.output_name,
+            t.output.to_pyarray(py),
+            extra,
+            &t.cut_from,
+            read,
+        )
+            .into_pyobject(py)?;
+        Ok((py.get_type::<Trace>().getattr("_from_state")?, state))
+    }
+
+    /// The trace `__reduce__` pickled.
+    #[classmethod]
+    #[allow(clippy::too_many_arguments)]
+    fn _from_state(
+        _class: &Bound<'_, pyo3::types::PyType>,
+        source: String,
+        time_name: String,
+        t: PyReadonlyArray1<'_, f64>,
+        input_name: String,
+        input: PyReadonlyArray1<'_, f64>,
+        output_name: String,
+        output: PyReadonlyArray1<'_, f64>,
+        extra: Vec<(String, PyReadonlyArray1<'_, f64>)>,
+        cut_from: Option<String>,
+        read: &str,
+    ) -> PyResult<Trace> {
+        let read = serde_json::from_str(read).map_err(|e| value_error(e.into()))?;
+        Ok(Trace {
+            inner: mckibben::data::Trace {
+                source,
+                time_name,
+                t: t.as_slice()?.to_vec(),
+                input_name,
+                input: input.as_slice()?.to_vec(),
+                output_name,
+                output: output.as_slice()?.to_vec(),
+                extra: extra
+                    .into_iter()
+                    .map(|(name, v)| Ok((name, v.as_slice()?.to_vec())))
+                    .collect::<PyResult<_>>()?,
+                cut_from,
+            },
+            read,
+        })
     }
 
     fn __repr__(&self) -> String {

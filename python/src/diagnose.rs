@@ -3,6 +3,7 @@
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
 use mckibben::diagnose::report::{DiagnosisJson, baseline_caution};
 use mckibben::diagnose::transfer::check_others;
@@ -18,21 +19,42 @@ use crate::model::model_arg;
 use crate::model::{Model, provenance};
 use crate::named;
 
-/// What `mckibben.diagnose` returns: the document `mckibben diagnose
-/// --json` prints and the models `diagnose --out` writes.
-#[pyclass(module = "mckibben", frozen, get_all)]
-pub struct Diagnosis {
-    /// The `--json` document (docs/JSON.md), as dicts and lists.
-    document: Py<PyAny>,
-    /// The final model: the baseline with the effects the diagnosis kept
-    /// (`--out`'s `model.json`).
-    model: Py<Model>,
-    /// The baseline alone, fitted on the same data (`--out`'s `baseline.json`).
-    baseline: Py<Model>,
+crate::state::with_state! {
+    /// What `mckibben.diagnose` returns: the document `mckibben diagnose
+    /// --json` prints and the models `diagnose --out` writes.
+    #[pyclass(module = "mckibben", frozen, get_all)]
+    pub struct Diagnosis {
+        /// The `--json` document (docs/JSON.md), as dicts and lists.
+        document: Py<PyAny>,
+        /// The final model: the baseline with the effects the diagnosis kept
+        /// (`--out`'s `model.json`).
+        model: Py<Model>,
+        /// The baseline alone, fitted on the same data (`--out`'s `baseline.json`).
+        baseline: Py<Model>,
+    }
 }
 
 #[pymethods]
 impl Diagnosis {
+    /// Pickles as its document and models, so that a diagnosis run in a
+    /// worker process comes back whole.
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
+        let restore = py.get_type::<Diagnosis>().getattr("_from_state")?;
+        Ok((restore, (self.state(py)?,)))
+    }
+
+    /// The diagnosis `__reduce__` pickled.
+    #[classmethod]
+    fn _from_state(
+        _class: &Bound<'_, pyo3::types::PyType>,
+        state: &Bound<'_, PyDict>,
+    ) -> PyResult<Diagnosis> {
+        Diagnosis::from_state(state)
+    }
+
     fn __repr__(&self) -> String {
         let model = self.model.get();
         let names: Vec<&str> = model.inner.effects().iter().map(|e| e.name()).collect();

@@ -35,127 +35,148 @@ use crate::model::model_arg;
 use crate::model::{Model, provenance};
 use crate::named;
 
-/// What `mckibben.fit` returns: the fields of `mckibben fit --json` as
-/// Python values, the model, and the history as arrays.
-#[pyclass(module = "mckibben", frozen, get_all)]
-pub struct FitResult {
-    /// The fitted model (`None` when every candidate diverged).
-    model: Option<Py<Model>>,
-    /// Fitted parameters by name: the family's in canonical order, then the
-    /// effects' as `effect.param` (empty when none was found).
-    params: Py<PyDict>,
-    /// Estimation SSE of the free run (first half of the data; `inf` when
-    /// every candidate diverged).
-    sse: f64,
-    /// Free-run RMSE on the validation half (the second half of the data).
-    val_rmse: Option<f64>,
-    /// Free-run fit % (MATLAB's `compare`) on the validation half.
-    val_fit_percent: Option<f64>,
-    /// The first-order ARX model's validation fit on the same halves: what
-    /// the fit should beat.
-    linear_val_fit_percent: Option<f64>,
-    /// What `fit` prints on stderr and `fit --json` holds as `notes`, one
-    /// dict each (`level`, `note` or `warning`, and `text`), in order: the
-    /// notes before the run, the box's, tries that agree too little,
-    /// undetermined parameters, a validation fit below its yardsticks. Each
-    /// was also raised as a `UserWarning`.
-    notes: Py<PyAny>,
-    /// Each experiment's validation scores on its own second half, one
-    /// dict per experiment (`data`, `samples`, `val_rmse`,
-    /// `val_fit_percent`; `fit --json`'s `records`).
-    records: Py<PyAny>,
-    /// The largest output step a sample within which the fitted
-    /// hysteresis update settles (`fit --json`'s `stable_step`).
-    stable_step: Option<f64>,
-    /// The record's largest measured output step a sample (`fit --json`'s
-    /// `largest_step`): above `stable_step`, the model runs past what it
-    /// settles.
-    largest_step: Option<f64>,
-    /// With `start`: the start model's estimation SSE as it was, on this
-    /// record's first half (`None` without a start, or where it diverges).
-    start_sse: Option<f64>,
-    /// With `start`: the start model's fit % as it was, on this record's
-    /// second half (`None` without a start, or where it diverges).
-    start_val_fit_percent: Option<f64>,
-    /// With effects and no start: the search from scratch against the
-    /// chain built one effect at a time (`scratch_sse`, `chain_sse`,
-    /// `kept_chain`); `None` otherwise.
-    built: Option<Py<PyAny>>,
-    /// A generalized fit with `switch="starts"`: both starts' estimation
-    /// SSEs and which was kept (`mean_sse`, `zero_sse`, `kept_zero`; `fit
-    /// --json`'s `switching`); `None` otherwise.
-    switching: Option<Py<PyAny>>,
-    /// Independent tries the population ran (from `pop=2000` on, tries of
-    /// 1000 and of 100; else 1).
-    tries: usize,
-    /// The first try's population.
-    try_population: usize,
-    /// The tries by population (`fit --json`'s `try_sizes`: a list of
-    /// dicts with `population` and `tries`).
-    try_sizes: Py<PyAny>,
-    /// How far the tries agree, `fit --json`'s `agreement` (`tries`,
-    /// `agreeing`, `other_basins`, `diverged`, `threshold`); `None` for a
-    /// single try. Few of many agreeing: run a larger population.
-    agreement: Option<Py<PyAny>>,
-    /// A generalized fit's refining rounds, `fit --json`'s `refining`
-    /// (`rounds`, `cut_tries`, `largest_last_gain`); `None` for a family
-    /// that is not refined.
-    refining: Option<Py<PyAny>>,
-    /// Each parameter's standard error on the estimation half, by name
-    /// (`fit --json`'s `std_errors`; `None` where held, `inf` where the
-    /// record does not determine it at all): a lower bound, since a free
-    /// run's residuals are correlated.
-    std_errors: Py<PyDict>,
-    /// The parameters whose standard error is at least their own size,
-    /// an infinite one included (`fit --json`'s `undetermined`).
-    undetermined: Vec<String>,
-    /// The search coordinates along which a step of a thousandth makes the
-    /// estimation free run diverge (`fit --json`'s `diverging_probes`).
-    diverging_probes: Vec<String>,
-    /// Candidates scored, every stage and try together.
-    evaluations: u64,
-    /// Generations of the population stages run.
-    generations: usize,
-    /// Wall time of the fit (s).
-    seconds: f64,
-    /// Where populations were scored.
-    backend: String,
-    /// `classic` or `generalized`.
-    family: String,
-    /// The effect stages fitted after the family, in chain order.
-    effects: Vec<String>,
-    /// The population search's update rule that ran: `de`, `ga`, `mfa` or
-    /// `pso` (`algo`).
-    algo: String,
-    /// `joint` or `thesis`.
-    flow: String,
-    /// The seed every random draw of the fit came from.
-    seed: u64,
-    /// Candidates a generation scores, all tries together (`pop`).
-    population: usize,
-    /// Why the fit ended: `completed`, `target-sse`, `time-budget`, `interrupted`.
-    stop: String,
-    /// Ctrl-C (or an exception in `progress`) stopped it: the result is the best so far.
-    interrupted: bool,
-    /// One dict per stage run (`fit --json`'s `stages`).
-    stages: Py<PyAny>,
-    /// Search coordinates that ended on a bound (`fit --json`'s `on_edge`).
-    on_edge: Py<PyAny>,
-    /// The edge rule's widenings and refits (`fit --json`'s `widened`).
-    widened: Py<PyAny>,
-    /// The box searched: `names`, `lower`, `upper` (after widening), and each
-    /// bound's `origin` (`data`, `class` or `user`).
-    search_box: Py<PyDict>,
-    /// One entry per generation and polish start: arrays `generation`,
-    /// `stage`, `horizon` (0 for the free run), `evaluations`, `seconds`,
-    /// `best_sse`, `stage_best`, `generation_best_sse`, `mean_sse`,
-    /// `std_sse` (NaN where none), `diverged`, and `params` (rows of the
-    /// stage's best canonical parameters, named by `names`).
-    history: Py<PyDict>,
+crate::state::with_state! {
+    /// What `mckibben.fit` returns: the fields of `mckibben fit --json` as
+    /// Python values, the model, and the history as arrays.
+    #[pyclass(module = "mckibben", frozen, get_all)]
+    pub struct FitResult {
+        /// The fitted model (`None` when every candidate diverged).
+        model: Option<Py<Model>>,
+        /// Fitted parameters by name: the family's in canonical order, then the
+        /// effects' as `effect.param` (empty when none was found).
+        params: Py<PyDict>,
+        /// Estimation SSE of the free run (first half of the data; `inf` when
+        /// every candidate diverged).
+        sse: f64,
+        /// Free-run RMSE on the validation half (the second half of the data).
+        val_rmse: Option<f64>,
+        /// Free-run fit % (MATLAB's `compare`) on the validation half.
+        val_fit_percent: Option<f64>,
+        /// The first-order ARX model's validation fit on the same halves: what
+        /// the fit should beat.
+        linear_val_fit_percent: Option<f64>,
+        /// What `fit` prints on stderr and `fit --json` holds as `notes`, one
+        /// dict each (`level`, `note` or `warning`, and `text`), in order: the
+        /// notes before the run, the box's, tries that agree too little,
+        /// undetermined parameters, a validation fit below its yardsticks. Each
+        /// was also raised as a `UserWarning`.
+        notes: Py<PyAny>,
+        /// Each experiment's validation scores on its own second half, one
+        /// dict per experiment (`data`, `samples`, `val_rmse`,
+        /// `val_fit_percent`; `fit --json`'s `records`).
+        records: Py<PyAny>,
+        /// The largest output step a sample within which the fitted
+        /// hysteresis update settles (`fit --json`'s `stable_step`).
+        stable_step: Option<f64>,
+        /// The record's largest measured output step a sample (`fit --json`'s
+        /// `largest_step`): above `stable_step`, the model runs past what it
+        /// settles.
+        largest_step: Option<f64>,
+        /// With `start`: the start model's estimation SSE as it was, on this
+        /// record's first half (`None` without a start, or where it diverges).
+        start_sse: Option<f64>,
+        /// With `start`: the start model's fit % as it was, on this record's
+        /// second half (`None` without a start, or where it diverges).
+        start_val_fit_percent: Option<f64>,
+        /// With effects and no start: the search from scratch against the
+        /// chain built one effect at a time (`scratch_sse`, `chain_sse`,
+        /// `kept_chain`); `None` otherwise.
+        built: Option<Py<PyAny>>,
+        /// A generalized fit with `switch="starts"`: both starts' estimation
+        /// SSEs and which was kept (`mean_sse`, `zero_sse`, `kept_zero`; `fit
+        /// --json`'s `switching`); `None` otherwise.
+        switching: Option<Py<PyAny>>,
+        /// Independent tries the population ran (from `pop=2000` on, tries of
+        /// 1000 and of 100; else 1).
+        tries: usize,
+        /// The first try's population.
+        try_population: usize,
+        /// The tries by population (`fit --json`'s `try_sizes`: a list of
+        /// dicts with `population` and `tries`).
+        try_sizes: Py<PyAny>,
+        /// How far the tries agree, `fit --json`'s `agreement` (`tries`,
+        /// `agreeing`, `other_basins`, `diverged`, `threshold`); `None` for a
+        /// single try. Few of many agreeing: run a larger population.
+        agreement: Option<Py<PyAny>>,
+        /// A generalized fit's refining rounds, `fit --json`'s `refining`
+        /// (`rounds`, `cut_tries`, `largest_last_gain`); `None` for a family
+        /// that is not refined.
+        refining: Option<Py<PyAny>>,
+        /// Each parameter's standard error on the estimation half, by name
+        /// (`fit --json`'s `std_errors`; `None` where held, `inf` where the
+        /// record does not determine it at all): a lower bound, since a free
+        /// run's residuals are correlated.
+        std_errors: Py<PyDict>,
+        /// The parameters whose standard error is at least their own size,
+        /// an infinite one included (`fit --json`'s `undetermined`).
+        undetermined: Vec<String>,
+        /// The search coordinates along which a step of a thousandth makes the
+        /// estimation free run diverge (`fit --json`'s `diverging_probes`).
+        diverging_probes: Vec<String>,
+        /// Candidates scored, every stage and try together.
+        evaluations: u64,
+        /// Generations of the population stages run.
+        generations: usize,
+        /// Wall time of the fit (s).
+        seconds: f64,
+        /// Where populations were scored.
+        backend: String,
+        /// `classic` or `generalized`.
+        family: String,
+        /// The effect stages fitted after the family, in chain order.
+        effects: Vec<String>,
+        /// The population search's update rule that ran: `de`, `ga`, `mfa` or
+        /// `pso` (`algo`).
+        algo: String,
+        /// `joint` or `thesis`.
+        flow: String,
+        /// The seed every random draw of the fit came from.
+        seed: u64,
+        /// Candidates a generation scores, all tries together (`pop`).
+        population: usize,
+        /// Why the fit ended: `completed`, `target-sse`, `time-budget`, `interrupted`.
+        stop: String,
+        /// Ctrl-C (or an exception in `progress`) stopped it: the result is the best so far.
+        interrupted: bool,
+        /// One dict per stage run (`fit --json`'s `stages`).
+        stages: Py<PyAny>,
+        /// Search coordinates that ended on a bound (`fit --json`'s `on_edge`).
+        on_edge: Py<PyAny>,
+        /// The edge rule's widenings and refits (`fit --json`'s `widened`).
+        widened: Py<PyAny>,
+        /// The box searched: `names`, `lower`, `upper` (after widening), and each
+        /// bound's `origin` (`data`, `class` or `user`).
+        search_box: Py<PyDict>,
+        /// One entry per generation and polish start: arrays `generation`,
+        /// `stage`, `horizon` (0 for the free run), `evaluations`, `seconds`,
+        /// `best_sse`, `stage_best`, `generation_best_sse`, `mean_sse`,
+        /// `std_sse` (NaN where none), `diverged`, and `params` (rows of the
+        /// stage's best canonical parameters, named by `names`).
+        history: Py<PyDict>,
+    }
 }
 
 #[pymethods]
 impl FitResult {
+    /// Pickles as every field's value (the model, the history's arrays),
+    /// so that a fit run in a worker process comes back whole.
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
+        let restore = py.get_type::<FitResult>().getattr("_from_state")?;
+        Ok((restore, (self.state(py)?,)))
+    }
+
+    /// The result `__reduce__` pickled.
+    #[classmethod]
+    fn _from_state(
+        _class: &Bound<'_, pyo3::types::PyType>,
+        state: &Bound<'_, PyDict>,
+    ) -> PyResult<FitResult> {
+        FitResult::from_state(state)
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "FitResult({} {} fit, val_fit_percent = {}, sse = {}, stop = {}, {:.2} s)",

@@ -19,6 +19,7 @@ mod history;
 mod interrupt;
 mod model;
 mod named;
+mod state;
 
 use pyo3::prelude::*;
 

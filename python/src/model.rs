@@ -233,6 +233,25 @@ impl Model {
         &self.base().output_name
     }
 
+    /// Pickles as its model file's text, so that a model crosses to and
+    /// from worker processes (`multiprocessing`, `concurrent.futures`) and
+    /// `copy.deepcopy` copies it: the file, provenance and box included,
+    /// comes back as it was.
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (String,))> {
+        let text = serde_json::to_string(&self.file)
+            .map_err(|e| crate::convert::runtime_error(e.into()))?;
+        Ok((py.get_type::<Model>().getattr("_from_state")?, (text,)))
+    }
+
+    /// The model `__reduce__` pickled.
+    #[classmethod]
+    fn _from_state(_class: &Bound<'_, pyo3::types::PyType>, text: &str) -> PyResult<Model> {
+        serde_json::from_str::<ModelFile>(text)
+            .map_err(anyhow::Error::from)
+            .and_then(Model::of_file)
+            .map_err(crate::convert::value_error)
+    }
+
     /// Equal models: the same chain, parameters and coordinates (where
     /// they came from aside).
     fn __eq__(&self, other: &Model) -> bool {
