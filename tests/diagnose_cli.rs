@@ -510,6 +510,30 @@ fn an_effect_outside_the_catalogue_is_not_explained_rather_than_misnamed() {
     }
 }
 
+/// With no effect tried (`--max-effects 0`) the verdict says nothing of
+/// the catalogue, in the JSON as in the text: the shipped stair's baseline
+/// leaves a gap large enough that a script reading `not-explained` there
+/// would conclude that the catalogue fails to explain it.
+#[test]
+fn a_diagnosis_that_tried_nothing_says_so_in_its_json() {
+    let out = bin()
+        .args([
+            "diagnose",
+            "--max-effects",
+            "0",
+            "--scratch-seeds",
+            "0",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    let v = json_of(&out);
+    assert_eq!(v["verdict_kind"], "nothing-tried", "{}", v["verdict_kind"]);
+    assert_eq!(v["explainable"]["not_explained"], false);
+    assert!(v["explainable"]["gap_closable"].as_f64().unwrap() >= 0.3);
+    assert_eq!(v["verdict"].as_array().unwrap().len(), 0);
+}
+
 /// A `--transfer` record on another time base, and an `--out` that cannot
 /// be a folder, fail before the diagnosis runs, not after it: the work of
 /// a diagnosis is not lost to a flag that could be checked first.

@@ -177,9 +177,12 @@ impl Diagnosis {
 
     /// `named` when the diagnosis names effects, `none` when no effect
     /// passed, `not-explained` when the effects asked for do not explain
-    /// the gap.
+    /// the gap, `nothing-tried` when no effect was tried (`--max-effects 0`,
+    /// or none could be tried on the record).
     pub fn verdict_kind(&self) -> &'static str {
-        if self.explainable.not_explained {
+        if self.selection.rounds.is_empty() {
+            "nothing-tried"
+        } else if self.explainable.not_explained {
             "not-explained"
         } else if self.selection.verdict.is_empty() {
             "none"
@@ -284,7 +287,10 @@ pub fn diagnose_from(
             .as_ref()
             .and_then(|s| s.peaks.first().copied()),
     );
-    let explainable = explainable::judge(bound, &steps, remaining, settings.floor_margin);
+    let mut explainable = explainable::judge(bound, &steps, remaining, settings.floor_margin);
+    // With no effect tried, nothing was found wanting: the verdict says
+    // nothing of the catalogue, not that it fails to explain the gap.
+    explainable.not_explained &= !selection.rounds.is_empty();
 
     let last_pred = last.predict(&final_params);
     let curves = curves_of(traces, &data, &base_pred, &last_pred);

@@ -19,7 +19,8 @@ pub struct SeedRun {
     pub seed: u64,
     /// The effects it named ([`Diagnosis::named`]), in order.
     pub named: Vec<Effect>,
-    /// `named`, `none` or `not-explained` ([`Diagnosis::verdict_kind`]).
+    /// `named`, `none`, `not-explained` or `nothing-tried`
+    /// ([`Diagnosis::verdict_kind`]).
     pub kind: &'static str,
     /// Its baseline on the selection part, which its choices read.
     pub baseline_selection_fit_percent: f64,

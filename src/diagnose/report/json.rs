@@ -228,7 +228,7 @@ pub struct DiagnosisJson {
     pub where_: WhereJson,
     pub candidates: Vec<CandidateJson>,
     pub verdict: Vec<&'static str>,
-    /// `named`, `none` or `not-explained`.
+    /// `named`, `none`, `not-explained` or `nothing-tried`.
     pub verdict_kind: &'static str,
     /// The model file the selection started from (`--from`), and its
     /// effects, taken as given.

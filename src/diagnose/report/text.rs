@@ -658,6 +658,7 @@ fn repeats_text(o: &mut String, d: &Diagnosis) {
                 .collect::<Vec<_>>()
                 .join(", "),
             "none" => "no effect named".into(),
+            "nothing-tried" => "nothing tried".into(),
             _ if d.narrowed() => "not explained by the effects tried".into(),
             _ => "not explained by the catalogue".into(),
         })
