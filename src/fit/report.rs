@@ -475,6 +475,12 @@ impl FitReport {
             .iter()
             .map(|(_, v)| significant(*v, 6))
             .collect();
+        // Where some parameters have errors (a smooth family) and no probe
+        // diverged, a free one without its error is held by a bound its
+        // probe step reaches past (JSON.md, `std_errors.*`): say so, where
+        // a bare figure would read as a parameter that was never assessed.
+        let assessed =
+            self.std_errors.0.iter().any(|(_, e)| e.is_some()) && self.diverging_probes.is_empty();
         for (i, ((name, _), figure)) in self
             .params
             .0
@@ -489,6 +495,9 @@ impl FitReport {
             };
             let error = match self.std_errors.0.get(i) {
                 Some((_, Some(e))) if held.is_empty() => format!("  ± {}", uncertainty(*e)),
+                Some((_, None)) if held.is_empty() && assessed => {
+                    "  (next to a bound of its box: no ±)".to_string()
+                }
                 _ => String::new(),
             };
             let row = format!("  {name:<name_width$} {figure:>14}{held}{error}");
