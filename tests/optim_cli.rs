@@ -1782,6 +1782,124 @@ fn fit_writes_its_named_files_and_none_over_its_data() {
     );
 }
 
+/// The other commands that write into a folder refuse one where a file
+/// they write would replace a record they read, and leave it as it was:
+/// `compare --out` (its DATA and `--cross`), `diagnose --report` and
+/// `control --csv`/`--plot` (its `--design-data`) replaced them, exit 0.
+#[test]
+fn no_output_folder_replaces_a_record_the_command_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let stair = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+    let seven = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_7kg.csv");
+    let placed = |name: &str, record: &str| {
+        let path = dir.path().join(name);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::copy(record, &path).unwrap();
+        (name.to_string(), std::fs::read(&path).unwrap())
+    };
+    let refused = |args: &[&str], (name, before): (String, Vec<u8>), wanted: &str| {
+        let out = mckibben(args, dir.path());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}: {err}");
+        assert!(err.contains(wanted), "{args:?}: {err}");
+        assert_eq!(
+            std::fs::read(dir.path().join(&name)).unwrap(),
+            before,
+            "{name}"
+        );
+    };
+    let compare = [
+        "compare",
+        "--thesis-sizes",
+        "4",
+        "--sizes",
+        "0",
+        "--gens",
+        "1",
+    ];
+    let quick = [&compare[..], &["--seeds", "0", "--backend", "cpu"]].concat();
+    refused(
+        &[&quick[..], &["c/compare.md", "--out", "c"]].concat(),
+        placed("c/compare.md", stair),
+        "--out c: the command writes compare.md there, over c/compare.md that it reads as DATA",
+    );
+    refused(
+        &[
+            &quick[..],
+            &[stair, "--cross", "x/compare.json", "--out", "x"],
+        ]
+        .concat(),
+        placed("x/compare.json", seven),
+        "over x/compare.json that it reads as --cross",
+    );
+    refused(
+        &[
+            "diagnose",
+            "d/diagnose_fit.svg",
+            "--max-effects",
+            "0",
+            "--report",
+            "d",
+        ],
+        placed("d/diagnose_fit.svg", stair),
+        "--report d: the command writes diagnose_fit.svg there, over d/diagnose_fit.svg that \
+         it reads as DATA",
+    );
+    let twin = [
+        "twin",
+        "--experiment",
+        "multisine",
+        "--out",
+        "k/control_mpc_4.5kg_1rad.csv",
+    ];
+    assert!(mckibben(&twin, dir.path()).status.success());
+    let record = std::fs::read(dir.path().join("k/control_mpc_4.5kg_1rad.csv")).unwrap();
+    let control = [
+        "control",
+        "--controller",
+        "mpc",
+        "--freq",
+        "1",
+        "--load",
+        "4.5",
+        "--warmup",
+        "1",
+        "--duration",
+        "2",
+        "--steady-from",
+        "1",
+        "--design-data",
+        "k/control_mpc_4.5kg_1rad.csv",
+    ];
+    for flag in ["--csv", "--plot"] {
+        let named = match flag {
+            "--csv" => "k/control_mpc_4.5kg_1rad.csv",
+            _ => "k/control_mpc_4.5kg_1rad.svg",
+        };
+        if flag == "--plot" {
+            std::fs::copy(
+                dir.path().join("k/control_mpc_4.5kg_1rad.csv"),
+                dir.path().join(named),
+            )
+            .unwrap();
+        }
+        let mut args = control.to_vec();
+        let last = args.len() - 1;
+        args[last] = named;
+        args.extend([flag, "k"]);
+        let before = std::fs::read(dir.path().join(named)).unwrap();
+        refused(
+            &args,
+            (named.to_string(), before),
+            &format!("{flag} k: the command writes"),
+        );
+    }
+    assert_eq!(
+        std::fs::read(dir.path().join("k/control_mpc_4.5kg_1rad.csv")).unwrap(),
+        record
+    );
+}
+
 /// `fit --effects` under a budget the chain's build spends: the build stops
 /// at the budget, and the error says the time went there (it said no
 /// candidate was scored, after seconds of the build's searches).

@@ -2,16 +2,19 @@
 //! buy, the thesis' methods against the baseline at equal budgets over many
 //! seeds, the two flows, and the cross-load check of §4.10.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use super::common::{ColumnArgs, DataArgs, one_trace, population};
-use mckibben::data::{Trace, same_samples, same_step, tidy_step, write_atomic};
+use super::common::{ColumnArgs, DataArgs, check_folder, one_trace, population};
+use mckibben::data::{Trace, same_samples, same_step, tidy_step, write_all_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::fit::compare::{Report, Settings, Study, markdown};
 use mckibben::optim::mfa;
 use mckibben::report::json::Versioned;
+
+/// What `--out` receives.
+const OUT_FILES: [&str; 2] = ["compare.json", "compare.md"];
 
 /// Compare the optimizers on one experiment (the shipped 4.5 kg stair by
 /// default), as Markdown tables (and JSON with --json):
@@ -109,7 +112,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     // The folder too: a study of minutes must not end on a path that
-    // cannot be written.
+    // cannot be written, nor write its report over the records it reads.
+    let data = match &args.data.data {
+        Some(path) => path.clone(),
+        None => super::common::default_data()?,
+    };
+    let mut reads: Vec<(&str, &Path)> = vec![("DATA", &data)];
+    reads.extend(args.cross.iter().map(|p| ("--cross", p.as_path())));
+    check_folder("--out", &args.out, &OUT_FILES.map(String::from), &reads)?;
     mckibben::data::create_dir_all(&args.out)
         .with_context(|| format!("cannot create --out {}", args.out.display()))?;
     let mut evaluator = eval::open(args.backend)?;
@@ -135,8 +145,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let md = markdown(&report, &settings);
     let json = Versioned::new(&report).to_string_pretty()?;
     // Printed even where a write fails: minutes of study are not lost.
-    let written = write_atomic(&args.out.join("compare.json"), json.as_bytes())
-        .and_then(|()| write_atomic(&args.out.join("compare.md"), md.as_bytes()))
+    let [json_file, md_file] = OUT_FILES.map(|name| args.out.join(name));
+    let written = write_all_atomic(&[(&json_file, json.as_bytes()), (&md_file, md.as_bytes())])
         .with_context(|| format!("cannot write into {}", args.out.display()));
     if args.json {
         outln!("{json}")?;

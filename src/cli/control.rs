@@ -3,13 +3,13 @@
 //! checks the flags and prints; the work is `control::{sweep, tuning, table,
 //! figures}`'s and `rig::control_runs`'.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context as _;
 
-use super::common::population;
+use super::common::{check_folder, population};
 use mckibben::control::closed_loop::Episode;
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
@@ -669,10 +669,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         out!("{}", table::text(&rows, &robust))?;
     }
+    // Only now are the files' names known (a run's controller names it):
+    // none may replace a file the command read.
+    let reads: Vec<(&str, &Path)> = [("--design-data", &args.design_data), ("--from", &args.from)]
+        .into_iter()
+        .filter_map(|(flag, path)| Some((flag, path.as_deref()?)))
+        .collect();
+    let stems: Vec<String> = runs
+        .iter()
+        .map(|r| figures::stem(r, shape.waveform))
+        .collect();
     if let Some(dir) = &args.plot {
+        let mut names: Vec<String> = stems.iter().map(|s| format!("{s}.svg")).collect();
+        names.push(figures::DESIGN_FIGURE.into());
+        check_folder("--plot", dir, &names, &reads)?;
         figures::save(dir, &runs, shape.waveform, design.as_ref())?;
     }
     if let Some(dir) = &args.csv {
+        let names: Vec<String> = stems.iter().map(|s| format!("{s}.csv")).collect();
+        check_folder("--csv", dir, &names, &reads)?;
         table::write_csvs(dir, &runs, shape.waveform)?;
     }
     Ok(())

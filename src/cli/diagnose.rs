@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use mckibben::data::{mixed_steps, tidy_step};
-use mckibben::diagnose::report::{DiagnosisJson, to_text, write_figures};
+use mckibben::diagnose::report::{DiagnosisJson, FIGURES, to_text, write_figures};
 use mckibben::diagnose::settings::Progress;
 use mckibben::diagnose::transfer::{check_others, transfer};
 use mckibben::diagnose::{Effect, Settings, diagnose_from};
@@ -328,16 +328,19 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     let family = from.as_ref().map_or(family, |m| m.base.family);
     check_others(family, &traces, &others, &settings).context("--transfer")?;
+    let mut reads: Vec<(&str, &Path)> = args
+        .data
+        .data
+        .iter()
+        .map(|p| ("DATA", p.as_path()))
+        .collect();
+    reads.extend(args.transfer.iter().map(|p| ("--transfer", p.as_path())));
+    reads.extend(args.from.iter().map(|p| ("--from", p.as_path())));
     if let Some(dir) = &args.out {
-        let mut reads: Vec<(&str, &Path)> = args
-            .data
-            .data
-            .iter()
-            .map(|p| ("DATA", p.as_path()))
-            .collect();
-        reads.extend(args.transfer.iter().map(|p| ("--transfer", p.as_path())));
-        reads.extend(args.from.iter().map(|p| ("--from", p.as_path())));
         check_folder("--out", dir, &OUT_FILES.map(String::from), &reads)?;
+    }
+    if let Some(dir) = &args.report {
+        check_folder("--report", dir, &FIGURES.map(String::from), &reads)?;
     }
     for (flag, dir) in [("--out", &args.out), ("--report", &args.report)] {
         if let Some(dir) = dir {

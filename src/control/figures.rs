@@ -118,7 +118,10 @@ pub fn design_figure(d: &Design) -> Figure {
     fig
 }
 
-/// Every run's figure and the design's (`control_model.svg`) as SVG files
+/// The design's figure's file name.
+pub const DESIGN_FIGURE: &str = "control_model.svg";
+
+/// Every run's figure and the design's ([`DESIGN_FIGURE`]) as SVG files
 /// in `dir` (`--plot`).
 pub fn save(
     dir: &Path,
@@ -133,7 +136,7 @@ pub fn save(
         .map(|r| (format!("{}.svg", stem(r, waveform)), run_figure(r)))
         .collect();
     if let Some(d) = design {
-        figs.push(("control_model.svg".into(), design_figure(d)));
+        figs.push((DESIGN_FIGURE.into(), design_figure(d)));
     }
     for (name, fig) in figs {
         let path = dir.join(name);

@@ -6,6 +6,15 @@ use crate::diagnose::Diagnosis;
 use crate::diagnose::locate::Share;
 use crate::report::{Figure, Panel, Series};
 
+/// The files [`write_figures`] writes, in its order (a command checks
+/// that none would replace a file it reads).
+pub const FIGURES: [&str; 4] = [
+    "diagnose_residual.svg",
+    "diagnose_fit.svg",
+    "diagnose_loop.svg",
+    "diagnose_breakdown.svg",
+];
+
 /// Writes the figures into `dir`; returns their paths.
 pub fn write_figures(d: &Diagnosis, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
     crate::data::create_dir_all(dir)

@@ -7,7 +7,7 @@ mod text;
 
 use std::collections::BTreeMap;
 
-pub use figures::write_figures;
+pub use figures::{FIGURES, write_figures};
 pub use json::*;
 pub use text::{baseline_caution, to_text};
 
