@@ -351,6 +351,12 @@ fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
             &["--controller", "pi", "--load", "0.01"][..],
             "--load: the twin's `displacement` is not finite from 0.010 s on",
         ),
+        // An infinite weight on valve moves left every QP without a
+        // solution, exit 0.
+        (
+            &["--controller", "mpc", "--r-move", "inf"][..],
+            "--r-move inf: must be a positive number",
+        ),
         // The creep's softer rubber is as much the cause as the load.
         (
             &["--controller", "pi", "--effect", "creep=9"][..],

@@ -285,6 +285,11 @@ fn undiagnosable_data_gives_clear_errors() {
     write_csv(&short, 30, false, 0.0);
     let err = error_of(&["diagnose"], &short);
     assert!(err.contains("too few to split"), "{err}");
+    // An empty item of --cases is in every case's name: it ran all 91.
+    for cases in ["control,", ""] {
+        let err = error_of(&["diagnose", "--self-test", "--cases", cases], &short);
+        assert!(err.contains("an empty item would pick every case"), "{err}");
+    }
 
     // Long enough for `fit`'s two halves, too short for two useful blocks
     // of the second half: the message says how long the record must be.

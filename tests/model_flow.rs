@@ -683,6 +683,18 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
         err.contains("--dt") && err.contains("a record may hold"),
         "{err}"
     );
+    // `--list` prints a table: with --json it printed the table on stdout.
+    let err = error_of(&["simulate", "--list", "--json"]);
+    assert!(
+        err.contains("'--list' cannot be used with '--json'"),
+        "{err}"
+    );
+    // A step past a day, as every command's --dt: 1e308 made its time inf.
+    let err = error_of(&["simulate", "--dt=1e308"]);
+    assert!(
+        err.contains("--dt: 1e308 s is outside a nanosecond to a day"),
+        "{err}"
+    );
     // A file of the input alone runs from rest and scores nothing; its
     // columns are simulate's --input-col and --output-col.
     let dir = tempfile::tempdir().unwrap();
@@ -696,6 +708,32 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
     ]);
     assert_eq!(run["samples"], 3);
     assert!(run["fit_percent"].is_null());
+    // A model whose rest is already out of bounds diverges at the first
+    // sample: its file holds no row, as the run without --out says (the
+    // writer refused the infinite first row, blaming the file, exit 1).
+    let diverged = dir.path().join("diverged.csv");
+    let out = mckibben(&[
+        "simulate",
+        "--params",
+        "b=1e308",
+        "--out",
+        diverged.to_str().unwrap(),
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("DIVERGED at sample 0"), "{text}");
+    let written = std::fs::read_to_string(&diverged).unwrap();
+    assert!(written.contains("# diverged at sample 0"), "{written}");
+    assert!(
+        written
+            .trim_end()
+            .ends_with("t,pressure,displacement,valve_in,w"),
+        "{written}"
+    );
     // With a model, whose output column the file may hold under another
     // name (`disp_mm` for `disp (mm)`), the note says why nothing is
     // scored.

@@ -308,7 +308,7 @@ fn ctrl_c_writes_the_best_so_far_and_exits_as_interrupted() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 22] = [
+    let cases: [(&[&str], &str); 24] = [
         (&["fit", "missing.csv"], "missing.csv"),
         // A population no machine holds: an error, not an aborted
         // allocation.
@@ -370,6 +370,16 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         (
             &["fit", &csv, "--stall", "0"],
             "invalid value '0' for '--stall <GENS>': at least 1",
+        ),
+        (
+            &["fit", &csv, "--gens", "0"],
+            "invalid value '0' for '--gens <GENS>': at least 1",
+        ),
+        // A count past a word less one wrapped once the initial population
+        // was added (diagnose said "need at least one generation").
+        (
+            &["diagnose", &csv, "--generations", "18446744073709551615"],
+            "for '--generations <GENERATIONS>': at most 1000000000",
         ),
         // A lone particle stops near its draw: five seeds of seven ended
         // with no model, and a warning that blamed the data.
@@ -660,10 +670,6 @@ fn values_out_of_any_rigs_range_and_contradicting_flags_are_errors() {
         (
             vec!["simulate", "--input", "stair", "--input-col", "p"],
             "--input-col read(s) a CSV --input, and --input stair is generated",
-        ),
-        (
-            vec!["fit", &csv, "--gens", "0"],
-            "--gens must be at least 1",
         ),
         // Counts whose plan or layout would be built before the run (a
         // hang, an aborted allocation).
@@ -1275,7 +1281,7 @@ fn bounds_a_user_sets_hold_and_bad_ones_are_clear_errors() {
     let cases: [(&[&str], &str); 5] = [
         (
             &["--bound", "zeta=0:1"],
-            "no parameter `zeta` in the classic model",
+            "--bound zeta=0:1: no parameter `zeta` in the classic model",
         ),
         (&["--bound", "gain=2:1"], "the box is empty"),
         (&["--bound", "gain=0:x"], "`x` is not a number"),

@@ -15,6 +15,7 @@ use mckibben::data::csv::{
 use mckibben::data::{write_all_atomic, write_atomic};
 use mckibben::fit::settings::MAX_POPULATION;
 use mckibben::model::file::{ModelFile, Provenance, ReadSettings};
+use mckibben::optim::engine::MAX_GENERATIONS;
 use mckibben::optim::streams::checked_seed;
 use mckibben::report::Figure;
 
@@ -54,6 +55,9 @@ pub fn population(s: &str) -> Result<usize, String> {
 pub fn generations(s: &str) -> Result<usize, String> {
     match s.parse::<usize>().map_err(|e| format!("{e}"))? {
         0 => Err("at least 1: the first generation is the drawn population".into()),
+        g if g > MAX_GENERATIONS => Err(format!(
+            "at most {MAX_GENERATIONS}: a search that long would run for days"
+        )),
         g => Ok(g),
     }
 }
@@ -626,6 +630,23 @@ mod tests {
             e.to_string().contains("not a positive number of seconds"),
             "{e}"
         );
+    }
+
+    /// A count past a word less one wrapped once the initial population
+    /// was added: `diagnose --generations 18446744073709551615` said "need
+    /// at least one generation".
+    #[test]
+    fn generation_counts_are_bounded_on_both_sides() {
+        assert!(generations("0").is_err());
+        assert_eq!(generations("300"), Ok(300));
+        assert_eq!(
+            generations(&MAX_GENERATIONS.to_string()),
+            Ok(MAX_GENERATIONS)
+        );
+        for wrapping in [MAX_GENERATIONS + 1, usize::MAX] {
+            let e = generations(&wrapping.to_string()).unwrap_err();
+            assert!(e.starts_with("at most 1000000000"), "{e}");
+        }
     }
 
     #[test]

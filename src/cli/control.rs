@@ -309,7 +309,12 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
         );
     }
     anyhow::ensure!(args.horizon >= 2, "--horizon must be at least 2 samples");
-    anyhow::ensure!(args.r_move > 0.0, "--r-move must be positive");
+    anyhow::ensure!(
+        args.r_move > 0.0 && args.r_move.is_finite(),
+        "--r-move {}: must be a positive number (an infinite weight leaves the MPC's QP no \
+         solution)",
+        args.r_move
+    );
     if let Some(ms) = args.deadline {
         // At most a day: a longer wait is a typo, and past about 10¹⁹ s
         // no clock can hold it.

@@ -224,6 +224,13 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             "--effects names `{e}` twice: each effect is tried once"
         );
     }
+    // An empty text is in every name: `--cases control,` ran all 91.
+    anyhow::ensure!(
+        args.cases.iter().all(|c| !c.trim().is_empty()),
+        "--cases {}: an empty item would pick every case; name each part of the cases' names \
+         to run, comma-separated",
+        args.cases.join(",")
+    );
     anyhow::ensure!(
         args.blocks.is_none_or(|b| b >= 2),
         "--blocks must be at least 2 (one selection and one test block)"

@@ -123,8 +123,9 @@ pub struct Args {
     /// simulation over the measured output where `--input` is a record.
     #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
-    /// List the family's parameter names and exit.
-    #[arg(long)]
+    /// List the family's parameter names and exit (a table: with --json,
+    /// an error; a model file's `params` names them for a script).
+    #[arg(long, conflicts_with = "json")]
     list: bool,
     /// Print JSON on stdout instead of a summary.
     #[arg(long)]
@@ -175,12 +176,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let dt = match (args.dt, &file) {
+        // A nanosecond to a day, as every command's --dt: a step of 1e308 s
+        // made a time column of inf.
         (Some(dt), _) => {
-            anyhow::ensure!(
-                dt > 0.0 && dt.is_finite(),
-                "--dt must be a positive number of seconds (got {dt})"
-            );
-            dt
+            mckibben::data::sample_time(dt).map_err(|e| anyhow::anyhow!("--dt: {e}"))?
         }
         (None, Some(f)) => f.model()?.base.dt,
         (None, None) => DEFAULT_DT,

@@ -361,7 +361,7 @@ pub fn read_traces_with_notes(
     path: &Path,
     opts: &ReadOptions,
 ) -> Result<(Vec<Trace>, Vec<String>), DataError> {
-    let bytes = std::fs::read(path).map_err(|source| DataError::Io {
+    let bytes = super::input::read(path).map_err(|source| DataError::Io {
         path: path.to_path_buf(),
         source,
     })?;

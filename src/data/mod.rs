@@ -3,6 +3,7 @@
 
 pub mod atomic;
 pub mod csv;
+pub mod input;
 pub mod signals;
 pub mod units;
 

@@ -11,6 +11,7 @@ use crate::fit::searches::Searches;
 use crate::fit::searches::StopFlag;
 #[cfg(doc)]
 use crate::model::experiment::Parts;
+use crate::optim::engine::MAX_GENERATIONS;
 
 /// The error of a diagnosis stopped by its [`StopFlag`].
 #[derive(Debug, thiserror::Error)]
@@ -102,6 +103,13 @@ impl Settings {
     /// The searches of a diagnosis: the evaluator `backend` opens, stopped
     /// by `stop`.
     pub fn searches(&self) -> anyhow::Result<Searches> {
+        // Checked before any search: the fits add the initial population
+        // to the count, which would wrap past a word.
+        anyhow::ensure!(
+            (1..=MAX_GENERATIONS).contains(&self.generations),
+            "--generations {}: from 1 to {MAX_GENERATIONS}",
+            self.generations
+        );
         Ok(Searches::new(
             crate::eval::open(self.backend)?,
             self.stop.clone(),

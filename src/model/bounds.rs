@@ -13,18 +13,25 @@ use crate::search::Side;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum BoundError {
     /// A name that is neither the family's nor its search coordinates'.
-    #[error("no parameter `{name}` in the {family} model: the names are {}", known.join(", "))]
+    #[error("{given}: no parameter `{name}` in the {family} model: the names are {}", known.join(", "))]
     UnknownParameter {
         name: String,
+        /// The bound as its flag gave it (`--bound foo=0:1`).
+        given: String,
         family: Family,
         /// The names a bound may use.
         known: Vec<String>,
     },
     /// An effect parameter's name (`effect.param`) that no effect of the
     /// fit has.
-    #[error("no effect parameter `{name}` in this fit: {}", effects_hint(known))]
+    #[error(
+        "{given}: no effect parameter `{name}` in this fit: {}",
+        effects_hint(known)
+    )]
     UnknownEffectParameter {
         name: String,
+        /// The bound as its flag gave it (`--fix creep.x=1`).
+        given: String,
         /// The fit's effect parameters (none: the fit has no effects).
         known: Vec<String>,
     },
@@ -474,6 +481,7 @@ impl SearchSpace {
             if !ours.contains(&b.name) {
                 return Err(BoundError::UnknownEffectParameter {
                     name: b.name.clone(),
+                    given: b.as_given(),
                     known: ours,
                 });
             }
@@ -504,6 +512,7 @@ impl SearchSpace {
             }
             return Err(BoundError::UnknownParameter {
                 name: b.name.clone(),
+                given: b.as_given(),
                 family: self.family,
                 known,
             });

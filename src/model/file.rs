@@ -336,7 +336,7 @@ impl Provenance {
 
 /// The hex SHA-256 of a file's bytes (none for a generated trace).
 fn sha256_of(path: &Path) -> Option<String> {
-    let bytes = std::fs::read(path).ok()?;
+    let bytes = crate::data::input::read(path).ok()?;
     let digest = Sha256::digest(&bytes);
     Some(digest.iter().map(|b| format!("{b:02x}")).collect())
 }
@@ -434,7 +434,7 @@ impl ModelFile {
     /// Reads a model file of this version or version 1 (a bare model, or
     /// `identify --out`'s document whose `model` field holds one).
     pub fn load(path: &Path) -> anyhow::Result<ModelFile> {
-        let text = std::fs::read_to_string(path)
+        let text = crate::data::input::read_to_string(path)
             .with_context(|| format!("cannot read {}", path.display()))?;
         let value: serde_json::Value =
             serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;

@@ -326,6 +326,11 @@ pub fn simulate(family: Family, theta: &[f32], y_mean: f32, u: &[f32], y0: f32) 
         return Simulation { x, w, diverged_at };
     }
     let (x0, w0) = stepper.start(y0);
+    // A start already out of bounds (the rest of a model whose gain is
+    // 1e308) is a divergence at the first sample, not the second.
+    if !(in_bounds(x0) && in_bounds(w0)) {
+        diverged_at = Some(0);
+    }
     x.push(x0);
     w.push(w0);
     for k in 1..u.len() {

@@ -25,6 +25,19 @@ impl std::fmt::Display for UserBound {
     }
 }
 
+impl UserBound {
+    /// The bound as the command line gives it: `--fix NAME=VALUE` where
+    /// its ends meet, else `--bound NAME=LO:HI`.
+    pub fn as_given(&self) -> String {
+        let flag = if self.lower == self.upper {
+            "--fix"
+        } else {
+            "--bound"
+        };
+        format!("{flag} {self}")
+    }
+}
+
 /// A `--bound` or `--fix` that does not read as a bound (`input` is it
 /// as given).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -165,7 +165,7 @@ pub struct Args {
     pub(super) pop: usize,
     /// Generations G of the global stage: populations evaluated, the
     /// initial one included (the thesis used 30).
-    #[arg(long, default_value_t = GENERATIONS)]
+    #[arg(long, default_value_t = GENERATIONS, value_parser = crate::cli::common::generations)]
     pub(super) gens: usize,
     /// Seed of the run's random generator: same seed, same result on any
     /// backend and thread count.

@@ -37,6 +37,11 @@
 //! whatever the thread count or backend. No generator is part of the state:
 //! the stage and its generation say where every stream stands.
 
+/// The most generations a stage may plan: a search that long runs for
+/// days on any population, so a larger count is a typo, and past it the
+/// count plus the initial population no longer fits a word.
+pub const MAX_GENERATIONS: usize = 1_000_000_000;
+
 pub mod plan;
 mod polish;
 mod population;
@@ -366,6 +371,11 @@ impl<C: Chart> Engine<C> {
                 g.population
             );
             anyhow::ensure!(g.generations >= 1, "need at least one generation");
+            anyhow::ensure!(
+                g.generations <= MAX_GENERATIONS,
+                "{} generations: at most {MAX_GENERATIONS}",
+                g.generations
+            );
             anyhow::ensure!(
                 g.islands >= 1 && g.population / g.islands >= min,
                 "{} islands of a population of {} leave fewer than {min} individuals an island ({}'s minimum)",
@@ -810,7 +820,7 @@ impl<C: Chart> Engine<C> {
 
     /// Reads a checkpoint written by [`Engine::save`].
     pub fn load(path: &Path) -> anyhow::Result<Self> {
-        let bytes = std::fs::read(path)
+        let bytes = crate::data::input::read(path)
             .map_err(|e| anyhow::anyhow!("cannot read checkpoint {}: {e}", path.display()))?;
         serde_json::from_slice(&bytes).map_err(|e| {
             anyhow::anyhow!(
