@@ -1904,6 +1904,20 @@ fn no_output_folder_replaces_a_record_the_command_reads() {
         std::fs::read(dir.path().join("k/control_mpc_4.5kg_1rad.csv")).unwrap(),
         record
     );
+    // A folder where a file goes is found before the fit, not after it.
+    std::fs::create_dir_all(dir.path().join("f/trace.svg")).unwrap();
+    let out = mckibben(
+        &[&short_fit(stair)[..], &["--out", "f"]].concat(),
+        dir.path(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains(
+            "--out f: the command writes the file trace.svg there, and f/trace.svg is a folder"
+        ),
+        "{err}"
+    );
+    assert!(out.stdout.is_empty(), "the fit ran first");
 }
 
 /// `fit --effects` under a budget the chain's build spends: the build stops

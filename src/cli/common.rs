@@ -206,8 +206,9 @@ pub fn check_distinct(reads: &[(&str, &Path)], writes: &[(&str, &Path)]) -> anyh
 }
 
 /// Refuses an output folder `dir` (named by `flag`) where the command would
-/// write one of `names` over a file it reads: `fit rec/history.csv --out
-/// rec` replaced the recording by the fit's history.
+/// write one of `names` over a file it reads (`fit rec/history.csv --out
+/// rec` replaced the recording by the fit's history), or where a folder
+/// stands in the place of one of them.
 pub fn check_folder(
     flag: &str,
     dir: &Path,
@@ -224,6 +225,14 @@ pub fn check_folder(
                 read.display()
             );
         }
+        // Found now, not once the run is over and its files cannot go.
+        anyhow::ensure!(
+            !written.is_dir(),
+            "{flag} {}: the command writes the file {name} there, and {} is a folder; give \
+             another folder",
+            dir.display(),
+            written.display()
+        );
     }
     Ok(())
 }
