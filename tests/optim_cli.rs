@@ -1792,6 +1792,7 @@ fn fit_writes_its_named_files_and_none_over_its_data() {
 /// they write would replace a record they read, and leave it as it was:
 /// `compare --out` (its DATA and `--cross`), `diagnose --report` and
 /// `control --csv`/`--plot` (its `--design-data`) replaced them, exit 0.
+/// A folder where a file goes is refused before the run too.
 #[test]
 fn no_output_folder_replaces_a_record_the_command_reads() {
     let dir = tempfile::tempdir().unwrap();
