@@ -357,6 +357,18 @@ fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
             &["--controller", "mpc", "--r-move", "inf"][..],
             "--r-move inf: must be a positive number",
         ),
+        // A family the controllers cannot use: refused before the design
+        // (it was, after seconds of identification).
+        (
+            &[
+                "--controller",
+                "mpc",
+                "--from",
+                "tests/fixtures/generalized_before_x_s.json",
+            ][..],
+            "--from tests/fixtures/generalized_before_x_s.json: the controller's model must be \
+             the classic or the linear family",
+        ),
         // The creep's softer rubber is as much the cause as the load.
         (
             &["--controller", "pi", "--effect", "creep=9"][..],

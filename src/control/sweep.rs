@@ -22,7 +22,7 @@ use crate::data::Trace;
 use crate::data::csv::{DataError, ReadOptions, read_traces_with_notes};
 use crate::data::units::unit_of;
 use crate::model::effects::Effect;
-use crate::model::{FittedBaseline, ModelFile};
+use crate::model::{Family, FittedBaseline, ModelFile};
 use crate::twin::{self, Rig, TwinConfig};
 
 /// The controllers `mckibben control` knows.
@@ -244,6 +244,13 @@ pub fn given_model(path: &Path, note: &dyn Fn(String)) -> anyhow::Result<GivenMo
             )),
         }
     }
+    // Found now, not after the design's seconds of identification.
+    anyhow::ensure!(
+        m.base.family != Family::Generalized,
+        "--from {}: the controller's model must be the classic or the linear family (got the \
+         generalized one)",
+        path.display()
+    );
     // The controllers push the displacement up with the pressure (the
     // twin's and the thesis' contraction, positive): a model whose output
     // falls as the pressure rises (an extension, or a contraction logged
