@@ -481,6 +481,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.pop.iter().all(|&n| n > 0),
         "--pop: every population size must be at least 1"
     );
+    anyhow::ensure!(
+        !args.free_n || args.model.exponent_index().is_some(),
+        "--free-n frees the Bouc-Wen exponent n, and --model {} has none",
+        args.model
+    );
     let workload = workload(&args)?;
     let (problem, label) = (&workload.problem, &workload.label);
     let mut evaluator = open(args.backend)?;
@@ -501,11 +506,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // The device's ceiling, in the same run as the model's kernels.
     let ceiling = evaluator.calibrate(calibration::Sizing::default())?;
-    let ops_per_candidate_sample = calibration::ops_per_candidate_sample(
-        args.model,
-        !args.effects.is_empty(),
-        !args.free_n || args.model.exponent_index().is_none(),
-    );
+    let ops_per_candidate_sample =
+        calibration::ops_per_candidate_sample(args.model, !args.effects.is_empty(), !args.free_n);
     if args.markdown {
         outln!("{MARKDOWN_HEADER}")?;
     } else if !args.json {

@@ -138,14 +138,23 @@ pub enum DataError {
         cells: Vec<String>,
     },
     #[error(
-        "{}: line {line}: a header row but {rows} data row{}; a time step needs at least 2",
+        "{}: line {line}: a header row but {rows} data row{}{}; a time step needs at least 2",
         path.display(),
-        if *rows == 1 { "" } else { "s" }
+        if *rows == 1 { "" } else { "s" },
+        match dropped {
+            0 => String::new(),
+            n => format!(
+                " left after --split-gaps dropped {n} whose time, input or output is not a \
+                 finite number"
+            ),
+        }
     )]
     TooFewRows {
         path: PathBuf,
         line: u64,
         rows: usize,
+        /// Rows `--split-gaps` dropped for a value that is no finite number.
+        dropped: usize,
     },
     #[error(
         "{}: line {line}: no {role} column \"{column}\"; the file has columns {}; choose another with {flag} COL{}",
@@ -832,6 +841,7 @@ fn parse(
             path: p(),
             line: header_line,
             rows: rows.len(),
+            dropped: dropped.len(),
         });
     }
 
@@ -1905,6 +1915,28 @@ mod tests {
                 .to_string()
                 .contains("less than one step")
         );
+    }
+
+    /// A logger's file of NaN rows alone: the error says that --split-gaps
+    /// dropped them (it read as a file with no data rows at all).
+    #[test]
+    fn a_file_split_gaps_empties_says_what_it_dropped() {
+        let mut s = String::from("t,pressure,displacement\n");
+        for k in 0..10 {
+            s += &format!("{k},nan,1\n");
+        }
+        let e = read(&s, Gaps::Split).unwrap_err().to_string();
+        assert!(
+            e.contains(
+                "0 data rows left after --split-gaps dropped 10 whose time, input or \
+                        output is not a finite number"
+            ),
+            "{e}"
+        );
+        let e = read("t,pressure,displacement\n", Gaps::Split)
+            .unwrap_err()
+            .to_string();
+        assert!(!e.contains("dropped"), "{e}");
     }
 
     #[test]
