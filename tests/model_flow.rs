@@ -453,6 +453,27 @@ fn wrong_effects_bounds_and_units_are_errors_that_name_them() {
         e.contains("`data.input.unit` is `MPa`, but its column `pressure_kpa` names `kPa`"),
         "{e}"
     );
+    // An exponent edited to n ≤ 0 (no loop: |w|^n no longer vanishes with
+    // w) is refused as the file is read, as `--params` and `--fix` refuse it.
+    let mut edited = model_in(&kpa_model, "model.json");
+    edited["params"]["n"] = (-2.0).into();
+    std::fs::write(&edited_path, edited.to_string()).unwrap();
+    let e = error_of(&["simulate", "--from", edited_path.to_str().unwrap()]);
+    assert!(
+        e.contains("parameter `n`: the Bouc-Wen exponent n must be positive (got -2)"),
+        "{e}"
+    );
+    for args in [
+        &["simulate", "--params", "n=-1"][..],
+        &["fit", "--fix", "n=0", "--pop", "20", "--gens", "2"],
+        &["fit", "--bound", "n=-5:-1", "--pop", "20", "--gens", "2"],
+    ] {
+        let e = error_of(args);
+        assert!(
+            e.contains("the Bouc-Wen exponent n must be positive"),
+            "{args:?}: {e}"
+        );
+    }
 
     // A model whose input column states no unit drives the controllers as
     // if in MPa, and `control --from` says so.

@@ -511,6 +511,11 @@ fn override_params(model: &mut Model, assignments: &[String]) -> anyhow::Result<
             .ok()
             .filter(|v: &f64| v.is_finite())
             .with_context(|| format!("--params {name}: `{value}` is not a finite number"))?;
+        if model.base.family.exponent_index() == Some(i)
+            && let Some(why) = Family::exponent_refused(theta[i])
+        {
+            anyhow::bail!("--params {name}={}: {why}", value.trim());
+        }
     }
     let d = model.base.family.dim();
     model.base.params = theta[..d].to_vec();

@@ -22,6 +22,10 @@ pub enum BoundError {
         /// The names a bound may use.
         known: Vec<String>,
     },
+    /// A box for the Bouc-Wen exponent that reaches `n ≤ 0`
+    /// ([`Family::exponent_refused`]).
+    #[error("{given}: {why}")]
+    Exponent { given: String, why: String },
     /// An effect parameter's name (`effect.param`) that no effect of the
     /// fit has.
     #[error(
@@ -517,6 +521,14 @@ impl SearchSpace {
                 known,
             });
         };
+        if b.name == "n"
+            && let Some(why) = Family::exponent_refused(b.lower)
+        {
+            return Err(BoundError::Exponent {
+                given: b.as_given(),
+                why,
+            });
+        }
         self.lower[i] = b.lower * factor;
         self.upper[i] = b.upper * factor;
         self.origin[i] = [Origin::User; 2];

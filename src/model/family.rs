@@ -145,6 +145,19 @@ impl Family {
         self.index_of("n")
     }
 
+    /// Why `n` cannot be this family's Bouc-Wen exponent, if it cannot: at
+    /// `n ≤ 0` the term `|w|ⁿ` no longer vanishes with `w` (it jumps at
+    /// zero, or is infinite there), which is no hysteresis loop; `--free-n`
+    /// searches `[1, 3]`.
+    pub fn exponent_refused(n: f64) -> Option<String> {
+        (n.is_nan() || n <= 0.0).then(|| {
+            format!(
+                "the Bouc-Wen exponent n must be positive (got {n}): at n ≤ 0 the term |w|^n \
+                 does not vanish with w; fits search n in [1, 3] (--free-n)"
+            )
+        })
+    }
+
     /// Position of the switching level `x_s` of the sign terms in `x`, if
     /// the family has them (the generalized one: right after `n`).
     pub fn switch_index(self) -> Option<usize> {

@@ -581,6 +581,13 @@ impl ModelFile {
             })
             .collect::<anyhow::Result<_>>()?;
         let d = self.family.dim();
+        if let Some(why) = self
+            .family
+            .exponent_index()
+            .and_then(|i| Family::exponent_refused(theta[i]))
+        {
+            anyhow::bail!("parameter `n`: {why}");
+        }
         let base = FittedBaseline {
             family: self.family,
             params: theta[..d].to_vec(),
