@@ -79,11 +79,23 @@ fn target(path: &Path) -> io::Result<PathBuf> {
 
 /// Writes every file of `files` or none: each goes first to a temporary
 /// file beside its target, and only once all are written (and no target is
-/// a folder) are they renamed over their targets. A fit's folder thus holds
-/// either the last run's files or the new run's, never some of each. Only
-/// a rename that fails after others succeeded (the disk pulled away
-/// between two renames) can leave a mix. An error names the file.
+/// a folder) are they renamed over their targets. A target that exists is
+/// first linked to a backup, so that a rename failing after others
+/// succeeded (a file made immutable, the disk pulled away) puts the ones
+/// already replaced back. A fit's folder thus holds
+/// either the last run's files or the new run's, never some of each; only
+/// a crash between two renames can leave a mix (and the backups, hidden
+/// beside their files). An error names the file.
 pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> io::Result<()> {
+    write_all_atomic_with(files, |from, to| fs::rename(from, to))
+}
+
+/// [`write_all_atomic`], its renames made by `rename` (a test makes one
+/// fail).
+fn write_all_atomic_with(
+    files: &[(&Path, &[u8])],
+    rename: impl Fn(&Path, &Path) -> io::Result<()>,
+) -> io::Result<()> {
     let named =
         |path: &Path, e: io::Error| io::Error::new(e.kind(), format!("{}: {e}", path.display()));
     // Every target is checked (a folder in the way, a device) before any
@@ -93,22 +105,62 @@ pub fn write_all_atomic(files: &[(&Path, &[u8])]) -> io::Result<()> {
         .map(|&(path, _)| target(path))
         .collect::<io::Result<_>>()?;
     let mut staged: Vec<PathBuf> = Vec::with_capacity(files.len());
+    // Each target's backup, where it existed.
+    let mut backups: Vec<Option<PathBuf>> = Vec::with_capacity(files.len());
+    let mut renamed = 0;
     let result = (|| {
         for (&(_, bytes), path) in files.iter().zip(&targets) {
             staged.push(stage(path, bytes).map_err(|e| named(path, e))?);
         }
+        for path in &targets {
+            backups.push(backup(path).map_err(|e| named(path, e))?);
+        }
         for (tmp, path) in staged.iter().zip(&targets) {
-            fs::rename(tmp, path).map_err(|e| named(path, e))?;
+            rename(tmp, path).map_err(|e| named(path, e))?;
+            renamed += 1;
         }
         Ok(())
     })();
     if result.is_err() {
-        // The temporaries not yet renamed (the others are gone already).
-        for tmp in &staged {
+        // Put back what was replaced: the old file where there was one,
+        // nothing where there was none.
+        for (path, kept) in targets.iter().zip(&backups).take(renamed) {
+            let _ = match kept {
+                Some(kept) => fs::rename(kept, path),
+                None => fs::remove_file(path),
+            };
+        }
+        for tmp in &staged[renamed..] {
             let _ = fs::remove_file(tmp);
         }
     }
+    for kept in backups.iter().flatten() {
+        let _ = fs::remove_file(kept);
+    }
     result
+}
+
+/// A hard link to the file at `path` beside it, where one exists (a copy
+/// where the file system takes no links, as FAT): the old file stays
+/// reachable after a rename replaces `path`. `None` where there is no file
+/// yet.
+fn backup(path: &Path) -> io::Result<Option<PathBuf>> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    let name = path
+        .file_name()
+        .ok_or_else(|| io::Error::other(format!("{} names no file", path.display())))?;
+    let kept = path.with_file_name(format!(
+        ".{}.old-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let _ = fs::remove_file(&kept);
+    if fs::hard_link(path, &kept).is_err() {
+        fs::copy(path, &kept)?;
+    }
+    Ok(Some(kept))
 }
 
 /// Writes `bytes` to a temporary file beside `path` (creating the folder)
@@ -228,6 +280,40 @@ mod tests {
             .to_string();
         assert!(err.contains("b.svg is a folder"), "{err}");
         assert_eq!(fs::read(&a).unwrap(), b"one");
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
+    /// A rename that fails after others succeeded puts back the files
+    /// already replaced (and removes one that was new), leaving no
+    /// temporary and no backup.
+    #[test]
+    fn a_rename_failing_midway_puts_the_replaced_files_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let [a, b, c] = ["a.json", "b.csv", "c.svg"].map(|n| dir.path().join(n));
+        write_all_atomic(&[(&a, b"one"), (&b, b"one")]).unwrap();
+        let calls = std::cell::Cell::new(0);
+        let third_fails = |from: &Path, to: &Path| {
+            calls.set(calls.get() + 1);
+            match calls.get() {
+                3 => Err(io::Error::other("the disk went away")),
+                _ => fs::rename(from, to),
+            }
+        };
+        let err = write_all_atomic_with(&[(&a, b"two"), (&c, b"two"), (&b, b"two")], third_fails)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("b.csv: the disk went away"), "{err}");
+        assert_eq!(fs::read(&a).unwrap(), b"one");
+        assert_eq!(fs::read(&b).unwrap(), b"one");
+        assert!(!c.exists(), "a file that was new is removed again");
+        assert_eq!(
+            fs::read_dir(dir.path()).unwrap().count(),
+            2,
+            "a temporary or backup left"
+        );
+        // And a set that succeeds leaves no backup either.
+        write_all_atomic(&[(&a, b"three"), (&b, b"three")]).unwrap();
+        assert_eq!(fs::read(&a).unwrap(), b"three");
         assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 2);
     }
 
