@@ -588,58 +588,35 @@ fn model_file() {
 #[test]
 fn compare() {
     let dir = tempfile::tempdir().unwrap();
-    // The doc's example, its tables cut to their first rows; `--out` only
-    // keeps the written copy out of the repository.
-    let v = check(
+    // The doc's example (its tables cut to their first rows), then with the
+    // cross-load check; `--out` only keeps the written copy out of the
+    // repository.
+    let tiny = [
         "compare",
-        &[
-            "compare",
-            STAIR,
-            "--thesis-sizes",
-            "10",
-            "--sizes",
-            "0",
-            "--gens",
-            "2",
-            "--seeds",
-            "1",
-            "--budget-pop",
-            "20",
-            "--budget-gens",
-            "2",
-            "--backend",
-            "cpu",
-            "--json",
-            "--out",
-            dir.path().to_str().unwrap(),
-        ],
-    );
+        STAIR,
+        "--thesis-sizes",
+        "10",
+        "--sizes",
+        "0",
+        "--gens",
+        "2",
+        "--seeds",
+        "1",
+        "--budget-pop",
+        "20",
+        "--budget-gens",
+        "2",
+        "--backend",
+        "cpu",
+        "--json",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ];
+    let v = check("compare", &tiny);
     assert_example("## `compare`", Example::Cut, &v);
     check(
         "compare",
-        &[
-            "compare",
-            STAIR,
-            "--cross",
-            "data/stair_7kg.csv",
-            "--thesis-sizes",
-            "10",
-            "--sizes",
-            "0",
-            "--gens",
-            "2",
-            "--seeds",
-            "1",
-            "--budget-pop",
-            "20",
-            "--budget-gens",
-            "2",
-            "--backend",
-            "cpu",
-            "--json",
-            "--out",
-            dir.path().to_str().unwrap(),
-        ],
+        &[&tiny[..], &["--cross", "data/stair_7kg.csv"]].concat(),
     );
 }
 
