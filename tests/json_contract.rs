@@ -726,53 +726,30 @@ fn diagnose_self_test_catalogue() {
 
 #[test]
 fn control() {
-    // Given gains (tuning takes minutes), short runs, the robustness table.
-    let v = check(
+    // The doc's example (cut): given gains (tuning takes minutes), short
+    // runs; then with the robustness table.
+    let example = [
         "control",
-        &[
-            "control",
-            "--controller",
-            "pi,ff-pid,mpc",
-            "--tuned-gains",
-            "2.2,65.5,0.02",
-            "--freq",
-            "1",
-            "--load",
-            "4.5",
-            "--warmup",
-            "1",
-            "--duration",
-            "3",
-            "--steady-from",
-            "1",
-            "--robustness",
-            "--json",
-        ],
-    );
-    assert!(v["design"].is_object() && !v["robustness"].as_array().unwrap().is_empty());
-    // The doc's example, cut.
-    let v = check(
-        "control",
-        &[
-            "control",
-            "--controller",
-            "pi,pi-tuned,ff-pid,mpc",
-            "--tuned-gains",
-            "2.2,65.5,0.02",
-            "--freq",
-            "1",
-            "--load",
-            "4.5",
-            "--warmup",
-            "1",
-            "--duration",
-            "3",
-            "--steady-from",
-            "1",
-            "--json",
-        ],
-    );
+        "--controller",
+        "pi,pi-tuned,ff-pid,mpc",
+        "--tuned-gains",
+        "2.2,65.5,0.02",
+        "--freq",
+        "1",
+        "--load",
+        "4.5",
+        "--warmup",
+        "1",
+        "--duration",
+        "3",
+        "--steady-from",
+        "1",
+        "--json",
+    ];
+    let v = check("control", &example);
     assert_example("## `control`", Example::Cut, &v);
+    let v = check("control", &[&example[..], &["--robustness"]].concat());
+    assert!(v["design"].is_object() && !v["robustness"].as_array().unwrap().is_empty());
 }
 
 #[test]
