@@ -355,7 +355,7 @@ fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
         // solution, exit 0.
         (
             &["--controller", "mpc", "--r-move", "inf"][..],
-            "--r-move inf: must be a positive number",
+            "--r-move inf: the weight on valve moves must be a positive, finite number",
         ),
         // A family the controllers cannot use: refused before the design
         // (it was, after seconds of identification).

@@ -209,13 +209,19 @@ fn report_writes_the_figures() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    for name in [
-        "diagnose_fit.svg",
-        "diagnose_residual.svg",
-        "diagnose_loop.svg",
-        "diagnose_breakdown.svg",
-        "diagnose_spectrum.svg",
-    ] {
+    // Every figure, and only those the command checks before the run (a
+    // figure missing from that list replaced a record it read).
+    let mut written: Vec<String> = std::fs::read_dir(&figures)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    written.sort();
+    let mut listed = mckibben::diagnose::report::FIGURES
+        .map(String::from)
+        .to_vec();
+    listed.sort();
+    assert_eq!(written, listed);
+    for name in &written {
         let svg = std::fs::read_to_string(figures.join(name)).expect(name);
         assert!(svg.starts_with("<svg"), "{name}");
     }

@@ -308,7 +308,7 @@ fn ctrl_c_writes_the_best_so_far_and_exits_as_interrupted() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 25] = [
+    let cases: [(&[&str], &str); 26] = [
         (&["fit", "missing.csv"], "missing.csv"),
         // A population no machine holds: an error, not an aborted
         // allocation.
@@ -385,6 +385,11 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         (
             &["diagnose", &csv, "--generations", "18446744073709551615"],
             "for '--generations <GENERATIONS>': at most 1000000000",
+        ),
+        // Refused before Table 21's first row ran, not after it.
+        (
+            &["compare", &csv, "--budget-gens", "18446744073709551615"],
+            "for '--budget-gens <BUDGET_GENS>': at most 1000000000",
         ),
         // A lone particle stops near its draw: five seeds of seven ended
         // with no model, and a warning that blamed the data.
@@ -1931,6 +1936,41 @@ fn no_output_folder_replaces_a_record_the_command_reads() {
         "{err}"
     );
     assert!(out.stdout.is_empty(), "the fit ran first");
+}
+
+/// A named pipe is read once: the provenance hashed it by opening it again,
+/// which waited for a writer that never came (and a shell's `<(…)` gave the
+/// hash of nothing). Its `sha256` is null, as a generated trace's.
+#[cfg(unix)]
+#[test]
+fn a_fit_reads_a_named_pipe_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("stair.pipe");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    let text = std::fs::read(concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv")).unwrap();
+    let writer = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::write(fifo, text).unwrap())
+    };
+    let out = mckibben(
+        &[&short_fit("stair.pipe")[..], &["--out", "piped"]].concat(),
+        dir.path(),
+    );
+    writer.join().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let model: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("piped/model.json")).unwrap())
+            .unwrap();
+    assert_eq!(model["provenance"]["data"][0]["file"], "stair.pipe");
+    assert!(
+        model["provenance"]["data"][0]["sha256"].is_null(),
+        "{model}"
+    );
 }
 
 /// `fit --effects` under a budget the chain's build spends: the build stops

@@ -49,7 +49,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000", value_parser = population)]
     sizes: Vec<usize>,
     /// Generations for Table 21 (the thesis used 30).
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = 30, value_parser = crate::cli::common::generations)]
     gens: usize,
     /// Seeds for the equal-budget table (0: skip it).
     #[arg(long, default_value_t = 10)]
@@ -57,7 +57,7 @@ pub struct Args {
     /// Population and generations of the equal-budget table.
     #[arg(long, default_value_t = 500, value_parser = population)]
     budget_pop: usize,
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, default_value_t = 100, value_parser = crate::cli::common::generations)]
     budget_gens: usize,
     /// Largest N at which the MFA moves every firefly towards all brighter ones.
     #[arg(long, default_value_t = mfa::ALL_PAIRS_MAX)]

@@ -114,7 +114,7 @@ pub struct Args {
     #[arg(long, default_value_t = TUNING_POP, value_parser = population)]
     pop: usize,
     /// Generations of the gain tuning.
-    #[arg(long, default_value_t = TUNING_GENS)]
+    #[arg(long, default_value_t = TUNING_GENS, value_parser = crate::cli::common::generations)]
     gens: usize,
     /// MPC horizon (samples).
     #[arg(long, default_value_t = MpcSettings::default().horizon)]
@@ -311,8 +311,7 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(args.horizon >= 2, "--horizon must be at least 2 samples");
     anyhow::ensure!(
         args.r_move > 0.0 && args.r_move.is_finite(),
-        "--r-move {}: must be a positive number (an infinite weight leaves the MPC's QP no \
-         solution)",
+        "--r-move {}: the weight on valve moves must be a positive, finite number",
         args.r_move
     );
     if let Some(ms) = args.deadline {

@@ -6,13 +6,14 @@ use crate::diagnose::Diagnosis;
 use crate::diagnose::locate::Share;
 use crate::report::{Figure, Panel, Series};
 
-/// The files [`write_figures`] writes, in its order (a command checks
-/// that none would replace a file it reads).
-pub const FIGURES: [&str; 4] = [
+/// The files [`write_figures`] writes, in its order, the spectrum's where
+/// there is one (a command checks that none would replace a file it reads).
+pub const FIGURES: [&str; 5] = [
     "diagnose_residual.svg",
     "diagnose_fit.svg",
     "diagnose_loop.svg",
     "diagnose_breakdown.svg",
+    "diagnose_spectrum.svg",
 ];
 
 /// Writes the figures into `dir`; returns their paths.
