@@ -379,7 +379,8 @@ fn print_summary(
         mckibben::data::tidy_step(summary.dt)
     )?;
     for (name, value) in model.named_params() {
-        writeln!(report, "  {name:<8} {value}")?;
+        // Every digit a value has, but 1e308 as such, not 309 digits.
+        writeln!(report, "  {name:<8} {}", mckibben::data::readable(value))?;
     }
     match summary.diverged_at {
         Some(k) => {
