@@ -1973,6 +1973,49 @@ fn a_fit_reads_a_named_pipe_once() {
     );
 }
 
+/// `-` reads standard input, as `cat run.csv | mckibben fit -`: the same fit
+/// as of the file, its provenance naming `-` with no checksum.
+#[test]
+fn a_fit_reads_standard_input_as_its_file() {
+    use std::io::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    let stair = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+    let mut child = command(dir.path())
+        .args([&short_fit("-")[..], &["--out", "piped", "--json"]].concat())
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(&std::fs::read(stair).unwrap())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let piped: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let file = mckibben(
+        &[&short_fit(stair)[..], &["--out", "file", "--json"]].concat(),
+        dir.path(),
+    );
+    let file: serde_json::Value = serde_json::from_slice(&file.stdout).unwrap();
+    assert_eq!(piped["params"], file["params"]);
+    let model: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("piped/model.json")).unwrap())
+            .unwrap();
+    assert_eq!(model["provenance"]["data"][0]["file"], "-");
+    assert!(
+        model["provenance"]["data"][0]["sha256"].is_null(),
+        "{model}"
+    );
+}
+
 /// `fit --effects` under a budget the chain's build spends: the build stops
 /// at the budget, and the error says the time went there (it said no
 /// candidate was scored, after seconds of the build's searches).

@@ -410,8 +410,8 @@ pub fn records(traces: Vec<Trace>, resampled: bool) -> anyhow::Result<Vec<Trace>
 #[derive(Debug, Clone, clap::Args)]
 pub struct DataArgs {
     /// Experiment CSV: a header row (after any `#` comment lines) naming the
-    /// columns, one row per sample. Without it, the shipped
-    /// data/stair_4.5kg.csv is used.
+    /// columns, one row per sample (`-`: standard input). Without it, the
+    /// shipped data/stair_4.5kg.csv is used.
     #[arg(value_name = "DATA")]
     pub data: Option<PathBuf>,
     #[command(flatten)]
@@ -422,8 +422,8 @@ pub struct DataArgs {
 #[derive(Debug, Clone, clap::Args)]
 pub struct MultiDataArgs {
     /// Experiment CSV files, each with a header row (after any `#` comment
-    /// lines) naming the columns, one row per sample. Without any, the
-    /// shipped data/stair_4.5kg.csv is used.
+    /// lines) naming the columns, one row per sample (`-`: standard
+    /// input). Without any, the shipped data/stair_4.5kg.csv is used.
     #[arg(value_name = "DATA")]
     pub data: Vec<PathBuf>,
     #[command(flatten)]

@@ -2,11 +2,15 @@
 //! socket has no end: reading one whole ran until memory did (24 GB, then
 //! the kernel killed the command). Such a path is refused before a byte is
 //! read; a pipe is read, as a shell's `<(…)` hands one over, up to
-//! [`MAX_BYTES`] (a pipe may have no end either: `<(yes 1,2,3)`).
+//! [`MAX_BYTES`] (a pipe may have no end either: `<(yes 1,2,3)`). The path
+//! `-` is standard input, as `cat run.csv | mckibben fit -` gives it.
 
 use std::fs;
 use std::io::{self, Read as _};
 use std::path::Path;
+
+/// The path that reads standard input.
+pub const STANDARD_INPUT: &str = "-";
 
 /// The most bytes a file may hold: a record of 10⁷ samples of a few
 /// columns is under a gigabyte as text, and the file is held whole while
@@ -27,7 +31,6 @@ pub fn read_to_string(path: &Path) -> io::Result<String> {
 }
 
 fn read_at_most(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
-    refuse_endless(path)?;
     let too_large = || {
         io::Error::new(
             io::ErrorKind::InvalidInput,
@@ -39,12 +42,24 @@ fn read_at_most(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
             ),
         )
     };
-    let file = fs::File::open(path)?;
-    if file.metadata()?.len() > limit {
-        return Err(too_large());
-    }
     let mut bytes = Vec::new();
-    file.take(limit + 1).read_to_end(&mut bytes)?;
+    if path == Path::new(STANDARD_INPUT) {
+        use std::io::IsTerminal as _;
+        if io::stdin().is_terminal() {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                "standard input is a terminal: pipe the file in (`cat run.csv | mckibben ...`)",
+            ));
+        }
+        io::stdin().lock().take(limit + 1).read_to_end(&mut bytes)?;
+    } else {
+        refuse_endless(path)?;
+        let file = fs::File::open(path)?;
+        if file.metadata()?.len() > limit {
+            return Err(too_large());
+        }
+        file.take(limit + 1).read_to_end(&mut bytes)?;
+    }
     match bytes.len() as u64 > limit {
         true => Err(too_large()),
         false => Ok(bytes),

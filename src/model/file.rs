@@ -335,10 +335,12 @@ impl Provenance {
 }
 
 /// The hex SHA-256 of a file's bytes (none for a generated trace, and none
-/// for a pipe: what it held was read once, and opening it again waits for
-/// a writer that never comes, or hashes nothing).
+/// for a pipe or standard input: what it held was read once, and opening
+/// it again waits for a writer that never comes, or hashes nothing).
 fn sha256_of(path: &Path) -> Option<String> {
-    if !std::fs::metadata(path).ok()?.is_file() {
+    if path == Path::new(crate::data::input::STANDARD_INPUT)
+        || !std::fs::metadata(path).ok()?.is_file()
+    {
         return None;
     }
     let bytes = crate::data::input::read(path).ok()?;
