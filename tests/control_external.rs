@@ -351,6 +351,11 @@ fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
             &["--controller", "pi", "--load", "0.01"][..],
             "--load: the twin's `displacement` is not finite from 0.010 s on",
         ),
+        // A value named twice ran, and reported, each run twice.
+        (
+            &["--controller", "pi,pi"][..],
+            "--controller names pi twice",
+        ),
         // An infinite weight on valve moves left every QP without a
         // solution, exit 0.
         (

@@ -308,7 +308,7 @@ fn ctrl_c_writes_the_best_so_far_and_exits_as_interrupted() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 26] = [
+    let cases: [(&[&str], &str); 27] = [
         (&["fit", "missing.csv"], "missing.csv"),
         // A population no machine holds: an error, not an aborted
         // allocation.
@@ -385,6 +385,10 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         (
             &["diagnose", &csv, "--generations", "18446744073709551615"],
             "for '--generations <GENERATIONS>': at most 1000000000",
+        ),
+        (
+            &["compare", &csv, "--sizes", "1000,1000"],
+            "--sizes names 1000 twice: Table 21 would hold its rows twice",
         ),
         // Refused before Table 21's first row ran, not after it.
         (

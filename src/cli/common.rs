@@ -181,6 +181,20 @@ impl std::fmt::Display for CsvOut {
     }
 }
 
+/// Refuses a list flag that names a value twice, saying what `twice` would
+/// do (`sweep --pop 4,4` fits each case twice; `control --freq 1,1` runs
+/// and reports each run twice).
+pub fn given_once<T: PartialEq + std::fmt::Display>(
+    flag: &str,
+    values: &[T],
+    twice: &str,
+) -> anyhow::Result<()> {
+    for (i, v) in values.iter().enumerate() {
+        anyhow::ensure!(!values[..i].contains(v), "{flag} names {v} twice: {twice}");
+    }
+    Ok(())
+}
+
 /// Refuses a set of files to write where one would replace a file the
 /// command reads, or another of the set: `simulate --input run.csv --out
 /// run.csv` would replace the recording by its simulation, and `--out

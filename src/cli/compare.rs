@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
-use super::common::{ColumnArgs, DataArgs, check_folder, one_trace, population};
+use super::common::{ColumnArgs, DataArgs, check_folder, given_once, one_trace, population};
 use mckibben::data::{Trace, same_samples, same_step, tidy_step, write_all_atomic};
 use mckibben::eval::{self, Backend};
 use mckibben::fit::compare::{Report, Settings, Study, markdown};
@@ -86,6 +86,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         budget_gens: args.budget_gens,
         mfa_all_pairs_max: args.mfa_all_pairs_max,
     };
+    let twice = "Table 21 would hold its rows twice";
+    given_once("--thesis-sizes", &args.thesis_sizes, twice)?;
+    given_once("--sizes", &args.sizes, twice)?;
     settings.check()?;
     let trace = one_trace(args.data.load()?, args.data.columns.resample.is_some())?;
     // Read before the study, so that a bad --cross fails at once, not

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use anyhow::Context as _;
 
-use super::common::{check_folder, population};
+use super::common::{check_folder, given_once, population};
 use mckibben::control::closed_loop::Episode;
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
@@ -266,6 +266,16 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
         !args.freq.is_empty() && !args.load.is_empty(),
         "--freq and --load need values"
     );
+    let twice = "each run would be made, and reported, twice";
+    let controllers: Vec<&str> = args
+        .controller
+        .iter()
+        .map(|&k| Kind::from(k).label())
+        .collect();
+    given_once("--controller", &controllers, twice)?;
+    given_once("--freq", &args.freq, twice)?;
+    given_once("--load", &args.load, twice)?;
+    given_once("--hysteresis-scale", &args.hysteresis_scale, twice)?;
     for &w in &args.freq {
         anyhow::ensure!(
             w > 0.0 && w.is_finite(),

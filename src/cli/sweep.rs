@@ -1,7 +1,7 @@
 //! `mckibben sweep`: what a larger population buys, on generated cases
 //! with a known truth.
 
-use super::common::population;
+use super::common::{given_once, population};
 use mckibben::eval::{self, Backend};
 use mckibben::fit::objective::{groups_of, tries_text, try_populations};
 use mckibben::fit::sweep::{
@@ -94,18 +94,6 @@ struct Output<'a> {
     fits: &'a [CaseFit],
 }
 
-/// A value given twice would fit the same cases twice and count each
-/// pass twice.
-fn given_once<T: PartialEq + std::fmt::Display>(flag: &str, values: &[T]) -> anyhow::Result<()> {
-    for (i, v) in values.iter().enumerate() {
-        anyhow::ensure!(
-            !values[..i].contains(v),
-            "{flag} names {v} twice: each case would be fitted, and counted, twice"
-        );
-    }
-    Ok(())
-}
-
 /// A `--matrix` seed: a seed whose cases' numbers (it, and on) are seeds
 /// too, exact in the JSON as every seed is.
 fn matrix_seed(s: &str) -> Result<u64, String> {
@@ -126,9 +114,12 @@ fn matrix_seed(s: &str) -> Result<u64, String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    given_once("--pop", &args.pop)?;
-    given_once("--family", &args.family)?;
-    given_once("--seeds", &args.seeds)?;
+    // A value given twice would fit the same cases twice and count each
+    // pass twice.
+    let twice = "each case would be fitted, and counted, twice";
+    given_once("--pop", &args.pop, twice)?;
+    given_once("--family", &args.family, twice)?;
+    given_once("--seeds", &args.seeds, twice)?;
     if let Some(&n) = args.pop.iter().find(|&&n| n < 4) {
         anyhow::bail!("--pop: every population must be at least 4 (got {n})");
     }
