@@ -1967,14 +1967,15 @@ fn a_fit_reads_a_named_pipe_once() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let model: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("piped/model.json")).unwrap())
-            .unwrap();
-    assert_eq!(model["provenance"]["data"][0]["file"], "stair.pipe");
-    assert!(
-        model["provenance"]["data"][0]["sha256"].is_null(),
-        "{model}"
-    );
+    let source = first_source(&dir.path().join("piped/model.json"));
+    assert_eq!(source["file"], "stair.pipe");
+    assert!(source["sha256"].is_null(), "{source}");
+}
+
+/// The first data file a model file's provenance names.
+fn first_source(model: &Path) -> serde_json::Value {
+    let model: serde_json::Value = serde_json::from_slice(&std::fs::read(model).unwrap()).unwrap();
+    model["provenance"]["data"][0].clone()
 }
 
 /// `-` reads standard input, as `cat run.csv | mckibben fit -`: the same fit
@@ -2010,14 +2011,9 @@ fn a_fit_reads_standard_input_as_its_file() {
     );
     let file: serde_json::Value = serde_json::from_slice(&file.stdout).unwrap();
     assert_eq!(piped["params"], file["params"]);
-    let model: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(dir.path().join("piped/model.json")).unwrap())
-            .unwrap();
-    assert_eq!(model["provenance"]["data"][0]["file"], "-");
-    assert!(
-        model["provenance"]["data"][0]["sha256"].is_null(),
-        "{model}"
-    );
+    let source = first_source(&dir.path().join("piped/model.json"));
+    assert_eq!(source["file"], "-");
+    assert!(source["sha256"].is_null(), "{source}");
 }
 
 /// `fit --effects` under a budget the chain's build spends: the build stops
