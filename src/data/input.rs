@@ -1,6 +1,6 @@
 //! Reading a file the user names. A device (`/dev/zero`, a terminal) or a
-//! socket has no end: reading one whole ran until memory did (24 GB, then
-//! the kernel killed the command). Such a path is refused before a byte is
+//! socket has no end: reading one whole ran until memory did, and the
+//! kernel killed the command. Such a path is refused before a byte is
 //! read; a pipe is read, as a shell's `<(…)` hands one over, up to
 //! [`MAX_BYTES`] (a pipe may have no end either: `<(yes 1,2,3)`). The path
 //! `-` is standard input, as `cat run.csv | mckibben fit -` gives it.

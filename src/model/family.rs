@@ -147,8 +147,8 @@ impl Family {
 
     /// Why `n` cannot be this family's Bouc-Wen exponent, if it cannot: at
     /// `n ≤ 0` the term `|w|ⁿ` no longer vanishes with `w` (it jumps at
-    /// zero, or is infinite there), which is no hysteresis loop; `--free-n`
-    /// searches `[1, 3]`.
+    /// zero, or grows without bound near it), which is no hysteresis loop;
+    /// `--free-n` searches `[1, 3]`.
     pub fn exponent_refused(n: f64) -> Option<String> {
         (n.is_nan() || n <= 0.0).then(|| {
             format!(
