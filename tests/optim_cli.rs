@@ -308,7 +308,7 @@ fn ctrl_c_writes_the_best_so_far_and_exits_as_interrupted() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 27] = [
+    let cases: [(&[&str], &str); 30] = [
         (&["fit", "missing.csv"], "missing.csv"),
         // A population no machine holds: an error, not an aborted
         // allocation.
@@ -385,6 +385,20 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         (
             &["diagnose", &csv, "--generations", "18446744073709551615"],
             "for '--generations <GENERATIONS>': at most 1000000000",
+        ),
+        // Past 500, a fit's seeds ran into its from-scratch seeds or the
+        // next salt's: two fits drew the same numbers.
+        (
+            &["diagnose", &csv, "--seeds", "501"],
+            "--seeds 501: at most 500",
+        ),
+        (
+            &["diagnose", &csv, "--scratch-seeds", "501"],
+            "--scratch-seeds 501: at most 500",
+        ),
+        (
+            &["compare", &csv, "--seeds", "18446744073709551615"],
+            "--seeds 18446744073709551615: at most 9007199254740991",
         ),
         (
             &["compare", &csv, "--sizes", "1000,1000"],

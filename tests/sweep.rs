@@ -151,6 +151,7 @@ fn cases_and_populations_out_of_reach_are_refused() {
         // Given twice, a case was fitted and counted twice.
         (["--seeds", "1,1"], "--seeds names 1 twice"),
         (["--pop", "100,100"], "--pop names 100 twice"),
+        (["--cases", "1000,1000"], "--cases names 1000 twice"),
         // Its last case would be numbered past the seeds' exact range.
         (
             ["--matrix", "9007199254740991"],

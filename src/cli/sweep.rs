@@ -120,6 +120,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     given_once("--pop", &args.pop, twice)?;
     given_once("--family", &args.family, twice)?;
     given_once("--seeds", &args.seeds, twice)?;
+    given_once("--cases", args.cases.as_deref().unwrap_or_default(), twice)?;
     if let Some(&n) = args.pop.iter().find(|&&n| n < 4) {
         anyhow::bail!("--pop: every population must be at least 4 (got {n})");
     }

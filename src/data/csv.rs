@@ -94,6 +94,17 @@ pub struct ReadOptions {
     pub gaps: Gaps,
 }
 
+impl ReadOptions {
+    /// The header of a file these options read: its clock's column, unless
+    /// its rows are `dt` apart, and the input's and output's.
+    fn expected_header(&self) -> String {
+        match self.dt {
+            Some(_) => format!("{},{}", self.input, self.output),
+            None => format!("{},{},{}", self.time, self.input, self.output),
+        }
+    }
+}
+
 impl Default for ReadOptions {
     /// The default column names, those of the shipped data: `t`, `pressure`,
     /// `displacement`.
@@ -124,8 +135,13 @@ pub enum DataError {
         line: u64,
         message: String,
     },
-    #[error("{}: the file is empty (expected a header row such as `t,pressure,displacement`)", path.display())]
-    Empty { path: PathBuf },
+    #[error("{}: the file is empty (expected a header row such as `{expected}`)", path.display())]
+    Empty {
+        path: PathBuf,
+        /// The header the columns asked for make (`t,u_N,y_m` where
+        /// `--input u_N --output y_m`).
+        expected: String,
+    },
     #[error(
         "{}: line {line} holds no numbers ({}), right under the header: a row of units? \
          Make it a comment (`# s,MPa,mm`) or delete it, and state each unit in its column's \
@@ -677,7 +693,10 @@ fn parse(
             }
         }
     }
-    let (header_line, names) = header.ok_or_else(|| DataError::Empty { path: p() })?;
+    let (header_line, names) = header.ok_or_else(|| DataError::Empty {
+        path: p(),
+        expected: opts.expected_header(),
+    })?;
     // A first line of numbers alone is data more often than names (pandas
     // writes `0,1,2` as names): a column missing from it says both, and
     // two equal numbers in it (a record starting at `0,0,0`) are no
@@ -1473,6 +1492,25 @@ mod tests {
 
     fn err(text: &str) -> String {
         read(text, Gaps::Reject).unwrap_err().to_string()
+    }
+
+    /// An empty file's error names the header of the columns asked for,
+    /// not the default one: `validate boucwen` reads `u_N` and `y_m`.
+    #[test]
+    fn an_empty_file_names_the_header_asked_for() {
+        let opts = ReadOptions {
+            input: "u_N".into(),
+            output: "y_m".into(),
+            ..ReadOptions::default()
+        };
+        let e = parse(Path::new("x.csv"), b"", &opts).unwrap_err();
+        assert!(e.to_string().contains("such as `t,u_N,y_m`"), "{e}");
+        let untimed = ReadOptions {
+            dt: Some(0.01),
+            ..opts
+        };
+        let e = parse(Path::new("x.csv"), b"", &untimed).unwrap_err();
+        assert!(e.to_string().contains("such as `u_N,y_m`"), "{e}");
     }
 
     /// A file of UTF-16 (Excel's "Unicode text") is named as such, with

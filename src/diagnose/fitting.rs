@@ -13,7 +13,7 @@ use rand_distr::{Distribution, Normal, Uniform};
 use serde::Serialize;
 
 use super::likelihood::indistinguishable_up_to;
-use super::settings::{Interrupted, Settings};
+use super::settings::{Interrupted, SEEDS_A_SALT, Settings};
 use crate::fit::objective::ModelObjective;
 use crate::fit::problem::FitProblem;
 use crate::fit::searches::Searches;
@@ -556,8 +556,14 @@ fn seed_fits(
     };
     (0..seeds.max(1) as u64)
         .map(|i| {
-            let seed = settings.seed + 1000 * salt + i;
-            fit_candidate(problem, searches, start, seed, pop, gens)
+            fit_candidate(
+                problem,
+                searches,
+                start,
+                settings.seed_of(salt, i),
+                pop,
+                gens,
+            )
         })
         .collect()
 }
@@ -609,7 +615,7 @@ pub(super) fn scratch_fits(
     };
     (0..settings.scratch_seeds as u64)
         .map(|i| {
-            let seed = settings.seed + 1000 * salt + 500 + i;
+            let seed = settings.seed_of(salt, SEEDS_A_SALT as u64 + i);
             fit_candidate(
                 problem,
                 searches,

@@ -13,6 +13,12 @@ use crate::fit::searches::StopFlag;
 use crate::model::experiment::Parts;
 use crate::optim::engine::MAX_GENERATIONS;
 
+/// The most seeds of one kind a salt's fits use: its warm fits' seeds run
+/// from its first seed on, its from-scratch fits' from this many on, and
+/// the next salt's start `2 ·` this many on. More would give two seeds of
+/// one fit, or a fit's seed and its from-scratch seed, the same numbers.
+pub const SEEDS_A_SALT: usize = 500;
+
 /// The error of a diagnosis stopped by its [`StopFlag`].
 #[derive(Debug, thiserror::Error)]
 #[error("the diagnosis was interrupted before its verdict; nothing was written")]
@@ -54,7 +60,8 @@ pub struct Settings {
     /// selection and test, selection first ([`Parts::of`]); `None`: as many
     /// as each record's input asks for ([`Parts::chosen`]).
     pub blocks: Option<usize>,
-    /// Base seed; seed `i` of a fit uses `seed + i`.
+    /// Base seed; seed `i` of the fits of a stage uses
+    /// [`seed_of`](Settings::seed_of)`(salt, i)`.
     pub seed: u64,
     /// Where the searches score their populations (the same numbers on
     /// every backend that is bit-exact, lavapipe included).
@@ -110,10 +117,29 @@ impl Settings {
             "--generations {}: from 1 to {MAX_GENERATIONS}",
             self.generations
         );
+        for (flag, count) in [
+            ("--seeds", self.seeds),
+            ("--scratch-seeds", self.scratch_seeds),
+            ("baseline seeds", self.baseline_seeds),
+        ] {
+            anyhow::ensure!(
+                count <= SEEDS_A_SALT,
+                "{flag} {count}: at most {SEEDS_A_SALT}, or two of a diagnosis' fits would \
+                 draw the same numbers"
+            );
+        }
         Ok(Searches::new(
             crate::eval::open(self.backend)?,
             self.stop.clone(),
         ))
+    }
+}
+
+impl Settings {
+    /// The seed of fit `i` under `salt`: each salt has `2 ·`
+    /// [`SEEDS_A_SALT`] seeds of its own.
+    pub fn seed_of(&self, salt: u64, i: u64) -> u64 {
+        self.seed + 2 * SEEDS_A_SALT as u64 * salt + i
     }
 }
 

@@ -13,7 +13,11 @@ use crate::search::Side;
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum BoundError {
     /// A name that is neither the family's nor its search coordinates'.
-    #[error("{given}: no parameter `{name}` in the {family} model: the names are {}", known.join(", "))]
+    #[error(
+        "{given}: no parameter `{name}` in the {family} model{}: the names are {}",
+        switched.map(|why| format!(" here ({why})")).unwrap_or_default(),
+        known.join(", ")
+    )]
     UnknownParameter {
         name: String,
         /// The bound as its flag gave it (`--bound foo=0:1`).
@@ -21,6 +25,10 @@ pub enum BoundError {
         family: Family,
         /// The names a bound may use.
         known: Vec<String>,
+        /// Why `name`, a coordinate of another box of the family, is not
+        /// one of this box's: `--bound gain=… --fix b=3` asks for the
+        /// scaled linear part and the native one at once.
+        switched: Option<&'static str>,
     },
     /// A box for the Bouc-Wen exponent that reaches `n ≤ 0`
     /// ([`Family::exponent_refused`]).
@@ -519,6 +527,7 @@ impl SearchSpace {
                 given: b.as_given(),
                 family: self.family,
                 known,
+                switched: self.coords.switched_away(self.family, &b.name),
             });
         };
         if b.name == "n"
@@ -810,6 +819,54 @@ mod tests {
                 .contains("no parameter `x_s` in the classic model"),
             "{e}"
         );
+    }
+
+    /// A bound on a canonical parameter switches its part of the box to
+    /// the canonical parameters; a bound on that part's scaled coordinate
+    /// then names nothing, and the error says why rather than only that.
+    #[test]
+    fn a_scaled_name_after_a_switch_says_what_switched() {
+        let cases = [
+            (["b=1:2", "gain=0:10"], "a bound on b or c"),
+            (
+                ["beta=0:1", "loading=0:1"],
+                "a bound on a loop-shape parameter",
+            ),
+        ];
+        for (given, why) in cases {
+            let bounds: Vec<UserBound> = given.iter().map(|b| b.parse().unwrap()).collect();
+            let e = SearchSpace::scaled(
+                Family::Classic,
+                prior(),
+                (Loop::Bounded, Switching::Starts),
+                false,
+                &bounds,
+            )
+            .unwrap_err();
+            assert!(e.to_string().contains(why), "{given:?}: {e}");
+        }
+        // The other loop class's coordinate, and a name of no box.
+        for (loop_class, name, why) in [
+            (Loop::Free, "loading", Some("the other loop class's box")),
+            (Loop::Bounded, "foo", None),
+        ] {
+            let bound: UserBound = format!("{name}=0:1").parse().unwrap();
+            let e = SearchSpace::scaled(
+                Family::Classic,
+                prior(),
+                (loop_class, Switching::Starts),
+                false,
+                &[bound],
+            )
+            .unwrap_err();
+            let BoundError::UnknownParameter { switched, .. } = &e else {
+                panic!("{e:?}")
+            };
+            match why {
+                Some(why) => assert!(switched.is_some_and(|s| s.contains(why)), "{e}"),
+                None => assert!(switched.is_none(), "{e}"),
+            }
+        }
     }
 
     /// The middle of `s`'s box, in its coordinates.

@@ -157,6 +157,40 @@ impl Coordinates {
         names
     }
 
+    /// Why `name`, a coordinate of a scaled box of `family` that these
+    /// coordinates lack, is not among them (none where no box has it): a
+    /// bound on a canonical parameter switches its part of the box to the
+    /// canonical parameters, and the other bounds must then name those.
+    pub fn switched_away(&self, family: Family, name: &str) -> Option<&'static str> {
+        let scaled = |shape| Coordinates::Scaled {
+            shape,
+            linear: LinearCoords::Scaled,
+            scale: Scale {
+                range: 1.0,
+                gain: 1.0,
+            },
+        };
+        let in_a_scaled_box = [ShapeCoords::Bounded, ShapeCoords::Free]
+            .into_iter()
+            .any(|shape| scaled(shape).names(family).iter().any(|n| n == name));
+        if !in_a_scaled_box || self.names(family).iter().any(|n| n == name) {
+            return None;
+        }
+        let Coordinates::Scaled { shape, linear, .. } = *self else {
+            return Some("this fit searches the canonical parameters themselves");
+        };
+        let linear_name = ["gain", "offset", "x0_range"].contains(&name);
+        Some(match (linear_name, linear, shape) {
+            (true, LinearCoords::Native, _) => {
+                "a bound on b or c searches the linear part in b, c and x0 themselves"
+            }
+            (false, _, ShapeCoords::Native) => {
+                "a bound on a loop-shape parameter searches the loop shape in its own parameters"
+            }
+            _ => "it belongs to the other loop class's box",
+        })
+    }
+
     /// The canonical vector of coordinates `z`.
     pub fn to_native(&self, family: Family, z: &[f64]) -> Vec<f64> {
         let mut theta = vec![0.0; z.len()];

@@ -59,6 +59,13 @@ impl Settings {
             self.budget_pop
         );
         anyhow::ensure!(self.budget_gens >= 1, "--budget-gens must be at least 1");
+        // The budget table's seeds are 1 to --seeds, each a seed of its own.
+        anyhow::ensure!(
+            self.seeds <= crate::optim::streams::MAX_SEED,
+            "--seeds {}: at most {}, the largest seed",
+            self.seeds,
+            crate::optim::streams::MAX_SEED
+        );
         if let Some(n) = self.table21_sizes().find(|&n| n < min) {
             anyhow::bail!(
                 "--thesis-sizes and --sizes must be at least {min} ({needy} needs {min}), got {n}"
