@@ -235,14 +235,14 @@ pub fn bla(rec: &Record, period: usize) -> Option<(f64, f64, f64)> {
     (m > 0.0 && big_k > 0.0).then_some((m, c.max(0.0), big_k))
 }
 
+/// Bound on β·γ·max|y| and |β·δ|·max|y| in the population stage.
+pub const BETA_STROKES: f64 = 5.0;
+
 /// The population stage's box around the best linear approximation: mass
 /// and ω0 within a factor 2 and 1.25 of it, damping up to twice its (which
 /// includes the hysteretic dissipation), ρ anywhere in (0, 1), and β·γ,
 /// |β·δ| up to [`BETA_STROKES`] / max|y|: beyond that the loop would
 /// saturate within a small part of the measured stroke (friction-like).
-/// Bound on β·γ·max|y| and |β·δ|·max|y| in the population stage.
-pub const BETA_STROKES: f64 = 5.0;
-
 pub fn search_box(rec: &Record, period: usize) -> anyhow::Result<([f64; 6], [f64; 6])> {
     let (m, c, big_k) = bla(rec, period).ok_or_else(|| {
         anyhow::anyhow!("no best linear approximation: the record needs one full, excited period")

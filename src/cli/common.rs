@@ -15,7 +15,7 @@ use mckibben::data::csv::{
 use mckibben::data::{write_all_atomic, write_atomic};
 use mckibben::fit::settings::MAX_POPULATION;
 use mckibben::model::file::{ModelFile, Provenance, ReadSettings};
-use mckibben::optim::engine::MAX_GENERATIONS;
+use mckibben::optim::engine::generations_refused;
 use mckibben::optim::streams::checked_seed;
 use mckibben::report::Figure;
 
@@ -49,17 +49,13 @@ pub fn population(s: &str) -> Result<usize, String> {
     Ok(n)
 }
 
-/// A number of generations (`diagnose` and `validate --generations`): at
-/// least 1, as `fit --gens` takes it. Zero ran the drawn population alone,
+/// A number of generations (`fit`, `control` and `compare --gens`,
+/// `compare --budget-gens`, `diagnose` and `validate --generations`), as
+/// [`generations_refused`] takes it. Zero ran the drawn population alone,
 /// or one generation, without a word.
 pub fn generations(s: &str) -> Result<usize, String> {
-    match s.parse::<usize>().map_err(|e| format!("{e}"))? {
-        0 => Err("at least 1: the first generation is the drawn population".into()),
-        g if g > MAX_GENERATIONS => Err(format!(
-            "at most {MAX_GENERATIONS}: a search that long would run for days"
-        )),
-        g => Ok(g),
-    }
+    let g = s.parse::<usize>().map_err(|e| format!("{e}"))?;
+    generations_refused(g).map_or(Ok(g), Err)
 }
 
 /// `fit --stall`: generations without improvement, at least 1. Zero ended
@@ -611,6 +607,7 @@ fn positive_seconds(s: &str) -> Result<f64, String> {
 mod tests {
     use super::*;
     use clap::Parser;
+    use mckibben::optim::engine::MAX_GENERATIONS;
 
     #[derive(Debug, Parser)]
     struct One {

@@ -27,7 +27,7 @@ use super::common::{CsvOut, check_distinct};
 const MPA_PER_VOLT: f64 = 0.05;
 
 /// Sample time of a generated input when no model file sets one (s): the
-/// thesis' rig's 100 Hz.
+/// twin's 100 Hz (the thesis states none).
 const DEFAULT_DT: f64 = 0.01;
 
 /// Length of `--input sine` (s).

@@ -89,9 +89,17 @@ pub struct BoucWen {
 }
 
 impl BoucWen {
-    /// `|w|^e` with the project's convention `|w|^0 = 1` (`model::sim::abs_pow`).
+    /// `|w|^e` with the convention of `model::sim::abs_pow`: `|w|^0 = 1`
+    /// and `0^e = 0` otherwise. For `n < 1` (`e < 0`) `0^e` is infinite,
+    /// and the step's `0^e · w` was NaN where the fitted model's is `0`.
     fn pow(w: f64, e: f64) -> f64 {
-        if e == 0.0 { 1.0 } else { w.abs().powf(e) }
+        if e == 0.0 {
+            1.0
+        } else if w == 0.0 {
+            0.0
+        } else {
+            w.abs().powf(e)
+        }
     }
 
     /// `w(k+1)` after a displacement step `delta`.
@@ -309,12 +317,23 @@ mod tests {
         }
     }
 
+    /// Every exponent a model may have, below 1 too, where `|w|^(n−1)` is
+    /// infinite at `w = 0` and the convention must be the reference's.
     #[test]
     fn bouc_wen_matches_the_reference_simulation() {
-        let m = bw();
-        for (w, d) in [(0.3, 0.2), (-0.7, 0.05), (1.1, -0.4), (0.0, 0.3)] {
-            let reference = crate::model::sim::classic_w(1.0, 0.3, 0.5, 1.0, w as f32, d as f32);
-            assert!((m.step(w, d) - reference as f64).abs() < 1e-6);
+        for n in [1.0, 0.5, 2.5] {
+            let m = BoucWen { n, ..bw() };
+            for (w, d) in [(0.3, 0.2), (-0.7, 0.05), (1.1, -0.4), (0.0, 0.3)] {
+                let reference =
+                    crate::model::sim::classic_w(1.0, 0.3, 0.5, n as f32, w as f32, d as f32);
+                let step = m.step(w, d);
+                assert!(
+                    (step - reference as f64).abs() < 1e-6,
+                    "n {n}, w {w}: {step}"
+                );
+                let (d_delta, d_w) = m.partials(w, d);
+                assert!(d_delta.is_finite() && d_w.is_finite(), "n {n}, w {w}");
+            }
         }
     }
 

@@ -186,7 +186,8 @@ impl Mpc {
     /// held), the predicted output (mm, absolute) at samples `0..=N+1` and
     /// its sensitivities to the plan, `∂y(j)/∂V(i)` at `[j·N + i]`; `None`
     /// if the prediction diverges. The observer's disturbances are those
-    /// of the last sample (0 before the first). For tests and figures.
+    /// of the last sample (0 before the first). What the tests check the
+    /// plan's predictions and sensitivities by.
     pub fn rollout(&mut self, s0: State, plan: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
         assert_eq!(plan.len(), self.settings.horizon, "one voltage per sample");
         self.plan = plan.to_vec();

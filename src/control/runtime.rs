@@ -106,11 +106,6 @@ impl<'c> ControlLoop<'c> {
         self.u
     }
 
-    /// The reference at the measurement that closes sample `k − 1`.
-    pub fn reference_at(&self, k: usize) -> f64 {
-        self.reference[(k - 1).min(self.reference.len() - 1)]
-    }
-
     /// One sample: the measurement that closes sample `k − 1` (`None` when
     /// it is missing) in, the command for sample `k` out. A missing
     /// measurement holds the command in force, which is within the limits

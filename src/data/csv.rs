@@ -1044,11 +1044,11 @@ fn parse(
 /// `None` where the trace (a file, or a piece of one) had no gap.
 fn widest_gap_filled(trace: &Trace, lines: &[u64], median: f64, dt: f64) -> Option<String> {
     let steps = trace.t.windows(2).map(|w| w[1] - w[0]);
-    let gaps = steps.clone().filter(|&s| s > 1.5 * median).count();
+    let gaps = steps.clone().filter(|&s| s > GAP_FACTOR * median).count();
     let (k, widest) = steps
         .enumerate()
         .max_by(|a, b| a.1.total_cmp(&b.1))
-        .filter(|&(_, s)| s > 1.5 * median)?;
+        .filter(|&(_, s)| s > GAP_FACTOR * median)?;
     // Grid points strictly inside the gap: its ends are measured.
     let made_up = ((widest / dt).ceil() as usize).saturating_sub(1);
     let total = ((trace.t[trace.len() - 1] - trace.t[0]) / dt).floor() as usize + 1;

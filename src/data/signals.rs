@@ -12,12 +12,6 @@ use rand_chacha::ChaCha8Rng;
 /// Full scale of the proportional valves' command, volts (thesis §4.3.1: 0–10 V).
 pub const VALVE_FULL_SCALE_V: f64 = 10.0;
 
-/// The output valve's command for an input-valve command `y`: `y' = 10 − y`
-/// (appendix A.1.1: the two signals are symmetric).
-pub fn output_valve(y: f64) -> f64 {
-    VALVE_FULL_SCALE_V - y
-}
-
 /// The identification staircase of appendix A.1.1 (thesis figure 2).
 ///
 /// The thesis prints neither the step height nor the hold time, so these are
@@ -60,12 +54,12 @@ impl Stair {
         up.chain(down).collect()
     }
 
-    /// The input-valve command, one value per sample of period `dt`.
     /// Seconds the staircase lasts.
     pub fn duration_s(&self) -> f64 {
         self.levels().len() as f64 * self.cycles as f64 * self.hold_s
     }
 
+    /// The input-valve command, one value per sample of period `dt`.
     pub fn generate(&self, dt: f64) -> Vec<f64> {
         let per_level = (self.hold_s / dt).round().max(1.0) as usize;
         let levels = self.levels();
@@ -228,7 +222,6 @@ mod tests {
         assert_eq!(u[0], 0.0);
         assert_eq!(u[1050], 10.0);
         assert_eq!(u[1950], 1.0);
-        assert_eq!(output_valve(3.0), 7.0);
     }
 
     #[test]

@@ -186,13 +186,6 @@ impl<'a> Problem<'a> {
         })
     }
 
-    /// Mean squared error of the mean alone, the yardstick of any fit.
-    pub fn null_mse(&self) -> f64 {
-        let n = self.t.len() as f64;
-        let m = self.t.iter().sum::<f64>() / n;
-        self.t.iter().map(|v| (v - m).powi(2)).sum::<f64>() / n
-    }
-
     /// Fits on the columns `cols`, the penalty chosen by blocked
     /// cross-validation over the settings' grid: the one with the lowest
     /// mean squared error on the held-out blocks. `None` if no penalty

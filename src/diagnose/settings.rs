@@ -11,7 +11,7 @@ use crate::fit::searches::Searches;
 use crate::fit::searches::StopFlag;
 #[cfg(doc)]
 use crate::model::experiment::Parts;
-use crate::optim::engine::MAX_GENERATIONS;
+use crate::optim::engine::generations_refused;
 
 /// The most seeds of one kind a salt's fits use: its warm fits' seeds run
 /// from its first seed on, its from-scratch fits' from this many on, and
@@ -112,11 +112,9 @@ impl Settings {
     pub fn searches(&self) -> anyhow::Result<Searches> {
         // Checked before any search: the fits add the initial population
         // to the count, which would wrap past a word.
-        anyhow::ensure!(
-            (1..=MAX_GENERATIONS).contains(&self.generations),
-            "--generations {}: from 1 to {MAX_GENERATIONS}",
-            self.generations
-        );
+        if let Some(why) = generations_refused(self.generations) {
+            anyhow::bail!("--generations {}: {why}", self.generations);
+        }
         for (flag, count) in [
             ("--seeds", self.seeds),
             ("--scratch-seeds", self.scratch_seeds),

@@ -12,7 +12,8 @@ use crate::model::effects::{Context, EffectBox, ModelDescription, effect_box};
 use crate::model::presets::{THESIS_A, THESIS_B, thesis_params};
 use crate::model::{Experiment, Family, Flow, LinearPrior, SearchSpace, simulate};
 
-/// Sample time of the synthetic stair (the thesis' rig logs at 10 Hz).
+/// Sample time of the synthetic stair: what is timed and tested depends on
+/// its number of samples, not on their spacing.
 pub const STAIR_DT: f64 = 0.1;
 
 /// A stair experiment of `samples` samples: pressure steps (MPa) held for a
@@ -63,21 +64,6 @@ pub fn search_space(family: Family, experiment: &Experiment, free_n: bool) -> Se
         output_mean: experiment.y_mean,
     };
     SearchSpace::from_prior(family, None, prior, Flow::Joint, free_n)
-}
-
-/// `count` candidates drawn uniformly from `space`, row-major.
-pub fn random_population(space: &SearchSpace, count: usize, rng: &mut ChaCha8Rng) -> Vec<f64> {
-    let mut rows = Vec::with_capacity(count * space.dim());
-    for _ in 0..count {
-        for (&lo, &hi) in space.lower.iter().zip(&space.upper) {
-            rows.push(if lo < hi {
-                rng.random_range(lo..hi)
-            } else {
-                lo
-            });
-        }
-    }
-    rows
 }
 
 /// `count` candidates: even rows uniform over `space` (for the generalized

@@ -411,7 +411,7 @@ pub fn tries_text(groups: &[TryGroup]) -> String {
 }
 
 /// The engine's default plan for a muscle model of a population `n` (all
-/// tries together, [`tries_of`]): each try's global stage with `algorithm`
+/// tries together, [`try_populations`]): each try's global stage with `algorithm`
 /// (its [`Algorithm::staged_settings`]) on the `horizon`-step-ahead
 /// prediction, for `g` generations; a free-run stage of a fifth of the
 /// try's population for a quarter of the generations; the default polish,

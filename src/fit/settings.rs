@@ -15,7 +15,7 @@ use super::objective::{
 };
 use super::problem::FitProblem;
 use crate::model::{Family, Measure};
-use crate::optim::engine::MAX_GENERATIONS;
+use crate::optim::engine::generations_refused;
 use crate::optim::engine::{Engine, Plan, StopRules};
 use crate::optim::ga::{Crossover, Mutation};
 use crate::optim::mfa::{self, Distance, Lambda0Schedule, Scale};
@@ -251,15 +251,9 @@ impl FitSettings {
             self.pop,
             self.pop as f64 * problem.model.dim() as f64 * 8.0 / 1e9
         );
-        anyhow::ensure!(
-            self.gens >= 1,
-            "--gens must be at least 1 (got 0): the first generation is the drawn population"
-        );
-        anyhow::ensure!(
-            self.gens <= MAX_GENERATIONS,
-            "--gens {}: at most {MAX_GENERATIONS} (a search that long would run for days)",
-            self.gens
-        );
+        if let Some(why) = generations_refused(self.gens) {
+            anyhow::bail!("--gens {}: {why}", self.gens);
+        }
         if let Some(why) = super::memory::too_large(self.pop) {
             anyhow::bail!(why);
         }

@@ -228,11 +228,6 @@ impl Arx {
         }
         y
     }
-
-    /// Static gain `Σb / (1 − Σa)`.
-    pub fn dc_gain(&self) -> f64 {
-        self.b.iter().sum::<f64>() / (1.0 - self.a.iter().sum::<f64>())
-    }
 }
 
 /// The thesis' identification: means of the estimation half removed, ARX on

@@ -556,6 +556,17 @@ impl ModelFile {
                 );
             }
         }
+        // Checked before the names are listed: a count far past the values
+        // asked for more names than memory holds.
+        if let Some(e) = effects.iter().find(|e| e.per_later_dataset()) {
+            anyhow::ensure!(
+                self.datasets <= self.params.len() + 1,
+                "`datasets` is {}, but `params` holds {} values: `{e}` has a parameter for \
+                 each dataset after the first",
+                self.datasets,
+                self.params.len()
+            );
+        }
         let augmented = ModelDescription::new(self.family, effects.clone(), self.datasets);
         let names = augmented.param_names();
         let mut params = self.params.clone();
@@ -823,6 +834,15 @@ mod tests {
             e.contains("names `creep` and `creep:output`, two realisations of `creep`"),
             "{e}"
         );
+
+        // A count of datasets past `load`'s parameters listed more names
+        // than memory holds: the command aborted.
+        let mut file = ModelFile::new(&chained(), None, Provenance::default());
+        file.effects.push("load".into());
+        file.datasets = usize::MAX;
+        let huge = write("huge.json", serde_json::to_string(&file).unwrap());
+        let e = format!("{:#}", ModelFile::load(&huge).unwrap_err());
+        assert!(e.contains("`load` has a parameter for each dataset"), "{e}");
 
         // A field of the wrong type is named by its place in the file.
         let file = ModelFile::new(&chained(), None, Provenance::default());

@@ -168,6 +168,16 @@ fn index(field: &str, name: &str) -> Result<u64, Malformed> {
     })
 }
 
+/// A protocol version: a word, not a sample index cut to one (`as u32`
+/// read 2³² + 1 as version 1).
+fn version(field: &str) -> Result<u32, Malformed> {
+    field.parse::<u32>().map_err(|_| {
+        Malformed(format!(
+            "version `{field}` is not a protocol version (1, 2, …)"
+        ))
+    })
+}
+
 fn check_ascii(line: &str) -> Result<(), Malformed> {
     if line.len() > MAX_LINE {
         return Err(Malformed(format!("longer than {MAX_LINE} bytes")));
@@ -188,7 +198,7 @@ impl FromRig {
                 let names = ["version", "dt", "p_min", "p_max", "x_min", "x_max"];
                 let short = line.split_ascii_whitespace().count() <= 3;
                 let f = fields(line, "READY", if short { &names[..2] } else { &names })?;
-                let version = index(f[0], "version")? as u32;
+                let version = version(f[0])?;
                 let dt = number(f[1], "dt")?;
                 // A minute at most: a longer sample is a unit slip (ms
                 // for s), and the deadlines are made from it.
@@ -250,7 +260,7 @@ impl ToRig {
             Some("HELLO") => {
                 let f = fields(line, "HELLO", &["version"])?;
                 Ok(ToRig::Hello {
-                    version: index(f[0], "version")? as u32,
+                    version: version(f[0])?,
                 })
             }
             Some("U") => {
@@ -336,6 +346,7 @@ mod tests {
             ("M 3 0.03 0.2 24\u{7}", "printable ASCII"),
             ("READY 1 0.01 0 0.4 -5", "takes 6 field(s)"),
             ("READY 1", "takes 2 field(s)"),
+            ("READY 4294967297 0.01", "version `4294967297`"),
             (
                 "READY 1 0.01 0.4 0 -5 50",
                 "pressure range `0.4 0` is empty",
@@ -346,6 +357,8 @@ mod tests {
             assert!(err.contains(why), "{line:?}: {err}");
         }
         assert!(ToRig::parse("U 1 inf").is_err());
+        let err = ToRig::parse("HELLO 4294967297").unwrap_err().0;
+        assert!(err.contains("not a protocol version"), "{err}");
         for volts in ["99", "-5", "10.000001"] {
             let err = ToRig::parse(&format!("U 0 {volts}")).unwrap_err().0;
             assert!(err.contains("outside 0–10 V"), "{volts}: {err}");

@@ -41,6 +41,14 @@ pub struct ValveParams {
     pub laminar_dp_pa: f64,
 }
 
+impl ValveParams {
+    /// The output valve's command for the input valve's `valve_in` (V):
+    /// full scale less it (appendix A.1.1: the two signals are symmetric).
+    pub fn output_command(&self, valve_in: f64) -> f64 {
+        self.full_scale_v - valve_in
+    }
+}
+
 impl Default for ValveParams {
     fn default() -> Self {
         ValveParams {

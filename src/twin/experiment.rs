@@ -81,7 +81,7 @@ pub fn run(config: &TwinConfig, load_kg: f64, seed: u64, experiment: &TwinExperi
                 }
                 let u = u_raw.clamp(0.0, full);
                 s.valve_in = u;
-                s.valve_out = full - u;
+                s.valve_out = config.valve.output_command(u);
                 rows.push(s);
                 rig.advance(u);
             }
@@ -116,12 +116,12 @@ pub fn run(config: &TwinConfig, load_kg: f64, seed: u64, experiment: &TwinExperi
 }
 
 fn open_loop(rig: &mut Rig, command: &[f64], rows: &mut Vec<Sample>) {
-    let full = rig.config().valve.full_scale_v;
+    let valve = rig.config().valve;
     for &u in command {
         let mut s = rig.measure();
-        let u = u.clamp(0.0, full);
+        let u = u.clamp(0.0, valve.full_scale_v);
         s.valve_in = u;
-        s.valve_out = full - u;
+        s.valve_out = valve.output_command(u);
         rows.push(s);
         rig.advance(u);
     }

@@ -253,7 +253,7 @@ impl Rig {
         Sample {
             t: self.time(),
             valve_in: self.command_v,
-            valve_out: cfg.valve.full_scale_v - self.command_v,
+            valve_out: cfg.valve.output_command(self.command_v),
             pressure_mpa,
             displacement_mm,
         }
@@ -279,7 +279,7 @@ impl Rig {
         let n = self.config.substeps.max(1);
         let h = self.config.substep_s();
         for _ in 0..n {
-            self.substep(u, full - u, h);
+            self.substep(u, self.config.valve.output_command(u), h);
         }
         self.steps += 1;
     }

@@ -110,6 +110,12 @@ impl Effect {
         datasets >= self.entry().min_datasets
     }
 
+    /// Whether the effect has a parameter for each dataset after the first
+    /// (`load`) rather than a fixed list.
+    pub fn per_later_dataset(self) -> bool {
+        matches!(self.entry().params, Params::PerLaterDataset { .. })
+    }
+
     /// Parameters of the effect for `datasets` datasets, in vector order.
     pub fn params(self, datasets: usize) -> Vec<EffectParam> {
         match self.entry().params {

@@ -38,9 +38,21 @@
 //! the stage and its generation say where every stream stands.
 
 /// The most generations a stage may plan: a search that long runs for
-/// days on any population, so a larger count is a typo, and past it the
-/// count plus the initial population no longer fits a word.
+/// days on any population, so a larger count is a typo (a count near a
+/// word's end wrapped once the initial population was added to it).
 pub const MAX_GENERATIONS: usize = 1_000_000_000;
+
+/// Why a stage cannot run `generations` generations (none where it can):
+/// the one check of every flag and argument that counts them.
+pub fn generations_refused(generations: usize) -> Option<String> {
+    match generations {
+        0 => Some("at least 1: the first generation is the drawn population".into()),
+        g if g > MAX_GENERATIONS => Some(format!(
+            "at most {MAX_GENERATIONS}: a search that long would run for days"
+        )),
+        _ => None,
+    }
+}
 
 pub mod plan;
 mod polish;
@@ -370,12 +382,9 @@ impl<C: Chart> Engine<C> {
                 g.algorithm(),
                 g.population
             );
-            anyhow::ensure!(g.generations >= 1, "need at least one generation");
-            anyhow::ensure!(
-                g.generations <= MAX_GENERATIONS,
-                "{} generations: at most {MAX_GENERATIONS}",
-                g.generations
-            );
+            if let Some(why) = generations_refused(g.generations) {
+                anyhow::bail!("{} generations: {why}", g.generations);
+            }
             anyhow::ensure!(
                 g.islands >= 1 && g.population / g.islands >= min,
                 "{} islands of a population of {} leave fewer than {min} individuals an island ({}'s minimum)",
