@@ -252,6 +252,13 @@ fn print_report(id: &Identification) -> anyhow::Result<()> {
          sample: how `fit` and `simulate` score)",
         percent(id.continued_validation_fit_percent)
     )?;
+    if let Some(warning) = mckibben::ident::arx::unstable_warning(&id.arx) {
+        let fit = match o == ArxOrders::default() {
+            true => "; `fit` builds its box around the best stable first-order run instead",
+            false => "",
+        };
+        errln!("mckibben: warning: {warning}{fit}");
+    }
     if id.validation_fit_percent.is_nan() {
         errln!(
             "mckibben: warning: {}",

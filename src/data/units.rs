@@ -4,7 +4,7 @@
 /// Units a column name may end in (`pressure_psi`, `disp_mm`, `p [kPa]`,
 /// `x (m)`), lower-case, with the spelling a model file records. Inches
 /// only as `_inch` or in brackets (`x [in]`): `valve_in` is the input valve.
-const KNOWN: [(&str, &str); 22] = [
+const KNOWN: [(&str, &str); 32] = [
     ("mpa", "MPa"),
     ("kpa", "kPa"),
     ("hpa", "hPa"),
@@ -13,6 +13,17 @@ const KNOWN: [(&str, &str); 22] = [
     ("mbar", "mbar"),
     ("atm", "atm"),
     ("psi", "psi"),
+    ("ksi", "ksi"),
+    // Gauges and European and Asian datasheets.
+    ("mmhg", "mmHg"),
+    ("torr", "Torr"),
+    ("cmh2o", "cmH2O"),
+    ("inh2o", "inH2O"),
+    ("kgf/cm2", "kgf/cm2"),
+    ("kgf/cm\u{b2}", "kgf/cm2"),
+    ("kg/cm2", "kgf/cm2"),
+    ("n/m2", "Pa"),
+    ("n/mm2", "MPa"),
     ("mm", "mm"),
     ("cm", "cm"),
     ("m", "m"),
@@ -120,6 +131,22 @@ pub fn unit_of(column: &str) -> Option<String> {
     known(&tail)
 }
 
+/// The unit a column's name states in brackets or parentheses (`p
+/// [kgf/mm2]`) where it is none [`unit_of`] knows: the name is taken to
+/// state no unit, and a model fitted on it records none.
+pub fn unknown_bracketed_unit(column: &str) -> Option<String> {
+    let name = column.trim();
+    let bracketed = name.ends_with(']') || name.ends_with(')');
+    let unit = stated(name)?;
+    let time = names_a_time(name);
+    (bracketed && !unit.is_empty() && !time && unit_of(name).is_none()).then(|| {
+        let (_, inside) = name[..name.len() - 1]
+            .rsplit_once(['[', '('])
+            .unwrap_or_default();
+        inside.trim().to_string()
+    })
+}
+
 /// The unit a time column's name states where it is not seconds
 /// (`t_ms`, `time [us]`, `t (min)`): time is read in seconds, and a column
 /// in another unit would be read as that many seconds. `None` for a name
@@ -186,6 +213,15 @@ pub fn megapascals_in(unit: &str) -> Option<f64> {
         "atm" => Some(0.101325),
         // 1 psi = 6894.757293168 Pa (the international pound and inch).
         "psi" => Some(6.894757293168e-3),
+        "ksi" => Some(6.894757293168),
+        // 1 mmHg = 133.322387415 Pa; 1 Torr = 101325/760 Pa.
+        "mmHg" => Some(1.33322387415e-4),
+        "Torr" => Some(0.101325 / 760.0),
+        // Conventional water columns: 98.0665 Pa a cm, 249.08891 Pa an inch.
+        "cmH2O" => Some(9.80665e-5),
+        "inH2O" => Some(2.4908891e-4),
+        // A kilogram-force on a square centimetre: 98066.5 Pa.
+        "kgf/cm2" => Some(0.0980665),
         _ => None,
     }
 }
@@ -222,6 +258,53 @@ mod tests {
         assert_eq!(unit_of("p_mbar").as_deref(), Some("mbar"));
         assert_eq!(megapascals_in("hPa"), Some(1e-4));
         assert_eq!(stated_length_in_mm("disp_ft"), Some(304.8));
+    }
+
+    /// The pressure units of gauges and datasheets beside SI's and psi:
+    /// `p [kgf/cm2]` and `p_mmHg` were read as stating no unit, and a
+    /// model fitted on them ran on MPa without a word.
+    #[test]
+    fn gauge_and_datasheet_pressures_are_units_too() {
+        for (name, unit, mpa) in [
+            ("p [kgf/cm2]", "kgf/cm2", 0.0980665),
+            ("p (kgf/cm\u{b2})", "kgf/cm2", 0.0980665),
+            ("p [kg/cm2]", "kgf/cm2", 0.0980665),
+            ("p_mmHg", "mmHg", 1.33322387415e-4),
+            ("p_torr", "Torr", 1.3332236842105263e-4),
+            ("pressure_inH2O", "inH2O", 2.4908891e-4),
+            ("p [cmH2O]", "cmH2O", 9.80665e-5),
+            ("p [N/m2]", "Pa", 1e-6),
+            ("p [N/mm2]", "MPa", 1.0),
+            ("p_ksi", "ksi", 6.894757293168),
+        ] {
+            assert_eq!(unit_of(name).as_deref(), Some(unit), "{name}");
+            assert_eq!(megapascals_in(unit), Some(mpa), "{name}");
+        }
+    }
+
+    /// A unit in brackets that no table holds is named, so the reader can
+    /// say it reads the column as stating none; a word after `_` is not a
+    /// unit ("stroke_left"), nor is a known unit or a time's.
+    #[test]
+    fn an_unknown_unit_in_brackets_is_named() {
+        assert_eq!(
+            unknown_bracketed_unit("p [kgf/mm2]").as_deref(),
+            Some("kgf/mm2")
+        );
+        assert_eq!(
+            unknown_bracketed_unit("x (furlong)").as_deref(),
+            Some("furlong")
+        );
+        for name in [
+            "p [kPa]",
+            "stroke_left",
+            "pressure",
+            "t [ms]",
+            "p ()",
+            "x (m)",
+        ] {
+            assert_eq!(unknown_bracketed_unit(name), None, "{name}");
+        }
     }
 
     /// A space or ISO's `/` before the unit, and a pressure's gauge mark,

@@ -704,11 +704,38 @@ impl FitReport {
             level: "warning",
             text,
         }));
+        notes.extend(self.past_the_stable_step().map(|text| Note {
+            level: "warning",
+            text,
+        }));
         notes.extend(self.constant_validation().map(|text| Note {
             level: "warning",
             text,
         }));
         notes
+    }
+
+    /// Where the records step further in one sample than the model's
+    /// hysteresis update settles within ([`Family::stable_step`]): the
+    /// update overshoots there, and a record that moves faster (another
+    /// load, a start far from the model's rest) can make the run diverge,
+    /// as the Cavatappi 400 g model does on the 300 g record.
+    fn past_the_stable_step(&self) -> Option<String> {
+        let (stable, largest) = (self.stable_step?, self.largest_step?);
+        (largest > stable).then(|| {
+            format!(
+                "the {} up to {} a sample, past the {} a sample within which this model's \
+                 hysteresis update settles: the update overshoots there, and a record that \
+                 moves faster may make the run diverge; run the model only on records that \
+                 move as slowly a sample, or refit on data with the faster moves",
+                match self.records.len() {
+                    0 | 1 => "record steps",
+                    _ => "records step",
+                },
+                significant(largest, 4),
+                significant(stable, 4)
+            )
+        })
     }
 
     /// The records whose output is constant over their validation half (a
@@ -862,6 +889,17 @@ pub fn yardstick_warnings(
     start: Option<StartScores>,
 ) -> Vec<String> {
     let mut warnings = Vec::new();
+    // Below 0 %, the run misses the validation half by more than the
+    // half's own mean level does: nothing of the motion is described,
+    // whatever ARX scores (on a short record it scores worse still).
+    if fit < 0.0 {
+        warnings.push(format!(
+            "the fit validates at {fit:.1} %: the validation half's own mean level follows it \
+             better than the model does, so the model describes none of its motion (a record \
+             too short or too little excited for its estimation half to settle the model, \
+             different conditions in its two halves, or a column in other units than named)"
+        ));
+    }
     if let Some(linear) = linear.filter(|v| v.is_finite())
         && fit < linear
     {
@@ -949,9 +987,18 @@ mod tests {
         assert_eq!(lost.len(), 1, "{lost:?}");
         assert!(lost[0].contains("ends above"), "{}", lost[0]);
         // Below ARX's validation fit.
-        let below = yardstick_warnings(1.0, -2.4, Some(50.9), None);
+        let below = yardstick_warnings(1.0, 40.2, Some(50.9), None);
         assert_eq!(below.len(), 1);
         assert!(below[0].contains("first-order ARX"), "{}", below[0]);
+        // Below 0 %, whatever ARX scores (a record's first 25 s: ARX far
+        // below, the fit at −206 %).
+        let none = yardstick_warnings(1.0, -206.4, Some(-1.47e9), None);
+        assert_eq!(none.len(), 1, "{none:?}");
+        assert!(
+            none[0].contains("describes none of its motion"),
+            "{}",
+            none[0]
+        );
     }
 
     /// A parameter is undetermined where its error reaches its own size,

@@ -117,6 +117,26 @@ pub struct Arx {
 }
 
 impl Arx {
+    /// The largest modulus of the model's poles, the roots of
+    /// `z^na − a_1·z^(na−1) − … − a_na` (the eigenvalues of its companion
+    /// matrix): at 1 or past it the free run does not settle, it drifts or
+    /// grows without bound. 0 for a model without poles.
+    pub fn largest_pole(&self) -> f64 {
+        let na = self.a.len();
+        if na == 0 {
+            return 0.0;
+        }
+        let companion = DMatrix::from_fn(na, na, |i, j| match i {
+            0 => self.a[j],
+            _ => f64::from(j + 1 == i),
+        });
+        companion
+            .complex_eigenvalues()
+            .iter()
+            .map(|z| z.norm())
+            .fold(0.0, f64::max)
+    }
+
     /// Least squares on deviation data `u`, `y` (means already removed).
     pub fn estimate(
         source: &str,
@@ -442,7 +462,9 @@ pub fn identify_jointly(traces: &[Trace], orders: ArxOrders) -> Result<Identific
 
 /// What the data say about scale, for the boxes of `fit` and the
 /// diagnosis alike: the first-order ARX pole and gain on the first trace's
-/// estimation half ([`identify`]); the largest absolute input and output
+/// estimation half ([`identify`]), or where that pole is not in [0, 1)
+/// those of the best stable first-order free run there
+/// ([`stable_output_error`]); the largest absolute input and output
 /// (each at most [`crate::model::bounds::LEVEL_REACH`] times its span),
 /// the output's range and its extremes over the estimation halves of all
 /// of `traces`; and the first estimation half's output mean (absolute
@@ -469,9 +491,22 @@ pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
             (lo.min(v), hi.max(v))
         });
     let first_est = &first.output[estimation(first)];
+    let (a, b) = match id.arx.a[0] {
+        a if (0.0..1.0).contains(&a) => (a, id.arx.b[0]),
+        _ => {
+            let deviations = |v: &[f64], mean: f64| -> Vec<f64> {
+                v[estimation(first)].iter().map(|x| x - mean).collect()
+            };
+            stable_output_error(
+                &deviations(&first.input, id.input_mean),
+                &deviations(&first.output, id.output_mean),
+            )
+            .unwrap_or((id.arx.a[0], id.arx.b[0]))
+        }
+    };
     Ok(LinearPrior {
-        a: id.arx.a[0],
-        b: id.arx.b[0],
+        a,
+        b,
         max_abs_input: level_reach(&inputs),
         max_abs_output: level_reach(&outputs),
         output_range: crate::data::range(&outputs),
@@ -481,9 +516,154 @@ pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
     })
 }
 
+/// The warning an ARX model whose poles are not all inside the unit circle
+/// owes its user ([`Arx::largest_pole`]).
+pub fn unstable_warning(arx: &Arx) -> Option<String> {
+    let pole = arx.largest_pole();
+    (pole >= 1.0).then(|| {
+        format!(
+            "a pole of modulus {pole:.4} is on or outside the unit circle: the identified model is \
+             unstable, and its free run drifts or grows without bound (least squares on one \
+             step puts the pole of a record too short, or too little excited, at 1 or past \
+             it)"
+        )
+    })
+}
+
+/// Poles [`stable_output_error`] tries: `1 − 10^(−t)` for `t` from 0 to 4
+/// by 0.05, from 0 to 0.9999, as fine near 1, where a muscle sampled fast
+/// has its pole, as far from it.
+fn stable_poles() -> impl Iterator<Item = f64> {
+    (0..=80).map(|i| 1.0 - 10f64.powf(-0.05 * i as f64))
+}
+
+/// The first-order model `x(k) = a·x(k−1) + b·u(k−1) + c`, `x(0) = y(0)`,
+/// whose free run fits `y` best over the stable poles `a` in [0, 1)
+/// ([`stable_poles`]; `b` and `c` by least squares for each): `(a, b)`,
+/// or `None` where no pole gives a finite fit. What `fit`'s box is built
+/// around where ARX's pole is no stable one: least squares on one step
+/// puts the pole of a record too short, or too little excited, at 1 or
+/// past it, where `b` can take either sign, and a box around that misses
+/// the muscle's gain.
+pub fn stable_output_error(u: &[f64], y: &[f64]) -> Option<(f64, f64)> {
+    let n = u.len().min(y.len());
+    if n < 3 {
+        return None;
+    }
+    let mut best: Option<(f64, f64, f64)> = None;
+    for a in stable_poles() {
+        // x(k) = a^k·y(0) + b·su(k) + c·s1(k): least squares in b and c.
+        let (mut su, mut s1, mut free) = (0.0, 0.0, y[0]);
+        let [mut uu, mut u1, mut ones, mut ur, mut onr, mut rr] = [0.0; 6];
+        for k in 1..n {
+            su = a * su + u[k - 1];
+            s1 = a * s1 + 1.0;
+            free *= a;
+            let r = y[k] - free;
+            uu += su * su;
+            u1 += su * s1;
+            ones += s1 * s1;
+            ur += su * r;
+            onr += s1 * r;
+            rr += r * r;
+        }
+        let det = uu * ones - u1 * u1;
+        if det.is_nan() || det.abs() <= f64::EPSILON * uu * ones {
+            continue;
+        }
+        let b = (ur * ones - onr * u1) / det;
+        let c = (uu * onr - u1 * ur) / det;
+        let sse = rr - b * ur - c * onr;
+        if sse.is_finite() && best.is_none_or(|(_, _, s)| sse < s) {
+            best = Some((a, b, sse));
+        }
+    }
+    best.map(|(a, b, _)| (a, b))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn arx(a: &[f64]) -> Arx {
+        Arx {
+            orders: ArxOrders {
+                na: a.len(),
+                nb: 1,
+                nk: 1,
+            },
+            a: a.to_vec(),
+            b: vec![1.0],
+        }
+    }
+
+    /// The poles are the roots of `z² − a1·z − a2`: 1.00597 and 0.568 for
+    /// a record's second-order ARX that drifts; a complex pair inside.
+    #[test]
+    fn the_largest_pole_is_the_companion_matrix_s_largest_eigenvalue() {
+        let drifting = arx(&[1.574402, -0.571819]);
+        let (a1, a2) = (1.574402f64, -0.571819f64);
+        let root = (a1 + (a1 * a1 + 4.0 * a2).sqrt()) / 2.0;
+        assert!((drifting.largest_pole() - root).abs() < 1e-9);
+        assert!(unstable_warning(&drifting).is_some());
+        // z² − z + 0.5: |z| = √0.5.
+        let ringing = arx(&[1.0, -0.5]);
+        assert!((ringing.largest_pole() - 0.5f64.sqrt()).abs() < 1e-12);
+        assert!(unstable_warning(&ringing).is_none());
+        assert_eq!(arx(&[-1.2]).largest_pole(), 1.2);
+        assert_eq!(arx(&[]).largest_pole(), 0.0);
+    }
+
+    /// A first-order run is recovered from its free run, noise and all,
+    /// to the grid's step in the pole.
+    #[test]
+    fn the_stable_output_error_fit_finds_a_first_order_system() {
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(3);
+        let u: Vec<f64> = (0..2000).map(|k| f64::from((k / 150) % 2 == 1)).collect();
+        let (a, b) = (0.95, 2.0);
+        let mut y = vec![0.0; u.len()];
+        for k in 1..u.len() {
+            y[k] = a * y[k - 1] + b * u[k - 1];
+        }
+        let noisy: Vec<f64> = y
+            .iter()
+            .map(|v| v + 0.1 * rand::RngExt::random_range(&mut rng, -1.0..1.0))
+            .collect();
+        let (fa, fb) = stable_output_error(&u, &noisy).unwrap();
+        // The grid's poles near 0.95: 1 − 10^(−1.3) = 0.9499.
+        assert!((fa - a).abs() < 0.01, "{fa}");
+        assert!((fb / (1.0 - fa) - b / (1.0 - a)).abs() < 0.5, "{fa} {fb}");
+    }
+
+    /// A record whose one-step least squares puts the pole past 1 (the
+    /// shipped stair's first 25 s: its estimation half rises and falls
+    /// once) gets a box around a stable pole and the gain's sign of the
+    /// whole record, not ARX's `b` of the wrong sign.
+    #[test]
+    fn an_unstable_arx_pole_gives_way_to_the_stable_run_in_the_prior() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+        let whole = crate::data::csv::read_traces(
+            std::path::Path::new(path),
+            &crate::data::csv::ReadOptions::default(),
+        )
+        .unwrap()
+        .remove(0);
+        let first = |t: &Trace, n: usize| {
+            Trace::uniform(
+                "first.csv",
+                t.dt(),
+                t.input[..n].to_vec(),
+                t.output[..n].to_vec(),
+            )
+        };
+        let short = first(&whole, 2500);
+        let id = identify(&short, ArxOrders::default()).unwrap();
+        assert!(id.arx.a[0] >= 1.0 && id.arx.b[0] < 0.0, "{:?}", id.arx);
+        let prior = linear_prior(&[short]).unwrap();
+        let sign = linear_prior(&[whole]).unwrap();
+        assert!((0.0..1.0).contains(&prior.a), "{prior:?}");
+        assert!(prior.b > 0.0 && sign.b > 0.0, "{prior:?} {sign:?}");
+    }
 
     /// A record with no response, or whose output is its input, is named
     /// for what it is, not reported as a singular least-squares problem.

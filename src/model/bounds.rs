@@ -186,7 +186,9 @@ pub fn level_reach(v: &[f64]) -> f64 {
 /// What the data say about scale, for the bounds of the linear part.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LinearPrior {
-    /// ARX pole and gain (eq. 12) on the estimation data.
+    /// ARX pole and gain (eq. 12) on the estimation data; where ARX's pole
+    /// is not in [0, 1), those of the best stable first-order free run
+    /// (`ident::arx::stable_output_error`).
     pub a: f64,
     pub b: f64,
     /// Largest absolute input and output in the data's own units (before

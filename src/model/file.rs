@@ -515,8 +515,8 @@ impl ModelFile {
         Ok(file)
     }
 
-    /// The model the file holds; an error names a parameter missing,
-    /// unknown or out of order, or an unknown effect. A generalized model
+    /// The model the file holds; an error names a parameter missing or
+    /// unknown (they are read by name, in any order), or an unknown effect. A generalized model
     /// whose file has no switching level `x_s` switches at its estimation
     /// mean, so it reads with `x_s` = its output mean: the same model, to
     /// the bit ([`crate::model::sim::switch_threshold`]).
