@@ -544,6 +544,7 @@ fn check_header_form(text: &str) -> Result<(), String> {
 /// One data row: its line in the file, its place among the data rows
 /// (its time where `--dt` gives the spacing) and where its trimmed cells
 /// begin among the [`Cells`].
+#[derive(Clone, Copy)]
 struct Row {
     line: u64,
     index: usize,
@@ -878,6 +879,28 @@ fn parse(
                 ));
             }
             bad.is_none()
+        });
+    }
+    // A row that repeats the one before it cell for cell (a logger that
+    // wrote a sample twice, an export appended over its own end) holds no
+    // sample of its own: it is dropped, with a note, where it stopped the
+    // read as time standing still, or cut the record in two. Only where a
+    // time column says when each row was: rows `--dt` apart that are alike
+    // are a muscle holding still.
+    if matches!(clock, Clock::Column(_)) {
+        let mut kept: Option<Row> = None;
+        rows.retain(|row| {
+            let copy = kept.is_some_and(|k| table.of(&k).eq(table.of(row)));
+            match (copy, kept) {
+                (true, Some(k)) => dropped.push(format!(
+                    "{}: line {}: a copy of line {} (every cell alike), dropped",
+                    path.display(),
+                    row.line,
+                    k.line
+                )),
+                _ => kept = Some(*row),
+            }
+            !copy
         });
     }
     // A spreadsheet's second header row, of units: text in every cell.
@@ -1871,7 +1894,7 @@ mod tests {
                 &["x.csv: line 3: 2 fields, but the header on line 1 has 3"],
             ),
             (
-                "t,pressure,displacement\n0,1,2\n1,1,2\n1,1,2\n",
+                "t,pressure,displacement\n0,1,2\n1,1,2\n1,1,3\n",
                 &["x.csv: line 4, column \"t\": time 1 does not increase (previous row: 1)"],
             ),
             (
@@ -1908,6 +1931,30 @@ mod tests {
         assert!(e.contains("(a LabVIEW measurement file:"), "{e}");
         let e = err("time,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n");
         assert!(!e.contains("(one name") && !e.contains("LabVIEW"), "{e}");
+    }
+
+    /// A row that repeats the one before it cell for cell is dropped with a
+    /// note, not read as time standing still; a repeated time with other
+    /// values stays an error, and rows `--dt` apart that are alike are
+    /// samples.
+    #[test]
+    fn a_row_copied_cell_for_cell_is_dropped() {
+        let text = "t,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n0.01,0.2,2\n0.02,0.3,3\n";
+        let (traces, notes) = read(text, Gaps::Reject).unwrap();
+        assert_eq!(traces[0].output, [1.0, 2.0, 3.0]);
+        assert_eq!(
+            notes,
+            ["x.csv: line 4: a copy of line 3 (every cell alike), dropped"]
+        );
+        let other = "t,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n0.01,0.2,2.5\n0.02,0.3,3\n";
+        assert!(err(other).contains("line 4, column \"t\": time 0.01 does not increase"));
+        let untimed = ReadOptions {
+            dt: Some(0.01),
+            ..ReadOptions::default()
+        };
+        let text = "pressure,displacement\n0.1,1\n0.1,1\n0.1,1\n0.2,2\n";
+        let (traces, _) = parse(Path::new("x.csv"), text.as_bytes(), &untimed).unwrap();
+        assert_eq!(traces[0].len(), 4);
     }
 
     /// MATLAB's `%` starts a comment as `#` does, before the header or
