@@ -586,6 +586,13 @@ fn shifted_run(draft: &Draft, shift: f64) -> Option<Vec<f64>> {
         .then_some(x)
 }
 
+/// The change of the intercept `c` that moves the model's output by
+/// `shift` for good, its hysteretic state unchanged (the output's own pole
+/// is `a·α`): `(1 − a·α)·shift`.
+fn intercept_for_shift(a: f64, alpha: f64, shift: f64) -> f64 {
+    (1.0 - a * alpha) * shift
+}
+
 /// Switching at the sensor's zero: simulated once, in absolute units
 /// (x_s = 0), its lowest point (`min` before placing) placed from half its
 /// swing below zero to a tenth of it above (x ↦ x + s is the same loop
@@ -596,7 +603,7 @@ fn place_at_zero(draft: &mut Draft, min: f64, u_mean: f64, rng: &mut ChaCha8Rng)
     let (a, alpha) = (draft.a, draft.alpha);
     let floor = rng.random_range(-0.5..0.1) * draft.r1;
     let shift = floor - min;
-    draft.theta[ic] = (1.0 - a * alpha) * shift;
+    draft.theta[ic] = intercept_for_shift(a, alpha, shift);
     let x = shifted_run(draft, shift)?;
     // The intercept for the input less its estimation mean.
     draft.theta[ic] += draft.theta[ib] * u_mean;
@@ -619,7 +626,7 @@ fn place_inside(
     let [_, ib, ic] = draft.family.linear_indices();
     let (a, alpha) = (draft.a, draft.alpha);
     let shift = rng.random_range(2.0..10.0) - min;
-    draft.theta[ic] = (1.0 - a * alpha) * shift;
+    draft.theta[ic] = intercept_for_shift(a, alpha, shift);
     draft.theta[is] = min + shift + rng.random_range(0.1..0.9) * draft.r1;
     let x = shifted_run(draft, shift)?;
     let level = draft.theta[is];
@@ -660,7 +667,7 @@ fn place_at_mean(
     let mut x = Vec::new();
     for _ in 0..20 {
         // The intercept that keeps the absolute level with this origin.
-        draft.theta[ic] = (1.0 - a * alpha) * (level - origin) + draft.theta[ib] * u_mean;
+        draft.theta[ic] = intercept_for_shift(a, alpha, level - origin) + draft.theta[ib] * u_mean;
         if let Some(is) = draft.family.switch_index() {
             draft.theta[is] = origin;
         }
@@ -713,7 +720,7 @@ fn record_case(
     // the output mean by about noise/√N): a shift of ȳ moves c only (the
     // switching level is absolute).
     let dy = problem.estimation().y_mean - y_mean;
-    theta[ic] -= (1.0 - a * alpha) * dy;
+    theta[ic] -= intercept_for_shift(a, alpha, dy);
     // The true state starts at the noiseless first sample: the measured one
     // less its noise.
     theta[family.start_index()] = x[0] + y_mean - trace.output[0];
