@@ -243,6 +243,18 @@ fn the_report_says_not_explained_and_names_no_cause() {
         !text.contains("by the catalogue") && !text.contains("the catalogue's best model"),
         "{text}"
     );
+    // Stopped by --max-effects while a round still accepted: the verdict
+    // says so itself, since one more round may change it.
+    d.selection.capped = true;
+    let rounds = d.selection.rounds.len();
+    let text = to_text(&d);
+    assert!(
+        text.contains(&format!(
+            "Verdict: not explained by the effects tried (delay, creep) within --max-effects \
+             {rounds} (the last round still accepted one)."
+        )),
+        "{text}"
+    );
     assert_eq!(DiagnosisJson::of(&d).asked, ["delay", "creep"]);
 }
 

@@ -813,6 +813,8 @@ fn simulate_keeps_the_models_sample_time_and_writes_a_diverged_run_up_to_its_end
         fitted["val_fit_percent"].as_f64().unwrap(),
     );
     assert!((got - want).abs() < 1e-6, "{got} against {want}");
+    // Named as `fit` names the piece, not as the whole file.
+    assert_eq!(run["input"], format!("{gaps}[2]"), "{run}");
     let err = error_of(&["simulate", "--from", model, "--input", gaps]);
     assert!(err.contains("run one piece with --piece K"), "{err}");
     let err = error_of(&["simulate", "--from", model, "--input", gaps, "--piece", "3"]);
@@ -922,6 +924,19 @@ fn a_diverged_run_names_the_step_its_hysteresis_update_could_not_take() {
     let (at, step, said) = (figures[0], figures[1], figures[2]);
     assert!(at >= 1.0 && step > said, "{line}");
     assert!((said - limit).abs() <= 1e-4 * limit, "{line}: {limit}");
+    // A run that steps past the limit and still ends finite says so too:
+    // its output range holds the burst.
+    let burst = json_of(&["simulate", "--params", "beta=1.5", "--json"]);
+    assert!(
+        burst["diverged_at"].is_null() && burst["stepped_past_at"].is_u64(),
+        "{burst}"
+    );
+    let text = String::from_utf8_lossy(&mckibben(&["simulate", "--params", "beta=1.5"]).stdout)
+        .to_string();
+    assert!(
+        text.contains("first stepped") && text.contains("the run overshoots from there"),
+        "{text}"
+    );
     let unbounded = mckibben(&["simulate", "--params", "beta=-10,gamma=-10"]);
     let text = String::from_utf8_lossy(&unbounded.stdout);
     assert!(
@@ -1066,6 +1081,52 @@ fn simulate_drives_a_model_in_its_own_units_and_writes_a_file_that_reads_back() 
     let measured = column_of(&out, "displacement_measured");
     assert_eq!(measured, column_of(&input, "displacement"));
     let _ = json_of(&["identify", out.to_str().unwrap(), "--json"]);
+    // A file with a column of the model's output name that is not the
+    // output read (a second sensor), and one with `displacement_measured`
+    // already: each name written once, and each says what it holds (the
+    // simulated output was written under `displacement` beside the file's
+    // own, and a measurement as `displacement_measured_simulated`).
+    let stair_rows = || {
+        stair
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .skip(1)
+            .take(300)
+    };
+    for (extra, output_col, simulated, measured) in [
+        (
+            "laser_mm",
+            "laser_mm",
+            "displacement_simulated",
+            "laser_mm_measured",
+        ),
+        (
+            "displacement_measured",
+            "displacement",
+            "displacement",
+            "displacement_measured2",
+        ),
+    ] {
+        let rows: Vec<String> = std::iter::once(format!("{header},{extra}"))
+            .chain(stair_rows().map(|r| format!("{r},{}", r.split(',').nth(2).unwrap())))
+            .collect();
+        let input = dir.path().join(format!("{extra}.csv"));
+        std::fs::write(&input, rows.join("\n") + "\n").unwrap();
+        let out = dir.path().join(format!("sim_{extra}.csv"));
+        let _ = json_of(&[
+            "simulate",
+            "--input",
+            input.to_str().unwrap(),
+            "--output-col",
+            output_col,
+            "--out",
+            out.to_str().unwrap(),
+            "--json",
+        ]);
+        let _ = json_of(&["identify", out.to_str().unwrap(), "--json"]);
+        assert_eq!(column_of(&out, measured), column_of(&input, output_col));
+        assert_ne!(column_of(&out, simulated), column_of(&input, output_col));
+    }
     // A linear model has no hysteretic state: no `w` column of zeros.
     let arx = dir.path().join("arx.json");
     let _ = json_of(&[

@@ -253,7 +253,9 @@ fn print_report(id: &Identification) -> anyhow::Result<()> {
         percent(id.continued_validation_fit_percent)
     )?;
     if let Some(warning) = mckibben::ident::arx::unstable_warning(&id.arx) {
-        let fit = match o == ArxOrders::default() {
+        // `fit`'s box reads the first record's first-order ARX: this one
+        // only where it is that.
+        let fit = match o == ArxOrders::default() && id.records.is_empty() {
             true => "; `fit` builds its box around the best stable first-order run instead",
             false => "",
         };

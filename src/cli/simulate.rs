@@ -114,9 +114,10 @@ pub struct Args {
     /// the simulated output under the model's column names, then the
     /// input file's other columns, the measured output as
     /// `<output>_measured` and, for a Bouc-Wen model without effects, the
-    /// hysteretic state `w` (a name a column already has gets
-    /// `_simulated`). `-` writes it to standard output, for a pipe; the
-    /// summary then goes to standard error.
+    /// hysteretic state `w` (where the file has a column of its name, the
+    /// simulated output and `w` get `_simulated`, the measured output a
+    /// number: `displacement_measured2`). `-` writes it to standard output,
+    /// for a pipe; the summary then goes to standard error.
     #[arg(long, value_parser = crate::cli::common::csv_output, value_name = "FILE.csv")]
     out: Option<CsvOut>,
     /// Draw the trace and the hysteresis loop to this SVG file, the
@@ -259,7 +260,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The file written keeps the measured output beside the simulated one,
     // under a name of its own, as it keeps w.
     if let Some(y) = &measured {
-        let name = free_name(&trace, &format!("{}_measured", trace.output_name));
+        let name = free_name(&trace, &format!("{}_measured", trace.output_name), None);
         trace.extra.push((name, y.clone()));
     }
     let (samples, sample_time) = (trace.len(), trace.dt());
@@ -281,9 +282,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     trace.output = run.output.clone();
-    trace.output_name = model.base.output_name.clone();
+    // The measured output, kept above, gives its name up; a column of the
+    // file may hold the model's (a file whose sensor `displacement` is not
+    // the output read).
+    trace.output_name.clear();
+    trace.output_name = free_name(&trace, &model.base.output_name, Some("simulated"));
     if let Some(w) = &run.w {
-        let name = free_name(&trace, "w");
+        let name = free_name(&trace, "w", Some("simulated"));
         trace.extra.push((name, w.clone()));
     }
     let family = model.base.family;
@@ -334,7 +339,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         model: family,
         effects: chain,
         params: model.named_params().into_iter().collect(),
-        input: args.input.clone(),
+        // A piece is named as `fit` names it: `file.csv[2]`.
+        input: match args.piece {
+            Some(k) => format!("{}[{k}]", args.input),
+            None => args.input.clone(),
+        },
         samples,
         dt: sample_time,
         diverged_at: run.diverged_at,
@@ -388,19 +397,6 @@ fn print_summary(
                 report,
                 "  DIVERGED at sample {k} (state beyond ±1e6 or not finite)"
             )?;
-            // Only a run that diverged: past the step the update
-            // overshoots, which a run that ends finite bore.
-            if let Some((at, step, limit)) = overstep {
-                writeln!(
-                    report,
-                    "  at sample {at} the output first stepped {} in one sample, past the {} \
-                     within which the model's discrete hysteresis update settles (`stable_step`, \
-                     docs/GUIDE.md, \"When not to trust it\"); this record, or its start, moves \
-                     faster than the model holds",
-                    significant(step, 3),
-                    significant(limit, 3),
-                )?;
-            }
         }
         None => writeln!(
             report,
@@ -409,6 +405,24 @@ fn print_summary(
             significant(summary.output_max, 3),
             significant(summary.loop_area, 4)
         )?,
+    }
+    // Past the step the update overshoots: a run that diverged did so
+    // from there, and one that ended finite bore a burst there (an output
+    // range far past the measured one).
+    if let Some((at, step, limit)) = overstep {
+        writeln!(
+            report,
+            "  at sample {at} the output first stepped {} in one sample, past the {} within \
+             which the model's discrete hysteresis update settles (`stable_step`, \
+             docs/GUIDE.md, \"When not to trust it\"); this record, or its start, moves faster \
+             than the model holds{}",
+            significant(step, 3),
+            significant(limit, 3),
+            match summary.diverged_at {
+                Some(_) => "",
+                None => ", and the run overshoots from there",
+            }
+        )?;
     }
     // A run that did not diverge scores both; a fit % left out there is
     // an output constant over the half (the measure divides by its spread).
@@ -527,21 +541,19 @@ fn override_params(model: &mut Model, assignments: &[String]) -> anyhow::Result<
 }
 
 /// `name`, or where the trace has a column of that name already,
-/// `name_simulated`: a column the written file can be read back with.
-fn free_name(trace: &Trace, name: &str) -> String {
+/// `name_MARK` (a simulated column: `displacement_simulated`), then that
+/// or `name` numbered from 2 (`displacement_measured2`): a column the
+/// written file can be read back with, whose name says what it holds.
+fn free_name(trace: &Trace, name: &str, mark: Option<&str>) -> String {
     let taken = |n: &str| {
         n == trace.input_name || n == trace.output_name || trace.extra.iter().any(|(e, _)| e == n)
     };
-    match taken(name) {
-        false => name.to_string(),
-        true => (1..)
-            .map(|k| match k {
-                1 => format!("{name}_simulated"),
-                k => format!("{name}_simulated{k}"),
-            })
-            .find(|n| !taken(n))
-            .expect("an unbounded search finds a free name"),
-    }
+    let marked = mark.map_or(name.to_string(), |m| format!("{name}_{m}"));
+    std::iter::once(name.to_string())
+        .chain(mark.map(|_| marked.clone()))
+        .chain((2..).map(|k| format!("{marked}{k}")))
+        .find(|n| !taken(n))
+        .expect("an unbounded search finds a free name")
 }
 
 /// A generated input (MPa) in the model's input unit: converted where the

@@ -1,6 +1,6 @@
 //! Reading and writing experiment CSV files (the format: README.md, "Data format").
 //!
-//! A file has one header row, optionally preceded by `#` comment lines; blank
+//! A file has one header row, optionally preceded by `#` or `%` comment lines; blank
 //! lines, and rows whose every cell is empty (a spreadsheet's `,,`), are
 //! skipped. One column is the time (s), one the model input and one
 //! the output; every other numeric column is carried along in
@@ -70,8 +70,10 @@ impl Gaps {
     }
 }
 
-/// The largest gauge pressure (MPa) a column named `pressure`, taken in
-/// MPa, holds without a note: a McKibben muscle works well under it.
+/// The largest gauge pressure (MPa) a McKibben muscle is driven with, well
+/// under which it works: a pressure past it is refused where one is taken
+/// in MPa (`control`'s and `static`'s), and a column read as MPa past
+/// [`UNUSUAL_MPA`] already gets a note.
 pub const IMPLAUSIBLE_MPA: f64 = 10.0;
 
 /// The most gauge pressure (MPa) a column named `pressure` holds without a
@@ -166,8 +168,8 @@ pub enum DataError {
         match dropped {
             0 => String::new(),
             n => format!(
-                " left after --split-gaps dropped {n} whose time, input or output is not a \
-                 finite number"
+                " left after {n} whose time, input or output is not a finite number were \
+                 dropped"
             ),
         }
     )]
@@ -175,7 +177,8 @@ pub enum DataError {
         path: PathBuf,
         line: u64,
         rows: usize,
-        /// Rows `--split-gaps` dropped for a value that is no finite number.
+        /// Rows `--split-gaps` or `--resample` dropped for a value that is
+        /// no finite number.
         dropped: usize,
     },
     #[error(
@@ -356,9 +359,10 @@ fn layout_hint(names: &[String]) -> &'static str {
     match names {
         [first, ..] if first.starts_with("LabVIEW Measurement") => {
             " (a LabVIEW measurement file: save the data as a spreadsheet file with one header \
-             row, or delete the header block up to `***End_of_Header***`)"
+             row, or delete the header blocks up to the last `***End_of_Header***`)"
         }
-        [one] if one.split_whitespace().count() > 1 => {
+        // Three words at least: `pressure kPa` is one name with its unit.
+        [one] if one.split_whitespace().count() > 2 => {
             " (one name with spaces: columns separated by spaces, as MATLAB's `save -ascii` \
              or an aligned table writes them, are not read; separate them by commas, \
              semicolons or tabs)"
@@ -851,6 +855,20 @@ fn parse(
             });
         }
     }
+    // A spreadsheet's second header row, of units: text in every cell.
+    // Before the rows are dropped below, which would drop it as a row
+    // of no numbers and lose the units it states.
+    if let Some(first) = rows.first()
+        && table
+            .of(first)
+            .all(|c| !c.is_empty() && number(c, decimal_comma).is_err())
+    {
+        return Err(DataError::UnitRow {
+            path: p(),
+            line: first.line,
+            cells: table.of(first).take(3).map(String::from).collect(),
+        });
+    }
     // With --split-gaps a row whose time, input or output is not a finite
     // number (a logger's NaN for a dropped sample, an empty cell) is a
     // glitch: it is dropped, and the gap it leaves is cut as any other;
@@ -882,45 +900,43 @@ fn parse(
         });
     }
     // A row that repeats the one before it cell for cell (a logger that
-    // wrote a sample twice, an export appended over its own end) holds no
-    // sample of its own: it is dropped, with a note, where it stopped the
-    // read as time standing still, or cut the record in two. Only where a
-    // time column says when each row was: rows `--dt` apart that are alike
-    // are a muscle holding still.
+    // wrote a sample twice) holds no sample of its own: it is dropped,
+    // with one note for all, where it stopped the read as time standing
+    // still, or cut the record in two. Only where a time column says when
+    // each row was: rows `--dt` apart that are alike are a muscle holding
+    // still.
+    let not_finite = dropped.len();
     if matches!(clock, Clock::Column(_)) {
         let mut kept: Option<Row> = None;
+        let mut copies: Vec<u64> = Vec::new();
         rows.retain(|row| {
             let copy = kept.is_some_and(|k| table.of(&k).eq(table.of(row)));
-            match (copy, kept) {
-                (true, Some(k)) => dropped.push(format!(
-                    "{}: line {}: a copy of line {} (every cell alike), dropped",
-                    path.display(),
-                    row.line,
-                    k.line
-                )),
-                _ => kept = Some(*row),
+            match copy {
+                true => copies.push(row.line),
+                false => kept = Some(*row),
             }
             !copy
         });
-    }
-    // A spreadsheet's second header row, of units: text in every cell.
-    if let Some(first) = rows.first()
-        && table
-            .of(first)
-            .all(|c| !c.is_empty() && number(c, decimal_comma).is_err())
-    {
-        return Err(DataError::UnitRow {
-            path: p(),
-            line: first.line,
-            cells: table.of(first).take(3).map(String::from).collect(),
-        });
+        if let (Some(first), Some(last)) = (copies.first(), copies.last()) {
+            dropped.push(match copies.len() {
+                1 => format!(
+                    "{}: line {first}: a copy of the row before it (every cell alike), dropped",
+                    path.display()
+                ),
+                n => format!(
+                    "{}: {n} rows that copy the row before them (every cell alike), lines \
+                     {first} to {last}, dropped",
+                    path.display()
+                ),
+            });
+        }
     }
     if rows.len() < 2 {
         return Err(DataError::TooFewRows {
             path: p(),
             line: header_line,
             rows: rows.len(),
-            dropped: dropped.len(),
+            dropped: not_finite,
         });
     }
 
@@ -931,11 +947,20 @@ fn parse(
         .collect();
     notes.extend(untimed_note);
     notes.extend(dropped);
+    let missed = match clock {
+        Clock::Column(_) => MISSED_READING,
+        Clock::Rows(_) => MISSED_READING_BY_ROWS,
+    };
     let column = |c: usize| -> Result<Vec<f64>, DataError> {
-        Ok(
-            numeric_column(path, (&rows, &table), c, &names[c], true, decimal_comma)?
-                .unwrap_or_default(),
-        )
+        Ok(numeric_column(
+            path,
+            (&rows, &table),
+            c,
+            &names[c],
+            Some(missed),
+            decimal_comma,
+        )?
+        .unwrap_or_default())
     };
     // A row dropped above leaves its time out, and `--split-gaps` cuts there.
     let t = match clock {
@@ -960,7 +985,7 @@ fn parse(
         }
         // A column the model does not read (a marker, a note) may have
         // empty or other cells: left out with a note, not a failed file.
-        match numeric_column(path, (&rows, &table), c, name, false, decimal_comma) {
+        match numeric_column(path, (&rows, &table), c, name, None, decimal_comma) {
             Ok(Some(v)) => extra.push((name.clone(), v)),
             Ok(None) => notes.push(format!(
                 "{}: column \"{name}\" holds no numbers; left out",
@@ -1076,11 +1101,11 @@ fn parse(
         notes.push(format!(
             "{}: --resample {dt} makes about {} samples of each measured one (the file steps \
              by {} s): the made-up samples are no measurements, yet a fit counts each as one, \
-             so its ± come out about {}× too small; resample near the file's own step",
+             so its ± come out about {:.1}× too small; resample near the file's own step",
             path.display(),
             super::readable(rounded(step / dt)),
             super::readable(rounded(step)),
-            super::readable(rounded((step / dt).sqrt()))
+            (step / dt).sqrt()
         ));
     }
     let traces = match opts.gaps {
@@ -1176,22 +1201,29 @@ fn widest_gap_filled(trace: &Trace, lines: &[u64], median: f64, dt: f64) -> Opti
 }
 
 /// The way out of a sample's cell that holds no number, as a logger writes
-/// a missed reading.
+/// a missed reading, in a file with a time column ...
 const MISSED_READING: &str = "; a missed reading? --resample DT drops such a row and \
                               interpolates across it, --split-gaps cuts the record there";
 
+/// ... and in one read with `--dt`, where a row left out would move every
+/// later one a step earlier, so only a cut will do.
+const MISSED_READING_BY_ROWS: &str =
+    "; a missed reading? --split-gaps drops such a row and cuts the record there";
+
 /// Parses column `c` of every row (`decimal_comma`: as [`number`]), erring
-/// at the first bad cell. A column
-/// that is not `required` (not selected) and holds no number at all is a text
-/// column: `Ok(None)`, left out of the trace.
+/// at the first bad cell, with `hint` where the column is a sample's (the
+/// time, input or output). A column that is not (`None`: not selected)
+/// and holds no number at all is a text column: `Ok(None)`, left out of
+/// the trace.
 fn numeric_column(
     path: &Path,
     (rows, table): (&[Row], &Cells),
     c: usize,
     name: &str,
-    required: bool,
+    hint: Option<&'static str>,
     decimal_comma: bool,
 ) -> Result<Option<Vec<f64>>, DataError> {
+    let required = hint.is_some();
     let mut values = Vec::with_capacity(rows.len());
     let mut first_bad = None;
     for row in rows {
@@ -1204,7 +1236,7 @@ fn numeric_column(
                     line: row.line,
                     column: name.into(),
                     value: cell.into(),
-                    hint: if required { MISSED_READING } else { "" },
+                    hint: hint.unwrap_or_default(),
                 });
             }
             Err(_) => {
@@ -1220,7 +1252,7 @@ fn numeric_column(
             line,
             column: name.into(),
             value,
-            hint: if required { MISSED_READING } else { "" },
+            hint: hint.unwrap_or_default(),
         }),
     }
 }
@@ -1249,13 +1281,14 @@ fn check_uniform(
     expected: f64,
     hint: &'static str,
 ) -> Result<(), DataError> {
-    // The times' own rounding, so that a step of exactly 10 % more
-    // (0.011 s against 0.01 s, a logger's milliseconds at 100 Hz) is
-    // within, as the error's "±10 %" says, whichever way the difference
-    // of two decimals rounds.
-    let slack = 1e-9 * expected;
     for k in 1..t.len() {
         let step = t[k] - t[k - 1];
+        // The times' own rounding, so that a step of exactly 10 % more
+        // (0.011 s against 0.01 s, a logger's milliseconds at 100 Hz) is
+        // within, as the error's "±10 %" says, whether the times are near
+        // 0 or an epoch's 1.7·10⁹ s: a few units in the last place of the
+        // larger time.
+        let slack = 4.0 * f64::EPSILON * t[k].abs().max(t[k - 1].abs()) + 1e-9 * expected;
         if (step - expected).abs() > UNIFORM_TOLERANCE * expected + slack {
             return Err(DataError::NonUniform {
                 path: path.to_path_buf(),
@@ -1615,7 +1648,7 @@ mod tests {
     fn but_unit_doubts(notes: &[String]) -> Vec<String> {
         notes
             .iter()
-            .filter(|n| !n.contains("steps by") && !n.contains("is taken in MPa"))
+            .filter(|n| !n.contains("column \"t\" steps by") && !n.contains("is taken in MPa"))
             .cloned()
             .collect()
     }
@@ -1929,8 +1962,14 @@ mod tests {
         );
         let e = err("LabVIEW Measurement\t\nWriter_Version\t2\n");
         assert!(e.contains("(a LabVIEW measurement file:"), "{e}");
-        let e = err("time,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n");
-        assert!(!e.contains("(one name") && !e.contains("LabVIEW"), "{e}");
+        for other in [
+            "time,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n",
+            // One column named with its unit, the README's `disp mm` form.
+            "pressure kPa\n1\n2\n",
+        ] {
+            let e = err(other);
+            assert!(!e.contains("(one name") && !e.contains("LabVIEW"), "{e}");
+        }
     }
 
     /// A row that repeats the one before it cell for cell is dropped with a
@@ -1944,7 +1983,21 @@ mod tests {
         assert_eq!(traces[0].output, [1.0, 2.0, 3.0]);
         assert_eq!(
             notes,
-            ["x.csv: line 4: a copy of line 3 (every cell alike), dropped"]
+            ["x.csv: line 4: a copy of the row before it (every cell alike), dropped"]
+        );
+        // A logger that wrote every sample twice: one note for all.
+        let twice: String = (0..40)
+            .map(|k| format!("{},0.{k},{k}\n", f64::from(k) * 0.01).repeat(2))
+            .collect();
+        let (traces, notes) =
+            read(&format!("t,pressure,displacement\n{twice}"), Gaps::Reject).unwrap();
+        assert_eq!(traces[0].len(), 40);
+        assert_eq!(
+            notes,
+            [
+                "x.csv: 40 rows that copy the row before them (every cell alike), lines 3 to 81, \
+              dropped"
+            ]
         );
         let other = "t,pressure,displacement\n0,0.1,1\n0.01,0.2,2\n0.01,0.2,2.5\n0.02,0.3,3\n";
         assert!(err(other).contains("line 4, column \"t\": time 0.01 does not increase"));
@@ -1955,6 +2008,18 @@ mod tests {
         let text = "pressure,displacement\n0.1,1\n0.1,1\n0.1,1\n0.2,2\n";
         let (traces, _) = parse(Path::new("x.csv"), text.as_bytes(), &untimed).unwrap();
         assert_eq!(traces[0].len(), 4);
+        // There a missed reading can only be cut out: --resample needs the
+        // time a row was taken at.
+        let text = "pressure,displacement\n0.1,1\nNaN,1\n0.1,1\n0.2,2\n";
+        let e = parse(Path::new("x.csv"), text.as_bytes(), &untimed)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.ends_with(
+                "a missed reading? --split-gaps drops such a row and cuts the record there"
+            ),
+            "{e}"
+        );
     }
 
     /// MATLAB's `%` starts a comment as `#` does, before the header or
@@ -1992,15 +2057,24 @@ mod tests {
         assert!(err(text).contains("line 3"));
         // Milliseconds at about 100 Hz: steps of 10 and 11 ms, 11 exactly
         // the 10 % the rule admits, however the differences round.
-        let ms: String = (0..200)
-            .scan(0u32, |t, k| {
-                let row = format!("{},{},{}\n", f64::from(*t) / 1000.0, k % 7, k % 5);
-                *t += if k % 3 == 0 { 11 } else { 10 };
-                Some(row)
-            })
-            .collect();
-        let text = format!("t,pressure,displacement\n{ms}");
-        assert_eq!(read(&text, Gaps::Reject).unwrap().0[0].len(), 200);
+        // From 0, and from an epoch's seconds, where the differences
+        // round at 10⁻⁷ s.
+        for epoch in [0.0, 1.7e9] {
+            let ms: String = (0..200)
+                .scan(0u32, |t, k| {
+                    let time = epoch + f64::from(*t) / 1000.0;
+                    let row = format!("{time},{},{}\n", k % 7, k % 5);
+                    *t += if k % 3 == 0 { 11 } else { 10 };
+                    Some(row)
+                })
+                .collect();
+            let text = format!("t,pressure,displacement\n{ms}");
+            assert_eq!(
+                read(&text, Gaps::Reject).unwrap().0[0].len(),
+                200,
+                "{epoch}"
+            );
+        }
     }
 
     /// MATLAB's csvwrite and writematrix write no header: the first row of
@@ -2175,10 +2249,16 @@ mod tests {
         let ten: Vec<f64> = want.iter().map(|v| v * 10.0).collect();
         assert_eq!(tr.output, ten);
         assert_eq!(tr.column("valve_in").unwrap()[9], 22.5);
-        // The gap is said: its line, its width, the samples made up in it.
+        // The gap is said: its line, its width, the samples made up in it
+        // (after a note that 0.5 s is finer than the file's 1 s).
         let (_, notes) = read(text, Gaps::Resample(0.5)).unwrap();
+        let notes = but_unit_doubts(&notes);
+        assert!(
+            notes[0].contains("makes about 2 samples of each measured one"),
+            "{notes:?}"
+        );
         assert_eq!(
-            but_unit_doubts(&notes),
+            notes[1..],
             [
                 "x.csv: line 5: --resample 0.5 interpolated across a gap of 2 s (from 2 s to 4 s): \
               3 of the record's 11 samples are made up there (27 %); use it where such gaps are \
@@ -2190,7 +2270,11 @@ mod tests {
             Gaps::Resample(0.5),
         )
         .unwrap();
-        assert!(but_unit_doubts(&notes).is_empty(), "{notes:?}");
+        // No gap, no gap note.
+        assert!(
+            !notes.iter().any(|n| n.contains("across a gap")),
+            "{notes:?}"
+        );
         assert!(read(text, Gaps::Resample(0.0)).is_err());
         assert!(
             read(text, Gaps::Resample(10.0))
@@ -2211,8 +2295,8 @@ mod tests {
         let e = read(&s, Gaps::Split).unwrap_err().to_string();
         assert!(
             e.contains(
-                "0 data rows left after --split-gaps dropped 10 whose time, input or \
-                        output is not a finite number"
+                "0 data rows left after 10 whose time, input or output is not a finite \
+                 number were dropped"
             ),
             "{e}"
         );

@@ -4,7 +4,7 @@
 /// Units a column name may end in (`pressure_psi`, `disp_mm`, `p [kPa]`,
 /// `x (m)`), lower-case, with the spelling a model file records. Inches
 /// only as `_inch` or in brackets (`x [in]`): `valve_in` is the input valve.
-const KNOWN: [(&str, &str); 32] = [
+const KNOWN: [(&str, &str); 34] = [
     ("mpa", "MPa"),
     ("kpa", "kPa"),
     ("hpa", "hPa"),
@@ -23,7 +23,9 @@ const KNOWN: [(&str, &str); 32] = [
     ("kgf/cm\u{b2}", "kgf/cm2"),
     ("kg/cm2", "kgf/cm2"),
     ("n/m2", "Pa"),
+    ("n/m\u{b2}", "Pa"),
     ("n/mm2", "MPa"),
+    ("n/mm\u{b2}", "MPa"),
     ("mm", "mm"),
     ("cm", "cm"),
     ("m", "m"),
@@ -43,14 +45,29 @@ const KNOWN: [(&str, &str); 32] = [
 
 /// What a column name states as its unit, lower-case: the text inside
 /// trailing brackets or parentheses (`p [kPa]`, `x (m)`), else after the
-/// last `_`, space or `/` (`disp_mm`, `pressure kPa`, ISO's `p/kPa`).
+/// last `_`, space or `/` (`disp_mm`, `pressure kPa`, ISO's `p/kPa`), or
+/// a known unit with a `/` of its own after the last `_` or space
+/// (`p_kgf/cm2`, `pressure N/mm2`).
 fn stated(name: &str) -> Option<String> {
     let bracketed = name
         .strip_suffix(']')
         .and_then(|s| s.rsplit_once('['))
         .or_else(|| name.strip_suffix(')').and_then(|s| s.rsplit_once('(')))
         .map(|(_, unit)| unit);
-    let tail = bracketed.or_else(|| name.rsplit_once(['_', ' ', '/']).map(|(_, unit)| unit))?;
+    if let Some(unit) = bracketed {
+        return Some(unit.trim().to_ascii_lowercase());
+    }
+    let lower = name.to_ascii_lowercase();
+    let per_area = KNOWN.iter().map(|(k, _)| *k).find(|k| {
+        k.contains('/')
+            && lower
+                .strip_suffix(k)
+                .is_some_and(|rest| rest.ends_with(['_', ' ']))
+    });
+    if let Some(unit) = per_area {
+        return Some(unit.to_string());
+    }
+    let tail = name.rsplit_once(['_', ' ', '/']).map(|(_, unit)| unit)?;
     Some(tail.trim().to_ascii_lowercase())
 }
 
@@ -276,6 +293,10 @@ mod tests {
             ("p [N/m2]", "Pa", 1e-6),
             ("p [N/mm2]", "MPa", 1.0),
             ("p_ksi", "ksi", 6.894757293168),
+            // After `_` or a space too, the unit's own `/` kept.
+            ("p_kgf/cm2", "kgf/cm2", 0.0980665),
+            ("pressure N/mm2", "MPa", 1.0),
+            ("p [N/mm\u{b2}]", "MPa", 1.0),
         ] {
             assert_eq!(unit_of(name).as_deref(), Some(unit), "{name}");
             assert_eq!(megapascals_in(unit), Some(mpa), "{name}");

@@ -191,6 +191,7 @@ pub fn selected_fit(
         // The effect stages move the output off the state the update steps on.
         stable_step: None,
         largest_step: None,
+        simulated_largest_step: None,
         start_sse: None,
         start_val_fit_percent: None,
         built: None,

@@ -134,6 +134,27 @@ impl Records {
         Scores::of(&self.runs_on(model, theta, &self.validation_halves()))
     }
 
+    /// The largest step in one sample of `model`'s free run at `theta`
+    /// over every record (`None` without parameters, or where no run is
+    /// finite): what its hysteresis update steps on.
+    pub fn largest_simulated_step(&self, model: &ModelDescription, theta: &[f64]) -> Option<f64> {
+        if theta.is_empty() {
+            return None;
+        }
+        let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
+        self.whole
+            .iter()
+            .enumerate()
+            .flat_map(|(i, whole)| {
+                let run = model.simulate(&t, i, &self.ctx[i], whole);
+                run.windows(2)
+                    .map(|p| f64::from((p[1] - p[0]).abs()))
+                    .filter(|s| s.is_finite())
+                    .collect::<Vec<_>>()
+            })
+            .reduce(f64::max)
+    }
+
     /// Each record's validation half, as [`Records::score_on`] takes it.
     fn validation_halves(&self) -> Vec<Vec<Range<usize>>> {
         self.whole

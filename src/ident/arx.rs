@@ -520,7 +520,8 @@ pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
 /// owes its user ([`Arx::largest_pole`]).
 pub fn unstable_warning(arx: &Arx) -> Option<String> {
     let pole = arx.largest_pole();
-    (pole >= 1.0).then(|| {
+    // An integrator's pole of 1 computes to within rounding of it.
+    (pole >= 1.0 - 1e-9).then(|| {
         format!(
             "a pole of modulus {pole:.4} is on or outside the unit circle: the identified model is \
              unstable, and its free run drifts or grows without bound (least squares on one \

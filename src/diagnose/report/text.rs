@@ -322,6 +322,15 @@ fn verdict_text(o: &mut String, d: &Diagnosis) {
             ),
             false => ("the catalogue".to_string(), "the catalogue's best model"),
         };
+        // A selection the cap stopped while it still accepted says so here,
+        // not only below: one more round may change this verdict.
+        let by = match d.selection.capped {
+            true => format!(
+                "{by} within --max-effects {} (the last round still accepted one)",
+                d.selection.rounds.len()
+            ),
+            false => by,
+        };
         let _ = writeln!(
             o,
             "\nVerdict: not explained by {by}. A flexible model of the signals closes {} of the \
