@@ -1972,6 +1972,23 @@ mod tests {
         }
     }
 
+    /// A units row under the header is refused whatever the flags: the
+    /// rows `--resample` and `--split-gaps` drop for holding no number
+    /// would take it, and the units it states, with them.
+    #[test]
+    fn a_units_row_is_refused_before_rows_are_dropped() {
+        let text = "t,pressure,displacement\ns,kPa,mm\n0,100,1\n0.01,200,2\n0.02,300,3\n";
+        for gaps in [
+            Gaps::Reject,
+            Gaps::Resample(0.01),
+            Gaps::Split,
+            Gaps::SplitResample(0.01),
+        ] {
+            let e = read(text, gaps).unwrap_err().to_string();
+            assert!(e.contains("line 2 holds no numbers"), "{gaps:?}: {e}");
+        }
+    }
+
     /// A row that repeats the one before it cell for cell is dropped with a
     /// note, not read as time standing still; a repeated time with other
     /// values stays an error, and rows `--dt` apart that are alike are
