@@ -2028,6 +2028,29 @@ fn a_fit_reads_standard_input_as_its_file() {
     let source = first_source(&dir.path().join("piped/model.json"));
     assert_eq!(source["file"], "-");
     assert!(source["sha256"].is_null(), "{source}");
+
+    // `simulate --input -` too, as every DATA reads it; but standard input
+    // is read once, so not for `--from` as well.
+    let mut child = command(dir.path())
+        .args(["simulate", "--input", "-", "--json"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(&std::fs::read(stair).unwrap())
+        .unwrap();
+    let piped: serde_json::Value =
+        serde_json::from_slice(&child.wait_with_output().unwrap().stdout).unwrap();
+    let file = mckibben(&["simulate", "--input", stair, "--json"], dir.path());
+    let file: serde_json::Value = serde_json::from_slice(&file.stdout).unwrap();
+    assert_eq!(piped["val_fit_percent"], file["val_fit_percent"]);
+    let twice = mckibben(&["simulate", "--from", "-", "--input", "-"], dir.path());
+    let err = String::from_utf8_lossy(&twice.stderr);
+    assert!(err.contains("would both read standard input"), "{err}");
 }
 
 /// `fit --effects` under a budget the chain's build spends: the build stops

@@ -74,7 +74,7 @@ pub struct Args {
     /// effect's as `creep.kappa=0.5`).
     #[arg(long, value_delimiter = ',', value_name = "NAME=VALUE")]
     params: Vec<String>,
-    /// The input: `stair`, `sine` or a CSV file.
+    /// The input: `stair`, `sine` or a CSV file (`-`: standard input).
     #[arg(long, default_value = "stair")]
     input: String,
     /// Angular frequency of `--input sine` (rad/s), below Nyquist's π/dt
@@ -459,6 +459,12 @@ fn check_files_and_flags(args: &Args) -> anyhow::Result<()> {
     if let Some(path) = &args.from {
         reads.push(("--from", path));
     }
+    // Standard input is read once: the second would find it empty.
+    let stdin = Path::new(mckibben::data::input::STANDARD_INPUT);
+    anyhow::ensure!(
+        reads.iter().filter(|(_, p)| *p == stdin).count() < 2,
+        "--from - and --input - would both read standard input: give one of them a file"
+    );
     let mut writes: Vec<(&str, &Path)> = Vec::new();
     if let Some(path) = args.out.as_ref().and_then(CsvOut::file) {
         writes.push(("--out", path));
@@ -637,8 +643,12 @@ fn input_trace(
         }
         file => {
             let path = PathBuf::from(file);
-            if !path.exists() {
-                bail!("--input: `{file}` is neither `stair`, `sine` nor an existing CSV file");
+            // `-` is standard input, as every command's DATA reads it.
+            if !path.exists() && file != mckibben::data::input::STANDARD_INPUT {
+                bail!(
+                    "--input: `{file}` is neither `stair`, `sine`, an existing CSV file nor `-` \
+                     (standard input)"
+                );
             }
             let defaults = ReadOptions::default();
             let read = saved.map(|f| f.provenance.read.clone()).unwrap_or_default();
