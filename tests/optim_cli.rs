@@ -1996,58 +1996,45 @@ fn first_source(model: &Path) -> serde_json::Value {
 /// as of the file, its provenance naming `-` with no checksum.
 #[test]
 fn a_fit_reads_standard_input_as_its_file() {
-    use std::io::Write as _;
     let dir = tempfile::tempdir().unwrap();
     let stair = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
-    let mut child = command(dir.path())
-        .args([&short_fit("-")[..], &["--out", "piped", "--json"]].concat())
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(&std::fs::read(stair).unwrap())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    // The JSON a run with `file` on its standard input prints.
+    let piped = |args: &[&str], file: &str| -> serde_json::Value {
+        use std::io::Write as _;
+        let mut child = command(dir.path())
+            .args(args)
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let bytes = std::fs::read(file).unwrap();
+        child.stdin.take().unwrap().write_all(&bytes).unwrap();
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let piped_fit = piped(
+        &[&short_fit("-")[..], &["--out", "piped", "--json"]].concat(),
+        stair,
     );
-    let piped: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let file = mckibben(
         &[&short_fit(stair)[..], &["--out", "file", "--json"]].concat(),
         dir.path(),
     );
     let file: serde_json::Value = serde_json::from_slice(&file.stdout).unwrap();
-    assert_eq!(piped["params"], file["params"]);
+    assert_eq!(piped_fit["params"], file["params"]);
     let source = first_source(&dir.path().join("piped/model.json"));
     assert_eq!(source["file"], "-");
     assert!(source["sha256"].is_null(), "{source}");
 
     // `simulate --input -` too, as every DATA reads it; but standard input
     // is read once, so not for `--from` as well.
-    let mut child = command(dir.path())
-        .args(["simulate", "--input", "-", "--json"])
-        .stdin(std::process::Stdio::piped())
-        .stdout(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(&std::fs::read(stair).unwrap())
-        .unwrap();
-    let piped: serde_json::Value =
-        serde_json::from_slice(&child.wait_with_output().unwrap().stdout).unwrap();
+    let piped_run = piped(&["simulate", "--input", "-", "--json"], stair);
     let file = mckibben(&["simulate", "--input", stair, "--json"], dir.path());
     let file: serde_json::Value = serde_json::from_slice(&file.stdout).unwrap();
-    assert_eq!(piped["val_fit_percent"], file["val_fit_percent"]);
+    assert_eq!(piped_run["val_fit_percent"], file["val_fit_percent"]);
     let twice = mckibben(&["simulate", "--from", "-", "--input", "-"], dir.path());
     let err = String::from_utf8_lossy(&twice.stderr);
     assert!(err.contains("would both read standard input"), "{err}");
