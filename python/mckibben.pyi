@@ -136,6 +136,7 @@ class FitResult:
     val_rmse: float | None
     val_fit_percent: float | None
     linear_val_fit_percent: float | None
+    linear_largest_pole: float | None
     records: list[dict[str, Any]]
     notes: list[dict[str, str]]
     stable_step: float | None

@@ -55,6 +55,9 @@ crate::state::with_state! {
         /// The first-order ARX model's validation fit on the same halves: what
         /// the fit should beat.
         linear_val_fit_percent: Option<f64>,
+        /// The largest pole modulus of those ARX models: at 1 or past it the
+        /// yardstick drifts or grows and scores nothing a fit need clear.
+        linear_largest_pole: Option<f64>,
         /// What `fit` prints on stderr and `fit --json` holds as `notes`, one
         /// dict each (`level`, `note` or `warning`, and `text`), in order: the
         /// notes before the run, the box's, tries that agree too little,
@@ -63,7 +66,8 @@ crate::state::with_state! {
         notes: Py<PyAny>,
         /// Each experiment's validation scores on its own second half, one
         /// dict per experiment (`data`, `samples`, `val_rmse`,
-        /// `val_fit_percent`; `fit --json`'s `records`).
+        /// `val_fit_percent`, `linear_val_fit_percent`, `linear_largest_pole`;
+        /// `fit --json`'s `records`).
         records: Py<PyAny>,
         /// The largest output step a sample within which the fitted
         /// hysteresis update settles (`fit --json`'s `stable_step`).
@@ -566,6 +570,7 @@ fn fit_result(
         val_rmse: report.val_rmse,
         val_fit_percent: report.val_fit_percent,
         linear_val_fit_percent: report.linear_val_fit_percent,
+        linear_largest_pole: report.linear_largest_pole,
         records: unbound(py, &report.records)?,
         notes: unbound(py, &report.notes)?,
         stable_step: report.stable_step,

@@ -164,9 +164,9 @@ pub fn selected_fit(
     let (y, yhat) = (&trace.output[from..], &run.output[from..]);
     let finite = |v: f64| v.is_finite().then_some(v);
     let (val_rmse, val_fit_percent) = (finite(rmse(y, yhat)), finite(fit_percent(y, yhat)));
-    let linear_val_fit_percent = Records::of(std::slice::from_ref(trace), None)?
-        .linear_yardstick()
-        .and_then(|v| finite(v.fit_percent));
+    let linear = Records::of(std::slice::from_ref(trace), None)?.linear_yardstick();
+    let linear_val_fit_percent = linear.as_ref().and_then(|l| finite(l.0.pooled.fit_percent));
+    let linear_largest_pole = linear.as_ref().and_then(|l| l.1.first().copied());
     let report = FitReport {
         model: family,
         effects: model
@@ -188,6 +188,7 @@ pub fn selected_fit(
         val_rmse,
         val_fit_percent,
         linear_val_fit_percent,
+        linear_largest_pole,
         // The effect stages move the output off the state the update steps on.
         stable_step: None,
         largest_step: None,
@@ -228,6 +229,7 @@ pub fn selected_fit(
             val_rmse,
             val_fit_percent,
             linear_val_fit_percent,
+            linear_largest_pole,
         }],
         notes: Vec::new(),
         out: None,

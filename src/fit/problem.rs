@@ -734,12 +734,6 @@ impl FitProblem {
         self.records.validate(&self.model, theta)
     }
 
-    /// The first-order ARX model's validation scores on the same halves,
-    /// every record pooled ([`Records::linear_yardstick`]).
-    pub fn linear_yardstick(&self) -> Option<Validation> {
-        self.records.linear_yardstick()
-    }
-
     /// The fitted model as a model file holds it: in the first record's
     /// estimation coordinates, with its effect constants.
     pub fn fitted_model(&self, params: &[f64]) -> Model {

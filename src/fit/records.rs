@@ -210,29 +210,29 @@ impl Records {
     /// The yardstick a fit is read against: on each record, the first-order
     /// ARX model identified on its estimation half, run free over the whole
     /// record from its first sample and scored on its validation half, the
-    /// records pooled as a fit's are ([`Records::validate`]). A hysteretic
-    /// fit that validates worse than this fits the estimation halves in a
-    /// way the validation halves do not share. With several records each
-    /// has its own linear model, a yardstick that one model for all must
-    /// clear with room. (In each estimation half's own means: ARX has no
-    /// intercept, and the fit % and RMSE do not change when both outputs
-    /// shift alike; the pooled scores are taken in the records' common
-    /// coordinates.) `None` if ARX cannot be identified on a record.
-    pub fn linear_yardstick(&self) -> Option<Validation> {
-        pooled(&self.linear_runs()?)
-    }
-
-    /// [`Records::linear_yardstick`], and each record's own beside it
-    /// (`None` where ARX cannot be identified on some record).
-    pub fn linear_yardstick_each(&self) -> Option<Scores> {
-        Some(Scores::of(&self.linear_runs()?))
+    /// records pooled as a fit's are ([`Records::validate`]), each record's
+    /// own beside them; and each record's ARX model's largest pole modulus
+    /// ([`Arx::largest_pole`]: at 1 or past it the yardstick drifts or
+    /// grows, and scores nothing a fit need clear). A hysteretic fit that
+    /// validates worse than this fits the estimation halves in a way the
+    /// validation halves do not share. With several records each has its
+    /// own linear model, a yardstick that one model for all must clear with
+    /// room. (In each estimation half's own means: ARX has no intercept,
+    /// and the fit % and RMSE do not change when both outputs shift alike;
+    /// the pooled scores are taken in the records' common coordinates.)
+    /// `None` if ARX cannot be identified on a record.
+    pub fn linear_yardstick(&self) -> Option<(Scores, Vec<f64>)> {
+        let (runs, poles) = self.linear_runs()?;
+        Some((Scores::of(&runs), poles))
     }
 
     /// Each record's validation half, measured and as its own first-order
-    /// ARX model runs it ([`Records::linear_yardstick`]).
-    fn linear_runs(&self) -> Option<Vec<(Vec<f64>, Vec<f64>)>> {
+    /// ARX model runs it ([`Records::linear_yardstick`]), and that model's
+    /// largest pole modulus.
+    fn linear_runs(&self) -> Option<(ValidationRuns, Vec<f64>)> {
         let mean = |v: &[f32]| v.iter().map(|&x| x as f64).sum::<f64>() / v.len().max(1) as f64;
         let mut scores: Vec<(Vec<f64>, Vec<f64>)> = Vec::new();
+        let mut poles = Vec::new();
         for ((whole, est), &from) in self.whole.iter().zip(&self.est).zip(&self.val_start) {
             let (mu, my) = (mean(&est.u), mean(&est.y));
             let u: Vec<f64> = whole.u.iter().map(|&v| v as f64 - mu).collect();
@@ -241,10 +241,14 @@ impl Records {
                 Arx::estimate(&whole.name, &u[..from], &y[..from], ArxOrders::default()).ok()?;
             let sim = arx.simulate(&u, &y);
             scores.push((y[from..].to_vec(), sim[from..].to_vec()));
+            poles.push(arx.largest_pole());
         }
-        Some(scores)
+        Some((scores, poles))
     }
 }
+
+/// Records' validation halves, `(measured, simulated)` each.
+type ValidationRuns = Vec<(Vec<f64>, Vec<f64>)>;
 
 /// The scores of a run that diverged, or of no run at all.
 const DIVERGED: Validation = Validation {
@@ -393,5 +397,31 @@ mod tests {
             note.contains("times its swing") && note.contains("subtract the level"),
             "{note}"
         );
+    }
+
+    /// The yardstick carries each record's ARX pole: inside the unit circle
+    /// on a muscle-like record, past it on the shipped stair's first 25 s
+    /// (its estimation half rises and falls once).
+    #[test]
+    fn the_yardstick_carries_each_record_s_arx_pole() {
+        let s = Synthetic::new(Family::Classic, 600, 0.05, 1);
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+        let stair = crate::data::csv::read_traces(
+            std::path::Path::new(path),
+            &crate::data::csv::ReadOptions::default(),
+        )
+        .unwrap()
+        .remove(0);
+        let first = Trace::uniform(
+            "first.csv",
+            stair.dt(),
+            stair.input[..2500].to_vec(),
+            stair.output[..2500].to_vec(),
+        );
+        let both = Records::of(&[s.trace.clone(), first], None).unwrap();
+        let (scores, poles) = both.linear_yardstick().unwrap();
+        assert_eq!((scores.each.len(), poles.len()), (2, 2));
+        assert!((0.0..1.0).contains(&poles[0]), "{poles:?}");
+        assert!(poles[1] > 1.0, "{poles:?}");
     }
 }

@@ -16,6 +16,7 @@ use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
 use super::uncertainty::{Assessment, assess};
 use crate::data::{Trace, sources, write_all_atomic};
+use crate::ident::arx::is_unstable;
 use crate::ident::fit::{SETTLED_POINTS, constant_validation_warning, fit_percent_text};
 use crate::model::Family;
 use crate::model::bounds::Origin;
@@ -64,6 +65,10 @@ pub struct FitReport {
     /// The first-order ARX model's validation fit on the same halves
     /// (`Records::linear_yardstick`): what the fit should beat.
     pub linear_val_fit_percent: Option<f64>,
+    /// The largest pole modulus of those ARX models (over the records): at
+    /// 1 or past it the yardstick drifts or grows, and scores nothing a fit
+    /// need clear.
+    pub linear_largest_pole: Option<f64>,
     /// The largest step of the output in one sample within which the
     /// fitted hysteresis update settles (`Family::stable_step`; `None`
     /// where the loop never saturates or effect stages stand between the
@@ -155,6 +160,8 @@ pub struct RecordScore {
     pub val_fit_percent: Option<f64>,
     /// Its own first-order ARX model's validation fit on the same halves.
     pub linear_val_fit_percent: Option<f64>,
+    /// That ARX model's largest pole modulus.
+    pub linear_largest_pole: Option<f64>,
 }
 
 /// One line `fit` prints on stderr, `mckibben: LEVEL: TEXT`.
@@ -216,9 +223,6 @@ fn finite(v: f64) -> Option<f64> {
 }
 
 impl FitReport {
-    /// The report of `fit` once [`FitRun::run`] returned `outcome` and
-    /// `widened`, its populations scored on `backend`, on the records
-    /// `traces` (the fit's, in its order).
     pub fn of(
         fit: &FitRun,
         (outcome, widened): (&Outcome, &[Widening]),
@@ -233,7 +237,7 @@ impl FitReport {
         let val = problem
             .records
             .validate_each(&problem.model, &outcome.params);
-        let linear = problem.records.linear_yardstick_each();
+        let linear = problem.records.linear_yardstick();
         // What was asked (the announce's), not the kept start's plan.
         let asked = &fit.asked;
         let global = asked.global.as_ref();
@@ -273,7 +277,10 @@ impl FitReport {
             sse: finite(outcome.sse),
             val_rmse: finite(val.pooled.rmse),
             val_fit_percent: finite(val.pooled.fit_percent),
-            linear_val_fit_percent: linear.as_ref().and_then(|l| finite(l.pooled.fit_percent)),
+            linear_val_fit_percent: linear.as_ref().and_then(|l| finite(l.0.pooled.fit_percent)),
+            linear_largest_pole: linear
+                .as_ref()
+                .and_then(|l| l.1.iter().copied().reduce(f64::max)),
             // The effect stages move the output off the state the update
             // steps on: the step is the plain families' figure.
             stable_step: (found && problem.model.effects.is_empty())
@@ -328,7 +335,8 @@ impl FitReport {
                     val_fit_percent: val.each.get(i).and_then(|v| finite(v.fit_percent)),
                     linear_val_fit_percent: linear
                         .as_ref()
-                        .and_then(|l| finite(l.each[i].fit_percent)),
+                        .and_then(|l| finite(l.0.each[i].fit_percent)),
+                    linear_largest_pole: linear.as_ref().map(|l| l.1[i]),
                 })
                 .collect(),
             notes: Vec::new(),
@@ -552,14 +560,15 @@ impl FitReport {
             }
         }
         line(format!(
-            "  validation fit, ARX  {}   ({})",
+            "  validation fit, ARX  {}   ({}{})",
             percent(self.linear_val_fit_percent, self.val_rmse),
             match self.records.len() {
                 0 | 1 => "the first-order linear model on the same halves",
                 // One linear model a record, not one for all as `identify`
                 // fits: a yardstick the one hysteretic model must clear.
                 _ => "each record's own first-order linear model on its halves, pooled",
-            }
+            },
+            unstable_yardstick(&self.records)
         ));
         if let (Some(stable), Some(largest)) = (self.stable_step, self.largest_step) {
             line(format!(
@@ -883,6 +892,31 @@ fn model_files(
     Ok(files)
 }
 
+/// What `fit`'s ARX line adds where a record's ARX model has a pole on or
+/// outside the unit circle: its free run drifts or grows, and a fit that
+/// beats it has beaten nothing (`identify` says so at length).
+fn unstable_yardstick(records: &[RecordScore]) -> String {
+    let unstable: Vec<&RecordScore> = records
+        .iter()
+        .filter(|r| r.linear_largest_pole.is_some_and(is_unstable))
+        .collect();
+    match (records.len(), unstable.as_slice()) {
+        (_, []) => String::new(),
+        (0 | 1, [r]) => format!(
+            "; its pole {:.4} is unstable: no yardstick",
+            r.linear_largest_pole.unwrap_or(f64::NAN)
+        ),
+        (n, some) => format!(
+            "; unstable on {} of {n} records: {}",
+            some.len(),
+            some.iter()
+                .map(|r| r.data.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+    }
+}
+
 /// What a fit's scores warn of, against its yardsticks: the first-order ARX
 /// model's validation fit on the same halves (`linear`) and, for a warm
 /// start, the model it started from (`start`). `sse` and `fit` (validation
@@ -1036,6 +1070,32 @@ mod tests {
             "{warned}"
         );
         assert!(stable_step_warning(0.5958, 0.225, 1).is_none());
+    }
+
+    /// A yardstick whose pole is past 1 is named on the ARX line: for the
+    /// one record by its pole, for several by the records that hold one.
+    #[test]
+    fn an_unstable_yardstick_is_named_on_the_arx_line() {
+        let record = |data: &str, pole: Option<f64>| RecordScore {
+            data: data.to_string(),
+            samples: 2500,
+            val_rmse: Some(1.0),
+            val_fit_percent: Some(50.0),
+            linear_val_fit_percent: Some(-1.47e9),
+            linear_largest_pole: pole,
+        };
+        let one = unstable_yardstick(&[record("first.csv", Some(1.0085))]);
+        assert_eq!(one, "; its pole 1.0085 is unstable: no yardstick");
+        // An integrator's pole, computed a rounding below 1, is one.
+        assert!(!unstable_yardstick(&[record("a.csv", Some(1.0 - 1e-12))]).is_empty());
+        assert_eq!(unstable_yardstick(&[record("a.csv", Some(0.992))]), "");
+        assert_eq!(unstable_yardstick(&[record("a.csv", None)]), "");
+        let two = unstable_yardstick(&[
+            record("a.csv", Some(0.99)),
+            record("b.csv", Some(1.02)),
+            record("c.csv", Some(1.0)),
+        ]);
+        assert_eq!(two, "; unstable on 2 of 3 records: b.csv, c.csv");
     }
 
     /// A parameter is undetermined where its error reaches its own size,

@@ -516,12 +516,17 @@ pub fn linear_prior(traces: &[Trace]) -> Result<LinearPrior, IdentError> {
     })
 }
 
+/// Whether a pole of modulus `pole` is on or outside the unit circle, an
+/// integrator's pole of 1 computed to within rounding of it included.
+pub fn is_unstable(pole: f64) -> bool {
+    pole >= 1.0 - 1e-9
+}
+
 /// The warning an ARX model whose poles are not all inside the unit circle
 /// owes its user ([`Arx::largest_pole`]).
 pub fn unstable_warning(arx: &Arx) -> Option<String> {
     let pole = arx.largest_pole();
-    // An integrator's pole of 1 computes to within rounding of it.
-    (pole >= 1.0 - 1e-9).then(|| {
+    is_unstable(pole).then(|| {
         format!(
             "a pole of modulus {pole:.4} is on or outside the unit circle: the identified model is \
              unstable, and its free run drifts or grows without bound (least squares on one \
