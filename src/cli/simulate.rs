@@ -9,7 +9,7 @@ use serde::Serialize;
 use mckibben::data::Trace;
 use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::data::signals::{Stair, nyquist_rad_s, samples_in};
-use mckibben::data::units::{megapascals_in, unit_of};
+use mckibben::data::units::{megapascals_in, millimetres_in, unit_of};
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::check_f32_range;
 use mckibben::model::experiment::halves;
@@ -608,6 +608,62 @@ fn in_model_units(trace: &mut Trace, column: &str, say: bool) -> anyhow::Result<
     Ok(())
 }
 
+/// A file's input and measured output in the model's units where the file's
+/// column names state others of the same kind (a pressure in psi for a
+/// model in MPa, a stroke in m for one in mm): converted, renamed to the
+/// model's columns, and each said in a note. Other units, and a column the
+/// model's name is taken by already, are left for [`Model::check_data`] to
+/// refuse.
+fn file_in_model_units(
+    trace: &mut Trace,
+    input: &str,
+    output: &str,
+    measured: bool,
+) -> Vec<String> {
+    let taken = |trace: &Trace, name: &str| trace.extra.iter().any(|(n, _)| n == name);
+    let mut notes = Vec::new();
+    let mut convert =
+        |values: &mut Vec<f64>, name: &mut String, model: &str, size: fn(&str) -> Option<f64>| {
+            let (Some(from), Some(to)) = (unit_of(name), unit_of(model)) else {
+                return;
+            };
+            let (Some(per_from), Some(per_to)) = (size(&from), size(&to)) else {
+                return;
+            };
+            if from == to {
+                return;
+            }
+            let factor = per_from / per_to;
+            for v in values.iter_mut() {
+                *v *= factor;
+            }
+            notes.push(format!(
+                "{}: `{name}` is converted from {from} to {to}, the unit of the model's `{model}` \
+             (×{}); the run, its scores and the file written are in {to}",
+                trace.source,
+                mckibben::data::readable(factor)
+            ));
+            *name = model.to_string();
+        };
+    if !taken(trace, input) {
+        convert(
+            &mut trace.input,
+            &mut trace.input_name,
+            input,
+            megapascals_in,
+        );
+    }
+    if measured && !taken(trace, output) {
+        convert(
+            &mut trace.output,
+            &mut trace.output_name,
+            output,
+            millimetres_in,
+        );
+    }
+    notes
+}
+
 /// The input trace and, for a file, its first measured output.
 fn input_trace(
     args: &Args,
@@ -770,6 +826,12 @@ fn input_trace(
                         trace.output_name
                     );
                 }
+            }
+            let (input, output) = saved.map_or(("pressure", "displacement"), |f| {
+                (f.data.input.column.as_str(), f.data.output.column.as_str())
+            });
+            for note in file_in_model_units(&mut trace, input, output, measured) {
+                errln!("mckibben: note: {note}");
             }
             match saved {
                 Some(saved) => saved.model()?.check_data(&trace)?,

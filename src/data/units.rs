@@ -206,7 +206,7 @@ pub fn names_a_time(column: &str) -> bool {
 
 /// How many millimetres one of `unit` (as [`unit_of`] spells it) is, for
 /// the lengths a muscle's stroke is written in; `None` for any other unit.
-fn millimetres_in(unit: &str) -> Option<f64> {
+pub fn millimetres_in(unit: &str) -> Option<f64> {
     match unit {
         "mm" => Some(1.0),
         "cm" => Some(10.0),
