@@ -138,6 +138,7 @@ class FitResult:
     linear_val_fit_percent: float | None
     linear_largest_pole: float | None
     records: list[dict[str, Any]]
+    columns: dict[str, Any] | None
     notes: list[dict[str, str]]
     stable_step: float | None
     largest_step: float | None

@@ -58,6 +58,10 @@ crate::state::with_state! {
         /// The largest pole modulus of those ARX models: at 1 or past it the
         /// yardstick drifts or grows and scores nothing a fit need clear.
         linear_largest_pole: Option<f64>,
+        /// The records' input and output columns and their units, a dict
+        /// (`input` and `output`, each `column` and `unit`; `fit --json`'s
+        /// `columns`): what `sse`, `val_rmse` and the parameters are in.
+        columns: Py<PyAny>,
         /// What `fit` prints on stderr and `fit --json` holds as `notes`, one
         /// dict each (`level`, `note` or `warning`, and `text`), in order: the
         /// notes before the run, the box's, tries that agree too little,
@@ -572,6 +576,7 @@ fn fit_result(
         linear_val_fit_percent: report.linear_val_fit_percent,
         linear_largest_pole: report.linear_largest_pole,
         records: unbound(py, &report.records)?,
+        columns: unbound(py, &report.columns)?,
         notes: unbound(py, &report.notes)?,
         stable_step: report.stable_step,
         largest_step: report.largest_step,

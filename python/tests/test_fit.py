@@ -36,6 +36,8 @@ def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli, tmp_path):
     assert result.val_fit_percent == expected["val_fit_percent"]
     assert result.linear_val_fit_percent == expected["linear_val_fit_percent"]
     assert result.linear_largest_pole == expected["linear_largest_pole"]
+    assert result.columns == expected["columns"]
+    assert result.columns["output"] == {"column": "displacement", "unit": "mm"}
     assert (result.stable_step, result.largest_step) == (expected["stable_step"], expected["largest_step"])
     assert result.stable_step > result.largest_step > 0
     assert result.model.stable_step == result.stable_step

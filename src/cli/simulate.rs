@@ -6,10 +6,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, bail};
 use serde::Serialize;
 
-use mckibben::data::Trace;
 use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::data::signals::{Stair, nyquist_rad_s, samples_in};
 use mckibben::data::units::{megapascals_in, millimetres_in, unit_of};
+use mckibben::data::{Columns, Trace};
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::check_f32_range;
 use mckibben::model::experiment::halves;
@@ -154,6 +154,9 @@ struct Summary {
     input: String,
     samples: usize,
     dt: f64,
+    /// The model's input and output columns and their units: what the
+    /// output range is in, and the run and the file written.
+    columns: Columns,
     diverged_at: Option<usize>,
     /// The largest output step a sample within which the model's
     /// hysteresis update settles (`Family::stable_step`), and the first
@@ -346,6 +349,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         samples,
         dt: sample_time,
+        columns: Columns::of(&model.base.input_name, &model.base.output_name),
         diverged_at: run.diverged_at,
         stable_step: match model.effects().is_empty() {
             true => family.stable_step(&model.base.params),

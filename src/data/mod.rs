@@ -59,7 +59,42 @@ pub fn range(v: &[f64]) -> f64 {
     if hi >= lo { hi - lo } else { 0.0 }
 }
 
+/// A column a figure in data units is in: its name and the unit the name
+/// states ([`units::unit_of`]; `null` where it states none), so that a
+/// script reading an RMSE knows it is in mm, or in psi.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NamedColumn {
+    pub column: String,
+    pub unit: Option<String>,
+}
+
+/// A record's input and output columns, as JSON outputs name them.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Columns {
+    pub input: NamedColumn,
+    pub output: NamedColumn,
+}
+
+impl Columns {
+    /// The columns `input` and `output`, each with the unit its name states.
+    pub fn of(input: &str, output: &str) -> Columns {
+        let named = |column: &str| NamedColumn {
+            column: column.to_string(),
+            unit: units::unit_of(column),
+        };
+        Columns {
+            input: named(input),
+            output: named(output),
+        }
+    }
+}
+
 impl Trace {
+    /// Its input and output columns, with their units.
+    pub fn columns(&self) -> Columns {
+        Columns::of(&self.input_name, &self.output_name)
+    }
+
     /// A trace on the uniform time base `t(k) = k·dt`.
     pub fn uniform(source: impl Into<String>, dt: f64, input: Vec<f64>, output: Vec<f64>) -> Self {
         assert_eq!(input.len(), output.len(), "input and output lengths differ");

@@ -223,6 +223,7 @@ pub fn selected_fit(
             origin: Vec::new(),
         },
         data: trace.source.clone(),
+        columns: Some(trace.columns()),
         records: vec![RecordScore {
             data: trace.source.clone(),
             samples: trace.len(),

@@ -15,7 +15,7 @@ use super::objective::{
 use super::problem::FitProblem;
 use super::run::{Built, FitRun, StartScores, Switched};
 use super::uncertainty::{Assessment, assess};
-use crate::data::{Trace, sources, write_all_atomic};
+use crate::data::{Columns, Trace, sources, write_all_atomic};
 use crate::ident::arx::is_unstable;
 use crate::ident::fit::{SETTLED_POINTS, constant_validation_warning, fit_percent_text};
 use crate::model::Family;
@@ -121,6 +121,9 @@ pub struct FitReport {
     pub search_box: SearchBox,
     /// The data files, `, `-separated where several.
     pub data: String,
+    /// The records' input and output columns and their units: what `sse`,
+    /// `val_rmse` and the parameters are in (`None` without records).
+    pub columns: Option<Columns>,
     /// Each record's validation scores on its own second half, in the
     /// order read (one record: the figures above again).
     pub records: Vec<RecordScore>,
@@ -324,6 +327,7 @@ impl FitReport {
             widened: widened.to_vec(),
             search_box: SearchBox::of(&problem.space),
             data: sources(traces),
+            columns: traces.first().map(Trace::columns),
             // A fit that found no model has no runs: its records score none.
             records: traces
                 .iter()
