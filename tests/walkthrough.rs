@@ -74,27 +74,48 @@ fn steps(guide: &str) -> Vec<Step> {
     steps
 }
 
-/// Every line of the shown output must be in the real one (whitespace at
-/// either end ignored), except a line `…` (rows left out); a line ending in
-/// `…` must begin a real line.
-fn check_shown(step: &Step, real: &str) {
-    let Some(shown) = &step.shown else { return };
+/// Every line of the shown output must be in the real one, in the order
+/// printed (whitespace at either end ignored), and the lines between two
+/// shown ones must be the real lines between them unless a line `…` stands
+/// there (rows left out); a line ending in `…` must begin a real line.
+/// What differs, or `None`.
+fn shown_differs(step: &Step, real: &str) -> Option<String> {
+    let shown = step.shown.as_ref()?;
     let real: Vec<&str> = real.lines().map(str::trim).collect();
+    let matches = |shown: &str, real: &str| match shown.strip_suffix('…') {
+        Some(prefix) => real.starts_with(prefix.trim_end()),
+        None => real == shown,
+    };
+    // The real line after the last one matched, and whether a `…` came since.
+    let (mut next, mut skipping, mut first) = (0, false, true);
     for l in shown.lines().map(str::trim) {
-        if l == "…" || l.is_empty() {
+        if l == "…" {
+            skipping = true;
             continue;
         }
-        let found = match l.strip_suffix('…') {
-            Some(prefix) => real.iter().any(|r| r.starts_with(prefix.trim_end())),
-            None => real.contains(&l),
+        if l.is_empty() {
+            continue;
+        }
+        let Some(found) = real[next..].iter().position(|r| matches(l, r)) else {
+            return Some(format!(
+                "docs/GUIDE.md line {}: the output shown has\n  {l}\nwhich the command did not \
+                 print after the lines shown before it; it printed\n{}",
+                step.line,
+                real.join("\n")
+            ));
         };
-        assert!(
-            found,
-            "docs/GUIDE.md line {}: the output shown has\n  {l}\nbut the command printed\n{}",
-            step.line,
-            real.join("\n")
-        );
+        let at = next + found;
+        if !(first || skipping || at == next) {
+            return Some(format!(
+                "docs/GUIDE.md line {}: the output shown leaves out\n  {}\nbefore\n  {l}\n\
+                 without a `…` line",
+                step.line,
+                real[next..at].join("\n  ")
+            ));
+        }
+        (next, skipping, first) = (at + 1, false, false);
     }
+    None
 }
 
 /// The files a block writes: the word after `>`, `--out`, `--plot` or
@@ -166,18 +187,16 @@ fn run(step: &Step, root: &Path) -> String {
         std::env::var("PATH").unwrap_or_default()
     );
     let started = Instant::now();
+    // One stream, as a terminal shows it: notes on stderr between the
+    // lines of stdout, in the order printed.
     let out = Command::new("sh")
         .arg("-c")
-        .arg(&step.script)
+        .arg(format!("{{\n{}\n}} 2>&1", step.script))
         .current_dir(root)
         .env("PATH", path)
         .output()
         .expect("sh runs");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
     eprintln!(
         "docs/GUIDE.md line {}: {:.1} s: {}",
         step.line,
@@ -210,9 +229,11 @@ fn the_guide_runs_as_written() {
 
     // What the guide must keep covering, counted as the blocks run.
     let mut seen: Vec<&str> = Vec::new();
+    // Every block's output differences, reported together at the end.
+    let mut differs = Vec::new();
     for step in &steps {
         let out = run(step, root);
-        check_shown(step, &out);
+        differs.extend(shown_differs(step, &out));
         if !step.fails {
             for file in written(&step.script) {
                 assert!(
@@ -360,6 +381,7 @@ fn the_guide_runs_as_written() {
     }
     let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
     assert!(readme.contains("docs/GUIDE.md"));
+    assert!(differs.is_empty(), "{}", differs.join("\n\n"));
     eprintln!("the guide ran in {:.1} s", started.elapsed().as_secs_f64());
 }
 
