@@ -783,3 +783,43 @@ fn steps_and_sine_runs_keep_their_own_files() {
     assert!(plot.join("control_pi_4.5kg_3rad.svg").exists());
     assert!(plot.join("control_pi_4.5kg_3rad_steps.svg").exists());
 }
+
+/// A loop that tracks worse than a muscle held still at the reference's
+/// mean is warned of, short of diverging (an MPC that weighs valve moves a
+/// billion times barely moves); a loop that tracks is not. A horizon past
+/// what a step can solve in time is refused.
+#[test]
+fn a_loop_worse_than_holding_still_is_warned_of() {
+    let out = control(&[
+        "--controller",
+        "pi,mpc",
+        "--load",
+        "4.5",
+        "--r-move",
+        "1e9",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    let runs = runs(&out);
+    let rms = |r: &Value, key: &str| r[key].as_f64().unwrap();
+    let (pi, mpc) = (&runs[0], &runs[1]);
+    assert!(rms(pi, "rms_error_mm") < rms(pi, "holding_rms_mm"), "{pi}");
+    assert!(
+        rms(mpc, "rms_error_mm") > rms(mpc, "holding_rms_mm"),
+        "{mpc}"
+    );
+    assert_eq!(mpc["diverged"], false, "{mpc}");
+    assert!(
+        err.contains("warning: mpc at 3 rad/s, 4.5 kg: its RMS error")
+            && err.contains("the loop tracks worse than doing nothing"),
+        "{err}"
+    );
+    assert!(!err.contains("warning: pi at"), "{err}");
+    let out = control(&["--controller", "mpc", "--horizon", "501"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("--horizon 501: the MPC's horizon must be 2 to 500 samples"),
+        "{err}"
+    );
+}

@@ -59,6 +59,9 @@ const TUNING_GENS: usize = 30;
 ///   mckibben control --controller pi,pi-tuned,ff-pid,mpc --tuned-gains 2.2164,65.528,0.0219 --robustness --json
 ///   mckibben control --controller mpc --freq 3 --plant "cmd:mckibben twin serve --load 4.5" --log logs/
 ///   mckibben control --controller pi --plant udp:192.168.1.20:9000 --deadline 20 --design-data rig_multisine.csv
+/// The longest MPC horizon `--horizon` takes (samples).
+const MAX_HORIZON: usize = 500;
+
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {
@@ -116,7 +119,9 @@ pub struct Args {
     /// Generations of the gain tuning.
     #[arg(long, default_value_t = TUNING_GENS, value_parser = crate::cli::common::generations)]
     gens: usize,
-    /// MPC horizon (samples).
+    /// MPC horizon (samples), 2 to 500. Its QP is dense: its time a step
+    /// grows with the horizon's square (200 samples took 0.13 s a step,
+    /// past the 10 ms sample time; the command warns of late steps).
     #[arg(long, default_value_t = MpcSettings::default().horizon)]
     horizon: usize,
     /// MPC weight on valve moves (per V²) against tracking error (per mm²).
@@ -318,7 +323,13 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
             "--hysteresis-scale: {s} must be positive"
         );
     }
-    anyhow::ensure!(args.horizon >= 2, "--horizon must be at least 2 samples");
+    anyhow::ensure!(
+        (2..=MAX_HORIZON).contains(&args.horizon),
+        "--horizon {}: the MPC's horizon must be 2 to {MAX_HORIZON} samples (its QP is dense, \
+         its time a step grows with the horizon's square: past a few hundred samples one \
+         step takes seconds)",
+        args.horizon
+    );
     anyhow::ensure!(
         args.r_move > 0.0 && args.r_move.is_finite(),
         "--r-move {}: the weight on valve moves must be a positive, finite number",
@@ -669,6 +680,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             r.load_kg.map_or(String::new(), |m| format!(", {m} kg")),
             r.solver_failures
         );
+    }
+    for r in &rows {
+        let run = format!(
+            "{} at {} rad/s{}",
+            sweep::scaled_label(&r.controller, r.hysteresis_scale),
+            r.freq_rad_s,
+            r.load_kg.map_or(String::new(), |m| format!(", {m} kg"))
+        );
+        if r.overrun_steps > 0 {
+            errln!(
+                "mckibben: warning: {run}: {} of its steps took longer than the sample time \
+                 (longest {:.1} ms): on a real-time rig those commands come late and the \
+                 measurements queue behind them (shorten the MPC's --horizon, or run a lighter \
+                 controller)",
+                r.overrun_steps,
+                r.max_step_cpu_us.max(r.max_step_time_us) / 1e3
+            );
+        }
+        if !r.diverged && r.rms_error_mm > r.holding_rms_mm {
+            errln!(
+                "mckibben: warning: {run}: its RMS error {:.3} mm is above the {:.3} mm of a \
+                 muscle held still at the reference's mean: the loop tracks worse than doing \
+                 nothing",
+                r.rms_error_mm,
+                r.holding_rms_mm
+            );
+        }
     }
     // The results are printed before the files are written: a write that
     // fails loses none of them.

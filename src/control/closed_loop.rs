@@ -143,6 +143,24 @@ pub fn run_episode(
     record.finish(episode)
 }
 
+/// The steps whose time exceeded the sample time of the clock `t`: their
+/// CPU time, or their wall time where the platform has no thread clock
+/// (NaN), so that a loaded machine's waits for a core do not count.
+fn overruns(t: &[f64], cpu_us: &[f64], wall_us: &[f64]) -> usize {
+    let (Some(first), Some(last)) = (t.first(), t.last()) else {
+        return 0;
+    };
+    if t.len() < 2 {
+        return 0;
+    }
+    let dt_us = (last - first) / (t.len() - 1) as f64 * 1e6;
+    cpu_us
+        .iter()
+        .zip(wall_us)
+        .filter(|(cpu, wall)| if cpu.is_nan() { **wall } else { **cpu } > dt_us)
+        .count()
+}
+
 /// Collects an episode sample by sample (in-process or over a link).
 #[derive(Debug, Clone)]
 pub struct Recorder {
@@ -225,7 +243,25 @@ impl Recorder {
         m.max_step_time_us = o.step_wall_us.iter().fold(0.0, |a, &b| a.max(b));
         m.mean_step_time_us = o.step_wall_us.iter().sum::<f64>() / steps;
         m.max_step_cpu_us = o.step_cpu_us.iter().fold(0.0, |a, &b| a.max(b));
+        m.overrun_steps = overruns(&o.t, &o.step_cpu_us, &o.step_wall_us);
         o.metrics = m;
         self.out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A step counts as late by its CPU time where there is one (a wait
+    /// for a core on a loaded machine is not the controller's), by its
+    /// wall time where the thread clock is missing.
+    #[test]
+    fn a_step_past_the_sample_time_is_an_overrun() {
+        let t = [0.0, 0.01, 0.02, 0.03];
+        let cpu = [2e3, 12e3, f64::NAN, 9e3];
+        let wall = [30e3, 12e3, 11e3, 9e3];
+        assert_eq!(overruns(&t, &cpu, &wall), 2);
+        assert_eq!(overruns(&t[..1], &cpu[..1], &wall[..1]), 0);
     }
 }

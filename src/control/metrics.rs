@@ -26,6 +26,15 @@ pub struct Metrics {
     pub max_step_cpu_us: f64,
     /// Mean time of one controller step (µs), wall clock.
     pub mean_step_time_us: f64,
+    /// Steps whose CPU time (the wall clock's where there is no thread
+    /// clock) exceeded the sample time: on a real-time rig each such
+    /// command comes late, and the measurements queue behind it, each one
+    /// older than the loop takes it to be.
+    pub overrun_steps: usize,
+    /// RMS of `r − mean(r)` over the steady-state part (mm): the error of a
+    /// muscle held still at the reference's mean. A loop that scores above
+    /// it tracks worse than doing nothing.
+    pub holding_rms_mm: f64,
     /// A measurement became non-finite, or the steady-state error exceeded
     /// [`DIVERGENCE_FACTOR`] times the reference amplitude.
     pub diverged: bool,
@@ -36,6 +45,12 @@ pub struct Metrics {
 pub const DIVERGENCE_FACTOR: f64 = 3.0;
 
 impl Metrics {
+    /// Whether the loop tracked worse than a muscle held still at the
+    /// reference's mean ([`Metrics::holding_rms_mm`]), short of diverging.
+    pub fn worse_than_holding(&self) -> bool {
+        !self.diverged && self.rms_error_mm > self.holding_rms_mm
+    }
+
     /// Measures the samples with `t ≥ steady_from` (no samples: NaN errors).
     pub fn of(
         t: &[f64],
@@ -55,6 +70,10 @@ impl Metrics {
             .collect();
         let n = err.len() as f64;
         let rms = (err.iter().map(|e| e * e).sum::<f64>() / n).sqrt();
+        let steady = &reference[first..];
+        let mean_r = steady.iter().sum::<f64>() / steady.len() as f64;
+        let holding =
+            (steady.iter().map(|r| (r - mean_r).powi(2)).sum::<f64>() / steady.len() as f64).sqrt();
         let max = err.iter().fold(f64::NAN, |m, e| m.max(e.abs()));
         let us = &u[first..];
         let n_u = us.len() as f64;
@@ -75,6 +94,8 @@ impl Metrics {
             max_step_time_us: 0.0,
             mean_step_time_us: 0.0,
             max_step_cpu_us: 0.0,
+            overrun_steps: 0,
+            holding_rms_mm: holding,
             // NaN (no steady samples, or a non-finite error) counts as diverged.
             diverged: max.is_nan() || max > DIVERGENCE_FACTOR * amplitude,
         }
@@ -97,6 +118,9 @@ mod tests {
         let u: Vec<f64> = (0..100).map(|k| (k % 2) as f64).collect();
         let m = Metrics::of(&t, &r, &y, &u, 5.0, 10.0);
         assert!((m.rms_error_mm - 1.0).abs() < 1e-12);
+        // A constant reference: holding it scores 0, and any error is worse.
+        assert_eq!(m.holding_rms_mm, 0.0);
+        assert!(m.worse_than_holding());
         assert_eq!(m.max_error_mm, 1.0);
         assert!((m.effort_rms_v - 0.5).abs() < 1e-12);
         assert!(!m.diverged);
@@ -104,5 +128,30 @@ mod tests {
         // sine (more than three amplitudes) does.
         assert!(!Metrics::of(&t, &r, &y, &u, 5.0, 1.0).diverged);
         assert!(Metrics::of(&t, &r, &y, &u, 5.0, 0.3).diverged);
+    }
+
+    /// Holding still at the mean of a sine scores its amplitude over √2: a
+    /// loop at that error is no better than holding, one below it is.
+    #[test]
+    fn holding_at_the_mean_is_the_yardstick() {
+        let t: Vec<f64> = (0..1000).map(|k| k as f64 * 0.01).collect();
+        let r: Vec<f64> = t.iter().map(|&t| 30.0 + 10.0 * (2.0 * t).sin()).collect();
+        let u = vec![0.0; 1000];
+        let mean = r.iter().sum::<f64>() / 1000.0;
+        let held = Metrics::of(&t, &r, &vec![mean; 1000], &u, 0.0, 10.0);
+        // 3.2 periods: near the amplitude over √2, not on it.
+        assert!(
+            (held.holding_rms_mm - 10.0 / 2f64.sqrt()).abs() < 0.1,
+            "{held:?}"
+        );
+        assert!((held.rms_error_mm - held.holding_rms_mm).abs() < 1e-12);
+        assert!(!held.worse_than_holding());
+        let lagging: Vec<f64> = t
+            .iter()
+            .map(|&t| 30.0 + 10.0 * (2.0 * t - 1.7).sin())
+            .collect();
+        assert!(Metrics::of(&t, &r, &lagging, &u, 0.0, 10.0).worse_than_holding());
+        let close: Vec<f64> = r.iter().map(|r| r + 0.1).collect();
+        assert!(!Metrics::of(&t, &r, &close, &u, 0.0, 10.0).worse_than_holding());
     }
 }

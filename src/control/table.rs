@@ -40,6 +40,13 @@ pub struct Row {
     pub max_step_time_us: f64,
     pub max_step_cpu_us: f64,
     pub mean_step_time_us: f64,
+    /// Steps whose time exceeded the sample time ([`Metrics::overrun_steps`]).
+    ///
+    /// [`Metrics::overrun_steps`]: super::metrics::Metrics::overrun_steps
+    pub overrun_steps: usize,
+    /// The error of a muscle held still at the reference's mean over the
+    /// same samples: a run above it tracks worse than doing nothing.
+    pub holding_rms_mm: f64,
     pub diverged: bool,
     pub solver_failures: usize,
     pub capped_solves: usize,
@@ -67,6 +74,8 @@ impl Row {
             max_step_time_us: m.max_step_time_us,
             max_step_cpu_us: m.max_step_cpu_us,
             mean_step_time_us: m.mean_step_time_us,
+            overrun_steps: m.overrun_steps,
+            holding_rms_mm: m.holding_rms_mm,
             diverged: m.diverged,
             solver_failures: s.solver_failures,
             capped_solves: s.capped_solves,
