@@ -618,7 +618,9 @@ fn what_would_fail_after_the_runs_fails_before_them() {
         "{err}"
     );
     // A model whose free run diverges (a pole of 1.5 in a classic model of
-    // the stair) steered the MPC without a word: refused before any run.
+    // the stair) steered the MPC without a word: refused before any run, by
+    // its pole (one of 1.2, whose prediction stays finite over the horizon,
+    // too: `a_model_the_controllers_cannot_use_is_refused_or_named`).
     let stair = Command::new(BIN)
         .args([
             "fit",
@@ -640,10 +642,7 @@ fn what_would_fail_after_the_runs_fails_before_them() {
     let out = control(&["--controller", "mpc", "--from", file.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(
-        err.contains("diverges") && err.contains("it cannot steer the controllers"),
-        "{err}"
-    );
+    assert!(err.contains("the model's pole a = 1.5"), "{err}");
     assert!(!err.contains("[1/"), "no run started: {err}");
 }
 
@@ -822,4 +821,77 @@ fn a_loop_worse_than_holding_still_is_warned_of() {
         err.contains("--horizon 501: the MPC's horizon must be 2 to 500 samples"),
         "{err}"
     );
+}
+
+/// A model file whose pole grows is refused as a design record's is; one
+/// whose inverse asks for more than the valve gives (A = 0 pins the
+/// feedforward at 10 V) leaves `ff-pid` a PID alone, and the command says
+/// so where the row would pass for the feedforward's.
+#[test]
+fn a_model_the_controllers_cannot_use_is_refused_or_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = dir.path().join("fit");
+    let fitted = Command::new(BIN)
+        .current_dir(ROOT)
+        .args([
+            "fit",
+            "data/stair_4.5kg.csv",
+            "--pop",
+            "40",
+            "--gens",
+            "5",
+            "--out",
+        ])
+        .arg(&fit)
+        .output()
+        .unwrap();
+    assert!(
+        fitted.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fitted.stderr)
+    );
+    let text = std::fs::read_to_string(fit.join("model.json")).unwrap();
+    let edited = |name: &str, value: f64| {
+        let mut file: Value = serde_json::from_str(&text).unwrap();
+        file["params"][name] = serde_json::json!(value);
+        let path = dir.path().join(format!("{name}.json"));
+        std::fs::write(&path, file.to_string()).unwrap();
+        path.to_str().unwrap().to_string()
+    };
+    let out = control(&["--controller", "mpc", "--from", &edited("a", 1.2)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("the model's pole a = 1.2"), "{err}");
+    let gains = [
+        "--tuned-gains",
+        "2.2164,65.528,0.0219",
+        "--load",
+        "4.5",
+        "--json",
+    ];
+    let out = control(
+        &[
+            &["--controller", "ff-pid", "--from", &edited("A", 0.0)][..],
+            &gains,
+        ]
+        .concat(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    let pinned = runs(&out);
+    assert_eq!(pinned[0]["feedforward_at_limit"], 600, "{}", pinned[0]);
+    assert!(
+        err.contains("the feedforward was at the valve's range on 600 of 600 samples"),
+        "{err}"
+    );
+    let from = fit.join("model.json");
+    let out = control(
+        &[
+            &["--controller", "ff-pid", "--from", from.to_str().unwrap()][..],
+            &gains,
+        ]
+        .concat(),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(runs(&out)[0]["feedforward_at_limit"].as_u64().unwrap() < 60);
+    assert!(!err.contains("feedforward was at"), "{err}");
 }

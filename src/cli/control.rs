@@ -681,7 +681,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             r.solver_failures
         );
     }
-    for r in &rows {
+    for (r, episode) in rows.iter().zip(&runs) {
         let run = format!(
             "{} at {} rad/s{}",
             sweep::scaled_label(&r.controller, r.hysteresis_scale),
@@ -696,6 +696,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                  controller)",
                 r.overrun_steps,
                 r.max_step_cpu_us.max(r.max_step_time_us) / 1e3
+            );
+        }
+        // A feedforward pinned at the valve's range most of the run is no
+        // feedforward: the PID's integrator takes it up, and the row is the
+        // PID's alone (a model whose inverse asks for more than the valve
+        // gives).
+        let samples = episode.result.t.len();
+        if 2 * r.feedforward_at_limit > samples {
+            errln!(
+                "mckibben: warning: {run}: the feedforward was at the valve's range on {} of \
+                 {samples} samples: the model's inverse asks for more than the valve gives, and \
+                 the row measures the PID alone",
+                r.feedforward_at_limit
             );
         }
         if !r.diverged && r.rms_error_mm > r.holding_rms_mm {

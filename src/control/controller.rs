@@ -23,15 +23,17 @@ pub trait Controller {
     /// force) was held over it; a controller with a model moves its
     /// estimate on. The default does nothing.
     fn missed(&mut self, _held: f64) {}
-    /// The solver's counters over the episode, for controllers with one.
-    fn stats(&self) -> Option<MpcStats> {
+    /// The solver's or the feedforward's counters over the episode, for
+    /// controllers with one.
+    fn stats(&self) -> Option<ControllerStats> {
         None
     }
 }
 
-/// Counters of the solver over an episode.
+/// Counters of a controller's solver (the MPC's QP) or its feedforward
+/// (`ff-pid`'s inverse model) over an episode.
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
-pub struct MpcStats {
+pub struct ControllerStats {
     /// Samples whose QP could not be set up (non-finite prediction); the
     /// command in force was held.
     pub solver_failures: usize,
@@ -39,4 +41,8 @@ pub struct MpcStats {
     pub capped_solves: usize,
     /// Largest number of active-set iterations of one QP.
     pub max_qp_iterations: usize,
+    /// Samples whose feedforward (`ff-pid`) was at the valve's range or
+    /// not finite: there the inverse model gives nothing, and the PID
+    /// alone tracks.
+    pub feedforward_at_limit: usize,
 }

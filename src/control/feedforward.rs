@@ -11,7 +11,7 @@
 //! — then through the inverse of the valve model to a voltage. A PID on the
 //! tracking error adds what the inverse misses.
 
-use super::controller::Controller;
+use super::controller::{Controller, ControllerStats};
 use super::model::{ControlModel, Predictor, State};
 use super::pi::Pi;
 use super::plant::Measurement;
@@ -168,6 +168,8 @@ pub struct FeedforwardPid {
     inverse: InverseModel,
     label: String,
     started: bool,
+    /// Samples whose feedforward was at the valve's range or not finite.
+    at_limit: usize,
 }
 
 impl FeedforwardPid {
@@ -177,6 +179,7 @@ impl FeedforwardPid {
             inverse: InverseModel::new(model)?,
             label: label.into(),
             started: false,
+            at_limit: 0,
         })
     }
 }
@@ -190,6 +193,7 @@ impl Controller for FeedforwardPid {
         self.pid.reset(u0);
         self.inverse.reset();
         self.started = false;
+        self.at_limit = 0;
     }
 
     fn command(&mut self, m: Measurement, reference: &[f64]) -> f64 {
@@ -198,6 +202,10 @@ impl Controller for FeedforwardPid {
                 .start(m.pressure_mpa, m.displacement_mm, reference[0]);
         }
         let ff = self.inverse.voltage(reference);
+        let limits = &self.pid.limits;
+        if !(ff > limits.min_v && ff < limits.max_v) {
+            self.at_limit += 1;
+        }
         if !self.started {
             // Bumpless: the integrator gives way to the feedforward.
             self.pid.shift_integral(-ff);
@@ -205,5 +213,12 @@ impl Controller for FeedforwardPid {
         }
         self.pid
             .command_with(m, self.inverse.clip(reference[0]), ff)
+    }
+
+    fn stats(&self) -> Option<ControllerStats> {
+        Some(ControllerStats {
+            feedforward_at_limit: self.at_limit,
+            ..ControllerStats::default()
+        })
     }
 }

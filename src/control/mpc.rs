@@ -22,7 +22,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::chain::MAX_EFFECT_STATES;
-use super::controller::{Controller, MpcStats};
+use super::controller::{Controller, ControllerStats};
 use super::limits::ValveLimits;
 use super::model::{ControlModel, Predictor, State};
 use super::observer::{Observer, ObserverGains};
@@ -72,7 +72,7 @@ pub struct Mpc {
     prev_u: f64,
     /// The plan of the last sample (valve voltages, first one applied).
     plan: Vec<f64>,
-    pub stats: MpcStats,
+    pub stats: ControllerStats,
     // Buffers reused every sample.
     states: Vec<State>,
     /// `gx[j·n + i] = ∂y(j)/∂V(i)`, j = 0..=N+1, `y` the predicted output
@@ -107,7 +107,7 @@ impl Mpc {
             label: label.into(),
             prev_u: 0.0,
             plan: Vec::new(),
-            stats: MpcStats::default(),
+            stats: ControllerStats::default(),
             states: Vec::new(),
             gx: Vec::new(),
             hessian: Vec::new(),
@@ -259,7 +259,7 @@ impl Controller for Mpc {
         self.plan.clear();
         self.observer.reset();
         self.qp.clear();
-        self.stats = MpcStats::default();
+        self.stats = ControllerStats::default();
     }
 
     fn command(&mut self, m: Measurement, reference: &[f64]) -> f64 {
@@ -307,7 +307,7 @@ impl Controller for Mpc {
         u
     }
 
-    fn stats(&self) -> Option<MpcStats> {
+    fn stats(&self) -> Option<ControllerStats> {
         Some(self.stats)
     }
 

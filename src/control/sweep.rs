@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::chain::{ControlChain, EffectUse};
 use super::closed_loop::{Episode, EpisodeResult, run_episode};
-use super::controller::{Controller, MpcStats};
+use super::controller::{Controller, ControllerStats};
 use super::design::{self, OPERATING_BAND_V, PredictionReport, VALVE_IN, scale_hysteresis};
 use super::feedforward::FeedforwardPid;
 use super::limits::ValveLimits;
@@ -368,6 +368,18 @@ pub fn design_for(
     let Some(GivenModel { path, model: m }) = &request.model else {
         return Ok(design);
     };
+    // As for a design record: a pole outside (0, 1) is a model whose free
+    // run flips sign every sample or grows, and the MPC's prediction and
+    // the feedforward's inverse on it are no muscle's.
+    let a = m.base.params[m.base.family.linear_indices()[0]];
+    anyhow::ensure!(
+        a > 0.0 && a < 1.0,
+        "--from {}: the model's pole a = {} (outside 0 to 1: its free run flips sign every \
+         sample or grows), and the controllers predict the muscle with it; refit it (`fit` \
+         keeps a inside), or fit a longer record where `identify` put its pole there",
+        path.display(),
+        crate::report::number::significant(a, 4)
+    );
     // Each effect enters the controllers' prediction where it can, and
     // the run says how (or why not): a note here, and `design.effects`.
     let (chain, uses) = ControlChain::of(m);
@@ -584,7 +596,7 @@ impl Shape {
 pub struct Run {
     pub spec: RunSpec,
     pub result: EpisodeResult,
-    pub stats: Option<MpcStats>,
+    pub stats: Option<ControllerStats>,
 }
 
 /// Runs `spec` on a fresh in-process twin (sensor-noise seed `seed`).

@@ -51,6 +51,9 @@ pub struct Row {
     pub solver_failures: usize,
     pub capped_solves: usize,
     pub max_qp_iterations: usize,
+    /// Samples whose feedforward (`ff-pid`) was at the valve's range or not
+    /// finite (0 for the others).
+    pub feedforward_at_limit: usize,
 }
 
 impl Row {
@@ -80,6 +83,7 @@ impl Row {
             solver_failures: s.solver_failures,
             capped_solves: s.capped_solves,
             max_qp_iterations: s.max_qp_iterations,
+            feedforward_at_limit: s.feedforward_at_limit,
         }
     }
 }
