@@ -81,7 +81,10 @@ pub fn read_record(path: &Path) -> anyhow::Result<Record> {
             path.display(),
             available.join(", ")
         ),
-        other => other.into(),
+        // A published record has every sample.
+        other => other
+            .with_cell_hint("; the published records hold a number in every cell: is the file one of them, whole?")
+            .into(),
     })?;
     let trace = traces.pop().context("no samples")?;
     // The identification runs in f32 too (the evaluators' twin and shader):
@@ -245,6 +248,21 @@ mod tests {
         let err = read_record(&huge).unwrap_err().to_string();
         assert!(
             err.contains("column `y_m` of") && err.contains("overflow the f32 arithmetic"),
+            "{err}"
+        );
+        // A missed reading: `validate` has neither --resample nor
+        // --split-gaps, and its error names neither.
+        let missed = dir.path().join("missed.csv");
+        std::fs::write(
+            &missed,
+            format!("u_N,y_m\n{}", rows.replacen("7,", "NaN,", 1)),
+        )
+        .unwrap();
+        let err = read_record(&missed).unwrap_err().to_string();
+        assert!(
+            err.contains("missed.csv: line 9, column \"u_N\"")
+                && err.contains("the published records hold a number in every cell")
+                && !err.contains("--split-gaps"),
             "{err}"
         );
         let renamed = dir.path().join("renamed.csv");

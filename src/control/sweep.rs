@@ -303,11 +303,16 @@ pub fn design_for(
                         available.join(", ")
                     );
                 }
-                let e = e.with_time_hint(
-                    "the design record is one experiment: cut the file there",
-                    "the design record needs a uniform time step: resample it, or cut it at \
-                     its gaps, first",
-                );
+                let e = e
+                    .with_time_hint(
+                        "the design record is one experiment: cut the file there",
+                        "the design record needs a uniform time step: resample it, or cut it \
+                         at its gaps, first",
+                    )
+                    .with_cell_hint(
+                        "; the design record needs a number in every sample's cell: fill the \
+                         missed reading, or cut the file there",
+                    );
                 anyhow::anyhow!("--design-data: {e}")
             })?;
             let trace = traces

@@ -334,6 +334,20 @@ impl DataError {
     }
 }
 
+impl DataError {
+    /// The same error with `hint` as what the user can do about a sample's
+    /// cell that holds no finite number, for a caller that offers neither
+    /// `--resample` nor `--split-gaps` (the reader's own hints name them);
+    /// other errors are returned as they are.
+    pub fn with_cell_hint(mut self, cell: &'static str) -> Self {
+        match &mut self {
+            DataError::NotANumber { hint, .. } | DataError::NotFinite { hint, .. } => *hint = cell,
+            _ => {}
+        }
+        self
+    }
+}
+
 /// ": it runs back by D s" when `value` is below `previous`: a 1 s jump back
 /// in a 1 kHz file reads more clearly than two nearby times.
 fn runs_back(value: f64, previous: f64) -> String {
