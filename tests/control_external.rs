@@ -799,6 +799,13 @@ fn a_loop_worse_than_holding_still_is_warned_of() {
         "--json",
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
+    // What the runs were scored on and with, for a script to tell them by.
+    let settings = serde_json::from_slice::<Value>(&out.stdout).unwrap()["settings"].clone();
+    assert_eq!(
+        settings,
+        serde_json::json!({"reference": "sine", "warmup_s": 2.0, "duration_s": 4.0,
+            "steady_from_s": 2.0, "seed": 1, "horizon": 20, "r_move": 1e9})
+    );
     let runs = runs(&out);
     let rms = |r: &Value, key: &str| r[key].as_f64().unwrap();
     let (pi, mpc) = (&runs[0], &runs[1]);
@@ -819,6 +826,14 @@ fn a_loop_worse_than_holding_still_is_warned_of() {
     assert!(!out.status.success(), "{err}");
     assert!(
         err.contains("--horizon 501: the MPC's horizon must be 2 to 500 samples"),
+        "{err}"
+    );
+    // A scale of 1 is the nominal run again, under the same label.
+    let out = control(&["--controller", "mpc", "--hysteresis-scale", "0.8,1"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("--hysteresis-scale: 1 is the nominal model"),
         "{err}"
     );
 }

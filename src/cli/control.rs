@@ -14,7 +14,7 @@ use mckibben::control::closed_loop::Episode;
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
 use mckibben::control::sweep::{self, DesignRequest, Ingredients, Kind, ROBUST_LOAD_SCALE, Shape};
-use mckibben::control::table::{self, DesignJson, JsonOutput};
+use mckibben::control::table::{self, DesignJson, JsonOutput, RunSettings};
 use mckibben::control::tuning::{self, TuningRun};
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
 use mckibben::data::signals::nyquist_rad_s;
@@ -321,6 +321,13 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
         anyhow::ensure!(
             s > 0.0 && s.is_finite(),
             "--hysteresis-scale: {s} must be positive"
+        );
+        // The nominal run is made anyway: a 1 would make it, and report
+        // it, twice under one label.
+        anyhow::ensure!(
+            s != 1.0,
+            "--hysteresis-scale: 1 is the nominal model, which runs anyway; give the other \
+             scales alone (e.g. 0.8,1.2)"
         );
     }
     anyhow::ensure!(
@@ -724,7 +731,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The results are printed before the files are written: a write that
     // fails loses none of them.
     if args.json {
+        let mpc_ran = kinds.contains(&Kind::Mpc);
         let out = JsonOutput {
+            settings: RunSettings::of(&shape, args.seed, mpc_ran.then_some(&ing.mpc)),
             design: design.as_ref().map(DesignJson::of),
             tuned: tuned.as_ref(),
             runs: &rows,

@@ -12,6 +12,7 @@ use super::chain::EffectUse;
 use super::design::PredictionReport;
 use super::figures;
 use super::model::ControlModel;
+use super::mpc::MpcSettings;
 use super::reference::Waveform;
 use super::sweep::{self, Design, Ingredients, Kind, Run, Shape};
 use super::tuning::TunedGains;
@@ -181,12 +182,50 @@ pub fn robustness(
 /// The `--json` document.
 #[derive(Debug, Serialize)]
 pub struct JsonOutput<'a> {
+    /// What every run was scored on and with.
+    pub settings: RunSettings,
     /// The identified model; null when no controller needs one.
     pub design: Option<DesignJson<'a>>,
     /// The PID gains of pi-tuned and ff-pid; null when neither runs.
     pub tuned: Option<&'a TunedGains>,
     pub runs: &'a [Row],
     pub robustness: &'a [RobustRow],
+}
+
+/// What every run of a `control` call was scored on and with: a script
+/// tells a sine's rows from a step's, and a short episode's from the
+/// thesis', by these.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct RunSettings {
+    /// The reference's waveform (`sine` or `steps`).
+    pub reference: Waveform,
+    /// Regulation at the bias before the reference starts (s).
+    pub warmup_s: f64,
+    /// The reference's length (s).
+    pub duration_s: f64,
+    /// Where the scored part starts, from the reference's start (s).
+    pub steady_from_s: f64,
+    /// The twin's sensor-noise seed and the tuning's.
+    pub seed: u64,
+    /// The MPC's horizon (samples) and weight on valve moves; `None` where
+    /// no MPC ran.
+    pub horizon: Option<usize>,
+    pub r_move: Option<f64>,
+}
+
+impl RunSettings {
+    /// The settings of runs of `shape`, with `mpc` where an MPC ran.
+    pub fn of(shape: &Shape, seed: u64, mpc: Option<&MpcSettings>) -> RunSettings {
+        RunSettings {
+            reference: shape.waveform,
+            warmup_s: shape.warmup_s,
+            duration_s: shape.duration_s,
+            steady_from_s: shape.steady_from_s,
+            seed,
+            horizon: mpc.map(|m| m.horizon),
+            r_move: mpc.map(|m| m.r_move),
+        }
+    }
 }
 
 /// A design without its figure curves, which only the plots need.
