@@ -308,7 +308,7 @@ fn ctrl_c_writes_the_best_so_far_and_exits_as_interrupted() {
 fn bad_flags_and_bad_data_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let csv = data(dir.path());
-    let cases: [(&[&str], &str); 30] = [
+    let cases: [(&[&str], &str); 32] = [
         (&["fit", "missing.csv"], "missing.csv"),
         // A population no machine holds: an error, not an aborted
         // allocation.
@@ -385,6 +385,15 @@ fn bad_flags_and_bad_data_are_clear_errors() {
         (
             &["diagnose", &csv, "--generations", "18446744073709551615"],
             "for '--generations <GENERATIONS>': at most 1000000000",
+        ),
+        // `fit`'s spellings are read where the flag is spelled out.
+        (
+            &["diagnose", &csv, "--gens", "0"],
+            "for '--generations <GENERATIONS>'",
+        ),
+        (
+            &["validate", "boucwen", "--pop", "1"],
+            "--population must be at least 4",
         ),
         // Past 500, a fit's seeds ran into its from-scratch seeds or the
         // next salt's: two fits drew the same numbers.

@@ -82,7 +82,7 @@ pub struct Args {
     /// 600 generations of 40 with 12 seeds. Every fit then ends with a
     /// Levenberg–Marquardt polish of its best point. Fewer is faster and
     /// less certain.
-    #[arg(long, default_value_t = Settings::default().generations, value_parser = crate::cli::common::generations)]
+    #[arg(long, visible_alias = "gens", default_value_t = Settings::default().generations, value_parser = crate::cli::common::generations)]
     generations: usize,
     /// Extra seeds of each first-round candidate fitted from scratch (the
     /// baseline's budget, through the multi-step-ahead prediction error

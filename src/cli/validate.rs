@@ -54,10 +54,10 @@ struct BoucwenArgs {
     #[arg(long, default_value_t = IdentifySettings::default().seed, value_parser = crate::cli::common::seed)]
     seed: u64,
     /// Population size of the search.
-    #[arg(long, default_value_t = IdentifySettings::default().population, value_parser = population)]
+    #[arg(long, visible_alias = "pop", default_value_t = IdentifySettings::default().population, value_parser = population)]
     population: usize,
     /// Generations of the search.
-    #[arg(long, default_value_t = IdentifySettings::default().generations, value_parser = crate::cli::common::generations)]
+    #[arg(long, visible_alias = "gens", default_value_t = IdentifySettings::default().generations, value_parser = crate::cli::common::generations)]
     generations: usize,
     /// Levenberg–Marquardt iterations of the refinement on the training
     /// record (0: report the population stage's best as it is).

@@ -344,7 +344,8 @@ pub enum TwinError {
     /// finite.
     #[error(
         "the twin's `{column}` is not finite from {t_s:.3} s on (sample {k}): `{command}` takes \
-         the rig outside what it models; use scales nearer 1 or another load"
+         the rig outside what it models; try another load (a very light one leaves the \
+         muscle slack), or --effect scales nearer 1"
     )]
     NotFinite {
         column: String,
