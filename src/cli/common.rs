@@ -247,11 +247,13 @@ pub fn check_folder(
     Ok(())
 }
 
-/// Checks that `dir` (named by `flag`) can be a folder before a run of
-/// minutes, so that a path that cannot fails at once, not after the run: it
-/// creates the folder, then removes again the folders it created, so that a
-/// run that fails or is interrupted leaves no empty folder behind. The
-/// command creates the folder for good when it writes there.
+/// Checks that `dir` (named by `flag`) can be a folder, and one a file can
+/// be written in, before a run of minutes, so that a path that cannot fails
+/// at once, not after the run (a read-only or immutable folder failed only
+/// when the results were written): it creates the folder and a file in it,
+/// then removes again the file and the folders it created, so that a run
+/// that fails or is interrupted leaves nothing behind. The command creates
+/// the folder for good when it writes there.
 pub fn check_creatable(flag: &str, dir: &Path) -> anyhow::Result<()> {
     use anyhow::Context as _;
     let missing: Vec<&Path> = dir
@@ -260,10 +262,20 @@ pub fn check_creatable(flag: &str, dir: &Path) -> anyhow::Result<()> {
         .collect();
     mckibben::data::create_dir_all(dir)
         .with_context(|| format!("cannot create {flag} {}", dir.display()))?;
+    let probe = dir.join(format!(".mckibben-probe-{}", std::process::id()));
+    let written = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe);
+    if written.is_ok() {
+        let _ = std::fs::remove_file(&probe);
+    }
     for folder in missing {
         let _ = std::fs::remove_dir(folder);
     }
-    Ok(())
+    written
+        .map(drop)
+        .with_context(|| format!("cannot write in {flag} {}", dir.display()))
 }
 
 /// Whether `a` and `b` name one file, existing or about to be written: the
@@ -696,5 +708,47 @@ mod tests {
             e.contains("no/such/stair.csv") && e.contains("data/README.md"),
             "{e}"
         );
+    }
+
+    /// A folder a file cannot be written in fails the check, before a run
+    /// (it failed once the fit was done), and the check leaves a folder it
+    /// made, and its probe, behind in none. Made unwritable by its mode,
+    /// or, for root, whom modes do not stop, by `chattr +i` where the file
+    /// system has it.
+    #[test]
+    fn an_output_folder_that_takes_no_file_fails_the_check() {
+        use std::os::unix::fs::PermissionsExt as _;
+        let dir = tempfile::tempdir().unwrap();
+        let fresh = dir.path().join("a/b");
+        check_creatable("--out", &fresh).unwrap();
+        assert!(!dir.path().join("a").exists());
+        let locked = dir.path().join("locked");
+        std::fs::create_dir(&locked).unwrap();
+        std::fs::set_permissions(&locked, std::fs::Permissions::from_mode(0o555)).unwrap();
+        let writable = std::fs::write(locked.join("x"), "").is_ok();
+        let immutable = writable
+            && std::fs::remove_file(locked.join("x")).is_ok()
+            && std::process::Command::new("chattr")
+                .arg("+i")
+                .arg(&locked)
+                .status()
+                .is_ok_and(|s| s.success());
+        if writable && !immutable {
+            eprintln!("no way to make a folder unwritable here (root, no chattr): not checked");
+            return;
+        }
+        let err = check_creatable("--out", &locked).unwrap_err();
+        assert!(
+            format!("{err:#}").contains("cannot write in --out"),
+            "{err:#}"
+        );
+        if immutable {
+            let _ = std::process::Command::new("chattr")
+                .arg("-i")
+                .arg(&locked)
+                .status();
+        }
+        std::fs::set_permissions(&locked, std::fs::Permissions::from_mode(0o755)).unwrap();
+        assert_eq!(std::fs::read_dir(&locked).unwrap().count(), 0);
     }
 }

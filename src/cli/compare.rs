@@ -123,8 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut reads: Vec<(&str, &Path)> = vec![("DATA", &data)];
     reads.extend(args.cross.iter().map(|p| ("--cross", p.as_path())));
     check_folder("--out", &args.out, &OUT_FILES.map(String::from), &reads)?;
-    mckibben::data::create_dir_all(&args.out)
-        .with_context(|| format!("cannot create --out {}", args.out.display()))?;
+    super::common::check_creatable("--out", &args.out)?;
     let mut evaluator = eval::open(args.backend)?;
     let backend = evaluator.describe();
     errln!("comparing on {} [{backend}]", trace.source);

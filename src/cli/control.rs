@@ -7,9 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use anyhow::Context as _;
-
-use super::common::{check_folder, given_once, population};
+use super::common::{check_creatable, check_folder, given_once, population};
 use mckibben::control::closed_loop::Episode;
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
@@ -521,11 +519,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     // The folders first: runs of minutes must not end on a path that
-    // cannot be written.
+    // cannot be written (the writers create them for good).
     for (flag, dir) in [("--plot", &args.plot), ("--csv", &args.csv)] {
         if let Some(dir) = dir {
-            mckibben::data::create_dir_all(dir)
-                .with_context(|| format!("cannot create {flag} {}", dir.display()))?;
+            check_creatable(flag, dir)?;
         }
     }
     // Read before any run: a model that cannot steer the controllers
