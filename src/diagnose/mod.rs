@@ -85,6 +85,9 @@ pub struct Diagnosis {
     /// model file's name here), `None` from scratch.
     pub from: Option<String>,
     pub datasets: Vec<String>,
+    /// The datasets' input and output columns and their units: what the
+    /// RMSEs and the parameters are in.
+    pub columns: Option<crate::data::Columns>,
     /// Each dataset's estimation, selection and test samples.
     pub parts: Vec<Parts>,
     /// Sample time of the first dataset (s), for sizes in time.
@@ -302,6 +305,7 @@ pub fn diagnose_from(
         final_model,
         family,
         datasets: traces.iter().map(|t| t.source.clone()).collect(),
+        columns: traces.first().map(Trace::columns),
         parts: data.parts.clone(),
         dt: data.records.ctx[0].dt,
         noise_floor_rmse: floor,

@@ -220,6 +220,8 @@ pub struct SpectrumJson {
 pub struct DiagnosisJson {
     pub baseline: BaselineJson,
     pub datasets: Vec<String>,
+    /// Their input and output columns and units (`fit --json`'s `columns`).
+    pub columns: Option<crate::data::Columns>,
     /// Each dataset's parts, parallel to `datasets`.
     pub parts: Vec<PartsJson>,
     pub noise_floor_rmse: f64,
@@ -345,6 +347,7 @@ impl DiagnosisJson {
                 on_edge: d.baseline_on_edge.clone(),
             },
             datasets: d.datasets.clone(),
+            columns: d.columns.clone(),
             parts: d.parts.iter().map(PartsJson::of).collect(),
             noise_floor_rmse: floor,
             noise_floor_method: "median |second difference of the measured output on the estimation half and the selection blocks| / (0.6745·√6)",
