@@ -35,6 +35,14 @@ fn control(extra: &[&str]) -> Output {
         .expect("run mckibben")
 }
 
+/// The error of a `control` call that must fail (exit 1).
+fn refusal(extra: &[&str]) -> String {
+    let out = control(extra);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{extra:?}: {err}");
+    err
+}
+
 fn runs(out: &Output) -> Vec<Value> {
     assert!(
         out.status.success(),
@@ -298,16 +306,14 @@ fn a_silent_rig_is_reported() {
 /// silently hold nothing.
 #[test]
 fn link_flags_without_a_rig_are_refused() {
-    let out = control(&["--controller", "pi", "--deadline", "20", "--log", "logs"]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{err}");
+    let err = refusal(&["--controller", "pi", "--deadline", "20", "--log", "logs"]);
     assert!(
         err.contains("--deadline, --log hold(s) a run on a rig"),
         "{err}"
     );
     // The rig's guards too, though each has a default: given, they are
     // named; left out, the twin runs (every other test here).
-    let out = control(&[
+    let err = refusal(&[
         "--controller",
         "pi",
         "--max-missing",
@@ -317,8 +323,6 @@ fn link_flags_without_a_rig_are_refused() {
         "--max-implausible",
         "2",
     ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{err}");
     assert!(
         err.contains("--max-missing, --max-speed, --max-implausible hold(s) a run on a rig"),
         "{err}"
@@ -506,9 +510,7 @@ fn what_would_fail_after_the_runs_fails_before_them() {
         String::from_utf8_lossy(&fitted.stderr)
     );
     let from = model.join("model.json");
-    let out = control(&["--controller", "pi,mpc", "--from", from.to_str().unwrap()]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
+    let err = refusal(&["--controller", "pi,mpc", "--from", from.to_str().unwrap()]);
     assert!(
         err.contains("the model steps every 0.02 s, the twin every 0.01 s")
             && err.contains("--from"),
@@ -522,9 +524,7 @@ fn what_would_fail_after_the_runs_fails_before_them() {
     file["params"]["a"] = serde_json::json!(1.5);
     let unstable = dir.path().join("unstable.json");
     std::fs::write(&unstable, file.to_string()).unwrap();
-    let out = control(&["--controller", "mpc", "--from", unstable.to_str().unwrap()]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
+    let err = refusal(&["--controller", "mpc", "--from", unstable.to_str().unwrap()]);
     assert!(
         err.contains("the model steps every 0.02 s, the twin every 0.01 s"),
         "{err}"
@@ -549,14 +549,12 @@ fn what_would_fail_after_the_runs_fails_before_them() {
         text.lines().take(200).collect::<Vec<_>>().join("\n"),
     )
     .unwrap();
-    let out = control(&[
+    let err = refusal(&[
         "--controller",
         "mpc",
         "--design-data",
         short.to_str().unwrap(),
     ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
         err.contains("the model identified from it has the pole a = ")
             && err.contains("outside 0 to 1"),
@@ -576,14 +574,12 @@ fn what_would_fail_after_the_runs_fails_before_them() {
     lines[header + 100] = cells.join(",");
     let bad = dir.path().join("bad-valve.csv");
     std::fs::write(&bad, lines.join("\n")).unwrap();
-    let out = control(&[
+    let err = refusal(&[
         "--controller",
         "mpc",
         "--design-data",
         bad.to_str().unwrap(),
     ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
         err.contains(&format!(
             "line {}, column \"valve_in\": \"abc\" is not a number",
@@ -605,14 +601,12 @@ fn what_would_fail_after_the_runs_fails_before_them() {
     }
     let kpa = dir.path().join("kpa.csv");
     std::fs::write(&kpa, lines.join("\n")).unwrap();
-    let out = control(&[
+    let err = refusal(&[
         "--controller",
         "mpc",
         "--design-data",
         kpa.to_str().unwrap(),
     ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
         err.contains("the design record's pressure is in MPa") && err.contains("convert it to MPa"),
         "{err}"
@@ -639,9 +633,7 @@ fn what_would_fail_after_the_runs_fails_before_them() {
     let mut m: Value = serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
     m["params"]["a"] = serde_json::json!(1.5);
     std::fs::write(&file, m.to_string()).unwrap();
-    let out = control(&["--controller", "mpc", "--from", file.to_str().unwrap()]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
+    let err = refusal(&["--controller", "mpc", "--from", file.to_str().unwrap()]);
     assert!(err.contains("the model's pole a = 1.5"), "{err}");
     assert!(!err.contains("[1/"), "no run started: {err}");
 }
@@ -734,15 +726,13 @@ fn hysteresis_scales_run_on_a_rig_and_robustness_is_refused_there() {
     for (a, b) in local.iter().zip(&piped) {
         assert_eq!(numbers(a), numbers(b));
     }
-    let out = control(&[
+    let err = refusal(&[
         "--controller",
         "mpc",
         "--robustness",
         "--plant",
         &serve_cmd(""),
     ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
         err.contains("--robustness runs the in-process twin"),
         "{err}"
@@ -821,17 +811,13 @@ fn a_loop_worse_than_holding_still_is_warned_of() {
         "{err}"
     );
     assert!(!err.contains("warning: pi at"), "{err}");
-    let out = control(&["--controller", "mpc", "--horizon", "501"]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{err}");
+    let err = refusal(&["--controller", "mpc", "--horizon", "501"]);
     assert!(
         err.contains("--horizon 501: the MPC's horizon must be 2 to 500 samples"),
         "{err}"
     );
     // A scale of 1 is the nominal run again, under the same label.
-    let out = control(&["--controller", "mpc", "--hysteresis-scale", "0.8,1"]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{err}");
+    let err = refusal(&["--controller", "mpc", "--hysteresis-scale", "0.8,1"]);
     assert!(
         err.contains("--hysteresis-scale: 1 is the nominal model"),
         "{err}"
@@ -873,9 +859,7 @@ fn a_model_the_controllers_cannot_use_is_refused_or_named() {
         std::fs::write(&path, file.to_string()).unwrap();
         path.to_str().unwrap().to_string()
     };
-    let out = control(&["--controller", "mpc", "--from", &edited("a", 1.2)]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{err}");
+    let err = refusal(&["--controller", "mpc", "--from", &edited("a", 1.2)]);
     assert!(err.contains("the model's pole a = 1.2"), "{err}");
     let gains = [
         "--tuned-gains",
