@@ -57,7 +57,7 @@ def test_a_trace_from_arrays_takes_its_column_names(stair):
 def test_file_errors_name_the_file_line_and_column(tmp_path):
     with pytest.raises(FileNotFoundError, match="nope.csv"):
         mckibben.read_csv(tmp_path / "nope.csv")
-    with pytest.raises(ValueError, match='no input column "valve".*choose another with `input=COL`$'):
+    with pytest.raises(ValueError, match='no input column "valve".*choose another with `input=COL`, here one of "valve_in", "valve_out"'):
         mckibben.read_csv(STAIR, input="valve")
     bad = tmp_path / "bad.csv"
     bad.write_text("t,pressure,displacement\n0,0.1,1\n0.1,nan,2\n0.2,0.1,3\n")

@@ -8,7 +8,7 @@ use serde::Serialize;
 
 use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::data::signals::{Stair, nyquist_rad_s, samples_in};
-use mckibben::data::units::{megapascals_in, millimetres_in, unit_of};
+use mckibben::data::units::{SHIPPED, megapascals_in, millimetres_in, unit_of};
 use mckibben::data::{Columns, Trace};
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::check_f32_range;
@@ -613,7 +613,8 @@ fn in_model_units(trace: &mut Trace, column: &str, say: bool) -> anyhow::Result<
 }
 
 /// A file's input and measured output in the model's units where the file's
-/// column names state others of the same kind (a pressure in psi for a
+/// column names state others of the same kind, in so many words (not the
+/// shipped data's plain `pressure`, read as MPa by convention) (a pressure in psi for a
 /// model in MPa, a stroke in m for one in mm): converted, renamed to the
 /// model's columns, and each said in a note. Other units, and a column the
 /// model's name is taken by already, are left for [`Model::check_data`] to
@@ -628,7 +629,12 @@ fn file_in_model_units(
     let mut notes = Vec::new();
     let mut convert =
         |values: &mut Vec<f64>, name: &mut String, model: &str, size: fn(&str) -> Option<f64>| {
-            let (Some(from), Some(to)) = (unit_of(name), unit_of(model)) else {
+            // A name that states no unit (`pressure`, read as the shipped
+            // data's MPa) is no unit to convert from: it may be in the
+            // model's already, and `check_data` says how it was read.
+            let conventional = SHIPPED.iter().any(|(shipped, _)| *shipped == name.trim());
+            let (Some(from), Some(to), false) = (unit_of(name), unit_of(model), conventional)
+            else {
                 return;
             };
             let (Some(per_from), Some(per_to)) = (size(&from), size(&to)) else {

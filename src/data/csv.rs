@@ -184,7 +184,7 @@ pub enum DataError {
     #[error(
         "{}: line {line}: no {role} column \"{column}\"; the file has columns {}{}; choose another with {flag} COL{}{}",
         path.display(), quoted(available), layout_hint(available),
-        likely_column(role, column, flag, available),
+        likely_column(role, column, available),
         if *role == "time" { " (or, for a file without one, give its rows' spacing in seconds with --dt SECONDS)" } else { "" }
     )]
     MissingColumn {
@@ -386,13 +386,13 @@ fn layout_hint(names: &[String]) -> &'static str {
     }
 }
 
-/// The columns of `available` that name what `column` names, and the flag
-/// that chooses the first: a unit after the name (`pressure_psi`,
+/// The columns of `available` that name what `column` names, for the flag
+/// that chooses one: a unit after the name (`pressure_psi`,
 /// `Displacement [mm]`) for the input and output, a name of time (`time`,
 /// `t_s`) for the clock. The default names state no unit, and a lab's
 /// export states one more often than not. Named, not taken: which of two
 /// pressure sensors drives the muscle is the user's to say.
-fn likely_column(role: &str, column: &str, flag: &str, available: &[String]) -> String {
+fn likely_column(role: &str, column: &str, available: &[String]) -> String {
     let word = |name: &str| {
         let name = name.trim().to_lowercase();
         let end = name.find(['_', ' ', '[', '(', '/']).unwrap_or(name.len());
@@ -408,9 +408,9 @@ fn likely_column(role: &str, column: &str, flag: &str, available: &[String]) -> 
         .collect();
     match likely.as_slice() {
         [] => String::new(),
-        [one] => format!(", here {flag} \"{}\"", shown(one)),
+        [one] => format!(", here \"{}\"", shown(one)),
         _ => format!(
-            ", here {flag} with one of {} (in other units, or from other sensors)",
+            ", here one of {} (in other units, or from other sensors)",
             quoted(&likely.iter().map(|n| n.to_string()).collect::<Vec<_>>()),
         ),
     }
@@ -1941,19 +1941,19 @@ mod tests {
                 "t,pressure [psi],displacement [mm]\n0,1,2\n1,1,2\n",
                 &[
                     "no input column \"pressure\"",
-                    "choose another with --input COL, here --input \"pressure [psi]\"",
+                    "choose another with --input COL, here \"pressure [psi]\"",
                 ],
             ),
             (
                 "time_s,p1_kPa,Pressure_kPa,pressure_bar,x\n0,1,2,3,4\n1,1,2,3,4\n",
                 &[
                     "no time column \"t\"",
-                    "here --time \"time_s\" (or, for a file without one",
+                    "--time COL, here \"time_s\" (or, for a file without one",
                 ],
             ),
             (
                 "t,p1_kPa,Pressure_kPa,pressure_bar,x\n0,1,2,3,4\n1,1,2,3,4\n",
-                &["here --input with one of \"Pressure_kPa\", \"pressure_bar\" (in other units"],
+                &["--input COL, here one of \"Pressure_kPa\", \"pressure_bar\" (in other units"],
             ),
             (
                 "t,pressure,displacement\n0,1,2\n1,abc,2\n",
