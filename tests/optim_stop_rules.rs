@@ -447,3 +447,54 @@ fn a_time_budget_covers_every_start_of_a_fit() {
         out.seconds
     );
 }
+
+/// The budget covers the edge rule's refits of every try too: a fit of
+/// many tries whose run spent the budget refits none of them, and says it
+/// was the budget (the refits ran on a fresh budget each, and the last
+/// one's `completed` stood for the fit's reason: on the shipped stair, a
+/// 0.5 s budget at N = 20 000 ended `completed`).
+#[test]
+fn a_time_budget_covers_the_refits_of_every_try() {
+    use mckibben::data::csv::{ReadOptions, read_traces};
+    use mckibben::eval::cpu::CpuEvaluator;
+    use mckibben::fit::run::{FitRun, FitTarget};
+    use mckibben::fit::settings::FitSettings;
+    use mckibben::model::Family;
+
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/stair_4.5kg.csv");
+    let trace = read_traces(&path, &ReadOptions::default())
+        .unwrap()
+        .remove(0);
+    let settings = FitSettings {
+        // Tries of 1000 and 100, 101 of them, of 300 generations each: more
+        // than any machine runs in the budget, which cuts them all with a
+        // best point each, some of them on an edge of the data's box.
+        pop: 20_000,
+        stops: StopRules {
+            time_budget_s: Some(0.3),
+            ..StopRules::default()
+        },
+        ..FitSettings::staged(1)
+    };
+    let mut fit = FitRun::new(
+        std::slice::from_ref(&trace),
+        &FitTarget::chain(Family::Classic, &[]),
+        &settings,
+        None,
+        None,
+        &|_| (),
+    )
+    .unwrap();
+    let (out, _) = fit
+        .run(&mut CpuEvaluator::new(), &mut [], None, None)
+        .unwrap();
+    assert_eq!(out.stop, StopReason::TimeBudget);
+    assert!(out.tries.len() > 1, "{} tries", out.tries.len());
+    assert!(
+        out.stages
+            .iter()
+            .all(|s| s.stage == mckibben::optim::stage::Stage::Global),
+        "a refit ran: {:?}",
+        out.stages
+    );
+}

@@ -12,6 +12,7 @@ use serde::Serialize;
 use super::chart::ModelChart;
 use super::objective::ModelObjective;
 use super::problem::FitProblem;
+use super::run::earliest;
 use crate::eval::Evaluator;
 use crate::model::bounds::Origin;
 use crate::optim::engine::{Engine, Outcome, Plan, StopReason, StopRules, TryEnd};
@@ -70,22 +71,32 @@ pub fn settle_tries(
     let mut kept: Option<(usize, FitProblem, Vec<Widening>)> = None;
     let ends = std::mem::take(&mut outcome.tries);
     let mut settled: Vec<TryEnd> = Vec::with_capacity(ends.len());
+    // The start's budget (`engine`'s: what the fit left it) covers its
+    // refits too: each runs in what the run and the refits before it left.
+    let budget = engine.stops.time_budget_s;
     for (t, end) in ends.into_iter().enumerate() {
         let mut own = problem.clone();
+        let left = StopRules {
+            time_budget_s: budget.map(|b| b - outcome.seconds),
+            ..stops.clone()
+        };
         let refit = refit_off_edges(
             &mut own,
             &engine.plan,
             try_seed(engine.seed, t),
             (end, outcome.stop),
-            stops,
+            &left,
             evaluator,
         )?;
         outcome.evaluations += refit.evaluations;
         outcome.generations += refit.generations;
         outcome.seconds += refit.seconds;
         outcome.stages.extend(refit.stages);
+        // The first reason a run or a refit ended early is the fit's: a
+        // refit that completed in what was left does not undo a budget
+        // that cut the run.
         if let Some(stop) = refit.stop {
-            outcome.stop = stop;
+            outcome.stop = earliest(outcome.stop, stop);
         }
         let lower = kept
             .as_ref()
@@ -126,7 +137,8 @@ pub struct Refit {
 /// free run), and keeps the refit when its estimation SSE is lower.
 /// `problem.space` is the widened box on return. Does nothing for the
 /// thesis' flow, a plan that is a population search alone (a study of the
-/// search, not a fit), or a fit that was interrupted or found nothing.
+/// search, not a fit), a fit that was interrupted or found nothing, or
+/// where `stops` leave no time.
 pub fn refit_off_edges(
     problem: &mut FitProblem,
     plan: &Plan,
@@ -149,12 +161,17 @@ pub fn refit_off_edges(
         stop: None,
     };
     let refits = plan.free_run.is_some() || plan.polish.is_some();
+    // No time left: the try ends where its run ended, and the budget says
+    // why it was not refitted.
+    let spent = stops.time_budget_s.is_some_and(|t| t <= 0.0);
     if problem.flow == crate::model::Flow::Thesis
         || !refits
         || end.params.is_empty()
         || stop == StopReason::Interrupted
+        || spent
     {
         refit.end = end;
+        refit.stop = spent.then_some(StopReason::TimeBudget);
         return Ok(refit);
     }
     for round in 0..MAX_WIDENINGS {

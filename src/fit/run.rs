@@ -484,7 +484,7 @@ impl FitRun {
 
 /// Why a fit of several starts ended: the first start's reason that is not
 /// `completed`, so that a fit cut short anywhere says so.
-fn earliest(first: StopReason, then: StopReason) -> StopReason {
+pub(crate) fn earliest(first: StopReason, then: StopReason) -> StopReason {
     match first {
         StopReason::Completed => then,
         early => early,
