@@ -1227,7 +1227,9 @@ fn widest_gap_filled(trace: &Trace, lines: &[u64], median: f64, dt: f64) -> Opti
         .filter(|&(_, s)| s > GAP_FACTOR * median)?;
     // Grid points strictly inside the gap: its ends are measured.
     let made_up = ((widest / dt).ceil() as usize).saturating_sub(1);
-    let total = ((trace.t[trace.len() - 1] - trace.t[0]) / dt).floor() as usize + 1;
+    // The resampled record's own count ([`grid_len`]): a plain floor of a
+    // span of 1.19 s at 0.01 s counted 119 of its 120.
+    let total = grid_len(trace.t[trace.len() - 1] - trace.t[0], dt);
     let others = match gaps {
         1 => String::new(),
         n => format!(", the widest of {n}"),
@@ -2345,6 +2347,25 @@ mod tests {
               3 of the record's 11 samples are made up there (27 %); use it where such gaps are \
               short against the muscle's time constant"
             ]
+        );
+        // The note counts the samples the record has: 1.19 s at 0.01 s
+        // is 120 of them, which a floor of 118.99… counted as 119.
+        let mut gapped = String::from("t,pressure,displacement\n");
+        for k in 0..100 {
+            let t = if k < 50 {
+                0.01 * k as f64
+            } else {
+                0.70 + 0.01 * (k - 50) as f64
+            };
+            gapped += &format!("{t},{k},{k}\n");
+        }
+        let (traces, notes) = read(&gapped, Gaps::Resample(0.01)).unwrap();
+        assert_eq!(traces[0].len(), 120);
+        assert!(
+            notes
+                .iter()
+                .any(|n| n.contains("of the record's 120 samples")),
+            "{notes:?}"
         );
         let (_, notes) = read(
             "t,pressure,displacement\n0,0,0\n1,1,1\n2,2,2\n",
