@@ -539,3 +539,13 @@ def test_a_population_past_the_free_memory_is_refused_before_it_runs():
     assert run.returncode == 0, run.stderr
     assert run.stdout.startswith("refused: `pop=10000000`: its candidates need at least 3.0 GB"), run.stdout
     assert "are free here" in run.stdout, run.stdout
+
+
+def test_a_bound_given_as_bounds_is_named_once(stair):
+    # The command says `--bound or --fix`; both are `bounds` here, named once.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        mckibben.fit(stair, pop=30, gens=3, bounds={"alpha": [0, 0.5]})
+    texts = [str(w.message) for w in caught]
+    assert any("(your `bounds`)" in t for t in texts), texts
+    assert not any("`bounds` or `bounds`" in t for t in texts), texts
