@@ -135,8 +135,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         outln!("{text}")?;
         return Ok(());
     }
-    for (id, _) in &outputs {
-        print_report(id)?;
+    for (id, model) in &outputs {
+        // The thesis' figures are in MPa and mm: beside a fit in other
+        // units they are no comparison, and the line says so.
+        let thesis_units = model.as_ref().is_some_and(|m| {
+            m.data.input.unit.as_deref() == Some("MPa")
+                && m.data.output.unit.as_deref() == Some("mm")
+        });
+        print_report(id, thesis_units)?;
     }
     if let Some(path) = &args.out {
         match (outputs.len(), orders == ArxOrders::default()) {
@@ -190,7 +196,9 @@ fn percent(v: f64) -> String {
     }
 }
 
-fn print_report(id: &Identification) -> anyhow::Result<()> {
+/// `thesis_units`: the data are in the thesis' MPa and mm, so that its
+/// eq. 12 figures compare.
+fn print_report(id: &Identification, thesis_units: bool) -> anyhow::Result<()> {
     let o = id.arx.orders;
     outln!(
         "ARX identification of {} ({} samples, dt = {} s)",
@@ -223,7 +231,11 @@ fn print_report(id: &Identification) -> anyhow::Result<()> {
     if o == ArxOrders::default() {
         // The thesis' eq. 12 names them l and p.
         let equation = difference_equation(&id.arx.a, &id.arx.b, o.nk, ("l", "p"));
-        outln!("  model         {equation}   (eq. 12; thesis: 0.9618, 24.9366)")?;
+        let thesis = match thesis_units {
+            true => "thesis: 0.9618, 24.9366",
+            false => "the thesis' 0.9618, 24.9366 are in MPa and mm",
+        };
+        outln!("  model         {equation}   (eq. 12; {thesis})")?;
     } else {
         outln!(
             "  model         {}",
