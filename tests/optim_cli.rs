@@ -2215,3 +2215,25 @@ fn a_model_whose_means_are_far_from_the_data_is_refused_not_a_panic() {
         "{err}"
     );
 }
+
+/// Every command's `--help` opens with what it does, before its usage: a
+/// constant declared between a command's doc comment and its arguments
+/// once took `control`'s whole description and examples with it.
+#[test]
+fn every_command_s_help_says_what_it_does_before_its_usage() {
+    for command in [
+        "fit", "identify", "simulate", "diagnose", "control", "compare", "sweep", "bench", "twin",
+        "static",
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
+            .args([command, "--help"])
+            .output()
+            .unwrap();
+        let help = String::from_utf8_lossy(&out.stdout);
+        let before = help.split("Usage:").next().unwrap_or_default();
+        assert!(
+            before.split_whitespace().count() >= 20,
+            "{command} --help says nothing before its usage:\n{help}"
+        );
+    }
+}

@@ -29,6 +29,8 @@ const DESIGN_LOAD_KG: f64 = 4.5;
 const TUNING_ALGO: &str = "de";
 const TUNING_POP: usize = 24;
 const TUNING_GENS: usize = 30;
+/// The longest MPC horizon `--horizon` takes (samples).
+const MAX_HORIZON: usize = 500;
 
 /// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
 /// closing the loop on the input valve voltage (0–10 V, slew 0.25 V per
@@ -57,9 +59,6 @@ const TUNING_GENS: usize = 30;
 ///   mckibben control --controller pi,pi-tuned,ff-pid,mpc --tuned-gains 2.2164,65.528,0.0219 --robustness --json
 ///   mckibben control --controller mpc --freq 3 --plant "cmd:mckibben twin serve --load 4.5" --log logs/
 ///   mckibben control --controller pi --plant udp:192.168.1.20:9000 --deadline 20 --design-data rig_multisine.csv
-/// The longest MPC horizon `--horizon` takes (samples).
-const MAX_HORIZON: usize = 500;
-
 #[derive(Debug, clap::Args)]
 #[command(verbatim_doc_comment)]
 pub struct Args {

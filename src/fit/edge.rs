@@ -12,7 +12,6 @@ use serde::Serialize;
 use super::chart::ModelChart;
 use super::objective::ModelObjective;
 use super::problem::FitProblem;
-use super::run::earliest;
 use crate::eval::Evaluator;
 use crate::model::bounds::Origin;
 use crate::optim::engine::{Engine, Outcome, Plan, StopReason, StopRules, TryEnd};
@@ -96,7 +95,7 @@ pub fn settle_tries(
         // refit that completed in what was left does not undo a budget
         // that cut the run.
         if let Some(stop) = refit.stop {
-            outcome.stop = earliest(outcome.stop, stop);
+            outcome.stop = outcome.stop.earliest(stop);
         }
         let lower = kept
             .as_ref()

@@ -412,12 +412,12 @@ impl FitRun {
             match runs_on(stop, outcome.seconds) {
                 Ok(budget) => start.engine.stops.time_budget_s = budget,
                 Err(why) => {
-                    let stop = earliest(stop, why);
+                    let stop = stop.earliest(why);
                     return Ok(self.ended(outcome, widened, stop, checkpoint_error));
                 }
             }
             let zero = start.run(evaluator, &stops, interrupt)?;
-            stop = earliest(stop, zero.outcome.stop);
+            stop = stop.earliest(zero.outcome.stop);
             let switched = Switched::of(&outcome, &zero.outcome);
             self.switched = Some(switched);
             let (evaluations, seconds) = (
@@ -434,7 +434,7 @@ impl FitRun {
             match runs_on(stop, outcome.seconds) {
                 Ok(budget) => start.engine.stops.time_budget_s = budget,
                 Err(why) => {
-                    let stop = earliest(stop, why);
+                    let stop = stop.earliest(why);
                     return Ok(self.ended(outcome, widened, stop, checkpoint_error));
                 }
             }
@@ -442,7 +442,7 @@ impl FitRun {
                 outcome: chain,
                 widened: chain_widened,
             } = start.run(evaluator, &stops, interrupt)?;
-            stop = earliest(stop, chain.stop);
+            stop = stop.earliest(chain.stop);
             let kept_chain = !chain.params.is_empty() && chain.sse < outcome.sse;
             self.built = Some(Built {
                 scratch_sse: outcome.sse,
@@ -479,15 +479,6 @@ impl FitRun {
         outcome.checkpoint_error = checkpoint_error;
         self.agreement = Agreement::of(&outcome.tries, self.problem.est_samples());
         (outcome, widened)
-    }
-}
-
-/// Why a fit of several starts ended: the first start's reason that is not
-/// `completed`, so that a fit cut short anywhere says so.
-pub(crate) fn earliest(first: StopReason, then: StopReason) -> StopReason {
-    match first {
-        StopReason::Completed => then,
-        early => early,
     }
 }
 

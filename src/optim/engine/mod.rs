@@ -211,6 +211,17 @@ pub enum StopReason {
     Interrupted,
 }
 
+impl StopReason {
+    /// Why a run of several parts ended: this part's reason where it ended
+    /// early, else `then`'s, so that a run cut short anywhere says so.
+    pub fn earliest(self, then: StopReason) -> StopReason {
+        match self {
+            StopReason::Completed => then,
+            early => early,
+        }
+    }
+}
+
 /// Why a stage ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
