@@ -136,8 +136,9 @@ pub struct Refit {
 /// free run), and keeps the refit when its estimation SSE is lower.
 /// `problem.space` is the widened box on return. Does nothing for the
 /// thesis' flow, a plan that is a population search alone (a study of the
-/// search, not a fit), a fit that was interrupted or found nothing, or
-/// where `stops` leave no time.
+/// search, not a fit), or a fit that was interrupted or found nothing; a
+/// round runs in what `stops`' budget and the rounds before it left, and
+/// none where nothing is left.
 pub fn refit_off_edges(
     problem: &mut FitProblem,
     plan: &Plan,
@@ -160,17 +161,12 @@ pub fn refit_off_edges(
         stop: None,
     };
     let refits = plan.free_run.is_some() || plan.polish.is_some();
-    // No time left: the try ends where its run ended, and the budget says
-    // why it was not refitted.
-    let spent = stops.time_budget_s.is_some_and(|t| t <= 0.0);
     if problem.flow == crate::model::Flow::Thesis
         || !refits
         || end.params.is_empty()
         || stop == StopReason::Interrupted
-        || spent
     {
         refit.end = end;
-        refit.stop = spent.then_some(StopReason::TimeBudget);
         return Ok(refit);
     }
     for round in 0..MAX_WIDENINGS {
@@ -183,13 +179,24 @@ pub fn refit_off_edges(
         if edges.is_empty() {
             break;
         }
+        // Each round runs in what the budget and the rounds before it left;
+        // with nothing left the try ends where it is, and the budget says
+        // why it was not refitted.
+        let left = stops.time_budget_s.map(|b| b - refit.seconds);
+        if left.is_some_and(|t| t <= 0.0) {
+            refit.stop = Some(StopReason::TimeBudget);
+            break;
+        }
         let bounds = problem.space.widen(&edges);
         let seed = seed.wrapping_add(1 + round as u64);
         let mut engine = Engine::new(
             plan.from_point(),
             problem.engine_space(),
             seed,
-            stops.clone(),
+            StopRules {
+                time_budget_s: left,
+                ..stops.clone()
+            },
         )?
         .with_initial(Rows::one(&end.params));
         let mut objective = ModelObjective::for_problem(evaluator, problem);
@@ -199,7 +206,13 @@ pub fn refit_off_edges(
         refit.generations += next.generations;
         refit.seconds += next.seconds;
         refit.stages.extend(next.stages.iter().cloned());
-        refit.stop = Some(next.stop);
+        // A round cut short says so, whatever the round after it does.
+        refit.stop = Some(
+            refit
+                .stop
+                .unwrap_or(StopReason::Completed)
+                .earliest(next.stop),
+        );
         if !next.params.is_empty() && next.sse < end.sse {
             // A refit that stopped refining in time does not undo a cut
             // in the fit it started from: more rounds there would have
@@ -215,7 +228,7 @@ pub fn refit_off_edges(
             sse_before,
             sse_after: next.sse,
         });
-        if next.stop == StopReason::Interrupted {
+        if matches!(next.stop, StopReason::Interrupted | StopReason::TimeBudget) {
             break;
         }
     }
