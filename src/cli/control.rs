@@ -117,8 +117,9 @@ pub struct Args {
     #[arg(long, default_value_t = TUNING_GENS, value_parser = crate::cli::common::generations)]
     gens: usize,
     /// MPC horizon (samples), 2 to 500. Its QP is dense: its time a step
-    /// grows with the horizon's square (200 samples took 0.13 s a step,
-    /// past the 10 ms sample time; the command warns of late steps).
+    /// grows about as the horizon's cube (200 samples took up to 0.13 s a
+    /// step on a 2-core VM, past the 10 ms sample time; the command warns
+    /// of late steps).
     #[arg(long, default_value_t = MpcSettings::default().horizon)]
     horizon: usize,
     /// MPC weight on valve moves (per V²) against tracking error (per mm²).
@@ -330,7 +331,7 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         (2..=MAX_HORIZON).contains(&args.horizon),
         "--horizon {}: the MPC's horizon must be 2 to {MAX_HORIZON} samples (its QP is dense, \
-         its time a step grows with the horizon's square: past a few hundred samples one \
+         its time a step grows about as the horizon's cube: past a few hundred samples one \
          step takes seconds)",
         args.horizon
     );
@@ -698,7 +699,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                  measurements queue behind them (shorten the MPC's --horizon, or run a lighter \
                  controller)",
                 r.overrun_steps,
-                r.max_step_cpu_us.max(r.max_step_time_us) / 1e3
+                // The clock the steps were counted by: the thread's, the
+                // wall's where there is none.
+                match r.max_step_cpu_us > 0.0 {
+                    true => r.max_step_cpu_us,
+                    false => r.max_step_time_us,
+                } / 1e3
             );
         }
         // A feedforward pinned at the valve's range most of the run is no
@@ -714,7 +720,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 r.feedforward_at_limit
             );
         }
-        if !r.diverged && r.rms_error_mm > r.holding_rms_mm {
+        if r.worse_than_holding {
             errln!(
                 "mckibben: warning: {run}: its RMS error {:.3} mm is above the {:.3} mm of a \
                  muscle held still at the reference's mean: the loop tracks worse than doing \

@@ -106,6 +106,9 @@ pub struct EpisodeResult {
     /// Wall-clock and CPU time of each controller step (µs).
     pub step_wall_us: Vec<f64>,
     pub step_cpu_us: Vec<f64>,
+    /// The reference's amplitude (mm), which the metrics are read against.
+    #[serde(default)]
+    pub reference_amplitude_mm: f64,
     pub metrics: Metrics,
 }
 
@@ -185,6 +188,7 @@ impl Recorder {
                 valve: v(),
                 step_wall_us: v(),
                 step_cpu_us: v(),
+                reference_amplitude_mm: 0.0,
                 metrics: Metrics::default(),
             },
             violations: 0,
@@ -244,6 +248,7 @@ impl Recorder {
         m.mean_step_time_us = o.step_wall_us.iter().sum::<f64>() / steps;
         m.max_step_cpu_us = o.step_cpu_us.iter().fold(0.0, |a, &b| a.max(b));
         m.overrun_steps = overruns(&o.t, &o.step_cpu_us, &o.step_wall_us);
+        o.reference_amplitude_mm = episode.reference.amplitude_mm;
         o.metrics = m;
         self.out
     }

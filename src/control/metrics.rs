@@ -46,9 +46,14 @@ pub const DIVERGENCE_FACTOR: f64 = 3.0;
 
 impl Metrics {
     /// Whether the loop tracked worse than a muscle held still at the
-    /// reference's mean ([`Metrics::holding_rms_mm`]), short of diverging.
-    pub fn worse_than_holding(&self) -> bool {
-        !self.diverged && self.rms_error_mm > self.holding_rms_mm
+    /// reference's mean ([`Metrics::holding_rms_mm`]), short of diverging,
+    /// over a scored part where the reference of `amplitude` moves (its
+    /// RMS about its mean a tenth of the amplitude at least: on one plateau
+    /// of the steps holding is perfect, and any error would read as worse).
+    pub fn worse_than_holding(&self, amplitude: f64) -> bool {
+        !self.diverged
+            && self.holding_rms_mm >= 0.1 * amplitude
+            && self.rms_error_mm > self.holding_rms_mm
     }
 
     /// Measures the samples with `t ≥ steady_from` (no samples: NaN errors).
@@ -118,9 +123,10 @@ mod tests {
         let u: Vec<f64> = (0..100).map(|k| (k % 2) as f64).collect();
         let m = Metrics::of(&t, &r, &y, &u, 5.0, 10.0);
         assert!((m.rms_error_mm - 1.0).abs() < 1e-12);
-        // A constant reference: holding it scores 0, and any error is worse.
+        // A constant reference: holding it scores 0, and no error is
+        // called worse than that.
         assert_eq!(m.holding_rms_mm, 0.0);
-        assert!(m.worse_than_holding());
+        assert!(!m.worse_than_holding(10.0));
         assert_eq!(m.max_error_mm, 1.0);
         assert!((m.effort_rms_v - 0.5).abs() < 1e-12);
         assert!(!m.diverged);
@@ -145,13 +151,13 @@ mod tests {
             "{held:?}"
         );
         assert!((held.rms_error_mm - held.holding_rms_mm).abs() < 1e-12);
-        assert!(!held.worse_than_holding());
+        assert!(!held.worse_than_holding(10.0));
         let lagging: Vec<f64> = t
             .iter()
             .map(|&t| 30.0 + 10.0 * (2.0 * t - 1.7).sin())
             .collect();
-        assert!(Metrics::of(&t, &r, &lagging, &u, 0.0, 10.0).worse_than_holding());
+        assert!(Metrics::of(&t, &r, &lagging, &u, 0.0, 10.0).worse_than_holding(10.0));
         let close: Vec<f64> = r.iter().map(|r| r + 0.1).collect();
-        assert!(!Metrics::of(&t, &r, &close, &u, 0.0, 10.0).worse_than_holding());
+        assert!(!Metrics::of(&t, &r, &close, &u, 0.0, 10.0).worse_than_holding(10.0));
     }
 }

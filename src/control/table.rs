@@ -48,6 +48,12 @@ pub struct Row {
     /// The error of a muscle held still at the reference's mean over the
     /// same samples: a run above it tracks worse than doing nothing.
     pub holding_rms_mm: f64,
+    /// Whether the run tracked worse than that where the reference moves
+    /// ([`Metrics::worse_than_holding`]): what the command warns of.
+    ///
+    /// [`Metrics::worse_than_holding`]: super::metrics::Metrics::worse_than_holding
+    #[serde(skip)]
+    pub worse_than_holding: bool,
     pub diverged: bool,
     pub solver_failures: usize,
     pub capped_solves: usize,
@@ -80,6 +86,7 @@ impl Row {
             mean_step_time_us: m.mean_step_time_us,
             overrun_steps: m.overrun_steps,
             holding_rms_mm: m.holding_rms_mm,
+            worse_than_holding: m.worse_than_holding(run.result.reference_amplitude_mm),
             diverged: m.diverged,
             solver_failures: s.solver_failures,
             capped_solves: s.capped_solves,
