@@ -81,7 +81,12 @@ fn steps(guide: &str) -> Vec<Step> {
 /// What differs, or `None`.
 fn shown_differs(step: &Step, real: &str) -> Option<String> {
     let shown = step.shown.as_ref()?;
-    let real: Vec<&str> = real.lines().map(str::trim).collect();
+    // Blank lines are layout, on either side.
+    let real: Vec<&str> = real
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect();
     let matches = |shown: &str, real: &str| match shown.strip_suffix('…') {
         Some(prefix) => real.starts_with(prefix.trim_end()),
         None => real == shown,

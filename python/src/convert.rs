@@ -434,19 +434,21 @@ pub fn in_python_terms(message: &str) -> String {
 }
 
 /// `text` with a keyword named twice in a row (`` `bounds` or `bounds` ``,
-/// where `--bound or --fix` became one argument) named once.
+/// `` `bounds`, `bounds` ``, `` `bounds` and `bounds` ``, where `--bound`
+/// and `--fix` became one argument) named once.
 fn one_keyword_once(mut text: String) -> String {
-    const OR: &str = "` or `";
-    let mut from = 0;
-    while let Some(at) = text[from..].find(OR).map(|i| from + i) {
-        let before = text[..at].rfind('`').map(|j| &text[j + 1..at]);
-        let after = &text[at + OR.len()..];
-        match before {
-            Some(keyword) if after.starts_with(&format!("{keyword}`")) => {
-                let cut = OR.len() + keyword.len();
-                text.replace_range(at + 1..at + 1 + cut, "");
+    for joint in ["` or `", "`, `", "` and `"] {
+        let mut from = 0;
+        while let Some(at) = text[from..].find(joint).map(|i| from + i) {
+            let before = text[..at].rfind('`').map(|j| &text[j + 1..at]);
+            let after = &text[at + joint.len()..];
+            match before {
+                Some(keyword) if after.starts_with(&format!("{keyword}`")) => {
+                    let cut = joint.len() + keyword.len();
+                    text.replace_range(at + 1..at + 1 + cut, "");
+                }
+                _ => from = at + 1,
             }
-            _ => from = at + 1,
         }
     }
     text

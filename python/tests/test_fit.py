@@ -549,3 +549,6 @@ def test_a_bound_given_as_bounds_is_named_once(stair):
     texts = [str(w.message) for w in caught]
     assert any("(your `bounds`)" in t for t in texts), texts
     assert not any("`bounds` or `bounds`" in t for t in texts), texts
+    # Joined by "and" too: "--bound and --fix need the joint flow".
+    with pytest.raises(ValueError, match="flow searches its own tables: `bounds` need the joint flow"):
+        mckibben.fit(stair, pop=20, gens=2, thesis_flow=True, bounds={"alpha": (0, 0.5)})

@@ -262,7 +262,12 @@ pub fn check_creatable(flag: &str, dir: &Path) -> anyhow::Result<()> {
         .collect();
     mckibben::data::create_dir_all(dir)
         .with_context(|| format!("cannot create {flag} {}", dir.display()))?;
-    let probe = dir.join(format!(".mckibben-probe-{}", std::process::id()));
+    // The process and the clock: a probe a killed run left behind under
+    // the same process id is no reason to refuse the folder.
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
+    let probe = dir.join(format!(".mckibben-probe-{}-{nanos}", std::process::id()));
     let written = std::fs::OpenOptions::new()
         .write(true)
         .create_new(true)

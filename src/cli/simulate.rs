@@ -613,12 +613,12 @@ fn in_model_units(trace: &mut Trace, column: &str, say: bool) -> anyhow::Result<
 }
 
 /// A file's input and measured output in the model's units where the file's
-/// column names state others of the same kind, in so many words (not the
-/// shipped data's plain `pressure`, read as MPa by convention) (a pressure in psi for a
-/// model in MPa, a stroke in m for one in mm): converted, renamed to the
-/// model's columns, and each said in a note. Other units, and a column the
-/// model's name is taken by already, are left for [`Model::check_data`] to
-/// refuse.
+/// column names state others of the same kind in so many words (a pressure
+/// in psi for a model in MPa, a stroke in m for one in mm; not the shipped
+/// data's plain `pressure`, MPa by convention only): converted, renamed to
+/// the model's columns, and each said in a note. Other units, and a column
+/// whose model name the file holds already, are left for
+/// [`Model::check_data`] to refuse.
 fn file_in_model_units(
     trace: &mut Trace,
     input: &str,
@@ -819,12 +819,7 @@ fn input_trace(
                 }
                 None => traces.remove(0),
             };
-            // Values the f32 simulation cannot sum, or an output past the
-            // bound a state diverges at, are refused as `fit` refuses them
-            // (the simulation ran on, and its file could not be written).
-            if measured {
-                check_f32_range(&trace)?;
-            } else {
+            if !measured {
                 trace.output_name = saved.map_or(defaults.output, |f| f.data.output.column.clone());
                 // A model's output column under another name (`disp_mm`
                 // for `disp (mm)`) read as an input alone, silently.
@@ -842,6 +837,13 @@ fn input_trace(
             });
             for note in file_in_model_units(&mut trace, input, output, measured) {
                 errln!("mckibben: note: {note}");
+            }
+            // Values the f32 simulation cannot sum, or an output past the
+            // bound a state diverges at, are refused as `fit` refuses them
+            // (the simulation ran on, and its file could not be written):
+            // in the units the run is in, after any conversion.
+            if measured {
+                check_f32_range(&trace)?;
             }
             match saved {
                 Some(saved) => saved.model()?.check_data(&trace)?,

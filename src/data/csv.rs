@@ -1226,7 +1226,9 @@ fn widest_gap_filled(trace: &Trace, lines: &[u64], median: f64, dt: f64) -> Opti
         .max_by(|a, b| a.1.total_cmp(&b.1))
         .filter(|&(_, s)| s > GAP_FACTOR * median)?;
     // Grid points strictly inside the gap: its ends are measured.
-    let made_up = ((widest / dt).ceil() as usize).saturating_sub(1);
+    // Less a billionth, as the grid's own count: a gap of 0.07 s at 0.01 s
+    // is 7.000000000000001 steps, and holds 6 points, not 7.
+    let made_up = ((widest / dt - 1e-9).ceil() as usize).saturating_sub(1);
     // The resampled record's own count ([`grid_len`]): a plain floor of a
     // span of 1.19 s at 0.01 s counted 119 of its 120.
     let total = grid_len(trace.t[trace.len() - 1] - trace.t[0], dt);
@@ -2365,6 +2367,21 @@ mod tests {
             notes
                 .iter()
                 .any(|n| n.contains("of the record's 120 samples")),
+            "{notes:?}"
+        );
+        // And the points inside a gap: 0.49 s to 0.56 s holds 0.50 … 0.55.
+        let mut gapped = String::from("t,pressure,displacement\n");
+        for k in 0..100 {
+            let t = if k < 50 {
+                0.01 * k as f64
+            } else {
+                0.56 + 0.01 * (k - 50) as f64
+            };
+            gapped += &format!("{t},{k},{k}\n");
+        }
+        let (_, notes) = read(&gapped, Gaps::Resample(0.01)).unwrap();
+        assert!(
+            notes.iter().any(|n| n.contains(": 6 of the record's")),
             "{notes:?}"
         );
         let (_, notes) = read(

@@ -226,6 +226,9 @@ fn finite(v: f64) -> Option<f64> {
 }
 
 impl FitReport {
+    /// The report of `fit` once [`FitRun::run`] returned `outcome` and
+    /// `widened`, its populations scored on `backend`, on the records
+    /// `traces` (the fit's, in its order).
     pub fn of(
         fit: &FitRun,
         (outcome, widened): (&Outcome, &[Widening]),
