@@ -2350,18 +2350,21 @@ mod tests {
               short against the muscle's time constant"
             ]
         );
+        // 50 rows 10 ms apart from 0 s, then 50 from `resume` s on.
+        let gapped = |resume: f64| {
+            let mut text = String::from("t,pressure,displacement\n");
+            for k in 0..100 {
+                let t = match k < 50 {
+                    true => 0.01 * k as f64,
+                    false => resume + 0.01 * (k - 50) as f64,
+                };
+                text += &format!("{t},{k},{k}\n");
+            }
+            text
+        };
         // The note counts the samples the record has: 1.19 s at 0.01 s
         // is 120 of them, which a floor of 118.99… counted as 119.
-        let mut gapped = String::from("t,pressure,displacement\n");
-        for k in 0..100 {
-            let t = if k < 50 {
-                0.01 * k as f64
-            } else {
-                0.70 + 0.01 * (k - 50) as f64
-            };
-            gapped += &format!("{t},{k},{k}\n");
-        }
-        let (traces, notes) = read(&gapped, Gaps::Resample(0.01)).unwrap();
+        let (traces, notes) = read(&gapped(0.70), Gaps::Resample(0.01)).unwrap();
         assert_eq!(traces[0].len(), 120);
         assert!(
             notes
@@ -2370,16 +2373,7 @@ mod tests {
             "{notes:?}"
         );
         // And the points inside a gap: 0.49 s to 0.56 s holds 0.50 … 0.55.
-        let mut gapped = String::from("t,pressure,displacement\n");
-        for k in 0..100 {
-            let t = if k < 50 {
-                0.01 * k as f64
-            } else {
-                0.56 + 0.01 * (k - 50) as f64
-            };
-            gapped += &format!("{t},{k},{k}\n");
-        }
-        let (_, notes) = read(&gapped, Gaps::Resample(0.01)).unwrap();
+        let (_, notes) = read(&gapped(0.56), Gaps::Resample(0.01)).unwrap();
         assert!(
             notes.iter().any(|n| n.contains(": 6 of the record's")),
             "{notes:?}"
