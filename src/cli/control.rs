@@ -675,16 +675,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         Vec::new()
     };
-    for r in rows.iter().filter(|r| r.solver_failures > 0) {
-        errln!(
-            "mckibben: warning: {} at {} rad/s{}: {} of the MPC's QP solves failed, and the \
-             valve held its last command at each; its row measures that, not the MPC",
-            sweep::scaled_label(&r.controller, r.hysteresis_scale),
-            r.freq_rad_s,
-            r.load_kg.map_or(String::new(), |m| format!(", {m} kg")),
-            r.solver_failures
-        );
-    }
+    // What a row measures that is not the controller at its best, a
+    // warning each.
     for (r, episode) in rows.iter().zip(&runs) {
         let run = format!(
             "{} at {} rad/s{}",
@@ -692,6 +684,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             r.freq_rad_s,
             r.load_kg.map_or(String::new(), |m| format!(", {m} kg"))
         );
+        if r.solver_failures > 0 {
+            errln!(
+                "mckibben: warning: {run}: {} of the MPC's QP solves failed, and the valve held \
+                 its last command at each; its row measures that, not the MPC",
+                r.solver_failures
+            );
+        }
         if r.overrun_steps > 0 {
             errln!(
                 "mckibben: warning: {run}: {} of its steps took longer than the sample time \
