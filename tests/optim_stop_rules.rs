@@ -394,8 +394,7 @@ fn an_interrupt_during_the_search_keeps_the_best_candidate_scored_so_far() {
 /// both starts run and the fit completes.
 #[test]
 fn a_time_budget_covers_every_start_of_a_fit() {
-    use mckibben::eval::cpu::CpuEvaluator;
-    use mckibben::fit::run::{FitRun, FitTarget};
+    use mckibben::fit::run::FitTarget;
     use mckibben::fit::settings::FitSettings;
     use mckibben::fit::synthetic::Synthetic;
     use mckibben::model::{Family, Switching};
@@ -414,22 +413,7 @@ fn a_time_budget_covers_every_start_of_a_fit() {
         },
         ..FitSettings::staged(1)
     };
-    let fit = |budget: f64, built_in_s: f64| {
-        let mut fit = FitRun::new(
-            std::slice::from_ref(&trace),
-            &what,
-            &settings(budget),
-            None,
-            None,
-            &|_| (),
-        )
-        .unwrap();
-        fit.built_in_s = built_in_s;
-        let (out, _) = fit
-            .run(&mut CpuEvaluator::new(), &mut [], None, None)
-            .unwrap();
-        (fit, out)
-    };
+    let fit = |budget: f64, built_in_s: f64| fit_on(&trace, &what, &settings(budget), built_in_s);
     let (spent, out) = fit(2.0, 2.0);
     assert_eq!((out.stop, out.evaluations), (StopReason::TimeBudget, 0));
     assert!(spent.switched.is_none(), "the second start ran");
@@ -456,8 +440,7 @@ fn a_time_budget_covers_every_start_of_a_fit() {
 #[test]
 fn a_time_budget_covers_the_refits_of_every_try() {
     use mckibben::data::csv::{ReadOptions, read_traces};
-    use mckibben::eval::cpu::CpuEvaluator;
-    use mckibben::fit::run::{FitRun, FitTarget};
+    use mckibben::fit::run::FitTarget;
     use mckibben::fit::settings::FitSettings;
     use mckibben::model::Family;
 
@@ -476,18 +459,12 @@ fn a_time_budget_covers_the_refits_of_every_try() {
         },
         ..FitSettings::staged(1)
     };
-    let mut fit = FitRun::new(
-        std::slice::from_ref(&trace),
+    let (_, out) = fit_on(
+        &trace,
         &FitTarget::chain(Family::Classic, &[]),
         &settings,
-        None,
-        None,
-        &|_| (),
-    )
-    .unwrap();
-    let (out, _) = fit
-        .run(&mut CpuEvaluator::new(), &mut [], None, None)
-        .unwrap();
+        0.0,
+    );
     assert_eq!(out.stop, StopReason::TimeBudget);
     assert!(out.tries.len() > 1, "{} tries", out.tries.len());
     assert!(
@@ -497,4 +474,34 @@ fn a_time_budget_covers_the_refits_of_every_try() {
         "a refit ran: {:?}",
         out.stages
     );
+}
+
+/// `fit`'s run of `what` on `trace` with `settings` on the CPU, its chain's
+/// build said to have taken `built_in_s` of the budget: the run and its
+/// outcome.
+fn fit_on(
+    trace: &mckibben::data::Trace,
+    what: &mckibben::fit::run::FitTarget,
+    settings: &mckibben::fit::settings::FitSettings,
+    built_in_s: f64,
+) -> (mckibben::fit::run::FitRun, mckibben::optim::engine::Outcome) {
+    let mut fit = mckibben::fit::run::FitRun::new(
+        std::slice::from_ref(trace),
+        what,
+        settings,
+        None,
+        None,
+        &|_| (),
+    )
+    .unwrap();
+    fit.built_in_s = built_in_s;
+    let (out, _) = fit
+        .run(
+            &mut mckibben::eval::cpu::CpuEvaluator::new(),
+            &mut [],
+            None,
+            None,
+        )
+        .unwrap();
+    (fit, out)
 }
