@@ -21,7 +21,7 @@ use crate::eval::Backend;
 use crate::fit::objective::TryGroup;
 use crate::fit::problem::FitProblem;
 use crate::fit::records::Records;
-use crate::fit::report::{FitReport, RecordScore};
+use crate::fit::report::{DiagnosisParts, FitReport, RecordScore};
 use crate::fit::run::FitRun;
 use crate::fit::searches::StopFlag;
 use crate::fit::settings::FitSettings;
@@ -189,6 +189,11 @@ pub fn selected_fit(
         val_fit_percent,
         linear_val_fit_percent,
         linear_largest_pole,
+        diagnosis_parts: Some(DiagnosisParts {
+            selection_fit_percent: finite(d.last().selection_fit_percent),
+            test_rmse: finite(d.last().test_rmse),
+            test_fit_percent: finite(d.last().test_fit_percent),
+        }),
         // The effect stages move the output off the state the update steps on.
         stable_step: None,
         largest_step: None,

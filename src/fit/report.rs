@@ -69,6 +69,11 @@ pub struct FitReport {
     /// 1 or past it the yardstick drifts or grows, and scores nothing a fit
     /// need clear.
     pub linear_largest_pole: Option<f64>,
+    /// With `--effects auto`: the final model on the diagnosis' two parts
+    /// of the second half, which `val_fit_percent` pools: the selection
+    /// part chose the effects, the test part no choice read (`None` for
+    /// every other fit, whose second half chose nothing).
+    pub diagnosis_parts: Option<DiagnosisParts>,
     /// The largest step of the output in one sample within which the
     /// fitted hysteresis update settles (`Family::stable_step`; `None`
     /// where the loop never saturates or effect stages stand between the
@@ -149,6 +154,18 @@ fn loose<'a>(
             let e = (*e)?;
             (e >= v.abs()).then_some((name.as_str(), *v, e))
         })
+}
+
+/// `fit --effects auto`'s model on the parts of the second half that the
+/// diagnosis cut: the figure to quote is the test part's.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DiagnosisParts {
+    /// On the selection part, which chose the effects: flattered.
+    pub selection_fit_percent: Option<f64>,
+    /// On the test part, read once the effects were chosen (`None` where
+    /// the run diverged there).
+    pub test_rmse: Option<f64>,
+    pub test_fit_percent: Option<f64>,
 }
 
 /// One record's validation scores in a fit of several
@@ -287,6 +304,7 @@ impl FitReport {
             linear_largest_pole: linear
                 .as_ref()
                 .and_then(|l| l.1.iter().copied().reduce(f64::max)),
+            diagnosis_parts: None,
             // The effect stages move the output off the state the update
             // steps on: the step is the plain families' figure.
             stable_step: (found && problem.model.effects.is_empty())

@@ -116,7 +116,10 @@ pub struct Args {
     /// which). `auto` runs the diagnosis' selection
     /// over the whole catalogue and returns its final model (as `mckibben
     /// diagnose`; minutes, not seconds), its searches set by --seed and
-    /// --backend alone (the search flags are refused beside it). Default:
+    /// --backend alone (the search flags are refused beside it); its
+    /// validation half holds the selection part that chose the effects,
+    /// so the report adds the test part's fit, which no choice read.
+    /// Default:
     /// the --from model's, else none.
     #[arg(
         long,

@@ -413,9 +413,22 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
     let scored = report.val_rmse.is_some();
     let percent = mckibben::ident::fit::fit_percent_text(report.val_fit_percent, scored, 4);
     outln!(
-        "  validation fit       {percent}   (RMSE {})",
+        "  validation fit       {percent}   (RMSE {}; the second half, the selection part that \
+         chose the effects included)",
         show(report.val_rmse)
     )?;
+    if let Some(parts) = &report.diagnosis_parts {
+        outln!(
+            "  test fit             {}   (RMSE {}; the second half's test part, which no choice \
+             read: the figure to quote)",
+            mckibben::ident::fit::fit_percent_text(
+                parts.test_fit_percent,
+                parts.test_rmse.is_some(),
+                4
+            ),
+            show(parts.test_rmse)
+        )?;
+    }
     if report.val_fit_percent.is_none() && scored {
         errln!(
             "mckibben: warning: {}",
