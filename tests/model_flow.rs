@@ -339,7 +339,10 @@ fn fit_with_effects_auto_returns_the_diagnosis_final_model() {
     for key in ["selection_fit_percent", "test_fit_percent", "test_rmse"] {
         assert_eq!(fit["diagnosis_parts"][key], last[key], "{key}");
     }
-    assert_ne!(fit["diagnosis_parts"]["test_fit_percent"], fit["val_fit_percent"]);
+    assert_ne!(
+        fit["diagnosis_parts"]["test_fit_percent"],
+        fit["val_fit_percent"]
+    );
     let sim = simulated_stair(&dir.path().join("model.json"));
     assert_eq!(sim["effects"], fit["effects"]);
     assert!((sim["val_fit_percent"].as_f64().unwrap() - val).abs() < 1e-9);

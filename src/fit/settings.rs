@@ -254,7 +254,9 @@ impl FitSettings {
         if let Some(why) = generations_refused(self.gens) {
             anyhow::bail!("--gens {}: {why}", self.gens);
         }
-        if let Some(why) = super::memory::too_large(self.pop) {
+        // As `staged_plan` decides; the thesis' flow has no refining.
+        let refined = !self.thesis_flow && problem.model.family.switch_index().is_some();
+        if let Some(why) = super::memory::too_large(self.pop, refined, self.algo) {
             anyhow::bail!(why);
         }
         let settings = self.algo_settings(problem.model.family, note)?;
