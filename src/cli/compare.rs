@@ -21,16 +21,23 @@ const OUT_FILES: [&str; 2] = ["compare.json", "compare.md"];
 ///
 /// 1. the thesis' Table 21: every algorithm × both models × N = 10, 20, 30
 ///    at G = 30, with total and per-generation time, final SSE and
-///    validation fit %; then the same at N = 1e3, 1e4, 1e5 (--sizes);
-/// 2. equal population budgets over --seeds seeds (median, min, max): the
+///    validation fit %; then the same at N = 1e3, 1e4, 1e5 (--sizes). The
+///    thesis' algorithm settings on the joint flow (a, b, c, x0 fitted in
+///    the data's box), where the algorithms compete on one problem; the
+///    thesis' own flow is in 3;
+/// 2. equal population budgets over --seeds seeds (median, min, max, a
+///    diverged seed counted as the worst, and how many diverged): the
 ///    thesis-faithful GA, MFA, PSO, the documented fixes of GA and MFA, and
 ///    differential evolution, each one search on the free run as the thesis
-///    does; then the staged fit of `mckibben fit` with each update rule;
+///    does; then the staged fit of `mckibben fit` with each update rule,
+///    whose free-run stage and polish add evaluations (their mean per seed
+///    is shown);
 /// 3. the joint flow (a, b, c, x0 fitted; staged fit) against the thesis'
 ///    flow (a, b at the ARX estimate, no intercept; same staged fit);
 /// 4. the cross-load check (§4.10): fitted on this data with the default
 ///    staged fit, scored on --cross (default: data/stair_7kg.csv beside the
-///    default data), and back.
+///    default data), and back; every row on the scored file's second half,
+///    so a model's own file is scored where its fit did not look.
 ///
 /// The MFA's all-pairs move costs O(N²·d) per generation; above
 /// --mfa-all-pairs-max fireflies it moves towards the 10 brightest only

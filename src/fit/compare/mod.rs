@@ -17,6 +17,7 @@ use super::settings::thesis_model;
 use crate::data::Trace;
 use crate::eval::Evaluator;
 use crate::ident::fit_percent;
+use crate::model::experiment::halves;
 use crate::model::{Family, FittedBaseline, Flow};
 use crate::optim::engine::{Plan, StopRules};
 use crate::optim::{AlgoSettings, Algorithm};
@@ -98,12 +99,18 @@ pub struct Row {
     pub val_fit_percent: Option<f64>,
 }
 
-/// A variant of the equal-budget table over its seeds.
+/// A variant of the equal-budget table over its seeds. A seed whose fit
+/// diverged counts as the worst of each spread, so a method that diverges
+/// often is not lifted by leaving its failures out.
 #[derive(Debug, Clone, Serialize)]
 pub struct Spread {
     pub model: Family,
     pub variant: String,
     pub seeds: u64,
+    /// Seeds whose fit diverged (no finite SSE or validation fit).
+    pub diverged: u64,
+    /// Simulations per seed, the mean over the seeds (a staged fit's
+    /// polish stops when it stops gaining, so the seeds differ).
     pub evaluations: u64,
     pub sse_median: Option<f64>,
     pub sse_min: Option<f64>,
@@ -226,9 +233,11 @@ impl Fitter<'_> {
     }
 }
 
-/// The median, least and largest of the finite values.
+/// The median, least and largest of `v`, where a diverged run is an
+/// infinity on its worse side (`+∞` for an SSE, `−∞` for a fit %): it
+/// takes its place in the order, and a statistic that lands on it is
+/// `None`, diverged.
 fn median_min_max(mut v: Vec<f64>) -> (Option<f64>, Option<f64>, Option<f64>) {
-    v.retain(|x| x.is_finite());
     if v.is_empty() {
         return (None, None, None);
     }
@@ -239,7 +248,7 @@ fn median_min_max(mut v: Vec<f64>) -> (Option<f64>, Option<f64>, Option<f64>) {
     } else {
         0.5 * (v[m / 2 - 1] + v[m / 2])
     };
-    (Some(median), Some(v[0]), Some(v[m - 1]))
+    (finite(median), finite(v[0]), finite(v[m - 1]))
 }
 
 /// The study on one experiment.
@@ -341,7 +350,7 @@ impl<'a> Study<'a> {
                 ));
                 let mut sse = Vec::new();
                 let mut fit = Vec::new();
-                let mut evaluations = 0;
+                let (mut evaluations, mut diverged) = (0, 0);
                 for seed in 1..=seeds {
                     let (row, _) = match &variant {
                         Variant::Thesis(s) => self.fitter.thesis(problem, s, n, g, seed)?,
@@ -349,7 +358,8 @@ impl<'a> Study<'a> {
                     };
                     sse.push(row.sse.unwrap_or(f64::INFINITY));
                     fit.push(row.val_fit_percent.unwrap_or(f64::NEG_INFINITY));
-                    evaluations = row.evaluations;
+                    diverged += u64::from(row.sse.is_none() || row.val_fit_percent.is_none());
+                    evaluations += row.evaluations;
                 }
                 let (sse_median, sse_min, sse_max) = median_min_max(sse);
                 let (fit_median, fit_min, fit_max) = median_min_max(fit);
@@ -357,7 +367,8 @@ impl<'a> Study<'a> {
                     model: problem.model.family,
                     variant: name,
                     seeds,
-                    evaluations,
+                    diverged,
+                    evaluations: (evaluations as f64 / seeds.max(1) as f64).round() as u64,
                     sse_median,
                     sse_min,
                     sse_max,
@@ -400,8 +411,8 @@ impl<'a> Study<'a> {
 
     /// The cross-load check (§4.10): the joint flow's models of [`flows`]
     /// scored on `other`, the models fitted on `other` (default staged
-    /// fit) scored here, and each on its own data; fit % over the whole
-    /// trace.
+    /// fit) scored here, and each on its own data; fit % of the free run
+    /// from the record's first sample, on its second half.
     ///
     /// [`flows`]: Study::flows
     pub fn cross_load(
@@ -411,8 +422,15 @@ impl<'a> Study<'a> {
         progress: &dyn Fn(String),
     ) -> anyhow::Result<Vec<CrossRow>> {
         let (n, g) = (POPULATION, GENERATIONS);
-        let score =
-            |m: &FittedBaseline, on: &Trace| finite(fit_percent(&on.output, &m.simulate_trace(on)));
+        // On the second half, as a fit validates: the record a model was
+        // fitted on is scored where its fit did not look.
+        let score = |m: &FittedBaseline, on: &Trace| {
+            let from = halves(on.len()).1.start;
+            finite(fit_percent(
+                &on.output[from..],
+                &m.simulate_trace(on)[from..],
+            ))
+        };
         let problems: Vec<FitProblem> = MODELS
             .iter()
             .map(|&f| FitProblem::new(other, f, Flow::Joint, None, false))
@@ -446,12 +464,19 @@ mod tests {
     use super::*;
     use crate::optim::mfa;
 
+    /// A diverged seed is the worst of its spread: it moves the median
+    /// (2.5 of the four that ran would have read better than the 3 of all
+    /// five), and the worst is `None`, diverged.
     #[test]
-    fn spreads_skip_diverged_runs() {
+    fn spreads_count_diverged_runs_as_the_worst() {
         let inf = f64::INFINITY;
         assert_eq!(
             median_min_max(vec![3.0, inf, 1.0, 2.0, 10.0]),
-            (Some(2.5), Some(1.0), Some(10.0))
+            (Some(3.0), Some(1.0), None)
+        );
+        assert_eq!(
+            median_min_max(vec![90.0, -inf, 80.0, -inf, -inf]),
+            (None, None, Some(90.0))
         );
         assert_eq!(median_min_max(vec![inf]), (None, None, None));
     }
