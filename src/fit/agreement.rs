@@ -119,7 +119,7 @@ impl Agreement {
         };
         format!(
             "{} of {} tries ended within the likelihood-ratio threshold of the best \
-             estimation SSE ({:.4}){others}{diverged}",
+             estimation SSE (at an SSE of {:.4} or less){others}{diverged}",
             self.agreeing, self.tries, self.threshold
         )
     }
@@ -157,6 +157,9 @@ mod tests {
         assert!(a.unsure(), "3 of 7");
         assert!(a.advice().unwrap().starts_with("only 3 of 7 tries"));
         assert!(a.to_text().starts_with("3 of 7 tries"), "{}", a.to_text());
+        // The figure beside the best is the threshold, and says so.
+        let at_most = format!("(at an SSE of {:.4} or less)", a.threshold);
+        assert!(a.to_text().contains(&at_most), "{}", a.to_text());
         let sure = Agreement::of(&[end(5.0), end(5.001), end(9.0)], 1000).unwrap();
         assert!(!sure.unsure() && sure.advice().is_none(), "{sure:?}");
         assert!(
