@@ -63,6 +63,28 @@ fn a_row_counts_the_first_seed_as_the_cases_and_every_seed_as_single_tries() {
     assert_eq!(row["pass"].as_u64(), Some(pass));
 }
 
+/// The table of several seeds says whose fits its pass and time columns
+/// count, wherever it is pasted (it showed seed 1's alone without a word),
+/// and the lowest seed's whatever the order given.
+#[test]
+fn a_table_of_several_seeds_says_which_seed_its_columns_count() {
+    let out = small_sweep(&["--cases", "1000", "--seeds", "2,1", "--backend", "cpu"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.starts_with(
+            "Seeds 2, 1: pass, within 5 %, the agreement columns and the time are seed 1's fits"
+        ),
+        "{text}"
+    );
+    let one = small_sweep(&["--cases", "1000", "--backend", "cpu"]);
+    assert!(!String::from_utf8_lossy(&one.stdout).contains("Seeds"));
+}
+
 /// A population from two tries on runs as whole tries, as `fit` runs it:
 /// 3050 is 3000 (two tries of 1000 and ten of 100; the next try would hold
 /// 1000), said once and fitted once beside a 3000 asked for (its rows said
