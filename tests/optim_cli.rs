@@ -185,6 +185,59 @@ fn fit_writes_the_documented_json_and_files() {
     assert_eq!(thesis["flow"], "thesis");
 }
 
+/// A checkpoint resumed under other --pop, --gens, --algo and --seed names
+/// each one it overrides: a loop over seeds that reuses one checkpoint
+/// path resumed one fit each time, labelled only "its settings win".
+#[test]
+fn a_resumed_checkpoint_names_the_flags_it_overrides() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let fit = |extra: &[&str]| {
+        let args = [&["fit", &csv, "--backend", "cpu", "--json"][..], extra].concat();
+        mckibben(&args, dir.path())
+    };
+    let made = fit(&[
+        "--algo",
+        "de",
+        "--pop",
+        "30",
+        "--gens",
+        "8",
+        "--seed",
+        "4",
+        "--checkpoint",
+        "ck.json",
+        "--time-budget",
+        "0",
+    ]);
+    assert!(!made.status.success());
+    let resumed = json(&fit(&[
+        "--algo",
+        "ga",
+        "--pop",
+        "40",
+        "--gens",
+        "9",
+        "--seed",
+        "5",
+        "--checkpoint",
+        "ck.json",
+    ]));
+    assert_eq!(
+        (resumed["seed"].as_u64(), resumed["algo"].as_str()),
+        (Some(4), Some("de"))
+    );
+    let notes = resumed["notes"].to_string();
+    for overridden in [
+        "N = 30 (not 40)",
+        "G = 8 (not 9)",
+        "--algo de (not ga)",
+        "seed 4 (not 5)",
+    ] {
+        assert!(notes.contains(overridden), "{overridden}: {notes}");
+    }
+}
+
 #[test]
 fn fit_resumes_from_a_checkpoint_to_the_same_result() {
     let dir = tempfile::tempdir().unwrap();
@@ -236,6 +289,19 @@ fn fit_resumes_from_a_checkpoint_to_the_same_result() {
     assert_eq!(resumed["generations"], full["generations"]);
     assert_eq!(resumed["params"], full["params"]);
     assert_eq!(resumed["sse"], full["sse"]);
+    let resuming = |fit: &serde_json::Value| -> String {
+        fit["notes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|n| n["text"].as_str().unwrap().to_string())
+            .find(|t| t.starts_with("resuming at generation"))
+            .unwrap_or_else(|| panic!("no resuming note: {fit}"))
+    };
+    assert!(
+        resuming(&resumed).ends_with("(its plan, N, G, seed and settings win)"),
+        "{resumed}"
+    );
     // The same checkpoint on other data is refused: resuming it would
     // report the first record's fit as the second's.
     let other = Synthetic::new(Family::Classic, 400, 0.05, 22);
@@ -1213,7 +1279,7 @@ fn a_population_past_the_free_memory_is_refused_before_it_runs() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("--pop 10000000: its candidates need at least 3.0 GB")
+        err.contains("--pop 10000000: its candidates need at least 3.6 GB")
             && err.contains("are free here"),
         "{err}"
     );

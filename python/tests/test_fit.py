@@ -537,7 +537,7 @@ def test_a_population_past_the_free_memory_is_refused_before_it_runs():
     )
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
-    assert run.stdout.startswith("refused: `pop=10000000`: its candidates need at least 3.0 GB"), run.stdout
+    assert run.stdout.startswith("refused: `pop=10000000`: its candidates need at least 3.6 GB"), run.stdout
     assert "are free here" in run.stdout, run.stdout
 
 

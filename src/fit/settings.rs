@@ -11,7 +11,7 @@ use std::path::Path;
 use super::chart::ModelChart;
 use super::objective::{
     GENERATIONS, POPULATION, SMALL_TRY_POPULATION, TRY_POPULATION, groups_of, staged_plan,
-    tries_text, try_populations,
+    tries_text, try_population, try_populations,
 };
 use super::problem::FitProblem;
 use crate::model::{Family, Measure};
@@ -369,6 +369,34 @@ impl FitSettings {
         Ok(self.stops.clone())
     }
 
+    /// What of this command's N, G, seed and update rule a checkpoint's
+    /// `plan` and `seed` override, as `N = 200 (not 500)`: a loop over seeds
+    /// that reuses one checkpoint resumes one fit each time.
+    fn overridden_by(&self, plan: &Plan, seed: u64) -> Vec<String> {
+        let mut out = Vec::new();
+        let n: usize = (0..plan.tries).map(|t| try_population(plan, t)).sum();
+        let asked: usize = match self.thesis_flow {
+            true => self.pop,
+            false => try_populations(self.pop).iter().sum(),
+        };
+        if n != asked {
+            out.push(format!("N = {n} (not {asked})"));
+        }
+        if let Some(global) = &plan.global {
+            if global.generations != self.gens {
+                out.push(format!("G = {} (not {})", global.generations, self.gens));
+            }
+            let algo = global.settings.algorithm();
+            if algo != self.algo {
+                out.push(format!("--algo {algo} (not {})", self.algo));
+            }
+        }
+        if seed != self.seed {
+            out.push(format!("seed {seed} (not {})", self.seed));
+        }
+        out
+    }
+
     /// The engine to run on `problem`: resumed from `checkpoint` when that file
     /// exists, else fresh. A checkpoint holds the whole future of its run,
     /// so its plan, N, G, seed and settings win over these and it resumes to
@@ -419,11 +447,17 @@ impl FitSettings {
                 differs.join(", ")
             );
             engine.stops = self.stops()?;
+            let overridden = self.overridden_by(&engine.plan, engine.seed);
             note(format!(
-                "resuming at generation {} of {} from {} (its plan, N, G, seed and settings win)",
+                "resuming at generation {} of {} from {} (its plan, N, G, seed and settings \
+                 win{})",
                 engine.generation(),
                 engine.plan.generations(),
-                path.display()
+                path.display(),
+                match overridden.is_empty() {
+                    true => String::new(),
+                    false => format!(": {}", overridden.join(", ")),
+                }
             ));
             return Ok(engine);
         }
