@@ -364,6 +364,10 @@ fn repeat_runs_the_diagnosis_from_the_next_seeds() {
         second["baseline"]["selection_fit_percent"]
     );
     assert_eq!(
+        runs[1]["baseline_test_fit_percent"],
+        second["baseline"]["test_fit_percent"]
+    );
+    assert_eq!(
         runs[1]["final_test_fit_percent"],
         second["steps"].as_array().unwrap().last().unwrap()["test_fit_percent"]
     );
@@ -379,6 +383,13 @@ fn repeat_runs_the_diagnosis_from_the_next_seeds() {
     assert!(
         stdout.contains("  seed 1 ") && stdout.contains("  seed 2 "),
         "{stdout}"
+    );
+    // Its row's before and after are on the same part, the test part.
+    let seed_2 = stdout.lines().find(|l| l.contains("  seed 2 ")).unwrap();
+    let before = second["baseline"]["test_fit_percent"].as_f64().unwrap();
+    assert!(
+        seed_2.contains(&format!("baseline {before:5.1} %")),
+        "{seed_2}"
     );
     // The verdict says how many runs named each of its effects.
     assert!(!both["verdict"].as_array().unwrap().is_empty());

@@ -24,7 +24,9 @@ pub struct SeedRun {
     pub kind: &'static str,
     /// Its baseline on the selection part, which its choices read.
     pub baseline_selection_fit_percent: f64,
-    /// Its final model on the test part, which none of its choices read.
+    /// Its baseline and its final model on the test part, which none of
+    /// its choices read: before and after on the same samples.
+    pub baseline_test_fit_percent: f64,
     pub final_test_fit_percent: f64,
 }
 
@@ -36,6 +38,7 @@ impl SeedRun {
             named: d.named().to_vec(),
             kind: d.verdict_kind(),
             baseline_selection_fit_percent: d.baseline().selection_fit_percent,
+            baseline_test_fit_percent: d.baseline().test_fit_percent,
             final_test_fit_percent: d.last().test_fit_percent,
         }
     }
@@ -138,6 +141,7 @@ mod tests {
                 .collect(),
             kind: if named.is_empty() { "none" } else { "named" },
             baseline_selection_fit_percent: 90.0,
+            baseline_test_fit_percent: 89.0,
             final_test_fit_percent: 95.0,
         }
     }

@@ -275,7 +275,9 @@ pub struct RunJson {
     pub verdict_kind: &'static str,
     /// Its baseline on its selection part, which its choices read.
     pub baseline_selection_fit_percent: f64,
-    /// Its final model on the test part, which none of its choices read.
+    /// Its baseline and its final model on the test part, which none of
+    /// its choices read.
+    pub baseline_test_fit_percent: f64,
     pub final_test_fit_percent: f64,
 }
 
@@ -289,6 +291,7 @@ impl RepeatsJson {
                     verdict: r.named.iter().map(|e| e.name()).collect(),
                     verdict_kind: r.kind,
                     baseline_selection_fit_percent: r.baseline_selection_fit_percent,
+                    baseline_test_fit_percent: r.baseline_test_fit_percent,
                     final_test_fit_percent: r.final_test_fit_percent,
                 })
                 .collect(),

@@ -654,8 +654,7 @@ fn repeats_text(o: &mut String, d: &Diagnosis) {
     let _ = writeln!(
         o,
         "\nREPEATED from {k} seeds (--repeat {k}; each run a whole diagnosis, this report the first's;\n  \
-         baseline on each run's selection part, which its choices read, final model on its test part,\n  \
-         which none of them read):"
+         its baseline and its final model on its test part, which none of its choices read):"
     );
     let verdicts: Vec<String> = runs
         .iter()
@@ -681,7 +680,7 @@ fn repeats_text(o: &mut String, d: &Diagnosis) {
         let _ = writeln!(
             o,
             "  seed {:<4} {verdict:<width$}  baseline {:5.1} %  final {:5.1} %",
-            r.seed, r.baseline_selection_fit_percent, r.final_test_fit_percent
+            r.seed, r.baseline_test_fit_percent, r.final_test_fit_percent
         );
     }
     let counts = |physical: bool| -> String {
