@@ -232,6 +232,8 @@ pub struct DiagnosisJson {
     pub verdict: Vec<&'static str>,
     /// `named`, `none`, `not-explained` or `nothing-tried`.
     pub verdict_kind: &'static str,
+    /// What weakens a verdict naming effects ([`super::verdict_cautions`]).
+    pub verdict_cautions: Vec<String>,
     /// The model file the selection started from (`--from`), and its
     /// effects, taken as given.
     pub from: Option<String>,
@@ -385,6 +387,7 @@ impl DiagnosisJson {
             candidates,
             verdict: d.named().iter().map(|e| e.name()).collect(),
             verdict_kind: d.verdict_kind(),
+            verdict_cautions: super::verdict_cautions(d),
             from: d.from.clone(),
             capped: sel.capped,
             given: sel.given.iter().map(|e| e.name()).collect(),

@@ -106,6 +106,54 @@ pub fn baseline_caution(d: &Diagnosis) -> Option<String> {
     ))
 }
 
+/// What the report found that weakens a verdict naming effects, each in
+/// words (the text's "Read it with care", JSON `verdict_cautions`, a
+/// Python warning); empty where the verdict names none. The acceptance
+/// rule judges each effect on the selection part; these are what it
+/// cannot see: a baseline that could not reach the record's loop, a size
+/// the data leave open, a chain that does not carry to other records.
+pub fn verdict_cautions(d: &Diagnosis) -> Vec<String> {
+    if d.named().is_empty() {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    if !d.baseline_on_edge.is_empty() {
+        out.push(
+            "the baseline's loop shape ended on its box's edge (CAUTION above): the named \
+             effects may stand in for the loop it could not reach"
+                .to_string(),
+        );
+    }
+    for s in d
+        .size_intervals
+        .iter()
+        .filter(|s| (s.lo_at_edge || s.hi_at_edge) && d.named().contains(&s.effect))
+    {
+        out.push(format!(
+            "the data do not bound {}'s size within its box (HOW SURE: {} reaches the box's \
+             edge)",
+            s.effect.name(),
+            s.param
+        ));
+    }
+    let collapsed: Vec<&str> = d
+        .transfers
+        .iter()
+        .filter(|t| t.collapses)
+        .map(|t| t.dataset.as_str())
+        .collect();
+    if !collapsed.is_empty() {
+        out.push(format!(
+            "the chain collapses on {} of the {} other records (TRANSFER: {}): it describes \
+             this record more than the muscle",
+            collapsed.len(),
+            d.transfers.len(),
+            collapsed.join(", ")
+        ));
+    }
+    out
+}
+
 /// What was diagnosed, how it was split, the baseline and the floor.
 fn header_text(o: &mut String, d: &Diagnosis) {
     let base = d.baseline();
@@ -391,6 +439,10 @@ fn verdict_text(o: &mut String, d: &Diagnosis) {
             pct(d.last().test_gap_closed).trim(),
             pct(d.last().gap_closed).trim()
         );
+        let cautions = verdict_cautions(d);
+        if !cautions.is_empty() {
+            let _ = writeln!(o, "Read it with care: {}.", cautions.join("; "));
+        }
     }
     if d.selection.capped {
         let n = d.selection.rounds.len();
