@@ -346,7 +346,7 @@ enum Example {
 /// Members whose values measure the machine an example ran on (wall
 /// times, rates, the threads a backend names), not the command: an
 /// example shows them as one run gave them, and they are not compared.
-const MEASURED: [&str; 16] = [
+const MEASURED: [&str; 18] = [
     "seconds",
     "seconds_per_generation",
     "evaluator_seconds",
@@ -356,6 +356,8 @@ const MEASURED: [&str; 16] = [
     "max_seconds",
     "wall_s",
     "median_s",
+    "min_s",
+    "max_s",
     "mean_step_time_us",
     "max_step_time_us",
     "max_step_cpu_us",

@@ -1258,6 +1258,41 @@ fn bench_says_how_many_candidates_diverged() {
     assert!(!stderr.contains("diverged"), "{stderr}");
 }
 
+/// bench's text says how far its timed calls spread around the median, and
+/// of a population under a hundred compares all of it (`top-100 identical
+/// (30 of 100 shared)` read as a miss).
+#[test]
+fn bench_shows_its_calls_spread_and_a_small_population_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "bench",
+        "--synthetic",
+        "300",
+        "--backend",
+        "cpu",
+        "--pop",
+        "30",
+        "--repeats",
+        "3",
+    ];
+    let out = mckibben(&args, dir.path());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("median s (range)"), "{text}");
+    assert!(text.contains("(30 of 30 shared)"), "{text}");
+    let row = json(&mckibben(&[&args[..], &["--json"]].concat(), dir.path()))["rows"][0].clone();
+    let (lo, median, hi) = (
+        row["min_s"].as_f64().unwrap(),
+        row["median_s"].as_f64().unwrap(),
+        row["max_s"].as_f64().unwrap(),
+    );
+    assert!(0.0 < lo && lo <= median && median <= hi, "{row}");
+}
+
 /// A population whose candidates need more memory than is free is refused
 /// before a row is allocated: under `ulimit -v` the allocation that failed
 /// midway aborted the command (exit 134), and in Python the interpreter.

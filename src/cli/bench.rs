@@ -42,7 +42,8 @@ use rand_chacha::ChaCha8Rng;
 /// adapter, model (the family and its effects, e.g. "classic +
 /// saturation:output"), effects (names), samples, population,
 /// candidate_samples_per_s, evals_per_s, median_s (end to end: each
-/// call as a fit makes it), kernel_median_s and
+/// call as a fit makes it), min_s and max_s (the fastest and slowest of
+/// those calls), kernel_median_s and
 /// kernel_candidate_samples_per_s (the kernels alone, from the device's
 /// timestamps; null on the CPU and where the adapter offers none), agreement
 /// {max_rel_diff, finiteness_mismatches, bit_identical, top10_identical,
@@ -130,6 +131,10 @@ struct Timing {
     candidate_samples_per_s: f64,
     evals_per_s: f64,
     median_s: f64,
+    /// The fastest and slowest of the same calls: a machine shared with
+    /// other work moves the median between runs, and the spread shows it.
+    min_s: f64,
+    max_s: f64,
     /// The median of the kernels' device time over the same calls; `None`
     /// on the CPU and where the adapter offers no timestamp queries.
     kernel_median_s: Option<f64>,
@@ -158,12 +163,17 @@ fn time(
         t[t.len() / 2]
     };
     let cand_samples = (n * problem.samples()) as f64;
+    let (min_s, max_s) = times.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &t| {
+        (lo.min(t), hi.max(t))
+    });
     let end_to_end = median(times);
     let kernel = (kernel_times.len() == repeats as usize).then(|| median(kernel_times));
     let timing = Timing {
         candidate_samples_per_s: cand_samples / end_to_end,
         evals_per_s: n as f64 / end_to_end,
         median_s: end_to_end,
+        min_s,
+        max_s,
         kernel_median_s: kernel,
         kernel_candidate_samples_per_s: kernel.map(|k| cand_samples / k),
     };
@@ -196,6 +206,14 @@ fn calibration_rows(model: &str, ceiling: &Ceiling) -> String {
         })
         .collect::<Vec<_>>()
         .join("\n")
+}
+
+/// The median time of a call and, over more than one call, the range.
+fn spread(t: &Timing) -> String {
+    if t.min_s == t.max_s {
+        return format!("{:.3e}", t.median_s);
+    }
+    format!("{:.3e} ({:.2e}–{:.2e})", t.median_s, t.min_s, t.max_s)
 }
 
 /// A share as a percentage, `—` where there is none.
@@ -421,7 +439,7 @@ fn print_header(
         "population",
         "cand-samp/s",
         "evals/s",
-        "median s",
+        "median s (range)",
         if ceiling.is_some() {
             "agreement with the CPU path"
         } else {
@@ -436,11 +454,11 @@ fn print_header(
 fn print_row(row: &Row) -> anyhow::Result<()> {
     let (a, timing) = (&row.agreement, &row.timing);
     outln!(
-        "{:>10}  {:>12.3e}  {:>11.3e}  {:>10.3e}  {}, top-10 {}, top-100 {} ({} of 100 shared), max rel diff {:.2e}, {} finiteness mismatches, {} diverged{}",
+        "{:>10}  {:>12.3e}  {:>11.3e}  {:>10}  {}, top-10 {}, top-100 {} ({} of {} shared), max rel diff {:.2e}, {} finiteness mismatches, {} diverged{}",
         row.population,
         timing.candidate_samples_per_s,
         timing.evals_per_s,
-        timing.median_s,
+        spread(timing),
         if a.bit_identical {
             "bit-identical"
         } else {
@@ -457,6 +475,7 @@ fn print_row(row: &Row) -> anyhow::Result<()> {
             "differs"
         },
         a.top100_overlap,
+        row.population.min(100),
         a.max_rel_diff,
         a.finiteness_mismatches,
         percent(Some(row.diverged_share)),
