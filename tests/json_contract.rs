@@ -845,6 +845,31 @@ fn validate_boucwen() {
             "--json",
         ],
     );
+    // The table says what the published rows are beside this one's
+    // white-box model, and what its time covers.
+    let out = Command::new(BIN)
+        .args([
+            "validate",
+            "boucwen",
+            "--backend",
+            "cpu",
+            "--population",
+            "20",
+        ])
+        .args(["--generations", "2", "--lm-iterations", "0"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("identified and tested in"), "{text}");
+    assert!(
+        text.contains("white-box: the benchmark's own Bouc-Wen oscillator, where the published rows are black-box models"),
+        "{text}"
+    );
 }
 
 /// `benchmark`, `validate`'s name before 0.2, still runs the command, with

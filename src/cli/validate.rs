@@ -80,7 +80,15 @@ struct Report {
     lm_iterations: usize,
     backend: String,
     simulation: &'static str,
+    /// What the fitted model is beside the published ones.
+    structure: &'static str,
 }
+
+/// The model's structure beside the published rows': the comparison shows
+/// that the identification recovers the system, not that a model of the
+/// system's own form beats black-box ones.
+const STRUCTURE: &str = "white-box: the benchmark's own Bouc-Wen oscillator, where the \
+                         published rows are black-box models";
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     match args.which {
@@ -128,14 +136,16 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
         lm_iterations: id.lm_iterations,
         backend: id.scorer.clone(),
         simulation: "free-run simulation from the test input only (no measured output used)",
+        structure: STRUCTURE,
     };
     if args.json {
         outln!("{}", Versioned::new(&report).to_string_pretty()?)?;
         return Ok(());
     }
     outln!(
-        "Bouc-Wen benchmark (data: {}), identified in {seconds:.1} s ({} candidates scored by \
-         the population search, then {} Levenberg–Marquardt iterations; {})",
+        "Bouc-Wen benchmark (data: {}), identified and tested in {seconds:.1} s (the whole \
+         command; {} candidates scored by the population search, then {} Levenberg–Marquardt \
+         iterations; {})",
         dir.display(),
         id.evaluations,
         id.lm_iterations,
@@ -166,5 +176,9 @@ fn boucwen(args: BoucwenArgs) -> anyhow::Result<()> {
         outln!("{name:<34} {v:>14.3e} {:>14}", "—")?;
     }
     outln!("(simulation RMSE, PDF eq. 6; published values as quoted in the data README)")?;
+    outln!(
+        "mckibben's model is {STRUCTURE}: beating them is expected, and what the row shows is \
+         that the identification recovers the system (docs/BENCHMARK.md)"
+    )?;
     Ok(())
 }
