@@ -23,8 +23,9 @@ pub struct GenerationRecord {
     /// Wall-clock seconds since the run started (the only field that is not
     /// a function of the seed).
     pub seconds: f64,
-    /// Lowest free-run SSE ever seen (none while the global stage searches
-    /// the prediction error).
+    /// Lowest free-run SSE seen so far: in the global stage, of its islands
+    /// that measure the free run (the last ones, whose horizon reaches the
+    /// record's length); none before any.
     pub best_sse: Option<f64>,
     /// Lowest cost of this stage so far, under its measure.
     pub stage_best: Option<f64>,

@@ -39,7 +39,12 @@ pub fn convergence_figure(history: &History, title: &str) -> Figure {
             .collect()
     };
     Figure::new(title).with(
-        Panel::new("convergence", "generation", "SSE (estimation)")
+        Panel::new(
+            "convergence (the global stage's costs are its prediction error, the others' and \
+             the best free run's the free-run SSE)",
+            "generation",
+            "cost on the estimation half",
+        )
             .with(Series::line(
                 "best free run",
                 g.clone(),
