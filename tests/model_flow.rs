@@ -1522,3 +1522,78 @@ fn a_model_of_several_loads_says_what_it_runs_and_fit_refers_it_to_diagnose() {
         "{err}"
     );
 }
+
+/// `simulate` on a record the model was fitted on leads with the second
+/// half and says why (its whole-record 78 % on the Cavatappi 400 g led,
+/// the first half the one that fitted it); on the 500 g record, which sits
+/// 14 mm above the 400 g one, the run that steps off at once is blamed on
+/// its start's level, not on a record that moves too fast.
+#[test]
+fn simulate_says_when_a_record_fitted_the_model_and_when_it_starts_off_its_level() {
+    let Some(cavatappi) = common::require_path(common::external_dir().join("cavatappi_muscle"))
+    else {
+        return;
+    };
+    let record = |load: &str| cavatappi.join(format!("sample1_{load}.csv"));
+    let (fitted, heavier) = (record("400g"), record("500g"));
+    let dir = tempfile::tempdir().unwrap();
+    let columns = [
+        "--time",
+        "t_s",
+        "--input",
+        "pressure_psi",
+        "--output",
+        "disp_mm",
+    ];
+    let _ = json_of(
+        &[
+            &["fit", fitted.to_str().unwrap()][..],
+            &columns,
+            &["--resample", "0.01", "--backend", "cpu", "--json"],
+            &["--out", dir.path().to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    let model = dir.path().join("model.json");
+    let simulate = |input: &Path| {
+        let args = ["simulate", "--from", model.to_str().unwrap(), "--input"];
+        let out = mckibben(&[&args[..], &[input.to_str().unwrap()]].concat());
+        let json = json_of(&[&args[..], &[input.to_str().unwrap(), "--json"]].concat());
+        (
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+            json,
+        )
+    };
+    let (own, _, own_json) = simulate(&fitted);
+    assert_eq!(own_json["fitted_on"], true);
+    let line = own
+        .lines()
+        .find(|l| l.contains("fit to the measured output"))
+        .unwrap();
+    let val = own_json["val_fit_percent"].as_f64().unwrap();
+    assert!(
+        line.starts_with(&format!(
+            "  fit to the measured output on its second half {val:.2} %"
+        )) && line.contains("this is a record the model was fitted on"),
+        "{line}"
+    );
+
+    let (other, stderr, other_json) = simulate(&heavier);
+    assert_eq!(other_json["fitted_on"], false);
+    assert!(!other.contains("fitted on"), "{other}");
+    assert!(
+        other_json["stepped_past_at"].as_u64().unwrap() <= 3,
+        "{other_json}"
+    );
+    assert!(
+        other.contains("the record's first output, ") && other.contains("subtract the offset"),
+        "{other}"
+    );
+    if let Some(fit) = other_json["fit_percent"].as_f64().filter(|f| *f < 0.0) {
+        assert!(
+            stderr.contains(&format!("fits this record at {fit:.1} %")),
+            "{stderr}"
+        );
+    }
+}

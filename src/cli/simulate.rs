@@ -170,6 +170,9 @@ struct Summary {
     /// second half (the validation half `fit` and `diagnose` score).
     fit_percent: Option<f64>,
     val_fit_percent: Option<f64>,
+    /// Whether the input file is one the model was fitted on (its SHA-256
+    /// is in the model file's provenance): its first half fitted the model.
+    fitted_on: bool,
     out: Option<PathBuf>,
 }
 
@@ -361,6 +364,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         loop_area: loop_area(&trace.input, &trace.output),
         fit_percent: scored(0),
         val_fit_percent: scored(halves(samples).1.start),
+        fitted_on: match (&file, args.input_is_generated()) {
+            (Some(f), false) => f.provenance.fitted_on(Path::new(&args.input)),
+            _ => false,
+        },
         out: args
             .out
             .as_ref()
@@ -371,17 +378,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         outln!("{}", Versioned::new(&summary).to_string_pretty()?)?;
         return Ok(());
     }
-    print_summary(&args, &summary, &model, &described, overstep)
+    let start = y0.map(|y0| (y0, trace.input.first().copied().unwrap_or(0.0)));
+    print_summary(&args, &summary, &model, &described, overstep, start)
 }
 
+/// Samples from the start within which a first overstep is the start's
+/// doing: the run steps from the record's first output toward the model's
+/// rest.
+const START_SAMPLES: usize = 3;
+
 /// The summary for a terminal, on standard output, or on standard error
-/// where the trace went to standard output.
+/// where the trace went to standard output. `start`: the record's first
+/// output and input, where the run starts from a measured output.
 fn print_summary(
     args: &Args,
     summary: &Summary,
     model: &Model,
     described: &str,
     overstep: Option<(usize, f64, f64)>,
+    start: Option<(f64, f64)>,
 ) -> anyhow::Result<()> {
     let mut report = CsvOut::summary(args.out.as_ref());
     writeln!(
@@ -427,6 +442,28 @@ fn print_summary(
                 None => ", and the run overshoots from there",
             }
         )?;
+        // A record at another level than the model's data (another load,
+        // a moved sensor zero) starts the run far from its rest, and the
+        // first step toward it is the one that oversteps.
+        if let (true, Some((y0, u0)), Some(rest)) = (
+            at <= START_SAMPLES,
+            start,
+            start.and_then(|(_, u0)| model.base.rest_output(u0)),
+        ) && (y0 - rest).abs() > limit
+        {
+            writeln!(
+                report,
+                "  the record's first output, {}, lies {} from where the model rests at its \
+                 first input ({} at input {}; its data's mean output {}): a record at another \
+                 level than the model's data (another load, a moved sensor zero) starts the run \
+                 off its rest; subtract the offset, or fit this record",
+                significant(y0, 4),
+                significant((y0 - rest).abs(), 3),
+                significant(rest, 4),
+                significant(u0, 4),
+                significant(model.base.output_mean, 4)
+            )?;
+        }
     }
     // A run that did not diverge scores both; a fit % left out there is
     // an output constant over the half (the measure divides by its spread).
@@ -435,10 +472,30 @@ fn print_summary(
             Some(val) => format!("{val:.2} %"),
             None => "undefined, the output being constant over it".into(),
         };
-        writeln!(
-            report,
-            "  fit to the measured output {all:.2} % (its second half alone: {val}, as `fit` scores its validation half)"
-        )?;
+        match summary.fitted_on {
+            false => writeln!(
+                report,
+                "  fit to the measured output {all:.2} % (its second half alone: {val}, as `fit` \
+                 scores its validation half)"
+            )?,
+            // The whole record holds the half that fitted the model: the
+            // second half leads, and what it includes is said.
+            true => writeln!(
+                report,
+                "  fit to the measured output on its second half {val} (over the whole record \
+                 {all:.2} %, its first half the one that fitted the model): this is a record \
+                 the model was fitted on (its SHA-256 is in the model file); where a \
+                 diagnosis or `fit --effects auto` chose the model, the second half holds the \
+                 selection part that chose it too, and the diagnosis' test figure is the one \
+                 to quote"
+            )?,
+        }
+        if all < 0.0 {
+            errln!(
+                "mckibben: warning: the model fits this record at {all:.1} %: the record's own \
+                 mean level follows it better than the model does"
+            );
+        }
     }
     if let Some(p) = &args.out {
         writeln!(report, "  trace written to {p}")?;

@@ -334,6 +334,20 @@ impl Provenance {
     }
 }
 
+impl Provenance {
+    /// Whether the file at `path` holds the very bytes of one the model was
+    /// fitted on (its SHA-256 is among `data`'s): its scores there include
+    /// the part that fitted, or chose, the model.
+    pub fn fitted_on(&self, path: &Path) -> bool {
+        let Some(digest) = sha256_of(path) else {
+            return false;
+        };
+        self.data
+            .iter()
+            .any(|d| d.sha256.as_deref() == Some(digest.as_str()))
+    }
+}
+
 /// The hex SHA-256 of a file's bytes (none for a generated trace, and none
 /// for a pipe or standard input: what it held was read once, and opening
 /// it again waits for a writer that never comes, or hashes nothing).

@@ -45,18 +45,18 @@ pub fn convergence_figure(history: &History, title: &str) -> Figure {
             "generation",
             "cost on the estimation half",
         )
-            .with(Series::line(
-                "best free run",
-                g.clone(),
-                col(|r| r.best_sse),
-            ))
-            .with(Series::line("stage best", g.clone(), col(|r| r.stage_best)))
-            .with(Series::line(
-                "generation best",
-                g.clone(),
-                col(|r| r.generation_best_sse),
-            ))
-            .with(Series::line("population mean", g, col(|r| r.mean_sse)))
-            .log_y(),
+        .with(Series::line(
+            "best free run",
+            g.clone(),
+            col(|r| r.best_sse),
+        ))
+        .with(Series::line("stage best", g.clone(), col(|r| r.stage_best)))
+        .with(Series::line(
+            "generation best",
+            g.clone(),
+            col(|r| r.generation_best_sse),
+        ))
+        .with(Series::line("population mean", g, col(|r| r.mean_sse)))
+        .log_y(),
     )
 }
