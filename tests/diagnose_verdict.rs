@@ -107,3 +107,18 @@ fn a_verdict_says_what_weakens_it() {
     let json = serde_json::to_value(DiagnosisJson::of(&d)).unwrap();
     assert_eq!(json["verdict_cautions"].as_array().unwrap().len(), 2);
 }
+
+/// A record whose output's second difference follows its noise gets its
+/// floor as it is; one whose second difference follows the signal is told
+/// the floor is an upper bound, in the text and the JSON.
+#[test]
+fn a_floor_read_from_motion_at_the_sample_scale_is_called_an_upper_bound() {
+    let mut d = named_diagnosis();
+    let upper = "The noise floor is an upper bound here";
+    assert!(!d.floor_is_upper_bound(), "{}", d.noise_floor_lag1);
+    assert!(!to_text(&d).contains(upper));
+    d.noise_floor_lag1 = 0.82;
+    assert!(to_text(&d).contains(upper), "{}", to_text(&d));
+    let json = serde_json::to_value(DiagnosisJson::of(&d)).unwrap();
+    assert_eq!(json["noise_floor_upper_bound"], true);
+}

@@ -93,6 +93,10 @@ pub struct Diagnosis {
     /// Sample time of the first dataset (s), for sizes in time.
     pub dt: f64,
     pub noise_floor_rmse: f64,
+    /// The lag-1 correlation of the output's second difference over the
+    /// same samples ([`locate::second_difference_lag1`]): past
+    /// [`locate::SMOOTHNESS_LAG1`] the floor is an upper bound.
+    pub noise_floor_lag1: f64,
     /// Where the baseline misses.
     pub locate: locate::Where,
     pub selection: Selection,
@@ -171,6 +175,12 @@ impl Diagnosis {
         }
     }
 
+    /// Whether the noise floor is an upper bound: the output's second
+    /// difference follows the signal, so the floor counts part of it.
+    pub fn floor_is_upper_bound(&self) -> bool {
+        self.noise_floor_lag1 > locate::SMOOTHNESS_LAG1
+    }
+
     /// Whether the effects asked for leave out some of the default
     /// catalogue's: a verdict then speaks of those effects, not of the
     /// catalogue.
@@ -237,7 +247,7 @@ pub fn diagnose_from(
         Some(m) => Some(start_of(m, family, data.datasets())?),
         None => None,
     };
-    let floor = noise_floor_of(&data);
+    let (floor, floor_lag1) = noise_floor_of(&data);
     let start_ref = start.as_ref().map(|(m, theta)| (m, theta.as_slice()));
     let asked = effects.to_vec();
     let (effects, not_tried) = tried_effects(traces, effects, from);
@@ -309,6 +319,7 @@ pub fn diagnose_from(
         parts: data.parts.clone(),
         dt: data.records.ctx[0].dt,
         noise_floor_rmse: floor,
+        noise_floor_lag1: floor_lag1,
         locate: place,
         selection,
         steps,
@@ -466,7 +477,7 @@ fn as_fit_of(
 /// measured on every sample but the test part's (the estimation half and
 /// the selection blocks; the blocks alone are too few on a short record,
 /// where steps inflate the second differences).
-fn noise_floor_of(data: &FitProblem) -> f64 {
+fn noise_floor_of(data: &FitProblem) -> (f64, f64) {
     let outputs: Vec<Vec<f64>> = data
         .records
         .whole
@@ -479,7 +490,10 @@ fn noise_floor_of(data: &FitProblem) -> f64 {
         })
         .collect();
     let refs: Vec<&[f64]> = outputs.iter().map(|v| v.as_slice()).collect();
-    locate::noise_floor(&refs)
+    (
+        locate::noise_floor(&refs),
+        locate::second_difference_lag1(&refs),
+    )
 }
 
 /// The models along the way, each with its parameters: the baseline, the

@@ -226,6 +226,8 @@ pub struct DiagnosisJson {
     pub parts: Vec<PartsJson>,
     pub noise_floor_rmse: f64,
     pub noise_floor_method: &'static str,
+    /// Whether the floor is an upper bound ([`Diagnosis::floor_is_upper_bound`]).
+    pub noise_floor_upper_bound: bool,
     #[serde(rename = "where")]
     pub where_: WhereJson,
     pub candidates: Vec<CandidateJson>,
@@ -356,6 +358,7 @@ impl DiagnosisJson {
             parts: d.parts.iter().map(PartsJson::of).collect(),
             noise_floor_rmse: floor,
             noise_floor_method: "median |second difference of the measured output on the estimation half and the selection blocks| / (0.6745·√6)",
+            noise_floor_upper_bound: d.floor_is_upper_bound(),
             where_: WhereJson {
                 rmse: w.rmse,
                 branch: BranchJson {

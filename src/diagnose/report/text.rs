@@ -178,6 +178,17 @@ fn header_text(o: &mut String, d: &Diagnosis) {
             n => format!("; the {n} records' parts pooled, each about its own mean"),
         }
     );
+    if d.floor_is_upper_bound() {
+        let _ = writeln!(
+            o,
+            "  The noise floor is an upper bound here: the output's second difference follows \
+             the signal, not the noise (its lag-1 correlation {:.2}, where noise on a smooth \
+             response gives −0.67), so the floor counts motion at the sample scale as noise; \
+             where the fit's error comes near it, the shares of the gap above it and the stop \
+             near it read high",
+            d.noise_floor_lag1
+        );
+    }
     if let Some(caution) = baseline_caution(d) {
         let _ = writeln!(o, "  CAUTION: {caution}");
     }
