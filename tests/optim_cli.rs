@@ -578,6 +578,15 @@ fn bad_flags_and_bad_data_are_clear_errors() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("bad.csv") && err.contains("pressure"), "{err}");
+    // A second file's error names the flag that gave it, once.
+    let out = mckibben(&["compare", &csv, "--cross", "missing.csv"], dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.starts_with("mckibben: error: --cross: missing.csv"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
 
     // Values whose squares overflow the f32 simulation: an error naming the
     // column and its range, and no model written.
@@ -1206,7 +1215,7 @@ fn a_validation_half_whose_output_is_constant_has_no_fit_percent() {
     );
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
-        text.contains("its second half alone: undefined, the output being constant over it"),
+        text.contains("on its second half undefined, the output being constant over it"),
         "{text}"
     );
 }

@@ -193,5 +193,13 @@ fn cross_trace(args: &Args) -> anyhow::Result<Option<Trace>> {
         data: Some(path),
         columns: cols.clone(),
     };
-    Ok(Some(one_trace(other.load()?, cols.resample.is_some())?))
+    let flag = match args.cross {
+        Some(_) => "--cross",
+        None => "the cross-load check's default record",
+    };
+    let trace = other
+        .load()
+        .and_then(|t| one_trace(t, cols.resample.is_some()))
+        .map_err(|e| anyhow::anyhow!("{flag}: {e}"))?;
+    Ok(Some(trace))
 }

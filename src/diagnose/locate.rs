@@ -501,9 +501,7 @@ mod tests {
             .collect();
         let r = second_difference_lag1(&[&slow]);
         assert!((r + 2.0 / 3.0).abs() < 0.05 && r < SMOOTHNESS_LAG1, "{r}");
-        let fast: Vec<f64> = (0..4000)
-            .map(|k| 10.0 * (k as f64).sin() + e[k])
-            .collect();
+        let fast: Vec<f64> = (0..4000).map(|k| 10.0 * (k as f64).sin() + e[k]).collect();
         let r = second_difference_lag1(&[&fast]);
         assert!(r > SMOOTHNESS_LAG1, "{r}");
         assert!(
