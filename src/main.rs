@@ -12,6 +12,7 @@ fn main() -> ExitCode {
     restore_default_sigpipe();
     ensure_runtime_dir();
     let args = cli::Cli::parse();
+    check_thread_count();
     match cli::run(args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
@@ -38,6 +39,23 @@ fn main() -> ExitCode {
                 false => ExitCode::FAILURE,
             }
         }
+    }
+}
+
+/// rayon ignores a `RAYON_NUM_THREADS` that is not a whole number and runs
+/// on every core: a timing meant for one thread should not pass for it.
+fn check_thread_count() {
+    let Some(value) = std::env::var_os("RAYON_NUM_THREADS") else {
+        return;
+    };
+    let value = value.to_string_lossy();
+    if value.trim().parse::<usize>().is_err() {
+        let _ = writeln!(
+            std::io::stderr().lock(),
+            "mckibben: note: RAYON_NUM_THREADS={value} is not a whole number, so it is ignored: \
+             the CPU path runs on {} threads",
+            rayon::current_num_threads()
+        );
     }
 }
 

@@ -1267,6 +1267,28 @@ fn bench_says_how_many_candidates_diverged() {
     assert!(!stderr.contains("diverged"), "{stderr}");
 }
 
+/// A `RAYON_NUM_THREADS` rayon ignores is said to be ignored (a run meant
+/// for one thread ran on every core without a word).
+#[test]
+fn a_thread_count_that_is_not_a_number_is_said_to_be_ignored() {
+    let run = |threads: &str| {
+        let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
+            .args(["identify", "--json"])
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .env("RAYON_NUM_THREADS", threads)
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = run("one");
+    assert!(
+        err.contains("RAYON_NUM_THREADS=one is not a whole number, so it is ignored"),
+        "{err}"
+    );
+    assert!(!run("1").contains("RAYON_NUM_THREADS"));
+}
+
 /// bench's text says how far its timed calls spread around the median, and
 /// of a population under a hundred compares all of it (`top-100 identical
 /// (30 of 100 shared)` read as a miss).
