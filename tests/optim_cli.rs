@@ -1643,7 +1643,8 @@ fn the_report_keeps_its_figures_digits_in_any_unit() {
             .find(|l| l.trim_start().starts_with(label))
             .unwrap_or_else(|| panic!("no `{label}` line in {text}"));
         let value = match line.split_once("(RMSE ") {
-            Some((_, rmse)) => rmse.trim_end_matches(')'),
+            // Its unit follows where the output column states one.
+            Some((_, rmse)) => rmse.trim_end_matches(')').split(' ').next().unwrap(),
             None => line.trim_start()[label.len()..]
                 .split_whitespace()
                 .next()

@@ -546,8 +546,18 @@ impl FitReport {
         }
         let percent = |v: Option<f64>, rmse: Option<f64>| fit_percent_text(v, rmse.is_some(), 4);
         let constant = self.val_fit_percent.is_none() && self.val_rmse.is_some();
-        // SSEs and RMSEs are in the output's units, squared or not.
+        // SSEs and RMSEs are in the output's units, squared or not; an RMSE
+        // says its unit where the output column's name states one.
         let figure = |v: Option<f64>| v.map_or("diverged".to_string(), |v| significant(v, 4));
+        let unit = self
+            .columns
+            .as_ref()
+            .and_then(|c| c.output.unit.as_deref())
+            .map_or(String::new(), |u| format!(" {u}"));
+        let rmse = |v: Option<f64>| match v {
+            Some(_) => format!("{}{unit}", figure(v)),
+            None => figure(v),
+        };
         if !self.diverging_probes.is_empty() {
             line(format!(
                 "  (a step of a thousandth along {} makes the free run diverge on the estimation \
@@ -569,7 +579,7 @@ impl FitReport {
         line(format!(
             "  validation fit       {}   (RMSE {}{pooled}{constant_why})",
             percent(self.val_fit_percent, self.val_rmse),
-            figure(self.val_rmse)
+            rmse(self.val_rmse)
         ));
         if self.records.len() > 1 {
             let width = self.records.iter().map(|r| r.data.chars().count()).max();
@@ -579,7 +589,7 @@ impl FitReport {
                     "    {:<width$} {}   (RMSE {}; its own ARX {})",
                     r.data,
                     percent(r.val_fit_percent, r.val_rmse),
-                    figure(r.val_rmse),
+                    rmse(r.val_rmse),
                     percent(r.linear_val_fit_percent, r.val_rmse)
                 ));
             }

@@ -409,13 +409,23 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
         outln!("  {name:<7} {value:>14.6}")?;
     }
     let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
+    // An RMSE says its unit where the output column's name states one.
+    let unit = trace
+        .columns()
+        .output
+        .unit
+        .map_or(String::new(), |u| format!(" {u}"));
+    let rmse = |v: Option<f64>| match v {
+        Some(_) => format!("{}{unit}", show(v)),
+        None => show(v),
+    };
     outln!("  SSE (estimation)     {}", show(report.sse))?;
     let scored = report.val_rmse.is_some();
     let percent = mckibben::ident::fit::fit_percent_text(report.val_fit_percent, scored, 4);
     outln!(
         "  validation fit       {percent}   (RMSE {}; the second half, the selection part that \
          chose the effects included)",
-        show(report.val_rmse)
+        rmse(report.val_rmse)
     )?;
     if let Some(parts) = &report.diagnosis_parts {
         outln!(
@@ -426,7 +436,7 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
                 parts.test_rmse.is_some(),
                 4
             ),
-            show(parts.test_rmse)
+            rmse(parts.test_rmse)
         )?;
     }
     if report.val_fit_percent.is_none() && scored {
