@@ -1153,6 +1153,26 @@ fn parse(
             (step / dt).sqrt()
         ));
     }
+    // A coarser grid picks between neighbours and drops the rest: what the
+    // rows between held is lost, noise is not averaged down, and motion
+    // faster than the new rate's half folds in.
+    if let Gaps::Resample(dt) | Gaps::SplitResample(dt) = opts.gaps
+        && dt > GAP_FACTOR * step
+    {
+        let kept = step / dt;
+        notes.push(format!(
+            "{}: --resample {dt} keeps about one sample in {} (the file steps by {} s), \
+             interpolated between neighbours without averaging: the rows between are dropped, \
+             so the noise stays what it was a sample (averaging them would cut it about {:.1}×), \
+             and motion faster than {} Hz folds into the record; low-pass or average the file \
+             first where that matters",
+            path.display(),
+            super::readable(rounded(1.0 / kept)),
+            super::readable(rounded(step)),
+            (1.0 / kept).sqrt(),
+            super::readable(rounded(0.5 / dt))
+        ));
+    }
     let traces = match opts.gaps {
         Gaps::Reject => {
             let hint = "pass --resample DT to interpolate onto a uniform step, or --split-gaps to cut the file at gaps";
@@ -2130,6 +2150,36 @@ mod tests {
                     .iter()
                     .any(|n| n.contains("makes about 10 samples of each"));
                 assert_eq!(finer, noted, "{gaps:?}: {notes:?}");
+            }
+        }
+    }
+
+    /// `--resample` coarser than the file's step drops the rows between:
+    /// a note says how many and what that does; near the file's own step
+    /// or finer, none.
+    #[test]
+    fn resampling_coarser_than_measured_is_noted() {
+        let text = uniform_text(1000, 0.001);
+        for (dt, noted) in [
+            (0.01, true),
+            (0.001, false),
+            (0.0014, false),
+            (0.0005, false),
+        ] {
+            for gaps in [Gaps::Resample(dt), Gaps::SplitResample(dt)] {
+                let (_, notes) = read(&text, gaps).unwrap();
+                let coarser = notes
+                    .iter()
+                    .find(|n| n.contains("keeps about one sample in"));
+                assert_eq!(coarser.is_some(), noted, "{gaps:?}: {notes:?}");
+                if let Some(note) = coarser {
+                    assert!(
+                        note.contains("one sample in 10 (the file steps by 0.001 s)")
+                            && note.contains("about 3.2×")
+                            && note.contains("faster than 50 Hz"),
+                        "{note}"
+                    );
+                }
             }
         }
     }
