@@ -1267,6 +1267,32 @@ fn bench_says_how_many_candidates_diverged() {
     assert!(!stderr.contains("diverged"), "{stderr}");
 }
 
+/// A fitted loop that does not saturate has no stable-step limit, and the
+/// report says so rather than leave the line out (the Cavatappi 500 g fit
+/// ended at a loading of 0 and its report had no such line).
+#[test]
+fn a_loop_without_saturation_says_its_steps_are_not_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let line = "  stable steps         not bounded";
+    let report = |extra: &[&str]| {
+        let out = mckibben(&[&short_fit(&csv)[..], extra].concat(), dir.path());
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let flat = report(&["--fix", "beta=0", "--fix", "gamma=0"]);
+    assert!(flat.contains(line), "{flat}");
+    let saturating = report(&[]);
+    assert!(
+        saturating.contains("  stable steps         up to") && !saturating.contains(line),
+        "{saturating}"
+    );
+}
+
 /// A `RAYON_NUM_THREADS` rayon ignores is said to be ignored (a run meant
 /// for one thread ran on every core without a word).
 #[test]

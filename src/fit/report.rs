@@ -616,6 +616,14 @@ impl FitReport {
                 },
                 significant(largest, 4)
             ));
+        } else if self.stable_step.is_none() && self.effects.is_empty() && self.sse.is_some() {
+            // Said rather than left out: a reader of another fit's report
+            // looks for the line.
+            line(
+                "  stable steps         not bounded   (the fitted loop does not saturate, so its \
+                 hysteresis update has no step past which it overshoots)"
+                    .to_string(),
+            );
         }
         if self.start_sse.is_some() || self.start_val_fit_percent.is_some() {
             line(format!(
