@@ -1267,6 +1267,30 @@ fn bench_says_how_many_candidates_diverged() {
     assert!(!stderr.contains("diverged"), "{stderr}");
 }
 
+/// A record whose input repeats (the Bouc-Wen benchmark's multisine, five
+/// periods) is validated on the excitation it was fitted on: `fit` says so.
+#[test]
+fn a_repeated_excitation_is_noted_as_validating_on_itself() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut rows = String::from("t,pressure,displacement\n");
+    let mut y = 0.0;
+    for k in 0..400 {
+        let u = 0.3 + 0.2 * ((k % 50) as f64 * 0.7).sin() * ((k % 50) as f64 * 0.13).cos();
+        y = 0.9 * y + 2.0 * u;
+        rows += &format!("{},{u},{y}\n", k as f64 * 0.01);
+    }
+    std::fs::write(dir.path().join("periodic.csv"), rows).unwrap();
+    let out = mckibben(&short_fit("periodic.csv"), dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("periodic.csv: its input repeats every 50 samples (0.5 s)"),
+        "{err}"
+    );
+    let out = mckibben(&short_fit(&data(dir.path())), dir.path());
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("repeats every"));
+}
+
 /// A fitted loop that does not saturate has no stable-step limit, and the
 /// report says so rather than leave the line out (the Cavatappi 500 g fit
 /// ended at a loading of 0 and its report had no such line).

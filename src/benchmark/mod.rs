@@ -27,6 +27,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use crate::data::csv::{DataError, ReadOptions, read_traces};
+use crate::data::signals::repeats_every;
 
 pub use boucwen::{FS, Params, UPSAMPLE};
 
@@ -195,10 +196,7 @@ pub fn test_sinesweep_rmse(p: &Params, test: &Record) -> Option<f64> {
 
 /// True when `u` repeats with period `n` (to rounding of the file's digits).
 pub fn is_periodic(u: &[f64], n: usize) -> bool {
-    n > 0
-        && u.len() >= n
-        && u.len().is_multiple_of(n)
-        && (n..u.len()).all(|i| (u[i] - u[i - n]).abs() <= 1e-9 * (1.0 + u[i - n].abs()))
+    n > 0 && u.len().is_multiple_of(n) && (u.len() == n || repeats_every(u, n))
 }
 
 #[cfg(test)]

@@ -88,6 +88,25 @@ pub fn samples_in(seconds: f64, dt: f64) -> Result<usize, String> {
     Ok(n as usize)
 }
 
+/// Whether `u` repeats itself `period` samples on, to the rounding of a
+/// file's digits.
+pub fn repeats_every(u: &[f64], period: usize) -> bool {
+    period > 0
+        && period < u.len()
+        && (period..u.len())
+            .all(|i| (u[i] - u[i - period]).abs() <= 1e-9 * (1.0 + u[i - period].abs()))
+}
+
+/// The shortest period, of two samples up to half the record, with which
+/// `u` repeats itself (a periodic excitation, as a multisine repeated or a
+/// commanded staircase logged as the input); `None` where it does not, and
+/// for a constant input.
+pub fn period_of(u: &[f64]) -> Option<usize> {
+    (1..=u.len() / 2)
+        .find(|&p| repeats_every(u, p))
+        .filter(|&p| p > 1)
+}
+
 /// Nyquist's angular frequency for samples `dt` s apart, `π/dt` (rad/s): a
 /// sine at or above it shows in its samples as a slower sine or a constant,
 /// so a signal asked for there says nothing of the frequency asked for.
@@ -210,6 +229,23 @@ impl Multisine {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A pattern repeated is found at its length, the shortest; a record
+    /// that repeats nothing within its halves, or holds still, has none.
+    #[test]
+    fn a_repeated_excitation_has_its_period() {
+        let pattern = [0.1, 0.4, -0.2, 0.3, 0.0, 0.25, -0.1];
+        let repeated: Vec<f64> = pattern.iter().cycle().take(5 * 7).copied().collect();
+        assert_eq!(period_of(&repeated), Some(7));
+        let mut perturbed = repeated.clone();
+        perturbed[30] += 1e-3;
+        assert_eq!(period_of(&perturbed), None);
+        // Repeated once only past the middle: no period within half.
+        let once: Vec<f64> = pattern.iter().chain(&pattern[..3]).copied().collect();
+        assert_eq!(period_of(&once), None);
+        assert_eq!(period_of(&[0.2; 50]), None);
+        assert!(repeats_every(&repeated, 14) && !repeats_every(&repeated, 5));
+    }
 
     #[test]
     fn stair_goes_up_and_down_in_one_volt_steps() {

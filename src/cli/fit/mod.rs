@@ -157,6 +157,18 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     }
     let traces = records(args.data.load()?, args.data.columns.resample.is_some())?;
     out_folder(&args, traces.len())?;
+    for trace in &traces {
+        if let Some(period) = mckibben::data::signals::period_of(&trace.input) {
+            note(format!(
+                "{}: its input repeats every {period} samples ({} s): the validation half runs \
+                 the excitation the estimation half was fitted on, so its fit says how the model \
+                 reproduces that excitation, not another; validate on another record as well \
+                 (`simulate --from` the model on it)",
+                trace.source,
+                readable((period as f64 * trace.dt() * 1e6).round() / 1e6)
+            ));
+        }
+    }
     if let Some(model) = &resolved.carried {
         for trace in &traces {
             model
