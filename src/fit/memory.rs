@@ -130,7 +130,10 @@ mod tests {
         let Some(free) = available_bytes() else {
             return;
         };
-        let between = (free / bytes_a_candidate(false, Algorithm::Ga) * 0.9) as usize;
+        // Six tenths of what is free for the plain estimate, about one and
+        // a half times it for the refined PSO one: margins that memory
+        // other tests take or give back between the calls does not cross.
+        let between = (free / bytes_a_candidate(false, Algorithm::Ga) * 0.6) as usize;
         assert!(too_large(between, false, Algorithm::Ga).is_none());
         assert!(too_large(between, true, Algorithm::Pso).is_some());
     }

@@ -107,8 +107,9 @@ pub fn baseline_caution(d: &Diagnosis) -> Option<String> {
 }
 
 /// What the report found that weakens a verdict naming effects, each in
-/// words (the text's "Read it with care", JSON `verdict_cautions`, a
-/// Python warning); empty where the verdict names none. The acceptance
+/// words (the text's "Read it with care", JSON `verdict_cautions`, which
+/// Python's `Diagnosis.document` holds); empty where the verdict names
+/// none. The acceptance
 /// rule judges each effect on the selection part; these are what it
 /// cannot see: a baseline that could not reach the record's loop, a size
 /// the data leave open, a chain that does not carry to other records.
