@@ -122,3 +122,29 @@ fn a_floor_read_from_motion_at_the_sample_scale_is_called_an_upper_bound() {
     let json = serde_json::to_value(DiagnosisJson::of(&d)).unwrap();
     assert_eq!(json["noise_floor_upper_bound"], true);
 }
+
+/// The report places its parts in the record's time: each block's mean
+/// length and the settling gaps in seconds beside their samples (sample
+/// counts alone left a reader to find the sample time).
+#[test]
+fn the_parts_line_says_how_long_its_blocks_and_gaps_are() {
+    let d = named_diagnosis();
+    let p = &d.parts[0];
+    let blocks = p.selection.len() + p.test.len();
+    let mean = (p.selection_len() + p.test_len()) as f64 / blocks as f64 * d.dt;
+    let gap = (p.test[0].start - p.selection[0].end) as f64 * d.dt;
+    let text = to_text(&d);
+    let line = text.lines().find(|l| l.starts_with("Parts:")).unwrap();
+    let said: Vec<f64> = line
+        .split([' ', '(', ')', ',', '-'])
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    // blocks, their seconds, the gap's samples, its seconds
+    assert_eq!(said.len(), 4, "{line}");
+    assert_eq!(said[0], blocks as f64, "{line}");
+    assert!((said[1] - mean).abs() <= 0.05 * mean, "{line}: {mean}");
+    assert!(
+        (said[3] - gap).abs() <= 0.05 * gap.max(d.dt),
+        "{line}: {gap}"
+    );
+}

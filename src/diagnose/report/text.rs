@@ -33,30 +33,40 @@ fn step_name(before: Option<&Step>, s: &Step) -> String {
 
 /// How the records were split, in words.
 fn parts_text(d: &Diagnosis) -> String {
-    let blocks: Vec<String> = d
-        .parts
-        .iter()
-        .map(|p| (p.selection.len() + p.test.len()).to_string())
-        .collect();
+    // Seconds as a reader places them in a record: two significant digits.
+    let seconds = |samples: f64| {
+        let v = samples * d.dt;
+        let decimals = (1 - v.abs().log10().floor() as i32).max(0) as usize;
+        format!("{v:.decimals$}")
+    };
     let gap = |p: &Parts| match (p.selection.first(), p.test.first()) {
         (Some(s), Some(t)) => t.start.saturating_sub(s.end),
         _ => 0,
     };
-    let gaps: Vec<String> = d.parts.iter().map(|p| gap(p).to_string()).collect();
-    let (blocks, gaps) = if blocks.len() == 1 {
-        (
-            format!("{} blocks", blocks[0]),
-            format!("{}-sample", gaps[0]),
-        )
-    } else {
-        (
-            format!("{} blocks", blocks.join(", ")),
-            format!("{}-sample", gaps.join(", ")),
-        )
+    let count = |p: &Parts| p.selection.len() + p.test.len();
+    let block = |p: &Parts| {
+        let samples = p.selection_len() + p.test_len();
+        seconds(samples as f64 / count(p).max(1) as f64)
     };
+    let list = |f: &dyn Fn(&Parts) -> String| -> String {
+        d.parts.iter().map(f).collect::<Vec<_>>().join(", ")
+    };
+    let (blocks, gaps) = (
+        format!(
+            "{} blocks of about {} s{}",
+            list(&|p| count(p).to_string()),
+            list(&block),
+            if d.parts.len() > 1 { " each" } else { "" }
+        ),
+        format!(
+            "{}-sample settling gaps ({} s)",
+            list(&|p| gap(p).to_string()),
+            list(&|p| seconds(gap(p) as f64))
+        ),
+    );
     format!(
         "Parts: each record's first half estimates; its second half is cut into {blocks}, \
-         selection and test in turn ({gaps} settling gaps between).\n  Every choice reads \
+         selection and test in turn, {gaps} between.\n  Every choice reads \
          the selection blocks ({} samples); the test blocks ({} samples) are read once, after \
          the model is final.",
         d.parts.iter().map(Parts::selection_len).sum::<usize>(),
