@@ -3,6 +3,8 @@
 //! library's enums; serialisable values to Python objects; errors to
 //! Python's exceptions.
 
+use std::path::Path;
+
 use clap::ValueEnum;
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{
@@ -309,12 +311,39 @@ pub fn runtime_error(e: anyhow::Error) -> PyErr {
 
 /// A library error reading a file: the `OSError` of its cause when an I/O
 /// error is its cause ([`os_error`]), else `ValueError` (the file's content).
-pub fn file_error(e: anyhow::Error) -> PyErr {
+fn file_error(e: anyhow::Error) -> PyErr {
     let message = in_python_terms(&format!("{e:#}"));
     match e.chain().find_map(|c| c.downcast_ref::<std::io::Error>()) {
         Some(io) => os_error(io, message),
         None => PyValueError::new_err(message),
     }
+}
+
+/// A library error reading or writing the file at `path`: where an error the
+/// OS gave with an errno is its cause, what Python's `open` raises
+/// ([`open_error`]); else [`file_error`].
+pub fn file_error_at(e: anyhow::Error, path: &Path) -> PyErr {
+    e.chain()
+        .find_map(|c| c.downcast_ref::<std::io::Error>())
+        .and_then(|io| open_error(io, path))
+        .unwrap_or_else(|| file_error(e))
+}
+
+/// `io`, an error the OS gave reading or writing `path`, exactly as
+/// Python's `open` raises it: the errno's `OSError` subclass with `errno`,
+/// `strerror` (the OS's words) and `filename` set, `[Errno 2] No such file
+/// or directory: 'x.csv'` (a script's `except OSError as e: e.filename`
+/// read `None`); `None` where the OS gave no errno.
+pub fn open_error(io: &std::io::Error, path: &Path) -> Option<PyErr> {
+    let errno = io.raw_os_error()?;
+    let words = io.to_string();
+    // Rust's text of an OS error ends in " (os error N)".
+    let words = words
+        .strip_suffix(&format!(" (os error {errno})"))
+        .unwrap_or(&words)
+        .to_string();
+    let filename = path.to_string_lossy().into_owned();
+    Some(PyOSError::new_err((errno, words, filename)))
 }
 
 /// The I/O error `io` as Python's `open` raises it: the `OSError` subclass

@@ -12,7 +12,7 @@ use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::model::file::ReadSettings;
 
 use crate::args::real;
-use crate::convert::{in_python_terms, os_error, sample_time, series, value_error};
+use crate::convert::{in_python_terms, open_error, os_error, sample_time, series, value_error};
 use crate::named;
 
 /// One recorded experiment on a uniform time base: the model's input and
@@ -329,13 +329,16 @@ pub fn data_arg(
     }
 }
 
-/// A data file's error as Python's exception: the `OSError` of its cause
-/// when it cannot be read ([`os_error`]), `ValueError` for its content; the
-/// message is the library's (file, line, column, what).
+/// A data file's error as Python's exception: the `OSError` `open` raises
+/// when it cannot be read ([`open_error`], or [`os_error`] where the OS gave
+/// no errno), `ValueError` for its content; the message is the library's
+/// (file, line, column, what).
 fn data_error(e: DataError) -> PyErr {
     let message = in_python_terms(&e.to_string());
     match &e {
-        DataError::Io { source, .. } => os_error(source, message),
+        DataError::Io { path, source } => {
+            open_error(source, path).unwrap_or_else(|| os_error(source, message))
+        }
         _ => PyValueError::new_err(message),
     }
 }

@@ -12,7 +12,7 @@ use mckibben::model::file::{Provenance, ReadSettings};
 use mckibben::model::{FittedBaseline, ModelFile};
 
 use crate::args::path;
-use crate::convert::{file_error, given, series};
+use crate::convert::{file_error_at, given, series};
 use crate::named;
 
 /// A fitted hysteresis model, a baseline family and its effect chain, in
@@ -103,7 +103,7 @@ impl Model {
         #[pyo3(from_py_with = named::model_path)] path: PathBuf,
     ) -> PyResult<Model> {
         py.detach(|| ModelFile::load(&path).and_then(Model::of_file))
-            .map_err(file_error)
+            .map_err(|e| file_error_at(e, &path))
     }
 
     /// Writes the model file (`mckibben fit`'s `model.json`; the command
@@ -116,7 +116,8 @@ impl Model {
         if let Some(e) = folder_error(&path) {
             return Err(e);
         }
-        py.detach(|| self.file.save(&path)).map_err(file_error)
+        py.detach(|| self.file.save(&path))
+            .map_err(|e| file_error_at(e, &path))
     }
 
     /// The free-run output on the input `u` (absolute units, one value per
@@ -300,5 +301,5 @@ pub fn model_arg(start: &Bound<'_, PyAny>, keyword: &str) -> PyResult<ModelFile>
     start
         .py()
         .detach(|| ModelFile::load(&path))
-        .map_err(file_error)
+        .map_err(|e| file_error_at(e, &path))
 }

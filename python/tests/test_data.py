@@ -228,3 +228,6 @@ def test_a_file_that_cannot_be_read_raises_open_s_exception(tmp_path):
     with pytest.raises(FileNotFoundError) as raised:
         mckibben.read_csv(tmp_path / "missing.csv")
     assert raised.value.errno == 2
+    # `filename` set, as `open` sets it (it read None).
+    assert raised.value.filename == str(tmp_path / "missing.csv")
+    assert raised.value.strerror == "No such file or directory"

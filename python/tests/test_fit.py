@@ -317,7 +317,7 @@ def test_another_thread_runs_during_a_fit(stair):
     "kwargs, error, message",
     [
         ({"start": 3}, TypeError, "start must be a Model or the path"),
-        ({"start": "/nonexistent/model.json"}, FileNotFoundError, "cannot read"),
+        ({"start": "/nonexistent/model.json"}, FileNotFoundError, "No such file or directory: '/nonexistent/model.json'"),
         ({"effects": ["delayy"]}, ValueError, "unknown effect `delayy`"),
         ({"bounds": {"alpah": (0.0, 1.0)}}, ValueError, "no parameter `alpah`"),
         ({"bounds": {"alpha": (0.9, 0.1)}}, ValueError, "the box is empty"),

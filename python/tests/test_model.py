@@ -39,8 +39,10 @@ def test_saving_to_a_folder_says_so(small_fit, tmp_path):
 
 
 def test_load_errors(tmp_path):
-    with pytest.raises(FileNotFoundError, match="cannot read"):
+    # As `open` raises it: the OS's words, and the file in `filename`.
+    with pytest.raises(FileNotFoundError, match=r"^\[Errno 2\] No such file or directory: ") as raised:
         mckibben.Model.load(tmp_path / "missing.json")
+    assert raised.value.filename == str(tmp_path / "missing.json")
     bad = tmp_path / "bad.json"
     bad.write_text('{"family": "classic"}')
     with pytest.raises(ValueError, match="not a model file"):
