@@ -121,6 +121,37 @@ impl Evaluator {
             .into_flat())
     }
 
+    /// A `UserWarning` naming the first search coordinate of `thetas` (rows
+    /// of d) outside this Evaluator's box: scoring the coordinates, or
+    /// `to_params`, takes it to the box's edge, so they stand for another
+    /// model (a model fitted on another record, or with other `bounds`,
+    /// returned such coordinates without a word).
+    fn warn_outside_the_box(&self, py: Python<'_>, thetas: &[f64]) -> PyResult<()> {
+        let b = self.space.bounds();
+        let d = self.names.len();
+        let outside = thetas.chunks_exact(d).enumerate().find_map(|(row, theta)| {
+            (0..d)
+                .find(|&i| theta[i] < b.lower[i] || theta[i] > b.upper[i])
+                .map(|i| (row, i, theta[i]))
+        });
+        let Some((row, i, value)) = outside else {
+            return Ok(());
+        };
+        let edge = value.clamp(b.lower[i], b.upper[i]);
+        let message = format!(
+            "params[{row}]: {} is {} in the search coordinates, outside this Evaluator's box \
+             [{}, {}]: scoring the coordinates, or `to_params`, takes it to the box's edge, {}, \
+             another model (`score_params` scores the model itself; `bounds` widens the box)",
+            self.names[i],
+            readable(value),
+            readable(b.lower[i]),
+            readable(b.upper[i]),
+            readable(edge)
+        );
+        py.import("warnings")?.call_method1("warn", (message,))?;
+        Ok(())
+    }
+
     /// Refuses canonical rows that a held coordinate of the box cannot
     /// stand for: their search coordinates would score the hold instead.
     fn check_holds(&self, canonical: &[f64]) -> PyResult<()> {
@@ -367,6 +398,7 @@ impl Evaluator {
             .project(Rows::new(&canonical, self.space.dim()))
             .into_flat();
         finite_rows(&thetas, &self.names, "params", "search coordinate")?;
+        self.warn_outside_the_box(py, &thetas)?;
         matrix(py, thetas, self.names.len(), single)
     }
 

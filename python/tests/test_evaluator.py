@@ -2,6 +2,7 @@
 
 import struct
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -220,3 +221,24 @@ def test_a_box_with_nothing_free_is_refused_as_fit_refuses_it(stair, ev):
         mckibben.Evaluator(stair, backend="cpu", bounds=held)
     with pytest.raises(ValueError, match="the search space has no free parameter"):
         mckibben.fit(stair, bounds=held, pop=20, gens=2)
+
+
+def test_coordinates_outside_the_box_are_warned_of(stair):
+    # A model fitted with another box came back as coordinates this box does
+    # not hold, without a word.
+    # The default fit's model (docs/JSON.md), alpha moved to 0.9.
+    params = np.array([1.0, 0.9, 2.76575e-05, 0.00610709, 1.0, 0.976411, 4.75674, -3.59365, 1.51339])
+    narrow = mckibben.Evaluator(stair, backend="cpu", bounds={"alpha": (0.0, 0.5)})
+    with pytest.warns(UserWarning, match=r"^params\[0\]: alpha is 0.9 in the search coordinates, "
+                      r"outside this Evaluator's box \[0, 0.5\]: scoring the coordinates, or "
+                      r"`to_params`, takes it to the box's edge, 0.5"):
+        theta = narrow.to_thetas(params)
+    # As the warning says: the coordinates stand for the model at the edge.
+    assert narrow.to_params(theta)[1] == 0.5
+    edge = params.copy()
+    edge[1] = 0.5
+    assert narrow(theta[None, :])[0] == narrow.score_params(edge)
+    wide = mckibben.Evaluator(stair, backend="cpu")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        wide.to_thetas(params)
