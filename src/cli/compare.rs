@@ -145,6 +145,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let report = Report {
         data: trace.source.clone(),
+        columns: trace.columns(),
         backend,
         table21,
         budget,

@@ -17,6 +17,14 @@ fn opt(v: Option<f64>, digits: usize) -> String {
 pub fn markdown(r: &Report, settings: &Settings) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# Optimizer comparison on {} [{}]\n", r.data, r.backend);
+    // What the SSEs and RMSEs below are in, where the column says.
+    if let Some(unit) = &r.columns.output.unit {
+        let _ = writeln!(
+            s,
+            "Output `{}` in {unit}: SSEs in {unit}², RMSEs in {unit}.\n",
+            r.columns.output.column
+        );
+    }
     if !r.table21.is_empty() {
         let _ = writeln!(
             s,
@@ -127,6 +135,7 @@ mod tests {
         use crate::model::Family;
         let report = Report {
             data: "x.csv".into(),
+            columns: crate::data::Columns::of("pressure", "displacement"),
             backend: "cpu".into(),
             table21: vec![Row {
                 model: Family::Classic,
@@ -154,5 +163,10 @@ mod tests {
         };
         let table = markdown(&report, &settings);
         assert!(table.contains("| 0.0004200 | 0.00008400 |"), "{table}");
+        // The figures' unit, from the output column's name.
+        assert!(
+            table.contains("Output `displacement` in mm: SSEs in mm², RMSEs in mm."),
+            "{table}"
+        );
     }
 }

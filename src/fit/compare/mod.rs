@@ -14,7 +14,7 @@ use super::objective::{GENERATIONS, POPULATION, staged_plan};
 use super::problem::FitProblem;
 use super::run::run_fit;
 use super::settings::thesis_model;
-use crate::data::Trace;
+use crate::data::{Columns, Trace};
 use crate::eval::Evaluator;
 use crate::ident::fit_percent;
 use crate::model::experiment::halves;
@@ -143,6 +143,9 @@ pub struct CrossRow {
 #[derive(Debug, Serialize)]
 pub struct Report {
     pub data: String,
+    /// The record's input and output columns and their units: what the
+    /// SSEs (output unit squared) and RMSEs are in.
+    pub columns: Columns,
     pub backend: String,
     pub table21: Vec<Row>,
     pub budget: Vec<Spread>,
