@@ -88,23 +88,44 @@ pub fn samples_in(seconds: f64, dt: f64) -> Result<usize, String> {
     Ok(n as usize)
 }
 
+/// Whether two samples are the same to the rounding of a file's digits.
+fn same(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-9 * (1.0 + b.abs())
+}
+
 /// Whether `u` repeats itself `period` samples on, to the rounding of a
 /// file's digits.
 pub fn repeats_every(u: &[f64], period: usize) -> bool {
-    period > 0
-        && period < u.len()
-        && (period..u.len())
-            .all(|i| (u[i] - u[i - period]).abs() <= 1e-9 * (1.0 + u[i - period].abs()))
+    period > 0 && period < u.len() && (period..u.len()).all(|i| same(u[i], u[i - period]))
 }
 
 /// The shortest period, of two samples up to half the record, with which
 /// `u` repeats itself (a periodic excitation, as a multisine repeated or a
 /// commanded staircase logged as the input); `None` where it does not, and
-/// for a constant input.
+/// for a constant input. In one pass (the prefix function of string
+/// matching: the shortest period is the length less the longest prefix
+/// that is also a suffix), where trying each period in turn took time
+/// proportional to the record times its longest plateau; the period found
+/// is checked sample by sample.
 pub fn period_of(u: &[f64]) -> Option<usize> {
-    (1..=u.len() / 2)
-        .find(|&p| repeats_every(u, p))
-        .filter(|&p| p > 1)
+    let n = u.len();
+    if n < 2 {
+        return None;
+    }
+    // border[i]: the longest proper prefix of u[..=i] that is also its suffix.
+    let mut border = vec![0usize; n];
+    for i in 1..n {
+        let mut k = border[i - 1];
+        while k > 0 && !same(u[i], u[k]) {
+            k = border[k - 1];
+        }
+        if same(u[i], u[k]) {
+            k += 1;
+        }
+        border[i] = k;
+    }
+    let period = n - border[n - 1];
+    (period > 1 && period <= n / 2 && repeats_every(u, period)).then_some(period)
 }
 
 /// Nyquist's angular frequency for samples `dt` s apart, `π/dt` (rad/s): a
