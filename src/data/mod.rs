@@ -68,6 +68,16 @@ pub struct NamedColumn {
     pub unit: Option<String>,
 }
 
+impl NamedColumn {
+    /// What follows a figure in this column's unit: ` mm` where its name
+    /// states the unit, nothing where it states none.
+    pub fn unit_tail(&self) -> String {
+        self.unit
+            .as_ref()
+            .map_or(String::new(), |u| format!(" {u}"))
+    }
+}
+
 /// A record's input and output columns, as JSON outputs name them.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Columns {

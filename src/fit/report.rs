@@ -552,8 +552,7 @@ impl FitReport {
         let unit = self
             .columns
             .as_ref()
-            .and_then(|c| c.output.unit.as_deref())
-            .map_or(String::new(), |u| format!(" {u}"));
+            .map_or(String::new(), |c| c.output.unit_tail());
         let rmse = |v: Option<f64>| match v {
             Some(_) => format!("{}{unit}", figure(v)),
             None => figure(v),

@@ -422,11 +422,7 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
     }
     let show = |v: Option<f64>| v.map_or("diverged".to_string(), |v| format!("{v:.4}"));
     // An RMSE says its unit where the output column's name states one.
-    let unit = trace
-        .columns()
-        .output
-        .unit
-        .map_or(String::new(), |u| format!(" {u}"));
+    let unit = trace.columns().output.unit_tail();
     let rmse = |v: Option<f64>| match v {
         Some(_) => format!("{}{unit}", show(v)),
         None => show(v),
