@@ -441,15 +441,8 @@ fn cavatappi_100g_is_diagnosed_after_resampling() {
     };
     let other = common::require_external("cavatappi_muscle/sample1_200g.csv").unwrap();
     let out = bin()
-        .args([
-            "diagnose",
-            "--json",
-            "--time",
-            "t_s",
-            "--input",
-            "pressure_psi",
-        ])
-        .args(["--output", "disp_mm", "--resample", "0.01"])
+        .args(["diagnose", "--json"])
+        .args(common::CAVATAPPI_FLAGS)
         .args(["--effects", "saturation,creep", "--seeds", "3"])
         .arg(&path)
         .arg("--transfer")
@@ -489,9 +482,9 @@ fn cavatappi_500g_gets_a_stable_baseline() {
         return;
     };
     let out = bin()
-        .args(["diagnose", "--json", "--time", "t_s"])
-        .args(["--input", "pressure_psi", "--output", "disp_mm"])
-        .args(["--resample", "0.01", "--effects", "creep"])
+        .args(["diagnose", "--json"])
+        .args(common::CAVATAPPI_FLAGS)
+        .args(["--effects", "creep"])
         .arg(&path)
         .output()
         .unwrap();

@@ -1530,26 +1530,17 @@ fn a_model_of_several_loads_says_what_it_runs_and_fit_refers_it_to_diagnose() {
 /// its start's level, not on a record that moves too fast.
 #[test]
 fn simulate_says_when_a_record_fitted_the_model_and_when_it_starts_off_its_level() {
-    let Some(cavatappi) = common::require_path(common::external_dir().join("cavatappi_muscle"))
-    else {
+    let Some(cavatappi) = common::require_external("cavatappi_muscle") else {
         return;
     };
     let record = |load: &str| cavatappi.join(format!("sample1_{load}.csv"));
     let (fitted, heavier) = (record("400g"), record("500g"));
     let dir = tempfile::tempdir().unwrap();
-    let columns = [
-        "--time",
-        "t_s",
-        "--input",
-        "pressure_psi",
-        "--output",
-        "disp_mm",
-    ];
     let _ = json_of(
         &[
             &["fit", fitted.to_str().unwrap()][..],
-            &columns,
-            &["--resample", "0.01", "--backend", "cpu", "--json"],
+            &common::CAVATAPPI_FLAGS,
+            &["--backend", "cpu", "--json"],
             &["--out", dir.path().to_str().unwrap()],
         ]
         .concat(),

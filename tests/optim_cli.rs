@@ -41,18 +41,8 @@ fn data(dir: &Path) -> String {
 /// `mckibben fit` on a Cavatappi record with its columns and time base.
 fn fit_cavatappi(path: &Path, extra: &[&str], dir: &Path) -> Output {
     let file = path.display().to_string();
-    let mut args = vec![
-        "fit",
-        &file,
-        "--time",
-        "t_s",
-        "--input",
-        "pressure_psi",
-        "--output",
-        "disp_mm",
-        "--resample",
-        "0.01",
-    ];
+    let mut args = vec!["fit", &file];
+    args.extend_from_slice(&common::CAVATAPPI_FLAGS);
     args.extend_from_slice(extra);
     mckibben(&args, dir)
 }

@@ -130,6 +130,20 @@ pub fn require_external(relative: &str) -> Option<PathBuf> {
     require_path(external_dir().join(relative))
 }
 
+/// How every command reads a Cavatappi record (../shared/data/external's
+/// README): its time, pressure and displacement columns, onto a 10 ms grid
+/// across its gaps.
+pub const CAVATAPPI_FLAGS: [&str; 8] = [
+    "--time",
+    "t_s",
+    "--input",
+    "pressure_psi",
+    "--output",
+    "disp_mm",
+    "--resample",
+    "0.01",
+];
+
 /// An engine observer that raises the stop flag (Ctrl-C) when the history
 /// record numbered `.0` (1-based, any stage) is made.
 pub struct InterruptAt<'a>(pub usize, pub &'a std::sync::atomic::AtomicBool);
