@@ -1077,7 +1077,8 @@ fn parse(
             notes.push(format!(
                 "{}: column \"pressure\" is taken in MPa (the shipped data's unit), but it \
                  reaches {}; if it is in kPa, Pa, bar or psi, say so in its name \
-                 (`pressure_kPa`), so that a model fitted on it records its unit",
+                 (`pressure_kPa`), so that a model fitted on it records its unit (a \
+                 hydraulic muscle's MPa: name it `pressure_MPa`)",
                 path.display(),
                 super::readable(rounded(largest))
             ));
@@ -1853,12 +1854,22 @@ mod tests {
             let reach =
                 format!("is taken in MPa (the shipped data's unit), but it reaches {largest}");
             assert_eq!(
-                notes.len() == 1 && notes[0].contains(&reach),
+                notes.len() == 1
+                    && notes[0].contains(&reach)
+                    && notes[0].contains("`pressure_MPa`"),
                 noted,
                 "{notes:?}"
             );
             assert_eq!(notes.is_empty(), !noted, "{notes:?}");
         }
+        // A hydraulic muscle's MPa under a name that states it: no note.
+        let hydraulic = "t,pressure_MPa,displacement\n0,0.1,1\n0.01,6,2\n";
+        let opts = ReadOptions {
+            input: "pressure_MPa".into(),
+            ..ReadOptions::default()
+        };
+        let (_, notes) = parse(Path::new("x.csv"), hydraulic.as_bytes(), &opts).unwrap();
+        assert!(notes.is_empty(), "{notes:?}");
         // A `displacement` column in metres or micrometres: a note; in mm,
         // however little it moves, none.
         for (column, noted) in [
