@@ -22,6 +22,7 @@ pub mod hints;
 pub mod interval;
 mod likelihood;
 pub mod locate;
+pub mod plain;
 pub mod refits;
 pub mod report;
 pub mod ridge;
@@ -135,6 +136,11 @@ pub struct Diagnosis {
     /// The baseline's loop-shape parameters that ended on or near the edge
     /// of the diagnosis' box (`loop_shape_on_edge`).
     pub baseline_on_edge: Vec<ActiveBound>,
+    /// `fit`'s own fit of the baseline on the same estimation halves,
+    /// scored on the selection part ([`plain::plain_fit`]); `None` from a
+    /// start model (`--from`: its coordinates are not the records' own)
+    /// or where that fit diverged.
+    pub plain_fit: Option<plain::PlainFit>,
     /// Every run of `--repeat K` ([`seeds::repeat`]), this diagnosis first
     /// and then the same from the next `K − 1` seeds; empty unless asked
     /// for.
@@ -256,6 +262,15 @@ pub fn diagnose_from(
     )?;
     check_baseline(&selection, family, traces)?;
     let baseline_on_edge = loop_shape_on_edge(&data, &selection.baseline.best.params);
+    let plain_fit = match from {
+        None => {
+            settings
+                .progress
+                .say("fitting the baseline as `fit` does, to compare");
+            plain::plain_fit(traces, &data, &searches, settings, &selection.baseline.best)?
+        }
+        Some(_) => None,
+    };
 
     // The final chain as `fit --effects` fits it: the final parameters
     // when it scores better on the selection part.
@@ -335,6 +350,7 @@ pub fn diagnose_from(
         not_tried,
         transfers: Vec::new(),
         baseline_on_edge,
+        plain_fit,
         repeats: Vec::new(),
     })
 }

@@ -7,6 +7,7 @@ use crate::diagnose::accept::gap_closed;
 use crate::diagnose::explainable::{EffectShare, Explainable, Signature};
 use crate::diagnose::interval::SizeInterval;
 use crate::diagnose::locate::{Band, Correlation, DatasetShare};
+use crate::diagnose::plain::PlainFit;
 use crate::diagnose::refits::{Finding, Refits};
 use crate::diagnose::seeds::{NamedCount, SeedRun, named_counts};
 use crate::diagnose::spectrum::{Peak, Spectrum};
@@ -93,12 +94,17 @@ impl PartsFigures {
 pub struct BaselineJson {
     pub model: &'static str,
     pub params: Named,
+    /// Its free-run SSE on the estimation halves, the cost it minimised.
+    pub est_sse: f64,
     #[serde(flatten)]
     pub figures: PartsFigures,
     pub seed_selection_rmse: Vec<f64>,
     /// Loop-shape parameters that ended on or near the edge of the
     /// diagnosis' box (`Diagnosis::baseline_on_edge`).
     pub on_edge: Vec<ActiveBound>,
+    /// `fit`'s own fit of the baseline, scored on the selection part
+    /// (`Diagnosis::plain_fit`); `null` from a start model.
+    pub plain_fit: Option<PlainFit>,
 }
 
 /// A record's three parts: `[start, end)` sample ranges.
@@ -349,9 +355,11 @@ impl DiagnosisJson {
             baseline: BaselineJson {
                 model: d.family.name(),
                 params: Named::zip(&sel.baseline_model.param_names(), &sel.baseline.best.params),
+                est_sse: sel.baseline.best.est_sse,
                 figures: PartsFigures::of(base),
                 seed_selection_rmse: sel.baseline.seed_sel_rmse.clone(),
                 on_edge: d.baseline_on_edge.clone(),
+                plain_fit: d.plain_fit.clone(),
             },
             datasets: d.datasets.clone(),
             columns: d.columns.clone(),

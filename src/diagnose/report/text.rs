@@ -116,6 +116,35 @@ pub fn baseline_caution(d: &Diagnosis) -> Option<String> {
     ))
 }
 
+/// Where `fit`'s own fit of the baseline scores the selection part better
+/// than the diagnosis' baseline by more than an effect must gain to be
+/// named ([`crate::diagnose::plain::PlainFit::beats_baseline`]), what that
+/// means, in words (the report's CAUTION, Python's warning); `None` where
+/// it does not.
+pub fn plain_fit_caution(d: &Diagnosis) -> Option<String> {
+    let plain = d.plain_fit.as_ref().filter(|p| p.beats_baseline)?;
+    let base = d.baseline();
+    Some(format!(
+        "`mckibben fit`'s {family} fit of the same estimation half{s}, in its box in the data's \
+         own scale, fits that half better (SSE {plain_sse:.1} against the baseline's {base_sse:.1}, \
+         past the likelihood-ratio threshold) and scores the selection part at {fit:.1} % \
+         (RMSE {rmse}) against the baseline's {base_fit:.1} %, {lower:.0} % lower in RMSE: more \
+         than an effect must gain to be named. The diagnosis' baseline, searched among the \
+         thesis' loop shapes (made for a stroke of about 40 mm), missed a basin `fit` reaches, \
+         such as a sharper loop (a braid with more friction closes its loop within a fraction \
+         of a millimetre), and the effects named from it may stand in for that miss. Compare \
+         them with `fit`'s model before trusting them",
+        family = d.family,
+        s = if d.datasets.len() > 1 { "s" } else { "" },
+        plain_sse = plain.est_sse,
+        base_sse = d.selection.baseline.best.est_sse,
+        fit = plain.selection_fit_percent,
+        rmse = significant(plain.selection_rmse, 4),
+        base_fit = base.selection_fit_percent,
+        lower = 100.0 * (1.0 - plain.selection_rmse / base.selection_rmse),
+    ))
+}
+
 /// What the report found that weakens a verdict naming effects, each in
 /// words (the text's "Read it with care", JSON `verdict_cautions`, which
 /// Python's `Diagnosis.document` holds); empty where the verdict names
@@ -132,6 +161,14 @@ pub fn verdict_cautions(d: &Diagnosis) -> Vec<String> {
         out.push(
             "the baseline's loop shape ended on its box's edge (CAUTION above): the named \
              effects may stand in for the loop it could not reach"
+                .to_string(),
+        );
+    }
+    if plain_fit_caution(d).is_some() {
+        out.push(
+            "`fit`'s own fit of the baseline fits the estimation half and scores the selection \
+             part better than the diagnosis' baseline (CAUTION above): the named effects may \
+             stand in for the basin that baseline missed"
                 .to_string(),
         );
     }
@@ -201,6 +238,9 @@ fn header_text(o: &mut String, d: &Diagnosis) {
         );
     }
     if let Some(caution) = baseline_caution(d) {
+        let _ = writeln!(o, "  CAUTION: {caution}");
+    }
+    if let Some(caution) = plain_fit_caution(d) {
         let _ = writeln!(o, "  CAUTION: {caution}");
     }
     if let Some(from) = &d.from {

@@ -1,0 +1,90 @@
+//! `fit`'s own fit of the baseline, scored where the diagnosis' baseline
+//! is: whether the diagnosis starts from the best baseline the tool has.
+//!
+//! The diagnosis fits its baseline in the thesis' box of loop shapes
+//! (`FitProblem::diagnosis`), made for a stroke of about 40 mm; `fit`
+//! searches a box in the data's own scale. A muscle whose loop lies outside
+//! the thesis' box (a braid with much more friction closes its loop within
+//! a fraction of a millimetre) leaves the diagnosis' baseline in another,
+//! worse basin, often not on the box's edge, and the effects then named
+//! stand in for the loop the baseline could not reach.
+
+use serde::Serialize;
+
+use super::fitting::ScoredFit;
+use super::likelihood::indistinguishable_up_to;
+use super::settings::Settings;
+use crate::data::Trace;
+use crate::fit::objective::{GENERATIONS, POPULATION, staged_plan};
+use crate::fit::problem::FitProblem;
+use crate::fit::run::run_fit;
+use crate::fit::searches::Searches;
+use crate::model::effects::ModelDescription;
+use crate::model::{Flow, Loop, Switching};
+use crate::optim::Algorithm;
+use crate::optim::engine::StopRules;
+
+/// `mckibben fit`'s default fit of the baseline's family on the same
+/// estimation halves, scored as the diagnosis' baseline is.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlainFit {
+    /// Its free-run SSE on the estimation halves, the cost both fits
+    /// minimise.
+    pub est_sse: f64,
+    pub selection_rmse: f64,
+    pub selection_fit_percent: f64,
+    /// Whether it beats the diagnosis' baseline on both parts: on the
+    /// estimation halves past the likelihood-ratio threshold (the baseline
+    /// missed a fit it could tell apart), and on the selection part by
+    /// more than an effect must gain to be named
+    /// ([`Settings::min_relative`]).
+    pub beats_baseline: bool,
+}
+
+/// `fit`'s fit of `data`'s family on `traces` (its box, bounded loops, the
+/// default switching, population and generations, `settings.seed`: what
+/// `mckibben fit` prints for one record), scored on `data`'s estimation
+/// halves and selection part and judged against the diagnosis' baseline
+/// `baseline`. `data` is in the records' own coordinates, as `fit`'s
+/// problem is, so the parameters carry over unchanged; `None` where every
+/// candidate of the fit diverged.
+pub fn plain_fit(
+    traces: &[Trace],
+    data: &FitProblem,
+    searches: &Searches,
+    settings: &Settings,
+    baseline: &ScoredFit,
+) -> anyhow::Result<Option<PlainFit>> {
+    let family = data.model.family;
+    let problem = FitProblem::with_box(
+        traces,
+        family,
+        Flow::Joint,
+        None,
+        false,
+        (Loop::Bounded, Switching::default()),
+        &[],
+    )?;
+    let plan = staged_plan(
+        &problem,
+        Algorithm::De.staged_settings(POPULATION),
+        POPULATION,
+        GENERATIONS,
+    );
+    let (_, outcome) =
+        searches.run(|ev| run_fit(&problem, plan, settings.seed, StopRules::default(), ev))?;
+    if outcome.params.is_empty() {
+        return Ok(None);
+    }
+    let scoring = data.with_model(&ModelDescription::new(family, Vec::new(), data.datasets()));
+    let est_sse = scoring.est_sse(&outcome.params);
+    let selection = scoring.selection(&outcome.params);
+    let tells_apart = indistinguishable_up_to(est_sse, scoring.est_samples()) < baseline.est_sse;
+    let gains = selection.rmse < (1.0 - settings.min_relative) * baseline.sel_rmse;
+    Ok(Some(PlainFit {
+        est_sse,
+        selection_rmse: selection.rmse,
+        selection_fit_percent: selection.fit_percent,
+        beats_baseline: tells_apart && gains,
+    }))
+}

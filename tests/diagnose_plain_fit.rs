@@ -1,0 +1,78 @@
+//! The diagnosis fits its baseline as `fit` does too, and says so when
+//! that fit beats its own baseline on the estimation half and on the
+//! selection part: the diagnosis' baseline, searched among the thesis'
+//! loop shapes, then missed a basin, and the effects it names may stand in
+//! for the miss.
+
+use mckibben::data::csv::{ReadOptions, read_traces};
+use mckibben::data::signals::Stair;
+use mckibben::diagnose::report::{DiagnosisJson, plain_fit_caution, to_text, verdict_cautions};
+use mckibben::diagnose::{Diagnosis, Settings, diagnose, effects::Effect};
+use mckibben::model::Family;
+use mckibben::twin::{TwinConfig, TwinExperiment, run};
+
+fn diagnosis_of(trace: &mckibben::data::Trace) -> Diagnosis {
+    let effects = Effect::by_default();
+    diagnose(
+        std::slice::from_ref(trace),
+        Family::Classic,
+        &effects,
+        &Settings::default(),
+    )
+    .unwrap()
+}
+
+/// A twin muscle whose braid has three times the documented friction: its
+/// loop closes within a fraction of a millimetre, outside the thesis' loop
+/// shapes, and `fit`, whose box is in the data's own scale, reaches it.
+#[test]
+fn a_baseline_that_misses_fits_basin_is_called_out() {
+    let mut config = TwinConfig::default();
+    config.effects.set("friction", 3.0).unwrap();
+    let trace = run(&config, 4.5, 1, &TwinExperiment::Stair(Stair::default()));
+    let d = diagnosis_of(&trace);
+    let plain = d.plain_fit.clone().expect("the plain fit ran");
+    let base = &d.selection.baseline.best;
+    assert!(plain.beats_baseline, "{plain:?} against {base:?}");
+    assert!(plain.est_sse < base.est_sse && plain.selection_rmse < base.sel_rmse);
+    let caution = plain_fit_caution(&d).expect("a caution");
+    assert!(
+        caution.contains("missed a basin `fit` reaches"),
+        "{caution}"
+    );
+    assert!(to_text(&d).contains(&format!("  CAUTION: {caution}")));
+    assert!(!d.named().is_empty(), "the verdict names effects");
+    assert!(
+        verdict_cautions(&d)
+            .iter()
+            .any(|c| c.contains("better than the diagnosis' baseline")),
+        "{:?}",
+        verdict_cautions(&d)
+    );
+    let json = serde_json::to_value(DiagnosisJson::of(&d)).unwrap();
+    assert_eq!(json["baseline"]["plain_fit"]["beats_baseline"], true);
+    assert_eq!(json["baseline"]["est_sse"], base.est_sse);
+}
+
+/// On the shipped stair `fit`'s fit scores the selection part better but
+/// fits the estimation half worse than the diagnosis' baseline: another
+/// trade-off between the two halves, not a basin the baseline missed, and
+/// no caution.
+#[test]
+fn a_plain_fit_that_only_validates_better_is_no_caution() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+    let trace = read_traces(path.as_ref(), &ReadOptions::default())
+        .unwrap()
+        .remove(0);
+    let d = diagnosis_of(&trace);
+    let plain = d.plain_fit.clone().expect("the plain fit ran");
+    let base = &d.selection.baseline.best;
+    assert!(
+        plain.selection_rmse < base.sel_rmse,
+        "{plain:?} against {base:?}"
+    );
+    assert!(plain.est_sse > base.est_sse, "{plain:?} against {base:?}");
+    assert!(!plain.beats_baseline);
+    assert!(plain_fit_caution(&d).is_none());
+    assert!(!to_text(&d).contains("missed a basin"));
+}
