@@ -158,7 +158,9 @@ pub struct Args {
     )]
     pub(super) carry: Option<PathBuf>,
     /// Update rule of the population search: ga, mfa, pso (the thesis') or
-    /// de. It changes the time a fit takes, not where it ends.
+    /// de. On the shipped stair it changes the time a fit takes, not where
+    /// it ends; on a record with several basins it can change both
+    /// (docs/RESULTS.md): tries (--pop 2000) show it and keep the best.
     #[arg(long, value_enum, default_value = "de")]
     pub(super) algo: Algorithm,
     /// Population size N of the global stage (the thesis used 10–30); from
