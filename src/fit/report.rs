@@ -759,7 +759,8 @@ impl FitReport {
             )));
         }
         if let (Some(sse), Some(val)) = (self.sse, self.val_fit_percent) {
-            let warnings = yardstick_warnings(sse, val, self.linear_val_fit_percent, start);
+            let warnings =
+                yardstick_warnings(sse, val, self.linear_val_fit_percent, start, self.tries);
             notes.extend(warnings.into_iter().map(|text| Note {
                 level: "warning",
                 text,
@@ -832,16 +833,7 @@ impl FitReport {
         let mut notes: Vec<(&'static str, String)> = self
             .widened
             .iter()
-            .map(|w| {
-                let text = format!(
-                    "the fit ended on a bound the data set; widened {} and refitted from \
-                     its best point: estimation SSE {:.6e} -> {:.6e}",
-                    w.bounds.join(", "),
-                    w.sse_before,
-                    w.sse_after
-                );
-                ("note", text)
-            })
+            .map(|w| ("note", widening_note(w)))
             .collect();
         for e in &self.on_edge {
             let why = match e.origin {
@@ -983,11 +975,32 @@ fn stable_step_warning(stable: f64, largest: f64, records: usize) -> Option<Stri
     })
 }
 
+/// What a widening of the box did, in words: the refit keeps its start,
+/// so no lower SSE means the bound did not hold the fit back.
+fn widening_note(w: &Widening) -> String {
+    let widened = w.bounds.join(", ");
+    if w.sse_after < w.sse_before {
+        format!(
+            "the fit ended on a bound the data set; widened {widened} and refitted from its \
+             best point: estimation SSE {:.6e} -> {:.6e}",
+            w.sse_before, w.sse_after
+        )
+    } else {
+        format!(
+            "the fit ended on a bound the data set; widened {widened} and refitted from its \
+             best point, which found no lower estimation SSE ({:.6e}): the bound did not hold \
+             the fit back",
+            w.sse_before
+        )
+    }
+}
+
 pub fn yardstick_warnings(
     sse: f64,
     fit: f64,
     linear: Option<f64>,
     start: Option<StartScores>,
+    tries: usize,
 ) -> Vec<String> {
     let mut warnings = Vec::new();
     // Below 0 %, the run misses the validation half by more than the
@@ -1008,7 +1021,13 @@ pub fn yardstick_warnings(
             "the fit validates worse than the first-order ARX model on the same halves \
              ({fit:.1} % against {linear:.1} %): it follows the estimation half in a way the \
              validation half does not; do not trust it beyond the data it was fitted on (the \
-             diagnosis, `diagnose`, looks for what the model lacks)"
+             diagnosis, `diagnose`, looks for what the model lacks){}",
+            if tries == 1 {
+                ". One search may also have ended in a worse basin than the record has: \
+                 --pop 2000 runs two tries and says whether they agree"
+            } else {
+                ""
+            }
         ));
     }
     // A refit that fits the estimation half better and validates clearly
@@ -1078,22 +1097,43 @@ mod tests {
             validation: v(fit),
         };
         // The Cavatappi 300 g refit: a lower estimation SSE, 3.2 points worse.
-        let flagged = yardstick_warnings(6.39, 84.2, Some(62.7), Some(start(6.46, 87.4)));
+        let flagged = yardstick_warnings(6.39, 84.2, Some(62.7), Some(start(6.46, 87.4)), 1);
         assert_eq!(flagged.len(), 1, "{flagged:?}");
         assert!(flagged[0].contains("3.2 points worse"), "{}", flagged[0]);
         // Within the settled points: quiet.
-        assert!(yardstick_warnings(6.39, 86.0, None, Some(start(6.46, 87.4))).is_empty());
+        assert!(yardstick_warnings(6.39, 86.0, None, Some(start(6.46, 87.4)), 1).is_empty());
         // Worse on the estimation half too: the search lost its start.
-        let lost = yardstick_warnings(6.50, 84.2, None, Some(start(6.46, 87.4)));
+        let lost = yardstick_warnings(6.50, 84.2, None, Some(start(6.46, 87.4)), 1);
         assert_eq!(lost.len(), 1, "{lost:?}");
         assert!(lost[0].contains("ends above"), "{}", lost[0]);
+        // A widening says what it bought, or that the bound held nothing back.
+        let widening = |after| Widening {
+            bounds: vec!["offset lower bound -6 -> -24".into()],
+            sse_before: 1793.536,
+            sse_after: after,
+        };
+        assert!(widening_note(&widening(1500.0)).contains("1.793536e3 -> 1.500000e3"));
+        let idle = widening_note(&widening(1793.536));
+        assert!(
+            idle.contains("found no lower estimation SSE (1.793536e3)"),
+            "{idle}"
+        );
         // Below ARX's validation fit.
-        let below = yardstick_warnings(1.0, 40.2, Some(50.9), None);
+        let below = yardstick_warnings(1.0, 40.2, Some(50.9), None, 1);
         assert_eq!(below.len(), 1);
         assert!(below[0].contains("first-order ARX"), "{}", below[0]);
+        // One search may have missed the record's basin; tries said
+        // whether they agree, and the report shows that instead.
+        assert!(
+            below[0].contains("--pop 2000 runs two tries"),
+            "{}",
+            below[0]
+        );
+        let tried = yardstick_warnings(1.0, 40.2, Some(50.9), None, 2);
+        assert!(!tried[0].contains("--pop 2000"), "{}", tried[0]);
         // Below 0 %, whatever ARX scores (a record's first 25 s: ARX far
         // below, the fit at −206 %).
-        let none = yardstick_warnings(1.0, -206.4, Some(-1.47e9), None);
+        let none = yardstick_warnings(1.0, -206.4, Some(-1.47e9), None, 1);
         assert_eq!(none.len(), 1, "{none:?}");
         assert!(
             none[0].contains("describes none of its motion"),
