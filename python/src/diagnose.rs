@@ -5,7 +5,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use mckibben::diagnose::report::{DiagnosisJson, baseline_caution};
+use mckibben::diagnose::report::{DiagnosisJson, baseline_caution, plain_fit_caution};
 use mckibben::diagnose::transfer::check_others;
 use mckibben::diagnose::{Effect, Settings};
 use mckibben::model::ModelFile;
@@ -181,6 +181,10 @@ pub fn diagnose<'py>(
                 "{caution}; a Trace's output name is its column's: Trace(u, y, dt, output_name=\"x_m\")"
             ),),
         )?;
+    }
+    // The report's other CAUTION: `fit`'s own baseline beats the diagnosis'.
+    if let Some(caution) = plain_fit_caution(&d) {
+        py.import("warnings")?.call_method1("warn", (caution,))?;
     }
     let sources: Vec<&str> = traces.iter().map(|t| t.source.as_str()).collect();
     let model = |m: &mckibben::model::Model| {

@@ -45,12 +45,17 @@ def stair():
 
 
 @pytest.fixture(scope="session")
-def cli():
-    """Runs the `mckibben` binary (MCKIBBEN_BIN, else target/release/mckibben)
-    with `--json` and returns its document."""
-    binary = pathlib.Path(os.environ.get("MCKIBBEN_BIN", REPO / "target" / "release" / "mckibben"))
-    if not binary.exists():
-        missing(f"no mckibben binary at {binary} (run `cargo build --release` first)")
+def binary():
+    """The `mckibben` binary: MCKIBBEN_BIN, else target/release/mckibben."""
+    path = pathlib.Path(os.environ.get("MCKIBBEN_BIN", REPO / "target" / "release" / "mckibben"))
+    if not path.exists():
+        missing(f"no mckibben binary at {path} (run `cargo build --release` first)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def cli(binary):
+    """Runs the `mckibben` binary with `--json` and returns its document."""
 
     def run(*args):
         out = subprocess.run(

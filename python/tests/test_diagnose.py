@@ -5,6 +5,7 @@ import os
 import signal
 import threading
 import time
+import subprocess
 import warnings
 
 import numpy as np
@@ -93,6 +94,21 @@ def test_a_baseline_on_the_boxs_edge_warns_and_a_named_unit_avoids_it(stair):
         warnings.simplefilter("error")
         got = mckibben.diagnose(named, **args)
     assert got.document["baseline"]["on_edge"] == []
+
+
+def test_a_baseline_that_misses_fits_basin_warns(binary, tmp_path):
+    # The twin's stair with three times the braid's friction: `fit`'s own
+    # fit of the baseline beats the diagnosis' on both halves.
+    record = tmp_path / "friction3.csv"
+    subprocess.run(
+        [str(binary), "twin", "--effect", "friction=3", "--out", str(record)],
+        check=True,
+        capture_output=True,
+    )
+    with pytest.warns(UserWarning, match="missed a basin `fit` reaches"):
+        got = mckibben.diagnose(mckibben.read_csv(record))
+    assert got.document["baseline"]["plain_fit"]["beats_baseline"] is True
+    assert any("better than the diagnosis' baseline" in c for c in got.document["verdict_cautions"])
 
 
 def test_diagnose_rejects_bad_arguments(stair):
