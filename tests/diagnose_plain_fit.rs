@@ -10,6 +10,9 @@ use mckibben::diagnose::report::{DiagnosisJson, plain_fit_caution, to_text, verd
 use mckibben::diagnose::{Diagnosis, Settings, diagnose, effects::Effect};
 use mckibben::model::Family;
 use mckibben::twin::{TwinConfig, TwinExperiment, run};
+use std::process::Command;
+
+const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
 
 fn diagnosis_of(trace: &mckibben::data::Trace) -> Diagnosis {
     let effects = Effect::by_default();
@@ -75,4 +78,44 @@ fn a_plain_fit_that_only_validates_better_is_no_caution() {
     assert!(!plain.beats_baseline);
     assert!(plain_fit_caution(&d).is_none());
     assert!(!to_text(&d).contains("missed a basin"));
+}
+
+/// The remedy the caution names: `diagnose --from` the model `fit` wrote
+/// starts from it as it is. The diagnosis' box is widened to hold its
+/// baseline (a loop far past the thesis' shapes), where it used to clamp
+/// the start into the box and end near the baseline from scratch.
+#[test]
+fn a_diagnosis_from_fits_model_starts_from_its_basin() {
+    let dir = tempfile::tempdir().unwrap();
+    let record = dir.path().join("friction3.csv");
+    let out = dir.path().join("fit");
+    let run = |args: &[&str]| {
+        let o = Command::new(BIN).args(args).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        o.stdout
+    };
+    let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    run(&["twin", "--effect", "friction=3", "--out", &path(&record)]);
+    run(&["fit", &path(&record), "--out", &path(&out)]);
+    let scratch: serde_json::Value =
+        serde_json::from_slice(&run(&["diagnose", &path(&record), "--json"])).unwrap();
+    let model = path(&out.join("model.json"));
+    let from: serde_json::Value = serde_json::from_slice(&run(&[
+        "diagnose",
+        &path(&record),
+        "--from",
+        &model,
+        "--json",
+    ]))
+    .unwrap();
+    let rmse = |d: &serde_json::Value| d["baseline"]["selection_rmse"].as_f64().unwrap();
+    assert!(
+        rmse(&from) < 0.5 * rmse(&scratch),
+        "from fit's model {} against from scratch {}",
+        rmse(&from),
+        rmse(&scratch)
+    );
+    // The start's loop shape is kept: β far past the thesis' 0.5 per mm.
+    let beta = from["baseline"]["params"]["beta"].as_f64().unwrap();
+    assert!(beta > 0.5, "{beta}");
 }

@@ -158,8 +158,10 @@ pub struct Args {
     /// Start the selection from a model file (e.g. an earlier `--out`'s
     /// model.json, or `fit`'s): its baseline and effects are refitted warm
     /// on DATA in the model's coordinates instead of the baseline from
-    /// scratch, and the rounds try the rest of the catalogue on top of
-    /// them. DATA is read as the model's data were (columns, time column,
+    /// scratch, the diagnosis' box widened to hold its baseline (`fit`'s
+    /// box is in the data's own scale, and its loop can lie past the
+    /// thesis' shapes), and the rounds try the rest of the catalogue on top
+    /// of them. DATA is read as the model's data were (columns, time column,
     /// --resample) unless flags say otherwise, and must have the model's
     /// units and sample time. Faster than a diagnosis from scratch
     /// (timings: docs/DIAGNOSIS.md, "Knobs"); meant for records of the same

@@ -119,6 +119,23 @@ pub fn shape_per_output_unit(output_name: &str) -> f64 {
     stated_length_in_mm(output_name).unwrap_or(1.0)
 }
 
+/// `space`, the diagnosis' box in native coordinates, widened to hold a
+/// start model's baseline parameters `start` (`diagnose --from`): a model
+/// `fit` fitted in its own box, such as a braid's sharp friction loop far
+/// past the thesis' loop shapes, then starts the diagnosis as it is, not
+/// as its clamped image. Each bound `start` passes moves past it by half
+/// the distance again, so that the start is not on the new edge.
+fn hold_start(space: &mut SearchSpace, start: &[f64]) {
+    for (j, &v) in start.iter().enumerate() {
+        if v > space.upper[j] {
+            space.upper[j] = v + 0.5 * (v - space.upper[j]);
+        }
+        if v < space.lower[j] {
+            space.lower[j] = v - 0.5 * (space.lower[j] - v);
+        }
+    }
+}
+
 /// `space`, a box of the thesis' loop shapes ([`SearchSpace::from_prior`]),
 /// with those shapes in the unit of `output_name`
 /// ([`shape_per_output_unit`]; exact at `n = 1`, where every box but a
@@ -257,8 +274,12 @@ impl FitProblem {
         let first = &traces[0];
         let records = Arc::new(records);
         let baseline = ModelDescription::new(family, Vec::new(), traces.len());
+        let mut space = FitProblem::diagnosis_box(&records, &baseline, &first.output_name);
+        if let Some(m) = model {
+            hold_start(&mut space, &m.theta()[..family.dim()]);
+        }
         Ok(FitProblem {
-            space: FitProblem::diagnosis_box(&records, &baseline, &first.output_name),
+            space,
             records,
             parts,
             model: baseline,
@@ -275,9 +296,17 @@ impl FitProblem {
     /// the diagnosis' box (`FitProblem::diagnosis_box`): the diagnosis'
     /// candidates.
     pub fn with_model(&self, model: &ModelDescription) -> FitProblem {
+        let mut space = FitProblem::diagnosis_box(&self.records, model, &self.output_name);
+        // The baseline's bounds as this problem has them: widened to hold
+        // a start model's (`FitProblem::diagnosis`).
+        if model.family == self.model.family {
+            let d = model.family.dim();
+            space.lower[..d].copy_from_slice(&self.space.lower[..d]);
+            space.upper[..d].copy_from_slice(&self.space.upper[..d]);
+        }
         FitProblem {
             model: model.clone(),
-            space: FitProblem::diagnosis_box(&self.records, model, &self.output_name),
+            space,
             ..self.clone()
         }
     }

@@ -133,7 +133,8 @@ pub fn plain_fit_caution(d: &Diagnosis) -> Option<String> {
          thesis' loop shapes (made for a stroke of about 40 mm), missed a basin `fit` reaches, \
          such as a sharper loop (a braid with more friction closes its loop within a fraction \
          of a millimetre), and the effects named from it may stand in for that miss. Compare \
-         them with `fit`'s model before trusting them",
+         them with `fit`'s model before trusting them, or start the diagnosis from it \
+         (`mckibben fit DATA --out DIR`, then `diagnose DATA --from DIR/model.json`)",
         family = d.family,
         s = if d.datasets.len() > 1 { "s" } else { "" },
         plain_sse = plain.est_sse,
