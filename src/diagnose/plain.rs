@@ -46,8 +46,8 @@ pub struct PlainFit {
 /// `mckibben fit` prints for one record), scored on `data`'s estimation
 /// halves and selection part and judged against the diagnosis' baseline
 /// `baseline`. `data` is in the records' own coordinates, as `fit`'s
-/// problem is, so the parameters carry over unchanged; `None` where every
-/// candidate of the fit diverged.
+/// problem is, so the parameters carry over unchanged; `None` where `fit`
+/// could not set its box on these records or every candidate diverged.
 pub fn plain_fit(
     traces: &[Trace],
     data: &FitProblem,
@@ -56,7 +56,9 @@ pub fn plain_fit(
     baseline: &ScoredFit,
 ) -> anyhow::Result<Option<PlainFit>> {
     let family = data.model.family;
-    let problem = FitProblem::with_box(
+    // The diagnosis' own checks of the records ran already; a box `fit`
+    // cannot set here leaves the comparison out, not the diagnosis.
+    let Ok(problem) = FitProblem::with_box(
         traces,
         family,
         Flow::Joint,
@@ -64,7 +66,9 @@ pub fn plain_fit(
         false,
         (Loop::Bounded, Switching::default()),
         &[],
-    )?;
+    ) else {
+        return Ok(None);
+    };
     let plan = staged_plan(
         &problem,
         Algorithm::De.staged_settings(POPULATION),

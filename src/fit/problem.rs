@@ -275,7 +275,9 @@ impl FitProblem {
         let records = Arc::new(records);
         let baseline = ModelDescription::new(family, Vec::new(), traces.len());
         let mut space = FitProblem::diagnosis_box(&records, &baseline, &first.output_name);
-        if let Some(m) = model {
+        // A start of another family is refused with its reason later
+        // (`diagnose::start_of`).
+        if let Some(m) = model.filter(|m| m.base.family == family) {
             hold_start(&mut space, &m.theta()[..family.dim()]);
         }
         Ok(FitProblem {

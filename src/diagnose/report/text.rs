@@ -116,9 +116,9 @@ pub fn baseline_caution(d: &Diagnosis) -> Option<String> {
     ))
 }
 
-/// Where `fit`'s own fit of the baseline scores the selection part better
-/// than the diagnosis' baseline by more than an effect must gain to be
-/// named ([`crate::diagnose::plain::PlainFit::beats_baseline`]), what that
+/// Where `fit`'s own fit of the baseline beats the diagnosis' baseline on
+/// the estimation half and on the selection part
+/// ([`crate::diagnose::plain::PlainFit::beats_baseline`]), what that
 /// means, in words (the report's CAUTION, Python's warning); `None` where
 /// it does not.
 pub fn plain_fit_caution(d: &Diagnosis) -> Option<String> {
