@@ -125,6 +125,8 @@ pub fn shape_per_output_unit(output_name: &str) -> f64 {
 /// past the thesis' loop shapes, then starts the diagnosis as it is, not
 /// as its clamped image. Each bound `start` passes moves past it by half
 /// the distance again, so that the start is not on the new edge.
+/// (`SearchSpace::widen_to_hold`, `fit --from`'s, widens only the bounds
+/// the data set, in steps; every bound of this box is the class's.)
 fn hold_start(space: &mut SearchSpace, start: &[f64]) {
     for (j, &v) in start.iter().enumerate() {
         if v > space.upper[j] {
