@@ -119,3 +119,48 @@ fn a_diagnosis_from_fits_model_starts_from_its_basin() {
     let beta = from["baseline"]["params"]["beta"].as_f64().unwrap();
     assert!(beta > 0.5, "{beta}");
 }
+
+/// `fit --effects auto` builds its model on the diagnosis' verdict, so
+/// what weakens the verdict is said there too: on stderr as a warning and
+/// in the JSON's `notes`.
+#[test]
+fn fit_effects_auto_passes_the_verdicts_cautions_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let record = dir.path().join("friction3.csv");
+    let path = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let run = |args: &[&str]| {
+        let o = Command::new(BIN).args(args).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        o
+    };
+    run(&["twin", "--effect", "friction=3", "--out", &path(&record)]);
+    let fit = |json: bool| {
+        let out = path(&dir.path().join(if json { "json" } else { "text" }));
+        let mut args = vec!["fit", record.to_str().unwrap(), "--effects", "auto"];
+        args.extend(["--out", &out]);
+        if json {
+            args.push("--json");
+        }
+        run(&args)
+    };
+    let doc: serde_json::Value = serde_json::from_slice(&fit(true).stdout).unwrap();
+    let warned = |text: &str| {
+        text.starts_with("the diagnosis' verdict may not hold: ")
+            && text.contains("better than the diagnosis' baseline")
+    };
+    let notes = doc["notes"].as_array().unwrap();
+    assert!(
+        notes
+            .iter()
+            .any(|n| n["level"] == "warning" && warned(n["text"].as_str().unwrap())),
+        "{notes:?}"
+    );
+    let stderr = String::from_utf8(fit(false).stderr).unwrap();
+    assert!(
+        stderr
+            .lines()
+            .filter_map(|l| l.strip_prefix("mckibben: warning: "))
+            .any(warned),
+        "{stderr}"
+    );
+}

@@ -339,6 +339,11 @@ fn fit_with_effects_auto_returns_the_diagnosis_final_model() {
     for key in ["selection_fit_percent", "test_fit_percent", "test_rmse"] {
         assert_eq!(fit["diagnosis_parts"][key], last[key], "{key}");
     }
+    // One warning for each of the verdict's cautions, none besides.
+    assert_eq!(
+        fit["notes"].as_array().unwrap().len(),
+        diagnosis["verdict_cautions"].as_array().unwrap().len()
+    );
     assert_ne!(
         fit["diagnosis_parts"]["test_fit_percent"],
         fit["val_fit_percent"]

@@ -21,7 +21,7 @@ use crate::eval::Backend;
 use crate::fit::objective::TryGroup;
 use crate::fit::problem::FitProblem;
 use crate::fit::records::Records;
-use crate::fit::report::{DiagnosisParts, FitReport, RecordScore};
+use crate::fit::report::{DiagnosisParts, FitReport, Note, RecordScore};
 use crate::fit::run::FitRun;
 use crate::fit::searches::StopFlag;
 use crate::fit::settings::FitSettings;
@@ -237,7 +237,18 @@ pub fn selected_fit(
             linear_val_fit_percent,
             linear_largest_pole,
         }],
-        notes: Vec::new(),
+        // What weakens the verdict weakens the model built on it; `fit`
+        // prints these where `diagnose` would have.
+        notes: super::report::verdict_cautions(&d)
+            .into_iter()
+            .map(|caution| Note {
+                level: "warning",
+                text: format!(
+                    "the diagnosis' verdict may not hold: {caution} (`mckibben diagnose` gives \
+                     its report)"
+                ),
+            })
+            .collect(),
         out: None,
     };
     Ok((model, report))

@@ -118,7 +118,8 @@ pub struct Args {
     /// diagnose`; minutes, not seconds), its searches set by --seed and
     /// --backend alone (the search flags are refused beside it); its
     /// validation half holds the selection part that chose the effects,
-    /// so the report adds the test part's fit, which no choice read.
+    /// so the report adds the test part's fit, which no choice read, and
+    /// warns of what weakens the diagnosis' verdict.
     /// Default:
     /// the --from model's, else none.
     #[arg(

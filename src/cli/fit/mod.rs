@@ -453,6 +453,9 @@ fn run_auto(args: &Args, family: Family, trace: &Trace) -> anyhow::Result<()> {
             mckibben::ident::fit::constant_validation_warning("")
         );
     }
+    for note in &report.notes {
+        errln!("mckibben: {}: {}", note.level, note.text);
+    }
     outln!(
         "  {:.2} s; `mckibben diagnose` gives the selection's report; wrote model.json, \
          result.json and figures to {}",

@@ -160,16 +160,16 @@ pub fn verdict_cautions(d: &Diagnosis) -> Vec<String> {
     let mut out = Vec::new();
     if !d.baseline_on_edge.is_empty() {
         out.push(
-            "the baseline's loop shape ended on its box's edge (CAUTION above): the named \
-             effects may stand in for the loop it could not reach"
+            "the baseline's loop shape ended on its box's edge (the report's CAUTION under \
+             Baseline): the named effects may stand in for the loop it could not reach"
                 .to_string(),
         );
     }
     if plain_fit_caution(d).is_some() {
         out.push(
             "`fit`'s own fit of the baseline fits the estimation half and scores the selection \
-             part better than the diagnosis' baseline (CAUTION above): the named effects may \
-             stand in for the basin that baseline missed"
+             part better than the diagnosis' baseline (the report's CAUTION under Baseline): the \
+             named effects may stand in for the basin that baseline missed"
                 .to_string(),
         );
     }
