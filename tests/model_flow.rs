@@ -1593,3 +1593,57 @@ fn simulate_says_when_a_record_fitted_the_model_and_when_it_starts_off_its_level
         );
     }
 }
+
+/// `fit --effects auto` builds its model on the diagnosis' verdict, so
+/// what weakens the verdict is said there too, one warning for each of
+/// the diagnosis' `verdict_cautions`: on the Cavatappi 100 g record, a
+/// size the data leave open (the cautions are read from `diagnose`, not
+/// assumed).
+#[test]
+fn fit_effects_auto_passes_the_verdicts_cautions_on() {
+    let Some(path) = common::require_external("cavatappi_muscle/sample1_100g.csv") else {
+        return;
+    };
+    let record = path.to_str().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let diagnosis = json_of(
+        &[
+            &["diagnose", record, "--json"][..],
+            &common::CAVATAPPI_FLAGS,
+        ]
+        .concat(),
+    );
+    let cautions = diagnosis["verdict_cautions"].as_array().unwrap();
+    assert!(!cautions.is_empty(), "{diagnosis}");
+    let warnings: Vec<String> = cautions
+        .iter()
+        .map(|c| {
+            format!(
+                "the diagnosis' verdict may not hold: {} (`mckibben diagnose` gives its report)",
+                c.as_str().unwrap()
+            )
+        })
+        .collect();
+    let args = [
+        &["fit", record, "--effects", "auto", "--out", out][..],
+        &common::CAVATAPPI_FLAGS,
+    ]
+    .concat();
+    let fit = json_of(&[&args[..], &["--json"]].concat());
+    let notes: Vec<(&str, &str)> = fit["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| (n["level"].as_str().unwrap(), n["text"].as_str().unwrap()))
+        .collect();
+    let expected: Vec<(&str, &str)> = warnings.iter().map(|w| ("warning", w.as_str())).collect();
+    assert_eq!(notes, expected);
+    let stderr = String::from_utf8(mckibben(&args).stderr).unwrap();
+    for w in &warnings {
+        assert!(
+            stderr.contains(&format!("mckibben: warning: {w}\n")),
+            "{stderr}"
+        );
+    }
+}

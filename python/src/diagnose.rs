@@ -182,7 +182,8 @@ pub fn diagnose<'py>(
             ),),
         )?;
     }
-    // The report's other CAUTION: `fit`'s own baseline beats the diagnosis'.
+    // The report's other CAUTION: `fit`'s own baseline beats the diagnosis',
+    // which did not keep the gain when started from it.
     if let Some(caution) = plain_fit_caution(&d) {
         py.import("warnings")?.call_method1("warn", (caution,))?;
     }

@@ -96,19 +96,21 @@ def test_a_baseline_on_the_boxs_edge_warns_and_a_named_unit_avoids_it(stair):
     assert got.document["baseline"]["on_edge"] == []
 
 
-def test_a_baseline_that_misses_fits_basin_warns(binary, tmp_path):
+def test_a_baseline_that_misses_fits_basin_starts_from_fits(binary, tmp_path):
     # The twin's stair with three times the braid's friction: `fit`'s own
-    # fit of the baseline beats the diagnosis' on both halves.
+    # fit of the baseline beats the searched one on both halves, and the
+    # diagnosis starts again from it.
     record = tmp_path / "friction3.csv"
     subprocess.run(
         [str(binary), "twin", "--effect", "friction=3", "--out", str(record)],
         check=True,
         capture_output=True,
     )
-    with pytest.warns(UserWarning, match="missed a basin `fit` reaches"):
-        got = mckibben.diagnose(mckibben.read_csv(record))
-    assert got.document["baseline"]["plain_fit"]["beats_baseline"] is True
-    assert any("better than the diagnosis' baseline" in c for c in got.document["verdict_cautions"])
+    got = mckibben.diagnose(mckibben.read_csv(record))
+    plain = got.document["baseline"]["plain_fit"]
+    assert plain["beats_baseline"] is True and plain["started_from"] is True
+    assert got.document["from"] == "`mckibben fit`'s fit of the baseline"
+    assert got.document["baseline"]["selection_rmse"] < 0.5 * plain["searched_selection_rmse"]
 
 
 def test_diagnose_rejects_bad_arguments(stair):

@@ -83,7 +83,8 @@ pub struct Step {
 pub struct Diagnosis {
     pub family: Family,
     /// Where the selection started (`diagnose --from`; the command puts the
-    /// model file's name here), `None` from scratch.
+    /// model file's name here), [`PLAIN_FIT_START`] where it started from
+    /// `fit`'s own fit of the baseline, `None` from scratch.
     pub from: Option<String>,
     pub datasets: Vec<String>,
     /// The datasets' input and output columns and their units: what the
@@ -137,7 +138,9 @@ pub struct Diagnosis {
     /// of the diagnosis' box (`loop_shape_on_edge`).
     pub baseline_on_edge: Vec<ActiveBound>,
     /// `fit`'s own fit of the baseline on the same estimation halves,
-    /// scored on the selection part ([`plain::plain_fit`]); `None` from a
+    /// scored on the selection part ([`plain::plain_fit`]); where it beats
+    /// the searched baseline, the diagnosis may have started from it
+    /// ([`plain::PlainFit::started_from`]). `None` from a
     /// start model (`--from`: its coordinates are not the records' own)
     /// or where that fit diverged.
     pub plain_fit: Option<plain::PlainFit>,
@@ -211,6 +214,10 @@ impl Diagnosis {
     }
 }
 
+/// What [`Diagnosis::from`] says where the diagnosis started from `fit`'s
+/// own fit of the baseline ([`plain::PlainFit::started_from`]).
+pub const PLAIN_FIT_START: &str = "`mckibben fit`'s fit of the baseline";
+
 /// Seed salt of the final model's from-scratch refits, far from the
 /// selection's (100 per round, `select::select`).
 const REFIT_SALT: u64 = 9_000;
@@ -262,7 +269,7 @@ pub fn diagnose_from(
     )?;
     check_baseline(&selection, family, traces)?;
     let baseline_on_edge = loop_shape_on_edge(&data, &selection.baseline.best.params);
-    let plain_fit = match from {
+    let plain = match from {
         None => {
             settings
                 .progress
@@ -271,6 +278,36 @@ pub fn diagnose_from(
         }
         Some(_) => None,
     };
+    // A search in the thesis' loop shapes that missed the basin `fit`
+    // reaches would leave the effects to stand in for the miss: start
+    // again from `fit`'s fit, as `--from` its model would. The restart
+    // refits that baseline warm on the estimation half, and the refit can
+    // trade the gain on the selection part away (a lower SSE there, a
+    // worse loop elsewhere): kept only where the gain holds.
+    let mut plain_fit = None;
+    if let Some((mut fit, model)) = plain {
+        if fit.beats_baseline {
+            settings.progress.say(
+                "`fit`'s baseline beats the one searched among the thesis' loop shapes: \
+                 diagnosing again from it",
+            );
+            let mut d = diagnose_from(traces, family, &asked, settings, Some(&model))?;
+            let restarted = &d.selection.baseline.best;
+            fit.restarted_selection_fit_percent = Some(d.baseline().selection_fit_percent);
+            fit.started_from =
+                restarted.sel_rmse < (1.0 - settings.min_relative) * fit.searched_selection_rmse;
+            if fit.started_from {
+                d.from = Some(PLAIN_FIT_START.to_string());
+                d.plain_fit = Some(fit);
+                return Ok(d);
+            }
+            settings.progress.say(
+                "refitted from `fit`'s baseline, the diagnosis' baseline lost its gain on the \
+                 selection part: keeping the searched one",
+            );
+        }
+        plain_fit = Some(fit);
+    }
 
     // The final chain as `fit --effects` fits it: the final parameters
     // when it scores better on the selection part.
@@ -468,8 +505,9 @@ fn check_baseline(selection: &Selection, family: Family, traces: &[Trace]) -> an
 
 /// The final chain of `selection` refitted as `fit --effects` fits it, on
 /// `last`, its problem: left out, like the refits, with `--scratch-seeds
-/// 0`, and from a start model, since `fit` fits in the record's own
-/// coordinates, not the start model's.
+/// 0`, and from a start model (`--from`, or `fit`'s fit of the baseline
+/// started again from), since `fit` fits in the record's own coordinates,
+/// not the start model's.
 fn as_fit_of(
     last: &FitProblem,
     traces: &[Trace],

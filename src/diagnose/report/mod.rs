@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 
 pub use figures::{FIGURES, write_figures};
 pub use json::*;
-pub use text::{baseline_caution, plain_fit_caution, to_text, verdict_cautions};
+pub use text::{baseline_caution, plain_fit_caution, plain_fit_start, to_text, verdict_cautions};
 
 use super::Diagnosis;
 use super::accept::Candidate;

@@ -10,7 +10,7 @@ use crate::diagnose::refits::Finding;
 use crate::diagnose::seeds::{named_counts, runs_naming};
 use crate::diagnose::spectrum::Peak;
 use crate::diagnose::transfer::Transfer;
-use crate::diagnose::{Diagnosis, Effect, Step};
+use crate::diagnose::{Diagnosis, Effect, PLAIN_FIT_START, Step};
 use crate::fit::edge::ActiveBound;
 use crate::model::experiment::Parts;
 use crate::report::number::significant;
@@ -116,34 +116,61 @@ pub fn baseline_caution(d: &Diagnosis) -> Option<String> {
     ))
 }
 
-/// Where `fit`'s own fit of the baseline beats the diagnosis' baseline on
-/// the estimation half and on the selection part
-/// ([`crate::diagnose::plain::PlainFit::beats_baseline`]), what that
-/// means, in words (the report's CAUTION, Python's warning); `None` where
-/// it does not.
-pub fn plain_fit_caution(d: &Diagnosis) -> Option<String> {
-    let plain = d.plain_fit.as_ref().filter(|p| p.beats_baseline)?;
-    let base = d.baseline();
+/// Where the diagnosis started from `fit`'s own fit of the baseline, which
+/// beat the baseline it searched on the estimation half and on the
+/// selection part ([`crate::diagnose::plain::PlainFit::started_from`]):
+/// why, in words (the report's line under *Baseline*); `None` where it
+/// did not.
+pub fn plain_fit_start(d: &Diagnosis) -> Option<String> {
+    let plain = d.plain_fit.as_ref().filter(|p| p.started_from)?;
     Some(format!(
+        "{}. That search missed a basin `fit` reaches (a sharper loop, say: a braid with more \
+         friction closes its loop within a fraction of a millimetre), and effects named from \
+         it would stand in for the miss, so the diagnosis started again from `fit`'s fit, \
+         refitted warm in a box widened to hold it (as `diagnose --from` its model.json): the \
+         baseline above and everything below are from that start",
+        plain_fit_beats(d, plain)
+    ))
+}
+
+/// Where `fit`'s own fit of the baseline beat the searched one but the
+/// diagnosis, started from it, lost that gain in its warm refit, and kept
+/// the searched baseline: what that means, in words (the report's
+/// CAUTION, Python's warning); `None` otherwise.
+pub fn plain_fit_caution(d: &Diagnosis) -> Option<String> {
+    let plain = d
+        .plain_fit
+        .as_ref()
+        .filter(|p| p.beats_baseline && !p.started_from)?;
+    Some(format!(
+        "{}. Started again from it, the diagnosis' warm refit of the baseline scored the \
+         selection part at {restarted}, no longer more than 2 % better in RMSE than the searched \
+         baseline, so the diagnosis kept the searched one. The effects named from it may stand \
+         in for the basin `fit` reached: compare them with `fit`'s model before trusting them",
+        plain_fit_beats(d, plain),
+        restarted = plain
+            .restarted_selection_fit_percent
+            .map_or("no finite figure".to_string(), |f| format!("{f:.1} %")),
+    ))
+}
+
+/// How `fit`'s fit of the baseline beat the searched one, in words.
+fn plain_fit_beats(d: &Diagnosis, plain: &crate::diagnose::plain::PlainFit) -> String {
+    format!(
         "`mckibben fit`'s {family} fit of the same estimation half{s}, in its box in the data's \
-         own scale, fits that half better (SSE {plain_sse:.1} against the baseline's {base_sse:.1}, \
-         past the likelihood-ratio threshold) and scores the selection part at {fit:.1} % \
-         (RMSE {rmse}) against the baseline's {base_fit:.1} %, {lower:.0} % lower in RMSE: more \
-         than an effect must gain to be named. The diagnosis' baseline, searched among the \
-         thesis' loop shapes (made for a stroke of about 40 mm), missed a basin `fit` reaches, \
-         such as a sharper loop (a braid with more friction closes its loop within a fraction \
-         of a millimetre), and the effects named from it may stand in for that miss. Compare \
-         them with `fit`'s model before trusting them, or start the diagnosis from it \
-         (`mckibben fit DATA --out DIR`, then `diagnose DATA --from DIR/model.json`)",
+         own scale, fits that half better than the baseline searched among the thesis' loop \
+         shapes, made for a stroke of about 40 mm (SSE {plain_sse:.1} against {searched_sse:.1}, \
+         past the likelihood-ratio threshold), and scores the selection part at {fit:.1} % \
+         against {searched_fit:.1} %, {lower:.1} % lower in RMSE: more than an effect must gain \
+         to be named",
         family = d.family,
         s = if d.datasets.len() > 1 { "s" } else { "" },
         plain_sse = plain.est_sse,
-        base_sse = d.selection.baseline.best.est_sse,
+        searched_sse = plain.searched_est_sse,
         fit = plain.selection_fit_percent,
-        rmse = significant(plain.selection_rmse, 4),
-        base_fit = base.selection_fit_percent,
-        lower = 100.0 * (1.0 - plain.selection_rmse / base.selection_rmse),
-    ))
+        searched_fit = plain.searched_selection_fit_percent,
+        lower = 100.0 * (1.0 - plain.selection_rmse / plain.searched_selection_rmse),
+    )
 }
 
 /// What the report found that weakens a verdict naming effects, each in
@@ -244,7 +271,9 @@ fn header_text(o: &mut String, d: &Diagnosis) {
     if let Some(caution) = plain_fit_caution(d) {
         let _ = writeln!(o, "  CAUTION: {caution}");
     }
-    if let Some(from) = &d.from {
+    if let Some(why) = plain_fit_start(d) {
+        let _ = writeln!(o, "Started from {PLAIN_FIT_START}: {why}");
+    } else if let Some(from) = &d.from {
         let names: Vec<&str> = d.selection.given.iter().map(|e| e.name()).collect();
         let _ = writeln!(
             o,
