@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import mckibben
+from conftest import REPO, missing
 
 
 def without_provenance(path):
@@ -82,18 +83,40 @@ def test_diagnose_repeats_from_seeds_as_the_command(stair, cli):
         mckibben.diagnose(stair, repeat=0, **args)
 
 
-def test_a_baseline_on_the_boxs_edge_warns_and_a_named_unit_avoids_it(stair):
+def test_an_output_in_metres_taken_as_mm_starts_from_fits_fit(stair):
     args = dict(effects=["delay"], seeds=1, generations=10, scratch_seeds=0)
     u, y = stair.input * 1000, stair.output / 1000
-    # In metres, as a tuple: taken in mm, the loop is too sharp for the box.
-    with pytest.warns(UserWarning, match="ended on the edge of the diagnosis' box"):
+    # In metres, as a tuple: taken in mm, the loop is too sharp for the
+    # searched box; `fit`'s fit, in the data's scale, beats it, and the
+    # diagnosis starts again from it, off the box's edge.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
         got = mckibben.diagnose([(u, y, stair.dt)], **args)
-    assert got.document["baseline"]["on_edge"]
+    assert got.document["from"] == "`mckibben fit`'s fit of the baseline"
+    assert got.document["baseline"]["plain_fit"]["started_from"] is True
+    assert got.document["baseline"]["on_edge"] == []
     named = mckibben.Trace(u, y, stair.dt, output_name="x_m")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         got = mckibben.diagnose(named, **args)
     assert got.document["baseline"]["on_edge"] == []
+
+
+def test_a_baseline_on_the_boxs_edge_warns():
+    # The Cavatappi muscle at 200 g (mm, a stroke of about 5 mm): the
+    # searched baseline ends on the edge, and `fit`'s fit does not beat it.
+    path = REPO.parent / "shared" / "data" / "external" / "cavatappi_muscle" / "sample1_200g.csv"
+    if not path.exists():
+        missing(f"no external data at {path}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the reader's notes on the resampling
+        record = mckibben.read_csv(
+            path, input="pressure_psi", output="disp_mm", time="t_s", resample=0.01
+        )
+    with pytest.warns(UserWarning, match="ended on the edge of the diagnosis' box"):
+        got = mckibben.diagnose(record)
+    assert got.document["baseline"]["on_edge"]
+    assert got.document["from"] is None
 
 
 def test_a_baseline_that_misses_fits_basin_starts_from_fits(binary, tmp_path):

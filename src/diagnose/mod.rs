@@ -13,6 +13,7 @@
 
 pub mod accept;
 pub mod as_fit;
+pub mod auto;
 pub mod blind;
 pub mod chain;
 pub use crate::model::effects;
