@@ -9,7 +9,9 @@
 //! worse basin, often not on the box's edge, and the effects then named
 //! stand in for the loop the baseline could not reach. Where `fit`'s fit
 //! is the better one on both the estimation halves and the selection part,
-//! the diagnosis starts from it instead (`super::diagnose_from`).
+//! the diagnosis runs again from it (`super::diagnose_from`) and keeps that
+//! run where its warm refit of the baseline still beats the searched one on
+//! the selection part ([`PlainFit::started_from`]).
 
 use serde::Serialize;
 

@@ -6,6 +6,7 @@ use super::candidate_list;
 use crate::diagnose::accept::gap_closed;
 use crate::diagnose::explainable::Signature;
 use crate::diagnose::locate::Share;
+use crate::diagnose::plain::PlainFit;
 use crate::diagnose::refits::Finding;
 use crate::diagnose::seeds::{named_counts, runs_naming};
 use crate::diagnose::spectrum::Peak;
@@ -118,7 +119,7 @@ pub fn baseline_caution(d: &Diagnosis) -> Option<String> {
 
 /// Where the diagnosis started from `fit`'s own fit of the baseline, which
 /// beat the baseline it searched on the estimation half and on the
-/// selection part ([`crate::diagnose::plain::PlainFit::started_from`]):
+/// selection part ([`PlainFit::started_from`]):
 /// why, in words (the report's line under *Baseline*); `None` where it
 /// did not.
 pub fn plain_fit_start(d: &Diagnosis) -> Option<String> {
@@ -155,7 +156,7 @@ pub fn plain_fit_caution(d: &Diagnosis) -> Option<String> {
 }
 
 /// How `fit`'s fit of the baseline beat the searched one, in words.
-fn plain_fit_beats(d: &Diagnosis, plain: &crate::diagnose::plain::PlainFit) -> String {
+fn plain_fit_beats(d: &Diagnosis, plain: &PlainFit) -> String {
     format!(
         "`mckibben fit`'s {family} fit of the same estimation half{s}, in its box in the data's \
          own scale, fits that half better than the baseline searched among the thesis' loop \
