@@ -265,7 +265,7 @@ pub enum DataError {
         line: u64,
         column: String,
         value: String,
-        /// What to do about it, where the cell is a sample's ([`MISSED_READING`]).
+        /// What to do about it, where the cell is a sample's (`MISSED_READING`).
         hint: &'static str,
     },
     #[error("{}: line {line}, column \"{column}\": \"{}\" is not finite{hint}", path.display(), shown(value))]

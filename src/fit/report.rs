@@ -373,7 +373,7 @@ impl FitReport {
     /// (`history.csv`, `history.json`), `trends.svg`, `convergence.svg`
     /// and, where a model was found, `model.json` (with the user's
     /// `bounds` and its `provenance`), `loop.svg` and `trace.svg` on each
-    /// of `traces` ([`model_files`]). The
+    /// of `traces` (`model_files`). The
     /// files are written all or none: a failure leaves `out` as it was.
     pub fn write(
         &mut self,

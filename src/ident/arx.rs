@@ -545,7 +545,7 @@ fn stable_poles() -> impl Iterator<Item = f64> {
 
 /// The first-order model `x(k) = a·x(k−1) + b·u(k−1) + c`, `x(0) = y(0)`,
 /// whose free run fits `y` best over the stable poles `a` in [0, 1)
-/// ([`stable_poles`]; `b` and `c` by least squares for each): `(a, b)`,
+/// (`stable_poles`; `b` and `c` by least squares for each): `(a, b)`,
 /// or `None` where no pole gives a finite fit. What `fit`'s box is built
 /// around where ARX's pole is no stable one: least squares on one step
 /// puts the pole of a record too short, or too little excited, at 1 or
