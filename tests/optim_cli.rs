@@ -137,6 +137,12 @@ fn fit_writes_the_documented_json_and_files() {
         "{history}"
     );
     assert!(history.contains(",polish,"), "{history}");
+    // A polish start has no population: its population figures are empty
+    // cells (NaN to pandas and MATLAB), not a cost of `inf`.
+    let polish = history.lines().find(|l| l.contains(",polish,")).unwrap();
+    let cells: Vec<&str> = polish.split(',').collect();
+    assert_eq!(&cells[7..11], ["", "", "", "0"], "{polish}");
+    assert!(!history.contains("inf"), "{history}");
     // Its columns name the canonical parameters its rows hold, not the
     // search coordinates (gain, loading, ...).
     assert!(

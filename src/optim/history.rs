@@ -80,6 +80,9 @@ impl History {
     }
 
     /// CSV: one row per generation, the best parameters as named columns.
+    /// A value the row has not (`None`) is an empty cell, which pandas and
+    /// MATLAB's `readtable` read as NaN, a gap in a plot; `inf` would read
+    /// as a cost, and a polish row's population figures are not one.
     pub fn to_csv(&self) -> String {
         let names = self.param_names();
         let mut s = String::from(
@@ -89,7 +92,7 @@ impl History {
             let _ = write!(s, ",{n}");
         }
         s.push('\n');
-        let opt = |v: Option<f64>| v.map(|v| format!("{v:e}")).unwrap_or_else(|| "inf".into());
+        let opt = |v: Option<f64>| v.map(|v| format!("{v:e}")).unwrap_or_default();
         for r in &self.records {
             let horizon = match r.measure {
                 Measure::FreeRun => String::new(),
@@ -159,7 +162,7 @@ mod tests {
         assert!(lines.next().unwrap().ends_with("diverged,a,b,c"));
         let row = lines.next().unwrap();
         assert!(
-            row.starts_with("1,global,7,10,0.500,inf,2e0,2e0,inf,inf,10,9e-1"),
+            row.starts_with("1,global,7,10,0.500,,2e0,2e0,,,10,9e-1"),
             "{row}"
         );
     }
