@@ -383,7 +383,7 @@ fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
             &["--controller", "pi", "--effect", "creep=9"][..],
             "--load with --effect creep=9: a 4.5 kg load stretches the muscle at rest",
         ),
-        // `control` has no column flags to suggest: the names are the fix.
+        // A logger's own names: the flag that reads them is the fix.
         (
             &[
                 "--controller",
@@ -391,8 +391,8 @@ fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
                 "--design-data",
                 "data/logger_example.csv",
             ][..],
-            "the design record's columns are named t (s), valve_in (V), pressure (MPa) and \
-             displacement (mm)",
+            "no column \"t\" (the file has time_s, p_kPa, stroke_mm, valve_V): name the \
+             file's columns with --design-columns TIME,VALVE,PRESSURE,DISPLACEMENT",
         ),
     ] {
         let out = control(args);
@@ -920,4 +920,138 @@ fn a_model_the_controllers_cannot_use_is_refused_or_named() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(runs(&out)[0]["feedforward_at_limit"].as_u64().unwrap() < 60);
     assert!(!err.contains("feedforward was at"), "{err}");
+}
+
+/// A rig's record names its columns its own way and in its own units:
+/// `--design-columns` points the design at them, and a pressure in kPa
+/// and a displacement in m are converted to the controllers' MPa and mm,
+/// so the design and the run are those of the same record written as
+/// `mckibben twin` writes it. Without the flag, the error says how.
+#[test]
+fn a_design_record_in_its_own_names_and_units_designs_as_the_twins_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let multisine = dir.path().join("multisine.csv");
+    let twin = Command::new(BIN)
+        .args(["twin", "--experiment", "multisine", "--out"])
+        .arg(&multisine)
+        .output()
+        .unwrap();
+    assert!(twin.status.success());
+    let text = std::fs::read_to_string(&multisine).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let header = lines.iter().position(|l| l.starts_with("t,")).unwrap();
+    let names: Vec<String> = lines[header].split(',').map(String::from).collect();
+    let at = |name: &str| names.iter().position(|c| c == name).unwrap();
+    let (pressure, displacement) = (at("pressure"), at("displacement"));
+    lines[header] = names
+        .iter()
+        .map(|c| match c.as_str() {
+            "t" => "time_s",
+            "valve_in" => "u_cmd",
+            "pressure" => "p_kPa",
+            "displacement" => "x_m",
+            other => other,
+        })
+        .collect::<Vec<_>>()
+        .join(",");
+    for line in &mut lines[header + 1..] {
+        let mut cells: Vec<String> = line.split(',').map(String::from).collect();
+        let scaled = |cell: &str, by: f64| (cell.parse::<f64>().unwrap() * by).to_string();
+        cells[pressure] = scaled(&cells[pressure], 1000.0);
+        cells[displacement] = scaled(&cells[displacement], 1e-3);
+        *line = cells.join(",");
+    }
+    let renamed = dir.path().join("rig.csv");
+    std::fs::write(&renamed, lines.join("\n")).unwrap();
+
+    let run = |extra: &[&str]| {
+        control(
+            &[
+                &["--controller", "mpc", "--load", "4.5", "--json"][..],
+                extra,
+            ]
+            .concat(),
+        )
+    };
+    let twins = run(&["--design-data", multisine.to_str().unwrap()]);
+    let rigs = run(&[
+        "--design-data",
+        renamed.to_str().unwrap(),
+        "--design-columns",
+        "time_s,u_cmd,p_kPa,x_m",
+    ]);
+    let (a, b) = (runs(&twins), runs(&rigs));
+    let err = String::from_utf8_lossy(&rigs.stderr);
+    assert!(
+        err.contains("column \"p_kPa\" read in kPa and converted to MPa")
+            && err.contains("column \"x_m\" read in m and converted to mm"),
+        "{err}"
+    );
+    // The same record, to the last digits the scaling rounds.
+    let design = |out: &Output| -> Vec<f64> {
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["design"]["prediction"]["by_step_mm"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let (da, db) = (design(&twins), design(&rigs));
+    assert_eq!(da.len(), db.len());
+    for (x, y) in da.iter().zip(&db) {
+        assert!((x - y).abs() <= 1e-4 * x.abs(), "{da:?} against {db:?}");
+    }
+    let rms = |r: &Vec<Value>| r[0]["rms_error_mm"].as_f64().unwrap();
+    assert!(
+        (rms(&a) - rms(&b)).abs() <= 1e-3 * rms(&a),
+        "{a:?} against {b:?}"
+    );
+
+    // Without the flag, the file's names are the error, and the fix.
+    let err = refusal(&[
+        "--controller",
+        "mpc",
+        "--design-data",
+        renamed.to_str().unwrap(),
+    ]);
+    assert!(
+        err.contains("no column \"t\"")
+            && err.contains("--design-columns TIME,VALVE,PRESSURE,DISPLACEMENT"),
+        "{err}"
+    );
+    // A valve column that is not there, and a pressure in a length.
+    let err = refusal(&[
+        "--controller",
+        "mpc",
+        "--design-data",
+        renamed.to_str().unwrap(),
+        "--design-columns",
+        "time_s,valve,p_kPa,x_m",
+    ]);
+    assert!(
+        err.contains("no column \"valve\"") && err.contains("u_cmd"),
+        "{err}"
+    );
+    let err = refusal(&[
+        "--controller",
+        "mpc",
+        "--design-data",
+        renamed.to_str().unwrap(),
+        "--design-columns",
+        "time_s,u_cmd,x_m,p_kPa",
+    ]);
+    assert!(err.contains("the pressure column \"x_m\" is in m"), "{err}");
+    let err = refusal(&[
+        "--controller",
+        "mpc",
+        "--design-data",
+        renamed.to_str().unwrap(),
+        "--design-columns",
+        "time_s,u_cmd,p_kPa",
+    ]);
+    assert!(
+        err.contains("--design-columns: 3 names given; it takes four"),
+        "{err}"
+    );
 }

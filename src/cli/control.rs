@@ -11,7 +11,9 @@ use super::common::{check_creatable, check_folder, given_once, population};
 use mckibben::control::closed_loop::Episode;
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
-use mckibben::control::sweep::{self, DesignRequest, Ingredients, Kind, ROBUST_LOAD_SCALE, Shape};
+use mckibben::control::sweep::{
+    self, DesignColumns, DesignRequest, Ingredients, Kind, ROBUST_LOAD_SCALE, Shape,
+};
 use mckibben::control::table::{self, DesignJson, JsonOutput, RunSettings};
 use mckibben::control::tuning::{self, TuningRun};
 use mckibben::control::{MpcSettings, PiGains, ValveLimits};
@@ -85,11 +87,23 @@ pub struct Args {
     /// Load (kg) at which the model is identified on the twin.
     #[arg(long, default_value_t = DESIGN_LOAD_KG, allow_negative_numbers = true)]
     design_load: f64,
-    /// Identify the model from this open-loop record (CSV with valve_in,
-    /// pressure, displacement; e.g. a multisine recorded on the rig) instead
-    /// of the twin's design multisine. Its second half validates the model.
+    /// Identify the model from this open-loop record (CSV with t, valve_in,
+    /// pressure, displacement, or the names --design-columns gives; e.g. a
+    /// multisine recorded on the rig) instead of the twin's design
+    /// multisine. Its second half validates the model.
     #[arg(long, value_name = "FILE.csv")]
     design_data: Option<PathBuf>,
+    /// The --design-data file's column names, in this order: its time (s),
+    /// the input valve's voltage (V), the pressure and the displacement. A
+    /// pressure or displacement whose name states its unit (`p_kPa`,
+    /// `x_m`) is converted to MPa or mm; one that states none is read so.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "TIME,VALVE,PRESSURE,DISPLACEMENT",
+        requires = "design_data"
+    )]
+    design_columns: Option<Vec<String>>,
     /// Replace the identified displacement model by this one (a model file
     /// written by `fit --out`, `diagnose --out` or `identify --out`: the
     /// classic or linear family, with the effects the controllers can use).
@@ -264,6 +278,38 @@ fn check_on_twin(args: &Args, config: &TwinConfig, kinds: &[Kind]) -> anyhow::Re
     Ok(())
 }
 
+/// `--design-columns`' four names (the defaults without it), or why not.
+fn design_columns(names: Option<&[String]>) -> anyhow::Result<DesignColumns> {
+    let Some(names) = names else {
+        return Ok(DesignColumns::default());
+    };
+    let [time, valve, pressure, displacement] = names else {
+        anyhow::bail!(
+            "--design-columns: {} name{} given; it takes four, in this order: \
+             TIME,VALVE,PRESSURE,DISPLACEMENT (e.g. t,valve_in,pressure,displacement)",
+            names.len(),
+            if names.len() == 1 { "" } else { "s" }
+        );
+    };
+    let named: Vec<&str> = names.iter().map(|n| n.trim()).collect();
+    anyhow::ensure!(
+        named.iter().all(|n| !n.is_empty()),
+        "--design-columns: an empty name in \"{}\"; give four column names",
+        names.join(",")
+    );
+    given_once(
+        "--design-columns",
+        &named,
+        "a column is one signal: time, valve, pressure and displacement are four",
+    )?;
+    Ok(DesignColumns {
+        time: time.trim().into(),
+        valve: valve.trim().into(),
+        pressure: pressure.trim().into(),
+        displacement: displacement.trim().into(),
+    })
+}
+
 fn check_args(args: &Args) -> anyhow::Result<()> {
     anyhow::ensure!(
         !args.freq.is_empty() && !args.load.is_empty(),
@@ -279,6 +325,7 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
     given_once("--freq", &args.freq, twice)?;
     given_once("--load", &args.load, twice)?;
     given_once("--hysteresis-scale", &args.hysteresis_scale, twice)?;
+    design_columns(args.design_columns.as_deref())?;
     for &w in &args.freq {
         anyhow::ensure!(
             w > 0.0 && w.is_finite(),
@@ -579,6 +626,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let design = if designs {
         let request = DesignRequest {
             record: args.design_data.clone(),
+            columns: design_columns(args.design_columns.as_deref())?,
             model: given,
             load_kg: args.design_load,
             seed: args.seed,

@@ -20,7 +20,7 @@ use super::reference::Waveform;
 use super::validation::{self, LoopCheck};
 use crate::data::Trace;
 use crate::data::csv::{DataError, ReadOptions, read_traces_with_notes};
-use crate::data::units::unit_of;
+use crate::data::units::{megapascals_in, millimetres_in, unit_of};
 use crate::model::effects::Effect;
 use crate::model::{Family, FittedBaseline, ModelFile};
 use crate::twin::{self, Rig, TwinConfig};
@@ -194,6 +194,8 @@ pub struct DesignRequest {
     /// An open-loop record (a `valve_in` column) to identify from instead
     /// of the twin's design multisine ([`design_from_record`]).
     pub record: Option<PathBuf>,
+    /// The names of the record's columns (`--design-columns`).
+    pub columns: DesignColumns,
     /// A model file whose displacement model replaces the identified one
     /// ([`with_displacement`]), read and checked by [`given_model`].
     pub model: Option<GivenModel>,
@@ -278,6 +280,172 @@ pub struct GivenModel {
     pub model: crate::model::Model,
 }
 
+/// The names of a design record's columns (`control --design-columns`):
+/// its time (s), the input valve's voltage (V), the pressure (MPa) and the
+/// displacement (mm). By default those `mckibben twin` writes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DesignColumns {
+    pub time: String,
+    pub valve: String,
+    pub pressure: String,
+    pub displacement: String,
+}
+
+impl Default for DesignColumns {
+    fn default() -> Self {
+        DesignColumns {
+            time: "t".into(),
+            valve: VALVE_IN.into(),
+            pressure: "pressure".into(),
+            displacement: "displacement".into(),
+        }
+    }
+}
+
+/// The design record at `path`, its columns named `columns`, as the design
+/// reads it: the valve's column under [`VALVE_IN`], the pressure in MPa
+/// and the displacement in mm, converted where the column's name states
+/// another unit of them (`note` hears of each conversion). Every error
+/// names `--design-data` and the file.
+fn read_design_record(
+    path: &Path,
+    columns: &DesignColumns,
+    note: &dyn Fn(String),
+) -> anyhow::Result<Trace> {
+    let opts = ReadOptions {
+        time: columns.time.clone(),
+        input: columns.pressure.clone(),
+        output: columns.displacement.clone(),
+        ..ReadOptions::default()
+    };
+    let (traces, notes) = read_traces_with_notes(path, &opts).map_err(|e| {
+        if let DataError::MissingColumn {
+            column, available, ..
+        } = &e
+        {
+            return anyhow::anyhow!(
+                "--design-data {}: no column \"{column}\" (the file has {}): {}",
+                path.display(),
+                available.join(", "),
+                COLUMNS_FIX
+            );
+        }
+        let e = e
+            .with_time_hint(
+                "the design record is one experiment: cut the file there",
+                "the design record needs a uniform time step: resample it, or cut it \
+                 at its gaps, first",
+            )
+            .with_cell_hint(
+                "; the design record needs a number in every sample's cell: fill the \
+                 missed reading, or cut the file there",
+            );
+        anyhow::anyhow!("--design-data: {e}")
+    })?;
+    let mut trace = traces
+        .into_iter()
+        .next()
+        .ok_or_else(|| anyhow::anyhow!("--design-data {}: no samples", path.display()))?;
+    // A valve column with a bad cell is left out with a note, like any
+    // column no model reads; here the model reads it, so the cell is the
+    // error.
+    let left_out = format!("; column \"{}\" left out", columns.valve);
+    if trace.column(&columns.valve).is_none()
+        && let Some((cell, _)) = notes.iter().find_map(|n| n.split_once(&left_out))
+    {
+        anyhow::bail!("--design-data: {cell}: the valve → pressure model reads every sample of it");
+    }
+    if trace.column(&columns.valve).is_none() {
+        let mut available = vec![
+            trace.time_name.clone(),
+            trace.input_name.clone(),
+            trace.output_name.clone(),
+        ];
+        available.extend(trace.extra.iter().map(|(n, _)| n.clone()));
+        anyhow::bail!(
+            "--design-data {}: no column \"{}\" (the file has {}): the valve → pressure \
+             model needs the input valve's voltage; {COLUMNS_FIX}",
+            path.display(),
+            columns.valve,
+            available.join(", ")
+        );
+    }
+    // The design reads the valve under its own name; a column of that name
+    // that is not the valve's goes.
+    if columns.valve != VALVE_IN {
+        trace.extra.retain(|(n, _)| n != VALVE_IN);
+        for (name, _) in &mut trace.extra {
+            if *name == columns.valve {
+                *name = VALVE_IN.into();
+            }
+        }
+    }
+    if let Some(unit) = unit_of(&columns.valve).filter(|u| u != "V") {
+        anyhow::bail!(
+            "--design-data {}: the valve's column \"{}\" is in {unit}, the valve model's in V: \
+             convert it to V",
+            path.display(),
+            columns.valve
+        );
+    }
+    // The controllers and the twin drive pressures in MPa and move
+    // displacements in mm: a column that states another unit of either is
+    // converted, one that states no unit is taken so.
+    for (role, column, want, per_unit) in [
+        (
+            "pressure",
+            &columns.pressure,
+            "MPa",
+            megapascals_in as fn(&str) -> Option<f64>,
+        ),
+        ("displacement", &columns.displacement, "mm", millimetres_in),
+    ] {
+        let Some(unit) = unit_of(column) else {
+            continue;
+        };
+        let factor = per_unit(&unit).ok_or_else(|| {
+            anyhow::anyhow!(
+                "--design-data {}: the {role} column \"{column}\" is in {unit}, which is no \
+                 {role}'s unit; the design reads the {role} in {want}",
+                path.display()
+            )
+        })?;
+        if factor != 1.0 {
+            let values = if role == "pressure" {
+                &mut trace.input
+            } else {
+                &mut trace.output
+            };
+            values.iter_mut().for_each(|v| *v *= factor);
+            note(format!(
+                "--design-data {}: column \"{column}\" read in {unit} and converted to {want}, \
+                 the controllers' unit",
+                path.display()
+            ));
+        }
+    }
+    // The record's pressure is the controllers' and the twin's, in MPa; a
+    // muscle's stays well under 10 MPa, so a larger value is another unit
+    // under a name that states none, which the design would read as a
+    // record that does not settle the model.
+    let largest = trace.input.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    anyhow::ensure!(
+        largest <= crate::data::csv::IMPLAUSIBLE_MPA,
+        "--design-data {}: column \"{}\" reaches {}, but the design record's pressure is in \
+         MPa (the controllers' and the twin's): if it is in kPa, Pa, bar or psi, convert it to \
+         MPa, or say so in its name (`pressure_kPa`)",
+        path.display(),
+        columns.pressure,
+        crate::report::number::significant(largest, 4)
+    );
+    Ok(trace)
+}
+
+/// How to point the design at a record's own column names.
+const COLUMNS_FIX: &str = "name the file's columns with --design-columns \
+     TIME,VALVE,PRESSURE,DISPLACEMENT (time in s, valve voltage in V, pressure in MPa, \
+     displacement in mm; by default t,valve_in,pressure,displacement), or rename them";
+
 /// The design `request` asks for, on the twin set up as `config`. How each
 /// effect of a model file enters the controllers is in the design's
 /// `effects`, and `note` hears of each as soon as it is known, so that a
@@ -289,60 +457,7 @@ pub fn design_for(
 ) -> anyhow::Result<Design> {
     let design = match &request.record {
         Some(path) => {
-            let (traces, notes) = read_traces_with_notes(path, &ReadOptions::default()).map_err(|e| {
-                // `control` has no column flags: the names are the fix.
-                if let DataError::MissingColumn {
-                    column, available, ..
-                } = &e
-                {
-                    return anyhow::anyhow!(
-                        "--design-data {}: no column \"{column}\" (the file has {}): the design \
-                         record's columns are named t (s), valve_in (V), pressure (MPa) and \
-                         displacement (mm); rename the file's to these",
-                        path.display(),
-                        available.join(", ")
-                    );
-                }
-                let e = e
-                    .with_time_hint(
-                        "the design record is one experiment: cut the file there",
-                        "the design record needs a uniform time step: resample it, or cut it \
-                         at its gaps, first",
-                    )
-                    .with_cell_hint(
-                        "; the design record needs a number in every sample's cell: fill the \
-                         missed reading, or cut the file there",
-                    );
-                anyhow::anyhow!("--design-data: {e}")
-            })?;
-            let trace = traces
-                .into_iter()
-                .next()
-                .ok_or_else(|| anyhow::anyhow!("--design-data {}: no samples", path.display()))?;
-            // A valve column with a bad cell is left out with a note, like
-            // any column no model reads; here the model reads it, so the
-            // cell is the error.
-            let left_out = format!("; column \"{VALVE_IN}\" left out");
-            if trace.column(VALVE_IN).is_none()
-                && let Some((cell, _)) = notes.iter().find_map(|n| n.split_once(&left_out))
-            {
-                anyhow::bail!(
-                    "--design-data: {cell}: the valve → pressure model reads every sample of it"
-                );
-            }
-            // The record's pressure is the controllers' and the twin's, in
-            // MPa; a muscle's stays well under 10 MPa, so a larger value is
-            // another unit under the MPa name, which the design would read
-            // as a record that does not settle the model.
-            let largest = trace.input.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            anyhow::ensure!(
-                largest <= crate::data::csv::IMPLAUSIBLE_MPA,
-                "--design-data {}: column \"pressure\" reaches {}, but the design record's \
-                 pressure is in MPa (the controllers' and the twin's): if it is in kPa, Pa, bar \
-                 or psi, convert it to MPa",
-                path.display(),
-                crate::report::number::significant(largest, 4)
-            );
+            let trace = read_design_record(path, &request.columns, note)?;
             let design = design_from_record(&trace, request.horizon).with_context(|| {
                 format!(
                     "identifying the model from {} (a design record drives the valve with \
