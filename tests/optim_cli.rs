@@ -56,6 +56,38 @@ fn json(out: &Output) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
+/// A choice's name is read in any case, as the thesis writes it (GA, PSO,
+/// MFA) and as `control --algo` and the Python module always read it.
+#[test]
+fn choices_are_read_in_any_case() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = data(dir.path());
+    let out = mckibben(
+        &[
+            "fit",
+            &csv,
+            "--pop",
+            "20",
+            "--gens",
+            "2",
+            "--backend",
+            "CPU",
+            "--algo",
+            "PSO",
+            "--model",
+            "Classic",
+            "--json",
+        ],
+        dir.path(),
+    );
+    let v = json(&out);
+    assert_eq!(
+        (v["algo"].as_str(), v["model"].as_str()),
+        (Some("pso"), Some("classic"))
+    );
+    assert!(v["backend"].as_str().unwrap().starts_with("cpu"), "{v}");
+}
+
 #[test]
 fn fit_writes_the_documented_json_and_files() {
     let dir = tempfile::tempdir().unwrap();

@@ -94,7 +94,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', default_value = "1000,10000,100000", value_parser = population)]
     pop: Vec<usize>,
     /// Where to score: `auto` takes a real GPU if there is one, else the CPU.
-    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    #[arg(long, value_enum, ignore_case = true, default_value_t = Backend::Auto)]
     backend: Backend,
     /// Free the Bouc-Wen exponent n (drawn from [1, 3]) instead of n = 1.
     #[arg(long)]

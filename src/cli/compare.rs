@@ -73,7 +73,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     cross: Option<PathBuf>,
     /// Where populations are scored (see `fit --help`).
-    #[arg(long, value_enum, default_value = "auto")]
+    #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
     backend: Backend,
     /// Folder for compare.md and compare.json.
     #[arg(long, value_parser = crate::cli::common::output_path, value_name = "DIR", default_value = "out/compare")]

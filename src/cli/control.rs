@@ -66,7 +66,13 @@ const MAX_HORIZON: usize = 500;
 pub struct Args {
     /// Controllers (comma-separated): pi, pi-tuned, ff-pid, mpc. Without
     /// `--tuned-gains`, `pi-tuned` and `ff-pid` tune first (minutes on 2 cores).
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "pi,mpc")]
+    #[arg(
+        long,
+        value_enum,
+        ignore_case = true,
+        value_delimiter = ',',
+        default_value = "pi,mpc"
+    )]
     controller: Vec<KindArg>,
     /// Reference frequencies ω (rad/s), comma-separated.
     #[arg(
@@ -142,7 +148,7 @@ pub struct Args {
     /// The reference: `sine` (the thesis', 30 + 10·sin(ω t) mm) or `steps`
     /// (20 and 40 mm in turn, each held π/ω s: a square wave of the same
     /// period, after whose steps the hanging load rings).
-    #[arg(long, value_enum, default_value = "sine")]
+    #[arg(long, value_enum, ignore_case = true, default_value = "sine")]
     reference: ReferenceArg,
     /// Scale one of the twin's non-ideal effects, as `mckibben twin
     /// --effect` (e.g. creep=1, ringing=1; repeatable): the in-process

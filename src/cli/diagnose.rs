@@ -64,7 +64,7 @@ pub struct Args {
     #[command(flatten)]
     data: MultiDataArgs,
     /// Baseline model family. [default: classic, or the --from model's]
-    #[arg(long, value_enum)]
+    #[arg(long, value_enum, ignore_case = true)]
     baseline: Option<ModelArg>,
     // The help lists the catalogue as `model::effects` declares it.
     #[arg(long, value_delimiter = ',', value_parser = parse_effect, help = format!(
@@ -140,7 +140,7 @@ pub struct Args {
     /// does not fuse multiply-adds) or `auto` (a hardware GPU if there is
     /// one, else the CPU). The CPU is the default: the diagnosis' populations
     /// (30–40 candidates) are too small to fill a GPU.
-    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    #[arg(long, value_enum, ignore_case = true, default_value_t = Backend::Cpu)]
     backend: Backend,
     /// Print JSON instead of the report.
     #[arg(long)]
@@ -183,7 +183,7 @@ pub struct Args {
     /// effect equations (every effect at two sizes, a control, a two-effect
     /// case), then the twin check (one twin effect on vs off, gap attributed
     /// vs gap that disappears).
-    #[arg(long, value_enum, num_args = 0..=1, require_equals = true,
+    #[arg(long, value_enum, ignore_case = true, num_args = 0..=1, require_equals = true,
           default_missing_value = "independent", value_name = "KIND")]
     self_test: Option<SelfTest>,
     /// With --self-test: run only the cases whose name contains one of

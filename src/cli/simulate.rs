@@ -63,7 +63,13 @@ pub struct Args {
     #[arg(long, default_value = "classic")]
     model: Family,
     /// Parameter preset (without --from, whose parameters are the model's).
-    #[arg(long, value_enum, default_value = "thesis", conflicts_with = "from")]
+    #[arg(
+        long,
+        value_enum,
+        ignore_case = true,
+        default_value = "thesis",
+        conflicts_with = "from"
+    )]
     preset: Preset,
     /// A model file written by `fit`, `identify --out` or `diagnose --out`
     /// (family, effects, parameters, coordinates; a CSV input is then read

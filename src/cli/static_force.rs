@@ -17,7 +17,7 @@ use mckibben::report::{Figure, Panel, Series};
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// What the force is drawn against: the braid angle ψ (degrees) or the muscle length (mm).
-    #[arg(long, value_enum, default_value = "angle")]
+    #[arg(long, value_enum, ignore_case = true, default_value = "angle")]
     against: Against,
     /// Gauge pressures in MPa (tap water: 0.3–0.5).
     #[arg(long, value_delimiter = ',', default_value = "0.1,0.2,0.3,0.4,0.5")]

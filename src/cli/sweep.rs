@@ -76,7 +76,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', default_value = "1", value_parser = crate::cli::common::seed)]
     seeds: Vec<u64>,
     /// Where to score: `auto` takes a real GPU if there is one, else the CPU.
-    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    #[arg(long, value_enum, ignore_case = true, default_value_t = Backend::Auto)]
     backend: Backend,
     /// Machine-readable output on stdout.
     #[arg(long, conflicts_with = "markdown")]

@@ -47,7 +47,7 @@ pub struct Args {
     #[command(subcommand)]
     command: Option<TwinCommand>,
     /// Which experiment to run.
-    #[arg(long, value_enum, default_value = "stair")]
+    #[arg(long, value_enum, ignore_case = true, default_value = "stair")]
     experiment: ExperimentArg,
     /// Hanging load in kg (thesis: 4.5 or 7).
     #[arg(long, default_value_t = 4.5)]

@@ -48,7 +48,7 @@ struct BoucwenArgs {
     /// WGSL shader on any adapter, lavapipe included, which is slower than
     /// the CPU path). The same seed gives the same result on the CPU and on
     /// lavapipe.
-    #[arg(long, value_enum, default_value = "auto")]
+    #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
     backend: Backend,
     /// Seed of the population search.
     #[arg(long, default_value_t = IdentifySettings::default().seed, value_parser = crate::cli::common::seed)]

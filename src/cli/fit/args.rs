@@ -105,7 +105,7 @@ pub struct Args {
     pub(super) data: MultiDataArgs,
     /// Hysteresis model: classic (A, α, β, γ) or generalized (A, α, β1..β6)
     /// (default: the --from model's, which it must be, else classic).
-    #[arg(long, value_enum)]
+    #[arg(long, value_enum, ignore_case = true)]
     pub(super) model: Option<ModelArg>,
     /// Effects after the baseline, comma-separated, in chain order (e.g.
     /// `creep:two-pole,inertia:ringing`; `mckibben diagnose --help` lists
@@ -162,7 +162,7 @@ pub struct Args {
     /// de. On the shipped stair it changes the time a fit takes, not where
     /// it ends; on a record with several basins it can change both
     /// (docs/RESULTS.md): tries (--pop 2000) show it and keep the best.
-    #[arg(long, value_enum, default_value = "de")]
+    #[arg(long, value_enum, ignore_case = true, default_value = "de")]
     pub(super) algo: Algorithm,
     /// Population size N of the global stage (the thesis used 10–30); from
     /// 2000 on, independent tries of 1000 and 100, scored together (what a
@@ -179,7 +179,7 @@ pub struct Args {
     pub(super) seed: u64,
     /// Where populations are scored: auto (a hardware GPU if present, else
     /// the CPU), cpu, or gpu (any adapter, lavapipe included).
-    #[arg(long, value_enum, default_value = "auto")]
+    #[arg(long, value_enum, ignore_case = true, default_value = "auto")]
     pub(super) backend: Backend,
     /// The thesis' flow: a and b fixed at the ARX estimate, no intercept or
     /// start offset, one population search on the free run with the
@@ -216,6 +216,7 @@ pub struct Args {
     #[arg(
         long = "loop",
         value_enum,
+        ignore_case = true,
         default_value = "bounded",
         conflicts_with = "thesis_flow"
     )]
@@ -228,7 +229,12 @@ pub struct Args {
     /// lower estimation SSE kept), mean or zero (held there). A --from warm
     /// start holds its model's x_s unless another value is given here.
     /// [default: search]
-    #[arg(long = "switch", value_enum, conflicts_with = "thesis_flow")]
+    #[arg(
+        long = "switch",
+        value_enum,
+        ignore_case = true,
+        conflicts_with = "thesis_flow"
+    )]
     pub(super) switching: Option<Switching>,
     /// Bound one parameter to [LO, HI] (repeatable): a canonical name (A,
     /// alpha, beta, gamma, beta1..beta6, n, x_s, a, b, c, x0) or a search
@@ -258,7 +264,7 @@ pub struct Args {
     #[arg(long, value_name = "GENS", value_parser = crate::cli::common::stall)]
     pub(super) stall: Option<usize>,
     /// GA crossover (§5.2.1.5; default proportional).
-    #[arg(long, value_enum)]
+    #[arg(long, value_enum, ignore_case = true)]
     pub(super) crossover: Option<Crossover>,
     /// GA: best individuals kept unchanged (thesis 0; staged fit N/10).
     #[arg(long)]
@@ -269,17 +275,17 @@ pub struct Args {
     /// GA: fixed ±m_m mutation (thesis), uniform in [−m_m, m_m] (staged
     /// fit), or non-uniform (Michalewicz: towards a bound, reach shrinking
     /// over the generations).
-    #[arg(long, value_enum)]
+    #[arg(long, value_enum, ignore_case = true)]
     pub(super) mutation: Option<Mutation>,
     /// MFA: Λ0 schedule from a to b (appendix code) or to a − b (eq. 36).
-    #[arg(long, value_enum)]
+    #[arg(long, value_enum, ignore_case = true)]
     mfa_lambda0: Option<Lambda0Schedule>,
     /// MFA: attractiveness e^(−σr) (thesis' code) or e^(−σr²) (eq. 32;
     /// staged fit).
-    #[arg(long, value_enum)]
+    #[arg(long, value_enum, ignore_case = true)]
     pub(super) mfa_distance: Option<Distance>,
     /// MFA: distances and walk in raw units (thesis) or box widths (staged fit).
-    #[arg(long, value_enum)]
+    #[arg(long, value_enum, ignore_case = true)]
     pub(super) mfa_scale: Option<Scale>,
     /// MFA: move towards at most K brighter fireflies (thesis: all of them,
     /// O(N²·d) a generation; staged fit: the 10 brightest). 0 means all.
