@@ -397,12 +397,13 @@ fn fit_with_split_gaps_names_the_piece_and_warns_when_it_is_a_small_part() {
     assert_eq!(json["records"][0]["samples"], 130, "{}", json["records"]);
 }
 
-/// A time column named in milliseconds (a logger's `t_ms`) is refused with
-/// its file, line and column: read as seconds, a 10 ms step became a model
-/// of 10 s a sample, and a record in seconds simulated on it held two
-/// samples.
+/// A time column named in milliseconds (a logger's `t_ms`) is read in
+/// milliseconds and converted, with a note: read as seconds, a 10 ms step
+/// became a model of 10 s a sample. Written back, the time keeps its
+/// name and its unit; an error about the time quotes the file's own
+/// times, and how far they run back in seconds.
 #[test]
-fn a_time_column_in_milliseconds_is_refused_by_name() {
+fn a_time_column_named_in_milliseconds_is_converted_and_written_back() {
     let dir = tempfile::tempdir().unwrap();
     let text = "# logger\nt_ms,pressure,displacement\n0,0.1,0\n10,0.2,0.1\n20,0.3,0.2\n";
     let path = file(dir.path(), "ms.csv", text);
@@ -410,16 +411,18 @@ fn a_time_column_in_milliseconds_is_refused_by_name() {
         time: "t_ms".into(),
         ..ReadOptions::default()
     };
-    let msg = read_traces(&path, &read).unwrap_err().to_string();
+    let (traces, notes) = read_traces_with_notes(&path, &read).unwrap();
+    assert_eq!(traces[0].t, [0.0, 0.01, 0.02]);
+    assert_eq!(traces[0].dt(), 0.01);
     assert_eq!(
-        msg,
+        notes[0],
         format!(
-            "{}: line 2: the time column \"t_ms\" is in milliseconds, and time is read in \
-             seconds (the model's sample time, its poles per sample, the figures' axes): convert \
-             the column to seconds and name it so",
+            "{}: column \"t_ms\" read in milliseconds and converted to seconds (a file \
+             written from it names its time as it did, in milliseconds)",
             path.display()
         )
     );
+    // The same samples in seconds read the same.
     let seconds = file(
         dir.path(),
         "s.csv",
@@ -428,11 +431,49 @@ fn a_time_column_in_milliseconds_is_refused_by_name() {
             .replace("\n10,", "\n0.01,")
             .replace("\n20,", "\n0.02,"),
     );
-    let read = ReadOptions {
+    let read_s = ReadOptions {
         time: "t_s".into(),
         ..ReadOptions::default()
     };
-    assert_eq!(read_traces(&seconds, &read).unwrap()[0].dt(), 0.01);
+    assert_eq!(read_traces(&seconds, &read_s).unwrap()[0].t, traces[0].t);
+    // Written back: named and in milliseconds, as read.
+    let out = dir.path().join("out.csv");
+    write_trace(&out, &traces[0]).unwrap();
+    let written = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        written.contains("t_ms,pressure,displacement\n0,0.1,0\n10,0.2,0.1\n20,0.3,0.2\n"),
+        "{written}"
+    );
+    // Microseconds and minutes too.
+    for (name, cells, want) in [
+        ("time [us]", ["0", "10000", "20000"], [0.0, 0.01, 0.02]),
+        ("t (min)", ["0", "1", "2"], [0.0, 60.0, 120.0]),
+    ] {
+        let text = format!(
+            "{name},pressure,displacement\n{},0.1,0\n{},0.2,0.1\n{},0.3,0.2\n",
+            cells[0], cells[1], cells[2]
+        );
+        let path = file(dir.path(), "other.csv", &text);
+        let read = ReadOptions {
+            time: name.into(),
+            ..ReadOptions::default()
+        };
+        assert_eq!(read_traces(&path, &read).unwrap()[0].t, want, "{name}");
+    }
+    // Time that runs back: the file's milliseconds, and the jump in s.
+    let back = file(
+        dir.path(),
+        "back.csv",
+        "t_ms,pressure,displacement\n0,0.1,0\n10,0.2,0.1\n20,0.3,0.2\n5,0.3,0.2\n",
+    );
+    let msg = read_traces(&back, &read).unwrap_err().to_string();
+    assert!(
+        msg.contains(
+            "line 5, column \"t_ms\": time 5 does not increase (previous row: 20): it runs back \
+             by 0.015 s"
+        ),
+        "{msg}"
+    );
 }
 
 #[test]

@@ -233,18 +233,6 @@ pub enum DataError {
         line: u64,
         column: String,
     },
-    #[error(
-        "{}: line {line}: the time column \"{column}\" is in {unit}, and time is read in \
-         seconds (the model's sample time, its poles per sample, the figures' axes): convert \
-         the column to seconds and name it so",
-        path.display()
-    )]
-    TimeNotSeconds {
-        path: PathBuf,
-        line: u64,
-        column: String,
-        unit: &'static str,
-    },
     #[error("{}: line {line}: column \"{column}\" appears twice in the header", path.display())]
     DuplicateColumn {
         path: PathBuf,
@@ -278,14 +266,17 @@ pub enum DataError {
     },
     #[error(
         "{}: line {line}, column \"{column}\": time {} does not increase (previous row: {}){}; {hint}",
-        path.display(), super::readable(*value), super::readable(*previous), runs_back(*value, *previous)
+        path.display(), super::readable(*value), super::readable(*previous), runs_back(*value, *previous, *per_second)
     )]
     NotIncreasing {
         path: PathBuf,
         line: u64,
         column: String,
+        /// The times as the file writes them, in its column's unit.
         value: f64,
         previous: f64,
+        /// How many of the column's unit make a second (1 for seconds).
+        per_second: f64,
         /// What the user can do, which depends on the flags given.
         hint: &'static str,
     },
@@ -348,13 +339,14 @@ impl DataError {
     }
 }
 
-/// ": it runs back by D s" when `value` is below `previous`: a 1 s jump back
-/// in a 1 kHz file reads more clearly than two nearby times.
-fn runs_back(value: f64, previous: f64) -> String {
+/// ": it runs back by D s" when `value` is below `previous` (times in a
+/// unit `per_second` of which make a second): a 1 s jump back in a 1 kHz
+/// file reads more clearly than two nearby times.
+fn runs_back(value: f64, previous: f64, per_second: f64) -> String {
     if value < previous {
         format!(
             ": it runs back by {} s",
-            super::readable(rounded(previous - value))
+            super::readable(rounded((previous - value) / per_second))
         )
     } else {
         String::new()
@@ -875,16 +867,10 @@ fn parse(
         }
         Clock::Rows(_) => {}
     }
-    if let Some(it) = it
-        && let Some(unit) = crate::data::units::time_unit_other_than_seconds(&names[it])
-    {
-        return Err(DataError::TimeNotSeconds {
-            path: p(),
-            line: header_line,
-            column: names[it].clone(),
-            unit,
-        });
-    }
+    // A time column whose name states another unit than seconds (a
+    // logger's `t_ms`) is read in that unit and converted below.
+    let time_unit = it.and_then(|it| crate::data::units::time_unit_other_than_seconds(&names[it]));
+    let per_second = time_unit.map_or(1.0, |(_, per_second)| per_second);
     let ii = find(&opts.input, "input", "--input")?;
     let io = find(&opts.output, "output", "--output")?;
     // The input and the output may share a column: `simulate` reads a file
@@ -1061,11 +1047,25 @@ fn parse(
                     column: opts.time.clone(),
                     value: t[k],
                     previous: t[k - 1],
+                    per_second,
                     hint,
                 });
             }
         }
     }
+    // Converted after that check, which quotes the file's own times.
+    let t = match time_unit {
+        Some((unit, per_second)) => {
+            notes.push(format!(
+                "{}: column \"{}\" read in {unit} and converted to seconds (a file written \
+                 from it names its time as it did, in {unit})",
+                path.display(),
+                opts.time
+            ));
+            t.into_iter().map(|v| v / per_second).collect()
+        }
+        None => t,
+    };
 
     // `pressure` states no unit and is taken in MPa (README.md, "Data
     // format"); a tap-water or pneumatic muscle's gauge pressure is under
@@ -1639,8 +1639,14 @@ fn format_columns(
         path: path.to_path_buf(),
         message,
     };
+    // A time read in another unit than seconds is written back in it.
+    let time: std::borrow::Cow<[f64]> =
+        match crate::data::units::time_unit_other_than_seconds(&trace.time_name) {
+            Some((_, per_second)) => trace.t.iter().map(|v| v * per_second).collect(),
+            None => (&trace.t[..]).into(),
+        };
     let mut columns: Vec<(&str, &[f64])> = vec![
-        (&trace.time_name, &trace.t),
+        (&trace.time_name, &time),
         (&trace.input_name, &trace.input),
         (&trace.output_name, &trace.output),
     ];

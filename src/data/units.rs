@@ -164,17 +164,18 @@ pub fn unknown_bracketed_unit(column: &str) -> Option<String> {
     })
 }
 
-/// The unit a time column's name states where it is not seconds
-/// (`t_ms`, `time [us]`, `t (min)`): time is read in seconds, and a column
-/// in another unit would be read as that many seconds. `None` for a name
-/// in seconds (`t_s`, `time [s]`) or that states no unit.
-pub fn time_unit_other_than_seconds(column: &str) -> Option<&'static str> {
+/// The unit a time column's name states where it is not seconds (`t_ms`,
+/// `time [us]`, `t (min)`): its name and how many of it make a second.
+/// Time is read in seconds, so such a column is converted on reading and
+/// back on writing. `None` for a name in seconds (`t_s`, `time [s]`) or
+/// that states no unit.
+pub fn time_unit_other_than_seconds(column: &str) -> Option<(&'static str, f64)> {
     match stated(column.trim())?.as_str() {
-        "ms" | "msec" => Some("milliseconds"),
-        "us" | "µs" | "μs" | "usec" => Some("microseconds"),
-        "ns" => Some("nanoseconds"),
-        "min" => Some("minutes"),
-        "h" | "hr" => Some("hours"),
+        "ms" | "msec" => Some(("milliseconds", 1e3)),
+        "us" | "µs" | "μs" | "usec" => Some(("microseconds", 1e6)),
+        "ns" => Some(("nanoseconds", 1e9)),
+        "min" => Some(("minutes", 1.0 / 60.0)),
+        "h" | "hr" => Some(("hours", 1.0 / 3600.0)),
         _ => None,
     }
 }
@@ -366,7 +367,7 @@ mod tests {
         }
         assert_eq!(
             time_unit_other_than_seconds("time ms"),
-            Some("milliseconds")
+            Some(("milliseconds", 1e3))
         );
     }
 
