@@ -1008,50 +1008,38 @@ fn a_design_record_in_its_own_names_and_units_designs_as_the_twins_does() {
         "{a:?} against {b:?}"
     );
 
-    // Without the flag, the file's names are the error, and the fix.
-    let err = refusal(&[
-        "--controller",
-        "mpc",
-        "--design-data",
-        renamed.to_str().unwrap(),
-    ]);
-    assert!(
-        err.contains("no column \"t\"")
-            && err.contains("--design-columns TIME,VALVE,PRESSURE,DISPLACEMENT"),
-        "{err}"
-    );
-    // A valve column that is not there, and a pressure in a length.
-    let err = refusal(&[
-        "--controller",
-        "mpc",
-        "--design-data",
-        renamed.to_str().unwrap(),
-        "--design-columns",
-        "time_s,valve,p_kPa,x_m",
-    ]);
-    assert!(
-        err.contains("no column \"valve\"") && err.contains("u_cmd"),
-        "{err}"
-    );
-    let err = refusal(&[
-        "--controller",
-        "mpc",
-        "--design-data",
-        renamed.to_str().unwrap(),
-        "--design-columns",
-        "time_s,u_cmd,x_m,p_kPa",
-    ]);
-    assert!(err.contains("the pressure column \"x_m\" is in m"), "{err}");
-    let err = refusal(&[
-        "--controller",
-        "mpc",
-        "--design-data",
-        renamed.to_str().unwrap(),
-        "--design-columns",
-        "time_s,u_cmd,p_kPa",
-    ]);
-    assert!(
-        err.contains("--design-columns: 3 names given; it takes four"),
-        "{err}"
-    );
+    // Without the flag, the file's names are the error, and the fix; then
+    // a valve column that is not there, a pressure in a length, and three
+    // names for four columns.
+    let rig = renamed.to_str().unwrap();
+    let design = |extra: &[&str]| {
+        refusal(&[&["--controller", "mpc", "--design-data", rig][..], extra].concat())
+    };
+    for (columns, needles) in [
+        (
+            &[][..],
+            &[
+                "no column \"t\"",
+                "--design-columns TIME,VALVE,PRESSURE,DISPLACEMENT",
+            ][..],
+        ),
+        (
+            &["--design-columns", "time_s,valve,p_kPa,x_m"],
+            &["no column \"valve\"", "u_cmd"],
+        ),
+        (
+            &["--design-columns", "time_s,u_cmd,x_m,p_kPa"],
+            &["the pressure column \"x_m\" is in m"],
+        ),
+        (
+            &["--design-columns", "time_s,u_cmd,p_kPa"],
+            &["--design-columns: 3 names given; it takes four"],
+        ),
+    ] {
+        let err = design(columns);
+        assert!(
+            needles.iter().all(|n| err.contains(n)),
+            "{columns:?}: {err}"
+        );
+    }
 }
