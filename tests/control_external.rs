@@ -53,6 +53,24 @@ fn runs(out: &Output) -> Vec<Value> {
     v["runs"].as_array().unwrap().clone()
 }
 
+/// The twin's design multisine, as `mckibben twin` writes it into `dir`:
+/// its path and its text.
+fn twin_multisine(dir: &std::path::Path) -> (std::path::PathBuf, String) {
+    let path = dir.join("multisine.csv");
+    let twin = Command::new(BIN)
+        .args(["twin", "--experiment", "multisine", "--out"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(
+        twin.status.success(),
+        "{}",
+        String::from_utf8_lossy(&twin.stderr)
+    );
+    let text = std::fs::read_to_string(&path).unwrap();
+    (path, text)
+}
+
 fn serve_cmd(args: &str) -> String {
     format!("cmd:{BIN} twin serve --load 4.5 --seed 1 {args}")
 }
@@ -531,18 +549,7 @@ fn what_would_fail_after_the_runs_fails_before_them() {
     );
     // Two seconds of a multisine settle no model: its pole came out at
     // −1.02 and the MPC held the valve shut, without a word.
-    let multisine = dir.path().join("multisine.csv");
-    let twin = Command::new(BIN)
-        .args(["twin", "--experiment", "multisine", "--out"])
-        .arg(&multisine)
-        .output()
-        .unwrap();
-    assert!(
-        twin.status.success(),
-        "{}",
-        String::from_utf8_lossy(&twin.stderr)
-    );
-    let text = std::fs::read_to_string(&multisine).unwrap();
+    let (_, text) = twin_multisine(dir.path());
     let short = dir.path().join("short.csv");
     std::fs::write(
         &short,
@@ -930,14 +937,7 @@ fn a_model_the_controllers_cannot_use_is_refused_or_named() {
 #[test]
 fn a_design_record_in_its_own_names_and_units_designs_as_the_twins_does() {
     let dir = tempfile::tempdir().unwrap();
-    let multisine = dir.path().join("multisine.csv");
-    let twin = Command::new(BIN)
-        .args(["twin", "--experiment", "multisine", "--out"])
-        .arg(&multisine)
-        .output()
-        .unwrap();
-    assert!(twin.status.success());
-    let text = std::fs::read_to_string(&multisine).unwrap();
+    let (multisine, text) = twin_multisine(dir.path());
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
     let header = lines.iter().position(|l| l.starts_with("t,")).unwrap();
     let names: Vec<String> = lines[header].split(',').map(String::from).collect();
