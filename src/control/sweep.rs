@@ -391,14 +391,22 @@ fn read_design_record(
     // The controllers and the twin drive pressures in MPa and move
     // displacements in mm: a column that states another unit of either is
     // converted, one that states no unit is taken so.
-    for (role, column, want, per_unit) in [
+    let per_mpa: fn(&str) -> Option<f64> = megapascals_in;
+    for (role, column, want, per_unit, values) in [
         (
             "pressure",
             &columns.pressure,
             "MPa",
-            megapascals_in as fn(&str) -> Option<f64>,
+            per_mpa,
+            &mut trace.input,
         ),
-        ("displacement", &columns.displacement, "mm", millimetres_in),
+        (
+            "displacement",
+            &columns.displacement,
+            "mm",
+            millimetres_in,
+            &mut trace.output,
+        ),
     ] {
         let Some(unit) = unit_of(column) else {
             continue;
@@ -411,11 +419,6 @@ fn read_design_record(
             )
         })?;
         if factor != 1.0 {
-            let values = if role == "pressure" {
-                &mut trace.input
-            } else {
-                &mut trace.output
-            };
             values.iter_mut().for_each(|v| *v *= factor);
             note(format!(
                 "--design-data {}: column \"{column}\" read in {unit} and converted to {want}, \
