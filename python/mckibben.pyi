@@ -18,6 +18,7 @@ __all__ = [
     "read_csv",
     "fit",
     "diagnose",
+    "twin",
 ]
 
 _ArrayLike = npt.ArrayLike
@@ -272,3 +273,12 @@ class Diagnosis:
     document: dict[str, Any]
     model: Model
     baseline: Model
+
+def twin(
+    experiment: Literal["stair", "sine", "multisine"] = "stair",
+    load: float = 4.5,
+    seed: int = 1,
+    freq: float | None = None,
+    effects: Mapping[str, float] | None = None,
+) -> Trace:
+    """An experiment on the rig twin, the recording `mckibben twin` writes."""

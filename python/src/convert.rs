@@ -495,8 +495,8 @@ fn named_values(flag: &str) -> &'static [&'static str] {
     }
 }
 
-/// The keyword argument of `fit`, `read_csv` or `diagnose` that the
-/// command's flag `--flag` sets, if there is one.
+/// The keyword argument of `fit`, `read_csv`, `diagnose` or `twin` that
+/// the command's flag `--flag` sets, if there is one.
 fn keyword_of(flag: &str) -> Option<String> {
     const SAME: &[&str] = &[
         "pop",
@@ -526,9 +526,13 @@ fn keyword_of(flag: &str) -> Option<String> {
         "refine-rounds",
         "blocks",
         "switch",
+        "experiment",
+        "load",
+        "freq",
     ];
     let keyword = match flag {
         "from" => "start",
+        "effect" => "effects",
         "bound" | "fix" => "bounds",
         f if SAME.contains(&f) => f,
         _ => return None,

@@ -3,11 +3,12 @@
 //! The bindings only convert types: every computation is a call into the
 //! library, the same call the command makes (`mckibben fit` and
 //! [`mckibben::fit::run::FitRun`], `mckibben diagnose` and
-//! [`mckibben::diagnose::diagnose`], the batch evaluator behind both). What
-//! is here is checking and converting Python's inputs (any float dtype,
-//! layout, lists), releasing the interpreter while Rust computes, turning
-//! Ctrl-C into the engine's stop flag, and mapping errors to Python's
-//! exceptions. docs/PYTHON.md describes the API.
+//! [`mckibben::diagnose::diagnose`], `mckibben twin` and
+//! [`mckibben::twin::experiment::RunSpec`], the batch evaluator behind
+//! fit and diagnosis). What is here is checking and converting Python's
+//! inputs (any float dtype, layout, lists), releasing the interpreter while
+//! Rust computes, turning Ctrl-C into the engine's stop flag, and mapping
+//! errors to Python's exceptions. docs/PYTHON.md describes the API.
 
 mod args;
 mod convert;
@@ -20,6 +21,7 @@ mod interrupt;
 mod model;
 mod named;
 mod state;
+mod twin;
 
 use pyo3::prelude::*;
 
@@ -38,5 +40,6 @@ fn mckibben_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(data::read_csv, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;
+    m.add_function(wrap_pyfunction!(twin::twin, m)?)?;
     Ok(())
 }

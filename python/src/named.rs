@@ -83,4 +83,8 @@ named! {
     max_effects: usize = optional(at_least("max_effects", 0));
     blocks: usize = optional(at_least("blocks", 2));
     repeat: usize = at_least("repeat", 1);
+    // twin.
+    experiment: &'a str = text("experiment");
+    load: f64 = real("load");
+    freq: f64 = optional(real("freq"));
 }

@@ -7,13 +7,9 @@ use anyhow::Context;
 
 use mckibben::data::Trace;
 use mckibben::report::{Figure, Panel, Series};
-use mckibben::twin::experiment::{Kind, RunSpec};
+use mckibben::twin::experiment::{DEFAULT_FREQ_RAD_S, Kind, RunSpec};
 
 use super::common::{CsvOut, check_distinct};
-
-/// The sine's frequency when `--freq` is not given (rad/s): the thesis'
-/// slowest.
-const DEFAULT_FREQ_RAD_S: f64 = 1.0;
 
 /// Run an experiment on the rig twin, a physically based simulator of the
 /// thesis' tap-water rig (two proportional valves, water column, braided

@@ -136,6 +136,8 @@ pub enum Kind {
 }
 
 impl Kind {
+    pub const ALL: [Kind; 3] = [Kind::Stair, Kind::Sine, Kind::Multisine];
+
     pub fn as_str(&self) -> &'static str {
         match self {
             Kind::Stair => "stair",
@@ -144,6 +146,25 @@ impl Kind {
         }
     }
 }
+
+/// An experiment's name in any case (`Stair`, `SINE`), as `--experiment`
+/// reads it.
+impl std::str::FromStr for Kind {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Kind, String> {
+        Kind::ALL
+            .into_iter()
+            .find(|k| k.as_str().eq_ignore_ascii_case(s.trim()))
+            .ok_or_else(|| {
+                let known: Vec<&str> = Kind::ALL.iter().map(Kind::as_str).collect();
+                format!("unknown experiment `{s}`; known: {}", known.join(", "))
+            })
+    }
+}
+
+/// The sine reference's ω (rad/s) unless one is given: the thesis' slowest.
+pub const DEFAULT_FREQ_RAD_S: f64 = 1.0;
 
 /// Everything that decides a twin run, as given on the command line; the
 /// CLI and the tests that regenerate the shipped files both go through it.
