@@ -942,11 +942,11 @@ fn a_design_record_in_its_own_names_and_units_designs_as_the_twins_does() {
     let header = lines.iter().position(|l| l.starts_with("t,")).unwrap();
     let names: Vec<String> = lines[header].split(',').map(String::from).collect();
     let at = |name: &str| names.iter().position(|c| c == name).unwrap();
-    let (pressure, displacement) = (at("pressure"), at("displacement"));
+    let (time, pressure, displacement) = (at("t"), at("pressure"), at("displacement"));
     lines[header] = names
         .iter()
         .map(|c| match c.as_str() {
-            "t" => "time_s",
+            "t" => "time_ms",
             "valve_in" => "u_cmd",
             "pressure" => "p_kPa",
             "displacement" => "x_m",
@@ -957,6 +957,7 @@ fn a_design_record_in_its_own_names_and_units_designs_as_the_twins_does() {
     for line in &mut lines[header + 1..] {
         let mut cells: Vec<String> = line.split(',').map(String::from).collect();
         let scaled = |cell: &str, by: f64| (cell.parse::<f64>().unwrap() * by).to_string();
+        cells[time] = scaled(&cells[time], 1000.0);
         cells[pressure] = scaled(&cells[pressure], 1000.0);
         cells[displacement] = scaled(&cells[displacement], 1e-3);
         *line = cells.join(",");
@@ -978,12 +979,13 @@ fn a_design_record_in_its_own_names_and_units_designs_as_the_twins_does() {
         "--design-data",
         renamed.to_str().unwrap(),
         "--design-columns",
-        "time_s,u_cmd,p_kPa,x_m",
+        "time_ms,u_cmd,p_kPa,x_m",
     ]);
     let (a, b) = (runs(&twins), runs(&rigs));
     let err = String::from_utf8_lossy(&rigs.stderr);
     assert!(
-        err.contains("column \"p_kPa\" read in kPa and converted to MPa")
+        err.contains("column \"time_ms\" read in milliseconds and converted to seconds")
+            && err.contains("column \"p_kPa\" read in kPa and converted to MPa")
             && err.contains("column \"x_m\" read in m and converted to mm"),
         "{err}"
     );
@@ -1024,15 +1026,15 @@ fn a_design_record_in_its_own_names_and_units_designs_as_the_twins_does() {
             ][..],
         ),
         (
-            &["--design-columns", "time_s,valve,p_kPa,x_m"],
+            &["--design-columns", "time_ms,valve,p_kPa,x_m"],
             &["no column \"valve\"", "u_cmd"],
         ),
         (
-            &["--design-columns", "time_s,u_cmd,x_m,p_kPa"],
+            &["--design-columns", "time_ms,u_cmd,x_m,p_kPa"],
             &["the pressure column \"x_m\" is in m"],
         ),
         (
-            &["--design-columns", "time_s,u_cmd,p_kPa"],
+            &["--design-columns", "time_ms,u_cmd,p_kPa"],
             &["--design-columns: 3 names given; it takes four"],
         ),
     ] {

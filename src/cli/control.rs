@@ -99,10 +99,11 @@ pub struct Args {
     /// multisine. Its second half validates the model.
     #[arg(long, value_name = "FILE.csv")]
     design_data: Option<PathBuf>,
-    /// The --design-data file's column names, in this order: its time (s),
-    /// the input valve's voltage (V), the pressure and the displacement. A
+    /// The --design-data file's column names, in this order: its time, the
+    /// input valve's voltage (V), the pressure and the displacement. A time
+    /// whose name states ms, us or min (`t_ms`) is converted to seconds, a
     /// pressure or displacement whose name states its unit (`p_kPa`,
-    /// `x_m`) is converted to MPa or mm; one that states none is read so.
+    /// `x_m`) to MPa or mm; one that states none is read so.
     #[arg(
         long,
         value_delimiter = ',',

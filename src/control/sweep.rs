@@ -281,8 +281,9 @@ pub struct GivenModel {
 }
 
 /// The names of a design record's columns (`control --design-columns`):
-/// its time (s), the input valve's voltage (V), the pressure (MPa) and the
-/// displacement (mm). By default those `mckibben twin` writes.
+/// its time (s, or a unit its name states), the input valve's voltage
+/// (V), the pressure (MPa) and the displacement (mm). By default those
+/// `mckibben twin` writes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DesignColumns {
     pub time: String,
@@ -354,6 +355,11 @@ fn read_design_record(
         && let Some((cell, _)) = notes.iter().find_map(|n| n.split_once(&left_out))
     {
         anyhow::bail!("--design-data: {cell}: the valve → pressure model reads every sample of it");
+    }
+    // What the reader did to the file (a time converted to seconds, a
+    // column left out) is said as `fit` says it.
+    for n in notes {
+        note(format!("--design-data {n}"));
     }
     if trace.column(&columns.valve).is_none() {
         let mut available = vec![
@@ -447,7 +453,8 @@ fn read_design_record(
 /// How to point the design at a record's own column names.
 const COLUMNS_FIX: &str = "name the file's columns with --design-columns \
      TIME,VALVE,PRESSURE,DISPLACEMENT (time in s, valve voltage in V, pressure in MPa, \
-     displacement in mm; by default t,valve_in,pressure,displacement), or rename them";
+     displacement in mm, unless a name states its unit: `t_ms`, `p_kPa`, `x_m`; by default \
+     t,valve_in,pressure,displacement), or rename them";
 
 /// The design `request` asks for, on the twin set up as `config`. How each
 /// effect of a model file enters the controllers is in the design's
