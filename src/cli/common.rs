@@ -15,6 +15,7 @@ use mckibben::data::csv::{
 use mckibben::data::{write_all_atomic, write_atomic};
 use mckibben::fit::settings::MAX_POPULATION;
 use mckibben::model::file::{ModelFile, Provenance, ReadSettings};
+pub use mckibben::names::given_once;
 use mckibben::optim::engine::generations_refused;
 use mckibben::optim::streams::checked_seed;
 use mckibben::report::Figure;
@@ -175,20 +176,6 @@ impl std::fmt::Display for CsvOut {
             CsvOut::Stdout => f.write_str(STANDARD_OUTPUT),
         }
     }
-}
-
-/// Refuses a list flag that names a value twice, saying what `twice` would
-/// do (`sweep --pop 4,4` fits each case twice; `control --freq 1,1` runs
-/// and reports each run twice).
-pub fn given_once<T: PartialEq + std::fmt::Display>(
-    flag: &str,
-    values: &[T],
-    twice: &str,
-) -> anyhow::Result<()> {
-    for (i, v) in values.iter().enumerate() {
-        anyhow::ensure!(!values[..i].contains(v), "{flag} names {v} twice: {twice}");
-    }
-    Ok(())
 }
 
 /// Refuses a set of files to write where one would replace a file the

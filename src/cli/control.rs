@@ -7,32 +7,18 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use super::common::{check_creatable, check_folder, given_once, population};
-use mckibben::control::closed_loop::Episode;
+use super::common::{check_creatable, check_folder, population};
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
-use mckibben::control::sweep::{
-    self, DesignColumns, DesignRequest, Ingredients, Kind, ROBUST_LOAD_SCALE, Shape,
+use mckibben::control::session::{
+    self, ControlPlan, DESIGN_LOAD_KG, TUNING_ALGO, TUNING_GENS, TUNING_POP,
 };
-use mckibben::control::table::{self, DesignJson, JsonOutput, RunSettings};
-use mckibben::control::tuning::{self, TuningRun};
-use mckibben::control::{MpcSettings, PiGains, ValveLimits};
-use mckibben::data::signals::nyquist_rad_s;
-use mckibben::data::{same_step, tidy_step};
+use mckibben::control::sweep::{self, DesignColumns, GivenModel, Kind, Shape};
+use mckibben::control::table;
+use mckibben::control::{MpcSettings, PiGains};
 use mckibben::report::json::Versioned;
 use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
-use mckibben::twin::{MAX_LOAD_KG, Rig, TwinConfig};
-
-/// The load (kg) the model is identified at on the twin unless
-/// `--design-load` says otherwise: the thesis' lighter one.
-const DESIGN_LOAD_KG: f64 = 4.5;
-/// The gain tuning's optimizer, population and generations unless told.
-const TUNING_ALGO: &str = "de";
-const TUNING_POP: usize = 24;
-const TUNING_GENS: usize = 30;
-/// The longest MPC horizon `--horizon` takes (samples).
-const MAX_HORIZON: usize = 500;
 
 /// Track the sine reference of appendix A.1.2, r(t) = 30 + 10·sin(ω t) mm, by
 /// closing the loop on the input valve voltage (0–10 V, slew 0.25 V per
@@ -250,150 +236,60 @@ enum ReferenceArg {
     Steps,
 }
 
-/// What the twin's settings decide before any run on it: every load the
-/// runs hang on it and the episode's samples at its sample time.
-fn check_on_twin(args: &Args, config: &TwinConfig, kinds: &[Kind]) -> anyhow::Result<()> {
-    // Every load the runs hang on the twin: the tracking runs', the
-    // design runs' (× ROBUST_LOAD_SCALE for the robustness table) and
-    // the PI tuning's episodes'. The effects can make a load the
-    // range checks above let through too heavy (a softer rubber).
-    let mut hung: Vec<(&str, f64)> = args.load.iter().map(|&m| ("--load", m)).collect();
-    hung.push(("--design-load", args.design_load));
-    if args.robustness {
-        hung.push(("--design-load", args.design_load * ROBUST_LOAD_SCALE));
-    }
-    if kinds.contains(&Kind::PiTuned) {
-        let tuning = tuning::TuningEpisodes::default().loads_kg;
-        hung.extend(tuning.into_iter().map(|m| ("the PI tuning's load", m)));
-    }
-    // An effect can make a load the rig cannot carry (the creep softens
-    // the rubber) or take the rig outside its physics (a friction a
-    // million times the twin's): the error names the effects beside the
-    // load, as much their doing as the load's.
-    let effects = match args.effects.as_slice() {
-        [] => String::new(),
-        given => format!(" with --effect {}", given.join(" --effect ")),
-    };
-    for (what, load) in hung {
-        Rig::check_holds(config, load, args.seed)
-            .map_err(|e| anyhow::anyhow!("{what}{effects}: {e}"))?;
-    }
-    // A rig's sample time is checked once its handshake gives it.
-    Episode::short(1.0, args.warmup, args.duration, args.steady_from)
-        .check(config.sample_time_s)
-        .map_err(|e| anyhow::anyhow!("--warmup, --duration, --steady-from: {e}"))?;
-    Ok(())
-}
-
 /// `--design-columns`' four names (the defaults without it), or why not.
 fn design_columns(names: Option<&[String]>) -> anyhow::Result<DesignColumns> {
-    let Some(names) = names else {
-        return Ok(DesignColumns::default());
+    names.map_or(Ok(DesignColumns::default()), DesignColumns::from_names)
+}
+
+/// The plan the flags ask for, its values unchecked
+/// ([`ControlPlan::check`]).
+fn plan_of(args: &Args, model: Option<GivenModel>) -> anyhow::Result<ControlPlan> {
+    let tuned_gains = match &args.tuned_gains {
+        Some(g) => {
+            let [kp, ki, kd] = g[..] else {
+                anyhow::bail!(
+                    "--tuned-gains takes three non-negative numbers kp,ki,kd (got {g:?})"
+                );
+            };
+            Some(PiGains { kp, ki, kd })
+        }
+        None => None,
     };
-    let [time, valve, pressure, displacement] = names else {
-        anyhow::bail!(
-            "--design-columns: {} name{} given; it takes four, in this order: \
-             TIME,VALVE,PRESSURE,DISPLACEMENT (e.g. t,valve_in,pressure,displacement)",
-            names.len(),
-            if names.len() == 1 { "" } else { "s" }
-        );
-    };
-    let named: Vec<&str> = names.iter().map(|n| n.trim()).collect();
-    anyhow::ensure!(
-        named.iter().all(|n| !n.is_empty()),
-        "--design-columns: an empty name in \"{}\"; give four column names",
-        names.join(",")
-    );
-    given_once(
-        "--design-columns",
-        &named,
-        "a column is one signal: time, valve, pressure and displacement are four",
-    )?;
-    Ok(DesignColumns {
-        time: time.trim().into(),
-        valve: valve.trim().into(),
-        pressure: pressure.trim().into(),
-        displacement: displacement.trim().into(),
+    Ok(ControlPlan {
+        kinds: args.controller.iter().map(|&k| k.into()).collect(),
+        freqs: args.freq.clone(),
+        loads: args.load.clone(),
+        hysteresis_scales: args.hysteresis_scale.clone(),
+        robustness: args.robustness,
+        design_record: args.design_data.clone(),
+        design_columns: design_columns(args.design_columns.as_deref())?,
+        model,
+        design_load_kg: args.design_load,
+        tuned_gains,
+        algo: args.algo.clone(),
+        pop: args.pop,
+        gens: args.gens,
+        mpc: MpcSettings {
+            horizon: args.horizon,
+            r_move: args.r_move,
+            ..MpcSettings::default()
+        },
+        shape: Shape {
+            warmup_s: args.warmup,
+            duration_s: args.duration,
+            steady_from_s: args.steady_from,
+            waveform: match args.reference {
+                ReferenceArg::Sine => Waveform::Sine,
+                ReferenceArg::Steps => Waveform::Steps,
+            },
+        },
+        effects: args.effects.clone(),
+        seed: args.seed,
     })
 }
 
-fn check_args(args: &Args) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        !args.freq.is_empty() && !args.load.is_empty(),
-        "--freq and --load need values"
-    );
-    let twice = "each run would be made, and reported, twice";
-    let controllers: Vec<&str> = args
-        .controller
-        .iter()
-        .map(|&k| Kind::from(k).label())
-        .collect();
-    given_once("--controller", &controllers, twice)?;
-    given_once("--freq", &args.freq, twice)?;
-    given_once("--load", &args.load, twice)?;
-    given_once("--hysteresis-scale", &args.hysteresis_scale, twice)?;
-    design_columns(args.design_columns.as_deref())?;
-    for &w in &args.freq {
-        anyhow::ensure!(
-            w > 0.0 && w.is_finite(),
-            "--freq: {w} is not a positive frequency (rad/s)"
-        );
-    }
-    // The twin carries at most MAX_LOAD_KG; the robustness table runs it
-    // at the design load × 1.3 too. Checked here, before any run.
-    let heaviest = |flag: &str, m: f64, scale: f64| {
-        anyhow::ensure!(
-            m > 0.0 && m.is_finite(),
-            "{flag}: {m} is not a positive mass (kg)"
-        );
-        anyhow::ensure!(
-            m * scale <= MAX_LOAD_KG,
-            "{flag} {m}: the twin carries at most {MAX_LOAD_KG} kg{}",
-            if scale > 1.0 {
-                format!(
-                    ", and --robustness runs it at {scale} × the design load (so at most {:.2} kg)",
-                    MAX_LOAD_KG / scale
-                )
-            } else {
-                String::new()
-            }
-        );
-        Ok(())
-    };
-    for &m in &args.load {
-        heaviest("--load", m, 1.0)?;
-    }
-    let perturbed = if args.robustness {
-        ROBUST_LOAD_SCALE
-    } else {
-        1.0
-    };
-    heaviest("--design-load", args.design_load, perturbed)?;
-    for &s in &args.hysteresis_scale {
-        anyhow::ensure!(
-            s > 0.0 && s.is_finite(),
-            "--hysteresis-scale: {s} must be positive"
-        );
-        // The nominal run is made anyway: a 1 would make it, and report
-        // it, twice under one label.
-        anyhow::ensure!(
-            s != 1.0,
-            "--hysteresis-scale: 1 is the nominal model, which runs anyway; give the other \
-             scales alone (e.g. 0.8,1.2)"
-        );
-    }
-    anyhow::ensure!(
-        (2..=MAX_HORIZON).contains(&args.horizon),
-        "--horizon {}: the MPC's horizon must be 2 to {MAX_HORIZON} samples (its QP is dense, \
-         its time a step grows about as the horizon's cube: past a few hundred samples one \
-         step takes seconds)",
-        args.horizon
-    );
-    anyhow::ensure!(
-        args.r_move > 0.0 && args.r_move.is_finite(),
-        "--r-move {}: the weight on valve moves must be a positive, finite number",
-        args.r_move
-    );
+/// The flags of a run on a rig.
+fn check_rig_args(args: &Args) -> anyhow::Result<()> {
     if let Some(ms) = args.deadline {
         // At most a day: a longer wait is a typo, and past about 10¹⁹ s
         // no clock can hold it.
@@ -427,29 +323,13 @@ fn check_args(args: &Args) -> anyhow::Result<()> {
             );
         }
     }
-    anyhow::ensure!(
-        args.warmup >= 0.0
-            && args.duration > 0.0
-            && (0.0..args.duration).contains(&args.steady_from),
-        "--warmup {} ≥ 0, --duration {} > 0 and 0 ≤ --steady-from {} < --duration: \
-         each is in seconds, and a shorter --duration needs a --steady-from below it \
-         (its default is {} s)",
-        args.warmup,
-        args.duration,
-        args.steady_from,
-        Shape::thesis().steady_from_s
-    );
-    if let Some(g) = &args.tuned_gains {
-        anyhow::ensure!(
-            g.len() == 3 && g.iter().all(|v| v.is_finite() && *v >= 0.0),
-            "--tuned-gains takes three non-negative numbers kp,ki,kd (got {g:?})"
-        );
-    }
     Ok(())
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    check_args(&args)?;
+    let mut plan = plan_of(&args, None)?;
+    plan.check()?;
+    check_rig_args(&args)?;
     let plant = PlantSpec::parse(&args.plant)?;
     if matches!(plant, PlantSpec::Twin) {
         // The link's flags have no link to hold to on the in-process twin:
@@ -482,88 +362,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
              half, and --robustness without --plant the whole table on the twin"
         );
     }
-    let kinds: Vec<Kind> = args.controller.iter().map(|&k| k.into()).collect();
-    let designs = kinds.iter().any(|k| k.needs_model()) || args.robustness;
+    let kinds = &plan.kinds;
+    let designs = plan.designs();
     // Said, not refused: a script may name its record for every run.
-    let asked = || {
-        args.controller
-            .iter()
-            .map(|&k| Kind::from(k).label())
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let model_based = kinds.iter().any(|k| k.needs_model());
-    for (flag, given, used, by) in [
-        ("--from", args.from.is_some(), designs, "ff-pid or mpc"),
-        (
-            "--design-data",
-            args.design_data.is_some(),
-            designs,
-            "ff-pid or mpc",
-        ),
-        (
-            "--hysteresis-scale",
-            !args.hysteresis_scale.is_empty(),
-            model_based,
-            "ff-pid or mpc",
-        ),
-        (
-            "--robustness",
-            args.robustness,
-            model_based,
-            "ff-pid or mpc",
-        ),
-        (
-            "--tuned-gains",
-            args.tuned_gains.is_some(),
-            kinds.iter().any(|k| k.needs_gains()),
-            "pi-tuned or ff-pid",
-        ),
-        (
-            "--design-load",
-            args.design_load != DESIGN_LOAD_KG,
-            designs,
-            "ff-pid or mpc",
-        ),
-        (
-            "--horizon",
-            args.horizon != MpcSettings::default().horizon,
-            kinds.contains(&Kind::Mpc),
-            "mpc",
-        ),
-        (
-            "--r-move",
-            args.r_move != MpcSettings::default().r_move,
-            kinds.contains(&Kind::Mpc),
-            "mpc",
-        ),
-    ] {
-        if given && !used {
-            errln!(
-                "mckibben: warning: {flag} is not read: none of the controllers asked for ({}) \
-                 uses it; add {by} to --controller for one that does",
-                asked()
-            );
-        }
+    for w in plan.unread(args.from.as_ref().map(|_| "--from")) {
+        errln!("mckibben: warning: {w}");
     }
-    // The tuning's knobs, where nothing is tuned.
-    let tunes = kinds.iter().any(|k| k.needs_gains()) && args.tuned_gains.is_none();
-    for (flag, given) in [
-        ("--algo", args.algo != TUNING_ALGO),
-        ("--pop", args.pop != TUNING_POP),
-        ("--gens", args.gens != TUNING_GENS),
-    ] {
-        if given && !tunes {
-            let why = match args.tuned_gains {
-                Some(_) => "the gains are given (--tuned-gains)".to_string(),
-                None => format!(
-                    "none of the controllers asked for ({}) is tuned; pi-tuned and ff-pid are",
-                    asked()
-                ),
-            };
-            errln!("mckibben: warning: {flag} is not read: it sets the gain tuning, and {why}");
-        }
-    }
+    let tunes = plan.tunes();
     // On a rig the twin runs only the design and the tuning.
     if !matches!(plant, PlantSpec::Twin) && !designs && !tunes && !args.effects.is_empty() {
         errln!(
@@ -581,114 +386,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // Read before any run: a model that cannot steer the controllers
     // fails at once, not after the twin's checks and the design.
-    let given = match &args.from {
+    plan.model = match &args.from {
         Some(path) if designs => Some(sweep::given_model(path, &|s| {
             errln!("mckibben: note: {s}")
         })?),
         _ => None,
     };
-    let mut config = TwinConfig::default();
-    config.effects.apply_args(&args.effects)?;
-    config.validate()?;
+    let config = plan.twin_config()?;
     if matches!(plant, PlantSpec::Twin) {
-        check_on_twin(&args, &config, &kinds)?;
-        let nyquist = nyquist_rad_s(config.sample_time_s);
-        if let Some(w) = args.freq.iter().find(|&&w| w >= nyquist) {
-            anyhow::bail!(
-                "--freq {w}: the twin samples every {} s, so a reference must stay below \
-                 Nyquist's {nyquist:.1} rad/s (π/dt)",
-                config.sample_time_s
-            );
-        }
-    }
-    // A discrete-time model's poles are per sample: a model on another
-    // step than the twin's is refused before the design's seconds of work
-    // (a model file's step is known now, a design record's once
-    // identified; a rig's once its handshake gives it).
-    let step_refused = |dt: f64| -> anyhow::Result<()> {
-        if !matches!(plant, PlantSpec::Twin) || same_step(dt, config.sample_time_s) {
-            return Ok(());
-        }
-        let source = match (&args.from, &args.design_data) {
-            (Some(p), _) => format!("--from {}", p.display()),
-            (None, Some(p)) => format!("--design-data {}", p.display()),
-            (None, None) => "the design record".into(),
-        };
-        anyhow::bail!(
-            "{source}: the model steps every {} s, the twin every {} s: a discrete-time \
-             model's poles are per sample; give a model fitted on data sampled every {} s",
-            tidy_step(dt),
-            config.sample_time_s,
-            config.sample_time_s
-        )
-    };
-    if let Some(g) = &given {
-        step_refused(g.model.base.dt)?;
+        plan.check_on_twin(&config)?;
     }
     let say = |s: String| {
         if !args.json {
             errln!("{s}");
         }
     };
-    let design = if designs {
-        let request = DesignRequest {
-            record: args.design_data.clone(),
-            columns: design_columns(args.design_columns.as_deref())?,
-            model: given,
-            load_kg: args.design_load,
-            seed: args.seed,
-            horizon: args.horizon,
-        };
-        let d = sweep::design_for(&request, &config, &|s| errln!("mckibben: note: {s}"))?;
-        step_refused(d.model.displacement.dt)?;
-        say(d.summary());
-        Some(d)
-    } else {
-        None
-    };
-    let given = args.tuned_gains.as_ref().map(|g| PiGains {
-        kp: g[0],
-        ki: g[1],
-        kd: g[2],
-    });
-    let tuning_run = TuningRun {
-        algo: args.algo.clone(),
-        pop: args.pop,
-        gens: args.gens,
-        seed: args.seed,
-    };
-    let tuned = tuning::gains_for(&kinds, given, &tuning_run, &config, &say)?;
-    let ing = Ingredients {
-        model: design.as_ref().map(|d| d.model.clone()),
-        gains: tuned.as_ref().map(|t| t.gains),
-        mpc: MpcSettings {
-            horizon: args.horizon,
-            r_move: args.r_move,
-            ..MpcSettings::default()
-        },
-        limits: ValveLimits::default(),
-    };
-    let shape = Shape {
-        warmup_s: args.warmup,
-        duration_s: args.duration,
-        steady_from_s: args.steady_from,
-        waveform: match args.reference {
-            ReferenceArg::Sine => Waveform::Sine,
-            ReferenceArg::Steps => Waveform::Steps,
-        },
-    };
-    let (rows, runs) = match plant {
-        PlantSpec::Twin => table::on_twin(
-            &kinds,
-            &args.freq,
-            &args.load,
-            &args.hysteresis_scale,
-            &ing,
-            &config,
-            args.seed,
-            &shape,
-            &say,
-        )?,
+    let note = |s: String| errln!("mckibben: note: {s}");
+    let on_twin = matches!(plant, PlantSpec::Twin);
+    let prepared = plan.prepare(&config, on_twin, &say, &note)?;
+    let (rows, runs, robust) = match plant {
+        PlantSpec::Twin => plan.run_on_twin(&prepared, &config, &say)?,
         PlantSpec::Rig(endpoint) => {
             let pair = |r: &Option<Vec<f64>>| r.as_ref().map(|v| (v[0], v[1]));
             let settings = RigRunSettings {
@@ -711,90 +428,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             // One handler a process; failing to install it only means that
             // Ctrl-C kills the run instead of closing the valve first.
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::SeqCst));
-            let plan = sweep::plan(&kinds, &args.freq, &[f64::NAN], &args.hysteresis_scale);
-            control_runs::on_rig(&plan, &settings, &ing, &shape, &say)?
+            let specs = sweep::plan(kinds, &plan.freqs, &[f64::NAN], &plan.hysteresis_scales);
+            let (rows, runs) =
+                control_runs::on_rig(&specs, &settings, &prepared.ingredients, &plan.shape, &say)?;
+            (rows, runs, Vec::new())
         }
     };
-    let robust = if args.robustness {
-        let (kinds, freqs) = (&kinds, &args.freq);
-        table::robustness(
-            kinds,
-            freqs,
-            args.design_load,
-            &ing,
-            &config,
-            args.seed,
-            &shape,
-            &say,
-        )?
-    } else {
-        Vec::new()
-    };
-    // What a row measures that is not the controller at its best, a
-    // warning each.
-    for (r, episode) in rows.iter().zip(&runs) {
-        let run = format!(
-            "{} at {} rad/s{}",
-            sweep::scaled_label(&r.controller, r.hysteresis_scale),
-            r.freq_rad_s,
-            r.load_kg.map_or(String::new(), |m| format!(", {m} kg"))
-        );
-        if r.solver_failures > 0 {
-            errln!(
-                "mckibben: warning: {run}: {} of the MPC's QP solves failed, and the valve held \
-                 its last command at each; its row measures that, not the MPC",
-                r.solver_failures
-            );
-        }
-        if r.overrun_steps > 0 {
-            errln!(
-                "mckibben: warning: {run}: {} of its steps took longer than the sample time \
-                 (longest {:.1} ms): on a real-time rig those commands come late and the \
-                 measurements queue behind them (shorten the MPC's --horizon, or run a lighter \
-                 controller)",
-                r.overrun_steps,
-                // The clock the steps were counted by: the thread's, the
-                // wall's where there is none.
-                match r.max_step_cpu_us > 0.0 {
-                    true => r.max_step_cpu_us,
-                    false => r.max_step_time_us,
-                } / 1e3
-            );
-        }
-        // A feedforward pinned at the valve's range most of the run is no
-        // feedforward: the PID's integrator takes it up, and the row is the
-        // PID's alone (a model whose inverse asks for more than the valve
-        // gives).
-        let samples = episode.result.t.len();
-        if 2 * r.feedforward_at_limit > samples {
-            errln!(
-                "mckibben: warning: {run}: the feedforward was at the valve's range on {} of \
-                 {samples} samples: the model's inverse asks for more than the valve gives, and \
-                 the row measures the PID alone",
-                r.feedforward_at_limit
-            );
-        }
-        if r.worse_than_holding {
-            errln!(
-                "mckibben: warning: {run}: its RMS error {:.3} mm is above the {:.3} mm of a \
-                 muscle held still at the reference's mean: the loop tracks worse than doing \
-                 nothing",
-                r.rms_error_mm,
-                r.holding_rms_mm
-            );
-        }
+    // What a row measures that is not the controller at its best.
+    for w in session::warnings(&rows, &runs) {
+        errln!("mckibben: warning: {w}");
     }
     // The results are printed before the files are written: a write that
     // fails loses none of them.
     if args.json {
-        let mpc_ran = kinds.contains(&Kind::Mpc);
-        let out = JsonOutput {
-            settings: RunSettings::of(&shape, args.seed, mpc_ran.then_some(&ing.mpc)),
-            design: design.as_ref().map(DesignJson::of),
-            tuned: tuned.as_ref(),
-            runs: &rows,
-            robustness: &robust,
-        };
+        let out = session::json(&plan, &prepared, &rows, &robust);
         outln!("{}", Versioned::new(out).to_string_pretty()?)?;
     } else {
         out!("{}", table::text(&rows, &robust))?;
@@ -807,18 +454,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     let stems: Vec<String> = runs
         .iter()
-        .map(|r| figures::stem(r, shape.waveform))
+        .map(|r| figures::stem(r, plan.shape.waveform))
         .collect();
     if let Some(dir) = &args.plot {
         let mut names: Vec<String> = stems.iter().map(|s| format!("{s}.svg")).collect();
         names.push(figures::DESIGN_FIGURE.into());
         check_folder("--plot", dir, &names, &reads)?;
-        figures::save(dir, &runs, shape.waveform, design.as_ref())?;
+        figures::save(dir, &runs, plan.shape.waveform, prepared.design.as_ref())?;
     }
     if let Some(dir) = &args.csv {
         let names: Vec<String> = stems.iter().map(|s| format!("{s}.csv")).collect();
         check_folder("--csv", dir, &names, &reads)?;
-        table::write_csvs(dir, &runs, shape.waveform)?;
+        table::write_csvs(dir, &runs, plan.shape.waveform)?;
     }
     Ok(())
 }

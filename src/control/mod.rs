@@ -25,6 +25,7 @@ pub mod plant;
 pub mod qp;
 pub mod reference;
 pub mod runtime;
+pub mod session;
 pub mod sweep;
 pub mod table;
 pub mod tuning;

@@ -16,6 +16,20 @@ pub enum Waveform {
     Steps,
 }
 
+/// A waveform's name in any case (`sine`, `Steps`), as `--reference`
+/// reads it.
+impl std::str::FromStr for Waveform {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Waveform, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "sine" => Ok(Waveform::Sine),
+            "steps" => Ok(Waveform::Steps),
+            _ => Err(format!("unknown reference `{s}`; known: sine, steps")),
+        }
+    }
+}
+
 /// A sine reference for the displacement (or steps of the same period and
 /// amplitude, [`Waveform::Steps`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

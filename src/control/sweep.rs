@@ -58,6 +58,24 @@ impl Kind {
     pub fn needs_gains(self) -> bool {
         matches!(self, Kind::PiTuned | Kind::FfPid)
     }
+
+    pub const ALL: [Kind; 4] = [Kind::Pi, Kind::PiTuned, Kind::FfPid, Kind::Mpc];
+}
+
+/// A controller's name in any case (`PI`, `ff-pid`), as `--controller`
+/// reads it.
+impl std::str::FromStr for Kind {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Kind, String> {
+        Kind::ALL
+            .into_iter()
+            .find(|k| k.label().eq_ignore_ascii_case(s.trim()))
+            .ok_or_else(|| {
+                let known: Vec<&str> = Kind::ALL.iter().map(|k| k.label()).collect();
+                format!("unknown controller `{s}`; known: {}", known.join(", "))
+            })
+    }
 }
 
 /// The model a design produced, with how well it predicts and whether it
@@ -207,77 +225,95 @@ pub struct DesignRequest {
 
 /// A model file for [`DesignRequest::model`], read and checked before any
 /// run, so that a file that cannot steer the controllers fails at once,
-/// not after the seconds of the design: a model of the pressure in MPa and
-/// the displacement in mm (a column that states no unit is taken so, with
-/// a `note`), whose output rises with the pressure.
+/// not after the seconds of the design ([`GivenModel::checked`]).
 pub fn given_model(path: &Path, note: &dyn Fn(String)) -> anyhow::Result<GivenModel> {
     let m = ModelFile::load(path)
         .and_then(|f| f.model())
         .map_err(|e| anyhow::anyhow!("--from: {e:#}"))?;
-    // The controllers drive pressures in MPa and displacements in mm (the
-    // twin's, and the rig protocol's): a model fitted in other units would
-    // be off by a factor, silently.
-    for (which, column, want) in [
-        ("input", &m.base.input_name, "MPa"),
-        ("output", &m.base.output_name, "mm"),
-    ] {
-        match unit_of(column) {
-            Some(unit) if unit != want => {
-                // A valve voltage is another signal, not another unit.
-                let fix = match (which, unit.as_str()) {
-                    ("input", "V" | "mV") => format!(
-                        "the controllers read a model of the pressure (their valve model is \
-                         their own): fit on the pressure column, in {want}"
-                    ),
-                    _ => format!("convert the column to {want} and refit"),
-                };
-                anyhow::bail!(
-                    "--from {}: the model's {which} is in {unit} (column `{column}`), the \
-                     controllers' in {want}: {fix}",
-                    path.display()
-                )
-            }
-            Some(_) => {}
-            None => note(format!(
-                "--from {}: the model's {which} column `{column}` states no unit; it is taken \
-                 in {want}, the controllers' (a model of another signal, such as a valve \
-                 voltage, predicts nonsense here)",
-                path.display()
-            )),
-        }
-    }
-    // Found now, not after the design's seconds of identification.
-    anyhow::ensure!(
-        m.base.family != Family::Generalized,
-        "--from {}: the controller's model must be the classic or the linear family (got the \
-         generalized one)",
-        path.display()
-    );
-    // The controllers push the displacement up with the pressure (the
-    // twin's and the thesis' contraction, positive): a model whose output
-    // falls as the pressure rises (an extension, or a contraction logged
-    // negative) steers every correction the wrong way, and the MPC holds
-    // the valve shut while the run diverges.
-    let b = m.base.params[m.base.family.linear_indices()[1]];
-    anyhow::ensure!(
-        b > 0.0,
-        "--from {}: the model's output falls as the pressure rises (its input gain b = {}): \
-         the controllers move a displacement that grows with the pressure (contraction, \
-         positive): flip the output column's sign and refit",
-        path.display(),
-        crate::report::number::significant(b, 4)
-    );
-    Ok(GivenModel {
-        path: path.to_path_buf(),
-        model: m,
-    })
+    GivenModel::checked(
+        m,
+        format!("--from {}", path.display()),
+        path.display().to_string(),
+        note,
+    )
 }
 
-/// A model file read for a design ([`given_model`]).
+/// A model for [`DesignRequest::model`] ([`given_model`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct GivenModel {
-    pub path: PathBuf,
+    /// How messages name it: the flag and its path (`--from m.json`).
+    pub named: String,
+    /// Where it came from, as the design's `source` says it.
+    pub source: String,
     pub model: crate::model::Model,
+}
+
+impl GivenModel {
+    /// `m`, once it is a model the controllers can steer with: of the
+    /// pressure in MPa and the displacement in mm (a column that states no
+    /// unit is taken so, with a `note`), classic or linear, its output
+    /// rising with the pressure. `named` says it in messages.
+    pub fn checked(
+        m: crate::model::Model,
+        named: String,
+        source: String,
+        note: &dyn Fn(String),
+    ) -> anyhow::Result<GivenModel> {
+        // The controllers drive pressures in MPa and displacements in mm
+        // (the twin's, and the rig protocol's): a model fitted in other
+        // units would be off by a factor, silently.
+        for (which, column, want) in [
+            ("input", &m.base.input_name, "MPa"),
+            ("output", &m.base.output_name, "mm"),
+        ] {
+            match unit_of(column) {
+                Some(unit) if unit != want => {
+                    // A valve voltage is another signal, not another unit.
+                    let fix = match (which, unit.as_str()) {
+                        ("input", "V" | "mV") => format!(
+                            "the controllers read a model of the pressure (their valve model \
+                             is their own): fit on the pressure column, in {want}"
+                        ),
+                        _ => format!("convert the column to {want} and refit"),
+                    };
+                    anyhow::bail!(
+                        "{named}: the model's {which} is in {unit} (column `{column}`), the \
+                         controllers' in {want}: {fix}"
+                    )
+                }
+                Some(_) => {}
+                None => note(format!(
+                    "{named}: the model's {which} column `{column}` states no unit; it is \
+                     taken in {want}, the controllers' (a model of another signal, such as a \
+                     valve voltage, predicts nonsense here)"
+                )),
+            }
+        }
+        // Found now, not after the design's seconds of identification.
+        anyhow::ensure!(
+            m.base.family != Family::Generalized,
+            "{named}: the controller's model must be the classic or the linear family (got \
+             the generalized one)"
+        );
+        // The controllers push the displacement up with the pressure (the
+        // twin's and the thesis' contraction, positive): a model whose
+        // output falls as the pressure rises (an extension, or a
+        // contraction logged negative) steers every correction the wrong
+        // way, and the MPC holds the valve shut while the run diverges.
+        let b = m.base.params[m.base.family.linear_indices()[1]];
+        anyhow::ensure!(
+            b > 0.0,
+            "{named}: the model's output falls as the pressure rises (its input gain b = {}): \
+             the controllers move a displacement that grows with the pressure (contraction, \
+             positive): flip the output column's sign and refit",
+            crate::report::number::significant(b, 4)
+        );
+        Ok(GivenModel {
+            named,
+            source,
+            model: m,
+        })
+    }
 }
 
 /// The names of a design record's columns (`control --design-columns`):
@@ -290,6 +326,38 @@ pub struct DesignColumns {
     pub valve: String,
     pub pressure: String,
     pub displacement: String,
+}
+
+impl DesignColumns {
+    /// `--design-columns`' four names, in its order
+    /// TIME,VALVE,PRESSURE,DISPLACEMENT, or why not.
+    pub fn from_names(names: &[String]) -> anyhow::Result<DesignColumns> {
+        let [time, valve, pressure, displacement] = names else {
+            anyhow::bail!(
+                "--design-columns: {} name{} given; it takes four, in this order: \
+                 TIME,VALVE,PRESSURE,DISPLACEMENT (e.g. t,valve_in,pressure,displacement)",
+                names.len(),
+                if names.len() == 1 { "" } else { "s" }
+            );
+        };
+        let named: Vec<&str> = names.iter().map(|n| n.trim()).collect();
+        anyhow::ensure!(
+            named.iter().all(|n| !n.is_empty()),
+            "--design-columns: an empty name in \"{}\"; give four column names",
+            names.join(",")
+        );
+        crate::names::given_once(
+            "--design-columns",
+            &named,
+            "a column is one signal: time, valve, pressure and displacement are four",
+        )?;
+        Ok(DesignColumns {
+            time: time.trim().into(),
+            valve: valve.trim().into(),
+            pressure: pressure.trim().into(),
+            displacement: displacement.trim().into(),
+        })
+    }
 }
 
 impl Default for DesignColumns {
@@ -495,7 +563,12 @@ pub fn design_for(
         None => design_on_twin(config, request.load_kg, request.seed, request.horizon)
             .context("identifying the model on the twin")?,
     };
-    let Some(GivenModel { path, model: m }) = &request.model else {
+    let Some(GivenModel {
+        named,
+        source,
+        model: m,
+    }) = &request.model
+    else {
         return Ok(design);
     };
     // As for a design record: a pole outside (0, 1) is a model whose free
@@ -504,10 +577,9 @@ pub fn design_for(
     let a = m.base.params[m.base.family.linear_indices()[0]];
     anyhow::ensure!(
         a > 0.0 && a < 1.0,
-        "--from {}: the model's pole a = {} (outside 0 to 1: its free run flips sign every \
+        "{named}: the model's pole a = {} (outside 0 to 1: its free run flips sign every \
          sample or grows), and the controllers predict the muscle with it; refit it (`fit` \
          keeps a inside), or fit a longer record where `identify` put its pole there",
-        path.display(),
         crate::report::number::significant(a, 4)
     );
     // Each effect enters the controllers' prediction where it can, and
@@ -515,8 +587,7 @@ pub fn design_for(
     let (chain, uses) = ControlChain::of(m);
     for u in &uses {
         note(format!(
-            "--from {}: {} ({})",
-            path.display(),
+            "{named}: {} ({})",
             u.line(),
             Effect::physical(u.effect.parse().expect("a catalogue name"))
         ));
@@ -524,12 +595,8 @@ pub fn design_for(
     // The valve → pressure model stays the design record's, where one was
     // given: the source says both.
     let source = match &request.record {
-        Some(record) => format!(
-            "{} (valve → pressure from {})",
-            path.display(),
-            record.display()
-        ),
-        None => format!("{}", path.display()),
+        Some(record) => format!("{source} (valve → pressure from {})", record.display()),
+        None => source.clone(),
     };
     let mut design = with_displacement(
         &design,
@@ -541,7 +608,7 @@ pub fn design_for(
         request.seed,
         request.horizon,
     )
-    .with_context(|| format!("--from {}", path.display()))?;
+    .with_context(|| named.clone())?;
     design.effects = uses;
     Ok(design)
 }
