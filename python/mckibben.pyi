@@ -13,12 +13,14 @@ __all__ = [
     "Model",
     "FitResult",
     "Diagnosis",
+    "ControlResult",
     "Evaluator",
     "ScipyObjective",
     "read_csv",
     "fit",
     "diagnose",
     "twin",
+    "control",
 ]
 
 _ArrayLike = npt.ArrayLike
@@ -282,3 +284,37 @@ def twin(
     effects: Mapping[str, float] | None = None,
 ) -> Trace:
     """An experiment on the rig twin, the recording `mckibben twin` writes."""
+
+def control(
+    controller: str | Sequence[str] | None = None,
+    freq: float | Sequence[float] | None = None,
+    load: float | Sequence[float] | None = None,
+    *,
+    seed: int = 1,
+    model: Model | _Path | None = None,
+    design_data: _Path | None = None,
+    design_columns: Sequence[str] | None = None,
+    design_load: float | None = None,
+    hysteresis_scale: float | Sequence[float] | None = None,
+    robustness: bool = False,
+    tuned_gains: Sequence[float] | None = None,
+    algo: Literal["ga", "mfa", "pso", "de"] | None = None,
+    pop: int | None = None,
+    gens: int | None = None,
+    horizon: int | None = None,
+    r_move: float | None = None,
+    reference: Literal["sine", "steps"] = "sine",
+    warmup: float | None = None,
+    duration: float | None = None,
+    steady_from: float | None = None,
+    effects: Mapping[str, float] | None = None,
+) -> ControlResult:
+    """Closed-loop tracking on the rig twin, as `mckibben control` runs it."""
+
+@final
+class ControlResult:
+    """What `control` returns: `mckibben control --json`'s document and each
+    run's samples."""
+
+    document: dict[str, Any]
+    runs: list[dict[str, Any]]

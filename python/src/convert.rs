@@ -495,8 +495,8 @@ fn named_values(flag: &str) -> &'static [&'static str] {
     }
 }
 
-/// The keyword argument of `fit`, `read_csv`, `diagnose` or `twin` that
-/// the command's flag `--flag` sets, if there is one.
+/// The keyword argument of `fit`, `read_csv`, `diagnose`, `twin` or
+/// `control` that the command's flag `--flag` sets, if there is one.
 fn keyword_of(flag: &str) -> Option<String> {
     const SAME: &[&str] = &[
         "pop",
@@ -529,6 +529,19 @@ fn keyword_of(flag: &str) -> Option<String> {
         "experiment",
         "load",
         "freq",
+        "controller",
+        "design-data",
+        "design-columns",
+        "design-load",
+        "hysteresis-scale",
+        "robustness",
+        "tuned-gains",
+        "horizon",
+        "r-move",
+        "reference",
+        "warmup",
+        "duration",
+        "steady-from",
     ];
     let keyword = match flag {
         "from" => "start",

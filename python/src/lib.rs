@@ -4,13 +4,15 @@
 //! library, the same call the command makes (`mckibben fit` and
 //! [`mckibben::fit::run::FitRun`], `mckibben diagnose` and
 //! [`mckibben::diagnose::diagnose`], `mckibben twin` and
-//! [`mckibben::twin::experiment::RunSpec`], the batch evaluator behind
+//! [`mckibben::twin::experiment::RunSpec`], `mckibben control` and
+//! [`mckibben::control::session::ControlPlan`], the batch evaluator behind
 //! fit and diagnosis). What is here is checking and converting Python's
 //! inputs (any float dtype, layout, lists), releasing the interpreter while
 //! Rust computes, turning Ctrl-C into the engine's stop flag, and mapping
 //! errors to Python's exceptions. docs/PYTHON.md describes the API.
 
 mod args;
+mod control;
 mod convert;
 mod data;
 mod diagnose;
@@ -37,9 +39,11 @@ fn mckibben_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<evaluator::Evaluator>()?;
     m.add_class::<evaluator::ScipyObjective>()?;
     m.add_class::<diagnose::Diagnosis>()?;
+    m.add_class::<control::ControlResult>()?;
     m.add_function(wrap_pyfunction!(data::read_csv, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(twin::twin, m)?)?;
+    m.add_function(wrap_pyfunction!(control::control, m)?)?;
     Ok(())
 }

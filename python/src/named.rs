@@ -87,4 +87,14 @@ named! {
     experiment: &'a str = text("experiment");
     load: f64 = real("load");
     freq: f64 = optional(real("freq"));
+    // control.
+    design_load: f64 = optional(real("design_load"));
+    robustness: bool = flag("robustness");
+    algo_opt: &'a str = optional(text("algo"));
+    horizon: usize = optional(at_least("horizon", 0));
+    r_move: f64 = optional(real("r_move"));
+    reference: &'a str = text("reference");
+    warmup: f64 = optional(real("warmup"));
+    duration: f64 = optional(real("duration"));
+    steady_from: f64 = optional(real("steady_from"));
 }

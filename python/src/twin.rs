@@ -59,7 +59,7 @@ pub fn twin(
 
 /// `effects` (any mapping) as the command's `--effect NAME=VALUE`
 /// settings, in the mapping's order: names are the keys, scales the values.
-fn effect_settings(obj: &Bound<'_, PyAny>) -> PyResult<Vec<String>> {
+pub fn effect_settings(obj: &Bound<'_, PyAny>) -> PyResult<Vec<String>> {
     let d = match obj.cast::<PyDict>() {
         Ok(d) => d.clone(),
         Err(_) => {
