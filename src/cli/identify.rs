@@ -3,13 +3,12 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use serde::Serialize;
 
 use super::common::{MultiDataArgs, check_distinct, default_data, records};
 use mckibben::data::write_atomic;
 use mckibben::ident::ArxOrders;
-use mckibben::ident::arx::{Identification, identify, identify_jointly};
-use mckibben::model::{Family, FittedBaseline, Model, ModelFile};
+use mckibben::ident::arx::{Identification, IdentifyJson, identify, identify_jointly};
+use mckibben::model::{Model, ModelFile};
 use mckibben::report::json::Versioned;
 use mckibben::report::number::significant;
 
@@ -58,16 +57,6 @@ pub struct Args {
     json: bool,
 }
 
-#[derive(Debug, Serialize)]
-struct Output<'a> {
-    #[serde(flatten)]
-    identification: &'a Identification,
-    /// The first-order model as a model file (what `fit`, `simulate` and
-    /// `control` read), when the orders are (1, 1, 1).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    model: Option<ModelFile>,
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     let orders = ArxOrders {
         na: args.na,
@@ -100,23 +89,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut outputs = Vec::new();
     for (id, trace) in ids {
-        let model = (orders == ArxOrders::default()).then(|| FittedBaseline {
-            family: Family::Linear,
-            params: vec![id.arx.a[0], id.arx.b[0], 0.0, 0.0],
-            input_mean: id.input_mean,
-            output_mean: id.output_mean,
-            dt: id.dt,
-            input_name: trace.input_name.clone(),
-            output_name: trace.output_name.clone(),
-        });
-        let model = model.map(|m| ModelFile::new(&Model::plain(m), None, provenance.clone()));
+        let model = id
+            .first_order_model(&trace)
+            .map(|m| ModelFile::new(&Model::plain(m), None, provenance.clone()));
         outputs.push((id, model));
     }
     // One document per data piece, each with its own `schema_version`.
-    let json: Vec<Versioned<Output>> = outputs
+    let json: Vec<Versioned<IdentifyJson>> = outputs
         .iter()
         .map(|(id, model)| {
-            Versioned::new(Output {
+            Versioned::new(IdentifyJson {
                 identification: id,
                 model: model.clone(),
             })

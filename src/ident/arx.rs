@@ -12,9 +12,9 @@ use thiserror::Error;
 
 use super::fit::{fit_percent, pooled_fit_percent, rmse};
 use crate::data::Trace;
-use crate::model::LinearPrior;
 use crate::model::bounds::level_reach;
 use crate::model::experiment::halves;
+use crate::model::{Family, FittedBaseline, LinearPrior, ModelFile};
 
 /// Orders of an ARX model: poles `na`, zeros+1 `nb`, input delay `nk`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -278,6 +278,36 @@ pub struct Identification {
     /// above then pool them, [`pooled_fit_percent`]); empty for one.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub records: Vec<RecordArxScore>,
+}
+
+impl Identification {
+    /// The first-order model (`--na 1 --nb 1 --nk 1`, eq. 12) as the linear
+    /// family that `fit`, `simulate` and `control` read, on the columns of
+    /// `trace` (the record, or the first of several, it was identified
+    /// on); `None` for other orders, which no model file holds.
+    pub fn first_order_model(&self, trace: &Trace) -> Option<FittedBaseline> {
+        (self.arx.orders == ArxOrders::default()).then(|| FittedBaseline {
+            family: Family::Linear,
+            params: vec![self.arx.a[0], self.arx.b[0], 0.0, 0.0],
+            input_mean: self.input_mean,
+            output_mean: self.output_mean,
+            dt: self.dt,
+            input_name: trace.input_name.clone(),
+            output_name: trace.output_name.clone(),
+        })
+    }
+}
+
+/// `identify --json`'s document for one identification: its figures and,
+/// for the first order, its model file.
+#[derive(Debug, Serialize)]
+pub struct IdentifyJson<'a> {
+    #[serde(flatten)]
+    pub identification: &'a Identification,
+    /// The first-order model as a model file (what `fit`, `simulate` and
+    /// `control` read), when the orders are (1, 1, 1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub model: Option<ModelFile>,
 }
 
 /// One record's scores under a model identified on several.
