@@ -14,11 +14,13 @@ __all__ = [
     "FitResult",
     "Diagnosis",
     "ControlResult",
+    "Identification",
     "Evaluator",
     "ScipyObjective",
     "read_csv",
     "fit",
     "diagnose",
+    "identify",
     "twin",
     "control",
 ]
@@ -318,3 +320,22 @@ class ControlResult:
 
     document: dict[str, Any]
     runs: list[dict[str, Any]]
+
+def identify(
+    u: Trace | _ArrayLike | Sequence[Trace | tuple[_ArrayLike, _ArrayLike, float]],
+    y: _ArrayLike | None = None,
+    dt: float | None = None,
+    *,
+    na: int = 1,
+    nb: int = 1,
+    nk: int = 1,
+) -> Identification:
+    """The thesis' ARX identification, as `mckibben identify --json` gives it."""
+
+@final
+class Identification:
+    """What `identify` returns: `mckibben identify --json`'s document and,
+    for the first order, its model."""
+
+    document: dict[str, Any]
+    model: Model | None

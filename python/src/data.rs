@@ -243,6 +243,50 @@ pub struct ArrayNames<'a> {
     pub dt: &'a str,
 }
 
+/// The experiments `fit` and `identify` take as `u` (with `y` and `dt`):
+/// one (a `Trace`, or arrays `u` and `y` sampled every `dt`), or a list of
+/// them (a list, or a tuple of `Trace`s or `(u, y, dt)` tuples), as
+/// `mckibben fit a.csv b.csv` takes files.
+pub struct Experiments {
+    pub traces: Vec<mckibben::data::Trace>,
+    /// How the first was read.
+    pub read: ReadSettings,
+    /// The list, where one was given: a record the library refuses is named
+    /// by its place in it ([`located`]).
+    pub listed: Option<Records>,
+}
+
+pub fn experiments(
+    u: &Bound<'_, PyAny>,
+    y: Option<&Bound<'_, PyAny>>,
+    dt: Option<f64>,
+) -> PyResult<Experiments> {
+    // A tuple of Traces or of (u, y, dt) tuples is such a list; a tuple of
+    // numbers (one input) is not.
+    let experiment = |i: Bound<'_, PyAny>| {
+        i.cast::<Trace>().is_ok() || i.cast::<PyTuple>().is_ok_and(|t| t.len() == 3)
+    };
+    let traces_only = u
+        .cast::<PyTuple>()
+        .is_ok_and(|t| !t.is_empty() && t.iter().all(experiment));
+    let listed = match u.cast::<PyList>().is_ok() || traces_only {
+        true if y.is_none() && dt.is_none() => Some(traces(u, "u")?),
+        _ => None,
+    };
+    let (traces, read) = match &listed {
+        Some(records) => (records.traces.clone(), records.read.clone()),
+        None => {
+            let (trace, read) = data_arg(u, y, dt)?;
+            (vec![trace], read)
+        }
+    };
+    Ok(Experiments {
+        traces,
+        read,
+        listed,
+    })
+}
+
 /// `fit`'s and `Evaluator`'s `u`, `y` and `dt`.
 pub const UY: ArrayNames<'static> = ArrayNames {
     input: "u",

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use numpy::PyArray1;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyTuple};
+use pyo3::types::PyDict;
 
 use mckibben::diagnose::chain::with_chain_start;
 use mckibben::eval::Backend;
@@ -28,7 +28,7 @@ use crate::convert::{
     algorithm, backend, family, in_python_terms, loop_shape, runtime_error, switching, to_python,
     value_error,
 };
-use crate::data::{Trace, data_arg, located, traces};
+use crate::data::{Experiments, experiments, located};
 use crate::history::history_arrays;
 use crate::interrupt::interruptible;
 use crate::model::model_arg;
@@ -286,27 +286,11 @@ pub fn fit(
     carry: Option<&Bound<'_, PyAny>>,
     #[pyo3(from_py_with = named::refine_rounds)] refine_rounds: Option<usize>,
 ) -> PyResult<FitResult> {
-    // A list of experiments, as `fit a.csv b.csv`; its records are named by
-    // their place in it where the library's checks refuse one.
-    // A tuple of Traces or of (u, y, dt) tuples is such a list; a tuple of
-    // numbers (one input) is not.
-    let experiment = |i: Bound<'_, PyAny>| {
-        i.cast::<Trace>().is_ok() || i.cast::<PyTuple>().is_ok_and(|t| t.len() == 3)
-    };
-    let traces_only = u
-        .cast::<PyTuple>()
-        .is_ok_and(|t| !t.is_empty() && t.iter().all(experiment));
-    let listed = match u.cast::<PyList>().is_ok() || traces_only {
-        true if y.is_none() && dt.is_none() => Some(traces(u, "u")?),
-        _ => None,
-    };
-    let (traces, read) = match &listed {
-        Some(records) => (records.traces.clone(), records.read.clone()),
-        None => {
-            let (trace, read) = data_arg(u, y, dt)?;
-            (vec![trace], read)
-        }
-    };
+    let Experiments {
+        traces,
+        read,
+        listed,
+    } = experiments(u, y, dt)?;
     let traces = &traces[..];
     let refused = |e: anyhow::Error| match &listed {
         Some(records) => located(e, &[records]),

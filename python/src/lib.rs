@@ -3,7 +3,8 @@
 //! The bindings only convert types: every computation is a call into the
 //! library, the same call the command makes (`mckibben fit` and
 //! [`mckibben::fit::run::FitRun`], `mckibben diagnose` and
-//! [`mckibben::diagnose::diagnose`], `mckibben twin` and
+//! [`mckibben::diagnose::diagnose`], `mckibben identify` and
+//! [`mckibben::ident::arx::identify`], `mckibben twin` and
 //! [`mckibben::twin::experiment::RunSpec`], `mckibben control` and
 //! [`mckibben::control::session::ControlPlan`], the batch evaluator behind
 //! fit and diagnosis). What is here is checking and converting Python's
@@ -19,6 +20,7 @@ mod diagnose;
 mod evaluator;
 mod fit;
 mod history;
+mod identify;
 mod interrupt;
 mod model;
 mod named;
@@ -40,10 +42,12 @@ fn mckibben_py(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<evaluator::ScipyObjective>()?;
     m.add_class::<diagnose::Diagnosis>()?;
     m.add_class::<control::ControlResult>()?;
+    m.add_class::<identify::Identification>()?;
     m.add_function(wrap_pyfunction!(data::read_csv, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
     m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(twin::twin, m)?)?;
     m.add_function(wrap_pyfunction!(control::control, m)?)?;
+    m.add_function(wrap_pyfunction!(identify::identify, m)?)?;
     Ok(())
 }

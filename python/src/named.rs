@@ -87,6 +87,10 @@ named! {
     experiment: &'a str = text("experiment");
     load: f64 = real("load");
     freq: f64 = optional(real("freq"));
+    // identify.
+    na: usize = at_least("na", 0);
+    nb: usize = at_least("nb", 1);
+    nk: usize = at_least("nk", 0);
     // control.
     design_load: f64 = optional(real("design_load"));
     robustness: bool = flag("robustness");
