@@ -15,6 +15,32 @@ pub struct UnknownName {
     pub expected: String,
 }
 
+/// The item of `all` whose `name` is `s` in any case (`PSO`, `Stair`), or
+/// the error that names `what` and the list.
+pub fn one_of<T: Copy>(
+    what: &'static str,
+    s: &str,
+    all: &[T],
+    name: impl Fn(T) -> &'static str,
+) -> Result<T, UnknownName> {
+    all.iter()
+        .copied()
+        .find(|&t| name(t).eq_ignore_ascii_case(s.trim()))
+        .ok_or_else(|| {
+            let names: Vec<&str> = all.iter().map(|&t| name(t)).collect();
+            let expected = match names.split_last() {
+                Some((last, [])) => last.to_string(),
+                Some((last, rest)) => format!("{} or {last}", rest.join(", ")),
+                None => "nothing".into(),
+            };
+            UnknownName {
+                what,
+                got: s.to_string(),
+                expected,
+            }
+        })
+}
+
 /// Refuses a list flag that names a value twice, saying what `twice` would
 /// do (`sweep --pop 4,4` fits each case twice; `control --freq 1,1` runs
 /// and reports each run twice).

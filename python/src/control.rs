@@ -108,7 +108,8 @@ pub fn control<'py>(
     let kinds = match controller {
         Some(c) => one_or_many(c, "controller", |item, what| {
             let name = crate::args::text(item, what)?;
-            name.parse::<Kind>().map_err(PyValueError::new_err)
+            name.parse::<Kind>()
+                .map_err(|e| PyValueError::new_err(e.to_string()))
         })?,
         None => defaults.kinds.clone(),
     };
@@ -150,7 +151,9 @@ pub fn control<'py>(
             warmup_s: warmup.unwrap_or(shape.warmup_s),
             duration_s: duration.unwrap_or(shape.duration_s),
             steady_from_s: steady_from.unwrap_or(shape.steady_from_s),
-            waveform: reference.parse().map_err(PyValueError::new_err)?,
+            waveform: reference
+                .parse()
+                .map_err(|e: mckibben::names::UnknownName| PyValueError::new_err(e.to_string()))?,
         },
         effects: effects
             .map(effect_settings)

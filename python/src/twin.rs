@@ -31,7 +31,9 @@ pub fn twin(
     #[pyo3(from_py_with = named::freq)] freq: Option<f64>,
     effects: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Trace> {
-    let kind: Kind = experiment.parse().map_err(PyValueError::new_err)?;
+    let kind: Kind = experiment
+        .parse()
+        .map_err(|e: mckibben::names::UnknownName| PyValueError::new_err(e.to_string()))?;
     if freq.is_some() && kind != Kind::Sine {
         return Err(PyValueError::new_err(format!(
             "freq sets the sine's frequency: experiment=\"sine\" (got experiment={:?})",

@@ -91,7 +91,7 @@ def test_a_model_steers_the_mpc_as_from_its_file(binary, tmp_path):
 
 
 def test_control_is_refused_in_the_arguments_words():
-    with pytest.raises(ValueError, match="^unknown controller `pid`; known: pi, pi-tuned, ff-pid, mpc"):
+    with pytest.raises(ValueError, match="^unknown controller `pid`: expected pi, pi-tuned, ff-pid or mpc"):
         mckibben.control("pid")
     with pytest.raises(ValueError, match="^`freq` names 1 twice: each run would be made"):
         mckibben.control("pi", freq=[1, 1.0])
@@ -101,7 +101,7 @@ def test_control_is_refused_in_the_arguments_words():
         mckibben.control("mpc", horizon=1)
     with pytest.raises(ValueError, match=r"^`load=40`: the twin carries at most 15 kg"):
         mckibben.control("pi", load=40)
-    with pytest.raises(ValueError, match="^unknown reference `square`; known: sine, steps"):
+    with pytest.raises(ValueError, match="^unknown reference `square`: expected sine or steps"):
         mckibben.control("pi", reference="square")
     with pytest.raises(TypeError, match=r"^tuned_gains must be three numbers \(kp, ki, kd\)"):
         mckibben.control("pi-tuned", tuned_gains=(1, 2))

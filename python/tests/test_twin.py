@@ -63,7 +63,7 @@ def test_the_sine_tracks_at_its_frequency():
 def test_a_twin_run_is_refused_in_the_arguments_words():
     with pytest.raises(ValueError, match=r"^freq sets the sine's frequency: experiment=\"sine\" \(got experiment=\"stair\"\)"):
         mckibben.twin("stair", freq=2)
-    with pytest.raises(ValueError, match="^unknown experiment `steps`; known: stair, sine, multisine"):
+    with pytest.raises(ValueError, match="^unknown experiment `steps`: expected stair, sine or multisine"):
         mckibben.twin("steps")
     with pytest.raises(ValueError, match="^unknown effect `fricton`; known: friction, "):
         mckibben.twin(effects={"fricton": 0})

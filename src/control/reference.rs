@@ -16,17 +16,24 @@ pub enum Waveform {
     Steps,
 }
 
+impl Waveform {
+    pub const ALL: [Waveform; 2] = [Waveform::Sine, Waveform::Steps];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Waveform::Sine => "sine",
+            Waveform::Steps => "steps",
+        }
+    }
+}
+
 /// A waveform's name in any case (`sine`, `Steps`), as `--reference`
 /// reads it.
 impl std::str::FromStr for Waveform {
-    type Err = String;
+    type Err = crate::names::UnknownName;
 
-    fn from_str(s: &str) -> Result<Waveform, String> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "sine" => Ok(Waveform::Sine),
-            "steps" => Ok(Waveform::Steps),
-            _ => Err(format!("unknown reference `{s}`; known: sine, steps")),
-        }
+    fn from_str(s: &str) -> Result<Waveform, Self::Err> {
+        crate::names::one_of("reference", s, &Waveform::ALL, Waveform::name)
     }
 }
 

@@ -65,16 +65,10 @@ impl Kind {
 /// A controller's name in any case (`PI`, `ff-pid`), as `--controller`
 /// reads it.
 impl std::str::FromStr for Kind {
-    type Err = String;
+    type Err = crate::names::UnknownName;
 
-    fn from_str(s: &str) -> Result<Kind, String> {
-        Kind::ALL
-            .into_iter()
-            .find(|k| k.label().eq_ignore_ascii_case(s.trim()))
-            .ok_or_else(|| {
-                let known: Vec<&str> = Kind::ALL.iter().map(|k| k.label()).collect();
-                format!("unknown controller `{s}`; known: {}", known.join(", "))
-            })
+    fn from_str(s: &str) -> Result<Kind, Self::Err> {
+        crate::names::one_of("controller", s, &Kind::ALL, Kind::label)
     }
 }
 

@@ -523,18 +523,7 @@ impl fmt::Display for Algorithm {
 impl FromStr for Algorithm {
     type Err = UnknownName;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Algorithm::ALL
-            .into_iter()
-            .find(|a| a.name() == s.to_ascii_lowercase())
-            .ok_or_else(|| {
-                let names: Vec<&str> = Algorithm::ALL.iter().map(|a| a.name()).collect();
-                let (last, rest) = names.split_last().expect("a registered algorithm");
-                UnknownName {
-                    what: "algorithm",
-                    got: s.to_string(),
-                    expected: format!("{} or {last}", rest.join(", ")),
-                }
-            })
+        crate::names::one_of("algorithm", s, &Algorithm::ALL, |a| a.name())
     }
 }
 

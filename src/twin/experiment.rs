@@ -150,16 +150,10 @@ impl Kind {
 /// An experiment's name in any case (`Stair`, `SINE`), as `--experiment`
 /// reads it.
 impl std::str::FromStr for Kind {
-    type Err = String;
+    type Err = crate::names::UnknownName;
 
-    fn from_str(s: &str) -> Result<Kind, String> {
-        Kind::ALL
-            .into_iter()
-            .find(|k| k.as_str().eq_ignore_ascii_case(s.trim()))
-            .ok_or_else(|| {
-                let known: Vec<&str> = Kind::ALL.iter().map(Kind::as_str).collect();
-                format!("unknown experiment `{s}`; known: {}", known.join(", "))
-            })
+    fn from_str(s: &str) -> Result<Kind, Self::Err> {
+        crate::names::one_of("experiment", s, &Kind::ALL, |k| k.as_str())
     }
 }
 
