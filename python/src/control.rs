@@ -220,14 +220,26 @@ fn one_or_many<'py, T>(
         .collect()
 }
 
-/// `tuned_gains`: three numbers kp, ki, kd.
+/// `tuned_gains`: three numbers kp, ki, kd, or a dict of them by name (a
+/// tuning's `document["tuned"]["gains"]`).
 fn gains(obj: &Bound<'_, PyAny>) -> PyResult<PiGains> {
     let wrong = || {
         PyTypeError::new_err(format!(
-            "tuned_gains must be three numbers (kp, ki, kd), got {}",
+            "tuned_gains must be three numbers (kp, ki, kd) or a dict of them by name, got {}",
             given(obj)
         ))
     };
+    if let Ok(d) = obj.cast::<PyDict>() {
+        let gain = |name: &str| match d.get_item(name)? {
+            Some(v) => real(&v, &format!("tuned_gains[{name:?}]")),
+            None => Err(wrong()),
+        };
+        return Ok(PiGains {
+            kp: gain("kp")?,
+            ki: gain("ki")?,
+            kd: gain("kd")?,
+        });
+    }
     if obj.is_instance_of::<PyString>() {
         return Err(wrong());
     }

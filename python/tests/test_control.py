@@ -105,6 +105,8 @@ def test_control_is_refused_in_the_arguments_words():
         mckibben.control("pi", reference="square")
     with pytest.raises(TypeError, match=r"^tuned_gains must be three numbers \(kp, ki, kd\)"):
         mckibben.control("pi-tuned", tuned_gains=(1, 2))
+    with pytest.raises(TypeError, match=r"^tuned_gains must be three numbers .* or a dict"):
+        mckibben.control("pi-tuned", tuned_gains={"kp": 1, "ki": 2})
     with pytest.raises(TypeError, match=r"^freq\[1\] must be a number"):
         mckibben.control("pi", freq=[1, "2"])
     with pytest.raises(ValueError, match="^`design_columns`: 3 names given; it takes four"):
@@ -131,4 +133,13 @@ def test_what_no_controller_reads_is_said(tmp_path):
         "`horizon` is not read: none of the controllers asked for (pi) uses it; add mpc to "
         "`controller` for one that does",
     ], said
+
+
+def test_given_gains_as_a_list_or_as_a_tunings_dict_run_alike():
+    as_list = mckibben.control("pi-tuned", freq=2, load=4.5, tuned_gains=[2.2, 65.5, 0.02], **SHORT)
+    gains = as_list.document["tuned"]["gains"]
+    assert gains == {"kp": 2.2, "ki": 65.5, "kd": 0.02}
+    as_dict = mckibben.control("pi-tuned", freq=2, load=4.5, tuned_gains=gains, **SHORT)
+    assert np.array_equal(as_dict.runs[0]["valve"], as_list.runs[0]["valve"])
+    assert as_dict.document["tuned"]["given"] is True
 
