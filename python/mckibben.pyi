@@ -299,7 +299,7 @@ def control(
     design_load: float | None = None,
     hysteresis_scale: float | Sequence[float] | None = None,
     robustness: bool = False,
-    tuned_gains: Sequence[float] | None = None,
+    tuned_gains: Sequence[float] | Mapping[str, float] | None = None,
     algo: Literal["ga", "mfa", "pso", "de"] | None = None,
     pop: int | None = None,
     gens: int | None = None,
