@@ -225,7 +225,7 @@ md="$work/table.md"
     echo
     echo "Evaluator (\`mckibben bench --backend gpu --time-reference --repeats $repeats --markdown\`;"
     echo "the cpu rows are the batched CPU path on the same populations, the speed-up is CPU median / GPU median;"
-    echo "\"median s\" is a whole evaluate call as a fit makes it, \"kernel\" the compute pass alone from the device's timestamps;"
+    echo "\"median s (range)\" is a whole evaluate call as a fit makes it (the median of the timed calls, their range beside it), \"kernel\" the compute pass alone from the device's timestamps;"
     echo "\"share of ceiling\" is the kernels' f32 operations a second over the calibration's independent-chain rate below):"
     echo
 } >"$md"

@@ -1393,6 +1393,14 @@ fn bench_shows_its_calls_spread_and_a_small_population_whole() {
     );
     assert!(text.contains("median s (range)"), "{text}");
     assert!(text.contains("(30 of 30 shared)"), "{text}");
+    // The Markdown for docs/PERFORMANCE.md shows the same range.
+    let markdown = mckibben(&[&args[..], &["--markdown"]].concat(), dir.path());
+    let table = String::from_utf8_lossy(&markdown.stdout);
+    let cpu_row = table.lines().find(|l| l.starts_with("| classic | 30 |"));
+    assert!(
+        table.contains("| median s (range) |") && cpu_row.is_some_and(|r| r.contains("–")),
+        "{table}"
+    );
     let row = json(&mckibben(&[&args[..], &["--json"]].concat(), dir.path()))["rows"][0].clone();
     let (lo, median, hi) = (
         row["min_s"].as_f64().unwrap(),

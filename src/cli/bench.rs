@@ -67,7 +67,7 @@ use rand_chacha::ChaCha8Rng;
 /// --markdown prints a table for docs/PERFORMANCE.md instead: a header
 /// and, per population size, one row for the backend and (with
 /// --time-reference) one for the CPU path; columns: model, N, backend,
-/// cand-samples/s, evals/s, median s, kernel cand-samples/s, kernel
+/// cand-samples/s, evals/s, median s (range), kernel cand-samples/s, kernel
 /// median s, share of ceiling, GPU/CPU speed-up, max rel SSE diff, top-100
 /// alike; then, where the device was calibrated, a blank line and the
 /// calibration's table: model, variant, f32 ops a step, steps,
@@ -181,7 +181,7 @@ fn time(
 }
 
 /// The markdown table's header (`--markdown`).
-const MARKDOWN_HEADER: &str = "| model | N | backend | cand-samples/s | evals/s | median s | kernel cand-samples/s | kernel median s | share of ceiling | GPU/CPU speed-up | max rel SSE diff | top-100 alike |\n\
+const MARKDOWN_HEADER: &str = "| model | N | backend | cand-samples/s | evals/s | median s (range) | kernel cand-samples/s | kernel median s | share of ceiling | GPU/CPU speed-up | max rel SSE diff | top-100 alike |\n\
                                |---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|---|";
 
 /// The calibration's markdown table (`--markdown`, after the first).
@@ -243,12 +243,12 @@ fn markdown_rows(row: &Row) -> String {
     let line = |backend: &str, t: &Timing, share: &str, speedup: &str, diff: &str, alike: &str| {
         let or_dash = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{v:.3e}"));
         format!(
-            "| {} | {} | {backend} | {:.3e} | {:.3e} | {:.3e} | {} | {} | {share} | {speedup} | {diff} | {alike} |",
+            "| {} | {} | {backend} | {:.3e} | {:.3e} | {} | {} | {} | {share} | {speedup} | {diff} | {alike} |",
             row.model,
             row.population,
             t.candidate_samples_per_s,
             t.evals_per_s,
-            t.median_s,
+            spread(t),
             or_dash(t.kernel_candidate_samples_per_s),
             or_dash(t.kernel_median_s)
         )
