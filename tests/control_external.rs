@@ -929,6 +929,126 @@ fn a_model_the_controllers_cannot_use_is_refused_or_named() {
     assert!(!err.contains("feedforward was at"), "{err}");
 }
 
+/// A model fitted in kPa and metres steers the controllers as the same
+/// model in MPa and mm: `--from` converts its parameters and says so. A
+/// model with effects, whose parameters have units of their own, is
+/// refused in any unit but MPa and mm.
+#[test]
+fn a_model_in_other_units_steers_as_in_mpa_and_mm() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = dir.path().join("fit");
+    let fitted = Command::new(BIN)
+        .current_dir(ROOT)
+        .args([
+            "fit",
+            "data/stair_4.5kg.csv",
+            "--pop",
+            "40",
+            "--gens",
+            "5",
+            "--out",
+        ])
+        .arg(&fit)
+        .output()
+        .unwrap();
+    assert!(
+        fitted.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fitted.stderr)
+    );
+    let mpa = fit.join("model.json");
+    // The same model written in kPa and m, through the library's
+    // rescaling, which its own test checks against a simulation.
+    let base = mckibben::model::ModelFile::load(&mpa)
+        .unwrap()
+        .model()
+        .unwrap()
+        .base;
+    let kpa = base.rescaled(1e3, 1e-3);
+    let mut file: Value = serde_json::from_str(&std::fs::read_to_string(&mpa).unwrap()).unwrap();
+    for (name, value) in kpa.named_params() {
+        file["params"][name] = serde_json::json!(value);
+    }
+    let columns = [
+        ("input", "p_kPa", "kPa", kpa.input_mean),
+        ("output", "x_m", "m", kpa.output_mean),
+    ];
+    for (side, column, unit, mean) in columns {
+        file["data"][side] = serde_json::json!({"column": column, "unit": unit, "mean": mean});
+    }
+    let converted = dir.path().join("kpa.json");
+    std::fs::write(&converted, file.to_string()).unwrap();
+
+    let run = |from: &std::path::Path| {
+        control(&[
+            "--controller",
+            "mpc",
+            "--load",
+            "4.5",
+            "--json",
+            "--from",
+            from.to_str().unwrap(),
+        ])
+    };
+    let (theirs, ours) = (run(&mpa), run(&converted));
+    let err = String::from_utf8_lossy(&ours.stderr);
+    assert!(
+        err.contains("the model's input (column `p_kPa`, in kPa) is read in MPa")
+            && err.contains("the model's output (column `x_m`, in m) is read in mm"),
+        "{err}"
+    );
+    let rms = |out: &Output| runs(out)[0]["rms_error_mm"].as_f64().unwrap();
+    assert!(
+        (rms(&theirs) - rms(&ours)).abs() <= 1e-6 * rms(&theirs),
+        "{} mm against {} mm",
+        rms(&theirs),
+        rms(&ours)
+    );
+
+    // With an effect stage the model stays refused.
+    let creep = dir.path().join("creep");
+    let fitted = Command::new(BIN)
+        .current_dir(ROOT)
+        .args([
+            "fit",
+            "data/stair_4.5kg.csv",
+            "--effects",
+            "creep",
+            "--pop",
+            "40",
+            "--gens",
+            "5",
+            "--out",
+        ])
+        .arg(&creep)
+        .output()
+        .unwrap();
+    assert!(
+        fitted.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fitted.stderr)
+    );
+    let mut file: Value =
+        serde_json::from_str(&std::fs::read_to_string(creep.join("model.json")).unwrap()).unwrap();
+    file["data"]["input"]["column"] = serde_json::json!("p_kPa");
+    file["data"]["input"]["unit"] = serde_json::json!("kPa");
+    let with_effects = dir.path().join("creep_kpa.json");
+    std::fs::write(&with_effects, file.to_string()).unwrap();
+    let err = refusal(&[
+        "--controller",
+        "mpc",
+        "--from",
+        with_effects.to_str().unwrap(),
+    ]);
+    assert!(
+        err.contains(
+            "the model's input is in kPa (column `p_kPa`), the controllers' in MPa: a \
+             model with effects is read in MPa only"
+        ),
+        "{err}"
+    );
+}
+
 /// A rig's record names its columns its own way and in its own units:
 /// `--design-columns` points the design at them, and a pressure in kPa
 /// and a displacement in m are converted to the controllers' MPa and mm,

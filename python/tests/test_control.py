@@ -111,13 +111,14 @@ def test_control_is_refused_in_the_arguments_words():
         mckibben.control("pi", freq=[1, "2"])
     with pytest.raises(ValueError, match="^`design_columns`: 3 names given; it takes four"):
         mckibben.control("mpc", design_data="rig.csv", design_columns=["t", "u", "p"])
-    # A model in kPa would steer the valve a thousand times too hard.
+    # A model with effects in kPa is refused: its effects' parameters have
+    # units of their own.
     trace = mckibben.twin("multisine")
     kpa = mckibben.Trace(trace.input * 1000, trace.output, trace.dt, input_name="p_kPa", output_name="x_mm")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = mckibben.fit(kpa, pop=50, gens=5).model
-    with pytest.raises(ValueError, match=r"^model: the model's input is in kPa \(column `p_kPa`\)"):
+        model = mckibben.fit(kpa, effects=["creep"], pop=50, gens=5).model
+    with pytest.raises(ValueError, match=r"^model: the model's input is in kPa \(column `p_kPa`\), the controllers' in MPa: a model with effects"):
         mckibben.control("mpc", model=model)
 
 
@@ -142,4 +143,20 @@ def test_given_gains_as_a_list_or_as_a_tunings_dict_run_alike():
     as_dict = mckibben.control("pi-tuned", freq=2, load=4.5, tuned_gains=gains, **SHORT)
     assert np.array_equal(as_dict.runs[0]["valve"], as_list.runs[0]["valve"])
     assert as_dict.document["tuned"]["given"] is True
+
+
+def test_a_model_in_kpa_is_read_in_mpa():
+    trace = mckibben.twin("multisine")
+    kpa = mckibben.Trace(trace.input * 1000, trace.output, trace.dt, input_name="p_kPa", output_name="x_mm")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = mckibben.fit(kpa, pop=50, gens=5).model
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = mckibben.control("mpc", freq=2, load=4.5, model=model, **SHORT)
+    said = [str(w.message) for w in caught]
+    assert "model: the model's input (column `p_kPa`, in kPa) is read in MPa, the controllers' unit, its parameters converted" in said, said
+    # The design's model is in MPa: its gain a thousand times the kPa one's.
+    design = result.document["design"]["model"]["displacement"]
+    assert design["params"][-3] == pytest.approx(model.params["b"] * 1000, rel=1e-12)
 

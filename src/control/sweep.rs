@@ -244,11 +244,13 @@ pub struct GivenModel {
 
 impl GivenModel {
     /// `m`, once it is a model the controllers can steer with: of the
-    /// pressure in MPa and the displacement in mm (a column that states no
-    /// unit is taken so, with a `note`), classic or linear, its output
-    /// rising with the pressure. `named` says it in messages.
+    /// pressure and the displacement (a column that states no unit is
+    /// taken in MPa and mm, with a `note`; one in another pressure or length
+    /// unit is converted to them, with a `note`, where the model has no
+    /// effects), classic or linear, its output rising with the pressure.
+    /// `named` says it in messages.
     pub fn checked(
-        m: crate::model::Model,
+        mut m: crate::model::Model,
         named: String,
         source: String,
         note: &dyn Fn(String),
@@ -256,24 +258,42 @@ impl GivenModel {
         // The controllers drive pressures in MPa and displacements in mm
         // (the twin's, and the rig protocol's): a model fitted in other
         // units would be off by a factor, silently.
-        for (which, column, want) in [
-            ("input", &m.base.input_name, "MPa"),
-            ("output", &m.base.output_name, "mm"),
-        ] {
+        let per_mpa: fn(&str) -> Option<f64> = megapascals_in;
+        let mut factors = [1.0, 1.0];
+        for (k, (which, column, want, per_unit)) in [
+            ("input", &m.base.input_name, "MPa", per_mpa),
+            ("output", &m.base.output_name, "mm", millimetres_in),
+        ]
+        .into_iter()
+        .enumerate()
+        {
             match unit_of(column) {
                 Some(unit) if unit != want => {
+                    let factor = per_unit(&unit);
                     // A valve voltage is another signal, not another unit.
-                    let fix = match (which, unit.as_str()) {
-                        ("input", "V" | "mV") => format!(
+                    let fix = match (which, unit.as_str(), factor) {
+                        ("input", "V" | "mV", _) => format!(
                             "the controllers read a model of the pressure (their valve model \
                              is their own): fit on the pressure column, in {want}"
                         ),
-                        _ => format!("convert the column to {want} and refit"),
+                        (_, _, None) => format!("convert the column to {want} and refit"),
+                        // The effects' parameters have units of their own.
+                        (_, _, Some(_)) => format!(
+                            "a model with effects is read in {want} only: convert the \
+                             column to {want} and refit"
+                        ),
                     };
-                    anyhow::bail!(
-                        "{named}: the model's {which} is in {unit} (column `{column}`), the \
-                         controllers' in {want}: {fix}"
-                    )
+                    match factor {
+                        Some(f) if m.effects().is_empty() => factors[k] = f,
+                        _ => anyhow::bail!(
+                            "{named}: the model's {which} is in {unit} (column `{column}`), \
+                             the controllers' in {want}: {fix}"
+                        ),
+                    }
+                    note(format!(
+                        "{named}: the model's {which} (column `{column}`, in {unit}) is read \
+                         in {want}, the controllers' unit, its parameters converted"
+                    ));
                 }
                 Some(_) => {}
                 None => note(format!(
@@ -282,6 +302,12 @@ impl GivenModel {
                      valve voltage, predicts nonsense here)"
                 )),
             }
+        }
+        if factors != [1.0, 1.0] {
+            m.base = m.base.rescaled(factors[0], factors[1]);
+            // The shipped data's names, which state MPa and mm.
+            m.base.input_name = "pressure".into();
+            m.base.output_name = "displacement".into();
         }
         // Found now, not after the design's seconds of identification.
         anyhow::ensure!(

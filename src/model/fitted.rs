@@ -66,6 +66,40 @@ impl FittedBaseline {
         (y, sim)
     }
 
+    /// The same model for an input read in units `per_input` times the
+    /// fitted ones and an output `per_output` times (a model fitted in psi
+    /// and m, wanted in MPa and mm: `per_input` 0.006895, `per_output`
+    /// 1000). It predicts the same motion, each number in the new units:
+    /// the gain `b` takes both factors, the intercept `c`, the start offset
+    /// `x0` and the switching level `x_s` the output's; the hysteretic
+    /// state moves with the output (its update is driven by the output's
+    /// step), so the loop-shape weights `β`, `γ` and `β1..β6` scale by
+    /// `per_output^−n`; the poles, `A`, `α` and `n` stay. The columns keep
+    /// their names.
+    pub fn rescaled(&self, per_input: f64, per_output: f64) -> FittedBaseline {
+        let family = self.family;
+        let n = family.exponent_index().map_or(1.0, |i| self.params[i]);
+        let [_, ib, ic] = family.linear_indices();
+        let mut params = self.params.clone();
+        for (i, spec) in family.params().iter().enumerate() {
+            params[i] *= match spec.name {
+                "beta" | "gamma" | "beta1" | "beta2" | "beta3" | "beta4" | "beta5" | "beta6" => {
+                    per_output.powf(-n)
+                }
+                "x0" | "x_s" => per_output,
+                _ if i == ib => per_output / per_input,
+                _ if i == ic => per_output,
+                _ => 1.0,
+            };
+        }
+        FittedBaseline {
+            params,
+            input_mean: self.input_mean * per_input,
+            output_mean: self.output_mean * per_output,
+            ..self.clone()
+        }
+    }
+
     /// Simulates on a trace's input, from its first measured output.
     pub fn simulate_trace(&self, trace: &Trace) -> Vec<f64> {
         self.simulate_absolute(
@@ -73,5 +107,65 @@ impl FittedBaseline {
             trace.output.first().copied().unwrap_or(self.output_mean),
         )
         .0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A model in psi and metres, rescaled to MPa and mm, runs the same
+    /// motion on the same pressures: every family, a free exponent too.
+    #[test]
+    fn a_rescaled_model_predicts_the_same_motion_in_its_new_units() {
+        let (per_input, per_output) = (6.894757293168e-3, 1000.0);
+        let psi: Vec<f64> = (0..400)
+            .map(|k| 30.0 + 25.0 * (k as f64 * 0.05).sin() + 10.0 * (k as f64 * 0.013).sin())
+            .collect();
+        let mpa: Vec<f64> = psi.iter().map(|p| p * per_input).collect();
+        let models = [
+            (Family::Linear, vec![0.95, 2e-4, 1e-5, 2e-4]),
+            (
+                Family::Classic,
+                vec![1.0, 0.6, 40.0, 25.0, 1.0, 0.95, 2e-4, 1e-5, 2e-4],
+            ),
+            (
+                Family::Classic,
+                vec![1.0, 0.6, 4.0, 2.5, 1.5, 0.95, 2e-4, 1e-5, 2e-4],
+            ),
+            (
+                Family::Generalized,
+                vec![
+                    1.0, 0.6, 30.0, -5.0, 8.0, 3.0, -2.0, 1.0, 1.0, 0.95, 2e-4, 1e-5, 2e-4, 0.012,
+                ],
+            ),
+        ];
+        for (family, params) in models {
+            assert_eq!(params.len(), family.dim(), "{family}");
+            let fitted = FittedBaseline {
+                family,
+                params,
+                input_mean: 32.0,
+                output_mean: 0.011,
+                dt: 0.01,
+                input_name: "pressure_psi".into(),
+                output_name: "x_m".into(),
+            };
+            let (metres, _) = fitted.simulate_absolute(&psi, 0.012);
+            let rescaled = fitted.rescaled(per_input, per_output);
+            let (mm, _) = rescaled.simulate_absolute(&mpa, 12.0);
+            let span = metres.iter().fold(0.0f64, |m, v| m.max((v - 0.011).abs()));
+            assert!(
+                span > 1e-4,
+                "{family}: the test model barely moves ({span} m)"
+            );
+            for (k, (m, x)) in metres.iter().zip(&mm).enumerate() {
+                assert!(
+                    (m * per_output - x).abs() <= 1e-4 * span * per_output,
+                    "{family}, sample {k}: {} mm against {x} mm",
+                    m * per_output
+                );
+            }
+        }
     }
 }
