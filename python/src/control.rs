@@ -173,15 +173,14 @@ pub fn control<'py>(
     if plan.designs() {
         plan.model = model.map(|m| given_model(m, &note)).transpose()?;
     }
-    let outcome = py
-        .detach(|| plan.on_twin(&|_| (), &note))
-        .map_err(value_error)?;
-    let notes = notes.into_inner().expect("notes");
-    for text in notes
-        .iter()
-        .chain(&session::warnings(&outcome.rows, &outcome.runs))
-    {
-        say(text)?;
+    let outcome = py.detach(|| plan.on_twin(&|_| (), &note));
+    // The notes as the command prints them, before the run's error too.
+    for text in notes.into_inner().expect("notes") {
+        say(&text)?;
+    }
+    let outcome = outcome.map_err(value_error)?;
+    for text in session::warnings(&outcome.rows, &outcome.runs) {
+        say(&text)?;
     }
     let runs = PyList::empty(py);
     for (row, run) in outcome.rows.iter().zip(&outcome.runs) {
