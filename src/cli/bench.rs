@@ -213,7 +213,7 @@ fn spread(t: &Timing) -> String {
     if t.min_s == t.max_s {
         return format!("{:.3e}", t.median_s);
     }
-    format!("{:.3e} ({:.2e}–{:.2e})", t.median_s, t.min_s, t.max_s)
+    format!("{:.3e} ({:.3e}–{:.3e})", t.median_s, t.min_s, t.max_s)
 }
 
 /// A share as a percentage, `—` where there is none.
