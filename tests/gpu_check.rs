@@ -80,7 +80,7 @@ fn the_small_gpu_check_prints_every_row() {
             if on_cpu_adapter {
                 // lavapipe offers timestamps: the kernels alone, within the call.
                 let kernel: f64 = gpu[7].parse().unwrap_or_else(|_| panic!("{gpu:?}"));
-                let call = median(&gpu[5]).unwrap();
+                let call = median(gpu[5]).unwrap();
                 assert!(kernel > 0.0 && kernel <= call, "{gpu:?}");
                 assert_eq!(gpu[10..], ["0 (bit-identical)", "yes (100/100)"], "{gpu:?}");
                 // The plain families' kernels have an operation count, so a
