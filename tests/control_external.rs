@@ -13,6 +13,25 @@ use serde_json::Value;
 
 const BIN: &str = env!("CARGO_BIN_EXE_mckibben");
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+/// A quick fit of the shipped 4.5 kg stair (`extra` flags added) written
+/// to `out`, which it returns.
+fn fit_stair(out: &std::path::Path, extra: &[&str]) -> std::path::PathBuf {
+    let fitted = Command::new(BIN)
+        .current_dir(ROOT)
+        .args(["fit", "data/stair_4.5kg.csv", "--pop", "40", "--gens", "5"])
+        .args(extra)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(
+        fitted.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fitted.stderr)
+    );
+    out.to_path_buf()
+}
+
 /// A short episode: 2 s settling, 4 s of 3 rad/s sine scored from 2 s.
 const SHORT: [&str; 8] = [
     "--freq",
@@ -865,26 +884,7 @@ fn a_loop_worse_than_holding_still_is_warned_of() {
 #[test]
 fn a_model_the_controllers_cannot_use_is_refused_or_named() {
     let dir = tempfile::tempdir().unwrap();
-    let fit = dir.path().join("fit");
-    let fitted = Command::new(BIN)
-        .current_dir(ROOT)
-        .args([
-            "fit",
-            "data/stair_4.5kg.csv",
-            "--pop",
-            "40",
-            "--gens",
-            "5",
-            "--out",
-        ])
-        .arg(&fit)
-        .output()
-        .unwrap();
-    assert!(
-        fitted.status.success(),
-        "{}",
-        String::from_utf8_lossy(&fitted.stderr)
-    );
+    let fit = fit_stair(&dir.path().join("fit"), &[]);
     let text = std::fs::read_to_string(fit.join("model.json")).unwrap();
     let edited = |name: &str, value: f64| {
         let mut file: Value = serde_json::from_str(&text).unwrap();
@@ -936,26 +936,7 @@ fn a_model_the_controllers_cannot_use_is_refused_or_named() {
 #[test]
 fn a_model_in_other_units_steers_as_in_mpa_and_mm() {
     let dir = tempfile::tempdir().unwrap();
-    let fit = dir.path().join("fit");
-    let fitted = Command::new(BIN)
-        .current_dir(ROOT)
-        .args([
-            "fit",
-            "data/stair_4.5kg.csv",
-            "--pop",
-            "40",
-            "--gens",
-            "5",
-            "--out",
-        ])
-        .arg(&fit)
-        .output()
-        .unwrap();
-    assert!(
-        fitted.status.success(),
-        "{}",
-        String::from_utf8_lossy(&fitted.stderr)
-    );
+    let fit = fit_stair(&dir.path().join("fit"), &[]);
     let mpa = fit.join("model.json");
     // The same model written in kPa and m, through the library's
     // rescaling, which its own test checks against a simulation.
@@ -1006,28 +987,7 @@ fn a_model_in_other_units_steers_as_in_mpa_and_mm() {
     );
 
     // With an effect stage the model stays refused.
-    let creep = dir.path().join("creep");
-    let fitted = Command::new(BIN)
-        .current_dir(ROOT)
-        .args([
-            "fit",
-            "data/stair_4.5kg.csv",
-            "--effects",
-            "creep",
-            "--pop",
-            "40",
-            "--gens",
-            "5",
-            "--out",
-        ])
-        .arg(&creep)
-        .output()
-        .unwrap();
-    assert!(
-        fitted.status.success(),
-        "{}",
-        String::from_utf8_lossy(&fitted.stderr)
-    );
+    let creep = fit_stair(&dir.path().join("creep"), &["--effects", "creep"]);
     let mut file: Value =
         serde_json::from_str(&std::fs::read_to_string(creep.join("model.json")).unwrap()).unwrap();
     file["data"]["input"]["column"] = serde_json::json!("p_kPa");
