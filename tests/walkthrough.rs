@@ -350,10 +350,22 @@ fn the_guide_runs_as_written() {
                 assert!(root.join("out/guide/control/control_model.svg").exists());
                 seen.push("control");
             } else {
-                // The kPa model is refused, naming both units.
-                assert!(step.fails, "{out}");
-                assert!(out.contains("in kPa") && out.contains("in MPa"), "{out}");
-                seen.push("control, wrong units");
+                // The kPa model is read in MPa, saying so, and its gain is
+                // the kPa fit's times 1000.
+                assert!(!step.fails, "{out}");
+                assert!(
+                    out.contains("(column `p_kPa`, in kPa) is read in MPa"),
+                    "{out}"
+                );
+                let file = std::fs::read_to_string(root.join("out/guide/fit/model.json")).unwrap();
+                let file: serde_json::Value = serde_json::from_str(&file).unwrap();
+                let kpa = file["params"]["b"].as_f64().unwrap();
+                let b = number_after(&out, " b ");
+                assert!(
+                    (b - 1000.0 * kpa).abs() < 1e-4 * b,
+                    "b = {b} mm/MPa, {kpa} mm/kPa\n{out}"
+                );
+                seen.push("control, other units");
             }
         }
     }
@@ -369,7 +381,7 @@ fn the_guide_runs_as_written() {
         "diagnose",
         "simulate",
         "control",
-        "control, wrong units",
+        "control, other units",
     ] {
         assert!(
             seen.contains(&want),
