@@ -36,28 +36,10 @@ crate::state::with_state! {
     }
 }
 
-#[pymethods]
 impl ControlResult {
-    /// Pickles as its document and runs.
-    fn __reduce__<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
-        let restore = py.get_type::<ControlResult>().getattr("_from_state")?;
-        Ok((restore, (self.state(py)?,)))
-    }
-
-    /// The result `__reduce__` pickled.
-    #[classmethod]
-    fn _from_state(
-        _class: &Bound<'_, pyo3::types::PyType>,
-        state: &Bound<'_, PyDict>,
-    ) -> PyResult<ControlResult> {
-        ControlResult::from_state(state)
-    }
-
-    fn __repr__(&self, py: Python<'_>) -> String {
-        format!("ControlResult({} runs)", self.runs.bind(py).len())
+    /// `__repr__`'s text.
+    fn repr(&self, py: Python<'_>) -> PyResult<String> {
+        Ok(format!("ControlResult({} runs)", self.runs.bind(py).len()))
     }
 }
 

@@ -3,7 +3,6 @@
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
 use mckibben::diagnose::report::{DiagnosisJson, baseline_caution, plain_fit_caution};
 use mckibben::diagnose::transfer::check_others;
@@ -34,35 +33,16 @@ crate::state::with_state! {
     }
 }
 
-#[pymethods]
 impl Diagnosis {
-    /// Pickles as its document and models, so that a diagnosis run in a
-    /// worker process comes back whole.
-    fn __reduce__<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
-        let restore = py.get_type::<Diagnosis>().getattr("_from_state")?;
-        Ok((restore, (self.state(py)?,)))
-    }
-
-    /// The diagnosis `__reduce__` pickled.
-    #[classmethod]
-    fn _from_state(
-        _class: &Bound<'_, pyo3::types::PyType>,
-        state: &Bound<'_, PyDict>,
-    ) -> PyResult<Diagnosis> {
-        Diagnosis::from_state(state)
-    }
-
-    fn __repr__(&self) -> String {
+    /// `__repr__`'s text.
+    fn repr(&self, _py: Python<'_>) -> PyResult<String> {
         let model = self.model.get();
         let names: Vec<&str> = model.inner.effects().iter().map(|e| e.name()).collect();
-        format!(
+        Ok(format!(
             "Diagnosis({} + [{}])",
             model.inner.base.family,
             names.join(", ")
-        )
+        ))
     }
 }
 

@@ -164,29 +164,10 @@ crate::state::with_state! {
     }
 }
 
-#[pymethods]
 impl FitResult {
-    /// Pickles as every field's value (the model, the history's arrays),
-    /// so that a fit run in a worker process comes back whole.
-    fn __reduce__<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
-        let restore = py.get_type::<FitResult>().getattr("_from_state")?;
-        Ok((restore, (self.state(py)?,)))
-    }
-
-    /// The result `__reduce__` pickled.
-    #[classmethod]
-    fn _from_state(
-        _class: &Bound<'_, pyo3::types::PyType>,
-        state: &Bound<'_, PyDict>,
-    ) -> PyResult<FitResult> {
-        FitResult::from_state(state)
-    }
-
-    fn __repr__(&self) -> String {
-        format!(
+    /// `__repr__`'s text.
+    fn repr(&self, _py: Python<'_>) -> PyResult<String> {
+        Ok(format!(
             "FitResult({} {} fit, val_fit_percent = {}, sse = {}, stop = {}, {:.2} s)",
             self.algo,
             self.family,
@@ -195,7 +176,7 @@ impl FitResult {
             self.sse,
             self.stop,
             self.seconds
-        )
+        ))
     }
 }
 

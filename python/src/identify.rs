@@ -3,7 +3,6 @@
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
 use mckibben::ident::ArxOrders;
 use mckibben::ident::arx::{IdentifyJson, identify as identify_one, identify_jointly};
@@ -30,27 +29,9 @@ crate::state::with_state! {
     }
 }
 
-#[pymethods]
 impl Identification {
-    /// Pickles as its document and model.
-    fn __reduce__<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyDict>,))> {
-        let restore = py.get_type::<Identification>().getattr("_from_state")?;
-        Ok((restore, (self.state(py)?,)))
-    }
-
-    /// The identification `__reduce__` pickled.
-    #[classmethod]
-    fn _from_state(
-        _class: &Bound<'_, pyo3::types::PyType>,
-        state: &Bound<'_, PyDict>,
-    ) -> PyResult<Identification> {
-        Identification::from_state(state)
-    }
-
-    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+    /// `__repr__`'s text.
+    fn repr(&self, py: Python<'_>) -> PyResult<String> {
         let d = self.document.bind(py);
         Ok(format!(
             "Identification(validation fit {:.2} %)",

@@ -50,7 +50,7 @@ def test_the_runs_are_the_commands(binary, tmp_path):
         assert run["load_kg"] == 7.0 and run["hysteresis_scale"] == 1.0
     # It pickles whole, so that a worker process can hand it back.
     back = pickle.loads(pickle.dumps(result))
-    assert back.document == result.document
+    assert back.document == result.document and repr(back) == "ControlResult(4 runs)"
     assert all(np.array_equal(a["valve"], b["valve"]) for a, b in zip(back.runs, result.runs))
     # The MPC tracks the sine far closer than the thesis' PI.
     rms = {(r["controller"], r["freq_rad_s"]): r["rms_error_mm"] for r in result.document["runs"]}

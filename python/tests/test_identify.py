@@ -41,6 +41,8 @@ def test_the_stair_identifies_as_the_command_does(binary, stair):
     assert fit == pytest.approx(result.document["continued_validation_fit_percent"], abs=1e-3)
     back = pickle.loads(pickle.dumps(result))
     assert back.document == result.document and back.model == result.model
+    validation = result.document["validation_fit_percent"]
+    assert repr(back) == f"Identification(validation fit {validation:.2f} %)"
 
 
 def test_other_orders_and_several_records(binary, stair):

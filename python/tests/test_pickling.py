@@ -38,6 +38,7 @@ def test_a_fit_comes_back_whole_from_a_worker_process(stair, tmp_path):
     with concurrent.futures.ProcessPoolExecutor(1, mp_context=context) as pool:
         there = pool.submit(mckibben.fit, stair, pop=20, gens=5, seed=4).result()
     assert isinstance(there, mckibben.FitResult) and there.model == here.model
+    assert repr(there).startswith("FitResult(de classic fit, val_fit_percent = ")
     assert there.params == here.params and there.sse == here.sse
     assert there.std_errors == here.std_errors and there.records == here.records
     assert there.search_box["names"] == here.search_box["names"]
@@ -70,3 +71,4 @@ def test_a_diagnosis_pickles_with_its_document_and_models(stair):
     back = pickle.loads(pickle.dumps(got))
     assert back.document == got.document
     assert back.model == got.model and back.baseline == got.baseline
+    assert repr(back) == repr(got) and repr(got).startswith("Diagnosis(classic + [")
