@@ -11,7 +11,7 @@ use super::common::{check_creatable, check_folder, population};
 use mckibben::control::figures;
 use mckibben::control::reference::Waveform;
 use mckibben::control::session::{
-    self, ControlPlan, DESIGN_LOAD_KG, TUNING_ALGO, TUNING_GENS, TUNING_POP,
+    self, ControlPlan, DESIGN_LOAD_KG, Outcome, TUNING_ALGO, TUNING_GENS, TUNING_POP,
 };
 use mckibben::control::sweep::{self, DesignColumns, GivenModel, Kind, Shape};
 use mckibben::control::table;
@@ -436,17 +436,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (rows, runs, Vec::new())
         }
     };
+    let outcome = Outcome {
+        prepared,
+        rows,
+        runs,
+        robust,
+    };
     // What a row measures that is not the controller at its best.
-    for w in session::warnings(&rows, &runs) {
+    for w in session::warnings(&outcome.rows, &outcome.runs) {
         errln!("mckibben: warning: {w}");
     }
     // The results are printed before the files are written: a write that
     // fails loses none of them.
     if args.json {
-        let out = session::json(&plan, &prepared, &rows, &robust);
-        outln!("{}", Versioned::new(out).to_string_pretty()?)?;
+        outln!(
+            "{}",
+            Versioned::new(outcome.json(&plan)).to_string_pretty()?
+        )?;
     } else {
-        out!("{}", table::text(&rows, &robust))?;
+        out!("{}", table::text(&outcome.rows, &outcome.robust))?;
     }
     // Only now are the files' names known (a run's controller names it):
     // none may replace a file the command read.
@@ -454,7 +462,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .into_iter()
         .filter_map(|(flag, path)| Some((flag, path.as_deref()?)))
         .collect();
-    let stems: Vec<String> = runs
+    let stems: Vec<String> = outcome
+        .runs
         .iter()
         .map(|r| figures::stem(r, plan.shape.waveform))
         .collect();
@@ -462,12 +471,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut names: Vec<String> = stems.iter().map(|s| format!("{s}.svg")).collect();
         names.push(figures::DESIGN_FIGURE.into());
         check_folder("--plot", dir, &names, &reads)?;
-        figures::save(dir, &runs, plan.shape.waveform, prepared.design.as_ref())?;
+        figures::save(
+            dir,
+            &outcome.runs,
+            plan.shape.waveform,
+            outcome.prepared.design.as_ref(),
+        )?;
     }
     if let Some(dir) = &args.csv {
         let names: Vec<String> = stems.iter().map(|s| format!("{s}.csv")).collect();
         check_folder("--csv", dir, &names, &reads)?;
-        table::write_csvs(dir, &runs, plan.shape.waveform)?;
+        table::write_csvs(dir, &outcome.runs, plan.shape.waveform)?;
     }
     Ok(())
 }

@@ -105,7 +105,7 @@ pub struct Prepared {
     pub ingredients: Ingredients,
 }
 
-/// A call's runs on the in-process twin.
+/// A call's runs, on the in-process twin or on a rig.
 #[derive(Debug)]
 pub struct Outcome {
     pub prepared: Prepared,
@@ -512,23 +512,13 @@ impl ControlPlan {
 impl Outcome {
     /// The `--json` document of `plan`'s call.
     pub fn json<'a>(&'a self, plan: &ControlPlan) -> JsonOutput<'a> {
-        json(plan, &self.prepared, &self.rows, &self.robust)
-    }
-}
-
-/// The `--json` document of `plan`'s call, its runs `rows`.
-pub fn json<'a>(
-    plan: &ControlPlan,
-    prepared: &'a Prepared,
-    rows: &'a [Row],
-    robust: &'a [RobustRow],
-) -> JsonOutput<'a> {
-    JsonOutput {
-        settings: plan.settings(),
-        design: prepared.design.as_ref().map(DesignJson::of),
-        tuned: prepared.tuned.as_ref(),
-        runs: rows,
-        robustness: robust,
+        JsonOutput {
+            settings: plan.settings(),
+            design: self.prepared.design.as_ref().map(DesignJson::of),
+            tuned: self.prepared.tuned.as_ref(),
+            runs: &self.rows,
+            robustness: &self.robust,
+        }
     }
 }
 
