@@ -2,7 +2,7 @@
 //! and the load's ringing. Each is checked against the number its
 //! derivation in docs/TWIN.md predicts, on the noise-free state.
 
-use mckibben::twin::{Rig, TrueState, TwinConfig};
+use mckibben::twin::{Rig, TrueState, TwinConfig, TwinError};
 
 /// The default twin with the named effects at scale 1.
 fn with(effects: &[&str]) -> TwinConfig {
@@ -217,4 +217,48 @@ fn creep_deepens_a_held_step_with_the_documented_time_and_recovers() {
         "the creep run does not recover to the relaxed rubber's rest"
     );
     assert!(late < 0.5 * early);
+}
+
+/// The swing is linear: it can unload the muscle past the tension that
+/// holds the load, where a real muscle would go slack and the load fly.
+/// The rig says from which sample it did (`Rig::slack_from`), and the
+/// checks and the `twin` command refuse such a run instead of writing
+/// displacements no muscle makes. At the documented scale the valve's full
+/// steps never do it, under any load the commands hang.
+#[test]
+fn a_swing_that_would_leave_the_muscle_slack_is_refused() {
+    let documented = with(&["ringing"]);
+    for load in [0.5, 2.0, 4.5, 7.0, 15.0] {
+        let mut rig = Rig::new(&documented, load, 1);
+        for volts in [10.0, 0.0, 10.0, 0.0] {
+            for _ in 0..100 {
+                rig.advance(volts);
+            }
+        }
+        assert_eq!(rig.slack_from(), None, "{load} kg");
+        Rig::check_holds(&documented, load, 1).unwrap();
+    }
+
+    let mut twenty = TwinConfig::default();
+    twenty.effects.set("ringing", 20.0).unwrap();
+    let err = Rig::check_holds(&twenty, 4.5, 1).unwrap_err();
+    assert!(matches!(err, TwinError::Slack { .. }), "{err}");
+    // The valve opens at 1 s: the swing it starts is what unloads.
+    let TwinError::Slack { t_s, .. } = err else {
+        unreachable!()
+    };
+    assert!(t_s > 1.0 && t_s < 1.5, "{t_s}");
+
+    // The command writes nothing and names the flag to change.
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ringing.csv");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_mckibben"))
+        .args(["twin", "--effect", "ringing=20", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("slack") && stderr.contains("--effect ringing"), "{stderr}");
+    assert!(!out.exists());
 }

@@ -74,6 +74,8 @@ pub struct Args {
     ///                 at 4.5 kg, 6 at 7 kg)
     ///   ringing       the load ringing on the muscle's stiffness
     ///                 (√(k/m)/2π, 6–9 Hz here), scales its excitation
+    ///                 (a scale whose swing would leave the muscle
+    ///                 slack is refused; about 2 and up on fast moves)
     #[arg(long = "effect", value_name = "NAME=VALUE", verbatim_doc_comment)]
     effects: Vec<String>,
     /// Write the CSV here (atomically); `-` writes it to standard output,

@@ -353,6 +353,14 @@ pub enum TwinError {
         t_s: f64,
         command: String,
     },
+    /// The load's ringing unloaded the muscle past the tension that holds
+    /// the load: the muscle would go slack, which the twin does not model.
+    #[error(
+        "the load's ringing leaves the muscle slack from {t_s:.3} s on (sample {k}) of \
+         `{command}`: its swing lifts the load faster than the muscle can carry it, which the \
+         twin's linear swing does not model; use a smaller --effect ringing (1 is as documented)"
+    )]
+    Slack { k: usize, t_s: f64, command: String },
     #[error("--freq {0}: expected a positive angular frequency in rad/s (thesis: 1, 2, 3)")]
     BadFrequency(f64),
     #[error(

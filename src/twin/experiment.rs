@@ -60,6 +60,17 @@ impl TwinExperiment {
 /// holds the sensors read at `t = k·dt` and the valve commands applied from
 /// that instant on (for the sine, computed from that very reading).
 pub fn run(config: &TwinConfig, load_kg: f64, seed: u64, experiment: &TwinExperiment) -> Trace {
+    run_rig(config, load_kg, seed, experiment).0
+}
+
+/// [`run`], with the sample from which the load's ringing left the muscle
+/// slack ([`Rig::slack_from`]).
+fn run_rig(
+    config: &TwinConfig,
+    load_kg: f64,
+    seed: u64,
+    experiment: &TwinExperiment,
+) -> (Trace, Option<u64>) {
     let mut rig = Rig::new(config, load_kg, seed);
     let dt = rig.dt();
     let mut rows: Vec<Sample> = Vec::new();
@@ -112,7 +123,7 @@ pub fn run(config: &TwinConfig, load_kg: f64, seed: u64, experiment: &TwinExperi
     if !reference.is_empty() {
         trace.extra.push(("reference".into(), reference));
     }
-    trace
+    (trace, rig.slack_from())
 }
 
 fn open_loop(rig: &mut Rig, command: &[f64], rows: &mut Vec<Sample>) {
@@ -250,7 +261,14 @@ impl RunSpec {
                 nyquist: nyquist_rad_s(dt),
             });
         }
-        let mut trace = run(&config, self.load_kg, self.seed, &self.experiment());
+        let (mut trace, slack_from) = run_rig(&config, self.load_kg, self.seed, &self.experiment());
+        if let Some(k) = slack_from {
+            return Err(TwinError::Slack {
+                k: k as usize,
+                t_s: k as f64 * dt,
+                command: self.command(),
+            });
+        }
         trace.source = self.command();
         let columns = [
             (trace.input_name.as_str(), trace.input.as_slice()),

@@ -92,6 +92,15 @@ impl Ringing {
         self.loss_stiffness / (k / mass).sqrt()
     }
 
+    /// How far the swing unloads the muscle (N) on the stiffness `k`
+    /// (N/m): the load above its water-set place shortens the muscle by `e`
+    /// and relaxes it by `k·e + c·ė`. Where this passes the tension that
+    /// holds the load, the muscle would go slack, which this linear swing
+    /// does not model.
+    pub fn unloading(&self, k: f64, mass: f64) -> f64 {
+        k * self.offset + self.damping(k, mass) * self.rate
+    }
+
     /// One substep of `h` seconds on the stiffness `k` (N/m) while the base
     /// (the water-set contraction) changes its velocity by `base_dv` (m/s).
     pub fn advance(&mut self, k: f64, mass: f64, base_dv: f64, h: f64) {

@@ -98,6 +98,10 @@ pub struct Rig {
     chamber_pa: f64,
     command_v: f64,
     steps: u64,
+    /// The first sample at which the load's ringing unloaded the muscle
+    /// past the tension that holds the load: from there on the muscle
+    /// would be slack, and the run is outside the twin's physics.
+    slack_from: Option<u64>,
     rng: ChaCha8Rng,
 }
 
@@ -132,7 +136,8 @@ impl Rig {
 
     /// [`Rig::check_load`], then whether the twin's physics holds `load_kg`
     /// over the valve's whole range: shut for a second, then fully open for
-    /// another, every sample finite. A load a few grams light leaves the
+    /// another, every sample finite and the muscle never slack
+    /// ([`Rig::slack_from`]). A load a few grams light leaves the
     /// integration at once; this says so before a run records rows of NaN.
     pub fn check_holds(config: &TwinConfig, load_kg: f64, seed: u64) -> Result<(), TwinError> {
         Rig::check_load(config, load_kg)?;
@@ -141,6 +146,13 @@ impl Rig {
         let full = config.valve.full_scale_v;
         for k in 1..=2 * second {
             let s = rig.step(if k <= second { 0.0 } else { full });
+            if let Some(from) = rig.slack_from() {
+                return Err(TwinError::Slack {
+                    k: from as usize,
+                    t_s: from as f64 * rig.dt(),
+                    command: format!("{load_kg} kg, the valve shut for a second, then open"),
+                });
+            }
             for (column, v) in [
                 ("displacement", s.displacement_mm),
                 ("pressure", s.pressure_mpa),
@@ -188,8 +200,16 @@ impl Rig {
             chamber_pa: config.hydraulics.drain_pa,
             command_v: 0.0,
             steps: 0,
+            slack_from: None,
             rng: ChaCha8Rng::seed_from_u64(seed),
         }
+    }
+
+    /// The first sample from which the load's ringing left the muscle
+    /// slack (its swing unloaded the muscle past the tension that holds
+    /// the load), which the twin does not model; `None` while it never has.
+    pub fn slack_from(&self) -> Option<u64> {
+        self.slack_from
     }
 
     /// The sample time (s).
@@ -311,7 +331,15 @@ impl Rig {
         }
         if let Some(ringing) = &mut self.ringing {
             let k = self.muscle.axial_stiffness(p, x);
-            ringing.advance(k, self.load.mass_kg, self.load.v - v_before, h);
+            let mass = self.load.mass_kg;
+            let base_dv = self.load.v - v_before;
+            ringing.advance(k, mass, base_dv, h);
+            // The tension that holds the load as its water-set place
+            // accelerates: m·(g + ẍ).
+            let holding = mass * (GRAVITY + base_dv / h);
+            if self.slack_from.is_none() && ringing.unloading(k, mass) > holding {
+                self.slack_from = Some(self.steps + 1);
+            }
         }
 
         let x = self.load.x;
