@@ -421,6 +421,65 @@ fn twin_serve_refuses_a_command_outside_0_to_10_volts_and_closes_the_valve() {
     );
 }
 
+/// A ringing large enough to leave the muscle slack takes the twin outside
+/// its physics: `twin serve` ends the session with an error line, as a
+/// rig's own fault would, instead of sending displacements no muscle
+/// makes. At the documented scale the same session runs to the end.
+#[test]
+fn twin_serve_ends_a_session_whose_muscle_goes_slack() {
+    use std::io::Write;
+    let session = |ringing: &str| {
+        let mut serve = Command::new(BIN)
+            .args(["twin", "serve", "--load", "4.5", "--effect", ringing])
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The valve full open for 3 s, then a STOP.
+        let mut lines = String::from("HELLO 1\n");
+        for k in 0..300 {
+            lines += &format!("U {k} 10\n");
+        }
+        lines += "STOP\n";
+        serve
+            .stdin
+            .take()
+            .unwrap()
+            .write_all(lines.as_bytes())
+            .unwrap();
+        let out = serve.wait_with_output().unwrap();
+        assert!(out.status.success());
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        (stdout, stderr)
+    };
+    let (stdout, stderr) = session("ringing=20");
+    let lines: Vec<&str> = stdout.lines().collect();
+    let end = lines
+        .iter()
+        .position(|l| l.starts_with("ERR the load's ringing left the muscle slack at sample "))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!(
+        lines[end].ends_with("; input valve closed"),
+        "{}",
+        lines[end]
+    );
+    // Measurements up to there, none after: the session is over, and the
+    // commands still coming are refused until a new HELLO.
+    assert!(
+        lines[1..end].iter().all(|l| l.starts_with("M ")),
+        "{stdout}"
+    );
+    assert!(end > 1 && end < 300, "{end}");
+    assert!(lines[end + 1..].iter().all(|l| *l == "ERR say HELLO first"));
+    assert!(stderr.contains("slack"), "{stderr}");
+
+    let (stdout, _) = session("ringing=1");
+    assert!(!stdout.contains("ERR"), "{stdout}");
+    assert_eq!(stdout.lines().filter(|l| l.starts_with("M ")).count(), 300);
+}
+
 #[test]
 fn a_rig_that_hangs_up_gives_an_error_not_a_signal() {
     for c in CONTROLLERS {

@@ -259,6 +259,9 @@ fn a_swing_that_would_leave_the_muscle_slack_is_refused() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("slack") && stderr.contains("--effect ringing"), "{stderr}");
+    assert!(
+        stderr.contains("slack") && stderr.contains("--effect ringing"),
+        "{stderr}"
+    );
     assert!(!out.exists());
 }

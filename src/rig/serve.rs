@@ -279,6 +279,12 @@ impl<'s> Session<'s> {
         loop {
             let sample = self.rig.step(self.u);
             self.k += 1;
+            // Past its physics the twin has nothing true to send: it ends
+            // the session as a rig's own fault would.
+            if let Some(why) = left_physics(&self.rig, &sample) {
+                link.send(&FromRig::Error(format!("{why}; input valve closed")).to_string())?;
+                return Ok(self.close(why));
+            }
             if self.settings.pace == Pace::RealTime {
                 std::thread::sleep(tick(self.k).saturating_duration_since(Instant::now()));
             }
@@ -298,6 +304,25 @@ impl<'s> Session<'s> {
         self.u = 0.0;
         self.report(format!("{why}; input valve closed ({} V)", self.u))
     }
+}
+
+/// Why the twin's last `sample` is outside its physics, if it is: the
+/// load's ringing has left the muscle slack, or a reading is not finite.
+fn left_physics(rig: &Rig, sample: &Sample) -> Option<String> {
+    if let Some(from) = rig.slack_from() {
+        return Some(format!(
+            "the load's ringing left the muscle slack at sample {from}, which the twin does not \
+             model (a smaller --effect ringing)"
+        ));
+    }
+    let finite = sample.pressure_mpa.is_finite() && sample.displacement_mm.is_finite();
+    (!finite).then(|| {
+        format!(
+            "the twin's readings are not finite at t = {:.3} s: it left its physics (another \
+             load, or --effect scales nearer 1)",
+            sample.t
+        )
+    })
 }
 
 #[cfg(test)]
