@@ -366,6 +366,36 @@ fn link_flags_without_a_rig_are_refused() {
     );
 }
 
+/// A run whose moves make the load's ringing leave the muscle slack is
+/// outside the twin's physics: the command says which run and stops,
+/// rather than print a row that measures the slack muscle. The same
+/// ringing passes the load check, and at 3 rad/s the run is kept.
+#[test]
+fn a_run_that_leaves_the_muscle_slack_is_an_error() {
+    // The default episode: the swing builds up over its first seconds.
+    let run = |controller: &str, freq: &str| {
+        Command::new(BIN)
+            .args(["control", "--controller", controller, "--freq", freq])
+            .args(["--effect", "ringing=4"])
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .expect("run mckibben")
+    };
+    let fast = run("mpc", "30");
+    let err = String::from_utf8_lossy(&fast.stderr);
+    assert_eq!(fast.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("mpc at 30 rad/s under 4.5 kg: the load's ringing left the muscle slack"),
+        "{err}"
+    );
+    let slow = run("pi", "3");
+    assert!(
+        slow.status.success(),
+        "{}",
+        String::from_utf8_lossy(&slow.stderr)
+    );
+}
+
 /// A load the twin cannot carry is a flag error before any run, not a
 /// panic after the runs (which lost their results): `--load` above the
 /// twin's limit, and a design load whose robustness run (× 1.3) is.
@@ -419,6 +449,12 @@ fn a_load_the_twin_cannot_carry_is_refused_before_any_run() {
         (
             &["--controller", "pi", "--effect", "creep=9"][..],
             "--load with --effect creep=9: a 4.5 kg load stretches the muscle at rest",
+        ),
+        // A swing that would leave the muscle slack on the valve's full
+        // step is outside the twin's physics, whatever the controller does.
+        (
+            &["--controller", "pi", "--effect", "ringing=5"][..],
+            "--load with --effect ringing=5: the load's ringing leaves the muscle slack from",
         ),
         // A logger's own names: the flag that reads them is the fix.
         (

@@ -73,6 +73,9 @@ def test_a_twin_run_is_refused_in_the_arguments_words():
         mckibben.twin(load=0)
     with pytest.raises(ValueError, match=r"^`freq=400`: the twin samples every 0.01 s"):
         mckibben.twin("sine", freq=400)
+    # A swing that would leave the muscle slack is outside the twin's physics.
+    with pytest.raises(ValueError, match=r"^the load's ringing leaves the muscle slack from 4.110 s on"):
+        mckibben.twin(effects={"ringing": 20})
     with pytest.raises(TypeError, match="^effects must be a dict of scales by name"):
         mckibben.twin(effects=["friction=0"])
     with pytest.raises(TypeError, match=r'^effects\["friction"\] must be a number'):

@@ -831,6 +831,17 @@ pub fn run_on_twin(
         controller.as_mut(),
         &shape.episode(spec.freq_rad_s),
     );
+    if let Some(from) = rig.slack_from() {
+        anyhow::bail!(
+            "{} at {} rad/s under {} kg: the load's ringing left the muscle slack from {:.2} s \
+             on, which the twin does not model; its row would measure that, not the \
+             controller (a smaller --effect ringing)",
+            spec.kind.label(),
+            spec.freq_rad_s,
+            spec.load_kg,
+            from as f64 * rig.dt()
+        );
+    }
     Ok(Run {
         spec: *spec,
         result,

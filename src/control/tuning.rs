@@ -67,11 +67,13 @@ pub fn pi_cost(gains: PiGains, episodes: &TuningEpisodes, config: &TwinConfig) -
             let mut rig = Rig::new(config, load, episodes.seed);
             let mut pi = Pi::new(gains, ValveLimits::default(), rig.dt(), "pi");
             let m = run_episode(&mut rig, &mut pi, &ep).metrics;
-            let cost = if m.diverged || m.constraint_violations > 0 || !m.rms_error_mm.is_finite() {
-                FAILED_COST
-            } else {
-                m.rms_error_mm
-            };
+            // Gains that leave the muscle slack (a large --effect ringing)
+            // run outside the twin's physics: no cost to trust.
+            let failed = m.diverged
+                || m.constraint_violations > 0
+                || !m.rms_error_mm.is_finite()
+                || rig.slack_from().is_some();
+            let cost = if failed { FAILED_COST } else { m.rms_error_mm };
             total += cost;
             count += 1;
         }

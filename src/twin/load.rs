@@ -101,6 +101,12 @@ impl Ringing {
         k * self.offset + self.damping(k, mass) * self.rate
     }
 
+    /// Whether the load swings at all: at scale 0 it never leaves its
+    /// water-set place.
+    pub fn swings(&self) -> bool {
+        self.scale != 0.0
+    }
+
     /// One substep of `h` seconds on the stiffness `k` (N/m) while the base
     /// (the water-set contraction) changes its velocity by `base_dv` (m/s).
     pub fn advance(&mut self, k: f64, mass: f64, base_dv: f64, h: f64) {

@@ -337,7 +337,8 @@ impl Rig {
             // The tension that holds the load as its water-set place
             // accelerates: m·(g + ẍ).
             let holding = mass * (GRAVITY + base_dv / h);
-            if self.slack_from.is_none() && ringing.unloading(k, mass) > holding {
+            if ringing.swings() && self.slack_from.is_none() && ringing.unloading(k, mass) > holding
+            {
                 self.slack_from = Some(self.steps + 1);
             }
         }
