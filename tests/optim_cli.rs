@@ -1602,6 +1602,25 @@ fn the_report_says_whether_its_tries_agree_or_that_one_cannot_tell() {
         "{mixed}"
     );
     assert!(mixed.contains("of 12 tries ended within"), "{mixed}");
+    // On the shipped stair three generations leave the tries in several
+    // basins: the lowest other one is set beside the fit, its SSE the
+    // first other basin's, its run apart from the fit's over the
+    // validation half.
+    let stair = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+    let args = ["fit", stair, "--gens", "3", "--backend", "cpu", "--pop", "3000"];
+    let doc = json(&mckibben(&[&args[..], &["--json"]].concat(), dir.path()));
+    let mixed = String::from_utf8_lossy(&mckibben(&args, dir.path()).stdout).into_owned();
+    let agreement = &doc["agreement"];
+    assert!(agreement["agreeing"].as_u64().unwrap() < 12, "{agreement}");
+    let runner_up = &agreement["runner_up"];
+    assert_eq!(runner_up["sse"], agreement["other_basins"][0], "{agreement}");
+    let apart = runner_up["apart_rmse"].as_f64().unwrap();
+    assert!(apart > 0.0, "{runner_up}");
+    assert!(
+        mixed.contains("runner-up            estimation SSE ")
+            && mixed.contains("from this one over the validation half"),
+        "{mixed}"
+    );
     let thesis = text(&["--thesis-flow", "--pop", "30"]);
     assert!(!thesis.contains("tries:"), "{thesis}");
 }

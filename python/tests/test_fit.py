@@ -157,7 +157,7 @@ def test_a_larger_population_runs_tries_as_the_command(stair, cli, tmp_path):
     assert (result.tries, result.try_population) == (expected["tries"], expected["try_population"]) == (12, 1000)
     assert result.try_sizes == expected["try_sizes"] == [{"population": 1000, "tries": 2}, {"population": 100, "tries": 10}]
     assert result.agreement == expected["agreement"]
-    assert set(result.agreement) == {"tries", "agreeing", "other_basins", "diverged", "threshold"}
+    assert set(result.agreement) == {"tries", "agreeing", "other_basins", "diverged", "threshold", "runner_up"}
     assert 1 <= result.agreement["agreeing"] <= 12 == result.agreement["tries"]
     assert [bits(v) for v in result.params.values()] == [bits(v) for v in expected["params"].values()]
     one = mckibben.fit(stair, pop=1000, gens=4, seed=3)

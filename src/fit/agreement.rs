@@ -32,6 +32,24 @@ pub struct Agreement {
     /// The threshold: the estimation SSE a model may have and still be
     /// indistinguishable from the best.
     pub threshold: f64,
+    /// The best model of the lowest other basin, against the fit's own
+    /// ([`Agreement::with_runner_up`]); `None` where every try agreed.
+    pub runner_up: Option<RunnerUp>,
+}
+
+/// The lowest other basin's best model: how close it scored on the
+/// estimation half, and how far it runs from the fit's model where neither
+/// was fitted. Two basins whose estimation SSEs lie close while their runs
+/// part widely are a choice the estimation half barely makes.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RunnerUp {
+    /// Its estimation SSE.
+    pub sse: f64,
+    /// The RMS of the difference between its free run and the fit's over
+    /// the validation halves (output units), from the records' inputs
+    /// alone: no measurement there is read. `+∞` where its run diverges.
+    #[serde(with = "crate::optim::inf_serde::one_f64")]
+    pub apart_rmse: f64,
 }
 
 /// At most this share of tries agreeing is a fit to run again with more
@@ -60,6 +78,7 @@ impl Agreement {
                 other_basins: Vec::new(),
                 diverged,
                 threshold: f64::INFINITY,
+                runner_up: None,
             });
         };
         let threshold = indistinguishable_up_to(best, samples);
@@ -77,7 +96,29 @@ impl Agreement {
             other_basins,
             diverged,
             threshold,
+            runner_up: None,
         })
+    }
+
+    /// With [`Agreement::runner_up`]: of the tries `ends` outside the
+    /// threshold, the lowest one's model, run beside the fit's `best` by
+    /// `apart` (the RMS of the two free runs' difference where neither was
+    /// fitted).
+    pub fn with_runner_up(
+        mut self,
+        ends: &[TryEnd],
+        best: &[f64],
+        apart: impl Fn(&[f64], &[f64]) -> f64,
+    ) -> Agreement {
+        self.runner_up = ends
+            .iter()
+            .filter(|e| !e.params.is_empty() && e.sse.is_finite() && e.sse > self.threshold)
+            .min_by(|a, b| a.sse.total_cmp(&b.sse))
+            .map(|e| RunnerUp {
+                sse: e.sse,
+                apart_rmse: apart(&e.params, best),
+            });
+        self
     }
 
     /// Whether at most [`UNSURE_SHARE`] of the tries agree: the best basin
@@ -166,5 +207,40 @@ mod tests {
             Agreement::of(&[end(5.0)], 1000).is_none(),
             "one try agrees with nothing"
         );
+    }
+
+    /// The runner-up is the lowest try outside the threshold, whatever the
+    /// order the tries ran in, and its model goes to `apart` beside the
+    /// fit's; where every try agreed there is none.
+    #[test]
+    fn the_runner_up_is_the_lowest_try_outside_the_threshold() {
+        let tagged = |sse: f64, tag: f64| TryEnd {
+            params: vec![tag],
+            ..end(sse)
+        };
+        let ends = [
+            tagged(12.0, 1.0),
+            tagged(10.0, 2.0),
+            tagged(10.5, 3.0),
+            tagged(10.02, 4.0),
+            end(f64::INFINITY),
+        ];
+        let best = [2.0];
+        let a = Agreement::of(&ends, 1000)
+            .unwrap()
+            .with_runner_up(&ends, &best, |other, fit| 10.0 * other[0] + fit[0]);
+        assert_eq!(
+            a.runner_up,
+            Some(RunnerUp {
+                sse: 10.5,
+                apart_rmse: 32.0
+            })
+        );
+        let all = [tagged(10.0, 2.0), tagged(10.02, 4.0)];
+        let none =
+            Agreement::of(&all, 1000)
+                .unwrap()
+                .with_runner_up(&all, &best, |_, _| unreachable!());
+        assert_eq!(none.runner_up, None);
     }
 }

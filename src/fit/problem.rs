@@ -767,6 +767,12 @@ impl FitProblem {
         self.records.validate(&self.model, theta)
     }
 
+    /// [`Records::apart_on_validation`]: how far the fits `a` and `b` part
+    /// over the validation halves, on the inputs alone.
+    pub fn apart_on_validation(&self, a: &[f64], b: &[f64]) -> f64 {
+        self.records.apart_on_validation(&self.model, a, b)
+    }
+
     /// The fitted model as a model file holds it: in the first record's
     /// estimation coordinates, with its effect constants.
     pub fn fitted_model(&self, params: &[f64]) -> Model {

@@ -155,6 +155,32 @@ impl Records {
             .reduce(f64::max)
     }
 
+    /// The RMS of the difference between `model`'s free runs at `a` and
+    /// at `b` over each record's validation half, the records pooled
+    /// (output units): how far two fits part where neither was fitted, read
+    /// from the records' inputs alone. `+∞` where either run is not finite
+    /// there.
+    pub fn apart_on_validation(&self, model: &ModelDescription, a: &[f64], b: &[f64]) -> f64 {
+        let halves = self.validation_halves();
+        let (runs_a, runs_b) = (
+            self.runs_on(model, a, &halves),
+            self.runs_on(model, b, &halves),
+        );
+        let (mut sum, mut n) = (0.0, 0usize);
+        for ((_, xa), (_, xb)) in runs_a.iter().zip(&runs_b) {
+            for (p, q) in xa.iter().zip(xb) {
+                sum += (p - q).powi(2);
+                n += 1;
+            }
+        }
+        let rms = (sum / n.max(1) as f64).sqrt();
+        if n > 0 && rms.is_finite() {
+            rms
+        } else {
+            f64::INFINITY
+        }
+    }
+
     /// Each record's validation half, as [`Records::score_on`] takes it.
     fn validation_halves(&self) -> Vec<Vec<Range<usize>>> {
         self.whole
@@ -379,6 +405,48 @@ mod tests {
             "{v:?}"
         );
         assert_eq!(both.validate(&model, &[]).rmse, f64::INFINITY);
+    }
+
+    /// Two fits part by the RMS of their free runs' difference over the
+    /// validation halves, pooled over the records: none for a fit beside
+    /// itself, and what the runs themselves give for two others; a run
+    /// that diverges parts infinitely.
+    #[test]
+    fn fits_part_by_their_runs_over_the_validation_halves() {
+        let (a, b) = (
+            Synthetic::new(Family::Classic, 600, 0.05, 1),
+            Synthetic::new(Family::Classic, 800, 0.05, 2),
+        );
+        let both = Records::of(&[a.trace.clone(), b.trace.clone()], None).unwrap();
+        let model = ModelDescription::new(Family::Classic, Vec::new(), 2);
+        assert_eq!(both.apart_on_validation(&model, &a.truth, &a.truth), 0.0);
+        let mut other = a.truth.clone();
+        other[6] *= 1.1;
+        let (mut sum, mut n) = (0.0, 0);
+        for (i, whole) in both.whole.iter().enumerate() {
+            let run = |theta: &[f64]| {
+                let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
+                model.simulate(&t, i, &both.ctx[i], whole)
+            };
+            let (p, q) = (run(&a.truth), run(&other));
+            for k in both.val_start[i]..whole.len() {
+                sum += (p[k] as f64 - q[k] as f64).powi(2);
+                n += 1;
+            }
+        }
+        let expected = (sum / n as f64).sqrt();
+        let apart = both.apart_on_validation(&model, &other, &a.truth);
+        assert!(
+            expected > 0.0 && (apart - expected).abs() < 1e-12 * expected,
+            "{apart} {expected}"
+        );
+        let mut runaway = a.truth.clone();
+        runaway[0] = 1e6;
+        runaway[3] = -runaway[2] - 10.0;
+        assert_eq!(
+            both.apart_on_validation(&model, &runaway, &a.truth),
+            f64::INFINITY
+        );
     }
 
     /// An output far from zero for its swing gets the note; the shipped

@@ -645,6 +645,21 @@ impl FitReport {
         }
         if let Some(a) = &self.agreement {
             line(format!("  tries: {}", a.to_text()));
+            if let Some(r) = a.runner_up {
+                line(format!(
+                    "  runner-up            estimation SSE {} ({:+.1} % of the best); its model \
+                     runs {} from this one over the validation half (read from the input alone; \
+                     this model's own RMSE there: {})",
+                    significant(r.sse, 6),
+                    100.0 * (r.sse / self.sse.unwrap_or(f64::NAN) - 1.0),
+                    if r.apart_rmse.is_finite() {
+                        format!("{} RMS", rmse(Some(r.apart_rmse)))
+                    } else {
+                        "away: its run diverges".to_string()
+                    },
+                    rmse(self.val_rmse)
+                ));
+            }
         } else if self.tries == 1 && self.flow == Flow::Joint {
             // The default population runs one try: say what it cannot tell.
             line(format!(

@@ -477,7 +477,12 @@ impl FitRun {
     ) -> (Outcome, Vec<Widening>) {
         outcome.stop = stop;
         outcome.checkpoint_error = checkpoint_error;
-        self.agreement = Agreement::of(&outcome.tries, self.problem.est_samples());
+        let problem = &self.problem;
+        self.agreement = Agreement::of(&outcome.tries, problem.est_samples()).map(|a| {
+            a.with_runner_up(&outcome.tries, &outcome.params, |other, best| {
+                problem.apart_on_validation(other, best)
+            })
+        });
         (outcome, widened)
     }
 }
