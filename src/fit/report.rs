@@ -743,6 +743,24 @@ impl FitReport {
             })
     }
 
+    /// [`Agreement::advice`], with how far the runner-up's model runs from
+    /// the fit's beside the fit's own validation error: a larger population
+    /// may find a lower SSE, and this says how much the basins already
+    /// found differ in what they predict.
+    fn tries_advice(&self) -> Option<String> {
+        let a = self.agreement.as_ref()?;
+        let advice = a.advice()?;
+        let share = match (a.runner_up, self.val_rmse) {
+            (Some(r), Some(own)) if r.apart_rmse.is_finite() && own > 0.0 => r.apart_rmse / own,
+            _ => return Some(advice),
+        };
+        Some(format!(
+            "{advice}; the runner-up basin's model strays from this one over the validation \
+             half by {:.0} % of this model's own error there",
+            100.0 * share
+        ))
+    }
+
     /// What the fit says of itself once it has run, in the order `fit`
     /// prints it: the box ([`FitReport::edge_notes`]), tries that agree
     /// too little, refining rounds cut short, parameters the estimation
@@ -755,7 +773,7 @@ impl FitReport {
             .map(|(level, text)| Note { level, text })
             .collect();
         let advice = [
-            self.agreement.as_ref().and_then(|a| a.advice()),
+            self.tries_advice(),
             self.refining.and_then(|r| r.advice(self.tries)),
             self.undetermined(),
         ];
