@@ -525,6 +525,59 @@ fn an_effect_outside_the_catalogue_is_not_explained_rather_than_misnamed() {
     }
 }
 
+/// `--min-pass N` turns a self-test into a guard: the report comes out
+/// either way, and the exit status is 1 where fewer than N cases passed
+/// (here the four controls, which pass). Without it the self-test exits 0.
+#[test]
+fn a_self_test_with_min_pass_fails_when_too_few_cases_pass() {
+    let run = |extra: &[&str]| {
+        bin()
+            .args(["diagnose", "--self-test", "--cases", "control"])
+            .args([
+                "--seeds",
+                "1",
+                "--generations",
+                "20",
+                "--scratch-seeds",
+                "0",
+            ])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let enough = run(&["--min-pass", "4"]);
+    let stdout = String::from_utf8_lossy(&enough.stdout);
+    assert!(
+        enough.status.success(),
+        "{}",
+        String::from_utf8_lossy(&enough.stderr)
+    );
+    assert!(stdout.contains("4 of 4 cases pass"), "{stdout}");
+    let short = run(&["--min-pass", "5"]);
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&short.stdout),
+        String::from_utf8_lossy(&short.stderr),
+    );
+    assert_eq!(short.status.code(), Some(1), "{stderr}");
+    assert!(
+        stdout.contains("4 of 4 cases pass"),
+        "the report is kept: {stdout}"
+    );
+    assert!(
+        stderr.contains(
+            "--min-pass 5: 4 of 4 cases passed (fewer cases ran than must pass: check --cases)"
+        ),
+        "{stderr}"
+    );
+    // Only with a self-test: a diagnosis has no cases to count.
+    let err = bin()
+        .args(["diagnose", "--min-pass", "1"])
+        .output()
+        .unwrap();
+    assert_eq!(err.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&err.stderr).contains("--self-test"));
+}
+
 /// With no effect tried (`--max-effects 0`) the verdict says nothing of
 /// the catalogue, in the JSON as in the text: the shipped stair's baseline
 /// leaves a gap large enough that a script reading `not-explained` there

@@ -195,6 +195,13 @@ pub struct Args {
         requires = "self_test"
     )]
     cases: Vec<String>,
+    /// With --self-test: exit with status 1 after the report when fewer
+    /// than N of the cases run pass, for a script or CI job that guards
+    /// the diagnosis (the report is printed either way). Without it a
+    /// self-test exits 0 whatever its cases did: some fail by design
+    /// (docs/DIAGNOSIS.md, "Measured results").
+    #[arg(long, value_name = "N", requires = "self_test")]
+    min_pass: Option<usize>,
 }
 
 impl Args {
@@ -297,6 +304,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
                     &mut progress,
                 )?;
                 show(args.json, run.json(), run.to_text())?;
+                enough_passed(args.min_pass, run.passed(), run.outcomes.len())?;
             }
             SelfTest::Independent => {
                 let run = selftest_run::independent(
@@ -308,6 +316,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
                     &mut progress,
                 )?;
                 show(args.json, run.json(), run.to_text())?;
+                enough_passed(args.min_pass, run.passed(), run.outcomes.len())?;
             }
         }
         return Ok(());
@@ -422,6 +431,22 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `--min-pass`'s check, once the report is out: at least `min` of the
+/// `total` cases run passed.
+fn enough_passed(min: Option<usize>, passed: usize, total: usize) -> anyhow::Result<()> {
+    match min {
+        Some(min) if passed < min => anyhow::bail!(
+            "--min-pass {min}: {passed} of {total} cases passed{}",
+            if min > total {
+                " (fewer cases ran than must pass: check --cases)"
+            } else {
+                ""
+            }
+        ),
+        _ => Ok(()),
+    }
+}
+
 /// A self-test's report: its `--json` document, else its text.
 fn show(json: bool, document: impl serde::Serialize, text: String) -> anyhow::Result<()> {
     if json {
@@ -430,4 +455,22 @@ fn show(json: bool, document: impl serde::Serialize, text: String) -> anyhow::Re
         out!("{text}")?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::enough_passed;
+
+    /// `--min-pass` fails only short of its count, and says when fewer
+    /// cases ran than it asks to pass (a `--cases` filter), since no run
+    /// could meet it then.
+    #[test]
+    fn min_pass_fails_only_short_of_its_count() {
+        assert!(enough_passed(None, 0, 91).is_ok());
+        assert!(enough_passed(Some(87), 87, 91).is_ok());
+        let short = enough_passed(Some(88), 87, 91).unwrap_err().to_string();
+        assert_eq!(short, "--min-pass 88: 87 of 91 cases passed");
+        let filtered = enough_passed(Some(5), 4, 4).unwrap_err().to_string();
+        assert!(filtered.ends_with("(fewer cases ran than must pass: check --cases)"));
+    }
 }
