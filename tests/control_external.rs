@@ -6,6 +6,8 @@
 //! (The deadlines here are generous so that a loaded machine cannot make a
 //! measurement miss one by accident; the faults are injected by the rig.)
 
+mod common;
+
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Output, Stdio};
 
@@ -394,6 +396,45 @@ fn a_run_that_leaves_the_muscle_slack_is_an_error() {
         "{}",
         String::from_utf8_lossy(&slow.stderr)
     );
+}
+
+/// Ctrl-C stops the runs on the twin before the next one: nothing is
+/// printed or written, and the command exits with 130, as a program Ctrl-C
+/// killed does.
+#[cfg(unix)]
+#[test]
+fn ctrl_c_stops_the_runs_on_the_twin_and_exits_as_interrupted() {
+    let dir = tempfile::tempdir().unwrap();
+    // The first run's line comes once the handler is in place.
+    let out = common::interrupt_once(
+        Command::new(BIN)
+            .args([
+                "control",
+                "--controller",
+                "pi",
+                "--freq",
+                "1,2,3",
+                "--load",
+                "4.5,7",
+            ])
+            .args(["--csv", "runs"])
+            .current_dir(dir.path()),
+        |line| line.starts_with("[1/6] pi at 1 rad/s"),
+        std::time::Duration::from_millis(100),
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(
+        err.contains("mckibben: the control runs were interrupted before their table"),
+        "{err}"
+    );
+    assert!(!err.contains("[6/6]"), "{err}");
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(!dir.path().join("runs").exists());
 }
 
 /// A load the twin cannot carry is a flag error before any run, not a

@@ -16,6 +16,7 @@ use mckibben::report::json::Versioned;
 
 use crate::args::{names, path, real};
 use crate::convert::{given, in_python_terms, to_python, value_error};
+use crate::interrupt::interruptible;
 use crate::model::{Model, model_arg};
 use crate::named;
 use crate::twin::effect_settings;
@@ -142,6 +143,7 @@ pub fn control<'py>(
             .transpose()?
             .unwrap_or_default(),
         seed,
+        stop: Default::default(),
     };
     let warn = py.import("warnings")?;
     let say = |text: &str| {
@@ -155,7 +157,9 @@ pub fn control<'py>(
     if plan.designs() {
         plan.model = model.map(|m| given_model(m, &note)).transpose()?;
     }
-    let outcome = py.detach(|| plan.on_twin(&|_| (), &note));
+    // Ctrl-C stops the call between two runs, or in the tuning between
+    // two generations, and raises KeyboardInterrupt.
+    let outcome = interruptible(py, &plan.stop, || plan.on_twin(&|_| (), &note))?;
     // The notes as the command prints them, before the run's error too.
     for text in notes.into_inner().expect("notes") {
         say(&text)?;

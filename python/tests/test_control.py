@@ -2,8 +2,12 @@
 
 import csv
 import json
+import os
 import pickle
+import signal
 import subprocess
+import threading
+import time
 import warnings
 
 import numpy as np
@@ -160,3 +164,17 @@ def test_a_model_in_kpa_is_read_in_mpa():
     design = result.document["design"]["model"]["displacement"]
     assert design["params"][-3] == pytest.approx(model.params["b"] * 1000, rel=1e-12)
 
+
+
+def test_ctrl_c_stops_the_tuning_and_raises(sigint_raises):
+    # The PID's tuning runs for minutes; Ctrl-C stops it after the current
+    # generation, with nothing returned.
+    timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
+    started = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            mckibben.control("pi-tuned", freq=3, load=4.5)
+    finally:
+        timer.cancel()
+    assert time.monotonic() - started < 10

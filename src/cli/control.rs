@@ -16,6 +16,7 @@ use mckibben::control::session::{
 use mckibben::control::sweep::{self, DesignColumns, GivenModel, Kind, Shape};
 use mckibben::control::table;
 use mckibben::control::{MpcSettings, PiGains};
+use mckibben::optim::stop::StopFlag;
 use mckibben::report::json::Versioned;
 use mckibben::rig::Limits;
 use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
@@ -40,7 +41,9 @@ use mckibben::rig::control_runs::{self, PlantSpec, RigRunSettings};
 /// outside the rig's ranges, or a displacement jump faster than
 /// --max-speed, is implausible: held like a missing one and never shown to
 /// the controller; --max-implausible in a row end the run, valve closed,
-/// and so does Ctrl-C.
+/// and so does Ctrl-C. On the twin, Ctrl-C stops before the next run (in
+/// the PID's tuning, after the current generation): nothing is printed or
+/// written, and the command exits with status 130.
 ///
 /// Examples:
 ///   mckibben control --controller pi,mpc --freq 3 --load 4.5,7 --plot figs/
@@ -287,6 +290,7 @@ fn plan_of(args: &Args, model: Option<GivenModel>) -> anyhow::Result<ControlPlan
         },
         effects: args.effects.clone(),
         seed: args.seed,
+        stop: StopFlag::default(),
     })
 }
 
@@ -405,6 +409,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let note = |s: String| errln!("mckibben: note: {s}");
     let on_twin = matches!(plant, PlantSpec::Twin);
+    if on_twin {
+        let stop = plan.stop.clone();
+        // One handler a process (a rig's closes its valve instead):
+        // failing to install it only means that Ctrl-C kills the runs
+        // instead of stopping them between two.
+        let _ = ctrlc::set_handler(move || stop.raise());
+    }
     let prepared = plan.prepare(&config, on_twin, &say, &note)?;
     let (rows, runs, robust) = match plant {
         PlantSpec::Twin => plan.run_on_twin(&prepared, &config, &say)?,

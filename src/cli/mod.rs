@@ -98,14 +98,16 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-/// Whether `err` is a run stopped by Ctrl-C (a fit, a diagnosis, a run on a
-/// rig): the command then exits with status 130, as a program that SIGINT
-/// ended does, so that a shell script running it stops too.
+/// Whether `err` is a run stopped by Ctrl-C (a fit, a diagnosis, control
+/// runs on the twin or a rig): the command then exits with status 130, as
+/// a program that SIGINT ended does, so that a shell script running it
+/// stops too.
 pub fn interrupted(err: &anyhow::Error) -> bool {
     use mckibben::rig::RigError;
     err.chain().any(|cause| {
         cause.is::<fit::Interrupted>()
             || cause.is::<mckibben::diagnose::Interrupted>()
+            || cause.is::<mckibben::control::session::Interrupted>()
             || matches!(
                 cause.downcast_ref::<RigError>(),
                 Some(RigError::Interrupted { .. })

@@ -15,6 +15,7 @@ pub mod controller;
 pub mod design;
 pub mod feedforward;
 pub mod figures;
+pub mod interrupt;
 pub mod limits;
 pub mod metrics;
 pub mod model;

@@ -8,6 +8,8 @@
 //! Python binding turns into its keyword.
 
 use super::closed_loop::Episode;
+pub use super::interrupt::Interrupted;
+use super::interrupt::go_on;
 use super::limits::ValveLimits;
 use super::mpc::MpcSettings;
 use super::pi::PiGains;
@@ -20,6 +22,7 @@ use super::tuning::{self, TunedGains, TuningRun};
 use crate::data::signals::nyquist_rad_s;
 use crate::data::{same_step, tidy_step};
 use crate::names::given_once;
+use crate::optim::stop::StopFlag;
 use crate::twin::{MAX_LOAD_KG, Rig, TwinConfig};
 
 /// The load (kg) the model is identified at on the twin unless told
@@ -67,6 +70,10 @@ pub struct ControlPlan {
     /// The twin's sensor-noise seed (the design record's; its validation
     /// record's is seed + 1) and the tuning's.
     pub seed: u64,
+    /// Raised (Ctrl-C, Python's `KeyboardInterrupt`): the call stops after
+    /// the current run on the twin or the tuning's current generation,
+    /// with [`Interrupted`].
+    pub stop: StopFlag,
 }
 
 impl Default for ControlPlan {
@@ -91,6 +98,7 @@ impl Default for ControlPlan {
             shape: Shape::thesis(),
             effects: Vec::new(),
             seed: 1,
+            stop: StopFlag::default(),
         }
     }
 }
@@ -425,6 +433,7 @@ impl ControlPlan {
                 self.check_step(d.model.displacement.dt, config)?;
             }
             say(d.summary());
+            go_on(&self.stop)?;
             Some(d)
         } else {
             None
@@ -435,7 +444,14 @@ impl ControlPlan {
             gens: self.gens,
             seed: self.seed,
         };
-        let tuned = tuning::gains_for(&self.kinds, self.tuned_gains, &tuning_run, config, say)?;
+        let tuned = tuning::gains_for(
+            &self.kinds,
+            self.tuned_gains,
+            &tuning_run,
+            config,
+            &self.stop,
+            say,
+        )?;
         let ingredients = Ingredients {
             model: design.as_ref().map(|d| d.model.clone()),
             gains: tuned.as_ref().map(|t| t.gains),
@@ -468,6 +484,7 @@ impl ControlPlan {
             config,
             self.seed,
             &self.shape,
+            &self.stop,
             say,
         )?;
         let robust = match self.robustness {
@@ -479,6 +496,7 @@ impl ControlPlan {
                 config,
                 self.seed,
                 &self.shape,
+                &self.stop,
                 say,
             )?,
             false => Vec::new(),

@@ -11,6 +11,7 @@ use serde::Serialize;
 use super::chain::EffectUse;
 use super::design::PredictionReport;
 use super::figures;
+use super::interrupt::go_on;
 use super::model::ControlModel;
 use super::mpc::MpcSettings;
 use super::reference::Waveform;
@@ -19,6 +20,7 @@ use super::tuning::TunedGains;
 use super::validation::LoopShape;
 use crate::data::Trace;
 use crate::data::csv::write_log_with_comments;
+use crate::optim::stop::StopFlag;
 use crate::twin::TwinConfig;
 
 /// One run.
@@ -98,7 +100,8 @@ impl Row {
 
 /// The runs of `kinds` over `freqs` × `loads` and the hysteresis `scales`
 /// ([`sweep::plan`]), each on a fresh in-process twin, with their rows;
-/// `progress` hears of each run before it starts.
+/// `progress` hears of each run before it starts, and a raised `stop` ends
+/// the call before the next run ([`super::interrupt::Interrupted`]).
 #[allow(clippy::too_many_arguments)]
 pub fn on_twin(
     kinds: &[Kind],
@@ -109,12 +112,14 @@ pub fn on_twin(
     config: &TwinConfig,
     seed: u64,
     shape: &Shape,
+    stop: &StopFlag,
     progress: &dyn Fn(String),
 ) -> anyhow::Result<(Vec<Row>, Vec<Run>)> {
     let specs = sweep::plan(kinds, freqs, loads, scales);
     let mut rows = Vec::new();
     let mut runs = Vec::new();
     for (i, spec) in specs.iter().enumerate() {
+        go_on(stop)?;
         progress(format!(
             "[{}/{}] {} at {} rad/s, {} kg",
             i + 1,
@@ -145,7 +150,8 @@ pub struct RobustRow {
 }
 
 /// The robustness runs ([`sweep::robustness_specs`]) of every model-based
-/// kind in `kinds` at every frequency, on the in-process twin.
+/// kind in `kinds` at every frequency, on the in-process twin, until
+/// `stop` is raised.
 #[allow(clippy::too_many_arguments)]
 pub fn robustness(
     kinds: &[Kind],
@@ -155,6 +161,7 @@ pub fn robustness(
     config: &TwinConfig,
     seed: u64,
     shape: &Shape,
+    stop: &StopFlag,
     progress: &dyn Fn(String),
 ) -> anyhow::Result<Vec<RobustRow>> {
     let mut out = Vec::new();
@@ -162,6 +169,7 @@ pub fn robustness(
         for &freq in freqs {
             let mut nominal = f64::NAN;
             for (name, spec) in sweep::robustness_specs(kind, freq, design_load) {
+                go_on(stop)?;
                 progress(format!(
                     "robustness: {} {name} at {freq} rad/s",
                     kind.label()

@@ -7,12 +7,14 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::closed_loop::{Episode, run_episode};
+use super::interrupt::go_on;
 use super::limits::ValveLimits;
 use super::pi::{Pi, PiGains};
 use super::sweep::Kind;
 use crate::model::Measure;
 use crate::names::UnknownName;
 use crate::optim::engine::{Engine, Objective, Plan, Space, StopRules};
+use crate::optim::stop::StopFlag;
 use crate::optim::{Algorithm, Bounds};
 use crate::search::{Params, Rows};
 use crate::twin::{Rig, TwinConfig};
@@ -174,6 +176,7 @@ pub fn tune_pi(
     seed: u64,
     episodes: &TuningEpisodes,
     config: &TwinConfig,
+    stop: &StopFlag,
 ) -> anyhow::Result<Tuned> {
     let algorithm: Algorithm = algo
         .parse()
@@ -190,7 +193,9 @@ pub fn tune_pi(
     let plan = Plan::search(algorithm.default_settings(), pop, gens);
     let mut engine = Engine::new(plan, space, seed, StopRules::default())?;
     let mut objective = GainObjective { episodes, config };
-    let outcome = engine.run(&mut objective, &mut [], None, None)?;
+    let outcome = engine.run(&mut objective, &mut [], Some(stop.as_atomic()), None)?;
+    // Gains from a tuning cut short are not the tuning's: nothing to run.
+    go_on(stop)?;
     anyhow::ensure!(
         !outcome.params.is_empty(),
         "tuning scored no candidate with a finite cost"
@@ -247,6 +252,7 @@ pub fn gains_for(
     given: Option<PiGains>,
     run: &TuningRun,
     config: &TwinConfig,
+    stop: &StopFlag,
     progress: &dyn Fn(String),
 ) -> anyhow::Result<Option<TunedGains>> {
     if !kinds.iter().any(|k| k.needs_gains()) {
@@ -268,7 +274,9 @@ pub fn gains_for(
         run.algo,
         episodes.freqs_rad_s.len() * episodes.loads_kg.len()
     ));
-    let t = tune_pi(&run.algo, run.pop, run.gens, run.seed, &episodes, config)?;
+    let t = tune_pi(
+        &run.algo, run.pop, run.gens, run.seed, &episodes, config, stop,
+    )?;
     let edges = gains_on_edges(&t.gains);
     progress(format!(
         "tuned PID ({:.0} s): kp {:.5} ki {:.5} kd {:.5}, mean RMS {:.3} mm (thesis gains {:.3} mm); on the box's edges: {}",

@@ -1,30 +1,11 @@
 //! What every search on a fitting problem shares: the evaluator that
 //! scores its populations and the flag that stops them.
 
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use crate::eval::Evaluator;
 
-/// A flag that stops every search on a problem after its current
-/// generation or polish iteration (Ctrl-C, Python's `KeyboardInterrupt`).
-#[derive(Debug, Clone, Default)]
-pub struct StopFlag(Arc<AtomicBool>);
-
-impl StopFlag {
-    pub fn raise(&self) {
-        self.0.store(true, Ordering::SeqCst);
-    }
-
-    pub fn raised(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
-    }
-
-    /// The flag as the engine reads it between generations.
-    pub(crate) fn as_atomic(&self) -> &AtomicBool {
-        &self.0
-    }
-}
+pub use crate::optim::stop::StopFlag;
 
 /// The evaluator a problem scores populations on, shared by its clones: one
 /// that forks ([`Evaluator::fork`]: the CPU path), of which every search

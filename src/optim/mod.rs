@@ -25,6 +25,7 @@ pub mod mfa;
 pub mod normal;
 pub mod pso;
 pub mod stage;
+pub mod stop;
 pub mod streams;
 
 use std::cmp::Ordering;
