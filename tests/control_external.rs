@@ -1007,9 +1007,8 @@ fn a_model_the_controllers_cannot_use_is_refused_or_named() {
 }
 
 /// A model fitted in kPa and metres steers the controllers as the same
-/// model in MPa and mm: `--from` converts its parameters and says so. A
-/// model with effects, whose parameters have units of their own, is
-/// refused in any unit but MPa and mm.
+/// model in MPa and mm: `--from` converts its parameters, its effects'
+/// too, and says so.
 #[test]
 fn a_model_in_other_units_steers_as_in_mpa_and_mm() {
     let dir = tempfile::tempdir().unwrap();
@@ -1063,26 +1062,33 @@ fn a_model_in_other_units_steers_as_in_mpa_and_mm() {
         rms(&ours)
     );
 
-    // With an effect stage the model stays refused.
+    // With effects too: each effect parameter takes its unit's factor.
     let creep = fit_stair(&dir.path().join("creep"), &["--effects", "creep"]);
-    let mut file: Value =
-        serde_json::from_str(&std::fs::read_to_string(creep.join("model.json")).unwrap()).unwrap();
-    file["data"]["input"]["column"] = serde_json::json!("p_kPa");
-    file["data"]["input"]["unit"] = serde_json::json!("kPa");
-    let with_effects = dir.path().join("creep_kpa.json");
-    std::fs::write(&with_effects, file.to_string()).unwrap();
-    let err = refusal(&[
-        "--controller",
-        "mpc",
-        "--from",
-        with_effects.to_str().unwrap(),
-    ]);
+    let mpa = creep.join("model.json");
+    let model = mckibben::model::ModelFile::load(&mpa)
+        .unwrap()
+        .model()
+        .unwrap();
+    assert_eq!(model.effects(), [mckibben::model::effects::Effect::Creep]);
+    let mut kpa = model.rescaled(1e3, 1e-3);
+    kpa.base.input_name = "p_kPa".into();
+    kpa.base.output_name = "x_m".into();
+    let converted = dir.path().join("creep_kpa.json");
+    mckibben::model::ModelFile::new(&kpa, None, Default::default())
+        .save(&converted)
+        .unwrap();
+    let (theirs, ours) = (run(&mpa), run(&converted));
+    let err = String::from_utf8_lossy(&ours.stderr);
     assert!(
-        err.contains(
-            "the model's input is in kPa (column `p_kPa`), the controllers' in MPa: a \
-             model with effects is read in MPa only"
-        ),
+        err.contains("the model's input (column `p_kPa`, in kPa) is read in MPa")
+            && err.contains("effect creep: used as states"),
         "{err}"
+    );
+    assert!(
+        (rms(&theirs) - rms(&ours)).abs() <= 1e-6 * rms(&theirs),
+        "{} mm against {} mm",
+        rms(&theirs),
+        rms(&ours)
     );
 }
 

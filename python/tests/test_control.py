@@ -115,15 +115,6 @@ def test_control_is_refused_in_the_arguments_words():
         mckibben.control("pi", freq=[1, "2"])
     with pytest.raises(ValueError, match="^`design_columns`: 3 names given; it takes four"):
         mckibben.control("mpc", design_data="rig.csv", design_columns=["t", "u", "p"])
-    # A model with effects in kPa is refused: its effects' parameters have
-    # units of their own.
-    trace = mckibben.twin("multisine")
-    kpa = mckibben.Trace(trace.input * 1000, trace.output, trace.dt, input_name="p_kPa", output_name="x_mm")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        model = mckibben.fit(kpa, effects=["creep"], pop=50, gens=5).model
-    with pytest.raises(ValueError, match=r"^model: the model's input is in kPa \(column `p_kPa`\), the controllers' in MPa: a model with effects"):
-        mckibben.control("mpc", model=model)
 
 
 def test_what_no_controller_reads_is_said(tmp_path):
@@ -163,6 +154,16 @@ def test_a_model_in_kpa_is_read_in_mpa():
     # The design's model is in MPa: its gain a thousand times the kPa one's.
     design = result.document["design"]["model"]["displacement"]
     assert design["params"][-3] == pytest.approx(model.params["b"] * 1000, rel=1e-12)
+    # A model with effects too: the creep's gain (mm per kPa) is in mm per MPa.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        creep = mckibben.fit(kpa, effects=["creep"], pop=50, gens=5).model
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = mckibben.control("mpc", freq=2, load=4.5, model=creep, **SHORT)
+    lag = result.document["design"]["model"]["chain"]["lags"][0]
+    rho, kappa = creep.params["creep.rho"], creep.params["creep.kappa"]
+    assert lag["weight"] == pytest.approx((1 - rho) * kappa * 1000, rel=1e-12)
 
 
 

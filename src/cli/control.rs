@@ -104,7 +104,7 @@ pub struct Args {
     /// written by `fit --out`, `diagnose --out` or `identify --out`: the
     /// classic or linear family, with the effects the controllers can use).
     /// A model fitted in other units (`p_kPa`, `x_m`) is converted to MPa
-    /// and mm, with a note, where it has no effects.
+    /// and mm, its effects too, with a note.
     #[arg(long, value_name = "MODEL.json")]
     from: Option<PathBuf>,
     /// Also run the model-based controllers with the model's hysteresis

@@ -246,8 +246,8 @@ impl GivenModel {
     /// `m`, once it is a model the controllers can steer with: of the
     /// pressure and the displacement (a column that states no unit is
     /// taken in MPa and mm, with a `note`; one in another pressure or length
-    /// unit is converted to them, with a `note`, where the model has no
-    /// effects), classic or linear, its output rising with the pressure.
+    /// unit is converted to them, effects and all, with a `note`), classic
+    /// or linear, its output rising with the pressure.
     /// `named` says it in messages.
     pub fn checked(
         mut m: crate::model::Model,
@@ -269,27 +269,22 @@ impl GivenModel {
         {
             match unit_of(column) {
                 Some(unit) if unit != want => {
-                    let factor = per_unit(&unit);
-                    // A valve voltage is another signal, not another unit.
-                    let fix = match (which, unit.as_str(), factor) {
-                        ("input", "V" | "mV", _) => format!(
-                            "the controllers read a model of the pressure (their valve model \
-                             is their own): fit on the pressure column, in {want}"
-                        ),
-                        (_, _, None) => format!("convert the column to {want} and refit"),
-                        // The effects' parameters have units of their own.
-                        (_, _, Some(_)) => format!(
-                            "a model with effects is read in {want} only: convert the \
-                             column to {want} and refit"
-                        ),
-                    };
-                    match factor {
-                        Some(f) if m.effects().is_empty() => factors[k] = f,
-                        _ => anyhow::bail!(
+                    let Some(factor) = per_unit(&unit) else {
+                        // A valve voltage is another signal, not another unit.
+                        let fix = if which == "input" && matches!(unit.as_str(), "V" | "mV") {
+                            format!(
+                                "the controllers read a model of the pressure (their valve \
+                                 model is their own): fit on the pressure column, in {want}"
+                            )
+                        } else {
+                            format!("convert the column to {want} and refit")
+                        };
+                        anyhow::bail!(
                             "{named}: the model's {which} is in {unit} (column `{column}`), \
                              the controllers' in {want}: {fix}"
-                        ),
-                    }
+                        );
+                    };
+                    factors[k] = factor;
                     note(format!(
                         "{named}: the model's {which} (column `{column}`, in {unit}) is read \
                          in {want}, the controllers' unit, its parameters converted"
@@ -304,7 +299,7 @@ impl GivenModel {
             }
         }
         if factors != [1.0, 1.0] {
-            m.base = m.base.rescaled(factors[0], factors[1]);
+            m = m.rescaled(factors[0], factors[1]);
             // The shipped data's names, which state MPa and mm.
             m.base.input_name = "pressure".into();
             m.base.output_name = "displacement".into();

@@ -103,6 +103,34 @@ impl Model {
             .map(|(k, step)| (k, step, limit))
     }
 
+    /// The same model for an input read in units `per_input` times the
+    /// fitted ones and an output `per_output` times, both above 0 (psi and
+    /// m wanted in MPa and mm: 0.006895 and 1000). The baseline converts as
+    /// [`FittedBaseline::rescaled`] says; each effect parameter takes the
+    /// factor of the unit the catalogue gives it ([`Unit::factor`](super::effects::Unit::factor): a
+    /// threshold the input's, a gain both), and the chain's context (its
+    /// means, ranges and branch tolerance) the factor of its side. It
+    /// predicts the same motion, each number in the new units; the columns
+    /// keep their names.
+    pub fn rescaled(&self, per_input: f64, per_output: f64) -> Model {
+        let chain = self.chain.as_ref().map(|c| {
+            let units = c
+                .effects
+                .iter()
+                .flat_map(|e| e.params(c.datasets))
+                .map(|p| p.unit.factor(per_input, per_output));
+            Chain {
+                params: c.params.iter().zip(units).map(|(v, f)| v * f).collect(),
+                context: c.context.rescaled(per_input, per_output),
+                ..c.clone()
+            }
+        });
+        Model {
+            base: self.base.rescaled(per_input, per_output),
+            chain,
+        }
+    }
+
     /// Every parameter: the baseline's canonical vector, then the effects'.
     pub fn theta(&self) -> Vec<f64> {
         let mut theta = self.base.params.clone();
@@ -904,5 +932,83 @@ mod tests {
             ModelFile::load(&v2).unwrap().model().unwrap(),
             Model::plain(now)
         );
+    }
+
+    /// A model fitted in psi and metres, rescaled to MPa and mm, runs the
+    /// same motion on the same pressures: every realisation of the
+    /// catalogue, each at a point inside its box away from its neutral
+    /// value, and all the linear ones chained at once.
+    #[test]
+    fn a_rescaled_model_with_effects_predicts_the_same_motion_in_its_new_units() {
+        let (per_input, per_output) = (6.894757293168e-3, 1000.0);
+        // Steps, ramps and wiggles over 5 to 60 psi.
+        let psi: Vec<f64> = (0..1200)
+            .map(|k| {
+                let level = [10.0, 45.0, 25.0, 60.0, 5.0, 35.0][(k / 200) % 6];
+                level + 4.0 * (k as f64 * 0.07).sin() + 0.05 * k as f64 % 3.0
+            })
+            .collect();
+        let mpa: Vec<f64> = psi.iter().map(|p| p * per_input).collect();
+        let exp = Experiment {
+            name: "psi".into(),
+            dt: 0.01,
+            u: psi.iter().map(|p| (p - 32.0) as f32).collect(),
+            y: psi.iter().map(|p| ((p - 32.0) * 4e-4) as f32).collect(),
+            u_mean: 32.0,
+            y_mean: 0.011,
+        };
+        let context = Context::of(&exp, true);
+        let base = FittedBaseline {
+            family: Family::Classic,
+            params: vec![1.0, 0.6, 40.0, 25.0, 1.0, 0.95, 2e-4, 1e-5, 2e-4],
+            input_mean: 32.0,
+            output_mean: 0.011,
+            dt: 0.01,
+            input_name: "pressure_psi".into(),
+            output_name: "x_m".into(),
+        };
+        let within = |e: Effect| {
+            let b = crate::model::effects::effect_box(e, &context, 1);
+            (0..b.neutral.len())
+                .map(|i| b.lower[i] + 0.7 * (b.upper[i] - b.lower[i]))
+                .collect::<Vec<f64>>()
+        };
+        let mut models: Vec<Vec<Effect>> = Effect::ALL
+            .into_iter()
+            .filter(|e| e.applicable(1))
+            .map(|e| vec![e])
+            .collect();
+        models.push(vec![
+            Effect::Deadzone,
+            Effect::Creep,
+            Effect::OutputCreep,
+            Effect::Ringing,
+            Effect::OutputClip,
+        ]);
+        for effects in models {
+            let model = Model {
+                base: base.clone(),
+                chain: Some(Chain {
+                    params: effects.iter().flat_map(|&e| within(e)).collect(),
+                    effects: effects.clone(),
+                    context: context.clone(),
+                    datasets: 1,
+                }),
+            };
+            let metres = model.simulate_absolute(&psi, 0.012).output;
+            let mm = model
+                .rescaled(per_input, per_output)
+                .simulate_absolute(&mpa, 12.0)
+                .output;
+            let span = metres.iter().fold(0.0f64, |m, v| m.max((v - 0.011).abs()));
+            assert!(span > 1e-4, "{effects:?}: the model barely moves ({span} m)");
+            for (k, (m, x)) in metres.iter().zip(&mm).enumerate() {
+                assert!(
+                    (m * per_output - x).abs() <= 1e-4 * span * per_output,
+                    "{effects:?}, sample {k}: {} mm against {x} mm",
+                    m * per_output
+                );
+            }
+        }
     }
 }

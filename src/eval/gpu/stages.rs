@@ -7,7 +7,7 @@
 //! by the rule of [`WgslName`], and the step that calls what this
 //! generates.
 
-use crate::model::effects::{Effect, ModelDescription, Params, STEP_ORDER, Side};
+use crate::model::effects::{Effect, ModelDescription, Param, Params, STEP_ORDER, Side};
 
 /// The WGSL names of a realisation's stage, from its variant's name (which
 /// is its CPU stage's type, `stages::creep::TwoPoleCreep`): the types
@@ -76,7 +76,7 @@ pub fn source(model: &ModelDescription) -> String {
         prepare.push_str(&format!("    var {snake}_params: {ty}Params;\n"));
         match e.entry().params {
             Params::Fixed(list) => {
-                for (j, (name, _)) in list.iter().enumerate() {
+                for (j, Param { name, .. }) in list.iter().enumerate() {
                     prepare.push_str(&format!("    {snake}_params.{name} = params[p + {}u];\n", at + j));
                 }
             }
@@ -119,7 +119,7 @@ pub fn source(model: &ModelDescription) -> String {
 /// list, named as there (the load gains once: `g`, the experiment's own).
 fn params_struct(effect: Effect) -> String {
     let names: Vec<&str> = match effect.entry().params {
-        Params::Fixed(list) => list.iter().map(|(name, _)| *name).collect(),
+        Params::Fixed(list) => list.iter().map(|p| p.name).collect(),
         Params::PerLaterDataset { name, .. } => vec![name],
     };
     let fields: String = names.iter().map(|n| format!("    {n}: f32,\n")).collect();

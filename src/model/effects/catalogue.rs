@@ -13,7 +13,7 @@ use super::stage::{
     At, Columns, Frame, InputLoop, Lane, OutputLoop, Placed, Side, Slot, Stage, StateLoop, stages,
 };
 use super::stages::*;
-use super::table::{EffectBox, Params, StartHint, catalogue};
+use super::table::{EffectBox, Param, Params, StartHint, Unit, catalogue};
 
 catalogue! {
     physical {
@@ -24,7 +24,7 @@ catalogue! {
             physical: None,
             realisation: "pure delay",
             signature: "residual–input cross-correlation peaks at a positive lag; energy right after each input step",
-            params: Params::Fixed(&[("d", "input delay (samples)")]),
+            params: Params::Fixed(&[Param::pure("d", "input delay (samples)")]),
             dynamics: &["d"],
             primary: 0,
             bounds: |_, _| EffectBox::new(vec![0.0], vec![0.0], vec![30.0]),
@@ -38,7 +38,7 @@ catalogue! {
             physical: None,
             realisation: "input dead zone",
             signature: "residual energy concentrated in the lowest input band",
-            params: Params::Fixed(&[("p0", "input threshold (absolute input units)")]),
+            params: Params::Fixed(&[Param::input("p0", "input threshold (absolute input units)")]),
             primary: 0,
             bounds: |ctx, _| {
                 let lo = ctx.input_min.min(0.0);
@@ -61,7 +61,7 @@ catalogue! {
             physical: None,
             realisation: "in gain",
             signature: "rising and falling branches carry unequal residual energy",
-            params: Params::Fixed(&[(
+            params: Params::Fixed(&[Param::pure(
                 "eps",
                 "gain asymmetry: b_up = b·(1+eps), b_down = b·(1−eps)",
             )]),
@@ -76,7 +76,7 @@ catalogue! {
             physical: None,
             realisation: "extra real pole",
             signature: "energy in the transient after steps (overshoot or sluggish rise), mid frequencies",
-            params: Params::Fixed(&[("a2", "weight of x(k−1) − x(k−2): the extra pole")]),
+            params: Params::Fixed(&[Param::pure("a2", "weight of x(k−1) − x(k−2): the extra pole")]),
             dynamics: &["a2"],
             primary: 0,
             bounds: |_, _| EffectBox::new(vec![0.0], vec![-0.5], vec![0.9]),
@@ -88,7 +88,7 @@ catalogue! {
             physical: None,
             realisation: "play on the input",
             signature: "residual right after input reversals; loop too narrow",
-            params: Params::Fixed(&[("r", "play width (input units)")]),
+            params: Params::Fixed(&[Param::input("r", "play width (input units)")]),
             primary: 0,
             bounds: |ctx, _| EffectBox::new(vec![0.0], vec![0.0], vec![0.5 * ctx.input_range()]),
             ..PLAIN
@@ -102,9 +102,9 @@ catalogue! {
             physical: None,
             realisation: "driven by the input",
             params: Params::Fixed(&[
-                ("rho", "pole of the slow state (close to 1)"),
-                ("kappa", "static gain of the slow state (output per input unit)"),
-                (
+                Param::pure("rho", "pole of the slow state (close to 1)"),
+                Param::gain("kappa", "static gain of the slow state (output per input unit)"),
+                Param::output(
                     "z0",
                     "the slow state at the first sample (output units): where the record's history left it",
                 ),
@@ -131,7 +131,7 @@ catalogue! {
             physical: None,
             realisation: "stiffness grows with input rate",
             signature: "residual grows with input rate: rising/falling branches, high frequencies",
-            params: Params::Fixed(&[("eta", "growth of A with input rate (s per input unit)")]),
+            params: Params::Fixed(&[Param::per_input("eta", "growth of A with input rate (s per input unit)")]),
             primary: 0,
             bounds: |ctx, _| {
                 let v = (ctx.max_step / ctx.dt).max(f64::MIN_POSITIVE);
@@ -150,6 +150,7 @@ catalogue! {
             params: Params::PerLaterDataset {
                 name: "g",
                 meaning: "relative input gain of this dataset against dataset 0",
+                unit: Unit::Pure,
             },
             primary: 0,
             bounds: |_, datasets| {
@@ -169,7 +170,7 @@ catalogue! {
             physical: None,
             realisation: "driven by the largest input so far (Mullins)",
             signature: "the response deepens after each new largest input and stays deeper below it",
-            params: Params::Fixed(&[(
+            params: Params::Fixed(&[Param::per_input(
                 "s",
                 "growth of the input gain per input unit of the largest input so far above the lowest",
             )]),
@@ -192,7 +193,7 @@ catalogue! {
             physical: None,
             realisation: "grows with the largest displacement so far",
             signature: "the rest level moves for good after the largest displacement so far and stays there",
-            params: Params::Fixed(&[(
+            params: Params::Fixed(&[Param::pure(
                 "share",
                 "share of the way back from the largest displacement so far that the muscle keeps (positive: toward the drive)",
             )]),
@@ -249,7 +250,7 @@ catalogue! {
             physical: Some(Effect::Asymmetry),
             realisation: "in time constant (fill vs drain)",
             signature: "falling branches carry more residual energy, later in the step",
-            params: Params::Fixed(&[(
+            params: Params::Fixed(&[Param::pure(
                 "rho",
                 "pole of the slow branch: > 0 drains slower, < 0 fills slower",
             )]),
@@ -284,9 +285,9 @@ catalogue! {
             physical: Some(Effect::Creep),
             realisation: "driven by the output",
             params: Params::Fixed(&[
-                ("rho", "pole of the slow state (close to 1)"),
-                ("kappa", "static gain of the slow state (per output unit)"),
-                (
+                Param::pure("rho", "pole of the slow state (close to 1)"),
+                Param::pure("kappa", "static gain of the slow state (per output unit)"),
+                Param::output(
                     "z0",
                     "the slow state at the first sample (output units): where the record's history left it",
                 ),
@@ -306,11 +307,11 @@ catalogue! {
             physical: Some(Effect::Creep),
             realisation: "two time constants",
             params: Params::Fixed(&[
-                ("rho_fast", "pole of the faster slow state"),
-                ("rho_slow", "pole of the slower slow state"),
-                ("kappa", "static gain of both together (output per input unit)"),
-                ("fast_share", "the faster state's share of kappa, in [0, 1]"),
-                (
+                Param::pure("rho_fast", "pole of the faster slow state"),
+                Param::pure("rho_slow", "pole of the slower slow state"),
+                Param::gain("kappa", "static gain of both together (output per input unit)"),
+                Param::pure("fast_share", "the faster state's share of kappa, in [0, 1]"),
+                Param::output(
                     "z0",
                     "the slower state at the first sample (output units): where the record's history left it",
                 ),
@@ -351,8 +352,8 @@ catalogue! {
             realisation: "hysteretic threshold (on/off)",
             signature: "residual in the lowest input band, unlike on rising and falling branches",
             params: Params::Fixed(&[
-                ("p_on", "input above which the muscle contracts (absolute input units)"),
-                ("gap", "p_on − p_off, the input it lets go below (input units)"),
+                Param::input("p_on", "input above which the muscle contracts (absolute input units)"),
+                Param::input("gap", "p_on − p_off, the input it lets go below (input units)"),
             ]),
             primary: 0,
             bounds: |ctx, _| {
@@ -383,7 +384,7 @@ catalogue! {
             params: Params::Fixed(&[
                 MODE_A1,
                 MODE_A2,
-                ("g", "kick of an input step (output per input unit)"),
+                Param::gain("g", "kick of an input step (output per input unit)"),
             ]),
             dynamics: &["a1", "a2"],
             primary: 2,
@@ -425,12 +426,12 @@ catalogue! {
             physical: Some(Effect::Creep),
             realisation: "log-time (a term per decade)",
             params: Params::Fixed(&[
-                ("rho", "pole of the slowest term; the others are rho^10 and rho^100"),
-                (
+                Param::pure("rho", "pole of the slowest term; the others are rho^10 and rho^100"),
+                Param::gain(
                     "kappa",
                     "static gain of each term: creep per decade of time (output per input unit)",
                 ),
-                (
+                Param::output(
                     "z0",
                     "the slowest term at the first sample (output units): where the record's history left it",
                 ),
@@ -472,8 +473,8 @@ catalogue! {
             realisation: "driven by the number of loadings",
             signature: "equal pulses go deeper one after the other, and the rests do not undo it",
             params: Params::Fixed(&[
-                ("s", "growth of the input gain once trained (relative)"),
-                ("r", "share of the growth still to come that each loading leaves"),
+                Param::pure("s", "growth of the input gain once trained (relative)"),
+                Param::pure("r", "share of the growth still to come that each loading leaves"),
             ]),
             dynamics: &["r"],
             primary: 0,
@@ -498,8 +499,8 @@ catalogue! {
             realisation: "walks with every loading",
             signature: "the rest level walks with every loading",
             params: Params::Fixed(&[
-                ("a", "step at the first loading (output units)"),
-                (
+                Param::output("a", "step at the first loading (output units)"),
+                Param::pure(
                     "q",
                     "how fast the later steps fall: the n-th is the one before times 1 − q/n (0: a steady walk, 1: a walk as the log of the count, above 1 it settles)",
                 ),
@@ -558,7 +559,7 @@ const PLAIN: Realisation = Realisation {
 /// The end stops' common parameter, box and signature.
 const END_STOP: Realisation = Realisation {
     signature: "residual energy concentrated in the highest input band",
-    params: Params::Fixed(&[("l_max", "output end stop (absolute output units)")]),
+    params: Params::Fixed(&[Param::output("l_max", "output end stop (absolute output units)")]),
     // An end stop sits near the largest output recorded: the box is from
     // 40 % of the range below it to 5 % beyond it, where a model that
     // follows the data never reaches it (the neutral edge).
@@ -579,7 +580,7 @@ const END_STOP: Realisation = Realisation {
 const LAG: Realisation = Realisation {
     physical: Some(Effect::Delay),
     signature: "residual–input cross-correlation over a spread of positive lags; rounded steps",
-    params: Params::Fixed(&[("rho", "pole of the lag (mean delay rho/(1−rho) samples)")]),
+    params: Params::Fixed(&[Param::pure("rho", "pole of the lag (mean delay rho/(1−rho) samples)")]),
     dynamics: &["rho"],
     // A pole of 0.97 is a mean delay of about 32 samples, the pure delay's 30.
     bounds: |_, _| EffectBox::new(vec![0.0], vec![0.0], vec![0.97]),
@@ -595,8 +596,8 @@ const CREEP: Realisation = Realisation {
 };
 
 const MODE_SIGNATURE: &str = "a peak in the residual spectrum: ringing after each input step";
-const MODE_A1: (&str, &str) = ("a1", "first coefficient of the mode: 2·r·cos θ");
-const MODE_A2: (&str, &str) = (
+const MODE_A1: Param = Param::pure("a1", "first coefficient of the mode: 2·r·cos θ");
+const MODE_A2: Param = Param::pure(
     "a2",
     "second coefficient of the mode: r², the pole radius squared",
 );

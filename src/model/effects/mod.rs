@@ -35,7 +35,7 @@ mod table;
 pub use catalogue::{Effect, STEP_ORDER, rings};
 pub use stage::Side;
 pub use step::{EffectState, Prepared};
-pub use table::{EffectBox, Params, StartHint};
+pub use table::{EffectBox, Param, Params, StartHint, Unit};
 
 /// One entry of the catalogue ([`Effect::entry`]).
 pub type Realisation = table::Realisation<Effect>;
@@ -48,6 +48,7 @@ pub type Placed = stage::Placed<Effect>;
 pub struct EffectParam {
     pub name: String,
     pub meaning: &'static str,
+    pub unit: Unit,
 }
 
 impl Effect {
@@ -121,15 +122,21 @@ impl Effect {
         match self.entry().params {
             Params::Fixed(list) => list
                 .iter()
-                .map(|&(name, meaning)| EffectParam {
-                    name: name.into(),
-                    meaning,
+                .map(|p| EffectParam {
+                    name: p.name.into(),
+                    meaning: p.meaning,
+                    unit: p.unit,
                 })
                 .collect(),
-            Params::PerLaterDataset { name, meaning } => (1..datasets.max(1))
+            Params::PerLaterDataset {
+                name,
+                meaning,
+                unit,
+            } => (1..datasets.max(1))
                 .map(|e| EffectParam {
                     name: format!("{name}{e}"),
                     meaning,
+                    unit,
                 })
                 .collect(),
         }
@@ -279,6 +286,23 @@ impl Context {
             output_min,
             output_max,
             max_step,
+        }
+    }
+
+    /// The same context for an input read in units `per_input` times the
+    /// fitted ones and an output `per_output` times (`Model::rescaled`).
+    pub fn rescaled(&self, per_input: f64, per_output: f64) -> Context {
+        Context {
+            u_mean: self.u_mean * per_input,
+            y_mean: self.y_mean * per_output,
+            dt: self.dt,
+            branch_tol: self.branch_tol * per_input,
+            drives_up: self.drives_up,
+            input_min: self.input_min * per_input,
+            input_max: self.input_max * per_input,
+            output_min: self.output_min * per_output,
+            output_max: self.output_max * per_output,
+            max_step: self.max_step * per_input,
         }
     }
 

@@ -5,6 +5,8 @@
 //! size, signature, admission rule, start hint, WGSL parameter names) is
 //! answered from its entry, so a realisation is declared once.
 
+use serde::Serialize;
+
 use super::Context;
 
 /// A realisation's box: its neutral value (which gives the baseline's
@@ -78,14 +80,83 @@ pub struct Realisation<E> {
 /// A realisation's parameter list.
 #[derive(Debug, Clone, Copy)]
 pub enum Params {
-    /// The same parameters on any number of datasets: `(name, meaning)`.
-    Fixed(&'static [(&'static str, &'static str)]),
+    /// The same parameters on any number of datasets.
+    Fixed(&'static [Param]),
     /// One parameter per dataset after the first, named `name1`, `name2`,
     /// … (the load gains: dataset 0 is the reference).
     PerLaterDataset {
         name: &'static str,
         meaning: &'static str,
+        unit: Unit,
     },
+}
+
+/// One parameter of a realisation: its name (also its WGSL field), what it
+/// means, and what it is measured in.
+#[derive(Debug, Clone, Copy)]
+pub struct Param {
+    pub name: &'static str,
+    pub meaning: &'static str,
+    pub unit: Unit,
+}
+
+impl Param {
+    /// A pure number: a pole, a share, samples, a relative gain.
+    pub const fn pure(name: &'static str, meaning: &'static str) -> Param {
+        Param::new(name, meaning, Unit::Pure)
+    }
+    /// An input level or width, absolute or a difference.
+    pub const fn input(name: &'static str, meaning: &'static str) -> Param {
+        Param::new(name, meaning, Unit::Input)
+    }
+    /// An output level or step.
+    pub const fn output(name: &'static str, meaning: &'static str) -> Param {
+        Param::new(name, meaning, Unit::Output)
+    }
+    /// A gain: output per input unit.
+    pub const fn gain(name: &'static str, meaning: &'static str) -> Param {
+        Param::new(name, meaning, Unit::OutputPerInput)
+    }
+    /// A growth per input unit (seconds per input unit too: the time
+    /// stays).
+    pub const fn per_input(name: &'static str, meaning: &'static str) -> Param {
+        Param::new(name, meaning, Unit::PerInput)
+    }
+    const fn new(name: &'static str, meaning: &'static str, unit: Unit) -> Param {
+        Param {
+            name,
+            meaning,
+            unit,
+        }
+    }
+}
+
+/// What a parameter is measured in, as powers of the data's input and
+/// output units: what a model read in other units multiplies it by
+/// ([`Unit::factor`], `Model::rescaled`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Unit {
+    Pure,
+    Input,
+    Output,
+    OutputPerInput,
+    PerInput,
+}
+
+impl Unit {
+    /// The factor a value in this unit takes when the input is read in
+    /// units `per_input` times the fitted ones and the output `per_output`
+    /// times (psi to MPa: `per_input` 0.006895).
+    pub fn factor(self, per_input: f64, per_output: f64) -> f64 {
+        match self {
+            Unit::Pure => 1.0,
+            Unit::Input => per_input,
+            Unit::Output => per_output,
+            Unit::OutputPerInput => per_output / per_input,
+            Unit::PerInput => 1.0 / per_input,
+        }
+    }
 }
 
 /// Where the diagnosis starts a realisation's fit, read off the data
