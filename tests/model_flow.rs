@@ -223,6 +223,40 @@ fn fit_with_effects_writes_a_chain_that_simulate_reproduces() {
         sim["val_fit_percent"].as_f64().unwrap(),
     );
     assert!((a - b).abs() < 0.01, "fit {a} %, simulate {b} %");
+
+    // `--list` gives each parameter's value, an effect's too, and the
+    // value a `--params` override sets.
+    let model = dir.path().join("model.json");
+    let out = mckibben(&[
+        "simulate",
+        "--from",
+        model.to_str().unwrap(),
+        "--params",
+        "alpha=0.25",
+        "--list",
+    ]);
+    assert!(out.status.success());
+    let table = String::from_utf8(out.stdout).unwrap();
+    let value_of = |name: &str| -> f64 {
+        let row = table
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap_or_else(|| panic!("no row {name}: {table}"));
+        let cells: Vec<&str> = row.split_whitespace().collect();
+        // The baseline's rows hold a symbol before the value; an effect's none.
+        cells[if name.contains('.') { 1 } else { 2 }]
+            .parse()
+            .unwrap()
+    };
+    assert_eq!(value_of("alpha"), 0.25);
+    for name in ["creep.rho", "creep.kappa", "creep.z0", "b"] {
+        let fitted = fit["params"][name].as_f64().unwrap();
+        assert!(
+            (value_of(name) - fitted).abs() <= 1e-5 * fitted.abs().max(1e-3),
+            "{name}: {} listed, {fitted} fitted",
+            value_of(name)
+        );
+    }
 }
 
 #[test]

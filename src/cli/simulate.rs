@@ -130,8 +130,10 @@ pub struct Args {
     /// simulation over the measured output where `--input` is a record.
     #[arg(long, value_parser = crate::cli::common::output_path, value_name = "FILE.svg")]
     plot: Option<PathBuf>,
-    /// List the family's parameter names and exit (a table: with --json,
-    /// an error; a model file's `params` names them for a script).
+    /// List the model's parameters and exit: name, symbol, the value the
+    /// run would simulate with (the model file's or the thesis' preset,
+    /// after any --params) and meaning. A table: with --json, an error (a
+    /// model file's `params` holds them for a script).
     #[arg(long, conflicts_with = "json")]
     list: bool,
     /// Print JSON on stdout instead of a summary.
@@ -209,18 +211,37 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             output_name: "displacement".into(),
         }),
     };
+    override_params(&mut model, &args.params)?;
     if args.list {
-        for p in model.base.family.params() {
-            outln!("{:<8} {:<4} {}", p.name, p.symbol, p.meaning)?;
-        }
+        // Name, symbol, the value this run would simulate with (the model
+        // file's or the thesis' preset, after any --params) and meaning, in aligned columns.
+        let datasets = model.augmented().datasets;
+        let mut rows: Vec<(String, &str, &str)> = model
+            .base
+            .family
+            .params()
+            .iter()
+            .map(|p| (p.name.to_string(), p.symbol, p.meaning))
+            .collect();
         for e in model.effects() {
-            for p in e.params(model.augmented().datasets) {
-                outln!("{:<8} {}", format!("{e}.{}", p.name), p.meaning)?;
+            for p in e.params(datasets) {
+                rows.push((format!("{e}.{}", p.name), "", p.meaning));
             }
+        }
+        let width = rows
+            .iter()
+            .map(|(n, ..)| n.chars().count())
+            .max()
+            .unwrap_or(0);
+        outln!("{:<width$}  {:<4} {:>12}  meaning", "name", "", "value")?;
+        for ((name, symbol, meaning), value) in rows.iter().zip(model.theta()) {
+            outln!(
+                "{name:<width$}  {symbol:<4} {:>12}  {meaning}",
+                significant(value, 6)
+            )?;
         }
         return Ok(());
     }
-    override_params(&mut model, &args.params)?;
     // A model of several records simulates one: its first's.
     if let (Some(path), Some(e)) = (
         &args.from,

@@ -1001,7 +1001,10 @@ mod tests {
                 .simulate_absolute(&mpa, 12.0)
                 .output;
             let span = metres.iter().fold(0.0f64, |m, v| m.max((v - 0.011).abs()));
-            assert!(span > 1e-4, "{effects:?}: the model barely moves ({span} m)");
+            assert!(
+                span > 1e-4,
+                "{effects:?}: the model barely moves ({span} m)"
+            );
             for (k, (m, x)) in metres.iter().zip(&mm).enumerate() {
                 assert!(
                     (m * per_output - x).abs() <= 1e-4 * span * per_output,

@@ -559,7 +559,10 @@ const PLAIN: Realisation = Realisation {
 /// The end stops' common parameter, box and signature.
 const END_STOP: Realisation = Realisation {
     signature: "residual energy concentrated in the highest input band",
-    params: Params::Fixed(&[Param::output("l_max", "output end stop (absolute output units)")]),
+    params: Params::Fixed(&[Param::output(
+        "l_max",
+        "output end stop (absolute output units)",
+    )]),
     // An end stop sits near the largest output recorded: the box is from
     // 40 % of the range below it to 5 % beyond it, where a model that
     // follows the data never reaches it (the neutral edge).
@@ -580,7 +583,10 @@ const END_STOP: Realisation = Realisation {
 const LAG: Realisation = Realisation {
     physical: Some(Effect::Delay),
     signature: "residual–input cross-correlation over a spread of positive lags; rounded steps",
-    params: Params::Fixed(&[Param::pure("rho", "pole of the lag (mean delay rho/(1−rho) samples)")]),
+    params: Params::Fixed(&[Param::pure(
+        "rho",
+        "pole of the lag (mean delay rho/(1−rho) samples)",
+    )]),
     dynamics: &["rho"],
     // A pole of 0.97 is a mean delay of about 32 samples, the pure delay's 30.
     bounds: |_, _| EffectBox::new(vec![0.0], vec![0.0], vec![0.97]),
