@@ -1,7 +1,8 @@
 //! A record's diagnosis and its fit in the thesis' flow do not hang on the
 //! units it is written in, where its columns' names state them: their
 //! loop-shape boxes, the thesis' per mm of stroke, follow the output's
-//! length unit.
+//! length unit; and a model fitted in one unit starts a fit or a diagnosis
+//! of a record in another.
 
 use std::process::Command;
 
@@ -178,4 +179,80 @@ fn identify_reports_the_stair_in_metres_with_its_digits() {
             "`{label}` reads {shown} for {v:e}: {text}"
         );
     }
+}
+
+/// A model fitted in MPa and mm starts a fit and a diagnosis of the record
+/// written in kPa and metres: its parameters are converted, with a note,
+/// and it validates there as on the record in MPa and mm.
+#[test]
+fn a_model_in_mpa_and_mm_starts_the_record_in_kilopascals_and_metres() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out
+    };
+    let stair = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
+    let fitted = dir.path().join("fitted");
+    let quick = ["--pop", "40", "--gens", "5", "--backend", "cpu"];
+    run(&[
+        &["fit", stair, "--out", fitted.to_str().unwrap()][..],
+        &quick,
+    ]
+    .concat());
+    let model = fitted.join("model.json");
+    let model = model.to_str().unwrap();
+    let metres = dir.path().join("metres.csv");
+    write_trace(&metres, &in_kilopascals_and_metres(&shipped_stair())).unwrap();
+    let columns = ["--input", "pressure_kpa", "--output", "displacement_m"];
+    let start_fit = |data: &[&str]| -> serde_json::Value {
+        let out = run(&[&["fit"][..], data, &quick, &["--from", model, "--json"]].concat());
+        serde_json::from_slice(&out.stdout).unwrap()
+    };
+    let (mm, m) = (
+        start_fit(&[stair]),
+        start_fit(&[&[metres.to_str().unwrap()][..], &columns].concat()),
+    );
+    let start = |doc: &serde_json::Value| doc["start_val_fit_percent"].as_f64().unwrap();
+    assert!(
+        (start(&mm) - start(&m)).abs() < 1e-3,
+        "the start model validates at {} % in mm, {} % in metres",
+        start(&mm),
+        start(&m)
+    );
+    let notes = m["notes"].to_string();
+    assert!(
+        notes.contains("the start model's `pressure` (MPa) is read in kPa")
+            && notes.contains("the start model's `displacement` (mm) is read in m"),
+        "{notes}"
+    );
+    let out = run(&[
+        &["diagnose", metres.to_str().unwrap()][..],
+        &columns,
+        &[
+            "--from",
+            model,
+            "--seeds",
+            "1",
+            "--generations",
+            "5",
+            "--max-effects",
+            "0",
+            "--scratch-seeds",
+            "0",
+        ],
+    ]
+    .concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("the --from model's `displacement` (mm) is read in m"),
+        "{err}"
+    );
 }

@@ -100,6 +100,19 @@ pub fn diagnose<'py>(
         .map(|f| f.model())
         .transpose()
         .map_err(value_error)?;
+    // A model fitted in other units of the same kinds as the records'
+    // (psi for kPa, mm for m) is read in theirs, with a warning each.
+    let start = match (start, traces.first()) {
+        (Some(m), Some(first)) => {
+            let (m, notes) = m.in_units_of(first, "the start model");
+            for note in notes {
+                py.import("warnings")?
+                    .call_method1("warn", (in_python_terms(&note),))?;
+            }
+            Some(m)
+        }
+        (start, _) => start,
+    };
     let family = family_or_start(("baseline", baseline), start.as_ref())?;
     // An empty list is no request for the catalogue: the CLI has no way to
     // say it, and `fit`'s `effects=[]` means none.

@@ -323,7 +323,7 @@ pub fn fit(
     if let Some(model) = &carried {
         for trace in traces {
             model
-                .check_data(trace)
+                .check_carried_to(trace)
                 .map_err(|e| value_error(e.context("carry")))?;
         }
     }

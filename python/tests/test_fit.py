@@ -201,6 +201,12 @@ def test_a_warm_start_is_the_commands_fit_from(stair, cli, small_fit, tmp_path):
     # The start's family and effects when not given.
     again = mckibben.fit(stair, pop=40, gens=2, start=result.model)
     assert again.effects == result.effects and again.family == "classic"
+    # On the record in kPa the start is read in kPa, effects and all, and
+    # validates as it does in MPa.
+    in_kpa = mckibben.Trace(stair.input * 1000, stair.output, stair.dt, input_name="p_kPa")
+    with pytest.warns(UserWarning, match=r"the start model's `pressure` \(MPa\) is read in kPa"):
+        kpa = mckibben.fit(in_kpa, pop=40, gens=2, start=result.model)
+    assert kpa.start_val_fit_percent == pytest.approx(again.start_val_fit_percent, abs=1e-3)
 
 
 def test_a_carried_chain_is_the_commands_fit_carry(stair, cli, tmp_path):

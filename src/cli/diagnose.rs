@@ -365,6 +365,13 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
             check_creatable(flag, dir)?;
         }
     }
+    // A model fitted in other units of the same kinds as the records'
+    // (psi for kPa, mm for m) is read in theirs.
+    let from = from.map(|m| {
+        let (m, notes) = m.in_units_of(&traces[0], "the --from model");
+        notes.iter().for_each(|n| errln!("mckibben: note: {n}"));
+        m
+    });
     let mut d = diagnose_from(&traces, family, &effects, &settings, from.as_ref()).map_err(
         |e| match &args.from {
             Some(path) => e.context(format!("--from {}", path.display())),

@@ -8,7 +8,7 @@ use serde::Serialize;
 
 use mckibben::data::csv::{DataError, Gaps, ReadOptions, read_traces_with_notes};
 use mckibben::data::signals::{Stair, nyquist_rad_s, samples_in};
-use mckibben::data::units::{SHIPPED, megapascals_in, millimetres_in, unit_of};
+use mckibben::data::units::{self, megapascals_in, millimetres_in, unit_of};
 use mckibben::data::{Columns, Trace};
 use mckibben::ident::{fit_percent, loop_area};
 use mckibben::model::check_f32_range;
@@ -713,21 +713,10 @@ fn file_in_model_units(
     let mut notes = Vec::new();
     let mut convert =
         |values: &mut Vec<f64>, name: &mut String, model: &str, size: fn(&str) -> Option<f64>| {
-            // A name that states no unit (`pressure`, read as the shipped
-            // data's MPa) is no unit to convert from: it may be in the
-            // model's already, and `check_data` says how it was read.
-            let conventional = SHIPPED.iter().any(|(shipped, _)| *shipped == name.trim());
-            let (Some(from), Some(to), false) = (unit_of(name), unit_of(model), conventional)
-            else {
+            let Some(pair) = units::between(name, model, size) else {
                 return;
             };
-            let (Some(per_from), Some(per_to)) = (size(&from), size(&to)) else {
-                return;
-            };
-            if from == to {
-                return;
-            }
-            let factor = per_from / per_to;
+            let (from, to, factor) = (&pair.record, &pair.model, pair.to_model());
             for v in values.iter_mut() {
                 *v *= factor;
             }

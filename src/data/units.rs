@@ -251,9 +251,72 @@ pub fn stated_length_in_mm(column: &str) -> Option<f64> {
     unit_of(column).as_deref().and_then(millimetres_in)
 }
 
+/// A record's column and a model's column in two units of one kind (a
+/// pressure in kPa and one in psi, a stroke in m and one in mm), where the
+/// record's name states its unit in so many words: a shipped name
+/// (`pressure`) is in its unit by convention only, and may be in the
+/// model's already, so it is no unit to convert ([`between`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnitPair {
+    /// The record's unit and the model's, as [`unit_of`] spells them.
+    pub record: String,
+    pub model: String,
+    /// Their sizes in the kind's common unit (MPa or mm).
+    per_record: f64,
+    per_model: f64,
+}
+
+impl UnitPair {
+    /// The factor that takes a value in the record's unit to the model's.
+    pub fn to_model(&self) -> f64 {
+        self.per_record / self.per_model
+    }
+
+    /// The factor that takes a value in the model's unit to the record's.
+    pub fn to_record(&self) -> f64 {
+        self.per_model / self.per_record
+    }
+}
+
+/// The units of the record's column `record` and the model's column
+/// `model`, where they differ and both are of the kind `size` measures
+/// ([`megapascals_in`], [`millimetres_in`]), the record's stated in its
+/// name ([`UnitPair`]); `None` otherwise (the same unit, none stated, a
+/// unit of another kind: what [`crate::model::file::check_units`] judges).
+pub fn between(record: &str, model: &str, size: fn(&str) -> Option<f64>) -> Option<UnitPair> {
+    let conventional = SHIPPED.iter().any(|(shipped, _)| *shipped == record.trim());
+    let (from, to) = (unit_of(record)?, unit_of(model)?);
+    if conventional || from == to {
+        return None;
+    }
+    Some(UnitPair {
+        per_record: size(&from)?,
+        per_model: size(&to)?,
+        record: from,
+        model: to,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_stated_unit_pairs_with_a_models_of_its_kind() {
+        let kpa = between("p_kPa", "pressure_psi", megapascals_in).unwrap();
+        assert_eq!((kpa.record.as_str(), kpa.model.as_str()), ("kPa", "psi"));
+        assert!((kpa.to_record() - 6.894757293168).abs() < 1e-12);
+        assert!((kpa.to_model() * kpa.to_record() - 1.0).abs() < 1e-15);
+        let m = between("x_m", "displacement", millimetres_in).unwrap();
+        assert_eq!(m.to_model(), 1000.0);
+        // The shipped name is in MPa by convention only: not converted.
+        assert_eq!(between("pressure", "p_kPa", megapascals_in), None);
+        // The same unit, none stated, another kind.
+        assert_eq!(between("p_kPa", "pressure_kPa", megapascals_in), None);
+        assert_eq!(between("p", "pressure_kPa", megapascals_in), None);
+        assert_eq!(between("valve_V", "pressure", megapascals_in), None);
+        assert_eq!(between("x_m", "pressure", megapascals_in), None);
+    }
 
     #[test]
     fn units_come_from_suffixes_and_brackets_or_not_at_all() {

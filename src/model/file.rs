@@ -176,6 +176,66 @@ impl Model {
         held
     }
 
+    /// This model in the units of `trace`'s columns, where a column's name
+    /// states another unit of the same kind than the model's (a record in
+    /// kPa for a model fitted in psi, in m for one in mm:
+    /// [`crate::data::units::between`]), converted as [`Model::rescaled`]
+    /// converts it and named after the record's columns, with a note for
+    /// each side converted; the model as it is otherwise. `whose` names the
+    /// model in the notes ("the start model"). What is still off (another
+    /// kind of unit, another sample time) is left for [`Model::check_data`].
+    pub fn in_units_of(&self, trace: &crate::data::Trace, whose: &str) -> (Model, Vec<String>) {
+        use crate::data::units::{between, megapascals_in, millimetres_in};
+        let base = &self.base;
+        let input = between(&trace.input_name, &base.input_name, megapascals_in);
+        let output = between(&trace.output_name, &base.output_name, millimetres_in);
+        if input.is_none() && output.is_none() {
+            return (self.clone(), Vec::new());
+        }
+        let factor = |pair: &Option<crate::data::units::UnitPair>| {
+            pair.as_ref().map_or(1.0, |p| p.to_record())
+        };
+        let mut model = self.rescaled(factor(&input), factor(&output));
+        let mut notes = Vec::new();
+        for (pair, fitted, column, name) in [
+            (
+                &input,
+                &base.input_name,
+                &trace.input_name,
+                &mut model.base.input_name,
+            ),
+            (
+                &output,
+                &base.output_name,
+                &trace.output_name,
+                &mut model.base.output_name,
+            ),
+        ] {
+            if let Some(pair) = pair {
+                notes.push(format!(
+                    "{}: {whose}'s `{fitted}` ({}) is read in {}, the unit of `{column}` (×{}): \
+                     its parameters converted",
+                    trace.source,
+                    pair.model,
+                    pair.record,
+                    crate::data::readable(pair.to_record())
+                ));
+                *name = column.clone();
+            }
+        }
+        (model, notes)
+    }
+
+    /// Refuses a record this model's chain cannot be carried to (`fit
+    /// --carry`): another sample time, or a column in another kind of unit.
+    /// The dynamics it holds are pure numbers, so a record in other units
+    /// of the same kinds ([`Model::in_units_of`]) takes them as they are.
+    pub fn check_carried_to(&self, trace: &crate::data::Trace) -> anyhow::Result<()> {
+        self.in_units_of(trace, "the carried model")
+            .0
+            .check_data(trace)
+    }
+
     /// Refuses data this model cannot run on as it stands: a column whose
     /// name states other units than the model's (a model fitted in psi run
     /// on kPa is off by a factor, silently), or another sample time (the
@@ -991,7 +1051,7 @@ mod tests {
                 chain: Some(Chain {
                     params: effects.iter().flat_map(|&e| within(e)).collect(),
                     effects: effects.clone(),
-                    context: context.clone(),
+                    context,
                     datasets: 1,
                 }),
             };

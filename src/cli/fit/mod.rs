@@ -173,7 +173,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if let Some(model) = &resolved.carried {
         for trace in &traces {
             model
-                .check_data(trace)
+                .check_carried_to(trace)
                 .map_err(|e| anyhow::anyhow!("--carry: {e:#}"))?;
         }
     }
