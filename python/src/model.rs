@@ -124,7 +124,9 @@ impl Model {
     /// sample), from the output `x0` at the first sample (default: at rest
     /// at the first input, as `simulate --input stair` starts). `u` may be a
     /// `Trace`: then its input, from its first measured output unless `x0`
-    /// is given, as `simulate --from` runs a CSV. A run that leaves the
+    /// is given, as `simulate --from` runs a CSV (a `Trace` in other units
+    /// of the same kinds runs the model converted into them, with a
+    /// warning, and the run is in them). A run that leaves the
     /// model's range warns and goes on (the values after it mean nothing).
     #[pyo3(signature = (u, x0 = None))]
     fn simulate<'py>(
@@ -133,17 +135,31 @@ impl Model {
         u: &Bound<'py, PyAny>,
         #[pyo3(from_py_with = named::x0)] x0: Option<f64>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (input, x0) = match u.cast::<crate::data::Trace>() {
+        let converted;
+        let (model, input, x0) = match u.cast::<crate::data::Trace>() {
             Ok(trace) => {
                 let trace = &trace.borrow().inner;
-                // As `simulate --from` on a file: units and sample time
-                // the model's, or an error (an array is taken at its word).
-                self.inner
+                // A record in other units of the same kinds is read as
+                // `simulate --from` reads such a file, with a warning; here
+                // the model goes into the record's units, so that the run
+                // compares with its output. Another sample time, or units
+                // of another kind, are an error (an array is taken at its
+                // word).
+                let (model, notes) = self.inner.in_units_of(trace, "the model");
+                for note in notes {
+                    py.import("warnings")?.call_method1("warn", (note,))?;
+                }
+                model
                     .check_data(trace)
                     .map_err(crate::convert::value_error)?;
-                (trace.input.clone(), x0.or(trace.output.first().copied()))
+                converted = model;
+                (
+                    &converted,
+                    trace.input.clone(),
+                    x0.or(trace.output.first().copied()),
+                )
             }
-            Err(_) => (series(u, "u")?, x0),
+            Err(_) => (&self.inner, series(u, "u")?, x0),
         };
         if let Some(v) = x0.filter(|v| !v.is_finite()) {
             return Err(pyo3::exceptions::PyValueError::new_err(format!(
@@ -151,8 +167,8 @@ impl Model {
             )));
         }
         let run = py.detach(|| match x0 {
-            Some(y0) => self.inner.simulate_absolute(&input, y0),
-            None => self.inner.simulate_from_rest(&input),
+            Some(y0) => model.simulate_absolute(&input, y0),
+            None => model.simulate_from_rest(&input),
         });
         if let Some(k) = run.diverged_at {
             py.import("warnings")?.call_method1(

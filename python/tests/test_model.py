@@ -75,11 +75,18 @@ def test_simulate_takes_any_layout_and_starts_where_asked(small_fit, stair):
     # Text or None is not an array: a TypeError naming the argument.
     with pytest.raises(TypeError, match="^u must be an array of numbers .*, got str 'stair.csv'"):
         model.simulate("stair.csv")
-    # A Trace in other units, or at another sample time, is refused as
+    # A Trace in other units of the same kinds runs the model converted
+    # into them, with a warning: the run is in the Trace's units.
+    in_kpa = mckibben.Trace(stair.input * 1000, stair.output / 1000, stair.dt, input_name="p_kPa", output_name="x_m")
+    with pytest.warns(UserWarning, match=r"the model's `pressure` \(MPa\) is read in kPa"):
+        metres = model.simulate(in_kpa)
+    mm = model.simulate(stair)
+    assert np.allclose(metres * 1000, mm, rtol=0, atol=1e-4 * np.ptp(mm))
+    # Units of another kind, or another sample time, are refused as
     # `simulate --from` refuses such a file.
-    in_kpa = mckibben.Trace(stair.input * 1000, stair.output, stair.dt, input_name="p_kPa")
-    with pytest.raises(ValueError, match="the model's input is in MPa .* `p_kPa` is in kPa"):
-        model.simulate(in_kpa)
+    in_volts = mckibben.Trace(stair.input, stair.output, stair.dt, input_name="valve_V")
+    with pytest.raises(ValueError, match="the model's input is in MPa .* `valve_V` is in V"):
+        model.simulate(in_volts)
     slower = mckibben.Trace(stair.input, stair.output, 2 * stair.dt)
     with pytest.raises(ValueError, match="sampled every 0.02 s, the model every 0.01 s"):
         model.simulate(slower)
