@@ -214,7 +214,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     override_params(&mut model, &args.params)?;
     if args.list {
         // Name, symbol, the value this run would simulate with (the model
-        // file's or the thesis' preset, after any --params) and meaning, in aligned columns.
+        // file's or the thesis' preset, after any --params) and meaning,
+        // in columns as wide as the longest name.
         let datasets = model.augmented().datasets;
         let mut rows: Vec<(String, &str, &str)> = model
             .base
