@@ -240,12 +240,20 @@ def test_a_transfer_the_chain_cannot_run_on_is_refused_before_the_diagnosis(stai
     cases = [
         ([seven, stair], r"^transfer\[1\] \(.*stair_4.5kg.csv\): it holds the samples of .*stair_4.5kg.csv, which the diagnosis reads"),
         ([(u, y, 2 * dt)], r"^transfer\[0\]: sampled every 0.02 s, the diagnosed record every 0.01 s"),
-        ([mckibben.Trace(u * 1000, y, dt, input_name="p_kPa")],
-         r"^transfer\[0\] \(python\): the diagnosed record's input is in MPa \(column `pressure`\), but `p_kPa` is in kPa"),
+        ([mckibben.Trace(u, y, dt, input_name="valve_V")],
+         r"^transfer\[0\] \(python\): the diagnosed record's input is in MPa \(column `pressure`\), but `valve_V` is in V"),
     ]
     for transfer, message in cases:
         with pytest.raises(ValueError, match=message):
             mckibben.diagnose(stair, transfer=transfer, **args)
+    # Other units of the same kinds carry the chain as well: its held
+    # dynamics are pure numbers, the rest is fitted in the record's units
+    # (whose float rounding moves the searches a little).
+    in_mpa = mckibben.diagnose(stair, transfer=[seven], **args).document["transfers"][0]
+    kpa = mckibben.Trace(u * 1000, y / 1000, dt, input_name="p_kPa", output_name="x_m")
+    in_kpa = mckibben.diagnose(stair, transfer=[kpa], **args).document["transfers"][0]
+    for key in ["baseline_val_fit_percent", "chain_val_fit_percent"]:
+        assert in_kpa[key] == pytest.approx(in_mpa[key], abs=0.5), key
 
 
 def test_diagnose_from_a_model_is_the_commands_diagnose_from(stair, cli, tmp_path):

@@ -28,7 +28,7 @@ use super::effects::Effect;
 use super::locate::noise_floor;
 use super::settings::{Interrupted, Settings};
 use super::{Diagnosis, accept::gap_closed, chain::with_chain_start};
-use crate::data::{Trace, same_samples, same_step, tidy_step};
+use crate::data::{Trace, same_samples, same_step, tidy_step, units};
 use crate::fit::edge::{ActiveBound, active_bounds};
 use crate::fit::records::Validation;
 use crate::fit::run::{FitRun, FitTarget};
@@ -129,10 +129,12 @@ pub fn collapses(chain_fit_percent: f64, baseline_fit_percent: f64) -> bool {
 /// Whether each record of `others` can take the chain that a diagnosis
 /// of `diagnosed` will carry to it, as [`transfer`] will: another record
 /// (not one of `diagnosed`'s, which would score the chain on what chose
-/// it), sampled at their step (the held poles are per sample), in their
-/// units where both name one, and one on which the baseline of `family`
-/// can be fitted (long enough, a response to identify, numbers a fit can
-/// take). Checked before the diagnosis, so that a record it cannot use
+/// it), sampled at their step (the held poles are per sample), in units
+/// of the same kinds as theirs where both name one (the held dynamics are
+/// pure numbers, and the rest is fitted on the record in its own units,
+/// so kPa carries what psi chose; a valve voltage is another signal), and
+/// one on which the baseline of `family` can be fitted (long enough, a
+/// response to identify, numbers a fit can take). Checked before the diagnosis, so that a record it cannot use
 /// fails at once rather than after the diagnosis' minutes. No search
 /// runs.
 pub fn check_others(
@@ -163,11 +165,25 @@ pub fn check_others(
             tidy_step(dt),
             tidy_step(dt)
         );
+        // A side in another unit of the same kind reads as the diagnosed
+        // record's for the check: only another kind is refused.
+        let like = |column: &String, diagnosed: &String, size| {
+            let convertible = units::between(column, diagnosed, size).is_some();
+            if convertible { diagnosed } else { column }.clone()
+        };
         check_units(
             "the diagnosed record's",
             &first.input_name,
             &first.output_name,
-            other,
+            &Trace {
+                input_name: like(&other.input_name, &first.input_name, units::megapascals_in),
+                output_name: like(
+                    &other.output_name,
+                    &first.output_name,
+                    units::millimetres_in,
+                ),
+                ..other.clone()
+            },
         )?;
         FitRun::new(
             std::slice::from_ref(other),
@@ -213,7 +229,7 @@ pub fn transfer(
         .iter()
         .map(|trace| {
             d.final_model
-                .check_data(trace)
+                .check_carried_to(trace)
                 .with_context(|| format!("the transfer to {}", trace.source))?;
             let (baseline, _) = fit_and_score(trace, d.family, &[], &[], settings)?;
             let (fitted, chain_on_edge, names_only) = if chain.is_empty() {
