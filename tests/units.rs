@@ -182,8 +182,9 @@ fn identify_reports_the_stair_in_metres_with_its_digits() {
 }
 
 /// A model fitted in MPa and mm starts a fit and a diagnosis of the record
-/// written in kPa and metres: its parameters are converted, with a note,
-/// and it validates there as on the record in MPa and mm.
+/// written in kPa and metres: its parameters and the bounds its file
+/// records are converted, with a note, and it validates there as on the
+/// record in MPa and mm.
 #[test]
 fn a_model_in_mpa_and_mm_starts_the_record_in_kilopascals_and_metres() {
     let dir = tempfile::tempdir().unwrap();
@@ -202,9 +203,12 @@ fn a_model_in_mpa_and_mm_starts_the_record_in_kilopascals_and_metres() {
     let stair = concat!(env!("CARGO_MANIFEST_DIR"), "/data/stair_4.5kg.csv");
     let fitted = dir.path().join("fitted");
     let quick = ["--pop", "40", "--gens", "5", "--backend", "cpu"];
+    // A fixed gain, which the model file records and `--from` applies again.
+    let fixed = ["--fix", "b=4.5"];
     run(&[
         &["fit", stair, "--out", fitted.to_str().unwrap()][..],
         &quick,
+        &fixed,
     ]
     .concat());
     let model = fitted.join("model.json");
@@ -222,11 +226,17 @@ fn a_model_in_mpa_and_mm_starts_the_record_in_kilopascals_and_metres() {
     );
     let start = |doc: &serde_json::Value| doc["start_val_fit_percent"].as_f64().unwrap();
     assert!(
-        (start(&mm) - start(&m)).abs() < 1e-3,
+        // The f32 simulation rounds otherwise at the other scale.
+        (start(&mm) - start(&m)).abs() < 0.01,
         "the start model validates at {} % in mm, {} % in metres",
         start(&mm),
         start(&m)
     );
+    // The recorded gain holds in the record's units: 4.5 mm/MPa is
+    // 4.5e-6 m/kPa.
+    let b = |doc: &serde_json::Value| doc["params"]["b"].as_f64().unwrap();
+    assert_eq!(b(&mm), 4.5);
+    assert!((b(&m) / 4.5e-6 - 1.0).abs() < 1e-12, "b = {} m/kPa", b(&m));
     let notes = m["notes"].to_string();
     assert!(
         notes.contains("the start model's `pressure` (MPa) is read in kPa")

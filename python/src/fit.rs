@@ -313,17 +313,33 @@ pub fn fit(
         carry: carried.is_some(),
     };
     let which = if carried.is_some() { "carry" } else { "start" };
+    // As `fit --from`: a model fitted in other units of the same kinds as
+    // the records' (psi for kPa, mm for m) is read in theirs, its recorded
+    // bounds too, with a warning.
+    let given = match (start.as_ref().or(carried.as_ref()), traces.first()) {
+        (Some(file), Some(first)) => {
+            let (file, notes) = file
+                .in_units_of(first, "the start model")
+                .map_err(|e| value_error(e.context(which)))?;
+            for note in notes {
+                py.import("warnings")?
+                    .call_method1("warn", (in_python_terms(&note),))?;
+            }
+            Some(file)
+        }
+        (file, _) => file.cloned(),
+    };
     let Resolved {
         what,
         start: start_model,
         carried,
     } = request
-        .resolve(start.as_ref().or(carried.as_ref()))
+        .resolve(given.as_ref())
         .map_err(|e| value_error(e.context(which)))?;
     if let Some(model) = &carried {
         for trace in traces {
             model
-                .check_carried_to(trace)
+                .check_data(trace)
                 .map_err(|e| value_error(e.context("carry")))?;
         }
     }

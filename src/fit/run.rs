@@ -203,14 +203,6 @@ impl FitRun {
         } else {
             Flow::Joint
         };
-        // A start model fitted in other units of the same kinds as the
-        // records' (psi for kPa, mm for m) is read in theirs.
-        let converted = start.zip(traces.first()).map(|(m, first)| {
-            let (m, notes) = m.in_units_of(first, "the start model");
-            notes.into_iter().for_each(note);
-            m
-        });
-        let start = converted.as_ref();
         for trace in traces {
             if let Some(m) = start {
                 m.check_data(trace).context("the start model")?;

@@ -17,7 +17,7 @@ use super::family::Family;
 use super::fitted::FittedBaseline;
 use super::sim::DIVERGENCE_BOUND;
 use super::user_bound::UserBound;
-use crate::data::units::{SHIPPED, unit_of};
+use crate::data::units::{SHIPPED, UnitPair, unit_of};
 use crate::data::write_atomic;
 use crate::data::{same_step, tidy_step};
 
@@ -185,16 +185,12 @@ impl Model {
     /// model in the notes ("the start model"). What is still off (another
     /// kind of unit, another sample time) is left for [`Model::check_data`].
     pub fn in_units_of(&self, trace: &crate::data::Trace, whose: &str) -> (Model, Vec<String>) {
-        use crate::data::units::{between, megapascals_in, millimetres_in};
-        let base = &self.base;
-        let input = between(&trace.input_name, &base.input_name, megapascals_in);
-        let output = between(&trace.output_name, &base.output_name, millimetres_in);
+        let [input, output] = self.units_to(trace);
         if input.is_none() && output.is_none() {
             return (self.clone(), Vec::new());
         }
-        let factor = |pair: &Option<crate::data::units::UnitPair>| {
-            pair.as_ref().map_or(1.0, |p| p.to_record())
-        };
+        let factor = |pair: &Option<UnitPair>| pair.as_ref().map_or(1.0, UnitPair::to_record);
+        let base = &self.base;
         let mut model = self.rescaled(factor(&input), factor(&output));
         let mut notes = Vec::new();
         for (pair, fitted, column, name) in [
@@ -226,8 +222,35 @@ impl Model {
         (model, notes)
     }
 
-    /// Refuses a record this model's chain cannot be carried to (`fit
-    /// --carry`): another sample time, or a column in another kind of unit.
+    /// How this model's input and output units pair with `trace`'s, where
+    /// a column's name states another unit of the same kind
+    /// ([`crate::data::units::between`]).
+    fn units_to(&self, trace: &crate::data::Trace) -> [Option<UnitPair>; 2] {
+        use crate::data::units::{between, megapascals_in, millimetres_in};
+        [
+            between(&trace.input_name, &self.base.input_name, megapascals_in),
+            between(&trace.output_name, &self.base.output_name, millimetres_in),
+        ]
+    }
+
+    /// The factor [`Model::rescaled`] takes the parameter `name` by (a
+    /// canonical name, or an effect's `effect.param`); 1 for a search
+    /// coordinate, a pure number (`gain`, `loading`: `crate::model::coords`),
+    /// and for a name the model does not hold.
+    pub fn factor_of(&self, name: &str, per_input: f64, per_output: f64) -> f64 {
+        if let Some(i) = self.base.family.index_of(name) {
+            return self.base.factor(i, per_input, per_output);
+        }
+        let datasets = self.augmented().datasets;
+        self.effects()
+            .iter()
+            .flat_map(|e| e.params(datasets).into_iter().map(move |p| (e, p)))
+            .find(|(e, p)| format!("{e}.{}", p.name) == name)
+            .map_or(1.0, |(_, p)| p.unit.factor(per_input, per_output))
+    }
+
+    /// Refuses a record this model's chain cannot be carried to (`diagnose
+    /// --transfer`): another sample time, or a column in another kind of unit.
     /// The dynamics it holds are pure numbers, so a record in other units
     /// of the same kinds ([`Model::in_units_of`]) takes them as they are.
     pub fn check_carried_to(&self, trace: &crate::data::Trace) -> anyhow::Result<()> {
@@ -615,6 +638,44 @@ impl ModelFile {
         file.model()
             .with_context(|| format!("{}: not a valid model file", path.display()))?;
         Ok(file)
+    }
+
+    /// This file in the units of `trace`'s columns, where a column's name
+    /// states another unit of the same kind than the model's: its model as
+    /// [`Model::in_units_of`] converts it (the notes are its), and its
+    /// `user_bounds`, which `fit --from` applies again, each by its
+    /// parameter's factor ([`Model::factor_of`]). The search box, in the
+    /// old units, is dropped: no start reads it. The file as it is
+    /// otherwise.
+    pub fn in_units_of(
+        &self,
+        trace: &crate::data::Trace,
+        whose: &str,
+    ) -> anyhow::Result<(ModelFile, Vec<String>)> {
+        let model = self.model()?;
+        let (converted, notes) = model.in_units_of(trace, whose);
+        if notes.is_empty() {
+            return Ok((self.clone(), notes));
+        }
+        let [per_input, per_output] = model
+            .units_to(trace)
+            .map(|p| p.as_ref().map_or(1.0, UnitPair::to_record));
+        let user_bounds = (self.user_bounds.iter())
+            .map(|given| {
+                let b: UserBound = given.parse().map_err(anyhow::Error::msg)?;
+                let f = model.factor_of(&b.name, per_input, per_output);
+                Ok(UserBound {
+                    lower: b.lower * f,
+                    upper: b.upper * f,
+                    ..b
+                }
+                .to_string())
+            })
+            .collect::<anyhow::Result<_>>()
+            .context("its user_bounds")?;
+        let mut file = ModelFile::new(&converted, None, self.provenance.clone());
+        file.user_bounds = user_bounds;
+        Ok((file, notes))
     }
 
     /// The model the file holds; an error names a parameter missing or
@@ -1055,11 +1116,18 @@ mod tests {
                     datasets: 1,
                 }),
             };
+            let rescaled = model.rescaled(per_input, per_output);
+            // Each parameter by the factor its name says (what converts a
+            // file's recorded bounds).
+            for ((name, v), (_, r)) in model.named_params().iter().zip(rescaled.named_params()) {
+                assert_eq!(
+                    r,
+                    v * model.factor_of(name, per_input, per_output),
+                    "{name}"
+                );
+            }
             let metres = model.simulate_absolute(&psi, 0.012).output;
-            let mm = model
-                .rescaled(per_input, per_output)
-                .simulate_absolute(&mpa, 12.0)
-                .output;
+            let mm = rescaled.simulate_absolute(&mpa, 12.0).output;
             let span = metres.iter().fold(0.0f64, |m, v| m.max((v - 0.011).abs()));
             assert!(
                 span > 1e-4,

@@ -77,26 +77,32 @@ impl FittedBaseline {
     /// `per_output^−n`; the poles, `A`, `α` and `n` stay. The columns keep
     /// their names.
     pub fn rescaled(&self, per_input: f64, per_output: f64) -> FittedBaseline {
-        let family = self.family;
-        let n = family.exponent_index().map_or(1.0, |i| self.params[i]);
-        let [_, ib, ic] = family.linear_indices();
-        let mut params = self.params.clone();
-        for (i, spec) in family.params().iter().enumerate() {
-            params[i] *= match spec.name {
-                "beta" | "gamma" | "beta1" | "beta2" | "beta3" | "beta4" | "beta5" | "beta6" => {
-                    per_output.powf(-n)
-                }
-                "x0" | "x_s" => per_output,
-                _ if i == ib => per_output / per_input,
-                _ if i == ic => per_output,
-                _ => 1.0,
-            };
-        }
+        let params = (self.params.iter().enumerate())
+            .map(|(i, v)| v * self.factor(i, per_input, per_output))
+            .collect();
         FittedBaseline {
             params,
             input_mean: self.input_mean * per_input,
             output_mean: self.output_mean * per_output,
             ..self.clone()
+        }
+    }
+
+    /// The factor [`FittedBaseline::rescaled`] takes the canonical
+    /// parameter `i` by (at this model's exponent `n`, for the loop-shape
+    /// weights).
+    pub fn factor(&self, i: usize, per_input: f64, per_output: f64) -> f64 {
+        let family = self.family;
+        let n = family.exponent_index().map_or(1.0, |k| self.params[k]);
+        let [_, ib, ic] = family.linear_indices();
+        match family.params()[i].name {
+            "beta" | "gamma" | "beta1" | "beta2" | "beta3" | "beta4" | "beta5" | "beta6" => {
+                per_output.powf(-n)
+            }
+            "x0" | "x_s" => per_output,
+            _ if i == ib => per_output / per_input,
+            _ if i == ic => per_output,
+            _ => 1.0,
         }
     }
 

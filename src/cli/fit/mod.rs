@@ -146,8 +146,21 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     } else {
         "--from"
     };
+    let traces = records(args.data.load()?, args.data.columns.resample.is_some())?;
+    // A model fitted in other units of the same kinds as the records'
+    // (psi for kPa, mm for m) is read in theirs, its recorded bounds too.
+    let given = match start.as_ref().or(carried.as_ref()) {
+        Some(file) => {
+            let (file, notes) = file
+                .in_units_of(&traces[0], "the start model")
+                .map_err(|e| anyhow::anyhow!("{flag}: {e:#}"))?;
+            notes.into_iter().for_each(note);
+            Some(file)
+        }
+        None => None,
+    };
     let resolved = request
-        .resolve(start.as_ref().or(carried.as_ref()))
+        .resolve(given.as_ref())
         .map_err(|e| anyhow::anyhow!("{flag}: {e:#}"))?;
     let (what, start_model) = (resolved.what, resolved.start);
     if let Some(why) = switching_misapplied(what.family, args.switching) {
@@ -156,7 +169,6 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if let Some(why) = switching_boxed(args.switching, &request.bounds) {
         anyhow::bail!("--switch {why}: give one of them");
     }
-    let traces = records(args.data.load()?, args.data.columns.resample.is_some())?;
     out_folder(&args, traces.len())?;
     for trace in &traces {
         if let Some(period) = mckibben::data::signals::period_of(&trace.input) {
@@ -173,7 +185,7 @@ pub fn run(mut args: Args) -> anyhow::Result<()> {
     if let Some(model) = &resolved.carried {
         for trace in &traces {
             model
-                .check_carried_to(trace)
+                .check_data(trace)
                 .map_err(|e| anyhow::anyhow!("--carry: {e:#}"))?;
         }
     }
