@@ -224,8 +224,8 @@ fn fit_with_effects_writes_a_chain_that_simulate_reproduces() {
     );
     assert!((a - b).abs() < 0.01, "fit {a} %, simulate {b} %");
 
-    // `--list` gives each parameter's value, an effect's too, and the
-    // value a `--params` override sets.
+    // `--list` gives each parameter's value and unit, an effect's too, and
+    // the value a `--params` override sets.
     let model = dir.path().join("model.json");
     let out = mckibben(&[
         "simulate",
@@ -237,18 +237,29 @@ fn fit_with_effects_writes_a_chain_that_simulate_reproduces() {
     ]);
     assert!(out.status.success());
     let table = String::from_utf8(out.stdout).unwrap();
-    let value_of = |name: &str| -> f64 {
+    // The baseline's rows hold a symbol before the value; an effect's none.
+    let cell = |name: &str, k: usize| -> String {
         let row = table
             .lines()
             .find(|l| l.split_whitespace().next() == Some(name))
             .unwrap_or_else(|| panic!("no row {name}: {table}"));
         let cells: Vec<&str> = row.split_whitespace().collect();
-        // The baseline's rows hold a symbol before the value; an effect's none.
-        cells[if name.contains('.') { 1 } else { 2 }]
-            .parse()
-            .unwrap()
+        cells[k + usize::from(!name.contains('.'))].to_string()
     };
+    let value_of = |name: &str| -> f64 { cell(name, 1).parse().unwrap() };
     assert_eq!(value_of("alpha"), 0.25);
+    // Units in the model's columns': the shipped data's MPa and mm.
+    for (name, unit) in [
+        ("alpha", "1"),
+        ("beta", "1/mm"),
+        ("b", "mm/MPa"),
+        ("x0", "mm"),
+        ("creep.rho", "1"),
+        ("creep.kappa", "mm/MPa"),
+        ("creep.z0", "mm"),
+    ] {
+        assert_eq!(cell(name, 2), unit, "{name}: {table}");
+    }
     for name in ["creep.rho", "creep.kappa", "creep.z0", "b"] {
         let fitted = fit["params"][name].as_f64().unwrap();
         assert!(

@@ -132,7 +132,8 @@ pub struct Args {
     plot: Option<PathBuf>,
     /// List the model's parameters and exit: name, symbol, the value the
     /// run would simulate with (the model file's or the thesis' preset,
-    /// after any --params) and meaning. A table: with --json, an error (a
+    /// after any --params), its unit in the model's columns' (`mm/MPa`;
+    /// `1`: a pure number) and meaning. A table: with --json, an error (a
     /// model file's `params` holds them for a script).
     #[arg(long, conflicts_with = "json")]
     list: bool,
@@ -214,8 +215,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     override_params(&mut model, &args.params)?;
     if args.list {
         // Name, symbol, the value this run would simulate with (the model
-        // file's or the thesis' preset, after any --params) and meaning,
-        // in columns as wide as the longest name.
+        // file's or the thesis' preset, after any --params), its unit in
+        // the model's columns' and meaning, in columns as wide as their
+        // widest entry.
         let datasets = model.augmented().datasets;
         let mut rows: Vec<(String, &str, &str)> = model
             .base
@@ -229,15 +231,40 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 rows.push((format!("{e}.{}", p.name), "", p.meaning));
             }
         }
+        let stated = |column: &str, none: &str| unit_of(column).unwrap_or(none.into());
+        let (input, output) = (
+            stated(&model.base.input_name, "input"),
+            stated(&model.base.output_name, "output"),
+        );
+        let units: Vec<String> = rows
+            .iter()
+            .map(|(name, ..)| {
+                model
+                    .unit_of(name)
+                    .map_or(String::new(), |u| u.text(&input, &output))
+            })
+            .collect();
         let width = rows
             .iter()
             .map(|(n, ..)| n.chars().count())
             .max()
             .unwrap_or(0);
-        outln!("{:<width$}  {:<4} {:>12}  meaning", "name", "", "value")?;
-        for ((name, symbol, meaning), value) in rows.iter().zip(model.theta()) {
+        let unit_width = units
+            .iter()
+            .map(|u| u.chars().count())
+            .max()
+            .unwrap_or(0)
+            .max(4);
+        outln!(
+            "{:<width$}  {:<4} {:>12}  {:<unit_width$}  meaning",
+            "name",
+            "",
+            "value",
+            "unit"
+        )?;
+        for (((name, symbol, meaning), value), unit) in rows.iter().zip(model.theta()).zip(&units) {
             outln!(
-                "{name:<width$}  {symbol:<4} {:>12}  {meaning}",
+                "{name:<width$}  {symbol:<4} {:>12}  {unit:<unit_width$}  {meaning}",
                 significant(value, 6)
             )?;
         }

@@ -11,7 +11,7 @@ use anyhow::Context as _;
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use super::effects::{Context, Effect, ModelDescription};
+use super::effects::{Context, Effect, ModelDescription, Unit};
 use super::experiment::Experiment;
 use super::family::Family;
 use super::fitted::FittedBaseline;
@@ -238,15 +238,22 @@ impl Model {
     /// coordinate, a pure number (`gain`, `loading`: `crate::model::coords`),
     /// and for a name the model does not hold.
     pub fn factor_of(&self, name: &str, per_input: f64, per_output: f64) -> f64 {
+        self.unit_of(name)
+            .map_or(1.0, |u| u.factor(per_input, per_output))
+    }
+
+    /// What the parameter `name` is measured in (a canonical name, or an
+    /// effect's `effect.param`); `None` for a name the model does not hold.
+    pub fn unit_of(&self, name: &str) -> Option<Unit> {
         if let Some(i) = self.base.family.index_of(name) {
-            return self.base.factor(i, per_input, per_output);
+            return Some(self.base.unit(i));
         }
         let datasets = self.augmented().datasets;
         self.effects()
             .iter()
             .flat_map(|e| e.params(datasets).into_iter().map(move |p| (e, p)))
             .find(|(e, p)| format!("{e}.{}", p.name) == name)
-            .map_or(1.0, |(_, p)| p.unit.factor(per_input, per_output))
+            .map(|(_, p)| p.unit)
     }
 
     /// Refuses a record this model's chain cannot be carried to (`diagnose

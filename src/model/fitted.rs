@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::effects::Unit;
 use super::family::Family;
 use super::sim::{Simulation, rest_state, simulate};
 use crate::data::Trace;
@@ -78,7 +79,7 @@ impl FittedBaseline {
     /// their names.
     pub fn rescaled(&self, per_input: f64, per_output: f64) -> FittedBaseline {
         let params = (self.params.iter().enumerate())
-            .map(|(i, v)| v * self.factor(i, per_input, per_output))
+            .map(|(i, v)| v * self.unit(i).factor(per_input, per_output))
             .collect();
         FittedBaseline {
             params,
@@ -88,21 +89,21 @@ impl FittedBaseline {
         }
     }
 
-    /// The factor [`FittedBaseline::rescaled`] takes the canonical
-    /// parameter `i` by (at this model's exponent `n`, for the loop-shape
-    /// weights).
-    pub fn factor(&self, i: usize, per_input: f64, per_output: f64) -> f64 {
+    /// What the canonical parameter `i` is measured in (the loop-shape
+    /// weights at this model's exponent `n`): the factor
+    /// [`FittedBaseline::rescaled`] takes it by.
+    pub fn unit(&self, i: usize) -> Unit {
         let family = self.family;
         let n = family.exponent_index().map_or(1.0, |k| self.params[k]);
         let [_, ib, ic] = family.linear_indices();
         match family.params()[i].name {
             "beta" | "gamma" | "beta1" | "beta2" | "beta3" | "beta4" | "beta5" | "beta6" => {
-                per_output.powf(-n)
+                Unit::PerOutputToThe(n)
             }
-            "x0" | "x_s" => per_output,
-            _ if i == ib => per_output / per_input,
-            _ if i == ic => per_output,
-            _ => 1.0,
+            "x0" | "x_s" => Unit::Output,
+            _ if i == ib => Unit::OutputPerInput,
+            _ if i == ic => Unit::Output,
+            _ => Unit::Pure,
         }
     }
 

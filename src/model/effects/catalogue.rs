@@ -131,7 +131,7 @@ catalogue! {
             physical: None,
             realisation: "stiffness grows with input rate",
             signature: "residual grows with input rate: rising/falling branches, high frequencies",
-            params: Params::Fixed(&[Param::per_input("eta", "growth of A with input rate (s per input unit)")]),
+            params: Params::Fixed(&[Param::seconds_per_input("eta", "growth of A with input rate (s per input unit)")]),
             primary: 0,
             bounds: |ctx, _| {
                 let v = (ctx.max_step / ctx.dt).max(f64::MIN_POSITIVE);

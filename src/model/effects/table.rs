@@ -117,10 +117,13 @@ impl Param {
     pub const fn gain(name: &'static str, meaning: &'static str) -> Param {
         Param::new(name, meaning, Unit::OutputPerInput)
     }
-    /// A growth per input unit (seconds per input unit too: the time
-    /// stays).
+    /// A growth per input unit.
     pub const fn per_input(name: &'static str, meaning: &'static str) -> Param {
         Param::new(name, meaning, Unit::PerInput)
+    }
+    /// Seconds per input unit.
+    pub const fn seconds_per_input(name: &'static str, meaning: &'static str) -> Param {
+        Param::new(name, meaning, Unit::SecondsPerInput)
     }
     const fn new(name: &'static str, meaning: &'static str, unit: Unit) -> Param {
         Param {
@@ -133,8 +136,9 @@ impl Param {
 
 /// What a parameter is measured in, as powers of the data's input and
 /// output units: what a model read in other units multiplies it by
-/// ([`Unit::factor`], `Model::rescaled`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+/// ([`Unit::factor`], `Model::rescaled`), and how a person reads it
+/// ([`Unit::text`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Unit {
     Pure,
@@ -142,6 +146,10 @@ pub enum Unit {
     Output,
     OutputPerInput,
     PerInput,
+    SecondsPerInput,
+    /// The output's unit to the power −n: a Bouc-Wen loop-shape weight,
+    /// whose state moves with the output, at the model's exponent `n`.
+    PerOutputToThe(f64),
 }
 
 impl Unit {
@@ -154,7 +162,23 @@ impl Unit {
             Unit::Input => per_input,
             Unit::Output => per_output,
             Unit::OutputPerInput => per_output / per_input,
-            Unit::PerInput => 1.0 / per_input,
+            Unit::PerInput | Unit::SecondsPerInput => 1.0 / per_input,
+            Unit::PerOutputToThe(n) => per_output.powf(-n),
+        }
+    }
+
+    /// The unit written with the data's `input` and `output` units
+    /// (`mm/MPa`; `1` for a pure number).
+    pub fn text(self, input: &str, output: &str) -> String {
+        match self {
+            Unit::Pure => "1".into(),
+            Unit::Input => input.into(),
+            Unit::Output => output.into(),
+            Unit::OutputPerInput => format!("{output}/{input}"),
+            Unit::PerInput => format!("1/{input}"),
+            Unit::SecondsPerInput => format!("s/{input}"),
+            Unit::PerOutputToThe(n) if n == 1.0 => format!("1/{output}"),
+            Unit::PerOutputToThe(n) => format!("{output}^-{}", crate::data::readable(n)),
         }
     }
 }
