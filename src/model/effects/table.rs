@@ -177,7 +177,7 @@ impl Unit {
             Unit::OutputPerInput => format!("{output}/{input}"),
             Unit::PerInput => format!("1/{input}"),
             Unit::SecondsPerInput => format!("s/{input}"),
-            Unit::PerOutputToThe(n) if n == 1.0 => format!("1/{output}"),
+            Unit::PerOutputToThe(1.0) => format!("1/{output}"),
             Unit::PerOutputToThe(n) => format!("{output}^-{}", crate::data::readable(n)),
         }
     }
