@@ -106,11 +106,16 @@ class Model:
     def simulate(self, u: _ArrayLike | Trace, x0: float | None = None) -> npt.NDArray[np.float64]:
         """Free-run output on `u`; `x0` is the measured output at the first
         sample (default: at rest at the first input; for a `Trace`, its
-        first measured output). A `Trace` in other units or at another
-        sample time than the model's raises `ValueError`."""
+        first measured output). A `Trace` in other pressure or length units
+        runs the model converted into them, with a `UserWarning`; one in
+        units of another kind, or at another sample time than the model's,
+        raises `ValueError`."""
     @property
     def params(self) -> dict[str, float]:
         """The family's parameters in canonical order, then the effects' as `effect.param`."""
+    @property
+    def units(self) -> dict[str, str]:
+        """Each parameter's unit, by the names `params` holds (`"mm/MPa"`; `"1"`: a pure number)."""
     @property
     def effects(self) -> list[str]:
         """The effect stages after the family, in chain order."""

@@ -192,6 +192,18 @@ impl Model {
         Ok(d)
     }
 
+    /// Each parameter's unit by name, as `params` holds them, written with
+    /// the units the model's columns state (`"mm/MPa"`, `"1/mm"`; `"1"` for
+    /// a pure number), as `simulate --list` shows them.
+    #[getter]
+    fn units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (name, _) in self.inner.named_params() {
+            d.set_item(&name, self.inner.unit_text(&name))?;
+        }
+        Ok(d)
+    }
+
     /// The effect stages after the family, in chain order, by realisation
     /// (`creep:two-pole`, ...); empty for a baseline alone.
     #[getter]

@@ -116,6 +116,10 @@ def test_a_model_with_effects_saves_loads_and_names_its_parameters(creep_model, 
     again.save(tmp_path / "again.json")
     assert (tmp_path / "again.json").read_bytes() == path.read_bytes()
     assert "classic + creep" in repr(again)
+    # Each parameter's unit, in the units the model's columns state.
+    assert list(again.units) == list(again.params)
+    assert {k: again.units[k] for k in ["alpha", "beta", "b", "x0", "creep.kappa", "creep.z0"]} == {
+        "alpha": "1", "beta": "1/mm", "b": "mm/MPa", "x0": "mm", "creep.kappa": "mm/MPa", "creep.z0": "mm"}
 
 
 def test_a_chain_simulates_as_the_command_does(creep_model, stair, cli, tmp_path):

@@ -231,18 +231,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 rows.push((format!("{e}.{}", p.name), "", p.meaning));
             }
         }
-        let stated = |column: &str, none: &str| unit_of(column).unwrap_or(none.into());
-        let (input, output) = (
-            stated(&model.base.input_name, "input"),
-            stated(&model.base.output_name, "output"),
-        );
         let units: Vec<String> = rows
             .iter()
-            .map(|(name, ..)| {
-                model
-                    .unit_of(name)
-                    .map_or(String::new(), |u| u.text(&input, &output))
-            })
+            .map(|(name, ..)| model.unit_text(name).unwrap_or_default())
             .collect();
         let width = rows
             .iter()
