@@ -65,6 +65,7 @@ pub fn selected_fit(
         undetermined: Vec::new(),
         diverging_probes: Vec::new(),
         held_at_bounds: Vec::new(),
+        units: FitReport::units_of(&model),
         sse: finite(d.selection.final_fit.est_sse),
         val_rmse,
         val_fit_percent,

@@ -58,6 +58,12 @@ pub struct FitReport {
     /// in a note, which the JSON's `notes` carry.
     #[serde(skip)]
     pub held_at_bounds: Vec<String>,
+    /// Each parameter's unit in the units the data's columns state, in
+    /// `params`' order (`Model::unit_text`; `1` for a pure number), for
+    /// the text's rows; the JSON leaves it to `simulate --list`. Empty
+    /// where the fit found no parameters.
+    #[serde(skip)]
+    pub units: Vec<String>,
     /// Estimation SSE of the free run (`None` where it diverged).
     pub sse: Option<f64>,
     pub val_rmse: Option<f64>,
@@ -283,6 +289,10 @@ impl FitReport {
         let undetermined = loose(&params, &std_errors)
             .map(|(name, _, _)| name.to_string())
             .collect();
+        let units = match found {
+            true => FitReport::units_of(&problem.fitted_model(&outcome.params)),
+            false => Vec::new(),
+        };
         FitReport {
             model: problem.model.family,
             effects: problem
@@ -297,6 +307,7 @@ impl FitReport {
             undetermined,
             diverging_probes,
             held_at_bounds,
+            units,
             sse: finite(outcome.sse),
             val_rmse: finite(val.pooled.rmse),
             val_fit_percent: finite(val.pooled.fit_percent),
@@ -417,6 +428,13 @@ impl FitReport {
         self.write_with_result(out, files)
     }
 
+    /// Each of `model`'s parameters' units, in `params`' order.
+    pub fn units_of(model: &Model) -> Vec<String> {
+        (model.named_params().iter())
+            .map(|(name, _)| model.unit_text(name).unwrap_or_default())
+            .collect()
+    }
+
     /// Writes a model found otherwise than by a fit's run (`fit --effects
     /// auto`: the diagnosis' selection) to `out`: `result.json` (this
     /// report), `model.json`, `loop.svg` and `trace.svg`, all or none.
@@ -522,6 +540,15 @@ impl FitReport {
         // a bare figure would read as a parameter that was never assessed.
         let assessed =
             self.std_errors.0.iter().any(|(_, e)| e.is_some()) && self.diverging_probes.is_empty();
+        // A pure number's unit is left blank: `1` on every pole and share
+        // would hide the few that carry one.
+        let units: Vec<&str> = (0..figures.len())
+            .map(|i| match self.units.get(i).map(String::as_str) {
+                Some("1") | None => "",
+                Some(u) => u,
+            })
+            .collect();
+        let unit_width = units.iter().map(|u| u.chars().count()).max().unwrap_or(0);
         for (i, ((name, _), figure)) in self
             .params
             .0
@@ -541,7 +568,11 @@ impl FitReport {
                 }
                 _ => String::new(),
             };
-            let row = format!("  {name:<name_width$} {figure:>14}{held}{error}");
+            let unit = match unit_width {
+                0 => String::new(),
+                _ => format!(" {:<unit_width$}", units[i]),
+            };
+            let row = format!("  {name:<name_width$} {figure:>14}{unit}{held}{error}");
             line(row.trim_end().to_string());
         }
         let percent = |v: Option<f64>, rmse: Option<f64>| fit_percent_text(v, rmse.is_some(), 4);
