@@ -172,6 +172,7 @@ class FitResult:
     agreement: dict[str, Any] | None
     refining: dict[str, Any] | None
     std_errors: dict[str, float | None]
+    units: dict[str, str]
     undetermined: list[str]
     diverging_probes: list[str]
     stop: Literal["completed", "target-sse", "time-budget", "interrupted"]

@@ -45,6 +45,10 @@ crate::state::with_state! {
         /// Fitted parameters by name: the family's in canonical order, then the
         /// effects' as `effect.param` (empty when none was found).
         params: Py<PyDict>,
+        /// Each parameter's unit by the same names, in the units the data's
+        /// columns state (`"mm/MPa"`; `"1"` for a pure number; `fit --json`'s
+        /// `units`).
+        units: Py<PyDict>,
         /// Estimation SSE of the free run (first half of the data; `inf` when
         /// every candidate diverged).
         sse: f64,
@@ -517,6 +521,10 @@ fn fit_result(
     for (name, v) in &report.params.0 {
         params.set_item(name, v)?;
     }
+    let units = PyDict::new(py);
+    for (name, u) in &report.units.0 {
+        units.set_item(name, u)?;
+    }
     // Built here, not through the JSON: an infinite error stays `inf`
     // rather than the JSON's `null`, which would read as held.
     let std_errors = PyDict::new(py);
@@ -551,6 +559,7 @@ fn fit_result(
     Ok(FitResult {
         model,
         params: params.unbind(),
+        units: units.unbind(),
         sse: report.sse.unwrap_or(f64::INFINITY),
         val_rmse: report.val_rmse,
         val_fit_percent: report.val_fit_percent,

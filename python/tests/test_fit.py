@@ -33,6 +33,8 @@ def test_fit_gives_the_commands_parameters_bit_for_bit(stair, cli, tmp_path):
     assert result.undetermined == expected["undetermined"] == []
     assert result.diverging_probes == expected["diverging_probes"] == []
     assert result.std_errors["A"] is None and result.std_errors["b"] > 0
+    assert result.units == expected["units"] == result.model.units
+    assert (result.units["b"], result.units["alpha"]) == ("mm/MPa", "1")
     assert result.val_fit_percent == expected["val_fit_percent"]
     assert result.linear_val_fit_percent == expected["linear_val_fit_percent"]
     assert result.linear_largest_pole == expected["linear_largest_pole"]

@@ -40,6 +40,10 @@ pub struct FitReport {
     /// Fitted parameters by name, in the family's canonical order, then
     /// the effects' as `effect.param`.
     pub params: Named,
+    /// Each parameter's unit by name, written with the units the data's
+    /// columns state (`Model::unit_text`: `mm/MPa`; `1` for a pure
+    /// number); empty where the fit found no parameters.
+    pub units: Named<String>,
     /// Each parameter's standard error on the estimation half, by name
     /// (`fit::uncertainty`: a lower bound; `None` where held, infinite
     /// where the record does not determine it at all).
@@ -58,12 +62,6 @@ pub struct FitReport {
     /// in a note, which the JSON's `notes` carry.
     #[serde(skip)]
     pub held_at_bounds: Vec<String>,
-    /// Each parameter's unit in the units the data's columns state, in
-    /// `params`' order (`Model::unit_text`; `1` for a pure number), for
-    /// the text's rows; the JSON leaves it to `simulate --list`. Empty
-    /// where the fit found no parameters.
-    #[serde(skip)]
-    pub units: Vec<String>,
     /// Estimation SSE of the free run (`None` where it diverged).
     pub sse: Option<f64>,
     pub val_rmse: Option<f64>,
@@ -291,7 +289,7 @@ impl FitReport {
             .collect();
         let units = match found {
             true => FitReport::units_of(&problem.fitted_model(&outcome.params)),
-            false => Vec::new(),
+            false => Named(Vec::new()),
         };
         FitReport {
             model: problem.model.family,
@@ -428,11 +426,16 @@ impl FitReport {
         self.write_with_result(out, files)
     }
 
-    /// Each of `model`'s parameters' units, in `params`' order.
-    pub fn units_of(model: &Model) -> Vec<String> {
-        (model.named_params().iter())
-            .map(|(name, _)| model.unit_text(name).unwrap_or_default())
-            .collect()
+    /// Each of `model`'s parameters' units by name, in `params`' order.
+    pub fn units_of(model: &Model) -> Named<String> {
+        Named(
+            (model.named_params().into_iter())
+                .map(|(name, _)| {
+                    let unit = model.unit_text(&name).unwrap_or_default();
+                    (name, unit)
+                })
+                .collect(),
+        )
     }
 
     /// Writes a model found otherwise than by a fit's run (`fit --effects
@@ -543,7 +546,7 @@ impl FitReport {
         // A pure number's unit is left blank: `1` on every pole and share
         // would hide the few that carry one.
         let units: Vec<&str> = (0..figures.len())
-            .map(|i| match self.units.get(i).map(String::as_str) {
+            .map(|i| match self.units.0.get(i).map(|(_, u)| u.as_str()) {
                 Some("1") | None => "",
                 Some(u) => u,
             })
