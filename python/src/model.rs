@@ -198,8 +198,8 @@ impl Model {
     #[getter]
     fn units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let d = PyDict::new(py);
-        for (name, _) in self.inner.named_params() {
-            d.set_item(&name, self.inner.unit_text(&name))?;
+        for (name, unit) in self.inner.units() {
+            d.set_item(name, unit)?;
         }
         Ok(d)
     }

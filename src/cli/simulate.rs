@@ -231,10 +231,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 rows.push((format!("{e}.{}", p.name), "", p.meaning));
             }
         }
-        let units: Vec<String> = rows
-            .iter()
-            .map(|(name, ..)| model.unit_text(name).unwrap_or_default())
-            .collect();
+        let units: Vec<String> = model.units().into_iter().map(|(_, u)| u).collect();
         let width = rows
             .iter()
             .map(|(n, ..)| n.chars().count())

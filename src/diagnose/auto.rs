@@ -15,6 +15,7 @@ use crate::model::file::SearchBox;
 use crate::model::{Family, Flow, Model};
 use crate::optim::Algorithm;
 use crate::optim::engine::StopReason;
+use crate::report::json::Named;
 
 /// `fit --effects auto`: the diagnosis' forward selection over its whole
 /// catalogue on `trace` (the diagnosis' settings with `seed` and
@@ -65,7 +66,7 @@ pub fn selected_fit(
         undetermined: Vec::new(),
         diverging_probes: Vec::new(),
         held_at_bounds: Vec::new(),
-        units: FitReport::units_of(&model),
+        units: Named(model.units()),
         sse: finite(d.selection.final_fit.est_sse),
         val_rmse,
         val_fit_percent,

@@ -141,12 +141,9 @@ impl Records {
         if theta.is_empty() {
             return None;
         }
-        let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
-        self.whole
-            .iter()
-            .enumerate()
-            .flat_map(|(i, whole)| {
-                let run = model.simulate(&t, i, &self.ctx[i], whole);
+        self.free_runs(model, theta)
+            .into_iter()
+            .flat_map(|run| {
                 run.windows(2)
                     .map(|p| f64::from((p[1] - p[0]).abs()))
                     .filter(|s| s.is_finite())
@@ -164,13 +161,13 @@ impl Records {
         if a.is_empty() || b.is_empty() {
             return f64::INFINITY;
         }
-        let f32s = |theta: &[f64]| theta.iter().map(|&v| v as f32).collect::<Vec<f32>>();
-        let (a, b) = (f32s(a), f32s(b));
         let (mut sum, mut n) = (0.0, 0usize);
-        for (i, whole) in self.whole.iter().enumerate() {
-            let run_a = model.simulate(&a, i, &self.ctx[i], whole);
-            let run_b = model.simulate(&b, i, &self.ctx[i], whole);
-            for k in self.val_start[i]..whole.len() {
+        let runs = self
+            .free_runs(model, a)
+            .into_iter()
+            .zip(self.free_runs(model, b));
+        for (i, (run_a, run_b)) in runs.enumerate() {
+            for k in self.val_start[i]..run_a.len() {
                 sum += (f64::from(run_a[k]) - f64::from(run_b[k])).powi(2);
                 n += 1;
             }
@@ -181,6 +178,14 @@ impl Records {
         } else {
             f64::INFINITY
         }
+    }
+
+    /// `model`'s free run at `theta` over each whole record, in order.
+    fn free_runs(&self, model: &ModelDescription, theta: &[f64]) -> Vec<Vec<f32>> {
+        let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
+        (self.whole.iter().enumerate())
+            .map(|(i, whole)| model.simulate(&t, i, &self.ctx[i], whole))
+            .collect()
     }
 
     /// Each record's validation half, as [`Records::score_on`] takes it.

@@ -41,7 +41,7 @@ pub struct FitReport {
     /// the effects' as `effect.param`.
     pub params: Named,
     /// Each parameter's unit by name, written with the units the data's
-    /// columns state (`Model::unit_text`: `mm/MPa`; `1` for a pure
+    /// columns state (`Model::units`: `mm/MPa`; `1` for a pure
     /// number); empty where the fit found no parameters.
     pub units: Named<String>,
     /// Each parameter's standard error on the estimation half, by name
@@ -288,7 +288,7 @@ impl FitReport {
             .map(|(name, _, _)| name.to_string())
             .collect();
         let units = match found {
-            true => FitReport::units_of(&problem.fitted_model(&outcome.params)),
+            true => Named(problem.fitted_model(&outcome.params).units()),
             false => Named(Vec::new()),
         };
         FitReport {
@@ -424,18 +424,6 @@ impl FitReport {
             )?);
         }
         self.write_with_result(out, files)
-    }
-
-    /// Each of `model`'s parameters' units by name, in `params`' order.
-    pub fn units_of(model: &Model) -> Named<String> {
-        Named(
-            (model.named_params().into_iter())
-                .map(|(name, _)| {
-                    let unit = model.unit_text(&name).unwrap_or_default();
-                    (name, unit)
-                })
-                .collect(),
-        )
     }
 
     /// Writes a model found otherwise than by a fit's run (`fit --effects

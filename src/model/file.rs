@@ -256,15 +256,20 @@ impl Model {
             .map(|(_, p)| p.unit)
     }
 
-    /// The unit of the parameter `name` written with the units the model's
-    /// columns state (`mm/MPa`, `1/mm`; `1` for a pure number; `output`
-    /// and `input` for a column that states none); `None` for a name the
-    /// model does not hold.
-    pub fn unit_text(&self, name: &str) -> Option<String> {
+    /// Every parameter's unit by name, in [`Model::named_params`]' order,
+    /// written with the units the model's columns state (`mm/MPa`, `1/mm`;
+    /// `1` for a pure number; `output` and `input` for a column that
+    /// states none).
+    pub fn units(&self) -> Vec<(String, String)> {
         let stated = |column: &str, none: &str| unit_of(column).unwrap_or(none.into());
         let input = stated(&self.base.input_name, "input");
         let output = stated(&self.base.output_name, "output");
-        self.unit_of(name).map(|u| u.text(&input, &output))
+        (self.named_params().into_iter())
+            .map(|(name, _)| {
+                let unit = self.unit_of(&name).map(|u| u.text(&input, &output));
+                (name, unit.expect("a parameter of the model's own"))
+            })
+            .collect()
     }
 
     /// Refuses a record this model's chain cannot be carried to (`diagnose
