@@ -1319,9 +1319,10 @@ fn a_repeated_excitation_is_noted_as_validating_on_itself() {
     assert!(!String::from_utf8_lossy(&out.stderr).contains("repeats every"));
 }
 
-/// A fitted loop that does not saturate has no stable-step limit, and the
-/// report says so rather than leave the line out (the Cavatappi 500 g fit
-/// ended at a loading of 0 and its report had no such line).
+/// A fitted loop with no branch that bends (β = γ = 0) has no stable-step
+/// limit, and the report says so rather than leave the line out (the
+/// Cavatappi 500 g fit ended at a loading of 0 and its report had no such
+/// line).
 #[test]
 fn a_loop_without_saturation_says_its_steps_are_not_bounded() {
     let dir = tempfile::tempdir().unwrap();

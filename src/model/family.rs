@@ -182,34 +182,53 @@ impl Family {
     }
 
     /// The largest step of the output in one sample (output units) within
-    /// which the discrete hysteresis update of `theta` settles on its
-    /// saturation, or `None` where its loop never saturates (the linear
-    /// family, `A ≤ 0`, `n ≤ 0`, or no loading branch that bends toward a
-    /// bound).
+    /// which the discrete hysteresis update of `theta` neither overshoots
+    /// its saturation nor flips past it, or `None` where no branch of the
+    /// loop bends toward a bound or away from one (the linear family,
+    /// `A ≤ 0`, `n ≤ 0`).
     ///
     /// The update is an explicit step, `w' = w + Δ·(A − Ψ·|w|^n)`
-    /// ([`crate::model::sim::classic_w`], [`crate::model::sim::generalized_w`]).
-    /// On a loading branch (`Δ` and `w` of one sign) with `Ψ > 0` it moves
-    /// `w` toward its saturation `w* = (A/Ψ)^(1/n)` with the factor
-    /// `1 − |Δ|·n·A/w*` there. Past `|Δ| = 2·w*/(n·A)` (`2/Ψ` at `n = 1`,
-    /// where the factor holds along the whole branch) it is below −1: each
-    /// step overshoots `w*` by more than the last, the state no longer
-    /// settles, and at larger steps it runs away, though the continuous
-    /// model's loop is bounded. A model fitted on a record that moves a
-    /// little each sample can hold this close to the steps it saw; another
-    /// record, or a start far from its own rest, may step further.
+    /// ([`crate::model::sim::classic_w`], [`crate::model::sim::generalized_w`]),
+    /// whose factor on `w` is `1 − |Δ|·n·κ·|w|^(n−1)` along a branch with
+    /// `κ|w|^n` the pull on `|w|`:
     ///
-    /// The classic loading branch has `Ψ = β + γ`; the generalized one
-    /// `β1 + (β2 + β3)·d·q + (β4 + β5)·d + β6·q` for each direction `d` and
-    /// side `q` of the switching level, the smallest step binding.
+    /// - on a loading branch (`Δ` and `w` of one sign) `κ = Ψ > 0` moves
+    ///   `w` toward its saturation `w* = (A/Ψ)^(1/n)`;
+    /// - on an unloading branch `κ = −Ψ > 0` (a branch steeper than `A`,
+    ///   as the bounded class's `β ≥ 0` makes the classic one) drives `w`
+    ///   back through zero, from at most the loading saturation of its
+    ///   sign (`w*`; at `n = 1` the factor is the same at every `|w|`).
+    ///
+    /// Past `|Δ| = 2/(n·κ·w*^(n−1))` (`2/κ` at `n = 1`) the factor is below
+    /// −1: each step throws `w` further past where the continuous model
+    /// would take it than the last, and a record that turns back and forth
+    /// at such steps pumps it without bound, though the continuous model's
+    /// loop is bounded. A model fitted on a record that moves a little each
+    /// sample can hold this close to the steps it saw; another record, or
+    /// a start far from its own rest, may step further.
+    ///
+    /// The classic loading branch has `Ψ = β + γ`, its unloading one
+    /// `γ − β`; the generalized loading one
+    /// `β1 + (β2 + β3)·d·q + (β4 + β5)·d + β6·q` for each sign `d` of `w`
+    /// and side `q` of the switching level, its unloading one that less
+    /// `2·(β1 + β2·d·q + β4·d)`. The smallest step binds.
     pub fn stable_step(self, theta: &[f64]) -> Option<f64> {
-        let loading: Vec<f64> = match self {
+        // (sign of w, loading Ψ, unloading Ψ) of each branch pair.
+        let branches: Vec<(f64, f64, f64)> = match self {
             Family::Linear => return None,
-            Family::Classic => vec![theta[2] + theta[3]],
+            Family::Classic => {
+                let (beta, gamma) = (theta[2], theta[3]);
+                [1.0, -1.0]
+                    .map(|d| (d, beta + gamma, gamma - beta))
+                    .to_vec()
+            }
             Family::Generalized => {
                 let b = &theta[2..8];
                 [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
-                    .map(|(d, q)| b[0] + (b[1] + b[2]) * d * q + (b[3] + b[4]) * d + b[5] * q)
+                    .map(|(d, q)| {
+                        let loading = b[0] + (b[1] + b[2]) * d * q + (b[3] + b[4]) * d + b[5] * q;
+                        (d, loading, loading - 2.0 * (b[0] + b[1] * d * q + b[3] * d))
+                    })
                     .to_vec()
             }
         };
@@ -217,11 +236,32 @@ impl Family {
         if !(big_a > 0.0 && n > 0.0) {
             return None;
         }
-        loading
-            .into_iter()
-            .filter(|&psi| psi > 0.0)
-            .map(|psi| 2.0 * (big_a / psi).powf(1.0 / n) / (n * big_a))
-            .filter(|step| step.is_finite())
+        let saturation = |psi: f64| (big_a / psi).powf(1.0 / n);
+        // The largest |w| of each sign: its loading branches' saturation,
+        // unbounded where one of them does not saturate.
+        let reach = |d: f64| {
+            branches
+                .iter()
+                .filter(|b| b.0 == d)
+                .map(|&(_, psi, _)| {
+                    if psi > 0.0 {
+                        saturation(psi)
+                    } else {
+                        f64::INFINITY
+                    }
+                })
+                .fold(0.0, f64::max)
+        };
+        let step = |pull: f64, w_max: f64| 2.0 / (n * pull * w_max.powf(n - 1.0));
+        branches
+            .iter()
+            .flat_map(|&(d, loading, unloading)| {
+                let settling = (loading > 0.0).then(|| step(loading, saturation(loading)));
+                let returning = (unloading < 0.0).then(|| step(-unloading, reach(d)));
+                [settling, returning]
+            })
+            .flatten()
+            .filter(|s| s.is_finite() && *s > 0.0)
             .reduce(f64::min)
     }
 

@@ -495,35 +495,47 @@ pub fn check_f32_range_about(trace: &Trace, means: Option<(f64, f64)>) -> anyhow
 mod tests {
     use super::*;
 
-    /// Steps of one size, all one way, from `w = 0`: the update's state
-    /// after `steps` of them, and how far its last step moved it.
-    fn ramp(family: Family, theta: &[f64], delta: f64, x: f64, steps: usize) -> (f32, f32) {
+    /// Steps of one size from `w = 0`, all one way (`turn` false) or each
+    /// the other way from the last (`turn`): the update's state after
+    /// `steps` of them, and how far its last step moved it.
+    fn steps_of(
+        family: Family,
+        theta: &[f64],
+        (delta, turn): (f64, bool),
+        x: f64,
+        steps: usize,
+    ) -> (f32, f32) {
         let t: Vec<f32> = theta.iter().map(|&v| v as f32).collect();
-        let (mut w, mut moved) = (0.0f32, 0.0f32);
+        let (mut w, mut moved, mut delta) = (0.0f32, 0.0f32, delta as f32);
         for _ in 0..steps {
             let next = match family {
-                Family::Classic => classic_w(t[0], t[2], t[3], t[4], w, delta as f32),
+                Family::Classic => classic_w(t[0], t[2], t[3], t[4], w, delta),
                 _ => {
                     let betas = [t[2], t[3], t[4], t[5], t[6], t[7]];
-                    generalized_w(t[0], &betas, t[8], w, x as f32, delta as f32, 0.0)
+                    generalized_w(t[0], &betas, t[8], w, x as f32, delta, 0.0)
                 }
             };
             (moved, w) = ((next - w).abs(), next);
+            if turn {
+                delta = -delta;
+            }
         }
         (w, moved)
     }
 
     #[test]
     fn the_update_settles_within_its_stable_step_and_not_past_it() {
-        // A, α, β, γ, n, a, b, c, x0: the 400 g Cavatappi fit's loop (β + γ
-        // = 14.93 a mm: 0.134 mm), a thesis-like one, n ≠ 1.
+        // A, α, β, γ, n, a, b, c, x0.
         let classic =
             |beta: f64, gamma: f64, n: f64| [1.0, 0.9, beta, gamma, n, 0.97, 0.1, 0.0, 0.0];
-        let cases = [
+        // A loading branch binds: a ramp settles on the saturation or not.
+        // The 400 g Cavatappi fit's loop (β + γ = 14.93 a mm: 0.134 mm), a
+        // thesis-like one, n ≠ 1, and a generalized one above its switching
+        // level.
+        let settling = [
             (Family::Classic, classic(14.176, 0.7565, 1.0).to_vec(), 1.0),
             (Family::Classic, classic(0.3, 0.2, 1.0).to_vec(), 1.0),
             (Family::Classic, classic(0.3, 0.2, 2.0).to_vec(), 1.0),
-            // β1..β6 with the binding branch above the switching level.
             (
                 Family::Generalized,
                 vec![
@@ -532,25 +544,47 @@ mod tests {
                 1.0,
             ),
         ];
-        for (family, theta, x) in cases {
+        // An unloading branch binds (γ < 0: unloading steeper than
+        // loading): a record that turns each sample stays bounded or is
+        // pumped. A fit of the 400 g Cavatappi record at --pop 4000 (β + γ
+        // = 0: the loading branch never saturates), a saturating one, n ≠ 1.
+        let returning = [
+            (Family::Classic, classic(153.56, -153.56, 1.0).to_vec(), 1.0),
+            (Family::Classic, classic(0.4, -0.1, 1.0).to_vec(), 1.0),
+            (Family::Classic, classic(0.4, -0.1, 1.5).to_vec(), 1.0),
+        ];
+        let cases = settling
+            .into_iter()
+            .map(|c| (c, false))
+            .chain(returning.into_iter().map(|c| (c, true)));
+        for ((family, theta, x), turn) in cases {
             let step = family.stable_step(&theta).unwrap();
-            let (settled, moved) = ramp(family, &theta, 0.9 * step, x, 400);
+            let (settled, moved) = steps_of(family, &theta, (0.9 * step, turn), x, 400);
+            let bound = settled.abs().max(step as f32);
             assert!(
-                settled.is_finite() && moved < 1e-4 * settled.abs(),
+                settled.is_finite() && (turn || moved < 1e-4 * bound),
                 "{family} {theta:?}: {settled} moved {moved}"
             );
-            let (w, moved) = ramp(family, &theta, 1.1 * step, x, 400);
+            let (w, moved) = steps_of(family, &theta, (1.1 * step, turn), x, 400);
             assert!(
-                !w.is_finite() || moved > 1e-2 * settled.abs(),
-                "{family} {theta:?}: {w} moved {moved}"
+                !w.is_finite()
+                    || if turn {
+                        w.abs() > 1e3 * bound
+                    } else {
+                        moved > 1e-2 * bound
+                    },
+                "{family} {theta:?}: {w} moved {moved} (within: {settled})"
             );
         }
         let cavatappi = Family::Classic
             .stable_step(&classic(14.176, 0.7565, 1.0))
             .unwrap();
         assert!((cavatappi - 2.0 / 14.9325).abs() < 1e-12, "{cavatappi}");
-        // No saturation, no step: a loop without one (β + γ ≤ 0), no loop.
-        assert_eq!(Family::Classic.stable_step(&classic(0.1, -0.2, 1.0)), None);
+        let pumped = Family::Classic
+            .stable_step(&classic(153.56, -153.56, 1.0))
+            .unwrap();
+        assert!((pumped - 2.0 / 307.12).abs() < 1e-12, "{pumped}");
+        // No loop, no step.
         assert_eq!(
             Family::Classic.stable_step(&[0.0, 0.9, 1.0, 1.0, 1.0, 0.9, 0.1, 0.0, 0.0]),
             None
