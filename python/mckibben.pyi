@@ -200,6 +200,7 @@ def fit(
     free_n: bool = False,
     loop: Literal["bounded", "free"] = "bounded",
     switch: Literal["search", "starts", "mean", "zero"] | None = None,
+    overshoot: Literal["refuse", "allow"] | None = None,
     thesis_flow: bool = False,
     target_sse: float | None = None,
     time_budget: float | None = None,

@@ -15,6 +15,7 @@ use pyo3::prelude::*;
 use serde::Serialize;
 
 use mckibben::eval::Backend;
+use mckibben::fit::problem::Overshoot;
 use mckibben::model::{Family, Loop, Switching};
 use mckibben::names::UnknownName;
 use mckibben::optim::Algorithm;
@@ -283,6 +284,12 @@ pub fn backend(name: &str) -> PyResult<Backend> {
 /// A loop class by name (`bounded`, `free`).
 pub fn loop_shape(name: &str) -> PyResult<Loop> {
     choice(name, "loop")
+}
+
+/// Whether a fit admits a loop whose update overshoots (`refuse`,
+/// `allow`), as `fit --overshoot`.
+pub fn overshoot(name: &str) -> PyResult<Overshoot> {
+    choice(name, "overshoot")
 }
 
 /// Where a generalized fit's sign terms switch (`starts`, `search`,

@@ -25,8 +25,8 @@ use mckibben::optim::engine::{Observer, Outcome, StopReason, StopRules};
 use mckibben::optim::history::GenerationRecord;
 
 use crate::convert::{
-    algorithm, backend, family, in_python_terms, loop_shape, runtime_error, switching, to_python,
-    value_error,
+    algorithm, backend, family, in_python_terms, loop_shape, overshoot as overshoot_rule,
+    runtime_error, switching, to_python, value_error,
 };
 use crate::data::{Experiments, experiments, located};
 use crate::history::history_arrays;
@@ -241,7 +241,7 @@ fn unbound(py: Python<'_>, value: &impl serde::Serialize) -> PyResult<Py<PyAny>>
 #[pyo3(signature = (
     u, y = None, dt = None, model = None, effects = None, algo = "de", pop = None,
     gens = None, seed = 1, backend = "cpu", bounds = None, progress = None, *,
-    free_n = false, r#loop = "bounded", switch = None, thesis_flow = false,
+    free_n = false, r#loop = "bounded", switch = None, overshoot = None, thesis_flow = false,
     target_sse = None, time_budget = None, stall = None, start = None, carry = None,
     refine_rounds = None
 ))]
@@ -263,6 +263,7 @@ pub fn fit(
     #[pyo3(from_py_with = named::free_n)] free_n: bool,
     #[pyo3(from_py_with = named::loop_shape)] r#loop: &str,
     #[pyo3(from_py_with = named::switch)] switch: Option<&str>,
+    #[pyo3(from_py_with = named::overshoot)] overshoot: Option<&str>,
     #[pyo3(from_py_with = named::thesis_flow)] thesis_flow: bool,
     #[pyo3(from_py_with = named::target_sse)] target_sse: Option<f64>,
     #[pyo3(from_py_with = named::time_budget)] time_budget: Option<f64>,
@@ -313,6 +314,7 @@ pub fn fit(
         free_n,
         loop_shape: loop_shape(r#loop)?,
         switching: asked,
+        overshoot: overshoot.map(overshoot_rule).transpose()?,
         bounds: bounds.unwrap_or_default(),
         carry: carried.is_some(),
     };

@@ -67,6 +67,7 @@ named! {
     free_n: bool = flag("free_n");
     loop_shape: &'a str = text("loop");
     switch: &'a str = optional(text("switch"));
+    overshoot: &'a str = optional(text("overshoot"));
     thesis_flow: bool = flag("thesis_flow");
     target_sse: f64 = optional(real("target_sse"));
     time_budget: f64 = optional(real("time_budget"));

@@ -152,6 +152,19 @@ def test_a_generalized_fit_switches_as_the_command(stair, cli, tmp_path):
         mckibben.fit(stair, model="generalized", pop=40, gens=10, switch="zero", bounds={"x_s": 1.0})
 
 
+def test_a_fit_refuses_overshooting_loops_as_the_command(stair, cli, tmp_path):
+    small = ["--pop", "1000", "--gens", "30", "--seed", "2", "--backend", "cpu"]
+    expected = cli("fit", stair.source, *small, "--overshoot", "refuse", "--out", tmp_path)
+    refused = mckibben.fit(stair, pop=1000, gens=30, seed=2, overshoot="refuse")
+    assert [bits(v) for v in refused.params.values()] == [bits(v) for v in expected["params"].values()]
+    # Read, not ignored: on this record some candidate the default admits
+    # is refused, and the search ends elsewhere.
+    allowed = mckibben.fit(stair, pop=1000, gens=30, seed=2)
+    assert refused.sse != allowed.sse
+    with pytest.raises(ValueError, match="unknown overshoot `never`: expected one of refuse, allow"):
+        mckibben.fit(stair, pop=40, gens=10, overshoot="never")
+
+
 def test_a_larger_population_runs_tries_as_the_command(stair, cli, tmp_path):
     small = ["--pop", "3000", "--gens", "4", "--seed", "3", "--backend", "cpu"]
     expected = cli("fit", stair.source, *small, "--out", tmp_path)

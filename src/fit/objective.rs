@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::problem::{Admission, FitProblem};
+use super::problem::{Admission, FitProblem, Overshoot, SETTLED_SHARE};
 use crate::eval::{Evaluator, Pending, Problem};
 use crate::model::coords::in_bounded_class;
 use crate::model::{Flow, Loop, Measure};
@@ -25,6 +25,11 @@ pub struct ModelObjective<'a> {
     stress: Option<(Problem, f64)>,
     /// Whether the loop must be in the bounded class.
     bounded_class: bool,
+    /// A step a sample that every candidate's loop update must settle
+    /// within on the free run ([`crate::model::Family::stable_step`]; a loop
+    /// without such a step passes), where overshoots are refused
+    /// ([`Overshoot`]).
+    stable_floor: Option<f64>,
     /// Whether every row must have a bounded loop
     /// ([`crate::model::Family::loop_bounded`]), whatever the measure: the
     /// diagnosis' rule ([`ModelObjective::bounded_loops`]).
@@ -75,6 +80,7 @@ impl<'a> ModelObjective<'a> {
             problem,
             stress: None,
             bounded_class: false,
+            stable_floor: None,
             loop_bounded: false,
             clock: Clock::new(),
         }
@@ -96,19 +102,27 @@ impl<'a> ModelObjective<'a> {
     /// bounded on the whole record's input. With bounded loops (the default)
     /// it also rejects every loop outside the class, which the data-scale
     /// box excludes anyway but a box on the canonical loop-shape parameters
-    /// does not. The thesis' flow is the thesis' experiment and runs without
-    /// either check. The diagnosis' admits bounded loops only, under every
-    /// measure ([`ModelObjective::bounded_loops`]).
+    /// does not; where overshoots are refused ([`Overshoot`]), every loop
+    /// whose update overshoots on the steps the estimation records take
+    /// ([`SETTLED_SHARE`]). The thesis' flow is the thesis' experiment and
+    /// runs without these checks. The diagnosis' admits bounded loops only,
+    /// under every measure ([`ModelObjective::bounded_loops`]).
     pub fn for_problem(evaluator: &'a mut dyn Evaluator, problem: &FitProblem) -> Self {
         match problem.admission {
             Admission::BoundedLoops => {
                 ModelObjective::bounded_loops(evaluator, problem.est_problem())
             }
-            Admission::Fit => {
+            Admission::Fit(overshoot) => {
                 let joint = problem.flow != Flow::Thesis;
                 ModelObjective {
                     stress: joint.then(|| problem.stress()),
                     bounded_class: joint && problem.loop_shape == Loop::Bounded,
+                    // With effects the loop steps on the baseline's own
+                    // output, not the measured one.
+                    stable_floor: (joint
+                        && overshoot == Overshoot::Refuse
+                        && problem.model.effects.is_empty())
+                    .then(|| problem.records.measured_step_within(SETTLED_SHARE)),
                     ..ModelObjective::new(evaluator, problem.est_problem())
                 }
             }
@@ -124,11 +138,15 @@ impl<'a> ModelObjective<'a> {
         };
         let family = problem.family;
         let admitted = |row: &[f64]| {
-            if self.bounded_class {
-                in_bounded_class(family, row)
-            } else {
-                family.loop_bounded(row)
-            }
+            let steady = self
+                .stable_floor
+                .is_none_or(|floor| family.stable_step(row).is_none_or(|s| s >= floor));
+            steady
+                && if self.bounded_class {
+                    in_bounded_class(family, row)
+                } else {
+                    family.loop_bounded(row)
+                }
         };
         let picked: Vec<usize> = (0..finite.len())
             .filter(|&i| finite[i] && admitted(rows.row(i)))
@@ -198,6 +216,7 @@ impl Objective for ModelObjective<'_> {
                     problem: &self.problem,
                     stress: &self.stress,
                     bounded_class: self.bounded_class,
+                    stable_floor: self.stable_floor,
                     loop_bounded: self.loop_bounded,
                 }) as Box<dyn Fork + '_>)
             })
@@ -285,6 +304,7 @@ struct ModelFork<'o> {
     problem: &'o Problem,
     stress: &'o Option<(Problem, f64)>,
     bounded_class: bool,
+    stable_floor: Option<f64>,
     loop_bounded: bool,
 }
 
@@ -298,6 +318,7 @@ impl Fork for ModelFork<'_> {
             problem: self.problem.clone(),
             stress: self.stress.clone(),
             bounded_class: self.bounded_class,
+            stable_floor: self.stable_floor,
             loop_bounded: self.loop_bounded,
             clock: Clock::new(),
         })

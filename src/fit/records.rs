@@ -134,6 +134,22 @@ impl Records {
         Scores::of(&self.runs_on(model, theta, &self.validation_halves()))
     }
 
+    /// The step in one sample that the measured output keeps within on a
+    /// `share` of its steps over every estimation half (its largest at 1;
+    /// 0 without steps).
+    pub fn measured_step_within(&self, share: f64) -> f64 {
+        let mut steps: Vec<f64> = self
+            .est
+            .iter()
+            .flat_map(|e| e.y.windows(2).map(|p| f64::from((p[1] - p[0]).abs())))
+            .collect();
+        if steps.is_empty() {
+            return 0.0;
+        }
+        steps.sort_by(f64::total_cmp);
+        steps[((steps.len() - 1) as f64 * share.clamp(0.0, 1.0)).round() as usize]
+    }
+
     /// The largest step in one sample of `model`'s free run at `theta`
     /// over every record (`None` without parameters, or where no run is
     /// finite): what its hysteresis update steps on.

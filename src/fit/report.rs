@@ -80,7 +80,7 @@ pub struct FitReport {
     pub diagnosis_parts: Option<DiagnosisParts>,
     /// The largest step of the output in one sample within which the
     /// fitted hysteresis update settles (`Family::stable_step`; `None`
-    /// where the loop never saturates or effect stages stand between the
+    /// where no branch of the loop bends or effect stages stand between the
     /// state and the output), and the measured output's largest
     /// step on the record (both halves): a record or a start that steps
     /// further makes the model overshoot, and at larger steps diverge.
@@ -641,8 +641,9 @@ impl FitReport {
             // Said rather than left out: a reader of another fit's report
             // looks for the line.
             line(
-                "  stable steps         not bounded   (the fitted loop does not saturate, so its \
-                 hysteresis update has no step past which it overshoots)"
+                "  stable steps         not bounded   (no branch of the fitted loop bends toward a bound or \
+                 back through zero, so its hysteresis update has no step past which it \
+                 overshoots)"
                     .to_string(),
             );
         }
@@ -1019,7 +1020,8 @@ fn stable_step_warning(stable: f64, largest: f64, records: usize) -> Option<Stri
             "the model's own run over {} steps up to {} a sample, past the {} a sample within \
              which its hysteresis update settles: the update overshoots there, and a record \
              that moves faster may make the run diverge; run the model only on records that \
-             move as slowly a sample, or refit on data with the faster moves",
+             move as slowly a sample, or refit on data with the faster moves (or with \
+             --overshoot refuse, which admits only loops that settle on the record's steps)",
             match records {
                 0 | 1 => "its record",
                 _ => "its records",

@@ -4,6 +4,7 @@
 
 use anyhow::Context as _;
 
+use super::problem::Overshoot;
 use super::run::FitTarget;
 use crate::model::effects::Effect;
 use crate::model::{Family, Loop, Model, ModelFile, Switching, UserBound};
@@ -21,6 +22,8 @@ pub struct FitRequest {
     pub loop_shape: Loop,
     /// `None`: the default (search; a warm start's level held).
     pub switching: Option<Switching>,
+    /// `None`: admitted ([`Overshoot`]'s default).
+    pub overshoot: Option<Overshoot>,
     /// The user's bounds and fixed values, after the start file's (so that
     /// these win).
     pub bounds: Vec<UserBound>,
@@ -115,6 +118,7 @@ impl FitRequest {
                 free_n: self.free_n,
                 loop_shape: self.loop_shape,
                 switching: self.switching,
+                overshoot: self.overshoot,
                 bounds,
             },
             start,
@@ -187,6 +191,7 @@ mod tests {
             free_n: false,
             loop_shape: Loop::Bounded,
             switching: None,
+            overshoot: None,
             bounds: Vec::new(),
             carry: false,
         }

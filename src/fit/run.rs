@@ -14,7 +14,7 @@ use super::agreement::Agreement;
 use super::chart::ModelChart;
 use super::edge::{Widening, settle_tries};
 use super::objective::ModelObjective;
-use super::problem::FitProblem;
+use super::problem::{Admission, FitProblem, Overshoot};
 use super::records::{Validation, offset_note};
 use super::settings::FitSettings;
 use crate::data::{Trace, sources};
@@ -40,6 +40,9 @@ pub struct FitTarget {
     /// `None`, the default: searched from scratch, and a warm start's
     /// model's level held.
     pub switching: Option<Switching>,
+    /// Whether a loop whose update overshoots is admitted (`--overshoot`);
+    /// `None`: admitted ([`Overshoot`]'s default).
+    pub overshoot: Option<Overshoot>,
     /// The user's bounds and fixed values (`--bound`, `--fix`), an effect's
     /// as `effect.param`.
     pub bounds: Vec<UserBound>,
@@ -56,6 +59,7 @@ impl FitTarget {
             free_n: false,
             loop_shape: Loop::Bounded,
             switching: None,
+            overshoot: None,
             bounds: Vec::new(),
         }
     }
@@ -227,6 +231,9 @@ impl FitRun {
         .and_then(|t| t.with_effects(&what.effects, &what.bounds))
         .with_context(|| format!("cannot fit {}", sources(traces)))?;
         let mut problem = problem;
+        if let Some(overshoot) = what.overshoot {
+            problem.admission = Admission::Fit(overshoot);
+        }
         let start = start.map(|m| warm_start(&problem, m));
         // A warm start keeps its model's level unless another was asked.
         if let (Some(theta), Some(is), None) = (&start, what.family.switch_index(), what.switching)
