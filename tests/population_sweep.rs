@@ -27,6 +27,7 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use mckibben::eval::cpu::CpuEvaluator;
+use mckibben::fit::problem::Overshoot;
 use mckibben::fit::sweep::{
     CaseFit as Result, MATRIX_SEED, PopulationRow, cases, fit_case, markdown_table, matrix_size,
     summarize,
@@ -98,7 +99,7 @@ fn population_sweep() {
                     if known {
                         continue;
                     }
-                    let r = fit_case(&case, n, seed, &mut cpu).unwrap();
+                    let r = fit_case(&case, (n, seed), Overshoot::Allow, &mut cpu).unwrap();
                     eprintln!("{r}");
                     writeln!(out, "{}", serde_json::to_string(&r).unwrap()).unwrap();
                 }

@@ -4,6 +4,7 @@
 use super::common::{given_once, population};
 use mckibben::eval::{self, Backend};
 use mckibben::fit::objective::{groups_of, tries_text, try_populations};
+use mckibben::fit::problem::Overshoot;
 use mckibben::fit::sweep::{
     CaseFit, MATRIX_SEED, PopulationRow, cases, fit_case, markdown_table, matrix_size, summarize,
 };
@@ -78,6 +79,10 @@ pub struct Args {
     /// Where to score: `auto` takes a real GPU if there is one, else the CPU.
     #[arg(long, value_enum, ignore_case = true, default_value_t = Backend::Auto)]
     backend: Backend,
+    /// Whether the fits admit a loop whose update overshoots on the steps
+    /// its record takes, as `fit --overshoot`.
+    #[arg(long, value_enum, ignore_case = true, default_value_t = Overshoot::Allow)]
+    overshoot: Overshoot,
     /// Machine-readable output on stdout.
     #[arg(long, conflicts_with = "markdown")]
     json: bool,
@@ -175,7 +180,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for &n in &pops {
         for case in &picked {
             for &seed in &args.seeds {
-                let fit = fit_case(case, n, seed, evaluator.as_mut())?;
+                let fit = fit_case(case, (n, seed), args.overshoot, evaluator.as_mut())?;
                 errln!("{fit}");
                 fits.push(fit);
             }

@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use super::agreement::{Agreement, UNSURE_SHARE};
 use super::cases::{Case, CaseSpec, matrix};
 use super::objective::{GENERATIONS, staged_plan};
+use super::problem::{Admission, Overshoot};
 use super::run::run_fit;
 use crate::eval::Evaluator;
 use crate::model::Family;
@@ -104,15 +105,18 @@ impl std::fmt::Display for CaseFit {
 }
 
 /// Fits `case` with `fit`'s defaults at population `n` and `seed` on
-/// `evaluator`, and judges the fit and each of its tries.
+/// `evaluator`, loops whose update overshoots admitted or not
+/// (`overshoot`, `fit --overshoot`), and judges the fit and each of its
+/// tries.
 pub fn fit_case(
     case: &SweepCase,
-    n: usize,
-    seed: u64,
+    (n, seed): (usize, u64),
+    overshoot: Overshoot,
     evaluator: &mut dyn Evaluator,
 ) -> anyhow::Result<CaseFit> {
     let generated = Case::generate(case.spec);
-    let problem = generated.problem();
+    let mut problem = generated.problem();
+    problem.admission = Admission::Fit(overshoot);
     let started = Instant::now();
     let plan = staged_plan(&problem, Algorithm::De.staged_settings(n), n, GENERATIONS);
     let try_populations = (0..plan.tries).map(|t| plan.try_size(t).global).collect();
