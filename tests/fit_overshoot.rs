@@ -12,20 +12,13 @@ use std::process::Command;
 use serde_json::Value;
 
 fn fit_400g(extra: &[&str]) -> Option<Value> {
-    let csv =
-        common::require_path(common::external_dir().join("cavatappi_muscle/sample1_400g.csv"))?;
+    let csv = common::require_external("cavatappi_muscle/sample1_400g.csv")?;
     let dir = tempfile::tempdir().unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_mckibben"))
-        .args(["fit", csv.to_str().unwrap()])
-        .args([
-            "--time",
-            "t_s",
-            "--input",
-            "pressure_psi",
-            "--output",
-            "disp_mm",
-        ])
-        .args(["--resample", "0.01", "--pop", "4000", "--json", "--out"])
+        .arg("fit")
+        .arg(&csv)
+        .args(common::CAVATAPPI_FLAGS)
+        .args(["--pop", "4000", "--json", "--out"])
         .arg(dir.path())
         .args(extra)
         .output()
