@@ -56,8 +56,8 @@ pub const STRESS_FACTOR: f64 = 10.0;
 /// shipped stairs, the sharp loops that overshoot validated better.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Overshoot {
-    /// Only loops that settle on the steps the estimation halves' output
-    /// takes ([`SETTLED_SHARE`]).
+    /// Only loops that settle on all but the fastest 1 % of the estimation
+    /// halves' output steps a sample.
     Refuse,
     /// Any loop, as the update runs it.
     #[default]
