@@ -164,6 +164,7 @@ class FitResult:
     effects: list[str]
     algo: str
     flow: str
+    overshoot: Literal["allow", "refuse"]
     seed: int
     population: int
     tries: int

@@ -43,6 +43,10 @@ fn a_fit_told_to_refuse_a_loop_that_overshoots_on_its_records_steps() {
     else {
         return;
     };
+    assert_eq!(
+        (&allowed["overshoot"], &refused["overshoot"]),
+        (&Value::from("allow"), &Value::from("refuse"))
+    );
     let arx = number(&refused, "linear_val_fit_percent");
     // Admitted, the overshooting loop wins the estimation half: its
     // update settles only within a hundredth of the record's steps.

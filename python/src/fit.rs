@@ -142,6 +142,9 @@ crate::state::with_state! {
         algo: String,
         /// `joint` or `thesis`.
         flow: String,
+        /// `allow` or `refuse`: whether loops whose update overshoots were
+        /// admitted (`overshoot`).
+        overshoot: String,
         /// The seed every random draw of the fit came from.
         seed: u64,
         /// Candidates a generation scores, all tries together (`pop`).
@@ -596,6 +599,7 @@ fn fit_result(
         effects: report.effects.clone(),
         algo: report.algo.to_string(),
         flow: to_python(py, &report.flow)?.extract()?,
+        overshoot: to_python(py, &report.overshoot)?.extract()?,
         seed: report.seed,
         population: report.population,
         stop: to_python(py, &report.stop)?.extract()?,

@@ -31,7 +31,7 @@ def test_diagnose_returns_the_commands_document_and_models(stair, cli, tmp_path)
     got = mckibben.diagnose(stair, **args)
     doc = got.document
     assert doc == expected
-    assert doc["schema_version"] == 4 and "verdict" in doc and "final" in doc
+    assert doc["schema_version"] == 5 and "verdict" in doc and "final" in doc
     assert isinstance(got.model, mckibben.Model) and got.baseline.effects == []
     assert got.baseline.params == doc["baseline"]["params"]
     for model, name in ((got.model, "model.json"), (got.baseline, "baseline.json")):

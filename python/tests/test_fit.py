@@ -161,6 +161,7 @@ def test_a_fit_refuses_overshooting_loops_as_the_command(stair, cli, tmp_path):
     # is refused, and the search ends elsewhere.
     allowed = mckibben.fit(stair, pop=1000, gens=30, seed=2)
     assert refused.sse != allowed.sse
+    assert (refused.overshoot, allowed.overshoot) == (expected["overshoot"], "allow") == ("refuse", "allow")
     with pytest.raises(ValueError, match="unknown overshoot `never`: expected one of refuse, allow"):
         mckibben.fit(stair, pop=40, gens=10, overshoot="never")
 

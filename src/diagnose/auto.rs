@@ -7,6 +7,7 @@ use super::settings::Settings;
 use crate::data::Trace;
 use crate::eval::Backend;
 use crate::fit::objective::TryGroup;
+use crate::fit::problem::Overshoot;
 use crate::fit::records::Records;
 use crate::fit::report::{DiagnosisParts, FitReport, Note, RecordScore};
 use crate::ident::{fit_percent, rmse};
@@ -90,6 +91,8 @@ pub fn selected_fit(
         seconds: started.elapsed().as_secs_f64(),
         backend: format!("{backend:?} (the diagnosis' searches)").to_lowercase(),
         flow: Flow::Joint,
+        // The diagnosis admits every bounded loop.
+        overshoot: Overshoot::Allow,
         seed,
         population: settings.population,
         tries: 1,

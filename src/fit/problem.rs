@@ -18,6 +18,7 @@ use std::ops::Range;
 use std::sync::Arc;
 
 use nalgebra::DVector;
+use serde::Serialize;
 
 use super::chart::ModelChart;
 use super::records::{Records, Validation};
@@ -54,7 +55,8 @@ pub const STRESS_FACTOR: f64 = 10.0;
 /// overshoots"). Admitted by default: on the rig twin with a stiff braid
 /// friction at large populations, and for the generalized family on the
 /// shipped stairs, the sharp loops that overshoot validated better.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
 pub enum Overshoot {
     /// Only loops that settle on all but the fastest 1 % of the estimation
     /// halves' output steps a sample.

@@ -12,7 +12,7 @@ use super::edge::{ActiveBound, Widening, active_bounds};
 use super::objective::{
     SMALL_TRY_POPULATION, TRY_POPULATION, TryGroup, tries_text, try_groups, try_population,
 };
-use super::problem::FitProblem;
+use super::problem::{Admission, FitProblem, Overshoot};
 use super::run::{Built, FitRun, StartScores, Switched};
 use super::uncertainty::{Assessment, assess};
 use crate::data::{Columns, Trace, sources, write_all_atomic};
@@ -107,6 +107,10 @@ pub struct FitReport {
     pub seconds: f64,
     pub backend: String,
     pub flow: Flow,
+    /// Whether loops whose update overshoots were admitted (`--overshoot`;
+    /// `allow` where the thesis' flow or the diagnosis' admission set the
+    /// rule).
+    pub overshoot: Overshoot,
     pub seed: u64,
     pub population: usize,
     /// Independent tries the population ran, the first one's population
@@ -337,6 +341,10 @@ impl FitReport {
             seconds: outcome.seconds,
             backend: backend.to_string(),
             flow: problem.flow,
+            overshoot: match problem.admission {
+                Admission::Fit(rule) if problem.flow != Flow::Thesis => rule,
+                _ => Overshoot::Allow,
+            },
             seed: engine.seed,
             population: (0..asked.tries).map(|t| try_population(asked, t)).sum(),
             tries: asked.tries,

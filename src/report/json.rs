@@ -8,7 +8,7 @@ use serde::Serialize;
 /// Version of the `--json` outputs' shape, shared by every command. It is
 /// bumped when a field is removed, renamed or changes meaning or type;
 /// adding a field does not bump it.
-pub const SCHEMA_VERSION: u32 = 4;
+pub const SCHEMA_VERSION: u32 = 5;
 
 /// A `--json` document: `schema_version`, then the fields of `body`.
 #[derive(Debug, Serialize)]
