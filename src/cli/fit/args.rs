@@ -247,8 +247,9 @@ pub struct Args {
     /// validates poorly, or a larger --pop validates worse, refit with
     /// refuse (on real records it kept larger populations from hurting;
     /// docs/RESULTS.md). Allowed by default: on other records, and for the
-    /// generalized family, the loops that overshoot fitted better.
-    /// [default: allow]
+    /// generalized family, the loops that overshoot fitted better. Not
+    /// checked with --effects, whose loop steps on the baseline's own
+    /// output. [default: allow]
     #[arg(long, value_enum, ignore_case = true, conflicts_with = "thesis_flow")]
     pub(super) overshoot: Option<Overshoot>,
     /// Bound one parameter to [LO, HI] (repeatable): a canonical name (A,
