@@ -63,6 +63,15 @@ fn a_row_counts_the_first_seed_as_the_cases_and_every_seed_as_single_tries() {
     assert_eq!(row["pass"].as_u64(), Some(pass));
 }
 
+/// A sweep says which overshoot rule its fits ran under (`--overshoot`).
+#[test]
+fn a_sweep_says_whether_its_fits_refused_overshooting_loops() {
+    for rule in ["allow", "refuse"] {
+        let json = sweep(&["--overshoot", rule, "--backend", "cpu"]);
+        assert_eq!(json["overshoot"].as_str(), Some(rule), "{json}");
+    }
+}
+
 /// The table of several seeds says whose fits its pass and time columns
 /// count, wherever it is pasted (it showed seed 1's alone without a word),
 /// and the lowest seed's whatever the order given.

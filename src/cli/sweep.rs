@@ -95,6 +95,7 @@ pub struct Args {
 struct Output<'a> {
     backend: String,
     matrix: u64,
+    overshoot: Overshoot,
     rows: &'a [PopulationRow],
     fits: &'a [CaseFit],
 }
@@ -191,6 +192,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let output = Output {
             backend,
             matrix: args.matrix,
+            overshoot: args.overshoot,
             rows: &rows,
             fits: &fits,
         };
