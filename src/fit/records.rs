@@ -138,16 +138,18 @@ impl Records {
     /// `share` of its steps over every estimation half (its largest at 1;
     /// 0 without steps).
     pub fn measured_step_within(&self, share: f64) -> f64 {
-        let mut steps: Vec<f64> = self
-            .est
-            .iter()
-            .flat_map(|e| e.y.windows(2).map(|p| f64::from((p[1] - p[0]).abs())))
-            .collect();
+        let mut steps: Vec<f64> = output_steps(&self.est).collect();
         if steps.is_empty() {
             return 0.0;
         }
-        steps.sort_by(f64::total_cmp);
-        steps[((steps.len() - 1) as f64 * share.clamp(0.0, 1.0)).round() as usize]
+        let at = ((steps.len() - 1) as f64 * share.clamp(0.0, 1.0)).round() as usize;
+        *steps.select_nth_unstable_by(at, f64::total_cmp).1
+    }
+
+    /// The largest step in one sample of the measured output over every
+    /// whole record (`None` without steps).
+    pub fn largest_measured_step(&self) -> Option<f64> {
+        output_steps(&self.whole).reduce(f64::max)
     }
 
     /// The largest step in one sample of `model`'s free run at `theta`
@@ -324,6 +326,13 @@ impl Scores {
                 .collect(),
         }
     }
+}
+
+/// Each step in one sample of the measured output of `experiments`.
+fn output_steps(experiments: &[Experiment]) -> impl Iterator<Item = f64> + '_ {
+    experiments
+        .iter()
+        .flat_map(|e| e.y.windows(2).map(|p| f64::from((p[1] - p[0]).abs())))
 }
 
 /// The scores of records' `(measured, simulated)` samples pooled: the RMSE

@@ -323,12 +323,7 @@ impl FitReport {
             stable_step: (found && problem.model.effects.is_empty())
                 .then(|| problem.model.family.stable_step(&outcome.params))
                 .flatten(),
-            largest_step: problem
-                .records
-                .whole
-                .iter()
-                .flat_map(|e| e.y.windows(2).map(|p| f64::from((p[1] - p[0]).abs())))
-                .reduce(f64::max),
+            largest_step: problem.records.largest_measured_step(),
             simulated_largest_step: problem
                 .records
                 .largest_simulated_step(&problem.model, &outcome.params),
